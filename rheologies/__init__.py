@@ -1,0 +1,21 @@
+"""Built-in rheologies of ``multilayer`` (DESIGN.md section 2).
+
+They are registered through the same entry point and hook as third-party plugins
+(``[project.entry-points.multilayer] builtins = "rheologies"``).
+"""
+from collections.abc import Callable
+
+import multilayer
+from rheologies.drucker_prager import DruckerPrager
+from rheologies.jop_mu_i import JopMuI
+from rheologies.power_law_mu_i import PowerLawMuI
+from rheologies.wall_friction import WallFriction
+
+__all__ = ["DruckerPrager", "JopMuI", "PowerLawMuI", "WallFriction"]
+
+
+@multilayer.hookimpl
+def multilayer_register_rheologies(register: Callable[[type[multilayer.Rheology]], None]) -> None:
+    """Register the four built-in laws."""
+    for cls in (DruckerPrager, JopMuI, PowerLawMuI, WallFriction):
+        register(cls)

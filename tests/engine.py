@@ -1,0 +1,42 @@
+"""Building scenarios for the engine tests (not a test module)."""
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+from multilayer.scenario import Scenario, from_dict
+from multilayer.simulation import Simulation
+
+BASE: dict[str, Any] = {
+    "name": "engine-test",
+    "gravity": 9.81,
+    "slope_deg": 0.0,
+    "domain": {"x_min": 0.0, "x_max": 10.0, "cells": 100, "layers": 2},
+    "material": {"density": 1000.0, "grain_diameter": 1.0e-3},
+    "rheology": {"name": "drucker_prager", "mu_s": 0.0, "nu": 0.0},
+    "base": [{"condition": "free_slip"}],
+    "initial": [],
+    "boundaries": {"left": "wall", "right": "wall"},
+    "time": {"end": 1.0, "output_interval": 1.0},
+}
+
+
+REPLACED = {"rheology", "walls", "bed"}  # whole mappings, never merged
+
+
+def _merge(into: dict, changes: dict) -> dict:
+    for key, value in changes.items():
+        if isinstance(value, dict) and isinstance(into.get(key), dict) and key not in REPLACED:
+            _merge(into[key], value)
+        else:
+            into[key] = value
+    return into
+
+
+def scenario(**changes: Any) -> Scenario:
+    """The BASE scenario with nested ``changes`` merged in."""
+    return from_dict(_merge(copy.deepcopy(BASE), changes))
+
+
+def simulation(**changes: Any) -> Simulation:
+    return Simulation(scenario(**changes))

@@ -1,0 +1,180 @@
+"""The ``multilayer`` command: exit codes, messages for every class of invalid input,
+and the round trip scenario -> result.nc."""
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import fipy
+import numpy as np
+import pytest
+import xarray as xr
+import yaml
+
+import multilayer
+from multilayer import runner
+from multilayer.errors import RunError
+
+
+DELETE = object()
+
+
+def set_key(data, path, value):
+    """``data`` with ``path`` (dotted) set to ``value``; ``value=DELETE`` removes the key."""
+    *parents, last = [int(p) if p.isdigit() else p for p in path.split(".")]
+    for part in parents:
+        data = data[part]
+    if value is DELETE:
+        del data[last]
+    else:
+        data[last] = value
+
+# (case, edits applied to the tiny scenario, key path in the message, text in the message)
+INVALID = [
+    ("unknown key", {"gravty": 9.8}, "gravty", "unknown key; accepted: name, description"),
+    ("unknown nested key", {"domain.cellz": 10}, "domain.cellz", "accepted: x_min, x_max, cells"),
+    ("wrong type", {"domain.cells": "ten"}, "domain.cells", "valid integer (got 'ten')"),
+    ("missing key", {"time.end": DELETE}, "time.end", "required key is missing"),
+    ("negative density", {"material.density": -1500.0}, "material.density", "greater than 0"),
+    ("negative thickness", {"initial.0": {"shape": "layer", "thickness": -0.01}},
+     "initial.0.thickness", "accepted: a number > 0 (m)"),
+    ("layers < 1", {"domain.layers": 0}, "domain.layers", "accepted: an integer >= 1"),
+    ("cfl >= 1", {"time.cfl": 1.0}, "time.cfl", "accepted: a number in (0, 1)"),
+    ("cfl <= 0", {"time.cfl": 0.0}, "time.cfl", "accepted: a number in (0, 1)"),
+    ("fractions not summing to 1", {"domain.layer_fractions": [0.2, 0.3, 0.4]},
+     "domain.layer_fractions", "fractions sum to 0.9"),
+    ("domain x_min >= x_max", {"domain.x_max": 0.0}, "domain.x_max",
+     "x_max = 0.0 is not > x_min = 0.0"),
+    ("rectangle x_min >= x_max", {"initial.0.x_min": 0.3}, "initial.0.x_max",
+     "x_max = 0.1 is not > x_min = 0.3"),
+    ("unknown basal condition", {"base": [{"condition": "sticky"}]}, "base.0.condition",
+     "got 'sticky'; accepted: no_slip, coulomb (with mu) or free_slip"),
+    ("coulomb without mu", {"base": [{"condition": "coulomb"}]}, "base.0.mu",
+     "condition coulomb requires mu"),
+    ("unknown boundary type", {"boundaries.right": "open"}, "boundaries.right",
+     "accepted: wall, outflow, inflow or periodic"),
+    ("periodic on one side", {"boundaries.left": "periodic"}, "boundaries.right",
+     "periodic must be set on both sides"),
+    ("inflow without its state", {"boundaries.left": "inflow"}, "boundaries.inflow",
+     "an inflow side requires boundaries.inflow"),
+    ("walls without width", {"walls": {"name": "wall_friction", "mu_w": 0.2}}, "walls",
+     "walls need the channel width domain.width"),
+    ("unknown rheology name", {"rheology.name": "bingam"}, "rheology.name",
+     "unknown rheology 'bingam'; accepted: drucker_prager, jop_mu_i, power_law_mu_i"),
+    ("walls law used for the bulk", {"rheology": {"name": "wall_friction", "mu_w": 0.2}},
+     "rheology.name", "'wall_friction' applies to walls, not bulk"),
+    ("unknown rheology parameter", {"rheology.mu_2": 0.6}, "rheology.mu_2",
+     "unknown parameter of drucker_prager; accepted: drucker_prager(mu_s: float, nu: float)"),
+    ("wrong rheology parameter type", {"rheology.nu": "thick"}, "rheology.nu",
+     "drucker_prager: Input should be a valid number (got 'thick')"),
+    ("invalid rheology parameter value", {"rheology.nu": -0.01}, "rheology",
+     "drucker_prager: nu must be >= 0, got -0.01"),
+    ("expect without tolerance", {"expect": [{"quantity": "runout", "value": 0.1}]},
+     "expect.0.rtol", "needs a tolerance"),
+    ("unknown expect quantity", {"expect": [{"quantity": "speed", "value": 1, "rtol": 0.1}]},
+     "expect.0.quantity", "accepted: front_final, mass_final, runout"),
+]
+
+
+@pytest.mark.parametrize("case, edits, key, text", INVALID, ids=[c[0] for c in INVALID])
+def test_invalid_scenario_exits_2(cli, tiny_scenario, write_scenario, case, edits, key, text):
+    for path, value in edits.items():
+        set_key(tiny_scenario, path, value)
+    scenario = write_scenario(tiny_scenario)
+    for command in ("validate", "run"):
+        result = cli(command, scenario)
+        assert result.code == 2, result.err
+        assert "Traceback" not in result.err
+        assert result.err.startswith(f"multilayer: error: {scenario}: {key} (line ")
+        assert text in result.err
+
+
+def test_malformed_yaml_gives_the_line(cli, write_scenario):
+    path = write_scenario("name: broken\ndomain:\n  x_min: 0\n   x_max: 1\n")
+    result = cli("validate", path)
+    assert result.code == 2 and "Traceback" not in result.err
+    assert f"{path} (line 4, column 9): malformed YAML" in result.err
+
+
+def test_missing_file(cli, tmp_path):
+    result = cli("run", tmp_path / "nope.yaml")
+    assert result.code == 2
+    assert result.err == f"multilayer: error: {tmp_path / 'nope.yaml'}: file not found; " \
+                         "accepted: a path to a scenario YAML file\n"
+
+
+def test_unknown_set_key(cli, tiny_scenario, write_scenario):
+    path = write_scenario(tiny_scenario)
+    result = cli("run", path, "--set", "domain.cellz=10")
+    assert result.code == 2 and "Traceback" not in result.err
+    assert f"{path}: domain.cellz (from --set): unknown key; accepted: x_min, x_max, cells" in result.err
+    result = cli("run", path, "--set", "initial.4.height=1")
+    assert result.code == 2 and "--set initial.4.height: initial has 1 entries" in result.err
+
+
+def test_validate_reports_every_file(cli, tiny_scenario, write_scenario):
+    good = write_scenario(tiny_scenario, "good.yaml")
+    tiny_scenario["domain"]["cells"] = 0
+    bad = write_scenario(tiny_scenario, "bad.yaml")
+    result = cli("validate", good, bad)
+    assert result.code == 2
+    assert f"{good}: ok (tiny: 40 cells x 3 layers, rheology drucker_prager" in result.out
+    assert f"{bad}: domain.cells (line " in result.err
+    assert cli("validate", good).code == 0
+
+
+def test_console_script_exit_code_without_traceback(tmp_path):
+    """The installed ``multilayer`` script, as a separate process."""
+    path = tmp_path / "bad.yaml"
+    path.write_text("name: [unclosed\n")
+    result = subprocess.run([sys.executable, "-m", "multilayer.cli", "validate", str(path)],
+                            capture_output=True, text=True)
+    assert result.returncode == 2
+    assert "Traceback" not in result.stderr and "malformed YAML" in result.stderr
+
+
+def test_version_help_and_plugins(cli):
+    result = cli("--version")
+    assert result.code == 0
+    assert result.out == f"multilayer {multilayer.__version__} (FiPy {fipy.__version__})\n"
+    result = cli("--help")
+    assert result.code == 0 and all(c in result.out for c in ("run", "validate", "plugins"))
+    result = cli("plugins")
+    assert result.code == 0
+    assert "jop_mu_i [bulk]: Jop et al. (2006) mu(I)" in result.out
+    assert "parameters: jop_mu_i(mu_s: float, mu_2: float, I_0: float)" in result.out
+    assert "wall_friction [walls]" in result.out
+    assert cli("frobnicate").code == 2  # argparse usage error
+
+
+@pytest.mark.parametrize("error, code", [(RunError("solver diverged"), 1),
+                                         (KeyboardInterrupt(), 130)])
+def test_run_failures_exit_codes(cli, tiny_scenario, write_scenario, monkeypatch, error, code):
+    def failing(*args, **kwargs):
+        raise error
+
+    monkeypatch.setattr(runner, "run", failing)
+    result = cli("run", write_scenario(tiny_scenario), "-q")
+    assert result.code == code and "Traceback" not in result.err
+
+
+def test_run_round_trip_writes_result(cli, tiny_scenario, write_scenario, tmp_path):
+    """``multilayer run`` on the tiny scenario writes result.nc with the DESIGN.md section 6
+    variables and attributes; mass (m^2 per unit width) is conserved with a wall upstream
+    while nothing has reached the outflow: 0.1 m x 0.05 m = 0.005 m^2."""
+    outdir = tmp_path / "out"
+    result = cli("run", write_scenario(tiny_scenario), "-o", outdir, "--set", "domain.cells=20")
+    assert result.code == 0, result.err
+    assert f"tiny: wrote {outdir / 'result.nc'}" in result.out
+    with xr.open_dataset(outdir / "result.nc") as ds:
+        assert {"h", "u", "bed", "static_interface", "front", "mass"} <= set(ds.data_vars)
+        assert ds["h"].dims == ("time", "x") and ds["u"].dims == ("time", "layer", "x")
+        np.testing.assert_allclose(ds["time"], [0.0, 0.025, 0.05])
+        np.testing.assert_array_equal(ds["layer"], [1, 2, 3])
+        np.testing.assert_allclose(ds["mass"], 0.005, rtol=1e-12)
+        assert ds.attrs["cells"] == 20 * 3 and ds.attrs["steps"] > 0
+        assert ds.attrs["fipy_version"] == fipy.__version__
+        assert ds.attrs["multilayer_version"] == multilayer.__version__
+        assert ds.attrs["wall_time_s"] > 0
+        scenario = yaml.safe_load(ds.attrs["scenario"])
+        assert scenario["domain"]["cells"] == 20 and scenario["numerics"]["order"] == 2

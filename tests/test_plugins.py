@@ -1,0 +1,203 @@
+"""Plugin discovery: a real third-party distribution, broken and duplicate plugins."""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from multilayer import Material, plugins
+from multilayer.errors import InputError
+from multilayer.scenario import load
+
+THIRDPARTY = Path(__file__).parent / "thirdparty_plugin"
+MULTILAYER = [sys.executable, "-m", "multilayer.cli"]
+
+
+def pip(*args: str) -> None:
+    done = subprocess.run([sys.executable, "-m", "pip", "--disable-pip-version-check", "-q", *args],
+                          capture_output=True, text=True)
+    if done.returncode:
+        pytest.fail(f"pip {' '.join(args)} failed:\n{done.stderr}")
+
+
+@pytest.fixture(scope="module")
+def bingham(tmp_path_factory):
+    """tests/thirdparty_plugin pip-installed (as a user would: a built wheel, isolated build
+    backend from the package index) into the environment running the tests, for this module."""
+    source = tmp_path_factory.mktemp("plugin") / "multilayer-bingham"
+    shutil.copytree(THIRDPARTY, source)  # the build writes into its source tree
+    pip("install", "--no-deps", str(source))
+    plugins.refresh()
+    yield
+    pip("uninstall", "-y", "multilayer-bingham")
+    plugins.refresh()
+
+
+def bingham_scenario(tiny_scenario, **params):
+    tiny_scenario["rheology"] = {"name": "bingham", **params}
+    return tiny_scenario
+
+
+def test_installed_plugin_is_listed(bingham):
+    result = subprocess.run([*MULTILAYER, "plugins"], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert "bingham [bulk]: Bingham plastic: constant yield stress, constant viscosity." in result.stdout
+    assert "parameters: bingham(tau_y: float, eta: float)" in result.stdout
+    assert "from: multilayer-bingham 1.0.0 (entry point bingham = multilayer_bingham)" in result.stdout
+    assert "jop_mu_i [bulk]" in result.stdout  # the built-ins are still there
+
+
+def test_installed_plugin_usable_by_name(bingham, tiny_scenario, write_scenario):
+    path = write_scenario(bingham_scenario(tiny_scenario, tau_y=40.0, eta=2.0))
+    result = subprocess.run([*MULTILAYER, "validate", str(path)], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    law = plugins.instantiate(load(path).rheology)
+    np.testing.assert_array_equal(law.yield_stress(np.zeros(3), Material(1500, 1e-3, 2500)), 40.0)
+
+
+def test_installed_plugin_parameters_are_validated(bingham, tiny_scenario, write_scenario):
+    for params, key, needle in [({"tau_y": 40.0, "eta": 2.0, "tau_z": 1.0}, "rheology.tau_z",
+                                 "unknown parameter of bingham"),
+                                ({"tau_y": 40.0}, "rheology.eta", "missing parameter"),
+                                ({"tau_y": -4.0, "eta": 2.0}, "rheology", "tau_y and eta must be >= 0")]:
+        path = write_scenario(bingham_scenario(tiny_scenario, **params))
+        result = subprocess.run([*MULTILAYER, "validate", str(path)], capture_output=True, text=True)
+        assert result.returncode == 2
+        assert "Traceback" not in result.stderr
+        assert f"{path}: {key} (line " in result.stderr and needle in result.stderr
+        assert "accepted: bingham(tau_y: float, eta: float)" in result.stderr
+
+
+def test_installed_plugin_runs(bingham, tiny_scenario, write_scenario, tmp_path):
+    """A Bingham layer stays exactly at rest while its yield stress exceeds the basal shear
+    stress rho g h sin(theta) = 1500 * 9.81 * 0.01 * sin(20 deg) = 50.3 Pa."""
+    scenario = bingham_scenario(tiny_scenario, tau_y=60.0, eta=2.0)
+    scenario.update(slope_deg=20.0, initial=[{"shape": "layer", "thickness": 0.01}],
+                    boundaries={"left": "periodic", "right": "periodic"})
+    path = write_scenario(scenario)
+    result = subprocess.run([*MULTILAYER, "run", str(path), "-o", str(tmp_path / "out"), "-q"],
+                            capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    with xr.open_dataset(tmp_path / "out" / "result.nc") as ds:
+        assert float(np.abs(ds["u"]).max()) == 0.0
+        np.testing.assert_allclose(ds["h"].values, 0.01, rtol=1e-12)
+
+
+# ---------------------------------------------------------------- broken plugins
+
+
+def fake_distribution(root: Path, name: str, module_source: str) -> None:
+    """An installed distribution ``name`` (a .dist-info directory, as pip writes it) whose
+    entry point in the ``multilayer`` group is the module ``<name>_plugin``."""
+    module = f"{name.replace('-', '_')}_plugin"
+    info = root / f"{name.replace('-', '_')}-1.0.dist-info"
+    info.mkdir(parents=True)
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {name}\nVersion: 1.0\n")
+    (info / "entry_points.txt").write_text(f"[multilayer]\n{name} = {module}\n")
+    (root / f"{module}.py").write_text(textwrap.dedent(module_source))
+
+
+BROKEN = {
+    "import-fails": ("import numpy\nraise ImportError('needs numpy >= 99')\n",
+                     "ImportError: needs numpy >= 99"),
+    "not-a-rheology": ("""
+        import multilayer
+        class Thing:
+            name = "thing"
+        @multilayer.hookimpl
+        def multilayer_register_rheologies(register):
+            register(Thing)
+        """, "is not a subclass of multilayer.Rheology"),
+    "no-hookimpl": ("def multilayer_register_rheologies(register):\n    pass\n",
+                    "registers no rheology"),
+    "bad-applies-to": ("""
+        import multilayer
+        class Odd(multilayer.Rheology):
+            name = "odd"
+            applies_to = "base"
+            def yield_stress(self, pressure, material): return pressure
+            def viscosity(self, shear_rate, pressure, material): return pressure
+        @multilayer.hookimpl
+        def multilayer_register_rheologies(register):
+            register(Odd)
+        """, "applies_to must be 'bulk' or 'walls'"),
+    "duplicate": ("""
+        import multilayer
+        from rheologies.drucker_prager import DruckerPrager
+        class Impostor(DruckerPrager):
+            pass
+        @multilayer.hookimpl
+        def multilayer_register_rheologies(register):
+            register(Impostor)
+        """, "rheology name 'drucker_prager' is already registered by multilayer 0.1.0 "
+             "(entry point builtins = rheologies); this second registration was rejected"),
+}
+
+
+@pytest.fixture
+def fresh_catalogue():
+    plugins.refresh()
+    yield
+    plugins.refresh()
+
+
+@pytest.mark.parametrize("name", BROKEN)
+def test_broken_plugin_is_reported_without_hiding_others(name, tmp_path, monkeypatch,
+                                                         fresh_catalogue):
+    source, error = BROKEN[name]
+    fake_distribution(tmp_path, name, source)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.warns(plugins.PluginWarning, match=f"rheology plugin {name} 1.0"):
+        catalogue = plugins.catalogue()
+    [broken] = [b for b in catalogue.broken if b.source.startswith(f"{name} 1.0")]
+    assert broken.source == f"{name} 1.0 (entry point {name} = {name.replace('-', '_')}_plugin)"
+    assert error in broken.error
+    assert {"drucker_prager", "jop_mu_i", "power_law_mu_i", "wall_friction"} <= set(
+        catalogue.rheologies)
+    assert catalogue.rheologies["drucker_prager"].source.startswith("multilayer ")
+
+
+def test_cli_lists_broken_plugin_and_still_runs(tmp_path, tiny_scenario, write_scenario):
+    fake_distribution(tmp_path / "site", "import-fails", BROKEN["import-fails"][0])
+    env = {**os.environ, "PYTHONPATH": str(tmp_path / "site")}
+    listing = subprocess.run([*MULTILAYER, "plugins"], capture_output=True, text=True, env=env)
+    assert listing.returncode == 0
+    assert "broken plugins (skipped):\n  import-fails 1.0" in listing.stdout
+    assert "drucker_prager [bulk]" in listing.stdout
+    path = write_scenario(tiny_scenario)
+    check = subprocess.run([*MULTILAYER, "validate", str(path)], capture_output=True, text=True,
+                           env=env)
+    assert check.returncode == 0
+    assert "multilayer: warning: rheology plugin import-fails 1.0" in check.stderr
+    assert "Traceback" not in check.stderr
+
+
+def test_lookup_and_instantiate():
+    with pytest.raises(InputError, match="unknown rheology 'nope'; accepted: .*"
+                                         "drucker_prager, jop_mu_i, power_law_mu_i$"):
+        plugins.lookup("nope", "bulk")
+    with pytest.raises(InputError, match="'wall_friction' applies to walls, not bulk; accepted: .*drucker_prager"):
+        plugins.lookup("wall_friction", "bulk")
+
+    class Spec:
+        name, params = "jop_mu_i", {"mu_s": 0.38, "mu_2": 0.64, "I_0": -1.0}
+
+    with pytest.raises(InputError, match=r"I_0 must be > 0.*accepted: jop_mu_i\(mu_s: float"):
+        plugins.instantiate(Spec)
+    Spec.params = {"mu_s": 0.38, "mu_2": 0.64, "I_0": 0.279}
+    assert plugins.instantiate(Spec).I_0 == 0.279
+
+
+def test_parameter_model_is_strict():
+    model = plugins.parameter_model(plugins.registry()["drucker_prager"])
+    assert model.model_validate({"mu_s": 1, "nu": 0.5}).mu_s == 1.0
+    for bad in ({"mu_s": True, "nu": 0.5}, {"mu_s": "0.5", "nu": 0.5}, {"mu_s": 0.5}):
+        with pytest.raises(Exception):
+            model.model_validate(bad)

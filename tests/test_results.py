@@ -1,0 +1,139 @@
+"""The result file: CF attributes, incremental writing, summary, checkpoints."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import fipy
+import netCDF4
+import numpy as np
+import pytest
+import xarray as xr
+import yaml
+
+import multilayer
+from multilayer import runner, scenario as scenarios
+from multilayer.errors import InputError
+from multilayer.results import (
+    Checkpoint,
+    ResultWriter,
+    load_checkpoint,
+    open_result,
+    save_checkpoint,
+    summary,
+)
+from multilayer.simulation import Simulation
+
+# A 0.1 m x 0.05 m column on a 25 degree slope, 40 cells x 3 layers, wall on the left.
+COLUMN = {
+    "name": "column",
+    "slope_deg": 25.0,
+    "domain": {"x_min": 0.0, "x_max": 0.5, "cells": 40, "layers": 3},
+    "material": {"density": 1500.0, "grain_diameter": 1.0e-3},
+    "rheology": {"name": "drucker_prager", "mu_s": 0.3, "nu": 0.01},
+    "initial": [{"shape": "rectangle", "x_min": 0.0, "x_max": 0.1, "height": 0.05}],
+    "boundaries": {"left": "wall", "right": "outflow"},
+    "time": {"end": 0.05, "output_interval": 0.025},
+}
+
+
+@pytest.fixture(scope="module")
+def result_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    outdir = tmp_path_factory.mktemp("column")
+    runner.run(scenarios.from_dict(COLUMN), outdir, quiet=True)
+    return outdir
+
+
+def test_every_variable_and_coordinate_has_cf_attributes(result_dir: Path) -> None:
+    with netCDF4.Dataset(result_dir / "result.nc") as ds:
+        assert ds.Conventions == "CF-1.8"
+        for name, var in ds.variables.items():
+            assert var.units and var.long_name, name
+        assert {n: ds[n].axis for n in ("time", "x", "layer")} == {
+            "time": "T", "x": "X", "layer": "Z"}
+        assert ds["time"].standard_name == "time"
+        assert ds["u"].coordinates == "sigma"
+        assert ds["front"].threshold == 1e-3
+        assert ds.dimensions["time"].isunlimited()
+        for attr in ("title", "institution", "source", "history"):
+            assert getattr(ds, attr)
+        assert yaml.safe_load(ds.scenario)["name"] == "column"
+        assert ds.cells == 40 * 3
+        assert ds.steps > 0 and ds.wall_time_s > 0
+        assert ds.multilayer_version == multilayer.__version__
+        assert ds.fipy_version == fipy.__version__
+        assert ds.run_status == "completed"
+
+
+def test_contents_match_the_setup(result_dir: Path) -> None:
+    ds = xr.open_dataset(result_dir / "result.nc")
+    np.testing.assert_allclose(ds["time"], [0.0, 0.025, 0.05], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(ds["x"], 0.00625 + 0.0125 * np.arange(40), atol=1e-15)
+    np.testing.assert_allclose(ds["sigma"], [1 / 6, 1 / 2, 5 / 6], atol=1e-15)
+    np.testing.assert_allclose(ds["sigma_bnds"][:, 1] - ds["sigma_bnds"][:, 0], 1 / 3)
+    np.testing.assert_allclose(ds["x_bnds"][:, 1] - ds["x_bnds"][:, 0], 0.0125)
+    # released from rest: the column is 8 cells of 0.05 m, at rest (static to the top)
+    assert np.abs(ds["u"][0]).max() == 0.0
+    np.testing.assert_allclose(ds["h"][0, :8], 0.05)
+    np.testing.assert_allclose(ds["static_interface"][0, :8], 0.05)
+    assert float(ds["front"][0]) == pytest.approx(0.09375)
+    # the front has not reached the outflow: mass 0.1 m x 0.05 m is conserved
+    np.testing.assert_allclose(ds["mass"], 0.005, rtol=1e-12)
+    np.testing.assert_allclose(ds["mass"], ds["h"].sum("x") * 0.0125, rtol=1e-12)
+
+
+def test_summary_is_read_from_the_final_time(result_dir: Path) -> None:
+    ds = xr.open_dataset(result_dir / "result.nc")
+    final = ds.isel(time=-1)
+    wet = final["h"] > 1e-3
+    s = summary(result_dir)
+    assert s["front_final"] == float(final["front"])
+    assert s["runout"] == pytest.approx(float(final["front"]) - 0.09375)
+    assert s["runout"] > 0  # 25 deg > atan(0.3) = 16.7 deg: the column slumps downslope
+    assert s["mass_final"] == pytest.approx(0.005, rel=1e-12)
+    assert s["max_speed_final"] == float(np.abs(final["u"]).max()) > 0
+    assert s["static_interface_mean_final"] == pytest.approx(
+        float(final["static_interface"].where(wet).mean()))
+    assert s["wall_time_s"] == ds.attrs["wall_time_s"]
+    assert s["steps"] == ds.attrs["steps"]
+
+
+def test_records_are_readable_while_writing_and_a_torn_record_is_dropped(
+        tmp_path: Path) -> None:
+    sc = scenarios.from_dict(COLUMN)
+    sim = Simulation(sc)
+    writer = ResultWriter(tmp_path / "result.nc", sc, sim)
+    writer.write(sim)
+    sim.advance(0.01)
+    writer.write(sim)
+    # a crash in the middle of the next record: h written, time not yet
+    with netCDF4.Dataset(tmp_path / "result.nc", "a") as ds:
+        ds["h"][2, :] = sim.h
+    partial = open_result(tmp_path)
+    np.testing.assert_array_equal(partial["time"], [0.0, 0.01])
+    np.testing.assert_array_equal(partial["h"][1], sim.h)
+    np.testing.assert_array_equal(partial["u"][1], sim.u)
+    assert partial.attrs["run_status"] == "running"
+    writer.close(sim.steps, 0.5)
+
+
+def test_checkpoint_round_trip_is_exact_and_atomic(tmp_path: Path) -> None:
+    sim = Simulation(scenarios.from_dict(COLUMN))
+    sim.advance(0.01)
+    path = tmp_path / "checkpoint.npz"
+    save_checkpoint(path, Checkpoint(sim.state_dict(), 2, 1.25, "name: column\n"))
+    assert [p.name for p in tmp_path.iterdir()] == ["checkpoint.npz"]
+    back = load_checkpoint(path)
+    assert (back.records, back.wall_time_s, back.scenario) == (2, 1.25, "name: column\n")
+    fresh = Simulation(scenarios.from_dict(COLUMN))
+    fresh.load_state(back.state)
+    assert (fresh.t, fresh.steps) == (sim.t, sim.steps)
+    np.testing.assert_array_equal(fresh.h, sim.h)
+    np.testing.assert_array_equal(fresh.u, sim.u)
+
+
+def test_missing_or_broken_result_is_an_input_error(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match="no result file"):
+        open_result(tmp_path)
+    (tmp_path / "result.nc").write_text("not netCDF")
+    with pytest.raises(InputError, match="not a readable netCDF"):
+        summary(tmp_path)

@@ -1,0 +1,187 @@
+"""Running into a directory: Ctrl-C and resume, failures, log, progress line."""
+from __future__ import annotations
+
+import io
+import shlex
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import netCDF4
+import numpy as np
+import pytest
+import yaml
+
+from multilayer import runner, scenario as scenarios
+from multilayer.errors import RunError
+from multilayer.progress import Progress
+from multilayer.results import open_result
+from multilayer.simulation import Simulation
+
+# A column slumping down a 25 degree slope, 40 cells x 3 layers, 26 output times.
+SLUMP = {
+    "name": "slump",
+    "slope_deg": 25.0,
+    "domain": {"x_min": 0.0, "x_max": 0.5, "cells": 40, "layers": 3},
+    "material": {"density": 1500.0, "grain_diameter": 1.0e-3},
+    "rheology": {"name": "drucker_prager", "mu_s": 0.3, "nu": 0.01},
+    "initial": [{"shape": "rectangle", "x_min": 0.0, "x_max": 0.1, "height": 0.05}],
+    "boundaries": {"left": "wall", "right": "outflow"},
+    "time": {"end": 0.5, "output_interval": 0.02},
+}
+
+
+def _cli(*args: object) -> list[str]:
+    return [sys.executable, "-m", "multilayer.cli", *map(str, args)]
+
+
+# `multilayer run` in a child process whose time steps take at least 20 ms each, so that
+# the run is still going when the test's SIGINT arrives, however fast the engine is.
+_PACED_RUN = """
+import sys, time
+from multilayer.cli import main
+from multilayer.simulation import Simulation
+step = Simulation.step
+def paced_step(self, t_max):
+    time.sleep(0.02)
+    return step(self, t_max)
+Simulation.step = paced_step
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def _records(path: Path) -> int:
+    """Output times completed in a result file being written (0 if not readable yet)."""
+    try:
+        with netCDF4.Dataset(path) as ds:
+            return int(np.isfinite(ds["time"][:].filled(np.nan)).sum())
+    except (OSError, KeyError, IndexError):
+        return 0
+
+
+def _assert_same_result(a: Path, b: Path) -> None:
+    ra, rb = open_result(a), open_result(b)
+    np.testing.assert_array_equal(ra["time"], rb["time"])
+    np.testing.assert_allclose(ra["h"], rb["h"], rtol=0, atol=1e-8)
+    np.testing.assert_allclose(ra["u"], rb["u"], rtol=0, atol=1e-8)
+    np.testing.assert_allclose(ra["static_interface"], rb["static_interface"], atol=1e-8)
+    assert ra.attrs["steps"] == rb.attrs["steps"]
+
+
+def test_sigint_stops_cleanly_and_resume_gives_the_uninterrupted_answer(
+        tmp_path: Path) -> None:
+    path = tmp_path / "slump.yaml"
+    path.write_text(yaml.safe_dump(SLUMP))
+    outdir = tmp_path / "interrupted"
+    proc = subprocess.Popen([sys.executable, "-c", _PACED_RUN, "run", str(path),
+                             "-o", str(outdir), "--set", "domain.layers=4"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while _records(outdir / "result.nc") < 2 and proc.poll() is None:
+        assert time.monotonic() < deadline, "no output time written"
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    command = err.split("resume with: ")[1].splitlines()[0]
+    assert command == f"multilayer run {path} -o {outdir} --resume --set domain.layers=4"
+    partial = open_result(outdir)
+    assert partial.attrs["run_status"] == "interrupted"
+    assert 2 <= partial.sizes["time"] < 26
+    assert "interrupted at t=" in (outdir / "run.log").read_text()
+
+    resumed = subprocess.run(_cli(*shlex.split(command)[1:], "--quiet"),
+                             capture_output=True, text=True, timeout=120)
+    assert resumed.returncode == 0, resumed.stderr
+    reference = tmp_path / "reference"
+    runner.run(scenarios.load(path, ["domain.layers=4"]), reference, quiet=True)
+    _assert_same_result(outdir, reference)
+    with netCDF4.Dataset(outdir / "result.nc") as ds:
+        assert ds.run_status == "completed"
+        assert ds.history.count("\n") == 1  # the run, then one resume
+    assert "restored the checkpoint" in (outdir / "run.log").read_text()
+
+
+def test_resume_extends_a_finished_run_to_a_later_end(tmp_path: Path) -> None:
+    short = scenarios.from_dict(SLUMP, overrides=["time.end=0.04"])
+    runner.run(short, tmp_path / "extended", quiet=True)
+    longer = scenarios.from_dict(SLUMP, overrides=["time.end=0.08"])
+    runner.run(longer, tmp_path / "extended", resume=True, quiet=True)
+    runner.run(longer, tmp_path / "direct", quiet=True)
+    _assert_same_result(tmp_path / "extended", tmp_path / "direct")
+
+
+def test_resume_needs_a_checkpoint_of_the_same_scenario(tmp_path: Path, cli,
+                                                        write_scenario) -> None:
+    path = write_scenario(dict(SLUMP, time={"end": 0.02, "output_interval": 0.02}))
+    result = cli("run", path, "-o", tmp_path / "none", "--resume")
+    assert result.code == 2
+    assert "nothing to resume" in result.err and "none" in result.err
+    assert cli("run", path, "-o", tmp_path / "done", "-q").code == 0
+    result = cli("run", path, "-o", tmp_path / "done", "--resume", "--set", "slope_deg=30")
+    assert result.code == 2
+    assert "different scenario (changed: slope_deg)" in result.err
+
+
+def test_engine_failure_keeps_the_output_times_done(tmp_path: Path, monkeypatch) -> None:
+    step = Simulation.step
+
+    def failing_step(self: Simulation, t_max: float) -> float:
+        if self.t >= 0.03:
+            raise FloatingPointError("negative thickness")
+        return step(self, t_max)
+
+    monkeypatch.setattr(Simulation, "step", failing_step)
+    with pytest.raises(RunError, match=r"failed at t=0.03.*negative thickness.*up to t=0.02"):
+        runner.run(scenarios.from_dict(SLUMP), tmp_path, quiet=True)
+    partial = open_result(tmp_path)
+    np.testing.assert_allclose(partial["time"], [0.0, 0.02])
+    assert partial.attrs["run_status"] == "failed"
+    assert "FloatingPointError: negative thickness" in (tmp_path / "run.log").read_text()
+
+
+def test_log_has_a_line_per_output_time(tmp_path: Path) -> None:
+    runner.run(scenarios.from_dict(SLUMP, overrides=["time.end=0.06"]), tmp_path, quiet=True)
+    log = (tmp_path / "run.log").read_text()
+    assert "new run of scenario 'slump'" in log
+    assert "rheology:\n  name: drucker_prager" in log
+    assert [line.split("output t = ")[1].split(" s:")[0]
+            for line in log.splitlines() if "output t = " in line] == ["0.02", "0.04", "0.06"]
+    assert "completed:" in log
+
+
+def test_output_times_land_on_multiples_of_the_interval_and_the_end() -> None:
+    times = runner.output_times(1.5, 0.05)
+    assert times.size == 30 and times[-1] == 1.5
+    np.testing.assert_allclose(np.diff(times), 0.05, atol=1e-15)
+    np.testing.assert_allclose(runner.output_times(1.0, 0.3), [0.3, 0.6, 0.9, 1.0])
+    np.testing.assert_array_equal(runner.output_times(1.0, 2.0), [1.0])
+
+
+class _Sim:
+    t, steps = 0.0, 0
+
+
+def test_progress_line_reports_rate_and_time_left() -> None:
+    stream = io.StringIO()
+    progress = Progress(t_end=2.0, cells=120, quiet=False, stream=stream)
+    sim = _Sim()
+    sim.t, sim.steps = 0.1, 1
+    progress(sim, 0.1)  # the first step sets the origin: t = 0, step 0
+    wall0 = progress._start[0]
+    line = progress.line(t=0.5, dt=0.01, steps=41, now=wall0 + 2.0)
+    # 120 cells x 41 steps in 2 s; 1.5 s simulated left at 0.25 simulated s per s
+    assert line == "t = 0.5 / 2 s   dt = 0.01 s   2,460 cell-steps/s   6s left"
+    progress.finish()
+    assert stream.getvalue().startswith("\rt = 0.1 / 2 s") and stream.getvalue()[-1] == "\n"
+
+
+def test_progress_is_silent_off_a_terminal_or_when_quiet() -> None:
+    stream = io.StringIO()  # not a terminal
+    for quiet in (None, True):
+        progress = Progress(t_end=1.0, cells=10, quiet=quiet, stream=stream)
+        progress(_Sim(), 0.1)
+        progress.finish()
+    assert stream.getvalue() == ""

@@ -1,0 +1,140 @@
+"""Reference solutions of multilayer.similarity against classical and published values."""
+import numpy as np
+import pytest
+
+from multilayer.rheology import Material, Rheology
+from multilayer.similarity import (
+    bagnold_mean_velocity,
+    bagnold_profile,
+    displacement_thickness,
+    friction_coefficient,
+    inertial_number_for_slope,
+    shape_factor,
+    solve_similarity,
+)
+
+
+@pytest.fixture(scope="module")
+def blasius():
+    return solve_similarity(1.0)
+
+
+@pytest.fixture(scope="module")
+def granular():
+    return solve_similarity(0.34)
+
+
+def test_classical_blasius_wall_curvature(blasius):
+    """alpha = 1 is f''' + f f''/2 = 0: f''(0) = 0.33206 (Schlichting & Gersten)."""
+    assert blasius.fpp0 == pytest.approx(0.33206, abs=1e-5)
+
+
+def test_classical_blasius_thicknesses(blasius):
+    """Displacement 1.7208, momentum 0.6641, shape factor H12 = 2.591."""
+    assert blasius.displacement_thickness == pytest.approx(1.7208, abs=1e-4)
+    assert blasius.momentum_thickness == pytest.approx(0.6641, abs=1e-4)
+    assert blasius.displacement_thickness / blasius.momentum_thickness == pytest.approx(
+        2.591, abs=1e-3)
+
+
+def test_granular_blasius_alpha_034(granular):
+    """Tsang et al. (2019) fig. 2: f''(0) ~ 0.164 and zeta_disp ~ 4.35 for alpha = 0.34."""
+    assert granular.fpp0 == pytest.approx(0.1648, abs=1e-3)
+    assert granular.displacement_thickness == pytest.approx(4.35, rel=0.015)
+
+
+def test_granular_solution_independent_of_truncation(granular):
+    """The analytic algebraic tail makes the answer independent of zeta_max."""
+    longer = solve_similarity(0.34, zeta_max=800.0)
+    assert longer.fpp0 == pytest.approx(granular.fpp0, abs=1e-8)
+    assert longer.displacement_thickness == pytest.approx(
+        granular.displacement_thickness, abs=1e-6)
+
+
+def test_similarity_profile_boundary_conditions(granular):
+    zeta = np.array([0.0, 1e-3, 50.0, 1e3])
+    fp = granular.velocity(zeta)
+    assert fp[0] == 0.0
+    assert fp[1] == pytest.approx(granular.fpp0 * 1e-3, rel=1e-6)
+    assert 0.99 < fp[2] < fp[3] < 1.0
+    assert np.all(np.diff(granular.velocity(np.linspace(0, 400, 200))) > 0)
+
+
+def test_similarity_rejects_alpha_without_solution():
+    with pytest.raises(ValueError, match="alpha"):
+        solve_similarity(-1.0)
+
+
+def test_displacement_thickness_of_similarity_profile(granular):
+    """Discrete layers reproduce zeta_disp when the outer speed is 1."""
+    edges = np.linspace(0.0, 400.0, 40001)
+    centres = 0.5 * (edges[1:] + edges[:-1])
+    dz = np.diff(edges)
+    measured = displacement_thickness(granular.velocity(centres), dz, outer_speed=1.0)
+    assert measured == pytest.approx(granular.displacement_thickness, rel=2e-3)
+
+
+def test_shape_factor_plug_linear_and_bagnold():
+    n = 4000
+    fractions = np.full(n, 1.0 / n)
+    zeta = (np.arange(n) + 0.5) / n
+    assert shape_factor(np.ones(n), fractions) == pytest.approx(1.0)
+    assert shape_factor(zeta, fractions) == pytest.approx(4.0 / 3.0, rel=1e-6)
+    bagnold = bagnold_profile(zeta, 1.0, 0.3, 1e-3, 25.0)
+    assert shape_factor(bagnold, fractions) == pytest.approx(1.25, rel=1e-5)
+    columns = np.stack([np.ones(n), zeta], axis=1)
+    np.testing.assert_allclose(shape_factor(columns, fractions), [1.0, 4.0 / 3.0], rtol=1e-6)
+
+
+def test_shape_factor_of_boundary_layer_grows_to_saturation(granular):
+    """A similarity layer of thickness Lambda in a current of depth 1: chi from 1 upwards."""
+    z = (np.arange(20000) + 0.5) / 20000
+    fractions = np.full(z.size, 1.0 / z.size)
+    chis = [shape_factor(granular.velocity(z / lam), fractions) for lam in (1e-3, 1e-2, 1e-1)]
+    assert chis[0] == pytest.approx(1.0, abs=0.01)
+    assert chis[0] < chis[1] < chis[2]
+
+
+class _Jop(Rheology):
+    """Jop et al. mu(I) written in the plugin form (kappa = mu_s p, eta from DESIGN sec. 2)."""
+
+    name = "test_jop"
+
+    def __init__(self, mu_s: float, mu_2: float, I_0: float):
+        self.mu_s, self.mu_2, self.I_0 = mu_s, mu_2, I_0
+
+    def yield_stress(self, pressure, material):
+        return self.mu_s * pressure
+
+    def viscosity(self, shear_rate, pressure, material):
+        rate = np.maximum(shear_rate, 1e-300)
+        inertial = material.grain_diameter * rate / np.sqrt(pressure / material.particle_density)
+        return (self.mu_2 - self.mu_s) * pressure * inertial / (self.I_0 + inertial) / rate
+
+
+def test_inertial_number_for_slope_matches_jop_inversion():
+    mu_s, mu_2, i_0 = np.tan(np.radians(20.9)), np.tan(np.radians(32.76)), 0.279
+    material = Material(density=1500.0, grain_diameter=0.5e-3, particle_density=2500.0)
+    mu = friction_coefficient(_Jop(mu_s, mu_2, i_0), material)
+    theta = 25.0
+    tan = np.tan(np.radians(theta))
+    exact = i_0 * (tan - mu_s) / (mu_2 - tan)
+    assert inertial_number_for_slope(mu, theta) == pytest.approx(exact, rel=1e-9)
+    with pytest.raises(ValueError, match="no steady flow"):
+        inertial_number_for_slope(mu, 15.0)
+
+
+def test_bagnold_profile_satisfies_mu_of_i_everywhere():
+    """du/dz from the profile gives I = I_theta at every depth, zero shear at the surface."""
+    depth, inertial, d, theta, ratio = 0.02, 0.2, 0.7e-3, 24.0, 0.62
+    z = np.linspace(0.0, depth, 20001)
+    u = bagnold_profile(z, depth, inertial, d, theta, density_ratio=ratio)
+    rate = np.gradient(u, z)
+    pressure_over_rho_p = ratio * 9.81 * np.cos(np.radians(theta)) * (depth - z)
+    local_i = d * rate[:-100] / np.sqrt(pressure_over_rho_p[:-100])
+    np.testing.assert_allclose(local_i, inertial, rtol=1e-4)
+    assert u[0] == 0.0 and rate[-1] == pytest.approx(0.0, abs=rate.max() * 2e-2)
+    mean = np.trapezoid(u, z) / depth
+    assert bagnold_mean_velocity(depth, inertial, d, theta, density_ratio=ratio) == (
+        pytest.approx(mean, rel=1e-6))
+    assert mean == pytest.approx(0.6 * u[-1], rel=1e-6)

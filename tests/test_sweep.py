@@ -1,0 +1,384 @@
+"""Parameter sweeps on Dask (docs/sweeps.md): sweep files, member expansion, runs on a
+real scheduler with two workers, failures, resume.
+
+The base scenario is a 5 cm x 20 cm granular column collapsing down a 25 degree slope
+(40 cells, 3 layers, 0.2 s; about a second per member).  The flow stays far from the
+outflow boundary, so every member must conserve its initial mass 0.20 m x 0.05 m =
+0.01 m^2 per unit width, and a higher friction coefficient must give a slower flow.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+from multilayer import cli, results, runner, scenario, sweep
+from multilayer.errors import InputError, RunError
+
+TINY = """\
+name: tiny-collapse
+slope_deg: 25.0
+domain: {x_min: 0.0, x_max: 1.0, cells: 40, layers: 3}
+material: {density: 1500, grain_diameter: 1.0e-3}
+rheology: {name: drucker_prager, mu_s: 0.35, nu: 1.0e-4}
+base: [{condition: no_slip}]
+initial: [{shape: rectangle, x_min: 0.0, x_max: 0.2, height: 0.05}]
+boundaries: {left: wall, right: outflow}
+time: {end: 0.2, output_interval: 0.1}
+"""
+INITIAL_MASS = 0.20 * 0.05  # m^2 per unit width
+
+ROOT = Path(__file__).resolve().parents[1]
+# subprocesses (dask scheduler and workers, the CLI) import this source tree
+ENV = {**os.environ, "PYTHONPATH": os.pathsep.join(
+    filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
+
+# two frictions x two resolutions, one of which (0 cells) is invalid
+FRICTION_SWEEP = """\
+base: tiny.yaml
+parameters:
+  rheology.mu_s: [0.3, 0.4]
+  domain.cells: [40, 0]
+"""
+
+
+def write_sweep(directory: Path, text: str) -> Path:
+    """``text`` as ``sweep.yaml`` next to the tiny base scenario ``tiny.yaml``."""
+    (directory / "tiny.yaml").write_text(TINY)
+    path = directory / "sweep.yaml"
+    path.write_text(text)
+    return path
+
+
+def read_summary(outdir: Path) -> list[dict[str, str]]:
+    with (outdir / "summary.csv").open(newline="") as stream:
+        return list(csv.DictReader(stream))
+
+
+# --------------------------------------------------------------------- sweep files
+
+
+def test_product_members_last_key_fastest_with_stable_ids(tmp_path):
+    plan = sweep.load(write_sweep(tmp_path, """\
+base: tiny.yaml
+parameters:
+  rheology.mu_s: [0.3, 0.4]
+  initial.0.height: [0.03, 0.04, 0.05]
+"""))
+    members = plan.members()
+    assert [tuple(m.values.values()) for m in members] == [
+        (0.3, 0.03), (0.3, 0.04), (0.3, 0.05), (0.4, 0.03), (0.4, 0.04), (0.4, 0.05)]
+    assert members[1].overrides == ["rheology.mu_s=0.3", "initial.0.height=0.04"]
+    assert [m.id[:5] for m in members] == [f"m{i:03d}-" for i in range(6)]
+    assert len({m.id for m in members}) == 6
+    # the ids name the values: the same on every load, changed only where a value changes
+    assert [m.id for m in sweep.load(plan.path).members()] == [m.id for m in members]
+    plan.path.write_text(plan.path.read_text().replace("0.05]", "0.06]"))
+    changed = [a.id != b.id for a, b in zip(members, sweep.load(plan.path).members())]
+    assert changed == [False, False, True, False, False, True]
+
+
+def test_zip_pairs_the_lists(tmp_path):
+    plan = sweep.load(write_sweep(tmp_path, """\
+base: tiny.yaml
+zip: true
+parameters:
+  slope_deg: [20.0, 25.0, 30.0]
+  rheology.mu_s: [0.3, 0.4, 0.5]
+"""))
+    assert [m.values for m in plan.members()] == [
+        {"slope_deg": 20.0, "rheology.mu_s": 0.3},
+        {"slope_deg": 25.0, "rheology.mu_s": 0.4},
+        {"slope_deg": 30.0, "rheology.mu_s": 0.5}]
+
+
+def test_zip_with_lists_of_different_lengths_is_an_input_error(tmp_path):
+    path = write_sweep(tmp_path, """\
+base: tiny.yaml
+parameters:
+  slope_deg: [20.0, 25.0, 30.0]
+  rheology.mu_s: [0.3, 0.4]
+zip: true
+""")
+    with pytest.raises(InputError) as error:
+        sweep.load(path)
+    assert str(error.value) == (
+        f"{path}: zip (line 5): the lists under parameters have different lengths "
+        "(slope_deg: 3, rheology.mu_s: 2); accepted: lists of equal length with zip: true")
+
+
+@pytest.mark.parametrize("text, key, what", [
+    ("base: tiny.yaml\nparameters: {slope_deg: [20]}\nworkers: 3\n", "workers (line 3)",
+     "unknown key"),
+    ("parameters: {slope_deg: [20]}\n", "base", "required key is missing"),
+    ("base: nowhere.yaml\nparameters: {slope_deg: [20]}\n", "base (line 1)", "not found"),
+    ("base: tiny.yaml\n", "parameters", "got None"),
+    ("base: tiny.yaml\nparameters: {}\n", "parameters (line 2)", "got {}"),
+    ("base: tiny.yaml\nparameters:\n  slope_deg: []\n", "parameters.slope_deg (line 3)", "got []"),
+    ("base: tiny.yaml\nparameters:\n  slope_deg: 20\n", "parameters.slope_deg (line 3)", "got 20"),
+    ("base: tiny.yaml\nparameters: {slope_deg: [20]}\nzip: yes please\n", "zip (line 3)",
+     "got 'yes please'"),
+    ("base: tiny.yaml\nparameters: {slope_deg: [20]}\noutput: {dir: x}\n", "output.dir (line 3)",
+     "unknown key"),
+])
+def test_invalid_sweep_file_exits_2_naming_file_and_key(tmp_path, capsys, text, key, what):
+    path = write_sweep(tmp_path, text)
+    assert cli.main(["sweep", str(path), "-o", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert f"multilayer: error: {path}: {key}: " in err
+    assert what in err and "Traceback" not in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_invalid_base_scenario_exits_2(tmp_path, capsys):
+    path = write_sweep(tmp_path, FRICTION_SWEEP)
+    (tmp_path / "tiny.yaml").write_text(TINY.replace("cells: 40", "cells: many"))
+    assert cli.main(["sweep", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert f"{path}: base (line 1): the base scenario is invalid" in err
+    assert "domain.cells (line 3)" in err
+
+
+def test_workers_with_scheduler_is_refused(tmp_path, capsys):
+    path = write_sweep(tmp_path, FRICTION_SWEEP)
+    assert cli.main(["sweep", str(path), "--scheduler", "tcp://127.0.0.1:8786",
+                     "--workers", "2"]) == 2
+    assert "--workers: applies to the local cluster only" in capsys.readouterr().err
+
+
+def test_unreachable_scheduler_exits_2_before_anything_runs(tmp_path, capsys):
+    path = write_sweep(tmp_path, FRICTION_SWEEP)
+    argv = ["sweep", str(path), "-o", str(tmp_path / "out"), "--scheduler", "nowhere"]
+    assert cli.main(argv) == 2
+    assert "--scheduler nowhere: cannot connect" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("value", [0.4, 1e-5, 3, "jop_mu_i", "1e-5", True, None,
+                                   [[0.0, 0.1], [1.0, 0.0]], {"geometric": 1.2}])
+def test_values_reach_the_scenario_as_written(value):
+    """A member's override text reads back to the sweep file's value, as ``--set`` reads it."""
+    text = sweep.format_value(value)
+    data, _ = scenario.apply_overrides({}, [f"key={text}"])
+    assert data == {"key": value}
+
+
+def test_worked_example_of_the_docs_is_valid(tmp_path):
+    """The example sweep of docs/sweeps.md, next to the scenario it names: 6 valid members."""
+    docs = (ROOT / "docs" / "sweeps.md").read_text()
+    example = docs.split("```yaml\n", 1)[1].split("```", 1)[0]
+    shutil.copy(ROOT / "scenarios" / "erodible_bed_collapse.yaml", tmp_path)
+    (tmp_path / "erodible_bed_sweep.yaml").write_text(example)
+    plan = sweep.load(tmp_path / "erodible_bed_sweep.yaml")
+    members = plan.members()
+    assert len(members) == 6
+    for member in members:
+        loaded = scenario.load(plan.base, member.overrides)
+        assert loaded.rheology.name == member.values["rheology"]["name"]
+        assert loaded.initial[0].thickness == member.values["initial.0.thickness"]
+
+
+def test_member_continues_its_own_checkpoint_and_restarts_on_another(tmp_path):
+    """``run_member`` (what a worker runs) resumes a run of the same scenario left without
+    its completion marker, and starts afresh over a checkpoint of another scenario."""
+    base = tmp_path / "tiny.yaml"
+    base.write_text(TINY)
+    member_dir = tmp_path / "m000"
+    first = runner.run(scenario.load(base, ["rheology.mu_s=0.3"]), member_dir, quiet=True)
+
+    same = scenario.load(base, ["rheology.mu_s=0.3"])
+    resumed = sweep.run_member(same, str(member_dir), "fp-same", ["rheology.mu_s=0.3"])
+    assert "resumed run" in (member_dir / runner.LOG_FILE).read_text()
+    del resumed["wall_time_s"], first["wall_time_s"]
+    assert resumed == first  # nothing left to compute: the same steps and diagnostics
+    assert sweep.completed(member_dir, "fp-same")["steps"] == first["steps"]
+
+    other = scenario.load(base, ["rheology.mu_s=0.4"])
+    summary = sweep.run_member(other, str(member_dir), "fp-other", ["rheology.mu_s=0.4"])
+    assert "new run" in (member_dir / runner.LOG_FILE).read_text()
+    assert summary["max_speed_final"] < first["max_speed_final"]  # more friction, slower
+    assert sweep.completed(member_dir, "fp-same") is None
+    assert sweep.completed(member_dir, "fp-other") == summary
+
+
+# --------------------------------------------------------------------- on a real cluster
+
+
+@pytest.fixture(scope="module")
+def scheduler(tmp_path_factory):
+    """A Dask scheduler and two single-threaded workers on 127.0.0.1, as subprocesses
+    (``dask scheduler`` / ``dask worker``), torn down whatever the tests do."""
+    workdir = tmp_path_factory.mktemp("dask-cluster")
+    scheduler_file = workdir / "scheduler.json"
+    log = (workdir / "cluster.log").open("w")
+    processes: list[subprocess.Popen] = []
+
+    def start(*args: str) -> None:
+        processes.append(subprocess.Popen(
+            [sys.executable, "-m", "dask", *args, "--no-dashboard"], cwd=workdir, env=ENV,
+            stdout=log, stderr=subprocess.STDOUT, start_new_session=True))
+
+    try:
+        start("scheduler", "--host", "127.0.0.1", "--port", "0",
+              "--scheduler-file", str(scheduler_file))
+        deadline = time.monotonic() + 60
+        while not scheduler_file.is_file():
+            assert processes[0].poll() is None and time.monotonic() < deadline, (
+                "the Dask scheduler did not start:\n" + (workdir / "cluster.log").read_text())
+            time.sleep(0.1)
+        address = json.loads(scheduler_file.read_text())["address"]
+        for name in ("worker-a", "worker-b"):
+            start("worker", address, "--host", "127.0.0.1", "--nworkers", "1", "--nthreads", "1",
+                  "--name", name, "--local-directory", str(workdir))
+        from dask.distributed import Client
+
+        with Client(address, timeout="30s") as client:
+            client.wait_for_workers(2, timeout=60)
+        yield address
+    finally:
+        for process in processes:  # each in its own session: the worker's nanny and child too
+            os.killpg(process.pid, signal.SIGTERM)
+        for process in processes:
+            try:
+                process.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                os.killpg(process.pid, signal.SIGKILL)
+                process.wait()
+        log.close()
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "multilayer.cli", "sweep", *args],
+                          capture_output=True, text=True, timeout=300, env=ENV)
+
+
+@pytest.fixture(scope="module")
+def friction_sweep(scheduler, tmp_path_factory):
+    """The 4-member friction sweep (2 valid, 2 invalid) run once on the cluster."""
+    directory = tmp_path_factory.mktemp("friction-sweep")
+    path = write_sweep(directory, FRICTION_SWEEP)
+    outdir = directory / "out"
+    first = run_cli(str(path), "-o", str(outdir), "--scheduler", scheduler)
+    return path, outdir, first
+
+
+def test_sweep_on_a_scheduler_with_two_workers(friction_sweep):
+    path, outdir, first = friction_sweep
+    assert first.returncode == 1, first.stderr  # two members are invalid
+    assert "4 members: 0 already complete (skipped), 2 invalid, 2 to run" in first.stdout
+
+    rows = read_summary(outdir)
+    assert [(r["rheology.mu_s"], r["domain.cells"], r["status"]) for r in rows] == [
+        ("0.3", "40", "ok"), ("0.3", "0", "invalid"), ("0.4", "40", "ok"), ("0.4", "0", "invalid")]
+    for row in rows:
+        if row["status"] == "invalid":  # the reason, in the summary and on stderr
+            assert "domain.cells" in row["error"] and "an integer >= 1" in row["error"]
+            assert f"member {row['member']} (rheology.mu_s={row['rheology.mu_s']}, " \
+                   f"domain.cells=0) invalid: " in first.stderr
+            assert row["front_final"] == "" and not (outdir / row["member"]).exists()
+    ok = [row for row in rows if row["status"] == "ok"]
+    assert sorted(p.parent.name for p in outdir.glob("*/result.nc")) == [r["member"] for r in ok]
+
+    for row in ok:
+        result = outdir / row["member"] / "result.nc"
+        summary = results.summary(result)
+        # the row holds the result's own diagnostics, and the worker ran the member's friction
+        assert {key: float(row[key]) for key in ("front_final", "runout", "mass_final",
+                                                 "wall_time_s")} == {
+            key: summary[key] for key in ("front_final", "runout", "mass_final", "wall_time_s")}
+        with results.open_result(result) as ds:
+            resolved = yaml.safe_load(ds.attrs["scenario"])
+        assert resolved["rheology"]["mu_s"] == float(row["rheology.mu_s"])
+        assert summary["t_final"] == pytest.approx(0.2, abs=1e-12)
+        assert summary["mass_final"] == pytest.approx(INITIAL_MASS, rel=1e-12)
+    # more friction, slower flow: mu_s = 0.3 (first) against 0.4 (second); the front moves
+    # by whole cells (dx = 2.5 cm), so the two run-outs may share a cell
+    assert float(ok[0]["max_speed_final"]) > float(ok[1]["max_speed_final"]) > 0
+    assert float(ok[0]["runout"]) >= float(ok[1]["runout"]) > 0
+
+
+def test_second_run_of_a_completed_sweep_runs_nothing(friction_sweep, scheduler):
+    path, outdir, first = friction_sweep
+    results_before = {p: p.stat().st_mtime_ns for p in outdir.glob("*/*")}
+    rows_before = read_summary(outdir)
+
+    second = run_cli(str(path), "-o", str(outdir), "--scheduler", scheduler)
+    assert second.returncode == 1  # the two invalid members are still invalid
+    assert "4 members: 2 already complete (skipped), 2 invalid, 0 to run\n" in second.stdout
+    assert {p: p.stat().st_mtime_ns for p in outdir.glob("*/*")} == results_before
+    assert read_summary(outdir) == rows_before
+
+
+# --------------------------------------------------------------------- failures, local cluster
+
+
+def test_a_failing_member_does_not_stop_the_others_and_reruns_alone(tmp_path, monkeypatch, capsys):
+    from dask.distributed import LocalCluster
+
+    path = write_sweep(tmp_path, """\
+base: tiny.yaml
+parameters:
+  rheology.mu_s: [0.3, 0.4, 0.5]
+""")
+    outdir = tmp_path / "out"
+    real_run = runner.run
+    ran: list[float] = []
+    broken = {0.4}  # mu_s of the members whose run fails
+
+    def flaky_run(member, outdir, **options):
+        mu_s = member.rheology.params["mu_s"]
+        ran.append(mu_s)
+        if mu_s in broken:
+            raise RunError("the solver broke down")
+        return real_run(member, outdir, **options)
+
+    monkeypatch.setattr(runner, "run", flaky_run)
+    # threads in this process, so that the patched runner is the one the tasks call
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                      dashboard_address=":0") as cluster:
+        argv = ["sweep", str(path), "-o", str(outdir), "--scheduler", cluster.scheduler_address]
+        assert cli.main(argv) == 1
+        rows = read_summary(outdir)
+        assert [row["status"] for row in rows] == ["ok", "failed", "ok"]
+        assert rows[1]["error"] == "RunError: the solver broke down"
+        assert "invalid" not in rows[1]["error"] and rows[1]["runout"] == ""
+        assert f"member {rows[1]['member']} (rheology.mu_s=0.4) failed: RunError: the solver " \
+               "broke down" in capsys.readouterr().err
+        assert sorted(ran) == [0.3, 0.4, 0.5]
+
+        broken.clear()
+        assert cli.main(argv) == 0  # resume: only the failed member runs again
+        assert ran[3:] == [0.4]
+        assert [row["status"] for row in read_summary(outdir)] == ["ok", "ok", "ok"]
+        assert "3 members: 2 already complete (skipped), 0 invalid, 1 to run" in \
+               capsys.readouterr().out
+
+
+def test_local_cluster_zip_sweep(tmp_path, monkeypatch, capsys):
+    """Without --scheduler: a local cluster of worker processes, here a zipped sweep."""
+    path = write_sweep(tmp_path, """\
+base: tiny.yaml
+zip: true
+parameters:
+  slope_deg: [20.0, 25.0]
+  rheology.mu_s: [0.3, 0.35]
+output: {directory: zipped}
+""")
+    monkeypatch.chdir(tmp_path)  # output.directory is relative to the current directory
+    assert cli.main(["sweep", str(path), "--workers", "2", "--quiet"]) == 0
+    assert capsys.readouterr().out == ""
+    rows = read_summary(tmp_path / "zipped")
+    assert [(r["slope_deg"], r["rheology.mu_s"], r["status"]) for r in rows] == [
+        ("20.0", "0.3", "ok"), ("25.0", "0.35", "ok")]
+    for row in rows:
+        assert float(row["mass_final"]) == pytest.approx(INITIAL_MASS, rel=1e-12)
+        assert (tmp_path / "zipped" / row["member"] / "result.nc").is_file()

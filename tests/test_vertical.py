@@ -1,0 +1,129 @@
+"""The implicit vertical step against exact solutions (DESIGN.md section 7)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from engine import simulation
+from multilayer.rheology import Rheology
+
+THETA = math.radians(22.0)
+MU_S = math.tan(math.radians(26.0))
+S = 9.81 * math.cos(THETA) * (MU_S - math.tan(THETA))  # deceleration of the flowing part
+H, B0, SHEAR = 0.02, 0.005, 70.0
+
+
+def simple_shear(nu: float, layers: int = 200, **changes):
+    """Seed 000/001 single column: h = 2 cm on 22 degrees, linear profile above 5 mm."""
+    return simulation(
+        slope_deg=22.0,
+        domain={"x_min": 0.0, "x_max": 0.005, "cells": 1, "layers": layers},
+        material={"density": 1550.0, "grain_diameter": 0.7e-3},
+        rheology={"name": "drucker_prager", "mu_s": MU_S, "nu": nu},
+        base=[{"condition": "no_slip"}],
+        initial=[{"shape": "layer", "thickness": H,
+                  "velocity": {"profile": "linear", "shear_rate": SHEAR, "from_height": B0}}],
+        boundaries={"left": "periodic", "right": "periodic"},
+        **changes,
+    )
+
+
+def test_inviscid_simple_shear_matches_proposition_2_2():
+    """U(t, z) = max(U0(z) - S t, 0) and U0(b(t)) = S t (Bouchut et al. 2016, Prop. 2.2)."""
+    sim = simple_shear(nu=0.0)
+    z = sim.sigma * H
+    layer = H / 200
+    t_stop = SHEAR * (H - B0) / S
+    assert math.isclose(t_stop, 1.379, abs_tol=1e-3)
+    for t in np.arange(0.1, 1.31, 0.1):
+        sim.advance(t)
+        exact_u = np.maximum(SHEAR * np.maximum(z - B0, 0.0) - S * t, 0.0)
+        assert np.abs(sim.u[:, 0] - exact_u).max() < 0.02
+        b_exact = B0 + S * t / SHEAR
+        b = sim.diagnostics()["static_interface"][0]
+        assert abs(b - b_exact) <= 2 * layer, (t, b, b_exact)
+    sim.advance(t_stop + 0.005)
+    assert np.all(sim.u == 0.0)
+    assert sim.diagnostics()["static_interface"][0] == sim.h[0]
+
+
+def test_viscous_simple_shear_erodes_then_deposits():
+    """With nu = 5e-5 m^2/s (seed 000) the interface first moves down, then up to h."""
+    sim = simple_shear(nu=5e-5, layers=100)
+    times = np.arange(0.02, 2.0, 0.02)
+    b = []
+    for t in times:
+        sim.advance(t)
+        b.append(sim.diagnostics()["static_interface"][0])
+    b = np.array(b)
+    lowest = int(np.argmin(b))
+    assert b[lowest] <= B0 - 5 * H / 100  # erosion by 5 layers at least (measured: 3.2 mm)
+    assert 0 < lowest < len(b) - 1
+    assert np.all(np.diff(b[lowest:]) >= 0.0)  # then only deposition
+    assert b[-1] == sim.h[0] and np.all(sim.u == 0.0)
+
+
+def test_bagnold_profile_is_the_steady_state_of_jop_mu_i():
+    """Uniform flow from rest on a no-slip base tends to Bagnold's profile (seed 003, 4.1):
+    u(z) = (2 I / 3 d) sqrt(g cos(theta) rho / rho_p) (h^1.5 - (h - z)^1.5)."""
+    theta, d, h = math.radians(25.0), 0.5e-3, 0.01
+    mu_s, mu_2, i0 = 0.38, 0.64, 0.279
+    sim = simulation(
+        gravity=9.81,
+        slope_deg=25.0,
+        domain={"x_min": 0.0, "x_max": 0.01, "cells": 1, "layers": 40},
+        material={"density": 1500.0, "grain_diameter": d},
+        rheology={"name": "jop_mu_i", "mu_s": mu_s, "mu_2": mu_2, "I_0": i0},
+        base=[{"condition": "no_slip"}],
+        initial=[{"shape": "layer", "thickness": h}],
+        boundaries={"left": "periodic", "right": "periodic"},
+    )
+    sim.advance(15.0)
+    tan = math.tan(theta)
+    i_theta = i0 * (tan - mu_s) / (mu_2 - tan)
+    z = sim.sigma * h
+    bagnold = 2 * i_theta / (3 * d) * math.sqrt(9.81 * math.cos(theta)) * (h**1.5 - (h - z) ** 1.5)
+    before = sim.u[:, 0].copy()
+    sim.advance(16.0)
+    assert np.abs(sim.u[:, 0] - before).max() < 1e-3 * bagnold.max()  # steady
+    assert np.abs(sim.u[:, 0] - bagnold).max() < 0.03 * bagnold.max()
+
+
+class Bingham(Rheology):
+    """Bingham plastic: constant yield stress and viscosity."""
+
+    name = "bingham_test"
+
+    def __init__(self, tau_y: float, eta: float):
+        self.tau_y, self.eta = tau_y, eta
+
+    def yield_stress(self, pressure, material):
+        return np.full_like(pressure, self.tau_y)
+
+    def viscosity(self, shear_rate, pressure, material):
+        return np.full_like(pressure, self.eta)
+
+
+def test_bingham_layer_flows_as_a_rigid_plug_over_the_analytic_sheared_zone():
+    """Steady Bingham flow on a slope: sheared below z_p = h - tau_y / (rho g sin theta),
+    u = (rho g sin(theta) (h z - z^2/2) - tau_y z) / eta there, one rigid plug above."""
+    rho, theta, h, tau_y, eta = 1000.0, math.radians(10.0), 0.1, 50.0, 10.0
+    sim = simulation(
+        slope_deg=10.0,
+        domain={"x_min": 0.0, "x_max": 1.0, "cells": 1, "layers": 50},
+        material={"density": rho, "grain_diameter": 1e-3},
+        base=[{"condition": "no_slip"}],
+        initial=[{"shape": "layer", "thickness": h}],
+        boundaries={"left": "periodic", "right": "periodic"},
+    )
+    sim.stresses.bulk = Bingham(tau_y, eta)
+    sim.advance(30.0)  # 30 viscous times rho h^2 / eta
+    drive = rho * 9.81 * math.sin(theta)
+    z_p = h - tau_y / drive
+    z = sim.sigma * h
+    u = sim.u[:, 0]
+    plug = z > z_p + h / 50
+    assert np.ptp(u[plug]) <= 1e-9
+    exact = np.where(z < z_p, drive * (h * z - z * z / 2) - tau_y * z, drive * (h * z_p - z_p**2 / 2) - tau_y * z_p) / eta
+    assert np.abs(u - exact).max() < 0.01 * exact.max()
