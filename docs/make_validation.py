@@ -394,29 +394,43 @@ mu(I) viscosity vanish.  **{'Met' if errs and errs[-1] < 0.02 else 'Not met at t
 # --------------------------------------------------------------------------- chute
 
 
-def _chute_analysis(ds: xr.Dataset, alpha: float, m: float, sol, h_in: float, speed: float,
-                    d: float, theta: float) -> dict:
+CHUTE_RUN = ("domain.cells=440", "time.end=1.2", "time.output_interval=0.1")
+CHUTE_LONG = ("domain.x_max=4.0", "domain.cells=410", "time.end=3.0",
+              "time.output_interval=0.25")
+
+
+def _chute_analysis(ds: xr.Dataset, alpha: float, m: float, sol: similarity.SimilaritySolution,
+                    h_in: float, speed: float, d: float, theta: float) -> dict:
+    """Displacement thickness, shape factor and power-law fits of a chute run's last state."""
     final = ds.isel(time=-1)
     x = ds["x"].values
+    dx = float(x[1] - x[0])
     frac = ds["sigma_bnds"].values[:, 1] - ds["sigma_bnds"].values[:, 0]
-    h = final["h"].values
-    u = final["u"].values
-    thick = frac[:, None] * h[None, :]
-    disp = similarity.displacement_thickness(u, thick)
-    chi = similarity.shape_factor(u, frac)
-    froude = speed / math.sqrt(G * h_in * math.cos(math.radians(theta)))
-    lo, hi = 0.5 * froude * h_in, froude**2 * h_in
-    sel = (x >= lo) & (x <= min(hi, x.max() - 0.1))
-    slope, intercept = np.polyfit(np.log(x[sel]), np.log(disp[sel]), 1)
+    h, u = final["h"].values, final["u"].values
+    disp = similarity.displacement_thickness(u, frac[:, None] * h[None, :])
     eps = similarity.boundary_layer_scale(alpha, m, theta, h_in, speed, d, G)
-    predicted = sol.displacement_thickness * eps * h_in * (x / h_in) ** (1 / (1 + alpha))
+    predicted = np.zeros_like(x)
+    downstream = x > 0
+    predicted[downstream] = (sol.displacement_thickness * eps * h_in
+                             * (x[downstream] / h_in) ** (1 / (1 + alpha)))
+    froude = speed / math.sqrt(G * h_in * math.cos(math.radians(theta)))
+    # thin-layer window: a few cells past the transition, predicted delta* below H/10
+    thin = (x >= 4 * dx) & (predicted <= 0.1 * h_in)
+    nominal = (x >= 0.5 * froude * h_in) & (x <= min(froude**2 * h_in, x.max() - 0.1))
+
+    def fit(sel: np.ndarray) -> float:
+        return float(np.polyfit(np.log(x[sel]), np.log(disp[sel]), 1)[0]) if sel.sum() > 2 else math.nan
+
     previous = ds.isel(time=-2)
     disp_prev = similarity.displacement_thickness(previous["u"].values,
                                                   frac[:, None] * previous["h"].values[None, :])
-    steady = float(np.abs(disp_prev[sel] / disp[sel] - 1).max())
-    return dict(x=x, u=u, h=h, frac=frac, disp=disp, chi=chi, slope=slope, sel=sel,
-                predicted=predicted, ratio=float(np.median(disp[sel] / predicted[sel])),
-                window=(lo, hi), steady=steady, froude=froude)
+    return dict(x=x, u=u, h=h, frac=frac, disp=disp, predicted=predicted,
+                chi=similarity.shape_factor(u, frac), thin=(x[thin].min(), x[thin].max()),
+                slope_thin=fit(thin), slope_nominal=fit(nominal),
+                nominal=(0.5 * froude * h_in, froude**2 * h_in),
+                ratio=float(np.median(disp[thin] / predicted[thin])),
+                steady=float(np.abs(disp_prev[thin | nominal] / disp[thin | nominal] - 1).max()),
+                froude=froude)
 
 
 def section_chute(jobs: int) -> str:
@@ -425,40 +439,50 @@ def section_chute(jobs: int) -> str:
     theta, h_in = scenario.slope_deg, scenario.boundaries.inflow.thickness
     speed, d = scenario.boundaries.inflow.velocity.speed, scenario.material.grain_diameter
     cases = {
-        "power law, alpha = 0.34": (Run("chute_alpha034", "smooth_to_rough_chute"),
+        "power law, alpha = 0.34": (Run("chute_alpha034", "smooth_to_rough_chute", CHUTE_RUN),
                                     p["alpha"], p["m"]),
         "linear, alpha = 1": (Run("chute_alpha1", "smooth_to_rough_chute",
-                                  ("rheology.alpha=1", "rheology.m=0.2")), 1.0, 0.2),
+                                  (*CHUTE_RUN, "rheology.alpha=1", "rheology.m=0.2")), 1.0, 0.2),
     }
-    results = execute([c[0] for c in cases.values()], jobs)
+    long_run = Run("chute_long", "smooth_to_rough_chute", CHUTE_LONG)
+    results = execute([c[0] for c in cases.values()] + [long_run], jobs)
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
     rows, analyses = [], {}
     for (label, (run, alpha, m)), color in zip(cases.items(), ("C0", "C1")):
         ds = results[run.name]
         if isinstance(ds, str):
-            rows.append([label, "run failed", "", "", "", "", ""])
+            rows.append([label, "run failed"] + [""] * 7)
             continue
         sol = similarity.solve_similarity(alpha)
         a = _chute_analysis(ds, alpha, m, sol, h_in, speed, d, theta)
-        analyses[label] = (a, sol)
+        analyses[label] = (a, sol, alpha)
         pos = a["x"] > 0
-        axes[0].loglog(a["x"][pos], a["disp"][pos] * 1000, color=color, label=f"{label}")
+        axes[0].loglog(a["x"][pos], a["disp"][pos] * 1000, color=color, label=label)
         axes[0].loglog(a["x"][pos], a["predicted"][pos] * 1000, color=color, ls=":",
                        label=f"similarity, slope {1 / (1 + alpha):.3f}")
         axes[2].plot(a["x"], a["chi"], color=color, label=label)
         zeta = np.linspace(0, 3, 300)
         axes[1].plot(sol.velocity(zeta * sol.displacement_thickness), zeta, color=color,
                      lw=3, alpha=0.35, label=f"f'  (alpha = {alpha:g})")
-        for xs, marker in zip((0.1, 0.2, 0.4, 0.8), ("o", "s", "^", "v")):
+        for xs, marker in zip((0.01, 0.02, 0.04, 0.4), ("o", "s", "^", "v")):
             i = int(np.argmin(np.abs(a["x"] - xs)))
             z = (np.cumsum(a["frac"]) - a["frac"] / 2) * a["h"][i]
             axes[1].plot(a["u"][:, i] / a["u"][-1, i], z / a["disp"][i], marker, color=color,
                          ms=3.5, ls="none", label=f"x = {xs} m" if color == "C0" else None)
-        i_end = int(np.argmax(a["x"] > a["window"][1])) or -1
         rows.append([label, f"{sol.fpp0:.5f}", f"{sol.displacement_thickness:.3f}",
-                     f"{a['slope']:.3f}", f"{1 / (1 + alpha):.3f}", f"{a['ratio']:.2f}",
-                     f"{a['chi'][i_end]:.3f} / {a['chi'][-2]:.3f}", f"{a['steady']:.1e}"])
-    axes[0].axvspan(*analyses[next(iter(analyses))][0]["window"], color="0.9") if analyses else None
+                     f"{1 / (1 + alpha):.3f}", f"{a['slope_thin']:.3f}",
+                     f"{a['ratio']:.2f}", f"{a['slope_nominal']:.3f}",
+                     f"{a['chi'][-2]:.3f}", f"{a['steady']:.1e}"])
+    long = results[long_run.name]
+    chi_far = math.nan
+    if not isinstance(long, str):
+        frac = long["sigma_bnds"].values[:, 1] - long["sigma_bnds"].values[:, 0]
+        chi_long = similarity.shape_factor(long["u"].values[-1], frac)
+        chi_far = float(chi_long[-5])
+        axes[2].plot(long["x"].values, chi_long, "C0--", label="alpha = 0.34, 4 m domain")
+    if analyses:
+        a0 = next(iter(analyses.values()))[0]
+        axes[0].axvspan(*a0["thin"], color="0.9", label="thin-layer fit window")
     axes[0].set_xlabel("x (m)")
     axes[0].set_ylabel("displacement thickness (mm)")
     axes[0].legend(fontsize=7)
@@ -471,43 +495,55 @@ def section_chute(jobs: int) -> str:
     axes[2].set_ylabel("shape factor chi")
     axes[2].legend(fontsize=7)
     figure = _figure(fig, "chute")
-    any_ds = next((v for v in results.values() if not isinstance(v, str)), None)
-    a0 = next(iter(analyses.values()))[0] if analyses else None
-    window = (f"{a0['window'][0]:.2f} m <= x <= {a0['window'][1]:.2f} m" if a0 else "")
-    slopes_ok = all(abs(a["slope"] * (1 + al) - 1) < 0.15
-                    for (a, _), (_, _, al, _) in zip(analyses.values(),
-                                                     [(k, *v) for k, v in cases.items()]))
+    ds0 = results[cases["power law, alpha = 0.34"][0].name]
+    a0 = analyses["power law, alpha = 0.34"][0] if "power law, alpha = 0.34" in analyses else None
+    slopes_ok = bool(analyses) and all(abs(a["slope_thin"] * (1 + al) - 1) < 0.1
+                                       for a, _, al in analyses.values())
+    ratios_ok = bool(analyses) and all(0.8 < a["ratio"] < 1.25 for a, _, _ in analyses.values())
+    alpha034 = similarity.solve_similarity(0.34)
     text = f"""## Smooth-to-rough chute (granular Blasius boundary layer)
 
 Scenario `smooth_to_rough_chute.yaml`: plug inflow H = 5 cm, U = {speed} m/s
-(Fr = {a0['froude'] if a0 else float('nan'):.2f}) on a 16 deg chute, free slip for x < 0, no slip
+(Fr = {a0['froude'] if a0 else math.nan:.2f}) on a 16 deg chute, free slip for x < 0 and no slip
 for x > 0, power-law mu(I) = 0.56 I^0.34 (Tsang et al. 2019, Table 1), d = 1 mm; and the
-linear law `--set rheology.alpha=1 --set rheology.m=0.2`.  Resolution:
-{_resolution(any_ds) if any_ds is not None else 'n/a'}, geometric layers (ratio 1.12) refined
-towards the bed, state at t = {float(any_ds['time'][-1]) if any_ds is not None else float('nan'):.2f} s.
-The displacement thickness is sum_a h_a (1 - u_a / U_e) with U_e the top-layer speed; the
-power law of x is fitted over the window where the paper expects self-similarity,
-{window} (0.5 Fr H to Fr^2 H).  The similarity solution f of eq. 4.16 is computed by
-`multilayer.similarity` (shooting); its prediction for the displacement thickness is
-zeta_disp eps H (x/H)^(1/(1+alpha)) with eps from eq. 4.13.
+linear law (`--set rheology.alpha=1 --set rheology.m=0.2`).  Refined for the validation
+(`{' '.join('--set ' + o for o in CHUTE_RUN)}`): {_resolution(ds0) if not isinstance(ds0, str) else 'n/a'}
+(dx = 2.5 mm; geometric layers, ratio 1.12, the bottom one 0.5 % of h).  A third run
+on a 4 m chute (`{' '.join('--set ' + o for o in CHUTE_LONG)}`) follows the profile
+further downstream.
+
+The displacement thickness is delta* = sum_a h_a (1 - u_a / U_e), U_e the top-layer
+speed.  The similarity solution f of eq. 4.16 is computed by `multilayer.similarity`
+(shooting); the theory predicts delta* = zeta_disp eps H (x/H)^(1/(1+alpha)) with eps of
+eq. 4.13 (no fitted constant).  The theory assumes a boundary layer thin compared with
+the flow, so the power law is fitted where the predicted delta* is below H/10
+({a0['thin'][0] if a0 else math.nan:.3f} m <= x <= {a0['thin'][1] if a0 else math.nan:.3f} m for alpha = 0.34); the paper's nominal window
+0.5 Fr H < x < Fr^2 H ({a0['nominal'][0] if a0 else math.nan:.2f} to {a0['nominal'][1] if a0 else math.nan:.2f} m) is also fitted.
 
 {figure}
 
-{_table(["law", "f''(0)", "zeta_disp", "fitted slope", "predicted slope",
-         "measured / predicted thickness", "chi at Fr^2 H / at outlet",
-         "last change of delta*"], rows)}
+{_table(["law", "f''(0)", "zeta_disp", "predicted slope", "slope (thin layer)",
+         "delta* measured / predicted (thin layer)", "slope (0.5 Fr H to Fr^2 H)",
+         "chi at outlet", "change of delta* over the last 0.1 s"], rows)}
 
-The shooting solver gives f''(0) = 0.33206 for alpha = 1 (the classical Blasius value) and
-{analyses.get('power law, alpha = 0.34', (None, similarity.solve_similarity(0.34)))[1].fpp0:.4f}
-for alpha = 0.34 (the paper quotes about 0.164 and zeta_disp of about 4.35; we obtain
-{similarity.solve_similarity(0.34).displacement_thickness:.3f}, the difference being the
-paper's finite integration range: the far field decays only algebraically for alpha < 1).
+The shooting solver gives f''(0) = 0.33206 for alpha = 1 (the classical Blasius value)
+and {alpha034.fpp0:.4f} for alpha = 0.34, where the paper quotes about 0.164 and
+zeta_disp of about 4.35; we obtain zeta_disp = {alpha034.displacement_thickness:.3f},
+independent of the truncation of the integration (the algebraic far-field tail is added
+analytically), so we attribute the 1 % difference to the paper's finite integration range.
 
-Verdict: growth exponent {'**met**' if slopes_ok else '**not met**'} (fitted slopes in the table, within 15 %
-of 1/(1+alpha) counts as met); the profiles collapse onto f' in similarity variables to the
-extent shown in the middle panel.  The shape factor rises from 1 (plug inflow) along the
-chute; the domain (1 m, about Fr^2 H) does not reach the far field where chi -> 5/4 is
-predicted, so that limit is **not verified** here.
+Verdict:
+- growth exponent and thickness where the layer is thin: slopes within 10 % of
+  1/(1+alpha) {'**met**' if slopes_ok else '**not met**'}, amplitude within 25 % of the prediction
+  with no fitted constant {'**met**' if ratios_ok else '**not met**'};
+- in the paper's nominal window the layer has already grown to a sizeable fraction of the
+  5 cm depth at this Froude number and saturates, so the fitted slope there is well below
+  1/(1+alpha): the similarity regime ends earlier than the order-of-magnitude window;
+- velocity profiles in similarity variables (middle panel, x = 1 to 4 cm thin layer,
+  x = 0.4 m saturated) lie on f' for the thin layer;
+- shape factor: it rises from 1 (plug inflow) to {a0['chi'][-2] if a0 else math.nan:.3f} at 1 m and
+  {chi_far:.3f} at 4 m (4 m run); the predicted far-field value 5/4 (Bagnold profile) is
+  {'**met**' if abs(chi_far - 1.25) < 0.02 else '**not reached**'} within the computed length.
 """
     return text
 

@@ -142,6 +142,29 @@ def _rates(h, u, b, l, *, dx, g_n, g_t, left, right, inflow, order, at_rest):
     return -div_Q, dq
 
 
+def _step(h, u, b, l, *, dt, dry, **kw):
+    """Forward Euler (order 1) or Heun (order 2) step of the transport rates."""
+
+    def velocity(h_, q_):
+        wet = h_ > dry
+        return np.where(wet, q_ / (l * np.where(wet, h_, 1.0)), 0.0)
+
+    q = l * h * u
+    dh, dq = _rates(h, u, b, l, **kw)
+    h1 = np.maximum(h + dt * dh, 0.0)  # >= 0 exactly; the clip removes round-off only
+    q1 = q + dt * dq
+    if kw["order"] == 2:  # Heun: the average of the state and two Euler steps
+        dh, dq = _rates(h1, velocity(h1, q1), b, l, **kw)
+        h1 = np.maximum(0.5 * (h + h1 + dt * dh), 0.0)
+        q1 = 0.5 * (q + q1 + dt * dq)
+    return h1, velocity(h1, q1)
+
+
+MARGIN = 4
+"""Dry cells kept on each side of the material: a Heun step moves a front by at most two
+cells and the slopes look one cell further."""
+
+
 def transport(
     h: np.ndarray,
     u: np.ndarray,
@@ -163,26 +186,26 @@ def transport(
     ``g_n = g cos(theta)`` and ``g_t = g sin(theta)``; columns not thicker than ``dry``
     leave the step at rest.
     """
-    l = fractions[:, None]
-    moving = np.any(u != 0.0, axis=0)
-    moving_ext = np.concatenate([[moving[0] or left == "inflow"], moving, [moving[-1] or right == "inflow"]])
+    N = h.size
+    occupied = np.flatnonzero((h > 0.0) | np.any(u != 0.0, axis=0))
+    lo = 0 if occupied.size == 0 or left in ("inflow", "periodic") else max(occupied[0] - MARGIN, 0)
+    hi = N if occupied.size == 0 or right in ("inflow", "periodic") else min(occupied[-1] + 1 + MARGIN, N)
+    # the dry cells outside the window stay dry and at rest; inside it, a window edge
+    # away from the domain boundary is dry, which an outflow ghost copies exactly
+    window = slice(lo, hi)
+    hw, uw = h[window], u[:, window]
+    moving = np.any(uw != 0.0, axis=0)
+    ends = [moving[0] or left == "inflow", moving[-1] or right == "inflow"]
     if left == "periodic":
-        moving_ext[0] = moving[-1]
+        ends[0] = moving[-1]
     if right == "periodic":
-        moving_ext[-1] = moving[0]
+        ends[1] = moving[0]
+    moving_ext = np.concatenate([[ends[0]], moving, [ends[1]]])
     at_rest = ~(moving_ext[:-1] | moving_ext[1:])
-    kw = dict(dx=dx, g_n=g_n, g_t=g_t, left=left, right=right, inflow=inflow, order=order, at_rest=at_rest)
-
-    def velocity(h_, q_):
-        wet = h_ > dry
-        return np.where(wet, q_ / (l * np.where(wet, h_, 1.0)), 0.0)
-
-    q = l * h * u
-    dh, dq = _rates(h, u, b, l, **kw)
-    h1 = np.maximum(h + dt * dh, 0.0)  # >= 0 exactly; the clip removes round-off only
-    q1 = q + dt * dq
-    if order == 2:  # Heun: the average of the state and two Euler steps
-        dh, dq = _rates(h1, velocity(h1, q1), b, l, **kw)
-        h1 = np.maximum(0.5 * (h + h1 + dt * dh), 0.0)
-        q1 = 0.5 * (q + q1 + dt * dq)
-    return h1, velocity(h1, q1)
+    h_new, u_new = np.zeros_like(h), np.zeros_like(u)
+    h_new[window], u_new[:, window] = _step(
+        hw, uw, b[window], fractions[:, None], dt=dt, dry=dry, dx=dx, g_n=g_n, g_t=g_t,
+        left=left if lo == 0 else "outflow", right=right if hi == N else "outflow",
+        inflow=inflow, order=order, at_rest=at_rest,
+    )
+    return h_new, u_new

@@ -62,15 +62,17 @@ class StressModel:
         spacing = 0.5 * (fractions + np.concatenate([[0.0], fractions[:-1]]))
         self.spacing_fraction = spacing[:, None]  # h_0/2 at the bed, (l_{k-1} + l_k)/2 above
 
-    def columns(self, h: np.ndarray) -> ColumnStresses:
-        """Velocity-independent coefficients for thickness ``h`` (N,)."""
+    def columns(self, h: np.ndarray, where: np.ndarray) -> ColumnStresses:
+        """Velocity-independent coefficients of the columns ``where`` of thickness ``h``."""
         rho = self.material.density
+        h = h[where]
+        base_kind, base_mu = self.base_kind[where], self.base_mu[where]
         p = rho * self.g_n * self.depth_interface * h
         kappa = self.bulk.yield_stress(p, self.material).astype(float)
         viscous = np.ones(p.shape, dtype=bool)
-        kappa[0] = np.where(self.base_kind == COULOMB, self.base_mu * p[0], kappa[0])
-        kappa[0] = np.where(self.base_kind == FREE_SLIP, 0.0, kappa[0])
-        viscous[0] = self.base_kind == NO_SLIP
+        kappa[0] = np.where(base_kind == COULOMB, base_mu * p[0], kappa[0])
+        kappa[0] = np.where(base_kind == FREE_SLIP, 0.0, kappa[0])
+        viscous[0] = base_kind == NO_SLIP
         pbar = rho * self.g_n * self.depth_centre * h
         if self.walls is not None:
             w = (2.0 / self.width) * self.l * h * self.walls.yield_stress(pbar, self.material)
@@ -111,12 +113,13 @@ class StressModel:
 
 def _tangent(law: Rheology, rate: np.ndarray, pressure: np.ndarray, material: Material):
     """Offset ``tau_v(g) - T g`` and slope ``T = d tau_v / d gamma`` of the viscous stress
-    ``tau_v = eta(g) g`` of ``law`` at shear rate ``g`` (central difference, relative step
-    1e-6; ``T = eta(0)`` at rest)."""
-    step = 1e-6 * rate
-    tau = law.viscosity(rate, pressure, material) * rate
+    ``tau_v = eta(g) g`` of ``law`` at shear rate ``g`` (forward difference, relative step
+    1e-7; ``T = eta(0)`` at rest).  ``T`` only sets the speed of the Newton iteration:
+    its fixed point uses ``tau_v`` itself."""
+    step = 1e-7 * rate
+    eta = law.viscosity(rate, pressure, material)
+    tau = eta * rate
     up = law.viscosity(rate + step, pressure, material) * (rate + step)
-    down = law.viscosity(rate - step, pressure, material) * (rate - step)
-    slope = np.where(rate > 0, (up - down) / np.where(step > 0, 2 * step, 1.0), law.viscosity(rate, pressure, material))
+    slope = np.where(rate > 0, (up - tau) / np.where(step > 0, step, 1.0), eta)
     slope = np.maximum(slope, 0.0)
     return np.maximum(tau - slope * rate, 0.0), slope

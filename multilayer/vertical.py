@@ -53,19 +53,22 @@ def implicit_step(
     ``u_guess`` (usually the previous velocities) seeds the viscosity.  Only columns
     that have not converged are solved again.
     """
-    cs = stresses.columns(h)
-    u = u_guess.copy()
-    todo = np.flatnonzero(h > 0)
-    u[:, h <= 0] = 0.0
+    u = np.zeros_like(ustar)
+    wet = np.flatnonzero(h > 0)
+    cs = stresses.columns(h, wet)
+    current = u_guess[:, wet]
+    todo = np.arange(wet.size)  # wet columns still iterating
     threshold = tolerance * velocity_scale
     for iteration in range(1, max_iterations + 1):
+        kappa, c, w, cw = stresses.linearise(cs, current)
         cols = (slice(None), todo)
-        kappa, c, w, cw = stresses.linearise(cs, u)
-        new = solver(cs.m[cols], ustar[cols], dt, kappa[cols], c[cols], w[cols], cw[cols], guess=u[cols])
-        change = np.max(np.abs(new - u[cols]), axis=0)
-        u[cols] = new
+        new = solver(cs.m[cols], ustar[:, wet[todo]], dt, kappa[cols], c[cols], w[cols], cw[cols],
+                     guess=current[cols])
+        change = np.max(np.abs(new - current[cols]), axis=0)
+        current[cols] = new
         todo = todo[change > threshold]
         if todo.size == 0:
+            u[:, wet] = current
             return u, iteration
     raise RunError(
         f"the viscous (Newton) iteration of the vertical step did not reach tolerance "
