@@ -63,10 +63,10 @@ class Run:
     def outdir(self) -> Path:
         return RUNS / self.name
 
-    @property
-    def command(self) -> str:
-        sets = "".join(f" --set '{o}'" for o in self.overrides)
-        return f"multilayer run scenarios/{self.scenario}.yaml{sets}"
+
+def _shipped(name: str) -> scenarios.Scenario:
+    """A shipped scenario as written (no overrides)."""
+    return scenarios.load(SCENARIOS / f"{name}.yaml")
 
 
 def _execute(run: Run) -> str | None:
@@ -313,7 +313,7 @@ BAGNOLD_LAYERS = (5, 10, 20, 40, 80)
 
 
 def section_bagnold(jobs: int) -> str:
-    scenario = Run("x", "bagnold_chute").load()
+    scenario = _shipped("bagnold_chute")
     theta, h = scenario.slope_deg, scenario.initial[0].thickness
     mat = scenario.material
     params = scenario.rheology.params
@@ -365,6 +365,8 @@ def section_bagnold(jobs: int) -> str:
     ref = np.array([layers[0], layers[-1]], dtype=float)
     ax2.loglog(ref, errs[0] * (ref / ref[0]) ** -1, "k:", label="order 1")
     ax2.loglog(ref, errs[0] * (ref / ref[0]) ** -2, "k--", label="order 2")
+    ax2.set_xticks(layers, [str(n) for n in layers])
+    ax2.minorticks_off()
     ax2.set_xlabel("layers")
     ax2.legend()
     figure = _figure(fig, "bagnold")
@@ -384,8 +386,7 @@ layer; "last change" is the largest change over the last output interval (steadi
          "order", "last change / u_s"], rows)}
 
 Verdict: the computed profile converges to Bagnold's; observed orders are in the table.
-The layer-velocity error is largest in the top layer, where the pressure and so the
-mu(I) viscosity vanish.  **{'Met' if errs and errs[-1] < 0.02 else 'Not met at the finest resolution'}**
+**{'Met' if errs and errs[-1] < 0.02 else 'Not met at the finest resolution'}**
 (finest max layer error {errs[-1] if errs else float('nan'):.2%} of the surface speed).
 """
     return text
@@ -434,7 +435,7 @@ def _chute_analysis(ds: xr.Dataset, alpha: float, m: float, sol: similarity.Simi
 
 
 def section_chute(jobs: int) -> str:
-    scenario = Run("x", "smooth_to_rough_chute").load()
+    scenario = _shipped("smooth_to_rough_chute")
     p = scenario.rheology.params
     theta, h_in = scenario.slope_deg, scenario.boundaries.inflow.thickness
     speed, d = scenario.boundaries.inflow.velocity.speed, scenario.material.grain_diameter
@@ -497,9 +498,13 @@ def section_chute(jobs: int) -> str:
     figure = _figure(fig, "chute")
     ds0 = results[cases["power law, alpha = 0.34"][0].name]
     a0 = analyses["power law, alpha = 0.34"][0] if "power law, alpha = 0.34" in analyses else None
-    slopes_ok = bool(analyses) and all(abs(a["slope_thin"] * (1 + al) - 1) < 0.1
-                                       for a, _, al in analyses.values())
-    ratios_ok = bool(analyses) and all(0.8 < a["ratio"] < 1.25 for a, _, _ in analyses.values())
+    verdicts = []
+    for label, (a, _, al) in analyses.items():
+        slope_ok = abs(a["slope_thin"] * (1 + al) - 1) < 0.1
+        ratio_ok = 0.8 < a["ratio"] < 1.25
+        verdicts.append(f"{label}: slope {a['slope_thin']:.3f} vs {1 / (1 + al):.3f} "
+                        f"{'**met**' if slope_ok else '**not met**'}, thickness "
+                        f"{a['ratio']:.2f} x predicted {'**met**' if ratio_ok else '**not met**'}")
     alpha034 = similarity.solve_similarity(0.34)
     text = f"""## Smooth-to-rough chute (granular Blasius boundary layer)
 
@@ -533,9 +538,12 @@ independent of the truncation of the integration (the algebraic far-field tail i
 analytically), so we attribute the 1 % difference to the paper's finite integration range.
 
 Verdict:
-- growth exponent and thickness where the layer is thin: slopes within 10 % of
-  1/(1+alpha) {'**met**' if slopes_ok else '**not met**'}, amplitude within 25 % of the prediction
-  with no fitted constant {'**met**' if ratios_ok else '**not met**'};
+- growth exponent (within 10 % of 1/(1+alpha)) and thickness (within 25 % of the
+  prediction, no fitted constant) where the layer is thin: {'; '.join(verdicts)}.
+  Where it is not met, the likely cause is the outer flow: with free slip upstream and
+  no yield stress the plug keeps accelerating under gravity (U_e grows along x), an
+  effect of the order of the boundary-layer terms that the leading-order similarity
+  theory ignores; it thins the layer and lowers the fitted exponent;
 - in the paper's nominal window the layer has already grown to a sizeable fraction of the
   5 cm depth at this Froude number and saturates, so the fitted slope there is well below
   1/(1+alpha): the similarity regime ends earlier than the order-of-magnitude window;
@@ -552,13 +560,14 @@ Verdict:
 
 
 COLLAPSE_RATIOS = (0.5, 1.0, 2.0, 4.0, 7.0, 10.0)
+COLLAPSE_DOMAIN = ("domain.x_max=2.0", "domain.cells=500", "time.end=2.0",
+                   "time.output_interval=0.05")
 L0 = 0.05
 
 
 def section_collapse(jobs: int) -> str:
     runs = [Run(f"collapse_a{a:g}", "column_collapse",
-                (f"initial.0.height={a * L0:g}", "domain.x_max=1.0", "domain.cells=250",
-                 "time.end=1.5", "time.output_interval=0.05"))
+                (f"initial.0.height={a * L0:g}", *COLLAPSE_DOMAIN))
             for a in COLLAPSE_RATIOS]
     results = execute(runs, jobs)
     rows, ratios, runouts = [], [], []
@@ -595,7 +604,8 @@ def section_collapse(jobs: int) -> str:
 
 Scenario `column_collapse.yaml` (L0 = 5 cm, glass beads of seed 002 with Jop mu(I), no-slip
 base, no side walls) with H0 = a L0 for a = {', '.join(f'{a:g}' for a in COLLAPSE_RATIOS)}
-(`--set initial.0.height=...`), on a 1 m domain of 250 cells (4 mm) up to t = 1.5 s.
+(`--set initial.0.height=...` with `{' '.join('--set ' + o for o in COLLAPSE_DOMAIN)}`: a 2 m
+domain of 4 mm cells, up to t = 2 s).
 Resolution: {_resolution(any_ds) if any_ds is not None else 'n/a'} (one of the runs).
 The run-out L_f is the final front (h > 1 mm, taken at the cell edge).  Reference: the
 2D experimental laws (L_f - L0)/L0 ~ 1.2 a for a < 2.3 and ~ 1.9 a^(2/3) beyond
@@ -621,6 +631,8 @@ issue.  A ratio between 0.7 and 1.3 at every a would count as met:
 
 EROSION_THETAS = (16.0, 19.0, 22.0)
 EROSION_BEDS = (0.0, 0.001, 0.002, 0.003, 0.004, 0.005)
+#: tolerance 1e-8: the engine's Newton iteration stalls above 1e-10 in a few columns
+EROSION_RUN = ("time.end=3.0", "numerics.tolerance=1e-8")
 EROSION_LAWS = {"mu(I)": (), "Drucker-Prager": (
     "rheology={name: drucker_prager, mu_s: 0.4770, nu: 6.45e-4}",)}
 
@@ -640,7 +652,7 @@ def section_erodible(jobs: int) -> str:
             for bed in EROSION_BEDS:
                 name = f"erodible_{'muI' if law == 'mu(I)' else 'DP'}_{int(theta)}_{bed * 1000:g}mm"
                 runs[(law, theta, bed)] = Run(name, "erodible_bed_collapse",
-                                              (f"slope_deg={theta}", "time.end=3.0",
+                                              (f"slope_deg={theta}", *EROSION_RUN,
                                                *_bed_overrides(bed), *sets))
     results = execute(list(runs.values()), jobs)
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
@@ -686,7 +698,9 @@ def section_erodible(jobs: int) -> str:
 Scenario `erodible_bed_collapse.yaml` (14 cm x 20 cm column of glass beads, 10 cm channel,
 wall friction tan 10.5 deg) at theta = {', '.join(f'{t:g}' for t in EROSION_THETAS)} deg with
 erodible-bed thickness {', '.join(f'{b * 1000:g}' for b in EROSION_BEDS)} mm
-(`--set initial.0.thickness=...`, no bed entry for 0 mm), up to t = 3 s, with Jop mu(I)
+(`--set initial.0.thickness=...`, no bed entry for 0 mm; `{' '.join('--set ' + o for o in EROSION_RUN)}`,
+because the vertical solver's Newton iteration does not reach the default 1e-10 in a few
+columns of these runs), with Jop mu(I)
 (the file) and with a constant friction coefficient, Drucker-Prager mu_s = tan 25.5 deg
 plus the constant viscosity eta = 1 Pa s of seed 002 (nu = 6.45e-4 m^2/s).
 Resolution: {_resolution(any_ds) if any_ds is not None else 'n/a'} (one of the runs): the
@@ -750,7 +764,6 @@ Every scenario file carries an `expect:` list (DESIGN.md section 4):
 
     multilayer check scenarios/*.yaml      # exit 0 all pass, 1 a failure, 2 invalid input
     pytest scenarios/                       # one test item per file with expect:
-    pytest -m validation tests/test_scenarios.py
 
 Rule: **the expected values hold for the file exactly as written**, resolution included
 (the scenario schema has no separate "fast" resolution, so `multilayer check` has no
@@ -759,8 +772,8 @@ result at that resolution (a regression check, with the reference value quoted i
 header comment), and the full-resolution and parameter-study runs of this report are made
 by `docs/make_validation.py` through `--set` overrides.  The pytest plugin only collects
 YAML files named on the command line or lying directly in a directory named there, so a
-plain `pytest` never turns other YAML files into runs.  The three cheapest scenarios run
-in the default test suite (`tests/test_scenarios.py`); the others are marked `validation`.
+plain `pytest` never turns other YAML files into runs.  Each shipped file runs in
+seconds, and all of them run in the default test suite (`tests/test_scenarios.py`).
 """
 
 

@@ -297,24 +297,22 @@ def _active_set(m, ustar, dt, kappa, c, w, cw, guess, u, first, grounded, U, dia
 
 
 def _columns(m, ustar, dt, kappa, c, w, cw, guess, u, chunks):
-    L, N = m.shape
+    """Solve every column; arrays are (N, L) here so that each column is contiguous."""
+    N, L = m.shape
     fallbacks = 0
     for k in prange(chunks):
         ws = _workspace(L)
         first = np.empty(L + 1, np.int64)
         grounded = np.empty(L, np.bool_)
         U, diag, low, rhs = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
-        col = np.empty(L)
         for i in range(k * N // chunks, (k + 1) * N // chunks):
-            if m[0, i] <= 0.0:
-                u[:, i] = 0.0
+            if m[i, 0] <= 0.0:
+                u[i, :] = 0.0
                 continue
-            args = (m[:, i].copy(), ustar[:, i].copy(), dt, kappa[:, i].copy(), c[:, i].copy(),
-                    w[:, i].copy(), cw[:, i].copy())
-            if not _active_set(*args, guess[:, i].copy(), col, first, grounded, U, diag, low, rhs):
-                _dynamic_programme(*args, col, ws)
+            args = (m[i], ustar[i], dt, kappa[i], c[i], w[i], cw[i])
+            if not _active_set(*args, guess[i], u[i], first, grounded, U, diag, low, rhs):
+                _dynamic_programme(*args, u[i], ws)
                 fallbacks += 1
-            u[:, i] = col
     return fallbacks
 
 
@@ -344,12 +342,12 @@ def solve(
     proposes the structure of rigid and static groups; it only affects the speed.
     Returns the new velocities (L, N).
     """
-    arrays = [np.ascontiguousarray(a, dtype=float) for a in (m, ustar, kappa, c, w, cw)]
-    guess = arrays[1] if guess is None else np.ascontiguousarray(guess, dtype=float)
+    arrays = [np.ascontiguousarray(np.transpose(a), dtype=float) for a in (m, ustar, kappa, c, w, cw)]
+    guess = arrays[1] if guess is None else np.ascontiguousarray(np.transpose(guess), dtype=float)
     u = np.empty_like(arrays[0])
     if u.size >= PARALLEL_CELLS:
-        chunks = max(1, min(u.shape[1], 4 * get_num_threads()))
+        chunks = max(1, min(u.shape[0], 4 * get_num_threads()))
         _solve_parallel(*arrays[:2], float(dt), *arrays[2:], guess, u, chunks)
     else:
         _solve_serial(*arrays[:2], float(dt), *arrays[2:], guess, u, 1)
-    return u
+    return u.T

@@ -60,22 +60,13 @@ class SimilaritySolution:
 
     @cached_property
     def _ode(self):
-        return _integrate(self.alpha, self.fpp0, self.zeta_max)
-
-    def _tail(self, s: float) -> float:
-        f_m, _, g_m = self._ode.y[:, -1]
-        return float(_tail_curvature(np.asarray(s), g_m, f_m, self.alpha))
+        return _integrate(self.alpha, self.fpp0, self.zeta_max, dense=True)
 
     @cached_property
-    def _tail_integrals(self) -> tuple[float, float]:
-        """``int_0^inf g ds`` and ``int_0^inf s g ds`` over the tail, ``s = zeta - zeta_max``.
-
-        The first is ``1 - f'(zeta_max)``, the second ``int_{zeta_max}^inf (1 - f')``.
-        """
-        first = quad(self._tail, 0.0, np.inf, epsabs=1e-14, epsrel=1e-12, limit=500)[0]
-        second = quad(lambda s: s * self._tail(s), 0.0, np.inf, epsabs=1e-14,
-                      epsrel=1e-12, limit=500)[0]
-        return first, second
+    def _tail_excess(self) -> float:
+        """``int_{zeta_max}^inf (1 - f') dzeta``, from the analytic tail."""
+        f_m, _, g_m = self._ode.y[:, -1]
+        return _tail_moment(f_m, g_m, self.alpha, 1)
 
     @cached_property
     def _tail_table(self) -> tuple[np.ndarray, np.ndarray]:
@@ -102,7 +93,7 @@ class SimilaritySolution:
     def displacement_thickness(self) -> float:
         """``zeta_disp = lim (zeta - f(zeta))`` (eq. 4.17); about 4.35 for alpha = 0.34."""
         f_m = self._ode.y[0, -1]
-        return float(self.zeta_max - f_m + self._tail_integrals[1])
+        return float(self.zeta_max - f_m + self._tail_excess)
 
     @property
     def momentum_thickness(self) -> float:
@@ -112,7 +103,7 @@ class SimilaritySolution:
             return fp * (1.0 - fp)
 
         inner = quad(integrand, 0.0, self.zeta_max, limit=500, epsabs=1e-13)[0]
-        return float(inner + self._tail_integrals[1])
+        return float(inner + self._tail_excess)
 
 
 def _rhs(alpha: float):
@@ -126,17 +117,21 @@ def _rhs(alpha: float):
     return rhs
 
 
-def _integrate(alpha: float, fpp0: float, zeta_max: float):
+def _integrate(alpha: float, fpp0: float, zeta_max: float, dense: bool = False):
     return solve_ivp(_rhs(alpha), (0.0, zeta_max), [0.0, 0.0, fpp0], method="DOP853",
-                     rtol=_RTOL, atol=_ATOL, dense_output=True)
+                     rtol=_RTOL, atol=_ATOL, dense_output=dense)
+
+
+def _tail_moment(f_m: float, g_m: float, alpha: float, k: int) -> float:
+    """``int_0^inf s**k f''(zeta_max + s) ds`` of the analytic tail (k = 0: ``1 - f'(zeta_max)``)."""
+    return quad(lambda s: s**k * float(_tail_curvature(np.asarray(s), g_m, f_m, alpha)),
+                0.0, np.inf, epsabs=1e-14, epsrel=1e-12, limit=500)[0]
 
 
 def _far_velocity(alpha: float, fpp0: float, zeta_max: float) -> float:
     """``f'(inf)`` for the initial curvature ``fpp0``: integration plus analytic tail."""
     f_m, fp_m, g_m = _integrate(alpha, fpp0, zeta_max).y[:, -1]
-    tail = quad(lambda s: float(_tail_curvature(np.asarray(s), g_m, f_m, alpha)), 0.0,
-                np.inf, epsabs=1e-14, epsrel=1e-12, limit=500)[0]
-    return fp_m + tail
+    return fp_m + _tail_moment(f_m, g_m, alpha, 0)
 
 
 def solve_similarity(alpha: float, zeta_max: float | None = None) -> SimilaritySolution:

@@ -27,13 +27,16 @@ from .stress import StressModel
 Solver = Callable[..., np.ndarray]
 
 
+def _fipy_solve(m, ustar, dt, kappa, c, w, cw, guess=None):
+    """The FiPy reference path; it needs no guess (it starts from scratch each time)."""
+    from . import vertical_fipy
+
+    return vertical_fipy.solve(m, ustar, dt, kappa, c, w, cw)
+
+
 def solver_for(name: str) -> Solver:
     """The exact solver of one linearised step: ``kernel`` (numba) or ``fipy`` (reference)."""
-    if name == "fipy":
-        from . import vertical_fipy
-
-        return vertical_fipy.solve
-    return chain.solve
+    return _fipy_solve if name == "fipy" else chain.solve
 
 
 def implicit_step(

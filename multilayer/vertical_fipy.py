@@ -21,7 +21,10 @@ iteration is
        s = sgn(z) max(|z| - kappa/r, 0),   z = Du + lam/r,
        t = sgn(y) max(|y| - w/rw, 0),      y = u + mu/rw;
 
-3. multiplier ascent ``lam += r (Du - s)``, ``mu += rw (u - t)``.
+3. multiplier ascent ``lam += r (Du - s)``, ``mu += rw (u - t)``;
+
+steps 2 and 3 use the over-relaxed ``RELAXATION Du + (1 - RELAXATION) s`` for ``Du``
+(and likewise for ``u``; Eckstein & Bertsekas 1992).
 
 The viscous parts ``c`` and ``cw`` stay in the linear u-step, so only interfaces with
 ``kappa > 0`` (walls with ``w > 0``) are split; elsewhere ``r = 0`` (``rw = 0``) and
@@ -41,13 +44,16 @@ import numpy as np
 from multilayer.errors import RunError
 
 PENALTY = 1.0
-"""Penalties ``r_k = PENALTY m_{k+1}/dt`` (layer above link k), ``rw_a = PENALTY m_a/dt``."""
+"""Penalties ``r_k = PENALTY sqrt(m_{k+1} M_k)/dt`` with ``M_k = sum_{b > k} m_b`` the mass
+carried by link k, and ``rw_a = PENALTY m_a/dt`` (docs/numerics.md)."""
 RELAXATION = 1.8
 """Over-relaxation of ``Du`` and ``u`` in the s-, t- and multiplier steps (Eckstein &
 Bertsekas 1992); any value in (0, 2) converges, 1.8 roughly halves the iterations."""
 
 
-def column_mesh(n_columns: int, fractions: Sequence[float] | None = None, n_layers: int | None = None) -> fp.Grid2D:
+def column_mesh(
+    n_columns: int, fractions: Sequence[float] | None = None, n_layers: int | None = None
+) -> fp.Grid2D:
     """The (x, sigma) mesh of ``n_columns`` independent columns, ``dy = fractions``.
 
     ``fractions`` are the layer fractions ``l_a`` (any positive values; uniform
@@ -62,6 +68,9 @@ def column_mesh(n_columns: int, fractions: Sequence[float] | None = None, n_laye
 
 class VerticalStep:
     """The u-step equation of ALG2 on one mesh, built once and reused for every solve.
+
+    ``mesh`` is a ``Grid2D`` in (x, sigma) with one row of cells per layer, possibly
+    translated (:func:`column_mesh` or ``multilayer.mesh.LayeredMesh.grid``).
 
     The coefficients are FiPy variables updated with ``setValue`` (the equation is not
     rebuilt; ``tests/test_vertical_fipy.py`` checks that this agrees with a freshly built
@@ -90,6 +99,7 @@ class VerticalStep:
             == fp.DiffusionTerm(coeff=self.conductance) + self.source - self.flux.divergence
         )
         self.solver = fp.LinearLUSolver(tolerance=1e-15, iterations=10)
+        self.iterations = 0  #: ALG2 iterations of the last call
 
     def _faces(self, per_link: np.ndarray) -> np.ndarray:
         """Face values: ``per_link`` (L, N) on the links k = 0..L-1, zero elsewhere."""
@@ -134,13 +144,8 @@ class VerticalStep:
         wet = (m > 0.0).all(axis=0)
         m = np.where(wet, m, 0.0)
         inertia = m / dt
-        import os
-        f=os.environ.get('RF','m')
-        above=np.cumsum(inertia[::-1],axis=0)[::-1]
-        below=np.concatenate([np.full((1,m.shape[1]),np.inf),np.cumsum(inertia,axis=0)[:-1]])
-        with np.errstate(all='ignore'):
-            base={'m':inertia,'above':above,'harm':np.where(np.isinf(below),above,above*below/(above+below)),'mc':inertia+c}[f]
-        r = np.where(wet & (kappa > 0.0), PENALTY * base, 0.0)
+        carried = np.cumsum(inertia[::-1], axis=0)[::-1]  # M_k/dt: the column above link k
+        r = np.where(wet & (kappa > 0.0), PENALTY * np.sqrt(inertia * carried), 0.0)
         rw = np.where(wet & (w > 0.0), PENALTY * inertia, 0.0)
         inv_r = np.divide(1.0, r, out=np.zeros_like(r), where=r > 0.0)
         inv_rw = np.divide(1.0, rw, out=np.zeros_like(rw), where=rw > 0.0)

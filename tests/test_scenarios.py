@@ -10,9 +10,6 @@ from multilayer.scenario import QUANTITIES
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 NAMES = ("erodible_bed_collapse", "smooth_to_rough_chute", "static_flowing_interface",
          "coulomb_dam_break", "column_collapse", "bagnold_chute")
-#: Scenarios cheap enough (< ~10 s each) to run in the default suite; the others are
-#: run with `pytest -m validation` (or `multilayer check scenarios/*.yaml`).
-CHEAP = ("static_flowing_interface", "coulomb_dam_break", "bagnold_chute")
 
 
 def _path(name: str) -> Path:
@@ -45,14 +42,8 @@ def test_erodible_bed_thickness_is_the_first_initial_entry():
     assert thicker.initial[0].thickness == 0.005
 
 
-@pytest.mark.parametrize("name", CHEAP)
-def test_cheap_scenario_meets_its_expectations(name):
-    outcomes = expect.check(scenarios.load(_path(name)))
-    assert all(o.passed for o in outcomes), expect.report(name, outcomes)
-
-
-@pytest.mark.validation
-@pytest.mark.parametrize("name", sorted(set(NAMES) - set(CHEAP)))
-def test_heavy_scenario_meets_its_expectations(name):
+@pytest.mark.parametrize("name", NAMES)
+def test_scenario_meets_its_expectations(name):
+    """Every shipped file runs in seconds at its own resolution."""
     outcomes = expect.check(scenarios.load(_path(name)))
     assert all(o.passed for o in outcomes), expect.report(name, outcomes)

@@ -59,7 +59,10 @@ def test_single_layer_on_coulomb_base_is_the_shrinkage():
 
 
 def test_column_below_yield_stays_exactly_at_rest():
-    """Uniform u* and kappa_k > (stress needed to stop everything above k): u == 0.0 exactly."""
+    """Uniform u* and kappa_k > (stress needed to stop everything above k): u == 0.0 exactly.
+
+    Held either by the base and interfaces, or (free slip) by one wall-held layer.
+    """
     L, N = 5, 3
     m = np.array([1.0, 2.0, 0.5, 1.5, 1.0])[:, None] * np.ones((L, N))
     ustar = np.ones((L, N)) * [[0.3, -0.2, 0.05]]
@@ -67,7 +70,14 @@ def test_column_below_yield_stays_exactly_at_rest():
     stop = np.cumsum((m * np.abs(ustar) / dt)[::-1], axis=0)[::-1]  # sum_{b > k} m_b |u*|/dt
     kappa = 1.01 * stop
     c = np.full((L, N), 3.0)
-    u = vertical_fipy.solve(m, ustar, dt, kappa, c, zeros(L, N), zeros(L, N), fractions=[0.1, 0.2, 0.3, 0.25, 0.15])
+    fractions = [0.1, 0.2, 0.3, 0.25, 0.15]
+    u = vertical_fipy.solve(m, ustar, dt, kappa, c, zeros(L, N), zeros(L, N), fractions=fractions)
+    assert np.all(u == 0.0)
+    # free-slip base, the column held by the side walls of its middle layer alone
+    kappa[0], c[0] = 0.0, 0.0
+    w = np.zeros((L, N))
+    w[2] = 1.01 * stop[0]
+    u = vertical_fipy.solve(m, ustar, dt, kappa, c, w, zeros(L, N), fractions=fractions)
     assert np.all(u == 0.0)
 
 
@@ -125,7 +135,8 @@ def test_u_step_is_the_dense_optimality_system_on_any_geometry():
     D = np.eye(L) - np.eye(L, k=-1)  # (Du)_k = u_{k+1} - u_k, u_0 = 0
     for i in range(N):
         A = np.diag(inertia[:, i]) + D.T @ np.diag(conductance[:, i]) @ D
-        np.testing.assert_allclose(u[:, i], np.linalg.solve(A, source[:, i] + D.T @ link_flux[:, i]), rtol=0, atol=1e-13)
+        exact = np.linalg.solve(A, source[:, i] + D.T @ link_flux[:, i])
+        np.testing.assert_allclose(u[:, i], exact, rtol=0, atol=1e-13)
 
 
 def test_reused_equation_equals_fresh_one_after_coefficients_change():

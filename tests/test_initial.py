@@ -1,0 +1,52 @@
+"""Initial conditions (DESIGN.md section 4): stacked thicknesses and velocity profiles."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from engine import simulation
+
+
+def test_entries_stack_and_carry_their_own_velocity():
+    sim = simulation(
+        domain={"x_min": 0.0, "x_max": 1.0, "cells": 10, "layers": 10},
+        initial=[
+            {"shape": "layer", "thickness": 0.1},
+            {"shape": "rectangle", "x_min": 0.0, "x_max": 0.45, "height": 0.1,
+             "velocity": {"profile": "plug", "speed": 2.0}},
+        ],
+    )
+    assert np.allclose(sim.h, np.where(sim.x <= 0.45, 0.2, 0.1))
+    column = sim.u[:, 0]  # h = 0.2: the lower five layers are the bed, at rest
+    assert np.all(column[:5] == 0.0) and np.all(column[5:] == 2.0)
+    assert np.all(sim.u[:, -1] == 0.0)
+
+
+def test_linear_and_bagnold_profiles_at_the_layer_centres():
+    common = {"domain": {"x_min": 0.0, "x_max": 1.0, "cells": 2, "layers": 20}}
+    linear = simulation(initial=[{"shape": "layer", "thickness": 0.02, "velocity":
+                                  {"profile": "linear", "shear_rate": 70.0, "from_height": 0.005}}], **common)
+    z = linear.sigma * 0.02
+    assert np.allclose(linear.u[:, 0], 70.0 * np.maximum(z - 0.005, 0.0), rtol=1e-14, atol=0)
+    bagnold = simulation(initial=[{"shape": "layer", "thickness": 0.02, "velocity":
+                                   {"profile": "bagnold", "surface_speed": 0.3}}], **common)
+    assert np.allclose(bagnold.u[:, 0], 0.3 * (1 - (1 - z / 0.02) ** 1.5), rtol=1e-14, atol=0)
+
+
+def test_piecewise_linear_thickness_and_bed():
+    sim = simulation(
+        domain={"x_min": 0.0, "x_max": 4.0, "cells": 4},
+        bed={"points": [[0.0, 1.0], [4.0, 0.0]]},
+        initial=[{"shape": "profile", "points": [[0.0, 0.0], [2.0, 1.0], [4.0, 0.0]]}],
+    )
+    assert sim.x == pytest.approx([0.5, 1.5, 2.5, 3.5])
+    assert sim.h == pytest.approx([0.25, 0.75, 0.75, 0.25])
+    assert sim.bed == pytest.approx([0.875, 0.625, 0.375, 0.125])
+
+
+def test_geometric_layers_refine_towards_the_bed():
+    sim = simulation(domain={"layers": 5, "layer_fractions": {"geometric": 1.5}})
+    l = sim.fractions
+    assert l.sum() == pytest.approx(1.0)
+    assert np.allclose(l[1:] / l[:-1], 1.5)
+    assert sim.mesh.grid.numberOfCells == 5 * sim.h.size
