@@ -600,6 +600,9 @@ def section_collapse(jobs: int) -> str:
     figure = _figure(fig, "column_collapse")
     any_ds = next((v for v in results.values() if not isinstance(v, str)), None)
     ratio_dev = [float(r[4]) for r in rows if r[1] != "run failed"]
+    tall = np.array(ratios) > 2.3
+    exponent = (float(np.polyfit(np.log(np.array(ratios)[tall]), np.log(np.array(runouts)[tall]),
+                                 1)[0]) if tall.sum() > 1 else math.nan)
     text = f"""## Column collapse on a horizontal rough bed
 
 Scenario `column_collapse.yaml` (L0 = 5 cm, glass beads of seed 002 with Jop mu(I), no-slip
@@ -617,10 +620,12 @@ The run-out L_f is the final front (h > 1 mm, taken at the cell edge).  Referenc
 
 Verdict: the computed run-outs are within a factor
 {min(ratio_dev) if ratio_dev else float('nan'):.2f}-{max(ratio_dev) if ratio_dev else float('nan'):.2f}
-of the experimental laws.  {'The trend with a is reproduced but not the coefficients: ' if ratio_dev and (max(ratio_dev) > 1.3 or min(ratio_dev) < 0.7) else ''}a shallow, hydrostatic model
-cannot represent the vertical fall of tall columns (a > ~1), so agreement is expected
-only at small a; beyond, the difference is a known limitation of the model, not a tuning
-issue.  A ratio between 0.7 and 1.3 at every a would count as met:
+of the experimental laws; for a > 2.3 the computed run-out grows like a^{exponent:.2f}
+(experiments: a^0.67).  The run-out is overestimated at every a, increasingly so for
+tall columns.  This is consistent with the known limitation of shallow, hydrostatic
+models, which cannot represent the free fall of tall columns (a > ~1); other causes
+(base condition, rheology parameters of another bead set than Lajeunesse's) have not
+been ruled out.  A ratio between 0.7 and 1.3 at every a would count as met:
 **{'met' if ratio_dev and max(ratio_dev) <= 1.3 and min(ratio_dev) >= 0.7 else 'not met'}**.
 """
     return text

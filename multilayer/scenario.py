@@ -33,11 +33,11 @@ _FRACTION_SUM_TOLERANCE = 1e-6
 # --------------------------------------------------------------------------- YAML
 
 
-class _Loader(yaml.SafeLoader):
+class Loader(yaml.SafeLoader):
     """SafeLoader that also reads ``1e-3`` and ``2E5`` as floats (the YAML 1.2 rule)."""
 
 
-_Loader.add_implicit_resolver(
+Loader.add_implicit_resolver(
     "tag:yaml.org,2002:float",
     re.compile(r"^[-+]?[0-9][0-9_]*(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
     list("-+0123456789"),
@@ -67,8 +67,8 @@ def _line_map(node: yaml.Node, where: str, path: KeyPath = (), lines=None) -> di
 
 def _parse_yaml(text: str, where: str) -> tuple[Any, dict[KeyPath, int]]:
     try:
-        node = yaml.compose(text, Loader=_Loader)
-        data = yaml.load(text, Loader=_Loader)
+        node = yaml.compose(text, Loader=Loader)
+        data = yaml.load(text, Loader=Loader)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
@@ -518,7 +518,7 @@ def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> tuple[dic
             raise InputError(f"--set {item!r}: expected KEY=VALUE; accepted: a dotted key path "
                              "and a YAML value, e.g. domain.cells=200")
         try:
-            value = yaml.load(text, Loader=_Loader)
+            value = yaml.load(text, Loader=Loader)
         except yaml.YAMLError as exc:
             raise InputError(f"--set {key}: malformed YAML value {text!r}; accepted: a YAML "
                              f"scalar, list or mapping ({getattr(exc, 'problem', exc)})") from None
@@ -572,15 +572,21 @@ def from_dict(data: Any, *, source: str | Path | None = None, overrides: Sequenc
     return scenario
 
 
-def load(path: str | Path, overrides: Sequence[str] = ()) -> Scenario:
-    """Read, override and validate a scenario file."""
+def read_yaml(path: str | Path, kind: str = "scenario") -> tuple[Any, dict[KeyPath, int]]:
+    """The parsed YAML of ``path`` and the line of every key path; ``InputError`` if the
+    file is missing, unreadable or malformed (``kind`` names the expected file)."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise InputError(f"{path}: file not found; accepted: a path to a scenario YAML file") from None
+        raise InputError(f"{path}: file not found; accepted: a path to a {kind} YAML file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"{path}: cannot read the file ({exc}); "
                          "accepted: a readable UTF-8 YAML file") from None
-    data, lines = _parse_yaml(text, str(path))
-    return from_dict(data, source=path, overrides=overrides, lines=lines)
+    return _parse_yaml(text, str(path))
+
+
+def load(path: str | Path, overrides: Sequence[str] = ()) -> Scenario:
+    """Read, override and validate a scenario file."""
+    data, lines = read_yaml(path)
+    return from_dict(data, source=Path(path), overrides=overrides, lines=lines)

@@ -61,7 +61,7 @@ class _Dumper(yaml.SafeDumper):
     """SafeDumper that quotes every string the scenario loader would read as another type
     (such as ``1e-5``, a float there)."""
 
-    yaml_implicit_resolvers = scenario._Loader.yaml_implicit_resolvers
+    yaml_implicit_resolvers = scenario.Loader.yaml_implicit_resolvers
 
 
 def format_value(value: Any) -> str:
@@ -127,14 +127,7 @@ def load(path: str | Path) -> Sweep:
     Messages follow the scenario files': ``<file>: <key.path> (line N): <what>; accepted: <...>``.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(f"{path}: file not found; accepted: a path to a sweep YAML file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read the file ({exc}); "
-                         "accepted: a readable UTF-8 YAML file") from None
-    data, lines = scenario._parse_yaml(text, str(path))
+    data, lines = scenario.read_yaml(path, "sweep")
 
     def at(key: tuple[str, ...]) -> str:
         line = f" (line {lines[key]})" if key in lines else ""

@@ -39,32 +39,28 @@ def test_heap_below_the_friction_angle_on_an_inclined_no_slip_bed(rheology):
     assert sim.steps == 3000
 
 
-def test_uniform_layer_on_a_slope_below_the_friction_angle():
-    """tan(20 deg) = 0.36 < mu_s = 0.49: a 5 cm layer on a periodic slope stays put."""
-    sim = simulation(
-        slope_deg=20.0,
-        domain={"x_min": 0.0, "x_max": 1.0, "cells": 50, "layers": 8},
+def layer_on_a_slope(slope_deg: float, cells: int):
+    """A 5 cm layer on a periodic slope, Jop mu(I) with mu_s = tan(26 deg) = 0.49."""
+    return simulation(
+        slope_deg=slope_deg,
+        domain={"x_min": 0.0, "x_max": 1.0, "cells": cells, "layers": 8},
         material={"density": 1550.0, "grain_diameter": 0.7e-3},
         rheology=JOP,
         base=[{"condition": "no_slip"}],
         initial=[{"shape": "layer", "thickness": 0.05}],
         boundaries={"left": "periodic", "right": "periodic"},
     )
-    max_u, max_dh = held(sim, 3000)
+
+
+def test_uniform_layer_on_a_slope_below_the_friction_angle():
+    """tan(20 deg) = 0.36 < mu_s: the layer stays put."""
+    max_u, max_dh = held(layer_on_a_slope(20.0, cells=50), 3000)
     assert max_u == 0.0
     assert max_dh <= 1e-12
 
 
 def test_the_same_layer_above_the_friction_angle_flows():
     """The converse: at 28 degrees (tan = 0.53 > 0.49) the layer accelerates."""
-    sim = simulation(
-        slope_deg=28.0,
-        domain={"x_min": 0.0, "x_max": 1.0, "cells": 10, "layers": 8},
-        material={"density": 1550.0, "grain_diameter": 0.7e-3},
-        rheology=JOP,
-        base=[{"condition": "no_slip"}],
-        initial=[{"shape": "layer", "thickness": 0.05}],
-        boundaries={"left": "periodic", "right": "periodic"},
-    )
+    sim = layer_on_a_slope(28.0, cells=10)
     held(sim, 20)
     assert np.all(sim.u[-1] > 0.0)

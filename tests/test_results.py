@@ -23,17 +23,10 @@ from multilayer.results import (
 )
 from multilayer.simulation import Simulation
 
+from conftest import TINY_SCENARIO
+
 # A 0.1 m x 0.05 m column on a 25 degree slope, 40 cells x 3 layers, wall on the left.
-COLUMN = {
-    "name": "column",
-    "slope_deg": 25.0,
-    "domain": {"x_min": 0.0, "x_max": 0.5, "cells": 40, "layers": 3},
-    "material": {"density": 1500.0, "grain_diameter": 1.0e-3},
-    "rheology": {"name": "drucker_prager", "mu_s": 0.3, "nu": 0.01},
-    "initial": [{"shape": "rectangle", "x_min": 0.0, "x_max": 0.1, "height": 0.05}],
-    "boundaries": {"left": "wall", "right": "outflow"},
-    "time": {"end": 0.05, "output_interval": 0.025},
-}
+COLUMN = {**TINY_SCENARIO, "name": "column"}
 
 
 @pytest.fixture(scope="module")

@@ -20,17 +20,10 @@ from multilayer.progress import Progress
 from multilayer.results import open_result
 from multilayer.simulation import Simulation
 
+from conftest import TINY_SCENARIO
+
 # A column slumping down a 25 degree slope, 40 cells x 3 layers, 26 output times.
-SLUMP = {
-    "name": "slump",
-    "slope_deg": 25.0,
-    "domain": {"x_min": 0.0, "x_max": 0.5, "cells": 40, "layers": 3},
-    "material": {"density": 1500.0, "grain_diameter": 1.0e-3},
-    "rheology": {"name": "drucker_prager", "mu_s": 0.3, "nu": 0.01},
-    "initial": [{"shape": "rectangle", "x_min": 0.0, "x_max": 0.1, "height": 0.05}],
-    "boundaries": {"left": "wall", "right": "outflow"},
-    "time": {"end": 0.5, "output_interval": 0.02},
-}
+SLUMP = {**TINY_SCENARIO, "name": "slump", "time": {"end": 0.5, "output_interval": 0.02}}
 
 
 def _cli(*args: object) -> list[str]:
