@@ -17,9 +17,9 @@ it comes from (upwinding: from above when ``G > 0``).  Stresses are left to the 
 vertical step (``vertical.py``).
 
 Material at rest does not carry waves: a face between two columns that are entirely at
-rest at the start of the step carries no mass during the step (and the centred pressure
-flux), so a heap held by friction keeps its shape to the last bit; whether it is held is
-decided by the vertical step.
+rest carries no mass during the step (and the centred pressure flux), so a heap held by
+friction keeps its shape to the last bit; whether it is held is decided by the vertical
+step (and ``Simulation.step`` redoes a step in which a column at rest starts moving).
 """
 from __future__ import annotations
 
@@ -110,6 +110,7 @@ def _rates(h, u, b, l, *, dx, g_n, g_t, left, right, inflow, order, at_rest):
     cL, cR = np.sqrt(g_n * hL), np.sqrt(g_n * hR)
     s_left = np.minimum(np.min(uL, axis=0) - cL, np.min(uR, axis=0) - cR)
     s_right = np.maximum(np.max(uL, axis=0) + cL, np.max(uR, axis=0) + cR)
+    at_rest = at_rest | (np.minimum(s_left, 0.0) == np.maximum(s_right, 0.0))  # no wave at all
     s_left = np.where(at_rest, -1.0, np.minimum(s_left, 0.0))
     s_right = np.where(at_rest, 1.0, np.maximum(s_right, 0.0))
     width = s_right - s_left
@@ -180,21 +181,25 @@ def transport(
     inflow: Inflow | None = None,
     dry: float = 0.0,
     order: int = 2,
+    moving: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """One explicit transport step: returns h^{n+1} (N,) and the velocities u* (L, N).
 
     ``g_n = g cos(theta)`` and ``g_t = g sin(theta)``; columns not thicker than ``dry``
-    leave the step at rest.
+    leave the step at rest.  ``moving`` (N,) marks the columns that carry waves during
+    the step (default: those with a non-zero velocity).
     """
     N = h.size
-    occupied = np.flatnonzero((h > 0.0) | np.any(u != 0.0, axis=0))
+    if moving is None:
+        moving = np.any(u != 0.0, axis=0)
+    occupied = np.flatnonzero((h > 0.0) | moving)
     lo = 0 if occupied.size == 0 or left in ("inflow", "periodic") else max(occupied[0] - MARGIN, 0)
     hi = N if occupied.size == 0 or right in ("inflow", "periodic") else min(occupied[-1] + 1 + MARGIN, N)
     # the dry cells outside the window stay dry and at rest; inside it, a window edge
     # away from the domain boundary is dry, which an outflow ghost copies exactly
     window = slice(lo, hi)
     hw, uw = h[window], u[:, window]
-    moving = np.any(uw != 0.0, axis=0)
+    moving = moving[window]
     ends = [moving[0] or left == "inflow", moving[-1] or right == "inflow"]
     if left == "periodic":
         ends[0] = moving[-1]

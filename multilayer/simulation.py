@@ -96,11 +96,32 @@ class Simulation:
         dt = min(self.time_step(), t_max - self.t)
         if not dt > 0:
             raise ValueError(f"no time left to step: t = {self.t}, t_max = {t_max}")
+        # columns that move carry waves; a column at rest that the step sets moving
+        # carries them from the start of the step: redo it until that set is complete
+        moving = np.any(self.u != 0.0, axis=0)
+        iterations = 0
+        while True:
+            h_new, u_new, more = self._transport_and_stresses(dt, moving)
+            iterations += more
+            starting = np.any(u_new != 0.0, axis=0) & ~moving
+            if not starting.any():
+                break
+            moving |= starting
+        self.h[...] = h_new
+        self.u[...] = u_new
+        self.picard_iterations += iterations
+        self.steps += 1
+        # land exactly on t_max when the step was cut to reach it
+        self.t = t_max if dt == t_max - self.t else self.t + dt
+        return dt
+
+    def _transport_and_stresses(self, dt: float, moving: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+        """Transport (h, u*) then the implicit vertical step (u^{n+1}) over ``dt``."""
         h_new, ustar = hyperbolic.transport(
             self.h, self.u, self.bed, self.fractions,
             dx=self.dx, dt=dt, g_n=self.g_n, g_t=self.g_t,
             left=self.left, right=self.right, inflow=self.inflow, dry=self.numerics.dry_threshold,
-            order=self.numerics.order,
+            order=self.numerics.order, moving=moving,
         )
         u_new, iterations = vertical.implicit_step(
             self.stresses, h_new, ustar, self.u, dt,
@@ -109,13 +130,7 @@ class Simulation:
             max_iterations=self.numerics.max_iterations,
             velocity_scale=self.velocity_scale,
         )
-        self.h[...] = h_new
-        self.u[...] = u_new
-        self.picard_iterations += iterations
-        self.steps += 1
-        # land exactly on t_max when the step was cut to reach it
-        self.t = t_max if dt == t_max - self.t else self.t + dt
-        return dt
+        return h_new, u_new, iterations
 
     def advance(self, t_target: float, on_step: Callable[["Simulation", float], None] | None = None) -> None:
         """Step until ``t == t_target``; ``on_step(sim, dt)`` is called after every step."""

@@ -94,32 +94,41 @@ class StressModel:
         The viscous stress ``tau_v(s) = eta(|s|/h_k) s/h_k`` of a velocity jump ``s`` is
         replaced by its tangent at ``|s0|``, written as an odd law
         ``sgn(s) (tau_v(|s0|) - T |s0|) + T s`` with ``T = d tau_v/ds``: a Bingham law
-        with yield stress ``kappa + tau_v(|s0|) - T |s0|`` and conductance ``T``.  At a
-        fixed point the law is exact: tangent where the layers shear, and with the true
-        yield stress where they are locked (``s0 = 0``).  Returns ``(kappa, c, w, cw)``.
+        with yield stress ``kappa + tau_v(|s0|) - T |s0|`` and conductance ``T``.  Where
+        that yield stress would be negative (a shear-thickening law with little yield
+        stress) the secant ``T = tau_v(|s0|)/|s0|`` is used instead.  At a fixed point the
+        law is exact either way: tangent or secant where the layers shear, and with the
+        true yield stress where they are locked (``s0 = 0``).  Returns ``(kappa, c, w, cw)``.
         """
         spacing = np.where(cs.spacing > 0, cs.spacing, 1.0)
         jump = np.abs(np.diff(u, axis=0, prepend=0.0))
-        extra, c = _tangent(self.bulk, jump / spacing, cs.pressure, self.material)
+        kappa, c = _newton_model(self.bulk, cs.kappa, jump / spacing, cs.pressure, self.material)
+        kappa = np.where(cs.viscous, kappa, cs.kappa)
         c = np.where(cs.viscous & (cs.spacing > 0), c / spacing, 0.0)
-        kappa = cs.kappa + np.where(cs.viscous, extra, 0.0)
         if self.walls is None:
             return kappa, c, cs.w, np.zeros_like(c)
         half = 0.5 * self.width
-        extra_w, c_w = _tangent(self.walls, np.abs(u) / half, cs.wall_pressure, self.material)
         per_area = (2.0 / self.width) * cs.m / self.material.density  # (2 / W) h_a
-        return kappa, c, cs.w + per_area * extra_w, per_area * c_w / half
+        w, c_w = _newton_model(self.walls, cs.w / per_area.clip(min=1e-300), np.abs(u) / half,
+                               cs.wall_pressure, self.material)
+        return kappa, c, per_area * w, per_area * c_w / half
 
 
-def _tangent(law: Rheology, rate: np.ndarray, pressure: np.ndarray, material: Material):
-    """Offset ``tau_v(g) - T g`` and slope ``T = d tau_v / d gamma`` of the viscous stress
-    ``tau_v = eta(g) g`` of ``law`` at shear rate ``g`` (forward difference, relative step
-    1e-7; ``T = eta(0)`` at rest).  ``T`` only sets the speed of the Newton iteration:
-    its fixed point uses ``tau_v`` itself."""
+def _newton_model(law: Rheology, kappa: np.ndarray, rate: np.ndarray, pressure: np.ndarray,
+                  material: Material) -> tuple[np.ndarray, np.ndarray]:
+    """Yield stress and slope of the odd Bingham law through ``(rate, kappa + tau_v(rate))``.
+
+    The slope is the tangent ``d tau_v / d gamma`` (forward difference, relative step
+    1e-7; ``eta(0)`` at rest), or the secant ``tau_v / gamma`` where the tangent would make
+    the yield stress negative.  The slope only sets the speed of the iteration: the law
+    passes through the true stress at ``rate`` in both cases.
+    """
     step = 1e-7 * rate
     eta = law.viscosity(rate, pressure, material)
     tau = eta * rate
     up = law.viscosity(rate + step, pressure, material) * (rate + step)
-    slope = np.where(rate > 0, (up - tau) / np.where(step > 0, step, 1.0), eta)
-    slope = np.maximum(slope, 0.0)
-    return np.maximum(tau - slope * rate, 0.0), slope
+    tangent = np.where(rate > 0, (up - tau) / np.where(step > 0, step, 1.0), eta)
+    offset_yield = kappa + tau - np.maximum(tangent, 0.0) * rate
+    use_tangent = offset_yield >= 0.0
+    return (np.where(use_tangent, offset_yield, kappa),
+            np.where(use_tangent, np.maximum(tangent, 0.0), eta))
