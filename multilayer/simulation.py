@@ -88,8 +88,12 @@ class Simulation:
         return self.h.size * self.fractions.size
 
     def time_step(self) -> float:
-        """Largest stable step of the transport (Courant condition)."""
-        return hyperbolic.stable_time_step(self.h, self.u, self.g_n, self.dx, self.scenario.time.cfl)
+        """Largest stable step of the transport (Courant condition), inflow state included."""
+        h, u = self.h, self.u
+        if self.inflow is not None:
+            h = np.append(h, self.inflow.thickness)
+            u = np.column_stack([u, self.inflow.velocity])
+        return hyperbolic.stable_time_step(h, u, self.g_n, self.dx, self.scenario.time.cfl)
 
     def step(self, t_max: float = np.inf) -> float:
         """Advance one time step, never beyond ``t_max``; returns the step taken."""
