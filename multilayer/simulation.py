@@ -100,14 +100,16 @@ class Simulation:
         dt = min(self.time_step(), t_max - self.t)
         if not dt > 0:
             raise ValueError(f"no time left to step: t = {self.t}, t_max = {t_max}")
-        # columns that move carry waves; a column at rest that the step sets moving
-        # carries them from the start of the step: redo it until that set is complete
+        # columns that move carry waves; material at rest that the step sets moving carries
+        # them from the start of the step: redo it until that set is complete (a dry
+        # column being filled is no material at rest and needs no redo)
         moving = np.any(self.u != 0.0, axis=0)
+        held = self.h > self.numerics.dry_threshold
         iterations = 0
         while True:
             h_new, u_new, more = self._transport_and_stresses(dt, moving)
             iterations += more
-            starting = np.any(u_new != 0.0, axis=0) & ~moving
+            starting = np.any(u_new != 0.0, axis=0) & ~moving & held
             if not starting.any():
                 break
             moving |= starting
