@@ -63,7 +63,7 @@ def main() -> None:
     d = sim.diagnostics()
     cell_steps = sim.cells * sim.steps
     print(f"cells {args.cells} x layers {args.layers}, transport order {args.order}, t = {sim.t:g}")
-    print(f"steps {sim.steps}, Newton iterations per step {sim.picard_iterations / sim.steps:.2f}")
+    print(f"steps {sim.steps}, Newton iterations per step {sim.newton_iterations / sim.steps:.2f}")
     print(f"time to solution {elapsed:.2f} s, {cell_steps / elapsed / 1e6:.2f} M cell-steps/s")
     print(f"front x = {d['front']:.3f} (threshold {sim.front_threshold:g}), mass {d['mass']:.6f}, "
           f"max |u| {np.abs(sim.u).max():.3f}")

@@ -38,28 +38,32 @@ class Inflow:
     velocity: np.ndarray
 
 
+def _ghost_sources(kind: str, side: str, N: int) -> np.ndarray:
+    """Cells whose state the two ghosts of ``side`` take, the ghost nearest the boundary
+    first: the edge cell (``outflow``, ``inflow``), its mirror images (``wall``), or the
+    cells at the other end (``periodic``)."""
+    left = side == "left"
+    if kind == "periodic":
+        return np.array([-1, -2] if left else [0, 1]) % N
+    if kind == "wall":
+        return np.clip([0, 1] if left else [N - 1, N - 2], 0, N - 1)
+    return np.full(GHOSTS, 0 if left else N - 1)
+
+
 def _ghosts(h, u, b, left, right, inflow: Inflow | None):
-    """Extend the state by two ghost columns per side for the boundary types ``wall``
-    (mirror, u -> -u), ``outflow`` (copy), ``inflow`` (prescribed) and ``periodic``."""
-    N = h.size
-    inner = {  # ghost k (0 nearest to the boundary) copies cell index[k]
-        "left": (np.array([0, 1]), np.array([N - 1, N - 2])),
-        "right": (np.array([N - 1, N - 2]), np.array([0, 1])),
-    }
-    parts = {}
-    for side, kind in (("left", left), ("right", right)):
-        mirror, wrap = inner[side]
-        idx = np.minimum(mirror, N - 1) if kind != "periodic" else wrap % N
-        if kind == "outflow" or kind == "inflow":
-            idx = np.full(GHOSTS, mirror[0])
+    """The state extended by ``GHOSTS`` columns per side: ``wall`` mirrors (u -> -u),
+    ``outflow`` copies, ``inflow`` prescribes h and u, ``periodic`` wraps."""
+    def ghosts(kind, side):
+        idx = _ghost_sources(kind, side, h.size)
         hg, ug, bg = h[idx], u[:, idx], b[idx]
         if kind == "wall":
             ug = -ug
         elif kind == "inflow":
             hg = np.full(GHOSTS, inflow.thickness)
             ug = np.repeat(inflow.velocity[:, None], GHOSTS, axis=1)
-        parts[side] = (hg, ug, bg)
-    (hl, ul, bl), (hr, ur, br) = parts["left"], parts["right"]
+        return hg, ug, bg
+
+    (hl, ul, bl), (hr, ur, br) = ghosts(left, "left"), ghosts(right, "right")
     h_ext = np.concatenate([hl[::-1], h, hr])
     u_ext = np.concatenate([ul[:, ::-1], u, ur], axis=1)
     b_ext = np.concatenate([bl[::-1], b, br])
@@ -93,8 +97,7 @@ def _rates(h, u, b, l, *, dx, g_n, g_t, left, right, inflow, order, at_rest):
         deta = _minmod_slope(h_ext + b_ext)
         du = _minmod_slope(u_ext)
     else:
-        dh = deta = 0.0
-        du = 0.0
+        dh = deta = du = 0.0
     hc, uc, etac = h_ext[1:-1], u_ext[:, 1:-1], h_ext[1:-1] + b_ext[1:-1]
     h_w, h_e = hc - 0.5 * dh, hc + 0.5 * dh  # west / east face values of each cell
     b_w, b_e = etac - 0.5 * deta - h_w, etac + 0.5 * deta - h_e
@@ -116,7 +119,8 @@ def _rates(h, u, b, l, *, dx, g_n, g_t, left, right, inflow, order, at_rest):
     width = s_right - s_left
     wl, wr, jump = s_right / width, -s_left / width, s_left * s_right / width * ~at_rest
 
-    # HLL fluxes of layer mass h_a and momentum h_a u_a (per unit l_a)
+    # HLL fluxes of layer mass h_a and momentum h_a u_a (per unit l_a); no mass crosses a
+    # face at rest, even when Heun's second stage sees the velocities of the first
     qL, qR = hL * uL, hR * uR
     flux_h = l * (wl * qL + wr * qR + jump * (hR - hL)) * ~at_rest
     pL, pR = 0.5 * g_n * hL**2, 0.5 * g_n * hR**2

@@ -16,15 +16,29 @@ import numpy as np
 
 from . import diagnostics, hyperbolic, initial, plugins, stress, vertical
 from .mesh import LayeredMesh
-from .rheology import Material
+from .scenario import Scenario
 
 BASE_KINDS = {"no_slip": stress.NO_SLIP, "coulomb": stress.COULOMB, "free_slip": stress.FREE_SLIP}
+
+
+def basal_conditions(regions, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Basal condition code and Coulomb coefficient of each column centred at ``x``;
+    a region covers ``x_min <= x < x_max`` and later regions win where they overlap."""
+    kind = np.full(x.size, stress.NO_SLIP)
+    mu = np.zeros(x.size)
+    for region in regions:
+        lo = -np.inf if region.x_min is None else region.x_min
+        hi = np.inf if region.x_max is None else region.x_max
+        inside = (x >= lo) & (x < hi)
+        kind[inside] = BASE_KINDS[region.condition]
+        mu[inside] = region.mu or 0.0
+    return kind, mu
 
 
 class Simulation:
     """A scenario's state on the X-sigma FiPy mesh and the loop that advances it."""
 
-    def __init__(self, scenario):
+    def __init__(self, scenario: Scenario):
         sc = scenario
         self.scenario = sc
         dom = sc.domain
@@ -37,23 +51,12 @@ class Simulation:
         self.numerics = sc.numerics
         self.front_threshold = float(sc.numerics.front_threshold)
 
-        mat = sc.material
-        material = Material(mat.density, mat.grain_diameter, mat.particle_density)
-        base_kind = np.full(dom.cells, stress.NO_SLIP)
-        base_mu = np.zeros(dom.cells)
-        for region in sc.base:
-            lo = -np.inf if region.x_min is None else region.x_min
-            hi = np.inf if region.x_max is None else region.x_max
-            inside = (self.x >= lo) & (self.x < hi)
-            base_kind[inside] = BASE_KINDS[region.condition]
-            base_mu[inside] = region.mu or 0.0
         self.stresses = stress.StressModel(
             plugins.instantiate(sc.rheology),
-            material,
+            sc.material.as_material(),
             self.fractions,
             self.g_n,
-            base_kind,
-            base_mu,
+            *basal_conditions(sc.base, self.x),
             walls=plugins.instantiate(sc.walls) if sc.walls is not None else None,
             width=dom.width,
         )
@@ -78,9 +81,12 @@ class Simulation:
         self.bed = self.bed_var.value
         self.t = 0.0
         self.steps = 0
-        self.picard_iterations = 0
-        h_scale = max(float(self.h.max(initial=0.0)), self.inflow.thickness if self.inflow else 0.0)
-        self.velocity_scale = max(math.sqrt(sc.gravity * h_scale), float(np.abs(self.u).max(initial=0.0)), 1e-12)
+        self.newton_iterations = 0
+        # the scale of the Newton tolerance: gravity waves on the deepest initial or
+        # inflowing material, or the fastest initial or inflow velocity
+        h_in, u_in = (self.inflow.thickness, self.inflow.velocity) if self.inflow else (0.0, np.zeros(1))
+        self.velocity_scale = max(math.sqrt(sc.gravity * max(float(self.h.max(initial=0.0)), h_in)),
+                                  float(np.abs(self.u).max(initial=0.0)), float(np.abs(u_in).max()), 1e-12)
 
     @property
     def cells(self) -> int:
@@ -115,7 +121,7 @@ class Simulation:
             moving |= starting
         self.h[...] = h_new
         self.u[...] = u_new
-        self.picard_iterations += iterations
+        self.newton_iterations += iterations
         self.steps += 1
         # land exactly on t_max when the step was cut to reach it
         self.t = t_max if dt == t_max - self.t else self.t + dt
@@ -158,7 +164,7 @@ class Simulation:
         return {
             "t": self.t,
             "steps": self.steps,
-            "picard_iterations": self.picard_iterations,
+            "newton_iterations": self.newton_iterations,
             "h": self.h.copy(),
             "u": self.u.copy(),
         }
@@ -167,6 +173,6 @@ class Simulation:
         """Restore a state saved by ``state_dict``."""
         self.t = float(state["t"])
         self.steps = int(state["steps"])
-        self.picard_iterations = int(state.get("picard_iterations", 0))
+        self.newton_iterations = int(state.get("newton_iterations", 0))
         self.h[...] = state["h"]
         self.u[...] = state["u"]

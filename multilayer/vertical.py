@@ -51,7 +51,7 @@ def implicit_step(
     max_iterations: int = 200,
     velocity_scale: float = 1.0,
 ) -> tuple[np.ndarray, int]:
-    """New layer velocities (L, N) after the stresses of one step, and the Picard count.
+    """New layer velocities (L, N) after the stresses of one step, and the Newton count.
 
     ``u_guess`` (usually the previous velocities) seeds the viscosity.  Only columns
     that have not converged are solved again.
