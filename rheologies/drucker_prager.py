@@ -8,11 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
-import multilayer
-from rheologies._checks import non_negative
+from rheologies._checks import FrictionalYield, non_negative
 
 
-class DruckerPrager(multilayer.Rheology):
+class DruckerPrager(FrictionalYield):
     """Drucker–Prager (Coulomb) yield stress mu_s p plus a constant viscosity rho nu."""
 
     name = "drucker_prager"
@@ -23,10 +22,6 @@ class DruckerPrager(multilayer.Rheology):
         non_negative(mu_s=mu_s, nu=nu)
         self.mu_s = mu_s
         self.nu = nu
-
-    def yield_stress(self, pressure, material):
-        """kappa = mu_s max(p, 0), Pa."""
-        return self.mu_s * np.maximum(np.asarray(pressure, dtype=float), 0.0)
 
     def viscosity(self, shear_rate, pressure, material):
         """eta = rho nu, Pa s, independent of the shear rate and pressure."""

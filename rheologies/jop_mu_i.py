@@ -14,11 +14,10 @@ from __future__ import annotations
 
 import numpy as np
 
-import multilayer
-from rheologies._checks import non_negative, positive
+from rheologies._checks import FrictionalYield, non_negative, positive
 
 
-class JopMuI(multilayer.Rheology):
+class JopMuI(FrictionalYield):
     """Jop et al. (2006) mu(I): friction rising from mu_s to mu_2 with the inertial number."""
 
     name = "jop_mu_i"
@@ -33,10 +32,6 @@ class JopMuI(multilayer.Rheology):
         self.mu_s = mu_s
         self.mu_2 = mu_2
         self.I_0 = I_0
-
-    def yield_stress(self, pressure, material):
-        """kappa = mu_s max(p, 0), Pa."""
-        return self.mu_s * np.maximum(np.asarray(pressure, dtype=float), 0.0)
 
     def viscosity(self, shear_rate, pressure, material):
         """eta = (mu_2 - mu_s) p I / (|gamma| (I_0 + I)), Pa s, finite at gamma = 0 and p = 0."""

@@ -15,11 +15,10 @@ from __future__ import annotations
 
 import numpy as np
 
-import multilayer
-from rheologies._checks import non_negative, positive
+from rheologies._checks import FrictionalYield, non_negative, positive
 
 
-class PowerLawMuI(multilayer.Rheology):
+class PowerLawMuI(FrictionalYield):
     """Power-law mu(I) = mu_s + m I^alpha (Tsang et al. boundary-layer fit)."""
 
     name = "power_law_mu_i"
@@ -35,10 +34,6 @@ class PowerLawMuI(multilayer.Rheology):
         self.m = m
         self.alpha = alpha
         self.shear_rate_floor = shear_rate_floor
-
-    def yield_stress(self, pressure, material):
-        """kappa = mu_s max(p, 0), Pa."""
-        return self.mu_s * np.maximum(np.asarray(pressure, dtype=float), 0.0)
 
     def viscosity(self, shear_rate, pressure, material):
         """eta = m p I^alpha / |gamma| at |gamma| >= shear_rate_floor, Pa s."""
