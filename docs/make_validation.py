@@ -769,7 +769,13 @@ file by hand.  Regenerate with
     python docs/make_validation.py -j 2            # all sections (about 10 min of CPU)
     python docs/make_validation.py static bagnold  # selected sections
 
-Runs are stored in `results/validation/` and reused while their scenario is unchanged.
+Runs are stored in `results/validation/` and reused while their scenario is unchanged;
+delete that directory after changing the engine.
+
+The references that are met are also asserted, at full resolution, by a separate test
+suite that the default test run leaves out (about 40 s on 2 cores):
+
+    python -m pytest -m validation        # tests/test_validation.py
 
 ## Regression checks (`expect:`)
 
