@@ -7,19 +7,22 @@ fall inside it, with the height ``zeta`` measured from the bottom of that entry.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
+from .scenario import Bed, InitialShape, Velocity
 
-def bed_profile(bed, x: np.ndarray) -> np.ndarray:
+
+def bed_profile(bed: Bed, x: np.ndarray) -> np.ndarray:
     """Bed elevation b(x): zero for ``flat``, piecewise linear through ``points``."""
-    points = getattr(bed, "points", None)
-    if not points:
+    if not bed.points:
         return np.zeros_like(x)
-    px, pb = np.asarray(points, dtype=float).T
+    px, pb = np.asarray(bed.points, dtype=float).T
     return np.interp(x, px, pb)
 
 
-def entry_thickness(entry, x: np.ndarray) -> np.ndarray:
+def entry_thickness(entry: InitialShape, x: np.ndarray) -> np.ndarray:
     """Thickness of one ``initial`` entry at the cell centres."""
     if entry.shape == "layer":
         return np.full_like(x, float(entry.thickness))
@@ -29,7 +32,7 @@ def entry_thickness(entry, x: np.ndarray) -> np.ndarray:
     return np.interp(x, px, ph, left=0.0, right=0.0)
 
 
-def velocity_profile(velocity, zeta: np.ndarray, thickness: np.ndarray) -> np.ndarray:
+def velocity_profile(velocity: Velocity | None, zeta: np.ndarray, thickness: np.ndarray) -> np.ndarray:
     """Velocity at height ``zeta`` above the bottom of an entry of local ``thickness``.
 
     ``plug``: uniform ``speed``; ``linear``: ``shear_rate * max(zeta - from_height, 0)``;
@@ -45,7 +48,8 @@ def velocity_profile(velocity, zeta: np.ndarray, thickness: np.ndarray) -> np.nd
     return velocity.surface_speed * (1.0 - depth**1.5)
 
 
-def initial_state(entries, x: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def initial_state(entries: Sequence[InitialShape], x: np.ndarray,
+                  sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Thickness h (N,) and layer velocities u (L, N) of the stacked ``initial`` entries."""
     thicknesses = [entry_thickness(e, x) for e in entries]
     h = np.sum(thicknesses, axis=0) if thicknesses else np.zeros_like(x)
@@ -54,7 +58,7 @@ def initial_state(entries, x: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray
     base = np.zeros_like(x)
     for entry, thick in zip(entries, thicknesses):
         inside = (z >= base) & (z < base + thick) & (thick > 0)
-        profile = velocity_profile(getattr(entry, "velocity", None), z - base, np.broadcast_to(thick, z.shape))
+        profile = velocity_profile(entry.velocity, z - base, np.broadcast_to(thick, z.shape))
         u = np.where(inside, profile, u)
         base = base + thick
     return h, u

@@ -10,18 +10,18 @@ and diagnostics (static interface, front, mass) are evaluated at output times.
 from __future__ import annotations
 
 import math
-from typing import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from . import diagnostics, hyperbolic, initial, plugins, stress, vertical
 from .mesh import LayeredMesh
-from .scenario import Scenario
+from .scenario import BaseZone, Scenario
 
 BASE_KINDS = {"no_slip": stress.NO_SLIP, "coulomb": stress.COULOMB, "free_slip": stress.FREE_SLIP}
 
 
-def basal_conditions(regions, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def basal_conditions(regions: Sequence[BaseZone], x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Basal condition code and Coulomb coefficient of each column centred at ``x``;
     a region covers ``x_min <= x < x_max`` and later regions win where they overlap."""
     kind = np.full(x.size, stress.NO_SLIP)
