@@ -415,7 +415,7 @@ def _chute_analysis(ds: xr.Dataset, alpha: float, m: float, sol: similarity.Simi
     downstream = x > 0
     predicted[downstream] = (sol.displacement_thickness * eps * h_in
                              * (x[downstream] / h_in) ** (1 / (1 + alpha)))
-    froude = speed / math.sqrt(G * h_in * math.cos(math.radians(theta)))
+    froude = similarity.froude_number(speed, h_in, G)
     # thin-layer window: a few cells past the transition, predicted delta* below H/10
     thin = (x >= 4 * dx) & (predicted <= 0.1 * h_in)
     nominal = (x >= 0.5 * froude * h_in) & (x <= min(froude**2 * h_in, x.max() - 0.1))

@@ -149,16 +149,22 @@ def solve_similarity(alpha: float, zeta_max: float | None = None) -> SimilarityS
     return SimilaritySolution(alpha=alpha, fpp0=fpp0, zeta_max=zeta_max)
 
 
+def froude_number(speed: float, depth: float, gravity: float = 9.81) -> float:
+    """Froude number ``U / sqrt(g H)`` of the incident flow (Tsang et al. 2019, sec. 2)."""
+    return float(speed / np.sqrt(gravity * depth))
+
+
 def boundary_layer_scale(alpha: float, m: float, theta_deg: float, depth: float,
                          speed: float, grain_diameter: float,
                          gravity: float = 9.81) -> float:
     """Thickness scale ``eps`` of eq. 4.13 (``Lambda = eps H (x / H)**(1/(1+alpha))``).
 
-    ``Fr = U / sqrt(g H cos theta)`` and ``delta = d / H``; the similarity variable is
+    ``Fr = U / sqrt(g H)`` (the paper's definition, sec. 2: eq. 4.13 carries the
+    ``cos theta`` factors itself) and ``delta = d / H``; the similarity variable is
     ``zeta = z / Lambda(x)`` and the displacement thickness ``zeta_disp * Lambda(x)``.
     """
     cos = np.cos(np.radians(theta_deg))
-    froude = speed / np.sqrt(gravity * depth * cos)
+    froude = froude_number(speed, depth, gravity)
     delta = grain_diameter / depth
     return float((alpha * m * cos / froude**2
                   * (delta * froude / np.sqrt(cos)) ** alpha) ** (1.0 / (1.0 + alpha)))

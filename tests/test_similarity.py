@@ -1,4 +1,6 @@
 """Reference solutions of multilayer.similarity against classical and published values."""
+import math
+
 import numpy as np
 import pytest
 
@@ -6,8 +8,10 @@ from multilayer.rheology import Material, Rheology
 from multilayer.similarity import (
     bagnold_mean_velocity,
     bagnold_profile,
+    boundary_layer_scale,
     displacement_thickness,
     friction_coefficient,
+    froude_number,
     inertial_number_for_slope,
     shape_factor,
     solve_similarity,
@@ -138,3 +142,14 @@ def test_bagnold_profile_satisfies_mu_of_i_everywhere():
     assert bagnold_mean_velocity(depth, inertial, d, theta, density_ratio=ratio) == (
         pytest.approx(mean, rel=1e-6))
     assert mean == pytest.approx(0.6 * u[-1], rel=1e-6)
+
+
+def test_boundary_layer_scale_is_eq_4_13_with_the_papers_froude_number():
+    """eps^(1+alpha) = alpha m cos(theta) / Fr^2 (delta Fr / sqrt(cos theta))^alpha with
+    Fr = U / sqrt(g H) (Tsang et al. 2019, sec. 2 and eq. 4.13), checked by hand for the
+    shipped chute: alpha = 0.34, m = 0.56, theta = 16 deg, H = 5 cm, U = 2.75 m/s, d = 1 mm."""
+    fr = 2.75 / math.sqrt(9.81 * 0.05)
+    cos = math.cos(math.radians(16.0))
+    by_hand = (0.34 * 0.56 * cos / fr**2 * (0.02 * fr / math.sqrt(cos)) ** 0.34) ** (1 / 1.34)
+    assert froude_number(2.75, 0.05) == pytest.approx(fr, rel=1e-14)
+    assert boundary_layer_scale(0.34, 0.56, 16.0, 0.05, 2.75, 1e-3) == pytest.approx(by_hand, rel=1e-12)

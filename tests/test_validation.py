@@ -50,7 +50,7 @@ def test_inviscid_static_flowing_interface_at_three_slopes(theta):
 
 
 @pytest.mark.parametrize("changes", [
-    (),  # power law alpha = 0.34 on 16 deg: measured slope 0.724 vs 0.746, size 0.97
+    (),  # power law alpha = 0.34 on 16 deg: measured slope 0.725 vs 0.746, size 0.95
     # classical Blasius (alpha = 1) on a horizontal chute, where gravity does not
     # accelerate the outer flow: measured slope 0.483 vs 0.5, size 1.06
     ("rheology.alpha=1", "rheology.m=0.2", "slope_deg=0"),
