@@ -170,6 +170,12 @@ def _checkpoint_to_resume(scenario: Any, outdir: Path) -> Checkpoint:
             f"{ckpt_path}: the checkpoint belongs to a different scenario (changed: "
             f"{', '.join(changed)}); resume with the same scenario file and --set "
             f"options (only time.end may change), or run without --resume")
+    t_saved = float(ckpt.state["t"])
+    if t_saved > scenario.time.end * (1 + 1e-12):
+        raise InputError(
+            f"{ckpt_path}: the checkpoint is at t = {t_saved:g} s, beyond time.end = "
+            f"{scenario.time.end:g} s; accepted: a time.end at or after the checkpoint "
+            f"(a run can be extended, not shortened), or run without --resume")
     return ckpt
 
 

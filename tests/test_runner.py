@@ -116,6 +116,10 @@ def test_resume_needs_a_checkpoint_of_the_same_scenario(tmp_path: Path, cli,
     result = cli("run", path, "-o", tmp_path / "done", "--resume", "--set", "slope_deg=30")
     assert result.code == 2
     assert "different scenario (changed: slope_deg)" in result.err
+    # a shorter end would return the old run's later state as if it were the answer
+    result = cli("run", path, "-o", tmp_path / "done", "--resume", "--set", "time.end=0.01")
+    assert result.code == 2
+    assert "beyond time.end" in result.err and "Traceback" not in result.err
 
 
 def test_engine_failure_keeps_the_output_times_done(tmp_path: Path, monkeypatch) -> None:
