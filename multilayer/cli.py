@@ -67,6 +67,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except RunError as exc:
         print(f"multilayer: run failed: {exc}", file=sys.stderr)
         return 1
+    except OSError as exc:  # a path given on the command line cannot be created or written
+        print(f"multilayer: error: {exc}; accepted: a directory that can be created and "
+              "written", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print("multilayer: interrupted", file=sys.stderr)
         return 130

@@ -103,6 +103,17 @@ def test_missing_file(cli, tmp_path):
                          "accepted: a path to a scenario YAML file\n"
 
 
+def test_output_directory_that_cannot_be_created(cli, tiny_scenario, write_scenario, tmp_path):
+    """-o below a regular file: exit 2, the path named, no traceback, no result left."""
+    path = write_scenario(tiny_scenario)
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a directory")
+    result = cli("run", path, "-o", blocker / "out")
+    assert result.code == 2 and "Traceback" not in result.err
+    assert str(blocker / "out") in result.err and "accepted: a directory" in result.err
+    assert not (blocker / "out").exists()
+
+
 def test_unknown_set_key(cli, tiny_scenario, write_scenario):
     path = write_scenario(tiny_scenario)
     result = cli("run", path, "--set", "domain.cellz=10")
