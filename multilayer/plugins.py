@@ -163,12 +163,21 @@ def available(applies_to: str) -> list[str]:
     return sorted(n for n, cls in registry().items() if cls.applies_to == applies_to)
 
 
+def find(name: str, applies_to: str | None = None) -> tuple[type[Rheology] | None, str | None]:
+    """The class registered as ``name`` and what is wrong with it for ``applies_to``
+    (``None`` when it exists and applies there)."""
+    cls = registry().get(name)
+    if cls is None:
+        return None, f"unknown rheology '{name}'"
+    if applies_to is not None and cls.applies_to != applies_to:
+        return cls, f"'{name}' applies to {cls.applies_to}, not {applies_to}"
+    return cls, None
+
+
 def lookup(name: str, applies_to: str | None = None) -> type[Rheology]:
     """The class registered as ``name``; :class:`InputError` if there is none."""
-    cls = registry().get(name)
-    if cls is None or (applies_to is not None and cls.applies_to != applies_to):
-        problem = (f"unknown rheology '{name}'" if cls is None else
-                   f"'{name}' applies to {cls.applies_to}, not {applies_to}")
+    cls, problem = find(name, applies_to)
+    if problem:
         names = available(applies_to) if applies_to else sorted(registry())
         raise InputError(f"{problem}; accepted: {', '.join(names)}")
     return cls

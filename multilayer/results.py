@@ -141,8 +141,9 @@ class ResultWriter:
             "fipy_version": fipy.__version__,
         })
 
-    def write(self, sim: Any) -> None:
-        """Append the current state of ``sim`` as the next output time and sync."""
+    def write(self, sim: Any) -> dict:
+        """Append the current state of ``sim`` as the next output time, sync, and return
+        the diagnostics written."""
         ds, i = self._ds, self.records
         diag = sim.diagnostics()
         ds["h"][i, :] = sim.h
@@ -154,6 +155,7 @@ class ResultWriter:
         ds.steps = int(sim.steps)
         self.records = i + 1
         ds.sync()
+        return diag
 
     def close(self, steps: int, wall_time_s: float, status: str = "completed",
               scenario: Any = None) -> None:
@@ -170,8 +172,9 @@ def _now() -> str:
     return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
 
 
-def open_result(path: str | os.PathLike) -> xr.Dataset:
-    """Load a result file (or the ``result.nc`` inside a directory) into memory.
+def open_result(path: str | os.PathLike, *, load: bool = True) -> xr.Dataset:
+    """Load a result file (or the ``result.nc`` inside a directory) into memory, or with
+    ``load=False`` open it lazily (close it after use, e.g. in a ``with`` block).
 
     Only the records completed so far are returned: a record left half-written by a
     crash (its time still the fill value) is dropped.
@@ -182,10 +185,15 @@ def open_result(path: str | os.PathLike) -> xr.Dataset:
     if not path.is_file():
         raise InputError(f"{path}: no result file (run `multilayer run` first)")
     try:
-        ds = xr.load_dataset(path)
+        ds = xr.load_dataset(path) if load else xr.open_dataset(path)
     except (OSError, ValueError) as exc:
         raise InputError(f"{path}: not a readable netCDF result file ({exc})") from None
     return ds.isel(time=np.flatnonzero(np.isfinite(ds["time"].values)))
+
+
+SUMMARY_KEYS = ("t_final", "front_final", "runout", "mass_final", "max_speed_final",
+                "static_interface_mean_final", "steps", "wall_time_s")
+"""The keys of :func:`summary`, in order."""
 
 
 def summary(path: str | os.PathLike) -> dict[str, float]:
@@ -195,7 +203,8 @@ def summary(path: str | os.PathLike) -> dict[str, float]:
     ``|u|`` at the final time; ``static_interface_mean_final`` the mean static-interface
     height over the cells wetter than the front threshold (NaN if none).
     """
-    ds = open_result(path)
+    with open_result(path, load=False) as lazy:  # only the first and last records are read
+        ds = lazy.isel(time=[0, -1]).load()
     final = ds.isel(time=-1)
     wet = final["h"].values > ds["front"].attrs["threshold"]
     static = final["static_interface"].values[wet]

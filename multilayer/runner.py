@@ -127,9 +127,8 @@ def _run(scenario: Any, outdir: Path, ckpt: Checkpoint | None, quiet: bool | Non
         with stop.installed():
             for t_out in times[times > sim.t + 1e-9 * scenario.time.end]:
                 sim.advance(t_out, on_step=on_step)
-                writer.write(sim)
+                diag = writer.write(sim)
                 saved_t = checkpoint()
-                diag = sim.diagnostics()
                 log.info("output t = %.6g s: step %d, front %.6g m, mass %.6g m2, "
                          "wall %.1f s", sim.t, sim.steps, diag["front"], diag["mass"],
                          wall_time())

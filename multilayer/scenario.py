@@ -104,6 +104,13 @@ def _check_kind(model: BaseModel, kind: str, table: dict[str, tuple[tuple[str, .
         raise _invalid(f"not a key of {kind} {value}", accepted, extra[0])
 
 
+def _ordered(x_min: float, x_max: float) -> None:
+    """An interval [x_min, x_max] must have x_max > x_min."""
+    if not x_min < x_max:
+        raise _invalid(f"x_max = {x_max} is not > x_min = {x_min}", f"a number > x_min = {x_min}",
+                       "x_max")
+
+
 def _increasing(points: list[list[float]], key: str, what: str) -> None:
     xs = [x for x, _ in points]
     if len(points) < 2 or any(b <= a for a, b in zip(xs, xs[1:])):
@@ -139,9 +146,7 @@ class Domain(_Model):
 
     @model_validator(mode="after")
     def _check(self) -> Domain:
-        if not self.x_min < self.x_max:
-            raise _invalid(f"x_max = {self.x_max} is not > x_min = {self.x_min}",
-                           f"a number > x_min = {self.x_min}", "x_max")
+        _ordered(self.x_min, self.x_max)
         accepted = Domain.model_fields["layer_fractions"].description
         value = self.layer_fractions
         if isinstance(value, list):
@@ -217,12 +222,9 @@ class PluginSpec(_Model):
 
     def checked(self, applies_to: str) -> PluginSpec:
         """This spec with validated parameters, for a law applying to ``applies_to``."""
-        names = plugins.available(applies_to)
-        cls = plugins.registry().get(self.name)
-        if cls is None or cls.applies_to != applies_to:
-            problem = (f"unknown rheology '{self.name}'" if cls is None else
-                       f"'{self.name}' applies to {cls.applies_to}, not {applies_to}")
-            raise _invalid(problem, ", ".join(names), "name")
+        cls, problem = plugins.find(self.name, applies_to)
+        if problem:
+            raise _invalid(problem, ", ".join(plugins.available(applies_to)), "name")
         try:
             params = plugins.parameter_model(cls).model_validate(self.params).model_dump()
         except ValidationError as exc:
@@ -253,9 +255,8 @@ class BaseZone(_Model):
         _check_kind(self, "condition", {"no_slip": ((), ("x_min", "x_max")),
                                         "coulomb": (("mu",), ("x_min", "x_max")),
                                         "free_slip": ((), ("x_min", "x_max"))})
-        if self.x_min is not None and self.x_max is not None and not self.x_min < self.x_max:
-            raise _invalid(f"x_max = {self.x_max} is not > x_min = {self.x_min}",
-                           f"a number > x_min = {self.x_min}", "x_max")
+        if self.x_min is not None and self.x_max is not None:
+            _ordered(self.x_min, self.x_max)
         return self
 
 
@@ -310,9 +311,8 @@ class InitialShape(_Model):
         _check_kind(self, "shape", {"layer": (("thickness",), ("velocity",)),
                                     "rectangle": (("x_min", "x_max", "height"), ("velocity",)),
                                     "profile": (("points",), ("velocity",))})
-        if self.shape == "rectangle" and not self.x_min < self.x_max:
-            raise _invalid(f"x_max = {self.x_max} is not > x_min = {self.x_min}",
-                           f"a number > x_min = {self.x_min}", "x_max")
+        if self.shape == "rectangle":
+            _ordered(self.x_min, self.x_max)
         if self.shape == "profile":
             _increasing(self.points, "points", "h")
             if any(h < 0 for _, h in self.points):

@@ -34,22 +34,10 @@ import yaml
 
 from multilayer import runner, scenario
 from multilayer.errors import InputError
-from multilayer.results import CHECKPOINT_FILE, RESULT_FILE
+from multilayer.results import CHECKPOINT_FILE, RESULT_FILE, SUMMARY_KEYS
 
 SWEEP_KEYS = ("base", "parameters", "zip", "output", "description")
 """Top-level keys accepted in a sweep file."""
-
-DIAGNOSTICS = (
-    "t_final",
-    "front_final",
-    "runout",
-    "mass_final",
-    "max_speed_final",
-    "static_interface_mean_final",
-    "steps",
-    "wall_time_s",
-)
-"""Scalar diagnostics of ``multilayer.results.summary`` copied into ``summary.csv``."""
 
 MARKER = "member.json"
 """Written into a member's directory once its run has completed."""
@@ -345,7 +333,7 @@ def run(
 def write_summary(sweep: Sweep, outcomes: list[Outcome], path: str | Path) -> None:
     """Write ``summary.csv``: one row per member with its values, status, error and the
     scalar diagnostics of its result."""
-    columns = ["member", *sweep.parameters, "status", "error", *DIAGNOSTICS]
+    columns = ["member", *sweep.parameters, "status", "error", *SUMMARY_KEYS]
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("w", newline="") as stream:
@@ -355,5 +343,5 @@ def write_summary(sweep: Sweep, outcomes: list[Outcome], path: str | Path) -> No
             row = {"member": outcome.member.id, "status": outcome.status, "error": outcome.error}
             row.update({key: format_value(value) for key, value in outcome.member.values.items()})
             row.update({key: repr(outcome.summary[key])
-                        for key in DIAGNOSTICS if key in outcome.summary})
+                        for key in SUMMARY_KEYS if key in outcome.summary})
             writer.writerow(row)

@@ -150,9 +150,10 @@ def test_invalid_base_scenario_exits_2(tmp_path, capsys):
 
 def test_workers_with_scheduler_is_refused(tmp_path, capsys):
     path = write_sweep(tmp_path, FRICTION_SWEEP)
-    assert cli.main(["sweep", str(path), "--scheduler", "tcp://127.0.0.1:8786",
-                     "--workers", "2"]) == 2
-    assert "--workers: applies to the local cluster only" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_:
+        cli.main(["sweep", str(path), "--scheduler", "tcp://127.0.0.1:8786", "--workers", "2"])
+    assert exit_.value.code == 2
+    assert "argument --workers: not allowed with argument --scheduler" in capsys.readouterr().err
 
 
 def test_unreachable_scheduler_exits_2_before_anything_runs(tmp_path, capsys):

@@ -7,7 +7,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from multilayer.errors import InputError
+from multilayer.commands import positive_int
 
 HELP = "draw PNG figures of DIR/result.nc into DIR/plots/"
 
@@ -16,7 +16,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``multilayer plot``."""
     parser.add_argument("directory", metavar="DIR", type=Path,
                         help="output directory of 'multilayer run'")
-    parser.add_argument("--times", type=int, default=4, metavar="N",
+    parser.add_argument("--times", type=positive_int, default=4, metavar="N",
                         help="number of times in the X-Z section figure (default 4)")
 
 
@@ -24,8 +24,6 @@ def main(args: argparse.Namespace) -> int:
     """Write the figures and list them."""
     from multilayer.plotting import plot_run
 
-    if args.times < 1:
-        raise InputError(f"multilayer plot: --times {args.times}; accepted: an integer >= 1")
     for path in plot_run(args.directory, times=args.times):
         print(path)
     return 0

@@ -14,19 +14,9 @@ import sys
 from pathlib import Path
 from typing import TextIO
 
-from multilayer.errors import InputError
+from multilayer.commands import positive_int
 
 HELP = "run a parameter sweep of a scenario on Dask (local or existing cluster)"
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}")
-    return value
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -35,11 +25,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-o", "--output", metavar="DIR", type=Path,
                         help="output directory (default: output.directory of the sweep file, "
                         "else results/<sweep file name>)")
-    parser.add_argument("--scheduler", metavar="ADDRESS",
-                        help="address of a running Dask scheduler, e.g. tcp://10.0.0.5:8786 "
-                        "(default: start a local cluster)")
-    parser.add_argument("--workers", metavar="N", type=_positive_int,
-                        help="worker processes of the local cluster (default: one per core)")
+    cluster = parser.add_mutually_exclusive_group()
+    cluster.add_argument("--scheduler", metavar="ADDRESS",
+                         help="address of a running Dask scheduler, e.g. tcp://10.0.0.5:8786 "
+                         "(default: start a local cluster)")
+    cluster.add_argument("--workers", metavar="N", type=positive_int,
+                         help="worker processes of the local cluster (default: one per core)")
     parser.add_argument("-q", "--quiet", action="store_true",
                         help="no progress and no summary line (invalid or failed members "
                         "are still reported)")
@@ -74,9 +65,6 @@ def main(args: argparse.Namespace) -> int:
     """Validate the sweep and its members, run them, write summary.csv, report."""
     from multilayer import sweep as sweeps  # Dask and the engine are imported only to run
 
-    if args.scheduler is not None and args.workers is not None:
-        raise InputError("--workers: applies to the local cluster only; accepted: either "
-                         "--workers N or --scheduler ADDRESS (the cluster's own workers)")
     plan = sweeps.load(args.sweep)
     outdir = args.output or plan.output or Path("results") / plan.path.stem
     if args.scheduler is not None:
