@@ -36,6 +36,8 @@ See docs/numerics.md, "Vertical step: FiPy reference formulation".
 """
 from __future__ import annotations
 
+import functools
+
 from collections.abc import Sequence
 
 import fipy as fp
@@ -224,6 +226,12 @@ def solve(
     discrete equations are the optimality conditions of E(u) for any geometry.
     """
     L, N = np.shape(m)
-    return VerticalStep(column_mesh(N, fractions, n_layers=L))(
-        m, ustar, dt, kappa, c, w, cw, tol=tol, max_iter=max_iter
-    )
+    step = _uniform_step(N, L) if fractions is None else VerticalStep(column_mesh(N, fractions))
+    return step(m, ustar, dt, kappa, c, w, cw, tol=tol, max_iter=max_iter)
+
+
+@functools.lru_cache(maxsize=8)
+def _uniform_step(n_columns: int, n_layers: int) -> VerticalStep:
+    """One equation per mesh size, reused across calls: its coefficients are variables
+    updated with ``setValue``, which the tests check against fresh equations (#1223)."""
+    return VerticalStep(column_mesh(n_columns, n_layers=n_layers))
