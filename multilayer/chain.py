@@ -299,7 +299,6 @@ def _active_set(m, ustar, dt, kappa, c, w, cw, guess, u, first, grounded, U, dia
 def _columns(m, ustar, dt, kappa, c, w, cw, guess, u, chunks):
     """Solve every column; arrays are (N, L) here so that each column is contiguous."""
     N, L = m.shape
-    fallbacks = 0
     for k in prange(chunks):
         ws = _workspace(L)
         first = np.empty(L + 1, np.int64)
@@ -312,8 +311,6 @@ def _columns(m, ustar, dt, kappa, c, w, cw, guess, u, chunks):
             args = (m[i], ustar[i], dt, kappa[i], c[i], w[i], cw[i])
             if not _active_set(*args, guess[i], u[i], first, grounded, U, diag, low, rhs):
                 _dynamic_programme(*args, u[i], ws)
-                fallbacks += 1
-    return fallbacks
 
 
 _solve_serial = njit(cache=True)(_columns)
