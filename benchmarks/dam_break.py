@@ -10,6 +10,7 @@ at x = 9.0.
 
     python benchmarks/dam_break.py [--cells 2500] [--layers 32] [--order 2] [--profile]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -19,25 +20,27 @@ import time
 
 import numpy as np
 
-from multilayer.scenario import from_dict
-from multilayer.simulation import Simulation
+from multilayer.engine.simulation import Simulation
+from multilayer.io.scenario import from_dict
 
 
 def scenario(cells: int, layers: int, order: int, end: float):
-    return from_dict({
-        "name": "benchmark-mu-i-dam-break",
-        "gravity": 1.0,
-        "slope_deg": 0.0,
-        "domain": {"x_min": 0.0, "x_max": 50.0, "cells": cells, "layers": layers},
-        "material": {"density": 1.0, "grain_diameter": 1.0 / 32.0, "particle_density": 1.0},
-        "rheology": {"name": "jop_mu_i", "mu_s": 0.35, "mu_2": 0.56, "I_0": 0.4},
-        "base": [{"condition": "no_slip"}],
-        "bed": {"points": [[0.0, 0.0], [50.0, -22.5]]},
-        "initial": [{"shape": "rectangle", "x_min": 0.0, "x_max": 2.0, "height": 1.0}],
-        "boundaries": {"left": "wall", "right": "outflow"},
-        "time": {"end": end, "output_interval": end},
-        "numerics": {"order": order},
-    })
+    return from_dict(
+        {
+            "name": "benchmark-mu-i-dam-break",
+            "gravity": 1.0,
+            "slope_deg": 0.0,
+            "domain": {"x_min": 0.0, "x_max": 50.0, "cells": cells, "layers": layers},
+            "material": {"density": 1.0, "grain_diameter": 1.0 / 32.0, "particle_density": 1.0},
+            "rheology": {"name": "jop_mu_i", "mu_s": 0.35, "mu_2": 0.56, "I_0": 0.4},
+            "base": [{"condition": "no_slip"}],
+            "bed": {"points": [[0.0, 0.0], [50.0, -22.5]]},
+            "initial": [{"shape": "rectangle", "x_min": 0.0, "x_max": 2.0, "height": 1.0}],
+            "boundaries": {"left": "wall", "right": "outflow"},
+            "time": {"end": end, "output_interval": end},
+            "numerics": {"order": order},
+        }
+    )
 
 
 def main() -> None:
@@ -65,8 +68,10 @@ def main() -> None:
     print(f"cells {args.cells} x layers {args.layers}, transport order {args.order}, t = {sim.t:g}")
     print(f"steps {sim.steps}, Newton iterations per step {sim.newton_iterations / sim.steps:.2f}")
     print(f"time to solution {elapsed:.2f} s, {cell_steps / elapsed / 1e6:.2f} M cell-steps/s")
-    print(f"front x = {d['front']:.3f} (threshold {sim.front_threshold:g}), mass {d['mass']:.6f}, "
-          f"max |u| {np.abs(sim.u).max():.3f}")
+    print(
+        f"front x = {d['front']:.3f} (threshold {sim.front_threshold:g}), mass {d['mass']:.6f}, "
+        f"max |u| {np.abs(sim.u).max():.3f}"
+    )
     if profiler:
         pstats.Stats(profiler).sort_stats("tottime").print_stats(15)
 

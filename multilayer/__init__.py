@@ -1,11 +1,49 @@
 """multilayer: a multilayer shallow-flow simulator of dense granular flows.
 
-The public plugin API (DESIGN.md section 5) is re-exported here: subclass
-:class:`Rheology`, decorate ``multilayer_register_rheologies`` with :data:`hookimpl`.
+The package is organised by role (docs/architecture.md):
+
+- :mod:`multilayer.engine`: the numerics (mesh, transport, stresses, vertical step, column
+  kernel, diagnostics, the time loop); it never imports I/O, the CLI or the plugin host;
+- :mod:`multilayer.reference`: exact and similarity solutions and the FiPy reference
+  formulation the fast kernels are tested against;
+- :mod:`multilayer.io`: scenario files, results, plots and exports;
+- :mod:`multilayer.plugins`: the rheology plugin contract, the pluggy host, the built-ins;
+- :mod:`multilayer.app`: the command line, the runner and parameter sweeps;
+- :mod:`multilayer.testing`: scenario expectations and their pytest plugin.
+
+The public API is re-exported here and imported lazily, so ``import multilayer`` is cheap.
 """
-from multilayer.plugins import hookimpl
-from multilayer.rheology import Material, Rheology
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
 
 __version__ = "0.1.0"
 
-__all__ = ["Material", "Rheology", "hookimpl", "__version__"]
+_EXPORTS = {
+    "Material": "multilayer.plugins.contract",
+    "Rheology": "multilayer.plugins.contract",
+    "hookimpl": "multilayer.plugins.host",
+    "Simulation": "multilayer.engine.simulation",
+}
+
+__all__ = ["Material", "Rheology", "Simulation", "__version__", "hookimpl"]
+
+if TYPE_CHECKING:
+    from multilayer.engine.simulation import Simulation
+    from multilayer.plugins.contract import Material, Rheology
+    from multilayer.plugins.host import hookimpl
+
+
+def __getattr__(name: str) -> Any:
+    """Import a public name on first use (PEP 562)."""
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'multilayer' has no attribute {name!r}")
+    value = getattr(importlib.import_module(_EXPORTS[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

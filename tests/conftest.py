@@ -1,15 +1,17 @@
 """Shared fixtures: a tiny valid scenario, a writer for scenario files, an in-process CLI."""
+
 from __future__ import annotations
 
 import copy
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import pytest
 import yaml
 
-from multilayer.cli import main
+from multilayer.app.cli import main
 
 TINY_SCENARIO: dict[str, Any] = {
     "name": "tiny",
@@ -54,7 +56,7 @@ class CliResult:
 
 @pytest.fixture
 def cli(capsys: pytest.CaptureFixture[str]) -> Callable[..., CliResult]:
-    """``cli("validate", path) -> CliResult``: :func:`multilayer.cli.main` in-process."""
+    """``cli("validate", path) -> CliResult``: :func:`multilayer.app.cli.main` in-process."""
 
     def run(*argv: Any) -> CliResult:
         try:

@@ -1,11 +1,12 @@
 """Building scenarios for the engine tests (not a test module)."""
+
 from __future__ import annotations
 
 import copy
 from typing import Any
 
-from multilayer.scenario import Scenario, from_dict
-from multilayer.simulation import Simulation
+from multilayer.engine.simulation import Simulation
+from multilayer.io.scenario import Scenario, from_dict
 
 BASE: dict[str, Any] = {
     "name": "engine-test",

@@ -1,10 +1,10 @@
 """Inflow boundaries and basal conditions that change along the slope."""
+
 from __future__ import annotations
 
 import math
 
 import numpy as np
-
 from engine import simulation
 
 
@@ -13,8 +13,11 @@ def test_supercritical_inflow_fills_a_frictionless_channel_with_the_inflow_state
     outflow end: once the front has left, the exact steady state is the inflow state."""
     sim = simulation(
         domain={"x_min": 0.0, "x_max": 2.0, "cells": 80, "layers": 3},
-        boundaries={"left": "inflow", "right": "outflow",
-                    "inflow": {"thickness": 0.1, "velocity": {"profile": "plug", "speed": 2.0}}},
+        boundaries={
+            "left": "inflow",
+            "right": "outflow",
+            "inflow": {"thickness": 0.1, "velocity": {"profile": "plug", "speed": 2.0}},
+        },
     )
     sim.advance(3.0)
     assert np.abs(sim.h - 0.1).max() < 1e-9

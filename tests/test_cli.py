@@ -1,5 +1,6 @@
 """The ``multilayer`` command: exit codes, messages for every class of invalid input,
 and the round trip scenario -> result.nc."""
+
 from __future__ import annotations
 
 import subprocess
@@ -12,9 +13,8 @@ import xarray as xr
 import yaml
 
 import multilayer
-from multilayer import runner
+from multilayer.app import runner
 from multilayer.errors import RunError
-
 
 DELETE = object()
 
@@ -29,6 +29,7 @@ def set_key(data, path, value):
     else:
         data[last] = value
 
+
 # (case, edits applied to the tiny scenario, key path in the message, text in the message)
 INVALID = [
     ("unknown key", {"gravty": 9.8}, "gravty", "unknown key; accepted: name, description"),
@@ -36,43 +37,106 @@ INVALID = [
     ("wrong type", {"domain.cells": "ten"}, "domain.cells", "valid integer (got 'ten')"),
     ("missing key", {"time.end": DELETE}, "time.end", "required key is missing"),
     ("negative density", {"material.density": -1500.0}, "material.density", "greater than 0"),
-    ("negative thickness", {"initial.0": {"shape": "layer", "thickness": -0.01}},
-     "initial.0.thickness", "accepted: a number > 0 (m)"),
+    (
+        "negative thickness",
+        {"initial.0": {"shape": "layer", "thickness": -0.01}},
+        "initial.0.thickness",
+        "accepted: a number > 0 (m)",
+    ),
     ("layers < 1", {"domain.layers": 0}, "domain.layers", "accepted: an integer >= 1"),
     ("cfl >= 1", {"time.cfl": 1.0}, "time.cfl", "accepted: a number in (0, 1)"),
     ("cfl <= 0", {"time.cfl": 0.0}, "time.cfl", "accepted: a number in (0, 1)"),
-    ("fractions not summing to 1", {"domain.layer_fractions": [0.2, 0.3, 0.4]},
-     "domain.layer_fractions", "fractions sum to 0.9"),
-    ("domain x_min >= x_max", {"domain.x_max": 0.0}, "domain.x_max",
-     "x_max = 0.0 is not > x_min = 0.0"),
-    ("rectangle x_min >= x_max", {"initial.0.x_min": 0.3}, "initial.0.x_max",
-     "x_max = 0.1 is not > x_min = 0.3"),
-    ("unknown basal condition", {"base": [{"condition": "sticky"}]}, "base.0.condition",
-     "got 'sticky'; accepted: no_slip, coulomb (with mu) or free_slip"),
-    ("coulomb without mu", {"base": [{"condition": "coulomb"}]}, "base.0.mu",
-     "condition coulomb requires mu"),
-    ("unknown boundary type", {"boundaries.right": "open"}, "boundaries.right",
-     "accepted: wall, outflow, inflow or periodic"),
-    ("periodic on one side", {"boundaries.left": "periodic"}, "boundaries.right",
-     "periodic must be set on both sides"),
-    ("inflow without its state", {"boundaries.left": "inflow"}, "boundaries.inflow",
-     "an inflow side requires boundaries.inflow"),
-    ("walls without width", {"walls": {"name": "wall_friction", "mu_w": 0.2}}, "walls",
-     "walls need the channel width domain.width"),
-    ("unknown rheology name", {"rheology.name": "bingam"}, "rheology.name",
-     "unknown rheology 'bingam'; accepted: drucker_prager, jop_mu_i, power_law_mu_i"),
-    ("walls law used for the bulk", {"rheology": {"name": "wall_friction", "mu_w": 0.2}},
-     "rheology.name", "'wall_friction' applies to walls, not bulk"),
-    ("unknown rheology parameter", {"rheology.mu_2": 0.6}, "rheology.mu_2",
-     "unknown parameter of drucker_prager; accepted: drucker_prager(mu_s: float, nu: float)"),
-    ("wrong rheology parameter type", {"rheology.nu": "thick"}, "rheology.nu",
-     "drucker_prager: Input should be a valid number (got 'thick')"),
-    ("invalid rheology parameter value", {"rheology.nu": -0.01}, "rheology",
-     "drucker_prager: nu must be >= 0, got -0.01"),
-    ("expect without tolerance", {"expect": [{"quantity": "runout", "value": 0.1}]},
-     "expect.0.rtol", "needs a tolerance"),
-    ("unknown expect quantity", {"expect": [{"quantity": "speed", "value": 1, "rtol": 0.1}]},
-     "expect.0.quantity", "accepted: front_final, mass_final, runout"),
+    (
+        "fractions not summing to 1",
+        {"domain.layer_fractions": [0.2, 0.3, 0.4]},
+        "domain.layer_fractions",
+        "fractions sum to 0.9",
+    ),
+    ("domain x_min >= x_max", {"domain.x_max": 0.0}, "domain.x_max", "x_max = 0.0 is not > x_min = 0.0"),
+    (
+        "rectangle x_min >= x_max",
+        {"initial.0.x_min": 0.3},
+        "initial.0.x_max",
+        "x_max = 0.1 is not > x_min = 0.3",
+    ),
+    (
+        "unknown basal condition",
+        {"base": [{"condition": "sticky"}]},
+        "base.0.condition",
+        "got 'sticky'; accepted: no_slip, coulomb (with mu) or free_slip",
+    ),
+    (
+        "coulomb without mu",
+        {"base": [{"condition": "coulomb"}]},
+        "base.0.mu",
+        "condition coulomb requires mu",
+    ),
+    (
+        "unknown boundary type",
+        {"boundaries.right": "open"},
+        "boundaries.right",
+        "accepted: wall, outflow, inflow or periodic",
+    ),
+    (
+        "periodic on one side",
+        {"boundaries.left": "periodic"},
+        "boundaries.right",
+        "periodic must be set on both sides",
+    ),
+    (
+        "inflow without its state",
+        {"boundaries.left": "inflow"},
+        "boundaries.inflow",
+        "an inflow side requires boundaries.inflow",
+    ),
+    (
+        "walls without width",
+        {"walls": {"name": "wall_friction", "mu_w": 0.2}},
+        "walls",
+        "walls need the channel width domain.width",
+    ),
+    (
+        "unknown rheology name",
+        {"rheology.name": "bingam"},
+        "rheology.name",
+        "unknown rheology 'bingam'; accepted: drucker_prager, jop_mu_i, power_law_mu_i",
+    ),
+    (
+        "walls law used for the bulk",
+        {"rheology": {"name": "wall_friction", "mu_w": 0.2}},
+        "rheology.name",
+        "'wall_friction' applies to walls, not bulk",
+    ),
+    (
+        "unknown rheology parameter",
+        {"rheology.mu_2": 0.6},
+        "rheology.mu_2",
+        "unknown parameter of drucker_prager; accepted: drucker_prager(mu_s: float, nu: float)",
+    ),
+    (
+        "wrong rheology parameter type",
+        {"rheology.nu": "thick"},
+        "rheology.nu",
+        "drucker_prager: Input should be a valid number (got 'thick')",
+    ),
+    (
+        "invalid rheology parameter value",
+        {"rheology.nu": -0.01},
+        "rheology",
+        "drucker_prager: nu must be >= 0, got -0.01",
+    ),
+    (
+        "expect without tolerance",
+        {"expect": [{"quantity": "runout", "value": 0.1}]},
+        "expect.0.rtol",
+        "needs a tolerance",
+    ),
+    (
+        "unknown expect quantity",
+        {"expect": [{"quantity": "speed", "value": 1, "rtol": 0.1}]},
+        "expect.0.quantity",
+        "accepted: front_final, mass_final, runout",
+    ),
 ]
 
 
@@ -99,8 +163,10 @@ def test_malformed_yaml_gives_the_line(cli, write_scenario):
 def test_missing_file(cli, tmp_path):
     result = cli("run", tmp_path / "nope.yaml")
     assert result.code == 2
-    assert result.err == f"multilayer: error: {tmp_path / 'nope.yaml'}: file not found; " \
-                         "accepted: a path to a scenario YAML file\n"
+    assert (
+        result.err == f"multilayer: error: {tmp_path / 'nope.yaml'}: file not found; "
+        "accepted: a path to a scenario YAML file\n"
+    )
 
 
 def test_output_directory_that_cannot_be_created(cli, tiny_scenario, write_scenario, tmp_path):
@@ -138,8 +204,9 @@ def test_console_script_exit_code_without_traceback(tmp_path):
     """The installed ``multilayer`` script, as a separate process."""
     path = tmp_path / "bad.yaml"
     path.write_text("name: [unclosed\n")
-    result = subprocess.run([sys.executable, "-m", "multilayer.cli", "validate", str(path)],
-                            capture_output=True, text=True)
+    result = subprocess.run(
+        [sys.executable, "-m", "multilayer", "validate", str(path)], capture_output=True, text=True
+    )
     assert result.returncode == 2
     assert "Traceback" not in result.stderr and "malformed YAML" in result.stderr
 
@@ -158,8 +225,7 @@ def test_version_help_and_plugins(cli):
     assert cli("frobnicate").code == 2  # argparse usage error
 
 
-@pytest.mark.parametrize("error, code", [(RunError("solver diverged"), 1),
-                                         (KeyboardInterrupt(), 130)])
+@pytest.mark.parametrize("error, code", [(RunError("solver diverged"), 1), (KeyboardInterrupt(), 130)])
 def test_run_failures_exit_codes(cli, tiny_scenario, write_scenario, monkeypatch, error, code):
     def failing(*args, **kwargs):
         raise error

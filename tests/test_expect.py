@@ -4,6 +4,7 @@ The scenario used is the inviscid single-column static/flowing problem (20 layer
 time steps), whose exact solution (Bouchut, Ionescu & Mangeney 2016, Prop. 2.2) gives the
 expected values: U = max(70 (z - 5 mm)_+ - S t, 0), S = g cos(theta)(mu_s - tan(theta)).
 """
+
 import copy
 import math
 from importlib.metadata import entry_points
@@ -12,9 +13,9 @@ import numpy as np
 import pytest
 import yaml
 
-from multilayer import cli
-from multilayer.expect import Outcome, evaluate, report
-from multilayer.scenario import Expect
+from multilayer.app import cli
+from multilayer.io.scenario import Expect
+from multilayer.testing.expectations import Outcome, evaluate, report
 
 pytest_plugins = ["pytester"]
 
@@ -31,8 +32,13 @@ def _scenario(expect: list[dict] | None) -> dict:
         "domain": {"x_min": 0.0, "x_max": 0.02, "cells": 2, "layers": LAYERS},
         "material": {"density": 1550, "grain_diameter": 0.7e-3},
         "rheology": {"name": "drucker_prager", "mu_s": MU_S, "nu": 0.0},
-        "initial": [{"shape": "layer", "thickness": H,
-                     "velocity": {"profile": "linear", "shear_rate": SHEAR, "from_height": B0}}],
+        "initial": [
+            {
+                "shape": "layer",
+                "thickness": H,
+                "velocity": {"profile": "linear", "shear_rate": SHEAR, "from_height": B0},
+            }
+        ],
         "boundaries": {"left": "periodic", "right": "periodic"},
         "time": {"end": T_END, "output_interval": T_END},
     }
@@ -41,10 +47,14 @@ def _scenario(expect: list[dict] | None) -> dict:
     return data
 
 
-TRUE = [{"quantity": "max_speed_final", "value": EXACT_MAX_SPEED, "rtol": 1e-3},
-        {"quantity": "mass_final", "value": H * 0.02, "rtol": 1e-9}]
-FALSE = [{"quantity": "max_speed_final", "value": EXACT_MAX_SPEED, "rtol": 1e-3},
-         {"quantity": "mass_final", "value": 2 * H * 0.02, "rtol": 0.01}]
+TRUE = [
+    {"quantity": "max_speed_final", "value": EXACT_MAX_SPEED, "rtol": 1e-3},
+    {"quantity": "mass_final", "value": H * 0.02, "rtol": 1e-9},
+]
+FALSE = [
+    {"quantity": "max_speed_final", "value": EXACT_MAX_SPEED, "rtol": 1e-3},
+    {"quantity": "mass_final", "value": 2 * H * 0.02, "rtol": 0.01},
+]
 
 
 def _write(directory, name: str, expect: list[dict] | None) -> str:
@@ -57,8 +67,10 @@ def _write(directory, name: str, expect: list[dict] | None) -> str:
 
 
 def test_tolerance_is_atol_plus_rtol_times_value():
-    entries = [Expect(quantity="runout", value=2.0, rtol=0.1, atol=0.05),
-               Expect(quantity="mass_final", value=-1.0, rtol=0.1)]
+    entries = [
+        Expect(quantity="runout", value=2.0, rtol=0.1, atol=0.05),
+        Expect(quantity="mass_final", value=-1.0, rtol=0.1),
+    ]
     ok, edge = evaluate(entries, {"runout": 2.249, "mass_final": -1.1000001})
     assert ok.tolerance == pytest.approx(0.25) and ok.passed
     assert edge.tolerance == pytest.approx(0.1) and not edge.passed
@@ -70,8 +82,7 @@ def test_nan_never_passes():
 
 
 def test_report_lists_expected_obtained_and_verdict():
-    text = report("demo", [Outcome("front_final", 0.62, 0.61, 0.031),
-                           Outcome("runout", 0.4, 0.5, 0.02)])
+    text = report("demo", [Outcome("front_final", 0.62, 0.61, 0.031), Outcome("runout", 0.4, 0.5, 0.02)])
     assert text.splitlines()[0] == "demo: 1/2 expectations met"
     assert "front_final" in text and "0.62" in text and "0.61" in text
     assert text.splitlines()[-1].split()[-1] == "FAILED"
@@ -117,7 +128,7 @@ def test_check_invalid_input_exits_2_without_running(tmp_path, capsys):
 
 def test_plugin_is_registered_through_pytest11():
     plugins = {ep.name: ep.value for ep in entry_points(group="pytest11")}
-    assert plugins.get("multilayer") == "multilayer.pytest_plugin"
+    assert plugins.get("multilayer") == "multilayer.testing.pytest_plugin"
 
 
 def test_pytest_collects_scenarios_in_named_directory(pytester):
@@ -129,8 +140,9 @@ def test_pytest_collects_scenarios_in_named_directory(pytester):
     _write(pytester.path / "fixtures", "nested.yaml", FALSE)
     result = pytester.runpytest_subprocess(str(pytester.path), "-p", "no:cacheprovider")
     result.assert_outcomes(passed=1, failed=1)
-    result.stdout.fnmatch_lines(["*1/2 expectations met*", "*mass_final*0.0008*0.0004*FAILED*",
-                                 "FAILED false.yml::false*"])
+    result.stdout.fnmatch_lines(
+        ["*1/2 expectations met*", "*mass_final*0.0008*0.0004*FAILED*", "FAILED false.yml::false*"]
+    )
     assert "nested" not in result.stdout.str()
 
 
@@ -149,9 +161,9 @@ def test_pytest_without_arguments_collects_no_yaml(pytester):
 
 def test_tiny_scenario_matches_exact_inviscid_solution(tmp_path):
     """The reference values used above are the model's: b(t) = b0 + S t / 70 too."""
-    from multilayer import runner
-    from multilayer import scenario as scenarios
-    from multilayer.results import open_result
+    from multilayer.app import runner
+    from multilayer.io import scenario as scenarios
+    from multilayer.io.results import open_result
 
     scenario = scenarios.load(_write(tmp_path, "true.yaml", TRUE))
     runner.run(scenario, tmp_path / "out", quiet=True)

@@ -1,9 +1,9 @@
 """Initial conditions (DESIGN.md section 4): stacked thicknesses and velocity profiles."""
+
 from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from engine import simulation
 
 
@@ -12,8 +12,13 @@ def test_entries_stack_and_carry_their_own_velocity():
         domain={"x_min": 0.0, "x_max": 1.0, "cells": 10, "layers": 10},
         initial=[
             {"shape": "layer", "thickness": 0.1},
-            {"shape": "rectangle", "x_min": 0.0, "x_max": 0.45, "height": 0.1,
-             "velocity": {"profile": "plug", "speed": 2.0}},
+            {
+                "shape": "rectangle",
+                "x_min": 0.0,
+                "x_max": 0.45,
+                "height": 0.1,
+                "velocity": {"profile": "plug", "speed": 2.0},
+            },
         ],
     )
     assert np.allclose(sim.h, np.where(sim.x <= 0.45, 0.2, 0.1))
@@ -24,12 +29,24 @@ def test_entries_stack_and_carry_their_own_velocity():
 
 def test_linear_and_bagnold_profiles_at_the_layer_centres():
     common = {"domain": {"x_min": 0.0, "x_max": 1.0, "cells": 2, "layers": 20}}
-    linear = simulation(initial=[{"shape": "layer", "thickness": 0.02, "velocity":
-                                  {"profile": "linear", "shear_rate": 70.0, "from_height": 0.005}}], **common)
+    linear = simulation(
+        initial=[
+            {
+                "shape": "layer",
+                "thickness": 0.02,
+                "velocity": {"profile": "linear", "shear_rate": 70.0, "from_height": 0.005},
+            }
+        ],
+        **common,
+    )
     z = linear.sigma * 0.02
     assert np.allclose(linear.u[:, 0], 70.0 * np.maximum(z - 0.005, 0.0), rtol=1e-14, atol=0)
-    bagnold = simulation(initial=[{"shape": "layer", "thickness": 0.02, "velocity":
-                                   {"profile": "bagnold", "surface_speed": 0.3}}], **common)
+    bagnold = simulation(
+        initial=[
+            {"shape": "layer", "thickness": 0.02, "velocity": {"profile": "bagnold", "surface_speed": 0.3}}
+        ],
+        **common,
+    )
     assert np.allclose(bagnold.u[:, 0], 0.3 * (1 - (1 - z / 0.02) ** 1.5), rtol=1e-14, atol=0)
 
 

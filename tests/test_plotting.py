@@ -1,4 +1,5 @@
 """`multilayer plot` and `multilayer export --vtk` on real runs."""
+
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
@@ -8,8 +9,9 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
-from multilayer import runner, scenario as scenarios
-from multilayer.results import open_result
+from multilayer.app import runner
+from multilayer.io import scenario as scenarios
+from multilayer.io.results import open_result
 
 MATERIAL = {"density": 1500.0, "grain_diameter": 1.0e-3}
 
@@ -35,8 +37,13 @@ SHEAR = {
     "domain": {"x_min": 0.0, "x_max": 0.01, "cells": 1, "layers": 20},
     "material": MATERIAL,
     "rheology": {"name": "drucker_prager", "mu_s": 0.5, "nu": 0.0},
-    "initial": [{"shape": "layer", "thickness": 0.01, "velocity": {
-        "profile": "linear", "shear_rate": 70.0, "from_height": 0.002}}],
+    "initial": [
+        {
+            "shape": "layer",
+            "thickness": 0.01,
+            "velocity": {"profile": "linear", "shear_rate": 70.0, "from_height": 0.002},
+        }
+    ],
     "boundaries": {"left": "periodic", "right": "periodic"},
     "time": {"end": 0.2, "output_interval": 0.025},
 }
@@ -69,11 +76,11 @@ def test_plot_single_column_run(tmp_path: Path, cli) -> None:
     # the figure b(t) shows the analytic interface, to within one layer (0.5 mm)
     ds = open_result(tmp_path)
     s = 9.81 * np.cos(np.radians(20)) * (0.5 - np.tan(np.radians(20)))
-    np.testing.assert_allclose(ds["static_interface"][:, 0], 0.002 + s * ds["time"] / 70,
-                               atol=0.0005)
+    np.testing.assert_allclose(ds["static_interface"][:, 0], 0.002 + s * ds["time"] / 70, atol=0.0005)
     assert cli("plot", tmp_path).code == 0
-    _assert_figures(tmp_path, ["section.png", "thickness.png", "front_mass.png",
-                               "profiles.png", "static_interface.png"])
+    _assert_figures(
+        tmp_path, ["section.png", "thickness.png", "front_mass.png", "profiles.png", "static_interface.png"]
+    )
 
 
 def test_plot_without_a_result_is_an_input_error(tmp_path: Path, cli) -> None:
@@ -91,17 +98,14 @@ def test_vtk_export_puts_the_layers_at_their_physical_heights(slump_dir: Path, c
     last = ET.parse(slump_dir / "vtk" / steps[-1].get("file")).getroot()
     assert last.find("StructuredGrid").get("WholeExtent") == "0 30 0 3 0 0"
     points = np.fromstring(last.find(".//Points/DataArray").text, sep=" ").reshape(4, 31, 3)
-    cells = {a.get("Name"): np.fromstring(a.text, sep=" ")
-             for a in last.findall(".//CellData/DataArray")}
+    cells = {a.get("Name"): np.fromstring(a.text, sep=" ") for a in last.findall(".//CellData/DataArray")}
     final = ds.isel(time=-1)
     np.testing.assert_allclose(points[0, :, 0], np.linspace(0.0, 0.3, 31), atol=1e-15)
     # interior edges sit at the averages of the two neighbouring cells
     bed, h = final["bed"].values, final["h"].values
     np.testing.assert_allclose(points[0, 1:-1, 1], (bed[:-1] + bed[1:]) / 2, atol=1e-15)
-    np.testing.assert_allclose(points[3, 1:-1, 1] - points[0, 1:-1, 1],
-                               (h[:-1] + h[1:]) / 2, atol=1e-15)
-    np.testing.assert_allclose(points[1, 1:-1, 1] - points[0, 1:-1, 1],
-                               (h[:-1] + h[1:]) / 6, atol=1e-15)
+    np.testing.assert_allclose(points[3, 1:-1, 1] - points[0, 1:-1, 1], (h[:-1] + h[1:]) / 2, atol=1e-15)
+    np.testing.assert_allclose(points[1, 1:-1, 1] - points[0, 1:-1, 1], (h[:-1] + h[1:]) / 6, atol=1e-15)
     np.testing.assert_array_equal(cells["u"], final["u"].values.ravel())
     np.testing.assert_array_equal(cells["h"], np.tile(h, 3))
     assert set(np.unique(cells["static"])) <= {0.0, 1.0}

@@ -1,13 +1,13 @@
 """Exact rest (Bouchut, Ionescu & Mangeney 2016, sec. 4.1): material whose driving
 stress stays below the yield stress never moves, neither by transport nor by the
 vertical step."""
+
 from __future__ import annotations
 
 import math
 
 import numpy as np
 import pytest
-
 from engine import simulation
 
 JOP = {"name": "jop_mu_i", "mu_s": math.tan(math.radians(26.0)), "mu_2": 0.7, "I_0": 0.279}

@@ -1,4 +1,5 @@
 """The result file: CF attributes, incremental writing, summary, checkpoints."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -9,11 +10,14 @@ import numpy as np
 import pytest
 import xarray as xr
 import yaml
+from conftest import TINY_SCENARIO
 
 import multilayer
-from multilayer import runner, scenario as scenarios
+from multilayer.app import runner
+from multilayer.engine.simulation import Simulation
 from multilayer.errors import InputError
-from multilayer.results import (
+from multilayer.io import scenario as scenarios
+from multilayer.io.results import (
     Checkpoint,
     ResultWriter,
     load_checkpoint,
@@ -21,9 +25,6 @@ from multilayer.results import (
     save_checkpoint,
     summary,
 )
-from multilayer.simulation import Simulation
-
-from conftest import TINY_SCENARIO
 
 # A 0.1 m x 0.05 m column on a 25 degree slope, 40 cells x 3 layers, wall on the left.
 COLUMN = {**TINY_SCENARIO, "name": "column"}
@@ -41,8 +42,7 @@ def test_every_variable_and_coordinate_has_cf_attributes(result_dir: Path) -> No
         assert ds.Conventions == "CF-1.8"
         for name, var in ds.variables.items():
             assert var.units and var.long_name, name
-        assert {n: ds[n].axis for n in ("time", "x", "layer")} == {
-            "time": "T", "x": "X", "layer": "Z"}
+        assert {n: ds[n].axis for n in ("time", "x", "layer")} == {"time": "T", "x": "X", "layer": "Z"}
         assert ds["time"].standard_name == "time"
         assert ds["u"].coordinates == "sigma"
         assert ds["front"].threshold == 1e-3
@@ -85,13 +85,13 @@ def test_summary_is_read_from_the_final_time(result_dir: Path) -> None:
     assert s["mass_final"] == pytest.approx(0.005, rel=1e-12)
     assert s["max_speed_final"] == float(np.abs(final["u"]).max()) > 0
     assert s["static_interface_mean_final"] == pytest.approx(
-        float(final["static_interface"].where(wet).mean()))
+        float(final["static_interface"].where(wet).mean())
+    )
     assert s["wall_time_s"] == ds.attrs["wall_time_s"]
     assert s["steps"] == ds.attrs["steps"]
 
 
-def test_records_are_readable_while_writing_and_a_torn_record_is_dropped(
-        tmp_path: Path) -> None:
+def test_records_are_readable_while_writing_and_a_torn_record_is_dropped(tmp_path: Path) -> None:
     sc = scenarios.from_dict(COLUMN)
     sim = Simulation(sc)
     writer = ResultWriter(tmp_path / "result.nc", sc, sim)

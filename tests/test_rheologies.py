@@ -3,13 +3,15 @@
 Common test point: rho = 1500 kg/m^3, d = 1 mm, rho_p = 2500 kg/m^3, p = 1000 Pa,
 |gamma| = 10 1/s, so I = d |gamma| / sqrt(p / rho_p) = 0.01 / sqrt(0.4) = 0.0158113883.
 """
+
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from multilayer import Material, plugins
-from rheologies import DruckerPrager, JopMuI, PowerLawMuI, WallFriction
+from multilayer import Material
+from multilayer.plugins import host as plugins
+from multilayer.plugins.builtins import DruckerPrager, JopMuI, PowerLawMuI, WallFriction
 
 MATERIAL = Material(density=1500.0, grain_diameter=1e-3, particle_density=2500.0)
 P, GAMMA, I = 1000.0, 10.0, 0.0158113883008419
@@ -23,18 +25,23 @@ def stress_ratio(law, shear_rate, pressure):
 
 def test_builtins_are_registered_through_the_entry_point():
     catalogue = plugins.catalogue()
-    expected = {"drucker_prager": "bulk", "jop_mu_i": "bulk", "power_law_mu_i": "bulk",
-                "wall_friction": "walls"}
+    expected = {
+        "drucker_prager": "bulk",
+        "jop_mu_i": "bulk",
+        "power_law_mu_i": "bulk",
+        "wall_friction": "walls",
+    }
     for name, applies_to in expected.items():
         item = catalogue.rheologies[name]
         assert item.cls.applies_to == applies_to
-        assert "entry point builtins = rheologies" in item.source
+        assert "entry point builtins = multilayer.plugins.builtins" in item.source
 
 
 def test_drucker_prager():
     law = DruckerPrager(mu_s=0.5, nu=0.01)
-    np.testing.assert_array_equal(law.yield_stress(np.array([-10.0, 0.0, 200.0]), MATERIAL),
-                                  [0.0, 0.0, 100.0])
+    np.testing.assert_array_equal(
+        law.yield_stress(np.array([-10.0, 0.0, 200.0]), MATERIAL), [0.0, 0.0, 100.0]
+    )
     # eta = rho nu = 1500 * 0.01 = 15 Pa s whatever the shear rate and pressure
     eta = law.viscosity(np.array([[0.0, 1e-9, 30.0]]), np.array([[0.0, -5.0, 1e4]]), MATERIAL)
     np.testing.assert_array_equal(eta, np.full((1, 3), 15.0))
@@ -70,8 +77,9 @@ def test_power_law_mu_i_hand_computed():
     assert law.viscosity(GAMMA, P, MATERIAL) == pytest.approx(13.6721819, rel=1e-8)
     # alpha = 1: eta = m d sqrt(rho_p p), independent of the shear rate
     linear = PowerLawMuI(mu_s=0.2, m=0.56, alpha=1.0)
-    np.testing.assert_allclose(linear.viscosity(np.array([0.0, 1.0, 100.0]), P, MATERIAL),
-                               0.885437745, rtol=1e-8)
+    np.testing.assert_allclose(
+        linear.viscosity(np.array([0.0, 1.0, 100.0]), P, MATERIAL), 0.885437745, rtol=1e-8
+    )
     np.testing.assert_allclose(stress_ratio(linear, GAMMA, P), 0.2 + 0.56 * I, rtol=1e-12)
 
 
@@ -89,15 +97,15 @@ def test_power_law_mu_i_limits():
 
 def test_wall_friction():
     law = WallFriction(mu_w=0.185)
-    np.testing.assert_allclose(law.yield_stress(np.array([-1.0, 0.0, 1000.0]), MATERIAL),
-                               [0.0, 0.0, 185.0])
-    np.testing.assert_array_equal(law.viscosity(np.ones((2, 3)), np.ones(3), MATERIAL),
-                                  np.zeros((2, 3)))
+    np.testing.assert_allclose(law.yield_stress(np.array([-1.0, 0.0, 1000.0]), MATERIAL), [0.0, 0.0, 185.0])
+    np.testing.assert_array_equal(law.viscosity(np.ones((2, 3)), np.ones(3), MATERIAL), np.zeros((2, 3)))
 
 
-@pytest.mark.parametrize("law", [DruckerPrager(0.4, 1e-3), JopMuI(0.38, 0.64, 0.279),
-                                 PowerLawMuI(0.38, 0.56, 0.34), WallFriction(0.2)],
-                         ids=lambda law: law.name)
+@pytest.mark.parametrize(
+    "law",
+    [DruckerPrager(0.4, 1e-3), JopMuI(0.38, 0.64, 0.279), PowerLawMuI(0.38, 0.56, 0.34), WallFriction(0.2)],
+    ids=lambda law: law.name,
+)
 def test_vectorised_shapes(law):
     pressure = np.linspace(-10.0, 1e3, 12).reshape(3, 4)
     shear = np.linspace(-5.0, 5.0, 12).reshape(3, 4)
@@ -107,15 +115,18 @@ def test_vectorised_shapes(law):
     assert np.all(np.isfinite(eta)) and np.all(eta >= 0) and np.all(kappa >= 0)
 
 
-@pytest.mark.parametrize("make, needle", [
-    (lambda: DruckerPrager(mu_s=-0.1, nu=0.0), "mu_s"),
-    (lambda: DruckerPrager(mu_s=0.4, nu=-1.0), "nu"),
-    (lambda: JopMuI(mu_s=0.5, mu_2=0.4, I_0=0.3), "mu_2"),
-    (lambda: JopMuI(mu_s=0.3, mu_2=0.6, I_0=0.0), "I_0"),
-    (lambda: PowerLawMuI(mu_s=0.3, m=0.5, alpha=2.0), "alpha"),
-    (lambda: PowerLawMuI(mu_s=0.3, m=0.5, alpha=0.0), "alpha"),
-    (lambda: WallFriction(mu_w=-0.2), "mu_w"),
-])
+@pytest.mark.parametrize(
+    "make, needle",
+    [
+        (lambda: DruckerPrager(mu_s=-0.1, nu=0.0), "mu_s"),
+        (lambda: DruckerPrager(mu_s=0.4, nu=-1.0), "nu"),
+        (lambda: JopMuI(mu_s=0.5, mu_2=0.4, I_0=0.3), "mu_2"),
+        (lambda: JopMuI(mu_s=0.3, mu_2=0.6, I_0=0.0), "I_0"),
+        (lambda: PowerLawMuI(mu_s=0.3, m=0.5, alpha=2.0), "alpha"),
+        (lambda: PowerLawMuI(mu_s=0.3, m=0.5, alpha=0.0), "alpha"),
+        (lambda: WallFriction(mu_w=-0.2), "mu_w"),
+    ],
+)
 def test_invalid_parameters_raise_value_error(make, needle):
     with pytest.raises(ValueError, match=needle):
         make()

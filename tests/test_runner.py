@@ -1,4 +1,5 @@
 """Running into a directory: Ctrl-C and resume, failures, log, progress line."""
+
 from __future__ import annotations
 
 import io
@@ -13,29 +14,29 @@ import netCDF4
 import numpy as np
 import pytest
 import yaml
-
-from multilayer import runner, scenario as scenarios
-from multilayer.errors import RunError
-from multilayer.progress import Progress
-from multilayer.results import open_result
-from multilayer.simulation import Simulation
-
 from conftest import TINY_SCENARIO
+
+from multilayer.app import runner
+from multilayer.app.progress import Progress
+from multilayer.engine.simulation import Simulation
+from multilayer.errors import RunError
+from multilayer.io import scenario as scenarios
+from multilayer.io.results import open_result
 
 # A column slumping down a 25 degree slope, 40 cells x 3 layers, 26 output times.
 SLUMP = {**TINY_SCENARIO, "name": "slump", "time": {"end": 0.5, "output_interval": 0.02}}
 
 
 def _cli(*args: object) -> list[str]:
-    return [sys.executable, "-m", "multilayer.cli", *map(str, args)]
+    return [sys.executable, "-m", "multilayer", *map(str, args)]
 
 
 # `multilayer run` in a child process whose time steps take at least 20 ms each, so that
 # the run is still going when the test's SIGINT arrives, however fast the engine is.
 _PACED_RUN = """
 import sys, time
-from multilayer.cli import main
-from multilayer.simulation import Simulation
+from multilayer.app.cli import main
+from multilayer.engine.simulation import Simulation
 step = Simulation.step
 def paced_step(self, t_max):
     time.sleep(0.02)
@@ -63,14 +64,16 @@ def _assert_same_result(a: Path, b: Path) -> None:
     assert ra.attrs["steps"] == rb.attrs["steps"]
 
 
-def test_sigint_stops_cleanly_and_resume_gives_the_uninterrupted_answer(
-        tmp_path: Path) -> None:
+def test_sigint_stops_cleanly_and_resume_gives_the_uninterrupted_answer(tmp_path: Path) -> None:
     path = tmp_path / "slump.yaml"
     path.write_text(yaml.safe_dump(SLUMP))
     outdir = tmp_path / "interrupted"
-    proc = subprocess.Popen([sys.executable, "-c", _PACED_RUN, "run", str(path),
-                             "-o", str(outdir), "--set", "domain.layers=4"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _PACED_RUN, "run", str(path), "-o", str(outdir), "--set", "domain.layers=4"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     deadline = time.monotonic() + 120
     while _records(outdir / "result.nc") < 2 and proc.poll() is None:
         assert time.monotonic() < deadline, "no output time written"
@@ -85,8 +88,9 @@ def test_sigint_stops_cleanly_and_resume_gives_the_uninterrupted_answer(
     assert 2 <= partial.sizes["time"] < 26
     assert "interrupted at t=" in (outdir / "run.log").read_text()
 
-    resumed = subprocess.run(_cli(*shlex.split(command)[1:], "--quiet"),
-                             capture_output=True, text=True, timeout=120)
+    resumed = subprocess.run(
+        _cli(*shlex.split(command)[1:], "--quiet"), capture_output=True, text=True, timeout=120
+    )
     assert resumed.returncode == 0, resumed.stderr
     reference = tmp_path / "reference"
     runner.run(scenarios.load(path, ["domain.layers=4"]), reference, quiet=True)
@@ -106,8 +110,7 @@ def test_resume_extends_a_finished_run_to_a_later_end(tmp_path: Path) -> None:
     _assert_same_result(tmp_path / "extended", tmp_path / "direct")
 
 
-def test_resume_needs_a_checkpoint_of_the_same_scenario(tmp_path: Path, cli,
-                                                        write_scenario) -> None:
+def test_resume_needs_a_checkpoint_of_the_same_scenario(tmp_path: Path, cli, write_scenario) -> None:
     path = write_scenario(dict(SLUMP, time={"end": 0.02, "output_interval": 0.02}))
     result = cli("run", path, "-o", tmp_path / "none", "--resume")
     assert result.code == 2
@@ -144,8 +147,9 @@ def test_log_has_a_line_per_output_time(tmp_path: Path) -> None:
     log = (tmp_path / "run.log").read_text()
     assert "new run of scenario 'slump'" in log
     assert "rheology:\n  name: drucker_prager" in log
-    assert [line.split("output t = ")[1].split(" s:")[0]
-            for line in log.splitlines() if "output t = " in line] == ["0.02", "0.04", "0.06"]
+    assert [
+        line.split("output t = ")[1].split(" s:")[0] for line in log.splitlines() if "output t = " in line
+    ] == ["0.02", "0.04", "0.06"]
     assert "completed:" in log
 
 

@@ -1,4 +1,5 @@
 """Scenario model: defaults, layer fractions, overrides, line numbers, resolved YAML."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -6,7 +7,7 @@ import pytest
 import yaml
 
 from multilayer.errors import InputError
-from multilayer.scenario import Scenario, apply_overrides, from_dict, load
+from multilayer.io.scenario import Scenario, apply_overrides, from_dict, load
 
 
 def test_defaults(tiny_scenario):
@@ -16,17 +17,25 @@ def test_defaults(tiny_scenario):
     assert [(z.condition, z.x_min, z.x_max) for z in sc.base] == [("no_slip", None, None)]
     assert sc.bed.profile == "flat" and sc.walls is None and sc.expect == []
     assert sc.time.cfl == 0.45
-    assert sc.numerics.model_dump() == {"vertical_solver": "kernel", "order": 2, "tolerance": 1e-10,
-                                        "max_iterations": 200, "dry_threshold": 1e-6,
-                                        "front_threshold": 1e-3}
+    assert sc.numerics.model_dump() == {
+        "vertical_solver": "kernel",
+        "order": 2,
+        "tolerance": 1e-10,
+        "max_iterations": 200,
+        "dry_threshold": 1e-6,
+        "front_threshold": 1e-3,
+    }
     assert sc.rheology.name == "drucker_prager" and sc.rheology.params == {"mu_s": 0.3, "nu": 0.01}
 
 
-@pytest.mark.parametrize("fractions, layers, expected", [
-    ("uniform", 4, [0.25, 0.25, 0.25, 0.25]),
-    ([0.1, 0.2, 0.7], 3, [0.1, 0.2, 0.7]),
-    ({"geometric": 2.0}, 3, [1 / 7, 2 / 7, 4 / 7]),  # l_a proportional to 2**(a-1)
-])
+@pytest.mark.parametrize(
+    "fractions, layers, expected",
+    [
+        ("uniform", 4, [0.25, 0.25, 0.25, 0.25]),
+        ([0.1, 0.2, 0.7], 3, [0.1, 0.2, 0.7]),
+        ({"geometric": 2.0}, 3, [1 / 7, 2 / 7, 4 / 7]),  # l_a proportional to 2**(a-1)
+    ],
+)
 def test_layer_fractions(tiny_scenario, fractions, layers, expected):
     tiny_scenario["domain"].update(layers=layers, layer_fractions=fractions)
     result = from_dict(tiny_scenario).domain.fractions()
@@ -42,8 +51,16 @@ def test_scientific_notation_without_dot_is_a_number(write_scenario, tiny_scenar
 
 def test_overrides(write_scenario, tiny_scenario):
     path = write_scenario(tiny_scenario)
-    sc = load(path, ["domain.cells=200", "initial.0.height=0.08", "walls={name: wall_friction, "
-                     "mu_w: 0.2}", "domain.width=0.1", "boundaries.right=wall"])
+    sc = load(
+        path,
+        [
+            "domain.cells=200",
+            "initial.0.height=0.08",
+            "walls={name: wall_friction, mu_w: 0.2}",
+            "domain.width=0.1",
+            "boundaries.right=wall",
+        ],
+    )
     assert sc.domain.cells == 200 and sc.initial[0].height == 0.08
     assert sc.walls.params == {"mu_w": 0.2} and sc.boundaries.right == "wall"
     assert sc.source == path
@@ -56,12 +73,15 @@ def test_apply_overrides_leaves_input_untouched(tiny_scenario):
     assert data["initial"][0]["height"] == 0.2 and tiny_scenario["initial"][0]["height"] == 0.05
 
 
-@pytest.mark.parametrize("override, message", [
-    ("domain", "expected KEY=VALUE"),
-    ("initial.3.height=1", "--set initial.3.height: initial has 1 entries; accepted indices: 0..0"),
-    ("name.first=x", "--set name.first: name is a value, not a mapping"),
-    ("domain.cells=[1", "--set domain.cells: malformed YAML value"),
-])
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        ("domain", "expected KEY=VALUE"),
+        ("initial.3.height=1", "--set initial.3.height: initial has 1 entries; accepted indices: 0..0"),
+        ("name.first=x", "--set name.first: name is a value, not a mapping"),
+        ("domain.cells=[1", "--set domain.cells: malformed YAML value"),
+    ],
+)
 def test_malformed_overrides(write_scenario, tiny_scenario, override, message):
     with pytest.raises(InputError, match=message.replace(".", r"\.").replace("[", r"\[")):
         load(write_scenario(tiny_scenario), [override])
@@ -88,10 +108,14 @@ time: {end: 1.0, output_interval: 0.1, cfll: 0.4}
     with pytest.raises(InputError) as info:
         load(path)
     lines = str(info.value).splitlines()
-    assert f"{path}: rheology (line 7): jop_mu_i: I_0 must be > 0, got -0.3; accepted: " \
-           "jop_mu_i(mu_s: float, mu_2: float, I_0: float)" in lines
-    assert f"{path}: initial.1.x_max (line 12): x_max = 0.2 is not > x_min = 0.5; " \
-           "accepted: a number > x_min = 0.5" in lines
+    assert (
+        f"{path}: rheology (line 7): jop_mu_i: I_0 must be > 0, got -0.3; accepted: "
+        "jop_mu_i(mu_s: float, mu_2: float, I_0: float)" in lines
+    )
+    assert (
+        f"{path}: initial.1.x_max (line 12): x_max = 0.2 is not > x_min = 0.5; "
+        "accepted: a number > x_min = 0.5" in lines
+    )
     assert f"{path}: time.cfll (line 14): unknown key; accepted: end, cfl, output_interval" in lines
 
 
@@ -102,12 +126,19 @@ def test_duplicate_keys_are_rejected(write_scenario):
 
 def test_resolved_yaml_round_trip(tiny_scenario):
     tiny_scenario.update(
-        walls={"name": "wall_friction", "mu_w": 0.2}, domain={**tiny_scenario["domain"], "width": 0.1},
+        walls={"name": "wall_friction", "mu_w": 0.2},
+        domain={**tiny_scenario["domain"], "width": 0.1},
         base=[{"condition": "no_slip"}, {"condition": "coulomb", "mu": 0.35, "x_max": 0.1}],
         bed={"points": [[0.0, 0.0], [0.5, -0.01]]},
-        initial=[{"shape": "profile", "points": [[0.0, 0.02], [0.2, 0.0]],
-                  "velocity": {"profile": "linear", "shear_rate": 5.0}}],
-        expect=[{"quantity": "runout", "value": 0.1, "atol": 0.01}])
+        initial=[
+            {
+                "shape": "profile",
+                "points": [[0.0, 0.02], [0.2, 0.0]],
+                "velocity": {"profile": "linear", "shear_rate": 5.0},
+            }
+        ],
+        expect=[{"quantity": "runout", "value": 0.1, "atol": 0.01}],
+    )
     sc = from_dict(tiny_scenario)
     again = Scenario.model_validate(yaml.safe_load(sc.resolved_yaml()))
     assert again.model_dump() == sc.model_dump()

@@ -1,15 +1,23 @@
 """The shipped scenario library: valid, documented, and meeting its own expectations."""
+
 from pathlib import Path
 
 import pytest
 
-from multilayer import cli, expect
-from multilayer import scenario as scenarios
-from multilayer.scenario import QUANTITIES
+from multilayer.app import cli
+from multilayer.io import scenario as scenarios
+from multilayer.io.scenario import QUANTITIES
+from multilayer.testing import expectations as expect
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
-NAMES = ("erodible_bed_collapse", "smooth_to_rough_chute", "static_flowing_interface",
-         "coulomb_dam_break", "column_collapse", "bagnold_chute")
+NAMES = (
+    "erodible_bed_collapse",
+    "smooth_to_rough_chute",
+    "static_flowing_interface",
+    "coulomb_dam_break",
+    "column_collapse",
+    "bagnold_chute",
+)
 
 
 def _path(name: str) -> Path:
@@ -26,7 +34,7 @@ def test_library_is_complete_and_valid(capsys):
 def test_scenario_is_documented_and_pinned(name):
     """A header comment naming what is reproduced, parameters and resolution; expectations."""
     text = _path(name).read_text()
-    header = text[:text.index("\nname:")]
+    header = text[: text.index("\nname:")]
     assert all(line.startswith("#") for line in header.splitlines())
     for word in ("Reproduces:", "Parameters", "Resolution:"):
         assert word in header, f"{name}: header lacks '{word}'"

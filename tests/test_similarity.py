@@ -1,11 +1,12 @@
 """Reference solutions of multilayer.similarity against classical and published values."""
+
 import math
 
 import numpy as np
 import pytest
 
-from multilayer.rheology import Material, Rheology
-from multilayer.similarity import (
+from multilayer.plugins.contract import Material, Rheology
+from multilayer.reference.similarity import (
     bagnold_mean_velocity,
     bagnold_profile,
     boundary_layer_scale,
@@ -37,8 +38,7 @@ def test_classical_blasius_thicknesses(blasius):
     """Displacement 1.7208, momentum 0.6641, shape factor H12 = 2.591."""
     assert blasius.displacement_thickness == pytest.approx(1.7208, abs=1e-4)
     assert blasius.momentum_thickness == pytest.approx(0.6641, abs=1e-4)
-    assert blasius.displacement_thickness / blasius.momentum_thickness == pytest.approx(
-        2.591, abs=1e-3)
+    assert blasius.displacement_thickness / blasius.momentum_thickness == pytest.approx(2.591, abs=1e-3)
 
 
 def test_granular_blasius_alpha_034(granular):
@@ -51,8 +51,7 @@ def test_granular_solution_independent_of_truncation(granular):
     """The analytic algebraic tail makes the answer independent of zeta_max."""
     longer = solve_similarity(0.34, zeta_max=800.0)
     assert longer.fpp0 == pytest.approx(granular.fpp0, abs=1e-8)
-    assert longer.displacement_thickness == pytest.approx(
-        granular.displacement_thickness, abs=1e-6)
+    assert longer.displacement_thickness == pytest.approx(granular.displacement_thickness, abs=1e-6)
 
 
 def test_similarity_profile_boundary_conditions(granular):
@@ -140,7 +139,8 @@ def test_bagnold_profile_satisfies_mu_of_i_everywhere():
     assert u[0] == 0.0 and rate[-1] == pytest.approx(0.0, abs=rate.max() * 2e-2)
     mean = np.trapezoid(u, z) / depth
     assert bagnold_mean_velocity(depth, inertial, d, theta, density_ratio=ratio) == (
-        pytest.approx(mean, rel=1e-6))
+        pytest.approx(mean, rel=1e-6)
+    )
     assert mean == pytest.approx(0.6 * u[-1], rel=1e-6)
 
 

@@ -6,6 +6,7 @@ The base scenario is a 5 cm x 20 cm granular column collapsing down a 25 degree 
 outflow boundary, so every member must conserve its initial mass 0.20 m x 0.05 m =
 0.01 m^2 per unit width, and a higher friction coefficient must give a slower flow.
 """
+
 from __future__ import annotations
 
 import csv
@@ -21,8 +22,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from multilayer import cli, results, runner, scenario, sweep
+from multilayer.app import cli, runner, sweep
 from multilayer.errors import InputError, RunError
+from multilayer.io import results, scenario
 
 TINY = """\
 name: tiny-collapse
@@ -39,8 +41,7 @@ INITIAL_MASS = 0.20 * 0.05  # m^2 per unit width
 
 ROOT = Path(__file__).resolve().parents[1]
 # subprocesses (dask scheduler and workers, the CLI) import this source tree
-ENV = {**os.environ, "PYTHONPATH": os.pathsep.join(
-    filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
+ENV = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
 
 # two frictions x two resolutions, one of which (0 cells) is invalid
 FRICTION_SWEEP = """\
@@ -68,15 +69,26 @@ def read_summary(outdir: Path) -> list[dict[str, str]]:
 
 
 def test_product_members_last_key_fastest_with_stable_ids(tmp_path):
-    plan = sweep.load(write_sweep(tmp_path, """\
+    plan = sweep.load(
+        write_sweep(
+            tmp_path,
+            """\
 base: tiny.yaml
 parameters:
   rheology.mu_s: [0.3, 0.4]
   initial.0.height: [0.03, 0.04, 0.05]
-"""))
+""",
+        )
+    )
     members = plan.members()
     assert [tuple(m.values.values()) for m in members] == [
-        (0.3, 0.03), (0.3, 0.04), (0.3, 0.05), (0.4, 0.03), (0.4, 0.04), (0.4, 0.05)]
+        (0.3, 0.03),
+        (0.3, 0.04),
+        (0.3, 0.05),
+        (0.4, 0.03),
+        (0.4, 0.04),
+        (0.4, 0.05),
+    ]
     assert members[1].overrides == ["rheology.mu_s=0.3", "initial.0.height=0.04"]
     assert [m.id[:5] for m in members] == [f"m{i:03d}-" for i in range(6)]
     assert len({m.id for m in members}) == 6
@@ -88,48 +100,66 @@ parameters:
 
 
 def test_zip_pairs_the_lists(tmp_path):
-    plan = sweep.load(write_sweep(tmp_path, """\
+    plan = sweep.load(
+        write_sweep(
+            tmp_path,
+            """\
 base: tiny.yaml
 zip: true
 parameters:
   slope_deg: [20.0, 25.0, 30.0]
   rheology.mu_s: [0.3, 0.4, 0.5]
-"""))
+""",
+        )
+    )
     assert [m.values for m in plan.members()] == [
         {"slope_deg": 20.0, "rheology.mu_s": 0.3},
         {"slope_deg": 25.0, "rheology.mu_s": 0.4},
-        {"slope_deg": 30.0, "rheology.mu_s": 0.5}]
+        {"slope_deg": 30.0, "rheology.mu_s": 0.5},
+    ]
 
 
 def test_zip_with_lists_of_different_lengths_is_an_input_error(tmp_path):
-    path = write_sweep(tmp_path, """\
+    path = write_sweep(
+        tmp_path,
+        """\
 base: tiny.yaml
 parameters:
   slope_deg: [20.0, 25.0, 30.0]
   rheology.mu_s: [0.3, 0.4]
 zip: true
-""")
+""",
+    )
     with pytest.raises(InputError) as error:
         sweep.load(path)
     assert str(error.value) == (
         f"{path}: zip (line 5): the lists under parameters have different lengths "
-        "(slope_deg: 3, rheology.mu_s: 2); accepted: lists of equal length with zip: true")
+        "(slope_deg: 3, rheology.mu_s: 2); accepted: lists of equal length with zip: true"
+    )
 
 
-@pytest.mark.parametrize("text, key, what", [
-    ("base: tiny.yaml\nparameters: {slope_deg: [20]}\nworkers: 3\n", "workers (line 3)",
-     "unknown key"),
-    ("parameters: {slope_deg: [20]}\n", "base", "required key is missing"),
-    ("base: nowhere.yaml\nparameters: {slope_deg: [20]}\n", "base (line 1)", "not found"),
-    ("base: tiny.yaml\n", "parameters", "got None"),
-    ("base: tiny.yaml\nparameters: {}\n", "parameters (line 2)", "got {}"),
-    ("base: tiny.yaml\nparameters:\n  slope_deg: []\n", "parameters.slope_deg (line 3)", "got []"),
-    ("base: tiny.yaml\nparameters:\n  slope_deg: 20\n", "parameters.slope_deg (line 3)", "got 20"),
-    ("base: tiny.yaml\nparameters: {slope_deg: [20]}\nzip: yes please\n", "zip (line 3)",
-     "got 'yes please'"),
-    ("base: tiny.yaml\nparameters: {slope_deg: [20]}\noutput: {dir: x}\n", "output.dir (line 3)",
-     "unknown key"),
-])
+@pytest.mark.parametrize(
+    "text, key, what",
+    [
+        ("base: tiny.yaml\nparameters: {slope_deg: [20]}\nworkers: 3\n", "workers (line 3)", "unknown key"),
+        ("parameters: {slope_deg: [20]}\n", "base", "required key is missing"),
+        ("base: nowhere.yaml\nparameters: {slope_deg: [20]}\n", "base (line 1)", "not found"),
+        ("base: tiny.yaml\n", "parameters", "got None"),
+        ("base: tiny.yaml\nparameters: {}\n", "parameters (line 2)", "got {}"),
+        ("base: tiny.yaml\nparameters:\n  slope_deg: []\n", "parameters.slope_deg (line 3)", "got []"),
+        ("base: tiny.yaml\nparameters:\n  slope_deg: 20\n", "parameters.slope_deg (line 3)", "got 20"),
+        (
+            "base: tiny.yaml\nparameters: {slope_deg: [20]}\nzip: yes please\n",
+            "zip (line 3)",
+            "got 'yes please'",
+        ),
+        (
+            "base: tiny.yaml\nparameters: {slope_deg: [20]}\noutput: {dir: x}\n",
+            "output.dir (line 3)",
+            "unknown key",
+        ),
+    ],
+)
 def test_invalid_sweep_file_exits_2_naming_file_and_key(tmp_path, capsys, text, key, what):
     path = write_sweep(tmp_path, text)
     assert cli.main(["sweep", str(path), "-o", str(tmp_path / "out")]) == 2
@@ -164,8 +194,9 @@ def test_unreachable_scheduler_exits_2_before_anything_runs(tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
-@pytest.mark.parametrize("value", [0.4, 1e-5, 3, "jop_mu_i", "1e-5", True, None,
-                                   [[0.0, 0.1], [1.0, 0.0]], {"geometric": 1.2}])
+@pytest.mark.parametrize(
+    "value", [0.4, 1e-5, 3, "jop_mu_i", "1e-5", True, None, [[0.0, 0.1], [1.0, 0.0]], {"geometric": 1.2}]
+)
 def test_values_reach_the_scenario_as_written(value):
     """A member's override text reads back to the sweep file's value, as ``--set`` reads it."""
     text = sweep.format_value(value)
@@ -224,22 +255,41 @@ def scheduler(tmp_path_factory):
     processes: list[subprocess.Popen] = []
 
     def start(*args: str) -> None:
-        processes.append(subprocess.Popen(
-            [sys.executable, "-m", "dask", *args, "--no-dashboard"], cwd=workdir, env=ENV,
-            stdout=log, stderr=subprocess.STDOUT, start_new_session=True))
+        processes.append(
+            subprocess.Popen(
+                [sys.executable, "-m", "dask", *args, "--no-dashboard"],
+                cwd=workdir,
+                env=ENV,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                start_new_session=True,
+            )
+        )
 
     try:
-        start("scheduler", "--host", "127.0.0.1", "--port", "0",
-              "--scheduler-file", str(scheduler_file))
+        start("scheduler", "--host", "127.0.0.1", "--port", "0", "--scheduler-file", str(scheduler_file))
         deadline = time.monotonic() + 60
         while not scheduler_file.is_file():
             assert processes[0].poll() is None and time.monotonic() < deadline, (
-                "the Dask scheduler did not start:\n" + (workdir / "cluster.log").read_text())
+                "the Dask scheduler did not start:\n" + (workdir / "cluster.log").read_text()
+            )
             time.sleep(0.1)
         address = json.loads(scheduler_file.read_text())["address"]
         for name in ("worker-a", "worker-b"):
-            start("worker", address, "--host", "127.0.0.1", "--nworkers", "1", "--nthreads", "1",
-                  "--name", name, "--local-directory", str(workdir))
+            start(
+                "worker",
+                address,
+                "--host",
+                "127.0.0.1",
+                "--nworkers",
+                "1",
+                "--nthreads",
+                "1",
+                "--name",
+                name,
+                "--local-directory",
+                str(workdir),
+            )
         from dask.distributed import Client
 
         with Client(address, timeout="30s") as client:
@@ -258,8 +308,13 @@ def scheduler(tmp_path_factory):
 
 
 def run_cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "multilayer.cli", "sweep", *args],
-                          capture_output=True, text=True, timeout=300, env=ENV)
+    return subprocess.run(
+        [sys.executable, "-m", "multilayer", "sweep", *args],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=ENV,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -279,12 +334,18 @@ def test_sweep_on_a_scheduler_with_two_workers(friction_sweep):
 
     rows = read_summary(outdir)
     assert [(r["rheology.mu_s"], r["domain.cells"], r["status"]) for r in rows] == [
-        ("0.3", "40", "ok"), ("0.3", "0", "invalid"), ("0.4", "40", "ok"), ("0.4", "0", "invalid")]
+        ("0.3", "40", "ok"),
+        ("0.3", "0", "invalid"),
+        ("0.4", "40", "ok"),
+        ("0.4", "0", "invalid"),
+    ]
     for row in rows:
         if row["status"] == "invalid":  # the reason, in the summary and on stderr
             assert "domain.cells" in row["error"] and "an integer >= 1" in row["error"]
-            assert f"member {row['member']} (rheology.mu_s={row['rheology.mu_s']}, " \
-                   f"domain.cells=0) invalid: " in first.stderr
+            assert (
+                f"member {row['member']} (rheology.mu_s={row['rheology.mu_s']}, "
+                f"domain.cells=0) invalid: " in first.stderr
+            )
             assert row["front_final"] == "" and not (outdir / row["member"]).exists()
     ok = [row for row in rows if row["status"] == "ok"]
     assert sorted(p.parent.name for p in outdir.glob("*/result.nc")) == [r["member"] for r in ok]
@@ -293,9 +354,9 @@ def test_sweep_on_a_scheduler_with_two_workers(friction_sweep):
         result = outdir / row["member"] / "result.nc"
         summary = results.summary(result)
         # the row holds the result's own diagnostics, and the worker ran the member's friction
-        assert {key: float(row[key]) for key in ("front_final", "runout", "mass_final",
-                                                 "wall_time_s")} == {
-            key: summary[key] for key in ("front_final", "runout", "mass_final", "wall_time_s")}
+        assert {key: float(row[key]) for key in ("front_final", "runout", "mass_final", "wall_time_s")} == {
+            key: summary[key] for key in ("front_final", "runout", "mass_final", "wall_time_s")
+        }
         with results.open_result(result) as ds:
             resolved = yaml.safe_load(ds.attrs["scenario"])
         assert resolved["rheology"]["mu_s"] == float(row["rheology.mu_s"])
@@ -325,11 +386,14 @@ def test_second_run_of_a_completed_sweep_runs_nothing(friction_sweep, scheduler)
 def test_a_failing_member_does_not_stop_the_others_and_reruns_alone(tmp_path, monkeypatch, capsys):
     from dask.distributed import LocalCluster
 
-    path = write_sweep(tmp_path, """\
+    path = write_sweep(
+        tmp_path,
+        """\
 base: tiny.yaml
 parameters:
   rheology.mu_s: [0.3, 0.4, 0.5]
-""")
+""",
+    )
     outdir = tmp_path / "out"
     real_run = runner.run
     ran: list[float] = []
@@ -344,42 +408,47 @@ parameters:
 
     monkeypatch.setattr(runner, "run", flaky_run)
     # threads in this process, so that the patched runner is the one the tasks call
-    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
-                      dashboard_address=":0") as cluster:
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0") as cluster:
         argv = ["sweep", str(path), "-o", str(outdir), "--scheduler", cluster.scheduler_address]
         assert cli.main(argv) == 1
         rows = read_summary(outdir)
         assert [row["status"] for row in rows] == ["ok", "failed", "ok"]
         assert rows[1]["error"] == "RunError: the solver broke down"
         assert "invalid" not in rows[1]["error"] and rows[1]["runout"] == ""
-        assert f"member {rows[1]['member']} (rheology.mu_s=0.4) failed: RunError: the solver " \
-               "broke down" in capsys.readouterr().err
+        assert (
+            f"member {rows[1]['member']} (rheology.mu_s=0.4) failed: RunError: the solver "
+            "broke down" in capsys.readouterr().err
+        )
         assert sorted(ran) == [0.3, 0.4, 0.5]
 
         broken.clear()
         assert cli.main(argv) == 0  # resume: only the failed member runs again
         assert ran[3:] == [0.4]
         assert [row["status"] for row in read_summary(outdir)] == ["ok", "ok", "ok"]
-        assert "3 members: 2 already complete (skipped), 0 invalid, 1 to run" in \
-               capsys.readouterr().out
+        assert "3 members: 2 already complete (skipped), 0 invalid, 1 to run" in capsys.readouterr().out
 
 
 def test_local_cluster_zip_sweep(tmp_path, monkeypatch, capsys):
     """Without --scheduler: a local cluster of worker processes, here a zipped sweep."""
-    path = write_sweep(tmp_path, """\
+    path = write_sweep(
+        tmp_path,
+        """\
 base: tiny.yaml
 zip: true
 parameters:
   slope_deg: [20.0, 25.0]
   rheology.mu_s: [0.3, 0.35]
 output: {directory: zipped}
-""")
+""",
+    )
     monkeypatch.chdir(tmp_path)  # output.directory is relative to the current directory
     assert cli.main(["sweep", str(path), "--workers", "2", "--quiet"]) == 0
     assert capsys.readouterr().out == ""
     rows = read_summary(tmp_path / "zipped")
     assert [(r["slope_deg"], r["rheology.mu_s"], r["status"]) for r in rows] == [
-        ("20.0", "0.3", "ok"), ("25.0", "0.35", "ok")]
+        ("20.0", "0.3", "ok"),
+        ("25.0", "0.35", "ok"),
+    ]
     for row in rows:
         assert float(row["mass_final"]) == pytest.approx(INITIAL_MASS, rel=1e-12)
         assert (tmp_path / "zipped" / row["member"] / "result.nc").is_file()

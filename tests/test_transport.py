@@ -1,11 +1,11 @@
 """Transport in x against exact solutions and conservation laws (DESIGN.md section 7)."""
+
 from __future__ import annotations
 
 import math
 
 import numpy as np
 import pytest
-
 from engine import simulation
 
 G = 9.81
@@ -92,7 +92,9 @@ def test_lake_at_rest_over_a_bump_stays_at_rest():
     sim = simulation(
         domain={"cells": 100},
         bed={"points": [[0.0, 0.0], [4.0, 0.0], [5.0, 0.5], [6.0, 0.0], [10.0, 0.0]]},
-        initial=[{"shape": "profile", "points": [[0.0, 1.0], [4.0, 1.0], [5.0, 0.5], [6.0, 1.0], [10.0, 1.0]]}],
+        initial=[
+            {"shape": "profile", "points": [[0.0, 1.0], [4.0, 1.0], [5.0, 0.5], [6.0, 1.0], [10.0, 1.0]]}
+        ],
     )
     surface = sim.h + sim.bed
     assert np.ptp(surface) < 1e-12

@@ -4,6 +4,7 @@ Marked ``validation``: deselected by default, run with ``python -m pytest -m val
 (a few minutes on 2 cores).  ``docs/make_validation.py`` writes the full report, including
 the references that are not met; these tests keep the met ones from regressing.
 """
+
 from __future__ import annotations
 
 import math
@@ -11,11 +12,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from multilayer import similarity
-from multilayer.scenario import load
-from multilayer.simulation import Simulation
 from test_transport import ritter_error
+
+from multilayer.engine.simulation import Simulation
+from multilayer.io.scenario import load
+from multilayer.reference import similarity
 
 pytestmark = pytest.mark.validation
 
@@ -36,8 +37,12 @@ def test_ritter_dam_break_order_at_high_resolution():
 @pytest.mark.parametrize("theta", [19.0, 22.0, 24.0])
 def test_inviscid_static_flowing_interface_at_three_slopes(theta):
     """b(t) = b0 + S t / 70 within one layer (40 layers), Bouchut et al. 2016, Prop. 2.2."""
-    sim = Simulation(load(SCENARIOS / "static_flowing_interface.yaml",
-                          [f"slope_deg={theta}", "rheology.nu=0", "domain.layers=40"]))
+    sim = Simulation(
+        load(
+            SCENARIOS / "static_flowing_interface.yaml",
+            [f"slope_deg={theta}", "rheology.nu=0", "domain.layers=40"],
+        )
+    )
     h, b0, shear = 0.02, 0.005, 70.0
     S = 9.81 * math.cos(math.radians(theta)) * (math.tan(math.radians(26.0)) - math.tan(math.radians(theta)))
     t_stop = shear * (h - b0) / S
@@ -49,12 +54,16 @@ def test_inviscid_static_flowing_interface_at_three_slopes(theta):
     assert np.all(sim.u == 0.0)
 
 
-@pytest.mark.parametrize("changes", [
-    (),  # power law alpha = 0.34 on 16 deg: measured slope 0.725 vs 0.746, size 0.95
-    # classical Blasius (alpha = 1) on a horizontal chute, where gravity does not
-    # accelerate the outer flow: measured slope 0.483 vs 0.5, size 1.06
-    ("rheology.alpha=1", "rheology.m=0.2", "slope_deg=0"),
-], ids=["power_law", "linear_horizontal"])
+@pytest.mark.parametrize(
+    "changes",
+    [
+        (),  # power law alpha = 0.34 on 16 deg: measured slope 0.725 vs 0.746, size 0.95
+        # classical Blasius (alpha = 1) on a horizontal chute, where gravity does not
+        # accelerate the outer flow: measured slope 0.483 vs 0.5, size 1.06
+        ("rheology.alpha=1", "rheology.m=0.2", "slope_deg=0"),
+    ],
+    ids=["power_law", "linear_horizontal"],
+)
 def test_granular_blasius_boundary_layer_grows_like_x_to_the_one_over_one_plus_alpha(changes):
     """Tsang et al. (2019): the displacement thickness grows like x^(1/(1+alpha)) and
     matches the size of the similarity solution, without a fitted constant."""
@@ -65,7 +74,9 @@ def test_granular_blasius_boundary_layer_grows_like_x_to_the_one_over_one_plus_a
     disp = similarity.displacement_thickness(sim.u, sim.fractions[:, None] * sim.h[None, :])
     solution = similarity.solve_similarity(alpha)
     eps = similarity.boundary_layer_scale(alpha, m, sc.slope_deg, h_in, speed, sc.material.grain_diameter)
-    predicted = solution.displacement_thickness * eps * h_in * (np.maximum(sim.x, 0) / h_in) ** (1 / (1 + alpha))
+    predicted = (
+        solution.displacement_thickness * eps * h_in * (np.maximum(sim.x, 0) / h_in) ** (1 / (1 + alpha))
+    )
     thin = (sim.x >= 4 * sim.dx) & (predicted <= 0.1 * h_in)
     slope = np.polyfit(np.log(sim.x[thin]), np.log(disp[thin]), 1)[0]
     assert slope == pytest.approx(1 / (1 + alpha), abs=0.04)
@@ -83,8 +94,14 @@ def test_bagnold_profile_converges_with_the_layers():
         h, d = float(sim.h[0]), sim.scenario.material.grain_diameter
         edges = sim.mesh.interfaces * h
         mat = sim.scenario.material
-        scale = 2 * i_theta / (3 * d) * math.sqrt(
-            9.81 * math.cos(math.radians(sim.scenario.slope_deg)) * mat.density / mat.particle_density)
+        scale = (
+            2
+            * i_theta
+            / (3 * d)
+            * math.sqrt(
+                9.81 * math.cos(math.radians(sim.scenario.slope_deg)) * mat.density / mat.particle_density
+            )
+        )
         # mean of scale (h^1.5 - (h - z)^1.5) over each layer
         antiderivative = scale * (h**1.5 * edges + (h - edges) ** 2.5 / 2.5)
         exact = np.diff(antiderivative) / np.diff(edges)
@@ -97,8 +114,13 @@ def test_bagnold_profile_converges_with_the_layers():
 def test_erodible_bed_lengthens_the_runout_at_22_degrees_with_mu_i():
     """Farin et al. (2014), Fernandez-Nieto et al. (2016): with mu(I) at 22 degrees the
     run-out grows with the erodible-bed thickness (measured 0.894 m bare, 0.947 m on 5 mm)."""
-    bare = run("erodible_bed_collapse", "time.end=3.0", "numerics.front_threshold=0.001",
-               "initial=[{shape: rectangle, x_min: -0.25, x_max: -0.05, height: 0.14}]")
-    bed = run("erodible_bed_collapse", "time.end=3.0", "initial.0.thickness=0.005",
-              "numerics.front_threshold=0.006")
+    bare = run(
+        "erodible_bed_collapse",
+        "time.end=3.0",
+        "numerics.front_threshold=0.001",
+        "initial=[{shape: rectangle, x_min: -0.25, x_max: -0.05, height: 0.14}]",
+    )
+    bed = run(
+        "erodible_bed_collapse", "time.end=3.0", "initial.0.thickness=0.005", "numerics.front_threshold=0.006"
+    )
     assert bed.diagnostics()["front"] > bare.diagnostics()["front"] + 0.03

@@ -1,17 +1,17 @@
 """The implicit vertical step against exact solutions (DESIGN.md section 7)."""
+
 from __future__ import annotations
 
 import math
-
 from pathlib import Path
 
 import numpy as np
 import pytest
-
 from engine import simulation
-from multilayer.rheology import Rheology
-from multilayer.scenario import load
-from multilayer.simulation import Simulation
+
+from multilayer.engine.simulation import Simulation
+from multilayer.io.scenario import load
+from multilayer.plugins.contract import Rheology
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 
@@ -29,8 +29,13 @@ def simple_shear(nu: float, layers: int = 200, **changes):
         material={"density": 1550.0, "grain_diameter": 0.7e-3},
         rheology={"name": "drucker_prager", "mu_s": MU_S, "nu": nu},
         base=[{"condition": "no_slip"}],
-        initial=[{"shape": "layer", "thickness": H,
-                  "velocity": {"profile": "linear", "shear_rate": SHEAR, "from_height": B0}}],
+        initial=[
+            {
+                "shape": "layer",
+                "thickness": H,
+                "velocity": {"profile": "linear", "shear_rate": SHEAR, "from_height": B0},
+            }
+        ],
         boundaries={"left": "periodic", "right": "periodic"},
         **changes,
     )
@@ -132,7 +137,12 @@ def test_bingham_layer_flows_as_a_rigid_plug_over_the_analytic_sheared_zone():
     u = sim.u[:, 0]
     plug = z > z_p + h / 50
     assert np.ptp(u[plug]) <= 1e-9
-    exact = np.where(z < z_p, drive * (h * z - z * z / 2) - tau_y * z, drive * (h * z_p - z_p**2 / 2) - tau_y * z_p) / eta
+    exact = (
+        np.where(
+            z < z_p, drive * (h * z - z * z / 2) - tau_y * z, drive * (h * z_p - z_p**2 / 2) - tau_y * z_p
+        )
+        / eta
+    )
     assert np.abs(u - exact).max() < 0.01 * exact.max()
 
 
@@ -147,8 +157,10 @@ def test_kernel_and_fipy_reference_give_the_same_step():
         rheology={"name": "jop_mu_i", "mu_s": 0.477, "mu_2": 0.7265, "I_0": 0.279},
         walls={"name": "wall_friction", "mu_w": 0.185},
         base=[{"condition": "no_slip"}],
-        initial=[{"shape": "layer", "thickness": 0.003},
-                 {"shape": "rectangle", "x_min": 0.0, "x_max": 0.1, "height": 0.05}],
+        initial=[
+            {"shape": "layer", "thickness": 0.003},
+            {"shape": "rectangle", "x_min": 0.0, "x_max": 0.1, "height": 0.05},
+        ],
         boundaries={"left": "wall", "right": "outflow"},
     )
     kernel = simulation(**common)
@@ -164,16 +176,22 @@ def test_kernel_and_fipy_reference_give_the_same_step():
     assert np.any(kernel.u == 0.0) and np.abs(kernel.u).max() > 0.05
 
 
-@pytest.mark.parametrize("law", [
-    (),  # Jop mu(I), the file's law
-    ("rheology={name: drucker_prager, mu_s: 0.4770, nu: 6.45e-4}",),  # constant viscosity
-], ids=["jop_mu_i", "drucker_prager"])
+@pytest.mark.parametrize(
+    "law",
+    [
+        (),  # Jop mu(I), the file's law
+        ("rheology={name: drucker_prager, mu_s: 0.4770, nu: 6.45e-4}",),  # constant viscosity
+    ],
+    ids=["jop_mu_i", "drucker_prager"],
+)
 def test_collapse_onto_a_thin_erodible_bed_stays_physical(law):
     """A 14 cm column released onto a 1 mm bed (16 deg): the Newton iteration converges at
     the default tolerance from the first step, and no layer ever moves faster than free
     fall from the top of the column down the first 10 cm of slope allows (energy bound)."""
-    sc = load(SCENARIOS / "erodible_bed_collapse.yaml",
-              ["slope_deg=16", "initial.0.thickness=0.001", "time.end=0.1", *law])
+    sc = load(
+        SCENARIOS / "erodible_bed_collapse.yaml",
+        ["slope_deg=16", "initial.0.thickness=0.001", "time.end=0.1", *law],
+    )
     sim = Simulation(sc)
     mass = sim.diagnostics()["mass"]
     drop = 0.14 * math.cos(math.radians(16)) + 0.3 * math.sin(math.radians(16))

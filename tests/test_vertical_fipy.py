@@ -2,15 +2,17 @@
 
 Checks against exact solutions of the step (docs/architecture.md, "Vertical step"), the
 KKT conditions of the minimisation, the dense optimality system of the u-step, FiPy
-issue #1223 (reused equations) and the fast kernel multilayer/chain.py.
+issue #1223 (reused equations) and the fast kernel multilayer/column_kernel.py.
 """
+
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from multilayer import chain, vertical_fipy
+from multilayer.engine import column_kernel
 from multilayer.errors import RunError
+from multilayer.reference import vertical_fipy
 
 
 def zeros(L: int, N: int) -> np.ndarray:
@@ -163,8 +165,15 @@ def test_reused_equation_equals_fresh_one_after_coefficients_change():
     assert np.abs(after - before).max() > 0.1
     np.testing.assert_array_equal(after, fresh.solve_u(source, link_flux))
 
-    args = [rng.uniform(0.5, 2, (L, N)), rng.normal(size=(L, N)), 0.1,
-            rng.uniform(0, 3, (L, N)), rng.uniform(0, 2, (L, N)), zeros(L, N), zeros(L, N)]
+    args = [
+        rng.uniform(0.5, 2, (L, N)),
+        rng.normal(size=(L, N)),
+        0.1,
+        rng.uniform(0, 3, (L, N)),
+        rng.uniform(0, 2, (L, N)),
+        zeros(L, N),
+        zeros(L, N),
+    ]
     reused(*args)
     args2 = [3 * args[0], -args[1], 0.05, 0.5 * args[3], 4 * args[4], *args[5:]]
     np.testing.assert_array_equal(reused(*args2), vertical_fipy.VerticalStep(mesh)(*args2))
@@ -193,7 +202,7 @@ def random_step(rng: np.random.Generator, L: int, N: int):
 
 
 def test_agrees_with_the_fast_kernel():
-    """The FiPy reference and multilayer/chain.py agree to 1e-10 on random steps.
+    """The FiPy reference and multilayer/column_kernel.py agree to 1e-10 on random steps.
 
     Same static layers (exact zeros) and same plugs (exactly equal neighbours).
     """
@@ -202,7 +211,7 @@ def test_agrees_with_the_fast_kernel():
     for _ in range(3):
         args = random_step(rng, L, N)
         u = vertical_fipy.solve(*args)
-        u_kernel = chain.solve(*args)
+        u_kernel = column_kernel.solve(*args)
         np.testing.assert_allclose(u, u_kernel, rtol=0, atol=1e-10)
         np.testing.assert_array_equal(u == 0.0, u_kernel == 0.0)
         np.testing.assert_array_equal(np.diff(u, axis=0) == 0.0, np.diff(u_kernel, axis=0) == 0.0)

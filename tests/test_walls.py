@@ -2,13 +2,13 @@
 models (Mangeney 2021 slides; DESIGN.md section 1), so a rigid layer on a Coulomb base
 stays at rest exactly up to tan(theta) = mu + mu_w h / W and accelerates beyond it at
 g cos(theta) (tan(theta) - mu - mu_w h / W)."""
+
 from __future__ import annotations
 
 import math
 
 import numpy as np
 import pytest
-
 from engine import simulation
 
 MU, MU_W, WIDTH, H = 0.3, 0.2, 0.1, 0.05

@@ -5,6 +5,7 @@
 i.e. a pressure-independent yield stress ``tau_y`` (Pa) and a constant viscosity
 ``eta`` (Pa s).
 """
+
 import numpy as np
 
 import multilayer

@@ -1,0 +1,86 @@
+"""The ``multilayer`` command line: one module per subcommand in :mod:`multilayer.app.commands`.
+
+Each subcommand module defines ``HELP`` (one line), ``add_arguments(parser)`` and
+``main(args) -> int``.  Exit codes (docs/cli.md): 0 success, 1 failure during a run,
+2 invalid input, 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+import warnings
+from collections.abc import Sequence
+
+import multilayer
+from multilayer.errors import InputError, RunError
+
+SUBCOMMANDS = ("run", "validate", "plugins", "sweep", "check", "plot", "export")
+
+
+class _Version(argparse.Action):
+    """``--version``: the package and FiPy versions (FiPy imported only when asked)."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, **kwargs: object):
+        super().__init__(option_strings, dest, nargs=0, help="show the multilayer and FiPy versions and exit")
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        import fipy
+
+        print(f"multilayer {multilayer.__version__} (FiPy {fipy.__version__})")
+        parser.exit()
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser with every subcommand of :data:`SUBCOMMANDS`."""
+    parser = argparse.ArgumentParser(
+        prog="multilayer",
+        description="Multilayer shallow-flow simulator of dense granular flows. "
+        "Run 'multilayer COMMAND --help' for the options of a command.",
+        epilog="exit codes: 0 success, 1 failure during a run, 2 invalid input, 130 interrupted",
+    )
+    parser.add_argument("--version", action=_Version)
+    commands = parser.add_subparsers(title="commands", dest="command", metavar="COMMAND", required=True)
+    for name in SUBCOMMANDS:
+        module = importlib.import_module(f"multilayer.app.commands.{name}")
+        sub = commands.add_parser(
+            name,
+            help=module.HELP,
+            description=module.__doc__,
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+        )
+        module.add_arguments(sub)
+        sub.set_defaults(handler=module.main)
+    return parser
+
+
+def _warning(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f"multilayer: warning: {message}", file=sys.stderr if file is None else file)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Parse ``argv`` (default ``sys.argv[1:]``), run the subcommand, return the exit code."""
+    args = build_parser().parse_args(argv)
+    warnings.showwarning = _warning
+    try:
+        return args.handler(args)
+    except InputError as exc:
+        print(f"multilayer: error: {exc}", file=sys.stderr)
+        return 2
+    except RunError as exc:
+        print(f"multilayer: run failed: {exc}", file=sys.stderr)
+        return 1
+    except OSError as exc:  # a path given on the command line cannot be created or written
+        print(
+            f"multilayer: error: {exc}; accepted: a directory that can be created and written",
+            file=sys.stderr,
+        )
+        return 2
+    except KeyboardInterrupt:
+        print("multilayer: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

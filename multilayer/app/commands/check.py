@@ -1,0 +1,66 @@
+"""Run scenario files and compare their results with their `expect:` lists.
+
+Each file is validated first (exit 2 if any is invalid or has no `expect:` entry), then
+run quietly into a temporary directory (or DIR/<name> with -o) at the resolution written
+in the file.  One table per file shows expected vs obtained values; the exit code is 1 if
+any expectation fails or any run fails, 0 if all pass.
+Example: multilayer check scenarios/*.yaml
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from multilayer.errors import InputError, RunError
+from multilayer.io import scenario as scenarios
+from multilayer.testing import expectations as expect
+
+HELP = "run scenario files and check their expect: lists (regression tests)"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``multilayer check``."""
+    parser.add_argument("files", metavar="FILE", nargs="+", help="scenario YAML files with expect:")
+    parser.add_argument(
+        "-o",
+        "--output",
+        metavar="DIR",
+        type=Path,
+        help="keep the results in DIR/<scenario name> (default: a temporary directory, removed afterwards)",
+    )
+
+
+def main(args: argparse.Namespace) -> int:
+    """Validate all files, then run and check each one."""
+    loaded, errors = [], []
+    for path in args.files:
+        try:
+            scenario = scenarios.load(path)
+        except InputError as exc:
+            errors.append(str(exc))
+            continue
+        if not scenario.expect:
+            errors.append(
+                f"{path}: expect: no expectations to check; accepted: a scenario "
+                "with a non-empty expect list of {quantity, value, rtol, atol}"
+            )
+            continue
+        loaded.append(scenario)
+    if errors:
+        for message in errors:
+            print(f"multilayer: error: {message}", file=sys.stderr)
+        return 2
+    failed = 0
+    for scenario in loaded:
+        outdir = None if args.output is None else args.output / scenario.name
+        try:
+            outcomes = expect.check(scenario, outdir)
+        except RunError as exc:
+            print(f"{scenario.source}: run failed: {exc}")
+            failed += 1
+            continue
+        print(f"{scenario.source}: " + expect.report(scenario.name, outcomes), flush=True)
+        failed += not all(o.passed for o in outcomes)
+    return 1 if failed else 0

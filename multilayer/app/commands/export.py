@@ -1,0 +1,33 @@
+"""Export a run for ParaView: one VTK structured grid per output time in DIR/vtk/.
+
+Open DIR/vtk/result.pvd in ParaView for the whole time series (docs/results.md).
+Example: multilayer export results/erodible-bed-collapse --vtk
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from multilayer.errors import InputError
+
+HELP = "export DIR/result.nc to other formats (--vtk: ParaView)"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``multilayer export``."""
+    parser.add_argument("directory", metavar="DIR", type=Path, help="output directory of 'multilayer run'")
+    parser.add_argument(
+        "--vtk", action="store_true", help="VTK XML structured grids (.vts) and a .pvd time series"
+    )
+
+
+def main(args: argparse.Namespace) -> int:
+    """Write the requested formats and list the index files."""
+    from multilayer.io.export import export_vtk
+
+    if not args.vtk:
+        raise InputError("multilayer export: choose a format; accepted: --vtk")
+    paths = export_vtk(args.directory)
+    print(f"{paths[0]} ({len(paths) - 1} output times)")
+    return 0

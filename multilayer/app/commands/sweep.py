@@ -1,0 +1,118 @@
+"""Run a parameter sweep of a scenario on Dask: DIR/<member>/result.nc and DIR/summary.csv.
+
+The members run on a local Dask cluster (one single-threaded worker process per core, or
+--workers N) or, with --scheduler, on a running cluster. DIR is -o/--output, else the
+sweep file's output.directory, else results/<sweep file name>. Members completed by an
+earlier run are skipped. Exit code 1 if any member is invalid or failed (see
+DIR/summary.csv), 2 if the sweep file is invalid. Details: docs/sweeps.md.
+Example: multilayer sweep friction-sweep.yaml --workers 4
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import TextIO
+
+from multilayer.app.commands import positive_int
+
+HELP = "run a parameter sweep of a scenario on Dask (local or existing cluster)"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``multilayer sweep``."""
+    parser.add_argument("sweep", metavar="SWEEP", help="sweep YAML file")
+    parser.add_argument(
+        "-o",
+        "--output",
+        metavar="DIR",
+        type=Path,
+        help="output directory (default: output.directory of the sweep file, else results/<sweep file name>)",
+    )
+    cluster = parser.add_mutually_exclusive_group()
+    cluster.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="address of a running Dask scheduler, e.g. tcp://10.0.0.5:8786 (default: start a local cluster)",
+    )
+    cluster.add_argument(
+        "--workers",
+        metavar="N",
+        type=positive_int,
+        help="worker processes of the local cluster (default: one per core)",
+    )
+    parser.add_argument(
+        "-q",
+        "--quiet",
+        action="store_true",
+        help="no progress and no summary line (invalid or failed members are still reported)",
+    )
+
+
+class _Report:
+    """Start line, ``done / total`` progress line (terminals only) and final report."""
+
+    def __init__(self, where: str, quiet: bool, stream: TextIO | None = None) -> None:
+        self.where = where
+        self.quiet = quiet
+        self.stream = sys.stderr if stream is None else stream
+        self.live = not quiet and self.stream.isatty()
+
+    def start(self, total: int, skipped: int, invalid: int, to_run: int) -> None:
+        if not self.quiet:
+            target = f" on {self.where}" if to_run else ""
+            print(
+                f"sweep: {total} members: {skipped} already complete (skipped), "
+                f"{invalid} invalid, {to_run} to run{target}",
+                flush=True,
+            )
+        if to_run:
+            self.progress(0, to_run)
+
+    def progress(self, done: int, to_run: int) -> None:
+        if self.live:
+            self.stream.write(f"\rsweep: {done}/{to_run} members done")
+            self.stream.flush()
+            if done == to_run:
+                self.stream.write("\n")
+
+
+def main(args: argparse.Namespace) -> int:
+    """Validate the sweep and its members, run them, write summary.csv, report."""
+    from multilayer.app import sweep as sweeps  # Dask and the engine are imported only to run
+
+    plan = sweeps.load(args.sweep)
+    outdir = args.output or plan.output or Path("results") / plan.path.stem
+    if args.scheduler is not None:
+        where = f"the Dask cluster at {args.scheduler}"
+    elif args.workers is not None:
+        where = f"a local Dask cluster of {args.workers} single-threaded worker process(es)"
+    else:
+        where = "a local Dask cluster (one single-threaded worker process per core)"
+    report = _Report(where, args.quiet)
+    outcomes = sweeps.run(
+        plan,
+        outdir,
+        scheduler=args.scheduler,
+        workers=args.workers,
+        on_start=report.start,
+        on_progress=report.progress,
+    )
+    summary = Path(outdir) / "summary.csv"
+    sweeps.write_summary(plan, outcomes, summary)
+
+    for outcome in outcomes:
+        if outcome.status != "ok":
+            values = ", ".join(outcome.member.overrides)
+            print(
+                f"multilayer: member {outcome.member.id} ({values}) {outcome.status}: {outcome.error}",
+                file=sys.stderr,
+            )
+    counts = {status: sum(o.status == status for o in outcomes) for status in ("ok", "invalid", "failed")}
+    if not args.quiet:
+        print(
+            f"sweep: {counts['ok']} ok, {counts['invalid']} invalid, {counts['failed']} "
+            f"failed; wrote {summary}"
+        )
+    return 1 if counts["invalid"] or counts["failed"] else 0

@@ -1,0 +1,261 @@
+"""Run a scenario into an output directory: result file, checkpoints, log, Ctrl-C, resume.
+
+``DIR/result.nc`` receives the initial state and every output time
+(``k * time.output_interval`` and ``time.end``); after each one the full engine state is
+saved to ``DIR/checkpoint.npz`` and a line is added to ``DIR/run.log``.
+
+Ctrl-C (SIGINT) is turned into a request honoured after the current time step: the state
+at that step is checkpointed, the result file closed, and :class:`KeyboardInterrupt`
+raised (the CLI exits with 130).  A second Ctrl-C stops at once; the last checkpoint then
+stands.  ``resume=True`` restores the checkpoint and continues; the output times are the
+same as without the interruption, so the result is identical.
+
+A run without ``resume`` starts afresh: it overwrites ``result.nc``, ``run.log`` and
+removes any previous checkpoint in ``DIR``.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import shlex
+import signal
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+import numpy as np
+import yaml
+
+from multilayer.app.progress import Progress
+from multilayer.engine.simulation import Simulation
+from multilayer.errors import InputError, RunError
+from multilayer.io import scenario as scenarios
+from multilayer.io.results import (
+    CHECKPOINT_FILE,
+    RESULT_FILE,
+    Checkpoint,
+    ResultWriter,
+    load_checkpoint,
+    save_checkpoint,
+    summary,
+)
+
+LOG_FILE = "run.log"
+
+
+def output_times(end: float, interval: float | None) -> np.ndarray:
+    """Output times ``k * interval`` (k = 1, 2, ...) capped by ``end``, ending at ``end``."""
+    if not interval or interval >= end:
+        return np.array([end])
+    n = int(np.ceil(end / interval - 1e-9))
+    return np.minimum(np.arange(1, n + 1) * interval, end)
+
+
+def run(
+    scenario: Any, outdir: str | os.PathLike, *, resume: bool = False, quiet: bool | None = None
+) -> dict[str, float]:
+    """Run ``scenario`` into ``outdir`` and return :func:`multilayer.results.summary`.
+
+    Raises :class:`InputError` when ``resume`` is asked for but ``outdir`` holds no
+    checkpoint of this scenario, :class:`RunError` when the engine fails (the result
+    file then holds every output time completed before the failure) and
+    :class:`KeyboardInterrupt` after a clean stop on Ctrl-C.  ``quiet=None`` shows the
+    progress line only on a terminal.
+    """
+    outdir = Path(outdir)
+    ckpt = _checkpoint_to_resume(scenario, outdir) if resume else None
+    outdir.mkdir(parents=True, exist_ok=True)
+    log = logging.Logger("multilayer.run")
+    handler = logging.FileHandler(outdir / LOG_FILE, mode="a" if resume else "w", encoding="utf-8")
+    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
+    log.addHandler(handler)
+    try:
+        _run(scenario, outdir, ckpt, quiet, log)
+    finally:
+        handler.close()
+    return summary(outdir / RESULT_FILE)
+
+
+def _run(
+    scenario: Any, outdir: Path, ckpt: Checkpoint | None, quiet: bool | None, log: logging.Logger
+) -> None:
+    log.info(
+        "%s run of scenario %r from %s into %s",
+        "resumed" if ckpt else "new",
+        scenario.name,
+        scenario.source or "a mapping",
+        outdir,
+    )
+    log.info("parameters:\n%s", scenario.resolved_yaml().rstrip())
+    sim = Simulation(scenario)
+    result_path, ckpt_path = outdir / RESULT_FILE, outdir / CHECKPOINT_FILE
+    if ckpt is None:
+        ckpt_path.unlink(missing_ok=True)
+        writer = ResultWriter(result_path, scenario, sim)
+        writer.write(sim)
+        wall_before = 0.0
+    else:
+        sim.load_state(ckpt.state)
+        writer = ResultWriter(result_path, scenario, sim, records=ckpt.records)
+        wall_before = ckpt.wall_time_s
+        log.info("restored the checkpoint at t = %.6g s, step %d", sim.t, sim.steps)
+    started = time.perf_counter()
+
+    def wall_time() -> float:
+        return wall_before + time.perf_counter() - started
+
+    def checkpoint() -> float:
+        save_checkpoint(
+            ckpt_path, Checkpoint(sim.state_dict(), writer.records, wall_time(), scenario.resolved_yaml())
+        )
+        return sim.t
+
+    saved_t = checkpoint() if ckpt is None else sim.t
+    n_layers, n_cells = np.shape(sim.u)
+    log.info("%d cells x %d layers; output times up to %g s", n_cells, n_layers, scenario.time.end)
+    times = output_times(scenario.time.end, scenario.time.output_interval)
+    progress = Progress(scenario.time.end, n_cells * n_layers, quiet=quiet)
+    stop = _StopRequest()
+
+    def on_step(sim: Any, dt: float) -> None:
+        progress(sim, dt)
+        if stop.requested:
+            raise _Stop
+
+    status = "failed"
+    try:
+        with stop.installed():
+            for t_out in times[times > sim.t + 1e-9 * scenario.time.end]:
+                sim.advance(t_out, on_step=on_step)
+                diag = writer.write(sim)
+                saved_t = checkpoint()
+                log.info(
+                    "output t = %.6g s: step %d, front %.6g m, mass %.6g m2, wall %.1f s",
+                    sim.t,
+                    sim.steps,
+                    diag["front"],
+                    diag["mass"],
+                    wall_time(),
+                )
+        status = "completed"
+    except (_Stop, KeyboardInterrupt) as exc:
+        status = "interrupted"
+        if isinstance(exc, _Stop):  # stopped between two steps: the state is whole
+            saved_t = checkpoint()
+        message = f"interrupted at t={saved_t:.6g} s; resume with: {_resume_command(scenario, outdir)}"
+        log.warning(message)
+    except Exception as exc:
+        log.exception("the simulation failed at t = %.6g s (step %d)", sim.t, sim.steps)
+        raise RunError(
+            f"scenario {scenario.name!r}: the simulation failed at t={sim.t:.6g} s "
+            f"(step {sim.steps}): {exc}; {outdir / RESULT_FILE} holds the output times "
+            f"up to t={saved_t:.6g} s"
+        ) from exc
+    finally:
+        progress.finish()
+        writer.close(sim.steps, wall_time(), status, scenario)
+    if status == "interrupted":
+        print(message, file=sys.stderr)
+        raise KeyboardInterrupt(message)
+    log.info("completed: %d steps, wall time %.1f s", sim.steps, wall_time())
+
+
+def _checkpoint_to_resume(scenario: Any, outdir: Path) -> Checkpoint:
+    """The checkpoint in ``outdir``, checked to belong to ``scenario``."""
+    ckpt_path = outdir / CHECKPOINT_FILE
+    if not (ckpt_path.is_file() and (outdir / RESULT_FILE).is_file()):
+        raise InputError(
+            f"{outdir}: nothing to resume ({CHECKPOINT_FILE} or "
+            f"{RESULT_FILE} missing); run without --resume to start afresh"
+        )
+    ckpt = load_checkpoint(ckpt_path)
+    changed = _changed_keys(yaml.safe_load(ckpt.scenario), yaml.safe_load(scenario.resolved_yaml()))
+    if changed:
+        raise InputError(
+            f"{ckpt_path}: the checkpoint belongs to a different scenario (changed: "
+            f"{', '.join(changed)}); resume with the same scenario file and --set "
+            f"options (only time.end may change), or run without --resume"
+        )
+    t_saved = float(ckpt.state["t"])
+    if t_saved > scenario.time.end * (1 + 1e-12):
+        raise InputError(
+            f"{ckpt_path}: the checkpoint is at t = {t_saved:g} s, beyond time.end = "
+            f"{scenario.time.end:g} s; accepted: a time.end at or after the checkpoint "
+            f"(a run can be extended, not shortened), or run without --resume"
+        )
+    return ckpt
+
+
+#: Keys that do not change the computed solution; ``time.end`` may grow to extend a run.
+_FREE_KEYS = frozenset({"name", "description", "output", "expect", "time.end"})
+
+
+def _changed_keys(old: Any, new: Any, free: frozenset[str] = _FREE_KEYS, prefix: str = "") -> list[str]:
+    """Dotted keys (``--set`` style) whose values differ between two parsed scenarios."""
+    if prefix.rstrip(".") in free:
+        return []
+    if isinstance(old, dict) and isinstance(new, dict):
+        return [
+            key
+            for k in sorted(old.keys() | new.keys(), key=str)
+            for key in _changed_keys(old.get(k), new.get(k), free, f"{prefix}{k}.")
+        ]
+    if isinstance(old, list) and isinstance(new, list) and len(old) == len(new):
+        return [
+            key
+            for i, (a, b) in enumerate(zip(old, new))
+            for key in _changed_keys(a, b, free, f"{prefix}{i}.")
+        ]
+    return [] if old == new else [prefix.rstrip(".")]
+
+
+def _resume_command(scenario: Any, outdir: Path) -> str:
+    """The command line continuing this run, with ``--set`` for what differs from the file."""
+    if scenario.source is None:
+        return f"multilayer run SCENARIO.yaml -o {shlex.quote(str(outdir))} --resume"
+    words = ["multilayer", "run", str(scenario.source), "-o", str(outdir), "--resume"]
+    resolved = yaml.safe_load(scenario.resolved_yaml())
+    try:
+        on_file = yaml.safe_load(scenarios.load(scenario.source).resolved_yaml())
+    except InputError:  # the file changed or went away since the start
+        on_file = {}
+    for key in _changed_keys(on_file, resolved, free=frozenset()):
+        value = resolved
+        for part in key.split("."):
+            value = value[int(part)] if isinstance(value, list) else value.get(part)
+        if value is not None:  # keys only in the file cannot be unset by --set
+            words += ["--set", f"{key}={json.dumps(value)}"]  # JSON is YAML
+    return shlex.join(words)
+
+
+class _Stop(BaseException):
+    """Raised from the step callback to stop the run after a Ctrl-C."""
+
+
+class _StopRequest:
+    """SIGINT handler turning the first Ctrl-C into a stop request."""
+
+    requested = False
+
+    @contextmanager
+    def installed(self) -> Iterator[None]:
+        if threading.current_thread() is not threading.main_thread():
+            yield  # signals only reach the main thread
+            return
+        previous = signal.signal(signal.SIGINT, self._handle)
+        try:
+            yield
+        finally:
+            signal.signal(signal.SIGINT, previous)
+
+    def _handle(self, signum: int, frame: FrameType | None) -> None:
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True

@@ -1,0 +1,363 @@
+"""Parameter sweeps (ensembles) of one scenario on Dask distributed.
+
+A sweep file names a base scenario and lists values for dotted scenario keys::
+
+    base: collapse.yaml                  # relative to the sweep file
+    parameters:
+      rheology.mu_s: [0.40, 0.45, 0.50]
+      initial.0.thickness: [0.0, 0.003]
+    zip: false                           # true: pair the lists element by element
+    output: {directory: results/collapse-sweep}
+
+The members are the Cartesian product of the lists (or, with ``zip: true``, their
+element-wise pairing).  Each member is the base scenario with its values applied
+exactly as ``multilayer run --set KEY=VALUE`` applies them, and is validated on the
+client before anything is submitted.  Valid members run as independent tasks on a Dask
+distributed cluster (Rocklin 2015, "Dask: parallel computation with blocked algorithms
+and task scheduling", SciPy proceedings); each writes ``DIR/<member-id>/result.nc`` and,
+once complete, the marker ``DIR/<member-id>/member.json`` that lets a re-run skip it.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import itertools
+import json
+import os
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+
+from multilayer.app import runner
+from multilayer.errors import InputError
+from multilayer.io import scenario
+from multilayer.io.results import CHECKPOINT_FILE, RESULT_FILE, SUMMARY_KEYS
+
+SWEEP_KEYS = ("base", "parameters", "zip", "output", "description")
+"""Top-level keys accepted in a sweep file."""
+
+MARKER = "member.json"
+"""Written into a member's directory once its run has completed."""
+
+Status = Literal["ok", "invalid", "failed"]
+
+
+class _Dumper(yaml.SafeDumper):
+    """SafeDumper that quotes every string the scenario loader would read as another type
+    (such as ``1e-5``, a float there)."""
+
+    yaml_implicit_resolvers = scenario.Loader.yaml_implicit_resolvers
+
+
+def format_value(value: Any) -> str:
+    """YAML text of ``value`` that reads back to the same value, as ``--set`` parses it."""
+    text = yaml.dump(value, Dumper=_Dumper, default_flow_style=True, width=2**31)
+    return text.removesuffix("...\n").strip()
+
+
+@dataclass(frozen=True)
+class Member:
+    """One member of a sweep: the base scenario with ``values`` (dotted key -> value)."""
+
+    index: int
+    values: dict[str, Any]
+    id: str
+
+    @property
+    def overrides(self) -> list[str]:
+        """The member's values as ``KEY=VALUE`` overrides for ``scenario.load``."""
+        return _overrides(self.values)
+
+
+def _overrides(values: dict[str, Any]) -> list[str]:
+    return [f"{key}={format_value(value)}" for key, value in values.items()]
+
+
+def _digest(overrides: list[str]) -> str:
+    """Short hash of a set of overrides, independent of their order."""
+    return hashlib.sha1("\n".join(sorted(overrides)).encode()).hexdigest()[:8]
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """A validated sweep file."""
+
+    path: Path
+    """The sweep file."""
+    base: Path
+    """The base scenario file (resolved against the sweep file's directory)."""
+    parameters: dict[str, list[Any]]
+    """Dotted scenario key -> list of values, in file order."""
+    paired: bool = False
+    """``zip: true``: pair the lists element by element instead of taking their product."""
+    output: Path | None = None
+    """``output.directory`` of the sweep file, if given."""
+
+    def members(self) -> list[Member]:
+        """The members in a stable order, with ids ``m<index>-<hash of the overrides>``."""
+        keys = list(self.parameters)
+        lists = [self.parameters[key] for key in keys]
+        combos = zip(*lists) if self.paired else itertools.product(*lists)
+        rows = [dict(zip(keys, combo)) for combo in combos]
+        width = max(3, len(str(len(rows) - 1)))
+        return [
+            Member(index, values, f"m{index:0{width}d}-{_digest(_overrides(values))}")
+            for index, values in enumerate(rows)
+        ]
+
+
+def load(path: str | Path) -> Sweep:
+    """Read and strictly validate a sweep file; raise :class:`InputError` on bad input.
+
+    Messages follow the scenario files': ``<file>: <key.path> (line N): <what>; accepted: <...>``.
+    """
+    path = Path(path)
+    data, lines = scenario.read_yaml(path, "sweep")
+
+    def at(key: tuple[str, ...]) -> str:
+        line = f" (line {lines[key]})" if key in lines else ""
+        return f"{path}: {'.'.join(key)}{line}"
+
+    def bad(key: tuple[str, ...], what: str, accepted: str) -> InputError:
+        return InputError(f"{at(key)}: {what}; accepted: {accepted}")
+
+    if not isinstance(data, dict):
+        raise InputError(
+            f"{path}: (top level): got {type(data).__name__}; accepted: a "
+            f"mapping with the keys {', '.join(SWEEP_KEYS)}"
+        )
+    for key in data:
+        if key not in SWEEP_KEYS:
+            raise bad((str(key),), "unknown key", ", ".join(SWEEP_KEYS))
+
+    base_accepted = "the path of a scenario file, relative to the sweep file"
+    if "base" not in data:
+        raise bad(("base",), "required key is missing", base_accepted)
+    if not isinstance(data["base"], str) or not data["base"]:
+        raise bad(("base",), f"got {data['base']!r}", base_accepted)
+    base = path.parent / data["base"]
+    if not base.is_file():
+        raise bad(("base",), f"scenario file {base} not found", base_accepted)
+    try:
+        scenario.load(base)
+    except InputError as exc:
+        raise InputError(f"{at(('base',))}: the base scenario is invalid:\n{exc}") from None
+
+    parameters = data.get("parameters")
+    if not isinstance(parameters, dict) or not parameters:
+        raise bad(
+            ("parameters",),
+            f"got {parameters!r}",
+            "a non-empty mapping of dotted scenario keys to lists of values, "
+            "e.g. {rheology.mu_s: [0.4, 0.5]}",
+        )
+    for key, values in parameters.items():
+        if not isinstance(key, str) or not key or any(c.isspace() or c == "=" for c in key):
+            raise bad(
+                ("parameters", str(key)),
+                "not a scenario key",
+                "a dotted scenario key such as domain.cells or initial.0.thickness",
+            )
+        if not isinstance(values, list) or not values:
+            raise bad(("parameters", key), f"got {values!r}", "a non-empty list of values")
+
+    paired = data.get("zip", False)
+    if not isinstance(paired, bool):
+        raise bad(("zip",), f"got {paired!r}", "true or false")
+    lengths = {key: len(values) for key, values in parameters.items()}
+    if paired and len(set(lengths.values())) > 1:
+        raise bad(
+            ("zip",),
+            "the lists under parameters have different lengths ("
+            + ", ".join(f"{key}: {n}" for key, n in lengths.items())
+            + ")",
+            "lists of equal length with zip: true",
+        )
+
+    output = data.get("output", {})
+    if not isinstance(output, dict):
+        raise bad(("output",), f"got {output!r}", "a mapping with the key directory")
+    for key in output:
+        if key != "directory":
+            raise bad(("output", str(key)), "unknown key", "directory")
+    directory = output.get("directory")
+    if directory is not None and (not isinstance(directory, str) or not directory):
+        raise bad(("output", "directory"), f"got {directory!r}", "a directory path")
+
+    return Sweep(
+        path=path,
+        base=base,
+        parameters=parameters,
+        paired=paired,
+        output=Path(directory) if directory else None,
+    )
+
+
+@dataclass
+class Outcome:
+    """What became of one member."""
+
+    member: Member
+    status: Status
+    error: str = ""
+    summary: dict[str, float] = field(default_factory=dict)
+    skipped: bool = False
+    """True if an earlier run of the sweep had already completed this member."""
+
+
+def _fingerprint(member_scenario: scenario.Scenario) -> str:
+    """Hash of the fully resolved member scenario: a completed member is reused only if
+    neither the base scenario nor the member's values changed since it ran."""
+    return hashlib.sha256(member_scenario.resolved_yaml().encode()).hexdigest()
+
+
+def completed(member_dir: Path, fingerprint: str) -> dict[str, float] | None:
+    """The stored summary if ``member_dir`` holds a completed run of this exact scenario."""
+    try:
+        marker = json.loads((member_dir / MARKER).read_text())
+    except (OSError, ValueError):
+        return None
+    if marker.get("fingerprint") != fingerprint or not (member_dir / RESULT_FILE).is_file():
+        return None
+    return marker["summary"]
+
+
+def run_member(
+    member_scenario: scenario.Scenario, member_dir: str, fingerprint: str, overrides: list[str]
+) -> dict[str, float]:
+    """Run one member into ``member_dir`` (on a Dask worker) and mark it complete.
+
+    A run interrupted earlier (its checkpoint belongs to this scenario) is continued,
+    anything else starts afresh.  The marker is written atomically after the run, next
+    to ``result.nc``, so that a member counts as complete exactly when its result is.
+    """
+    directory = Path(member_dir)
+    (directory / MARKER).unlink(missing_ok=True)
+    resumable = (directory / CHECKPOINT_FILE).is_file()
+    try:
+        summary = runner.run(member_scenario, directory, resume=resumable, quiet=True)
+    except InputError:
+        if not resumable:
+            raise
+        # the checkpoint belongs to another scenario: start afresh
+        summary = runner.run(member_scenario, directory, resume=False, quiet=True)
+    marker = {"fingerprint": fingerprint, "overrides": overrides, "summary": summary}
+    partial = directory / (MARKER + ".partial")
+    partial.write_text(json.dumps(marker, indent=2) + "\n")
+    os.replace(partial, directory / MARKER)
+    return summary
+
+
+@contextmanager
+def _client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
+    """A Dask client on the cluster at ``scheduler``, or on a new local cluster with
+    ``workers`` single-threaded worker processes (default: one per core)."""
+    from dask.distributed import Client, LocalCluster
+    from dask.system import CPU_COUNT
+
+    if scheduler is not None:
+        try:
+            client = Client(scheduler)
+        except (OSError, ValueError, TimeoutError) as exc:
+            raise InputError(
+                f"--scheduler {scheduler}: cannot connect ({exc}); accepted: the address of "
+                "a running scheduler, as printed by `dask scheduler`, e.g. tcp://10.0.0.5:8786"
+            ) from None
+        with client:
+            yield client
+        return
+    with (
+        LocalCluster(
+            n_workers=workers or CPU_COUNT,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=":0",
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        yield client
+
+
+def run(
+    sweep: Sweep,
+    outdir: str | Path,
+    *,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    on_start: Callable[[int, int, int, int], None] | None = None,
+    on_progress: Callable[[int, int], None] | None = None,
+) -> list[Outcome]:
+    """Validate every member, skip completed ones, run the rest on Dask.
+
+    ``on_start(total, skipped, invalid, to_run)`` is called once the members are
+    validated, ``on_progress(done, to_run)`` after each member that ran.  A member that is
+    invalid or fails does not stop the others.  Returns one :class:`Outcome` per member,
+    in member order.
+    """
+    outdir = Path(outdir).resolve()
+    members = sweep.members()
+    outcomes: dict[int, Outcome] = {}
+    pending: list[tuple[Member, scenario.Scenario, str]] = []
+    for member in members:
+        try:
+            member_scenario = scenario.load(sweep.base, member.overrides)
+        except InputError as exc:
+            outcomes[member.index] = Outcome(member, "invalid", str(exc))
+            continue
+        fingerprint = _fingerprint(member_scenario)
+        summary = completed(outdir / member.id, fingerprint)
+        if summary is not None:
+            outcomes[member.index] = Outcome(member, "ok", summary=summary, skipped=True)
+        else:
+            pending.append((member, member_scenario, fingerprint))
+
+    if on_start is not None:
+        skipped = sum(outcome.skipped for outcome in outcomes.values())
+        on_start(len(members), skipped, len(outcomes) - skipped, len(pending))
+    if pending:
+        from dask.distributed import as_completed
+
+        with _client(scheduler, workers) as client:
+            futures = {
+                client.submit(
+                    run_member,
+                    member_scenario,
+                    str(outdir / member.id),
+                    fingerprint,
+                    member.overrides,
+                    key=f"multilayer-{member.id}-{os.urandom(4).hex()}",
+                    pure=False,
+                ): member
+                for member, member_scenario, fingerprint in pending
+            }
+            for done, future in enumerate(as_completed(futures), start=1):
+                member = futures[future]
+                try:
+                    outcomes[member.index] = Outcome(member, "ok", summary=future.result())
+                except Exception as exc:  # noqa: BLE001 - a failed member must not stop the sweep
+                    message = f"{type(exc).__name__}: {exc}"
+                    outcomes[member.index] = Outcome(member, "failed", message)
+                if on_progress is not None:
+                    on_progress(done, len(pending))
+    return [outcomes[member.index] for member in members]
+
+
+def write_summary(sweep: Sweep, outcomes: list[Outcome], path: str | Path) -> None:
+    """Write ``summary.csv``: one row per member with its values, status, error and the
+    scalar diagnostics of its result."""
+    columns = ["member", *sweep.parameters, "status", "error", *SUMMARY_KEYS]
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="") as stream:
+        writer = csv.DictWriter(stream, fieldnames=columns)
+        writer.writeheader()
+        for outcome in outcomes:
+            row = {"member": outcome.member.id, "status": outcome.status, "error": outcome.error}
+            row.update({key: format_value(value) for key, value in outcome.member.values.items()})
+            row.update({key: repr(outcome.summary[key]) for key in SUMMARY_KEYS if key in outcome.summary})
+            writer.writerow(row)

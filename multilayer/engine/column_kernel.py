@@ -1,0 +1,359 @@
+"""Exact solver for one implicit vertical step of a chain of layers (the hot path).
+
+Per column the implicit step minimises (docs/architecture.md, DESIGN.md section 3)::
+
+    E(u) = sum_a [ m_a/(2 dt) (u_a - u*_a)^2 + cw_a/2 u_a^2 + w_a |u_a| ]
+         + sum_{k=0}^{L-1} [ kappa_k |u_{k+1} - u_k| + c_k/2 (u_{k+1} - u_k)^2 ],   u_0 = 0,
+
+a strictly convex, piecewise-quadratic energy on a chain.  It is minimised exactly by
+dynamic programming over the layers (Johnson 2013, "A dynamic programming algorithm for
+the fused lasso"; Kolmogorov, Pock & Rolinek 2016, "Total variation on a tree"): the
+derivative of each partial minimum ("message") is a maximal monotone piecewise-linear
+relation, summed with the unary terms and infimal-convolved with the interface terms.
+An infimal convolution adds inverse relations, so both operations are exact on vertex
+lists.  Kinks are stored as vertices at exact abscissae, so a static layer comes out as
+``0.0`` and the layers of a rigid plug share one velocity to the last bit: no
+regularisation of ``sgn`` anywhere.
+
+A relation is stored as vertices ``(X[i], Y[i])`` (both non-decreasing; equal ``X``
+is a jump, equal ``Y`` a flat part) and the slopes of its two end rays (``inf`` for a
+vertical ray, which bounds the domain).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import get_num_threads, njit, prange
+
+INF = np.inf
+
+
+@njit(cache=True)
+def _at(X, Y, n, sl, sr, x, i):
+    """Interval [lo, hi] of the relation at ``x``, scanning from vertex ``i``.
+
+    Returns (lo, hi, i) with ``i`` the first vertex with ``X[i] >= x``, so that a walk
+    over increasing ``x`` is linear.  Vertical rays give ``-inf``/``inf``.
+    """
+    while i < n and X[i] < x:
+        i += 1
+    if i == n:
+        y = Y[n - 1] + sr * (x - X[n - 1]) if x > X[n - 1] else Y[n - 1]
+        return y, y, i
+    if X[i] > x:
+        if i == 0:
+            y = Y[0] + sl * (x - X[0])
+        else:  # strictly inside a segment
+            y = Y[i - 1] + (x - X[i - 1]) / (X[i] - X[i - 1]) * (Y[i] - Y[i - 1])
+        return y, y, i
+    j = i
+    while j + 1 < n and X[j + 1] == x:
+        j += 1
+    lo = -INF if (i == 0 and sl == INF) else Y[i]
+    hi = INF if (j == n - 1 and sr == INF) else Y[j]
+    return lo, hi, i
+
+
+@njit(cache=True)
+def _add(X1, Y1, n1, sl1, sr1, X2, Y2, n2, sl2, sr2, Xo, Yo):
+    """Sum of two maximal monotone relations; writes vertices to Xo, Yo, returns (n, sl, sr)."""
+    lo = max(X1[0] if sl1 == INF else -INF, X2[0] if sl2 == INF else -INF)
+    hi = min(X1[n1 - 1] if sr1 == INF else INF, X2[n2 - 1] if sr2 == INF else INF)
+    n = 0
+    i1 = 0
+    i2 = 0
+    j1 = 0
+    j2 = 0
+    while i1 < n1 or i2 < n2:
+        # next breakpoint of the merged abscissae
+        if i2 >= n2 or (i1 < n1 and X1[i1] <= X2[i2]):
+            b = X1[i1]
+        else:
+            b = X2[i2]
+        while i1 < n1 and X1[i1] == b:
+            i1 += 1
+        while i2 < n2 and X2[i2] == b:
+            i2 += 1
+        if b < lo or b > hi:
+            continue
+        lo1, hi1, j1 = _at(X1, Y1, n1, sl1, sr1, b, j1)
+        lo2, hi2, j2 = _at(X2, Y2, n2, sl2, sr2, b, j2)
+        ylo = lo1 + lo2
+        yhi = hi1 + hi2
+        if ylo > -INF:
+            Xo[n] = b
+            Yo[n] = ylo
+            n += 1
+        if yhi < INF and (yhi > ylo or ylo == -INF):
+            Xo[n] = b
+            Yo[n] = yhi
+            n += 1
+        if ylo == -INF and yhi == INF:  # a whole vertical line: keep one anchor vertex
+            Xo[n] = b
+            Yo[n] = 0.0
+            n += 1
+    sl = INF if lo > -INF else sl1 + sl2
+    sr = INF if hi < INF else sr1 + sr2
+    return n, sl, sr
+
+
+@njit(cache=True)
+def _inv(s):
+    if s == 0.0:
+        return INF
+    if s == INF:
+        return 0.0
+    return 1.0 / s
+
+
+@njit(cache=True)
+def _root(X, Y, n, sl, sr):
+    """The abscissa where a strictly increasing relation contains 0 (exact at vertices)."""
+    i = 0
+    while i < n and Y[i] < 0.0:
+        i += 1
+    if i == n:
+        return X[n - 1] - Y[n - 1] / sr
+    if i == 0:
+        if Y[0] == 0.0 or sl == INF:
+            return X[0]
+        return X[0] - Y[0] / sl
+    if Y[i] == 0.0 or X[i] == X[i - 1]:
+        return X[i]
+    return X[i - 1] + (0.0 - Y[i - 1]) * (X[i] - X[i - 1]) / (Y[i] - Y[i - 1])
+
+
+@njit(cache=True)
+def _dynamic_programme(m, ustar, dt, kappa, c, w, cw, u, ws):
+    """Exact minimiser of E(u) for one column by dynamic programming (module docstring)."""
+    L = m.shape[0]
+    MX, MY, Mn, Msl, Msr, HX, HY, TX, TY, FX, FY, GX, GY = ws
+    # ground link: h_0' = g_0' (u_0 = 0)
+    HX[0] = 0.0
+    HX[1] = 0.0
+    HY[0] = -kappa[0]
+    HY[1] = kappa[0]
+    hn = 2
+    hsl = c[0]
+    hsr = c[0]
+    for a in range(L):
+        A = m[a] / dt + cw[a]
+        B = m[a] * ustar[a] / dt
+        FX[0] = 0.0
+        FX[1] = 0.0
+        FY[0] = -B - w[a]
+        FY[1] = -B + w[a]
+        n, sl, sr = _add(FX, FY, 2, A, A, HX, HY, hn, hsl, hsr, MX[a], MY[a])
+        Mn[a] = n
+        Msl[a] = sl
+        Msr[a] = sr
+        if a == L - 1:
+            break
+        # h_a' = ( (m_a')^-1 + (g_{a+1}')^-1 )^-1 : infimal convolution with the interface term
+        k = kappa[a + 1]
+        GX[0] = -k
+        GX[1] = k
+        GY[0] = 0.0
+        GY[1] = 0.0
+        gs = _inv(c[a + 1])
+        n2, sl2, sr2 = _add(MY[a], MX[a], n, _inv(sl), _inv(sr), GX, GY, 2, gs, gs, TY, TX)
+        for i in range(n2):
+            HX[i] = TX[i]
+            HY[i] = TY[i]
+        hn = n2
+        hsl = _inv(sl2)
+        hsr = _inv(sr2)
+    # backward pass: u_L minimises the last message; then each layer given the one above
+    u[L - 1] = _root(MX[L - 1], MY[L - 1], Mn[L - 1], Msl[L - 1], Msr[L - 1])
+    for a in range(L - 2, -1, -1):
+        v = u[a + 1]
+        k = kappa[a + 1]
+        GX[0] = v
+        GX[1] = v
+        GY[0] = -k
+        GY[1] = k
+        n, sl, sr = _add(MX[a], MY[a], Mn[a], Msl[a], Msr[a], GX, GY, 2, c[a + 1], c[a + 1], TX, TY)
+        u[a] = _root(TX, TY, n, sl, sr)
+
+
+@njit(cache=True)
+def _workspace(L):
+    cap = 8 * L + 16
+    return (
+        np.empty((L, cap)),
+        np.empty((L, cap)),  # messages m_a' up to layer a
+        np.zeros(L, np.int64),
+        np.empty(L),
+        np.empty(L),
+        np.empty(cap),
+        np.empty(cap),  # incoming message h' through the interface above
+        np.empty(cap),
+        np.empty(cap),
+        np.empty(2),
+        np.empty(2),
+        np.empty(2),
+        np.empty(2),
+    )
+
+
+@njit(cache=True)
+def _sign(x):
+    return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
+
+
+@njit(cache=True)
+def _active_set(m, ustar, dt, kappa, c, w, cw, guess, u, first, grounded, U, diag, low, rhs):
+    """Solve with the lock/sign structure of ``guess``; True if it is the exact minimiser.
+
+    Interfaces with ``kappa > 0`` across which ``guess`` does not jump are locked, layers
+    at rest with ``w > 0`` are held by the walls.  Locked layers form rigid groups; a
+    group holding the ground (locked bed or walls) is at rest, ``u = 0.0``.  The other
+    group velocities solve a tridiagonal system (the group sums of the momentum balance
+    with the yielded stresses ``kappa sgn + c s``).  The structure is accepted when the
+    yielded jumps keep their signs and the locked stresses admit values within their
+    yield bounds (interval propagation through grounded groups).
+    """
+    L = m.shape[0]
+    scale = 0.0
+    for a in range(L):
+        scale += abs(m[a] * ustar[a] / dt) + kappa[a] + w[a]
+    slack = 1e-10 * scale + 1e-300
+    # groups
+    ng = 0
+    for a in range(L):
+        below = guess[a - 1] if a > 0 else 0.0
+        locked = kappa[a] > 0.0 and guess[a] == below
+        if a == 0 or not locked:
+            first[ng] = a
+            grounded[ng] = a == 0 and locked
+            ng += 1
+        if w[a] > 0.0 and guess[a] == 0.0:
+            grounded[ng - 1] = True
+    first[ng] = L
+    # tridiagonal system over groups (Thomas algorithm, forward sweep)
+    for j in range(ng):
+        p, q = first[j], first[j + 1] - 1
+        if grounded[j]:
+            diag[j], low[j], rhs[j] = 1.0, 0.0, 0.0
+            continue
+        d = 0.0
+        r = 0.0
+        for a in range(p, q + 1):
+            d += m[a] / dt + cw[a]
+            r += m[a] * ustar[a] / dt - _sign(guess[a]) * w[a]
+        below = guess[p - 1] if p > 0 else 0.0
+        d += c[p]
+        r -= kappa[p] * _sign(guess[p] - below)
+        low[j] = -c[p] if p > 0 else 0.0
+        if q + 1 < L:
+            d += c[q + 1]
+            r += kappa[q + 1] * _sign(guess[q + 1] - guess[q])
+        diag[j], rhs[j] = d, r
+    for j in range(1, ng):
+        if low[j] != 0.0:
+            up = -c[first[j]]  # coupling of group j-1 to group j
+            f = low[j] / diag[j - 1]
+            diag[j] -= f * (up if not grounded[j - 1] else 0.0)
+            rhs[j] -= f * rhs[j - 1]
+    for j in range(ng - 1, -1, -1):
+        if grounded[j]:
+            U[j] = 0.0
+            continue
+        r = rhs[j]
+        if j + 1 < ng:
+            r += c[first[j + 1]] * U[j + 1]
+        U[j] = r / diag[j]
+    for j in range(ng):
+        for a in range(first[j], first[j + 1]):
+            u[a] = U[j]
+    # optimality: signs of yielded jumps and walls, bounds of locked stresses
+    for j in range(ng):
+        p, q = first[j], first[j + 1] - 1
+        Ub = U[j - 1] if j > 0 else 0.0
+        sig = _sign(guess[p] - (guess[p - 1] if p > 0 else 0.0))
+        if kappa[p] > 0.0 and not (p == 0 and grounded[j] and guess[0] == 0.0):
+            if sig == 0.0 or sig * (U[j] - Ub) < 0.0:
+                return False
+        if q + 1 < L:
+            tau = kappa[q + 1] * _sign(guess[q + 1] - guess[q]) + c[q + 1] * (U[j + 1] - U[j])
+        else:
+            tau = 0.0
+        if not grounded[j]:
+            for a in range(q, p, -1):  # locked interfaces inside a moving group
+                if w[a] > 0.0 and _sign(guess[a]) * U[j] < 0.0:
+                    return False
+                tau -= (m[a] / dt + cw[a]) * U[j] - m[a] * ustar[a] / dt + _sign(guess[a]) * w[a]
+                if abs(tau) > kappa[a] + slack:
+                    return False
+            if w[p] > 0.0 and _sign(guess[p]) * U[j] < 0.0:
+                return False
+            continue
+        lo = tau
+        hi = tau
+        for a in range(q, p - 1, -1):  # grounded group: feasible stresses, top down
+            lo += m[a] * ustar[a] / dt - w[a]
+            hi += m[a] * ustar[a] / dt + w[a]
+            if a > p or (a == 0 and kappa[0] > 0.0 and guess[0] == 0.0):
+                lo = max(lo, -kappa[a])
+                hi = min(hi, kappa[a])
+                if lo > hi + slack:
+                    return False
+            else:  # the yielded interface below the group
+                tau_p = kappa[p] * sig + c[p] * (0.0 - Ub)
+                if tau_p < lo - slack or tau_p > hi + slack:
+                    return False
+    return True
+
+
+def _columns(m, ustar, dt, kappa, c, w, cw, guess, u, chunks):
+    """Solve every column; arrays are (N, L) here so that each column is contiguous."""
+    N, L = m.shape
+    for k in prange(chunks):
+        ws = _workspace(L)
+        first = np.empty(L + 1, np.int64)
+        grounded = np.empty(L, np.bool_)
+        U, diag, low, rhs = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
+        for i in range(k * N // chunks, (k + 1) * N // chunks):
+            if m[i, 0] <= 0.0:
+                u[i, :] = 0.0
+                continue
+            args = (m[i], ustar[i], dt, kappa[i], c[i], w[i], cw[i])
+            if not _active_set(*args, guess[i], u[i], first, grounded, U, diag, low, rhs):
+                _dynamic_programme(*args, u[i], ws)
+
+
+_solve_serial = njit(cache=True)(_columns)
+_solve_parallel = njit(cache=True, parallel=True)(_columns)
+PARALLEL_CELLS = 40_000
+"""Problems with fewer cells than this run on one thread (a parallel launch costs more)."""
+
+
+def solve(
+    m: np.ndarray,
+    ustar: np.ndarray,
+    dt: float,
+    kappa: np.ndarray,
+    c: np.ndarray,
+    w: np.ndarray,
+    cw: np.ndarray,
+    guess: np.ndarray | None = None,
+) -> np.ndarray:
+    """Exact minimiser of the implicit vertical step for every column.
+
+    All arrays are (L, N): layer masses per unit area ``m = rho h_a`` (kg/m^2; a column
+    with ``m == 0`` is dry and gets ``u = 0``), velocities after transport ``ustar`` (m/s),
+    interface yield stresses ``kappa`` and viscous conductances ``c`` (interface ``k``
+    lies below layer ``k+1``; ``k = 0`` is the bed), wall yield thresholds ``w`` and wall
+    viscous conductances ``cw`` of each layer.  ``guess`` (e.g. the previous velocities)
+    proposes the structure of rigid and static groups; it only affects the speed.
+    Returns the new velocities (L, N).
+    """
+    arrays = [np.ascontiguousarray(np.transpose(a), dtype=float) for a in (m, ustar, kappa, c, w, cw)]
+    guess = arrays[1] if guess is None else np.ascontiguousarray(np.transpose(guess), dtype=float)
+    u = np.empty_like(arrays[0])
+    if u.size >= PARALLEL_CELLS:
+        chunks = max(1, min(u.shape[0], 4 * get_num_threads()))
+        _solve_parallel(*arrays[:2], float(dt), *arrays[2:], guess, u, chunks)
+    else:
+        _solve_serial(*arrays[:2], float(dt), *arrays[2:], guess, u, 1)
+    return u.T

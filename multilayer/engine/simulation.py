@@ -1,0 +1,204 @@
+"""The time loop of the multilayer model: transport, then the implicit vertical step.
+
+Each step is a Lie splitting of the multilayer system (DESIGN.md sections 1-3)::
+
+    (h, h_a u*_a)   <- transport in x with mass exchange and gravity   (transport.py)
+    u^{n+1}         <- argmin of the implicit stress energy per column (vertical_step.py)
+
+and diagnostics (static interface, front, mass) are evaluated at output times.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from multilayer.engine import diagnostics, initial_state, stress, transport, vertical_step
+from multilayer.engine.mesh import LayeredMesh
+
+if TYPE_CHECKING:  # the engine reads a validated scenario; it never loads one
+    from multilayer.io.scenario import BaseZone, Scenario
+
+BASE_KINDS = {"no_slip": stress.NO_SLIP, "coulomb": stress.COULOMB, "free_slip": stress.FREE_SLIP}
+
+
+def basal_conditions(regions: Sequence[BaseZone], x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Basal condition code and Coulomb coefficient of each column centred at ``x``;
+    a region covers ``x_min <= x < x_max`` and later regions win where they overlap."""
+    kind = np.full(x.size, stress.NO_SLIP)
+    mu = np.zeros(x.size)
+    for region in regions:
+        lo = -np.inf if region.x_min is None else region.x_min
+        hi = np.inf if region.x_max is None else region.x_max
+        inside = (x >= lo) & (x < hi)
+        kind[inside] = BASE_KINDS[region.condition]
+        mu[inside] = region.mu or 0.0
+    return kind, mu
+
+
+class Simulation:
+    """A scenario's state on the X-sigma FiPy mesh and the loop that advances it."""
+
+    def __init__(self, scenario: Scenario):
+        sc = scenario
+        self.scenario = sc
+        dom = sc.domain
+        self.mesh = LayeredMesh(dom.x_min, dom.x_max, dom.cells, dom.fractions())
+        self.x, self.dx = self.mesh.x, self.mesh.dx
+        self.fractions, self.sigma = self.mesh.fractions, self.mesh.sigma
+        theta = math.radians(sc.slope_deg)
+        self.g_n = sc.gravity * math.cos(theta)
+        self.g_t = sc.gravity * math.sin(theta)
+        self.numerics = sc.numerics
+        self.front_threshold = float(sc.numerics.front_threshold)
+
+        self.stresses = stress.StressModel(
+            sc.rheology.instantiate(),
+            sc.material.as_material(),
+            self.fractions,
+            self.g_n,
+            *basal_conditions(sc.base, self.x),
+            walls=sc.walls.instantiate() if sc.walls is not None else None,
+            width=dom.width,
+        )
+        self.solver = vertical_step.solver_for(sc.numerics.vertical_solver)
+
+        bc = sc.boundaries
+        self.left, self.right = bc.left, bc.right
+        self.inflow = None
+        if bc.inflow is not None:
+            u_in = initial_state.velocity_profile(
+                bc.inflow.velocity,
+                self.sigma * bc.inflow.thickness,
+                np.full(self.sigma.shape, bc.inflow.thickness),
+            )
+            self.inflow = transport.Inflow(float(bc.inflow.thickness), u_in)
+
+        h0, u0 = initial_state.initial_state(sc.initial, self.x, self.sigma)
+        # the state lives in FiPy variables; h, u and bed are numpy views of their values
+        self.h_var = self.mesh.cell_variable("h", h0, layered=False)
+        self.u_var = self.mesh.cell_variable("u", u0.ravel(), layered=True)
+        self.bed_var = self.mesh.cell_variable(
+            "bed", initial_state.bed_profile(sc.bed, self.x), layered=False
+        )
+        self.h = self.h_var.value
+        self.u = self.u_var.value.reshape(self.fractions.size, dom.cells)
+        self.bed = self.bed_var.value
+        self.t = 0.0
+        self.steps = 0
+        self.newton_iterations = 0
+        # the scale of the Newton tolerance: gravity waves on the deepest initial or
+        # inflowing material, or the fastest initial or inflow velocity
+        h_in, u_in = (self.inflow.thickness, self.inflow.velocity) if self.inflow else (0.0, np.zeros(1))
+        self.velocity_scale = max(
+            math.sqrt(sc.gravity * max(float(self.h.max(initial=0.0)), h_in)),
+            float(np.abs(self.u).max(initial=0.0)),
+            float(np.abs(u_in).max()),
+            1e-12,
+        )
+
+    @property
+    def cells(self) -> int:
+        """Number of cells of the X-sigma mesh (columns x layers)."""
+        return self.h.size * self.fractions.size
+
+    def time_step(self) -> float:
+        """Largest stable step of the transport (Courant condition), inflow state included."""
+        h, u = self.h, self.u
+        if self.inflow is not None:
+            h = np.append(h, self.inflow.thickness)
+            u = np.column_stack([u, self.inflow.velocity])
+        return transport.stable_time_step(h, u, self.g_n, self.dx, self.scenario.time.cfl)
+
+    def step(self, t_max: float = np.inf) -> float:
+        """Advance one time step, never beyond ``t_max``; returns the step taken."""
+        dt = min(self.time_step(), t_max - self.t)
+        if not dt > 0:
+            raise ValueError(f"no time left to step: t = {self.t}, t_max = {t_max}")
+        # columns that move carry waves; material at rest that the step sets moving carries
+        # them from the start of the step: redo it until that set is complete (a dry
+        # column being filled is no material at rest and needs no redo)
+        moving = np.any(self.u != 0.0, axis=0)
+        held = self.h > self.numerics.dry_threshold
+        iterations = 0
+        while True:
+            h_new, u_new, more = self._transport_and_stresses(dt, moving)
+            iterations += more
+            starting = np.any(u_new != 0.0, axis=0) & ~moving & held
+            if not starting.any():
+                break
+            moving |= starting
+        self.h[...] = h_new
+        self.u[...] = u_new
+        self.newton_iterations += iterations
+        self.steps += 1
+        # land exactly on t_max when the step was cut to reach it
+        self.t = t_max if dt == t_max - self.t else self.t + dt
+        return dt
+
+    def _transport_and_stresses(self, dt: float, moving: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+        """Transport (h, u*) then the implicit vertical step (u^{n+1}) over ``dt``."""
+        h_new, ustar = transport.transport(
+            self.h,
+            self.u,
+            self.bed,
+            self.fractions,
+            dx=self.dx,
+            dt=dt,
+            g_n=self.g_n,
+            g_t=self.g_t,
+            left=self.left,
+            right=self.right,
+            inflow=self.inflow,
+            dry=self.numerics.dry_threshold,
+            order=self.numerics.order,
+            moving=moving,
+        )
+        u_new, iterations = vertical_step.implicit_step(
+            self.stresses,
+            h_new,
+            ustar,
+            self.u,
+            dt,
+            solver=self.solver,
+            tolerance=self.numerics.tolerance,
+            max_iterations=self.numerics.max_iterations,
+            velocity_scale=self.velocity_scale,
+        )
+        return h_new, u_new, iterations
+
+    def advance(self, t_target: float, on_step: Callable[[Simulation, float], None] | None = None) -> None:
+        """Step until ``t == t_target``; ``on_step(sim, dt)`` is called after every step."""
+        while self.t < t_target:
+            dt = self.step(t_target)
+            if on_step is not None:
+                on_step(self, dt)
+
+    def diagnostics(self) -> dict:
+        """Static interface height (N,), front position (m) and mass (m^2) now."""
+        return {
+            "static_interface": diagnostics.static_interface(self.h, self.u, self.mesh.interfaces),
+            "front": diagnostics.front(self.x, self.h, self.front_threshold),
+            "mass": diagnostics.mass(self.h, self.dx),
+        }
+
+    def state_dict(self) -> dict:
+        """Everything needed to continue the run exactly (see ``load_state``)."""
+        return {
+            "t": self.t,
+            "steps": self.steps,
+            "newton_iterations": self.newton_iterations,
+            "h": self.h.copy(),
+            "u": self.u.copy(),
+        }
+
+    def load_state(self, state: dict) -> None:
+        """Restore a state saved by ``state_dict``."""
+        self.t = float(state["t"])
+        self.steps = int(state["steps"])
+        self.newton_iterations = int(state.get("newton_iterations", 0))
+        self.h[...] = state["h"]
+        self.u[...] = state["u"]

@@ -1,0 +1,136 @@
+"""Stresses of the vertical step: pressure, yield stresses, conductances, wall thresholds.
+
+Hydrostatic pressure ``p(z) = rho g cos(theta) (h - z)`` (DESIGN.md section 1).  At the
+interface ``k`` below layer ``k`` (0-based; ``k = 0`` is the bed) the rheology gives the
+yield stress ``kappa_k = kappa(p_k)`` and the viscous conductance
+``c_k = eta(|gamma_k|, p_k) / h_k`` with ``gamma_k = (u_k - u_{k-1}) / h_k`` and
+``h_k`` the distance between layer centres (``h_0 / 2`` at a no-slip bed).  The bed
+condition replaces interface 0: Coulomb ``kappa_0 = mu p_bed, c_0 = 0``; free slip
+``kappa_0 = c_0 = 0``.  Side walls of a channel of width ``W`` hold layer ``a`` with
+``F_a = (2 / W) h_a tau_w(pbar_a)`` (Mangeney 2021 slides; ``mu_w h / W`` summed over
+the layers), ``pbar_a`` the mean pressure over the layer.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from multilayer.plugins.contract import Material, Rheology
+
+NO_SLIP, COULOMB, FREE_SLIP = 0, 1, 2
+
+
+@dataclass
+class ColumnStresses:
+    """Everything the vertical step needs that does not depend on the velocities."""
+
+    m: np.ndarray  # layer mass per unit area rho h_a (L, N)
+    kappa: np.ndarray  # interface yield stresses (L, N)
+    w: np.ndarray  # wall yield thresholds (L, N)
+    pressure: np.ndarray  # interface pressures (L, N)
+    spacing: np.ndarray  # distance h_k between the centres across interface k (L, N)
+    viscous: np.ndarray  # True where interface k carries the bulk viscosity (L, N)
+    wall_pressure: np.ndarray  # mean layer pressures pbar_a (L, N)
+
+
+class StressModel:
+    """Evaluates the rheology plugins on the layered columns."""
+
+    def __init__(
+        self,
+        bulk: Rheology,
+        material: Material,
+        fractions: np.ndarray,
+        g_n: float,
+        base_kind: np.ndarray,
+        base_mu: np.ndarray,
+        walls: Rheology | None = None,
+        width: float | None = None,
+    ):
+        self.bulk = bulk
+        self.walls = walls
+        self.width = width
+        self.material = material
+        self.g_n = g_n
+        self.base_kind = base_kind
+        self.base_mu = base_mu
+        self.l = fractions[:, None]
+        below = np.concatenate([[0.0], np.cumsum(fractions)[:-1]])
+        self.depth_interface = (1.0 - below)[:, None]  # (h - z_k) / h
+        self.depth_centre = (1.0 - below - 0.5 * fractions)[:, None]
+        spacing = 0.5 * (fractions + np.concatenate([[0.0], fractions[:-1]]))
+        self.spacing_fraction = spacing[:, None]  # h_0/2 at the bed, (l_{k-1} + l_k)/2 above
+
+    def columns(self, h: np.ndarray, where: np.ndarray) -> ColumnStresses:
+        """Velocity-independent coefficients of the columns ``where`` of thickness ``h``."""
+        rho = self.material.density
+        h = h[where]
+        base_kind, base_mu = self.base_kind[where], self.base_mu[where]
+        p = rho * self.g_n * self.depth_interface * h
+        kappa = self.bulk.yield_stress(p, self.material).astype(float)
+        viscous = np.ones(p.shape, dtype=bool)
+        kappa[0] = np.where(base_kind == COULOMB, base_mu * p[0], kappa[0])
+        kappa[0] = np.where(base_kind == FREE_SLIP, 0.0, kappa[0])
+        viscous[0] = base_kind == NO_SLIP
+        pbar = rho * self.g_n * self.depth_centre * h
+        if self.walls is not None:
+            w = (2.0 / self.width) * self.l * h * self.walls.yield_stress(pbar, self.material)
+        else:
+            w = np.zeros_like(p)
+        return ColumnStresses(
+            m=rho * self.l * h,
+            kappa=kappa,
+            w=w,
+            pressure=p,
+            spacing=self.spacing_fraction * h,
+            viscous=viscous,
+            wall_pressure=pbar,
+        )
+
+    def linearise(self, cs: ColumnStresses, u: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Yield stresses and conductances of the Newton model of the viscous part at ``u``.
+
+        The viscous stress ``tau_v(s) = eta(|s|/h_k) s/h_k`` of a velocity jump ``s`` is
+        replaced by its tangent at ``|s0|``, written as an odd law
+        ``sgn(s) (tau_v(|s0|) - T |s0|) + T s`` with ``T = d tau_v/ds``: a Bingham law
+        with yield stress ``kappa + tau_v(|s0|) - T |s0|`` and conductance ``T``.  Where
+        that yield stress would be negative (a shear-thickening law with little yield
+        stress) the secant ``T = tau_v(|s0|)/|s0|`` is used instead.  At a fixed point the
+        law is exact either way: tangent or secant where the layers shear, and with the
+        true yield stress where they are locked (``s0 = 0``).  Returns ``(kappa, c, w, cw)``.
+        """
+        spacing = np.where(cs.spacing > 0, cs.spacing, 1.0)
+        jump = np.abs(np.diff(u, axis=0, prepend=0.0))
+        kappa, c = _newton_model(self.bulk, cs.kappa, jump / spacing, cs.pressure, self.material)
+        kappa = np.where(cs.viscous, kappa, cs.kappa)
+        c = np.where(cs.viscous & (cs.spacing > 0), c / spacing, 0.0)
+        if self.walls is None:
+            return kappa, c, cs.w, np.zeros_like(c)
+        half = 0.5 * self.width
+        per_area = (2.0 / self.width) * cs.m / self.material.density  # (2 / W) h_a
+        w, c_w = _newton_model(
+            self.walls, cs.w / per_area.clip(min=1e-300), np.abs(u) / half, cs.wall_pressure, self.material
+        )
+        return kappa, c, per_area * w, per_area * c_w / half
+
+
+def _newton_model(
+    law: Rheology, kappa: np.ndarray, rate: np.ndarray, pressure: np.ndarray, material: Material
+) -> tuple[np.ndarray, np.ndarray]:
+    """Yield stress and slope of the odd Bingham law through ``(rate, kappa + tau_v(rate))``.
+
+    The slope is the tangent ``d tau_v / d gamma`` (forward difference, relative step
+    1e-7; ``eta(0)`` at rest), or the secant ``tau_v / gamma`` where the tangent would make
+    the yield stress negative.  The slope only sets the speed of the iteration: the law
+    passes through the true stress at ``rate`` in both cases.
+    """
+    step = 1e-7 * rate
+    eta = law.viscosity(rate, pressure, material)
+    tau = eta * rate
+    up = law.viscosity(rate + step, pressure, material) * (rate + step)
+    tangent = np.where(rate > 0, (up - tau) / np.where(step > 0, step, 1.0), eta)
+    offset_yield = kappa + tau - np.maximum(tangent, 0.0) * rate
+    use_tangent = offset_yield >= 0.0
+    return (np.where(use_tangent, offset_yield, kappa), np.where(use_tangent, np.maximum(tangent, 0.0), eta))

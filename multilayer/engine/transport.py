@@ -1,0 +1,233 @@
+"""Transport along the slope: the hyperbolic part of the multilayer system.
+
+Finite volumes in x for (DESIGN.md section 1; Fernandez-Nieto, Garres-Diaz, Mangeney &
+Narbona-Reina 2016)::
+
+    d_t h + d_x Q = 0,                  Q = sum_a h_a u_a,   h_a = l_a h
+    d_t(h_a u_a) + d_x(h_a u_a^2 + l_a g cos(theta) h^2/2) + l_a g cos(theta) h d_x b
+        = g sin(theta) h_a + u_{a+1/2} G_{a+1/2} - u_{a-1/2} G_{a-1/2}
+    G_{a+1/2} = sum_{b<=a} [ d_x(h_b u_b) - l_b d_x Q ]
+
+Space: hydrostatic reconstruction (Audusse, Bouchut, Bristeau, Klein & Perthame 2004),
+first order or second order with minmod slopes of h, h + b and u_a, and an HLL flux per
+layer whose wave speeds bracket the waves of every layer.  Time: forward Euler (order 1)
+or Heun's SSP-RK2 (order 2).  ``h >= 0`` for a Courant number up to 1/2, and a lake at
+rest stays at rest.  The mass exchanged between layers carries the velocity of the layer
+it comes from (upwinding: from above when ``G > 0``).  Stresses are left to the implicit
+vertical step (``vertical.py``).
+
+Material at rest does not carry waves: a face between two columns that are entirely at
+rest carries no mass during the step (and the centred pressure flux), so a heap held by
+friction keeps its shape to the last bit; whether it is held is decided by the vertical
+step (and ``Simulation.step`` redoes a step in which a column at rest starts moving).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+GHOSTS = 2
+
+
+@dataclass(frozen=True)
+class Inflow:
+    """Prescribed inflow state: thickness (m) and layer velocities (L,) (m/s)."""
+
+    thickness: float
+    velocity: np.ndarray
+
+
+def _ghost_sources(kind: str, side: str, N: int) -> np.ndarray:
+    """Cells whose state the two ghosts of ``side`` take, the ghost nearest the boundary
+    first: the edge cell (``outflow``, ``inflow``), its mirror images (``wall``), or the
+    cells at the other end (``periodic``)."""
+    left = side == "left"
+    if kind == "periodic":
+        return np.array([-1, -2] if left else [0, 1]) % N
+    if kind == "wall":
+        return np.clip([0, 1] if left else [N - 1, N - 2], 0, N - 1)
+    return np.full(GHOSTS, 0 if left else N - 1)
+
+
+def _ghosts(h, u, b, left, right, inflow: Inflow | None):
+    """The state extended by ``GHOSTS`` columns per side: ``wall`` mirrors (u -> -u),
+    ``outflow`` copies, ``inflow`` prescribes h and u, ``periodic`` wraps."""
+
+    def ghosts(kind, side):
+        idx = _ghost_sources(kind, side, h.size)
+        hg, ug, bg = h[idx], u[:, idx], b[idx]
+        if kind == "wall":
+            ug = -ug
+        elif kind == "inflow":
+            hg = np.full(GHOSTS, inflow.thickness)
+            ug = np.repeat(inflow.velocity[:, None], GHOSTS, axis=1)
+        return hg, ug, bg
+
+    (hl, ul, bl), (hr, ur, br) = ghosts(left, "left"), ghosts(right, "right")
+    h_ext = np.concatenate([hl[::-1], h, hr])
+    u_ext = np.concatenate([ul[:, ::-1], u, ur], axis=1)
+    b_ext = np.concatenate([bl[::-1], b, br])
+    return h_ext, u_ext, b_ext
+
+
+def _minmod_slope(v: np.ndarray) -> np.ndarray:
+    """Minmod-limited jump across each inner cell of ``v`` (last axis), length - 2."""
+    back = v[..., 1:-1] - v[..., :-2]
+    ahead = v[..., 2:] - v[..., 1:-1]
+    return np.where(back * ahead > 0, np.sign(back) * np.minimum(np.abs(back), np.abs(ahead)), 0.0)
+
+
+def wave_speed(h: np.ndarray, u: np.ndarray, g_n: float) -> np.ndarray:
+    """Largest characteristic speed max_a |u_a| + sqrt(g cos(theta) h) of each column."""
+    return np.max(np.abs(u), axis=0) + np.sqrt(g_n * np.maximum(h, 0.0))
+
+
+def stable_time_step(h: np.ndarray, u: np.ndarray, g_n: float, dx: float, cfl: float) -> float:
+    """Time step from the Courant condition, capped at the positivity limit 1/2."""
+    speed = float(np.max(wave_speed(h, u, g_n), initial=0.0))
+    return min(cfl, 0.5) * dx / speed if speed > 0 else np.inf
+
+
+def _rates(h, u, b, l, *, dx, g_n, g_t, left, right, inflow, order, at_rest):
+    """Time derivatives of h (N,) and of the layer momenta h_a u_a (L, N)."""
+    h_ext, u_ext, b_ext = _ghosts(h, u, b, left, right, inflow)
+    # cells 1 .. N+2 of the extended arrays (interior plus one ghost per side)
+    if order == 2:
+        dh = _minmod_slope(h_ext)
+        deta = _minmod_slope(h_ext + b_ext)
+        du = _minmod_slope(u_ext)
+    else:
+        dh = deta = du = 0.0
+    hc, uc, etac = h_ext[1:-1], u_ext[:, 1:-1], h_ext[1:-1] + b_ext[1:-1]
+    h_w, h_e = hc - 0.5 * dh, hc + 0.5 * dh  # west / east face values of each cell
+    b_w, b_e = etac - 0.5 * deta - h_w, etac + 0.5 * deta - h_e
+    u_w, u_e = uc - 0.5 * du, uc + 0.5 * du
+
+    # hydrostatic reconstruction at the N+1 faces: east face of cell j, west face of j+1
+    b_face = np.maximum(b_e[:-1], b_w[1:])
+    hL = np.maximum(0.0, h_e[:-1] + b_e[:-1] - b_face)
+    hR = np.maximum(0.0, h_w[1:] + b_w[1:] - b_face)
+    uL, uR = u_e[:, :-1], u_w[:, 1:]
+
+    # HLL wave speeds (Harten, Lax & van Leer 1983) bracketing every layer's waves
+    cL, cR = np.sqrt(g_n * hL), np.sqrt(g_n * hR)
+    s_left = np.minimum(np.min(uL, axis=0) - cL, np.min(uR, axis=0) - cR)
+    s_right = np.maximum(np.max(uL, axis=0) + cL, np.max(uR, axis=0) + cR)
+    at_rest = at_rest | (np.minimum(s_left, 0.0) == np.maximum(s_right, 0.0))  # no wave at all
+    s_left = np.where(at_rest, -1.0, np.minimum(s_left, 0.0))
+    s_right = np.where(at_rest, 1.0, np.maximum(s_right, 0.0))
+    width = s_right - s_left
+    wl, wr, jump = s_right / width, -s_left / width, s_left * s_right / width * ~at_rest
+
+    # HLL fluxes of layer mass h_a and momentum h_a u_a (per unit l_a); no mass crosses a
+    # face at rest, even when Heun's second stage sees the velocities of the first
+    qL, qR = hL * uL, hR * uR
+    flux_h = l * (wl * qL + wr * qR + jump * (hR - hL)) * ~at_rest
+    pL, pR = 0.5 * g_n * hL**2, 0.5 * g_n * hR**2
+    flux_q = l * (wl * (qL * uL + pL) + wr * (qR * uR + pR) + jump * (qR - qL))
+
+    # well-balancing: the pressure at each cell's own face values, and the bed slope
+    # term between them (zero at first order)
+    hw, he, bw, be = h_w[1:-1], h_e[1:-1], b_w[1:-1], b_e[1:-1]
+    east = flux_q[:, 1:] + l * 0.5 * g_n * (he**2 - hL[1:] ** 2)
+    west = flux_q[:, :-1] + l * 0.5 * g_n * (hw**2 - hR[:-1] ** 2)
+    bed_slope = l * g_n * 0.5 * (hw + he) * (be - bw)
+
+    div_h = (flux_h[:, 1:] - flux_h[:, :-1]) / dx  # d_x(h_a u_a) per layer
+    div_Q = div_h.sum(axis=0)
+
+    # mass exchange through the L-1 internal interfaces, upwinded velocity
+    G = np.cumsum(div_h - l * div_Q, axis=0)[:-1]
+    u_G = np.where(G > 0.0, u[1:], u[:-1])
+    exchange = np.zeros_like(u)
+    exchange[:-1] += u_G * G
+    exchange[1:] -= u_G * G
+
+    dq = -(east - west + bed_slope) / dx + exchange + g_t * l * h
+    return -div_Q, dq
+
+
+def _step(h, u, b, l, *, dt, dry, **kw):
+    """Forward Euler (order 1) or Heun (order 2) step of the transport rates."""
+
+    def velocity(h_, q_):
+        wet = h_ > dry
+        return np.where(wet, q_ / (l * np.where(wet, h_, 1.0)), 0.0)
+
+    q = l * h * u
+    dh, dq = _rates(h, u, b, l, **kw)
+    h1 = np.maximum(h + dt * dh, 0.0)  # >= 0 exactly; the clip removes round-off only
+    q1 = q + dt * dq
+    if kw["order"] == 2:  # Heun: the average of the state and two Euler steps
+        dh, dq = _rates(h1, velocity(h1, q1), b, l, **kw)
+        h1 = np.maximum(0.5 * (h + h1 + dt * dh), 0.0)
+        q1 = 0.5 * (q + q1 + dt * dq)
+    return h1, velocity(h1, q1)
+
+
+MARGIN = 4
+"""Dry cells kept on each side of the material: a Heun step moves a front by at most two
+cells and the slopes look one cell further."""
+
+
+def transport(
+    h: np.ndarray,
+    u: np.ndarray,
+    b: np.ndarray,
+    fractions: np.ndarray,
+    *,
+    dx: float,
+    dt: float,
+    g_n: float,
+    g_t: float,
+    left: str,
+    right: str,
+    inflow: Inflow | None = None,
+    dry: float = 0.0,
+    order: int = 2,
+    moving: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """One explicit transport step: returns h^{n+1} (N,) and the velocities u* (L, N).
+
+    ``g_n = g cos(theta)`` and ``g_t = g sin(theta)``; columns not thicker than ``dry``
+    leave the step at rest.  ``moving`` (N,) marks the columns that carry waves during
+    the step (default: those with a non-zero velocity).
+    """
+    N = h.size
+    if moving is None:
+        moving = np.any(u != 0.0, axis=0)
+    occupied = np.flatnonzero((h > 0.0) | moving)
+    lo = 0 if occupied.size == 0 or left in ("inflow", "periodic") else max(occupied[0] - MARGIN, 0)
+    hi = N if occupied.size == 0 or right in ("inflow", "periodic") else min(occupied[-1] + 1 + MARGIN, N)
+    # the dry cells outside the window stay dry and at rest; inside it, a window edge
+    # away from the domain boundary is dry, which an outflow ghost copies exactly
+    window = slice(lo, hi)
+    hw, uw = h[window], u[:, window]
+    moving = moving[window]
+    ends = [moving[0] or left == "inflow", moving[-1] or right == "inflow"]
+    if left == "periodic":
+        ends[0] = moving[-1]
+    if right == "periodic":
+        ends[1] = moving[0]
+    moving_ext = np.concatenate([[ends[0]], moving, [ends[1]]])
+    at_rest = ~(moving_ext[:-1] | moving_ext[1:])
+    h_new, u_new = np.zeros_like(h), np.zeros_like(u)
+    h_new[window], u_new[:, window] = _step(
+        hw,
+        uw,
+        b[window],
+        fractions[:, None],
+        dt=dt,
+        dry=dry,
+        dx=dx,
+        g_n=g_n,
+        g_t=g_t,
+        left=left if lo == 0 else "outflow",
+        right=right if hi == N else "outflow",
+        inflow=inflow,
+        order=order,
+        at_rest=at_rest,
+    )
+    return h_new, u_new

@@ -1,0 +1,1 @@
+"""Input and output: scenario files, CF netCDF results and checkpoints, figures, VTK export."""

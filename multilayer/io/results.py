@@ -1,0 +1,321 @@
+"""The result file ``result.nc`` (CF-1.8 netCDF), checkpoints and the run summary.
+
+The file layout is the public contract of DESIGN.md section 6.  It is written
+incrementally: the ``time`` dimension is unlimited, every output time is appended as one
+record and the file is synced to disk straight away, so a crash or an interruption
+leaves a readable file holding every output time completed so far.  The classic 64-bit
+offset format is used on purpose: a netCDF-3 file whose writer dies is still valid up to
+its last synced record, whereas an HDF5-based file may be left unreadable.
+
+Checkpoints (``checkpoint.npz``) hold the full :meth:`Simulation.state_dict` plus the
+bookkeeping needed to continue the result file; they are replaced atomically
+(temporary file + :func:`os.replace`), so a checkpoint on disk is always complete.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import fipy
+import netCDF4
+import numpy as np
+import xarray as xr
+
+from multilayer import __version__
+from multilayer.errors import InputError
+
+RESULT_FILE = "result.nc"
+CHECKPOINT_FILE = "checkpoint.npz"
+FORMAT = "NETCDF3_64BIT_OFFSET"
+
+#: CF attributes of every coordinate and variable: (dimensions, attributes).
+VARIABLES: dict[str, tuple[tuple[str, ...], dict[str, str]]] = {
+    "time": (
+        ("time",),
+        {
+            "units": "s",
+            "long_name": "simulated time since release",
+            "standard_name": "time",
+            "axis": "T",
+        },
+    ),
+    "x": (
+        ("x",),
+        {
+            "units": "m",
+            "long_name": "downslope position of the cell centre along the plane",
+            "axis": "X",
+            "bounds": "x_bnds",
+        },
+    ),
+    "x_bnds": (
+        ("x", "nv"),
+        {
+            "units": "m",
+            "long_name": "downslope positions of the cell edges",
+        },
+    ),
+    "layer": (
+        ("layer",),
+        {
+            "units": "1",
+            "long_name": "layer index, 1 at the bed",
+            "axis": "Z",
+            "positive": "up",
+        },
+    ),
+    "sigma": (
+        ("layer",),
+        {
+            "units": "1",
+            "long_name": "height of the layer centre as a fraction of h",
+            "positive": "up",
+            "bounds": "sigma_bnds",
+        },
+    ),
+    "sigma_bnds": (
+        ("layer", "nv"),
+        {
+            "units": "1",
+            "long_name": "heights of the layer interfaces as fractions of h",
+        },
+    ),
+    "bed": (
+        ("x",),
+        {
+            "units": "m",
+            "long_name": "bed elevation b normal to the plane",
+        },
+    ),
+    "h": (
+        ("time", "x"),
+        {
+            "units": "m",
+            "long_name": "flow thickness normal to the plane",
+        },
+    ),
+    "u": (
+        ("time", "layer", "x"),
+        {
+            "units": "m s-1",
+            "long_name": "downslope layer velocity",
+            "coordinates": "sigma",
+        },
+    ),
+    "static_interface": (
+        ("time", "x"),
+        {
+            "units": "m",
+            "long_name": "height above the bed of the top of the static region",
+            "comment": "0: flowing down to the bed; h: the whole column at rest",
+        },
+    ),
+    "front": (
+        ("time",),
+        {
+            "units": "m",
+            "long_name": "downslope-most cell centre with h above threshold",
+        },
+    ),
+    "mass": (
+        ("time",),
+        {
+            "units": "m2",
+            "long_name": "integral of h over x (volume per unit width)",
+        },
+    ),
+}
+
+
+class ResultWriter:
+    """Append output times of a :class:`~multilayer.simulation.Simulation` to ``path``.
+
+    A new file is created unless ``records`` is given: then the existing file is opened
+    for appending and the next output time is written as record number ``records``
+    (records beyond it, written after the checkpoint being resumed, are overwritten).
+    """
+
+    def __init__(self, path: str | os.PathLike, scenario: Any, sim: Any, records: int | None = None) -> None:
+        self.path = Path(path)
+        if records is None:
+            self._ds = netCDF4.Dataset(self.path, "w", format=FORMAT)
+            self._define(scenario, sim)
+            self.records = 0
+        else:
+            self._ds = netCDF4.Dataset(self.path, "a")
+            self._ds.history += f"\n{_now()} multilayer run --resume"
+            self.records = records
+        self._ds.run_status = "running"
+        self._ds.sync()
+
+    def _define(self, scenario: Any, sim: Any) -> None:
+        ds = self._ds
+        n_layers, n_cells = np.shape(sim.u)
+        ds.createDimension("time", None)
+        ds.createDimension("x", n_cells)
+        ds.createDimension("layer", n_layers)
+        ds.createDimension("nv", 2)
+        for name, (dims, attrs) in VARIABLES.items():
+            if name == "layer":
+                var = ds.createVariable(name, "i4", dims)
+            else:
+                var = ds.createVariable(name, "f8", dims, fill_value=np.nan)
+            var.setncatts(attrs)
+        ds["front"].threshold = float(sim.front_threshold)
+        ds["front"].threshold_units = "m"
+        tops = np.cumsum(sim.fractions)
+        ds["x"][:] = sim.x
+        ds["x_bnds"][:] = np.column_stack([sim.x - sim.dx / 2, sim.x + sim.dx / 2])
+        ds["layer"][:] = np.arange(1, n_layers + 1)
+        ds["sigma"][:] = sim.sigma
+        ds["sigma_bnds"][:] = np.column_stack([tops - sim.fractions, tops])
+        ds["bed"][:] = sim.bed
+        ds.setncatts(
+            {
+                "Conventions": "CF-1.8",
+                "title": f"multilayer simulation: {scenario.name}",
+                "institution": os.environ.get("MULTILAYER_INSTITUTION", "not specified"),
+                "source": f"multilayer {__version__} (multilayer shallow granular flow, "
+                f"FiPy {fipy.__version__})",
+                "history": f"{_now()} multilayer run {scenario.source or scenario.name}",
+                "references": "Fernandez-Nieto, Garres-Diaz, Mangeney & Narbona-Reina "
+                "(2016) J. Fluid Mech. 798; Bouchut, Ionescu & Mangeney "
+                "(2016) Commun. Math. Sci. 14",
+                "scenario": scenario.resolved_yaml(),
+                "steps": 0,
+                "cells": int(n_cells * n_layers),
+                "wall_time_s": 0.0,
+                "multilayer_version": __version__,
+                "fipy_version": fipy.__version__,
+            }
+        )
+
+    def write(self, sim: Any) -> dict:
+        """Append the current state of ``sim`` as the next output time, sync, and return
+        the diagnostics written."""
+        ds, i = self._ds, self.records
+        diag = sim.diagnostics()
+        ds["h"][i, :] = sim.h
+        ds["u"][i, :, :] = sim.u
+        ds["static_interface"][i, :] = diag["static_interface"]
+        ds["front"][i] = diag["front"]
+        ds["mass"][i] = diag["mass"]
+        ds["time"][i] = sim.t
+        ds.steps = int(sim.steps)
+        self.records = i + 1
+        ds.sync()
+        return diag
+
+    def close(self, steps: int, wall_time_s: float, status: str = "completed", scenario: Any = None) -> None:
+        """Record the final step count, wall time and run status, then close the file."""
+        attrs: dict[str, Any] = {"steps": int(steps), "wall_time_s": float(wall_time_s), "run_status": status}
+        if scenario is not None:
+            attrs["scenario"] = scenario.resolved_yaml()
+        self._ds.setncatts(attrs)
+        self._ds.close()
+
+
+def _now() -> str:
+    return _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+
+
+def open_result(path: str | os.PathLike, *, load: bool = True) -> xr.Dataset:
+    """Load a result file (or the ``result.nc`` inside a directory) into memory, or with
+    ``load=False`` open it lazily (close it after use, e.g. in a ``with`` block).
+
+    Only the records completed so far are returned: a record left half-written by a
+    crash (its time still the fill value) is dropped.
+    """
+    path = Path(path)
+    if path.is_dir():
+        path = path / RESULT_FILE
+    if not path.is_file():
+        raise InputError(f"{path}: no result file (run `multilayer run` first)")
+    try:
+        ds = xr.load_dataset(path) if load else xr.open_dataset(path)
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path}: not a readable netCDF result file ({exc})") from None
+    return ds.isel(time=np.flatnonzero(np.isfinite(ds["time"].values)))
+
+
+SUMMARY_KEYS = (
+    "t_final",
+    "front_final",
+    "runout",
+    "mass_final",
+    "max_speed_final",
+    "static_interface_mean_final",
+    "steps",
+    "wall_time_s",
+)
+"""The keys of :func:`summary`, in order."""
+
+
+def summary(path: str | os.PathLike) -> dict[str, float]:
+    """Scalar results of a run: the quantities ``expect`` checks can refer to.
+
+    ``runout`` is the final minus the initial front; ``max_speed_final`` the largest
+    ``|u|`` at the final time; ``static_interface_mean_final`` the mean static-interface
+    height over the cells wetter than the front threshold (NaN if none).
+    """
+    with open_result(path, load=False) as lazy:  # only the first and last records are read
+        ds = lazy.isel(time=[0, -1]).load()
+    final = ds.isel(time=-1)
+    wet = final["h"].values > ds["front"].attrs["threshold"]
+    static = final["static_interface"].values[wet]
+    return {
+        "t_final": float(final["time"]),
+        "front_final": float(final["front"]),
+        "runout": float(final["front"] - ds["front"][0]),
+        "mass_final": float(final["mass"]),
+        "max_speed_final": float(np.abs(final["u"].values).max()),
+        "static_interface_mean_final": float(static.mean()) if static.size else float("nan"),
+        "steps": int(ds.attrs["steps"]),
+        "wall_time_s": float(ds.attrs["wall_time_s"]),
+    }
+
+
+@dataclass
+class Checkpoint:
+    """Everything needed to continue a run: engine state and result-file bookkeeping."""
+
+    state: dict[str, Any]
+    """:meth:`Simulation.state_dict` at the checkpoint."""
+    records: int
+    """Number of output times in ``result.nc`` at the checkpoint."""
+    wall_time_s: float
+    """Wall time spent on the run up to the checkpoint, s."""
+    scenario: str
+    """Resolved YAML of the scenario that produced the state."""
+
+
+_META = ("records", "wall_time_s", "scenario")
+
+
+def save_checkpoint(path: str | os.PathLike, ckpt: Checkpoint) -> None:
+    """Write ``ckpt`` to ``path`` atomically (temporary file, fsync, rename)."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    arrays = {f"state.{key}": np.asarray(value) for key, value in ckpt.state.items()}
+    arrays.update({f"meta.{key}": np.asarray(getattr(ckpt, key)) for key in _META})
+    with open(tmp, "wb") as f:
+        np.savez(f, **arrays)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+def load_checkpoint(path: str | os.PathLike) -> Checkpoint:
+    """Read a checkpoint written by :func:`save_checkpoint`."""
+
+    def value(a: np.ndarray) -> Any:
+        return a.item() if a.ndim == 0 else a
+
+    with np.load(path, allow_pickle=False) as data:
+        state = {k[len("state.") :]: value(data[k]) for k in data.files if k.startswith("state.")}
+        meta = {key: value(data[f"meta.{key}"]) for key in _META}
+    return Checkpoint(state=state, **meta)

@@ -1,0 +1,30 @@
+"""Drucker–Prager yield stress with a constant kinematic viscosity (DESIGN.md section 2).
+
+    kappa(p) = mu_s max(p, 0),      eta = rho nu
+
+(Bouchut, Ionescu & Mangeney 2016, eq. 1.3-1.8 with a constant viscous part.)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from multilayer.plugins.builtins._checks import FrictionalYield, non_negative
+
+
+class DruckerPrager(FrictionalYield):
+    """Drucker–Prager (Coulomb) yield stress mu_s p plus a constant viscosity rho nu."""
+
+    name = "drucker_prager"
+    applies_to = "bulk"
+
+    def __init__(self, mu_s: float, nu: float):
+        """``mu_s``: friction coefficient (-); ``nu``: kinematic viscosity (m^2/s)."""
+        non_negative(mu_s=mu_s, nu=nu)
+        self.mu_s = mu_s
+        self.nu = nu
+
+    def viscosity(self, shear_rate, pressure, material):
+        """eta = rho nu, Pa s, independent of the shear rate and pressure."""
+        shape = np.broadcast_shapes(np.shape(shear_rate), np.shape(pressure))
+        return np.full(shape, material.density * self.nu)

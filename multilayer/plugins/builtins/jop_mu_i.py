@@ -1,0 +1,43 @@
+"""Jop, Forterre & Pouliquen (2006) mu(I) rheology (DESIGN.md section 2).
+
+    mu(I) = mu_s + (mu_2 - mu_s) I / (I_0 + I),    I = d |gamma| / sqrt(p / rho_p)
+
+split as kappa = mu_s p and eta |gamma| = (mu_2 - mu_s) p I / (I_0 + I).  Since
+I / |gamma| = d sqrt(rho_p / p), multiplying through by sqrt(p) gives the form used here,
+
+    eta = (mu_2 - mu_s) d sqrt(rho_p) p / (I_0 sqrt(p) + d sqrt(rho_p) |gamma|),
+
+which is finite everywhere: eta -> (mu_2 - mu_s) d sqrt(rho_p p) / I_0 as gamma -> 0 and
+eta -> 0 as p -> 0 (pressure is clamped at 0; eta = 0 at p = gamma = 0, its limit).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from multilayer.plugins.builtins._checks import FrictionalYield, non_negative, positive
+
+
+class JopMuI(FrictionalYield):
+    """Jop et al. (2006) mu(I): friction rising from mu_s to mu_2 with the inertial number."""
+
+    name = "jop_mu_i"
+    applies_to = "bulk"
+
+    def __init__(self, mu_s: float, mu_2: float, I_0: float):
+        """``mu_s`` <= ``mu_2``: friction at I -> 0 and I -> infinity (-); ``I_0`` > 0 (-)."""
+        non_negative(mu_s=mu_s)
+        positive(I_0=I_0)
+        if not mu_2 >= mu_s:
+            raise ValueError(f"mu_2 must be >= mu_s = {mu_s!r}, got {mu_2!r}")
+        self.mu_s = mu_s
+        self.mu_2 = mu_2
+        self.I_0 = I_0
+
+    def viscosity(self, shear_rate, pressure, material):
+        """eta = (mu_2 - mu_s) p I / (|gamma| (I_0 + I)), Pa s, finite at gamma = 0 and p = 0."""
+        p = np.maximum(np.asarray(pressure, dtype=float), 0.0)
+        scale = material.grain_diameter * np.sqrt(material.particle_density)
+        numerator = (self.mu_2 - self.mu_s) * scale * p
+        denominator = self.I_0 * np.sqrt(p) + scale * np.abs(shear_rate)
+        return np.divide(numerator, denominator, out=np.zeros(denominator.shape), where=denominator > 0)

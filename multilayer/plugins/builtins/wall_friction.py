@@ -1,0 +1,33 @@
+"""Coulomb friction on the side walls of a channel (DESIGN.md sections 1-2).
+
+    kappa(p) = mu_w max(p, 0),    eta = 0
+
+The engine applies it to each layer velocity u_a through F_a = (2 mu_w / W) h_a pbar_a sgn(u_a).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+import multilayer
+from multilayer.plugins.builtins._checks import non_negative
+
+
+class WallFriction(multilayer.Rheology):
+    """Coulomb side-wall friction mu_w p (no viscous part)."""
+
+    name = "wall_friction"
+    applies_to = "walls"
+
+    def __init__(self, mu_w: float):
+        """``mu_w``: wall friction coefficient (-)."""
+        non_negative(mu_w=mu_w)
+        self.mu_w = mu_w
+
+    def yield_stress(self, pressure, material):
+        """kappa = mu_w max(p, 0), Pa."""
+        return self.mu_w * np.maximum(np.asarray(pressure, dtype=float), 0.0)
+
+    def viscosity(self, shear_rate, pressure, material):
+        """eta = 0, Pa s."""
+        return np.zeros(np.broadcast_shapes(np.shape(shear_rate), np.shape(pressure)))

@@ -1,0 +1,51 @@
+"""The rheology plugin contract: a stress law split into a yield part and a viscous part.
+
+Every law is written as (Bouchut, Ionescu & Mangeney 2016, eq. 1.3-1.8)::
+
+    tau = kappa(p) sgn(gamma) + eta(|gamma|, p) gamma    if gamma != 0
+    |tau| <= kappa(p)                                    if gamma == 0
+
+``kappa`` is returned by :meth:`Rheology.yield_stress`, ``eta`` by
+:meth:`Rheology.viscosity`.  The engine treats the yield part exactly (never by
+regularising ``sgn``) and iterates on the viscous part.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar, Literal
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Material:
+    """Material constants handed to every rheology call (SI units)."""
+
+    density: float
+    """Bulk density rho of the granular layer, kg/m^3."""
+    grain_diameter: float
+    """Grain diameter d, m."""
+    particle_density: float
+    """Density rho_p of the grains, kg/m^3 (enters the inertial number)."""
+
+
+class Rheology:
+    """Base class of rheology plugins.
+
+    Subclasses set ``name`` (the YAML ``name``), ``applies_to`` (``"bulk"`` for the
+    stress between layers and at a no-slip bed, ``"walls"`` for side-wall friction) and
+    take their parameters as keyword arguments of ``__init__`` (these keyword
+    arguments are the parameter schema of the scenario file).
+    """
+
+    name: ClassVar[str]
+    applies_to: ClassVar[Literal["bulk", "walls"]] = "bulk"
+
+    def yield_stress(self, pressure: np.ndarray, material: Material) -> np.ndarray:
+        """Rate-independent yield stress kappa(p) >= 0, in Pa."""
+        raise NotImplementedError
+
+    def viscosity(self, shear_rate: np.ndarray, pressure: np.ndarray, material: Material) -> np.ndarray:
+        """Rate-dependent part eta(|gamma|, p) >= 0, in Pa s, finite at gamma = 0."""
+        raise NotImplementedError

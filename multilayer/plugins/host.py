@@ -1,0 +1,239 @@
+"""Rheology plugins: the pluggy host of the ``multilayer`` project (DESIGN.md section 5).
+
+Every distribution (the built-in ``rheologies`` package included) declares an entry
+point in the ``multilayer`` group naming a module that implements the hook
+``multilayer_register_rheologies(register)``.  Entry points are loaded one at a time,
+so a broken plugin is reported (a :class:`PluginWarning`, and ``multilayer plugins``
+lists it) without hiding the others.  A rheology's parameters are the keyword
+arguments of its constructor; their annotations are the parameter types.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib.metadata
+import inspect
+import re
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import pluggy
+from pydantic import BaseModel, ConfigDict, create_model
+
+from multilayer.errors import InputError
+from multilayer.plugins.contract import Rheology
+
+PROJECT = "multilayer"
+"""The pluggy project name, which is also the entry-point group."""
+
+hookspec = pluggy.HookspecMarker(PROJECT)
+hookimpl = pluggy.HookimplMarker(PROJECT)
+
+APPLIES_TO = ("bulk", "walls")
+_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+
+class PluginWarning(UserWarning):
+    """A plugin could not be loaded, or one of its rheologies was rejected."""
+
+
+class HookSpecs:
+    """Hook specifications of the ``multilayer`` project."""
+
+    @hookspec
+    def multilayer_register_rheologies(self, register: Callable[[type[Rheology]], None]) -> None:
+        """Register rheology classes by calling ``register(cls)`` once per class."""
+
+
+class Spec(Protocol):
+    """What :func:`instantiate` needs: a rheology name and its keyword arguments."""
+
+    name: str
+    params: dict[str, Any]
+
+
+@dataclass(frozen=True)
+class Registered:
+    """A rheology class and the entry point that provided it."""
+
+    cls: type[Rheology]
+    source: str
+
+
+@dataclass(frozen=True)
+class Broken:
+    """An entry point (or one rheology of it) that was skipped, and why."""
+
+    source: str
+    error: str
+
+
+@dataclass(frozen=True)
+class Catalogue:
+    """Everything the entry points provided: usable rheologies and broken plugins."""
+
+    rheologies: dict[str, Registered]
+    broken: tuple[Broken, ...]
+
+
+def _entry_points() -> list[importlib.metadata.EntryPoint]:
+    """Entry points of the group, this distribution's built-ins first, then by name."""
+
+    def key(ep: importlib.metadata.EntryPoint) -> tuple[bool, str, str]:
+        dist = ep.dist.name if ep.dist is not None else ""
+        return (dist != PROJECT, dist, ep.name)
+
+    return sorted(importlib.metadata.entry_points(group=PROJECT), key=key)
+
+
+def _source(ep: importlib.metadata.EntryPoint) -> str:
+    dist = f"{ep.dist.name} {ep.dist.version}" if ep.dist is not None else "unknown distribution"
+    return f"{dist} (entry point {ep.name} = {ep.value})"
+
+
+def _problem(cls: object) -> str | None:
+    """Why ``cls`` cannot be a rheology plugin, or None."""
+    if not (isinstance(cls, type) and issubclass(cls, Rheology)):
+        return f"{cls!r} is not a subclass of multilayer.Rheology"
+    name = getattr(cls, "name", None)
+    if not isinstance(name, str) or not _NAME.match(name):
+        return f"{cls.__qualname__}.name must be an identifier string, got {name!r}"
+    if cls.applies_to not in APPLIES_TO:
+        return f"{cls.__qualname__}.applies_to must be 'bulk' or 'walls', got {cls.applies_to!r}"
+    for method in ("yield_stress", "viscosity"):
+        if getattr(cls, method) is getattr(Rheology, method):
+            return f"{cls.__qualname__} does not implement {method}()"
+    try:
+        parameter_model(cls)
+    except Exception as exc:  # an unusable constructor signature
+        return f"{cls.__qualname__}.__init__ has an unusable signature: {exc}"
+    return None
+
+
+@functools.cache
+def catalogue() -> Catalogue:
+    """Load every entry point of the ``multilayer`` group (once per process)."""
+    manager = pluggy.PluginManager(PROJECT)
+    manager.add_hookspecs(HookSpecs)
+    found: dict[str, Registered] = {}
+    broken: list[Broken] = []
+    for ep in _entry_points():
+        source = _source(ep)
+        classes: list[type[Rheology]] = []
+        try:
+            module = ep.load()
+            manager.register(module, name=source)
+            others = [p for p in manager.get_plugins() if p is not module]
+            manager.subset_hook_caller("multilayer_register_rheologies", others)(register=classes.append)
+        except Exception as exc:  # any failure of third-party code is reported, not raised
+            broken.append(Broken(source, f"{type(exc).__name__}: {exc}"))
+            continue
+        if not classes:
+            broken.append(
+                Broken(
+                    source,
+                    "registers no rheology (is "
+                    "multilayer_register_rheologies decorated with @multilayer.hookimpl?)",
+                )
+            )
+        for cls in classes:
+            problem = _problem(cls)
+            if problem is None and cls.name in found:
+                problem = (
+                    f"rheology name '{cls.name}' is already registered by "
+                    f"{found[cls.name].source}; this second registration was rejected"
+                )
+            if problem is None:
+                found[cls.name] = Registered(cls, source)
+            else:
+                broken.append(Broken(source, problem))
+    for item in broken:
+        warnings.warn(f"rheology plugin {item.source} skipped: {item.error}", PluginWarning, stacklevel=2)
+    return Catalogue(found, tuple(broken))
+
+
+def refresh() -> None:
+    """Forget the loaded catalogue, e.g. after installing a plugin in this process."""
+    catalogue.cache_clear()
+
+
+def registry() -> dict[str, type[Rheology]]:
+    """Registered rheology classes by name."""
+    return {name: item.cls for name, item in catalogue().rheologies.items()}
+
+
+def available(applies_to: str) -> list[str]:
+    """Sorted names of the rheologies for ``applies_to`` ("bulk" or "walls")."""
+    return sorted(n for n, cls in registry().items() if cls.applies_to == applies_to)
+
+
+def find(name: str, applies_to: str | None = None) -> tuple[type[Rheology] | None, str | None]:
+    """The class registered as ``name`` and what is wrong with it for ``applies_to``
+    (``None`` when it exists and applies there)."""
+    cls = registry().get(name)
+    if cls is None:
+        return None, f"unknown rheology '{name}'"
+    if applies_to is not None and cls.applies_to != applies_to:
+        return cls, f"'{name}' applies to {cls.applies_to}, not {applies_to}"
+    return cls, None
+
+
+def lookup(name: str, applies_to: str | None = None) -> type[Rheology]:
+    """The class registered as ``name``; :class:`InputError` if there is none."""
+    cls, problem = find(name, applies_to)
+    if problem:
+        names = available(applies_to) if applies_to else sorted(registry())
+        raise InputError(f"{problem}; accepted: {', '.join(names)}")
+    return cls
+
+
+def _parameters(cls: type[Rheology]) -> list[inspect.Parameter]:
+    try:
+        signature = inspect.signature(cls, eval_str=True)
+    except ValueError:  # no Python-level __init__: no parameters
+        return []
+    kinds = (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
+    return [p for p in signature.parameters.values() if p.kind in kinds]
+
+
+@functools.cache
+def parameter_model(cls: type[Rheology]) -> type[BaseModel]:
+    """A strict pydantic model of ``cls.__init__``'s keyword arguments (the parameter schema)."""
+    fields: dict[str, Any] = {
+        p.name: (Any if p.annotation is p.empty else p.annotation, ... if p.default is p.empty else p.default)
+        for p in _parameters(cls)
+    }
+    return create_model(
+        f"{cls.__name__}Parameters", __config__=ConfigDict(extra="forbid", strict=True), **fields
+    )
+
+
+def signature_text(cls: type[Rheology]) -> str:
+    """``name(mu_s: float, nu: float)``: the parameters as written in a scenario."""
+
+    def one(p: inspect.Parameter) -> str:
+        text = p.name
+        if p.annotation is not p.empty:
+            text += f": {getattr(p.annotation, '__name__', p.annotation)}"
+        if p.default is not p.empty:
+            text += f" = {p.default!r}"
+        return text
+
+    return f"{cls.name}({', '.join(one(p) for p in _parameters(cls))})"
+
+
+def description(cls: type[Rheology]) -> str:
+    """The first line of the class docstring."""
+    doc = inspect.getdoc(cls) or ""
+    return doc.strip().splitlines()[0] if doc.strip() else ""
+
+
+def instantiate(spec: Spec) -> Rheology:
+    """The plugin instance for a scenario's ``rheology`` or ``walls`` spec."""
+    cls = lookup(spec.name)
+    try:
+        return cls(**spec.params)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"rheology {spec.name}: {exc}; accepted: {signature_text(cls)}") from None

@@ -1,0 +1,1 @@
+"""Regression and reference expectations of scenario files, and their pytest plugin."""
