@@ -10,15 +10,16 @@ unchanged, so re-running the script only computes what changed.
     python docs/make_validation.py static bagnold -j 2  # some sections, 2 processes
 
 Sections: static, dambreak, bagnold, chute, collapse, erodible.  The text of sections not
-run is taken from the previous run (results/validation/sections.json).
+run is kept from the current docs/validation.md (each section sits between
+``<!-- section: NAME -->`` and ``<!-- /section -->`` markers).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
+import re
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -42,7 +43,7 @@ SCENARIOS = ROOT / "scenarios"
 FIGURES = ROOT / "docs" / "figures"
 RUNS = ROOT / "results" / "validation"
 REPORT = ROOT / "docs" / "validation.md"
-CACHE = RUNS / "sections.json"
+MARKED = re.compile(r"<!-- section: (\w+) -->\n(.*?)<!-- /section -->\n", re.S)
 G = 9.81
 
 
@@ -979,6 +980,19 @@ seconds, and all of them run in the default test suite (`tests/test_scenarios.py
 """
 
 
+def _write_report(sections: dict[str, str]) -> None:
+    """The report: the introduction, then every section between its markers."""
+    body = [
+        f"<!-- section: {name} -->\n"
+        + sections.get(
+            name, f"## {name}\n\nNot generated yet: run `python docs/make_validation.py {name}`.\n"
+        )
+        + "<!-- /section -->\n"
+        for name in SECTIONS
+    ]
+    REPORT.write_text(INTRO + "\n" + "\n".join(body))
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -997,16 +1011,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     if unknown:
         parser.error(f"unknown section(s) {', '.join(unknown)}; accepted: {', '.join(SECTIONS)}")
     RUNS.mkdir(parents=True, exist_ok=True)
-    cache = json.loads(CACHE.read_text()) if CACHE.is_file() else {}
+    sections = dict(MARKED.findall(REPORT.read_text())) if REPORT.is_file() else {}
     for name in args.sections or list(SECTIONS):
         print(f"section {name} ...", flush=True)
-        cache[name] = SECTIONS[name](args.jobs)
-        CACHE.write_text(json.dumps(cache, indent=1))
-    body = [
-        cache.get(name, f"## {name}\n\nNot generated yet: run `python docs/make_validation.py {name}`.\n")
-        for name in SECTIONS
-    ]
-    REPORT.write_text(INTRO + "\n" + "\n".join(body))
+        sections[name] = SECTIONS[name](args.jobs)
+        _write_report(sections)
     print(f"wrote {REPORT}")
     return 0
 
