@@ -1,4 +1,4 @@
-"""Benchmark: the multilayer mu(I) dam break of DESIGN.md / issue 3.
+"""Benchmark: the multilayer mu(I) dam break of docs/performance.md.
 
 Reduced units (g = 1): 2500 cells x 32 layers on x in [0, 50], a bed falling 0.45 per
 unit length, a unit-height column on [0, 2], Jop mu(I) with mu_s = 0.35, mu_2 = 0.56,

@@ -236,7 +236,7 @@ def test_run_failures_exit_codes(cli, tiny_scenario, write_scenario, monkeypatch
 
 
 def test_run_round_trip_writes_result(cli, tiny_scenario, write_scenario, tmp_path):
-    """``multilayer run`` on the tiny scenario writes result.nc with the DESIGN.md section 6
+    """``multilayer run`` on the tiny scenario writes result.nc with the docs/results.md
     variables and attributes; mass (m^2 per unit width) is conserved with a wall upstream
     while nothing has reached the outflow: 0.1 m x 0.05 m = 0.005 m^2."""
     outdir = tmp_path / "out"

@@ -1,4 +1,4 @@
-"""Initial conditions (DESIGN.md section 4): stacked thicknesses and velocity profiles."""
+"""Initial conditions (docs/scenarios.md): stacked thicknesses and velocity profiles."""
 
 from __future__ import annotations
 

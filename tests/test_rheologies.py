@@ -1,4 +1,4 @@
-"""Built-in rheologies against hand-computed values (DESIGN.md section 2).
+"""Built-in rheologies against hand-computed values (docs/model.md, "Rheologies").
 
 Common test point: rho = 1500 kg/m^3, d = 1 mm, rho_p = 2500 kg/m^3, p = 1000 Pa,
 |gamma| = 10 1/s, so I = d |gamma| / sqrt(p / rho_p) = 0.01 / sqrt(0.4) = 0.0158113883.

@@ -99,7 +99,7 @@ def test_shape_factor_of_boundary_layer_grows_to_saturation(granular):
 
 
 class _Jop(Rheology):
-    """Jop et al. mu(I) written in the plugin form (kappa = mu_s p, eta from DESIGN sec. 2)."""
+    """Jop et al. mu(I) written in the plugin form (kappa = mu_s p, eta as in docs/model.md)."""
 
     name = "test_jop"
 

@@ -1,4 +1,4 @@
-"""Transport in x against exact solutions and conservation laws (DESIGN.md section 7)."""
+"""Transport in x against exact solutions and conservation laws (docs/validation.md)."""
 
 from __future__ import annotations
 

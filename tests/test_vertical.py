@@ -1,4 +1,4 @@
-"""The implicit vertical step against exact solutions (DESIGN.md section 7)."""
+"""The implicit vertical step against exact solutions (docs/validation.md)."""
 
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ H, B0, SHEAR = 0.02, 0.005, 70.0
 
 
 def simple_shear(nu: float, layers: int = 200, **changes):
-    """Seed 000/001 single column: h = 2 cm on 22 degrees, linear profile above 5 mm."""
+    """Bouchut, Ionescu & Mangeney (2016) single column: h = 2 cm on 22 degrees, linear profile above 5 mm."""
     return simulation(
         slope_deg=22.0,
         domain={"x_min": 0.0, "x_max": 0.005, "cells": 1, "layers": layers},
@@ -61,7 +61,8 @@ def test_inviscid_simple_shear_matches_proposition_2_2():
 
 
 def test_viscous_simple_shear_erodes_then_deposits():
-    """With nu = 5e-5 m^2/s (seed 000) the interface first moves down, then up to h."""
+    """With nu = 5e-5 m^2/s the interface first moves down, then up to h
+    (Bouchut, Ionescu & Mangeney 2016, sec. 3)."""
     sim = simple_shear(nu=5e-5, layers=100)
     times = np.arange(0.02, 2.0, 0.02)
     b = []
@@ -77,7 +78,8 @@ def test_viscous_simple_shear_erodes_then_deposits():
 
 
 def test_bagnold_profile_is_the_steady_state_of_jop_mu_i():
-    """Uniform flow from rest on a no-slip base tends to Bagnold's profile (seed 003, 4.1):
+    """Uniform flow from rest on a no-slip base tends to Bagnold's profile
+    (Tsang, Dalziel & Vriend 2019, eq. 4.1):
     u(z) = (2 I / 3 d) sqrt(g cos(theta) rho / rho_p) (h^1.5 - (h - z)^1.5)."""
     theta, d, h = math.radians(25.0), 0.5e-3, 0.01
     mu_s, mu_2, i0 = 0.38, 0.64, 0.279

@@ -2,7 +2,7 @@
 
 Checks against exact solutions of the step (docs/architecture.md, "Vertical step"), the
 KKT conditions of the minimisation, the dense optimality system of the u-step, FiPy
-issue #1223 (reused equations) and the fast kernel multilayer/column_kernel.py.
+FiPy issue #1223 (reused equations) and the fast kernel multilayer/column_kernel.py.
 """
 
 from __future__ import annotations
@@ -84,7 +84,7 @@ def test_column_below_yield_stays_exactly_at_rest():
 
 
 def test_inviscid_simple_shear_decelerates_by_the_yield_gradient():
-    """Inviscid simple shear (seed 001, Prop. 2.2): kappa_k = K (L - k)/L, linear u*.
+    """Inviscid simple shear (Bouchut, Ionescu & Mangeney 2016, Prop. 2.2): kappa_k = K (L - k)/L, linear u*.
 
     Every layer feels the net yield stress kappa_{a-1} - kappa_a = K/L, so one step gives
     u = max(u* - dt K/(L m), 0); the static layers at the bottom are exactly 0.0 and the

@@ -1,5 +1,5 @@
 """Side-wall friction: summed over the layers it is the mu_w h / W of depth-averaged
-models (Mangeney 2021 slides; DESIGN.md section 1), so a rigid layer on a Coulomb base
+models (Jop, Forterre & Pouliquen 2005; docs/model.md), so a rigid layer on a Coulomb base
 stays at rest exactly up to tan(theta) = mu + mu_w h / W and accelerates beyond it at
 g cos(theta) (tan(theta) - mu - mu_w h / W)."""
 

@@ -1,6 +1,6 @@
 """Exact solver for one implicit vertical step of a chain of layers (the hot path).
 
-Per column the implicit step minimises (docs/architecture.md, DESIGN.md section 3)::
+Per column the implicit step minimises (docs/model.md, "The implicit vertical step")::
 
     E(u) = sum_a [ m_a/(2 dt) (u_a - u*_a)^2 + cw_a/2 u_a^2 + w_a |u_a| ]
          + sum_{k=0}^{L-1} [ kappa_k |u_{k+1} - u_k| + c_k/2 (u_{k+1} - u_k)^2 ],   u_0 = 0,

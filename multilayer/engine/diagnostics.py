@@ -1,4 +1,4 @@
-"""Diagnostics written at output times (DESIGN.md section 6)."""
+"""Diagnostics written at output times (docs/results.md)."""
 
 from __future__ import annotations
 

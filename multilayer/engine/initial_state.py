@@ -1,4 +1,4 @@
-"""Initial conditions of a scenario (DESIGN.md section 4).
+"""Initial conditions of a scenario (docs/scenarios.md).
 
 Thickness entries stack in the order given: each occupies the height range above the
 entries before it, so an erodible bed listed first lies under a column listed second.
@@ -39,7 +39,7 @@ def velocity_profile(velocity: Velocity | None, zeta: np.ndarray, thickness: np.
     """Velocity at height ``zeta`` above the bottom of an entry of local ``thickness``.
 
     ``plug``: uniform ``speed``; ``linear``: ``shear_rate * max(zeta - from_height, 0)``;
-    ``bagnold``: ``surface_speed * (1 - (1 - zeta/H)^(3/2))`` (seed 003, eq. 4.1).
+    ``bagnold``: ``surface_speed * (1 - (1 - zeta/H)^(3/2))`` (Tsang, Dalziel & Vriend 2019, eq. 4.1).
     """
     if velocity is None:
         return np.zeros_like(zeta)

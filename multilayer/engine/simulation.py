@@ -1,6 +1,6 @@
 """The time loop of the multilayer model: transport, then the implicit vertical step.
 
-Each step is a Lie splitting of the multilayer system (DESIGN.md sections 1-3)::
+Each step is a Lie splitting of the multilayer system (docs/model.md)::
 
     (h, h_a u*_a)   <- transport in x with mass exchange and gravity   (transport.py)
     u^{n+1}         <- argmin of the implicit stress energy per column (vertical_step.py)

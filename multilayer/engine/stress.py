@@ -1,13 +1,13 @@
 """Stresses of the vertical step: pressure, yield stresses, conductances, wall thresholds.
 
-Hydrostatic pressure ``p(z) = rho g cos(theta) (h - z)`` (DESIGN.md section 1).  At the
+Hydrostatic pressure ``p(z) = rho g cos(theta) (h - z)`` (docs/model.md).  At the
 interface ``k`` below layer ``k`` (0-based; ``k = 0`` is the bed) the rheology gives the
 yield stress ``kappa_k = kappa(p_k)`` and the viscous conductance
 ``c_k = eta(|gamma_k|, p_k) / h_k`` with ``gamma_k = (u_k - u_{k-1}) / h_k`` and
 ``h_k`` the distance between layer centres (``h_0 / 2`` at a no-slip bed).  The bed
 condition replaces interface 0: Coulomb ``kappa_0 = mu p_bed, c_0 = 0``; free slip
 ``kappa_0 = c_0 = 0``.  Side walls of a channel of width ``W`` hold layer ``a`` with
-``F_a = (2 / W) h_a tau_w(pbar_a)`` (Mangeney 2021 slides; ``mu_w h / W`` summed over
+``F_a = (2 / W) h_a tau_w(pbar_a)`` (Jop, Forterre & Pouliquen 2005; ``mu_w h / W`` summed over
 the layers), ``pbar_a`` the mean pressure over the layer.
 """
 

@@ -1,6 +1,6 @@
 """Transport along the slope: the hyperbolic part of the multilayer system.
 
-Finite volumes in x for (DESIGN.md section 1; Fernandez-Nieto, Garres-Diaz, Mangeney &
+Finite volumes in x for (docs/model.md; Fernandez-Nieto, Garres-Diaz, Mangeney &
 Narbona-Reina 2016)::
 
     d_t h + d_x Q = 0,                  Q = sum_a h_a u_a,   h_a = l_a h

@@ -1,7 +1,7 @@
 """The implicit vertical step: interlayer, basal and wall stresses, exactly.
 
 After transport each column holds velocities ``u*``.  The new velocities minimise the
-strictly convex energy (DESIGN.md section 3; Bouchut, Ionescu & Mangeney 2016, eq. 1.3-1.8)::
+strictly convex energy (docs/model.md; Bouchut, Ionescu & Mangeney 2016, eq. 1.3-1.8)::
 
     sum_a rho h_a (u_a - u*_a)^2 / (2 dt) + sum_k [kappa_k |Delta u_k| + viscous potential]
       + sum_a (2 mu_w / W) h_a pbar_a |u_a| + basal term

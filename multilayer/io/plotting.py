@@ -2,7 +2,7 @@
 
 Every layer is drawn where it is: cell ``(alpha, i)`` spans
 ``z = b_i + h_i * sigma_{alpha -/+ 1/2}`` over the cell ``[x_{i-1/2}, x_{i+1/2}]``, with
-``z`` normal to the inclined plane (DESIGN.md section 1).
+``z`` normal to the inclined plane (docs/model.md).
 """
 
 from __future__ import annotations

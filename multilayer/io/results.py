@@ -1,6 +1,6 @@
 """The result file ``result.nc`` (CF-1.8 netCDF), checkpoints and the run summary.
 
-The file layout is the public contract of DESIGN.md section 6.  It is written
+The file layout is the public contract of docs/results.md.  It is written
 incrementally: the ``time`` dimension is unlimited, every output time is appended as one
 record and the file is synced to disk straight away, so a crash or an interruption
 leaves a readable file holding every output time completed so far.  The classic 64-bit

@@ -1,6 +1,6 @@
 """Scenario files: YAML loading, ``--set`` overrides and strict validation.
 
-The keys are those of DESIGN.md section 4 (documented in docs/scenarios.md).  Every
+The keys are documented in docs/scenarios.md.  Every
 invalid input raises :class:`~multilayer.errors.InputError` with one message per
 problem, ``<file>: <key.path> (line N): <what is wrong>; accepted: <...>``.
 """

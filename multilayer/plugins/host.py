@@ -1,4 +1,4 @@
-"""Rheology plugins: the pluggy host of the ``multilayer`` project (DESIGN.md section 5).
+"""Rheology plugins: the pluggy host of the ``multilayer`` project (docs/plugins.md).
 
 Every distribution (the built-in ``rheologies`` package included) declares an entry
 point in the ``multilayer`` group naming a module that implements the hook

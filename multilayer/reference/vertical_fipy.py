@@ -1,6 +1,6 @@
 """Reference formulation of the implicit vertical step as FiPy terms.
 
-Per column the step minimises (docs/architecture.md, "Vertical step"; DESIGN.md section 3)::
+Per column the step minimises (docs/model.md, "The implicit vertical step")::
 
     E(u) = sum_a [ m_a/(2 dt) (u_a - u*_a)^2 + w_a |u_a| + cw_a/2 u_a^2 ]
          + sum_{k=0}^{L-1} [ kappa_k |u_{k+1} - u_k| + c_k/2 (u_{k+1} - u_k)^2 ],   u_0 = 0.
@@ -235,5 +235,5 @@ def solve(
 @functools.lru_cache(maxsize=8)
 def _uniform_step(n_columns: int, n_layers: int) -> VerticalStep:
     """One equation per mesh size, reused across calls: its coefficients are variables
-    updated with ``setValue``, which the tests check against fresh equations (#1223)."""
+    updated with ``setValue``, which the tests check against fresh equations (FiPy issue #1223)."""
     return VerticalStep(column_mesh(n_columns, n_layers=n_layers))

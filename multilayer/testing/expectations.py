@@ -1,6 +1,6 @@
 """Regression expectations: a scenario's ``expect:`` list checked against its run summary.
 
-Each entry ``{quantity, value, rtol, atol}`` (DESIGN.md section 4) passes when
+Each entry ``{quantity, value, rtol, atol}`` (docs/scenarios.md) passes when
 
     |obtained - value| <= atol + rtol * |value|          (a missing tolerance counts as 0)
 

@@ -1,4 +1,4 @@
-"""Built-in rheologies of ``multilayer`` (DESIGN.md section 2).
+"""Built-in rheologies of ``multilayer`` (docs/model.md, "Rheologies").
 
 They are registered through the same entry point and hook as third-party plugins
 (``[project.entry-points.multilayer] builtins = "multilayer.plugins.builtins"``).

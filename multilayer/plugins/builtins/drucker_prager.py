@@ -1,4 +1,4 @@
-"""Drucker–Prager yield stress with a constant kinematic viscosity (DESIGN.md section 2).
+"""Drucker–Prager yield stress with a constant kinematic viscosity (docs/model.md, "Rheologies").
 
     kappa(p) = mu_s max(p, 0),      eta = rho nu
 

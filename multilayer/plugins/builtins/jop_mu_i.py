@@ -1,4 +1,4 @@
-"""Jop, Forterre & Pouliquen (2006) mu(I) rheology (DESIGN.md section 2).
+"""Jop, Forterre & Pouliquen (2006) mu(I) rheology (docs/model.md, "Rheologies").
 
     mu(I) = mu_s + (mu_2 - mu_s) I / (I_0 + I),    I = d |gamma| / sqrt(p / rho_p)
 

@@ -1,4 +1,4 @@
-"""Power-law mu(I) rheology (Gray & Edwards-type fit; seed 003, eq. 4.10).
+"""Power-law mu(I) rheology (Gray & Edwards-type fit; Tsang, Dalziel & Vriend 2019, eq. 4.10).
 
     mu(I) = mu_s + m I^alpha,    I = d |gamma| / sqrt(p / rho_p)
 

@@ -1,4 +1,4 @@
-"""Coulomb friction on the side walls of a channel (DESIGN.md sections 1-2).
+"""Coulomb friction on the side walls of a channel (Jop, Forterre & Pouliquen 2005; docs/model.md).
 
     kappa(p) = mu_w max(p, 0),    eta = 0
 
