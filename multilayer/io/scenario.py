@@ -577,15 +577,19 @@ def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> tuple[dic
 
     List entries are addressed by index (``initial.0.thickness``); missing mappings
     along the path are created, so keys unknown to the schema surface in validation.
+    ``"dotted.key+=value"`` appends ``value`` to the list at ``dotted.key`` (created if
+    missing): ``initial+={shape: layer, thickness: 0.002}``.
     """
     data = copy.deepcopy(data)
     paths: list[KeyPath] = []
     for item in overrides:
         key, sep, text = item.partition("=")
+        append = key.endswith("+")
+        key = key.removesuffix("+")
         if not sep or not key:
             raise InputError(
-                f"--set {item!r}: expected KEY=VALUE; accepted: a dotted key path "
-                "and a YAML value, e.g. domain.cells=200"
+                f"--set {item!r}: expected KEY=VALUE or KEY+=VALUE; accepted: a dotted key path "
+                "and a YAML value, e.g. domain.cells=200 or initial+={shape: layer, thickness: 0.002}"
             )
         try:
             value = yaml.load(text, Loader=Loader)
@@ -611,12 +615,21 @@ def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> tuple[dic
                     f"accepted: a key path ending at {_dotted(path)}"
                 )
             path = (*path, part)
-            if depth == len(parts) - 1:
-                node[part] = value
-            else:
+            if depth < len(parts) - 1:
                 if isinstance(node, dict) and node.get(part) is None:
                     node[part] = {}
                 node = node[part]
+            elif not append:
+                node[part] = value
+            else:
+                target = node[part] if isinstance(node, list) else node.setdefault(part, [])
+                if not isinstance(target, list):
+                    raise InputError(
+                        f"--set {key}+=...: {_dotted(path)} is not a list; "
+                        f"accepted: += on a list key (initial, base, expect), = elsewhere"
+                    )
+                target.append(value)
+                path = (*path, len(target) - 1)
         paths.append(path)
     return data, paths
 
