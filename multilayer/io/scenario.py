@@ -23,6 +23,7 @@ from pydantic import (
     PrivateAttr,
     Strict,
     ValidationError,
+    ValidationInfo,
     field_validator,
     model_serializer,
     model_validator,
@@ -30,6 +31,7 @@ from pydantic import (
 from pydantic_core import PydanticCustomError
 
 from multilayer.errors import InputError
+from multilayer.io import profiles
 from multilayer.plugins import host as plugins
 from multilayer.plugins.contract import Material, Rheology
 
@@ -297,20 +299,100 @@ class BaseZone(_Model):
         return self
 
 
-class Bed(_Model):
-    """Bed elevation b(x) on the inclined plane: flat, or piecewise linear through points."""
+def _file_in(info: ValidationInfo, name: Path) -> Path:
+    """``name`` relative to the scenario file's directory (the working directory without one)."""
+    directory = (info.context or {}).get("directory") or Path.cwd()
+    return Path(directory) / name
 
-    profile: Literal["flat", "points"] | None = _field(None, "flat, or points (with points)")
+
+def _read_profile(read: typing.Callable[[], np.ndarray], key: str) -> list[list[float]]:
+    """Points of a profile file; a bad file is a validation error of ``key``."""
+    try:
+        return read().tolist()
+    except InputError as exc:
+        message, _, accepted = str(exc).partition("; accepted: ")
+        raise _invalid(message, accepted, key) from None
+
+
+class Bed(_Model):
+    """Bed elevation b(x) on the inclined plane: flat, piecewise linear through points, or
+    read from a CSV file or a GeoTIFF DEM (turned into ``points`` on loading)."""
+
+    profile: Literal["flat", "points", "file", "dem"] | None = _field(
+        None, "flat, points (with points), file (with file) or dem (with dem and polyline)"
+    )
     points: list[Point] | None = _field(None, "a list [[x, b], ...] with increasing x (m)")
+    file: Annotated[Path, Strict(False)] | None = _field(
+        None, "a CSV file with a header 'x (m), z (m)' (units m, cm, mm or km), relative to the scenario"
+    )
+    frame: Literal["slope", "map"] | None = _field(
+        None, "slope (x along the plane, z normal to it; default) or map (horizontal distance, elevation)"
+    )
+    dem: Annotated[Path, Strict(False)] | None = _field(
+        None, "a GeoTIFF DEM, relative to the scenario (needs pip install 'multilayer[dem]')"
+    )
+    polyline: list[Point] | None = _field(
+        None, "a list of at least 2 map points [[X, Y], ...] in the DEM's coordinates (m)"
+    )
+    spacing: float | None = _field(None, "a number > 0 (m); default: the DEM's pixel size", gt=0)
+
+    _map_points: np.ndarray | None = PrivateAttr(None)
+    """A map-frame profile [[s, Z], ...], turned into ``points`` with the scenario's slope."""
 
     @model_validator(mode="after")
-    def _check(self) -> Bed:
+    def _check(self, info: ValidationInfo) -> Bed:
         if self.profile is None:
-            self.profile = "flat" if self.points is None else "points"
-        _check_kind(self, "profile", {"flat": ((), ()), "points": (("points",), ())})
+            given = [k for k in ("dem", "file", "points") if getattr(self, k) is not None]
+            self.profile = given[0] if given else "flat"
+        _check_kind(
+            self,
+            "profile",
+            {
+                "flat": ((), ()),
+                "points": (("points",), ()),
+                "file": (("file",), ("frame",)),
+                "dem": (("dem", "polyline"), ("spacing",)),
+            },
+        )
+        if self.profile == "file":
+            path = _file_in(info, self.file)
+            points = _read_profile(lambda: profiles.read_csv_profile(path, ("x", "z|b")), "file")
+            if self.frame == "map":
+                self._map_points = np.asarray(points)
+            else:
+                self.points = points
+        elif self.profile == "dem":
+            if len(self.polyline) < 2:
+                raise _invalid(
+                    "needs at least 2 points", "a list [[X, Y], ...] of 2 or more points", "polyline"
+                )
+            path = _file_in(info, self.dem)
+            self._map_points = np.asarray(
+                _read_profile(lambda: profiles.read_dem_profile(path, self.polyline, self.spacing), "dem")
+            )
         if self.points is not None:
             _increasing(self.points, "points", "b")
         return self
+
+    def in_slope_frame(self, slope_deg: float) -> None:
+        """Turn a map-frame profile (``frame: map`` or a DEM) into slope-frame ``points``."""
+        if self._map_points is not None:
+            where = str(self.dem or self.file)
+            key = "dem" if self.dem else "file"
+            try:
+                self.points = profiles.map_to_slope_frame(self._map_points, slope_deg, where).tolist()
+            except InputError as exc:
+                message, _, accepted = str(exc).partition("; accepted: ")
+                raise _invalid(message, accepted, f"bed.{key}") from None
+            self._map_points = None
+
+    @model_serializer(mode="wrap")
+    def _as_points(self, handler: typing.Callable[[Bed], dict[str, Any]]) -> dict[str, Any]:
+        """A bed read from a file is recorded as its points, so the record stands alone."""
+        data = handler(self)
+        if self.profile in ("file", "dem"):
+            return {"profile": "points", "points": data["points"]}
+        return data
 
 
 class Velocity(_Model):
@@ -347,17 +429,25 @@ class InitialShape(_Model):
     x_max: float | None = _field(None, "a number > x_min (m)")
     height: float | None = _field(None, "a number > 0 (m)", gt=0)
     points: list[Point] | None = _field(None, "a list [[x, h], ...] with increasing x, h >= 0 (m)")
+    file: Annotated[Path, Strict(False)] | None = _field(
+        None, "a CSV file with a header 'x (m), h (m)' (units m, cm, mm or km), relative to the scenario"
+    )
     velocity: Velocity | None = _field(None, "a velocity profile; default: at rest")
 
     @model_validator(mode="after")
-    def _check(self) -> InitialShape:
+    def _check(self, info: ValidationInfo) -> InitialShape:
+        if self.shape == "profile" and self.file is not None:
+            if self.points is not None:
+                raise _invalid("give points or file, not both", "points or file", "file")
+            path = _file_in(info, self.file)
+            self.points = _read_profile(lambda: profiles.read_csv_profile(path, ("x", "h")), "file")
         _check_kind(
             self,
             "shape",
             {
                 "layer": (("thickness",), ("velocity",)),
                 "rectangle": (("x_min", "x_max", "height"), ("velocity",)),
-                "profile": (("points",), ("velocity",)),
+                "profile": (("points",), ("velocity", "file")),
             },
         )
         if self.shape == "rectangle":
@@ -365,8 +455,16 @@ class InitialShape(_Model):
         if self.shape == "profile":
             _increasing(self.points, "points", "h")
             if any(h < 0 for _, h in self.points):
-                raise _invalid("negative thickness", "a list [[x, h], ...] with h >= 0", "points")
+                key = "file" if self.file is not None else "points"
+                raise _invalid("negative thickness", "a list [[x, h], ...] with h >= 0", key)
         return self
+
+    @model_serializer(mode="wrap")
+    def _as_points(self, handler: typing.Callable[[InitialShape], dict[str, Any]]) -> dict[str, Any]:
+        """A profile read from a file is recorded as its points, so the record stands alone."""
+        data = handler(self)
+        data.pop("file", None)
+        return data
 
 
 class Inflow(_Model):
@@ -485,6 +583,7 @@ class Scenario(_Model):
 
     @model_validator(mode="after")
     def _check(self) -> Scenario:
+        self.bed.in_slope_frame(self.slope_deg)
         if self.walls is not None and self.domain.width is None:
             raise _invalid(
                 "walls need the channel width domain.width",
@@ -651,7 +750,8 @@ def from_dict(
     data, set_paths = apply_overrides(data, overrides)
     lines = lines or {}
     try:
-        scenario = Scenario.model_validate(data)
+        directory = Path(source).parent if source is not None else None
+        scenario = Scenario.model_validate(data, context={"directory": directory})
     except ValidationError as exc:
         messages = []
         for error in exc.errors():
