@@ -27,8 +27,6 @@ from multilayer.errors import InputError
 from multilayer.io.results import open_result
 
 PLOTS_DIR = "plots"
-FORMATS = ("png", "pdf", "svg")
-"""File formats of the figures (Matplotlib writes each without extra software)."""
 _VELOCITY = colormaps["viridis"].with_extremes(bad="0.82")
 """Colour map of u; masked cells (static material, u == 0 exactly) are grey."""
 _REPRESENTATIVE = 3

@@ -13,12 +13,12 @@ from pathlib import Path
 from multilayer.app.commands import positive_int
 
 HELP = "draw figures (and an animation) of DIR/result.nc into DIR/plots/"
+FORMATS = ("png", "pdf", "svg")
+"""File formats of the figures (Matplotlib writes each without extra software)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``multilayer plot``."""
-    from multilayer.io.plotting import FORMATS
-
     parser.add_argument("directory", metavar="DIR", type=Path, help="output directory of 'multilayer run'")
     parser.add_argument(
         "--times",
