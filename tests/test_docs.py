@@ -91,7 +91,9 @@ def parse_page(page: Path) -> tuple[list[Block], list[str]]:
         line = lines[i]
         if line.lstrip().startswith("```"):
             language = line.lstrip()[3:].strip()
-            end = next((j for j in range(i + 1, len(lines)) if lines[j].lstrip().startswith("```")), len(lines))
+            end = next(
+                (j for j in range(i + 1, len(lines)) if lines[j].lstrip().startswith("```")), len(lines)
+            )
             directives: dict[str, str] = {}
             marker = _MARKER.match(lines[i - 1].strip()) if i else None
             for item in marker[1].split(";") if marker else ():
@@ -152,7 +154,12 @@ def check_yaml(block: Block, cwd: Path) -> None:
     if "base" in data:  # a sweep file
         path = cwd / "scenarios" / "sweeps" / "docs_example.yaml"
         path.write_text(block.text)
-        _run([sys.executable, "-c", f"from multilayer.app import sweep; sweep.load({str(path)!r})"], cwd, block, 0)
+        _run(
+            [sys.executable, "-c", f"from multilayer.app import sweep; sweep.load({str(path)!r})"],
+            cwd,
+            block,
+            0,
+        )
         return
     scenario = data if "name" in data else {**TINY, **data}
     path = cwd / "docs_block.yaml"
