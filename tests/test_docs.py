@@ -214,10 +214,11 @@ def test_blocks_equal_the_shipped_files(page: Path) -> None:
             shipped = (ROOT / block.directives["file"]).read_text(encoding="utf-8")
             assert block.text == shipped, f"{block.where} differs from {block.directives['file']}"
         if "excerpt" in block.directives:
-            shipped = yaml.load((ROOT / block.directives["excerpt"]).read_text(), Loader=Loader)
+            source = block.directives["excerpt"]
+            shipped = yaml.load((ROOT / source).read_text(), Loader=Loader)
             for key, value in yaml.load(block.text, Loader=Loader).items():
                 assert shipped.get(key) == value, (
-                    f"{block.where}: {key} is {value!r} here, {shipped.get(key)!r} in {block.directives['excerpt']}"
+                    f"{block.where}: {key} is {value!r}, {shipped.get(key)!r} in {source}"
                 )
 
 
