@@ -73,6 +73,15 @@ def test_stepping_by_hand_to_the_output_times_gives_the_run():
     np.testing.assert_array_equal(sim.u, ds["u"].values[-1])
 
 
+def test_the_python_example_of_the_readme_runs(monkeypatch: pytest.MonkeyPatch):
+    blocks = re.findall(r"```python\n(.*?)```", (ROOT / "README.md").read_text(), flags=re.S)
+    assert len(blocks) == 1
+    monkeypatch.chdir(ROOT)
+    namespace: dict = {}
+    exec(compile(blocks[0], "README.md", "exec"), namespace)
+    assert namespace["ds"]["time"].values[-1] == 0.2 and namespace["sim"].t == 0.0
+
+
 def test_the_worked_example_of_docs_api_md_runs(monkeypatch: pytest.MonkeyPatch, capsys):
     """The example a notebook user pastes, run as it stands (from the repository root)."""
     import matplotlib
