@@ -36,7 +36,7 @@ from multilayer.app import runner  # noqa: E402
 from multilayer.errors import RunError  # noqa: E402
 from multilayer.io import scenario as scenarios  # noqa: E402
 from multilayer.io.results import RESULT_FILE, open_result  # noqa: E402
-from multilayer.reference import similarity  # noqa: E402
+from multilayer.reference import exact, similarity  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"
@@ -146,6 +146,9 @@ STATIC_LAWS = {
 
 def section_static(jobs: int) -> str:
     h, b0, shear, mu_s = 0.02, 0.005, 70.0, 0.48773
+    exact_for = {
+        t: exact.InviscidSimpleShear(t, mu_s, depth=h, b0=b0, shear=shear, gravity=G) for t in STATIC_THETAS
+    }
     runs = [
         Run(
             f"static_{int(t)}_{law.replace('(I)', 'I')}",
@@ -160,10 +163,10 @@ def section_static(jobs: int) -> str:
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8), sharey=True)
     rows, worst_inviscid = [], 0.0
     for ax, theta in zip(axes, STATIC_THETAS):
-        s = G * math.cos(math.radians(theta)) * (mu_s - math.tan(math.radians(theta)))
-        t_stop = shear * (h - b0) / s
+        reference = exact_for[theta]
+        s, t_stop = reference.deceleration, reference.stop_time
         t = np.linspace(0, 3.0, 601)
-        ax.plot(t, np.minimum(b0 + s * t / shear, h) * 100, "k-", lw=2.5, alpha=0.35, label="exact inviscid")
+        ax.plot(t, reference.interface(t) * 100, "k-", lw=2.5, alpha=0.35, label="exact inviscid")
         for law, style in zip(STATIC_LAWS, ("C0--", "C1-", "C2-.")):
             ds = results[f"static_{int(theta)}_{law.replace('(I)', 'I')}"]
             if isinstance(ds, str):
@@ -177,8 +180,7 @@ def section_static(jobs: int) -> str:
             i_min = int(np.argmin(b))
             row = [f"{theta:g}", law, stop, f"{b[i_min] * 1000:.2f}", f"{tt[i_min]:.2f}"]
             if law == "inviscid":
-                exact = np.minimum(b0 + s * tt / shear, h)
-                err = np.abs(b - exact).max() / dz
+                err = np.abs(b - reference.interface(tt)).max() / dz
                 worst_inviscid = max(worst_inviscid, err)
                 row += [f"{t_stop:.3f}", f"{err:.2f}"]
             else:
@@ -245,16 +247,6 @@ min b in the table){
 DAM_CELLS = (100, 200, 400, 800, 1600)
 
 
-def _coulomb_exact(x: np.ndarray, t: float, theta_deg: float, delta_deg: float, h0: float) -> np.ndarray:
-    """Mangeney, Heinrich & Roche (2000) thickness; delta = None-like 0 + theta 0 is Ritter."""
-    th = math.radians(theta_deg)
-    m = G * (math.sin(th) - math.cos(th) * math.tan(math.radians(delta_deg)))
-    c0 = math.sqrt(G * h0 * math.cos(th))
-    shift = x - m * t * t / 2
-    fan = (2 * c0 - shift / t) ** 2 / (9 * G * math.cos(th))
-    return np.where(shift < -c0 * t, h0, np.where(shift < 2 * c0 * t, fan, 0.0))
-
-
 def section_dambreak(jobs: int) -> str:
     cases = {
         "coulomb": dict(
@@ -288,12 +280,12 @@ def section_dambreak(jobs: int) -> str:
                 continue
             final = ds.isel(time=-1)
             x, h = ds["x"].values, final["h"].values
-            exact = _coulomb_exact(x, c["t"], c["theta"], c["delta"], 0.1)
+            h_exact = exact.coulomb_dam_break(x, c["t"], 0.1, c["theta"], c["delta"], gravity=G)
             window = x > -1.0  # away from the back wall's own rarefaction
             dx = x[1] - x[0]
-            err = np.abs(h - exact)[window].sum() * dx / (exact[window].sum() * dx)
+            err = np.abs(h - h_exact)[window].sum() * dx / (h_exact[window].sum() * dx)
             fine = np.linspace(-1, 2, 300001)
-            ex_fine = _coulomb_exact(fine, c["t"], c["theta"], c["delta"], 0.1)
+            ex_fine = exact.coulomb_dam_break(fine, c["t"], 0.1, c["theta"], c["delta"], gravity=G)
             exact_front = fine[np.flatnonzero(ex_fine > ds["front"].attrs["threshold"])].max()
             errors.append(err)
             cells.append(n)
@@ -310,7 +302,8 @@ def section_dambreak(jobs: int) -> str:
             if n in (400, 1600):
                 ax.plot(x, h * 100, label=f"{n} cells")
         xs = np.linspace(-1.0, 2.0, 3001)
-        ax.plot(xs, _coulomb_exact(xs, c["t"], c["theta"], c["delta"], 0.1) * 100, "k--", label="exact")
+        h_xs = exact.coulomb_dam_break(xs, c["t"], 0.1, c["theta"], c["delta"], gravity=G)
+        ax.plot(xs, h_xs * 100, "k--", label="exact")
         ax.set_title(c["title"], fontsize=9)
         ax.set_xlabel("x (m)")
         ax.set_ylabel("h (cm)")
@@ -362,23 +355,17 @@ def section_bagnold(jobs: int) -> str:
     theta, h = scenario.slope_deg, scenario.initial[0].thickness
     mat = scenario.material
     params = scenario.rheology.params
-    tan = math.tan(math.radians(theta))
-    i_theta = params["I_0"] * (tan - params["mu_s"]) / (params["mu_2"] - tan)
+    i_theta = exact.jop_inertial_number(theta, params["mu_s"], params["mu_2"], params["I_0"])
     ratio = mat.density / mat.particle_density
-    surface = float(similarity.bagnold_profile(np.array(h), h, i_theta, mat.grain_diameter, theta, G, ratio))
-    mean_exact = similarity.bagnold_mean_velocity(h, i_theta, mat.grain_diameter, theta, G, ratio)
+    bagnold = exact.BagnoldFlow(h, i_theta, mat.grain_diameter, theta, G, ratio)
+    surface, mean_exact = bagnold.surface_velocity, bagnold.mean_velocity
     runs = [Run(f"bagnold_{n}", "bagnold_chute", (f"domain.layers={n}",)) for n in BAGNOLD_LAYERS]
     results = execute(runs, jobs)
-
-    def layer_means(edges: np.ndarray) -> np.ndarray:
-        # integral of h^1.5 - (h - z)^1.5 is h^1.5 z + (2/5)(h - z)^2.5
-        prim = h**1.5 * edges + 0.4 * np.clip(h - edges, 0.0, None) ** 2.5
-        return surface * np.diff(prim) / np.diff(edges) / h**1.5
 
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(10, 4))
     z = np.linspace(0, h, 400)
     ax.plot(
-        similarity.bagnold_profile(z, h, i_theta, mat.grain_diameter, theta, G, ratio),
+        bagnold.velocity(z),
         z * 1000,
         "k-",
         lw=2.5,
@@ -395,8 +382,7 @@ def section_bagnold(jobs: int) -> str:
             np.concatenate([[0.0], np.cumsum(ds["sigma_bnds"].values[:, 1] - ds["sigma_bnds"].values[:, 0])])
             * h
         )
-        exact = layer_means(edges)
-        err = np.abs(u - exact).max() / surface
+        err = np.abs(u - bagnold.layer_means(edges)).max() / surface
         mean = float(np.sum(np.diff(edges) * u) / h)
         change = np.abs(ds["u"].values[-1] - ds["u"].values[-2]).max() / surface
         errs.append(err)
