@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from multilayer.errors import InputError
+from multilayer.io.files import read_text
 
 LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "km": 1e3}
 """Units accepted in a CSV header, with their value in metres."""
@@ -36,14 +37,7 @@ def read_csv_profile(path: str | Path, columns: Sequence[str]) -> np.ndarray:
     """
     path = Path(path)
     accepted_header = f"a header '{columns[0].split('|')[0]} (m), {columns[1].split('|')[0]} (m)'"
-    try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except FileNotFoundError:
-        raise InputError(f"{path}: file not found; accepted: a CSV file with {accepted_header}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(
-            f"{path}: cannot read the file ({exc}); accepted: a readable UTF-8 CSV file"
-        ) from None
+    lines = read_text(path, f"a CSV file with {accepted_header}", "a readable UTF-8 CSV file").splitlines()
     rows = [
         (n, line) for n, line in enumerate(lines, 1) if line.strip() and not line.lstrip().startswith("#")
     ]

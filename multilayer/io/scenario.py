@@ -32,6 +32,7 @@ from pydantic_core import PydanticCustomError
 
 from multilayer.errors import InputError
 from multilayer.io import profiles
+from multilayer.io.files import read_text
 from multilayer.plugins import host as plugins
 from multilayer.plugins.contract import Material, Rheology
 
@@ -772,14 +773,7 @@ def read_yaml(path: str | Path, kind: str = "scenario") -> tuple[Any, dict[KeyPa
     """The parsed YAML of ``path`` and the line of every key path; ``InputError`` if the
     file is missing, unreadable or malformed (``kind`` names the expected file)."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(f"{path}: file not found; accepted: a path to a {kind} YAML file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(
-            f"{path}: cannot read the file ({exc}); accepted: a readable UTF-8 YAML file"
-        ) from None
+    text = read_text(path, f"a path to a {kind} YAML file", "a readable UTF-8 YAML file")
     return _parse_yaml(text, str(path))
 
 
