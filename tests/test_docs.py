@@ -7,7 +7,9 @@ The rules (docs/index.md, "Documentation that is tested"):
   shipped file), ``csv`` and ``toml`` (data, checked when marked), ``text`` (output,
   equations, synopses: not run);
 - the runnable blocks of a page run in page order in a copy of the repository, so a later
-  block can use what an earlier one wrote; every command must exit with code 0;
+  block can use what an earlier one wrote; every command must exit with code 0 (plain
+  ``multilayer ...`` lines and Python blocks run in this process, to save starting
+  Python for each; anything else runs in bash);
 - an HTML comment on the line before a block changes that: ``<!-- docs-test: ... -->``
   with directives separated by ``;``:
 
@@ -28,19 +30,30 @@ The rules (docs/index.md, "Documentation that is tested"):
 
 from __future__ import annotations
 
+import contextlib
+import glob
+import io
 import os
 import re
+import shlex
 import shutil
 import subprocess
 import sys
 import textwrap
+import traceback
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import matplotlib
 import pytest
 import yaml
 
-from multilayer.io.scenario import Loader
+matplotlib.use("Agg")  # the documented Python blocks run in this process
+import matplotlib.pyplot as plt  # noqa: E402
+
+from multilayer.app import cli, sweep  # noqa: E402
+from multilayer.io.scenario import Loader  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
@@ -139,32 +152,74 @@ def _environment() -> dict[str, str]:
     return env
 
 
+def _check(code: int, out: str, err: str, block: Block, expected: int) -> None:
+    if code != expected:
+        pytest.fail(
+            f"{block.where}: exit code {code}, expected {expected}:\n{block.text}\n"
+            f"--- stdout\n{out[-3000:]}\n--- stderr\n{err[-3000:]}"
+        )
+
+
 def _run(command: list[str], cwd: Path, block: Block, expected: int) -> None:
     done = subprocess.run(command, cwd=cwd, env=_environment(), capture_output=True, text=True)
-    if done.returncode != expected:
-        pytest.fail(
-            f"{block.where}: exit code {done.returncode}, expected {expected}:\n{block.text}\n"
-            f"--- stdout\n{done.stdout[-3000:]}\n--- stderr\n{done.stderr[-3000:]}"
-        )
+    _check(done.returncode, done.stdout, done.stderr, block, expected)
+
+
+def _in_process(cwd: Path, block: Block, expected: int, call: Callable[[], int | None]) -> None:
+    """``call()`` in ``cwd`` with its output captured: the exit code it returns or raises
+    (an exception is exit code 1, as an uncaught one is for a script)."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.chdir(cwd), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = call() or 0
+        except SystemExit as exc:
+            code = exc.code if isinstance(exc.code, int) else int(exc.code is not None)
+        except Exception:
+            traceback.print_exc()
+            code = 1
+    plt.close("all")
+    _check(code, out.getvalue(), err.getvalue(), block, expected)
+
+
+def _multilayer_argv(line: str, cwd: Path) -> list[str] | None:
+    """The arguments of a plain ``multilayer ...`` command line (globs expanded as bash
+    does), or None when the line needs a shell (pipes, redirections, variables, ...)."""
+    lexer = shlex.shlex(line, posix=True, punctuation_chars=True)
+    lexer.whitespace_split, lexer.commenters = True, "#"
+    words = list(lexer)
+    if not words or words[0] != "multilayer" or "$" in line or any(set(w) <= set("();<>|&") for w in words):
+        return None
+    argv = []
+    for word in words[1:]:
+        matches = sorted(glob.glob(word, root_dir=cwd)) if any(c in word for c in "*?[") else []
+        argv.extend(matches or [word])
+    return argv
+
+
+def run_sh(block: Block, cwd: Path, expected: int) -> None:
+    """Plain ``multilayer`` command lines run in this process (the console script calls
+    the same ``main``, and this saves starting Python for each); the rest runs in bash."""
+    lines = [line for line in block.text.replace("\\\n", " ").splitlines() if line.strip()]
+    argvs = [_multilayer_argv(line, cwd) for line in lines if not line.lstrip().startswith("#")]
+    if None in argvs or (expected and len(argvs) != 1):
+        _run(["bash", "-e", "-o", "pipefail", "-c", block.text], cwd, block, expected)
+        return
+    for argv in argvs:
+        _in_process(cwd, block, expected, lambda argv=argv: cli.main(argv))
 
 
 def check_yaml(block: Block, cwd: Path) -> None:
-    """A scenario is validated, a fragment is validated inside :data:`TINY`."""
+    """A sweep file is loaded, a scenario validated, a fragment validated inside :data:`TINY`."""
     data = yaml.load(block.text, Loader=Loader)
-    if "base" in data:  # a sweep file
+    expected = int(block.directives.get("exit") or 0)
+    if "base" in data:
         path = cwd / "scenarios" / "sweeps" / "docs_example.yaml"
         path.write_text(block.text)
-        _run(
-            [sys.executable, "-c", f"from multilayer.app import sweep; sweep.load({str(path)!r})"],
-            cwd,
-            block,
-            0,
-        )
+        _in_process(cwd, block, expected, lambda: sweep.load(path) and 0)
         return
-    scenario = data if "name" in data else {**TINY, **data}
     path = cwd / "docs_block.yaml"
-    path.write_text(yaml.safe_dump(scenario, sort_keys=False))
-    _run(["multilayer", "validate", str(path)], cwd, block, int(block.directives.get("exit") or 0))
+    path.write_text(yaml.safe_dump(data if "name" in data else {**TINY, **data}, sort_keys=False))
+    _in_process(cwd, block, expected, lambda: cli.main(["validate", str(path)]))
 
 
 def run_block(block: Block, cwd: Path) -> None:
@@ -175,17 +230,20 @@ def run_block(block: Block, cwd: Path) -> None:
         target.parent.mkdir(parents=True, exist_ok=True)
         target.write_text(block.text)
     elif block.language == "sh":
-        _run(["bash", "-e", "-o", "pipefail", "-c", block.text], cwd, block, expected)
+        run_sh(block, cwd, expected)
     elif block.language == "python":
-        script = cwd / "docs_block.py"
-        script.write_text(block.text)
-        _run([sys.executable, str(script)], cwd, block, expected)
+        code = compile(block.text, block.where, "exec")
+        _in_process(cwd, block, expected, lambda: exec(code, {"__name__": "__docs__"}))
     elif block.language == "yaml" and "excerpt" not in block.directives:
         check_yaml(block, cwd)
 
 
+def _runs(block: Block) -> bool:
+    return "skip" not in block.directives and (block.language in RUNNABLE or "save" in block.directives)
+
+
 def _pages_with(level: str) -> list[Path]:
-    return [page for page in PAGES if any(b.level == level for b in parse_page(page)[0])]
+    return [page for page in PAGES if any(b.level == level and _runs(b) for b in parse_page(page)[0])]
 
 
 def _run_page(page: Path, level: str, tmp_path: Path) -> None:
@@ -194,9 +252,7 @@ def _run_page(page: Path, level: str, tmp_path: Path) -> None:
     cwd = _copy_of_repository(tmp_path)
     allowed = LEVELS[: LEVELS.index(level) + 1]
     for block in parse_page(page)[0]:
-        if "skip" in block.directives or block.level not in allowed:
-            continue
-        if block.language in RUNNABLE or "save" in block.directives:
+        if _runs(block) and block.level in allowed:
             run_block(block, cwd)
 
 
