@@ -206,7 +206,7 @@ which the model resolves to one layer (h/L = {1000 * h / any_ds.sizes["layer"]:.
 Reference: the exact inviscid solution (Bouchut, Ionescu & Mangeney 2016, Prop. 2.2)
 U = max(U0(z) - S t, 0) with S = g cos(theta)(mu_s - tan(theta)), i.e.
 b(t) = b0 + S t / 70 until the stop at t = 70 (h - b0) / S; and the qualitative
-behaviour with viscosity (Bouchut lecture slides): b first drops (erosion), then rises.
+behaviour with viscosity (the viscous stress reaches below b0): b first drops (erosion), then rises.
 
 {figure}
 
@@ -325,8 +325,8 @@ Scenario `coulomb_dam_break.yaml` (one layer, h0 = 0.1 m behind x0 = 0, theta = 
 Coulomb basal friction tan 20 deg) at {", ".join(map(str, DAM_CELLS))} cells over 4 m,
 and the same with no friction on a horizontal plane
 (`--set slope_deg=0 --set 'base=[{{condition: free_slip}}]'`, t = 0.4 s).
-References: Mangeney, Heinrich & Roche (2000) and Ritter's solution (DESIGN.md
-section 7).  The error is the L1 norm of h - h_exact over x > -1 m (away from the
+References: Mangeney, Heinrich & Roche (2000) and Ritter's solution (Ritter
+1892).  The error is the L1 norm of h - h_exact over x > -1 m (away from the
 rarefaction that leaves the back wall at x = -2 m) relative to the L1 norm of h_exact.
 "Exact front" is where the exact h equals the front threshold (1 mm), the quantity the
 numerical front measures.
@@ -409,7 +409,7 @@ def section_bagnold(jobs: int) -> str:
     figure = _figure(fig, "bagnold")
     text = f"""## Bagnold profile (steady uniform mu(I) chute flow)
 
-Scenario `bagnold_chute.yaml`: a 1 cm layer of the seed-002 glass beads (Jop mu(I),
+Scenario `bagnold_chute.yaml`: a 1 cm layer of the erodible-bed experiments' glass beads (Jop mu(I),
 mu_s = tan 25.5 deg, mu_2 = tan 36 deg, I_0 = 0.279, rho/rho_p = {ratio:.2f}) released from
 rest on a 28 deg no-slip chute, periodic in x, run to t = 4 s; {", ".join(map(str, BAGNOLD_LAYERS))}
 uniform layers (`--set domain.layers=N`).  Reference: Bagnold profile (Tsang et al. 2019,
@@ -737,14 +737,14 @@ def section_collapse(jobs: int) -> str:
     )
     text = f"""## Column collapse on a horizontal rough bed
 
-Scenario `column_collapse.yaml` (L0 = 5 cm, glass beads of seed 002 with Jop mu(I), no-slip
+Scenario `column_collapse.yaml` (L0 = 5 cm, the experiments' glass beads with Jop mu(I), no-slip
 base, no side walls) with H0 = a L0 for a = {", ".join(f"{a:g}" for a in COLLAPSE_RATIOS)}
 (`--set initial.0.height=...` with `{" ".join("--set " + o for o in COLLAPSE_DOMAIN)}`: a 2 m
 domain of 4 mm cells, up to t = 2 s).
 Resolution: {_resolution(any_ds) if any_ds is not None else "n/a"} (one of the runs).
 The run-out L_f is the final front (h > 1 mm, taken at the cell edge).  Reference: the
 2D experimental laws (L_f - L0)/L0 ~ 1.2 a for a < 2.3 and ~ 1.9 a^(2/3) beyond
-(Lajeunesse et al. 2005; coefficients second-hand, DESIGN.md section 7).
+(Lajeunesse et al. 2005; coefficients quoted second-hand, not checked against the paper).
 
 {figure}
 
@@ -855,7 +855,7 @@ erodible-bed thickness {", ".join(f"{b * 1000:g}" for b in EROSION_BEDS)} mm
 (`--set initial.0.thickness=...`, no bed entry for 0 mm; `{" ".join("--set " + o for o in EROSION_RUN)}`),
 with Jop mu(I)
 (the file) and with a constant friction coefficient, Drucker-Prager mu_s = tan 25.5 deg
-plus the constant viscosity eta = 1 Pa s of seed 002 (nu = 6.45e-4 m^2/s).
+plus a constant viscosity eta = 1 Pa s (nu = 6.45e-4 m^2/s).
 Resolution: {_resolution(any_ds) if any_ds is not None else "n/a"} (one of the runs): the
 file's resolution, coarser than the published computations.  Run-out: final minus initial
 front, the front being the downslope-most x where h exceeds the bed thickness + 1 mm;

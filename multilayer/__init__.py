@@ -22,8 +22,6 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-__version__ = "0.1.0"
-
 _EXPORTS = {
     "load": "multilayer.app.api",
     "run": "multilayer.app.api",
@@ -43,7 +41,13 @@ if TYPE_CHECKING:
 
 
 def __getattr__(name: str) -> Any:
-    """Import a public name on first use (PEP 562)."""
+    """Import a public name on first use (PEP 562); ``__version__`` is the installed
+    version, set from git by setuptools-scm (:mod:`multilayer.provenance`)."""
+    if name == "__version__":
+        from multilayer.provenance import installed_version
+
+        globals()[name] = installed_version()
+        return globals()[name]
     if name not in _EXPORTS:
         raise AttributeError(f"module 'multilayer' has no attribute {name!r}")
     value = getattr(importlib.import_module(_EXPORTS[name]), name)
