@@ -9,6 +9,7 @@ import pytest
 import yaml
 
 from multilayer.engine.initial_state import bed_profile, initial_state
+from multilayer.errors import InputError
 from multilayer.io.scenario import from_dict, load
 
 X = np.linspace(0.005, 0.295, 30)  # cell centres of the tiny domain below
@@ -66,6 +67,12 @@ def test_map_frame_profile_is_rotated_onto_the_plane(tmp_path, write_scenario, t
     x, b = np.asarray(sc.bed.points).T
     np.testing.assert_allclose(x, s * math.cos(math.radians(5)) / math.cos(math.radians(30)), rtol=1e-12)
     np.testing.assert_allclose(b, -math.tan(math.radians(5)) * x, atol=1e-15)
+    # a wall rising at more than 90 - 25 deg towards the flow folds the slope frame: refused
+    (tmp_path / "terrain.csv").write_text("x (m), z (m)\n0, 0\n1, 0\n1.1, 1\n")
+    with pytest.raises(
+        InputError, match=r"bed.file \(line \d+\): terrain.csv: at 1.1 m along the profile the terrain rises"
+    ):
+        load(tmp_path / "scenario.yaml")
 
 
 def _write_geotiff(path, elevation: np.ndarray, pixel: float, origin=(1000.0, 5000.0), nodata=None) -> None:

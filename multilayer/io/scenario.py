@@ -307,7 +307,8 @@ def _file_in(info: ValidationInfo, name: Path) -> Path:
 
 
 def _read_profile(read: typing.Callable[[], np.ndarray], key: str) -> list[list[float]]:
-    """Points of a profile file; a bad file is a validation error of ``key``."""
+    """Points of a profile read from a file: an :class:`InputError` (a bad file) becomes a
+    validation error of ``key``, reported with the scenario file and line."""
     try:
         return read().tolist()
     except InputError as exc:
@@ -378,13 +379,11 @@ class Bed(_Model):
     def in_slope_frame(self, slope_deg: float) -> None:
         """Turn a map-frame profile (``frame: map`` or a DEM) into slope-frame ``points``."""
         if self._map_points is not None:
-            where = str(self.dem or self.file)
-            key = "dem" if self.dem else "file"
-            try:
-                self.points = profiles.map_to_slope_frame(self._map_points, slope_deg, where).tolist()
-            except InputError as exc:
-                message, _, accepted = str(exc).partition("; accepted: ")
-                raise _invalid(message, accepted, f"bed.{key}") from None
+            source = self.dem or self.file
+            self.points = _read_profile(
+                lambda: profiles.map_to_slope_frame(self._map_points, slope_deg, str(source)),
+                f"bed.{'dem' if self.dem else 'file'}",
+            )
             self._map_points = None
 
     @model_serializer(mode="wrap")
