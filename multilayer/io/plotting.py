@@ -27,7 +27,8 @@ from multilayer.errors import InputError
 from multilayer.io.results import open_result
 
 PLOTS_DIR = "plots"
-_VELOCITY = colormaps["viridis"].with_extremes(bad="0.82")
+_AT_REST = "0.82"
+_VELOCITY = colormaps["viridis"].with_extremes(bad=_AT_REST)
 """Colour map of u; masked cells (static material, u == 0 exactly) are grey."""
 _REPRESENTATIVE = 3
 """Number of columns drawn in the profile figures when no ``--at`` is given."""
@@ -198,7 +199,7 @@ def section_figure(ds: xr.Dataset, name: str, times: int = 4) -> Figure:
         snap = ds.isel(time=k)
         ax.set_title(f"t = {float(snap['time']):.3g} s: {_moving_note(snap)}", fontsize="medium")
     handles, _ = axes[0].get_legend_handles_labels()
-    handles.append(Patch(color=_VELOCITY.get_bad(), label="at rest (u = 0)"))
+    handles.append(Patch(color=_AT_REST, label="at rest (u = 0)"))
     fig.legend(handles=handles, loc="outside lower center", ncols=4, fontsize="small")
     axes[-1].set_xlabel("x along the plane (m)")
     fig.colorbar(mesh, ax=list(axes), label="downslope velocity u (m/s)", shrink=0.9)
