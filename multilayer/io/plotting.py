@@ -239,6 +239,7 @@ def animate_section(ds: xr.Dataset, name: str, stem: Path, fps: int = 10) -> Pat
     fig.set_layout_engine("none")  # the layout of the first frame holds for all
 
     movie = animation.FuncAnimation(fig, frame, frames=ds.sizes["time"], repeat=False)
+    writer: animation.AbstractMovieWriter
     if animation.writers.is_available("ffmpeg"):
         path, writer = stem.with_suffix(".mp4"), animation.FFMpegWriter(fps=fps)
     else:

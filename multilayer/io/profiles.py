@@ -57,7 +57,7 @@ def read_csv_profile(path: str | Path, columns: Sequence[str]) -> np.ndarray:
             f"{' and '.join(columns)} with their units; accepted: {accepted_header} "
             f"(units {', '.join(LENGTH_UNITS)})"
         )
-    points = []
+    points: list[tuple[float, float]] = []
     for line_no, line in rows[1:]:
         fields = line.split(",")
         try:
@@ -113,13 +113,13 @@ def read_dem_profile(
         for k in range(1, count + 1):
             xy.append(start + (end - start) * k / count)
             s.append(s[-1] + length / count)
-    xy = np.asarray(xy)
-    col = to_pixel.a * xy[:, 0] + to_pixel.b * xy[:, 1] + to_pixel.c
-    row = to_pixel.d * xy[:, 0] + to_pixel.e * xy[:, 1] + to_pixel.f
+    samples = np.asarray(xy)
+    col = to_pixel.a * samples[:, 0] + to_pixel.b * samples[:, 1] + to_pixel.c
+    row = to_pixel.d * samples[:, 0] + to_pixel.e * samples[:, 1] + to_pixel.f
     z = _bilinear(band, row - 0.5, col - 0.5)
     bad = np.flatnonzero(~np.isfinite(z))
     if bad.size:
-        x0, y0 = xy[bad[0]]
+        x0, y0 = samples[bad[0]]
         raise InputError(
             f"{path}: no elevation at ({x0:g}, {y0:g}), {s[bad[0]]:g} m along the polyline "
             "(outside the DEM or a nodata pixel); accepted: a polyline inside the DEM's valid pixels"

@@ -346,8 +346,15 @@ class Bed(_Model):
     @model_validator(mode="after")
     def _check(self, info: ValidationInfo) -> Bed:
         if self.profile is None:
-            given = [k for k in ("dem", "file", "points") if getattr(self, k) is not None]
-            self.profile = given[0] if given else "flat"
+            self.profile = (
+                "dem"
+                if self.dem is not None
+                else "file"
+                if self.file is not None
+                else "points"
+                if self.points is not None
+                else "flat"
+            )
         _check_kind(
             self,
             "profile",
@@ -359,20 +366,22 @@ class Bed(_Model):
             },
         )
         if self.profile == "file":
-            path = _file_in(info, self.file)
+            path = _file_in(info, typing.cast(Path, self.file))
             points = _read_profile(lambda: profiles.read_csv_profile(path, ("x", "z|b")), "file")
             if self.frame == "map":
-                self._map_points = np.asarray(points)
+                self._map_points = np.array(points, dtype=float)
             else:
                 self.points = points
         elif self.profile == "dem":
-            if len(self.polyline) < 2:
+            polyline = typing.cast(list[list[float]], self.polyline)
+            if len(polyline) < 2:
                 raise _invalid(
                     "needs at least 2 points", "a list [[X, Y], ...] of 2 or more points", "polyline"
                 )
-            path = _file_in(info, self.dem)
-            self._map_points = np.asarray(
-                _read_profile(lambda: profiles.read_dem_profile(path, self.polyline, self.spacing), "dem")
+            path = _file_in(info, typing.cast(Path, self.dem))
+            self._map_points = np.array(
+                _read_profile(lambda: profiles.read_dem_profile(path, polyline, self.spacing), "dem"),
+                dtype=float,
             )
         if self.points is not None:
             _increasing(self.points, "points", "b")
@@ -380,10 +389,11 @@ class Bed(_Model):
 
     def in_slope_frame(self, slope_deg: float) -> None:
         """Turn a map-frame profile (``frame: map`` or a DEM) into slope-frame ``points``."""
-        if self._map_points is not None:
+        map_points = self._map_points
+        if map_points is not None:
             source = self.dem or self.file
             self.points = _read_profile(
-                lambda: profiles.map_to_slope_frame(self._map_points, slope_deg, str(source)),
+                lambda: profiles.map_to_slope_frame(map_points, slope_deg, str(source)),
                 f"bed.{'dem' if self.dem else 'file'}",
             )
             self._map_points = None
@@ -726,7 +736,7 @@ def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> tuple[dic
             elif not append:
                 node[part] = value
             else:
-                target = node[part] if isinstance(node, list) else node.setdefault(part, [])
+                target = node[int(part)] if isinstance(node, list) else node.setdefault(part, [])
                 if not isinstance(target, list):
                     raise InputError(
                         f"--set {key}+=...: {_dotted(path)} is not a list; "
