@@ -458,9 +458,46 @@ Verdict: the computed profile converges to Bagnold's; observed orders are in the
 # --------------------------------------------------------------------------- chute
 
 
-CHUTE_RUN = ("domain.cells=440", "time.end=1.2", "time.output_interval=0.1")
-CONTROL = "linear, alpha = 1, horizontal chute (control)"
+CHUTE_TIME = ("time.end=1.2", "time.output_interval=0.1")
+CHUTE_CELLS = (220, 440, 880)  # dx = 5, 2.5, 1.25 mm over the 1.1 m chute
+CHUTE_FINE_LAYERS = ("domain.layers=48", "domain.layer_fractions={geometric: 1.0583}")  # each layer about halved
+LINEAR = ("rheology.alpha=1", "rheology.m=0.2")
+# Jop fit of Tsang et al. (2019), Table 1: (mu_1, mu_2, I_0) = (tan 16.83 deg, tan 54.08 deg, 3.25)
+JOP = ("rheology={name: jop_mu_i, mu_s: 0.30249, mu_2: 1.38043, I_0: 3.25}",)
 CHUTE_LONG = ("domain.x_max=4.0", "domain.cells=410", "time.end=3.0", "time.output_interval=0.25")
+FIXED_WINDOW = (0.01, 0.061)  # m: where the predicted delta* of the alpha = 0.34 layer is below H/10
+
+
+def _level(theta_deg: float) -> tuple[str, ...]:
+    """A horizontal chute with the normal gravity g cos(theta) of the inclined one."""
+    return ("slope_deg=0", f"gravity={G * math.cos(math.radians(theta_deg)):.6f}")
+
+
+def _chute_runs(theta_deg: float) -> dict[tuple[str, str], Run]:
+    """(case, resolution) -> run; resolutions '220', '440', '880' cells and '440x48' layers."""
+    cases = {
+        "alpha034": (),
+        "alpha1": LINEAR,
+        "alpha1_level": (*LINEAR, *_level(theta_deg)),
+        "alpha034_level": _level(theta_deg),
+        "jop": JOP,
+    }
+    studied = {"alpha034": CHUTE_CELLS, "alpha1": CHUTE_CELLS, "alpha1_level": CHUTE_CELLS}
+    runs = {}
+    for case, sets in cases.items():
+        for n in studied.get(case, (440,)):
+            runs[(case, str(n))] = Run(
+                f"chute_{case}_{n}", "smooth_to_rough_chute", (f"domain.cells={n}", *CHUTE_TIME, *sets)
+            )
+        if case == "alpha034_level":
+            continue
+        runs[(case, "440x48")] = Run(
+            f"chute_{case}_440x48",
+            "smooth_to_rough_chute",
+            ("domain.cells=440", *CHUTE_FINE_LAYERS, *CHUTE_TIME, *sets),
+        )
+    runs[("alpha034", "long")] = Run("chute_long", "smooth_to_rough_chute", CHUTE_LONG)
+    return runs
 
 
 def _chute_analysis(

@@ -7,10 +7,11 @@ Each entry ``{kind, quantity, value, rtol, atol, source}`` (docs/scenarios.md) p
 where ``obtained`` is ``multilayer.io.results.summary(result.nc)[quantity]``; a NaN never
 passes.  ``kind`` says what passing means: ``regression``, the value is pinned from the
 code's own output (a change detector); ``reference``, the value is an exact solution or a
-published result named in ``source`` (a validation).  The values hold for the scenario *exactly as written in the file* (resolution
-included): a check runs the file as it is.  The shipped scenarios are therefore kept cheap
-enough for CI, and their full-resolution counterparts are run by ``docs/make_validation.py``
-through ``--set`` overrides (docs/validation.md, "Regression checks").
+published result named in ``source`` (a validation).  The values hold for the scenario
+*exactly as written in the file* (resolution included): a check runs the file as it is.
+The shipped scenarios are therefore kept cheap enough for CI, and their full-resolution
+counterparts are run by ``docs/make_validation.py`` through ``--set`` overrides
+(docs/validation.md, "Expectations of the scenario files").
 """
 
 from __future__ import annotations
