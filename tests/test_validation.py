@@ -124,6 +124,30 @@ def test_shape_factor_excess_grows_like_x_to_the_one_over_one_plus_alpha(changes
     assert slope * (1 + c["alpha"]) == pytest.approx(1.0, abs=THEORY_ACCURACY)
 
 
+def test_jop_law_at_its_alpha_minus_one_asymptote_forms_no_wall_layer():
+    """Tsang et al. (2019), sec. 4.5: for I >> I_0 the Jop law is mu_2 - (mu_2 - mu_1) I_0 / I
+    (alpha = -1) and admits no self-similar boundary layer.  With I_0 = 0.01 the bottom
+    layer stays above 10 I_0 over the window; no wall layer forms: the bottom layer keeps
+    more than half the outer speed and the deficit is spread over the depth.  The
+    similarity layers of the power laws give at most 0.1 for both measures
+    (docs/validation.md), a wall-free deficit spread linearly over the depth gives 1: the
+    thresholds 0.5 and 0.25 lie between."""
+    sim = run(
+        "smooth_to_rough_chute",
+        *CHUTE,
+        "rheology={name: jop_mu_i, mu_s: 0.30249, mu_2: 1.38043, I_0: 0.01}",
+    )
+    i = int(np.argmin(np.abs(sim.x - FIXED_WINDOW[1])))
+    u, h, frac = sim.u[:, i], sim.h[i], sim.fractions
+    d, g_n = sim.scenario.material.grain_diameter, 9.81 * math.cos(math.radians(16.0))
+    wall_inertial = d * u[0] / (0.5 * frac[0] * h) / math.sqrt(g_n * h)
+    disp = similarity.displacement_thickness(u, frac * h)
+    mid_deficit = np.interp(0.5, np.cumsum(frac) - frac / 2, 1 - u / u[-1]) * h / disp
+    assert wall_inertial > 10 * 0.01
+    assert u[0] / u[-1] > 0.5
+    assert mid_deficit > 0.25
+
+
 def test_bagnold_profile_converges_with_the_layers():
     """Layer velocities against Bagnold's profile averaged over each layer: second order."""
     errors = []
