@@ -186,7 +186,10 @@ def _multilayer_argv(line: str, cwd: Path) -> list[str] | None:
     does), or None when the line needs a shell (pipes, redirections, variables, ...)."""
     lexer = shlex.shlex(line, posix=True, punctuation_chars=True)
     lexer.whitespace_split, lexer.commenters = True, "#"
-    words = list(lexer)
+    try:
+        words = list(lexer)
+    except ValueError:  # a quotation spanning lines: bash reads it
+        return None
     if not words or words[0] != "multilayer" or "$" in line or any(set(w) <= set("();<>|&") for w in words):
         return None
     argv = []
