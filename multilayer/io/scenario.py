@@ -423,18 +423,38 @@ class Output(_Model):
     )
 
 
-class Expect(_Model):
-    """A regression check on the run summary: |actual - value| <= atol + rtol |value|."""
+ExpectKind = Literal["regression", "reference"]
+EXPECT_KINDS: tuple[str, ...] = get_args(ExpectKind)
 
+
+class Expect(_Model):
+    """A check on the run summary, passing when ``|actual - value| <= atol + rtol |value|``.
+
+    ``kind: regression`` pins ``value`` from the code's own output (it guards against
+    change, it validates nothing); ``kind: reference`` takes ``value`` from an exact
+    solution or a published result named in ``source``, the tolerance being justified by
+    that reference's uncertainty or by a convergence study.
+    """
+
+    kind: ExpectKind = _field(
+        ..., "regression (a value pinned from the code's output) or reference (an exact or published value)"
+    )
     quantity: Quantity = _field(..., ", ".join(QUANTITIES))
     value: float = _field(..., "a number (SI)")
     rtol: float | None = _field(None, "a number >= 0", ge=0)
     atol: float | None = _field(None, "a number >= 0 (SI)", ge=0)
+    source: str | None = _field(
+        None, "text naming the exact solution or publication (author, year, equation)"
+    )
 
     @model_validator(mode="after")
     def _check(self) -> Expect:
         if self.rtol is None and self.atol is None:
             raise _invalid("needs a tolerance", "rtol and/or atol", "rtol")
+        common = ("quantity", "value", "rtol", "atol")
+        _check_kind(self, "kind", {"regression": ((), common), "reference": (("source",), common)})
+        if self.source is not None and not self.source.strip():
+            raise _invalid("source is empty", "text naming the exact solution or publication", "source")
         return self
 
 
@@ -472,7 +492,7 @@ class Scenario(_Model):
     boundaries: Boundaries = _field(Boundaries(), "a mapping with left, right")
     time: Time = _field(..., "a mapping with end, output_interval")
     output: Output = _field(Output(), "a mapping with directory")
-    expect: list[Expect] = _field([], "a list of {quantity, value, rtol, atol}")
+    expect: list[Expect] = _field([], "a list of {kind, quantity, value, rtol, atol, source}")
     numerics: Numerics = _field(Numerics(), "a mapping of solver settings")
 
     _source: Path | None = PrivateAttr(None)
