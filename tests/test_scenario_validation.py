@@ -80,7 +80,7 @@ def test_set_appends_to_a_list(write_scenario, tiny_scenario):
     path = write_scenario(tiny_scenario)
     sc = load(path, ["initial+={shape: layer, thickness: 0.002}", "initial.1.thickness=0.003"])
     assert [e.shape for e in sc.initial] == ["rectangle", "layer"] and sc.initial[1].thickness == 0.003
-    sc = load(path, ["expect+={quantity: mass_final, value: 0.005, rtol: 1e-9}"])  # created when missing
+    sc = load(path, ["expect+={kind: regression, quantity: mass_final, value: 0.005, rtol: 1e-9}"])  # created
     assert sc.expect[0].quantity == "mass_final"
     with pytest.raises(InputError, match=r"initial\.1\.thickness \(from --set\): Input should be greater"):
         load(path, ["initial+={shape: layer, thickness: -1}"])
