@@ -210,7 +210,7 @@ class Outcome:
     """True if an earlier run of the sweep had already completed this member."""
 
 
-def _fingerprint(member_scenario: scenario.Scenario) -> str:
+def scenario_fingerprint(member_scenario: scenario.Scenario) -> str:
     """Hash of the fully resolved member scenario: a completed member is reused only if
     neither the base scenario nor the member's values changed since it ran."""
     return hashlib.sha256(member_scenario.resolved_yaml().encode()).hexdigest()
@@ -254,7 +254,7 @@ def run_member(
 
 
 @contextmanager
-def _client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
+def dask_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
     """A Dask client on the cluster at ``scheduler``, or on a new local cluster with
     ``workers`` single-threaded worker processes (default: one per core)."""
     from dask.distributed import Client, LocalCluster
@@ -309,7 +309,7 @@ def run(
         except InputError as exc:
             outcomes[member.index] = Outcome(member, "invalid", str(exc))
             continue
-        fingerprint = _fingerprint(member_scenario)
+        fingerprint = scenario_fingerprint(member_scenario)
         summary = completed(outdir / member.id, fingerprint)
         if summary is not None:
             outcomes[member.index] = Outcome(member, "ok", summary=summary, skipped=True)
@@ -322,7 +322,7 @@ def run(
     if pending:
         from dask.distributed import as_completed
 
-        with _client(scheduler, workers) as client:
+        with dask_client(scheduler, workers) as client:
             futures = {
                 client.submit(
                     run_member,
