@@ -96,7 +96,9 @@ class Problem:
         self.experiments = calibration.experiments
         self.observed = np.concatenate([d.value for d in calibration.data])
         self.sigma = np.concatenate([d.sigma for d in calibration.data])
-        items: dict[str, list[tuple[str, tuple[float, ...], float | None]]] = {e: [] for e in self.experiments}
+        items: dict[str, list[tuple[str, tuple[float, ...], float | None]]] = {
+            e: [] for e in self.experiments
+        }
         slots: dict[str, list[int]] = {e: [] for e in self.experiments}
         start = 0
         for d in calibration.data:
@@ -154,7 +156,9 @@ class Calibrator:
                 for e, experiment in zip(runs, problem.experiments):
                     predicted[problem.slots[experiment]] = e.measured
                 misfit = float(np.sum(problem.residuals(predicted, theta) ** 2))
-            batch.append(Candidate(self.stage, self.step, np.array(theta, dtype=float), runs, misfit, predicted))
+            batch.append(
+                Candidate(self.stage, self.step, np.array(theta, dtype=float), runs, misfit, predicted)
+            )
         self.candidates += batch
         ran, reused = self.ensemble.ran - before[0], self.ensemble.reused - before[1]
         failed = sum(c.status != "ok" for c in batch)
@@ -307,7 +311,8 @@ def _no_fit(candidates: list[Candidate]) -> Exception:
 
     errors = {Calibrator._error(c) for c in candidates}
     return RunError(
-        f"every one of the {len(candidates)} parameter sets failed; first errors: " + "; ".join(sorted(errors)[:3])
+        f"every one of the {len(candidates)} parameter sets failed; first errors: "
+        + "; ".join(sorted(errors)[:3])
     )
 
 
@@ -336,7 +341,11 @@ def write(fit: Fit, calibrator: Calibrator, path: Path) -> None:
         {
             "lower": ("parameter", problem.lower, {"long_name": "lower bound"}),
             "upper": ("parameter", problem.upper, {"long_name": "upper bound"}),
-            "prior_mean": ("parameter", prior_mean, {"long_name": "mean of the Gaussian prior (nan: uniform)"}),
+            "prior_mean": (
+                "parameter",
+                prior_mean,
+                {"long_name": "mean of the Gaussian prior (nan: uniform)"},
+            ),
             "prior_sd": ("parameter", prior_sd, {"long_name": "standard deviation of the Gaussian prior"}),
             "best": ("parameter", fit.theta, {"long_name": "best fit (lowest misfit)"}),
             "search_best": ("parameter", fit.search_theta, {"long_name": "best of the global search"}),
@@ -357,7 +366,11 @@ def write(fit: Fit, calibrator: Calibrator, path: Path) -> None:
                 {"long_name": "sum of squared whitened residuals (inf: a run failed)", "units": "1"},
             ),
             "stage": ("candidate", text([c.stage for c in candidates], dtype=object)),
-            "step": ("candidate", np.array([c.step for c in candidates]), {"long_name": "generation or batch"}),
+            "step": (
+                "candidate",
+                np.array([c.step for c in candidates]),
+                {"long_name": "generation or batch"},
+            ),
             "status": ("candidate", text([c.status for c in candidates], dtype=object)),
             "members": (
                 "candidate",
@@ -368,7 +381,11 @@ def write(fit: Fit, calibrator: Calibrator, path: Path) -> None:
             "observation": ("point", text(point_obs, dtype=object)),
             "experiment": ("point", text(point_exp, dtype=object)),
             "quantity": ("point", text(point_quantity, dtype=object)),
-            "coordinate": ("point", np.array(point_coord), {"long_name": "time (s) or x (m); nan for scalars"}),
+            "coordinate": (
+                "point",
+                np.array(point_coord),
+                {"long_name": "time (s) or x (m); nan for scalars"},
+            ),
             "time": ("point", np.array(point_time), {"long_name": "time of a profile (s); nan: final"}),
             "observed": ("point", problem.observed, {"long_name": "observed value (SI)"}),
             "observed_sd": ("point", problem.sigma, {"long_name": "its standard deviation (SI)"}),

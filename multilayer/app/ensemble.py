@@ -57,7 +57,9 @@ def _run_and_measure(
 def _measured(measure: Callable[[Path], np.ndarray], member_dir: Path) -> np.ndarray:
     values = np.asarray(measure(member_dir / RESULT_FILE), dtype=float)
     if not np.all(np.isfinite(values)):
-        raise ValueError(f"a measured quantity is not finite ({values.tolist()}), e.g. no front above threshold")
+        raise ValueError(
+            f"a measured quantity is not finite ({values.tolist()}), e.g. no front above threshold"
+        )
     return values
 
 
@@ -112,7 +114,9 @@ class Ensemble:
             member_dir = self.outdir / ident
             if sweep.completed(member_dir, fingerprint) is not None:
                 try:
-                    results[i] = Evaluation(ident, values, "ok", _measured(measure[i], member_dir), reused=True)
+                    results[i] = Evaluation(
+                        ident, values, "ok", _measured(measure[i], member_dir), reused=True
+                    )
                 except Exception as exc:  # noqa: BLE001 - a bad member must not stop the study
                     results[i] = Evaluation(ident, values, "failed", error=f"{type(exc).__name__}: {exc}")
                 self.reused += 1

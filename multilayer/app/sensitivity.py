@@ -50,7 +50,9 @@ def sample(study: Sensitivity) -> np.ndarray:
     )
 
 
-def run(study: Sensitivity, ensemble: Ensemble, report: Callable[[str], None]) -> tuple[np.ndarray, list[Evaluation]]:
+def run(
+    study: Sensitivity, ensemble: Ensemble, report: Callable[[str], None]
+) -> tuple[np.ndarray, list[Evaluation]]:
     """Evaluate every sample point; returns the sample and the evaluations."""
     points = sample(study)
     names = list(study.config.parameters)
@@ -81,8 +83,9 @@ def indices(study: Sensitivity, outputs: np.ndarray) -> Indices:
     return Indices(s1, s1c, st, stc)
 
 
-def write(study: Sensitivity, points: np.ndarray, evaluations: list[Evaluation], result: Indices | None,
-          path: Path) -> None:
+def write(
+    study: Sensitivity, points: np.ndarray, evaluations: list[Evaluation], result: Indices | None, path: Path
+) -> None:
     """Write ``sensitivity.nc``: every run (parameters, outputs, status) and the indices."""
     import xarray as xr
 

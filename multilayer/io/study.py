@@ -215,9 +215,7 @@ class SensitivityModel(_Study):
     """The sensitivity file as validated."""
 
     outputs: list[Literal[SCALARS]] = _field(..., "a non-empty list of " + ", ".join(SCALARS), min_length=1)
-    samples: int = _field(
-        16, "a power of 2 >= 2 (base samples N; runs: N x (parameters + 2))", ge=2
-    )
+    samples: int = _field(16, "a power of 2 >= 2 (base samples N; runs: N x (parameters + 2))", ge=2)
     seed: int = _field(1, "an integer")
     confidence: float = _field(0.95, "a number in (0, 1)", gt=0, lt=1)
 
@@ -265,7 +263,9 @@ class Sensitivity(BaseModel):
 def _validate(model: type[_Model], path: Path, kind: str) -> tuple[Any, dict]:
     data, lines = scenario.read_yaml(path, kind)
     if not isinstance(data, dict):
-        raise InputError(f"{path}: (top level): got {type(data).__name__}; accepted: a mapping of {kind} keys")
+        raise InputError(
+            f"{path}: (top level): got {type(data).__name__}; accepted: a mapping of {kind} keys"
+        )
     try:
         return model.model_validate(data), lines
     except ValidationError as exc:
@@ -296,10 +296,14 @@ def _check_base(path: Path, lines: dict, config: _Study, experiments: dict[str, 
     try:
         scenario.load(base, overrides(config.set))
     except InputError as exc:
-        raise InputError(f"{_at(path, lines, 'base')}: the base scenario with set is invalid:\n{exc}") from None
+        raise InputError(
+            f"{_at(path, lines, 'base')}: the base scenario with set is invalid:\n{exc}"
+        ) from None
     for name, extra in experiments.items():
         for where in (0.0, 0.5, 1.0):
-            values = {k: p.bounds[0] + where * (p.bounds[1] - p.bounds[0]) for k, p in config.parameters.items()}
+            values = {
+                k: p.bounds[0] + where * (p.bounds[1] - p.bounds[0]) for k, p in config.parameters.items()
+            }
             try:
                 scenario.load(base, overrides({**config.set, **extra, **values}))
             except InputError as exc:
@@ -373,7 +377,9 @@ def _read(path: Path, lines: dict, index: int, obs: Observation, experiment: str
     scale = UNITS[unit]
     sigma = np.full_like(value, obs.sigma) if sigma is None or obs.sigma is not None else sigma
     if not (np.all(np.isfinite(value)) and np.all(np.isfinite(coordinate)) and np.all(sigma > 0)):
-        raise InputError(f"{where}: {file} holds non-finite values or uncertainties <= 0; accepted: finite data")
+        raise InputError(
+            f"{where}: {file} holds non-finite values or uncertainties <= 0; accepted: finite data"
+        )
     return ObservedData(
         observation=obs,
         experiment=experiment,
@@ -390,7 +396,9 @@ def _read_csv(file: Path, columns: list[str], where: str) -> tuple[np.ndarray, n
             rows = list(csv.DictReader(stream))
         table = [[float(row[c]) for row in rows] for c in columns]
     except KeyError as exc:
-        raise InputError(f"{where}: {file} has no column {exc}; accepted: a CSV file with a header row") from None
+        raise InputError(
+            f"{where}: {file} has no column {exc}; accepted: a CSV file with a header row"
+        ) from None
     except (OSError, ValueError, TypeError) as exc:
         raise InputError(f"{where}: cannot read {file} ({exc}); accepted: a CSV file of numbers") from None
     if not table[0]:
@@ -399,14 +407,18 @@ def _read_csv(file: Path, columns: list[str], where: str) -> tuple[np.ndarray, n
     return arrays[0], arrays[1], arrays[2] if len(arrays) > 2 else None
 
 
-def _read_netcdf(file: Path, variable: str, where: str) -> tuple[np.ndarray, np.ndarray, str | None, str | None]:
+def _read_netcdf(
+    file: Path, variable: str, where: str
+) -> tuple[np.ndarray, np.ndarray, str | None, str | None]:
     """A one-dimensional netCDF variable, its coordinate and both units attributes."""
     import xarray as xr
 
     try:
         with xr.open_dataset(file) as ds:
             if variable not in ds:
-                raise InputError(f"{where}: {file} has no variable {variable!r}; accepted: " + ", ".join(ds.data_vars))
+                raise InputError(
+                    f"{where}: {file} has no variable {variable!r}; accepted: " + ", ".join(ds.data_vars)
+                )
             var = ds[variable].load()
     except (OSError, ValueError) as exc:
         raise InputError(f"{where}: cannot read {file} ({exc}); accepted: a netCDF file") from None

@@ -52,10 +52,20 @@ def misfit_figure(ds: xr.Dataset) -> Figure:
             ax.semilogy(order[sel], np.maximum(misfit[sel], 1e-12), ".", color=colour, label=stage)
     failed = ~np.isfinite(misfit)
     if failed.any():
-        ax.plot(order[failed], np.full(failed.sum(), np.nanmax(np.where(np.isfinite(misfit), misfit, np.nan))),
-                "x", color="red", label="failed")
-    ax.plot(order, np.minimum.accumulate(np.where(np.isfinite(misfit), misfit, np.inf)), "k-", lw=1,
-            label="best so far")
+        ax.plot(
+            order[failed],
+            np.full(failed.sum(), np.nanmax(np.where(np.isfinite(misfit), misfit, np.nan))),
+            "x",
+            color="red",
+            label="failed",
+        )
+    ax.plot(
+        order,
+        np.minimum.accumulate(np.where(np.isfinite(misfit), misfit, np.inf)),
+        "k-",
+        lw=1,
+        label="best so far",
+    )
     ax.set_xlabel("parameter set (order of evaluation)")
     ax.set_ylabel("misfit (sum of squared whitened residuals)")
     ax.legend()
@@ -81,8 +91,9 @@ def pairs_figure(ds: xr.Dataset) -> Figure:
             ax.set_xlabel(names[i])
             ax.set_ylabel("misfit")
             continue
-        sc = ax.scatter(values[ok, i], values[ok, j], c=np.log10(np.maximum(misfit[ok], 1e-12)), s=8,
-                        cmap="viridis_r")
+        sc = ax.scatter(
+            values[ok, i], values[ok, j], c=np.log10(np.maximum(misfit[ok], 1e-12)), s=8, cmap="viridis_r"
+        )
         ax.plot(values[~ok, i], values[~ok, j], "rx", ms=4)
         ax.plot(best[i], best[j], "k*", ms=10)
         block = cov[np.ix_([i, j], [i, j])]
@@ -112,7 +123,9 @@ def fit_figure(ds: xr.Dataset) -> Figure:
         ax = fig.add_subplot(-(-panels // 3), min(panels, 3), k + 1)
         sel = obs_names == name
         x = ds["coordinate"].values[sel]
-        ax.errorbar(x, ds["observed"].values[sel], ds["observed_sd"].values[sel], fmt="o", ms=3, label="observed")
+        ax.errorbar(
+            x, ds["observed"].values[sel], ds["observed_sd"].values[sel], fmt="o", ms=3, label="observed"
+        )
         ax.plot(x, ds["fitted"].values[sel], "k-", label="fitted")
         q = quantity[sel][0]
         ax.set_xlabel("t (s)" if q == "front" else "x (m)")
@@ -141,7 +154,9 @@ def sobol_figure(ds: xr.Dataset) -> Figure:
     for k, output in enumerate(outputs):
         ax = fig.add_subplot(1, len(outputs), k + 1)
         for offset, key, label in ((-0.2, "S1", "first order S1"), (0.2, "ST", "total ST")):
-            ax.bar(pos + offset, ds[key].values[k], 0.4, yerr=ds[f"{key}_conf"].values[k], capsize=3, label=label)
+            ax.bar(
+                pos + offset, ds[key].values[k], 0.4, yerr=ds[f"{key}_conf"].values[k], capsize=3, label=label
+            )
         ax.axhline(0, color="k", lw=0.5)
         ax.set_xticks(pos, names, rotation=20, fontsize=8)
         ax.set_title(f"{output} ({ds.attrs['base_samples']} base samples, {level}% intervals)")

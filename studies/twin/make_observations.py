@@ -45,5 +45,8 @@ def write(noise_mm: float, seed: int, outdir: Path) -> None:
 
 if __name__ == "__main__":
     args = sys.argv[1:]
-    write(float(args[0]) if args else 1.0, int(args[1]) if len(args) > 1 else 1,
-          Path(args[2]) if len(args) > 2 else HERE)
+    write(
+        float(args[0]) if args else 1.0,
+        int(args[1]) if len(args) > 1 else 1,
+        Path(args[2]) if len(args) > 2 else HERE,
+    )

@@ -49,8 +49,10 @@ def main(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(line, flush=True)
 
-    report(f"calibrate: {len(plan.config.parameters)} parameter(s), {len(plan.experiments)} experiment(s), "
-           f"on {cluster_description(args)}")
+    report(
+        f"calibrate: {len(plan.config.parameters)} parameter(s), {len(plan.experiments)} experiment(s), "
+        f"on {cluster_description(args)}"
+    )
     with dask_client(args.scheduler, args.workers) as client:
         ensemble = Ensemble(plan.base, outdir, client, fixed=plan.config.set)
         calibrator = calibrations.Calibrator(plan, ensemble, report)

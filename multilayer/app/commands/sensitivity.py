@@ -46,7 +46,8 @@ def main(args: argparse.Namespace) -> int:
         import SALib  # noqa: F401
     except ImportError:
         raise InputError(
-            "multilayer sensitivity needs SALib; accepted: install it with pip install 'multilayer[calibration]'"
+            "multilayer sensitivity needs SALib; accepted: "
+            "install it with pip install 'multilayer[calibration]'"
         ) from None
     study = load_sensitivity(args.config)
     outdir = Path(args.output or study.config.output.directory or Path("results") / study.path.stem)
