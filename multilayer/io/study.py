@@ -202,12 +202,14 @@ class CalibrationModel(_Study):
         seen: set[str] = set()
         for i, obs in enumerate(self.observations):
             if obs.name in seen:
-                raise _invalid(f"duplicate name {obs.name!r}", "a name used once", f"{i}.name")
+                raise _invalid(f"duplicate name {obs.name!r}", "a name used once", f"observations.{i}.name")
             seen.add(obs.name)
             if obs.experiment is None and len(names) > 1:
-                raise _invalid("which experiment?", ", ".join(names), f"{i}.experiment")
+                raise _invalid("which experiment?", ", ".join(names), f"observations.{i}.experiment")
             if obs.experiment is not None and obs.experiment not in names:
-                raise _invalid(f"unknown experiment {obs.experiment!r}", ", ".join(names), f"{i}.experiment")
+                raise _invalid(
+                    f"unknown experiment {obs.experiment!r}", ", ".join(names), f"observations.{i}.experiment"
+                )
         return self
 
 

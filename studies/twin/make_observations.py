@@ -20,7 +20,7 @@ from multilayer.io.observables import Measure
 
 HERE = Path(__file__).resolve().parent
 TRUE = {"rheology.mu_s": 0.4770, "rheology.mu_2": 0.7265}
-TIMES = (0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4)
+TIMES = (0.05, 0.1, 0.15, 0.2, 0.25, 0.3)
 XS = tuple(np.round(np.arange(0.01, 0.16, 0.015), 4))
 
 
