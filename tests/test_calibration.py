@@ -321,7 +321,8 @@ def test_sensitivity_command_writes_every_run_and_the_indices(tmp_path, cluster,
 def test_bad_sensitivity_file_exits_2_naming_the_key(tmp_path, capsys):
     shutil.copy(TWIN / "collapse.yaml", tmp_path)
     (tmp_path / "sobol.yaml").write_text(
-        "base: collapse.yaml\nparameters:\n  rheology.mu_s: {bounds: [0.45, 0.5]}\noutputs: [runout]\nsamples: 6\n"
+        "base: collapse.yaml\nparameters:\n  rheology.mu_s: {bounds: [0.45, 0.5]}\n"
+        "outputs: [runout]\nsamples: 6\n"
     )
     assert cli.main(["sensitivity", str(tmp_path / "sobol.yaml")]) == 2
     assert "sobol.yaml: samples (line 5): got 6; accepted: a power of 2" in capsys.readouterr().err
