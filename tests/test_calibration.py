@@ -326,3 +326,24 @@ def test_bad_sensitivity_file_exits_2_naming_the_key(tmp_path, capsys):
     )
     assert cli.main(["sensitivity", str(tmp_path / "sobol.yaml")]) == 2
     assert "sobol.yaml: samples (line 5): got 6; accepted: a power of 2" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------- shipped studies, docs
+
+
+@pytest.mark.parametrize("name", ["twin/calibration.yaml", "column_collapse_runout.yaml"])
+def test_shipped_calibration_files_are_valid(name):
+    plan = study.load_calibration(ROOT / "studies" / name)
+    assert plan.data and all(len(d.value) == len(d.sigma) for d in plan.data)
+
+
+def test_shipped_and_documented_sensitivity_files_are_valid(tmp_path):
+    study.load_sensitivity(ROOT / "studies" / "erodible_bed_sobol.yaml")
+    docs = (ROOT / "docs" / "calibration.md").read_text()
+    example = docs.split("## The sensitivity file\n\n```yaml\n", 1)[1].split("```", 1)[0]
+    (tmp_path / "studies").mkdir()
+    (tmp_path / "scenarios").mkdir()
+    shutil.copy(ROOT / "scenarios" / "erodible_bed_collapse.yaml", tmp_path / "scenarios")
+    (tmp_path / "studies" / "sobol.yaml").write_text(example)
+    plan = study.load_sensitivity(tmp_path / "studies" / "sobol.yaml")
+    assert plan.config.outputs == ["runout", "duration"] and plan.config.samples == 32
