@@ -125,6 +125,8 @@ def test_failing_runs_are_counted_and_the_calibration_continues(tmp_path, cluste
     assert all("RunError: the solver broke down" in e for e in ds["error"].values[failed])
     assert (ds["values"].values[failed, 0] > 0.55).all()
     assert np.isfinite(ds["sd"].values).all() and ds["best"].values[0] < 0.55
+    assert cli.main(["plot", str(tmp_path / "out")]) == 0  # failed sets are drawn as crosses
+    assert {p.name for p in (tmp_path / "out" / "plots").iterdir()} == {"misfit.png", "pairs.png", "fit.png"}
 
 
 def test_interrupted_calibration_resumes_from_its_completed_runs(tmp_path, cluster, capsys):
@@ -159,8 +161,6 @@ def test_calibration_on_a_local_cluster_of_worker_processes(tmp_path, monkeypatc
     ds = xr.load_dataset(tmp_path / "out" / calibration.CALIBRATION_FILE)
     assert ds.sizes["candidate"] == 8 + 4  # the initial population and the central differences
     assert (ds["status"].values == "ok").all()
-    assert cli.main(["plot", str(tmp_path / "out")]) == 0
-    assert {p.name for p in (tmp_path / "out" / "plots").iterdir()} == {"misfit.png", "pairs.png", "fit.png"}
 
 
 # --------------------------------------------------------------------- study files
@@ -269,7 +269,7 @@ def test_duration_and_thickness_interpolate_between_outputs():
 def test_sobol_indices_of_the_ishigami_function(tmp_path):
     """The Ishigami function (Ishigami & Homma 1990) on [-pi, pi]^3, a = 7, b = 0.1, whose
     indices are known in closed form: S1 = (0.314, 0.442, 0), ST = (0.558, 0.442, 0.244).
-    Every exact value lies within the estimate's 95 % interval (N = 1024)."""
+    Every exact value lies within the estimate's 95 % interval (N = 512)."""
     from multilayer.app.sensitivity import sample
 
     config = study.SensitivityModel.model_validate(
@@ -277,7 +277,7 @@ def test_sobol_indices_of_the_ishigami_function(tmp_path):
             "base": "unused.yaml",
             "parameters": {k: {"bounds": [-math.pi, math.pi]} for k in ("a", "b", "c")},
             "outputs": ["runout"],
-            "samples": 1024,
+            "samples": 512,
         }
     )
     plan = study.Sensitivity(path=tmp_path / "sobol.yaml", base=tmp_path / "unused.yaml", config=config)
@@ -287,7 +287,7 @@ def test_sobol_indices_of_the_ishigami_function(tmp_path):
     s1, st = np.array([0.3139, 0.4424, 0.0]), np.array([0.5576, 0.4424, 0.2437])
     assert np.all(np.abs(result.s1[0] - s1) <= result.s1_conf[0] + 0.01), (result.s1, result.s1_conf)
     assert np.all(np.abs(result.st[0] - st) <= result.st_conf[0] + 0.01), (result.st, result.st_conf)
-    assert np.all(result.s1_conf[0] < 0.1)
+    assert np.all(result.s1_conf[0] < 0.15)
 
 
 def test_sensitivity_command_writes_every_run_and_the_indices(tmp_path, cluster, capsys):
