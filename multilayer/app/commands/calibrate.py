@@ -12,6 +12,7 @@ Example: multilayer calibrate docs/examples/twin.yaml --workers 2
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from multilayer.app.commands import add_cluster_arguments, cluster_description
@@ -45,16 +46,25 @@ def main(args: argparse.Namespace) -> int:
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
 
+    live = not args.quiet and sys.stderr.isatty()
+
     def report(line: str) -> None:
         if not args.quiet:
             print(line, flush=True)
+
+    def progress(done: int, to_run: int) -> None:
+        if live:  # a self-updating count of the runs of the current batch
+            sys.stderr.write(
+                f"\rcalibrate: {done}/{to_run} runs of this batch done" + ("\n" if done == to_run else "")
+            )
+            sys.stderr.flush()
 
     report(
         f"calibrate: {len(plan.config.parameters)} parameter(s), {len(plan.experiments)} experiment(s), "
         f"on {cluster_description(args)}"
     )
     with dask_client(args.scheduler, args.workers) as client:
-        ensemble = Ensemble(plan.base, outdir, client, fixed=plan.config.set)
+        ensemble = Ensemble(plan.base, outdir, client, fixed=plan.config.set, on_progress=progress)
         calibrator = calibrations.Calibrator(plan, ensemble, report)
         fit = calibrator.run()
     path = outdir / calibrations.CALIBRATION_FILE
