@@ -347,3 +347,24 @@ def test_shipped_and_documented_sensitivity_files_are_valid(tmp_path):
     (tmp_path / "studies" / "sobol.yaml").write_text(example)
     plan = study.load_sensitivity(tmp_path / "studies" / "sobol.yaml")
     assert plan.config.outputs == ["runout", "duration"] and plan.config.samples == 32
+
+
+@pytest.mark.slow
+def test_worked_example_of_the_docs(tmp_path, capsys):
+    """The twin experiment of docs/calibration.md as documented: its observation files are
+    what make_observations.py writes, and the calibration recovers the truth."""
+    docs = (ROOT / "docs" / "calibration.md").read_text()
+    commands = docs.split("## Worked example: a twin experiment\n", 1)[1].split("```\n", 2)[1].splitlines()
+    assert commands == [
+        "python studies/twin/make_observations.py 1.0 1",
+        "multilayer calibrate studies/twin/calibration.yaml",
+        "multilayer plot results/twin",
+    ]
+    make_observations.write(1.0, 1, tmp_path)
+    for name in ("front.csv", "deposit.csv"):
+        assert (tmp_path / name).read_text() == (TWIN / name).read_text()
+    outdir = tmp_path / "twin"
+    assert cli.main(["calibrate", str(TWIN / "calibration.yaml"), "-o", str(outdir)]) == 0
+    ds = xr.load_dataset(outdir / calibration.CALIBRATION_FILE)
+    assert np.all(np.abs(ds["best"].values - TRUE) < 3 * ds["sd"].values)
+    assert cli.main(["plot", str(outdir)]) == 0

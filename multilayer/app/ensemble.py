@@ -24,7 +24,7 @@ from multilayer.app import sweep
 from multilayer.errors import InputError
 from multilayer.io import scenario
 from multilayer.io.results import RESULT_FILE
-from multilayer.io.study import overrides as as_overrides
+from multilayer.io.scenario import as_overrides
 
 MEMBERS_DIR = "members"
 
@@ -88,7 +88,7 @@ class Ensemble:
 
     def member_id(self, values: dict[str, Any]) -> str:
         """``e-<hash of the overrides>``: the same values give the same directory."""
-        return "e-" + sweep._digest(as_overrides({**self.fixed, **values}))
+        return "e-" + sweep.overrides_digest(as_overrides({**self.fixed, **values}))
 
     def evaluate(
         self, points: list[dict[str, Any]], measure: list[Callable[[Path], np.ndarray]]

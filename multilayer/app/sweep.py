@@ -31,12 +31,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-import yaml
-
 from multilayer.app import runner
 from multilayer.errors import InputError
 from multilayer.io import scenario
 from multilayer.io.results import CHECKPOINT_FILE, RESULT_FILE, SUMMARY_KEYS
+from multilayer.io.scenario import as_overrides, format_value
 
 SWEEP_KEYS = ("base", "parameters", "zip", "output", "description")
 """Top-level keys accepted in a sweep file."""
@@ -45,19 +44,6 @@ MARKER = "member.json"
 """Written into a member's directory once its run has completed."""
 
 Status = Literal["ok", "invalid", "failed"]
-
-
-class _Dumper(yaml.SafeDumper):
-    """SafeDumper that quotes every string the scenario loader would read as another type
-    (such as ``1e-5``, a float there)."""
-
-    yaml_implicit_resolvers = scenario.Loader.yaml_implicit_resolvers
-
-
-def format_value(value: Any) -> str:
-    """YAML text of ``value`` that reads back to the same value, as ``--set`` parses it."""
-    text = yaml.dump(value, Dumper=_Dumper, default_flow_style=True, width=2**31)
-    return text.removesuffix("...\n").strip()
 
 
 @dataclass(frozen=True)
@@ -71,14 +57,10 @@ class Member:
     @property
     def overrides(self) -> list[str]:
         """The member's values as ``KEY=VALUE`` overrides for ``scenario.load``."""
-        return _overrides(self.values)
+        return as_overrides(self.values)
 
 
-def _overrides(values: dict[str, Any]) -> list[str]:
-    return [f"{key}={format_value(value)}" for key, value in values.items()]
-
-
-def _digest(overrides: list[str]) -> str:
+def overrides_digest(overrides: list[str]) -> str:
     """Short hash of a set of overrides, independent of their order."""
     return hashlib.sha1("\n".join(sorted(overrides)).encode()).hexdigest()[:8]
 
@@ -106,7 +88,7 @@ class Sweep:
         rows = [dict(zip(keys, combo)) for combo in combos]
         width = max(3, len(str(len(rows) - 1)))
         return [
-            Member(index, values, f"m{index:0{width}d}-{_digest(_overrides(values))}")
+            Member(index, values, f"m{index:0{width}d}-{overrides_digest(as_overrides(values))}")
             for index, values in enumerate(rows)
         ]
 

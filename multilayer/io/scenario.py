@@ -577,6 +577,25 @@ def _message(error: dict[str, Any], root: type[BaseModel] | None = None) -> tupl
     return loc, what, _accepted(loc, last_is_key=False, root=root)
 
 
+class _Dumper(yaml.SafeDumper):
+    """SafeDumper that quotes every string the scenario loader would read as another type
+    (such as ``1e-5``, a float there)."""
+
+    yaml_implicit_resolvers = Loader.yaml_implicit_resolvers
+
+
+def format_value(value: Any) -> str:
+    """YAML text of ``value`` that reads back to the same value, as ``--set`` parses it."""
+    text = yaml.dump(value, Dumper=_Dumper, default_flow_style=True, width=2**31)
+    return text.removesuffix("...\n").strip()
+
+
+def as_overrides(values: dict[str, Any]) -> list[str]:
+    """``KEY=VALUE`` overrides (as :func:`apply_overrides` reads them) of a mapping of
+    dotted keys to values."""
+    return [f"{key}={format_value(value)}" for key, value in values.items()]
+
+
 def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> tuple[dict, list[KeyPath]]:
     """``data`` with ``"dotted.key=value"`` overrides applied (value read as YAML).
 

@@ -32,7 +32,7 @@ from pydantic import BaseModel, Field, ValidationError, field_validator, model_v
 
 from multilayer.errors import InputError
 from multilayer.io import scenario
-from multilayer.io.scenario import _dotted, _field, _invalid, _message, _Model
+from multilayer.io.scenario import _dotted, _field, _invalid, _message, _Model, as_overrides
 
 SCALARS = ("runout", "front_final", "duration", "mass_final")
 """Scalar quantities measured on a run (multilayer.io.observables)."""
@@ -296,7 +296,7 @@ def _check_base(path: Path, lines: dict, config: _Study, experiments: dict[str, 
             "accepted: the path of a scenario file, relative to this file"
         )
     try:
-        scenario.load(base, overrides(config.set))
+        scenario.load(base, as_overrides(config.set))
     except InputError as exc:
         raise InputError(
             f"{_at(path, lines, 'base')}: the base scenario with set is invalid:\n{exc}"
@@ -307,7 +307,7 @@ def _check_base(path: Path, lines: dict, config: _Study, experiments: dict[str, 
                 k: p.bounds[0] + where * (p.bounds[1] - p.bounds[0]) for k, p in config.parameters.items()
             }
             try:
-                scenario.load(base, overrides({**config.set, **extra, **values}))
+                scenario.load(base, as_overrides({**config.set, **extra, **values}))
             except InputError as exc:
                 keys = [k for k in (*values, *extra) if k in str(exc)] or list(values)
                 place = ("parameters", keys[0]) if keys[0] in values else ("experiments", name)
@@ -317,13 +317,6 @@ def _check_base(path: Path, lines: dict, config: _Study, experiments: dict[str, 
                     f"{f' in experiment {name}' if extra else ''}:\n{exc}"
                 ) from None
     return base
-
-
-def overrides(values: dict[str, Any]) -> list[str]:
-    """``KEY=VALUE`` overrides of a mapping of dotted keys to values (as ``--set`` reads them)."""
-    from multilayer.app.sweep import format_value
-
-    return [f"{key}={format_value(value)}" for key, value in values.items()]
 
 
 def load_calibration(path: str | Path) -> Calibration:
