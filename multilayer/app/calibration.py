@@ -316,6 +316,11 @@ def _no_fit(candidates: list[Candidate]) -> Exception:
     )
 
 
+def _strings(values: list[str]) -> np.ndarray:
+    """Variable-length strings for netCDF."""
+    return np.array(values, dtype=object)
+
+
 def write(fit: Fit, calibrator: Calibrator, path: Path) -> None:
     """Write ``calibration.nc``: every parameter set evaluated, the best fit, its
     covariance and the observed against fitted points (docs/calibration.md)."""
@@ -336,7 +341,6 @@ def write(fit: Fit, calibrator: Calibrator, path: Path) -> None:
     prior_sd = np.full(len(fit.names), np.nan)
     for j, mean, sd in problem.prior:
         prior_mean[j], prior_sd[j] = mean, sd
-    text = np.array
     ds = xr.Dataset(
         {
             "lower": ("parameter", problem.lower, {"long_name": "lower bound"}),
@@ -365,22 +369,22 @@ def write(fit: Fit, calibrator: Calibrator, path: Path) -> None:
                 np.array([c.misfit for c in candidates]),
                 {"long_name": "sum of squared whitened residuals (inf: a run failed)", "units": "1"},
             ),
-            "stage": ("candidate", text([c.stage for c in candidates], dtype=object)),
+            "stage": ("candidate", _strings([c.stage for c in candidates])),
             "step": (
                 "candidate",
                 np.array([c.step for c in candidates]),
                 {"long_name": "generation or batch"},
             ),
-            "status": ("candidate", text([c.status for c in candidates], dtype=object)),
+            "status": ("candidate", _strings([c.status for c in candidates])),
             "members": (
                 "candidate",
-                text([" ".join(e.id for e in c.evaluations) for c in candidates], dtype=object),
+                _strings([" ".join(e.id for e in c.evaluations) for c in candidates]),
                 {"long_name": "member directories under members/, one per experiment"},
             ),
-            "error": ("candidate", text([Calibrator._error(c) for c in candidates], dtype=object)),
-            "observation": ("point", text(point_obs, dtype=object)),
-            "experiment": ("point", text(point_exp, dtype=object)),
-            "quantity": ("point", text(point_quantity, dtype=object)),
+            "error": ("candidate", _strings([Calibrator._error(c) for c in candidates])),
+            "observation": ("point", _strings(point_obs)),
+            "experiment": ("point", _strings(point_exp)),
+            "quantity": ("point", _strings(point_quantity)),
             "coordinate": (
                 "point",
                 np.array(point_coord),
