@@ -284,6 +284,18 @@ class Calibrator:
         except _Failed as exc:
             notes.append(f"no uncertainty: {exc}")
         best = self._best()  # a central-difference run may have been better still
+        at_bound = [
+            name
+            for name, value, lo, hi, step in zip(
+                problem.names, best.theta, problem.lower, problem.upper, self._steps()
+            )
+            if value - lo < step or hi - value < step
+        ]
+        if at_bound:
+            notes.append(
+                f"{', '.join(at_bound)} at a bound: the posterior is cut there, so the Gaussian (Laplace) "
+                "standard deviation does not describe it; widen the bounds if they are not physical limits"
+            )
         return Fit(
             names=problem.names,
             theta=best.theta,
