@@ -82,16 +82,15 @@ def test_twin_experiment_recovers_mu_s_and_mu_2_within_their_uncertainty(tmp_pat
 
 @pytest.mark.slow
 def test_twin_experiment_uncertainty_shrinks_with_the_noise(tmp_path, cluster, capsys):
-    """Noise 1 mm then 0.25 mm (the same normal deviates, scaled): both fits lie within 3
-    standard deviations of the truth, and the deviations shrink with the noise.  For a
-    model linear in the parameters they would shrink exactly fourfold; the two fits sit at
-    different points of a curved valley of the misfit, which changes the Jacobian (about
-    5.5-6 times smaller here), so the test asks for a clear shrinkage, more than 2.5."""
+    """The shipped twin calibration at noise 1 mm and 0.25 mm (the same normal deviates,
+    scaled): both fits lie within 3 standard deviations of the truth, and the deviations
+    shrink with the noise: fourfold for a model linear in the parameters over the
+    deviations (measured: 4.0 for both, docs/calibration.md)."""
     fits = []
     for noise in (1.0, 0.25):
         directory = tmp_path / f"noise{noise}"
         directory.mkdir()
-        path = twin_study(directory, noise, "{population: 4, generations: 1, seed: 1}", "{evaluations: 5}")
+        path = twin_study(directory, noise, "{population: 4, generations: 2, seed: 1}", "{evaluations: 8}")
         code, ds, out = calibrate(path, directory / "out", cluster, capsys)
         assert code == 0, out
         best, sd = ds["best"].values, ds["sd"].values
@@ -99,7 +98,7 @@ def test_twin_experiment_uncertainty_shrinks_with_the_noise(tmp_path, cluster, c
         assert np.all(np.abs(z) < 3), f"noise {noise} mm: best {best}, sd {sd}, z {z}"
         fits.append(sd)
     ratio = fits[0] / fits[1]
-    assert np.all(ratio > 2.5), ratio
+    assert np.all((ratio > 3) & (ratio < 5)), ratio
 
 
 # --------------------------------------------------------------------- failures, resume
