@@ -290,11 +290,13 @@ def test_sobol_indices_of_the_ishigami_function(tmp_path):
 
 
 def test_sensitivity_command_writes_every_run_and_the_indices(tmp_path, cluster, capsys):
-    """Two parameters, 4 base samples: 16 runs, all in sensitivity.nc, then sobol.png."""
+    """One parameter, 8 base samples: 24 sample points (16 distinct runs: with one
+    parameter AB_1 is B), all in sensitivity.nc, then sobol.png.  With one parameter all the
+    variance is its own: S1 = ST = 1 within the intervals."""
     shutil.copy(TWIN / "collapse.yaml", tmp_path)
     (tmp_path / "sobol.yaml").write_text(
-        "base: collapse.yaml\nparameters:\n  rheology.mu_s: {bounds: [0.45, 0.5]}\n"
-        "  initial.0.height: {bounds: [0.04, 0.06]}\noutputs: [runout]\nsamples: 4\n"
+        "base: collapse.yaml\nparameters:\n  initial.0.height: {bounds: [0.04, 0.06]}\n"
+        "outputs: [runout]\nsamples: 8\n"
     )
     outdir = tmp_path / "out"
     assert (
@@ -304,17 +306,34 @@ def test_sensitivity_command_writes_every_run_and_the_indices(tmp_path, cluster,
     out = capsys.readouterr().out
     assert "16 run(s), 0 reused, 0 failed" in out and "S1 = " in out
     ds = xr.load_dataset(outdir / "sensitivity.nc")
-    assert ds.sizes["run"] == 16 and (ds["status"].values == "ok").all()
-    assert np.isfinite(ds["S1"].values).all() and np.isfinite(ds["ST_conf"].values).all()
-    # a taller column runs out further: the run-out correlates with the height
-    assert np.corrcoef(ds["sample"].values[:, 1], ds["value"].values[:, 0])[0, 1] > 0.5
+    assert ds.sizes["run"] == 24 and (ds["status"].values == "ok").all()
+    for key in ("S1", "ST"):
+        assert abs(float(ds[key].values.item()) - 1) <= float(ds[f"{key}_conf"].values.item()) + 0.05, (
+            float(ds[key].values.item()),
+            float(ds[f"{key}_conf"].values.item()),
+        )
+    # a taller column runs out further
+    assert np.corrcoef(ds["sample"].values[:, 0], ds["value"].values[:, 0])[0, 1] > 0.9
     assert (
         cli.main(["sensitivity", str(tmp_path / "sobol.yaml"), "-o", str(outdir), "--scheduler", cluster])
         == 0
     )
-    assert "0 run(s), 16 reused" in capsys.readouterr().out
+    assert "0 run(s), 24 reused" in capsys.readouterr().out
     assert cli.main(["plot", str(outdir)]) == 0
     assert (outdir / "plots" / "sobol.png").is_file()
+
+
+def test_too_few_samples_for_the_parameters_exit_2(tmp_path, capsys):
+    """16 base samples for 5 parameters: the halves A and B of the design are correlated."""
+    study_file = ROOT / "studies" / "erodible_bed_sobol.yaml"
+    (tmp_path / "studies").mkdir()
+    (tmp_path / "scenarios").mkdir()
+    shutil.copy(ROOT / "scenarios" / "erodible_bed_collapse.yaml", tmp_path / "scenarios")
+    (tmp_path / "studies" / "s.yaml").write_text(study_file.read_text().replace("samples: 32", "samples: 16"))
+    assert cli.main(["sensitivity", str(tmp_path / "studies" / "s.yaml")]) == 2
+    assert "samples: with 16 base samples the two halves of the Sobol' design are correlated" in (
+        capsys.readouterr().err
+    )
 
 
 def test_bad_sensitivity_file_exits_2_naming_the_key(tmp_path, capsys):

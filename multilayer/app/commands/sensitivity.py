@@ -61,10 +61,11 @@ def main(args: argparse.Namespace) -> int:
         if not args.quiet and (done == to_run or done % max(1, to_run // 20) == 0):
             print(f"sensitivity: {done}/{to_run} runs done", flush=True)
 
+    points = sensitivity.sample(study)  # checked before any cluster starts
     report(f"sensitivity: on {cluster_description(args)}")
     with dask_client(args.scheduler, args.workers) as client:
         ensemble = Ensemble(study.base, outdir, client, fixed=study.config.set, on_progress=progress)
-        points, evaluations = sensitivity.run(study, ensemble, report)
+        evaluations = sensitivity.run(study, ensemble, report, points)
     failed = [e for e in evaluations if e.status != "ok"]
     result = None
     if not failed:
