@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from multilayer.engine import diagnostics, initial_state, stress, transport, vertical_step
+from multilayer.engine.gate import Gate
 from multilayer.engine.mesh import LayeredMesh
 
 if TYPE_CHECKING:  # the engine reads a validated scenario; it never loads one
@@ -76,6 +77,11 @@ class Simulation:
                 np.full(self.sigma.shape, bc.inflow.thickness),
             )
             self.inflow = transport.Inflow(float(bc.inflow.thickness), u_in)
+
+        self.gate = None
+        if sc.gate is not None:
+            faces = dom.x_min + self.dx * np.arange(dom.cells + 1)
+            self.gate = Gate(sc.gate.x, sc.gate.lift_speed, faces, self.mesh.interfaces)
 
         h0, u0 = initial_state.initial_state(sc.initial, self.x, self.sigma)
         # the state lives in FiPy variables; h, u and bed are numpy views of their values
@@ -141,6 +147,7 @@ class Simulation:
 
     def _transport_and_stresses(self, dt: float, moving: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
         """Transport (h, u*) then the implicit vertical step (u^{n+1}) over ``dt``."""
+        opening = self.gate.opening(self.h, self.t + 0.5 * dt) if self.gate is not None else None
         h_new, ustar = transport.transport(
             self.h,
             self.u,
@@ -156,6 +163,8 @@ class Simulation:
             dry=self.numerics.dry_threshold,
             order=self.numerics.order,
             moving=moving,
+            gate_face=self.gate.face if self.gate is not None else None,
+            opening=opening,
         )
         u_new, iterations = vertical_step.implicit_step(
             self.stresses,
