@@ -129,9 +129,10 @@ class Simulation:
         # column being filled is no material at rest and needs no redo)
         moving = np.any(self.u != 0.0, axis=0)
         held = self.h > self.numerics.dry_threshold
+        rest = (self.u == 0.0) & held  # material at rest now: the static yield stress applies
         iterations = 0
         while True:
-            h_new, u_new, more = self._transport_and_stresses(dt, moving)
+            h_new, u_new, more = self._transport_and_stresses(dt, moving, rest)
             iterations += more
             starting = np.any(u_new != 0.0, axis=0) & ~moving & held
             if not starting.any():
@@ -145,8 +146,11 @@ class Simulation:
         self.t = t_max if dt == t_max - self.t else self.t + dt
         return dt
 
-    def _transport_and_stresses(self, dt: float, moving: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-        """Transport (h, u*) then the implicit vertical step (u^{n+1}) over ``dt``."""
+    def _transport_and_stresses(
+        self, dt: float, moving: np.ndarray, rest: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, int]:
+        """Transport (h, u*) then the implicit vertical step (u^{n+1}) over ``dt``; ``rest``
+        (L, N) marks the layers at rest at the start of the step."""
         opening = self.gate.opening(self.h, self.t + 0.5 * dt) if self.gate is not None else None
         h_new, ustar = transport.transport(
             self.h,
@@ -176,6 +180,7 @@ class Simulation:
             tolerance=self.numerics.tolerance,
             max_iterations=self.numerics.max_iterations,
             velocity_scale=self.velocity_scale,
+            rest=rest,
         )
         return h_new, u_new, iterations
 
