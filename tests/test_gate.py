@@ -10,7 +10,7 @@ from multilayer.engine.simulation import Simulation
 from multilayer.io import scenario as scenarios
 
 FLAGSHIP = Path(__file__).resolve().parent.parent / "scenarios" / "erodible_bed_collapse.yaml"
-COARSE = ("domain.cells=120", "domain.layers=4")
+COARSE = ("domain.x_max=1.25", "domain.cells=120", "domain.layers=4")
 
 
 def _run(*overrides: str, t_end: float = 0.25) -> Simulation:

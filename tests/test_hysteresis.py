@@ -7,12 +7,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from engine import simulation
 
 from multilayer.engine.simulation import Simulation
 from multilayer.io import scenario as scenarios
 from multilayer.plugins.builtins import DruckerPrager, JopMuI, PowerLawMuI
 from multilayer.plugins.contract import Material
-from tests.engine import simulation
 
 MU_S, MU_START = math.tan(math.radians(23.5)), math.tan(math.radians(25.5))
 H, NU, G = 0.01, 1.0e-4, 9.81
@@ -97,9 +97,11 @@ def test_mu_start_below_mu_s_is_rejected():
 
 def test_mu_start_equal_to_mu_s_is_bit_identical_to_the_law_without_it():
     flagship = Path(__file__).resolve().parent.parent / "scenarios" / "erodible_bed_collapse.yaml"
-    coarse = ["domain.cells=100", "domain.layers=4"]
+    law = "rheology={name: jop_mu_i, mu_s: 0.4770, mu_2: 0.7265, I_0: 0.279}"
+    coarse = ["domain.x_max=1.25", "domain.cells=100", "domain.layers=4", law]
     plain = Simulation(scenarios.load(flagship, coarse))
     same = Simulation(scenarios.load(flagship, [*coarse, "rheology.mu_start=0.4770"]))
+    assert plain.stresses.bulk.mu_start == 0.4770  # the default
     for sim in (plain, same):
         sim.advance(0.2)
     assert plain.steps == same.steps
