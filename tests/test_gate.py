@@ -1,5 +1,6 @@
 """The lifting gate (engine/gate.py): limits and conservation on a coarse flagship collapse."""
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -67,3 +68,22 @@ def test_a_slow_gate_delays_the_front():
     free = _run()
     fronts = [s.diagnostics()["front"] for s in (slow, fast, free)]
     assert fronts[0] < fronts[1] <= fronts[2]
+
+
+def test_material_passing_under_the_gate_onto_a_dry_bed_stays_physical():
+    """The first material under the edge enters a dry column: no layer may move faster than
+    free fall from the top of the column allows (the receiving column spreads the gate
+    flux over its layers; entering its lowest layer alone gave hundreds of m/s)."""
+    sim = Simulation(
+        scenarios.load(
+            FLAGSHIP, [*COARSE, "slope_deg=16", "initial.0.thickness=0", "gate={x: -0.05, lift_speed: 2.0}"]
+        )
+    )
+    mass = sim.diagnostics()["mass"]
+    fastest = 0.0
+    while sim.t < 0.1:
+        sim.step(0.1)
+        fastest = max(fastest, float(np.abs(sim.u).max()))
+    drop = 0.14 * math.cos(math.radians(16)) + 0.3 * math.sin(math.radians(16))
+    assert 0.1 < fastest < math.sqrt(2 * 9.81 * drop)
+    assert sim.diagnostics()["mass"] == pytest.approx(mass, rel=1e-13)

@@ -91,16 +91,21 @@ def stable_time_step(h: np.ndarray, u: np.ndarray, g_n: float, dx: float, cfl: f
 
 
 def _gated(flux_h, flux_q, hL, uL, hR, uR, l, g_n, gate):
-    """Fluxes through a partly open gate face (engine/gate.py): the part ``o_a`` of each
-    layer below the edge passes with the HLL fluxes, the rest meets a wall.  Returns the
-    mass fluxes and the momentum fluxes seen by the cells west and east of each face.
+    """Fluxes through a partly open gate face (engine/gate.py).  Returns the mass and
+    momentum fluxes seen by the cells west and east of each face.
 
-    The wall flux is the HLL flux between a state and its mirror image (u -> -u), the same
-    as a ``wall`` boundary: no mass, and ``l (h u^2 + g h^2/2 + s h u)`` with ``s`` the
-    largest wave speed of the state (``- s h u`` seen from the east side).
+    The part ``o_a`` of each layer below the edge leaves the donor cell (upstream of the
+    net mass flux) with its HLL fluxes; the rest meets a wall, whose flux is the HLL flux
+    between a state and its mirror image (u -> -u), as at a ``wall`` boundary: no mass,
+    and ``l (h u^2 + g h^2/2 + s h u)`` with ``s`` the largest wave speed of the state
+    (``- s h u`` seen from the east side).  The receiving cell takes the same total mass
+    and momentum through the opening spread over its layers in proportion to ``l_a``:
+    its sigma layers keep ``h_a = l_a h``, and mass entering its lowest layers alone would
+    be moved up by the exchange ``G`` with the velocity the layer had before it arrived
+    (zero in a dry cell), which concentrates the momentum in those layers.
     """
     if gate is None:
-        return flux_h, flux_q, flux_q
+        return flux_h, flux_h, flux_q, flux_q
     face, opening = gate
     o = opening[:, None]
     f = slice(face, face + 1)
@@ -109,11 +114,15 @@ def _gated(flux_h, flux_q, hL, uL, hR, uR, l, g_n, gate):
         s = np.max(np.abs(u), axis=0) + np.sqrt(g_n * h)
         return l * (h * u * u + 0.5 * g_n * h * h + sign * s * h * u)
 
-    flux_h, west, east = flux_h.copy(), flux_q.copy(), flux_q.copy()
-    flux_h[:, f] *= o
-    west[:, f] = o * flux_q[:, f] + (1.0 - o) * wall(hL[f], uL[:, f], 1.0)
-    east[:, f] = o * flux_q[:, f] + (1.0 - o) * wall(hR[f], uR[:, f], -1.0)
-    return flux_h, west, east
+    mass, momentum = o * flux_h[:, f], o * flux_q[:, f]
+    spread_mass, spread_momentum = l * mass.sum(axis=0), l * momentum.sum(axis=0)
+    eastward = mass.sum() >= 0.0
+    h_west, h_east, q_west, q_east = flux_h.copy(), flux_h.copy(), flux_q.copy(), flux_q.copy()
+    h_west[:, f], h_east[:, f] = (mass, spread_mass) if eastward else (spread_mass, mass)
+    open_west, open_east = (momentum, spread_momentum) if eastward else (spread_momentum, momentum)
+    q_west[:, f] = open_west + (1.0 - o) * wall(hL[f], uL[:, f], 1.0)
+    q_east[:, f] = open_east + (1.0 - o) * wall(hR[f], uR[:, f], -1.0)
+    return h_west, h_east, q_west, q_east
 
 
 def _rates(h, u, b, l, *, dx, g_n, g_t, left, right, inflow, order, at_rest, gate=None):
@@ -154,7 +163,7 @@ def _rates(h, u, b, l, *, dx, g_n, g_t, left, right, inflow, order, at_rest, gat
     flux_h = l * (wl * qL + wr * qR + jump * (hR - hL)) * ~at_rest
     pL, pR = 0.5 * g_n * hL**2, 0.5 * g_n * hR**2
     flux_q = l * (wl * (qL * uL + pL) + wr * (qR * uR + pR) + jump * (qR - qL))
-    flux_h, flux_q_west, flux_q_east = _gated(flux_h, flux_q, hL, uL, hR, uR, l, g_n, gate)
+    flux_h_west, flux_h_east, flux_q_west, flux_q_east = _gated(flux_h, flux_q, hL, uL, hR, uR, l, g_n, gate)
 
     # well-balancing: the pressure at each cell's own face values, and the bed slope
     # term between them (zero at first order)
@@ -163,7 +172,7 @@ def _rates(h, u, b, l, *, dx, g_n, g_t, left, right, inflow, order, at_rest, gat
     west = flux_q_east[:, :-1] + l * 0.5 * g_n * (hw**2 - hR[:-1] ** 2)
     bed_slope = l * g_n * 0.5 * (hw + he) * (be - bw)
 
-    div_h = (flux_h[:, 1:] - flux_h[:, :-1]) / dx  # d_x(h_a u_a) per layer
+    div_h = (flux_h_west[:, 1:] - flux_h_east[:, :-1]) / dx  # d_x(h_a u_a) per layer
     div_Q = div_h.sum(axis=0)
 
     # mass exchange through the L-1 internal interfaces, upwinded velocity
