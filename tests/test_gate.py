@@ -62,6 +62,7 @@ def test_mass_is_conserved_while_the_gate_lifts(speed):
     assert sim.diagnostics()["mass"] == pytest.approx(m0, rel=1e-13)
 
 
+@pytest.mark.slow
 def test_a_slow_gate_delays_the_front():
     fast = _run("gate={x: -0.05, lift_speed: 4.0}")
     slow = _run("gate={x: -0.05, lift_speed: 0.5}")
