@@ -31,6 +31,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
+import yaml  # noqa: E402
 
 from multilayer.app import runner  # noqa: E402
 from multilayer.errors import RunError  # noqa: E402
@@ -71,15 +72,21 @@ def _shipped(name: str) -> scenarios.Scenario:
     return scenarios.load(SCENARIOS / f"{name}.yaml")
 
 
+def _inputs(resolved: str) -> dict:
+    """A resolved scenario without its ``expect`` list, which does not change the run."""
+    data = yaml.safe_load(resolved) or {}
+    data.pop("expect", None)
+    return data
+
+
 def _execute(run: Run) -> str | None:
     """Run unless an up-to-date completed result exists; the error message if it fails."""
     scenario = run.load()
     path = run.outdir / RESULT_FILE
     if path.is_file():
         with xr.open_dataset(path) as ds:
-            if (
-                ds.attrs.get("run_status") == "completed"
-                and ds.attrs.get("scenario") == scenario.resolved_yaml()
+            if ds.attrs.get("run_status") == "completed" and _inputs(ds.attrs.get("scenario", "")) == _inputs(
+                scenario.resolved_yaml()
             ):
                 return None
     try:

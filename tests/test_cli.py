@@ -41,7 +41,7 @@ INVALID = [
         "negative thickness",
         {"initial.0": {"shape": "layer", "thickness": -0.01}},
         "initial.0.thickness",
-        "accepted: a number > 0 (m)",
+        "accepted: a number >= 0 (m); 0: no layer",
     ),
     ("layers < 1", {"domain.layers": 0}, "domain.layers", "accepted: an integer >= 1"),
     ("cfl >= 1", {"time.cfl": 1.0}, "time.cfl", "accepted: a number in (0, 1)"),
