@@ -111,7 +111,7 @@ INVALID = [
         "unknown rheology parameter",
         {"rheology.mu_2": 0.6},
         "rheology.mu_2",
-        "unknown parameter of drucker_prager; accepted: drucker_prager(mu_s: float, nu: float)",
+        "unknown parameter of drucker_prager; accepted: drucker_prager(mu_s: float, nu: float, mu_start: float | None = None)",
     ),
     (
         "wrong rheology parameter type",
@@ -221,7 +221,10 @@ def test_version_help_and_plugins(cli):
     result = cli("plugins")
     assert result.code == 0
     assert "jop_mu_i [bulk]: Jop et al. (2006) mu(I)" in result.out
-    assert "parameters: jop_mu_i(mu_s: float, mu_2: float, I_0: float)" in result.out
+    assert (
+        "parameters: jop_mu_i(mu_s: float, mu_2: float, I_0: float, mu_start: float | None = None)"
+        in result.out
+    )
     assert "wall_friction [walls]" in result.out
     assert cli("frobnicate").code == 2  # argparse usage error
 
