@@ -111,7 +111,8 @@ INVALID = [
         "unknown rheology parameter",
         {"rheology.mu_2": 0.6},
         "rheology.mu_2",
-        "unknown parameter of drucker_prager; accepted: drucker_prager(mu_s: float, nu: float, mu_start: float | None = None)",
+        "unknown parameter of drucker_prager; accepted: "
+        "drucker_prager(mu_s: float, nu: float, mu_start: float | None = None)",
     ),
     (
         "wrong rheology parameter type",
