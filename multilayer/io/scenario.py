@@ -249,6 +249,8 @@ class PluginSpec(_Model):
             raise _invalid(problem, ", ".join(plugins.available(applies_to)), "name")
         try:
             params = plugins.parameter_model(cls).model_validate(self.params).model_dump()
+            # an optional parameter left at None (e.g. mu_start) is not written out
+            params = {key: value for key, value in params.items() if value is not None}
         except ValidationError as exc:
             error = exc.errors()[0]
             key = _dotted(error["loc"])
