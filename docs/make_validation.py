@@ -1142,8 +1142,9 @@ of that relative size):
   simulations, sec. 5.3, U_e grows along the chute here) explains part of the shortfall,
   **not all of it**.  The horizontal run itself falls short of 1/2 by
   {f3(level_short["220"])}, {f3(level_short["440"])}, {f3(level_short["880"])} at dx = 5, 2.5, 1.25 mm:
-  the remainder shrinks with refinement, so discretisation error is part of it; the
-  resolution study does not establish the limit.
+  the remainder changes by {f3(level_short["440"] - level_short["880"])} between the two finest
+  resolutions, so discretisation error may account for part of it, but three resolutions do
+  not establish its limit (finer runs were not made).
 - **Shape factor growth, chi - 1 proportional to x^(1/(1+alpha))** (eq. 4.26, 5.2-5.3),
   exponent of chi - 1 in the fixed window: {"; ".join(chi_verdicts)}.  In the paper's
   window 0.1-1 Fr^2 H the exponent is {f3(get("alpha034", "440", "chi_paper"))} for alpha = 0.34
