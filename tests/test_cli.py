@@ -41,7 +41,7 @@ INVALID = [
         "negative thickness",
         {"initial.0": {"shape": "layer", "thickness": -0.01}},
         "initial.0.thickness",
-        "accepted: a number > 0 (m)",
+        "accepted: a number >= 0 (m); 0: no layer",
     ),
     ("layers < 1", {"domain.layers": 0}, "domain.layers", "accepted: an integer >= 1"),
     ("cfl >= 1", {"time.cfl": 1.0}, "time.cfl", "accepted: a number in (0, 1)"),
@@ -111,7 +111,8 @@ INVALID = [
         "unknown rheology parameter",
         {"rheology.mu_2": 0.6},
         "rheology.mu_2",
-        "unknown parameter of drucker_prager; accepted: drucker_prager(mu_s: float, nu: float)",
+        "unknown parameter of drucker_prager; accepted: "
+        "drucker_prager(mu_s: float, nu: float, mu_start: float | None = None)",
     ),
     (
         "wrong rheology parameter type",
@@ -221,7 +222,10 @@ def test_version_help_and_plugins(cli):
     result = cli("plugins")
     assert result.code == 0
     assert "jop_mu_i [bulk]: Jop et al. (2006) mu(I)" in result.out
-    assert "parameters: jop_mu_i(mu_s: float, mu_2: float, I_0: float)" in result.out
+    assert (
+        "parameters: jop_mu_i(mu_s: float, mu_2: float, I_0: float, mu_start: float | None = None)"
+        in result.out
+    )
     assert "wall_friction [walls]" in result.out
     assert cli("frobnicate").code == 2  # argparse usage error
 

@@ -67,3 +67,23 @@ def test_geometric_layers_refine_towards_the_bed():
     assert l.sum() == pytest.approx(1.0)
     assert np.allclose(l[1:] / l[:-1], 1.5)
     assert sim.mesh.grid.numberOfCells == 5 * sim.h.size
+
+
+def test_a_layer_of_thickness_zero_is_no_layer():
+    """An erodible bed of 0 mm is the rigid bed: the same state as without the entry, so
+    one sweep over the bed thickness can start at 0 (scenarios/sweeps/erodible_bed.yaml)."""
+    column = {"shape": "rectangle", "x_min": 0.0, "x_max": 0.45, "height": 0.1}
+    domain = {"x_min": 0.0, "x_max": 1.0, "cells": 10, "layers": 4}
+    bare = simulation(domain=domain, initial=[column])
+    zero = simulation(domain=domain, initial=[{"shape": "layer", "thickness": 0.0}, column])
+    np.testing.assert_array_equal(zero.h, bare.h)
+    np.testing.assert_array_equal(zero.u, bare.u)
+
+
+def test_the_erodible_bed_sweep_runs_from_the_rigid_bed_to_5_mm():
+    from pathlib import Path
+
+    from multilayer.app import sweep
+
+    members = sweep.load(Path(__file__).parents[1] / "scenarios" / "sweeps" / "erodible_bed.yaml").members()
+    assert [m.values["initial.0.thickness"] for m in members] == [0.0, 0.001, 0.002, 0.003, 0.004, 0.005]

@@ -19,6 +19,7 @@ from multilayer.testing import expectations as expect
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 NAMES = (
     "erodible_bed_collapse",
+    "erodible_bed_collapse_coulomb",
     "smooth_to_rough_chute",
     "static_flowing_interface",
     "coulomb_dam_break",

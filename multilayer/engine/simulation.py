@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from multilayer.engine import diagnostics, initial_state, stress, transport, vertical_step
+from multilayer.engine.gate import Gate
 from multilayer.engine.mesh import LayeredMesh
 
 if TYPE_CHECKING:  # the engine reads a validated scenario; it never loads one
@@ -86,6 +87,11 @@ class Simulation:
             )
             self.inflow = transport.Inflow(float(bc.inflow.thickness), u_in)
 
+        self.gate = None
+        if sc.gate is not None:
+            faces = dom.x_min + self.dx * np.arange(dom.cells + 1)
+            self.gate = Gate(sc.gate.x, sc.gate.lift_speed, faces, self.mesh.interfaces)
+
         h0, u0 = initial_state.initial_state(sc.initial, self.x, self.sigma)
         # the state lives in FiPy variables; h, u and bed are numpy views of their values
         self.h_var = self.mesh.cell_variable("h", h0, layered=False)
@@ -132,9 +138,10 @@ class Simulation:
         # column being filled is no material at rest and needs no redo)
         moving = np.any(self.u != 0.0, axis=0)
         held = self.h > self.numerics.dry_threshold
+        rest = (self.u == 0.0) & held  # material at rest now: the static yield stress applies
         iterations = 0
         while True:
-            h_new, u_new, more = self._transport_and_stresses(dt, moving)
+            h_new, u_new, more = self._transport_and_stresses(dt, moving, rest)
             iterations += more
             starting = np.any(u_new != 0.0, axis=0) & ~moving & held
             if not starting.any():
@@ -148,8 +155,12 @@ class Simulation:
         self.t = t_max if dt == t_max - self.t else self.t + dt
         return dt
 
-    def _transport_and_stresses(self, dt: float, moving: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-        """Transport (h, u*) then the implicit vertical step (u^{n+1}) over ``dt``."""
+    def _transport_and_stresses(
+        self, dt: float, moving: np.ndarray, rest: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, int]:
+        """Transport (h, u*) then the implicit vertical step (u^{n+1}) over ``dt``; ``rest``
+        (L, N) marks the layers at rest at the start of the step."""
+        opening = self.gate.opening(self.h, self.t + 0.5 * dt) if self.gate is not None else None
         h_new, ustar = transport.transport(
             self.h,
             self.u,
@@ -165,6 +176,8 @@ class Simulation:
             dry=self.numerics.dry_threshold,
             order=self.numerics.order,
             moving=moving,
+            gate_face=self.gate.face if self.gate is not None else None,
+            opening=opening,
         )
         u_new, iterations = vertical_step.implicit_step(
             self.stresses,
@@ -176,6 +189,7 @@ class Simulation:
             tolerance=self.numerics.tolerance,
             max_iterations=self.numerics.max_iterations,
             velocity_scale=self.velocity_scale,
+            rest=rest,
         )
         return h_new, u_new, iterations
 

@@ -9,6 +9,11 @@ condition replaces interface 0: Coulomb ``kappa_0 = mu p_bed, c_0 = 0``; free sl
 ``kappa_0 = c_0 = 0``.  Side walls of a channel of width ``W`` hold layer ``a`` with
 ``F_a = (2 / W) h_a tau_w(pbar_a)`` (Jop, Forterre & Pouliquen 2005; ``mu_w h / W`` summed over
 the layers), ``pbar_a`` the mean pressure over the layer.
+
+Start/stop friction (Pouliquen & Forterre 2002): where both layers adjacent to an
+interface were at rest at the start of the step (the ground counts as at rest), the
+interface yield stress is the rheology's ``static_yield_stress``; the choice is made once
+per step, so the step stays an exact minimisation with those thresholds.
 """
 
 from __future__ import annotations
@@ -66,13 +71,20 @@ class StressModel:
         spacing = 0.5 * (fractions + np.concatenate([[0.0], fractions[:-1]]))
         self.spacing_fraction = spacing[:, None]  # h_0/2 at the bed, (l_{k-1} + l_k)/2 above
 
-    def columns(self, h: np.ndarray, where: np.ndarray) -> ColumnStresses:
-        """Velocity-independent coefficients of the columns ``where`` of thickness ``h``."""
+    def columns(self, h: np.ndarray, where: np.ndarray, rest: np.ndarray | None = None) -> ColumnStresses:
+        """Velocity-independent coefficients of the columns ``where`` of thickness ``h``;
+        ``rest`` (L, N) marks the layers at rest at the start of the step (None: none)."""
         rho = self.material.density
         h = h[where]
         base_kind, base_mu = self.base_kind[where], self.base_mu[where]
         p = rho * self.g_n * self.depth_interface * h
         kappa = self.bulk.yield_stress(p, self.material).astype(float)
+        if rest is not None:
+            rest = rest[:, where]
+            # interface k lies below layer k: static where layer k and the one below it
+            # (the ground for k = 0) were both at rest
+            static = rest & np.vstack([np.ones_like(rest[:1]), rest[:-1]])
+            kappa = np.where(static, self.bulk.static_yield_stress(p, self.material), kappa)
         viscous = np.ones(p.shape, dtype=bool)
         kappa[0] = np.where(base_kind == COULOMB, base_mu * p[0], kappa[0])
         kappa[0] = np.where(base_kind == FREE_SLIP, 0.0, kappa[0])

@@ -90,8 +90,44 @@ def stable_time_step(h: np.ndarray, u: np.ndarray, g_n: float, dx: float, cfl: f
     return min(cfl, 0.5) * dx / speed if speed > 0 else np.inf
 
 
-def _rates(h, u, b, l, *, dx, g_n, g_t, left, right, inflow, order, at_rest):
-    """Time derivatives of h (N,) and of the layer momenta h_a u_a (L, N)."""
+def _gated(flux_h, flux_q, hL, uL, hR, uR, l, g_n, gate):
+    """Fluxes through a partly open gate face (engine/gate.py).  Returns the mass and
+    momentum fluxes seen by the cells west and east of each face.
+
+    The part ``o_a`` of each layer below the edge leaves the donor cell (upstream of the
+    net mass flux) with its HLL fluxes; the rest meets a wall, whose flux is the HLL flux
+    between a state and its mirror image (u -> -u), as at a ``wall`` boundary: no mass,
+    and ``l (h u^2 + g h^2/2 + s h u)`` with ``s`` the largest wave speed of the state
+    (``- s h u`` seen from the east side).  The receiving cell takes the same total mass
+    and momentum through the opening spread over its layers in proportion to ``l_a``:
+    its sigma layers keep ``h_a = l_a h``, and mass entering its lowest layers alone would
+    be moved up by the exchange ``G`` with the velocity the layer had before it arrived
+    (zero in a dry cell), which concentrates the momentum in those layers.
+    """
+    if gate is None:
+        return flux_h, flux_h, flux_q, flux_q
+    face, opening = gate
+    o = opening[:, None]
+    f = slice(face, face + 1)
+
+    def wall(h, u, sign):
+        s = np.max(np.abs(u), axis=0) + np.sqrt(g_n * h)
+        return l * (h * u * u + 0.5 * g_n * h * h + sign * s * h * u)
+
+    mass, momentum = o * flux_h[:, f], o * flux_q[:, f]
+    spread_mass, spread_momentum = l * mass.sum(axis=0), l * momentum.sum(axis=0)
+    eastward = mass.sum() >= 0.0
+    h_west, h_east, q_west, q_east = flux_h.copy(), flux_h.copy(), flux_q.copy(), flux_q.copy()
+    h_west[:, f], h_east[:, f] = (mass, spread_mass) if eastward else (spread_mass, mass)
+    open_west, open_east = (momentum, spread_momentum) if eastward else (spread_momentum, momentum)
+    q_west[:, f] = open_west + (1.0 - o) * wall(hL[f], uL[:, f], 1.0)
+    q_east[:, f] = open_east + (1.0 - o) * wall(hR[f], uR[:, f], -1.0)
+    return h_west, h_east, q_west, q_east
+
+
+def _rates(h, u, b, l, *, dx, g_n, g_t, left, right, inflow, order, at_rest, gate=None):
+    """Time derivatives of h (N,) and of the layer momenta h_a u_a (L, N); ``gate`` is
+    ``(face, opening)``, a face of the window and the opening fractions (L,) there."""
     h_ext, u_ext, b_ext = _ghosts(h, u, b, left, right, inflow)
     # cells 1 .. N+2 of the extended arrays (interior plus one ghost per side)
     if order == 2:
@@ -127,15 +163,16 @@ def _rates(h, u, b, l, *, dx, g_n, g_t, left, right, inflow, order, at_rest):
     flux_h = l * (wl * qL + wr * qR + jump * (hR - hL)) * ~at_rest
     pL, pR = 0.5 * g_n * hL**2, 0.5 * g_n * hR**2
     flux_q = l * (wl * (qL * uL + pL) + wr * (qR * uR + pR) + jump * (qR - qL))
+    flux_h_west, flux_h_east, flux_q_west, flux_q_east = _gated(flux_h, flux_q, hL, uL, hR, uR, l, g_n, gate)
 
     # well-balancing: the pressure at each cell's own face values, and the bed slope
     # term between them (zero at first order)
     hw, he, bw, be = h_w[1:-1], h_e[1:-1], b_w[1:-1], b_e[1:-1]
-    east = flux_q[:, 1:] + l * 0.5 * g_n * (he**2 - hL[1:] ** 2)
-    west = flux_q[:, :-1] + l * 0.5 * g_n * (hw**2 - hR[:-1] ** 2)
+    east = flux_q_west[:, 1:] + l * 0.5 * g_n * (he**2 - hL[1:] ** 2)
+    west = flux_q_east[:, :-1] + l * 0.5 * g_n * (hw**2 - hR[:-1] ** 2)
     bed_slope = l * g_n * 0.5 * (hw + he) * (be - bw)
 
-    div_h = (flux_h[:, 1:] - flux_h[:, :-1]) / dx  # d_x(h_a u_a) per layer
+    div_h = (flux_h_west[:, 1:] - flux_h_east[:, :-1]) / dx  # d_x(h_a u_a) per layer
     div_Q = div_h.sum(axis=0)
 
     # mass exchange through the L-1 internal interfaces, upwinded velocity
@@ -188,12 +225,16 @@ def transport(
     dry: float = 0.0,
     order: int = 2,
     moving: np.ndarray | None = None,
+    gate_face: int | None = None,
+    opening: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """One explicit transport step: returns h^{n+1} (N,) and the velocities u* (L, N).
 
     ``g_n = g cos(theta)`` and ``g_t = g sin(theta)``; columns not thicker than ``dry``
     leave the step at rest.  ``moving`` (N,) marks the columns that carry waves during
-    the step (default: those with a non-zero velocity).
+    the step (default: those with a non-zero velocity).  ``opening`` (L,) are the opening
+    fractions of the layers at face ``gate_face`` (face i between cells i-1 and i) of a
+    partly lifted gate (engine/gate.py); None: no gate.
     """
     N = h.size
     if moving is None:
@@ -213,6 +254,9 @@ def transport(
         ends[1] = moving[0]
     moving_ext = np.concatenate([[ends[0]], moving, [ends[1]]])
     at_rest = ~(moving_ext[:-1] | moving_ext[1:])
+    gate = None
+    if opening is not None and lo <= gate_face <= hi:
+        gate = (gate_face - lo, np.asarray(opening, dtype=float))
     h_new, u_new = np.zeros_like(h), np.zeros_like(u)
     h_new[window], u_new[:, window] = _step(
         hw,
@@ -229,5 +273,6 @@ def transport(
         inflow=inflow,
         order=order,
         at_rest=at_rest,
+        gate=gate,
     )
     return h_new, u_new

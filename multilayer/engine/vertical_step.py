@@ -49,15 +49,18 @@ def implicit_step(
     tolerance: float = 1e-10,
     max_iterations: int = 200,
     velocity_scale: float = 1.0,
+    rest: np.ndarray | None = None,
 ) -> tuple[np.ndarray, int]:
     """New layer velocities (L, N) after the stresses of one step, and the Newton count.
 
-    ``u_guess`` (usually the previous velocities) seeds the viscosity.  Only columns
-    that have not converged are solved again.
+    ``u_guess`` (usually the previous velocities) seeds the viscosity.  ``rest`` (L, N)
+    marks the layers at rest at the start of the step, where the static yield stress of
+    a start/stop law applies (``StressModel.columns``).  Only columns that have not
+    converged are solved again.
     """
     u = np.zeros_like(ustar)
     wet = np.flatnonzero(h > 0)
-    cs = stresses.columns(h, wet)
+    cs = stresses.columns(h, wet, rest)
     current = u_guess[:, wet]
     todo = np.arange(wet.size)  # wet columns still iterating
     threshold = tolerance * velocity_scale

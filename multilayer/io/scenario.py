@@ -254,6 +254,8 @@ class PluginSpec(_Model):
             raise _invalid(problem or self.name, ", ".join(plugins.available(applies_to)), "name")
         try:
             params = plugins.parameter_model(cls).model_validate(self.params).model_dump()
+            # an optional parameter left at None (e.g. mu_start) is not written out
+            params = {key: value for key, value in params.items() if value is not None}
         except ValidationError as exc:
             error = exc.errors()[0]
             key = _dotted(error["loc"])
@@ -436,7 +438,7 @@ class InitialShape(_Model):
     """One contribution to the initial thickness (contributions add up)."""
 
     shape: Literal["layer", "rectangle", "profile"] = _field(..., "layer, rectangle or profile")
-    thickness: float | None = _field(None, "a number > 0 (m)", gt=0)
+    thickness: float | None = _field(None, "a number >= 0 (m); 0: no layer", ge=0)
     x_min: float | None = _field(None, "a number (m)")
     x_max: float | None = _field(None, "a number > x_min (m)")
     height: float | None = _field(None, "a number > 0 (m)", gt=0)
@@ -513,6 +515,15 @@ class Boundaries(_Model):
         if self.inflow is not None and not has_inflow:
             raise _invalid("inflow given but no side is inflow", "left: inflow or right: inflow", "inflow")
         return self
+
+
+class GateSpec(_Model):
+    """A gate holding the initial column, lifted at the start of the run (engine/gate.py)."""
+
+    x: float = _field(..., "a number in [domain.x_min, domain.x_max] (m); snapped to the nearest cell face")
+    lift_speed: float = _field(
+        ..., "a number >= 0 (m/s), normal to the plane; .inf: instantaneous release", ge=0
+    )
 
 
 class Time(_Model):
@@ -598,6 +609,7 @@ class Scenario(_Model):
     bed: Bed = _field(Bed(), "{profile: flat} or {points: [[x, b], ...]}")
     initial: list[InitialShape] = _field([], "a list of {shape, ...}")
     boundaries: Boundaries = _field(Boundaries(), "a mapping with left, right")
+    gate: GateSpec | None = _field(None, "{x, lift_speed}; default: no gate")
     time: Time = _field(..., "a mapping with end, output_interval")
     output: Output = _field(Output(), "a mapping with directory")
     expect: list[Expect] = _field([], "a list of {kind, quantity, value, rtol, atol, source}")
@@ -623,6 +635,12 @@ class Scenario(_Model):
                 "walls need the channel width domain.width",
                 "domain.width > 0 (m) together with walls",
                 "walls",
+            )
+        if self.gate is not None and not self.domain.x_min <= self.gate.x <= self.domain.x_max:
+            raise _invalid(
+                f"gate at x = {self.gate.x} is outside the domain",
+                f"a number in [{self.domain.x_min}, {self.domain.x_max}] (m)",
+                "gate.x",
             )
         covered, gap = self.domain.x_min, None
         for lo, hi in sorted(

@@ -8,6 +8,12 @@ Every law is written as (Bouchut, Ionescu & Mangeney 2016, eq. 1.3-1.8)::
 ``kappa`` is returned by :meth:`Rheology.yield_stress`, ``eta`` by
 :meth:`Rheology.viscosity`.  The engine treats the yield part exactly (never by
 regularising ``sgn``) and iterates on the viscous part.
+
+A law may also declare a larger yield stress for material at rest, the start/stop
+(hysteretic) friction of Pouliquen & Forterre (2002): :meth:`Rheology.static_yield_stress`
+applies at an interface whose two adjacent layers were both at rest at the start of the
+step, :meth:`Rheology.yield_stress` everywhere else.  It is optional: by default it is the
+flowing yield stress, so laws written without it behave as before.
 """
 
 from __future__ import annotations
@@ -45,6 +51,13 @@ class Rheology:
     def yield_stress(self, pressure: np.ndarray, material: Material) -> np.ndarray:
         """Rate-independent yield stress kappa(p) >= 0, in Pa."""
         raise NotImplementedError
+
+    def static_yield_stress(self, pressure: np.ndarray, material: Material) -> np.ndarray:
+        """Yield stress of material at rest, in Pa (>= the flowing one for a start/stop law).
+
+        Default: :meth:`yield_stress` (no hysteresis).
+        """
+        return self.yield_stress(pressure, material)
 
     def viscosity(self, shear_rate: np.ndarray, pressure: np.ndarray, material: Material) -> np.ndarray:
         """Rate-dependent part eta(|gamma|, p) >= 0, in Pa s, finite at gamma = 0."""

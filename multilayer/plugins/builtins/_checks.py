@@ -23,10 +23,27 @@ def positive(**values: float) -> None:
 
 
 class FrictionalYield(multilayer.Rheology):
-    """The Drucker-Prager yield part shared by the frictional laws: kappa = mu_s max(p, 0)."""
+    """The Drucker-Prager yield part shared by the frictional laws: kappa = mu_s max(p, 0)
+    while flowing, and ``mu_start max(p, 0)`` at rest (start/stop friction, Pouliquen &
+    Forterre 2002: material at rest starts above tan(theta) = mu_start, flowing material
+    stops below mu_s)."""
 
     mu_s: float
+    mu_start: float
+
+    def _set_friction(self, mu_s: float, mu_start: float | None) -> None:
+        """Set ``mu_s`` and ``mu_start`` (default ``mu_s``: no hysteresis); mu_start >= mu_s."""
+        non_negative(mu_s=mu_s)
+        mu_start = mu_s if mu_start is None else mu_start
+        if not mu_start >= mu_s:
+            raise ValueError(f"mu_start must be >= mu_s = {mu_s!r}, got {mu_start!r}")
+        self.mu_s = mu_s
+        self.mu_start = mu_start
 
     def yield_stress(self, pressure, material):
         """kappa = mu_s max(p, 0), Pa."""
         return self.mu_s * np.maximum(np.asarray(pressure, dtype=float), 0.0)
+
+    def static_yield_stress(self, pressure, material):
+        """kappa_static = mu_start max(p, 0), Pa."""
+        return self.mu_start * np.maximum(np.asarray(pressure, dtype=float), 0.0)

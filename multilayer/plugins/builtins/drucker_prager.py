@@ -2,7 +2,9 @@
 
     kappa(p) = mu_s max(p, 0),      eta = rho nu
 
-(Bouchut, Ionescu & Mangeney 2016, eq. 1.3-1.8 with a constant viscous part.)
+(Bouchut, Ionescu & Mangeney 2016, eq. 1.3-1.8 with a constant viscous part); with
+``nu = 0`` the pure Coulomb (constant friction) law.  Optional start/stop friction:
+``mu_start max(p, 0)`` at rest (Pouliquen & Forterre 2002).
 """
 
 from __future__ import annotations
@@ -18,10 +20,11 @@ class DruckerPrager(FrictionalYield):
     name = "drucker_prager"
     applies_to = "bulk"
 
-    def __init__(self, mu_s: float, nu: float):
-        """``mu_s``: friction coefficient (-); ``nu``: kinematic viscosity (m^2/s)."""
-        non_negative(mu_s=mu_s, nu=nu)
-        self.mu_s = mu_s
+    def __init__(self, mu_s: float, nu: float, mu_start: float | None = None):
+        """``mu_s``: friction coefficient (-); ``nu``: kinematic viscosity (m^2/s);
+        ``mu_start`` >= ``mu_s``: friction of material at rest (-), default ``mu_s``."""
+        self._set_friction(mu_s, mu_start)
+        non_negative(nu=nu)
         self.nu = nu
 
     def viscosity(self, shear_rate, pressure, material):

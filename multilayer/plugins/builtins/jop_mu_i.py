@@ -9,13 +9,14 @@ I / |gamma| = d sqrt(rho_p / p), multiplying through by sqrt(p) gives the form u
 
 which is finite everywhere: eta -> (mu_2 - mu_s) d sqrt(rho_p p) / I_0 as gamma -> 0 and
 eta -> 0 as p -> 0 (pressure is clamped at 0; eta = 0 at p = gamma = 0, its limit).
+Optional start/stop friction: ``mu_start max(p, 0)`` at rest (Pouliquen & Forterre 2002).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from multilayer.plugins.builtins._checks import FrictionalYield, non_negative, positive
+from multilayer.plugins.builtins._checks import FrictionalYield, positive
 
 
 class JopMuI(FrictionalYield):
@@ -24,13 +25,13 @@ class JopMuI(FrictionalYield):
     name = "jop_mu_i"
     applies_to = "bulk"
 
-    def __init__(self, mu_s: float, mu_2: float, I_0: float):
-        """``mu_s`` <= ``mu_2``: friction at I -> 0 and I -> infinity (-); ``I_0`` > 0 (-)."""
-        non_negative(mu_s=mu_s)
+    def __init__(self, mu_s: float, mu_2: float, I_0: float, mu_start: float | None = None):
+        """``mu_s`` <= ``mu_2``: friction at I -> 0 and I -> infinity (-); ``I_0`` > 0 (-);
+        ``mu_start`` >= ``mu_s``: friction of material at rest (-), default ``mu_s``."""
+        self._set_friction(mu_s, mu_start)
         positive(I_0=I_0)
         if not mu_2 >= mu_s:
             raise ValueError(f"mu_2 must be >= mu_s = {mu_s!r}, got {mu_2!r}")
-        self.mu_s = mu_s
         self.mu_2 = mu_2
         self.I_0 = I_0
 

@@ -9,7 +9,8 @@ split as kappa = mu_s p and eta |gamma| = m p I^alpha, i.e.
 With 0 < alpha < 2 this vanishes as p -> 0.  For alpha < 1 it is infinite at
 gamma = 0, so eta is evaluated at max(|gamma|, shear_rate_floor): below the floor
 (default 1e-6 1/s) the viscous stress is linear in gamma instead of following I^alpha,
-and eta stays finite (its largest value is eta at the floor).
+and eta stays finite (its largest value is eta at the floor).  Optional start/stop
+friction: ``mu_start max(p, 0)`` at rest (Pouliquen & Forterre 2002).
 """
 
 from __future__ import annotations
@@ -25,13 +26,21 @@ class PowerLawMuI(FrictionalYield):
     name = "power_law_mu_i"
     applies_to = "bulk"
 
-    def __init__(self, mu_s: float, m: float, alpha: float, shear_rate_floor: float = 1e-6):
-        """``mu_s``, ``m`` >= 0 (-); 0 < ``alpha`` < 2 (-); ``shear_rate_floor`` > 0 (1/s)."""
-        non_negative(mu_s=mu_s, m=m)
+    def __init__(
+        self,
+        mu_s: float,
+        m: float,
+        alpha: float,
+        shear_rate_floor: float = 1e-6,
+        mu_start: float | None = None,
+    ):
+        """``mu_s``, ``m`` >= 0 (-); 0 < ``alpha`` < 2 (-); ``shear_rate_floor`` > 0 (1/s);
+        ``mu_start`` >= ``mu_s``: friction of material at rest (-), default ``mu_s``."""
+        self._set_friction(mu_s, mu_start)
+        non_negative(m=m)
         positive(alpha=alpha, shear_rate_floor=shear_rate_floor)
         if not alpha < 2:
             raise ValueError(f"alpha must be < 2 (eta must vanish as p -> 0), got {alpha!r}")
-        self.mu_s = mu_s
         self.m = m
         self.alpha = alpha
         self.shear_rate_floor = shear_rate_floor
