@@ -51,11 +51,13 @@ def implicit_step(
     tolerance: float = 1e-10,
     max_iterations: int = 200,
     velocity_scale: float = 1.0,
+    poll: Callable[[], None] | None = None,
 ) -> tuple[np.ndarray, int]:
     """New layer velocities (L, N) after the stresses of one step, and the Newton count.
 
     ``u_guess`` (usually the previous velocities) seeds the viscosity.  Only columns
-    that have not converged are solved again.
+    that have not converged are solved again.  ``poll()`` is called before every kernel
+    call: it may raise to abandon the step (how a run honours Ctrl-C within a kernel call).
     """
     u = np.zeros_like(ustar)
     wet = np.flatnonzero(h > 0)
@@ -64,6 +66,8 @@ def implicit_step(
     todo = np.arange(wet.size)  # wet columns still iterating
     threshold = tolerance * velocity_scale
     for iteration in range(1, max_iterations + 1):
+        if poll is not None:
+            poll()
         kappa, c, w, cw = stresses.linearise(cs, current)
         cols = (slice(None), todo)
         new = solver(
