@@ -3,6 +3,11 @@
 Every layer is drawn where it is: cell ``(alpha, i)`` spans
 ``z = b_i + h_i * sigma_{alpha -/+ 1/2}`` over the cell ``[x_{i-1/2}, x_{i+1/2}]``, with
 ``z`` normal to the inclined plane (docs/model.md).
+
+A result of a failed run, or one holding non-finite values (written by an older
+version, or edited), is drawn where it is finite: non-finite values become gaps in the
+curves and blank cells in the section, and :func:`plot_run` returns notes saying what
+was not drawn and why the run ended.
 """
 
 from __future__ import annotations
@@ -24,15 +29,20 @@ _VELOCITY = colormaps["viridis"].with_extremes(bad="0.82")
 """Colour map of u; masked cells (static material, u == 0 exactly) are grey."""
 
 
-def plot_run(directory: str | os.PathLike, times: int = 4) -> list[Path]:
+FIELDS = ("h", "u", "static_interface", "front", "mass")
+"""Variables whose non-finite values are reported (``front`` is NaN, not reported, when no
+cell is wetter than its threshold)."""
+
+
+def plot_run(directory: str | os.PathLike, times: int = 4) -> tuple[list[Path], list[str]]:
     """Write the figures of ``directory/result.nc`` into ``directory/plots/``.
 
     Always: ``section.png`` (X-Z section at ``times`` times), ``thickness.png``
     (h(x)) and ``front_mass.png``; for single-column runs also ``profiles.png``
     (u(z) at several times) and ``static_interface.png`` (b(t) and h(t)).
-    Returns the paths written.
+    Returns the paths written and notes on what could not be drawn (module docstring).
     """
-    ds = open_result(directory)
+    ds, notes = finite_part(open_result(directory))
     out = Path(directory) / PLOTS_DIR
     out.mkdir(exist_ok=True)
     name = yaml.safe_load(ds.attrs["scenario"])["name"]
@@ -48,7 +58,36 @@ def plot_run(directory: str | os.PathLike, times: int = 4) -> list[Path]:
     for filename, fig in figures.items():
         fig.savefig(out / filename, dpi=120)
         paths.append(out / filename)
-    return paths
+    return paths, notes
+
+
+def finite_part(ds: xr.Dataset) -> tuple[xr.Dataset, list[str]]:
+    """``ds`` with every non-finite value of :data:`FIELDS` set to NaN (a gap), and notes
+    on the run status and on each field that is not finite everywhere."""
+    notes = []
+    status = ds.attrs.get("run_status", "completed")
+    if status != "completed":
+        what = {"failed": "the run failed", "interrupted": "the run was interrupted"}.get(
+            status, f"the run is {status} (or its process was killed)"
+        )
+        why = ds.attrs.get("failure", "")
+        drawn = f"drawn up to t = {float(ds['time'][-1]):.6g} s"
+        notes.append(f"{what}: {why}; {drawn}" if why else f"{what}; {drawn}")
+    for name in FIELDS:
+        values = ds[name].values
+        bad = ~np.isfinite(values)
+        if name == "front":
+            bad &= ~np.isnan(values)
+        if bad.any():
+            first = np.unravel_index(np.argmax(bad), bad.shape)
+            t = float(ds["time"].values[first[0]])
+            where = f", x = {float(ds['x'].values[first[-1]]):.6g} m" if "x" in ds[name].dims else ""
+            notes.append(
+                f"{name}: {int(bad.sum())} of {bad.size} values are not finite "
+                f"(first {float(values[first])!r} at t = {t:.6g} s{where}); not drawn"
+            )
+            ds[name] = ds[name].where(~bad)
+    return ds, notes
 
 
 def _time_indices(ds: xr.Dataset, n: int) -> np.ndarray:
@@ -67,18 +106,20 @@ def section_figure(ds: xr.Dataset, name: str, times: int = 4) -> Figure:
     fig = Figure(figsize=(9, 2.2 * len(picks) + 1), layout="constrained")
     axes = fig.subplots(len(picks), 1, sharex=True, sharey=True, squeeze=False)[:, 0]
     u = ds["u"].values[picks]
-    vmin, vmax = min(u.min(), 0.0), max(u.max(), 1e-12)
+    vmin, vmax = min(np.nanmin(u, initial=0.0), 0.0), max(np.nanmax(u, initial=0.0), 1e-12)
     sig = ds["sigma_bnds"].values
     edges = np.append(sig[:, 0], sig[-1, 1])
     bed = ds["bed"].values
     for ax, k in zip(axes, picks):
         snap = ds.isel(time=k)
         h = snap["h"].values
-        z = bed + h * edges[:, None]  # (L+1, N) interface heights
+        known = np.isfinite(h)
+        z = bed + np.where(known, h, 0.0) * edges[:, None]  # (L+1, N) interface heights
         xs, zs = _staircase(ds, z)
         # odd columns join neighbouring cells: zero width, never seen
         colour = np.ma.masked_all((ds.sizes["layer"], xs.size - 1))
-        colour[:, ::2] = np.ma.masked_equal(snap["u"].values, 0.0)  # static: grey
+        u_snap = snap["u"].values
+        colour[:, ::2] = np.ma.masked_where((u_snap == 0.0) | ~np.isfinite(u_snap), u_snap)  # static: grey
         mesh = ax.pcolormesh(xs, zs, colour, cmap=_VELOCITY, vmin=vmin, vmax=vmax)
         ax.plot(*_staircase(ds, bed), color="k", lw=1.2, label="bed", zorder=3)
         ax.plot(*_staircase(ds, bed + h), color="tab:blue", lw=1.0, label="free surface")

@@ -6,6 +6,7 @@ Example: multilayer plot results/erodible-bed-collapse
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from multilayer.app.commands import positive_int
@@ -26,9 +27,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    """Write the figures and list them."""
+    """Write the figures and list them; say on stderr what could not be drawn."""
     from multilayer.io.plotting import plot_run
 
-    for path in plot_run(args.directory, times=args.times):
+    paths, notes = plot_run(args.directory, times=args.times)
+    for path in paths:
         print(path)
+    for note in notes:
+        print(f"multilayer: warning: {note}", file=sys.stderr)
     return 0
