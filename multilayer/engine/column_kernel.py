@@ -391,6 +391,6 @@ def _require_finite(name: str, array: np.ndarray) -> None:
     if not np.isfinite(array).all():
         i, a = np.unravel_index(np.argmin(np.isfinite(array)), array.shape)
         raise RunError(
-            f"column kernel: {name} is {array[i, a]!r} in column {i} of the {array.shape[0]} "
+            f"column kernel: {name} is {float(array[i, a])!r} in column {i} of the {array.shape[0]} "
             f"solved, layer or interface {a}; the kernel only accepts finite values"
         )

@@ -79,10 +79,10 @@ def entry_thickness(entry: InitialShape, edges: np.ndarray) -> np.ndarray:
     return cell_average(*points, edges)
 
 
-def check_entries(entries: Sequence[InitialShape], edges: np.ndarray, where: str) -> None:
+def check_entries(entries: Sequence[InitialShape], x_min: float, x_max: float, dx: float, where: str) -> None:
     """:class:`InputError` naming the first entry with material outside the domain
-    ``[edges[0], edges[-1]]`` or narrower than one cell; ``where`` names the scenario."""
-    dx = float(np.min(np.diff(edges)))
+    ``[x_min, x_max]`` or narrower than one cell of width ``dx``; ``where`` names the scenario."""
+    bounds = np.array([x_min, x_max])
     for index, entry in enumerate(entries):
         points = entry_points(entry)
         if points is None:
@@ -96,9 +96,9 @@ def check_entries(entries: Sequence[InitialShape], edges: np.ndarray, where: str
             )
         lo, hi = px[max(wet[0] - 1, 0)], px[min(wet[-1] + 1, px.size - 1)]  # support of the thickness
         total = float(piecewise_linear_integral(px, ph, np.array([px[-1]]))[0])
-        inside = float(np.diff(piecewise_linear_integral(px, ph, edges[[0, -1]]))[0])
+        inside = float(np.diff(piecewise_linear_integral(px, ph, bounds))[0])
         name = f"{where}: initial.{index} ({entry.shape} on x in [{lo:g}, {hi:g}] m)"
-        domain = f"[{edges[0]:g}, {edges[-1]:g}] m"
+        domain = f"[{x_min:g}, {x_max:g}] m"
         if inside < total * (1 - 1e-12):
             raise InputError(
                 f"{name}: {total - inside:.6g} of its {total:.6g} m2 lie outside the domain "
@@ -108,7 +108,7 @@ def check_entries(entries: Sequence[InitialShape], edges: np.ndarray, where: str
             raise InputError(
                 f"{name}: {hi - lo:.6g} m wide, narrower than one cell (dx = {dx:.6g} m): "
                 f"the mesh cannot represent it; accepted: a shape at least one cell wide "
-                f"(raise domain.cells to at least {int(np.ceil((edges[-1] - edges[0]) / (hi - lo)))})"
+                f"(raise domain.cells to at least {int(np.ceil((x_max - x_min) / (hi - lo)))})"
             )
 
 

@@ -80,7 +80,7 @@ class Simulation:
             self.inflow = transport.Inflow(float(bc.inflow.thickness), u_in)
 
         self.edges = initial_state.cell_edges(dom.x_min, dom.x_max, dom.cells)
-        initial_state.check_entries(sc.initial, self.edges, str(sc.source or "<scenario>"))
+        initial_state.check_entries(sc.initial, dom.x_min, dom.x_max, self.dx, str(sc.source or "<scenario>"))
         h0, u0 = initial_state.initial_state(sc.initial, self.x, self.sigma, self.edges)
         # the state lives in FiPy variables; h, u and bed are numpy views of their values
         self.h_var = self.mesh.cell_variable("h", h0, layered=False)

@@ -66,14 +66,15 @@ class StateGuard:
         """Raise :class:`StateError` unless ``h`` and ``u`` are finite and ``h >= 0``."""
         if not np.isfinite(h).all():
             j = int(np.argmin(np.isfinite(h)))
-            raise StateError(f"thickness h = {h[j]!r} at x = {self.x[j]:.6g} m {when}")
+            raise StateError(f"thickness h = {float(h[j])!r} at x = {self.x[j]:.6g} m {when}")
         if h.min(initial=0.0) < 0.0:
             j = int(np.argmin(h))
             raise StateError(f"negative thickness h = {h[j]:.6g} m at x = {self.x[j]:.6g} m {when}")
         if not np.isfinite(u).all():
             a, j = np.unravel_index(np.argmin(np.isfinite(u)), u.shape)
             raise StateError(
-                f"velocity u = {u[a, j]!r} at x = {self.x[j]:.6g} m, layer {a + 1} (1 is at the bed) {when}"
+                f"velocity u = {float(u[a, j])!r} at x = {self.x[j]:.6g} m, "
+                f"layer {a + 1} (1 is at the bed) {when}"
             )
 
     def _flux_bound(self, h_old, u_old, h_new, u_new, cells) -> float:

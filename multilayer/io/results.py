@@ -252,6 +252,25 @@ def open_result(path: str | os.PathLike, *, load: bool = True) -> xr.Dataset:
     return ds.isel(time=np.flatnonzero(np.isfinite(ds["time"].values)))
 
 
+def run_failure(path: str | os.PathLike) -> str | None:
+    """Why the run in ``path`` (a result file or its directory) cannot be used: ``None`` if it
+    completed with finite ``h`` and ``u`` at every output time, else the reason (the failure
+    message, the run status, or where values are not finite).  This is how a sweep (and any
+    ensemble command) decides that a member failed."""
+    try:
+        with open_result(path, load=False) as ds:
+            status = ds.attrs.get("run_status", "unknown")
+            if status != "completed":
+                return f"run_status {status}" + (f": {ds.attrs['failure']}" if "failure" in ds.attrs else "")
+            for name in ("h", "u"):
+                finite = np.isfinite(ds[name].values)
+                if not finite.all():
+                    return f"{name} is not finite at {finite.size - np.count_nonzero(finite)} values"
+    except InputError as exc:
+        return str(exc)
+    return None
+
+
 SUMMARY_KEYS = (
     "t_final",
     "front_final",

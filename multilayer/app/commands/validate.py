@@ -40,10 +40,10 @@ def main(args: argparse.Namespace) -> int:
     for path in args.files:
         try:
             scenario = scenarios.load(path, args.overrides)
-            dom = scenario.domain
-            edges = initial_state.cell_edges(dom.x_min, dom.x_max, dom.cells)
-            initial_state.check_entries(scenario.initial, edges, str(path))
             need = resources.check(scenario, scenario.output.directory or Path("results"), budget(args))
+            dom = scenario.domain
+            dx = (dom.x_max - dom.x_min) / dom.cells
+            initial_state.check_entries(scenario.initial, dom.x_min, dom.x_max, dx, str(path))
         except InputError as exc:
             print(f"multilayer: error: {exc}", file=sys.stderr)
             invalid += 1
