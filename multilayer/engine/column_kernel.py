@@ -388,7 +388,7 @@ def solve(
 
 def _require_finite(name: str, array: np.ndarray) -> None:
     """RunError naming ``name`` and the first non-finite (column, layer) of an (N, L) array."""
-    if not np.isfinite(array).all():
+    if array.size and not (array.min() > -np.inf and array.max() < np.inf):  # NaN fails both
         i, a = np.unravel_index(np.argmin(np.isfinite(array)), array.shape)
         raise RunError(
             f"column kernel: {name} is {float(array[i, a])!r} in column {i} of the {array.shape[0]} "

@@ -57,8 +57,8 @@ def call(
             f"{plugin_label(plugin)}: {method}() returned an array of shape {array.shape}; "
             f"expected {shape}, the shape of its pressure argument (at t = {t:.6g} s)"
         )
-    good = np.isfinite(array) & (array >= 0.0)
-    if not good.all():
+    if array.size and not (array.min() >= 0.0 and array.max() < np.inf):  # NaN fails both (cheap)
+        good = np.isfinite(array) & (array >= 0.0)
         a, j = np.unravel_index(np.argmin(good), shape) if array.ndim == 2 else (0, int(np.argmin(good)))
         bad = float(array[a, j] if array.ndim == 2 else array[j])
         count = int(array.size - np.count_nonzero(good))
