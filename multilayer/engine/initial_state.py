@@ -104,7 +104,7 @@ def check_entries(entries: Sequence[InitialShape], x_min: float, x_max: float, d
                 f"{name}: {total - inside:.6g} of its {total:.6g} m2 lie outside the domain "
                 f"x in {domain}; accepted: shapes inside domain.x_min .. domain.x_max"
             )
-        if hi - lo < dx:
+        if hi - lo < dx * (1 - 1e-9):  # one cell wide, to round-off
             raise InputError(
                 f"{name}: {hi - lo:.6g} m wide, narrower than one cell (dx = {dx:.6g} m): "
                 f"the mesh cannot represent it; accepted: a shape at least one cell wide "
