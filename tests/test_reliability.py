@@ -23,6 +23,7 @@ from conftest import TINY_SCENARIO
 
 from multilayer.app import lock
 from multilayer.engine import column_kernel, transport
+from multilayer.engine.column_problem import ColumnProblem
 from multilayer.errors import RunError
 from multilayer.io.results import open_result, run_failure
 from multilayer.plugins.builtins.drucker_prager import DruckerPrager
@@ -64,9 +65,10 @@ SLOW_KERNEL = """
 real = column_kernel.solve
 marker = pathlib.Path(sys.argv[-1]) / "kernel-started"  # in the output directory
 def solve(*args, **kwargs):
-    marker.touch()
     time.sleep(0.2)
-    return real(*args, **kwargs) + np.random.default_rng().normal(0.0, 1e-3)
+    u = real(*args, **kwargs) + np.random.default_rng().normal(0.0, 1e-3)
+    marker.touch()  # after the first call: the kernel is compiled
+    return u
 column_kernel.solve = solve
 """
 
@@ -146,8 +148,9 @@ def test_the_column_kernel_refuses_non_finite_input_and_never_spins_on_it():
     m, ustar = rng.uniform(1, 2, (L, N)), rng.normal(0, 1, (L, N))
     kappa, c, w, cw = rng.uniform(0, 1, (L, N)), rng.uniform(0, 1, (L, N)), np.zeros((L, N)), np.zeros((L, N))
     ustar[2, 17] = np.nan
+    problem = ColumnProblem(m=m, ustar=ustar, dt=0.01, kappa=kappa, c=c, w=w, cw=cw)
     with pytest.raises(RunError, match=r"ustar is nan in column 17 .* layer or interface 2"):
-        column_kernel.solve(m, ustar, 0.01, kappa, c, w, cw)
+        column_kernel.solve(problem)
     # below the check, the merge of two relations stops at a NaN abscissa instead of
     # spinning (it used to loop for ever at 100 % CPU, deaf to Ctrl-C)
     X1, Y1 = np.array([np.nan, 1.0]), np.array([0.0, 1.0])
