@@ -494,12 +494,13 @@ def main() -> None:
     parser.add_argument("-j", type=int, default=2, help="cases run at once")
     args = parser.parse_args()
     selected = [c for c in cases() if args.k in c.name]
+    done = []
     with ThreadPoolExecutor(args.j) as pool:
-        done = list(pool.map(attempt, selected))
-    for case in done:
-        mark = "ok  " if case.result["handled"] else "FAIL"
-        detail = "; ".join(case.result["problems"]) or case.result["stderr"][:110]
-        print(f"{mark} {case.result['seconds']:5.1f} s  {case.name}: {detail}")
+        for case in pool.map(attempt, selected):  # printed as they finish, in order
+            mark = "ok  " if case.result["handled"] else "FAIL"
+            detail = "; ".join(case.result["problems"]) or case.result["stderr"][:110]
+            print(f"{mark} {case.result['seconds']:5.1f} s  {case.name}: {detail}", flush=True)
+            done.append(case)
     handled = sum(c.result["handled"] for c in done)
     slowest = max(done, key=lambda c: c.result["seconds"])
     print(

@@ -64,7 +64,7 @@ class StateGuard:
 
     def check_state(self, h: np.ndarray, u: np.ndarray, when: str) -> None:
         """Raise :class:`StateError` unless ``h`` and ``u`` are finite and ``h >= 0``."""
-        if h.min(initial=0.0) >= 0.0 and h.max(initial=0.0) < np.inf and _finite(u):
+        if h.min(initial=0.0) >= 0.0 and _finite(h) and _finite(u):
             return  # two reductions per array, no temporaries: the cheap path of every step
         if not np.isfinite(h).all():
             j = int(np.argmin(np.isfinite(h)))
@@ -90,5 +90,6 @@ class StateGuard:
 
 
 def _finite(a: np.ndarray) -> bool:
-    """True if every value of ``a`` is finite (NaN makes both comparisons false)."""
-    return bool(a.size == 0 or (a.min() > -np.inf and a.max() < np.inf))
+    """True if every value of ``a`` is finite: one pass (the sum), the exact test only if
+    the sum is not finite (a NaN or an infinity, or an overflow of the sum)."""
+    return bool(np.isfinite(np.sum(a)) or np.isfinite(a).all())
