@@ -137,7 +137,10 @@ def test_resolved_yaml_round_trip(tiny_scenario):
                 "velocity": {"profile": "linear", "shear_rate": 5.0},
             }
         ],
-        expect=[{"quantity": "runout", "value": 0.1, "atol": 0.01}],
+        expect=[
+            {"kind": "regression", "quantity": "runout", "value": 0.1, "atol": 0.01},
+            {"kind": "reference", "quantity": "mass_final", "value": 0.1, "rtol": 0.1, "source": "a paper"},
+        ],
     )
     sc = from_dict(tiny_scenario)
     again = Scenario.model_validate(yaml.safe_load(sc.resolved_yaml()))

@@ -9,9 +9,11 @@ import numpy as np
 import pytest
 from engine import simulation
 
+from multilayer.engine import column_kernel
 from multilayer.engine.simulation import Simulation
 from multilayer.io.scenario import load
 from multilayer.plugins.contract import Rheology
+from multilayer.reference import vertical_fipy
 from multilayer.reference.exact import BagnoldFlow, InviscidSimpleShear, jop_inertial_number
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
@@ -48,10 +50,12 @@ def test_inviscid_simple_shear_matches_proposition_2_2():
     layer = H / 200
     for t in np.arange(0.1, 1.31, 0.1):
         sim.advance(t)
-        assert np.abs(sim.u[:, 0] - EXACT.velocity(z, t)).max() < 0.02
+        # the kink of U at b(t) is resolved to a layer or two; away from it U is linear and
+        # exact at layer centres: allow 3 layer increments of U0, 3 x 70/s x H/200 = 0.021 m/s
+        assert np.abs(sim.u[:, 0] - EXACT.velocity(z, t)).max() < 3 * SHEAR * layer
         b_exact = EXACT.interface(t)
         b = sim.diagnostics()["static_interface"][0]
-        assert abs(b - b_exact) <= 2 * layer, (t, b, b_exact)
+        assert abs(b - b_exact) <= 2 * layer, (t, b, b_exact)  # b is a layer top: resolution
     sim.advance(EXACT.stop_time + 0.005)
     assert np.all(sim.u == 0.0)
     assert sim.diagnostics()["static_interface"][0] == sim.h[0]
@@ -68,7 +72,8 @@ def test_viscous_simple_shear_erodes_then_deposits():
         b.append(sim.diagnostics()["static_interface"][0])
     b = np.array(b)
     lowest = int(np.argmin(b))
-    assert b[lowest] <= B0 - 5 * H / 100  # erosion by 5 layers at least (measured: 3.2 mm)
+    # a drop of 5 layers, well beyond the one-layer resolution of b, counts as erosion
+    assert b[lowest] <= B0 - 5 * H / 100
     assert 0 < lowest < len(b) - 1
     assert np.all(np.diff(b[lowest:]) >= 0.0)  # then only deposition
     assert b[-1] == sim.h[0] and np.all(sim.u == 0.0)
@@ -96,7 +101,10 @@ def test_bagnold_profile_is_the_steady_state_of_jop_mu_i():
     before = sim.u[:, 0].copy()
     sim.advance(16.0)
     assert np.abs(sim.u[:, 0] - before).max() < 1e-3 * bagnold.max()  # steady
-    assert np.abs(sim.u[:, 0] - bagnold).max() < 0.03 * bagnold.max()
+    # tolerance from the layer convergence study of the Bagnold profile (docs/validation.md,
+    # Bagnold section; the scaled profile is the same for any parameters): 0.34 % of the
+    # surface speed at 10 layers, 4x coarser than here (0.04 % at 40 layers, order 1.6)
+    assert np.abs(sim.u[:, 0] - bagnold).max() < 0.0035 * bagnold.max()
 
 
 class Bingham(Rheology):
@@ -140,28 +148,52 @@ def test_bingham_layer_flows_as_a_rigid_plug_over_the_analytic_sheared_zone():
         )
         / eta
     )
-    assert np.abs(u - exact).max() < 0.01 * exact.max()
+    # second order on uniform layers: the profile is C1 at z_p (no shear there), so the
+    # error scale is the layer-mean vs centre difference dz^2 |u''| / 24 = 7e-5 of the plug
+    # speed; a second-order solution error is a few times that: allow 10 times it
+    dz = h / 50
+    assert np.abs(u - exact).max() < 10 * dz**2 * drive / eta / 24
 
 
+COLLAPSE = dict(
+    slope_deg=22.0,
+    domain={"x_min": 0.0, "x_max": 0.3, "cells": 10, "layers": 5, "width": 0.1},
+    material={"density": 1550.0, "grain_diameter": 0.7e-3},
+    rheology={"name": "jop_mu_i", "mu_s": 0.477, "mu_2": 0.7265, "I_0": 0.279},
+    walls={"name": "wall_friction", "mu_w": 0.185},
+    base=[{"condition": "no_slip"}],
+    initial=[
+        {"shape": "layer", "thickness": 0.003},
+        {"shape": "rectangle", "x_min": 0.0, "x_max": 0.1, "height": 0.05},
+    ],
+    boundaries={"left": "wall", "right": "outflow"},
+)
+
+
+def test_kernel_and_fipy_reference_solve_the_same_collapse_problem():
+    """The short comparison of the default run: one linearised vertical step of a mu(I)
+    collapse over an erodible layer with side walls (after 3 steps), solved by the numba
+    kernel and by the FiPy formulation: the same velocities to 1e-10 and the same layers
+    exactly at rest."""
+    sim = simulation(**COLLAPSE)
+    sim.advance(0.05)
+    wet = np.flatnonzero(sim.h > 0)
+    u = sim.u[:, wet]
+    problem = sim.stresses.linearise(sim.stresses.columns(sim.h, wet), u, u, sim.time_step())
+    kernel = column_kernel.solve(problem, guess=u)
+    reference = vertical_fipy.solve(problem)
+    assert np.abs(reference - kernel).max() <= 1e-10
+    np.testing.assert_array_equal(reference == 0.0, kernel == 0.0)
+    assert np.any(kernel == 0.0) and np.abs(kernel).max() > 0.1  # static and flowing layers
+
+
+@pytest.mark.slow
 def test_kernel_and_fipy_reference_give_the_same_step():
     """Steps of a mu(I) collapse over an erodible layer with side walls, each solved from
     the same state by the numba kernel and by the FiPy formulation: the velocities agree
-    to 1e-10 and the static layers are the same ones."""
-    common = dict(
-        slope_deg=22.0,
-        domain={"x_min": 0.0, "x_max": 0.3, "cells": 10, "layers": 5, "width": 0.1},
-        material={"density": 1550.0, "grain_diameter": 0.7e-3},
-        rheology={"name": "jop_mu_i", "mu_s": 0.477, "mu_2": 0.7265, "I_0": 0.279},
-        walls={"name": "wall_friction", "mu_w": 0.185},
-        base=[{"condition": "no_slip"}],
-        initial=[
-            {"shape": "layer", "thickness": 0.003},
-            {"shape": "rectangle", "x_min": 0.0, "x_max": 0.1, "height": 0.05},
-        ],
-        boundaries={"left": "wall", "right": "outflow"},
-    )
-    kernel = simulation(**common)
-    reference = simulation(**common, numerics={"vertical_solver": "fipy"})
+    to 1e-10 and the static layers are the same ones (minutes through FiPy)."""
+    kernel = simulation(**COLLAPSE)
+    reference = simulation(**COLLAPSE, numerics={"vertical_solver": "fipy"})
     for _ in range(6):
         reference.load_state(kernel.state_dict())
         t_next = kernel.t + 0.5 * kernel.time_step()

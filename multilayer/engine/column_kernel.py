@@ -25,6 +25,8 @@ progress or would overflow the workspace gives up and marks the column NaN, whic
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numba import get_num_threads, njit, prange
 
@@ -342,8 +344,8 @@ def _columns(m, ustar, dt, kappa, c, w, cw, guess, u, chunks):
                 _dynamic_programme(*args, u[i], ws)
 
 
-_solve_serial = njit(cache=True)(_columns)
-_solve_parallel = njit(cache=True, parallel=True)(_columns)
+_solve_serial: Any = njit(cache=True)(_columns)
+_solve_parallel: Any = njit(cache=True, parallel=True)(_columns)
 PARALLEL_CELLS = 40_000
 """Problems with fewer cells than this run on one thread (a parallel launch costs more)."""
 

@@ -66,6 +66,7 @@ def entry_points(entry: InitialShape) -> tuple[np.ndarray, np.ndarray] | None:
     if entry.shape == "layer":
         return None
     if entry.shape == "rectangle":
+        assert entry.height is not None  # required for a rectangle (scenario validation)
         a, b, height = float(entry.x_min), float(entry.x_max), float(entry.height)
         return np.array([a, a, b, b]), np.array([0.0, height, height, 0.0])
     px, ph = np.asarray(entry.points, dtype=float).T
@@ -76,6 +77,7 @@ def entry_thickness(entry: InitialShape, edges: np.ndarray) -> np.ndarray:
     """Cell-averaged thickness of one ``initial`` entry on the cells between ``edges`` (N+1,)."""
     points = entry_points(entry)
     if points is None:
+        assert entry.thickness is not None  # required for a layer (scenario validation)
         return np.full(edges.size - 1, float(entry.thickness))
     return cell_average(*points, edges)
 
@@ -122,6 +124,7 @@ def velocity_profile(velocity: Velocity | None, zeta: np.ndarray, thickness: np.
     if velocity is None:
         return np.zeros_like(zeta)
     if velocity.profile == "plug":
+        assert velocity.speed is not None  # required for a plug (scenario validation)
         return np.full_like(zeta, float(velocity.speed))
     if velocity.profile == "linear":
         return velocity.shear_rate * np.maximum(zeta - velocity.from_height, 0.0)

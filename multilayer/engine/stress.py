@@ -60,11 +60,13 @@ class StressModel:
         width: float | None = None,
         x: np.ndarray | None = None,
     ):
+        if walls is not None and width is None:
+            raise ValueError("side walls need the channel width (domain.width)")
         self.bulk = bulk
         self.x = np.arange(base_kind.size, dtype=float) if x is None else x
         self.t = 0.0  # time of the step being computed, for messages
         self.walls = walls
-        self.width = width
+        self.width: float = np.inf if width is None else width
         self.material = material
         self.g_n = g_n
         self.base_kind = base_kind
