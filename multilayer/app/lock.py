@@ -64,7 +64,7 @@ def locked(directory: Path, notice: Callable[[str], None] = lambda message: None
         except FileExistsError:
             holder = _holder(path)
             here = holder is not None and holder.get("host") == me["host"]
-            if here and holder.get("pid") == me["pid"]:
+            if holder is not None and here and holder.get("pid") == me["pid"]:
                 raise InputError(
                     f"{directory}: this process already runs into this directory; "
                     "accepted: a different output directory per run"

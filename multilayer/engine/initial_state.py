@@ -66,7 +66,8 @@ def entry_points(entry: InitialShape) -> tuple[np.ndarray, np.ndarray] | None:
     if entry.shape == "layer":
         return None
     if entry.shape == "rectangle":
-        assert entry.height is not None  # required for a rectangle (scenario validation)
+        # x_min, x_max and height are required for a rectangle (scenario validation)
+        assert entry.x_min is not None and entry.x_max is not None and entry.height is not None
         a, b, height = float(entry.x_min), float(entry.x_max), float(entry.height)
         return np.array([a, a, b, b]), np.array([0.0, height, height, 0.0])
     px, ph = np.asarray(entry.points, dtype=float).T

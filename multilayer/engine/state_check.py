@@ -73,9 +73,9 @@ class StateGuard:
             j = int(np.argmin(h))
             raise StateError(f"negative thickness h = {h[j]:.6g} m at x = {self.x[j]:.6g} m {when}")
         if not np.isfinite(u).all():
-            a, j = np.unravel_index(np.argmin(np.isfinite(u)), u.shape)
+            a, k = (int(i) for i in np.unravel_index(np.argmin(np.isfinite(u)), u.shape))
             raise StateError(
-                f"velocity u = {float(u[a, j])!r} at x = {self.x[j]:.6g} m, "
+                f"velocity u = {float(u[a, k])!r} at x = {self.x[k]:.6g} m, "
                 f"layer {a + 1} (1 is at the bed) {when}"
             )
 
