@@ -1,4 +1,4 @@
-"""The two failure classes of the command line (docs/cli.md, exit codes)."""
+"""The failure classes of the command line (docs/cli.md, exit codes)."""
 
 
 class InputError(Exception):
@@ -8,3 +8,12 @@ class InputError(Exception):
 
 class RunError(Exception):
     """A failure during a run (solver breakdown, output not writable). Exit code 1."""
+
+
+class Interrupted(KeyboardInterrupt):
+    """A run stopped cleanly by a signal; the CLI exits with ``128 + signum`` (130 for
+    Ctrl-C, 143 for SIGTERM, 129 for SIGHUP)."""
+
+    def __init__(self, message: str, signum: int = 2):
+        super().__init__(message)
+        self.exit_code = 128 + int(signum)

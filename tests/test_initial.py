@@ -6,6 +6,8 @@ import numpy as np
 import pytest
 from engine import simulation
 
+from multilayer.errors import InputError
+
 
 def test_entries_stack_and_carry_their_own_velocity():
     sim = simulation(
@@ -21,7 +23,8 @@ def test_entries_stack_and_carry_their_own_velocity():
             },
         ],
     )
-    assert np.allclose(sim.h, np.where(sim.x <= 0.45, 0.2, 0.1))
+    # cell averages: the cell [0.4, 0.5] is half covered by the rectangle
+    assert np.allclose(sim.h, np.where(sim.x < 0.4, 0.2, np.where(sim.x < 0.5, 0.15, 0.1)))
     column = sim.u[:, 0]  # h = 0.2: the lower five layers are the bed, at rest
     assert np.all(column[:5] == 0.0) and np.all(column[5:] == 2.0)
     assert np.all(sim.u[:, -1] == 0.0)
@@ -87,3 +90,43 @@ def test_the_erodible_bed_sweep_runs_from_the_rigid_bed_to_5_mm():
 
     members = sweep.load(Path(__file__).parents[1] / "scenarios" / "sweeps" / "erodible_bed.yaml").members()
     assert [m.values["initial.0.thickness"] for m in members] == [0.0, 0.001, 0.002, 0.003, 0.004, 0.005]
+
+
+@pytest.mark.parametrize("cells", [37, 400, 2501])
+def test_initial_mass_equals_the_shape_mass_to_round_off_at_every_resolution(cells):
+    """Cell averages integrate every shape exactly: the mass does not depend on the mesh.
+
+    A rectangle whose edges fall inside cells, a triangle-and-plateau profile with an
+    end step and an erodible layer: their exact masses are 0.37 * 0.013, the trapezoid
+    sums of the profile and 0.002 * (x_max - x_min)."""
+    profile = [[0.512, 0.0], [0.6173, 0.021], [0.8, 0.021], [0.9071, 0.004]]
+    sim = simulation(
+        domain={"x_min": -0.1, "x_max": 1.3, "cells": cells, "layers": 2},
+        initial=[
+            {"shape": "layer", "thickness": 0.002},
+            {"shape": "rectangle", "x_min": 0.0131, "x_max": 0.3831, "height": 0.013},
+            {"shape": "profile", "points": profile},
+        ],
+    )
+    px, ph = np.array(profile).T
+    exact = 0.002 * 1.4 + 0.37 * 0.013 + float(np.sum(np.diff(px) * (ph[1:] + ph[:-1]) / 2))
+    assert sim.diagnostics()["mass"] == pytest.approx(exact, rel=1e-13, abs=0)
+
+
+def test_material_outside_the_domain_names_the_entry():
+    with pytest.raises(InputError, match=r"initial\.1 \(rectangle.*lie outside the domain"):
+        simulation(
+            domain={"x_min": 0.0, "x_max": 1.0, "cells": 10},
+            initial=[
+                {"shape": "layer", "thickness": 0.01},
+                {"shape": "rectangle", "x_min": 0.9, "x_max": 1.2, "height": 0.1},
+            ],
+        )
+
+
+def test_material_narrower_than_a_cell_names_the_entry():
+    with pytest.raises(InputError, match=r"initial\.0 \(rectangle.*narrower than one cell.*at least 250"):
+        simulation(
+            domain={"x_min": 0.0, "x_max": 1.0, "cells": 10},
+            initial=[{"shape": "rectangle", "x_min": 0.501, "x_max": 0.505, "height": 0.1}],
+        )

@@ -86,7 +86,7 @@ def test_sigint_stops_cleanly_and_resume_gives_the_uninterrupted_answer(tmp_path
     partial = open_result(outdir)
     assert partial.attrs["run_status"] == "interrupted"
     assert 2 <= partial.sizes["time"] < 26
-    assert "interrupted at t=" in (outdir / "run.log").read_text()
+    assert "interrupted by Ctrl-C (SIGINT) at t=" in (outdir / "run.log").read_text()
 
     resumed = subprocess.run(
         _cli(*shlex.split(command)[1:], "--quiet"), capture_output=True, text=True, timeout=120
@@ -134,11 +134,14 @@ def test_engine_failure_keeps_the_output_times_done(tmp_path: Path, monkeypatch)
         return step(self, t_max)
 
     monkeypatch.setattr(Simulation, "step", failing_step)
-    with pytest.raises(RunError, match=r"failed at t=0.03.*negative thickness.*up to t=0.02"):
+    with pytest.raises(
+        RunError, match=r"failed at t=0.03.*negative thickness.*up to t=0.02 s and the last good"
+    ):
         runner.run(scenarios.from_dict(SLUMP), tmp_path, quiet=True)
     partial = open_result(tmp_path)
-    np.testing.assert_allclose(partial["time"], [0.0, 0.02])
-    assert partial.attrs["run_status"] == "failed"
+    assert partial["time"].values[:2].tolist() == [0.0, 0.02] and partial.sizes["time"] == 3
+    assert 0.03 <= float(partial["time"][2]) < 0.04  # the last good state, where the failure came
+    assert partial.attrs["run_status"] == "failed" and "negative thickness" in partial.attrs["failure"]
     assert "FloatingPointError: negative thickness" in (tmp_path / "run.log").read_text()
 
 

@@ -2,7 +2,8 @@
 
 Each subcommand module defines ``HELP`` (one line), ``add_arguments(parser)`` and
 ``main(args) -> int``.  Exit codes (docs/cli.md): 0 success, 1 failure during a run,
-2 invalid input, 130 interrupted.
+2 invalid input, 128 + signal number when stopped by a signal (130 Ctrl-C, 143 SIGTERM,
+129 SIGHUP).
 """
 
 from __future__ import annotations
@@ -41,7 +42,8 @@ def build_parser() -> argparse.ArgumentParser:
         prog="multilayer",
         description="Multilayer shallow-flow simulator of dense granular flows. "
         "Run 'multilayer COMMAND --help' for the options of a command.",
-        epilog="exit codes: 0 success, 1 failure during a run, 2 invalid input, 130 interrupted",
+        epilog="exit codes: 0 success, 1 failure during a run, 2 invalid input, "
+        "130/143/129 stopped by Ctrl-C/SIGTERM/SIGHUP",
     )
     parser.add_argument("--version", action=_Version)
     commands = parser.add_subparsers(title="commands", dest="command", metavar="COMMAND", required=True)
@@ -80,9 +82,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 2
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         print("multilayer: interrupted", file=sys.stderr)
-        return 130
+        return getattr(exc, "exit_code", 130)
 
 
 if __name__ == "__main__":

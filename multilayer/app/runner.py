@@ -4,14 +4,23 @@
 (``k * time.output_interval`` and ``time.end``); after each one the full engine state is
 saved to ``DIR/checkpoint.npz`` and a line is added to ``DIR/run.log``.
 
-Ctrl-C (SIGINT) is turned into a request honoured after the current time step: the state
-at that step is checkpointed, the result file closed, and :class:`KeyboardInterrupt`
-raised (the CLI exits with 130).  A second Ctrl-C stops at once; the last checkpoint then
-stands.  ``resume=True`` restores the checkpoint and continues; the output times are the
-same as without the interruption, so the result is identical.
+Ctrl-C (SIGINT), SIGTERM (what batch schedulers send) and SIGHUP are turned into a
+request honoured between two kernel calls (well within a second): the step under way is
+abandoned, the state at the start of it is checkpointed, ``run_status`` set to
+``interrupted``, the resume command written to stderr and ``run.log``, and
+:class:`~multilayer.errors.Interrupted` raised (the CLI exits with 128 + the signal number:
+130, 143, 129).  A second signal stops at once; the last checkpoint then stands.
+``resume=True`` restores the checkpoint and continues; the output times are the same as
+without the interruption, so the result is identical.
 
-A run without ``resume`` starts afresh: it overwrites ``result.nc``, ``run.log`` and
-removes any previous checkpoint in ``DIR``.
+A failure of the engine (a plugin or state guard, docs/reliability.md) ends the run with
+:class:`RunError`: ``run_status: failed``, the reason in the ``failure`` attribute, and the
+last good state both checkpointed and appended to ``result.nc`` as its last record.
+
+One run at a time writes into ``DIR`` (``DIR/run.lock``, :mod:`multilayer.app.lock`).  A
+run without ``resume`` starts afresh: it overwrites ``result.nc``, ``run.log`` and
+removes any previous checkpoint in ``DIR``.  Before anything is written the memory and
+output size are estimated and checked against the budget (:mod:`multilayer.app.resources`).
 """
 
 from __future__ import annotations
@@ -33,9 +42,11 @@ from typing import Any
 import numpy as np
 import yaml
 
+from multilayer.app import resources
+from multilayer.app.lock import locked
 from multilayer.app.progress import Progress
 from multilayer.engine.simulation import Simulation
-from multilayer.errors import InputError, RunError
+from multilayer.errors import InputError, Interrupted, RunError
 from multilayer.io import scenario as scenarios
 from multilayer.io.results import (
     CHECKPOINT_FILE,
@@ -59,28 +70,50 @@ def output_times(end: float, interval: float | None) -> np.ndarray:
 
 
 def run(
-    scenario: Any, outdir: str | os.PathLike, *, resume: bool = False, quiet: bool | None = None
+    scenario: Any,
+    outdir: str | os.PathLike,
+    *,
+    resume: bool = False,
+    quiet: bool | None = None,
+    budget: resources.Budget | None = None,
 ) -> dict[str, float]:
     """Run ``scenario`` into ``outdir`` and return :func:`multilayer.results.summary`.
 
     Raises :class:`InputError` when ``resume`` is asked for but ``outdir`` holds no
-    checkpoint of this scenario, :class:`RunError` when the engine fails (the result
-    file then holds every output time completed before the failure) and
-    :class:`KeyboardInterrupt` after a clean stop on Ctrl-C.  ``quiet=None`` shows the
-    progress line only on a terminal.
+    checkpoint of this scenario, when another run holds ``outdir`` or when the run does
+    not fit ``budget`` (default: the machine's available memory and the free disk space;
+    ``Budget(force=True)`` skips the check), :class:`RunError` when the engine fails (the
+    result file then holds every output time completed before the failure and the last
+    good state) and :class:`~multilayer.errors.Interrupted` (a :class:`KeyboardInterrupt`)
+    after a clean stop on a signal.  ``quiet=None`` shows the progress line only on a
+    terminal.
     """
     outdir = Path(outdir)
-    ckpt = _checkpoint_to_resume(scenario, outdir) if resume else None
+    if resume and not outdir.is_dir():
+        raise InputError(
+            f"{outdir}: nothing to resume (no such directory); run without --resume to start afresh"
+        )
+    resources.check(scenario, outdir, budget or resources.Budget())
     outdir.mkdir(parents=True, exist_ok=True)
-    log = logging.Logger("multilayer.run")
-    handler = logging.FileHandler(outdir / LOG_FILE, mode="a" if resume else "w", encoding="utf-8")
-    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
-    log.addHandler(handler)
-    try:
-        _run(scenario, outdir, ckpt, quiet, log)
-    finally:
-        handler.close()
-    return summary(outdir / RESULT_FILE)
+    notices: list[str] = []
+
+    def notice(message: str) -> None:
+        notices.append(message)
+        print(f"multilayer: warning: {message}", file=sys.stderr)
+
+    with locked(outdir, notice):
+        ckpt = _checkpoint_to_resume(scenario, outdir) if resume else None
+        log = logging.Logger("multilayer.run")
+        handler = logging.FileHandler(outdir / LOG_FILE, mode="a" if resume else "w", encoding="utf-8")
+        handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
+        log.addHandler(handler)
+        for message in notices:
+            log.warning(message)
+        try:
+            _run(scenario, outdir, ckpt, quiet, log)
+        finally:
+            handler.close()
+        return summary(outdir / RESULT_FILE)
 
 
 def _run(
@@ -126,14 +159,15 @@ def _run(
 
     def on_step(sim: Any, dt: float) -> None:
         progress(sim, dt)
-        if stop.requested:
-            raise _Stop
+        stop.poll()
 
+    sim.poll = stop.poll  # also between the kernel calls of a step
     status = "failed"
     try:
         with stop.installed():
             for t_out in times[times > sim.t + 1e-9 * scenario.time.end]:
                 sim.advance(t_out, on_step=on_step)
+                sim.check_state()
                 diag = writer.write(sim)
                 saved_t = checkpoint()
                 log.info(
@@ -147,24 +181,45 @@ def _run(
         status = "completed"
     except (_Stop, KeyboardInterrupt) as exc:
         status = "interrupted"
-        if isinstance(exc, _Stop):  # stopped between two steps: the state is whole
+        if isinstance(exc, _Stop):  # stopped between two kernel calls: the state is whole
             saved_t = checkpoint()
-        message = f"interrupted at t={saved_t:.6g} s; resume with: {_resume_command(scenario, outdir)}"
+        message = (
+            f"interrupted by {stop.name} at t={saved_t:.6g} s; resume with: "
+            f"{_resume_command(scenario, outdir)}"
+        )
         log.warning(message)
     except Exception as exc:
         log.exception("the simulation failed at t = %.6g s (step %d)", sim.t, sim.steps)
+        # the engine never keeps a state it rejects: sim holds the last good one
+        kept = _keep_last_good_state(sim, writer, checkpoint, saved_t, log)
+        writer.failure = str(exc)
         raise RunError(
             f"scenario {scenario.name!r}: the simulation failed at t={sim.t:.6g} s "
             f"(step {sim.steps}): {exc}; {outdir / RESULT_FILE} holds the output times "
-            f"up to t={saved_t:.6g} s"
+            f"up to t={saved_t:.6g} s{kept}"
         ) from exc
     finally:
         progress.finish()
         writer.close(sim.steps, wall_time(), status, scenario)
     if status == "interrupted":
         print(message, file=sys.stderr)
-        raise KeyboardInterrupt(message)
+        raise Interrupted(message, stop.signum)
     log.info("completed: %d steps, wall time %.1f s", sim.steps, wall_time())
+
+
+def _keep_last_good_state(sim: Any, writer: ResultWriter, checkpoint: Any, saved_t: float, log: Any) -> str:
+    """Checkpoint the state ``sim`` holds after a failure and append it to the result file
+    (after the checkpoint's record count, so a resume overwrites it); the message tail."""
+    if not sim.t > saved_t:
+        return ""
+    try:
+        sim.check_state()
+        checkpoint()
+        writer.write(sim)
+    except Exception:  # noqa: BLE001 - the failure being reported matters more than this extra record
+        log.exception("could not keep the last good state at t = %.6g s", sim.t)
+        return ""
+    return f" and the last good state at t={sim.t:.6g} s (also in the checkpoint)"
 
 
 def _checkpoint_to_resume(scenario: Any, outdir: Path) -> Checkpoint:
@@ -236,26 +291,44 @@ def _resume_command(scenario: Any, outdir: Path) -> str:
 
 
 class _Stop(BaseException):
-    """Raised from the step callback to stop the run after a Ctrl-C."""
+    """Raised between two kernel calls or steps to stop the run after a signal."""
+
+
+#: Signals handled like Ctrl-C (those that exist on this platform).
+STOP_SIGNALS = tuple(
+    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
+)
 
 
 class _StopRequest:
-    """SIGINT handler turning the first Ctrl-C into a stop request."""
+    """Handler of :data:`STOP_SIGNALS` turning the first signal into a stop request."""
 
+    signum: int = signal.SIGINT
     requested = False
+
+    @property
+    def name(self) -> str:
+        return "Ctrl-C (SIGINT)" if self.signum == signal.SIGINT else signal.Signals(self.signum).name
+
+    def poll(self) -> None:
+        """Raise :class:`_Stop` if a stop was requested (called between kernel calls)."""
+        if self.requested:
+            raise _Stop
 
     @contextmanager
     def installed(self) -> Iterator[None]:
         if threading.current_thread() is not threading.main_thread():
             yield  # signals only reach the main thread
             return
-        previous = signal.signal(signal.SIGINT, self._handle)
+        previous = {signum: signal.signal(signum, self._handle) for signum in STOP_SIGNALS}
         try:
             yield
         finally:
-            signal.signal(signal.SIGINT, previous)
+            for signum, handler in previous.items():
+                signal.signal(signum, handler)
 
     def _handle(self, signum: int, frame: FrameType | None) -> None:
         if self.requested:
-            raise KeyboardInterrupt
+            raise Interrupted(f"stopped at once by a second signal ({signal.Signals(signum).name})", signum)
+        self.signum = signum
         self.requested = True

@@ -32,9 +32,9 @@ from pathlib import Path
 from typing import Any, Literal
 
 from multilayer.app import runner
-from multilayer.errors import InputError
+from multilayer.errors import InputError, RunError
 from multilayer.io import scenario
-from multilayer.io.results import CHECKPOINT_FILE, RESULT_FILE, SUMMARY_KEYS
+from multilayer.io.results import CHECKPOINT_FILE, RESULT_FILE, SUMMARY_KEYS, run_failure
 from multilayer.io.scenario import as_overrides, format_value
 
 SWEEP_KEYS = ("base", "parameters", "zip", "output", "description")
@@ -199,12 +199,14 @@ def scenario_fingerprint(member_scenario: scenario.Scenario) -> str:
 
 
 def completed(member_dir: Path, fingerprint: str) -> dict[str, float] | None:
-    """The stored summary if ``member_dir`` holds a completed run of this exact scenario."""
+    """The stored summary if ``member_dir`` holds a completed, finite run of this exact scenario."""
     try:
         marker = json.loads((member_dir / MARKER).read_text())
     except (OSError, ValueError):
         return None
     if marker.get("fingerprint") != fingerprint or not (member_dir / RESULT_FILE).is_file():
+        return None
+    if run_failure(member_dir) is not None:
         return None
     return marker["summary"]
 
@@ -228,6 +230,9 @@ def run_member(
             raise
         # the checkpoint belongs to another scenario: start afresh
         summary = runner.run(member_scenario, directory, resume=False, quiet=True)
+    failure = run_failure(directory)
+    if failure is not None:  # never label a run "ok" that is not complete and finite
+        raise RunError(f"{directory / RESULT_FILE}: {failure}")
     marker = {"fingerprint": fingerprint, "overrides": overrides, "summary": summary}
     partial = directory / (MARKER + ".partial")
     partial.write_text(json.dumps(marker, indent=2) + "\n")

@@ -15,6 +15,12 @@ regularisation of ``sgn`` anywhere.
 A relation is stored as vertices ``(X[i], Y[i])`` (both non-decreasing; equal ``X``
 is a jump, equal ``Y`` a flat part) and the slopes of its two end rays (``inf`` for a
 vertical ray, which bounds the domain).
+
+Termination: every loop is bounded by the vertex count of its relations (at most
+``8 L + 16``).  Inputs are checked finite before a call (a NaN abscissa would defeat
+the comparisons that advance the merge of two relations); inside, a merge that makes no
+progress or would overflow the workspace gives up and marks the column NaN, which
+:func:`solve` reports.
 """
 
 from __future__ import annotations
@@ -25,6 +31,7 @@ import numpy as np
 from numba import get_num_threads, njit, prange
 
 from multilayer.engine.column_problem import ColumnProblem
+from multilayer.errors import RunError
 
 INF = np.inf
 
@@ -71,10 +78,13 @@ def _add(X1, Y1, n1, sl1, sr1, X2, Y2, n2, sl2, sr2, Xo, Yo):
             b = X1[i1]
         else:
             b = X2[i2]
+        start1, start2 = i1, i2
         while i1 < n1 and X1[i1] == b:
             i1 += 1
         while i2 < n2 and X2[i2] == b:
             i2 += 1
+        if i1 == start1 and i2 == start2:  # a NaN abscissa: stop rather than spin for ever
+            return -1, sl1, sr1
         if b < lo or b > hi:
             continue
         lo1, hi1, j1 = _at(X1, Y1, n1, sl1, sr1, b, j1)
@@ -93,6 +103,8 @@ def _add(X1, Y1, n1, sl1, sr1, X2, Y2, n2, sl2, sr2, Xo, Yo):
             Xo[n] = b
             Yo[n] = 0.0
             n += 1
+        if n + 3 > Xo.shape[0]:  # never write outside the workspace (cannot happen on finite input)
+            return -1, sl1, sr1
     sl = INF if lo > -INF else sl1 + sl2
     sr = INF if hi < INF else sr1 + sr2
     return n, sl, sr
@@ -145,6 +157,9 @@ def _dynamic_programme(m, ustar, dt, kappa, c, w, cw, u, ws):
         FY[0] = -B - w[a]
         FY[1] = -B + w[a]
         n, sl, sr = _add(FX, FY, 2, A, A, HX, HY, hn, hsl, hsr, MX[a], MY[a])
+        if n < 0:
+            u[:] = np.nan
+            return
         Mn[a] = n
         Msl[a] = sl
         Msr[a] = sr
@@ -158,6 +173,9 @@ def _dynamic_programme(m, ustar, dt, kappa, c, w, cw, u, ws):
         GY[1] = 0.0
         gs = _inv(c[a + 1])
         n2, sl2, sr2 = _add(MY[a], MX[a], n, _inv(sl), _inv(sr), GX, GY, 2, gs, gs, TY, TX)
+        if n2 < 0:
+            u[:] = np.nan
+            return
         for i in range(n2):
             HX[i] = TX[i]
             HY[i] = TY[i]
@@ -174,6 +192,9 @@ def _dynamic_programme(m, ustar, dt, kappa, c, w, cw, u, ws):
         GY[0] = -k
         GY[1] = k
         n, sl, sr = _add(MX[a], MY[a], Mn[a], Msl[a], Msr[a], GX, GY, 2, c[a + 1], c[a + 1], TX, TY)
+        if n < 0:
+            u[:] = np.nan
+            return
         u[a] = _root(TX, TY, n, sl, sr)
 
 
@@ -341,10 +362,27 @@ def solve(problem: ColumnProblem, guess: np.ndarray | None = None) -> np.ndarray
     coefficients = (p.m, p.ustar, p.kappa, p.c, p.w, p.cw)
     arrays = [np.ascontiguousarray(np.transpose(a), dtype=float) for a in coefficients]
     guess = arrays[1] if guess is None else np.ascontiguousarray(np.transpose(guess), dtype=float)
+    if not np.isfinite(sum(float(np.sum(a)) for a in arrays)):  # one pass each; locate only if needed
+        for name, array in zip(("m", "ustar", "kappa", "c", "w", "cw"), arrays):
+            _require_finite(name, array)  # the guess may hold NaN: it only proposes a structure
+    if not (np.isfinite(p.dt) and p.dt > 0):
+        raise RunError(f"column kernel: the time step dt = {p.dt!r} is not a finite number > 0")
     u = np.empty_like(arrays[0])
     if u.size >= PARALLEL_CELLS:
         chunks = max(1, min(u.shape[0], 4 * get_num_threads()))
         _solve_parallel(*arrays[:2], float(p.dt), *arrays[2:], guess, u, chunks)
     else:
         _solve_serial(*arrays[:2], float(p.dt), *arrays[2:], guess, u, 1)
+    if not np.isfinite(np.sum(u)):
+        _require_finite("the solution u", u)
     return u.T
+
+
+def _require_finite(name: str, array: np.ndarray) -> None:
+    """RunError naming ``name`` and the first non-finite (column, layer) of an (N, L) array."""
+    if array.size and not (array.min() > -np.inf and array.max() < np.inf):  # NaN fails both
+        i, a = np.unravel_index(np.argmin(np.isfinite(array)), array.shape)
+        raise RunError(
+            f"column kernel: {name} is {float(array[i, a])!r} in column {i} of the {array.shape[0]} "
+            f"solved, layer or interface {a}; the kernel only accepts finite values"
+        )

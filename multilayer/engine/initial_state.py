@@ -4,6 +4,12 @@ Thickness entries stack in the order given: each occupies the height range above
 entries before it, so an erodible bed listed first lies under a column listed second.
 Each entry may carry a velocity profile, evaluated at the centres of the layers that
 fall inside it, with the height ``zeta`` measured from the bottom of that entry.
+
+Thicknesses are cell averages: every shape is a piecewise-linear function of x (a
+rectangle has vertical sides) integrated exactly over each cell, so the initial mass
+equals the shape's mass to round-off at any resolution.  An entry with material outside
+the domain, or narrower than one cell (not represented by the mesh), is an
+:class:`InputError` naming the entry.
 """
 
 from __future__ import annotations
@@ -13,6 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from multilayer.errors import InputError
 from multilayer.reference.exact import bagnold_shape
 
 if TYPE_CHECKING:  # the engine reads a validated scenario; it never loads one
@@ -27,16 +34,86 @@ def bed_profile(bed: Bed, x: np.ndarray) -> np.ndarray:
     return np.interp(x, px, pb)
 
 
-def entry_thickness(entry: InitialShape, x: np.ndarray) -> np.ndarray:
-    """Thickness of one ``initial`` entry at the cell centres."""
+def cell_edges(x_min: float, x_max: float, cells: int) -> np.ndarray:
+    """The ``cells + 1`` edges of equal cells on ``[x_min, x_max]`` (both ends exact)."""
+    edges = x_min + (x_max - x_min) / cells * np.arange(cells + 1)
+    edges[-1] = x_max
+    return edges
+
+
+def piecewise_linear_integral(px: np.ndarray, py: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """Integral from ``-inf`` to each of ``at`` of the piecewise-linear function through
+    ``(px, py)`` (non-decreasing ``px``; a repeated abscissa is a jump), zero outside."""
+    cumulative = np.concatenate([[0.0], np.cumsum(0.5 * np.diff(px) * (py[1:] + py[:-1]))])
+    k = np.clip(np.searchsorted(px, at, side="right") - 1, 0, px.size - 2)
+    inside = (at >= px[0]) & (at < px[-1])
+    span = px[k + 1] - px[k]
+    frac = np.divide(at - px[k], span, out=np.zeros_like(at), where=span > 0)
+    y = py[k] + frac * (py[k + 1] - py[k])
+    partial = cumulative[k] + 0.5 * (at - px[k]) * (py[k] + y)
+    return np.where(inside, partial, np.where(at >= px[-1], cumulative[-1], 0.0))
+
+
+def cell_average(px: np.ndarray, py: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """Mean over each cell ``[edges[i], edges[i+1]]`` of the piecewise-linear function
+    through ``(px, py)``, zero outside ``[px[0], px[-1]]`` (exact, to round-off)."""
+    return np.diff(piecewise_linear_integral(px, py, edges)) / np.diff(edges)
+
+
+def entry_points(entry: InitialShape) -> tuple[np.ndarray, np.ndarray] | None:
+    """The thickness of a bounded entry as a piecewise-linear function (vertices), or None
+    for a ``layer`` (uniform over the whole domain)."""
     if entry.shape == "layer":
-        assert entry.thickness is not None  # required for a layer (scenario validation)
-        return np.full_like(x, float(entry.thickness))
+        return None
     if entry.shape == "rectangle":
-        assert entry.height is not None  # required for a rectangle (scenario validation)
-        return np.where((x >= entry.x_min) & (x <= entry.x_max), float(entry.height), 0.0)
+        # x_min, x_max and height are required for a rectangle (scenario validation)
+        assert entry.x_min is not None and entry.x_max is not None and entry.height is not None
+        a, b, height = float(entry.x_min), float(entry.x_max), float(entry.height)
+        return np.array([a, a, b, b]), np.array([0.0, height, height, 0.0])
     px, ph = np.asarray(entry.points, dtype=float).T
-    return np.interp(x, px, ph, left=0.0, right=0.0)
+    return px, ph
+
+
+def entry_thickness(entry: InitialShape, edges: np.ndarray) -> np.ndarray:
+    """Cell-averaged thickness of one ``initial`` entry on the cells between ``edges`` (N+1,)."""
+    points = entry_points(entry)
+    if points is None:
+        assert entry.thickness is not None  # required for a layer (scenario validation)
+        return np.full(edges.size - 1, float(entry.thickness))
+    return cell_average(*points, edges)
+
+
+def check_entries(entries: Sequence[InitialShape], x_min: float, x_max: float, dx: float, where: str) -> None:
+    """:class:`InputError` naming the first entry with material outside the domain
+    ``[x_min, x_max]`` or narrower than one cell of width ``dx``; ``where`` names the scenario."""
+    bounds = np.array([x_min, x_max])
+    for index, entry in enumerate(entries):
+        points = entry_points(entry)
+        if points is None:
+            continue
+        px, ph = points
+        wet = np.flatnonzero(ph > 0)
+        if wet.size == 0:
+            raise InputError(
+                f"{where}: initial.{index} ({entry.shape}): holds no material (h = 0 everywhere); "
+                "accepted: a shape with some thickness > 0"
+            )
+        lo, hi = px[max(wet[0] - 1, 0)], px[min(wet[-1] + 1, px.size - 1)]  # support of the thickness
+        total = float(piecewise_linear_integral(px, ph, np.array([px[-1]]))[0])
+        inside = float(np.diff(piecewise_linear_integral(px, ph, bounds))[0])
+        name = f"{where}: initial.{index} ({entry.shape} on x in [{lo:g}, {hi:g}] m)"
+        domain = f"[{x_min:g}, {x_max:g}] m"
+        if inside < total * (1 - 1e-12):
+            raise InputError(
+                f"{name}: {total - inside:.6g} of its {total:.6g} m2 lie outside the domain "
+                f"x in {domain}; accepted: shapes inside domain.x_min .. domain.x_max"
+            )
+        if hi - lo < dx * (1 - 1e-9):  # one cell wide, to round-off
+            raise InputError(
+                f"{name}: {hi - lo:.6g} m wide, narrower than one cell (dx = {dx:.6g} m): "
+                f"the mesh cannot represent it; accepted: a shape at least one cell wide "
+                f"(raise domain.cells to at least {int(np.ceil((x_max - x_min) / (hi - lo)))})"
+            )
 
 
 def velocity_profile(velocity: Velocity | None, zeta: np.ndarray, thickness: np.ndarray) -> np.ndarray:
@@ -56,10 +133,11 @@ def velocity_profile(velocity: Velocity | None, zeta: np.ndarray, thickness: np.
 
 
 def initial_state(
-    entries: Sequence[InitialShape], x: np.ndarray, sigma: np.ndarray
+    entries: Sequence[InitialShape], x: np.ndarray, sigma: np.ndarray, edges: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Thickness h (N,) and layer velocities u (L, N) of the stacked ``initial`` entries."""
-    thicknesses = [entry_thickness(e, x) for e in entries]
+    """Cell-averaged thickness h (N,) and layer velocities u (L, N) at the cell centres
+    ``x`` of the stacked ``initial`` entries (cells between ``edges``, (N+1,))."""
+    thicknesses = [entry_thickness(e, edges) for e in entries]
     h = np.sum(thicknesses, axis=0) if thicknesses else np.zeros_like(x)
     z = sigma[:, None] * h[None, :]  # layer centres above the bed
     u = np.zeros((sigma.size, x.size))

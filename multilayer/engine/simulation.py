@@ -19,6 +19,7 @@ import numpy as np
 from multilayer.engine import diagnostics, initial_state, stress, transport, vertical_step
 from multilayer.engine.gate import Gate
 from multilayer.engine.mesh import LayeredMesh
+from multilayer.engine.state_check import ROUND_OFF, StateError, StateGuard
 
 if TYPE_CHECKING:  # the engine reads a validated scenario; it never loads one
     from multilayer.io.scenario import BaseZone, Scenario
@@ -73,6 +74,7 @@ class Simulation:
             *basal_conditions(sc.base, self.x),
             walls=sc.walls.instantiate() if sc.walls is not None else None,
             width=dom.width,
+            x=self.x,
         )
         self.solver = vertical_step.solver_for(sc.numerics.vertical_solver)
 
@@ -92,7 +94,9 @@ class Simulation:
             faces = dom.x_min + self.dx * np.arange(dom.cells + 1)
             self.gate = Gate(sc.gate.x, sc.gate.lift_speed, faces, self.mesh.interfaces)
 
-        h0, u0 = initial_state.initial_state(sc.initial, self.x, self.sigma)
+        self.edges = initial_state.cell_edges(dom.x_min, dom.x_max, dom.cells)
+        initial_state.check_entries(sc.initial, dom.x_min, dom.x_max, self.dx, str(sc.source or "<scenario>"))
+        h0, u0 = initial_state.initial_state(sc.initial, self.x, self.sigma, self.edges)
         # the state lives in FiPy variables; h, u and bed are numpy views of their values
         self.h_var = self.mesh.cell_variable("h", h0, layered=False)
         self.u_var = self.mesh.cell_variable("u", u0.ravel(), layered=True)
@@ -105,6 +109,11 @@ class Simulation:
         self.t = 0.0
         self.steps = 0
         self.newton_iterations = 0
+        self.guard = StateGuard(self.x, self.dx, self.g_n, self.left, self.right, self.inflow)
+        self.guard.check_state(self.h, self.u, "in the initial state")
+        self._mass_reference = (diagnostics.mass(self.h, self.dx), self.steps)
+        #: called between kernel calls within a step; may raise to abandon the step (Ctrl-C)
+        self.poll: Callable[[], None] | None = None
         # the scale of the Newton tolerance: gravity waves on the deepest initial or
         # inflowing material, or the fastest initial or inflow velocity
         h_in, u_in = (self.inflow.thickness, self.inflow.velocity) if self.inflow else (0.0, np.zeros(1))
@@ -140,6 +149,7 @@ class Simulation:
         held = self.h > self.numerics.dry_threshold
         rest = (self.u == 0.0) & held  # material at rest now: the static yield stress applies
         iterations = 0
+        self.stresses.t = self.t
         while True:
             h_new, u_new, more = self._transport_and_stresses(dt, moving, rest)
             iterations += more
@@ -147,6 +157,8 @@ class Simulation:
             if not starting.any():
                 break
             moving |= starting
+        # the state guard: an impossible state is never kept (the last good one stays)
+        self.guard.check_step(self.h, self.u, h_new, u_new, self.t, dt)
         self.h[...] = h_new
         self.u[...] = u_new
         self.newton_iterations += iterations
@@ -179,6 +191,7 @@ class Simulation:
             gate_face=self.gate.face if self.gate is not None else None,
             opening=opening,
         )
+        self.guard.check_state(h_new, ustar, f"after transport from t = {self.t:.6g} s (dt = {dt:.3g} s)")
         u_new, iterations = vertical_step.implicit_step(
             self.stresses,
             h_new,
@@ -190,6 +203,7 @@ class Simulation:
             max_iterations=self.numerics.max_iterations,
             velocity_scale=self.velocity_scale,
             rest=rest,
+            poll=self.poll,
         )
         return h_new, u_new, iterations
 
@@ -199,6 +213,25 @@ class Simulation:
             dt = self.step(t_target)
             if on_step is not None:
                 on_step(self, dt)
+
+    def check_state(self) -> None:
+        """The state guard at an output time: ``h``, ``u`` finite, ``h >= 0`` and, on a
+        closed domain, the mass within round-off per step of its value at the start (or
+        at the restored checkpoint).  Raises :class:`StateError`."""
+        when = f"at t = {self.t:.6g} s (step {self.steps})"
+        self.guard.check_state(self.h, self.u, when)
+        if self.guard.open_sides:
+            return
+        mass0, steps0 = self._mass_reference
+        drift = diagnostics.mass(self.h, self.dx) - mass0
+        allowed = (
+            ROUND_OFF * self.h.size * self.dx * float(self.h.max(initial=0.0)) * (self.steps - steps0 + 1)
+        )
+        if abs(drift) > allowed:
+            raise StateError(
+                f"mass is not conserved {when}: it drifted by {drift:.6g} m2 from {mass0:.6g} m2 on a "
+                f"closed domain (round-off allows {allowed:.3g} m2)"
+            )
 
     def diagnostics(self) -> dict:
         """Static interface height (N,), front position (m) and mass (m^2) now."""
@@ -225,3 +258,5 @@ class Simulation:
         self.newton_iterations = int(state.get("newton_iterations", 0))
         self.h[...] = state["h"]
         self.u[...] = state["u"]
+        self.guard.check_state(self.h, self.u, f"in the restored state at t = {self.t:.6g} s")
+        self._mass_reference = (diagnostics.mass(self.h, self.dx), self.steps)

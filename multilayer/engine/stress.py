@@ -14,6 +14,9 @@ Start/stop friction (Pouliquen & Forterre 2002): where both layers adjacent to a
 interface were at rest at the start of the step (the ground counts as at rest), the
 interface yield stress is the rheology's ``static_yield_stress``; the choice is made once
 per step, so the step stays an exact minimisation with those thresholds.
+
+Every plugin value is checked where it is used (shape, finite, >= 0;
+``plugin_output.call``), so a faulty plugin stops the run with its name, never a NaN.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from multilayer.engine.column_problem import ColumnProblem
+from multilayer.engine.plugin_output import call
 from multilayer.plugins.contract import Material, Rheology
 
 NO_SLIP, COULOMB, FREE_SLIP = 0, 1, 2
@@ -39,6 +43,11 @@ class ColumnStresses:
     spacing: np.ndarray  # distance h_k between the centres across interface k (L, N)
     viscous: np.ndarray  # True where interface k carries the bulk viscosity (L, N)
     wall_pressure: np.ndarray  # mean layer pressures pbar_a (L, N)
+    x: np.ndarray  # position of each column (N,), for messages
+
+
+INTERFACE = "interface {index} (0 is the bed)"
+LAYER = "layer {number} (1 is at the bed)"
 
 
 class StressModel:
@@ -54,10 +63,13 @@ class StressModel:
         base_mu: np.ndarray,
         walls: Rheology | None = None,
         width: float | None = None,
+        x: np.ndarray | None = None,
     ):
         if walls is not None and width is None:
             raise ValueError("side walls need the channel width (domain.width)")
         self.bulk = bulk
+        self.x = np.arange(base_kind.size, dtype=float) if x is None else x
+        self.t = 0.0  # time of the step being computed, for messages
         self.walls = walls
         self.width: float = np.inf if width is None else width
         self.material = material
@@ -78,20 +90,28 @@ class StressModel:
         h = h[where]
         base_kind, base_mu = self.base_kind[where], self.base_mu[where]
         p = rho * self.g_n * self.depth_interface * h
-        kappa = self.bulk.yield_stress(p, self.material).astype(float)
+        x = self.x[where]
+        kappa = self._call(self.bulk, "yield_stress", (p, self.material), {"pressure": p}, x, INTERFACE)
         if rest is not None:
             rest = rest[:, where]
             # interface k lies below layer k: static where layer k and the one below it
             # (the ground for k = 0) were both at rest
             static = rest & np.vstack([np.ones_like(rest[:1]), rest[:-1]])
-            kappa = np.where(static, self.bulk.static_yield_stress(p, self.material), kappa)
+            if static.any():
+                kappa_static = self._call(
+                    self.bulk, "static_yield_stress", (p, self.material), {"pressure": p}, x, INTERFACE
+                )
+                kappa = np.where(static, kappa_static, kappa)
         viscous = np.ones(p.shape, dtype=bool)
         kappa[0] = np.where(base_kind == COULOMB, base_mu * p[0], kappa[0])
         kappa[0] = np.where(base_kind == FREE_SLIP, 0.0, kappa[0])
         viscous[0] = base_kind == NO_SLIP
         pbar = rho * self.g_n * self.depth_centre * h
         if self.walls is not None:
-            w = (2.0 / self.width) * self.l * h * self.walls.yield_stress(pbar, self.material)
+            tau_w = self._call(
+                self.walls, "yield_stress", (pbar, self.material), {"pressure": pbar}, x, LAYER
+            )
+            w = (2.0 / self.width) * self.l * h * tau_w
         else:
             w = np.zeros_like(p)
         return ColumnStresses(
@@ -102,7 +122,11 @@ class StressModel:
             spacing=self.spacing_fraction * h,
             viscous=viscous,
             wall_pressure=pbar,
+            x=x,
         )
+
+    def _call(self, law, method, args, inputs, x, position) -> np.ndarray:
+        return call(law, method, args, inputs=inputs, x=x, position=position, t=self.t)
 
     def linearise(self, cs: ColumnStresses, u: np.ndarray, ustar: np.ndarray, dt: float) -> ColumnProblem:
         """The step's problem with the Newton model of the viscous part at ``u``.
@@ -119,36 +143,42 @@ class StressModel:
         """
         spacing = np.where(cs.spacing > 0, cs.spacing, 1.0)
         jump = np.abs(np.diff(u, axis=0, prepend=0.0))
-        kappa, c = _newton_model(self.bulk, cs.kappa, jump / spacing, cs.pressure, self.material)
+        kappa, c = self._newton_model(self.bulk, cs.kappa, jump / spacing, cs.pressure, cs.x, INTERFACE)
         kappa = np.where(cs.viscous, kappa, cs.kappa)
         c = np.where(cs.viscous & (cs.spacing > 0), c / spacing, 0.0)
         if self.walls is None:
             return ColumnProblem(m=cs.m, ustar=ustar, dt=dt, kappa=kappa, c=c, w=cs.w, cw=np.zeros_like(c))
         half = 0.5 * self.width
         per_area = (2.0 / self.width) * cs.m / self.material.density  # (2 / W) h_a
-        w, c_w = _newton_model(
-            self.walls, cs.w / per_area.clip(min=1e-300), np.abs(u) / half, cs.wall_pressure, self.material
+        w, c_w = self._newton_model(
+            self.walls, cs.w / per_area.clip(min=1e-300), np.abs(u) / half, cs.wall_pressure, cs.x, LAYER
         )
         return ColumnProblem(
             m=cs.m, ustar=ustar, dt=dt, kappa=kappa, c=c, w=per_area * w, cw=per_area * c_w / half
         )
 
+    def _newton_model(
+        self, law: Rheology, kappa: np.ndarray, rate: np.ndarray, pressure: np.ndarray, x, position
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Yield stress and slope of the odd Bingham law through ``(rate, kappa + tau_v(rate))``.
 
-def _newton_model(
-    law: Rheology, kappa: np.ndarray, rate: np.ndarray, pressure: np.ndarray, material: Material
-) -> tuple[np.ndarray, np.ndarray]:
-    """Yield stress and slope of the odd Bingham law through ``(rate, kappa + tau_v(rate))``.
+        The slope is the tangent ``d tau_v / d gamma`` (forward difference, relative step
+        1e-7; ``eta(0)`` at rest), or the secant ``tau_v / gamma`` where the tangent would make
+        the yield stress negative.  The slope only sets the speed of the iteration: the law
+        passes through the true stress at ``rate`` in both cases.
+        """
+        step = 1e-7 * rate
+        eta = self._viscosity(law, rate, pressure, x, position)
+        tau = eta * rate
+        up = self._viscosity(law, rate + step, pressure, x, position) * (rate + step)
+        tangent = np.where(rate > 0, (up - tau) / np.where(step > 0, step, 1.0), eta)
+        offset_yield = kappa + tau - np.maximum(tangent, 0.0) * rate
+        use_tangent = offset_yield >= 0.0
+        return (
+            np.where(use_tangent, offset_yield, kappa),
+            np.where(use_tangent, np.maximum(tangent, 0.0), eta),
+        )
 
-    The slope is the tangent ``d tau_v / d gamma`` (forward difference, relative step
-    1e-7; ``eta(0)`` at rest), or the secant ``tau_v / gamma`` where the tangent would make
-    the yield stress negative.  The slope only sets the speed of the iteration: the law
-    passes through the true stress at ``rate`` in both cases.
-    """
-    step = 1e-7 * rate
-    eta = law.viscosity(rate, pressure, material)
-    tau = eta * rate
-    up = law.viscosity(rate + step, pressure, material) * (rate + step)
-    tangent = np.where(rate > 0, (up - tau) / np.where(step > 0, step, 1.0), eta)
-    offset_yield = kappa + tau - np.maximum(tangent, 0.0) * rate
-    use_tangent = offset_yield >= 0.0
-    return (np.where(use_tangent, offset_yield, kappa), np.where(use_tangent, np.maximum(tangent, 0.0), eta))
+    def _viscosity(self, law, rate, pressure, x, position) -> np.ndarray:
+        inputs = {"shear rate": rate, "pressure": pressure}
+        return self._call(law, "viscosity", (rate, pressure, self.material), inputs, x, position)

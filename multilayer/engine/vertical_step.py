@@ -18,6 +18,8 @@ by less than ``tolerance`` times the velocity scale.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from multilayer.engine import column_kernel
@@ -50,13 +52,15 @@ def implicit_step(
     max_iterations: int = 200,
     velocity_scale: float = 1.0,
     rest: np.ndarray | None = None,
+    poll: Callable[[], None] | None = None,
 ) -> tuple[np.ndarray, int]:
     """New layer velocities (L, N) after the stresses of one step, and the Newton count.
 
     ``u_guess`` (usually the previous velocities) seeds the viscosity.  ``rest`` (L, N)
     marks the layers at rest at the start of the step, where the static yield stress of
     a start/stop law applies (``StressModel.columns``).  Only columns that have not
-    converged are solved again.
+    converged are solved again.  ``poll()`` is called before every kernel call: it may
+    raise to abandon the step (how a run honours Ctrl-C within a kernel call).
     """
     u = np.zeros_like(ustar)
     wet = np.flatnonzero(h > 0)
@@ -65,6 +69,8 @@ def implicit_step(
     todo = np.arange(wet.size)  # wet columns still iterating
     threshold = tolerance * velocity_scale
     for iteration in range(1, max_iterations + 1):
+        if poll is not None:
+            poll()
         problem = stresses.linearise(cs, current, ustar[:, wet], dt).columns(todo)
         cols = (slice(None), todo)
         new = solver(problem, guess=current[cols])

@@ -4,6 +4,11 @@ Every layer is drawn where it is: cell ``(alpha, i)`` spans
 ``z = b_i + h_i * sigma_{alpha -/+ 1/2}`` over the cell ``[x_{i-1/2}, x_{i+1/2}]``, with
 ``x`` along the inclined plane and ``z`` normal to it (docs/model.md).  The figures and
 what they show are listed in docs/results.md.
+
+A result of a failed run, or one holding non-finite values (written by an older
+version, or edited), is drawn where it is finite: non-finite values become gaps in the
+curves and blank cells in the section, and :func:`plot_run` returns notes saying what
+was not drawn and why the run ended.
 """
 
 from __future__ import annotations
@@ -34,22 +39,28 @@ _REPRESENTATIVE = 3
 """Number of columns drawn in the profile figures when no ``--at`` is given."""
 
 
+FIELDS = ("h", "u", "static_interface", "front", "mass")
+"""Variables whose non-finite values are reported (``front`` is NaN, not reported, when no
+cell is wetter than its threshold)."""
+
+
 def plot_run(
     directory: str | os.PathLike,
     times: int = 4,
     at: Sequence[float] = (),
     fmt: str = "png",
     animate: bool = False,
-) -> list[Path]:
+) -> tuple[list[Path], list[str]]:
     """Write the figures of ``directory/result.nc`` into ``directory/plots/``.
 
     ``section`` (X-Z section at ``times`` times), ``thickness`` (h(x)), ``front``
     (x_f(t) and u_f(t)), ``mass`` (volume per unit width), ``profiles`` (u(z) at the
     columns ``at``, default: :func:`representative_columns`) and ``static_interface``
     (b(t) and h(t) at the same columns), as ``fmt`` files; with ``animate`` also the
-    section over time (:func:`animate_section`).  Returns the paths written.
+    section over time (:func:`animate_section`).  Returns the paths written and
+    notes on what could not be drawn (module docstring).
     """
-    ds = open_result(directory)
+    ds, notes = finite_part(open_result(directory))
     out = Path(directory) / PLOTS_DIR
     out.mkdir(exist_ok=True)
     name = yaml.safe_load(ds.attrs["scenario"])["name"]
@@ -69,7 +80,36 @@ def plot_run(
         paths.append(path)
     if animate:
         paths.append(animate_section(ds, name, out / "section"))
-    return paths
+    return paths, notes
+
+
+def finite_part(ds: xr.Dataset) -> tuple[xr.Dataset, list[str]]:
+    """``ds`` with every non-finite value of :data:`FIELDS` set to NaN (a gap), and notes
+    on the run status and on each field that is not finite everywhere."""
+    notes = []
+    status = ds.attrs.get("run_status", "completed")
+    if status != "completed":
+        what = {"failed": "the run failed", "interrupted": "the run was interrupted"}.get(
+            status, f"the run is {status} (or its process was killed)"
+        )
+        why = ds.attrs.get("failure", "")
+        drawn = f"drawn up to t = {float(ds['time'][-1]):.6g} s"
+        notes.append(f"{what}: {why}; {drawn}" if why else f"{what}; {drawn}")
+    for name in FIELDS:
+        values = ds[name].values
+        bad = ~np.isfinite(values)
+        if name == "front":
+            bad &= ~np.isnan(values)
+        if bad.any():
+            first = np.unravel_index(np.argmax(bad), bad.shape)
+            t = float(ds["time"].values[first[0]])
+            where = f", x = {float(ds['x'].values[first[-1]]):.6g} m" if "x" in ds[name].dims else ""
+            notes.append(
+                f"{name}: {int(bad.sum())} of {bad.size} values are not finite "
+                f"(first {float(values[first])!r} at t = {t:.6g} s{where}); not drawn"
+            )
+            ds[name] = ds[name].where(~bad)
+    return ds, notes
 
 
 def column_indices(ds: xr.Dataset, at: Sequence[float]) -> list[int]:
@@ -144,11 +184,12 @@ def _draw_section(ax: Axes, ds: xr.Dataset, k: int, vmin: float, vmax: float) ->
     edges = np.append(sig[:, 0], sig[-1, 1])
     bed = ds["bed"].values
     h = snap["h"].values
-    z = bed + h * edges[:, None]  # (L+1, N) interface heights
+    z = bed + np.where(np.isfinite(h), h, 0.0) * edges[:, None]  # (L+1, N) interface heights
     xs, zs = _staircase(ds, z)
     # odd columns join neighbouring cells: zero width, never seen
     colour = np.ma.masked_all((ds.sizes["layer"], xs.size - 1))
-    colour[:, ::2] = np.ma.masked_equal(snap["u"].values, 0.0)  # static: grey
+    u = snap["u"].values
+    colour[:, ::2] = np.ma.masked_where((u == 0.0) | ~np.isfinite(u), u)  # static (grey) or not finite
     mesh = ax.pcolormesh(xs, zs, colour, cmap=_VELOCITY, vmin=vmin, vmax=vmax)
     ax.plot(*_staircase(ds, bed), color="k", lw=1.2, label="bed", zorder=3)
     ax.plot(*_staircase(ds, bed + h), color="tab:blue", lw=1.0, label="free surface")
@@ -190,7 +231,7 @@ def section_figure(ds: xr.Dataset, name: str, times: int = 4) -> Figure:
     fig = Figure(figsize=(10, (panel + 0.55) * len(picks) + 1.2), layout="constrained")
     axes = fig.subplots(len(picks), 1, sharex=True, sharey=True, squeeze=False)[:, 0]
     u = ds["u"].values[picks]
-    vmin, vmax = min(u.min(), 0.0), max(u.max(), 1e-12)
+    vmin, vmax = min(np.nanmin(u, initial=0.0), 0.0), max(np.nanmax(u, initial=0.0), 1e-12)
     for ax, k in zip(axes, picks):
         mesh = _draw_section(ax, ds, k, vmin, vmax)
         ax.set_aspect(exaggeration)
@@ -220,7 +261,7 @@ def animate_section(ds: xr.Dataset, name: str, stem: Path, fps: int = 10) -> Pat
     FigureCanvasAgg(fig)
     ax = fig.subplots()
     u = ds["u"].values
-    vmin, vmax = min(u.min(), 0.0), max(u.max(), 1e-12)
+    vmin, vmax = min(np.nanmin(u, initial=0.0), 0.0), max(np.nanmax(u, initial=0.0), 1e-12)
     fig.colorbar(_draw_section(ax, ds, 0, vmin, vmax), ax=ax, label="downslope velocity u (m/s)", shrink=0.9)
     fig.suptitle(f"{name}: X-Z section\n{_section_note(ds, exaggeration)}", fontsize="medium")
 

@@ -9,12 +9,16 @@ its last synced record, whereas an HDF5-based file may be left unreadable.
 
 Checkpoints (``checkpoint.npz``) hold the full :meth:`Simulation.state_dict` plus the
 bookkeeping needed to continue the result file; they are replaced atomically
-(temporary file + :func:`os.replace`), so a checkpoint on disk is always complete.
+(temporary file + :func:`os.replace`), so a checkpoint on disk is always complete.  They
+hold plain numeric and text arrays only, read with ``allow_pickle=False`` (loading one
+can never execute code), and a SHA-256 checksum of their contents: a truncated,
+corrupted or foreign file is an :class:`InputError` naming it.
 """
 
 from __future__ import annotations
 
 import datetime as _dt
+import hashlib
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -149,6 +153,8 @@ class ResultWriter:
             self._ds = netCDF4.Dataset(self.path, "a")
             self._ds.history += f"\n{_now()} multilayer run --resume"
             self.records = records
+        self.failure = ""
+        """Why the run failed; written as the ``failure`` attribute on close when not empty."""
         self._ds.run_status = "running"
         self._ds.sync()
 
@@ -220,6 +226,10 @@ class ResultWriter:
         attrs: dict[str, Any] = {"steps": int(steps), "wall_time_s": float(wall_time_s), "run_status": status}
         if scenario is not None:
             attrs["scenario"] = scenario.resolved_yaml()
+        if self.failure:
+            attrs["failure"] = self.failure
+        elif "failure" in self._ds.ncattrs():  # a resumed run that failed before
+            self._ds.delncattr("failure")
         self._ds.setncatts(attrs)
         self._ds.close()
 
@@ -245,6 +255,25 @@ def open_result(path: str | os.PathLike, *, load: bool = True) -> xr.Dataset:
     except (OSError, ValueError) as exc:
         raise InputError(f"{path}: not a readable netCDF result file ({exc})") from None
     return ds.isel(time=np.flatnonzero(np.isfinite(ds["time"].values)))
+
+
+def run_failure(path: str | os.PathLike) -> str | None:
+    """Why the run in ``path`` (a result file or its directory) cannot be used: ``None`` if it
+    completed with finite ``h`` and ``u`` at every output time, else the reason (the failure
+    message, the run status, or where values are not finite).  This is how a sweep (and any
+    ensemble command) decides that a member failed."""
+    try:
+        with open_result(path, load=False) as ds:
+            status = ds.attrs.get("run_status", "unknown")
+            if status != "completed":
+                return f"run_status {status}" + (f": {ds.attrs['failure']}" if "failure" in ds.attrs else "")
+            for name in ("h", "u"):
+                finite = np.isfinite(ds[name].values)
+                if not finite.all():
+                    return f"{name} is not finite at {finite.size - np.count_nonzero(finite)} values"
+    except InputError as exc:
+        return str(exc)
+    return None
 
 
 SUMMARY_KEYS = (
@@ -301,12 +330,23 @@ class Checkpoint:
 _META = ("records", "wall_time_s", "scenario")
 
 
+def _checksum(arrays: dict[str, np.ndarray]) -> str:
+    """SHA-256 of the names, dtypes, shapes and bytes of ``arrays`` (in name order)."""
+    digest = hashlib.sha256()
+    for name in sorted(arrays):
+        a = np.ascontiguousarray(arrays[name])
+        digest.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
+        digest.update(a.tobytes())
+    return digest.hexdigest()
+
+
 def save_checkpoint(path: str | os.PathLike, ckpt: Checkpoint) -> None:
-    """Write ``ckpt`` to ``path`` atomically (temporary file, fsync, rename)."""
+    """Write ``ckpt`` to ``path`` atomically (temporary file, fsync, rename), with its checksum."""
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
     arrays: dict[str, Any] = {f"state.{key}": np.asarray(value) for key, value in ckpt.state.items()}
     arrays.update({f"meta.{key}": np.asarray(getattr(ckpt, key)) for key in _META})
+    arrays["checksum"] = np.asarray(_checksum(arrays))
     with open(tmp, "wb") as f:
         np.savez(f, **arrays)
         f.flush()
@@ -315,12 +355,32 @@ def save_checkpoint(path: str | os.PathLike, ckpt: Checkpoint) -> None:
 
 
 def load_checkpoint(path: str | os.PathLike) -> Checkpoint:
-    """Read a checkpoint written by :func:`save_checkpoint`."""
+    """Read a checkpoint written by :func:`save_checkpoint`; :class:`InputError` (naming the
+    file) if it is unreadable, truncated, holds objects or fails its checksum."""
 
     def value(a: np.ndarray) -> Any:
         return a.item() if a.ndim == 0 else a
 
-    with np.load(path, allow_pickle=False) as data:
-        state = {k[len("state.") :]: value(data[k]) for k in data.files if k.startswith("state.")}
-        meta = {key: value(data[f"meta.{key}"]) for key in _META}
+    def corrupt(why: str) -> InputError:
+        return InputError(
+            f"{path}: corrupt checkpoint ({why}); start again without --resume "
+            "(the run is then computed afresh)"
+        )
+
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {k: data[k] for k in data.files}
+    except Exception as exc:  # noqa: BLE001 - damaged data raises OSError, BadZipFile, zlib.error, ...
+        raise corrupt(f"{type(exc).__name__}: {exc}") from None
+    stored = arrays.pop("checksum", None)
+    if stored is None or stored.ndim != 0 or str(stored) != _checksum(arrays):
+        raise corrupt("no checksum" if stored is None else "checksum mismatch")
+    try:
+        state = {k[len("state.") :]: value(a) for k, a in arrays.items() if k.startswith("state.")}
+        meta = {key: value(arrays[f"meta.{key}"]) for key in _META}
+        missing = {"t", "steps", "h", "u"} - set(state)
+        if missing:
+            raise KeyError(", ".join(sorted(missing)))
+    except KeyError as exc:
+        raise corrupt(f"missing {exc}") from None
     return Checkpoint(state=state, **meta)

@@ -141,7 +141,7 @@ def _increasing(points: list[list[float]], key: str, what: str) -> None:
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", strict=True)
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
 
 
 def _field(default: Any = ..., accepted: str = "", **constraints: Any) -> Any:
@@ -171,7 +171,7 @@ class Domain(_Model):
         value = self.layer_fractions
         if isinstance(value, list):
             if len(value) != self.layers or not all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0 for v in value
+                isinstance(v, (int, float)) and not isinstance(v, bool) and 0 < v < np.inf for v in value
             ):
                 raise _invalid(
                     f"expected {self.layers} numbers > 0, got {value!r}", accepted, "layer_fractions"
@@ -184,7 +184,7 @@ class Domain(_Model):
                 set(value) != {"geometric"}
                 or isinstance(ratio, bool)
                 or not isinstance(ratio, (int, float))
-                or not ratio > 0
+                or not 0 < ratio < np.inf
             ):
                 raise _invalid(f"got {value!r}", accepted, "layer_fractions")
         elif value != "uniform":

@@ -215,7 +215,9 @@ def _build_parameter_model(cls: type[Rheology]) -> type[BaseModel]:
         for p in _parameters(cls)
     }
     return create_model(
-        f"{cls.__name__}Parameters", __config__=ConfigDict(extra="forbid", strict=True), **fields
+        f"{cls.__name__}Parameters",
+        __config__=ConfigDict(extra="forbid", strict=True, allow_inf_nan=False),
+        **fields,
     )
 
 

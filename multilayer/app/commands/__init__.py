@@ -37,3 +37,37 @@ def cluster_description(args: argparse.Namespace) -> str:
     if args.workers is not None:
         return f"a local Dask cluster of {args.workers} single-threaded worker process(es)"
     return "a local Dask cluster (one single-threaded worker process per core)"
+
+
+def size(text: str) -> float:
+    """argparse type: a size in bytes such as ``4G`` or ``500M`` (binary units)."""
+    from multilayer.app.resources import parse_size
+
+    try:
+        return parse_size(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def add_budget_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--max-memory``, ``--max-output`` and ``--force`` (docs/reliability.md, sizes)."""
+    parser.add_argument(
+        "--max-memory",
+        type=size,
+        metavar="SIZE",
+        help="refuse a run needing more memory than SIZE, e.g. 4G (default: the memory available now)",
+    )
+    parser.add_argument(
+        "--max-output",
+        type=size,
+        metavar="SIZE",
+        help="refuse a run whose result.nc would exceed SIZE, e.g. 2G (default: the free disk space)",
+    )
+    parser.add_argument("--force", action="store_true", help="run even beyond the memory and output budget")
+
+
+def budget(args: argparse.Namespace):
+    """The :class:`~multilayer.app.resources.Budget` of the options of :func:`add_budget_arguments`."""
+    from multilayer.app.resources import Budget
+
+    return Budget(args.max_memory, args.max_output, args.force)

@@ -12,6 +12,7 @@ Examples:
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from multilayer.app.commands import positive_int
@@ -62,11 +63,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    """Write the figures and list them."""
+    """Write the figures and list them; say on stderr what could not be drawn."""
     from multilayer.app.calibration import CALIBRATION_FILE
     from multilayer.app.sensitivity import SENSITIVITY_FILE
 
     studies = [name for name in (CALIBRATION_FILE, SENSITIVITY_FILE) if (args.directory / name).is_file()]
+    notes: list[str] = []
     if studies:
         from multilayer.io.study_plotting import plot_study
 
@@ -74,7 +76,11 @@ def main(args: argparse.Namespace) -> int:
     else:
         from multilayer.io.plotting import plot_run
 
-        paths = plot_run(args.directory, times=args.times, at=args.at, fmt=args.fmt, animate=args.animate)
+        paths, notes = plot_run(
+            args.directory, times=args.times, at=args.at, fmt=args.fmt, animate=args.animate
+        )
     for path in paths:
         print(path)
+    for note in notes:
+        print(f"multilayer: warning: {note}", file=sys.stderr)
     return 0

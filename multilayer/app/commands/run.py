@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from multilayer.app.commands import add_budget_arguments, budget
 from multilayer.io import scenario as scenarios
 
 HELP = "run a scenario file and write DIR/result.nc"
@@ -37,6 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--resume", action="store_true", help="continue an interrupted run from the checkpoint in DIR"
     )
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress line and no summary")
+    add_budget_arguments(parser)
 
 
 def main(args: argparse.Namespace) -> int:
@@ -45,7 +47,9 @@ def main(args: argparse.Namespace) -> int:
 
     scenario = scenarios.load(args.scenario, args.overrides)
     outdir = args.output or scenario.output.directory or Path("results") / scenario.name
-    summary = runner.run(scenario, outdir, resume=args.resume, quiet=True if args.quiet else None)
+    summary = runner.run(
+        scenario, outdir, resume=args.resume, quiet=True if args.quiet else None, budget=budget(args)
+    )
     if not args.quiet:
         print(f"{scenario.name}: wrote {Path(outdir) / 'result.nc'}")
         for key, value in summary.items():

@@ -1,14 +1,19 @@
 """Check scenario files without running them (exit 2 if any is invalid).
 
 Every file is checked; each invalid one gets one message naming the file, the key path,
-the YAML line and what is accepted.
+the YAML line and what is accepted.  The memory and output size of each run are
+estimated and checked against the budget, as `multilayer run` does.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
+from multilayer.app import resources
+from multilayer.app.commands import add_budget_arguments, budget
+from multilayer.engine import initial_state
 from multilayer.errors import InputError
 from multilayer.io import scenario as scenarios
 
@@ -26,6 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=[],
         help="override a key in every file, as for 'multilayer run'",
     )
+    add_budget_arguments(parser)
 
 
 def main(args: argparse.Namespace) -> int:
@@ -34,6 +40,10 @@ def main(args: argparse.Namespace) -> int:
     for path in args.files:
         try:
             scenario = scenarios.load(path, args.overrides)
+            need = resources.check(scenario, scenario.output.directory or Path("results"), budget(args))
+            dom = scenario.domain
+            dx = (dom.x_max - dom.x_min) / dom.cells
+            initial_state.check_entries(scenario.initial, dom.x_min, dom.x_max, dx, str(path))
         except InputError as exc:
             print(f"multilayer: error: {exc}", file=sys.stderr)
             invalid += 1
@@ -41,6 +51,8 @@ def main(args: argparse.Namespace) -> int:
         domain = scenario.domain
         print(
             f"{path}: ok ({scenario.name}: {domain.cells} cells x {domain.layers} layers, "
-            f"rheology {scenario.rheology.name}, t_end = {scenario.time.end:g} s)"
+            f"rheology {scenario.rheology.name}, t_end = {scenario.time.end:g} s; about "
+            f"{resources.size_text(need.memory)} of memory, {need.records:.0f} output times, "
+            f"result.nc about {resources.size_text(need.output)})"
         )
     return 2 if invalid else 0

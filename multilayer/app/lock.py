@@ -1,0 +1,90 @@
+"""The output-directory lock: one run at a time writes into a directory.
+
+``DIR/run.lock`` is created exclusively (``O_CREAT | O_EXCL``) and holds the pid, host
+and start time of the run that owns the directory; it is removed when the run ends,
+however it ends.  A second run into the directory is refused with an
+:class:`InputError` naming the holder.  A lock whose holder is gone (a process of this
+host that no longer exists, e.g. after ``kill -9``) is stale: it is taken over and the
+take-over is reported through ``notice``.  A lock from another host cannot be checked
+and is honoured; the message says how to remove it.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import os
+import socket
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from multilayer.errors import InputError
+
+LOCK_FILE = "run.lock"
+
+
+def _alive(pid: int) -> bool:
+    """True if a process ``pid`` exists on this host."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # exists, owned by someone else
+        return True
+    return True
+
+
+def _holder(path: Path) -> dict | None:
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) else None
+
+
+def _describe(holder: dict | None) -> str:
+    if holder is None:
+        return "an unreadable lock"
+    return f"pid {holder.get('pid')} on host {holder.get('host')}, started {holder.get('started')}"
+
+
+@contextmanager
+def locked(directory: Path, notice: Callable[[str], None] = lambda message: None) -> Iterator[None]:
+    """Hold the lock of ``directory`` (which must exist) for the duration of the block."""
+    path = directory / LOCK_FILE
+    me = {
+        "pid": os.getpid(),
+        "host": socket.gethostname(),
+        "started": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+    }
+    for _attempt in range(3):
+        try:
+            fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+        except FileExistsError:
+            holder = _holder(path)
+            here = holder is not None and holder.get("host") == me["host"]
+            if holder is not None and here and holder.get("pid") == me["pid"]:
+                raise InputError(
+                    f"{directory}: this process already runs into this directory; "
+                    "accepted: a different output directory per run"
+                ) from None
+            if holder is None or (here and not _alive(int(holder.get("pid", -1)))):
+                notice(f"{path}: taking over a stale lock ({_describe(holder)}: no such process)")
+                path.unlink(missing_ok=True)
+                continue
+            raise InputError(
+                f"{directory}: another run is writing into this directory ({_describe(holder)}); "
+                f"accepted: a different output directory (-o DIR), or wait for that run to end "
+                f"(if it no longer exists, delete {path})"
+            ) from None
+        with os.fdopen(fd, "w", encoding="utf-8") as stream:
+            json.dump(me, stream)
+        break
+    else:
+        raise InputError(f"{path}: could not take the lock; accepted: a directory no other run is using")
+    try:
+        yield
+    finally:
+        if _holder(path) == me:
+            path.unlink(missing_ok=True)

@@ -1,0 +1,412 @@
+"""Never a silent wrong answer (docs/reliability.md): one test per class of fault.
+
+Each asserts the exit code, that no traceback reaches the user, that the culprit is
+named and that what was computed before the fault is kept.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import netCDF4
+import numpy as np
+import pytest
+import yaml
+from conftest import TINY_SCENARIO
+
+from multilayer.app import lock
+from multilayer.engine import column_kernel, transport
+from multilayer.engine.column_problem import ColumnProblem
+from multilayer.errors import RunError
+from multilayer.io.results import open_result, run_failure
+from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+
+SLUMP = {**TINY_SCENARIO, "name": "slump", "time": {"end": 0.2, "output_interval": 0.02}}
+
+
+def _write(tmp_path: Path, data: dict, name: str = "slump.yaml") -> Path:
+    path = tmp_path / name
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    return path
+
+
+def _no_traceback(text: str) -> None:
+    assert "Traceback" not in text, text
+
+
+# A child process that imports everything, says "ready", then runs the CLI with a patch
+# applied: timings start at "ready", so interpreter start-up on a busy machine is excluded.
+_CHILD = """
+import sys, time, pathlib
+import numpy as np
+from multilayer.app.cli import main
+from multilayer.engine import column_kernel, simulation
+from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+{patch}
+print("ready", time.process_time(), flush=True)
+sys.exit(main(sys.argv[1:]))
+"""
+
+NAN_VISCOSITY = """
+def viscosity(self, shear_rate, pressure, material):
+    return np.full(np.shape(pressure), np.nan)
+DruckerPrager.viscosity = viscosity
+"""
+
+# every kernel call takes 0.2 s and never converges: one step would last 200 x 0.2 s
+SLOW_KERNEL = """
+real = column_kernel.solve
+marker = pathlib.Path(sys.argv[-1]) / "kernel-started"  # in the output directory
+def solve(*args, **kwargs):
+    time.sleep(0.2)
+    u = real(*args, **kwargs) + np.random.default_rng().normal(0.0, 1e-3)
+    marker.touch()  # after the first call: the kernel is compiled
+    return u
+column_kernel.solve = solve
+"""
+
+# steps of at least 20 ms, so that a signal arrives while the run is going
+PACED = """
+step = simulation.Simulation.step
+def paced(self, t_max):
+    time.sleep(0.02)
+    return step(self, t_max)
+simulation.Simulation.step = paced
+"""
+
+
+def _start(patch: str, *args: object) -> subprocess.Popen:
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _CHILD.format(patch=patch), *map(str, args)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    line = proc.stdout.readline().split()
+    assert line[:1] == ["ready"], proc.communicate(timeout=60)
+    proc.cpu_at_ready = float(line[1])  # CPU seconds the child spent importing
+    return proc
+
+
+# ----------------------------------------------------------------------------- plugin output
+
+
+def test_a_nan_returning_plugin_stops_the_run_within_ten_seconds_naming_it(tmp_path):
+    """Within 10 s of CPU after start-up (it used to spin for ever); the wall-clock timeout
+    is wider because the machine running the tests may be shared."""
+    path, outdir = _write(tmp_path, SLUMP), tmp_path / "out"
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    proc = _start(NAN_VISCOSITY, "run", path, "-o", outdir, "-q")
+    try:
+        out, err = proc.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        pytest.fail("a NaN viscosity kept the engine busy for more than 60 s")
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime - proc.cpu_at_ready
+    assert cpu < 10.0, f"{cpu:.1f} s of CPU after start-up"
+    assert proc.returncode == 1
+    _no_traceback(err)
+    assert "rheology plugin 'drucker_prager'" in err and "viscosity() returned nan" in err
+    assert "at x = " in err and "interface " in err and "t = 0 s" in err
+    kept = open_result(outdir)
+    assert kept.attrs["run_status"] == "failed" and "viscosity() returned nan" in kept.attrs["failure"]
+    np.testing.assert_array_equal(kept["time"], [0.0])  # the initial state is kept
+    assert float(kept["mass"][0]) == pytest.approx(0.05 * 0.1, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("method", "result", "expected"),
+    [
+        ("yield_stress", lambda p: -1.0 * np.ones_like(p), "yield_stress() returned -1.0 (must be >= 0)"),
+        ("yield_stress", lambda p: np.ones(3), "yield_stress() returned an array of shape (3,)"),
+        ("viscosity", lambda p: np.full(np.shape(p), np.inf), "viscosity() returned inf (must be finite)"),
+        ("viscosity", lambda p: -np.ones_like(p), "viscosity() returned -1.0 (must be >= 0)"),
+        ("viscosity", lambda p: 1 / 0, "viscosity() raised ZeroDivisionError: division by zero"),
+    ],
+)
+def test_plugin_output_outside_the_contract_is_exit_1_naming_plugin_method_and_value(
+    tmp_path, cli, monkeypatch, method, result, expected
+):
+    if method == "yield_stress":
+        monkeypatch.setattr(DruckerPrager, method, lambda self, p, m: result(p))
+    else:
+        monkeypatch.setattr(DruckerPrager, method, lambda self, g, p, m: result(p))
+    run = cli("run", _write(tmp_path, SLUMP), "-o", tmp_path / "out", "-q")
+    assert run.code == 1
+    _no_traceback(run.err)
+    assert (
+        "rheology plugin 'drucker_prager' (multilayer.plugins.builtins.drucker_prager.DruckerPrager)"
+        in run.err
+    )
+    assert expected in run.err
+    assert open_result(tmp_path / "out").attrs["run_status"] == "failed"
+
+
+def test_the_column_kernel_refuses_non_finite_input_and_never_spins_on_it():
+    rng = np.random.default_rng(0)
+    L, N = 6, 50
+    m, ustar = rng.uniform(1, 2, (L, N)), rng.normal(0, 1, (L, N))
+    kappa, c, w, cw = rng.uniform(0, 1, (L, N)), rng.uniform(0, 1, (L, N)), np.zeros((L, N)), np.zeros((L, N))
+    ustar[2, 17] = np.nan
+    problem = ColumnProblem(m=m, ustar=ustar, dt=0.01, kappa=kappa, c=c, w=w, cw=cw)
+    with pytest.raises(RunError, match=r"ustar is nan in column 17 .* layer or interface 2"):
+        column_kernel.solve(problem)
+    # below the check, the merge of two relations stops at a NaN abscissa instead of
+    # spinning (it used to loop for ever at 100 % CPU, deaf to Ctrl-C)
+    X1, Y1 = np.array([np.nan, 1.0]), np.array([0.0, 1.0])
+    X2, Y2 = np.array([0.0, 0.0]), np.array([-1.0, 1.0])
+    out = np.empty(64), np.empty(64)
+    assert column_kernel._add(X1, Y1, 2, 1.0, 1.0, X2, Y2, 2, 1.0, 1.0, *out)[0] == -1
+
+
+def test_ctrl_c_is_honoured_within_a_second_inside_a_long_step(tmp_path):
+    path, outdir = _write(tmp_path, SLUMP), tmp_path / "out"
+    proc = _start(SLOW_KERNEL, "run", path, "-q", "-o", outdir)
+    deadline = time.monotonic() + 300  # the first kernel call may compile it (numba cache cold)
+    while not (outdir / "kernel-started").exists():
+        assert time.monotonic() < deadline and proc.poll() is None, proc.communicate()
+        time.sleep(0.05)
+    time.sleep(0.5)  # well inside the first step, which would take 40 s
+    sent = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    log = outdir / "run.log"
+    while "interrupted by Ctrl-C" not in log.read_text() and time.monotonic() - sent < 30:
+        time.sleep(0.01)
+    honoured = time.monotonic() - sent  # checkpoint written, stop logged
+    out, err = proc.communicate(timeout=30)
+    assert proc.returncode == 130, err
+    _no_traceback(err)
+    assert honoured < 1.0, f"stopped {honoured:.2f} s after Ctrl-C"
+    assert "interrupted by Ctrl-C (SIGINT) at t=0 s; resume with:" in err
+    assert open_result(outdir).attrs["run_status"] == "interrupted"
+
+
+# ----------------------------------------------------------------------------- state guard
+
+
+def _corrupt_transport(monkeypatch, after: int, fault) -> None:
+    """Make the transport step number ``after`` (and later) return a corrupted state."""
+    real, calls = transport.transport, [0]
+
+    def corrupted(*args, **kwargs):
+        h, u = real(*args, **kwargs)
+        calls[0] += 1
+        if calls[0] > after:
+            fault(h)
+        return h, u
+
+    monkeypatch.setattr(transport, "transport", corrupted)
+
+
+@pytest.mark.parametrize(
+    ("fault", "expected"),
+    [
+        (lambda h: h.__setitem__(5, np.nan), r"thickness h = nan at x = 0.06875 m after transport from t = "),
+        (lambda h: h.__setitem__(7, h[7] + 0.01), r"mass is not conserved after the step from t = "),
+    ],
+)
+def test_an_impossible_state_ends_the_run_keeping_the_last_good_state(
+    tmp_path, cli, monkeypatch, fault, expected
+):
+    _corrupt_transport(monkeypatch, 15, fault)
+    outdir = tmp_path / "out"
+    run = cli("run", _write(tmp_path, SLUMP), "-o", outdir, "-q")
+    assert run.code == 1
+    _no_traceback(run.err)
+    assert __import__("re").search(expected, run.err), run.err
+    kept = open_result(outdir)
+    assert kept.attrs["run_status"] == "failed" and expected.split(" ")[0] in kept.attrs["failure"]
+    t = kept["time"].values
+    assert t.size >= 3 and np.isfinite(kept["h"].values).all() and np.isfinite(kept["u"].values).all()
+    assert t[-1] not in np.round(np.arange(0, 0.21, 0.02), 12)  # the last good step, between outputs
+    assert f"the last good state at t={t[-1]:.6g} s" in run.err
+    ckpt = np.load(outdir / "checkpoint.npz")
+    assert float(ckpt["state.t"]) == t[-1]
+    np.testing.assert_array_equal(ckpt["state.h"], kept["h"].values[-1])
+    assert run_failure(outdir).startswith("run_status failed")
+
+
+def test_a_sweep_marks_a_member_with_a_nan_plugin_failed(tmp_path, cli, monkeypatch):
+    from dask.distributed import LocalCluster
+
+    real = DruckerPrager.viscosity
+
+    def viscosity(self, shear_rate, pressure, material):  # NaN for one member only
+        return real(self, shear_rate, pressure, material) * (np.nan if self.mu_s == 0.4 else 1.0)
+
+    monkeypatch.setattr(DruckerPrager, "viscosity", viscosity)
+    _write(tmp_path, dict(SLUMP, time={"end": 0.04, "output_interval": 0.02}), "tiny.yaml")
+    sweep = tmp_path / "sweep.yaml"
+    sweep.write_text("base: tiny.yaml\nparameters:\n  rheology.mu_s: [0.3, 0.4]\n")
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0") as cluster:
+        result = cli("sweep", sweep, "-o", tmp_path / "out", "--scheduler", cluster.scheduler_address)
+    assert result.code == 1
+    rows = (tmp_path / "out" / "summary.csv").read_text().splitlines()
+    assert ",ok," in rows[1] and ",failed," in rows[2] and "viscosity() returned nan" in rows[2]
+
+
+# ----------------------------------------------------------------------------- initial state
+
+
+def test_material_outside_the_domain_is_exit_2_naming_the_entry(tmp_path, cli):
+    data = dict(SLUMP, initial=[{"shape": "rectangle", "x_min": 0.6, "x_max": 0.7, "height": 0.05}])
+    for command in ("validate", "run"):
+        result = cli(command, _write(tmp_path, data), *(["-o", tmp_path / "out"] if command == "run" else []))
+        assert result.code == 2
+        _no_traceback(result.err)
+        assert "initial.0 (rectangle on x in [0.6, 0.7] m): 0.005 of its 0.005 m2 lie outside" in result.err
+
+
+# ----------------------------------------------------------------------------- sizes
+
+
+@pytest.mark.parametrize(
+    ("override", "expected"),
+    [
+        ("domain.cells=100000000", "x 3 layers need about 727 GB of memory, more than --max-memory (8 GB)"),
+        ("domain.layers=100000000", "need about 9.46 TB of memory, more than --max-memory (8 GB)"),
+        ("time.output_interval=1e-6", "output times of 40 cells x 3 layers make a result file of about"),
+    ],
+)
+def test_runs_that_do_not_fit_are_refused_with_the_estimate_unless_forced(tmp_path, cli, override, expected):
+    path = _write(tmp_path, SLUMP)
+    budget = ["--max-memory", "8G", "--max-output", "100M"]
+    for command in (["validate", path], ["run", path, "-o", tmp_path / "out"]):
+        result = cli(*command, "--set", override, *budget)
+        assert result.code == 2
+        _no_traceback(result.err)
+        assert expected in result.err and "--force" in result.err
+    assert not (tmp_path / "out").exists()  # refused before anything is written
+    forced = cli("validate", path, "--set", override, *budget, "--force")
+    assert forced.code == 0 and "about" in forced.out
+
+
+@pytest.mark.parametrize(
+    "override", ["domain.x_max=.inf", "time.end=.inf", "time.output_interval=.nan", "gravity=-.inf"]
+)
+def test_non_finite_domain_and_time_values_are_exit_2(tmp_path, cli, override):
+    result = cli("run", _write(tmp_path, SLUMP), "-o", tmp_path / "out", "--set", override)
+    assert result.code == 2
+    _no_traceback(result.err)
+    assert f"{override.split('=')[0]} (from --set): Input should be a finite number" in result.err
+
+
+# ----------------------------------------------------------------------------- checkpoints
+
+
+def _finished(tmp_path, cli) -> tuple[Path, Path]:
+    short = dict(SLUMP, time={"end": 0.04, "output_interval": 0.02})
+    path, outdir = _write(tmp_path, short), tmp_path / "out"
+    assert cli("run", path, "-o", outdir, "-q").code == 0
+    return path, outdir
+
+
+@pytest.mark.parametrize("damage", ["truncate", "flip", "pickle", "checksum"])
+def test_a_corrupt_checkpoint_is_exit_2_with_its_path(tmp_path, cli, damage):
+    path, outdir = _finished(tmp_path, cli)
+    ckpt = outdir / "checkpoint.npz"
+    data = ckpt.read_bytes()
+    if damage == "truncate":
+        ckpt.write_bytes(data[: len(data) // 2])
+    elif damage == "flip":
+        ckpt.write_bytes(data[:200] + bytes(b ^ 0xFF for b in data[200:260]) + data[260:])
+    elif damage == "pickle":  # an object array: loading it would run pickle
+        np.savez(ckpt, **{"state.h": np.array([object()], dtype=object)})
+    else:
+        arrays = dict(np.load(ckpt))
+        arrays["state.h"] = arrays["state.h"] + 1.0
+        np.savez(ckpt, **arrays)
+    result = cli("run", path, "-o", outdir, "--resume", "--set", "time.end=0.06")
+    assert result.code == 2
+    _no_traceback(result.err)
+    assert f"{ckpt}: corrupt checkpoint" in result.err and "start again without --resume" in result.err
+
+
+# ----------------------------------------------------------------------------- lock
+
+
+def test_a_directory_in_use_is_refused_naming_the_holder_and_a_stale_lock_taken_over(tmp_path, cli):
+    path, outdir = _write(tmp_path, SLUMP), tmp_path / "out"
+    outdir.mkdir()
+    holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        started = "2026-01-01T00:00:00+00:00"
+        record = {"pid": holder.pid, "host": socket.gethostname(), "started": started}
+        (outdir / lock.LOCK_FILE).write_text(json.dumps(record))
+        result = cli("run", path, "-o", outdir, "-q")
+        assert result.code == 2
+        _no_traceback(result.err)
+        assert f"another run is writing into this directory (pid {holder.pid} on host" in result.err
+        assert started in result.err and not (outdir / "result.nc").exists()
+    finally:
+        holder.kill()
+        holder.wait()
+    result = cli("run", path, "-o", outdir, "-q", "--set", "time.end=0.02")  # the holder is gone: stale
+    assert result.code == 0
+    assert f"taking over a stale lock (pid {holder.pid}" in result.err
+    assert "taking over a stale lock" in (outdir / "run.log").read_text()
+    assert not (outdir / lock.LOCK_FILE).exists()  # released at the end
+
+
+# ----------------------------------------------------------------------------- signals
+
+
+@pytest.mark.parametrize(("signum", "code"), [(signal.SIGTERM, 143), (signal.SIGHUP, 129)])
+def test_sigterm_and_sighup_stop_like_ctrl_c(tmp_path, signum, code):
+    path, outdir = _write(tmp_path, SLUMP), tmp_path / "out"
+    proc = _start(PACED, "run", path, "-o", outdir)
+    deadline = time.monotonic() + 60
+    while not (outdir / "result.nc").exists() or (outdir / "run.log").read_text().count("output t =") < 1:
+        assert time.monotonic() < deadline and proc.poll() is None, proc.communicate()
+        time.sleep(0.02)
+    proc.send_signal(signum)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == code, err
+    _no_traceback(err)
+    name = signal.Signals(signum).name
+    assert f"interrupted by {name} at t=" in err and f"multilayer run {path} -o {outdir} --resume" in err
+    assert f"interrupted by {name}" in (outdir / "run.log").read_text()
+    kept = open_result(outdir)
+    assert kept.attrs["run_status"] == "interrupted" and kept.sizes["time"] >= 2
+    assert not (outdir / lock.LOCK_FILE).exists()
+
+
+# ----------------------------------------------------------------------------- plot
+
+
+def test_plot_of_a_failed_result_with_nan_draws_what_is_finite(tmp_path, cli):
+    _path, outdir = _finished(tmp_path, cli)
+    with netCDF4.Dataset(outdir / "result.nc", "a") as ds:
+        h = ds["h"][:]
+        h[1, 3:6] = np.nan
+        ds["h"][:] = h
+        ds["mass"][2] = np.inf
+        ds.run_status = "failed"
+        ds.failure = "viscosity() returned nan"
+    result = cli("plot", outdir)
+    assert result.code == 0
+    _no_traceback(result.err)
+    assert "the run failed: viscosity() returned nan" in result.err
+    assert (
+        "h: 3 of 120 values are not finite (first nan at t = 0.02 s, x = 0.04375 m); not drawn" in result.err
+    )
+    assert "mass: 1 of 3 values are not finite (first inf at t = 0.04 s)" in result.err
+    assert all((outdir / "plots" / name).stat().st_size > 0 for name in ("section.png", "thickness.png"))
+
+
+def test_the_lock_is_per_process(tmp_path):
+    with lock.locked(tmp_path):
+        assert json.loads((tmp_path / lock.LOCK_FILE).read_text())["pid"] == os.getpid()
+        with pytest.raises(Exception, match="this process already runs into this directory"):
+            with lock.locked(tmp_path):
+                pass
+    assert not (tmp_path / lock.LOCK_FILE).exists()
