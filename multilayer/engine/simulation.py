@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from multilayer.engine import diagnostics, initial_state, stress, transport, vertical_step
+from multilayer.engine import bim2016, diagnostics, initial_state, stress, transport, vertical_step
 from multilayer.engine.mesh import LayeredMesh
 
 if TYPE_CHECKING:  # the engine reads a validated scenario; it never loads one
@@ -50,6 +50,8 @@ class Simulation:
         self.x, self.dx = self.mesh.x, self.mesh.dx
         self.fractions, self.sigma = self.mesh.fractions, self.mesh.sigma
         theta = math.radians(sc.slope_deg)
+        self.theta = theta
+        self.pressure = sc.model.pressure
         self.g_n = sc.gravity * math.cos(theta)
         self.g_t = sc.gravity * math.sin(theta)
         self.numerics = sc.numerics
@@ -64,6 +66,7 @@ class Simulation:
             walls=sc.walls.instantiate() if sc.walls is not None else None,
             width=dom.width,
         )
+        self.base_slip = self.stresses.base_kind != stress.NO_SLIP
         self.solver = vertical_step.solver_for(sc.numerics.vertical_solver)
 
         bc = sc.boundaries
@@ -157,6 +160,19 @@ class Simulation:
             order=self.numerics.order,
             moving=moving,
         )
+        yield_gravity = None
+        if self.pressure == "bim2016":
+            yield_gravity = bim2016.yield_gravity(
+                h_new,
+                self.u,
+                self.bed,
+                self.fractions,
+                dx=self.dx,
+                gravity=self.scenario.gravity,
+                theta=self.theta,
+                base_slip=self.base_slip,
+                dry=self.numerics.dry_threshold,
+            )
         u_new, iterations = vertical_step.implicit_step(
             self.stresses,
             h_new,
@@ -167,6 +183,7 @@ class Simulation:
             tolerance=self.numerics.tolerance,
             max_iterations=self.numerics.max_iterations,
             velocity_scale=self.velocity_scale,
+            yield_gravity=yield_gravity,
         )
         return h_new, u_new, iterations
 

@@ -51,15 +51,17 @@ def implicit_step(
     tolerance: float = 1e-10,
     max_iterations: int = 200,
     velocity_scale: float = 1.0,
+    yield_gravity: np.ndarray | None = None,
 ) -> tuple[np.ndarray, int]:
     """New layer velocities (L, N) after the stresses of one step, and the Newton count.
 
     ``u_guess`` (usually the previous velocities) seeds the viscosity.  Only columns
-    that have not converged are solved again.
+    that have not converged are solved again.  ``yield_gravity`` (L, N) replaces
+    ``g cos(theta)`` in the interface pressures (``StressModel.columns``).
     """
     u = np.zeros_like(ustar)
     wet = np.flatnonzero(h > 0)
-    cs = stresses.columns(h, wet)
+    cs = stresses.columns(h, wet, yield_gravity)
     current = u_guess[:, wet]
     todo = np.arange(wet.size)  # wet columns still iterating
     threshold = tolerance * velocity_scale
