@@ -16,7 +16,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from multilayer.engine import bim2016, diagnostics, initial_state, stress, transport, vertical_step
+from multilayer.engine import (
+    bim2016,
+    diagnostics,
+    initial_state,
+    nonhydrostatic,
+    stress,
+    transport,
+    vertical_step,
+)
 from multilayer.engine.mesh import LayeredMesh
 
 if TYPE_CHECKING:  # the engine reads a validated scenario; it never loads one
@@ -90,6 +98,9 @@ class Simulation:
         self.h = self.h_var.value
         self.u = self.u_var.value.reshape(self.fractions.size, dom.cells)
         self.bed = self.bed_var.value
+        # non-hydrostatic state: layer-mean vertical velocities and interface pressures
+        self.w = np.zeros_like(self.u)
+        self.q = np.zeros_like(self.u)
         self.t = 0.0
         self.steps = 0
         self.newton_iterations = 0
@@ -128,7 +139,7 @@ class Simulation:
         held = self.h > self.numerics.dry_threshold
         iterations = 0
         while True:
-            h_new, u_new, more = self._transport_and_stresses(dt, moving)
+            h_new, u_new, w_new, q_new, more = self._transport_and_stresses(dt, moving)
             iterations += more
             starting = np.any(u_new != 0.0, axis=0) & ~moving & held
             if not starting.any():
@@ -136,14 +147,17 @@ class Simulation:
             moving |= starting
         self.h[...] = h_new
         self.u[...] = u_new
+        self.w[...] = w_new
+        self.q[...] = q_new
         self.newton_iterations += iterations
         self.steps += 1
         # land exactly on t_max when the step was cut to reach it
         self.t = t_max if dt == t_max - self.t else self.t + dt
         return dt
 
-    def _transport_and_stresses(self, dt: float, moving: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-        """Transport (h, u*) then the implicit vertical step (u^{n+1}) over ``dt``."""
+    def _transport_and_stresses(self, dt: float, moving: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Transport (h, u*), the implicit vertical step (u^{n+1}) and, with the
+        non-hydrostatic pressure, the projection (u, w, q) over ``dt``."""
         h_new, ustar = transport.transport(
             self.h,
             self.u,
@@ -173,6 +187,8 @@ class Simulation:
                 base_slip=self.base_slip,
                 dry=self.numerics.dry_threshold,
             )
+        elif self.pressure == "non_hydrostatic":
+            yield_gravity = nonhydrostatic.yield_gravity(self.q, h_new, self.fractions, self.g_n)
         u_new, iterations = vertical_step.implicit_step(
             self.stresses,
             h_new,
@@ -185,7 +201,22 @@ class Simulation:
             velocity_scale=self.velocity_scale,
             yield_gravity=yield_gravity,
         )
-        return h_new, u_new, iterations
+        if self.pressure != "non_hydrostatic":
+            return h_new, u_new, self.w, self.q, iterations
+        periodic = self.left == "periodic"
+        w_star = nonhydrostatic.advect(self.w, u_new, self.dx, dt, periodic)
+        u_new, w_new, q_new = nonhydrostatic.project(
+            h_new,
+            u_new,
+            w_star,
+            self.bed,
+            self.fractions,
+            dx=self.dx,
+            dt=dt,
+            periodic=periodic,
+            dry=self.numerics.dry_threshold,
+        )
+        return h_new, u_new, w_new, q_new, iterations
 
     def advance(self, t_target: float, on_step: Callable[[Simulation, float], None] | None = None) -> None:
         """Step until ``t == t_target``; ``on_step(sim, dt)`` is called after every step."""
@@ -210,6 +241,8 @@ class Simulation:
             "newton_iterations": self.newton_iterations,
             "h": self.h.copy(),
             "u": self.u.copy(),
+            "w": self.w.copy(),
+            "q": self.q.copy(),
         }
 
     def load_state(self, state: dict) -> None:
@@ -219,3 +252,5 @@ class Simulation:
         self.newton_iterations = int(state.get("newton_iterations", 0))
         self.h[...] = state["h"]
         self.u[...] = state["u"]
+        self.w[...] = state.get("w", 0.0)
+        self.q[...] = state.get("q", 0.0)
