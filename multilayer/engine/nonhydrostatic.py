@@ -63,6 +63,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from multilayer.errors import RunError
+
 
 @dataclass
 class Constraint:
@@ -149,10 +151,20 @@ def constraint(
 
 
 def correction(
-    cons: Constraint, moving: np.ndarray, u: np.ndarray, w: np.ndarray
+    cons: Constraint,
+    moving: np.ndarray,
+    u: np.ndarray,
+    w: np.ndarray,
+    lam_max: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``V*``, the correction ``dV = -M^-1 E^T lam`` of ``A lam = E V*`` and the free
-    unknowns, over the rows and unknowns of the moving cells (all vectors full length)."""
+    """``V*``, the correction ``dV = -M^-1 E^T lam`` and the free unknowns, over the rows
+    and unknowns of the moving cells (all vectors full length).
+
+    ``lam`` minimises ``1/2 lam^T A lam - lam^T E V*`` (``A lam = E V*``), subject to
+    ``lam <= lam_max`` (L, N) if given: with ``lam_a = -dt q_a`` this is the bound
+    ``p >= 0`` on the total pressure, solved by the primal-dual active-set method
+    (Hintermueller, Ito & Kunisch 2002).
+    """
     L, N = u.shape
     left, right = cons.left, cons.right
     F = left.size
@@ -163,10 +175,40 @@ def correction(
     v_star = 0.5 * (u[:, left] + u[:, right])
     V_star = np.concatenate([v_star.ravel(), np.where(moving, w, 0.0).ravel()])
     A = (E @ sp.diags(inv_mass) @ E.T).tocsc()
-    lam = spla.spsolve(A, E @ V_star[free])
+    r = E @ V_star[free]
+    lam = spla.spsolve(A, r)
+    if lam_max is not None:
+        lam = _bounded(A, r, lam, lam_max.ravel()[np.flatnonzero(moving.ravel())])
     dV = np.zeros(free.size)
     dV[free] = -inv_mass * (E.T @ lam)
     return V_star, dV, free
+
+
+def _bounded(A: sp.csc_matrix, r: np.ndarray, lam: np.ndarray, lam_max: np.ndarray) -> np.ndarray:
+    """Minimiser of ``1/2 lam^T A lam - r^T lam`` subject to ``lam <= lam_max`` by primal-dual
+    active sets, from the unconstrained minimiser ``lam``: on the active set ``lam =
+    lam_max``, elsewhere ``(A lam)_i = r_i``; the bound multiplier ``mu = r - A lam >= 0``."""
+    active = lam > lam_max
+    for _ in range(MAX_ACTIVE_SET_ITERATIONS):
+        if not active.any():
+            return lam
+        inactive = np.flatnonzero(~active)
+        lam = np.where(active, lam_max, 0.0)
+        if inactive.size:
+            A_ii = A[inactive][:, inactive]
+            lam[inactive] = spla.spsolve(A_ii.tocsc(), r[inactive] - A[inactive] @ lam)
+        mu = r - A @ lam
+        new = np.where(active, mu > 0.0, lam > lam_max)
+        if np.array_equal(new, active):
+            return lam
+        active = new
+    raise RunError(
+        f"the non-hydrostatic pressure bound p >= 0 was not settled in {MAX_ACTIVE_SET_ITERATIONS} "
+        "active-set iterations"
+    )
+
+
+MAX_ACTIVE_SET_ITERATIONS = 100
 
 
 def project(
@@ -180,6 +222,7 @@ def project(
     dt: float,
     periodic: bool = False,
     dry: float = 0.0,
+    g_n: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Project the moving cells on the non-hydrostatic constraint (module Notes).
 
@@ -187,7 +230,8 @@ def project(
     vertical velocities before the projection.  Returns the new ``u`` and ``w`` and the
     kinematic pressures ``q`` (L, N) at the bottom interface of each layer (``q`` per unit
     density, m^2/s^2; zero at the free surface).  Cells at rest (``u == 0.0``) or dry keep
-    ``u = w = 0``.
+    ``u = w = 0``.  With ``g_n = g cos(theta)`` the total pressure
+    ``g_n (h - z) + q`` is kept non-negative (granular matter takes no tension).
     """
     L, N = u.shape
     moving = (u != 0.0) & (h > dry)[None, :]
@@ -196,7 +240,11 @@ def project(
     cons = constraint(np.where(h > dry, h, 0.0), bed, fractions, dx, periodic)
     left, right = cons.left, cons.right
     F = left.size
-    _, dV, _ = correction(cons, moving, u, w)
+    lam_max = None
+    if g_n is not None:
+        depth = (1.0 - np.concatenate([[0.0], np.cumsum(fractions)[:-1]]))[:, None] * h
+        lam_max = dt * g_n * depth
+    _, dV, _ = correction(cons, moving, u, w, lam_max)
     dv = dV[: L * F].reshape(L, F)
     dw = dV[L * F :].reshape(L, N)
     du = np.zeros_like(u)

@@ -215,6 +215,7 @@ class Simulation:
             dt=dt,
             periodic=periodic,
             dry=self.numerics.dry_threshold,
+            g_n=self.g_n,
         )
         return h_new, u_new, w_new, q_new, iterations
 
