@@ -237,6 +237,17 @@ def project(
     moving = (u != 0.0) & (h > dry)[None, :]
     if not moving.any():
         return u.copy(), np.zeros_like(w), np.zeros_like(u)
+    columns = np.flatnonzero(moving.any(axis=0))
+    lo, hi = max(columns[0] - 1, 0), min(columns[-1] + 2, N)
+    if not periodic and (lo > 0 or hi < N):
+        # only the moving material and one column at rest on each side take part: the
+        # faces beyond join cells at rest and carry no correction
+        window = slice(lo, hi)
+        u_new, w_new, q = u.copy(), np.zeros_like(w), np.zeros_like(u)
+        u_new[:, window], w_new[:, window], q[:, window] = project(
+            h[window], u[:, window], w[:, window], bed[window], fractions, dx=dx, dt=dt, dry=dry, g_n=g_n
+        )
+        return u_new, w_new, q
     cons = constraint(np.where(h > dry, h, 0.0), bed, fractions, dx, periodic)
     left, right = cons.left, cons.right
     F = left.size
