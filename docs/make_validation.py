@@ -801,11 +801,10 @@ def section_collapse(jobs: int) -> str:
     nh_exp = exponents("non_hydrostatic")[0]
     hydro = measured["hydrostatic"]
     shortening = 1 - nh[10.0][0] / hydro[10.0][0] if 10.0 in nh and 10.0 in hydro else math.nan
-    goal = (
-        len(nh) == len(COLLAPSE_RATIOS)
-        and all(0.7 <= r <= 1.3 for r in nh_ratios)
-        and abs(nh_exp - 2 / 3) <= 0.15
-    )
+    tall_ratios = [nh[a][0] / _collapse_law(a) for a in nh if a >= 1.0]
+    in_band = len(nh) == len(COLLAPSE_RATIOS) and all(0.7 <= r <= 1.3 for r in nh_ratios)
+    exponent_ok = abs(nh_exp - 2 / 3) <= 0.15
+    goal = in_band and exponent_ok
     text = f"""## Column collapse on a horizontal rough bed
 
 Scenario `column_collapse.yaml` (L0 = 5 cm, glass beads with Jop mu(I), no-slip base, no
@@ -831,19 +830,25 @@ Lagree, Staron & Popinet (2011) is not compared: no numbers from that paper are 
 On this horizontal bed `bim2016` gives the hydrostatic results exactly: every correction
 of eq. 4.9 of Bouchut, Ionescu & Mangeney (2016) carries sin(theta), which vanishes here.
 
-Goal for `non_hydrostatic` (run-out within 30 % of the law at every a, run-out exponent
-within 0.15 of 2/3): **{"met" if goal else "not met"}**.  The non-hydrostatic pressure
-does act where it should: the falling column is close to free fall and the basal pressure
-under it is a fraction of the hydrostatic one early on (docs/nonhydrostatic.md), which
-shortens the run-out at a = 10 by {shortening:.0%} against the hydrostatic model.
-What it cannot supply is the normal stress of
-the plastic flow itself: like every layer-averaged shallow model, this one drives the
-spreading with an isotropic pressure, whereas in a yielding Drucker-Prager material the
-longitudinal normal stress of a spreading flow exceeds the pressure by 2 kappa d_x u/|D u|
-(the deviatoric term of Bouchut, Ionescu & Mangeney 2016, eq. 4.18; the active earth
-pressure of Savage & Hutter 1989), which resists the spreading and is absent from the
-horizontal momentum balance here.  That term, not a parameter, is the next candidate; no
-per-case tuning was done.
+Goal for `non_hydrostatic`: run-out within 30 % of the law at every a, **{"met" if in_band else "not met"}**
+(ratios {min(nh_ratios, default=math.nan):.2f}-{max(nh_ratios, default=math.nan):.2f}); run-out exponent
+for a > 2.3 within 0.15 of 2/3, **{"met" if exponent_ok else "not met"}** ({nh_exp:.2f}).
+Together: **{"met" if goal else "not met"}**.
+
+The non-hydrostatic pressure acts where it should: the falling column is close to free
+fall and the basal pressure under it is a fraction of the hydrostatic one early on
+(docs/nonhydrostatic.md), which shortens the run-out at a = 10 by {shortening:.0%} and
+brings the growth with a from the hydrostatic a^{exponents("hydrostatic")[0]:.2f} to
+a^{nh_exp:.2f}.  What remains is a nearly constant excess for a >= 1 (ratios {min(tall_ratios, default=math.nan):.2f}-{max(tall_ratios, default=math.nan):.2f}), which
+the pressure cannot remove: like every layer-averaged shallow model, this one spreads the
+material with the vertical normal stress acting along x too, whereas in a yielding
+Drucker-Prager material the deviatoric stress 2 kappa D/|D| (Bouchut, Ionescu & Mangeney
+2016, eq. 4.18) makes the longitudinal compressive stress of a spreading flow lower than
+the vertical one by 4 kappa D_xx/|D| (the active earth pressure of Savage & Hutter 1989),
+which weakens the push that spreads it.  That term is absent from the horizontal momentum
+balance here; it, not a parameter, is the next candidate.  The friction coefficients are
+those of the glass beads of the scenario, not fitted to these experiments; no per-case
+tuning was done.
 """
     return text
 

@@ -60,8 +60,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg as la
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from multilayer.errors import RunError
 
@@ -170,18 +170,32 @@ def correction(
     F = left.size
     face_free = (moving[:, left] | moving[:, right]).ravel() & (cons.mass[: L * F] > 0)
     free = np.concatenate([face_free, moving.ravel()])
-    E = cons.E[np.flatnonzero(moving.ravel())][:, np.flatnonzero(free)]
+    # rows column by column (cell i * L + a): A is then banded, of half-width about L + 3
+    layer, column = np.nonzero(moving)
+    order = np.lexsort((layer, column))
+    rows = (layer * N + column)[order]
+    E = cons.E[rows][:, np.flatnonzero(free)]
     inv_mass = 1.0 / cons.mass[free]
     v_star = 0.5 * (u[:, left] + u[:, right])
     V_star = np.concatenate([v_star.ravel(), np.where(moving, w, 0.0).ravel()])
-    A = (E @ sp.diags(inv_mass) @ E.T).tocsc()
+    A = (E @ sp.diags(inv_mass) @ E.T).tocsr()
     r = E @ V_star[free]
-    lam = spla.spsolve(A, r)
+    lam = solve_banded_spd(A, r)
     if lam_max is not None:
-        lam = _bounded(A, r, lam, lam_max.ravel()[np.flatnonzero(moving.ravel())])
+        lam = _bounded(A, r, lam, lam_max.ravel()[rows])
     dV = np.zeros(free.size)
     dV[free] = -inv_mass * (E.T @ lam)
     return V_star, dV, free
+
+
+def solve_banded_spd(A: sp.spmatrix, b: np.ndarray) -> np.ndarray:
+    """Solve ``A x = b`` for a symmetric positive definite banded ``A`` by banded Cholesky
+    (LAPACK ``pbsv`` through ``scipy.linalg.solveh_banded``)."""
+    upper = sp.triu(A).tocoo()
+    width = int((upper.col - upper.row).max(initial=0))
+    bands = np.zeros((width + 1, A.shape[0]))
+    bands[width + upper.row - upper.col, upper.col] = upper.data
+    return la.solveh_banded(bands, b, check_finite=False)
 
 
 def _bounded(A: sp.csc_matrix, r: np.ndarray, lam: np.ndarray, lam_max: np.ndarray) -> np.ndarray:
@@ -196,7 +210,7 @@ def _bounded(A: sp.csc_matrix, r: np.ndarray, lam: np.ndarray, lam_max: np.ndarr
         lam = np.where(active, lam_max, 0.0)
         if inactive.size:
             A_ii = A[inactive][:, inactive]
-            lam[inactive] = spla.spsolve(A_ii.tocsc(), r[inactive] - A[inactive] @ lam)
+            lam[inactive] = solve_banded_spd(A_ii, r[inactive] - A[inactive] @ lam)
         mu = r - A @ lam
         new = np.where(active, mu > 0.0, lam > lam_max)
         if np.array_equal(new, active):
