@@ -60,8 +60,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg as la
 import scipy.sparse as sp
+from numba import njit
 
 from multilayer.errors import RunError
 
@@ -180,25 +180,75 @@ def correction(
     V_star = np.concatenate([v_star.ravel(), np.where(moving, w, 0.0).ravel()])
     A = (E @ sp.diags(inv_mass) @ E.T).tocsr()
     r = E @ V_star[free]
-    lam = solve_banded_spd(A, r)
+    ab = bands(A)
+    lam = solve_banded_spd(ab, r)
     if lam_max is not None:
-        lam = _bounded(A, r, lam, lam_max.ravel()[rows])
+        lam = _bounded(A, ab, r, lam, lam_max.ravel()[rows])
     dV = np.zeros(free.size)
     dV[free] = -inv_mass * (E.T @ lam)
     return V_star, dV, free
 
 
-def solve_banded_spd(A: sp.spmatrix, b: np.ndarray) -> np.ndarray:
-    """Solve ``A x = b`` for a symmetric positive definite banded ``A`` by banded Cholesky
-    (LAPACK ``pbsv`` through ``scipy.linalg.solveh_banded``)."""
+def bands(A: sp.spmatrix) -> np.ndarray:
+    """Upper band storage ``ab[w + i - j, j] = A[i, j]`` (``i <= j``) of a symmetric ``A``."""
     upper = sp.triu(A).tocoo()
     width = int((upper.col - upper.row).max(initial=0))
-    bands = np.zeros((width + 1, A.shape[0]))
-    bands[width + upper.row - upper.col, upper.col] = upper.data
-    return la.solveh_banded(bands, b, check_finite=False)
+    ab = np.zeros((width + 1, A.shape[0]))
+    ab[width + upper.row - upper.col, upper.col] = upper.data
+    return ab
 
 
-def _bounded(A: sp.csc_matrix, r: np.ndarray, lam: np.ndarray, lam_max: np.ndarray) -> np.ndarray:
+@njit(cache=True)
+def solve_banded_spd(ab: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Solve ``A x = b`` for a symmetric positive definite ``A`` in upper band storage by
+    banded Cholesky, ``A = U^T U`` (single-threaded; O(n w^2))."""
+    w, n = ab.shape[0] - 1, ab.shape[1]
+    U = ab.T.copy()  # U[j, w + k - j] = U_kj: the band of column j is contiguous
+    for j in range(n):
+        s = U[j, w]
+        for k in range(max(0, j - w), j):
+            s -= U[j, w + k - j] ** 2
+        if s <= 0.0:
+            raise ValueError("matrix not positive definite")
+        d = np.sqrt(s)
+        U[j, w] = d
+        for i in range(j + 1, min(n, j + w + 1)):
+            s = U[i, w + j - i]
+            for k in range(max(0, i - w), j):
+                s -= U[j, w + k - j] * U[i, w + k - i]
+            U[i, w + j - i] = s / d
+    x = b.copy()
+    for i in range(n):  # U^T y = b
+        s = x[i]
+        for k in range(max(0, i - w), i):
+            s -= U[i, w + k - i] * x[k]
+        x[i] = s / U[i, w]
+    for i in range(n - 1, -1, -1):  # U x = y
+        s = x[i]
+        for j in range(i + 1, min(n, i + w + 1)):
+            s -= U[j, w + i - j] * x[j]
+        x[i] = s / U[i, w]
+    return x
+
+
+@njit(cache=True)
+def _fix(ab: np.ndarray, active: np.ndarray) -> np.ndarray:
+    """The band of ``A`` with the rows and columns of ``active`` replaced by the identity."""
+    w, n = ab.shape[0] - 1, ab.shape[1]
+    out = ab.copy()
+    for i in range(n):
+        if active[i]:
+            for j in range(i, min(n, i + w + 1)):  # row i, right of the diagonal
+                out[w + i - j, j] = 0.0
+            for k in range(max(0, i - w), i):  # column i, above the diagonal
+                out[w + k - i, i] = 0.0
+            out[w, i] = 1.0
+    return out
+
+
+def _bounded(
+    A: sp.spmatrix, ab: np.ndarray, r: np.ndarray, lam: np.ndarray, lam_max: np.ndarray
+) -> np.ndarray:
     """Minimiser of ``1/2 lam^T A lam - r^T lam`` subject to ``lam <= lam_max`` by primal-dual
     active sets, from the unconstrained minimiser ``lam``: on the active set ``lam =
     lam_max``, elsewhere ``(A lam)_i = r_i``; the bound multiplier ``mu = r - A lam >= 0``."""
@@ -206,11 +256,9 @@ def _bounded(A: sp.csc_matrix, r: np.ndarray, lam: np.ndarray, lam_max: np.ndarr
     for _ in range(MAX_ACTIVE_SET_ITERATIONS):
         if not active.any():
             return lam
-        inactive = np.flatnonzero(~active)
-        lam = np.where(active, lam_max, 0.0)
-        if inactive.size:
-            A_ii = A[inactive][:, inactive]
-            lam[inactive] = solve_banded_spd(A_ii, r[inactive] - A[inactive] @ lam)
+        fixed = np.where(active, lam_max, 0.0)
+        rhs = np.where(active, lam_max, r - A @ fixed)
+        lam = solve_banded_spd(_fix(ab, active), rhs)
         mu = r - A @ lam
         new = np.where(active, mu > 0.0, lam > lam_max)
         if np.array_equal(new, active):
