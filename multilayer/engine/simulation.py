@@ -216,6 +216,7 @@ class Simulation:
             periodic=periodic,
             dry=self.numerics.dry_threshold,
             g_n=self.g_n,
+            q_previous=self.q,
         )
         return h_new, u_new, w_new, q_new, iterations
 
