@@ -39,19 +39,23 @@ every row is local (an invertible recombination does not change the projection),
 
 which is ``w_{a+1} - w_a = S_{a+1} - S_a - F_a`` with ``wbar_a = (w_a + w_{a+1})/2``.  The
 projection ``V = V* - M^-1 E^T lam`` is then exactly the Keller-box pressure force above
-with ``q_a = sum_{b >= a} h_b (wbar_b - wbar*_b) / dt`` (``q_L = 0``), and the kinetic
-energy ``1/2 V^T M V`` never grows (an orthogonal projection in the ``M`` norm).  The
-operator ``A = E M^-1 E^T`` is symmetric positive definite with a stencil of three
-columns by five layers.  Cell centres take the mean of the corrections of their two
-faces (an approximate projection, Almgren, Bell & Szymczak 1996).  Faces on a wall,
-outflow or inflow boundary carry no correction (zero normal pressure gradient); periodic
-domains connect their ends.
+with ``q_a = sum_{b >= a} h_b (wbar_b - wbar*_b) / dt = -lam_a / dt`` (``q_L = 0``), and,
+without the pressure bound, the kinetic energy ``1/2 V^T M V`` never grows (an
+orthogonal projection in the ``M`` norm).  The operator ``A = E M^-1 E^T`` is symmetric
+positive definite with a stencil of three columns by seven layers; with the unknowns
+ordered column by column it is banded (half-width ``L + 3``) and solved by banded
+Cholesky.  The total pressure is kept non-negative, ``lam_a <= dt g cos(theta) (h - z_a)``,
+by primal-dual active sets on ``1/2 lam^T A lam - lam^T E V*``.  Cell centres take the
+mean of the corrections of their two faces (an approximate projection, Almgren, Bell &
+Szymczak 1996).  Faces on a wall, outflow or inflow boundary carry no correction (zero
+normal pressure gradient); periodic domains connect their ends.
 
 Material at rest takes no part: only cells whose velocity after the vertical step is
 non-zero are constrained and corrected, so material held by the yield stress stays at
 ``u == 0.0`` exactly, and a field that already satisfies the constraint (uniform flow) has
-``E V* = 0``, hence ``lam = 0`` and no change at all.  ``solve_reference`` assembles the
-same operator from FiPy terms on the X-sigma mesh for flat interfaces
+``E V* = 0``, hence ``lam = 0`` and no change at all.
+``multilayer.reference.nonhydrostatic_fipy.project`` assembles the same operator
+from FiPy terms on the X-sigma mesh for flat interfaces
 (``multilayer/reference/nonhydrostatic_fipy.py``).
 """
 
