@@ -9,6 +9,7 @@ yield takes 16.5 s on a 2-core machine of this project (about 10 M cell-steps/s)
 at x = 9.0.
 
     python benchmarks/dam_break.py [--cells 2500] [--layers 32] [--order 2] [--profile]
+        [--pressure hydrostatic | bim2016 | non_hydrostatic]
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from multilayer.engine.simulation import Simulation
 from multilayer.io.scenario import from_dict
 
 
-def scenario(cells: int, layers: int, order: int, end: float):
+def scenario(cells: int, layers: int, order: int, end: float, pressure: str = "hydrostatic"):
     return from_dict(
         {
             "name": "benchmark-mu-i-dam-break",
@@ -39,6 +40,7 @@ def scenario(cells: int, layers: int, order: int, end: float):
             "boundaries": {"left": "wall", "right": "outflow"},
             "time": {"end": end, "output_interval": end},
             "numerics": {"order": order},
+            "model": {"pressure": pressure},
         }
     )
 
@@ -49,12 +51,15 @@ def main() -> None:
     parser.add_argument("--layers", type=int, default=32)
     parser.add_argument("--order", type=int, default=2, choices=(1, 2))
     parser.add_argument("--end", type=float, default=5.0)
+    parser.add_argument(
+        "--pressure", default="hydrostatic", choices=("hydrostatic", "bim2016", "non_hydrostatic")
+    )
     parser.add_argument("--profile", action="store_true", help="print the 15 costliest functions")
     args = parser.parse_args()
 
-    sim = Simulation(scenario(args.cells, args.layers, args.order, args.end))
+    sim = Simulation(scenario(args.cells, args.layers, args.order, args.end, args.pressure))
     sim.step(1e-9)  # compile the numba kernels outside the timing
-    sim = Simulation(scenario(args.cells, args.layers, args.order, args.end))
+    sim = Simulation(scenario(args.cells, args.layers, args.order, args.end, args.pressure))
     profiler = cProfile.Profile() if args.profile else None
     start = time.perf_counter()
     if profiler:
@@ -65,7 +70,10 @@ def main() -> None:
     elapsed = time.perf_counter() - start
     d = sim.diagnostics()
     cell_steps = sim.cells * sim.steps
-    print(f"cells {args.cells} x layers {args.layers}, transport order {args.order}, t = {sim.t:g}")
+    print(
+        f"cells {args.cells} x layers {args.layers}, transport order {args.order}, "
+        f"pressure {args.pressure}, t = {sim.t:g}"
+    )
     print(f"steps {sim.steps}, Newton iterations per step {sim.newton_iterations / sim.steps:.2f}")
     print(f"time to solution {elapsed:.2f} s, {cell_steps / elapsed / 1e6:.2f} M cell-steps/s")
     print(

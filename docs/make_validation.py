@@ -1165,76 +1165,152 @@ of that relative size):
 
 COLLAPSE_RATIOS = (0.5, 1.0, 2.0, 4.0, 7.0, 10.0)
 COLLAPSE_DOMAIN = ("domain.x_max=2.0", "domain.cells=500", "time.end=2.0", "time.output_interval=0.05")
+COLLAPSE_PRESSURES = ("hydrostatic", "bim2016", "non_hydrostatic")
 L0 = 0.05
+
+
+def _collapse_law(a: float) -> float:
+    return 1.2 * a if a < 2.3 else 1.9 * a ** (2 / 3)
+
+
+def _collapse_name(pressure: str, a: float) -> str:
+    return f"collapse_a{a:g}" if pressure == "hydrostatic" else f"collapse_{pressure}_a{a:g}"
+
+
+def _fit_exponent(x: Sequence[float], y: Sequence[float]) -> float:
+    return float(np.polyfit(np.log(x), np.log(y), 1)[0]) if len(x) > 1 else math.nan
 
 
 def section_collapse(jobs: int) -> str:
     runs = [
-        Run(f"collapse_a{a:g}", "column_collapse", (f"initial.0.height={a * L0:g}", *COLLAPSE_DOMAIN))
+        Run(
+            _collapse_name(p, a),
+            "column_collapse",
+            (f"initial.0.height={a * L0:g}", *COLLAPSE_DOMAIN, f"model.pressure={p}"),
+        )
+        for p in COLLAPSE_PRESSURES
         for a in COLLAPSE_RATIOS
     ]
     results = execute(runs, jobs)
-    rows, ratios, runouts = [], [], []
-    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4))
-    for a in COLLAPSE_RATIOS:
-        ds = results[f"collapse_a{a:g}"]
-        if isinstance(ds, str):
-            rows.append([f"{a:g}", "run failed", "", "", "", ""])
-            continue
-        final = ds.isel(time=-1)
-        front = float(final["front"]) + 0.5 * float(ds["x"][1] - ds["x"][0])
-        norm = (front - L0) / L0
-        moving = float(np.abs(final["u"].values).max())
-        ratios.append(a)
-        runouts.append(norm)
-        law = 1.2 * a if a < 2.3 else 1.9 * a ** (2 / 3)
-        rows.append(
-            [f"{a:g}", f"{front:.3f}", f"{norm:.2f}", f"{law:.2f}", f"{norm / law:.2f}", f"{moving:.1e}"]
-        )
-        ax2.plot(ds["x"].values / L0, final["h"].values / L0, label=f"a = {a:g}")
+    measured: dict[str, dict[float, tuple[float, float, float]]] = {p: {} for p in COLLAPSE_PRESSURES}
+    fig, (ax, ax2, ax3) = plt.subplots(1, 3, figsize=(15, 4))
+    for p in COLLAPSE_PRESSURES:
+        for a in COLLAPSE_RATIOS:
+            ds = results[_collapse_name(p, a)]
+            if isinstance(ds, str):
+                continue
+            final = ds.isel(time=-1)
+            front = float(final["front"]) + 0.5 * float(ds["x"][1] - ds["x"][0])
+            height = float(final["h"].max()) / L0
+            moving = float(np.abs(final["u"].values).max())
+            measured[p][a] = ((front - L0) / L0, height, moving)
+            if p == "non_hydrostatic":
+                ax2.plot(ds["x"].values / L0, final["h"].values / L0, label=f"a = {a:g}")
+            if a == 10.0:
+                t = ds["time"].values
+                ax3.plot(t, (ds["front"].values - L0) / L0, label=p)
+        done = sorted(measured[p])
+        ax.loglog(done, [measured[p][a][0] for a in done], "o-", label=p)
     aa = np.linspace(0.3, 12, 200)
     ax.loglog(aa, 1.2 * aa, "k--", label="1.2 a")
     ax.loglog(aa, 1.9 * aa ** (2 / 3), "k:", label="1.9 a^(2/3)")
-    ax.loglog(ratios, runouts, "o-", label="multilayer")
     ax.set_xlabel("a = H0 / L0")
     ax.set_ylabel("(L_f - L0) / L0")
-    ax.legend()
+    ax.legend(fontsize=7)
     ax2.set_xlabel("x / L0")
-    ax2.set_ylabel("deposit h / L0")
+    ax2.set_ylabel("non_hydrostatic deposit h / L0")
     ax2.legend(fontsize=7)
+    ax3.set_xlabel("t (s)")
+    ax3.set_ylabel("a = 10: (x_f - L0) / L0")
+    ax3.legend(fontsize=7)
     figure = _figure(fig, "column_collapse")
     any_ds = next((v for v in results.values() if not isinstance(v, str)), None)
-    ratio_dev = [float(r[4]) for r in rows if r[1] != "run failed"]
-    tall = np.array(ratios) > 2.3
-    exponent = (
-        float(np.polyfit(np.log(np.array(ratios)[tall]), np.log(np.array(runouts)[tall]), 1)[0])
-        if tall.sum() > 1
-        else math.nan
-    )
+
+    rows = []
+    for a in COLLAPSE_RATIOS:
+        row = [f"{a:g}", f"{_collapse_law(a):.2f}"]
+        for p in COLLAPSE_PRESSURES:
+            r = measured[p].get(a)
+            row += [f"{r[0]:.2f} ({r[0] / _collapse_law(a):.2f})" if r else "run failed"]
+        for p in COLLAPSE_PRESSURES:
+            r = measured[p].get(a)
+            row += [f"{r[1]:.2f}" if r else ""]
+        rows.append(row)
+    header = ["a", "law"] + [f"run-out {p} (ratio)" for p in COLLAPSE_PRESSURES]
+    header += [f"H_f/L0 {p}" for p in COLLAPSE_PRESSURES]
+
+    def exponents(p: str) -> tuple[float, float]:
+        tall = [a for a in sorted(measured[p]) if a > 2.3]
+        high = [a for a in sorted(measured[p]) if a > 1.15]
+        return (
+            _fit_exponent(tall, [measured[p][a][0] for a in tall]),
+            _fit_exponent(high, [measured[p][a][1] for a in high]),
+        )
+
+    lines = []
+    for p in COLLAPSE_PRESSURES:
+        ratios = [measured[p][a][0] / _collapse_law(a) for a in sorted(measured[p])]
+        run_exp, height_exp = exponents(p)
+        speed = max((measured[p][a][2] for a in measured[p]), default=math.nan)
+        lines.append(
+            f"- `{p}`: run-out ratio to the law {min(ratios, default=math.nan):.2f}-"
+            f"{max(ratios, default=math.nan):.2f}, run-out exponent for a > 2.3 {run_exp:.2f} "
+            f"(law 0.67), final-height exponent for a > 1.15 {height_exp:.2f} (experiments 0.4); "
+            f"largest speed at t = 2 s {speed:.1e} m/s."
+        )
+    nh = measured["non_hydrostatic"]
+    nh_ratios = [nh[a][0] / _collapse_law(a) for a in nh]
+    nh_exp = exponents("non_hydrostatic")[0]
+    hydro = measured["hydrostatic"]
+    shortening = 1 - nh[10.0][0] / hydro[10.0][0] if 10.0 in nh and 10.0 in hydro else math.nan
+    tall_ratios = [nh[a][0] / _collapse_law(a) for a in nh if a >= 1.0]
+    in_band = len(nh) == len(COLLAPSE_RATIOS) and all(0.7 <= r <= 1.3 for r in nh_ratios)
+    exponent_ok = abs(nh_exp - 2 / 3) <= 0.15
+    goal = in_band and exponent_ok
     text = f"""## Column collapse on a horizontal rough bed
 
-Scenario `column_collapse.yaml` (L0 = 5 cm, the experiments' glass beads with Jop mu(I), no-slip
-base, no side walls) with H0 = a L0 for a = {", ".join(f"{a:g}" for a in COLLAPSE_RATIOS)}
-(`--set initial.0.height=...` with `{" ".join("--set " + o for o in COLLAPSE_DOMAIN)}`: a 2 m
-domain of 4 mm cells, up to t = 2 s).
+Scenario `column_collapse.yaml` (L0 = 5 cm, the experiments' glass beads with Jop mu(I),
+no-slip base, no side walls) with H0 = a L0 for a = {", ".join(f"{a:g}" for a in COLLAPSE_RATIOS)} and the
+three pressure options of [Non-hydrostatic pressure](nonhydrostatic.md)
+(`--set initial.0.height=...` with `{" ".join("--set " + o for o in COLLAPSE_DOMAIN)}` and
+`--set model.pressure=...`: a 2 m domain of 4 mm cells, up to t = 2 s).
 Resolution: {_resolution(any_ds) if any_ds is not None else "n/a"} (one of the runs).
-The run-out L_f is the final front (h > 1 mm, taken at the cell edge).  Reference: the
-2D experimental laws (L_f - L0)/L0 ~ 1.2 a for a < 2.3 and ~ 1.9 a^(2/3) beyond
-(Lajeunesse et al. 2005; coefficients quoted second-hand, not checked against the paper).
+The run-out L_f is the final front (h > 1 mm, taken at the cell edge), H_f the largest
+final thickness.  References: the 2D experimental run-out laws (L_f - L0)/L0 ~ 1.2 a for
+a < 2.3 and ~ 1.9 a^(2/3) beyond (Lajeunesse et al. 2005; coefficients quoted second-hand, not
+checked against the paper); for the final height only the exponent is compared, H_f/L0 ~ a^0.4 for tall
+columns (Balmforth & Kerswell 2005 report H0/H_f ~ a^0.6 in wide channels, with a
+material-dependent constant).  The front x_f(t) of the Navier-Stokes mu(I) computations of
+Lagree, Staron & Popinet (2011) is not compared: no numbers from that paper are at hand.
 
 {figure}
 
-{_table(["a", "L_f (m)", "(L_f - L0)/L0", "law", "ratio", "max speed at end (m/s)"], rows)}
+{_table(header, rows)}
 
-Verdict: the computed run-outs are within a factor
-{min(ratio_dev) if ratio_dev else float("nan"):.2f}-{max(ratio_dev) if ratio_dev else float("nan"):.2f}
-of the experimental laws; for a > 2.3 the computed run-out grows like a^{exponent:.2f}
-(experiments: a^0.67).  The run-out is overestimated at every a, increasingly so for
-tall columns.  This is consistent with the known limitation of shallow, hydrostatic
-models, which cannot represent the free fall of tall columns (a > ~1); other causes
-(base condition, rheology parameters of another bead set than Lajeunesse's) have not
-been ruled out.  A ratio between 0.7 and 1.3 at every a would count as met:
-**{"met" if ratio_dev and max(ratio_dev) <= 1.3 and min(ratio_dev) >= 0.7 else "not met"}**.
+{chr(10).join(lines)}
+
+On this horizontal bed `bim2016` gives the hydrostatic results exactly: every correction
+of eq. 4.9 of Bouchut, Ionescu & Mangeney (2016) carries sin(theta), which vanishes here.
+
+Goal for `non_hydrostatic`: run-out within 30 % of the law at every a, **{"met" if in_band else "not met"}**
+(ratios {min(nh_ratios, default=math.nan):.2f}-{max(nh_ratios, default=math.nan):.2f}); run-out exponent
+for a > 2.3 within 0.15 of 2/3, **{"met" if exponent_ok else "not met"}** ({nh_exp:.2f}).
+Together: **{"met" if goal else "not met"}**.
+
+The non-hydrostatic pressure acts where it should: the falling column is close to free
+fall and the basal pressure under it is a fraction of the hydrostatic one early on
+(docs/nonhydrostatic.md), which shortens the run-out at a = 10 by {shortening:.0%} and
+brings the growth with a from the hydrostatic a^{exponents("hydrostatic")[0]:.2f} to
+a^{nh_exp:.2f}.  What remains is a nearly constant excess for a >= 1 (ratios {min(tall_ratios, default=math.nan):.2f}-{max(tall_ratios, default=math.nan):.2f}), which
+the pressure cannot remove: like every layer-averaged shallow model, this one spreads the
+material with the vertical normal stress acting along x too, whereas in a yielding
+Drucker-Prager material the deviatoric stress 2 kappa D/|D| (Bouchut, Ionescu & Mangeney
+2016, eq. 4.18) makes the longitudinal compressive stress of a spreading flow lower than
+the vertical one by 4 kappa D_xx/|D| (the active earth pressure of Savage & Hutter 1989),
+which weakens the push that spreads it.  That term is absent from the horizontal momentum
+balance here; it, not a parameter, is the next candidate.  The friction coefficients are
+those of the glass beads of the scenario, not fitted to these experiments; no per-case
+tuning was done.
 """
     return text
 

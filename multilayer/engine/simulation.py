@@ -16,7 +16,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from multilayer.engine import diagnostics, initial_state, stress, transport, vertical_step
+from multilayer.engine import (
+    bim2016,
+    diagnostics,
+    initial_state,
+    nonhydrostatic,
+    stress,
+    transport,
+    vertical_step,
+)
 from multilayer.engine.gate import Gate
 from multilayer.engine.mesh import LayeredMesh
 from multilayer.engine.state_check import ROUND_OFF, StateError, StateGuard
@@ -61,6 +69,8 @@ class Simulation:
         self.x, self.dx = self.mesh.x, self.mesh.dx
         self.fractions, self.sigma = self.mesh.fractions, self.mesh.sigma
         theta = math.radians(sc.slope_deg)
+        self.theta = theta
+        self.pressure = sc.model.pressure
         self.g_n = sc.gravity * math.cos(theta)
         self.g_t = sc.gravity * math.sin(theta)
         self.numerics = sc.numerics
@@ -76,6 +86,7 @@ class Simulation:
             width=dom.width,
             x=self.x,
         )
+        self.base_slip = self.stresses.base_kind != stress.NO_SLIP
         self.solver = vertical_step.solver_for(sc.numerics.vertical_solver)
 
         bc = sc.boundaries
@@ -106,6 +117,9 @@ class Simulation:
         self.h = self.h_var.value
         self.u = self.u_var.value.reshape(self.fractions.size, dom.cells)
         self.bed = self.bed_var.value
+        # non-hydrostatic state: layer-mean vertical velocities and interface pressures
+        self.w = np.zeros_like(self.u)
+        self.q = np.zeros_like(self.u)
         self.t = 0.0
         self.steps = 0
         self.newton_iterations = 0
@@ -151,7 +165,7 @@ class Simulation:
         iterations = 0
         self.stresses.t = self.t
         while True:
-            h_new, u_new, more = self._transport_and_stresses(dt, moving, rest)
+            h_new, u_new, w_new, q_new, more = self._transport_and_stresses(dt, moving, rest)
             iterations += more
             starting = np.any(u_new != 0.0, axis=0) & ~moving & held
             if not starting.any():
@@ -161,6 +175,8 @@ class Simulation:
         self.guard.check_step(self.h, self.u, h_new, u_new, self.t, dt)
         self.h[...] = h_new
         self.u[...] = u_new
+        self.w[...] = w_new
+        self.q[...] = q_new
         self.newton_iterations += iterations
         self.steps += 1
         # land exactly on t_max when the step was cut to reach it
@@ -169,9 +185,10 @@ class Simulation:
 
     def _transport_and_stresses(
         self, dt: float, moving: np.ndarray, rest: np.ndarray | None = None
-    ) -> tuple[np.ndarray, np.ndarray, int]:
-        """Transport (h, u*) then the implicit vertical step (u^{n+1}) over ``dt``; ``rest``
-        (L, N) marks the layers at rest at the start of the step."""
+    ) -> tuple[np.ndarray, ...]:
+        """Transport (h, u*), the implicit vertical step (u^{n+1}) and, with the
+        non-hydrostatic pressure, the projection (u, w, q) over ``dt``; ``rest`` (L, N)
+        marks the layers at rest at the start of the step."""
         opening = self.gate.opening(self.h, self.t + 0.5 * dt) if self.gate is not None else None
         h_new, ustar = transport.transport(
             self.h,
@@ -192,6 +209,21 @@ class Simulation:
             opening=opening,
         )
         self.guard.check_state(h_new, ustar, f"after transport from t = {self.t:.6g} s (dt = {dt:.3g} s)")
+        yield_gravity = None
+        if self.pressure == "bim2016":
+            yield_gravity = bim2016.yield_gravity(
+                h_new,
+                self.u,
+                self.bed,
+                self.fractions,
+                dx=self.dx,
+                gravity=self.scenario.gravity,
+                theta=self.theta,
+                base_slip=self.base_slip,
+                dry=self.numerics.dry_threshold,
+            )
+        elif self.pressure == "non_hydrostatic":
+            yield_gravity = nonhydrostatic.yield_gravity(self.q, h_new, self.fractions, self.g_n)
         u_new, iterations = vertical_step.implicit_step(
             self.stresses,
             h_new,
@@ -204,8 +236,26 @@ class Simulation:
             velocity_scale=self.velocity_scale,
             rest=rest,
             poll=self.poll,
+            yield_gravity=yield_gravity,
         )
-        return h_new, u_new, iterations
+        if self.pressure != "non_hydrostatic":
+            return h_new, u_new, self.w, self.q, iterations
+        periodic = self.left == "periodic"
+        w_star = nonhydrostatic.advect(self.w, u_new, self.dx, dt, periodic)
+        u_new, w_new, q_new = nonhydrostatic.project(
+            h_new,
+            u_new,
+            w_star,
+            self.bed,
+            self.fractions,
+            dx=self.dx,
+            dt=dt,
+            periodic=periodic,
+            dry=self.numerics.dry_threshold,
+            g_n=self.g_n,
+            q_previous=self.q,
+        )
+        return h_new, u_new, w_new, q_new, iterations
 
     def advance(self, t_target: float, on_step: Callable[[Simulation, float], None] | None = None) -> None:
         """Step until ``t == t_target``; ``on_step(sim, dt)`` is called after every step."""
@@ -249,6 +299,8 @@ class Simulation:
             "newton_iterations": self.newton_iterations,
             "h": self.h.copy(),
             "u": self.u.copy(),
+            "w": self.w.copy(),
+            "q": self.q.copy(),
         }
 
     def load_state(self, state: dict) -> None:
@@ -258,5 +310,7 @@ class Simulation:
         self.newton_iterations = int(state.get("newton_iterations", 0))
         self.h[...] = state["h"]
         self.u[...] = state["u"]
+        self.w[...] = state.get("w", 0.0)
+        self.q[...] = state.get("q", 0.0)
         self.guard.check_state(self.h, self.u, f"in the restored state at t = {self.t:.6g} s")
         self._mass_reference = (diagnostics.mass(self.h, self.dx), self.steps)

@@ -83,13 +83,24 @@ class StressModel:
         spacing = 0.5 * (fractions + np.concatenate([[0.0], fractions[:-1]]))
         self.spacing_fraction = spacing[:, None]  # h_0/2 at the bed, (l_{k-1} + l_k)/2 above
 
-    def columns(self, h: np.ndarray, where: np.ndarray, rest: np.ndarray | None = None) -> ColumnStresses:
-        """Velocity-independent coefficients of the columns ``where`` of thickness ``h``;
-        ``rest`` (L, N) marks the layers at rest at the start of the step (None: none)."""
+    def columns(
+        self,
+        h: np.ndarray,
+        where: np.ndarray,
+        rest: np.ndarray | None = None,
+        yield_gravity: np.ndarray | None = None,
+    ) -> ColumnStresses:
+        """Velocity-independent coefficients of the columns ``where`` of thickness ``h``.
+
+        ``rest`` (L, N) marks the layers at rest at the start of the step (None: none);
+        ``yield_gravity`` (L, N), if given, replaces ``g cos(theta)`` in the interface
+        pressures ``p_k = rho G_k (h - z_k)`` (the pressure of ``bim2016.yield_gravity``).
+        """
         rho = self.material.density
         h = h[where]
         base_kind, base_mu = self.base_kind[where], self.base_mu[where]
-        p = rho * self.g_n * self.depth_interface * h
+        g_k = self.g_n if yield_gravity is None else yield_gravity[:, where]
+        p = rho * g_k * self.depth_interface * h
         x = self.x[where]
         kappa = self._call(self.bulk, "yield_stress", (p, self.material), {"pressure": p}, x, INTERFACE)
         if rest is not None:

@@ -53,6 +53,7 @@ def implicit_step(
     velocity_scale: float = 1.0,
     rest: np.ndarray | None = None,
     poll: Callable[[], None] | None = None,
+    yield_gravity: np.ndarray | None = None,
 ) -> tuple[np.ndarray, int]:
     """New layer velocities (L, N) after the stresses of one step, and the Newton count.
 
@@ -61,10 +62,11 @@ def implicit_step(
     a start/stop law applies (``StressModel.columns``).  Only columns that have not
     converged are solved again.  ``poll()`` is called before every kernel call: it may
     raise to abandon the step (how a run honours Ctrl-C within a kernel call).
+    ``yield_gravity`` (L, N) replaces ``g cos(theta)`` in the interface pressures.
     """
     u = np.zeros_like(ustar)
     wet = np.flatnonzero(h > 0)
-    cs = stresses.columns(h, wet, rest)
+    cs = stresses.columns(h, wet, rest, yield_gravity)
     current = u_guess[:, wet]
     todo = np.arange(wet.size)  # wet columns still iterating
     threshold = tolerance * velocity_scale

@@ -588,6 +588,14 @@ class Numerics(_Model):
     front_threshold: float = _field(1e-3, "a number > 0 (m)", gt=0)
 
 
+class Model(_Model):
+    """Model options: the pressure that enters the stresses (docs/nonhydrostatic.md)."""
+
+    pressure: Literal["hydrostatic", "bim2016", "non_hydrostatic"] = _field(
+        "hydrostatic", "hydrostatic, bim2016 or non_hydrostatic"
+    )
+
+
 class Scenario(_Model):
     """A validated scenario: attribute names are the YAML keys (docs/scenarios.md)."""
 
@@ -614,6 +622,7 @@ class Scenario(_Model):
     output: Output = _field(Output(), "a mapping with directory")
     expect: list[Expect] = _field([], "a list of {kind, quantity, value, rtol, atol, source}")
     numerics: Numerics = _field(Numerics(), "a mapping of solver settings")
+    model: Model = _field(Model(), "a mapping with pressure")
 
     _source: Path | None = PrivateAttr(None)
 
