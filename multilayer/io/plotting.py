@@ -170,7 +170,7 @@ def vertical_exaggeration(width: float, height: float, aspect: float = 0.22) -> 
 def _section_limits(ds: xr.Dataset) -> tuple[tuple[float, float], tuple[float, float]]:
     """x and z limits holding the bed and the free surface at every output time."""
     bed = ds["bed"].values
-    top = float(np.max(bed + ds["h"].values))
+    top = float(np.nanmax(bed + ds["h"].values, initial=float(bed.max())))
     low = float(bed.min())
     pad = 0.05 * max(top - low, 1e-6)
     edges = ds["x_bnds"].values

@@ -522,7 +522,7 @@ class GateSpec(_Model):
 
     x: float = _field(..., "a number in [domain.x_min, domain.x_max] (m); snapped to the nearest cell face")
     lift_speed: float = _field(
-        ..., "a number >= 0 (m/s), normal to the plane; .inf: instantaneous release", ge=0
+        ..., "a number >= 0 (m/s), normal to the plane; .inf: instantaneous release", ge=0, allow_inf_nan=True
     )
 
 
