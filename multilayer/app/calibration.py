@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -178,17 +178,20 @@ class Calibrator:
         return self.evaluate([theta])[0].misfit
 
     def _whitened(self, theta: np.ndarray) -> np.ndarray:
-        candidate = self.evaluate([theta])[0]
+        return self._residuals(self.evaluate([theta])[0])
+
+    def _residuals(self, candidate: Candidate) -> np.ndarray:
+        """Whitened residuals of an evaluated candidate; _Failed if one of its runs failed."""
         if candidate.predicted is None:
-            raise _Failed(f"the run at {self._text(theta)} failed: {self._error(candidate)}")
-        return self.problem.residuals(candidate.predicted, theta)
+            raise _Failed(f"the run at {self._text(candidate.theta)} failed: {self._error(candidate)}")
+        return self.problem.residuals(candidate.predicted, candidate.theta)
 
     def _steps(self) -> np.ndarray:
         return self.calibration.config.refine.step * (self.problem.upper - self.problem.lower)
 
     def _jacobian(self, theta: np.ndarray, central: bool) -> np.ndarray:
         """Finite-difference Jacobian of the whitened residuals: one batch of runs."""
-        p, lo, hi = self.problem, self.problem.lower, self.problem.upper
+        lo, hi = self.problem.lower, self.problem.upper
         steps = self._steps()
         thetas, signs = [], []
         for j in range(theta.size):
@@ -211,16 +214,13 @@ class Calibrator:
             if sign == 0.0:
                 up, down = batch[k], batch[k + 1]
                 k += 2
-                columns.append(
-                    (p.residuals(up.predicted, up.theta) - p.residuals(down.predicted, down.theta))
-                    / (2 * steps[j])
-                )
+                columns.append((self._residuals(up) - self._residuals(down)) / (2 * steps[j]))
             else:
                 if base is None:
                     base = self._whitened(theta)
                 c = batch[k]
                 k += 1
-                columns.append((p.residuals(c.predicted, c.theta) - base) / (sign * steps[j]))
+                columns.append((self._residuals(c) - base) / (sign * steps[j]))
         return np.column_stack(columns)
 
     # ----------------------------------------------------------------- stages
@@ -296,6 +296,8 @@ class Calibrator:
                 f"{', '.join(at_bound)} at a bound: the posterior is cut there, so the Gaussian (Laplace) "
                 "standard deviation does not describe it; widen the bounds if they are not physical limits"
             )
+        if best.predicted is None:  # the search found a finite misfit, which only a prediction has
+            raise RuntimeError(f"the best parameter set {self._text(best.theta)} has no prediction")
         return Fit(
             names=problem.names,
             theta=best.theta,
@@ -328,7 +330,7 @@ def _no_fit(candidates: list[Candidate]) -> Exception:
     )
 
 
-def _strings(values: list[str]) -> np.ndarray:
+def _strings(values: Sequence[str]) -> np.ndarray:
     """Variable-length strings for netCDF."""
     return np.array(values, dtype=object)
 

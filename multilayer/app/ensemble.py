@@ -13,7 +13,7 @@ checkpoint.  A member that is invalid or fails is reported as such, never raised
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -28,6 +28,9 @@ from multilayer.io.scenario import as_overrides
 
 MEMBERS_DIR = "members"
 
+Status = Literal["ok", "invalid", "failed"]
+"""What became of a member: measured, rejected by scenario validation, or failed to run or measure."""
+
 
 @dataclass
 class Evaluation:
@@ -35,7 +38,7 @@ class Evaluation:
 
     id: str
     values: dict[str, Any]
-    status: Literal["ok", "invalid", "failed"]
+    status: Status
     measured: np.ndarray | None = None
     error: str = ""
     reused: bool = False
@@ -91,7 +94,7 @@ class Ensemble:
         return "e-" + sweep.overrides_digest(as_overrides({**self.fixed, **values}))
 
     def evaluate(
-        self, points: list[dict[str, Any]], measure: list[Callable[[Path], np.ndarray]]
+        self, points: list[dict[str, Any]], measure: Sequence[Callable[[Path], np.ndarray]]
     ) -> list[Evaluation]:
         """Run (or reuse) the member of each point and measure it with ``measure[i]``."""
         from dask.distributed import as_completed
@@ -139,6 +142,8 @@ class Ensemble:
             }
             for done, future in enumerate(as_completed(futures), start=1):
                 ident = futures[future]
+                measured: np.ndarray | None
+                status: Status
                 try:
                     measured, status, error = future.result(), "ok", ""
                 except Exception as exc:  # noqa: BLE001 - a failed member must not stop the study
@@ -148,5 +153,7 @@ class Ensemble:
                 self.ran += 1
                 if self.on_progress is not None:
                     self.on_progress(done, len(submit))
-        assert all(r is not None for r in results)
-        return results  # type: ignore[return-value]
+        evaluations = [r for r in results if r is not None]
+        if len(evaluations) != len(points):
+            raise RuntimeError(f"{len(points) - len(evaluations)} point(s) of the batch were not evaluated")
+        return evaluations

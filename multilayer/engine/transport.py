@@ -236,6 +236,8 @@ def transport(
     fractions of the layers at face ``gate_face`` (face i between cells i-1 and i) of a
     partly lifted gate (engine/gate.py); None: no gate.
     """
+    if opening is not None and gate_face is None:
+        raise ValueError("transport: a gate opening was given without its gate_face")
     N = h.size
     if moving is None:
         moving = np.any(u != 0.0, axis=0)
@@ -255,7 +257,7 @@ def transport(
     moving_ext = np.concatenate([[ends[0]], moving, [ends[1]]])
     at_rest = ~(moving_ext[:-1] | moving_ext[1:])
     gate = None
-    if opening is not None and lo <= gate_face <= hi:
+    if opening is not None and gate_face is not None and lo <= gate_face <= hi:
         gate = (gate_face - lo, np.asarray(opening, dtype=float))
     h_new, u_new = np.zeros_like(h), np.zeros_like(u)
     h_new[window], u_new[:, window] = _step(

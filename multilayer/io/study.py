@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import csv
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, get_args
 
 import numpy as np
 from pydantic import BaseModel, Field, ValidationError, field_validator, model_validator
@@ -34,12 +34,17 @@ from multilayer.errors import InputError
 from multilayer.io import scenario
 from multilayer.io.scenario import _dotted, _field, _invalid, _message, _Model, as_overrides
 
-SCALARS = ("runout", "front_final", "duration", "mass_final")
+Scalar = Literal["runout", "front_final", "duration", "mass_final"]
 """Scalar quantities measured on a run (multilayer.io.observables)."""
-CURVES = ("front",)
+Curve = Literal["front"]
 """Quantities observed against time: the front x_f(t)."""
-PROFILES = ("h",)
+Profile = Literal["h"]
 """Quantities observed against x at one time: the thickness h(x)."""
+Quantity = Literal[Scalar, Curve, Profile]
+"""Every observable quantity."""
+SCALARS: tuple[str, ...] = get_args(Scalar)
+CURVES: tuple[str, ...] = get_args(Curve)
+PROFILES: tuple[str, ...] = get_args(Profile)
 
 UNITS: dict[str, float] = {
     "m": 1.0,
@@ -84,7 +89,7 @@ class Observation(_Model):
     """One observed quantity with its uncertainty (values in ``units``)."""
 
     name: str = _field(..., "a name for the observation", min_length=1)
-    quantity: Literal[SCALARS + CURVES + PROFILES] = _field(..., ", ".join(SCALARS + CURVES + PROFILES))
+    quantity: Quantity = _field(..., ", ".join(SCALARS + CURVES + PROFILES))
     experiment: str | None = _field(None, "a key of experiments (default: the only experiment)")
     value: float | None = _field(None, "a number, in units (scalar quantities)")
     file: str | None = _field(None, "a CSV or netCDF file, relative to the calibration file")
@@ -107,6 +112,8 @@ class Observation(_Model):
     @model_validator(mode="after")
     def _check(self) -> Observation:
         scalar = self.quantity in SCALARS
+        required: tuple[str, ...]
+        optional: tuple[str, ...]
         if self.units is not None and _DIMENSION[self.units] != _SI[self.quantity]:
             raise _invalid(
                 f"{self.units} is not a unit of {self.quantity}",
@@ -216,7 +223,7 @@ class CalibrationModel(_Study):
 class SensitivityModel(_Study):
     """The sensitivity file as validated."""
 
-    outputs: list[Literal[SCALARS]] = _field(..., "a non-empty list of " + ", ".join(SCALARS), min_length=1)
+    outputs: list[Scalar] = _field(..., "a non-empty list of " + ", ".join(SCALARS), min_length=1)
     samples: int = _field(16, "a power of 2 >= 2 (base samples N; runs: N x (parameters + 2))", ge=2)
     seed: int = _field(1, "an integer")
     confidence: float = _field(0.95, "a number in (0, 1)", gt=0, lt=1)
@@ -344,6 +351,8 @@ def _read(path: Path, lines: dict, index: int, obs: Observation, experiment: str
     """The observation's values in SI, from the file itself or from ``obs.file``."""
     scale = UNITS[obs.units or _SI[obs.quantity]]
     if obs.quantity in SCALARS:
+        if obs.value is None or obs.sigma is None:
+            raise _unvalidated(obs, "value and sigma")
         return ObservedData(
             observation=obs,
             experiment=experiment,
@@ -352,13 +361,19 @@ def _read(path: Path, lines: dict, index: int, obs: Observation, experiment: str
             sigma=[obs.sigma * scale],
         )
     where = _at(path, lines, "observations", index, "file")
+    if obs.file is None:
+        raise _unvalidated(obs, "file")
     file = path.parent / obs.file
     if not file.is_file():
         raise InputError(f"{where}: {file} not found; accepted: a CSV or netCDF file, relative to {path}")
     if file.suffix == ".nc":
+        if obs.variable is None:
+            raise _unvalidated(obs, "variable")
         coordinate, value, units, coordinate_units = _read_netcdf(file, obs.variable, where)
         sigma = None
     else:
+        if obs.columns is None:
+            raise _unvalidated(obs, "columns")
         coordinate, value, sigma = _read_csv(file, obs.columns, where)
         units, coordinate_units = None, None
     unit = obs.units or units or _SI[obs.quantity]
@@ -381,6 +396,13 @@ def _read(path: Path, lines: dict, index: int, obs: Observation, experiment: str
         coordinate=list(coordinate * UNITS[coordinate_unit]),
         value=list(value * scale),
         sigma=list(sigma * scale),
+    )
+
+
+def _unvalidated(obs: Observation, keys: str) -> RuntimeError:
+    """The error for an observation without the ``keys`` its validation requires (a bug)."""
+    return RuntimeError(
+        f"observation {obs.name!r} ({obs.quantity}) has no {keys}: it was not validated by Observation"
     )
 
 
@@ -412,7 +434,8 @@ def _read_netcdf(
         with xr.open_dataset(file) as ds:
             if variable not in ds:
                 raise InputError(
-                    f"{where}: {file} has no variable {variable!r}; accepted: " + ", ".join(ds.data_vars)
+                    f"{where}: {file} has no variable {variable!r}; accepted: "
+                    + ", ".join(map(str, ds.data_vars))
                 )
             var = ds[variable].load()
     except (OSError, ValueError) as exc:

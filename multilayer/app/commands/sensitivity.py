@@ -67,7 +67,7 @@ def main(args: argparse.Namespace) -> int:
         ensemble = Ensemble(study.base, outdir, client, fixed=study.config.set, on_progress=progress)
         evaluations = sensitivity.run(study, ensemble, report, points)
     failed = [e for e in evaluations if e.status != "ok"]
-    result = None
+    result = None  # the Sobol' estimators need every run
     if not failed:
         import numpy as np
 
@@ -75,7 +75,7 @@ def main(args: argparse.Namespace) -> int:
     path = outdir / sensitivity.SENSITIVITY_FILE
     sensitivity.write(study, points, evaluations, result, path)
     print(f"sensitivity: {ensemble.ran} run(s), {ensemble.reused} reused, {len(failed)} failed; wrote {path}")
-    if failed:
+    if result is None:
         for e in failed[:5]:
             print(f"multilayer: member {e.id} {e.status}: {e.error}", file=sys.stderr)
         print(
