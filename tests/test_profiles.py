@@ -8,11 +8,12 @@ import numpy as np
 import pytest
 import yaml
 
-from multilayer.engine.initial_state import bed_profile, initial_state
+from multilayer.engine.initial_state import bed_profile, cell_edges, initial_state
 from multilayer.errors import InputError
 from multilayer.io.scenario import from_dict, load
 
 X = np.linspace(0.005, 0.295, 30)  # cell centres of the tiny domain below
+EDGES = cell_edges(0.0, 0.3, 30)
 
 
 def _scenario(write_scenario, tiny_scenario, **changes):
@@ -48,8 +49,8 @@ def test_csv_initial_thickness_equals_the_same_profile_given_by_points(
         _scenario(write_scenario, tiny_scenario, initial=[{"shape": "profile", "points": points}])
     )
     sigma = np.array([1 / 6, 1 / 2, 5 / 6])
-    h_file, _ = initial_state(from_file.initial, X, sigma)
-    h_points, _ = initial_state(from_points.initial, X, sigma)
+    h_file, _ = initial_state(from_file.initial, X, sigma, EDGES)
+    h_points, _ = initial_state(from_points.initial, X, sigma, EDGES)
     np.testing.assert_array_equal(h_file, h_points)
     assert "file" not in yaml.safe_load(from_file.resolved_yaml())["initial"][0]
 
