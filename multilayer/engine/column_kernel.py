@@ -23,7 +23,7 @@ vertical ray, which bounds the domain).
 from __future__ import annotations
 
 import numpy as np
-from numba import get_num_threads, njit, prange
+from numba import njit, prange
 
 INF = np.inf
 
@@ -324,8 +324,6 @@ def _columns(m, ustar, dt, kappa, c, w, cw, guess, u, chunks):
 
 _solve_serial = njit(cache=True)(_columns)
 _solve_parallel = njit(cache=True, parallel=True)(_columns)
-PARALLEL_CELLS = 40_000
-"""Problems with fewer cells than this run on one thread (a parallel launch costs more)."""
 
 
 def solve(
@@ -337,6 +335,7 @@ def solve(
     w: np.ndarray,
     cw: np.ndarray,
     guess: np.ndarray | None = None,
+    threads: int = 1,
 ) -> np.ndarray:
     """Exact minimiser of the implicit vertical step for every column.
 
@@ -346,13 +345,14 @@ def solve(
     lies below layer ``k+1``; ``k = 0`` is the bed), wall yield thresholds ``w`` and wall
     viscous conductances ``cw`` of each layer.  ``guess`` (e.g. the previous velocities)
     proposes the structure of rigid and static groups; it only affects the speed.
-    Returns the new velocities (L, N).
+    ``threads > 1`` solves that many chunks of columns in parallel (``threads.py``
+    chooses it).  Returns the new velocities (L, N).
     """
     arrays = [np.ascontiguousarray(np.transpose(a), dtype=float) for a in (m, ustar, kappa, c, w, cw)]
     guess = arrays[1] if guess is None else np.ascontiguousarray(np.transpose(guess), dtype=float)
     u = np.empty_like(arrays[0])
-    if u.size >= PARALLEL_CELLS:
-        chunks = max(1, min(u.shape[0], 4 * get_num_threads()))
+    if threads > 1:
+        chunks = max(1, min(u.shape[0], 4 * threads))
         _solve_parallel(*arrays[:2], float(dt), *arrays[2:], guess, u, chunks)
     else:
         _solve_serial(*arrays[:2], float(dt), *arrays[2:], guess, u, 1)

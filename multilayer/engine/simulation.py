@@ -16,7 +16,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from multilayer.engine import diagnostics, initial_state, stress, transport, vertical_step
+from multilayer.engine import (
+    diagnostics,
+    initial_state,
+    stress,
+    threads,
+    transport,
+    transport_kernel,
+    vertical_step,
+)
 from multilayer.engine.mesh import LayeredMesh
 
 if TYPE_CHECKING:  # the engine reads a validated scenario; it never loads one
@@ -40,7 +48,7 @@ def basal_conditions(regions: Sequence[BaseZone], x: np.ndarray) -> tuple[np.nda
 
 
 class Simulation:
-    """A scenario's state on the X-sigma FiPy mesh and the loop that advances it."""
+    """A scenario's state on the X-sigma mesh and the loop that advances it."""
 
     def __init__(self, scenario: Scenario):
         sc = scenario
@@ -65,6 +73,11 @@ class Simulation:
             width=dom.width,
         )
         self.solver = vertical_step.solver_for(sc.numerics.vertical_solver)
+        self.transport = (
+            transport.transport if sc.numerics.transport_solver == "numpy" else transport_kernel.transport
+        )
+        self.workspace = transport_kernel.Workspace(self.fractions.size, dom.cells)
+        self.thread_policy = threads.ThreadPolicy(sc.numerics.threads)
 
         bc = sc.boundaries
         self.left, self.right = bc.left, bc.right
@@ -78,15 +91,10 @@ class Simulation:
             self.inflow = transport.Inflow(float(bc.inflow.thickness), u_in)
 
         h0, u0 = initial_state.initial_state(sc.initial, self.x, self.sigma)
-        # the state lives in FiPy variables; h, u and bed are numpy views of their values
-        self.h_var = self.mesh.cell_variable("h", h0, layered=False)
-        self.u_var = self.mesh.cell_variable("u", u0.ravel(), layered=True)
-        self.bed_var = self.mesh.cell_variable(
-            "bed", initial_state.bed_profile(sc.bed, self.x), layered=False
-        )
-        self.h = self.h_var.value
-        self.u = self.u_var.value.reshape(self.fractions.size, dom.cells)
-        self.bed = self.bed_var.value
+        # the state is numpy; sim.mesh.cell_variable gives FiPy variables of it on demand
+        self.h = np.ascontiguousarray(h0, dtype=float)
+        self.u = np.ascontiguousarray(u0, dtype=float).reshape(self.fractions.size, dom.cells)
+        self.bed = initial_state.bed_profile(sc.bed, self.x)
         self.t = 0.0
         self.steps = 0
         self.newton_iterations = 0
@@ -107,11 +115,11 @@ class Simulation:
 
     def time_step(self) -> float:
         """Largest stable step of the transport (Courant condition), inflow state included."""
-        h, u = self.h, self.u
+        speed = transport_kernel.max_wave_speed(self.h, self.u, self.g_n)
         if self.inflow is not None:
-            h = np.append(h, self.inflow.thickness)
-            u = np.column_stack([u, self.inflow.velocity])
-        return transport.stable_time_step(h, u, self.g_n, self.dx, self.scenario.time.cfl)
+            h_in, u_in = np.array([self.inflow.thickness]), self.inflow.velocity.reshape(-1, 1)
+            speed = max(speed, transport_kernel.max_wave_speed(h_in, u_in, self.g_n))
+        return transport.courant_step(speed, self.dx, self.scenario.time.cfl)
 
     def step(self, t_max: float = np.inf) -> float:
         """Advance one time step, never beyond ``t_max``; returns the step taken."""
@@ -121,13 +129,13 @@ class Simulation:
         # columns that move carry waves; material at rest that the step sets moving carries
         # them from the start of the step: redo it until that set is complete (a dry
         # column being filled is no material at rest and needs no redo)
-        moving = np.any(self.u != 0.0, axis=0)
+        moving = transport_kernel.moving_columns(self.u)
         held = self.h > self.numerics.dry_threshold
         iterations = 0
         while True:
             h_new, u_new, more = self._transport_and_stresses(dt, moving)
             iterations += more
-            starting = np.any(u_new != 0.0, axis=0) & ~moving & held
+            starting = transport_kernel.moving_columns(u_new) & ~moving & held
             if not starting.any():
                 break
             moving |= starting
@@ -141,7 +149,11 @@ class Simulation:
 
     def _transport_and_stresses(self, dt: float, moving: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
         """Transport (h, u*) then the implicit vertical step (u^{n+1}) over ``dt``."""
-        h_new, ustar = transport.transport(
+        # the occupied columns bound the work of the step, and so its thread count
+        count = self.thread_policy.threads(self.fractions.size * int(np.count_nonzero(self.h)))
+        compiled = self.transport is transport_kernel.transport
+        kernel_options = {"workspace": self.workspace, "threads": count} if compiled else {}
+        h_new, ustar = self.transport(
             self.h,
             self.u,
             self.bed,
@@ -156,6 +168,7 @@ class Simulation:
             dry=self.numerics.dry_threshold,
             order=self.numerics.order,
             moving=moving,
+            **kernel_options,
         )
         u_new, iterations = vertical_step.implicit_step(
             self.stresses,
@@ -167,6 +180,7 @@ class Simulation:
             tolerance=self.numerics.tolerance,
             max_iterations=self.numerics.max_iterations,
             velocity_scale=self.velocity_scale,
+            threads=count,
         )
         return h_new, u_new, iterations
 

@@ -28,7 +28,7 @@ from multilayer.errors import RunError
 Solver = Callable[..., np.ndarray]
 
 
-def _fipy_solve(m, ustar, dt, kappa, c, w, cw, guess=None):
+def _fipy_solve(m, ustar, dt, kappa, c, w, cw, guess=None, threads=1):
     """The FiPy reference path; it needs no guess (it starts from scratch each time)."""
     from multilayer.reference import vertical_fipy
 
@@ -51,11 +51,12 @@ def implicit_step(
     tolerance: float = 1e-10,
     max_iterations: int = 200,
     velocity_scale: float = 1.0,
+    threads: int = 1,
 ) -> tuple[np.ndarray, int]:
     """New layer velocities (L, N) after the stresses of one step, and the Newton count.
 
     ``u_guess`` (usually the previous velocities) seeds the viscosity.  Only columns
-    that have not converged are solved again.
+    that have not converged are solved again; ``threads`` goes to the solver.
     """
     u = np.zeros_like(ustar)
     wet = np.flatnonzero(h > 0)
@@ -67,7 +68,15 @@ def implicit_step(
         kappa, c, w, cw = stresses.linearise(cs, current)
         cols = (slice(None), todo)
         new = solver(
-            cs.m[cols], ustar[:, wet[todo]], dt, kappa[cols], c[cols], w[cols], cw[cols], guess=current[cols]
+            cs.m[cols],
+            ustar[:, wet[todo]],
+            dt,
+            kappa[cols],
+            c[cols],
+            w[cols],
+            cw[cols],
+            guess=current[cols],
+            threads=threads,
         )
         change = np.max(np.abs(new - current[cols]), axis=0)
         current[cols] = new
