@@ -19,6 +19,7 @@ import numpy as np
 from multilayer.engine import (
     diagnostics,
     initial_state,
+    newton_kernel,
     stress,
     threads,
     transport,
@@ -73,6 +74,11 @@ class Simulation:
             width=dom.width,
         )
         self.solver = vertical_step.solver_for(sc.numerics.vertical_solver)
+        compiled = newton_kernel.CompiledStep(self.stresses)
+        # the fused compiled Newton iteration when every law has a compiled form
+        self.compiled_step = (
+            compiled if sc.numerics.vertical_solver == "kernel" and compiled.available else None
+        )
         self.transport = (
             transport.transport if sc.numerics.transport_solver == "numpy" else transport_kernel.transport
         )
@@ -181,6 +187,7 @@ class Simulation:
             max_iterations=self.numerics.max_iterations,
             velocity_scale=self.velocity_scale,
             threads=count,
+            compiled=self.compiled_step,
         )
         return h_new, u_new, iterations
 

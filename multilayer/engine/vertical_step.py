@@ -22,6 +22,7 @@ from collections.abc import Callable
 import numpy as np
 
 from multilayer.engine import column_kernel
+from multilayer.engine.newton_kernel import CompiledStep
 from multilayer.engine.stress import StressModel
 from multilayer.errors import RunError
 
@@ -52,18 +53,28 @@ def implicit_step(
     max_iterations: int = 200,
     velocity_scale: float = 1.0,
     threads: int = 1,
+    compiled: CompiledStep | None = None,
 ) -> tuple[np.ndarray, int]:
     """New layer velocities (L, N) after the stresses of one step, and the Newton count.
 
     ``u_guess`` (usually the previous velocities) seeds the viscosity.  Only columns
-    that have not converged are solved again; ``threads`` goes to the solver.
+    that have not converged are solved again; ``threads`` goes to the solver.  With
+    ``compiled`` (all laws in compiled form) the same iteration runs fused per column.
     """
+    threshold = tolerance * velocity_scale
+    if compiled is not None:
+        u, iterations = compiled(
+            h, ustar, u_guess, dt, threshold=threshold, max_iterations=max_iterations, threads=threads
+        )
+        failed = int(np.count_nonzero(iterations < 0))
+        if failed:
+            raise _not_converged(tolerance, max_iterations, failed)
+        return u, int(iterations.max(initial=1))
     u = np.zeros_like(ustar)
     wet = np.flatnonzero(h > 0)
     cs = stresses.columns(h, wet)
     current = u_guess[:, wet]
     todo = np.arange(wet.size)  # wet columns still iterating
-    threshold = tolerance * velocity_scale
     for iteration in range(1, max_iterations + 1):
         kappa, c, w, cw = stresses.linearise(cs, current)
         cols = (slice(None), todo)
@@ -84,8 +95,12 @@ def implicit_step(
         if todo.size == 0:
             u[:, wet] = current
             return u, iteration
-    raise RunError(
+    raise _not_converged(tolerance, max_iterations, todo.size)
+
+
+def _not_converged(tolerance: float, max_iterations: int, columns: int) -> RunError:
+    return RunError(
         f"the viscous (Newton) iteration of the vertical step did not reach tolerance "
-        f"{tolerance:g} in {max_iterations} iterations in {todo.size} column(s); "
+        f"{tolerance:g} in {max_iterations} iterations in {columns} column(s); "
         "raise numerics.max_iterations or numerics.tolerance"
     )

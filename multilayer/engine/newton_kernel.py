@@ -1,0 +1,168 @@
+"""The implicit vertical step compiled: viscous linearisation and exact solve fused per column.
+
+``vertical_step.implicit_step`` iterates, over all unconverged columns at once, the Newton
+model of the viscous stresses (``StressModel.linearise``, numpy, calling the rheology
+plugins) and the exact solver (``column_kernel``).  Each column's iteration depends on
+that column only, so the same iteration runs here column by column with every quantity in
+cache, when the bulk and wall laws declare a compiled form of their viscosity
+(``Rheology.viscosity_kernel``).  The operations are those of ``stress.py`` in the same
+order, so both paths agree to round-off (tests/test_newton_kernel.py).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from multilayer.engine.column_kernel import _active_set, _dynamic_programme, _workspace
+from multilayer.engine.stress import ColumnStresses, StressModel
+
+FORMS = {"constant": 0, "inertial": 1, "power": 2}
+
+
+def law_of(rheology, material) -> tuple[int, np.ndarray] | None:
+    """(form code, parameters) of a plugin's compiled viscosity, None if it has none."""
+    declared = rheology.viscosity_kernel(material)
+    if declared is None or declared[0] not in FORMS:
+        return None
+    return FORMS[declared[0]], np.array(declared[1], dtype=float)
+
+
+@njit(cache=True)
+def _viscosity(form, params, rate, p):
+    """eta(|gamma|, p) of the compiled forms (``Rheology.viscosity_kernel``)."""
+    p = max(p, 0.0)
+    if form == 0:
+        return params[0]
+    if form == 1:
+        denominator = params[1] * np.sqrt(p) + params[2] * abs(rate)
+        return params[0] * p / denominator if denominator > 0.0 else 0.0
+    return params[0] * p ** params[1] * max(abs(rate), params[3]) ** params[2]
+
+
+@njit(cache=True)
+def _newton_model(form, params, kappa, rate, p):
+    """``stress._newton_model`` for one value: (yield stress, slope)."""
+    step = 1e-7 * rate
+    eta = _viscosity(form, params, rate, p)
+    tau = eta * rate
+    up = _viscosity(form, params, rate + step, p) * (rate + step)
+    if rate > 0.0:
+        tangent = (up - tau) / (step if step > 0.0 else 1.0)
+    else:
+        tangent = eta
+    slope = max(tangent, 0.0)
+    offset_yield = kappa + tau - slope * rate
+    if offset_yield >= 0.0:
+        return offset_yield, slope
+    return kappa, eta
+
+
+def _columns(
+    chunks, wet, m, kappa0, w0, pressure, spacing, viscous, wall_pressure, ustar, guess,
+    dt, bulk_form, bulk_params, wall_form, wall_params, width, density, threshold, max_iterations,
+    u_out, iterations,
+):  # fmt: skip
+    """Newton iterations of every wet column (``wet`` indexes the columns of ustar/guess)."""
+    L = m.shape[0]
+    n = wet.size
+    for k in prange(chunks):
+        ws = _workspace(L)
+        first = np.empty(L + 1, np.int64)
+        grounded = np.empty(L, np.bool_)
+        U, diag, low, rhs = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
+        mc, us, kc, cc, wc, cwc = np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L)
+        current, new = np.empty(L), np.empty(L)
+        for j in range(k * n // chunks, (k + 1) * n // chunks):
+            col = wet[j]
+            for a in range(L):
+                mc[a] = m[a, j]
+                us[a] = ustar[a, col]
+                current[a] = guess[a, col]
+            iterations[j] = -1
+            for iteration in range(1, max_iterations + 1):
+                # the Newton model at the current velocities (StressModel.linearise)
+                below = 0.0
+                for a in range(L):
+                    s = spacing[a, j]
+                    s_safe = s if s > 0.0 else 1.0
+                    rate = abs(current[a] - below) / s_safe
+                    below = current[a]
+                    ka, t = _newton_model(bulk_form, bulk_params, kappa0[a, j], rate, pressure[a, j])
+                    kc[a] = ka if viscous[a, j] else kappa0[a, j]
+                    cc[a] = t / s_safe if (viscous[a, j] and s > 0.0) else 0.0
+                    if width > 0.0:
+                        half = 0.5 * width
+                        per_area = (2.0 / width) * mc[a] / density
+                        wa, ta = _newton_model(
+                            wall_form, wall_params, w0[a, j] / max(per_area, 1e-300), abs(current[a]) / half,
+                            wall_pressure[a, j],
+                        )  # fmt: skip
+                        wc[a] = per_area * wa
+                        cwc[a] = per_area * ta / half
+                    else:
+                        wc[a] = w0[a, j]
+                        cwc[a] = 0.0
+                if mc[0] <= 0.0:
+                    for a in range(L):
+                        new[a] = 0.0
+                elif not _active_set(
+                    mc, us, dt, kc, cc, wc, cwc, current, new, first, grounded, U, diag, low, rhs
+                ):
+                    _dynamic_programme(mc, us, dt, kc, cc, wc, cwc, new, ws)
+                change = 0.0
+                for a in range(L):
+                    change = max(change, abs(new[a] - current[a]))
+                    current[a] = new[a]
+                if change <= threshold:
+                    iterations[j] = iteration
+                    break
+            for a in range(L):
+                u_out[a, col] = current[a]
+
+
+_serial = njit(cache=True)(_columns)
+_parallel = njit(cache=True, parallel=True)(_columns)
+
+
+class CompiledStep:
+    """The compiled implicit step for a stress model whose laws all have compiled forms."""
+
+    def __init__(self, stresses: StressModel):
+        self.stresses = stresses
+        self.bulk = law_of(stresses.bulk, stresses.material)
+        self.walls = law_of(stresses.walls, stresses.material) if stresses.walls is not None else None
+
+    @property
+    def available(self) -> bool:
+        """True when every law of the stress model has a compiled form."""
+        return self.bulk is not None and (self.stresses.walls is None or self.walls is not None)
+
+    def __call__(
+        self,
+        h: np.ndarray,
+        ustar: np.ndarray,
+        u_guess: np.ndarray,
+        dt: float,
+        *,
+        threshold: float,
+        max_iterations: int,
+        threads: int = 1,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """New velocities (L, N) and the Newton iterations of each wet column (-1: not
+        converged within ``max_iterations``)."""
+        wet = np.flatnonzero(h > 0)
+        cs: ColumnStresses = self.stresses.columns(h, wet)
+        u = np.zeros_like(ustar)
+        iterations = np.empty(wet.size, np.int64)
+        wall_form, wall_params = self.walls if self.walls is not None else (0, np.zeros(1))
+        width = float(self.stresses.width) if self.stresses.walls is not None else 0.0
+        chunks = max(1, min(wet.size, 4 * threads))
+        kernel = _parallel if threads > 1 else _serial
+        kernel(
+            chunks if threads > 1 else 1, wet, cs.m, cs.kappa, cs.w, cs.pressure, cs.spacing, cs.viscous,
+            cs.wall_pressure, np.ascontiguousarray(ustar), np.ascontiguousarray(u_guess), float(dt),
+            self.bulk[0], self.bulk[1], wall_form, wall_params, width, float(self.stresses.material.density),
+            float(threshold), int(max_iterations), u, iterations,
+        )  # fmt: skip
+        return u, iterations
