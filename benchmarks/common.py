@@ -37,8 +37,8 @@ class Timing:
             f"Newton iterations per step {self.newton:.2f}",
             f"cell-steps/s: {self.cells * self.steps / self.seconds / 1e6:.2f} M (whole mesh), "
             f"{self.computed / self.seconds / 1e6:.2f} M (cells holding material)",
-            f"peak memory {self.peak_bytes / 2**20:.0f} MiB ({self.peak_bytes / self.cells:.0f} bytes per mesh "
-            f"cell), load average {self.load:.2f}",
+            f"peak memory {self.peak_bytes / 2**20:.0f} MiB "
+            f"({self.peak_bytes / self.cells:.0f} bytes per mesh cell), load average {self.load:.2f}",
         ]
 
 
