@@ -61,9 +61,10 @@ def _newton_model(form, params, kappa, rate, p):
 def _columns(
     chunks, wet, m, kappa0, w0, pressure, spacing, viscous, wall_pressure, ustar, guess,
     dt, bulk_form, bulk_params, wall_form, wall_params, width, density, threshold, max_iterations,
-    u_out, iterations,
+    u_out, iterations, fallbacks,
 ):  # fmt: skip
-    """Newton iterations of every wet column (``wet`` indexes the columns of ustar/guess)."""
+    """Newton iterations of every wet column (``wet`` indexes the columns of ustar/guess);
+    ``fallbacks`` counts the solves per column that needed the O(L^2) dynamic programme."""
     L = m.shape[0]
     n = wet.size
     for k in prange(chunks):
@@ -80,6 +81,7 @@ def _columns(
                 us[a] = ustar[a, col]
                 current[a] = guess[a, col]
             iterations[j] = -1
+            fallbacks[j] = 0
             for iteration in range(1, max_iterations + 1):
                 # the Newton model at the current velocities (StressModel.linearise)
                 below = 0.0
@@ -110,6 +112,7 @@ def _columns(
                     mc, us, dt, kc, cc, wc, cwc, current, new, first, grounded, U, diag, low, rhs
                 ):
                     _dynamic_programme(mc, us, dt, kc, cc, wc, cwc, new, ws)
+                    fallbacks[j] += 1
                 change = 0.0
                 for a in range(L):
                     change = max(change, abs(new[a] - current[a]))
@@ -132,6 +135,8 @@ class CompiledStep:
         self.stresses = stresses
         self.bulk = law_of(stresses.bulk, stresses.material)
         self.walls = law_of(stresses.walls, stresses.material) if stresses.walls is not None else None
+        self.solves = 0  # column solves so far
+        self.fallbacks = 0  # of which by the O(L^2) dynamic programme (the active set failed)
 
     @property
     def available(self) -> bool:
@@ -155,6 +160,7 @@ class CompiledStep:
         cs: ColumnStresses = self.stresses.columns(h, wet)
         u = np.zeros_like(ustar)
         iterations = np.empty(wet.size, np.int64)
+        fallbacks = np.empty(wet.size, np.int64)
         wall_form, wall_params = self.walls if self.walls is not None else (0, np.zeros(1))
         width = float(self.stresses.width) if self.stresses.walls is not None else 0.0
         chunks = max(1, min(wet.size, 4 * threads))
@@ -163,6 +169,8 @@ class CompiledStep:
             chunks if threads > 1 else 1, wet, cs.m, cs.kappa, cs.w, cs.pressure, cs.spacing, cs.viscous,
             cs.wall_pressure, np.ascontiguousarray(ustar), np.ascontiguousarray(u_guess), float(dt),
             self.bulk[0], self.bulk[1], wall_form, wall_params, width, float(self.stresses.material.density),
-            float(threshold), int(max_iterations), u, iterations,
+            float(threshold), int(max_iterations), u, iterations, fallbacks,
         )  # fmt: skip
+        self.solves += int(np.where(iterations < 0, max_iterations, iterations).sum())
+        self.fallbacks += int(fallbacks.sum())
         return u, iterations
