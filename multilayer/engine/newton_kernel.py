@@ -129,19 +129,25 @@ _parallel = njit(cache=True, parallel=True)(_columns)
 
 
 class CompiledStep:
-    """The compiled implicit step for a stress model whose laws all have compiled forms."""
+    """The compiled implicit step of a stress model, for laws that have compiled forms.
+
+    The laws are read from the stress model at each use, so a law swapped on a running
+    simulation is honoured (and without a compiled form sends the step to numpy).
+    """
 
     def __init__(self, stresses: StressModel):
         self.stresses = stresses
-        self.bulk = law_of(stresses.bulk, stresses.material)
-        self.walls = law_of(stresses.walls, stresses.material) if stresses.walls is not None else None
         self.solves = 0  # column solves so far
         self.fallbacks = 0  # of which by the O(L^2) dynamic programme (the active set failed)
 
-    @property
-    def available(self) -> bool:
-        """True when every law of the stress model has a compiled form."""
-        return self.bulk is not None and (self.stresses.walls is None or self.walls is not None)
+    def laws(self) -> tuple[tuple[int, np.ndarray], tuple[int, np.ndarray] | None] | None:
+        """(bulk, walls) compiled forms, None when some law has none."""
+        s = self.stresses
+        bulk = law_of(s.bulk, s.material)
+        walls = law_of(s.walls, s.material) if s.walls is not None else None
+        if bulk is None or (s.walls is not None and walls is None):
+            return None
+        return bulk, walls
 
     def __call__(
         self,
@@ -156,19 +162,23 @@ class CompiledStep:
     ) -> tuple[np.ndarray, np.ndarray]:
         """New velocities (L, N) and the Newton iterations of each wet column (-1: not
         converged within ``max_iterations``)."""
+        laws = self.laws()
+        if laws is None:
+            raise ValueError("a law of this stress model has no compiled form (see laws())")
+        (bulk_form, bulk_params), walls = laws
         wet = np.flatnonzero(h > 0)
         cs: ColumnStresses = self.stresses.columns(h, wet)
         u = np.zeros_like(ustar)
         iterations = np.empty(wet.size, np.int64)
         fallbacks = np.empty(wet.size, np.int64)
-        wall_form, wall_params = self.walls if self.walls is not None else (0, np.zeros(1))
-        width = float(self.stresses.width) if self.stresses.walls is not None else 0.0
+        wall_form, wall_params = walls if walls is not None else (0, np.zeros(1))
+        width = float(self.stresses.width) if walls is not None else 0.0
         chunks = max(1, min(wet.size, 4 * threads))
         kernel = _parallel if threads > 1 else _serial
         kernel(
             chunks if threads > 1 else 1, wet, cs.m, cs.kappa, cs.w, cs.pressure, cs.spacing, cs.viscous,
             cs.wall_pressure, np.ascontiguousarray(ustar), np.ascontiguousarray(u_guess), float(dt),
-            self.bulk[0], self.bulk[1], wall_form, wall_params, width, float(self.stresses.material.density),
+            bulk_form, bulk_params, wall_form, wall_params, width, float(self.stresses.material.density),
             float(threshold), int(max_iterations), u, iterations, fallbacks,
         )  # fmt: skip
         self.solves += int(np.where(iterations < 0, max_iterations, iterations).sum())

@@ -74,11 +74,9 @@ class Simulation:
             width=dom.width,
         )
         self.solver = vertical_step.solver_for(sc.numerics.vertical_solver)
-        compiled = newton_kernel.CompiledStep(self.stresses)
-        # the fused compiled Newton iteration when every law has a compiled form
-        self.compiled_step = (
-            compiled if sc.numerics.vertical_solver == "kernel" and compiled.available else None
-        )
+        # the fused compiled Newton iteration (used when every law has a compiled form)
+        kernel = sc.numerics.vertical_solver == "kernel"
+        self.compiled_step = newton_kernel.CompiledStep(self.stresses) if kernel else None
         self.transport = (
             transport.transport if sc.numerics.transport_solver == "numpy" else transport_kernel.transport
         )

@@ -59,10 +59,10 @@ def implicit_step(
 
     ``u_guess`` (usually the previous velocities) seeds the viscosity.  Only columns
     that have not converged are solved again; ``threads`` goes to the solver.  With
-    ``compiled`` (all laws in compiled form) the same iteration runs fused per column.
+    ``compiled`` the same iteration runs fused per column when every law has a compiled form.
     """
     threshold = tolerance * velocity_scale
-    if compiled is not None:
+    if compiled is not None and compiled.laws() is not None:
         u, iterations = compiled(
             h, ustar, u_guess, dt, threshold=threshold, max_iterations=max_iterations, threads=threads
         )
