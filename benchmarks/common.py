@@ -30,11 +30,13 @@ class Timing:
     newton: float  # Newton iterations per step
     load: float  # 1-minute load average at the end
     peak_bytes: int  # peak resident memory of the process
+    fallback_share: float  # column solves that needed the O(L^2) dynamic programme
 
     def lines(self) -> list[str]:
         return [
             f"time to solution {self.seconds:.3f} s (CPU {self.cpu_seconds:.3f} s), steps {self.steps}, "
-            f"Newton iterations per step {self.newton:.2f}",
+            f"Newton iterations per step {self.newton:.2f}, "
+            f"O(L^2) fallback in {100 * self.fallback_share:.3f} % of the column solves",
             f"cell-steps/s: {self.cells * self.steps / self.seconds / 1e6:.2f} M (whole mesh), "
             f"{self.computed / self.seconds / 1e6:.2f} M (cells holding material)",
             f"peak memory {self.peak_bytes / 2**20:.0f} MiB "
@@ -78,6 +80,7 @@ def timed(
         sim.newton_iterations / max(sim.steps, 1),
         os.getloadavg()[0],
         peak_memory(),
+        sim.compiled_step.fallbacks / max(sim.compiled_step.solves, 1) if sim.compiled_step else float("nan"),
     )
     if profiler:
         pstats.Stats(profiler).sort_stats("tottime").print_stats(15)

@@ -139,6 +139,7 @@ class CompiledStep:
         self.stresses = stresses
         self.solves = 0  # column solves so far
         self.fallbacks = 0  # of which by the O(L^2) dynamic programme (the active set failed)
+        self._out: np.ndarray | None = None  # the result, reused from step to step
 
     def laws(self) -> tuple[tuple[int, np.ndarray], tuple[int, np.ndarray] | None] | None:
         """(bulk, walls) compiled forms, None when some law has none."""
@@ -161,14 +162,18 @@ class CompiledStep:
         threads: int = 1,
     ) -> tuple[np.ndarray, np.ndarray]:
         """New velocities (L, N) and the Newton iterations of each wet column (-1: not
-        converged within ``max_iterations``)."""
+        converged within ``max_iterations``).  The velocities are overwritten by the next
+        call."""
         laws = self.laws()
         if laws is None:
             raise ValueError("a law of this stress model has no compiled form (see laws())")
         (bulk_form, bulk_params), walls = laws
         wet = np.flatnonzero(h > 0)
         cs: ColumnStresses = self.stresses.columns(h, wet)
-        u = np.zeros_like(ustar)
+        if self._out is None or self._out.shape != ustar.shape:
+            self._out = np.zeros_like(ustar)
+        u = self._out
+        u.fill(0.0)
         iterations = np.empty(wet.size, np.int64)
         fallbacks = np.empty(wet.size, np.int64)
         wall_form, wall_params = walls if walls is not None else (0, np.zeros(1))

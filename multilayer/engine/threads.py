@@ -76,26 +76,26 @@ class ThreadPolicy:
         self._last: tuple[float, float | None, float] | None = None
 
     def _measure(self) -> None:
+        """Update ``idle`` when ``REFRESH`` seconds have passed since the last sample."""
         now = time.monotonic()
+        if self._last is not None and now - self._last[0] < REFRESH:
+            return
         sample = (now, _busy_seconds(), _own_seconds())
-        if self._last is None:
-            self._last = sample
+        last, self._last = self._last, sample
+        if last is None or sample[1] is None or last[1] is None:
             return
-        elapsed = now - self._last[0]
-        if elapsed < REFRESH:
-            return
-        if sample[1] is not None and self._last[1] is not None:
-            others = (sample[1] - self._last[1]) - (sample[2] - self._last[2])
-            self.idle = max(1, min(self.cores, round(self.cores - max(others, 0.0) / elapsed)))
-        self._last = sample
+        others = (sample[1] - last[1]) - (sample[2] - last[2])
+        self.idle = max(1, min(self.cores, round(self.cores - max(others, 0.0) / (now - last[0]))))
 
     def threads(self, cells: int) -> int:
         """Threads for a step that computes ``cells`` cells."""
         if self.fixed is not None:
             count = self.fixed
+        elif cells < PARALLEL_CELLS:
+            count = 1
         else:
             self._measure()
-            count = 1 if cells < PARALLEL_CELLS else self.idle
+            count = self.idle
         if count > 1:
             import numba
 
