@@ -15,31 +15,23 @@ over each layer (GDR MiDi 2004; Tsang et al. 2019, eq. 4.1) and the thickness ag
 from __future__ import annotations
 
 import argparse
-import math
 
 import numpy as np
 from common import timed
 
 from multilayer.engine.simulation import Simulation
 from multilayer.io.scenario import from_dict
-from multilayer.reference.similarity import bagnold_profile
+from multilayer.reference.exact import BagnoldFlow, jop_inertial_number
 
 THETA, DEPTH, D, RHO, RHO_P = 28.0, 0.01, 0.7e-3, 1550.0, 2500.0
 MU_S, MU_2, I_0 = 0.4770, 0.7265, 0.279
 
 
-def inertial_number() -> float:
-    """I_theta with mu(I_theta) = tan(theta) (Jop et al. 2006)."""
-    tan = math.tan(math.radians(THETA))
-    return I_0 * (tan - MU_S) / (MU_2 - tan)
-
-
-def surface_speed() -> float:
-    return float(bagnold_profile(np.array(DEPTH), DEPTH, inertial_number(), D, THETA, 9.81, RHO / RHO_P))
+EXACT = BagnoldFlow(DEPTH, jop_inertial_number(THETA, MU_S, MU_2, I_0), D, THETA, 9.81, RHO / RHO_P)
 
 
 def scenario(cells: int, layers: int, order: int, end: float, threads="auto"):
-    bagnold = {"profile": "bagnold", "surface_speed": surface_speed()}
+    bagnold = {"profile": "bagnold", "surface_speed": EXACT.surface_velocity}
     return from_dict(
         {
             "name": "benchmark-bagnold-chute",
@@ -62,12 +54,8 @@ def scenario(cells: int, layers: int, order: int, end: float, threads="auto"):
 
 def bagnold_error(sim: Simulation) -> float:
     """Largest |u - exact| / exact surface speed, the exact profile averaged over each layer."""
-    edges = sim.mesh.interfaces * DEPTH
-    z = np.linspace(0.0, DEPTH, 20001)
-    u = bagnold_profile(z, DEPTH, inertial_number(), D, THETA, 9.81, RHO / RHO_P)
-    cumulative = np.concatenate([[0.0], np.cumsum(0.5 * (u[1:] + u[:-1]) * np.diff(z))])
-    exact = np.diff(np.interp(edges, z, cumulative)) / np.diff(edges)
-    return float(np.abs(sim.u - exact[:, None]).max() / surface_speed())
+    exact = EXACT.layer_means(sim.mesh.interfaces * DEPTH)
+    return float(np.abs(sim.u - exact[:, None]).max() / EXACT.surface_velocity)
 
 
 def main() -> None:

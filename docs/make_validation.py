@@ -36,7 +36,7 @@ from multilayer.app import runner  # noqa: E402
 from multilayer.errors import RunError  # noqa: E402
 from multilayer.io import scenario as scenarios  # noqa: E402
 from multilayer.io.results import RESULT_FILE, open_result  # noqa: E402
-from multilayer.reference import similarity  # noqa: E402
+from multilayer.reference import exact, similarity  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"
@@ -146,6 +146,9 @@ STATIC_LAWS = {
 
 def section_static(jobs: int) -> str:
     h, b0, shear, mu_s = 0.02, 0.005, 70.0, 0.48773
+    exact_for = {
+        t: exact.InviscidSimpleShear(t, mu_s, depth=h, b0=b0, shear=shear, gravity=G) for t in STATIC_THETAS
+    }
     runs = [
         Run(
             f"static_{int(t)}_{law.replace('(I)', 'I')}",
@@ -160,10 +163,10 @@ def section_static(jobs: int) -> str:
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8), sharey=True)
     rows, worst_inviscid = [], 0.0
     for ax, theta in zip(axes, STATIC_THETAS):
-        s = G * math.cos(math.radians(theta)) * (mu_s - math.tan(math.radians(theta)))
-        t_stop = shear * (h - b0) / s
+        reference = exact_for[theta]
+        s, t_stop = reference.deceleration, reference.stop_time
         t = np.linspace(0, 3.0, 601)
-        ax.plot(t, np.minimum(b0 + s * t / shear, h) * 100, "k-", lw=2.5, alpha=0.35, label="exact inviscid")
+        ax.plot(t, reference.interface(t) * 100, "k-", lw=2.5, alpha=0.35, label="exact inviscid")
         for law, style in zip(STATIC_LAWS, ("C0--", "C1-", "C2-.")):
             ds = results[f"static_{int(theta)}_{law.replace('(I)', 'I')}"]
             if isinstance(ds, str):
@@ -177,8 +180,7 @@ def section_static(jobs: int) -> str:
             i_min = int(np.argmin(b))
             row = [f"{theta:g}", law, stop, f"{b[i_min] * 1000:.2f}", f"{tt[i_min]:.2f}"]
             if law == "inviscid":
-                exact = np.minimum(b0 + s * tt / shear, h)
-                err = np.abs(b - exact).max() / dz
+                err = np.abs(b - reference.interface(tt)).max() / dz
                 worst_inviscid = max(worst_inviscid, err)
                 row += [f"{t_stop:.3f}", f"{err:.2f}"]
             else:
@@ -204,7 +206,7 @@ which the model resolves to one layer (h/L = {1000 * h / any_ds.sizes["layer"]:.
 Reference: the exact inviscid solution (Bouchut, Ionescu & Mangeney 2016, Prop. 2.2)
 U = max(U0(z) - S t, 0) with S = g cos(theta)(mu_s - tan(theta)), i.e.
 b(t) = b0 + S t / 70 until the stop at t = 70 (h - b0) / S; and the qualitative
-behaviour with viscosity (Bouchut lecture slides): b first drops (erosion), then rises.
+behaviour with viscosity (the viscous stress reaches below b0): b first drops (erosion), then rises.
 
 {figure}
 
@@ -245,16 +247,6 @@ min b in the table){
 DAM_CELLS = (100, 200, 400, 800, 1600)
 
 
-def _coulomb_exact(x: np.ndarray, t: float, theta_deg: float, delta_deg: float, h0: float) -> np.ndarray:
-    """Mangeney, Heinrich & Roche (2000) thickness; delta = None-like 0 + theta 0 is Ritter."""
-    th = math.radians(theta_deg)
-    m = G * (math.sin(th) - math.cos(th) * math.tan(math.radians(delta_deg)))
-    c0 = math.sqrt(G * h0 * math.cos(th))
-    shift = x - m * t * t / 2
-    fan = (2 * c0 - shift / t) ** 2 / (9 * G * math.cos(th))
-    return np.where(shift < -c0 * t, h0, np.where(shift < 2 * c0 * t, fan, 0.0))
-
-
 def section_dambreak(jobs: int) -> str:
     cases = {
         "coulomb": dict(
@@ -288,12 +280,12 @@ def section_dambreak(jobs: int) -> str:
                 continue
             final = ds.isel(time=-1)
             x, h = ds["x"].values, final["h"].values
-            exact = _coulomb_exact(x, c["t"], c["theta"], c["delta"], 0.1)
+            h_exact = exact.coulomb_dam_break(x, c["t"], 0.1, c["theta"], c["delta"], gravity=G)
             window = x > -1.0  # away from the back wall's own rarefaction
             dx = x[1] - x[0]
-            err = np.abs(h - exact)[window].sum() * dx / (exact[window].sum() * dx)
+            err = np.abs(h - h_exact)[window].sum() * dx / (h_exact[window].sum() * dx)
             fine = np.linspace(-1, 2, 300001)
-            ex_fine = _coulomb_exact(fine, c["t"], c["theta"], c["delta"], 0.1)
+            ex_fine = exact.coulomb_dam_break(fine, c["t"], 0.1, c["theta"], c["delta"], gravity=G)
             exact_front = fine[np.flatnonzero(ex_fine > ds["front"].attrs["threshold"])].max()
             errors.append(err)
             cells.append(n)
@@ -310,7 +302,8 @@ def section_dambreak(jobs: int) -> str:
             if n in (400, 1600):
                 ax.plot(x, h * 100, label=f"{n} cells")
         xs = np.linspace(-1.0, 2.0, 3001)
-        ax.plot(xs, _coulomb_exact(xs, c["t"], c["theta"], c["delta"], 0.1) * 100, "k--", label="exact")
+        h_xs = exact.coulomb_dam_break(xs, c["t"], 0.1, c["theta"], c["delta"], gravity=G)
+        ax.plot(xs, h_xs * 100, "k--", label="exact")
         ax.set_title(c["title"], fontsize=9)
         ax.set_xlabel("x (m)")
         ax.set_ylabel("h (cm)")
@@ -332,8 +325,8 @@ Scenario `coulomb_dam_break.yaml` (one layer, h0 = 0.1 m behind x0 = 0, theta = 
 Coulomb basal friction tan 20 deg) at {", ".join(map(str, DAM_CELLS))} cells over 4 m,
 and the same with no friction on a horizontal plane
 (`--set slope_deg=0 --set 'base=[{{condition: free_slip}}]'`, t = 0.4 s).
-References: Mangeney, Heinrich & Roche (2000) and Ritter's solution (DESIGN.md
-section 7).  The error is the L1 norm of h - h_exact over x > -1 m (away from the
+References: Mangeney, Heinrich & Roche (2000) and Ritter's solution (Ritter
+1892).  The error is the L1 norm of h - h_exact over x > -1 m (away from the
 rarefaction that leaves the back wall at x = -2 m) relative to the L1 norm of h_exact.
 "Exact front" is where the exact h equals the front threshold (1 mm), the quantity the
 numerical front measures.
@@ -362,23 +355,17 @@ def section_bagnold(jobs: int) -> str:
     theta, h = scenario.slope_deg, scenario.initial[0].thickness
     mat = scenario.material
     params = scenario.rheology.params
-    tan = math.tan(math.radians(theta))
-    i_theta = params["I_0"] * (tan - params["mu_s"]) / (params["mu_2"] - tan)
+    i_theta = exact.jop_inertial_number(theta, params["mu_s"], params["mu_2"], params["I_0"])
     ratio = mat.density / mat.particle_density
-    surface = float(similarity.bagnold_profile(np.array(h), h, i_theta, mat.grain_diameter, theta, G, ratio))
-    mean_exact = similarity.bagnold_mean_velocity(h, i_theta, mat.grain_diameter, theta, G, ratio)
+    bagnold = exact.BagnoldFlow(h, i_theta, mat.grain_diameter, theta, G, ratio)
+    surface, mean_exact = bagnold.surface_velocity, bagnold.mean_velocity
     runs = [Run(f"bagnold_{n}", "bagnold_chute", (f"domain.layers={n}",)) for n in BAGNOLD_LAYERS]
     results = execute(runs, jobs)
-
-    def layer_means(edges: np.ndarray) -> np.ndarray:
-        # integral of h^1.5 - (h - z)^1.5 is h^1.5 z + (2/5)(h - z)^2.5
-        prim = h**1.5 * edges + 0.4 * np.clip(h - edges, 0.0, None) ** 2.5
-        return surface * np.diff(prim) / np.diff(edges) / h**1.5
 
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(10, 4))
     z = np.linspace(0, h, 400)
     ax.plot(
-        similarity.bagnold_profile(z, h, i_theta, mat.grain_diameter, theta, G, ratio),
+        bagnold.velocity(z),
         z * 1000,
         "k-",
         lw=2.5,
@@ -395,8 +382,7 @@ def section_bagnold(jobs: int) -> str:
             np.concatenate([[0.0], np.cumsum(ds["sigma_bnds"].values[:, 1] - ds["sigma_bnds"].values[:, 0])])
             * h
         )
-        exact = layer_means(edges)
-        err = np.abs(u - exact).max() / surface
+        err = np.abs(u - bagnold.layer_means(edges)).max() / surface
         mean = float(np.sum(np.diff(edges) * u) / h)
         change = np.abs(ds["u"].values[-1] - ds["u"].values[-2]).max() / surface
         errs.append(err)
@@ -423,7 +409,7 @@ def section_bagnold(jobs: int) -> str:
     figure = _figure(fig, "bagnold")
     text = f"""## Bagnold profile (steady uniform mu(I) chute flow)
 
-Scenario `bagnold_chute.yaml`: a 1 cm layer of the seed-002 glass beads (Jop mu(I),
+Scenario `bagnold_chute.yaml`: a 1 cm layer of the erodible-bed experiments' glass beads (Jop mu(I),
 mu_s = tan 25.5 deg, mu_2 = tan 36 deg, I_0 = 0.279, rho/rho_p = {ratio:.2f}) released from
 rest on a 28 deg no-slip chute, periodic in x, run to t = 4 s; {", ".join(map(str, BAGNOLD_LAYERS))}
 uniform layers (`--set domain.layers=N`).  Reference: Bagnold profile (Tsang et al. 2019,
@@ -751,14 +737,14 @@ def section_collapse(jobs: int) -> str:
     )
     text = f"""## Column collapse on a horizontal rough bed
 
-Scenario `column_collapse.yaml` (L0 = 5 cm, glass beads of seed 002 with Jop mu(I), no-slip
+Scenario `column_collapse.yaml` (L0 = 5 cm, the experiments' glass beads with Jop mu(I), no-slip
 base, no side walls) with H0 = a L0 for a = {", ".join(f"{a:g}" for a in COLLAPSE_RATIOS)}
 (`--set initial.0.height=...` with `{" ".join("--set " + o for o in COLLAPSE_DOMAIN)}`: a 2 m
 domain of 4 mm cells, up to t = 2 s).
 Resolution: {_resolution(any_ds) if any_ds is not None else "n/a"} (one of the runs).
 The run-out L_f is the final front (h > 1 mm, taken at the cell edge).  Reference: the
 2D experimental laws (L_f - L0)/L0 ~ 1.2 a for a < 2.3 and ~ 1.9 a^(2/3) beyond
-(Lajeunesse et al. 2005; coefficients second-hand, DESIGN.md section 7).
+(Lajeunesse et al. 2005; coefficients quoted second-hand, not checked against the paper).
 
 {figure}
 
@@ -869,7 +855,7 @@ erodible-bed thickness {", ".join(f"{b * 1000:g}" for b in EROSION_BEDS)} mm
 (`--set initial.0.thickness=...`, no bed entry for 0 mm; `{" ".join("--set " + o for o in EROSION_RUN)}`),
 with Jop mu(I)
 (the file) and with a constant friction coefficient, Drucker-Prager mu_s = tan 25.5 deg
-plus the constant viscosity eta = 1 Pa s of seed 002 (nu = 6.45e-4 m^2/s).
+plus a constant viscosity eta = 1 Pa s (nu = 6.45e-4 m^2/s).
 Resolution: {_resolution(any_ds) if any_ds is not None else "n/a"} (one of the runs): the
 file's resolution, coarser than the published computations.  Run-out: final minus initial
 front, the front being the downslope-most x where h exceeds the bed thickness + 1 mm;
@@ -959,10 +945,10 @@ suite that the default test run leaves out (about 40 s on 2 cores):
 
 ## Regression checks (`expect:`)
 
-Every scenario file carries an `expect:` list (DESIGN.md section 4):
+Every scenario file carries an `expect:` list (docs/scenarios.md):
 `{quantity, value, rtol, atol}` with quantity one of `front_final`, `mass_final`,
 `runout`, `max_speed_final`, `static_interface_mean_final` (see
-`multilayer.results.summary`); an entry passes when
+`multilayer.io.results.summary`); an entry passes when
 `|obtained - value| <= atol + rtol |value|`, and NaN never passes.
 
     multilayer check scenarios/*.yaml      # exit 0 all pass, 1 a failure, 2 invalid input

@@ -11,7 +11,10 @@ The package is organised by role (docs/architecture.md):
 - :mod:`multilayer.app`: the command line, the runner and parameter sweeps;
 - :mod:`multilayer.testing`: scenario expectations and their pytest plugin.
 
-The public API is re-exported here and imported lazily, so ``import multilayer`` is cheap.
+The public API (docs/api.md) is re-exported here and imported lazily, so
+``import multilayer`` is cheap: :func:`load` and :func:`run` a scenario,
+:class:`Simulation` to step one by hand, and the plugin contract (:class:`Rheology`,
+:class:`Material`, :data:`hookimpl`).
 """
 
 from __future__ import annotations
@@ -19,25 +22,32 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-__version__ = "0.1.0"
-
 _EXPORTS = {
+    "load": "multilayer.app.api",
+    "run": "multilayer.app.api",
     "Material": "multilayer.plugins.contract",
     "Rheology": "multilayer.plugins.contract",
     "hookimpl": "multilayer.plugins.host",
     "Simulation": "multilayer.engine.simulation",
 }
 
-__all__ = ["Material", "Rheology", "Simulation", "__version__", "hookimpl"]
+__all__ = ["Material", "Rheology", "Simulation", "__version__", "hookimpl", "load", "run"]
 
 if TYPE_CHECKING:
+    from multilayer.app.api import load, run
     from multilayer.engine.simulation import Simulation
     from multilayer.plugins.contract import Material, Rheology
     from multilayer.plugins.host import hookimpl
 
 
 def __getattr__(name: str) -> Any:
-    """Import a public name on first use (PEP 562)."""
+    """Import a public name on first use (PEP 562); ``__version__`` is the installed
+    version, set from git by setuptools-scm (:mod:`multilayer.provenance`)."""
+    if name == "__version__":
+        from multilayer.provenance import installed_version
+
+        globals()[name] = installed_version()
+        return globals()[name]
     if name not in _EXPORTS:
         raise AttributeError(f"module 'multilayer' has no attribute {name!r}")
     value = getattr(importlib.import_module(_EXPORTS[name]), name)

@@ -214,7 +214,8 @@ def test_console_script_exit_code_without_traceback(tmp_path):
 def test_version_help_and_plugins(cli):
     result = cli("--version")
     assert result.code == 0
-    assert result.out == f"multilayer {multilayer.__version__} (FiPy {fipy.__version__})\n"
+    assert result.out.startswith(f"multilayer {multilayer.__version__} (commit ")
+    assert result.out.endswith(f"; FiPy {fipy.__version__})\n")
     result = cli("--help")
     assert result.code == 0 and all(c in result.out for c in ("run", "validate", "plugins"))
     result = cli("plugins")

@@ -7,53 +7,53 @@ import pytest
 from scipy.optimize import minimize
 
 from multilayer.engine import column_kernel
+from multilayer.engine.column_problem import ColumnProblem
 
 
-def energy(u, m, ustar, dt, kappa, c, w, cw):
-    s = np.diff(u, prepend=0.0)
-    return np.sum(m / (2 * dt) * (u - ustar) ** 2 + cw / 2 * u**2 + w * np.abs(u)) + np.sum(
-        kappa * np.abs(s) + c / 2 * s**2
-    )
+def energy(u: np.ndarray, p: ColumnProblem) -> float:
+    """E(u) of one column (docs/model.md, "The implicit vertical step")."""
+    s = np.diff(u, axis=0, prepend=0.0)
+    inertia = p.m / (2 * p.dt) * (u - p.ustar) ** 2
+    return np.sum(inertia + p.cw / 2 * u**2 + p.w * np.abs(u)) + np.sum(p.kappa * np.abs(s) + p.c / 2 * s**2)
 
 
-def random_problem(rng, L, N):
+def random_problem(rng, L, N) -> ColumnProblem:
     def sparse(hi, p):
         return rng.uniform(0, hi, (L, N)) * (rng.random((L, N)) < p)
 
-    return (
-        rng.uniform(0.5, 2, (L, N)),
-        rng.normal(0, 1, (L, N)),
-        0.1,
-        sparse(3, 0.8),
-        sparse(2, 0.5),
-        sparse(2, 0.5),
-        sparse(1, 0.3),
+    return ColumnProblem(
+        m=rng.uniform(0.5, 2, (L, N)),
+        ustar=rng.normal(0, 1, (L, N)),
+        dt=0.1,
+        kappa=sparse(3, 0.8),
+        c=sparse(2, 0.5),
+        w=sparse(2, 0.5),
+        cw=sparse(1, 0.3),
     )
 
 
 def test_no_velocity_profile_has_lower_energy_than_the_solution():
     rng = np.random.default_rng(1)
     problem = random_problem(rng, 5, 15)
-    u = column_kernel.solve(*problem)
+    u = column_kernel.solve(problem)
     for i in range(u.shape[1]):
-        column = [a[:, i] if np.ndim(a) else a for a in problem]
-        best = energy(u[:, i], *column)
+        column = problem.columns(slice(i, i + 1))
+        best = energy(u[:, i : i + 1], column)
         found = minimize(
-            energy,
+            lambda v, column=column: energy(v[:, None], column),
             u[:, i] + 0.01,
-            args=tuple(column),
             method="Nelder-Mead",
             options={"xatol": 1e-12, "fatol": 1e-15, "maxiter": 20000},
         ).fun
         for _ in range(50):  # and random nearby profiles
-            trial = u[:, i] + rng.normal(0, 1e-4, u.shape[0])
-            found = min(found, energy(trial, *column))
+            trial = u[:, i : i + 1] + rng.normal(0, 1e-4, (u.shape[0], 1))
+            found = min(found, energy(trial, column))
         assert best <= found + 1e-12
 
 
 def test_static_layers_are_exactly_zero_and_plugs_exactly_rigid():
     rng = np.random.default_rng(2)
-    u = column_kernel.solve(*random_problem(rng, 8, 200))
+    u = column_kernel.solve(random_problem(rng, 8, 200))
     assert np.count_nonzero(u == 0.0) > 50
     assert np.count_nonzero(np.diff(u, axis=0) == 0.0) > 50
 
@@ -63,12 +63,12 @@ def test_the_active_set_path_agrees_with_the_dynamic_programme(seed):
     """The guess only proposes the structure; a wrong guess falls back to the DP."""
     rng = np.random.default_rng(seed)
     problem = random_problem(rng, 8, 300)
-    reference = column_kernel.solve(*problem, guess=np.full(problem[0].shape, np.nan))  # DP everywhere
+    reference = column_kernel.solve(problem, guess=np.full(problem.shape, np.nan))  # DP everywhere
     for guess in (
         reference,
         reference + rng.normal(0, 0.1, reference.shape) * (rng.random(reference.shape) < 0.3),
     ):
-        u = column_kernel.solve(*problem, guess=guess)
+        u = column_kernel.solve(problem, guess=guess)
         assert np.abs(u - reference).max() < 1e-11
         assert np.array_equal(u == 0.0, reference == 0.0)
 
@@ -78,7 +78,25 @@ def test_single_layer_on_a_coulomb_base_is_the_soft_threshold():
     ustar = np.linspace(-1, 1, 41)[None, :]
     m, dt, kappa = np.full_like(ustar, 2.0), 0.1, np.full_like(ustar, 5.0)
     zero = np.zeros_like(ustar)
-    u = column_kernel.solve(m, ustar, dt, kappa, zero, zero, zero)
+    u = column_kernel.solve(ColumnProblem(m=m, ustar=ustar, dt=dt, kappa=kappa, c=zero, w=zero, cw=zero))
     exact = np.sign(ustar) * np.maximum(np.abs(ustar) - dt * 5.0 / 2.0, 0.0)
     assert np.abs(u - exact).max() < 1e-15
     assert np.all(u[np.abs(ustar) <= 0.25] == 0.0)
+
+
+def test_column_problem_rejects_arrays_of_different_shapes_and_selects_columns():
+    rng = np.random.default_rng(5)
+    problem = random_problem(rng, 4, 6)
+    with pytest.raises(ValueError, match=r"\(L, N\)"):
+        ColumnProblem(
+            m=problem.m,
+            ustar=problem.ustar[:, :3],
+            dt=0.1,
+            kappa=problem.kappa,
+            c=problem.c,
+            w=problem.w,
+            cw=problem.cw,
+        )
+    part = problem.columns(np.array([1, 4]))
+    assert part.shape == (4, 2) and part.dt == problem.dt
+    np.testing.assert_array_equal(column_kernel.solve(part), column_kernel.solve(problem)[:, [1, 4]])

@@ -15,14 +15,15 @@ import yaml
 
 from multilayer.app import cli
 from multilayer.io.scenario import Expect
+from multilayer.reference.exact import InviscidSimpleShear
 from multilayer.testing.expectations import Outcome, evaluate, report
 
 pytest_plugins = ["pytester"]
 
 THETA, MU_S, H, B0, SHEAR, T_END, LAYERS = 22.0, 0.48773, 0.02, 0.005, 70.0, 0.3, 20
-S = 9.81 * math.cos(math.radians(THETA)) * (MU_S - math.tan(math.radians(THETA)))
-#: top layer centre z = h - h/(2L): U = 70 (z - b0) - S t (Prop. 2.2)
-EXACT_MAX_SPEED = SHEAR * (H - H / (2 * LAYERS) - B0) - S * T_END
+EXACT = InviscidSimpleShear(theta_deg=THETA, mu_s=MU_S, depth=H, b0=B0, shear=SHEAR)
+#: the top layer centre z = h - h/(2L) is the fastest (Prop. 2.2)
+EXACT_MAX_SPEED = float(EXACT.velocity(np.array(H - H / (2 * LAYERS)), T_END))
 
 
 def _scenario(expect: list[dict] | None) -> dict:
@@ -168,5 +169,5 @@ def test_tiny_scenario_matches_exact_inviscid_solution(tmp_path):
     scenario = scenarios.load(_write(tmp_path, "true.yaml", TRUE))
     runner.run(scenario, tmp_path / "out", quiet=True)
     final = open_result(tmp_path / "out").isel(time=-1)
-    interface = B0 + S * T_END / SHEAR
+    interface = float(EXACT.interface(T_END))
     assert np.all(np.abs(final["static_interface"].values - interface) <= H / LAYERS)

@@ -1,19 +1,15 @@
-"""Reference solutions of multilayer.similarity against classical and published values."""
+"""The similarity solutions of multilayer.reference.similarity against classical and published values."""
 
 import math
 
 import numpy as np
 import pytest
 
-from multilayer.plugins.contract import Material, Rheology
+from multilayer.reference.exact import BagnoldFlow
 from multilayer.reference.similarity import (
-    bagnold_mean_velocity,
-    bagnold_profile,
     boundary_layer_scale,
     displacement_thickness,
-    friction_coefficient,
     froude_number,
-    inertial_number_for_slope,
     shape_factor,
     solve_similarity,
 )
@@ -83,7 +79,7 @@ def test_shape_factor_plug_linear_and_bagnold():
     zeta = (np.arange(n) + 0.5) / n
     assert shape_factor(np.ones(n), fractions) == pytest.approx(1.0)
     assert shape_factor(zeta, fractions) == pytest.approx(4.0 / 3.0, rel=1e-6)
-    bagnold = bagnold_profile(zeta, 1.0, 0.3, 1e-3, 25.0)
+    bagnold = BagnoldFlow(1.0, 0.3, 1e-3, 25.0).velocity(zeta)
     assert shape_factor(bagnold, fractions) == pytest.approx(1.25, rel=1e-5)
     columns = np.stack([np.ones(n), zeta], axis=1)
     np.testing.assert_allclose(shape_factor(columns, fractions), [1.0, 4.0 / 3.0], rtol=1e-6)
@@ -96,52 +92,6 @@ def test_shape_factor_of_boundary_layer_grows_to_saturation(granular):
     chis = [shape_factor(granular.velocity(z / lam), fractions) for lam in (1e-3, 1e-2, 1e-1)]
     assert chis[0] == pytest.approx(1.0, abs=0.01)
     assert chis[0] < chis[1] < chis[2]
-
-
-class _Jop(Rheology):
-    """Jop et al. mu(I) written in the plugin form (kappa = mu_s p, eta as in docs/model.md)."""
-
-    name = "test_jop"
-
-    def __init__(self, mu_s: float, mu_2: float, I_0: float):
-        self.mu_s, self.mu_2, self.I_0 = mu_s, mu_2, I_0
-
-    def yield_stress(self, pressure, material):
-        return self.mu_s * pressure
-
-    def viscosity(self, shear_rate, pressure, material):
-        rate = np.maximum(shear_rate, 1e-300)
-        inertial = material.grain_diameter * rate / np.sqrt(pressure / material.particle_density)
-        return (self.mu_2 - self.mu_s) * pressure * inertial / (self.I_0 + inertial) / rate
-
-
-def test_inertial_number_for_slope_matches_jop_inversion():
-    mu_s, mu_2, i_0 = np.tan(np.radians(20.9)), np.tan(np.radians(32.76)), 0.279
-    material = Material(density=1500.0, grain_diameter=0.5e-3, particle_density=2500.0)
-    mu = friction_coefficient(_Jop(mu_s, mu_2, i_0), material)
-    theta = 25.0
-    tan = np.tan(np.radians(theta))
-    exact = i_0 * (tan - mu_s) / (mu_2 - tan)
-    assert inertial_number_for_slope(mu, theta) == pytest.approx(exact, rel=1e-9)
-    with pytest.raises(ValueError, match="no steady flow"):
-        inertial_number_for_slope(mu, 15.0)
-
-
-def test_bagnold_profile_satisfies_mu_of_i_everywhere():
-    """du/dz from the profile gives I = I_theta at every depth, zero shear at the surface."""
-    depth, inertial, d, theta, ratio = 0.02, 0.2, 0.7e-3, 24.0, 0.62
-    z = np.linspace(0.0, depth, 20001)
-    u = bagnold_profile(z, depth, inertial, d, theta, density_ratio=ratio)
-    rate = np.gradient(u, z)
-    pressure_over_rho_p = ratio * 9.81 * np.cos(np.radians(theta)) * (depth - z)
-    local_i = d * rate[:-100] / np.sqrt(pressure_over_rho_p[:-100])
-    np.testing.assert_allclose(local_i, inertial, rtol=1e-4)
-    assert u[0] == 0.0 and rate[-1] == pytest.approx(0.0, abs=rate.max() * 2e-2)
-    mean = np.trapezoid(u, z) / depth
-    assert bagnold_mean_velocity(depth, inertial, d, theta, density_ratio=ratio) == (
-        pytest.approx(mean, rel=1e-6)
-    )
-    assert mean == pytest.approx(0.6 * u[-1], rel=1e-6)
 
 
 def test_boundary_layer_scale_is_eq_4_13_with_the_papers_froude_number():

@@ -17,6 +17,7 @@ from test_transport import ritter_error
 from multilayer.engine.simulation import Simulation
 from multilayer.io.scenario import load
 from multilayer.reference import similarity
+from multilayer.reference.exact import BagnoldFlow, InviscidSimpleShear, jop_inertial_number
 
 pytestmark = pytest.mark.validation
 
@@ -43,14 +44,12 @@ def test_inviscid_static_flowing_interface_at_three_slopes(theta):
             [f"slope_deg={theta}", "rheology.nu=0", "domain.layers=40"],
         )
     )
-    h, b0, shear = 0.02, 0.005, 70.0
-    S = 9.81 * math.cos(math.radians(theta)) * (math.tan(math.radians(26.0)) - math.tan(math.radians(theta)))
-    t_stop = shear * (h - b0) / S
-    for t in np.linspace(0.05, 0.95 * t_stop, 12):
+    exact = InviscidSimpleShear(theta, math.tan(math.radians(26.0)), depth=0.02, b0=0.005, shear=70.0)
+    for t in np.linspace(0.05, 0.95 * exact.stop_time, 12):
         sim.advance(t)
         b = sim.diagnostics()["static_interface"].mean()
-        assert abs(b - (b0 + S * t / shear)) <= h / 40
-    sim.advance(t_stop * 1.01)
+        assert abs(b - exact.interface(t)) <= exact.depth / 40
+    sim.advance(exact.stop_time * 1.01)
     assert np.all(sim.u == 0.0)
 
 
@@ -88,23 +87,13 @@ def test_bagnold_profile_converges_with_the_layers():
     errors = []
     for layers in (10, 20, 40):
         sim = run("bagnold_chute", f"domain.layers={layers}")
-        p = sim.scenario.rheology.params
-        tan = math.tan(math.radians(sim.scenario.slope_deg))
-        i_theta = p["I_0"] * (tan - p["mu_s"]) / (p["mu_2"] - tan)
-        h, d = float(sim.h[0]), sim.scenario.material.grain_diameter
-        edges = sim.mesh.interfaces * h
-        mat = sim.scenario.material
-        scale = (
-            2
-            * i_theta
-            / (3 * d)
-            * math.sqrt(
-                9.81 * math.cos(math.radians(sim.scenario.slope_deg)) * mat.density / mat.particle_density
-            )
+        sc, h = sim.scenario, float(sim.h[0])
+        i_theta = jop_inertial_number(sc.slope_deg, **sc.rheology.params)
+        mat = sc.material
+        flow = BagnoldFlow(
+            h, i_theta, mat.grain_diameter, sc.slope_deg, sc.gravity, mat.density / mat.particle_density
         )
-        # mean of scale (h^1.5 - (h - z)^1.5) over each layer
-        antiderivative = scale * (h**1.5 * edges + (h - edges) ** 2.5 / 2.5)
-        exact = np.diff(antiderivative) / np.diff(edges)
+        exact = flow.layer_means(sim.mesh.interfaces * h)
         errors.append(np.abs(sim.u[:, 0] - exact).max() / exact.max())
     orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
     assert errors[-1] < 0.005

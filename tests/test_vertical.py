@@ -12,13 +12,13 @@ from engine import simulation
 from multilayer.engine.simulation import Simulation
 from multilayer.io.scenario import load
 from multilayer.plugins.contract import Rheology
+from multilayer.reference.exact import BagnoldFlow, InviscidSimpleShear, jop_inertial_number
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 
-THETA = math.radians(22.0)
 MU_S = math.tan(math.radians(26.0))
-S = 9.81 * math.cos(THETA) * (MU_S - math.tan(THETA))  # deceleration of the flowing part
 H, B0, SHEAR = 0.02, 0.005, 70.0
+EXACT = InviscidSimpleShear(theta_deg=22.0, mu_s=MU_S, depth=H, b0=B0, shear=SHEAR)
 
 
 def simple_shear(nu: float, layers: int = 200, **changes):
@@ -46,16 +46,13 @@ def test_inviscid_simple_shear_matches_proposition_2_2():
     sim = simple_shear(nu=0.0)
     z = sim.sigma * H
     layer = H / 200
-    t_stop = SHEAR * (H - B0) / S
-    assert math.isclose(t_stop, 1.379, abs_tol=1e-3)
     for t in np.arange(0.1, 1.31, 0.1):
         sim.advance(t)
-        exact_u = np.maximum(SHEAR * np.maximum(z - B0, 0.0) - S * t, 0.0)
-        assert np.abs(sim.u[:, 0] - exact_u).max() < 0.02
-        b_exact = B0 + S * t / SHEAR
+        assert np.abs(sim.u[:, 0] - EXACT.velocity(z, t)).max() < 0.02
+        b_exact = EXACT.interface(t)
         b = sim.diagnostics()["static_interface"][0]
         assert abs(b - b_exact) <= 2 * layer, (t, b, b_exact)
-    sim.advance(t_stop + 0.005)
+    sim.advance(EXACT.stop_time + 0.005)
     assert np.all(sim.u == 0.0)
     assert sim.diagnostics()["static_interface"][0] == sim.h[0]
 
@@ -81,7 +78,7 @@ def test_bagnold_profile_is_the_steady_state_of_jop_mu_i():
     """Uniform flow from rest on a no-slip base tends to Bagnold's profile
     (Tsang, Dalziel & Vriend 2019, eq. 4.1):
     u(z) = (2 I / 3 d) sqrt(g cos(theta) rho / rho_p) (h^1.5 - (h - z)^1.5)."""
-    theta, d, h = math.radians(25.0), 0.5e-3, 0.01
+    d, h = 0.5e-3, 0.01
     mu_s, mu_2, i0 = 0.38, 0.64, 0.279
     sim = simulation(
         gravity=9.81,
@@ -94,10 +91,8 @@ def test_bagnold_profile_is_the_steady_state_of_jop_mu_i():
         boundaries={"left": "periodic", "right": "periodic"},
     )
     sim.advance(15.0)
-    tan = math.tan(theta)
-    i_theta = i0 * (tan - mu_s) / (mu_2 - tan)
-    z = sim.sigma * h
-    bagnold = 2 * i_theta / (3 * d) * math.sqrt(9.81 * math.cos(theta)) * (h**1.5 - (h - z) ** 1.5)
+    i_theta = jop_inertial_number(25.0, mu_s, mu_2, i0)
+    bagnold = BagnoldFlow(h, i_theta, d, 25.0).velocity(sim.sigma * h)
     before = sim.u[:, 0].copy()
     sim.advance(16.0)
     assert np.abs(sim.u[:, 0] - before).max() < 1e-3 * bagnold.max()  # steady

@@ -1,8 +1,8 @@
-"""The FiPy reference formulation of the implicit vertical step (multilayer/vertical_fipy.py).
+"""The FiPy reference formulation of the implicit vertical step (multilayer/reference/vertical_fipy.py).
 
 Checks against exact solutions of the step (docs/architecture.md, "Vertical step"), the
 KKT conditions of the minimisation, the dense optimality system of the u-step, FiPy
-FiPy issue #1223 (reused equations) and the fast kernel multilayer/column_kernel.py.
+FiPy issue #1223 (reused equations) and the fast kernel multilayer/engine/column_kernel.py.
 """
 
 from __future__ import annotations
@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from multilayer.engine import column_kernel
+from multilayer.engine.column_problem import ColumnProblem
 from multilayer.errors import RunError
 from multilayer.reference import vertical_fipy
 
@@ -52,7 +53,7 @@ def test_single_layer_on_coulomb_base_is_the_shrinkage():
     ustar = np.array([[-3.0, -1.0, -0.4, 0.0, 0.7, 1.0, 1.5, 4.0]])
     m, dt, kappa = np.full_like(ustar, 2.0), 0.5, np.full_like(ustar, 4.0)  # threshold 1.0
     z = zeros(*ustar.shape)
-    u = vertical_fipy.solve(m, ustar, dt, kappa, z, z, z)
+    u = vertical_fipy.solve(ColumnProblem(m=m, ustar=ustar, dt=dt, kappa=kappa, c=z, w=z, cw=z))
     expected = np.sign(ustar) * np.maximum(np.abs(ustar) - dt * kappa / m, 0.0)
     np.testing.assert_allclose(u, expected, rtol=0, atol=1e-13)
     stopped = np.abs(ustar) <= 1.0
@@ -73,13 +74,16 @@ def test_column_below_yield_stays_exactly_at_rest():
     kappa = 1.01 * stop
     c = np.full((L, N), 3.0)
     fractions = [0.1, 0.2, 0.3, 0.25, 0.15]
-    u = vertical_fipy.solve(m, ustar, dt, kappa, c, zeros(L, N), zeros(L, N), fractions=fractions)
+    z = zeros(L, N)
+    held = ColumnProblem(m=m, ustar=ustar, dt=dt, kappa=kappa, c=c, w=z, cw=z)
+    u = vertical_fipy.solve(held, fractions=fractions)
     assert np.all(u == 0.0)
     # free-slip base, the column held by the side walls of its middle layer alone
     kappa[0], c[0] = 0.0, 0.0
     w = np.zeros((L, N))
     w[2] = 1.01 * stop[0]
-    u = vertical_fipy.solve(m, ustar, dt, kappa, c, w, zeros(L, N), fractions=fractions)
+    by_walls = ColumnProblem(m=m, ustar=ustar, dt=dt, kappa=kappa, c=c, w=w, cw=z)
+    u = vertical_fipy.solve(by_walls, fractions=fractions)
     assert np.all(u == 0.0)
 
 
@@ -99,7 +103,7 @@ def test_inviscid_simple_shear_decelerates_by_the_yield_gradient():
     step = vertical_fipy.VerticalStep(vertical_fipy.column_mesh(N, n_layers=L))
     for n in range(1, 8):
         expected = np.maximum(u - decrement, 0.0)
-        u = step(m, u, dt, kappa, z, z, z)
+        u = step(ColumnProblem(m=m, ustar=u, dt=dt, kappa=kappa, c=z, w=z, cw=z))
         np.testing.assert_allclose(u, expected, rtol=0, atol=1e-11)
         assert np.all((u == 0.0) == (expected == 0.0))
         stopped = np.all(u == 0.0, axis=0)
@@ -112,7 +116,7 @@ def test_bingham_column_has_a_rigid_plug_and_satisfies_kkt():
     m = np.ones((L, N))
     ustar = np.ones((L, N)) * [[1.0, -2.0, 0.5]]
     dt, kappa, c, cw = 0.1, np.full((L, N), 2.0), np.full((L, N), 5.0), zeros(L, N)
-    u = vertical_fipy.solve(m, ustar, dt, kappa, c, zeros(L, N), cw)
+    u = vertical_fipy.solve(ColumnProblem(m=m, ustar=ustar, dt=dt, kappa=kappa, c=c, w=zeros(L, N), cw=cw))
     assert_kkt(u, m, ustar, dt, kappa, c, cw)
     # the stress sum_{b > k} m/dt (u* - u) exceeds kappa = 2 only in the lowest interfaces:
     # the upper part is one plug, identical to the last bit (required: 1e-9)
@@ -165,18 +169,21 @@ def test_reused_equation_equals_fresh_one_after_coefficients_change():
     assert np.abs(after - before).max() > 0.1
     np.testing.assert_array_equal(after, fresh.solve_u(source, link_flux))
 
-    args = [
-        rng.uniform(0.5, 2, (L, N)),
-        rng.normal(size=(L, N)),
-        0.1,
-        rng.uniform(0, 3, (L, N)),
-        rng.uniform(0, 2, (L, N)),
-        zeros(L, N),
-        zeros(L, N),
-    ]
-    reused(*args)
-    args2 = [3 * args[0], -args[1], 0.05, 0.5 * args[3], 4 * args[4], *args[5:]]
-    np.testing.assert_array_equal(reused(*args2), vertical_fipy.VerticalStep(mesh)(*args2))
+    first_problem = ColumnProblem(
+        m=rng.uniform(0.5, 2, (L, N)),
+        ustar=rng.normal(size=(L, N)),
+        dt=0.1,
+        kappa=rng.uniform(0, 3, (L, N)),
+        c=rng.uniform(0, 2, (L, N)),
+        w=zeros(L, N),
+        cw=zeros(L, N),
+    )
+    reused(first_problem)
+    p = first_problem
+    second_problem = ColumnProblem(
+        m=3 * p.m, ustar=-p.ustar, dt=0.05, kappa=0.5 * p.kappa, c=4 * p.c, w=p.w, cw=p.cw
+    )
+    np.testing.assert_array_equal(reused(second_problem), vertical_fipy.VerticalStep(mesh)(second_problem))
 
 
 def test_dry_columns_and_non_convergence():
@@ -184,13 +191,14 @@ def test_dry_columns_and_non_convergence():
     m = np.ones((L, N)) * [[1.0, 0.0]]
     z = zeros(L, N)
     kappa = np.full((L, N), 1.0)
-    u = vertical_fipy.solve(m, np.full((L, N), 5.0), 0.1, kappa, z, z, z)
+    problem = ColumnProblem(m=m, ustar=np.full((L, N), 5.0), dt=0.1, kappa=kappa, c=z, w=z, cw=z)
+    u = vertical_fipy.solve(problem)
     assert np.all(u[:, 1] == 0.0) and np.all(u[:, 0] > 0.0)
     with pytest.raises(RunError, match="did not converge"):
-        vertical_fipy.solve(m, np.full((L, N), 5.0), 0.1, kappa, z, z, z, max_iter=2)
+        vertical_fipy.solve(problem, max_iter=2)
 
 
-def random_step(rng: np.random.Generator, L: int, N: int):
+def random_step(rng: np.random.Generator, L: int, N: int) -> ColumnProblem:
     """Random steps mixing static, plug and sheared layers, walls and viscosity."""
     m = rng.uniform(0.5, 2.0, (L, N))
     ustar = rng.normal(0.0, 1.0, (L, N)) + rng.normal(0.0, 1.0, N)
@@ -198,20 +206,20 @@ def random_step(rng: np.random.Generator, L: int, N: int):
     c = rng.uniform(0.0, 3.0, (L, N)) * (rng.random((L, N)) < 0.5)
     w = rng.uniform(0.0, 2.0, (L, N)) * (rng.random((L, N)) < 0.4)
     cw = rng.uniform(0.0, 1.0, (L, N)) * (rng.random((L, N)) < 0.4)
-    return m, ustar, 0.1, kappa, c, w, cw
+    return ColumnProblem(m=m, ustar=ustar, dt=0.1, kappa=kappa, c=c, w=w, cw=cw)
 
 
 def test_agrees_with_the_fast_kernel():
-    """The FiPy reference and multilayer/column_kernel.py agree to 1e-10 on random steps.
+    """The FiPy reference and multilayer/engine/column_kernel.py agree to 1e-10 on random steps.
 
     Same static layers (exact zeros) and same plugs (exactly equal neighbours).
     """
     rng = np.random.default_rng(2024)
     L, N = 8, 40
     for _ in range(3):
-        args = random_step(rng, L, N)
-        u = vertical_fipy.solve(*args)
-        u_kernel = column_kernel.solve(*args)
+        problem = random_step(rng, L, N)
+        u = vertical_fipy.solve(problem)
+        u_kernel = column_kernel.solve(problem)
         np.testing.assert_allclose(u, u_kernel, rtol=0, atol=1e-10)
         np.testing.assert_array_equal(u == 0.0, u_kernel == 0.0)
         np.testing.assert_array_equal(np.diff(u, axis=0) == 0.0, np.diff(u_kernel, axis=0) == 0.0)

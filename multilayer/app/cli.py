@@ -13,7 +13,6 @@ import sys
 import warnings
 from collections.abc import Sequence
 
-import multilayer
 from multilayer.errors import InputError, RunError
 
 SUBCOMMANDS = ("run", "validate", "plugins", "sweep", "check", "plot", "export")
@@ -23,12 +22,16 @@ class _Version(argparse.Action):
     """``--version``: the package and FiPy versions (FiPy imported only when asked)."""
 
     def __init__(self, option_strings: Sequence[str], dest: str, **kwargs: object):
-        super().__init__(option_strings, dest, nargs=0, help="show the multilayer and FiPy versions and exit")
+        super().__init__(option_strings, dest, nargs=0, help="show version, commit and FiPy version")
 
     def __call__(self, parser, namespace, values, option_string=None):
         import fipy
 
-        print(f"multilayer {multilayer.__version__} (FiPy {fipy.__version__})")
+        from multilayer.provenance import provenance
+
+        origin = provenance()
+        dirty = ", uncommitted changes" if origin.dirty == "true" else ""
+        print(f"multilayer {origin.version} (commit {origin.commit}{dirty}; FiPy {fipy.__version__})")
         parser.exit()
 
 

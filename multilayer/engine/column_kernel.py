@@ -1,11 +1,8 @@
 """Exact solver for one implicit vertical step of a chain of layers (the hot path).
 
-Per column the implicit step minimises (docs/model.md, "The implicit vertical step")::
-
-    E(u) = sum_a [ m_a/(2 dt) (u_a - u*_a)^2 + cw_a/2 u_a^2 + w_a |u_a| ]
-         + sum_{k=0}^{L-1} [ kappa_k |u_{k+1} - u_k| + c_k/2 (u_{k+1} - u_k)^2 ],   u_0 = 0,
-
-a strictly convex, piecewise-quadratic energy on a chain.  It is minimised exactly by
+Per column the implicit step minimises the energy ``E(u)`` of a
+:class:`~multilayer.engine.column_problem.ColumnProblem` (docs/model.md, "The implicit
+vertical step"), a strictly convex, piecewise-quadratic energy on a chain.  It is minimised exactly by
 dynamic programming over the layers (Johnson 2013, "A dynamic programming algorithm for
 the fused lasso"; Kolmogorov, Pock & Rolinek 2016, "Total variation on a tree"): the
 derivative of each partial minimum ("message") is a maximal monotone piecewise-linear
@@ -24,6 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit, prange
+
+from multilayer.engine.column_problem import ColumnProblem
 
 INF = np.inf
 
@@ -326,34 +325,23 @@ _solve_serial = njit(cache=True)(_columns)
 _solve_parallel = njit(cache=True, parallel=True)(_columns)
 
 
-def solve(
-    m: np.ndarray,
-    ustar: np.ndarray,
-    dt: float,
-    kappa: np.ndarray,
-    c: np.ndarray,
-    w: np.ndarray,
-    cw: np.ndarray,
-    guess: np.ndarray | None = None,
-    threads: int = 1,
-) -> np.ndarray:
-    """Exact minimiser of the implicit vertical step for every column.
+def solve(problem: ColumnProblem, guess: np.ndarray | None = None, threads: int = 1) -> np.ndarray:
+    """Exact minimiser of the implicit vertical step for every column (L, N).
 
-    All arrays are (L, N): layer masses per unit area ``m = rho h_a`` (kg/m^2; a column
-    with ``m == 0`` is dry and gets ``u = 0``), velocities after transport ``ustar`` (m/s),
-    interface yield stresses ``kappa`` and viscous conductances ``c`` (interface ``k``
-    lies below layer ``k+1``; ``k = 0`` is the bed), wall yield thresholds ``w`` and wall
-    viscous conductances ``cw`` of each layer.  ``guess`` (e.g. the previous velocities)
-    proposes the structure of rigid and static groups; it only affects the speed.
-    ``threads > 1`` solves that many chunks of columns in parallel (``threads.py``
-    chooses it).  Returns the new velocities (L, N).
+    ``guess`` (e.g. the previous velocities, (L, N)) proposes the structure of rigid and
+    static groups; it only affects the speed.  ``threads > 1`` solves that many chunks of
+    columns in parallel (``threads.py`` chooses it).  This is a
+    :class:`~multilayer.engine.column_problem.VerticalSolver`; the compiled functions
+    take the coefficients as arrays (N, L), each column contiguous.
     """
-    arrays = [np.ascontiguousarray(np.transpose(a), dtype=float) for a in (m, ustar, kappa, c, w, cw)]
+    p = problem
+    coefficients = (p.m, p.ustar, p.kappa, p.c, p.w, p.cw)
+    arrays = [np.ascontiguousarray(np.transpose(a), dtype=float) for a in coefficients]
     guess = arrays[1] if guess is None else np.ascontiguousarray(np.transpose(guess), dtype=float)
     u = np.empty_like(arrays[0])
     if threads > 1:
         chunks = max(1, min(u.shape[0], 4 * threads))
-        _solve_parallel(*arrays[:2], float(dt), *arrays[2:], guess, u, chunks)
+        _solve_parallel(*arrays[:2], float(p.dt), *arrays[2:], guess, u, chunks)
     else:
-        _solve_serial(*arrays[:2], float(dt), *arrays[2:], guess, u, 1)
+        _solve_serial(*arrays[:2], float(p.dt), *arrays[2:], guess, u, 1)
     return u.T

@@ -13,6 +13,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from multilayer.reference.exact import bagnold_shape
+
 if TYPE_CHECKING:  # the engine reads a validated scenario; it never loads one
     from multilayer.io.scenario import Bed, InitialShape, Velocity
 
@@ -47,8 +49,7 @@ def velocity_profile(velocity: Velocity | None, zeta: np.ndarray, thickness: np.
         return np.full_like(zeta, float(velocity.speed))
     if velocity.profile == "linear":
         return velocity.shear_rate * np.maximum(zeta - velocity.from_height, 0.0)
-    depth = np.clip(1.0 - zeta / np.where(thickness > 0, thickness, 1.0), 0.0, 1.0)
-    return velocity.surface_speed * (1.0 - depth**1.5)
+    return velocity.surface_speed * bagnold_shape(zeta / np.where(thickness > 0, thickness, 1.0))
 
 
 def initial_state(

@@ -49,7 +49,16 @@ def basal_conditions(regions: Sequence[BaseZone], x: np.ndarray) -> tuple[np.nda
 
 
 class Simulation:
-    """A scenario's state on the X-sigma mesh and the loop that advances it."""
+    """A scenario's state on the X-sigma mesh and the loop that advances it.
+
+    Stepping API (docs/api.md): ``Simulation(multilayer.load(...))`` builds the initial
+    state; :meth:`step` takes one stable time step, :meth:`advance` steps to a given
+    time; the state is ``t`` (s), ``h`` (N,) and ``u`` (L, N) at the cell centres ``x``
+    and layer centres ``sigma * h``; :meth:`diagnostics` gives the static interface,
+    front and mass; :meth:`state_dict` and :meth:`load_state` save and restore it.
+    ``h`` and ``u`` are numpy arrays updated in place: copy them to keep a snapshot
+    (``mesh.cell_variable`` makes FiPy variables of them on the FiPy mesh).
+    """
 
     def __init__(self, scenario: Scenario):
         sc = scenario

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from multilayer.engine.column_problem import ColumnProblem
 from multilayer.plugins.contract import Material, Rheology
 
 NO_SLIP, COULOMB, FREE_SLIP = 0, 1, 2
@@ -89,8 +90,8 @@ class StressModel:
             wall_pressure=pbar,
         )
 
-    def linearise(self, cs: ColumnStresses, u: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Yield stresses and conductances of the Newton model of the viscous part at ``u``.
+    def linearise(self, cs: ColumnStresses, u: np.ndarray, ustar: np.ndarray, dt: float) -> ColumnProblem:
+        """The step's problem with the Newton model of the viscous part at ``u``.
 
         The viscous stress ``tau_v(s) = eta(|s|/h_k) s/h_k`` of a velocity jump ``s`` is
         replaced by its tangent at ``|s0|``, written as an odd law
@@ -99,7 +100,8 @@ class StressModel:
         that yield stress would be negative (a shear-thickening law with little yield
         stress) the secant ``T = tau_v(|s0|)/|s0|`` is used instead.  At a fixed point the
         law is exact either way: tangent or secant where the layers shear, and with the
-        true yield stress where they are locked (``s0 = 0``).  Returns ``(kappa, c, w, cw)``.
+        true yield stress where they are locked (``s0 = 0``).  ``ustar`` are the velocities
+        after transport and ``dt`` the step of the problem returned.
         """
         spacing = np.where(cs.spacing > 0, cs.spacing, 1.0)
         jump = np.abs(np.diff(u, axis=0, prepend=0.0))
@@ -107,13 +109,15 @@ class StressModel:
         kappa = np.where(cs.viscous, kappa, cs.kappa)
         c = np.where(cs.viscous & (cs.spacing > 0), c / spacing, 0.0)
         if self.walls is None:
-            return kappa, c, cs.w, np.zeros_like(c)
+            return ColumnProblem(m=cs.m, ustar=ustar, dt=dt, kappa=kappa, c=c, w=cs.w, cw=np.zeros_like(c))
         half = 0.5 * self.width
         per_area = (2.0 / self.width) * cs.m / self.material.density  # (2 / W) h_a
         w, c_w = _newton_model(
             self.walls, cs.w / per_area.clip(min=1e-300), np.abs(u) / half, cs.wall_pressure, self.material
         )
-        return kappa, c, per_area * w, per_area * c_w / half
+        return ColumnProblem(
+            m=cs.m, ustar=ustar, dt=dt, kappa=kappa, c=c, w=per_area * w, cw=per_area * c_w / half
+        )
 
 
 def _newton_model(

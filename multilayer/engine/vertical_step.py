@@ -9,7 +9,8 @@ strictly convex energy (docs/model.md; Bouchut, Ionescu & Mangeney 2016, eq. 1.3
 whose optimality conditions are the implicit momentum balance
 ``rho h_a (u_a - u*_a) / dt = tau_{a+1/2} - tau_{a-1/2} - F_a`` with the multivalued
 ``sgn`` of the yield stresses.  Each iteration solves a Bingham-type problem exactly
-(``column_kernel.solve`` or the FiPy reference ``vertical_fipy.solve``): the rate-dependent part
+(``column_kernel.solve`` or the FiPy reference ``vertical_fipy.solve``, both
+:class:`~multilayer.engine.column_problem.VerticalSolver`): the rate-dependent part
 is replaced by its tangent at the current shear rates (``StressModel.linearise``, a
 Newton iteration whose fixed points are the exact solutions), until the velocities change
 by less than ``tolerance`` times the velocity scale.
@@ -17,26 +18,23 @@ by less than ``tolerance`` times the velocity scale.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
 from multilayer.engine import column_kernel
+from multilayer.engine.column_problem import ColumnProblem, VerticalSolver
 from multilayer.engine.newton_kernel import CompiledStep
 from multilayer.engine.stress import StressModel
 from multilayer.errors import RunError
 
-Solver = Callable[..., np.ndarray]
 
-
-def _fipy_solve(m, ustar, dt, kappa, c, w, cw, guess=None, threads=1):
+def _fipy_solve(problem: ColumnProblem, guess: np.ndarray | None = None, threads: int = 1) -> np.ndarray:
     """The FiPy reference path; it needs no guess (it starts from scratch each time)."""
     from multilayer.reference import vertical_fipy
 
-    return vertical_fipy.solve(m, ustar, dt, kappa, c, w, cw)
+    return vertical_fipy.solve(problem)
 
 
-def solver_for(name: str) -> Solver:
+def solver_for(name: str) -> VerticalSolver:
     """The exact solver of one linearised step: ``kernel`` (numba) or ``fipy`` (reference)."""
     return _fipy_solve if name == "fipy" else column_kernel.solve
 
@@ -48,7 +46,7 @@ def implicit_step(
     u_guess: np.ndarray,
     dt: float,
     *,
-    solver: Solver = column_kernel.solve,
+    solver: VerticalSolver = column_kernel.solve,
     tolerance: float = 1e-10,
     max_iterations: int = 200,
     velocity_scale: float = 1.0,
@@ -76,19 +74,9 @@ def implicit_step(
     current = u_guess[:, wet]
     todo = np.arange(wet.size)  # wet columns still iterating
     for iteration in range(1, max_iterations + 1):
-        kappa, c, w, cw = stresses.linearise(cs, current)
+        problem = stresses.linearise(cs, current, ustar[:, wet], dt).columns(todo)
         cols = (slice(None), todo)
-        new = solver(
-            cs.m[cols],
-            ustar[:, wet[todo]],
-            dt,
-            kappa[cols],
-            c[cols],
-            w[cols],
-            cw[cols],
-            guess=current[cols],
-            threads=threads,
-        )
+        new = solver(problem, guess=current[cols], threads=threads)
         change = np.max(np.abs(new - current[cols]), axis=0)
         current[cols] = new
         todo = todo[change > threshold]

@@ -25,8 +25,8 @@ import netCDF4
 import numpy as np
 import xarray as xr
 
-from multilayer import __version__
 from multilayer.errors import InputError
+from multilayer.provenance import provenance
 
 RESULT_FILE = "result.nc"
 CHECKPOINT_FILE = "checkpoint.npz"
@@ -174,13 +174,17 @@ class ResultWriter:
         ds["sigma"][:] = sim.sigma
         ds["sigma_bnds"][:] = np.column_stack([tops - sim.fractions, tops])
         ds["bed"][:] = sim.bed
+        origin = provenance()
         ds.setncatts(
             {
                 "Conventions": "CF-1.8",
                 "title": f"multilayer simulation: {scenario.name}",
                 "institution": os.environ.get("MULTILAYER_INSTITUTION", "not specified"),
-                "source": f"multilayer {__version__} (multilayer shallow granular flow, "
-                f"FiPy {fipy.__version__})",
+                "source": f"multilayer {origin.version} (commit {origin.commit}): multilayer "
+                f"shallow-flow model of dense granular flows; X-sigma mesh and reference formulations "
+                f"in FiPy {fipy.__version__}, state in numpy, transport and vertical step by numba "
+                f"kernels tested equal to them (transport_solver: {scenario.numerics.transport_solver}, "
+                f"vertical_solver: {scenario.numerics.vertical_solver})",
                 "history": f"{_now()} multilayer run {scenario.source or scenario.name}",
                 "references": "Fernandez-Nieto, Garres-Diaz, Mangeney & Narbona-Reina "
                 "(2016) J. Fluid Mech. 798; Bouchut, Ionescu & Mangeney "
@@ -189,7 +193,9 @@ class ResultWriter:
                 "steps": 0,
                 "cells": int(n_cells * n_layers),
                 "wall_time_s": 0.0,
-                "multilayer_version": __version__,
+                "multilayer_version": origin.version,
+                "multilayer_commit": origin.commit,
+                "multilayer_dirty": origin.dirty,
                 "fipy_version": fipy.__version__,
             }
         )

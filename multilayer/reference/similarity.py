@@ -1,16 +1,13 @@
-"""Reference solutions for steady chute flows: Bagnold profile and granular Blasius layer.
+"""The granular Blasius boundary layer of a chute flow and the measures compared with it.
 
-* Bagnold profile (Tsang et al. 2019, J. Fluid Mech., eq. 4.1-4.3): steady uniform flow
-  of a mu(I) material on a no-slip base, where ``mu(I) = tan(theta)`` fixes a uniform
-  inertial number ``I_theta``.
-* Granular Blasius boundary layer (same paper, eq. 4.15-4.18): downstream of a change
-  from a slipping to a no-slip base, a power-law ``mu(I) ~ mu_s + m I**alpha`` gives the
-  self-similar profile ``u / U = f'(zeta)``, ``zeta = z / Lambda(x)``,
-  ``Lambda = eps H (x / H)**(1 / (1 + alpha))``, with ``f`` solving (eq. 4.16)::
+Tsang, Dalziel & Vriend (2019, J. Fluid Mech., eq. 4.15-4.18): downstream of a change
+from a slipping to a no-slip base, a power-law ``mu(I) ~ mu_s + m I**alpha`` gives the
+self-similar profile ``u / U = f'(zeta)``, ``zeta = z / Lambda(x)``,
+``Lambda = eps H (x / H)**(1 / (1 + alpha))``, with ``f`` solving (eq. 4.16)::
 
-      f''' + (f'')**(2 - alpha) f / (1 + alpha) = 0,  f(0) = f'(0) = 0,  f'(inf) = 1.
+    f''' + (f'')**(2 - alpha) f / (1 + alpha) = 0,  f(0) = f'(0) = 0,  f'(inf) = 1.
 
-  For ``alpha = 1`` this is the classical Blasius equation ``f''' + f f'' / 2 = 0``.
+For ``alpha = 1`` this is the classical Blasius equation ``f''' + f f'' / 2 = 0``.
 
 The similarity equation is solved by shooting on ``f''(0)`` (``solve_ivp`` + ``brentq``).
 For ``alpha < 1`` the far field is algebraic (``1 - f' ~ zeta**(-2 / (1 - alpha))``), so
@@ -21,15 +18,12 @@ leading-order tail: with ``f ~ f_m + (zeta - zeta_m)`` beyond ``zeta_m`` the equ
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
 from scipy.integrate import quad, solve_ivp
 from scipy.optimize import brentq
-
-from multilayer.plugins.contract import Material, Rheology
 
 _RTOL = 1e-11
 _ATOL = 1e-13
@@ -213,62 +207,3 @@ def displacement_thickness(
     u = np.asarray(u, dtype=float)
     outer = u[-1] if outer_speed is None else np.asarray(outer_speed, dtype=float)
     return np.sum(np.asarray(thickness) * (1.0 - u / outer), axis=0)
-
-
-def bagnold_profile(
-    z: np.ndarray,
-    depth: float,
-    inertial_number: float,
-    grain_diameter: float,
-    theta_deg: float,
-    gravity: float = 9.81,
-    density_ratio: float = 1.0,
-) -> np.ndarray:
-    """Bagnold velocity ``u(z)`` on a no-slip base (Tsang et al. 2019, eq. 4.1, u_s = 0).
-
-    ``u = (2 I / (3 d)) sqrt(g cos(theta) rho / rho_p) (h**1.5 - (h - z)**1.5)`` with
-    ``density_ratio = rho / rho_p`` (the paper takes 1), since
-    ``I = d |du/dz| / sqrt(p / rho_p)`` and ``p = rho g cos(theta) (h - z)``.
-    """
-    z = np.clip(np.asarray(z, dtype=float), 0.0, depth)
-    scale = np.sqrt(gravity * np.cos(np.radians(theta_deg)) * density_ratio)
-    return 2.0 * inertial_number / (3.0 * grain_diameter) * scale * (depth**1.5 - (depth - z) ** 1.5)
-
-
-def bagnold_mean_velocity(
-    depth: float,
-    inertial_number: float,
-    grain_diameter: float,
-    theta_deg: float,
-    gravity: float = 9.81,
-    density_ratio: float = 1.0,
-) -> float:
-    """Depth average of :func:`bagnold_profile`: 3/5 of the surface velocity (eq. 4.2-4.3)."""
-    surface = bagnold_profile(
-        np.array(depth), depth, inertial_number, grain_diameter, theta_deg, gravity, density_ratio
-    )
-    return float(0.6 * surface)
-
-
-def friction_coefficient(
-    rheology: Rheology, material: Material, pressure: float = 1.0e3
-) -> Callable[[float], float]:
-    """``mu(I) = tau / p`` of a bulk rheology plugin at pressure ``pressure`` (Pa)."""
-    p = np.array([pressure])
-
-    def mu(inertial_number: float) -> float:
-        rate = inertial_number * np.sqrt(pressure / material.particle_density) / (material.grain_diameter)
-        tau = rheology.yield_stress(p, material) + rheology.viscosity(np.array([rate]), p, material) * rate
-        return float(tau[0] / pressure)
-
-    return mu
-
-
-def inertial_number_for_slope(mu: Callable[[float], float], theta_deg: float, upper: float = 1e3) -> float:
-    """``I_theta`` solving ``mu(I) = tan(theta)`` (uniform steady flow, section 4.1)."""
-    target = np.tan(np.radians(theta_deg))
-    if mu(0.0) >= target:
-        raise ValueError(f"no steady flow: mu(0) = {mu(0.0):.4g} >= tan(theta) = {target:.4g}")
-    if mu(upper) <= target:
-        raise ValueError(f"no steady flow: mu(I) stays below tan(theta) = {target:.4g}")
-    return float(brentq(lambda i: mu(i) - target, 0.0, upper, xtol=1e-14, rtol=1e-13))

@@ -1,6 +1,8 @@
 """Reference formulation of the implicit vertical step as FiPy terms.
 
-Per column the step minimises (docs/model.md, "The implicit vertical step")::
+Per column the step minimises the energy ``E(u)`` of a
+:class:`~multilayer.engine.column_problem.ColumnProblem` (docs/model.md, "The implicit
+vertical step")::
 
     E(u) = sum_a [ m_a/(2 dt) (u_a - u*_a)^2 + w_a |u_a| + cw_a/2 u_a^2 ]
          + sum_{k=0}^{L-1} [ kappa_k |u_{k+1} - u_k| + c_k/2 (u_{k+1} - u_k)^2 ],   u_0 = 0.
@@ -43,6 +45,7 @@ from collections.abc import Sequence
 import fipy as fp
 import numpy as np
 
+from multilayer.engine.column_problem import ColumnProblem
 from multilayer.errors import RunError
 
 PENALTY = 1.0
@@ -123,26 +126,16 @@ class VerticalStep:
         self.equation.solve(var=self.u, solver=self.solver)
         return np.array(self.u.value).reshape(self.L, self.N)
 
-    def __call__(
-        self,
-        m: np.ndarray,
-        ustar: np.ndarray,
-        dt: float,
-        kappa: np.ndarray,
-        c: np.ndarray,
-        w: np.ndarray,
-        cw: np.ndarray,
-        *,
-        tol: float = 1e-12,
-        max_iter: int = 20000,
-    ) -> np.ndarray:
+    def __call__(self, problem: ColumnProblem, *, tol: float = 1e-12, max_iter: int = 20000) -> np.ndarray:
         """Minimiser of E(u) for every column by ALG2 (module docstring).
 
         Converged when the primal residuals ``|Du - s|, |u - t|`` and the changes of
         ``s, t`` in one iteration (the dual residuals divided by ``r``) are all below
         ``tol * max|u*|``.  Raises :class:`~multilayer.errors.RunError` otherwise.
         """
-        m, ustar, kappa, c, w, cw = (np.asarray(a, dtype=float) for a in (m, ustar, kappa, c, w, cw))
+        p, dt = problem, problem.dt
+        coefficients = (p.m, p.ustar, p.kappa, p.c, p.w, p.cw)
+        m, ustar, kappa, c, w, cw = (np.asarray(a, dtype=float) for a in coefficients)
         wet = (m > 0.0).all(axis=0)
         m = np.where(wet, m, 0.0)
         inertia = m / dt
@@ -208,13 +201,7 @@ def _reconstruct(s: np.ndarray, t: np.ndarray, w: np.ndarray) -> np.ndarray:
 
 
 def solve(
-    m: np.ndarray,
-    ustar: np.ndarray,
-    dt: float,
-    kappa: np.ndarray,
-    c: np.ndarray,
-    w: np.ndarray,
-    cw: np.ndarray,
+    problem: ColumnProblem,
     *,
     fractions: Sequence[float] | None = None,
     tol: float = 1e-12,
@@ -222,14 +209,13 @@ def solve(
 ) -> np.ndarray:
     """Implicit vertical step for all columns on one FiPy mesh (module docstring).
 
-    Arrays are (L, N) as in :func:`multilayer.chain.solve` (interface ``k`` lies below
-    layer ``k+1``; a column with ``m <= 0`` is dry and gets ``u = 0``).  ``fractions``
-    only sets the mesh geometry (``dy``); the coefficients are scaled so that the
-    discrete equations are the optimality conditions of E(u) for any geometry.
+    A column with ``m <= 0`` is dry and gets ``u = 0``.  ``fractions`` only sets the mesh
+    geometry (``dy``); the coefficients are scaled so that the discrete equations are
+    the optimality conditions of E(u) for any geometry.
     """
-    L, N = np.shape(m)
+    L, N = problem.shape
     step = _uniform_step(N, L) if fractions is None else VerticalStep(column_mesh(N, fractions))
-    return step(m, ustar, dt, kappa, c, w, cw, tol=tol, max_iter=max_iter)
+    return step(problem, tol=tol, max_iter=max_iter)
 
 
 @functools.lru_cache(maxsize=8)
