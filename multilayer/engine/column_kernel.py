@@ -123,9 +123,10 @@ def _root(X, Y, n, sl, sr):
 
 
 @njit(cache=True)
-def _dynamic_programme(m, ustar, dt, kappa, c, w, cw, u, ws):
-    """Exact minimiser of E(u) for one column by dynamic programming (module docstring)."""
-    L = m.shape[0]
+def _dynamic_programme(inertia, momentum, kappa, c, w, cw, u, ws):
+    """Exact minimiser of E(u) for one column by dynamic programming (module docstring);
+    ``inertia = m / dt`` and ``momentum = m u* / dt`` per layer."""
+    L = inertia.shape[0]
     MX, MY, Mn, Msl, Msr, HX, HY, TX, TY, FX, FY, GX, GY = ws
     # ground link: h_0' = g_0' (u_0 = 0)
     HX[0] = 0.0
@@ -136,8 +137,8 @@ def _dynamic_programme(m, ustar, dt, kappa, c, w, cw, u, ws):
     hsl = c[0]
     hsr = c[0]
     for a in range(L):
-        A = m[a] / dt + cw[a]
-        B = m[a] * ustar[a] / dt
+        A = inertia[a] + cw[a]
+        B = momentum[a]
         FX[0] = 0.0
         FX[1] = 0.0
         FY[0] = -B - w[a]
@@ -201,8 +202,9 @@ def _sign(x):
 
 
 @njit(cache=True)
-def _active_set(m, ustar, dt, kappa, c, w, cw, guess, u, first, grounded, U, diag, low, rhs):
-    """Solve with the lock/sign structure of ``guess``; True if it is the exact minimiser.
+def _active_set(inertia, momentum, kappa, c, w, cw, guess, u, first, grounded, U, diag, low, rhs):
+    """Solve with the lock/sign structure of ``guess``; True if it is the exact minimiser
+    (``inertia = m / dt`` and ``momentum = m u* / dt`` per layer).
 
     Interfaces with ``kappa > 0`` across which ``guess`` does not jump are locked, layers
     at rest with ``w > 0`` are held by the walls.  Locked layers form rigid groups; a
@@ -212,10 +214,10 @@ def _active_set(m, ustar, dt, kappa, c, w, cw, guess, u, first, grounded, U, dia
     yielded jumps keep their signs and the locked stresses admit values within their
     yield bounds (interval propagation through grounded groups).
     """
-    L = m.shape[0]
+    L = inertia.shape[0]
     scale = 0.0
     for a in range(L):
-        scale += abs(m[a] * ustar[a] / dt) + kappa[a] + w[a]
+        scale += abs(momentum[a]) + kappa[a] + w[a]
     slack = 1e-10 * scale + 1e-300
     # groups
     ng = 0
@@ -238,8 +240,8 @@ def _active_set(m, ustar, dt, kappa, c, w, cw, guess, u, first, grounded, U, dia
         d = 0.0
         r = 0.0
         for a in range(p, q + 1):
-            d += m[a] / dt + cw[a]
-            r += m[a] * ustar[a] / dt - _sign(guess[a]) * w[a]
+            d += inertia[a] + cw[a]
+            r += momentum[a] - _sign(guess[a]) * w[a]
         below = guess[p - 1] if p > 0 else 0.0
         d += c[p]
         r -= kappa[p] * _sign(guess[p] - below)
@@ -281,7 +283,7 @@ def _active_set(m, ustar, dt, kappa, c, w, cw, guess, u, first, grounded, U, dia
             for a in range(q, p, -1):  # locked interfaces inside a moving group
                 if w[a] > 0.0 and _sign(guess[a]) * U[j] < 0.0:
                     return False
-                tau -= (m[a] / dt + cw[a]) * U[j] - m[a] * ustar[a] / dt + _sign(guess[a]) * w[a]
+                tau -= (inertia[a] + cw[a]) * U[j] - momentum[a] + _sign(guess[a]) * w[a]
                 if abs(tau) > kappa[a] + slack:
                     return False
             if w[p] > 0.0 and _sign(guess[p]) * U[j] < 0.0:
@@ -290,8 +292,8 @@ def _active_set(m, ustar, dt, kappa, c, w, cw, guess, u, first, grounded, U, dia
         lo = tau
         hi = tau
         for a in range(q, p - 1, -1):  # grounded group: feasible stresses, top down
-            lo += m[a] * ustar[a] / dt - w[a]
-            hi += m[a] * ustar[a] / dt + w[a]
+            lo += momentum[a] - w[a]
+            hi += momentum[a] + w[a]
             if a > p or (a == 0 and kappa[0] > 0.0 and guess[0] == 0.0):
                 lo = max(lo, -kappa[a])
                 hi = min(hi, kappa[a])
@@ -312,11 +314,15 @@ def _columns(m, ustar, dt, kappa, c, w, cw, guess, u, chunks):
         first = np.empty(L + 1, np.int64)
         grounded = np.empty(L, np.bool_)
         U, diag, low, rhs = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
+        inertia, momentum = np.empty(L), np.empty(L)  # m_a / dt and m_a u*_a / dt
         for i in range(k * N // chunks, (k + 1) * N // chunks):
             if m[i, 0] <= 0.0:
                 u[i, :] = 0.0
                 continue
-            args = (m[i], ustar[i], dt, kappa[i], c[i], w[i], cw[i])
+            for a in range(L):
+                inertia[a] = m[i, a] / dt
+                momentum[a] = m[i, a] * ustar[i, a] / dt
+            args = (inertia, momentum, kappa[i], c[i], w[i], cw[i])
             if not _active_set(*args, guess[i], u[i], first, grounded, U, diag, low, rhs):
                 _dynamic_programme(*args, u[i], ws)
 

@@ -29,24 +29,36 @@ def law_of(rheology, material) -> tuple[int, np.ndarray] | None:
 
 
 @njit(cache=True)
-def _viscosity(form, params, rate, p):
-    """eta(|gamma|, p) of the compiled forms (``Rheology.viscosity_kernel``)."""
+def _pressure_part(form, params, p):
+    """The factor of eta that depends on the pressure only, and the one added to the
+    rate term (computed once per column and step, not per Newton iteration)."""
     p = max(p, 0.0)
     if form == 0:
-        return params[0]
+        return params[0], 0.0
     if form == 1:
-        denominator = params[1] * np.sqrt(p) + params[2] * abs(rate)
-        return params[0] * p / denominator if denominator > 0.0 else 0.0
-    return params[0] * p ** params[1] * max(abs(rate), params[3]) ** params[2]
+        return params[0] * p, params[1] * np.sqrt(p)
+    return params[0] * p ** params[1], 0.0
 
 
 @njit(cache=True)
-def _newton_model(form, params, kappa, rate, p):
+def _viscosity(form, params, rate, factor, offset):
+    """eta(|gamma|, p) of the compiled forms (``Rheology.viscosity_kernel``) from the
+    pressure parts ``factor, offset = _pressure_part(form, params, p)``."""
+    if form == 0:
+        return factor
+    if form == 1:
+        denominator = offset + params[2] * abs(rate)
+        return factor / denominator if denominator > 0.0 else 0.0
+    return factor * max(abs(rate), params[3]) ** params[2]
+
+
+@njit(cache=True)
+def _newton_model(form, params, kappa, rate, factor, offset):
     """``stress._newton_model`` for one value: (yield stress, slope)."""
     step = 1e-7 * rate
-    eta = _viscosity(form, params, rate, p)
+    eta = _viscosity(form, params, rate, factor, offset)
     tau = eta * rate
-    up = _viscosity(form, params, rate + step, p) * (rate + step)
+    up = _viscosity(form, params, rate + step, factor, offset) * (rate + step)
     if rate > 0.0:
         tangent = (up - tau) / (step if step > 0.0 else 1.0)
     else:
@@ -72,14 +84,27 @@ def _columns(
         first = np.empty(L + 1, np.int64)
         grounded = np.empty(L, np.bool_)
         U, diag, low, rhs = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
-        mc, us, kc, cc, wc, cwc = np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L)
+        mc, kc, cc, wc, cwc = np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L)
+        inertia, momentum = np.empty(L), np.empty(L)  # m_a / dt and m_a u*_a / dt
         current, new = np.empty(L), np.empty(L)
+        bulk_factor, bulk_offset, wall_factor, wall_offset = (
+            np.empty(L),
+            np.empty(L),
+            np.empty(L),
+            np.empty(L),
+        )
         for j in range(k * n // chunks, (k + 1) * n // chunks):
             col = wet[j]
             for a in range(L):
                 mc[a] = m[a, j]
-                us[a] = ustar[a, col]
+                inertia[a] = m[a, j] / dt
+                momentum[a] = m[a, j] * ustar[a, col] / dt
                 current[a] = guess[a, col]
+                bulk_factor[a], bulk_offset[a] = _pressure_part(bulk_form, bulk_params, pressure[a, j])
+                if width > 0.0:
+                    wall_factor[a], wall_offset[a] = _pressure_part(
+                        wall_form, wall_params, wall_pressure[a, j]
+                    )
             iterations[j] = -1
             fallbacks[j] = 0
             for iteration in range(1, max_iterations + 1):
@@ -90,7 +115,9 @@ def _columns(
                     s_safe = s if s > 0.0 else 1.0
                     rate = abs(current[a] - below) / s_safe
                     below = current[a]
-                    ka, t = _newton_model(bulk_form, bulk_params, kappa0[a, j], rate, pressure[a, j])
+                    ka, t = _newton_model(
+                        bulk_form, bulk_params, kappa0[a, j], rate, bulk_factor[a], bulk_offset[a]
+                    )
                     kc[a] = ka if viscous[a, j] else kappa0[a, j]
                     cc[a] = t / s_safe if (viscous[a, j] and s > 0.0) else 0.0
                     if width > 0.0:
@@ -98,7 +125,7 @@ def _columns(
                         per_area = (2.0 / width) * mc[a] / density
                         wa, ta = _newton_model(
                             wall_form, wall_params, w0[a, j] / max(per_area, 1e-300), abs(current[a]) / half,
-                            wall_pressure[a, j],
+                            wall_factor[a], wall_offset[a],
                         )  # fmt: skip
                         wc[a] = per_area * wa
                         cwc[a] = per_area * ta / half
@@ -109,9 +136,9 @@ def _columns(
                     for a in range(L):
                         new[a] = 0.0
                 elif not _active_set(
-                    mc, us, dt, kc, cc, wc, cwc, current, new, first, grounded, U, diag, low, rhs
+                    inertia, momentum, kc, cc, wc, cwc, current, new, first, grounded, U, diag, low, rhs
                 ):
-                    _dynamic_programme(mc, us, dt, kc, cc, wc, cwc, new, ws)
+                    _dynamic_programme(inertia, momentum, kc, cc, wc, cwc, new, ws)
                     fallbacks[j] += 1
                 change = 0.0
                 for a in range(L):
