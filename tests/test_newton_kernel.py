@@ -80,3 +80,22 @@ def test_compiled_step_equals_the_numpy_iteration_on_a_collapse(rheology, walls)
     np.testing.assert_allclose(got.u, ref.u, rtol=1e-9, atol=1e-12)
     assert np.array_equal(got.u == 0.0, ref.u == 0.0)
     assert (ref.u == 0.0).any() and (ref.u != 0.0).any()  # both static and moving layers
+
+
+def test_threads_cut_the_columns_into_chunks_without_changing_the_answer():
+    sim = simulation(
+        slope_deg=20.0,
+        domain={"x_min": 0.0, "x_max": 1.0, "cells": 50, "layers": 6},
+        material={"density": 1550.0, "grain_diameter": 0.7e-3, "particle_density": 2500.0},
+        rheology={"name": "jop_mu_i", "mu_s": 0.38, "mu_2": 0.64, "I_0": 0.279},
+        base=[{"condition": "no_slip"}],
+        initial=[{"shape": "rectangle", "x_min": 0.0, "x_max": 0.5, "height": 0.1}],
+    )
+    for _ in range(5):
+        sim.step()
+    ustar = sim.u + 0.01 * (sim.h > 0)
+    kw = dict(threshold=1e-12, max_iterations=200)
+    one, its_one = sim.compiled_step(sim.h, ustar, sim.u, 1e-3, threads=1, **kw)
+    one = one.copy()
+    two, its_two = sim.compiled_step(sim.h, ustar, sim.u, 1e-3, threads=2, **kw)
+    assert np.array_equal(one, two) and np.array_equal(its_one, its_two)
