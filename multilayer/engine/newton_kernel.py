@@ -18,6 +18,8 @@ from multilayer.engine.column_kernel import _active_set, _dynamic_programme, _wo
 from multilayer.engine.stress import ColumnStresses, StressModel
 
 FORMS = {"constant": 0, "inertial": 1, "power": 2}
+BLOCK = 16
+"""Columns gathered at a time (their coefficients stay in cache)."""
 
 
 def law_of(rheology, material) -> tuple[int, np.ndarray] | None:
@@ -93,62 +95,96 @@ def _columns(
             np.empty(L),
             np.empty(L),
         )
-        for j in range(k * n // chunks, (k + 1) * n // chunks):
-            col = wet[j]
+        # columns in blocks: the coefficients of a block are gathered row by row (each row
+        # of the (L, N) arrays read in contiguous runs) into column-contiguous buffers
+        bm, bk, bw, bp, bs = (
+            np.empty((BLOCK, L)),
+            np.empty((BLOCK, L)),
+            np.empty((BLOCK, L)),
+            np.empty((BLOCK, L)),
+            np.empty((BLOCK, L)),
+        )
+        bwp, bu, bg, bo = (
+            np.empty((BLOCK, L)),
+            np.empty((BLOCK, L)),
+            np.empty((BLOCK, L)),
+            np.empty((BLOCK, L)),
+        )
+        bv = np.empty((BLOCK, L), np.bool_)
+        start, stop = k * n // chunks, (k + 1) * n // chunks
+        for j0 in range(start, stop, BLOCK):
+            size = min(BLOCK, stop - j0)
             for a in range(L):
-                mc[a] = m[a, j]
-                inertia[a] = m[a, j] / dt
-                momentum[a] = m[a, j] * ustar[a, col] / dt
-                current[a] = guess[a, col]
-                bulk_factor[a], bulk_offset[a] = _pressure_part(bulk_form, bulk_params, pressure[a, j])
-                if width > 0.0:
-                    wall_factor[a], wall_offset[a] = _pressure_part(
-                        wall_form, wall_params, wall_pressure[a, j]
-                    )
-            iterations[j] = -1
-            fallbacks[j] = 0
-            for iteration in range(1, max_iterations + 1):
-                # the Newton model at the current velocities (StressModel.linearise)
-                below = 0.0
+                for jj in range(size):
+                    j = j0 + jj
+                    col = wet[j]
+                    bm[jj, a] = m[a, j]
+                    bk[jj, a] = kappa0[a, j]
+                    bw[jj, a] = w0[a, j]
+                    bp[jj, a] = pressure[a, j]
+                    bs[jj, a] = spacing[a, j]
+                    bv[jj, a] = viscous[a, j]
+                    bwp[jj, a] = wall_pressure[a, j]
+                    bu[jj, a] = ustar[a, col]
+                    bg[jj, a] = guess[a, col]
+            for jj in range(size):
+                j = j0 + jj
                 for a in range(L):
-                    s = spacing[a, j]
-                    s_safe = s if s > 0.0 else 1.0
-                    rate = abs(current[a] - below) / s_safe
-                    below = current[a]
-                    ka, t = _newton_model(
-                        bulk_form, bulk_params, kappa0[a, j], rate, bulk_factor[a], bulk_offset[a]
-                    )
-                    kc[a] = ka if viscous[a, j] else kappa0[a, j]
-                    cc[a] = t / s_safe if (viscous[a, j] and s > 0.0) else 0.0
+                    mc[a] = bm[jj, a]
+                    inertia[a] = bm[jj, a] / dt
+                    momentum[a] = bm[jj, a] * bu[jj, a] / dt
+                    current[a] = bg[jj, a]
+                    bulk_factor[a], bulk_offset[a] = _pressure_part(bulk_form, bulk_params, bp[jj, a])
                     if width > 0.0:
-                        half = 0.5 * width
-                        per_area = (2.0 / width) * mc[a] / density
-                        wa, ta = _newton_model(
-                            wall_form, wall_params, w0[a, j] / max(per_area, 1e-300), abs(current[a]) / half,
-                            wall_factor[a], wall_offset[a],
-                        )  # fmt: skip
-                        wc[a] = per_area * wa
-                        cwc[a] = per_area * ta / half
-                    else:
-                        wc[a] = w0[a, j]
-                        cwc[a] = 0.0
-                if mc[0] <= 0.0:
+                        wall_factor[a], wall_offset[a] = _pressure_part(wall_form, wall_params, bwp[jj, a])
+                iterations[j] = -1
+                fallbacks[j] = 0
+                for iteration in range(1, max_iterations + 1):
+                    # the Newton model at the current velocities (StressModel.linearise)
+                    below = 0.0
                     for a in range(L):
-                        new[a] = 0.0
-                elif not _active_set(
-                    inertia, momentum, kc, cc, wc, cwc, current, new, first, grounded, U, diag, low, rhs
-                ):
-                    _dynamic_programme(inertia, momentum, kc, cc, wc, cwc, new, ws)
-                    fallbacks[j] += 1
-                change = 0.0
+                        s = bs[jj, a]
+                        s_safe = s if s > 0.0 else 1.0
+                        rate = abs(current[a] - below) / s_safe
+                        below = current[a]
+                        ka, t = _newton_model(
+                            bulk_form, bulk_params, bk[jj, a], rate, bulk_factor[a], bulk_offset[a]
+                        )
+                        kc[a] = ka if bv[jj, a] else bk[jj, a]
+                        cc[a] = t / s_safe if (bv[jj, a] and s > 0.0) else 0.0
+                        if width > 0.0:
+                            half = 0.5 * width
+                            per_area = (2.0 / width) * mc[a] / density
+                            threshold_a = bw[jj, a] / max(per_area, 1e-300)
+                            wa, ta = _newton_model(
+                                wall_form, wall_params, threshold_a, abs(current[a]) / half,
+                                wall_factor[a], wall_offset[a],
+                            )  # fmt: skip
+                            wc[a] = per_area * wa
+                            cwc[a] = per_area * ta / half
+                        else:
+                            wc[a] = bw[jj, a]
+                            cwc[a] = 0.0
+                    if mc[0] <= 0.0:
+                        for a in range(L):
+                            new[a] = 0.0
+                    elif not _active_set(
+                        inertia, momentum, kc, cc, wc, cwc, current, new, first, grounded, U, diag, low, rhs
+                    ):
+                        _dynamic_programme(inertia, momentum, kc, cc, wc, cwc, new, ws)
+                        fallbacks[j] += 1
+                    change = 0.0
+                    for a in range(L):
+                        change = max(change, abs(new[a] - current[a]))
+                        current[a] = new[a]
+                    if change <= threshold:
+                        iterations[j] = iteration
+                        break
                 for a in range(L):
-                    change = max(change, abs(new[a] - current[a]))
-                    current[a] = new[a]
-                if change <= threshold:
-                    iterations[j] = iteration
-                    break
+                    bo[jj, a] = current[a]
             for a in range(L):
-                u_out[a, col] = current[a]
+                for jj in range(size):
+                    u_out[a, wet[j0 + jj]] = bo[jj, a]
 
 
 _serial = njit(cache=True)(_columns)
