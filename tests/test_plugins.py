@@ -14,6 +14,7 @@ import pydantic
 import pytest
 import xarray as xr
 
+import multilayer
 from multilayer import Material
 from multilayer.errors import InputError
 from multilayer.io.scenario import load
@@ -33,16 +34,37 @@ def pip(*args: str) -> None:
         pytest.fail(f"pip {' '.join(args)} failed:\n{done.stderr}")
 
 
-@pytest.fixture(scope="module")
-def bingham(tmp_path_factory):
-    """tests/thirdparty_plugin pip-installed (as a user would: a built wheel, isolated build
-    backend from the package index) into the environment running the tests, for this module."""
-    source = tmp_path_factory.mktemp("plugin") / "multilayer-bingham"
-    shutil.copytree(THIRDPARTY, source)  # the build writes into its source tree
-    pip("install", "--no-deps", str(source))
-    plugins.refresh()
-    yield
-    pip("uninstall", "-y", "multilayer-bingham")
+@pytest.fixture(
+    scope="module",
+    params=["entry point on the path", pytest.param("pip install", marks=pytest.mark.slow)],
+)
+def bingham(request, tmp_path_factory):
+    """The plugin of tests/thirdparty_plugin made discoverable, for this module, either
+
+    - as pip leaves an installed distribution: its module and a ``.dist-info`` directory
+      holding its metadata and entry point, on ``sys.path`` and ``PYTHONPATH`` (no package
+      index needed), or
+    - pip-installed as a user would (a built wheel; the isolated build fetches setuptools
+      from the package index, hence marked ``slow``).
+    """
+    root = tmp_path_factory.mktemp("plugin")
+    if request.param == "pip install":
+        source = root / "multilayer-bingham"
+        shutil.copytree(THIRDPARTY, source)  # the build writes into its source tree
+        pip("install", "--no-deps", str(source))
+        plugins.refresh()
+        yield
+        pip("uninstall", "-y", "multilayer-bingham")
+        plugins.refresh()
+        return
+    module = (THIRDPARTY / "multilayer_bingham.py").read_text()
+    fake_distribution(root, "multilayer-bingham", module, module="multilayer_bingham", version="1.0.0")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.syspath_prepend(str(root))
+        mp.setenv("PYTHONPATH", os.pathsep.join(filter(None, [str(root), os.environ.get("PYTHONPATH")])))
+        plugins.refresh()
+        yield
+    sys.modules.pop("multilayer_bingham", None)
     plugins.refresh()
 
 
@@ -104,14 +126,18 @@ def test_installed_plugin_runs(bingham, tiny_scenario, write_scenario, tmp_path)
 # ---------------------------------------------------------------- broken plugins
 
 
-def fake_distribution(root: Path, name: str, module_source: str) -> None:
+def fake_distribution(
+    root: Path, name: str, module_source: str, module: str | None = None, version: str = "1.0"
+) -> None:
     """An installed distribution ``name`` (a .dist-info directory, as pip writes it) whose
-    entry point in the ``multilayer`` group is the module ``<name>_plugin``."""
-    module = f"{name.replace('-', '_')}_plugin"
-    info = root / f"{name.replace('-', '_')}-1.0.dist-info"
+    entry point ``<name> = <module>`` in the ``multilayer`` group is the module ``module``
+    (default ``<name>_plugin``) with the source ``module_source``."""
+    module = module or f"{name.replace('-', '_')}_plugin"
+    entry = name.removeprefix("multilayer-")
+    info = root / f"{name.replace('-', '_')}-{version}.dist-info"
     info.mkdir(parents=True)
-    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {name}\nVersion: 1.0\n")
-    (info / "entry_points.txt").write_text(f"[multilayer]\n{name} = {module}\n")
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {name}\nVersion: {version}\n")
+    (info / "entry_points.txt").write_text(f"[multilayer]\n{entry} = {module}\n")
     (root / f"{module}.py").write_text(textwrap.dedent(module_source))
 
 
@@ -156,7 +182,7 @@ BROKEN = {
         def multilayer_register_rheologies(register):
             register(Impostor)
         """,
-        "rheology name 'drucker_prager' is already registered by multilayer 0.1.0 "
+        f"rheology name 'drucker_prager' is already registered by multilayer {multilayer.__version__} "
         "(entry point builtins = multilayer.plugins.builtins); this second registration was rejected",
     ),
 }
