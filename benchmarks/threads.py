@@ -20,7 +20,7 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-EXTRA = {"dam_break": [], "chute": ["--steps", "40"]}
+EXTRA = {"dam_break": [], "chute": ["--steps", "20"]}
 
 
 def time_to_solution(problem: str, threads: str) -> float:
