@@ -9,6 +9,7 @@ programme, machine load) and draws the log-log figure docs/figures/performance_s
 
     python benchmarks/scaling.py [--columns 1e3 1e4 1e5 1e6] [--layers 4 8 16 32 64 128]
     python benchmarks/scaling.py --point N L STEPS     # one point (used by the sweep)
+    python benchmarks/scaling.py --replot              # redraw the figure from the saved rows
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 FIGURE = HERE.parent / "docs" / "figures" / "performance_scaling.png"
+DATA = FIGURE.with_suffix(".json")  # the rows of the last sweep, from which --replot redraws
 
 
 def point(columns: int, layers: int, steps: int) -> dict:
@@ -77,6 +79,8 @@ def figure(rows: list[dict], path: Path) -> None:
         ax.loglog(x, [r["ns_per_cell_step"] for r in sel], "o-", label="wall time per cell-step (ns)")
         ax.loglog(x, [r["cpu_ns_per_cell_step"] for r in sel], "s--", label="CPU time per cell-step (ns)")
         ax.loglog(x, [r["bytes_per_cell"] for r in sel], "^-", label="peak memory per cell (bytes)")
+        above = [r["bytes_per_cell_above_baseline"] for r in sel]
+        ax.loglog(x, above, "v:", label="... above the interpreter and libraries")
         ax.axhline(300, color="grey", lw=0.8, ls=":")
         ax.set_xlabel(label + (" (L = 32)" if key == "columns" else " (N = 10^4)"))
         ax.grid(True, which="both", alpha=0.3)
@@ -91,9 +95,13 @@ def main() -> None:
     parser.add_argument("--point", nargs=3, type=int, metavar=("N", "L", "STEPS"))
     parser.add_argument("--columns", nargs="+", type=float, default=[1e3, 1e4, 1e5, 1e6])
     parser.add_argument("--layers", nargs="+", type=int, default=[4, 8, 16, 32, 64, 128])
+    parser.add_argument("--replot", action="store_true", help=f"redraw the figure from {DATA.name}")
     args = parser.parse_args()
     if args.point:
         print(json.dumps(point(*args.point)))
+        return
+    if args.replot:
+        figure(json.loads(DATA.read_text()), FIGURE)
         return
     grid = [(int(n), 32) for n in args.columns] + [(10_000, layers) for layers in args.layers if layers != 32]
     rows = []
@@ -111,6 +119,7 @@ def main() -> None:
             f" | {r['newton_per_step']:5.2f} | {r['fallback_share']:.1e} | {r['load']:.2f}",
             flush=True,
         )
+    DATA.write_text(json.dumps(rows, indent=1))
     figure(rows, FIGURE)
     print(f"figure: {FIGURE}")
 
