@@ -52,10 +52,11 @@ def scenario(cells: int, layers: int, order: int, end: float, threads="auto"):
     )
 
 
-def bagnold_error(sim: Simulation) -> float:
-    """Largest |u - exact| / exact surface speed, the exact profile averaged over each layer."""
+def bagnold_error(sim: Simulation) -> np.ndarray:
+    """|u - exact| / exact surface speed per column (largest over the layers), the exact
+    profile averaged over each layer."""
     exact = EXACT.layer_means(sim.mesh.interfaces * DEPTH)
-    return float(np.abs(sim.u - exact[:, None]).max() / EXACT.surface_velocity)
+    return np.abs(sim.u - exact[:, None]).max(axis=0) / EXACT.surface_velocity
 
 
 def main() -> None:
@@ -79,9 +80,13 @@ def main() -> None:
     )
     print(f"Bagnold chute: {args.cells} cells x {args.layers} layers, order {args.order}, t = {sim.t:.4g} s")
     print("\n".join(timing.lines()))
+    # columns that no signal from the boundaries reached (at most two cells per step)
+    error, far = bagnold_error(sim), slice(2 * sim.steps, -2 * sim.steps)
     print(
-        f"check: max |u - Bagnold| / surface speed = {bagnold_error(sim):.2e}, "
-        f"max |h - 1 cm| = {np.abs(sim.h - DEPTH).max():.2e} m"
+        f"check: max |u - Bagnold| / surface speed = {error[far].max():.2e} away from the ends, "
+        f"{error.max():.2e} everywhere (largest at column {error.argmax()}); "
+        f"max |h - 1 cm| = {np.abs(sim.h - DEPTH)[far].max():.2e} m away from the ends, "
+        f"{np.abs(sim.h - DEPTH).max():.2e} m everywhere"
     )
 
 
