@@ -12,6 +12,7 @@ from multilayer.plugins.contract import Material
 from multilayer.reference.exact import (
     BagnoldFlow,
     InviscidSimpleShear,
+    bagnold_depth,
     bagnold_shape,
     coulomb_dam_break,
     friction_coefficient,
@@ -150,3 +151,16 @@ def test_bagnold_shape_and_layer_means():
     edges = np.linspace(0.0, 0.01, 5)
     fine = [np.mean(flow.velocity(np.linspace(a, b, 100001))) for a, b in zip(edges[:-1], edges[1:])]
     np.testing.assert_allclose(flow.layer_means(edges), fine, rtol=1e-6)
+
+
+def test_bagnold_depth_carries_the_flux_and_by_hand():
+    """h_Bag of eq. 4.3 (Tsang et al. 2019) is the depth whose Bagnold flow carries q; for the
+    shipped chute (q = 0.05 m x 2.75 m/s, power law m = 0.56, alpha = 0.34, 16 deg, d = 1 mm)
+    it is 5.775 cm by hand."""
+    i_theta = power_law_inertial_number(16.0, 0.0, 0.56, 0.34)
+    depth = bagnold_depth(0.1375, i_theta, 1e-3, 16.0, gravity=9.81)
+    flow = BagnoldFlow(depth, i_theta, 1e-3, 16.0, 9.81)
+    assert flow.mean_velocity * depth == pytest.approx(0.1375, rel=1e-12)
+    i_by_hand = (math.tan(math.radians(16)) / 0.56) ** (1 / 0.34)
+    by_hand = (5 * 1e-3 * 0.1375 / (2 * i_by_hand * math.sqrt(9.81 * math.cos(math.radians(16))))) ** 0.4
+    assert depth == pytest.approx(by_hand, rel=1e-12) and depth == pytest.approx(0.05775, abs=1e-5)

@@ -1,4 +1,5 @@
-"""Regression expectations: multilayer.expect, `multilayer check` and the pytest plugin.
+"""Expectations (regression pins and reference values): evaluation, `multilayer check`
+and the pytest plugin.
 
 The scenario used is the inviscid single-column static/flowing problem (20 layers, a few
 time steps), whose exact solution (Bouchut, Ionescu & Mangeney 2016, Prop. 2.2) gives the
@@ -48,13 +49,26 @@ def _scenario(expect: list[dict] | None) -> dict:
     return data
 
 
+EXACT = "Bouchut, Ionescu & Mangeney (2016), Prop. 2.2"
 TRUE = [
-    {"quantity": "max_speed_final", "value": EXACT_MAX_SPEED, "rtol": 1e-3},
-    {"quantity": "mass_final", "value": H * 0.02, "rtol": 1e-9},
+    {
+        "kind": "reference",
+        "quantity": "max_speed_final",
+        "value": EXACT_MAX_SPEED,
+        "rtol": 1e-3,
+        "source": EXACT,
+    },
+    {"kind": "regression", "quantity": "mass_final", "value": H * 0.02, "rtol": 1e-9},
 ]
 FALSE = [
-    {"quantity": "max_speed_final", "value": EXACT_MAX_SPEED, "rtol": 1e-3},
-    {"quantity": "mass_final", "value": 2 * H * 0.02, "rtol": 0.01},
+    {
+        "kind": "reference",
+        "quantity": "max_speed_final",
+        "value": EXACT_MAX_SPEED,
+        "rtol": 1e-3,
+        "source": EXACT,
+    },
+    {"kind": "regression", "quantity": "mass_final", "value": 2 * H * 0.02, "rtol": 0.01},
 ]
 
 
@@ -69,8 +83,8 @@ def _write(directory, name: str, expect: list[dict] | None) -> str:
 
 def test_tolerance_is_atol_plus_rtol_times_value():
     entries = [
-        Expect(quantity="runout", value=2.0, rtol=0.1, atol=0.05),
-        Expect(quantity="mass_final", value=-1.0, rtol=0.1),
+        Expect(kind="regression", quantity="runout", value=2.0, rtol=0.1, atol=0.05),
+        Expect(kind="regression", quantity="mass_final", value=-1.0, rtol=0.1),
     ]
     ok, edge = evaluate(entries, {"runout": 2.249, "mass_final": -1.1000001})
     assert ok.tolerance == pytest.approx(0.25) and ok.passed
@@ -82,11 +96,39 @@ def test_nan_never_passes():
     assert not outcome.passed
 
 
-def test_report_lists_expected_obtained_and_verdict():
-    text = report("demo", [Outcome("front_final", 0.62, 0.61, 0.031), Outcome("runout", 0.4, 0.5, 0.02)])
-    assert text.splitlines()[0] == "demo: 1/2 expectations met"
-    assert "front_final" in text and "0.62" in text and "0.61" in text
-    assert text.splitlines()[-1].split()[-1] == "FAILED"
+def test_report_lists_kind_expected_obtained_verdict_and_sources():
+    text = report(
+        "demo",
+        [
+            Outcome("front_final", 0.62, 0.61, 0.031, "regression"),
+            Outcome("runout", 0.4, 0.5, 0.02, "reference", "Someone (2001), eq. 3"),
+        ],
+    )
+    lines = text.splitlines()
+    assert lines[0] == "demo: 1/2 expectations met (1/1 regression, 0/1 reference)"
+    assert lines[2].split() == ["regression", "front_final", "0.62", "0.61", "0.031", "ok"]
+    assert lines[3].split()[0] == "reference" and lines[3].split()[-1] == "FAILED"
+    assert lines[-1] == "  reference runout: Someone (2001), eq. 3"
+
+
+@pytest.mark.parametrize(
+    "entry, message",
+    [
+        ({"quantity": "runout", "value": 1.0, "rtol": 0.1}, "expect.0.kind"),
+        ({"kind": "validation", "quantity": "runout", "value": 1.0, "rtol": 0.1}, "accepted: regression ("),
+        ({"kind": "reference", "quantity": "runout", "value": 1.0, "rtol": 0.1}, "requires source"),
+        (
+            {"kind": "regression", "quantity": "runout", "value": 1.0, "rtol": 0.1, "source": "me"},
+            "expect.0.source",
+        ),
+    ],
+    ids=["no_kind", "unknown_kind", "reference_without_source", "regression_with_source"],
+)
+def test_every_entry_says_its_kind_and_a_reference_its_source(tmp_path, capsys, entry, message):
+    path = _write(tmp_path, "bad.yaml", [entry])
+    assert cli.main(["validate", path]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
 
 
 # --------------------------------------------------------------------------- multilayer check
@@ -97,16 +139,18 @@ def test_check_passes_true_expectation(tmp_path, capsys):
     path = _write(tmp_path, "true.yaml", TRUE)
     assert cli.main(["check", path]) == 0
     out = capsys.readouterr().out
-    assert "2/2 expectations met" in out and "FAILED" not in out
+    assert "2/2 expectations met (1/1 regression, 1/1 reference)" in out and "FAILED" not in out
+    assert f"reference max_speed_final: {EXACT}" in out
 
 
 def test_check_fails_false_expectation(tmp_path, capsys):
     path = _write(tmp_path, "false.yaml", FALSE)
     assert cli.main(["check", path, "-o", str(tmp_path / "kept")]) == 1
     out = capsys.readouterr().out
-    assert "1/2 expectations met" in out
+    assert "1/2 expectations met (0/1 regression, 1/1 reference)" in out
     line = next(line for line in out.splitlines() if "mass_final" in line)
-    assert line.split()[1:4] == ["0.0008", "0.0004", "8e-06"] and line.endswith("FAILED")
+    assert line.split()[:5] == ["regression", "mass_final", "0.0008", "0.0004", "8e-06"]
+    assert line.endswith("FAILED")
     assert (tmp_path / "kept" / "tiny-static-flowing" / "result.nc").is_file()
 
 
@@ -133,24 +177,37 @@ def test_plugin_is_registered_through_pytest11():
 
 
 def test_pytest_collects_scenarios_in_named_directory(pytester):
-    """One item per file with expect:; files without it, and subdirectories, ignored."""
+    """One item per expect: entry, named by its kind; files without expect:, and
+    subdirectories, ignored."""
     _write(pytester.path, "true.yaml", TRUE)
     _write(pytester.path, "false.yml", FALSE)
     _write(pytester.path, "plain.yaml", None)
     (pytester.path / "fixtures").mkdir()
     _write(pytester.path / "fixtures", "nested.yaml", FALSE)
     result = pytester.runpytest_subprocess(str(pytester.path), "-p", "no:cacheprovider")
-    result.assert_outcomes(passed=1, failed=1)
+    result.assert_outcomes(passed=3, failed=1)
     result.stdout.fnmatch_lines(
-        ["*1/2 expectations met*", "*mass_final*0.0008*0.0004*FAILED*", "FAILED false.yml::false*"]
+        [
+            "*1/2 expectations met*",
+            "*regression*mass_final*0.0008*0.0004*FAILED*",
+            "FAILED false.yml::regression[[]mass_final[]]*",
+        ]
     )
     assert "nested" not in result.stdout.str()
 
 
-def test_pytest_runs_a_named_file(pytester):
+def test_pytest_runs_a_named_file_and_selects_by_kind(pytester):
     path = _write(pytester.path, "true.yaml", TRUE)
-    result = pytester.runpytest_subprocess(path, "-p", "no:cacheprovider")
-    result.assert_outcomes(passed=1)
+    result = pytester.runpytest_subprocess(path, "-p", "no:cacheprovider", "-v")
+    result.assert_outcomes(passed=2)
+    result.stdout.fnmatch_lines(
+        [
+            "*true.yaml::reference[[]max_speed_final[]] PASSED*",
+            "*true.yaml::regression[[]mass_final[]] PASSED*",
+        ]
+    )
+    only = pytester.runpytest_subprocess(path, "-p", "no:cacheprovider", "-k", "reference")
+    only.assert_outcomes(passed=1, deselected=1)
 
 
 def test_pytest_without_arguments_collects_no_yaml(pytester):

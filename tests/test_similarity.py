@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy.integrate import quad
 
 from multilayer.reference.exact import BagnoldFlow
 from multilayer.reference.similarity import (
@@ -37,10 +38,21 @@ def test_classical_blasius_thicknesses(blasius):
     assert blasius.displacement_thickness / blasius.momentum_thickness == pytest.approx(2.591, abs=1e-3)
 
 
-def test_granular_blasius_alpha_034(granular):
-    """Tsang et al. (2019) fig. 2: f''(0) ~ 0.164 and zeta_disp ~ 4.35 for alpha = 0.34."""
-    assert granular.fpp0 == pytest.approx(0.1648, abs=1e-3)
-    assert granular.displacement_thickness == pytest.approx(4.35, rel=0.015)
+def test_granular_blasius_wall_curvature_alpha_034(granular):
+    """Tsang et al. (2019) fig. 2 caption: f''(0) ~ 0.164 for alpha = 0.34.  The paper
+    gives three decimals; whether its last digit is rounded or cut, the value it stands for
+    lies in [0.1635, 0.165): that interval is the reference's own uncertainty."""
+    assert 0.1635 <= granular.fpp0 < 0.165
+
+
+def test_papers_zeta_disp_is_the_displacement_integral_cut_near_zeta_100(granular):
+    """Tsang et al. (2019) sec. 4.3 quotes zeta_disp ~ 4.35 (4.345 to 4.355 as rounded);
+    the converged value, with the algebraic tail 1 - f' ~ zeta^(-2/(1-alpha)) added
+    analytically, is 4.392.  The integral of 1 - f' cut at zeta = 50 lies below the
+    paper's interval and cut at zeta = 150 above it: the paper's value is that of an
+    integration range between the two, which accounts for the 1 % difference."""
+    cut = {z: quad(lambda s: 1.0 - granular.velocity(s)[0], 0.0, z, limit=200)[0] for z in (50.0, 150.0)}
+    assert cut[50.0] < 4.345 < 4.355 < cut[150.0] < granular.displacement_thickness
 
 
 def test_granular_solution_independent_of_truncation(granular):

@@ -428,8 +428,12 @@ parameters:
         assert "3 members: 2 already complete (skipped), 0 invalid, 1 to run" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_local_cluster_zip_sweep(tmp_path, monkeypatch, capsys):
-    """Without --scheduler: a local cluster of worker processes, here a zipped sweep."""
+    """Without --scheduler: a local cluster of worker processes, here a zipped sweep.
+
+    Slow (about 30 s of CPU starting the worker processes); runs on Dask workers are
+    covered in the default run by the scheduler tests."""
     path = write_sweep(
         tmp_path,
         """\

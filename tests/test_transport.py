@@ -23,21 +23,22 @@ def ritter_error(cells: int, order: int, t: float = 0.6) -> float:
 
 
 def test_ritter_dam_break_converges_at_order_one():
+    """The L1 error falls at the expected rate: about 1, since h has kinks at both edges of
+    the fan and a dry front, where the limited second-order scheme is first order.  The
+    bound 0.8 allows for the pre-asymptotic range of these coarse grids; no absolute error
+    level is asserted (it would only restate the value measured here)."""
     errors = np.array([ritter_error(n, order=2) for n in (100, 200, 400)])
     orders = np.log2(errors[:-1] / errors[1:])
-    assert errors[-1] < 0.015
     assert np.all(orders >= 0.8), orders
 
 
-@pytest.mark.parametrize("layers, internal_friction", [(1, 0.0), (4, 1.0)])
-def test_coulomb_dam_break_on_a_slope(layers, internal_friction):
-    """30 degree slope, basal friction angle 20 degrees; with 4 layers a strong internal
-    friction keeps the column a plug, as the depth-averaged solution assumes
-    (Mangeney, Heinrich & Roche 2000)."""
+def coulomb_error(cells: int, layers: int, internal_friction: float) -> float:
+    """Relative L1 error of h at t = 1 s against Mangeney, Heinrich & Roche (2000), away
+    from the upstream boundary."""
     delta, t = math.radians(20.0), 1.0
     sim = simulation(
         slope_deg=30.0,
-        domain={"x_min": -10.0, "x_max": 10.0, "cells": 1000, "layers": layers},
+        domain={"x_min": -10.0, "x_max": 10.0, "cells": cells, "layers": layers},
         rheology={"name": "drucker_prager", "mu_s": internal_friction, "nu": 0.0},
         base=[{"condition": "coulomb", "mu": math.tan(delta)}],
         initial=[{"shape": "rectangle", "x_min": -10.0, "x_max": 0.0, "height": 1.0}],
@@ -45,10 +46,19 @@ def test_coulomb_dam_break_on_a_slope(layers, internal_friction):
     )
     sim.advance(t)
     exact = coulomb_dam_break(sim.x, t, 1.0, 30.0, 20.0)
-    window = sim.x > -5.0  # away from the upstream boundary
-    error = np.sum(np.abs(sim.h - exact)[window]) / np.sum(exact[window])
-    assert error < 0.05
-    assert error < 0.005  # measured 0.18 %
+    window = sim.x > -5.0
+    return float(np.sum(np.abs(sim.h - exact)[window]) / np.sum(exact[window]))
+
+
+@pytest.mark.parametrize("layers, internal_friction", [(1, 0.0), (4, 1.0)])
+def test_coulomb_dam_break_on_a_slope(layers, internal_friction):
+    """30 degree slope, basal friction angle 20 degrees; with 4 layers a strong internal
+    friction keeps the column a plug, as the depth-averaged solution assumes.  The error
+    falls at order >= 0.8 over a fourfold refinement (about 1 expected: kinks at the fan
+    edges and a wet/dry front), the convergence study being the check; no absolute error
+    level is asserted."""
+    coarse, fine = (coulomb_error(n, layers, internal_friction) for n in (250, 1000))
+    assert math.log(coarse / fine) / math.log(4.0) >= 0.8, (coarse, fine)
 
 
 def test_mass_is_conserved_to_round_off_between_walls_and_h_stays_non_negative():

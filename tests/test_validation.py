@@ -7,6 +7,7 @@ the references that are not met; these tests keep the met ones from regressing.
 
 from __future__ import annotations
 
+import functools
 import math
 from pathlib import Path
 
@@ -53,33 +54,97 @@ def test_inviscid_static_flowing_interface_at_three_slopes(theta):
     assert np.all(sim.u == 0.0)
 
 
-@pytest.mark.parametrize(
-    "changes",
-    [
-        (),  # power law alpha = 0.34 on 16 deg: measured slope 0.725 vs 0.746, size 0.95
-        # classical Blasius (alpha = 1) on a horizontal chute, where gravity does not
-        # accelerate the outer flow: measured slope 0.483 vs 0.5, size 1.06
-        ("rheology.alpha=1", "rheology.m=0.2", "slope_deg=0"),
-    ],
-    ids=["power_law", "linear_horizontal"],
-)
-def test_granular_blasius_boundary_layer_grows_like_x_to_the_one_over_one_plus_alpha(changes):
-    """Tsang et al. (2019): the displacement thickness grows like x^(1/(1+alpha)) and
-    matches the size of the similarity solution, without a fitted constant."""
-    sim = run("smooth_to_rough_chute", "domain.cells=440", "time.end=1.2", *changes)
+CHUTE = ("domain.cells=440", "time.end=1.2")  # dx = 2.5 mm, steady in the fitted window
+#: the horizontal chute with the normal gravity g cos(16 deg) of the inclined one
+LEVEL = ("slope_deg=0", f"gravity={9.81 * math.cos(math.radians(16.0)):.6f}")
+#: x from 0.01 to 0.061 m: where the predicted delta* of the alpha = 0.34 layer is below H/10
+FIXED_WINDOW = (0.01, 0.061)
+#: the theory is leading order: where delta* reaches H/10 the neglected outer-flow
+#: perturbation (Tsang et al. 2019, sec. 4.6, h/H = 1 + O(delta*/H)) is of relative order
+#: 0.1, so exponents and thickness are required within 10 %.  The resolution study of the
+#: exponent (docs/validation.md, chute section) moves it by less than 0.01 per halving of dx.
+THEORY_ACCURACY = 0.1
+
+
+@functools.cache
+def chute(*changes: str) -> dict:
+    """The chute at 2.5 mm, run once per set of changes: delta*, chi and the prediction."""
+    sim = run("smooth_to_rough_chute", *CHUTE, *changes)
     sc = sim.scenario
     alpha, m = sc.rheology.params["alpha"], sc.rheology.params["m"]
     h_in, speed = sc.boundaries.inflow.thickness, sc.boundaries.inflow.velocity.speed
-    disp = similarity.displacement_thickness(sim.u, sim.fractions[:, None] * sim.h[None, :])
     solution = similarity.solve_similarity(alpha)
-    eps = similarity.boundary_layer_scale(alpha, m, sc.slope_deg, h_in, speed, sc.material.grain_diameter)
-    predicted = (
-        solution.displacement_thickness * eps * h_in * (np.maximum(sim.x, 0) / h_in) ** (1 / (1 + alpha))
+    eps = similarity.boundary_layer_scale(
+        alpha, m, sc.slope_deg, h_in, speed, sc.material.grain_diameter, sc.gravity
     )
-    thin = (sim.x >= 4 * sim.dx) & (predicted <= 0.1 * h_in)
-    slope = np.polyfit(np.log(sim.x[thin]), np.log(disp[thin]), 1)[0]
-    assert slope == pytest.approx(1 / (1 + alpha), abs=0.04)
-    assert np.median(disp[thin] / predicted[thin]) == pytest.approx(1.0, abs=0.1)
+    x = sim.x
+    return dict(
+        x=x,
+        alpha=alpha,
+        window=(x >= FIXED_WINDOW[0]) & (x <= FIXED_WINDOW[1]),
+        disp=similarity.displacement_thickness(sim.u, sim.fractions[:, None] * sim.h[None, :]),
+        chi=similarity.shape_factor(sim.u, sim.fractions),
+        predicted=solution.displacement_thickness
+        * eps
+        * h_in
+        * (np.maximum(x, 0) / h_in) ** (1 / (1 + alpha)),
+    )
+
+
+def log_slope(x: np.ndarray, y: np.ndarray) -> float:
+    return float(np.polyfit(np.log(x), np.log(y), 1)[0])
+
+
+BLASIUS_CASES = pytest.mark.parametrize(
+    "changes",
+    [(), ("rheology.alpha=1", "rheology.m=0.2", *LEVEL)],
+    ids=["power_law_16deg", "linear_horizontal_same_normal_gravity"],
+)
+
+
+@BLASIUS_CASES
+def test_granular_blasius_layer_grows_like_x_to_the_one_over_one_plus_alpha(changes):
+    """Tsang et al. (2019), eq. 4.13 and 4.15-4.17: delta* = zeta_disp eps H (x/H)^(1/(1+alpha)),
+    exponent and size without a fitted constant.  Not asserted: alpha = 1 on the 16 deg
+    chute, whose exponent falls short (docs/validation.md)."""
+    c = chute(*changes)
+    w = c["window"]
+    assert log_slope(c["x"][w], c["disp"][w]) * (1 + c["alpha"]) == pytest.approx(1.0, abs=THEORY_ACCURACY)
+    assert np.median(c["disp"][w] / c["predicted"][w]) == pytest.approx(1.0, abs=THEORY_ACCURACY)
+
+
+@BLASIUS_CASES
+def test_shape_factor_excess_grows_like_x_to_the_one_over_one_plus_alpha(changes):
+    """Tsang et al. (2019), eq. 4.26 (sec. 4.6, 5.4): chi - 1 proportional to x^(1/(1+alpha))
+    while the layer is thin."""
+    c = chute(*changes)
+    w = c["window"]
+    slope = log_slope(c["x"][w], c["chi"][w] - 1)
+    assert slope * (1 + c["alpha"]) == pytest.approx(1.0, abs=THEORY_ACCURACY)
+
+
+def test_jop_law_at_its_alpha_minus_one_asymptote_forms_no_wall_layer():
+    """Tsang et al. (2019), sec. 4.5: for I >> I_0 the Jop law is mu_2 - (mu_2 - mu_1) I_0 / I
+    (alpha = -1) and admits no self-similar boundary layer.  With I_0 = 0.01 the bottom
+    layer stays above 10 I_0 over the window; no wall layer forms: the bottom layer keeps
+    more than half the outer speed and the deficit is spread over the depth.  The
+    similarity layers of the power laws give at most 0.1 for both measures
+    (docs/validation.md), a wall-free deficit spread linearly over the depth gives 1: the
+    thresholds 0.5 and 0.25 lie between."""
+    sim = run(
+        "smooth_to_rough_chute",
+        *CHUTE,
+        "rheology={name: jop_mu_i, mu_s: 0.30249, mu_2: 1.38043, I_0: 0.01}",
+    )
+    i = int(np.argmin(np.abs(sim.x - FIXED_WINDOW[1])))
+    u, h, frac = sim.u[:, i], sim.h[i], sim.fractions
+    d, g_n = sim.scenario.material.grain_diameter, 9.81 * math.cos(math.radians(16.0))
+    wall_inertial = d * u[0] / (0.5 * frac[0] * h) / math.sqrt(g_n * h)
+    disp = similarity.displacement_thickness(u, frac * h)
+    mid_deficit = np.interp(0.5, np.cumsum(frac) - frac / 2, 1 - u / u[-1]) * h / disp
+    assert wall_inertial > 10 * 0.01
+    assert u[0] / u[-1] > 0.5
+    assert mid_deficit > 0.25
 
 
 def test_bagnold_profile_converges_with_the_layers():

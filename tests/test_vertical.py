@@ -50,10 +50,12 @@ def test_inviscid_simple_shear_matches_proposition_2_2():
     layer = H / 200
     for t in np.arange(0.1, 1.31, 0.1):
         sim.advance(t)
-        assert np.abs(sim.u[:, 0] - EXACT.velocity(z, t)).max() < 0.02
+        # the kink of U at b(t) is resolved to a layer or two; away from it U is linear and
+        # exact at layer centres: allow 3 layer increments of U0, 3 x 70/s x H/200 = 0.021 m/s
+        assert np.abs(sim.u[:, 0] - EXACT.velocity(z, t)).max() < 3 * SHEAR * layer
         b_exact = EXACT.interface(t)
         b = sim.diagnostics()["static_interface"][0]
-        assert abs(b - b_exact) <= 2 * layer, (t, b, b_exact)
+        assert abs(b - b_exact) <= 2 * layer, (t, b, b_exact)  # b is a layer top: resolution
     sim.advance(EXACT.stop_time + 0.005)
     assert np.all(sim.u == 0.0)
     assert sim.diagnostics()["static_interface"][0] == sim.h[0]
@@ -70,7 +72,8 @@ def test_viscous_simple_shear_erodes_then_deposits():
         b.append(sim.diagnostics()["static_interface"][0])
     b = np.array(b)
     lowest = int(np.argmin(b))
-    assert b[lowest] <= B0 - 5 * H / 100  # erosion by 5 layers at least (measured: 3.2 mm)
+    # a drop of 5 layers, well beyond the one-layer resolution of b, counts as erosion
+    assert b[lowest] <= B0 - 5 * H / 100
     assert 0 < lowest < len(b) - 1
     assert np.all(np.diff(b[lowest:]) >= 0.0)  # then only deposition
     assert b[-1] == sim.h[0] and np.all(sim.u == 0.0)
@@ -98,7 +101,10 @@ def test_bagnold_profile_is_the_steady_state_of_jop_mu_i():
     before = sim.u[:, 0].copy()
     sim.advance(16.0)
     assert np.abs(sim.u[:, 0] - before).max() < 1e-3 * bagnold.max()  # steady
-    assert np.abs(sim.u[:, 0] - bagnold).max() < 0.03 * bagnold.max()
+    # tolerance from the layer convergence study of the Bagnold profile (docs/validation.md,
+    # Bagnold section; the scaled profile is the same for any parameters): 0.34 % of the
+    # surface speed at 10 layers, 4x coarser than here (0.04 % at 40 layers, order 1.6)
+    assert np.abs(sim.u[:, 0] - bagnold).max() < 0.0035 * bagnold.max()
 
 
 class Bingham(Rheology):
@@ -142,7 +148,11 @@ def test_bingham_layer_flows_as_a_rigid_plug_over_the_analytic_sheared_zone():
         )
         / eta
     )
-    assert np.abs(u - exact).max() < 0.01 * exact.max()
+    # second order on uniform layers: the profile is C1 at z_p (no shear there), so the
+    # error scale is the layer-mean vs centre difference dz^2 |u''| / 24 = 7e-5 of the plug
+    # speed; a second-order solution error is a few times that: allow 10 times it
+    dz = h / 50
+    assert np.abs(u - exact).max() < 10 * dz**2 * drive / eta / 24
 
 
 COLLAPSE = dict(

@@ -92,22 +92,22 @@ def test_inviscid_simple_shear_decelerates_by_the_yield_gradient():
 
     Every layer feels the net yield stress kappa_{a-1} - kappa_a = K/L, so one step gives
     u = max(u* - dt K/(L m), 0); the static layers at the bottom are exactly 0.0 and the
-    column stops exactly after ceil(u*_top / (dt K/(L m))) steps.
+    column stops exactly after ceil(u*_top / (dt K/(L m))) steps (2 and 4 steps here).
     """
     L, N, K, mass, dt = 8, 2, 4.0, 1.0, 0.5
     k = np.arange(L)[:, None]
     kappa = K * (L - k) / L * np.ones((L, N))
-    u = 0.1 * (k + 1) * np.array([[1.0, 2.0]])  # shear rates differ between the two columns
+    u = 0.06 * (k + 1) * np.array([[1.0, 2.0]])  # shear rates differ between the two columns
     m, z = np.full((L, N), mass), zeros(L, N)
     decrement = dt * K / (L * mass)  # 0.25
     step = vertical_fipy.VerticalStep(vertical_fipy.column_mesh(N, n_layers=L))
-    for n in range(1, 8):
+    for n in range(1, 5):
         expected = np.maximum(u - decrement, 0.0)
         u = step(ColumnProblem(m=m, ustar=u, dt=dt, kappa=kappa, c=z, w=z, cw=z))
         np.testing.assert_allclose(u, expected, rtol=0, atol=1e-11)
         assert np.all((u == 0.0) == (expected == 0.0))
         stopped = np.all(u == 0.0, axis=0)
-        np.testing.assert_array_equal(stopped, n >= np.ceil(0.1 * L * np.array([1.0, 2.0]) / decrement))
+        np.testing.assert_array_equal(stopped, n >= np.ceil(0.06 * L * np.array([1.0, 2.0]) / decrement))
 
 
 def test_bingham_column_has_a_rigid_plug_and_satisfies_kkt():
@@ -209,14 +209,17 @@ def random_step(rng: np.random.Generator, L: int, N: int) -> ColumnProblem:
     return ColumnProblem(m=m, ustar=ustar, dt=0.1, kappa=kappa, c=c, w=w, cw=cw)
 
 
-def test_agrees_with_the_fast_kernel():
+@pytest.mark.parametrize(
+    "rounds, N", [(1, 20), pytest.param(3, 40, marks=pytest.mark.slow)], ids=["short", "full"]
+)
+def test_agrees_with_the_fast_kernel(rounds, N):
     """The FiPy reference and multilayer/engine/column_kernel.py agree to 1e-10 on random steps.
 
     Same static layers (exact zeros) and same plugs (exactly equal neighbours).
     """
     rng = np.random.default_rng(2024)
-    L, N = 8, 40
-    for _ in range(3):
+    L = 8
+    for _ in range(rounds):
         problem = random_step(rng, L, N)
         u = vertical_fipy.solve(problem)
         u_kernel = column_kernel.solve(problem)

@@ -19,6 +19,8 @@ vertical ray, which bounds the domain).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numba import njit, prange
 
@@ -327,8 +329,8 @@ def _columns(m, ustar, dt, kappa, c, w, cw, guess, u, chunks):
                 _dynamic_programme(*args, u[i], ws)
 
 
-_solve_serial = njit(cache=True)(_columns)
-_solve_parallel = njit(cache=True, parallel=True)(_columns)
+_solve_serial: Any = njit(cache=True)(_columns)
+_solve_parallel: Any = njit(cache=True, parallel=True)(_columns)
 
 
 def solve(problem: ColumnProblem, guess: np.ndarray | None = None, threads: int = 1) -> np.ndarray:

@@ -30,8 +30,10 @@ def bed_profile(bed: Bed, x: np.ndarray) -> np.ndarray:
 def entry_thickness(entry: InitialShape, x: np.ndarray) -> np.ndarray:
     """Thickness of one ``initial`` entry at the cell centres."""
     if entry.shape == "layer":
+        assert entry.thickness is not None  # required for a layer (scenario validation)
         return np.full_like(x, float(entry.thickness))
     if entry.shape == "rectangle":
+        assert entry.height is not None  # required for a rectangle (scenario validation)
         return np.where((x >= entry.x_min) & (x <= entry.x_max), float(entry.height), 0.0)
     px, ph = np.asarray(entry.points, dtype=float).T
     return np.interp(x, px, ph, left=0.0, right=0.0)
@@ -46,6 +48,7 @@ def velocity_profile(velocity: Velocity | None, zeta: np.ndarray, thickness: np.
     if velocity is None:
         return np.zeros_like(zeta)
     if velocity.profile == "plug":
+        assert velocity.speed is not None  # required for a plug (scenario validation)
         return np.full_like(zeta, float(velocity.speed))
     if velocity.profile == "linear":
         return velocity.shear_rate * np.maximum(zeta - velocity.from_height, 0.0)

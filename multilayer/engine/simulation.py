@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -165,7 +165,7 @@ class Simulation:
         # the occupied columns bound the work of the step, and so its thread count
         count = self.thread_policy.threads(self.fractions.size * int(np.count_nonzero(self.h)))
         compiled = self.transport is transport_kernel.transport
-        kernel_options = {"workspace": self.workspace, "threads": count} if compiled else {}
+        kernel_options: dict[str, Any] = {"workspace": self.workspace, "threads": count} if compiled else {}
         h_new, ustar = self.transport(
             self.h,
             self.u,

@@ -50,9 +50,11 @@ class StressModel:
         walls: Rheology | None = None,
         width: float | None = None,
     ):
+        if walls is not None and width is None:
+            raise ValueError("side walls need the channel width (domain.width)")
         self.bulk = bulk
         self.walls = walls
-        self.width = width
+        self.width: float = np.inf if width is None else width
         self.material = material
         self.g_n = g_n
         self.base_kind = base_kind

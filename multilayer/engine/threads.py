@@ -99,6 +99,6 @@ class ThreadPolicy:
         if count > 1:
             import numba
 
-            count = min(count, numba.config.NUMBA_NUM_THREADS)
+            count = min(count, numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
             numba.set_num_threads(count)
         return count

@@ -20,7 +20,8 @@ from matplotlib.patches import Patch
 from multilayer.io.results import open_result
 
 PLOTS_DIR = "plots"
-_VELOCITY = colormaps["viridis"].with_extremes(bad="0.82")
+_AT_REST = "0.82"
+_VELOCITY = colormaps["viridis"].with_extremes(bad=_AT_REST)
 """Colour map of u; masked cells (static material, u == 0 exactly) are grey."""
 
 
@@ -88,7 +89,7 @@ def section_figure(ds: xr.Dataset, name: str, times: int = 4) -> Figure:
         ax.set_title(f"t = {float(snap['time']):.3g} s", fontsize="medium")
         ax.set_ylabel("z normal to slope (m)")
     handles, _ = axes[0].get_legend_handles_labels()
-    handles.append(Patch(color=_VELOCITY.get_bad(), label="at rest (u = 0)"))
+    handles.append(Patch(color=_AT_REST, label="at rest (u = 0)"))
     axes[0].legend(handles=handles, loc="upper right", fontsize="small")
     axes[-1].set_xlabel("x along slope (m)")
     fig.colorbar(mesh, ax=list(axes), label="downslope velocity u (m/s)")

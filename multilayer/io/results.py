@@ -18,7 +18,7 @@ import datetime as _dt
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Final
 
 import fipy
 import netCDF4
@@ -30,7 +30,7 @@ from multilayer.provenance import provenance
 
 RESULT_FILE = "result.nc"
 CHECKPOINT_FILE = "checkpoint.npz"
-FORMAT = "NETCDF3_64BIT_OFFSET"
+FORMAT: Final = "NETCDF3_64BIT_OFFSET"
 
 #: CF attributes of every coordinate and variable: (dimensions, attributes).
 VARIABLES: dict[str, tuple[tuple[str, ...], dict[str, str]]] = {
@@ -306,7 +306,7 @@ def save_checkpoint(path: str | os.PathLike, ckpt: Checkpoint) -> None:
     """Write ``ckpt`` to ``path`` atomically (temporary file, fsync, rename)."""
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
-    arrays = {f"state.{key}": np.asarray(value) for key, value in ckpt.state.items()}
+    arrays: dict[str, Any] = {f"state.{key}": np.asarray(value) for key, value in ckpt.state.items()}
     arrays.update({f"meta.{key}": np.asarray(getattr(ckpt, key)) for key in _META})
     with open(tmp, "wb") as f:
         np.savez(f, **arrays)

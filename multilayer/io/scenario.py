@@ -10,9 +10,9 @@ from __future__ import annotations
 import copy
 import re
 import typing
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, get_args
 
 import numpy as np
 import yaml
@@ -33,7 +33,8 @@ from multilayer.errors import InputError
 from multilayer.plugins import host as plugins
 from multilayer.plugins.contract import Material, Rheology
 
-QUANTITIES = ("front_final", "mass_final", "runout", "max_speed_final", "static_interface_mean_final")
+Quantity = Literal["front_final", "mass_final", "runout", "max_speed_final", "static_interface_mean_final"]
+QUANTITIES: tuple[str, ...] = get_args(Quantity)
 """Quantities an ``expect`` entry can check (see multilayer.results.summary)."""
 
 _FRACTION_SUM_TOLERANCE = 1e-6
@@ -163,7 +164,7 @@ class Domain(_Model):
     @model_validator(mode="after")
     def _check(self) -> Domain:
         _ordered(self.x_min, self.x_max)
-        accepted = Domain.model_fields["layer_fractions"].description
+        accepted = Domain.model_fields["layer_fractions"].description or ""
         value = self.layer_fractions
         if isinstance(value, list):
             if len(value) != self.layers or not all(
@@ -217,7 +218,8 @@ class MaterialSpec(_Model):
 
     def as_material(self) -> Material:
         """The :class:`multilayer.Material` handed to rheology plugins."""
-        return Material(self.density, self.grain_diameter, self.particle_density)
+        rho_p = self.density if self.particle_density is None else self.particle_density
+        return Material(self.density, self.grain_diameter, rho_p)
 
 
 class PluginSpec(_Model):
@@ -245,8 +247,8 @@ class PluginSpec(_Model):
     def checked(self, applies_to: str) -> PluginSpec:
         """This spec with validated parameters, for a law applying to ``applies_to``."""
         cls, problem = plugins.find(self.name, applies_to)
-        if problem:
-            raise _invalid(problem, ", ".join(plugins.available(applies_to)), "name")
+        if problem or cls is None:
+            raise _invalid(problem or self.name, ", ".join(plugins.available(applies_to)), "name")
         try:
             params = plugins.parameter_model(cls).model_validate(self.params).model_dump()
         except ValidationError as exc:
@@ -361,8 +363,10 @@ class InitialShape(_Model):
             },
         )
         if self.shape == "rectangle":
+            assert self.x_min is not None and self.x_max is not None  # required (checked above)
             _ordered(self.x_min, self.x_max)
         if self.shape == "profile":
+            assert self.points is not None  # required (checked above)
             _increasing(self.points, "points", "h")
             if any(h < 0 for _, h in self.points):
                 raise _invalid("negative thickness", "a list [[x, h], ...] with h >= 0", "points")
@@ -419,18 +423,38 @@ class Output(_Model):
     )
 
 
-class Expect(_Model):
-    """A regression check on the run summary: |actual - value| <= atol + rtol |value|."""
+ExpectKind = Literal["regression", "reference"]
+EXPECT_KINDS: tuple[str, ...] = get_args(ExpectKind)
 
-    quantity: Literal[QUANTITIES] = _field(..., ", ".join(QUANTITIES))
+
+class Expect(_Model):
+    """A check on the run summary, passing when ``|actual - value| <= atol + rtol |value|``.
+
+    ``kind: regression`` pins ``value`` from the code's own output (it guards against
+    change, it validates nothing); ``kind: reference`` takes ``value`` from an exact
+    solution or a published result named in ``source``, the tolerance being justified by
+    that reference's uncertainty or by a convergence study.
+    """
+
+    kind: ExpectKind = _field(
+        ..., "regression (a value pinned from the code's output) or reference (an exact or published value)"
+    )
+    quantity: Quantity = _field(..., ", ".join(QUANTITIES))
     value: float = _field(..., "a number (SI)")
     rtol: float | None = _field(None, "a number >= 0", ge=0)
     atol: float | None = _field(None, "a number >= 0 (SI)", ge=0)
+    source: str | None = _field(
+        None, "text naming the exact solution or publication (author, year, equation)"
+    )
 
     @model_validator(mode="after")
     def _check(self) -> Expect:
         if self.rtol is None and self.atol is None:
             raise _invalid("needs a tolerance", "rtol and/or atol", "rtol")
+        common = ("quantity", "value", "rtol", "atol")
+        _check_kind(self, "kind", {"regression": ((), common), "reference": (("source",), common)})
+        if self.source is not None and not self.source.strip():
+            raise _invalid("source is empty", self.model_fields["source"].description, "source")
         return self
 
 
@@ -480,7 +504,7 @@ class Scenario(_Model):
     boundaries: Boundaries = _field(Boundaries(), "a mapping with left, right")
     time: Time = _field(..., "a mapping with end, output_interval")
     output: Output = _field(Output(), "a mapping with directory")
-    expect: list[Expect] = _field([], "a list of {quantity, value, rtol, atol}")
+    expect: list[Expect] = _field([], "a list of {kind, quantity, value, rtol, atol, source}")
     numerics: Numerics = _field(Numerics(), "a mapping of solver settings")
 
     _source: Path | None = PrivateAttr(None)
@@ -562,7 +586,7 @@ def _model_in(annotation: Any) -> type[BaseModel] | None:
     return None
 
 
-def _message(error: dict[str, Any]) -> tuple[KeyPath, str, str]:
+def _message(error: Mapping[str, Any]) -> tuple[KeyPath, str, str]:
     """(key path, what is wrong, what is accepted) of one pydantic error."""
     loc, kind, ctx = tuple(error["loc"]), error["type"], error.get("ctx") or {}
     if kind == "scenario":
@@ -609,6 +633,7 @@ def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> tuple[dic
         node: Any = data
         path: KeyPath = ()
         parts = key.split(".")
+        part: str | int
         for depth, part in enumerate(parts):
             if isinstance(node, list):
                 if not (part.isdigit() and int(part) < len(node)):

@@ -183,9 +183,9 @@ def find(name: str, applies_to: str | None = None) -> tuple[type[Rheology] | Non
 def lookup(name: str, applies_to: str | None = None) -> type[Rheology]:
     """The class registered as ``name``; :class:`InputError` if there is none."""
     cls, problem = find(name, applies_to)
-    if problem:
+    if problem or cls is None:
         names = available(applies_to) if applies_to else sorted(registry())
-        raise InputError(f"{problem}; accepted: {', '.join(names)}")
+        raise InputError(f"{problem or name}; accepted: {', '.join(names)}")
     return cls
 
 
@@ -198,9 +198,18 @@ def _parameters(cls: type[Rheology]) -> list[inspect.Parameter]:
     return [p for p in signature.parameters.values() if p.kind in kinds]
 
 
-@functools.cache
+_PARAMETER_MODELS: dict[type, type[BaseModel]] = {}
+
+
 def parameter_model(cls: type[Rheology]) -> type[BaseModel]:
-    """A strict pydantic model of ``cls.__init__``'s keyword arguments (the parameter schema)."""
+    """A strict pydantic model of ``cls.__init__``'s keyword arguments (the parameter schema),
+    built once per class."""
+    if cls not in _PARAMETER_MODELS:
+        _PARAMETER_MODELS[cls] = _build_parameter_model(cls)
+    return _PARAMETER_MODELS[cls]
+
+
+def _build_parameter_model(cls: type[Rheology]) -> type[BaseModel]:
     fields: dict[str, Any] = {
         p.name: (Any if p.annotation is p.empty else p.annotation, ... if p.default is p.empty else p.default)
         for p in _parameters(cls)

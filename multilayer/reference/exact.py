@@ -222,3 +222,21 @@ class BagnoldFlow:
         edges = np.asarray(edges, dtype=float)
         antiderivative = self._scale * (self.depth**1.5 * edges + (self.depth - edges) ** 2.5 / 2.5)
         return np.diff(antiderivative) / np.diff(edges)
+
+
+def bagnold_depth(
+    flux: float,
+    inertial_number: float,
+    grain_diameter: float,
+    theta_deg: float,
+    gravity: float = GRAVITY,
+    density_ratio: float = 1.0,
+) -> float:
+    """Depth of the Bagnold flow carrying ``flux`` (m^2/s): Tsang et al. (2019), eq. 4.3,
+
+    ``h_Bag = (5 d q / (2 I_theta sqrt(g cos(theta) rho / rho_p)))^(2/5)``, the depth that a
+    chute flow of flux ``q`` reaches far downstream of a change to a no-slip base
+    (``density_ratio = rho / rho_p``, 1 in the paper).
+    """
+    root = math.sqrt(gravity * math.cos(math.radians(theta_deg)) * density_ratio)
+    return (5.0 * grain_diameter * flux / (2.0 * inertial_number * root)) ** 0.4

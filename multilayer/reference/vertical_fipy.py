@@ -67,8 +67,9 @@ def column_mesh(
     if fractions is None:
         if n_layers is None:
             raise ValueError("column_mesh needs fractions or n_layers")
-        fractions = np.full(n_layers, 1.0 / n_layers)
-    return fp.Grid2D(dx=1.0, dy=list(np.asarray(fractions, dtype=float)), nx=n_columns, ny=len(fractions))
+        fractions = [1.0 / n_layers] * n_layers
+    dy = [float(f) for f in fractions]
+    return fp.Grid2D(dx=1.0, dy=dy, nx=n_columns, ny=len(dy))
 
 
 class VerticalStep:

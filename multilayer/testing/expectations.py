@@ -1,14 +1,17 @@
-"""Regression expectations: a scenario's ``expect:`` list checked against its run summary.
+"""Expectations: a scenario's ``expect:`` list checked against its run summary.
 
-Each entry ``{quantity, value, rtol, atol}`` (docs/scenarios.md) passes when
+Each entry ``{kind, quantity, value, rtol, atol, source}`` (docs/scenarios.md) passes when
 
     |obtained - value| <= atol + rtol * |value|          (a missing tolerance counts as 0)
 
-where ``obtained`` is ``multilayer.results.summary(result.nc)[quantity]``; a NaN never
-passes.  The values hold for the scenario *exactly as written in the file* (resolution
-included): a check runs the file as it is.  The shipped scenarios are therefore kept cheap
-enough for CI, and their full-resolution counterparts are run by ``docs/make_validation.py``
-through ``--set`` overrides (docs/validation.md, "Regression checks").
+where ``obtained`` is ``multilayer.io.results.summary(result.nc)[quantity]``; a NaN never
+passes.  ``kind`` says what passing means: ``regression``, the value is pinned from the
+code's own output (a change detector); ``reference``, the value is an exact solution or a
+published result named in ``source`` (a validation).  The values hold for the scenario
+*exactly as written in the file* (resolution included): a check runs the file as it is.
+The shipped scenarios are therefore kept cheap enough for CI, and their full-resolution
+counterparts are run by ``docs/make_validation.py`` through ``--set`` overrides
+(docs/validation.md, "Expectations of the scenario files").
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from multilayer.io.scenario import Expect, Scenario
+from multilayer.io.scenario import EXPECT_KINDS, Expect, Scenario
 
 
 @dataclass(frozen=True)
@@ -31,6 +34,10 @@ class Outcome:
     obtained: float
     tolerance: float
     """Allowed absolute deviation, ``atol + rtol * |expected|``."""
+    kind: str = "regression"
+    """``regression`` (pinned from the code's output) or ``reference`` (exact or published)."""
+    source: str | None = None
+    """Where a reference value comes from."""
 
     @property
     def passed(self) -> bool:
@@ -43,7 +50,16 @@ def evaluate(expectations: Sequence[Expect], summary: Mapping[str, float]) -> li
     outcomes = []
     for entry in expectations:
         tolerance = (entry.atol or 0.0) + (entry.rtol or 0.0) * abs(entry.value)
-        outcomes.append(Outcome(entry.quantity, entry.value, float(summary[entry.quantity]), tolerance))
+        outcomes.append(
+            Outcome(
+                entry.quantity,
+                entry.value,
+                float(summary[entry.quantity]),
+                tolerance,
+                entry.kind,
+                entry.source,
+            )
+        )
     return outcomes
 
 
@@ -61,14 +77,24 @@ def check(scenario: Scenario, outdir: str | Path | None = None) -> list[Outcome]
 
 
 def report(name: str, outcomes: Sequence[Outcome]) -> str:
-    """Expected vs obtained table, one line per expectation, with a verdict per line."""
+    """Expected vs obtained table, one line per expectation with its kind and verdict.
+
+    The sources of reference values follow the table.
+    """
+    met = {kind: sum(o.passed for o in outcomes if o.kind == kind) for kind in EXPECT_KINDS}
+    counts = ", ".join(
+        f"{met[kind]}/{sum(o.kind == kind for o in outcomes)} {kind}"
+        for kind in EXPECT_KINDS
+        if any(o.kind == kind for o in outcomes)
+    )
     lines = [
-        f"{name}: {sum(o.passed for o in outcomes)}/{len(outcomes)} expectations met",
-        f"  {'quantity':<28} {'expected':>12} {'obtained':>12} {'tolerance':>10}  verdict",
+        f"{name}: {sum(o.passed for o in outcomes)}/{len(outcomes)} expectations met ({counts})",
+        f"  {'kind':<10} {'quantity':<28} {'expected':>12} {'obtained':>12} {'tolerance':>10}  verdict",
     ]
     for o in outcomes:
         lines.append(
-            f"  {o.quantity:<28} {o.expected:>12.6g} {o.obtained:>12.6g} "
+            f"  {o.kind:<10} {o.quantity:<28} {o.expected:>12.6g} {o.obtained:>12.6g} "
             f"{o.tolerance:>10.3g}  {'ok' if o.passed else 'FAILED'}"
         )
+    lines += [f"  reference {o.quantity}: {o.source}" for o in outcomes if o.kind == "reference"]
     return "\n".join(lines)

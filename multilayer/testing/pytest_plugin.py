@@ -1,9 +1,12 @@
-"""pytest plugin: scenario files with ``expect:`` become regression tests.
+"""pytest plugin: scenario files with ``expect:`` become tests named by their kind.
 
 Registered through the ``pytest11`` entry point, so ``pytest scenarios/`` or
 ``pytest scenarios/column_collapse.yaml`` runs each ``*.yaml`` / ``*.yml`` scenario that
-carries a top-level ``expect:`` list as one test item, failing with the expected vs
-obtained table of :mod:`multilayer.expect`.
+carries a top-level ``expect:`` list once, with one test item per entry named
+``<kind>[<quantity>]``: ``regression[front_final]`` for a value pinned from the code's
+own output, ``reference[mass_final]`` for an exact or published value (so
+``pytest scenarios/ -k reference`` runs the validations only).  A failing item shows the
+expected vs obtained table of :mod:`multilayer.testing.expectations`.
 
 Only files named on the command line, or lying directly in a directory named there, are
 collected: a plain ``pytest`` run (``testpaths``) or a recursive directory walk never
@@ -53,10 +56,38 @@ def pytest_collect_file(file_path: Path, parent: pytest.Collector) -> pytest.Col
 
 
 class ScenarioFile(pytest.File):
-    """A scenario YAML file: one test item running all its expectations."""
+    """A scenario YAML file: one test item per ``expect:`` entry, sharing one run."""
 
     def collect(self):
-        yield ScenarioItem.from_parent(self, name=self.path.stem)
+        data = yaml.safe_load(self.path.read_text(encoding="utf-8"))
+        entries = data["expect"] if isinstance(data["expect"], list) else [None]
+        names = [_item_name(entry) for entry in entries]
+        for index, name in enumerate(names):
+            if names.count(name) > 1:
+                name = f"{name[:-1]}-{names[:index].count(name) + 1}]"
+            yield ScenarioItem.from_parent(self, name=name, index=index)
+
+    def outcomes(self):
+        """Run the scenario once (on first use) and return its outcomes, or the error message."""
+        if not hasattr(self, "_outcomes"):
+            from multilayer.errors import InputError, RunError
+            from multilayer.io import scenario as scenarios
+            from multilayer.testing import expectations as expect
+
+            try:
+                scenario = scenarios.load(self.path)
+                outcomes = expect.check(scenario)
+                self._outcomes = (outcomes, expect.report(scenario.name, outcomes))
+            except (InputError, RunError) as exc:
+                self._outcomes = (None, str(exc))
+        return self._outcomes
+
+
+def _item_name(entry: object) -> str:
+    """``<kind>[<quantity>]`` as written in the file (the file is validated when it runs)."""
+    if not isinstance(entry, dict):
+        return "expect"
+    return f"{entry.get('kind', 'unknown')}[{entry.get('quantity', 'unknown')}]"
 
 
 class ExpectationFailure(Exception):
@@ -64,21 +95,18 @@ class ExpectationFailure(Exception):
 
 
 class ScenarioItem(pytest.Item):
-    """Runs one scenario and checks its ``expect:`` list."""
+    """One ``expect:`` entry of a scenario file, checked against the file's (shared) run."""
+
+    def __init__(self, *, index: int, **kwargs):
+        super().__init__(**kwargs)
+        self.index = index
 
     def runtest(self) -> None:
-        from multilayer.errors import InputError, RunError
-        from multilayer.io import scenario as scenarios
-        from multilayer.testing import expectations as expect
-
-        try:
-            scenario = scenarios.load(self.path)
-            outcomes = expect.check(scenario)
-        except (InputError, RunError) as exc:
-            raise ExpectationFailure(str(exc)) from None
-        table = expect.report(scenario.name, outcomes)
-        if not all(o.passed for o in outcomes):
-            raise ExpectationFailure(table)
+        outcomes, text = self.parent.outcomes()
+        if outcomes is None:
+            raise ExpectationFailure(text)
+        if not outcomes[self.index].passed:
+            raise ExpectationFailure(text)
 
     def repr_failure(self, excinfo, style=None):
         if isinstance(excinfo.value, ExpectationFailure):
@@ -86,4 +114,4 @@ class ScenarioItem(pytest.Item):
         return super().repr_failure(excinfo, style=style)
 
     def reportinfo(self):
-        return self.path, None, f"scenario {self.path.name}"
+        return self.path, None, f"scenario {self.path.name}::{self.name}"

@@ -2,8 +2,10 @@
 
 Each file is validated first (exit 2 if any is invalid or has no `expect:` entry), then
 run quietly into a temporary directory (or DIR/<name> with -o) at the resolution written
-in the file.  One table per file shows expected vs obtained values; the exit code is 1 if
-any expectation fails or any run fails, 0 if all pass.
+in the file.  One table per file shows, for each entry, its kind (regression: a value
+pinned from the code's own output; reference: an exact or published value, whose source
+is printed under the table), expected vs obtained values and the verdict; the exit code is
+1 if any expectation fails or any run fails, 0 if all pass.
 Example: multilayer check scenarios/*.yaml
 """
 
@@ -17,7 +19,7 @@ from multilayer.errors import InputError, RunError
 from multilayer.io import scenario as scenarios
 from multilayer.testing import expectations as expect
 
-HELP = "run scenario files and check their expect: lists (regression tests)"
+HELP = "run scenario files and check their expect: lists (regression pins and reference values)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -44,7 +46,7 @@ def main(args: argparse.Namespace) -> int:
         if not scenario.expect:
             errors.append(
                 f"{path}: expect: no expectations to check; accepted: a scenario "
-                "with a non-empty expect list of {quantity, value, rtol, atol}"
+                "with a non-empty expect list of {kind, quantity, value, rtol, atol, source}"
             )
             continue
         loaded.append(scenario)
