@@ -49,14 +49,14 @@ def _scenario(expect: list[dict] | None) -> dict:
     return data
 
 
-EXACT = "Bouchut, Ionescu & Mangeney (2016), Prop. 2.2"
+SOURCE = "Bouchut, Ionescu & Mangeney (2016), Prop. 2.2"
 TRUE = [
     {
         "kind": "reference",
         "quantity": "max_speed_final",
         "value": EXACT_MAX_SPEED,
         "rtol": 1e-3,
-        "source": EXACT,
+        "source": SOURCE,
     },
     {"kind": "regression", "quantity": "mass_final", "value": H * 0.02, "rtol": 1e-9},
 ]
@@ -66,7 +66,7 @@ FALSE = [
         "quantity": "max_speed_final",
         "value": EXACT_MAX_SPEED,
         "rtol": 1e-3,
-        "source": EXACT,
+        "source": SOURCE,
     },
     {"kind": "regression", "quantity": "mass_final", "value": 2 * H * 0.02, "rtol": 0.01},
 ]
@@ -140,7 +140,7 @@ def test_check_passes_true_expectation(tmp_path, capsys):
     assert cli.main(["check", path]) == 0
     out = capsys.readouterr().out
     assert "2/2 expectations met (1/1 regression, 1/1 reference)" in out and "FAILED" not in out
-    assert f"reference max_speed_final: {EXACT}" in out
+    assert f"reference max_speed_final: {SOURCE}" in out
 
 
 def test_check_fails_false_expectation(tmp_path, capsys):

@@ -454,7 +454,7 @@ class Expect(_Model):
         common = ("quantity", "value", "rtol", "atol")
         _check_kind(self, "kind", {"regression": ((), common), "reference": (("source",), common)})
         if self.source is not None and not self.source.strip():
-            raise _invalid("source is empty", self.model_fields["source"].description, "source")
+            raise _invalid("source is empty", "text naming the exact solution or publication", "source")
         return self
 
 

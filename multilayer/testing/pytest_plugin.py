@@ -102,6 +102,7 @@ class ScenarioItem(pytest.Item):
         self.index = index
 
     def runtest(self) -> None:
+        assert isinstance(self.parent, ScenarioFile)
         outcomes, text = self.parent.outcomes()
         if outcomes is None:
             raise ExpectationFailure(text)
