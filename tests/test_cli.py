@@ -127,13 +127,13 @@ INVALID = [
     ),
     (
         "expect without tolerance",
-        {"expect": [{"quantity": "runout", "value": 0.1}]},
+        {"expect": [{"kind": "regression", "quantity": "runout", "value": 0.1}]},
         "expect.0.rtol",
         "needs a tolerance",
     ),
     (
         "unknown expect quantity",
-        {"expect": [{"quantity": "speed", "value": 1, "rtol": 0.1}]},
+        {"expect": [{"kind": "regression", "quantity": "speed", "value": 1, "rtol": 0.1}]},
         "expect.0.quantity",
         "accepted: front_final, mass_final, runout",
     ),

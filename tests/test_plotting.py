@@ -2,14 +2,19 @@
 
 from __future__ import annotations
 
+import subprocess
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 import pytest
+import xarray as xr
+from matplotlib import animation
 from matplotlib.image import imread
+from PIL import Image
 
 from multilayer.app import runner
+from multilayer.io import plotting
 from multilayer.io import scenario as scenarios
 from multilayer.io.results import open_result
 
@@ -56,19 +61,119 @@ def slump_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return outdir
 
 
-def _assert_figures(directory: Path, names: list[str]) -> None:
-    assert sorted(p.name for p in (directory / "plots").iterdir()) == sorted(names)
+FIGURES = ["section", "thickness", "front", "mass", "profiles", "static_interface"]
+
+
+def _assert_figures(directory: Path, names: list[str], fmt: str = "png") -> None:
+    assert sorted(p.name for p in (directory / "plots").glob(f"*.{fmt}")) == sorted(
+        f"{n}.{fmt}" for n in names
+    )
     for name in names:
-        image = imread(directory / "plots" / name)
+        image = imread(directory / "plots" / f"{name}.png")
         assert image.shape[0] > 300 and image.shape[1] > 500, name
         assert image[..., :3].std() > 0.05, f"{name} is blank"
 
 
-def test_plot_multi_column_run(slump_dir: Path, cli) -> None:
-    result = cli("plot", slump_dir)
+def test_plot_multi_column_run_with_animation(slump_dir: Path, cli, monkeypatch) -> None:
+    """The figures, and an animation with one frame per output time."""
+    monkeypatch.setattr(animation.writers, "is_available", lambda name: False)  # GIF, always available
+    result = cli("plot", slump_dir, "--animate")
     assert result.code == 0, result.err
-    _assert_figures(slump_dir, ["section.png", "thickness.png", "front_mass.png"])
-    assert "section.png" in result.out
+    gif = slump_dir / "plots" / "section.gif"
+    assert "section.png" in result.out and str(gif) in result.out
+    with Image.open(gif) as movie:
+        assert movie.n_frames == open_result(slump_dir).sizes["time"] == 4
+    gif.unlink()
+    _assert_figures(slump_dir, FIGURES)
+
+
+def test_section_states_slope_and_vertical_exaggeration(slump_dir: Path) -> None:
+    ds = open_result(slump_dir)
+    fig = plotting.section_figure(ds, "slump", times=2)
+    # x spans 0.3 m, z about 0.06 m: 0.22 * 0.3 / 0.06 = 1.1, rounded down to 1; 0.6 m wide: 2
+    assert plotting.vertical_exaggeration(0.3, 0.06) == 1 and plotting.vertical_exaggeration(0.6, 0.06) == 2
+    assert plotting.vertical_exaggeration(1.5, 0.15) == 2 and plotting.vertical_exaggeration(10, 0.05) == 20
+    factor = plotting.vertical_exaggeration(0.3, np.ptp(plotting._section_limits(ds)[1]))
+    title = fig.get_suptitle()
+    assert "inclined at 25 deg" in title and f"vertical exaggeration x{factor:g}" in title
+    assert all(ax.get_aspect() == factor for ax in fig.axes[:2])
+    mass = plotting.mass_figure(ds, "slump")
+    assert mass.axes[0].get_ylabel() == "volume per unit width V (m$^2$)"
+
+
+def test_front_velocity_is_the_time_derivative_of_the_front() -> None:
+    t = np.linspace(0.0, 1.0, 11)
+    ds = xr.Dataset({"front": ("time", 0.1 + 0.5 * t - 0.2 * t**2)}, coords={"time": t})
+    # centred differences are exact for a parabola inside; one-sided ones at the ends
+    np.testing.assert_allclose(plotting.front_velocity(ds)[1:-1], 0.5 - 0.4 * t[1:-1], rtol=1e-12)
+
+
+def test_plot_at_chosen_positions_and_formats(slump_dir: Path, cli, tmp_path: Path) -> None:
+    result = cli("plot", slump_dir, "--at", "0.055", "--at", "0.0551", "--at", "0.205", "--format", "svg")
+    assert result.code == 0, result.err
+    names = sorted(p.name for p in (slump_dir / "plots").glob("*.svg"))
+    assert names == sorted(f"{n}.svg" for n in FIGURES)
+    assert (slump_dir / "plots" / "profiles.svg").read_text().lstrip().startswith("<?xml")
+    ds = open_result(slump_dir)
+    assert plotting.column_indices(ds, [0.055, 0.0551, 0.205, 0.3]) == [5, 20, 29]  # same cell once
+    result = cli("plot", slump_dir, "--at", "0.5")
+    assert result.code == 2
+    assert "--at 0.5: outside the domain; accepted: a position in [0, 0.3] (m)" in result.err
+    assert cli("plot", slump_dir, "--format", "jpg").code == 2
+
+
+@pytest.mark.skipif(not animation.writers.is_available("ffmpeg"), reason="ffmpeg is not installed")
+def test_mp4_animation_with_ffmpeg(slump_dir: Path, cli) -> None:
+    assert cli("plot", slump_dir, "--animate").code == 0
+    mp4 = slump_dir / "plots" / "section.mp4"
+    frames = subprocess.run(
+        [
+            "ffprobe",
+            "-v",
+            "error",
+            "-count_frames",
+            "-select_streams",
+            "v:0",
+            "-show_entries",
+            "stream=nb_read_frames",
+            "-of",
+            "csv=p=0",
+            str(mp4),
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
+    assert int(frames) == 4
+
+
+def test_plot_periodic_multi_column_run(tmp_path: Path, cli) -> None:
+    """Inviscid simple shear on 4 periodic columns: every column stops from below as
+    U0(b(t)) = S t (Bouchut et al. 2016, Prop. 2.2); the profile figures show it anywhere."""
+    runner.run(
+        scenarios.from_dict(SHEAR, overrides=["domain.cells=4", "domain.x_max=0.04"]), tmp_path, quiet=True
+    )
+    ds = open_result(tmp_path)
+    s = 9.81 * np.cos(np.radians(20)) * (0.5 - np.tan(np.radians(20)))
+    exact = 0.002 + s * ds["time"].values / 70
+    for i in range(4):
+        np.testing.assert_allclose(ds["static_interface"][:, i], exact, atol=0.0005)
+    assert plotting.representative_columns(ds) == [0, 2, 3]  # 3 of the 4
+    fig = plotting.profiles_figure(ds, "shear", [1, 3], times=3)
+    assert [ax.get_title() for ax in fig.axes] == ["x = 0.015 m (cell 1)", "x = 0.035 m (cell 3)"]
+    final = fig.axes[1].get_lines()[2]  # last of the 3 times at cell 3
+    np.testing.assert_array_equal(final.get_xdata(), ds["u"].values[-1, :, 3])
+    np.testing.assert_allclose(final.get_ydata(), ds["h"].values[-1, 3] * ds["sigma"].values)
+    b_t = plotting.static_interface_figure(ds, "shear", [2]).axes[0].get_lines()[1]
+    np.testing.assert_array_equal(b_t.get_ydata(), ds["static_interface"].values[:, 2])
+
+
+def test_representative_columns_spread_over_the_deposit(slump_dir: Path) -> None:
+    ds = open_result(slump_dir)
+    wet = np.flatnonzero(ds["h"].values[-1] > ds["front"].attrs["threshold"])
+    picks = plotting.representative_columns(ds)
+    assert len(picks) == 3 and set(picks) <= set(wet) and picks == sorted(picks)
+    assert picks[0] < np.median(wet) < picks[-1]
 
 
 def test_plot_single_column_run(tmp_path: Path, cli) -> None:
@@ -78,9 +183,7 @@ def test_plot_single_column_run(tmp_path: Path, cli) -> None:
     s = 9.81 * np.cos(np.radians(20)) * (0.5 - np.tan(np.radians(20)))
     np.testing.assert_allclose(ds["static_interface"][:, 0], 0.002 + s * ds["time"] / 70, atol=0.0005)
     assert cli("plot", tmp_path).code == 0
-    _assert_figures(
-        tmp_path, ["section.png", "thickness.png", "front_mass.png", "profiles.png", "static_interface.png"]
-    )
+    _assert_figures(tmp_path, FIGURES)
 
 
 def test_plot_without_a_result_is_an_input_error(tmp_path: Path, cli) -> None:

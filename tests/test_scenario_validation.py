@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 import yaml
@@ -75,17 +77,29 @@ def test_apply_overrides_leaves_input_untouched(tiny_scenario):
     assert data["initial"][0]["height"] == 0.2 and tiny_scenario["initial"][0]["height"] == 0.05
 
 
+def test_set_appends_to_a_list(write_scenario, tiny_scenario):
+    """``KEY+=VALUE`` appends: a layer added under the column makes it thicker everywhere."""
+    path = write_scenario(tiny_scenario)
+    sc = load(path, ["initial+={shape: layer, thickness: 0.002}", "initial.1.thickness=0.003"])
+    assert [e.shape for e in sc.initial] == ["rectangle", "layer"] and sc.initial[1].thickness == 0.003
+    sc = load(path, ["expect+={kind: regression, quantity: mass_final, value: 0.005, rtol: 1e-9}"])  # created
+    assert sc.expect[0].quantity == "mass_final"
+    with pytest.raises(InputError, match=r"initial\.1\.thickness \(from --set\): Input should be greater"):
+        load(path, ["initial+={shape: layer, thickness: -1}"])
+
+
 @pytest.mark.parametrize(
     "override, message",
     [
         ("domain", "expected KEY=VALUE"),
+        ("domain.cells+=3", "--set domain.cells+=...: domain.cells is not a list; accepted: += on a list"),
         ("initial.3.height=1", "--set initial.3.height: initial has 1 entries; accepted indices: 0..0"),
         ("name.first=x", "--set name.first: name is a value, not a mapping"),
         ("domain.cells=[1", "--set domain.cells: malformed YAML value"),
     ],
 )
 def test_malformed_overrides(write_scenario, tiny_scenario, override, message):
-    with pytest.raises(InputError, match=message.replace(".", r"\.").replace("[", r"\[")):
+    with pytest.raises(InputError, match=re.escape(message)):
         load(write_scenario(tiny_scenario), [override])
 
 
@@ -139,7 +153,10 @@ def test_resolved_yaml_round_trip(tiny_scenario):
                 "velocity": {"profile": "linear", "shear_rate": 5.0},
             }
         ],
-        expect=[{"quantity": "runout", "value": 0.1, "atol": 0.01}],
+        expect=[
+            {"kind": "regression", "quantity": "runout", "value": 0.1, "atol": 0.01},
+            {"kind": "reference", "quantity": "mass_final", "value": 0.1, "rtol": 0.1, "source": "a paper"},
+        ],
     )
     sc = from_dict(tiny_scenario)
     again = Scenario.model_validate(yaml.safe_load(sc.resolved_yaml()))

@@ -5,6 +5,7 @@ Each file's ``expect:`` entries are of two kinds, tested separately: ``regressio
 exact solution or a published result, with its source: a validation).  Each file runs once.
 """
 
+import dataclasses
 import functools
 from pathlib import Path
 
@@ -31,6 +32,7 @@ def _path(name: str) -> Path:
 
 
 def test_library_is_complete_and_valid(capsys):
+    """The scenario files lie directly in scenarios/; sweep files in scenarios/sweeps/."""
     assert sorted(p.stem for p in SCENARIOS.glob("*.yaml")) == sorted(NAMES)
     assert cli.main(["validate", *map(str, map(_path, NAMES))]) == 0
     assert capsys.readouterr().out.count(": ok (") == len(NAMES)
@@ -81,3 +83,32 @@ def test_regression_pins_hold(name):
     """Change detection: the values pinned from the code's own output at the file's resolution."""
     outcomes = _outcomes(name)
     assert all(o.passed for o in outcomes if o.kind == "regression"), expect.report(name, outcomes)
+
+
+SWEEPS = sorted((SCENARIOS / "sweeps").glob("*.yaml"))
+COARSE = {"domain.cells": [12], "domain.layers": [2], "time.end": [0.02], "time.output_interval": [0.02]}
+"""Added to a shipped sweep to run every member in a fraction of a second."""
+
+
+@pytest.mark.parametrize("path", SWEEPS, ids=[p.stem for p in SWEEPS])
+def test_shipped_sweep_is_valid_and_runs_small(path, tmp_path):
+    """Every member is a valid scenario; a coarse copy of the sweep runs all of them."""
+    from dask.distributed import LocalCluster
+
+    from multilayer.app import sweep
+
+    plan = sweep.load(path)
+    assert plan.base.parent.resolve() == SCENARIOS
+    members = plan.members()
+    for member in members:
+        scenarios.load(plan.base, member.overrides)
+    repeat = len(members) if plan.paired else 1  # zipped lists stay of equal length
+    coarse = dataclasses.replace(
+        plan, parameters={**plan.parameters, **{k: v * repeat for k, v in COARSE.items()}}
+    )
+    assert len(coarse.members()) == len(members)
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0") as cluster:
+        outcomes = sweep.run(coarse, tmp_path, scheduler=cluster.scheduler_address)
+    assert [o.status for o in outcomes] == ["ok"] * len(members), [o.error for o in outcomes]
+    sweep.write_summary(coarse, outcomes, tmp_path / "summary.csv")
+    assert len((tmp_path / "summary.csv").read_text().splitlines()) == len(members) + 1

@@ -32,6 +32,8 @@ def run(name: str, *overrides: str) -> Simulation:
 
 
 def test_ritter_dam_break_order_at_high_resolution():
+    """Order about 1 is expected (kinks at the fan edges, a dry front); at high resolution
+    the pre-asymptotic allowance of the default test (0.8) narrows to 0.9."""
     errors = np.array([ritter_error(n, order=2) for n in (400, 800, 1600)])
     assert np.all(np.log2(errors[:-1] / errors[1:]) >= 0.9)
 
@@ -148,7 +150,7 @@ def test_jop_law_at_its_alpha_minus_one_asymptote_forms_no_wall_layer():
 
 
 def test_bagnold_profile_converges_with_the_layers():
-    """Layer velocities against Bagnold's profile averaged over each layer: second order."""
+    """Layer velocities against Bagnold's profile averaged over each layer (eq. 4.1)."""
     errors = []
     for layers in (10, 20, 40):
         sim = run("bagnold_chute", f"domain.layers={layers}")
@@ -161,7 +163,10 @@ def test_bagnold_profile_converges_with_the_layers():
         exact = flow.layer_means(sim.mesh.interfaces * h)
         errors.append(np.abs(sim.u[:, 0] - exact).max() / exact.max())
     orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
-    assert errors[-1] < 0.005
+    # the report's criterion for "met" (docs/validation.md, Bagnold section): 2 % of u_s
+    assert errors[-1] < 0.02
+    # the (h - z)^(3/2) term has an unbounded curvature at the surface, which caps the order
+    # of the layer discretisation near 3/2 (second order elsewhere): require at least 1.3
     assert np.all(orders > 1.3)
 
 

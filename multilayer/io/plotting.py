@@ -1,55 +1,102 @@
-"""Figures of a result file, drawn with Matplotlib's Agg canvas (no display needed).
+"""Figures and animations of a result file, drawn with Matplotlib's Agg canvas (no display).
 
 Every layer is drawn where it is: cell ``(alpha, i)`` spans
 ``z = b_i + h_i * sigma_{alpha -/+ 1/2}`` over the cell ``[x_{i-1/2}, x_{i+1/2}]``, with
-``z`` normal to the inclined plane (docs/model.md).
+``x`` along the inclined plane and ``z`` normal to it (docs/model.md).  The figures and
+what they show are listed in docs/results.md.
 """
 
 from __future__ import annotations
 
+import math
 import os
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 import yaml
-from matplotlib import colormaps
+from matplotlib import animation, colormaps
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import QuadMesh
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
+from multilayer.errors import InputError
 from multilayer.io.results import open_result
 
 PLOTS_DIR = "plots"
 _AT_REST = "0.82"
 _VELOCITY = colormaps["viridis"].with_extremes(bad=_AT_REST)
 """Colour map of u; masked cells (static material, u == 0 exactly) are grey."""
+_REPRESENTATIVE = 3
+"""Number of columns drawn in the profile figures when no ``--at`` is given."""
 
 
-def plot_run(directory: str | os.PathLike, times: int = 4) -> list[Path]:
+def plot_run(
+    directory: str | os.PathLike,
+    times: int = 4,
+    at: Sequence[float] = (),
+    fmt: str = "png",
+    animate: bool = False,
+) -> list[Path]:
     """Write the figures of ``directory/result.nc`` into ``directory/plots/``.
 
-    Always: ``section.png`` (X-Z section at ``times`` times), ``thickness.png``
-    (h(x)) and ``front_mass.png``; for single-column runs also ``profiles.png``
-    (u(z) at several times) and ``static_interface.png`` (b(t) and h(t)).
-    Returns the paths written.
+    ``section`` (X-Z section at ``times`` times), ``thickness`` (h(x)), ``front``
+    (x_f(t) and u_f(t)), ``mass`` (volume per unit width), ``profiles`` (u(z) at the
+    columns ``at``, default: :func:`representative_columns`) and ``static_interface``
+    (b(t) and h(t) at the same columns), as ``fmt`` files; with ``animate`` also the
+    section over time (:func:`animate_section`).  Returns the paths written.
     """
     ds = open_result(directory)
     out = Path(directory) / PLOTS_DIR
     out.mkdir(exist_ok=True)
     name = yaml.safe_load(ds.attrs["scenario"])["name"]
+    columns = column_indices(ds, at) if at else representative_columns(ds)
     figures = {
-        "section.png": section_figure(ds, name, times),
-        "thickness.png": thickness_figure(ds, name, times + 2),
-        "front_mass.png": front_mass_figure(ds, name),
+        "section": section_figure(ds, name, times),
+        "thickness": thickness_figure(ds, name, times + 2),
+        "front": front_figure(ds, name),
+        "mass": mass_figure(ds, name),
+        "profiles": profiles_figure(ds, name, columns, times + 2),
+        "static_interface": static_interface_figure(ds, name, columns),
     }
-    if ds.sizes["x"] == 1:
-        figures["profiles.png"] = profiles_figure(ds, name, times + 2)
-        figures["static_interface.png"] = static_interface_figure(ds, name)
     paths = []
-    for filename, fig in figures.items():
-        fig.savefig(out / filename, dpi=120)
-        paths.append(out / filename)
+    for stem, fig in figures.items():
+        path = out / f"{stem}.{fmt}"
+        fig.savefig(path, dpi=120, format=fmt)
+        paths.append(path)
+    if animate:
+        paths.append(animate_section(ds, name, out / "section"))
     return paths
+
+
+def column_indices(ds: xr.Dataset, at: Sequence[float]) -> list[int]:
+    """Indices of the cells holding the downslope positions ``at`` (m); InputError outside."""
+    edges = ds["x_bnds"].values
+    lo, hi = float(edges[0, 0]), float(edges[-1, 1])
+    indices = []
+    for x in at:
+        if not lo <= x <= hi:
+            raise InputError(f"--at {x:g}: outside the domain; accepted: a position in [{lo:g}, {hi:g}] (m)")
+        indices.append(int(np.clip(np.searchsorted(edges[:, 1], x), 0, ds.sizes["x"] - 1)))
+    return list(dict.fromkeys(indices))
+
+
+def representative_columns(ds: xr.Dataset, count: int = _REPRESENTATIVE) -> list[int]:
+    """``count`` columns spread over the material: at 1/6, 1/2 and 5/6 (for 3) of the cells
+    holding material (h above the front threshold) at the last output time, or at any
+    time if none does then; every column if there are no more than ``count``."""
+    h = ds["h"].values
+    wet = h[-1] > ds["front"].attrs["threshold"]
+    if not wet.any():
+        wet = (h > ds["front"].attrs["threshold"]).any(axis=0)
+    cells = np.flatnonzero(wet) if wet.any() else np.arange(ds.sizes["x"])
+    if cells.size <= count:
+        return cells.tolist()
+    picks = ((np.arange(count) + 0.5) / count * cells.size).astype(int)
+    return cells[picks].tolist()
 
 
 def _time_indices(ds: xr.Dataset, n: int) -> np.ndarray:
@@ -62,39 +109,143 @@ def _staircase(ds: xr.Dataset, values: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return ds["x_bnds"].values.ravel(), np.repeat(values, 2, axis=-1)
 
 
-def section_figure(ds: xr.Dataset, name: str, times: int = 4) -> Figure:
-    """X-Z sections: layers coloured by u, bed, free surface and static interface."""
-    picks = _time_indices(ds, times)
-    fig = Figure(figsize=(9, 2.2 * len(picks) + 1), layout="constrained")
-    axes = fig.subplots(len(picks), 1, sharex=True, sharey=True, squeeze=False)[:, 0]
-    u = ds["u"].values[picks]
-    vmin, vmax = min(u.min(), 0.0), max(u.max(), 1e-12)
+def _dashes(ds: xr.Dataset, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(x, values) drawing a cell field as one level segment per cell, not joined."""
+    edges = ds["x_bnds"].values
+    x = np.column_stack([edges, np.full(len(edges), np.nan)]).ravel()
+    y = np.column_stack([values, values, np.full(len(values), np.nan)]).ravel()
+    return x, y
+
+
+def vertical_exaggeration(width: float, height: float, aspect: float = 0.22) -> float:
+    """A round factor (1, 2 or 5 x 10^k, at least 1) stretching z so that a section
+    ``width`` long and ``height`` high is drawn about ``aspect`` times as high as wide."""
+    wanted = aspect * width / max(height, 1e-12)
+    if wanted <= 1:
+        return 1.0
+    decade = 10 ** math.floor(math.log10(wanted))
+    return max(f * decade for f in (1, 2, 5) if f * decade <= wanted)
+
+
+def _section_limits(ds: xr.Dataset) -> tuple[tuple[float, float], tuple[float, float]]:
+    """x and z limits holding the bed and the free surface at every output time."""
+    bed = ds["bed"].values
+    top = float(np.max(bed + ds["h"].values))
+    low = float(bed.min())
+    pad = 0.05 * max(top - low, 1e-6)
+    edges = ds["x_bnds"].values
+    return (float(edges[0, 0]), float(edges[-1, 1])), (low - pad, top + pad)
+
+
+def _draw_section(ax: Axes, ds: xr.Dataset, k: int, vmin: float, vmax: float) -> QuadMesh:
+    """One X-Z section at output time ``k``: layers coloured by u, bed, surface, static top."""
+    snap = ds.isel(time=k)
     sig = ds["sigma_bnds"].values
     edges = np.append(sig[:, 0], sig[-1, 1])
     bed = ds["bed"].values
+    h = snap["h"].values
+    z = bed + h * edges[:, None]  # (L+1, N) interface heights
+    xs, zs = _staircase(ds, z)
+    # odd columns join neighbouring cells: zero width, never seen
+    colour = np.ma.masked_all((ds.sizes["layer"], xs.size - 1))
+    colour[:, ::2] = np.ma.masked_equal(snap["u"].values, 0.0)  # static: grey
+    mesh = ax.pcolormesh(xs, zs, colour, cmap=_VELOCITY, vmin=vmin, vmax=vmax)
+    ax.plot(*_staircase(ds, bed), color="k", lw=1.2, label="bed", zorder=3)
+    ax.plot(*_staircase(ds, bed + h), color="tab:blue", lw=1.0, label="free surface")
+    wet = h > ds["front"].attrs["threshold"]
+    static = np.where(wet, bed + snap["static_interface"].values, np.nan)
+    ax.plot(*_dashes(ds, static), color="tab:red", lw=1.2, label="top of the static region, per column")
+    ax.set_ylabel("z normal to the plane (m)")
+    return mesh
+
+
+def _section_note(ds: xr.Dataset, exaggeration: float) -> str:
+    """What the section axes are: slope of the plane and vertical exaggeration."""
+    slope = yaml.safe_load(ds.attrs["scenario"]).get("slope_deg", 0.0)
+    return (
+        f"x along the plane inclined at {slope:g} deg, z normal to it; "
+        f"vertical exaggeration x{exaggeration:g}"
+    )
+
+
+def _moving_note(snap: xr.Dataset) -> str:
+    """Where material still moves at an output time: the number of columns and the top speed."""
+    speed = np.abs(snap["u"].values).max(axis=0)
+    moving = int(np.count_nonzero(speed))
+    if not moving:
+        return "all at rest"
+    return f"{moving} column{'s' * (moving > 1)} moving, max |u| = {_speed_text(speed.max())}"
+
+
+def _speed_text(speed: float) -> str:
+    return f"{speed * 1e3:.2g} mm/s" if speed < 0.01 else f"{speed:.3g} m/s"
+
+
+def section_figure(ds: xr.Dataset, name: str, times: int = 4) -> Figure:
+    """X-Z sections at ``times`` output times, z exaggerated by a stated round factor."""
+    picks = _time_indices(ds, times)
+    (x0, x1), (z0, z1) = _section_limits(ds)
+    exaggeration = vertical_exaggeration(x1 - x0, z1 - z0)
+    panel = min(8.0 * exaggeration * (z1 - z0) / (x1 - x0), 2.5)
+    fig = Figure(figsize=(10, (panel + 0.55) * len(picks) + 1.2), layout="constrained")
+    axes = fig.subplots(len(picks), 1, sharex=True, sharey=True, squeeze=False)[:, 0]
+    u = ds["u"].values[picks]
+    vmin, vmax = min(u.min(), 0.0), max(u.max(), 1e-12)
     for ax, k in zip(axes, picks):
+        mesh = _draw_section(ax, ds, k, vmin, vmax)
+        ax.set_aspect(exaggeration)
+        ax.set_xlim(x0, x1)
+        ax.set_ylim(z0, z1)
         snap = ds.isel(time=k)
-        h = snap["h"].values
-        z = bed + h * edges[:, None]  # (L+1, N) interface heights
-        xs, zs = _staircase(ds, z)
-        # odd columns join neighbouring cells: zero width, never seen
-        colour = np.ma.masked_all((ds.sizes["layer"], xs.size - 1))
-        colour[:, ::2] = np.ma.masked_equal(snap["u"].values, 0.0)  # static: grey
-        mesh = ax.pcolormesh(xs, zs, colour, cmap=_VELOCITY, vmin=vmin, vmax=vmax)
-        ax.plot(*_staircase(ds, bed), color="k", lw=1.2, label="bed", zorder=3)
-        ax.plot(*_staircase(ds, bed + h), color="tab:blue", lw=1.0, label="free surface")
-        wet = h > ds["front"].attrs["threshold"]
-        static = np.where(wet, bed + snap["static_interface"].values, np.nan)
-        ax.plot(*_staircase(ds, static), color="tab:red", lw=1.0, ls="--", label="static / flowing interface")
-        ax.set_title(f"t = {float(snap['time']):.3g} s", fontsize="medium")
-        ax.set_ylabel("z normal to slope (m)")
+        ax.set_title(f"t = {float(snap['time']):.3g} s: {_moving_note(snap)}", fontsize="medium")
     handles, _ = axes[0].get_legend_handles_labels()
     handles.append(Patch(color=_AT_REST, label="at rest (u = 0)"))
-    axes[0].legend(handles=handles, loc="upper right", fontsize="small")
-    axes[-1].set_xlabel("x along slope (m)")
-    fig.colorbar(mesh, ax=list(axes), label="downslope velocity u (m/s)")
-    fig.suptitle(f"{name}: X-Z section")
+    fig.legend(handles=handles, loc="outside lower center", ncols=4, fontsize="small")
+    axes[-1].set_xlabel("x along the plane (m)")
+    fig.colorbar(mesh, ax=list(axes), label="downslope velocity u (m/s)", shrink=0.9)
+    fig.suptitle(f"{name}: X-Z section\n{_section_note(ds, exaggeration)}", fontsize="medium")
     return fig
+
+
+def animate_section(ds: xr.Dataset, name: str, stem: Path, fps: int = 10) -> Path:
+    """The X-Z section at every output time, one frame each, with the time as a label.
+
+    Written as ``stem.mp4`` when Matplotlib finds ffmpeg, else as ``stem.gif`` (Pillow,
+    installed with Matplotlib).  Returns the path written.
+    """
+    (x0, x1), (z0, z1) = _section_limits(ds)
+    exaggeration = vertical_exaggeration(x1 - x0, z1 - z0)
+    panel = min(8.0 * exaggeration * (z1 - z0) / (x1 - x0), 4.0)
+    fig = Figure(figsize=(10, panel + 1.6), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    u = ds["u"].values
+    vmin, vmax = min(u.min(), 0.0), max(u.max(), 1e-12)
+    fig.colorbar(_draw_section(ax, ds, 0, vmin, vmax), ax=ax, label="downslope velocity u (m/s)", shrink=0.9)
+    fig.suptitle(f"{name}: X-Z section\n{_section_note(ds, exaggeration)}", fontsize="medium")
+
+    def frame(k: int) -> None:
+        ax.clear()
+        _draw_section(ax, ds, k, vmin, vmax)
+        ax.set_aspect(exaggeration)
+        ax.set_xlim(x0, x1)
+        ax.set_ylim(z0, z1)
+        ax.set_xlabel("x along the plane (m)")
+        snap = ds.isel(time=k)
+        ax.set_title(f"t = {float(snap['time']):.2f} s: {_moving_note(snap)}", loc="left", fontsize="medium")
+
+    frame(0)
+    fig.canvas.draw()
+    fig.set_layout_engine("none")  # the layout of the first frame holds for all
+
+    movie = animation.FuncAnimation(fig, frame, frames=ds.sizes["time"], repeat=False)
+    writer: animation.AbstractMovieWriter
+    if animation.writers.is_available("ffmpeg"):
+        path, writer = stem.with_suffix(".mp4"), animation.FFMpegWriter(fps=fps)
+    else:
+        path, writer = stem.with_suffix(".gif"), animation.PillowWriter(fps=fps)
+    movie.save(path, writer=writer, dpi=100)
+    return path
 
 
 def thickness_figure(ds: xr.Dataset, name: str, times: int = 6) -> Figure:
@@ -112,57 +263,102 @@ def thickness_figure(ds: xr.Dataset, name: str, times: int = 6) -> Figure:
             color=_shade(j, len(picks)),
             label=f"t = {float(snap['time']):.3g} s",
         )
-    ax.set_xlabel("x along slope (m)")
-    ax.set_ylabel("thickness h (m)")
+    ax.set_xlabel("x along the plane (m)")
+    ax.set_ylabel("thickness h normal to the plane (m)")
     ax.legend(fontsize="small")
     ax.set_title(f"{name}: thickness profiles")
     return fig
 
 
-def front_mass_figure(ds: xr.Dataset, name: str) -> Figure:
-    """Front position and mass against time (mass should stay constant)."""
+def front_velocity(ds: xr.Dataset) -> np.ndarray:
+    """Front velocity u_f = dx_f/dt (m/s) by finite differences between output times
+    (centred inside, one-sided at the ends; the front moves by whole cells)."""
+    t = ds["time"].values
+    if t.size < 2:
+        return np.zeros_like(t)
+    return np.gradient(ds["front"].values, t)
+
+
+def front_figure(ds: xr.Dataset, name: str) -> Figure:
+    """Front position x_f(t) and front velocity u_f(t)."""
     fig = Figure(figsize=(8, 5.5), layout="constrained")
-    ax_front, ax_mass = fig.subplots(2, 1, sharex=True)
+    ax_front, ax_speed = fig.subplots(2, 1, sharex=True)
     t = ds["time"].values
     ax_front.plot(t, ds["front"], marker=".")
-    ax_front.set_ylabel("front x (m)")
-    ax_front.set_title(f"front: h > {ds['front'].attrs['threshold']:g} m", fontsize="medium")
-    ax_mass.plot(t, ds["mass"], marker=".", color="tab:green")
-    ax_mass.set_ylabel("mass (m$^2$ per unit width)")
-    ax_mass.set_xlabel("time t (s)")
-    fig.suptitle(f"{name}: front and mass")
+    ax_front.set_ylabel("front x_f (m)")
+    ax_front.set_title(
+        f"front: downslope-most cell centre with h > {ds['front'].attrs['threshold']:g} m", fontsize="medium"
+    )
+    ax_speed.plot(t, front_velocity(ds), marker=".", color="tab:orange")
+    ax_speed.axhline(0.0, color="0.6", lw=0.8)
+    ax_speed.set_ylabel("front velocity u_f (m/s)")
+    ax_speed.set_title("u_f = dx_f/dt, finite differences between output times", fontsize="medium")
+    ax_speed.set_xlabel("time t (s)")
+    fig.suptitle(f"{name}: front")
     return fig
 
 
-def profiles_figure(ds: xr.Dataset, name: str, times: int = 6) -> Figure:
-    """Velocity profiles u(z) of the first column at several output times."""
-    fig = Figure(figsize=(6, 5.5), layout="constrained")
-    ax = fig.subplots()
+def mass_figure(ds: xr.Dataset, name: str) -> Figure:
+    """Volume per unit width V(t) = integral of h dx (m^2) and its relative change."""
+    fig = Figure(figsize=(8, 5.5), layout="constrained")
+    ax_volume, ax_change = fig.subplots(2, 1, sharex=True)
+    t = ds["time"].values
+    volume = ds["mass"].values
+    ax_volume.plot(t, volume, marker=".", color="tab:green")
+    ax_volume.set_ylabel("volume per unit width V (m$^2$)")
+    ax_volume.set_title("V = integral of h over x (the mass divided by the bulk density)", fontsize="medium")
+    change = (volume - volume[0]) / volume[0] if volume[0] else volume - volume[0]
+    ax_change.plot(t, change, marker=".", color="tab:green")
+    ax_change.set_ylabel("(V - V(0)) / V(0)" if volume[0] else "V - V(0) (m$^2$)")
+    ax_change.set_xlabel("time t (s)")
+    fig.suptitle(f"{name}: volume (inflow and outflow change it)")
+    return fig
+
+
+def _column_title(ds: xr.Dataset, i: int) -> str:
+    return f"x = {float(ds['x'][i]):.4g} m (cell {i})"
+
+
+def profiles_figure(ds: xr.Dataset, name: str, columns: Sequence[int], times: int = 6) -> Figure:
+    """Velocity profiles u(z) at the given columns, at several output times."""
+    fig = Figure(figsize=(4.2 * len(columns) + 0.6, 5.0), layout="constrained")
+    axes = fig.subplots(1, len(columns), sharey=False, squeeze=False)[0]
     picks = _time_indices(ds, times)
-    for j, k in enumerate(picks):
-        snap = ds.isel(time=k, x=0)
-        z = float(snap["h"]) * ds["sigma"].values
-        ax.plot(
-            snap["u"], z, marker=".", color=_shade(j, len(picks)), label=f"t = {float(snap['time']):.3g} s"
-        )
-    ax.set_xlabel("downslope velocity u (m/s)")
-    ax.set_ylabel("height above the bed z - b (m)")
-    ax.legend(fontsize="small")
-    ax.set_title(f"{name}: velocity profiles")
+    for ax, i in zip(axes, columns):
+        for j, k in enumerate(picks):
+            snap = ds.isel(time=k, x=i)
+            z = float(snap["h"]) * ds["sigma"].values
+            ax.plot(
+                snap["u"],
+                z,
+                marker=".",
+                color=_shade(j, len(picks)),
+                label=f"t = {float(snap['time']):.3g} s",
+            )
+        ax.axvline(0.0, color="0.6", lw=0.8)
+        ax.set_xlabel("downslope velocity u (m/s)")
+        ax.set_title(_column_title(ds, i), fontsize="medium")
+    axes[0].set_ylabel("height above the bed z - b, normal to the plane (m)")
+    axes[-1].legend(fontsize="small")
+    fig.suptitle(f"{name}: velocity profiles u(z) at the layer centres")
     return fig
 
 
-def static_interface_figure(ds: xr.Dataset, name: str) -> Figure:
-    """Static/flowing interface b(t) and thickness h(t) of the first column."""
-    fig = Figure(figsize=(7, 4.5), layout="constrained")
-    ax = fig.subplots()
-    col = ds.isel(x=0)
-    ax.plot(col["time"], col["h"], color="tab:blue", label="free surface h")
-    ax.plot(col["time"], col["static_interface"], color="tab:red", marker=".", label="static interface b(t)")
-    ax.set_xlabel("time t (s)")
-    ax.set_ylabel("height above the bed (m)")
-    ax.legend(fontsize="small")
-    ax.set_title(f"{name}: static / flowing interface")
+def static_interface_figure(ds: xr.Dataset, name: str, columns: Sequence[int]) -> Figure:
+    """Static/flowing interface b(t) and thickness h(t) at the given columns."""
+    fig = Figure(figsize=(4.2 * len(columns) + 0.6, 4.5), layout="constrained")
+    axes = fig.subplots(1, len(columns), squeeze=False)[0]
+    for ax, i in zip(axes, columns):
+        col = ds.isel(x=i)
+        ax.plot(col["time"], col["h"], color="tab:blue", label="free surface h")
+        ax.plot(
+            col["time"], col["static_interface"], color="tab:red", marker=".", label="static interface b(t)"
+        )
+        ax.set_xlabel("time t (s)")
+        ax.set_title(_column_title(ds, i), fontsize="medium")
+    axes[0].set_ylabel("height above the bed (m)")
+    axes[-1].legend(fontsize="small")
+    fig.suptitle(f"{name}: top of the static region b(t) (0: flowing down to the bed; h: at rest)")
     return fig
 
 

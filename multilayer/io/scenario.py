@@ -23,6 +23,7 @@ from pydantic import (
     PrivateAttr,
     Strict,
     ValidationError,
+    ValidationInfo,
     field_validator,
     model_serializer,
     model_validator,
@@ -30,6 +31,8 @@ from pydantic import (
 from pydantic_core import PydanticCustomError
 
 from multilayer.errors import InputError
+from multilayer.io import profiles
+from multilayer.io.files import read_text
 from multilayer.plugins import host as plugins
 from multilayer.plugins.contract import Material, Rheology
 
@@ -299,20 +302,109 @@ class BaseZone(_Model):
         return self
 
 
-class Bed(_Model):
-    """Bed elevation b(x) on the inclined plane: flat, or piecewise linear through points."""
+def _file_in(info: ValidationInfo, name: Path) -> Path:
+    """``name`` relative to the scenario file's directory (the working directory without one)."""
+    directory = (info.context or {}).get("directory") or Path.cwd()
+    return Path(directory) / name
 
-    profile: Literal["flat", "points"] | None = _field(None, "flat, or points (with points)")
+
+def _read_profile(read: typing.Callable[[], np.ndarray], key: str) -> list[list[float]]:
+    """Points of a profile read from a file: an :class:`InputError` (a bad file) becomes a
+    validation error of ``key``, reported with the scenario file and line."""
+    try:
+        return read().tolist()
+    except InputError as exc:
+        message, _, accepted = str(exc).partition("; accepted: ")
+        raise _invalid(message, accepted, key) from None
+
+
+class Bed(_Model):
+    """Bed elevation b(x) on the inclined plane: flat, piecewise linear through points, or
+    read from a CSV file or a GeoTIFF DEM (turned into ``points`` on loading)."""
+
+    profile: Literal["flat", "points", "file", "dem"] | None = _field(
+        None, "flat, points (with points), file (with file) or dem (with dem and polyline)"
+    )
     points: list[Point] | None = _field(None, "a list [[x, b], ...] with increasing x (m)")
+    file: Annotated[Path, Strict(False)] | None = _field(
+        None, "a CSV file with a header 'x (m), z (m)' (units m, cm, mm or km), relative to the scenario"
+    )
+    frame: Literal["slope", "map"] | None = _field(
+        None, "slope (x along the plane, z normal to it; default) or map (horizontal distance, elevation)"
+    )
+    dem: Annotated[Path, Strict(False)] | None = _field(
+        None, "a GeoTIFF DEM, relative to the scenario (needs pip install 'multilayer[dem]')"
+    )
+    polyline: list[Point] | None = _field(
+        None, "a list of at least 2 map points [[X, Y], ...] in the DEM's coordinates (m)"
+    )
+    spacing: float | None = _field(None, "a number > 0 (m); default: the DEM's pixel size", gt=0)
+
+    _map_points: np.ndarray | None = PrivateAttr(None)
+    """A map-frame profile [[s, Z], ...], turned into ``points`` with the scenario's slope."""
 
     @model_validator(mode="after")
-    def _check(self) -> Bed:
+    def _check(self, info: ValidationInfo) -> Bed:
         if self.profile is None:
-            self.profile = "flat" if self.points is None else "points"
-        _check_kind(self, "profile", {"flat": ((), ()), "points": (("points",), ())})
+            self.profile = (
+                "dem"
+                if self.dem is not None
+                else "file"
+                if self.file is not None
+                else "points"
+                if self.points is not None
+                else "flat"
+            )
+        _check_kind(
+            self,
+            "profile",
+            {
+                "flat": ((), ()),
+                "points": (("points",), ()),
+                "file": (("file",), ("frame",)),
+                "dem": (("dem", "polyline"), ("spacing",)),
+            },
+        )
+        if self.profile == "file":
+            path = _file_in(info, typing.cast(Path, self.file))
+            points = _read_profile(lambda: profiles.read_csv_profile(path, ("x", "z|b")), "file")
+            if self.frame == "map":
+                self._map_points = np.array(points, dtype=float)
+            else:
+                self.points = points
+        elif self.profile == "dem":
+            polyline = typing.cast(list[list[float]], self.polyline)
+            if len(polyline) < 2:
+                raise _invalid(
+                    "needs at least 2 points", "a list [[X, Y], ...] of 2 or more points", "polyline"
+                )
+            path = _file_in(info, typing.cast(Path, self.dem))
+            self._map_points = np.array(
+                _read_profile(lambda: profiles.read_dem_profile(path, polyline, self.spacing), "dem"),
+                dtype=float,
+            )
         if self.points is not None:
             _increasing(self.points, "points", "b")
         return self
+
+    def in_slope_frame(self, slope_deg: float) -> None:
+        """Turn a map-frame profile (``frame: map`` or a DEM) into slope-frame ``points``."""
+        map_points = self._map_points
+        if map_points is not None:
+            source = self.dem or self.file
+            self.points = _read_profile(
+                lambda: profiles.map_to_slope_frame(map_points, slope_deg, str(source)),
+                f"bed.{'dem' if self.dem else 'file'}",
+            )
+            self._map_points = None
+
+    @model_serializer(mode="wrap")
+    def _as_points(self, handler: typing.Callable[[Bed], dict[str, Any]]) -> dict[str, Any]:
+        """A bed read from a file is recorded as its points, so the record stands alone."""
+        data = handler(self)
+        if self.profile in ("file", "dem"):
+            return {"profile": "points", "points": data["points"]}
+        return data
 
 
 class Velocity(_Model):
@@ -349,17 +441,25 @@ class InitialShape(_Model):
     x_max: float | None = _field(None, "a number > x_min (m)")
     height: float | None = _field(None, "a number > 0 (m)", gt=0)
     points: list[Point] | None = _field(None, "a list [[x, h], ...] with increasing x, h >= 0 (m)")
+    file: Annotated[Path, Strict(False)] | None = _field(
+        None, "a CSV file with a header 'x (m), h (m)' (units m, cm, mm or km), relative to the scenario"
+    )
     velocity: Velocity | None = _field(None, "a velocity profile; default: at rest")
 
     @model_validator(mode="after")
-    def _check(self) -> InitialShape:
+    def _check(self, info: ValidationInfo) -> InitialShape:
+        if self.shape == "profile" and self.file is not None:
+            if self.points is not None:
+                raise _invalid("give points or file, not both", "points or file", "file")
+            path = _file_in(info, self.file)
+            self.points = _read_profile(lambda: profiles.read_csv_profile(path, ("x", "h")), "file")
         _check_kind(
             self,
             "shape",
             {
                 "layer": (("thickness",), ("velocity",)),
                 "rectangle": (("x_min", "x_max", "height"), ("velocity",)),
-                "profile": (("points",), ("velocity",)),
+                "profile": (("points",), ("velocity", "file")),
             },
         )
         if self.shape == "rectangle":
@@ -369,8 +469,16 @@ class InitialShape(_Model):
             assert self.points is not None  # required (checked above)
             _increasing(self.points, "points", "h")
             if any(h < 0 for _, h in self.points):
-                raise _invalid("negative thickness", "a list [[x, h], ...] with h >= 0", "points")
+                key = "file" if self.file is not None else "points"
+                raise _invalid("negative thickness", "a list [[x, h], ...] with h >= 0", key)
         return self
+
+    @model_serializer(mode="wrap")
+    def _as_points(self, handler: typing.Callable[[InitialShape], dict[str, Any]]) -> dict[str, Any]:
+        """A profile read from a file is recorded as its points, so the record stands alone."""
+        data = handler(self)
+        data.pop("file", None)
+        return data
 
 
 class Inflow(_Model):
@@ -521,6 +629,7 @@ class Scenario(_Model):
 
     @model_validator(mode="after")
     def _check(self) -> Scenario:
+        self.bed.in_slope_frame(self.slope_deg)
         if self.walls is not None and self.domain.width is None:
             raise _invalid(
                 "walls need the channel width domain.width",
@@ -613,15 +722,19 @@ def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> tuple[dic
 
     List entries are addressed by index (``initial.0.thickness``); missing mappings
     along the path are created, so keys unknown to the schema surface in validation.
+    ``"dotted.key+=value"`` appends ``value`` to the list at ``dotted.key`` (created if
+    missing): ``initial+={shape: layer, thickness: 0.002}``.
     """
     data = copy.deepcopy(data)
     paths: list[KeyPath] = []
     for item in overrides:
         key, sep, text = item.partition("=")
+        append = key.endswith("+")
+        key = key.removesuffix("+")
         if not sep or not key:
             raise InputError(
-                f"--set {item!r}: expected KEY=VALUE; accepted: a dotted key path "
-                "and a YAML value, e.g. domain.cells=200"
+                f"--set {item!r}: expected KEY=VALUE or KEY+=VALUE; accepted: a dotted key path "
+                "and a YAML value, e.g. domain.cells=200 or initial+={shape: layer, thickness: 0.002}"
             )
         try:
             value = yaml.load(text, Loader=Loader)
@@ -648,12 +761,21 @@ def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> tuple[dic
                     f"accepted: a key path ending at {_dotted(path)}"
                 )
             path = (*path, part)
-            if depth == len(parts) - 1:
-                node[part] = value
-            else:
+            if depth < len(parts) - 1:
                 if isinstance(node, dict) and node.get(part) is None:
                     node[part] = {}
                 node = node[part]
+            elif not append:
+                node[part] = value
+            else:
+                target = node[int(part)] if isinstance(node, list) else node.setdefault(part, [])
+                if not isinstance(target, list):
+                    raise InputError(
+                        f"--set {key}+=...: {_dotted(path)} is not a list; "
+                        f"accepted: += on a list key (initial, base, expect), = elsewhere"
+                    )
+                target.append(value)
+                path = (*path, len(target) - 1)
         paths.append(path)
     return data, paths
 
@@ -675,7 +797,8 @@ def from_dict(
     data, set_paths = apply_overrides(data, overrides)
     lines = lines or {}
     try:
-        scenario = Scenario.model_validate(data)
+        directory = Path(source).parent if source is not None else None
+        scenario = Scenario.model_validate(data, context={"directory": directory})
     except ValidationError as exc:
         messages = []
         for error in exc.errors():
@@ -696,14 +819,7 @@ def read_yaml(path: str | Path, kind: str = "scenario") -> tuple[Any, dict[KeyPa
     """The parsed YAML of ``path`` and the line of every key path; ``InputError`` if the
     file is missing, unreadable or malformed (``kind`` names the expected file)."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(f"{path}: file not found; accepted: a path to a {kind} YAML file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(
-            f"{path}: cannot read the file ({exc}); accepted: a readable UTF-8 YAML file"
-        ) from None
+    text = read_text(path, f"a path to a {kind} YAML file", "a readable UTF-8 YAML file")
     return _parse_yaml(text, str(path))
 
 

@@ -1,0 +1,167 @@
+"""Profiles read from files: CSV columns with units, and GeoTIFF DEMs sampled along a polyline.
+
+A CSV profile (docs/scenarios.md) has a header naming two columns with their units,
+``x (m), z (m)``, then one ``x, value`` pair per line; blank lines and lines starting
+with ``#`` are skipped.  A DEM profile samples the elevation of a GeoTIFF (read with the
+optional ``rasterio``, ``pip install 'multilayer[dem]'``) along a polyline in the DEM's
+map coordinates.  Profiles measured in the map frame (horizontal distance, vertical
+elevation) are turned into the slope frame of the model (x along the inclined plane,
+b normal to it) by :func:`map_to_slope_frame`.  Every problem raises
+:class:`~multilayer.errors.InputError` naming the file and the line.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from multilayer.errors import InputError
+from multilayer.io.files import read_text
+
+LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "km": 1e3}
+"""Units accepted in a CSV header, with their value in metres."""
+
+_HEADER_CELL = re.compile(r"^\s*([A-Za-z_]\w*)\s*[\(\[]\s*([A-Za-z]+)\s*[\)\]]\s*$")
+
+
+def read_csv_profile(path: str | Path, columns: Sequence[str]) -> np.ndarray:
+    """Points ``[[x, value], ...]`` (m) of a two-column CSV profile, x strictly increasing.
+
+    ``columns`` lists the accepted names of the two columns, e.g. ``("x", "z|b")``
+    (alternatives separated by ``|``); values are converted to metres from the units
+    of the header.
+    """
+    path = Path(path)
+    accepted_header = f"a header '{columns[0].split('|')[0]} (m), {columns[1].split('|')[0]} (m)'"
+    lines = read_text(path, f"a CSV file with {accepted_header}", "a readable UTF-8 CSV file").splitlines()
+    rows = [
+        (n, line) for n, line in enumerate(lines, 1) if line.strip() and not line.lstrip().startswith("#")
+    ]
+    if not rows:
+        raise InputError(f"{path}: empty file; accepted: {accepted_header} and at least 2 rows")
+    line_no, header = rows[0]
+    cells = header.split(",")
+    factors = []
+    for cell, names in zip(cells, columns) if len(cells) == 2 else ():
+        match = _HEADER_CELL.match(cell)
+        if not match or match[1] not in names.split("|") or match[2] not in LENGTH_UNITS:
+            break
+        factors.append(LENGTH_UNITS[match[2]])
+    if len(factors) != 2:
+        raise InputError(
+            f"{path}: line {line_no}: header {header.strip()!r} does not name the columns "
+            f"{' and '.join(columns)} with their units; accepted: {accepted_header} "
+            f"(units {', '.join(LENGTH_UNITS)})"
+        )
+    points: list[tuple[float, float]] = []
+    for line_no, line in rows[1:]:
+        fields = line.split(",")
+        try:
+            x, value = (float(f) for f in fields) if len(fields) == 2 else (math.nan, None)
+        except ValueError:
+            x = math.nan
+        if not (math.isfinite(x) and value is not None and math.isfinite(value)):
+            raise InputError(
+                f"{path}: line {line_no}: expected two numbers separated by a comma, got {line.strip()!r}; "
+                "accepted: 'x, value' rows of finite numbers"
+            )
+        if points and x * factors[0] <= points[-1][0]:
+            raise InputError(
+                f"{path}: line {line_no}: x = {x} does not increase; "
+                "accepted: rows with strictly increasing x"
+            )
+        points.append((x * factors[0], value * factors[1]))
+    if len(points) < 2:
+        raise InputError(f"{path}: {len(points)} data row(s); accepted: at least 2 rows after the header")
+    return np.asarray(points)
+
+
+def read_dem_profile(
+    path: str | Path, polyline: Sequence[Sequence[float]], spacing: float | None
+) -> np.ndarray:
+    """Map-frame profile ``[[s, Z], ...]`` of a GeoTIFF DEM along ``polyline``.
+
+    ``s`` is the horizontal distance along the polyline (map units, m) from its first
+    vertex and ``Z`` the elevation of band 1, interpolated bilinearly between pixel
+    centres every ``spacing`` (default: the smaller pixel size) and at every vertex.
+    """
+    try:
+        import rasterio
+    except ImportError:
+        raise InputError(
+            f"{path}: reading a GeoTIFF DEM needs the optional package rasterio; "
+            "accepted: install it with pip install 'multilayer[dem]', or give the bed as a CSV file"
+        ) from None
+    path = Path(path)
+    try:
+        with rasterio.open(path) as dem:
+            band = dem.read(1, masked=True).astype(float).filled(np.nan)
+            to_pixel = ~dem.transform  # map (X, Y) -> fractional (column, row) of pixel edges
+            pixel = min(abs(dem.transform.a), abs(dem.transform.e))
+    except rasterio.errors.RasterioError as exc:
+        raise InputError(f"{path}: cannot read the DEM ({exc}); accepted: a GeoTIFF file") from None
+    vertices = np.asarray(polyline, dtype=float)
+    step = spacing or pixel
+    xy, s = [vertices[0]], [0.0]
+    for start, end in zip(vertices[:-1], vertices[1:]):
+        length = float(np.hypot(*(end - start)))
+        count = max(1, math.ceil(length / step - 1e-9))
+        for k in range(1, count + 1):
+            xy.append(start + (end - start) * k / count)
+            s.append(s[-1] + length / count)
+    samples = np.asarray(xy)
+    col = to_pixel.a * samples[:, 0] + to_pixel.b * samples[:, 1] + to_pixel.c
+    row = to_pixel.d * samples[:, 0] + to_pixel.e * samples[:, 1] + to_pixel.f
+    z = _bilinear(band, row - 0.5, col - 0.5)
+    bad = np.flatnonzero(~np.isfinite(z))
+    if bad.size:
+        x0, y0 = samples[bad[0]]
+        raise InputError(
+            f"{path}: no elevation at ({x0:g}, {y0:g}), {s[bad[0]]:g} m along the polyline "
+            "(outside the DEM or a nodata pixel); accepted: a polyline inside the DEM's valid pixels"
+        )
+    return np.column_stack([s, z])
+
+
+def _bilinear(band: np.ndarray, row: np.ndarray, col: np.ndarray) -> np.ndarray:
+    """Bilinear interpolation of ``band`` at fractional pixel-centre indices; NaN outside."""
+    rows, cols = band.shape
+    r0 = np.clip(np.floor(row).astype(int), 0, max(rows - 2, 0))
+    c0 = np.clip(np.floor(col).astype(int), 0, max(cols - 2, 0))
+    fr, fc = row - r0, col - c0
+    r1, c1 = np.minimum(r0 + 1, rows - 1), np.minimum(c0 + 1, cols - 1)
+    value = (
+        band[r0, c0] * (1 - fr) * (1 - fc)
+        + band[r1, c0] * fr * (1 - fc)
+        + band[r0, c1] * (1 - fr) * fc
+        + band[r1, c1] * fr * fc
+    )
+    inside = (row >= -0.5) & (row <= rows - 0.5) & (col >= -0.5) & (col <= cols - 0.5)
+    return np.where(inside, value, np.nan)
+
+
+def map_to_slope_frame(points: np.ndarray, slope_deg: float, where: str) -> np.ndarray:
+    """Slope-frame bed ``[[x, b], ...]`` of a map-frame profile ``[[s, Z], ...]``.
+
+    With theta the slope (downhill towards +x) and the origin at the first point,
+    ``x = s cos(theta) - (Z - Z_0) sin(theta)`` along the plane and
+    ``b = s sin(theta) + (Z - Z_0) cos(theta)`` normal to it, so a plane descending at
+    theta is b = 0.  ``where`` names the source in the error raised when x does not
+    increase (terrain steeper than 90 degrees minus theta facing the flow).
+    """
+    theta = math.radians(slope_deg)
+    s, z = points[:, 0], points[:, 1] - points[0, 1]
+    x = s * math.cos(theta) - z * math.sin(theta)
+    b = s * math.sin(theta) + z * math.cos(theta)
+    folds = np.flatnonzero(np.diff(x) <= 0)
+    if folds.size:
+        raise InputError(
+            f"{where}: at {s[folds[0] + 1]:g} m along the profile the terrain rises more steeply than "
+            f"{90 - slope_deg:g} deg, so x along the {slope_deg:g} deg plane does not increase; "
+            "accepted: a profile whose x along the plane increases"
+        )
+    return np.column_stack([x, b])

@@ -1,0 +1,178 @@
+"""Bed and initial thickness from files: CSV profiles with units, GeoTIFF DEMs along a polyline."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import yaml
+
+from multilayer.engine.initial_state import bed_profile, initial_state
+from multilayer.errors import InputError
+from multilayer.io.scenario import from_dict, load
+
+X = np.linspace(0.005, 0.295, 30)  # cell centres of the tiny domain below
+
+
+def _scenario(write_scenario, tiny_scenario, **changes):
+    tiny_scenario.update(domain={"x_min": 0.0, "x_max": 0.3, "cells": 30, "layers": 3}, **changes)
+    return write_scenario(tiny_scenario)
+
+
+def test_csv_bed_equals_the_same_bed_given_by_points(tmp_path, write_scenario, tiny_scenario):
+    points = [[0.0, 0.012], [0.1, 0.004], [0.22, 0.0065], [0.3, 0.0]]
+    (tmp_path / "bed.csv").write_text(
+        "# bed surveyed in the slope frame\nx (cm), z (mm)\n"
+        + "".join(f"{100 * x:g}, {1000 * b:g}\n" for x, b in points)
+    )
+    from_points = load(_scenario(write_scenario, tiny_scenario, bed={"points": points}))
+    from_file = load(_scenario(write_scenario, tiny_scenario, bed={"file": "bed.csv"}))
+    np.testing.assert_allclose(from_file.bed.points, points, rtol=1e-15, atol=1e-18)
+    np.testing.assert_allclose(bed_profile(from_file.bed, X), bed_profile(from_points.bed, X), atol=1e-17)
+    # the result file records the points, so the record stands alone and loads back
+    recorded = yaml.safe_load(from_file.resolved_yaml())
+    assert recorded["bed"] == {"profile": "points", "points": from_file.bed.points}
+    assert from_dict(recorded).bed.points == from_file.bed.points
+
+
+def test_csv_initial_thickness_equals_the_same_profile_given_by_points(
+    tmp_path, write_scenario, tiny_scenario
+):
+    points = [[0.0, 0.05], [0.08, 0.05], [0.12, 0.0]]
+    (tmp_path / "column.csv").write_text("x (m),h (m)\n" + "".join(f"{x!r},{h!r}\n" for x, h in points))
+    from_file = load(
+        _scenario(write_scenario, tiny_scenario, initial=[{"shape": "profile", "file": "column.csv"}])
+    )
+    from_points = load(
+        _scenario(write_scenario, tiny_scenario, initial=[{"shape": "profile", "points": points}])
+    )
+    sigma = np.array([1 / 6, 1 / 2, 5 / 6])
+    h_file, _ = initial_state(from_file.initial, X, sigma)
+    h_points, _ = initial_state(from_points.initial, X, sigma)
+    np.testing.assert_array_equal(h_file, h_points)
+    assert "file" not in yaml.safe_load(from_file.resolved_yaml())["initial"][0]
+
+
+def _descending(s: np.ndarray, degrees: float) -> np.ndarray:
+    return -s * math.tan(math.radians(degrees))
+
+
+def test_map_frame_profile_is_rotated_onto_the_plane(tmp_path, write_scenario, tiny_scenario):
+    """Terrain descending at 30 deg, seen from a 25 deg plane: b = -tan(5 deg) x, x = s cos 5 / cos 30."""
+    s = np.array([0.0, 0.1, 0.2, 0.35])
+    rows = "".join(f"{float(a)!r}, {float(z)!r}\n" for a, z in zip(s, 100.0 + _descending(s, 30.0)))
+    (tmp_path / "terrain.csv").write_text("x (m), z (m)\n" + rows)
+    sc = load(_scenario(write_scenario, tiny_scenario, bed={"file": "terrain.csv", "frame": "map"}))
+    x, b = np.asarray(sc.bed.points).T
+    np.testing.assert_allclose(x, s * math.cos(math.radians(5)) / math.cos(math.radians(30)), rtol=1e-12)
+    np.testing.assert_allclose(b, -math.tan(math.radians(5)) * x, atol=1e-15)
+    # a wall rising at more than 90 - 25 deg towards the flow folds the slope frame: refused
+    (tmp_path / "terrain.csv").write_text("x (m), z (m)\n0, 0\n1, 0\n1.1, 1\n")
+    with pytest.raises(
+        InputError, match=r"bed.file \(line \d+\): terrain.csv: at 1.1 m along the profile the terrain rises"
+    ):
+        load(tmp_path / "scenario.yaml")
+
+
+def _write_geotiff(path, elevation: np.ndarray, pixel: float, origin=(1000.0, 5000.0), nodata=None) -> None:
+    rasterio = pytest.importorskip("rasterio")
+    from rasterio.transform import Affine
+
+    with rasterio.open(
+        path,
+        "w",
+        driver="GTiff",
+        height=elevation.shape[0],
+        width=elevation.shape[1],
+        count=1,
+        dtype="float64",
+        crs="EPSG:32632",
+        transform=Affine(pixel, 0.0, origin[0], 0.0, -pixel, origin[1]),  # north-up
+        nodata=nodata,
+    ) as dem:
+        dem.write(elevation, 1)
+
+
+def test_dem_profile_along_a_polyline(tmp_path, write_scenario, tiny_scenario):
+    """A synthetic DEM: a plane falling at 30 deg towards +X, with a step in slope.
+
+    Bilinear sampling reproduces a plane exactly, so the profile along a polyline down the
+    fall line, read on a 25 deg plane, is b = -tan(5 deg) x; the diagonal leg of the
+    polyline crosses the same plane at a gentler apparent slope.
+    """
+    pytest.importorskip("rasterio", reason="the optional [dem] extra (rasterio) is not installed")
+    pixel = 0.01
+    cols, rows = np.meshgrid(np.arange(60), np.arange(40))
+    east = 1000.0 + (cols + 0.5) * pixel  # pixel centres
+    elevation = 200.0 + _descending(east - 1000.0, 30.0)
+    _write_geotiff(tmp_path / "dem.tif", elevation, pixel)
+    north = 5000.0 - 0.2
+    polyline = [[1000.05, north], [1000.30, north], [1000.50, north - 0.10]]
+    sc = load(_scenario(write_scenario, tiny_scenario, bed={"dem": "dem.tif", "polyline": polyline}))
+    x, b = np.asarray(sc.bed.points).T
+    first = x <= 0.25 / math.cos(math.radians(30)) * math.cos(math.radians(5)) + 1e-12
+    assert first.sum() == 26  # every pixel size along the first leg, vertices included
+    np.testing.assert_allclose(b[first], -math.tan(math.radians(5)) * x[first], atol=1e-12)
+    # second leg: horizontal length sqrt(0.2^2 + 0.1^2), drop 0.2 tan 30
+    leg = math.hypot(0.2, 0.1)
+    apparent = math.degrees(math.atan(0.2 * math.tan(math.radians(30)) / leg))
+    slope_change = np.diff(b[~first]) / np.diff(x[~first])
+    np.testing.assert_allclose(slope_change, -math.tan(math.radians(apparent - 25.0)), rtol=1e-9)
+    # the same samples written as a map-frame CSV give the same bed
+    along = np.concatenate([np.linspace(0, 0.25, 26), 0.25 + np.linspace(0, leg, 24)[1:]])
+    east = 1000.05 + np.minimum(along, 0.25) + np.maximum(along - 0.25, 0) * 0.2 / leg
+    z = 200.0 + _descending(east - 1000.0, 30.0)
+    (tmp_path / "profile.csv").write_text(
+        "x (m), z (m)\n" + "".join(f"{float(a)!r}, {float(c)!r}\n" for a, c in zip(along, z))
+    )
+    csv = load(_scenario(write_scenario, tiny_scenario, bed={"file": "profile.csv", "frame": "map"}))
+    np.testing.assert_allclose(csv.bed.points, sc.bed.points, atol=1e-12)
+
+
+def test_dem_outside_or_nodata_is_an_input_error(tmp_path, write_scenario, tiny_scenario, cli):
+    pytest.importorskip("rasterio", reason="the optional [dem] extra (rasterio) is not installed")
+    elevation = np.full((10, 10), 5.0)
+    elevation[5, 5] = -9999.0
+    _write_geotiff(tmp_path / "dem.tif", elevation, 1.0, origin=(0.0, 10.0), nodata=-9999.0)
+    path = _scenario(write_scenario, tiny_scenario, bed={"dem": "dem.tif", "polyline": [[1, 5], [8, 5]]})
+    result = cli("validate", path)  # bilinear sampling needs the 4 pixels around a point
+    assert result.code == 2
+    assert "bed.dem (line" in result.err and "no elevation at (5, 5), 4 m along the polyline" in result.err
+    result = cli("validate", path, "--set", "bed.polyline=[[1.5, 8.5], [12.5, 8.5]]")
+    assert result.code == 2 and "no elevation at (10.5, 8.5), 9 m along the polyline" in result.err
+    result = cli("validate", path, "--set", "bed.polyline=[[1.5, 8.5], [1.5, 1.5]]")
+    assert result.code == 0, result.err
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("x, z\n0, 1\n1, 0\n", "line 1: header 'x, z' does not name the columns x and z|b with their units"),
+        ("x (m), z (ft)\n0, 1\n1, 0\n", "line 1: header 'x (m), z (ft)'"),
+        (
+            "# survey\n\nx (m), z (m)\n0, 1\n1; 0\n",
+            "line 5: expected two numbers separated by a comma, got '1; 0'",
+        ),
+        ("x (m), z (m)\n0, 1\n0.5, nan\n", "line 3: expected two numbers"),
+        ("x (m), z (m)\n0, 1\n0.5, 0\n0.5, 0\n", "line 4: x = 0.5 does not increase"),
+        ("x (m), z (m)\n0, 1\n", "1 data row(s); accepted: at least 2 rows"),
+    ],
+)
+def test_bad_csv_bed_is_exit_2_naming_the_line(tmp_path, write_scenario, tiny_scenario, cli, text, message):
+    (tmp_path / "bed.csv").write_text(text)
+    result = cli("validate", _scenario(write_scenario, tiny_scenario, bed={"file": "bed.csv"}))
+    assert result.code == 2
+    assert "bed.file (line " in result.err and f"{tmp_path / 'bed.csv'}: {message}" in result.err
+    assert "Traceback" not in result.err
+
+
+def test_bad_initial_profile_file_is_exit_2(tmp_path, write_scenario, tiny_scenario, cli):
+    (tmp_path / "h.csv").write_text("x (m), h (m)\n0, 0.1\n0.1, -0.01\n")
+    initial = [{"shape": "profile", "file": "h.csv"}]
+    result = cli("validate", _scenario(write_scenario, tiny_scenario, initial=initial))
+    assert result.code == 2 and "initial.0.file (line" in result.err and "negative thickness" in result.err
+    result = cli(
+        "validate", _scenario(write_scenario, tiny_scenario, initial=[{"shape": "profile", "file": "no.csv"}])
+    )
+    assert result.code == 2 and "no.csv: file not found" in result.err
