@@ -1137,7 +1137,9 @@ of that relative size):
   {f3(level_short["220"])}, {f3(level_short["440"])}, {f3(level_short["880"])} at dx = 5, 2.5, 1.25 mm:
   the remainder changes by {f3(level_short["440"] - level_short["880"])} between the two finest
   resolutions, so discretisation error may account for part of it, but three resolutions do
-  not establish its limit (finer runs were not made).
+  not establish its limit (finer runs were not made).  Halving the layer thicknesses (48
+  layers) changes the 16 deg exponent by {
+        get("alpha1", "440x48", "slope_fixed") - get("alpha1", "440", "slope_fixed"):+.3f}.
 - **Shape factor growth, chi - 1 proportional to x^(1/(1+alpha))** (eq. 4.26, 5.2-5.3),
   exponent of chi - 1 in the fixed window: {"; ".join(chi_verdicts)}.  In the paper's
   window 0.1-1 Fr^2 H the exponent is {f3(get("alpha034", "440", "chi_paper"))} for alpha = 0.34
@@ -1409,7 +1411,7 @@ Runs are stored in `results/validation/` and reused while their scenario is unch
 delete that directory after changing the engine.
 
 The references that are met are also asserted, at full resolution, by a separate test
-suite that the default test run leaves out (about 40 s on 2 cores):
+suite that the default test run leaves out (a few minutes on 2 quiet cores):
 
 <!-- docs-test: skip: this is the validation suite, which runs this very test -->
 ```sh

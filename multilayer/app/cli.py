@@ -15,7 +15,7 @@ from collections.abc import Sequence
 
 from multilayer.errors import InputError, RunError
 
-SUBCOMMANDS = ("run", "validate", "plugins", "sweep", "check", "plot", "export")
+SUBCOMMANDS = ("run", "validate", "plugins", "sweep", "calibrate", "sensitivity", "check", "plot", "export")
 
 
 class _Version(argparse.Action):

@@ -31,12 +31,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-import yaml
-
 from multilayer.app import runner
 from multilayer.errors import InputError
 from multilayer.io import scenario
 from multilayer.io.results import CHECKPOINT_FILE, RESULT_FILE, SUMMARY_KEYS
+from multilayer.io.scenario import as_overrides, format_value
 
 SWEEP_KEYS = ("base", "parameters", "zip", "output", "description")
 """Top-level keys accepted in a sweep file."""
@@ -45,19 +44,6 @@ MARKER = "member.json"
 """Written into a member's directory once its run has completed."""
 
 Status = Literal["ok", "invalid", "failed"]
-
-
-class _Dumper(yaml.SafeDumper):
-    """SafeDumper that quotes every string the scenario loader would read as another type
-    (such as ``1e-5``, a float there)."""
-
-    yaml_implicit_resolvers = scenario.Loader.yaml_implicit_resolvers
-
-
-def format_value(value: Any) -> str:
-    """YAML text of ``value`` that reads back to the same value, as ``--set`` parses it."""
-    text = yaml.dump(value, Dumper=_Dumper, default_flow_style=True, width=2**31)
-    return text.removesuffix("...\n").strip()
 
 
 @dataclass(frozen=True)
@@ -71,14 +57,10 @@ class Member:
     @property
     def overrides(self) -> list[str]:
         """The member's values as ``KEY=VALUE`` overrides for ``scenario.load``."""
-        return _overrides(self.values)
+        return as_overrides(self.values)
 
 
-def _overrides(values: dict[str, Any]) -> list[str]:
-    return [f"{key}={format_value(value)}" for key, value in values.items()]
-
-
-def _digest(overrides: list[str]) -> str:
+def overrides_digest(overrides: list[str]) -> str:
     """Short hash of a set of overrides, independent of their order."""
     return hashlib.sha1("\n".join(sorted(overrides)).encode()).hexdigest()[:8]
 
@@ -106,7 +88,7 @@ class Sweep:
         rows = [dict(zip(keys, combo)) for combo in combos]
         width = max(3, len(str(len(rows) - 1)))
         return [
-            Member(index, values, f"m{index:0{width}d}-{_digest(_overrides(values))}")
+            Member(index, values, f"m{index:0{width}d}-{overrides_digest(as_overrides(values))}")
             for index, values in enumerate(rows)
         ]
 
@@ -210,7 +192,7 @@ class Outcome:
     """True if an earlier run of the sweep had already completed this member."""
 
 
-def _fingerprint(member_scenario: scenario.Scenario) -> str:
+def scenario_fingerprint(member_scenario: scenario.Scenario) -> str:
     """Hash of the fully resolved member scenario: a completed member is reused only if
     neither the base scenario nor the member's values changed since it ran."""
     return hashlib.sha256(member_scenario.resolved_yaml().encode()).hexdigest()
@@ -254,7 +236,7 @@ def run_member(
 
 
 @contextmanager
-def _client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
+def dask_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
     """A Dask client on the cluster at ``scheduler``, or on a new local cluster with
     ``workers`` single-threaded worker processes (default: one per core)."""
     from dask.distributed import Client, LocalCluster
@@ -309,7 +291,7 @@ def run(
         except InputError as exc:
             outcomes[member.index] = Outcome(member, "invalid", str(exc))
             continue
-        fingerprint = _fingerprint(member_scenario)
+        fingerprint = scenario_fingerprint(member_scenario)
         summary = completed(outdir / member.id, fingerprint)
         if summary is not None:
             outcomes[member.index] = Outcome(member, "ok", summary=summary, skipped=True)
@@ -322,7 +304,7 @@ def run(
     if pending:
         from dask.distributed import as_completed
 
-        with _client(scheduler, workers) as client:
+        with dask_client(scheduler, workers) as client:
             futures = {
                 client.submit(
                     run_member,

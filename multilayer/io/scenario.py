@@ -668,16 +668,20 @@ class Scenario(_Model):
 # --------------------------------------------------------------------------- loading
 
 
-def _accepted(loc: Sequence[str | int], last_is_key: bool) -> str:
-    """The 'accepted' text of the field at ``loc`` (or the keys of the model holding it)."""
-    model: type[BaseModel] | None = Scenario
+def _accepted(loc: Sequence[str | int], last_is_key: bool, root: type[BaseModel] | None = None) -> str:
+    """The 'accepted' text of the field at ``loc`` (or the keys of the model holding it)
+    in the model ``root`` (default :class:`Scenario`)."""
+    model: type[BaseModel] | None = root or Scenario
     info = None
+    mapping = False
     for part in loc:
-        if isinstance(part, int):
+        if isinstance(part, int) or mapping:  # a list index or a key of a mapping field
+            mapping = False
             continue
         if model is None or part not in model.model_fields:
             return ""
         info = model.model_fields[part]
+        mapping = typing.get_origin(info.annotation) is dict
         model = _model_in(info.annotation)
     if last_is_key:
         return ", ".join(model.model_fields) if model else ""
@@ -695,16 +699,17 @@ def _model_in(annotation: Any) -> type[BaseModel] | None:
     return None
 
 
-def _message(error: Mapping[str, Any]) -> tuple[KeyPath, str, str]:
-    """(key path, what is wrong, what is accepted) of one pydantic error."""
+def _message(error: Mapping[str, Any], root: type[BaseModel] | None = None) -> tuple[KeyPath, str, str]:
+    """(key path, what is wrong, what is accepted) of one pydantic error in the model
+    ``root`` (default :class:`Scenario`)."""
     loc, kind, ctx = tuple(error["loc"]), error["type"], error.get("ctx") or {}
     if kind == "scenario":
         key = tuple(int(k) if k.isdigit() else k for k in ctx["key"].split(".") if k)
         return loc + key, ctx["message"], ctx["accepted"]
     if kind == "extra_forbidden":
-        return loc, "unknown key", _accepted(loc[:-1], last_is_key=True)
+        return loc, "unknown key", _accepted(loc[:-1], last_is_key=True, root=root)
     if kind == "missing":
-        return loc, "required key is missing", _accepted(loc, last_is_key=False)
+        return loc, "required key is missing", _accepted(loc, last_is_key=False, root=root)
     got = repr(error.get("input"))
     got = got if len(got) <= 60 else got[:57] + "..."
     what = (
@@ -714,7 +719,26 @@ def _message(error: Mapping[str, Any]) -> tuple[KeyPath, str, str]:
         if kind in ("model_type", "model_attributes_type")
         else f"{error['msg']} (got {got})"
     )
-    return loc, what, _accepted(loc, last_is_key=False)
+    return loc, what, _accepted(loc, last_is_key=False, root=root)
+
+
+class _Dumper(yaml.SafeDumper):
+    """SafeDumper that quotes every string the scenario loader would read as another type
+    (such as ``1e-5``, a float there)."""
+
+    yaml_implicit_resolvers = Loader.yaml_implicit_resolvers
+
+
+def format_value(value: Any) -> str:
+    """YAML text of ``value`` that reads back to the same value, as ``--set`` parses it."""
+    text = yaml.dump(value, Dumper=_Dumper, default_flow_style=True, width=2**31)
+    return text.removesuffix("...\n").strip()
+
+
+def as_overrides(values: dict[str, Any]) -> list[str]:
+    """``KEY=VALUE`` overrides (as :func:`apply_overrides` reads them) of a mapping of
+    dotted keys to values."""
+    return [f"{key}={format_value(value)}" for key, value in values.items()]
 
 
 def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> tuple[dict, list[KeyPath]]:

@@ -1,4 +1,8 @@
-"""Draw the figures of a run into DIR/plots/ (docs/results.md lists them).
+"""Draw the figures of a run, a calibration or a sensitivity study into DIR/plots/.
+
+DIR holding result.nc: the run's figures (docs/results.md); calibration.nc: misfit
+history, parameter pairs and observed against fitted values; sensitivity.nc: the Sobol'
+indices (docs/calibration.md).
 
 Examples:
   multilayer plot results/erodible-bed-collapse
@@ -12,14 +16,21 @@ from pathlib import Path
 
 from multilayer.app.commands import positive_int
 
-HELP = "draw figures (and an animation) of DIR/result.nc into DIR/plots/"
+HELP = (
+    "draw figures (and an animation) of DIR/result.nc, or of calibration.nc / sensitivity.nc, into DIR/plots/"
+)
 FORMATS = ("png", "pdf", "svg")
 """File formats of the figures (Matplotlib writes each without extra software)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``multilayer plot``."""
-    parser.add_argument("directory", metavar="DIR", type=Path, help="output directory of 'multilayer run'")
+    parser.add_argument(
+        "directory",
+        metavar="DIR",
+        type=Path,
+        help="output directory of 'multilayer run', 'calibrate' or 'sensitivity'",
+    )
     parser.add_argument(
         "--times",
         type=positive_int,
@@ -52,8 +63,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Write the figures and list them."""
-    from multilayer.io.plotting import plot_run
+    from multilayer.app.calibration import CALIBRATION_FILE
+    from multilayer.app.sensitivity import SENSITIVITY_FILE
 
-    for path in plot_run(args.directory, times=args.times, at=args.at, fmt=args.fmt, animate=args.animate):
+    studies = [name for name in (CALIBRATION_FILE, SENSITIVITY_FILE) if (args.directory / name).is_file()]
+    if studies:
+        from multilayer.io.study_plotting import plot_study
+
+        paths = [path for name in studies for path in plot_study(args.directory, name)]
+    else:
+        from multilayer.io.plotting import plot_run
+
+        paths = plot_run(args.directory, times=args.times, at=args.at, fmt=args.fmt, animate=args.animate)
+    for path in paths:
         print(path)
     return 0

@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 from typing import TextIO
 
-from multilayer.app.commands import positive_int
+from multilayer.app.commands import add_cluster_arguments, cluster_description
 
 HELP = "run a parameter sweep of a scenario on Dask (local or existing cluster)"
 
@@ -30,18 +30,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=Path,
         help="output directory (default: output.directory of the sweep file, else results/<sweep file name>)",
     )
-    cluster = parser.add_mutually_exclusive_group()
-    cluster.add_argument(
-        "--scheduler",
-        metavar="ADDRESS",
-        help="address of a running Dask scheduler, e.g. tcp://10.0.0.5:8786 (default: start a local cluster)",
-    )
-    cluster.add_argument(
-        "--workers",
-        metavar="N",
-        type=positive_int,
-        help="worker processes of the local cluster (default: one per core)",
-    )
+    add_cluster_arguments(parser)
     parser.add_argument(
         "-q",
         "--quiet",
@@ -84,12 +73,7 @@ def main(args: argparse.Namespace) -> int:
 
     plan = sweeps.load(args.sweep)
     outdir = args.output or plan.output or Path("results") / plan.path.stem
-    if args.scheduler is not None:
-        where = f"the Dask cluster at {args.scheduler}"
-    elif args.workers is not None:
-        where = f"a local Dask cluster of {args.workers} single-threaded worker process(es)"
-    else:
-        where = "a local Dask cluster (one single-threaded worker process per core)"
+    where = cluster_description(args)
     report = _Report(where, args.quiet)
     outcomes = sweeps.run(
         plan,

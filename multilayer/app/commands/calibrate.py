@@ -1,0 +1,77 @@
+"""Fit free scenario parameters to observations, with their uncertainty, on Dask.
+
+Global search (differential evolution, one Dask batch per generation), local refinement
+(trust-region least squares) and a Laplace covariance at the best fit. DIR is -o/--output,
+else the file's output.directory, else results/<calibration file name>; it receives
+calibration.nc and members/<id>/ (one run each). Rerunning the same command after an
+interruption reuses every completed run. Exit code 2 if the file is invalid, 1 if no run
+succeeded. Details: docs/calibration.md.
+Example: multilayer calibrate docs/examples/twin.yaml --workers 2
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from multilayer.app.commands import add_cluster_arguments, cluster_description
+
+HELP = "fit scenario parameters to observations (global search, refinement, uncertainty) on Dask"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``multilayer calibrate``."""
+    parser.add_argument("config", metavar="CONFIG", help="calibration YAML file")
+    parser.add_argument(
+        "-o",
+        "--output",
+        metavar="DIR",
+        type=Path,
+        help="output directory (default: output.directory of the file, else results/<file name>)",
+    )
+    add_cluster_arguments(parser)
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
+
+
+def main(args: argparse.Namespace) -> int:
+    """Validate the file, calibrate, write calibration.nc, print the fit."""
+    from multilayer.app import calibration as calibrations
+    from multilayer.app.ensemble import Ensemble
+    from multilayer.app.sweep import dask_client
+    from multilayer.io.study import load_calibration
+
+    plan = load_calibration(args.config)
+    outdir = args.output or plan.config.output.directory or Path("results") / plan.path.stem
+    outdir = Path(outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
+
+    live = not args.quiet and sys.stderr.isatty()
+
+    def report(line: str) -> None:
+        if not args.quiet:
+            print(line, flush=True)
+
+    def progress(done: int, to_run: int) -> None:
+        if live:  # a self-updating count of the runs of the current batch
+            sys.stderr.write(
+                f"\rcalibrate: {done}/{to_run} runs of this batch done" + ("\n" if done == to_run else "")
+            )
+            sys.stderr.flush()
+
+    report(
+        f"calibrate: {len(plan.config.parameters)} parameter(s), {len(plan.experiments)} experiment(s), "
+        f"on {cluster_description(args)}"
+    )
+    with dask_client(args.scheduler, args.workers) as client:
+        ensemble = Ensemble(plan.base, outdir, client, fixed=plan.config.set, on_progress=progress)
+        calibrator = calibrations.Calibrator(plan, ensemble, report)
+        fit = calibrator.run()
+    path = outdir / calibrations.CALIBRATION_FILE
+    calibrations.write(fit, calibrator, path)
+    print(f"calibrate: misfit {fit.misfit:.6g} for {fit.predicted.size} observed point(s); wrote {path}")
+    for name, value, sd in zip(fit.names, fit.theta, fit.sigma):
+        print(f"  {name} = {value:.6g} +/- {sd:.3g}")
+    for note in fit.notes:
+        print(f"  note: {note}")
+    return 0

@@ -1,0 +1,95 @@
+"""Sobol' sensitivity indices of scalar outputs with respect to scenario parameters, on Dask.
+
+Saltelli sampling of the parameter box (SALib), one Dask run per sample point, first-order
+and total indices with bootstrap confidence intervals. DIR is -o/--output, else the
+file's output.directory, else results/<file name>; it receives sensitivity.nc and
+members/<id>/. Rerunning the command after an interruption reuses every completed run.
+Exit code 1 if a run failed (the indices are then not computed), 2 if the file is
+invalid. Needs SALib (pip install 'multilayer[calibration]'). Details: docs/calibration.md.
+Example: multilayer sensitivity docs/examples/erodible_sobol.yaml
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from multilayer.app.commands import add_cluster_arguments, cluster_description
+
+HELP = "Sobol' sensitivity indices of run outputs with respect to scenario parameters, on Dask"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``multilayer sensitivity``."""
+    parser.add_argument("config", metavar="CONFIG", help="sensitivity YAML file")
+    parser.add_argument(
+        "-o",
+        "--output",
+        metavar="DIR",
+        type=Path,
+        help="output directory (default: output.directory of the file, else results/<file name>)",
+    )
+    add_cluster_arguments(parser)
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
+
+
+def main(args: argparse.Namespace) -> int:
+    """Validate the file, run the sample, write sensitivity.nc, print the indices."""
+    from multilayer.app import sensitivity
+    from multilayer.app.ensemble import Ensemble
+    from multilayer.app.sweep import dask_client
+    from multilayer.errors import InputError
+    from multilayer.io.study import load_sensitivity
+
+    try:
+        import SALib  # noqa: F401
+    except ImportError:
+        raise InputError(
+            "multilayer sensitivity needs SALib; accepted: "
+            "install it with pip install 'multilayer[calibration]'"
+        ) from None
+    study = load_sensitivity(args.config)
+    outdir = Path(args.output or study.config.output.directory or Path("results") / study.path.stem)
+    outdir.mkdir(parents=True, exist_ok=True)
+
+    def report(line: str) -> None:
+        if not args.quiet:
+            print(line, flush=True)
+
+    def progress(done: int, to_run: int) -> None:
+        if not args.quiet and (done == to_run or done % max(1, to_run // 20) == 0):
+            print(f"sensitivity: {done}/{to_run} runs done", flush=True)
+
+    points = sensitivity.sample(study)  # checked before any cluster starts
+    report(f"sensitivity: on {cluster_description(args)}")
+    with dask_client(args.scheduler, args.workers) as client:
+        ensemble = Ensemble(study.base, outdir, client, fixed=study.config.set, on_progress=progress)
+        evaluations = sensitivity.run(study, ensemble, report, points)
+    failed = [e for e in evaluations if e.status != "ok"]
+    result = None
+    if not failed:
+        import numpy as np
+
+        result = sensitivity.indices(study, np.array([e.measured for e in evaluations]))
+    path = outdir / sensitivity.SENSITIVITY_FILE
+    sensitivity.write(study, points, evaluations, result, path)
+    print(f"sensitivity: {ensemble.ran} run(s), {ensemble.reused} reused, {len(failed)} failed; wrote {path}")
+    if failed:
+        for e in failed[:5]:
+            print(f"multilayer: member {e.id} {e.status}: {e.error}", file=sys.stderr)
+        print(
+            "multilayer: the Sobol' estimators need every run: no indices computed; "
+            "fix the failing runs (or narrow the bounds) and rerun the command",
+            file=sys.stderr,
+        )
+        return 1
+    level = round(100 * study.config.confidence)
+    for k, output in enumerate(study.config.outputs):
+        print(f"  {output}: S1 and ST with {level}% confidence half-widths")
+        for j, name in enumerate(study.config.parameters):
+            print(
+                f"    {name:30s} S1 = {result.s1[k, j]:6.3f} +/- {result.s1_conf[k, j]:.3f}   "
+                f"ST = {result.st[k, j]:6.3f} +/- {result.st_conf[k, j]:.3f}"
+            )
+    return 0

@@ -1,0 +1,428 @@
+"""Calibration and sensitivity files: free parameters, experiments, observations, outputs.
+
+A calibration file (docs/calibration.md)::
+
+    base: collapse.yaml              # the base scenario, relative to this file
+    set: {domain.cells: 100}         # optional: fixed overrides of every run
+    parameters:                      # free parameters: dotted scenario keys
+      rheology.mu_s: {bounds: [0.3, 0.7]}
+      rheology.mu_2: {bounds: [0.5, 1.2], prior: {mean: 0.73, sd: 0.1}}
+    experiments:                     # optional: several runs per parameter set
+      a1: {initial.0.height: 0.05}
+    observations:
+      - {name: runout_a1, experiment: a1, quantity: runout, value: 6.0, units: cm, sigma: 0.6}
+      - {name: front, quantity: front, file: front.csv, columns: [t, x_f], units: cm, sigma: 0.2}
+    search: {population: 8, generations: 15, seed: 1}
+    refine: {evaluations: 20}
+    output: {directory: results/fit}
+
+A sensitivity file has ``base``, ``set``, ``parameters`` (bounds only), ``outputs`` (scalar
+quantities), ``samples``, ``seed`` and ``output``.  Both are validated strictly, with the
+messages of scenario files: ``<file>: <key.path> (line N): <what>; accepted: <...>``.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, Field, ValidationError, field_validator, model_validator
+
+from multilayer.errors import InputError
+from multilayer.io import scenario
+from multilayer.io.scenario import _dotted, _field, _invalid, _message, _Model, as_overrides
+
+SCALARS = ("runout", "front_final", "duration", "mass_final")
+"""Scalar quantities measured on a run (multilayer.io.observables)."""
+CURVES = ("front",)
+"""Quantities observed against time: the front x_f(t)."""
+PROFILES = ("h",)
+"""Quantities observed against x at one time: the thickness h(x)."""
+
+UNITS: dict[str, float] = {
+    "m": 1.0,
+    "cm": 1e-2,
+    "mm": 1e-3,
+    "s": 1.0,
+    "ms": 1e-3,
+    "m2": 1.0,
+    "cm2": 1e-4,
+}
+"""Accepted units and their factor to SI."""
+_DIMENSION = {"m": "m", "cm": "m", "mm": "m", "s": "s", "ms": "s", "m2": "m2", "cm2": "m2"}
+_SI = {"runout": "m", "front_final": "m", "duration": "s", "mass_final": "m2", "front": "m", "h": "m"}
+_COORDINATE_SI = {"front": "s", "h": "m"}
+
+DottedKey = Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z0-9_]+)*$")]
+
+
+class Prior(_Model):
+    """A Gaussian prior on a free parameter (the default prior is uniform within bounds)."""
+
+    mean: float = _field(..., "a number")
+    sd: float = _field(..., "a number > 0", gt=0)
+
+
+class Parameter(_Model):
+    """A free parameter: a scenario key varied within ``bounds``."""
+
+    bounds: Annotated[list[float], Field(min_length=2, max_length=2)] = _field(
+        ..., "[lower, upper] with lower < upper"
+    )
+    prior: Prior | None = _field(None, "{mean, sd}; default: uniform within bounds")
+
+    @model_validator(mode="after")
+    def _check(self) -> Parameter:
+        if not self.bounds[0] < self.bounds[1]:
+            raise _invalid(f"got {self.bounds}", "[lower, upper] with lower < upper", "bounds")
+        return self
+
+
+class Observation(_Model):
+    """One observed quantity with its uncertainty (values in ``units``)."""
+
+    name: str = _field(..., "a name for the observation", min_length=1)
+    quantity: Literal[SCALARS + CURVES + PROFILES] = _field(..., ", ".join(SCALARS + CURVES + PROFILES))
+    experiment: str | None = _field(None, "a key of experiments (default: the only experiment)")
+    value: float | None = _field(None, "a number, in units (scalar quantities)")
+    file: str | None = _field(None, "a CSV or netCDF file, relative to the calibration file")
+    columns: Annotated[list[str], Field(min_length=2, max_length=3)] | None = _field(
+        None, "[coordinate, value] or [coordinate, value, sigma]: CSV column names"
+    )
+    variable: str | None = _field(None, "the name of a one-dimensional netCDF variable")
+    units: str | None = _field(None, "one of " + ", ".join(UNITS) + " (default SI)")
+    coordinate_units: str | None = _field(None, "one of " + ", ".join(UNITS) + " (default SI)")
+    sigma: float | None = _field(None, "a number > 0, in units (or a third CSV column)", gt=0)
+    time: float | None = _field(None, "a number >= 0 (s); default: the final time", ge=0)
+
+    @field_validator("units", "coordinate_units")
+    @classmethod
+    def _unit(cls, value: str | None) -> str | None:
+        if value is not None and value not in UNITS:
+            raise _invalid(f"unknown unit {value!r}", ", ".join(UNITS))
+        return value
+
+    @model_validator(mode="after")
+    def _check(self) -> Observation:
+        scalar = self.quantity in SCALARS
+        if self.units is not None and _DIMENSION[self.units] != _SI[self.quantity]:
+            raise _invalid(
+                f"{self.units} is not a unit of {self.quantity}",
+                ", ".join(u for u, d in _DIMENSION.items() if d == _SI[self.quantity]),
+                "units",
+            )
+        if scalar:
+            required, optional = ("value", "sigma"), ("units",)
+        elif self.file is not None and self.file.endswith(".nc"):
+            required, optional = ("file", "variable"), ("sigma", "units", "coordinate_units")
+        else:
+            required, optional = ("file", "columns"), ("sigma", "units", "coordinate_units")
+        if self.quantity in PROFILES:
+            optional += ("time",)
+        accepted = ", ".join(("name", "quantity", "experiment", *required, *optional))
+        for key in required:
+            if getattr(self, key) is None:
+                raise _invalid(f"quantity {self.quantity} requires {key}", accepted, key)
+        extra = sorted(self.model_fields_set - {"name", "quantity", "experiment", *required, *optional})
+        if extra:
+            raise _invalid(f"not a key of quantity {self.quantity}", accepted, extra[0])
+        if not scalar and self.sigma is None and (self.columns is None or len(self.columns) < 3):
+            raise _invalid(
+                f"quantity {self.quantity} needs an uncertainty",
+                "sigma, or a third column [coordinate, value, sigma]",
+                "sigma",
+            )
+        if self.coordinate_units is not None and _DIMENSION[self.coordinate_units] != _COORDINATE_SI.get(
+            self.quantity
+        ):
+            raise _invalid(
+                f"{self.coordinate_units} is not a unit of the {self.quantity} coordinate",
+                ", ".join(u for u, d in _DIMENSION.items() if d == _COORDINATE_SI[self.quantity]),
+                "coordinate_units",
+            )
+        return self
+
+
+class Search(_Model):
+    """Global search: differential evolution (Storn & Price 1997)."""
+
+    population: int = _field(8, "an integer >= 4 (members per generation = population x parameters)", ge=4)
+    generations: int = _field(15, "an integer >= 0 (0: the initial population only)", ge=0)
+    tolerance: float = _field(0.01, "a number >= 0 (relative spread of the misfits to stop at)", ge=0)
+    seed: int = _field(1, "an integer")
+
+
+class Refine(_Model):
+    """Local refinement: trust-region least squares (scipy least_squares 'trf').
+
+    ``step`` is also the step of the Jacobian of the uncertainty stage.  It must exceed the
+    scale of the small-scale roughness of the computed outputs as functions of the
+    parameters (discrete time steps, the front crossing cells, solver tolerances): in the
+    twin experiment of docs/calibration.md a difference over 0.1 % of the bounds gave
+    standard deviations 3.5 times smaller than over 1-3 %, where they settle.
+    """
+
+    evaluations: int = _field(10, "an integer >= 0 (0: no refinement)", ge=0)
+    step: float = _field(
+        0.02, "a number in (0, 0.1]: finite-difference step as a fraction of the bounds", gt=0, le=0.1
+    )
+
+
+class StudyOutput(_Model):
+    """Where results go."""
+
+    directory: str | None = _field(None, "a directory path")
+
+
+class _Study(_Model):
+    base: str = _field(..., "the path of a scenario file, relative to this file", min_length=1)
+    description: str | None = _field(None, "free text")
+    set: dict[DottedKey, Any] = _field({}, "a mapping of dotted scenario keys to values (fixed overrides)")
+    parameters: dict[DottedKey, Parameter] = _field(
+        ..., "a non-empty mapping of dotted scenario keys to {bounds: [lower, upper]}", min_length=1
+    )
+    output: StudyOutput = _field(StudyOutput(), "a mapping with directory")
+
+
+class CalibrationModel(_Study):
+    """The calibration file as validated; attribute names are the YAML keys."""
+
+    experiments: dict[str, dict[DottedKey, Any]] = _field(
+        {}, "a mapping of experiment names to mappings of dotted scenario keys to values"
+    )
+    observations: list[Observation] = _field(..., "a non-empty list of {name, quantity, ...}", min_length=1)
+    search: Search = _field(Search(), "a mapping with population, generations, tolerance, seed")
+    refine: Refine = _field(Refine(), "a mapping with evaluations, step")
+
+    @model_validator(mode="after")
+    def _check(self) -> CalibrationModel:
+        names = list(self.experiments) or ["base"]
+        seen: set[str] = set()
+        for i, obs in enumerate(self.observations):
+            if obs.name in seen:
+                raise _invalid(f"duplicate name {obs.name!r}", "a name used once", f"observations.{i}.name")
+            seen.add(obs.name)
+            if obs.experiment is None and len(names) > 1:
+                raise _invalid("which experiment?", ", ".join(names), f"observations.{i}.experiment")
+            if obs.experiment is not None and obs.experiment not in names:
+                raise _invalid(
+                    f"unknown experiment {obs.experiment!r}", ", ".join(names), f"observations.{i}.experiment"
+                )
+        return self
+
+
+class SensitivityModel(_Study):
+    """The sensitivity file as validated."""
+
+    outputs: list[Literal[SCALARS]] = _field(..., "a non-empty list of " + ", ".join(SCALARS), min_length=1)
+    samples: int = _field(16, "a power of 2 >= 2 (base samples N; runs: N x (parameters + 2))", ge=2)
+    seed: int = _field(1, "an integer")
+    confidence: float = _field(0.95, "a number in (0, 1)", gt=0, lt=1)
+
+    @field_validator("samples")
+    @classmethod
+    def _power_of_two(cls, n: int) -> int:
+        if n & (n - 1):
+            raise _invalid(f"got {n}", "a power of 2 >= 2 (Sobol' sequences are balanced at 2^k points)")
+        return n
+
+
+class ObservedData(BaseModel):
+    """An observation read and converted to SI: coordinates (s or m, empty for scalars),
+    values and their standard deviations."""
+
+    observation: Observation
+    experiment: str
+    coordinate: list[float]
+    value: list[float]
+    sigma: list[float]
+
+
+class Calibration(BaseModel):
+    """A validated calibration file with its observations read."""
+
+    path: Path
+    base: Path
+    config: CalibrationModel
+    data: list[ObservedData]
+
+    @property
+    def experiments(self) -> dict[str, dict[str, Any]]:
+        """Experiment name -> its overrides (``{"base": {}}`` when none are given)."""
+        return dict(self.config.experiments) or {"base": {}}
+
+
+class Sensitivity(BaseModel):
+    """A validated sensitivity file."""
+
+    path: Path
+    base: Path
+    config: SensitivityModel
+
+
+def _validate(model: type[_Model], path: Path, kind: str) -> tuple[Any, dict]:
+    data, lines = scenario.read_yaml(path, kind)
+    if not isinstance(data, dict):
+        raise InputError(
+            f"{path}: (top level): got {type(data).__name__}; accepted: a mapping of {kind} keys"
+        )
+    try:
+        return model.model_validate(data), lines
+    except ValidationError as exc:
+        messages = []
+        for error in exc.errors():
+            loc, what, accepted = _message(error, model)
+            known = [loc[:n] for n in range(len(loc), 0, -1) if loc[:n] in lines]
+            place = f" (line {lines[known[0]]})" if known else ""
+            tail = f"; accepted: {accepted}" if accepted else ""
+            messages.append(f"{path}: {_dotted(loc)}{place}: {what}{tail}")
+        raise InputError("\n".join(messages)) from None
+
+
+def _at(path: Path, lines: dict, *key: str | int) -> str:
+    line = f" (line {lines[key]})" if key in lines else ""
+    return f"{path}: {_dotted(key)}{line}"
+
+
+def _check_base(path: Path, lines: dict, config: _Study, experiments: dict[str, dict[str, Any]]) -> Path:
+    """The base scenario path; every experiment with the parameters at their lower, middle
+    and upper bounds must be a valid scenario (the key named otherwise)."""
+    base = path.parent / config.base
+    if not base.is_file():
+        raise InputError(
+            f"{_at(path, lines, 'base')}: scenario file {base} not found; "
+            "accepted: the path of a scenario file, relative to this file"
+        )
+    try:
+        scenario.load(base, as_overrides(config.set))
+    except InputError as exc:
+        raise InputError(
+            f"{_at(path, lines, 'base')}: the base scenario with set is invalid:\n{exc}"
+        ) from None
+    for name, extra in experiments.items():
+        for where in (0.0, 0.5, 1.0):
+            values = {
+                k: p.bounds[0] + where * (p.bounds[1] - p.bounds[0]) for k, p in config.parameters.items()
+            }
+            try:
+                scenario.load(base, as_overrides({**config.set, **extra, **values}))
+            except InputError as exc:
+                keys = [k for k in (*values, *extra) if k in str(exc)] or list(values)
+                place = ("parameters", keys[0]) if keys[0] in values else ("experiments", name)
+                raise InputError(
+                    f"{_at(path, lines, *place)}: the scenario is invalid with "
+                    f"{', '.join(f'{k} = {v:g}' for k, v in values.items())}"
+                    f"{f' in experiment {name}' if extra else ''}:\n{exc}"
+                ) from None
+    return base
+
+
+def load_calibration(path: str | Path) -> Calibration:
+    """Read and validate a calibration file and read its observations (InputError if bad)."""
+    path = Path(path)
+    config, lines = _validate(CalibrationModel, path, "calibration")
+    experiments = dict(config.experiments) or {"base": {}}
+    base = _check_base(path, lines, config, experiments)
+    data = [
+        _read(path, lines, i, obs, obs.experiment or next(iter(experiments)))
+        for i, obs in enumerate(config.observations)
+    ]
+    return Calibration(path=path, base=base, config=config, data=data)
+
+
+def load_sensitivity(path: str | Path) -> Sensitivity:
+    """Read and validate a sensitivity file (InputError if bad)."""
+    path = Path(path)
+    config, lines = _validate(SensitivityModel, path, "sensitivity")
+    base = _check_base(path, lines, config, {"base": {}})
+    return Sensitivity(path=path, base=base, config=config)
+
+
+def _read(path: Path, lines: dict, index: int, obs: Observation, experiment: str) -> ObservedData:
+    """The observation's values in SI, from the file itself or from ``obs.file``."""
+    scale = UNITS[obs.units or _SI[obs.quantity]]
+    if obs.quantity in SCALARS:
+        return ObservedData(
+            observation=obs,
+            experiment=experiment,
+            coordinate=[],
+            value=[obs.value * scale],
+            sigma=[obs.sigma * scale],
+        )
+    where = _at(path, lines, "observations", index, "file")
+    file = path.parent / obs.file
+    if not file.is_file():
+        raise InputError(f"{where}: {file} not found; accepted: a CSV or netCDF file, relative to {path}")
+    if file.suffix == ".nc":
+        coordinate, value, units, coordinate_units = _read_netcdf(file, obs.variable, where)
+        sigma = None
+    else:
+        coordinate, value, sigma = _read_csv(file, obs.columns, where)
+        units, coordinate_units = None, None
+    unit = obs.units or units or _SI[obs.quantity]
+    coordinate_unit = obs.coordinate_units or coordinate_units or _COORDINATE_SI[obs.quantity]
+    for u, expected in ((unit, _SI[obs.quantity]), (coordinate_unit, _COORDINATE_SI[obs.quantity])):
+        if _DIMENSION.get(u) != expected:
+            raise InputError(
+                f"{where}: unit {u!r} in {file}; accepted: "
+                + ", ".join(k for k, d in _DIMENSION.items() if d == expected)
+            )
+    scale = UNITS[unit]
+    sigma = np.full_like(value, obs.sigma) if sigma is None or obs.sigma is not None else sigma
+    if not (np.all(np.isfinite(value)) and np.all(np.isfinite(coordinate)) and np.all(sigma > 0)):
+        raise InputError(
+            f"{where}: {file} holds non-finite values or uncertainties <= 0; accepted: finite data"
+        )
+    return ObservedData(
+        observation=obs,
+        experiment=experiment,
+        coordinate=list(coordinate * UNITS[coordinate_unit]),
+        value=list(value * scale),
+        sigma=list(sigma * scale),
+    )
+
+
+def _read_csv(file: Path, columns: list[str], where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Columns of a CSV file with a header row, as floats."""
+    try:
+        with file.open(newline="", encoding="utf-8") as stream:
+            rows = list(csv.DictReader(stream))
+        table = [[float(row[c]) for row in rows] for c in columns]
+    except KeyError as exc:
+        raise InputError(
+            f"{where}: {file} has no column {exc}; accepted: a CSV file with a header row"
+        ) from None
+    except (OSError, ValueError, TypeError) as exc:
+        raise InputError(f"{where}: cannot read {file} ({exc}); accepted: a CSV file of numbers") from None
+    if not table[0]:
+        raise InputError(f"{where}: {file} has no rows; accepted: a CSV file with data")
+    arrays = [np.asarray(t, dtype=float) for t in table]
+    return arrays[0], arrays[1], arrays[2] if len(arrays) > 2 else None
+
+
+def _read_netcdf(
+    file: Path, variable: str, where: str
+) -> tuple[np.ndarray, np.ndarray, str | None, str | None]:
+    """A one-dimensional netCDF variable, its coordinate and both units attributes."""
+    import xarray as xr
+
+    try:
+        with xr.open_dataset(file) as ds:
+            if variable not in ds:
+                raise InputError(
+                    f"{where}: {file} has no variable {variable!r}; accepted: " + ", ".join(ds.data_vars)
+                )
+            var = ds[variable].load()
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{where}: cannot read {file} ({exc}); accepted: a netCDF file") from None
+    if var.ndim != 1:
+        raise InputError(f"{where}: {file}: {variable} has {var.ndim} dimensions; accepted: one")
+    coord = var[var.dims[0]]
+    return (
+        np.asarray(coord.values, dtype=float),
+        np.asarray(var.values, dtype=float),
+        var.attrs.get("units"),
+        coord.attrs.get("units"),
+    )

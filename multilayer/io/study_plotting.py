@@ -1,0 +1,164 @@
+"""Figures of a calibration (``calibration.nc``) and a sensitivity study (``sensitivity.nc``).
+
+Calibration: ``misfit.png`` (misfit of every parameter set against its order of
+evaluation, by stage), ``pairs.png`` (every pair of parameters: the parameter sets
+coloured by misfit, the best fit and its 1- and 2-sigma Laplace ellipses) and
+``fit.png`` (observed points with their error bars against the fitted model, one panel
+per observation).  Sensitivity: ``sobol.png`` (S1 and ST with their confidence intervals,
+one panel per output).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+from matplotlib.figure import Figure
+
+from multilayer.io.plotting import PLOTS_DIR
+
+_STAGE_COLOURS = {"search": "C0", "refine": "C1", "uncertainty": "C2"}
+_SI = {"runout": "m", "front_final": "m", "duration": "s", "mass_final": "m2", "front": "m", "h": "m"}
+
+
+def plot_study(directory: str | os.PathLike, filename: str) -> list[Path]:
+    """Write the figures of ``directory/filename`` into ``directory/plots/``."""
+    out = Path(directory) / PLOTS_DIR
+    out.mkdir(exist_ok=True)
+    ds = xr.load_dataset(Path(directory) / filename)
+    if "misfit" in ds:
+        figures = {"misfit.png": misfit_figure(ds), "pairs.png": pairs_figure(ds), "fit.png": fit_figure(ds)}
+    else:
+        figures = {"sobol.png": sobol_figure(ds)}
+    paths = []
+    for name, fig in figures.items():
+        fig.savefig(out / name, dpi=120)
+        paths.append(out / name)
+    return paths
+
+
+def misfit_figure(ds: xr.Dataset) -> Figure:
+    """Misfit of every parameter set in evaluation order, coloured by stage (log scale)."""
+    fig = Figure(figsize=(7, 4), layout="constrained")
+    ax = fig.add_subplot()
+    misfit = ds["misfit"].values
+    stages = ds["stage"].values.astype(str)
+    order = np.arange(misfit.size)
+    for stage, colour in _STAGE_COLOURS.items():
+        sel = (stages == stage) & np.isfinite(misfit)
+        if sel.any():
+            ax.semilogy(order[sel], np.maximum(misfit[sel], 1e-12), ".", color=colour, label=stage)
+    failed = ~np.isfinite(misfit)
+    if failed.any():
+        ax.plot(
+            order[failed],
+            np.full(failed.sum(), np.nanmax(np.where(np.isfinite(misfit), misfit, np.nan))),
+            "x",
+            color="red",
+            label="failed",
+        )
+    ax.plot(
+        order,
+        np.minimum.accumulate(np.where(np.isfinite(misfit), misfit, np.inf)),
+        "k-",
+        lw=1,
+        label="best so far",
+    )
+    ax.set_xlabel("parameter set (order of evaluation)")
+    ax.set_ylabel("misfit (sum of squared whitened residuals)")
+    ax.legend()
+    return fig
+
+
+def pairs_figure(ds: xr.Dataset) -> Figure:
+    """Every pair of parameters: evaluated sets coloured by misfit, best fit and ellipses."""
+    names = [str(n) for n in ds["parameter"].values]
+    n = len(names)
+    pairs = [(i, j) for i in range(n) for j in range(i + 1, n)] or [(0, 0)]
+    cols = min(3, len(pairs))
+    rows = -(-len(pairs) // cols)
+    fig = Figure(figsize=(4.2 * cols, 3.8 * rows), layout="constrained")
+    values, misfit = ds["values"].values, ds["misfit"].values
+    ok = np.isfinite(misfit)
+    best, cov = ds["best"].values, ds["covariance"].values
+    for k, (i, j) in enumerate(pairs):
+        ax = fig.add_subplot(rows, cols, k + 1)
+        if i == j:  # one parameter: misfit against it
+            ax.semilogy(values[ok, i], misfit[ok], ".", ms=3)
+            ax.axvline(best[i], color="k")
+            ax.set_xlabel(names[i])
+            ax.set_ylabel("misfit")
+            continue
+        sc = ax.scatter(
+            values[ok, i], values[ok, j], c=np.log10(np.maximum(misfit[ok], 1e-12)), s=8, cmap="viridis_r"
+        )
+        ax.plot(values[~ok, i], values[~ok, j], "rx", ms=4)
+        ax.plot(best[i], best[j], "k*", ms=10)
+        block = cov[np.ix_([i, j], [i, j])]
+        if np.all(np.isfinite(block)):
+            w, v = np.linalg.eigh(block)
+            angle = np.linspace(0, 2 * np.pi, 200)
+            circle = np.stack([np.cos(angle), np.sin(angle)])
+            for level in (1, 2):
+                ellipse = v @ (level * np.sqrt(np.maximum(w, 0))[:, None] * circle)
+                ax.plot(best[i] + ellipse[0], best[j] + ellipse[1], "k-", lw=1 / level)
+        ax.set_xlabel(names[i])
+        ax.set_ylabel(names[j])
+        fig.colorbar(sc, ax=ax, label="log10 misfit")
+    return fig
+
+
+def fit_figure(ds: xr.Dataset) -> Figure:
+    """Observed points (with 1-sigma error bars) and the fitted model, per observation."""
+    observations = list(dict.fromkeys(ds["observation"].values.astype(str)))
+    curves = [o for o in observations if (ds["observation"].values.astype(str) == o).sum() > 1]
+    scalars = [o for o in observations if o not in curves]
+    panels = len(curves) + (1 if scalars else 0)
+    fig = Figure(figsize=(5 * min(panels, 3), 3.8 * -(-panels // 3)), layout="constrained")
+    obs_names = ds["observation"].values.astype(str)
+    quantity = ds["quantity"].values.astype(str)
+    for k, name in enumerate(curves):
+        ax = fig.add_subplot(-(-panels // 3), min(panels, 3), k + 1)
+        sel = obs_names == name
+        x = ds["coordinate"].values[sel]
+        ax.errorbar(
+            x, ds["observed"].values[sel], ds["observed_sd"].values[sel], fmt="o", ms=3, label="observed"
+        )
+        ax.plot(x, ds["fitted"].values[sel], "k-", label="fitted")
+        q = quantity[sel][0]
+        ax.set_xlabel("t (s)" if q == "front" else "x (m)")
+        ax.set_ylabel(f"{q} ({_SI[q]})")
+        ax.set_title(name)
+        ax.legend()
+    if scalars:
+        ax = fig.add_subplot(-(-panels // 3), min(panels, 3), panels)
+        sel = np.isin(obs_names, scalars)
+        pos = np.arange(sel.sum())
+        ax.errorbar(pos, ds["observed"].values[sel], ds["observed_sd"].values[sel], fmt="o", label="observed")
+        ax.plot(pos, ds["fitted"].values[sel], "k_", ms=20, mew=2, label="fitted")
+        ax.set_xticks(pos, [f"{o}\n({_SI[q]})" for o, q in zip(obs_names[sel], quantity[sel])], fontsize=8)
+        ax.set_title("scalar observations")
+        ax.legend()
+    return fig
+
+
+def sobol_figure(ds: xr.Dataset) -> Figure:
+    """S1 and ST of each parameter with confidence intervals, one panel per output."""
+    outputs = [str(o) for o in ds["output"].values]
+    names = [str(n) for n in ds["parameter"].values]
+    fig = Figure(figsize=(max(6, 1.3 * len(names)) * len(outputs), 4), layout="constrained")
+    pos = np.arange(len(names))
+    level = round(100 * float(ds.attrs["confidence_level"]))
+    for k, output in enumerate(outputs):
+        ax = fig.add_subplot(1, len(outputs), k + 1)
+        for offset, key, label in ((-0.2, "S1", "first order S1"), (0.2, "ST", "total ST")):
+            ax.bar(
+                pos + offset, ds[key].values[k], 0.4, yerr=ds[f"{key}_conf"].values[k], capsize=3, label=label
+            )
+        ax.axhline(0, color="k", lw=0.5)
+        ax.set_xticks(pos, names, rotation=20, fontsize=8)
+        ax.set_title(f"{output} ({ds.attrs['base_samples']} base samples, {level}% intervals)")
+        ax.legend()
+    return fig
