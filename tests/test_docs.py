@@ -284,6 +284,7 @@ def test_blocks_equal_the_shipped_files(page: Path) -> None:
 def _written_figures() -> list[re.Pattern[str]]:
     """Names of the figures the documented scripts write (``{...}`` stands for a word)."""
     scripts = [ROOT / "docs" / "make_figures.py", ROOT / "docs" / "make_validation.py"]
+    scripts.append(ROOT / "benchmarks" / "scaling.py")  # the measured scaling figure
     names = re.findall(r"[\"'/]([\w{}]+\.png)[\"']", "".join(p.read_text() for p in scripts))
     return [re.compile(re.sub(r"\\\{\w*\\\}", r"\\w+", re.escape(name)) + "$") for name in names]
 
@@ -295,7 +296,7 @@ def test_images_exist_and_are_generated(page: Path) -> None:
     for target in re.findall(r"!\[[^\]]*\]\(([^)]+)\)", page.read_text()):
         assert (page.parent / target).is_file(), f"{page.name}: {target} is missing"
         name = Path(target).name
-        assert any(p.match(name) for p in written), f"{page.name}: no docs/make_*.py script writes {target}"
+        assert any(p.match(name) for p in written), f"{page.name}: no documented script writes {target}"
 
 
 @pytest.mark.parametrize("page", _pages_with("default"), ids=lambda p: p.name)

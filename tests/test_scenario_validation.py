@@ -21,6 +21,8 @@ def test_defaults(tiny_scenario):
     assert sc.time.cfl == 0.45
     assert sc.numerics.model_dump() == {
         "vertical_solver": "kernel",
+        "transport_solver": "kernel",
+        "threads": "auto",
         "order": 2,
         "tolerance": 1e-10,
         "max_iterations": 200,
@@ -164,3 +166,12 @@ def test_resolved_yaml_round_trip(tiny_scenario):
     assert resolved["bed"]["profile"] == "points"
     assert resolved["initial"][0]["velocity"]["from_height"] == 0.0
     assert resolved["material"]["particle_density"] == 1500.0
+
+
+@pytest.mark.parametrize("value", [0, -2, 1.5, "many", True])
+def test_numerics_threads_accepts_auto_or_a_positive_integer(write_scenario, tiny_scenario, value):
+    assert load(write_scenario(tiny_scenario), ["numerics.threads=2"]).numerics.threads == 2
+    with pytest.raises(
+        InputError, match=r"numerics\.threads \(from --set\): got .*; accepted: auto or an integer >= 1"
+    ):
+        load(write_scenario(tiny_scenario), [f"numerics.threads={value}"])

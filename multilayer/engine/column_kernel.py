@@ -28,7 +28,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from numba import get_num_threads, njit, prange
+from numba import njit, prange
 
 from multilayer.engine.column_problem import ColumnProblem
 from multilayer.errors import RunError
@@ -137,9 +137,10 @@ def _root(X, Y, n, sl, sr):
 
 
 @njit(cache=True)
-def _dynamic_programme(m, ustar, dt, kappa, c, w, cw, u, ws):
-    """Exact minimiser of E(u) for one column by dynamic programming (module docstring)."""
-    L = m.shape[0]
+def _dynamic_programme(inertia, momentum, kappa, c, w, cw, u, ws):
+    """Exact minimiser of E(u) for one column by dynamic programming (module docstring);
+    ``inertia = m / dt`` and ``momentum = m u* / dt`` per layer."""
+    L = inertia.shape[0]
     MX, MY, Mn, Msl, Msr, HX, HY, TX, TY, FX, FY, GX, GY = ws
     # ground link: h_0' = g_0' (u_0 = 0)
     HX[0] = 0.0
@@ -150,8 +151,8 @@ def _dynamic_programme(m, ustar, dt, kappa, c, w, cw, u, ws):
     hsl = c[0]
     hsr = c[0]
     for a in range(L):
-        A = m[a] / dt + cw[a]
-        B = m[a] * ustar[a] / dt
+        A = inertia[a] + cw[a]
+        B = momentum[a]
         FX[0] = 0.0
         FX[1] = 0.0
         FY[0] = -B - w[a]
@@ -224,8 +225,9 @@ def _sign(x):
 
 
 @njit(cache=True)
-def _active_set(m, ustar, dt, kappa, c, w, cw, guess, u, first, grounded, U, diag, low, rhs):
-    """Solve with the lock/sign structure of ``guess``; True if it is the exact minimiser.
+def _active_set(inertia, momentum, kappa, c, w, cw, guess, u, first, grounded, U, diag, low, rhs):
+    """Solve with the lock/sign structure of ``guess``; True if it is the exact minimiser
+    (``inertia = m / dt`` and ``momentum = m u* / dt`` per layer).
 
     Interfaces with ``kappa > 0`` across which ``guess`` does not jump are locked, layers
     at rest with ``w > 0`` are held by the walls.  Locked layers form rigid groups; a
@@ -235,10 +237,10 @@ def _active_set(m, ustar, dt, kappa, c, w, cw, guess, u, first, grounded, U, dia
     yielded jumps keep their signs and the locked stresses admit values within their
     yield bounds (interval propagation through grounded groups).
     """
-    L = m.shape[0]
+    L = inertia.shape[0]
     scale = 0.0
     for a in range(L):
-        scale += abs(m[a] * ustar[a] / dt) + kappa[a] + w[a]
+        scale += abs(momentum[a]) + kappa[a] + w[a]
     slack = 1e-10 * scale + 1e-300
     # groups
     ng = 0
@@ -261,8 +263,8 @@ def _active_set(m, ustar, dt, kappa, c, w, cw, guess, u, first, grounded, U, dia
         d = 0.0
         r = 0.0
         for a in range(p, q + 1):
-            d += m[a] / dt + cw[a]
-            r += m[a] * ustar[a] / dt - _sign(guess[a]) * w[a]
+            d += inertia[a] + cw[a]
+            r += momentum[a] - _sign(guess[a]) * w[a]
         below = guess[p - 1] if p > 0 else 0.0
         d += c[p]
         r -= kappa[p] * _sign(guess[p] - below)
@@ -304,7 +306,7 @@ def _active_set(m, ustar, dt, kappa, c, w, cw, guess, u, first, grounded, U, dia
             for a in range(q, p, -1):  # locked interfaces inside a moving group
                 if w[a] > 0.0 and _sign(guess[a]) * U[j] < 0.0:
                     return False
-                tau -= (m[a] / dt + cw[a]) * U[j] - m[a] * ustar[a] / dt + _sign(guess[a]) * w[a]
+                tau -= (inertia[a] + cw[a]) * U[j] - momentum[a] + _sign(guess[a]) * w[a]
                 if abs(tau) > kappa[a] + slack:
                     return False
             if w[p] > 0.0 and _sign(guess[p]) * U[j] < 0.0:
@@ -313,8 +315,8 @@ def _active_set(m, ustar, dt, kappa, c, w, cw, guess, u, first, grounded, U, dia
         lo = tau
         hi = tau
         for a in range(q, p - 1, -1):  # grounded group: feasible stresses, top down
-            lo += m[a] * ustar[a] / dt - w[a]
-            hi += m[a] * ustar[a] / dt + w[a]
+            lo += momentum[a] - w[a]
+            hi += momentum[a] + w[a]
             if a > p or (a == 0 and kappa[0] > 0.0 and guess[0] == 0.0):
                 lo = max(lo, -kappa[a])
                 hi = min(hi, kappa[a])
@@ -335,26 +337,29 @@ def _columns(m, ustar, dt, kappa, c, w, cw, guess, u, chunks):
         first = np.empty(L + 1, np.int64)
         grounded = np.empty(L, np.bool_)
         U, diag, low, rhs = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
+        inertia, momentum = np.empty(L), np.empty(L)  # m_a / dt and m_a u*_a / dt
         for i in range(k * N // chunks, (k + 1) * N // chunks):
             if m[i, 0] <= 0.0:
                 u[i, :] = 0.0
                 continue
-            args = (m[i], ustar[i], dt, kappa[i], c[i], w[i], cw[i])
+            for a in range(L):
+                inertia[a] = m[i, a] / dt
+                momentum[a] = m[i, a] * ustar[i, a] / dt
+            args = (inertia, momentum, kappa[i], c[i], w[i], cw[i])
             if not _active_set(*args, guess[i], u[i], first, grounded, U, diag, low, rhs):
                 _dynamic_programme(*args, u[i], ws)
 
 
 _solve_serial: Any = njit(cache=True)(_columns)
 _solve_parallel: Any = njit(cache=True, parallel=True)(_columns)
-PARALLEL_CELLS = 40_000
-"""Problems with fewer cells than this run on one thread (a parallel launch costs more)."""
 
 
-def solve(problem: ColumnProblem, guess: np.ndarray | None = None) -> np.ndarray:
+def solve(problem: ColumnProblem, guess: np.ndarray | None = None, threads: int = 1) -> np.ndarray:
     """Exact minimiser of the implicit vertical step for every column (L, N).
 
     ``guess`` (e.g. the previous velocities, (L, N)) proposes the structure of rigid and
-    static groups; it only affects the speed.  This is a
+    static groups; it only affects the speed.  ``threads > 1`` solves that many chunks of
+    columns in parallel (``threads.py`` chooses it).  This is a
     :class:`~multilayer.engine.column_problem.VerticalSolver`; the compiled functions
     take the coefficients as arrays (N, L), each column contiguous.
     """
@@ -368,8 +373,8 @@ def solve(problem: ColumnProblem, guess: np.ndarray | None = None) -> np.ndarray
     if not (np.isfinite(p.dt) and p.dt > 0):
         raise RunError(f"column kernel: the time step dt = {p.dt!r} is not a finite number > 0")
     u = np.empty_like(arrays[0])
-    if u.size >= PARALLEL_CELLS:
-        chunks = max(1, min(u.shape[0], 4 * get_num_threads()))
+    if threads > 1:
+        chunks = max(1, min(u.shape[0], 4 * threads))
         _solve_parallel(*arrays[:2], float(p.dt), *arrays[2:], guess, u, chunks)
     else:
         _solve_serial(*arrays[:2], float(p.dt), *arrays[2:], guess, u, 1)

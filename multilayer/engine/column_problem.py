@@ -71,7 +71,9 @@ class VerticalSolver(Protocol):
     """An exact minimiser of ``E(u)``: returns the new velocities (L, N).
 
     ``guess`` (e.g. the previous velocities) may be used to speed the solve up; it never
-    changes the answer.
+    changes the answer.  ``threads`` is the number of threads a solver may use.
     """
 
-    def __call__(self, problem: ColumnProblem, guess: np.ndarray | None = None) -> np.ndarray: ...
+    def __call__(
+        self, problem: ColumnProblem, guess: np.ndarray | None = None, threads: int = 1
+    ) -> np.ndarray: ...

@@ -343,8 +343,8 @@ def project(
     dv = dV[: L * F].reshape(L, F)
     dw = dV[L * F :].reshape(L, N)
     du = np.zeros_like(u)
-    np.add.at(du, (slice(None), left), 0.5 * dv)
-    np.add.at(du, (slice(None), right), 0.5 * dv)
+    np.add.at(du.T, left, 0.5 * dv.T)  # du.T is a view: columns of du gather their faces
+    np.add.at(du.T, right, 0.5 * dv.T)
     u_new = np.where(moving, u + du, u)
     w_new = np.where(moving, w + dw, 0.0)
     q = np.cumsum((fractions[:, None] * h * dw)[::-1], axis=0)[::-1] / dt

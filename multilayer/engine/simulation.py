@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -20,9 +20,12 @@ from multilayer.engine import (
     bim2016,
     diagnostics,
     initial_state,
+    newton_kernel,
     nonhydrostatic,
     stress,
+    threads,
     transport,
+    transport_kernel,
     vertical_step,
 )
 from multilayer.engine.gate import Gate
@@ -50,15 +53,15 @@ def basal_conditions(regions: Sequence[BaseZone], x: np.ndarray) -> tuple[np.nda
 
 
 class Simulation:
-    """A scenario's state on the X-sigma FiPy mesh and the loop that advances it.
+    """A scenario's state on the X-sigma mesh and the loop that advances it.
 
     Stepping API (docs/api.md): ``Simulation(multilayer.load(...))`` builds the initial
     state; :meth:`step` takes one stable time step, :meth:`advance` steps to a given
     time; the state is ``t`` (s), ``h`` (N,) and ``u`` (L, N) at the cell centres ``x``
     and layer centres ``sigma * h``; :meth:`diagnostics` gives the static interface,
     front and mass; :meth:`state_dict` and :meth:`load_state` save and restore it.
-    ``h`` and ``u`` are views of the FiPy variables ``h_var`` and ``u_var``: copy them
-    to keep a snapshot.
+    ``h`` and ``u`` are numpy arrays updated in place: copy them to keep a snapshot
+    (``mesh.cell_variable`` makes FiPy variables of them on the FiPy mesh).
     """
 
     def __init__(self, scenario: Scenario):
@@ -88,6 +91,14 @@ class Simulation:
         )
         self.base_slip = self.stresses.base_kind != stress.NO_SLIP
         self.solver = vertical_step.solver_for(sc.numerics.vertical_solver)
+        # the fused compiled Newton iteration (used when every law has a compiled form)
+        kernel = sc.numerics.vertical_solver == "kernel"
+        self.compiled_step = newton_kernel.CompiledStep(self.stresses) if kernel else None
+        self.transport = (
+            transport.transport if sc.numerics.transport_solver == "numpy" else transport_kernel.transport
+        )
+        self.workspace = transport_kernel.Workspace(self.fractions.size, dom.cells)
+        self.thread_policy = threads.ThreadPolicy(sc.numerics.threads)
 
         bc = sc.boundaries
         self.left, self.right = bc.left, bc.right
@@ -104,19 +115,16 @@ class Simulation:
         if sc.gate is not None:
             faces = dom.x_min + self.dx * np.arange(dom.cells + 1)
             self.gate = Gate(sc.gate.x, sc.gate.lift_speed, faces, self.mesh.interfaces)
+            # the compiled transport has no gate: a gated run uses the numpy reference
+            self.transport = transport.transport
 
         self.edges = initial_state.cell_edges(dom.x_min, dom.x_max, dom.cells)
         initial_state.check_entries(sc.initial, dom.x_min, dom.x_max, self.dx, str(sc.source or "<scenario>"))
         h0, u0 = initial_state.initial_state(sc.initial, self.x, self.sigma, self.edges)
-        # the state lives in FiPy variables; h, u and bed are numpy views of their values
-        self.h_var = self.mesh.cell_variable("h", h0, layered=False)
-        self.u_var = self.mesh.cell_variable("u", u0.ravel(), layered=True)
-        self.bed_var = self.mesh.cell_variable(
-            "bed", initial_state.bed_profile(sc.bed, self.x), layered=False
-        )
-        self.h = self.h_var.value
-        self.u = self.u_var.value.reshape(self.fractions.size, dom.cells)
-        self.bed = self.bed_var.value
+        # the state is numpy; sim.mesh.cell_variable gives FiPy variables of it on demand
+        self.h = np.ascontiguousarray(h0, dtype=float)
+        self.u = np.ascontiguousarray(u0, dtype=float).reshape(self.fractions.size, dom.cells)
+        self.bed = initial_state.bed_profile(sc.bed, self.x)
         # non-hydrostatic state: layer-mean vertical velocities and interface pressures
         self.w = np.zeros_like(self.u)
         self.q = np.zeros_like(self.u)
@@ -145,11 +153,11 @@ class Simulation:
 
     def time_step(self) -> float:
         """Largest stable step of the transport (Courant condition), inflow state included."""
-        h, u = self.h, self.u
+        speed = transport_kernel.max_wave_speed(self.h, self.u, self.g_n)
         if self.inflow is not None:
-            h = np.append(h, self.inflow.thickness)
-            u = np.column_stack([u, self.inflow.velocity])
-        return transport.stable_time_step(h, u, self.g_n, self.dx, self.scenario.time.cfl)
+            h_in, u_in = np.array([self.inflow.thickness]), self.inflow.velocity.reshape(-1, 1)
+            speed = max(speed, transport_kernel.max_wave_speed(h_in, u_in, self.g_n))
+        return transport.courant_step(speed, self.dx, self.scenario.time.cfl)
 
     def step(self, t_max: float = np.inf) -> float:
         """Advance one time step, never beyond ``t_max``; returns the step taken."""
@@ -159,7 +167,7 @@ class Simulation:
         # columns that move carry waves; material at rest that the step sets moving carries
         # them from the start of the step: redo it until that set is complete (a dry
         # column being filled is no material at rest and needs no redo)
-        moving = np.any(self.u != 0.0, axis=0)
+        moving = transport_kernel.moving_columns(self.u)
         held = self.h > self.numerics.dry_threshold
         rest = (self.u == 0.0) & held  # material at rest now: the static yield stress applies
         iterations = 0
@@ -167,7 +175,7 @@ class Simulation:
         while True:
             h_new, u_new, w_new, q_new, more = self._transport_and_stresses(dt, moving, rest)
             iterations += more
-            starting = np.any(u_new != 0.0, axis=0) & ~moving & held
+            starting = transport_kernel.moving_columns(u_new) & ~moving & held
             if not starting.any():
                 break
             moving |= starting
@@ -185,12 +193,18 @@ class Simulation:
 
     def _transport_and_stresses(
         self, dt: float, moving: np.ndarray, rest: np.ndarray | None = None
-    ) -> tuple[np.ndarray, ...]:
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
         """Transport (h, u*), the implicit vertical step (u^{n+1}) and, with the
         non-hydrostatic pressure, the projection (u, w, q) over ``dt``; ``rest`` (L, N)
         marks the layers at rest at the start of the step."""
         opening = self.gate.opening(self.h, self.t + 0.5 * dt) if self.gate is not None else None
-        h_new, ustar = transport.transport(
+        # the occupied columns bound the work of the step, and so its thread count
+        count = self.thread_policy.threads(self.fractions.size * int(np.count_nonzero(self.h)))
+        compiled = self.transport is transport_kernel.transport
+        kernel_options: dict[str, Any] = {"workspace": self.workspace, "threads": count} if compiled else {}
+        if self.gate is not None:  # the numpy transport (see __init__)
+            kernel_options.update(gate_face=self.gate.face, opening=opening)
+        h_new, ustar = self.transport(
             self.h,
             self.u,
             self.bed,
@@ -205,8 +219,7 @@ class Simulation:
             dry=self.numerics.dry_threshold,
             order=self.numerics.order,
             moving=moving,
-            gate_face=self.gate.face if self.gate is not None else None,
-            opening=opening,
+            **kernel_options,
         )
         self.guard.check_state(h_new, ustar, f"after transport from t = {self.t:.6g} s (dt = {dt:.3g} s)")
         yield_gravity = None
@@ -237,6 +250,8 @@ class Simulation:
             rest=rest,
             poll=self.poll,
             yield_gravity=yield_gravity,
+            threads=count,
+            compiled=self.compiled_step,
         )
         if self.pressure != "non_hydrostatic":
             return h_new, u_new, self.w, self.q, iterations

@@ -79,14 +79,9 @@ def _minmod_slope(v: np.ndarray) -> np.ndarray:
     return np.where(back * ahead > 0, np.sign(back) * np.minimum(np.abs(back), np.abs(ahead)), 0.0)
 
 
-def wave_speed(h: np.ndarray, u: np.ndarray, g_n: float) -> np.ndarray:
-    """Largest characteristic speed max_a |u_a| + sqrt(g cos(theta) h) of each column."""
-    return np.max(np.abs(u), axis=0) + np.sqrt(g_n * np.maximum(h, 0.0))
-
-
-def stable_time_step(h: np.ndarray, u: np.ndarray, g_n: float, dx: float, cfl: float) -> float:
-    """Time step from the Courant condition, capped at the positivity limit 1/2."""
-    speed = float(np.max(wave_speed(h, u, g_n), initial=0.0))
+def courant_step(speed: float, dx: float, cfl: float) -> float:
+    """Time step of the Courant condition for the fastest wave ``speed``, the Courant
+    number capped at the positivity limit 1/2."""
     return min(cfl, 0.5) * dx / speed if speed > 0 else np.inf
 
 

@@ -24,11 +24,12 @@ import numpy as np
 
 from multilayer.engine import column_kernel
 from multilayer.engine.column_problem import ColumnProblem, VerticalSolver
+from multilayer.engine.newton_kernel import CompiledStep
 from multilayer.engine.stress import StressModel
 from multilayer.errors import RunError
 
 
-def _fipy_solve(problem: ColumnProblem, guess: np.ndarray | None = None) -> np.ndarray:
+def _fipy_solve(problem: ColumnProblem, guess: np.ndarray | None = None, threads: int = 1) -> np.ndarray:
     """The FiPy reference path; it needs no guess (it starts from scratch each time)."""
     from multilayer.reference import vertical_fipy
 
@@ -54,6 +55,8 @@ def implicit_step(
     rest: np.ndarray | None = None,
     poll: Callable[[], None] | None = None,
     yield_gravity: np.ndarray | None = None,
+    threads: int = 1,
+    compiled: CompiledStep | None = None,
 ) -> tuple[np.ndarray, int]:
     """New layer velocities (L, N) after the stresses of one step, and the Newton count.
 
@@ -63,27 +66,51 @@ def implicit_step(
     converged are solved again.  ``poll()`` is called before every kernel call: it may
     raise to abandon the step (how a run honours Ctrl-C within a kernel call).
     ``yield_gravity`` (L, N) replaces ``g cos(theta)`` in the interface pressures.
+    ``threads`` goes to the solver.  With ``compiled`` the same iteration runs fused per
+    column when every law has a compiled form.
     """
+    threshold = tolerance * velocity_scale
+    if compiled is not None and compiled.laws() is not None:
+        if poll is not None:
+            poll()
+        u, iterations = compiled(
+            h,
+            ustar,
+            u_guess,
+            dt,
+            threshold=threshold,
+            max_iterations=max_iterations,
+            threads=threads,
+            rest=rest,
+            yield_gravity=yield_gravity,
+        )
+        failed = int(np.count_nonzero(iterations < 0))
+        if failed:
+            raise _not_converged(tolerance, max_iterations, failed)
+        return u, int(iterations.max(initial=1))
     u = np.zeros_like(ustar)
     wet = np.flatnonzero(h > 0)
     cs = stresses.columns(h, wet, rest, yield_gravity)
     current = u_guess[:, wet]
     todo = np.arange(wet.size)  # wet columns still iterating
-    threshold = tolerance * velocity_scale
     for iteration in range(1, max_iterations + 1):
         if poll is not None:
             poll()
         problem = stresses.linearise(cs, current, ustar[:, wet], dt).columns(todo)
         cols = (slice(None), todo)
-        new = solver(problem, guess=current[cols])
+        new = solver(problem, guess=current[cols], threads=threads)
         change = np.max(np.abs(new - current[cols]), axis=0)
         current[cols] = new
         todo = todo[change > threshold]
         if todo.size == 0:
             u[:, wet] = current
             return u, iteration
-    raise RunError(
+    raise _not_converged(tolerance, max_iterations, todo.size)
+
+
+def _not_converged(tolerance: float, max_iterations: int, columns: int) -> RunError:
+    return RunError(
         f"the viscous (Newton) iteration of the vertical step did not reach tolerance "
-        f"{tolerance:g} in {max_iterations} iterations in {todo.size} column(s); "
+        f"{tolerance:g} in {max_iterations} iterations in {columns} column(s); "
         "raise numerics.max_iterations or numerics.tolerance"
     )

@@ -187,9 +187,10 @@ class ResultWriter:
                 "title": f"multilayer simulation: {scenario.name}",
                 "institution": os.environ.get("MULTILAYER_INSTITUTION", "not specified"),
                 "source": f"multilayer {origin.version} (commit {origin.commit}): multilayer "
-                f"shallow-flow model of dense granular flows; mesh and state variables in FiPy "
-                f"{fipy.__version__}, transport in numpy, vertical step in a numba kernel "
-                f"(vertical_solver: {scenario.numerics.vertical_solver})",
+                f"shallow-flow model of dense granular flows; X-sigma mesh and reference formulations "
+                f"in FiPy {fipy.__version__}, state in numpy, transport and vertical step by numba "
+                f"kernels tested equal to them (transport_solver: {scenario.numerics.transport_solver}, "
+                f"vertical_solver: {scenario.numerics.vertical_solver})",
                 "history": f"{_now()} multilayer run {scenario.source or scenario.name}",
                 "references": "Fernandez-Nieto, Garres-Diaz, Mangeney & Narbona-Reina "
                 "(2016) J. Fluid Mech. 798; Bouchut, Ionescu & Mangeney "

@@ -577,15 +577,27 @@ class Expect(_Model):
         return self
 
 
+THREADS_ACCEPTED = "auto or an integer >= 1 (the environment variable MULTILAYER_THREADS wins)"
+
+
 class Numerics(_Model):
     """Solver settings; the defaults suit every shipped scenario."""
 
     vertical_solver: Literal["kernel", "fipy"] = _field("kernel", "kernel or fipy")
+    transport_solver: Literal["kernel", "numpy"] = _field("kernel", "kernel or numpy")
+    threads: Any = _field("auto", THREADS_ACCEPTED)
     order: Literal[1, 2] = _field(2, "1 or 2 (order of the transport step in x and t)")
     tolerance: float = _field(1e-10, "a number > 0", gt=0)
     max_iterations: int = _field(200, "an integer >= 1", ge=1)
     dry_threshold: float = _field(1e-6, "a number > 0 (m)", gt=0)
     front_threshold: float = _field(1e-3, "a number > 0 (m)", gt=0)
+
+    @field_validator("threads")
+    @classmethod
+    def _threads(cls, value: Any) -> int | str:
+        if value == "auto" or (type(value) is int and value >= 1):
+            return value
+        raise _invalid(f"got {value!r}", THREADS_ACCEPTED)
 
 
 class Model(_Model):

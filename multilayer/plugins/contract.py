@@ -62,3 +62,18 @@ class Rheology:
     def viscosity(self, shear_rate: np.ndarray, pressure: np.ndarray, material: Material) -> np.ndarray:
         """Rate-dependent part eta(|gamma|, p) >= 0, in Pa s, finite at gamma = 0."""
         raise NotImplementedError
+
+    def viscosity_kernel(self, material: Material) -> tuple[str, tuple[float, ...]] | None:
+        """Optional: the viscous part as one of the compiled forms of the engine, so that
+        the vertical step runs entirely compiled (docs/plugins.md, "Compiled forms").
+
+        Returns ``(form, parameters)`` with ``viscosity`` equal to, for ``p = max(p, 0)``:
+
+        * ``("constant", (eta,))``: ``eta``;
+        * ``("inertial", (A, B, C))``: ``A p / (B sqrt(p) + C |gamma|)``, 0 where the
+          denominator is 0 (Jop et al. 2006 mu(I));
+        * ``("power", (A, e_p, e_g, floor))``: ``A p^e_p max(|gamma|, floor)^e_g``.
+
+        The default, None, keeps this law on the numpy path (always correct).
+        """
+        return None

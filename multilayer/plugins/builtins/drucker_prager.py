@@ -31,3 +31,7 @@ class DruckerPrager(FrictionalYield):
         """eta = rho nu, Pa s, independent of the shear rate and pressure."""
         shape = np.broadcast_shapes(np.shape(shear_rate), np.shape(pressure))
         return np.full(shape, material.density * self.nu)
+
+    def viscosity_kernel(self, material):
+        """The ``constant`` form of :meth:`viscosity`."""
+        return "constant", (material.density * self.nu,)

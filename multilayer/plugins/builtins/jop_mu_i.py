@@ -42,3 +42,8 @@ class JopMuI(FrictionalYield):
         numerator = (self.mu_2 - self.mu_s) * scale * p
         denominator = self.I_0 * np.sqrt(p) + scale * np.abs(shear_rate)
         return np.divide(numerator, denominator, out=np.zeros(denominator.shape), where=denominator > 0)
+
+    def viscosity_kernel(self, material):
+        """The ``inertial`` form of :meth:`viscosity` (same constants, same operations)."""
+        scale = material.grain_diameter * np.sqrt(material.particle_density)
+        return "inertial", ((self.mu_2 - self.mu_s) * scale, self.I_0, scale)

@@ -51,3 +51,8 @@ class PowerLawMuI(FrictionalYield):
         rate = np.maximum(np.abs(shear_rate), self.shear_rate_floor)
         scale = (material.grain_diameter * np.sqrt(material.particle_density)) ** self.alpha
         return self.m * scale * p ** (1.0 - self.alpha / 2) * rate ** (self.alpha - 1.0)
+
+    def viscosity_kernel(self, material):
+        """The ``power`` form of :meth:`viscosity` (same constants, same operations)."""
+        scale = (material.grain_diameter * np.sqrt(material.particle_density)) ** self.alpha
+        return "power", (self.m * scale, 1.0 - self.alpha / 2, self.alpha - 1.0, self.shear_rate_floor)

@@ -31,3 +31,7 @@ class WallFriction(multilayer.Rheology):
     def viscosity(self, shear_rate, pressure, material):
         """eta = 0, Pa s."""
         return np.zeros(np.broadcast_shapes(np.shape(shear_rate), np.shape(pressure)))
+
+    def viscosity_kernel(self, material):
+        """The ``constant`` form of :meth:`viscosity` (no viscous part)."""
+        return "constant", (0.0,)

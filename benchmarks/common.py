@@ -1,0 +1,87 @@
+"""Shared timing and reporting of the benchmark scripts (not a benchmark itself).
+
+Every benchmark prints the time to solution, the steps, the cell-steps per second counted
+two ways (the whole mesh, and the cells holding material, h > 0, after each step: what
+was actually computed) and the load average of the machine at the end of the timing.
+"""
+
+from __future__ import annotations
+
+import cProfile
+import os
+import pstats
+import resource
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from multilayer.engine.simulation import Simulation
+
+
+@dataclass
+class Timing:
+    seconds: float
+    cpu_seconds: float  # CPU time of this process (all threads)
+    steps: int
+    cells: int  # cells of the whole mesh
+    computed: int  # cell-steps on cells holding material
+    newton: float  # Newton iterations per step
+    load: float  # 1-minute load average at the end
+    peak_bytes: int  # peak resident memory of the process
+    fallback_share: float  # column solves that needed the O(L^2) dynamic programme
+
+    def lines(self) -> list[str]:
+        return [
+            f"time to solution {self.seconds:.3f} s (CPU {self.cpu_seconds:.3f} s), steps {self.steps}, "
+            f"Newton iterations per step {self.newton:.2f}, "
+            f"O(L^2) fallback in {100 * self.fallback_share:.3f} % of the column solves",
+            f"cell-steps/s: {self.cells * self.steps / self.seconds / 1e6:.2f} M (whole mesh), "
+            f"{self.computed / self.seconds / 1e6:.2f} M (cells holding material)",
+            f"peak memory {self.peak_bytes / 2**20:.0f} MiB "
+            f"({self.peak_bytes / self.cells:.0f} bytes per mesh cell), load average {self.load:.2f}",
+        ]
+
+
+def peak_memory() -> int:
+    """Peak resident memory of this process so far, bytes (Linux reports KiB)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+
+
+def timed(
+    make: Callable[[], Simulation], end: float, *, profile: bool = False, warm_up: Simulation | None = None
+) -> tuple[Simulation, Timing]:
+    """Run ``make()`` to ``end`` and time it; ``warm_up`` (a small simulation of the same
+    kind) compiles the kernels first, outside the timing."""
+    if warm_up is not None:
+        warm_up.step(warm_up.t + 1e-9)
+    sim = make()
+    layers = sim.fractions.size
+    computed = [0]
+
+    def count(s: Simulation, dt: float) -> None:
+        computed[0] += layers * int(np.count_nonzero(s.h > 0.0))
+
+    profiler = cProfile.Profile() if profile else None
+    start, cpu = time.perf_counter(), time.process_time()
+    if profiler:
+        profiler.enable()
+    sim.advance(end, on_step=count)
+    if profiler:
+        profiler.disable()
+    seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
+    timing = Timing(
+        seconds,
+        cpu,
+        sim.steps,
+        sim.cells,
+        computed[0],
+        sim.newton_iterations / max(sim.steps, 1),
+        os.getloadavg()[0],
+        peak_memory(),
+        sim.compiled_step.fallbacks / max(sim.compiled_step.solves, 1) if sim.compiled_step else float("nan"),
+    )
+    if profiler:
+        pstats.Stats(profiler).sort_stats("tottime").print_stats(15)
+    return sim, timing

@@ -1,0 +1,128 @@
+"""Benchmark: time per cell-step and peak memory per cell against columns N and layers L.
+
+The fully wet Bagnold chute of benchmarks/chute.py at N = 10^3 ... 10^6 columns (L = 32)
+and L = 4 ... 128 layers (N = 10^4), each point in a fresh process (so that its peak
+resident memory is its own), for a number of steps that keeps each point near 10^7
+cell-steps (at least 3).  Prints a table (wall and CPU time per cell-step, peak bytes per
+cell, Newton iterations per step, share of column solves that needed the O(L^2) dynamic
+programme, machine load) and draws the log-log figure docs/figures/performance_scaling.png.
+
+    python benchmarks/scaling.py [--columns 1e3 1e4 1e5 1e6] [--layers 4 8 16 32 64 128]
+    python benchmarks/scaling.py --point N L STEPS     # one point (used by the sweep)
+    python benchmarks/scaling.py --replot              # redraw the figure from the saved rows
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+FIGURE = HERE.parent / "docs" / "figures" / "performance_scaling.png"
+DATA = FIGURE.with_suffix(".json")  # the rows of the last sweep, from which --replot redraws
+
+
+def point(columns: int, layers: int, steps: int) -> dict:
+    """Time ``steps`` steps of the chute at ``columns`` x ``layers`` in this process."""
+    from chute import scenario
+    from common import peak_memory, timed
+
+    from multilayer.engine.simulation import Simulation
+
+    probe = Simulation(scenario(8, layers, 2, 1.0, 1))
+    end = steps * probe.time_step() * (1 - 1e-9)
+    probe.step()  # compile the kernels
+    baseline = peak_memory()  # interpreter, libraries and compiled kernels
+    sim, timing = timed(lambda: Simulation(scenario(columns, layers, 2, end, 1)), end)
+    cells = columns * layers
+    step = sim.compiled_step
+    return {
+        "columns": columns,
+        "layers": layers,
+        "steps": timing.steps,
+        "ns_per_cell_step": 1e9 * timing.seconds / (cells * timing.steps),
+        "cpu_ns_per_cell_step": 1e9 * timing.cpu_seconds / (cells * timing.steps),
+        "bytes_per_cell": peak_memory() / cells,
+        "bytes_per_cell_above_baseline": (peak_memory() - baseline) / cells,
+        "newton_per_step": timing.newton,
+        "fallback_share": step.fallbacks / max(step.solves, 1),
+        "load": timing.load,
+    }
+
+
+def run_point(columns: int, layers: int) -> dict:
+    steps = int(max(3, min(100, 1e7 // (columns * layers))))
+    out = subprocess.run(
+        [sys.executable, __file__, "--point", str(columns), str(layers), str(steps)],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def figure(rows: list[dict], path: Path) -> None:
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(9, 3.6))
+    axes = fig.subplots(1, 2)
+    for ax, key, fixed, label in (
+        (axes[0], "columns", "layers", "columns N"),
+        (axes[1], "layers", "columns", "layers L"),
+    ):
+        sel = [r for r in rows if r[fixed] == (32 if fixed == "layers" else 10_000)]
+        sel.sort(key=lambda r: r[key])
+        x = [r[key] for r in sel]
+        ax.loglog(x, [r["ns_per_cell_step"] for r in sel], "o-", label="wall time per cell-step (ns)")
+        ax.loglog(x, [r["cpu_ns_per_cell_step"] for r in sel], "s--", label="CPU time per cell-step (ns)")
+        ax.loglog(x, [r["bytes_per_cell"] for r in sel], "^-", label="peak memory per cell (bytes)")
+        above = [r["bytes_per_cell_above_baseline"] for r in sel]
+        ax.loglog(x, above, "v:", label="... above the interpreter and libraries")
+        ax.axhline(300, color="grey", lw=0.8, ls=":")
+        ax.set_xlabel(label + (" (L = 32)" if key == "columns" else " (N = 10^4)"))
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].legend(fontsize=7)
+    fig.suptitle("fully wet Bagnold chute, second order, one thread", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--point", nargs=3, type=int, metavar=("N", "L", "STEPS"))
+    parser.add_argument("--columns", nargs="+", type=float, default=[1e3, 1e4, 1e5, 1e6])
+    parser.add_argument("--layers", nargs="+", type=int, default=[4, 8, 16, 32, 64, 128])
+    parser.add_argument("--replot", action="store_true", help=f"redraw the figure from {DATA.name}")
+    args = parser.parse_args()
+    if args.point:
+        print(json.dumps(point(*args.point)))
+        return
+    if args.replot:
+        figure(json.loads(DATA.read_text()), FIGURE)
+        return
+    grid = [(int(n), 32) for n in args.columns] + [(10_000, layers) for layers in args.layers if layers != 32]
+    rows = []
+    print(
+        "columns layers steps | ns/cell-step wall, CPU | bytes/cell total, above start"
+        " | Newton/step | O(L^2) | load"
+    )
+    for columns, layers in sorted(set(grid)):
+        r = run_point(columns, layers)
+        rows.append(r)
+        print(
+            f"{columns:>7} {layers:>6} {r['steps']:>5}"
+            f" | {r['ns_per_cell_step']:8.1f} {r['cpu_ns_per_cell_step']:8.1f}"
+            f" | {r['bytes_per_cell']:10.0f} {r['bytes_per_cell_above_baseline']:8.0f}"
+            f" | {r['newton_per_step']:5.2f} | {r['fallback_share']:.1e} | {r['load']:.2f}",
+            flush=True,
+        )
+    DATA.write_text(json.dumps(rows, indent=1))
+    figure(rows, FIGURE)
+    print(f"figure: {FIGURE}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,67 @@
+"""Benchmark: one and two threads, on a quiet machine and beside one CPU-bound process.
+
+Runs benchmarks/dam_break.py (the peer problem, about 10 % of its cells hold material) and
+benchmarks/chute.py (fully wet, 1.28 M cells) with ``--threads 1``, ``--threads 2`` and the
+default ``auto``, first as they are, then with one competing CPU-bound process (a Python
+busy loop started and stopped by this script), each in a fresh process, one after the
+other.  Prints the time to solution of each and its ratio to the quiet run with the same
+setting: what a user of a shared machine gets.
+
+    python benchmarks/threads.py [--problems dam_break chute] [--settings 1 2 auto]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+EXTRA = {"dam_break": [], "chute": ["--steps", "20"]}
+
+
+def time_to_solution(problem: str, threads: str) -> float:
+    out = subprocess.run(
+        [sys.executable, str(HERE / f"{problem}.py"), "--threads", threads, *EXTRA[problem]],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
+    return float(re.search(r"time to solution ([0-9.]+) s", out).group(1))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--problems", nargs="+", default=["dam_break", "chute"], choices=sorted(EXTRA))
+    parser.add_argument("--settings", nargs="+", default=["1", "2", "auto"])
+    args = parser.parse_args()
+    print(f"cores available: {len(os.sched_getaffinity(0))}")
+    for problem in args.problems:
+        quiet = {}
+        for setting in args.settings:
+            load = os.getloadavg()[0]
+            quiet[setting] = time_to_solution(problem, setting)
+            print(
+                f"{problem:10s} threads {setting:>4}: quiet {quiet[setting]:7.2f} s (load {load:.2f})",
+                flush=True,
+            )
+        for setting in args.settings:
+            busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+            try:
+                load = os.getloadavg()[0]
+                seconds = time_to_solution(problem, setting)
+            finally:
+                busy.kill()
+                busy.wait()
+            print(
+                f"{problem:10s} threads {setting:>4}: beside one busy process {seconds:7.2f} s, "
+                f"{seconds / quiet[setting]:.2f} x quiet (load {load:.2f})",
+                flush=True,
+            )
+
+
+if __name__ == "__main__":
+    main()

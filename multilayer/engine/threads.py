@@ -1,0 +1,104 @@
+"""How many threads the compiled kernels use: never more than the machine has idle.
+
+A parallel kernel on a core that another process also wants does not run in parallel:
+its threads wait for each other at every join, so a run beside one busy process on two
+cores took 2.5 times as long with two threads as with one (docs/performance.md,
+"Threads").  The policy, in this order:
+
+1. the environment variable ``MULTILAYER_THREADS`` (a positive integer) wins;
+2. then the scenario key ``numerics.threads`` (a positive integer, or ``auto``);
+3. ``auto``: one thread for steps smaller than ``PARALLEL_CELLS`` cells (a parallel
+   launch costs more than it gains), otherwise as many threads as there are cores left
+   idle by the other processes, measured from ``/proc/stat`` minus this process's own CPU
+   time over the last ``REFRESH`` seconds (one thread until the first measurement, and
+   where ``/proc/stat`` does not exist).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+
+from multilayer.errors import InputError
+
+ENVIRONMENT = "MULTILAYER_THREADS"
+PARALLEL_CELLS = 200_000
+"""Steps on fewer cells than this run on one thread (see docs/performance.md)."""
+REFRESH = 0.5
+"""Seconds between two measurements of the idle cores."""
+
+
+def available_cores() -> int:
+    """Cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def _busy_seconds() -> float | None:
+    """CPU seconds spent by all processes (the non-idle jiffies of /proc/stat)."""
+    try:
+        with open("/proc/stat") as stat:
+            fields = [int(v) for v in stat.readline().split()[1:]]
+    except (OSError, ValueError):
+        return None
+    idle = fields[3] + (fields[4] if len(fields) > 4 else 0)  # idle + iowait
+    return (sum(fields[:8]) - idle) / os.sysconf("SC_CLK_TCK")
+
+
+def _own_seconds() -> float:
+    t = os.times()
+    return t.user + t.system
+
+
+def requested(setting: int | str = "auto") -> int | None:
+    """The fixed thread count asked for (environment first), None for ``auto``."""
+    env = os.environ.get(ENVIRONMENT, "").strip()
+    if env and env != "auto":
+        if not env.isdigit() or int(env) < 1:
+            raise InputError(
+                f"environment variable {ENVIRONMENT}={env!r}; accepted: 'auto' or an integer >= 1"
+            )
+        return int(env)
+    if env == "auto" or setting == "auto":
+        return None
+    return int(setting)
+
+
+class ThreadPolicy:
+    """Chooses the thread count of each step (module docstring)."""
+
+    def __init__(self, setting: int | str = "auto"):
+        self.fixed = requested(setting)
+        self.cores = available_cores()
+        self.idle = 1  # until measured
+        self._last: tuple[float, float | None, float] | None = None
+
+    def _measure(self) -> None:
+        """Update ``idle`` when ``REFRESH`` seconds have passed since the last sample."""
+        now = time.monotonic()
+        if self._last is not None and now - self._last[0] < REFRESH:
+            return
+        sample = (now, _busy_seconds(), _own_seconds())
+        last, self._last = self._last, sample
+        if last is None or sample[1] is None or last[1] is None:
+            return
+        others = (sample[1] - last[1]) - (sample[2] - last[2])
+        self.idle = max(1, min(self.cores, round(self.cores - max(others, 0.0) / (now - last[0]))))
+
+    def threads(self, cells: int) -> int:
+        """Threads for a step that computes ``cells`` cells."""
+        if self.fixed is not None:
+            count = self.fixed
+        elif cells < PARALLEL_CELLS:
+            count = 1
+        else:
+            self._measure()
+            count = self.idle
+        if count > 1:
+            import numba
+
+            count = min(count, numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
+            numba.set_num_threads(count)
+        return count

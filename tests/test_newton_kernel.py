@@ -1,0 +1,101 @@
+"""The compiled vertical step (Newton model and exact solve fused per column) against the
+numpy iteration of vertical_step.implicit_step with the plugins' own numpy laws."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from engine import simulation
+
+from multilayer.engine import newton_kernel
+from multilayer.plugins.builtins import DruckerPrager, JopMuI, PowerLawMuI, WallFriction
+from multilayer.plugins.contract import Material, Rheology
+
+MATERIAL = Material(density=1550.0, grain_diameter=0.7e-3, particle_density=2500.0)
+LAWS = [
+    JopMuI(mu_s=0.38, mu_2=0.64, I_0=0.279),
+    PowerLawMuI(mu_s=0.38, m=0.3, alpha=0.5),
+    PowerLawMuI(mu_s=0.38, m=0.3, alpha=1.5),
+    DruckerPrager(mu_s=0.5, nu=1e-3),
+    WallFriction(mu_w=0.3),
+]
+
+
+@pytest.mark.parametrize("law", LAWS, ids=lambda law: f"{law.name}")
+def test_compiled_viscosity_is_the_plugin_viscosity(law):
+    rng = np.random.default_rng(0)
+    rate = np.concatenate([[0.0, 1e-9], 10.0 ** rng.uniform(-8, 3, 200)])
+    pressure = np.concatenate([[0.0, -1.0], 10.0 ** rng.uniform(-3, 4, 200)])
+    form, params = newton_kernel.law_of(law, MATERIAL)
+    parts = [newton_kernel._pressure_part(form, params, p) for p in pressure]
+    got = np.array([newton_kernel._viscosity(form, params, r, *part) for r, part in zip(rate, parts)])
+    np.testing.assert_allclose(got, law.viscosity(rate, pressure, MATERIAL), rtol=1e-14, atol=0.0)
+
+
+def test_a_law_without_a_compiled_form_keeps_the_numpy_path():
+    class Plain(Rheology):
+        name = "plain"
+
+    assert newton_kernel.law_of(Plain(), MATERIAL) is None
+    sim = simulation(rheology={"name": "jop_mu_i", "mu_s": 0.38, "mu_2": 0.64, "I_0": 0.279})
+    assert sim.compiled_step.laws() is not None
+    sim.stresses.bulk = Plain()  # swapped on a running simulation: honoured
+    assert sim.compiled_step.laws() is None
+
+
+@pytest.mark.parametrize(
+    "rheology, walls",
+    [
+        ({"name": "jop_mu_i", "mu_s": 0.38, "mu_2": 0.64, "I_0": 0.279}, None),
+        (
+            {"name": "power_law_mu_i", "mu_s": 0.38, "m": 0.3, "alpha": 0.5},
+            {"name": "wall_friction", "mu_w": 0.2},
+        ),
+    ],
+)
+def test_compiled_step_equals_the_numpy_iteration_on_a_collapse(rheology, walls):
+    """A collapse on a slope that partly stops: the same velocities to round-off and the
+    same layers exactly at rest."""
+    runs = []
+    for compiled in (False, True):
+        sim = simulation(
+            slope_deg=20.0,
+            domain={"x_min": 0.0, "x_max": 1.0, "cells": 60, "layers": 6, "width": 0.1},
+            material={"density": 1550.0, "grain_diameter": 0.7e-3, "particle_density": 2500.0},
+            rheology=rheology,
+            walls=walls,
+            base=[{"condition": "no_slip"}],
+            initial=[{"shape": "rectangle", "x_min": 0.0, "x_max": 0.2, "height": 0.1}],
+            boundaries={"left": "wall", "right": "outflow"},
+        )
+        assert sim.compiled_step.laws() is not None
+        if not compiled:
+            sim.compiled_step = None
+        for _ in range(60):
+            sim.step()
+        runs.append(sim)
+    ref, got = runs
+    assert got.newton_iterations == ref.newton_iterations
+    np.testing.assert_allclose(got.h, ref.h, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(got.u, ref.u, rtol=1e-9, atol=1e-12)
+    assert np.array_equal(got.u == 0.0, ref.u == 0.0)
+    assert (ref.u == 0.0).any() and (ref.u != 0.0).any()  # both static and moving layers
+
+
+def test_threads_cut_the_columns_into_chunks_without_changing_the_answer():
+    sim = simulation(
+        slope_deg=20.0,
+        domain={"x_min": 0.0, "x_max": 1.0, "cells": 50, "layers": 6},
+        material={"density": 1550.0, "grain_diameter": 0.7e-3, "particle_density": 2500.0},
+        rheology={"name": "jop_mu_i", "mu_s": 0.38, "mu_2": 0.64, "I_0": 0.279},
+        base=[{"condition": "no_slip"}],
+        initial=[{"shape": "rectangle", "x_min": 0.0, "x_max": 0.5, "height": 0.1}],
+    )
+    for _ in range(5):
+        sim.step()
+    ustar = sim.u + 0.01 * (sim.h > 0)
+    kw = dict(threshold=1e-12, max_iterations=200)
+    one, its_one = sim.compiled_step(sim.h, ustar, sim.u, 1e-3, threads=1, **kw)
+    one = one.copy()
+    two, its_two = sim.compiled_step(sim.h, ustar, sim.u, 1e-3, threads=2, **kw)
+    assert np.array_equal(one, two) and np.array_equal(its_one, its_two)
