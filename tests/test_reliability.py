@@ -23,7 +23,7 @@ import yaml
 from conftest import TINY_SCENARIO
 
 from multilayer.app import lock
-from multilayer.engine import column_kernel, transport
+from multilayer.engine import column_kernel, transport, transport_kernel
 from multilayer.engine.column_problem import ColumnProblem
 from multilayer.errors import RunError
 from multilayer.io.results import open_result, run_failure
@@ -59,6 +59,7 @@ NAN_VISCOSITY = """
 def viscosity(self, shear_rate, pressure, material):
     return np.full(np.shape(pressure), np.nan)
 DruckerPrager.viscosity = viscosity
+DruckerPrager.viscosity_kernel = lambda self, material: None  # a plugin without a compiled form
 """
 
 # every kernel call takes 0.2 s and never converges: one step would last 200 x 0.2 s
@@ -71,6 +72,7 @@ def solve(*args, **kwargs):
     marker.touch()  # after the first call: the kernel is compiled
     return u
 column_kernel.solve = solve
+DruckerPrager.viscosity_kernel = lambda self, material: None  # the numpy path calls the kernel
 """
 
 # steps of at least 20 ms, so that a signal arrives while the run is going
@@ -140,6 +142,8 @@ def test_plugin_output_outside_the_contract_is_exit_1_naming_plugin_method_and_v
         monkeypatch.setattr(DruckerPrager, method, lambda self, p, m: result(p))
     else:
         monkeypatch.setattr(DruckerPrager, method, lambda self, g, p, m: result(p))
+        # a plugin without a compiled form of its viscosity (the built-in one has one)
+        monkeypatch.setattr(DruckerPrager, "viscosity_kernel", lambda self, material: None)
     run = cli("run", _write(tmp_path, SLUMP), "-o", tmp_path / "out", "-q")
     assert run.code == 1
     _no_traceback(run.err)
@@ -194,17 +198,22 @@ def test_ctrl_c_is_honoured_within_a_second_inside_a_long_step(tmp_path):
 
 
 def _corrupt_transport(monkeypatch, after: int, fault) -> None:
-    """Make the transport step number ``after`` (and later) return a corrupted state."""
-    real, calls = transport.transport, [0]
+    """Make the transport step number ``after`` (and later) return a corrupted state, on
+    the numpy and the compiled paths."""
+    calls = [0]
 
-    def corrupted(*args, **kwargs):
-        h, u = real(*args, **kwargs)
-        calls[0] += 1
-        if calls[0] > after:
-            fault(h)
-        return h, u
+    def corrupting(real):
+        def corrupted(*args, **kwargs):
+            h, u = real(*args, **kwargs)
+            calls[0] += 1
+            if calls[0] > after:
+                fault(h)
+            return h, u
 
-    monkeypatch.setattr(transport, "transport", corrupted)
+        return corrupted
+
+    monkeypatch.setattr(transport, "transport", corrupting(transport.transport))
+    monkeypatch.setattr(transport_kernel, "transport", corrupting(transport_kernel.transport))
 
 
 @pytest.mark.parametrize(
@@ -244,6 +253,7 @@ def test_a_sweep_marks_a_member_with_a_nan_plugin_failed(tmp_path, cli, monkeypa
         return real(self, shear_rate, pressure, material) * (np.nan if self.mu_s == 0.4 else 1.0)
 
     monkeypatch.setattr(DruckerPrager, "viscosity", viscosity)
+    monkeypatch.setattr(DruckerPrager, "viscosity_kernel", lambda self, material: None)
     _write(tmp_path, dict(SLUMP, time={"end": 0.04, "output_interval": 0.02}), "tiny.yaml")
     sweep = tmp_path / "sweep.yaml"
     sweep.write_text("base: tiny.yaml\nparameters:\n  rheology.mu_s: [0.3, 0.4]\n")

@@ -22,8 +22,22 @@ BLOCK = 16
 """Columns gathered at a time (their coefficients stay in cache)."""
 
 
+def _owner(rheology: object, name: str) -> type | None:
+    """The class whose definition of ``name`` an instance uses (None: the instance's own)."""
+    if name in vars(rheology):
+        return None
+    return next((cls for cls in type(rheology).__mro__ if name in vars(cls)), None)
+
+
 def law_of(rheology, material) -> tuple[int, np.ndarray] | None:
-    """(form code, parameters) of a plugin's compiled viscosity, None if it has none."""
+    """(form code, parameters) of a plugin's compiled viscosity, None if it has none.
+
+    A compiled form describes the ``viscosity`` of the class that declares it: where a
+    subclass (or the instance) redefines ``viscosity`` below that class, the form is not
+    used, and the step runs the plugin's own ``viscosity`` (numpy path)."""
+    kernel_owner, viscosity_owner = _owner(rheology, "viscosity_kernel"), _owner(rheology, "viscosity")
+    if kernel_owner is None or viscosity_owner is None or not issubclass(kernel_owner, viscosity_owner):
+        return None
     declared = rheology.viscosity_kernel(material)
     if declared is None or declared[0] not in FORMS:
         return None
