@@ -358,7 +358,7 @@ def test_shipped_calibration_files_are_valid(name):
 def test_shipped_and_documented_sensitivity_files_are_valid(tmp_path):
     study.load_sensitivity(ROOT / "studies" / "erodible_bed_sobol.yaml")
     docs = (ROOT / "docs" / "calibration.md").read_text()
-    example = docs.split("## The sensitivity file\n\n```yaml\n", 1)[1].split("```", 1)[0]
+    example = docs.split("## The sensitivity file\n", 1)[1].split("```yaml\n", 1)[1].split("```", 1)[0]
     (tmp_path / "studies").mkdir()
     (tmp_path / "scenarios").mkdir()
     shutil.copy(ROOT / "scenarios" / "erodible_bed_collapse.yaml", tmp_path / "scenarios")
@@ -372,7 +372,12 @@ def test_worked_example_of_the_docs(tmp_path, capsys):
     """The twin experiment of docs/calibration.md as documented: its observation files are
     what make_observations.py writes, and the calibration recovers the truth."""
     docs = (ROOT / "docs" / "calibration.md").read_text()
-    commands = docs.split("## Worked example: a twin experiment\n", 1)[1].split("```\n", 2)[1].splitlines()
+    commands = (
+        docs.split("## Worked example: a twin experiment\n", 1)[1]
+        .split("```sh\n", 1)[1]
+        .split("```", 1)[0]
+        .splitlines()
+    )
     assert commands == [
         "python studies/twin/make_observations.py 1.0 1",
         "multilayer calibrate studies/twin/calibration.yaml",

@@ -176,6 +176,7 @@ def test_plugin_is_registered_through_pytest11():
     assert plugins.get("multilayer") == "multilayer.testing.pytest_plugin"
 
 
+@pytest.mark.slow  # 5 s pytester subprocess; the named-file collection stays in the default run
 def test_pytest_collects_scenarios_in_named_directory(pytester):
     """One item per expect: entry, named by its kind; files without expect:, and
     subdirectories, ignored."""

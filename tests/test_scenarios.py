@@ -87,7 +87,7 @@ def test_regression_pins_hold(name):
 
 
 SWEEPS = sorted((SCENARIOS / "sweeps").glob("*.yaml"))
-COARSE = {"domain.cells": [12], "domain.layers": [2], "time.end": [0.02], "time.output_interval": [0.02]}
+COARSE = {"domain.cells": [30], "domain.layers": [2], "time.end": [0.02], "time.output_interval": [0.02]}
 """Added to a shipped sweep to run every member in a fraction of a second."""
 
 

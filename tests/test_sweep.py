@@ -323,6 +323,7 @@ def friction_sweep(scheduler, tmp_path_factory):
     return path, outdir, first
 
 
+@pytest.mark.slow  # 10 s to start a scheduler and two workers; in-process clusters stay in the default run
 def test_sweep_on_a_scheduler_with_two_workers(friction_sweep):
     path, outdir, first = friction_sweep
     assert first.returncode == 1, first.stderr  # two members are invalid

@@ -61,6 +61,7 @@ def test_single_layer_on_coulomb_base_is_the_shrinkage():
     assert np.all(u[~stopped] != 0.0)
 
 
+@pytest.mark.slow  # 6 s of FiPy solves; exact rest is also tested on the kernel path
 def test_column_below_yield_stays_exactly_at_rest():
     """Uniform u* and kappa_k > (stress needed to stop everything above k): u == 0.0 exactly.
 
@@ -87,6 +88,7 @@ def test_column_below_yield_stays_exactly_at_rest():
     assert np.all(u == 0.0)
 
 
+@pytest.mark.slow  # 11 s; the short FiPy-vs-kernel comparisons stay in the default run
 def test_inviscid_simple_shear_decelerates_by_the_yield_gradient():
     """Inviscid simple shear (Bouchut, Ionescu & Mangeney 2016, Prop. 2.2): kappa_k = K (L - k)/L, linear u*.
 
@@ -145,6 +147,7 @@ def test_u_step_is_the_dense_optimality_system_on_any_geometry():
         np.testing.assert_allclose(u[:, i], exact, rtol=0, atol=1e-13)
 
 
+@pytest.mark.slow  # 8 s of FiPy solves
 def test_reused_equation_equals_fresh_one_after_coefficients_change():
     """FiPy issue #1223: a cached stencil must follow changes of the coefficient variables.
 
