@@ -1,6 +1,7 @@
 """CLI subcommands: each module defines ``HELP``, ``add_arguments(parser)`` and ``main(args)``."""
 
 import argparse
+from pathlib import Path
 
 
 def positive_int(text: str) -> int:
@@ -71,3 +72,18 @@ def budget(args: argparse.Namespace):
     from multilayer.app.resources import Budget
 
     return Budget(args.max_memory, args.max_output, args.force)
+
+
+def add_study_arguments(parser: argparse.ArgumentParser, kind: str) -> None:
+    """``CONFIG``, ``-o DIR``, the cluster options and ``-q`` of an ensemble study (``kind``:
+    calibration or sensitivity)."""
+    parser.add_argument("config", metavar="CONFIG", help=f"{kind} YAML file")
+    parser.add_argument(
+        "-o",
+        "--output",
+        metavar="DIR",
+        type=Path,
+        help="output directory (default: output.directory of the file, else results/<file name>)",
+    )
+    add_cluster_arguments(parser)
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress lines")

@@ -15,23 +15,14 @@ import argparse
 import sys
 from pathlib import Path
 
-from multilayer.app.commands import add_cluster_arguments, cluster_description
+from multilayer.app.commands import add_study_arguments, cluster_description
 
 HELP = "fit scenario parameters to observations (global search, refinement, uncertainty) on Dask"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``multilayer calibrate``."""
-    parser.add_argument("config", metavar="CONFIG", help="calibration YAML file")
-    parser.add_argument(
-        "-o",
-        "--output",
-        metavar="DIR",
-        type=Path,
-        help="output directory (default: output.directory of the file, else results/<file name>)",
-    )
-    add_cluster_arguments(parser)
-    parser.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
+    add_study_arguments(parser, "calibration")
 
 
 def main(args: argparse.Namespace) -> int:

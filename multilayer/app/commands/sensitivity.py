@@ -15,23 +15,14 @@ import argparse
 import sys
 from pathlib import Path
 
-from multilayer.app.commands import add_cluster_arguments, cluster_description
+from multilayer.app.commands import add_study_arguments, cluster_description
 
 HELP = "Sobol' sensitivity indices of run outputs with respect to scenario parameters, on Dask"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``multilayer sensitivity``."""
-    parser.add_argument("config", metavar="CONFIG", help="sensitivity YAML file")
-    parser.add_argument(
-        "-o",
-        "--output",
-        metavar="DIR",
-        type=Path,
-        help="output directory (default: output.directory of the file, else results/<file name>)",
-    )
-    add_cluster_arguments(parser)
-    parser.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
+    add_study_arguments(parser, "sensitivity")
 
 
 def main(args: argparse.Namespace) -> int:
