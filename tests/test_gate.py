@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from multilayer.engine import transport_kernel
 from multilayer.engine.gate import Gate
 from multilayer.engine.simulation import Simulation
 from multilayer.io import scenario as scenarios
@@ -88,3 +89,22 @@ def test_material_passing_under_the_gate_onto_a_dry_bed_stays_physical():
     drop = 0.14 * math.cos(math.radians(16)) + 0.3 * math.sin(math.radians(16))
     assert 0.1 < fastest < math.sqrt(2 * 9.81 * drop)
     assert sim.diagnostics()["mass"] == pytest.approx(mass, rel=1e-13)
+
+
+def test_the_compiled_transport_runs_the_gate_as_the_numpy_reference_does():
+    """A lifting gate with the compiled transport (the default) and with the numpy
+    reference formulation: the same run to the last bit."""
+    runs = []
+    for solver in ("kernel", "numpy"):
+        sim = Simulation(
+            scenarios.load(
+                FLAGSHIP, [*COARSE, "gate={x: -0.05, lift_speed: 0.5}", f"numerics.transport_solver={solver}"]
+            )
+        )
+        assert (sim.transport is transport_kernel.transport) == (solver == "kernel")
+        sim.advance(0.1)
+        runs.append(sim)
+    kernel, reference = runs
+    assert kernel.steps == reference.steps and kernel.gate.opening(kernel.h, kernel.t) is not None
+    np.testing.assert_array_equal(kernel.h, reference.h)
+    np.testing.assert_array_equal(kernel.u, reference.u)

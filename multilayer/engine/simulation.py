@@ -115,8 +115,6 @@ class Simulation:
         if sc.gate is not None:
             faces = dom.x_min + self.dx * np.arange(dom.cells + 1)
             self.gate = Gate(sc.gate.x, sc.gate.lift_speed, faces, self.mesh.interfaces)
-            # the compiled transport has no gate: a gated run uses the numpy reference
-            self.transport = transport.transport
 
         self.edges = initial_state.cell_edges(dom.x_min, dom.x_max, dom.cells)
         initial_state.check_entries(sc.initial, dom.x_min, dom.x_max, self.dx, str(sc.source or "<scenario>"))
@@ -202,7 +200,7 @@ class Simulation:
         count = self.thread_policy.threads(self.fractions.size * int(np.count_nonzero(self.h)))
         compiled = self.transport is transport_kernel.transport
         kernel_options: dict[str, Any] = {"workspace": self.workspace, "threads": count} if compiled else {}
-        if self.gate is not None:  # the numpy transport (see __init__)
+        if self.gate is not None:
             kernel_options.update(gate_face=self.gate.face, opening=opening)
         h_new, ustar = self.transport(
             self.h,

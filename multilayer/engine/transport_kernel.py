@@ -3,16 +3,17 @@
 ``transport.py`` (numpy) is the reference formulation; this module computes the same
 step (hydrostatic reconstruction of Audusse et al. 2004, minmod slopes, HLL fluxes per
 layer, mass exchange with upwinded velocity, bed slope and gravity sources, forward
-Euler or Heun) with the same floating-point operations in the same order, so both agree
-to round-off (tests/test_transport_kernel.py).
+Euler or Heun, a partly open gate) with the same floating-point operations in the same
+order, so both give the same bits (tests/test_transport_kernel.py).
 
-Each stage is one sweep over the faces of the occupied window.  A ring of three columns
-holds the states the minmod slopes need, the reconstruction of the cells on both sides
-of the current face and the fluxes of the previous face are kept in ``L``-vectors, and a
-cell is updated as soon as both of its faces are known.  So the only arrays the size of
-the mesh are the state, the intermediate Heun state and the result; everything else
-stays in cache.  The window is cut into chunks of columns that are swept independently
-(the face between two chunks is computed by both, identically), one chunk per thread.
+Each stage is one sweep over the occupied window in tiles of about ``TILE`` cells
+(columns x layers).  A tile loads its columns and two ghosts per side, reconstructs its
+cells, computes the fluxes of its faces and updates its cells, each pass layer by layer
+over the tile's columns: the rows of the (L, N) state are read and written in contiguous
+runs, and the work arrays of a tile stay in the L2 cache whatever the mesh size.  So the
+only arrays the size of the mesh are the state, the intermediate Heun state and the
+result.  The window is cut into chunks of columns that are swept independently (the
+face between two chunks or tiles is computed by both, identically), one chunk per thread.
 """
 
 from __future__ import annotations
@@ -26,225 +27,366 @@ WALL, OUTFLOW, INFLOW, PERIODIC = 0, 1, 2, 3
 BOUNDARY_CODES = {"wall": WALL, "outflow": OUTFLOW, "inflow": INFLOW, "periodic": PERIODIC}
 
 
+TILE = 4096
+"""Cells (columns x layers) of one tile of the sweep: its work arrays stay in the L2 cache."""
+
+
 @njit(cache=True)
 def _minmod(back, ahead):
+    """``transport._minmod_slope`` of one cell (the same value, bit for bit)."""
     if back * ahead > 0.0:
-        return np.sign(back) * min(abs(back), abs(ahead))
+        smaller = min(abs(back), abs(ahead))
+        return smaller if back > 0.0 else -smaller
     return 0.0
 
 
 @njit(cache=True)
-def _load(
-    j, n, lo, left, right, H, U, H1, Q1, B, l, dry, from_q, inflow_h, inflow_u, h_ring, b_ring, u_ring, slot
-):
-    """Column ``j`` of the window extended by two ghosts per side (``j`` in -2 .. n+1)
-    into ring slot ``slot``: the state (H, U), or (H1, Q1 / (l H1)) when ``from_q``."""
-    mirror = False
-    inflow = False
+def _source(j, n, left, right):
+    """Window cell whose state column ``j`` (-2 .. n+1, ghosts outside 0 .. n-1) takes,
+    and how: 0 copied, 1 mirrored (u -> -u), 2 the inflow state instead."""
     if j < 0:
         g = -1 - j  # 0 for the ghost next to the boundary
         if left == PERIODIC:
-            src = (n - 1 - g) % n
-        elif left == WALL:
-            src = min(g, n - 1)
-            mirror = True
-        else:
-            src = 0
-            inflow = left == INFLOW
-    elif j >= n:
+            return (n - 1 - g) % n, 0
+        if left == WALL:
+            return min(g, n - 1), 1
+        return 0, 2 if left == INFLOW else 0
+    if j >= n:
         g = j - n
         if right == PERIODIC:
-            src = g % n
-        elif right == WALL:
-            src = max(n - 1 - g, 0)
-            mirror = True
+            return g % n, 0
+        if right == WALL:
+            return max(n - 1 - g, 0), 1
+        return n - 1, 2 if right == INFLOW else 0
+    return j, 0
+
+
+@njit(cache=True)
+def _work(L, T):
+    """Work arrays of a tile of at most ``T`` cells of ``L`` layers (one set per chunk):
+    per column (ghosts included), per layer and column, per face, per layer and face."""
+    columns = (np.empty(T + 4, np.int64), np.empty(T + 4, np.int64))  # mesh column, how loaded
+    scalars = np.empty((6, T + 4))  # h, b, h_w, h_e, b_w, b_e
+    layers = np.empty((3, L, T + 4))  # u, u_w, u_e
+    faces = np.empty((8, T + 1))  # hL, hR, and the wave speeds, weights and pressures
+    fluxes = np.empty((2, L, T + 1))  # mass and momentum
+    cells = np.empty((L + 2, T))  # d_x(h_a u_a) per layer, d_x Q, G
+    gate = np.empty((2, L))  # mass and momentum fluxes seen from east of the gate
+    return columns, scalars, layers, faces, fluxes, cells, gate
+
+
+@njit(cache=True)
+def _block_sum(v, start, stop):
+    """numpy's sum of at most 128 values: eight partial sums, then the rest in order."""
+    n = stop - start
+    if n < 8:
+        total = 0.0
+        for i in range(start, stop):
+            total += v[i]
+        return total
+    r = np.empty(8)
+    for j in range(8):
+        r[j] = v[start + j]
+    whole = start + n - n % 8
+    for i in range(start + 8, whole, 8):
+        for j in range(8):
+            r[j] += v[i + j]
+    total = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+    for i in range(whole, stop):
+        total += v[i]
+    return total
+
+
+@njit(cache=True)
+def _pairwise_sum(v):
+    """``numpy.sum(v)`` in numpy's own order (pairwise: halves, down to blocks of at most
+    128 values), so that the result is the same to the last bit.  (No recursion: numba's
+    cache does not keep recursive functions.)"""
+    ranges = np.empty((64, 3), np.int64)  # start, stop, halves already summed
+    sums = np.empty(64)
+    top = 0
+    count = 0
+    ranges[0, 0], ranges[0, 1], ranges[0, 2] = 0, v.size, 0
+    while top >= 0:
+        start, stop, done = ranges[top, 0], ranges[top, 1], ranges[top, 2]
+        top -= 1
+        if stop - start <= 128:
+            sums[count] = _block_sum(v, start, stop)
+            count += 1
+        elif done:
+            count -= 1
+            sums[count - 1] = sums[count - 1] + sums[count]
         else:
-            src = n - 1
-            inflow = right == INFLOW
-    else:
-        src = j
-    c = lo + src
-    b_ring[slot] = B[c]
-    if inflow:
-        h_ring[slot] = inflow_h
-        for a in range(l.size):
-            u_ring[slot, a] = inflow_u[a]
-        return
-    h = H1[c] if from_q else H[c]
-    h_ring[slot] = h
-    for a in range(l.size):
-        if from_q:
-            v = Q1[a, c] / (l[a] * h) if h > dry else 0.0
+            half = (stop - start) // 2
+            half -= half % 8
+            ranges[top + 1, 0], ranges[top + 1, 1], ranges[top + 1, 2] = start, stop, 1
+            ranges[top + 2, 0], ranges[top + 2, 1], ranges[top + 2, 2] = start + half, stop, 0
+            ranges[top + 3, 0], ranges[top + 3, 1], ranges[top + 3, 2] = start, start + half, 0
+            top += 3
+    return sums[0]
+
+
+@njit(cache=True)
+def _gated(f, hl, hr, uL, uR, l, g_n, opening, fh, fq, gate_h, gate_q):
+    """``transport._gated`` at face ``f`` of a tile: ``fh[:, f]``, ``fq[:, f]`` become the
+    fluxes seen by the cell west of the gate, ``gate_h``, ``gate_q`` those seen by the
+    cell east of it."""
+    L = l.size
+    open_mass = np.empty(L)
+    open_momentum = np.empty(L)
+    for a in range(L):
+        open_mass[a] = opening[a] * fh[a, f]
+        open_momentum[a] = opening[a] * fq[a, f]
+    total_mass = _pairwise_sum(open_mass)
+    total_momentum = _pairwise_sum(open_momentum)
+    eastward = total_mass >= 0.0
+    s_west = abs(uL[0])
+    s_east = abs(uR[0])
+    for a in range(1, L):
+        s_west = max(s_west, abs(uL[a]))
+        s_east = max(s_east, abs(uR[a]))
+    s_west = s_west + np.sqrt(g_n * hl)
+    s_east = s_east + np.sqrt(g_n * hr)
+    for a in range(L):
+        o = opening[a]
+        mass = open_mass[a]
+        momentum = open_momentum[a]
+        spread_mass = l[a] * total_mass
+        spread_momentum = l[a] * total_momentum
+        wall_west = l[a] * (hl * uL[a] * uL[a] + 0.5 * g_n * hl * hl + 1.0 * s_west * hl * uL[a])
+        wall_east = l[a] * (hr * uR[a] * uR[a] + 0.5 * g_n * hr * hr + -1.0 * s_east * hr * uR[a])
+        if eastward:
+            fh[a, f], gate_h[a] = mass, spread_mass
+            open_west, open_east = momentum, spread_momentum
         else:
-            v = U[a, c]
-        u_ring[slot, a] = -v if mirror else v
+            fh[a, f], gate_h[a] = spread_mass, mass
+            open_west, open_east = spread_momentum, momentum
+        fq[a, f] = open_west + (1.0 - o) * wall_west
+        gate_q[a] = open_east + (1.0 - o) * wall_east
 
 
 @njit(cache=True)
-def _reconstruct(order, h_ring, b_ring, u_ring, sm, s0, sp, rec, u_w, u_e):
-    """West/east face values of the cell in slot ``s0`` (neighbours in ``sm``, ``sp``):
-    ``rec`` = (h_w, h_e, b_w, b_e); ``u_w``, ``u_e`` per layer."""
-    hc = h_ring[s0]
-    etac = h_ring[s0] + b_ring[s0]
-    dh = 0.0
-    deta = 0.0
-    if order == 2:
-        dh = _minmod(h_ring[s0] - h_ring[sm], h_ring[sp] - h_ring[s0])
-        eta_m = h_ring[sm] + b_ring[sm]
-        eta_p = h_ring[sp] + b_ring[sp]
-        deta = _minmod(etac - eta_m, eta_p - etac)
-    h_w = hc - 0.5 * dh
-    h_e = hc + 0.5 * dh
-    rec[0] = h_w
-    rec[1] = h_e
-    rec[2] = etac - 0.5 * deta - h_w
-    rec[3] = etac + 0.5 * deta - h_e
-    for a in range(u_w.size):
-        uc = u_ring[s0, a]
-        du = _minmod(uc - u_ring[sm, a], u_ring[sp, a] - uc) if order == 2 else 0.0
-        u_w[a] = uc - 0.5 * du
-        u_e[a] = uc + 0.5 * du
-
-
-@njit(cache=True)
-def _face(recL, uL, recR, uR, rest, l, g_n, fh, fq, hface):
-    """HLL fluxes of layer mass and momentum at a face from the east values of the cell
-    on its left and the west values of the cell on its right (hydrostatic
-    reconstruction); ``hface`` receives (hL, hR)."""
-    b_face = max(recL[3], recR[2])
-    hL = max(0.0, recL[1] + recL[3] - b_face)
-    hR = max(0.0, recR[0] + recR[2] - b_face)
-    hface[0] = hL
-    hface[1] = hR
-    cL = np.sqrt(g_n * hL)
-    cR = np.sqrt(g_n * hR)
-    lo_L = uL[0]
-    hi_L = uL[0]
-    lo_R = uR[0]
-    hi_R = uR[0]
-    for a in range(1, l.size):
-        lo_L = min(lo_L, uL[a])
-        hi_L = max(hi_L, uL[a])
-        lo_R = min(lo_R, uR[a])
-        hi_R = max(hi_R, uR[a])
-    s_left = min(lo_L - cL, lo_R - cR)
-    s_right = max(hi_L + cL, hi_R + cR)
-    rest = rest or (min(s_left, 0.0) == max(s_right, 0.0))
-    if rest:
-        s_left = -1.0
-        s_right = 1.0
-    else:
-        s_left = min(s_left, 0.0)
-        s_right = max(s_right, 0.0)
-    width = s_right - s_left
-    wl = s_right / width
-    wr = -s_left / width
-    moving = 0.0 if rest else 1.0
-    jump = s_left * s_right / width * moving
-    pL = 0.5 * g_n * (hL * hL)
-    pR = 0.5 * g_n * (hR * hR)
-    for a in range(l.size):
-        qL = hL * uL[a]
-        qR = hR * uR[a]
-        fh[a] = l[a] * (wl * qL + wr * qR + jump * (hR - hL)) * moving
-        fq[a] = l[a] * (wl * (qL * uL[a] + pL) + wr * (qR * uR[a] + pR) + jump * (qR - qL))
-
-
-@njit(cache=True)
-def _sweep(
-    stage, order, c0, c1, n, lo, left, right, at_rest,
-    H, U, B, Q1, H1, l, dx, dt, g_n, g_t, dry, inflow_h, inflow_u, H_out, U_out,
+def _tile(
+    stage, order, t0, t1, n, lo, left, right, at_rest, H, U, B, Q1, H1, l, dx, dt, g_n, g_t, dry,
+    inflow_h, inflow_u, gate_face, opening, H_out, U_out, work,
 ):  # fmt: skip
-    """One stage over the cells ``c0 .. c1-1`` of the window (faces ``c0 .. c1``).
+    """One stage on the cells ``t0 .. t1-1`` of the window (faces ``t0 .. t1``), layer by
+    layer over the tile's columns (contiguous rows of the (L, N) arrays).
 
-    ``stage`` 0: forward Euler from (H, U); with ``order`` 1 the result goes to
-    (H_out, U_out), with ``order`` 2 to (H1, Q1).  ``stage`` 1: Heun's second stage from
-    (H1, Q1), averaged with (H, U), to (H_out, U_out).
+    Columns ``t0-2 .. t1+1`` (ghosts included) are loaded, the cells ``t0-1 .. t1``
+    reconstructed, the faces ``t0 .. t1`` get their HLL fluxes (the gate's at
+    ``gate_face``), and the cells are updated.  ``stage`` 0: forward Euler from (H, U),
+    to (H_out, U_out) at order 1 and to (H1, Q1) at order 2; ``stage`` 1: Heun's second
+    stage from (H1, Q1), averaged with (H, U), to (H_out, U_out).
     """
     L = l.size
+    m = t1 - t0
+    (col, kind), scalars, layers, faces, fluxes, cells, (gate_h, gate_q) = work
+    hx, bx, h_w, h_e, b_w, b_e = scalars[0], scalars[1], scalars[2], scalars[3], scalars[4], scalars[5]
+    ux, u_w, u_e = layers[0], layers[1], layers[2]
+    hL, hR, s_lo, s_hi, r_lo, r_hi, pL, pR = (
+        faces[0],
+        faces[1],
+        faces[2],
+        faces[3],
+        faces[4],
+        faces[5],
+        faces[6],
+        faces[7],
+    )
+    fh, fq = fluxes[0], fluxes[1]
+    div_h, div_Q, G = cells[:L], cells[L], cells[L + 1]
     from_q = stage == 1
-    h_ring = np.empty(3)
-    b_ring = np.empty(3)
-    u_ring = np.empty((3, L))
-    rec_l = np.empty(4)
-    rec_r = np.empty(4)
-    uw_l, ue_l, uw_r, ue_r = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
-    fh_w, fq_w, fh_e, fq_e = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
-    face_w = np.empty(2)
-    face_e = np.empty(2)
-    div_h = np.empty(L)
-    G = np.empty(L)
-    args = (n, lo, left, right, H, U, H1, Q1, B, l, dry, from_q, inflow_h, inflow_u, h_ring, b_ring, u_ring)
-    for j in range(c0 - 2, c0 + 1):
-        _load(j, *args, (j + 3) % 3)
-    _reconstruct(order, h_ring, b_ring, u_ring, (c0 + 1) % 3, (c0 + 2) % 3, c0 % 3, rec_l, uw_l, ue_l)
-    for f in range(c0, c1 + 1):
-        _load(f + 1, *args, (f + 1) % 3)  # the ring now holds columns f-1, f, f+1
-        _reconstruct(order, h_ring, b_ring, u_ring, (f + 2) % 3, f % 3, (f + 1) % 3, rec_r, uw_r, ue_r)
-        _face(rec_l, ue_l, rec_r, uw_r, at_rest[f], l, g_n, fh_e, fq_e, face_e)
-        if f > c0:
-            i = f - 1  # the cell between the faces f-1 (west) and f (east)
-            s = i % 3
-            hi = h_ring[s]
-            hw, he, bw, be = rec_l[0], rec_l[1], rec_l[2], rec_l[3]
-            div_Q = 0.0
-            for a in range(L):
-                div_h[a] = (fh_e[a] - fh_w[a]) / dx
-                div_Q = div_Q + div_h[a] if a > 0 else div_h[0]
+    final = stage == 1 or order == 1
+    # load the state of the columns t0-2 .. t1+1 (index k = column - t0 + 2)
+    for k in range(m + 4):
+        src, how = _source(t0 - 2 + k, n, left, right)
+        c = lo + src
+        col[k] = c
+        kind[k] = how
+        bx[k] = B[c]
+        if how == 2:
+            hx[k] = inflow_h
+        else:
+            hx[k] = H1[c] if from_q else H[c]
+    for a in range(L):
+        row = ux[a]
+        for k in range(m + 4):
+            c = col[k]
+            if kind[k] == 2:
+                v = inflow_u[a]
+            elif from_q:
+                v = Q1[a, c] / (l[a] * H1[c]) if H1[c] > dry else 0.0
+            else:
+                v = U[a, c]
+            row[k] = -v if kind[k] == 1 else v
+    # reconstruction: west/east values of the cells k = 1 .. m+2
+    for k in range(1, m + 3):
+        hc = hx[k]
+        etac = hx[k] + bx[k]
+        dh = 0.0
+        deta = 0.0
+        if order == 2:
+            dh = _minmod(hx[k] - hx[k - 1], hx[k + 1] - hx[k])
+            deta = _minmod(etac - (hx[k - 1] + bx[k - 1]), (hx[k + 1] + bx[k + 1]) - etac)
+        h_w[k] = hc - 0.5 * dh
+        h_e[k] = hc + 0.5 * dh
+        b_w[k] = etac - 0.5 * deta - h_w[k]
+        b_e[k] = etac + 0.5 * deta - h_e[k]
+    for a in range(L):
+        row, west, east = ux[a], u_w[a], u_e[a]
+        for k in range(1, m + 3):
+            uc = row[k]
+            du = _minmod(uc - row[k - 1], row[k + 1] - uc) if order == 2 else 0.0
+            west[k] = uc - 0.5 * du
+            east[k] = uc + 0.5 * du
+    # faces f = 0 .. m (window face t0 + f) between the cells k = f + 1 and f + 2:
+    # hydrostatic reconstruction and HLL wave speeds bracketing every layer's waves
+    for f in range(m + 1):
+        s_lo[f] = u_e[0, f + 1]
+        s_hi[f] = u_e[0, f + 1]
+        r_lo[f] = u_w[0, f + 2]
+        r_hi[f] = u_w[0, f + 2]
+    for a in range(1, L):
+        east, west = u_e[a], u_w[a]
+        for f in range(m + 1):
+            s_lo[f] = min(s_lo[f], east[f + 1])
+            s_hi[f] = max(s_hi[f], east[f + 1])
+            r_lo[f] = min(r_lo[f], west[f + 2])
+            r_hi[f] = max(r_hi[f], west[f + 2])
+    wl = s_lo  # reused: the weights of the HLL flux
+    wr = s_hi
+    jump = r_lo
+    moving = r_hi
+    for f in range(m + 1):
+        b_face = max(b_e[f + 1], b_w[f + 2])
+        hl = max(0.0, h_e[f + 1] + b_e[f + 1] - b_face)
+        hr = max(0.0, h_w[f + 2] + b_w[f + 2] - b_face)
+        hL[f] = hl
+        hR[f] = hr
+        cl = np.sqrt(g_n * hl)
+        cr = np.sqrt(g_n * hr)
+        s_left = min(s_lo[f] - cl, r_lo[f] - cr)
+        s_right = max(s_hi[f] + cl, r_hi[f] + cr)
+        rest = at_rest[t0 + f] or (min(s_left, 0.0) == max(s_right, 0.0))
+        if rest:
+            s_left = -1.0
+            s_right = 1.0
+        else:
+            s_left = min(s_left, 0.0)
+            s_right = max(s_right, 0.0)
+        width = s_right - s_left
+        wl[f] = s_right / width
+        wr[f] = -s_left / width
+        moving[f] = 0.0 if rest else 1.0
+        jump[f] = s_left * s_right / width * moving[f]
+        pL[f] = 0.5 * g_n * (hl * hl)
+        pR[f] = 0.5 * g_n * (hr * hr)
+    for a in range(L):
+        la = l[a]
+        east, west, mass, momentum = u_e[a], u_w[a], fh[a], fq[a]
+        for f in range(m + 1):
+            uL = east[f + 1]
+            uR = west[f + 2]
+            qL = hL[f] * uL
+            qR = hR[f] * uR
+            mass[f] = la * (wl[f] * qL + wr[f] * qR + jump[f] * (hR[f] - hL[f])) * moving[f]
+            momentum[f] = la * (wl[f] * (qL * uL + pL[f]) + wr[f] * (qR * uR + pR[f]) + jump[f] * (qR - qL))
+    gate = gate_face - t0 if t0 <= gate_face <= t1 else -1
+    if gate >= 0:
+        _gated(
+            gate,
+            hL[gate],
+            hR[gate],
+            u_e[:, gate + 1],
+            u_w[:, gate + 2],
+            l,
+            g_n,
+            opening,
+            fh,
+            fq,
+            gate_h,
+            gate_q,
+        )
+    # the cells: divergence of the layer mass fluxes, mass exchange, update
+    for a in range(L):
+        rate, mass = div_h[a], fh[a]
+        for i in range(m):
+            rate[i] = (mass[i + 1] - mass[i]) / dx
+        if 0 <= gate < m:  # the cell east of the gate sees the gate's flux from its side
+            rate[gate] = (mass[gate + 1] - gate_h[a]) / dx
+    for i in range(m):
+        div_Q[i] = div_h[0, i]
+    for a in range(1, L):
+        for i in range(m):
+            div_Q[i] = div_Q[i] + div_h[a, i]
+    for i in range(m):
+        c = col[i + 2]
+        if stage == 0:
+            h_new = max(hx[i + 2] + dt * -div_Q[i], 0.0)
+        else:
+            h_new = max(0.5 * (H[c] + H1[c] + dt * -div_Q[i]), 0.0)
+        if final:
+            H_out[c] = h_new
+        else:
+            H1[c] = h_new
+    c0 = col[2]
+    for a in range(L):
+        la = l[a]
+        row, upper, rate, momentum = ux[a], ux[min(a + 1, L - 1)], div_h[a], fq[a]
+        wall_a = gate_q[a]
+        pressure = la * 0.5 * g_n
+        for i in range(m):
+            k = i + 2
+            c = c0 + i
+            exchange = 0.0
             cum = 0.0
-            for a in range(L - 1):
-                cum = cum + (div_h[a] - l[a] * div_Q) if a > 0 else div_h[0] - l[0] * div_Q
-                G[a] = cum
-            c = lo + i
+            if a < L - 1:
+                cum = rate[i] - la * div_Q[i] if a == 0 else G[i] + (rate[i] - la * div_Q[i])
+                u_G = upper[k] if cum > 0.0 else row[k]
+                exchange = exchange + u_G * cum
+            if a > 0:
+                u_G = row[k] if G[i] > 0.0 else ux[a - 1, k]
+                exchange = exchange - u_G * G[i]
+            if a < L - 1:
+                G[i] = cum
+            hw = h_w[k]
+            he = h_e[k]
+            east = momentum[i + 1] + pressure * (he * he - hL[i + 1] * hL[i + 1])
+            west_flux = wall_a if i == gate else momentum[i]
+            west = west_flux + pressure * (hw * hw - hR[i] * hR[i])
+            bed_slope = la * g_n * 0.5 * (hw + he) * (b_e[k] - b_w[k])
+            dq = -(east - west + bed_slope) / dx + exchange + g_t * la * hx[k]
+            q0 = la * H[c] * U[a, c]
             if stage == 0:
-                h_new = max(hi + dt * -div_Q, 0.0)
+                q_new = q0 + dt * dq
             else:
-                h_new = max(0.5 * (H[c] + H1[c] + dt * -div_Q), 0.0)
-            final = stage == 1 or order == 1
+                q_new = 0.5 * (q0 + Q1[a, c] + dt * dq)
             if final:
-                H_out[c] = h_new
+                h_new = H_out[c]
+                U_out[a, c] = q_new / (la * h_new) if h_new > dry else 0.0
             else:
-                H1[c] = h_new
-            for a in range(L):
-                exchange = 0.0
-                if a < L - 1:
-                    u_G = u_ring[s, a + 1] if G[a] > 0.0 else u_ring[s, a]
-                    exchange = exchange + u_G * G[a]
-                if a > 0:
-                    u_G = u_ring[s, a] if G[a - 1] > 0.0 else u_ring[s, a - 1]
-                    exchange = exchange - u_G * G[a - 1]
-                east = fq_e[a] + l[a] * 0.5 * g_n * (he * he - face_e[0] * face_e[0])
-                west = fq_w[a] + l[a] * 0.5 * g_n * (hw * hw - face_w[1] * face_w[1])
-                bed_slope = l[a] * g_n * 0.5 * (hw + he) * (be - bw)
-                dq = -(east - west + bed_slope) / dx + exchange + g_t * l[a] * hi
-                q0 = l[a] * H[c] * U[a, c]
-                if stage == 0:
-                    q_new = q0 + dt * dq
-                else:
-                    q_new = 0.5 * (q0 + Q1[a, c] + dt * dq)
-                if final:
-                    U_out[a, c] = q_new / (l[a] * h_new) if h_new > dry else 0.0
-                else:
-                    Q1[a, c] = q_new
-        # the east face becomes the west face of the next cell, the right cell the left one
-        fh_w, fh_e = fh_e, fh_w
-        fq_w, fq_e = fq_e, fq_w
-        face_w, face_e = face_e, face_w
-        rec_l, rec_r = rec_r, rec_l
-        uw_l, uw_r = uw_r, uw_l
-        ue_l, ue_r = ue_r, ue_l
+                Q1[a, c] = q_new
 
 
-def _stages(chunks, order, n, lo, left, right, at_rest, H, U, B, Q1, H1, l, *scalars_and_out):
-    """Both stages over the window in ``chunks`` independent pieces (one per thread)."""
+def _stages(
+    chunks, order, n, lo, left, right, at_rest, H, U, B, Q1, H1, l, dx, dt, g_n, g_t, dry,
+    inflow_h, inflow_u, gate_face, opening, H_out, U_out,
+):  # fmt: skip
+    """Both stages over the window in ``chunks`` independent pieces (one per thread), each
+    swept in tiles of about ``TILE`` cells."""
+    T = max(8, TILE // l.size)
     for stage in range(order):
         for k in prange(chunks):
             c0 = k * n // chunks
             c1 = (k + 1) * n // chunks
             if c1 > c0:
-                _sweep(
-                    stage, order, c0, c1, n, lo, left, right, at_rest, H, U, B, Q1, H1, l, *scalars_and_out
-                )
+                work = _work(l.size, min(T, c1 - c0))
+                for t0 in range(c0, c1, T):
+                    _tile(
+                        stage, order, t0, min(t0 + T, c1), n, lo, left, right, at_rest, H, U, B, Q1, H1, l,
+                        dx, dt, g_n, g_t, dry, inflow_h, inflow_u, gate_face, opening, H_out, U_out, work,
+                    )  # fmt: skip
 
 
 _stages_serial = njit(cache=True)(_stages)
@@ -332,6 +474,8 @@ def transport(
     dry: float = 0.0,
     order: int = 2,
     moving: np.ndarray | None = None,
+    gate_face: int | None = None,
+    opening: np.ndarray | None = None,
     workspace: Workspace | None = None,
     threads: int = 1,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -340,6 +484,8 @@ def transport(
     The result lives in ``workspace`` (a new one when None) and is overwritten by its
     next use.  ``threads > 1`` sweeps that many chunks of the window in parallel.
     """
+    if opening is not None and gate_face is None:
+        raise ValueError("transport: a gate opening was given without its gate_face")
     L, N = u.shape
     ws = workspace if workspace is not None else Workspace(L, N)
     if moving is None:
@@ -355,11 +501,16 @@ def transport(
     ws.h[hi:] = 0.0
     ws.u[:, :lo] = 0.0
     ws.u[:, hi:] = 0.0
+    gate = -1  # no gate, or its face outside the window
+    if opening is not None and gate_face is not None and lo <= gate_face <= hi:
+        gate = gate_face - lo
+    opening = np.asarray(opening, dtype=float) if gate >= 0 else np.zeros(L)
     chunks = min(threads, max(n // 64, 1))
     stages = _stages_parallel if chunks > 1 else _stages_serial
     stages(
         chunks, order, n, lo, left_kind, right_kind, at_rest,
         h, u, b, ws.q1, ws.h1, np.ascontiguousarray(fractions, dtype=float),
-        float(dx), float(dt), float(g_n), float(g_t), float(dry), inflow_h, inflow_u, ws.h, ws.u,
+        float(dx), float(dt), float(g_n), float(g_t), float(dry), inflow_h, inflow_u, gate, opening,
+        ws.h, ws.u,
     )  # fmt: skip
     return ws.h, ws.u
