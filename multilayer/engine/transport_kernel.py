@@ -70,7 +70,7 @@ def _work(L, T):
     layers = np.empty((3, L, T + 4))  # u, u_w, u_e
     faces = np.empty((8, T + 1))  # hL, hR, and the wave speeds, weights and pressures
     fluxes = np.empty((2, L, T + 1))  # mass and momentum
-    cells = np.empty((L + 2, T))  # d_x(h_a u_a) per layer, d_x Q, G
+    cells = np.empty((L + 4, T))  # d_x(h_a u_a) per layer, d_x Q, G, exchange, d_t(h_a u_a)
     gate = np.empty((2, L))  # mass and momentum fluxes seen from east of the gate
     return columns, scalars, layers, faces, fluxes, cells, gate
 
@@ -126,7 +126,7 @@ def _pairwise_sum(v):
     return sums[0]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _gated(f, hl, hr, uL, uR, l, g_n, opening, fh, fq, gate_h, gate_q):
     """``transport._gated`` at face ``f`` of a tile: ``fh[:, f]``, ``fq[:, f]`` become the
     fluxes seen by the cell west of the gate, ``gate_h``, ``gate_q`` those seen by the
@@ -165,7 +165,22 @@ def _gated(f, hl, hr, uL, uR, l, g_n, opening, fh, fq, gate_h, gate_q):
         gate_q[a] = open_east + (1.0 - o) * wall_east
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
+def _momentum_rate(
+    i, west_flux, momentum, hL, hR, h_w, h_e, b_w, b_e, hx, exchange, pressure, slope, gravity, dx
+):
+    """d_t(h_a u_a) of cell ``i`` of a tile: the momentum fluxes with the well-balanced
+    pressure at its faces (``west_flux`` at its west face), the bed slope, the mass
+    exchange and gravity along the slope."""
+    k = i + 2
+    hw = h_w[k]
+    he = h_e[k]
+    east = momentum[i + 1] + pressure * (he * he - hL[i + 1] * hL[i + 1])
+    west = west_flux + pressure * (hw * hw - hR[i] * hR[i])
+    return -(east - west + slope * (hw + he) * (b_e[k] - b_w[k])) / dx + exchange[i] + gravity * hx[k]
+
+
+@njit(cache=True, error_model="numpy")
 def _tile(
     stage, order, t0, t1, n, lo, left, right, at_rest, H, U, B, Q1, H1, l, dx, dt, g_n, g_t, dry,
     inflow_h, inflow_u, gate_face, opening, H_out, U_out, work,
@@ -195,7 +210,7 @@ def _tile(
         faces[7],
     )
     fh, fq = fluxes[0], fluxes[1]
-    div_h, div_Q, G = cells[:L], cells[L], cells[L + 1]
+    div_h, div_Q, G, exchange, dq = cells[:L], cells[L], cells[L + 1], cells[L + 2], cells[L + 3]
     from_q = stage == 1
     final = stage == 1 or order == 1
     # load the state of the columns t0-2 .. t1+1 (index k = column - t0 + 2)
@@ -250,10 +265,14 @@ def _tile(
     for a in range(1, L):
         east, west = u_e[a], u_w[a]
         for f in range(m + 1):
-            s_lo[f] = min(s_lo[f], east[f + 1])
-            s_hi[f] = max(s_hi[f], east[f + 1])
-            r_lo[f] = min(r_lo[f], west[f + 2])
-            r_hi[f] = max(r_hi[f], west[f + 2])
+            v = east[f + 1]
+            s_lo[f] = v if v < s_lo[f] else s_lo[f]
+            v = east[f + 1]
+            s_hi[f] = v if v > s_hi[f] else s_hi[f]
+            v = west[f + 2]
+            r_lo[f] = v if v < r_lo[f] else r_lo[f]
+            v = west[f + 2]
+            r_hi[f] = v if v > r_hi[f] else r_hi[f]
     wl = s_lo  # reused: the weights of the HLL flux
     wr = s_hi
     jump = r_lo
@@ -333,40 +352,83 @@ def _tile(
     c0 = col[2]
     for a in range(L):
         la = l[a]
-        row, upper, rate, momentum = ux[a], ux[min(a + 1, L - 1)], div_h[a], fq[a]
-        wall_a = gate_q[a]
-        pressure = la * 0.5 * g_n
-        for i in range(m):
-            k = i + 2
-            c = c0 + i
-            exchange = 0.0
-            cum = 0.0
-            if a < L - 1:
-                cum = rate[i] - la * div_Q[i] if a == 0 else G[i] + (rate[i] - la * div_Q[i])
-                u_G = upper[k] if cum > 0.0 else row[k]
-                exchange = exchange + u_G * cum
-            if a > 0:
-                u_G = row[k] if G[i] > 0.0 else ux[a - 1, k]
-                exchange = exchange - u_G * G[i]
-            if a < L - 1:
+        row, rate, momentum = ux[a], div_h[a], fq[a]
+        upper, lower = ux[min(a + 1, L - 1)], ux[max(a - 1, 0)]
+        # mass exchange with the layers above (G[a], upwinded velocity) and below (G[a-1])
+        if a == 0 and L > 1:
+            for i in range(m):
+                cum = rate[i] - la * div_Q[i]
+                u_G = upper[i + 2] if cum > 0.0 else row[i + 2]
+                exchange[i] = 0.0 + u_G * cum
                 G[i] = cum
-            hw = h_w[k]
-            he = h_e[k]
-            east = momentum[i + 1] + pressure * (he * he - hL[i + 1] * hL[i + 1])
-            west_flux = wall_a if i == gate else momentum[i]
-            west = west_flux + pressure * (hw * hw - hR[i] * hR[i])
-            bed_slope = la * g_n * 0.5 * (hw + he) * (b_e[k] - b_w[k])
-            dq = -(east - west + bed_slope) / dx + exchange + g_t * la * hx[k]
-            q0 = la * H[c] * U[a, c]
-            if stage == 0:
-                q_new = q0 + dt * dq
-            else:
-                q_new = 0.5 * (q0 + Q1[a, c] + dt * dq)
-            if final:
-                h_new = H_out[c]
-                U_out[a, c] = q_new / (la * h_new) if h_new > dry else 0.0
-            else:
-                Q1[a, c] = q_new
+        elif 0 < a < L - 1:
+            for i in range(m):
+                below = G[i]
+                cum = below + (rate[i] - la * div_Q[i])
+                u_G = upper[i + 2] if cum > 0.0 else row[i + 2]
+                u_B = row[i + 2] if below > 0.0 else lower[i + 2]
+                exchange[i] = (0.0 + u_G * cum) - u_B * below
+                G[i] = cum
+        elif a > 0:
+            for i in range(m):
+                below = G[i]
+                u_B = row[i + 2] if below > 0.0 else lower[i + 2]
+                exchange[i] = 0.0 - u_B * below
+        else:
+            exchange[:m] = 0.0
+        pressure = la * 0.5 * g_n
+        slope = la * g_n * 0.5
+        gravity = g_t * la
+        for i in range(m):
+            dq[i] = _momentum_rate(
+                i,
+                momentum[i],
+                momentum,
+                hL,
+                hR,
+                h_w,
+                h_e,
+                b_w,
+                b_e,
+                hx,
+                exchange,
+                pressure,
+                slope,
+                gravity,
+                dx,
+            )
+        if 0 <= gate < m:  # the cell east of the gate sees the gate's flux from its side
+            dq[gate] = _momentum_rate(
+                gate,
+                gate_q[a],
+                momentum,
+                hL,
+                hR,
+                h_w,
+                h_e,
+                b_w,
+                b_e,
+                hx,
+                exchange,
+                pressure,
+                slope,
+                gravity,
+                dx,
+            )
+        if not final:
+            for i in range(m):
+                c = c0 + i
+                Q1[a, c] = la * H[c] * U[a, c] + dt * dq[i]
+        elif stage == 0:
+            for i in range(m):
+                c = c0 + i
+                q_new = la * H[c] * U[a, c] + dt * dq[i]
+                U_out[a, c] = q_new / (la * H_out[c]) if H_out[c] > dry else 0.0
+        else:
+            for i in range(m):
+                c = c0 + i
+                q_new = 0.5 * (la * H[c] * U[a, c] + Q1[a, c] + dt * dq[i])
+                U_out[a, c] = q_new / (la * H_out[c]) if H_out[c] > dry else 0.0
 
 
 def _stages(
@@ -389,8 +451,8 @@ def _stages(
                     )  # fmt: skip
 
 
-_stages_serial = njit(cache=True)(_stages)
-_stages_parallel = njit(cache=True, parallel=True)(_stages)
+_stages_serial = njit(cache=True, error_model="numpy")(_stages)
+_stages_parallel = njit(cache=True, parallel=True, error_model="numpy")(_stages)
 
 
 @njit(cache=True)
