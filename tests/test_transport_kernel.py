@@ -114,3 +114,19 @@ def test_wave_speed_and_moving_columns():
     expected = np.max(np.max(np.abs(u), axis=0) + np.sqrt(9.0 * h))
     assert transport_kernel.max_wave_speed(h, u, 9.0) == expected
     assert np.array_equal(transport_kernel.moving_columns(u), np.any(u != 0.0, axis=0))
+    # the survey at the start of a step: the same speed and columns, and the layers at rest
+    u[:, ::3] = 0.0  # columns at rest
+    u[1:, 1::3] = 0.0  # columns moving in their bottom layer only
+    expected = np.max(np.max(np.abs(u), axis=0) + np.sqrt(9.0 * h))
+    moving, rest = np.ones(h.size, bool), np.zeros(u.shape, bool)
+    assert transport_kernel.survey(h, u, 0.5, 9.0, moving, rest) == expected
+    assert np.array_equal(moving, np.any(u != 0.0, axis=0))
+    assert np.array_equal(rest, (u == 0.0) & (h > 0.5))
+    # material at rest set moving: added to the moving columns, dry or moving ones not
+    u_new = u.copy()
+    u_new[:, rest.any(axis=0)] = 1.0
+    before = moving.copy()
+    assert (rest.any(axis=0) & ~before).any()
+    assert transport_kernel.start_moving(u_new, h, 0.5, moving)
+    assert np.array_equal(moving, before | (rest.any(axis=0) & (h > 0.5)))
+    assert not transport_kernel.start_moving(u_new, h, 0.5, moving)

@@ -126,6 +126,9 @@ class Simulation:
         # non-hydrostatic state: layer-mean vertical velocities and interface pressures
         self.w = np.zeros_like(self.u)
         self.q = np.zeros_like(self.u)
+        # per-step masks, allocated once: columns that move, layers of material at rest
+        self._moving = np.zeros(dom.cells, dtype=bool)
+        self._rest = np.zeros(self.u.shape, dtype=bool)
         self.t = 0.0
         self.steps = 0
         self.newton_iterations = 0
@@ -151,7 +154,9 @@ class Simulation:
 
     def time_step(self) -> float:
         """Largest stable step of the transport (Courant condition), inflow state included."""
-        speed = transport_kernel.max_wave_speed(self.h, self.u, self.g_n)
+        return self._courant_step(transport_kernel.max_wave_speed(self.h, self.u, self.g_n))
+
+    def _courant_step(self, speed: float) -> float:
         if self.inflow is not None:
             h_in, u_in = np.array([self.inflow.thickness]), self.inflow.velocity.reshape(-1, 1)
             speed = max(speed, transport_kernel.max_wave_speed(h_in, u_in, self.g_n))
@@ -159,30 +164,30 @@ class Simulation:
 
     def step(self, t_max: float = np.inf) -> float:
         """Advance one time step, never beyond ``t_max``; returns the step taken."""
-        dt = min(self.time_step(), t_max - self.t)
+        # one pass over the state: the moving columns, the layers of material at rest (the
+        # static yield stress applies to them) and the fastest wave
+        moving, rest, dry = self._moving, self._rest, self.numerics.dry_threshold
+        speed = transport_kernel.survey(self.h, self.u, dry, self.g_n, moving, rest)
+        dt = min(self._courant_step(speed), t_max - self.t)
         if not dt > 0:
             raise ValueError(f"no time left to step: t = {self.t}, t_max = {t_max}")
         # columns that move carry waves; material at rest that the step sets moving carries
         # them from the start of the step: redo it until that set is complete (a dry
         # column being filled is no material at rest and needs no redo)
-        moving = transport_kernel.moving_columns(self.u)
-        held = self.h > self.numerics.dry_threshold
-        rest = (self.u == 0.0) & held  # material at rest now: the static yield stress applies
         iterations = 0
         self.stresses.t = self.t
         while True:
             h_new, u_new, w_new, q_new, more = self._transport_and_stresses(dt, moving, rest)
             iterations += more
-            starting = transport_kernel.moving_columns(u_new) & ~moving & held
-            if not starting.any():
+            if not transport_kernel.start_moving(u_new, self.h, dry, moving):
                 break
-            moving |= starting
         # the state guard: an impossible state is never kept (the last good one stays)
         self.guard.check_step(self.h, self.u, h_new, u_new, self.t, dt)
         self.h[...] = h_new
         self.u[...] = u_new
-        self.w[...] = w_new
-        self.q[...] = q_new
+        if w_new is not self.w:  # the non-hydrostatic state (kept as it is otherwise)
+            self.w[...] = w_new
+            self.q[...] = q_new
         self.newton_iterations += iterations
         self.steps += 1
         # land exactly on t_max when the step was cut to reach it

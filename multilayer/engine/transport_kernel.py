@@ -27,7 +27,7 @@ WALL, OUTFLOW, INFLOW, PERIODIC = 0, 1, 2, 3
 BOUNDARY_CODES = {"wall": WALL, "outflow": OUTFLOW, "inflow": INFLOW, "periodic": PERIODIC}
 
 
-TILE = 4096
+TILE = 8192
 """Cells (columns x layers) of one tile of the sweep: its work arrays stay in the L2 cache."""
 
 
@@ -508,6 +508,45 @@ def max_wave_speed(h: np.ndarray, u: np.ndarray, g_n: float) -> float:
     for i in range(N):
         best = max(best, fastest[i] + np.sqrt(g_n * max(h[i], 0.0)))
     return best
+
+
+@njit(cache=True)
+def survey(h, u, dry, g_n, moving, rest):
+    """One pass over the state at the start of a step: fills ``moving`` (N,), the columns
+    with a non-zero velocity in some layer, and ``rest`` (L, N), the layers at rest
+    (``u == 0``) in columns thicker than ``dry``; returns the largest wave speed
+    ``max_a |u_a| + sqrt(g cos(theta) h)`` (as ``max_wave_speed``)."""
+    L, N = u.shape
+    fastest = np.zeros(N)
+    for i in range(N):
+        moving[i] = False
+    for a in range(L):
+        for i in range(N):
+            v = u[a, i]
+            moving[i] = moving[i] or v != 0.0
+            rest[a, i] = v == 0.0 and h[i] > dry
+            fastest[i] = max(fastest[i], abs(v))
+    best = 0.0
+    for i in range(N):
+        best = max(best, fastest[i] + np.sqrt(g_n * max(h[i], 0.0)))
+    return best
+
+
+@njit(cache=True)
+def start_moving(u, h, dry, moving):
+    """Add to ``moving`` the columns thicker than ``dry`` that were not moving and have a
+    non-zero velocity in ``u`` (material at rest that a step sets moving); True if any."""
+    L, N = u.shape
+    started = False
+    for i in range(N):
+        if moving[i] or not h[i] > dry:
+            continue
+        for a in range(L):
+            if u[a, i] != 0.0:
+                moving[i] = True
+                started = True
+                break
+    return started
 
 
 class Workspace:
