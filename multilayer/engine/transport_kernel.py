@@ -550,13 +550,25 @@ def start_moving(u, h, dry, moving):
 
 
 class Workspace:
-    """Arrays of one mesh size reused by every step: the Heun stage and the result."""
+    """Arrays of one mesh size reused by every step: the Heun stage and the result, and
+    the columns ``written`` (lo, hi) of the result that may be non-zero."""
 
     def __init__(self, layers: int, cells: int):
         self.h1 = np.zeros(cells)
         self.q1 = np.zeros((layers, cells))
         self.h = np.zeros(cells)
         self.u = np.zeros((layers, cells))
+        self.written = (0, 0)
+
+    def clear_outside(self, lo: int, hi: int) -> None:
+        """Zero the result outside the columns ``lo .. hi-1`` (only what an earlier step
+        wrote there: the window of a dam break is a tenth of the mesh)."""
+        before, after = self.written
+        for start, stop in ((before, min(lo, after)), (max(hi, before), after)):
+            if stop > start:
+                self.h[start:stop] = 0.0
+                self.u[:, start:stop] = 0.0
+        self.written = (lo, hi)
 
 
 def transport(
@@ -598,10 +610,7 @@ def transport(
     right_kind = codes[1] if hi == N else OUTFLOW
     inflow_h = float(inflow.thickness) if inflow is not None else 0.0
     inflow_u = np.asarray(inflow.velocity, dtype=float) if inflow is not None else np.zeros(L)
-    ws.h[:lo] = 0.0
-    ws.h[hi:] = 0.0
-    ws.u[:, :lo] = 0.0
-    ws.u[:, hi:] = 0.0
+    ws.clear_outside(lo, hi)
     gate = -1  # no gate, or its face outside the window
     if opening is not None and gate_face is not None and lo <= gate_face <= hi:
         gate = gate_face - lo
