@@ -224,17 +224,28 @@ def _tile(
             hx[k] = inflow_h
         else:
             hx[k] = H1[c] if from_q else H[c]
+    first = col[0]
+    inside = t0 >= 2 and t1 + 2 <= n  # no ghost: the columns first .. first+m+3
     for a in range(L):
         row = ux[a]
-        for k in range(m + 4):
-            c = col[k]
-            if kind[k] == 2:
-                v = inflow_u[a]
-            elif from_q:
-                v = Q1[a, c] / (l[a] * H1[c]) if H1[c] > dry else 0.0
-            else:
-                v = U[a, c]
-            row[k] = -v if kind[k] == 1 else v
+        if inside and from_q:
+            for k in range(m + 4):
+                h = H1[first + k]
+                v = Q1[a, first + k] / (l[a] * h)
+                row[k] = v if h > dry else 0.0
+        elif inside:
+            for k in range(m + 4):
+                row[k] = U[a, first + k]
+        else:
+            for k in range(m + 4):
+                c = col[k]
+                if kind[k] == 2:
+                    v = inflow_u[a]
+                elif from_q:
+                    v = Q1[a, c] / (l[a] * H1[c]) if H1[c] > dry else 0.0
+                else:
+                    v = U[a, c]
+                row[k] = -v if kind[k] == 1 else v
     # reconstruction: west/east values of the cells k = 1 .. m+2
     for k in range(1, m + 3):
         hc = hx[k]
