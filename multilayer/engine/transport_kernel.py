@@ -70,7 +70,7 @@ def _work(L, T):
     layers = np.empty((3, L, T + 4))  # u, u_w, u_e
     faces = np.empty((8, T + 1))  # hL, hR, and the wave speeds, weights and pressures
     fluxes = np.empty((2, L, T + 1))  # mass and momentum
-    cells = np.empty((L + 4, T))  # d_x(h_a u_a) per layer, d_x Q, G, exchange, d_t(h_a u_a)
+    cells = np.empty((L + 9, T))  # d_x(h_a u_a) per layer, d_x Q, G, exchange, d_t(h_a u_a), terms
     gate = np.empty((2, L))  # mass and momentum fluxes seen from east of the gate
     return columns, scalars, layers, faces, fluxes, cells, gate
 
@@ -166,18 +166,14 @@ def _gated(f, hl, hr, uL, uR, l, g_n, opening, fh, fq, gate_h, gate_q):
 
 
 @njit(cache=True, error_model="numpy")
-def _momentum_rate(
-    i, west_flux, momentum, hL, hR, h_w, h_e, b_w, b_e, hx, exchange, pressure, slope, gravity, dx
-):
+def _momentum_rate(i, west_flux, momentum, terms, exchange, pressure, slope, gravity, dx):
     """d_t(h_a u_a) of cell ``i`` of a tile: the momentum fluxes with the well-balanced
     pressure at its faces (``west_flux`` at its west face), the bed slope, the mass
-    exchange and gravity along the slope."""
-    k = i + 2
-    hw = h_w[k]
-    he = h_e[k]
-    east = momentum[i + 1] + pressure * (he * he - hL[i + 1] * hL[i + 1])
-    west = west_flux + pressure * (hw * hw - hR[i] * hR[i])
-    return -(east - west + slope * (hw + he) * (b_e[k] - b_w[k])) / dx + exchange[i] + gravity * hx[k]
+    exchange and gravity along the slope; ``terms`` holds the layer-independent factors
+    of the cell (``_cell_terms``)."""
+    east = momentum[i + 1] + pressure * terms[0, i]
+    west = west_flux + pressure * terms[1, i]
+    return -(east - west + slope * terms[2, i] * terms[3, i]) / dx + exchange[i] + gravity * terms[4, i]
 
 
 @njit(cache=True, error_model="numpy")
@@ -211,6 +207,7 @@ def _tile(
     )
     fh, fq = fluxes[0], fluxes[1]
     div_h, div_Q, G, exchange, dq = cells[:L], cells[L], cells[L + 1], cells[L + 2], cells[L + 3]
+    terms = cells[L + 4 :]
     from_q = stage == 1
     final = stage == 1 or order == 1
     # load the state of the columns t0-2 .. t1+1 (index k = column - t0 + 2)
@@ -360,6 +357,16 @@ def _tile(
             H_out[c] = h_new
         else:
             H1[c] = h_new
+    # the factors of the momentum rate that do not depend on the layer
+    for i in range(m):
+        k = i + 2
+        hw = h_w[k]
+        he = h_e[k]
+        terms[0, i] = he * he - hL[i + 1] * hL[i + 1]  # pressure at the east face
+        terms[1, i] = hw * hw - hR[i] * hR[i]  # pressure at the west face
+        terms[2, i] = hw + he
+        terms[3, i] = b_e[k] - b_w[k]  # bed slope
+        terms[4, i] = hx[k]  # gravity along the slope
     c0 = col[2]
     for a in range(L):
         la = l[a]
@@ -394,40 +401,10 @@ def _tile(
         slope = la * g_n * 0.5
         gravity = g_t * la
         for i in range(m):
-            dq[i] = _momentum_rate(
-                i,
-                momentum[i],
-                momentum,
-                hL,
-                hR,
-                h_w,
-                h_e,
-                b_w,
-                b_e,
-                hx,
-                exchange,
-                pressure,
-                slope,
-                gravity,
-                dx,
-            )
+            dq[i] = _momentum_rate(i, momentum[i], momentum, terms, exchange, pressure, slope, gravity, dx)
         if 0 <= gate < m:  # the cell east of the gate sees the gate's flux from its side
             dq[gate] = _momentum_rate(
-                gate,
-                gate_q[a],
-                momentum,
-                hL,
-                hR,
-                h_w,
-                h_e,
-                b_w,
-                b_e,
-                hx,
-                exchange,
-                pressure,
-                slope,
-                gravity,
-                dx,
+                gate, gate_q[a], momentum, terms, exchange, pressure, slope, gravity, dx
             )
         if not final:
             for i in range(m):
