@@ -31,6 +31,7 @@ class Timing:
     load: float  # 1-minute load average at the end
     peak_bytes: int  # peak resident memory of the process
     fallback_share: float  # column solves that needed the O(L^2) dynamic programme
+    threads: dict[int, int]  # passes (steps and redone steps) run with each thread count
 
     def lines(self) -> list[str]:
         return [
@@ -41,6 +42,9 @@ class Timing:
             f"{self.computed / self.seconds / 1e6:.2f} M (cells holding material)",
             f"peak memory {self.peak_bytes / 2**20:.0f} MiB "
             f"({self.peak_bytes / self.cells:.0f} bytes per mesh cell), load average {self.load:.2f}",
+            "threads: "
+            + ", ".join(f"{n} in {k} passes" for n, k in sorted(self.threads.items()))
+            + " (a pass: a step, or a step redone for material set moving)",
         ]
 
 
@@ -57,6 +61,7 @@ def timed(
     if warm_up is not None:
         warm_up.step(warm_up.t + 1e-9)
     sim = make()
+    sim.thread_policy.chosen.clear()
     layers = sim.fractions.size
     computed = [0]
 
@@ -83,6 +88,7 @@ def timed(
         os.getloadavg()[0],
         peak_memory(),
         sim.compiled_step.fallbacks / max(sim.compiled_step.solves, 1) if sim.compiled_step else float("nan"),
+        dict(sim.thread_policy.chosen),
     )
     if profiler:
         pstats.Stats(profiler).sort_stats("tottime").print_stats(15)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import os
 import time
+from collections import Counter
 
 from multilayer.errors import InputError
 
@@ -74,6 +75,7 @@ class ThreadPolicy:
         self.cores = available_cores()
         self.idle = 1  # until measured
         self._last: tuple[float, float | None, float] | None = None
+        self.chosen: Counter[int] = Counter()  # steps run with each thread count
 
     def _measure(self) -> None:
         """Update ``idle`` when ``REFRESH`` seconds have passed since the last sample."""
@@ -101,4 +103,5 @@ class ThreadPolicy:
 
             count = min(count, numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
             numba.set_num_threads(count)
+        self.chosen[count] += 1
         return count
