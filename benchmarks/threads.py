@@ -23,14 +23,16 @@ HERE = Path(__file__).resolve().parent
 EXTRA = {"dam_break": [], "chute": ["--steps", "20"]}
 
 
-def time_to_solution(problem: str, threads: str) -> float:
+def time_to_solution(problem: str, threads: str) -> tuple[float, str]:
+    """Wall time of one run, and the thread counts the run used."""
     out = subprocess.run(
         [sys.executable, str(HERE / f"{problem}.py"), "--threads", threads, *EXTRA[problem]],
         capture_output=True,
         text=True,
         check=True,
     ).stdout
-    return float(re.search(r"time to solution ([0-9.]+) s", out).group(1))
+    used = re.search(r"threads: (.*?) \(a pass", out)
+    return float(re.search(r"time to solution ([0-9.]+) s", out).group(1)), used.group(1) if used else "?"
 
 
 def main() -> None:
@@ -43,22 +45,24 @@ def main() -> None:
         quiet = {}
         for setting in args.settings:
             load = os.getloadavg()[0]
-            quiet[setting] = time_to_solution(problem, setting)
+            quiet[setting], used = time_to_solution(problem, setting)
             print(
-                f"{problem:10s} threads {setting:>4}: quiet {quiet[setting]:7.2f} s (load {load:.2f})",
+                f"{problem:10s} threads {setting:>4}: quiet {quiet[setting]:7.2f} s (load {load:.2f}; "
+                f"threads {used})",
                 flush=True,
             )
         for setting in args.settings:
             busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
             try:
                 load = os.getloadavg()[0]
-                seconds = time_to_solution(problem, setting)
+                seconds, used = time_to_solution(problem, setting)
             finally:
                 busy.kill()
                 busy.wait()
             print(
                 f"{problem:10s} threads {setting:>4}: beside one busy process {seconds:7.2f} s, "
-                f"{seconds / quiet[setting]:.2f} x quiet (load {load:.2f})",
+                f"{seconds / quiet[setting]:.2f} x quiet, {seconds / min(quiet.values()):.2f} x the fastest "
+                f"quiet setting (load {load:.2f}; threads {used})",
                 flush=True,
             )
 
