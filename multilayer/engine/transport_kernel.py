@@ -195,16 +195,8 @@ def _tile(
     (col, kind), scalars, layers, faces, fluxes, cells, (gate_h, gate_q) = work
     hx, bx, h_w, h_e, b_w, b_e = scalars[0], scalars[1], scalars[2], scalars[3], scalars[4], scalars[5]
     ux, u_w, u_e = layers[0], layers[1], layers[2]
-    hL, hR, s_lo, s_hi, r_lo, r_hi, pL, pR = (
-        faces[0],
-        faces[1],
-        faces[2],
-        faces[3],
-        faces[4],
-        faces[5],
-        faces[6],
-        faces[7],
-    )
+    hL, hR, s_lo, s_hi = faces[0], faces[1], faces[2], faces[3]
+    r_lo, r_hi, pL, pR = faces[4], faces[5], faces[6], faces[7]
     fh, fq = fluxes[0], fluxes[1]
     div_h, div_Q, G, exchange, dq = cells[:L], cells[L], cells[L + 1], cells[L + 2], cells[L + 3]
     terms = cells[L + 4 :]
@@ -273,18 +265,13 @@ def _tile(
     for a in range(1, L):
         east, west = u_e[a], u_w[a]
         for f in range(m + 1):
-            v = east[f + 1]
-            s_lo[f] = v if v < s_lo[f] else s_lo[f]
-            v = east[f + 1]
-            s_hi[f] = v if v > s_hi[f] else s_hi[f]
-            v = west[f + 2]
-            r_lo[f] = v if v < r_lo[f] else r_lo[f]
-            v = west[f + 2]
-            r_hi[f] = v if v > r_hi[f] else r_hi[f]
-    wl = s_lo  # reused: the weights of the HLL flux
-    wr = s_hi
-    jump = r_lo
-    moving = r_hi
+            left_value, right_value = east[f + 1], west[f + 2]
+            s_lo[f] = left_value if left_value < s_lo[f] else s_lo[f]
+            s_hi[f] = left_value if left_value > s_hi[f] else s_hi[f]
+            r_lo[f] = right_value if right_value < r_lo[f] else r_lo[f]
+            r_hi[f] = right_value if right_value > r_hi[f] else r_hi[f]
+    # the same arrays receive the weights of the HLL flux (each face reads its bounds first)
+    wl, wr, jump, moving = s_lo, s_hi, r_lo, r_hi
     for f in range(m + 1):
         b_face = max(b_e[f + 1], b_w[f + 2])
         hl = max(0.0, h_e[f + 1] + b_e[f + 1] - b_face)
