@@ -63,9 +63,10 @@ def main() -> None:
     threads = args.threads if args.threads == "auto" else int(args.threads)
     pressures = ["hydrostatic", args.pressure] if args.compare else [args.pressure]
     seconds = {}
+    size = (args.cells, args.layers, args.order, args.end, threads)
     for pressure in pressures:
         sim, timing = timed(
-            lambda p=pressure: Simulation(scenario(args.cells, args.layers, args.order, args.end, threads, p)),
+            lambda p=pressure, size=size: Simulation(scenario(*size, p)),
             args.end,
             profile=args.profile,
             warm_up=Simulation(scenario(50, args.layers, args.order, args.end, threads, pressure)),
@@ -84,6 +85,7 @@ def main() -> None:
     if args.compare:
         ratio = seconds[args.pressure] / seconds["hydrostatic"]
         print(f"cost of pressure {args.pressure}: {ratio:.2f} times the hydrostatic time to solution")
+
 
 if __name__ == "__main__":
     main()

@@ -253,3 +253,30 @@ def test_the_window_of_moving_columns_gives_the_whole_domain_answer():
     np.add.at(du, (slice(None), cons.right), 0.5 * dv)
     assert np.allclose(fast[0], np.where(u != 0.0, u + du, 0.0), rtol=0, atol=1e-13)
     assert np.allclose(fast[1][u != 0.0], (w + dV[L * F :].reshape(u.shape))[u != 0.0], rtol=0, atol=1e-13)
+
+
+def test_cholesky_refactored_from_a_row_equals_the_whole_factorisation():
+    """The active-set iteration refactors only from the first row whose bound status
+    changed: the factor equals a fresh one, and solves A' x = b (A' = A with the fixed rows
+    and columns replaced by the identity)."""
+    rng = np.random.default_rng(6)
+    n, w = 60, 7
+    dense = np.zeros((n, n))
+    for d in range(w + 1):
+        dense += np.diag(rng.normal(size=n - d), d)
+    dense = dense @ dense.T + n * np.eye(n)  # symmetric positive definite, half-width 2w
+    width = 2 * w
+    band = np.array([[dense[i, i + d] if i + d < n else 0.0 for d in range(width + 1)] for i in range(n)])
+    before = rng.random(n) < 0.2
+    after = before.copy()
+    after[35:] = rng.random(n - 35) < 0.5
+    after[35] = not before[35]
+    U = np.zeros(band.shape)
+    nonhydrostatic._factor(band, before, U, 0)
+    nonhydrostatic._factor(band, after, U, 35)
+    fresh = np.zeros(band.shape)
+    nonhydrostatic._factor(band, after, fresh, 0)
+    assert np.abs(U - fresh).max() < 1e-12 * np.abs(fresh).max()
+    fixed = np.where(after[:, None] | after[None, :], 0.0, dense) + np.diag(after.astype(float))
+    b = rng.normal(size=n)
+    assert np.allclose(fixed @ nonhydrostatic._substitute(U, b), b, rtol=0, atol=1e-10)

@@ -76,7 +76,8 @@ class Constraint:
 
     Unknowns: the face velocities ``a * F + f`` then the ``wbar`` at ``L * F + a * N + i``;
     unknown ``k`` has the entries ``values[pointer[k]:pointer[k + 1]]`` in the rows (cells
-    ``a * N + i``) ``cells[pointer[k]:pointer[k + 1]]``.  ``mass`` are the masses ``M``, ``left`` and ``right`` the columns of the faces."""
+    ``a * N + i``) ``cells[pointer[k]:pointer[k + 1]]``.  ``mass`` are the masses ``M``,
+    ``left`` and ``right`` the columns of the faces."""
 
     pointer: np.ndarray
     cells: np.ndarray
@@ -216,20 +217,24 @@ def _normal_equations(pointer, cells, values, mass, free, row_of, n, v_star):
         width = max(width, hi - lo)
     band = np.zeros((n, width + 1))
     r = np.zeros(n)
+    rows, entries = np.empty(64, np.int64), np.empty(64)
     for k in range(free.size):
         if not free[k]:
             continue
-        inverse = 1.0 / mass[k]
+        count = 0  # the entries of unknown k in the rows taking part
         for e in range(pointer[k], pointer[k + 1]):
             row = row_of[cells[e]]
-            if row < 0:
-                continue
-            r[row] += values[e] * v_star[k]
-            scaled = values[e] * inverse
-            for d in range(pointer[k], pointer[k + 1]):
-                other = row_of[cells[d]]
-                if other >= row:
-                    band[row, other - row] += scaled * values[d]
+            if row >= 0:
+                rows[count], entries[count] = row, values[e]
+                count += 1
+        inverse = 1.0 / mass[k]
+        for e in range(count):
+            row = rows[e]
+            r[row] += entries[e] * v_star[k]
+            scaled = entries[e] * inverse
+            for d in range(count):
+                if rows[d] >= row:
+                    band[row, rows[d] - row] += scaled * entries[d]
     return band, r
 
 
