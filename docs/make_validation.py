@@ -1178,17 +1178,13 @@ def _collapse_name(pressure: str, a: float) -> str:
     return f"collapse_a{a:g}" if pressure == "hydrostatic" else f"collapse_{pressure}_a{a:g}"
 
 
-def collapse_stop_time(time: np.ndarray, front: np.ndarray, dx: float) -> float:
-    """The first output time from which the front moves less than one cell to the end."""
-    moved = np.abs(front[-1] - front) >= dx
-    return float(time[np.flatnonzero(moved)[-1] + 1]) if moved.any() else float(time[0])
-
-
 def _fit_exponent(x: Sequence[float], y: Sequence[float]) -> float:
     return float(np.polyfit(np.log(x), np.log(y), 1)[0]) if len(x) > 1 else math.nan
 
 
 def section_collapse(jobs: int) -> str:
+    from multilayer.engine import diagnostics
+
     runs = [
         Run(
             _collapse_name(p, a),
@@ -1213,7 +1209,10 @@ def section_collapse(jobs: int) -> str:
             moving = float(np.abs(final["u"].values).max())
             scale = math.sqrt(a * L0 / G)  # sqrt(H0 / g)
             t, x_f = ds["time"].values, ds["front"].values
-            stop = collapse_stop_time(t, x_f, float(ds["x"][1] - ds["x"][0])) / scale
+            stop = diagnostics.stop_time(
+                t, diagnostics.front_history(ds["x"].values, ds["h"].values, 0.001), 0.01
+            )
+            stop /= scale
             measured[p][a] = ((front - L0) / L0, height, moving, stop)
             if p == "non_hydrostatic":
                 ax2.plot(ds["x"].values / L0, final["h"].values / L0, label=f"a = {a:g}")
@@ -1286,6 +1285,10 @@ def section_collapse(jobs: int) -> str:
     in_band = len(nh) == len(COLLAPSE_RATIOS) and all(0.7 <= r <= 1.3 for r in nh_ratios)
     exponent_ok = abs(nh_exp - 2 / 3) <= 0.15
     goal = in_band and exponent_ok
+    stop_verdicts = ", ".join(
+        f"`{p}` **{'met' if all(abs(r[3] / COLLAPSE_STOP - 1) <= 0.2 for r in measured[p].values()) else 'not met'}**"
+        for p in ("hydrostatic", "non_hydrostatic")
+    )
     text = f"""## Column collapse on a horizontal rough bed
 
 Scenario `column_collapse.yaml` (L0 = 5 cm, the experiments' glass beads with Jop mu(I),
@@ -1307,9 +1310,12 @@ to cite, and none were read off its figures.  What is compared is what their com
 and the experiments share: the run-out law above, and the duration of the flow, which in
 the 2D experiments scales with the free-fall time of the column, t_stop ~ {COLLAPSE_STOP:g} sqrt(H0/g)
 (Lube et al. 2005; quoted second-hand, not checked against the paper).  Here t_stop is the
-first output time (every 0.01 s) from which the front moves less than one cell (4 mm) until
-t = 2 s; the right-hand panel shows the front over the law against t / sqrt(H0/g) (the
-vertical line is {COLLAPSE_STOP:g}).
+first output time (every 0.01 s) after which the front (h = 1 mm, interpolated) advances
+slower than 1 cm/s over every output interval until t = 2 s; the right-hand panel shows the front over the law against t / sqrt(H0/g) (the
+vertical line is {COLLAPSE_STOP:g}).  Stopping time within 20 % of {COLLAPSE_STOP:g} sqrt(H0/g) at every a:
+{stop_verdicts}.  The duration does not tell the pressure options apart, and it is
+defined only to about that accuracy: with the criterion "the front moves less than one
+cell to the end" instead of 1 cm/s, the times were up to a third shorter at small a.
 
 {figure}
 
@@ -1783,6 +1789,42 @@ def section_erodible_pressure(jobs: int) -> str:
     for p in pressures:
         header += [f"{p} run-out 0 mm (m)", f"{p} 5 mm (m)", f"{p} change"]
     header += [f"non_hydrostatic vs hydrostatic, {bed * 1000:g} mm" for bed in EROSION_ENDS]
+    shortening = [
+        1 - measures[("non_hydrostatic", t, b)]["runout"] / measures[("hydrostatic", t, b)]["runout"]
+        for t in PRESSURE_THETAS
+        for b in EROSION_ENDS
+        if ("non_hydrostatic", t, b) in measures and ("hydrostatic", t, b) in measures
+    ]
+    trends = {
+        p: [
+            _trend(measures[(p, t, 0.0)]["runout"], measures[(p, t, 0.005)]["runout"])
+            if (p, t, 0.0) in measures and (p, t, 0.005) in measures
+            else "n/a"
+            for t in PRESSURE_THETAS
+        ]
+        for p in pressures
+    }
+    by_bed = {
+        b: np.mean(
+            [
+                1 - measures[("non_hydrostatic", t, b)]["runout"] / measures[("hydrostatic", t, b)]["runout"]
+                for t in PRESSURE_THETAS
+                if ("non_hydrostatic", t, b) in measures and ("hydrostatic", t, b) in measures
+            ]
+        )
+        for b in EROSION_ENDS
+    }
+    reading = (
+        f"The non-hydrostatic pressure changes the run-out by {-max(shortening, default=math.nan):+.0%} to "
+        f"{-min(shortening, default=math.nan):+.0%} (on average {-by_bed[0.0]:+.1%} over the rigid bed, "
+        f"{-by_bed[0.005]:+.1%} over 5 mm).  The trend with the bed thickness at "
+        + ", ".join(
+            f"{t:g} deg: {a} (hydrostatic), {b} (non-hydrostatic)"
+            for t, a, b in zip(PRESSURE_THETAS, trends["hydrostatic"], trends["non_hydrostatic"])
+        )
+        + "; in the experiments (previous section) the run-out grows with the bed above a"
+        " critical slope of about 10-16 deg."
+    )
     sample = results[runs[("non_hydrostatic", 22.0, 0.005)].name]
     failed = [run.name for run in runs.values() if isinstance(results[run.name], str)]
     return f"""## Erodible bed with the non-hydrostatic pressure
@@ -1798,6 +1840,8 @@ collapse").  Resolution: {_resolution(sample) if not isinstance(sample, str) els
 non-hydrostatic).
 
 {_table(header, rows)}
+
+{reading}
 
 Runs that failed: {"; ".join(failed) if failed else "none"}.
 """
