@@ -31,6 +31,7 @@ from multilayer.engine import (
 from multilayer.engine.gate import Gate
 from multilayer.engine.mesh import LayeredMesh
 from multilayer.engine.state_check import ROUND_OFF, StateError, StateGuard
+from multilayer.errors import RunError
 
 if TYPE_CHECKING:  # the engine reads a validated scenario; it never loads one
     from multilayer.io.scenario import BaseZone, Scenario
@@ -243,22 +244,31 @@ class Simulation:
             )
         elif self.pressure == "non_hydrostatic":
             yield_gravity = nonhydrostatic.yield_gravity(self.q, h_new, self.fractions, self.g_n)
-        u_new, iterations = vertical_step.implicit_step(
-            self.stresses,
-            h_new,
-            ustar,
-            self.newton_seed if self.pressure == "non_hydrostatic" else self.u,
-            dt,
-            solver=self.solver,
-            tolerance=self.numerics.tolerance,
-            max_iterations=self.numerics.max_iterations,
-            velocity_scale=self.velocity_scale,
-            rest=rest,
-            poll=self.poll,
-            yield_gravity=yield_gravity,
-            threads=count,
-            compiled=self.compiled_step,
-        )
+        # the seed changes the Newton work, not the answer: where the unprojected seed does
+        # not converge, the step is solved again from u (as the other pressures are)
+        seeds = [self.newton_seed, self.u] if self.pressure == "non_hydrostatic" else [self.u]
+        for attempt, seed in enumerate(seeds, start=1):
+            try:
+                u_new, iterations = vertical_step.implicit_step(
+                    self.stresses,
+                    h_new,
+                    ustar,
+                    seed,
+                    dt,
+                    solver=self.solver,
+                    tolerance=self.numerics.tolerance,
+                    max_iterations=self.numerics.max_iterations,
+                    velocity_scale=self.velocity_scale,
+                    rest=rest,
+                    poll=self.poll,
+                    yield_gravity=yield_gravity,
+                    threads=count,
+                    compiled=self.compiled_step,
+                )
+                break
+            except RunError:
+                if attempt == len(seeds):
+                    raise
         if self.pressure != "non_hydrostatic":
             return h_new, u_new, self.w, self.q, u_new, iterations
         periodic = self.left == "periodic"
