@@ -9,8 +9,8 @@ unchanged, so re-running the script only computes what changed.
     python docs/make_validation.py                      # every section
     python docs/make_validation.py static bagnold -j 2  # some sections, 2 processes
 
-Sections: static, dambreak, bagnold, chute, collapse, erodible.  The text of sections not
-run is kept from the current docs/validation.md (each section sits between
+Sections: static, dambreak, bagnold, chute, collapse, erodible, erodible_pressure.  The text
+of sections not run is kept from the current docs/validation.md (each section sits between
 ``<!-- section: NAME -->`` and ``<!-- /section -->`` markers).
 """
 
