@@ -282,13 +282,11 @@ def _tile(
         cr = np.sqrt(g_n * hr)
         s_left = min(s_lo[f] - cl, r_lo[f] - cr)
         s_right = max(s_hi[f] + cl, r_hi[f] + cr)
-        rest = at_rest[t0 + f] or (min(s_left, 0.0) == max(s_right, 0.0))
-        if rest:
-            s_left = -1.0
-            s_right = 1.0
-        else:
-            s_left = min(s_left, 0.0)
-            s_right = max(s_right, 0.0)
+        lowest = min(s_left, 0.0)
+        highest = max(s_right, 0.0)
+        rest = at_rest[t0 + f] | (lowest == highest)  # no wave at all
+        s_left = -1.0 if rest else lowest
+        s_right = 1.0 if rest else highest
         width = s_right - s_left
         wl[f] = s_right / width
         wr[f] = -s_left / width
