@@ -245,37 +245,43 @@ def _active_set(inertia, momentum, kappa, c, w, cw, guess, u, first, grounded, U
     scale = 0.0
     ng = 0
     below = 0.0
-    d = 0.0  # sums over the layers of the open group
+    d = 0.0  # sums over the layers of the open group, then its equation
     r = 0.0
+    d_below = 1.0  # the pivot and right-hand side of the group below (forward sweep)
+    r_below = 0.0
+    sign_top = 0.0  # sign of the jump across the interface above the open group
     for a in range(L + 1):
         if a < L:
             g = guess[a]
             scale += abs(momentum[a]) + kappa[a] + w[a]
             opens = a == 0 or not (kappa[a] > 0.0 and g == below)
+            if opens:
+                sign_top = _sign(g - below)
         else:
             opens = True
         if opens and a > 0:  # close the group ng - 1, whose top interface is a
             j = ng - 1
             if grounded[j]:
-                diag[j], low[j], rhs[j] = 1.0, 0.0, 0.0
+                d, r = 1.0, 0.0
             else:
                 p = first[j]
                 d += c[p]
-                r -= kappa[p] * _sign(guess[p] - (guess[p - 1] if p > 0 else 0.0))
-                low[j] = -c[p] if p > 0 else 0.0
+                r -= kappa[p] * low[j]
                 if a < L:
                     d += c[a]
-                    r += kappa[a] * _sign(guess[a] - guess[a - 1])
-                if low[j] != 0.0:  # forward sweep: eliminate the coupling to group j - 1
-                    f = low[j] / diag[j - 1]
+                    r += kappa[a] * sign_top
+                if p > 0 and c[p] != 0.0:  # forward sweep: eliminate the coupling to group j - 1
+                    f = -c[p] / d_below
                     d -= f * (-c[p] if not grounded[j - 1] else 0.0)
-                    r -= f * rhs[j - 1]
-                diag[j], rhs[j] = d, r
+                    r -= f * r_below
+            diag[j], rhs[j] = d, r
+            d_below, r_below = d, r
         if a == L:
             break
         if opens:
             first[ng] = a
             grounded[ng] = a == 0 and kappa[0] > 0.0 and g == 0.0
+            low[ng] = sign_top  # low: the sign of the jump below each group
             ng += 1
             d = 0.0
             r = 0.0
@@ -304,7 +310,7 @@ def _active_set(inertia, momentum, kappa, c, w, cw, guess, u, first, grounded, U
         for a in range(p, q + 1):
             u[a] = Uj
         if q + 1 < L:
-            sig = _sign(guess[q + 1] - guess[q])
+            sig = low[j + 1]
             if kappa[q + 1] > 0.0 and (sig == 0.0 or sig * (U[j + 1] - Uj) < 0.0):
                 return False  # the yielded interface above the group
             tau = kappa[q + 1] * sig + c[q + 1] * (U[j + 1] - Uj)
@@ -321,7 +327,7 @@ def _active_set(inertia, momentum, kappa, c, w, cw, guess, u, first, grounded, U
         if w[p] > 0.0 and _sign(guess[p]) * Uj < 0.0:
             return False
     if kappa[0] > 0.0 and not (grounded[0] and guess[0] == 0.0):  # the bed yielded
-        sig = _sign(guess[0])
+        sig = low[0]
         if sig == 0.0 or sig * U[0] < 0.0:
             return False
     if held == 0:
@@ -331,9 +337,9 @@ def _active_set(inertia, momentum, kappa, c, w, cw, guess, u, first, grounded, U
             continue
         p, q = first[j], first[j + 1] - 1
         Ub = U[j - 1] if j > 0 else 0.0
-        sig = _sign(guess[p] - (guess[p - 1] if p > 0 else 0.0))
+        sig = low[j]
         if q + 1 < L:
-            tau = kappa[q + 1] * _sign(guess[q + 1] - guess[q]) + c[q + 1] * (U[j + 1] - U[j])
+            tau = kappa[q + 1] * low[j + 1] + c[q + 1] * (U[j + 1] - U[j])
         else:
             tau = 0.0
         lo = tau
