@@ -5,8 +5,13 @@ model of the viscous stresses (``StressModel.linearise``, numpy, calling the rhe
 plugins) and the exact solver (``column_kernel``).  Each column's iteration depends on
 that column only, so the same iteration runs here column by column with every quantity in
 cache, when the bulk and wall laws declare a compiled form of their viscosity
-(``Rheology.viscosity_kernel``).  The operations are those of ``stress.py`` in the same
-order, so both paths agree to round-off (tests/test_newton_kernel.py).
+(``Rheology.viscosity_kernel``).  The model is that of ``stress.py``, evaluated with
+what stays fixed during a step (masses, pressure parts, inverse spacings) computed once
+per column, except its slope: the compiled forms differentiate their stress exactly
+where the numpy path takes a forward difference.  The slope only sets the speed of the
+iteration (the model passes through the true stress either way), so both paths take the
+same iterations and agree to round-off times the conditioning of the step
+(tests/test_newton_kernel.py).
 """
 
 from __future__ import annotations
@@ -57,30 +62,45 @@ def _pressure_part(form, params, p):
 
 
 @njit(cache=True)
-def _viscosity(form, params, rate, factor, offset):
-    """eta(|gamma|, p) of the compiled forms (``Rheology.viscosity_kernel``) from the
-    pressure parts ``factor, offset = _pressure_part(form, params, p)``."""
+def _viscosity_and_slope(form, params, rate, factor, offset):
+    """eta(rate, p) of the compiled forms (``Rheology.viscosity_kernel``) and the slope
+    d(eta rate)/d rate of the viscous stress, for ``rate >= 0``, from the pressure parts
+    ``factor, offset = _pressure_part(form, params, p)``.
+
+    The slope is exact: ``eta`` for the constant form; ``eta B sqrt(p) / (B sqrt(p) +
+    C rate)`` for the inertial form (``eta`` at rest); ``(1 + e_g) eta`` above the
+    floor of the power form, ``eta`` below it.
+    """
     if form == 0:
-        return factor
+        return factor, factor
     if form == 1:
-        denominator = offset + params[2] * abs(rate)
-        return factor / denominator if denominator > 0.0 else 0.0
-    return factor * max(abs(rate), params[3]) ** params[2]
+        denominator = offset + params[2] * rate
+        if denominator > 0.0:
+            inverse = 1.0 / denominator
+            eta = factor * inverse
+            return eta, eta * offset * inverse
+        return 0.0, 0.0
+    if rate > params[3]:
+        eta = factor * rate ** params[2]
+        return eta, (1.0 + params[2]) * eta
+    eta = factor * params[3] ** params[2]
+    return eta, eta
 
 
 @njit(cache=True)
-def _newton_model(form, params, kappa, rate, factor, offset):
-    """``stress._newton_model`` for one value: (yield stress, slope)."""
-    step = 1e-7 * rate
-    eta = _viscosity(form, params, rate, factor, offset)
-    tau = eta * rate
-    up = _viscosity(form, params, rate + step, factor, offset) * (rate + step)
-    if rate > 0.0:
-        tangent = (up - tau) / (step if step > 0.0 else 1.0)
-    else:
-        tangent = eta
-    slope = max(tangent, 0.0)
-    offset_yield = kappa + tau - slope * rate
+def _viscosity(form, params, rate, factor, offset):
+    """eta(|gamma|, p) of the compiled forms (``Rheology.viscosity_kernel``) from the
+    pressure parts ``factor, offset = _pressure_part(form, params, p)``."""
+    return _viscosity_and_slope(form, params, abs(rate), factor, offset)[0]
+
+
+@njit(cache=True)
+def _newton_model(kappa, rate, eta, slope):
+    """``stress._newton_model`` for one value from ``eta`` and the stress slope at
+    ``rate``: (yield stress, conductance) of the odd Bingham law through the stress at
+    ``rate``, tangent where its yield stress is >= 0, secant otherwise."""
+    slope = max(slope, 0.0)
+    offset_yield = kappa + eta * rate - slope * rate
     if offset_yield >= 0.0:
         return offset_yield, slope
     return kappa, eta
@@ -92,23 +112,28 @@ def _columns(
     u_out, iterations, fallbacks,
 ):  # fmt: skip
     """Newton iterations of every wet column (``wet`` indexes the columns of ustar/guess);
-    ``fallbacks`` counts the solves per column that needed the O(L^2) dynamic programme."""
+    ``fallbacks`` counts the solves per column that needed the O(L^2) dynamic programme.
+
+    Per column, what does not change from one iteration to the next is computed once:
+    masses, pressure parts of the laws, inverse spacings and wall thresholds."""
     L = m.shape[0]
     n = wet.size
+    walls = width > 0.0
+    inverse_half = 2.0 / width if walls else 0.0
     for k in prange(chunks):
         ws = _workspace(L)
         first = np.empty(L + 1, np.int64)
         grounded = np.empty(L, np.bool_)
         U, diag, low, rhs = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
-        mc, kc, cc, wc, cwc = np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L)
+        kc, cc, wc, cwc = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
         inertia, momentum = np.empty(L), np.empty(L)  # m_a / dt and m_a u*_a / dt
         current, new = np.empty(L), np.empty(L)
-        bulk_factor, bulk_offset, wall_factor, wall_offset = (
-            np.empty(L),
-            np.empty(L),
-            np.empty(L),
-            np.empty(L),
-        )
+        # per layer: inverse spacing, conductance per unit slope (0 where not viscous),
+        # wall area factor (2 / W) h_a and wall yield threshold
+        inverse_spacing, conductance = np.empty(L), np.empty(L)
+        per_area, wall_yield = np.empty(L), np.empty(L)
+        bulk_factor, bulk_offset = np.empty(L), np.empty(L)  # pressure parts of the laws
+        wall_factor, wall_offset = np.empty(L), np.empty(L)
         # columns in blocks: the coefficients of a block are gathered row by row (each row
         # of the (L, N) arrays read in contiguous runs) into column-contiguous buffers
         bm, bk, bw, bp, bs = (
@@ -144,42 +169,44 @@ def _columns(
             for jj in range(size):
                 j = j0 + jj
                 for a in range(L):
-                    mc[a] = bm[jj, a]
-                    inertia[a] = bm[jj, a] / dt
-                    momentum[a] = bm[jj, a] * bu[jj, a] / dt
+                    mass = bm[jj, a]
+                    inertia[a] = mass / dt
+                    momentum[a] = mass * bu[jj, a] / dt
                     current[a] = bg[jj, a]
+                    s = bs[jj, a]
+                    inverse_spacing[a] = 1.0 / s if s > 0.0 else 1.0
+                    conductance[a] = inverse_spacing[a] if (bv[jj, a] and s > 0.0) else 0.0
                     bulk_factor[a], bulk_offset[a] = _pressure_part(bulk_form, bulk_params, bp[jj, a])
-                    if width > 0.0:
+                    if walls:
                         wall_factor[a], wall_offset[a] = _pressure_part(wall_form, wall_params, bwp[jj, a])
+                        per_area[a] = (2.0 / width) * mass / density
+                        wall_yield[a] = bw[jj, a] / max(per_area[a], 1e-300)
+                    else:
+                        wc[a] = bw[jj, a]
+                        cwc[a] = 0.0
                 iterations[j] = -1
                 fallbacks[j] = 0
                 for iteration in range(1, max_iterations + 1):
                     # the Newton model at the current velocities (StressModel.linearise)
                     below = 0.0
                     for a in range(L):
-                        s = bs[jj, a]
-                        s_safe = s if s > 0.0 else 1.0
-                        rate = abs(current[a] - below) / s_safe
+                        rate = abs(current[a] - below) * inverse_spacing[a]
                         below = current[a]
-                        ka, t = _newton_model(
-                            bulk_form, bulk_params, bk[jj, a], rate, bulk_factor[a], bulk_offset[a]
+                        eta, slope = _viscosity_and_slope(
+                            bulk_form, bulk_params, rate, bulk_factor[a], bulk_offset[a]
                         )
+                        ka, t = _newton_model(bk[jj, a], rate, eta, slope)
                         kc[a] = ka if bv[jj, a] else bk[jj, a]
-                        cc[a] = t / s_safe if (bv[jj, a] and s > 0.0) else 0.0
-                        if width > 0.0:
-                            half = 0.5 * width
-                            per_area = (2.0 / width) * mc[a] / density
-                            threshold_a = bw[jj, a] / max(per_area, 1e-300)
-                            wa, ta = _newton_model(
-                                wall_form, wall_params, threshold_a, abs(current[a]) / half,
-                                wall_factor[a], wall_offset[a],
-                            )  # fmt: skip
-                            wc[a] = per_area * wa
-                            cwc[a] = per_area * ta / half
-                        else:
-                            wc[a] = bw[jj, a]
-                            cwc[a] = 0.0
-                    if mc[0] <= 0.0:
+                        cc[a] = t * conductance[a]
+                        if walls:
+                            rate = abs(current[a]) * inverse_half
+                            eta, slope = _viscosity_and_slope(
+                                wall_form, wall_params, rate, wall_factor[a], wall_offset[a]
+                            )
+                            wa, ta = _newton_model(wall_yield[a], rate, eta, slope)
+                            wc[a] = per_area[a] * wa
+                            cwc[a] = per_area[a] * ta * inverse_half
+                    if bm[jj, 0] <= 0.0:
                         for a in range(L):
                             new[a] = 0.0
                     elif not _active_set(
@@ -190,7 +217,7 @@ def _columns(
                     change = 0.0
                     for a in range(L):
                         change = max(change, abs(new[a] - current[a]))
-                        current[a] = new[a]
+                    current, new = new, current
                     if change <= threshold:
                         iterations[j] = iteration
                         break
