@@ -114,8 +114,10 @@ def _columns(
     """Newton iterations of every wet column (``wet`` indexes the columns of ustar/guess);
     ``fallbacks`` counts the solves per column that needed the O(L^2) dynamic programme.
 
-    Per column, what does not change from one iteration to the next is computed once:
-    masses, pressure parts of the laws, inverse spacings and wall thresholds."""
+    What does not change from one iteration to the next (masses, pressure parts of the
+    laws, inverse spacings, wall thresholds) is computed once per step, while the
+    coefficients of a block of columns are gathered row by row (each row of the (L, N)
+    arrays read in contiguous runs) into column-contiguous buffers."""
     L = m.shape[0]
     n = wet.size
     walls = width > 0.0
@@ -125,31 +127,20 @@ def _columns(
         first = np.empty(L + 1, np.int64)
         grounded = np.empty(L, np.bool_)
         U, diag, low, rhs = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
-        kc, cc, wc, cwc = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
-        inertia, momentum = np.empty(L), np.empty(L)  # m_a / dt and m_a u*_a / dt
+        kc, cc = np.empty(L), np.empty(L)  # the Newton model: interface yield stresses, conductances
+        wc, cwc = np.empty(L), np.zeros(L)  # and wall thresholds, wall conductances
         current, new = np.empty(L), np.empty(L)
-        # per layer: inverse spacing, conductance per unit slope (0 where not viscous),
-        # wall area factor (2 / W) h_a and wall yield threshold
-        inverse_spacing, conductance = np.empty(L), np.empty(L)
-        per_area, wall_yield = np.empty(L), np.empty(L)
-        bulk_factor, bulk_offset = np.empty(L), np.empty(L)  # pressure parts of the laws
-        wall_factor, wall_offset = np.empty(L), np.empty(L)
-        # columns in blocks: the coefficients of a block are gathered row by row (each row
-        # of the (L, N) arrays read in contiguous runs) into column-contiguous buffers
-        bm, bk, bw, bp, bs = (
-            np.empty((BLOCK, L)),
-            np.empty((BLOCK, L)),
-            np.empty((BLOCK, L)),
-            np.empty((BLOCK, L)),
-            np.empty((BLOCK, L)),
-        )
-        bwp, bu, bg, bo = (
-            np.empty((BLOCK, L)),
-            np.empty((BLOCK, L)),
-            np.empty((BLOCK, L)),
-            np.empty((BLOCK, L)),
-        )
-        bv = np.empty((BLOCK, L), np.bool_)
+        # per column of a block and layer: m_a / dt, m_a u*_a / dt, kappa, viscous,
+        # inverse spacing, conductance per unit slope (0 where not viscous), pressure
+        # parts of the bulk law; with walls, their pressure parts, the wall area factor
+        # (2 / W) h_a and the wall yield threshold per unit area (else the wall threshold)
+        b_inertia, b_momentum, b_kappa = np.empty((BLOCK, L)), np.empty((BLOCK, L)), np.empty((BLOCK, L))
+        b_viscous = np.empty((BLOCK, L), np.bool_)
+        b_inverse_spacing, b_conductance = np.empty((BLOCK, L)), np.empty((BLOCK, L))
+        b_factor, b_offset = np.empty((BLOCK, L)), np.empty((BLOCK, L))
+        b_wall_factor, b_wall_offset = np.empty((BLOCK, L)), np.empty((BLOCK, L))
+        b_per_area, b_wall = np.empty((BLOCK, L)), np.empty((BLOCK, L))
+        b_guess, b_out = np.empty((BLOCK, L)), np.empty((BLOCK, L))
         start, stop = k * n // chunks, (k + 1) * n // chunks
         for j0 in range(start, stop, BLOCK):
             size = min(BLOCK, stop - j0)
@@ -157,33 +148,38 @@ def _columns(
                 for jj in range(size):
                     j = j0 + jj
                     col = wet[j]
-                    bm[jj, a] = m[a, j]
-                    bk[jj, a] = kappa0[a, j]
-                    bw[jj, a] = w0[a, j]
-                    bp[jj, a] = pressure[a, j]
-                    bs[jj, a] = spacing[a, j]
-                    bv[jj, a] = viscous[a, j]
-                    bwp[jj, a] = wall_pressure[a, j]
-                    bu[jj, a] = ustar[a, col]
-                    bg[jj, a] = guess[a, col]
+                    mass = m[a, j]
+                    b_inertia[jj, a] = mass / dt
+                    b_momentum[jj, a] = mass * ustar[a, col] / dt
+                    b_kappa[jj, a] = kappa0[a, j]
+                    s = spacing[a, j]
+                    is_viscous = viscous[a, j]
+                    b_viscous[jj, a] = is_viscous
+                    b_inverse_spacing[jj, a] = 1.0 / s if s > 0.0 else 1.0
+                    b_conductance[jj, a] = b_inverse_spacing[jj, a] if (is_viscous and s > 0.0) else 0.0
+                    b_factor[jj, a], b_offset[jj, a] = _pressure_part(bulk_form, bulk_params, pressure[a, j])
+                    b_guess[jj, a] = guess[a, col]
+                    if walls:
+                        b_wall_factor[jj, a], b_wall_offset[jj, a] = _pressure_part(
+                            wall_form, wall_params, wall_pressure[a, j]
+                        )
+                        b_per_area[jj, a] = (2.0 / width) * mass / density
+                        b_wall[jj, a] = w0[a, j] / max(b_per_area[jj, a], 1e-300)
+                    else:
+                        b_wall[jj, a] = w0[a, j]
             for jj in range(size):
                 j = j0 + jj
+                inertia, momentum, kappa = b_inertia[jj], b_momentum[jj], b_kappa[jj]
+                is_viscous, inverse_spacing, conductance = (
+                    b_viscous[jj],
+                    b_inverse_spacing[jj],
+                    b_conductance[jj],
+                )
+                factor, offset, wall = b_factor[jj], b_offset[jj], b_wall[jj]
+                wall_factor, wall_offset, per_area = b_wall_factor[jj], b_wall_offset[jj], b_per_area[jj]
+                wall_c = wc if walls else wall
                 for a in range(L):
-                    mass = bm[jj, a]
-                    inertia[a] = mass / dt
-                    momentum[a] = mass * bu[jj, a] / dt
-                    current[a] = bg[jj, a]
-                    s = bs[jj, a]
-                    inverse_spacing[a] = 1.0 / s if s > 0.0 else 1.0
-                    conductance[a] = inverse_spacing[a] if (bv[jj, a] and s > 0.0) else 0.0
-                    bulk_factor[a], bulk_offset[a] = _pressure_part(bulk_form, bulk_params, bp[jj, a])
-                    if walls:
-                        wall_factor[a], wall_offset[a] = _pressure_part(wall_form, wall_params, bwp[jj, a])
-                        per_area[a] = (2.0 / width) * mass / density
-                        wall_yield[a] = bw[jj, a] / max(per_area[a], 1e-300)
-                    else:
-                        wc[a] = bw[jj, a]
-                        cwc[a] = 0.0
+                    current[a] = b_guess[jj, a]
                 iterations[j] = -1
                 fallbacks[j] = 0
                 for iteration in range(1, max_iterations + 1):
@@ -192,27 +188,38 @@ def _columns(
                     for a in range(L):
                         rate = abs(current[a] - below) * inverse_spacing[a]
                         below = current[a]
-                        eta, slope = _viscosity_and_slope(
-                            bulk_form, bulk_params, rate, bulk_factor[a], bulk_offset[a]
-                        )
-                        ka, t = _newton_model(bk[jj, a], rate, eta, slope)
-                        kc[a] = ka if bv[jj, a] else bk[jj, a]
+                        eta, slope = _viscosity_and_slope(bulk_form, bulk_params, rate, factor[a], offset[a])
+                        ka, t = _newton_model(kappa[a], rate, eta, slope)
+                        kc[a] = ka if is_viscous[a] else kappa[a]
                         cc[a] = t * conductance[a]
                         if walls:
                             rate = abs(current[a]) * inverse_half
                             eta, slope = _viscosity_and_slope(
                                 wall_form, wall_params, rate, wall_factor[a], wall_offset[a]
                             )
-                            wa, ta = _newton_model(wall_yield[a], rate, eta, slope)
+                            wa, ta = _newton_model(wall[a], rate, eta, slope)
                             wc[a] = per_area[a] * wa
                             cwc[a] = per_area[a] * ta * inverse_half
-                    if bm[jj, 0] <= 0.0:
+                    if not inertia[0] > 0.0:
                         for a in range(L):
                             new[a] = 0.0
                     elif not _active_set(
-                        inertia, momentum, kc, cc, wc, cwc, current, new, first, grounded, U, diag, low, rhs
+                        inertia,
+                        momentum,
+                        kc,
+                        cc,
+                        wall_c,
+                        cwc,
+                        current,
+                        new,
+                        first,
+                        grounded,
+                        U,
+                        diag,
+                        low,
+                        rhs,
                     ):
-                        _dynamic_programme(inertia, momentum, kc, cc, wc, cwc, new, ws)
+                        _dynamic_programme(inertia, momentum, kc, cc, wall_c, cwc, new, ws)
                         fallbacks[j] += 1
                     change = 0.0
                     for a in range(L):
@@ -222,10 +229,10 @@ def _columns(
                         iterations[j] = iteration
                         break
                 for a in range(L):
-                    bo[jj, a] = current[a]
+                    b_out[jj, a] = current[a]
             for a in range(L):
                 for jj in range(size):
-                    u_out[a, wet[j0 + jj]] = bo[jj, a]
+                    u_out[a, wet[j0 + jj]] = b_out[jj, a]
 
 
 _serial = njit(cache=True)(_columns)
