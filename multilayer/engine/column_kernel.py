@@ -247,7 +247,7 @@ def _active_set(inertia, momentum, kappa, c, w, cw, guess, u, first, grounded, U
     below = 0.0
     d = 0.0  # sums over the layers of the open group, then its equation
     r = 0.0
-    d_below = 1.0  # the pivot and right-hand side of the group below (forward sweep)
+    d_below = 1.0  # the inverse pivot and right-hand side of the group below (forward sweep)
     r_below = 0.0
     sign_top = 0.0  # sign of the jump across the interface above the open group
     for a in range(L + 1):
@@ -271,10 +271,11 @@ def _active_set(inertia, momentum, kappa, c, w, cw, guess, u, first, grounded, U
                     d += c[a]
                     r += kappa[a] * sign_top
                 if p > 0 and c[p] != 0.0:  # forward sweep: eliminate the coupling to group j - 1
-                    f = -c[p] / d_below
+                    f = -c[p] * d_below
                     d -= f * (-c[p] if not grounded[j - 1] else 0.0)
                     r -= f * r_below
-            diag[j], rhs[j] = d, r
+            d = 1.0 / d
+            diag[j], rhs[j] = d, r  # diag: the inverse pivots
             d_below, r_below = d, r
         if a == L:
             break
@@ -305,7 +306,7 @@ def _active_set(inertia, momentum, kappa, c, w, cw, guess, u, first, grounded, U
             r = rhs[j]
             if j + 1 < ng:
                 r += c[q + 1] * U[j + 1]
-            U[j] = r / diag[j]
+            U[j] = r * diag[j]
         Uj = U[j]
         for a in range(p, q + 1):
             u[a] = Uj
