@@ -130,7 +130,8 @@ class Simulation:
         # with the non-hydrostatic pressure, the velocities of the last vertical step before
         # the projection seed the next one's Newton iteration (elsewhere u does): they keep
         # the plugs (layers locked together) that the per-layer corrections would break
-        self.newton_seed = self.u.copy()
+        # (the other pressures seed it with u itself: the same array, never copied)
+        self.newton_seed = self.u.copy() if self.pressure == "non_hydrostatic" else self.u
         # per-step masks, allocated once: columns that move, layers of material at rest
         self._moving = np.zeros(dom.cells, dtype=bool)
         self._rest = np.zeros(self.u.shape, dtype=bool)
@@ -193,7 +194,8 @@ class Simulation:
         if w_new is not self.w:  # the non-hydrostatic state (kept as it is otherwise)
             self.w[...] = w_new
             self.q[...] = q_new
-        self.newton_seed[...] = seed
+        if self.newton_seed is not self.u:
+            self.newton_seed[...] = seed
         self.newton_iterations += iterations
         self.steps += 1
         # land exactly on t_max when the step was cut to reach it
@@ -347,6 +349,7 @@ class Simulation:
         self.u[...] = state["u"]
         self.w[...] = state.get("w", 0.0)
         self.q[...] = state.get("q", 0.0)
-        self.newton_seed[...] = state.get("newton_seed", self.u)
+        if self.newton_seed is not self.u:
+            self.newton_seed[...] = state.get("newton_seed", self.u)
         self.guard.check_state(self.h, self.u, f"in the restored state at t = {self.t:.6g} s")
         self._mass_reference = (diagnostics.mass(self.h, self.dx), self.steps)
