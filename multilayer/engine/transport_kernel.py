@@ -68,7 +68,7 @@ def _work(L, T):
     columns = (np.empty(T + 4, np.int64), np.empty(T + 4, np.int64))  # mesh column, how loaded
     scalars = np.empty((6, T + 4))  # h, b, h_w, h_e, b_w, b_e
     layers = np.empty((3, L, T + 4))  # u, u_w, u_e
-    faces = np.empty((8, T + 1))  # hL, hR, and the wave speeds, weights and pressures
+    faces = np.empty((8, T + 1))  # hL, hR, the weights of the HLL flux, the pressures
     fluxes = np.empty((2, L, T + 1))  # mass and momentum
     cells = np.empty((L + 9, T))  # d_x(h_a u_a) per layer, d_x Q, G, exchange, d_t(h_a u_a), terms
     gate = np.empty((2, L))  # mass and momentum fluxes seen from east of the gate
@@ -195,8 +195,8 @@ def _tile(
     (col, kind), scalars, layers, faces, fluxes, cells, (gate_h, gate_q) = work
     hx, bx, h_w, h_e, b_w, b_e = scalars[0], scalars[1], scalars[2], scalars[3], scalars[4], scalars[5]
     ux, u_w, u_e = layers[0], layers[1], layers[2]
-    hL, hR, s_lo, s_hi = faces[0], faces[1], faces[2], faces[3]
-    r_lo, r_hi, pL, pR = faces[4], faces[5], faces[6], faces[7]
+    hL, hR, wl, wr = faces[0], faces[1], faces[2], faces[3]
+    jump, moving, pL, pR = faces[4], faces[5], faces[6], faces[7]
     fh, fq = fluxes[0], fluxes[1]
     div_h, div_Q, G, exchange, dq = cells[:L], cells[L], cells[L + 1], cells[L + 2], cells[L + 3]
     terms = cells[L + 4 :]
@@ -258,21 +258,16 @@ def _tile(
     # faces f = 0 .. m (window face t0 + f) between the cells k = f + 1 and f + 2:
     # hydrostatic reconstruction and HLL wave speeds bracketing every layer's waves
     for f in range(m + 1):
-        s_lo[f] = u_e[0, f + 1]
-        s_hi[f] = u_e[0, f + 1]
-        r_lo[f] = u_w[0, f + 2]
-        r_hi[f] = u_w[0, f + 2]
-    for a in range(1, L):
-        east, west = u_e[a], u_w[a]
-        for f in range(m + 1):
-            left_value, right_value = east[f + 1], west[f + 2]
-            s_lo[f] = left_value if left_value < s_lo[f] else s_lo[f]
-            s_hi[f] = left_value if left_value > s_hi[f] else s_hi[f]
-            r_lo[f] = right_value if right_value < r_lo[f] else r_lo[f]
-            r_hi[f] = right_value if right_value > r_hi[f] else r_hi[f]
-    # the same arrays receive the weights of the HLL flux (each face reads its bounds first)
-    wl, wr, jump, moving = s_lo, s_hi, r_lo, r_hi
-    for f in range(m + 1):
+        # the slowest and fastest layer on each side (one face at a time: accumulating
+        # them row by row in arrays was slowed by false store-load dependencies)
+        s_lo = s_hi = u_e[0, f + 1]
+        r_lo = r_hi = u_w[0, f + 2]
+        for a in range(1, L):
+            left_value, right_value = u_e[a, f + 1], u_w[a, f + 2]
+            s_lo = left_value if left_value < s_lo else s_lo
+            s_hi = left_value if left_value > s_hi else s_hi
+            r_lo = right_value if right_value < r_lo else r_lo
+            r_hi = right_value if right_value > r_hi else r_hi
         b_face = max(b_e[f + 1], b_w[f + 2])
         hl = max(0.0, h_e[f + 1] + b_e[f + 1] - b_face)
         hr = max(0.0, h_w[f + 2] + b_w[f + 2] - b_face)
@@ -280,8 +275,8 @@ def _tile(
         hR[f] = hr
         cl = np.sqrt(g_n * hl)
         cr = np.sqrt(g_n * hr)
-        s_left = min(s_lo[f] - cl, r_lo[f] - cr)
-        s_right = max(s_hi[f] + cl, r_hi[f] + cr)
+        s_left = min(s_lo - cl, r_lo - cr)
+        s_right = max(s_hi + cl, r_hi + cr)
         lowest = min(s_left, 0.0)
         highest = max(s_right, 0.0)
         rest = at_rest[t0 + f] | (lowest == highest)  # no wave at all
