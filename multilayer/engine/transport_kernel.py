@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from multilayer.engine.transport import MARGIN
+from multilayer.engine.transport import MARGIN, step_boundary_mass
 
 WALL, OUTFLOW, INFLOW, PERIODIC = 0, 1, 2, 3
 BOUNDARY_CODES = {"wall": WALL, "outflow": OUTFLOW, "inflow": INFLOW, "periodic": PERIODIC}
@@ -153,13 +153,14 @@ def _face(recL, uL, recR, uR, rest, l, g_n, fh, fq, hface):
 @njit(cache=True)
 def _sweep(
     stage, order, c0, c1, n, lo, left, right, at_rest,
-    H, U, B, Q1, H1, l, dx, dt, g_n, g_t, dry, inflow_h, inflow_u, H_out, U_out,
+    H, U, B, Q1, H1, l, dx, dt, g_n, g_t, dry, inflow_h, inflow_u, H_out, U_out, ends,
 ):  # fmt: skip
     """One stage over the cells ``c0 .. c1-1`` of the window (faces ``c0 .. c1``).
 
     ``stage`` 0: forward Euler from (H, U); with ``order`` 1 the result goes to
     (H_out, U_out), with ``order`` 2 to (H1, Q1).  ``stage`` 1: Heun's second stage from
-    (H1, Q1), averaged with (H, U), to (H_out, U_out).
+    (H1, Q1), averaged with (H, U), to (H_out, U_out).  The mass fluxes through the end
+    faces 0 and n of the window go to ``ends[stage]`` (the chunks holding them).
     """
     L = l.size
     from_q = stage == 1
@@ -182,6 +183,11 @@ def _sweep(
         _load(f + 1, *args, (f + 1) % 3)  # the ring now holds columns f-1, f, f+1
         _reconstruct(order, h_ring, b_ring, u_ring, (f + 2) % 3, f % 3, (f + 1) % 3, rec_r, uw_r, ue_r)
         _face(rec_l, ue_l, rec_r, uw_r, at_rest[f], l, g_n, fh_e, fq_e, face_e)
+        if f == 0 or f == n:  # an end face: its mass flux, layer by layer from the bed
+            total = fh_e[0]
+            for a in range(1, L):
+                total += fh_e[a]
+            ends[stage, 0 if f == 0 else 1] = total
         if f > c0:
             i = f - 1  # the cell between the faces f-1 (west) and f (east)
             s = i % 3
@@ -307,9 +313,11 @@ def max_wave_speed(h: np.ndarray, u: np.ndarray, g_n: float) -> float:
 
 
 class Workspace:
-    """Arrays of one mesh size reused by every step: the Heun stage and the result."""
+    """Arrays of one mesh size reused by every step: the Heun stage, the result and the
+    mass fluxes through the end faces of each stage."""
 
     def __init__(self, layers: int, cells: int):
+        self.ends = np.zeros((2, 2))
         self.h1 = np.zeros(cells)
         self.q1 = np.zeros((layers, cells))
         self.h = np.zeros(cells)
@@ -334,11 +342,14 @@ def transport(
     moving: np.ndarray | None = None,
     workspace: Workspace | None = None,
     threads: int = 1,
+    boundary_mass: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``transport.transport`` compiled: returns h^{n+1} (N,) and u* (L, N).
 
     The result lives in ``workspace`` (a new one when None) and is overwritten by its
     next use.  ``threads > 1`` sweeps that many chunks of the window in parallel.
+    ``boundary_mass`` (2,), if given, receives the mass that crossed the left and the
+    right boundary, positive in +x (as ``transport.transport``).
     """
     L, N = u.shape
     ws = workspace if workspace is not None else Workspace(L, N)
@@ -360,6 +371,8 @@ def transport(
     stages(
         chunks, order, n, lo, left_kind, right_kind, at_rest,
         h, u, b, ws.q1, ws.h1, np.ascontiguousarray(fractions, dtype=float),
-        float(dx), float(dt), float(g_n), float(g_t), float(dry), inflow_h, inflow_u, ws.h, ws.u,
+        float(dx), float(dt), float(g_n), float(g_t), float(dry), inflow_h, inflow_u, ws.h, ws.u, ws.ends,
     )  # fmt: skip
+    if boundary_mass is not None:
+        boundary_mass[:] = step_boundary_mass(ws.ends[:order], float(dt))
     return ws.h, ws.u
