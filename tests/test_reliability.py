@@ -24,10 +24,14 @@ from conftest import TINY_SCENARIO
 
 from multilayer.app import lock
 from multilayer.engine import column_kernel, transport, transport_kernel
+from multilayer.engine import simulation as simulation_module
 from multilayer.engine.column_problem import ColumnProblem
+from multilayer.engine.plugin_output import PluginOutputError
 from multilayer.errors import RunError
 from multilayer.io.results import open_result, run_failure
 from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+from multilayer.plugins.builtins.jop_mu_i import JopMuI
+from multilayer.plugins.builtins.power_law_mu_i import PowerLawMuI
 
 SLUMP = {**TINY_SCENARIO, "name": "slump", "time": {"end": 0.2, "output_interval": 0.02}}
 
@@ -50,6 +54,8 @@ import numpy as np
 from multilayer.app.cli import main
 from multilayer.engine import column_kernel, simulation
 from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+from multilayer.plugins.builtins.jop_mu_i import JopMuI
+from multilayer.plugins.builtins.power_law_mu_i import PowerLawMuI
 {patch}
 print("ready", time.process_time(), flush=True)
 sys.exit(main(sys.argv[1:]))
@@ -153,6 +159,82 @@ def test_plugin_output_outside_the_contract_is_exit_1_naming_plugin_method_and_v
     )
     assert expected in run.err
     assert open_result(tmp_path / "out").attrs["run_status"] == "failed"
+
+
+def _past_validation(law, **bad):
+    """A built-in law given parameters its constructor would refuse (set after it)."""
+    for name, value in bad.items():
+        setattr(law, name, value)
+    return law
+
+
+# laws whose compiled viscosity form (newton_kernel) is outside the contract: mu_2 < mu_s
+# makes the mu(I) viscosity negative, a NaN viscosity, and a shear-thinning power law
+# without its shear-rate floor has an infinite viscosity at rest
+BAD_COMPILED_LAWS = {
+    "negative": (lambda: _past_validation(JopMuI(0.38, 0.64, 0.279), mu_2=0.2), "returned -0.6", ">= 0"),
+    "nan": (lambda: _past_validation(DruckerPrager(0.3, 0.01), nu=np.nan), "returned nan", "finite"),
+    "infinite": (
+        lambda: _past_validation(PowerLawMuI(0.38, 0.2, 0.5), shear_rate_floor=0.0),
+        "returned inf",
+        "finite",
+    ),
+}
+CHUTE = dict(
+    slope_deg=25.0,
+    domain={"x_min": 0.0, "x_max": 1.0, "cells": 40, "layers": 3},
+    material={"density": 1550.0, "grain_diameter": 0.7e-3},
+    rheology={"name": "jop_mu_i", "mu_s": 0.38, "mu_2": 0.64, "I_0": 0.279},
+    base=[{"condition": "no_slip"}],
+    initial=[{"shape": "rectangle", "x_min": 0.0, "x_max": 0.3, "height": 0.1}],
+)
+
+
+@pytest.mark.parametrize("fault", BAD_COMPILED_LAWS)
+def test_a_compiled_viscosity_outside_the_contract_stops_the_kernel_as_the_python_guard_does(fault):
+    """The fused Newton kernel flags the column and stops; the error names the plugin, the
+    method, the value, x, the interface and t exactly as the check of the numpy path does."""
+    from engine import simulation
+
+    make, value, rule = BAD_COMPILED_LAWS[fault]
+    messages = []
+    for compiled in (True, False):
+        sim = simulation(**CHUTE)
+        assert sim.compiled_step is not None and sim.compiled_step.laws() is not None
+        sim.stresses.bulk = make()
+        if not compiled:
+            sim.compiled_step = None  # the numpy Newton iteration, which calls viscosity() itself
+        with pytest.raises(PluginOutputError) as caught, np.errstate(divide="ignore"):
+            sim.step()
+        assert sim.t == 0.0 and sim.steps == 0  # nothing was kept
+        messages.append(str(caught.value))
+    kernel, numpy_path = messages
+    assert f"{value}" in kernel and f"(must be {rule}) at x = 0.0125 m, interface 0 (0 is the bed)" in kernel
+    assert "its compiled form, viscosity_kernel" in kernel
+    # the same plugin, method, value, place, time and inputs as the Python-side guard
+    assert kernel.rsplit(" (", 1)[0] == numpy_path.rsplit(" (", 1)[0], (kernel, numpy_path)
+
+
+def test_a_compiled_viscosity_outside_the_contract_is_exit_1_naming_the_plugin(tmp_path, cli, monkeypatch):
+    real = simulation_module.Simulation.__init__
+
+    def with_bad_law(self, scenario):
+        real(self, scenario)
+        self.stresses.bulk = BAD_COMPILED_LAWS["negative"][0]()
+
+    monkeypatch.setattr(simulation_module.Simulation, "__init__", with_bad_law)
+    from engine import BASE
+
+    data = {**BASE, **CHUTE, "time": {"end": 0.1, "output_interval": 0.05}}
+    outdir = tmp_path / "out"
+    run = cli("run", _write(tmp_path, data), "-o", outdir, "-q")
+    assert run.code == 1
+    _no_traceback(run.err)
+    assert "rheology plugin 'jop_mu_i' (multilayer.plugins.builtins.jop_mu_i.JopMuI): viscosity()" in run.err
+    assert "returned -0.6" in run.err and "its compiled form, viscosity_kernel" in run.err
+    kept = open_result(outdir)
+    assert kept.attrs["run_status"] == "failed" and "viscosity_kernel" in kept.attrs["failure"]
+    np.testing.assert_array_equal(kept["time"], [0.0])  # the initial state is kept
 
 
 def test_the_column_kernel_refuses_non_finite_input_and_never_spins_on_it():

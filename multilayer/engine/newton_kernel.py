@@ -15,7 +15,8 @@ import numpy as np
 from numba import njit, prange
 
 from multilayer.engine.column_kernel import _active_set, _dynamic_programme, _workspace
-from multilayer.engine.stress import ColumnStresses, StressModel
+from multilayer.engine.plugin_output import PluginOutputError, outside_contract
+from multilayer.engine.stress import INTERFACE, LAYER, ColumnStresses, StressModel
 
 FORMS = {"constant": 0, "inertial": 1, "power": 2}
 BLOCK = 16
@@ -73,6 +74,8 @@ def _newton_model(form, params, kappa, rate, factor, offset):
     """``stress._newton_model`` for one value: (yield stress, slope)."""
     step = 1e-7 * rate
     eta = _viscosity(form, params, rate, factor, offset)
+    if not (eta >= 0.0 and eta < np.inf):  # outside the plugin contract: (kappa, eta) shows it
+        return kappa, eta
     tau = eta * rate
     up = _viscosity(form, params, rate + step, factor, offset) * (rate + step)
     if rate > 0.0:
@@ -89,10 +92,12 @@ def _newton_model(form, params, kappa, rate, factor, offset):
 def _columns(
     chunks, wet, m, kappa0, w0, pressure, spacing, viscous, wall_pressure, ustar, guess,
     dt, bulk_form, bulk_params, wall_form, wall_params, width, density, threshold, max_iterations,
-    u_out, iterations, fallbacks,
+    u_out, iterations, fallbacks, faults, fault_values,
 ):  # fmt: skip
     """Newton iterations of every wet column (``wet`` indexes the columns of ustar/guess);
-    ``fallbacks`` counts the solves per column that needed the O(L^2) dynamic programme."""
+    ``fallbacks`` counts the solves per column that needed the O(L^2) dynamic programme.
+    A column whose Newton model is outside the plugin contract (``_contract_fault``)
+    stops iterating with its fault in ``faults`` and ``fault_values``."""
     L = m.shape[0]
     n = wet.size
     for k in prange(chunks):
@@ -153,6 +158,7 @@ def _columns(
                         wall_factor[a], wall_offset[a] = _pressure_part(wall_form, wall_params, bwp[jj, a])
                 iterations[j] = -1
                 fallbacks[j] = 0
+                faults[j] = 0
                 for iteration in range(1, max_iterations + 1):
                     # the Newton model at the current velocities (StressModel.linearise)
                     below = 0.0
@@ -164,6 +170,8 @@ def _columns(
                         ka, t = _newton_model(
                             bulk_form, bulk_params, bk[jj, a], rate, bulk_factor[a], bulk_offset[a]
                         )
+                        if faults[j] == 0 and _contract_fault(ka, t):
+                            _record_fault(faults, fault_values, j, a + 1, ka, t, rate)
                         kc[a] = ka if bv[jj, a] else bk[jj, a]
                         cc[a] = t / s_safe if (bv[jj, a] and s > 0.0) else 0.0
                         if width > 0.0:
@@ -174,11 +182,17 @@ def _columns(
                                 wall_form, wall_params, threshold_a, abs(current[a]) / half,
                                 wall_factor[a], wall_offset[a],
                             )  # fmt: skip
+                            if faults[j] == 0 and _contract_fault(wa, ta):
+                                _record_fault(
+                                    faults, fault_values, j, -(a + 1), wa, ta, abs(current[a]) / half
+                                )
                             wc[a] = per_area * wa
                             cwc[a] = per_area * ta / half
                         else:
                             wc[a] = bw[jj, a]
                             cwc[a] = 0.0
+                    if faults[j] != 0:
+                        break
                     if mc[0] <= 0.0:
                         for a in range(L):
                             new[a] = 0.0
@@ -199,6 +213,25 @@ def _columns(
             for a in range(L):
                 for jj in range(size):
                     u_out[a, wet[j0 + jj]] = bo[jj, a]
+
+
+@njit(cache=True)
+def _contract_fault(kappa, slope):
+    """True when a Newton model (yield stress, slope) is not finite and >= 0: the
+    viscosity (or the yield stress) the model was built from was outside the contract."""
+    return not (kappa >= 0.0 and kappa < np.inf and slope >= 0.0 and slope < np.inf)
+
+
+@njit(cache=True)
+def _record_fault(faults, fault_values, j, code, kappa, slope, rate):
+    """Column ``j``'s fault: ``code`` a + 1 for the bulk law at interface a, -(a + 1) for
+    the wall law of layer a; ``fault_values[j]`` = (the bad value, the shear rate, 0 if
+    the value is the viscosity and 1 if the yield stress)."""
+    faults[j] = code
+    bad_slope = not (slope >= 0.0 and slope < np.inf)
+    fault_values[j, 0] = slope if bad_slope else kappa
+    fault_values[j, 1] = rate
+    fault_values[j, 2] = 0.0 if bad_slope else 1.0
 
 
 _serial = njit(cache=True)(_columns)
@@ -255,6 +288,7 @@ class CompiledStep:
         u.fill(0.0)
         iterations = np.empty(wet.size, np.int64)
         fallbacks = np.empty(wet.size, np.int64)
+        faults, fault_values = np.empty(wet.size, np.int64), np.empty((wet.size, 3))
         wall_form, wall_params = walls if walls is not None else (0, np.zeros(1))
         width = float(self.stresses.width) if walls is not None else 0.0
         chunks = max(1, min(wet.size, 4 * threads))
@@ -263,8 +297,28 @@ class CompiledStep:
             chunks if threads > 1 else 1, wet, cs.m, cs.kappa, cs.w, cs.pressure, cs.spacing, cs.viscous,
             cs.wall_pressure, np.ascontiguousarray(ustar), np.ascontiguousarray(u_guess), float(dt),
             bulk_form, bulk_params, wall_form, wall_params, width, float(self.stresses.material.density),
-            float(threshold), int(max_iterations), u, iterations, fallbacks,
+            float(threshold), int(max_iterations), u, iterations, fallbacks, faults, fault_values,
         )  # fmt: skip
+        if faults.any():
+            raise self._fault(cs, faults, fault_values)
         self.solves += int(np.where(iterations < 0, max_iterations, iterations).sum())
         self.fallbacks += int(fallbacks.sum())
         return u, iterations
+
+    def _fault(self, cs: ColumnStresses, faults: np.ndarray, values: np.ndarray) -> PluginOutputError:
+        """The error naming the law, the value and where, for the first column whose
+        compiled Newton model was outside the plugin contract (``_record_fault``)."""
+        j = int(np.flatnonzero(faults)[0])
+        code = int(faults[j])
+        bad, rate, kind = values[j]
+        bulk = code > 0
+        a = abs(code) - 1
+        pressure = cs.pressure[a, j] if bulk else cs.wall_pressure[a, j]
+        law = self.stresses.bulk if bulk else self.stresses.walls
+        method = "viscosity()" if kind == 0.0 else "yield stress of the Newton model of viscosity()"
+        where = (INTERFACE if bulk else LAYER).format(index=a, number=a + 1)
+        return outside_contract(
+            law, method, float(bad), x=float(cs.x[j]), where=where, t=self.stresses.t,
+            given={"shear rate": float(rate), "pressure": float(pressure)},
+            note=f"its compiled form, viscosity_kernel; {int(np.count_nonzero(faults))} column(s) affected",
+        )  # fmt: skip
