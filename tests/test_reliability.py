@@ -583,3 +583,36 @@ def test_the_lock_is_per_process(tmp_path):
             with lock.locked(tmp_path):
                 pass
     assert not (tmp_path / lock.LOCK_FILE).exists()
+
+
+# ----------------------------------------------------------------------------- project errors
+
+
+def test_stepping_past_the_end_or_without_progress_is_a_named_error_never_a_hang():
+    """``step(t_max)`` not later than ``t`` is bad input; a step too small to change ``t``
+    (a run far longer than its time step) is a run error instead of an endless loop."""
+    from engine import simulation
+
+    from multilayer.errors import InputError
+
+    sim = simulation(initial=[{"shape": "rectangle", "x_min": 0.0, "x_max": 2.0, "height": 0.5}])
+    sim.step()
+    with pytest.raises(
+        InputError, match=r"step\(t_max=0.0\): t_max must be later than the current time t = "
+    ):
+        sim.step(0.0)
+    sim.load_state({**sim.state_dict(), "t": 1e17})  # dt ~ 1e-2 s is below the spacing of floats at 1e17
+    with pytest.raises(RunError, match=r"the time step dt = .* s at t = 1e\+17 s does not advance the time"):
+        sim.advance(2e17)
+    assert sim.t == 1e17 and sim.steps == 1
+
+
+def test_a_singular_non_hydrostatic_system_and_a_non_finite_measure_are_run_errors(tmp_path):
+    from multilayer.app import ensemble
+    from multilayer.engine.nonhydrostatic import solve_banded_spd
+
+    indefinite = np.array([[0.0, 2.0], [1.0, 1.0]])  # upper band storage of [[1, 2], [2, 1]]
+    with pytest.raises(RunError, match="the non-hydrostatic pressure system is not positive definite"):
+        solve_banded_spd(indefinite, np.ones(2))
+    with pytest.raises(RunError, match=r"a measured quantity is not finite \(\[nan\]\)"):
+        ensemble._measured(lambda path: np.array([np.nan]), tmp_path)

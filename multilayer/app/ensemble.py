@@ -21,7 +21,7 @@ from typing import Any, Literal
 import numpy as np
 
 from multilayer.app import sweep
-from multilayer.errors import InputError
+from multilayer.errors import InputError, RunError
 from multilayer.io import scenario
 from multilayer.io.results import RESULT_FILE
 from multilayer.io.scenario import as_overrides
@@ -60,7 +60,7 @@ def _run_and_measure(
 def _measured(measure: Callable[[Path], np.ndarray], member_dir: Path) -> np.ndarray:
     values = np.asarray(measure(member_dir / RESULT_FILE), dtype=float)
     if not np.all(np.isfinite(values)):
-        raise ValueError(
+        raise RunError(
             f"a measured quantity is not finite ({values.tolist()}), e.g. no front above threshold"
         )
     return values

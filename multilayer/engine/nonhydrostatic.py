@@ -217,7 +217,10 @@ def solve_banded_spd(ab: np.ndarray, b: np.ndarray) -> np.ndarray:
         for k in range(max(0, j - w), j):
             s -= U[j, w + k - j] ** 2
         if s <= 0.0:
-            raise ValueError("matrix not positive definite")
+            raise RunError(
+                "the non-hydrostatic pressure system is not positive definite (a non-positive pivot "
+                "of its Cholesky factorisation): the constraints of the moving layers are singular"
+            )
         d = np.sqrt(s)
         U[j, w] = d
         for i in range(j + 1, min(n, j + w + 1)):

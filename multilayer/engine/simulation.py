@@ -31,6 +31,7 @@ from multilayer.engine import (
 from multilayer.engine.gate import Gate
 from multilayer.engine.mesh import LayeredMesh
 from multilayer.engine.state_check import StateGuard
+from multilayer.errors import InputError, RunError
 
 if TYPE_CHECKING:  # the engine reads a validated scenario; it never loads one
     from multilayer.io.scenario import BaseZone, Scenario
@@ -169,9 +170,17 @@ class Simulation:
 
     def step(self, t_max: float = np.inf) -> float:
         """Advance one time step, never beyond ``t_max``; returns the step taken."""
+        if not t_max > self.t:
+            raise InputError(
+                f"step(t_max={t_max!r}): t_max must be later than the current time t = {self.t!r} s"
+            )
         dt = min(self.time_step(), t_max - self.t)
-        if not dt > 0:
-            raise ValueError(f"no time left to step: t = {self.t}, t_max = {t_max}")
+        if not (dt > 0 and self.t + dt > self.t):  # a step that would not advance t: never loop on it
+            raise RunError(
+                f"the time step dt = {dt!r} s at t = {self.t!r} s does not advance the time (the fastest "
+                f"wave speed is {transport_kernel.max_wave_speed(self.h, self.u, self.g_n)!r} m/s; dt "
+                f"below the resolution of t when the run is too long for its step)"
+            )
         # columns that move carry waves; material at rest that the step sets moving carries
         # them from the start of the step: redo it until that set is complete (a dry
         # column being filled is no material at rest and needs no redo)

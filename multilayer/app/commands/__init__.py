@@ -74,16 +74,25 @@ def budget(args: argparse.Namespace):
     return Budget(args.max_memory, args.max_output, args.force)
 
 
+def add_output_argument(parser: argparse.ArgumentParser, default: str) -> None:
+    """``-o DIR``, ``--output DIR``: the output directory (``args.output``, a Path or None);
+    ``default`` says where the output goes without it."""
+    parser.add_argument(
+        "-o", "--output", metavar="DIR", type=Path, help=f"output directory (default: {default})"
+    )
+
+
+def add_set_argument(parser: argparse.ArgumentParser, help: str) -> None:
+    """``--set KEY=VALUE`` (repeatable): scenario overrides, the list ``args.overrides``."""
+    parser.add_argument(
+        "--set", dest="overrides", metavar="KEY=VALUE", action="append", default=[], help=help
+    )
+
+
 def add_study_arguments(parser: argparse.ArgumentParser, kind: str) -> None:
     """``CONFIG``, ``-o DIR``, the cluster options and ``-q`` of an ensemble study (``kind``:
     calibration or sensitivity)."""
     parser.add_argument("config", metavar="CONFIG", help=f"{kind} YAML file")
-    parser.add_argument(
-        "-o",
-        "--output",
-        metavar="DIR",
-        type=Path,
-        help="output directory (default: output.directory of the file, else results/<file name>)",
-    )
+    add_output_argument(parser, "output.directory of the file, else results/<file name>")
     add_cluster_arguments(parser)
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress lines")

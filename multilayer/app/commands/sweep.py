@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 from typing import TextIO
 
-from multilayer.app.commands import add_cluster_arguments, cluster_description
+from multilayer.app.commands import add_cluster_arguments, add_output_argument, cluster_description
 
 HELP = "run a parameter sweep of a scenario on Dask (local or existing cluster)"
 
@@ -23,13 +23,7 @@ HELP = "run a parameter sweep of a scenario on Dask (local or existing cluster)"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``multilayer sweep``."""
     parser.add_argument("sweep", metavar="SWEEP", help="sweep YAML file")
-    parser.add_argument(
-        "-o",
-        "--output",
-        metavar="DIR",
-        type=Path,
-        help="output directory (default: output.directory of the sweep file, else results/<sweep file name>)",
-    )
+    add_output_argument(parser, "output.directory of the sweep file, else results/<sweep file name>")
     add_cluster_arguments(parser)
     parser.add_argument(
         "-q",
