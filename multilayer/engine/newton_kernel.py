@@ -96,8 +96,9 @@ def _columns(
 ):  # fmt: skip
     """Newton iterations of every wet column (``wet`` indexes the columns of ustar/guess);
     ``fallbacks`` counts the solves per column that needed the O(L^2) dynamic programme.
-    A column whose Newton model is outside the plugin contract (``_contract_fault``)
-    stops iterating with its fault in ``faults`` and ``fault_values``."""
+    A column where a compiled viscosity is not finite and >= 0 stops iterating: ``faults``
+    gets a + 1 for the bulk law at interface a, -(a + 1) for the wall law of layer a (0:
+    none) and ``fault_values`` the viscosity and the shear rate."""
     L = m.shape[0]
     n = wet.size
     for k in prange(chunks):
@@ -158,7 +159,7 @@ def _columns(
                         wall_factor[a], wall_offset[a] = _pressure_part(wall_form, wall_params, bwp[jj, a])
                 iterations[j] = -1
                 fallbacks[j] = 0
-                faults[j] = 0
+                fault = 0
                 for iteration in range(1, max_iterations + 1):
                     # the Newton model at the current velocities (StressModel.linearise)
                     below = 0.0
@@ -170,8 +171,9 @@ def _columns(
                         ka, t = _newton_model(
                             bulk_form, bulk_params, bk[jj, a], rate, bulk_factor[a], bulk_offset[a]
                         )
-                        if faults[j] == 0 and _contract_fault(ka, t):
-                            _record_fault(faults, fault_values, j, a + 1, ka, t, rate)
+                        if not (t >= 0.0 and t < np.inf) and fault == 0:  # the plugin contract
+                            fault = a + 1
+                            fault_values[j, 0], fault_values[j, 1] = t, rate
                         kc[a] = ka if bv[jj, a] else bk[jj, a]
                         cc[a] = t / s_safe if (bv[jj, a] and s > 0.0) else 0.0
                         if width > 0.0:
@@ -182,16 +184,15 @@ def _columns(
                                 wall_form, wall_params, threshold_a, abs(current[a]) / half,
                                 wall_factor[a], wall_offset[a],
                             )  # fmt: skip
-                            if faults[j] == 0 and _contract_fault(wa, ta):
-                                _record_fault(
-                                    faults, fault_values, j, -(a + 1), wa, ta, abs(current[a]) / half
-                                )
+                            if not (ta >= 0.0 and ta < np.inf) and fault == 0:
+                                fault = -(a + 1)
+                                fault_values[j, 0], fault_values[j, 1] = ta, abs(current[a]) / half
                             wc[a] = per_area * wa
                             cwc[a] = per_area * ta / half
                         else:
                             wc[a] = bw[jj, a]
                             cwc[a] = 0.0
-                    if faults[j] != 0:
+                    if fault != 0:
                         break
                     if mc[0] <= 0.0:
                         for a in range(L):
@@ -208,30 +209,12 @@ def _columns(
                     if change <= threshold:
                         iterations[j] = iteration
                         break
+                faults[j] = fault
                 for a in range(L):
                     bo[jj, a] = current[a]
             for a in range(L):
                 for jj in range(size):
                     u_out[a, wet[j0 + jj]] = bo[jj, a]
-
-
-@njit(cache=True)
-def _contract_fault(kappa, slope):
-    """True when a Newton model (yield stress, slope) is not finite and >= 0: the
-    viscosity (or the yield stress) the model was built from was outside the contract."""
-    return not (kappa >= 0.0 and kappa < np.inf and slope >= 0.0 and slope < np.inf)
-
-
-@njit(cache=True)
-def _record_fault(faults, fault_values, j, code, kappa, slope, rate):
-    """Column ``j``'s fault: ``code`` a + 1 for the bulk law at interface a, -(a + 1) for
-    the wall law of layer a; ``fault_values[j]`` = (the bad value, the shear rate, 0 if
-    the value is the viscosity and 1 if the yield stress)."""
-    faults[j] = code
-    bad_slope = not (slope >= 0.0 and slope < np.inf)
-    fault_values[j, 0] = slope if bad_slope else kappa
-    fault_values[j, 1] = rate
-    fault_values[j, 2] = 0.0 if bad_slope else 1.0
 
 
 _serial = njit(cache=True)(_columns)
@@ -288,7 +271,7 @@ class CompiledStep:
         u.fill(0.0)
         iterations = np.empty(wet.size, np.int64)
         fallbacks = np.empty(wet.size, np.int64)
-        faults, fault_values = np.empty(wet.size, np.int64), np.empty((wet.size, 3))
+        faults, fault_values = np.empty(wet.size, np.int64), np.empty((wet.size, 2))
         wall_form, wall_params = walls if walls is not None else (0, np.zeros(1))
         width = float(self.stresses.width) if walls is not None else 0.0
         chunks = max(1, min(wet.size, 4 * threads))
@@ -306,19 +289,14 @@ class CompiledStep:
         return u, iterations
 
     def _fault(self, cs: ColumnStresses, faults: np.ndarray, values: np.ndarray) -> PluginOutputError:
-        """The error naming the law, the value and where, for the first column whose
-        compiled Newton model was outside the plugin contract (``_record_fault``)."""
+        """The error naming the law, the viscosity and where, for the first column whose
+        compiled viscosity was outside the plugin contract (``faults`` of ``_columns``)."""
         j = int(np.flatnonzero(faults)[0])
-        code = int(faults[j])
-        bad, rate, kind = values[j]
-        bulk = code > 0
-        a = abs(code) - 1
+        bulk, a = faults[j] > 0, abs(int(faults[j])) - 1
         pressure = cs.pressure[a, j] if bulk else cs.wall_pressure[a, j]
-        law = self.stresses.bulk if bulk else self.stresses.walls
-        method = "viscosity()" if kind == 0.0 else "yield stress of the Newton model of viscosity()"
-        where = (INTERFACE if bulk else LAYER).format(index=a, number=a + 1)
         return outside_contract(
-            law, method, float(bad), x=float(cs.x[j]), where=where, t=self.stresses.t,
-            given={"shear rate": float(rate), "pressure": float(pressure)},
+            self.stresses.bulk if bulk else self.stresses.walls, "viscosity()", float(values[j, 0]),
+            x=float(cs.x[j]), where=(INTERFACE if bulk else LAYER).format(index=a, number=a + 1),
+            t=self.stresses.t, given={"shear rate": float(values[j, 1]), "pressure": float(pressure)},
             note=f"its compiled form, viscosity_kernel; {int(np.count_nonzero(faults))} column(s) affected",
         )  # fmt: skip
