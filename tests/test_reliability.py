@@ -423,8 +423,13 @@ def test_a_sweep_marks_a_member_with_a_nan_plugin_failed(tmp_path, cli, monkeypa
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0") as cluster:
         result = cli("sweep", sweep, "-o", tmp_path / "out", "--scheduler", cluster.scheduler_address)
     assert result.code == 1
+    _no_traceback(result.err)
     rows = (tmp_path / "out" / "summary.csv").read_text().splitlines()
     assert ",ok," in rows[1] and ",failed," in rows[2] and "viscosity() returned nan" in rows[2]
+    # the good member's result and the failed member's initial state are kept
+    good, bad = (open_result(next((tmp_path / "out").glob(f"m{i:03d}-*"))) for i in (0, 1))
+    assert good.attrs["run_status"] == "completed" and good.sizes["time"] == 3
+    assert bad.attrs["run_status"] == "failed" and np.isfinite(bad["h"].values).all()
 
 
 # ----------------------------------------------------------------------------- initial state
@@ -498,10 +503,14 @@ def test_a_corrupt_checkpoint_is_exit_2_with_its_path(tmp_path, cli, damage):
         arrays = dict(np.load(ckpt))
         arrays["state.h"] = arrays["state.h"] + 1.0
         np.savez(ckpt, **arrays)
+    before = open_result(outdir)
     result = cli("run", path, "-o", outdir, "--resume", "--set", "time.end=0.06")
     assert result.code == 2
     _no_traceback(result.err)
     assert f"{ckpt}: corrupt checkpoint" in result.err and "start again without --resume" in result.err
+    kept = open_result(outdir)  # the finished run's result is left as it was
+    assert kept.attrs["run_status"] == "completed"
+    np.testing.assert_array_equal(kept["h"].values, before["h"].values)
 
 
 # ----------------------------------------------------------------------------- lock
@@ -520,6 +529,7 @@ def test_a_directory_in_use_is_refused_naming_the_holder_and_a_stale_lock_taken_
         _no_traceback(result.err)
         assert f"another run is writing into this directory (pid {holder.pid} on host" in result.err
         assert started in result.err and not (outdir / "result.nc").exists()
+        assert json.loads((outdir / lock.LOCK_FILE).read_text()) == record  # the holder's lock is kept
     finally:
         holder.kill()
         holder.wait()
