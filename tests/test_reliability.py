@@ -619,10 +619,10 @@ def test_stepping_past_the_end_or_without_progress_is_a_named_error_never_a_hang
 
 def test_a_singular_non_hydrostatic_system_and_a_non_finite_measure_are_run_errors(tmp_path):
     from multilayer.app import ensemble
-    from multilayer.engine.nonhydrostatic import solve_banded_spd
+    from multilayer.engine.nonhydrostatic import _factor
 
-    indefinite = np.array([[0.0, 2.0], [1.0, 1.0]])  # upper band storage of [[1, 2], [2, 1]]
+    indefinite = np.array([[1.0, 2.0], [1.0, 0.0]])  # band rows A[i, i], A[i, i + 1] of [[1, 2], [2, 1]]
     with pytest.raises(RunError, match="the non-hydrostatic pressure system is not positive definite"):
-        solve_banded_spd(indefinite, np.ones(2))
+        _factor(indefinite, np.zeros(2, dtype=np.bool_), np.zeros((2, 2)), 0)
     with pytest.raises(RunError, match=r"a measured quantity is not finite \(\[nan\]\)"):
         ensemble._measured(lambda path: np.array([np.nan]), tmp_path)
