@@ -82,7 +82,7 @@ def test_ctrl_c_stops_a_calibration_which_keeps_its_results_and_resumes(tmp_path
     first = partial["stage"].values == "search"
     assert (partial["step"].values[first] == 0).sum() == 8  # the first generation, whole
     assert np.isfinite(partial["best"].values).all()
-    assert not list(outdir.glob("members/*/run.lock"))  # every member stopped
+    assert not list(outdir.glob("members/*/run.lock"))  # every member stopped (threads are not killed)
 
     code = cli.main(shlex.split(resume)[1:])
     assert code == 0, capsys.readouterr().err
@@ -115,14 +115,15 @@ def _study_files(tmp_path: Path) -> None:
     )
     (tmp_path / "sobol.yaml").write_text(
         "base: collapse.yaml\nparameters:\n  initial.0.height: {bounds: [0.04, 0.06]}\n"
-        "outputs: [runout]\nsamples: 4\n"
+        "outputs: [runout]\nsamples: 8\n"
     )
 
 
 def _interrupt(argv: list[str], cwd: Path, signum: int, group: bool) -> tuple[int, str, float]:
     """Run ``multilayer ARGV`` in a new session, send ``signum`` (to the whole process group,
-    as a terminal's Ctrl-C, if ``group``) once a member has written its first checkpoint
-    and a second has passed; return the exit code, stderr and the seconds to the exit."""
+    as a terminal's Ctrl-C, if ``group``) once a member has written its first output time
+    after the initial state (it is stepping); return the exit code, stderr and the seconds
+    from the signal to the exit."""
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     process = subprocess.Popen(
         [sys.executable, "-m", "multilayer.app.cli", *argv],
@@ -134,9 +135,10 @@ def _interrupt(argv: list[str], cwd: Path, signum: int, group: bool) -> tuple[in
         text=True,
     )
     end = time.monotonic() + 300
-    while not list(cwd.glob("out/**/checkpoint.npz")) and time.monotonic() < end:
-        time.sleep(0.1)
-    time.sleep(1.0)
+    while process.poll() is None and time.monotonic() < end:
+        if any("output t = " in log.read_text() for log in cwd.glob("out/**/run.log")):
+            break
+        time.sleep(0.05)
     sent = time.monotonic()
     (os.killpg if group else os.kill)(process.pid, signum)
     try:
@@ -172,7 +174,13 @@ def test_one_signal_stops_a_study_on_a_local_process_cluster(tmp_path, command, 
     else:
         ds = xr.load_dataset(tmp_path / "out" / "sensitivity.nc")
         assert "not run" in ds["status"].values and ds.attrs["runs_not_done"] > 0
-    assert not list(tmp_path.glob("out/**/run.lock"))  # no member left running
+    # the member that was stepping checkpointed and stopped (a worker still loading the
+    # compiled kernels for its first step does not look for the stop file: it is killed
+    # with its worker after CLOSE_GRACE, leaving a stale lock the resume takes over)
+    stopped = [
+        log.parent for log in tmp_path.glob("out/**/run.log") if "stop of its study" in log.read_text()
+    ]
+    assert stopped and not any((member / "run.lock").exists() for member in stopped)
 
     done = subprocess.run(
         [sys.executable, "-m", "multilayer.app.cli", *shlex.split(resume)[1:]],

@@ -210,7 +210,8 @@ def _run(
         progress.finish()
         writer.close(sim.steps, wall_time(), status, scenario)
     if status == "interrupted":
-        print(message, file=sys.stderr)
+        if stop.requested:  # a member stopped by its study leaves the resume command to the study
+            print(message, file=sys.stderr)
         raise Interrupted(message, stop.signum)
     log.info("completed: %d steps, wall time %.1f s", sim.steps, wall_time())
 
