@@ -5,7 +5,8 @@ exits with 128 + the signal number, and the resume command completes the study r
 every finished run.
 
 The time bounds are generous (the machine is shared): a member stops within
-``STOP_FILE_POLL`` seconds and the workers within ``CLOSE_GRACE``, about a second in all.
+``STOP_FILE_POLL`` seconds and the workers within ``CLOSE_GRACE``, 2.5-3.3 s in all
+measured from the signal to the exit on two loaded cores.
 """
 
 from __future__ import annotations

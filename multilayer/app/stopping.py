@@ -30,6 +30,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
+from multilayer.app import runner
 from multilayer.errors import Interrupted
 
 POLL = 0.1
@@ -37,10 +38,6 @@ POLL = 0.1
 
 STOP_FILE_POLL = 0.2
 """Seconds between two looks of a running member for the :class:`StopFile`."""
-
-STOP_SIGNALS = tuple(
-    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
-)
 
 _requested: list[int] = []
 """The signal of the pending stop request, if any (set by the handler)."""
@@ -58,12 +55,13 @@ def _handle(signum: int, frame: FrameType | None) -> None:
 
 @contextmanager
 def signals_stop() -> Iterator[None]:
-    """Turn :data:`STOP_SIGNALS` into a stop request while active (main thread only)."""
+    """Turn the stop signals of a run (:data:`~multilayer.app.runner.STOP_SIGNALS`) into a
+    stop request of the study while active (main thread only)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     _requested.clear()
-    previous = {signum: signal.signal(signum, _handle) for signum in STOP_SIGNALS}
+    previous = {signum: signal.signal(signum, _handle) for signum in runner.STOP_SIGNALS}
     try:
         yield
     finally:
