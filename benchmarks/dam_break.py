@@ -8,7 +8,10 @@ outflow, none here) and the front position, about x = 10 at second order (x = 9.
 the first-order C code with regularised yield that docs/performance.md times beside it).
 
     python benchmarks/dam_break.py [--cells 2500] [--layers 32] [--order 2] [--threads auto] [--profile]
-        [--pressure hydrostatic | bim2016 | non_hydrostatic]
+        [--pressure hydrostatic | bim2016 | non_hydrostatic] [--compare]
+
+``--compare`` runs the hydrostatic model and then the ``--pressure`` option in the same
+invocation and prints the ratio of their times to solution (the cost of the pressure).
 """
 
 from __future__ import annotations
@@ -52,26 +55,36 @@ def main() -> None:
         "--pressure", default="hydrostatic", choices=("hydrostatic", "bim2016", "non_hydrostatic")
     )
     parser.add_argument("--threads", default="auto")
+    parser.add_argument(
+        "--compare", action="store_true", help="run the hydrostatic model first and print the cost ratio"
+    )
     parser.add_argument("--profile", action="store_true", help="print the 15 costliest functions")
     args = parser.parse_args()
     threads = args.threads if args.threads == "auto" else int(args.threads)
-
-    sim, timing = timed(
-        lambda: Simulation(scenario(args.cells, args.layers, args.order, args.end, threads, args.pressure)),
-        args.end,
-        profile=args.profile,
-        warm_up=Simulation(scenario(50, args.layers, args.order, args.end, threads, args.pressure)),
-    )
-    d = sim.diagnostics()
-    print(
-        f"dam break: {args.cells} cells x {args.layers} layers, order {args.order}, "
-        f"pressure {args.pressure}, t = {sim.t:g}"
-    )
-    print("\n".join(timing.lines()))
-    print(
-        f"check: front x = {d['front']:.3f} (threshold {sim.front_threshold:g}), mass {d['mass']:.12f} "
-        f"(initially 2), max |u| {np.abs(sim.u).max():.3f}"
-    )
+    pressures = ["hydrostatic", args.pressure] if args.compare else [args.pressure]
+    seconds = {}
+    size = (args.cells, args.layers, args.order, args.end, threads)
+    for pressure in pressures:
+        sim, timing = timed(
+            lambda p=pressure, size=size: Simulation(scenario(*size, p)),
+            args.end,
+            profile=args.profile,
+            warm_up=Simulation(scenario(50, args.layers, args.order, args.end, threads, pressure)),
+        )
+        seconds[pressure] = timing.seconds
+        d = sim.diagnostics()
+        print(
+            f"dam break: {args.cells} cells x {args.layers} layers, order {args.order}, "
+            f"pressure {pressure}, t = {sim.t:g}"
+        )
+        print("\n".join(timing.lines()))
+        print(
+            f"check: front x = {d['front']:.3f} (threshold {sim.front_threshold:g}), mass {d['mass']:.12f} "
+            f"(initially 2), max |u| {np.abs(sim.u).max():.3f}"
+        )
+    if args.compare:
+        ratio = seconds[args.pressure] / seconds["hydrostatic"]
+        print(f"cost of pressure {args.pressure}: {ratio:.2f} times the hydrostatic time to solution")
 
 
 if __name__ == "__main__":

@@ -1,15 +1,18 @@
 """The non-hydrostatic pressure at full resolution (docs/nonhydrostatic.md, docs/validation.md).
 
 Marked ``validation`` (``python -m pytest -m validation``): the dispersion table and the
-column-collapse comparison of the pressure options."""
+column-collapse comparison of the pressure options (run-out and stopping time)."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 from test_nonhydrostatic import standing_wave_error
 
+from multilayer.engine import diagnostics
 from multilayer.engine.simulation import Simulation
 from multilayer.io.scenario import load
 
@@ -28,8 +31,10 @@ def test_dispersion_table():
     assert abs(standing_wave_error(0.1, 5, cells=40)) < 0.002
 
 
-def runout(a: float, pressure: str) -> float:
-    """(L_f - L0) / L0 of the collapse of docs/validation.md."""
+def collapse(a: float, pressure: str) -> tuple[float, float]:
+    """(L_f - L0) / L0 and the stopping time over sqrt(H0 / g) of the collapse of
+    docs/validation.md: the first output time (every 0.01 s) after which the front
+    (h = 1 mm, interpolated) advances slower than 1 cm/s to t = 1.5 s."""
     sim = Simulation(
         load(
             SCENARIOS / "column_collapse.yaml",
@@ -42,14 +47,26 @@ def runout(a: float, pressure: str) -> float:
             ],
         )
     )
-    sim.advance(1.5)
-    return (sim.diagnostics()["front"] + 0.5 * sim.dx - 0.05) / 0.05
+    times = np.round(np.arange(0.0, 1.5 + 1e-9, 0.01), 10)
+    fronts = []
+    for t in times:
+        sim.advance(float(t))
+        fronts.append(diagnostics.front_position(sim.x, sim.h, 0.001))
+    stop = diagnostics.stop_time(times, np.array(fronts), 0.01) / math.sqrt(0.05 * a / 9.81)
+    return (sim.diagnostics()["front"] + 0.5 * sim.dx - 0.05) / 0.05, stop
 
 
 @pytest.mark.parametrize("a", [2.0, 10.0])
-def test_non_hydrostatic_collapse_runs_out_less_than_hydrostatic(a):
-    """Closer to the experimental law (1.2 a, 1.9 a^(2/3)) than the hydrostatic model, which
-    overestimates it at every a; the 30 % goal itself is not met (docs/validation.md)."""
+def test_non_hydrostatic_collapse_against_the_2d_laws(a):
+    """The run-out is closer to the experimental law (1.2 a, 1.9 a^(2/3)) than the
+    hydrostatic one, which overestimates it at every a (the 30 % goal itself is not met,
+    docs/validation.md), and the flow stops at 3 sqrt(H0/g) of the 2D experiments (Lube et
+    al. 2005) within 20 %, as the hydrostatic one does: the duration does not tell them apart."""
     law = 1.2 * a if a < 2.3 else 1.9 * a ** (2 / 3)
-    hydrostatic, non_hydrostatic = runout(a, "hydrostatic"), runout(a, "non_hydrostatic")
+    (hydrostatic, hydrostatic_stop), (non_hydrostatic, stop) = (
+        collapse(a, "hydrostatic"),
+        collapse(a, "non_hydrostatic"),
+    )
     assert law < non_hydrostatic < hydrostatic
+    assert abs(stop / 3.0 - 1.0) <= 0.2
+    assert abs(hydrostatic_stop / 3.0 - 1.0) <= 0.2

@@ -63,7 +63,9 @@ def test_inviscid_simple_shear_matches_proposition_2_2():
 
 def test_viscous_simple_shear_erodes_then_deposits():
     """With nu = 5e-5 m^2/s the interface first moves down, then up to h
-    (Bouchut, Ionescu & Mangeney 2016, sec. 3)."""
+    (Lusso, Ern, Bouchut, Mangeney, Farin & Roche 2017, Appl. Sci. 7, 386, the simple-shear
+    simulations with viscosity; without it b never falls: Bouchut, Ionescu & Mangeney 2016,
+    remark after Prop. 2.2)."""
     sim = simple_shear(nu=5e-5, layers=100)
     times = np.arange(0.02, 2.0, 0.02)
     b = []

@@ -72,14 +72,27 @@ from multilayer.errors import RunError
 
 @dataclass
 class Constraint:
-    """The constraint matrix ``E`` (rows: cells ``a * N + i``; columns: face velocities
-    ``a * F + f`` then ``L * F + a * N + i`` the ``wbar``), the masses ``M`` and the
-    faces ``(left, right)`` columns."""
+    """The columns of the constraint matrix ``E``, unknown by unknown (module Notes).
 
-    E: sp.csr_matrix
+    Unknowns: the face velocities ``a * F + f`` then the ``wbar`` at ``L * F + a * N + i``;
+    unknown ``k`` has the entries ``values[pointer[k]:pointer[k + 1]]`` in the rows (cells
+    ``a * N + i``) ``cells[pointer[k]:pointer[k + 1]]``.  ``mass`` are the masses ``M``,
+    ``left`` and ``right`` the columns of the faces."""
+
+    pointer: np.ndarray
+    cells: np.ndarray
+    values: np.ndarray
     mass: np.ndarray
     left: np.ndarray
     right: np.ndarray
+    shape: tuple[int, int]
+
+    @property
+    def E(self) -> sp.csr_matrix:
+        """``E`` as a sparse matrix (rows: cells, columns: unknowns)."""
+        counts = np.diff(self.pointer)
+        unknowns = np.repeat(np.arange(counts.size), counts)
+        return sp.csr_matrix((self.values, (self.cells, unknowns)), shape=self.shape)
 
 
 def faces(N: int, periodic: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -96,62 +109,264 @@ def constraint(
     """The local rows ``E`` of the layer divergence constraint (module Notes)."""
     L, N = fractions.size, h.size
     left, right = faces(N, periodic)
-    F = left.size
-    l = fractions[:, None]
-    h_face = l * 0.5 * (h[left] + h[right])  # (L, F)
-    sigma = np.concatenate([[0.0], np.cumsum(fractions)])
-    sigma[-1] = 1.0
-    z = bed + sigma[:, None] * h  # (L+1, N) interface heights
-    dz = (z[:, right] - z[:, left]) / dx  # (L+1, F) interface slopes at the faces
-    # interpolation of the layer velocities on the interfaces: vhat_j = sum_c beta[j, c] v_c
+    pointer, cells, values, mass = _entries(
+        np.asarray(h, dtype=float), np.asarray(bed, dtype=float), np.asarray(fractions, dtype=float),
+        float(dx), left, right,
+    )  # fmt: skip
+    return Constraint(pointer, cells, values, mass, left, right, (L * N, L * left.size + L * N))
+
+
+@njit(cache=True)
+def _entries(h, bed, fractions, dx, left, right):
+    """``E`` column by column (see :class:`Constraint`): ``F_c`` enters the rows ``c`` and
+    ``c + 1`` with 1/2; ``S_j`` (interface ``j``, its velocity ``vhat_j = beta_j,c-1 v_c-1 +
+    beta_j,c v_c`` weighted by the thicknesses) enters row 0 with -1/2 (``j`` = 0, 1), row
+    ``j - 1`` with -1/2 (``j >= 2``) and row ``j + 1`` with +1/2; ``wbar_a`` enters row ``a``
+    with +1 and row ``a + 1`` with -1."""
+    L, N, F = fractions.size, h.size, left.size
+    sigma = np.zeros(L + 1)
+    for a in range(L):
+        sigma[a + 1] = sigma[a] + fractions[a]
+    sigma[L] = 1.0
     beta = np.zeros((L + 1, L))
-    beta[0, 0] = beta[L, L - 1] = 1.0
+    beta[0, 0] = 1.0
+    beta[L, L - 1] = 1.0
     for j in range(1, L):
         total = fractions[j - 1] + fractions[j]
         beta[j, j - 1], beta[j, j] = fractions[j] / total, fractions[j - 1] / total
-
-    rows, cols, vals = [], [], []
-
-    def add(row_layer: int, column: np.ndarray, unknown: np.ndarray, value: np.ndarray) -> None:
-        rows.append(row_layer * N + column)
-        cols.append(unknown)
-        vals.append(value)
-
-    # F_c enters E_c and E_{c+1} with 1/2 each
+    rows, weights = np.empty(3, np.int64), np.empty(3)
+    pointer = np.empty(L * F + L * N + 1, np.int64)
+    cells = np.empty(12 * L * F + 2 * L * N, np.int64)
+    values = np.empty(cells.size)
+    mass = np.empty(L * F + L * N)
+    n = 0
     for c in range(L):
-        unknown = c * F + np.arange(F)
-        for row in (c, c + 1):
-            if row < L:
-                add(row, left, unknown, 0.5 * h_face[c] / dx)
-                add(row, right, unknown, -0.5 * h_face[c] / dx)
-    # S_j at column i: 1/2 vhat_{j,f} dz_{j,f} for both faces of i; S_j enters E_0 with
-    # -1/2 (j = 0, 1), E_a with -1/2 (j = a + 1) and +1/2 (j = a - 1)
-    weights: dict[int, list[tuple[int, float]]] = {j: [] for j in range(L + 1)}
-    weights[0].append((0, -0.5))
-    weights[1].append((0, -0.5))
-    for a in range(1, L):
-        weights[a + 1].append((a, -0.5))
-        weights[a - 1].append((a, 0.5))
-    for j, targets in weights.items():
-        for row, weight in targets:
-            for c in range(L):
+        for f in range(F):
+            k = c * F + f
+            pointer[k] = n
+            i, e = left[f], right[f]
+            h_face = fractions[c] * 0.5 * (h[i] + h[e])
+            mass[k] = h_face
+            for row in range(c, min(c + 2, L)):
+                cells[n], values[n] = row * N + i, 0.5 * h_face / dx
+                cells[n + 1], values[n + 1] = row * N + e, -0.5 * h_face / dx
+                n += 2
+            for j in (c, c + 1):
                 if beta[j, c] == 0.0:
                     continue
-                unknown = c * F + np.arange(F)
-                value = weight * 0.5 * beta[j, c] * dz[j]
-                add(row, left, unknown, value)
-                add(row, right, unknown, value)
-    # wbar
-    columns = np.arange(N)
+                slope = ((bed[e] + sigma[j] * h[e]) - (bed[i] + sigma[j] * h[i])) / dx
+                count = 0
+                if j <= 1:
+                    rows[count], weights[count] = 0, -0.5
+                    count += 1
+                if j >= 2:
+                    rows[count], weights[count] = j - 1, -0.5
+                    count += 1
+                if j <= L - 2:
+                    rows[count], weights[count] = j + 1, 0.5
+                    count += 1
+                for m in range(count):
+                    value = weights[m] * 0.5 * beta[j, c] * slope
+                    cells[n], values[n] = rows[m] * N + i, value
+                    cells[n + 1], values[n + 1] = rows[m] * N + e, value
+                    n += 2
+            n = _merge(cells, values, pointer[k], n)
     for a in range(L):
-        add(a, columns, L * F + a * N + columns, np.ones(N))
-        if a > 0:
-            add(a, columns, L * F + (a - 1) * N + columns, -np.ones(N))
-    E = sp.csr_matrix(
-        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(L * N, L * F + L * N)
-    )
-    mass = np.concatenate([h_face.ravel(), (l * h).ravel()])
-    return Constraint(E=E, mass=mass, left=left, right=right)
+        for i in range(N):
+            k = L * F + a * N + i
+            pointer[k] = n
+            mass[k] = fractions[a] * h[i]
+            cells[n], values[n] = a * N + i, 1.0
+            n += 1
+            if a + 1 < L:
+                cells[n], values[n] = (a + 1) * N + i, -1.0
+                n += 1
+    pointer[L * F + L * N] = n
+    return pointer, cells[:n], values[:n], mass
+
+
+@njit(cache=True)
+def _merge(cells, values, first, end):
+    """Add up the entries ``first:end`` in the same cell; returns the new end."""
+    n = first
+    for e in range(first, end):
+        for d in range(first, n):
+            if cells[d] == cells[e]:
+                values[d] += values[e]
+                break
+        else:
+            cells[n], values[n] = cells[e], values[e]
+            n += 1
+    return n
+
+
+@njit(cache=True)
+def _normal_equations(pointer, cells, values, mass, free, row_of, n, v_star):
+    """``A = E M^-1 E^T`` in band storage ``band[i, d] = A_i,i+d`` (``n`` rows, the band of
+    row ``i`` contiguous) and ``r = E V*``, over the free unknowns and the rows
+    ``row_of[cell] >= 0`` (module Notes)."""
+    width = 0
+    for k in range(free.size):
+        if not free[k]:
+            continue
+        lo, hi = n, -1
+        for e in range(pointer[k], pointer[k + 1]):
+            row = row_of[cells[e]]
+            if row >= 0:
+                lo, hi = min(lo, row), max(hi, row)
+        width = max(width, hi - lo)
+    band = np.zeros((n, width + 1))
+    r = np.zeros(n)
+    rows, entries = np.empty(64, np.int64), np.empty(64)
+    for k in range(free.size):
+        if not free[k]:
+            continue
+        count = 0  # the entries of unknown k in the rows taking part
+        for e in range(pointer[k], pointer[k + 1]):
+            row = row_of[cells[e]]
+            if row >= 0:
+                rows[count], entries[count] = row, values[e]
+                count += 1
+        inverse = 1.0 / mass[k]
+        for e in range(count):
+            row = rows[e]
+            r[row] += entries[e] * v_star[k]
+            scaled = entries[e] * inverse
+            for d in range(count):
+                if rows[d] >= row:
+                    band[row, rows[d] - row] += scaled * entries[d]
+    return band, r
+
+
+@njit(cache=True)
+def _fixed_entry(band, fixed, i, d):
+    """``A'_i,i+d``: ``A`` with the rows and columns of ``fixed`` replaced by the identity."""
+    if i + d >= band.shape[0]:
+        return 0.0
+    if fixed[i] or fixed[i + d]:
+        return 1.0 if d == 0 else 0.0
+    return band[i, d]
+
+
+@njit(cache=True)
+def _factor(band, fixed, U, start):
+    """The banded Cholesky factor ``A' = U^T U`` (``U[i, d] = U_i,i+d``) of ``A`` with the
+    rows and columns of ``fixed`` replaced by the identity, in outer-product order
+    (contiguous inner loops), kept in the columns before ``start``.
+
+    ``U[:s, :s]`` depends on ``A'[:s, :s]`` only: when ``fixed`` changed from index
+    ``start`` on, only the entries of the columns from ``start`` on are computed again
+    (those of the ``w`` rows before it by their own recurrence, then the rows from it)."""
+    n, w = band.shape[0], band.shape[1] - 1
+    for p in range(max(0, start - w), start):
+        for d in range(start - p, w + 1):
+            U[p, d] = _fixed_entry(band, fixed, p, d)
+        for m in range(max(0, p - w), p):
+            k = p - m
+            for d in range(start - p, w + 1 - k):
+                U[p, d] -= U[m, k] * U[m, d + k]
+        for d in range(start - p, w + 1):
+            U[p, d] /= U[p, 0]
+    U[start:] = band[start:]
+    for i in range(start, n):
+        if fixed[i]:
+            U[i] = 0.0
+            U[i, 0] = 1.0
+            for d in range(1, min(w, i - start) + 1):
+                U[i - d, d] = 0.0
+    for i in range(max(0, start - w), n):
+        source = U[i]
+        if i >= start:
+            if source[0] <= 0.0:
+                raise ValueError("matrix not positive definite")
+            diagonal = np.sqrt(source[0])
+            inverse = 1.0 / diagonal
+            source[0] = diagonal
+            for d in range(1, w + 1):
+                source[d] *= inverse
+        for k in range(max(1, start - i), min(w, n - 1 - i) + 1):
+            factor = source[k]
+            target = U[i + k]
+            for d in range(k, w + 1):
+                target[d - k] -= factor * source[d]
+
+
+@njit(cache=True)
+def _substitute(U, b):
+    """Solve ``U^T U x = b`` for the factor of ``_factor``."""
+    n, w = U.shape[0], U.shape[1] - 1
+    x = b.copy()
+    for i in range(n):  # U^T y = b, column by column
+        x[i] /= U[i, 0]
+        for d in range(1, min(w, n - 1 - i) + 1):
+            x[i + d] -= U[i, d] * x[i]
+    for i in range(n - 1, -1, -1):  # U x = y
+        s = x[i]
+        for d in range(1, min(w, n - 1 - i) + 1):
+            s -= U[i, d] * x[i + d]
+        x[i] = s / U[i, 0]
+    return x
+
+
+@njit(cache=True)
+def _bounded(band, r, lam_max, active, max_iterations):
+    """Minimiser of ``1/2 lam^T A lam - r^T lam`` subject to ``lam <= lam_max`` by primal-dual
+    active sets (Hintermueller, Ito & Kunisch 2002) from the guess ``active`` (updated in
+    place): on the active set ``lam = lam_max``, elsewhere ``(A lam)_i = r_i``; it stops
+    when the set reproduces itself, i.e. the bound multiplier ``mu = r - A lam >= 0`` on
+    it and ``lam <= lam_max`` off it.  The guess only changes the work, never the answer.
+    Each iteration refactors the Cholesky factor from the first row whose status changed.
+    Returns ``lam`` and the iterations (-1: not settled)."""
+    n, w = band.shape[0], band.shape[1] - 1
+    U = np.zeros(band.shape)
+    rhs = np.empty(n)
+    start = 0
+    for iteration in range(1, max_iterations + 1):
+        _factor(band, active, U, start)
+        # the bounded unknowns move to the right-hand side of the free rows
+        rhs[:] = r
+        for j in range(n):
+            if active[j]:
+                rhs[j] = lam_max[j]
+                for d in range(1, w + 1):
+                    if j + d < n and not active[j + d]:
+                        rhs[j + d] -= band[j, d] * lam_max[j]
+                    if j - d >= 0 and not active[j - d]:
+                        rhs[j - d] -= band[j - d, d] * lam_max[j]
+        lam = _substitute(U, rhs)
+        start = n
+        for i in range(n):
+            if active[i]:  # the bound's multiplier mu = (r - A lam)_i must be positive
+                mu = r[i] - band[i, 0] * lam[i]
+                for d in range(1, w + 1):
+                    if i + d < n:
+                        mu -= band[i, d] * lam[i + d]
+                    if i - d >= 0:
+                        mu -= band[i - d, d] * lam[i - d]
+                new = mu > 0.0
+            else:
+                new = lam[i] > lam_max[i]
+            if new != active[i]:
+                start = min(start, i)
+                active[i] = new
+        if start == n:
+            return lam, iteration
+    return lam, -1
+
+
+@njit(cache=True)
+def _correct(pointer, cells, values, mass, free, row_of, lam):
+    """``dV = -M^-1 E^T lam`` on the free unknowns (zero elsewhere)."""
+    dV = np.zeros(free.size)
+    for k in range(free.size):
+        if free[k]:
+            s = 0.0
+            for e in range(pointer[k], pointer[k + 1]):
+                row = row_of[cells[e]]
+                if row >= 0:
+                    s += values[e] * lam[row]
+            dV[k] = -s / mass[k]
+    return dV
 
 
 def correction(
@@ -167,116 +382,42 @@ def correction(
 
     ``lam`` minimises ``1/2 lam^T A lam - lam^T E V*`` (``A lam = E V*``), subject to
     ``lam <= lam_max`` (L, N) if given: with ``lam_a = -dt q_a`` this is the bound
-    ``p >= 0`` on the total pressure, solved by the primal-dual active-set method
-    (Hintermueller, Ito & Kunisch 2002) from the guess ``active`` (L, N) of the cells where
-    the bound holds (none by default).
+    ``p >= 0`` on the total pressure, solved by the primal-dual active-set method from the
+    guess ``active`` (L, N) of the cells where the bound holds (none by default; updated
+    in place to the final active set).
     """
     L, N = u.shape
     left, right = cons.left, cons.right
     F = left.size
     face_free = (moving[:, left] | moving[:, right]).ravel() & (cons.mass[: L * F] > 0)
     free = np.concatenate([face_free, moving.ravel()])
-    # rows column by column (cell i * L + a): A is then banded, of half-width about L + 3
-    layer, column = np.nonzero(moving)
-    order = np.lexsort((layer, column))
-    rows = (layer * N + column)[order]
-    E = cons.E[rows][:, np.flatnonzero(free)]
-    inv_mass = 1.0 / cons.mass[free]
+    # rows column by column (cell a * N + i is row row_of[a * N + i]): A is then banded, of
+    # half-width about L + 3
+    column, layer = np.nonzero(moving.T)
+    rows = layer * N + column
+    row_of = np.full(L * N, -1, dtype=np.int64)
+    row_of[rows] = np.arange(rows.size)
     v_star = 0.5 * (u[:, left] + u[:, right])
     V_star = np.concatenate([v_star.ravel(), np.where(moving, w, 0.0).ravel()])
-    A = (E @ sp.diags(inv_mass) @ E.T).tocsr()
-    r = E @ V_star[free]
-    ab = bands(A)
-    if lam_max is None:
-        lam = solve_banded_spd(ab, r)
-    else:
-        guess = np.zeros(rows.size, dtype=bool) if active is None else active.ravel()[rows]
-        lam = _bounded(A, ab, r, lam_max.ravel()[rows], guess)
-    dV = np.zeros(free.size)
-    dV[free] = -inv_mass * (E.T @ lam)
-    return V_star, dV, free
-
-
-def bands(A: sp.spmatrix) -> np.ndarray:
-    """Upper band storage ``ab[w + i - j, j] = A[i, j]`` (``i <= j``) of a symmetric ``A``."""
-    upper = sp.triu(A).tocoo()
-    width = int((upper.col - upper.row).max(initial=0))
-    ab = np.zeros((width + 1, A.shape[0]))
-    ab[width + upper.row - upper.col, upper.col] = upper.data
-    return ab
-
-
-@njit(cache=True)
-def solve_banded_spd(ab: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Solve ``A x = b`` for a symmetric positive definite ``A`` in upper band storage by
-    banded Cholesky, ``A = U^T U`` (single-threaded; O(n w^2))."""
-    w, n = ab.shape[0] - 1, ab.shape[1]
-    U = ab.T.copy()  # U[j, w + k - j] = U_kj: the band of column j is contiguous
-    for j in range(n):
-        s = U[j, w]
-        for k in range(max(0, j - w), j):
-            s -= U[j, w + k - j] ** 2
-        if s <= 0.0:
-            raise ValueError("matrix not positive definite")
-        d = np.sqrt(s)
-        U[j, w] = d
-        for i in range(j + 1, min(n, j + w + 1)):
-            s = U[i, w + j - i]
-            for k in range(max(0, i - w), j):
-                s -= U[j, w + k - j] * U[i, w + k - i]
-            U[i, w + j - i] = s / d
-    x = b.copy()
-    for i in range(n):  # U^T y = b
-        s = x[i]
-        for k in range(max(0, i - w), i):
-            s -= U[i, w + k - i] * x[k]
-        x[i] = s / U[i, w]
-    for i in range(n - 1, -1, -1):  # U x = y
-        s = x[i]
-        for j in range(i + 1, min(n, i + w + 1)):
-            s -= U[j, w + i - j] * x[j]
-        x[i] = s / U[i, w]
-    return x
-
-
-@njit(cache=True)
-def _fix(ab: np.ndarray, active: np.ndarray) -> np.ndarray:
-    """The band of ``A`` with the rows and columns of ``active`` replaced by the identity."""
-    w, n = ab.shape[0] - 1, ab.shape[1]
-    out = ab.copy()
-    for i in range(n):
-        if active[i]:
-            for j in range(i, min(n, i + w + 1)):  # row i, right of the diagonal
-                out[w + i - j, j] = 0.0
-            for k in range(max(0, i - w), i):  # column i, above the diagonal
-                out[w + k - i, i] = 0.0
-            out[w, i] = 1.0
-    return out
-
-
-def _bounded(
-    A: sp.spmatrix, ab: np.ndarray, r: np.ndarray, lam_max: np.ndarray, active: np.ndarray
-) -> np.ndarray:
-    """Minimiser of ``1/2 lam^T A lam - r^T lam`` subject to ``lam <= lam_max`` by primal-dual
-    active sets from the guess ``active``: on the active set ``lam = lam_max``, elsewhere
-    ``(A lam)_i = r_i``; it stops when the set reproduces itself, i.e. the bound multiplier
-    ``mu = r - A lam >= 0`` on it and ``lam <= lam_max`` off it.  The guess only changes the
-    number of iterations, never the answer."""
-    for _ in range(MAX_ACTIVE_SET_ITERATIONS):
-        if active.any():
-            rhs = np.where(active, lam_max, r - A @ np.where(active, lam_max, 0.0))
-            lam = solve_banded_spd(_fix(ab, active), rhs)
-        else:
-            lam = solve_banded_spd(ab, r)
-        mu = r - A @ lam
-        new = np.where(active, mu > 0.0, lam > lam_max)
-        if np.array_equal(new, active):
-            return lam
-        active = new
-    raise RunError(
-        f"the non-hydrostatic pressure bound p >= 0 was not settled in {MAX_ACTIVE_SET_ITERATIONS} "
-        "active-set iterations"
+    band, r = _normal_equations(
+        cons.pointer, cons.cells, cons.values, cons.mass, free, row_of, rows.size, V_star
     )
+    if lam_max is None:
+        U = np.zeros(band.shape)
+        _factor(band, np.zeros(r.size, dtype=np.bool_), U, 0)
+        lam = _substitute(U, r)
+    else:
+        guess = np.zeros(rows.size, dtype=np.bool_) if active is None else active.ravel()[rows].copy()
+        lam, iterations = _bounded(band, r, lam_max.ravel()[rows], guess, MAX_ACTIVE_SET_ITERATIONS)
+        if iterations < 0:
+            raise RunError(
+                "the non-hydrostatic pressure bound p >= 0 was not settled in "
+                f"{MAX_ACTIVE_SET_ITERATIONS} active-set iterations"
+            )
+        if active is not None:
+            active.ravel()[rows] = guess
+    dV = _correct(cons.pointer, cons.cells, cons.values, cons.mass, free, row_of, lam)
+    return V_star, dV, free
 
 
 MAX_ACTIVE_SET_ITERATIONS = 100
@@ -294,7 +435,7 @@ def project(
     periodic: bool = False,
     dry: float = 0.0,
     g_n: float | None = None,
-    q_previous: np.ndarray | None = None,
+    tension_free: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Project the moving cells on the non-hydrostatic constraint (module Notes).
 
@@ -304,19 +445,20 @@ def project(
     density, m^2/s^2; zero at the free surface).  Cells at rest (``u == 0.0``) or dry keep
     ``u = w = 0``.  With ``g_n = g cos(theta)`` the total pressure
     ``g_n (h - z) + q`` is kept non-negative (granular matter takes no tension); the cells
-    where it was zero with ``q_previous`` start the active-set iteration (speed only).
+    ``tension_free`` (L, N) where it was zero the step before (:func:`tension_free`) start
+    the active-set iteration (speed only: the answer does not depend on them).
     """
     L, N = u.shape
     moving = (u != 0.0) & (h > dry)[None, :]
     if not moving.any():
-        return u.copy(), np.zeros_like(w), np.zeros_like(u)
+        return u.copy(), np.zeros(w.shape), np.zeros(u.shape)
     columns = np.flatnonzero(moving.any(axis=0))
     lo, hi = max(columns[0] - 1, 0), min(columns[-1] + 2, N)
     if not periodic and (lo > 0 or hi < N):
         # only the moving material and one column at rest on each side take part: the
         # faces beyond join cells at rest and carry no correction
         window = slice(lo, hi)
-        u_new, w_new, q = u.copy(), np.zeros_like(w), np.zeros_like(u)
+        u_new, w_new, q = u.copy(), np.zeros(w.shape), np.zeros(u.shape)
         u_new[:, window], w_new[:, window], q[:, window] = project(
             h[window],
             u[:, window],
@@ -327,7 +469,7 @@ def project(
             dt=dt,
             dry=dry,
             g_n=g_n,
-            q_previous=None if q_previous is None else q_previous[:, window],
+            tension_free=None if tension_free is None else tension_free[:, window],
         )
         return u_new, w_new, q
     cons = constraint(np.where(h > dry, h, 0.0), bed, fractions, dx, periodic)
@@ -335,10 +477,8 @@ def project(
     F = left.size
     lam_max = active = None
     if g_n is not None:
-        depth = (1.0 - np.concatenate([[0.0], np.cumsum(fractions)[:-1]]))[:, None] * h
-        lam_max = dt * g_n * depth
-        if q_previous is not None:
-            active = g_n * depth + q_previous <= 1e-3 * g_n * depth  # about zero then
+        lam_max = dt * g_n * depth_below(h, fractions)
+        active = np.zeros_like(moving) if tension_free is None else tension_free.copy()
     _, dV, _ = correction(cons, moving, u, w, lam_max, active)
     dv = dV[: L * F].reshape(L, F)
     dw = dV[L * F :].reshape(L, N)
@@ -351,19 +491,65 @@ def project(
     return u_new, w_new, q
 
 
+@njit(cache=True)
 def advect(w: np.ndarray, u: np.ndarray, dx: float, dt: float, periodic: bool) -> np.ndarray:
     """First-order upwind transport of the layer vertical velocities by the layer
     velocities, ``d_t w + u d_x w = 0`` (zero-gradient ends unless periodic)."""
-    if periodic:
-        west, east = np.roll(w, 1, axis=1), np.roll(w, -1, axis=1)
-    else:
-        west = np.concatenate([w[:, :1], w[:, :-1]], axis=1)
-        east = np.concatenate([w[:, 1:], w[:, -1:]], axis=1)
-    return w - dt / dx * (np.maximum(u, 0.0) * (w - west) + np.minimum(u, 0.0) * (east - w))
+    L, N = w.shape
+    out = np.empty_like(w)
+    ratio = dt / dx
+    for a in range(L):
+        for i in range(N):
+            here, speed = w[a, i], u[a, i]
+            if speed > 0.0:
+                west = w[a, i - 1] if i > 0 else (w[a, N - 1] if periodic else here)
+                out[a, i] = here - ratio * (speed * (here - west))
+            elif speed < 0.0:
+                east = w[a, i + 1] if i < N - 1 else (w[a, 0] if periodic else here)
+                out[a, i] = here - ratio * (speed * (east - here))
+            else:
+                out[a, i] = here
+    return out
+
+
+def depth_below(h: np.ndarray, fractions: np.ndarray) -> np.ndarray:
+    """Depth ``h - z_a`` (L, N) of the bottom interface of each layer below the surface."""
+    return _depth_factors(fractions)[:, None] * h
+
+
+def _depth_factors(fractions: np.ndarray) -> np.ndarray:
+    """``(h - z_a) / h`` of the bottom interface of each layer."""
+    return 1.0 - np.concatenate([[0.0], np.cumsum(fractions)[:-1]])
+
+
+def tension_free(q: np.ndarray, h: np.ndarray, fractions: np.ndarray, g_n: float) -> np.ndarray:
+    """Interfaces (L, N) where the total pressure ``g_n (h - z) + q`` of a projection is
+    zero (to round-off: the bound ``p >= 0`` was active there), ``h`` being the thickness
+    the pressures ``q`` were computed with."""
+    return _tension_free(q, h, _depth_factors(fractions), g_n)
+
+
+@njit(cache=True)
+def _tension_free(q, h, factors, g_n):
+    out = np.zeros(q.shape, np.bool_)
+    for a in range(q.shape[0]):
+        for i in range(q.shape[1]):
+            depth = factors[a] * h[i]
+            out[a, i] = depth > 0.0 and g_n * depth + q[a, i] <= 1e-9 * g_n * depth
+    return out
 
 
 def yield_gravity(q: np.ndarray, h: np.ndarray, fractions: np.ndarray, g_n: float) -> np.ndarray:
     """Normal gravity ``G_k`` (L, N) of the interface pressures with the non-hydrostatic part,
     ``rho G_k (h - z_k) = rho g cos(theta) (h - z_k) + rho q_k``, never negative."""
-    depth = (1.0 - np.concatenate([[0.0], np.cumsum(fractions)[:-1]]))[:, None] * h
-    return np.maximum(g_n + np.where(depth > 0, q / np.where(depth > 0, depth, 1.0), 0.0), 0.0)
+    return _yield_gravity(q, h, _depth_factors(fractions), g_n)
+
+
+@njit(cache=True)
+def _yield_gravity(q, h, factors, g_n):
+    out = np.empty(q.shape)
+    for a in range(q.shape[0]):
+        for i in range(q.shape[1]):
+            depth = factors[a] * h[i]
+            out[a, i] = max(g_n + (q[a, i] / depth if depth > 0.0 else 0.0), 0.0)
+    return out

@@ -31,6 +31,7 @@ from multilayer.engine import (
 from multilayer.engine.gate import Gate
 from multilayer.engine.mesh import LayeredMesh
 from multilayer.engine.state_check import ROUND_OFF, StateError, StateGuard
+from multilayer.errors import RunError
 
 if TYPE_CHECKING:  # the engine reads a validated scenario; it never loads one
     from multilayer.io.scenario import BaseZone, Scenario
@@ -128,6 +129,10 @@ class Simulation:
         # non-hydrostatic state: layer-mean vertical velocities and interface pressures
         self.w = np.zeros_like(self.u)
         self.q = np.zeros_like(self.u)
+        # with the non-hydrostatic pressure, the velocities of the last vertical step before
+        # the projection seed the next one's Newton iteration (elsewhere u does): they keep
+        # the plugs (layers locked together) that the per-layer corrections would break
+        self.newton_seed = self.u.copy()
         self.t = 0.0
         self.steps = 0
         self.newton_iterations = 0
@@ -173,7 +178,7 @@ class Simulation:
         iterations = 0
         self.stresses.t = self.t
         while True:
-            h_new, u_new, w_new, q_new, more = self._transport_and_stresses(dt, moving, rest)
+            h_new, u_new, w_new, q_new, seed, more = self._transport_and_stresses(dt, moving, rest)
             iterations += more
             starting = transport_kernel.moving_columns(u_new) & ~moving & held
             if not starting.any():
@@ -185,6 +190,7 @@ class Simulation:
         self.u[...] = u_new
         self.w[...] = w_new
         self.q[...] = q_new
+        self.newton_seed[...] = seed
         self.newton_iterations += iterations
         self.steps += 1
         # land exactly on t_max when the step was cut to reach it
@@ -193,10 +199,11 @@ class Simulation:
 
     def _transport_and_stresses(
         self, dt: float, moving: np.ndarray, rest: np.ndarray | None = None
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
         """Transport (h, u*), the implicit vertical step (u^{n+1}) and, with the
         non-hydrostatic pressure, the projection (u, w, q) over ``dt``; ``rest`` (L, N)
-        marks the layers at rest at the start of the step."""
+        marks the layers at rest at the start of the step.  Returns h, u, w, q, the Newton
+        seed of the next step and the Newton iterations."""
         opening = self.gate.opening(self.h, self.t + 0.5 * dt) if self.gate is not None else None
         # the occupied columns bound the work of the step, and so its thread count
         count = self.thread_policy.threads(self.fractions.size * int(np.count_nonzero(self.h)))
@@ -237,27 +244,36 @@ class Simulation:
             )
         elif self.pressure == "non_hydrostatic":
             yield_gravity = nonhydrostatic.yield_gravity(self.q, h_new, self.fractions, self.g_n)
-        u_new, iterations = vertical_step.implicit_step(
-            self.stresses,
-            h_new,
-            ustar,
-            self.u,
-            dt,
-            solver=self.solver,
-            tolerance=self.numerics.tolerance,
-            max_iterations=self.numerics.max_iterations,
-            velocity_scale=self.velocity_scale,
-            rest=rest,
-            poll=self.poll,
-            yield_gravity=yield_gravity,
-            threads=count,
-            compiled=self.compiled_step,
-        )
+        # the seed changes the Newton work, not the answer: where the unprojected seed does
+        # not converge, the step is solved again from u (as the other pressures are)
+        seeds = [self.newton_seed, self.u] if self.pressure == "non_hydrostatic" else [self.u]
+        for attempt, seed in enumerate(seeds, start=1):
+            try:
+                u_new, iterations = vertical_step.implicit_step(
+                    self.stresses,
+                    h_new,
+                    ustar,
+                    seed,
+                    dt,
+                    solver=self.solver,
+                    tolerance=self.numerics.tolerance,
+                    max_iterations=self.numerics.max_iterations,
+                    velocity_scale=self.velocity_scale,
+                    rest=rest,
+                    poll=self.poll,
+                    yield_gravity=yield_gravity,
+                    threads=count,
+                    compiled=self.compiled_step,
+                )
+                break
+            except RunError:
+                if attempt == len(seeds):
+                    raise
         if self.pressure != "non_hydrostatic":
-            return h_new, u_new, self.w, self.q, iterations
+            return h_new, u_new, self.w, self.q, u_new, iterations
         periodic = self.left == "periodic"
         w_star = nonhydrostatic.advect(self.w, u_new, self.dx, dt, periodic)
-        u_new, w_new, q_new = nonhydrostatic.project(
+        projected, w_new, q_new = nonhydrostatic.project(
             h_new,
             u_new,
             w_star,
@@ -268,9 +284,9 @@ class Simulation:
             periodic=periodic,
             dry=self.numerics.dry_threshold,
             g_n=self.g_n,
-            q_previous=self.q,
+            tension_free=nonhydrostatic.tension_free(self.q, self.h, self.fractions, self.g_n),
         )
-        return h_new, u_new, w_new, q_new, iterations
+        return h_new, projected, w_new, q_new, u_new, iterations
 
     def advance(self, t_target: float, on_step: Callable[[Simulation, float], None] | None = None) -> None:
         """Step until ``t == t_target``; ``on_step(sim, dt)`` is called after every step."""
@@ -316,6 +332,7 @@ class Simulation:
             "u": self.u.copy(),
             "w": self.w.copy(),
             "q": self.q.copy(),
+            "newton_seed": self.newton_seed.copy(),
         }
 
     def load_state(self, state: dict) -> None:
@@ -327,5 +344,6 @@ class Simulation:
         self.u[...] = state["u"]
         self.w[...] = state.get("w", 0.0)
         self.q[...] = state.get("q", 0.0)
+        self.newton_seed[...] = state.get("newton_seed", self.u)
         self.guard.check_state(self.h, self.u, f"in the restored state at t = {self.t:.6g} s")
         self._mass_reference = (diagnostics.mass(self.h, self.dx), self.steps)

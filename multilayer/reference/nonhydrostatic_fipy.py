@@ -1,7 +1,7 @@
 """Reference formulation of the non-hydrostatic pressure projection as FiPy terms.
 
 The fast path (``multilayer.engine.nonhydrostatic.project``) assembles the constraint
-``E`` and solves ``A lam = E V*`` with ``A = E M^-1 E^T`` by sparse LU.  Here the same
+``E`` and solves ``A lam = E V*`` with ``A = E M^-1 E^T`` by banded Cholesky.  Here the same
 problem is written on the X-sigma ``Grid2D`` (``dx``, ``dy = l_a h``) for flat interfaces
 (uniform ``h``, flat bed) and every cell moving, where ``A`` splits into two diffusion
 operators (docs/nonhydrostatic.md)::
