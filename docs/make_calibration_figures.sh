@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The figures of docs/calibration.md: runs the three documented studies (hours of runs:
+# The figures of docs/calibration.md: runs the three documented studies (about half an hour of runs:
 # the times are quoted in docs/calibration.md) and copies the figures `multilayer plot`
 # draws into docs/figures/.  Completed runs are reused, so a rerun only plots and copies.
 # From the repository root: bash docs/make_calibration_figures.sh
