@@ -43,7 +43,7 @@ CHILD = """
 import sys, time
 import numpy as np
 from multilayer.app.cli import main
-from multilayer.engine import column_kernel, simulation, transport
+from multilayer.engine import column_kernel, simulation, transport, transport_kernel
 from multilayer.plugins.builtins.drucker_prager import DruckerPrager
 calls = [0]
 {patch}
@@ -183,24 +183,67 @@ ENGINE_FAULTS: list[tuple[str, str, str]] = [
     ("transport loses mass", "h[2] *= 0.5", "mass is not conserved"),
     ("transport negative h", "h[3] = -0.001", "negative thickness"),
     ("velocity nan mid-run", "u[1, 3] = np.nan", "velocity u = nan"),
+    # 1e-11 m in the last cell while material flows out there: far below the boundary flux
+    ("transport creates 1e-11 m at the outflow", "h[-1] += 1e-11", "the transport made an error of"),
+]
+
+# built-in laws given, past their validation, parameters whose compiled viscosity form
+# (newton_kernel) is outside the contract: (name, rheology, attribute = value, phrase)
+COMPILED_FAULTS: list[tuple[str, dict, str, str]] = [
+    (
+        "mu(I) with mu_2 < mu_s",
+        {"name": "jop_mu_i", "mu_s": 0.3, "mu_2": 0.5, "I_0": 0.3},
+        "mu_2 = 0.1",
+        "viscosity() returned -",
+    ),
+    (
+        "Drucker-Prager nu nan",
+        {"name": "drucker_prager", "mu_s": 0.3, "nu": 0.01},
+        "nu = np.nan",
+        "returned nan",
+    ),
+    (
+        "power law without floor",
+        {"name": "power_law_mu_i", "mu_s": 0.3, "m": 0.2, "alpha": 0.5},
+        "shear_rate_floor = 0.0",
+        "returned inf",
+    ),
 ]
 
 
 def _plugin_patch(method: str, body: str) -> str:
+    """A faulty method; a faulty viscosity belongs to a plugin without a compiled form."""
     args = "self, p, m" if method == "yield_stress" else "self, g, p, m"
-    return f"def fault({args}):\n    {body}\nDruckerPrager.{method} = fault\n"
+    patch = f"def fault({args}):\n    {body}\nDruckerPrager.{method} = fault\n"
+    if method == "viscosity":
+        patch += "DruckerPrager.viscosity_kernel = lambda self, material: None\n"
+    return patch
+
+
+def _compiled_patch(assignment: str) -> str:
+    """The scenario's built-in law given a parameter past its validation."""
+    return (
+        "real_init = simulation.Simulation.__init__\n"
+        "def init(self, scenario):\n"
+        "    real_init(self, scenario)\n"
+        f"    self.stresses.bulk.{assignment}\n"
+        "simulation.Simulation.__init__ = init\n"
+    )
 
 
 def _transport_patch(body: str) -> str:
+    """Both transport paths (numpy and compiled) return a corrupted state after 15 calls."""
     return (
-        "real = transport.transport\n"
-        "def fault(*args, **kwargs):\n"
-        "    h, u = real(*args, **kwargs)\n"
-        "    calls[0] += 1\n"
-        "    if calls[0] > 15:\n"
-        f"        {body}\n"
-        "    return h, u\n"
-        "transport.transport = fault\n"
+        "def corrupting(real):\n"
+        "    def fault(*args, **kwargs):\n"
+        "        h, u = real(*args, **kwargs)\n"
+        "        calls[0] += 1\n"
+        "        if calls[0] > 15:\n"
+        f"            {body}\n"
+        "        return h, u\n"
+        "    return fault\n"
+        "transport.transport = corrupting(transport.transport)\n"
+        "transport_kernel.transport = corrupting(transport_kernel.transport)\n"
     )
 
 
@@ -361,6 +404,20 @@ def cases() -> list[Case]:
                 keeps_output=True,
             )
         )
+    for name, rheology, assignment, phrase in COMPILED_FAULTS:
+        out.append(
+            Case(
+                f"compiled law: {name}",
+                run,
+                1,
+                phrase,
+                patch=_compiled_patch(assignment),
+                setup=lambda d, rheology=rheology: _scenario(d, {"rheology": rheology}),
+                keeps_output=True,
+            )
+        )
+    # material released against the outflow end, so that it flows out from the start
+    outflowing = {"initial": [{"shape": "rectangle", "x_min": 0.3, "x_max": 0.5, "height": 0.05}]}
     for name, body, phrase in ENGINE_FAULTS:
         out.append(
             Case(
@@ -369,7 +426,7 @@ def cases() -> list[Case]:
                 1,
                 phrase,
                 patch=_transport_patch(body),
-                setup=lambda d: _scenario(d),
+                setup=lambda d, changes=outflowing if "outflow" in name else None: _scenario(d, changes),
                 keeps_output=True,
             )
         )

@@ -29,8 +29,9 @@ EXAMPLES = [
 
 
 @st.composite
-def closed_scenarios(draw):
-    """A small valid scenario between walls or periodic: a random block on a random slope."""
+def closed_scenarios(draw, open_sides: bool = False):
+    """A small valid scenario between walls or periodic (``open_sides``: also outflow, and
+    inflow on the left, with a random inflow state): a random block on a random slope."""
     cells = draw(st.integers(8, 30))
     layers = draw(st.integers(1, 4))
     length = draw(st.floats(0.2, 2.0))
@@ -47,6 +48,18 @@ def closed_scenarios(draw):
         )
     )
     side = draw(st.sampled_from(["wall", "periodic"]))
+    boundaries = {"left": side, "right": side}
+    if open_sides and side == "wall":
+        boundaries = {
+            "left": draw(st.sampled_from(["wall", "outflow", "inflow"])),
+            "right": draw(st.sampled_from(["wall", "outflow"])),
+        }
+        if boundaries["left"] == "inflow":
+            speed = draw(st.floats(-0.5, 2.0))
+            boundaries["inflow"] = {
+                "thickness": draw(st.floats(0.005, 0.1)),
+                "velocity": {"profile": "plug", "speed": speed},
+            }
     initial = [
         {"shape": "rectangle", "x_min": start, "x_max": start + width, "height": draw(st.floats(0.01, 0.2))}
     ]
@@ -58,7 +71,7 @@ def closed_scenarios(draw):
         rheology=rheology,
         base=[{"condition": draw(st.sampled_from(["no_slip", "free_slip"]))}],
         initial=initial,
-        boundaries={"left": side, "right": side},
+        boundaries=boundaries,
     )
 
 
@@ -75,6 +88,25 @@ def test_engine_invariants_on_random_small_closed_scenarios(examples):
             sim.step()
             assert np.all(sim.h >= 0.0) and np.isfinite(sim.h).all() and np.isfinite(sim.u).all()
         assert sim.diagnostics()["mass"] == pytest.approx(mass0, rel=1e-13, abs=0)
+
+    check()
+
+
+@pytest.mark.parametrize("examples", EXAMPLES)
+def test_mass_balances_the_boundary_fluxes_on_random_open_scenarios(examples):
+    """mass(t) = mass(0) + the net mass through the boundaries to round-off, with outflow and
+    (sub- or supercritical, even reversed) inflow sides, and h >= 0, finite."""
+
+    @settings(max_examples=examples, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+    @given(closed_scenarios(open_sides=True))
+    def check(sc):
+        sim = Simulation(sc)
+        mass0 = sim.diagnostics()["mass"]
+        for _ in range(12):
+            sim.step()
+            assert np.all(sim.h >= 0.0) and np.isfinite(sim.h).all() and np.isfinite(sim.u).all()
+        mass = sim.diagnostics()["mass"]
+        assert abs(mass - mass0 - sim.net_inflow) <= 1e-12 * max(mass0, mass)
 
     check()
 

@@ -24,10 +24,14 @@ from conftest import TINY_SCENARIO
 
 from multilayer.app import lock
 from multilayer.engine import column_kernel, transport, transport_kernel
+from multilayer.engine import simulation as simulation_module
 from multilayer.engine.column_problem import ColumnProblem
+from multilayer.engine.plugin_output import PluginOutputError
 from multilayer.errors import RunError
 from multilayer.io.results import open_result, run_failure
 from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+from multilayer.plugins.builtins.jop_mu_i import JopMuI
+from multilayer.plugins.builtins.power_law_mu_i import PowerLawMuI
 
 SLUMP = {**TINY_SCENARIO, "name": "slump", "time": {"end": 0.2, "output_interval": 0.02}}
 
@@ -50,6 +54,8 @@ import numpy as np
 from multilayer.app.cli import main
 from multilayer.engine import column_kernel, simulation
 from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+from multilayer.plugins.builtins.jop_mu_i import JopMuI
+from multilayer.plugins.builtins.power_law_mu_i import PowerLawMuI
 {patch}
 print("ready", time.process_time(), flush=True)
 sys.exit(main(sys.argv[1:]))
@@ -155,6 +161,88 @@ def test_plugin_output_outside_the_contract_is_exit_1_naming_plugin_method_and_v
     assert open_result(tmp_path / "out").attrs["run_status"] == "failed"
 
 
+def _past_validation(law, **bad):
+    """A built-in law given parameters its constructor would refuse (set after it)."""
+    for name, value in bad.items():
+        setattr(law, name, value)
+    return law
+
+
+# laws whose compiled viscosity form (newton_kernel) is outside the contract: mu_2 < mu_s
+# makes the mu(I) viscosity negative, a NaN viscosity, and a shear-thinning power law
+# without its shear-rate floor has an infinite viscosity at rest
+BAD_COMPILED_LAWS = {
+    "negative": (lambda: _past_validation(JopMuI(0.38, 0.64, 0.279), mu_2=0.2), "returned -0.6", ">= 0"),
+    "nan": (lambda: _past_validation(DruckerPrager(0.3, 0.01), nu=np.nan), "returned nan", "finite"),
+    "infinite": (
+        lambda: _past_validation(PowerLawMuI(0.38, 0.2, 0.5), shear_rate_floor=0.0),
+        "returned inf",
+        "finite",
+    ),
+}
+CHUTE = dict(
+    slope_deg=25.0,
+    domain={"x_min": 0.0, "x_max": 1.0, "cells": 40, "layers": 3},
+    material={"density": 1550.0, "grain_diameter": 0.7e-3},
+    rheology={"name": "jop_mu_i", "mu_s": 0.38, "mu_2": 0.64, "I_0": 0.279},
+    base=[{"condition": "no_slip"}],
+    initial=[{"shape": "rectangle", "x_min": 0.0, "x_max": 0.3, "height": 0.1}],
+)
+
+
+@pytest.mark.parametrize("fault", BAD_COMPILED_LAWS)
+def test_a_compiled_viscosity_outside_the_contract_stops_the_kernel_as_the_python_guard_does(fault):
+    """The fused Newton kernel flags the column and stops; the error names the plugin, the
+    method, the value, x, the interface and t exactly as the check of the numpy path does."""
+    from engine import simulation
+
+    make, value, rule = BAD_COMPILED_LAWS[fault]
+    messages = []
+    for compiled in (True, False):
+        sim = simulation(**CHUTE)
+        assert sim.compiled_step is not None and sim.compiled_step.laws() is not None
+        sim.stresses.bulk = make()
+        if not compiled:
+            sim.compiled_step = None  # the numpy Newton iteration, which calls viscosity() itself
+        with pytest.raises(PluginOutputError) as caught, np.errstate(divide="ignore"):
+            sim.step()
+        assert sim.t == 0.0 and sim.steps == 0  # nothing was kept
+        messages.append(str(caught.value))
+    kernel, numpy_path = messages
+    assert f"{value}" in kernel and f"(must be {rule}) at x = 0.0125 m, interface 0 (0 is the bed)" in kernel
+    assert "its compiled form, viscosity_kernel" in kernel
+    # the same plugin, method, value, place, time and inputs as the Python-side guard
+    # the same plugin, method, place, time and inputs as the Python-side guard, and the
+    # same value to round-off (the kernel divides through an inverse)
+    returned = __import__("re").compile(r"returned (\S+) ")
+    kernel_value, numpy_value = (float(returned.search(m)[1]) for m in (kernel, numpy_path))
+    assert kernel_value == pytest.approx(numpy_value, rel=1e-14, nan_ok=True)
+    same = [returned.sub("returned VALUE ", m.rsplit(" (", 1)[0]) for m in (kernel, numpy_path)]
+    assert same[0] == same[1], (kernel, numpy_path)
+
+
+def test_a_compiled_viscosity_outside_the_contract_is_exit_1_naming_the_plugin(tmp_path, cli, monkeypatch):
+    real = simulation_module.Simulation.__init__
+
+    def with_bad_law(self, scenario):
+        real(self, scenario)
+        self.stresses.bulk = BAD_COMPILED_LAWS["negative"][0]()
+
+    monkeypatch.setattr(simulation_module.Simulation, "__init__", with_bad_law)
+    from engine import BASE
+
+    data = {**BASE, **CHUTE, "time": {"end": 0.1, "output_interval": 0.05}}
+    outdir = tmp_path / "out"
+    run = cli("run", _write(tmp_path, data), "-o", outdir, "-q")
+    assert run.code == 1
+    _no_traceback(run.err)
+    assert "rheology plugin 'jop_mu_i' (multilayer.plugins.builtins.jop_mu_i.JopMuI): viscosity()" in run.err
+    assert "returned -0.6" in run.err and "its compiled form, viscosity_kernel" in run.err
+    kept = open_result(outdir)
+    assert kept.attrs["run_status"] == "failed" and "viscosity_kernel" in kept.attrs["failure"]
+    np.testing.assert_array_equal(kept["time"], [0.0])  # the initial state is kept
+
+
 def test_the_column_kernel_refuses_non_finite_input_and_never_spins_on_it():
     rng = np.random.default_rng(0)
     L, N = 6, 50
@@ -244,6 +332,87 @@ def test_an_impossible_state_ends_the_run_keeping_the_last_good_state(
     assert run_failure(outdir).startswith("run_status failed")
 
 
+# a frictionless dam break, a chute fed by a supercritical inflow, a closed dam break and a
+# sliding layer on a periodic slope: the four kinds of boundary, material crossing the open ones
+BALANCE_CASES = {
+    "outflow dam break": dict(
+        boundaries={"left": "outflow", "right": "outflow"},
+        initial=[{"shape": "rectangle", "x_min": 0.75, "x_max": 1.25, "height": 0.2}],
+    ),
+    "inflow chute": dict(
+        slope_deg=25.0,
+        domain={"x_min": 0.0, "x_max": 1.0, "cells": 40, "layers": 3},
+        rheology={"name": "drucker_prager", "mu_s": 0.3, "nu": 0.01},
+        base=[{"condition": "no_slip"}],
+        boundaries={
+            "left": "inflow",
+            "right": "outflow",
+            "inflow": {"thickness": 0.05, "velocity": {"profile": "plug", "speed": 2.0}},
+        },
+    ),
+    "walls": dict(initial=[{"shape": "rectangle", "x_min": 0.0, "x_max": 0.5, "height": 0.2}]),
+    "periodic": dict(
+        slope_deg=20.0,
+        boundaries={"left": "periodic", "right": "periodic"},
+        initial=[{"shape": "rectangle", "x_min": 1.5, "x_max": 2.0, "height": 0.1}],
+    ),
+}
+
+
+@pytest.mark.parametrize("solver", ["numpy", "kernel"])
+@pytest.mark.parametrize("case", BALANCE_CASES)
+def test_mass_balances_the_boundary_fluxes_to_round_off_on_every_kind_of_boundary(case, solver):
+    """mass(t) = mass(0) + the mass that crossed the boundaries, to round-off, with either
+    transport; the crossings are the scheme's own face fluxes, checked independently
+    where they are known exactly: the upwind flux h_in u_in of a supercritical inflow, no
+    flux through a wall, and the same flux leaving one periodic side and entering the other."""
+    from engine import simulation
+
+    domain = {"domain": {"x_min": 0.0, "x_max": 2.0, "cells": 80, "layers": 3}}
+    sim = simulation(numerics={"transport_solver": solver}, **{**domain, **BALANCE_CASES[case]})
+    mass0, crossed = float(sim.h.sum() * sim.dx), []
+    sim.advance(1.2, lambda s, dt: crossed.append(s.boundary_mass.copy()))
+    left, right = np.sum(crossed, axis=0)
+    mass = float(sim.h.sum() * sim.dx)
+    assert sim.net_inflow == pytest.approx(left - right, rel=1e-12)
+    assert abs(mass - mass0 - sim.net_inflow) <= 1e-12 * max(mass, mass0)
+    sim.check_state()  # the guard's balance at an output time
+    if case == "outflow dam break":  # material left through both sides, symmetrically
+        assert -left == pytest.approx(right, rel=1e-9) and right > 0.2 * mass0
+    elif case == "inflow chute":  # h_in u_in for 1.2 s, and some of it already left
+        assert left == pytest.approx(0.05 * 2.0 * 1.2, rel=1e-12) and right > 0.0
+    elif case == "walls":
+        assert not np.any(crossed)
+    else:
+        assert all(step[0] == step[1] for step in crossed) and np.abs(crossed).max() > 0.0
+
+
+def test_a_mass_error_just_above_round_off_is_caught_at_an_open_boundary(tmp_path, cli, monkeypatch):
+    """1e-11 m added to one cell while material flows out (1e-10 of the thickness, far below
+    any bound of the boundary flux): exit 1 naming the transport and the size of its error,
+    the last good state kept."""
+    delta, dx = 1e-11, 0.5 / 40
+    _corrupt_transport(monkeypatch, 15, lambda h: h.__setitem__(30, h[30] + delta))
+    outflowing = dict(SLUMP, initial=[{"shape": "rectangle", "x_min": 0.3, "x_max": 0.5, "height": 0.05}])
+    outdir = tmp_path / "out"
+    run = cli("run", _write(tmp_path, outflowing), "-o", outdir, "-q")
+    assert run.code == 1
+    _no_traceback(run.err)
+    found = __import__("re").search(
+        r"mass is not conserved after the step from t = .*: the transport "
+        r"made an error of (\S+) m2, more than round-off",
+        run.err,
+    )
+    assert found, run.err
+    assert float(found[1]) == pytest.approx(delta * dx, rel=1e-3)  # the injected error, measured
+    kept = open_result(outdir)
+    assert kept.attrs["run_status"] == "failed" and np.isfinite(kept["h"].values).all()
+    assert (
+        kept["time"].values[-1] > 0.0
+        and f"the last good state at t={kept['time'].values[-1]:.6g} s" in run.err
+    )
+
+
 def test_a_sweep_marks_a_member_with_a_nan_plugin_failed(tmp_path, cli, monkeypatch):
     from dask.distributed import LocalCluster
 
@@ -260,8 +429,13 @@ def test_a_sweep_marks_a_member_with_a_nan_plugin_failed(tmp_path, cli, monkeypa
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0") as cluster:
         result = cli("sweep", sweep, "-o", tmp_path / "out", "--scheduler", cluster.scheduler_address)
     assert result.code == 1
+    _no_traceback(result.err)
     rows = (tmp_path / "out" / "summary.csv").read_text().splitlines()
     assert ",ok," in rows[1] and ",failed," in rows[2] and "viscosity() returned nan" in rows[2]
+    # the good member's result and the failed member's initial state are kept
+    good, bad = (open_result(next((tmp_path / "out").glob(f"m{i:03d}-*"))) for i in (0, 1))
+    assert good.attrs["run_status"] == "completed" and good.sizes["time"] == 3
+    assert bad.attrs["run_status"] == "failed" and np.isfinite(bad["h"].values).all()
 
 
 # ----------------------------------------------------------------------------- initial state
@@ -335,10 +509,14 @@ def test_a_corrupt_checkpoint_is_exit_2_with_its_path(tmp_path, cli, damage):
         arrays = dict(np.load(ckpt))
         arrays["state.h"] = arrays["state.h"] + 1.0
         np.savez(ckpt, **arrays)
+    before = open_result(outdir)
     result = cli("run", path, "-o", outdir, "--resume", "--set", "time.end=0.06")
     assert result.code == 2
     _no_traceback(result.err)
     assert f"{ckpt}: corrupt checkpoint" in result.err and "start again without --resume" in result.err
+    kept = open_result(outdir)  # the finished run's result is left as it was
+    assert kept.attrs["run_status"] == "completed"
+    np.testing.assert_array_equal(kept["h"].values, before["h"].values)
 
 
 # ----------------------------------------------------------------------------- lock
@@ -357,6 +535,7 @@ def test_a_directory_in_use_is_refused_naming_the_holder_and_a_stale_lock_taken_
         _no_traceback(result.err)
         assert f"another run is writing into this directory (pid {holder.pid} on host" in result.err
         assert started in result.err and not (outdir / "result.nc").exists()
+        assert json.loads((outdir / lock.LOCK_FILE).read_text()) == record  # the holder's lock is kept
     finally:
         holder.kill()
         holder.wait()
@@ -420,3 +599,36 @@ def test_the_lock_is_per_process(tmp_path):
             with lock.locked(tmp_path):
                 pass
     assert not (tmp_path / lock.LOCK_FILE).exists()
+
+
+# ----------------------------------------------------------------------------- project errors
+
+
+def test_stepping_past_the_end_or_without_progress_is_a_named_error_never_a_hang():
+    """``step(t_max)`` not later than ``t`` is bad input; a step too small to change ``t``
+    (a run far longer than its time step) is a run error instead of an endless loop."""
+    from engine import simulation
+
+    from multilayer.errors import InputError
+
+    sim = simulation(initial=[{"shape": "rectangle", "x_min": 0.0, "x_max": 2.0, "height": 0.5}])
+    sim.step()
+    with pytest.raises(
+        InputError, match=r"step\(t_max=0.0\): t_max must be later than the current time t = "
+    ):
+        sim.step(0.0)
+    sim.load_state({**sim.state_dict(), "t": 1e17})  # dt ~ 1e-2 s is below the spacing of floats at 1e17
+    with pytest.raises(RunError, match=r"the time step dt = .* s at t = 1e\+17 s does not advance the time"):
+        sim.advance(2e17)
+    assert sim.t == 1e17 and sim.steps == 1
+
+
+def test_a_singular_non_hydrostatic_system_and_a_non_finite_measure_are_run_errors(tmp_path):
+    from multilayer.app import ensemble
+    from multilayer.engine.nonhydrostatic import _factor
+
+    indefinite = np.array([[1.0, 2.0], [1.0, 0.0]])  # band rows A[i, i], A[i, i + 1] of [[1, 2], [2, 1]]
+    with pytest.raises(RunError, match="the non-hydrostatic pressure system is not positive definite"):
+        _factor(indefinite, np.zeros(2, dtype=np.bool_), np.zeros((2, 2)), 0)
+    with pytest.raises(RunError, match=r"a measured quantity is not finite \(\[nan\]\)"):
+        ensemble._measured(lambda path: np.array([np.nan]), tmp_path)

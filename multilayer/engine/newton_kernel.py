@@ -20,7 +20,8 @@ import numpy as np
 from numba import njit, prange
 
 from multilayer.engine.column_kernel import _active_set, _dynamic_programme, _workspace
-from multilayer.engine.stress import ColumnStresses, StressModel
+from multilayer.engine.plugin_output import PluginOutputError, outside_contract
+from multilayer.engine.stress import INTERFACE, LAYER, ColumnStresses, StressModel
 
 FORMS = {"constant": 0, "inertial": 1, "power": 2}
 BLOCK = 16
@@ -109,10 +110,13 @@ def _newton_model(kappa, rate, eta, slope):
 def _columns(
     chunks, wet, m, kappa0, w0, pressure, spacing, viscous, wall_pressure, ustar, guess,
     dt, bulk_form, bulk_params, wall_form, wall_params, width, density, threshold, max_iterations,
-    u_out, iterations, fallbacks,
+    u_out, iterations, fallbacks, faults, fault_values,
 ):  # fmt: skip
     """Newton iterations of every wet column (``wet`` indexes the columns of ustar/guess);
     ``fallbacks`` counts the solves per column that needed the O(L^2) dynamic programme.
+    A column where a compiled viscosity is not finite and >= 0 stops iterating: ``faults``
+    gets a + 1 for the bulk law at interface a, -(a + 1) for the wall law of layer a (0:
+    none) and ``fault_values`` the viscosity and the shear rate.
 
     What does not change from one iteration to the next (masses, pressure parts of the
     laws, inverse spacings, wall thresholds) is computed once per step, while the
@@ -182,6 +186,7 @@ def _columns(
                     current[a] = b_guess[jj, a]
                 iterations[j] = -1
                 fallbacks[j] = 0
+                fault = 0
                 for iteration in range(1, max_iterations + 1):
                     # the Newton model at the current velocities (StressModel.linearise)
                     below = 0.0
@@ -189,6 +194,9 @@ def _columns(
                         rate = abs(current[a] - below) * inverse_spacing[a]
                         below = current[a]
                         eta, slope = _viscosity_and_slope(bulk_form, bulk_params, rate, factor[a], offset[a])
+                        if not (eta >= 0.0 and eta < np.inf) and fault == 0:  # the plugin contract
+                            fault = a + 1
+                            fault_values[j, 0], fault_values[j, 1] = eta, rate
                         ka, t = _newton_model(kappa[a], rate, eta, slope)
                         kc[a] = ka if is_viscous[a] else kappa[a]
                         cc[a] = t * conductance[a]
@@ -197,9 +205,14 @@ def _columns(
                             eta, slope = _viscosity_and_slope(
                                 wall_form, wall_params, rate, wall_factor[a], wall_offset[a]
                             )
+                            if not (eta >= 0.0 and eta < np.inf) and fault == 0:
+                                fault = -(a + 1)
+                                fault_values[j, 0], fault_values[j, 1] = eta, rate
                             wa, ta = _newton_model(wall[a], rate, eta, slope)
                             wc[a] = per_area[a] * wa
                             cwc[a] = per_area[a] * ta * inverse_half
+                    if fault != 0:
+                        break
                     if not inertia[0] > 0.0:
                         for a in range(L):
                             new[a] = 0.0
@@ -228,6 +241,7 @@ def _columns(
                     if change <= threshold:
                         iterations[j] = iteration
                         break
+                faults[j] = fault
                 for a in range(L):
                     b_out[jj, a] = current[a]
             for a in range(L):
@@ -289,6 +303,7 @@ class CompiledStep:
         u.fill(0.0)
         iterations = np.empty(wet.size, np.int64)
         fallbacks = np.empty(wet.size, np.int64)
+        faults, fault_values = np.empty(wet.size, np.int64), np.empty((wet.size, 2))
         wall_form, wall_params = walls if walls is not None else (0, np.zeros(1))
         width = float(self.stresses.width) if walls is not None else 0.0
         chunks = max(1, min(wet.size, 4 * threads))
@@ -297,8 +312,23 @@ class CompiledStep:
             chunks if threads > 1 else 1, wet, cs.m, cs.kappa, cs.w, cs.pressure, cs.spacing, cs.viscous,
             cs.wall_pressure, np.ascontiguousarray(ustar), np.ascontiguousarray(u_guess), float(dt),
             bulk_form, bulk_params, wall_form, wall_params, width, float(self.stresses.material.density),
-            float(threshold), int(max_iterations), u, iterations, fallbacks,
+            float(threshold), int(max_iterations), u, iterations, fallbacks, faults, fault_values,
         )  # fmt: skip
+        if faults.any():
+            raise self._fault(cs, faults, fault_values)
         self.solves += int(np.where(iterations < 0, max_iterations, iterations).sum())
         self.fallbacks += int(fallbacks.sum())
         return u, iterations
+
+    def _fault(self, cs: ColumnStresses, faults: np.ndarray, values: np.ndarray) -> PluginOutputError:
+        """The error naming the law, the viscosity and where, for the first column whose
+        compiled viscosity was outside the plugin contract (``faults`` of ``_columns``)."""
+        j = int(np.flatnonzero(faults)[0])
+        bulk, a = faults[j] > 0, abs(int(faults[j])) - 1
+        pressure = cs.pressure[a, j] if bulk else cs.wall_pressure[a, j]
+        return outside_contract(
+            self.stresses.bulk if bulk else self.stresses.walls, "viscosity()", float(values[j, 0]),
+            x=float(cs.x[j]), where=(INTERFACE if bulk else LAYER).format(index=a, number=a + 1),
+            t=self.stresses.t, given={"shear rate": float(values[j, 1]), "pressure": float(pressure)},
+            note=f"its compiled form, viscosity_kernel; {int(np.count_nonzero(faults))} column(s) affected",
+        )  # fmt: skip

@@ -278,7 +278,10 @@ def _factor(band, fixed, U, start):
         source = U[i]
         if i >= start:
             if source[0] <= 0.0:
-                raise ValueError("matrix not positive definite")
+                raise RunError(
+                    "the non-hydrostatic pressure system is not positive definite (a non-positive pivot "
+                    "of its Cholesky factorisation): the constraints of the moving layers are singular"
+                )
             diagonal = np.sqrt(source[0])
             inverse = 1.0 / diagonal
             source[0] = diagonal

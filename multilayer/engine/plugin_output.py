@@ -62,11 +62,30 @@ def call(
         a, j = np.unravel_index(np.argmin(good), shape) if array.ndim == 2 else (0, int(np.argmin(good)))
         bad = float(array[a, j] if array.ndim == 2 else array[j])
         count = int(array.size - np.count_nonzero(good))
-        given = ", ".join(f"{name} = {float(np.asarray(v)[a, j]):.6g}" for name, v in inputs.items())
-        rule = "finite" if not np.isfinite(bad) else ">= 0"
-        raise PluginOutputError(
-            f"{plugin_label(plugin)}: {method}() returned {bad!r} (must be {rule}) at "
-            f"x = {float(x[j]):.6g} m, {position.format(index=a, number=a + 1)}, t = {t:.6g} s, "
-            f"for {given} ({count} bad value(s) in this call)"
-        )
+        given = {name: float(np.asarray(v)[a, j]) for name, v in inputs.items()}
+        raise outside_contract(
+            plugin, f"{method}()", bad, x=float(x[j]), where=position.format(index=a, number=a + 1), t=t,
+            given=given, note=f"{count} bad value(s) in this call",
+        )  # fmt: skip
     return array
+
+
+def outside_contract(
+    plugin: Any,
+    method: str,
+    bad: float,
+    *,
+    x: float,
+    where: str,
+    t: float,
+    given: dict[str, float],
+    note: str,
+) -> PluginOutputError:
+    """The error for a value ``bad`` of ``plugin``'s ``method`` that is not finite and >= 0,
+    found at ``x`` (m), ``where`` (interface or layer) and time ``t``, for the inputs ``given``."""
+    rule = "finite" if not np.isfinite(bad) else ">= 0"
+    inputs = ", ".join(f"{name} = {value:.6g}" for name, value in given.items())
+    return PluginOutputError(
+        f"{plugin_label(plugin)}: {method} returned {bad!r} (must be {rule}) at "
+        f"x = {x:.6g} m, {where}, t = {t:.6g} s, for {inputs} ({note})"
+    )

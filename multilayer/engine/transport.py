@@ -178,25 +178,49 @@ def _rates(h, u, b, l, *, dx, g_n, g_t, left, right, inflow, order, at_rest, gat
     exchange[1:] -= u_G * G
 
     dq = -(east - west + bed_slope) / dx + exchange + g_t * l * h
-    return -div_Q, dq
+    # the mass fluxes through the two end faces, as the cells next to them see them
+    ends = (_layer_sum(flux_h_east[:, 0]), _layer_sum(flux_h_west[:, -1]))
+    return -div_Q, dq, ends
+
+
+def _layer_sum(flux: np.ndarray) -> float:
+    """Sum of the layer fluxes of one face, layer by layer from the bed (the order of the
+    compiled sweep, so that both paths give the same bits)."""
+    total = float(flux[0])
+    for value in flux[1:]:
+        total += float(value)
+    return total
+
+
+def step_boundary_mass(stage_fluxes: np.ndarray, dt: float) -> np.ndarray:
+    """Mass (m^2 per unit width) through the left and right end faces during a step of
+    ``dt``, positive in +x, from the face mass fluxes of each stage ``(order, 2)``:
+    ``dt F`` for forward Euler, ``dt (F_1 + F_2) / 2`` for Heun, whose update
+    ``h + dt (R(h) + R(h_1)) / 2`` weighs both stages by one half."""
+    if stage_fluxes.shape[0] == 1:
+        return dt * stage_fluxes[0]
+    return 0.5 * dt * (stage_fluxes[0] + stage_fluxes[1])
 
 
 def _step(h, u, b, l, *, dt, dry, **kw):
-    """Forward Euler (order 1) or Heun (order 2) step of the transport rates."""
+    """Forward Euler (order 1) or Heun (order 2) step of the transport rates; returns
+    h, u and the mass through the two end faces (``step_boundary_mass``)."""
 
     def velocity(h_, q_):
         wet = h_ > dry
         return np.where(wet, q_ / (l * np.where(wet, h_, 1.0)), 0.0)
 
     q = l * h * u
-    dh, dq = _rates(h, u, b, l, **kw)
+    dh, dq, ends = _rates(h, u, b, l, **kw)
+    stage_fluxes = [ends]
     h1 = np.maximum(h + dt * dh, 0.0)  # >= 0 exactly; the clip removes round-off only
     q1 = q + dt * dq
     if kw["order"] == 2:  # Heun: the average of the state and two Euler steps
-        dh, dq = _rates(h1, velocity(h1, q1), b, l, **kw)
+        dh, dq, ends = _rates(h1, velocity(h1, q1), b, l, **kw)
+        stage_fluxes.append(ends)
         h1 = np.maximum(0.5 * (h + h1 + dt * dh), 0.0)
         q1 = 0.5 * (q + q1 + dt * dq)
-    return h1, velocity(h1, q1)
+    return h1, velocity(h1, q1), step_boundary_mass(np.array(stage_fluxes), dt)
 
 
 MARGIN = 4
@@ -222,6 +246,7 @@ def transport(
     moving: np.ndarray | None = None,
     gate_face: int | None = None,
     opening: np.ndarray | None = None,
+    boundary_mass: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """One explicit transport step: returns h^{n+1} (N,) and the velocities u* (L, N).
 
@@ -229,7 +254,9 @@ def transport(
     leave the step at rest.  ``moving`` (N,) marks the columns that carry waves during
     the step (default: those with a non-zero velocity).  ``opening`` (L,) are the opening
     fractions of the layers at face ``gate_face`` (face i between cells i-1 and i) of a
-    partly lifted gate (engine/gate.py); None: no gate.
+    partly lifted gate (engine/gate.py); None: no gate.  ``boundary_mass`` (2,), if
+    given, receives the mass (m^2 per unit width) that crossed the left and the right
+    boundary during the step, positive in +x (the mass balance of ``state_check``).
     """
     if opening is not None and gate_face is None:
         raise ValueError("transport: a gate opening was given without its gate_face")
@@ -255,7 +282,7 @@ def transport(
     if opening is not None and gate_face is not None and lo <= gate_face <= hi:
         gate = (gate_face - lo, np.asarray(opening, dtype=float))
     h_new, u_new = np.zeros_like(h), np.zeros_like(u)
-    h_new[window], u_new[:, window] = _step(
+    h_new[window], u_new[:, window], crossed = _step(
         hw,
         uw,
         b[window],
@@ -272,4 +299,6 @@ def transport(
         at_rest=at_rest,
         gate=gate,
     )
+    if boundary_mass is not None:
+        boundary_mass[:] = crossed  # a window edge inside the domain is dry: no flux there
     return h_new, u_new

@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from multilayer.engine.transport import MARGIN
+from multilayer.engine.transport import MARGIN, step_boundary_mass
 
 WALL, OUTFLOW, INFLOW, PERIODIC = 0, 1, 2, 3
 BOUNDARY_CODES = {"wall": WALL, "outflow": OUTFLOW, "inflow": INFLOW, "periodic": PERIODIC}
@@ -179,7 +179,7 @@ def _momentum_rate(i, west_flux, momentum, terms, exchange, pressure, slope, gra
 @njit(cache=True, error_model="numpy")
 def _tile(
     stage, order, t0, t1, n, lo, left, right, at_rest, H, U, B, Q1, H1, l, dx, dt, g_n, g_t, dry,
-    inflow_h, inflow_u, gate_face, opening, H_out, U_out, work,
+    inflow_h, inflow_u, gate_face, opening, H_out, U_out, ends, work,
 ):  # fmt: skip
     """One stage on the cells ``t0 .. t1-1`` of the window (faces ``t0 .. t1``), layer by
     layer over the tile's columns (contiguous rows of the (L, N) arrays).
@@ -188,7 +188,9 @@ def _tile(
     reconstructed, the faces ``t0 .. t1`` get their HLL fluxes (the gate's at
     ``gate_face``), and the cells are updated.  ``stage`` 0: forward Euler from (H, U),
     to (H_out, U_out) at order 1 and to (H1, Q1) at order 2; ``stage`` 1: Heun's second
-    stage from (H1, Q1), averaged with (H, U), to (H_out, U_out).
+    stage from (H1, Q1), averaged with (H, U), to (H_out, U_out).  The mass fluxes through
+    the end faces 0 and n of the window, as the cells next to them see them, go to
+    ``ends[stage]`` (summed over the layers from the bed up).
     """
     L = l.size
     m = t1 - t0
@@ -315,6 +317,13 @@ def _tile(
             gate_h,
             gate_q,
         )
+    for f in (0, m):  # an end face of the window in this tile
+        if t0 + f == 0 or t0 + f == n:
+            seen_from_east = t0 + f == 0 and f == gate
+            total = gate_h[0] if seen_from_east else fh[0, f]
+            for a in range(1, L):
+                total += gate_h[a] if seen_from_east else fh[a, f]
+            ends[stage, 0 if t0 + f == 0 else 1] = total
     # the cells: divergence of the layer mass fluxes, mass exchange, update
     for a in range(L):
         rate, mass = div_h[a], fh[a]
@@ -408,7 +417,7 @@ def _tile(
 
 def _stages(
     chunks, order, n, lo, left, right, at_rest, H, U, B, Q1, H1, l, dx, dt, g_n, g_t, dry,
-    inflow_h, inflow_u, gate_face, opening, H_out, U_out,
+    inflow_h, inflow_u, gate_face, opening, H_out, U_out, ends,
 ):  # fmt: skip
     """Both stages over the window in ``chunks`` independent pieces (one per thread), each
     swept in tiles of about ``TILE`` cells."""
@@ -422,7 +431,8 @@ def _stages(
                 for t0 in range(c0, c1, T):
                     _tile(
                         stage, order, t0, min(t0 + T, c1), n, lo, left, right, at_rest, H, U, B, Q1, H1, l,
-                        dx, dt, g_n, g_t, dry, inflow_h, inflow_u, gate_face, opening, H_out, U_out, work,
+                        dx, dt, g_n, g_t, dry, inflow_h, inflow_u, gate_face, opening, H_out, U_out, ends,
+                        work,
                     )  # fmt: skip
 
 
@@ -534,6 +544,7 @@ class Workspace:
         self.h = np.zeros(cells)
         self.u = np.zeros((layers, cells))
         self.written = (0, 0)
+        self.ends = np.zeros((2, 2))  # mass fluxes through the end faces, per stage
 
     def clear_outside(self, lo: int, hi: int) -> None:
         """Zero the result outside the columns ``lo .. hi-1`` (only what an earlier step
@@ -566,11 +577,14 @@ def transport(
     opening: np.ndarray | None = None,
     workspace: Workspace | None = None,
     threads: int = 1,
+    boundary_mass: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``transport.transport`` compiled: returns h^{n+1} (N,) and u* (L, N).
 
     The result lives in ``workspace`` (a new one when None) and is overwritten by its
     next use.  ``threads > 1`` sweeps that many chunks of the window in parallel.
+    ``boundary_mass`` (2,), if given, receives the mass that crossed the left and the
+    right boundary, positive in +x (as ``transport.transport``).
     """
     if opening is not None and gate_face is None:
         raise ValueError("transport: a gate opening was given without its gate_face")
@@ -596,6 +610,8 @@ def transport(
         chunks, order, n, lo, left_kind, right_kind, at_rest,
         h, u, b, ws.q1, ws.h1, np.ascontiguousarray(fractions, dtype=float),
         float(dx), float(dt), float(g_n), float(g_t), float(dry), inflow_h, inflow_u, gate, opening,
-        ws.h, ws.u,
+        ws.h, ws.u, ws.ends,
     )  # fmt: skip
+    if boundary_mass is not None:
+        boundary_mass[:] = step_boundary_mass(ws.ends[:order], float(dt))
     return ws.h, ws.u

@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from multilayer.app.commands import add_budget_arguments, budget
+from multilayer.app.commands import add_budget_arguments, add_output_argument, add_set_argument, budget
 from multilayer.io import scenario as scenarios
 
 HELP = "run a scenario file and write DIR/result.nc"
@@ -18,20 +18,10 @@ HELP = "run a scenario file and write DIR/result.nc"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``multilayer run``."""
     parser.add_argument("scenario", metavar="SCENARIO", help="scenario YAML file")
-    parser.add_argument(
-        "-o",
-        "--output",
-        metavar="DIR",
-        type=Path,
-        help="output directory (default: output.directory, else results/<name>)",
-    )
-    parser.add_argument(
-        "--set",
-        dest="overrides",
-        metavar="KEY=VALUE",
-        action="append",
-        default=[],
-        help="override a scenario key, e.g. --set domain.cells=200 "
+    add_output_argument(parser, "output.directory, else results/<name>")
+    add_set_argument(
+        parser,
+        "override a scenario key, e.g. --set domain.cells=200 "
         "or --set initial.0.thickness=0.005 (value read as YAML; repeatable)",
     )
     parser.add_argument(

@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 from multilayer.app import resources
-from multilayer.app.commands import add_budget_arguments, budget
+from multilayer.app.commands import add_budget_arguments, add_set_argument, budget
 from multilayer.engine import initial_state
 from multilayer.errors import InputError
 from multilayer.io import scenario as scenarios
@@ -23,14 +23,7 @@ HELP = "check scenario files without running them"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``multilayer validate``."""
     parser.add_argument("files", metavar="FILE", nargs="+", help="scenario YAML files")
-    parser.add_argument(
-        "--set",
-        dest="overrides",
-        metavar="KEY=VALUE",
-        action="append",
-        default=[],
-        help="override a key in every file, as for 'multilayer run'",
-    )
+    add_set_argument(parser, "override a key in every file, as for 'multilayer run'")
     add_budget_arguments(parser)
 
 
