@@ -179,27 +179,18 @@ class Simulation:
                 f"step(t_max={t_max!r}): t_max must be later than the current time t = {self.t!r} s"
             )
         dt = min(self.time_step(), t_max - self.t)
-        if not (dt > 0 and self.t + dt > self.t):  # a step that would not advance t: never loop on it
-            raise RunError(
-                f"the time step dt = {dt!r} s at t = {self.t!r} s does not advance the time (the fastest "
-                f"wave speed is {transport_kernel.max_wave_speed(self.h, self.u, self.g_n)!r} m/s; dt "
-                f"below the resolution of t when the run is too long for its step)"
-            )
-        # columns that move carry waves; material at rest that the step sets moving carries
-        # them from the start of the step: redo it until that set is complete (a dry
-        # column being filled is no material at rest and needs no redo)
-        moving = transport_kernel.moving_columns(self.u)
-        held = self.h > self.numerics.dry_threshold
-        rest = (self.u == 0.0) & held  # material at rest now: the static yield stress applies
-        iterations = 0
-        self.stresses.t = self.t
         while True:
-            h_new, u_new, w_new, q_new, seed, more = self._transport_and_stresses(dt, moving, rest)
-            iterations += more
-            starting = transport_kernel.moving_columns(u_new) & ~moving & held
-            if not starting.any():
+            self._check_advances(dt)
+            h_new, u_new, w_new, q_new, seed, iterations = self._transport_with_starting_columns(dt)
+            # the Courant condition must hold for the waves of the step's end as well: material
+            # accelerated from (near) rest within one step (gravity on a steep slope) would put
+            # the second Heun stage past the positivity limit; redo with the faster waves
+            faster = transport.courant_step(
+                transport_kernel.max_wave_speed(h_new, u_new, self.g_n), self.dx, transport.POSITIVITY_LIMIT
+            )
+            if dt <= faster:
                 break
-            moving |= starting
+            dt = self.scenario.time.cfl / transport.POSITIVITY_LIMIT * faster  # < faster < dt
         # the state guard: an impossible state is never kept (the last good one stays)
         self.guard.check_step(self.h, h_new, u_new, self.t, dt, self.boundary_mass)
         self.h[...] = h_new
@@ -212,6 +203,35 @@ class Simulation:
         # land exactly on t_max when the step was cut to reach it
         self.t = t_max if dt == t_max - self.t else self.t + dt
         return dt
+
+    def _check_advances(self, dt: float) -> None:
+        """Refuse a step that would not advance t: never loop on it."""
+        if not (dt > 0 and self.t + dt > self.t):
+            raise RunError(
+                f"the time step dt = {dt!r} s at t = {self.t!r} s does not advance the time (the fastest "
+                f"wave speed is {transport_kernel.max_wave_speed(self.h, self.u, self.g_n)!r} m/s; dt "
+                f"below the resolution of t when the run is too long for its step)"
+            )
+
+    def _transport_with_starting_columns(
+        self, dt: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+        """One step of :meth:`_transport_and_stresses` from the current state.  Columns that
+        move carry waves; material at rest that the step sets moving carries them from the
+        start of the step: the step is redone until that set is complete (a dry column being
+        filled is no material at rest and needs no redo)."""
+        moving = transport_kernel.moving_columns(self.u)
+        held = self.h > self.numerics.dry_threshold
+        rest = (self.u == 0.0) & held  # material at rest now: the static yield stress applies
+        iterations = 0
+        self.stresses.t = self.t
+        while True:
+            h_new, u_new, w_new, q_new, seed, more = self._transport_and_stresses(dt, moving, rest)
+            iterations += more
+            starting = transport_kernel.moving_columns(u_new) & ~moving & held
+            if not starting.any():
+                return h_new, u_new, w_new, q_new, seed, iterations
+            moving |= starting
 
     def _transport_and_stresses(
         self, dt: float, moving: np.ndarray, rest: np.ndarray | None = None
