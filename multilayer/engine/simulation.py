@@ -132,7 +132,9 @@ class Simulation:
         # the plugs (layers locked together) that the per-layer corrections would break
         # (the other pressures seed it with u itself: the same array, never copied)
         self.newton_seed = self.u.copy() if self.pressure == "non_hydrostatic" else self.u
-        # per-step masks, allocated once: columns that move, layers of material at rest
+        # per-step masks, allocated once: columns that move at the start of the step and
+        # during it (material at rest set moving), layers of material at rest
+        self._moving_start = np.zeros(dom.cells, dtype=bool)
         self._moving = np.zeros(dom.cells, dtype=bool)
         self._rest = np.zeros(self.u.shape, dtype=bool)
         self.t = 0.0
@@ -184,25 +186,22 @@ class Simulation:
             )
         # one pass over the state: the moving columns, the layers of material at rest (the
         # static yield stress applies to them) and the fastest wave
-        moving, rest, dry = self._moving, self._rest, self.numerics.dry_threshold
-        speed = transport_kernel.survey(self.h, self.u, dry, self.g_n, moving, rest)
+        speed = transport_kernel.survey(
+            self.h, self.u, self.numerics.dry_threshold, self.g_n, self._moving_start, self._rest
+        )
         dt = min(self._courant_step(speed), t_max - self.t)
-        if not (dt > 0 and self.t + dt > self.t):  # a step that would not advance t: never loop on it
-            raise RunError(
-                f"the time step dt = {dt!r} s at t = {self.t!r} s does not advance the time (the fastest "
-                f"wave speed is {speed!r} m/s; dt below the resolution of t when the run is too long "
-                f"for its step)"
-            )
-        # columns that move carry waves; material at rest that the step sets moving carries
-        # them from the start of the step: redo it until that set is complete (a dry
-        # column being filled is no material at rest and needs no redo)
-        iterations = 0
-        self.stresses.t = self.t
         while True:
-            h_new, u_new, w_new, q_new, seed, more = self._transport_and_stresses(dt, moving, rest)
-            iterations += more
-            if not transport_kernel.start_moving(u_new, self.h, dry, moving):
+            self._check_advances(dt)
+            h_new, u_new, w_new, q_new, seed, iterations = self._transport_with_starting_columns(dt)
+            # the Courant condition must hold for the waves of the step's end as well: material
+            # accelerated from (near) rest within one step (gravity on a steep slope) would put
+            # the second Heun stage past the positivity limit; redo with the faster waves
+            faster = transport.courant_step(
+                transport_kernel.max_wave_speed(h_new, u_new, self.g_n), self.dx, transport.POSITIVITY_LIMIT
+            )
+            if dt <= faster:
                 break
+            dt = self.scenario.time.cfl / transport.POSITIVITY_LIMIT * faster  # < faster < dt
         # the state guard: an impossible state is never kept (the last good one stays)
         self.guard.check_step(self.h, h_new, u_new, self.t, dt, self.boundary_mass)
         self.h[...] = h_new
@@ -217,6 +216,32 @@ class Simulation:
         # land exactly on t_max when the step was cut to reach it
         self.t = t_max if dt == t_max - self.t else self.t + dt
         return dt
+
+    def _check_advances(self, dt: float) -> None:
+        """Refuse a step that would not advance t: never loop on it."""
+        if not (dt > 0 and self.t + dt > self.t):
+            raise RunError(
+                f"the time step dt = {dt!r} s at t = {self.t!r} s does not advance the time (the fastest "
+                f"wave speed is {transport_kernel.max_wave_speed(self.h, self.u, self.g_n)!r} m/s; dt "
+                f"below the resolution of t when the run is too long for its step)"
+            )
+
+    def _transport_with_starting_columns(
+        self, dt: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+        """One step of :meth:`_transport_and_stresses` from the current state.  Columns that
+        move carry waves; material at rest that the step sets moving carries them from the
+        start of the step: the step is redone until that set is complete (a dry column being
+        filled is no material at rest and needs no redo)."""
+        moving, rest, dry = self._moving, self._rest, self.numerics.dry_threshold
+        moving[...] = self._moving_start  # a step redone shorter starts from the same columns
+        iterations = 0
+        self.stresses.t = self.t
+        while True:
+            h_new, u_new, w_new, q_new, seed, more = self._transport_and_stresses(dt, moving, rest)
+            iterations += more
+            if not transport_kernel.start_moving(u_new, self.h, dry, moving):
+                return h_new, u_new, w_new, q_new, seed, iterations
 
     def _transport_and_stresses(
         self, dt: float, moving: np.ndarray, rest: np.ndarray | None = None

@@ -79,10 +79,14 @@ def _minmod_slope(v: np.ndarray) -> np.ndarray:
     return np.where(back * ahead > 0, np.sign(back) * np.minimum(np.abs(back), np.abs(ahead)), 0.0)
 
 
+#: largest Courant number at which a stage of the scheme keeps h >= 0 (Audusse et al. 2004)
+POSITIVITY_LIMIT = 0.5
+
+
 def courant_step(speed: float, dx: float, cfl: float) -> float:
     """Time step of the Courant condition for the fastest wave ``speed``, the Courant
-    number capped at the positivity limit 1/2."""
-    return min(cfl, 0.5) * dx / speed if speed > 0 else np.inf
+    number capped at the positivity limit."""
+    return min(cfl, POSITIVITY_LIMIT) * dx / speed if speed > 0 else np.inf
 
 
 def _gated(flux_h, flux_q, hL, uL, hR, uR, l, g_n, gate):
