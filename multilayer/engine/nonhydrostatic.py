@@ -318,7 +318,7 @@ def _bounded(band, r, lam_max, active, max_iterations):
     Each iteration refactors the Cholesky factor from the first row whose status changed.
     Returns ``lam`` and the iterations (-1: not settled)."""
     n, w = band.shape[0], band.shape[1] - 1
-    U = np.zeros(band.shape)
+    U = np.empty(band.shape)  # the first factorisation (start 0) writes all of it
     rhs = np.empty(n)
     start = 0
     for iteration in range(1, max_iterations + 1):
@@ -483,8 +483,9 @@ def project(
     dv = dV[: L * F].reshape(L, F)
     dw = dV[L * F :].reshape(L, N)
     du = np.zeros_like(u)
-    np.add.at(du.T, left, 0.5 * dv.T)  # du.T is a view: columns of du gather their faces
-    np.add.at(du.T, right, 0.5 * dv.T)
+    half = 0.5 * dv
+    du[:, left] += half  # each column is the left of one face at most, and the right of one
+    du[:, right] += half
     u_new = np.where(moving, u + du, u)
     w_new = np.where(moving, w + dw, 0.0)
     q = np.cumsum((fractions[:, None] * h * dw)[::-1], axis=0)[::-1] / dt
