@@ -282,6 +282,28 @@ def test_cholesky_refactored_from_a_row_equals_the_whole_factorisation():
     assert np.allclose(fixed @ nonhydrostatic._substitute(U, b), b, rtol=0, atol=1e-10)
 
 
+@pytest.mark.parametrize(("n", "w", "start"), [(61, 5, 0), (60, 5, 33), (9, 1, 4), (8, 0, 3), (1, 0, 0)])
+def test_cholesky_two_rows_at_a_time_equals_the_dense_factor(n, w, start):
+    """The banded factor (rows eliminated in pairs, refactored from ``start``) equals the
+    dense Cholesky factor of A' (A with the fixed rows and columns replaced by the identity)
+    to round-off, for odd and even sizes, starts and half-widths down to 0."""
+    rng = np.random.default_rng(7)
+    dense = np.zeros((n, n))
+    for d in range(w + 1):
+        dense += np.diag(rng.normal(size=n - d), d)
+    dense = dense + dense.T + 4 * (w + 1) * np.eye(n)  # diagonally dominant, half-width w
+    band = np.array([[dense[i, i + d] if i + d < n else 0.0 for d in range(w + 1)] for i in range(n)])
+    fixed = rng.random(n) < 0.25
+    U = np.zeros(band.shape)
+    # first the factor of a set that differs from ``start`` on, then refactored from there
+    nonhydrostatic._factor(band, np.where(np.arange(n) < start, fixed, ~fixed), U, 0)
+    nonhydrostatic._factor(band, fixed, U, start)
+    reduced = np.where(fixed[:, None] | fixed[None, :], 0.0, dense) + np.diag(fixed.astype(float))
+    upper = np.linalg.cholesky(reduced).T
+    expected = np.array([[upper[i, i + d] if i + d < n else 0.0 for d in range(w + 1)] for i in range(n)])
+    assert np.abs(U - expected).max() <= 1e-14 * np.abs(expected).max() * n
+
+
 def test_a_step_whose_newton_seed_fails_is_solved_from_u():
     """The vertical step is seeded with the unprojected velocities of the step before; in
     this collapse (a = 10, 16 layers, steps cut at 0.01 s) the Newton iteration did not

@@ -274,21 +274,49 @@ def _factor(band, fixed, U, start):
             U[i, 0] = 1.0
             for d in range(1, min(w, i - start) + 1):
                 U[i - d, d] = 0.0
-    for i in range(max(0, start - w), n):
+    for i in range(max(0, start - w), start):  # finished rows: their updates of the columns from start
         source = U[i]
-        if i >= start:
-            if source[0] <= 0.0:
-                raise ValueError("matrix not positive definite")
-            diagonal = np.sqrt(source[0])
-            inverse = 1.0 / diagonal
-            source[0] = diagonal
-            for d in range(1, w + 1):
-                source[d] *= inverse
-        for k in range(max(1, start - i), min(w, n - 1 - i) + 1):
+        for k in range(start - i, min(w, n - 1 - i) + 1):
             factor = source[k]
             target = U[i + k]
             for d in range(k, w + 1):
                 target[d - k] -= factor * source[d]
+    i = start
+    while i < n:
+        # rows i and i + 1 together: each entry of a row below takes the update of row i, then
+        # that of row i + 1, in the order of one row at a time (the same result, bit for bit),
+        # with half the passes over the rows below
+        source = U[i]
+        _normalise(source, w)
+        if i + 1 == n:
+            break
+        second = U[i + 1]
+        factor = source[1]
+        for d in range(1, w + 1):
+            second[d - 1] -= factor * source[d]
+        _normalise(second, w)
+        for k in range(2, min(w, n - 1 - i) + 1):
+            factor, factor2 = source[k], second[k - 1]
+            target = U[i + k]
+            for d in range(k, w + 1):
+                target[d - k] = (target[d - k] - factor * source[d]) - factor2 * second[d - 1]
+            target[w + 1 - k] -= factor2 * second[w]
+        if 0 < w and i + w + 1 < n:
+            U[i + w + 1, 0] -= second[w] * second[w]
+        i += 2
+
+
+@njit(cache=True)
+def _normalise(row, w):
+    """Row of the Cholesky factor from its updated row of ``A``: the diagonal's square root,
+    the rest divided by it."""
+    if row[0] <= 0.0:
+        raise ValueError("matrix not positive definite")
+    diagonal = np.sqrt(row[0])
+    inverse = 1.0 / diagonal
+    row[0] = diagonal
+    for d in range(1, w + 1):
+        row[d] *= inverse
 
 
 @njit(cache=True)
