@@ -322,12 +322,33 @@ def _normalise(row, w):
 @njit(cache=True)
 def _substitute(U, b):
     """Solve ``U^T U x = b`` for the factor of ``_factor``."""
+    y = np.empty(b.size)
+    _forward(U, b, y, 0)
+    return _backward(U, y)
+
+
+@njit(cache=True)
+def _forward(U, b, y, start):
+    """``y = U^-T b`` column by column, from row ``start`` on: ``y[:start]`` are kept from a
+    solve whose ``b[:start]`` and rows ``U[:start - w]`` were the same (their updates of the
+    rows from ``start`` are applied first, in the order of a whole solve: the same result,
+    bit for bit)."""
     n, w = U.shape[0], U.shape[1] - 1
-    x = b.copy()
-    for i in range(n):  # U^T y = b, column by column
-        x[i] /= U[i, 0]
+    y[start:] = b[start:]
+    for i in range(max(0, start - w), start):
+        for d in range(start - i, min(w, n - 1 - i) + 1):
+            y[i + d] -= U[i, d] * y[i]
+    for i in range(start, n):
+        y[i] /= U[i, 0]
         for d in range(1, min(w, n - 1 - i) + 1):
-            x[i + d] -= U[i, d] * x[i]
+            y[i + d] -= U[i, d] * y[i]
+
+
+@njit(cache=True)
+def _backward(U, y):
+    """``x = U^-1 y``."""
+    n, w = U.shape[0], U.shape[1] - 1
+    x = y.copy()
     for i in range(n - 1, -1, -1):  # U x = y
         s = x[i]
         for d in range(1, min(w, n - 1 - i) + 1):
@@ -347,7 +368,7 @@ def _bounded(band, r, lam_max, active, max_iterations):
     Returns ``lam`` and the iterations (-1: not settled)."""
     n, w = band.shape[0], band.shape[1] - 1
     U = np.empty(band.shape)  # the first factorisation (start 0) writes all of it
-    rhs = np.empty(n)
+    rhs, y = np.empty(n), np.empty(n)
     start = 0
     for iteration in range(1, max_iterations + 1):
         _factor(band, active, U, start)
@@ -361,7 +382,9 @@ def _bounded(band, r, lam_max, active, max_iterations):
                         rhs[j + d] -= band[j, d] * lam_max[j]
                     if j - d >= 0 and not active[j - d]:
                         rhs[j - d] -= band[j - d, d] * lam_max[j]
-        lam = _substitute(U, rhs)
+        # rows from start - w on changed (in U and in rhs): the forward solve restarts there
+        _forward(U, rhs, y, max(0, start - w))
+        lam = _backward(U, y)
         start = n
         for i in range(n):
             if active[i]:  # the bound's multiplier mu = (r - A lam)_i must be positive
