@@ -32,6 +32,30 @@ def test_compiled_viscosity_is_the_plugin_viscosity(law):
     np.testing.assert_allclose(got, law.viscosity(rate, pressure, MATERIAL), rtol=1e-14, atol=0.0)
 
 
+@pytest.mark.parametrize("law", LAWS, ids=lambda law: f"{law.name}")
+def test_compiled_slope_is_the_derivative_of_the_plugin_stress(law):
+    """The slope of the Newton model, d(eta gamma)/d gamma, against a centred difference
+    of the plugin's own stress eta(gamma, p) gamma (away from the kink of a rate floor)."""
+    rng = np.random.default_rng(1)
+    rate = 10.0 ** rng.uniform(-6, 3, 300)
+    pressure = 10.0 ** rng.uniform(-3, 4, 300)
+    form, params = newton_kernel.law_of(law, MATERIAL)
+    if form == newton_kernel.FORMS["power"]:
+        keep = np.abs(rate / params[3] - 1.0) > 1e-4
+        rate, pressure = rate[keep], pressure[keep]
+    step = 1e-6 * rate
+
+    def stress(r):
+        return law.viscosity(r, pressure, MATERIAL) * r
+
+    centred = (stress(rate + step) - stress(rate - step)) / (2.0 * step)
+    parts = [newton_kernel._pressure_part(form, params, p) for p in pressure]
+    got = np.array(
+        [newton_kernel._viscosity_and_slope(form, params, r, *part)[1] for r, part in zip(rate, parts)]
+    )
+    np.testing.assert_allclose(got, centred, rtol=1e-7, atol=1e-12 * np.abs(centred).max())
+
+
 def test_a_law_without_a_compiled_form_keeps_the_numpy_path():
     class Plain(Rheology):
         name = "plain"

@@ -236,85 +236,116 @@ def _active_set(inertia, momentum, kappa, c, w, cw, guess, u, first, grounded, U
     with the yielded stresses ``kappa sgn + c s``).  The structure is accepted when the
     yielded jumps keep their signs and the locked stresses admit values within their
     yield bounds (interval propagation through grounded groups).
+
+    One pass up the column forms the groups, their equations and the forward sweep of
+    the Thomas algorithm (each group is eliminated as soon as it is complete); one pass
+    down substitutes back and checks optimality, so every layer is visited twice.
     """
     L = inertia.shape[0]
     scale = 0.0
-    for a in range(L):
-        scale += abs(momentum[a]) + kappa[a] + w[a]
-    slack = 1e-10 * scale + 1e-300
-    # groups
     ng = 0
-    for a in range(L):
-        below = guess[a - 1] if a > 0 else 0.0
-        locked = kappa[a] > 0.0 and guess[a] == below
-        if a == 0 or not locked:
+    below = 0.0
+    d = 0.0  # sums over the layers of the open group, then its equation
+    r = 0.0
+    d_below = 1.0  # the inverse pivot and right-hand side of the group below (forward sweep)
+    r_below = 0.0
+    sign_top = 0.0  # sign of the jump across the interface above the open group
+    for a in range(L + 1):
+        if a < L:
+            g = guess[a]
+            scale += abs(momentum[a]) + kappa[a] + w[a]
+            opens = a == 0 or not (kappa[a] > 0.0 and g == below)
+            if opens:
+                sign_top = _sign(g - below)
+        else:
+            opens = True
+        if opens and a > 0:  # close the group ng - 1, whose top interface is a
+            j = ng - 1
+            if grounded[j]:
+                d, r = 1.0, 0.0
+            else:
+                p = first[j]
+                d += c[p]
+                r -= kappa[p] * low[j]
+                if a < L:
+                    d += c[a]
+                    r += kappa[a] * sign_top
+                if p > 0 and c[p] != 0.0:  # forward sweep: eliminate the coupling to group j - 1
+                    f = -c[p] * d_below
+                    d -= f * (-c[p] if not grounded[j - 1] else 0.0)
+                    r -= f * r_below
+            d = 1.0 / d
+            diag[j], rhs[j] = d, r  # diag: the inverse pivots
+            d_below, r_below = d, r
+        if a == L:
+            break
+        if opens:
             first[ng] = a
-            grounded[ng] = a == 0 and locked
+            grounded[ng] = a == 0 and kappa[0] > 0.0 and g == 0.0
+            low[ng] = sign_top  # low: the sign of the jump below each group
             ng += 1
-        if w[a] > 0.0 and guess[a] == 0.0:
+            d = 0.0
+            r = 0.0
+        if w[a] > 0.0 and g == 0.0:
             grounded[ng - 1] = True
+        d += inertia[a] + cw[a]
+        r += momentum[a] - _sign(g) * w[a]
+        below = g
     first[ng] = L
-    # tridiagonal system over groups (Thomas algorithm, forward sweep)
-    for j in range(ng):
-        p, q = first[j], first[j + 1] - 1
-        if grounded[j]:
-            diag[j], low[j], rhs[j] = 1.0, 0.0, 0.0
-            continue
-        d = 0.0
-        r = 0.0
-        for a in range(p, q + 1):
-            d += inertia[a] + cw[a]
-            r += momentum[a] - _sign(guess[a]) * w[a]
-        below = guess[p - 1] if p > 0 else 0.0
-        d += c[p]
-        r -= kappa[p] * _sign(guess[p] - below)
-        low[j] = -c[p] if p > 0 else 0.0
-        if q + 1 < L:
-            d += c[q + 1]
-            r += kappa[q + 1] * _sign(guess[q + 1] - guess[q])
-        diag[j], rhs[j] = d, r
-    for j in range(1, ng):
-        if low[j] != 0.0:
-            up = -c[first[j]]  # coupling of group j-1 to group j
-            f = low[j] / diag[j - 1]
-            diag[j] -= f * (up if not grounded[j - 1] else 0.0)
-            rhs[j] -= f * rhs[j - 1]
+    slack = 1e-10 * scale + 1e-300
+    # back substitution, top down, with the optimality of each group as soon as the
+    # velocities it needs are known: signs of the yielded jumps and walls, bounds of
+    # the locked stresses inside moving groups
+    held = 0  # grounded groups, checked below
     for j in range(ng - 1, -1, -1):
+        p, q = first[j], first[j + 1] - 1
         if grounded[j]:
             U[j] = 0.0
-            continue
-        r = rhs[j]
-        if j + 1 < ng:
-            r += c[first[j + 1]] * U[j + 1]
-        U[j] = r / diag[j]
-    for j in range(ng):
-        for a in range(first[j], first[j + 1]):
-            u[a] = U[j]
-    # optimality: signs of yielded jumps and walls, bounds of locked stresses
-    for j in range(ng):
-        p, q = first[j], first[j + 1] - 1
-        Ub = U[j - 1] if j > 0 else 0.0
-        sig = _sign(guess[p] - (guess[p - 1] if p > 0 else 0.0))
-        if kappa[p] > 0.0 and not (p == 0 and grounded[j] and guess[0] == 0.0):
-            if sig == 0.0 or sig * (U[j] - Ub) < 0.0:
-                return False
+            held += 1
+        else:
+            r = rhs[j]
+            if j + 1 < ng:
+                r += c[q + 1] * U[j + 1]
+            U[j] = r * diag[j]
+        Uj = U[j]
+        for a in range(p, q + 1):
+            u[a] = Uj
         if q + 1 < L:
-            tau = kappa[q + 1] * _sign(guess[q + 1] - guess[q]) + c[q + 1] * (U[j + 1] - U[j])
+            sig = low[j + 1]
+            if kappa[q + 1] > 0.0 and (sig == 0.0 or sig * (U[j + 1] - Uj) < 0.0):
+                return False  # the yielded interface above the group
+            tau = kappa[q + 1] * sig + c[q + 1] * (U[j + 1] - Uj)
         else:
             tau = 0.0
-        if not grounded[j]:
-            for a in range(q, p, -1):  # locked interfaces inside a moving group
-                if w[a] > 0.0 and _sign(guess[a]) * U[j] < 0.0:
-                    return False
-                tau -= (inertia[a] + cw[a]) * U[j] - momentum[a] + _sign(guess[a]) * w[a]
-                if abs(tau) > kappa[a] + slack:
-                    return False
-            if w[p] > 0.0 and _sign(guess[p]) * U[j] < 0.0:
-                return False
+        if grounded[j]:
             continue
+        for a in range(q, p, -1):  # locked interfaces inside a moving group
+            if w[a] > 0.0 and _sign(guess[a]) * Uj < 0.0:
+                return False
+            tau -= (inertia[a] + cw[a]) * Uj - momentum[a] + _sign(guess[a]) * w[a]
+            if abs(tau) > kappa[a] + slack:
+                return False
+        if w[p] > 0.0 and _sign(guess[p]) * Uj < 0.0:
+            return False
+    if kappa[0] > 0.0 and not (grounded[0] and guess[0] == 0.0):  # the bed yielded
+        sig = low[0]
+        if sig == 0.0 or sig * U[0] < 0.0:
+            return False
+    if held == 0:
+        return True
+    for j in range(ng):  # grounded groups: feasible stresses, top down
+        if not grounded[j]:
+            continue
+        p, q = first[j], first[j + 1] - 1
+        Ub = U[j - 1] if j > 0 else 0.0
+        sig = low[j]
+        if q + 1 < L:
+            tau = kappa[q + 1] * low[j + 1] + c[q + 1] * (U[j + 1] - U[j])
+        else:
+            tau = 0.0
         lo = tau
         hi = tau
-        for a in range(q, p - 1, -1):  # grounded group: feasible stresses, top down
+        for a in range(q, p - 1, -1):
             lo += momentum[a] - w[a]
             hi += momentum[a] + w[a]
             if a > p or (a == 0 and kappa[0] > 0.0 and guess[0] == 0.0):

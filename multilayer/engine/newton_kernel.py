@@ -5,8 +5,13 @@ model of the viscous stresses (``StressModel.linearise``, numpy, calling the rhe
 plugins) and the exact solver (``column_kernel``).  Each column's iteration depends on
 that column only, so the same iteration runs here column by column with every quantity in
 cache, when the bulk and wall laws declare a compiled form of their viscosity
-(``Rheology.viscosity_kernel``).  The operations are those of ``stress.py`` in the same
-order, so both paths agree to round-off (tests/test_newton_kernel.py).
+(``Rheology.viscosity_kernel``).  The model is that of ``stress.py``, evaluated with
+what stays fixed during a step (masses, pressure parts, inverse spacings) computed once
+per column, except its slope: the compiled forms differentiate their stress exactly
+where the numpy path takes a forward difference.  The slope only sets the speed of the
+iteration (the model passes through the true stress either way), so both paths take the
+same iterations and agree to round-off times the conditioning of the step
+(tests/test_newton_kernel.py).
 """
 
 from __future__ import annotations
@@ -57,30 +62,45 @@ def _pressure_part(form, params, p):
 
 
 @njit(cache=True)
-def _viscosity(form, params, rate, factor, offset):
-    """eta(|gamma|, p) of the compiled forms (``Rheology.viscosity_kernel``) from the
-    pressure parts ``factor, offset = _pressure_part(form, params, p)``."""
+def _viscosity_and_slope(form, params, rate, factor, offset):
+    """eta(rate, p) of the compiled forms (``Rheology.viscosity_kernel``) and the slope
+    d(eta rate)/d rate of the viscous stress, for ``rate >= 0``, from the pressure parts
+    ``factor, offset = _pressure_part(form, params, p)``.
+
+    The slope is exact: ``eta`` for the constant form; ``eta B sqrt(p) / (B sqrt(p) +
+    C rate)`` for the inertial form (``eta`` at rest); ``(1 + e_g) eta`` above the
+    floor of the power form, ``eta`` below it.
+    """
     if form == 0:
-        return factor
+        return factor, factor
     if form == 1:
-        denominator = offset + params[2] * abs(rate)
-        return factor / denominator if denominator > 0.0 else 0.0
-    return factor * max(abs(rate), params[3]) ** params[2]
+        denominator = offset + params[2] * rate
+        if denominator > 0.0:
+            inverse = 1.0 / denominator
+            eta = factor * inverse
+            return eta, eta * offset * inverse
+        return 0.0, 0.0
+    if rate > params[3]:
+        eta = factor * rate ** params[2]
+        return eta, (1.0 + params[2]) * eta
+    eta = factor * params[3] ** params[2]
+    return eta, eta
 
 
 @njit(cache=True)
-def _newton_model(form, params, kappa, rate, factor, offset):
-    """``stress._newton_model`` for one value: (yield stress, slope)."""
-    step = 1e-7 * rate
-    eta = _viscosity(form, params, rate, factor, offset)
-    tau = eta * rate
-    up = _viscosity(form, params, rate + step, factor, offset) * (rate + step)
-    if rate > 0.0:
-        tangent = (up - tau) / (step if step > 0.0 else 1.0)
-    else:
-        tangent = eta
-    slope = max(tangent, 0.0)
-    offset_yield = kappa + tau - slope * rate
+def _viscosity(form, params, rate, factor, offset):
+    """eta(|gamma|, p) of the compiled forms (``Rheology.viscosity_kernel``) from the
+    pressure parts ``factor, offset = _pressure_part(form, params, p)``."""
+    return _viscosity_and_slope(form, params, abs(rate), factor, offset)[0]
+
+
+@njit(cache=True)
+def _newton_model(kappa, rate, eta, slope):
+    """``stress._newton_model`` for one value from ``eta`` and the stress slope at
+    ``rate``: (yield stress, conductance) of the odd Bingham law through the stress at
+    ``rate``, tangent where its yield stress is >= 0, secant otherwise."""
+    slope = max(slope, 0.0)
+    offset_yield = kappa + eta * rate - slope * rate
     if offset_yield >= 0.0:
         return offset_yield, slope
     return kappa, eta
@@ -92,39 +112,35 @@ def _columns(
     u_out, iterations, fallbacks,
 ):  # fmt: skip
     """Newton iterations of every wet column (``wet`` indexes the columns of ustar/guess);
-    ``fallbacks`` counts the solves per column that needed the O(L^2) dynamic programme."""
+    ``fallbacks`` counts the solves per column that needed the O(L^2) dynamic programme.
+
+    What does not change from one iteration to the next (masses, pressure parts of the
+    laws, inverse spacings, wall thresholds) is computed once per step, while the
+    coefficients of a block of columns are gathered row by row (each row of the (L, N)
+    arrays read in contiguous runs) into column-contiguous buffers."""
     L = m.shape[0]
     n = wet.size
+    walls = width > 0.0
+    inverse_half = 2.0 / width if walls else 0.0
     for k in prange(chunks):
         ws = _workspace(L)
         first = np.empty(L + 1, np.int64)
         grounded = np.empty(L, np.bool_)
         U, diag, low, rhs = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
-        mc, kc, cc, wc, cwc = np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L)
-        inertia, momentum = np.empty(L), np.empty(L)  # m_a / dt and m_a u*_a / dt
+        kc, cc = np.empty(L), np.empty(L)  # the Newton model: interface yield stresses, conductances
+        wc, cwc = np.empty(L), np.zeros(L)  # and wall thresholds, wall conductances
         current, new = np.empty(L), np.empty(L)
-        bulk_factor, bulk_offset, wall_factor, wall_offset = (
-            np.empty(L),
-            np.empty(L),
-            np.empty(L),
-            np.empty(L),
-        )
-        # columns in blocks: the coefficients of a block are gathered row by row (each row
-        # of the (L, N) arrays read in contiguous runs) into column-contiguous buffers
-        bm, bk, bw, bp, bs = (
-            np.empty((BLOCK, L)),
-            np.empty((BLOCK, L)),
-            np.empty((BLOCK, L)),
-            np.empty((BLOCK, L)),
-            np.empty((BLOCK, L)),
-        )
-        bwp, bu, bg, bo = (
-            np.empty((BLOCK, L)),
-            np.empty((BLOCK, L)),
-            np.empty((BLOCK, L)),
-            np.empty((BLOCK, L)),
-        )
-        bv = np.empty((BLOCK, L), np.bool_)
+        # per column of a block and layer: m_a / dt, m_a u*_a / dt, kappa, viscous,
+        # inverse spacing, conductance per unit slope (0 where not viscous), pressure
+        # parts of the bulk law; with walls, their pressure parts, the wall area factor
+        # (2 / W) h_a and the wall yield threshold per unit area (else the wall threshold)
+        b_inertia, b_momentum, b_kappa = np.empty((BLOCK, L)), np.empty((BLOCK, L)), np.empty((BLOCK, L))
+        b_viscous = np.empty((BLOCK, L), np.bool_)
+        b_inverse_spacing, b_conductance = np.empty((BLOCK, L)), np.empty((BLOCK, L))
+        b_factor, b_offset = np.empty((BLOCK, L)), np.empty((BLOCK, L))
+        b_wall_factor, b_wall_offset = np.empty((BLOCK, L)), np.empty((BLOCK, L))
+        b_per_area, b_wall = np.empty((BLOCK, L)), np.empty((BLOCK, L))
+        b_guess, b_out = np.empty((BLOCK, L)), np.empty((BLOCK, L))
         start, stop = k * n // chunks, (k + 1) * n // chunks
         for j0 in range(start, stop, BLOCK):
             size = min(BLOCK, stop - j0)
@@ -132,73 +148,91 @@ def _columns(
                 for jj in range(size):
                     j = j0 + jj
                     col = wet[j]
-                    bm[jj, a] = m[a, j]
-                    bk[jj, a] = kappa0[a, j]
-                    bw[jj, a] = w0[a, j]
-                    bp[jj, a] = pressure[a, j]
-                    bs[jj, a] = spacing[a, j]
-                    bv[jj, a] = viscous[a, j]
-                    bwp[jj, a] = wall_pressure[a, j]
-                    bu[jj, a] = ustar[a, col]
-                    bg[jj, a] = guess[a, col]
+                    mass = m[a, j]
+                    b_inertia[jj, a] = mass / dt
+                    b_momentum[jj, a] = mass * ustar[a, col] / dt
+                    b_kappa[jj, a] = kappa0[a, j]
+                    s = spacing[a, j]
+                    is_viscous = viscous[a, j]
+                    b_viscous[jj, a] = is_viscous
+                    b_inverse_spacing[jj, a] = 1.0 / s if s > 0.0 else 1.0
+                    b_conductance[jj, a] = b_inverse_spacing[jj, a] if (is_viscous and s > 0.0) else 0.0
+                    b_factor[jj, a], b_offset[jj, a] = _pressure_part(bulk_form, bulk_params, pressure[a, j])
+                    b_guess[jj, a] = guess[a, col]
+                    if walls:
+                        b_wall_factor[jj, a], b_wall_offset[jj, a] = _pressure_part(
+                            wall_form, wall_params, wall_pressure[a, j]
+                        )
+                        b_per_area[jj, a] = (2.0 / width) * mass / density
+                        b_wall[jj, a] = w0[a, j] / max(b_per_area[jj, a], 1e-300)
+                    else:
+                        b_wall[jj, a] = w0[a, j]
             for jj in range(size):
                 j = j0 + jj
+                inertia, momentum, kappa = b_inertia[jj], b_momentum[jj], b_kappa[jj]
+                is_viscous, inverse_spacing, conductance = (
+                    b_viscous[jj],
+                    b_inverse_spacing[jj],
+                    b_conductance[jj],
+                )
+                factor, offset, wall = b_factor[jj], b_offset[jj], b_wall[jj]
+                wall_factor, wall_offset, per_area = b_wall_factor[jj], b_wall_offset[jj], b_per_area[jj]
+                wall_c = wc if walls else wall
                 for a in range(L):
-                    mc[a] = bm[jj, a]
-                    inertia[a] = bm[jj, a] / dt
-                    momentum[a] = bm[jj, a] * bu[jj, a] / dt
-                    current[a] = bg[jj, a]
-                    bulk_factor[a], bulk_offset[a] = _pressure_part(bulk_form, bulk_params, bp[jj, a])
-                    if width > 0.0:
-                        wall_factor[a], wall_offset[a] = _pressure_part(wall_form, wall_params, bwp[jj, a])
+                    current[a] = b_guess[jj, a]
                 iterations[j] = -1
                 fallbacks[j] = 0
                 for iteration in range(1, max_iterations + 1):
                     # the Newton model at the current velocities (StressModel.linearise)
                     below = 0.0
                     for a in range(L):
-                        s = bs[jj, a]
-                        s_safe = s if s > 0.0 else 1.0
-                        rate = abs(current[a] - below) / s_safe
+                        rate = abs(current[a] - below) * inverse_spacing[a]
                         below = current[a]
-                        ka, t = _newton_model(
-                            bulk_form, bulk_params, bk[jj, a], rate, bulk_factor[a], bulk_offset[a]
-                        )
-                        kc[a] = ka if bv[jj, a] else bk[jj, a]
-                        cc[a] = t / s_safe if (bv[jj, a] and s > 0.0) else 0.0
-                        if width > 0.0:
-                            half = 0.5 * width
-                            per_area = (2.0 / width) * mc[a] / density
-                            threshold_a = bw[jj, a] / max(per_area, 1e-300)
-                            wa, ta = _newton_model(
-                                wall_form, wall_params, threshold_a, abs(current[a]) / half,
-                                wall_factor[a], wall_offset[a],
-                            )  # fmt: skip
-                            wc[a] = per_area * wa
-                            cwc[a] = per_area * ta / half
-                        else:
-                            wc[a] = bw[jj, a]
-                            cwc[a] = 0.0
-                    if mc[0] <= 0.0:
+                        eta, slope = _viscosity_and_slope(bulk_form, bulk_params, rate, factor[a], offset[a])
+                        ka, t = _newton_model(kappa[a], rate, eta, slope)
+                        kc[a] = ka if is_viscous[a] else kappa[a]
+                        cc[a] = t * conductance[a]
+                        if walls:
+                            rate = abs(current[a]) * inverse_half
+                            eta, slope = _viscosity_and_slope(
+                                wall_form, wall_params, rate, wall_factor[a], wall_offset[a]
+                            )
+                            wa, ta = _newton_model(wall[a], rate, eta, slope)
+                            wc[a] = per_area[a] * wa
+                            cwc[a] = per_area[a] * ta * inverse_half
+                    if not inertia[0] > 0.0:
                         for a in range(L):
                             new[a] = 0.0
                     elif not _active_set(
-                        inertia, momentum, kc, cc, wc, cwc, current, new, first, grounded, U, diag, low, rhs
+                        inertia,
+                        momentum,
+                        kc,
+                        cc,
+                        wall_c,
+                        cwc,
+                        current,
+                        new,
+                        first,
+                        grounded,
+                        U,
+                        diag,
+                        low,
+                        rhs,
                     ):
-                        _dynamic_programme(inertia, momentum, kc, cc, wc, cwc, new, ws)
+                        _dynamic_programme(inertia, momentum, kc, cc, wall_c, cwc, new, ws)
                         fallbacks[j] += 1
                     change = 0.0
                     for a in range(L):
                         change = max(change, abs(new[a] - current[a]))
-                        current[a] = new[a]
+                    current, new = new, current
                     if change <= threshold:
                         iterations[j] = iteration
                         break
                 for a in range(L):
-                    bo[jj, a] = current[a]
+                    b_out[jj, a] = current[a]
             for a in range(L):
                 for jj in range(size):
-                    u_out[a, wet[j0 + jj]] = bo[jj, a]
+                    u_out[a, wet[j0 + jj]] = b_out[jj, a]
 
 
 _serial = njit(cache=True)(_columns)
