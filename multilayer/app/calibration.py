@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from multilayer.app.ensemble import Ensemble, Evaluation
+from multilayer.errors import Interrupted
 from multilayer.io.observables import Measure
 from multilayer.io.study import Calibration
 
@@ -124,16 +125,27 @@ class Problem:
 class Calibrator:
     """Runs the three stages of a calibration on an :class:`Ensemble`.
 
-    ``report(line)`` receives one line per batch (progress).
+    ``report(line)`` receives one line per batch (progress), ``on_batch()`` is called
+    after each batch (to write the results so far, :meth:`snapshot`).
     """
 
-    def __init__(self, calibration: Calibration, ensemble: Ensemble, report: Callable[[str], None]) -> None:
+    def __init__(
+        self,
+        calibration: Calibration,
+        ensemble: Ensemble,
+        report: Callable[[str], None],
+        on_batch: Callable[[], None] | None = None,
+    ) -> None:
         self.calibration = calibration
         self.problem = Problem(calibration)
         self.ensemble = ensemble
         self.report = report
+        self.on_batch = on_batch
         self.candidates: list[Candidate] = []
         self.stage, self.step = "search", 0
+        self.notes: list[str] = []
+        self.search_theta: np.ndarray | None = None
+        self.covariance: np.ndarray | None = None
 
     # ----------------------------------------------------------------- batches
 
@@ -145,20 +157,14 @@ class Calibrator:
             points += problem.points(theta)
             measures += list(problem.measures.values())
         before = (self.ensemble.ran, self.ensemble.reused)
-        evaluations = self.ensemble.evaluate(points, measures)
         n = len(problem.experiments)
-        batch = []
-        for k, theta in enumerate(thetas):
-            runs = evaluations[k * n : (k + 1) * n]
-            predicted, misfit = None, math.inf
-            if all(e.status == "ok" for e in runs):
-                predicted = np.empty_like(problem.observed)
-                for e, experiment in zip(runs, problem.experiments):
-                    predicted[problem.slots[experiment]] = e.measured
-                misfit = float(np.sum(problem.residuals(predicted, theta) ** 2))
-            batch.append(
-                Candidate(self.stage, self.step, np.array(theta, dtype=float), runs, misfit, predicted)
-            )
+        try:
+            evaluations: list[Evaluation | None] = list(self.ensemble.evaluate(points, measures))
+        except Interrupted as exc:  # keep the parameter sets whose runs all finished
+            evaluations = getattr(exc, "evaluations", [])
+            self.candidates += self._score(thetas, evaluations, n)
+            raise
+        batch = self._score(thetas, evaluations, n)
         self.candidates += batch
         ran, reused = self.ensemble.ran - before[0], self.ensemble.reused - before[1]
         failed = sum(c.status != "ok" for c in batch)
@@ -168,6 +174,30 @@ class Calibrator:
             f"+ {reused} reused, {failed} failed; best misfit so far {best:.6g}"
         )
         self.step += 1
+        if self.on_batch is not None:
+            self.on_batch()
+        return batch
+
+    def _score(
+        self, thetas: list[np.ndarray], evaluations: Sequence[Evaluation | None], n: int
+    ) -> list[Candidate]:
+        """The candidates of the parameter sets whose ``n`` runs (one per experiment) are
+        all in ``evaluations``, with their misfits."""
+        problem = self.problem
+        batch = []
+        for k, theta in enumerate(thetas):
+            runs = evaluations[k * n : (k + 1) * n]
+            if len(runs) < n or any(e is None for e in runs):
+                continue
+            predicted, misfit = None, math.inf
+            if all(e.status == "ok" for e in runs):
+                predicted = np.empty_like(problem.observed)
+                for e, experiment in zip(runs, problem.experiments):
+                    predicted[problem.slots[experiment]] = e.measured
+                misfit = float(np.sum(problem.residuals(predicted, theta) ** 2))
+            batch.append(
+                Candidate(self.stage, self.step, np.array(theta, dtype=float), list(runs), misfit, predicted)
+            )
         return batch
 
     def _map(self, func: Callable, thetas: Any) -> list[float]:
@@ -229,8 +259,7 @@ class Calibrator:
         """Search, refine, estimate the uncertainty; returns the :class:`Fit`."""
         from scipy.optimize import differential_evolution, least_squares
 
-        config, problem = self.calibration.config, self.problem
-        notes: list[str] = []
+        config, problem, notes = self.calibration.config, self.problem, self.notes
         self.stage, self.step = "search", 0
         with warnings.catch_warnings(), np.errstate(invalid="ignore", over="ignore"):
             warnings.simplefilter("ignore", RuntimeWarning)
@@ -249,7 +278,7 @@ class Calibrator:
         best = self._best()
         if not math.isfinite(best.misfit):
             raise _no_fit(self.candidates)
-        search_theta = best.theta.copy()
+        self.search_theta = best.theta.copy()
         notes.append(f"global search: {result.nit} generation(s), {result.message}")
 
         if config.refine.evaluations:
@@ -270,11 +299,10 @@ class Calibrator:
         best = self._best()
 
         self.stage, self.step = "uncertainty", 0
-        covariance = np.full((best.theta.size,) * 2, np.nan)
         try:
             jac = self._jacobian(best.theta, central=True)
             information = jac.T @ jac
-            covariance = np.linalg.pinv(information)
+            self.covariance = np.linalg.pinv(information)
             condition = np.linalg.cond(information)
             if condition > 1e12:
                 notes.append(
@@ -298,15 +326,26 @@ class Calibrator:
             )
         if best.predicted is None:  # the search found a finite misfit, which only a prediction has
             raise RuntimeError(f"the best parameter set {self._text(best.theta)} has no prediction")
+        return self.snapshot()
+
+    def snapshot(self) -> Fit:
+        """The calibration so far: the best parameter set evaluated (nan if none succeeded),
+        the covariance once the uncertainty stage has computed it (else nan)."""
+        n = len(self.problem.names)
+        if self.candidates:
+            best = self._best()
+            theta, misfit, predicted = best.theta, best.misfit, best.predicted
+        else:
+            theta, misfit, predicted = np.full(n, np.nan), math.inf, None
         return Fit(
-            names=problem.names,
-            theta=best.theta,
-            misfit=best.misfit,
-            predicted=best.predicted,
-            covariance=covariance,
-            search_theta=search_theta,
+            names=self.problem.names,
+            theta=theta,
+            misfit=misfit,
+            predicted=np.full(self.problem.observed.size, np.nan) if predicted is None else predicted,
+            covariance=np.full((n, n), np.nan) if self.covariance is None else self.covariance,
+            search_theta=theta if self.search_theta is None else self.search_theta,
             candidates=self.candidates,
-            notes=notes,
+            notes=list(self.notes),
         )
 
     def _best(self) -> Candidate:
@@ -335,9 +374,14 @@ def _strings(values: Sequence[str]) -> np.ndarray:
     return np.array(values, dtype=object)
 
 
-def write(fit: Fit, calibrator: Calibrator, path: Path) -> None:
+def write(fit: Fit, calibrator: Calibrator, path: Path, progress: str = "complete") -> None:
     """Write ``calibration.nc``: every parameter set evaluated, the best fit, its
-    covariance and the observed against fitted points (docs/calibration.md)."""
+    covariance and the observed against fitted points (docs/calibration.md).
+
+    ``progress`` (an attribute) says how far the calibration got: ``complete``, or the
+    last batch done while it runs or after it was interrupted.  The file is replaced
+    atomically (written next to it, then renamed), so a reader never sees half of one.
+    """
     import xarray as xr
 
     problem, calibration = calibrator.problem, calibrator.calibration
@@ -375,18 +419,18 @@ def write(fit: Fit, calibrator: Calibrator, path: Path) -> None:
             ),
             "values": (
                 ("candidate", "parameter"),
-                np.array([c.theta for c in candidates]),
+                np.array([c.theta for c in candidates]).reshape(len(candidates), len(fit.names)),
                 {"long_name": "parameter values of every parameter set evaluated"},
             ),
             "misfit": (
                 "candidate",
-                np.array([c.misfit for c in candidates]),
+                np.array([c.misfit for c in candidates], dtype=float),
                 {"long_name": "sum of squared whitened residuals (inf: a run failed)", "units": "1"},
             ),
             "stage": ("candidate", _strings([c.stage for c in candidates])),
             "step": (
                 "candidate",
-                np.array([c.step for c in candidates]),
+                np.array([c.step for c in candidates], dtype=int),
                 {"long_name": "generation or batch"},
             ),
             "status": ("candidate", _strings([c.status for c in candidates])),
@@ -412,6 +456,7 @@ def write(fit: Fit, calibrator: Calibrator, path: Path) -> None:
         coords={"parameter": fit.names, "parameter2": fit.names},
         attrs={
             "title": f"multilayer calibration: {calibration.path}",
+            "progress": progress,
             "misfit": fit.misfit,
             "points": int(problem.observed.size),
             "degrees_of_freedom": int(problem.observed.size - len(fit.names)),

@@ -20,8 +20,8 @@ from typing import Any, Literal
 
 import numpy as np
 
-from multilayer.app import sweep
-from multilayer.errors import InputError
+from multilayer.app import stopping, sweep
+from multilayer.errors import InputError, Interrupted
 from multilayer.io import scenario
 from multilayer.io.results import RESULT_FILE
 from multilayer.io.scenario import as_overrides
@@ -30,6 +30,9 @@ MEMBERS_DIR = "members"
 
 Status = Literal["ok", "invalid", "failed"]
 """What became of a member: measured, rejected by scenario validation, or failed to run or measure."""
+
+NOT_RUN = "not run"
+"""The status of a member in the written results of a study interrupted before it ran."""
 
 
 @dataclass
@@ -96,13 +99,35 @@ class Ensemble:
     def evaluate(
         self, points: list[dict[str, Any]], measure: Sequence[Callable[[Path], np.ndarray]]
     ) -> list[Evaluation]:
-        """Run (or reuse) the member of each point and measure it with ``measure[i]``."""
-        from dask.distributed import as_completed
+        """Run (or reuse) the member of each point and measure it with ``measure[i]``.
 
+        On a stop request (:mod:`multilayer.app.stopping`) the members not finished are
+        cancelled and :class:`~multilayer.errors.Interrupted` is raised with the attribute
+        ``evaluations``: one :class:`Evaluation` or None (not finished) per point.
+        """
         results: list[Evaluation | None] = [None] * len(points)
+        try:
+            self._evaluate(points, measure, results)
+        except Interrupted as exc:
+            exc.evaluations = results  # type: ignore[attr-defined]
+            raise
+        evaluations = [r for r in results if r is not None]
+        if len(evaluations) != len(points):
+            raise RuntimeError(f"{len(points) - len(evaluations)} point(s) of the batch were not evaluated")
+        return evaluations
+
+    def _evaluate(
+        self,
+        points: list[dict[str, Any]],
+        measure: Sequence[Callable[[Path], np.ndarray]],
+        results: list[Evaluation | None],
+    ) -> None:
+        """:meth:`evaluate`, filling ``results`` as the members finish."""
+        stopping.StopFile(self.outdir).clear()
         pending: dict[str, list[int]] = {}
         submit: list[tuple[str, scenario.Scenario, str, list[str], int]] = []
         for i, values in enumerate(points):
+            stopping.check()
             ident = self.member_id(values)
             if ident in pending:  # the same point twice in one batch: run it once
                 pending[ident].append(i)
@@ -140,7 +165,9 @@ class Ensemble:
                 ): ident
                 for ident, member_scenario, fingerprint, overrides, i in submit
             }
-            for done, future in enumerate(as_completed(futures), start=1):
+            for done, future in enumerate(
+                stopping.as_completed(self.client, list(futures), self.outdir), start=1
+            ):
                 ident = futures[future]
                 measured: np.ndarray | None
                 status: Status
@@ -153,7 +180,3 @@ class Ensemble:
                 self.ran += 1
                 if self.on_progress is not None:
                     self.on_progress(done, len(submit))
-        evaluations = [r for r in results if r is not None]
-        if len(evaluations) != len(points):
-            raise RuntimeError(f"{len(points) - len(evaluations)} point(s) of the batch were not evaluated")
-        return evaluations

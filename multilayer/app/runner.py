@@ -33,7 +33,7 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from types import FrameType
@@ -76,6 +76,7 @@ def run(
     resume: bool = False,
     quiet: bool | None = None,
     budget: resources.Budget | None = None,
+    stop_when: Callable[[], bool] | None = None,
 ) -> dict[str, float]:
     """Run ``scenario`` into ``outdir`` and return :func:`multilayer.results.summary`.
 
@@ -85,8 +86,10 @@ def run(
     ``Budget(force=True)`` skips the check), :class:`RunError` when the engine fails (the
     result file then holds every output time completed before the failure and the last
     good state) and :class:`~multilayer.errors.Interrupted` (a :class:`KeyboardInterrupt`)
-    after a clean stop on a signal.  ``quiet=None`` shows the progress line only on a
-    terminal.
+    after a clean stop on a signal, or when ``stop_when()`` (asked between kernel calls)
+    returns True: how a study stops the members running on its workers, where signals
+    do not reach (:mod:`multilayer.app.stopping`).  ``quiet=None`` shows the progress
+    line only on a terminal.
     """
     outdir = Path(outdir)
     if resume and not outdir.is_dir():
@@ -110,14 +113,19 @@ def run(
         for message in notices:
             log.warning(message)
         try:
-            _run(scenario, outdir, ckpt, quiet, log)
+            _run(scenario, outdir, ckpt, quiet, log, stop_when)
         finally:
             handler.close()
         return summary(outdir / RESULT_FILE)
 
 
 def _run(
-    scenario: Any, outdir: Path, ckpt: Checkpoint | None, quiet: bool | None, log: logging.Logger
+    scenario: Any,
+    outdir: Path,
+    ckpt: Checkpoint | None,
+    quiet: bool | None,
+    log: logging.Logger,
+    stop_when: Callable[[], bool] | None,
 ) -> None:
     log.info(
         "%s run of scenario %r from %s into %s",
@@ -155,7 +163,7 @@ def _run(
     log.info("%d cells x %d layers; output times up to %g s", n_cells, n_layers, scenario.time.end)
     times = output_times(scenario.time.end, scenario.time.output_interval)
     progress = Progress(scenario.time.end, n_cells * n_layers, quiet=quiet)
-    stop = _StopRequest()
+    stop = _StopRequest(stop_when)
 
     def on_step(sim: Any, dt: float) -> None:
         progress(sim, dt)
@@ -202,7 +210,8 @@ def _run(
         progress.finish()
         writer.close(sim.steps, wall_time(), status, scenario)
     if status == "interrupted":
-        print(message, file=sys.stderr)
+        if stop.requested:  # a member stopped by its study leaves the resume command to the study
+            print(message, file=sys.stderr)
         raise Interrupted(message, stop.signum)
     log.info("completed: %d steps, wall time %.1f s", sim.steps, wall_time())
 
@@ -306,13 +315,19 @@ class _StopRequest:
     signum: int = signal.SIGINT
     requested = False
 
+    def __init__(self, stop_when: Callable[[], bool] | None = None) -> None:
+        self.stop_when = stop_when
+        """Asked between kernel calls too: True requests a stop (of a study's member)."""
+
     @property
     def name(self) -> str:
+        if not self.requested:
+            return "a stop of its study"
         return "Ctrl-C (SIGINT)" if self.signum == signal.SIGINT else signal.Signals(self.signum).name
 
     def poll(self) -> None:
         """Raise :class:`_Stop` if a stop was requested (called between kernel calls)."""
-        if self.requested:
+        if self.requested or (self.stop_when is not None and self.stop_when()):
             raise _Stop
 
     @contextmanager

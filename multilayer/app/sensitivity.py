@@ -12,13 +12,13 @@ Herman & Usher 2017, J. Open Source Softw. 2).  Runs are members of an
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from multilayer.app.ensemble import Ensemble, Evaluation
+from multilayer.app.ensemble import NOT_RUN, Ensemble, Evaluation
 from multilayer.errors import InputError
 from multilayer.io.observables import Measure
 from multilayer.io.study import Sensitivity
@@ -105,15 +105,24 @@ def indices(study: Sensitivity, outputs: np.ndarray) -> Indices:
 
 
 def write(
-    study: Sensitivity, points: np.ndarray, evaluations: list[Evaluation], result: Indices | None, path: Path
+    study: Sensitivity,
+    points: np.ndarray,
+    evaluations: Sequence[Evaluation | None],
+    result: Indices | None,
+    path: Path,
 ) -> None:
-    """Write ``sensitivity.nc``: every run (parameters, outputs, status) and the indices."""
+    """Write ``sensitivity.nc``: every run (parameters, outputs, status) and the indices.
+
+    An evaluation None is a run not done (an interrupted study): status ``not run``.  The
+    file is replaced atomically (written next to it, then renamed).
+    """
     import xarray as xr
 
     names, outputs = list(study.config.parameters), list(study.config.outputs)
+    missing = np.full(len(outputs), np.nan)
     values = np.array(
-        [e.measured if e.measured is not None else np.full(len(outputs), np.nan) for e in evaluations]
-    )
+        [e.measured if e is not None and e.measured is not None else missing for e in evaluations]
+    ).reshape(len(evaluations), len(outputs))
     nan = np.full((len(outputs), len(names)), np.nan)
     result = result or Indices(nan, nan, nan, nan)
     dims = ("output", "parameter")
@@ -123,9 +132,9 @@ def write(
             "upper": ("parameter", [p.bounds[1] for p in study.config.parameters.values()]),
             "sample": (("run", "parameter"), points, {"long_name": "parameter values of every run"}),
             "value": (("run", "output"), values, {"long_name": "output of every run (SI; nan: failed)"}),
-            "status": ("run", np.array([e.status for e in evaluations], dtype=object)),
-            "member": ("run", np.array([e.id for e in evaluations], dtype=object)),
-            "error": ("run", np.array([e.error for e in evaluations], dtype=object)),
+            "status": ("run", np.array([e.status if e else NOT_RUN for e in evaluations], dtype=object)),
+            "member": ("run", np.array([e.id if e else "" for e in evaluations], dtype=object)),
+            "error": ("run", np.array([e.error if e else "" for e in evaluations], dtype=object)),
             "S1": (dims, result.s1, {"long_name": "first-order Sobol' index"}),
             "S1_conf": (dims, result.s1_conf, {"long_name": "half-width of the S1 confidence interval"}),
             "ST": (dims, result.st, {"long_name": "total Sobol' index"}),
@@ -137,7 +146,8 @@ def write(
             "base_samples": study.config.samples,
             "confidence_level": study.config.confidence,
             "bootstrap_resamples": BOOTSTRAP_RESAMPLES,
-            "failed_runs": int(sum(e.status != "ok" for e in evaluations)),
+            "failed_runs": int(sum(e is not None and e.status != "ok" for e in evaluations)),
+            "runs_not_done": int(sum(e is None for e in evaluations)),
             "sensitivity": study.path.read_text(encoding="utf-8"),
         },
     )

@@ -31,8 +31,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-from multilayer.app import runner
-from multilayer.errors import InputError, RunError
+from multilayer.app import runner, stopping
+from multilayer.errors import InputError, Interrupted, RunError
 from multilayer.io import scenario
 from multilayer.io.results import CHECKPOINT_FILE, RESULT_FILE, SUMMARY_KEYS, run_failure
 from multilayer.io.scenario import as_overrides, format_value
@@ -43,7 +43,7 @@ SWEEP_KEYS = ("base", "parameters", "zip", "output", "description")
 MARKER = "member.json"
 """Written into a member's directory once its run has completed."""
 
-Status = Literal["ok", "invalid", "failed"]
+Status = Literal["ok", "invalid", "failed", "interrupted"]
 
 
 @dataclass(frozen=True)
@@ -217,19 +217,25 @@ def run_member(
     """Run one member into ``member_dir`` (on a Dask worker) and mark it complete.
 
     A run interrupted earlier (its checkpoint belongs to this scenario) is continued,
-    anything else starts afresh.  The marker is written atomically after the run, next
+    anything else starts afresh.  The run stops (checkpointed) when its study is stopped
+    (:class:`~multilayer.app.stopping.StopFile` in the parent directory).  The marker is
+    written atomically after the run, next
     to ``result.nc``, so that a member counts as complete exactly when its result is.
     """
     directory = Path(member_dir)
     (directory / MARKER).unlink(missing_ok=True)
     resumable = (directory / CHECKPOINT_FILE).is_file()
+    stop = stopping.StopFile(directory.parent)
     try:
-        summary = runner.run(member_scenario, directory, resume=resumable, quiet=True)
-    except InputError:
-        if not resumable:
-            raise
-        # the checkpoint belongs to another scenario: start afresh
-        summary = runner.run(member_scenario, directory, resume=False, quiet=True)
+        try:
+            summary = runner.run(member_scenario, directory, resume=resumable, quiet=True, stop_when=stop)
+        except InputError:
+            if not resumable:
+                raise
+            # the checkpoint belongs to another scenario: start afresh
+            summary = runner.run(member_scenario, directory, resume=False, quiet=True, stop_when=stop)
+    except Interrupted as exc:  # the study stopped: a plain failure for Dask (nobody waits for it)
+        raise RunError(f"{directory}: {exc}") from None
     failure = run_failure(directory)
     if failure is not None:  # never label a run "ok" that is not complete and finite
         raise RunError(f"{directory / RESULT_FILE}: {failure}")
@@ -258,16 +264,20 @@ def dask_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
         with client:
             yield client
         return
-    with (
-        LocalCluster(
-            n_workers=workers or CPU_COUNT,
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=":0",
-        ) as cluster,
-        Client(cluster) as client,
-    ):
-        yield client
+    cluster = LocalCluster(
+        n_workers=workers or CPU_COUNT,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=":0",
+        preload=[stopping.__name__],  # the workers ignore Ctrl-C: this process stops them
+    )
+    try:
+        with Client(cluster) as client:
+            yield client
+    except BaseException:  # a stop (stopping.Interrupted) or a failure: do not wait for the workers
+        stopping.close_quickly(cluster)
+        raise
+    cluster.close()
 
 
 def run(
@@ -289,8 +299,32 @@ def run(
     outdir = Path(outdir).resolve()
     members = sweep.members()
     outcomes: dict[int, Outcome] = {}
+    try:
+        _run(sweep, outdir, scheduler, workers, on_start, on_progress, members, outcomes)
+    except Interrupted as exc:
+        exc.outcomes = [  # type: ignore[attr-defined]
+            outcomes.get(m.index) or Outcome(m, "interrupted", "not completed: the sweep was interrupted")
+            for m in members
+        ]
+        raise
+    return [outcomes[member.index] for member in members]
+
+
+def _run(
+    sweep: Sweep,
+    outdir: Path,
+    scheduler: str | None,
+    workers: int | None,
+    on_start: Callable[[int, int, int, int], None] | None,
+    on_progress: Callable[[int, int], None] | None,
+    members: list[Member],
+    outcomes: dict[int, Outcome],
+) -> None:
+    """:func:`run`, filling ``outcomes`` (member index -> outcome) as members finish."""
+    stopping.StopFile(outdir).clear()
     pending: list[tuple[Member, scenario.Scenario, str]] = []
     for member in members:
+        stopping.check()
         try:
             member_scenario = scenario.load(sweep.base, member.overrides)
         except InputError as exc:
@@ -307,8 +341,6 @@ def run(
         skipped = sum(outcome.skipped for outcome in outcomes.values())
         on_start(len(members), skipped, len(outcomes) - skipped, len(pending))
     if pending:
-        from dask.distributed import as_completed
-
         with dask_client(scheduler, workers) as client:
             futures = {
                 client.submit(
@@ -322,7 +354,7 @@ def run(
                 ): member
                 for member, member_scenario, fingerprint in pending
             }
-            for done, future in enumerate(as_completed(futures), start=1):
+            for done, future in enumerate(stopping.as_completed(client, list(futures), outdir), start=1):
                 member = futures[future]
                 try:
                     outcomes[member.index] = Outcome(member, "ok", summary=future.result())
@@ -331,7 +363,6 @@ def run(
                     outcomes[member.index] = Outcome(member, "failed", message)
                 if on_progress is not None:
                     on_progress(done, len(pending))
-    return [outcomes[member.index] for member in members]
 
 
 def write_summary(sweep: Sweep, outcomes: list[Outcome], path: str | Path) -> None:

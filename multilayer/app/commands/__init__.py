@@ -86,4 +86,38 @@ def add_study_arguments(parser: argparse.ArgumentParser, kind: str) -> None:
         help="output directory (default: output.directory of the file, else results/<file name>)",
     )
     add_cluster_arguments(parser)
+    add_resume_argument(parser)
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
+
+
+def add_resume_argument(parser: argparse.ArgumentParser) -> None:
+    """``--resume`` of an ensemble command (sweep, calibrate, sensitivity)."""
+    parser.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the interrupted study in DIR (completed runs are reused, runs stopped "
+        "mid-way continue from their checkpoints); DIR must hold its results",
+    )
+
+
+def check_resume(args: argparse.Namespace, outdir: Path, results: str) -> None:
+    """With ``--resume``, ``outdir/results`` (written at every stop) must exist: exit 2 otherwise."""
+    from multilayer.errors import InputError
+
+    if args.resume and not (outdir / results).is_file():
+        raise InputError(
+            f"{outdir}: nothing to resume ({results} missing); accepted: the output directory "
+            "of an interrupted study of this file, or no --resume to start one"
+        )
+
+
+def resume_command(command: str, config: str, outdir: Path, args: argparse.Namespace) -> str:
+    """The command line that continues an interrupted ensemble study into ``outdir``."""
+    import shlex
+
+    words = ["multilayer", command, str(config), "-o", str(outdir), "--resume"]
+    if args.scheduler is not None:
+        words += ["--scheduler", args.scheduler]
+    elif args.workers is not None:
+        words += ["--workers", str(args.workers)]
+    return shlex.join(words)

@@ -15,7 +15,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from multilayer.app.commands import add_study_arguments, cluster_description
+from multilayer.app.commands import add_study_arguments, check_resume, cluster_description, resume_command
 
 HELP = "fit scenario parameters to observations (global search, refinement, uncertainty) on Dask"
 
@@ -28,8 +28,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     """Validate the file, calibrate, write calibration.nc, print the fit."""
     from multilayer.app import calibration as calibrations
+    from multilayer.app import stopping
     from multilayer.app.ensemble import Ensemble
     from multilayer.app.sweep import dask_client
+    from multilayer.errors import Interrupted
     from multilayer.io.study import load_calibration
 
     plan = load_calibration(args.config)
@@ -50,15 +52,43 @@ def main(args: argparse.Namespace) -> int:
             )
             sys.stderr.flush()
 
+    path = outdir / calibrations.CALIBRATION_FILE
+    check_resume(args, outdir, path.name)
     report(
         f"calibrate: {len(plan.config.parameters)} parameter(s), {len(plan.experiments)} experiment(s), "
         f"on {cluster_description(args)}"
     )
-    with dask_client(args.scheduler, args.workers) as client:
-        ensemble = Ensemble(plan.base, outdir, client, fixed=plan.config.set, on_progress=progress)
-        calibrator = calibrations.Calibrator(plan, ensemble, report)
-        fit = calibrator.run()
-    path = outdir / calibrations.CALIBRATION_FILE
+    calibrator: calibrations.Calibrator | None = None
+
+    def save(state: str) -> None:
+        if calibrator is not None:
+            calibrations.write(calibrator.snapshot(), calibrator, path, state)
+
+    def batch_done() -> None:  # calibration.nc after every batch: an interruption keeps it
+        if calibrator is not None:
+            save(f"running: {calibrator.stage} {calibrator.step - 1} done")
+
+    try:
+        with stopping.signals_stop(), dask_client(args.scheduler, args.workers) as client:
+            ensemble = Ensemble(plan.base, outdir, client, fixed=plan.config.set, on_progress=progress)
+            calibrator = calibrations.Calibrator(plan, ensemble, report, on_batch=batch_done)
+            fit = calibrator.run()
+    except Interrupted as exc:
+        if live:
+            sys.stderr.write("\n")
+        if calibrator is not None:
+            save(f"interrupted in {calibrator.stage} {calibrator.step}")
+            best = calibrator.snapshot()
+            print(
+                f"multilayer: {exc} in {calibrator.stage} {calibrator.step}: {len(best.candidates)} "
+                f"parameter set(s) evaluated, best misfit {best.misfit:.6g}; wrote {path}",
+                file=sys.stderr,
+            )
+        print(
+            f"multilayer: resume with: {resume_command('calibrate', args.config, outdir, args)}",
+            file=sys.stderr,
+        )
+        raise
     calibrations.write(fit, calibrator, path)
     print(f"calibrate: misfit {fit.misfit:.6g} for {fit.predicted.size} observed point(s); wrote {path}")
     for name, value, sd in zip(fit.names, fit.theta, fit.sigma):

@@ -15,7 +15,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from multilayer.app.commands import add_study_arguments, cluster_description
+from multilayer.app.commands import add_study_arguments, check_resume, cluster_description, resume_command
 
 HELP = "Sobol' sensitivity indices of run outputs with respect to scenario parameters, on Dask"
 
@@ -27,10 +27,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Validate the file, run the sample, write sensitivity.nc, print the indices."""
-    from multilayer.app import sensitivity
+    from multilayer.app import sensitivity, stopping
     from multilayer.app.ensemble import Ensemble
     from multilayer.app.sweep import dask_client
-    from multilayer.errors import InputError
+    from multilayer.errors import InputError, Interrupted
     from multilayer.io.study import load_sensitivity
 
     try:
@@ -44,6 +44,9 @@ def main(args: argparse.Namespace) -> int:
     outdir = Path(args.output or study.config.output.directory or Path("results") / study.path.stem)
     outdir.mkdir(parents=True, exist_ok=True)
 
+    path = outdir / sensitivity.SENSITIVITY_FILE
+    check_resume(args, outdir, path.name)
+
     def report(line: str) -> None:
         if not args.quiet:
             print(line, flush=True)
@@ -54,16 +57,31 @@ def main(args: argparse.Namespace) -> int:
 
     points = sensitivity.sample(study)  # checked before any cluster starts
     report(f"sensitivity: on {cluster_description(args)}")
-    with dask_client(args.scheduler, args.workers) as client:
-        ensemble = Ensemble(study.base, outdir, client, fixed=study.config.set, on_progress=progress)
-        evaluations = sensitivity.run(study, ensemble, report, points)
+    try:
+        with stopping.signals_stop(), dask_client(args.scheduler, args.workers) as client:
+            ensemble = Ensemble(study.base, outdir, client, fixed=study.config.set, on_progress=progress)
+            evaluations = sensitivity.run(study, ensemble, report, points)
+    except Interrupted as exc:
+        done = getattr(exc, "evaluations", None)
+        if done is not None:
+            sensitivity.write(study, points, done, None, path)
+            finished = sum(e is not None for e in done)
+            print(
+                f"multilayer: {exc}: {finished} of {len(done)} runs done, the others cancelled "
+                f"(those stopped mid-run continue from their checkpoints); wrote {path} (no indices)",
+                file=sys.stderr,
+            )
+        print(
+            f"multilayer: resume with: {resume_command('sensitivity', args.config, outdir, args)}",
+            file=sys.stderr,
+        )
+        raise
     failed = [e for e in evaluations if e.status != "ok"]
     result = None  # the Sobol' estimators need every run
     if not failed:
         import numpy as np
 
         result = sensitivity.indices(study, np.array([e.measured for e in evaluations]))
-    path = outdir / sensitivity.SENSITIVITY_FILE
     sensitivity.write(study, points, evaluations, result, path)
     print(f"sensitivity: {ensemble.ran} run(s), {ensemble.reused} reused, {len(failed)} failed; wrote {path}")
     if result is None:

@@ -15,7 +15,13 @@ import sys
 from pathlib import Path
 from typing import TextIO
 
-from multilayer.app.commands import add_cluster_arguments, cluster_description
+from multilayer.app.commands import (
+    add_cluster_arguments,
+    add_resume_argument,
+    check_resume,
+    cluster_description,
+    resume_command,
+)
 
 HELP = "run a parameter sweep of a scenario on Dask (local or existing cluster)"
 
@@ -31,6 +37,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="output directory (default: output.directory of the sweep file, else results/<sweep file name>)",
     )
     add_cluster_arguments(parser)
+    add_resume_argument(parser)
     parser.add_argument(
         "-q",
         "--quiet",
@@ -69,21 +76,42 @@ class _Report:
 
 def main(args: argparse.Namespace) -> int:
     """Validate the sweep and its members, run them, write summary.csv, report."""
+    from multilayer.app import stopping
     from multilayer.app import sweep as sweeps  # Dask and the engine are imported only to run
+    from multilayer.errors import Interrupted
 
     plan = sweeps.load(args.sweep)
-    outdir = args.output or plan.output or Path("results") / plan.path.stem
+    outdir = Path(args.output or plan.output or Path("results") / plan.path.stem)
+    summary = outdir / "summary.csv"
+    check_resume(args, outdir, summary.name)
     where = cluster_description(args)
     report = _Report(where, args.quiet)
-    outcomes = sweeps.run(
-        plan,
-        outdir,
-        scheduler=args.scheduler,
-        workers=args.workers,
-        on_start=report.start,
-        on_progress=report.progress,
-    )
-    summary = Path(outdir) / "summary.csv"
+    try:
+        with stopping.signals_stop():
+            outcomes = sweeps.run(
+                plan,
+                outdir,
+                scheduler=args.scheduler,
+                workers=args.workers,
+                on_start=report.start,
+                on_progress=report.progress,
+            )
+    except Interrupted as exc:
+        if report.live:
+            sys.stderr.write("\n")
+        done = getattr(exc, "outcomes", None)
+        if done is not None:
+            sweeps.write_summary(plan, done, summary)
+            finished = sum(o.status in ("ok", "failed") for o in done)
+            print(
+                f"multilayer: {exc}: {finished} of {len(done)} members complete, the others "
+                f"cancelled (those stopped mid-run continue from their checkpoints); wrote {summary}",
+                file=sys.stderr,
+            )
+        print(
+            f"multilayer: resume with: {resume_command('sweep', args.sweep, outdir, args)}", file=sys.stderr
+        )
+        raise
     sweeps.write_summary(plan, outcomes, summary)
 
     for outcome in outcomes:

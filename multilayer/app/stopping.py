@@ -1,0 +1,169 @@
+"""Stopping an ensemble (sweep, calibration, sensitivity study) on Ctrl-C, SIGTERM or SIGHUP.
+
+The commands that run members on Dask wait for them in the main process.  While
+:func:`signals_stop` is active there, the first Ctrl-C (SIGINT), SIGTERM or SIGHUP is a stop
+request: :func:`check` raises :class:`~multilayer.errors.Interrupted` at the next check
+(the waiting loop :func:`as_completed` checks every :data:`POLL` seconds, the loops over
+the members of a batch at every member), the members not finished are cancelled, the
+command writes what was computed and prints how to resume, and the CLI exits with 128 +
+the signal number (130, 143, 129).  A second signal raises at once.
+
+Signals do not reach the members running on the workers (threads of worker processes,
+perhaps on other hosts), and a cancelled Dask task runs on.  So the study also creates a
+:class:`StopFile` in the directory of its members, which every member asks for between
+its kernel calls (at most every :data:`STOP_FILE_POLL` seconds): it checkpoints and stops
+within a fraction of a second, on any worker that shares the file system.  Members
+completed before the stop are kept (``member.json``); one stopped mid-run continues from
+its checkpoint when the study is resumed.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+from multilayer.app import runner
+from multilayer.errors import Interrupted
+
+POLL = 0.1
+"""Seconds between two checks of the waiting loop."""
+
+STOP_FILE_POLL = 0.2
+"""Seconds between two looks of a running member for the :class:`StopFile`."""
+
+_requested: list[int] = []
+"""The signal of the pending stop request, if any (set by the handler)."""
+
+
+def _name(signum: int) -> str:
+    return "Ctrl-C (SIGINT)" if signum == signal.SIGINT else signal.Signals(signum).name
+
+
+def _handle(signum: int, frame: FrameType | None) -> None:
+    if _requested:
+        raise Interrupted(f"stopped at once by a second signal ({_name(signum)})", signum)
+    _requested.append(signum)
+
+
+@contextmanager
+def signals_stop() -> Iterator[None]:
+    """Turn the stop signals of a run (:data:`~multilayer.app.runner.STOP_SIGNALS`) into a
+    stop request of the study while active (main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    _requested.clear()
+    previous = {signum: signal.signal(signum, _handle) for signum in runner.STOP_SIGNALS}
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        _requested.clear()
+
+
+def dask_setup(worker: Any) -> None:
+    """Dask preload of the local cluster's worker processes: ignore SIGINT and SIGHUP.
+
+    A Ctrl-C at a terminal reaches every process of the foreground group; a worker would
+    die mid-write and its nanny start another.  The process running the study alone acts
+    on it, and stops its members through the :class:`StopFile`.
+    """
+    if threading.current_thread() is threading.main_thread():
+        for signum in (signal.SIGINT, getattr(signal, "SIGHUP", None)):
+            if signum is not None:
+                signal.signal(signum, signal.SIG_IGN)
+
+
+CLOSE_GRACE = 1.0
+"""Seconds a stopped local cluster is given to close before its worker processes are killed."""
+
+
+def close_quickly(cluster: Any) -> None:
+    """Close a local Dask cluster after a stop, killing its worker processes if it takes
+    longer than :data:`CLOSE_GRACE` seconds.
+
+    The members were asked to stop (:class:`StopFile`) and do within a fraction of a second,
+    checkpointed, so the workers are soon idle and close; a worker still busy then (say,
+    importing the engine, with no run under way) would hold the close for seconds.
+    """
+    import logging
+
+    logging.getLogger("distributed").setLevel(logging.ERROR)  # the workers' goodbyes are not news
+    pids = [
+        nanny.process.process.pid
+        for nanny in cluster.workers.values()
+        if getattr(getattr(nanny, "process", None), "process", None) is not None
+    ]
+    closing = threading.Thread(target=cluster.close, daemon=True)
+    closing.start()
+    closing.join(CLOSE_GRACE)
+    if closing.is_alive():
+        for pid in pids:
+            with contextlib.suppress(OSError):
+                os.kill(pid, signal.SIGKILL)
+        closing.join(CLOSE_GRACE)
+
+
+def check() -> None:
+    """Raise :class:`~multilayer.errors.Interrupted` if a stop was requested."""
+    if _requested:
+        signum = _requested[0]
+        raise Interrupted(f"interrupted by {_name(signum)}", signum)
+
+
+class StopFile:
+    """``DIRECTORY/stop-requested``: while it exists, the members running into the
+    subdirectories of ``DIRECTORY`` stop.  Calling it answers whether to stop (looking
+    at the file at most every :data:`STOP_FILE_POLL` seconds)."""
+
+    NAME = "stop-requested"
+
+    def __init__(self, directory: str | Path) -> None:
+        self.path = Path(directory) / self.NAME
+        self._next_look = 0.0
+
+    def request(self) -> None:
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.path.touch()
+
+    def clear(self) -> None:
+        self.path.unlink(missing_ok=True)
+
+    def __call__(self) -> bool:
+        now = time.monotonic()
+        if now < self._next_look:
+            return False
+        self._next_look = now + STOP_FILE_POLL
+        return self.path.exists()
+
+
+def as_completed(client: Any, futures: list[Any], members: str | Path) -> Iterator[Any]:
+    """The ``futures`` in the order they finish, checking for a stop request every
+    :data:`POLL` seconds.  On a stop (or any other exception) the members running into
+    the directory ``members`` are asked to stop (:class:`StopFile`) and the unfinished
+    futures cancelled before the exception goes on."""
+    from dask.distributed import as_completed as completed
+
+    waiting = completed(futures)
+    try:
+        while not waiting.is_empty():
+            check()
+            ready = waiting.next_batch(block=False)
+            if not ready:
+                time.sleep(POLL)
+            yield from ready
+    except BaseException:
+        unfinished = [f for f in futures if not f.done()]
+        if unfinished:
+            StopFile(members).request()
+            client.cancel(unfinished)
+        raise
