@@ -186,8 +186,8 @@ class Calibrator:
         problem = self.problem
         batch = []
         for k, theta in enumerate(thetas):
-            runs = evaluations[k * n : (k + 1) * n]
-            if len(runs) < n or any(e is None for e in runs):
+            runs = [e for e in evaluations[k * n : (k + 1) * n] if e is not None]
+            if len(runs) < n:  # a run of this set not evaluated (interrupted)
                 continue
             predicted, misfit = None, math.inf
             if all(e.status == "ok" for e in runs):

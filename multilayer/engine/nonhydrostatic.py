@@ -274,35 +274,84 @@ def _factor(band, fixed, U, start):
             U[i, 0] = 1.0
             for d in range(1, min(w, i - start) + 1):
                 U[i - d, d] = 0.0
-    for i in range(max(0, start - w), n):
+    for i in range(max(0, start - w), start):  # finished rows: their updates of the columns from start
         source = U[i]
-        if i >= start:
-            if source[0] <= 0.0:
-                raise RunError(
-                    "the non-hydrostatic pressure system is not positive definite (a non-positive pivot "
-                    "of its Cholesky factorisation): the constraints of the moving layers are singular"
-                )
-            diagonal = np.sqrt(source[0])
-            inverse = 1.0 / diagonal
-            source[0] = diagonal
-            for d in range(1, w + 1):
-                source[d] *= inverse
-        for k in range(max(1, start - i), min(w, n - 1 - i) + 1):
+        for k in range(start - i, min(w, n - 1 - i) + 1):
             factor = source[k]
             target = U[i + k]
             for d in range(k, w + 1):
                 target[d - k] -= factor * source[d]
+    i = start
+    while i < n:
+        # rows i and i + 1 together: each entry of a row below takes the update of row i, then
+        # that of row i + 1, in the order of one row at a time (the same result, bit for bit),
+        # with half the passes over the rows below
+        source = U[i]
+        _normalise(source, w)
+        if i + 1 == n:
+            break
+        second = U[i + 1]
+        factor = source[1]
+        for d in range(1, w + 1):
+            second[d - 1] -= factor * source[d]
+        _normalise(second, w)
+        for k in range(2, min(w, n - 1 - i) + 1):
+            factor, factor2 = source[k], second[k - 1]
+            target = U[i + k]
+            for d in range(k, w + 1):
+                target[d - k] = (target[d - k] - factor * source[d]) - factor2 * second[d - 1]
+            target[w + 1 - k] -= factor2 * second[w]
+        if 0 < w and i + w + 1 < n:
+            U[i + w + 1, 0] -= second[w] * second[w]
+        i += 2
+
+
+@njit(cache=True)
+def _normalise(row, w):
+    """Row of the Cholesky factor from its updated row of ``A``: the diagonal's square root,
+    the rest divided by it."""
+    if row[0] <= 0.0:
+        raise RunError(
+            "the non-hydrostatic pressure system is not positive definite (a non-positive pivot "
+            "of its Cholesky factorisation): the constraints of the moving layers are singular"
+        )
+    diagonal = np.sqrt(row[0])
+    inverse = 1.0 / diagonal
+    row[0] = diagonal
+    for d in range(1, w + 1):
+        row[d] *= inverse
 
 
 @njit(cache=True)
 def _substitute(U, b):
     """Solve ``U^T U x = b`` for the factor of ``_factor``."""
+    y = np.empty(b.size)
+    _forward(U, b, y, 0)
+    return _backward(U, y)
+
+
+@njit(cache=True)
+def _forward(U, b, y, start):
+    """``y = U^-T b`` column by column, from row ``start`` on: ``y[:start]`` are kept from a
+    solve whose ``b[:start]`` and rows ``U[:start - w]`` were the same (their updates of the
+    rows from ``start`` are applied first, in the order of a whole solve: the same result,
+    bit for bit)."""
     n, w = U.shape[0], U.shape[1] - 1
-    x = b.copy()
-    for i in range(n):  # U^T y = b, column by column
-        x[i] /= U[i, 0]
+    y[start:] = b[start:]
+    for i in range(max(0, start - w), start):
+        for d in range(start - i, min(w, n - 1 - i) + 1):
+            y[i + d] -= U[i, d] * y[i]
+    for i in range(start, n):
+        y[i] /= U[i, 0]
         for d in range(1, min(w, n - 1 - i) + 1):
-            x[i + d] -= U[i, d] * x[i]
+            y[i + d] -= U[i, d] * y[i]
+
+
+@njit(cache=True)
+def _backward(U, y):
+    """``x = U^-1 y``."""
+    n, w = U.shape[0], U.shape[1] - 1
+    x = y.copy()
     for i in range(n - 1, -1, -1):  # U x = y
         s = x[i]
         for d in range(1, min(w, n - 1 - i) + 1):
@@ -321,8 +370,8 @@ def _bounded(band, r, lam_max, active, max_iterations):
     Each iteration refactors the Cholesky factor from the first row whose status changed.
     Returns ``lam`` and the iterations (-1: not settled)."""
     n, w = band.shape[0], band.shape[1] - 1
-    U = np.zeros(band.shape)
-    rhs = np.empty(n)
+    U = np.empty(band.shape)  # the first factorisation (start 0) writes all of it
+    rhs, y = np.empty(n), np.empty(n)
     start = 0
     for iteration in range(1, max_iterations + 1):
         _factor(band, active, U, start)
@@ -336,7 +385,9 @@ def _bounded(band, r, lam_max, active, max_iterations):
                         rhs[j + d] -= band[j, d] * lam_max[j]
                     if j - d >= 0 and not active[j - d]:
                         rhs[j - d] -= band[j - d, d] * lam_max[j]
-        lam = _substitute(U, rhs)
+        # rows from start - w on changed (in U and in rhs): the forward solve restarts there
+        _forward(U, rhs, y, max(0, start - w))
+        lam = _backward(U, y)
         start = n
         for i in range(n):
             if active[i]:  # the bound's multiplier mu = (r - A lam)_i must be positive
@@ -486,8 +537,9 @@ def project(
     dv = dV[: L * F].reshape(L, F)
     dw = dV[L * F :].reshape(L, N)
     du = np.zeros_like(u)
-    np.add.at(du.T, left, 0.5 * dv.T)  # du.T is a view: columns of du gather their faces
-    np.add.at(du.T, right, 0.5 * dv.T)
+    half = 0.5 * dv
+    du[:, left] += half  # each column is the left of one face at most, and the right of one
+    du[:, right] += half
     u_new = np.where(moving, u + du, u)
     w_new = np.where(moving, w + dw, 0.0)
     q = np.cumsum((fractions[:, None] * h * dw)[::-1], axis=0)[::-1] / dt

@@ -229,27 +229,30 @@ class Simulation:
     def _transport_with_starting_columns(
         self, dt: float
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
-        """One step of :meth:`_transport_and_stresses` from the current state.  Columns that
-        move carry waves; material at rest that the step sets moving carries them from the
-        start of the step: the step is redone until that set is complete (a dry column being
-        filled is no material at rest and needs no redo)."""
+        """One step of :meth:`_transport_and_stresses` and :meth:`_project` from the current
+        state (returns h, u, w, q, the Newton seed of the next step and the Newton
+        iterations).  Columns that move carry waves; material at rest that the step sets
+        moving carries them from the start of the step: the step is redone until that set is
+        complete (a dry column being filled is no material at rest and needs no redo)."""
         moving, rest, dry = self._moving, self._rest, self.numerics.dry_threshold
         moving[...] = self._moving_start  # a step redone shorter starts from the same columns
         iterations = 0
         self.stresses.t = self.t
         while True:
-            h_new, u_new, w_new, q_new, seed, more = self._transport_and_stresses(dt, moving, rest)
+            h_new, seed, more = self._transport_and_stresses(dt, moving, rest)
             iterations += more
-            if not transport_kernel.start_moving(u_new, self.h, dry, moving):
+            # the non-hydrostatic projection never sets material at rest moving, so the set is
+            # judged on the vertical step's velocities and the projection done once, after it
+            if not transport_kernel.start_moving(seed, self.h, dry, moving):
+                u_new, w_new, q_new = self._project(h_new, seed, dt)
                 return h_new, u_new, w_new, q_new, seed, iterations
 
     def _transport_and_stresses(
         self, dt: float, moving: np.ndarray, rest: np.ndarray | None = None
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
-        """Transport (h, u*), the implicit vertical step (u^{n+1}) and, with the
-        non-hydrostatic pressure, the projection (u, w, q) over ``dt``; ``rest`` (L, N)
-        marks the layers at rest at the start of the step.  Returns h, u, w, q, the Newton
-        seed of the next step and the Newton iterations."""
+    ) -> tuple[np.ndarray, np.ndarray, int]:
+        """Transport (h, u*) and the implicit vertical step (u^{n+1}) over ``dt``; ``rest``
+        (L, N) marks the layers at rest at the start of the step.  Returns h, u (the Newton
+        seed of the next step) and the Newton iterations."""
         opening = self.gate.opening(self.h, self.t + 0.5 * dt) if self.gate is not None else None
         # the occupied columns bound the work of the step, and so its thread count
         count = self.thread_policy.threads(self.fractions.size * int(np.count_nonzero(self.h)))
@@ -316,8 +319,13 @@ class Simulation:
             except RunError:
                 if attempt == len(seeds):
                     raise
+        return h_new, u_new, iterations
+
+    def _project(self, h_new: np.ndarray, u_new: np.ndarray, dt: float) -> tuple[np.ndarray, ...]:
+        """With the non-hydrostatic pressure, the projection of the vertical step's velocities
+        ``u_new`` (returns u, w, q); the other pressures keep them."""
         if self.pressure != "non_hydrostatic":
-            return h_new, u_new, self.w, self.q, u_new, iterations
+            return u_new, self.w, self.q
         periodic = self.left == "periodic"
         w_star = nonhydrostatic.advect(self.w, u_new, self.dx, dt, periodic)
         projected, w_new, q_new = nonhydrostatic.project(
@@ -333,7 +341,7 @@ class Simulation:
             g_n=self.g_n,
             tension_free=nonhydrostatic.tension_free(self.q, self.h, self.fractions, self.g_n),
         )
-        return h_new, projected, w_new, q_new, u_new, iterations
+        return projected, w_new, q_new
 
     def advance(self, t_target: float, on_step: Callable[[Simulation, float], None] | None = None) -> None:
         """Step until ``t == t_target``; ``on_step(sim, dt)`` is called after every step."""

@@ -28,6 +28,7 @@ import fipy
 import netCDF4
 import numpy as np
 import xarray as xr
+from xarray.backends.locks import HDF5_LOCK, NETCDFC_LOCK, combine_locks
 
 from multilayer.errors import InputError
 from multilayer.provenance import provenance
@@ -35,6 +36,10 @@ from multilayer.provenance import provenance
 RESULT_FILE = "result.nc"
 CHECKPOINT_FILE = "checkpoint.npz"
 FORMAT: Final = "NETCDF3_64BIT_OFFSET"
+#: netCDF-C is not thread-safe and netCDF4-python releases the GIL in its calls: the runs of a
+#: thread cluster write their result files while the study writes its own through xarray,
+#: which holds these same locks around every netCDF call, so the writer holds them too
+NETCDF_LOCK: Final = combine_locks([NETCDFC_LOCK, HDF5_LOCK])
 
 #: CF attributes of every coordinate and variable: (dimensions, attributes).
 VARIABLES: dict[str, tuple[tuple[str, ...], dict[str, str]]] = {
@@ -145,18 +150,19 @@ class ResultWriter:
 
     def __init__(self, path: str | os.PathLike, scenario: Any, sim: Any, records: int | None = None) -> None:
         self.path = Path(path)
-        if records is None:
-            self._ds = netCDF4.Dataset(self.path, "w", format=FORMAT)
-            self._define(scenario, sim)
-            self.records = 0
-        else:
-            self._ds = netCDF4.Dataset(self.path, "a")
-            self._ds.history += f"\n{_now()} multilayer run --resume"
-            self.records = records
         self.failure = ""
         """Why the run failed; written as the ``failure`` attribute on close when not empty."""
-        self._ds.run_status = "running"
-        self._ds.sync()
+        with NETCDF_LOCK:
+            if records is None:
+                self._ds = netCDF4.Dataset(self.path, "w", format=FORMAT)
+                self._define(scenario, sim)
+                self.records = 0
+            else:
+                self._ds = netCDF4.Dataset(self.path, "a")
+                self._ds.history += f"\n{_now()} multilayer run --resume"
+                self.records = records
+            self._ds.run_status = "running"
+            self._ds.sync()
 
     def _define(self, scenario: Any, sim: Any) -> None:
         ds = self._ds
@@ -211,15 +217,16 @@ class ResultWriter:
         the diagnostics written."""
         ds, i = self._ds, self.records
         diag = sim.diagnostics()
-        ds["h"][i, :] = sim.h
-        ds["u"][i, :, :] = sim.u
-        ds["static_interface"][i, :] = diag["static_interface"]
-        ds["front"][i] = diag["front"]
-        ds["mass"][i] = diag["mass"]
-        ds["time"][i] = sim.t
-        ds.steps = int(sim.steps)
+        with NETCDF_LOCK:
+            ds["h"][i, :] = sim.h
+            ds["u"][i, :, :] = sim.u
+            ds["static_interface"][i, :] = diag["static_interface"]
+            ds["front"][i] = diag["front"]
+            ds["mass"][i] = diag["mass"]
+            ds["time"][i] = sim.t
+            ds.steps = int(sim.steps)
+            ds.sync()
         self.records = i + 1
-        ds.sync()
         return diag
 
     def close(self, steps: int, wall_time_s: float, status: str = "completed", scenario: Any = None) -> None:
@@ -229,10 +236,11 @@ class ResultWriter:
             attrs["scenario"] = scenario.resolved_yaml()
         if self.failure:
             attrs["failure"] = self.failure
-        elif "failure" in self._ds.ncattrs():  # a resumed run that failed before
-            self._ds.delncattr("failure")
-        self._ds.setncatts(attrs)
-        self._ds.close()
+        with NETCDF_LOCK:
+            if not self.failure and "failure" in self._ds.ncattrs():  # a resumed run that failed before
+                self._ds.delncattr("failure")
+            self._ds.setncatts(attrs)
+            self._ds.close()
 
 
 def _now() -> str:
