@@ -99,7 +99,10 @@ def test_compiled_step_equals_the_numpy_iteration_on_a_collapse(rheology, walls)
             sim.step()
         runs.append(sim)
     ref, got = runs
-    assert got.newton_iterations == ref.newton_iterations
+    # the slopes differ (exact in the kernel, a forward difference of relative step 1e-7 in
+    # numpy): the fixed points are the same, but a step's last iteration can fall either side
+    # of the threshold (2 of 579 iterations on the power law with walls)
+    assert abs(got.newton_iterations - ref.newton_iterations) <= 0.01 * ref.newton_iterations
     np.testing.assert_allclose(got.h, ref.h, rtol=1e-12, atol=1e-14)
     np.testing.assert_allclose(got.u, ref.u, rtol=1e-9, atol=1e-12)
     assert np.array_equal(got.u == 0.0, ref.u == 0.0)

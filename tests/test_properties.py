@@ -42,7 +42,7 @@ def closed_scenarios(draw, open_sides: bool = False):
     rheology = draw(
         st.sampled_from(
             [
-                {"name": "drucker_prager", "mu_s": mu_s, "nu": draw(st.floats(0.0, 0.05))},
+                {"name": "drucker_prager", "mu_s": mu_s, "nu": draw(st.just(0.0) | st.floats(1e-30, 0.05))},
                 {"name": "jop_mu_i", "mu_s": mu_s, "mu_2": mu_s + 0.2, "I_0": 0.3},
             ]
         )

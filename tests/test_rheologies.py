@@ -130,3 +130,16 @@ def test_vectorised_shapes(law):
 def test_invalid_parameters_raise_value_error(make, needle):
     with pytest.raises(ValueError, match=needle):
         make()
+
+
+def test_a_viscosity_too_small_for_double_precision_is_refused_naming_nu():
+    """Below about 1e-90 m^2/s the vertical step's products underflow to NaN (found by the
+    property tests): 0 < nu < 1e-30 is refused with the key named; 0 and 1e-30 are accepted."""
+    from engine import scenario
+
+    from multilayer.errors import InputError
+
+    for nu in (0.0, 1e-30):
+        scenario(rheology={"name": "drucker_prager", "mu_s": 0.5, "nu": nu})
+    with pytest.raises(InputError, match="rheology: drucker_prager: nu must be 0 or at least 1e-30"):
+        scenario(rheology={"name": "drucker_prager", "mu_s": 0.5, "nu": 1e-100})

@@ -196,10 +196,9 @@ class Simulation:
             # the Courant condition must hold for the waves of the step's end as well: material
             # accelerated from (near) rest within one step (gravity on a steep slope) would put
             # the second Heun stage past the positivity limit; redo with the faster waves
-            faster = transport.courant_step(
-                transport_kernel.max_wave_speed(h_new, u_new, self.g_n), self.dx, transport.POSITIVITY_LIMIT
-            )
-            if dt <= faster:
+            end_speed = transport_kernel.max_wave_speed(h_new, u_new, self.g_n)
+            faster = transport.courant_step(end_speed, self.dx, transport.POSITIVITY_LIMIT)
+            if dt <= faster or not math.isfinite(end_speed):  # the state guard names a non-finite state
                 break
             dt = self.scenario.time.cfl / transport.POSITIVITY_LIMIT * faster  # < faster < dt
         # the state guard: an impossible state is never kept (the last good one stays)

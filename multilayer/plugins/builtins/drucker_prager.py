@@ -13,6 +13,10 @@ import numpy as np
 
 from multilayer.plugins.builtins._checks import FrictionalYield, non_negative
 
+#: the smallest non-zero kinematic viscosity (m^2/s): below about 1e-90 the vertical step's
+#: products underflow and give NaN (found by the property tests); granular flows have 1e-6 and more
+SMALLEST_VISCOSITY = 1e-30
+
 
 class DruckerPrager(FrictionalYield):
     """Drucker–Prager (Coulomb) yield stress mu_s p plus a constant viscosity rho nu."""
@@ -25,6 +29,11 @@ class DruckerPrager(FrictionalYield):
         ``mu_start`` >= ``mu_s``: friction of material at rest (-), default ``mu_s``."""
         self._set_friction(mu_s, mu_start)
         non_negative(nu=nu)
+        if 0 < nu < SMALLEST_VISCOSITY:
+            raise ValueError(
+                f"nu must be 0 or at least {SMALLEST_VISCOSITY:g} m^2/s (a smaller viscosity underflows "
+                f"beside the yield stress in double precision: use 0), got {nu!r}"
+            )
         self.nu = nu
 
     def viscosity(self, shear_rate, pressure, material):
