@@ -200,7 +200,7 @@ class Simulation:
             faster = transport.courant_step(end_speed, self.dx, transport.POSITIVITY_LIMIT)
             if dt <= faster or not math.isfinite(end_speed):  # the state guard names a non-finite state
                 break
-            dt = self.scenario.time.cfl / transport.POSITIVITY_LIMIT * faster  # < faster < dt
+            dt = self._courant_step(end_speed)  # <= faster < dt
         # the state guard: an impossible state is never kept (the last good one stays)
         self.guard.check_step(self.h, h_new, u_new, self.t, dt, self.boundary_mass)
         self.h[...] = h_new
