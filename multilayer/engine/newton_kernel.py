@@ -20,19 +20,14 @@ import numpy as np
 from numba import njit, prange
 
 from multilayer.engine.column_kernel import _active_set, _dynamic_programme, _workspace
+from multilayer.engine.compiled_forms import describes
 from multilayer.engine.plugin_output import PluginOutputError, outside_contract
 from multilayer.engine.stress import INTERFACE, LAYER, ColumnStresses, StressModel
+from multilayer.engine.stress_kernel import CompiledCoefficients
 
 FORMS = {"constant": 0, "inertial": 1, "power": 2}
 BLOCK = 16
 """Columns gathered at a time (their coefficients stay in cache)."""
-
-
-def _owner(rheology: object, name: str) -> type | None:
-    """The class whose definition of ``name`` an instance uses (None: the instance's own)."""
-    if name in vars(rheology):
-        return None
-    return next((cls for cls in type(rheology).__mro__ if name in vars(cls)), None)
 
 
 def law_of(rheology, material) -> tuple[int, np.ndarray] | None:
@@ -41,8 +36,7 @@ def law_of(rheology, material) -> tuple[int, np.ndarray] | None:
     A compiled form describes the ``viscosity`` of the class that declares it: where a
     subclass (or the instance) redefines ``viscosity`` below that class, the form is not
     used, and the step runs the plugin's own ``viscosity`` (numpy path)."""
-    kernel_owner, viscosity_owner = _owner(rheology, "viscosity_kernel"), _owner(rheology, "viscosity")
-    if kernel_owner is None or viscosity_owner is None or not issubclass(kernel_owner, viscosity_owner):
+    if not describes(rheology, "viscosity_kernel", ("viscosity",)):
         return None
     declared = rheology.viscosity_kernel(material)
     if declared is None or declared[0] not in FORMS:
@@ -262,6 +256,7 @@ class CompiledStep:
 
     def __init__(self, stresses: StressModel):
         self.stresses = stresses
+        self.coefficients = CompiledCoefficients(stresses)  # StressModel.columns, compiled
         self.solves = 0  # column solves so far
         self.fallbacks = 0  # of which by the O(L^2) dynamic programme (the active set failed)
         self._out: np.ndarray | None = None  # the result, reused from step to step
@@ -290,13 +285,14 @@ class CompiledStep:
     ) -> tuple[np.ndarray, np.ndarray]:
         """New velocities (L, N) and the Newton iterations of each wet column (-1: not
         converged within ``max_iterations``).  The velocities are overwritten by the next
-        call.  ``rest`` and ``yield_gravity`` go to ``StressModel.columns``."""
+        call.  ``rest`` and ``yield_gravity`` go to ``StressModel.columns`` (compiled:
+        ``stress_kernel.CompiledCoefficients``)."""
         laws = self.laws()
         if laws is None:
             raise ValueError("a law of this stress model has no compiled form (see laws())")
         (bulk_form, bulk_params), walls = laws
         wet = np.flatnonzero(h > 0)
-        cs: ColumnStresses = self.stresses.columns(h, wet, rest, yield_gravity)
+        cs: ColumnStresses = self.coefficients(h, wet, rest, yield_gravity, threads)
         if self._out is None or self._out.shape != ustar.shape:
             self._out = np.zeros_like(ustar)
         u = self._out

@@ -90,7 +90,11 @@ def implicit_step(
         return u, int(iterations.max(initial=1))
     u = np.zeros_like(ustar)
     wet = np.flatnonzero(h > 0)
-    cs = stresses.columns(h, wet, rest, yield_gravity)
+    cs = (
+        stresses.columns(h, wet, rest, yield_gravity)
+        if compiled is None
+        else compiled.coefficients(h, wet, rest, yield_gravity)
+    )
     current = u_guess[:, wet]
     todo = np.arange(wet.size)  # wet columns still iterating
     for iteration in range(1, max_iterations + 1):

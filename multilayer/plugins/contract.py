@@ -77,3 +77,14 @@ class Rheology:
         The default, None, keeps this law on the numpy path (always correct).
         """
         return None
+
+    def yield_stress_kernel(self, material: Material) -> tuple[str, tuple[float, ...]] | None:
+        """Optional: the yield part as a compiled form of the engine, so that the
+        velocity-independent coefficients of the vertical step are computed in one compiled
+        pass (docs/plugins.md, "Compiled forms").
+
+        Returns ``("frictional", (mu, mu_static))`` with :meth:`yield_stress` equal to
+        ``mu max(p, 0)`` and :meth:`static_yield_stress` to ``mu_static max(p, 0)``.
+        The default, None, keeps the plugin's own methods (always correct).
+        """
+        return None

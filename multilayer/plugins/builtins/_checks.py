@@ -47,3 +47,7 @@ class FrictionalYield(multilayer.Rheology):
     def static_yield_stress(self, pressure, material):
         """kappa_static = mu_start max(p, 0), Pa."""
         return self.mu_start * np.maximum(np.asarray(pressure, dtype=float), 0.0)
+
+    def yield_stress_kernel(self, material):
+        """The ``frictional`` form of :meth:`yield_stress` and :meth:`static_yield_stress`."""
+        return "frictional", (self.mu_s, self.mu_start)

@@ -28,6 +28,10 @@ class WallFriction(multilayer.Rheology):
         """kappa = mu_w max(p, 0), Pa."""
         return self.mu_w * np.maximum(np.asarray(pressure, dtype=float), 0.0)
 
+    def yield_stress_kernel(self, material):
+        """The ``frictional`` form of :meth:`yield_stress` (the same at rest)."""
+        return "frictional", (self.mu_w, self.mu_w)
+
     def viscosity(self, shear_rate, pressure, material):
         """eta = 0, Pa s."""
         return np.zeros(np.broadcast_shapes(np.shape(shear_rate), np.shape(pressure)))
