@@ -55,7 +55,9 @@ def test_compiled_coefficients_are_the_numpy_ones_bit_for_bit(name, walls, start
     got = compiled(h, wet, rest, yield_gravity)
     ref = model.columns(h, wet, rest, yield_gravity)
     for field in dataclasses.fields(stress.ColumnStresses):
-        np.testing.assert_array_equal(getattr(got, field.name), getattr(ref, field.name), err_msg=field.name)
+        mine, theirs = getattr(got, field.name), getattr(ref, field.name)
+        np.testing.assert_array_equal(mine, theirs, err_msg=field.name)
+        assert mine.dtype == theirs.dtype and mine.tobytes() == theirs.tobytes(), field.name  # every bit
     if start_stop:  # the static yield stress was used where both layers were at rest
         static = rest[:, wet] & np.vstack([np.ones((1, wet.size), bool), rest[:-1, wet]])
         assert static[1:].any()

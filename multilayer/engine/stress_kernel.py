@@ -36,13 +36,14 @@ def yield_law_of(rheology, material) -> tuple[float, float] | None:
 
 @njit(cache=True, inline="always")
 def _frictional(mu, p):
-    """``mu * numpy.maximum(p, 0.0)`` (a NaN pressure stays NaN, as in numpy)."""
-    return mu * (p if (p >= 0.0 or p != p) else 0.0)
+    """``mu * numpy.maximum(p, 0.0)`` (a NaN pressure stays NaN and -0.0 gives +0.0, as in numpy)."""
+    return mu * (p if (p > 0.0 or p != p) else 0.0)
 
 
 @njit(cache=True, inline="always")
-def _outside_contract(value):
-    return not (value >= 0.0 and value < np.inf)
+def _within_contract(value):
+    """1 if ``value`` is finite and >= 0 (the plugin contract), else 0 (a NaN fails)."""
+    return (value >= 0.0) & (value < np.inf)
 
 
 def _coefficients(
@@ -53,51 +54,64 @@ def _coefficients(
     """The arrays of ``ColumnStresses`` (L, n) of the columns ``wet`` (``StressModel.columns``
     with the yield forms ``mu max(p, 0)``, ``mu_static max(p, 0)`` at rest and
     ``mu_wall max(pbar, 0)`` on the walls).  Returns False if a yield value is outside
-    the plugin contract (not finite and >= 0)."""
+    the plugin contract (not finite and >= 0).  Each row is written by loops over the
+    gathered thicknesses without branches (they vectorise); the gathers of the layers at
+    rest and of ``yield_gravity`` and the basal row come separately."""
     L = l.size
     n = wet.size
-    bad = 0
+    hw = np.empty(n)
+    for j in range(n):
+        hw[j] = h[wet[j]]
+    g_p = rho * g_n
+    checked = good = 0
     for a in prange(L):
-        g_p = rho * g_n
         mass, apart = rho * l[a], spacing_fraction[a]
         at_depth, at_centre = depth_interface[a], depth_centre[a]
         wall_part = wall_scale * l[a]
         for j in range(n):
-            col = wet[j]
-            hj = h[col]
-            g = rho * yield_gravity[a, col] if has_yield_gravity else g_p
-            p = g * at_depth * hj
-            pressure[a, j] = p
-            flowing = _frictional(mu, p)
-            if _outside_contract(flowing):
-                bad += 1
-            k = flowing
-            if has_rest and rest[a, col] and (a == 0 or rest[a - 1, col]):
-                k = _frictional(mu_static, p)
-                if _outside_contract(k):
-                    bad += 1
-            is_viscous = True
-            if a == 0:
-                kind = base_kind[col]
-                if kind == COULOMB:
-                    k = base_mu[col] * p
-                elif kind != NO_SLIP:  # free slip
-                    k = 0.0
-                is_viscous = kind == NO_SLIP
-            kappa[a, j] = k
-            viscous[a, j] = is_viscous
-            pbar = g_p * at_centre * hj
-            wall_pressure[a, j] = pbar
-            if walls:
-                tau = _frictional(mu_wall, pbar)
-                if _outside_contract(tau):
-                    bad += 1
-                w[a, j] = wall_part * hj * tau
-            else:
-                w[a, j] = 0.0
+            hj = hw[j]
             m[a, j] = mass * hj
             spacing[a, j] = apart * hj
-    return bad == 0
+            wall_pressure[a, j] = g_p * at_centre * hj
+            viscous[a, j] = True
+        if has_yield_gravity:
+            for j in range(n):
+                pressure[a, j] = rho * yield_gravity[a, wet[j]] * at_depth * hw[j]
+        else:
+            for j in range(n):
+                pressure[a, j] = g_p * at_depth * hw[j]
+        row_checked, row_good = n, 0
+        for j in range(n):
+            k = _frictional(mu, pressure[a, j])
+            kappa[a, j] = k
+            row_good += _within_contract(k)
+        if has_rest:  # interface a is static where layer a and the one below (or the ground) rest
+            for j in range(n):
+                col = wet[j]
+                if rest[a, col] and (a == 0 or rest[a - 1, col]):
+                    k = _frictional(mu_static, pressure[a, j])
+                    kappa[a, j] = k
+                    row_checked += 1
+                    row_good += _within_contract(k)
+        if walls:
+            for j in range(n):
+                tau = _frictional(mu_wall, wall_pressure[a, j])
+                w[a, j] = wall_part * hw[j] * tau
+                row_good += _within_contract(tau)
+            row_checked += n
+        else:
+            for j in range(n):
+                w[a, j] = 0.0
+        checked += row_checked
+        good += row_good
+    for j in range(n):  # the basal condition replaces interface 0
+        kind = base_kind[wet[j]]
+        if kind == COULOMB:
+            kappa[0, j] = base_mu[wet[j]] * pressure[0, j]
+        elif kind != NO_SLIP:  # free slip
+            kappa[0, j] = 0.0
+        viscous[0, j] = kind == NO_SLIP
+    return good == checked
 
 
 _serial = njit(cache=True)(_coefficients)
