@@ -260,6 +260,7 @@ class CompiledStep:
         self.solves = 0  # column solves so far
         self.fallbacks = 0  # of which by the O(L^2) dynamic programme (the active set failed)
         self._out: np.ndarray | None = None  # the result, reused from step to step
+        self._written = (0, 0)  # its columns that may be non-zero
 
     def laws(self) -> tuple[tuple[int, np.ndarray], tuple[int, np.ndarray] | None] | None:
         """(bulk, walls) compiled forms, None when some law has none."""
@@ -294,9 +295,10 @@ class CompiledStep:
         wet = np.flatnonzero(h > 0)
         cs: ColumnStresses = self.coefficients(h, wet, rest, yield_gravity, threads)
         if self._out is None or self._out.shape != ustar.shape:
-            self._out = np.zeros_like(ustar)
+            self._out, self._written = np.zeros_like(ustar), (0, 0)
         u = self._out
-        u.fill(0.0)
+        u[:, self._written[0] : self._written[1]] = 0.0  # zero outside them already
+        self._written = (int(wet[0]), int(wet[-1]) + 1) if wet.size else (0, 0)
         iterations = np.empty(wet.size, np.int64)
         fallbacks = np.empty(wet.size, np.int64)
         faults, fault_values = np.empty(wet.size, np.int64), np.empty((wet.size, 2))

@@ -193,18 +193,26 @@ class Simulation:
         while True:
             self._check_advances(dt)
             h_new, u_new, w_new, q_new, seed, iterations = self._transport_with_starting_columns(dt)
+            # the vertical step zeroes the velocities of the columns without material: the
+            # columns lo .. hi-1 (the first to the last with h > 0) hold every non-zero
+            # velocity of the step's end (not so after the non-hydrostatic projection)
+            lo, hi = (0, self.h.size) if w_new is not self.w else transport_kernel.span(h_new)
             # the Courant condition must hold for the waves of the step's end as well: material
             # accelerated from (near) rest within one step (gravity on a steep slope) would put
             # the second Heun stage past the positivity limit; redo with the faster waves
-            end_speed = transport_kernel.max_wave_speed(h_new, u_new, self.g_n)
+            end_speed = transport_kernel.max_wave_speed(h_new[lo:hi], u_new[:, lo:hi], self.g_n)
             faster = transport.courant_step(end_speed, self.dx, transport.POSITIVITY_LIMIT)
             if dt <= faster or not math.isfinite(end_speed):  # the state guard names a non-finite state
                 break
             dt = self._courant_step(end_speed)  # <= faster < dt
         # the state guard: an impossible state is never kept (the last good one stays)
-        self.guard.check_step(self.h, h_new, u_new, self.t, dt, self.boundary_mass)
+        self.guard.check_step(self.h, h_new, u_new, self.t, dt, self.boundary_mass, (lo, hi))
         self.h[...] = h_new
-        self.u[...] = u_new
+        # the velocities are zero outside the columns that moved at the start (the survey
+        # read them all) and outside lo .. hi-1 in the new state: copy the columns between
+        first, last = transport_kernel.span(self._moving_start)
+        first, last = (lo, hi) if first == last else (min(first, lo), max(last, hi))
+        self.u[:, first:last] = u_new[:, first:last]
         if w_new is not self.w:  # the non-hydrostatic state (kept as it is otherwise)
             self.w[...] = w_new
             self.q[...] = q_new

@@ -470,6 +470,20 @@ def _window(h, u, moving, left, right):
 
 
 @njit(cache=True)
+def span(values: np.ndarray) -> tuple[int, int]:
+    """(first, last + 1) of the entries of ``values`` (N,) that are > 0 (or True);
+    (0, 0) for none."""
+    first = -1
+    last = -1
+    for i in range(values.size):
+        if values[i] > 0:
+            if first < 0:
+                first = i
+            last = i
+    return (first, last + 1) if first >= 0 else (0, 0)
+
+
+@njit(cache=True)
 def moving_columns(u: np.ndarray) -> np.ndarray:
     """Columns (N,) with a non-zero velocity in some layer of ``u`` (L, N)."""
     L, N = u.shape
