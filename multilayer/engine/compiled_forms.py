@@ -9,22 +9,38 @@ describes what the plugin computes, and the engine calls the plugin's own method
 
 from __future__ import annotations
 
-
-def _owner(rheology: object, name: str) -> type | None:
-    """The class whose definition of ``name`` an instance uses (None: the instance's own)."""
-    if name in vars(rheology):
-        return None
-    return next((cls for cls in type(rheology).__mro__ if name in vars(cls)), None)
+import functools
+from typing import Any
 
 
 def describes(rheology: object, kernel: str, methods: tuple[str, ...]) -> bool:
     """True when the definition of ``kernel`` that ``rheology`` uses comes from a class at
-    or below every class whose definition of ``methods`` it uses."""
-    kernel_owner = _owner(rheology, kernel)
+    or below every class whose definition of ``methods`` it uses (never when the instance
+    itself defines one of them)."""
+    instance = vars(rheology)
+    if kernel in instance or any(method in instance for method in methods):
+        return False
+    cls: Any = type(rheology)
+    # the definitions the class resolves now: a method patched on a class is a new key
+    return _class_describes(
+        cls, kernel, methods, tuple(getattr(cls, name, None) for name in (kernel, *methods))
+    )
+
+
+@functools.lru_cache(maxsize=256)
+def _class_describes(cls: Any, kernel: str, methods: tuple[str, ...], definitions: tuple) -> bool:
+    """``describes`` for the class ``cls`` whose attributes ``kernel, *methods`` resolve to
+    ``definitions`` (part of the key of the cache)."""
+    kernel_owner = _owner(cls, kernel)
     if kernel_owner is None:
         return False
     for method in methods:
-        method_owner = _owner(rheology, method)
+        method_owner = _owner(cls, method)
         if method_owner is None or not issubclass(kernel_owner, method_owner):
             return False
     return True
+
+
+def _owner(cls: Any, name: str) -> type | None:
+    """The class of ``cls.__mro__`` whose definition of ``name`` ``cls`` uses (None: none)."""
+    return next((base for base in cls.__mro__ if name in vars(base)), None)

@@ -107,7 +107,7 @@ class StateGuard:
         ``columns`` (lo, hi): ``u`` is zero outside the columns ``lo .. hi-1`` by
         construction, and is checked in them only."""
         lo, hi = (0, h.size) if columns is None else columns
-        if h.min(initial=0.0) >= 0.0 and np.isfinite(np.sum(h)) and _finite(u, lo, hi):
+        if h.min(initial=0.0) >= 0.0 and np.isfinite(np.sum(h)) and _finite(_bits(u), lo, hi):
             return  # no temporaries: the cheap path of every step
         if not np.isfinite(h).all():
             j = int(np.argmin(np.isfinite(h)))
@@ -123,14 +123,20 @@ class StateGuard:
             )
 
 
+def _bits(u: np.ndarray) -> np.ndarray:
+    """The bits of the floats of ``u`` (L, N) as unsigned integers (a view when contiguous)."""
+    return np.ascontiguousarray(u, dtype=float).view(np.uint64)
+
+
 @njit(cache=True)
-def _finite(u: np.ndarray, lo: int, hi: int) -> bool:
-    """True if every value of the columns ``lo .. hi-1`` of ``u`` (L, N) is finite: one
-    pass testing the exponent bits (all ones for an infinity or a NaN), which vectorises."""
-    bits = np.ascontiguousarray(u).view(np.uint64)
+def _finite(bits: np.ndarray, lo: int, hi: int) -> bool:
+    """True if every value of the columns ``lo .. hi-1`` of ``bits`` (L, N: the floats of
+    ``_bits``) is finite: one pass testing the exponent (all ones for an infinity or a
+    NaN), which vectorises."""
     exponent = np.uint64(0x7FF0000000000000)
     found = np.uint64(0)
     for a in range(bits.shape[0]):
-        for i in range(lo, hi):
-            found |= np.uint64((bits[a, i] & exponent) == exponent)
+        row = bits[a, lo:hi]
+        for i in range(row.size):
+            found |= np.uint64((row[i] & exponent) == exponent)
     return found == 0
