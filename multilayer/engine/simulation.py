@@ -285,7 +285,9 @@ class Simulation:
             boundary_mass=self.boundary_mass,
             **kernel_options,
         )
-        self.guard.check_state(h_new, ustar, f"after transport from t = {self.t:.6g} s (dt = {dt:.3g} s)")
+        self.guard.check_state(
+            h_new, ustar, lambda: f"after transport from t = {self.t:.6g} s (dt = {dt:.3g} s)"
+        )
         yield_gravity = None
         if self.pressure == "bim2016":
             yield_gravity = bim2016.yield_gravity(

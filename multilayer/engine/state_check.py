@@ -27,6 +27,9 @@ quantity, its value and where (x, layer, time).
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
+
 import numpy as np
 from numba import njit
 
@@ -73,15 +76,18 @@ class StateGuard:
         state; ``crossed`` (2,) is the mass that crossed the left and right boundary in
         the step, positive in +x; ``columns`` as in :meth:`check_state`.  A step that
         passes is added to the run's balance."""
-        when = f"after the step from t = {t:.6g} s (dt = {dt:.3g} s)"
+
+        def when() -> str:
+            return f"after the step from t = {t:.6g} s (dt = {dt:.3g} s)"
+
         self.check_state(h_new, u_new, when, columns)
         left, right = float(crossed[0]), float(crossed[1])
-        change = (float(np.sum(h_new)) - float(np.sum(h_old))) * self.dx
+        change = (float(h_new.sum()) - float(h_old.sum())) * self.dx
         scale = h_new.size * self.dx * max(float(h_old.max()), float(h_new.max())) + abs(left) + abs(right)
         error = change - (left - right)
         if not abs(error) <= ROUND_OFF * scale:  # a NaN fails too
             raise StateError(
-                f"mass is not conserved {when}: it changed by {change:.6g} m2 while the boundary fluxes "
+                f"mass is not conserved {when()}: it changed by {change:.6g} m2 while the boundary fluxes "
                 f"carried {left - right:.6g} m2 in (left side {left:.6g} m2, right side {-right:.6g} m2): "
                 f"the transport made an error of {error:.3g} m2, more than round-off "
                 f"({ROUND_OFF * scale:.3g} m2)"
@@ -101,14 +107,20 @@ class StateGuard:
             )
 
     def check_state(
-        self, h: np.ndarray, u: np.ndarray, when: str, columns: tuple[int, int] | None = None
+        self,
+        h: np.ndarray,
+        u: np.ndarray,
+        when: str | Callable[[], str],
+        columns: tuple[int, int] | None = None,
     ) -> None:
         """Raise :class:`StateError` unless ``h`` and ``u`` are finite and ``h >= 0``;
-        ``columns`` (lo, hi): ``u`` is zero outside the columns ``lo .. hi-1`` by
+        ``when`` (or what it returns, called only to write a message) says when in the
+        run; ``columns`` (lo, hi): ``u`` is zero outside the columns ``lo .. hi-1`` by
         construction, and is checked in them only."""
         lo, hi = (0, h.size) if columns is None else columns
-        if h.min(initial=0.0) >= 0.0 and np.isfinite(np.sum(h)) and _finite(_bits(u), lo, hi):
+        if h.min(initial=0.0) >= 0.0 and math.isfinite(h.sum()) and _finite(_bits(u), lo, hi):
             return  # no temporaries: the cheap path of every step
+        when = when if isinstance(when, str) else when()
         if not np.isfinite(h).all():
             j = int(np.argmin(np.isfinite(h)))
             raise StateError(f"thickness h = {float(h[j])!r} at x = {self.x[j]:.6g} m {when}")

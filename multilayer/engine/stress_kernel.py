@@ -130,7 +130,7 @@ class CompiledCoefficients:
 
     def __init__(self, stresses: StressModel):
         self.stresses = stresses
-        self._buffers: dict[str, np.ndarray] = {}
+        self._floats, self._flags = np.empty(0), np.empty(0, bool)
 
     def laws(self) -> tuple[tuple[float, float], float | None] | None:
         """((mu, mu_static) of the bulk law, mu of the wall law or None), or None when a
@@ -179,11 +179,10 @@ class CompiledCoefficients:
             wall_pressure=wall_pressure, x=s.x[where],
         )  # fmt: skip
 
-    def _arrays(self, L: int, n: int) -> list[np.ndarray]:
-        """The seven (L, n) arrays of ``ColumnStresses``: contiguous views of buffers grown
-        when a call needs more columns than any call before."""
-        names = ("m", "kappa", "w", "pressure", "spacing", "viscous", "wall_pressure")
-        if self._buffers.get("m", np.empty(0)).size < L * n:
-            size = L * max(n, 1)
-            self._buffers = {name: np.empty(size, bool if name == "viscous" else float) for name in names}
-        return [self._buffers[name][: L * n].reshape(L, n) for name in names]
+    def _arrays(self, L: int, n: int) -> tuple[np.ndarray, ...]:
+        """The seven (L, n) arrays of ``ColumnStresses``: contiguous views of two buffers
+        grown when a call needs more columns than any call before."""
+        if self._floats.size < 6 * L * n:
+            self._floats, self._flags = np.empty(6 * L * max(n, 1)), np.empty(L * max(n, 1), bool)
+        m, kappa, w, pressure, spacing, wall_pressure = self._floats[: 6 * L * n].reshape(6, L, n)
+        return m, kappa, w, pressure, spacing, self._flags[: L * n].reshape(L, n), wall_pressure
