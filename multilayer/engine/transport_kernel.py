@@ -261,7 +261,8 @@ def _tile(
     # hydrostatic reconstruction and HLL wave speeds bracketing every layer's waves
     for f in range(m + 1):
         # the slowest and fastest layer on each side (one face at a time: accumulating
-        # them row by row in arrays was slowed by false store-load dependencies)
+        # them row by row in arrays was slowed by false store-load dependencies), kept
+        # in rows that the next loop overwrites
         s_lo = s_hi = u_e[0, f + 1]
         r_lo = r_hi = u_w[0, f + 2]
         for a in range(1, L):
@@ -270,6 +271,10 @@ def _tile(
             s_hi = left_value if left_value > s_hi else s_hi
             r_lo = right_value if right_value < r_lo else r_lo
             r_hi = right_value if right_value > r_hi else r_hi
+        wl[f], wr[f], pL[f], pR[f] = s_lo, s_hi, r_lo, r_hi
+    # the face scalars, face by face without inner loops (they vectorise)
+    for f in range(m + 1):
+        s_lo, s_hi, r_lo, r_hi = wl[f], wr[f], pL[f], pR[f]
         b_face = max(b_e[f + 1], b_w[f + 2])
         hl = max(0.0, h_e[f + 1] + b_e[f + 1] - b_face)
         hr = max(0.0, h_w[f + 2] + b_w[f + 2] - b_face)
