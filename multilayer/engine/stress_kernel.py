@@ -46,25 +46,23 @@ def _within_contract(value):
     return (value >= 0.0) & (value < np.inf)
 
 
-def _coefficients(
-    h, wet, rest, has_rest, yield_gravity, has_yield_gravity, g_n, rho, l, depth_interface, depth_centre,
-    spacing_fraction, base_kind, base_mu, mu, mu_static, walls, mu_wall, wall_scale,
+@njit(cache=True)
+def _rows(
+    first, last, hw, wet, rest, has_rest, yield_gravity, has_yield_gravity, g_n, rho, l, depth_interface,
+    depth_centre, spacing_fraction, base_kind, base_mu, mu, mu_static, walls, mu_wall, wall_scale,
     m, kappa, w, pressure, spacing, viscous, wall_pressure,
 ):  # fmt: skip
-    """The arrays of ``ColumnStresses`` (L, n) of the columns ``wet`` (``StressModel.columns``
-    with the yield forms ``mu max(p, 0)``, ``mu_static max(p, 0)`` at rest and
-    ``mu_wall max(pbar, 0)`` on the walls).  Returns False if a yield value is outside
-    the plugin contract (not finite and >= 0).  Each row is written by loops over the
-    gathered thicknesses without branches (they vectorise); the gathers of the layers at
-    rest and of ``yield_gravity`` and the basal row come separately."""
-    L = l.size
+    """The rows ``first .. last-1`` of the arrays of ``ColumnStresses`` (L, n) of the columns
+    ``wet`` of thicknesses ``hw`` (``StressModel.columns`` with the yield forms
+    ``mu max(p, 0)``, ``mu_static max(p, 0)`` at rest and ``mu_wall max(pbar, 0)`` on
+    the walls), the basal condition included when ``first == 0``.  Returns how many
+    yield values are outside the plugin contract (not finite and >= 0).  Each row is
+    written by loops over the thicknesses without branches (they vectorise); the gathers
+    of the layers at rest and of ``yield_gravity`` and the basal row come separately."""
     n = wet.size
-    hw = np.empty(n)
-    for j in range(n):
-        hw[j] = h[wet[j]]
     g_p = rho * g_n
     checked = good = 0
-    for a in prange(L):
+    for a in range(first, last):
         mass, apart = rho * l[a], spacing_fraction[a]
         at_depth, at_centre = depth_interface[a], depth_centre[a]
         wall_part = wall_scale * l[a]
@@ -80,42 +78,50 @@ def _coefficients(
         else:
             for j in range(n):
                 pressure[a, j] = g_p * at_depth * hw[j]
-        row_checked, row_good = n, 0
+        checked += n
         for j in range(n):
             k = _frictional(mu, pressure[a, j])
             kappa[a, j] = k
-            row_good += _within_contract(k)
+            good += _within_contract(k)
         if has_rest:  # interface a is static where layer a and the one below (or the ground) rest
             for j in range(n):
                 col = wet[j]
                 if rest[a, col] and (a == 0 or rest[a - 1, col]):
                     k = _frictional(mu_static, pressure[a, j])
                     kappa[a, j] = k
-                    row_checked += 1
-                    row_good += _within_contract(k)
+                    checked += 1
+                    good += _within_contract(k)
         if walls:
+            checked += n
             for j in range(n):
                 tau = _frictional(mu_wall, wall_pressure[a, j])
                 w[a, j] = wall_part * hw[j] * tau
-                row_good += _within_contract(tau)
-            row_checked += n
+                good += _within_contract(tau)
         else:
             for j in range(n):
                 w[a, j] = 0.0
-        checked += row_checked
-        good += row_good
-    for j in range(n):  # the basal condition replaces interface 0
-        kind = base_kind[wet[j]]
-        if kind == COULOMB:
-            kappa[0, j] = base_mu[wet[j]] * pressure[0, j]
-        elif kind != NO_SLIP:  # free slip
-            kappa[0, j] = 0.0
-        viscous[0, j] = kind == NO_SLIP
-    return good == checked
+    if first == 0 < last:
+        for j in range(n):  # the basal condition replaces interface 0
+            kind = base_kind[wet[j]]
+            if kind == COULOMB:
+                kappa[0, j] = base_mu[wet[j]] * pressure[0, j]
+            elif kind != NO_SLIP:  # free slip
+                kappa[0, j] = 0.0
+            viscous[0, j] = kind == NO_SLIP
+    return checked - good
 
 
-_serial = njit(cache=True)(_coefficients)
-_parallel = njit(cache=True, parallel=True)(_coefficients)
+@njit(cache=True, parallel=True)
+def _rows_in_chunks(chunks, *args):
+    """``_rows`` of all the rows, cut into ``chunks`` pieces computed in parallel (a
+    function of its own: numba's cache does not tell a parallel compilation of a
+    function from a serial one)."""
+    L = args[8].size  # l
+    bad = 0
+    for k in prange(chunks):
+        bad += _rows(k * L // chunks, (k + 1) * L // chunks, *args)
+    return bad
+
 
 _NO_REST = np.zeros((1, 1), dtype=bool)
 _NO_GRAVITY = np.zeros((1, 1))
@@ -159,18 +165,18 @@ class CompiledCoefficients:
         if laws is None:
             return s.columns(h, where, rest, yield_gravity)
         (mu, mu_static), mu_wall = laws
+        where = np.ascontiguousarray(where, dtype=np.int64)
         L, n = s.l.shape[0], where.size
         arrays = self._arrays(L, n)
-        kernel = _parallel if threads > 1 else _serial
-        fine = kernel(
-            h, np.ascontiguousarray(where, dtype=np.int64),
-            _NO_REST if rest is None else rest, rest is not None,
+        args = (
+            h[where], where, _NO_REST if rest is None else rest, rest is not None,
             _NO_GRAVITY if yield_gravity is None else np.ascontiguousarray(yield_gravity),
-            yield_gravity is not None, float(s.g_n),
-            float(s.material.density), s.l[:, 0], s.depth_interface[:, 0], s.depth_centre[:, 0],
-            s.spacing_fraction[:, 0], s.base_kind, s.base_mu, mu, mu_static, mu_wall is not None,
-            0.0 if mu_wall is None else mu_wall, 2.0 / s.width, *arrays,
+            yield_gravity is not None, float(s.g_n), float(s.material.density), s.l[:, 0],
+            s.depth_interface[:, 0], s.depth_centre[:, 0], s.spacing_fraction[:, 0], s.base_kind, s.base_mu,
+            mu, mu_static, mu_wall is not None, 0.0 if mu_wall is None else mu_wall, 2.0 / s.width, *arrays,
         )  # fmt: skip
+        bad = _rows_in_chunks(min(threads, L), *args) if threads > 1 else _rows(0, L, *args)
+        fine = bad == 0
         if not fine:  # the numpy path names the plugin, the method and the value
             return s.columns(h, where, rest, yield_gravity)
         m, kappa, w, pressure, spacing, viscous, wall_pressure = arrays
