@@ -45,3 +45,23 @@ def test_commands_that_run_nothing_import_neither_fipy_nor_numba(argv):
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip().splitlines()[-1] == "[]"
+
+
+def test_each_parallel_kernel_is_cached_apart_from_its_serial_compilation():
+    """numba's on-disk cache names a compilation by the function's qualified name and line
+    and keys it by signature only: compiled from the same function, a parallel kernel and
+    its serial twin shared one entry and both loaded whichever was compiled last."""
+    from multilayer.engine import column_kernel, newton_kernel, stress_kernel, transport_kernel
+
+    pairs = [
+        (column_kernel._solve_serial, column_kernel._solve_parallel),
+        (newton_kernel._serial, newton_kernel._parallel),
+        (stress_kernel._serial, stress_kernel._parallel),
+        (transport_kernel._stages_serial, transport_kernel._stages_parallel),
+    ]
+    for serial, parallel in pairs:
+        assert parallel.targetoptions.get("parallel") and not serial.targetoptions.get("parallel")
+        assert parallel.py_func.__qualname__ == serial.py_func.__qualname__ + "_parallel"
+        assert parallel.py_func.__code__.co_code == serial.py_func.__code__.co_code  # the same kernel
+        names = {d._cache._cache_file._index_name for d in (serial, parallel)}  # the cache files
+        assert len(names) == 2, names

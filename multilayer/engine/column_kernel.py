@@ -31,6 +31,7 @@ import numpy as np
 from numba import njit, prange
 
 from multilayer.engine.column_problem import ColumnProblem
+from multilayer.engine.threads import parallel_compiled
 from multilayer.errors import RunError
 
 INF = np.inf
@@ -382,7 +383,7 @@ def _columns(m, ustar, dt, kappa, c, w, cw, guess, u, chunks):
 
 
 _solve_serial: Any = njit(cache=True)(_columns)
-_solve_parallel: Any = njit(cache=True, parallel=True)(_columns)
+_solve_parallel: Any = parallel_compiled(_columns)
 
 
 def solve(problem: ColumnProblem, guess: np.ndarray | None = None, threads: int = 1) -> np.ndarray:

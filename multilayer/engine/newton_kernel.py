@@ -24,6 +24,7 @@ from multilayer.engine.compiled_forms import describes
 from multilayer.engine.plugin_output import PluginOutputError, outside_contract
 from multilayer.engine.stress import INTERFACE, LAYER, ColumnStresses, StressModel
 from multilayer.engine.stress_kernel import CompiledCoefficients
+from multilayer.engine.threads import parallel_compiled
 
 FORMS = {"constant": 0, "inertial": 1, "power": 2}
 BLOCK = 16
@@ -244,7 +245,7 @@ def _columns(
 
 
 _serial = njit(cache=True)(_columns)
-_parallel = njit(cache=True, parallel=True)(_columns)
+_parallel = parallel_compiled(_columns)
 
 
 class CompiledStep:

@@ -19,6 +19,7 @@ from numba import njit, prange
 
 from multilayer.engine.compiled_forms import describes
 from multilayer.engine.stress import COULOMB, NO_SLIP, ColumnStresses, StressModel
+from multilayer.engine.threads import parallel_compiled
 
 
 def yield_law_of(rheology, material) -> tuple[float, float] | None:
@@ -46,23 +47,22 @@ def _within_contract(value):
     return (value >= 0.0) & (value < np.inf)
 
 
-@njit(cache=True)
-def _rows(
-    first, last, hw, wet, rest, has_rest, yield_gravity, has_yield_gravity, g_n, rho, l, depth_interface,
+def _coefficients(
+    hw, wet, rest, has_rest, yield_gravity, has_yield_gravity, g_n, rho, l, depth_interface,
     depth_centre, spacing_fraction, base_kind, base_mu, mu, mu_static, walls, mu_wall, wall_scale,
     m, kappa, w, pressure, spacing, viscous, wall_pressure,
 ):  # fmt: skip
-    """The rows ``first .. last-1`` of the arrays of ``ColumnStresses`` (L, n) of the columns
-    ``wet`` of thicknesses ``hw`` (``StressModel.columns`` with the yield forms
-    ``mu max(p, 0)``, ``mu_static max(p, 0)`` at rest and ``mu_wall max(pbar, 0)`` on
-    the walls), the basal condition included when ``first == 0``.  Returns how many
-    yield values are outside the plugin contract (not finite and >= 0).  Each row is
-    written by loops over the thicknesses without branches (they vectorise); the gathers
-    of the layers at rest and of ``yield_gravity`` and the basal row come separately."""
-    n = wet.size
+    """The arrays of ``ColumnStresses`` (L, n) of the columns ``wet`` of thicknesses ``hw``
+    (``StressModel.columns`` with the yield forms ``mu max(p, 0)``, ``mu_static max(p, 0)``
+    at rest and ``mu_wall max(pbar, 0)`` on the walls), row by row (the rows in parallel
+    in the parallel compilation).  Returns how many yield values are outside the plugin
+    contract (not finite and >= 0).  Each row is written by loops over the thicknesses
+    without branches (they vectorise); the gathers of the layers at rest and of
+    ``yield_gravity`` and the basal row come separately."""
+    L, n = l.size, wet.size
     g_p = rho * g_n
     checked = good = 0
-    for a in range(first, last):
+    for a in prange(L):
         mass, apart = rho * l[a], spacing_fraction[a]
         at_depth, at_centre = depth_interface[a], depth_centre[a]
         wall_part = wall_scale * l[a]
@@ -100,28 +100,18 @@ def _rows(
         else:
             for j in range(n):
                 w[a, j] = 0.0
-    if first == 0 < last:
-        for j in range(n):  # the basal condition replaces interface 0
-            kind = base_kind[wet[j]]
-            if kind == COULOMB:
-                kappa[0, j] = base_mu[wet[j]] * pressure[0, j]
-            elif kind != NO_SLIP:  # free slip
-                kappa[0, j] = 0.0
-            viscous[0, j] = kind == NO_SLIP
+    for j in range(n):  # the basal condition replaces interface 0
+        kind = base_kind[wet[j]]
+        if kind == COULOMB:
+            kappa[0, j] = base_mu[wet[j]] * pressure[0, j]
+        elif kind != NO_SLIP:  # free slip
+            kappa[0, j] = 0.0
+        viscous[0, j] = kind == NO_SLIP
     return checked - good
 
 
-@njit(cache=True, parallel=True)
-def _rows_in_chunks(chunks, *args):
-    """``_rows`` of all the rows, cut into ``chunks`` pieces computed in parallel (a
-    function of its own: numba's cache does not tell a parallel compilation of a
-    function from a serial one)."""
-    L = args[8].size  # l
-    bad = 0
-    for k in prange(chunks):
-        bad += _rows(k * L // chunks, (k + 1) * L // chunks, *args)
-    return bad
-
+_serial = njit(cache=True)(_coefficients)
+_parallel = parallel_compiled(_coefficients)
 
 _NO_REST = np.zeros((1, 1), dtype=bool)
 _NO_GRAVITY = np.zeros((1, 1))
@@ -175,8 +165,7 @@ class CompiledCoefficients:
             s.depth_interface[:, 0], s.depth_centre[:, 0], s.spacing_fraction[:, 0], s.base_kind, s.base_mu,
             mu, mu_static, mu_wall is not None, 0.0 if mu_wall is None else mu_wall, 2.0 / s.width, *arrays,
         )  # fmt: skip
-        bad = _rows_in_chunks(min(threads, L), *args) if threads > 1 else _rows(0, L, *args)
-        fine = bad == 0
+        fine = (_parallel if threads > 1 else _serial)(*args) == 0
         if not fine:  # the numpy path names the plugin, the method and the value
             return s.columns(h, where, rest, yield_gravity)
         m, kappa, w, pressure, spacing, viscous, wall_pressure = arrays

@@ -18,7 +18,10 @@ from __future__ import annotations
 
 import os
 import time
+import types
 from collections import Counter
+from collections.abc import Callable
+from typing import Any
 
 from multilayer.errors import InputError
 
@@ -27,6 +30,25 @@ PARALLEL_CELLS = 200_000
 """Steps on fewer cells than this run on one thread (see docs/performance.md)."""
 REFRESH = 0.5
 """Seconds between two measurements of the idle cores."""
+
+
+def parallel_compiled(function: Callable, **options: Any) -> Any:
+    """``numba.njit(cache=True, parallel=True, **options)`` of ``function``, compiled and
+    cached apart from its serial compilation.
+
+    numba's on-disk cache names a compilation by the function's qualified name and first
+    line and keys it by its signature only: a serial and a parallel compilation of one
+    function shared one entry, and whichever had been compiled last was loaded for both
+    (the parallel kernels ran the serial code).  The parallel one is compiled from a copy
+    of the function named ``<name>_parallel``."""
+    from numba import njit
+
+    name = f"{function.__name__}_parallel"
+    qualname = f"{function.__qualname__}_parallel"
+    code = function.__code__.replace(co_name=name, co_qualname=qualname)
+    copy = types.FunctionType(code, function.__globals__, name, function.__defaults__, function.__closure__)
+    copy.__qualname__, copy.__doc__, copy.__module__ = qualname, function.__doc__, function.__module__
+    return njit(cache=True, parallel=True, **options)(copy)
 
 
 def available_cores() -> int:

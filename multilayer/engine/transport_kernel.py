@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from multilayer.engine.threads import parallel_compiled
 from multilayer.engine.transport import MARGIN, step_boundary_mass
 
 WALL, OUTFLOW, INFLOW, PERIODIC = 0, 1, 2, 3
@@ -442,7 +443,7 @@ def _stages(
 
 
 _stages_serial = njit(cache=True, error_model="numpy")(_stages)
-_stages_parallel = njit(cache=True, parallel=True, error_model="numpy")(_stages)
+_stages_parallel = parallel_compiled(_stages, error_model="numpy")
 
 
 @njit(cache=True)
