@@ -188,7 +188,7 @@ ENGINE_FAULTS: list[tuple[str, str, str]] = [
 ]
 
 # built-in laws given, past their validation, parameters whose compiled viscosity form
-# (newton_kernel) is outside the contract: (name, rheology, attribute = value, phrase)
+# (newton_kernel) or yield form is outside the contract: (name, rheology, attribute = value, phrase)
 COMPILED_FAULTS: list[tuple[str, dict, str, str]] = [
     (
         "mu(I) with mu_2 < mu_s",
@@ -207,6 +207,13 @@ COMPILED_FAULTS: list[tuple[str, dict, str, str]] = [
         {"name": "power_law_mu_i", "mu_s": 0.3, "m": 0.2, "alpha": 0.5},
         "shear_rate_floor = 0.0",
         "returned inf",
+    ),
+    # the compiled yield form (stress_kernel) outside the contract
+    (
+        "Drucker-Prager mu_s nan",
+        {"name": "drucker_prager", "mu_s": 0.3, "nu": 0.01},
+        "mu_s = np.nan",
+        "yield_stress() returned nan",
     ),
 ]
 
