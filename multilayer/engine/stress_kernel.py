@@ -5,7 +5,7 @@ yield part (``Rheology.yield_stress_kernel``: ``kappa = mu max(p, 0)``, ``mu_sta
 max(p, 0)`` at rest), the masses, interface pressures and yield stresses (start/stop and
 basal conditions included), wall thresholds, spacings and mean layer pressures of the
 wet columns are computed in one compiled pass, row by row, into arrays kept from step to
-step, instead of a dozen numpy temporaries of the mesh's size per step.  The operations
+step, instead of a dozen numpy temporaries of their size per step.  The operations
 are those of ``stress.StressModel.columns`` in the same order, so the coefficients are
 the same bits (tests/test_stress_kernel.py).  Any value outside the plugin contract
 (not finite, or negative) sends the call to ``StressModel.columns``, whose checks name
