@@ -104,26 +104,79 @@ def faces(N: int, periodic: bool) -> tuple[np.ndarray, np.ndarray]:
 
 
 def constraint(
-    h: np.ndarray, bed: np.ndarray, fractions: np.ndarray, dx: float, periodic: bool
+    h: np.ndarray,
+    bed: np.ndarray,
+    fractions: np.ndarray,
+    dx: float,
+    periodic: bool,
+    interpolation: np.ndarray | None = None,
 ) -> Constraint:
-    """The local rows ``E`` of the layer divergence constraint (module Notes)."""
+    """The local rows ``E`` of the layer divergence constraint (module Notes), or with the
+    pressure ``interpolation`` ``P`` (L, L_p) of :func:`pressure_interpolation` the reduced
+    rows ``P^T E`` (one per pressure interface and column: cell ``g * N + i``)."""
     L, N = fractions.size, h.size
+    P = np.eye(L) if interpolation is None else np.asarray(interpolation, dtype=float)
     left, right = faces(N, periodic)
     pointer, cells, values, mass = _entries(
         np.asarray(h, dtype=float), np.asarray(bed, dtype=float), np.asarray(fractions, dtype=float),
-        float(dx), left, right,
+        float(dx), left, right, P,
     )  # fmt: skip
-    return Constraint(pointer, cells, values, mass, left, right, (L * N, L * left.size + L * N))
+    return Constraint(pointer, cells, values, mass, left, right, (P.shape[1] * N, L * left.size + L * N))
+
+
+def pressure_nodes(fractions: np.ndarray, pressure_layers: int) -> np.ndarray:
+    """The velocity layers whose bottom interfaces carry the pressure: ``pressure_layers``
+    groups of whole layers, each group's bottom interface the one nearest ``sigma = g /
+    L_p`` (equal fractions of the depth when the layer fractions allow it; every group
+    holds at least one layer).  ``pressure_layers == L`` gives every layer."""
+    L = fractions.size
+    sigma = np.concatenate([[0.0], np.cumsum(fractions)[:-1]])
+    nodes = np.zeros(pressure_layers, dtype=np.int64)
+    for g in range(1, pressure_layers):
+        lo, hi = nodes[g - 1] + 1, L - (pressure_layers - g)
+        candidates = np.arange(lo, hi + 1)
+        nodes[g] = candidates[np.argmin(np.abs(sigma[candidates] - g / pressure_layers))]
+    return nodes
+
+
+def pressure_interpolation(fractions: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """``P`` (L, L_p): the pressure on the bottom interface of every velocity layer,
+    linear in ``sigma`` between the pressure interfaces ``nodes`` (bottom interfaces of the
+    groups of :func:`pressure_nodes`) and zero at the free surface: ``q_a = sum_g P_a,g
+    q_g``.  With a node at every layer it is the identity."""
+    L, Lp = fractions.size, nodes.size
+    sigma = np.concatenate([[0.0], np.cumsum(fractions)[:-1]])
+    at = np.append(sigma[nodes], 1.0)  # the pressure interfaces and the surface
+    P = np.zeros((L, Lp))
+    for g in range(Lp):
+        P[nodes[g], g] = 1.0
+        for a in range(nodes[g] + 1, nodes[g + 1] if g + 1 < Lp else L):
+            weight = (at[g + 1] - sigma[a]) / (at[g + 1] - at[g])
+            P[a, g] = weight
+            if g + 1 < Lp:
+                P[a, g + 1] = 1.0 - weight
+    return P
 
 
 @njit(cache=True)
-def _entries(h, bed, fractions, dx, left, right):
-    """``E`` column by column (see :class:`Constraint`): ``F_c`` enters the rows ``c`` and
-    ``c + 1`` with 1/2; ``S_j`` (interface ``j``, its velocity ``vhat_j = beta_j,c-1 v_c-1 +
-    beta_j,c v_c`` weighted by the thicknesses) enters row 0 with -1/2 (``j`` = 0, 1), row
-    ``j - 1`` with -1/2 (``j >= 2``) and row ``j + 1`` with +1/2; ``wbar_a`` enters row ``a``
-    with +1 and row ``a + 1`` with -1."""
+def _entries(h, bed, fractions, dx, left, right, P):
+    """``P^T E`` column by column (see :class:`Constraint`): in ``E``, ``F_c`` enters the
+    rows ``c`` and ``c + 1`` with 1/2; ``S_j`` (interface ``j``, its velocity ``vhat_j =
+    beta_j,c-1 v_c-1 + beta_j,c v_c`` weighted by the thicknesses) enters row 0 with -1/2
+    (``j`` = 0, 1), row ``j - 1`` with -1/2 (``j >= 2``) and row ``j + 1`` with +1/2;
+    ``wbar_a`` enters row ``a`` with +1 and row ``a + 1`` with -1.  Each entry of row ``a``
+    goes to the pressure rows ``g`` with ``P_a,g != 0``, times ``P_a,g`` (the identity:
+    ``E`` itself)."""
     L, N, F = fractions.size, h.size, left.size
+    Lp = P.shape[1]
+    targets = np.zeros(L, np.int64)  # the pressure rows of each row of E: first, count
+    first = np.zeros(L, np.int64)
+    for a in range(L):
+        first[a] = Lp
+        for g in range(Lp):
+            if P[a, g] != 0.0:
+                first[a] = min(first[a], g)
+                targets[a] += 1
     sigma = np.zeros(L + 1)
     for a in range(L):
         sigma[a + 1] = sigma[a] + fractions[a]
@@ -136,7 +189,7 @@ def _entries(h, bed, fractions, dx, left, right):
         beta[j, j - 1], beta[j, j] = fractions[j] / total, fractions[j - 1] / total
     rows, weights = np.empty(3, np.int64), np.empty(3)
     pointer = np.empty(L * F + L * N + 1, np.int64)
-    cells = np.empty(12 * L * F + 2 * L * N, np.int64)
+    cells = np.empty(2 * (12 * L * F + 2 * L * N), np.int64)
     values = np.empty(cells.size)
     mass = np.empty(L * F + L * N)
     n = 0
@@ -148,9 +201,10 @@ def _entries(h, bed, fractions, dx, left, right):
             h_face = fractions[c] * 0.5 * (h[i] + h[e])
             mass[k] = h_face
             for row in range(c, min(c + 2, L)):
-                cells[n], values[n] = row * N + i, 0.5 * h_face / dx
-                cells[n + 1], values[n + 1] = row * N + e, -0.5 * h_face / dx
-                n += 2
+                for g in range(first[row], first[row] + targets[row]):
+                    cells[n], values[n] = g * N + i, 0.5 * h_face / dx * P[row, g]
+                    cells[n + 1], values[n + 1] = g * N + e, -0.5 * h_face / dx * P[row, g]
+                    n += 2
             for j in (c, c + 1):
                 if beta[j, c] == 0.0:
                     continue
@@ -167,20 +221,25 @@ def _entries(h, bed, fractions, dx, left, right):
                     count += 1
                 for m in range(count):
                     value = weights[m] * 0.5 * beta[j, c] * slope
-                    cells[n], values[n] = rows[m] * N + i, value
-                    cells[n + 1], values[n + 1] = rows[m] * N + e, value
-                    n += 2
+                    row = rows[m]
+                    for g in range(first[row], first[row] + targets[row]):
+                        cells[n], values[n] = g * N + i, value * P[row, g]
+                        cells[n + 1], values[n + 1] = g * N + e, value * P[row, g]
+                        n += 2
             n = _merge(cells, values, pointer[k], n)
     for a in range(L):
         for i in range(N):
             k = L * F + a * N + i
             pointer[k] = n
             mass[k] = fractions[a] * h[i]
-            cells[n], values[n] = a * N + i, 1.0
-            n += 1
-            if a + 1 < L:
-                cells[n], values[n] = (a + 1) * N + i, -1.0
+            for g in range(first[a], first[a] + targets[a]):
+                cells[n], values[n] = g * N + i, P[a, g]
                 n += 1
+            if a + 1 < L:
+                for g in range(first[a + 1], first[a + 1] + targets[a + 1]):
+                    cells[n], values[n] = g * N + i, -P[a + 1, g]
+                    n += 1
+            n = _merge(cells, values, pointer[k], n)
     pointer[L * F + L * N] = n
     return pointer, cells[:n], values[:n], mass
 
@@ -430,26 +489,30 @@ def correction(
     w: np.ndarray,
     lam_max: np.ndarray | None = None,
     active: np.ndarray | None = None,
+    nodes: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``V*``, the correction ``dV = -M^-1 E^T lam`` and the free unknowns, over the rows
     and unknowns of the moving cells (all vectors full length).
 
     ``lam`` minimises ``1/2 lam^T A lam - lam^T E V*`` (``A lam = E V*``), subject to
-    ``lam <= lam_max`` (L, N) if given: with ``lam_a = -dt q_a`` this is the bound
+    ``lam <= lam_max`` (L_p, N) if given: with ``lam_a = -dt q_a`` this is the bound
     ``p >= 0`` on the total pressure, solved by the primal-dual active-set method from the
-    guess ``active`` (L, N) of the cells where the bound holds (none by default; updated
-    in place to the final active set).
+    guess ``active`` (L_p, N) of the cells where the bound holds (none by default; updated
+    in place to the final active set).  With pressure interfaces ``nodes`` (the velocity
+    layers of :func:`pressure_nodes`; default every layer) ``E`` is the reduced ``P^T E``
+    and its row ``g`` takes part where the layer ``nodes[g]`` moves.
     """
     L, N = u.shape
     left, right = cons.left, cons.right
     F = left.size
     face_free = (moving[:, left] | moving[:, right]).ravel() & (cons.mass[: L * F] > 0)
     free = np.concatenate([face_free, moving.ravel()])
+    constrained = moving if nodes is None else moving[nodes]
     # rows column by column (cell a * N + i is row row_of[a * N + i]): A is then banded, of
-    # half-width about L + 3
-    column, layer = np.nonzero(moving.T)
+    # half-width about L_p + 3
+    column, layer = np.nonzero(constrained.T)
     rows = layer * N + column
-    row_of = np.full(L * N, -1, dtype=np.int64)
+    row_of = np.full(constrained.size, -1, dtype=np.int64)
     row_of[rows] = np.arange(rows.size)
     v_star = 0.5 * (u[:, left] + u[:, right])
     V_star = np.concatenate([v_star.ravel(), np.where(moving, w, 0.0).ravel()])
@@ -490,8 +553,11 @@ def project(
     dry: float = 0.0,
     g_n: float | None = None,
     tension_free: np.ndarray | None = None,
+    pressure_layers: int | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Project the moving cells on the non-hydrostatic constraint (module Notes).
+    """Project the moving cells on the non-hydrostatic constraint (module Notes), with the
+    pressure on ``pressure_layers`` groups of layers (default: every layer; module Notes,
+    "Fewer pressure layers").
 
     ``u`` (L, N) are the velocities after the vertical step, ``w`` (L, N) the layer-mean
     vertical velocities before the projection.  Returns the new ``u`` and ``w`` and the
@@ -524,16 +590,25 @@ def project(
             dry=dry,
             g_n=g_n,
             tension_free=None if tension_free is None else tension_free[:, window],
+            pressure_layers=pressure_layers,
         )
         return u_new, w_new, q
-    cons = constraint(np.where(h > dry, h, 0.0), bed, fractions, dx, periodic)
+    nodes = interpolation = None
+    if pressure_layers is not None and pressure_layers != L:
+        nodes = pressure_nodes(fractions, pressure_layers)
+        interpolation = pressure_interpolation(fractions, nodes)
+    cons = constraint(np.where(h > dry, h, 0.0), bed, fractions, dx, periodic, interpolation)
     left, right = cons.left, cons.right
     F = left.size
     lam_max = active = None
     if g_n is not None:
+        # the bound at the pressure interfaces holds on every interface: both sides are
+        # linear in sigma between them
         lam_max = dt * g_n * depth_below(h, fractions)
         active = np.zeros_like(moving) if tension_free is None else tension_free.copy()
-    _, dV, _ = correction(cons, moving, u, w, lam_max, active)
+        if nodes is not None:
+            lam_max, active = lam_max[nodes], active[nodes]
+    _, dV, _ = correction(cons, moving, u, w, lam_max, active, nodes)
     dv = dV[: L * F].reshape(L, F)
     dw = dV[L * F :].reshape(L, N)
     du = np.zeros_like(u)
