@@ -22,16 +22,34 @@ FRICTIONLESS = {
 }
 
 
-def standing_wave_error(kh: float, layers: int, cells: int = 20, pressure: str = "non_hydrostatic") -> float:
+def non_hydrostatic(pressure_layers: int | None = None) -> dict:
+    """The ``model`` mapping of the non-hydrostatic option (pressure layers: the default)."""
+    model: dict = {"pressure": "non_hydrostatic"}
+    if pressure_layers is not None:
+        model["pressure_layers"] = pressure_layers
+    return model
+
+
+def standing_wave_error(
+    kh: float,
+    layers: int,
+    cells: int = 20,
+    pressure: str = "non_hydrostatic",
+    pressure_layers: int | None = None,
+) -> float:
     """Relative error of the phase speed of the gravest standing wave of a basin of depth
-    1 m and length pi / k (walls), amplitude 1 mm, against Airy's c^2 = (g/k) tanh(kh).
-    The period is twice the time between the two zero crossings of the mode amplitude."""
+    1 m and length pi / k (walls), amplitude 1 mm, against Airy's c^2 = (g/k) tanh(kh),
+    with the pressure on ``pressure_layers`` (default: every layer).  The period is twice
+    the time between the two zero crossings of the mode amplitude."""
     k = kh
     length = math.pi / k
+    model = {"pressure": pressure}
+    if pressure == "non_hydrostatic":
+        model = non_hydrostatic(layers if pressure_layers is None else pressure_layers)
     sim = simulation(
         domain={"x_min": 0.0, "x_max": length, "cells": cells, "layers": layers},
         initial=[{"shape": "layer", "thickness": 1.0}],
-        model={"pressure": pressure},
+        model=model,
         **FRICTIONLESS,
     )
     mode = np.cos(k * sim.x)

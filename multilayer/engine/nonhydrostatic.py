@@ -192,6 +192,7 @@ def _entries(h, bed, fractions, dx, left, right, P):
     cells = np.empty(2 * (12 * L * F + 2 * L * N), np.int64)
     values = np.empty(cells.size)
     mass = np.empty(L * F + L * N)
+    slot = np.full(Lp * N, -1, np.int64)  # where the entry of a cell is, for the current unknown
     n = 0
     for c in range(L):
         for f in range(F):
@@ -202,9 +203,8 @@ def _entries(h, bed, fractions, dx, left, right, P):
             mass[k] = h_face
             for row in range(c, min(c + 2, L)):
                 for g in range(first[row], first[row] + targets[row]):
-                    cells[n], values[n] = g * N + i, 0.5 * h_face / dx * P[row, g]
-                    cells[n + 1], values[n + 1] = g * N + e, -0.5 * h_face / dx * P[row, g]
-                    n += 2
+                    n = _add(cells, values, slot, n, g * N + i, 0.5 * h_face / dx * P[row, g])
+                    n = _add(cells, values, slot, n, g * N + e, -0.5 * h_face / dx * P[row, g])
             for j in (c, c + 1):
                 if beta[j, c] == 0.0:
                     continue
@@ -223,39 +223,34 @@ def _entries(h, bed, fractions, dx, left, right, P):
                     value = weights[m] * 0.5 * beta[j, c] * slope
                     row = rows[m]
                     for g in range(first[row], first[row] + targets[row]):
-                        cells[n], values[n] = g * N + i, value * P[row, g]
-                        cells[n + 1], values[n + 1] = g * N + e, value * P[row, g]
-                        n += 2
-            n = _merge(cells, values, pointer[k], n)
+                        n = _add(cells, values, slot, n, g * N + i, value * P[row, g])
+                        n = _add(cells, values, slot, n, g * N + e, value * P[row, g])
+            slot[cells[pointer[k] : n]] = -1
     for a in range(L):
         for i in range(N):
             k = L * F + a * N + i
             pointer[k] = n
             mass[k] = fractions[a] * h[i]
             for g in range(first[a], first[a] + targets[a]):
-                cells[n], values[n] = g * N + i, P[a, g]
-                n += 1
+                n = _add(cells, values, slot, n, g * N + i, P[a, g])
             if a + 1 < L:
                 for g in range(first[a + 1], first[a + 1] + targets[a + 1]):
-                    cells[n], values[n] = g * N + i, -P[a + 1, g]
-                    n += 1
-            n = _merge(cells, values, pointer[k], n)
+                    n = _add(cells, values, slot, n, g * N + i, -P[a + 1, g])
+            slot[cells[pointer[k] : n]] = -1
     pointer[L * F + L * N] = n
     return pointer, cells[:n], values[:n], mass
 
 
 @njit(cache=True)
-def _merge(cells, values, first, end):
-    """Add up the entries ``first:end`` in the same cell; returns the new end."""
-    n = first
-    for e in range(first, end):
-        for d in range(first, n):
-            if cells[d] == cells[e]:
-                values[d] += values[e]
-                break
-        else:
-            cells[n], values[n] = cells[e], values[e]
-            n += 1
+def _add(cells, values, slot, n, cell, value):
+    """Add ``value`` to the entry of ``cell`` of the current unknown (``slot[cell]``, -1:
+    none yet, then a new entry at ``n``, in the order the cells first come); returns the
+    new end."""
+    if slot[cell] < 0:
+        slot[cell] = n
+        cells[n], values[n] = cell, value
+        return n + 1
+    values[slot[cell]] += value
     return n
 
 
