@@ -188,6 +188,7 @@ def _entries(h, bed, fractions, dx, left, right, P):
         total = fractions[j - 1] + fractions[j]
         beta[j, j - 1], beta[j, j] = fractions[j] / total, fractions[j - 1] / total
     rows, weights = np.empty(3, np.int64), np.empty(3)
+    touched_rows, at_left, at_right = np.empty(L, np.int64), np.empty(L), np.empty(L)
     pointer = np.empty(L * F + L * N + 1, np.int64)
     cells = np.empty(2 * (12 * L * F + 2 * L * N), np.int64)
     values = np.empty(cells.size)
@@ -201,10 +202,11 @@ def _entries(h, bed, fractions, dx, left, right, P):
             i, e = left[f], right[f]
             h_face = fractions[c] * 0.5 * (h[i] + h[e])
             mass[k] = h_face
+            touched = 0  # the rows of E this unknown enters, in the order they first come
             for row in range(c, min(c + 2, L)):
-                for g in range(first[row], first[row] + targets[row]):
-                    n = _add(cells, values, slot, n, g * N + i, 0.5 * h_face / dx * P[row, g])
-                    n = _add(cells, values, slot, n, g * N + e, -0.5 * h_face / dx * P[row, g])
+                touched = _accumulate(
+                    touched_rows, at_left, at_right, touched, row, 0.5 * h_face / dx, -0.5 * h_face / dx
+                )
             for j in (c, c + 1):
                 if beta[j, c] == 0.0:
                     continue
@@ -221,10 +223,12 @@ def _entries(h, bed, fractions, dx, left, right, P):
                     count += 1
                 for m in range(count):
                     value = weights[m] * 0.5 * beta[j, c] * slope
-                    row = rows[m]
-                    for g in range(first[row], first[row] + targets[row]):
-                        n = _add(cells, values, slot, n, g * N + i, value * P[row, g])
-                        n = _add(cells, values, slot, n, g * N + e, value * P[row, g])
+                    touched = _accumulate(touched_rows, at_left, at_right, touched, rows[m], value, value)
+            for t in range(touched):
+                row = touched_rows[t]
+                for g in range(first[row], first[row] + targets[row]):
+                    n = _add(cells, values, slot, n, g * N + i, at_left[t] * P[row, g])
+                    n = _add(cells, values, slot, n, g * N + e, at_right[t] * P[row, g])
             slot[cells[pointer[k] : n]] = -1
     for a in range(L):
         for i in range(N):
@@ -239,6 +243,19 @@ def _entries(h, bed, fractions, dx, left, right, P):
             slot[cells[pointer[k] : n]] = -1
     pointer[L * F + L * N] = n
     return pointer, cells[:n], values[:n], mass
+
+
+@njit(cache=True)
+def _accumulate(touched_rows, at_left, at_right, touched, row, left_value, right_value):
+    """Add the entries of ``row`` in the left and right columns of a face unknown (a new
+    row at ``touched`` if it has none yet); returns the new count of rows."""
+    for t in range(touched):
+        if touched_rows[t] == row:
+            at_left[t] += left_value
+            at_right[t] += right_value
+            return touched
+    touched_rows[touched], at_left[touched], at_right[touched] = row, left_value, right_value
+    return touched + 1
 
 
 @njit(cache=True)

@@ -600,7 +600,7 @@ class Numerics(_Model):
         raise _invalid(f"got {value!r}", THREADS_ACCEPTED)
 
 
-DEFAULT_PRESSURE_LAYERS = 2  # the choice of docs/nonhydrostatic.md, "Fewer pressure layers"
+DEFAULT_PRESSURE_LAYERS = 4  # the choice of docs/nonhydrostatic.md, "Fewer pressure layers"
 
 
 class Model(_Model):
