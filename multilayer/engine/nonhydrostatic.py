@@ -57,10 +57,21 @@ non-zero are constrained and corrected, so material held by the yield stress sta
 ``multilayer.reference.nonhydrostatic_fipy.project`` assembles the same operator
 from FiPy terms on the X-sigma mesh for flat interfaces
 (``multilayer/reference/nonhydrostatic_fipy.py``).
+
+Fewer pressure layers: with ``pressure_layers = L_p < L`` the pressure lives on the bottom
+interfaces of ``L_p`` groups of whole layers (:func:`pressure_nodes`) and, on every
+velocity interface, is its linear interpolation in sigma, zero at the surface
+(:func:`pressure_interpolation`, ``lam = P lam_p``).  The constraint is the Galerkin one,
+``P^T E V = 0`` (``L_p`` rows per column), and the projection ``V = V* - M^-1 E^T P
+lam_p`` with ``(P^T A P) lam_p = P^T E V*``: the orthogonal projection in the ``M`` norm on
+a larger subspace than ``E V = 0``, so it still never adds kinetic energy, and ``E V* = 0``
+(rest, uniform flow) still gives ``lam_p = 0``.  The band of ``P^T A P`` has half-width
+about ``L_p + 3``: the factorisation costs O(L_p^3) per column instead of O(L^3).
 """
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -139,6 +150,13 @@ def pressure_nodes(fractions: np.ndarray, pressure_layers: int) -> np.ndarray:
     return nodes
 
 
+@functools.lru_cache(maxsize=8)
+def _pressure_layers(fractions: tuple[float, ...], pressure_layers: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`pressure_nodes` and :func:`pressure_interpolation`, computed once per model."""
+    nodes = pressure_nodes(np.array(fractions), pressure_layers)
+    return nodes, pressure_interpolation(np.array(fractions), nodes)
+
+
 def pressure_interpolation(fractions: np.ndarray, nodes: np.ndarray) -> np.ndarray:
     """``P`` (L, L_p): the pressure on the bottom interface of every velocity layer,
     linear in ``sigma`` between the pressure interfaces ``nodes`` (bottom interfaces of the
@@ -190,7 +208,10 @@ def _entries(h, bed, fractions, dx, left, right, P):
     rows, weights = np.empty(3, np.int64), np.empty(3)
     touched_rows, at_left, at_right = np.empty(L, np.int64), np.empty(L), np.empty(L)
     pointer = np.empty(L * F + L * N + 1, np.int64)
-    cells = np.empty(2 * (12 * L * F + 2 * L * N), np.int64)
+    # at most the rows 0, c - 1, ..., c + 2 of E for a face unknown of layer c, and a, a + 1
+    # for wbar_a, each going to the pressure rows it has (1 or 2), in both columns of a face
+    spread = targets.max()
+    cells = np.empty(2 * min(Lp, 5 * spread) * L * F + min(Lp, 2 * spread) * L * N, np.int64)
     values = np.empty(cells.size)
     mass = np.empty(L * F + L * N)
     slot = np.full(Lp * N, -1, np.int64)  # where the entry of a cell is, for the current unknown
@@ -229,7 +250,8 @@ def _entries(h, bed, fractions, dx, left, right, P):
                 for g in range(first[row], first[row] + targets[row]):
                     n = _add(cells, values, slot, n, g * N + i, at_left[t] * P[row, g])
                     n = _add(cells, values, slot, n, g * N + e, at_right[t] * P[row, g])
-            slot[cells[pointer[k] : n]] = -1
+            for m in range(pointer[k], n):
+                slot[cells[m]] = -1
     for a in range(L):
         for i in range(N):
             k = L * F + a * N + i
@@ -240,7 +262,8 @@ def _entries(h, bed, fractions, dx, left, right, P):
             if a + 1 < L:
                 for g in range(first[a + 1], first[a + 1] + targets[a + 1]):
                     n = _add(cells, values, slot, n, g * N + i, -P[a + 1, g])
-            slot[cells[pointer[k] : n]] = -1
+            for m in range(pointer[k], n):
+                slot[cells[m]] = -1
     pointer[L * F + L * N] = n
     return pointer, cells[:n], values[:n], mass
 
@@ -607,8 +630,7 @@ def project(
         return u_new, w_new, q
     nodes = interpolation = None
     if pressure_layers is not None and pressure_layers != L:
-        nodes = pressure_nodes(fractions, pressure_layers)
-        interpolation = pressure_interpolation(fractions, nodes)
+        nodes, interpolation = _pressure_layers(tuple(fractions), pressure_layers)
     cons = constraint(np.where(h > dry, h, 0.0), bed, fractions, dx, periodic, interpolation)
     left, right = cons.left, cons.right
     F = left.size
