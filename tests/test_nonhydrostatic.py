@@ -260,6 +260,20 @@ def test_pressure_interfaces_group_whole_layers_and_interpolate_linearly():
     assert np.all((P >= 0.0) & (P <= 1.0))
 
 
+@pytest.mark.parametrize("pressure_layers", [1, 2, 3])
+@pytest.mark.parametrize("periodic", [False, True])
+def test_reduced_rows_are_the_interpolation_transpose_times_the_layer_rows(periodic, pressure_layers):
+    """On sloping interfaces and uneven layers the assembled reduced constraint is P^T E,
+    E the constraint of every layer (P from cell a * N + i to g * N + i)."""
+    h, _, _, bed, fractions = random_state(9, layers=6)
+    nodes = nonhydrostatic.pressure_nodes(fractions, pressure_layers)
+    P = nonhydrostatic.pressure_interpolation(fractions, nodes)
+    reduced = nonhydrostatic.constraint(h, bed, fractions, 0.1, periodic, P).E.toarray()
+    full = nonhydrostatic.constraint(h, bed, fractions, 0.1, periodic).E.toarray()
+    expected = np.kron(P.T, np.eye(h.size)) @ full
+    assert np.abs(reduced - expected).max() <= 1e-13 * np.abs(expected).max()
+
+
 @pytest.mark.parametrize("pressure_layers", [None, 2])
 def test_static_cells_are_not_touched(pressure_layers):
     h, u, w, bed, fractions = random_state(2)

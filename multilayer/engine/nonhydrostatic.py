@@ -216,6 +216,10 @@ def _entries(h, bed, fractions, dx, left, right, P):
     mass = np.empty(L * F + L * N)
     slot = np.full(Lp * N, -1, np.int64)  # where the entry of a cell is, for the current unknown
     n = 0
+    if Lp < L:
+        # fewer pressure rows: the entries of a face unknown of layer c are, per pressure row
+        # g, h_face / dx times those of its F rows plus the slopes times those of its S rows
+        flux, slopes, lowest, highest = _face_coefficients(P, beta, L)
     for c in range(L):
         for f in range(F):
             k = c * F + f
@@ -223,33 +227,31 @@ def _entries(h, bed, fractions, dx, left, right, P):
             i, e = left[f], right[f]
             h_face = fractions[c] * 0.5 * (h[i] + h[e])
             mass[k] = h_face
-            touched = 0  # the rows of E this unknown enters, in the order they first come
-            for row in range(c, min(c + 2, L)):
-                touched = _accumulate(
-                    touched_rows, at_left, at_right, touched, row, 0.5 * h_face / dx, -0.5 * h_face / dx
-                )
-            for j in (c, c + 1):
-                if beta[j, c] == 0.0:
-                    continue
-                slope = ((bed[e] + sigma[j] * h[e]) - (bed[i] + sigma[j] * h[i])) / dx
-                count = 0
-                if j <= 1:
-                    rows[count], weights[count] = 0, -0.5
-                    count += 1
-                if j >= 2:
-                    rows[count], weights[count] = j - 1, -0.5
-                    count += 1
-                if j <= L - 2:
-                    rows[count], weights[count] = j + 1, 0.5
-                    count += 1
-                for m in range(count):
-                    value = weights[m] * 0.5 * beta[j, c] * slope
-                    touched = _accumulate(touched_rows, at_left, at_right, touched, rows[m], value, value)
-            for t in range(touched):
-                row = touched_rows[t]
-                for g in range(first[row], first[row] + targets[row]):
-                    n = _add(cells, values, slot, n, g * N + i, at_left[t] * P[row, g])
-                    n = _add(cells, values, slot, n, g * N + e, at_right[t] * P[row, g])
+            if Lp < L:
+                s0 = ((bed[e] + sigma[c] * h[e]) - (bed[i] + sigma[c] * h[i])) / dx
+                s1 = ((bed[e] + sigma[c + 1] * h[e]) - (bed[i] + sigma[c + 1] * h[i])) / dx
+                ratio = h_face / dx
+                for g in range(lowest[c], highest[c] + 1):
+                    a0, a1, fc = slopes[0, c, g], slopes[1, c, g], flux[c, g]
+                    sloped = s0 * a0 + s1 * a1
+                    n = _add(cells, values, slot, n, g * N + i, ratio * fc + sloped)
+                    n = _add(cells, values, slot, n, g * N + e, sloped - ratio * fc)
+            else:
+                touched = 0  # the rows of E this unknown enters, in the order they first come
+                for row in range(c, min(c + 2, L)):
+                    touched = _accumulate(
+                        touched_rows, at_left, at_right, touched, row, 0.5 * h_face / dx, -0.5 * h_face / dx
+                    )
+                for j in (c, c + 1):
+                    if beta[j, c] == 0.0:
+                        continue
+                    slope = ((bed[e] + sigma[j] * h[e]) - (bed[i] + sigma[j] * h[i])) / dx
+                    for m in range(_slope_rows(j, L, rows, weights)):
+                        value = weights[m] * 0.5 * beta[j, c] * slope
+                        touched = _accumulate(touched_rows, at_left, at_right, touched, rows[m], value, value)
+                for t in range(touched):
+                    n = _add(cells, values, slot, n, touched_rows[t] * N + i, at_left[t])
+                    n = _add(cells, values, slot, n, touched_rows[t] * N + e, at_right[t])
             for m in range(pointer[k], n):
                 slot[cells[m]] = -1
     for a in range(L):
@@ -266,6 +268,50 @@ def _entries(h, bed, fractions, dx, left, right, P):
                 slot[cells[m]] = -1
     pointer[L * F + L * N] = n
     return pointer, cells[:n], values[:n], mass
+
+
+@njit(cache=True)
+def _slope_rows(j, L, rows, weights):
+    """The rows of ``E`` that the slope flux ``S_j`` enters and their weights (see
+    :func:`_entries`); returns their count."""
+    count = 0
+    if j <= 1:
+        rows[count], weights[count] = 0, -0.5
+        count += 1
+    if j >= 2:
+        rows[count], weights[count] = j - 1, -0.5
+        count += 1
+    if j <= L - 2:
+        rows[count], weights[count] = j + 1, 0.5
+        count += 1
+    return count
+
+
+@njit(cache=True)
+def _face_coefficients(P, beta, L):
+    """``flux[c, g]``: the entry of ``P^T E`` of a face unknown of layer ``c`` in pressure row
+    ``g`` per unit ``h_face / dx`` (left column; minus it in the right one), and
+    ``slopes[s, c, g]`` per unit slope of the interface ``c + s`` (both columns), and the
+    pressure rows ``lowest[c]..highest[c]`` where they are not all zero."""
+    Lp = P.shape[1]
+    flux, slopes = np.zeros((L, Lp)), np.zeros((2, L, Lp))
+    rows, weights = np.empty(3, np.int64), np.empty(3)
+    for c in range(L):
+        for row in range(c, min(c + 2, L)):
+            for g in range(Lp):
+                flux[c, g] += 0.5 * P[row, g]
+        for j in (c, c + 1):
+            if beta[j, c] == 0.0:
+                continue
+            for m in range(_slope_rows(j, L, rows, weights)):
+                for g in range(Lp):
+                    slopes[j - c, c, g] += weights[m] * 0.5 * beta[j, c] * P[rows[m], g]
+    lowest, highest = np.full(L, Lp, np.int64), np.full(L, -1, np.int64)
+    for c in range(L):
+        for g in range(Lp):
+            if flux[c, g] != 0.0 or slopes[0, c, g] != 0.0 or slopes[1, c, g] != 0.0:
+                lowest[c], highest[c] = min(lowest[c], g), max(highest[c], g)
+    return flux, slopes, lowest, highest
 
 
 @njit(cache=True)
