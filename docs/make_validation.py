@@ -1168,7 +1168,14 @@ COLLAPSE_DOMAIN = ("domain.x_max=2.0", "domain.cells=500", "time.end=2.0", "time
 COLLAPSE_STOP = 3.0  # t_stop / sqrt(H0 / g) of the 2D experiments (Lube et al. 2005)
 COLLAPSE_PRESSURES = ("hydrostatic", "bim2016", "non_hydrostatic")
 # a = 10, non_hydrostatic: cells, layers, pressure layers (None: the default, min(4, layers))
-COLLAPSE_RESOLUTIONS = ((250, 8, None), (500, 4, None), (500, 16, None), (1000, 8, None), (500, 8, 8))
+COLLAPSE_RESOLUTIONS = (
+    (250, 8, None),
+    (500, 4, None),
+    (500, 16, None),
+    (1000, 8, None),
+    (500, 8, 8),
+    (500, 16, 16),
+)
 L0 = 0.05
 
 
@@ -1214,6 +1221,7 @@ def section_collapse(jobs: int) -> str:
     }
     results = execute([*runs, *resolution_runs.values()], jobs)
     resolution_rows = []
+    failures: list[str] = []
     for (cells, layers, pressure_layers), run in resolution_runs.items():
         ds = results[run.name]
         label = f"{cells} x {layers}" + (
@@ -1221,6 +1229,7 @@ def section_collapse(jobs: int) -> str:
         )
         if isinstance(ds, str):
             resolution_rows.append([label, "run failed", ""])
+            failures.append(f"{label}: {ds.split(';')[0]}")
             continue
         front = float(ds.isel(time=-1)["front"]) + 0.5 * float(ds["x"][1] - ds["x"][0])
         runout = (front - L0) / L0
@@ -1346,6 +1355,8 @@ def section_collapse(jobs: int) -> str:
         + f"  With 500 cells and {', '.join(f'{n:g}' for n in sorted(by_layers))} layers it is "
         f"{', '.join(f'{r:.2f}' for r in layers_sorted)}."
     )
+    if failures:
+        resolution_reading += "  Failed runs (exit 1, the last good state kept): " + "; ".join(failures) + "."
     full = dict(zip(resolution_runs, resolution_rows)).get((500, 8, 8))
     if full is not None and full[1] != "run failed" and 8 in by_layers:
         resolution_reading += (
