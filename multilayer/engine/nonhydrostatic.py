@@ -650,11 +650,10 @@ def project(
     the active-set iteration (speed only: the answer does not depend on them).
     """
     L, N = u.shape
-    moving = (u != 0.0) & (h > dry)[None, :]
-    if not moving.any():
+    first, last = _moving_columns(u, h, dry)
+    if last < 0:
         return u.copy(), np.zeros(w.shape), np.zeros(u.shape)
-    columns = np.flatnonzero(moving.any(axis=0))
-    lo, hi = max(columns[0] - 1, 0), min(columns[-1] + 2, N)
+    lo, hi = max(first - 1, 0), min(last + 2, N)
     if not periodic and (lo > 0 or hi < N):
         # only the moving material and one column at rest on each side take part: the
         # faces beyond join cells at rest and carry no correction
@@ -674,6 +673,7 @@ def project(
             pressure_layers=pressure_layers,
         )
         return u_new, w_new, q
+    moving = (u != 0.0) & (h > dry)[None, :]
     nodes = interpolation = None
     if pressure_layers is not None and pressure_layers != L:
         nodes, interpolation = _pressure_layers(tuple(fractions), pressure_layers)
@@ -699,6 +699,22 @@ def project(
     w_new = np.where(moving, w + dw, 0.0)
     q = np.cumsum((fractions[:, None] * h * dw)[::-1], axis=0)[::-1] / dt
     return u_new, w_new, q
+
+
+@njit(cache=True)
+def _moving_columns(u, h, dry):
+    """The first and the last column with a moving cell (``u != 0`` where ``h > dry``);
+    ``(-1, -1)`` if none."""
+    first = last = -1
+    for i in range(h.size):
+        if h[i] > dry:
+            for a in range(u.shape[0]):
+                if u[a, i] != 0.0:
+                    if first < 0:
+                        first = i
+                    last = i
+                    break
+    return first, last
 
 
 @njit(cache=True)
