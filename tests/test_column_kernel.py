@@ -110,8 +110,10 @@ def test_the_dynamic_programme_is_exact_when_its_messages_reach_far_out():
     iteration of the step never converged).  Every jump of the solution is non-zero, so it
     is the solution of the linear momentum balance with those signs (checked consistent)."""
     inertia = np.full(16, 57973.6)
-    momentum = np.array([6518.9, 10289.0, 10970.3, 9689.56, 8593.87, 7386.42, 6204.09, 5007.77,
-                         3790.8, 2587.75, 1431.83, 390.663, -477.976, -971.752, -1228.97, -1227.24])  # fmt: skip
+    momentum = np.array(
+        [6518.9, 10289.0, 10970.3, 9689.56, 8593.87, 7386.42, 6204.09, 5007.77,
+         3790.8, 2587.75, 1431.83, 390.663, -477.976, -971.752, -1228.97, -1227.24]
+    )  # fmt: skip
     kappa = np.zeros(16)
     c = np.zeros(16)
     kappa[[0, 1, 12, 13, 14, 15]] = [160.136, 42.2591, 11.248, 42.6244, 54.508, 11.9121]
