@@ -11,8 +11,9 @@ stresses at ``u`` alone, without another solve:
 
 **Stopping: an a-posteriori error bound.**  ``E`` is strongly convex with modulus
 ``M = diag(m_a / dt)``, so any subgradient ``g`` of ``E`` at ``u`` bounds the error,
-``||u - u_exact||_M <= ||g||_{M^-1}`` (from ``<g, u - u_exact> >= ||u - u_exact||_M^2``;
-e.g. Nesterov 2004, "Introductory Lectures on Convex Optimization", Thm. 2.1.10), hence
+``||u - u_exact||_M <= ||g||_{M^-1}`` (the subdifferential of an M-strongly convex
+function is M-strongly monotone and holds 0 at ``u_exact``, so ``<g, u - u_exact> >=
+||u - u_exact||_M^2``; then Cauchy-Schwarz), hence
 ``max_a |u_a - u_exact,a| <= ||g||_{M^-1} / sqrt(min_a m_a / dt)``, the bound compared
 with the velocity threshold.  ``g_a = m_a/dt (u_a - u*_a) + sigma_a - sigma_{a+1} + f_a``
 for interface stresses ``sigma_k`` in the subdifferential of ``Psi_k`` at the jumps of
@@ -24,34 +25,40 @@ intersected with the admissible set of ``sigma_a``, and where they are disjoint 
 is the residual ``g_a`` and ``sigma_a`` the nearest admissible value.  At the exact
 solution every intersection holds its stresses, so the bound vanishes there: it is
 rigorous and stops the iteration at the solve that reaches the tolerance, instead of a
-further solve that only confirms it.
+further solve that only confirms it.  It uses the inertia's convexity only: where the
+viscous conductances exceed ``m/dt`` by ~1e6 (steps far longer than the viscous time of a
+strongly shear-thinning law), round-off in ``u`` can hold it above a tolerance of 1e-10,
+so a Newton step that changes no velocity by more than the threshold (the former
+criterion) also stops the iteration.
 
-**Globalisation: keep a Newton step only if it decreases E.**  Along ``d = u - u_0`` (the
-step from the model's linearisation point ``u_0``), ``phi(t) = E(u_0 + t d)`` is convex,
-so ``phi'(1-) <= 0`` implies ``E(u) <= E(u_0)``; ``phi'(1-)`` needs the stresses only
-(the left derivative: ``-kappa |ds|`` across a locked interface).  A Newton step failing
-this test is replaced by the step of the secant (Kacanov) model from ``u_0``: true yield
-stresses and conductances ``eta(rate at u_0)``.  For a viscosity nonincreasing in the rate
-the secant potential ``Phi(s0) + eta(s0) (s^2 - s0^2) / 2`` majorises ``Phi``, so the
-secant step decreases ``E`` (a majorise-minimise iteration: Lange, Hunter & Yang 2000,
-"Optimization transfer using surrogate objective functions"; convergent: Han, Jensen &
-Shimansky 1997, "The Kacanov method for some nonlinear problems").  The energy thus
-decreases at every kept step, a cycle of the plain Newton iteration cannot recur, and
-every iterate, the last included, is an exact output of the exact solver (static layers
-``0.0``, plugs exact).  Where Newton steps decrease ``E`` (every step of a converging
-Newton iteration observed), the iteration is the plain one.  The built-in viscosities
-are nonincreasing in the rate except the shear-thickening power law (flow index > 1),
-whose secant steps are not covered by the majorisation argument.
+**Globalisation: keep a Newton step only if it lowers E.**  The iteration is a descent
+method on ``E``: a Newton step from ``u_0`` to the model's minimiser ``u`` is kept if an
+upper bound of ``E(u) - E(u_0)`` is <= 0, computed from stresses alone (the plugins give
+no potentials).  Two bounds serve, the smaller is used: ``phi'(1-)`` for the convex
+``phi(t) = E(u_0 + t (u - u_0))`` (``E(u) - E(u_0) <= phi'(1-)``; the left derivative:
+``-kappa |ds|`` across a locked interface); and the exact inertial, yield and wall-threshold
+terms plus, for each viscous potential, its tangent at ``u_0`` where the rate grows and
+its chord where it shrinks (upper bounds when the viscous stress is concave in the rate:
+every built-in law but the shear-thickening power law, flow index > 1; for other laws a
+second-order estimate).  The second accepts the Newton steps that overshoot along ``d``
+but still lower ``E``, which the first alone would reject near the front of a collapse.
+A Newton step failing both is replaced by the step of the secant (Kacanov) model from
+``u_0``: true yield stresses and conductances ``eta(rate at u_0)``.  For a viscosity
+nonincreasing in the rate (every built-in law but the shear-thickening power law) the
+secant potential ``Phi(s0) + eta(s0) (s^2 - s0^2) / 2`` majorises ``Phi`` and touches it
+at ``s0``, so the secant step lowers ``E`` (majorise-minimise: Lange, Hunter & Yang 2000,
+"Optimization transfer using surrogate objective functions"; the Kacanov iteration
+converges on its own: Han, Jensen & Shimansky 1997, "The Kacanov method for some nonlinear
+problems").  ``E`` thus decreases strictly at every kept step: the iterates cannot cycle,
+and a Newton iteration that stalls is carried by majorise-minimise steps.  Every iterate,
+the last included, is an exact output of the exact solver (static layers ``0.0``, plugs
+exact), and where every Newton step lowers ``E`` the iteration is the plain one.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
-
-PROGRESS = 0.9
-"""A Newton step that does not lower the energy is kept if its error bound is at most this
-fraction of the smallest bound kept so far."""
 
 
 @njit(cache=True)
@@ -60,22 +67,36 @@ def _sign(x):
 
 
 @njit(cache=True)
-def examine(inertia, momentum, kappa, viscous, w, wall_viscous, start, u):
-    """(error bound, phi'(1-)) of the minimiser ``u`` of a model linearised at ``start``.
+def _potential_rise(start, end, stress_start, stiffness_start, stress_end):
+    """An upper bound of ``Phi(end) - Phi(start)`` for a potential whose derivative (the
+    stress, >= 0) is concave in the magnitude: the tangent at ``start`` above it when the
+    magnitude grows, the chord below it when it shrinks."""
+    if end >= start:
+        return (end - start) * (stress_start + 0.5 * stiffness_start * (end - start))
+    return -(start - end) * 0.5 * (stress_start + stress_end)
+
+
+@njit(cache=True)
+def examine(inertia, momentum, kappa, viscous, w, wall_viscous, start, u, at_start):
+    """(error bound, energy rise) of the minimiser ``u`` of a model linearised at ``start``.
 
     Per layer ``a`` of one column: ``inertia = m_a / dt``, ``momentum = m_a u*_a / dt``,
     ``kappa`` the true yield stress of interface ``a`` (below layer ``a``; 0 the bed) and
     ``viscous`` its true viscous stress ``|tau_v|`` at the jump of ``u``, ``w`` the true
-    wall threshold and ``wall_viscous`` the wall viscous force ``|F_v|`` at ``u_a``.  The
-    bound is that of the module docstring on ``max_a |u_a - u_exact,a|``; ``phi'(1-)`` the
-    left derivative of ``E(start + t (u - start))`` at ``t = 1``.
+    wall threshold and ``wall_viscous`` the wall viscous force ``|F_v|`` at ``u_a``;
+    ``at_start`` (4, L) holds at ``start`` the viscous stresses, their derivatives with
+    respect to the jump, the viscous wall forces and their derivatives.  The bound is that
+    of the module docstring on ``max_a |u_a - u_exact,a|``; the rise an upper bound of
+    ``E(u) - E(start)``: the smaller of ``phi'(1-)`` and, for stresses concave in the
+    rate, the exact inertial and yield terms plus :func:`_potential_rise`.
     """
     L = inertia.shape[0]
     lo = 0.0  # admissible sigma_{a+1}: [lo, hi]; {0} at the free surface
     hi = 0.0
     residual = 0.0  # ||g||^2_{M^-1}
     smallest = np.inf
-    slope = 0.0
+    slope = 0.0  # phi'(1-)
+    rise = 0.0
     for a in range(L - 1, -1, -1):
         below = u[a - 1] if a > 0 else 0.0
         below_start = start[a - 1] if a > 0 else 0.0
@@ -84,6 +105,12 @@ def examine(inertia, momentum, kappa, viscous, w, wall_viscous, start, u):
         d_jump = d - (below - below_start)
         excess = momentum[a] - inertia[a] * u[a]  # m_a/dt (u*_a - u_a)
         slope -= excess * d
+        rise += d * (0.5 * inertia[a] * (u[a] + start[a]) - momentum[a])
+        rise += w[a] * (abs(u[a]) - abs(start[a])) + kappa[a] * (abs(jump) - abs(start[a] - below_start))
+        rise += _potential_rise(abs(start[a]), abs(u[a]), at_start[2, a], at_start[3, a], wall_viscous[a])
+        rise += _potential_rise(
+            abs(start[a] - below_start), abs(jump), at_start[0, a], at_start[1, a], viscous[a]
+        )
         if u[a] != 0.0:
             f = _sign(u[a]) * (w[a] + wall_viscous[a])
             lo_zero, hi_zero = lo + excess - f, hi + excess - f
@@ -105,17 +132,18 @@ def examine(inertia, momentum, kappa, viscous, w, wall_viscous, start, u):
                 lo = hi = kappa[a] if hi_zero > kappa[a] else -kappa[a]
         residual += gap * gap / inertia[a]
         smallest = min(smallest, inertia[a])
-    return np.sqrt(residual / smallest), slope
+    return np.sqrt(residual / smallest), min(slope, rise)
 
 
 @njit(cache=True)
-def examine_columns(inertia, momentum, kappa, viscous, w, wall_viscous, start, u):
-    """:func:`examine` of every column of (L, N) arrays: (bounds (N,), phi'(1-) (N,))."""
+def examine_columns(inertia, momentum, kappa, viscous, w, wall_viscous, start, u, at_start):
+    """:func:`examine` of every column of (L, N) arrays (``at_start`` (4, L, N)): (bounds
+    (N,), rises (N,))."""
     n = inertia.shape[1]
-    bounds, slopes = np.empty(n), np.empty(n)
+    bounds, rises = np.empty(n), np.empty(n)
     for j in range(n):
-        bounds[j], slopes[j] = examine(
+        bounds[j], rises[j] = examine(
             inertia[:, j], momentum[:, j], kappa[:, j], viscous[:, j], w[:, j], wall_viscous[:, j],
-            start[:, j], u[:, j],
+            start[:, j], u[:, j], at_start[:, :, j],
         )  # fmt: skip
-    return bounds, slopes
+    return bounds, rises

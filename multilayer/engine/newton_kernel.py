@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit, prange
 
 from multilayer.engine.column_kernel import _active_set, _dynamic_programme, _workspace
-from multilayer.engine.newton_control import PROGRESS, examine
+from multilayer.engine.newton_control import examine
 from multilayer.engine.plugin_output import PluginOutputError, outside_contract
 from multilayer.engine.stress import INTERFACE, LAYER, ColumnStresses, StressModel
 
@@ -111,13 +111,14 @@ def _newton_model(kappa, rate, eta, slope, secant):
 
 @njit(cache=True)
 def _true_stresses(
-    u, inverse_spacing, conductance, bulk_form, bulk_params, factor, offset, eta, slope, viscous,
-    walls, inverse_half, wall_form, wall_params, wall_factor, wall_offset, per_area,
-    wall_eta, wall_slope, wall_viscous,
+    u, inverse_spacing, conductance, bulk_form, bulk_params, factor, offset, eta, slope,
+    walls, inverse_half, wall_form, wall_params, wall_factor, wall_offset, per_area, wall_eta, wall_slope,
+    state,
 ):  # fmt: skip
-    """Viscosities, stress slopes and viscous stresses ``|tau_v|`` (interfaces) and forces
-    (walls) at the velocities ``u`` of one column; returns the fault code of ``_columns``
-    (0: every viscosity finite and >= 0), the viscosity and the rate at fault."""
+    """Viscosities and stress slopes at the velocities ``u`` of one column, and ``state``
+    (4, L) of ``newton_control.examine``: viscous stresses ``|tau_v|`` and their derivatives
+    with respect to the jump, viscous wall forces and their derivatives.  Returns the fault
+    code of ``_columns`` (0: every viscosity finite and >= 0), the viscosity and the rate."""
     below = 0.0
     for a in range(u.shape[0]):
         rate = abs(u[a] - below) * inverse_spacing[a]
@@ -125,7 +126,11 @@ def _true_stresses(
         eta[a], slope[a] = _viscosity_and_slope(bulk_form, bulk_params, rate, factor[a], offset[a])
         if not (eta[a] >= 0.0 and eta[a] < np.inf):  # the plugin contract
             return a + 1, eta[a], rate
-        viscous[a] = eta[a] * rate if conductance[a] > 0.0 else 0.0
+        viscous = conductance[a] > 0.0
+        state[0, a] = eta[a] * rate if viscous else 0.0
+        state[1, a] = max(slope[a], 0.0) * conductance[a]
+        state[2, a] = 0.0
+        state[3, a] = 0.0
         if walls:
             rate = abs(u[a]) * inverse_half
             wall_eta[a], wall_slope[a] = _viscosity_and_slope(
@@ -133,9 +138,8 @@ def _true_stresses(
             )
             if not (wall_eta[a] >= 0.0 and wall_eta[a] < np.inf):
                 return -(a + 1), wall_eta[a], rate
-            wall_viscous[a] = per_area[a] * wall_eta[a] * rate
-        else:
-            wall_viscous[a] = 0.0
+            state[2, a] = per_area[a] * wall_eta[a] * rate
+            state[3, a] = per_area[a] * max(wall_slope[a], 0.0) * inverse_half
     return 0, 0.0, 0.0
 
 
@@ -167,8 +171,9 @@ def _columns(
         wc, cwc = np.empty(L), np.zeros(L)  # and wall thresholds, wall conductances
         current, new = np.empty(L), np.empty(L)
         # viscosities, stress slopes and viscous stresses at current and new (interfaces, walls)
-        eta_c, slope_c, eta_n, slope_n, viscous_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L)
-        weta_c, wslope_c, weta_n, wslope_n, wv_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L)
+        eta_c, slope_c, eta_n, slope_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
+        weta_c, wslope_c, weta_n, wslope_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
+        state_c, state_n = np.empty((4, L)), np.empty((4, L))  # of newton_control.examine
         wall_true = np.empty(L)  # the true wall thresholds
         # per column of a block and layer: m_a / dt, m_a u*_a / dt, kappa, viscous,
         # inverse spacing, conductance per unit slope (0 where not viscous), pressure
@@ -226,10 +231,9 @@ def _columns(
                 stress_args = (inverse_spacing, conductance, bulk_form, bulk_params, factor, offset)
                 wall_args = (walls, inverse_half, wall_form, wall_params, wall_factor, wall_offset, per_area)
                 fault, fault_values[j, 0], fault_values[j, 1] = _true_stresses(
-                    current, *stress_args, eta_c, slope_c, viscous_n, *wall_args, weta_c, wslope_c, wv_n
+                    current, *stress_args, eta_c, slope_c, *wall_args, weta_c, wslope_c, state_c
                 )
                 secant = False  # the step from current is the Kacanov one (newton_control)
-                record = np.inf  # the smallest error bound of the velocities kept so far
                 for iteration in range(1, max_iterations + 1):
                     if fault != 0:
                         break
@@ -270,27 +274,29 @@ def _columns(
                         _dynamic_programme(inertia, momentum, kc, cc, wall_c, cwc, new, ws)
                         fallbacks[j] += 1
                     fault, fault_values[j, 0], fault_values[j, 1] = _true_stresses(
-                        new, *stress_args, eta_n, slope_n, viscous_n, *wall_args, weta_n, wslope_n, wv_n
+                        new, *stress_args, eta_n, slope_n, *wall_args, weta_n, wslope_n, state_n
                     )
                     if fault != 0:
                         break
-                    bound, descent = examine(inertia, momentum, kappa, viscous_n, wall_true, wv_n, current, new)
+                    bound, rise = examine(
+                        inertia, momentum, kappa, state_n[0], wall_true, state_n[2], current, new, state_c
+                    )
                     done = bound <= threshold
                     if not (done or secant):
                         change = 0.0
                         for a in range(L):
                             change = max(change, abs(new[a] - current[a]))
                         done = change <= threshold
-                    if done or secant or descent <= 0.0 or bound <= PROGRESS * record:  # keep the step
-                        record = min(record, bound)
+                    if done or secant or rise <= 0.0:  # keep the step
                         current, new = new, current
                         eta_c, eta_n, slope_c, slope_n = eta_n, eta_c, slope_n, slope_c
                         weta_c, weta_n, wslope_c, wslope_n = weta_n, weta_c, wslope_n, wslope_c
+                        state_c, state_n = state_n, state_c
                         secant = False
                         if done:
                             iterations[j] = iteration
                             break
-                    else:  # a Newton step that may increase the energy: the secant step instead
+                    else:  # a Newton step that may raise the energy: the secant step instead
                         secant = True
                 faults[j] = fault
                 for a in range(L):

@@ -140,7 +140,12 @@ class StressModel:
         return call(law, method, args, inputs=inputs, x=x, position=position, t=self.t)
 
     def linearise(
-        self, cs: ColumnStresses, u: np.ndarray, ustar: np.ndarray, dt: float, secant: np.ndarray | None = None
+        self,
+        cs: ColumnStresses,
+        u: np.ndarray,
+        ustar: np.ndarray,
+        dt: float,
+        secant: np.ndarray | None = None,
     ) -> ColumnProblem:
         """The step's problem with the Newton model of the viscous part at ``u``.
 
@@ -158,7 +163,9 @@ class StressModel:
         """
         spacing = np.where(cs.spacing > 0, cs.spacing, 1.0)
         jump = np.abs(np.diff(u, axis=0, prepend=0.0))
-        kappa, c = self._newton_model(self.bulk, cs.kappa, jump / spacing, cs.pressure, cs.x, INTERFACE, secant)
+        kappa, c = self._newton_model(
+            self.bulk, cs.kappa, jump / spacing, cs.pressure, cs.x, INTERFACE, secant
+        )
         kappa = np.where(cs.viscous, kappa, cs.kappa)
         c = np.where(cs.viscous & (cs.spacing > 0), c / spacing, 0.0)
         if self.walls is None:
@@ -166,7 +173,13 @@ class StressModel:
         half = 0.5 * self.width
         per_area = (2.0 / self.width) * cs.m / self.material.density  # (2 / W) h_a
         w, c_w = self._newton_model(
-            self.walls, cs.w / per_area.clip(min=1e-300), np.abs(u) / half, cs.wall_pressure, cs.x, LAYER, secant
+            self.walls,
+            cs.w / per_area.clip(min=1e-300),
+            np.abs(u) / half,
+            cs.wall_pressure,
+            cs.x,
+            LAYER,
+            secant,
         )
         return ColumnProblem(
             m=cs.m, ustar=ustar, dt=dt, kappa=kappa, c=c, w=per_area * w, cw=per_area * c_w / half
@@ -183,32 +196,41 @@ class StressModel:
         ``secant`` (N,).  The slope only sets the speed of the iteration: the law
         passes through the true stress at ``rate`` in both cases.
         """
+        eta, tau, tangent = self._stress_and_tangent(law, rate, pressure, x, position)
+        offset_yield = kappa + tau - tangent * rate
+        use_tangent = offset_yield >= 0.0
+        if secant is not None:
+            use_tangent &= ~secant
+        return np.where(use_tangent, offset_yield, kappa), np.where(use_tangent, tangent, eta)
+
+    def _stress_and_tangent(self, law: Rheology, rate: np.ndarray, pressure: np.ndarray, x, position):
+        """``eta``, ``tau_v = eta rate`` and ``max(d tau_v / d rate, 0)`` (forward difference,
+        relative step 1e-7; ``eta(0)`` at rest) at the shear rates ``rate >= 0``."""
         step = 1e-7 * rate
         eta = self._viscosity(law, rate, pressure, x, position)
         tau = eta * rate
         up = self._viscosity(law, rate + step, pressure, x, position) * (rate + step)
         tangent = np.where(rate > 0, (up - tau) / np.where(step > 0, step, 1.0), eta)
-        offset_yield = kappa + tau - np.maximum(tangent, 0.0) * rate
-        use_tangent = offset_yield >= 0.0
-        if secant is not None:
-            use_tangent &= ~secant
-        return (
-            np.where(use_tangent, offset_yield, kappa),
-            np.where(use_tangent, np.maximum(tangent, 0.0), eta),
-        )
+        return eta, tau, np.maximum(tangent, 0.0)
 
-    def viscous_stresses(self, cs: ColumnStresses, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The true viscous stresses ``|tau_v|`` of the interfaces and viscous wall forces
-        ``|F_v|`` of the layers (both (L, N)) at the velocities ``u`` (``newton_control``)."""
+    def viscous_stresses(self, cs: ColumnStresses, u: np.ndarray) -> np.ndarray:
+        """At the velocities ``u``, (4, L, N): the true viscous stresses ``|tau_v|`` of the
+        interfaces, their derivatives with respect to the velocity jump, the viscous wall
+        forces ``|F_v|`` of the layers and their derivatives (``newton_control.examine``)."""
         spacing = np.where(cs.spacing > 0, cs.spacing, 1.0)
         rate = np.abs(np.diff(u, axis=0, prepend=0.0)) / spacing
-        eta = self._viscosity(self.bulk, rate, cs.pressure, cs.x, INTERFACE)
-        viscous = np.where(cs.viscous & (cs.spacing > 0), eta * rate, 0.0)
-        if self.walls is None:
-            return viscous, np.zeros_like(viscous)
-        rate = np.abs(u) / (0.5 * self.width)
-        per_area = (2.0 / self.width) * cs.m / self.material.density
-        return viscous, per_area * self._viscosity(self.walls, rate, cs.wall_pressure, cs.x, LAYER) * rate
+        _, tau, tangent = self._stress_and_tangent(self.bulk, rate, cs.pressure, cs.x, INTERFACE)
+        viscous = cs.viscous & (cs.spacing > 0)
+        out = np.zeros((4, *u.shape))
+        out[0], out[1] = np.where(viscous, tau, 0.0), np.where(viscous, tangent / spacing, 0.0)
+        if self.walls is not None:
+            half = 0.5 * self.width
+            per_area = (2.0 / self.width) * cs.m / self.material.density
+            _, tau, tangent = self._stress_and_tangent(
+                self.walls, np.abs(u) / half, cs.wall_pressure, cs.x, LAYER
+            )
+            out[2], out[3] = per_area * tau, per_area * tangent / half
+        return out
 
     def _viscosity(self, law, rate, pressure, x, position) -> np.ndarray:
         inputs = {"shear rate": rate, "pressure": pressure}

@@ -24,7 +24,7 @@ import numpy as np
 
 from multilayer.engine import column_kernel
 from multilayer.engine.column_problem import ColumnProblem, VerticalSolver
-from multilayer.engine.newton_control import PROGRESS, examine_columns
+from multilayer.engine.newton_control import examine_columns
 from multilayer.engine.newton_kernel import CompiledStep
 from multilayer.engine.stress import StressModel
 from multilayer.errors import RunError
@@ -94,9 +94,9 @@ def implicit_step(
     cs = stresses.columns(h, wet, rest, yield_gravity)
     inertia, momentum = cs.m / dt, cs.m * ustar[:, wet] / dt
     current = u_guess[:, wet]
+    at_current = stresses.viscous_stresses(cs, current)
     todo = np.arange(wet.size)  # wet columns still iterating
     secant = np.zeros(wet.size, dtype=bool)  # the next step from current is the Kacanov one
-    record = np.full(wet.size, np.inf)  # the smallest error bound of the velocities kept so far
     for iteration in range(1, max_iterations + 1):
         if poll is not None:
             poll()
@@ -105,16 +105,16 @@ def implicit_step(
         new = solver(problem, guess=current[cols], threads=threads)
         trial = current.copy()
         trial[cols] = new
-        viscous, wall_viscous = stresses.viscous_stresses(cs, trial)  # (like linearise, every column)
-        bound, descent = examine_columns(
-            inertia[cols], momentum[cols], cs.kappa[cols], viscous[cols], cs.w[cols], wall_viscous[cols],
-            current[cols], new,
+        at_new = stresses.viscous_stresses(cs, trial)  # (like linearise, every column)
+        bound, rise = examine_columns(
+            inertia[cols], momentum[cols], cs.kappa[cols], at_new[0][cols], cs.w[cols], at_new[2][cols],
+            current[cols], new, at_current[:, :, todo],
         )  # fmt: skip
         change = np.max(np.abs(new - current[cols]), axis=0)
         done = (bound <= threshold) | (~secant[todo] & (change <= threshold))
-        keep = done | secant[todo] | (descent <= 0.0) | (bound <= PROGRESS * record[todo])
+        keep = done | secant[todo] | (rise <= 0.0)
         current[:, todo[keep]] = new[:, keep]
-        record[todo[keep]] = np.minimum(record[todo[keep]], bound[keep])
+        at_current[:, :, todo[keep]] = at_new[:, :, todo[keep]]
         secant[todo] = ~keep
         todo = todo[~done]
         if todo.size == 0:
