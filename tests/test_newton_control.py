@@ -131,7 +131,8 @@ def test_a_secant_step_lowers_the_energy_from_any_velocities():
 
 def test_the_safeguarded_iteration_lowers_the_energy_and_ends_within_the_tolerance():
     """On the same strongly shear-thinning columns, every iterate has a lower energy than
-    the one before (in closed form, not the bounds the iteration uses), the iteration stops
+    the one before (in closed form, not the bounds the iteration uses; the test applies
+    from iteration TRUSTED on, but no step before raises it either), the iteration stops
     within the threshold of the step solved to round-off (60 plain Newton iterations), with
     the same layers at rest, and needs no more iterations than the plain one stopped when
     its velocities change by less than the threshold."""

@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit, prange
 
 from multilayer.engine.column_kernel import _active_set, _dynamic_programme, _workspace
-from multilayer.engine.newton_control import examine
+from multilayer.engine.newton_control import TRUSTED, examine
 from multilayer.engine.plugin_output import PluginOutputError, outside_contract
 from multilayer.engine.stress import INTERFACE, LAYER, ColumnStresses, StressModel
 
@@ -287,7 +287,7 @@ def _columns(
                         for a in range(L):
                             change = max(change, abs(new[a] - current[a]))
                         done = change <= threshold
-                    if done or secant or rise <= 0.0:  # keep the step
+                    if done or secant or rise <= 0.0 or iteration < TRUSTED:  # keep the step
                         current, new = new, current
                         eta_c, eta_n, slope_c, slope_n = eta_n, eta_c, slope_n, slope_c
                         weta_c, weta_n, wslope_c, wslope_n = weta_n, weta_c, wslope_n, wslope_c

@@ -24,7 +24,7 @@ import numpy as np
 
 from multilayer.engine import column_kernel
 from multilayer.engine.column_problem import ColumnProblem, VerticalSolver
-from multilayer.engine.newton_control import examine_columns
+from multilayer.engine.newton_control import TRUSTED, examine_columns
 from multilayer.engine.newton_kernel import CompiledStep
 from multilayer.engine.stress import StressModel
 from multilayer.errors import RunError
@@ -112,7 +112,7 @@ def implicit_step(
         )  # fmt: skip
         change = np.max(np.abs(new - current[cols]), axis=0)
         done = (bound <= threshold) | (~secant[todo] & (change <= threshold))
-        keep = done | secant[todo] | (rise <= 0.0)
+        keep = done | secant[todo] | (rise <= 0.0) | (iteration < TRUSTED)
         current[:, todo[keep]] = new[:, keep]
         at_current[:, :, todo[keep]] = at_new[:, :, todo[keep]]
         secant[todo] = ~keep
