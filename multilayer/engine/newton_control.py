@@ -48,7 +48,7 @@ decrease of a good Newton step whose rates cross the whole curved part of a satu
 chord halves the potential of mu(I)); the secant steps that replace such steps are slow
 there (the secant/tangent ratio of mu(I) diverges for ``I >> I_0``), so the first
 ``TRUSTED - 1`` Newton steps of a column are kept unconditionally (the plain iteration,
-which converges in fewer in every case of the tests but that front column, 13).
+which converged in 13 in that column; most columns need fewer than 10).
 A Newton step failing both is replaced by the step of the secant (Kacanov) model from
 ``u_0``: true yield stresses and conductances ``eta(rate at u_0)``.  For a viscosity
 nonincreasing in the rate (every built-in law but the shear-thickening power law) the
