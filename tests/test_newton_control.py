@@ -25,7 +25,7 @@ def bingham(rng, L, N) -> ColumnProblem:
 
 
 def bingham_examine(p: ColumnProblem, start: np.ndarray, u: np.ndarray):
-    """examine() of every column for the Bingham energy of ``p`` (its own true law)."""
+    """examine_columns() for the Bingham energy of ``p`` (its own true law)."""
 
     def viscous(v):
         jump = np.abs(np.diff(v, axis=0, prepend=0.0))

@@ -6,8 +6,8 @@ Per column the step minimises the strictly convex energy (docs/model.md)::
 
 with ``Psi_k(s) = kappa_k |s| + Phi_k(s)`` (``Phi_k' = tau_v``, the viscous stress) and
 ``W_a`` the wall term alike.  Each iteration solves a Bingham model of it exactly
-(``vertical_step``), and :func:`examine` judges the model's minimiser ``u`` from the true
-stresses at ``u`` alone, without another solve:
+(``vertical_step``), and :func:`error_bound` and :func:`energy_rise` judge the model's
+minimiser ``u`` from the true stresses at ``u`` alone, without another solve:
 
 **Stopping: an a-posteriori error bound.**  ``E`` is strongly convex with modulus
 ``M = diag(m_a / dt)``, so any subgradient ``g`` of ``E`` at ``u`` bounds the error,
@@ -88,73 +88,83 @@ def _potential_rise(start, end, stress_start, stiffness_start, stress_end):
 
 
 @njit(cache=True)
-def examine(inertia, momentum, kappa, viscous, w, wall_viscous, start, u, at_start):
-    """(error bound, energy rise) of the minimiser ``u`` of a model linearised at ``start``.
+def error_bound(inertia, momentum, kappa, viscous, w, wall_viscous, u):
+    """The bound of the module docstring on ``max_a |u_a - u_exact,a|`` for one column.
 
-    Per layer ``a`` of one column: ``inertia = m_a / dt``, ``momentum = m_a u*_a / dt``,
-    ``kappa`` the true yield stress of interface ``a`` (below layer ``a``; 0 the bed) and
-    ``viscous`` its true viscous stress ``|tau_v|`` at the jump of ``u``, ``w`` the true
-    wall threshold and ``wall_viscous`` the wall viscous force ``|F_v|`` at ``u_a``;
-    ``at_start`` (4, L) holds at ``start`` the viscous stresses, their derivatives with
-    respect to the jump, the viscous wall forces and their derivatives.  The bound is that
-    of the module docstring on ``max_a |u_a - u_exact,a|``; the rise an upper bound of
-    ``E(u) - E(start)``: the smaller of ``phi'(1-)`` and, for stresses concave in the
-    rate, the exact inertial and yield terms plus :func:`_potential_rise`.
+    Per layer ``a``: ``inertia = m_a / dt``, ``momentum = m_a u*_a / dt``, ``kappa`` the
+    true yield stress of interface ``a`` (below layer ``a``; 0 the bed) and ``viscous`` its
+    true viscous stress ``|tau_v|`` at the jump of ``u``, ``w`` the true wall threshold and
+    ``wall_viscous`` the wall viscous force ``|F_v|`` at ``u_a``.
     """
     L = inertia.shape[0]
     lo = 0.0  # admissible sigma_{a+1}: [lo, hi]; {0} at the free surface
     hi = 0.0
     residual = 0.0  # ||g||^2_{M^-1}
     smallest = np.inf
-    slope = 0.0  # phi'(1-)
-    rise = 0.0
     for a in range(L - 1, -1, -1):
-        below = u[a - 1] if a > 0 else 0.0
-        below_start = start[a - 1] if a > 0 else 0.0
-        jump = u[a] - below
-        d = u[a] - start[a]
-        d_jump = d - (below - below_start)
+        jump = u[a] - (u[a - 1] if a > 0 else 0.0)
         excess = momentum[a] - inertia[a] * u[a]  # m_a/dt (u*_a - u_a)
-        slope -= excess * d
-        rise += d * (0.5 * inertia[a] * (u[a] + start[a]) - momentum[a])
-        rise += w[a] * (abs(u[a]) - abs(start[a])) + kappa[a] * (abs(jump) - abs(start[a] - below_start))
-        rise += _potential_rise(abs(start[a]), abs(u[a]), at_start[2, a], at_start[3, a], wall_viscous[a])
-        rise += _potential_rise(
-            abs(start[a] - below_start), abs(jump), at_start[0, a], at_start[1, a], viscous[a]
-        )
         if u[a] != 0.0:
             f = _sign(u[a]) * (w[a] + wall_viscous[a])
             lo_zero, hi_zero = lo + excess - f, hi + excess - f
-            slope += f * d
         else:
             lo_zero, hi_zero = lo + excess - w[a], hi + excess + w[a]
-            slope -= w[a] * abs(d)
+        gap = 0.0
         if jump != 0.0:
             sigma = _sign(jump) * (kappa[a] + viscous[a])
-            slope += sigma * d_jump
             gap = max(lo_zero - sigma, sigma - hi_zero, 0.0)
             lo = hi = sigma
         else:
-            slope -= kappa[a] * abs(d_jump)
             lo, hi = max(lo_zero, -kappa[a]), min(hi_zero, kappa[a])
-            gap = 0.0
             if lo > hi:  # disjoint: sigma_a is the admissible value nearest
                 gap = lo - hi
                 lo = hi = kappa[a] if hi_zero > kappa[a] else -kappa[a]
-        residual += gap * gap / inertia[a]
+        if gap > 0.0:
+            residual += gap * gap / inertia[a]
         smallest = min(smallest, inertia[a])
-    return np.sqrt(residual / smallest), min(slope, rise)
+    return np.sqrt(residual / smallest)
+
+
+@njit(cache=True)
+def energy_rise(inertia, momentum, kappa, viscous, w, wall_viscous, start, u, at_start):
+    """An upper bound of ``E(u) - E(start)`` for one column (arguments of
+    :func:`error_bound`; ``at_start`` (4, L) holds at ``start`` the viscous stresses, their
+    derivatives with respect to the jump, the viscous wall forces and their derivatives):
+    the smaller of ``phi'(1-)`` and, for stresses concave in the rate, the exact inertial
+    and yield terms plus :func:`_potential_rise`."""
+    slope = 0.0  # phi'(1-)
+    rise = 0.0
+    for a in range(inertia.shape[0]):
+        below = u[a - 1] if a > 0 else 0.0
+        below_start = start[a - 1] if a > 0 else 0.0
+        jump = u[a] - below
+        jump_start = start[a] - below_start
+        d = u[a] - start[a]
+        d_jump = jump - jump_start
+        slope += (inertia[a] * u[a] - momentum[a]) * d
+        rise += d * (0.5 * inertia[a] * (u[a] + start[a]) - momentum[a])
+        rise += w[a] * (abs(u[a]) - abs(start[a])) + kappa[a] * (abs(jump) - abs(jump_start))
+        rise += _potential_rise(abs(start[a]), abs(u[a]), at_start[2, a], at_start[3, a], wall_viscous[a])
+        rise += _potential_rise(abs(jump_start), abs(jump), at_start[0, a], at_start[1, a], viscous[a])
+        if u[a] != 0.0:
+            slope += _sign(u[a]) * (w[a] + wall_viscous[a]) * d
+        else:
+            slope -= w[a] * abs(d)
+        if jump != 0.0:
+            slope += _sign(jump) * (kappa[a] + viscous[a]) * d_jump
+        else:
+            slope -= kappa[a] * abs(d_jump)
+    return min(slope, rise)
 
 
 @njit(cache=True)
 def examine_columns(inertia, momentum, kappa, viscous, w, wall_viscous, start, u, at_start):
-    """:func:`examine` of every column of (L, N) arrays (``at_start`` (4, L, N)): (bounds
-    (N,), rises (N,))."""
+    """:func:`error_bound` and :func:`energy_rise` of every column of (L, N) arrays
+    (``at_start`` (4, L, N)): (bounds (N,), rises (N,))."""
     n = inertia.shape[1]
     bounds, rises = np.empty(n), np.empty(n)
     for j in range(n):
-        bounds[j], rises[j] = examine(
-            inertia[:, j], momentum[:, j], kappa[:, j], viscous[:, j], w[:, j], wall_viscous[:, j],
-            start[:, j], u[:, j], at_start[:, :, j],
-        )  # fmt: skip
+        args = (inertia[:, j], momentum[:, j], kappa[:, j], viscous[:, j], w[:, j], wall_viscous[:, j])
+        bounds[j] = error_bound(*args, u[:, j])
+        rises[j] = energy_rise(*args, start[:, j], u[:, j], at_start[:, :, j])
     return bounds, rises

@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit, prange
 
 from multilayer.engine.column_kernel import _active_set, _dynamic_programme, _workspace
-from multilayer.engine.newton_control import TRUSTED, examine
+from multilayer.engine.newton_control import TRUSTED, energy_rise, error_bound
 from multilayer.engine.plugin_output import PluginOutputError, outside_contract
 from multilayer.engine.stress import INTERFACE, LAYER, ColumnStresses, StressModel
 
@@ -116,7 +116,7 @@ def _true_stresses(
     state,
 ):  # fmt: skip
     """Viscosities and stress slopes at the velocities ``u`` of one column, and ``state``
-    (4, L) of ``newton_control.examine``: viscous stresses ``|tau_v|`` and their derivatives
+    (4, L) of ``newton_control.energy_rise``: viscous stresses ``|tau_v|`` and their derivatives
     with respect to the jump, viscous wall forces and their derivatives.  Returns the fault
     code of ``_columns`` (0: every viscosity finite and >= 0), the viscosity and the rate."""
     below = 0.0
@@ -278,16 +278,15 @@ def _columns(
                     )
                     if fault != 0:
                         break
-                    bound, rise = examine(
-                        inertia, momentum, kappa, state_n[0], wall_true, state_n[2], current, new, state_c
-                    )
-                    done = bound <= threshold
+                    true = (inertia, momentum, kappa, state_n[0], wall_true, state_n[2])
+                    done = error_bound(*true, new) <= threshold
                     if not (done or secant):
                         change = 0.0
                         for a in range(L):
                             change = max(change, abs(new[a] - current[a]))
                         done = change <= threshold
-                    if done or secant or rise <= 0.0 or iteration < TRUSTED:  # keep the step
+                    keep = done or secant or iteration < TRUSTED
+                    if keep or energy_rise(*true, current, new, state_c) <= 0.0:  # keep the step
                         current, new = new, current
                         eta_c, eta_n, slope_c, slope_n = eta_n, eta_c, slope_n, slope_c
                         weta_c, weta_n, wslope_c, wslope_n = weta_n, weta_c, wslope_n, wslope_c

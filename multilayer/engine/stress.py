@@ -216,7 +216,7 @@ class StressModel:
     def viscous_stresses(self, cs: ColumnStresses, u: np.ndarray) -> np.ndarray:
         """At the velocities ``u``, (4, L, N): the true viscous stresses ``|tau_v|`` of the
         interfaces, their derivatives with respect to the velocity jump, the viscous wall
-        forces ``|F_v|`` of the layers and their derivatives (``newton_control.examine``)."""
+        forces ``|F_v|`` of the layers and their derivatives (``newton_control.energy_rise``)."""
         spacing = np.where(cs.spacing > 0, cs.spacing, 1.0)
         rate = np.abs(np.diff(u, axis=0, prepend=0.0)) / spacing
         _, tau, tangent = self._stress_and_tangent(self.bulk, rate, cs.pressure, cs.x, INTERFACE)
