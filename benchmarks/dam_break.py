@@ -8,10 +8,12 @@ outflow, none here) and the front position, about x = 10 at second order (x = 9.
 the first-order C code with regularised yield that docs/performance.md times beside it).
 
     python benchmarks/dam_break.py [--cells 2500] [--layers 32] [--order 2] [--threads auto] [--profile]
-        [--pressure hydrostatic | bim2016 | non_hydrostatic] [--compare]
+        [--pressure hydrostatic | bim2016 | non_hydrostatic] [--pressure-layers N] [--compare]
 
 ``--compare`` runs the hydrostatic model and then the ``--pressure`` option in the same
 invocation and prints the ratio of their times to solution (the cost of the pressure).
+``--pressure-layers`` sets ``model.pressure_layers`` of the non-hydrostatic option
+(default: the scenario default, docs/nonhydrostatic.md).
 """
 
 from __future__ import annotations
@@ -25,7 +27,18 @@ from multilayer.engine.simulation import Simulation
 from multilayer.io.scenario import from_dict
 
 
-def scenario(cells: int, layers: int, order: int, end: float, threads="auto", pressure: str = "hydrostatic"):
+def scenario(
+    cells: int,
+    layers: int,
+    order: int,
+    end: float,
+    threads="auto",
+    pressure: str = "hydrostatic",
+    pressure_layers: int | None = None,
+):
+    model: dict = {"pressure": pressure}
+    if pressure == "non_hydrostatic" and pressure_layers is not None:
+        model["pressure_layers"] = pressure_layers
     return from_dict(
         {
             "name": "benchmark-mu-i-dam-break",
@@ -40,7 +53,7 @@ def scenario(cells: int, layers: int, order: int, end: float, threads="auto", pr
             "boundaries": {"left": "wall", "right": "outflow"},
             "time": {"end": end, "output_interval": end},
             "numerics": {"order": order, "threads": threads},
-            "model": {"pressure": pressure},
+            "model": model,
         }
     )
 
@@ -54,6 +67,7 @@ def main() -> None:
     parser.add_argument(
         "--pressure", default="hydrostatic", choices=("hydrostatic", "bim2016", "non_hydrostatic")
     )
+    parser.add_argument("--pressure-layers", type=int, default=None)
     parser.add_argument("--threads", default="auto")
     parser.add_argument(
         "--compare", action="store_true", help="run the hydrostatic model first and print the cost ratio"
@@ -66,16 +80,20 @@ def main() -> None:
     size = (args.cells, args.layers, args.order, args.end, threads)
     for pressure in pressures:
         sim, timing = timed(
-            lambda p=pressure, size=size: Simulation(scenario(*size, p)),
+            lambda p=pressure, size=size: Simulation(scenario(*size, p, args.pressure_layers)),
             args.end,
             profile=args.profile,
-            warm_up=Simulation(scenario(50, args.layers, args.order, args.end, threads, pressure)),
+            warm_up=Simulation(
+                scenario(50, args.layers, args.order, args.end, threads, pressure, args.pressure_layers)
+            ),
         )
         seconds[pressure] = timing.seconds
         d = sim.diagnostics()
         print(
             f"dam break: {args.cells} cells x {args.layers} layers, order {args.order}, "
-            f"pressure {pressure}, t = {sim.t:g}"
+            f"pressure {pressure}"
+            + (f" on {sim.pressure_layers} pressure layers" if pressure == "non_hydrostatic" else "")
+            + f", t = {sim.t:g}"
         )
         print("\n".join(timing.lines()))
         print(

@@ -175,3 +175,25 @@ def test_numerics_threads_accepts_auto_or_a_positive_integer(write_scenario, tin
         InputError, match=r"numerics\.threads \(from --set\): got .*; accepted: auto or an integer >= 1"
     ):
         load(write_scenario(tiny_scenario), [f"numerics.threads={value}"])
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        ["model.pressure=non_hydrostatic", "model.pressure_layers=0"],
+        ["model.pressure=non_hydrostatic", "model.pressure_layers=5"],  # more than the 4 layers
+        ["model.pressure=non_hydrostatic", "model.pressure_layers=1.5"],
+        ["model.pressure=non_hydrostatic", "model.pressure_layers=true"],
+        ["model.pressure_layers=2"],  # without the non-hydrostatic pressure
+    ],
+)
+def test_pressure_layers_are_an_integer_up_to_the_layers(write_scenario, tiny_scenario, overrides):
+    tiny_scenario["domain"]["layers"] = 4
+    path = write_scenario(tiny_scenario)
+    sc = load(path, ["model.pressure=non_hydrostatic"])
+    assert sc.model.resolved_pressure_layers(4) == 4 and sc.model.resolved_pressure_layers(32) == 4
+    assert (
+        load(path, ["model.pressure=non_hydrostatic", "model.pressure_layers=2"]).model.pressure_layers == 2
+    )
+    with pytest.raises(InputError, match=r"model\.pressure_layers \(from --set\): .*accepted: an integer"):
+        load(path, overrides)

@@ -425,6 +425,24 @@ parameters:
         assert "3 members: 2 already complete (skipped), 0 invalid, 1 to run" in capsys.readouterr().out
 
 
+def test_compiling_the_kernels_takes_one_single_threaded_step(tmp_path, monkeypatch):
+    """``compile_kernels`` (run before local worker processes start) steps the member
+    once on one thread, and leaves a member that fails to its own run."""
+    from multilayer.engine.simulation import Simulation
+
+    (tmp_path / "tiny.yaml").write_text(TINY)
+    member = scenario.load(tmp_path / "tiny.yaml")
+    stepped = []
+
+    def step(self, t_max=float("inf")):
+        stepped.append(self.thread_policy.threads(10**9))
+        raise RunError("a member that fails")
+
+    monkeypatch.setattr(Simulation, "step", step)
+    assert sweep.compile_kernels(member) is None
+    assert stepped == [1]
+
+
 @pytest.mark.slow
 def test_local_cluster_zip_sweep(tmp_path, monkeypatch, capsys):
     """Without --scheduler: a local cluster of worker processes, here a zipped sweep.
@@ -443,8 +461,11 @@ output: {directory: zipped}
 """,
     )
     monkeypatch.chdir(tmp_path)  # output.directory is relative to the current directory
+    warmed = []  # the kernels are compiled in this process before the workers start
+    monkeypatch.setattr(sweep, "compile_kernels", lambda member: warmed.append(member) or None)
     assert cli.main(["sweep", str(path), "--workers", "2", "--quiet"]) == 0
     assert capsys.readouterr().out == ""
+    assert [(m.slope_deg, m.rheology.params["mu_s"]) for m in warmed] == [(20.0, 0.3)]
     rows = read_summary(tmp_path / "zipped")
     assert [(r["slope_deg"], r["rheology.mu_s"], r["status"]) for r in rows] == [
         ("20.0", "0.3", "ok"),

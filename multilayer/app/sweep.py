@@ -246,10 +246,40 @@ def run_member(
     return summary
 
 
+def compile_kernels(member: scenario.Scenario) -> None:
+    """Compile the engine's kernels in this process, or load them from numba's cache, by
+    one single-threaded step of ``member``, before worker processes start.
+
+    numba's on-disk cache is not safe when several processes compile the same function
+    at once (numba issues 4807 and 10128): worker processes that all begin by compiling
+    can corrupt it.  Once this process has written the cache, the workers only read it.
+    A member that does not construct or step is left to report its own error when it runs.
+    """
+    from multilayer.engine.simulation import Simulation
+
+    numerics = member.numerics.model_copy(update={"threads": 1})
+    try:
+        Simulation(member.model_copy(update={"numerics": numerics})).step()
+    except (InputError, RunError):
+        return
+
+
+def base_member(base: Path, fixed: dict[str, Any]) -> scenario.Scenario | None:
+    """The scenario ``base`` with the overrides ``fixed`` of a study (None if invalid:
+    each member reports its own error)."""
+    try:
+        return scenario.load(base, as_overrides(fixed))
+    except InputError:
+        return None
+
+
 @contextmanager
-def dask_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
+def dask_client(
+    scheduler: str | None, workers: int | None, warm_up: scenario.Scenario | None = None
+) -> Iterator[Any]:
     """A Dask client on the cluster at ``scheduler``, or on a new local cluster with
-    ``workers`` single-threaded worker processes (default: one per core)."""
+    ``workers`` single-threaded worker processes (default: one per core), started after
+    :func:`compile_kernels` of ``warm_up`` (a member scenario)."""
     from dask.distributed import Client, LocalCluster
     from dask.system import CPU_COUNT
 
@@ -264,6 +294,8 @@ def dask_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
         with client:
             yield client
         return
+    if warm_up is not None:
+        compile_kernels(warm_up)
     cluster = LocalCluster(
         n_workers=workers or CPU_COUNT,
         threads_per_worker=1,
@@ -341,7 +373,7 @@ def _run(
         skipped = sum(outcome.skipped for outcome in outcomes.values())
         on_start(len(members), skipped, len(outcomes) - skipped, len(pending))
     if pending:
-        with dask_client(scheduler, workers) as client:
+        with dask_client(scheduler, workers, warm_up=pending[0][1]) as client:
             futures = {
                 client.submit(
                     run_member,

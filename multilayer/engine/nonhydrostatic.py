@@ -57,10 +57,21 @@ non-zero are constrained and corrected, so material held by the yield stress sta
 ``multilayer.reference.nonhydrostatic_fipy.project`` assembles the same operator
 from FiPy terms on the X-sigma mesh for flat interfaces
 (``multilayer/reference/nonhydrostatic_fipy.py``).
+
+Fewer pressure layers: with ``pressure_layers = L_p < L`` the pressure lives on the bottom
+interfaces of ``L_p`` groups of whole layers (:func:`pressure_nodes`) and, on every
+velocity interface, is its linear interpolation in sigma, zero at the surface
+(:func:`pressure_interpolation`, ``lam = P lam_p``).  The constraint is the Galerkin one,
+``P^T E V = 0`` (``L_p`` rows per column), and the projection ``V = V* - M^-1 E^T P
+lam_p`` with ``(P^T A P) lam_p = P^T E V*``: the orthogonal projection in the ``M`` norm on
+a larger subspace than ``E V = 0``, so it still never adds kinetic energy, and ``E V* = 0``
+(rest, uniform flow) still gives ``lam_p = 0``.  The band of ``P^T A P`` has half-width
+about ``L_p + 3``: the factorisation costs O(L_p^3) per column instead of O(L^3).
 """
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -104,26 +115,86 @@ def faces(N: int, periodic: bool) -> tuple[np.ndarray, np.ndarray]:
 
 
 def constraint(
-    h: np.ndarray, bed: np.ndarray, fractions: np.ndarray, dx: float, periodic: bool
+    h: np.ndarray,
+    bed: np.ndarray,
+    fractions: np.ndarray,
+    dx: float,
+    periodic: bool,
+    interpolation: np.ndarray | None = None,
 ) -> Constraint:
-    """The local rows ``E`` of the layer divergence constraint (module Notes)."""
+    """The local rows ``E`` of the layer divergence constraint (module Notes), or with the
+    pressure ``interpolation`` ``P`` (L, L_p) of :func:`pressure_interpolation` the reduced
+    rows ``P^T E`` (one per pressure interface and column: cell ``g * N + i``)."""
     L, N = fractions.size, h.size
+    P = np.eye(L) if interpolation is None else np.asarray(interpolation, dtype=float)
     left, right = faces(N, periodic)
     pointer, cells, values, mass = _entries(
         np.asarray(h, dtype=float), np.asarray(bed, dtype=float), np.asarray(fractions, dtype=float),
-        float(dx), left, right,
+        float(dx), left, right, P,
     )  # fmt: skip
-    return Constraint(pointer, cells, values, mass, left, right, (L * N, L * left.size + L * N))
+    return Constraint(pointer, cells, values, mass, left, right, (P.shape[1] * N, L * left.size + L * N))
+
+
+def pressure_nodes(fractions: np.ndarray, pressure_layers: int) -> np.ndarray:
+    """The velocity layers whose bottom interfaces carry the pressure: ``pressure_layers``
+    groups of whole layers, each group's bottom interface the one nearest ``sigma = g /
+    L_p`` (equal fractions of the depth when the layer fractions allow it; every group
+    holds at least one layer).  ``pressure_layers == L`` gives every layer."""
+    L = fractions.size
+    sigma = np.concatenate([[0.0], np.cumsum(fractions)[:-1]])
+    nodes = np.zeros(pressure_layers, dtype=np.int64)
+    for g in range(1, pressure_layers):
+        lo, hi = nodes[g - 1] + 1, L - (pressure_layers - g)
+        candidates = np.arange(lo, hi + 1)
+        nodes[g] = candidates[np.argmin(np.abs(sigma[candidates] - g / pressure_layers))]
+    return nodes
+
+
+@functools.lru_cache(maxsize=8)
+def _pressure_layers(fractions: tuple[float, ...], pressure_layers: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`pressure_nodes` and :func:`pressure_interpolation`, computed once per model."""
+    nodes = pressure_nodes(np.array(fractions), pressure_layers)
+    return nodes, pressure_interpolation(np.array(fractions), nodes)
+
+
+def pressure_interpolation(fractions: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """``P`` (L, L_p): the pressure on the bottom interface of every velocity layer,
+    linear in ``sigma`` between the pressure interfaces ``nodes`` (bottom interfaces of the
+    groups of :func:`pressure_nodes`) and zero at the free surface: ``q_a = sum_g P_a,g
+    q_g``.  With a node at every layer it is the identity."""
+    L, Lp = fractions.size, nodes.size
+    sigma = np.concatenate([[0.0], np.cumsum(fractions)[:-1]])
+    at = np.append(sigma[nodes], 1.0)  # the pressure interfaces and the surface
+    P = np.zeros((L, Lp))
+    for g in range(Lp):
+        P[nodes[g], g] = 1.0
+        for a in range(nodes[g] + 1, nodes[g + 1] if g + 1 < Lp else L):
+            weight = (at[g + 1] - sigma[a]) / (at[g + 1] - at[g])
+            P[a, g] = weight
+            if g + 1 < Lp:
+                P[a, g + 1] = 1.0 - weight
+    return P
 
 
 @njit(cache=True)
-def _entries(h, bed, fractions, dx, left, right):
-    """``E`` column by column (see :class:`Constraint`): ``F_c`` enters the rows ``c`` and
-    ``c + 1`` with 1/2; ``S_j`` (interface ``j``, its velocity ``vhat_j = beta_j,c-1 v_c-1 +
-    beta_j,c v_c`` weighted by the thicknesses) enters row 0 with -1/2 (``j`` = 0, 1), row
-    ``j - 1`` with -1/2 (``j >= 2``) and row ``j + 1`` with +1/2; ``wbar_a`` enters row ``a``
-    with +1 and row ``a + 1`` with -1."""
+def _entries(h, bed, fractions, dx, left, right, P):
+    """``P^T E`` column by column (see :class:`Constraint`): in ``E``, ``F_c`` enters the
+    rows ``c`` and ``c + 1`` with 1/2; ``S_j`` (interface ``j``, its velocity ``vhat_j =
+    beta_j,c-1 v_c-1 + beta_j,c v_c`` weighted by the thicknesses) enters row 0 with -1/2
+    (``j`` = 0, 1), row ``j - 1`` with -1/2 (``j >= 2``) and row ``j + 1`` with +1/2;
+    ``wbar_a`` enters row ``a`` with +1 and row ``a + 1`` with -1.  Each entry of row ``a``
+    goes to the pressure rows ``g`` with ``P_a,g != 0``, times ``P_a,g`` (the identity:
+    ``E`` itself)."""
     L, N, F = fractions.size, h.size, left.size
+    Lp = P.shape[1]
+    targets = np.zeros(L, np.int64)  # the pressure rows of each row of E: first, count
+    first = np.zeros(L, np.int64)
+    for a in range(L):
+        first[a] = Lp
+        for g in range(Lp):
+            if P[a, g] != 0.0:
+                first[a] = min(first[a], g)
+                targets[a] += 1
     sigma = np.zeros(L + 1)
     for a in range(L):
         sigma[a + 1] = sigma[a] + fractions[a]
@@ -135,11 +206,20 @@ def _entries(h, bed, fractions, dx, left, right):
         total = fractions[j - 1] + fractions[j]
         beta[j, j - 1], beta[j, j] = fractions[j] / total, fractions[j - 1] / total
     rows, weights = np.empty(3, np.int64), np.empty(3)
+    touched_rows, at_left, at_right = np.empty(L, np.int64), np.empty(L), np.empty(L)
     pointer = np.empty(L * F + L * N + 1, np.int64)
-    cells = np.empty(12 * L * F + 2 * L * N, np.int64)
+    # at most the rows 0, c - 1, ..., c + 2 of E for a face unknown of layer c, and a, a + 1
+    # for wbar_a, each going to the pressure rows it has (1 or 2), in both columns of a face
+    spread = targets.max()
+    cells = np.empty(2 * min(Lp, 5 * spread) * L * F + min(Lp, 2 * spread) * L * N, np.int64)
     values = np.empty(cells.size)
     mass = np.empty(L * F + L * N)
+    slot = np.full(Lp * N, -1, np.int64)  # where the entry of a cell is, for the current unknown
     n = 0
+    if Lp < L:
+        # fewer pressure rows: the entries of a face unknown of layer c are, per pressure row
+        # g, h_face / dx times those of its F rows plus the slopes times those of its S rows
+        flux, slopes, lowest, highest = _face_coefficients(P, beta, L)
     for c in range(L):
         for f in range(F):
             k = c * F + f
@@ -147,56 +227,116 @@ def _entries(h, bed, fractions, dx, left, right):
             i, e = left[f], right[f]
             h_face = fractions[c] * 0.5 * (h[i] + h[e])
             mass[k] = h_face
-            for row in range(c, min(c + 2, L)):
-                cells[n], values[n] = row * N + i, 0.5 * h_face / dx
-                cells[n + 1], values[n + 1] = row * N + e, -0.5 * h_face / dx
-                n += 2
-            for j in (c, c + 1):
-                if beta[j, c] == 0.0:
-                    continue
-                slope = ((bed[e] + sigma[j] * h[e]) - (bed[i] + sigma[j] * h[i])) / dx
-                count = 0
-                if j <= 1:
-                    rows[count], weights[count] = 0, -0.5
-                    count += 1
-                if j >= 2:
-                    rows[count], weights[count] = j - 1, -0.5
-                    count += 1
-                if j <= L - 2:
-                    rows[count], weights[count] = j + 1, 0.5
-                    count += 1
-                for m in range(count):
-                    value = weights[m] * 0.5 * beta[j, c] * slope
-                    cells[n], values[n] = rows[m] * N + i, value
-                    cells[n + 1], values[n + 1] = rows[m] * N + e, value
-                    n += 2
-            n = _merge(cells, values, pointer[k], n)
+            if Lp < L:
+                s0 = ((bed[e] + sigma[c] * h[e]) - (bed[i] + sigma[c] * h[i])) / dx
+                s1 = ((bed[e] + sigma[c + 1] * h[e]) - (bed[i] + sigma[c + 1] * h[i])) / dx
+                ratio = h_face / dx
+                for g in range(lowest[c], highest[c] + 1):
+                    a0, a1, fc = slopes[0, c, g], slopes[1, c, g], flux[c, g]
+                    sloped = s0 * a0 + s1 * a1
+                    n = _add(cells, values, slot, n, g * N + i, ratio * fc + sloped)
+                    n = _add(cells, values, slot, n, g * N + e, sloped - ratio * fc)
+            else:
+                touched = 0  # the rows of E this unknown enters, in the order they first come
+                for row in range(c, min(c + 2, L)):
+                    touched = _accumulate(
+                        touched_rows, at_left, at_right, touched, row, 0.5 * h_face / dx, -0.5 * h_face / dx
+                    )
+                for j in (c, c + 1):
+                    if beta[j, c] == 0.0:
+                        continue
+                    slope = ((bed[e] + sigma[j] * h[e]) - (bed[i] + sigma[j] * h[i])) / dx
+                    for m in range(_slope_rows(j, L, rows, weights)):
+                        value = weights[m] * 0.5 * beta[j, c] * slope
+                        touched = _accumulate(touched_rows, at_left, at_right, touched, rows[m], value, value)
+                for t in range(touched):
+                    n = _add(cells, values, slot, n, touched_rows[t] * N + i, at_left[t])
+                    n = _add(cells, values, slot, n, touched_rows[t] * N + e, at_right[t])
+            for m in range(pointer[k], n):
+                slot[cells[m]] = -1
     for a in range(L):
         for i in range(N):
             k = L * F + a * N + i
             pointer[k] = n
             mass[k] = fractions[a] * h[i]
-            cells[n], values[n] = a * N + i, 1.0
-            n += 1
+            for g in range(first[a], first[a] + targets[a]):
+                n = _add(cells, values, slot, n, g * N + i, P[a, g])
             if a + 1 < L:
-                cells[n], values[n] = (a + 1) * N + i, -1.0
-                n += 1
+                for g in range(first[a + 1], first[a + 1] + targets[a + 1]):
+                    n = _add(cells, values, slot, n, g * N + i, -P[a + 1, g])
+            for m in range(pointer[k], n):
+                slot[cells[m]] = -1
     pointer[L * F + L * N] = n
     return pointer, cells[:n], values[:n], mass
 
 
 @njit(cache=True)
-def _merge(cells, values, first, end):
-    """Add up the entries ``first:end`` in the same cell; returns the new end."""
-    n = first
-    for e in range(first, end):
-        for d in range(first, n):
-            if cells[d] == cells[e]:
-                values[d] += values[e]
-                break
-        else:
-            cells[n], values[n] = cells[e], values[e]
-            n += 1
+def _slope_rows(j, L, rows, weights):
+    """The rows of ``E`` that the slope flux ``S_j`` enters and their weights (see
+    :func:`_entries`); returns their count."""
+    count = 0
+    if j <= 1:
+        rows[count], weights[count] = 0, -0.5
+        count += 1
+    if j >= 2:
+        rows[count], weights[count] = j - 1, -0.5
+        count += 1
+    if j <= L - 2:
+        rows[count], weights[count] = j + 1, 0.5
+        count += 1
+    return count
+
+
+@njit(cache=True)
+def _face_coefficients(P, beta, L):
+    """``flux[c, g]``: the entry of ``P^T E`` of a face unknown of layer ``c`` in pressure row
+    ``g`` per unit ``h_face / dx`` (left column; minus it in the right one), and
+    ``slopes[s, c, g]`` per unit slope of the interface ``c + s`` (both columns), and the
+    pressure rows ``lowest[c]..highest[c]`` where they are not all zero."""
+    Lp = P.shape[1]
+    flux, slopes = np.zeros((L, Lp)), np.zeros((2, L, Lp))
+    rows, weights = np.empty(3, np.int64), np.empty(3)
+    for c in range(L):
+        for row in range(c, min(c + 2, L)):
+            for g in range(Lp):
+                flux[c, g] += 0.5 * P[row, g]
+        for j in (c, c + 1):
+            if beta[j, c] == 0.0:
+                continue
+            for m in range(_slope_rows(j, L, rows, weights)):
+                for g in range(Lp):
+                    slopes[j - c, c, g] += weights[m] * 0.5 * beta[j, c] * P[rows[m], g]
+    lowest, highest = np.full(L, Lp, np.int64), np.full(L, -1, np.int64)
+    for c in range(L):
+        for g in range(Lp):
+            if flux[c, g] != 0.0 or slopes[0, c, g] != 0.0 or slopes[1, c, g] != 0.0:
+                lowest[c], highest[c] = min(lowest[c], g), max(highest[c], g)
+    return flux, slopes, lowest, highest
+
+
+@njit(cache=True)
+def _accumulate(touched_rows, at_left, at_right, touched, row, left_value, right_value):
+    """Add the entries of ``row`` in the left and right columns of a face unknown (a new
+    row at ``touched`` if it has none yet); returns the new count of rows."""
+    for t in range(touched):
+        if touched_rows[t] == row:
+            at_left[t] += left_value
+            at_right[t] += right_value
+            return touched
+    touched_rows[touched], at_left[touched], at_right[touched] = row, left_value, right_value
+    return touched + 1
+
+
+@njit(cache=True)
+def _add(cells, values, slot, n, cell, value):
+    """Add ``value`` to the entry of ``cell`` of the current unknown (``slot[cell]``, -1:
+    none yet, then a new entry at ``n``, in the order the cells first come); returns the
+    new end."""
+    if slot[cell] < 0:
+        slot[cell] = n
+        cells[n], values[n] = cell, value
+        return n + 1
+    values[slot[cell]] += value
     return n
 
 
@@ -430,26 +570,30 @@ def correction(
     w: np.ndarray,
     lam_max: np.ndarray | None = None,
     active: np.ndarray | None = None,
+    nodes: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``V*``, the correction ``dV = -M^-1 E^T lam`` and the free unknowns, over the rows
     and unknowns of the moving cells (all vectors full length).
 
     ``lam`` minimises ``1/2 lam^T A lam - lam^T E V*`` (``A lam = E V*``), subject to
-    ``lam <= lam_max`` (L, N) if given: with ``lam_a = -dt q_a`` this is the bound
+    ``lam <= lam_max`` (L_p, N) if given: with ``lam_a = -dt q_a`` this is the bound
     ``p >= 0`` on the total pressure, solved by the primal-dual active-set method from the
-    guess ``active`` (L, N) of the cells where the bound holds (none by default; updated
-    in place to the final active set).
+    guess ``active`` (L_p, N) of the cells where the bound holds (none by default; updated
+    in place to the final active set).  With pressure interfaces ``nodes`` (the velocity
+    layers of :func:`pressure_nodes`; default every layer) ``E`` is the reduced ``P^T E``
+    and its row ``g`` takes part where the layer ``nodes[g]`` moves.
     """
     L, N = u.shape
     left, right = cons.left, cons.right
     F = left.size
     face_free = (moving[:, left] | moving[:, right]).ravel() & (cons.mass[: L * F] > 0)
     free = np.concatenate([face_free, moving.ravel()])
+    constrained = moving if nodes is None else moving[nodes]
     # rows column by column (cell a * N + i is row row_of[a * N + i]): A is then banded, of
-    # half-width about L + 3
-    column, layer = np.nonzero(moving.T)
+    # half-width about L_p + 3
+    column, layer = np.nonzero(constrained.T)
     rows = layer * N + column
-    row_of = np.full(L * N, -1, dtype=np.int64)
+    row_of = np.full(constrained.size, -1, dtype=np.int64)
     row_of[rows] = np.arange(rows.size)
     v_star = 0.5 * (u[:, left] + u[:, right])
     V_star = np.concatenate([v_star.ravel(), np.where(moving, w, 0.0).ravel()])
@@ -490,8 +634,11 @@ def project(
     dry: float = 0.0,
     g_n: float | None = None,
     tension_free: np.ndarray | None = None,
+    pressure_layers: int | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Project the moving cells on the non-hydrostatic constraint (module Notes).
+    """Project the moving cells on the non-hydrostatic constraint (module Notes), with the
+    pressure on ``pressure_layers`` groups of layers (default: every layer; module Notes,
+    "Fewer pressure layers").
 
     ``u`` (L, N) are the velocities after the vertical step, ``w`` (L, N) the layer-mean
     vertical velocities before the projection.  Returns the new ``u`` and ``w`` and the
@@ -503,11 +650,10 @@ def project(
     the active-set iteration (speed only: the answer does not depend on them).
     """
     L, N = u.shape
-    moving = (u != 0.0) & (h > dry)[None, :]
-    if not moving.any():
+    first, last = _moving_columns(u, h, dry)
+    if last < 0:
         return u.copy(), np.zeros(w.shape), np.zeros(u.shape)
-    columns = np.flatnonzero(moving.any(axis=0))
-    lo, hi = max(columns[0] - 1, 0), min(columns[-1] + 2, N)
+    lo, hi = max(first - 1, 0), min(last + 2, N)
     if not periodic and (lo > 0 or hi < N):
         # only the moving material and one column at rest on each side take part: the
         # faces beyond join cells at rest and carry no correction
@@ -524,16 +670,25 @@ def project(
             dry=dry,
             g_n=g_n,
             tension_free=None if tension_free is None else tension_free[:, window],
+            pressure_layers=pressure_layers,
         )
         return u_new, w_new, q
-    cons = constraint(np.where(h > dry, h, 0.0), bed, fractions, dx, periodic)
+    moving = (u != 0.0) & (h > dry)[None, :]
+    nodes = interpolation = None
+    if pressure_layers is not None and pressure_layers != L:
+        nodes, interpolation = _pressure_layers(tuple(fractions), pressure_layers)
+    cons = constraint(np.where(h > dry, h, 0.0), bed, fractions, dx, periodic, interpolation)
     left, right = cons.left, cons.right
     F = left.size
     lam_max = active = None
     if g_n is not None:
+        # the bound at the pressure interfaces holds on every interface: both sides are
+        # linear in sigma between them
         lam_max = dt * g_n * depth_below(h, fractions)
         active = np.zeros_like(moving) if tension_free is None else tension_free.copy()
-    _, dV, _ = correction(cons, moving, u, w, lam_max, active)
+        if nodes is not None:
+            lam_max, active = lam_max[nodes], active[nodes]
+    _, dV, _ = correction(cons, moving, u, w, lam_max, active, nodes)
     dv = dV[: L * F].reshape(L, F)
     dw = dV[L * F :].reshape(L, N)
     du = np.zeros_like(u)
@@ -544,6 +699,22 @@ def project(
     w_new = np.where(moving, w + dw, 0.0)
     q = np.cumsum((fractions[:, None] * h * dw)[::-1], axis=0)[::-1] / dt
     return u_new, w_new, q
+
+
+@njit(cache=True)
+def _moving_columns(u, h, dry):
+    """The first and the last column with a moving cell (``u != 0`` where ``h > dry``);
+    ``(-1, -1)`` if none."""
+    first = last = -1
+    for i in range(h.size):
+        if h[i] > dry:
+            for a in range(u.shape[0]):
+                if u[a, i] != 0.0:
+                    if first < 0:
+                        first = i
+                    last = i
+                    break
+    return first, last
 
 
 @njit(cache=True)

@@ -75,6 +75,8 @@ class Simulation:
         theta = math.radians(sc.slope_deg)
         self.theta = theta
         self.pressure = sc.model.pressure
+        # the non-hydrostatic pressure's interfaces (docs/nonhydrostatic.md)
+        self.pressure_layers = sc.model.resolved_pressure_layers(dom.layers)
         self.g_n = sc.gravity * math.cos(theta)
         self.g_t = sc.gravity * math.sin(theta)
         self.numerics = sc.numerics
@@ -339,6 +341,7 @@ class Simulation:
             dry=self.numerics.dry_threshold,
             g_n=self.g_n,
             tension_free=nonhydrostatic.tension_free(self.q, self.h, self.fractions, self.g_n),
+            pressure_layers=self.pressure_layers,
         )
         return projected, w_new, q_new
 

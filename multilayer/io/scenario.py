@@ -600,12 +600,25 @@ class Numerics(_Model):
         raise _invalid(f"got {value!r}", THREADS_ACCEPTED)
 
 
+DEFAULT_PRESSURE_LAYERS = 4  # the choice of docs/nonhydrostatic.md, "Fewer pressure layers"
+
+
 class Model(_Model):
     """Model options: the pressure that enters the stresses (docs/nonhydrostatic.md)."""
 
     pressure: Literal["hydrostatic", "bim2016", "non_hydrostatic"] = _field(
         "hydrostatic", "hydrostatic, bim2016 or non_hydrostatic"
     )
+    pressure_layers: int | None = _field(
+        None,
+        "an integer from 1 to domain.layers (with pressure: non_hydrostatic; default "
+        f"min({DEFAULT_PRESSURE_LAYERS}, layers))",
+        strict=True,
+    )
+
+    def resolved_pressure_layers(self, layers: int) -> int:
+        """The pressure layers of the non-hydrostatic option (docs/nonhydrostatic.md)."""
+        return min(DEFAULT_PRESSURE_LAYERS, layers) if self.pressure_layers is None else self.pressure_layers
 
 
 class Scenario(_Model):
@@ -651,6 +664,14 @@ class Scenario(_Model):
     @model_validator(mode="after")
     def _check(self) -> Scenario:
         self.bed.in_slope_frame(self.slope_deg)
+        count = self.model.pressure_layers
+        misplaced = self.model.pressure != "non_hydrostatic"
+        if count is not None and (misplaced or not 1 <= count <= self.domain.layers):
+            raise _invalid(
+                f"got {count!r} with pressure {self.model.pressure} and {self.domain.layers} layers",
+                f"an integer from 1 to domain.layers = {self.domain.layers}, with pressure: non_hydrostatic",
+                "model.pressure_layers",
+            )
         if self.walls is not None and self.domain.width is None:
             raise _invalid(
                 "walls need the channel width domain.width",

@@ -15,6 +15,11 @@ on the faces between columns.  Both are FiPy ``DiffusionTerm``s (matrices taken 
 FiPy's own assembly); the sum over adjacent layers ``B`` is not a FiPy term and is applied
 to their matrices.  The right-hand side uses FiPy's divergence of the layer fluxes
 ``h_a v_f`` and the correction FiPy's face gradient of ``B lam``.
+
+With the pressure on fewer layers (``pressure_nodes``: the velocity layers whose bottom
+interfaces carry it) the multipliers are ``lam = P lam_p``, ``P`` the linear interpolation
+in sigma between those interfaces and zero at the free surface, and the reduced problem is
+the Galerkin one, ``P^T A P lam_p = P^T E V*`` (``P`` built here with ``numpy.interp``).
 """
 
 from __future__ import annotations
@@ -43,9 +48,12 @@ def project(
     dx: float,
     dt: float,
     periodic: bool = False,
+    pressure_nodes: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The projection of ``nonhydrostatic.project`` for a uniform thickness ``h`` on a flat
-    bed with every cell moving: returns the new ``u``, ``w`` and the pressures ``q`` (L, N)."""
+    bed with every cell moving: returns the new ``u``, ``w`` and the pressures ``q`` (L, N),
+    with the pressure on the bottom interfaces of the layers ``pressure_nodes`` (default:
+    every layer) interpolated on the others."""
     L, N = u.shape
     dy = list(np.asarray(fractions, dtype=float) * h)
     grid = fp.PeriodicGrid2DLeftRight if periodic else fp.Grid2D
@@ -86,7 +94,14 @@ def project(
     rhs[1:] -= w[:-1]
     rhs += 0.5 * F
     rhs[1:] += 0.5 * F[:-1]
-    lam = spla.spsolve(A, rhs.ravel())
+    if pressure_nodes is None:
+        lam = spla.spsolve(A, rhs.ravel())
+    else:
+        sigma = np.concatenate([[0.0], np.cumsum(fractions)[:-1]])
+        at = np.append(sigma[pressure_nodes], 1.0)
+        P = np.column_stack([np.interp(sigma, at, np.eye(at.size)[g]) for g in range(at.size - 1)])
+        P_cells = sp.kron(sp.csr_matrix(P), sp.eye(N)).tocsc()  # cell a*N+i from g*N+i
+        lam = P_cells @ spla.spsolve((P_cells.T @ A @ P_cells).tocsc(), P_cells.T @ rhs.ravel())
 
     big = fp.CellVariable(mesh=mesh, value=B @ lam)
     dv_faces = 0.5 * np.asarray(big.faceGrad[0])  # dv_f = (Lam_R - Lam_L) / (2 dx)

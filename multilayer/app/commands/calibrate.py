@@ -30,7 +30,7 @@ def main(args: argparse.Namespace) -> int:
     from multilayer.app import calibration as calibrations
     from multilayer.app import stopping
     from multilayer.app.ensemble import Ensemble
-    from multilayer.app.sweep import dask_client
+    from multilayer.app.sweep import base_member, dask_client
     from multilayer.errors import Interrupted
     from multilayer.io.study import load_calibration
 
@@ -69,7 +69,12 @@ def main(args: argparse.Namespace) -> int:
             save(f"running: {calibrator.stage} {calibrator.step - 1} done")
 
     try:
-        with stopping.signals_stop(), dask_client(args.scheduler, args.workers) as client:
+        with (
+            stopping.signals_stop(),
+            dask_client(
+                args.scheduler, args.workers, warm_up=base_member(plan.base, plan.config.set)
+            ) as client,
+        ):
             ensemble = Ensemble(plan.base, outdir, client, fixed=plan.config.set, on_progress=progress)
             calibrator = calibrations.Calibrator(plan, ensemble, report, on_batch=batch_done)
             fit = calibrator.run()

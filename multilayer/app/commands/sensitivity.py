@@ -29,7 +29,7 @@ def main(args: argparse.Namespace) -> int:
     """Validate the file, run the sample, write sensitivity.nc, print the indices."""
     from multilayer.app import sensitivity, stopping
     from multilayer.app.ensemble import Ensemble
-    from multilayer.app.sweep import dask_client
+    from multilayer.app.sweep import base_member, dask_client
     from multilayer.errors import InputError, Interrupted
     from multilayer.io.study import load_sensitivity
 
@@ -58,7 +58,12 @@ def main(args: argparse.Namespace) -> int:
     points = sensitivity.sample(study)  # checked before any cluster starts
     report(f"sensitivity: on {cluster_description(args)}")
     try:
-        with stopping.signals_stop(), dask_client(args.scheduler, args.workers) as client:
+        with (
+            stopping.signals_stop(),
+            dask_client(
+                args.scheduler, args.workers, warm_up=base_member(study.base, study.config.set)
+            ) as client,
+        ):
             ensemble = Ensemble(study.base, outdir, client, fixed=study.config.set, on_progress=progress)
             evaluations = sensitivity.run(study, ensemble, report, points)
     except Interrupted as exc:
