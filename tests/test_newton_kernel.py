@@ -101,10 +101,14 @@ def test_compiled_step_equals_the_numpy_iteration_on_a_collapse(rheology, walls)
     ref, got = runs
     # the slopes differ (exact in the kernel, a forward difference of relative step 1e-7 in
     # numpy): the fixed points are the same, but a step's last iteration can fall either side
-    # of the threshold (2 of 579 iterations on the power law with walls)
+    # of the threshold.  Each path stops within the threshold of the exact step (the error
+    # bound of newton_control), so their velocities differ by at most twice the threshold
+    # at each step; through the transport (Courant numbers < 1) the thickness by less than
+    # 2 x 60 thresholds relative to the velocity scale.
     assert abs(got.newton_iterations - ref.newton_iterations) <= 0.01 * ref.newton_iterations
-    np.testing.assert_allclose(got.h, ref.h, rtol=1e-12, atol=1e-14)
-    np.testing.assert_allclose(got.u, ref.u, rtol=1e-9, atol=1e-12)
+    threshold = ref.numerics.tolerance * ref.velocity_scale
+    np.testing.assert_allclose(got.h, ref.h, rtol=120 * threshold / ref.velocity_scale, atol=0.0)
+    np.testing.assert_allclose(got.u, ref.u, rtol=0.0, atol=2 * threshold)
     assert np.array_equal(got.u == 0.0, ref.u == 0.0)
     assert (ref.u == 0.0).any() and (ref.u != 0.0).any()  # both static and moving layers
 

@@ -38,6 +38,16 @@ INF = np.inf
 
 
 @njit(cache=True)
+def _between(x0, y0, x1, y1, x):
+    """The ordinate at ``x0 < x < x1`` of the segment from ``(x0, y0)`` to ``(x1, y1)``,
+    interpolated from its nearer end: a vertex far out on a ray (the messages hold some
+    at abscissae ~1e13) would otherwise cancel the digits of a nearby value."""
+    if x - x0 <= x1 - x:
+        return y0 + (x - x0) / (x1 - x0) * (y1 - y0)
+    return y1 - (x1 - x) / (x1 - x0) * (y1 - y0)
+
+
+@njit(cache=True)
 def _at(X, Y, n, sl, sr, x, i):
     """Interval [lo, hi] of the relation at ``x``, scanning from vertex ``i``.
 
@@ -53,7 +63,7 @@ def _at(X, Y, n, sl, sr, x, i):
         if i == 0:
             y = Y[0] + sl * (x - X[0])
         else:  # strictly inside a segment
-            y = Y[i - 1] + (x - X[i - 1]) / (X[i] - X[i - 1]) * (Y[i] - Y[i - 1])
+            y = _between(X[i - 1], Y[i - 1], X[i], Y[i], x)
         return y, y, i
     j = i
     while j + 1 < n and X[j + 1] == x:
@@ -134,7 +144,7 @@ def _root(X, Y, n, sl, sr):
         return X[0] - Y[0] / sl
     if Y[i] == 0.0 or X[i] == X[i - 1]:
         return X[i]
-    return X[i - 1] + (0.0 - Y[i - 1]) * (X[i] - X[i - 1]) / (Y[i] - Y[i - 1])
+    return _between(Y[i - 1], X[i - 1], Y[i], X[i], 0.0)
 
 
 @njit(cache=True)

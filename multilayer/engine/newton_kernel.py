@@ -21,6 +21,7 @@ from numba import njit, prange
 
 from multilayer.engine.column_kernel import _active_set, _dynamic_programme, _workspace
 from multilayer.engine.compiled_forms import describes
+from multilayer.engine.newton_control import TRUSTED, energy_rise, error_bound
 from multilayer.engine.plugin_output import PluginOutputError, outside_contract
 from multilayer.engine.stress import INTERFACE, LAYER, ColumnStresses, StressModel
 from multilayer.engine.stress_kernel import CompiledCoefficients
@@ -91,15 +92,50 @@ def _viscosity(form, params, rate, factor, offset):
 
 
 @njit(cache=True)
-def _newton_model(kappa, rate, eta, slope):
+def _newton_model(kappa, rate, eta, slope, secant):
     """``stress._newton_model`` for one value from ``eta`` and the stress slope at
     ``rate``: (yield stress, conductance) of the odd Bingham law through the stress at
-    ``rate``, tangent where its yield stress is >= 0, secant otherwise."""
+    ``rate``, tangent where its yield stress is >= 0, secant otherwise (and always with
+    ``secant``: the Kacanov model of ``newton_control``)."""
     slope = max(slope, 0.0)
     offset_yield = kappa + eta * rate - slope * rate
-    if offset_yield >= 0.0:
+    if offset_yield >= 0.0 and not secant:
         return offset_yield, slope
     return kappa, eta
+
+
+@njit(cache=True)
+def _true_stresses(
+    u, inverse_spacing, conductance, bulk_form, bulk_params, factor, offset, eta, slope,
+    walls, inverse_half, wall_form, wall_params, wall_factor, wall_offset, per_area, wall_eta, wall_slope,
+    state,
+):  # fmt: skip
+    """Viscosities and stress slopes at the velocities ``u`` of one column, and ``state``
+    (4, L) of ``newton_control.energy_rise``: viscous stresses ``|tau_v|`` and their derivatives
+    with respect to the jump, viscous wall forces and their derivatives.  Returns the fault
+    code of ``_columns`` (0: every viscosity finite and >= 0), the viscosity and the rate."""
+    below = 0.0
+    for a in range(u.shape[0]):
+        rate = abs(u[a] - below) * inverse_spacing[a]
+        below = u[a]
+        eta[a], slope[a] = _viscosity_and_slope(bulk_form, bulk_params, rate, factor[a], offset[a])
+        if not (eta[a] >= 0.0 and eta[a] < np.inf):  # the plugin contract
+            return a + 1, eta[a], rate
+        viscous = conductance[a] > 0.0
+        state[0, a] = eta[a] * rate if viscous else 0.0
+        state[1, a] = max(slope[a], 0.0) * conductance[a]
+        state[2, a] = 0.0
+        state[3, a] = 0.0
+        if walls:
+            rate = abs(u[a]) * inverse_half
+            wall_eta[a], wall_slope[a] = _viscosity_and_slope(
+                wall_form, wall_params, rate, wall_factor[a], wall_offset[a]
+            )
+            if not (wall_eta[a] >= 0.0 and wall_eta[a] < np.inf):
+                return -(a + 1), wall_eta[a], rate
+            state[2, a] = per_area[a] * wall_eta[a] * rate
+            state[3, a] = per_area[a] * max(wall_slope[a], 0.0) * inverse_half
+    return 0, 0.0, 0.0
 
 
 def _columns(
@@ -129,6 +165,11 @@ def _columns(
         kc, cc = np.empty(L), np.empty(L)  # the Newton model: interface yield stresses, conductances
         wc, cwc = np.empty(L), np.zeros(L)  # and wall thresholds, wall conductances
         current, new = np.empty(L), np.empty(L)
+        # viscosities, stress slopes and viscous stresses at current and new (interfaces, walls)
+        eta_c, slope_c, eta_n, slope_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
+        weta_c, wslope_c, weta_n, wslope_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
+        state_c, state_n = np.empty((4, L)), np.empty((4, L))  # of newton_control.examine
+        wall_true = np.empty(L)  # the true wall thresholds
         # per column of a block and layer: m_a / dt, m_a u*_a / dt, kappa, viscous,
         # inverse spacing, conductance per unit slope (0 where not viscous), pressure
         # parts of the bulk law; with walls, their pressure parts, the wall area factor
@@ -179,39 +220,37 @@ def _columns(
                 wall_c = wc if walls else wall
                 for a in range(L):
                     current[a] = b_guess[jj, a]
+                    wall_true[a] = per_area[a] * wall[a] if walls else wall[a]
                 iterations[j] = -1
                 fallbacks[j] = 0
-                fault = 0
+                stress_args = (inverse_spacing, conductance, bulk_form, bulk_params, factor, offset)
+                wall_args = (walls, inverse_half, wall_form, wall_params, wall_factor, wall_offset, per_area)
+                fault, fault_values[j, 0], fault_values[j, 1] = _true_stresses(
+                    current, *stress_args, eta_c, slope_c, *wall_args, weta_c, wslope_c, state_c
+                )
+                secant = False  # the step from current is the Kacanov one (newton_control)
                 for iteration in range(1, max_iterations + 1):
+                    if fault != 0:
+                        break
                     # the Newton model at the current velocities (StressModel.linearise)
                     below = 0.0
                     for a in range(L):
                         rate = abs(current[a] - below) * inverse_spacing[a]
                         below = current[a]
-                        eta, slope = _viscosity_and_slope(bulk_form, bulk_params, rate, factor[a], offset[a])
-                        if not (eta >= 0.0 and eta < np.inf) and fault == 0:  # the plugin contract
-                            fault = a + 1
-                            fault_values[j, 0], fault_values[j, 1] = eta, rate
-                        ka, t = _newton_model(kappa[a], rate, eta, slope)
+                        ka, t = _newton_model(kappa[a], rate, eta_c[a], slope_c[a], secant)
                         kc[a] = ka if is_viscous[a] else kappa[a]
                         cc[a] = t * conductance[a]
                         if walls:
                             rate = abs(current[a]) * inverse_half
-                            eta, slope = _viscosity_and_slope(
-                                wall_form, wall_params, rate, wall_factor[a], wall_offset[a]
-                            )
-                            if not (eta >= 0.0 and eta < np.inf) and fault == 0:
-                                fault = -(a + 1)
-                                fault_values[j, 0], fault_values[j, 1] = eta, rate
-                            wa, ta = _newton_model(wall[a], rate, eta, slope)
+                            wa, ta = _newton_model(wall[a], rate, weta_c[a], wslope_c[a], secant)
                             wc[a] = per_area[a] * wa
                             cwc[a] = per_area[a] * ta * inverse_half
-                    if fault != 0:
-                        break
-                    if not inertia[0] > 0.0:
+                    if not inertia[0] > 0.0:  # no mass: nothing to solve
                         for a in range(L):
-                            new[a] = 0.0
-                    elif not _active_set(
+                            current[a] = 0.0
+                        iterations[j] = iteration
+                        break
+                    if not _active_set(
                         inertia,
                         momentum,
                         kc,
@@ -229,13 +268,30 @@ def _columns(
                     ):
                         _dynamic_programme(inertia, momentum, kc, cc, wall_c, cwc, new, ws)
                         fallbacks[j] += 1
-                    change = 0.0
-                    for a in range(L):
-                        change = max(change, abs(new[a] - current[a]))
-                    current, new = new, current
-                    if change <= threshold:
-                        iterations[j] = iteration
+                    fault, fault_values[j, 0], fault_values[j, 1] = _true_stresses(
+                        new, *stress_args, eta_n, slope_n, *wall_args, weta_n, wslope_n, state_n
+                    )
+                    if fault != 0:
                         break
+                    true = (inertia, momentum, kappa, state_n[0], wall_true, state_n[2])
+                    done = error_bound(*true, new) <= threshold
+                    if not (done or secant):
+                        change = 0.0
+                        for a in range(L):
+                            change = max(change, abs(new[a] - current[a]))
+                        done = change <= threshold
+                    keep = done or secant or iteration < TRUSTED
+                    if keep or energy_rise(*true, current, new, state_c) <= 0.0:  # keep the step
+                        current, new = new, current
+                        eta_c, eta_n, slope_c, slope_n = eta_n, eta_c, slope_n, slope_c
+                        weta_c, weta_n, wslope_c, wslope_n = weta_n, weta_c, wslope_n, wslope_c
+                        state_c, state_n = state_n, state_c
+                        secant = False
+                        if done:
+                            iterations[j] = iteration
+                            break
+                    else:  # a Newton step that may raise the energy: the secant step instead
+                        secant = True
                 faults[j] = fault
                 for a in range(L):
                     b_out[jj, a] = current[a]

@@ -24,6 +24,7 @@ import numpy as np
 
 from multilayer.engine import column_kernel
 from multilayer.engine.column_problem import ColumnProblem, VerticalSolver
+from multilayer.engine.newton_control import TRUSTED, examine_columns
 from multilayer.engine.newton_kernel import CompiledStep
 from multilayer.engine.stress import StressModel
 from multilayer.errors import RunError
@@ -95,17 +96,31 @@ def implicit_step(
         if compiled is None
         else compiled.coefficients(h, wet, rest, yield_gravity)
     )
+    inertia, momentum = cs.m / dt, cs.m * ustar[:, wet] / dt
     current = u_guess[:, wet]
+    at_current = stresses.viscous_stresses(cs, current)
     todo = np.arange(wet.size)  # wet columns still iterating
+    secant = np.zeros(wet.size, dtype=bool)  # the next step from current is the Kacanov one
     for iteration in range(1, max_iterations + 1):
         if poll is not None:
             poll()
-        problem = stresses.linearise(cs, current, ustar[:, wet], dt).columns(todo)
         cols = (slice(None), todo)
+        problem = stresses.linearise(cs, current, ustar[:, wet], dt, secant).columns(todo)
         new = solver(problem, guess=current[cols], threads=threads)
+        trial = current.copy()
+        trial[cols] = new
+        at_new = stresses.viscous_stresses(cs, trial)  # (like linearise, every column)
+        bound, rise = examine_columns(
+            inertia[cols], momentum[cols], cs.kappa[cols], at_new[0][cols], cs.w[cols], at_new[2][cols],
+            current[cols], new, at_current[:, :, todo],
+        )  # fmt: skip
         change = np.max(np.abs(new - current[cols]), axis=0)
-        current[cols] = new
-        todo = todo[change > threshold]
+        done = (bound <= threshold) | (~secant[todo] & (change <= threshold))
+        keep = done | secant[todo] | (rise <= 0.0) | (iteration < TRUSTED)
+        current[:, todo[keep]] = new[:, keep]
+        at_current[:, :, todo[keep]] = at_new[:, :, todo[keep]]
+        secant[todo] = ~keep
+        todo = todo[~done]
         if todo.size == 0:
             u[:, wet] = current
             return u, iteration
