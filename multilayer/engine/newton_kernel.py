@@ -138,6 +138,161 @@ def _true_stresses(
     return 0, 0.0, 0.0
 
 
+@njit(cache=True)
+def _chunk(
+    k,
+    chunks, wet, m, kappa0, w0, pressure, spacing, viscous, wall_pressure, ustar, guess,
+    dt, bulk_form, bulk_params, wall_form, wall_params, width, density, threshold, max_iterations,
+    u_out, iterations, fallbacks, faults, fault_values,
+):  # fmt: skip
+    """Chunk ``k`` of ``chunks`` of :func:`_columns` (its wet columns ``k n // chunks`` to
+    ``(k + 1) n // chunks``): compiled once, called by the serial and the parallel kernel."""
+    L = m.shape[0]
+    n = wet.size
+    walls = width > 0.0
+    inverse_half = 2.0 / width if walls else 0.0
+    ws = _workspace(L)
+    first = np.empty(L + 1, np.int64)
+    grounded = np.empty(L, np.bool_)
+    U, diag, low, rhs = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
+    kc, cc = np.empty(L), np.empty(L)  # the Newton model: interface yield stresses, conductances
+    wc, cwc = np.empty(L), np.zeros(L)  # and wall thresholds, wall conductances
+    current, new = np.empty(L), np.empty(L)
+    # viscosities, stress slopes and viscous stresses at current and new (interfaces, walls)
+    eta_c, slope_c, eta_n, slope_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
+    weta_c, wslope_c, weta_n, wslope_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
+    state_c, state_n = np.empty((4, L)), np.empty((4, L))  # of newton_control.examine
+    wall_true = np.empty(L)  # the true wall thresholds
+    # per column of a block and layer: m_a / dt, m_a u*_a / dt, kappa, viscous,
+    # inverse spacing, conductance per unit slope (0 where not viscous), pressure
+    # parts of the bulk law; with walls, their pressure parts, the wall area factor
+    # (2 / W) h_a and the wall yield threshold per unit area (else the wall threshold)
+    b_inertia, b_momentum, b_kappa = np.empty((BLOCK, L)), np.empty((BLOCK, L)), np.empty((BLOCK, L))
+    b_viscous = np.empty((BLOCK, L), np.bool_)
+    b_inverse_spacing, b_conductance = np.empty((BLOCK, L)), np.empty((BLOCK, L))
+    b_factor, b_offset = np.empty((BLOCK, L)), np.empty((BLOCK, L))
+    b_wall_factor, b_wall_offset = np.empty((BLOCK, L)), np.empty((BLOCK, L))
+    b_per_area, b_wall = np.empty((BLOCK, L)), np.empty((BLOCK, L))
+    b_guess, b_out = np.empty((BLOCK, L)), np.empty((BLOCK, L))
+    start, stop = k * n // chunks, (k + 1) * n // chunks
+    for j0 in range(start, stop, BLOCK):
+        size = min(BLOCK, stop - j0)
+        for a in range(L):
+            for jj in range(size):
+                j = j0 + jj
+                col = wet[j]
+                mass = m[a, j]
+                b_inertia[jj, a] = mass / dt
+                b_momentum[jj, a] = mass * ustar[a, col] / dt
+                b_kappa[jj, a] = kappa0[a, j]
+                s = spacing[a, j]
+                is_viscous = viscous[a, j]
+                b_viscous[jj, a] = is_viscous
+                b_inverse_spacing[jj, a] = 1.0 / s if s > 0.0 else 1.0
+                b_conductance[jj, a] = b_inverse_spacing[jj, a] if (is_viscous and s > 0.0) else 0.0
+                b_factor[jj, a], b_offset[jj, a] = _pressure_part(bulk_form, bulk_params, pressure[a, j])
+                b_guess[jj, a] = guess[a, col]
+                if walls:
+                    b_wall_factor[jj, a], b_wall_offset[jj, a] = _pressure_part(
+                        wall_form, wall_params, wall_pressure[a, j]
+                    )
+                    b_per_area[jj, a] = (2.0 / width) * mass / density
+                    b_wall[jj, a] = w0[a, j] / max(b_per_area[jj, a], 1e-300)
+                else:
+                    b_wall[jj, a] = w0[a, j]
+        for jj in range(size):
+            j = j0 + jj
+            inertia, momentum, kappa = b_inertia[jj], b_momentum[jj], b_kappa[jj]
+            is_viscous, inverse_spacing, conductance = (
+                b_viscous[jj],
+                b_inverse_spacing[jj],
+                b_conductance[jj],
+            )
+            factor, offset, wall = b_factor[jj], b_offset[jj], b_wall[jj]
+            wall_factor, wall_offset, per_area = b_wall_factor[jj], b_wall_offset[jj], b_per_area[jj]
+            wall_c = wc if walls else wall
+            for a in range(L):
+                current[a] = b_guess[jj, a]
+                wall_true[a] = per_area[a] * wall[a] if walls else wall[a]
+            iterations[j] = -1
+            fallbacks[j] = 0
+            stress_args = (inverse_spacing, conductance, bulk_form, bulk_params, factor, offset)
+            wall_args = (walls, inverse_half, wall_form, wall_params, wall_factor, wall_offset, per_area)
+            fault, fault_values[j, 0], fault_values[j, 1] = _true_stresses(
+                current, *stress_args, eta_c, slope_c, *wall_args, weta_c, wslope_c, state_c
+            )
+            secant = False  # the step from current is the Kacanov one (newton_control)
+            for iteration in range(1, max_iterations + 1):
+                if fault != 0:
+                    break
+                # the Newton model at the current velocities (StressModel.linearise)
+                below = 0.0
+                for a in range(L):
+                    rate = abs(current[a] - below) * inverse_spacing[a]
+                    below = current[a]
+                    ka, t = _newton_model(kappa[a], rate, eta_c[a], slope_c[a], secant)
+                    kc[a] = ka if is_viscous[a] else kappa[a]
+                    cc[a] = t * conductance[a]
+                    if walls:
+                        rate = abs(current[a]) * inverse_half
+                        wa, ta = _newton_model(wall[a], rate, weta_c[a], wslope_c[a], secant)
+                        wc[a] = per_area[a] * wa
+                        cwc[a] = per_area[a] * ta * inverse_half
+                if not inertia[0] > 0.0:  # no mass: nothing to solve
+                    for a in range(L):
+                        current[a] = 0.0
+                    iterations[j] = iteration
+                    break
+                if not _active_set(
+                    inertia,
+                    momentum,
+                    kc,
+                    cc,
+                    wall_c,
+                    cwc,
+                    current,
+                    new,
+                    first,
+                    grounded,
+                    U,
+                    diag,
+                    low,
+                    rhs,
+                ):
+                    _dynamic_programme(inertia, momentum, kc, cc, wall_c, cwc, new, ws)
+                    fallbacks[j] += 1
+                fault, fault_values[j, 0], fault_values[j, 1] = _true_stresses(
+                    new, *stress_args, eta_n, slope_n, *wall_args, weta_n, wslope_n, state_n
+                )
+                if fault != 0:
+                    break
+                true = (inertia, momentum, kappa, state_n[0], wall_true, state_n[2])
+                done = error_bound(*true, new) <= threshold
+                if not (done or secant):
+                    change = 0.0
+                    for a in range(L):
+                        change = max(change, abs(new[a] - current[a]))
+                    done = change <= threshold
+                keep = done or secant or iteration < TRUSTED
+                if keep or energy_rise(*true, current, new, state_c) <= 0.0:  # keep the step
+                    current, new = new, current
+                    eta_c, eta_n, slope_c, slope_n = eta_n, eta_c, slope_n, slope_c
+                    weta_c, weta_n, wslope_c, wslope_n = weta_n, weta_c, wslope_n, wslope_c
+                    state_c, state_n = state_n, state_c
+                    secant = False
+                    if done:
+                        iterations[j] = iteration
+                        break
+                else:  # a Newton step that may raise the energy: the secant step instead
+                    secant = True
+            faults[j] = fault
+            for a in range(L):
+                b_out[jj, a] = current[a]
+        for a in range(L):
+            for jj in range(size):
+                u_out[a, wet[j0 + jj]] = b_out[jj, a]
+
+
 def _columns(
     chunks, wet, m, kappa0, w0, pressure, spacing, viscous, wall_pressure, ustar, guess,
     dt, bulk_form, bulk_params, wall_form, wall_params, width, density, threshold, max_iterations,
@@ -153,151 +308,12 @@ def _columns(
     laws, inverse spacings, wall thresholds) is computed once per step, while the
     coefficients of a block of columns are gathered row by row (each row of the (L, N)
     arrays read in contiguous runs) into column-contiguous buffers."""
-    L = m.shape[0]
-    n = wet.size
-    walls = width > 0.0
-    inverse_half = 2.0 / width if walls else 0.0
     for k in prange(chunks):
-        ws = _workspace(L)
-        first = np.empty(L + 1, np.int64)
-        grounded = np.empty(L, np.bool_)
-        U, diag, low, rhs = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
-        kc, cc = np.empty(L), np.empty(L)  # the Newton model: interface yield stresses, conductances
-        wc, cwc = np.empty(L), np.zeros(L)  # and wall thresholds, wall conductances
-        current, new = np.empty(L), np.empty(L)
-        # viscosities, stress slopes and viscous stresses at current and new (interfaces, walls)
-        eta_c, slope_c, eta_n, slope_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
-        weta_c, wslope_c, weta_n, wslope_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
-        state_c, state_n = np.empty((4, L)), np.empty((4, L))  # of newton_control.examine
-        wall_true = np.empty(L)  # the true wall thresholds
-        # per column of a block and layer: m_a / dt, m_a u*_a / dt, kappa, viscous,
-        # inverse spacing, conductance per unit slope (0 where not viscous), pressure
-        # parts of the bulk law; with walls, their pressure parts, the wall area factor
-        # (2 / W) h_a and the wall yield threshold per unit area (else the wall threshold)
-        b_inertia, b_momentum, b_kappa = np.empty((BLOCK, L)), np.empty((BLOCK, L)), np.empty((BLOCK, L))
-        b_viscous = np.empty((BLOCK, L), np.bool_)
-        b_inverse_spacing, b_conductance = np.empty((BLOCK, L)), np.empty((BLOCK, L))
-        b_factor, b_offset = np.empty((BLOCK, L)), np.empty((BLOCK, L))
-        b_wall_factor, b_wall_offset = np.empty((BLOCK, L)), np.empty((BLOCK, L))
-        b_per_area, b_wall = np.empty((BLOCK, L)), np.empty((BLOCK, L))
-        b_guess, b_out = np.empty((BLOCK, L)), np.empty((BLOCK, L))
-        start, stop = k * n // chunks, (k + 1) * n // chunks
-        for j0 in range(start, stop, BLOCK):
-            size = min(BLOCK, stop - j0)
-            for a in range(L):
-                for jj in range(size):
-                    j = j0 + jj
-                    col = wet[j]
-                    mass = m[a, j]
-                    b_inertia[jj, a] = mass / dt
-                    b_momentum[jj, a] = mass * ustar[a, col] / dt
-                    b_kappa[jj, a] = kappa0[a, j]
-                    s = spacing[a, j]
-                    is_viscous = viscous[a, j]
-                    b_viscous[jj, a] = is_viscous
-                    b_inverse_spacing[jj, a] = 1.0 / s if s > 0.0 else 1.0
-                    b_conductance[jj, a] = b_inverse_spacing[jj, a] if (is_viscous and s > 0.0) else 0.0
-                    b_factor[jj, a], b_offset[jj, a] = _pressure_part(bulk_form, bulk_params, pressure[a, j])
-                    b_guess[jj, a] = guess[a, col]
-                    if walls:
-                        b_wall_factor[jj, a], b_wall_offset[jj, a] = _pressure_part(
-                            wall_form, wall_params, wall_pressure[a, j]
-                        )
-                        b_per_area[jj, a] = (2.0 / width) * mass / density
-                        b_wall[jj, a] = w0[a, j] / max(b_per_area[jj, a], 1e-300)
-                    else:
-                        b_wall[jj, a] = w0[a, j]
-            for jj in range(size):
-                j = j0 + jj
-                inertia, momentum, kappa = b_inertia[jj], b_momentum[jj], b_kappa[jj]
-                is_viscous, inverse_spacing, conductance = (
-                    b_viscous[jj],
-                    b_inverse_spacing[jj],
-                    b_conductance[jj],
-                )
-                factor, offset, wall = b_factor[jj], b_offset[jj], b_wall[jj]
-                wall_factor, wall_offset, per_area = b_wall_factor[jj], b_wall_offset[jj], b_per_area[jj]
-                wall_c = wc if walls else wall
-                for a in range(L):
-                    current[a] = b_guess[jj, a]
-                    wall_true[a] = per_area[a] * wall[a] if walls else wall[a]
-                iterations[j] = -1
-                fallbacks[j] = 0
-                stress_args = (inverse_spacing, conductance, bulk_form, bulk_params, factor, offset)
-                wall_args = (walls, inverse_half, wall_form, wall_params, wall_factor, wall_offset, per_area)
-                fault, fault_values[j, 0], fault_values[j, 1] = _true_stresses(
-                    current, *stress_args, eta_c, slope_c, *wall_args, weta_c, wslope_c, state_c
-                )
-                secant = False  # the step from current is the Kacanov one (newton_control)
-                for iteration in range(1, max_iterations + 1):
-                    if fault != 0:
-                        break
-                    # the Newton model at the current velocities (StressModel.linearise)
-                    below = 0.0
-                    for a in range(L):
-                        rate = abs(current[a] - below) * inverse_spacing[a]
-                        below = current[a]
-                        ka, t = _newton_model(kappa[a], rate, eta_c[a], slope_c[a], secant)
-                        kc[a] = ka if is_viscous[a] else kappa[a]
-                        cc[a] = t * conductance[a]
-                        if walls:
-                            rate = abs(current[a]) * inverse_half
-                            wa, ta = _newton_model(wall[a], rate, weta_c[a], wslope_c[a], secant)
-                            wc[a] = per_area[a] * wa
-                            cwc[a] = per_area[a] * ta * inverse_half
-                    if not inertia[0] > 0.0:  # no mass: nothing to solve
-                        for a in range(L):
-                            current[a] = 0.0
-                        iterations[j] = iteration
-                        break
-                    if not _active_set(
-                        inertia,
-                        momentum,
-                        kc,
-                        cc,
-                        wall_c,
-                        cwc,
-                        current,
-                        new,
-                        first,
-                        grounded,
-                        U,
-                        diag,
-                        low,
-                        rhs,
-                    ):
-                        _dynamic_programme(inertia, momentum, kc, cc, wall_c, cwc, new, ws)
-                        fallbacks[j] += 1
-                    fault, fault_values[j, 0], fault_values[j, 1] = _true_stresses(
-                        new, *stress_args, eta_n, slope_n, *wall_args, weta_n, wslope_n, state_n
-                    )
-                    if fault != 0:
-                        break
-                    true = (inertia, momentum, kappa, state_n[0], wall_true, state_n[2])
-                    done = error_bound(*true, new) <= threshold
-                    if not (done or secant):
-                        change = 0.0
-                        for a in range(L):
-                            change = max(change, abs(new[a] - current[a]))
-                        done = change <= threshold
-                    keep = done or secant or iteration < TRUSTED
-                    if keep or energy_rise(*true, current, new, state_c) <= 0.0:  # keep the step
-                        current, new = new, current
-                        eta_c, eta_n, slope_c, slope_n = eta_n, eta_c, slope_n, slope_c
-                        weta_c, weta_n, wslope_c, wslope_n = weta_n, weta_c, wslope_n, wslope_c
-                        state_c, state_n = state_n, state_c
-                        secant = False
-                        if done:
-                            iterations[j] = iteration
-                            break
-                    else:  # a Newton step that may raise the energy: the secant step instead
-                        secant = True
-                faults[j] = fault
-                for a in range(L):
-                    b_out[jj, a] = current[a]
-            for a in range(L):
-                for jj in range(size):
-                    u_out[a, wet[j0 + jj]] = b_out[jj, a]
+        _chunk(  # k is unsigned under prange: one signature of _chunk for both kernels
+            np.int64(k), chunks, wet, m, kappa0, w0, pressure, spacing, viscous, wall_pressure, ustar, guess,
+            dt, bulk_form, bulk_params, wall_form, wall_params, width, density, threshold, max_iterations,
+            u_out, iterations, fallbacks, faults, fault_values,
+        )  # fmt: skip
 
 
 _serial = njit(cache=True)(_columns)
