@@ -1,7 +1,10 @@
 """CLI subcommands: each module defines ``HELP``, ``add_arguments(parser)`` and ``main(args)``."""
 
 import argparse
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 
 def positive_int(text: str) -> int:
@@ -38,6 +41,27 @@ def cluster_description(args: argparse.Namespace) -> str:
     if args.workers is not None:
         return f"a local Dask cluster of {args.workers} single-threaded worker process(es)"
     return "a local Dask cluster (one single-threaded worker process per core)"
+
+
+@contextmanager
+def study_ensemble(
+    args: argparse.Namespace, study: Any, outdir: Path, on_progress: Callable[[int, int], None]
+) -> Iterator[Any]:
+    """The :class:`~multilayer.app.ensemble.Ensemble` of a calibration or sensitivity
+    ``study`` (its ``base`` scenario and fixed ``config.set``) on the cluster of
+    :func:`add_cluster_arguments`, with Ctrl-C, SIGTERM and SIGHUP stopping it
+    (``stopping.signals_stop``); a local cluster starts once the kernels are compiled on
+    the base scenario (``sweep.dask_client``)."""
+    from multilayer.app import stopping
+    from multilayer.app.ensemble import Ensemble
+    from multilayer.app.sweep import base_member, dask_client
+
+    fixed = study.config.set
+    with (
+        stopping.signals_stop(),
+        dask_client(args.scheduler, args.workers, warm_up=base_member(study.base, fixed)) as client,
+    ):
+        yield Ensemble(study.base, outdir, client, fixed=fixed, on_progress=on_progress)
 
 
 def size(text: str) -> float:

@@ -15,7 +15,13 @@ import argparse
 import sys
 from pathlib import Path
 
-from multilayer.app.commands import add_study_arguments, check_resume, cluster_description, resume_command
+from multilayer.app.commands import (
+    add_study_arguments,
+    check_resume,
+    cluster_description,
+    resume_command,
+    study_ensemble,
+)
 
 HELP = "fit scenario parameters to observations (global search, refinement, uncertainty) on Dask"
 
@@ -28,9 +34,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     """Validate the file, calibrate, write calibration.nc, print the fit."""
     from multilayer.app import calibration as calibrations
-    from multilayer.app import stopping
-    from multilayer.app.ensemble import Ensemble
-    from multilayer.app.sweep import base_member, dask_client
     from multilayer.errors import Interrupted
     from multilayer.io.study import load_calibration
 
@@ -69,13 +72,7 @@ def main(args: argparse.Namespace) -> int:
             save(f"running: {calibrator.stage} {calibrator.step - 1} done")
 
     try:
-        with (
-            stopping.signals_stop(),
-            dask_client(
-                args.scheduler, args.workers, warm_up=base_member(plan.base, plan.config.set)
-            ) as client,
-        ):
-            ensemble = Ensemble(plan.base, outdir, client, fixed=plan.config.set, on_progress=progress)
+        with study_ensemble(args, plan, outdir, progress) as ensemble:
             calibrator = calibrations.Calibrator(plan, ensemble, report, on_batch=batch_done)
             fit = calibrator.run()
     except Interrupted as exc:

@@ -15,7 +15,13 @@ import argparse
 import sys
 from pathlib import Path
 
-from multilayer.app.commands import add_study_arguments, check_resume, cluster_description, resume_command
+from multilayer.app.commands import (
+    add_study_arguments,
+    check_resume,
+    cluster_description,
+    resume_command,
+    study_ensemble,
+)
 
 HELP = "Sobol' sensitivity indices of run outputs with respect to scenario parameters, on Dask"
 
@@ -27,9 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Validate the file, run the sample, write sensitivity.nc, print the indices."""
-    from multilayer.app import sensitivity, stopping
-    from multilayer.app.ensemble import Ensemble
-    from multilayer.app.sweep import base_member, dask_client
+    from multilayer.app import sensitivity
     from multilayer.errors import InputError, Interrupted
     from multilayer.io.study import load_sensitivity
 
@@ -58,13 +62,7 @@ def main(args: argparse.Namespace) -> int:
     points = sensitivity.sample(study)  # checked before any cluster starts
     report(f"sensitivity: on {cluster_description(args)}")
     try:
-        with (
-            stopping.signals_stop(),
-            dask_client(
-                args.scheduler, args.workers, warm_up=base_member(study.base, study.config.set)
-            ) as client,
-        ):
-            ensemble = Ensemble(study.base, outdir, client, fixed=study.config.set, on_progress=progress)
+        with study_ensemble(args, study, outdir, progress) as ensemble:
             evaluations = sensitivity.run(study, ensemble, report, points)
     except Interrupted as exc:
         done = getattr(exc, "evaluations", None)
