@@ -192,13 +192,14 @@ class Simulation:
             self.h, self.u, self.numerics.dry_threshold, self.g_n, self._moving_start, self._rest
         )
         dt = min(self._courant_step(speed), t_max - self.t)
+        projected = self.pressure == "non_hydrostatic"
         while True:
             self._check_advances(dt)
             h_new, u_new, w_new, q_new, seed, iterations = self._transport_with_starting_columns(dt)
             # the vertical step zeroes the velocities of the columns without material: the
             # columns lo .. hi-1 (the first to the last with h > 0) hold every non-zero
             # velocity of the step's end (not so after the non-hydrostatic projection)
-            lo, hi = (0, self.h.size) if w_new is not self.w else transport_kernel.span(h_new)
+            lo, hi = (0, self.h.size) if projected else transport_kernel.span(h_new)
             # the Courant condition must hold for the waves of the step's end as well: material
             # accelerated from (near) rest within one step (gravity on a steep slope) would put
             # the second Heun stage past the positivity limit; redo with the faster waves
@@ -215,7 +216,7 @@ class Simulation:
         first, last = transport_kernel.span(self._moving_start)
         first, last = (lo, hi) if first == last else (min(first, lo), max(last, hi))
         self.u[:, first:last] = u_new[:, first:last]
-        if w_new is not self.w:  # the non-hydrostatic state (kept as it is otherwise)
+        if projected:  # the non-hydrostatic state (kept as it is otherwise)
             self.w[...] = w_new
             self.q[...] = q_new
         if self.newton_seed is not self.u:
