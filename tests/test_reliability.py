@@ -632,3 +632,41 @@ def test_a_singular_non_hydrostatic_system_and_a_non_finite_measure_are_run_erro
         _factor(indefinite, np.zeros(2, dtype=np.bool_), np.zeros((2, 2)), 0)
     with pytest.raises(RunError, match=r"a measured quantity is not finite \(\[nan\]\)"):
         ensemble._measured(lambda path: np.array([np.nan]), tmp_path)
+
+
+@pytest.mark.parametrize(("field", "name"), [(1, "vertical velocity w"), (2, "non-hydrostatic pressure q")])
+def test_a_non_finite_non_hydrostatic_state_stops_the_step_keeping_the_last_good_state(
+    monkeypatch, field, name
+):
+    """The projection's w and q are guarded like h and u: a NaN in either (injected after
+    a few good steps of a frictionless dam break) stops the step with the quantity named,
+    and the state stays that of the step before."""
+    from engine import simulation
+
+    from multilayer.engine import nonhydrostatic
+    from multilayer.engine.state_check import StateError
+
+    sim = simulation(
+        domain={"x_min": 0.0, "x_max": 2.0, "cells": 40, "layers": 4},
+        initial=[{"shape": "rectangle", "x_min": 0.0, "x_max": 0.5, "height": 0.2}],
+        model={"pressure": "non_hydrostatic"},
+    )
+    for _ in range(3):
+        sim.step()
+    good = {key: getattr(sim, key).copy() for key in ("h", "u", "w", "q")}
+    t = sim.t
+    project = nonhydrostatic.project
+
+    def corrupted(*args, **kwargs):
+        result = list(project(*args, **kwargs))
+        result[field] = result[field].copy()
+        result[field][2, 5] = np.nan
+        return tuple(result)
+
+    monkeypatch.setattr(nonhydrostatic, "project", corrupted)
+    expected = rf"{name} = nan at x = 0\.275 m, layer 3 .* after the step from t = "
+    with pytest.raises(StateError, match=expected):
+        sim.step()
+    assert sim.t == t
+    for key, value in good.items():
+        np.testing.assert_array_equal(getattr(sim, key), value)

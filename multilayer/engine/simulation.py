@@ -210,6 +210,11 @@ class Simulation:
             dt = self._courant_step(end_speed)  # <= faster < dt
         # the state guard: an impossible state is never kept (the last good one stays)
         self.guard.check_step(self.h, h_new, u_new, self.t, dt, self.boundary_mass, (lo, hi))
+        if projected:
+            for values, name in ((w_new, "vertical velocity w"), (q_new, "non-hydrostatic pressure q")):
+                self.guard.check_finite(
+                    values, name, lambda: f"after the step from t = {self.t:.6g} s (dt = {dt:.3g} s)"
+                )
         self.h[...] = h_new
         # the velocities are zero outside the columns that moved at the start (the survey
         # read them all) and outside lo .. hi-1 in the new state: copy the columns between

@@ -127,10 +127,21 @@ class StateGuard:
         if h.min(initial=0.0) < 0.0:
             j = int(np.argmin(h))
             raise StateError(f"negative thickness h = {h[j]:.6g} m at x = {self.x[j]:.6g} m {when}")
-        if not np.isfinite(u).all():
-            a, k = (int(i) for i in np.unravel_index(np.argmin(np.isfinite(u)), u.shape))
+        self._check_layers(u, "velocity u", when)
+
+    def check_finite(self, values: np.ndarray, name: str, when: str | Callable[[], str]) -> None:
+        """Raise :class:`StateError` naming ``name`` unless every value of the layer field
+        ``values`` (L, N) is finite (the vertical velocity and pressure of the
+        non-hydrostatic state)."""
+        if not _finite(_bits(values), 0, values.shape[1]):
+            self._check_layers(values, name, when if isinstance(when, str) else when())
+
+    def _check_layers(self, values: np.ndarray, name: str, when: str) -> None:
+        """Raise :class:`StateError` at the first non-finite value of ``values`` (L, N)."""
+        if not np.isfinite(values).all():
+            a, k = (int(i) for i in np.unravel_index(np.argmin(np.isfinite(values)), values.shape))
             raise StateError(
-                f"velocity u = {float(u[a, k])!r} at x = {self.x[k]:.6g} m, "
+                f"{name} = {float(values[a, k])!r} at x = {self.x[k]:.6g} m, "
                 f"layer {a + 1} (1 is at the bed) {when}"
             )
 
