@@ -106,36 +106,46 @@ def _newton_model(kappa, rate, eta, slope, secant):
 
 @njit(cache=True)
 def _true_stresses(
-    u, inverse_spacing, conductance, bulk_form, bulk_params, factor, offset, eta, slope,
-    walls, inverse_half, wall_form, wall_params, wall_factor, wall_offset, per_area, wall_eta, wall_slope,
-    state,
+    u, start, kappa, is_viscous, inverse_spacing, conductance, bulk_form, bulk_params, factor, offset, eta,
+    walls, inverse_half, wall, wall_form, wall_params, wall_factor, wall_offset, per_area, wall_eta,
+    state, kc, cc, wc, cwc,
 ):  # fmt: skip
-    """Viscosities and stress slopes at the velocities ``u`` of one column, and ``state``
-    (4, L) of ``newton_control.energy_rise``: viscous stresses ``|tau_v|`` and their derivatives
-    with respect to the jump, viscous wall forces and their derivatives.  Returns the fault
-    code of ``_columns`` (0: every viscosity finite and >= 0), the viscosity and the rate."""
+    """Viscosities at the velocities ``u`` of one column, ``state`` (4, L) of
+    ``newton_control.energy_rise`` (viscous stresses ``|tau_v|`` and their derivatives with
+    respect to the jump, viscous wall forces and their derivatives) and the Newton model at
+    ``u`` (``StressModel.linearise``): interface yield stresses ``kc`` and conductances
+    ``cc``, wall thresholds ``wc`` and conductances ``cwc``, in one pass up the column.
+    Returns the fault code of ``_columns`` (0: every viscosity finite and >= 0), the
+    viscosity and the rate, and ``max_a |u_a - start_a|``."""
     below = 0.0
+    change = 0.0
     for a in range(u.shape[0]):
+        change = max(change, abs(u[a] - start[a]))
         rate = abs(u[a] - below) * inverse_spacing[a]
         below = u[a]
-        eta[a], slope[a] = _viscosity_and_slope(bulk_form, bulk_params, rate, factor[a], offset[a])
+        eta[a], slope = _viscosity_and_slope(bulk_form, bulk_params, rate, factor[a], offset[a])
         if not (eta[a] >= 0.0 and eta[a] < np.inf):  # the plugin contract
-            return a + 1, eta[a], rate
-        viscous = conductance[a] > 0.0
-        state[0, a] = eta[a] * rate if viscous else 0.0
-        state[1, a] = max(slope[a], 0.0) * conductance[a]
+            return a + 1, eta[a], rate, change
+        state[0, a] = eta[a] * rate if conductance[a] > 0.0 else 0.0
+        state[1, a] = max(slope, 0.0) * conductance[a]
         state[2, a] = 0.0
         state[3, a] = 0.0
+        ka, t = _newton_model(kappa[a], rate, eta[a], slope, False)
+        kc[a] = ka if is_viscous[a] else kappa[a]
+        cc[a] = t * conductance[a]
         if walls:
             rate = abs(u[a]) * inverse_half
-            wall_eta[a], wall_slope[a] = _viscosity_and_slope(
+            wall_eta[a], slope = _viscosity_and_slope(
                 wall_form, wall_params, rate, wall_factor[a], wall_offset[a]
             )
             if not (wall_eta[a] >= 0.0 and wall_eta[a] < np.inf):
-                return -(a + 1), wall_eta[a], rate
+                return -(a + 1), wall_eta[a], rate, change
             state[2, a] = per_area[a] * wall_eta[a] * rate
-            state[3, a] = per_area[a] * max(wall_slope[a], 0.0) * inverse_half
-    return 0, 0.0, 0.0
+            state[3, a] = per_area[a] * max(slope, 0.0) * inverse_half
+            wa, ta = _newton_model(wall[a], rate, wall_eta[a], slope, False)
+            wc[a] = per_area[a] * wa
+            cwc[a] = per_area[a] * ta * inverse_half
+    return 0, 0.0, 0.0, change
 
 
 @njit(cache=True)
@@ -155,142 +165,100 @@ def _chunk(
     first = np.empty(L + 1, np.int64)
     grounded = np.empty(L, np.bool_)
     U, diag, low, rhs = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
-    kc, cc = np.empty(L), np.empty(L)  # the Newton model: interface yield stresses, conductances
-    wc, cwc = np.empty(L), np.zeros(L)  # and wall thresholds, wall conductances
+    # the Newton models at current and new: interface yield stresses and conductances,
+    # wall thresholds and wall conductances (0 without walls)
+    kc, cc, wc, cwc = np.empty(L), np.empty(L), np.empty(L), np.zeros(L)
+    kn, cn, wn, cwn = np.empty(L), np.empty(L), np.empty(L), np.zeros(L)
     current, new = np.empty(L), np.empty(L)
-    # viscosities, stress slopes and viscous stresses at current and new (interfaces, walls)
-    eta_c, slope_c, eta_n, slope_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
-    weta_c, wslope_c, weta_n, wslope_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
-    state_c, state_n = np.empty((4, L)), np.empty((4, L))  # of newton_control.examine
-    wall_true = np.empty(L)  # the true wall thresholds
-    # per column of a block and layer: m_a / dt, m_a u*_a / dt, kappa, viscous,
-    # inverse spacing, conductance per unit slope (0 where not viscous), pressure
-    # parts of the bulk law; with walls, their pressure parts, the wall area factor
-    # (2 / W) h_a and the wall yield threshold per unit area (else the wall threshold)
-    b_inertia, b_momentum, b_kappa = np.empty((BLOCK, L)), np.empty((BLOCK, L)), np.empty((BLOCK, L))
-    b_viscous = np.empty((BLOCK, L), np.bool_)
-    b_inverse_spacing, b_conductance = np.empty((BLOCK, L)), np.empty((BLOCK, L))
-    b_factor, b_offset = np.empty((BLOCK, L)), np.empty((BLOCK, L))
-    b_wall_factor, b_wall_offset = np.empty((BLOCK, L)), np.empty((BLOCK, L))
-    b_per_area, b_wall = np.empty((BLOCK, L)), np.empty((BLOCK, L))
-    b_guess, b_out = np.empty((BLOCK, L)), np.empty((BLOCK, L))
-    start, stop = k * n // chunks, (k + 1) * n // chunks
-    for j0 in range(start, stop, BLOCK):
-        size = min(BLOCK, stop - j0)
+    # viscosities (interfaces, walls) and viscous stresses at current and new
+    eta_c, eta_n, weta_c, weta_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
+    state_c, state_n = np.empty((4, L)), np.empty((4, L))  # of newton_control.energy_rise
+    # per layer of the column: m_a / dt, m_a u*_a / dt, kappa, viscous, inverse spacing,
+    # conductance per unit slope (0 where not viscous), pressure parts of the bulk law;
+    # with walls, their pressure parts, the wall area factor (2 / W) h_a and the wall
+    # yield threshold per unit area (else the wall threshold), and the true thresholds
+    inertia, momentum, kappa = np.empty(L), np.empty(L), np.empty(L)
+    is_viscous = np.empty(L, np.bool_)
+    inverse_spacing, conductance = np.empty(L), np.empty(L)
+    factor, offset = np.empty(L), np.empty(L)
+    wall_factor, wall_offset = np.zeros(L), np.zeros(L)
+    per_area, wall, wall_true = np.zeros(L), np.empty(L), np.empty(L)
+    for j in range(k * n // chunks, (k + 1) * n // chunks):
+        col = wet[j]
         for a in range(L):
-            for jj in range(size):
-                j = j0 + jj
-                col = wet[j]
-                mass = m[a, j]
-                b_inertia[jj, a] = mass / dt
-                b_momentum[jj, a] = mass * ustar[a, col] / dt
-                b_kappa[jj, a] = kappa0[a, j]
-                s = spacing[a, j]
-                is_viscous = viscous[a, j]
-                b_viscous[jj, a] = is_viscous
-                b_inverse_spacing[jj, a] = 1.0 / s if s > 0.0 else 1.0
-                b_conductance[jj, a] = b_inverse_spacing[jj, a] if (is_viscous and s > 0.0) else 0.0
-                b_factor[jj, a], b_offset[jj, a] = _pressure_part(bulk_form, bulk_params, pressure[a, j])
-                b_guess[jj, a] = guess[a, col]
-                if walls:
-                    b_wall_factor[jj, a], b_wall_offset[jj, a] = _pressure_part(
-                        wall_form, wall_params, wall_pressure[a, j]
-                    )
-                    b_per_area[jj, a] = (2.0 / width) * mass / density
-                    b_wall[jj, a] = w0[a, j] / max(b_per_area[jj, a], 1e-300)
-                else:
-                    b_wall[jj, a] = w0[a, j]
-        for jj in range(size):
-            j = j0 + jj
-            inertia, momentum, kappa = b_inertia[jj], b_momentum[jj], b_kappa[jj]
-            is_viscous, inverse_spacing, conductance = (
-                b_viscous[jj],
-                b_inverse_spacing[jj],
-                b_conductance[jj],
-            )
-            factor, offset, wall = b_factor[jj], b_offset[jj], b_wall[jj]
-            wall_factor, wall_offset, per_area = b_wall_factor[jj], b_wall_offset[jj], b_per_area[jj]
-            wall_c = wc if walls else wall
-            for a in range(L):
-                current[a] = b_guess[jj, a]
-                wall_true[a] = per_area[a] * wall[a] if walls else wall[a]
-            iterations[j] = -1
-            fallbacks[j] = 0
-            stress_args = (inverse_spacing, conductance, bulk_form, bulk_params, factor, offset)
-            wall_args = (walls, inverse_half, wall_form, wall_params, wall_factor, wall_offset, per_area)
-            fault, fault_values[j, 0], fault_values[j, 1] = _true_stresses(
-                current, *stress_args, eta_c, slope_c, *wall_args, weta_c, wslope_c, state_c
-            )
-            secant = False  # the step from current is the Kacanov one (newton_control)
-            for iteration in range(1, max_iterations + 1):
-                if fault != 0:
-                    break
-                # the Newton model at the current velocities (StressModel.linearise)
-                below = 0.0
+            mass = m[a, j]
+            inertia[a] = mass / dt
+            momentum[a] = mass * ustar[a, col] / dt
+            kappa[a] = kappa0[a, j]
+            s = spacing[a, j]
+            is_viscous[a] = viscous[a, j]
+            inverse_spacing[a] = 1.0 / s if s > 0.0 else 1.0
+            conductance[a] = inverse_spacing[a] if (is_viscous[a] and s > 0.0) else 0.0
+            factor[a], offset[a] = _pressure_part(bulk_form, bulk_params, pressure[a, j])
+            current[a] = guess[a, col]
+            if walls:
+                wall_factor[a], wall_offset[a] = _pressure_part(wall_form, wall_params, wall_pressure[a, j])
+                per_area[a] = (2.0 / width) * mass / density
+                wall[a] = w0[a, j] / max(per_area[a], 1e-300)
+                wall_true[a] = per_area[a] * wall[a]
+            else:
+                wall[a] = w0[a, j]
+                wall_true[a] = wall[a]
+        iterations[j] = -1
+        fallbacks[j] = 0
+        fault, fault_values[j, 0], fault_values[j, 1], _ = _true_stresses(
+            current, current, kappa, is_viscous, inverse_spacing, conductance, bulk_form, bulk_params, factor,
+            offset, eta_c, walls, inverse_half, wall, wall_form, wall_params, wall_factor, wall_offset,
+            per_area, weta_c, state_c, kc, cc, wc, cwc,
+        )  # fmt: skip
+        secant = False  # the step from current is the Kacanov one (newton_control)
+        for iteration in range(1, max_iterations + 1):
+            if fault != 0:
+                break
+            if not inertia[0] > 0.0:  # no mass: nothing to solve
                 for a in range(L):
-                    rate = abs(current[a] - below) * inverse_spacing[a]
-                    below = current[a]
-                    ka, t = _newton_model(kappa[a], rate, eta_c[a], slope_c[a], secant)
-                    kc[a] = ka if is_viscous[a] else kappa[a]
-                    cc[a] = t * conductance[a]
+                    current[a] = 0.0
+                iterations[j] = iteration
+                break
+            if secant:  # the Kacanov model at the current velocities: true yield stresses
+                for a in range(L):
+                    kc[a] = kappa[a]
+                    cc[a] = eta_c[a] * conductance[a]
                     if walls:
-                        rate = abs(current[a]) * inverse_half
-                        wa, ta = _newton_model(wall[a], rate, weta_c[a], wslope_c[a], secant)
-                        wc[a] = per_area[a] * wa
-                        cwc[a] = per_area[a] * ta * inverse_half
-                if not inertia[0] > 0.0:  # no mass: nothing to solve
-                    for a in range(L):
-                        current[a] = 0.0
+                        wc[a] = per_area[a] * wall[a]
+                        cwc[a] = per_area[a] * weta_c[a] * inverse_half
+            if not _active_set(
+                inertia, momentum, kc, cc, wc if walls else wall, cwc, current, new, first, grounded, U, diag,
+                low, rhs,
+            ):  # fmt: skip
+                _dynamic_programme(inertia, momentum, kc, cc, wc if walls else wall, cwc, new, ws)
+                fallbacks[j] += 1
+            fault, fault_values[j, 0], fault_values[j, 1], change = _true_stresses(
+                new, current, kappa, is_viscous, inverse_spacing, conductance, bulk_form, bulk_params, factor,
+                offset, eta_n, walls, inverse_half, wall, wall_form, wall_params, wall_factor, wall_offset,
+                per_area, weta_n, state_n, kn, cn, wn, cwn,
+            )  # fmt: skip
+            if fault != 0:
+                break
+            done = error_bound(inertia, momentum, kappa, state_n[0], wall_true, state_n[2], new) <= threshold
+            done = done or (not secant and change <= threshold)
+            keep = done or secant or iteration < TRUSTED
+            if keep or energy_rise(
+                inertia, momentum, kappa, state_n[0], wall_true, state_n[2], current, new, state_c
+            ) <= 0.0:  # fmt: skip
+                current, new = new, current
+                eta_c, eta_n, weta_c, weta_n = eta_n, eta_c, weta_n, weta_c
+                state_c, state_n = state_n, state_c
+                kc, kn, cc, cn, wc, wn, cwc, cwn = kn, kc, cn, cc, wn, wc, cwn, cwc
+                secant = False
+                if done:
                     iterations[j] = iteration
                     break
-                if not _active_set(
-                    inertia,
-                    momentum,
-                    kc,
-                    cc,
-                    wall_c,
-                    cwc,
-                    current,
-                    new,
-                    first,
-                    grounded,
-                    U,
-                    diag,
-                    low,
-                    rhs,
-                ):
-                    _dynamic_programme(inertia, momentum, kc, cc, wall_c, cwc, new, ws)
-                    fallbacks[j] += 1
-                fault, fault_values[j, 0], fault_values[j, 1] = _true_stresses(
-                    new, *stress_args, eta_n, slope_n, *wall_args, weta_n, wslope_n, state_n
-                )
-                if fault != 0:
-                    break
-                true = (inertia, momentum, kappa, state_n[0], wall_true, state_n[2])
-                done = error_bound(*true, new) <= threshold
-                if not (done or secant):
-                    change = 0.0
-                    for a in range(L):
-                        change = max(change, abs(new[a] - current[a]))
-                    done = change <= threshold
-                keep = done or secant or iteration < TRUSTED
-                if keep or energy_rise(*true, current, new, state_c) <= 0.0:  # keep the step
-                    current, new = new, current
-                    eta_c, eta_n, slope_c, slope_n = eta_n, eta_c, slope_n, slope_c
-                    weta_c, weta_n, wslope_c, wslope_n = weta_n, weta_c, wslope_n, wslope_c
-                    state_c, state_n = state_n, state_c
-                    secant = False
-                    if done:
-                        iterations[j] = iteration
-                        break
-                else:  # a Newton step that may raise the energy: the secant step instead
-                    secant = True
-            faults[j] = fault
-            for a in range(L):
-                b_out[jj, a] = current[a]
+            else:  # a Newton step that may raise the energy: the secant step instead
+                secant = True
+        faults[j] = fault
         for a in range(L):
-            for jj in range(size):
-                u_out[a, wet[j0 + jj]] = b_out[jj, a]
+            u_out[a, col] = current[a]
 
 
 def _columns(
