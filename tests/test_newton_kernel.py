@@ -130,3 +130,40 @@ def test_threads_cut_the_columns_into_chunks_without_changing_the_answer():
     one = one.copy()
     two, its_two = sim.compiled_step(sim.h, ustar, sim.u, 1e-3, threads=2, **kw)
     assert np.array_equal(one, two) and np.array_equal(its_one, its_two)
+
+
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "numpy"])
+def test_a_layer_at_rest_below_its_friction_angle_is_not_solved_and_stays_exactly_at_rest(compiled):
+    """A guess at rest within the error bound is the answer (newton_control): a mu(I)
+    layer at rest on a slope below its friction angle (tan 10 deg < mu_s = 0.38) takes no
+    column solve and stays exactly at rest; above it (30 deg) every column is solved and
+    moves."""
+    for slope, moves in ((10.0, False), (30.0, True)):
+        sim = simulation(
+            slope_deg=slope,
+            domain={"x_min": 0.0, "x_max": 1.0, "cells": 20, "layers": 6},
+            material={"density": 1550.0, "grain_diameter": 0.7e-3, "particle_density": 2500.0},
+            rheology={"name": "jop_mu_i", "mu_s": 0.38, "mu_2": 0.64, "I_0": 0.279},
+            base=[{"condition": "no_slip"}],
+            initial=[{"shape": "layer", "thickness": 0.01}],
+            boundaries={"left": "wall", "right": "wall"},
+        )
+        solves = [0]
+        if compiled:
+            solved = sim.compiled_step
+        else:
+            sim.compiled_step, exact = None, sim.solver
+
+            def counted(problem, solves=solves, exact=exact, **kw):
+                solves[0] += problem.m.shape[1]
+                return exact(problem, **kw)
+
+            sim.solver = counted
+        for _ in range(5):
+            sim.step()
+        if compiled:
+            solves[0] = solved.solves
+        if moves:
+            assert np.all(sim.u != 0.0) and solves[0] >= 5 * sim.h.size
+        else:
+            assert np.all(sim.u == 0.0) and solves[0] == 0

@@ -235,7 +235,7 @@ def _sign(x):
     return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")  # in its callers: no array arguments marshalled per call
 def _active_set(inertia, momentum, kappa, c, w, cw, guess, u, first, grounded, U, diag, low, rhs):
     """Solve with the lock/sign structure of ``guess``; True if it is the exact minimiser
     (``inertia = m / dt`` and ``momentum = m u* / dt`` per layer).
@@ -387,9 +387,11 @@ def _columns(m, ustar, dt, kappa, c, w, cw, guess, u, chunks):
             for a in range(L):
                 inertia[a] = m[i, a] / dt
                 momentum[a] = m[i, a] * ustar[i, a] / dt
-            args = (inertia, momentum, kappa[i], c[i], w[i], cw[i])
-            if not _active_set(*args, guess[i], u[i], first, grounded, U, diag, low, rhs):
-                _dynamic_programme(*args, u[i], ws)
+            ki, ci, wi, cwi, ui = kappa[i], c[i], w[i], cw[i], u[i]  # (_active_set is inlined: no *args)
+            if not _active_set(
+                inertia, momentum, ki, ci, wi, cwi, guess[i], ui, first, grounded, U, diag, low, rhs
+            ):
+                _dynamic_programme(inertia, momentum, ki, ci, wi, cwi, ui, ws)
 
 
 _solve_serial: Any = njit(cache=True)(_columns)

@@ -100,6 +100,19 @@ def implicit_step(
     current = u_guess[:, wet]
     at_current = stresses.viscous_stresses(cs, current)
     todo = np.arange(wet.size)  # wet columns still iterating
+    # a guess at rest at the bed and the surface within the error bound is the answer
+    resting = np.flatnonzero((current[0] == 0.0) & (current[-1] == 0.0) & (inertia[0] > 0.0))
+    if resting.size:
+        cols = (slice(None), resting)
+        at = current[cols]
+        bound, _ = examine_columns(
+            inertia[cols], momentum[cols], cs.kappa[cols], at_current[0][cols], cs.w[cols],
+            at_current[2][cols], at, at, at_current[:, :, resting],
+        )  # fmt: skip
+        todo = np.setdiff1d(todo, resting[bound <= threshold])
+        if todo.size == 0:
+            u[:, wet] = current
+            return u, 1
     secant = np.zeros(wet.size, dtype=bool)  # the next step from current is the Kacanov one
     for iteration in range(1, max_iterations + 1):
         if poll is not None:
