@@ -281,8 +281,7 @@ def _columns(
     What does not change from one iteration to the next (masses, pressure parts of the
     laws, inverse spacings, wall thresholds) is computed once per step, straight into
     arrays of one column reused from column to column (no per-column views or tuples of
-    arrays: each costs reference counting; gathering blocks of 16 columns row by row
-    first was no faster from L = 8 to 128).  A column whose guess is at rest at the bed
+    arrays: each costs reference counting).  A column whose guess is at rest at the bed
     and the surface and already within the error bound of ``newton_control`` is not
     solved (``iterations`` 0): the bound is rigorous, so the guess is as good an answer
     as a converged iterate."""
