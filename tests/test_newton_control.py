@@ -9,7 +9,7 @@ from engine import simulation
 
 from multilayer.engine import column_kernel, vertical_step
 from multilayer.engine.column_problem import ColumnProblem
-from multilayer.engine.newton_control import examine_columns
+from multilayer.engine.newton_control import error_bound, examine_columns
 
 
 def bingham(rng, L, N) -> ColumnProblem:
@@ -61,6 +61,36 @@ def test_the_error_bound_vanishes_at_the_solution_and_bounds_the_error_elsewhere
         error = np.abs(u - exact).max(axis=0)
         assert np.all(error <= bound * (1 + 1e-9) + 1e-15)
         assert np.median(bound / np.maximum(error, 1e-300)) < 30  # and not uselessly loose
+
+
+def test_the_error_bound_with_a_limit_decides_alike_and_is_the_bound_when_not_cut():
+    """``error_bound(..., limit)`` stops its pass once the bound must exceed twice the
+    limit (inf then); ``bound <= limit`` is decided as by the whole pass, and a bound not
+    cut is the same number."""
+    rng = np.random.default_rng(5)
+    p = bingham(rng, 8, 300)
+    exact = column_kernel.solve(p)
+    u = exact + rng.normal(0, 1, exact.shape) * 10.0 ** rng.uniform(-14, 0, exact.shape[1]) * (exact != 0.0)
+    viscous = p.c * np.abs(np.diff(u, axis=0, prepend=0.0)), p.cw * np.abs(u)
+    inertia, momentum = p.m / p.dt, p.m * p.ustar / p.dt
+    full, _ = bingham_examine(p, u, u)
+    cut = 0
+    for j in range(u.shape[1]):
+        args = (
+            inertia[:, j],
+            momentum[:, j],
+            p.kappa[:, j],
+            viscous[0][:, j],
+            p.w[:, j],
+            viscous[1][:, j],
+            u[:, j],
+        )
+        for limit in (0.0, 1e-10, 1e-6, 1e-2):
+            bound = error_bound(*args, limit)
+            assert (bound <= limit) == (full[j] <= limit)
+            assert bound == full[j] or (bound == np.inf and full[j] > 2 * limit)
+            cut += bound == np.inf
+    assert cut > 100
 
 
 def test_the_energy_rise_is_an_upper_bound_and_exact_for_a_bingham_law():

@@ -88,8 +88,10 @@ def _potential_rise(start, end, stress_start, stiffness_start, stress_end):
 
 
 @njit(cache=True, inline="always")  # in its callers: no array arguments marshalled per call
-def error_bound(inertia, momentum, kappa, viscous, w, wall_viscous, u):
-    """The bound of the module docstring on ``max_a |u_a - u_exact,a|`` for one column.
+def error_bound(inertia, momentum, kappa, viscous, w, wall_viscous, u, limit):
+    """The bound of the module docstring on ``max_a |u_a - u_exact,a|`` for one column,
+    or ``inf`` once the pass finds it above twice ``limit`` (``limit = inf``: always the
+    bound; the comparison with ``limit`` is the same either way).
 
     Per layer ``a``: ``inertia = m_a / dt``, ``momentum = m_a u*_a / dt``, ``kappa`` the
     true yield stress of interface ``a`` (below layer ``a``; 0 the bed) and ``viscous`` its
@@ -97,6 +99,9 @@ def error_bound(inertia, momentum, kappa, viscous, w, wall_viscous, u):
     ``wall_viscous`` the wall viscous force ``|F_v|`` at ``u_a``.
     """
     L = inertia.shape[0]
+    cap = np.inf  # a residual above it: the bound exceeds 2 limit (the sum only grows)
+    if limit < np.inf:
+        cap = 4.0 * limit * limit * np.min(inertia)
     lo = 0.0  # admissible sigma_{a+1}: [lo, hi]; {0} at the free surface
     hi = 0.0
     residual = 0.0  # ||g||^2_{M^-1}
@@ -121,6 +126,8 @@ def error_bound(inertia, momentum, kappa, viscous, w, wall_viscous, u):
                 lo = hi = kappa[a] if hi_zero > kappa[a] else -kappa[a]
         if gap > 0.0:
             residual += gap * gap / inertia[a]
+            if residual > cap:  # an iteration far from converged: the rest of the pass is moot
+                return np.inf
         smallest = min(smallest, inertia[a])
     return np.sqrt(residual / smallest)
 
@@ -166,7 +173,7 @@ def examine_columns(inertia, momentum, kappa, viscous, w, wall_viscous, start, u
     for j in range(n):
         args = (inertia[:, j], momentum[:, j], kappa[:, j], viscous[:, j], w[:, j], wall_viscous[:, j])
         bounds[j] = error_bound(
-            args[0], args[1], args[2], args[3], args[4], args[5], u[:, j]
+            args[0], args[1], args[2], args[3], args[4], args[5], u[:, j], np.inf
         )  # inlined: no *args
         rises[j] = energy_rise(*args, start[:, j], u[:, j], at_start[:, :, j])
     return bounds, rises

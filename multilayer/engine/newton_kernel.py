@@ -202,7 +202,10 @@ def _chunk(
         secant = False  # the step from current is the Kacanov one (newton_control)
         last = max_iterations  # 0 for a guess at rest within the bound (see _columns)
         if fault == 0 and inertia[0] > 0.0 and current[0] == 0.0 and current[L - 1] == 0.0:
-            if error_bound(inertia, momentum, kappa, state_c[0], wall_true, state_c[2], current) <= threshold:
+            if (
+                error_bound(inertia, momentum, kappa, state_c[0], wall_true, state_c[2], current, threshold)
+                <= threshold
+            ):
                 iterations[j] = 0
                 last = 0
         for iteration in range(1, last + 1):
@@ -238,7 +241,10 @@ def _chunk(
             )  # fmt: skip
             if fault != 0:
                 break
-            done = error_bound(inertia, momentum, kappa, state_n[0], wall_true, state_n[2], new) <= threshold
+            done = (
+                error_bound(inertia, momentum, kappa, state_n[0], wall_true, state_n[2], new, threshold)
+                <= threshold
+            )
             if not (done or secant):
                 change = 0.0
                 for a in range(L):
