@@ -571,6 +571,7 @@ def correction(
     lam_max: np.ndarray | None = None,
     active: np.ndarray | None = None,
     nodes: np.ndarray | None = None,
+    offset: int = 0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``V*``, the correction ``dV = -M^-1 E^T lam`` and the free unknowns, over the rows
     and unknowns of the moving cells (all vectors full length).
@@ -581,22 +582,12 @@ def correction(
     guess ``active`` (L_p, N) of the cells where the bound holds (none by default; updated
     in place to the final active set).  With pressure interfaces ``nodes`` (the velocity
     layers of :func:`pressure_nodes`; default every layer) ``E`` is the reduced ``P^T E``
-    and its row ``g`` takes part where the layer ``nodes[g]`` moves.
+    and its row ``g`` takes part where the layer ``nodes[g]`` moves.  The constraint's
+    columns are the columns ``offset ..`` of ``u`` and ``w`` (``moving`` has its N).
     """
-    L, N = u.shape
-    left, right = cons.left, cons.right
-    F = left.size
-    face_free = (moving[:, left] | moving[:, right]).ravel() & (cons.mass[: L * F] > 0)
-    free = np.concatenate([face_free, moving.ravel()])
-    constrained = moving if nodes is None else moving[nodes]
-    # rows column by column (cell a * N + i is row row_of[a * N + i]): A is then banded, of
-    # half-width about L_p + 3
-    column, layer = np.nonzero(constrained.T)
-    rows = layer * N + column
-    row_of = np.full(constrained.size, -1, dtype=np.int64)
-    row_of[rows] = np.arange(rows.size)
-    v_star = 0.5 * (u[:, left] + u[:, right])
-    V_star = np.concatenate([v_star.ravel(), np.where(moving, w, 0.0).ravel()])
+    L = moving.shape[0]
+    layers = np.arange(L) if nodes is None else nodes
+    free, row_of, rows, V_star = _unknowns(cons.mass, cons.left, cons.right, moving, u, w, offset, layers)
     band, r = _normal_equations(
         cons.pointer, cons.cells, cons.values, cons.mass, free, row_of, rows.size, V_star
     )
@@ -605,7 +596,7 @@ def correction(
         _factor(band, np.zeros(r.size, dtype=np.bool_), U, 0)
         lam = _substitute(U, r)
     else:
-        guess = np.zeros(rows.size, dtype=np.bool_) if active is None else active.ravel()[rows].copy()
+        guess = np.zeros(rows.size, dtype=np.bool_) if active is None else active.ravel()[rows]
         lam, iterations = _bounded(band, r, lam_max.ravel()[rows], guess, MAX_ACTIVE_SET_ITERATIONS)
         if iterations < 0:
             raise RunError(
@@ -619,6 +610,38 @@ def correction(
 
 
 MAX_ACTIVE_SET_ITERATIONS = 100
+
+
+@njit(cache=True)
+def _unknowns(mass, left, right, moving, u, w, offset, nodes):
+    """The free unknowns (faces with a moving side and material, the moving cells' ``wbar``),
+    the row of each cell (-1: none; the moving pressure interfaces ``nodes``, column by
+    column: ``A`` is then banded, of half-width about ``L_p + 3``), the cells of the rows
+    and ``V*``, for the columns ``offset ..`` of ``u`` and ``w`` (see :func:`correction`)."""
+    L, N = moving.shape
+    F, Lp = left.size, nodes.size
+    free = np.empty(L * F + L * N, np.bool_)
+    V_star = np.empty(L * F + L * N)
+    for c in range(L):
+        for f in range(F):
+            k = c * F + f
+            free[k] = (moving[c, left[f]] or moving[c, right[f]]) and mass[k] > 0.0
+            V_star[k] = 0.5 * (u[c, offset + left[f]] + u[c, offset + right[f]])
+    for a in range(L):
+        for i in range(N):
+            k = L * F + a * N + i
+            free[k] = moving[a, i]
+            V_star[k] = w[a, offset + i] if moving[a, i] else 0.0
+    row_of = np.full(Lp * N, -1, np.int64)
+    rows = np.empty(Lp * N, np.int64)
+    n = 0
+    for i in range(N):
+        for g in range(Lp):
+            if moving[nodes[g], i]:
+                row_of[g * N + i] = n
+                rows[n] = g * N + i
+                n += 1
+    return free, row_of, rows[:n], V_star
 
 
 def project(
@@ -649,56 +672,99 @@ def project(
     ``tension_free`` (L, N) where it was zero the step before (:func:`tension_free`) start
     the active-set iteration (speed only: the answer does not depend on them).
     """
+    u_new, w_new, q = u.copy(), np.zeros(w.shape), np.zeros(u.shape)
+    project_columns(
+        h, u, w, bed, fractions, (u_new, w_new, q), dx=dx, dt=dt, periodic=periodic, dry=dry, g_n=g_n,
+        tension_free=tension_free, pressure_layers=pressure_layers,
+    )  # fmt: skip
+    return u_new, w_new, q
+
+
+def project_columns(
+    h: np.ndarray,
+    u: np.ndarray,
+    w: np.ndarray,
+    bed: np.ndarray,
+    fractions: np.ndarray,
+    out: tuple[np.ndarray, np.ndarray, np.ndarray],
+    *,
+    dx: float,
+    dt: float,
+    periodic: bool = False,
+    dry: float = 0.0,
+    g_n: float | None = None,
+    tension_free: np.ndarray | None = None,
+    pressure_layers: int | None = None,
+) -> tuple[int, int]:
+    """:func:`project` into ``out`` (u, w, q; L, N), written in the columns ``lo .. hi-1``
+    it returns only, those of the moving material and one column at rest on each side (the
+    faces beyond join cells at rest and carry no correction; every column if periodic):
+    elsewhere ``u`` is unchanged and ``w``, ``q`` are zero.  ``(0, 0)``: nothing moves."""
     L, N = u.shape
     first, last = _moving_columns(u, h, dry)
     if last < 0:
-        return u.copy(), np.zeros(w.shape), np.zeros(u.shape)
-    lo, hi = max(first - 1, 0), min(last + 2, N)
-    if not periodic and (lo > 0 or hi < N):
-        # only the moving material and one column at rest on each side take part: the
-        # faces beyond join cells at rest and carry no correction
-        window = slice(lo, hi)
-        u_new, w_new, q = u.copy(), np.zeros(w.shape), np.zeros(u.shape)
-        u_new[:, window], w_new[:, window], q[:, window] = project(
-            h[window],
-            u[:, window],
-            w[:, window],
-            bed[window],
-            fractions,
-            dx=dx,
-            dt=dt,
-            dry=dry,
-            g_n=g_n,
-            tension_free=None if tension_free is None else tension_free[:, window],
-            pressure_layers=pressure_layers,
-        )
-        return u_new, w_new, q
-    moving = (u != 0.0) & (h > dry)[None, :]
+        return 0, 0
+    lo, hi = (0, N) if periodic else (max(first - 1, 0), min(last + 2, N))
+    window = slice(lo, hi)
+    moving = _moving(u, h, dry, lo, hi)
     nodes = interpolation = None
     if pressure_layers is not None and pressure_layers != L:
         nodes, interpolation = _pressure_layers(tuple(fractions), pressure_layers)
-    cons = constraint(np.where(h > dry, h, 0.0), bed, fractions, dx, periodic, interpolation)
-    left, right = cons.left, cons.right
-    F = left.size
+    cons = constraint(
+        np.where(h[window] > dry, h[window], 0.0), bed[window], fractions, dx, periodic, interpolation
+    )
     lam_max = active = None
     if g_n is not None:
         # the bound at the pressure interfaces holds on every interface: both sides are
         # linear in sigma between them
-        lam_max = dt * g_n * depth_below(h, fractions)
-        active = np.zeros_like(moving) if tension_free is None else tension_free.copy()
-        if nodes is not None:
-            lam_max, active = lam_max[nodes], active[nodes]
-    _, dV, _ = correction(cons, moving, u, w, lam_max, active, nodes)
-    dv = dV[: L * F].reshape(L, F)
-    dw = dV[L * F :].reshape(L, N)
-    du = np.zeros_like(u)
-    half = 0.5 * dv
-    du[:, left] += half  # each column is the left of one face at most, and the right of one
-    du[:, right] += half
-    u_new = np.where(moving, u + du, u)
-    w_new = np.where(moving, w + dw, 0.0)
-    q = np.cumsum((fractions[:, None] * h * dw)[::-1], axis=0)[::-1] / dt
-    return u_new, w_new, q
+        factors = _depth_factors(fractions)
+        lam_max = dt * g_n * ((factors[:, None] if nodes is None else factors[nodes, None]) * h[window])
+        if tension_free is None:
+            active = np.zeros(lam_max.shape, dtype=np.bool_)
+        else:
+            active = (tension_free if nodes is None else tension_free[nodes])[:, window].copy()
+    _, dV, _ = correction(cons, moving, u, w, lam_max, active, nodes, lo)
+    _finish(dV, u, w, h, fractions, moving, cons.left, cons.right, dt, lo, *out)
+    return lo, hi
+
+
+@njit(cache=True)
+def _moving(u, h, dry, lo, hi):
+    """The cells (L, hi - lo) of the columns ``lo .. hi-1`` that take part: ``u != 0`` where
+    ``h > dry``."""
+    moving = np.empty((u.shape[0], hi - lo), np.bool_)
+    for a in range(u.shape[0]):
+        for i in range(lo, hi):
+            moving[a, i - lo] = u[a, i] != 0.0 and h[i] > dry
+    return moving
+
+
+@njit(cache=True)
+def _finish(dV, u, w, h, fractions, moving, left, right, dt, lo, u_out, w_out, q_out):
+    """The projected ``u`` (each column the mean of the corrections of its two faces), ``w``
+    and the pressures ``q_a = sum_{b >= a} h_b dw_b / dt`` of the columns ``lo ..`` (as many
+    as ``moving`` has) into ``u_out``, ``w_out`` and ``q_out`` (module Notes)."""
+    L, N = moving.shape
+    F = left.size
+    du = np.zeros((L, N))
+    for c in range(L):
+        for f in range(F):
+            half = 0.5 * dV[c * F + f]
+            du[c, left[f]] += half  # each column is the left of one face at most, and the right of one
+            du[c, right[f]] += half
+    for a in range(L):
+        for i in range(N):
+            if moving[a, i]:
+                u_out[a, lo + i] = u[a, lo + i] + du[a, i]
+                w_out[a, lo + i] = w[a, lo + i] + dV[L * F + a * N + i]
+            else:
+                u_out[a, lo + i] = u[a, lo + i]
+                w_out[a, lo + i] = 0.0
+    for i in range(N):
+        total = 0.0
+        for a in range(L - 1, -1, -1):
+            total += fractions[a] * h[lo + i] * dV[L * F + a * N + i]
+            q_out[a, lo + i] = total / dt
 
 
 @njit(cache=True)
@@ -717,15 +783,24 @@ def _moving_columns(u, h, dry):
     return first, last
 
 
-@njit(cache=True)
-def advect(w: np.ndarray, u: np.ndarray, dx: float, dt: float, periodic: bool) -> np.ndarray:
+def advect(
+    w: np.ndarray, u: np.ndarray, dx: float, dt: float, periodic: bool, columns: tuple[int, int] | None = None
+) -> np.ndarray:
     """First-order upwind transport of the layer vertical velocities by the layer
-    velocities, ``d_t w + u d_x w = 0`` (zero-gradient ends unless periodic)."""
+    velocities, ``d_t w + u d_x w = 0`` (zero-gradient ends unless periodic), in the
+    columns ``lo .. hi-1`` of ``columns`` (default: every column; zero elsewhere)."""
+    lo, hi = (0, w.shape[1]) if columns is None else columns
+    out = np.zeros(w.shape)
+    _advect(w, u, dx, dt, periodic, lo, hi, out)
+    return out
+
+
+@njit(cache=True)
+def _advect(w, u, dx, dt, periodic, lo, hi, out):
     L, N = w.shape
-    out = np.empty_like(w)
     ratio = dt / dx
     for a in range(L):
-        for i in range(N):
+        for i in range(lo, hi):
             here, speed = w[a, i], u[a, i]
             if speed > 0.0:
                 west = w[a, i - 1] if i > 0 else (w[a, N - 1] if periodic else here)
@@ -735,7 +810,6 @@ def advect(w: np.ndarray, u: np.ndarray, dx: float, dt: float, periodic: bool) -
                 out[a, i] = here - ratio * (speed * (east - here))
             else:
                 out[a, i] = here
-    return out
 
 
 def depth_below(h: np.ndarray, fractions: np.ndarray) -> np.ndarray:
@@ -748,34 +822,43 @@ def _depth_factors(fractions: np.ndarray) -> np.ndarray:
     return 1.0 - np.concatenate([[0.0], np.cumsum(fractions)[:-1]])
 
 
-def tension_free(q: np.ndarray, h: np.ndarray, fractions: np.ndarray, g_n: float) -> np.ndarray:
+def tension_free(
+    q: np.ndarray, h: np.ndarray, fractions: np.ndarray, g_n: float, columns: tuple[int, int] | None = None
+) -> np.ndarray:
     """Interfaces (L, N) where the total pressure ``g_n (h - z) + q`` of a projection is
     zero (to round-off: the bound ``p >= 0`` was active there), ``h`` being the thickness
-    the pressures ``q`` were computed with."""
-    return _tension_free(q, h, _depth_factors(fractions), g_n)
+    the pressures ``q`` were computed with; ``columns`` (lo, hi): ``q`` is zero outside
+    the columns ``lo .. hi-1`` (where none is, for ``g_n > 0``)."""
+    lo, hi = (0, q.shape[1]) if columns is None else columns
+    out = np.zeros(q.shape, np.bool_)
+    _tension_free(q, h, _depth_factors(fractions), g_n, lo, hi, out)
+    return out
 
 
 @njit(cache=True)
-def _tension_free(q, h, factors, g_n):
-    out = np.zeros(q.shape, np.bool_)
+def _tension_free(q, h, factors, g_n, lo, hi, out):
     for a in range(q.shape[0]):
-        for i in range(q.shape[1]):
+        for i in range(lo, hi):
             depth = factors[a] * h[i]
             out[a, i] = depth > 0.0 and g_n * depth + q[a, i] <= 1e-9 * g_n * depth
-    return out
 
 
-def yield_gravity(q: np.ndarray, h: np.ndarray, fractions: np.ndarray, g_n: float) -> np.ndarray:
+def yield_gravity(
+    q: np.ndarray, h: np.ndarray, fractions: np.ndarray, g_n: float, columns: tuple[int, int] | None = None
+) -> np.ndarray:
     """Normal gravity ``G_k`` (L, N) of the interface pressures with the non-hydrostatic part,
-    ``rho G_k (h - z_k) = rho g cos(theta) (h - z_k) + rho q_k``, never negative."""
-    return _yield_gravity(q, h, _depth_factors(fractions), g_n)
+    ``rho G_k (h - z_k) = rho g cos(theta) (h - z_k) + rho q_k``, never negative;
+    ``columns`` (lo, hi): ``q`` is zero outside the columns ``lo .. hi-1`` (``G_k = g
+    cos(theta)`` there)."""
+    lo, hi = (0, q.shape[1]) if columns is None else columns
+    out = np.full(q.shape, max(g_n, 0.0))
+    _yield_gravity(q, h, _depth_factors(fractions), g_n, lo, hi, out)
+    return out
 
 
 @njit(cache=True)
-def _yield_gravity(q, h, factors, g_n):
-    out = np.empty(q.shape)
+def _yield_gravity(q, h, factors, g_n, lo, hi, out):
     for a in range(q.shape[0]):
-        for i in range(q.shape[1]):
+        for i in range(lo, hi):
             depth = factors[a] * h[i]
             out[a, i] = max(g_n + (q[a, i] / depth if depth > 0.0 else 0.0), 0.0)
-    return out
