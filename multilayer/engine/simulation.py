@@ -137,6 +137,19 @@ class Simulation:
         # the columns lo .. hi-1 outside which w, q and the seed are zero (the material of the
         # last step: the projection and the vertical step change nothing beyond it)
         self._projected = (0, dom.cells)
+        self.projection = (
+            nonhydrostatic.Projection(
+                self.fractions,
+                self.bed,
+                dx=self.dx,
+                periodic=self.left == "periodic",
+                dry=sc.numerics.dry_threshold,
+                g_n=self.g_n,
+                pressure_layers=self.pressure_layers,
+            )
+            if self.pressure == "non_hydrostatic"
+            else None
+        )
         # per-step masks, allocated once: columns that move at the start of the step and
         # during it (material at rest set moving), layers of material at rest
         self._moving_start = np.zeros(dom.cells, dtype=bool)
@@ -317,10 +330,8 @@ class Simulation:
                 base_slip=self.base_slip,
                 dry=self.numerics.dry_threshold,
             )
-        elif self.pressure == "non_hydrostatic":
-            yield_gravity = nonhydrostatic.yield_gravity(
-                self.q, h_new, self.fractions, self.g_n, self._projected
-            )
+        elif self.projection is not None:
+            yield_gravity = self.projection.yield_gravity(self.q, h_new, self._projected)
         # the seed changes the Newton work, not the answer: where the unprojected seed does
         # not converge, the step is solved again from u (as the other pressures are)
         seeds = [self.newton_seed, self.u] if self.pressure == "non_hydrostatic" else [self.u]
@@ -351,28 +362,9 @@ class Simulation:
     def _project(self, h_new: np.ndarray, u_new: np.ndarray, dt: float) -> tuple[np.ndarray, ...]:
         """With the non-hydrostatic pressure, the projection of the vertical step's velocities
         ``u_new`` (returns u, w, q); the other pressures keep them."""
-        if self.pressure != "non_hydrostatic":
+        if self.projection is None:
             return u_new, self.w, self.q
-        periodic = self.left == "periodic"
-        # only the moving cells take part, in the columns holding material
-        w_star = nonhydrostatic.advect(self.w, u_new, self.dx, dt, periodic, transport_kernel.span(h_new))
-        projected, w_new, q_new = nonhydrostatic.project(
-            h_new,
-            u_new,
-            w_star,
-            self.bed,
-            self.fractions,
-            dx=self.dx,
-            dt=dt,
-            periodic=periodic,
-            dry=self.numerics.dry_threshold,
-            g_n=self.g_n,
-            tension_free=nonhydrostatic.tension_free(
-                self.q, self.h, self.fractions, self.g_n, self._projected
-            ),
-            pressure_layers=self.pressure_layers,
-        )
-        return projected, w_new, q_new
+        return self.projection(h_new, u_new, self.w, self.q, self.h, dt, self._projected)
 
     def advance(self, t_target: float, on_step: Callable[[Simulation, float], None] | None = None) -> None:
         """Step until ``t == t_target``; ``on_step(sim, dt)`` is called after every step."""
