@@ -758,7 +758,8 @@ def project_columns(
     """:func:`project` into ``out`` (u, w, q; L, N), written in the columns ``lo .. hi-1``
     it returns only, those of the moving material and one column at rest on each side (the
     faces beyond join cells at rest and carry no correction; every column if periodic):
-    elsewhere ``u`` is unchanged and ``w``, ``q`` are zero.  ``(0, 0)``: nothing moves.
+    ``out`` must hold ``u`` and zeros elsewhere (the answer there).  ``(0, 0)``: nothing
+    moves.
     ``buffers``: the work arrays of the shape of ``u`` and these pressure layers (reused
     from call to call: a new array touched afresh costs a page fault per 4 KiB)."""
     L, N = u.shape
