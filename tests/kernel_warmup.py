@@ -28,6 +28,7 @@ WAIT = 600.0
 """Seconds a worker waits for the tasks of the others before going on without them."""
 
 
+NON_HYDROSTATIC = {"pressure": "non_hydrostatic"}
 WALLS = {"name": "wall_friction", "mu_w": 0.2}
 WALLED = {"x_min": 0.0, "x_max": 1.0, "cells": 50, "layers": 4, "width": 0.1}
 
@@ -82,6 +83,16 @@ def _numpy_path() -> None:
     examine_columns(p.m, p.ustar, p.kappa, p.c, p.w, p.cw, start, u, at_start)
 
 
+def _projection() -> None:
+    """The non-hydrostatic projection alone (its kernels need no other task's)."""
+    from multilayer.engine import nonhydrostatic
+
+    sim = _collapse(model=NON_HYDROSTATIC)
+    u = np.where(sim.h > 0, np.linspace(0.1, 1.0, sim.u.shape[0])[:, None], 0.0)
+    sim._project(sim.h, u, 1e-3)
+    nonhydrostatic.yield_gravity(sim.q, sim.h, sim.fractions, sim.g_n)
+
+
 def _steps(**changes) -> None:
     sim = _collapse(**changes)
     for _ in range(3):
@@ -90,12 +101,13 @@ def _steps(**changes) -> None:
 
 TASKS: list[tuple[str, Callable[[], None], tuple[str, ...]]] = [
     ("newton", lambda: _newton(1), ()),
+    ("projection", _projection, ()),
     ("transport", lambda: _transport(1), ()),
     ("newton_threads", lambda: _newton(2), ("newton",)),
     ("transport_threads", lambda: _transport(3), ("transport",)),
     ("numpy_path", _numpy_path, ("newton",)),
     ("step", lambda: _steps(walls=WALLS, domain=WALLED), ("newton", "transport")),
-    ("nonhydrostatic", lambda: _steps(model={"pressure": "non_hydrostatic"}), ("newton", "transport")),
+    ("nonhydrostatic", lambda: _steps(model=NON_HYDROSTATIC), ("newton", "transport", "projection")),
 ]
 """(name, task, the tasks whose kernels it calls): the longest first."""
 
