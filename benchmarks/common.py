@@ -33,6 +33,7 @@ class Timing:
     peak_bytes: int  # peak resident memory of the process
     fallback_share: float  # column solves that needed the O(L^2) dynamic programme
     threads: dict[int, int]  # passes (steps and redone steps) run with each thread count
+    layer: str  # numba's threading layer (threads.py: TBB steals work)
 
     def lines(self) -> list[str]:
         return [
@@ -45,8 +46,18 @@ class Timing:
             f"({self.peak_bytes / self.cells:.0f} bytes per mesh cell), load average {self.load:.2f}",
             "threads: "
             + ", ".join(f"{n} in {k} passes" for n, k in sorted(self.threads.items()))
-            + " (a pass: a step, or a step redone for material set moving)",
+            + f" (a pass: a step, or a step redone for material set moving); threading layer {self.layer}",
         ]
+
+
+def threading_layer() -> str:
+    """numba's threading layer, if a parallel kernel has run."""
+    import numba
+
+    try:
+        return str(numba.threading_layer())
+    except ValueError:  # no parallel kernel ran
+        return "not started"
 
 
 def peak_memory() -> int:
@@ -93,6 +104,7 @@ def timed(
         peak_memory(),
         sim.compiled_step.fallbacks / max(sim.compiled_step.solves, 1) if sim.compiled_step else float("nan"),
         dict(sim.thread_policy.chosen),
+        threading_layer(),
     )
     if profiler:
         pstats.Stats(profiler).sort_stats("tottime").print_stats(15)

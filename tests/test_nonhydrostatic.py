@@ -355,6 +355,39 @@ def test_the_window_of_moving_columns_gives_the_whole_domain_answer():
     assert np.allclose(fast[1][u != 0.0], (w + dV[L * F :].reshape(u.shape))[u != 0.0], rtol=0, atol=1e-13)
 
 
+def test_the_simulation_projection_reuses_its_arrays_without_carrying_anything_over():
+    """``Projection`` (the simulation's step: w advected, then projected into arrays reused
+    from step to step, written over the columns holding material only) gives the answer of
+    ``project`` on the whole domain, bit for bit, for a wide then a narrow then an empty
+    set of moving columns; its yield gravity is g cos(theta) + q / (h - z) (>= 0) where q
+    is non-zero and g cos(theta) elsewhere."""
+    h, u, w, bed, fractions = random_state(10, layers=6, cells=16)
+    g_n, dt, dx = 9.81, 0.01, 0.1
+    projection = nonhydrostatic.Projection(
+        fractions, bed, dx=dx, periodic=False, dry=0.0, g_n=g_n, pressure_layers=3
+    )
+    q_before, h_before = np.zeros_like(u), h.copy()
+    for lo, hi in ((0, 16), (6, 11), (9, 9)):
+        h_now, u_now = h.copy(), u.copy()
+        h_now[:lo] = h_now[hi:] = 0.0  # material in lo .. hi-1 only
+        u_now[:, :lo] = u_now[:, hi:] = 0.0
+        got = [a.copy() for a in projection(h_now, u_now, w, q_before, h_before, dt, (0, 16))]
+        w_star = np.zeros_like(w)
+        nonhydrostatic._advect(w, u_now, dx, dt, False, 0, 16, w_star)
+        guess = nonhydrostatic.tension_free(q_before, h_before, fractions, g_n)
+        expected = nonhydrostatic.project(
+            h_now, u_now, w_star, bed, fractions, dx=dx, dt=dt, g_n=g_n, tension_free=guess, pressure_layers=3
+        )
+        for a, b in zip(got, expected):
+            np.testing.assert_array_equal(a, b)
+        gravity = projection.yield_gravity(expected[2], h_now, (lo, hi))
+        depth = nonhydrostatic.depth_below(h_now, fractions)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            full = np.maximum(g_n + np.where(depth > 0.0, expected[2] / depth, 0.0), 0.0)
+        np.testing.assert_array_equal(gravity, full)
+        q_before, h_before = expected[2], h_now
+
+
 def test_cholesky_refactored_from_a_row_equals_the_whole_factorisation():
     """The active-set iteration refactors only from the first row whose bound status
     changed: the factor equals a fresh one, and solves A' x = b (A' = A with the fixed rows

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import importlib.metadata
+import os
 import subprocess
 import sys
 
@@ -11,15 +13,56 @@ from multilayer.engine import threads
 from multilayer.errors import InputError
 
 
+def _installed(distribution: str) -> bool:
+    try:
+        importlib.metadata.distribution(distribution)
+    except importlib.metadata.PackageNotFoundError:
+        return False
+    return True
+
+
 def test_small_steps_run_on_one_thread_and_fixed_counts_are_kept(monkeypatch):
     monkeypatch.delenv(threads.ENVIRONMENT, raising=False)
     assert threads.ThreadPolicy("auto").threads(threads.PARALLEL_CELLS - 1) == 1
     assert threads.ThreadPolicy(1).threads(10**9) == 1
 
 
-def test_auto_starts_on_one_thread_until_the_idle_cores_are_measured(monkeypatch):
+def test_without_work_stealing_auto_starts_on_one_thread_until_the_idle_cores_are_measured(monkeypatch):
     monkeypatch.delenv(threads.ENVIRONMENT, raising=False)
+    monkeypatch.setattr(threads, "steals_work", lambda: False)
     assert threads.ThreadPolicy("auto").threads(10**9) == 1
+
+
+def test_with_work_stealing_auto_runs_large_steps_on_every_core(monkeypatch):
+    import numba
+
+    monkeypatch.delenv(threads.ENVIRONMENT, raising=False)
+    monkeypatch.setattr(threads, "steals_work", lambda: True)
+    policy = threads.ThreadPolicy("auto")
+    expected = min(policy.cores, numba.config.NUMBA_NUM_THREADS)
+    try:
+        assert policy.threads(10**9) == expected
+        assert numba.get_parallel_chunksize() == (1 if expected > 1 else 0)
+    finally:
+        numba.set_parallel_chunksize(0)
+    assert policy.threads(threads.PARALLEL_CELLS - 1) == 1
+
+
+def test_work_is_cut_into_chunks_per_thread_of_a_least_the_smallest_size():
+    assert threads.parallel_chunks(2, 20_000, 64) == 2 * threads.CHUNKS_PER_THREAD
+    assert threads.parallel_chunks(2, 200, 64) == 3  # 64 columns at least
+    assert threads.parallel_chunks(2, 5) == 5
+    assert threads.parallel_chunks(4, 0) == 1
+
+
+@pytest.mark.skipif(not _installed("tbb"), reason="the tbb package is not installed")
+def test_the_installed_tbb_is_numbas_threading_layer():
+    """pip's tbb puts libtbb where numba's TBB layer does not look: loaded by threads.load_tbb
+    in a fresh process (where NUMBA_THREADING_LAYER is not set), numba starts TBB."""
+    code = "from multilayer.engine import threads\nprint(threads.load_tbb(), threads.steals_work())\n"
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_THREADING_LAYER"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
+    assert out.stdout.split() == ["True", "True"]
 
 
 def test_the_environment_overrides_the_scenario(monkeypatch):

@@ -31,7 +31,7 @@ import numpy as np
 from numba import njit, prange
 
 from multilayer.engine.column_problem import ColumnProblem
-from multilayer.engine.threads import parallel_compiled
+from multilayer.engine.threads import parallel_chunks, parallel_compiled
 from multilayer.errors import RunError
 
 INF = np.inf
@@ -419,7 +419,7 @@ def solve(problem: ColumnProblem, guess: np.ndarray | None = None, threads: int 
         raise RunError(f"column kernel: the time step dt = {p.dt!r} is not a finite number > 0")
     u = np.empty_like(arrays[0])
     if threads > 1:
-        chunks = max(1, min(u.shape[0], 4 * threads))
+        chunks = parallel_chunks(threads, u.shape[0])
         _solve_parallel(*arrays[:2], float(p.dt), *arrays[2:], guess, u, chunks)
     else:
         _solve_serial(*arrays[:2], float(p.dt), *arrays[2:], guess, u, 1)

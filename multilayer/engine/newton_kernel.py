@@ -25,7 +25,7 @@ from multilayer.engine.newton_control import TRUSTED, energy_rise, error_bound
 from multilayer.engine.plugin_output import PluginOutputError, outside_contract
 from multilayer.engine.stress import INTERFACE, LAYER, ColumnStresses, StressModel
 from multilayer.engine.stress_kernel import CompiledCoefficients
-from multilayer.engine.threads import parallel_compiled
+from multilayer.engine.threads import parallel_chunks, parallel_compiled
 
 FORMS = {"constant": 0, "inertial": 1, "power": 2}
 BLOCK = 16
@@ -377,7 +377,7 @@ class CompiledStep:
         faults, fault_values = np.empty(wet.size, np.int64), np.empty((wet.size, 2))
         wall_form, wall_params = walls if walls is not None else (0, np.zeros(1))
         width = float(self.stresses.width) if walls is not None else 0.0
-        chunks = max(1, min(wet.size, 4 * threads))
+        chunks = parallel_chunks(threads, wet.size)
         kernel = _parallel if threads > 1 else _serial
         kernel(
             chunks if threads > 1 else 1, wet, cs.m, cs.kappa, cs.w, cs.pressure, cs.spacing, cs.viscous,

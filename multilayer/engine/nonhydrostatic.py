@@ -78,6 +78,7 @@ import numpy as np
 import scipy.sparse as sp
 from numba import njit
 
+from multilayer.engine.transport_kernel import span
 from multilayer.errors import RunError
 
 
@@ -128,10 +129,17 @@ def constraint(
     L, N = fractions.size, h.size
     P = np.eye(L) if interpolation is None else np.asarray(interpolation, dtype=float)
     left, right = faces(N, periodic)
-    pointer, cells, values, mass = _entries(
+    K, Lp = L * left.size + L * N, P.shape[1]
+    pointer, mass = np.empty(K + 1, np.int64), np.empty(K)
+    cells, values = (
+        np.empty(_capacity(L, N, left.size, Lp), np.int64),
+        np.empty(_capacity(L, N, left.size, Lp)),
+    )
+    n = _entries(
         np.asarray(h, dtype=float), np.asarray(bed, dtype=float), np.asarray(fractions, dtype=float),
-        float(dx), left, right, P,
+        float(dx), left, right, P, np.ones(K, np.bool_), np.arange(Lp * N), pointer, cells, values, mass,
     )  # fmt: skip
+    cells, values = cells[:n], values[:n]
     return Constraint(pointer, cells, values, mass, left, right, (P.shape[1] * N, L * left.size + L * N))
 
 
@@ -177,14 +185,18 @@ def pressure_interpolation(fractions: np.ndarray, nodes: np.ndarray) -> np.ndarr
 
 
 @njit(cache=True)
-def _entries(h, bed, fractions, dx, left, right, P):
-    """``P^T E`` column by column (see :class:`Constraint`): in ``E``, ``F_c`` enters the
-    rows ``c`` and ``c + 1`` with 1/2; ``S_j`` (interface ``j``, its velocity ``vhat_j =
-    beta_j,c-1 v_c-1 + beta_j,c v_c`` weighted by the thicknesses) enters row 0 with -1/2
-    (``j`` = 0, 1), row ``j - 1`` with -1/2 (``j >= 2``) and row ``j + 1`` with +1/2;
-    ``wbar_a`` enters row ``a`` with +1 and row ``a + 1`` with -1.  Each entry of row ``a``
-    goes to the pressure rows ``g`` with ``P_a,g != 0``, times ``P_a,g`` (the identity:
-    ``E`` itself)."""
+def _entries(h, bed, fractions, dx, left, right, P, free, row_of, pointer, cells, values, mass):
+    """``P^T E`` column by column (see :class:`Constraint`) for the unknowns ``free`` (the
+    others have no entries) in the rows ``row_of[cell] >= 0`` (the entries in the others
+    are left out): each entry is stored with its row ``row_of[cell]``.  In ``E``, ``F_c``
+    enters the rows ``c`` and ``c + 1`` with 1/2; ``S_j`` (interface ``j``, its velocity
+    ``vhat_j = beta_j,c-1 v_c-1 + beta_j,c v_c`` weighted by the thicknesses) enters row 0
+    with -1/2 (``j`` = 0, 1), row ``j - 1`` with -1/2 (``j >= 2``) and row ``j + 1`` with
+    +1/2; ``wbar_a`` enters row ``a`` with +1 and row ``a + 1`` with -1.  Each entry of row
+    ``a`` goes to the pressure rows ``g`` with ``P_a,g != 0``, times ``P_a,g`` (the
+    identity: ``E`` itself).  Written into ``pointer``, ``cells`` (the rows), ``values``
+    (at least :func:`_capacity` long) and ``mass`` (``M``, of every unknown); returns the
+    number of entries."""
     L, N, F = fractions.size, h.size, left.size
     Lp = P.shape[1]
     targets = np.zeros(L, np.int64)  # the pressure rows of each row of E: first, count
@@ -207,14 +219,6 @@ def _entries(h, bed, fractions, dx, left, right, P):
         beta[j, j - 1], beta[j, j] = fractions[j] / total, fractions[j - 1] / total
     rows, weights = np.empty(3, np.int64), np.empty(3)
     touched_rows, at_left, at_right = np.empty(L, np.int64), np.empty(L), np.empty(L)
-    pointer = np.empty(L * F + L * N + 1, np.int64)
-    # at most the rows 0, c - 1, ..., c + 2 of E for a face unknown of layer c, and a, a + 1
-    # for wbar_a, each going to the pressure rows it has (1 or 2), in both columns of a face
-    spread = targets.max()
-    cells = np.empty(2 * min(Lp, 5 * spread) * L * F + min(Lp, 2 * spread) * L * N, np.int64)
-    values = np.empty(cells.size)
-    mass = np.empty(L * F + L * N)
-    slot = np.full(Lp * N, -1, np.int64)  # where the entry of a cell is, for the current unknown
     n = 0
     if Lp < L:
         # fewer pressure rows: the entries of a face unknown of layer c are, per pressure row
@@ -227,6 +231,9 @@ def _entries(h, bed, fractions, dx, left, right, P):
             i, e = left[f], right[f]
             h_face = fractions[c] * 0.5 * (h[i] + h[e])
             mass[k] = h_face
+            if not free[k]:
+                continue
+            # every entry of a face unknown is in a cell of its own (i != e)
             if Lp < L:
                 s0 = ((bed[e] + sigma[c] * h[e]) - (bed[i] + sigma[c] * h[i])) / dx
                 s1 = ((bed[e] + sigma[c + 1] * h[e]) - (bed[i] + sigma[c + 1] * h[i])) / dx
@@ -234,8 +241,8 @@ def _entries(h, bed, fractions, dx, left, right, P):
                 for g in range(lowest[c], highest[c] + 1):
                     a0, a1, fc = slopes[0, c, g], slopes[1, c, g], flux[c, g]
                     sloped = s0 * a0 + s1 * a1
-                    n = _add(cells, values, slot, n, g * N + i, ratio * fc + sloped)
-                    n = _add(cells, values, slot, n, g * N + e, sloped - ratio * fc)
+                    n = _store(cells, values, n, row_of[g * N + i], ratio * fc + sloped)
+                    n = _store(cells, values, n, row_of[g * N + e], sloped - ratio * fc)
             else:
                 touched = 0  # the rows of E this unknown enters, in the order they first come
                 for row in range(c, min(c + 2, L)):
@@ -250,24 +257,37 @@ def _entries(h, bed, fractions, dx, left, right, P):
                         value = weights[m] * 0.5 * beta[j, c] * slope
                         touched = _accumulate(touched_rows, at_left, at_right, touched, rows[m], value, value)
                 for t in range(touched):
-                    n = _add(cells, values, slot, n, touched_rows[t] * N + i, at_left[t])
-                    n = _add(cells, values, slot, n, touched_rows[t] * N + e, at_right[t])
-            for m in range(pointer[k], n):
-                slot[cells[m]] = -1
+                    n = _store(cells, values, n, row_of[touched_rows[t] * N + i], at_left[t])
+                    n = _store(cells, values, n, row_of[touched_rows[t] * N + e], at_right[t])
     for a in range(L):
         for i in range(N):
             k = L * F + a * N + i
             pointer[k] = n
             mass[k] = fractions[a] * h[i]
+            if not free[k]:
+                continue
             for g in range(first[a], first[a] + targets[a]):
-                n = _add(cells, values, slot, n, g * N + i, P[a, g])
+                n = _store(cells, values, n, row_of[g * N + i], P[a, g])
             if a + 1 < L:
                 for g in range(first[a + 1], first[a + 1] + targets[a + 1]):
-                    n = _add(cells, values, slot, n, g * N + i, -P[a + 1, g])
-            for m in range(pointer[k], n):
-                slot[cells[m]] = -1
+                    row = row_of[g * N + i]
+                    if row < 0:
+                        continue
+                    for m in range(pointer[k], n):  # the same row as one of wbar_a's: added
+                        if cells[m] == row:
+                            values[m] += -P[a + 1, g]
+                            break
+                    else:
+                        n = _store(cells, values, n, row, -P[a + 1, g])
     pointer[L * F + L * N] = n
-    return pointer, cells[:n], values[:n], mass
+    return n
+
+
+def _capacity(L: int, N: int, F: int, Lp: int) -> int:
+    """Entries of :func:`_entries` at most: the rows 0, c - 1, ..., c + 2 of ``E`` for a face
+    unknown of layer c, and a, a + 1 for ``wbar_a``, each going to the pressure rows it has
+    (1 or 2), in both columns of a face."""
+    return 2 * min(Lp, 10) * L * F + min(Lp, 4) * L * N
 
 
 @njit(cache=True)
@@ -328,23 +348,20 @@ def _accumulate(touched_rows, at_left, at_right, touched, row, left_value, right
 
 
 @njit(cache=True)
-def _add(cells, values, slot, n, cell, value):
-    """Add ``value`` to the entry of ``cell`` of the current unknown (``slot[cell]``, -1:
-    none yet, then a new entry at ``n``, in the order the cells first come); returns the
-    new end."""
-    if slot[cell] < 0:
-        slot[cell] = n
-        cells[n], values[n] = cell, value
-        return n + 1
-    values[slot[cell]] += value
-    return n
+def _store(rows, values, n, row, value):
+    """Store the entry ``value`` in ``row`` at ``n`` unless the row takes no part (``row <
+    0``); returns the new end."""
+    if row < 0:
+        return n
+    rows[n], values[n] = row, value
+    return n + 1
 
 
 @njit(cache=True)
-def _normal_equations(pointer, cells, values, mass, free, row_of, n, v_star):
+def _normal_equations(pointer, cells, values, mass, free, row_of, n, v_star, storage):
     """``A = E M^-1 E^T`` in band storage ``band[i, d] = A_i,i+d`` (``n`` rows, the band of
-    row ``i`` contiguous) and ``r = E V*``, over the free unknowns and the rows
-    ``row_of[cell] >= 0`` (module Notes)."""
+    row ``i`` contiguous; in ``storage`` if it is large enough) and ``r = E V*``, over the
+    free unknowns and the rows ``row_of[cell] >= 0`` (module Notes)."""
     width = 0
     for k in range(free.size):
         if not free[k]:
@@ -355,7 +372,10 @@ def _normal_equations(pointer, cells, values, mass, free, row_of, n, v_star):
             if row >= 0:
                 lo, hi = min(lo, row), max(hi, row)
         width = max(width, hi - lo)
-    band = np.zeros((n, width + 1))
+    if storage.size < n * (width + 1):
+        storage = np.empty(n * (width + 1))
+    band = storage[: n * (width + 1)].reshape((n, width + 1))
+    band[:] = 0.0
     r = np.zeros(n)
     rows, entries = np.empty(64, np.int64), np.empty(64)
     for k in range(free.size):
@@ -549,10 +569,10 @@ def _bounded(band, r, lam_max, active, max_iterations):
 
 
 @njit(cache=True)
-def _correct(pointer, cells, values, mass, free, row_of, lam):
-    """``dV = -M^-1 E^T lam`` on the free unknowns (zero elsewhere)."""
-    dV = np.zeros(free.size)
+def _correct(pointer, cells, values, mass, free, row_of, lam, dV):
+    """``dV = -M^-1 E^T lam`` on the free unknowns (zero elsewhere), into ``dV``."""
     for k in range(free.size):
+        dV[k] = 0.0
         if free[k]:
             s = 0.0
             for e in range(pointer[k], pointer[k + 1]):
@@ -571,6 +591,7 @@ def correction(
     lam_max: np.ndarray | None = None,
     active: np.ndarray | None = None,
     nodes: np.ndarray | None = None,
+    offset: int = 0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``V*``, the correction ``dV = -M^-1 E^T lam`` and the free unknowns, over the rows
     and unknowns of the moving cells (all vectors full length).
@@ -581,44 +602,104 @@ def correction(
     guess ``active`` (L_p, N) of the cells where the bound holds (none by default; updated
     in place to the final active set).  With pressure interfaces ``nodes`` (the velocity
     layers of :func:`pressure_nodes`; default every layer) ``E`` is the reduced ``P^T E``
-    and its row ``g`` takes part where the layer ``nodes[g]`` moves.
+    and its row ``g`` takes part where the layer ``nodes[g]`` moves.  The constraint's
+    columns are the columns ``offset ..`` of ``u`` and ``w`` (``moving`` has its N).
     """
-    L, N = u.shape
-    left, right = cons.left, cons.right
-    F = left.size
-    face_free = (moving[:, left] | moving[:, right]).ravel() & (cons.mass[: L * F] > 0)
-    free = np.concatenate([face_free, moving.ravel()])
-    constrained = moving if nodes is None else moving[nodes]
-    # rows column by column (cell a * N + i is row row_of[a * N + i]): A is then banded, of
-    # half-width about L_p + 3
-    column, layer = np.nonzero(constrained.T)
-    rows = layer * N + column
-    row_of = np.full(constrained.size, -1, dtype=np.int64)
-    row_of[rows] = np.arange(rows.size)
-    v_star = 0.5 * (u[:, left] + u[:, right])
-    V_star = np.concatenate([v_star.ravel(), np.where(moving, w, 0.0).ravel()])
-    band, r = _normal_equations(
-        cons.pointer, cons.cells, cons.values, cons.mass, free, row_of, rows.size, V_star
+    L, N = moving.shape
+    layers = np.arange(L) if nodes is None else nodes
+    K = cons.mass.size
+    free, V_star, row_of, rows = (
+        np.empty(K, np.bool_),
+        np.empty(K),
+        np.empty(layers.size * N, np.int64),
+        np.empty(layers.size * N, np.int64),
     )
-    if lam_max is None:
-        U = np.zeros(band.shape)
-        _factor(band, np.zeros(r.size, dtype=np.bool_), U, 0)
-        lam = _substitute(U, r)
-    else:
-        guess = np.zeros(rows.size, dtype=np.bool_) if active is None else active.ravel()[rows].copy()
-        lam, iterations = _bounded(band, r, lam_max.ravel()[rows], guess, MAX_ACTIVE_SET_ITERATIONS)
-        if iterations < 0:
-            raise RunError(
-                "the non-hydrostatic pressure bound p >= 0 was not settled in "
-                f"{MAX_ACTIVE_SET_ITERATIONS} active-set iterations"
-            )
-        if active is not None:
-            active.ravel()[rows] = guess
-    dV = _correct(cons.pointer, cons.cells, cons.values, cons.mass, free, row_of, lam)
+    n = _unknowns(cons.mass, cons.left, cons.right, moving, u, w, offset, layers, free, V_star, row_of, rows)
+    band, r = _normal_equations(
+        cons.pointer, cons.cells, cons.values, cons.mass, free, row_of, n, V_star, np.empty(0)
+    )
+    lam = _multipliers(band, r, rows[:n], lam_max, active)
+    dV = np.empty(K)
+    _correct(cons.pointer, cons.cells, cons.values, cons.mass, free, row_of, lam, dV)
     return V_star, dV, free
 
 
+def _multipliers(
+    band: np.ndarray, r: np.ndarray, rows: np.ndarray, lam_max: np.ndarray | None, active: np.ndarray | None
+) -> np.ndarray:
+    """``lam`` of :func:`correction` from ``A`` (band storage) and ``r = E V*`` on the rows
+    of the cells ``rows`` (``active`` updated in place)."""
+    if lam_max is None:
+        U = np.zeros(band.shape)
+        _factor(band, np.zeros(r.size, dtype=np.bool_), U, 0)
+        return _substitute(U, r)
+    guess = np.zeros(rows.size, dtype=np.bool_) if active is None else active.ravel()[rows]
+    lam, iterations = _bounded(band, r, lam_max.ravel()[rows], guess, MAX_ACTIVE_SET_ITERATIONS)
+    if iterations < 0:
+        raise RunError(
+            "the non-hydrostatic pressure bound p >= 0 was not settled in "
+            f"{MAX_ACTIVE_SET_ITERATIONS} active-set iterations"
+        )
+    if active is not None:
+        active.ravel()[rows] = guess
+    return lam
+
+
 MAX_ACTIVE_SET_ITERATIONS = 100
+
+
+@njit(cache=True)
+def _unknowns(mass, left, right, moving, u, w, offset, nodes, free, V_star, row_of, rows):
+    """The free unknowns (faces with a moving side and material, the moving cells' ``wbar``),
+    the row of each cell (-1: none; the moving pressure interfaces ``nodes``, column by
+    column: ``A`` is then banded, of half-width about ``L_p + 3``), the cells of the rows
+    and ``V*``, for the columns ``offset ..`` of ``u`` and ``w`` (see :func:`correction`),
+    into ``free``, ``V_star``, ``row_of`` and ``rows``; returns the number of rows."""
+    L, N = moving.shape
+    F, Lp = left.size, nodes.size
+    for c in range(L):
+        for f in range(F):
+            k = c * F + f
+            free[k] = (moving[c, left[f]] or moving[c, right[f]]) and mass[k] > 0.0
+            V_star[k] = 0.5 * (u[c, offset + left[f]] + u[c, offset + right[f]])
+    for a in range(L):
+        for i in range(N):
+            k = L * F + a * N + i
+            free[k] = moving[a, i]
+            V_star[k] = w[a, offset + i] if moving[a, i] else 0.0
+    n = 0
+    for i in range(N):
+        for g in range(Lp):
+            row_of[g * N + i] = -1
+            if moving[nodes[g], i]:
+                row_of[g * N + i] = n
+                rows[n] = g * N + i
+                n += 1
+    return n
+
+
+class _Buffers:
+    """The work arrays of :func:`project_columns` for ``L`` layers, ``N`` columns and ``Lp``
+    pressure layers."""
+
+    def __init__(self, L: int, N: int, Lp: int):
+        K = 2 * L * N  # the unknowns: at most N faces and N cells per layer
+        self.free, self.V_star, self.dV, self.mass = (
+            np.empty(K, np.bool_),
+            np.empty(K),
+            np.empty(K),
+            np.empty(K),
+        )
+        self.pointer = np.empty(K + 1, np.int64)
+        self.cells, self.values = np.empty(_capacity(L, N, N, Lp), np.int64), np.empty(_capacity(L, N, N, Lp))
+        self.row_of, self.rows, self.own = (
+            np.empty(Lp * N, np.int64),
+            np.empty(Lp * N, np.int64),
+            np.arange(Lp * N),
+        )
+        # a band of half-width below 2 Lp (the rows of two columns; wider: periodic ends, a new one)
+        self.band = np.empty(Lp * N * 2 * Lp)
+        self.du = np.empty(L * N)
 
 
 def project(
@@ -649,56 +730,113 @@ def project(
     ``tension_free`` (L, N) where it was zero the step before (:func:`tension_free`) start
     the active-set iteration (speed only: the answer does not depend on them).
     """
+    u_new, w_new, q = u.copy(), np.zeros(w.shape), np.zeros(u.shape)
+    project_columns(
+        h, u, w, bed, fractions, (u_new, w_new, q), dx=dx, dt=dt, periodic=periodic, dry=dry, g_n=g_n,
+        tension_free=tension_free, pressure_layers=pressure_layers,
+    )  # fmt: skip
+    return u_new, w_new, q
+
+
+def project_columns(
+    h: np.ndarray,
+    u: np.ndarray,
+    w: np.ndarray,
+    bed: np.ndarray,
+    fractions: np.ndarray,
+    out: tuple[np.ndarray, np.ndarray, np.ndarray],
+    *,
+    dx: float,
+    dt: float,
+    periodic: bool = False,
+    dry: float = 0.0,
+    g_n: float | None = None,
+    tension_free: np.ndarray | None = None,
+    pressure_layers: int | None = None,
+    buffers: _Buffers | None = None,
+) -> tuple[int, int]:
+    """:func:`project` into ``out`` (u, w, q; L, N), written in the columns ``lo .. hi-1``
+    it returns only, those of the moving material and one column at rest on each side (the
+    faces beyond join cells at rest and carry no correction; every column if periodic):
+    ``out`` must hold ``u`` and zeros elsewhere (the answer there).  ``(0, 0)``: nothing
+    moves.
+    ``buffers``: the work arrays of the shape of ``u`` and these pressure layers (reused
+    from call to call: a new array touched afresh costs a page fault per 4 KiB)."""
     L, N = u.shape
     first, last = _moving_columns(u, h, dry)
     if last < 0:
-        return u.copy(), np.zeros(w.shape), np.zeros(u.shape)
-    lo, hi = max(first - 1, 0), min(last + 2, N)
-    if not periodic and (lo > 0 or hi < N):
-        # only the moving material and one column at rest on each side take part: the
-        # faces beyond join cells at rest and carry no correction
-        window = slice(lo, hi)
-        u_new, w_new, q = u.copy(), np.zeros(w.shape), np.zeros(u.shape)
-        u_new[:, window], w_new[:, window], q[:, window] = project(
-            h[window],
-            u[:, window],
-            w[:, window],
-            bed[window],
-            fractions,
-            dx=dx,
-            dt=dt,
-            dry=dry,
-            g_n=g_n,
-            tension_free=None if tension_free is None else tension_free[:, window],
-            pressure_layers=pressure_layers,
-        )
-        return u_new, w_new, q
-    moving = (u != 0.0) & (h > dry)[None, :]
-    nodes = interpolation = None
-    if pressure_layers is not None and pressure_layers != L:
-        nodes, interpolation = _pressure_layers(tuple(fractions), pressure_layers)
-    cons = constraint(np.where(h > dry, h, 0.0), bed, fractions, dx, periodic, interpolation)
-    left, right = cons.left, cons.right
-    F = left.size
+        return 0, 0
+    lo, hi = (0, N) if periodic else (max(first - 1, 0), min(last + 2, N))
+    window = slice(lo, hi)
+    moving = _moving(u, h, dry, lo, hi)
+    nodes, P = _pressure_layers(tuple(fractions), L if pressure_layers is None else pressure_layers)
     lam_max = active = None
     if g_n is not None:
         # the bound at the pressure interfaces holds on every interface: both sides are
         # linear in sigma between them
-        lam_max = dt * g_n * depth_below(h, fractions)
-        active = np.zeros_like(moving) if tension_free is None else tension_free.copy()
-        if nodes is not None:
-            lam_max, active = lam_max[nodes], active[nodes]
-    _, dV, _ = correction(cons, moving, u, w, lam_max, active, nodes)
-    dv = dV[: L * F].reshape(L, F)
-    dw = dV[L * F :].reshape(L, N)
-    du = np.zeros_like(u)
-    half = 0.5 * dv
-    du[:, left] += half  # each column is the left of one face at most, and the right of one
-    du[:, right] += half
-    u_new = np.where(moving, u + du, u)
-    w_new = np.where(moving, w + dw, 0.0)
-    q = np.cumsum((fractions[:, None] * h * dw)[::-1], axis=0)[::-1] / dt
-    return u_new, w_new, q
+        lam_max = dt * g_n * (_depth_factors(fractions)[nodes, None] * h[window])
+        active = np.zeros(lam_max.shape, np.bool_) if tension_free is None else tension_free[nodes, window]
+    # the constraint of the free unknowns in the rows taking part only (``correction`` on
+    # ``constraint``, without the rest), in arrays reused from call to call
+    buffers = _Buffers(L, N, nodes.size) if buffers is None else buffers
+    thickness = np.where(h[window] > dry, h[window], 0.0)
+    left, right = faces(hi - lo, periodic)
+    face_mass = (fractions[:, None] * 0.5 * (thickness[left] + thickness[right])).ravel()
+    K = L * left.size + L * (hi - lo)
+    free, V_star, dV, mass = buffers.free[:K], buffers.V_star[:K], buffers.dV[:K], buffers.mass[:K]
+    row_of = buffers.row_of[: nodes.size * (hi - lo)]
+    n = _unknowns(face_mass, left, right, moving, u, w, lo, nodes, free, V_star, row_of, buffers.rows)
+    pointer, entry_rows, values = buffers.pointer[: K + 1], buffers.cells, buffers.values
+    _entries(
+        thickness, bed[window], fractions, dx, left, right, P, free, row_of, pointer, entry_rows, values, mass
+    )
+    own = buffers.own[:n]  # the entries are in rows already
+    band, r = _normal_equations(pointer, entry_rows, values, mass, free, own, n, V_star, buffers.band)
+    lam = _multipliers(band, r, buffers.rows[:n], lam_max, active)
+    _correct(pointer, entry_rows, values, mass, free, own, lam, dV)
+    _finish(dV, u, w, h, fractions, moving, left, right, dt, lo, buffers.du, *out)
+    return lo, hi
+
+
+@njit(cache=True)
+def _moving(u, h, dry, lo, hi):
+    """The cells (L, hi - lo) of the columns ``lo .. hi-1`` that take part: ``u != 0`` where
+    ``h > dry``."""
+    moving = np.empty((u.shape[0], hi - lo), np.bool_)
+    for a in range(u.shape[0]):
+        for i in range(lo, hi):
+            moving[a, i - lo] = u[a, i] != 0.0 and h[i] > dry
+    return moving
+
+
+@njit(cache=True)
+def _finish(dV, u, w, h, fractions, moving, left, right, dt, lo, storage, u_out, w_out, q_out):
+    """The projected ``u`` (each column the mean of the corrections of its two faces), ``w``
+    and the pressures ``q_a = sum_{b >= a} h_b dw_b / dt`` of the columns ``lo ..`` (as many
+    as ``moving`` has) into ``u_out``, ``w_out`` and ``q_out`` (module Notes); ``storage``
+    holds the changes of ``u`` (at least L N long)."""
+    L, N = moving.shape
+    F = left.size
+    du = storage[: L * N].reshape((L, N))
+    du[:] = 0.0
+    for c in range(L):
+        for f in range(F):
+            half = 0.5 * dV[c * F + f]
+            du[c, left[f]] += half  # each column is the left of one face at most, and the right of one
+            du[c, right[f]] += half
+    for a in range(L):
+        for i in range(N):
+            if moving[a, i]:
+                u_out[a, lo + i] = u[a, lo + i] + du[a, i]
+                w_out[a, lo + i] = w[a, lo + i] + dV[L * F + a * N + i]
+            else:
+                u_out[a, lo + i] = u[a, lo + i]
+                w_out[a, lo + i] = 0.0
+    for i in range(N):
+        total = 0.0
+        for a in range(L - 1, -1, -1):
+            total += fractions[a] * h[lo + i] * dV[L * F + a * N + i]
+            q_out[a, lo + i] = total / dt
 
 
 @njit(cache=True)
@@ -718,14 +856,14 @@ def _moving_columns(u, h, dry):
 
 
 @njit(cache=True)
-def advect(w: np.ndarray, u: np.ndarray, dx: float, dt: float, periodic: bool) -> np.ndarray:
+def _advect(w, u, dx, dt, periodic, lo, hi, out):
     """First-order upwind transport of the layer vertical velocities by the layer
-    velocities, ``d_t w + u d_x w = 0`` (zero-gradient ends unless periodic)."""
+    velocities, ``d_t w + u d_x w = 0`` (zero-gradient ends unless periodic), into the
+    columns ``lo .. hi-1`` of ``out``."""
     L, N = w.shape
-    out = np.empty_like(w)
     ratio = dt / dx
     for a in range(L):
-        for i in range(N):
+        for i in range(lo, hi):
             here, speed = w[a, i], u[a, i]
             if speed > 0.0:
                 west = w[a, i - 1] if i > 0 else (w[a, N - 1] if periodic else here)
@@ -735,7 +873,6 @@ def advect(w: np.ndarray, u: np.ndarray, dx: float, dt: float, periodic: bool) -
                 out[a, i] = here - ratio * (speed * (east - here))
             else:
                 out[a, i] = here
-    return out
 
 
 def depth_below(h: np.ndarray, fractions: np.ndarray) -> np.ndarray:
@@ -748,34 +885,108 @@ def _depth_factors(fractions: np.ndarray) -> np.ndarray:
     return 1.0 - np.concatenate([[0.0], np.cumsum(fractions)[:-1]])
 
 
-def tension_free(q: np.ndarray, h: np.ndarray, fractions: np.ndarray, g_n: float) -> np.ndarray:
+def tension_free(
+    q: np.ndarray, h: np.ndarray, fractions: np.ndarray, g_n: float, columns: tuple[int, int] | None = None
+) -> np.ndarray:
     """Interfaces (L, N) where the total pressure ``g_n (h - z) + q`` of a projection is
     zero (to round-off: the bound ``p >= 0`` was active there), ``h`` being the thickness
-    the pressures ``q`` were computed with."""
-    return _tension_free(q, h, _depth_factors(fractions), g_n)
+    the pressures ``q`` were computed with; ``columns`` (lo, hi): ``q`` is zero outside
+    the columns ``lo .. hi-1`` (where none is, for ``g_n > 0``)."""
+    lo, hi = (0, q.shape[1]) if columns is None else columns
+    out = np.zeros(q.shape, np.bool_)
+    _tension_free(q, h, _depth_factors(fractions), g_n, lo, hi, out)
+    return out
 
 
 @njit(cache=True)
-def _tension_free(q, h, factors, g_n):
-    out = np.zeros(q.shape, np.bool_)
+def _tension_free(q, h, factors, g_n, lo, hi, out):
     for a in range(q.shape[0]):
-        for i in range(q.shape[1]):
+        for i in range(lo, hi):
             depth = factors[a] * h[i]
             out[a, i] = depth > 0.0 and g_n * depth + q[a, i] <= 1e-9 * g_n * depth
-    return out
-
-
-def yield_gravity(q: np.ndarray, h: np.ndarray, fractions: np.ndarray, g_n: float) -> np.ndarray:
-    """Normal gravity ``G_k`` (L, N) of the interface pressures with the non-hydrostatic part,
-    ``rho G_k (h - z_k) = rho g cos(theta) (h - z_k) + rho q_k``, never negative."""
-    return _yield_gravity(q, h, _depth_factors(fractions), g_n)
 
 
 @njit(cache=True)
-def _yield_gravity(q, h, factors, g_n):
-    out = np.empty(q.shape)
+def _yield_gravity(q, h, factors, g_n, lo, hi, out):
+    """Normal gravity ``G_k`` of the interface pressures with the non-hydrostatic part,
+    ``rho G_k (h - z_k) = rho g cos(theta) (h - z_k) + rho q_k``, never negative, into the
+    columns ``lo .. hi-1`` of ``out`` (``factors``: :func:`_depth_factors`)."""
     for a in range(q.shape[0]):
-        for i in range(q.shape[1]):
+        for i in range(lo, hi):
             depth = factors[a] * h[i]
             out[a, i] = max(g_n + (q[a, i] / depth if depth > 0.0 else 0.0), 0.0)
-    return out
+
+
+class Projection:
+    """The non-hydrostatic part of a simulation's step (``w`` advected by the vertical
+    step's velocities, then :func:`project_columns`) and the normal gravity of the yield
+    stresses, into arrays (L, N) reused from step to step: every
+    array is written in the columns holding material only (the rest kept zero, or
+    ``g cos(theta)``), so a step's cost follows the material, not the domain."""
+
+    def __init__(
+        self,
+        fractions: np.ndarray,
+        bed: np.ndarray,
+        *,
+        dx: float,
+        periodic: bool,
+        dry: float,
+        g_n: float,
+        pressure_layers: int | None,
+    ):
+        self.fractions, self.bed = fractions, bed
+        self.dx, self.periodic, self.dry, self.g_n = dx, periodic, dry, g_n
+        self.pressure_layers = pressure_layers
+        shape = (fractions.size, bed.size)
+        self.u, self.w, self.q = np.zeros(shape), np.zeros(shape), np.zeros(shape)
+        self._w_star = np.zeros(shape)  # read at the moving cells only
+        self._buffers = _Buffers(
+            *shape, _pressure_layers(tuple(fractions), pressure_layers or shape[0])[0].size
+        )
+        self._gravity = np.full(shape, max(g_n, 0.0))
+        self._written = (0, 0)  # the columns of u, w, q written by the last call
+        self._gravity_written = (0, 0)
+
+    def __call__(
+        self,
+        h: np.ndarray,
+        u: np.ndarray,
+        w: np.ndarray,
+        q: np.ndarray,
+        h_before: np.ndarray,
+        dt: float,
+        columns: tuple[int, int],
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The projected ``u``, ``w`` and the pressures ``q`` (overwritten by the next call)
+        of the vertical step's velocities ``u`` on the thickness ``h``, from the state's
+        ``w`` and ``q`` (on ``h_before``; both zero outside the columns ``columns``).  ``u``
+        is zero outside the columns holding material (the vertical step zeroes them)."""
+        lo, hi = span(h)
+        start, stop = self._written
+        self.u[:, start:stop] = 0.0
+        self.w[:, start:stop] = 0.0
+        self.q[:, start:stop] = 0.0
+        self.u[:, lo:hi] = u[:, lo:hi]
+        # only the moving cells take part, in the columns holding material
+        _advect(w, u, self.dx, dt, self.periodic, lo, hi, self._w_star)
+        first, last = project_columns(
+            h, u, self._w_star, self.bed, self.fractions, (self.u, self.w, self.q), dx=self.dx, dt=dt,
+            periodic=self.periodic, dry=self.dry, g_n=self.g_n,
+            tension_free=tension_free(q, h_before, self.fractions, self.g_n, columns),
+            pressure_layers=self.pressure_layers, buffers=self._buffers,
+        )  # fmt: skip
+        self._written = (min(lo, first), max(hi, last)) if last > first else (lo, hi)
+        return self.u, self.w, self.q
+
+    def yield_gravity(self, q: np.ndarray, h: np.ndarray, columns: tuple[int, int]) -> np.ndarray:
+        """Normal gravity ``G_k`` (L, N) of the interface pressures with the non-hydrostatic
+        part of ``q`` (zero outside the columns ``columns``) on the thickness ``h``,
+        ``rho G_k (h - z_k) = rho g cos(theta) (h - z_k) + rho q_k``, never negative
+        (overwritten by the next call)."""
+        start, stop = self._gravity_written
+        self._gravity[:, start:stop] = max(self.g_n, 0.0)
+        lo, hi = columns
+        _yield_gravity(q, h, _depth_factors(self.fractions), self.g_n, lo, hi, self._gravity)
+        self._gravity_written = columns
+        return self._gravity

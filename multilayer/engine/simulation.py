@@ -134,6 +134,22 @@ class Simulation:
         # the plugs (layers locked together) that the per-layer corrections would break
         # (the other pressures seed it with u itself: the same array, never copied)
         self.newton_seed = self.u.copy() if self.pressure == "non_hydrostatic" else self.u
+        # the columns lo .. hi-1 outside which w, q and the seed are zero (the material of the
+        # last step: the projection and the vertical step change nothing beyond it)
+        self._projected = (0, dom.cells)
+        self.projection = (
+            nonhydrostatic.Projection(
+                self.fractions,
+                self.bed,
+                dx=self.dx,
+                periodic=self.left == "periodic",
+                dry=sc.numerics.dry_threshold,
+                g_n=self.g_n,
+                pressure_layers=self.pressure_layers,
+            )
+            if self.pressure == "non_hydrostatic"
+            else None
+        )
         # per-step masks, allocated once: columns that move at the start of the step and
         # during it (material at rest set moving), layers of material at rest
         self._moving_start = np.zeros(dom.cells, dtype=bool)
@@ -198,8 +214,9 @@ class Simulation:
             h_new, u_new, w_new, q_new, seed, iterations = self._transport_with_starting_columns(dt)
             # the vertical step zeroes the velocities of the columns without material: the
             # columns lo .. hi-1 (the first to the last with h > 0) hold every non-zero
-            # velocity of the step's end (not so after the non-hydrostatic projection)
-            lo, hi = (0, self.h.size) if projected else transport_kernel.span(h_new)
+            # velocity of the step's end (the non-hydrostatic projection changes only the
+            # moving cells, and w and q are zero elsewhere)
+            lo, hi = transport_kernel.span(h_new)
             # the Courant condition must hold for the waves of the step's end as well: material
             # accelerated from (near) rest within one step (gravity on a steep slope) would put
             # the second Heun stage past the positivity limit; redo with the faster waves
@@ -213,7 +230,10 @@ class Simulation:
         if projected:
             for values, name in ((w_new, "vertical velocity w"), (q_new, "non-hydrostatic pressure q")):
                 self.guard.check_finite(
-                    values, name, lambda: f"after the step from t = {self.t:.6g} s (dt = {dt:.3g} s)"
+                    values,
+                    name,
+                    lambda: f"after the step from t = {self.t:.6g} s (dt = {dt:.3g} s)",
+                    (lo, hi),
                 )
         self.h[...] = h_new
         # the velocities are zero outside the columns that moved at the start (the survey
@@ -221,11 +241,12 @@ class Simulation:
         first, last = transport_kernel.span(self._moving_start)
         first, last = (lo, hi) if first == last else (min(first, lo), max(last, hi))
         self.u[:, first:last] = u_new[:, first:last]
-        if projected:  # the non-hydrostatic state (kept as it is otherwise)
-            self.w[...] = w_new
-            self.q[...] = q_new
-        if self.newton_seed is not self.u:
-            self.newton_seed[...] = seed
+        if projected:  # the non-hydrostatic state (kept as it is otherwise), zero outside lo .. hi-1
+            start, stop = min(self._projected[0], lo), max(self._projected[1], hi)
+            self.w[:, start:stop] = w_new[:, start:stop]
+            self.q[:, start:stop] = q_new[:, start:stop]
+            self.newton_seed[:, start:stop] = seed[:, start:stop]
+            self._projected = (lo, hi)
         self.newton_iterations += iterations
         self.steps += 1
         # land exactly on t_max when the step was cut to reach it
@@ -309,8 +330,8 @@ class Simulation:
                 base_slip=self.base_slip,
                 dry=self.numerics.dry_threshold,
             )
-        elif self.pressure == "non_hydrostatic":
-            yield_gravity = nonhydrostatic.yield_gravity(self.q, h_new, self.fractions, self.g_n)
+        elif self.projection is not None:
+            yield_gravity = self.projection.yield_gravity(self.q, h_new, self._projected)
         # the seed changes the Newton work, not the answer: where the unprojected seed does
         # not converge, the step is solved again from u (as the other pressures are)
         seeds = [self.newton_seed, self.u] if self.pressure == "non_hydrostatic" else [self.u]
@@ -341,25 +362,9 @@ class Simulation:
     def _project(self, h_new: np.ndarray, u_new: np.ndarray, dt: float) -> tuple[np.ndarray, ...]:
         """With the non-hydrostatic pressure, the projection of the vertical step's velocities
         ``u_new`` (returns u, w, q); the other pressures keep them."""
-        if self.pressure != "non_hydrostatic":
+        if self.projection is None:
             return u_new, self.w, self.q
-        periodic = self.left == "periodic"
-        w_star = nonhydrostatic.advect(self.w, u_new, self.dx, dt, periodic)
-        projected, w_new, q_new = nonhydrostatic.project(
-            h_new,
-            u_new,
-            w_star,
-            self.bed,
-            self.fractions,
-            dx=self.dx,
-            dt=dt,
-            periodic=periodic,
-            dry=self.numerics.dry_threshold,
-            g_n=self.g_n,
-            tension_free=nonhydrostatic.tension_free(self.q, self.h, self.fractions, self.g_n),
-            pressure_layers=self.pressure_layers,
-        )
-        return projected, w_new, q_new
+        return self.projection(h_new, u_new, self.w, self.q, self.h, dt, self._projected)
 
     def advance(self, t_target: float, on_step: Callable[[Simulation, float], None] | None = None) -> None:
         """Step until ``t == t_target``; ``on_step(sim, dt)`` is called after every step."""
@@ -408,5 +413,6 @@ class Simulation:
         self.q[...] = state.get("q", 0.0)
         if self.newton_seed is not self.u:
             self.newton_seed[...] = state.get("newton_seed", self.u)
+            self._projected = (0, self.h.size)
         self.guard.check_state(self.h, self.u, f"in the restored state at t = {self.t:.6g} s")
         self.guard.reset(self.h, self.steps)

@@ -129,11 +129,19 @@ class StateGuard:
             raise StateError(f"negative thickness h = {h[j]:.6g} m at x = {self.x[j]:.6g} m {when}")
         self._check_layers(u, "velocity u", when)
 
-    def check_finite(self, values: np.ndarray, name: str, when: str | Callable[[], str]) -> None:
+    def check_finite(
+        self,
+        values: np.ndarray,
+        name: str,
+        when: str | Callable[[], str],
+        columns: tuple[int, int] | None = None,
+    ) -> None:
         """Raise :class:`StateError` naming ``name`` unless every value of the layer field
         ``values`` (L, N) is finite (the vertical velocity and pressure of the
-        non-hydrostatic state)."""
-        if not _finite(_bits(values), 0, values.shape[1]):
+        non-hydrostatic state); ``columns`` (lo, hi): ``values`` is zero outside the
+        columns ``lo .. hi-1`` by construction, and is checked in them only."""
+        lo, hi = (0, values.shape[1]) if columns is None else columns
+        if not _finite(_bits(values), lo, hi):
             self._check_layers(values, name, when if isinstance(when, str) else when())
 
     def _check_layers(self, values: np.ndarray, name: str, when: str) -> None:

@@ -1,21 +1,38 @@
-"""How many threads the compiled kernels use: never more than the machine has idle.
+"""How many threads the compiled kernels use, and how their work is shared.
 
-A parallel kernel on a core that another process also wants does not run in parallel:
-its threads wait for each other at every join, so a run beside one busy process on two
-cores took 2.5 times as long with two threads as with one (docs/performance.md,
-"Threads").  The policy, in this order:
+A parallel kernel on a core that another process also wants runs at the pace of its
+slowest thread when the work is split once, one piece per thread: the thread that shares
+its core with the other process finishes last while the others wait at the join.  A run
+beside one busy process on two cores took 2.5 times as long with two threads as with one
+(docs/performance.md, "Threads").  Two things prevent it:
 
-1. the environment variable ``MULTILAYER_THREADS`` (a positive integer) wins;
-2. then the scenario key ``numerics.threads`` (a positive integer, or ``auto``);
-3. ``auto``: one thread for steps smaller than ``PARALLEL_CELLS`` cells (a parallel
-   launch costs more than it gains), otherwise as many threads as there are cores left
-   idle by the other processes, measured from ``/proc/stat`` minus this process's own CPU
-   time over the last ``REFRESH`` seconds (one thread until the first measurement, and
-   where ``/proc/stat`` does not exist).
+- **Work stealing.**  Every parallel kernel cuts its work into :func:`parallel_chunks`
+  (``CHUNKS_PER_THREAD`` per thread) handed out one at a time, and numba's TBB threading
+  layer (Intel oneTBB's work-stealing scheduler) lets an idle thread take the chunks a
+  slower one has not started.  The ``tbb`` package ships ``libtbb`` in the environment's
+  ``lib`` directory, where numba's TBB layer does not look; :func:`load_tbb` loads it
+  before the first parallel kernel is compiled, so that numba finds it (its default layer
+  priority is TBB, then OpenMP, then its own work queue).  Without TBB (``tbb`` not
+  installed, or ``NUMBA_THREADING_LAYER`` naming another layer), OpenMP or numba's work
+  queue hand the chunks out in fixed blocks, one per thread.
+- **The thread count.**  In this order:
+
+  1. the environment variable ``MULTILAYER_THREADS`` (a positive integer) wins;
+  2. then the scenario key ``numerics.threads`` (a positive integer, or ``auto``);
+  3. ``auto``: one thread for steps smaller than ``PARALLEL_CELLS`` cells (a parallel
+     launch costs more than it gains); otherwise, with work stealing, every core this
+     process may run on (beside a busy process two threads still get a fair share of
+     both cores, more than one thread gets); without it, as many threads as there are
+     cores left idle by the other processes, measured from ``/proc/stat`` minus this
+     process's own CPU time over the last ``REFRESH`` seconds (one thread until the first
+     measurement, and where ``/proc/stat`` does not exist).
 """
 
 from __future__ import annotations
 
+import ctypes
+import functools
+import importlib.metadata
 import os
 import time
 import types
@@ -30,6 +47,43 @@ PARALLEL_CELLS = 200_000
 """Steps on fewer cells than this run on one thread (see docs/performance.md)."""
 REFRESH = 0.5
 """Seconds between two measurements of the idle cores."""
+CHUNKS_PER_THREAD = 8
+"""Pieces of work per thread of a parallel kernel, handed out one at a time."""
+
+
+@functools.cache
+def load_tbb() -> bool:
+    """Load the ``libtbb`` of the installed ``tbb`` package (once), so that numba's TBB
+    threading layer can start (numba's extension finds it only on the loader's path);
+    called before the first parallel kernel is compiled.  True if loaded; False where the
+    package or its library is missing."""
+    try:
+        files = importlib.metadata.files("tbb") or []
+    except importlib.metadata.PackageNotFoundError:
+        return False
+    for file in files:
+        if file.name.startswith("libtbb.so."):
+            try:
+                ctypes.CDLL(str(file.locate()), mode=ctypes.RTLD_GLOBAL)
+            except OSError:
+                return False
+            return True
+    return False
+
+
+def steals_work() -> bool:
+    """Whether numba's threading layer is TBB (it starts the layer if not started)."""
+    import numba
+
+    load_tbb()
+    numba.get_num_threads()  # starts the threading layer
+    return bool(numba.threading_layer() == "tbb")
+
+
+def parallel_chunks(threads: int, items: int, smallest: int = 1) -> int:
+    """How many pieces a parallel kernel cuts ``items`` into for ``threads`` threads:
+    ``CHUNKS_PER_THREAD`` per thread, of at least ``smallest`` items each."""
+    return max(1, min(CHUNKS_PER_THREAD * threads, items // smallest))
 
 
 def parallel_compiled(function: Callable, **options: Any) -> Any:
@@ -43,6 +97,7 @@ def parallel_compiled(function: Callable, **options: Any) -> Any:
     of the function named ``<name>_parallel``."""
     from numba import njit
 
+    load_tbb()
     name = f"{function.__name__}_parallel"
     qualname = f"{function.__qualname__}_parallel"
     code = function.__code__.replace(co_name=name, co_qualname=qualname)
@@ -96,6 +151,7 @@ class ThreadPolicy:
         self.fixed = requested(setting)
         self.cores = available_cores()
         self.idle = 1  # until measured
+        self._steals: bool | None = None  # steals_work(), asked at the first large step
         self._last: tuple[float, float | None, float] | None = None
         self.chosen: Counter[int] = Counter()  # steps run with each thread count
 
@@ -118,12 +174,18 @@ class ThreadPolicy:
         elif cells < PARALLEL_CELLS:
             count = 1
         else:
-            self._measure()
-            count = self.idle
+            if self._steals is None:
+                self._steals = steals_work()
+            if self._steals:
+                count = self.cores
+            else:
+                self._measure()
+                count = self.idle
         if count > 1:
             import numba
 
             count = min(count, numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
             numba.set_num_threads(count)
+            numba.set_parallel_chunksize(1)  # each prange iteration (a chunk) a task of its own
         self.chosen[count] += 1
         return count

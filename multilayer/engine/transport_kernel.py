@@ -13,7 +13,8 @@ over the tile's columns: the rows of the (L, N) state are read and written in co
 runs, and the work arrays of a tile stay in the L2 cache whatever the mesh size.  So the
 only arrays the size of the mesh are the state, the intermediate Heun state and the
 result.  The window is cut into chunks of columns that are swept independently (the
-face between two chunks or tiles is computed by both, identically), one chunk per thread.
+face between two chunks or tiles is computed by both, identically), handed out to the
+threads one at a time (``threads.parallel_chunks``).
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from multilayer.engine.threads import parallel_compiled
+from multilayer.engine.threads import parallel_chunks, parallel_compiled
 from multilayer.engine.transport import MARGIN, step_boundary_mass
 
 WALL, OUTFLOW, INFLOW, PERIODIC = 0, 1, 2, 3
@@ -425,7 +426,7 @@ def _stages(
     chunks, order, n, lo, left, right, at_rest, H, U, B, Q1, H1, l, dx, dt, g_n, g_t, dry,
     inflow_h, inflow_u, gate_face, opening, H_out, U_out, ends,
 ):  # fmt: skip
-    """Both stages over the window in ``chunks`` independent pieces (one per thread), each
+    """Both stages over the window in ``chunks`` independent pieces (taken by the threads in turn), each
     swept in tiles of about ``TILE`` cells."""
     T = max(8, TILE // l.size)
     for stage in range(order):
@@ -602,7 +603,8 @@ def transport(
     """``transport.transport`` compiled: returns h^{n+1} (N,) and u* (L, N).
 
     The result lives in ``workspace`` (a new one when None) and is overwritten by its
-    next use.  ``threads > 1`` sweeps that many chunks of the window in parallel.
+    next use.  ``threads > 1`` sweeps the window in chunks of at least 64 columns
+    (``threads.parallel_chunks``) on that many threads.
     ``boundary_mass`` (2,), if given, receives the mass that crossed the left and the
     right boundary, positive in +x (as ``transport.transport``).
     """
@@ -624,7 +626,7 @@ def transport(
     if opening is not None and gate_face is not None and lo <= gate_face <= hi:
         gate = gate_face - lo
     opening = np.asarray(opening, dtype=float) if gate >= 0 else np.zeros(L)
-    chunks = min(threads, max(n // 64, 1))
+    chunks = parallel_chunks(threads, n, 64) if threads > 1 else 1
     stages = _stages_parallel if chunks > 1 else _stages_serial
     stages(
         chunks, order, n, lo, left_kind, right_kind, at_rest,
