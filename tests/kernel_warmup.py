@@ -85,12 +85,11 @@ def _numpy_path() -> None:
 
 def _projection() -> None:
     """The non-hydrostatic projection alone (its kernels need no other task's)."""
-    from multilayer.engine import nonhydrostatic
-
     sim = _collapse(model=NON_HYDROSTATIC)
+    assert sim.projection is not None
     u = np.where(sim.h > 0, np.linspace(0.1, 1.0, sim.u.shape[0])[:, None], 0.0)
     sim._project(sim.h, u, 1e-3)
-    nonhydrostatic.yield_gravity(sim.q, sim.h, sim.fractions, sim.g_n)
+    sim.projection.yield_gravity(sim.q, sim.h, sim._projected)
 
 
 def _steps(**changes) -> None:

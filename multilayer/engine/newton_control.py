@@ -65,6 +65,8 @@ exact), and where every Newton step lowers ``E`` the iteration is the plain one.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numba import njit
 
@@ -175,10 +177,9 @@ def examine_columns(
     functions, the one of the compiled step (``newton_kernel``), serves every layout."""
     rows = [np.ascontiguousarray(np.transpose(a), dtype=float) for a in (inertia, momentum, kappa, viscous)]
     rows += [np.ascontiguousarray(np.transpose(a), dtype=float) for a in (w, wall_viscous, start, u)]
-    return _examine_rows(*rows, np.ascontiguousarray(np.moveaxis(at_start, 2, 0), dtype=float))
+    return _examine_compiled(*rows, np.ascontiguousarray(np.moveaxis(at_start, 2, 0), dtype=float))
 
 
-@njit(cache=True)
 def _examine_rows(inertia, momentum, kappa, viscous, w, wall_viscous, start, u, at_start):
     """:func:`examine_columns` on (N, L) arrays and ``at_start`` (N, 4, L)."""
     n = inertia.shape[0]
@@ -188,3 +189,6 @@ def _examine_rows(inertia, momentum, kappa, viscous, w, wall_viscous, start, u, 
         bounds[j] = error_bound(*args, u[j])
         rises[j] = energy_rise(*args, start[j], u[j], at_start[j])
     return bounds, rises
+
+
+_examine_compiled: Any = njit(cache=True)(_examine_rows)
