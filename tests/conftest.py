@@ -8,10 +8,28 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import kernel_warmup
 import pytest
 import yaml
 
 from multilayer.app.cli import main
+
+WARM_UP_ITEMS = 100
+"""A run of at least this many tests on two or more xdist workers compiles the numba
+kernels first, each kernel in one worker (tests/kernel_warmup.py)."""
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    worker = getattr(session.config, "workerinput", None)
+    if worker and worker["workercount"] > 1 and len(session.items) >= WARM_UP_ITEMS:
+        kernel_warmup.warm_up(kernel_warmup.directory(worker["testrunuid"]))
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    worker = getattr(config, "workerinput", None)
+    if worker:
+        kernel_warmup.remove(kernel_warmup.directory(worker["testrunuid"]))
+
 
 TINY_SCENARIO: dict[str, Any] = {
     "name": "tiny",

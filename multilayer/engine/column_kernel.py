@@ -35,6 +35,9 @@ from multilayer.engine.threads import parallel_chunks, parallel_compiled
 from multilayer.errors import RunError
 
 INF = np.inf
+RELATION = "float64[::1], float64[::1], int64, float64, float64"
+"""Argument types of a relation (X, Y, vertex count, end slopes): declared, so that a count
+passed as a constant (typed as that literal value) does not compile another copy."""
 
 
 @njit(cache=True)
@@ -47,7 +50,7 @@ def _between(x0, y0, x1, y1, x):
     return y1 - (x1 - x) / (x1 - x0) * (y1 - y0)
 
 
-@njit(cache=True)
+@njit(f"({RELATION}, float64, int64)", cache=True)
 def _at(X, Y, n, sl, sr, x, i):
     """Interval [lo, hi] of the relation at ``x``, scanning from vertex ``i``.
 
@@ -73,7 +76,7 @@ def _at(X, Y, n, sl, sr, x, i):
     return lo, hi, i
 
 
-@njit(cache=True)
+@njit(f"({RELATION}, {RELATION}, float64[::1], float64[::1])", cache=True)
 def _add(X1, Y1, n1, sl1, sr1, X2, Y2, n2, sl2, sr2, Xo, Yo):
     """Sum of two maximal monotone relations; writes vertices to Xo, Yo, returns (n, sl, sr)."""
     lo = max(X1[0] if sl1 == INF else -INF, X2[0] if sl2 == INF else -INF)

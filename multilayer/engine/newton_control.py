@@ -65,6 +65,8 @@ exact), and where every Newton step lowers ``E`` the iteration is the plain one.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numba import njit
 
@@ -164,16 +166,38 @@ def energy_rise(inertia, momentum, kappa, viscous, w, wall_viscous, start, u, at
     return min(slope, rise)
 
 
-@njit(cache=True)
-def examine_columns(inertia, momentum, kappa, viscous, w, wall_viscous, start, u, at_start):
+def examine_columns(
+    inertia: np.ndarray,
+    momentum: np.ndarray,
+    kappa: np.ndarray,
+    viscous: np.ndarray,
+    w: np.ndarray,
+    wall_viscous: np.ndarray,
+    start: np.ndarray,
+    u: np.ndarray,
+    at_start: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
     """:func:`error_bound` and :func:`energy_rise` of every column of (L, N) arrays
-    (``at_start`` (4, L, N)): (bounds (N,), rises (N,))."""
-    n = inertia.shape[1]
+    (``at_start`` (4, L, N)): (bounds (N,), rises (N,)).
+
+    The columns are copied to contiguous rows first, so that one compilation of the two
+    functions, the one of the compiled step (``newton_kernel``), serves every layout."""
+    rows = [np.ascontiguousarray(np.transpose(a), dtype=float) for a in (inertia, momentum, kappa, viscous)]
+    rows += [np.ascontiguousarray(np.transpose(a), dtype=float) for a in (w, wall_viscous, start, u)]
+    return _examine_compiled(*rows, np.ascontiguousarray(np.moveaxis(at_start, 2, 0), dtype=float))
+
+
+def _examine_rows(inertia, momentum, kappa, viscous, w, wall_viscous, start, u, at_start):
+    """:func:`examine_columns` on (N, L) arrays and ``at_start`` (N, 4, L)."""
+    n = inertia.shape[0]
     bounds, rises = np.empty(n), np.empty(n)
     for j in range(n):
-        args = (inertia[:, j], momentum[:, j], kappa[:, j], viscous[:, j], w[:, j], wall_viscous[:, j])
+        args = (inertia[j], momentum[j], kappa[j], viscous[j], w[j], wall_viscous[j])
         bounds[j] = error_bound(
-            args[0], args[1], args[2], args[3], args[4], args[5], u[:, j], np.inf
+            args[0], args[1], args[2], args[3], args[4], args[5], u[j], np.inf
         )  # inlined: no *args
-        rises[j] = energy_rise(*args, start[:, j], u[:, j], at_start[:, :, j])
+        rises[j] = energy_rise(*args, start[j], u[j], at_start[j])
     return bounds, rises
+
+
+_examine_compiled: Any = njit(cache=True)(_examine_rows)
