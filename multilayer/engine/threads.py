@@ -71,8 +71,10 @@ def load_tbb() -> bool:
     return False
 
 
+@functools.cache
 def steals_work() -> bool:
-    """Whether numba's threading layer is TBB (it starts the layer if not started)."""
+    """Whether numba's threading layer is TBB (it starts the layer if not started; the
+    layer of a process never changes once started)."""
     import numba
 
     load_tbb()
@@ -151,7 +153,6 @@ class ThreadPolicy:
         self.fixed = requested(setting)
         self.cores = available_cores()
         self.idle = 1  # until measured
-        self._steals: bool | None = None  # steals_work(), asked at the first large step
         self._last: tuple[float, float | None, float] | None = None
         self.chosen: Counter[int] = Counter()  # steps run with each thread count
 
@@ -173,14 +174,11 @@ class ThreadPolicy:
             count = self.fixed
         elif cells < PARALLEL_CELLS:
             count = 1
+        elif steals_work():
+            count = self.cores
         else:
-            if self._steals is None:
-                self._steals = steals_work()
-            if self._steals:
-                count = self.cores
-            else:
-                self._measure()
-                count = self.idle
+            self._measure()
+            count = self.idle
         if count > 1:
             import numba
 
