@@ -167,3 +167,41 @@ def test_a_layer_at_rest_below_its_friction_angle_is_not_solved_and_stays_exactl
             assert np.all(sim.u != 0.0) and solves[0] >= 5 * sim.h.size
         else:
             assert np.all(sim.u == 0.0) and solves[0] == 0
+
+
+def test_a_structure_spoilt_by_round_off_is_rescued_exactly_without_the_dynamic_programme():
+    """Where the active set rejects the structure of an iterate, the structures proposed
+    next (the velocities before the step; the iterate with its round-off speeds and jumps
+    closed) are checked for optimality by the active set itself: a rescued solve is the
+    exact minimiser, the dynamic programme's answer, with the same static layers.  The
+    iterates here are exact answers with jumps of 1e-13 of the top speed added across
+    their locked interfaces and static layers, which the first attempt rejects."""
+    from test_column_kernel import random_problem
+
+    from multilayer.engine import column_kernel
+
+    rng = np.random.default_rng(7)
+    problem = random_problem(rng, 12, 400)
+    exact = column_kernel.solve(problem, guess=np.full(problem.shape, np.nan))  # dynamic programme
+    L = problem.shape[0]
+    work = [np.empty(L + 1, np.int64), np.empty(L, np.bool_)] + [np.empty(L) for _ in range(4)]
+    rejected = rescued = 0
+    for col in range(problem.shape[1]):
+        inertia = problem.m[:, col] / problem.dt
+        momentum = inertia * problem.ustar[:, col]
+        parts = (problem.kappa, problem.c, problem.w, problem.cw)
+        coefficients = [np.ascontiguousarray(a[:, col]) for a in parts]
+        top = np.abs(exact[:, col]).max()
+        locked = np.diff(exact[:, col], prepend=0.0) == 0  # static layers and plugs
+        spoilt = exact[:, col] + 1e-13 * top * rng.choice([-1.0, 1.0], L) * locked
+        u = np.empty(L)
+        if column_kernel._active_set(inertia, momentum, *coefficients, spoilt, u, *work):
+            continue
+        rejected += 1
+        if newton_kernel._other_structures(
+            inertia, momentum, *coefficients, spoilt, problem.ustar, col, np.empty(L), u, *work
+        ):
+            rescued += 1
+            assert np.abs(u - exact[:, col]).max() <= 1e-11 * max(top, 1.0)
+            assert np.array_equal(u == 0.0, exact[:, col] == 0.0)
+    assert rejected > 100 and rescued > 0.9 * rejected
