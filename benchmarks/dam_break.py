@@ -9,16 +9,24 @@ the first-order C code with regularised yield that docs/performance.md times bes
 
     python benchmarks/dam_break.py [--cells 2500] [--layers 32] [--order 2] [--threads auto] [--profile]
         [--pressure hydrostatic | bim2016 | non_hydrostatic] [--pressure-layers N] [--compare]
+        [--peer COMMAND [--pairs N]]
 
 ``--compare`` runs the hydrostatic model and then the ``--pressure`` option in the same
 invocation and prints the ratio of their times to solution (the cost of the pressure).
 ``--pressure-layers`` sets ``model.pressure_layers`` of the non-hydrostatic option
-(default: the scenario default, docs/nonhydrostatic.md).
+(default: the scenario default, docs/nonhydrostatic.md).  ``--peer`` times a peer code
+(a shell command, run in a temporary directory, its output discarded) right before each
+of ``--pairs`` runs of the dam break, and prints the ratio of each pair and their median:
+the machine's speed drifts within minutes, so only runs close in time compare.
 """
 
 from __future__ import annotations
 
 import argparse
+import statistics
+import subprocess
+import tempfile
+import time
 
 import numpy as np
 from common import timed
@@ -73,12 +81,22 @@ def main() -> None:
         "--compare", action="store_true", help="run the hydrostatic model first and print the cost ratio"
     )
     parser.add_argument("--profile", action="store_true", help="print the 15 costliest functions")
+    parser.add_argument("--peer", metavar="COMMAND", help="a peer code to time before each run")
+    parser.add_argument("--pairs", type=int, default=1, help="runs of the peer and the dam break (default 1)")
     args = parser.parse_args()
+    if args.pairs < 1 or (args.pairs > 1 and args.peer is None):
+        parser.error("--pairs takes an integer >= 1, and more than 1 only with --peer")
+    if args.peer is not None and args.compare:
+        parser.error("--peer and --compare time different things: use one of them")
     threads = args.threads if args.threads == "auto" else int(args.threads)
-    pressures = ["hydrostatic", args.pressure] if args.compare else [args.pressure]
+    pressures = ["hydrostatic", args.pressure] if args.compare else [args.pressure] * args.pairs
     seconds = {}
+    ratios = []
     size = (args.cells, args.layers, args.order, args.end, threads)
     for pressure in pressures:
+        if args.peer is not None:
+            peer = time_peer(args.peer)
+            print(f"peer: {args.peer!r} took {peer:.3f} s (wall)")
         sim, timing = timed(
             lambda p=pressure, size=size: Simulation(scenario(*size, p, args.pressure_layers)),
             args.end,
@@ -88,6 +106,8 @@ def main() -> None:
             ),
         )
         seconds[pressure] = timing.seconds
+        if args.peer is not None:
+            ratios.append(peer / timing.seconds)
         d = sim.diagnostics()
         print(
             f"dam break: {args.cells} cells x {args.layers} layers, order {args.order}, "
@@ -100,9 +120,27 @@ def main() -> None:
             f"check: front x = {d['front']:.3f} (threshold {sim.front_threshold:g}), mass {d['mass']:.12f} "
             f"(initially 2), max |u| {np.abs(sim.u).max():.3f}"
         )
+        if args.peer is not None:
+            print(f"pair {len(ratios)}: the peer took {ratios[-1]:.2f} times the time to solution")
     if args.compare:
         ratio = seconds[args.pressure] / seconds["hydrostatic"]
         print(f"cost of pressure {args.pressure}: {ratio:.2f} times the hydrostatic time to solution")
+    if len(ratios) > 1:
+        listed = ", ".join(f"{r:.2f}" for r in ratios)
+        median = statistics.median(ratios)
+        print(f"peer / multilayer over {len(ratios)} pairs: median {median:.2f} ({listed})")
+
+
+def time_peer(command: str) -> float:
+    """Wall time of a shell command run in a temporary directory (a peer code writes its
+    output files where it runs); a failure stops the benchmark with its message."""
+    with tempfile.TemporaryDirectory() as directory:
+        start = time.perf_counter()
+        done = subprocess.run(command, shell=True, cwd=directory, capture_output=True, text=True)
+        seconds = time.perf_counter() - start
+    if done.returncode != 0:
+        raise SystemExit(f"peer command {command!r} failed (exit {done.returncode}): {done.stderr.strip()}")
+    return seconds
 
 
 if __name__ == "__main__":
