@@ -32,6 +32,7 @@ class Timing:
     load: float  # 1-minute load average at the end
     peak_bytes: int  # peak resident memory of the process
     fallback_share: float  # column solves that needed the O(L^2) dynamic programme
+    side_by_side_share: float  # column steps solved side by side (engine/sheared_columns.py)
     threads: dict[int, int]  # passes (steps and redone steps) run with each thread count
     layer: str  # numba's threading layer (threads.py: TBB steals work)
 
@@ -39,7 +40,8 @@ class Timing:
         return [
             f"time to solution {self.seconds:.3f} s (CPU {self.cpu_seconds:.3f} s), steps {self.steps}, "
             f"Newton iterations per step {self.newton:.2f}, "
-            f"O(L^2) fallback in {100 * self.fallback_share:.3f} % of the column solves",
+            f"O(L^2) fallback in {100 * self.fallback_share:.3f} % of the column solves, "
+            f"{100 * self.side_by_side_share:.1f} % of the column steps solved side by side",
             f"cell-steps/s: {self.cells * self.steps / self.seconds / 1e6:.2f} M (whole mesh), "
             f"{self.computed / self.seconds / 1e6:.2f} M (cells holding material)",
             f"peak memory {self.peak_bytes / 2**20:.0f} MiB "
@@ -103,6 +105,9 @@ def timed(
         os.getloadavg()[0],
         peak_memory(),
         sim.compiled_step.fallbacks / max(sim.compiled_step.solves, 1) if sim.compiled_step else float("nan"),
+        sim.compiled_step.columns_side_by_side / max(sim.compiled_step.columns, 1)
+        if sim.compiled_step
+        else float("nan"),
         dict(sim.thread_policy.chosen),
         threading_layer(),
     )

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from engine import simulation
 
-from multilayer.engine import newton_kernel
+from multilayer.engine import newton_kernel, viscous_law
 from multilayer.plugins.builtins import DruckerPrager, JopMuI, PowerLawMuI, WallFriction
 from multilayer.plugins.contract import Material, Rheology
 
@@ -26,9 +26,9 @@ def test_compiled_viscosity_is_the_plugin_viscosity(law):
     rng = np.random.default_rng(0)
     rate = np.concatenate([[0.0, 1e-9], 10.0 ** rng.uniform(-8, 3, 200)])
     pressure = np.concatenate([[0.0, -1.0], 10.0 ** rng.uniform(-3, 4, 200)])
-    form, params = newton_kernel.law_of(law, MATERIAL)
-    parts = [newton_kernel._pressure_part(form, params, p) for p in pressure]
-    got = np.array([newton_kernel._viscosity(form, params, r, *part) for r, part in zip(rate, parts)])
+    form, params = viscous_law.law_of(law, MATERIAL)
+    parts = [viscous_law._pressure_part(form, params, p) for p in pressure]
+    got = np.array([viscous_law._viscosity(form, params, r, *part) for r, part in zip(rate, parts)])
     np.testing.assert_allclose(got, law.viscosity(rate, pressure, MATERIAL), rtol=1e-14, atol=0.0)
 
 
@@ -39,8 +39,8 @@ def test_compiled_slope_is_the_derivative_of_the_plugin_stress(law):
     rng = np.random.default_rng(1)
     rate = 10.0 ** rng.uniform(-6, 3, 300)
     pressure = 10.0 ** rng.uniform(-3, 4, 300)
-    form, params = newton_kernel.law_of(law, MATERIAL)
-    if form == newton_kernel.FORMS["power"]:
+    form, params = viscous_law.law_of(law, MATERIAL)
+    if form == viscous_law.FORMS["power"]:
         keep = np.abs(rate / params[3] - 1.0) > 1e-4
         rate, pressure = rate[keep], pressure[keep]
     step = 1e-6 * rate
@@ -49,9 +49,9 @@ def test_compiled_slope_is_the_derivative_of_the_plugin_stress(law):
         return law.viscosity(r, pressure, MATERIAL) * r
 
     centred = (stress(rate + step) - stress(rate - step)) / (2.0 * step)
-    parts = [newton_kernel._pressure_part(form, params, p) for p in pressure]
+    parts = [viscous_law._pressure_part(form, params, p) for p in pressure]
     got = np.array(
-        [newton_kernel._viscosity_and_slope(form, params, r, *part)[1] for r, part in zip(rate, parts)]
+        [viscous_law._viscosity_and_slope(form, params, r, *part)[1] for r, part in zip(rate, parts)]
     )
     np.testing.assert_allclose(got, centred, rtol=1e-7, atol=1e-12 * np.abs(centred).max())
 
@@ -60,7 +60,7 @@ def test_a_law_without_a_compiled_form_keeps_the_numpy_path():
     class Plain(Rheology):
         name = "plain"
 
-    assert newton_kernel.law_of(Plain(), MATERIAL) is None
+    assert viscous_law.law_of(Plain(), MATERIAL) is None
     sim = simulation(rheology={"name": "jop_mu_i", "mu_s": 0.38, "mu_2": 0.64, "I_0": 0.279})
     assert sim.compiled_step.laws() is not None
     sim.stresses.bulk = Plain()  # swapped on a running simulation: honoured

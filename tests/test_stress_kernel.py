@@ -64,9 +64,6 @@ def test_compiled_coefficients_are_the_numpy_ones_bit_for_bit(name, walls, start
         np.testing.assert_array_equal(
             got.kappa[1:][static[1:]], BULK[name].mu_start * ref.pressure[1:][static[1:]].clip(0)
         )
-    if name == "jop_mu_i" and walls and start_stop and gravity:  # rows split among threads: the same bits
-        parallel = compiled(h, wet, rest, yield_gravity, threads=2)
-        assert parallel.kappa.tobytes() == ref.kappa.tobytes() and parallel.w.tobytes() == ref.w.tobytes()
     # the arrays are reused: a second call with fewer columns gives its own answer
     again = compiled(h, wet[::2], rest, yield_gravity)
     np.testing.assert_array_equal(again.kappa, model.columns(h, wet[::2], rest, yield_gravity).kappa)

@@ -365,6 +365,7 @@ def test_sweep_on_a_scheduler_with_two_workers(friction_sweep):
     assert float(ok[0]["runout"]) >= float(ok[1]["runout"]) > 0
 
 
+@pytest.mark.slow  # the real cluster of the test above; a local-cluster rerun stays in the default run
 def test_second_run_of_a_completed_sweep_runs_nothing(friction_sweep, scheduler):
     path, outdir, first = friction_sweep
     results_before = {p: p.stat().st_mtime_ns for p in outdir.glob("*/*")}

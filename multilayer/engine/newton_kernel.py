@@ -11,95 +11,31 @@ per column, except its slope: the compiled forms differentiate their stress exac
 where the numpy path takes a forward difference.  The slope only sets the speed of the
 iteration (the model passes through the true stress either way), so both paths agree to
 round-off times the conditioning of the step, with the same layers at rest and Newton
-counts within 1 % (tests/test_newton_kernel.py).
+counts within 1 % (tests/test_newton_kernel.py).  Adjacent columns that are fully sheared
+(every interface yielded, no side walls) go through the same iteration several at a time,
+side by side (``sheared_columns``), to the same bits.
 """
 
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 from numba import njit, prange
 
 from multilayer.engine.column_kernel import _active_set, _dynamic_programme, _workspace
-from multilayer.engine.compiled_forms import describes
 from multilayer.engine.newton_control import TRUSTED, energy_rise, error_bound
 from multilayer.engine.plugin_output import PluginOutputError, outside_contract
+from multilayer.engine.sheared_columns import BLOCK, SLOTS, load, sheared_block, unload
 from multilayer.engine.stress import INTERFACE, LAYER, ColumnStresses, StressModel
-from multilayer.engine.stress_kernel import CompiledCoefficients
+from multilayer.engine.stress_kernel import CompiledCoefficients, column_coefficients
 from multilayer.engine.threads import parallel_chunks, parallel_compiled
+from multilayer.engine.viscous_law import _newton_model, _pressure_part, _viscosity_and_slope, law_of
 
-FORMS = {"constant": 0, "inertial": 1, "power": 2}
-
-
-def law_of(rheology, material) -> tuple[int, np.ndarray] | None:
-    """(form code, parameters) of a plugin's compiled viscosity, None if it has none.
-
-    A compiled form describes the ``viscosity`` of the class that declares it: where a
-    subclass (or the instance) redefines ``viscosity`` below that class, the form is not
-    used, and the step runs the plugin's own ``viscosity`` (numpy path)."""
-    if not describes(rheology, "viscosity_kernel", ("viscosity",)):
-        return None
-    declared = rheology.viscosity_kernel(material)
-    if declared is None or declared[0] not in FORMS:
-        return None
-    return FORMS[declared[0]], np.array(declared[1], dtype=float)
-
-
-@njit(cache=True)
-def _pressure_part(form, params, p):
-    """The factor of eta that depends on the pressure only, and the one added to the
-    rate term (computed once per column and step, not per Newton iteration)."""
-    p = max(p, 0.0)
-    if form == 0:
-        return params[0], 0.0
-    if form == 1:
-        return params[0] * p, params[1] * np.sqrt(p)
-    return params[0] * p ** params[1], 0.0
-
-
-@njit(cache=True)
-def _viscosity_and_slope(form, params, rate, factor, offset):
-    """eta(rate, p) of the compiled forms (``Rheology.viscosity_kernel``) and the slope
-    d(eta rate)/d rate of the viscous stress, for ``rate >= 0``, from the pressure parts
-    ``factor, offset = _pressure_part(form, params, p)``.
-
-    The slope is exact: ``eta`` for the constant form; ``eta B sqrt(p) / (B sqrt(p) +
-    C rate)`` for the inertial form (``eta`` at rest); ``(1 + e_g) eta`` above the
-    floor of the power form, ``eta`` below it.
-    """
-    if form == 0:
-        return factor, factor
-    if form == 1:
-        denominator = offset + params[2] * rate
-        if denominator > 0.0:
-            inverse = 1.0 / denominator
-            eta = factor * inverse
-            return eta, eta * offset * inverse
-        return 0.0, 0.0
-    if rate > params[3]:
-        eta = factor * rate ** params[2]
-        return eta, (1.0 + params[2]) * eta
-    eta = factor * params[3] ** params[2]
-    return eta, eta
-
-
-@njit(cache=True)
-def _viscosity(form, params, rate, factor, offset):
-    """eta(|gamma|, p) of the compiled forms (``Rheology.viscosity_kernel``) from the
-    pressure parts ``factor, offset = _pressure_part(form, params, p)``."""
-    return _viscosity_and_slope(form, params, abs(rate), factor, offset)[0]
-
-
-@njit(cache=True)
-def _newton_model(kappa, rate, eta, slope, secant):
-    """``stress._newton_model`` for one value from ``eta`` and the stress slope at
-    ``rate``: (yield stress, conductance) of the odd Bingham law through the stress at
-    ``rate``, tangent where its yield stress is >= 0, secant otherwise (and always with
-    ``secant``: the Kacanov model of ``newton_control``)."""
-    slope = max(slope, 0.0)
-    offset_yield = kappa + eta * rate - slope * rate
-    if offset_yield >= 0.0 and not secant:
-        return offset_yield, slope
-    return kappa, eta
+YIELD_CONTRACT = 1 << 40
+"""Fault code of a column whose compiled yield values are outside the plugin contract."""
+_NOT_GIVEN = (*(np.zeros((1, 1)),) * 5, np.zeros((1, 1), bool), np.zeros((1, 1)))
+"""The ``given`` coefficients of ``_columns`` when they are computed in the kernel."""
 
 
 @njit(cache=True)
@@ -173,13 +109,16 @@ def _other_structures(
 @njit(cache=True)
 def _chunk(
     k,
-    chunks, wet, m, kappa0, w0, pressure, spacing, viscous, wall_pressure, ustar, guess,
+    chunks, wet, h, inputs, fused, given, ustar, guess,
     dt, bulk_form, bulk_params, wall_form, wall_params, width, density, threshold, max_iterations,
-    u_out, iterations, fallbacks, faults, fault_values,
+    u_out, iterations, fallbacks, faults, fault_values, side_by_side, blocks,
 ):  # fmt: skip
     """Chunk ``k`` of ``chunks`` of :func:`_columns` (its wet columns ``k n // chunks`` to
-    ``(k + 1) n // chunks``): compiled once, called by the serial and the parallel kernel."""
-    L = m.shape[0]
+    ``(k + 1) n // chunks``): compiled once, called on one thread as the one chunk
+    (``_serial``) and by the parallel kernel per chunk."""
+    (rest, has_rest, gravity, has_gravity, g_n, rho, l, at_interface, at_centre, apart, base_kind,
+     base_mu, mu, mu_static, wall_law, mu_wall, wall_scale) = inputs  # fmt: skip
+    L = l.size
     n = wet.size
     walls = width > 0.0
     inverse_half = 2.0 / width if walls else 0.0
@@ -195,37 +134,89 @@ def _chunk(
     eta_c, slope_c, eta_n, slope_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
     weta_c, wslope_c, weta_n, wslope_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
     state_c, state_n = np.empty((4, L)), np.empty((4, L))  # of newton_control.examine
-    # per layer of the column: m_a / dt, m_a u*_a / dt, kappa, viscous, inverse spacing,
-    # conductance per unit slope (0 where not viscous), pressure parts of the bulk law;
-    # with walls, their pressure parts, the wall area factor (2 / W) h_a and the wall yield
-    # threshold per unit area (else the wall threshold), and the true wall thresholds
-    inertia, momentum, kappa = np.empty(L), np.empty(L), np.empty(L)
-    is_viscous = np.empty(L, np.bool_)
+    # the coefficients of StressModel.columns of the column (stress_kernel.column_coefficients)
+    m, kappa, w0, pressure, spacing = np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L)
+    viscous, wall_pressure = np.empty(L, np.bool_), np.empty(L)
+    # and from them, per layer: m_a / dt, m_a u*_a / dt, inverse spacing, conductance per
+    # unit slope (0 where not viscous), pressure parts of the bulk law; with walls, their
+    # pressure parts, the wall area factor (2 / W) h_a and the wall yield threshold per
+    # unit area (else the wall threshold), and the true wall thresholds
+    inertia, momentum = np.empty(L), np.empty(L)
     inverse_spacing, conductance = np.empty(L), np.empty(L)
     factor, offset = np.empty(L), np.empty(L)
     wall_factor, wall_offset = np.zeros(L), np.zeros(L)
     per_area, wall, wall_true = np.zeros(L), np.empty(L), np.empty(L)
-    for j in range(k * n // chunks, (k + 1) * n // chunks):
-        col = wet[j]
-        for a in range(L):
-            mass = m[a, j]
-            inertia[a] = mass / dt
-            momentum[a] = mass * ustar[a, col] / dt
-            kappa[a] = kappa0[a, j]
-            s = spacing[a, j]
-            is_viscous[a] = viscous[a, j]
-            inverse_spacing[a] = 1.0 / s if s > 0.0 else 1.0
-            conductance[a] = inverse_spacing[a] if (is_viscous[a] and s > 0.0) else 0.0
-            factor[a], offset[a] = _pressure_part(bulk_form, bulk_params, pressure[a, j])
-            current[a] = guess[a, col]
-            if walls:
-                wall_factor[a], wall_offset[a] = _pressure_part(wall_form, wall_params, wall_pressure[a, j])
-                per_area[a] = (2.0 / width) * mass / density
-                wall[a] = w0[a, j] / max(per_area[a], 1e-300)
-                wall_true[a] = per_area[a] * wall[a]
+    g_m, g_kappa, g_w, g_pressure, g_spacing, g_viscous, g_wall = given
+    tile = np.empty((BLOCK, SLOTS, L))  # the work arrays of sheared_block
+    flags, finished = np.empty((4, BLOCK), np.bool_), np.zeros(BLOCK, np.bool_)
+    start, stop = k * n // chunks, (k + 1) * n // chunks
+    # The columns are set up in turn.  A group of BLOCK adjacent columns without walls goes
+    # into the tile and is solved side by side (sheared_block); the columns it did not
+    # finish come back from the tile one by one (``drain``) to the iteration below.
+    following, j0, block, drain = start, start, False, BLOCK
+    while True:
+        if drain < BLOCK:  # a column of the last block that it did not finish
+            j = j0 + drain
+            drain += 1
+            if finished[j - j0]:
+                continue
+            col = wet[j]
+            fine = unload(
+                tile, flags, j - j0, inertia, momentum, kappa, wall, wall_true, inverse_spacing, conductance,
+                viscous, factor, offset, current,
+            )  # fmt: skip
+        else:
+            if following == stop:
+                break
+            j, col = following, wet[following]
+            following += 1
+            if (j - start) % BLOCK == 0:
+                j0 = j
+                block = blocks and not walls and j + BLOCK <= stop and wet[j + BLOCK - 1] - col == BLOCK - 1
+            # the coefficients of StressModel.columns: from the compiled yield forms, or given
+            if fused:
+                fine = column_coefficients(
+                    col, h[col], rest, has_rest, gravity, has_gravity, g_n, rho, l, at_interface, at_centre,
+                    apart, base_kind, base_mu, mu, mu_static, wall_law, mu_wall, wall_scale,
+                    m, kappa, w0, pressure, spacing, viscous, wall_pressure,
+                ) == 0  # fmt: skip
             else:
-                wall[a] = w0[a, j]
-                wall_true[a] = wall[a]
+                fine = True
+                for a in range(L):
+                    m[a], kappa[a], w0[a], pressure[a] = g_m[a, j], g_kappa[a, j], g_w[a, j], g_pressure[a, j]
+                    spacing[a], viscous[a], wall_pressure[a] = g_spacing[a, j], g_viscous[a, j], g_wall[a, j]
+            for a in range(L):  # what stays fixed during the iteration
+                mass = m[a]
+                inertia[a] = mass / dt
+                momentum[a] = mass * ustar[a, col] / dt
+                s = spacing[a]
+                inverse_spacing[a] = 1.0 / s if s > 0.0 else 1.0
+                conductance[a] = inverse_spacing[a] if (viscous[a] and s > 0.0) else 0.0
+                factor[a], offset[a] = _pressure_part(bulk_form, bulk_params, pressure[a])
+                current[a] = guess[a, col]
+                if walls:
+                    wall_factor[a], wall_offset[a] = _pressure_part(wall_form, wall_params, wall_pressure[a])
+                    per_area[a] = (2.0 / width) * mass / density
+                    wall[a] = w0[a] / max(per_area[a], 1e-300)
+                    wall_true[a] = per_area[a] * wall[a]
+                else:
+                    wall[a] = w0[a]
+                    wall_true[a] = wall[a]
+            if block:
+                load(
+                    tile, flags, j - j0, fine, inertia, momentum, kappa, wall, inverse_spacing, conductance,
+                    viscous, factor, offset, current,
+                )  # fmt: skip
+                if j - j0 == BLOCK - 1:
+                    sheared_block(
+                        tile, flags, finished, bulk_form, bulk_params, threshold, max_iterations, j0,
+                        wet[j0], u_out, iterations, fallbacks, faults, fault_values, side_by_side,
+                    )  # fmt: skip
+                    drain = 0
+                continue
+        if not fine:
+            faults[j] = YIELD_CONTRACT  # outside the plugin contract: see CompiledStep
+            continue
         wall_c = wc if walls else wall
         iterations[j] = -1
         fallbacks[j] = 0
@@ -252,7 +243,7 @@ def _chunk(
                 rate = abs(current[a] - below) * inverse_spacing[a]
                 below = current[a]
                 ka, t = _newton_model(kappa[a], rate, eta_c[a], slope_c[a], secant)
-                kc[a] = ka if is_viscous[a] else kappa[a]
+                kc[a] = ka if viscous[a] else kappa[a]
                 cc[a] = t * conductance[a]
                 if walls:
                     rate = abs(current[a]) * inverse_half
@@ -312,33 +303,47 @@ def _chunk(
 
 
 def _columns(
-    chunks, wet, m, kappa0, w0, pressure, spacing, viscous, wall_pressure, ustar, guess,
+    chunks, wet, h, inputs, fused, given, ustar, guess,
     dt, bulk_form, bulk_params, wall_form, wall_params, width, density, threshold, max_iterations,
-    u_out, iterations, fallbacks, faults, fault_values,
+    u_out, iterations, fallbacks, faults, fault_values, side_by_side, blocks,
 ):  # fmt: skip
-    """Newton iterations of every wet column (``wet`` indexes the columns of ustar/guess);
-    ``fallbacks`` counts the solves per column that needed the O(L^2) dynamic programme.
-    A column where a compiled viscosity is not finite and >= 0 stops iterating: ``faults``
-    gets a + 1 for the bulk law at interface a, -(a + 1) for the wall law of layer a (0:
-    none) and ``fault_values`` the viscosity and the shear rate.
+    """Newton iterations of every wet column (``wet`` indexes the columns of h, ustar and
+    guess); ``fallbacks`` counts the solves per column that needed the O(L^2) dynamic
+    programme.  A column where a compiled viscosity is not finite and >= 0 stops
+    iterating: ``faults`` gets a + 1 for the bulk law at interface a, -(a + 1) for the
+    wall law of layer a (0: none) and ``fault_values`` the viscosity and the shear rate;
+    a column whose compiled yield values are outside the plugin contract is not solved
+    (``faults``: ``YIELD_CONTRACT``).
 
-    What does not change from one iteration to the next (masses, pressure parts of the
-    laws, inverse spacings, wall thresholds) is computed once per step, straight into
-    arrays of one column reused from column to column (no per-column views or tuples of
-    arrays: each costs reference counting).  A column whose guess is at rest at the bed
-    and the surface and already within the error bound of ``newton_control`` is not
-    solved (``iterations`` 0): the bound is rigorous, so the guess is as good an answer
-    as a converged iterate."""
+    The coefficients of ``StressModel.columns`` come, with ``fused``, from the compiled
+    yield forms column by column (``stress_kernel.column_coefficients`` with ``inputs``),
+    so that the whole mesh never holds them (on a fully wet mesh, writing and reading
+    them back costs more memory traffic than the Newton step of a column in cache);
+    otherwise from the (L, n) arrays ``given`` (m, kappa, w, pressure, spacing, viscous,
+    wall_pressure).  What does not change from one iteration to the next (masses,
+    pressure parts of the laws, inverse spacings, wall thresholds) is computed once per
+    step, straight into arrays of one column reused from column to column (no per-column
+    views or tuples of arrays: each costs reference counting).  A column whose guess is
+    at rest at the bed and the surface and already within the error bound of
+    ``newton_control`` is not solved (``iterations`` 0): the bound is rigorous, so the
+    guess is as good an answer as a converged iterate.
+
+    With ``blocks``, adjacent columns without side walls are set up ``BLOCK`` at a time
+    and iterated side by side while fully sheared (``sheared_columns.sheared_block``;
+    ``side_by_side`` marks the columns it solved); the others, and those that leave the
+    block, are iterated here one by one, to the same bits."""
     for k in prange(chunks):
         _chunk(  # k is unsigned under prange: one signature of _chunk for both kernels
-            np.int64(k), chunks, wet, m, kappa0, w0, pressure, spacing, viscous, wall_pressure, ustar, guess,
+            np.int64(k), chunks, wet, h, inputs, fused, given, ustar, guess,
             dt, bulk_form, bulk_params, wall_form, wall_params, width, density, threshold, max_iterations,
-            u_out, iterations, fallbacks, faults, fault_values,
+            u_out, iterations, fallbacks, faults, fault_values, side_by_side, blocks,
         )  # fmt: skip
 
 
-_serial = njit(cache=True)(_columns)
 _parallel = parallel_compiled(_columns)
+_serial = functools.partial(_chunk, 0, 1)
+"""The kernel on one thread: ``_columns`` without ``chunks``, as its one chunk (no serial
+wrapper of ``_chunk`` to compile: numba optimises a callee again inside each caller)."""
 
 
 class CompiledStep:
@@ -348,9 +353,12 @@ class CompiledStep:
     simulation is honoured (and without a compiled form sends the step to numpy).
     """
 
-    def __init__(self, stresses: StressModel):
+    def __init__(self, stresses: StressModel, *, side_by_side: bool = True):
         self.stresses = stresses
         self.coefficients = CompiledCoefficients(stresses)  # StressModel.columns, compiled
+        self.side_by_side = side_by_side  # fully sheared columns BLOCK at a time (sheared_columns)
+        self.columns = 0  # column steps so far
+        self.columns_side_by_side = 0  # of which solved side by side
         self.solves = 0  # column solves so far
         self.fallbacks = 0  # of which by the O(L^2) dynamic programme (the active set failed)
         self._out: np.ndarray | None = None  # the result, reused from step to step
@@ -387,7 +395,8 @@ class CompiledStep:
             raise ValueError("a law of this stress model has no compiled form (see laws())")
         (bulk_form, bulk_params), walls = laws
         wet = np.flatnonzero(h > 0)
-        cs: ColumnStresses = self.coefficients(h, wet, rest, yield_gravity, threads)
+        inputs, fused = self.coefficients.inputs(rest, yield_gravity)
+        given = _NOT_GIVEN if fused else self._given(self.coefficients(h, wet, rest, yield_gravity))
         if self._out is None or self._out.shape != ustar.shape:
             self._out, self._written = np.zeros_like(ustar), (0, 0)
         u = self._out
@@ -396,21 +405,38 @@ class CompiledStep:
         iterations = np.empty(wet.size, np.int64)
         fallbacks = np.empty(wet.size, np.int64)
         faults, fault_values = np.empty(wet.size, np.int64), np.empty((wet.size, 2))
+        side_by_side = np.zeros(wet.size, np.bool_)
         wall_form, wall_params = walls if walls is not None else (0, np.zeros(1))
         width = float(self.stresses.width) if walls is not None else 0.0
-        chunks = parallel_chunks(threads, wet.size)
-        kernel = _parallel if threads > 1 else _serial
-        kernel(
-            chunks if threads > 1 else 1, wet, cs.m, cs.kappa, cs.w, cs.pressure, cs.spacing, cs.viscous,
-            cs.wall_pressure, np.ascontiguousarray(ustar), np.ascontiguousarray(u_guess), float(dt),
+        # one thread: the chunk kernel itself, as one chunk (no serial wrapper to compile)
+        kernel = functools.partial(_parallel, parallel_chunks(threads, wet.size)) if threads > 1 else _serial
+        arguments = (
+            wet, np.ascontiguousarray(h, dtype=float), inputs, fused, given,
+            np.ascontiguousarray(ustar), np.ascontiguousarray(u_guess), float(dt),
             bulk_form, bulk_params, wall_form, wall_params, width, float(self.stresses.material.density),
             float(threshold), int(max_iterations), u, iterations, fallbacks, faults, fault_values,
+            side_by_side, self.side_by_side,
         )  # fmt: skip
+        kernel(*arguments)
         if faults.any():
-            raise self._fault(cs, faults, fault_values)
+            # the plugins' own methods: they raise, naming the plugin, for a yield value outside the contract
+            cs = self.stresses.columns(h, wet, rest, yield_gravity)
+            if (faults == YIELD_CONTRACT).any():  # a compiled yield form that disagrees with its plugin
+                side_by_side[:] = False
+                kernel(*arguments[:3], False, self._given(cs), *arguments[5:])
+            if faults.any():
+                raise self._fault(cs, faults, fault_values)
+        self.columns += wet.size
+        self.columns_side_by_side += int(np.count_nonzero(side_by_side))
         self.solves += int(np.where(iterations < 0, max_iterations, iterations).sum())
         self.fallbacks += int(fallbacks.sum())
         return u, iterations
+
+    @staticmethod
+    def _given(cs: ColumnStresses) -> tuple[np.ndarray, ...]:
+        """The (L, n) coefficients of the kernel when they are not computed in it."""
+        arrays = (cs.m, cs.kappa, cs.w, cs.pressure, cs.spacing, cs.viscous, cs.wall_pressure)
+        return tuple(np.ascontiguousarray(a) for a in arrays)
 
     def _fault(self, cs: ColumnStresses, faults: np.ndarray, values: np.ndarray) -> PluginOutputError:
         """The error naming the law, the viscosity and where, for the first column whose

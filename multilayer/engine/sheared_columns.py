@@ -1,0 +1,268 @@
+"""Fully sheared columns of the implicit vertical step, several side by side.
+
+Where every interface of a column shears (the velocity jumps across each one, as in a
+chute flow or the body of an avalanche) and no side wall holds a layer, the active set of
+``column_kernel._active_set`` makes every layer a group of its own, and the exact solve
+of a Newton iteration is one Thomas sweep of the tridiagonal system
+
+    (m_a/dt + c_a + c_{a+1}) u_a - c_a u_{a-1} - c_{a+1} u_{a+1}
+        = m_a u*_a/dt - kappa_a s_a + kappa_{a+1} s_{a+1},      a = 0 ... L-1,
+
+with ``u_{-1} = 0`` (the bed), ``c_L = kappa_L = 0`` (the free surface), ``s_a`` the sign
+of the jump ``u_a - u_{a-1}`` of the iterate and ``kappa``, ``c`` the yield stresses and
+conductances of the Newton model at the iterate (``viscous_law._newton_model``).  The
+solution is the exact minimiser of the step's energy when the jumps keep their signs.
+
+The forward sweep is a chain of dependent divisions, one per layer, and column by column
+(``newton_kernel._chunk``) the core waits on each.  Here ``BLOCK`` adjacent columns go
+through the Newton iteration together: each pass over the layers advances every column
+of the block, so that their chains overlap.  Each column's arithmetic is that of
+``newton_kernel._chunk``, operation for operation: the same velocities to the bit, the
+same iteration counts (tests/test_sheared_columns.py).  A column leaves the block, and
+``_chunk`` solves it from the start, where it is not fully sheared, its structure is
+rejected, a viscosity is outside the plugin contract, or it is not converged before
+iteration ``TRUSTED`` (where the energy test of ``newton_control`` begins).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from multilayer.engine.newton_control import TRUSTED, _sign
+from multilayer.engine.viscous_law import _newton_model, _viscosity_and_slope
+
+BLOCK = 4
+"""Columns solved side by side: enough chains to hide the latency of a division, a tile
+small enough for the L1 cache at L = 64."""
+
+# the tile (BLOCK, SLOTS, L) holds one value per column of the block and layer: per step,
+# m/dt, m u*/dt, the true yield stress, the wall threshold, 1/spacing, the conductance per
+# unit slope (0 where not viscous), whether viscous, the pressure parts of the law and the
+# guess; per iteration, the Newton model (yield stress, conductance, sign of the jump), the
+# forward sweep (inverse pivot, right-hand side), the true viscous stress at the new
+# velocities and the two iterates
+INERTIA, MOMENTUM, KAPPA, WALL, INV_SPACING, CONDUCTANCE, VISCOUS, FACTOR, OFFSET = range(9)
+GUESS, KC, CC, SIGN, DIAG, RHS, TAU, U0, U1 = range(9, 18)
+SLOTS = 18
+
+# per-column flags (lanes)
+ACTIVE, SHEARED, DONE, FINE = range(4)  # of the boolean lanes
+
+
+@njit(cache=True)
+def load(
+    t, flags, i, fine, inertia, momentum, kappa, wall, inverse_spacing, conductance, viscous, factor, offset,
+    guess,
+):  # fmt: skip
+    """Column ``i`` of the block from the arrays of one column that ``newton_kernel._chunk``
+    sets up (``fine``: its yield values are within the plugin contract).  It takes part
+    in the block iteration if ``fine``, with mass and no wall threshold."""
+    L = inertia.shape[0]
+    take = fine and inertia[0] > 0.0
+    for a in range(L):
+        t[i, INERTIA, a] = inertia[a]
+        t[i, MOMENTUM, a] = momentum[a]
+        t[i, KAPPA, a] = kappa[a]
+        t[i, WALL, a] = wall[a]
+        t[i, INV_SPACING, a] = inverse_spacing[a]
+        t[i, CONDUCTANCE, a] = conductance[a]
+        t[i, VISCOUS, a] = 1.0 if viscous[a] else 0.0
+        t[i, FACTOR, a] = factor[a]
+        t[i, OFFSET, a] = offset[a]
+        t[i, GUESS, a] = guess[a]
+        t[i, U0, a] = guess[a]
+        take = take and wall[a] == 0.0
+    flags[FINE, i] = fine
+    flags[ACTIVE, i] = take
+
+
+@njit(cache=True)
+def unload(
+    t, flags, i, inertia, momentum, kappa, wall, wall_true, inverse_spacing, conductance, viscous, factor,
+    offset, guess,
+):  # fmt: skip
+    """The arrays of one column of ``newton_kernel._chunk`` back from column ``i`` of the
+    block (one it did not finish; :func:`load` in reverse; no side walls);
+    returns ``fine``."""
+    L = inertia.shape[0]
+    for a in range(L):
+        inertia[a] = t[i, INERTIA, a]
+        momentum[a] = t[i, MOMENTUM, a]
+        kappa[a] = t[i, KAPPA, a]
+        inverse_spacing[a] = t[i, INV_SPACING, a]
+        conductance[a] = t[i, CONDUCTANCE, a]
+        viscous[a] = t[i, VISCOUS, a] > 0.0
+        factor[a] = t[i, FACTOR, a]
+        offset[a] = t[i, OFFSET, a]
+        guess[a] = t[i, GUESS, a]
+        wall[a] = t[i, WALL, a]
+        wall_true[a] = wall[a]  # no walls
+    return flags[FINE, i]
+
+
+@njit(cache=True, error_model="numpy")
+def _stresses_and_model(t, u, form, params, flags):
+    """At the velocities of slot ``u``: the true viscous stresses (slot ``TAU``; a
+    viscosity outside the plugin contract ends the column's block iteration) and the
+    Newton model there (``KC``, ``CC``, ``SIGN``), as ``newton_kernel._true_stresses``
+    and the model of the next iteration; ``SHEARED`` tells whether every jump is nonzero.
+    The pass is compiled once per form, the form a constant in it (its loops then have
+    no branches)."""
+    if form == 1:
+        _stresses_and_model_of(t, u, 1, params, flags)
+    elif form == 0:
+        _stresses_and_model_of(t, u, 0, params, flags)
+    else:
+        _stresses_and_model_of(t, u, 2, params, flags)
+
+
+@njit(cache=True, error_model="numpy")
+def _stresses_and_model_of(t, u, form, params, flags):
+    """:func:`_stresses_and_model` for one form."""
+    L = t.shape[2]
+    for i in range(BLOCK):  # no chain across the layers: one column after the other
+        faults = 0
+        unsheared = 0
+        below = 0.0
+        for a in range(L):
+            g = t[i, u, a]
+            jump = g - below
+            rate = abs(jump) * t[i, INV_SPACING, a]
+            eta, slope = _viscosity_and_slope(form, params, rate, t[i, FACTOR, a], t[i, OFFSET, a])
+            within = (eta >= 0.0) & (eta < np.inf)  # the plugin contract
+            faults += not within
+            unsheared += g == below
+            t[i, TAU, a] = eta * rate if t[i, CONDUCTANCE, a] > 0.0 else 0.0
+            kappa, conductance = _newton_model(t[i, KAPPA, a], rate, eta, slope, False)
+            t[i, KC, a] = kappa if t[i, VISCOUS, a] > 0.0 else t[i, KAPPA, a]
+            t[i, CC, a] = conductance * t[i, CONDUCTANCE, a]
+            t[i, SIGN, a] = (1.0 if jump > 0.0 else 0.0) - (1.0 if jump < 0.0 else 0.0)  # _sign
+            below = g
+        flags[ACTIVE, i] = flags[ACTIVE, i] and faults == 0
+        flags[SHEARED, i] = unsheared == 0
+
+
+@njit(cache=True, error_model="numpy")
+def _solve(t, new, flags):
+    """The exact solve with one group per layer into slot ``new``: the forward sweep
+    (inverse pivots ``DIAG``, right-hand sides ``RHS``) and the back substitution of
+    ``column_kernel._active_set``, and its optimality test: each yielded jump keeps its
+    sign (a column whose structure is rejected leaves the block)."""
+    L = t.shape[2]
+    for a in range(L):
+        for i in range(BLOCK):
+            d = 0.0 + (t[i, INERTIA, a] + 0.0)  # _active_set's sums, in its order (cw = w = 0)
+            r = 0.0 + t[i, MOMENTUM, a]
+            c = t[i, CC, a]
+            d += c
+            r -= t[i, KC, a] * t[i, SIGN, a]
+            if a + 1 < L:
+                d += t[i, CC, a + 1]
+                r += t[i, KC, a + 1] * t[i, SIGN, a + 1]
+            if a > 0 and c != 0.0:
+                f = -c * t[i, DIAG, a - 1]
+                d -= f * (-c)
+                r -= f * t[i, RHS, a - 1]
+            if not d > 0.0:
+                flags[ACTIVE, i] = False
+            t[i, DIAG, a] = 1.0 / d
+            t[i, RHS, a] = r
+    for a in range(L - 1, -1, -1):
+        for i in range(BLOCK):
+            r = t[i, RHS, a]
+            if a + 1 < L:
+                above = t[i, new, a + 1]
+                r += t[i, CC, a + 1] * above
+                u = r * t[i, DIAG, a]
+                if t[i, KC, a + 1] > 0.0 and t[i, SIGN, a + 1] * (above - u) < 0.0:
+                    flags[ACTIVE, i] = False
+            else:
+                u = r * t[i, DIAG, a]
+            t[i, new, a] = u
+    for i in range(BLOCK):  # the bed
+        if t[i, KC, 0] > 0.0 and t[i, SIGN, 0] * t[i, new, 0] < 0.0:
+            flags[ACTIVE, i] = False
+
+
+@njit(cache=True, error_model="numpy")
+def _converged(t, new, current, threshold, flags):
+    """``DONE``: the error bound of ``newton_control.error_bound`` at slot ``new`` (true
+    stresses in ``TAU``, no walls) is within ``threshold``, or else the largest change from
+    slot ``current`` is; the same operations in the same order as ``_chunk``."""
+    L = t.shape[2]
+    for i in range(BLOCK):
+        lo = hi = residual = change = 0.0  # admissible stresses above the layer: [lo, hi]
+        smallest = np.inf
+        for a in range(L - 1, -1, -1):
+            u = t[i, new, a]
+            jump = u - (t[i, new, a - 1] if a > 0 else 0.0)
+            inertia = t[i, INERTIA, a]
+            excess = t[i, MOMENTUM, a] - inertia * u
+            kappa = t[i, KAPPA, a]
+            if u != 0.0:
+                f = _sign(u) * (0.0 + 0.0)  # the wall threshold and viscous force, 0
+                lo_zero, hi_zero = lo + excess - f, hi + excess - f
+            else:
+                lo_zero, hi_zero = lo + excess - 0.0, hi + excess + 0.0
+            gap = 0.0
+            if jump != 0.0:
+                sigma = _sign(jump) * (kappa + t[i, TAU, a])
+                gap = max(lo_zero - sigma, sigma - hi_zero, 0.0)
+                lo = hi = sigma
+            else:
+                lo, hi = max(lo_zero, -kappa), min(hi_zero, kappa)
+                if lo > hi:
+                    gap = lo - hi
+                    lo = hi = kappa if hi_zero > kappa else -kappa
+            if gap > 0.0:
+                residual += gap * gap / inertia
+            smallest = min(smallest, inertia)
+            change = max(change, abs(u - t[i, current, a]))
+        flags[DONE, i] = np.sqrt(residual / smallest) <= threshold or change <= threshold
+
+
+@njit(cache=True, error_model="numpy")
+def sheared_block(
+    t, flags, finished, form, params, threshold, max_iterations, j0, c0,
+    u_out, iterations, fallbacks, faults, fault_values, side_by_side,
+):  # fmt: skip
+    """The Newton iteration of ``newton_kernel._chunk`` for the ``BLOCK`` columns loaded
+    into the tile ``t`` (:func:`load`): wet columns ``j0 ...`` of ``_chunk``, mesh columns
+    ``c0 ...``, adjacent, without side walls; side by side while each stays fully sheared.
+    ``finished[i]`` tells which columns it solved, and wrote into ``_chunk``'s outputs
+    (``side_by_side`` True); ``flags`` holds its boolean lanes."""
+    L = t.shape[2]
+    for i in range(BLOCK):
+        finished[i] = False
+    current, new = np.int64(U0), np.int64(U1)  # typed int64, not as literals: one compilation
+    _stresses_and_model(t, current, form, params, flags)
+    for i in range(BLOCK):
+        flags[ACTIVE, i] = flags[ACTIVE, i] and flags[SHEARED, i]
+    for iteration in range(1, min(max_iterations, TRUSTED - 1) + 1):  # steps kept unconditionally
+        _solve(t, new, flags)
+        _stresses_and_model(t, new, form, params, flags)  # the bound's stresses, the next model
+        _converged(t, new, current, threshold, flags)
+        remaining = 0
+        for i in range(BLOCK):
+            if not flags[ACTIVE, i]:
+                continue
+            if flags[DONE, i]:
+                j = j0 + i
+                for a in range(L):
+                    u_out[a, c0 + i] = t[i, new, a]
+                iterations[j] = iteration
+                fallbacks[j] = 0
+                faults[j] = 0
+                fault_values[j, 0] = 0.0
+                fault_values[j, 1] = 0.0
+                side_by_side[j] = True
+                finished[i] = True
+                flags[ACTIVE, i] = False
+            elif not flags[SHEARED, i]:
+                flags[ACTIVE, i] = False
+            else:
+                remaining += 1
+        if remaining == 0:
+            break
+        current, new = new, current

@@ -1,0 +1,132 @@
+"""Fully sheared columns solved side by side (engine/sheared_columns.py) against the same
+Newton iteration and exact solve column by column (``CompiledStep(side_by_side=False)``,
+itself held to the numpy iteration and the dynamic programme in test_newton_kernel.py and
+test_column_kernel.py): the same velocities and iteration counts to the last bit, and a
+column leaves the block wherever the block could not do exactly what the column-by-column
+iteration does."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from engine import simulation
+
+from multilayer.engine.newton_kernel import CompiledStep
+from multilayer.engine.plugin_output import PluginOutputError
+from multilayer.plugins.builtins import JopMuI
+
+MATERIAL = {"density": 1550.0, "grain_diameter": 0.7e-3, "particle_density": 2500.0}
+JOP = {"name": "jop_mu_i", "mu_s": 0.38, "mu_2": 0.64, "I_0": 0.279}
+# a sheet on a slope steeper than its friction angle: every layer shears after a few steps
+CHUTE = dict(
+    slope_deg=28.0,
+    domain={"x_min": 0.0, "x_max": 0.24, "cells": 24, "layers": 12},
+    material=MATERIAL,
+    rheology=JOP,
+    base=[{"condition": "no_slip"}],
+    initial=[{"shape": "layer", "thickness": 0.01}],
+    boundaries={"left": "periodic", "right": "periodic"},
+)
+# a collapse on a gentler slope that partly stops: columns at rest, plugs and sheared ones
+COLLAPSE = {
+    **CHUTE,
+    "slope_deg": 20.0,
+    "domain": {"x_min": 0.0, "x_max": 1.0, "cells": 60, "layers": 8},
+    "initial": [{"shape": "rectangle", "x_min": 0.0, "x_max": 0.2, "height": 0.1}],
+    "boundaries": {"left": "wall", "right": "outflow"},
+}
+
+
+def _both(sim, steps=10, ustar_shift=0.01, guess_scale=1.0, threads=1, max_iterations=200):
+    """The step from the state after ``steps`` steps by both paths: (side by side, column
+    by column), each as (velocities, iterations, step object)."""
+    for _ in range(steps):
+        sim.step()
+    ustar = sim.u + ustar_shift * (sim.h > 0)
+    guess = guess_scale * sim.u
+    threshold = sim.numerics.tolerance * sim.velocity_scale
+    results = []
+    for side_by_side in (True, False):
+        step = CompiledStep(sim.stresses, side_by_side=side_by_side)
+        u, iterations = step(
+            sim.h, ustar, guess, 1e-3, threshold=threshold, max_iterations=max_iterations, threads=threads
+        )
+        results.append((u.copy(), iterations, step))
+    return results
+
+
+def _assert_same(results):
+    (u, iterations, _), (u_ref, iterations_ref, _) = results
+    np.testing.assert_array_equal(u, u_ref)
+    np.testing.assert_array_equal(iterations, iterations_ref)
+
+
+@pytest.mark.parametrize(
+    "rheology",
+    [
+        JOP,  # the inertial form
+        {"name": "power_law_mu_i", "mu_s": 0.38, "m": 0.3, "alpha": 0.5},  # the power form
+        {"name": "drucker_prager", "mu_s": 0.38, "nu": 2e-3},  # the constant form
+    ],
+    ids=lambda r: r["name"],
+)
+def test_a_sheared_chute_is_solved_side_by_side_to_the_same_bits(rheology):
+    results = _both(simulation(**{**CHUTE, "rheology": rheology}))
+    _assert_same(results)
+    step = results[0][2]
+    assert step.columns == 24 and step.columns_side_by_side == 24  # every column, BLOCK at a time
+    assert results[1][2].columns_side_by_side == 0
+    u = results[0][0]
+    assert (np.diff(u, axis=0) > 0).all() and (u[0] > 0).all()  # sheared at every interface
+
+
+def test_a_partly_stopped_collapse_mixes_blocks_and_single_columns_to_the_same_bits():
+    """Columns at rest, rigid plugs, fronts and non-adjacent wet columns leave the blocks;
+    static layers are exactly 0 either way."""
+    results = _both(simulation(**COLLAPSE), steps=60, ustar_shift=0.0)
+    _assert_same(results)
+    u, _, step = results[0]
+    assert 0 < step.columns_side_by_side < step.columns
+    assert (u == 0.0).any() and (u != 0.0).any()
+
+
+def test_columns_not_converged_within_the_iterations_are_the_same():
+    """With one iteration allowed and a poor guess, columns end unconverged (-1) with the
+    same last iterate either way."""
+    results = _both(simulation(**CHUTE), guess_scale=0.5, max_iterations=1)
+    _assert_same(results)
+    assert (results[0][1] == -1).any()
+
+
+def test_two_threads_cut_blocks_into_chunks_to_the_same_bits():
+    results = _both(simulation(**{**CHUTE, "domain": {**CHUTE["domain"], "cells": 64}}), threads=2)
+    _assert_same(results)
+    assert results[0][2].columns_side_by_side > 0
+
+
+def test_side_walls_keep_every_column_on_its_own():
+    walled = {
+        **CHUTE,
+        "domain": {**CHUTE["domain"], "width": 0.1},
+        "walls": {"name": "wall_friction", "mu_w": 0.2},
+    }
+    results = _both(simulation(**walled))
+    _assert_same(results)
+    assert results[0][2].columns_side_by_side == 0
+
+
+def test_a_viscosity_outside_the_contract_in_a_block_is_reported_as_column_by_column():
+    sim = simulation(**CHUTE)
+    for _ in range(10):
+        sim.step()
+    bad = JopMuI(0.38, 0.64, 0.279)
+    bad.mu_2 = 0.2  # past validation: mu_2 < mu_s, a negative viscosity
+    sim.stresses.bulk = bad
+    messages = []
+    for side_by_side in (True, False):
+        step = CompiledStep(sim.stresses, side_by_side=side_by_side)
+        with pytest.raises(PluginOutputError) as caught, np.errstate(divide="ignore"):
+            step(sim.h, sim.u, sim.u, 1e-3, threshold=1e-9, max_iterations=50)
+        messages.append(str(caught.value))
+    assert messages[0] == messages[1]
+    assert "viscosity_kernel" in messages[0]
