@@ -198,8 +198,10 @@ def test_pytest_collects_scenarios_in_named_directory(pytester):
 
 
 def test_pytest_runs_a_named_file_and_selects_by_kind(pytester):
+    """In process (the plugin loaded through its entry point, as in a user's run, and the
+    kernels already loaded); the other runs of pytest here are subprocesses."""
     path = _write(pytester.path, "true.yaml", TRUE)
-    result = pytester.runpytest_subprocess(path, "-p", "no:cacheprovider", "-v")
+    result = pytester.runpytest(path, "-p", "no:cacheprovider", "-v")
     result.assert_outcomes(passed=2)
     result.stdout.fnmatch_lines(
         [
@@ -207,7 +209,7 @@ def test_pytest_runs_a_named_file_and_selects_by_kind(pytester):
             "*true.yaml::regression[[]mass_final[]] PASSED*",
         ]
     )
-    only = pytester.runpytest_subprocess(path, "-p", "no:cacheprovider", "-k", "reference")
+    only = pytester.runpytest(path, "-p", "no:cacheprovider", "-k", "reference")
     only.assert_outcomes(passed=1, deselected=1)
 
 
