@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from multilayer.engine.newton_control import TRUSTED, _sign
+from multilayer.engine.newton_control import TRUSTED, _sign, error_bound
 from multilayer.engine.viscous_law import _newton_model, _viscosity_and_slope
 
 BLOCK = 4
@@ -137,7 +137,7 @@ def _stresses_and_model_of(t, u, form, params, flags):
             kappa, conductance = _newton_model(t[i, KAPPA, a], rate, eta, slope, False)
             t[i, KC, a] = kappa if t[i, VISCOUS, a] > 0.0 else t[i, KAPPA, a]
             t[i, CC, a] = conductance * t[i, CONDUCTANCE, a]
-            t[i, SIGN, a] = (1.0 if jump > 0.0 else 0.0) - (1.0 if jump < 0.0 else 0.0)  # _sign
+            t[i, SIGN, a] = _sign(jump)
             below = g
         flags[ACTIVE, i] = flags[ACTIVE, i] and faults == 0
         flags[SHEARED, i] = unsheared == 0
@@ -188,38 +188,21 @@ def _solve(t, new, flags):
 @njit(cache=True, error_model="numpy")
 def _converged(t, new, current, threshold, flags):
     """``DONE``: the error bound of ``newton_control.error_bound`` at slot ``new`` (true
-    stresses in ``TAU``, no walls) is within ``threshold``, or else the largest change from
-    slot ``current`` is; the same operations in the same order as ``_chunk``."""
+    stresses in ``TAU``) is within ``threshold``, or else the largest change from slot
+    ``current`` is: the test of ``_chunk``, column by column."""
     L = t.shape[2]
     for i in range(BLOCK):
-        lo = hi = residual = change = 0.0  # admissible stresses above the layer: [lo, hi]
-        smallest = np.inf
-        for a in range(L - 1, -1, -1):
-            u = t[i, new, a]
-            jump = u - (t[i, new, a - 1] if a > 0 else 0.0)
-            inertia = t[i, INERTIA, a]
-            excess = t[i, MOMENTUM, a] - inertia * u
-            kappa = t[i, KAPPA, a]
-            if u != 0.0:
-                f = _sign(u) * (0.0 + 0.0)  # the wall threshold and viscous force, 0
-                lo_zero, hi_zero = lo + excess - f, hi + excess - f
-            else:
-                lo_zero, hi_zero = lo + excess - 0.0, hi + excess + 0.0
-            gap = 0.0
-            if jump != 0.0:
-                sigma = _sign(jump) * (kappa + t[i, TAU, a])
-                gap = max(lo_zero - sigma, sigma - hi_zero, 0.0)
-                lo = hi = sigma
-            else:
-                lo, hi = max(lo_zero, -kappa), min(hi_zero, kappa)
-                if lo > hi:
-                    gap = lo - hi
-                    lo = hi = kappa if hi_zero > kappa else -kappa
-            if gap > 0.0:
-                residual += gap * gap / inertia
-            smallest = min(smallest, inertia)
-            change = max(change, abs(u - t[i, current, a]))
-        flags[DONE, i] = np.sqrt(residual / smallest) <= threshold or change <= threshold
+        wall = t[i, WALL]  # 0 in every column that takes part (load): no wall threshold or force
+        bound = error_bound(
+            t[i, INERTIA], t[i, MOMENTUM], t[i, KAPPA], t[i, TAU], wall, wall, t[i, new], threshold
+        )
+        converged = bound <= threshold
+        if not converged:
+            change = 0.0
+            for a in range(L):
+                change = max(change, abs(t[i, new, a] - t[i, current, a]))
+            converged = change <= threshold
+        flags[DONE, i] = converged
 
 
 @njit(cache=True, error_model="numpy")
