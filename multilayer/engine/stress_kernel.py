@@ -160,12 +160,13 @@ def _coefficients(hw, wet, inputs, m, kappa, w, pressure, spacing, viscous, wall
 _serial = njit(cache=True)(_coefficients)
 
 _NO_REST = np.zeros((1, 1), dtype=bool)
-Fractions = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 _NO_GRAVITY = np.zeros((1, 1))
+Fractions = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+"""``l, depth_interface, depth_centre, spacing_fraction`` of a model, each (L,)."""
 
 
 class CompiledCoefficients:
-    """``StressModel.columns`` of a stress model in one compiled pass, when its laws have
+    """``StressModel.columns`` of a stress model, compiled column by column, when its laws have
     compiled yield forms (read from the model at each call, so a law swapped on a running
     simulation is honoured); the numpy ``StressModel.columns`` otherwise.
 
@@ -174,9 +175,7 @@ class CompiledCoefficients:
     def __init__(self, stresses: StressModel):
         self.stresses = stresses
         self._floats, self._flags = np.empty(0), np.empty(0, bool)
-        self._fraction_cache: (
-            tuple[np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] | None
-        ) = None  # (s.l, _fractions())
+        self._fraction_cache: tuple[np.ndarray, Fractions] | None = None  # (s.l, _fractions())
 
     def laws(self) -> tuple[tuple[float, float], float | None] | None:
         """((mu, mu_static) of the bulk law, mu of the wall law or None), or None when a
