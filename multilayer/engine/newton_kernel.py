@@ -23,10 +23,11 @@ import functools
 import numpy as np
 from numba import njit, prange
 
+from multilayer.engine import sheared_columns as sc
 from multilayer.engine.column_kernel import _active_set, _dynamic_programme, _workspace
 from multilayer.engine.newton_control import TRUSTED, energy_rise, error_bound
 from multilayer.engine.plugin_output import PluginOutputError, outside_contract
-from multilayer.engine.sheared_columns import BLOCK, SLOTS, load, sheared_block, unload
+from multilayer.engine.sheared_columns import ALONE, BLOCK, SLOTS, join, sheared_block, unload
 from multilayer.engine.stress import INTERFACE, LAYER, ColumnStresses, StressModel
 from multilayer.engine.stress_kernel import CompiledCoefficients, column_coefficients
 from multilayer.engine.threads import parallel_chunks, parallel_compiled
@@ -135,19 +136,22 @@ def _chunk(
     weta_c, wslope_c, weta_n, wslope_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
     state_c, state_n = np.empty((4, L)), np.empty((4, L))  # of newton_control.examine
     # the coefficients of StressModel.columns of the column (stress_kernel.column_coefficients)
-    m, kappa, w0, pressure, spacing = np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L)
+    tile = np.empty((BLOCK + 1, SLOTS, L))  # the work arrays of sheared_block, and lane ALONE
+    m, w0, pressure, spacing = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
     viscous, wall_pressure = np.empty(L, np.bool_), np.empty(L)
-    # and from them, per layer: m_a / dt, m_a u*_a / dt, inverse spacing, conductance per
-    # unit slope (0 where not viscous), pressure parts of the bulk law; with walls, their
-    # pressure parts, the wall area factor (2 / W) h_a and the wall yield threshold per
-    # unit area (else the wall threshold), and the true wall thresholds
-    inertia, momentum = np.empty(L), np.empty(L)
-    inverse_spacing, conductance = np.empty(L), np.empty(L)
-    factor, offset = np.empty(L), np.empty(L)
+    # and from them, per layer, in the tile (lane ALONE: the column solved on its own;
+    # the lanes of a block are set up straight into their own): m_a / dt, m_a u*_a / dt,
+    # the yield stresses, inverse spacing, conductance per unit slope (0 where not
+    # viscous), pressure parts of the bulk law, the wall yield threshold per unit area
+    # (else the wall threshold); with walls, the pressure parts of the wall law, the wall
+    # area factor (2 / W) h_a, and the true wall thresholds
+    inertia, momentum, kappa = tile[ALONE, sc.INERTIA], tile[ALONE, sc.MOMENTUM], tile[ALONE, sc.KAPPA]
+    wall, inverse_spacing = tile[ALONE, sc.WALL], tile[ALONE, sc.INV_SPACING]
+    conductance = tile[ALONE, sc.CONDUCTANCE]
+    factor, offset = tile[ALONE, sc.FACTOR], tile[ALONE, sc.OFFSET]
     wall_factor, wall_offset = np.zeros(L), np.zeros(L)
-    per_area, wall, wall_true = np.zeros(L), np.empty(L), np.empty(L)
+    per_area, wall_true = np.zeros(L), np.empty(L)
     g_m, g_kappa, g_w, g_pressure, g_spacing, g_viscous, g_wall = given
-    tile = np.empty((BLOCK, SLOTS, L))  # the work arrays of sheared_block
     flags, finished = np.empty((4, BLOCK), np.bool_), np.zeros(BLOCK, np.bool_)
     start, stop = k * n // chunks, (k + 1) * n // chunks
     # The columns are set up in turn.  A group of BLOCK adjacent columns without walls goes
@@ -161,10 +165,7 @@ def _chunk(
             if finished[j - j0]:
                 continue
             col = wet[j]
-            fine = unload(
-                tile, flags, j - j0, inertia, momentum, kappa, wall, wall_true, inverse_spacing, conductance,
-                viscous, factor, offset, current,
-            )  # fmt: skip
+            fine = unload(tile, flags, j - j0, viscous, wall_true, current)
         else:
             if following == stop:
                 break
@@ -185,16 +186,25 @@ def _chunk(
                 for a in range(L):
                     m[a], kappa[a], w0[a], pressure[a] = g_m[a, j], g_kappa[a, j], g_w[a, j], g_pressure[a, j]
                     spacing[a], viscous[a], wall_pressure[a] = g_spacing[a, j], g_viscous[a, j], g_wall[a, j]
+            lane = j - j0 if block else ALONE
             for a in range(L):  # what stays fixed during the iteration
                 mass = m[a]
-                inertia[a] = mass / dt
-                momentum[a] = mass * ustar[a, col] / dt
+                tile[lane, sc.INERTIA, a] = mass / dt
+                tile[lane, sc.MOMENTUM, a] = mass * ustar[a, col] / dt
+                tile[lane, sc.KAPPA, a] = kappa[a]
                 s = spacing[a]
-                inverse_spacing[a] = 1.0 / s if s > 0.0 else 1.0
-                conductance[a] = inverse_spacing[a] if (viscous[a] and s > 0.0) else 0.0
-                factor[a], offset[a] = _pressure_part(bulk_form, bulk_params, pressure[a])
+                inverse = 1.0 / s if s > 0.0 else 1.0
+                tile[lane, sc.INV_SPACING, a] = inverse
+                tile[lane, sc.CONDUCTANCE, a] = inverse if (viscous[a] and s > 0.0) else 0.0
+                parts = _pressure_part(bulk_form, bulk_params, pressure[a])
+                tile[lane, sc.FACTOR, a], tile[lane, sc.OFFSET, a] = parts
                 current[a] = guess[a, col]
-                if walls:
+                if block:
+                    tile[lane, sc.VISCOUS, a] = 1.0 if viscous[a] else 0.0
+                    tile[lane, sc.GUESS, a] = current[a]
+                    tile[lane, sc.U0, a] = current[a]
+                    tile[lane, sc.WALL, a] = w0[a]
+                elif walls:
                     wall_factor[a], wall_offset[a] = _pressure_part(wall_form, wall_params, wall_pressure[a])
                     per_area[a] = (2.0 / width) * mass / density
                     wall[a] = w0[a] / max(per_area[a], 1e-300)
@@ -203,11 +213,8 @@ def _chunk(
                     wall[a] = w0[a]
                     wall_true[a] = wall[a]
             if block:
-                load(
-                    tile, flags, j - j0, fine, inertia, momentum, kappa, wall, inverse_spacing, conductance,
-                    viscous, factor, offset, current,
-                )  # fmt: skip
-                if j - j0 == BLOCK - 1:
+                join(tile, flags, lane, fine)
+                if lane == BLOCK - 1:
                     sheared_block(
                         tile, flags, finished, bulk_form, bulk_params, threshold, max_iterations, j0,
                         wet[j0], u_out, iterations, fallbacks, faults, fault_values, side_by_side,

@@ -36,7 +36,7 @@ BLOCK = 4
 """Columns solved side by side: four chains of divisions in flight (2, 4 and 8 measured
 the same on the chute; the tile holds 18 values per layer and column, 37 KB at L = 64)."""
 
-# the tile (BLOCK, SLOTS, L) holds one value per column of the block and layer: per step,
+# the tile (BLOCK + 1, SLOTS, L) holds one value per column (lane) and layer: per step,
 # m/dt, m u*/dt, the true yield stress, the wall threshold, 1/spacing, the conductance per
 # unit slope (0 where not viscous), whether viscous, the pressure parts of the law and the
 # guess; per iteration, the Newton model (yield stress, conductance, sign of the jump), the
@@ -45,59 +45,39 @@ the same on the chute; the tile holds 18 values per layer and column, 37 KB at L
 INERTIA, MOMENTUM, KAPPA, WALL, INV_SPACING, CONDUCTANCE, VISCOUS, FACTOR, OFFSET = range(9)
 GUESS, KC, CC, SIGN, DIAG, RHS, TAU, U0, U1 = range(9, 18)
 SLOTS = 18
+ALONE = BLOCK
+"""The lane of the tile (BLOCK + 1, SLOTS, L) that holds the per-step slots of a column
+solved on its own (``newton_kernel._chunk``); the block's lanes are 0 ... BLOCK - 1."""
 
 # per-column flags (lanes)
 ACTIVE, SHEARED, DONE, FINE = range(4)  # of the boolean lanes
 
 
 @njit(cache=True)
-def load(
-    t, flags, i, fine, inertia, momentum, kappa, wall, inverse_spacing, conductance, viscous, factor, offset,
-    guess,
-):  # fmt: skip
-    """Column ``i`` of the block from the arrays of one column that ``newton_kernel._chunk``
-    sets up (``fine``: its yield values are within the plugin contract).  It takes part
-    in the block iteration if ``fine``, with mass and no wall threshold."""
-    L = inertia.shape[0]
-    take = fine and inertia[0] > 0.0
-    for a in range(L):
-        t[i, INERTIA, a] = inertia[a]
-        t[i, MOMENTUM, a] = momentum[a]
-        t[i, KAPPA, a] = kappa[a]
-        t[i, WALL, a] = wall[a]
-        t[i, INV_SPACING, a] = inverse_spacing[a]
-        t[i, CONDUCTANCE, a] = conductance[a]
-        t[i, VISCOUS, a] = 1.0 if viscous[a] else 0.0
-        t[i, FACTOR, a] = factor[a]
-        t[i, OFFSET, a] = offset[a]
-        t[i, GUESS, a] = guess[a]
-        t[i, U0, a] = guess[a]
-        take = take and wall[a] == 0.0
+def join(t, flags, i, fine):
+    """Lane ``i`` of the block, whose per-step slots ``newton_kernel._chunk`` has set up
+    (``fine``: its yield values are within the plugin contract), takes part in the block
+    iteration if ``fine``, with mass and without a wall threshold."""
+    take = fine and t[i, INERTIA, 0] > 0.0
+    for a in range(t.shape[2]):
+        take = take and t[i, WALL, a] == 0.0
     flags[FINE, i] = fine
     flags[ACTIVE, i] = take
 
 
 @njit(cache=True)
-def unload(
-    t, flags, i, inertia, momentum, kappa, wall, wall_true, inverse_spacing, conductance, viscous, factor,
-    offset, guess,
-):  # fmt: skip
-    """The arrays of one column of ``newton_kernel._chunk`` back from column ``i`` of the
-    block (one it did not finish; :func:`load` in reverse; no side walls);
-    returns ``fine``."""
-    L = inertia.shape[0]
+def unload(t, flags, i, viscous, wall_true, guess):
+    """Column ``i`` of the block, one it did not finish, into lane ``ALONE`` (the
+    column solved on its own by ``newton_kernel._chunk``), with the arrays of one column
+    that lane has no slot for (no side walls); returns ``fine``."""
+    L = t.shape[2]
+    for slot in range(GUESS + 1):
+        for a in range(L):
+            t[ALONE, slot, a] = t[i, slot, a]
     for a in range(L):
-        inertia[a] = t[i, INERTIA, a]
-        momentum[a] = t[i, MOMENTUM, a]
-        kappa[a] = t[i, KAPPA, a]
-        inverse_spacing[a] = t[i, INV_SPACING, a]
-        conductance[a] = t[i, CONDUCTANCE, a]
         viscous[a] = t[i, VISCOUS, a] > 0.0
-        factor[a] = t[i, FACTOR, a]
-        offset[a] = t[i, OFFSET, a]
+        wall_true[a] = t[i, WALL, a]  # no walls
         guess[a] = t[i, GUESS, a]
-        wall[a] = t[i, WALL, a]
-        wall_true[a] = wall[a]  # no walls
     return flags[FINE, i]
 
 
