@@ -50,3 +50,34 @@ def test_the_dam_break_times_a_peer_before_each_run_and_reports_the_median_ratio
     assert median == pytest.approx(sorted(pairs)[1], abs=0.01)
     failed = subprocess.run([*command, "--peer", "exit 3"], capture_output=True, text=True)
     assert failed.returncode == 1 and "'exit 3' failed (exit 3)" in failed.stderr
+
+
+def test_the_scaling_sweep_keeps_the_fastest_run_of_each_point():
+    """Each point of the sweep keeps its fastest run (as timeit does), the median and the
+    slowest beside it and the largest peak memory; flatness is slowest over fastest."""
+    sys.path.insert(0, str(BENCHMARKS))
+    try:
+        import scaling
+    finally:
+        sys.path.remove(str(BENCHMARKS))
+    runs = [
+        {
+            "columns": 10,
+            "layers": 8,
+            "ns_per_cell_step": t,
+            "bytes_per_cell": b,
+            "bytes_per_cell_above_baseline": b / 2,
+        }
+        for t, b in ((90.0, 100.0), (70.0, 120.0), (110.0, 90.0))
+    ]
+    best = scaling.fastest(runs)
+    assert best["ns_per_cell_step"] == 70.0 and best["runs"] == 3
+    assert best["median_ns_per_cell_step"] == 90.0 and best["slowest_ns_per_cell_step"] == 110.0
+    assert best["bytes_per_cell"] == 120.0 and best["bytes_per_cell_above_baseline"] == 60.0
+    rows = [
+        best,
+        {**best, "layers": 64, "ns_per_cell_step": 50.0},
+        {**best, "layers": 4, "ns_per_cell_step": 500.0},
+    ]
+    ratio, points = scaling.spread(rows, "layers", "columns", 10, 8, 128)
+    assert ratio == pytest.approx(70.0 / 50.0) and len(points) == 2
