@@ -74,6 +74,7 @@ def _assert_figures(directory: Path, names: list[str], fmt: str = "png") -> None
         assert image[..., :3].std() > 0.05, f"{name} is blank"
 
 
+@pytest.mark.slow  # the animation: some 4 s; the figures are drawn in the default run
 def test_plot_multi_column_run_with_animation(slump_dir: Path, cli, monkeypatch) -> None:
     """The figures, and an animation with one frame per output time."""
     monkeypatch.setattr(animation.writers, "is_available", lambda name: False)  # GIF, always available
