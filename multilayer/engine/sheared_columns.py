@@ -34,7 +34,8 @@ from multilayer.engine.viscous_law import _newton_model, _viscosity_and_slope
 
 BLOCK = 4
 """Columns solved side by side: four chains of divisions in flight (2, 4 and 8 measured
-the same on the chute; the tile holds 18 values per layer and column, 37 KB at L = 64)."""
+the same on the chute; the tile holds 18 values per layer for each of the BLOCK + 1
+lanes, 46 KB at L = 64)."""
 
 # the tile (BLOCK + 1, SLOTS, L) holds one value per column (lane) and layer: per step,
 # m/dt, m u*/dt, the true yield stress, the wall threshold, 1/spacing, the conductance per
