@@ -191,7 +191,6 @@ def _chunk(
                 mass = m[a]
                 tile[lane, sc.INERTIA, a] = mass / dt
                 tile[lane, sc.MOMENTUM, a] = mass * ustar[a, col] / dt
-                tile[lane, sc.KAPPA, a] = kappa[a]
                 s = spacing[a]
                 inverse = 1.0 / s if s > 0.0 else 1.0
                 tile[lane, sc.INV_SPACING, a] = inverse
@@ -199,7 +198,8 @@ def _chunk(
                 parts = _pressure_part(bulk_form, bulk_params, pressure[a])
                 tile[lane, sc.FACTOR, a], tile[lane, sc.OFFSET, a] = parts
                 current[a] = guess[a, col]
-                if block:
+                if block:  # (kappa was written into lane ALONE, whose slot it is)
+                    tile[lane, sc.KAPPA, a] = kappa[a]
                     tile[lane, sc.VISCOUS, a] = 1.0 if viscous[a] else 0.0
                     tile[lane, sc.GUESS, a] = current[a]
                     tile[lane, sc.U0, a] = current[a]
@@ -329,11 +329,12 @@ def _columns(
     otherwise from the (L, n) arrays ``given`` (m, kappa, w, pressure, spacing, viscous,
     wall_pressure).  What does not change from one iteration to the next (masses,
     pressure parts of the laws, inverse spacings, wall thresholds) is computed once per
-    step, straight into arrays of one column reused from column to column (no per-column
-    views or tuples of arrays: each costs reference counting).  A column whose guess is
-    at rest at the bed and the surface and already within the error bound of
-    ``newton_control`` is not solved (``iterations`` 0): the bound is rigorous, so the
-    guess is as good an answer as a converged iterate.
+    step, straight into the tile of ``sheared_columns``: into a block's lane, or into the
+    lane ``ALONE``, whose rows are the arrays of the column solved on its own (views made
+    once per chunk: per-column views or tuples of arrays each cost reference counting).
+    A column whose guess is at rest at the bed and the surface and already within the
+    error bound of ``newton_control`` is not solved (``iterations`` 0): the bound is
+    rigorous, so the guess is as good an answer as a converged iterate.
 
     With ``blocks``, adjacent columns without side walls are set up ``BLOCK`` at a time
     and iterated side by side while fully sheared (``sheared_columns.sheared_block``;

@@ -173,7 +173,7 @@ def _converged(t, new, current, threshold, flags):
     ``current`` is: the test of ``_chunk``, column by column."""
     L = t.shape[2]
     for i in range(BLOCK):
-        wall = t[i, WALL]  # 0 in every column that takes part (load): no wall threshold or force
+        wall = t[i, WALL]  # 0 in every column that takes part (join): no wall threshold or force
         bound = error_bound(
             t[i, INERTIA], t[i, MOMENTUM], t[i, KAPPA], t[i, TAU], wall, wall, t[i, new], threshold
         )
@@ -191,8 +191,8 @@ def sheared_block(
     t, flags, finished, form, params, threshold, max_iterations, j0, c0,
     u_out, iterations, fallbacks, faults, fault_values, side_by_side,
 ):  # fmt: skip
-    """The Newton iteration of ``newton_kernel._chunk`` for the ``BLOCK`` columns loaded
-    into the tile ``t`` (:func:`load`): wet columns ``j0 ...`` of ``_chunk``, mesh columns
+    """The Newton iteration of ``newton_kernel._chunk`` for the ``BLOCK`` columns set up
+    in the tile ``t`` (:func:`join`): wet columns ``j0 ...`` of ``_chunk``, mesh columns
     ``c0 ...``, adjacent, without side walls; side by side while each stays fully sheared.
     ``finished[i]`` tells which columns it solved, and wrote into ``_chunk``'s outputs
     (``side_by_side`` True); ``flags`` holds its boolean lanes."""

@@ -135,6 +135,7 @@ def column_coefficients(
     return checked - good
 
 
+@njit(cache=True)
 def _coefficients(hw, wet, inputs, m, kappa, w, pressure, spacing, viscous, wall_pressure):
     """The arrays of ``ColumnStresses`` (L, n) of the columns ``wet`` of thicknesses
     ``hw``, column by column (:func:`column_coefficients`).  Returns how many yield values
@@ -156,8 +157,6 @@ def _coefficients(hw, wet, inputs, m, kappa, w, pressure, spacing, viscous, wall
             spacing[a, j], viscous[a, j], wall_pressure[a, j] = sc[a], vc[a], wpc[a]
     return bad
 
-
-_serial = njit(cache=True)(_coefficients)
 
 _NO_REST = np.zeros((1, 1), dtype=bool)
 _NO_GRAVITY = np.zeros((1, 1))
@@ -231,7 +230,7 @@ class CompiledCoefficients:
             return s.columns(h, where, rest, yield_gravity)
         where = np.ascontiguousarray(where, dtype=np.int64)
         arrays = self._arrays(s.l.shape[0], where.size)
-        if _serial(h[where], where, inputs, *arrays) != 0:
+        if _coefficients(h[where], where, inputs, *arrays) != 0:
             return s.columns(h, where, rest, yield_gravity)  # it names the plugin, the method and the value
         m, kappa, w, pressure, spacing, viscous, wall_pressure = arrays
         return ColumnStresses(
