@@ -138,6 +138,8 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3, help="runs of each point; the fastest is kept")
     parser.add_argument("--replot", action="store_true", help=f"redraw the figure from {DATA.name}")
     args = parser.parse_args()
+    if args.repeat < 1:
+        parser.error("--repeat takes an integer >= 1")
     if args.point:
         print(json.dumps(point(*args.point)))
         return

@@ -52,6 +52,17 @@ def test_the_dam_break_times_a_peer_before_each_run_and_reports_the_median_ratio
     assert failed.returncode == 1 and "'exit 3' failed (exit 3)" in failed.stderr
 
 
+def test_the_scaling_sweep_refuses_no_repeats():
+    out = subprocess.run(
+        [sys.executable, BENCHMARKS / "scaling.py", "--repeat", "0"], capture_output=True, text=True
+    )
+    assert (
+        out.returncode == 2
+        and "--repeat takes an integer >= 1" in out.stderr
+        and "Traceback" not in out.stderr
+    )
+
+
 def test_the_scaling_sweep_keeps_the_fastest_run_of_each_point():
     """Each point of the sweep keeps its fastest run (as timeit does), the median and the
     slowest beside it and the largest peak memory; flatness is slowest over fastest."""
