@@ -101,9 +101,9 @@ def error_bound(inertia, momentum, kappa, viscous, w, wall_viscous, u, limit):
     ``wall_viscous`` the wall viscous force ``|F_v|`` at ``u_a``.
     """
     L = inertia.shape[0]
-    cap = np.inf  # a residual above it: the bound exceeds 2 limit (the sum only grows)
-    if limit < np.inf:
-        cap = 4.0 * limit * limit * np.min(inertia)
+    # a residual above 4 limit^2 times the smallest m/dt so far: the bound exceeds 2 limit
+    # (the residual only grows and the smallest only shrinks as the pass goes on)
+    cap = 4.0 * limit * limit
     lo = 0.0  # admissible sigma_{a+1}: [lo, hi]; {0} at the free surface
     hi = 0.0
     residual = 0.0  # ||g||^2_{M^-1}
@@ -126,11 +126,11 @@ def error_bound(inertia, momentum, kappa, viscous, w, wall_viscous, u, limit):
             if lo > hi:  # disjoint: sigma_a is the admissible value nearest
                 gap = lo - hi
                 lo = hi = kappa[a] if hi_zero > kappa[a] else -kappa[a]
+        smallest = min(smallest, inertia[a])
         if gap > 0.0:
             residual += gap * gap / inertia[a]
-            if residual > cap:  # an iteration far from converged: the rest of the pass is moot
+            if residual > cap * smallest:  # an iteration far from converged: the rest is moot
                 return np.inf
-        smallest = min(smallest, inertia[a])
     return np.sqrt(residual / smallest)
 
 

@@ -27,7 +27,7 @@ from multilayer.engine import sheared_columns as sc
 from multilayer.engine.column_kernel import _active_set, _dynamic_programme, _workspace
 from multilayer.engine.newton_control import TRUSTED, energy_rise, error_bound
 from multilayer.engine.plugin_output import PluginOutputError, outside_contract
-from multilayer.engine.sheared_columns import ALONE, BLOCK, SLOTS, join, sheared_block, unload
+from multilayer.engine.sheared_columns import ALONE, BLOCK, cell, join, new_tile, sheared_block, unload
 from multilayer.engine.stress import INTERFACE, LAYER, ColumnStresses, StressModel
 from multilayer.engine.stress_kernel import CompiledCoefficients, column_coefficients
 from multilayer.engine.threads import parallel_chunks, parallel_compiled
@@ -136,7 +136,7 @@ def _chunk(
     weta_c, wslope_c, weta_n, wslope_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
     state_c, state_n = np.empty((4, L)), np.empty((4, L))  # of newton_control.examine
     # the coefficients of StressModel.columns of the column (stress_kernel.column_coefficients)
-    tile = np.empty((BLOCK + 1, SLOTS, L))  # the work arrays of sheared_block, and lane ALONE
+    tile = new_tile(L)  # the work arrays of sheared_block, and lane ALONE
     m, w0, pressure, spacing = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
     viscous, wall_pressure = np.empty(L, np.bool_), np.empty(L)
     # and from them, per layer, in the tile (lane ALONE: the column solved on its own;
@@ -145,10 +145,10 @@ def _chunk(
     # viscous), pressure parts of the bulk law, the wall yield threshold per unit area
     # (else the wall threshold); with walls, the pressure parts of the wall law, the wall
     # area factor (2 / W) h_a, and the true wall thresholds
-    inertia, momentum, kappa = tile[ALONE, sc.INERTIA], tile[ALONE, sc.MOMENTUM], tile[ALONE, sc.KAPPA]
-    wall, inverse_spacing = tile[ALONE, sc.WALL], tile[ALONE, sc.INV_SPACING]
-    conductance = tile[ALONE, sc.CONDUCTANCE]
-    factor, offset = tile[ALONE, sc.FACTOR], tile[ALONE, sc.OFFSET]
+    alone = slice(cell(ALONE, L), cell(ALONE, L) + L)
+    inertia, momentum, kappa = tile[sc.INERTIA, alone], tile[sc.MOMENTUM, alone], tile[sc.KAPPA, alone]
+    wall, inverse_spacing = tile[sc.WALL, alone], tile[sc.INV_SPACING, alone]
+    conductance, factor, offset = tile[sc.CONDUCTANCE, alone], tile[sc.FACTOR, alone], tile[sc.OFFSET, alone]
     wall_factor, wall_offset = np.zeros(L), np.zeros(L)
     per_area, wall_true = np.zeros(L), np.empty(L)
     g_m, g_kappa, g_w, g_pressure, g_spacing, g_viscous, g_wall = given
@@ -165,7 +165,7 @@ def _chunk(
             if finished[j - j0]:
                 continue
             col = wet[j]
-            fine = unload(tile, flags, j - j0, viscous, wall_true, current)
+            fine = unload(tile, L, flags, j - j0, viscous, wall_true, current)
         else:
             if following == stop:
                 break
@@ -187,23 +187,24 @@ def _chunk(
                     m[a], kappa[a], w0[a], pressure[a] = g_m[a, j], g_kappa[a, j], g_w[a, j], g_pressure[a, j]
                     spacing[a], viscous[a], wall_pressure[a] = g_spacing[a, j], g_viscous[a, j], g_wall[a, j]
             lane = j - j0 if block else ALONE
+            o = cell(lane, L)  # the lane's layer 0 in the tile's rows
             for a in range(L):  # what stays fixed during the iteration
                 mass = m[a]
-                tile[lane, sc.INERTIA, a] = mass / dt
-                tile[lane, sc.MOMENTUM, a] = mass * ustar[a, col] / dt
+                tile[sc.INERTIA, o + a] = mass / dt
+                tile[sc.MOMENTUM, o + a] = mass * ustar[a, col] / dt
                 s = spacing[a]
                 inverse = 1.0 / s if s > 0.0 else 1.0
-                tile[lane, sc.INV_SPACING, a] = inverse
-                tile[lane, sc.CONDUCTANCE, a] = inverse if (viscous[a] and s > 0.0) else 0.0
+                tile[sc.INV_SPACING, o + a] = inverse
+                tile[sc.CONDUCTANCE, o + a] = inverse if (viscous[a] and s > 0.0) else 0.0
                 parts = _pressure_part(bulk_form, bulk_params, pressure[a])
-                tile[lane, sc.FACTOR, a], tile[lane, sc.OFFSET, a] = parts
+                tile[sc.FACTOR, o + a], tile[sc.OFFSET, o + a] = parts
                 current[a] = guess[a, col]
                 if block:  # (kappa was written into lane ALONE, whose slot it is)
-                    tile[lane, sc.KAPPA, a] = kappa[a]
-                    tile[lane, sc.VISCOUS, a] = 1.0 if viscous[a] else 0.0
-                    tile[lane, sc.GUESS, a] = current[a]
-                    tile[lane, sc.U0, a] = current[a]
-                    tile[lane, sc.WALL, a] = w0[a]
+                    tile[sc.KAPPA, o + a] = kappa[a]
+                    tile[sc.VISCOUS, o + a] = 1.0 if viscous[a] else 0.0
+                    tile[sc.GUESS, o + a] = current[a]
+                    tile[sc.U0, o + a] = current[a]
+                    tile[sc.WALL, o + a] = w0[a]
                 elif walls:
                     wall_factor[a], wall_offset[a] = _pressure_part(wall_form, wall_params, wall_pressure[a])
                     per_area[a] = (2.0 / width) * mass / density
@@ -213,7 +214,7 @@ def _chunk(
                     wall[a] = w0[a]
                     wall_true[a] = wall[a]
             if block:
-                join(tile, flags, lane, fine)
+                join(tile, L, flags, lane, fine)
                 if lane == BLOCK - 1:
                     sheared_block(
                         tile, flags, finished, bulk_form, bulk_params, threshold, max_iterations, j0,

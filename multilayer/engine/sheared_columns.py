@@ -32,156 +32,205 @@ from numba import njit
 from multilayer.engine.newton_control import TRUSTED, _sign, error_bound
 from multilayer.engine.viscous_law import _newton_model, _viscosity_and_slope
 
-BLOCK = 4
-"""Columns solved side by side: four chains of divisions in flight (2, 4 and 8 measured
-the same on the chute; the tile holds 18 values per layer for each of the BLOCK + 1
-lanes, 46 KB at L = 64)."""
+BLOCK = 8
+"""Columns solved side by side: eight chains of divisions in flight, and the pass of the
+stresses and the Newton model one loop over the 8 L cells of the block, long enough to
+run as vectors at L = 8 (compiled, the loop runs as vectors of 8 values from about 40
+cells on, and one cell at a time below: 20 against 51 ns per column and pass at L = 8).
+The tile holds 19 values per layer for each of the BLOCK + 1 lanes, 186 KB at L = 128."""
 
-# the tile (BLOCK + 1, SLOTS, L) holds one value per column (lane) and layer: per step,
-# m/dt, m u*/dt, the true yield stress, the wall threshold, 1/spacing, the conductance per
-# unit slope (0 where not viscous), whether viscous, the pressure parts of the law and the
-# guess; per iteration, the Newton model (yield stress, conductance, sign of the jump), the
-# forward sweep (inverse pivot, right-hand side), the true viscous stress at the new
-# velocities and the two iterates
+# The tile (SLOTS, 1 + (BLOCK + 1) P) holds, in each slot (a row), one value per column
+# (lane) and layer: layer a of lane i in cell 1 + i P + a, P = stride(L) (the cells
+# between the lanes and cell 0 are padding, never read as values).  The slots: per step,
+# m/dt, m u*/dt, the true yield stress, the wall threshold, 1/spacing, the conductance
+# per unit slope (0 where not viscous), whether viscous, the pressure parts of the law
+# and the guess; per iteration, the Newton model (yield stress, conductance, sign of the
+# jump), the forward sweep (inverse pivot, right-hand side), the true viscous stress at
+# the new velocities and the two iterates; fixed, 1.0 in the bottom cell of each lane
+# (the bed below it), 2.0 in the padding and 0.0 elsewhere.
 INERTIA, MOMENTUM, KAPPA, WALL, INV_SPACING, CONDUCTANCE, VISCOUS, FACTOR, OFFSET = range(9)
-GUESS, KC, CC, SIGN, DIAG, RHS, TAU, U0, U1 = range(9, 18)
-SLOTS = 18
+GUESS, KC, CC, SIGN, DIAG, RHS, TAU, U0, U1, BED = range(9, 19)
+SLOTS = 19
 ALONE = BLOCK
-"""The lane of the tile (BLOCK + 1, SLOTS, L) that holds the per-step slots of a column
-solved on its own (``newton_kernel._chunk``); the block's lanes are 0 ... BLOCK - 1."""
+"""The lane of the tile that holds the per-step slots of a column solved on its own
+(``newton_kernel._chunk``); the block's lanes are 0 ... BLOCK - 1."""
 
 # per-column flags (lanes)
 ACTIVE, SHEARED, DONE, FINE = range(4)  # of the boolean lanes
 
 
 @njit(cache=True)
-def join(t, flags, i, fine):
+def stride(L):
+    """Cells from one lane to the next in the tile's rows, for columns of ``L`` layers:
+    ``L + 1`` (a cell of padding) below 32 layers; above, an odd number of cache lines (of
+    8 values), so that the lanes and slots of a pass fall in different sets of the L1
+    cache (at L = 128 without it, the streams of the Thomas sweep shared four sets: 800 to
+    1130 against 460 ns per column)."""
+    if L < 32:
+        return L + 1
+    lines = (L + 1 + 7) // 8
+    return 8 * (lines + 1 - lines % 2)
+
+
+@njit(cache=True)
+def new_tile(L):
+    """The tile of columns of ``L`` layers, zero but for the ``BED`` slot."""
+    t = np.zeros((SLOTS, 1 + (BLOCK + 1) * stride(L)))
+    t[BED, :] = 2.0
+    for i in range(BLOCK + 1):
+        x = cell(i, L)
+        t[BED, x] = 1.0
+        t[BED, x + 1 : x + L] = 0.0
+    return t
+
+
+@njit(cache=True)
+def cell(i, L):
+    """The cell of layer 0 of lane ``i`` in the tile's rows (columns of ``L`` layers)."""
+    return 1 + i * stride(L)
+
+
+@njit(cache=True)
+def join(t, L, flags, i, fine):
     """Lane ``i`` of the block, whose per-step slots ``newton_kernel._chunk`` has set up
     (``fine``: its yield values are within the plugin contract), takes part in the block
     iteration if ``fine``, with mass and without a wall threshold."""
-    take = fine and t[i, INERTIA, 0] > 0.0
-    for a in range(t.shape[2]):
-        take = take and t[i, WALL, a] == 0.0
+    x = cell(i, L)
+    take = fine and t[INERTIA, x] > 0.0
+    for a in range(x, x + L):
+        take = take and t[WALL, a] == 0.0
     flags[FINE, i] = fine
     flags[ACTIVE, i] = take
 
 
 @njit(cache=True)
-def unload(t, flags, i, viscous, wall_true, guess):
+def unload(t, L, flags, i, viscous, wall_true, guess):
     """Column ``i`` of the block, one it did not finish, into lane ``ALONE`` (the
     column solved on its own by ``newton_kernel._chunk``), with the arrays of one column
     that lane has no slot for (no side walls); returns ``fine``."""
-    L = t.shape[2]
+    x, alone = cell(i, L), cell(ALONE, L)
     for slot in range(GUESS + 1):
         for a in range(L):
-            t[ALONE, slot, a] = t[i, slot, a]
+            t[slot, alone + a] = t[slot, x + a]
     for a in range(L):
-        viscous[a] = t[i, VISCOUS, a] > 0.0
-        wall_true[a] = t[i, WALL, a]  # no walls
-        guess[a] = t[i, GUESS, a]
+        viscous[a] = t[VISCOUS, x + a] > 0.0
+        wall_true[a] = t[WALL, x + a]  # no walls
+        guess[a] = t[GUESS, x + a]
     return flags[FINE, i]
 
 
 @njit(cache=True, error_model="numpy")
-def _stresses_and_model(t, u, form, params, flags):
+def _stresses_and_model(t, L, u, form, params, flags):
     """At the velocities of slot ``u``: the true viscous stresses (slot ``TAU``; a
     viscosity outside the plugin contract ends the column's block iteration) and the
     Newton model there (``KC``, ``CC``, ``SIGN``), as ``newton_kernel._true_stresses``
     and the model of the next iteration; ``SHEARED`` tells whether every jump is nonzero.
-    The pass is compiled once per form, the form a constant in it (its loops then have
-    no branches)."""
+    The block's lanes are swept as one loop over their cells (the bed below the bottom
+    cell of each lane); where some column is unsheared or outside the contract, its lanes
+    are swept again one by one to tell which (the same values again).  The pass is
+    compiled once per form, the form a constant in it (its loop then has no branches)."""
     if form == 1:
-        _stresses_and_model_of(t, u, 1, params, flags)
+        faults, unsheared = _sweep(t, u, 1, params, cell(0, L), cell(BLOCK, L))
     elif form == 0:
-        _stresses_and_model_of(t, u, 0, params, flags)
+        faults, unsheared = _sweep(t, u, 0, params, cell(0, L), cell(BLOCK, L))
     else:
-        _stresses_and_model_of(t, u, 2, params, flags)
+        faults, unsheared = _sweep(t, u, 2, params, cell(0, L), cell(BLOCK, L))
+    for i in range(BLOCK):
+        if faults == 0 and unsheared == 0:
+            flags[SHEARED, i] = True
+            continue
+        x = cell(i, L)
+        lane_faults, lane_unsheared = _sweep(t, u, form, params, x, x + L)
+        flags[ACTIVE, i] = flags[ACTIVE, i] and lane_faults == 0
+        flags[SHEARED, i] = lane_unsheared == 0
 
 
 @njit(cache=True, error_model="numpy")
-def _stresses_and_model_of(t, u, form, params, flags):
-    """:func:`_stresses_and_model` for one form."""
-    L = t.shape[2]
-    for i in range(BLOCK):  # no chain across the layers: one column after the other
-        faults = 0
-        unsheared = 0
-        below = 0.0
-        for a in range(L):
-            g = t[i, u, a]
-            jump = g - below
-            rate = abs(jump) * t[i, INV_SPACING, a]
-            eta, slope = _viscosity_and_slope(form, params, rate, t[i, FACTOR, a], t[i, OFFSET, a])
-            within = (eta >= 0.0) & (eta < np.inf)  # the plugin contract
-            faults += not within
-            unsheared += g == below
-            t[i, TAU, a] = eta * rate if t[i, CONDUCTANCE, a] > 0.0 else 0.0
-            kappa, conductance = _newton_model(t[i, KAPPA, a], rate, eta, slope, False)
-            t[i, KC, a] = kappa if t[i, VISCOUS, a] > 0.0 else t[i, KAPPA, a]
-            t[i, CC, a] = conductance * t[i, CONDUCTANCE, a]
-            t[i, SIGN, a] = _sign(jump)
-            below = g
-        flags[ACTIVE, i] = flags[ACTIVE, i] and faults == 0
-        flags[SHEARED, i] = unsheared == 0
+def _sweep(t, u, form, params, start, stop):
+    """Cells ``start ... stop - 1`` of the tile's rows of :func:`_stresses_and_model` (the
+    velocities in slot ``u``); returns how many viscosities are outside the plugin contract
+    and how many jumps are zero, padding aside."""
+    faults = unsheared = 0
+    for x in range(np.uint64(start), np.uint64(stop)):  # unsigned: no test for negative indices
+        g = t[u, x]
+        below = 0.0 if t[BED, x] > 0.0 else t[u, x - np.uint64(1)]
+        jump = g - below
+        rate = abs(jump) * t[INV_SPACING, x]
+        eta, slope = _viscosity_and_slope(form, params, rate, t[FACTOR, x], t[OFFSET, x])
+        within = (eta >= 0.0) & (eta < np.inf)  # the plugin contract
+        layer = t[BED, x] < 2.0  # not padding
+        faults += layer and not within
+        unsheared += layer and g == below
+        t[TAU, x] = eta * rate if t[CONDUCTANCE, x] > 0.0 else 0.0
+        kappa, conductance = _newton_model(t[KAPPA, x], rate, eta, slope, False)
+        t[KC, x] = kappa if t[VISCOUS, x] > 0.0 else t[KAPPA, x]
+        t[CC, x] = conductance * t[CONDUCTANCE, x]
+        t[SIGN, x] = _sign(jump)
+    return faults, unsheared
 
 
 @njit(cache=True, error_model="numpy")
-def _solve(t, new, flags):
+def _solve(t, L, new, flags):
     """The exact solve with one group per layer into slot ``new``: the forward sweep
     (inverse pivots ``DIAG``, right-hand sides ``RHS``) and the back substitution of
     ``column_kernel._active_set``, and its optimality test: each yielded jump keeps its
     sign (a column whose structure is rejected leaves the block)."""
-    L = t.shape[2]
     for a in range(L):
         for i in range(BLOCK):
-            d = 0.0 + (t[i, INERTIA, a] + 0.0)  # _active_set's sums, in its order (cw = w = 0)
-            r = 0.0 + t[i, MOMENTUM, a]
-            c = t[i, CC, a]
+            x = cell(i, L) + a
+            d = 0.0 + (t[INERTIA, x] + 0.0)  # _active_set's sums, in its order (cw = w = 0)
+            r = 0.0 + t[MOMENTUM, x]
+            c = t[CC, x]
             d += c
-            r -= t[i, KC, a] * t[i, SIGN, a]
+            r -= t[KC, x] * t[SIGN, x]
             if a + 1 < L:
-                d += t[i, CC, a + 1]
-                r += t[i, KC, a + 1] * t[i, SIGN, a + 1]
+                d += t[CC, x + 1]
+                r += t[KC, x + 1] * t[SIGN, x + 1]
             if a > 0 and c != 0.0:
-                f = -c * t[i, DIAG, a - 1]
+                f = -c * t[DIAG, x - 1]
                 d -= f * (-c)
-                r -= f * t[i, RHS, a - 1]
+                r -= f * t[RHS, x - 1]
             if not d > 0.0:
                 flags[ACTIVE, i] = False
-            t[i, DIAG, a] = 1.0 / d
-            t[i, RHS, a] = r
+            t[DIAG, x] = 1.0 / d
+            t[RHS, x] = r
     for a in range(L - 1, -1, -1):
         for i in range(BLOCK):
-            r = t[i, RHS, a]
+            x = cell(i, L) + a
+            r = t[RHS, x]
             if a + 1 < L:
-                above = t[i, new, a + 1]
-                r += t[i, CC, a + 1] * above
-                u = r * t[i, DIAG, a]
-                if t[i, KC, a + 1] > 0.0 and t[i, SIGN, a + 1] * (above - u) < 0.0:
+                above = t[new, x + 1]
+                r += t[CC, x + 1] * above
+                u = r * t[DIAG, x]
+                if t[KC, x + 1] > 0.0 and t[SIGN, x + 1] * (above - u) < 0.0:
                     flags[ACTIVE, i] = False
             else:
-                u = r * t[i, DIAG, a]
-            t[i, new, a] = u
+                u = r * t[DIAG, x]
+            t[new, x] = u
     for i in range(BLOCK):  # the bed
-        if t[i, KC, 0] > 0.0 and t[i, SIGN, 0] * t[i, new, 0] < 0.0:
+        x = cell(i, L)
+        if t[KC, x] > 0.0 and t[SIGN, x] * t[new, x] < 0.0:
             flags[ACTIVE, i] = False
 
 
 @njit(cache=True, error_model="numpy")
-def _converged(t, new, current, threshold, flags):
+def _converged(t, L, new, current, threshold, flags):
     """``DONE``: the error bound of ``newton_control.error_bound`` at slot ``new`` (true
     stresses in ``TAU``) is within ``threshold``, or else the largest change from slot
     ``current`` is: the test of ``_chunk``, column by column."""
-    L = t.shape[2]
     for i in range(BLOCK):
-        wall = t[i, WALL]  # 0 in every column that takes part (join): no wall threshold or force
+        x = cell(i, L)
+        lane = slice(x, x + L)
+        wall = t[WALL, lane]  # 0 in every column that takes part (join): no wall threshold or force
         bound = error_bound(
-            t[i, INERTIA], t[i, MOMENTUM], t[i, KAPPA], t[i, TAU], wall, wall, t[i, new], threshold
-        )
+            t[INERTIA, lane], t[MOMENTUM, lane], t[KAPPA, lane], t[TAU, lane], wall, wall, t[new, lane],
+            threshold,
+        )  # fmt: skip
         converged = bound <= threshold
         if not converged:
             change = 0.0
-            for a in range(L):
-                change = max(change, abs(t[i, new, a] - t[i, current, a]))
+            for a in range(x, x + L):
+                change = max(change, abs(t[new, a] - t[current, a]))
             converged = change <= threshold
         flags[DONE, i] = converged
 
@@ -196,25 +245,26 @@ def sheared_block(
     ``c0 ...``, adjacent, without side walls; side by side while each stays fully sheared.
     ``finished[i]`` tells which columns it solved, and wrote into ``_chunk``'s outputs
     (``side_by_side`` True); ``flags`` holds its boolean lanes."""
-    L = t.shape[2]
+    L = u_out.shape[0]
     for i in range(BLOCK):
         finished[i] = False
     current, new = np.int64(U0), np.int64(U1)  # typed int64, not as literals: one compilation
-    _stresses_and_model(t, current, form, params, flags)
+    _stresses_and_model(t, L, current, form, params, flags)
     for i in range(BLOCK):
         flags[ACTIVE, i] = flags[ACTIVE, i] and flags[SHEARED, i]
     for iteration in range(1, min(max_iterations, TRUSTED - 1) + 1):  # steps kept unconditionally
-        _solve(t, new, flags)
-        _stresses_and_model(t, new, form, params, flags)  # the bound's stresses, the next model
-        _converged(t, new, current, threshold, flags)
+        _solve(t, L, new, flags)
+        _stresses_and_model(t, L, new, form, params, flags)  # the bound's stresses, the next model
+        _converged(t, L, new, current, threshold, flags)
         remaining = 0
         for i in range(BLOCK):
             if not flags[ACTIVE, i]:
                 continue
             if flags[DONE, i]:
                 j = j0 + i
+                x = cell(i, L)
                 for a in range(L):
-                    u_out[a, c0 + i] = t[i, new, a]
+                    u_out[a, c0 + i] = t[new, x + a]
                 iterations[j] = iteration
                 fallbacks[j] = 0
                 faults[j] = 0
