@@ -76,7 +76,7 @@ def main() -> None:
         lambda: Simulation(scenario(args.cells, args.layers, args.order, end, threads)),
         end,
         profile=args.profile,
-        warm_up=probe,
+        warm_up=True,
     )
     print(f"Bagnold chute: {args.cells} cells x {args.layers} layers, order {args.order}, t = {sim.t:.4g} s")
     print("\n".join(timing.lines()))

@@ -68,15 +68,20 @@ def peak_memory() -> int:
 
 
 def timed(
-    make: Callable[[], Simulation], end: float, *, profile: bool = False, warm_up: Simulation | None = None
+    make: Callable[[], Simulation], end: float, *, profile: bool = False, warm_up: bool = False
 ) -> tuple[Simulation, Timing]:
-    """Run ``make()`` to ``end`` and time it; ``warm_up`` (a small simulation of the same
-    kind) compiles the kernels first, outside the timing: the serial ones and, on a
-    machine with several cores, the parallel ones (compiled and cached apart)."""
-    if warm_up is not None:
+    """Run ``make()`` to ``end`` and time it; with ``warm_up``, one step of another
+    ``make()`` on one thread and, on a machine with several cores, one on two compiles the
+    kernels first, outside the timing: the serial ones and the parallel ones (compiled and
+    cached apart; a smaller problem of the same kind would not do: its window of moving
+    columns may be too short for the transport to cut it into chunks, and the parallel
+    transport would then be compiled within the timing)."""
+    if warm_up:
         for count in sorted({1, min(2, available_cores())}):
-            warm_up.thread_policy = ThreadPolicy(count)
-            warm_up.step(warm_up.t + 1e-9)
+            probe = make()
+            probe.thread_policy = ThreadPolicy(count)
+            probe.step(probe.t + 1e-9)
+            del probe
     sim = make()
     sim.thread_policy.chosen.clear()
     layers = sim.fractions.size

@@ -101,9 +101,7 @@ def main() -> None:
             lambda p=pressure, size=size: Simulation(scenario(*size, p, args.pressure_layers)),
             args.end,
             profile=args.profile,
-            warm_up=Simulation(
-                scenario(50, args.layers, args.order, args.end, threads, pressure, args.pressure_layers)
-            ),
+            warm_up=True,
         )
         seconds[pressure] = timing.seconds
         d = sim.diagnostics()

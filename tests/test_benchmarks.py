@@ -92,3 +92,30 @@ def test_the_scaling_sweep_keeps_the_fastest_run_of_each_point():
     ]
     ratio, points = scaling.spread(rows, "layers", "columns", 10, 8, 128)
     assert ratio == pytest.approx(70.0 / 50.0) and len(points) == 2
+
+
+def test_the_warm_up_steps_the_problem_itself_on_each_thread_count(monkeypatch):
+    """The kernels a timed run uses are compiled before the timing by steps of the same
+    problem (a smaller one may leave the parallel transport uncompiled: its window too
+    short to be cut into chunks), on one thread and, with two cores, on two."""
+    sys.path.insert(0, str(BENCHMARKS))
+    try:
+        import chute
+        import common
+    finally:
+        sys.path.remove(str(BENCHMARKS))
+    monkeypatch.setattr(common, "available_cores", lambda: 2)
+    asked = []  # thread counts asked for (run on one, not to compile the parallel kernels here)
+    one_thread = common.ThreadPolicy(1)
+    monkeypatch.setattr(common, "ThreadPolicy", lambda count: asked.append(count) or one_thread)
+    made = []
+
+    def make():
+        sim = common.Simulation(chute.scenario(20, 4, 2, 1.0, 1))
+        made.append(sim)
+        return sim
+
+    sim, timing = common.timed(make, 2e-3, warm_up=True)
+    assert len(made) == 3 and sim is made[-1]
+    assert asked == [1, 2] and [s.steps for s in made[:2]] == [1, 1]
+    assert timing.steps == sim.steps > 0
