@@ -68,17 +68,21 @@ def peak_memory() -> int:
 
 
 def timed(
-    make: Callable[[], Simulation], end: float, *, profile: bool = False, warm_up: bool = False
+    make: Callable[[], Simulation],
+    end: float,
+    *,
+    profile: bool = False,
+    warm_up: Callable[[], Simulation] | None = None,
 ) -> tuple[Simulation, Timing]:
-    """Run ``make()`` to ``end`` and time it; with ``warm_up``, one step of another
-    ``make()`` on one thread and, on a machine with several cores, one on two compiles the
-    kernels first, outside the timing: the serial ones and the parallel ones (compiled and
-    cached apart; a smaller problem of the same kind would not do: its window of moving
-    columns may be too short for the transport to cut it into chunks, and the parallel
-    transport would then be compiled within the timing)."""
-    if warm_up:
+    """Run ``make()`` to ``end`` and time it.  ``warm_up()`` makes a problem whose steps
+    run the kernels of the timed one: a step of it on one thread and, on a machine with
+    several cores, one on two compile them first, outside the timing (the parallel ones
+    are compiled and cached apart).  On two threads the transport cuts its window of
+    moving columns into chunks only from ``2 x 64`` columns on (``threads.parallel_chunks``):
+    a smaller window would leave the parallel transport to compile within the timing."""
+    if warm_up is not None:
         for count in sorted({1, min(2, available_cores())}):
-            probe = make()
+            probe = warm_up()
             probe.thread_policy = ThreadPolicy(count)
             probe.step(probe.t + 1e-9)
             del probe

@@ -6,7 +6,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
+
+from multilayer.engine.simulation import Simulation
+from multilayer.engine.threads import parallel_chunks
 
 BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 
@@ -94,10 +98,9 @@ def test_the_scaling_sweep_keeps_the_fastest_run_of_each_point():
     assert ratio == pytest.approx(70.0 / 50.0) and len(points) == 2
 
 
-def test_the_warm_up_steps_the_problem_itself_on_each_thread_count(monkeypatch):
-    """The kernels a timed run uses are compiled before the timing by steps of the same
-    problem (a smaller one may leave the parallel transport uncompiled: its window too
-    short to be cut into chunks), on one thread and, with two cores, on two."""
+def test_the_warm_up_steps_a_problem_on_each_thread_count(monkeypatch):
+    """The kernels a timed run uses are compiled before the timing by a step of the
+    warm-up problem on one thread and, with two cores, one on two."""
     sys.path.insert(0, str(BENCHMARKS))
     try:
         import chute
@@ -115,7 +118,29 @@ def test_the_warm_up_steps_the_problem_itself_on_each_thread_count(monkeypatch):
         made.append(sim)
         return sim
 
-    sim, timing = common.timed(make, 2e-3, warm_up=True)
+    sim, timing = common.timed(make, 2e-3, warm_up=make)
     assert len(made) == 3 and sim is made[-1]
     assert asked == [1, 2] and [s.steps for s in made[:2]] == [1, 1]
     assert timing.steps == sim.steps > 0
+
+
+@pytest.mark.parametrize("cells", [500, 2500])
+def test_the_warm_up_problems_are_long_enough_for_the_parallel_transport(cells):
+    """On two threads the transport cuts its window into chunks of at least 64 columns:
+    the warm-up problems' windows hold two chunks or more, so that the warm-up compiles
+    the parallel transport (a dam break on [0, 2] starts with a window of about 4 % of
+    the mesh)."""
+    sys.path.insert(0, str(BENCHMARKS))
+    try:
+        import chute
+        import dam_break
+    finally:
+        sys.path.remove(str(BENCHMARKS))
+    for config in (
+        chute.scenario(cells, 4, 2, 1.0, 2),
+        dam_break.scenario(cells, 4, 2, 1.0, 2, column=dam_break.WARM_UP_COLUMN),
+    ):
+        holding = np.count_nonzero(Simulation(config).h > 0)
+        assert parallel_chunks(2, holding, 64) > 1
+    benchmark = Simulation(dam_break.scenario(cells, 4, 2, 1.0, 2))  # its own column: too short
+    assert parallel_chunks(2, np.count_nonzero(benchmark.h > 0), 64) == 1

@@ -36,8 +36,9 @@ BLOCK = 8
 """Columns solved side by side: eight chains of divisions in flight, and the pass of the
 stresses and the Newton model one loop over the 8 L cells of the block, long enough to
 run as vectors at L = 8 (compiled, the loop runs as vectors of 8 values from about 40
-cells on, and one cell at a time below: 20 against 51 ns per column and pass at L = 8).
-The tile holds 19 values per layer for each of the BLOCK + 1 lanes, 186 KB at L = 128."""
+cells on, and one cell at a time below: 22-29 against 51-53 ns per column and pass at
+L = 8).  The tile holds 19 values per layer for each of the BLOCK + 1 lanes, 186 KB at
+L = 128."""
 
 # The tile (SLOTS, 1 + (BLOCK + 1) P) holds, in each slot (a row), one value per column
 # (lane) and layer: layer a of lane i in cell 1 + i P + a, P = stride(L) (the cells
