@@ -6,14 +6,13 @@ resident memory is its own), for a number of steps that keeps each point near 10
 cell-steps (at least 3), timed after ``SETTLE`` untimed steps: the first touches the work
 arrays, and within them the Newton iterations of the chute settle from two per column to
 one (within 3 steps at L = 128, 12 at L = 8), so that every point is timed in the same
-regime.  The sweep runs ``--repeat``
-times, point after point in turn (each time in a fresh process), and each point keeps
-its fastest run, as ``timeit`` does: the speed of a shared machine drifts by a third
-within minutes, and the fastest run is the closest to the code's own cost (the median
-and the slowest are printed beside it).  Prints a table (wall and CPU time per
-cell-step, peak bytes per cell, Newton iterations per column step, share of column
-solves that needed the O(L^2) dynamic programme, machine load), how far from flat the time per
-cell-step is across N and across L, and draws the log-log figure
+regime.  The sweep runs ``--repeat`` times, point after point in turn (each time in a
+fresh process), and each point keeps its fastest run, as ``timeit`` does: the speed of a
+shared machine drifts by a third within minutes, and the fastest run is the closest to
+the code's own cost (the median and the slowest are printed beside it).  Prints a table
+(wall and CPU time per cell-step, peak bytes per cell, Newton iterations per column step,
+share of column solves that needed the O(L^2) dynamic programme, machine load), how far
+from flat the time per cell-step is across N and across L, and draws the log-log figure
 docs/figures/performance_scaling.png.
 
     python benchmarks/scaling.py [--columns 1e3 1e4 1e5 1e6] [--layers 4 8 16 32 64 128] [--repeat 3]

@@ -136,10 +136,11 @@ def _stresses_and_model(t, L, u, form, params, flags):
         faults, unsheared = _sweep(t, u, 0, params, cell(0, L), cell(BLOCK, L))
     else:
         faults, unsheared = _sweep(t, u, 2, params, cell(0, L), cell(BLOCK, L))
-    for i in range(BLOCK):
-        if faults == 0 and unsheared == 0:
+    if faults == 0 and unsheared == 0:  # every column within the contract and fully sheared
+        for i in range(BLOCK):
             flags[SHEARED, i] = True
-            continue
+        return
+    for i in range(BLOCK):
         x = cell(i, L)
         lane_faults, lane_unsheared = _sweep(t, u, form, params, x, x + L)
         flags[ACTIVE, i] = flags[ACTIVE, i] and lane_faults == 0
