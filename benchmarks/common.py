@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from multilayer.engine.simulation import Simulation
-from multilayer.engine.threads import ThreadPolicy, available_cores
+from multilayer.engine.threads import ThreadPolicy, available_cores, workers_bound
 
 
 @dataclass
@@ -35,6 +35,7 @@ class Timing:
     side_by_side_share: float  # column steps solved side by side (engine/sheared_columns.py)
     threads: dict[int, int]  # passes (steps and redone steps) run with each thread count
     layer: str  # numba's threading layer (threads.py: TBB steals work)
+    bound: bool  # the TBB workers run each on a core of its own (threads.run_bound)
 
     def lines(self) -> list[str]:
         return [
@@ -48,7 +49,8 @@ class Timing:
             f"({self.peak_bytes / self.cells:.0f} bytes per mesh cell), load average {self.load:.2f}",
             "threads: "
             + ", ".join(f"{n} in {k} passes" for n, k in sorted(self.threads.items()))
-            + f" (a pass: a step, or a step redone for material set moving); threading layer {self.layer}",
+            + f" (a pass: a step, or a step redone for material set moving); threading layer {self.layer}"
+            + (", threads bound to cores" if self.bound and max(self.threads, default=1) > 1 else ""),
         ]
 
 
@@ -119,6 +121,7 @@ def timed(
         else float("nan"),
         dict(sim.thread_policy.chosen),
         threading_layer(),
+        workers_bound(),
     )
     if profiler:
         pstats.Stats(profiler).sort_stats("tottime").print_stats(15)

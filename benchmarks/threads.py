@@ -26,15 +26,19 @@ EXTRA = {"dam_break": [], "chute": ["--steps", "20"]}
 
 
 def time_to_solution(problem: str, threads: str) -> tuple[float, str]:
-    """Wall time of one run, and the thread counts the run used."""
+    """Wall time of one run, and what it used: the thread counts, whether its threads
+    were bound to cores, and its CPU time over its wall time (the cores it got)."""
     out = subprocess.run(
         [sys.executable, str(HERE / f"{problem}.py"), "--threads", threads, *EXTRA[problem]],
         capture_output=True,
         text=True,
         check=True,
     ).stdout
+    timing = re.search(r"time to solution ([0-9.]+) s \(CPU ([0-9.]+) s\)", out)
+    seconds, cpu = float(timing.group(1)), float(timing.group(2))
     used = re.search(r"threads: (.*?) \(a pass", out)
-    return float(re.search(r"time to solution ([0-9.]+) s", out).group(1)), used.group(1) if used else "?"
+    bound = ", bound to cores" if "threads bound to cores" in out else ""
+    return seconds, f"{used.group(1) if used else '?'}{bound}; {cpu / seconds:.2f} cores"
 
 
 def main() -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.metadata
+import json
 import os
 import subprocess
 import sys
@@ -108,3 +109,63 @@ def test_each_parallel_kernel_is_cached_apart_from_its_serial_compilation():
         assert parallel.py_func.__code__.co_code == serial.py_func.__code__.co_code  # the same kernel
         names = {d._cache._cache_file._index_name for d in (serial, parallel)}  # the cache files
         assert len(names) == 2, names
+
+
+BIND_PROBE = """
+import json, os, sys, threading
+os.sched_setaffinity(0, sorted(os.sched_getaffinity(0))[:2])  # two cores, before numba starts
+sys.path.insert(0, {tests!r})
+import numpy as np
+from test_transport_kernel import random_state
+from multilayer.engine import threads, transport_kernel
+h, u, b, fractions = random_state(seed=1)
+kw = dict(dx=0.1, dt=0.004, g_n=9.0, g_t=1.5, left="wall", right="outflow", dry=1e-6, order=2)
+one = [a.copy() for a in transport_kernel.transport(h, u, b, fractions, threads=1, **kw)]
+two = transport_kernel.transport(h, u, b, fractions, threads=2, **kw)
+same = all(np.array_equal(x, y) for x, y in zip(one, two))
+bound = threads.workers_bound()  # by the transport step
+held = threads.run_bound(lambda: sorted(os.sched_getaffinity(0)), ())  # where a kernel runs
+cores = {{int(t): sorted(os.sched_getaffinity(int(t))) for t in os.listdir("/proc/self/task")}}
+caller = cores.pop(threading.get_native_id())
+print(json.dumps(dict(
+    tbb=threads.steals_work(), bound=bound, same=same,
+    held=held, caller=caller, others=sorted(cores.values()),
+)))
+"""
+
+
+def _bind_probe(**env: str) -> dict:
+    """Where the threads of a fresh process on two cores run after a transport step on two
+    threads, and whether that step gave the bits of the one-thread step."""
+    code = BIND_PROBE.format(tests=os.path.dirname(os.path.abspath(__file__)))
+    environment = {**os.environ, "NUMBA_NUM_THREADS": "2", **env}
+    environment.pop(threads.ENVIRONMENT, None)
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, env=environment
+    )
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+needs_two_cores_and_tbb = pytest.mark.skipif(
+    not _installed("tbb") or threads.available_cores() < 2, reason="needs TBB and two cores"
+)
+
+
+@needs_two_cores_and_tbb
+def test_a_kernel_on_every_core_runs_each_thread_on_a_core_of_its_own():
+    """The TBB worker is bound to the second core; the calling thread runs each parallel
+    kernel on the first and may run on both between kernels."""
+    probe = _bind_probe()
+    assert probe["tbb"] and probe["bound"] and probe["same"]
+    both = probe["caller"]
+    assert len(both) == 2 and probe["held"] == both[:1]
+    assert probe["others"].count(both[1:]) == 1  # the worker, alone on the second core
+    assert all(cores == both for cores in probe["others"] if cores != both[1:])  # the others untouched
+
+
+@needs_two_cores_and_tbb
+def test_binding_is_turned_off_by_its_environment_variable():
+    probe = _bind_probe(**{threads.BIND_ENVIRONMENT: "0"})
+    assert not probe["bound"] and probe["same"]
+    assert probe["held"] == probe["caller"] and len(probe["caller"]) == 2
+    assert all(cores == probe["caller"] for cores in probe["others"])

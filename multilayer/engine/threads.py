@@ -26,6 +26,16 @@ beside one busy process on two cores took 2.5 times as long with two threads as 
      cores left idle by the other processes, measured from ``/proc/stat`` minus this
      process's own CPU time over the last ``REFRESH`` seconds (one thread until the first
      measurement, and where ``/proc/stat`` does not exist).
+
+- **Binding.**  A parallel kernel whose threads use every core this process may run on
+  runs each thread on a core of its own (:func:`run_bound`): the TBB workers stay on
+  theirs, the calling thread is held on the first core for the length of the kernel.
+  Unbound, the scheduler often places a worker that wakes at the start of a kernel beside
+  the thread that woke it while a busy process keeps the other core to itself: the two
+  threads of the chute beside one busy process got 1.15-1.28 cores instead of their fair
+  share, 4/3; bound, 1.24-1.36 (docs/performance.md, "Threads").  Only a kernel on every
+  core is bound, so that no core is left idle when several runs share a machine.
+  ``MULTILAYER_BIND_THREADS=0`` turns it off.
 """
 
 from __future__ import annotations
@@ -34,15 +44,21 @@ import ctypes
 import functools
 import importlib.metadata
 import os
+import threading
 import time
 import types
 from collections import Counter
 from collections.abc import Callable
 from typing import Any
 
+import numba
+import numpy as np
+from numba import njit, prange
+
 from multilayer.errors import InputError
 
 ENVIRONMENT = "MULTILAYER_THREADS"
+BIND_ENVIRONMENT = "MULTILAYER_BIND_THREADS"
 PARALLEL_CELLS = 200_000
 """Steps on fewer cells than this run on one thread (see docs/performance.md)."""
 REFRESH = 0.5
@@ -75,8 +91,6 @@ def load_tbb() -> bool:
 def steals_work() -> bool:
     """Whether numba's threading layer is TBB (it starts the layer if not started; the
     layer of a process never changes once started)."""
-    import numba
-
     load_tbb()
     numba.get_num_threads()  # starts the threading layer
     return bool(numba.threading_layer() == "tbb")
@@ -97,15 +111,133 @@ def parallel_compiled(function: Callable, **options: Any) -> Any:
     function shared one entry, and whichever had been compiled last was loaded for both
     (the parallel kernels ran the serial code).  The parallel one is compiled from a copy
     of the function named ``<name>_parallel``."""
-    from numba import njit
-
     load_tbb()
     name = f"{function.__name__}_parallel"
     qualname = f"{function.__qualname__}_parallel"
     code = function.__code__.replace(co_name=name, co_qualname=qualname)
     copy = types.FunctionType(code, function.__globals__, name, function.__defaults__, function.__closure__)
     copy.__qualname__, copy.__doc__, copy.__module__ = qualname, function.__doc__, function.__module__
-    return njit(cache=True, parallel=True, **options)(copy)
+    return BoundKernel(njit(cache=True, parallel=True, **options)(copy))
+
+
+class BoundKernel:
+    """A parallel kernel called through :func:`run_bound`; its numba dispatcher's
+    attributes are its own."""
+
+    def __init__(self, dispatcher: Any):
+        self.dispatcher = dispatcher
+
+    def __call__(self, *args: Any) -> Any:
+        return run_bound(self.dispatcher, args)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.dispatcher, name)
+
+
+class _Binding:
+    """Where the threads of this process run: the thread that calls the kernels (held on
+    ``core`` during each of them), the cores it may run on (``allowed``, given back after
+    each), and whether numba's TBB workers were found and bound to the other cores."""
+
+    def __init__(self) -> None:
+        self.pid = os.getpid()
+        self.caller = threading.get_native_id()
+        self.allowed = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else set()
+        self.core = min(self.allowed, default=0)
+        self.probed = False
+        self.bound = False
+
+
+_binding: _Binding | None = None
+PROBES = 5
+"""Runs of the probe kernel that look for the TBB workers before binding is given up."""
+PROBE_CHUNKS = 32
+"""Pieces of work per thread of the probe kernel, of about 0.1 ms each."""
+
+
+def _occupy(work: np.ndarray) -> None:
+    """The probe kernel: ``work.size`` pieces of a few tens of microseconds of arithmetic
+    each, enough for every thread of the pool to take some."""
+    for k in prange(work.size):
+        x = 0.0
+        for _ in range(20_000):
+            x = x * 0.999999 + 1.0
+        work[k] = x
+
+
+_probe = njit(cache=True, parallel=True)(_occupy)
+
+
+def _thread_run_times() -> dict[int, int]:
+    """Nanoseconds each thread of this process has run (``/proc/self/task/*/schedstat``)."""
+    times: dict[int, int] = {}
+    try:
+        tasks = os.listdir("/proc/self/task")
+    except OSError:
+        return times
+    for task in tasks:
+        try:
+            with open(f"/proc/self/task/{task}/schedstat") as stat:
+                times[int(task)] = int(stat.read().split()[0])
+        except (OSError, ValueError, IndexError):
+            continue
+    return times
+
+
+def _bind_workers(binding: _Binding, count: int) -> None:
+    """Find numba's TBB workers, the threads other than Python's own that run the probe
+    kernel on ``count`` threads, and bind each to one of the cores other than
+    ``binding.core``.  The probe runs until it finds as many of them as those cores (the
+    first parallel kernel of a process also starts the workers, which may take longer than
+    the probe), at most ``PROBES`` times."""
+    others = sorted(binding.allowed - {binding.core})
+    for _ in range(PROBES):
+        before = _thread_run_times()
+        _probe(np.empty(PROBE_CHUNKS * count))
+        after = _thread_run_times()
+        python_threads = {t.native_id for t in threading.enumerate()}
+        workers = sorted(t for t, ran in after.items() if ran > before.get(t, -1) and t not in python_threads)
+        if len(workers) == len(others):
+            try:
+                for worker, core in zip(workers, others, strict=True):
+                    os.sched_setaffinity(worker, {core})
+            except OSError:
+                return
+            binding.bound = True
+            return
+
+
+def run_bound(kernel: Any, args: tuple) -> Any:
+    """``kernel(*args)``, each of its threads on a core of its own when it uses every core
+    this process may run on under TBB (module docstring, "Binding")."""
+    global _binding
+    count = numba.get_num_threads()
+    if count < 2 or os.environ.get(BIND_ENVIRONMENT, "").strip() == "0" or not steals_work():
+        return kernel(*args)
+    if _binding is None or _binding.pid != os.getpid():  # a forked child has threads of its own
+        _binding = _Binding()
+    binding = _binding
+    if len(binding.allowed) != count or threading.get_native_id() != binding.caller:
+        return kernel(*args)
+    if not binding.probed:
+        binding.probed = True
+        _bind_workers(binding, count)
+    if not binding.bound:
+        return kernel(*args)
+    try:
+        os.sched_setaffinity(0, {binding.core})
+    except OSError:  # the core was taken from this process (a changed cpuset): stop binding
+        binding.bound = False
+        return kernel(*args)
+    try:
+        return kernel(*args)
+    finally:
+        os.sched_setaffinity(0, binding.allowed)
+
+
+def workers_bound() -> bool:
+    """Whether this process's TBB workers run each on a core of its own (``run_bound``)."""
+    return _binding is not None and _binding.pid == os.getpid() and _binding.bound
 
 
 def available_cores() -> int:
@@ -180,8 +312,6 @@ class ThreadPolicy:
             self._measure()
             count = self.idle
         if count > 1:
-            import numba
-
             count = min(count, numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
             numba.set_num_threads(count)
             numba.set_parallel_chunksize(1)  # each prange iteration (a chunk) a task of its own
