@@ -32,8 +32,8 @@ beside one busy process on two cores took 2.5 times as long with two threads as 
   theirs, the calling thread is held on the first core for the length of the kernel.
   Unbound, the scheduler often places a worker that wakes at the start of a kernel beside
   the thread that woke it while a busy process keeps the other core to itself: the two
-  threads of the chute beside one busy process got 1.15-1.28 cores instead of their fair
-  share, 4/3; bound, 1.24-1.36 (docs/performance.md, "Threads").  Only a kernel on every
+  threads of the chute beside one busy process got 1.11-1.28 cores instead of their fair
+  share, 4/3; bound, 1.27-1.35 (docs/performance.md, "Threads").  Only a kernel on every
   core is bound, so that no core is left idle when several runs share a machine.
   ``MULTILAYER_BIND_THREADS=0`` turns it off.
 """
