@@ -169,3 +169,25 @@ def test_binding_is_turned_off_by_its_environment_variable():
     assert not probe["bound"] and probe["same"]
     assert probe["held"] == probe["caller"] and len(probe["caller"]) == 2
     assert all(cores == probe["caller"] for cores in probe["others"])
+
+
+@needs_two_cores_and_tbb
+def test_a_kernel_compiled_inside_a_held_call_compiles_on_every_core(monkeypatch):
+    """numba compiles a kernel inside its first call with new argument types, for seconds
+    on the calling thread: held on one core, two processes compiling at once would share
+    it.  At the start of a compilation the held caller gets every core back."""
+    from numba.core import event
+
+    allowed = os.sched_getaffinity(0)
+    binding = threads._Binding()
+    binding.bound = binding.probed = True
+    monkeypatch.setattr(threads, "_binding", binding)
+    seen = []
+    try:
+        os.sched_setaffinity(0, {binding.core})
+        binding.held = True
+        with event.trigger_event("numba:compile", data={}):
+            seen.append(os.sched_getaffinity(0))
+    finally:
+        os.sched_setaffinity(0, allowed)
+    assert seen == [allowed] and not binding.held

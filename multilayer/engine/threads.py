@@ -54,6 +54,7 @@ from typing import Any
 import numba
 import numpy as np
 from numba import njit, prange
+from numba.core import event as numba_event
 
 from multilayer.errors import InputError
 
@@ -146,6 +147,7 @@ class _Binding:
         self.core = min(self.allowed, default=0)
         self.probed = False
         self.bound = False
+        self.held = False  # the caller is on ``core`` now (inside a kernel call)
 
 
 _binding: _Binding | None = None
@@ -229,10 +231,30 @@ def run_bound(kernel: Any, args: tuple) -> Any:
     except OSError:  # the core was taken from this process (a changed cpuset): stop binding
         binding.bound = False
         return kernel(*args)
+    binding.held = True
     try:
         return kernel(*args)
     finally:
+        binding.held = False
         os.sched_setaffinity(0, binding.allowed)
+
+
+class _ReleaseWhileCompiling(numba_event.Listener):
+    """A kernel called for the first time with new argument types is compiled inside the
+    call, for seconds, on the calling thread alone: that thread is given back every core
+    for it (held on one, two test processes compiling at once shared that core)."""
+
+    def on_start(self, event: numba_event.Event) -> None:
+        binding = _binding
+        if binding is not None and binding.held and threading.get_native_id() == binding.caller:
+            binding.held = False
+            os.sched_setaffinity(0, binding.allowed)
+
+    def on_end(self, event: numba_event.Event) -> None:
+        pass
+
+
+numba_event.register("numba:compile", _ReleaseWhileCompiling())
 
 
 def workers_bound() -> bool:
