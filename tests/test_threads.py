@@ -121,29 +121,36 @@ from multilayer.engine import threads, transport_kernel
 h, u, b, fractions = random_state(seed=1)
 kw = dict(dx=0.1, dt=0.004, g_n=9.0, g_t=1.5, left="wall", right="outflow", dry=1e-6, order=2)
 one = [a.copy() for a in transport_kernel.transport(h, u, b, fractions, threads=1, **kw)]
-two = transport_kernel.transport(h, u, b, fractions, threads=2, **kw)
-same = all(np.array_equal(x, y) for x, y in zip(one, two))
-bound = threads.workers_bound()  # by the transport step
-held = threads.run_bound(lambda: sorted(os.sched_getaffinity(0)), ())  # where a kernel runs
-cores = {{int(t): sorted(os.sched_getaffinity(int(t))) for t in os.listdir("/proc/self/task")}}
-caller = cores.pop(threading.get_native_id())
-print(json.dumps(dict(
-    tbb=threads.steals_work(), bound=bound, same=same,
-    held=held, caller=caller, others=sorted(cores.values()),
-)))
+
+def where():
+    two = transport_kernel.transport(h, u, b, fractions, threads=2, **kw)
+    same = all(np.array_equal(x, y) for x, y in zip(one, two))
+    bound = threads.workers_bound()  # by the transport step
+    held = threads.run_bound(lambda: sorted(os.sched_getaffinity(0)), ())  # where a kernel runs
+    cores = {{int(t): sorted(os.sched_getaffinity(int(t))) for t in os.listdir("/proc/self/task")}}
+    caller = cores.pop(threading.get_native_id())
+    return dict(bound=bound, same=same, held=held, caller=caller, others=sorted(cores.values()))
+
+os.environ[threads.BIND_ENVIRONMENT] = "0"
+off = where()
+del os.environ[threads.BIND_ENVIRONMENT]
+print(json.dumps(dict(tbb=threads.steals_work(), off=off, on=where())))
 """
 
 
-def _bind_probe(**env: str) -> dict:
+@pytest.fixture(scope="module")
+def bind_probe() -> dict:
     """Where the threads of a fresh process on two cores run after a transport step on two
-    threads, and whether that step gave the bits of the one-thread step."""
+    threads, with ``MULTILAYER_BIND_THREADS=0`` (``off``), then without it (``on``), and
+    whether each step gave the bits of the one-thread step."""
     code = BIND_PROBE.format(tests=os.path.dirname(os.path.abspath(__file__)))
-    environment = {**os.environ, "NUMBA_NUM_THREADS": "2", **env}
-    environment.pop(threads.ENVIRONMENT, None)
+    environment = {**os.environ, "NUMBA_NUM_THREADS": "2"}
+    for name in (threads.ENVIRONMENT, threads.BIND_ENVIRONMENT):
+        environment.pop(name, None)
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, check=True, env=environment
     )
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    return dict(json.loads(out.stdout.strip().splitlines()[-1]))
 
 
 needs_two_cores_and_tbb = pytest.mark.skipif(
@@ -152,11 +159,11 @@ needs_two_cores_and_tbb = pytest.mark.skipif(
 
 
 @needs_two_cores_and_tbb
-def test_a_kernel_on_every_core_runs_each_thread_on_a_core_of_its_own():
+def test_a_kernel_on_every_core_runs_each_thread_on_a_core_of_its_own(bind_probe):
     """The TBB worker is bound to the second core; the calling thread runs each parallel
     kernel on the first and may run on both between kernels."""
-    probe = _bind_probe()
-    assert probe["tbb"] and probe["bound"] and probe["same"]
+    probe = bind_probe["on"]
+    assert bind_probe["tbb"] and probe["bound"] and probe["same"]
     both = probe["caller"]
     assert len(both) == 2 and probe["held"] == both[:1]
     assert probe["others"].count(both[1:]) == 1  # the worker, alone on the second core
@@ -164,8 +171,8 @@ def test_a_kernel_on_every_core_runs_each_thread_on_a_core_of_its_own():
 
 
 @needs_two_cores_and_tbb
-def test_binding_is_turned_off_by_its_environment_variable():
-    probe = _bind_probe(**{threads.BIND_ENVIRONMENT: "0"})
+def test_binding_is_turned_off_by_its_environment_variable(bind_probe):
+    probe = bind_probe["off"]
     assert not probe["bound"] and probe["same"]
     assert probe["held"] == probe["caller"] and len(probe["caller"]) == 2
     assert all(cores == probe["caller"] for cores in probe["others"])
