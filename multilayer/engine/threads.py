@@ -29,7 +29,8 @@ beside one busy process on two cores took 2.5 times as long with two threads as 
 
 - **Binding.**  A parallel kernel whose threads use every core this process may run on
   runs each thread on a core of its own (:func:`run_bound`): the TBB workers stay on
-  theirs, the calling thread is held on the first core for the length of the kernel.
+  theirs, the calling thread is held on the first core for the length of the kernel
+  (given every core back if numba compiles the kernel inside the call).
   Unbound, the scheduler often places a worker that wakes at the start of a kernel beside
   the thread that woke it while a busy process keeps the other core to itself: the two
   threads of the chute beside one busy process got 1.11-1.28 cores instead of their fair
