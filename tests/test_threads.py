@@ -76,6 +76,16 @@ def test_the_environment_overrides_the_scenario(monkeypatch):
         threads.ThreadPolicy("auto")
 
 
+def test_binding_is_on_unless_its_environment_variable_is_0_and_other_values_are_refused(monkeypatch):
+    monkeypatch.delenv(threads.ENVIRONMENT, raising=False)
+    for value, wanted in (("", True), ("1", True), ("0", False)):
+        monkeypatch.setenv(threads.BIND_ENVIRONMENT, value)
+        assert threads.binding_wanted() is wanted
+    monkeypatch.setenv(threads.BIND_ENVIRONMENT, "false")
+    with pytest.raises(InputError, match=r"MULTILAYER_BIND_THREADS='false'; accepted: 0 \(off\) or 1"):
+        threads.ThreadPolicy("auto")
+
+
 @pytest.mark.parametrize("argv", [["--help"], ["plugins"], ["validate", "scenarios/bagnold_chute.yaml"]])
 def test_commands_that_run_nothing_import_neither_fipy_nor_numba(argv):
     code = (

@@ -210,12 +210,23 @@ def _bind_workers(binding: _Binding, count: int) -> None:
             return
 
 
+def binding_wanted() -> bool:
+    """Whether threads may be bound to cores: ``MULTILAYER_BIND_THREADS`` unset, empty or
+    ``1``; ``0`` turns it off."""
+    value = os.environ.get(BIND_ENVIRONMENT, "").strip()
+    if value not in ("", "0", "1"):
+        raise InputError(
+            f"environment variable {BIND_ENVIRONMENT}={value!r}; accepted: 0 (off) or 1 (on, the default)"
+        )
+    return value != "0"
+
+
 def run_bound(kernel: Any, args: tuple) -> Any:
     """``kernel(*args)``, each of its threads on a core of its own when it uses every core
     this process may run on under TBB (module docstring, "Binding")."""
     global _binding
     count = numba.get_num_threads()
-    if count < 2 or os.environ.get(BIND_ENVIRONMENT, "").strip() == "0" or not steals_work():
+    if count < 2 or not binding_wanted() or not steals_work():
         return kernel(*args)
     if _binding is None or _binding.pid != os.getpid():  # a forked child has threads of its own
         _binding = _Binding()
@@ -306,6 +317,7 @@ class ThreadPolicy:
 
     def __init__(self, setting: int | str = "auto"):
         self.fixed = requested(setting)
+        binding_wanted()  # a wrong value stops the run before its first step
         self.cores = available_cores()
         self.idle = 1  # until measured
         self._last: tuple[float, float | None, float] | None = None
