@@ -155,12 +155,12 @@ _binding: _Binding | None = None
 PROBES = 5
 """Runs of the probe kernel that look for the TBB workers before binding is given up."""
 PROBE_CHUNKS = 32
-"""Pieces of work per thread of the probe kernel, of about 0.1 ms each."""
+"""Pieces of work per thread of the probe kernel, of about 40 microseconds each."""
 
 
 def _occupy(work: np.ndarray) -> None:
-    """The probe kernel: ``work.size`` pieces of a few tens of microseconds of arithmetic
-    each, enough for every thread of the pool to take some."""
+    """The probe kernel: ``work.size`` pieces of 20 000 multiply-adds (about 40
+    microseconds) each, enough for every thread of the pool to take some."""
     for k in prange(work.size):
         x = 0.0
         for _ in range(20_000):
