@@ -106,7 +106,8 @@ def parallel_chunks(threads: int, items: int, smallest: int = 1) -> int:
 
 def parallel_compiled(function: Callable, **options: Any) -> Any:
     """``numba.njit(cache=True, parallel=True, **options)`` of ``function``, compiled and
-    cached apart from its serial compilation.
+    cached apart from its serial compilation, and called through :func:`run_bound`
+    (:class:`BoundKernel`).
 
     numba's on-disk cache names a compilation by the function's qualified name and first
     line and keys it by its signature only: a serial and a parallel compilation of one
