@@ -181,6 +181,22 @@ def test_output_directory_that_cannot_be_created(cli, tiny_scenario, write_scena
     assert not (blocker / "out").exists()
 
 
+@pytest.mark.parametrize(
+    ("variable", "value"), [("MULTILAYER_THREADS", "two"), ("MULTILAYER_BIND_THREADS", "yes")]
+)
+def test_a_wrong_thread_variable_stops_the_run_before_its_first_step(
+    cli, tiny_scenario, write_scenario, tmp_path, monkeypatch, variable, value
+):
+    """exit 2, the variable and what it accepts named, in the run's log too; no result."""
+    monkeypatch.setenv(variable, value)
+    out = tmp_path / "out"
+    result = cli("run", write_scenario(tiny_scenario), "-o", out)
+    assert result.code == 2 and "Traceback" not in result.err
+    assert f"environment variable {variable}={value!r}; accepted: " in result.err
+    assert f"ERROR environment variable {variable}={value!r}" in (out / "run.log").read_text()
+    assert not (out / "result.nc").exists()
+
+
 def test_unknown_set_key(cli, tiny_scenario, write_scenario):
     path = write_scenario(tiny_scenario)
     result = cli("run", path, "--set", "domain.cellz=10")

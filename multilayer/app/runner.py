@@ -114,6 +114,9 @@ def run(
             log.warning(message)
         try:
             _run(scenario, outdir, ckpt, quiet, log, stop_when)
+        except InputError as exc:  # found once the log was open: the log says why it ends there
+            log.error("%s", exc)
+            raise
         finally:
             handler.close()
         return summary(outdir / RESULT_FILE)
