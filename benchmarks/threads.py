@@ -2,11 +2,14 @@
 
 Runs benchmarks/dam_break.py (the peer problem, about 10 % of its cells hold material) and
 benchmarks/chute.py (fully wet, 1.28 M cells) with ``--threads 1``, ``--threads 2`` and the
-default ``auto``, first as they are, then with one competing CPU-bound process (a Python
-busy loop started and stopped by this script), each in a fresh process, one after the
-other.  Prints the time to solution of each and its ratio to the quiet run with the same
-setting: what a user of a shared machine gets.  ``--repeat N`` does it all N times and
-ends with the median of each ratio (single ratios spread by a third on a shared machine).
+default ``auto``, on the machine as it is ("quiet") and beside one competing CPU-bound
+process (a Python busy loop started and stopped by this script), each run in a fresh
+process: what a user of a shared machine gets.  Each setting is timed quiet, busy, busy,
+quiet, one run right after the other, and its ratio is the busy time over the quiet time
+of the four: the speed of this machine kind drifts by a third within minutes, and a
+drift that is linear in time over the four runs cancels out of the ratio (a single busy
+run over a single quiet one carries it whole).  ``--repeat N`` does it all N times and
+ends with the median and the range of each ratio.
 
     python benchmarks/threads.py [--problems dam_break chute] [--settings 1 2 auto] [--repeat 1]
 """
@@ -22,7 +25,7 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-EXTRA = {"dam_break": [], "chute": ["--steps", "20"]}
+EXTRA: dict[str, list[str]] = {"dam_break": [], "chute": []}
 
 
 def time_to_solution(problem: str, threads: str) -> tuple[float, str]:
@@ -35,6 +38,8 @@ def time_to_solution(problem: str, threads: str) -> tuple[float, str]:
         check=True,
     ).stdout
     timing = re.search(r"time to solution ([0-9.]+) s \(CPU ([0-9.]+) s\)", out)
+    if timing is None:
+        raise RuntimeError(f"{problem}.py printed no time to solution:\n{out}")
     seconds, cpu = float(timing.group(1)), float(timing.group(2))
     used = re.search(r"threads: (.*?) \(a pass", out)
     bound = ", bound to cores" if "threads bound to cores" in out else ""
@@ -59,36 +64,50 @@ def main() -> None:
             listed = ", ".join(f"{r:.2f}" for r in values)
             print(
                 f"{problem:10s} threads {setting:>4}: beside one busy process, median "
-                f"{statistics.median(values):.2f} x quiet ({listed})"
+                f"{statistics.median(values):.2f} x quiet, {min(values):.2f}-{max(values):.2f} ({listed})"
             )
 
 
 def compare(problem: str, settings: list[str], ratios: dict[tuple[str, str], list[float]]) -> None:
-    """Each setting quiet, then each beside one busy process; appends the ratios."""
-    quiet = {}
+    """Each setting quiet, busy, busy, quiet (module docstring); appends the ratios."""
+    quiet_mean: dict[str, float] = {}
+    busy_mean: dict[str, float] = {}
     for setting in settings:
+        quiet: list[float] = []
+        busy: list[float] = []
+        for beside in (False, True, True, False):
+            seconds, used, load = timed_run(problem, setting, beside)
+            (busy if beside else quiet).append(seconds)
+            where = "beside one busy process" if beside else "quiet"
+            print(
+                f"{problem:10s} threads {setting:>4}: {where:23s} {seconds:7.2f} s "
+                f"(load {load:.2f}; threads {used})",
+                flush=True,
+            )
+        quiet_mean[setting], busy_mean[setting] = statistics.mean(quiet), statistics.mean(busy)
+        ratio = busy_mean[setting] / quiet_mean[setting]
+        ratios.setdefault((problem, setting), []).append(ratio)
+        print(f"{problem:10s} threads {setting:>4}: beside one busy process {ratio:.2f} x quiet", flush=True)
+    fastest = min(quiet_mean, key=quiet_mean.__getitem__)
+    print(
+        f"{problem:10s} beside one busy process, over the fastest quiet setting ({fastest}): "
+        + ", ".join(f"threads {s} {busy_mean[s] / quiet_mean[fastest]:.2f}" for s in settings),
+        flush=True,
+    )
+
+
+def timed_run(problem: str, setting: str, beside_busy: bool) -> tuple[float, str, float]:
+    """:func:`time_to_solution`, beside a busy process started for it if ``beside_busy``,
+    and the load average at its start."""
+    busy = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if beside_busy else None
+    try:
         load = os.getloadavg()[0]
-        quiet[setting], used = time_to_solution(problem, setting)
-        print(
-            f"{problem:10s} threads {setting:>4}: quiet {quiet[setting]:7.2f} s (load {load:.2f}; "
-            f"threads {used})",
-            flush=True,
-        )
-    for setting in settings:
-        busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
-        try:
-            load = os.getloadavg()[0]
-            seconds, used = time_to_solution(problem, setting)
-        finally:
+        seconds, used = time_to_solution(problem, setting)
+    finally:
+        if busy is not None:
             busy.kill()
             busy.wait()
-        ratios.setdefault((problem, setting), []).append(seconds / quiet[setting])
-        print(
-            f"{problem:10s} threads {setting:>4}: beside one busy process {seconds:7.2f} s, "
-            f"{seconds / quiet[setting]:.2f} x quiet, {seconds / min(quiet.values()):.2f} x the fastest "
-            f"quiet setting (load {load:.2f}; threads {used})",
-            flush=True,
-        )
+    return seconds, used, load
 
 
 if __name__ == "__main__":
