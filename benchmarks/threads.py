@@ -25,14 +25,14 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-EXTRA: dict[str, list[str]] = {"dam_break": [], "chute": []}
+PROBLEMS = ("dam_break", "chute")
 
 
 def time_to_solution(problem: str, threads: str) -> tuple[float, str]:
     """Wall time of one run, and what it used: the thread counts, whether its threads
     were bound to cores, and its CPU time over its wall time (the cores it got)."""
     out = subprocess.run(
-        [sys.executable, str(HERE / f"{problem}.py"), "--threads", threads, *EXTRA[problem]],
+        [sys.executable, str(HERE / f"{problem}.py"), "--threads", threads],
         capture_output=True,
         text=True,
         check=True,
@@ -48,7 +48,7 @@ def time_to_solution(problem: str, threads: str) -> tuple[float, str]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--problems", nargs="+", default=["dam_break", "chute"], choices=sorted(EXTRA))
+    parser.add_argument("--problems", nargs="+", default=list(PROBLEMS), choices=PROBLEMS)
     parser.add_argument("--settings", nargs="+", default=["1", "2", "auto"])
     parser.add_argument("--repeat", type=int, default=1, help="times to do it all (default 1)")
     args = parser.parse_args()
