@@ -14,7 +14,8 @@ first use.
 The directory is the one numba chooses for the engine's modules: ``__pycache__`` beside
 them when it can be written and ``NUMBA_CACHE_DIR`` is not set; otherwise numba's own
 cache locators say where (a subdirectory of ``NUMBA_CACHE_DIR``, or of the user's cache
-directory for an installation without write access), at the cost of importing numba.
+directory for an installation without write access), at the cost of importing numba
+(about 0.25 s) when the engine is imported.
 """
 
 from __future__ import annotations
