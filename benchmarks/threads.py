@@ -8,8 +8,12 @@ process: what a user of a shared machine gets.  Each setting is timed quiet, bus
 quiet, one run right after the other, and its ratio is the busy time over the quiet time
 of the four: the speed of this machine kind drifts by a third within minutes, and a
 drift that is linear in time over the four runs cancels out of the ratio (a single busy
-run over a single quiet one carries it whole).  ``--repeat N`` does it all N times and
-ends with the median and the range of each ratio.
+run over a single quiet one carries it whole).  Each run prints its time to solution,
+steps, cell-steps per second (whole mesh, and cells holding material), threads and the
+cores it got; each setting prints the physical check of its runs (the problem's own:
+mass and front, or the Bagnold profile), which the thread count and the busy process
+must leave unchanged to the last digit.  ``--repeat N`` does it all N times and ends
+with the median and the range of each ratio.
 
     python benchmarks/threads.py [--problems dam_break chute] [--settings 1 2 auto] [--repeat 1]
 """
@@ -22,28 +26,47 @@ import re
 import statistics
 import subprocess
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 PROBLEMS = ("dam_break", "chute")
 
 
-def time_to_solution(problem: str, threads: str) -> tuple[float, str]:
-    """Wall time of one run, and what it used: the thread counts, whether its threads
-    were bound to cores, and its CPU time over its wall time (the cores it got)."""
+@dataclass
+class Run:
+    """One run of a benchmark script, as it printed it."""
+
+    seconds: float  # time to solution
+    steps: int
+    rates: str  # cell-steps per second, whole mesh and cells holding material
+    used: str  # the thread counts, whether bound to cores, and the cores it got
+    check: str  # the physical check of the answer
+
+
+def time_to_solution(problem: str, threads: str) -> Run:
+    """One run of ``benchmarks/PROBLEM.py --threads THREADS`` in a fresh process."""
     out = subprocess.run(
         [sys.executable, str(HERE / f"{problem}.py"), "--threads", threads],
         capture_output=True,
         text=True,
         check=True,
     ).stdout
-    timing = re.search(r"time to solution ([0-9.]+) s \(CPU ([0-9.]+) s\)", out)
-    if timing is None:
-        raise RuntimeError(f"{problem}.py printed no time to solution:\n{out}")
+    timing = re.search(r"time to solution ([0-9.]+) s \(CPU ([0-9.]+) s\), steps ([0-9]+)", out)
+    rates = re.search(r"cell-steps/s: ([0-9.]+ M) \(whole mesh\), ([0-9.]+ M) \(cells holding", out)
+    check = re.search(r"^check: (.*)$", out, re.M)
+    if timing is None or rates is None or check is None:
+        raise RuntimeError(f"{problem}.py printed no time to solution, rates or check:\n{out}")
     seconds, cpu = float(timing.group(1)), float(timing.group(2))
     used = re.search(r"threads: (.*?) \(a pass", out)
     bound = ", bound to cores" if "threads bound to cores" in out else ""
-    return seconds, f"{used.group(1) if used else '?'}{bound}; {cpu / seconds:.2f} cores"
+    return Run(
+        seconds,
+        int(timing.group(3)),
+        f"{rates.group(1)} / {rates.group(2)} cell-steps/s",
+        f"{used.group(1) if used else '?'}{bound}; {cpu / seconds:.2f} cores",
+        check.group(1),
+    )
 
 
 def main() -> None:
@@ -75,15 +98,20 @@ def compare(problem: str, settings: list[str], ratios: dict[tuple[str, str], lis
     for setting in settings:
         quiet: list[float] = []
         busy: list[float] = []
+        checks = []
         for beside in (False, True, True, False):
-            seconds, used, load = timed_run(problem, setting, beside)
-            (busy if beside else quiet).append(seconds)
+            run, load = timed_run(problem, setting, beside)
+            (busy if beside else quiet).append(run.seconds)
+            checks.append(run.check)
             where = "beside one busy process" if beside else "quiet"
             print(
-                f"{problem:10s} threads {setting:>4}: {where:23s} {seconds:7.2f} s "
-                f"(load {load:.2f}; threads {used})",
+                f"{problem:10s} threads {setting:>4}: {where:23s} {run.seconds:7.2f} s, {run.steps} steps, "
+                f"{run.rates} (load {load:.2f}; threads {run.used})",
                 flush=True,
             )
+        same = "the same in the four runs" if len(set(checks)) == 1 else "DIFFERS between the runs"
+        for check in dict.fromkeys(checks):
+            print(f"{problem:10s} threads {setting:>4}: check ({same}): {check}", flush=True)
         quiet_mean[setting], busy_mean[setting] = statistics.mean(quiet), statistics.mean(busy)
         ratio = busy_mean[setting] / quiet_mean[setting]
         ratios.setdefault((problem, setting), []).append(ratio)
@@ -96,18 +124,18 @@ def compare(problem: str, settings: list[str], ratios: dict[tuple[str, str], lis
     )
 
 
-def timed_run(problem: str, setting: str, beside_busy: bool) -> tuple[float, str, float]:
+def timed_run(problem: str, setting: str, beside_busy: bool) -> tuple[Run, float]:
     """:func:`time_to_solution`, beside a busy process started for it if ``beside_busy``,
     and the load average at its start."""
     busy = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if beside_busy else None
     try:
         load = os.getloadavg()[0]
-        seconds, used = time_to_solution(problem, setting)
+        run = time_to_solution(problem, setting)
     finally:
         if busy is not None:
             busy.kill()
             busy.wait()
-    return seconds, used, load
+    return run, load
 
 
 if __name__ == "__main__":
