@@ -59,6 +59,11 @@ def bagnold_error(sim: Simulation) -> np.ndarray:
     return np.abs(sim.u - exact[:, None]).max(axis=0) / EXACT.surface_velocity
 
 
+def interior(sim: Simulation) -> slice:
+    """The columns that no signal from the boundaries reached (at most two cells per step)."""
+    return slice(2 * sim.steps, -2 * sim.steps)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cells", type=int, default=20000)
@@ -79,8 +84,7 @@ def main() -> None:
     sim, timing = timed(make, end, profile=args.profile, warm_up=make)  # fully wet: the window is the mesh
     print(f"Bagnold chute: {args.cells} cells x {args.layers} layers, order {args.order}, t = {sim.t:.4g} s")
     print("\n".join(timing.lines()))
-    # columns that no signal from the boundaries reached (at most two cells per step)
-    error, far = bagnold_error(sim), slice(2 * sim.steps, -2 * sim.steps)
+    error, far = bagnold_error(sim), interior(sim)
     print(
         f"check: max |u - Bagnold| / surface speed = {error[far].max():.2e} away from the ends, "
         f"{error.max():.2e} everywhere (largest at column {error.argmax()}); "

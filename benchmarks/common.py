@@ -83,9 +83,9 @@ def timed(
     moving columns into chunks only from ``2 x 64`` columns on (``threads.parallel_chunks``):
     a smaller window would leave the parallel transport to compile within the timing."""
     if warm_up is not None:
-        for count in sorted({1, min(2, available_cores())}):
+        for threads in sorted({1, min(2, available_cores())}):
             probe = warm_up()
-            probe.thread_policy = ThreadPolicy(count)
+            probe.thread_policy = ThreadPolicy(threads)
             probe.step(probe.t + 1e-9)
             del probe
     sim = make()

@@ -11,9 +11,11 @@ fresh process), and each point keeps its fastest run, as ``timeit`` does: the sp
 shared machine drifts by a third within minutes, and the fastest run is the closest to
 the code's own cost (the median and the slowest are printed beside it).  Prints a table
 (wall and CPU time per cell-step, peak bytes per cell, Newton iterations per column step,
-share of column solves that needed the O(L^2) dynamic programme, machine load), how far
-from flat the time per cell-step is across N and across L, and draws the log-log figure
-docs/figures/performance_scaling.png.
+share of column solves that needed the O(L^2) dynamic programme, machine load, and the
+check of benchmarks/chute.py away from the ends: the largest departure of the layer
+velocities from the exact Bagnold profile over its surface speed, and of h from 1 cm),
+how far from flat the time per cell-step is across N and across L, and draws the
+log-log figure docs/figures/performance_scaling.png.
 
     python benchmarks/scaling.py [--columns 1e3 1e4 1e5 1e6] [--layers 4 8 16 32 64 128] [--repeat 3]
     python benchmarks/scaling.py --point N L STEPS     # one point (used by the sweep)
@@ -40,7 +42,7 @@ def point(columns: int, layers: int, steps: int) -> dict:
     """Time ``steps`` steps of the chute at ``columns`` x ``layers`` in this process, after
     ``SETTLE`` untimed steps (the first touches the work arrays, hundreds of MB at 10^6
     columns)."""
-    from chute import scenario
+    from chute import DEPTH, bagnold_error, interior, scenario
     from common import peak_memory, timed
 
     from multilayer.engine.simulation import Simulation
@@ -50,12 +52,13 @@ def point(columns: int, layers: int, steps: int) -> dict:
     end = (steps + SETTLE) * dt * (1 - 1e-9)
     probe.step()  # compile the kernels
     baseline = peak_memory()  # interpreter, libraries and compiled kernels
-    settled = {}  # column steps and column solves of the untimed steps
+    settled: dict[str, int] = {}  # column steps and column solves of the untimed steps
 
     def settled_in() -> Simulation:
         sim = Simulation(scenario(columns, layers, 2, end, 1))
         for _ in range(SETTLE):
             sim.step()
+        assert sim.compiled_step is not None  # the chute's laws have compiled forms
         settled.update(columns=sim.compiled_step.columns, solves=sim.compiled_step.solves)
         return sim
 
@@ -63,6 +66,7 @@ def point(columns: int, layers: int, steps: int) -> dict:
     cells = columns * layers
     timed_steps = timing.steps - SETTLE
     step = sim.compiled_step
+    assert step is not None
     return {
         "columns": columns,
         "layers": layers,
@@ -74,6 +78,8 @@ def point(columns: int, layers: int, steps: int) -> dict:
         "newton_per_column": (step.solves - settled["solves"]) / (step.columns - settled["columns"]),
         "fallback_share": step.fallbacks / max(step.solves, 1),
         "load": timing.load,
+        "bagnold_error": float(bagnold_error(sim)[interior(sim)].max()),
+        "depth_error": float(abs(sim.h - DEPTH)[interior(sim)].max()),
     }
 
 
@@ -165,7 +171,7 @@ def main() -> None:
     rows = [fastest(runs[g]) for g in grid]
     print(
         "columns layers steps | ns/cell-step wall, CPU (fastest run); median, slowest"
-        " | bytes/cell total, above start | Newton/column | O(L^2) | load"
+        " | bytes/cell total, above start | Newton/column | O(L^2) | load | check: u, h"
     )
     for r in rows:
         print(
@@ -173,7 +179,8 @@ def main() -> None:
             f" | {r['ns_per_cell_step']:8.1f} {r['cpu_ns_per_cell_step']:8.1f};"
             f" {r['median_ns_per_cell_step']:6.1f} {r['slowest_ns_per_cell_step']:6.1f}"
             f" | {r['bytes_per_cell']:10.0f} {r['bytes_per_cell_above_baseline']:8.0f}"
-            f" | {r['newton_per_column']:5.2f} | {r['fallback_share']:.1e} | {r['load']:.2f}",
+            f" | {r['newton_per_column']:5.2f} | {r['fallback_share']:.1e} | {r['load']:.2f}"
+            f" | {r['bagnold_error']:.1e}, {r['depth_error']:.1e} m",
             flush=True,
         )
     for key, fixed, value, low, high in (
