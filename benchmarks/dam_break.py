@@ -27,17 +27,25 @@ import statistics
 import subprocess
 import tempfile
 import time
+from collections.abc import Callable
+from functools import partial
+from typing import Any
 
 import numpy as np
 from common import timed
 
 from multilayer.engine.simulation import Simulation
-from multilayer.io.scenario import from_dict
+from multilayer.io.scenario import Scenario, from_dict
 
 WARM_UP_COLUMN = 20.0
 """Length of the column of the warm-up problem (the benchmark's is 2): ten times the
 benchmark's, so that its window of moving columns is long enough for two threads to cut
 it into chunks at 500 cells and more, and the warm-up compiles the parallel transport."""
+
+
+def simulation(problem: Callable[..., Scenario], **changes: Any) -> Simulation:
+    """A simulation of ``problem(**changes)``."""
+    return Simulation(problem(**changes))
 
 
 def scenario(
@@ -103,14 +111,13 @@ def main() -> None:
         if args.peer is not None:
             peer = time_peer(args.peer)
             print(f"peer: {args.peer!r} took {peer:.3f} s (wall)")
+        problem = partial(scenario, *size, pressure, args.pressure_layers)
         sim, timing = timed(
-            lambda p=pressure, size=size: Simulation(scenario(*size, p, args.pressure_layers)),
+            partial(simulation, problem),
             args.end,
             profile=args.profile,
             # the same problem with a longer column (WARM_UP_COLUMN)
-            warm_up=lambda p=pressure, size=size: Simulation(
-                scenario(*size, p, args.pressure_layers, column=WARM_UP_COLUMN)
-            ),
+            warm_up=partial(simulation, problem, column=WARM_UP_COLUMN),
         )
         seconds[pressure] = timing.seconds
         d = sim.diagnostics()

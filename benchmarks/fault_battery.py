@@ -23,7 +23,9 @@ import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
@@ -60,7 +62,7 @@ class Case:
     code: int
     phrase: str
     patch: str = ""
-    setup: Callable[[Path], None] | None = None
+    setup: Callable[[Path], object] | None = None  # writes the files of the case into its directory
     signal_after_output: int | None = None
     keeps_output: bool = False
     result: dict = field(default_factory=dict)
@@ -293,14 +295,14 @@ def _damage(how: str) -> Callable[[Path], None]:
         elif how == "not a zip":
             ckpt.write_text("hello")
         elif how == "pickle planted":
-            np.savez(ckpt, **{"state.h": np.array([{"a": 1}], dtype=object)})
-        elif how == "values changed":
-            arrays = dict(np.load(ckpt))
-            arrays["state.u"] = arrays["state.u"] * 2
-            np.savez(ckpt, **arrays)
-        elif how == "keys missing":
-            arrays = dict(np.load(ckpt))
-            arrays.pop("state.h")
+            planted: dict[str, Any] = {"state.h": np.array([{"a": 1}], dtype=object)}
+            np.savez(ckpt, **planted)
+        elif how in ("values changed", "keys missing"):
+            arrays: dict[str, Any] = dict(np.load(ckpt))
+            if how == "values changed":
+                arrays["state.u"] = arrays["state.u"] * 2
+            else:
+                arrays.pop("state.h")
             np.savez(ckpt, **arrays)
 
     return setup
@@ -354,9 +356,7 @@ def cases() -> list[Case]:
     for name, changes, phrase in BAD_VALUES:
         for command in ("validate", "run"):
             argv = [command, "{scenario}", *budget] + (["-o", "{dir}/out", "-q"] if command == "run" else [])
-            out.append(
-                Case(f"{command}: {name}", argv, 2, phrase, setup=lambda d, c=changes: _scenario(d, c))
-            )
+            out.append(Case(f"{command}: {name}", argv, 2, phrase, setup=partial(_scenario, changes=changes)))
     for name, text, phrase in BAD_FILES:
         out.append(
             Case(
@@ -364,7 +364,7 @@ def cases() -> list[Case]:
                 ["validate", "{scenario}"],
                 2,
                 phrase,
-                setup=lambda d, t=text: _scenario(d, text=t),
+                setup=partial(_scenario, text=text),
             )
         )
     out.append(Case("validate: missing file", ["validate", "{dir}/nothing.yaml"], 2, "file not found"))
@@ -419,7 +419,7 @@ def cases() -> list[Case]:
                 1,
                 phrase,
                 patch=_compiled_patch(assignment),
-                setup=lambda d, rheology=rheology: _scenario(d, {"rheology": rheology}),
+                setup=partial(_scenario, changes={"rheology": rheology}),
                 keeps_output=True,
             )
         )
@@ -433,7 +433,7 @@ def cases() -> list[Case]:
                 1,
                 phrase,
                 patch=_transport_patch(body),
-                setup=lambda d, changes=outflowing if "outflow" in name else None: _scenario(d, changes),
+                setup=partial(_scenario, changes=outflowing if "outflow" in name else None),
                 keeps_output=True,
             )
         )
