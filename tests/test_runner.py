@@ -15,8 +15,9 @@ import numpy as np
 import pytest
 import yaml
 from conftest import TINY_SCENARIO
+from numba.core import event as numba_event
 
-from multilayer.app import runner
+from multilayer.app import compilation, runner
 from multilayer.app.progress import Progress
 from multilayer.engine.simulation import Simulation
 from multilayer.errors import RunError
@@ -189,3 +190,47 @@ def test_progress_is_silent_off_a_terminal_or_when_quiet() -> None:
         progress(_Sim(), 0.1)
         progress.finish()
     assert stream.getvalue() == ""
+
+
+def test_a_run_that_compiles_kernels_says_so_once_and_logs_the_time(tmp_path, monkeypatch, capsys):
+    """The first run after installing spends its first step compiling (about 45 s): the
+    terminal and run.log say so when the first compilation starts, run.log how long it
+    took.  Here two kernels (one calling another) are compiled during the first step."""
+    step = Simulation.step
+
+    def compiling_step(self, t_max):
+        if self.steps == 0:
+            for _ in range(2):
+                with numba_event.trigger_event("numba:compile", data={}):
+                    with numba_event.trigger_event("numba:compile", data={}):  # a callee
+                        pass
+        return step(self, t_max)
+
+    monkeypatch.setattr(Simulation, "step", compiling_step)
+    runner.run(scenarios.from_dict(TINY_SCENARIO), tmp_path / "first", quiet=False)
+    err = capsys.readouterr().err
+    assert err.count("compiling the numba kernels") == 1
+    log = (tmp_path / "first" / "run.log").read_text()
+    assert log.count("compiling the numba kernels") == 1
+    assert "numba compiled kernels for " in log
+
+    monkeypatch.setattr(Simulation, "step", step)  # kernels cached: not a word
+    runner.run(scenarios.from_dict(TINY_SCENARIO), tmp_path / "next", quiet=False)
+    assert "numba" not in capsys.readouterr().err
+    assert "numba" not in (tmp_path / "next" / "run.log").read_text()
+
+
+def test_the_compilation_time_counts_the_outermost_compilations_only(monkeypatch):
+    """numba nests the compilation of a callee inside its caller's: it is timed once, as
+    part of the caller's (the clock is read at the start and end of outermost ones only)."""
+    clock = iter([0.0, 3.0, 10.0, 12.0])
+    monkeypatch.setattr(compilation.time, "perf_counter", lambda: next(clock))
+    firsts = []
+    compilations = compilation._Compilations(lambda: firsts.append(True))
+    for nested in (1, 0):
+        compilations.on_start(None)
+        for _ in range(nested):
+            compilations.on_start(None)
+            compilations.on_end(None)
+        compilations.on_end(None)
+    assert compilations.seconds == 5.0 and firsts == [True]

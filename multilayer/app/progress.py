@@ -26,7 +26,7 @@ class Progress:
         interval: float = 0.2,
     ) -> None:
         self.stream = sys.stderr if stream is None else stream
-        self.enabled = not quiet if quiet is not None else self.stream.isatty()
+        self.enabled = shown(quiet, self.stream)
         self.t_end = t_end
         self.cells = cells
         self.interval = interval
@@ -66,6 +66,12 @@ class Progress:
             self.stream.write("\n")
             self.stream.flush()
             self._width = 0
+
+
+def shown(quiet: bool | None, stream: TextIO | None = None) -> bool:
+    """Whether a run shows what it does on ``stream`` (stderr by default): unless
+    ``quiet``; with ``quiet=None``, only on a terminal."""
+    return not quiet if quiet is not None else (sys.stderr if stream is None else stream).isatty()
 
 
 def _duration(seconds: float) -> str:

@@ -43,8 +43,9 @@ import numpy as np
 import yaml
 
 from multilayer.app import resources
+from multilayer.app.compilation import compile_notice
 from multilayer.app.lock import locked
-from multilayer.app.progress import Progress
+from multilayer.app.progress import Progress, shown
 from multilayer.engine.simulation import Simulation
 from multilayer.errors import InputError, Interrupted, RunError
 from multilayer.io import scenario as scenarios
@@ -112,8 +113,10 @@ def run(
         log.addHandler(handler)
         for message in notices:
             log.warning(message)
+        say = (lambda text: print(f"multilayer: {text}", file=sys.stderr)) if shown(quiet) else None
         try:
-            _run(scenario, outdir, ckpt, quiet, log, stop_when)
+            with compile_notice(log, say):
+                _run(scenario, outdir, ckpt, quiet, log, stop_when)
         except InputError as exc:  # found once the log was open: the log says why it ends there
             log.error("%s", exc)
             raise
