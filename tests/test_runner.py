@@ -7,6 +7,7 @@ import shlex
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -234,3 +235,7 @@ def test_the_compilation_time_counts_the_outermost_compilations_only(monkeypatch
             compilations.on_end(None)
         compilations.on_end(None)
     assert compilations.seconds == 5.0 and firsts == [True]
+    other = threading.Thread(target=compilations.on_start, args=(None,))  # another run's thread
+    other.start()
+    other.join()
+    assert compilations.depth == 0 and compilations.seconds == 5.0

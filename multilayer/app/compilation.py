@@ -10,6 +10,7 @@ compilation starts, and reports in ``run.log`` how long the compilation took.
 from __future__ import annotations
 
 import logging
+import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -23,17 +24,21 @@ NOTICE = (
 
 
 class _Compilations(numba_event.Listener):
-    """Counts the wall time of numba's compilations (it nests the compilation of the
-    kernels a kernel calls inside its own: only the outermost ones are timed);
-    ``on_first`` is called when the first one starts."""
+    """Counts the wall time of numba's compilations in the thread that made it (runs of
+    a study may share a process; numba nests the compilation of the kernels a kernel
+    calls inside its own: only the outermost ones are timed); ``on_first`` is called when
+    the first one starts."""
 
     def __init__(self, on_first: Callable[[], None]) -> None:
         self.on_first = on_first
+        self.thread = threading.get_ident()
         self.depth = 0
         self.seconds: float | None = None  # None: nothing compiled
         self._start = 0.0
 
     def on_start(self, event: numba_event.Event) -> None:
+        if threading.get_ident() != self.thread:
+            return
         if self.depth == 0:
             if self.seconds is None:
                 self.seconds = 0.0
@@ -42,6 +47,8 @@ class _Compilations(numba_event.Listener):
         self.depth += 1
 
     def on_end(self, event: numba_event.Event) -> None:
+        if threading.get_ident() != self.thread:
+            return
         self.depth -= 1
         if self.depth == 0 and self.seconds is not None:
             self.seconds += time.perf_counter() - self._start
