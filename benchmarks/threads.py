@@ -1,19 +1,20 @@
 """Benchmark: one and two threads, on a quiet machine and beside one CPU-bound process.
 
-Runs benchmarks/dam_break.py (the peer problem, about 10 % of its cells hold material) and
-benchmarks/chute.py (fully wet, 1.28 M cells) with ``--threads 1``, ``--threads 2`` and the
-default ``auto``, on the machine as it is ("quiet") and beside one competing CPU-bound
+Runs benchmarks/dam_break.py (the peer problem, about 10 % of its cells hold material),
+benchmarks/chute.py (fully wet, 1.28 M cells) and the control benchmarks/parallel_limit.py
+(a kernel with no serial part: what two threads can get here) with ``--threads 1``,
+``--threads 2`` and the default ``auto``, on the machine as it is ("quiet") and beside one competing CPU-bound
 process (a Python busy loop started and stopped by this script), each run in a fresh
 process: what a user of a shared machine gets.  Each setting is timed quiet, busy, busy,
 quiet, one run right after the other, and its ratio is the busy time over the quiet time
 of the four: the speed of this machine kind drifts by a third within minutes, and a
 drift that is linear in time over the four runs cancels out of the ratio (a single busy
 run over a single quiet one carries it whole).  Each run prints its time to solution,
-steps, cell-steps per second (whole mesh, and cells holding material), threads and the
-cores it got; each setting prints the physical check of its runs (the problem's own:
-mass and front, or the Bagnold profile), which the thread count and the busy process
-must leave unchanged to the last digit.  ``--repeat N`` does it all N times and ends
-with the median and the range of each ratio.
+steps, cell-steps per second (whole mesh, and cells holding material; none for the
+control), threads and the cores it got; each setting prints the check of its runs (the
+problem's own: mass and front, the Bagnold profile, the control's geometric sum), which
+the thread count and the busy process must leave unchanged to the last digit.
+``--repeat N`` does it all N times and ends with the median and the range of each ratio.
 
     python benchmarks/threads.py [--problems dam_break chute] [--settings 1 2 auto] [--repeat 1]
 """
@@ -30,7 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-PROBLEMS = ("dam_break", "chute")
+PROBLEMS = ("dam_break", "chute", "parallel_limit")
 
 
 @dataclass
@@ -39,7 +40,7 @@ class Run:
 
     seconds: float  # time to solution
     steps: int
-    rates: str  # cell-steps per second, whole mesh and cells holding material
+    rates: str  # cell-steps per second, whole mesh and cells holding material ("" for the control)
     used: str  # the thread counts, whether bound to cores, and the cores it got
     check: str  # the physical check of the answer
 
@@ -55,15 +56,15 @@ def time_to_solution(problem: str, threads: str) -> Run:
     timing = re.search(r"time to solution ([0-9.]+) s \(CPU ([0-9.]+) s\), steps ([0-9]+)", out)
     rates = re.search(r"cell-steps/s: ([0-9.]+ M) \(whole mesh\), ([0-9.]+ M) \(cells holding", out)
     check = re.search(r"^check: (.*)$", out, re.M)
-    if timing is None or rates is None or check is None:
-        raise RuntimeError(f"{problem}.py printed no time to solution, rates or check:\n{out}")
+    if timing is None or check is None:
+        raise RuntimeError(f"{problem}.py printed no time to solution or check:\n{out}")
     seconds, cpu = float(timing.group(1)), float(timing.group(2))
     used = re.search(r"threads: (.*?) \(a pass", out)
     bound = ", bound to cores" if "threads bound to cores" in out else ""
     return Run(
         seconds,
         int(timing.group(3)),
-        f"{rates.group(1)} / {rates.group(2)} cell-steps/s",
+        f", {rates.group(1)} / {rates.group(2)} cell-steps/s" if rates else "",
         f"{used.group(1) if used else '?'}{bound}; {cpu / seconds:.2f} cores",
         check.group(1),
     )
@@ -86,7 +87,7 @@ def main() -> None:
         for (problem, setting), values in ratios.items():
             listed = ", ".join(f"{r:.2f}" for r in values)
             print(
-                f"{problem:10s} threads {setting:>4}: beside one busy process, median "
+                f"{problem:14s} threads {setting:>4}: beside one busy process, median "
                 f"{statistics.median(values):.2f} x quiet, {min(values):.2f}-{max(values):.2f} ({listed})"
             )
 
@@ -105,20 +106,20 @@ def compare(problem: str, settings: list[str], ratios: dict[tuple[str, str], lis
             checks.append(run.check)
             where = "beside one busy process" if beside else "quiet"
             print(
-                f"{problem:10s} threads {setting:>4}: {where:23s} {run.seconds:7.2f} s, {run.steps} steps, "
+                f"{problem:14s} threads {setting:>4}: {where:23s} {run.seconds:7.2f} s, {run.steps} steps"
                 f"{run.rates} (load {load:.2f}; threads {run.used})",
                 flush=True,
             )
         same = "the same in the four runs" if len(set(checks)) == 1 else "DIFFERS between the runs"
         for check in dict.fromkeys(checks):
-            print(f"{problem:10s} threads {setting:>4}: check ({same}): {check}", flush=True)
+            print(f"{problem:14s} threads {setting:>4}: check ({same}): {check}", flush=True)
         quiet_mean[setting], busy_mean[setting] = statistics.mean(quiet), statistics.mean(busy)
         ratio = busy_mean[setting] / quiet_mean[setting]
         ratios.setdefault((problem, setting), []).append(ratio)
-        print(f"{problem:10s} threads {setting:>4}: beside one busy process {ratio:.2f} x quiet", flush=True)
+        print(f"{problem:14s} threads {setting:>4}: beside one busy process {ratio:.2f} x quiet", flush=True)
     fastest = min(quiet_mean, key=quiet_mean.__getitem__)
     print(
-        f"{problem:10s} beside one busy process, over the fastest quiet setting ({fastest}): "
+        f"{problem:14s} beside one busy process, over the fastest quiet setting ({fastest}): "
         + ", ".join(f"threads {s} {busy_mean[s] / quiet_mean[fastest]:.2f}" for s in settings),
         flush=True,
     )

@@ -15,7 +15,9 @@ from multilayer.engine.threads import parallel_chunks
 BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 
 
-@pytest.mark.parametrize("script", ["dam_break.py", "chute.py", "scaling.py", "threads.py", "first_run.py"])
+@pytest.mark.parametrize(
+    "script", ["dam_break.py", "chute.py", "scaling.py", "threads.py", "first_run.py", "parallel_limit.py"]
+)
 def test_benchmark_scripts_show_their_options(script):
     out = subprocess.run([sys.executable, BENCHMARKS / script, "--help"], capture_output=True, text=True)
     assert out.returncode == 0 and "usage" in out.stdout
