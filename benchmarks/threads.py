@@ -16,7 +16,7 @@ problem's own: mass and front, the Bagnold profile, the control's geometric sum)
 the thread count and the busy process must leave unchanged to the last digit.
 ``--repeat N`` does it all N times and ends with the median and the range of each ratio.
 
-    python benchmarks/threads.py [--problems dam_break chute] [--settings 1 2 auto] [--repeat 1]
+    python benchmarks/threads.py [--problems dam_break chute parallel_limit] [--settings 1 2 auto] [--repeat 1]
 """
 
 from __future__ import annotations
