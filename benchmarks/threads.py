@@ -3,9 +3,9 @@
 Runs benchmarks/dam_break.py (the peer problem, about 10 % of its cells hold material),
 benchmarks/chute.py (fully wet, 1.28 M cells) and the control benchmarks/parallel_limit.py
 (a kernel with no serial part: what two threads can get here) with ``--threads 1``,
-``--threads 2`` and the default ``auto``, on the machine as it is ("quiet") and beside one competing CPU-bound
-process (a Python busy loop started and stopped by this script), each run in a fresh
-process: what a user of a shared machine gets.  Each setting is timed quiet, busy, busy,
+``--threads 2`` and the default ``auto``, on the machine as it is ("quiet") and beside one
+competing CPU-bound process (a Python busy loop started and stopped by this script), each
+run in a fresh process: what a user of a shared machine gets.  Each setting is timed quiet, busy, busy,
 quiet, one run right after the other, and its ratio is the busy time over the quiet time
 of the four: the speed of this machine kind drifts by a third within minutes, and a
 drift that is linear in time over the four runs cancels out of the ratio (a single busy
@@ -16,7 +16,8 @@ problem's own: mass and front, the Bagnold profile, the control's geometric sum)
 the thread count and the busy process must leave unchanged to the last digit.
 ``--repeat N`` does it all N times and ends with the median and the range of each ratio.
 
-    python benchmarks/threads.py [--problems dam_break chute parallel_limit] [--settings 1 2 auto] [--repeat 1]
+    python benchmarks/threads.py [--problems dam_break chute parallel_limit] [--settings 1 2 auto]
+                                  [--repeat 1]
 """
 
 from __future__ import annotations
