@@ -6,7 +6,6 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 from multilayer.engine import kernel_cache
 
@@ -45,31 +44,26 @@ def test_the_digest_covers_the_engine_kernel_modules():
 CHECK_ELSEWHERE = """
 from pathlib import Path
 from numba.core.caching import FunctionCache
-from multilayer.engine import kernel_cache, viscous_law
+from multilayer.engine import kernel_cache, viscous_law  # the import writes the digest
 cache = kernel_cache.cache_directory()
 kernel = Path(FunctionCache(viscous_law._viscosity_and_slope.py_func).cache_path)
-print(cache, kernel, (cache / kernel_cache.STAMP).is_file(), sep="\\n")
+print(cache, kernel, (cache / kernel_cache.STAMP).is_file())
+entry = cache / "newton_kernel._chunk-110.py311.nbi"
+entry.write_bytes(b"compiled")
+print(kernel_cache.clear_if_stale(), entry.exists())  # the same sources: kept
+(cache / kernel_cache.STAMP).write_text("the digest of other sources")
+print(kernel_cache.clear_if_stale(), entry.exists())  # other sources: deleted
 """
 
 
 def test_a_cache_outside_the_package_is_the_one_kept_consistent(tmp_path):
     """With ``NUMBA_CACHE_DIR`` (as on a cluster whose installation cannot be written),
-    numba caches the kernels under it: the digest is kept there, and a stale kernel there
-    is deleted on import."""
+    numba caches the kernels under it: the digest is kept there (written on import), and
+    a kernel cached there is kept while the sources are the same, deleted once they
+    differ."""
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
-
-    def check() -> list[str]:
-        done = subprocess.run(
-            [sys.executable, "-c", CHECK_ELSEWHERE], env=env, capture_output=True, text=True
-        )
-        assert done.returncode == 0, done.stderr
-        return done.stdout.split()
-
-    cache, kernel, stamped = check()
+    done = subprocess.run([sys.executable, "-c", CHECK_ELSEWHERE], env=env, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    cache, kernel, stamped, *cleared = done.stdout.split()
     assert cache == kernel and cache.startswith(str(tmp_path)) and stamped == "True"
-    stale = Path(cache) / "newton_kernel._chunk-110.py311.nbi"
-    stale.write_bytes(b"compiled from other sources")
-    assert check()[2] == "True" and stale.exists()  # same sources: kept
-    (Path(cache) / kernel_cache.STAMP).write_text("the digest of other sources")
-    check()
-    assert not stale.exists()
+    assert cleared == ["False", "True", "True", "False"]
