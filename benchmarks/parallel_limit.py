@@ -44,9 +44,9 @@ def main() -> None:
     for _ in range(args.repeats):
         threads.run_bound(threads._probe, (work,))
     seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
-    exact = (1.0 - 0.999999**20_000) / (1.0 - 0.999999)
+    exact = (1.0 - threads.PROBE_FACTOR**threads.PROBE_STEPS) / (1.0 - threads.PROBE_FACTOR)
     error = float(np.abs(work / exact - 1.0).max())
-    print(f"parallel limit: {work.size} pieces of 20 000 multiply-adds, {args.repeats} runs")
+    print(f"parallel limit: {work.size} pieces of {threads.PROBE_STEPS} multiply-adds, {args.repeats} runs")
     print(f"time to solution {seconds:.3f} s (CPU {cpu:.3f} s), steps {args.repeats}")
     print(
         f"threads: {count} in {args.repeats} passes (a pass: a run of the kernel); threading layer "

@@ -67,6 +67,7 @@ def point(columns: int, layers: int, steps: int) -> dict:
     timed_steps = timing.steps - SETTLE
     step = sim.compiled_step
     assert step is not None
+    far = interior(sim)
     return {
         "columns": columns,
         "layers": layers,
@@ -78,8 +79,8 @@ def point(columns: int, layers: int, steps: int) -> dict:
         "newton_per_column": (step.solves - settled["solves"]) / (step.columns - settled["columns"]),
         "fallback_share": step.fallbacks / max(step.solves, 1),
         "load": timing.load,
-        "bagnold_error": float(bagnold_error(sim)[interior(sim)].max()),
-        "depth_error": float(abs(sim.h - DEPTH)[interior(sim)].max()),
+        "bagnold_error": float(bagnold_error(sim)[far].max()),
+        "depth_error": float(abs(sim.h - DEPTH)[far].max()),
     }
 
 

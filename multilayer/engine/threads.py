@@ -157,15 +157,17 @@ PROBES = 5
 """Runs of the probe kernel that look for the TBB workers before binding is given up."""
 PROBE_CHUNKS = 32
 """Pieces of work per thread of the probe kernel, of about 40 microseconds each."""
+PROBE_STEPS, PROBE_FACTOR = 20_000, 0.999999
+"""Each piece of the probe kernel: ``x <- PROBE_FACTOR x + 1``, ``PROBE_STEPS`` times from 0."""
 
 
 def _occupy(work: np.ndarray) -> None:
-    """The probe kernel: ``work.size`` pieces of 20 000 multiply-adds (about 40
+    """The probe kernel: ``work.size`` pieces of ``PROBE_STEPS`` multiply-adds (about 40
     microseconds) each, enough for every thread of the pool to take some."""
     for k in prange(work.size):
         x = 0.0
-        for _ in range(20_000):
-            x = x * 0.999999 + 1.0
+        for _ in range(PROBE_STEPS):
+            x = x * PROBE_FACTOR + 1.0
         work[k] = x
 
 
