@@ -45,7 +45,10 @@ CHILD = """
 import sys, time
 import numpy as np
 from multilayer.app.cli import main
-from multilayer.engine import column_kernel, simulation, transport, transport_kernel
+from multilayer.engine import simulation
+from multilayer.engine.vertical import column_solve as column_kernel
+from multilayer.engine.transport import reference as transport
+from multilayer.engine.transport import kernel as transport_kernel
 from multilayer.plugins.builtins.drucker_prager import DruckerPrager
 calls = [0]
 {patch}

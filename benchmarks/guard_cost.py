@@ -18,8 +18,9 @@ from unittest import mock
 import numpy as np
 from dam_break import scenario
 
-from multilayer.engine import column_kernel, state_check
-from multilayer.engine.simulation import Simulation
+from multilayer.app.simulation import Simulation
+from multilayer.engine import state_check
+from multilayer.engine.vertical import column_solve as column_kernel
 
 
 def _unchecked_call(plugin, method, args, **_):

@@ -28,14 +28,14 @@ _EXPORTS = {
     "Material": "multilayer.plugins.contract",
     "Rheology": "multilayer.plugins.contract",
     "hookimpl": "multilayer.plugins.host",
-    "Simulation": "multilayer.engine.simulation",
+    "Simulation": "multilayer.app.simulation",
 }
 
 __all__ = ["Material", "Rheology", "Simulation", "__version__", "hookimpl", "load", "run"]
 
 if TYPE_CHECKING:
     from multilayer.app.api import load, run
-    from multilayer.engine.simulation import Simulation
+    from multilayer.app.simulation import Simulation
     from multilayer.plugins.contract import Material, Rheology
     from multilayer.plugins.host import hookimpl
 

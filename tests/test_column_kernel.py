@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
-from multilayer.engine import column_kernel
-from multilayer.engine.column_problem import ColumnProblem
+from multilayer.engine.vertical import column_solve as column_kernel
+from multilayer.engine.vertical.problem import ColumnProblem
 
 
 def energy(u: np.ndarray, p: ColumnProblem) -> float:

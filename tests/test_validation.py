@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 from test_transport import ritter_error
 
+from multilayer.app.simulation import Simulation
 from multilayer.engine import diagnostics
-from multilayer.engine.simulation import Simulation
 from multilayer.reference import similarity
 from multilayer.reference.exact import BagnoldFlow, InviscidSimpleShear, jop_inertial_number
 from multilayer.scenario import load

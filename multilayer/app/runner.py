@@ -47,7 +47,7 @@ from multilayer.app import resources
 from multilayer.app.compilation import compile_notice
 from multilayer.app.lock import locked
 from multilayer.app.progress import Progress, shown
-from multilayer.engine.simulation import Simulation
+from multilayer.app.simulation import Simulation
 from multilayer.errors import InputError, Interrupted, RunError
 from multilayer.io.results import (
     CHECKPOINT_FILE,

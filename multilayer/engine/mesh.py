@@ -14,6 +14,7 @@ that never use it (docs/performance.md).
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from functools import cached_property
 from typing import TYPE_CHECKING
 
@@ -21,6 +22,20 @@ import numpy as np
 
 if TYPE_CHECKING:
     import fipy
+
+
+def layer_fractions(layers: int, rule: str | Sequence[float] | Mapping[str, float] = "uniform") -> np.ndarray:
+    """Layer fractions ``l_1 .. l_L`` (bottom to top), (L,), summing to 1, by the rule of the
+    scenario key ``domain.layer_fractions``: ``uniform``, ``1/L``; a list, as given
+    (renormalised to round-off); ``{geometric: r}``, ``l_a`` proportional to ``r**(a-1)``
+    (thin layers at the bed for r > 1)."""
+    if isinstance(rule, Mapping):
+        weights = float(rule["geometric"]) ** np.arange(layers)
+    elif isinstance(rule, str):
+        weights = np.ones(layers)
+    else:
+        weights = np.asarray(rule, dtype=float)
+    return weights / weights.sum()
 
 
 class LayeredMesh:

@@ -31,8 +31,8 @@ import math
 from collections.abc import Callable
 
 import numpy as np
-from numba import njit
 
+from multilayer.engine.compiled import jit
 from multilayer.errors import RunError
 
 ROUND_OFF = 64 * np.finfo(float).eps
@@ -159,7 +159,7 @@ def _bits(u: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(u, dtype=float).view(np.uint64)
 
 
-@njit(cache=True)
+@jit
 def _finite(bits: np.ndarray, lo: int, hi: int) -> bool:
     """True if every value of the columns ``lo .. hi-1`` of ``bits`` (L, N: the floats of
     ``_bits``) is finite: one pass testing the exponent (all ones for an infinity or a

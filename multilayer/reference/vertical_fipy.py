@@ -45,7 +45,7 @@ from collections.abc import Sequence
 import fipy as fp
 import numpy as np
 
-from multilayer.engine.column_problem import ColumnProblem
+from multilayer.engine.vertical.problem import ColumnProblem
 from multilayer.errors import RunError
 
 PENALTY = 1.0

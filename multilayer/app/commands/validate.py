@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 from multilayer import scenario as scenarios
-from multilayer.app import resources
+from multilayer.app import factory, resources
 from multilayer.app.commands import add_budget_arguments, add_set_argument, budget
 from multilayer.engine import initial_state
 from multilayer.errors import InputError
@@ -34,9 +34,9 @@ def main(args: argparse.Namespace) -> int:
         try:
             scenario = scenarios.load(path, args.overrides)
             need = resources.check(scenario, scenario.output.directory or Path("results"), budget(args))
-            dom = scenario.domain
-            dx = (dom.x_max - dom.x_min) / dom.cells
-            initial_state.check_entries(scenario.initial, dom.x_min, dom.x_max, dx, str(path))
+            config = factory.engine_config(scenario)
+            dx = (config.x_max - config.x_min) / config.cells
+            initial_state.check_entries(config.initial, config.x_min, config.x_max, dx, str(path))
         except InputError as exc:
             print(f"multilayer: error: {exc}", file=sys.stderr)
             invalid += 1

@@ -20,20 +20,20 @@ threads one at a time (``threads.parallel_chunks``).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
-from multilayer.engine.threads import parallel_chunks, parallel_compiled
-from multilayer.engine.transport import MARGIN, step_boundary_mass
-
-WALL, OUTFLOW, INFLOW, PERIODIC = 0, 1, 2, 3
-BOUNDARY_CODES = {"wall": WALL, "outflow": OUTFLOW, "inflow": INFLOW, "periodic": PERIODIC}
-
+from multilayer.engine.compiled import jit, parallel_compiled
+from multilayer.engine.state import moving_columns
+from multilayer.engine.threads import numba_threads, parallel_chunks
+from multilayer.engine.transport import boundaries
+from multilayer.engine.transport.boundaries import COPY, STATE, WRAP
+from multilayer.engine.transport.reference import MARGIN, step_boundary_mass
 
 TILE = 8192
 """Cells (columns x layers) of one tile of the sweep: its work arrays stay in the L2 cache."""
 
 
-@njit(cache=True)
+@jit
 def _minmod(back, ahead):
     """``transport._minmod_slope`` of one cell (the same value, bit for bit)."""
     a, b = abs(back), abs(ahead)
@@ -42,28 +42,11 @@ def _minmod(back, ahead):
     return signed if back * ahead > 0.0 else 0.0  # values, no branches: the loops vectorise
 
 
-@njit(cache=True)
-def _source(j, n, left, right):
-    """Window cell whose state column ``j`` (-2 .. n+1, ghosts outside 0 .. n-1) takes,
-    and how: 0 copied, 1 mirrored (u -> -u), 2 the inflow state instead."""
-    if j < 0:
-        g = -1 - j  # 0 for the ghost next to the boundary
-        if left == PERIODIC:
-            return (n - 1 - g) % n, 0
-        if left == WALL:
-            return min(g, n - 1), 1
-        return 0, 2 if left == INFLOW else 0
-    if j >= n:
-        g = j - n
-        if right == PERIODIC:
-            return g % n, 0
-        if right == WALL:
-            return max(n - 1 - g, 0), 1
-        return n - 1, 2 if right == INFLOW else 0
-    return j, 0
+_source = jit(boundaries.ghost_source)
+"""The window column (and how) of a state column of a tile (``boundaries.ghost_source``)."""
 
 
-@njit(cache=True)
+@jit
 def _work(L, T):
     """Work arrays of a tile of at most ``T`` cells of ``L`` layers (one set per chunk):
     per column (ghosts included), per layer and column, per face, per layer and face."""
@@ -77,7 +60,7 @@ def _work(L, T):
     return columns, scalars, layers, faces, fluxes, cells, gate
 
 
-@njit(cache=True)
+@jit
 def _block_sum(v, start, stop):
     """numpy's sum of at most 128 values: eight partial sums, then the rest in order."""
     n = stop - start
@@ -99,7 +82,7 @@ def _block_sum(v, start, stop):
     return total
 
 
-@njit(cache=True)
+@jit
 def _pairwise_sum(v):
     """``numpy.sum(v)`` in numpy's own order (pairwise: halves, down to blocks of at most
     128 values), so that the result is the same to the last bit.  (No recursion: numba's
@@ -128,7 +111,7 @@ def _pairwise_sum(v):
     return sums[0]
 
 
-@njit(cache=True, error_model="numpy")
+@jit(error_model="numpy")
 def _gated(f, hl, hr, uL, uR, l, g_n, opening, fh, fq, gate_h, gate_q):
     """``transport._gated`` at face ``f`` of a tile: ``fh[:, f]``, ``fq[:, f]`` become the
     fluxes seen by the cell west of the gate, ``gate_h``, ``gate_q`` those seen by the
@@ -167,7 +150,7 @@ def _gated(f, hl, hr, uL, uR, l, g_n, opening, fh, fq, gate_h, gate_q):
         gate_q[a] = open_east + (1.0 - o) * wall_east
 
 
-@njit(cache=True, error_model="numpy")
+@jit(error_model="numpy")
 def _momentum_rate(i, west_flux, momentum, terms, exchange, pressure, slope, gravity, dx):
     """d_t(h_a u_a) of cell ``i`` of a tile: the momentum fluxes with the well-balanced
     pressure at its faces (``west_flux`` at its west face), the bed slope, the mass
@@ -178,7 +161,7 @@ def _momentum_rate(i, west_flux, momentum, terms, exchange, pressure, slope, gra
     return -(east - west + slope * terms[2, i] * terms[3, i]) / dx + exchange[i] + gravity * terms[4, i]
 
 
-@njit(cache=True, error_model="numpy")
+@jit(error_model="numpy")
 def _tile(
     stage, order, t0, t1, n, lo, left, right, at_rest, H, U, B, Q1, H1, l, dx, dt, g_n, g_t, dry,
     inflow_h, inflow_u, gate_face, opening, H_out, U_out, ends, work,
@@ -443,11 +426,11 @@ def _stages(
                     )  # fmt: skip
 
 
-_stages_serial = njit(cache=True, error_model="numpy")(_stages)
+_stages_serial = jit(_stages, error_model="numpy")
 _stages_parallel = parallel_compiled(_stages, error_model="numpy")
 
 
-@njit(cache=True)
+@jit
 def _window(h, u, moving, left, right):
     """Occupied window [lo, hi) (material plus ``MARGIN`` dry cells per side) and the
     faces (hi - lo + 1) across which no wave travels (both sides at rest)."""
@@ -459,14 +442,14 @@ def _window(h, u, moving, left, right):
             if first < 0:
                 first = i
             last = i
-    lo = 0 if first < 0 or left in (INFLOW, PERIODIC) else max(first - MARGIN, 0)
-    hi = N if first < 0 or right in (INFLOW, PERIODIC) else min(last + 1 + MARGIN, N)
+    lo = 0 if first < 0 or left in (STATE, WRAP) else max(first - MARGIN, 0)
+    hi = N if first < 0 or right in (STATE, WRAP) else min(last + 1 + MARGIN, N)
     n = hi - lo
-    west_end = moving[lo] or left == INFLOW
-    east_end = moving[hi - 1] or right == INFLOW
-    if left == PERIODIC:
+    west_end = moving[lo] or left == STATE
+    east_end = moving[hi - 1] or right == STATE
+    if left == WRAP:
         west_end = moving[hi - 1]
-    if right == PERIODIC:
+    if right == WRAP:
         east_end = moving[lo]
     at_rest = np.empty(n + 1, np.bool_)
     for f in range(n + 1):
@@ -474,85 +457,6 @@ def _window(h, u, moving, left, right):
         east = east_end if f == n else moving[lo + f]
         at_rest[f] = not (west or east)
     return lo, hi, at_rest
-
-
-@njit(cache=True)
-def span(values: np.ndarray) -> tuple[int, int]:
-    """(first, last + 1) of the entries of ``values`` (N,) that are > 0 (or True);
-    (0, 0) for none."""
-    first = -1
-    last = -1
-    for i in range(values.size):
-        if values[i] > 0:
-            if first < 0:
-                first = i
-            last = i
-    return (first, last + 1) if first >= 0 else (0, 0)
-
-
-@njit(cache=True)
-def moving_columns(u: np.ndarray) -> np.ndarray:
-    """Columns (N,) with a non-zero velocity in some layer of ``u`` (L, N)."""
-    L, N = u.shape
-    out = np.zeros(N, np.bool_)
-    for a in range(L):
-        for i in range(N):
-            if u[a, i] != 0.0:
-                out[i] = True
-    return out
-
-
-@njit(cache=True)
-def max_wave_speed(h: np.ndarray, u: np.ndarray, g_n: float) -> float:
-    """Largest max_a |u_a| + sqrt(g cos(theta) h) over the columns (0 for none)."""
-    L, N = u.shape
-    fastest = np.zeros(N)
-    for a in range(L):
-        for i in range(N):
-            fastest[i] = max(fastest[i], abs(u[a, i]))
-    best = 0.0
-    for i in range(N):
-        best = max(best, fastest[i] + np.sqrt(g_n * max(h[i], 0.0)))
-    return best
-
-
-@njit(cache=True)
-def survey(h, u, dry, g_n, moving, rest):
-    """One pass over the state at the start of a step: fills ``moving`` (N,), the columns
-    with a non-zero velocity in some layer, and ``rest`` (L, N), the layers at rest
-    (``u == 0``) in columns thicker than ``dry``; returns the largest wave speed
-    ``max_a |u_a| + sqrt(g cos(theta) h)`` (as ``max_wave_speed``)."""
-    L, N = u.shape
-    fastest = np.zeros(N)
-    for i in range(N):
-        moving[i] = False
-    for a in range(L):
-        for i in range(N):
-            v = u[a, i]
-            moving[i] = moving[i] or v != 0.0
-            rest[a, i] = v == 0.0 and h[i] > dry
-            fastest[i] = max(fastest[i], abs(v))
-    best = 0.0
-    for i in range(N):
-        best = max(best, fastest[i] + np.sqrt(g_n * max(h[i], 0.0)))
-    return best
-
-
-@njit(cache=True)
-def start_moving(u, h, dry, moving):
-    """Add to ``moving`` the columns thicker than ``dry`` that were not moving and have a
-    non-zero velocity in ``u`` (material at rest that a step sets moving); True if any."""
-    L, N = u.shape
-    started = False
-    for i in range(N):
-        if moving[i] or not h[i] > dry:
-            continue
-        for a in range(L):
-            if u[a, i] != 0.0:
-                moving[i] = True
-                started = True
-                break
-    return started
 
 
 class Workspace:
@@ -614,11 +518,11 @@ def transport(
     ws = workspace if workspace is not None else Workspace(L, N)
     if moving is None:
         moving = moving_columns(u)
-    codes = BOUNDARY_CODES[left], BOUNDARY_CODES[right]
+    codes = boundaries.rule(left), boundaries.rule(right)
     lo, hi, at_rest = _window(h, u, moving, *codes)
     n = hi - lo
-    left_kind = codes[0] if lo == 0 else OUTFLOW
-    right_kind = codes[1] if hi == N else OUTFLOW
+    left_kind = codes[0] if lo == 0 else COPY
+    right_kind = codes[1] if hi == N else COPY
     inflow_h = float(inflow.thickness) if inflow is not None else 0.0
     inflow_u = np.asarray(inflow.velocity, dtype=float) if inflow is not None else np.zeros(L)
     ws.clear_outside(lo, hi)
@@ -628,12 +532,13 @@ def transport(
     opening = np.asarray(opening, dtype=float) if gate >= 0 else np.zeros(L)
     chunks = parallel_chunks(threads, n, 64) if threads > 1 else 1
     stages = _stages_parallel if chunks > 1 else _stages_serial
-    stages(
-        chunks, order, n, lo, left_kind, right_kind, at_rest,
-        h, u, b, ws.q1, ws.h1, np.ascontiguousarray(fractions, dtype=float),
-        float(dx), float(dt), float(g_n), float(g_t), float(dry), inflow_h, inflow_u, gate, opening,
-        ws.h, ws.u, ws.ends,
-    )  # fmt: skip
+    with numba_threads(threads if chunks > 1 else 1):
+        stages(
+            chunks, order, n, lo, left_kind, right_kind, at_rest,
+            h, u, b, ws.q1, ws.h1, np.ascontiguousarray(fractions, dtype=float),
+            float(dx), float(dt), float(g_n), float(g_t), float(dry), inflow_h, inflow_u, gate, opening,
+            ws.h, ws.u, ws.ends,
+        )  # fmt: skip
     if boundary_mass is not None:
         boundary_mass[:] = step_boundary_mass(ws.ends[:order], float(dt))
     return ws.h, ws.u

@@ -27,10 +27,10 @@ iteration ``TRUSTED`` (where the energy test of ``newton_control`` begins).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
-from multilayer.engine.newton_control import TRUSTED, _sign, error_bound
-from multilayer.engine.viscous_law import _newton_model, _viscosity_and_slope
+from multilayer.engine.compiled import jit
+from multilayer.engine.vertical.forms import _newton_model, _viscosity_and_slope
+from multilayer.engine.vertical.newton_control import TRUSTED, _sign, error_bound
 
 BLOCK = 8
 """Columns solved side by side: eight chains of divisions in flight, and the pass of the
@@ -60,7 +60,7 @@ ALONE = BLOCK
 ACTIVE, SHEARED, DONE, FINE = range(4)  # of the boolean lanes
 
 
-@njit(cache=True)
+@jit
 def stride(L):
     """Cells from one lane to the next in the tile's rows, for columns of ``L`` layers:
     ``L + 1`` (a cell of padding) below 32 layers; above, an odd number of cache lines (of
@@ -73,7 +73,7 @@ def stride(L):
     return 8 * (lines + 1 - lines % 2)
 
 
-@njit(cache=True)
+@jit
 def new_tile(L):
     """The tile of columns of ``L`` layers, zero but for the ``BED`` slot."""
     t = np.zeros((SLOTS, 1 + (BLOCK + 1) * stride(L)))
@@ -85,13 +85,13 @@ def new_tile(L):
     return t
 
 
-@njit(cache=True)
+@jit
 def cell(i, L):
     """The cell of layer 0 of lane ``i`` in the tile's rows (columns of ``L`` layers)."""
     return 1 + i * stride(L)
 
 
-@njit(cache=True)
+@jit
 def join(t, L, flags, i, fine):
     """Lane ``i`` of the block, whose per-step slots ``newton_kernel._chunk`` has set up
     (``fine``: its yield values are within the plugin contract), takes part in the block
@@ -104,7 +104,7 @@ def join(t, L, flags, i, fine):
     flags[ACTIVE, i] = take
 
 
-@njit(cache=True)
+@jit
 def unload(t, L, flags, i, viscous, wall_true, guess):
     """Column ``i`` of the block, one it did not finish, into lane ``ALONE`` (the
     column solved on its own by ``newton_kernel._chunk``), with the arrays of one column
@@ -120,7 +120,7 @@ def unload(t, L, flags, i, viscous, wall_true, guess):
     return flags[FINE, i]
 
 
-@njit(cache=True, error_model="numpy")
+@jit(error_model="numpy")
 def _stresses_and_model(t, L, u, form, params, flags):
     """At the velocities of slot ``u``: the true viscous stresses (slot ``TAU``; a
     viscosity outside the plugin contract ends the column's block iteration) and the
@@ -129,13 +129,18 @@ def _stresses_and_model(t, L, u, form, params, flags):
     The block's lanes are swept as one loop over their cells (the bed below the bottom
     cell of each lane); where some column is unsheared or outside the contract, its lanes
     are swept again one by one to tell which (the same values again).  The pass is
-    compiled once per form, the form a constant in it (its loop then has no branches)."""
+    compiled once per built-in form, the form a literal constant in it (its loop then has
+    no branches; ``forms.INERTIAL``, ``CONSTANT``, ``POWER``); any other form of
+    ``forms.FORMS`` runs the pass compiled for every form (the same values)."""
+    start, stop = cell(0, L), cell(BLOCK, L)
     if form == 1:
-        faults, unsheared = _sweep(t, u, 1, params, cell(0, L), cell(BLOCK, L))
+        faults, unsheared = _sweep(t, u, 1, params, start, stop)
     elif form == 0:
-        faults, unsheared = _sweep(t, u, 0, params, cell(0, L), cell(BLOCK, L))
+        faults, unsheared = _sweep(t, u, 0, params, start, stop)
+    elif form == 2:
+        faults, unsheared = _sweep(t, u, 2, params, start, stop)
     else:
-        faults, unsheared = _sweep(t, u, 2, params, cell(0, L), cell(BLOCK, L))
+        faults, unsheared = _sweep(t, u, form, params, start, stop)
     if faults == 0 and unsheared == 0:  # every column within the contract and fully sheared
         for i in range(BLOCK):
             flags[SHEARED, i] = True
@@ -147,7 +152,7 @@ def _stresses_and_model(t, L, u, form, params, flags):
         flags[SHEARED, i] = lane_unsheared == 0
 
 
-@njit(cache=True, error_model="numpy")
+@jit(error_model="numpy")
 def _sweep(t, u, form, params, start, stop):
     """Cells ``start ... stop - 1`` of the tile's rows of :func:`_stresses_and_model` (the
     velocities in slot ``u``); returns how many viscosities are outside the plugin contract
@@ -171,7 +176,7 @@ def _sweep(t, u, form, params, start, stop):
     return faults, unsheared
 
 
-@njit(cache=True, error_model="numpy")
+@jit(error_model="numpy")
 def _solve(t, L, new, flags):
     """The exact solve with one group per layer into slot ``new``: the forward sweep
     (inverse pivots ``DIAG``, right-hand sides ``RHS``) and the back substitution of
@@ -215,7 +220,7 @@ def _solve(t, L, new, flags):
             flags[ACTIVE, i] = False
 
 
-@njit(cache=True, error_model="numpy")
+@jit(error_model="numpy")
 def _converged(t, L, new, current, threshold, flags):
     """``DONE``: the error bound of ``newton_control.error_bound`` at slot ``new`` (true
     stresses in ``TAU``) is within ``threshold``, or else the largest change from slot
@@ -237,7 +242,7 @@ def _converged(t, L, new, current, threshold, flags):
         flags[DONE, i] = converged
 
 
-@njit(cache=True, error_model="numpy")
+@jit(error_model="numpy")
 def sheared_block(
     t, flags, finished, form, params, threshold, max_iterations, j0, c0,
     u_out, iterations, fallbacks, faults, fault_values, side_by_side,
