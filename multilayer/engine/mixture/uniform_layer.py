@@ -101,11 +101,6 @@ class UniformLayer:
             (0.0 < self.phi0 < 1.0, "phi0", "in (0, 1)"),
             (self.k_b >= 0.0, "k_b", ">= 0 (Pa s/m)"),
             (self.gravity > 0.0, "gravity", "> 0 (m/s2)"),
-            (
-                self.material.static_friction(self.phi0) >= 0.0,
-                "phi0",
-                ">= phi_c - tan(delta) / K (a looser packing would have a negative friction coefficient)",
-            ),
         )
         for ok, name, accepted in checks:
             if not ok:
@@ -201,14 +196,12 @@ class UniformLayer:
         """One backward-Euler step of length ``dt`` from ``s`` (module docstring)."""
         if not (dt > 0.0 and math.isfinite(dt)):
             raise RunError(f"uniform layer: the time step dt = {dt!r} is not a finite number > 0")
-        friction = self.material.static_friction(self.solid / s.h)
-        if friction < 0.0:
-            raise RunError(
-                f"uniform layer: phi = {self.solid / s.h!r} at t = {s.t!r} has a negative friction"
-            )
+        # held (v == 0.0, no dilation, h kept) iff within the static threshold, which is
+        # negative for a packing looser than phi_c - tan(delta)/K: such a layer cannot rest
+        threshold = self.material.static_friction(self.solid / s.h) * self.weight
         step = _Step(self, s, dt)
         rhs = step.at(s.h)[1]
-        if abs(rhs) <= dt * friction * self.weight:  # held: v == 0.0, no dilation, h kept
+        if abs(rhs) <= dt * threshold:
             h_new, v_new = s.h, 0.0
         else:
             step.sign = math.copysign(1.0, rhs)
