@@ -24,6 +24,24 @@ SMALL = {"domain.cells": 60, "time.end": 0.1, "time.output_interval": 0.05}
 RUN_ATTRS = {"history", "wall_time_s"}
 
 
+RUN_LIGHT = """
+import sys
+sys.modules["dask"] = sys.modules["distributed"] = sys.modules["SALib"] = None  # not installed
+import multilayer
+multilayer.run(sys.argv[1], overrides={"domain.cells": 30, "time.end": 0.02, "time.output_interval": 0.02})
+print(sorted(m for m in ("fipy",) if m in sys.modules))
+"""
+
+
+def test_a_run_needs_neither_dask_nor_salib_and_imports_no_fipy():
+    """Without the studies extra a run goes; FiPy is imported where it is used (its mesh on
+    demand, the reference solvers; the version in result.nc is read from its package
+    metadata)."""
+    done = subprocess.run([sys.executable, "-c", RUN_LIGHT, str(SCENARIO)], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip().splitlines()[-1] == "[]"
+
+
 def test_import_multilayer_is_lazy_and_exports_the_api():
     code = "import sys, multilayer; print(sorted(m for m in ('fipy', 'numba', 'xarray') if m in sys.modules))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout

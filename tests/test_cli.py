@@ -274,3 +274,24 @@ def test_run_round_trip_writes_result(cli, tiny_scenario, write_scenario, tmp_pa
         assert ds.attrs["wall_time_s"] > 0
         scenario = yaml.safe_load(ds.attrs["scenario"])
         assert scenario["domain"]["cells"] == 20 and scenario["numerics"]["order"] == 2
+
+
+WITHOUT_STUDIES = """
+import sys
+sys.modules["distributed"] = sys.modules["dask.distributed"] = sys.modules["SALib"] = None  # not installed
+from multilayer.app.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.parametrize("command", ["sweep", "calibrate", "sensitivity"])
+def test_the_study_commands_without_their_extra_say_how_to_install_it(command, tmp_path):
+    """exit 2 and the extra to install, before the file is read (none exists here)."""
+    done = subprocess.run(
+        [sys.executable, "-c", WITHOUT_STUDIES, command, str(tmp_path / "study.yaml")],
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    assert f"multilayer {command} needs " in done.stderr
+    assert "accepted: install the studies extra with pip install 'multilayer[studies]'" in done.stderr

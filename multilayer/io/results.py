@@ -24,14 +24,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
-import fipy
 import netCDF4
 import numpy as np
 import xarray as xr
 from xarray.backends.locks import HDF5_LOCK, NETCDFC_LOCK, combine_locks
 
 from multilayer.errors import InputError
-from multilayer.provenance import provenance
+from multilayer.provenance import fipy_version, provenance
 
 RESULT_FILE = "result.nc"
 CHECKPOINT_FILE = "checkpoint.npz"
@@ -194,7 +193,7 @@ class ResultWriter:
                 "institution": os.environ.get("MULTILAYER_INSTITUTION", "not specified"),
                 "source": f"multilayer {origin.version} (commit {origin.commit}): multilayer "
                 f"shallow-flow model of dense granular flows; X-sigma mesh and reference formulations "
-                f"in FiPy {fipy.__version__}, state in numpy, transport and vertical step by numba "
+                f"in FiPy {fipy_version()}, state in numpy, transport and vertical step by numba "
                 f"kernels tested equal to them (transport_solver: {scenario.numerics.transport_solver}, "
                 f"vertical_solver: {scenario.numerics.vertical_solver})",
                 "history": f"{_now()} multilayer run {scenario.source or scenario.name}",
@@ -208,7 +207,7 @@ class ResultWriter:
                 "multilayer_version": origin.version,
                 "multilayer_commit": origin.commit,
                 "multilayer_dirty": origin.dirty,
-                "fipy_version": fipy.__version__,
+                "fipy_version": fipy_version(),
             }
         )
 
