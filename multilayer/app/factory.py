@@ -14,6 +14,7 @@ no kernel (``multilayer validate`` uses it).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from types import MappingProxyType
 from typing import TYPE_CHECKING
 
@@ -57,6 +58,13 @@ def _initial(entry: schema.InitialShape) -> cfg.InitialEntry:
     )
 
 
+def basal_regions(zones: Sequence[schema.BaseZone]) -> tuple[cfg.BasalRegion, ...]:
+    """The engine's basal regions of the ``base`` entries of a scenario."""
+    return tuple(
+        cfg.BasalRegion(z.condition, MappingProxyType(z.parameters), z.x_min, z.x_max) for z in zones
+    )
+
+
 def material(scenario: Scenario) -> Material:
     """The :class:`multilayer.Material` handed to the rheology plugins."""
     spec = scenario.material
@@ -79,9 +87,7 @@ def engine_config(scenario: Scenario) -> cfg.SimulationConfig:
         gravity=sc.gravity,
         slope_deg=sc.slope_deg,
         width=dom.width,
-        base=tuple(
-            cfg.BasalRegion(z.condition, MappingProxyType(z.parameters), z.x_min, z.x_max) for z in sc.base
-        ),
+        base=basal_regions(sc.base),
         bed=_points(sc.bed.points),
         initial=tuple(_initial(entry) for entry in sc.initial),
         left=sc.boundaries.left,

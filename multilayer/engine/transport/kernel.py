@@ -1,6 +1,6 @@
-"""Compiled transport step: the scheme of ``transport.py`` fused into one sweep per stage.
+"""Compiled transport step: the scheme of ``reference.py`` fused into one sweep per stage.
 
-``transport.py`` (numpy) is the reference formulation; this module computes the same
+``reference.py`` (numpy) is the reference formulation; this module computes the same
 step (hydrostatic reconstruction of Audusse et al. 2004, minmod slopes, HLL fluxes per
 layer, mass exchange with upwinded velocity, bed slope and gravity sources, forward
 Euler or Heun, a partly open gate) with the same floating-point operations in the same
@@ -35,7 +35,7 @@ TILE = 8192
 
 @jit
 def _minmod(back, ahead):
-    """``transport._minmod_slope`` of one cell (the same value, bit for bit)."""
+    """``reference._minmod_slope`` of one cell (the same value, bit for bit)."""
     a, b = abs(back), abs(ahead)
     smaller = a if a < b else b
     signed = smaller if back > 0.0 else -smaller
@@ -113,7 +113,7 @@ def _pairwise_sum(v):
 
 @jit(error_model="numpy")
 def _gated(f, hl, hr, uL, uR, l, g_n, opening, fh, fq, gate_h, gate_q):
-    """``transport._gated`` at face ``f`` of a tile: ``fh[:, f]``, ``fq[:, f]`` become the
+    """``reference._gated`` at face ``f`` of a tile: ``fh[:, f]``, ``fq[:, f]`` become the
     fluxes seen by the cell west of the gate, ``gate_h``, ``gate_q`` those seen by the
     cell east of it."""
     L = l.size
@@ -504,13 +504,13 @@ def transport(
     threads: int = 1,
     boundary_mass: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``transport.transport`` compiled: returns h^{n+1} (N,) and u* (L, N).
+    """``reference.transport`` compiled: returns h^{n+1} (N,) and u* (L, N).
 
     The result lives in ``workspace`` (a new one when None) and is overwritten by its
     next use.  ``threads > 1`` sweeps the window in chunks of at least 64 columns
     (``threads.parallel_chunks``) on that many threads.
     ``boundary_mass`` (2,), if given, receives the mass that crossed the left and the
-    right boundary, positive in +x (as ``transport.transport``).
+    right boundary, positive in +x (as ``reference.transport``).
     """
     if opening is not None and gate_face is None:
         raise ValueError("transport: a gate opening was given without its gate_face")

@@ -14,12 +14,16 @@ layer whose wave speeds bracket the waves of every layer.  Time: forward Euler (
 or Heun's SSP-RK2 (order 2).  ``h >= 0`` for a Courant number up to 1/2, and a lake at
 rest stays at rest.  The mass exchanged between layers carries the velocity of the layer
 it comes from (upwinding: from above when ``G > 0``).  Stresses are left to the implicit
-vertical step (``vertical.py``).
+vertical step (``engine/vertical``).
 
 Material at rest does not carry waves: a face between two columns that are entirely at
 rest carries no mass during the step (and the centred pressure flux), so a heap held by
 friction keeps its shape to the last bit; whether it is held is decided by the vertical
 step (and ``Simulation.step`` redoes a step in which a column at rest starts moving).
+
+This numpy formulation is the reference the compiled transport (``kernel.py``) is tested
+against bit for bit, written array by array as the equations read; it runs with
+``numerics.transport_solver: numpy``.
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ column are computed by one compiled function, :func:`column_coefficients`: colum
 column into arrays kept from step to step (:class:`CompiledCoefficients`, instead of a
 dozen numpy temporaries of their size per step), and inside the compiled Newton step
 (``newton_kernel``), which so never stores them for the whole mesh.  The operations
-are those of ``stress.StressModel.columns`` in the same order, so the coefficients are
+are those of ``stresses.StressModel.columns`` in the same order, so the coefficients are
 the same bits (tests/test_stress_kernel.py).  Any value outside the plugin contract
 (not finite, or negative) sends the call to ``StressModel.columns``, whose checks name
 the plugin, the method, the value and where.

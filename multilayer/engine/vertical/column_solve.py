@@ -1,7 +1,7 @@
 """Exact solver for one implicit vertical step of a chain of layers (the hot path).
 
 Per column the implicit step minimises the energy ``E(u)`` of a
-:class:`~multilayer.engine.column_problem.ColumnProblem` (docs/model.md, "The implicit
+:class:`~multilayer.engine.vertical.problem.ColumnProblem` (docs/model.md, "The implicit
 vertical step"), a strictly convex, piecewise-quadratic energy on a chain.  It is minimised exactly by
 dynamic programming over the layers (Johnson 2013, "A dynamic programming algorithm for
 the fused lasso"; Kolmogorov, Pock & Rolinek 2016, "Total variation on a tree"): the
@@ -405,8 +405,8 @@ def solve(problem: ColumnProblem, guess: np.ndarray | None = None, threads: int 
 
     ``guess`` (e.g. the previous velocities, (L, N)) proposes the structure of rigid and
     static groups; it only affects the speed.  ``threads > 1`` solves that many chunks of
-    columns in parallel (``threads.py`` chooses it).  This is a
-    :class:`~multilayer.engine.column_problem.VerticalSolver`; the compiled functions
+    columns in parallel (``engine/threads.py`` chooses it).  This is a
+    :class:`~multilayer.engine.vertical.problem.VerticalSolver`; the compiled functions
     take the coefficients as arrays (N, L), each column contiguous.
     """
     p = problem

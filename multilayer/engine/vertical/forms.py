@@ -113,7 +113,7 @@ def _viscosity(form, params, rate, factor, offset):
 
 @jit
 def _newton_model(kappa, rate, eta, slope, secant):
-    """``stress._newton_model`` for one value from ``eta`` and the stress slope at
+    """``stresses.StressModel._newton_model`` for one value from ``eta`` and the stress slope at
     ``rate``: (yield stress, conductance) of the odd Bingham law through the stress at
     ``rate``, tangent where its yield stress is >= 0, secant otherwise (and always with
     ``secant``: the Kacanov model of ``newton_control``)."""

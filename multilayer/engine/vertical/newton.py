@@ -28,7 +28,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from multilayer.engine.vertical import column_solve as column_kernel
+from multilayer.engine.vertical import column_solve
 from multilayer.engine.vertical.newton_control import TRUSTED, examine_columns
 from multilayer.engine.vertical.newton_kernel import CompiledStep
 from multilayer.engine.vertical.problem import VerticalSolver
@@ -47,7 +47,7 @@ def implicit_step(
     u_guess: np.ndarray,
     dt: float,
     *,
-    solver: VerticalSolver = column_kernel.solve,
+    solver: VerticalSolver = column_solve.solve,
     tolerance: float = 1e-10,
     max_iterations: int = 200,
     velocity_scale: float = 1.0,

@@ -6,7 +6,7 @@ Per column the step minimises the strictly convex energy (docs/model.md)::
 
 with ``Psi_k(s) = kappa_k |s| + Phi_k(s)`` (``Phi_k' = tau_v``, the viscous stress) and
 ``W_a`` the wall term alike.  Each iteration solves a Bingham model of it exactly
-(``vertical_step``), and :func:`error_bound` and :func:`energy_rise` judge the model's
+(``newton``), and :func:`error_bound` and :func:`energy_rise` judge the model's
 minimiser ``u`` from the true stresses at ``u`` alone, without another solve:
 
 **Stopping: an a-posteriori error bound.**  ``E`` is strongly convex with modulus

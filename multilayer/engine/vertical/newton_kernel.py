@@ -1,11 +1,11 @@
 """The implicit vertical step compiled: viscous linearisation and exact solve fused per column.
 
-``vertical_step.implicit_step`` iterates, over all unconverged columns at once, the Newton
+``newton.implicit_step`` iterates, over all unconverged columns at once, the Newton
 model of the viscous stresses (``StressModel.linearise``, numpy, calling the rheology
-plugins) and the exact solver (``column_kernel``).  Each column's iteration depends on
+plugins) and the exact solver (``column_solve``).  Each column's iteration depends on
 that column only, so the same iteration runs here column by column with every quantity in
 cache, when the bulk and wall laws declare a compiled form of their viscosity
-(``Rheology.viscosity_kernel``).  The model is that of ``stress.py``, evaluated with
+(``Rheology.viscosity_kernel``).  The model is that of ``stresses.py``, evaluated with
 what stays fixed during a step (masses, pressure parts, inverse spacings) computed once
 per column, except its slope: the compiled forms differentiate their stress exactly
 where the numpy path takes a forward difference.  The slope only sets the speed of the
@@ -14,6 +14,11 @@ round-off times the conditioning of the step, with the same layers at rest and N
 counts within 1 % (tests/test_newton_kernel.py).  Adjacent columns that are fully sheared
 (every interface yielded, no side walls) go through the same iteration several at a time,
 side by side (``sheared_columns``), to the same bits.
+
+What only this copy of the iteration does: it never leaves compiled code, and never
+stores the coefficients of the whole mesh (they are computed column by column): the path
+of every law with compiled forms, the built-in ones included.  The numpy iteration stays
+for laws written in Python and for another exact solver (``newton.py``).
 """
 
 from __future__ import annotations
@@ -136,7 +141,7 @@ def _true_stresses(
 def _other_structures(
     inertia, momentum, kappa, c, w, cw, current, ustar, col, proposal, u, first, grounded, U, diag, low, rhs
 ):  # fmt: skip
-    """Where the active set (``column_kernel._active_set``) rejects the lock/sign
+    """Where the active set (``column_solve._active_set``) rejects the lock/sign
     structure of the iterate ``current``: solve with, in turn, the structure of the
     velocities ``ustar`` of column ``col`` before the step and that of ``current`` with
     its speeds and jumps below ``1e-9 max |current|`` set to 0 (the round-off of an
@@ -204,7 +209,7 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
     eta_c, slope_c, eta_n, slope_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
     weta_c, wslope_c, weta_n, wslope_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
     state_c, state_n = np.empty((4, L)), np.empty((4, L))  # of newton_control.examine
-    # the coefficients of StressModel.columns of the column (stress_kernel.column_coefficients)
+    # the coefficients of StressModel.columns of the column (coefficients.column_coefficients)
     tile = new_tile(L)  # the work arrays of sheared_block, and lane ALONE
     m, w0, pressure, spacing = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
     viscous, wall_pressure = np.empty(L, np.bool_), np.empty(L)
@@ -388,7 +393,7 @@ def _columns(chunks, columns, inputs, fused, given, laws, control, out):
     (``faults``: ``YIELD_CONTRACT``).
 
     The coefficients of ``StressModel.columns`` come, with ``fused``, from the compiled
-    yield forms column by column (``stress_kernel.column_coefficients`` with ``inputs``),
+    yield forms column by column (``coefficients.column_coefficients`` with ``inputs``),
     so that the whole mesh never holds them (on a fully wet mesh, writing and reading
     them back costs more memory traffic than the Newton step of a column in cache);
     otherwise from the (L, n) arrays ``given`` (m, kappa, w, pressure, spacing, viscous,
@@ -459,7 +464,7 @@ class CompiledStep:
         """New velocities (L, N) and the Newton iterations of each wet column (-1: not
         converged within ``max_iterations``).  The velocities are overwritten by the next
         call.  ``rest`` and ``yield_gravity`` go to ``StressModel.columns`` (compiled:
-        ``stress_kernel.CompiledCoefficients``)."""
+        ``coefficients.CompiledCoefficients``)."""
         laws = self.laws()
         if laws is None:
             raise ValueError("a law of this stress model has no compiled form (see laws())")

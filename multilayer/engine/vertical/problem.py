@@ -8,7 +8,7 @@ vertical step")::
 
 :class:`ColumnProblem` holds its coefficients by name (they are all arrays of the same
 shape, so passing them by position would let two be swapped silently);
-:class:`VerticalSolver` is what the numba kernel (:mod:`multilayer.engine.column_kernel`)
+:class:`VerticalSolver` is what the numba kernel (:mod:`multilayer.engine.vertical.column_solve`)
 and the FiPy reference (:mod:`multilayer.reference.vertical_fipy`) provide.
 """
 

@@ -2,7 +2,7 @@
 
 Where every interface of a column shears (the velocity jumps across each one, as in a
 chute flow or the body of an avalanche) and no side wall holds a layer, the active set of
-``column_kernel._active_set`` makes every layer a group of its own, and the exact solve
+``column_solve._active_set`` makes every layer a group of its own, and the exact solve
 of a Newton iteration is one Thomas sweep of the tridiagonal system
 
     (m_a/dt + c_a + c_{a+1}) u_a - c_a u_{a-1} - c_{a+1} u_{a+1}
@@ -10,7 +10,7 @@ of a Newton iteration is one Thomas sweep of the tridiagonal system
 
 with ``u_{-1} = 0`` (the bed), ``c_L = kappa_L = 0`` (the free surface), ``s_a`` the sign
 of the jump ``u_a - u_{a-1}`` of the iterate and ``kappa``, ``c`` the yield stresses and
-conductances of the Newton model at the iterate (``viscous_law._newton_model``).  The
+conductances of the Newton model at the iterate (``forms._newton_model``).  The
 solution is the exact minimiser of the step's energy when the jumps keep their signs.
 
 The forward sweep is a chain of dependent divisions, one per layer, and column by column
@@ -22,6 +22,11 @@ same iteration counts (tests/test_sheared_columns.py).  A column leaves the bloc
 ``_chunk`` solves it from the start, where it is not fully sheared, its structure is
 rejected, a viscosity is outside the plugin contract, or it is not converged before
 iteration ``TRUSTED`` (where the energy test of ``newton_control`` begins).
+
+What only this copy does: it is the same iteration as ``newton_kernel._chunk`` for a
+special case, kept for speed alone (the chains of divisions of several columns overlap;
+docs/performance.md); every answer it gives is ``_chunk``'s to the bit, so it can be
+switched off (``CompiledStep(side_by_side=False)``) without changing a result.
 """
 
 from __future__ import annotations
@@ -180,7 +185,7 @@ def _sweep(t, u, form, params, start, stop):
 def _solve(t, L, new, flags):
     """The exact solve with one group per layer into slot ``new``: the forward sweep
     (inverse pivots ``DIAG``, right-hand sides ``RHS``) and the back substitution of
-    ``column_kernel._active_set``, and its optimality test: each yielded jump keeps its
+    ``column_solve._active_set``, and its optimality test: each yielded jump keeps its
     sign (a column whose structure is rejected leaves the block)."""
     for a in range(L):
         for i in range(BLOCK):

@@ -92,7 +92,7 @@ class StressModel:
 
         ``rest`` (L, N) marks the layers at rest at the start of the step (None: none);
         ``yield_gravity`` (L, N), if given, replaces ``g cos(theta)`` in the interface
-        pressures ``p_k = rho G_k (h - z_k)`` (the pressure of ``bim2016.yield_gravity``).
+        pressures ``p_k = rho G_k (h - z_k)`` (the pressure of ``pressure.bim2016.yield_gravity``).
         """
         rho = self.material.density
         h = h[where]
