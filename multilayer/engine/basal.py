@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from multilayer.engine import registry
 from multilayer.engine.config import BasalRegion
 
 
@@ -59,16 +60,12 @@ CONDITIONS: dict[str, BasalCondition] = {}
 
 def register(condition: BasalCondition) -> BasalCondition:
     """Add ``condition`` to :data:`CONDITIONS` (a name registered twice is an error)."""
-    if condition.name in CONDITIONS:
-        raise ValueError(f"basal condition {condition.name!r} is already registered")
-    CONDITIONS[condition.name] = condition
-    return condition
+    return registry.add(CONDITIONS, condition, "basal condition")
 
 
 def accepted() -> str:
     """``no_slip, coulomb (with mu) or free_slip``: the conditions as messages list them."""
-    names = [c.accepted for c in CONDITIONS.values()]
-    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} or {names[-1]}"
+    return registry.listing([c.accepted for c in CONDITIONS.values()])
 
 
 register(BasalCondition("no_slip", "no_slip", {}, lambda p: Basal(bulk=True)))

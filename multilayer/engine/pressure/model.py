@@ -27,6 +27,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from multilayer.engine import registry
+
 if TYPE_CHECKING:
     from multilayer.engine.state import FlowState
 
@@ -114,8 +116,7 @@ def models() -> dict[str, type[PressureModel]]:
 
 def accepted() -> str:
     """``bim2016, hydrostatic or non_hydrostatic``: the models as messages list them."""
-    names = list(models())
-    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} or {names[-1]}"
+    return registry.listing(list(models()))
 
 
 def options(model: type[PressureModel], given: Mapping[str, Any], layers: int) -> dict[str, Any]:

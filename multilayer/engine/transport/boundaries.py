@@ -25,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from multilayer.engine import registry
+
 GHOSTS = 2
 """Ghost columns per side: the second-order reconstruction looks two columns away."""
 
@@ -62,16 +64,12 @@ BOUNDARIES: dict[str, Boundary] = {}
 
 def register(boundary: Boundary) -> Boundary:
     """Add ``boundary`` to :data:`BOUNDARIES` (a name registered twice is an error)."""
-    if boundary.name in BOUNDARIES:
-        raise ValueError(f"boundary {boundary.name!r} is already registered")
-    BOUNDARIES[boundary.name] = boundary
-    return boundary
+    return registry.add(BOUNDARIES, boundary, "boundary")
 
 
 def accepted() -> str:
     """``wall, outflow, inflow or periodic``: the boundaries as messages list them."""
-    names = [b.accepted for b in BOUNDARIES.values()]
-    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} or {names[-1]}"
+    return registry.listing([b.accepted for b in BOUNDARIES.values()])
 
 
 register(Boundary("wall", MIRROR, "wall"))
