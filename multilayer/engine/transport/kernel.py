@@ -19,6 +19,8 @@ threads one at a time (``threads.parallel_chunks``).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import prange
 
@@ -161,11 +163,57 @@ def _momentum_rate(i, west_flux, momentum, terms, exchange, pressure, slope, gra
     return -(east - west + slope * terms[2, i] * terms[3, i]) / dx + exchange[i] + gravity * terms[4, i]
 
 
+class Window(NamedTuple):
+    """The occupied window a step sweeps: ``n`` columns from column ``lo``, the ghost
+    rules of its sides (``boundaries``) and its ``n + 1`` faces at rest."""
+
+    n: int
+    lo: int
+    left: int
+    right: int
+    at_rest: np.ndarray
+
+
+class Scheme(NamedTuple):
+    """What the scheme reads besides the state: the layer fractions (L,), the steps in x
+    and t, ``g cos(theta)``, ``g sin(theta)``, the dry thickness and the order (1 or 2)."""
+
+    l: np.ndarray
+    dx: float
+    dt: float
+    g_n: float
+    g_t: float
+    dry: float
+    order: int
+
+
+class Edges(NamedTuple):
+    """The state of an inflow side (thickness, layer velocities) and the gate: its face in
+    the window (-1: none there) and the opening of each layer."""
+
+    inflow_h: float
+    inflow_u: np.ndarray
+    gate_face: int
+    opening: np.ndarray
+
+
+class Arrays(NamedTuple):
+    """The state ``H`` (N,), ``U`` (L, N) and bed ``B`` (N,); Heun's first stage ``H1``,
+    ``Q1``; the result ``H_out``, ``U_out``; the mass fluxes through the window's end faces
+    per stage ``ends`` (2, 2)."""
+
+    H: np.ndarray
+    U: np.ndarray
+    B: np.ndarray
+    H1: np.ndarray
+    Q1: np.ndarray
+    H_out: np.ndarray
+    U_out: np.ndarray
+    ends: np.ndarray
+
+
 @jit(error_model="numpy")
-def _tile(
-    stage, order, t0, t1, n, lo, left, right, at_rest, H, U, B, Q1, H1, l, dx, dt, g_n, g_t, dry,
-    inflow_h, inflow_u, gate_face, opening, H_out, U_out, ends, work,
-):  # fmt: skip
+def _tile(stage, t0, t1, window, scheme, edges, arrays, work):
     """One stage on the cells ``t0 .. t1-1`` of the window (faces ``t0 .. t1``), layer by
     layer over the tile's columns (contiguous rows of the (L, N) arrays).
 
@@ -177,6 +225,12 @@ def _tile(
     the end faces 0 and n of the window, as the cells next to them see them, go to
     ``ends[stage]`` (summed over the layers from the bed up).
     """
+    n, lo, left, right, at_rest = window.n, window.lo, window.left, window.right, window.at_rest
+    l, dx, dt, order = scheme.l, scheme.dx, scheme.dt, scheme.order
+    g_n, g_t, dry = scheme.g_n, scheme.g_t, scheme.dry
+    inflow_h, inflow_u, gate_face, opening = edges.inflow_h, edges.inflow_u, edges.gate_face, edges.opening
+    H, U, B, H1, Q1 = arrays.H, arrays.U, arrays.B, arrays.H1, arrays.Q1
+    H_out, U_out, ends = arrays.H_out, arrays.U_out, arrays.ends
     L = l.size
     m = t1 - t0
     (col, kind), scalars, layers, faces, fluxes, cells, (gate_h, gate_q) = work
@@ -405,25 +459,19 @@ def _tile(
                 U_out[a, c] = velocity if h_new > dry else 0.0
 
 
-def _stages(
-    chunks, order, n, lo, left, right, at_rest, H, U, B, Q1, H1, l, dx, dt, g_n, g_t, dry,
-    inflow_h, inflow_u, gate_face, opening, H_out, U_out, ends,
-):  # fmt: skip
-    """Both stages over the window in ``chunks`` independent pieces (taken by the threads in turn), each
-    swept in tiles of about ``TILE`` cells."""
-    T = max(8, TILE // l.size)
-    for stage in range(order):
+def _stages(chunks, window, scheme, edges, arrays):
+    """Both stages over the window in ``chunks`` independent pieces (taken by the threads in
+    turn), each swept in tiles of about ``TILE`` cells."""
+    L, n = scheme.l.size, window.n
+    T = max(8, TILE // L)
+    for stage in range(scheme.order):
         for k in prange(chunks):
             c0 = k * n // chunks
             c1 = (k + 1) * n // chunks
             if c1 > c0:
-                work = _work(l.size, min(T, c1 - c0))
+                work = _work(L, min(T, c1 - c0))
                 for t0 in range(c0, c1, T):
-                    _tile(
-                        stage, order, t0, min(t0 + T, c1), n, lo, left, right, at_rest, H, U, B, Q1, H1, l,
-                        dx, dt, g_n, g_t, dry, inflow_h, inflow_u, gate_face, opening, H_out, U_out, ends,
-                        work,
-                    )  # fmt: skip
+                    _tile(stage, t0, min(t0 + T, c1), window, scheme, edges, arrays, work)
 
 
 _stages_serial = jit(_stages, error_model="numpy")
@@ -534,10 +582,14 @@ def transport(
     stages = _stages_parallel if chunks > 1 else _stages_serial
     with numba_threads(threads if chunks > 1 else 1):
         stages(
-            chunks, order, n, lo, left_kind, right_kind, at_rest,
-            h, u, b, ws.q1, ws.h1, np.ascontiguousarray(fractions, dtype=float),
-            float(dx), float(dt), float(g_n), float(g_t), float(dry), inflow_h, inflow_u, gate, opening,
-            ws.h, ws.u, ws.ends,
+            chunks,
+            Window(n, lo, left_kind, right_kind, at_rest),
+            Scheme(
+                np.ascontiguousarray(fractions, dtype=float),
+                float(dx), float(dt), float(g_n), float(g_t), float(dry), int(order),
+            ),
+            Edges(inflow_h, inflow_u, gate, opening),
+            Arrays(h, u, b, ws.h1, ws.q1, ws.h, ws.u, ws.ends),
         )  # fmt: skip
     if boundary_mass is not None:
         boundary_mass[:] = step_boundary_mass(ws.ends[:order], float(dt))

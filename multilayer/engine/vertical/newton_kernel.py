@@ -229,6 +229,8 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
         m, kappa, w0, pressure, spacing, viscous, wall_pressure
     )  # into the tile's lane ALONE
     flags, finished = np.empty((4, BLOCK), np.bool_), np.zeros(BLOCK, np.bool_)
+    g_m, g_kappa, g_w, g_pressure = given.m, given.kappa, given.w, given.pressure  # read once per chunk
+    g_spacing, g_viscous, g_wall = given.spacing, given.viscous, given.wall_pressure
     start, stop = k * n // chunks, (k + 1) * n // chunks
     # The columns are set up in turn.  A group of BLOCK adjacent columns without walls goes
     # into the tile and is solved side by side (sheared_block); the columns it did not
@@ -256,9 +258,8 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
             else:
                 fine = True
                 for a in range(L):
-                    m[a], kappa[a], w0[a] = given.m[a, j], given.kappa[a, j], given.w[a, j]
-                    pressure[a], spacing[a] = given.pressure[a, j], given.spacing[a, j]
-                    viscous[a], wall_pressure[a] = given.viscous[a, j], given.wall_pressure[a, j]
+                    m[a], kappa[a], w0[a], pressure[a] = g_m[a, j], g_kappa[a, j], g_w[a, j], g_pressure[a, j]
+                    spacing[a], viscous[a], wall_pressure[a] = g_spacing[a, j], g_viscous[a, j], g_wall[a, j]
             lane = j - j0 if block else ALONE
             o = cell(lane, L)  # the lane's layer 0 in the tile's rows
             for a in range(L):  # what stays fixed during the iteration
