@@ -12,6 +12,7 @@ import multilayer
 PACKAGE = Path(multilayer.__file__).parent
 FORBIDDEN_FOR_ENGINE = (
     "multilayer.io",
+    "multilayer.scenario",
     "multilayer.app",
     "multilayer.plugins.host",
     "multilayer.testing",

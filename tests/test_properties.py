@@ -20,7 +20,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from multilayer.engine.simulation import Simulation
-from multilayer.io.scenario import from_dict
+from multilayer.scenario import from_dict
 
 EXAMPLES = [
     pytest.param(6, id="quick"),

@@ -25,8 +25,9 @@ import numpy as np
 import xarray as xr
 
 from multilayer.errors import InputError
-from multilayer.io.scenario import ExactComparison, Scenario
 from multilayer.reference import exact, similarity
+from multilayer.scenario import Scenario
+from multilayer.scenario.schema import ExactComparison
 
 
 class ExactSolution(Protocol):

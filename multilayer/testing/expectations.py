@@ -25,7 +25,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from multilayer.io.results import open_result, summary
-from multilayer.io.scenario import EXPECT_KINDS, Expect, Scenario
+from multilayer.scenario import Scenario
+from multilayer.scenario.schema import EXPECT_KINDS, Expect
 from multilayer.testing import exact_solutions
 
 

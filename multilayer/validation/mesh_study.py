@@ -6,7 +6,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from multilayer.io.scenario import Expect, Scenario
+from multilayer.scenario import Scenario
+from multilayer.scenario.schema import Expect
 
 
 @dataclass(frozen=True)

@@ -16,8 +16,8 @@ from matplotlib.figure import Figure
 
 from multilayer.errors import RunError
 from multilayer.io.results import RESULT_FILE, open_result, run_failure
-from multilayer.io.scenario import Scenario
-from multilayer.io.scenario import load as load_scenario
+from multilayer.scenario import Scenario
+from multilayer.scenario import load as load_scenario
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 """The shipped scenario files, in the source checkout the package is installed from."""

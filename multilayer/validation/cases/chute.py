@@ -21,8 +21,8 @@ import numpy as np
 import xarray as xr
 from matplotlib.figure import Figure
 
-from multilayer.io.scenario import Scenario
 from multilayer.reference import exact, similarity
+from multilayer.scenario import Scenario
 from multilayer.testing import exact_solutions
 from multilayer.validation.markdown import met, resolution, table
 from multilayer.validation.mesh_study import MeshStudy, exact_entry

@@ -16,7 +16,7 @@ import numpy as np
 import xarray as xr
 from matplotlib.figure import Figure
 
-from multilayer.io.scenario import Scenario
+from multilayer.scenario import Scenario
 from multilayer.testing import exact_solutions
 from multilayer.validation.markdown import met, order_column, table
 from multilayer.validation.mesh_study import MeshStudy, exact_entry
