@@ -24,7 +24,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from multilayer.io.results import open_result, summary
 from multilayer.scenario import Scenario
 from multilayer.scenario.schema import EXPECT_KINDS, Expect
 from multilayer.testing import exact_solutions
@@ -91,6 +90,8 @@ def validate(scenario: Scenario) -> None:
 def measure(scenario: Scenario, result: Path) -> dict[str, float]:
     """The run summary of ``result`` (a result directory or file) and the error of each
     ``exact:`` entry of ``scenario``, keyed by :func:`label`."""
+    from multilayer.io.results import open_result, summary  # reading results imports FiPy
+
     measured = summary(result)
     comparisons = [(i, e.exact) for i, e in enumerate(scenario.expect) if e.exact is not None]
     if comparisons:
