@@ -19,7 +19,7 @@ from multilayer.validation.cases import (
     erodible_bed,
     static_interface,
 )
-from multilayer.validation.mesh_study import MeshStudy, exact_entry
+from multilayer.validation.mesh_study import MeshStudy, file_comparison
 from multilayer.validation.runs import Context
 
 pytestmark = pytest.mark.validation
@@ -65,13 +65,7 @@ def test_layer_velocities_within_their_error_bound_and_the_file_tolerance_justif
     assert static_interface.within_bound(levels)
     file = ctx.load(static_interface.SCENARIO)
     study = MeshStudy(tuple(lv.layers for lv in levels), tuple(lv.error for lv in levels))
-    assert study.separates(file.domain.layers, _atol(file))
-
-
-def _atol(scenario) -> float:
-    entry = exact_entry(scenario)
-    assert entry.atol is not None
-    return entry.atol
+    assert study.separates(file.domain.layers, file_comparison(file).tolerance)
 
 
 # --------------------------------------------------------------------------- dam breaks
@@ -103,7 +97,7 @@ def test_bagnold_profile_converges_and_the_file_tolerance_is_justified(ctx):
     assert bagnold.converges(levels)
     file = ctx.load(bagnold.SCENARIO)
     study = MeshStudy(tuple(lv.layers for lv in levels), tuple(lv.error for lv in levels))
-    assert study.separates(file.domain.layers, _atol(file))
+    assert study.separates(file.domain.layers, file_comparison(file).tolerance)
 
 
 # --------------------------------------------------------------------------- chute
@@ -142,7 +136,7 @@ def test_chute_file_within_the_accuracy_of_the_leading_order_theory(ctx):
     results = ctx.execute([chute.file_run(n) for n in chute.FILE_CELLS])
     scenario = ctx.load(chute.SCENARIO)
     assert chute.tolerance_is_theory_order(scenario)
-    assert chute.within_theory(chute.file_study(ctx, results), _atol(scenario))
+    assert chute.within_theory(chute.file_study(ctx, results), file_comparison(scenario).tolerance)
 
 
 def test_jop_law_at_its_alpha_minus_one_asymptote_forms_no_wall_layer(ctx):

@@ -105,26 +105,41 @@ class DamBreak:
         return exact.coulomb_dam_break(x, t, self.h0, self.theta, self.delta, self.x0, self.gravity)
 
 
-def _uniform_layer(sc: Scenario) -> float:
-    """The thickness of a uniform periodic layer on a flat bed."""
-    _flat_hydrostatic_no_walls(sc)
-    _require(sc.boundaries.left == sc.boundaries.right == "periodic", "boundaries", "periodic on both sides")
-    layer = sc.initial[0] if len(sc.initial) == 1 else None
-    _require(layer is not None and layer.shape == "layer", "initial", "one uniform layer")
-    assert layer is not None and layer.thickness is not None
-    return layer.thickness
-
-
-class SimpleShear:
-    """:class:`multilayer.reference.exact.InviscidSimpleShear` (Bouchut, Ionescu & Mangeney
-    2016, Prop. 2.2): a uniform layer of Drucker-Prager material without viscosity on a
-    no-slip base, released with a linear velocity profile."""
+class _UniformLayer:
+    """A uniform periodic layer on a flat bed: h stays its initial thickness, the layer
+    velocities are the exact profile averaged over each layer (:meth:`layer_means`)."""
 
     fields: tuple[str, ...] = ("h", "u")
     start = -math.inf
 
     def __init__(self, sc: Scenario) -> None:
-        self.depth = _uniform_layer(sc)
+        _flat_hydrostatic_no_walls(sc)
+        _require(
+            sc.boundaries.left == sc.boundaries.right == "periodic", "boundaries", "periodic on both sides"
+        )
+        layer = sc.initial[0] if len(sc.initial) == 1 else None
+        _require(layer is not None and layer.shape == "layer", "initial", "one uniform layer")
+        assert layer is not None and layer.thickness is not None
+        self.depth = layer.thickness
+
+    def layer_means(self, edges: np.ndarray, t: float) -> np.ndarray:
+        """The exact velocity averaged over the layers between ``edges`` (L + 1, N)."""
+        raise NotImplementedError
+
+    def field(self, name: str, x: np.ndarray, edges: np.ndarray | None, t: float) -> np.ndarray:
+        if name == "h":
+            return np.full(np.shape(x), self.depth)
+        assert edges is not None, "the layer velocities need the layer edges"
+        return self.layer_means(edges, t)
+
+
+class SimpleShear(_UniformLayer):
+    """:class:`multilayer.reference.exact.InviscidSimpleShear` (Bouchut, Ionescu & Mangeney
+    2016, Prop. 2.2): a uniform layer of Drucker-Prager material without viscosity on a
+    no-slip base, released with a linear velocity profile."""
+
+    def __init__(self, sc: Scenario) -> None:
+        super().__init__(sc)
         _one_base(sc, "no_slip")
         params = sc.rheology.params
         _require(
@@ -153,23 +168,17 @@ class SimpleShear:
             sc.gravity,
         )
 
-    def field(self, name: str, x: np.ndarray, edges: np.ndarray | None, t: float) -> np.ndarray:
-        if name == "h":
-            return np.full(np.shape(x), self.depth)
-        assert edges is not None, "the layer velocities need the layer edges"
+    def layer_means(self, edges: np.ndarray, t: float) -> np.ndarray:
         return self.solution.layer_means(edges, t)
 
 
-class Bagnold:
+class Bagnold(_UniformLayer):
     """:class:`multilayer.reference.exact.BagnoldFlow` (Tsang et al. 2019, eq. 4.1): the
     steady uniform flow of a mu(I) law (``jop_mu_i`` or ``power_law_mu_i``) on a no-slip
     base, reached from any initial velocity."""
 
-    fields: tuple[str, ...] = ("h", "u")
-    start = -math.inf
-
     def __init__(self, sc: Scenario) -> None:
-        self.depth = _uniform_layer(sc)
+        super().__init__(sc)
         _one_base(sc, "no_slip")
         p = sc.rheology.params
         _require(sc.rheology.name in ("jop_mu_i", "power_law_mu_i"), "rheology", "jop_mu_i or power_law_mu_i")
@@ -190,10 +199,7 @@ class Bagnold:
             material.density / material.particle_density,
         )
 
-    def field(self, name: str, x: np.ndarray, edges: np.ndarray | None, t: float) -> np.ndarray:
-        if name == "h":
-            return np.full(np.shape(x), self.depth)
-        assert edges is not None, "the layer velocities need the layer edges"
+    def layer_means(self, edges: np.ndarray, t: float) -> np.ndarray:
         return np.stack([self.flow.layer_means(column) for column in edges.T], axis=1)
 
 

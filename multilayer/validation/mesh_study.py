@@ -6,8 +6,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import xarray as xr
+
 from multilayer.scenario import Scenario
-from multilayer.scenario.schema import Expect
+from multilayer.scenario.schema import ExactComparison
+from multilayer.testing import exact_solutions
 
 
 @dataclass(frozen=True)
@@ -36,9 +39,23 @@ class MeshStudy:
         return self.error(size) < tolerance <= self.error(size // 2)
 
 
-def exact_entry(scenario: Scenario) -> Expect:
-    """The scenario's (first) ``expect:`` entry comparing with an exact solution."""
-    entries = [e for e in scenario.expect if e.exact is not None]
-    if not entries:
-        raise ValueError(f"{scenario.name}: no expect entry with exact")
-    return entries[0]
+@dataclass(frozen=True)
+class FileComparison:
+    """A scenario file's own comparison with an exact solution (its ``expect:`` entry with
+    ``exact:``) and the tolerance the file gives it (``atol``)."""
+
+    exact: ExactComparison
+    tolerance: float
+
+
+def file_comparison(scenario: Scenario) -> FileComparison:
+    """The scenario's (first) comparison with an exact solution."""
+    for entry in scenario.expect:
+        if entry.exact is not None and entry.atol is not None:
+            return FileComparison(entry.exact, entry.atol)
+    raise ValueError(f"{scenario.name}: no expect entry with exact")
+
+
+def file_error(ds: xr.Dataset, scenario: Scenario) -> float:
+    """The error of the scenario's own comparison in its result ``ds``."""
+    return exact_solutions.error(ds, scenario, file_comparison(scenario).exact)

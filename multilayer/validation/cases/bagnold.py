@@ -20,7 +20,7 @@ from matplotlib.figure import Figure
 from multilayer.reference import exact
 from multilayer.testing import exact_solutions
 from multilayer.validation.markdown import met, order_column, table
-from multilayer.validation.mesh_study import MeshStudy, exact_entry
+from multilayer.validation.mesh_study import MeshStudy, file_comparison, file_error
 from multilayer.validation.runs import Context, Results, Run
 
 NAME = "bagnold"
@@ -61,15 +61,13 @@ class Level:
 
 def measure(ds: xr.Dataset, ctx: Context, r: Run) -> Level:
     scenario = r.load(ctx.scenarios)
-    entry = exact_entry(scenario)
-    assert entry.exact is not None
     h = float(ds["h"].values[-1].mean())
     fractions = ds["sigma_bnds"].values[:, 1] - ds["sigma_bnds"].values[:, 0]
     u = ds["u"].values[-1].mean(axis=1)
     surface = flow(ctx).surface_velocity
     return Level(
         layers=ds.sizes["layer"],
-        error=exact_solutions.error(ds, scenario, entry.exact),
+        error=file_error(ds, scenario),
         mean=float(np.sum(fractions * u)),
         change=float(np.abs(ds["u"].values[-1] - ds["u"].values[-2]).max() / surface),
         u=u,
@@ -133,8 +131,7 @@ def section(ctx: Context) -> str:
     ax2.set_xlabel("layers")
     ax2.legend()
     figure = ctx.figure(fig, "bagnold")
-    entry = exact_entry(scenario)
-    assert entry.atol is not None
+    tolerance = file_comparison(scenario).tolerance
     n_file = scenario.domain.layers
     ratio = material.density / material.particle_density
     header = [
@@ -168,6 +165,6 @@ caps the order near 3/2) with a layer error below {MAX_ERROR:.0%} at {LAYERS[-1]
 {met(converges(found))}.
 
 **The file's reference check.**  `{SCENARIO}.yaml` ({n_file} layers) requires this error to be at
-most {entry.atol:g}: the error of its resolution passes ({study.error(n_file):.5f}) and the error
-of a twice coarser column fails ({study.error(n_file // 2):.5f}): {met(study.separates(n_file, entry.atol))}.
+most {tolerance:g}: the error of its resolution passes ({study.error(n_file):.5f}) and the error
+of a twice coarser column fails ({study.error(n_file // 2):.5f}): {met(study.separates(n_file, tolerance))}.
 """

@@ -25,7 +25,7 @@ from multilayer.reference import exact, similarity
 from multilayer.scenario import Scenario
 from multilayer.testing import exact_solutions
 from multilayer.validation.markdown import met, resolution, table
-from multilayer.validation.mesh_study import MeshStudy, exact_entry
+from multilayer.validation.mesh_study import MeshStudy, file_comparison, file_error
 from multilayer.validation.runs import Context, Results, Run
 
 NAME = "chute"
@@ -272,28 +272,23 @@ def file_study(ctx: Context, results: Results) -> MeshStudy:
         ds = results[r.name]
         if isinstance(ds, str):
             continue
-        scenario = r.load(ctx.scenarios)
-        entry = exact_entry(scenario)
-        assert entry.exact is not None
         sizes.append(cells)
-        errors.append(exact_solutions.error(ds, scenario, entry.exact))
+        errors.append(file_error(ds, r.load(ctx.scenarios)))
     return MeshStudy(tuple(sizes), tuple(errors))
 
 
 def theory_order(scenario: Scenario) -> float:
     """delta*/H predicted at the end of the file's window: the relative size of the terms the
     leading-order theory neglects (Tsang et al. 2019, sec. 4.6)."""
-    entry = exact_entry(scenario)
-    assert entry.exact is not None and entry.exact.x_max is not None
+    window = file_comparison(scenario).exact
+    assert window.x_max is not None
     layer = exact_solutions.GranularBlasius(scenario)
-    return float(
-        layer.field("displacement_thickness", np.array([entry.exact.x_max]), None, 0.0)[0] / layer.depth
-    )
+    return float(layer.field("displacement_thickness", np.array([window.x_max]), None, 0.0)[0] / layer.depth)
 
 
 def tolerance_is_theory_order(scenario: Scenario) -> bool:
     """Criterion: the file's tolerance is :func:`theory_order` to one significant figure."""
-    return exact_entry(scenario).atol == float(f"{theory_order(scenario):.1g}")
+    return file_comparison(scenario).tolerance == float(f"{theory_order(scenario):.1g}")
 
 
 def within_theory(study: MeshStudy, tolerance: float) -> bool:
@@ -304,14 +299,13 @@ def within_theory(study: MeshStudy, tolerance: float) -> bool:
 def _file_text(ctx: Context, results: Results) -> str:
     """The file's reference check: delta* against the similarity solution, resolution study."""
     scenario = ctx.load(SCENARIO)
-    entry = exact_entry(scenario)
-    assert entry.exact is not None and entry.atol is not None
+    compared = file_comparison(scenario)
     study = file_study(ctx, results)
     order = theory_order(scenario)
     dx = [(scenario.domain.x_max - scenario.domain.x_min) / n * 1000 for n in study.sizes]
     changes = ["-"] + [f"{b - a:+.4f}" for a, b in zip(study.errors, study.errors[1:])]
     rows = [[n, f"{d:g}", f"{e:.4f}", c] for n, d, e, c in zip(study.sizes, dx, study.errors, changes)]
-    window = f"{entry.exact.x_min:g} m <= x <= {entry.exact.x_max:g} m"
+    window = f"{compared.exact.x_min:g} m <= x <= {compared.exact.x_max:g} m"
     return f"""
 ### The file's reference check
 
@@ -319,14 +313,14 @@ def _file_text(ctx: Context, results: Results) -> str:
 thickness of each column with the similarity prediction over {window}
 (relative L1 error, its `expect:` entry with `exact:`).  Its tolerance is the order of the
 terms the leading-order theory neglects, delta*/H at the end of the window
-({order:.3f}; the file's tolerance, {entry.atol:g}, is that to one figure:
+({order:.3f}; the file's tolerance, {compared.tolerance:g}, is that to one figure:
 {met(tolerance_is_theory_order(scenario))}).  The file at other resolutions:
 
 {table(["cells", "dx (mm)", "relative L1 error of delta*", "change"], rows)}
 
 The error grows with the resolution, by smaller steps, towards the model's own converged
 difference from the leading-order theory (the coarse file is closer by a cancellation of
-errors); it is within the tolerance at every resolution: {met(within_theory(study, entry.atol))}.
+errors); it is within the tolerance at every resolution: {met(within_theory(study, compared.tolerance))}.
 """
 
 

@@ -19,7 +19,7 @@ from matplotlib.figure import Figure
 from multilayer.scenario import Scenario
 from multilayer.testing import exact_solutions
 from multilayer.validation.markdown import met, order_column, table
-from multilayer.validation.mesh_study import MeshStudy, exact_entry
+from multilayer.validation.mesh_study import MeshStudy, file_comparison, file_error
 from multilayer.validation.runs import Context, Results, Run
 
 NAME = "dambreak"
@@ -61,16 +61,14 @@ class Level:
 
 def measure(ds: xr.Dataset, scenario: Scenario) -> Level:
     """The error, the fronts and the mass change of one run."""
-    entry = exact_entry(scenario)
-    assert entry.exact is not None
     final = ds.isel(time=-1)
     t = float(final["time"])
-    solution = exact_solutions.solution(scenario, entry.exact)
+    solution = exact_solutions.solution(scenario, file_comparison(scenario).exact)
     fine = np.linspace(-1.0, 2.0, 300001)
     wet = fine[np.flatnonzero(solution.field("h", fine, None, t) > ds["front"].attrs["threshold"])]
     return Level(
         cells=ds.sizes["x"],
-        error=exact_solutions.error(ds, scenario, entry.exact),
+        error=file_error(ds, scenario),
         front=float(final["front"]),
         exact_front=float(wet.max()),
         mass_error=float(final["mass"]) / float(ds["mass"][0]) - 1,
@@ -107,9 +105,7 @@ def conserves_mass(case_levels: list[Level]) -> bool:
 def file_tolerance(ctx: Context) -> tuple[int, float]:
     """The shipped file's resolution and the tolerance of its comparison with the exact solution."""
     scenario = ctx.load(SCENARIO)
-    entry = exact_entry(scenario)
-    assert entry.atol is not None
-    return scenario.domain.cells, entry.atol
+    return scenario.domain.cells, file_comparison(scenario).tolerance
 
 
 def section(ctx: Context) -> str:
@@ -129,10 +125,8 @@ def section(ctx: Context) -> str:
             if lv.cells in (400, 1600):
                 ax.plot(lv.x, lv.h * 100, label=f"{lv.cells} cells")
         scenario = run(case, CELLS[0]).load(ctx.scenarios)
-        entry = exact_entry(scenario)
-        assert entry.exact is not None
         xs = np.linspace(-1.0, 2.0, 3001)
-        solution = exact_solutions.solution(scenario, entry.exact)
+        solution = exact_solutions.solution(scenario, file_comparison(scenario).exact)
         ax.plot(xs, solution.field("h", xs, None, scenario.time.end) * 100, "k--", label="exact")
         ax.set_title(title, fontsize=9)
         ax.set_xlabel("x (m)")
