@@ -34,7 +34,7 @@ def guards_off():
         mock.patch.object(state_check.StateGuard, "check_step", lambda *a, **k: None),
         mock.patch.object(state_check.StateGuard, "check_state", lambda *a, **k: None),
         mock.patch.object(column_kernel, "_require_finite", lambda *a: None),
-        mock.patch("multilayer.engine.stress.call", _unchecked_call),
+        mock.patch("multilayer.engine.vertical.stresses.call", _unchecked_call),
     ):
         yield
 

@@ -1,7 +1,8 @@
 """The layout is the architecture (docs/architecture.md), checked on the source (AST): the
 engine imports nothing of the scenario files, I/O, the command line, the plugin host, the
-testing helpers or the reference solutions, not even for type checking; no import cycle,
-between packages or between modules; the time step and the engine's modules stay short."""
+testing helpers, the validation cases or the reference solutions, not even for type
+checking; nothing of the library imports the validation cases; no import cycle, between
+packages or between modules; the time step and the engine's modules stay short."""
 
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ FORBIDDEN_FOR_ENGINE = (
     "multilayer.app",
     "multilayer.plugins.host",
     "multilayer.testing",
+    "multilayer.validation",
     "multilayer.reference",
 )
 STEP_LINES = 25
@@ -115,6 +117,18 @@ def test_the_engine_imports_nothing_of_the_layers_above_it():
         for path in sorted((PACKAGE / "engine").rglob("*.py"))
         for name in sorted(_imports(path))
         if name.startswith(FORBIDDEN_FOR_ENGINE)
+    ]
+    assert not offences, "\n".join(offences)
+
+
+def test_only_the_validation_package_imports_itself():
+    """multilayer.validation uses the library; the library never uses it."""
+    offences = [
+        f"{path.relative_to(PACKAGE.parent)} imports {name}"
+        for path in sorted(PACKAGE.rglob("*.py"))
+        if "validation" not in path.relative_to(PACKAGE).parts[:1]
+        for name in sorted(_imports(path))
+        if name.startswith("multilayer.validation")
     ]
     assert not offences, "\n".join(offences)
 
