@@ -11,7 +11,7 @@ The package is organised by role (docs/architecture.md):
 - :mod:`multilayer.io`: results, plots, exports and study files;
 - :mod:`multilayer.plugins`: the rheology plugin contract, the pluggy host, the built-ins;
 - :mod:`multilayer.app`: the factory of the engine, the command line, the runner, studies;
-- :mod:`multilayer.testing`: scenario expectations and their pytest plugin.
+- :mod:`multilayer.testing`: the pytest plugin of the scenarios' expectations.
 
 The public API (docs/api.md) is re-exported here and imported lazily, so
 ``import multilayer`` is cheap: :func:`load` and :func:`run` a scenario,

@@ -442,7 +442,7 @@ ExpectKind = Literal["regression", "reference"]
 EXPECT_KINDS: tuple[str, ...] = get_args(ExpectKind)
 ExactSolutionName = Literal["coulomb_dam_break", "inviscid_simple_shear", "bagnold", "granular_blasius"]
 EXACT_SOLUTIONS: tuple[str, ...] = get_args(ExactSolutionName)
-"""Exact solutions an ``expect`` entry can compare with (multilayer.testing.exact_solutions)."""
+"""Exact solutions an ``expect`` entry can compare with (multilayer.app.exact_solutions)."""
 
 
 class ExactComparison(StrictModel):

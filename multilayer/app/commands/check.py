@@ -16,8 +16,8 @@ import sys
 from pathlib import Path
 
 from multilayer import scenario as scenarios
+from multilayer.app import expectations as expect
 from multilayer.errors import InputError, RunError
-from multilayer.testing import expectations as expect
 
 HELP = "run scenario files and check their expect: lists (regression pins and reference values)"
 

@@ -13,11 +13,10 @@ import sys
 from pathlib import Path
 
 from multilayer import scenario as scenarios
-from multilayer.app import factory, resources
+from multilayer.app import expectations, factory, resources
 from multilayer.app.commands import add_budget_arguments, add_set_argument, budget
 from multilayer.engine import initial_state
 from multilayer.errors import InputError
-from multilayer.testing import expectations
 
 HELP = "check scenario files without running them"
 
