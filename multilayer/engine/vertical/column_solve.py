@@ -82,8 +82,8 @@ def _add(X1, Y1, n1, sl1, sr1, X2, Y2, n2, sl2, sr2, Xo, Yo):
     n = 0
     i1 = 0
     i2 = 0
-    j1 = 0
-    j2 = 0
+    j1 = np.int64(0)  # the scans of _at, typed int64 from the start (a literal 0 compiles _at again)
+    j2 = np.int64(0)
     while i1 < n1 or i2 < n2:
         # next breakpoint of the merged abscissae
         if i2 >= n2 or (i1 < n1 and X1[i1] <= X2[i2]):
