@@ -86,6 +86,7 @@ go = Path(sys.argv[1])
 import numpy as np
 from multilayer.engine import kernel_cache
 from multilayer.engine.state import max_wave_speed
+Path(sys.argv[2]).touch()  # ready
 while not go.exists():  # both processes start the check at once
     time.sleep(0.001)
 speed = max_wave_speed(np.array([0.0, 4.0]), np.array([[0.0, -1.0], [0.5, 2.0]]), 1.0)
@@ -109,12 +110,14 @@ def test_two_processes_starting_at_once_after_an_upgrade(tmp_path):
     )
     directories = int(subprocess.run([sys.executable, "-c", prepare], env=env, capture_output=True, text=True,
                                      check=True).stdout)  # fmt: skip
-    go = tmp_path / "go"
+    go, ready = tmp_path / "go", [tmp_path / "ready-1", tmp_path / "ready-2"]
     racers = [
-        subprocess.Popen([sys.executable, "-c", RACER, str(go)], env=env, stdout=subprocess.PIPE, text=True)
-        for _ in range(2)
+        subprocess.Popen([sys.executable, "-c", RACER, str(go), str(r)], env=env, stdout=subprocess.PIPE, text=True)
+        for r in ready
     ]
-    time.sleep(2.0)  # both have imported the engine and wait
+    deadline = time.monotonic() + 120
+    while not all(r.exists() for r in ready) and time.monotonic() < deadline:
+        time.sleep(0.01)  # both have imported the engine and wait
     go.touch()
     results = [racer.communicate(timeout=300)[0].split() for racer in racers]
     assert [racer.returncode for racer in racers] == [0, 0]
