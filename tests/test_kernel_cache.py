@@ -112,11 +112,13 @@ def test_two_processes_starting_at_once_after_an_upgrade(tmp_path):
                                      check=True).stdout)  # fmt: skip
     go, ready = tmp_path / "go", [tmp_path / "ready-1", tmp_path / "ready-2"]
     racers = [
-        subprocess.Popen([sys.executable, "-c", RACER, str(go), str(r)], env=env, stdout=subprocess.PIPE, text=True)
-        for r in ready
+        subprocess.Popen(
+            [sys.executable, "-c", RACER, str(go), str(flag)], env=env, stdout=subprocess.PIPE, text=True
+        )
+        for flag in ready
     ]
     deadline = time.monotonic() + 120
-    while not all(r.exists() for r in ready) and time.monotonic() < deadline:
+    while not all(flag.exists() for flag in ready) and time.monotonic() < deadline:
         time.sleep(0.01)  # both have imported the engine and wait
     go.touch()
     results = [racer.communicate(timeout=300)[0].split() for racer in racers]
