@@ -65,6 +65,11 @@ def basal_regions(zones: Sequence[schema.BaseZone]) -> tuple[cfg.BasalRegion, ..
     )
 
 
+def initial_entries(scenario: Scenario) -> tuple[cfg.InitialEntry, ...]:
+    """The engine's entries of the initial state of a scenario."""
+    return tuple(_initial(entry) for entry in scenario.initial)
+
+
 def material(scenario: Scenario) -> Material:
     """The :class:`multilayer.Material` handed to the rheology plugins."""
     spec = scenario.material
@@ -89,7 +94,7 @@ def engine_config(scenario: Scenario) -> cfg.SimulationConfig:
         width=dom.width,
         base=basal_regions(sc.base),
         bed=_points(sc.bed.points),
-        initial=tuple(_initial(entry) for entry in sc.initial),
+        initial=initial_entries(sc),
         left=sc.boundaries.left,
         right=sc.boundaries.right,
         inflow=None if inflow is None else cfg.Inflow(inflow.thickness, _velocity(inflow.velocity)),

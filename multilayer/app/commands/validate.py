@@ -35,9 +35,10 @@ def main(args: argparse.Namespace) -> int:
         try:
             scenario = scenarios.load(path, args.overrides)
             need = resources.check(scenario, scenario.output.directory or Path("results"), budget(args))
-            config = factory.engine_config(scenario)
-            dx = (config.x_max - config.x_min) / config.cells
-            initial_state.check_entries(config.initial, config.x_min, config.x_max, dx, str(path))
+            dom = scenario.domain
+            dx = (dom.x_max - dom.x_min) / dom.cells
+            entries = factory.initial_entries(scenario)
+            initial_state.check_entries(entries, dom.x_min, dom.x_max, dx, str(path))
             expectations.validate(scenario)
         except InputError as exc:
             print(f"multilayer: error: {exc}", file=sys.stderr)
