@@ -89,7 +89,7 @@ def entry_thickness(entry: InitialEntry, edges: np.ndarray) -> np.ndarray:
 def check_entries(entries: Sequence[InitialEntry], x_min: float, x_max: float, dx: float, where: str) -> None:
     """:class:`InputError` naming the first entry with material outside the domain
     ``[x_min, x_max]`` or narrower than one cell of width ``dx``; ``where`` names the scenario."""
-    bounds = np.array([x_min, x_max])
+    bounds = np.array([x_min, x_max], dtype=float)
     for index, entry in enumerate(entries):
         points = entry_points(entry)
         if points is None:

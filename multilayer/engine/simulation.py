@@ -24,7 +24,7 @@ from multilayer.engine import basal, diagnostics, initial_state
 from multilayer.engine.config import SimulationConfig
 from multilayer.engine.gate import Gate
 from multilayer.engine.mesh import LayeredMesh
-from multilayer.engine.pressure.model import PressureModel, PressureSetup, models
+from multilayer.engine.pressure.model import PressureModel, PressureSetup, models, options
 from multilayer.engine.state import FlowState, max_wave_speed, span, start_moving
 from multilayer.engine.state_check import StateGuard
 from multilayer.engine.threads import ThreadPolicy
@@ -126,8 +126,9 @@ class Simulation:
         self.poll: Callable[[], None] | None = None
 
     def _pressure_model(self) -> PressureModel:
-        """The pressure model of the configuration, its options filled in."""
+        """The pressure model of the configuration, the defaults of its options filled in."""
         c = self.config
+        model = models()[c.pressure.model]
         setup = PressureSetup(
             fractions=self.fractions,
             bed=self.bed,
@@ -138,9 +139,9 @@ class Simulation:
             dry=self.dry,
             wraps=boundaries.BOUNDARIES[self.left].wraps,
             base_bulk=self.base.bulk,
-            options=dict(c.pressure.options),
+            options=options(model, c.pressure.options, self.fractions.size),
         )
-        return models()[c.pressure.model](setup, self.state)
+        return model(setup, self.state)
 
     def _velocity_scale(self) -> float:
         """The scale of the Newton tolerance: gravity waves on the deepest initial or
