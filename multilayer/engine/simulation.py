@@ -163,6 +163,8 @@ class Simulation:
         self.guard.reset(self.h, self.steps)
         #: mass (m2) through the left and right boundary in the last step, positive in +x
         self.boundary_mass = np.zeros(2)
+        # the fastest wave of the state Heun's second stage started from in the last transport
+        self._stage_speed = np.zeros(1)
         #: called between kernel calls within a step; may raise to abandon the step (Ctrl-C)
         self.poll: Callable[[], None] | None = None
         # the scale of the Newton tolerance: gravity waves on the deepest initial or
@@ -188,13 +190,15 @@ class Simulation:
 
     def time_step(self) -> float:
         """Largest stable step of the transport (Courant condition), inflow state included."""
-        return self._courant_step(transport_kernel.max_wave_speed(self.h, self.u, self.g_n))
+        speed = self._with_inflow(transport_kernel.max_wave_speed(self.h, self.u, self.g_n))
+        return transport.courant_step(speed, self.dx, self.scenario.time.cfl)
 
-    def _courant_step(self, speed: float) -> float:
+    def _with_inflow(self, speed: float) -> float:
+        """The fastest wave of the state, ``speed``, or of the inflow state if faster."""
         if self.inflow is not None:
             h_in, u_in = np.array([self.inflow.thickness]), self.inflow.velocity.reshape(-1, 1)
             speed = max(speed, transport_kernel.max_wave_speed(h_in, u_in, self.g_n))
-        return transport.courant_step(speed, self.dx, self.scenario.time.cfl)
+        return speed
 
     def step(self, t_max: float = np.inf) -> float:
         """Advance one time step, never beyond ``t_max``; returns the step taken."""
@@ -207,7 +211,8 @@ class Simulation:
         speed = transport_kernel.survey(
             self.h, self.u, self.numerics.dry_threshold, self.g_n, self._moving_start, self._rest
         )
-        dt = min(self._courant_step(speed), t_max - self.t)
+        speed = self._with_inflow(speed)
+        dt = min(transport.courant_step(speed, self.dx, self.scenario.time.cfl), t_max - self.t)
         projected = self.pressure == "non_hydrostatic"
         while True:
             self._check_advances(dt)
@@ -217,14 +222,17 @@ class Simulation:
             # velocity of the step's end (the non-hydrostatic projection changes only the
             # moving cells, and w and q are zero elsewhere)
             lo, hi = transport_kernel.span(h_new)
-            # the Courant condition must hold for the waves of the step's end as well: material
-            # accelerated from (near) rest within one step (gravity on a steep slope) would put
-            # the second Heun stage past the positivity limit; redo with the faster waves
-            end_speed = transport_kernel.max_wave_speed(h_new[lo:hi], u_new[:, lo:hi], self.g_n)
-            faster = transport.courant_step(end_speed, self.dx, transport.POSITIVITY_LIMIT)
-            if dt <= faster or not math.isfinite(end_speed):  # the state guard names a non-finite state
+            # Heun's second stage is a forward Euler step from the first stage's state: it keeps
+            # h >= 0 (and the scheme its stability) under the Courant condition of that state's
+            # waves (Gottlieb & Shu 1998), which the state at the start cannot foresee: the
+            # transport accelerates the material by gravity without the friction of the vertical
+            # step (a thin film nearly at rest on a steep slope: g sin(theta) dt far above
+            # sqrt(g h)); past it, redo the step shorter
+            stage_speed = float(self._stage_speed[0])
+            faster = transport.courant_step(stage_speed, self.dx, transport.POSITIVITY_LIMIT)
+            if dt <= faster or not math.isfinite(stage_speed):  # the state guard names a non-finite state
                 break
-            dt = self._courant_step(end_speed)  # <= faster < dt
+            dt = transport.stage_courant_step(dt, speed, stage_speed, self.dx, self.scenario.time.cfl)
         # the state guard: an impossible state is never kept (the last good one stays)
         self.guard.check_step(self.h, h_new, u_new, self.t, dt, self.boundary_mass, (lo, hi))
         if projected:
@@ -312,6 +320,7 @@ class Simulation:
             order=self.numerics.order,
             moving=moving,
             boundary_mass=self.boundary_mass,
+            stage_speed=self._stage_speed,
             **kernel_options,
         )
         self.guard.check_state(

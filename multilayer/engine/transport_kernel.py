@@ -181,7 +181,7 @@ def _momentum_rate(i, west_flux, momentum, terms, exchange, pressure, slope, gra
 @njit(cache=True, error_model="numpy")
 def _tile(
     stage, order, t0, t1, n, lo, left, right, at_rest, H, U, B, Q1, H1, l, dx, dt, g_n, g_t, dry,
-    inflow_h, inflow_u, gate_face, opening, H_out, U_out, ends, work,
+    inflow_h, inflow_u, gate_face, opening, H_out, U_out, ends, speeds, work,
 ):  # fmt: skip
     """One stage on the cells ``t0 .. t1-1`` of the window (faces ``t0 .. t1``), layer by
     layer over the tile's columns (contiguous rows of the (L, N) arrays).
@@ -192,7 +192,8 @@ def _tile(
     to (H_out, U_out) at order 1 and to (H1, Q1) at order 2; ``stage`` 1: Heun's second
     stage from (H1, Q1), averaged with (H, U), to (H_out, U_out).  The mass fluxes through
     the end faces 0 and n of the window, as the cells next to them see them, go to
-    ``ends[stage]`` (summed over the layers from the bed up).
+    ``ends[stage]`` (summed over the layers from the bed up), the fastest wave across
+    each face that carries mass (0 for a face at rest) to ``speeds[t0 .. t1]``.
     """
     L = l.size
     m = t1 - t0
@@ -295,6 +296,7 @@ def _tile(
         wl[f] = s_right / width
         wr[f] = -s_left / width
         moving[f] = 0.0 if rest else 1.0
+        speeds[t0 + f] = 0.0 if rest else max(-lowest, highest)
         jump[f] = s_left * s_right / width * moving[f]
         pL[f] = 0.5 * g_n * (hl * hl)
         pR[f] = 0.5 * g_n * (hr * hr)
@@ -424,7 +426,7 @@ def _tile(
 
 def _stages(
     chunks, order, n, lo, left, right, at_rest, H, U, B, Q1, H1, l, dx, dt, g_n, g_t, dry,
-    inflow_h, inflow_u, gate_face, opening, H_out, U_out, ends,
+    inflow_h, inflow_u, gate_face, opening, H_out, U_out, ends, speeds,
 ):  # fmt: skip
     """Both stages over the window in ``chunks`` independent pieces (taken by the threads in turn), each
     swept in tiles of about ``TILE`` cells."""
@@ -439,7 +441,7 @@ def _stages(
                     _tile(
                         stage, order, t0, min(t0 + T, c1), n, lo, left, right, at_rest, H, U, B, Q1, H1, l,
                         dx, dt, g_n, g_t, dry, inflow_h, inflow_u, gate_face, opening, H_out, U_out, ends,
-                        work,
+                        speeds, work,
                     )  # fmt: skip
 
 
@@ -566,6 +568,7 @@ class Workspace:
         self.u = np.zeros((layers, cells))
         self.written = (0, 0)
         self.ends = np.zeros((2, 2))  # mass fluxes through the end faces, per stage
+        self.speeds = np.zeros(cells + 1)  # the fastest wave across each face of the last stage
 
     def clear_outside(self, lo: int, hi: int) -> None:
         """Zero the result outside the columns ``lo .. hi-1`` (only what an earlier step
@@ -599,6 +602,7 @@ def transport(
     workspace: Workspace | None = None,
     threads: int = 1,
     boundary_mass: np.ndarray | None = None,
+    stage_speed: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``transport.transport`` compiled: returns h^{n+1} (N,) and u* (L, N).
 
@@ -606,7 +610,8 @@ def transport(
     next use.  ``threads > 1`` sweeps the window in chunks of at least 64 columns
     (``threads.parallel_chunks``) on that many threads.
     ``boundary_mass`` (2,), if given, receives the mass that crossed the left and the
-    right boundary, positive in +x (as ``transport.transport``).
+    right boundary, positive in +x, and ``stage_speed`` (1,) the fastest wave across a
+    face that carries mass in Heun's second stage (as ``transport.transport``).
     """
     if opening is not None and gate_face is None:
         raise ValueError("transport: a gate opening was given without its gate_face")
@@ -632,8 +637,10 @@ def transport(
         chunks, order, n, lo, left_kind, right_kind, at_rest,
         h, u, b, ws.q1, ws.h1, np.ascontiguousarray(fractions, dtype=float),
         float(dx), float(dt), float(g_n), float(g_t), float(dry), inflow_h, inflow_u, gate, opening,
-        ws.h, ws.u, ws.ends,
+        ws.h, ws.u, ws.ends, ws.speeds,
     )  # fmt: skip
     if boundary_mass is not None:
         boundary_mass[:] = step_boundary_mass(ws.ends[:order], float(dt))
+    if stage_speed is not None:
+        stage_speed[0] = ws.speeds[: n + 1].max() if order == 2 else 0.0
     return ws.h, ws.u
