@@ -9,20 +9,21 @@ output_interval)`` of them plus the initial state), each of ``(layers + 2) cells
 doubles (``u``, ``h``, the static interface; time, front, mass).
 
 By default a run must fit the memory available now and the free space of the file
-system it writes to; ``--max-memory`` and ``--max-output`` set a smaller (or larger)
-budget and ``--force`` skips the check.
+system it writes to (and the file size limit of the process, ``ulimit -f``);
+``--max-memory`` and ``--max-output`` set a smaller (or larger) budget and ``--force``
+skips the check.
 """
 
 from __future__ import annotations
 
 import math
 import re
-import shutil
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from multilayer.errors import InputError
+from multilayer.io import disk
 
 BYTES_PER_CELL = 2600
 BASE_BYTES = 200 * 2**20
@@ -86,14 +87,6 @@ def available_memory() -> float:
     return float(psutil.virtual_memory().available)
 
 
-def free_space(directory: Path) -> float:
-    """Free space of the file system holding ``directory`` (or its nearest existing parent)."""
-    path = Path(directory).absolute()
-    while not path.exists() and path != path.parent:
-        path = path.parent
-    return float(shutil.disk_usage(path).free)
-
-
 def check(scenario: Any, outdir: Path | None, budget: Budget) -> Estimate:
     """The estimate of ``scenario``; :class:`InputError` (estimate and limit) if it exceeds
     ``budget``, unless ``budget.force``."""
@@ -110,11 +103,12 @@ def check(scenario: Any, outdir: Path | None, budget: Budget) -> Estimate:
             f"more than {source} ({size_text(memory)}); accepted: fewer cells or layers, a larger "
             "--max-memory, or --force to run anyway"
         )
-    output = budget.output
+    output, source = budget.output, "--max-output"
     if output is None and outdir is not None:
-        output = free_space(outdir)
+        output, source = disk.free_space(outdir), f"the free disk space at {outdir}"
+        if disk.file_size_limit() < output:
+            output, source = disk.file_size_limit(), "the file size limit of this process (ulimit -f)"
     if output is not None and need.output > output:
-        source = "--max-output" if budget.output is not None else f"the free disk space at {outdir}"
         raise InputError(
             f"{where}: time.output_interval: {need.records:.0f} output times of {shape} make a "
             f"result file of about {size_text(need.output)}, more than {source} ({size_text(output)}); "

@@ -53,6 +53,7 @@ from multilayer.io.results import (
     CHECKPOINT_FILE,
     RESULT_FILE,
     Checkpoint,
+    DiskFull,
     ResultWriter,
     load_checkpoint,
     save_checkpoint,
@@ -108,7 +109,7 @@ def run(
     with locked(outdir, notice):
         ckpt = _checkpoint_to_resume(scenario, outdir) if resume else None
         log = logging.Logger("multilayer.run")
-        handler = logging.FileHandler(outdir / LOG_FILE, mode="a" if resume else "w", encoding="utf-8")
+        handler = _LogFile(outdir / LOG_FILE, mode="a" if resume else "w", encoding="utf-8")
         handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
         log.addHandler(handler)
         for message in notices:
@@ -202,6 +203,15 @@ def _run(
             f"{_resume_command(scenario, outdir)}"
         )
         log.warning(message)
+    except DiskFull as exc:  # nothing more can be written: the last checkpoint stands
+        log.error("the run stopped at t = %.6g s (step %d): %s", sim.t, sim.steps, exc)
+        writer.failure = str(exc)
+        raise RunError(
+            f"scenario {scenario.name!r}: {exc}; the run stopped at t={sim.t:.6g} s (step {sim.steps}); "
+            f"{outdir / RESULT_FILE} keeps the {writer.records} output times written before and "
+            f"{CHECKPOINT_FILE} the state at t={saved_t:.6g} s; once there is room, continue with: "
+            f"{_resume_command(scenario, outdir)}"
+        ) from exc
     except Exception as exc:
         log.exception("the simulation failed at t = %.6g s (step %d)", sim.t, sim.steps)
         # the engine never keeps a state it rejects: sim holds the last good one
@@ -220,6 +230,14 @@ def _run(
             print(message, file=sys.stderr)
         raise Interrupted(message, stop.signum)
     log.info("completed: %d steps, wall time %.1f s", sim.steps, wall_time())
+
+
+class _LogFile(logging.FileHandler):
+    """``run.log``: a line that cannot be written (a full disk) is dropped, where logging
+    would print a traceback on stderr."""
+
+    def handleError(self, record: logging.LogRecord) -> None:
+        """Drop the line (the messages on stderr say what the log would have)."""
 
 
 def _keep_last_good_state(sim: Any, writer: ResultWriter, checkpoint: Any, saved_t: float, log: Any) -> str:

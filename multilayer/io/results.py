@@ -7,6 +7,14 @@ leaves a readable file holding every output time completed so far.  The classic 
 offset format is used on purpose: a netCDF-3 file whose writer dies is still valid up to
 its last synced record, whereas an HDF5-based file may be left unreadable.
 
+The attributes written when the run ends (``run_status``, ``failure``, ...) fit in room
+kept free in the header from the start (the ``header_space`` attribute, removed then):
+netCDF-C moves every record when the header grows, which would rewrite the whole file at
+the end of a run, and fail on a full disk.  Before each record the writer checks that it
+fits on the disk and under the file size limit (:mod:`multilayer.io.disk`): a run that
+fills the disk stops with :class:`DiskFull` between two records, the file holding every
+record written before, readable, and ``run_status: failed``.
+
 Checkpoints (``checkpoint.npz``) hold the full :meth:`Simulation.state_dict` plus the
 bookkeeping needed to continue the result file; they are replaced atomically
 (temporary file + :func:`os.replace`), so a checkpoint on disk is always complete.  They
@@ -30,7 +38,9 @@ import numpy as np
 import xarray as xr
 from xarray.backends.locks import HDF5_LOCK, NETCDFC_LOCK, combine_locks
 
-from multilayer.errors import InputError
+from multilayer.errors import InputError, RunError
+from multilayer.io import disk
+from multilayer.io.netcdf_layout import NUMRECS_OFFSET, LayoutError, read_layout
 from multilayer.provenance import provenance
 
 RESULT_FILE = "result.nc"
@@ -140,6 +150,16 @@ VARIABLES: dict[str, tuple[tuple[str, ...], dict[str, str]]] = {
 }
 
 
+HEADER_SPACE = 16384
+"""Bytes kept free in the header of ``result.nc`` for the attributes written at the end."""
+FAILURE_LENGTH = 8000
+"""Characters of the failure message kept in the ``failure`` attribute (run.log has it all)."""
+
+
+class DiskFull(RunError):
+    """A write found no room: the disk is full or the file size limit is reached (exit code 1)."""
+
+
 class ResultWriter:
     """Append output times of a :class:`~multilayer.simulation.Simulation` to ``path``.
 
@@ -152,6 +172,9 @@ class ResultWriter:
         self.path = Path(path)
         self.failure = ""
         """Why the run failed; written as the ``failure`` attribute on close when not empty."""
+        self._broken = False  # a write failed: the netCDF handle cannot be trusted
+        n_layers, n_cells = np.shape(sim.u)
+        self._record_bytes = 8 * ((n_layers + 2) * n_cells + 3)
         with NETCDF_LOCK:
             if records is None:
                 self._ds = netCDF4.Dataset(self.path, "w", format=FORMAT)
@@ -162,6 +185,7 @@ class ResultWriter:
                 self._ds.history += f"\n{_now()} multilayer run --resume"
                 self.records = records
             self._ds.run_status = "running"
+            self._ds.header_space = " " * HEADER_SPACE
             self._ds.sync()
 
     def _define(self, scenario: Any, sim: Any) -> None:
@@ -217,30 +241,93 @@ class ResultWriter:
         the diagnostics written."""
         ds, i = self._ds, self.records
         diag = sim.diagnostics()
-        with NETCDF_LOCK:
-            ds["h"][i, :] = sim.h
-            ds["u"][i, :, :] = sim.u
-            ds["static_interface"][i, :] = diag["static_interface"]
-            ds["front"][i] = diag["front"]
-            ds["mass"][i] = diag["mass"]
-            ds["time"][i] = sim.t
-            ds.steps = int(sim.steps)
-            ds.sync()
+        if self._broken:
+            raise DiskFull(f"{self.path}: an earlier write failed; no more records are written")
+        self._ensure_room()
+        try:
+            with NETCDF_LOCK:
+                ds["h"][i, :] = sim.h
+                ds["u"][i, :, :] = sim.u
+                ds["static_interface"][i, :] = diag["static_interface"]
+                ds["front"][i] = diag["front"]
+                ds["mass"][i] = diag["mass"]
+                ds["time"][i] = sim.t
+                ds.steps = int(sim.steps)
+                ds.sync()
+        except (OSError, RuntimeError) as exc:
+            self._broken = True
+            # netCDF-C may report a later consequence of the failed write (still in define
+            # mode after its header update failed): the room left tells a full disk apart
+            free, limit = disk.room(self.path)
+            reason = disk.full_disk_reason(exc) or (limit.split(":")[0] if free < disk.SLACK else None)
+            if reason is None:
+                raise RunError(f"{self.path}: writing output time {i} failed ({exc})") from None
+            raise DiskFull(f"{reason}: writing output time {i} into {self.path} failed ({exc})") from None
         self.records = i + 1
         return diag
 
+    def _ensure_room(self) -> None:
+        """Raise :class:`DiskFull` unless the next record fits on the disk and under the
+        file size limit."""
+        free, limit = disk.room(self.path)
+        if free < self._record_bytes + disk.SLACK:
+            raise DiskFull(f"{limit}: the next record of {self.path} needs {self._record_bytes} bytes")
+
     def close(self, steps: int, wall_time_s: float, status: str = "completed", scenario: Any = None) -> None:
-        """Record the final step count, wall time and run status, then close the file."""
+        """Record the final step count, wall time and run status, then close the file.
+
+        The attributes take the room kept in the header (no record moves).  After a write
+        that failed (a full disk), the file is reopened to record them, its header first
+        set back to the records written whole: every record written before stays readable."""
         attrs: dict[str, Any] = {"steps": int(steps), "wall_time_s": float(wall_time_s), "run_status": status}
-        if scenario is not None:
+        if scenario is not None and not self._broken:
             attrs["scenario"] = scenario.resolved_yaml()
         if self.failure:
-            attrs["failure"] = self.failure
+            attrs["failure"] = self.failure[:FAILURE_LENGTH]
         with NETCDF_LOCK:
-            if not self.failure and "failure" in self._ds.ncattrs():  # a resumed run that failed before
-                self._ds.delncattr("failure")
-            self._ds.setncatts(attrs)
-            self._ds.close()
+            closed = False
+            try:
+                if not self._broken:
+                    _finish(self._ds, attrs)
+                self._ds.close()
+                closed = True
+            except (OSError, RuntimeError):
+                _abandon(self._ds)
+            if self._broken or not closed:
+                self._repair(attrs)
+
+    def _repair(self, attrs: dict[str, Any]) -> None:
+        """Set the record count of the header to the records written whole and write
+        ``attrs`` (a best effort: the reader names a file left inconsistent)."""
+        try:
+            layout = read_layout(self.path)
+            whole = min(self.records, layout.complete_records(self.path.stat().st_size))
+            if layout.numrecs != whole:
+                with open(self.path, "r+b") as stream:
+                    stream.seek(NUMRECS_OFFSET)
+                    stream.write(int(whole).to_bytes(4, "big"))
+            ds = netCDF4.Dataset(self.path, "a")
+        except (OSError, RuntimeError, LayoutError):
+            return
+        try:
+            _finish(ds, attrs)
+            ds.close()
+        except (OSError, RuntimeError):
+            _abandon(ds)
+
+
+def _finish(ds: netCDF4.Dataset, attrs: dict[str, Any]) -> None:
+    """Replace the reserved header space of ``ds`` by its final attributes ``attrs``."""
+    for name in ("header_space", "failure"):  # failure: of an earlier run that was resumed
+        if name in ds.ncattrs():
+            ds.delncattr(name)
+    ds.setncatts(attrs)
+
+
+def _abandon(ds: netCDF4.Dataset) -> None:
+    """Forget a dataset whose close failed: netCDF-C has released it, and netCDF4 would
+    close it again when the object is collected, which crashes the interpreter."""
+    netCDF4.Dataset.__dict__["_isopen"].__set__(ds, 0)
 
 
 def _now() -> str:
@@ -356,10 +443,17 @@ def save_checkpoint(path: str | os.PathLike, ckpt: Checkpoint) -> None:
     arrays: dict[str, Any] = {f"state.{key}": np.asarray(value) for key, value in ckpt.state.items()}
     arrays.update({f"meta.{key}": np.asarray(getattr(ckpt, key)) for key in _META})
     arrays["checksum"] = np.asarray(_checksum(arrays))
-    with open(tmp, "wb") as f:
-        np.savez(f, **arrays)
-        f.flush()
-        os.fsync(f.fileno())
+    try:
+        with open(tmp, "wb") as f:
+            np.savez(f, **arrays)
+            f.flush()
+            os.fsync(f.fileno())
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)  # the space it took back; the previous checkpoint stands
+        reason = disk.full_disk_reason(exc)
+        if reason is None:
+            raise
+        raise DiskFull(f"{reason}: writing the checkpoint {path} failed ({exc})") from None
     os.replace(tmp, path)
 
 
