@@ -314,7 +314,7 @@ def _corrupt_transport(monkeypatch, after: int, fault) -> None:
 def test_an_impossible_state_ends_the_run_keeping_the_last_good_state(
     tmp_path, cli, monkeypatch, fault, expected
 ):
-    _corrupt_transport(monkeypatch, 18, fault)
+    _corrupt_transport(monkeypatch, 16, fault)
     outdir = tmp_path / "out"
     run = cli("run", _write(tmp_path, SLUMP), "-o", outdir, "-q")
     assert run.code == 1
