@@ -5,10 +5,9 @@ Every layer is drawn where it is: cell ``(alpha, i)`` spans
 ``x`` along the inclined plane and ``z`` normal to it (docs/model.md).  The figures and
 what they show are listed in docs/results.md.
 
-A result of a failed run, or one holding non-finite values (written by an older
-version, or edited), is drawn where it is finite: non-finite values become gaps in the
-curves and blank cells in the section, and :func:`plot_run` returns notes saying what
-was not drawn and why the run ended.
+The result file is checked first (:func:`multilayer.io.result_check.check_result`): a
+truncated, damaged or still running result is refused.  The records of a failed or
+interrupted run are drawn, and :func:`plot_run` returns a note saying how the run ended.
 """
 
 from __future__ import annotations
@@ -29,6 +28,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
 from multilayer.errors import InputError
+from multilayer.io.result_check import ending
 from multilayer.io.results import open_result
 
 PLOTS_DIR = "plots"
@@ -37,11 +37,6 @@ _VELOCITY = colormaps["viridis"].with_extremes(bad=_AT_REST)
 """Colour map of u; masked cells (static material, u == 0 exactly) are grey."""
 _REPRESENTATIVE = 3
 """Number of columns drawn in the profile figures when no ``--at`` is given."""
-
-
-FIELDS = ("h", "u", "static_interface", "front", "mass")
-"""Variables whose non-finite values are reported (``front`` is NaN, not reported, when no
-cell is wetter than its threshold)."""
 
 
 def plot_run(
@@ -58,9 +53,11 @@ def plot_run(
     columns ``at``, default: :func:`representative_columns`) and ``static_interface``
     (b(t) and h(t) at the same columns), as ``fmt`` files; with ``animate`` also the
     section over time (:func:`animate_section`).  Returns the paths written and
-    notes on what could not be drawn (module docstring).
+    notes on how the run ended if it did not complete (module docstring).
     """
-    ds, notes = finite_part(open_result(directory))
+    ds = open_result(directory)
+    end = ending(ds.attrs)
+    notes = [f"{end}; drawn up to t = {float(ds['time'][-1]):.6g} s"] if end else []
     out = Path(directory) / PLOTS_DIR
     out.mkdir(exist_ok=True)
     name = yaml.safe_load(ds.attrs["scenario"])["name"]
@@ -81,35 +78,6 @@ def plot_run(
     if animate:
         paths.append(animate_section(ds, name, out / "section"))
     return paths, notes
-
-
-def finite_part(ds: xr.Dataset) -> tuple[xr.Dataset, list[str]]:
-    """``ds`` with every non-finite value of :data:`FIELDS` set to NaN (a gap), and notes
-    on the run status and on each field that is not finite everywhere."""
-    notes = []
-    status = ds.attrs.get("run_status", "completed")
-    if status != "completed":
-        what = {"failed": "the run failed", "interrupted": "the run was interrupted"}.get(
-            status, f"the run is {status} (or its process was killed)"
-        )
-        why = ds.attrs.get("failure", "")
-        drawn = f"drawn up to t = {float(ds['time'][-1]):.6g} s"
-        notes.append(f"{what}: {why}; {drawn}" if why else f"{what}; {drawn}")
-    for name in FIELDS:
-        values = ds[name].values
-        bad = ~np.isfinite(values)
-        if name == "front":
-            bad &= ~np.isnan(values)
-        if bad.any():
-            first = np.unravel_index(np.argmax(bad), bad.shape)
-            t = float(ds["time"].values[first[0]])
-            where = f", x = {float(ds['x'].values[first[-1]]):.6g} m" if "x" in ds[name].dims else ""
-            notes.append(
-                f"{name}: {int(bad.sum())} of {bad.size} values are not finite "
-                f"(first {float(values[first])!r} at t = {t:.6g} s{where}); not drawn"
-            )
-            ds[name] = ds[name].where(~bad)
-    return ds, notes
 
 
 def column_indices(ds: xr.Dataset, at: Sequence[float]) -> list[int]:
@@ -184,12 +152,12 @@ def _draw_section(ax: Axes, ds: xr.Dataset, k: int, vmin: float, vmax: float) ->
     edges = np.append(sig[:, 0], sig[-1, 1])
     bed = ds["bed"].values
     h = snap["h"].values
-    z = bed + np.where(np.isfinite(h), h, 0.0) * edges[:, None]  # (L+1, N) interface heights
+    z = bed + h * edges[:, None]  # (L+1, N) interface heights
     xs, zs = _staircase(ds, z)
     # odd columns join neighbouring cells: zero width, never seen
     colour = np.ma.masked_all((ds.sizes["layer"], xs.size - 1))
     u = snap["u"].values
-    colour[:, ::2] = np.ma.masked_where((u == 0.0) | ~np.isfinite(u), u)  # static (grey) or not finite
+    colour[:, ::2] = np.ma.masked_where(u == 0.0, u)  # static material is grey
     mesh = ax.pcolormesh(xs, zs, colour, cmap=_VELOCITY, vmin=vmin, vmax=vmax)
     ax.plot(*_staircase(ds, bed), color="k", lw=1.2, label="bed", zorder=3)
     ax.plot(*_staircase(ds, bed + h), color="tab:blue", lw=1.0, label="free surface")

@@ -30,7 +30,7 @@ import hashlib
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Final
+from typing import Any, Final, Literal
 
 import fipy
 import netCDF4
@@ -334,39 +334,41 @@ def _now() -> str:
     return _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
 
 
-def open_result(path: str | os.PathLike, *, load: bool = True) -> xr.Dataset:
+def result_path(path: str | os.PathLike) -> Path:
+    """``path`` itself, or the ``result.nc`` inside it when it is a directory."""
+    path = Path(path)
+    return path / RESULT_FILE if path.is_dir() else path
+
+
+def open_result(
+    path: str | os.PathLike, *, load: bool = True, use: Literal["answer", "records"] = "records"
+) -> xr.Dataset:
     """Load a result file (or the ``result.nc`` inside a directory) into memory, or with
     ``load=False`` open it lazily (close it after use, e.g. in a ``with`` block).
 
-    Only the records completed so far are returned: a record left half-written by a
-    crash (its time still the fill value) is dropped.
+    The file is checked first (:func:`multilayer.io.result_check.check_result`, for
+    ``use``: ``records`` accepts the records of a failed or interrupted run, ``answer``
+    only a completed run): a truncated, damaged or still running result is an
+    :class:`InputError` naming the file and what is wrong.
     """
-    path = Path(path)
-    if path.is_dir():
-        path = path / RESULT_FILE
-    if not path.is_file():
-        raise InputError(f"{path}: no result file (run `multilayer run` first)")
+    from multilayer.io.result_check import check_result  # it reads the constants of this module
+
+    file = check_result(path, use)
     try:
-        ds = xr.load_dataset(path) if load else xr.open_dataset(path)
+        return xr.load_dataset(file) if load else xr.open_dataset(file)
     except (OSError, ValueError) as exc:
-        raise InputError(f"{path}: not a readable netCDF result file ({exc})") from None
-    return ds.isel(time=np.flatnonzero(np.isfinite(ds["time"].values)))
+        raise InputError(f"{file}: not a readable netCDF result file ({exc})") from None
 
 
 def run_failure(path: str | os.PathLike) -> str | None:
     """Why the run in ``path`` (a result file or its directory) cannot be used: ``None`` if it
-    completed with finite ``h`` and ``u`` at every output time, else the reason (the failure
-    message, the run status, or where values are not finite).  This is how a sweep (and any
-    ensemble command) decides that a member failed."""
+    completed and its file passes every check of :func:`multilayer.io.result_check.check_result`,
+    else what is wrong (the failure message, the run status, the damage).  This is how a
+    sweep (and any ensemble command) decides that a member failed."""
+    from multilayer.io.result_check import check_result
+
     try:
-        with open_result(path, load=False) as ds:
-            status = ds.attrs.get("run_status", "unknown")
-            if status != "completed":
-                return f"run_status {status}" + (f": {ds.attrs['failure']}" if "failure" in ds.attrs else "")
-            for name in ("h", "u"):
-                finite = np.isfinite(ds[name].values)
-                if not finite.all():
-                    return f"{name} is not finite at {finite.size - np.count_nonzero(finite)} values"
+        check_result(path, "answer")
     except InputError as exc:
         return str(exc)
     return None
@@ -385,14 +387,20 @@ SUMMARY_KEYS = (
 """The keys of :func:`summary`, in order."""
 
 
-def summary(path: str | os.PathLike) -> dict[str, float]:
-    """Scalar results of a run: the quantities ``expect`` checks can refer to.
+def summary(path: str | os.PathLike, *, checked: bool = True) -> dict[str, float]:
+    """Scalar results of a completed run: the quantities ``expect`` checks can refer to.
 
     ``runout`` is the final minus the initial front; ``max_speed_final`` the largest
     ``|u|`` at the final time; ``static_interface_mean_final`` the mean static-interface
-    height over the cells wetter than the front threshold (NaN if none).
+    height over the cells wetter than the front threshold (NaN if none).  The file is
+    checked first as the answer of a run (``checked=False``: by the run that has just
+    written it, whose every state passed the state guard).
     """
-    with open_result(path, load=False) as lazy:  # only the first and last records are read
+    if checked:
+        from multilayer.io.result_check import check_result
+
+        check_result(path, "answer")
+    with xr.open_dataset(result_path(path)) as lazy:  # only the first and last records are read
         ds = lazy.isel(time=[0, -1]).load()
     final = ds.isel(time=-1)
     wet = final["h"].values > ds["front"].attrs["threshold"]

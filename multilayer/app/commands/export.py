@@ -7,6 +7,7 @@ Example: multilayer export results/erodible-bed-collapse --vtk
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from multilayer.errors import InputError
@@ -28,6 +29,8 @@ def main(args: argparse.Namespace) -> int:
 
     if not args.vtk:
         raise InputError("multilayer export: choose a format; accepted: --vtk")
-    paths = export_vtk(args.directory)
+    paths, end = export_vtk(args.directory)
     print(f"{paths[0]} ({len(paths) - 1} output times)")
+    if end:
+        print(f"multilayer: warning: {end}; exported up to its last output time", file=sys.stderr)
     return 0
