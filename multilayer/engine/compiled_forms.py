@@ -17,7 +17,7 @@ def describes(rheology: object, kernel: str, methods: tuple[str, ...]) -> bool:
     """True when the definition of ``kernel`` that ``rheology`` uses comes from a class at
     or below every class whose definition of ``methods`` it uses (never when the instance
     itself defines one of them)."""
-    instance = vars(rheology)
+    instance = getattr(rheology, "__dict__", {})  # none with __slots__
     if kernel in instance or any(method in instance for method in methods):
         return False
     cls: Any = type(rheology)

@@ -15,8 +15,11 @@ import numpy as np
 from numba import njit
 
 from multilayer.engine.compiled_forms import describes
+from multilayer.engine.plugin_output import declared_form
 
 FORMS = {"constant": 0, "inertial": 1, "power": 2}
+PARAMETERS = {"constant": 1, "inertial": 3, "power": 4}
+"""The parameters of each form: (eta,), (A, B, C), (A, e_p, e_g, floor)."""
 
 
 def law_of(rheology, material) -> tuple[int, np.ndarray] | None:
@@ -27,10 +30,10 @@ def law_of(rheology, material) -> tuple[int, np.ndarray] | None:
     used, and the step runs the plugin's own ``viscosity`` (numpy path)."""
     if not describes(rheology, "viscosity_kernel", ("viscosity",)):
         return None
-    declared = rheology.viscosity_kernel(material)
-    if declared is None or declared[0] not in FORMS:
+    declared = declared_form(rheology, "viscosity_kernel", material, PARAMETERS)
+    if declared is None:
         return None
-    return FORMS[declared[0]], np.array(declared[1], dtype=float)
+    return FORMS[declared[0]], declared[1]
 
 
 @njit(cache=True)

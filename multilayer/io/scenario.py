@@ -268,7 +268,7 @@ class PluginSpec(_Model):
             )
             raise _invalid(message, plugins.signature_text(cls), key) from None
         try:
-            cls(**params)
+            plugins.construct(cls, params)
         except (TypeError, ValueError) as exc:
             raise _invalid(f"{self.name}: {exc}", plugins.signature_text(cls)) from None
         return self.model_copy(update={"params": params})
