@@ -20,8 +20,8 @@ import numpy as np
 from common import timed
 
 from multilayer.engine.simulation import Simulation
-from multilayer.io.scenario import from_dict
 from multilayer.reference.exact import BagnoldFlow, jop_inertial_number
+from multilayer.scenario import from_dict
 
 THETA, DEPTH, D, RHO, RHO_P = 28.0, 0.01, 0.7e-3, 1550.0, 2500.0
 MU_S, MU_2, I_0 = 0.4770, 0.7265, 0.279

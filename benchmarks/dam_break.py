@@ -35,7 +35,7 @@ import numpy as np
 from common import timed
 
 from multilayer.engine.simulation import Simulation
-from multilayer.io.scenario import Scenario, from_dict
+from multilayer.scenario import Scenario, from_dict
 
 WARM_UP_COLUMN = 20.0
 """Length of the column of the warm-up problem (the benchmark's is 2): ten times the

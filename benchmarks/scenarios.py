@@ -20,7 +20,7 @@ from pathlib import Path
 
 from multilayer.app import runner
 from multilayer.engine.simulation import Simulation
-from multilayer.io.scenario import load
+from multilayer.scenario import load
 
 ROOT = Path(__file__).resolve().parents[1]
 

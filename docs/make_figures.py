@@ -22,7 +22,7 @@ from pathlib import Path
 from multilayer.app import runner
 from multilayer.io import plotting
 from multilayer.io.results import open_result
-from multilayer.io.scenario import load
+from multilayer.scenario import load
 
 ROOT = Path(__file__).resolve().parents[1]
 FIGURES = ROOT / "docs" / "figures"

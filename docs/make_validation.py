@@ -33,9 +33,9 @@ import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 import yaml  # noqa: E402
 
+from multilayer import scenario as scenarios  # noqa: E402
 from multilayer.app import runner  # noqa: E402
 from multilayer.errors import RunError  # noqa: E402
-from multilayer.io import scenario as scenarios  # noqa: E402
 from multilayer.io.results import RESULT_FILE, open_result  # noqa: E402
 from multilayer.reference import exact, similarity  # noqa: E402
 

@@ -6,7 +6,7 @@ import copy
 from typing import Any
 
 from multilayer.engine.simulation import Simulation
-from multilayer.io.scenario import Scenario, from_dict
+from multilayer.scenario import Scenario, from_dict
 
 BASE: dict[str, Any] = {
     "name": "engine-test",

@@ -9,7 +9,13 @@ from pathlib import Path
 import multilayer
 
 PACKAGE = Path(multilayer.__file__).parent
-FORBIDDEN_FOR_ENGINE = ("multilayer.io", "multilayer.app", "multilayer.plugins.host", "multilayer.testing")
+FORBIDDEN_FOR_ENGINE = (
+    "multilayer.io",
+    "multilayer.scenario",
+    "multilayer.app",
+    "multilayer.plugins.host",
+    "multilayer.testing",
+)
 
 
 def _runtime_imports(path: Path) -> set[str]:

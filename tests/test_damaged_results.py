@@ -17,9 +17,9 @@ import pytest
 import yaml
 from conftest import TINY_SCENARIO
 
+from multilayer import scenario as scenarios
 from multilayer.app import runner, sweep
 from multilayer.errors import InputError
-from multilayer.io import scenario as scenarios
 from multilayer.io.results import open_result, run_failure, summary
 
 SHORT = {**TINY_SCENARIO, "name": "short", "time": {"end": 0.08, "output_interval": 0.02}}

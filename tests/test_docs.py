@@ -53,7 +53,7 @@ matplotlib.use("Agg")  # the documented Python blocks run in this process
 import matplotlib.pyplot as plt  # noqa: E402
 
 from multilayer.app import cli, sweep  # noqa: E402
-from multilayer.io.scenario import Loader  # noqa: E402
+from multilayer.scenario.source import Loader  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]

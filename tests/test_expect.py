@@ -15,8 +15,8 @@ import pytest
 import yaml
 
 from multilayer.app import cli
-from multilayer.io.scenario import Expect
 from multilayer.reference.exact import InviscidSimpleShear
+from multilayer.scenario.schema import Expect
 from multilayer.testing.expectations import Outcome, evaluate, report
 
 pytest_plugins = ["pytester"]
@@ -222,8 +222,8 @@ def test_pytest_without_arguments_collects_no_yaml(pytester):
 
 def test_tiny_scenario_matches_exact_inviscid_solution(tmp_path):
     """The reference values used above are the model's: b(t) = b0 + S t / 70 too."""
+    from multilayer import scenario as scenarios
     from multilayer.app import runner
-    from multilayer.io import scenario as scenarios
     from multilayer.io.results import open_result
 
     scenario = scenarios.load(_write(tmp_path, "true.yaml", TRUE))

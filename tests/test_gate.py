@@ -6,10 +6,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from multilayer import scenario as scenarios
 from multilayer.engine import transport_kernel
 from multilayer.engine.gate import Gate
 from multilayer.engine.simulation import Simulation
-from multilayer.io import scenario as scenarios
 
 FLAGSHIP = Path(__file__).resolve().parent.parent / "scenarios" / "erodible_bed_collapse.yaml"
 COARSE = ("domain.x_max=1.25", "domain.cells=120", "domain.layers=4")

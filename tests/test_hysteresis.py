@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from engine import simulation
 
+from multilayer import scenario as scenarios
 from multilayer.engine.simulation import Simulation
-from multilayer.io import scenario as scenarios
 from multilayer.plugins.builtins import DruckerPrager, JopMuI, PowerLawMuI
 from multilayer.plugins.contract import Material
 

@@ -477,7 +477,7 @@ def test_the_step_whose_newton_iteration_did_not_converge_now_converges_from_its
 
     from multilayer.engine import vertical_step
     from multilayer.engine.simulation import Simulation
-    from multilayer.io.scenario import load
+    from multilayer.scenario import load
 
     failures = []
     solve = vertical_step.implicit_step

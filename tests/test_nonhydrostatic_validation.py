@@ -14,7 +14,7 @@ from test_nonhydrostatic import standing_wave_error
 
 from multilayer.engine import diagnostics
 from multilayer.engine.simulation import Simulation
-from multilayer.io.scenario import load
+from multilayer.scenario import load
 
 pytestmark = pytest.mark.validation
 

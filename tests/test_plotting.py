@@ -13,9 +13,9 @@ from matplotlib import animation
 from matplotlib.image import imread
 from PIL import Image
 
+from multilayer import scenario as scenarios
 from multilayer.app import runner
 from multilayer.io import plotting
-from multilayer.io import scenario as scenarios
 from multilayer.io.results import open_result
 
 MATERIAL = {"density": 1500.0, "grain_diameter": 1.0e-3}

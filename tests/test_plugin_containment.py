@@ -17,8 +17,8 @@ from conftest import TINY_SCENARIO
 
 from multilayer.engine.simulation import Simulation
 from multilayer.io.results import open_result
-from multilayer.io.scenario import from_dict
 from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+from multilayer.scenario import from_dict
 
 SLUMP = {**TINY_SCENARIO, "name": "slump", "time": {"end": 0.1, "output_interval": 0.02}}
 PLUGIN = "rheology plugin 'drucker_prager' (multilayer.plugins.builtins.drucker_prager.DruckerPrager)"

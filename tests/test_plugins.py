@@ -17,8 +17,8 @@ import xarray as xr
 import multilayer
 from multilayer import Material
 from multilayer.errors import InputError
-from multilayer.io.scenario import load
 from multilayer.plugins import host as plugins
+from multilayer.scenario import load
 
 THIRDPARTY = Path(__file__).parent / "thirdparty_plugin"
 MULTILAYER = [sys.executable, "-m", "multilayer"]

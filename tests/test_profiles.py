@@ -10,7 +10,7 @@ import yaml
 
 from multilayer.engine.initial_state import bed_profile, cell_edges, initial_state
 from multilayer.errors import InputError
-from multilayer.io.scenario import from_dict, load
+from multilayer.scenario import from_dict, load
 
 X = np.linspace(0.005, 0.295, 30)  # cell centres of the tiny domain below
 EDGES = cell_edges(0.0, 0.3, 30)

@@ -22,7 +22,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from multilayer.engine.simulation import Simulation
-from multilayer.io.scenario import from_dict
+from multilayer.scenario import from_dict
 
 THOROUGH = 150
 EXAMPLES = [

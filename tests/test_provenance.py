@@ -12,8 +12,8 @@ import xarray as xr
 from packaging.version import Version
 
 import multilayer
+from multilayer import scenario as scenarios
 from multilayer.app import runner
-from multilayer.io import scenario as scenarios
 from multilayer.provenance import SOURCE_ROOT, provenance
 
 needs_git = pytest.mark.skipif(shutil.which("git") is None, reason="git is not installed")

@@ -18,11 +18,11 @@ import yaml
 from conftest import TINY_SCENARIO
 from numba.core import event as numba_event
 
+from multilayer import scenario as scenarios
 from multilayer.app import compilation, runner
 from multilayer.app.progress import Progress
 from multilayer.engine.simulation import Simulation
 from multilayer.errors import RunError
-from multilayer.io import scenario as scenarios
 from multilayer.io.results import open_result
 
 # A column slumping down a 25 degree slope, 40 cells x 3 layers, 26 output times.

@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from multilayer.errors import InputError
-from multilayer.io.scenario import Scenario, apply_overrides, from_dict, load
+from multilayer.scenario import Scenario, apply_overrides, from_dict, load
 
 
 def test_defaults(tiny_scenario):

@@ -11,9 +11,9 @@ from pathlib import Path
 
 import pytest
 
+from multilayer import scenario as scenarios
 from multilayer.app import cli
-from multilayer.io import scenario as scenarios
-from multilayer.io.scenario import QUANTITIES
+from multilayer.scenario.schema import QUANTITIES
 from multilayer.testing import expectations as expect
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"

@@ -21,9 +21,10 @@ from pathlib import Path
 import pytest
 import yaml
 
+from multilayer import scenario
 from multilayer.app import cli, runner, sweep
 from multilayer.errors import InputError, RunError
-from multilayer.io import results, scenario
+from multilayer.io import results
 
 TINY = """\
 name: tiny-collapse

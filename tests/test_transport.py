@@ -173,7 +173,7 @@ def test_a_block_on_a_25_degree_slope_runs_to_t_20_with_its_mass_balanced(transp
     from conftest import TINY_SCENARIO
 
     from multilayer.engine.simulation import Simulation
-    from multilayer.io.scenario import from_dict
+    from multilayer.scenario import from_dict
 
     data = {**TINY_SCENARIO, "time": {"end": 20.0, "output_interval": 20.0}}
     sim = Simulation(from_dict({**data, "numerics": {"transport_solver": transport_solver}}))

@@ -17,9 +17,9 @@ from test_transport import ritter_error
 
 from multilayer.engine import diagnostics
 from multilayer.engine.simulation import Simulation
-from multilayer.io.scenario import load
 from multilayer.reference import similarity
 from multilayer.reference.exact import BagnoldFlow, InviscidSimpleShear, jop_inertial_number
+from multilayer.scenario import load
 
 pytestmark = pytest.mark.validation
 

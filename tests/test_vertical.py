@@ -11,10 +11,10 @@ from engine import simulation
 
 from multilayer.engine import column_kernel
 from multilayer.engine.simulation import Simulation
-from multilayer.io.scenario import load
 from multilayer.plugins.contract import Rheology
 from multilayer.reference import vertical_fipy
 from multilayer.reference.exact import BagnoldFlow, InviscidSimpleShear, jop_inertial_number
+from multilayer.scenario import load
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 

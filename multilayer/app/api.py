@@ -17,9 +17,9 @@ from typing import Any
 import xarray as xr
 import yaml
 
-from multilayer.io import scenario as scenarios
+from multilayer import scenario as scenarios
 from multilayer.io.results import open_result
-from multilayer.io.scenario import Scenario
+from multilayer.scenario import Scenario
 
 ScenarioLike = Scenario | str | os.PathLike | Mapping[str, Any]
 Overrides = Mapping[str, Any] | Sequence[str]

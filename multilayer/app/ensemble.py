@@ -20,11 +20,11 @@ from typing import Any, Literal
 
 import numpy as np
 
+from multilayer import scenario
 from multilayer.app import stopping, sweep
 from multilayer.errors import InputError, Interrupted, RunError
-from multilayer.io import scenario
 from multilayer.io.results import RESULT_FILE
-from multilayer.io.scenario import as_overrides
+from multilayer.scenario import as_overrides
 
 MEMBERS_DIR = "members"
 

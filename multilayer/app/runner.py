@@ -42,13 +42,13 @@ from typing import Any
 import numpy as np
 import yaml
 
+from multilayer import scenario as scenarios
 from multilayer.app import resources
 from multilayer.app.compilation import compile_notice
 from multilayer.app.lock import locked
 from multilayer.app.progress import Progress, shown
 from multilayer.engine.simulation import Simulation
 from multilayer.errors import InputError, Interrupted, RunError
-from multilayer.io import scenario as scenarios
 from multilayer.io.result_check import check_result
 from multilayer.io.results import (
     CHECKPOINT_FILE,

@@ -31,11 +31,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+from multilayer import scenario
 from multilayer.app import runner, stopping
 from multilayer.errors import InputError, Interrupted, RunError
-from multilayer.io import scenario
 from multilayer.io.results import CHECKPOINT_FILE, RESULT_FILE, SUMMARY_KEYS, run_failure
-from multilayer.io.scenario import as_overrides, format_value
+from multilayer.scenario import as_overrides, format_value
 
 SWEEP_KEYS = ("base", "parameters", "zip", "output", "description")
 """Top-level keys accepted in a sweep file."""

@@ -23,7 +23,7 @@ from multilayer.errors import InputError
 from multilayer.reference.exact import bagnold_shape
 
 if TYPE_CHECKING:  # the engine reads a validated scenario; it never loads one
-    from multilayer.io.scenario import Bed, InitialShape, Velocity
+    from multilayer.scenario.schema import Bed, InitialShape, Velocity
 
 
 def bed_profile(bed: Bed, x: np.ndarray) -> np.ndarray:

@@ -34,7 +34,8 @@ from multilayer.engine.state_check import StateGuard
 from multilayer.errors import InputError, RunError
 
 if TYPE_CHECKING:  # the engine reads a validated scenario; it never loads one
-    from multilayer.io.scenario import BaseZone, Scenario
+    from multilayer.scenario import Scenario
+    from multilayer.scenario.schema import BaseZone
 
 BASE_KINDS = {"no_slip": stress.NO_SLIP, "coulomb": stress.COULOMB, "free_slip": stress.FREE_SLIP}
 

@@ -30,9 +30,10 @@ from typing import Annotated, Any, Literal, get_args
 import numpy as np
 from pydantic import BaseModel, Field, ValidationError, field_validator, model_validator
 
+from multilayer import scenario
 from multilayer.errors import InputError
-from multilayer.io import scenario
-from multilayer.io.scenario import _dotted, _field, _invalid, _message, _Model, as_overrides
+from multilayer.scenario.messages import StrictModel, describe, dotted, field, invalid
+from multilayer.scenario.overrides import as_overrides
 
 Scalar = Literal["runout", "front_final", "duration", "mass_final"]
 """Scalar quantities measured on a run (multilayer.io.observables)."""
@@ -63,50 +64,50 @@ _COORDINATE_SI = {"front": "s", "h": "m"}
 DottedKey = Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z0-9_]+)*$")]
 
 
-class Prior(_Model):
+class Prior(StrictModel):
     """A Gaussian prior on a free parameter (the default prior is uniform within bounds)."""
 
-    mean: float = _field(..., "a number")
-    sd: float = _field(..., "a number > 0", gt=0)
+    mean: float = field(..., "a number")
+    sd: float = field(..., "a number > 0", gt=0)
 
 
-class Parameter(_Model):
+class Parameter(StrictModel):
     """A free parameter: a scenario key varied within ``bounds``."""
 
-    bounds: Annotated[list[float], Field(min_length=2, max_length=2)] = _field(
+    bounds: Annotated[list[float], Field(min_length=2, max_length=2)] = field(
         ..., "[lower, upper] with lower < upper"
     )
-    prior: Prior | None = _field(None, "{mean, sd}; default: uniform within bounds")
+    prior: Prior | None = field(None, "{mean, sd}; default: uniform within bounds")
 
     @model_validator(mode="after")
     def _check(self) -> Parameter:
         if not self.bounds[0] < self.bounds[1]:
-            raise _invalid(f"got {self.bounds}", "[lower, upper] with lower < upper", "bounds")
+            raise invalid(f"got {self.bounds}", "[lower, upper] with lower < upper", "bounds")
         return self
 
 
-class Observation(_Model):
+class Observation(StrictModel):
     """One observed quantity with its uncertainty (values in ``units``)."""
 
-    name: str = _field(..., "a name for the observation", min_length=1)
-    quantity: Quantity = _field(..., ", ".join(SCALARS + CURVES + PROFILES))
-    experiment: str | None = _field(None, "a key of experiments (default: the only experiment)")
-    value: float | None = _field(None, "a number, in units (scalar quantities)")
-    file: str | None = _field(None, "a CSV or netCDF file, relative to the calibration file")
-    columns: Annotated[list[str], Field(min_length=2, max_length=3)] | None = _field(
+    name: str = field(..., "a name for the observation", min_length=1)
+    quantity: Quantity = field(..., ", ".join(SCALARS + CURVES + PROFILES))
+    experiment: str | None = field(None, "a key of experiments (default: the only experiment)")
+    value: float | None = field(None, "a number, in units (scalar quantities)")
+    file: str | None = field(None, "a CSV or netCDF file, relative to the calibration file")
+    columns: Annotated[list[str], Field(min_length=2, max_length=3)] | None = field(
         None, "[coordinate, value] or [coordinate, value, sigma]: CSV column names"
     )
-    variable: str | None = _field(None, "the name of a one-dimensional netCDF variable")
-    units: str | None = _field(None, "one of " + ", ".join(UNITS) + " (default SI)")
-    coordinate_units: str | None = _field(None, "one of " + ", ".join(UNITS) + " (default SI)")
-    sigma: float | None = _field(None, "a number > 0, in units (or a third CSV column)", gt=0)
-    time: float | None = _field(None, "a number >= 0 (s); default: the final time", ge=0)
+    variable: str | None = field(None, "the name of a one-dimensional netCDF variable")
+    units: str | None = field(None, "one of " + ", ".join(UNITS) + " (default SI)")
+    coordinate_units: str | None = field(None, "one of " + ", ".join(UNITS) + " (default SI)")
+    sigma: float | None = field(None, "a number > 0, in units (or a third CSV column)", gt=0)
+    time: float | None = field(None, "a number >= 0 (s); default: the final time", ge=0)
 
     @field_validator("units", "coordinate_units")
     @classmethod
     def _unit(cls, value: str | None) -> str | None:
         if value is not None and value not in UNITS:
-            raise _invalid(f"unknown unit {value!r}", ", ".join(UNITS))
+            raise invalid(f"unknown unit {value!r}", ", ".join(UNITS))
         return value
 
     @model_validator(mode="after")
@@ -115,7 +116,7 @@ class Observation(_Model):
         required: tuple[str, ...]
         optional: tuple[str, ...]
         if self.units is not None and _DIMENSION[self.units] != _SI[self.quantity]:
-            raise _invalid(
+            raise invalid(
                 f"{self.units} is not a unit of {self.quantity}",
                 ", ".join(u for u, d in _DIMENSION.items() if d == _SI[self.quantity]),
                 "units",
@@ -131,12 +132,12 @@ class Observation(_Model):
         accepted = ", ".join(("name", "quantity", "experiment", *required, *optional))
         for key in required:
             if getattr(self, key) is None:
-                raise _invalid(f"quantity {self.quantity} requires {key}", accepted, key)
+                raise invalid(f"quantity {self.quantity} requires {key}", accepted, key)
         extra = sorted(self.model_fields_set - {"name", "quantity", "experiment", *required, *optional})
         if extra:
-            raise _invalid(f"not a key of quantity {self.quantity}", accepted, extra[0])
+            raise invalid(f"not a key of quantity {self.quantity}", accepted, extra[0])
         if not scalar and self.sigma is None and (self.columns is None or len(self.columns) < 3):
-            raise _invalid(
+            raise invalid(
                 f"quantity {self.quantity} needs an uncertainty",
                 "sigma, or a third column [coordinate, value, sigma]",
                 "sigma",
@@ -144,7 +145,7 @@ class Observation(_Model):
         if self.coordinate_units is not None and _DIMENSION[self.coordinate_units] != _COORDINATE_SI.get(
             self.quantity
         ):
-            raise _invalid(
+            raise invalid(
                 f"{self.coordinate_units} is not a unit of the {self.quantity} coordinate",
                 ", ".join(u for u, d in _DIMENSION.items() if d == _COORDINATE_SI[self.quantity]),
                 "coordinate_units",
@@ -152,16 +153,16 @@ class Observation(_Model):
         return self
 
 
-class Search(_Model):
+class Search(StrictModel):
     """Global search: differential evolution (Storn & Price 1997)."""
 
-    population: int = _field(8, "an integer >= 4 (members per generation = population x parameters)", ge=4)
-    generations: int = _field(15, "an integer >= 0 (0: the initial population only)", ge=0)
-    tolerance: float = _field(0.01, "a number >= 0 (relative spread of the misfits to stop at)", ge=0)
-    seed: int = _field(1, "an integer")
+    population: int = field(8, "an integer >= 4 (members per generation = population x parameters)", ge=4)
+    generations: int = field(15, "an integer >= 0 (0: the initial population only)", ge=0)
+    tolerance: float = field(0.01, "a number >= 0 (relative spread of the misfits to stop at)", ge=0)
+    seed: int = field(1, "an integer")
 
 
-class Refine(_Model):
+class Refine(StrictModel):
     """Local refinement: trust-region least squares (scipy least_squares 'trf').
 
     ``step`` is also the step of the Jacobian of the uncertainty stage.  It must exceed the
@@ -171,37 +172,37 @@ class Refine(_Model):
     standard deviations 3.5 times smaller than over 1-3 %, where they settle.
     """
 
-    evaluations: int = _field(10, "an integer >= 0 (0: no refinement)", ge=0)
-    step: float = _field(
+    evaluations: int = field(10, "an integer >= 0 (0: no refinement)", ge=0)
+    step: float = field(
         0.02, "a number in (0, 0.1]: finite-difference step as a fraction of the bounds", gt=0, le=0.1
     )
 
 
-class StudyOutput(_Model):
+class StudyOutput(StrictModel):
     """Where results go."""
 
-    directory: str | None = _field(None, "a directory path")
+    directory: str | None = field(None, "a directory path")
 
 
-class _Study(_Model):
-    base: str = _field(..., "the path of a scenario file, relative to this file", min_length=1)
-    description: str | None = _field(None, "free text")
-    set: dict[DottedKey, Any] = _field({}, "a mapping of dotted scenario keys to values (fixed overrides)")
-    parameters: dict[DottedKey, Parameter] = _field(
+class _Study(StrictModel):
+    base: str = field(..., "the path of a scenario file, relative to this file", min_length=1)
+    description: str | None = field(None, "free text")
+    set: dict[DottedKey, Any] = field({}, "a mapping of dotted scenario keys to values (fixed overrides)")
+    parameters: dict[DottedKey, Parameter] = field(
         ..., "a non-empty mapping of dotted scenario keys to {bounds: [lower, upper]}", min_length=1
     )
-    output: StudyOutput = _field(StudyOutput(), "a mapping with directory")
+    output: StudyOutput = field(StudyOutput(), "a mapping with directory")
 
 
 class CalibrationModel(_Study):
     """The calibration file as validated; attribute names are the YAML keys."""
 
-    experiments: dict[str, dict[DottedKey, Any]] = _field(
+    experiments: dict[str, dict[DottedKey, Any]] = field(
         {}, "a mapping of experiment names to mappings of dotted scenario keys to values"
     )
-    observations: list[Observation] = _field(..., "a non-empty list of {name, quantity, ...}", min_length=1)
-    search: Search = _field(Search(), "a mapping with population, generations, tolerance, seed")
-    refine: Refine = _field(Refine(), "a mapping with evaluations, step")
+    observations: list[Observation] = field(..., "a non-empty list of {name, quantity, ...}", min_length=1)
+    search: Search = field(Search(), "a mapping with population, generations, tolerance, seed")
+    refine: Refine = field(Refine(), "a mapping with evaluations, step")
 
     @model_validator(mode="after")
     def _check(self) -> CalibrationModel:
@@ -209,12 +210,12 @@ class CalibrationModel(_Study):
         seen: set[str] = set()
         for i, obs in enumerate(self.observations):
             if obs.name in seen:
-                raise _invalid(f"duplicate name {obs.name!r}", "a name used once", f"observations.{i}.name")
+                raise invalid(f"duplicate name {obs.name!r}", "a name used once", f"observations.{i}.name")
             seen.add(obs.name)
             if obs.experiment is None and len(names) > 1:
-                raise _invalid("which experiment?", ", ".join(names), f"observations.{i}.experiment")
+                raise invalid("which experiment?", ", ".join(names), f"observations.{i}.experiment")
             if obs.experiment is not None and obs.experiment not in names:
-                raise _invalid(
+                raise invalid(
                     f"unknown experiment {obs.experiment!r}", ", ".join(names), f"observations.{i}.experiment"
                 )
         return self
@@ -223,16 +224,16 @@ class CalibrationModel(_Study):
 class SensitivityModel(_Study):
     """The sensitivity file as validated."""
 
-    outputs: list[Scalar] = _field(..., "a non-empty list of " + ", ".join(SCALARS), min_length=1)
-    samples: int = _field(16, "a power of 2 >= 2 (base samples N; runs: N x (parameters + 2))", ge=2)
-    seed: int = _field(1, "an integer")
-    confidence: float = _field(0.95, "a number in (0, 1)", gt=0, lt=1)
+    outputs: list[Scalar] = field(..., "a non-empty list of " + ", ".join(SCALARS), min_length=1)
+    samples: int = field(16, "a power of 2 >= 2 (base samples N; runs: N x (parameters + 2))", ge=2)
+    seed: int = field(1, "an integer")
+    confidence: float = field(0.95, "a number in (0, 1)", gt=0, lt=1)
 
     @field_validator("samples")
     @classmethod
     def _power_of_two(cls, n: int) -> int:
         if n & (n - 1):
-            raise _invalid(f"got {n}", "a power of 2 >= 2 (Sobol' sequences are balanced at 2^k points)")
+            raise invalid(f"got {n}", "a power of 2 >= 2 (Sobol' sequences are balanced at 2^k points)")
         return n
 
 
@@ -269,7 +270,7 @@ class Sensitivity(BaseModel):
     config: SensitivityModel
 
 
-def _validate(model: type[_Model], path: Path, kind: str) -> tuple[Any, dict]:
+def _validate(model: type[StrictModel], path: Path, kind: str) -> tuple[Any, dict]:
     data, lines = scenario.read_yaml(path, kind)
     if not isinstance(data, dict):
         raise InputError(
@@ -280,17 +281,17 @@ def _validate(model: type[_Model], path: Path, kind: str) -> tuple[Any, dict]:
     except ValidationError as exc:
         messages = []
         for error in exc.errors():
-            loc, what, accepted = _message(error, model)
+            loc, what, accepted = describe(error, model)
             known = [loc[:n] for n in range(len(loc), 0, -1) if loc[:n] in lines]
             place = f" (line {lines[known[0]]})" if known else ""
             tail = f"; accepted: {accepted}" if accepted else ""
-            messages.append(f"{path}: {_dotted(loc)}{place}: {what}{tail}")
+            messages.append(f"{path}: {dotted(loc)}{place}: {what}{tail}")
         raise InputError("\n".join(messages)) from None
 
 
 def _at(path: Path, lines: dict, *key: str | int) -> str:
     line = f" (line {lines[key]})" if key in lines else ""
-    return f"{path}: {_dotted(key)}{line}"
+    return f"{path}: {dotted(key)}{line}"
 
 
 def _check_base(path: Path, lines: dict, config: _Study, experiments: dict[str, dict[str, Any]]) -> Path:

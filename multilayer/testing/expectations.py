@@ -22,7 +22,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from multilayer.io.scenario import EXPECT_KINDS, Expect, Scenario
+from multilayer.scenario import Scenario
+from multilayer.scenario.schema import EXPECT_KINDS, Expect
 
 
 @dataclass(frozen=True)

@@ -70,8 +70,8 @@ class ScenarioFile(pytest.File):
     def outcomes(self):
         """Run the scenario once (on first use) and return its outcomes, or the error message."""
         if not hasattr(self, "_outcomes"):
+            from multilayer import scenario as scenarios
             from multilayer.errors import InputError, RunError
-            from multilayer.io import scenario as scenarios
             from multilayer.testing import expectations as expect
 
             try:

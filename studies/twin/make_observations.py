@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from multilayer import scenario
 from multilayer.app import runner
-from multilayer.io import scenario
 from multilayer.io.observables import Measure
 
 HERE = Path(__file__).resolve().parent

@@ -15,8 +15,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from multilayer import scenario as scenarios
 from multilayer.errors import InputError, RunError
-from multilayer.io import scenario as scenarios
 from multilayer.testing import expectations as expect
 
 HELP = "run scenario files and check their expect: lists (regression pins and reference values)"

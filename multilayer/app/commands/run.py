@@ -9,8 +9,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from multilayer import scenario as scenarios
 from multilayer.app.commands import add_budget_arguments, add_output_argument, add_set_argument, budget
-from multilayer.io import scenario as scenarios
 
 HELP = "run a scenario file and write DIR/result.nc"
 

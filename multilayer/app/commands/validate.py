@@ -11,11 +11,11 @@ import argparse
 import sys
 from pathlib import Path
 
+from multilayer import scenario as scenarios
 from multilayer.app import resources
 from multilayer.app.commands import add_budget_arguments, add_set_argument, budget
 from multilayer.engine import initial_state
 from multilayer.errors import InputError
-from multilayer.io import scenario as scenarios
 
 HELP = "check scenario files without running them"
 

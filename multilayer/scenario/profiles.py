@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from multilayer.errors import InputError
-from multilayer.io.files import read_text
+from multilayer.scenario.files import read_text
 
 LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "km": 1e3}
 """Units accepted in a CSV header, with their value in metres."""

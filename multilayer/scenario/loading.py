@@ -1,0 +1,58 @@
+"""Loading a scenario: a YAML file or a mapping, ``--set`` overrides applied, validated
+into a :class:`~multilayer.scenario.schema.Scenario`; every problem of the input is
+reported at once as one :class:`~multilayer.errors.InputError` (docs/scenarios.md)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from pydantic import ValidationError
+
+from multilayer.errors import InputError
+from multilayer.scenario.messages import KeyPath, describe, dotted
+from multilayer.scenario.overrides import apply_overrides
+from multilayer.scenario.schema import Scenario
+from multilayer.scenario.source import read_yaml
+
+
+def from_dict(
+    data: Any,
+    *,
+    source: str | Path | None = None,
+    overrides: Sequence[str] = (),
+    lines: dict[KeyPath, int] | None = None,
+) -> Scenario:
+    """Validate a scenario mapping (as read from YAML); :class:`InputError` if invalid."""
+    where = str(source) if source is not None else "<scenario>"
+    if not isinstance(data, dict):
+        raise InputError(
+            f"{where}: (top level): got {type(data).__name__}; "
+            "accepted: a mapping of scenario keys (name, domain, material, ...)"
+        )
+    data, set_paths = apply_overrides(data, overrides)
+    lines = lines or {}
+    try:
+        directory = Path(source).parent if source is not None else None
+        scenario = Scenario.model_validate(data, context={"directory": directory})
+    except ValidationError as exc:
+        messages = []
+        for error in exc.errors():
+            loc, what, accepted = describe(error, Scenario)
+            if any(loc[: len(p)] == p or p[: len(loc)] == loc for p in set_paths):
+                place = " (from --set)"
+            else:
+                known = [loc[:n] for n in range(len(loc), 0, -1) if loc[:n] in lines]
+                place = f" (line {lines[known[0]]})" if known else ""
+            tail = f"; accepted: {accepted}" if accepted else ""
+            messages.append(f"{where}: {dotted(loc)}{place}: {what}{tail}")
+        raise InputError("\n".join(messages)) from None
+    scenario._source = Path(source) if source is not None else None
+    return scenario
+
+
+def load(path: str | Path, overrides: Sequence[str] = ()) -> Scenario:
+    """Read, override and validate a scenario file."""
+    data, lines = read_yaml(path)
+    return from_dict(data, source=Path(path), overrides=overrides, lines=lines)

@@ -1,0 +1,126 @@
+"""The messages of invalid input: one per problem, ``<file>: <key.path> (line N): <what is
+wrong>; accepted: <...>``.
+
+A schema field carries the "accepted" part of its messages as its description
+(:func:`field`); a validator reports a problem of a sub-key with :func:`invalid`; and
+:func:`describe` turns one pydantic error into the key path, what is wrong and what is
+accepted, which the loader prefixes with the file and the line.
+"""
+
+from __future__ import annotations
+
+import typing
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field
+from pydantic_core import PydanticCustomError
+
+KeyPath = tuple[str | int, ...]
+"""A key path in a YAML document: mapping keys and list indices."""
+
+
+def dotted(path: Sequence[str | int]) -> str:
+    """``domain.cells``: a key path as messages write it."""
+    return ".".join(str(p) for p in path) or "(top level)"
+
+
+def invalid(message: str, accepted: str, key: str = "") -> PydanticCustomError:
+    """A validation error at sub-key ``key`` of the model being validated."""
+    return PydanticCustomError(
+        "scenario", "{message}", {"message": message, "accepted": accepted, "key": key}
+    )
+
+
+def check_kind(model: BaseModel, kind: str, table: dict[str, tuple[tuple[str, ...], ...]]) -> None:
+    """Per-kind keys: ``table[value] = (required, optional)`` for ``model.<kind> == value``."""
+    value = getattr(model, kind)
+    required, optional = table[value]
+    accepted = ", ".join((kind, *required, *optional))
+    for key in required:
+        if getattr(model, key) is None:
+            raise invalid(f"{kind} {value} requires {key}", accepted, key)
+    extra = sorted(model.model_fields_set - {kind, *required, *optional})
+    if extra:
+        raise invalid(f"not a key of {kind} {value}", accepted, extra[0])
+
+
+def ordered(x_min: float, x_max: float) -> None:
+    """An interval [x_min, x_max] must have x_max > x_min."""
+    if not x_min < x_max:
+        raise invalid(f"x_max = {x_max} is not > x_min = {x_min}", f"a number > x_min = {x_min}", "x_max")
+
+
+def increasing(points: list[list[float]], key: str, what: str) -> None:
+    """A profile ``[[x, what], ...]`` (sub-key ``key``) needs 2 points or more with increasing x."""
+    xs = [x for x, _ in points]
+    if len(points) < 2 or any(b <= a for a, b in zip(xs, xs[1:])):
+        raise invalid(
+            f"{what} needs at least 2 points with strictly increasing x",
+            f"a list [[x, {what}], ...] with increasing x",
+            key,
+        )
+
+
+class StrictModel(BaseModel):
+    """A mapping of an input file: no unknown key, no type coercion, no inf or nan."""
+
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
+
+
+def field(default: Any = ..., accepted: str = "", **constraints: Any) -> Any:
+    """A field whose ``description`` is the 'accepted' part of error messages."""
+    return Field(default, description=accepted, **constraints)
+
+
+def accepted(loc: Sequence[str | int], last_is_key: bool, root: type[BaseModel]) -> str:
+    """The 'accepted' text of the field at ``loc`` (or the keys of the model holding it)
+    in the model ``root``."""
+    model: type[BaseModel] | None = root
+    info = None
+    mapping = False
+    for part in loc:
+        if isinstance(part, int) or mapping:  # a list index or a key of a mapping field
+            mapping = False
+            continue
+        if model is None or part not in model.model_fields:
+            return ""
+        info = model.model_fields[part]
+        mapping = typing.get_origin(info.annotation) is dict
+        model = model_in(info.annotation)
+    if last_is_key:
+        return ", ".join(model.model_fields) if model else ""
+    return info.description or "" if info else ""
+
+
+def model_in(annotation: Any) -> type[BaseModel] | None:
+    """The pydantic model inside ``annotation`` (through Optional, list, Annotated)."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    for arg in typing.get_args(annotation):
+        found = model_in(arg)
+        if found is not None:
+            return found
+    return None
+
+
+def describe(error: Mapping[str, Any], root: type[BaseModel]) -> tuple[KeyPath, str, str]:
+    """(key path, what is wrong, what is accepted) of one pydantic error in the model ``root``."""
+    loc, kind, ctx = tuple(error["loc"]), error["type"], error.get("ctx") or {}
+    if kind == "scenario":
+        key = tuple(int(k) if k.isdigit() else k for k in ctx["key"].split(".") if k)
+        return loc + key, ctx["message"], ctx["accepted"]
+    if kind == "extra_forbidden":
+        return loc, "unknown key", accepted(loc[:-1], last_is_key=True, root=root)
+    if kind == "missing":
+        return loc, "required key is missing", accepted(loc, last_is_key=False, root=root)
+    got = repr(error.get("input"))
+    got = got if len(got) <= 60 else got[:57] + "..."
+    what = (
+        f"got {got}"
+        if kind == "literal_error"
+        else f"expected a mapping (got {got})"
+        if kind in ("model_type", "model_attributes_type")
+        else f"{error['msg']} (got {got})"
+    )
+    return loc, what, accepted(loc, last_is_key=False, root=root)

@@ -1,0 +1,83 @@
+"""``--set KEY=VALUE`` overrides of a scenario mapping, and the overrides of a mapping of
+dotted keys (how sweeps and studies set their parameters)."""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Sequence
+from typing import Any
+
+import yaml
+
+from multilayer.errors import InputError
+from multilayer.scenario.messages import KeyPath, dotted
+from multilayer.scenario.source import Loader, format_value
+
+
+def as_overrides(values: dict[str, Any]) -> list[str]:
+    """``KEY=VALUE`` overrides (as :func:`apply_overrides` reads them) of a mapping of
+    dotted keys to values."""
+    return [f"{key}={format_value(value)}" for key, value in values.items()]
+
+
+def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> tuple[dict, list[KeyPath]]:
+    """``data`` with ``"dotted.key=value"`` overrides applied (value read as YAML).
+
+    List entries are addressed by index (``initial.0.thickness``); missing mappings
+    along the path are created, so keys unknown to the schema surface in validation.
+    ``"dotted.key+=value"`` appends ``value`` to the list at ``dotted.key`` (created if
+    missing): ``initial+={shape: layer, thickness: 0.002}``.
+    """
+    data = copy.deepcopy(data)
+    paths: list[KeyPath] = []
+    for item in overrides:
+        key, sep, text = item.partition("=")
+        append = key.endswith("+")
+        key = key.removesuffix("+")
+        if not sep or not key:
+            raise InputError(
+                f"--set {item!r}: expected KEY=VALUE or KEY+=VALUE; accepted: a dotted key path "
+                "and a YAML value, e.g. domain.cells=200 or initial+={shape: layer, thickness: 0.002}"
+            )
+        try:
+            value = yaml.load(text, Loader=Loader)
+        except yaml.YAMLError as exc:
+            raise InputError(
+                f"--set {key}: malformed YAML value {text!r}; accepted: a YAML "
+                f"scalar, list or mapping ({getattr(exc, 'problem', exc)})"
+            ) from None
+        node: Any = data
+        path: KeyPath = ()
+        parts = key.split(".")
+        part: str | int
+        for depth, part in enumerate(parts):
+            if isinstance(node, list):
+                if not (part.isdigit() and int(part) < len(node)):
+                    raise InputError(
+                        f"--set {key}: {dotted(path)} has {len(node)} entries; "
+                        f"accepted indices: 0..{len(node) - 1}"
+                    )
+                part = int(part)
+            elif not isinstance(node, dict):
+                raise InputError(
+                    f"--set {key}: {dotted(path)} is a value, not a mapping; "
+                    f"accepted: a key path ending at {dotted(path)}"
+                )
+            path = (*path, part)
+            if depth < len(parts) - 1:
+                if isinstance(node, dict) and node.get(part) is None:
+                    node[part] = {}
+                node = node[part]
+            elif not append:
+                node[part] = value
+            else:
+                target = node[int(part)] if isinstance(node, list) else node.setdefault(part, [])
+                if not isinstance(target, list):
+                    raise InputError(
+                        f"--set {key}+=...: {dotted(path)} is not a list; "
+                        f"accepted: += on a list key (initial, base, expect), = elsewhere"
+                    )
+                target.append(value)
+                path = (*path, len(target) - 1)
+        paths.append(path)
+    return data, paths

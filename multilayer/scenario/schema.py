@@ -1,0 +1,605 @@
+"""The schema of scenario files: one strict pydantic model per YAML mapping.
+
+The keys are documented in docs/scenarios.md; the attribute names are the YAML keys.
+Each field's description is the "accepted" part of its messages
+(:mod:`multilayer.scenario.messages`).
+"""
+
+from __future__ import annotations
+
+import typing
+from pathlib import Path
+from typing import Annotated, Any, Literal, get_args
+
+import numpy as np
+import yaml
+from pydantic import (
+    Field,
+    PrivateAttr,
+    Strict,
+    ValidationError,
+    ValidationInfo,
+    field_validator,
+    model_serializer,
+    model_validator,
+)
+
+from multilayer.errors import InputError
+from multilayer.plugins import host as plugins
+from multilayer.plugins.contract import Material, Rheology
+from multilayer.scenario import profiles
+from multilayer.scenario.messages import (
+    StrictModel,
+    check_kind,
+    dotted,
+    field,
+    increasing,
+    invalid,
+    ordered,
+)
+
+Quantity = Literal["front_final", "mass_final", "runout", "max_speed_final", "static_interface_mean_final"]
+QUANTITIES: tuple[str, ...] = get_args(Quantity)
+"""Quantities an ``expect`` entry can check (see multilayer.results.summary)."""
+
+_FRACTION_SUM_TOLERANCE = 1e-6
+
+
+Point = Annotated[list[float], Field(min_length=2, max_length=2)]
+
+
+class Domain(StrictModel):
+    """Computational domain along the slope and its layers."""
+
+    x_min: float = field(..., "a number (m)")
+    x_max: float = field(..., "a number > x_min (m)")
+    cells: int = field(..., "an integer >= 1", ge=1)
+    layers: int = field(1, "an integer >= 1", ge=1)
+    layer_fractions: Any = field(
+        "uniform", "'uniform', a list of `layers` numbers > 0 summing to 1, or {geometric: r > 0}"
+    )
+    width: float | None = field(None, "a number > 0 (m)", gt=0)
+
+    @model_validator(mode="after")
+    def _check(self) -> Domain:
+        ordered(self.x_min, self.x_max)
+        accepted = Domain.model_fields["layer_fractions"].description or ""
+        value = self.layer_fractions
+        if isinstance(value, list):
+            if len(value) != self.layers or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and 0 < v < np.inf for v in value
+            ):
+                raise invalid(
+                    f"expected {self.layers} numbers > 0, got {value!r}", accepted, "layer_fractions"
+                )
+            if abs(sum(value) - 1) > _FRACTION_SUM_TOLERANCE:
+                raise invalid(f"fractions sum to {sum(value)!r}, not 1", accepted, "layer_fractions")
+        elif isinstance(value, dict):
+            ratio = value.get("geometric")
+            if (
+                set(value) != {"geometric"}
+                or isinstance(ratio, bool)
+                or not isinstance(ratio, (int, float))
+                or not 0 < ratio < np.inf
+            ):
+                raise invalid(f"got {value!r}", accepted, "layer_fractions")
+        elif value != "uniform":
+            raise invalid(f"got {value!r}", accepted, "layer_fractions")
+        return self
+
+    def fractions(self) -> np.ndarray:
+        """Layer fractions l_1..l_L (bottom to top), shape (L,), summing to 1.
+
+        ``uniform``: 1/L; a list: as given (renormalised to round-off);
+        ``{geometric: r}``: l_a proportional to r**(a-1) (thin layers at the bed for r > 1).
+        """
+        if isinstance(self.layer_fractions, list):
+            weights = np.asarray(self.layer_fractions, dtype=float)
+        elif isinstance(self.layer_fractions, dict):
+            weights = float(self.layer_fractions["geometric"]) ** np.arange(self.layers)
+        else:
+            weights = np.ones(self.layers)
+        return weights / weights.sum()
+
+
+class MaterialSpec(StrictModel):
+    """Material constants (SI)."""
+
+    density: float = field(..., "a number > 0 (kg/m^3)", gt=0)
+    grain_diameter: float = field(..., "a number > 0 (m)", gt=0)
+    particle_density: float | None = field(None, "a number > 0 (kg/m^3); default: density", gt=0)
+
+    @model_validator(mode="after")
+    def _default_particle_density(self) -> MaterialSpec:
+        if self.particle_density is None:
+            self.particle_density = self.density
+        return self
+
+    def as_material(self) -> Material:
+        """The :class:`multilayer.Material` handed to rheology plugins."""
+        rho_p = self.density if self.particle_density is None else self.particle_density
+        return Material(self.density, self.grain_diameter, rho_p)
+
+
+class PluginSpec(StrictModel):
+    """A rheology plugin chosen by ``name``; the other keys are its constructor arguments.
+
+    In YAML the spec is flat (``{name: jop_mu_i, mu_s: 0.48, ...}``); ``params`` holds the
+    validated keyword arguments (defaults filled in).
+    """
+
+    name: str = field(..., "a registered rheology name (see `multilayer plugins`)")
+    params: dict[str, Any] = Field(default_factory=dict)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _split(cls, data: Any) -> Any:
+        if isinstance(data, dict) and not ("params" in data and set(data) <= {"name", "params"}):
+            params = {k: v for k, v in data.items() if k != "name"}
+            return {"params": params, **({"name": data["name"]} if "name" in data else {})}
+        return data
+
+    @model_serializer
+    def _flat(self) -> dict[str, Any]:
+        return {"name": self.name, **self.params}
+
+    def checked(self, applies_to: str) -> PluginSpec:
+        """This spec with validated parameters, for a law applying to ``applies_to``."""
+        cls, problem = plugins.find(self.name, applies_to)
+        if problem or cls is None:
+            raise invalid(problem or self.name, ", ".join(plugins.available(applies_to)), "name")
+        try:
+            params = plugins.parameter_model(cls).model_validate(self.params).model_dump()
+            # an optional parameter left at None (e.g. mu_start) is not written out
+            params = {key: value for key, value in params.items() if value is not None}
+        except ValidationError as exc:
+            error = exc.errors()[0]
+            key = dotted(error["loc"])
+            message = (
+                f"unknown parameter of {self.name}"
+                if error["type"] == "extra_forbidden"
+                else f"missing parameter of {self.name}"
+                if error["type"] == "missing"
+                else f"{self.name}: {error['msg']} (got {error['input']!r})"
+            )
+            raise invalid(message, plugins.signature_text(cls), key) from None
+        try:
+            plugins.construct(cls, params)
+        except (TypeError, ValueError) as exc:
+            raise invalid(f"{self.name}: {exc}", plugins.signature_text(cls)) from None
+        return self.model_copy(update={"params": params})
+
+    def instantiate(self) -> Rheology:
+        """The plugin instance this spec describes."""
+        return plugins.instantiate(self)
+
+
+class BaseZone(StrictModel):
+    """Basal condition on [x_min, x_max] (unbounded where omitted)."""
+
+    condition: Literal["no_slip", "coulomb", "free_slip"] = field(
+        ..., "no_slip, coulomb (with mu) or free_slip"
+    )
+    mu: float | None = field(None, "a friction coefficient >= 0 (coulomb only)", ge=0)
+    x_min: float | None = field(None, "a number (m)")
+    x_max: float | None = field(None, "a number > x_min (m)")
+
+    @model_validator(mode="after")
+    def _check(self) -> BaseZone:
+        check_kind(
+            self,
+            "condition",
+            {
+                "no_slip": ((), ("x_min", "x_max")),
+                "coulomb": (("mu",), ("x_min", "x_max")),
+                "free_slip": ((), ("x_min", "x_max")),
+            },
+        )
+        if self.x_min is not None and self.x_max is not None:
+            ordered(self.x_min, self.x_max)
+        return self
+
+
+def _file_in(info: ValidationInfo, name: Path) -> Path:
+    """``name`` relative to the scenario file's directory (the working directory without one)."""
+    directory = (info.context or {}).get("directory") or Path.cwd()
+    return Path(directory) / name
+
+
+def _read_profile(read: typing.Callable[[], np.ndarray], key: str) -> list[list[float]]:
+    """Points of a profile read from a file: an :class:`InputError` (a bad file) becomes a
+    validation error of ``key``, reported with the scenario file and line."""
+    try:
+        return read().tolist()
+    except InputError as exc:
+        message, _, accepted = str(exc).partition("; accepted: ")
+        raise invalid(message, accepted, key) from None
+
+
+class Bed(StrictModel):
+    """Bed elevation b(x) on the inclined plane: flat, piecewise linear through points, or
+    read from a CSV file or a GeoTIFF DEM (turned into ``points`` on loading)."""
+
+    profile: Literal["flat", "points", "file", "dem"] | None = field(
+        None, "flat, points (with points), file (with file) or dem (with dem and polyline)"
+    )
+    points: list[Point] | None = field(None, "a list [[x, b], ...] with increasing x (m)")
+    file: Annotated[Path, Strict(False)] | None = field(
+        None, "a CSV file with a header 'x (m), z (m)' (units m, cm, mm or km), relative to the scenario"
+    )
+    frame: Literal["slope", "map"] | None = field(
+        None, "slope (x along the plane, z normal to it; default) or map (horizontal distance, elevation)"
+    )
+    dem: Annotated[Path, Strict(False)] | None = field(
+        None, "a GeoTIFF DEM, relative to the scenario (needs pip install 'multilayer[dem]')"
+    )
+    polyline: list[Point] | None = field(
+        None, "a list of at least 2 map points [[X, Y], ...] in the DEM's coordinates (m)"
+    )
+    spacing: float | None = field(None, "a number > 0 (m); default: the DEM's pixel size", gt=0)
+
+    _map_points: np.ndarray | None = PrivateAttr(None)
+    """A map-frame profile [[s, Z], ...], turned into ``points`` with the scenario's slope."""
+
+    @model_validator(mode="after")
+    def _check(self, info: ValidationInfo) -> Bed:
+        if self.profile is None:
+            self.profile = (
+                "dem"
+                if self.dem is not None
+                else "file"
+                if self.file is not None
+                else "points"
+                if self.points is not None
+                else "flat"
+            )
+        check_kind(
+            self,
+            "profile",
+            {
+                "flat": ((), ()),
+                "points": (("points",), ()),
+                "file": (("file",), ("frame",)),
+                "dem": (("dem", "polyline"), ("spacing",)),
+            },
+        )
+        if self.profile == "file":
+            path = _file_in(info, typing.cast(Path, self.file))
+            points = _read_profile(lambda: profiles.read_csv_profile(path, ("x", "z|b")), "file")
+            if self.frame == "map":
+                self._map_points = np.array(points, dtype=float)
+            else:
+                self.points = points
+        elif self.profile == "dem":
+            polyline = typing.cast(list[list[float]], self.polyline)
+            if len(polyline) < 2:
+                raise invalid(
+                    "needs at least 2 points", "a list [[X, Y], ...] of 2 or more points", "polyline"
+                )
+            path = _file_in(info, typing.cast(Path, self.dem))
+            self._map_points = np.array(
+                _read_profile(lambda: profiles.read_dem_profile(path, polyline, self.spacing), "dem"),
+                dtype=float,
+            )
+        if self.points is not None:
+            increasing(self.points, "points", "b")
+        return self
+
+    def in_slope_frame(self, slope_deg: float) -> None:
+        """Turn a map-frame profile (``frame: map`` or a DEM) into slope-frame ``points``."""
+        map_points = self._map_points
+        if map_points is not None:
+            source = self.dem or self.file
+            self.points = _read_profile(
+                lambda: profiles.map_to_slope_frame(map_points, slope_deg, str(source)),
+                f"bed.{'dem' if self.dem else 'file'}",
+            )
+            self._map_points = None
+
+    @model_serializer(mode="wrap")
+    def _as_points(self, handler: typing.Callable[[Bed], dict[str, Any]]) -> dict[str, Any]:
+        """A bed read from a file is recorded as its points, so the record stands alone."""
+        data = handler(self)
+        if self.profile in ("file", "dem"):
+            return {"profile": "points", "points": data["points"]}
+        return data
+
+
+class Velocity(StrictModel):
+    """Initial or inflow velocity profile over the depth (z above the bed)."""
+
+    profile: Literal["plug", "linear", "bagnold"] = field(..., "plug, linear or bagnold")
+    speed: float | None = field(None, "a number (m/s)")
+    shear_rate: float | None = field(None, "a number (1/s)")
+    from_height: float | None = field(None, "a number >= 0 (m); default 0", ge=0)
+    surface_speed: float | None = field(None, "a number (m/s)")
+
+    @model_validator(mode="after")
+    def _check(self) -> Velocity:
+        check_kind(
+            self,
+            "profile",
+            {
+                "plug": (("speed",), ()),
+                "linear": (("shear_rate",), ("from_height",)),
+                "bagnold": (("surface_speed",), ()),
+            },
+        )
+        if self.profile == "linear" and self.from_height is None:
+            self.from_height = 0.0
+        return self
+
+
+class InitialShape(StrictModel):
+    """One contribution to the initial thickness (contributions add up)."""
+
+    shape: Literal["layer", "rectangle", "profile"] = field(..., "layer, rectangle or profile")
+    thickness: float | None = field(None, "a number >= 0 (m); 0: no layer", ge=0)
+    x_min: float | None = field(None, "a number (m)")
+    x_max: float | None = field(None, "a number > x_min (m)")
+    height: float | None = field(None, "a number > 0 (m)", gt=0)
+    points: list[Point] | None = field(None, "a list [[x, h], ...] with increasing x, h >= 0 (m)")
+    file: Annotated[Path, Strict(False)] | None = field(
+        None, "a CSV file with a header 'x (m), h (m)' (units m, cm, mm or km), relative to the scenario"
+    )
+    velocity: Velocity | None = field(None, "a velocity profile; default: at rest")
+
+    @model_validator(mode="after")
+    def _check(self, info: ValidationInfo) -> InitialShape:
+        if self.shape == "profile" and self.file is not None:
+            if self.points is not None:
+                raise invalid("give points or file, not both", "points or file", "file")
+            path = _file_in(info, self.file)
+            self.points = _read_profile(lambda: profiles.read_csv_profile(path, ("x", "h")), "file")
+        check_kind(
+            self,
+            "shape",
+            {
+                "layer": (("thickness",), ("velocity",)),
+                "rectangle": (("x_min", "x_max", "height"), ("velocity",)),
+                "profile": (("points",), ("velocity", "file")),
+            },
+        )
+        if self.shape == "rectangle":
+            assert self.x_min is not None and self.x_max is not None  # required (checked above)
+            ordered(self.x_min, self.x_max)
+        if self.shape == "profile":
+            assert self.points is not None  # required (checked above)
+            increasing(self.points, "points", "h")
+            if any(h < 0 for _, h in self.points):
+                key = "file" if self.file is not None else "points"
+                raise invalid("negative thickness", "a list [[x, h], ...] with h >= 0", key)
+        return self
+
+    @model_serializer(mode="wrap")
+    def _as_points(self, handler: typing.Callable[[InitialShape], dict[str, Any]]) -> dict[str, Any]:
+        """A profile read from a file is recorded as its points, so the record stands alone."""
+        data = handler(self)
+        data.pop("file", None)
+        return data
+
+
+class Inflow(StrictModel):
+    """State imposed at an ``inflow`` boundary."""
+
+    thickness: float = field(..., "a number > 0 (m)", gt=0)
+    velocity: Velocity = field(..., "a velocity profile")
+
+
+Boundary = Literal["wall", "outflow", "inflow", "periodic"]
+
+
+class Boundaries(StrictModel):
+    """Boundary conditions at x_min (left) and x_max (right)."""
+
+    left: Boundary = field("wall", "wall, outflow, inflow or periodic")
+    right: Boundary = field("wall", "wall, outflow, inflow or periodic")
+    inflow: Inflow | None = field(None, "{thickness, velocity} (with an inflow side)")
+
+    @model_validator(mode="after")
+    def _check(self) -> Boundaries:
+        if (self.left == "periodic") != (self.right == "periodic"):
+            key = "right" if self.left == "periodic" else "left"
+            raise invalid("periodic must be set on both sides", "periodic on both sides", key)
+        has_inflow = "inflow" in (self.left, self.right)
+        if has_inflow and self.inflow is None:
+            raise invalid(
+                "an inflow side requires boundaries.inflow",
+                "{thickness: h, velocity: {profile: plug, speed: u}}",
+                "inflow",
+            )
+        if self.inflow is not None and not has_inflow:
+            raise invalid("inflow given but no side is inflow", "left: inflow or right: inflow", "inflow")
+        return self
+
+
+class GateSpec(StrictModel):
+    """A gate holding the initial column, lifted at the start of the run (engine/gate.py)."""
+
+    x: float = field(..., "a number in [domain.x_min, domain.x_max] (m); snapped to the nearest cell face")
+    lift_speed: float = field(
+        ..., "a number >= 0 (m/s), normal to the plane; .inf: instantaneous release", ge=0, allow_inf_nan=True
+    )
+
+
+class Time(StrictModel):
+    """Time stepping and output (s)."""
+
+    end: float = field(..., "a number > 0 (s)", gt=0)
+    cfl: float = field(0.45, "a number in (0, 1)", gt=0, lt=1)
+    output_interval: float = field(..., "a number > 0 (s)", gt=0)
+
+
+class Output(StrictModel):
+    """Where results go."""
+
+    directory: Annotated[Path, Strict(False)] | None = field(None, "a directory path; default results/<name>")
+
+
+ExpectKind = Literal["regression", "reference"]
+EXPECT_KINDS: tuple[str, ...] = get_args(ExpectKind)
+
+
+class Expect(StrictModel):
+    """A check on the run summary, passing when ``|actual - value| <= atol + rtol |value|``.
+
+    ``kind: regression`` pins ``value`` from the code's own output (it guards against
+    change, it validates nothing); ``kind: reference`` takes ``value`` from an exact
+    solution or a published result named in ``source``, the tolerance being justified by
+    that reference's uncertainty or by a convergence study.
+    """
+
+    kind: ExpectKind = field(
+        ..., "regression (a value pinned from the code's output) or reference (an exact or published value)"
+    )
+    quantity: Quantity = field(..., ", ".join(QUANTITIES))
+    value: float = field(..., "a number (SI)")
+    rtol: float | None = field(None, "a number >= 0", ge=0)
+    atol: float | None = field(None, "a number >= 0 (SI)", ge=0)
+    source: str | None = field(None, "text naming the exact solution or publication (author, year, equation)")
+
+    @model_validator(mode="after")
+    def _check(self) -> Expect:
+        if self.rtol is None and self.atol is None:
+            raise invalid("needs a tolerance", "rtol and/or atol", "rtol")
+        common = ("quantity", "value", "rtol", "atol")
+        check_kind(self, "kind", {"regression": ((), common), "reference": (("source",), common)})
+        if self.source is not None and not self.source.strip():
+            raise invalid("source is empty", "text naming the exact solution or publication", "source")
+        return self
+
+
+THREADS_ACCEPTED = "auto or an integer >= 1 (the environment variable MULTILAYER_THREADS wins)"
+
+
+class Numerics(StrictModel):
+    """Solver settings; the defaults suit every shipped scenario."""
+
+    vertical_solver: Literal["kernel", "fipy"] = field("kernel", "kernel or fipy")
+    transport_solver: Literal["kernel", "numpy"] = field("kernel", "kernel or numpy")
+    threads: Any = field("auto", THREADS_ACCEPTED)
+    order: Literal[1, 2] = field(2, "1 or 2 (order of the transport step in x and t)")
+    tolerance: float = field(1e-10, "a number > 0", gt=0)
+    max_iterations: int = field(200, "an integer >= 1", ge=1)
+    dry_threshold: float = field(1e-6, "a number > 0 (m)", gt=0)
+    front_threshold: float = field(1e-3, "a number > 0 (m)", gt=0)
+
+    @field_validator("threads")
+    @classmethod
+    def _threads(cls, value: Any) -> int | str:
+        if value == "auto" or (type(value) is int and value >= 1):
+            return value
+        raise invalid(f"got {value!r}", THREADS_ACCEPTED)
+
+
+DEFAULT_PRESSURE_LAYERS = 4  # the choice of docs/nonhydrostatic.md, "Fewer pressure layers"
+
+
+class Model(StrictModel):
+    """Model options: the pressure that enters the stresses (docs/nonhydrostatic.md)."""
+
+    pressure: Literal["hydrostatic", "bim2016", "non_hydrostatic"] = field(
+        "hydrostatic", "hydrostatic, bim2016 or non_hydrostatic"
+    )
+    pressure_layers: int | None = field(
+        None,
+        "an integer from 1 to domain.layers (with pressure: non_hydrostatic; default "
+        f"min({DEFAULT_PRESSURE_LAYERS}, layers))",
+        strict=True,
+    )
+
+    def resolved_pressure_layers(self, layers: int) -> int:
+        """The pressure layers of the non-hydrostatic option (docs/nonhydrostatic.md)."""
+        return min(DEFAULT_PRESSURE_LAYERS, layers) if self.pressure_layers is None else self.pressure_layers
+
+
+class Scenario(StrictModel):
+    """A validated scenario: attribute names are the YAML keys (docs/scenarios.md)."""
+
+    name: str = field(
+        ...,
+        "letters, digits, '-', '_' and '.', starting with a letter or digit",
+        pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]*$",
+    )
+    description: str | None = field(None, "free text")
+    gravity: float = field(9.81, "a number > 0 (m/s^2)", gt=0)
+    slope_deg: float = field(0.0, "a number in (-90, 90) (degrees)", gt=-90, lt=90)
+    domain: Domain = field(..., "a mapping with x_min, x_max, cells")
+    material: MaterialSpec = field(..., "a mapping with density, grain_diameter")
+    rheology: PluginSpec = field(..., "{name: <bulk rheology>, <parameters>}")
+    walls: PluginSpec | None = field(None, "{name: <walls rheology>, <parameters>}")
+    base: list[BaseZone] = field(
+        [BaseZone(condition="no_slip")], "a non-empty list of {condition, ...}", min_length=1
+    )
+    bed: Bed = field(Bed(), "{profile: flat} or {points: [[x, b], ...]}")
+    initial: list[InitialShape] = field([], "a list of {shape, ...}")
+    boundaries: Boundaries = field(Boundaries(), "a mapping with left, right")
+    gate: GateSpec | None = field(None, "{x, lift_speed}; default: no gate")
+    time: Time = field(..., "a mapping with end, output_interval")
+    output: Output = field(Output(), "a mapping with directory")
+    expect: list[Expect] = field([], "a list of {kind, quantity, value, rtol, atol, source}")
+    numerics: Numerics = field(Numerics(), "a mapping of solver settings")
+    model: Model = field(Model(), "a mapping with pressure")
+
+    _source: Path | None = PrivateAttr(None)
+
+    @field_validator("rheology")
+    @classmethod
+    def _bulk(cls, spec: PluginSpec) -> PluginSpec:
+        return spec.checked("bulk")
+
+    @field_validator("walls")
+    @classmethod
+    def _walls(cls, spec: PluginSpec | None) -> PluginSpec | None:
+        return None if spec is None else spec.checked("walls")
+
+    @model_validator(mode="after")
+    def _check(self) -> Scenario:
+        self.bed.in_slope_frame(self.slope_deg)
+        count = self.model.pressure_layers
+        misplaced = self.model.pressure != "non_hydrostatic"
+        if count is not None and (misplaced or not 1 <= count <= self.domain.layers):
+            raise invalid(
+                f"got {count!r} with pressure {self.model.pressure} and {self.domain.layers} layers",
+                f"an integer from 1 to domain.layers = {self.domain.layers}, with pressure: non_hydrostatic",
+                "model.pressure_layers",
+            )
+        if self.walls is not None and self.domain.width is None:
+            raise invalid(
+                "walls need the channel width domain.width",
+                "domain.width > 0 (m) together with walls",
+                "walls",
+            )
+        if self.gate is not None and not self.domain.x_min <= self.gate.x <= self.domain.x_max:
+            raise invalid(
+                f"gate at x = {self.gate.x} is outside the domain",
+                f"a number in [{self.domain.x_min}, {self.domain.x_max}] (m)",
+                "gate.x",
+            )
+        covered, gap = self.domain.x_min, None
+        for lo, hi in sorted(
+            (-np.inf if z.x_min is None else z.x_min, np.inf if z.x_max is None else z.x_max)
+            for z in self.base
+        ):
+            if lo > covered:
+                gap = (covered, min(lo, self.domain.x_max))
+                break
+            covered = max(covered, hi)
+        if gap is None and covered < self.domain.x_max:
+            gap = (covered, self.domain.x_max)
+        if gap is not None:
+            raise invalid(
+                f"no basal condition on x in [{gap[0]}, {gap[1]}]",
+                "entries whose x ranges cover [domain.x_min, domain.x_max]",
+                "base",
+            )
+        return self
+
+    @property
+    def source(self) -> Path | None:
+        """The scenario file, or None for a scenario built from a mapping."""
+        return self._source
+
+    def resolved_yaml(self) -> str:
+        """The scenario with every default filled in, as YAML that loads back to it."""
+        return yaml.safe_dump(self.model_dump(mode="json", exclude_none=True), sort_keys=False)

@@ -1,0 +1,88 @@
+"""The YAML text of a scenario (or sweep, calibration, sensitivity) file: parsing with
+the line of every key, and writing values back as the loader reads them.
+
+The loader is PyYAML's safe loader with the YAML 1.2 float rule (``1e-3`` is a float);
+:func:`read_yaml` returns the data and the 1-based line of every key path, which the
+messages of :mod:`multilayer.scenario.messages` quote.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from multilayer.errors import InputError
+from multilayer.scenario.files import read_text
+from multilayer.scenario.messages import KeyPath, dotted
+
+
+class Loader(yaml.SafeLoader):
+    """SafeLoader that also reads ``1e-3`` and ``2E5`` as floats (the YAML 1.2 rule)."""
+
+
+Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?[0-9][0-9_]*(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+    list("-+0123456789"),
+)
+
+
+def line_map(node: yaml.Node, where: str, path: KeyPath = (), lines=None) -> dict[KeyPath, int]:
+    """1-based line of every key path in a composed YAML document; rejects duplicate keys."""
+    lines = {} if lines is None else lines
+    if isinstance(node, yaml.MappingNode):
+        for key_node, value_node in node.value:
+            child = (*path, key_node.value)
+            line = key_node.start_mark.line + 1
+            if child in lines:
+                raise InputError(
+                    f"{where}: {dotted(child)} (line {line}): duplicate key; "
+                    f"accepted: each key once (first at line {lines[child]})"
+                )
+            lines[child] = line
+            line_map(value_node, where, child, lines)
+    elif isinstance(node, yaml.SequenceNode):
+        for index, item in enumerate(node.value):
+            lines[(*path, index)] = item.start_mark.line + 1
+            line_map(item, where, (*path, index), lines)
+    return lines
+
+
+def parse_yaml(text: str, where: str) -> tuple[Any, dict[KeyPath, int]]:
+    """The data of a YAML text and :func:`line_map`; :class:`InputError` naming ``where``
+    and the line if it is malformed."""
+    try:
+        node = yaml.compose(text, Loader=Loader)
+        data = yaml.load(text, Loader=Loader)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        line = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc)
+        raise InputError(
+            f"{where}{line}: malformed YAML: {problem}; accepted: a YAML mapping of scenario keys"
+        ) from None
+    return data, ({} if node is None else line_map(node, where))
+
+
+def read_yaml(path: str | Path, kind: str = "scenario") -> tuple[Any, dict[KeyPath, int]]:
+    """The parsed YAML of ``path`` and the line of every key path; ``InputError`` if the
+    file is missing, unreadable or malformed (``kind`` names the expected file)."""
+    path = Path(path)
+    text = read_text(path, f"a path to a {kind} YAML file", "a readable UTF-8 YAML file")
+    return parse_yaml(text, str(path))
+
+
+class Dumper(yaml.SafeDumper):
+    """SafeDumper that quotes every string the scenario loader would read as another type
+    (such as ``1e-5``, a float there)."""
+
+    yaml_implicit_resolvers = Loader.yaml_implicit_resolvers
+
+
+def format_value(value: Any) -> str:
+    """YAML text of ``value`` that reads back to the same value, as ``--set`` parses it."""
+    text = yaml.dump(value, Dumper=Dumper, default_flow_style=True, width=2**31)
+    return text.removesuffix("...\n").strip()
