@@ -24,6 +24,7 @@ import csv
 import hashlib
 import itertools
 import json
+import math
 import os
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -39,6 +40,9 @@ from multilayer.scenario import as_overrides, format_value
 
 SWEEP_KEYS = ("base", "parameters", "zip", "output", "description")
 """Top-level keys accepted in a sweep file."""
+
+MAX_MEMBERS = 100_000
+"""Most members of a sweep (each a run and a directory)."""
 
 MARKER = "member.json"
 """Written into a member's directory once its run has completed."""
@@ -160,6 +164,29 @@ def load(path: str | Path) -> Sweep:
             + ")",
             "lists of equal length with zip: true",
         )
+
+    count = len(next(iter(parameters.values()))) if paired else math.prod(lengths.values())
+    if count > MAX_MEMBERS:
+        raise bad(
+            ("parameters",),
+            f"{count} members ({' x '.join(str(n) for n in lengths.values())})",
+            f"at most {MAX_MEMBERS} members: fewer values, or several sweeps",
+        )
+    # the members' overrides as they will read (0.4 and 0.40 are one value): a product of
+    # lists has two equal members when one list holds a value twice; paired lists, when a
+    # tuple of values comes twice
+    columns = {key: [format_value(value) for value in values] for key, values in parameters.items()}
+    pairs = [", ".join(values) for values in zip(*columns.values())]
+    for key, texts in {"zip": pairs}.items() if paired else columns.items():
+        seen: dict[str, int] = {}
+        for index, text in enumerate(texts):
+            if text in seen:
+                raise bad(
+                    ("zip",) if paired else ("parameters", key),
+                    f"entries {seen[text]} and {index} give the same member ({text}): it would run twice",
+                    "distinct members",
+                )
+            seen[text] = index
 
     output = data.get("output", {})
     if not isinstance(output, dict):

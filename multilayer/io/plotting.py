@@ -37,6 +37,11 @@ _VELOCITY = colormaps["viridis"].with_extremes(bad=_AT_REST)
 """Colour map of u; masked cells (static material, u == 0 exactly) are grey."""
 _REPRESENTATIVE = 3
 """Number of columns drawn in the profile figures when no ``--at`` is given."""
+MAX_TIMES = 12
+"""Most output times (``--times``) and columns (``--at``) drawn in one figure."""
+MAX_FRAMES = 600
+"""Most frames of an animation (one minute at 10 frames per second): output times spread
+evenly over the run when it has more."""
 
 
 def plot_run(
@@ -55,6 +60,9 @@ def plot_run(
     section over time (:func:`animate_section`).  Returns the paths written and
     notes on how the run ended if it did not complete (module docstring).
     """
+    if not 1 <= times <= MAX_TIMES or len(at) > MAX_TIMES:
+        given = f"--times {times}" if not 1 <= times <= MAX_TIMES else f"{len(at)} --at positions"
+        raise InputError(f"{given}: accepted: 1 to {MAX_TIMES} times and at most {MAX_TIMES} --at positions")
     ds = open_result(directory)
     end = ending(ds.attrs)
     notes = [f"{end}; drawn up to t = {float(ds['time'][-1]):.6g} s"] if end else []
@@ -217,7 +225,8 @@ def section_figure(ds: xr.Dataset, name: str, times: int = 4) -> Figure:
 
 
 def animate_section(ds: xr.Dataset, name: str, stem: Path, fps: int = 10) -> Path:
-    """The X-Z section at every output time, one frame each, with the time as a label.
+    """The X-Z section at every output time (at most :data:`MAX_FRAMES`), one frame each,
+    with the time as a label.
 
     Written as ``stem.mp4`` when Matplotlib finds ffmpeg, else as ``stem.gif`` (Pillow,
     installed with Matplotlib).  Returns the path written.
@@ -247,7 +256,7 @@ def animate_section(ds: xr.Dataset, name: str, stem: Path, fps: int = 10) -> Pat
     fig.canvas.draw()
     fig.set_layout_engine("none")  # the layout of the first frame holds for all
 
-    movie = animation.FuncAnimation(fig, frame, frames=ds.sizes["time"], repeat=False)
+    movie = animation.FuncAnimation(fig, frame, frames=_time_indices(ds, MAX_FRAMES), repeat=False)
     writer: animation.AbstractMovieWriter
     if animation.writers.is_available("ffmpeg"):
         path, writer = stem.with_suffix(".mp4"), animation.FFMpegWriter(fps=fps)

@@ -87,6 +87,11 @@ class Domain(StrictModel):
             raise invalid(f"got {value!r}", accepted, "layer_fractions")
         return self
 
+    def centres(self) -> np.ndarray:
+        """The cell centres ``x_min + (i + 1/2) dx`` (m), as the engine's mesh computes them."""
+        dx = (self.x_max - self.x_min) / self.cells
+        return self.x_min + dx * (np.arange(self.cells) + 0.5)
+
     def fractions(self) -> np.ndarray:
         """Layer fractions l_1..l_L (bottom to top), shape (L,), summing to 1.
 
@@ -295,6 +300,17 @@ class Bed(StrictModel):
                 f"bed.{'dem' if self.dem else 'file'}",
             )
             self._map_points = None
+
+    def resample(self, domain: Domain) -> None:
+        """A profile read from a file with more points than ``domain`` has cells, sampled
+        once at the cell centres (where the engine samples the bed) and at the two ends:
+        the run is the same, and its record (every checkpoint, ``result.nc``) stays the
+        size of the mesh."""
+        if self.profile not in ("file", "dem") or not self.points or len(self.points) <= domain.cells + 2:
+            return
+        px, pb = np.asarray(self.points, dtype=float).T
+        x = np.concatenate([[domain.x_min], domain.centres(), [domain.x_max]])
+        self.points = np.column_stack([x, np.interp(x, px, pb)]).tolist()
 
     @model_serializer(mode="wrap")
     def _as_points(self, handler: typing.Callable[[Bed], dict[str, Any]]) -> dict[str, Any]:
@@ -556,6 +572,7 @@ class Scenario(StrictModel):
     @model_validator(mode="after")
     def _check(self) -> Scenario:
         self.bed.in_slope_frame(self.slope_deg)
+        self.bed.resample(self.domain)
         count = self.model.pressure_layers
         misplaced = self.model.pressure != "non_hydrostatic"
         if count is not None and (misplaced or not 1 <= count <= self.domain.layers):
