@@ -99,7 +99,9 @@ def run(
         raise InputError(
             f"{outdir}: nothing to resume (no such directory); run without --resume to start afresh"
         )
-    resources.check(scenario, outdir, budget or resources.Budget())
+    budget = budget or resources.Budget()
+    resources.check(scenario, outdir, budget)
+    resources.check_steps(scenario, budget)
     outdir.mkdir(parents=True, exist_ok=True)
     notices: list[str] = []
 
@@ -118,7 +120,7 @@ def run(
         say = (lambda text: print(f"multilayer: {text}", file=sys.stderr)) if shown(quiet) else None
         try:
             with compile_notice(log, say):
-                _run(scenario, outdir, ckpt, quiet, log, stop_when)
+                _run(scenario, outdir, ckpt, quiet, log, stop_when, budget.step_limit)
         except InputError as exc:  # found once the log was open: the log says why it ends there
             log.error("%s", exc)
             raise
@@ -134,6 +136,7 @@ def _run(
     quiet: bool | None,
     log: logging.Logger,
     stop_when: Callable[[], bool] | None,
+    step_limit: float,
 ) -> None:
     log.info(
         "%s run of scenario %r from %s into %s",
@@ -176,6 +179,12 @@ def _run(
     def on_step(sim: Any, dt: float) -> None:
         progress(sim, dt)
         stop.poll()
+        if sim.steps >= step_limit:
+            raise RunError(
+                f"the run has taken {sim.steps} time steps, its bound (--max-steps, default "
+                f"{resources.MAX_STEPS}); continue with: {_resume_command(scenario, outdir)} --max-steps "
+                f"{2 * sim.steps}"
+            )
 
     sim.poll = stop.poll  # also between the kernel calls of a step
     status = "failed"

@@ -23,6 +23,9 @@ STREAMING = 0xFFFFFFFF
 """The record count of a file still being streamed (numrecs not yet written)."""
 NUMRECS_OFFSET = 4
 """Offset of the record count in the file (after the four bytes ``CDF`` + version)."""
+HEADER_SPACE = 16384
+"""Bytes a writer keeps free in the header for the attributes it writes last: netCDF-C
+moves every record when the header grows."""
 MAX_HEADER = 1 << 30
 """Largest header read (bytes): a longer one is taken as damaged."""
 

@@ -40,7 +40,7 @@ from xarray.backends.locks import HDF5_LOCK, NETCDFC_LOCK, combine_locks
 
 from multilayer.errors import InputError, RunError
 from multilayer.io import disk
-from multilayer.io.netcdf_layout import NUMRECS_OFFSET, LayoutError, read_layout
+from multilayer.io.netcdf_layout import HEADER_SPACE, NUMRECS_OFFSET, LayoutError, read_layout
 from multilayer.provenance import provenance
 
 RESULT_FILE = "result.nc"
@@ -150,8 +150,6 @@ VARIABLES: dict[str, tuple[tuple[str, ...], dict[str, str]]] = {
 }
 
 
-HEADER_SPACE = 16384
-"""Bytes kept free in the header of ``result.nc`` for the attributes written at the end."""
 FAILURE_LENGTH = 8000
 """Characters of the failure message kept in the ``failure`` attribute (run.log has it all)."""
 

@@ -88,14 +88,23 @@ def add_budget_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="SIZE",
         help="refuse a run whose result.nc would exceed SIZE, e.g. 2G (default: the free disk space)",
     )
-    parser.add_argument("--force", action="store_true", help="run even beyond the memory and output budget")
+    parser.add_argument(
+        "--max-steps",
+        type=positive_int,
+        metavar="N",
+        help="refuse a run estimated to take more than N time steps, and stop one that gets there "
+        "(default 10000000; validate prints the estimate)",
+    )
+    parser.add_argument(
+        "--force", action="store_true", help="run even beyond the memory, output and step budget"
+    )
 
 
 def budget(args: argparse.Namespace):
     """The :class:`~multilayer.app.resources.Budget` of the options of :func:`add_budget_arguments`."""
     from multilayer.app.resources import Budget
 
-    return Budget(args.max_memory, args.max_output, args.force)
+    return Budget(args.max_memory, args.max_output, args.force, args.max_steps)
 
 
 def add_output_argument(parser: argparse.ArgumentParser, default: str) -> None:
