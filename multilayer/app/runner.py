@@ -31,6 +31,7 @@ import os
 import shlex
 import signal
 import sys
+import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -100,16 +101,22 @@ def run(
             f"{outdir}: nothing to resume (no such directory); run without --resume to start afresh"
         )
     budget = budget or resources.Budget()
-    resources.check(scenario, outdir, budget)
-    resources.check_steps(scenario, budget)
-    outdir.mkdir(parents=True, exist_ok=True)
+    created = _output_directory(outdir)
+    try:
+        resources.check(scenario, outdir, budget)
+        resources.check_steps(scenario, budget)
+    except InputError:  # refused before anything is written: the directories made go again
+        for directory in created:
+            directory.rmdir()
+        raise
     notices: list[str] = []
 
     def notice(message: str) -> None:
         notices.append(message)
         print(f"multilayer: warning: {message}", file=sys.stderr)
 
-    with locked(outdir, notice):
+    stop = _StopRequest(stop_when)
+    with locked(outdir, notice), stop.installed():
         ckpt = _checkpoint_to_resume(scenario, outdir) if resume else None
         log = logging.Logger("multilayer.run")
         handler = _LogFile(outdir / LOG_FILE, mode="a" if resume else "w", encoding="utf-8")
@@ -120,13 +127,41 @@ def run(
         say = (lambda text: print(f"multilayer: {text}", file=sys.stderr)) if shown(quiet) else None
         try:
             with compile_notice(log, say):
-                _run(scenario, outdir, ckpt, quiet, log, stop_when, budget.step_limit)
+                _run(scenario, outdir, ckpt, quiet, log, stop, budget.step_limit)
         except InputError as exc:  # found once the log was open: the log says why it ends there
             log.error("%s", exc)
+            raise
+        except Interrupted as exc:
+            if stop.starting:  # before anything was computed: nothing to keep, the lock goes
+                log.warning("%s", exc)
+                print(f"multilayer: {exc}", file=sys.stderr)
             raise
         finally:
             handler.close()
         return summary(outdir / RESULT_FILE, checked=False)  # every state passed the state guard
+
+
+def _output_directory(outdir: Path) -> list[Path]:
+    """Make ``outdir`` and check that files can be written there; the directories made,
+    deepest first.  :class:`InputError` naming it (``-o DIR`` or ``output.directory``)
+    otherwise."""
+    accepted = "accepted: an output directory (-o DIR or output.directory) that can be created and written"
+    try:
+        str(outdir).encode("utf-8")
+    except UnicodeEncodeError:
+        raise InputError(
+            f"{outdir}: not a UTF-8 name (netCDF files cannot be named by other bytes); {accepted}"
+        ) from None
+    missing = [path for path in (outdir, *outdir.parents) if not path.exists()]
+    try:
+        outdir.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=outdir):
+            pass
+    except OSError as exc:
+        raise InputError(
+            f"{outdir}: cannot be created or written ({exc.strerror or exc}); {accepted}"
+        ) from None
+    return missing
 
 
 def _run(
@@ -135,7 +170,7 @@ def _run(
     ckpt: Checkpoint | None,
     quiet: bool | None,
     log: logging.Logger,
-    stop_when: Callable[[], bool] | None,
+    stop: _StopRequest,
     step_limit: float,
 ) -> None:
     log.info(
@@ -148,6 +183,7 @@ def _run(
     log.info("parameters:\n%s", scenario.resolved_yaml().rstrip())
     sim = Simulation(scenario)
     result_path, ckpt_path = outdir / RESULT_FILE, outdir / CHECKPOINT_FILE
+    stop.starting = False  # from here a signal is honoured between kernel calls, the state kept
     if ckpt is None:
         ckpt_path.unlink(missing_ok=True)
         writer = ResultWriter(result_path, scenario, sim)
@@ -174,7 +210,6 @@ def _run(
     log.info("%d cells x %d layers; output times up to %g s", n_cells, n_layers, scenario.time.end)
     times = output_times(scenario.time.end, scenario.time.output_interval)
     progress = Progress(scenario.time.end, n_cells * n_layers, quiet=quiet)
-    stop = _StopRequest(stop_when)
 
     def on_step(sim: Any, dt: float) -> None:
         progress(sim, dt)
@@ -189,20 +224,19 @@ def _run(
     sim.poll = stop.poll  # also between the kernel calls of a step
     status = "failed"
     try:
-        with stop.installed():
-            for t_out in times[times > sim.t + 1e-9 * scenario.time.end]:
-                sim.advance(t_out, on_step=on_step)
-                sim.check_state()
-                diag = writer.write(sim)
-                saved_t = checkpoint()
-                log.info(
-                    "output t = %.6g s: step %d, front %.6g m, mass %.6g m2, wall %.1f s",
-                    sim.t,
-                    sim.steps,
-                    diag["front"],
-                    diag["mass"],
-                    wall_time(),
-                )
+        for t_out in times[times > sim.t + 1e-9 * scenario.time.end]:
+            sim.advance(t_out, on_step=on_step)
+            sim.check_state()
+            diag = writer.write(sim)
+            saved_t = checkpoint()
+            log.info(
+                "output t = %.6g s: step %d, front %.6g m, mass %.6g m2, wall %.1f s",
+                sim.t,
+                sim.steps,
+                diag["front"],
+                diag["mass"],
+                wall_time(),
+            )
         status = "completed"
     except (_Stop, KeyboardInterrupt) as exc:
         status = "interrupted"
@@ -352,6 +386,8 @@ class _StopRequest:
 
     signum: int = signal.SIGINT
     requested = False
+    starting = True
+    """Until the result file is opened a signal stops at once: nothing is computed yet."""
 
     def __init__(self, stop_when: Callable[[], bool] | None = None) -> None:
         self.stop_when = stop_when
@@ -381,6 +417,13 @@ class _StopRequest:
                 signal.signal(signum, handler)
 
     def _handle(self, signum: int, frame: FrameType | None) -> None:
+        if self.starting:
+            name = "Ctrl-C (SIGINT)" if signum == signal.SIGINT else signal.Signals(signum).name
+            raise Interrupted(
+                f"stopped by {name} during start-up, before the first step: nothing was computed "
+                "or written; run the command again to start the run",
+                signum,
+            )
         if self.requested:
             raise Interrupted(f"stopped at once by a second signal ({signal.Signals(signum).name})", signum)
         self.signum = signum

@@ -213,13 +213,13 @@ class ResultWriter:
             {
                 "Conventions": "CF-1.8",
                 "title": f"multilayer simulation: {scenario.name}",
-                "institution": os.environ.get("MULTILAYER_INSTITUTION", "not specified"),
+                "institution": _text(os.environ.get("MULTILAYER_INSTITUTION", "not specified")),
                 "source": f"multilayer {origin.version} (commit {origin.commit}): multilayer "
                 f"shallow-flow model of dense granular flows; X-sigma mesh and reference formulations "
                 f"in FiPy {fipy.__version__}, state in numpy, transport and vertical step by numba "
                 f"kernels tested equal to them (transport_solver: {scenario.numerics.transport_solver}, "
                 f"vertical_solver: {scenario.numerics.vertical_solver})",
-                "history": f"{_now()} multilayer run {scenario.source or scenario.name}",
+                "history": _text(f"{_now()} multilayer run {scenario.source or scenario.name}"),
                 "references": "Fernandez-Nieto, Garres-Diaz, Mangeney & Narbona-Reina "
                 "(2016) J. Fluid Mech. 798; Bouchut, Ionescu & Mangeney "
                 "(2016) Commun. Math. Sci. 14",
@@ -326,6 +326,13 @@ def _abandon(ds: netCDF4.Dataset) -> None:
     """Forget a dataset whose close failed: netCDF-C has released it, and netCDF4 would
     close it again when the object is collected, which crashes the interpreter."""
     netCDF4.Dataset.__dict__["_isopen"].__set__(ds, 0)
+
+
+def _text(value: str) -> str:
+    """``value`` as valid UTF-8 text, what a netCDF attribute holds: bytes of the
+    environment or of a path that are not UTF-8 (Python keeps them as lone surrogates)
+    become U+FFFD."""
+    return value.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
 
 
 def _now() -> str:

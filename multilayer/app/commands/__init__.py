@@ -107,11 +107,24 @@ def budget(args: argparse.Namespace):
     return Budget(args.max_memory, args.max_output, args.force, args.max_steps)
 
 
+def directory(text: str) -> Path:
+    """argparse type: a directory path whose name netCDF can write (UTF-8; a name holding
+    other bytes is a usage error, exit code 2)."""
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        raise argparse.ArgumentTypeError(
+            f"{text.encode('utf-8', 'surrogateescape')!r} is not a UTF-8 name (netCDF files cannot be "
+            "named by other bytes); accepted: a directory name in UTF-8"
+        ) from None
+    return Path(text)
+
+
 def add_output_argument(parser: argparse.ArgumentParser, default: str) -> None:
     """``-o DIR``, ``--output DIR``: the output directory (``args.output``, a Path or None);
     ``default`` says where the output goes without it."""
     parser.add_argument(
-        "-o", "--output", metavar="DIR", type=Path, help=f"output directory (default: {default})"
+        "-o", "--output", metavar="DIR", type=directory, help=f"output directory (default: {default})"
     )
 
 

@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 from multilayer import scenario as scenarios
+from multilayer.app.commands import directory
 from multilayer.errors import InputError, RunError
 from multilayer.testing import expectations as expect
 
@@ -29,7 +29,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "-o",
         "--output",
         metavar="DIR",
-        type=Path,
+        type=directory,
         help="keep the results in DIR/<scenario name> (default: a temporary directory, removed afterwards)",
     )
 

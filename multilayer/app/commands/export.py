@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
+from multilayer.app.commands import directory
 from multilayer.errors import InputError
 
 HELP = "export DIR/result.nc to other formats (--vtk: ParaView)"
@@ -17,7 +17,9 @@ HELP = "export DIR/result.nc to other formats (--vtk: ParaView)"
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``multilayer export``."""
-    parser.add_argument("directory", metavar="DIR", type=Path, help="output directory of 'multilayer run'")
+    parser.add_argument(
+        "directory", metavar="DIR", type=directory, help="output directory of 'multilayer run'"
+    )
     parser.add_argument(
         "--vtk", action="store_true", help="VTK XML structured grids (.vts) and a .pvd time series"
     )
