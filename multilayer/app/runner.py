@@ -180,7 +180,8 @@ def _run(
         scenario.source or "a mapping",
         outdir,
     )
-    log.info("parameters:\n%s", scenario.resolved_yaml().rstrip())
+    text = scenario.resolved_yaml()  # written with every checkpoint: computed once
+    log.info("parameters:\n%s", text.rstrip())
     sim = Simulation(scenario)
     result_path, ckpt_path = outdir / RESULT_FILE, outdir / CHECKPOINT_FILE
     stop.starting = False  # from here a signal is honoured between kernel calls, the state kept
@@ -200,9 +201,7 @@ def _run(
         return wall_before + time.perf_counter() - started
 
     def checkpoint() -> float:
-        save_checkpoint(
-            ckpt_path, Checkpoint(sim.state_dict(), writer.records, wall_time(), scenario.resolved_yaml())
-        )
+        save_checkpoint(ckpt_path, Checkpoint(sim.state_dict(), writer.records, wall_time(), text))
         return sim.t
 
     saved_t = checkpoint() if ckpt is None else sim.t
