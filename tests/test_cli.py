@@ -277,3 +277,21 @@ def test_run_round_trip_writes_result(cli, tiny_scenario, write_scenario, tmp_pa
         assert ds.attrs["wall_time_s"] > 0
         scenario = yaml.safe_load(ds.attrs["scenario"])
         assert scenario["domain"]["cells"] == 20 and scenario["numerics"]["order"] == 2
+
+
+def test_the_run_summary_gives_units_and_says_why_a_quantity_has_no_value(
+    cli, tiny_scenario, write_scenario, tmp_path
+):
+    """The material slides out of the domain, leaving a film thinner than the front
+    threshold: no front at the end."""
+    tiny_scenario["time"] = {"end": 20.0, "output_interval": 20.0}
+    tiny_scenario["numerics"] = {"front_threshold": 0.01}
+    result = cli("run", write_scenario(tiny_scenario), "-o", tmp_path / "out")
+    assert result.code == 0, result.err
+    lines = result.out.splitlines()[1:]
+    assert "  t_final = 20 s" in lines and any(
+        line.startswith("  mass_final = ") and line.endswith(" m2") for line in lines
+    )
+    assert any(line.startswith("  max_speed_final = ") and line.endswith(" m/s") for line in lines)
+    assert "  front_final = nan m (no cell thicker than the front threshold (0.01 m) at the end)" in lines
+    assert any(line.startswith("  steps = ") and line[len("  steps = ") :].isdigit() for line in lines)

@@ -47,7 +47,7 @@ from multilayer import scenario as scenarios
 from multilayer.app import resources
 from multilayer.app.compilation import compile_notice
 from multilayer.app.lock import locked
-from multilayer.app.progress import Progress, shown
+from multilayer.app.progress import Progress
 from multilayer.engine.simulation import Simulation
 from multilayer.errors import InputError, Interrupted, RunError
 from multilayer.io.result_check import check_result
@@ -124,7 +124,9 @@ def run(
         log.addHandler(handler)
         for message in notices:
             log.warning(message)
-        say = (lambda text: print(f"multilayer: {text}", file=sys.stderr)) if shown(quiet) else None
+        # the compile notice is one plain line: also where stderr is not a terminal (a log, a
+        # notebook, a batch job), unless quiet; the progress line is for terminals only
+        say = (lambda text: print(f"multilayer: {text}", file=sys.stderr, flush=True)) if not quiet else None
         try:
             with compile_notice(log, say):
                 _run(scenario, outdir, ckpt, quiet, log, stop, budget.step_limit)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import os
+import textwrap
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -115,6 +116,21 @@ def representative_columns(ds: xr.Dataset, count: int = _REPRESENTATIVE) -> list
     return cells[picks].tolist()
 
 
+TITLE_CHARACTERS_PER_INCH = 10.5
+"""Characters of a figure title (Matplotlib's 'large' font, 12 pt) per inch of figure width,
+with room to spare: a longer title is wrapped, never cut at the figure's edges."""
+
+
+def _suptitle(fig: Figure, name: str, what: str) -> None:
+    """``name: what`` over ``fig``, wrapped to its width (the scenario name on a line of its
+    own when both do not fit)."""
+    width = max(int(fig.get_figwidth() * TITLE_CHARACTERS_PER_INCH), 20)
+    text = f"{name}: {what}"
+    if len(text) > width:
+        text = "\n".join([*textwrap.wrap(f"{name}:", width), *textwrap.wrap(what, width)])
+    fig.suptitle(text)
+
+
 def _time_indices(ds: xr.Dataset, n: int) -> np.ndarray:
     """Up to ``n`` output-time indices spread evenly from the first to the last."""
     return np.unique(np.linspace(0, ds.sizes["time"] - 1, n).round().astype(int))
@@ -163,7 +179,9 @@ def _draw_section(ax: Axes, ds: xr.Dataset, k: int, vmin: float, vmax: float) ->
     z = bed + h * edges[:, None]  # (L+1, N) interface heights
     xs, zs = _staircase(ds, z)
     # odd columns join neighbouring cells: zero width, never seen
-    colour = np.ma.masked_all((ds.sizes["layer"], xs.size - 1))
+    # masked, and zero beneath the mask: masked_all leaves the memory as it finds it, and the
+    # colour mapping normalises the values under the mask too (numpy overflow warnings)
+    colour = np.ma.masked_array(np.zeros((ds.sizes["layer"], xs.size - 1)), mask=True)
     u = snap["u"].values
     colour[:, ::2] = np.ma.masked_where(u == 0.0, u)  # static material is grey
     mesh = ax.pcolormesh(xs, zs, colour, cmap=_VELOCITY, vmin=vmin, vmax=vmax)
@@ -312,7 +330,7 @@ def front_figure(ds: xr.Dataset, name: str) -> Figure:
     ax_speed.set_ylabel("front velocity u_f (m/s)")
     ax_speed.set_title("u_f = dx_f/dt, finite differences between output times", fontsize="medium")
     ax_speed.set_xlabel("time t (s)")
-    fig.suptitle(f"{name}: front")
+    _suptitle(fig, name, "front")
     return fig
 
 
@@ -329,7 +347,7 @@ def mass_figure(ds: xr.Dataset, name: str) -> Figure:
     ax_change.plot(t, change, marker=".", color="tab:green")
     ax_change.set_ylabel("(V - V(0)) / V(0)" if volume[0] else "V - V(0) (m$^2$)")
     ax_change.set_xlabel("time t (s)")
-    fig.suptitle(f"{name}: volume (inflow and outflow change it)")
+    _suptitle(fig, name, "volume (inflow and outflow change it)")
     return fig
 
 
@@ -358,7 +376,7 @@ def profiles_figure(ds: xr.Dataset, name: str, columns: Sequence[int], times: in
         ax.set_title(_column_title(ds, i), fontsize="medium")
     axes[0].set_ylabel("height above the bed z - b, normal to the plane (m)")
     axes[-1].legend(fontsize="small")
-    fig.suptitle(f"{name}: velocity profiles u(z) at the layer centres")
+    _suptitle(fig, name, "velocity profiles u(z) at the layer centres")
     return fig
 
 
@@ -376,7 +394,7 @@ def static_interface_figure(ds: xr.Dataset, name: str, columns: Sequence[int]) -
         ax.set_title(_column_title(ds, i), fontsize="medium")
     axes[0].set_ylabel("height above the bed (m)")
     axes[-1].legend(fontsize="small")
-    fig.suptitle(f"{name}: top of the static region b(t) (0: flowing down to the bed; h: at rest)")
+    _suptitle(fig, name, "top of the static region b(t) (0: flowing down to the bed; h: at rest)")
     return fig
 
 

@@ -390,6 +390,17 @@ SUMMARY_KEYS = (
     "wall_time_s",
 )
 """The keys of :func:`summary`, in order."""
+SUMMARY_UNITS = {
+    "t_final": "s",
+    "front_final": "m",
+    "runout": "m",
+    "mass_final": "m2",
+    "max_speed_final": "m/s",
+    "static_interface_mean_final": "m",
+    "steps": "",
+    "wall_time_s": "s",
+}
+"""The unit of each key of :func:`summary` (CF spelling; steps are a count)."""
 
 
 def summary(path: str | os.PathLike, *, checked: bool = True) -> dict[str, float]:
