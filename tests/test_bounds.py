@@ -216,3 +216,58 @@ def test_calibration_observations_outside_the_run_are_exit_2(tmp_path, cli):
         "calibrate", _calibration(tmp_path, "0.1,0.2,0.01\n", population=10**12), "-o", tmp_path / "o"
     )
     assert population.code == 2 and "search.population" in population.err
+
+
+@pytest.mark.parametrize(
+    ("override", "expected"),
+    [
+        (
+            "domain.cells=1" + "0" * 400,
+            "domain.cells (from --set): Input should be less than or equal to 1000000000",
+        ),
+        (
+            "domain.layers=1" + "0" * 400,
+            "domain.layers (from --set): Input should be less than or equal to 100000",
+        ),
+        (
+            "time.output_interval=1e-320",
+            "time.output_interval (from --set): inf output times to time.end = 0.05 s",
+        ),
+        (
+            "time.end=1e308",
+            "): inf output times to time.end = 1e+308 s; accepted: at most 10000000 output times",
+        ),
+        ("domain.x_min=-1e308", "narrower than one cell (dx = 2.5e+306 m)"),
+    ],
+)
+def test_numbers_too_large_for_the_estimates_are_exit_2(cli, write_scenario, override, expected):
+    """Integers past the range of a float and ratios that overflow to infinity reached the
+    estimates as OverflowError tracebacks."""
+    result = cli("validate", write_scenario(TINY_SCENARIO), "--set", override)
+    assert result.code == 2 and "Traceback" not in result.err
+    assert expected in result.err, result.err
+
+
+def test_api_overrides_that_are_no_scenario_value_are_input_errors():
+    from multilayer.errors import InputError
+
+    for value in (object(), float("nan"), {1, 2}):
+        with pytest.raises(InputError, match=r"overrides: time.end: .* is not a value of a scenario"):
+            multilayer.load(TINY_SCENARIO, overrides={"time.end": value})
+
+
+@pytest.mark.parametrize("content", [b"CDF\x02garbage", b"\x89HDF\r\n\x1a\ngarbage", b""])
+def test_a_damaged_study_file_is_exit_2_when_plotted(tmp_path, cli, content):
+    (tmp_path / "sensitivity.nc").write_bytes(content)
+    result = cli("plot", tmp_path)
+    assert result.code == 2 and "Traceback" not in result.err
+    assert f"{tmp_path / 'sensitivity.nc'}: not a" in result.err
+
+
+def test_a_member_marker_that_is_no_marker_means_run_again(tmp_path):
+    from multilayer.app import sweep
+
+    (tmp_path / "result.nc").write_bytes(b"")
+    for marker in ("[1, 2]", '{"fingerprint": "x"}', '{"fingerprint": "x", "summary": 3}', "{" * 5000):
+        (tmp_path / sweep.MARKER).write_text(marker)
+        assert sweep.completed(tmp_path, "x") is None

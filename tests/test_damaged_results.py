@@ -20,7 +20,7 @@ from conftest import TINY_SCENARIO
 from multilayer import scenario as scenarios
 from multilayer.app import runner, sweep
 from multilayer.errors import InputError
-from multilayer.io.results import open_result, run_failure, summary
+from multilayer.io.results import SUMMARY_KEYS, open_result, run_failure, summary
 
 SHORT = {**TINY_SCENARIO, "name": "short", "time": {"end": 0.08, "output_interval": 0.02}}
 """5 output times of the tiny column."""
@@ -97,7 +97,8 @@ def test_every_reader_refuses_a_damaged_result_naming_the_file_and_the_damage(da
             read(outdir)
     assert __import__("re").search(message, run_failure(outdir) or "")
     fingerprint = sweep.scenario_fingerprint(scenarios.load(directory / "short.yaml"))
-    (outdir / sweep.MARKER).write_text(json.dumps({"fingerprint": fingerprint, "summary": {}}))
+    summary_ = dict.fromkeys(SUMMARY_KEYS, 0.0)
+    (outdir / sweep.MARKER).write_text(json.dumps({"fingerprint": fingerprint, "summary": summary_}))
     assert sweep.completed(outdir, fingerprint) is None  # a sweep or calibration runs it again
     assert not (outdir / "plots").exists() and not (outdir / "vtk").exists()
 

@@ -229,13 +229,16 @@ def completed(member_dir: Path, fingerprint: str) -> dict[str, float] | None:
     """The stored summary if ``member_dir`` holds a completed, finite run of this exact scenario."""
     try:
         marker = json.loads((member_dir / MARKER).read_text())
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):
         return None
+    summary = marker.get("summary") if isinstance(marker, dict) else None
+    if not (isinstance(summary, dict) and set(summary) == set(SUMMARY_KEYS)):
+        return None  # not a marker this module wrote: the member runs again
     if marker.get("fingerprint") != fingerprint or not (member_dir / RESULT_FILE).is_file():
         return None
     if run_failure(member_dir) is not None:
         return None
-    return marker["summary"]
+    return summary
 
 
 def run_member(

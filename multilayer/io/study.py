@@ -24,6 +24,8 @@ messages of scenario files: ``<file>: <key.path> (line N): <what>; accepted: <..
 from __future__ import annotations
 
 import csv
+import io
+import itertools
 from pathlib import Path
 from typing import Annotated, Any, Literal, get_args
 
@@ -32,6 +34,8 @@ from pydantic import BaseModel, Field, ValidationError, field_validator, model_v
 
 from multilayer import scenario
 from multilayer.errors import InputError
+from multilayer.scenario.files import read_text
+from multilayer.scenario.limits import MAX_PROFILE_POINTS
 from multilayer.scenario.messages import StrictModel, describe, dotted, field, invalid
 from multilayer.scenario.overrides import as_overrides
 
@@ -454,9 +458,16 @@ def _unvalidated(obs: Observation, keys: str) -> RuntimeError:
 
 def _read_csv(file: Path, columns: list[str], where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """Columns of a CSV file with a header row, as floats."""
+    try:  # a regular file of at most limits.MAX_FILE_BYTES
+        text = read_text(file, "a CSV file of numbers", "a readable UTF-8 CSV file")
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
     try:
-        with file.open(newline="", encoding="utf-8") as stream:
-            rows = list(csv.DictReader(stream))
+        rows = list(itertools.islice(csv.DictReader(io.StringIO(text, newline="")), MAX_PROFILE_POINTS + 1))
+        if len(rows) > MAX_PROFILE_POINTS:
+            raise InputError(
+                f"{where}: {file} has more than {MAX_PROFILE_POINTS} rows; accepted: at most that"
+            )
         table = [[float(row[c]) for row in rows] for c in columns]
     except KeyError as exc:
         raise InputError(
@@ -482,6 +493,11 @@ def _read_netcdf(
                 raise InputError(
                     f"{where}: {file} has no variable {variable!r}; accepted: "
                     + ", ".join(map(str, ds.data_vars))
+                )
+            if ds[variable].size > MAX_PROFILE_POINTS:
+                raise InputError(
+                    f"{where}: {file}: {variable} holds {ds[variable].size} values; accepted: at most "
+                    f"{MAX_PROFILE_POINTS}"
                 )
             var = ds[variable].load()
     except (OSError, ValueError) as exc:

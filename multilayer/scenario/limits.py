@@ -30,6 +30,12 @@ MAX_NODES = 2_000_000
 """Most YAML nodes (scalars and collections), every alias expanded."""
 MAX_PROFILE_POINTS = 1_000_000
 """Most points of a profile: rows of a CSV file, samples of a DEM along its polyline."""
+MAX_CELLS = 10**9
+"""Most cells of a domain (the memory budget refuses far fewer on any machine)."""
+MAX_LAYERS = 10**5
+"""Most layers (the exact column solve keeps 128 L^2 bytes per thread: 1.3 TB here)."""
+MAX_OUTPUT_TIMES = 10**7
+"""Most output times of a run (``time.end / time.output_interval``), also under --force."""
 MAX_DEM_PIXELS = 400_000_000
 """Largest DEM read (pixels; its band is read whole, 8 bytes a pixel)."""
 

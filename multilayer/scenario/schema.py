@@ -7,6 +7,7 @@ Each field's description is the "accepted" part of its messages
 
 from __future__ import annotations
 
+import math
 import typing
 from pathlib import Path
 from typing import Annotated, Any, Literal, get_args
@@ -27,7 +28,7 @@ from pydantic import (
 from multilayer.errors import InputError
 from multilayer.plugins import host as plugins
 from multilayer.plugins.contract import Material, Rheology
-from multilayer.scenario import profiles
+from multilayer.scenario import limits, profiles
 from multilayer.scenario.messages import (
     StrictModel,
     check_kind,
@@ -53,8 +54,8 @@ class Domain(StrictModel):
 
     x_min: float = field(..., "a number (m)")
     x_max: float = field(..., "a number > x_min (m)")
-    cells: int = field(..., "an integer >= 1", ge=1)
-    layers: int = field(1, "an integer >= 1", ge=1)
+    cells: int = field(..., f"an integer from 1 to {limits.MAX_CELLS}", ge=1, le=limits.MAX_CELLS)
+    layers: int = field(1, f"an integer from 1 to {limits.MAX_LAYERS}", ge=1, le=limits.MAX_LAYERS)
     layer_fractions: Any = field(
         "uniform", "'uniform', a list of `layers` numbers > 0 summing to 1, or {geometric: r > 0}"
     )
@@ -63,6 +64,12 @@ class Domain(StrictModel):
     @model_validator(mode="after")
     def _check(self) -> Domain:
         ordered(self.x_min, self.x_max)
+        if not math.isfinite(self.x_max - self.x_min):
+            raise invalid(
+                f"the domain is {self.x_max - self.x_min} m long",
+                "x_min and x_max less than 1e308 m apart",
+                "x_max",
+            )
         accepted = Domain.model_fields["layer_fractions"].description or ""
         value = self.layer_fractions
         if isinstance(value, list):
@@ -444,6 +451,18 @@ class Time(StrictModel):
     end: float = field(..., "a number > 0 (s)", gt=0)
     cfl: float = field(0.45, "a number in (0, 1)", gt=0, lt=1)
     output_interval: float = field(..., "a number > 0 (s)", gt=0)
+
+    @model_validator(mode="after")
+    def _check(self) -> Time:
+        outputs = self.end / self.output_interval
+        if not outputs <= limits.MAX_OUTPUT_TIMES:
+            raise invalid(
+                f"{outputs:.3g} output times to time.end = {self.end:g} s",
+                f"at most {limits.MAX_OUTPUT_TIMES} output times: an interval of at least "
+                f"{self.end / limits.MAX_OUTPUT_TIMES:.3g} s",
+                "output_interval",
+            )
+        return self
 
 
 class Output(StrictModel):
