@@ -1,5 +1,6 @@
 """The layout is the architecture: the engine never imports I/O, the command line, the
-plugin host or the testing helpers (type-only imports under ``TYPE_CHECKING`` excepted)."""
+plugin host, the testing helpers or the validation cases (type-only imports under
+``TYPE_CHECKING`` excepted), and nothing of the library imports the validation cases."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ FORBIDDEN_FOR_ENGINE = (
     "multilayer.app",
     "multilayer.plugins.host",
     "multilayer.testing",
+    "multilayer.validation",
 )
 
 
@@ -43,6 +45,18 @@ def test_the_engine_imports_neither_io_nor_cli_nor_the_plugin_host():
         for path in sorted((PACKAGE / "engine").rglob("*.py"))
         for name in sorted(_runtime_imports(path))
         if name.startswith(FORBIDDEN_FOR_ENGINE)
+    ]
+    assert not offences, "\n".join(offences)
+
+
+def test_only_the_validation_package_imports_itself():
+    """multilayer.validation uses the library; the library never uses it."""
+    offences = [
+        f"{path.relative_to(PACKAGE.parent)} imports {name}"
+        for path in sorted(PACKAGE.rglob("*.py"))
+        if "validation" not in path.relative_to(PACKAGE).parts[:1]
+        for name in sorted(_runtime_imports(path))
+        if name.startswith("multilayer.validation")
     ]
     assert not offences, "\n".join(offences)
 

@@ -43,7 +43,7 @@ INVALID = [
         "initial.0.thickness",
         "accepted: a number >= 0 (m); 0: no layer",
     ),
-    ("layers < 1", {"domain.layers": 0}, "domain.layers", "accepted: an integer >= 1"),
+    ("layers < 1", {"domain.layers": 0}, "domain.layers", "accepted: an integer from 1 to 100000"),
     ("cfl >= 1", {"time.cfl": 1.0}, "time.cfl", "accepted: a number in (0, 1)"),
     ("cfl <= 0", {"time.cfl": 0.0}, "time.cfl", "accepted: a number in (0, 1)"),
     (

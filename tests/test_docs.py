@@ -283,7 +283,7 @@ def test_blocks_equal_the_shipped_files(page: Path) -> None:
 
 def _written_figures() -> list[re.Pattern[str]]:
     """Names of the figures the documented scripts write (``{...}`` stands for a word)."""
-    scripts = [ROOT / "docs" / "make_figures.py", ROOT / "docs" / "make_validation.py"]
+    scripts = [ROOT / "docs" / "make_figures.py", *sorted((ROOT / "multilayer" / "validation").rglob("*.py"))]
     scripts.append(ROOT / "benchmarks" / "scaling.py")  # the measured scaling figure
     scripts.append(ROOT / "docs" / "make_calibration_figures.sh")  # docs/calibration.md
     names = re.findall(r"[\"'/]([\w{}]+\.png)[\"']", "".join(p.read_text() for p in scripts))

@@ -153,6 +153,31 @@ def test_bagnold_shape_and_layer_means():
     np.testing.assert_allclose(flow.layer_means(edges), fine, rtol=1e-6)
 
 
+def test_bagnold_layer_means_when_the_summed_layers_overshoot_the_depth():
+    """Edges summed from layer fractions may end a round-off above h: the top layer's mean
+    is then that of the layer up to h (finite), not nan."""
+    flow = BagnoldFlow(0.01, 0.1, 0.5e-3, 25.0)
+    edges = np.cumsum(np.r_[0.0, np.full(20, 0.05)]) * 0.01
+    assert edges[-1] > 0.01
+    exact_edges = np.linspace(0, 0.01, 21)
+    np.testing.assert_allclose(flow.layer_means(edges), flow.layer_means(exact_edges), rtol=1e-9)
+
+
+def test_simple_shear_layer_means_are_the_averages_of_the_profile():
+    """Over layers below, across and above the kink at b(t), and at once over several columns."""
+    t = 0.3
+    edges = np.linspace(0.0, SHEAR.depth, 9)
+    z = [np.linspace(a, b, 200001) for a, b in zip(edges[:-1], edges[1:])]
+    fine = [np.trapezoid(SHEAR.velocity(zz, t), zz) / (zz[-1] - zz[0]) for zz in z]
+    np.testing.assert_allclose(SHEAR.layer_means(edges, t), fine, rtol=1e-9, atol=1e-12)
+    assert SHEAR.layer_means(edges, t)[0] == 0.0  # static below b(t)
+    columns = np.stack([edges, edges], axis=1)
+    np.testing.assert_array_equal(
+        SHEAR.layer_means(columns, t), np.stack([SHEAR.layer_means(edges, t)] * 2, 1)
+    )
+    assert np.all(SHEAR.layer_means(edges, 1.01 * SHEAR.stop_time) == 0.0)
+
+
 def test_bagnold_depth_carries_the_flux_and_by_hand():
     """h_Bag of eq. 4.3 (Tsang et al. 2019) is the depth whose Bagnold flow carries q; for the
     shipped chute (q = 0.05 m x 2.75 m/s, power law m = 0.56, alpha = 0.34, 16 deg, d = 1 mm)

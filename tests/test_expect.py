@@ -9,6 +9,7 @@ expected values: U = max(70 (z - 5 mm)_+ - S t, 0), S = g cos(theta)(mu_s - tan(
 import copy
 import math
 from importlib.metadata import entry_points
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -131,6 +132,109 @@ def test_every_entry_says_its_kind_and_a_reference_its_source(tmp_path, capsys, 
     assert message in err and "Traceback" not in err
 
 
+# --------------------------------------------------------------------------- exact solutions
+
+
+EXACT_U = {
+    "kind": "reference",
+    "exact": {"solution": "inviscid_simple_shear", "field": "u", "norm": "l1"},
+    "atol": (H / LAYERS / (H - float(EXACT.interface(T_END)))) ** 2 / 4,
+    "source": SOURCE,
+}
+"""The layer velocities within the bound of the layer discretisation: every layer moves
+rigidly at the exact deceleration except the one holding the kink of U, off by at most
+shear dz / 8, a relative L1 error (dz / (h - b))^2 / 4."""
+
+
+def _with_exact(**changes: object) -> dict:
+    return {**EXACT_U, "exact": {**EXACT_U["exact"], **changes}}
+
+
+@pytest.mark.parametrize(
+    "entry, message",
+    [
+        ({**EXACT_U, "kind": "regression"}, "a comparison with an exact solution is a reference"),
+        ({**EXACT_U, "quantity": "runout"}, "expect.0.quantity"),
+        ({k: v for k, v in EXACT_U.items() if k != "atol"}, "requires atol"),
+        ({**EXACT_U, "rtol": 0.1}, "expect.0.rtol"),
+        (_with_exact(solution="ritter"), "expect.0.exact.solution"),
+        (_with_exact(norm="l2"), "expect.0.exact.norm"),
+        (_with_exact(x_min=0.02, x_max=0.01), "expect.0.exact.x_max"),
+    ],
+    ids=[
+        "regression",
+        "with_quantity",
+        "no_atol",
+        "rtol",
+        "unknown_solution",
+        "unknown_norm",
+        "empty_window",
+    ],
+)
+def test_an_exact_comparison_is_a_reference_with_an_atol(tmp_path, capsys, entry, message):
+    """Only kind, exact, atol and source: the checked value is an error, expected 0."""
+    path = _write(tmp_path, "bad.yaml", [entry])
+    assert cli.main(["validate", path]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+
+
+def test_check_compares_the_layer_velocities_with_the_exact_solution(tmp_path, capsys):
+    path = _write(tmp_path, "exact.yaml", [EXACT_U])
+    assert cli.main(["check", path]) == 0
+    out = capsys.readouterr().out
+    line = next(line for line in out.splitlines() if "u_l1_error_inviscid_simple_shear" in line)
+    kind, _, expected, obtained, tolerance, verdict = line.split()
+    assert (kind, float(expected), verdict) == ("reference", 0.0, "ok")
+    assert 0 < float(obtained) <= float(tolerance)
+
+
+@pytest.mark.parametrize(
+    "entry, message",
+    [
+        (
+            _with_exact(solution="coulomb_dam_break", field="h"),
+            "expect.0.exact: the exact solution coulomb_dam_break does not apply: domain.layers differs; "
+            "accepted: 1",
+        ),
+        (_with_exact(x_min=0.5), "expect.0.exact: no cell centre between x_min and x_max"),
+    ],
+    ids=["not_applicable", "window_outside"],
+)
+def test_check_refuses_a_comparison_that_does_not_apply_before_running(tmp_path, capsys, entry, message):
+    """`check` refuses before running, `validate` too."""
+    path = _write(tmp_path, "bad.yaml", [entry])
+    assert cli.main(["check", path, "-o", str(tmp_path / "kept")]) == 2
+    err = capsys.readouterr().err
+    assert f"{path}: {message}" in err and "Traceback" not in err
+    assert not (tmp_path / "kept").exists()
+    assert cli.main(["validate", path]) == 2
+    assert f"{path}: {message}" in capsys.readouterr().err
+
+
+def test_check_refuses_a_field_the_solution_does_not_give(tmp_path, capsys):
+    data = _scenario([_with_exact(solution="coulomb_dam_break", field="u")])
+    data.update(
+        slope_deg=0.0,
+        domain={"x_min": 0.0, "x_max": 1.0, "cells": 20},
+        initial=[{"shape": "rectangle", "x_min": 0.0, "x_max": 0.5, "height": 0.1}],
+        boundaries={"left": "wall", "right": "outflow"},
+        base=[{"condition": "free_slip"}],
+    )
+    path = tmp_path / "dam.yaml"
+    path.write_text(yaml.safe_dump(data))
+    assert cli.main(["check", str(path)]) == 2
+    assert (
+        f"{path}: expect.0.exact.field: coulomb_dam_break gives no u; accepted: h" in capsys.readouterr().err
+    )
+
+
+def test_pytest_item_of_an_exact_comparison_is_named_by_field_norm_and_solution():
+    from multilayer.testing.pytest_plugin import _item_name
+
+    assert _item_name(EXACT_U) == "reference[u_l1_error_inviscid_simple_shear]"
+
+
 # --------------------------------------------------------------------------- multilayer check
 
 
@@ -231,3 +335,15 @@ def test_tiny_scenario_matches_exact_inviscid_solution(tmp_path):
     final = open_result(tmp_path / "out").isel(time=-1)
     interface = float(EXACT.interface(T_END))
     assert np.all(np.abs(final["static_interface"].values - interface) <= H / LAYERS)
+
+
+def test_a_boundary_layer_comparison_starts_beyond_the_leading_edge(capsys):
+    """The similarity solution holds downstream of the smooth-to-rough transition only."""
+    entry = (
+        "expect=[{kind: reference, exact: {solution: granular_blasius, field: displacement_thickness, "
+        "norm: l1}, atol: 0.1, source: Tsang et al. 2019}]"
+    )
+    path = str(Path(__file__).resolve().parents[1] / "scenarios" / "smooth_to_rough_chute.yaml")
+    assert cli.main(["validate", path, "--set", entry]) == 2
+    err = capsys.readouterr().err
+    assert "expect.0.exact.x_min: granular_blasius holds for x > 0; accepted: a number > 0" in err

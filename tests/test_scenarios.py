@@ -48,10 +48,29 @@ def test_scenario_is_documented_and_pinned(name):
     for word in ("Reproduces:", "Parameters", "Resolution:"):
         assert word in header, f"{name}: header lacks '{word}'"
     scenario = scenarios.load(_path(name))
-    assert scenario.expect and {e.quantity for e in scenario.expect} <= set(QUANTITIES)
+    assert scenario.expect and {e.quantity for e in scenario.expect if e.exact is None} <= set(QUANTITIES)
     for entry in scenario.expect:
         assert entry.kind in ("regression", "reference")
         assert (entry.source is not None) == (entry.kind == "reference")
+
+
+EXACT = {
+    "coulomb_dam_break": "coulomb_dam_break",
+    "static_flowing_interface": "inviscid_simple_shear",
+    "bagnold_chute": "bagnold",
+    "smooth_to_rough_chute": "granular_blasius",
+}
+"""The shipped files that have an exact (or similarity) solution, and that solution."""
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_a_file_with_an_exact_solution_compares_with_it(name):
+    """Its reference check is the exact solution by a norm, not only the conserved volume;
+    the others (collapses, erodible beds) have none."""
+    entries = scenarios.load(_path(name)).expect
+    assert {e.exact.solution for e in entries if e.exact is not None} == (
+        {EXACT[name]} if name in EXACT else set()
+    )
 
 
 def test_erodible_bed_thickness_is_the_first_initial_entry():

@@ -111,6 +111,15 @@ class InviscidSimpleShear:
         """Static/flowing interface ``b(t) = min(b0 + S t / shear, h)``."""
         return np.minimum(self.b0 + self.deceleration * np.asarray(t, dtype=float) / self.shear, self.depth)
 
+    def layer_means(self, edges: np.ndarray, t: float) -> np.ndarray:
+        """Mean of ``U(t, z)`` over each layer between consecutive heights ``edges`` (along
+        the first axis): ``U = shear (z - b)_+`` with ``b = b0 + S t / shear``, whose
+        antiderivative is ``shear (z - b)_+^2 / 2``."""
+        edges = np.asarray(edges, dtype=float)
+        b = self.b0 + self.deceleration * t / self.shear
+        antiderivative = self.shear * np.maximum(edges - b, 0.0) ** 2 / 2
+        return np.diff(antiderivative, axis=0) / np.diff(edges, axis=0)
+
 
 # --------------------------------------------------------------------------- steady uniform flow
 
@@ -218,8 +227,10 @@ class BagnoldFlow:
 
     def layer_means(self, edges: np.ndarray) -> np.ndarray:
         """Mean of ``u`` over each layer between consecutive heights ``edges``: the quantity a
-        layer velocity approximates (antiderivative ``h^1.5 z + (h - z)^2.5 / 2.5``)."""
-        edges = np.asarray(edges, dtype=float)
+        layer velocity approximates (antiderivative ``h^1.5 z + (h - z)^2.5 / 2.5``), with
+        ``edges`` clipped to ``[0, h]`` (the top edge of a summed column may exceed ``h`` by
+        round-off)."""
+        edges = np.clip(np.asarray(edges, dtype=float), 0.0, self.depth)
         antiderivative = self._scale * (self.depth**1.5 * edges + (self.depth - edges) ** 2.5 / 2.5)
         return np.diff(antiderivative) / np.diff(edges)
 

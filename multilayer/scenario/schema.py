@@ -28,7 +28,7 @@ from pydantic import (
 from multilayer.errors import InputError
 from multilayer.plugins import host as plugins
 from multilayer.plugins.contract import Material, Rheology
-from multilayer.scenario import limits, profiles
+from multilayer.scenario import limits, messages, profiles
 from multilayer.scenario.messages import (
     StrictModel,
     check_kind,
@@ -473,6 +473,28 @@ class Output(StrictModel):
 
 ExpectKind = Literal["regression", "reference"]
 EXPECT_KINDS: tuple[str, ...] = get_args(ExpectKind)
+ExactSolutionName = Literal["coulomb_dam_break", "inviscid_simple_shear", "bagnold", "granular_blasius"]
+EXACT_SOLUTIONS: tuple[str, ...] = get_args(ExactSolutionName)
+"""Exact solutions an ``expect`` entry can compare with (multilayer.testing.exact_solutions)."""
+
+
+class ExactComparison(StrictModel):
+    """A field of the run's final state against an exact solution, by a relative norm."""
+
+    solution: ExactSolutionName = field(..., ", ".join(EXACT_SOLUTIONS))
+    field: Literal["h", "u", "displacement_thickness"] = field(
+        ..., "h, u (the layer velocities) or displacement_thickness"
+    )
+    # ``field`` names the key above from here on: the helper is reached through its module
+    norm: Literal["l1", "max"] = messages.field(..., "l1 or max (relative to the exact field's own norm)")
+    x_min: float | None = messages.field(None, "a number (m); default: the whole domain")
+    x_max: float | None = messages.field(None, "a number > x_min (m); default: the whole domain")
+
+    @model_validator(mode="after")
+    def _check(self) -> ExactComparison:
+        if self.x_min is not None and self.x_max is not None:
+            ordered(self.x_min, self.x_max)
+        return self
 
 
 class Expect(StrictModel):
@@ -481,24 +503,35 @@ class Expect(StrictModel):
     ``kind: regression`` pins ``value`` from the code's own output (it guards against
     change, it validates nothing); ``kind: reference`` takes ``value`` from an exact
     solution or a published result named in ``source``, the tolerance being justified by
-    that reference's uncertainty or by a convergence study.
+    that reference's uncertainty or by a convergence study.  With ``exact`` (a reference)
+    the checked value is the error norm of the comparison, expected 0 within ``atol``.
     """
 
     kind: ExpectKind = field(
         ..., "regression (a value pinned from the code's output) or reference (an exact or published value)"
     )
-    quantity: Quantity = field(..., ", ".join(QUANTITIES))
-    value: float = field(..., "a number (SI)")
+    quantity: Quantity | None = field(None, ", ".join(QUANTITIES))
+    value: float | None = field(None, "a number (SI)")
+    exact: ExactComparison | None = field(None, "{solution, field, norm, x_min, x_max} (reference only)")
     rtol: float | None = field(None, "a number >= 0", ge=0)
     atol: float | None = field(None, "a number >= 0 (SI)", ge=0)
     source: str | None = field(None, "text naming the exact solution or publication (author, year, equation)")
 
     @model_validator(mode="after")
     def _check(self) -> Expect:
-        if self.rtol is None and self.atol is None:
-            raise invalid("needs a tolerance", "rtol and/or atol", "rtol")
-        common = ("quantity", "value", "rtol", "atol")
-        check_kind(self, "kind", {"regression": ((), common), "reference": (("source",), common)})
+        if self.exact is not None:
+            if self.kind != "reference":
+                raise invalid("a comparison with an exact solution is a reference", "reference", "kind")
+            check_kind(self, "kind", {"reference": (("exact", "atol", "source"), ())})
+        else:
+            if self.rtol is None and self.atol is None:
+                raise invalid("needs a tolerance", "rtol and/or atol", "rtol")
+            needed, tolerances = ("quantity", "value"), ("rtol", "atol")
+            check_kind(
+                self,
+                "kind",
+                {"regression": (needed, tolerances), "reference": ((*needed, "source"), tolerances)},
+            )
         if self.source is not None and not self.source.strip():
             raise invalid("source is empty", "text naming the exact solution or publication", "source")
         return self

@@ -84,10 +84,18 @@ class ScenarioFile(pytest.File):
 
 
 def _item_name(entry: object) -> str:
-    """``<kind>[<quantity>]`` as written in the file (the file is validated when it runs)."""
+    """``<kind>[<quantity>]``, or ``<kind>[<field>_<norm>_error_<solution>]`` for a comparison
+    with an exact solution, as written in the file (the file is validated when it runs)."""
     if not isinstance(entry, dict):
         return "expect"
-    return f"{entry.get('kind', 'unknown')}[{entry.get('quantity', 'unknown')}]"
+    exact = entry.get("exact")
+    if isinstance(exact, dict):
+        from multilayer.testing.expectations import exact_label
+
+        what = exact_label(*(exact.get(key, "unknown") for key in ("solution", "field", "norm")))
+    else:
+        what = entry.get("quantity", "unknown")
+    return f"{entry.get('kind', 'unknown')}[{what}]"
 
 
 class ExpectationFailure(Exception):

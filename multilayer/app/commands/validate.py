@@ -2,7 +2,8 @@
 
 Every file is checked; each invalid one gets one message naming the file, the key path,
 the YAML line and what is accepted.  The memory and output size of each run are
-estimated and checked against the budget, as `multilayer run` does.
+estimated and checked against the budget, as `multilayer run` does, and every ``expect:``
+comparison with an exact solution must apply to the file, as `multilayer check` requires.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from multilayer.app import resources
 from multilayer.app.commands import add_budget_arguments, add_set_argument, budget
 from multilayer.engine import initial_state
 from multilayer.errors import InputError
+from multilayer.testing import expectations
 
 HELP = "check scenario files without running them"
 
@@ -39,6 +41,7 @@ def main(args: argparse.Namespace) -> int:
             dx = (dom.x_max - dom.x_min) / dom.cells
             initial_state.check_entries(scenario.initial, dom.x_min, dom.x_max, dx, str(path))
             steps = resources.check_steps(scenario, limits)
+            expectations.validate(scenario)
         except InputError as exc:
             print(f"multilayer: error: {exc}", file=sys.stderr)
             invalid += 1

@@ -1,0 +1,31 @@
+"""The validation cases, one module each: its runs, its measures, its criteria and its
+section of the report (``section(ctx) -> str``)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from multilayer.validation.cases import (
+    bagnold,
+    chute,
+    column_collapse,
+    dam_break,
+    erodible_bed,
+    erodible_pressure,
+    static_interface,
+)
+from multilayer.validation.runs import Context
+
+SECTIONS: dict[str, Callable[[Context], str]] = {
+    case.NAME: case.section
+    for case in (
+        static_interface,
+        dam_break,
+        bagnold,
+        chute,
+        column_collapse,
+        erodible_bed,
+        erodible_pressure,
+    )
+}
+"""Section name -> the case's section, in report order."""

@@ -1,0 +1,87 @@
+"""The validation package on cheap cases: its data directory, its runs, its report, its
+mesh-study rule (the cases themselves run under ``pytest -m validation``)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from multilayer.validation import published, report
+from multilayer.validation.cases import SECTIONS
+from multilayer.validation.mesh_study import MeshStudy
+from multilayer.validation.runs import Context, Run
+
+
+def test_every_data_file_has_its_source():
+    """One data directory; every file in it listed in sources.yaml with a publication, where
+    in it, and a status; every listed file present and readable."""
+    listed = published.sources()
+    files = {p.name for p in published.DATA.iterdir()} - {published.SOURCES.name}
+    assert files == set(listed)
+    for name, source in listed.items():
+        assert source.source.strip() and source.where.strip(), name
+        assert source.status in published.STATUSES, name
+        assert source.status == "primary" or source.notes.strip(), f"{name}: say why it is not primary"
+        values = published.values(name) if name.endswith(".yaml") else published.table(name)
+        assert values and all(np.all(np.isfinite(v)) for v in values.values()), name
+
+
+def test_a_csv_table_is_read_by_its_header(tmp_path, monkeypatch):
+    (tmp_path / "fronts.csv").write_text("# a comment line\nt (s),x_f (m)\n0.0,0.2\n0.5,0.7\n")
+    monkeypatch.setattr(published, "DATA", tmp_path)
+    columns = published.table("fronts.csv")
+    assert list(columns) == ["t (s)", "x_f (m)"]
+    np.testing.assert_array_equal(columns["x_f (m)"], [0.2, 0.7])
+
+
+def test_a_source_is_cited_with_its_status_unless_primary():
+    read = published.Source("A & B (2001), J. 1, 2", "table 3", "primary")
+    quoted = published.Source("C (2002)", "fig. 4", "secondary", "quoted by D (2010)")
+    assert read.cite() == "A & B (2001), J. 1, 2, table 3"
+    assert quoted.cite() == "C (2002), fig. 4; secondary: quoted by D (2010)"
+
+
+def test_the_tolerance_rule_passes_the_file_and_fails_a_twice_coarser_mesh():
+    study = MeshStudy((100, 200, 400), (0.04, 0.02, 0.01))
+    assert study.orders() == pytest.approx([1.0, 1.0])
+    assert study.separates(200, 0.03) and not study.separates(200, 0.05) and not study.separates(200, 0.02)
+    assert math.isnan(study.error(800)) and not study.separates(800, 0.01)
+
+
+def test_runs_are_reused_while_their_scenario_is_unchanged(tmp_path):
+    ctx = Context(runs=tmp_path)
+    run = Run("static_10", "static_flowing_interface", ("domain.layers=10", "time.end=0.02"))
+    first = ctx.execute([run])[run.name]
+    assert not isinstance(first, str) and first.sizes["layer"] == 10
+    stamp = (tmp_path / "static_10" / "result.nc").stat().st_mtime_ns
+    ctx.execute([run])
+    assert (tmp_path / "static_10" / "result.nc").stat().st_mtime_ns == stamp
+    changed = Run("static_10", "static_flowing_interface", ("domain.layers=10", "time.end=0.04"))
+    again = ctx.execute([changed])[run.name]
+    assert not isinstance(again, str) and float(again["time"][-1]) == pytest.approx(0.04)
+    with pytest.raises(ValueError, match="share a name"):
+        ctx.execute([run, changed])
+
+
+def test_report_keeps_the_sections_not_regenerated(tmp_path):
+    path = tmp_path / "validation.md"
+    names = list(SECTIONS)
+    report.write(path, "# Intro\n", {names[0]: "## First\n\nold\n"}, "regen")
+    assert report.read(path) == {
+        names[0]: "## First\n\nold\n",
+        **{n: f"## {n}\n\nNot generated yet: run `regen {n}`.\n" for n in names[1:]},
+    }
+    text = path.read_text()
+    assert text.startswith("# Intro\n") and text.count("<!-- /section -->") == len(names)
+
+
+def test_report_command_refuses_unknown_sections(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        report.main(
+            ["nonsense"], description="", report=Path("unused.md"), runs=Path("r"), intro="", command="c"
+        )
+    assert exit_.value.code == 2
+    assert "unknown section(s) nonsense; accepted: static" in capsys.readouterr().err
