@@ -9,7 +9,7 @@ output_interval)`` of them plus the initial state), each of ``(layers + 2) cells
 doubles (``u``, ``h``, the static interface; time, front, mass).
 
 The exact vertical step keeps, per thread, the piecewise-linear messages of every layer
-of a column (``column_kernel.workspace_bytes``): quadratic in the layers, 51 GB at 20 000
+of a column (``column_problem.workspace_bytes``): quadratic in the layers, 51 GB at 20 000
 layers, counted once per thread that can run (at most one per column).
 
 The steps are estimated with the Courant step of the fastest initial wave: the front of
@@ -88,7 +88,7 @@ class Budget:
 
 def estimate(scenario: Any) -> Estimate:
     """Peak memory and output size of ``scenario`` (module docstring)."""
-    from multilayer.engine.column_kernel import workspace_bytes
+    from multilayer.engine.column_problem import workspace_bytes
 
     cells, layers = float(scenario.domain.cells), float(scenario.domain.layers)
     end, interval = scenario.time.end, scenario.time.output_interval

@@ -213,13 +213,6 @@ def _dynamic_programme(inertia, momentum, kappa, c, w, cw, u, ws):
         u[a] = _root(TX, TY, n, sl, sr)
 
 
-def workspace_bytes(L: int) -> int:
-    """Bytes of :func:`_workspace` for columns of ``L`` layers (one per thread): the
-    messages of every layer, quadratic in ``L``."""
-    cap = 8 * L + 16
-    return 8 * (2 * L * cap + 4 * cap + 3 * L + 8)
-
-
 @njit(cache=True)
 def _workspace(L):
     cap = 8 * L + 16
