@@ -24,6 +24,7 @@ NAMES = (
     "static_flowing_interface",
     "coulomb_dam_break",
     "column_collapse",
+    "column_collapse_channel",
     "bagnold_chute",
 )
 
