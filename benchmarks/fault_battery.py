@@ -762,62 +762,29 @@ def round_two() -> list[Case]:
     out.append(
         Case("lock: a directory", run, 2, "a stale lock that cannot be removed", setup=_lock_directory)
     )
-    out.append(
-        Case(
+    # (name, argv, exit code, phrase, environment): a valid scenario in the case's directory
+    scenario_cases: list[tuple[str, list[str], int, str, dict[str, str]]] = [
+        (
             "--set initial.².height",
             ["validate", "{scenario}", "--set", "initial.².height=0.1"],
             2,
             "accepted indices",
-            setup=_scenario,
-        )
-    )
-    out.append(
-        Case(
-            "MULTILAYER_THREADS=²",
-            run,
-            2,
-            "MULTILAYER_THREADS",
-            setup=_scenario,
-            env={"MULTILAYER_THREADS": "²"},
-        )
-    )
-    out.append(
-        Case(
+            {},
+        ),
+        ("MULTILAYER_THREADS=²", run, 2, "MULTILAYER_THREADS", {"MULTILAYER_THREADS": "²"}),
+        (
             "MULTILAYER_INSTITUTION not UTF-8",
             run,
             0,
             "",
-            setup=_scenario,
-            env={"MULTILAYER_INSTITUTION": os.fsdecode(b"Uni\xff\xfe")},
-        )
-    )
-    out.append(
-        Case(
-            "-o /proc/x",
-            ["run", "{scenario}", "-o", "/proc/x"],
-            2,
-            "/proc/x: cannot be created",
-            setup=_scenario,
-        )
-    )
-    out.append(
-        Case(
-            "-o /dev/null/x",
-            ["run", "{scenario}", "-o", "/dev/null/x"],
-            2,
-            "cannot be created",
-            setup=_scenario,
-        )
-    )
-    out.append(
-        Case(
-            "-o not UTF-8",
-            ["run", "{scenario}", "-o", os.fsdecode(b"o\xff")],
-            2,
-            "not a UTF-8 name",
-            setup=_scenario,
-        )
-    )
+            {"MULTILAYER_INSTITUTION": os.fsdecode(b"Uni\xff\xfe")},
+        ),
+        ("-o /proc/x", ["run", "{scenario}", "-o", "/proc/x"], 2, "/proc/x: cannot be created", {}),
+        ("-o /dev/null/x", ["run", "{scenario}", "-o", "/dev/null/x"], 2, "cannot be created", {}),
+        ("-o not UTF-8", ["run", "{scenario}", "-o", os.fsdecode(b"o\xff")], 2, "not a UTF-8 name", {}),
+    ]
+    for name, argv, code, phrase, env in scenario_cases:
+        out.append(Case(name, argv, code, phrase, setup=_scenario, env=env))
     out.append(
         Case(
             "signal: SIGTERM during start-up",

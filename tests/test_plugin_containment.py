@@ -81,51 +81,47 @@ def test_whatever_a_plugin_raises_or_returns_mid_run_is_exit_1_naming_it_keeping
     assert kept.sizes["time"] >= 2  # the initial state, the outputs before and the last good state
 
 
-def test_a_plugin_that_forces_its_copy_writeable_changes_nothing(monkeypatch):
-    """It writes into its own copy of the pressure: the results are those of a clean twin, to
-    the last bit (the state and the stresses are not its to change)."""
-    _numpy_path(monkeypatch)
-    scenario = from_dict(SLUMP)
-    clean = Simulation(scenario)
-    clean.advance(0.05)
-    real = DruckerPrager.yield_stress
-
-    calls = []
+def _vandal(real, calls):
+    """A yield stress that forces its copy of the pressure writeable and scales it."""
 
     def vandal(self, pressure, material):
-        calls.append(1)
+        calls.append(pressure)
         kappa = real(self, pressure, material)
         pressure.flags.writeable = True  # numpy allows it on an array that owns its data
         pressure *= 10.0
         return kappa
 
-    monkeypatch.setattr(DruckerPrager, "yield_stress", vandal)
-    vandalised = Simulation(scenario)
-    vandalised.advance(0.05)
-    assert len(calls) > 5
-    np.testing.assert_array_equal(vandalised.h, clean.h)
-    np.testing.assert_array_equal(vandalised.u, clean.u)
+    return vandal
 
 
-def test_a_plugin_keeping_and_changing_what_it_returned_changes_nothing(monkeypatch):
+def _hoarder(real, calls):
+    """A yield stress that keeps what it returned and zeroes it at its next call."""
+
+    def hoarder(self, pressure, material):
+        for earlier in calls:
+            earlier *= 0.0
+        calls.append(real(self, pressure, material))
+        return calls[-1]
+
+    return hoarder
+
+
+@pytest.mark.parametrize("misbehaving", [_vandal, _hoarder])
+def test_a_plugin_changing_what_it_was_given_or_what_it_returned_changes_nothing(monkeypatch, misbehaving):
+    """It writes into its own copy of the pressure, or into the arrays it returned before:
+    the results are those of a clean twin, to the last bit (neither the state nor the
+    stresses are its to change)."""
     _numpy_path(monkeypatch)
     scenario = from_dict(SLUMP)
     clean = Simulation(scenario)
     clean.advance(0.05)
-    real = DruckerPrager.yield_stress
-    kept = []
-
-    def hoarder(self, pressure, material):
-        for earlier in kept:
-            earlier *= 0.0  # what it handed over before
-        kept.append(real(self, pressure, material))
-        return kept[-1]
-
-    monkeypatch.setattr(DruckerPrager, "yield_stress", hoarder)
-    hoarded = Simulation(scenario)
-    hoarded.advance(0.05)
-    assert len(kept) > 5
-    np.testing.assert_array_equal(hoarded.h, clean.h)
+    calls: list = []
+    monkeypatch.setattr(DruckerPrager, "yield_stress", misbehaving(DruckerPrager.yield_stress, calls))
+    twin = Simulation(scenario)
+    twin.advance(0.05)
+    assert len(calls) > 5
+    np.testing.assert_array_equal(twin.h, clean.h)
+    np.testing.assert_array_equal(twin.u, clean.u)
 
 
 @pytest.mark.parametrize(
