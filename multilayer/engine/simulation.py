@@ -164,7 +164,7 @@ class Simulation:
         self.guard.reset(self.h, self.steps)
         #: mass (m2) through the left and right boundary in the last step, positive in +x
         self.boundary_mass = np.zeros(2)
-        # the fastest wave of the state Heun's second stage started from in the last transport
+        # the fastest wave across a face that carried mass in the last transport's second stage
         self._stage_speed = np.zeros(1)
         #: called between kernel calls within a step; may raise to abandon the step (Ctrl-C)
         self.poll: Callable[[], None] | None = None
