@@ -88,6 +88,7 @@ sys.exit(main(sys.argv[1:]))
 """
 
 
+@pytest.mark.slow  # a child process; the fault battery tries it too
 def test_a_run_stopped_during_start_up_says_so_and_leaves_no_lock(tmp_path):
     path = tmp_path / "tiny.yaml"
     path.write_text(yaml.safe_dump(TINY_SCENARIO))
@@ -109,6 +110,7 @@ def test_a_run_stopped_during_start_up_says_so_and_leaves_no_lock(tmp_path):
     assert not (outdir / lock.LOCK_FILE).exists() and not (outdir / "result.nc").exists()
 
 
+@pytest.mark.slow  # a child process; the fault battery tries it too
 def test_a_closed_stdout_ends_the_command_quietly(tmp_path, write_scenario):
     path = write_scenario(TINY_SCENARIO)
     reader = subprocess.Popen(["head", "-c", "0"], stdin=subprocess.PIPE)
