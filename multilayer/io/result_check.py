@@ -119,8 +119,14 @@ def _status(ds: netCDF4.Dataset, file: Path, bad) -> str:
     return status
 
 
+CHUNK_VALUES = 2**23
+"""Values read at once when records are checked (64 MB of doubles): whole records."""
+
+
 def _check_records(ds: netCDF4.Dataset, count: int, bad) -> None:
-    """Raise ``bad(...)`` at the first of the first ``count`` records that fails its checks."""
+    """Raise ``bad(...)`` at the first of the first ``count`` records that fails its checks;
+    the records are read in chunks of about :data:`CHUNK_VALUES` values and screened at
+    once, the first failing one examined on its own for the message."""
     ds.set_auto_mask(False)
     x = np.asarray(ds["x"][:], dtype=float)
     if x.size == 0 or not (np.all(np.isfinite(x)) and np.all(np.diff(x) > 0)):
@@ -130,33 +136,58 @@ def _check_records(ds: netCDF4.Dataset, count: int, bad) -> None:
     bounds = np.asarray(ds["x_bnds"][:], dtype=float)
     dx = float(np.mean(bounds[:, 1] - bounds[:, 0]))
     threshold = float(ds["front"].getncattr("threshold"))
+    layers = len(ds.dimensions["layer"])
+    step = max(1, CHUNK_VALUES // ((layers + 2) * x.size))
     before = -np.inf
-    for i in range(count):
-        t = float(ds["time"][i])
-        record = functools.partial(_record_error, bad, i, t)
+    for start in range(0, count, step):
+        rows = slice(start, min(start + step, count))
+        t = np.asarray(ds["time"][rows], dtype=float)
+        h = np.asarray(ds["h"][rows, :], dtype=float)
+        u = np.asarray(ds["u"][rows, :, :], dtype=float)
+        static = np.asarray(ds["static_interface"][rows, :], dtype=float)
+        mass = np.asarray(ds["mass"][rows], dtype=float)
+        front = np.asarray(ds["front"][rows], dtype=float)
+        previous = np.concatenate([[before], t[:-1]])
+        suspect = ~(np.isfinite(t) & (t >= 0.0) & (t > previous))
+        suspect |= (
+            ~np.isfinite(h).all(axis=1) | ~np.isfinite(u).all(axis=(1, 2)) | ~np.isfinite(static).all(axis=1)
+        )
+        suspect |= (
+            (h.min(axis=1) < 0.0) | (static.min(axis=1) < 0.0) | (static > h * (1 + ROUND_OFF)).any(axis=1)
+        )
+        integral = h.sum(axis=1) * dx
+        scale = np.maximum(np.abs(integral), h.shape[1] * dx * h.max(axis=1, initial=0.0))
+        suspect |= ~(np.abs(mass - integral) <= ROUND_OFF * scale)
+        for bad_row in np.flatnonzero(suspect):
+            j = int(bad_row)
+            _check_record(bad, start + j, float(previous[j]), (t[j], h[j], u[j], static[j], mass[j]), x, dx)
+        for j in range(t.size):  # the front of each record, as the writer computed it
+            wet = diagnostics.front(x, h[j], threshold)
+            if not (front[j] == wet or (np.isnan(front[j]) and np.isnan(wet))):
+                what = f"front {float(front[j])!r} m is not the front of h ({wet:.6g} m)"
+                raise _record_error(bad, start + j, float(t[j]), what)
+        before = float(t[-1])
 
-        if not (np.isfinite(t) and t >= 0.0 and t > before):
-            raise record(f"time {t!r} is not finite and after the previous one ({before:.6g} s)")
-        before = t
-        h = np.asarray(ds["h"][i, :], dtype=float)
-        u = np.asarray(ds["u"][i, :, :], dtype=float)
-        static = np.asarray(ds["static_interface"][i, :], dtype=float)
-        for name, values in (("h", h), ("u", u), ("static_interface", static)):
-            infinite = np.flatnonzero(~np.isfinite(values))
-            if infinite.size:
-                k = int(infinite[0])
-                raise record(f"{name} = {float(values.flat[k])!r} at x = {x[k % x.size]:.6g} m")
-        if h.min() < 0.0:
-            raise record(f"h = {h.min():.6g} m < 0 at x = {x[int(np.argmin(h))]:.6g} m")
-        if np.any(static < 0.0) or np.any(static > h * (1 + ROUND_OFF)):
-            raise record("the static interface is outside [0, h]")
-        mass, front = float(ds["mass"][i]), float(ds["front"][i])
-        expected = diagnostics.mass(h, dx)
-        if not abs(mass - expected) <= ROUND_OFF * max(abs(expected), h.size * dx * h.max(initial=0.0)):
-            raise record(f"mass {mass!r} m2 is not the integral of h ({expected:.6g} m2)")
-        wet = diagnostics.front(x, h, threshold)
-        if not (front == wet or (np.isnan(front) and np.isnan(wet))):
-            raise record(f"front {front!r} m is not the front of h ({wet:.6g} m)")
+
+def _check_record(bad, i: int, before: float, values: tuple, x: np.ndarray, dx: float) -> None:
+    """Raise ``bad(...)`` saying how output time ``i`` (its time, h, u, static interface and
+    mass in ``values``; ``before`` the time of the previous one) fails its checks."""
+    t, h, u, static, mass = values
+    record = functools.partial(_record_error, bad, i, float(t))
+    if not (np.isfinite(t) and t >= 0.0 and t > before):
+        raise record(f"time {float(t)!r} is not finite and after the previous one ({before:.6g} s)")
+    for name, field in (("h", h), ("u", u), ("static_interface", static)):
+        infinite = np.flatnonzero(~np.isfinite(field))
+        if infinite.size:
+            k = int(infinite[0])
+            raise record(f"{name} = {float(field.flat[k])!r} at x = {x[k % x.size]:.6g} m")
+    if h.min() < 0.0:
+        raise record(f"h = {h.min():.6g} m < 0 at x = {x[int(np.argmin(h))]:.6g} m")
+    if np.any(static < 0.0) or np.any(static > h * (1 + ROUND_OFF)):
+        raise record("the static interface is outside [0, h]")
+    expected = diagnostics.mass(h, dx)
+    if not abs(mass - expected) <= ROUND_OFF * max(abs(expected), h.size * dx * h.max(initial=0.0)):
+        raise record(f"mass {float(mass)!r} m2 is not the integral of h ({expected:.6g} m2)")
 
 
 def _record_error(bad, i: int, t: float, what: str) -> ResultFileError:
