@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import signal
 import socket
 import subprocess
@@ -68,6 +69,9 @@ class Case:
     setup: Callable[[Path], object] | None = None  # writes the files of the case into its directory
     signal_after_output: int | None = None
     keeps_output: bool = False
+    env: dict[str, str] = field(default_factory=dict)  # added to the child's environment
+    file_limit: int | None = None  # RLIMIT_FSIZE of the child (ulimit -f), bytes
+    signal_when: tuple[str, int] | None = None  # (file in the case's directory, signal) sent once it exists
     result: dict = field(default_factory=dict)
 
 
@@ -105,14 +109,16 @@ BAD_VALUES: list[tuple[str, dict, str]] = [
     ("cells 0", {"domain.cells": 0}, "domain.cells"),
     ("cells float", {"domain.cells": 1.5}, "domain.cells"),
     ("cells 1e8", {"domain.cells": 100_000_000}, "of memory"),
-    ("layers 1e8", {"domain.layers": 100_000_000}, "of memory"),
+    ("layers 1e5", {"domain.layers": 100_000}, "of memory"),
+    ("layers 1e8", {"domain.layers": 100_000_000}, "domain.layers"),
     ("layer_fractions inf", {"domain.layer_fractions": [INF, 1.0, 1.0]}, "domain.layer_fractions"),
     ("geometric nan", {"domain.layer_fractions": {"geometric": NAN}}, "domain.layer_fractions"),
     ("width -1", {"domain.width": -1.0}, "domain.width"),
     ("time.end inf", {"time.end": INF}, "time.end"),
     ("time.end nan", {"time.end": NAN}, "time.end"),
     ("time.end 0", {"time.end": 0.0}, "time.end"),
-    ("output_interval 1e-9", {"time.output_interval": 1e-9}, "result file of about"),
+    ("output_interval 3e-8", {"time.output_interval": 3e-8}, "result file of about"),
+    ("output_interval 1e-12", {"time.output_interval": 1e-12}, "output times to time.end"),
     ("output_interval inf", {"time.output_interval": INF}, "time.output_interval"),
     ("cfl 1.5", {"time.cfl": 1.5}, "time.cfl"),
     ("gravity inf", {"gravity": INF}, "gravity"),
@@ -168,7 +174,7 @@ PLUGIN_FAULTS: list[tuple[str, str, str]] = [
     ("viscosity wrong shape", "return np.ones(7)", "viscosity() returned an array of shape (7,)"),
     ("viscosity raises", "raise RuntimeError('broken')", "viscosity() raised RuntimeError: broken"),
     ("viscosity None", "return None", "viscosity() returned"),
-    ("viscosity text", "return 'abc'", "viscosity() raised ValueError"),
+    ("viscosity text", "return 'abc'", "viscosity() returned values of type <U3"),
     (
         "viscosity nan mid-run",
         "calls[0] += 1\n    return np.full(np.shape(p), np.nan if calls[0] > 60 else 15.0)",
@@ -353,6 +359,450 @@ def _lock(pid_alive: bool, readable: bool = True) -> Callable[[Path], None]:
     return setup
 
 
+BILLION_LAUGHS = "a: &a [x, x, x, x, x, x, x, x, x, x]\n" + "".join(
+    f"{chr(98 + i)}: &{chr(98 + i)} [{', '.join([f'*{chr(97 + i)}'] * 10)}]\n" for i in range(9)
+)
+HOSTILE_YAML: list[tuple[str, str, str]] = [
+    ("alias bomb", BILLION_LAUGHS, "values once its aliases are expanded"),
+    ("recursive alias", "name: &a [*a]\n", "lies inside its own anchor"),
+    ("recursive mapping", "a: &a\n  b: *a\n", "lies inside its own anchor"),
+    ("5000-deep list", "x: " + "[" * 5000 + "]" * 5000 + "\n", "nested more than"),
+    ("9 MB of YAML", "# padding\n" * 950_000, "characters of YAML"),
+]
+
+# (name, patch of DruckerPrager.yield_stress after a few good calls, phrase): a plugin on the
+# numpy path (no compiled forms) misbehaving mid-run
+CONTAINED: list[tuple[str, str, str]] = [
+    ("sys.exit(0)", "raise SystemExit(0)", "yield_stress() raised SystemExit: 0"),
+    ("KeyboardInterrupt", "raise KeyboardInterrupt", "yield_stress() raised KeyboardInterrupt"),
+    ("BaseException", "raise BaseException('odd')", "yield_stress() raised BaseException: odd"),
+    ("GeneratorExit", "raise GeneratorExit", "yield_stress() raised GeneratorExit"),
+    ("complex values", "return np.zeros(np.shape(p), complex)", "returned values of type complex128"),
+    ("text values", "return np.full(np.shape(p), 'a')", "returned values of type <U1"),
+    ("objects", "return np.full(np.shape(p), None)", "returned values of type object"),
+    ("writes its input", "p[...] = 0.0\n    return p", "assignment destination is read-only"),
+]
+DECLARED_FORMS: list[tuple[str, str, str]] = [
+    ("power law with 2 numbers", "return ('power', (1.0, 2.0))", "it takes 4 numbers"),
+    ("form of text", "return ('constant', ('a',))", "returned values of type <U1"),
+    ("not a pair", "return 'constant'", "must be None or (form name, parameters)"),
+    ("sys.exit", "raise SystemExit(3)", "viscosity_kernel() raised SystemExit: 3"),
+]
+CONSTRUCTOR_FAULTS: list[tuple[str, str]] = [
+    ("RuntimeError", "RuntimeError('no licence')"),
+    ("sys.exit", "SystemExit(1)"),
+    ("ZeroDivisionError", "ZeroDivisionError('division by zero')"),
+]
+
+
+def _mid_run_patch(body: str) -> str:
+    """DruckerPrager.yield_stress doing ``body`` after 8 good calls, on the numpy path."""
+    return (
+        "real = DruckerPrager.yield_stress\n"
+        "def fault(self, p, m):\n"
+        "    calls[0] += 1\n"
+        "    if calls[0] <= 8:\n"
+        "        return real(self, p, m)\n"
+        f"    {body}\n"
+        "DruckerPrager.yield_stress = fault\n"
+        "DruckerPrager.yield_stress_kernel = lambda self, material: None\n"
+        "DruckerPrager.viscosity_kernel = lambda self, material: None\n"
+    )
+
+
+def _declared_patch(body: str) -> str:
+    return f"def declared(self, material):\n    {body}\nDruckerPrager.viscosity_kernel = declared\n"
+
+
+def _constructor_patch(exc: str) -> str:
+    return (
+        "def constructor(self, mu_s: float, nu: float, mu_start: float | None = None):\n"
+        f"    raise {exc}\n"
+        "DruckerPrager.__init__ = constructor\n"
+    )
+
+
+RESULT_DAMAGES = ("truncated", "running", "nan", "mass", "front", "time", "header", "empty")
+
+
+def _damaged_result(how: str) -> Callable[[Path], None]:
+    """A finished run whose result.nc is then damaged: ``how`` of RESULT_DAMAGES."""
+
+    def setup(directory: Path) -> None:
+        _finished_run(directory)
+        import netCDF4
+
+        path = directory / "out" / "result.nc"
+        if how == "truncated":
+            os.truncate(path, path.stat().st_size // 2)
+        elif how == "header":
+            data = bytearray(path.read_bytes())
+            data[20:40] = b"\xff" * 20
+            path.write_bytes(bytes(data))
+        elif how == "empty":
+            path.write_bytes(b"")
+        else:
+            with netCDF4.Dataset(path, "a") as ds:
+                if how == "running":
+                    ds.run_status = "running"
+                elif how == "nan":
+                    ds["h"][3, 7] = np.nan
+                elif how == "mass":
+                    ds["mass"][4] = 1.0
+                elif how == "front":
+                    ds["front"][4] = 0.3
+                elif how == "time":
+                    ds["time"][2] = 0.001
+
+    return setup
+
+
+def _sweep(parameters: dict, paired: bool = False) -> Callable[[Path], None]:
+    def setup(directory: Path) -> None:
+        (directory / "base.yaml").write_text(yaml.safe_dump(TINY))
+        sweep = {"base": "base.yaml", "parameters": parameters, "zip": paired}
+        (directory / "sweep.yaml").write_text(yaml.safe_dump(sweep))
+
+    return setup
+
+
+def _calibration(times: str, **search: int) -> Callable[[Path], None]:
+    def setup(directory: Path) -> None:
+        (directory / "base.yaml").write_text(yaml.safe_dump(TINY))
+        (directory / "front.csv").write_text("t,x_f,sigma\n" + times)
+        observation = {
+            "name": "front",
+            "quantity": "front",
+            "file": "front.csv",
+            "columns": ["t", "x_f", "sigma"],
+        }
+        config = {
+            "base": "base.yaml",
+            "parameters": {"rheology.mu_s": {"bounds": [0.2, 0.4]}},
+            "observations": [observation],
+            "search": {"population": 4, "generations": 1, **search},
+        }
+        (directory / "calibration.yaml").write_text(yaml.safe_dump(config))
+
+    return setup
+
+
+def _lock_holding(pid: Any) -> Callable[[Path], None]:
+    def setup(directory: Path) -> None:
+        _scenario(directory)
+        (directory / "out").mkdir()
+        record = {"pid": pid, "host": socket.gethostname(), "started": "2026-01-01T00:00:00+00:00"}
+        (directory / "out" / "run.lock").write_text(json.dumps(record))
+
+    return setup
+
+
+def _lock_directory(directory: Path) -> None:
+    _scenario(directory)
+    (directory / "out" / "run.lock").mkdir(parents=True)
+
+
+def _fifo(directory: Path) -> None:
+    os.mkfifo(directory / "scenario.yaml")
+
+
+def _long_csv(directory: Path) -> None:
+    _scenario(directory, {"bed": {"file": "bed.csv"}})
+    (directory / "bed.csv").write_text("x (m), z (m)\n" + "".join(f"{i / 1e3}, 0\n" for i in range(101)))
+
+
+MANY_OUTPUTS = {"time.end": 0.2, "time.output_interval": 0.005}
+"""41 records of 1624 bytes: about 84 kB of result.nc (the disk-full cases)."""
+NO_ROOM_CHECK = "from multilayer.io import results\nresults.ResultWriter._ensure_room = lambda self: None\n"
+FILLING_DISK = (
+    "from multilayer.io import disk\n"
+    "real_free = disk.free_space\n"
+    "def free_space(directory):\n"
+    "    calls[0] += 1\n"
+    "    return 1000.0 if calls[0] > 10 else real_free(directory)\n"
+    "disk.free_space = free_space\n"
+)
+FULL_CHECKPOINT = (
+    "from multilayer.io import results\n"
+    "real_savez = np.savez\n"
+    "def savez(*args, **kwargs):\n"
+    "    calls[0] += 1\n"
+    "    if calls[0] > 3:\n"
+    "        raise OSError(28, 'No space left on device')\n"
+    "    return real_savez(*args, **kwargs)\n"
+    "np.savez = savez\n"
+)
+SLOW_START = (
+    "import pathlib\n"
+    "real_init = simulation.Simulation.__init__\n"
+    "def slow(self, scenario):\n"
+    "    pathlib.Path(sys.argv[sys.argv.index('-o') + 1]).joinpath('building').touch()\n"
+    "    time.sleep(30)\n"
+    "    real_init(self, scenario)\n"
+    "simulation.Simulation.__init__ = slow\n"
+)
+FEW_STEPS = (  # the estimate says 5 steps: the bound is reached while running
+    "from multilayer.app import resources\n"
+    "resources.steps = lambda sc: resources.Steps(5.0, 1.0, 0.01, 0.01)\n"
+)
+
+
+def round_two() -> list[Case]:
+    """The hostile cases of the second round (docs/reliability.md): damaged results,
+    contained plugins, full disks, bounds on sizes and degenerate values, inputs that
+    reached a traceback."""
+    out: list[Case] = []
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    for how in RESULT_DAMAGES:
+        for command in (["plot", "{dir}/out"], ["export", "{dir}/out", "--vtk"]):
+            out.append(
+                Case(
+                    f"damaged result: {how}, {command[0]}",
+                    command,
+                    2,
+                    "result.nc: ",
+                    setup=_damaged_result(how),
+                )
+            )
+    resume = ["run", "{scenario}", "-o", "{dir}/out", "--resume", "--set", "time.end=0.3", "-q"]
+    out.append(
+        Case("damaged result: truncated, resume", resume, 2, "truncated", setup=_damaged_result("truncated"))
+    )
+    for name, body, phrase in CONTAINED:
+        out.append(
+            Case(
+                f"plugin: {name}",
+                run,
+                1,
+                phrase,
+                patch=_mid_run_patch(body),
+                setup=_scenario,
+                keeps_output=True,
+            )
+        )
+    for name, body, phrase in DECLARED_FORMS:
+        out.append(Case(f"plugin form: {name}", run, 1, phrase, patch=_declared_patch(body), setup=_scenario))
+    for name, exc in CONSTRUCTOR_FAULTS:
+        for command in (["validate", "{scenario}"], run):
+            out.append(
+                Case(
+                    f"plugin constructor {name}: {command[0]}",
+                    command,
+                    2,
+                    "DruckerPrager(mu_s=0.3, nu=0.01) raised",
+                    patch=_constructor_patch(exc),
+                    setup=_scenario,
+                )
+            )
+    many = partial(_scenario, changes=MANY_OUTPUTS)
+    forced = [*run, "--force"]
+    out.append(
+        Case(
+            "disk: ulimit -f, checked",
+            forced,
+            1,
+            "file too large",
+            setup=many,
+            file_limit=48 * 1024,
+            keeps_output=True,
+        )
+    )
+    out.append(
+        Case(
+            "disk: ulimit -f, write fails",
+            forced,
+            1,
+            "file too large",
+            patch=NO_ROOM_CHECK,
+            setup=many,
+            file_limit=48 * 1024,
+            keeps_output=True,
+        )
+    )
+    out.append(Case("disk: ulimit -f, refused", run, 2, "file size limit", setup=many, file_limit=48 * 1024))
+    out.append(Case("disk: full", forced, 1, "disk full", patch=FILLING_DISK, setup=many, keeps_output=True))
+    out.append(
+        Case(
+            "disk: checkpoint full",
+            forced,
+            1,
+            "disk full",
+            patch=FULL_CHECKPOINT,
+            setup=many,
+            keeps_output=True,
+        )
+    )
+    for name, text, phrase in HOSTILE_YAML:
+        for command in (["validate", "{scenario}"], run):
+            out.append(
+                Case(f"yaml {name}: {command[0]}", command, 2, phrase, setup=partial(_scenario, text=text))
+            )
+    out.append(
+        Case(
+            "yaml: --set alias",
+            ["validate", "{scenario}", "--set", "initial=&a [*a]"],
+            2,
+            "lies inside its own anchor",
+            setup=_scenario,
+        )
+    )
+    out.append(Case("file: /dev/zero scenario", ["validate", "/dev/zero"], 2, "not a regular file"))
+    out.append(
+        Case("file: a pipe as scenario", ["validate", "{scenario}"], 2, "not a regular file", setup=_fifo)
+    )
+    out.append(
+        Case(
+            "file: /dev/zero bed",
+            ["validate", "{scenario}"],
+            2,
+            "not a regular file",
+            setup=partial(_scenario, changes={"bed": {"file": "/dev/zero"}}),
+        )
+    )
+    out.append(
+        Case(
+            "file: CSV beyond its rows",
+            ["validate", "{scenario}"],
+            2,
+            "101 data rows; accepted: at most 100",
+            patch="from multilayer.scenario import profiles\nprofiles.MAX_PROFILE_POINTS = 100\n",
+            setup=_long_csv,
+        )
+    )
+    dem = {"bed": {"dem": "dem.tif", "polyline": [[0.0, 0.0], [1e9, 0.0]], "spacing": 1e-3}}
+    out.append(
+        Case(
+            "file: DEM polyline of 1e12 samples",
+            ["validate", "{scenario}"],
+            2,
+            "takes 1e+12 points",
+            setup=partial(_scenario, changes=dem),
+        )
+    )
+    layer = {"initial": [{"shape": "layer", "thickness": 0.01}]}
+    for key, value in (("gravity", 1e300), ("time.cfl", 1e-300), ("domain.x_max", 1e-300)):
+        for command in (["validate", "{scenario}"], run):
+            out.append(
+                Case(
+                    f"steps: {key} = {value:g}, {command[0]}",
+                    [*command, "--set", f"{key}={value!r}"],
+                    2,
+                    "time steps",
+                    setup=partial(_scenario, changes=layer),
+                )
+            )
+    out.append(
+        Case(
+            "steps: the run reaches --max-steps",
+            [*run, "--max-steps", "10"],
+            1,
+            "--max-steps 20",
+            patch=FEW_STEPS,
+            setup=_scenario,
+            keeps_output=True,
+        )
+    )
+    wide = {"domain.cells": 2, "domain.layers": 20000}
+    for command in (["validate", "{scenario}"], run):
+        out.append(
+            Case(
+                f"memory: 20000 layers, {command[0]}",
+                [*command, "--max-memory", "8G"],
+                2,
+                "20000 layers need about",
+                setup=partial(_scenario, changes=wide),
+            )
+        )
+    sweep = ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/sweep-out"]
+    out.append(
+        Case(
+            "sweep: 10^12 members",
+            sweep,
+            2,
+            "1000000000000 members",
+            setup=_sweep({f"k{i}": list(range(10)) for i in range(12)}),
+        )
+    )
+    out.append(
+        Case(
+            "sweep: a value twice",
+            sweep,
+            2,
+            "give the same member",
+            setup=_sweep({"rheology.mu_s": [0.4, 0.3, 0.40]}),
+        )
+    )
+    out.append(
+        Case(
+            "sweep: a pair twice",
+            sweep,
+            2,
+            "give the same member",
+            setup=_sweep({"rheology.mu_s": [0.3, 0.3], "rheology.nu": [0.01, 0.01]}, True),
+        )
+    )
+    out.append(Case("plot: --times 1000", ["plot", "{dir}", "--times", "1000"], 2, "accepted: 1 to 12 times"))
+    calibrate = ["calibrate", "{dir}/calibration.yaml", "-o", "{dir}/cal"]
+    out.append(
+        Case(
+            "calibrate: observations after the run",
+            calibrate,
+            2,
+            "outside the runs",
+            setup=_calibration("5,0.2,0.01\n9,0.3,0.01\n"),
+        )
+    )
+    out.append(
+        Case(
+            "calibrate: population 10^12",
+            calibrate,
+            2,
+            "search.population",
+            setup=_calibration("0.1,0.2,0.01\n", population=10**12),
+        )
+    )
+    for pid in ("abc", None, 1e30, 0, -1, [1]):
+        out.append(Case(f"lock: pid {pid!r}", run, 0, "taking over a stale lock", setup=_lock_holding(pid)))
+    out.append(
+        Case("lock: a directory", run, 2, "a stale lock that cannot be removed", setup=_lock_directory)
+    )
+    # (name, argv, exit code, phrase, environment): a valid scenario in the case's directory
+    scenario_cases: list[tuple[str, list[str], int, str, dict[str, str]]] = [
+        (
+            "--set initial.².height",
+            ["validate", "{scenario}", "--set", "initial.².height=0.1"],
+            2,
+            "accepted indices",
+            {},
+        ),
+        ("MULTILAYER_THREADS=²", run, 2, "MULTILAYER_THREADS", {"MULTILAYER_THREADS": "²"}),
+        (
+            "MULTILAYER_INSTITUTION not UTF-8",
+            run,
+            0,
+            "",
+            {"MULTILAYER_INSTITUTION": os.fsdecode(b"Uni\xff\xfe")},
+        ),
+        ("-o /proc/x", ["run", "{scenario}", "-o", "/proc/x"], 2, "/proc/x: cannot be created", {}),
+        ("-o /dev/null/x", ["run", "{scenario}", "-o", "/dev/null/x"], 2, "cannot be created", {}),
+        ("-o not UTF-8", ["run", "{scenario}", "-o", os.fsdecode(b"o\xff")], 2, "not a UTF-8 name", {}),
+    ]
+    for name, argv, code, phrase, env in scenario_cases:
+        out.append(Case(name, argv, code, phrase, setup=_scenario, env=env))
+    out.append(
+        Case(
+            "signal: SIGTERM during start-up",
+            ["run", "{scenario}", "-o", "{dir}/out"],
+            143,
+            "during start-up, before the first step",
+            patch=SLOW_START,
+            setup=_scenario,
+            signal_when=("out/building", signal.SIGTERM),
+        )
+    )
+    return out
+
+
 def cases() -> list[Case]:
     out: list[Case] = []
     budget = ["--max-memory", "8G", "--max-output", "1G"]
@@ -496,16 +946,16 @@ def cases() -> list[Case]:
             )
         )
     for how, code, phrase in (
-        ("nan", 0, "values are not finite"),
-        ("failed", 0, "the run failed"),
-        ("all nan", 0, "values are not finite"),
+        ("nan", 2, "fails its checks: h = nan"),
+        ("failed", 2, "fails its checks: h = nan"),
+        ("all nan", 2, "fails its checks: h = nan"),
         ("truncated", 2, "result.nc"),
     ):
         out.append(
             Case(f"plot: {how} result", ["plot", "{dir}/out"], code, phrase, setup=_result_damage(how))
         )
     out.append(Case("plot: no result", ["plot", "{dir}"], 2, "no result file"))
-    return out
+    return out + round_two()
 
 
 def _records(path: Path) -> int:
@@ -525,12 +975,30 @@ def attempt(case: Case) -> Case:
             case.setup(directory)
         argv = [a.format(scenario=directory / "scenario.yaml", dir=directory) for a in case.argv]
         command = [sys.executable, "-c", CHILD.format(patch=case.patch), *argv]
+        limit = case.file_limit
+
+        def limited() -> None:
+            if limit is not None:
+                resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
         start = time.monotonic()
-        proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        proc = subprocess.Popen(
+            command,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env={**os.environ, **case.env},
+            preexec_fn=limited,
+        )
         if case.signal_after_output is not None:
             while _records(directory / "out" / "result.nc") < 2 and proc.poll() is None:
                 time.sleep(0.02)
             proc.send_signal(case.signal_after_output)
+        if case.signal_when is not None:
+            marker, signum = case.signal_when
+            while not (directory / marker).exists() and proc.poll() is None:
+                time.sleep(0.02)
+            proc.send_signal(signum)
         try:
             out, err = proc.communicate(timeout=120)
         except subprocess.TimeoutExpired:

@@ -86,10 +86,9 @@ def _numpy_path() -> None:
 def _projection() -> None:
     """The non-hydrostatic projection alone (its kernels need no other task's)."""
     sim = _collapse(model=NON_HYDROSTATIC)
-    assert sim.projection is not None
     u = np.where(sim.h > 0, np.linspace(0.1, 1.0, sim.u.shape[0])[:, None], 0.0)
-    sim._project(sim.h, u, 1e-3)
-    sim.projection.yield_gravity(sim.q, sim.h, sim._projected)
+    sim.pressure.project(sim.state, sim.h, u, 1e-3)
+    sim.pressure.yield_gravity(sim.state, sim.h)
 
 
 def _steps(**changes) -> None:

@@ -44,7 +44,7 @@ INVALID = [
         "initial.0.thickness",
         "accepted: a number >= 0 (m); 0: no layer",
     ),
-    ("layers < 1", {"domain.layers": 0}, "domain.layers", "accepted: an integer >= 1"),
+    ("layers < 1", {"domain.layers": 0}, "domain.layers", "accepted: an integer from 1 to 100000"),
     ("cfl >= 1", {"time.cfl": 1.0}, "time.cfl", "accepted: a number in (0, 1)"),
     ("cfl <= 0", {"time.cfl": 0.0}, "time.cfl", "accepted: a number in (0, 1)"),
     (
@@ -178,7 +178,8 @@ def test_output_directory_that_cannot_be_created(cli, tiny_scenario, write_scena
     blocker.write_text("not a directory")
     result = cli("run", path, "-o", blocker / "out")
     assert result.code == 2 and "Traceback" not in result.err
-    assert str(blocker / "out") in result.err and "accepted: a directory" in result.err
+    assert str(blocker / "out") in result.err
+    assert "accepted: an output directory (-o DIR or output.directory)" in result.err
     assert not (blocker / "out").exists()
 
 
@@ -302,3 +303,21 @@ def test_the_study_commands_without_their_extra_say_how_to_install_it(tmp_path):
         assert code == 2 and "Traceback" not in err
         assert f"multilayer {command} needs " in err
         assert "accepted: install the studies extra with pip install 'multilayer[studies]'" in err
+
+
+def test_the_run_summary_gives_units_and_says_why_a_quantity_has_no_value(
+    cli, tiny_scenario, write_scenario, tmp_path
+):
+    """The material slides out of the domain, leaving a film thinner than the front
+    threshold: no front at the end."""
+    tiny_scenario["time"] = {"end": 20.0, "output_interval": 20.0}
+    tiny_scenario["numerics"] = {"front_threshold": 0.01}
+    result = cli("run", write_scenario(tiny_scenario), "-o", tmp_path / "out")
+    assert result.code == 0, result.err
+    lines = result.out.splitlines()[1:]
+    assert "  t_final = 20 s" in lines and any(
+        line.startswith("  mass_final = ") and line.endswith(" m2") for line in lines
+    )
+    assert any(line.startswith("  max_speed_final = ") and line.endswith(" m/s") for line in lines)
+    assert "  front_final = nan m (no cell thicker than the front threshold (0.01 m) at the end)" in lines
+    assert any(line.startswith("  steps = ") and line[len("  steps = ") :].isdigit() for line in lines)

@@ -128,3 +128,12 @@ def test_the_dynamic_programme_is_exact_when_its_messages_reach_far_out():
     exact = np.linalg.solve(np.diag(inertia) + stress, momentum - difference.T @ (kappa * sign))
     assert np.array_equal(np.sign(np.diff(exact, prepend=0.0)), sign)  # the signs are consistent
     assert np.abs(u - exact).max() < 1e-12
+
+
+@pytest.mark.parametrize("layers", [1, 7, 40])
+def test_the_memory_estimate_of_the_workspace_is_the_workspace(layers):
+    """resources counts the workspace of every thread from vertical.problem.workspace_bytes,
+    which must be what _workspace allocates (quadratic in the layers)."""
+    from multilayer.engine.vertical.problem import workspace_bytes
+
+    assert sum(a.nbytes for a in column_kernel._workspace(layers)) == workspace_bytes(layers)

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import xarray as xr
 from matplotlib import animation
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.image import imread
 from PIL import Image
 
@@ -214,3 +215,31 @@ def test_vtk_export_puts_the_layers_at_their_physical_heights(slump_dir: Path, c
     np.testing.assert_array_equal(cells["h"], np.tile(h, 3))
     assert set(np.unique(cells["static"])) <= {0.0, 1.0}
     assert np.all(cells["static"][cells["u"] != 0.0] == 0.0)  # moving cells are not static
+
+
+@pytest.mark.parametrize("figure", ["profiles", "static_interface"])
+def test_a_long_title_is_wrapped_within_the_figure(slump_dir: Path, figure: str) -> None:
+    """One column: the figure is 4.8 inches wide and a long scenario name with the figure's
+    description was cut at both ends."""
+    ds = open_result(slump_dir)
+    draw = getattr(plotting, f"{figure}_figure")
+    fig = draw(ds, "erodible-bed-collapse-coulomb", [10])
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    title = fig._suptitle.get_window_extent(canvas.get_renderer())
+    frame = fig.bbox
+    assert frame.x0 <= title.x0 and title.x1 <= frame.x1, (title, frame)
+
+
+def test_plot_prints_no_warning_of_the_colour_mapping(slump_dir: Path, cli) -> None:
+    """The section's colours are masked cells (at rest, the joins between cells): the values
+    under the mask were uninitialised memory, which the colour mapping normalised too
+    (numpy's 'overflow encountered in multiply')."""
+    ds = open_result(slump_dir)
+    fig = plotting.section_figure(ds, "slump", times=2)
+    for mesh in (c for ax in fig.axes for c in ax.collections if hasattr(c, "get_array")):
+        values = mesh.get_array()
+        if values is not None:
+            assert np.isfinite(np.ma.getdata(values)).all()
+    result = cli("plot", slump_dir, "--at", "0.05")
+    assert result.code == 0 and result.err == "", result.err

@@ -1,7 +1,9 @@
 """Property-based tests (Hypothesis): engine invariants and scenario-loader robustness.
 
-The default run tries a few examples of each property (``quick``); ``-m properties``
-runs many more (``thorough``).
+The default run tries a few examples of each property (``quick``), the same ones in every
+run (derandomized, no example database): a default run passes or fails alike on every
+clone.  ``-m properties`` runs many more (``thorough``), new ones each time; an example it
+finds failing is pinned as a regular test (``test_the_examples_the_wide_search_found``).
 """
 
 from __future__ import annotations
@@ -22,10 +24,25 @@ from hypothesis import strategies as st
 from multilayer.app.simulation import Simulation
 from multilayer.scenario import from_dict
 
+THOROUGH = 150
 EXAMPLES = [
     pytest.param(6, id="quick"),
-    pytest.param(150, id="thorough", marks=pytest.mark.properties),
+    pytest.param(THOROUGH, id="thorough", marks=pytest.mark.properties),
 ]
+
+
+def _settings(examples: int, max_examples: int | None = None, **options) -> settings:
+    """Hypothesis settings of a property tried on ``examples`` (one of ``EXAMPLES``): the
+    quick examples are derandomized and not stored (the same in every run); the thorough
+    search draws new ones and keeps failures in the example database."""
+    quick = examples < THOROUGH
+    return settings(
+        max_examples=examples if max_examples is None else max_examples,
+        deadline=None,
+        derandomize=quick,
+        database=None if quick else settings.default.database,
+        **options,
+    )
 
 
 @st.composite
@@ -86,7 +103,7 @@ def _step_checking_the_state(sim: Simulation, steps: int) -> None:
 def test_engine_invariants_on_random_small_closed_scenarios(examples):
     """h >= 0 and finite, u finite, mass conserved to round-off on a closed domain."""
 
-    @settings(max_examples=examples, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+    @_settings(examples, suppress_health_check=[HealthCheck.too_slow])
     @given(closed_scenarios())
     def check(sc):
         sim = Simulation(sc)
@@ -102,7 +119,7 @@ def test_mass_balances_the_boundary_fluxes_on_random_open_scenarios(examples):
     """mass(t) = mass(0) + the net mass through the boundaries to round-off, with outflow and
     (sub- or supercritical, even reversed) inflow sides, and h >= 0, finite."""
 
-    @settings(max_examples=examples, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+    @_settings(examples, suppress_health_check=[HealthCheck.too_slow])
     @given(closed_scenarios(open_sides=True))
     def check(sc):
         sim = Simulation(sc)
@@ -114,11 +131,47 @@ def test_mass_balances_the_boundary_fluxes_on_random_open_scenarios(examples):
     check()
 
 
+def _block(slope, length, mu_s, nu, start, width, height, sides=("periodic", "periodic"), layer=None):
+    """A scenario of ``closed_scenarios``: 8 cells x 1 layer, a Drucker-Prager block."""
+    initial = [{"shape": "rectangle", "x_min": start, "x_max": start + width, "height": height}]
+    return scenario(
+        slope_deg=slope,
+        domain={"x_min": 0.0, "x_max": length, "cells": 8, "layers": 1},
+        rheology={"name": "drucker_prager", "mu_s": mu_s, "nu": nu},
+        base=[{"condition": "no_slip"}],
+        initial=([{"shape": "layer", "thickness": layer}] if layer else []) + initial,
+        boundaries={"left": sides[0], "right": sides[1]},
+    )
+
+
+@pytest.mark.parametrize(
+    "sc",
+    [
+        _block(13.0, 1.875, 0.5, 0.0, 0.0, 0.5, 0.01171875),
+        _block(5.0, 2.0, 0.0, 0.03125, 0.0, 0.25, 0.01),
+        _block(17.0, 2.0, 0.5, 0.0, 0.0, 0.5, 0.01171875, layer=0.001953125),
+        _block(12.0, 1.25, 0.5, 0.0, 0.25, 0.5, 0.125),
+        _block(16.0, 2.0, 0.0, 0.03125, 0.0, 0.25, 0.03125, sides=("wall", "outflow")),
+    ],
+)
+def test_the_examples_the_wide_search_found(sc):
+    """Examples of ``closed_scenarios(open_sides=True)`` on which the thorough search found
+    the mass not balanced (as Hypothesis shrank them): a block on 5-17 degrees, each step of
+    its state nearly at rest long (0.3-0.7 s), Heun's second stage beyond the Courant
+    condition of the waves the step's gravity gave it; the clip of its negative thicknesses
+    created 3e-6 to 2e-3 m2.  The step is now redone until that stage meets the condition."""
+    sim = Simulation(sc)
+    mass0 = sim.diagnostics()["mass"]
+    _step_checking_the_state(sim, 12)
+    mass = sim.diagnostics()["mass"]
+    assert abs(mass - mass0 - sim.net_inflow) <= 1e-12 * max(mass0, mass)
+
+
 @pytest.mark.parametrize("examples", EXAMPLES)
 def test_exact_rest_stays_exact(examples):
     """A uniform layer below its friction angle stays at rest to the last bit."""
 
-    @settings(max_examples=examples, deadline=None)
+    @_settings(examples)
     @given(
         mu_s=st.floats(0.1, 0.9),
         fraction=st.floats(0.0, 0.95),
@@ -202,7 +255,7 @@ def test_scenario_mutations_load_or_fail_with_input_error(examples):
     from multilayer.app import resources
     from multilayer.errors import InputError
 
-    @settings(max_examples=examples * 8, deadline=None)
+    @_settings(examples, examples * 8)
     @given(mutations())
     def check(data):
         try:
@@ -220,7 +273,7 @@ def test_validate_of_mutated_files_exits_0_or_2_without_traceback(tmp_path_facto
     """The command line on mutated files: exit 0 or 2, never a traceback."""
     directory = tmp_path_factory.mktemp("mutations")
 
-    @settings(max_examples=max(2, examples // 3), deadline=None)
+    @_settings(examples, max(2, examples // 3))
     @given(st.lists(mutations(), min_size=6, max_size=6))
     def check(datas):
         files = []

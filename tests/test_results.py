@@ -17,6 +17,7 @@ from multilayer import scenario as scenarios
 from multilayer.app import runner
 from multilayer.app.simulation import Simulation
 from multilayer.errors import InputError
+from multilayer.io.result_check import check_result
 from multilayer.io.results import (
     Checkpoint,
     ResultWriter,
@@ -91,22 +92,27 @@ def test_summary_is_read_from_the_final_time(result_dir: Path) -> None:
     assert s["steps"] == ds.attrs["steps"]
 
 
-def test_records_are_readable_while_writing_and_a_torn_record_is_dropped(tmp_path: Path) -> None:
+def test_records_are_whole_while_writing_a_reader_waits_for_the_end(tmp_path: Path) -> None:
+    """While a run writes (or after its process was killed), the records synced so far are
+    whole (what --resume continues from); a reader refuses the file until the run ends, and
+    a record left half-written by a crash (its time not yet written) is damage."""
     sc = scenarios.from_dict(COLUMN)
     sim = Simulation(sc)
     writer = ResultWriter(tmp_path / "result.nc", sc, sim)
     writer.write(sim)
     sim.advance(0.01)
     writer.write(sim)
+    assert check_result(tmp_path, "resume", records=2) == tmp_path / "result.nc"
+    with pytest.raises(InputError, match="run_status is 'running': a run is still writing it"):
+        open_result(tmp_path)
     # a crash in the middle of the next record: h written, time not yet
     with netCDF4.Dataset(tmp_path / "result.nc", "a") as ds:
         ds["h"][2, :] = sim.h
-    partial = open_result(tmp_path)
-    np.testing.assert_array_equal(partial["time"], [0.0, 0.01])
-    np.testing.assert_array_equal(partial["h"][1], sim.h)
-    np.testing.assert_array_equal(partial["u"][1], sim.u)
-    assert partial.attrs["run_status"] == "running"
+    check_result(tmp_path, "resume", records=2)
+    with pytest.raises(InputError, match=r"output time 2 \(t = nan s\) fails its checks: time nan"):
+        check_result(tmp_path, "resume", records=3)
     writer.close(sim.steps, 0.5)
+    assert open_result(tmp_path).sizes["time"] == 2  # the writer's header counts its own records
 
 
 def test_checkpoint_round_trip_is_exact_and_atomic(tmp_path: Path) -> None:
@@ -128,5 +134,5 @@ def test_missing_or_broken_result_is_an_input_error(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="no result file"):
         open_result(tmp_path)
     (tmp_path / "result.nc").write_text("not netCDF")
-    with pytest.raises(InputError, match="not a readable netCDF"):
+    with pytest.raises(InputError, match="not a netCDF result file"):
         summary(tmp_path)

@@ -211,6 +211,12 @@ def test_a_run_that_compiles_kernels_says_so_once_and_logs_the_time(tmp_path, mo
     runner.run(scenarios.from_dict(TINY_SCENARIO), tmp_path / "first", quiet=False)
     err = capsys.readouterr().err
     assert err.count("compiling the numba kernels") == 1
+    # stderr is not a terminal here (captured): the default says it as a plain line, -q does not
+    runner.run(scenarios.from_dict(TINY_SCENARIO), tmp_path / "plain", quiet=None)
+    assert capsys.readouterr().err == f"multilayer: {compilation.NOTICE}\n"
+    runner.run(scenarios.from_dict(TINY_SCENARIO), tmp_path / "quiet", quiet=True)
+    assert capsys.readouterr().err == ""
+    assert "compiling the numba kernels" in (tmp_path / "quiet" / "run.log").read_text()
     log = (tmp_path / "first" / "run.log").read_text()
     assert log.count("compiling the numba kernels") == 1
     assert "numba compiled kernels for " in log

@@ -339,7 +339,7 @@ def test_sweep_on_a_scheduler_with_two_workers(friction_sweep):
     ]
     for row in rows:
         if row["status"] == "invalid":  # the reason, in the summary and on stderr
-            assert "domain.cells" in row["error"] and "an integer >= 1" in row["error"]
+            assert "domain.cells" in row["error"] and "an integer from 1 to 1000000000" in row["error"]
             assert (
                 f"member {row['member']} (rheology.mu_s={row['rheology.mu_s']}, "
                 f"domain.cells=0) invalid: " in first.stderr

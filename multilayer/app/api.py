@@ -18,6 +18,7 @@ import xarray as xr
 import yaml
 
 from multilayer import scenario as scenarios
+from multilayer.errors import InputError
 from multilayer.io.results import open_result
 from multilayer.scenario import Scenario
 
@@ -28,7 +29,16 @@ Overrides = Mapping[str, Any] | Sequence[str]
 def _override_strings(overrides: Overrides) -> list[str]:
     """``--set`` strings from ``{"domain.cells": 200}`` or ``["domain.cells=200"]``."""
     if isinstance(overrides, Mapping):
-        return [f"{key}={json.dumps(value)}" for key, value in overrides.items()]  # JSON is YAML
+        strings = []
+        for key, value in overrides.items():
+            try:
+                strings.append(f"{key}={json.dumps(value, allow_nan=False)}")  # JSON is YAML
+            except (TypeError, ValueError):
+                raise InputError(
+                    f"overrides: {key}: {value!r} is not a value of a scenario; accepted: finite numbers, "
+                    "strings, booleans, None, and lists and mappings of them"
+                ) from None
+        return strings
     if isinstance(overrides, str):
         return [overrides]
     return list(overrides)

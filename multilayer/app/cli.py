@@ -9,12 +9,16 @@ Each subcommand module defines ``HELP`` (one line), ``add_arguments(parser)`` an
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import os
+import signal
 import sys
+import threading
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
-from multilayer.errors import InputError, RunError
+from multilayer.errors import InputError, Interrupted, RunError
 
 SUBCOMMANDS = ("run", "validate", "plugins", "sweep", "calibrate", "sensitivity", "check", "plot", "export")
 
@@ -62,10 +66,41 @@ def _warning(message, category, filename, lineno, file=None, line=None) -> None:
     print(f"multilayer: warning: {message}", file=sys.stderr if file is None else file)
 
 
+@contextlib.contextmanager
+def _signals_stop() -> Iterator[None]:
+    """SIGTERM and SIGHUP stop the command as Ctrl-C does (a :class:`KeyboardInterrupt`
+    with the signal's exit code) where they would end the process without a word; a run
+    handles them itself once it holds its directory (:mod:`multilayer.app.runner`)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(signum: int, frame: object) -> None:
+        raise Interrupted(f"stopped by {signal.Signals(signum).name}", signum)
+
+    names = ("SIGTERM", "SIGHUP")
+    numbers = [getattr(signal, name) for name in names if hasattr(signal, name)]
+    previous = {n: signal.getsignal(n) for n in numbers}
+    for number, handler in previous.items():
+        if handler is signal.SIG_DFL:
+            signal.signal(number, stop)
+    try:
+        yield
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse ``argv`` (default ``sys.argv[1:]``), run the subcommand, return the exit code."""
     args = build_parser().parse_args(argv)
     warnings.showwarning = _warning
+    with _signals_stop():
+        return _dispatch(args)
+
+
+def _dispatch(args: argparse.Namespace) -> int:
+    """The exit code of the subcommand of ``args`` (docs/cli.md)."""
     try:
         return args.handler(args)
     except InputError as exc:
@@ -74,6 +109,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except RunError as exc:
         print(f"multilayer: run failed: {exc}", file=sys.stderr)
         return 1
+    except BrokenPipeError:  # the reader of stdout went away (multilayer plugins | head -1)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # nothing more to flush at exit
+        return 128 + 13  # as if SIGPIPE had ended the process
     except OSError as exc:  # a path given on the command line cannot be created or written
         print(
             f"multilayer: error: {exc}; accepted: a directory that can be created and written",

@@ -36,11 +36,16 @@ def _alive(pid: int) -> bool:
 
 
 def _holder(path: Path) -> dict | None:
+    """The holder written in the lock ``path``; None if it cannot be read or is not a
+    lock (a mapping whose ``pid`` is a process id: an integer from 1 to 2^31 - 1, as
+    ``os.kill`` would read 0, -1 or a larger number as another process group or fail)."""
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        with open(path, "rb") as stream:
+            data = json.loads(stream.read(4096).decode("utf-8"))
+    except (OSError, ValueError, RecursionError):
         return None
-    return data if isinstance(data, dict) else None
+    pid = data.get("pid") if isinstance(data, dict) else None
+    return data if type(pid) is int and 0 < pid < 2**31 else None
 
 
 def _describe(holder: dict | None) -> str:
@@ -69,9 +74,14 @@ def locked(directory: Path, notice: Callable[[str], None] = lambda message: None
                     f"{directory}: this process already runs into this directory; "
                     "accepted: a different output directory per run"
                 ) from None
-            if holder is None or (here and not _alive(int(holder.get("pid", -1)))):
+            if holder is None or (here and not _alive(holder["pid"])):
                 notice(f"{path}: taking over a stale lock ({_describe(holder)}: no such process)")
-                path.unlink(missing_ok=True)
+                try:
+                    path.unlink(missing_ok=True)
+                except OSError as exc:  # a directory, or a directory we may not change
+                    raise InputError(
+                        f"{path}: a stale lock that cannot be removed ({exc}); accepted: remove it"
+                    ) from None
                 continue
             raise InputError(
                 f"{directory}: another run is writing into this directory ({_describe(holder)}); "

@@ -8,30 +8,51 @@ top of about 150 MB for the interpreter and libraries; the estimate uses 2.6 kB 
 output_interval)`` of them plus the initial state), each of ``(layers + 2) cells + 3``
 doubles (``u``, ``h``, the static interface; time, front, mass).
 
+The exact vertical step keeps, per thread, the piecewise-linear messages of every layer
+of a column (``engine.vertical.problem.workspace_bytes``): quadratic in the layers, 51 GB at 20 000
+layers, counted once per thread that can run (at most one per column).
+
+The steps are estimated with the Courant step of the fastest initial wave: the front of
+a dam break of the deepest initial material, ``max|u| + 2 sqrt(g cos(theta) h_max)``
+(Ritter 1892; ``h_max`` the initial entries stacked at their highest, ``|u|`` their
+speed at the surface), or the inflow's ``|u| + sqrt(g cos(theta) h)``, with ``dt = min(cfl,
+1/2) dx / s``: an order of magnitude (friction slows a collapse, a slope accelerates a
+flow), which tells a run of 10^4 steps from one of 10^150.  A run is refused
+beyond :data:`MAX_STEPS` steps (``--max-steps`` sets another bound), and stops there
+(exit 1, resumable with a larger ``--max-steps``) if it gets that far: the time loop
+never runs without a bound that ``validate`` prints.
+
 By default a run must fit the memory available now and the free space of the file
-system it writes to; ``--max-memory`` and ``--max-output`` set a smaller (or larger)
-budget and ``--force`` skips the check.
+system it writes to (and the file size limit of the process, ``ulimit -f``);
+``--max-memory``, ``--max-output`` and ``--max-steps`` set other bounds and ``--force``
+skips the check (and the bound on the steps).
 """
 
 from __future__ import annotations
 
 import math
+import os
 import re
-import shutil
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from multilayer.errors import InputError
+from multilayer.io import disk
+from multilayer.io.netcdf_layout import HEADER_SPACE
 
 BYTES_PER_CELL = 2600
 BASE_BYTES = 200 * 2**20
+MAX_STEPS = 10_000_000
+"""Default bound on the time steps of a run (``--max-steps``)."""
 _UNITS = {"": 1, "k": 2**10, "m": 2**20, "g": 2**30, "t": 2**40}
 
 
 @dataclass(frozen=True)
 class Estimate:
-    """What a scenario needs: peak memory and size of ``result.nc``, bytes."""
+    """What a scenario needs: peak memory and size of ``result.nc`` (bytes), output times."""
 
     memory: float
     output: float
@@ -39,22 +60,71 @@ class Estimate:
 
 
 @dataclass(frozen=True)
+class Steps:
+    """About how many time steps a run takes, and the wave speed (m/s), cell (m) and step
+    (s) that set them (module docstring)."""
+
+    count: float
+    speed: float
+    dx: float
+    dt: float
+
+
+@dataclass(frozen=True)
 class Budget:
-    """Limits of a run (bytes); ``None``: the available memory, the free disk space."""
+    """Limits of a run: bytes (``None``: the available memory, the free disk space) and
+    time steps (``None``: :data:`MAX_STEPS`); ``force`` lifts them all."""
 
     memory: float | None = None
     output: float | None = None
     force: bool = False
+    steps: int | None = None
+
+    @property
+    def step_limit(self) -> float:
+        """The bound on the steps of the run (inf when forced)."""
+        return math.inf if self.force else float(self.steps or MAX_STEPS)
 
 
 def estimate(scenario: Any) -> Estimate:
     """Peak memory and output size of ``scenario`` (module docstring)."""
+    from multilayer.engine.vertical.problem import workspace_bytes
+
     cells, layers = float(scenario.domain.cells), float(scenario.domain.layers)
     end, interval = scenario.time.end, scenario.time.output_interval
     records = 1.0 + (1.0 if interval >= end else math.ceil(end / interval - 1e-9))
     per_record = 8.0 * ((layers + 2.0) * cells + 3.0)
-    fixed = 8.0 * (5.0 * cells + 4.0 * layers) + len(scenario.resolved_yaml()) + 16384
-    return Estimate(BASE_BYTES + BYTES_PER_CELL * cells * layers, fixed + records * per_record, records)
+    fixed = 8.0 * (5.0 * cells + 4.0 * layers) + len(scenario.resolved_yaml()) + 16384 + HEADER_SPACE
+    threads = scenario.numerics.threads
+    workspaces = min(cells, threads if isinstance(threads, int) else float(os.cpu_count() or 1))
+    memory = BASE_BYTES + BYTES_PER_CELL * cells * layers + workspaces * workspace_bytes(int(layers))
+    return Estimate(memory, fixed + records * per_record, records)
+
+
+def steps(scenario: Any) -> Steps:
+    """About how many steps ``scenario`` takes (module docstring), from the deepest and the
+    fastest of its initial entries (their stack and their surface speeds: nothing the size
+    of the mesh is built)."""
+    from multilayer.engine import initial_state
+    from multilayer.engine.transport.reference import POSITIVITY_LIMIT
+
+    depth, fastest = 0.0, 0.0
+    for entry in scenario.initial:
+        points = initial_state.entry_points(entry)
+        top = float(entry.thickness) if points is None else float(points[1].max())
+        surface = initial_state.velocity_profile(entry.velocity, np.array([top]), np.array([top]))
+        depth, fastest = depth + top, max(fastest, float(abs(surface[0])))
+    g_n = scenario.gravity * math.cos(math.radians(scenario.slope_deg))
+    speed = fastest + 2.0 * math.sqrt(g_n * depth)
+    inflow = scenario.boundaries.inflow
+    if inflow is not None:
+        level = np.array([inflow.thickness])
+        entering = float(abs(initial_state.velocity_profile(inflow.velocity, level, level)[0]))
+        speed = max(speed, entering + math.sqrt(g_n * inflow.thickness))
+    dom = scenario.domain
+    dx = (dom.x_max - dom.x_min) / dom.cells
+    dt = min(scenario.time.cfl, POSITIVITY_LIMIT) * dx / speed if speed > 0 else math.inf
+    return Steps(scenario.time.end / dt + estimate(scenario).records, speed, dx, dt)
 
 
 def size_text(n: float) -> str:
@@ -86,14 +156,6 @@ def available_memory() -> float:
     return float(psutil.virtual_memory().available)
 
 
-def free_space(directory: Path) -> float:
-    """Free space of the file system holding ``directory`` (or its nearest existing parent)."""
-    path = Path(directory).absolute()
-    while not path.exists() and path != path.parent:
-        path = path.parent
-    return float(shutil.disk_usage(path).free)
-
-
 def check(scenario: Any, outdir: Path | None, budget: Budget) -> Estimate:
     """The estimate of ``scenario``; :class:`InputError` (estimate and limit) if it exceeds
     ``budget``, unless ``budget.force``."""
@@ -110,15 +172,33 @@ def check(scenario: Any, outdir: Path | None, budget: Budget) -> Estimate:
             f"more than {source} ({size_text(memory)}); accepted: fewer cells or layers, a larger "
             "--max-memory, or --force to run anyway"
         )
-    output = budget.output
+    output, source = budget.output, "--max-output"
     if output is None and outdir is not None:
-        output = free_space(outdir)
+        output, source = disk.free_space(outdir), f"the free disk space at {outdir}"
+        if disk.file_size_limit() < output:
+            output, source = disk.file_size_limit(), "the file size limit of this process (ulimit -f)"
     if output is not None and need.output > output:
-        source = "--max-output" if budget.output is not None else f"the free disk space at {outdir}"
         raise InputError(
             f"{where}: time.output_interval: {need.records:.0f} output times of {shape} make a "
             f"result file of about {size_text(need.output)}, more than {source} ({size_text(output)}); "
             "accepted: a larger time.output_interval, fewer cells or layers, a larger --max-output, "
             "or --force to run anyway"
+        )
+    return need
+
+
+def check_steps(scenario: Any, budget: Budget) -> Steps:
+    """The steps of ``scenario``; :class:`InputError` (estimate and bound) if they exceed
+    ``budget.step_limit``."""
+    need = steps(scenario)
+    if need.count > budget.step_limit:
+        source = "--max-steps" if budget.steps is not None else "the default bound (--max-steps)"
+        where = scenario.source or "<scenario>"
+        raise InputError(
+            f"{where}: time.end, time.cfl, domain.x_min, domain.x_max, domain.cells, gravity: about "
+            f"{need.count:.3g} time steps ({scenario.time.end:g} s in steps of about {need.dt:.3g} s: "
+            f"cells of {need.dx:.3g} m, the initial waves at {need.speed:.3g} m/s), more than {source} "
+            f"({budget.step_limit:.3g}); accepted: a shorter time.end, larger cells, a smaller gravity or "
+            "initial depth, a larger --max-steps, or --force to run anyway"
         )
     return need

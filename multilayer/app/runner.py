@@ -31,6 +31,7 @@ import os
 import shlex
 import signal
 import sys
+import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -46,13 +47,15 @@ from multilayer import scenario as scenarios
 from multilayer.app import resources
 from multilayer.app.compilation import compile_notice
 from multilayer.app.lock import locked
-from multilayer.app.progress import Progress, shown
+from multilayer.app.progress import Progress
 from multilayer.app.simulation import Simulation
 from multilayer.errors import InputError, Interrupted, RunError
+from multilayer.io.result_check import check_result
 from multilayer.io.results import (
     CHECKPOINT_FILE,
     RESULT_FILE,
     Checkpoint,
+    DiskFull,
     ResultWriter,
     load_checkpoint,
     save_checkpoint,
@@ -97,32 +100,70 @@ def run(
         raise InputError(
             f"{outdir}: nothing to resume (no such directory); run without --resume to start afresh"
         )
-    resources.check(scenario, outdir, budget or resources.Budget())
-    outdir.mkdir(parents=True, exist_ok=True)
+    budget = budget or resources.Budget()
+    created = _output_directory(outdir)
+    try:
+        resources.check(scenario, outdir, budget)
+        resources.check_steps(scenario, budget)
+    except InputError:  # refused before anything is written: the directories made go again
+        for directory in created:
+            directory.rmdir()
+        raise
     notices: list[str] = []
 
     def notice(message: str) -> None:
         notices.append(message)
         print(f"multilayer: warning: {message}", file=sys.stderr)
 
-    with locked(outdir, notice):
+    stop = _StopRequest(stop_when)
+    with locked(outdir, notice), stop.installed():
         ckpt = _checkpoint_to_resume(scenario, outdir) if resume else None
         log = logging.Logger("multilayer.run")
-        handler = logging.FileHandler(outdir / LOG_FILE, mode="a" if resume else "w", encoding="utf-8")
+        handler = _LogFile(outdir / LOG_FILE, mode="a" if resume else "w", encoding="utf-8")
         handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
         log.addHandler(handler)
         for message in notices:
             log.warning(message)
-        say = (lambda text: print(f"multilayer: {text}", file=sys.stderr)) if shown(quiet) else None
+        # the compile notice is one plain line: also where stderr is not a terminal (a log, a
+        # notebook, a batch job), unless quiet; the progress line is for terminals only
+        say = (lambda text: print(f"multilayer: {text}", file=sys.stderr, flush=True)) if not quiet else None
         try:
             with compile_notice(log, say):
-                _run(scenario, outdir, ckpt, quiet, log, stop_when)
+                _run(scenario, outdir, ckpt, quiet, log, stop, budget.step_limit)
         except InputError as exc:  # found once the log was open: the log says why it ends there
             log.error("%s", exc)
             raise
+        except Interrupted as exc:
+            if stop.starting:  # before anything was computed: nothing to keep, the lock goes
+                log.warning("%s", exc)
+                print(f"multilayer: {exc}", file=sys.stderr)
+            raise
         finally:
             handler.close()
-        return summary(outdir / RESULT_FILE)
+        return summary(outdir / RESULT_FILE, checked=False)  # every state passed the state guard
+
+
+def _output_directory(outdir: Path) -> list[Path]:
+    """Make ``outdir`` and check that files can be written there; the directories made,
+    deepest first.  :class:`InputError` naming it (``-o DIR`` or ``output.directory``)
+    otherwise."""
+    accepted = "accepted: an output directory (-o DIR or output.directory) that can be created and written"
+    try:
+        str(outdir).encode("utf-8")
+    except UnicodeEncodeError:
+        raise InputError(
+            f"{outdir}: not a UTF-8 name (netCDF files cannot be named by other bytes); {accepted}"
+        ) from None
+    missing = [path for path in (outdir, *outdir.parents) if not path.exists()]
+    try:
+        outdir.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=outdir):
+            pass
+    except OSError as exc:
+        raise InputError(
+            f"{outdir}: cannot be created or written ({exc.strerror or exc}); {accepted}"
+        ) from None
+    return missing
 
 
 def _run(
@@ -131,7 +172,8 @@ def _run(
     ckpt: Checkpoint | None,
     quiet: bool | None,
     log: logging.Logger,
-    stop_when: Callable[[], bool] | None,
+    stop: _StopRequest,
+    step_limit: float,
 ) -> None:
     log.info(
         "%s run of scenario %r from %s into %s",
@@ -140,9 +182,11 @@ def _run(
         scenario.source or "a mapping",
         outdir,
     )
-    log.info("parameters:\n%s", scenario.resolved_yaml().rstrip())
+    text = scenario.resolved_yaml()  # written with every checkpoint: computed once
+    log.info("parameters:\n%s", text.rstrip())
     sim = Simulation(scenario)
     result_path, ckpt_path = outdir / RESULT_FILE, outdir / CHECKPOINT_FILE
+    stop.starting = False  # from here a signal is honoured between kernel calls, the state kept
     if ckpt is None:
         ckpt_path.unlink(missing_ok=True)
         writer = ResultWriter(result_path, scenario, sim)
@@ -159,9 +203,7 @@ def _run(
         return wall_before + time.perf_counter() - started
 
     def checkpoint() -> float:
-        save_checkpoint(
-            ckpt_path, Checkpoint(sim.state_dict(), writer.records, wall_time(), scenario.resolved_yaml())
-        )
+        save_checkpoint(ckpt_path, Checkpoint(sim.state_dict(), writer.records, wall_time(), text))
         return sim.t
 
     saved_t = checkpoint() if ckpt is None else sim.t
@@ -169,29 +211,33 @@ def _run(
     log.info("%d cells x %d layers; output times up to %g s", n_cells, n_layers, scenario.time.end)
     times = output_times(scenario.time.end, scenario.time.output_interval)
     progress = Progress(scenario.time.end, n_cells * n_layers, quiet=quiet)
-    stop = _StopRequest(stop_when)
 
     def on_step(sim: Any, dt: float) -> None:
         progress(sim, dt)
         stop.poll()
+        if sim.steps >= step_limit:
+            raise RunError(
+                f"the run has taken {sim.steps} time steps, its bound (--max-steps, default "
+                f"{resources.MAX_STEPS}); continue with: {_resume_command(scenario, outdir)} --max-steps "
+                f"{2 * sim.steps}"
+            )
 
     sim.poll = stop.poll  # also between the kernel calls of a step
     status = "failed"
     try:
-        with stop.installed():
-            for t_out in times[times > sim.t + 1e-9 * scenario.time.end]:
-                sim.advance(t_out, on_step=on_step)
-                sim.check_state()
-                diag = writer.write(sim)
-                saved_t = checkpoint()
-                log.info(
-                    "output t = %.6g s: step %d, front %.6g m, mass %.6g m2, wall %.1f s",
-                    sim.t,
-                    sim.steps,
-                    diag["front"],
-                    diag["mass"],
-                    wall_time(),
-                )
+        for t_out in times[times > sim.t + 1e-9 * scenario.time.end]:
+            sim.advance(t_out, on_step=on_step)
+            sim.check_state()
+            diag = writer.write(sim)
+            saved_t = checkpoint()
+            log.info(
+                "output t = %.6g s: step %d, front %.6g m, mass %.6g m2, wall %.1f s",
+                sim.t,
+                sim.steps,
+                diag["front"],
+                diag["mass"],
+                wall_time(),
+            )
         status = "completed"
     except (_Stop, KeyboardInterrupt) as exc:
         status = "interrupted"
@@ -202,6 +248,15 @@ def _run(
             f"{_resume_command(scenario, outdir)}"
         )
         log.warning(message)
+    except DiskFull as exc:  # nothing more can be written: the last checkpoint stands
+        log.error("the run stopped at t = %.6g s (step %d): %s", sim.t, sim.steps, exc)
+        writer.failure = str(exc)
+        raise RunError(
+            f"scenario {scenario.name!r}: {exc}; the run stopped at t={sim.t:.6g} s (step {sim.steps}); "
+            f"{outdir / RESULT_FILE} keeps the {writer.records} output times written before and "
+            f"{CHECKPOINT_FILE} the state at t={saved_t:.6g} s; once there is room, continue with: "
+            f"{_resume_command(scenario, outdir)}"
+        ) from exc
     except Exception as exc:
         log.exception("the simulation failed at t = %.6g s (step %d)", sim.t, sim.steps)
         # the engine never keeps a state it rejects: sim holds the last good one
@@ -220,6 +275,14 @@ def _run(
             print(message, file=sys.stderr)
         raise Interrupted(message, stop.signum)
     log.info("completed: %d steps, wall time %.1f s", sim.steps, wall_time())
+
+
+class _LogFile(logging.FileHandler):
+    """``run.log``: a line that cannot be written (a full disk) is dropped, where logging
+    would print a traceback on stderr."""
+
+    def handleError(self, record: logging.LogRecord) -> None:
+        """Drop the line (the messages on stderr say what the log would have)."""
 
 
 def _keep_last_good_state(sim: Any, writer: ResultWriter, checkpoint: Any, saved_t: float, log: Any) -> str:
@@ -246,6 +309,10 @@ def _checkpoint_to_resume(scenario: Any, outdir: Path) -> Checkpoint:
             f"{RESULT_FILE} missing); run without --resume to start afresh"
         )
     ckpt = load_checkpoint(ckpt_path)
+    try:  # the records before the checkpoint must be whole: the run appends after them
+        check_result(outdir, "resume", records=ckpt.records)
+    except InputError as exc:
+        raise InputError(f"{exc}, or run without --resume to start afresh") from None
     changed = _changed_keys(yaml.safe_load(ckpt.scenario), yaml.safe_load(scenario.resolved_yaml()))
     if changed:
         raise InputError(
@@ -320,6 +387,8 @@ class _StopRequest:
 
     signum: int = signal.SIGINT
     requested = False
+    starting = True
+    """Until the result file is opened a signal stops at once: nothing is computed yet."""
 
     def __init__(self, stop_when: Callable[[], bool] | None = None) -> None:
         self.stop_when = stop_when
@@ -349,6 +418,13 @@ class _StopRequest:
                 signal.signal(signum, handler)
 
     def _handle(self, signum: int, frame: FrameType | None) -> None:
+        if self.starting:
+            name = "Ctrl-C (SIGINT)" if signum == signal.SIGINT else signal.Signals(signum).name
+            raise Interrupted(
+                f"stopped by {name} during start-up, before the first step: nothing was computed "
+                "or written; run the command again to start the run",
+                signum,
+            )
         if self.requested:
             raise Interrupted(f"stopped at once by a second signal ({signal.Signals(signum).name})", signum)
         self.signum = signum

@@ -24,6 +24,7 @@ import csv
 import hashlib
 import itertools
 import json
+import math
 import os
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -39,6 +40,9 @@ from multilayer.scenario import as_overrides, format_value
 
 SWEEP_KEYS = ("base", "parameters", "zip", "output", "description")
 """Top-level keys accepted in a sweep file."""
+
+MAX_MEMBERS = 100_000
+"""Most members of a sweep (each a run and a directory)."""
 
 MARKER = "member.json"
 """Written into a member's directory once its run has completed."""
@@ -161,6 +165,29 @@ def load(path: str | Path) -> Sweep:
             "lists of equal length with zip: true",
         )
 
+    count = len(next(iter(parameters.values()))) if paired else math.prod(lengths.values())
+    if count > MAX_MEMBERS:
+        raise bad(
+            ("parameters",),
+            f"{count} members ({' x '.join(str(n) for n in lengths.values())})",
+            f"at most {MAX_MEMBERS} members: fewer values, or several sweeps",
+        )
+    # the members' overrides as they will read (0.4 and 0.40 are one value): a product of
+    # lists has two equal members when one list holds a value twice; paired lists, when a
+    # tuple of values comes twice
+    columns = {key: [format_value(value) for value in values] for key, values in parameters.items()}
+    pairs = [", ".join(values) for values in zip(*columns.values())]
+    for key, texts in {"zip": pairs}.items() if paired else columns.items():
+        seen: dict[str, int] = {}
+        for index, text in enumerate(texts):
+            if text in seen:
+                raise bad(
+                    ("zip",) if paired else ("parameters", key),
+                    f"entries {seen[text]} and {index} give the same member ({text}): it would run twice",
+                    "distinct members",
+                )
+            seen[text] = index
+
     output = data.get("output", {})
     if not isinstance(output, dict):
         raise bad(("output",), f"got {output!r}", "a mapping with the key directory")
@@ -202,13 +229,16 @@ def completed(member_dir: Path, fingerprint: str) -> dict[str, float] | None:
     """The stored summary if ``member_dir`` holds a completed, finite run of this exact scenario."""
     try:
         marker = json.loads((member_dir / MARKER).read_text())
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):
         return None
+    summary = marker.get("summary") if isinstance(marker, dict) else None
+    if not (isinstance(summary, dict) and set(summary) == set(SUMMARY_KEYS)):
+        return None  # not a marker this module wrote: the member runs again
     if marker.get("fingerprint") != fingerprint or not (member_dir / RESULT_FILE).is_file():
         return None
     if run_failure(member_dir) is not None:
         return None
-    return marker["summary"]
+    return summary
 
 
 def run_member(

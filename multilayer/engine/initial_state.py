@@ -115,7 +115,7 @@ def check_entries(entries: Sequence[InitialEntry], x_min: float, x_max: float, d
             raise InputError(
                 f"{name}: {hi - lo:.6g} m wide, narrower than one cell (dx = {dx:.6g} m): "
                 f"the mesh cannot represent it; accepted: a shape at least one cell wide "
-                f"(raise domain.cells to at least {int(np.ceil((x_max - x_min) / (hi - lo)))})"
+                f"(raise domain.cells to at least {np.ceil((x_max - x_min) / (hi - lo)):.6g})"
             )
 
 

@@ -1,20 +1,32 @@
 """Checked calls of rheology plugins: every value a plugin returns is verified where it is used.
 
 The plugin contract (docs/plugins.md) asks ``yield_stress(p)`` for ``kappa(p) >= 0`` and
-``viscosity(gamma, p)`` for ``eta >= 0``, finite, with the shape of the pressure array.
-A plugin that raises, returns another shape, a non-finite or a negative value stops the
-run with a :class:`PluginOutputError` naming the plugin, the method, the offending value,
-the inputs it was given and where (x, interface or layer, time): a NaN never reaches the
-column kernel, where it could spin or write outside its workspace.
+``viscosity(gamma, p)`` for ``eta >= 0``, finite, real, with the shape of the pressure
+array.  A plugin that raises (anything: ``sys.exit`` and ``KeyboardInterrupt`` included),
+returns another shape, complex or non-numeric values, a non-finite or a negative value
+stops the run with a :class:`PluginOutputError` naming the plugin, the method, the
+offending value, the inputs it was given and where (x, interface or layer, time): a NaN
+never reaches the column kernel, where it could spin or write outside its workspace.
+
+A plugin is given read-only copies of the engine's arrays and its results are copied:
+it can change neither the state nor what it returned once returned.  The one exception
+it does not own is the user's Ctrl-C: :class:`~multilayer.errors.Interrupted` (a run's
+second signal), and a ``KeyboardInterrupt`` while SIGINT has Python's default handler
+(outside ``multilayer run``, which handles the signal itself), pass through.
 """
 
 from __future__ import annotations
 
+import contextlib
+import reprlib
+import signal
+import threading
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
 
-from multilayer.errors import RunError
+from multilayer.errors import Interrupted, RunError
 
 
 class PluginOutputError(RunError):
@@ -24,7 +36,91 @@ class PluginOutputError(RunError):
 def plugin_label(plugin: Any) -> str:
     """``'name' (module.Class)``: how messages name a plugin instance."""
     cls = type(plugin)
-    return f"rheology plugin {getattr(plugin, 'name', cls.__name__)!r} ({cls.__module__}.{cls.__qualname__})"
+    try:
+        name = str(getattr(plugin, "name", cls.__name__))
+    except Exception:  # noqa: BLE001 - a name property that raises: the class names it
+        name = cls.__name__
+    return f"rheology plugin {name!r} ({cls.__module__}.{cls.__qualname__})"
+
+
+def user_interrupt(exc: BaseException) -> bool:
+    """True if ``exc``, raised during a plugin call, may be the user's Ctrl-C (module
+    docstring) rather than the plugin's own failure."""
+    if isinstance(exc, Interrupted):
+        return True
+    main = threading.current_thread() is threading.main_thread()
+    default = signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    return isinstance(exc, KeyboardInterrupt) and default and main
+
+
+@contextlib.contextmanager
+def contained(plugin: Any, method: str, t: float | None = None) -> Iterator[None]:
+    """Turn whatever the block (a call of ``plugin``'s ``method``) raises into a
+    :class:`PluginOutputError` naming them, except the user's Ctrl-C."""
+    try:
+        yield
+    except PluginOutputError:
+        raise
+    except BaseException as exc:  # noqa: BLE001 - sys.exit, KeyboardInterrupt of a plugin are its failures
+        if user_interrupt(exc):
+            raise
+        when = "" if t is None else f" (at t = {t:.6g} s)"
+        raise PluginOutputError(
+            f"{plugin_label(plugin)}: {method} raised {type(exc).__name__}: {exc}{when}"
+        ) from None
+
+
+def read_only(value: Any) -> Any:
+    """A read-only copy of ``value`` if it is an array (what a plugin is given), else ``value``."""
+    if not isinstance(value, np.ndarray):
+        return value
+    copy = value.copy()
+    copy.flags.writeable = False
+    return copy
+
+
+def real_array(plugin: Any, method: str, value: Any, t: float | None = None) -> np.ndarray:
+    """``value`` returned by ``plugin.method`` as a new float array; :class:`PluginOutputError`
+    unless it holds real numbers (not complex, text, objects or booleans)."""
+    with contained(plugin, method, t):
+        raw = np.asarray(value)
+    if raw.dtype.kind not in "fiu":
+        when = "" if t is None else f" (at t = {t:.6g} s)"
+        raise PluginOutputError(
+            f"{plugin_label(plugin)}: {method} returned values of type {raw.dtype} "
+            f"({type(value).__name__}); must be real numbers{when}"
+        )
+    return np.array(raw, dtype=float)
+
+
+def declared_form(
+    plugin: Any, method: str, material: Any, parameters: dict[str, int]
+) -> tuple[str, np.ndarray] | None:
+    """The compiled form ``plugin.method(material)`` declares (``viscosity_kernel``,
+    ``yield_stress_kernel``; docs/plugins.md, "Compiled forms"): None for none or a form
+    the engine does not know (the plugin's own methods then run), else ``(form,
+    parameters)``.  :class:`PluginOutputError` naming the plugin if it raises or declares
+    a known form with other than ``parameters[form]`` real numbers (the kernels read that
+    many)."""
+    with contained(plugin, f"{method}()"):
+        declared = getattr(plugin, method)(material)
+    if declared is None:
+        return None
+    if not (isinstance(declared, (tuple, list)) and len(declared) == 2 and isinstance(declared[0], str)):
+        raise PluginOutputError(
+            f"{plugin_label(plugin)}: {method}() returned {reprlib.repr(declared)}; "
+            "must be None or (form name, parameters)"
+        )
+    form = declared[0]
+    if form not in parameters:
+        return None
+    values = real_array(plugin, f"{method}()", declared[1])
+    if values.shape != (parameters[form],):
+        raise PluginOutputError(
+            f"{plugin_label(plugin)}: {method}() declares the form {form!r} with parameters "
+            f"{reprlib.repr(declared[1])}; it takes {parameters[form]} numbers (docs/plugins.md)"
+        )
+    return form, values
 
 
 def call(
@@ -45,13 +141,9 @@ def call(
     the step being computed.
     """
     shape = np.shape(next(iter(inputs.values())))
-    try:
-        value = getattr(plugin, method)(*args)
-        array = np.asarray(value, dtype=float)
-    except Exception as exc:  # noqa: BLE001 - any failure inside a plugin is reported as the plugin's
-        raise PluginOutputError(
-            f"{plugin_label(plugin)}: {method}() raised {type(exc).__name__}: {exc} (at t = {t:.6g} s)"
-        ) from exc
+    with contained(plugin, f"{method}()", t):
+        value = getattr(plugin, method)(*map(read_only, args))
+    array = real_array(plugin, f"{method}()", value, t)
     if array.shape != shape:
         raise PluginOutputError(
             f"{plugin_label(plugin)}: {method}() returned an array of shape {array.shape}; "

@@ -31,7 +31,7 @@ from multilayer.engine.threads import ThreadPolicy
 from multilayer.engine.transport import boundaries
 from multilayer.engine.transport import kernel as transport_kernel
 from multilayer.engine.transport import reference as transport_reference
-from multilayer.engine.transport.reference import POSITIVITY_LIMIT, courant_step
+from multilayer.engine.transport.reference import POSITIVITY_LIMIT, courant_step, stage_courant_step
 from multilayer.engine.vertical.problem import VerticalSolver
 from multilayer.engine.vertical.step import VerticalStep
 from multilayer.engine.vertical.stresses import StressModel
@@ -122,6 +122,8 @@ class Simulation:
         self.guard.reset(self.h, self.steps)
         #: mass (m2) through the left and right boundary in the last step, positive in +x
         self.boundary_mass = np.zeros(2)
+        # the fastest wave across a face that carried mass in the last transport's second stage
+        self._stage_speed = np.zeros(1)
         #: called between kernel calls within a step; may raise to abandon the step (Ctrl-C)
         self.poll: Callable[[], None] | None = None
 
@@ -187,21 +189,24 @@ class Simulation:
 
     def time_step(self) -> float:
         """Largest stable step of the transport (Courant condition), inflow state included."""
-        return self._courant_step(max_wave_speed(self.h, self.u, self.g_n))
+        speed = self._with_inflow(max_wave_speed(self.h, self.u, self.g_n))
+        return courant_step(speed, self.dx, self.config.cfl)
 
-    def _courant_step(self, speed: float) -> float:
+    def _with_inflow(self, speed: float) -> float:
+        """The fastest wave of the state, ``speed``, or of the inflow state if faster."""
         if self.inflow is not None:
             h_in, u_in = np.array([self.inflow.thickness]), self.inflow.velocity.reshape(-1, 1)
             speed = max(speed, max_wave_speed(h_in, u_in, self.g_n))
-        return courant_step(speed, self.dx, self.config.cfl)
+        return speed
 
     def step(self, t_max: float = np.inf) -> float:
         """Advance one time step of the splitting (module docstring), never beyond ``t_max``;
         returns the step taken."""
         self._check_target(t_max)
-        dt = min(self._courant_step(self.state.survey(self.dry, self.g_n)), t_max - self.t)
+        speed = self._with_inflow(self.state.survey(self.dry, self.g_n))  # the fastest wave at the start
+        dt = min(courant_step(speed, self.dx, self.config.cfl), t_max - self.t)
         threads = self.thread_policy.threads(self.fractions.size * int(np.count_nonzero(self.h)))
-        while True:  # redone shorter while the waves of the step's end are faster
+        while True:  # redone shorter while Heun's second stage breaks the Courant condition
             self._check_advances(dt)
             np.copyto(self._stepping, self.state.moving)
             iterations = 0
@@ -212,11 +217,10 @@ class Simulation:
                 if not start_moving(u_vertical, self.h, self.dry, self._stepping):
                     break
             u, fields = self.pressure.project(self.state, h, u_vertical, dt)
-            columns = span(h)  # every non-zero velocity and field of the step's end lies within
-            shorter = self._courant_check(h, u, columns, dt)
-            if shorter is None:
+            if (shorter := self._courant_check(dt, speed)) is None:
                 break
             dt = shorter
+        columns = span(h)  # every non-zero velocity and field of the step's end lies within
         self._guard(h, u, fields, dt, columns)
         self.state.commit(h, u, fields, columns)
         self.newton_iterations += iterations
@@ -251,7 +255,8 @@ class Simulation:
         h, ustar = self.transport(
             self.h, self.u, self.bed, self.fractions, dx=self.dx, dt=dt, g_n=self.g_n, g_t=self.g_t,
             left=self.left, right=self.right, inflow=self.inflow, dry=self.dry, order=self.numerics.order,
-            moving=self._stepping, boundary_mass=self.boundary_mass, **options,
+            moving=self._stepping, boundary_mass=self.boundary_mass, stage_speed=self._stage_speed,
+            **options,
         )  # fmt: skip
         self.guard.check_state(h, ustar, lambda: f"after transport from t = {self.t:.6g} s (dt = {dt:.3g} s)")
         return h, ustar
@@ -272,18 +277,20 @@ class Simulation:
             poll=self.poll,
         )
 
-    def _courant_check(
-        self, h: np.ndarray, u: np.ndarray, columns: tuple[int, int], dt: float
-    ) -> float | None:
-        """None if the Courant condition holds for the waves of the step's end as well;
-        otherwise the shorter step to redo it with.  Material accelerated from (near) rest
-        within one step (gravity on a steep slope) would put the second Heun stage past the
-        positivity limit.  (A non-finite state passes: the state guard names it.)"""
-        lo, hi = columns
-        end_speed = max_wave_speed(h[lo:hi], u[:, lo:hi], self.g_n)
-        if dt <= courant_step(end_speed, self.dx, POSITIVITY_LIMIT) or not math.isfinite(end_speed):
+    def _courant_check(self, dt: float, speed: float) -> float | None:
+        """None if the Courant condition held in Heun's second stage too; otherwise the
+        shorter step to redo the step with (``speed``: the fastest wave at its start).
+
+        The second stage is a forward Euler step from the first stage's state: it keeps
+        ``h >= 0`` (and the scheme its stability) under the Courant condition of that
+        state's waves (Gottlieb & Shu 1998), which the state at the start cannot foresee:
+        the transport accelerates the material by gravity without the friction of the
+        vertical step (a thin film nearly at rest on a steep slope: ``g sin(theta) dt`` far
+        above ``sqrt(g h)``).  (A non-finite state passes: the state guard names it.)"""
+        stage_speed = float(self._stage_speed[0])
+        if dt <= courant_step(stage_speed, self.dx, POSITIVITY_LIMIT) or not math.isfinite(stage_speed):
             return None
-        return self._courant_step(end_speed)
+        return stage_courant_step(dt, speed, stage_speed, self.dx, self.config.cfl)
 
     def _guard(
         self, h: np.ndarray, u: np.ndarray, fields: dict[str, np.ndarray], dt: float, columns: tuple[int, int]

@@ -82,18 +82,24 @@ class StateGuard:
 
         self.check_state(h_new, u_new, when, columns)
         left, right = float(crossed[0]), float(crossed[1])
-        change = (float(h_new.sum()) - float(h_old.sum())) * self.dx
-        scale = h_new.size * self.dx * max(float(h_old.max()), float(h_new.max())) + abs(left) + abs(right)
-        error = change - (left - right)
-        if not abs(error) <= ROUND_OFF * scale:  # a NaN fails too
+        error, bound = self.mass_error(h_old, h_new, crossed)
+        if not abs(error) <= bound:  # a NaN fails too
             raise StateError(
-                f"mass is not conserved {when()}: it changed by {change:.6g} m2 while the boundary fluxes "
-                f"carried {left - right:.6g} m2 in (left side {left:.6g} m2, right side {-right:.6g} m2): "
-                f"the transport made an error of {error:.3g} m2, more than round-off "
-                f"({ROUND_OFF * scale:.3g} m2)"
+                f"mass is not conserved {when()}: it changed by {error + left - right:.6g} m2 while the "
+                f"boundary fluxes carried {left - right:.6g} m2 in (left side {left:.6g} m2, right side "
+                f"{-right:.6g} m2): the transport made an error of {error:.3g} m2, more than round-off "
+                f"({bound:.3g} m2)"
             )
         self.net_inflow += left - right
-        self._round_off += ROUND_OFF * scale
+        self._round_off += bound
+
+    def mass_error(self, h_old: np.ndarray, h_new: np.ndarray, crossed) -> tuple[float, float]:
+        """The change of mass from ``h_old`` to ``h_new`` minus the net inflow ``crossed``
+        (as in :meth:`check_step`), and its round-off bound."""
+        left, right = float(crossed[0]), float(crossed[1])
+        change = (float(h_new.sum()) - float(h_old.sum())) * self.dx
+        scale = h_new.size * self.dx * max(float(h_old.max()), float(h_new.max())) + abs(left) + abs(right)
+        return change - (left - right), ROUND_OFF * scale
 
     def check_balance(self, h: np.ndarray, when: str) -> None:
         """Raise :class:`StateError` unless the mass of ``h`` is the reference mass plus

@@ -99,7 +99,7 @@ def requested(setting: int | str = "auto") -> int | None:
     """The fixed thread count asked for (environment first), None for ``auto``."""
     env = os.environ.get(ENVIRONMENT, "").strip()
     if env and env != "auto":
-        if not env.isdigit() or int(env) < 1:
+        if not (env.isascii() and env.isdigit()) or int(env) < 1:  # '²'.isdigit() is True
             raise InputError(
                 f"environment variable {ENVIRONMENT}={env!r}; accepted: 'auto' or an integer >= 1"
             )

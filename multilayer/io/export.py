@@ -17,13 +17,15 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from multilayer.io.result_check import ending
 from multilayer.io.results import open_result
 
 VTK_DIR = "vtk"
 
 
-def export_vtk(directory: str | os.PathLike) -> list[Path]:
-    """Write ``directory/vtk/result_NNNN.vts`` per output time and ``result.pvd``."""
+def export_vtk(directory: str | os.PathLike) -> tuple[list[Path], str | None]:
+    """Write ``directory/vtk/result_NNNN.vts`` per output time and ``result.pvd``; returns
+    the paths (``result.pvd`` first) and how the run ended if it did not complete."""
     ds = open_result(directory)
     out = Path(directory) / VTK_DIR
     out.mkdir(exist_ok=True)
@@ -39,7 +41,7 @@ def export_vtk(directory: str | os.PathLike) -> list[Path]:
         "  <Collection>\n" + "\n".join(entries) + "\n  </Collection>\n"
         "</VTKFile>\n"
     )
-    return [pvd, *paths]
+    return [pvd, *paths], ending(ds.attrs)
 
 
 def _to_edges(values: np.ndarray) -> np.ndarray:

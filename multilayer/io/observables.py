@@ -174,7 +174,7 @@ class Measure:
     items: tuple[tuple[str, tuple[float, ...], float | None], ...]
 
     def __call__(self, path: str | os.PathLike) -> np.ndarray:
-        ds = open_result(path)
+        ds = open_result(path, use="answer")
         values: list[np.ndarray] = []
         for quantity, coordinate, time in self.items:
             if quantity == "front":

@@ -5,16 +5,16 @@ Every layer is drawn where it is: cell ``(alpha, i)`` spans
 ``x`` along the inclined plane and ``z`` normal to it (docs/model.md).  The figures and
 what they show are listed in docs/results.md.
 
-A result of a failed run, or one holding non-finite values (written by an older
-version, or edited), is drawn where it is finite: non-finite values become gaps in the
-curves and blank cells in the section, and :func:`plot_run` returns notes saying what
-was not drawn and why the run ended.
+The result file is checked first (:func:`multilayer.io.result_check.check_result`): a
+truncated, damaged or still running result is refused.  The records of a failed or
+interrupted run are drawn, and :func:`plot_run` returns a note saying how the run ended.
 """
 
 from __future__ import annotations
 
 import math
 import os
+import textwrap
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -29,6 +29,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
 from multilayer.errors import InputError
+from multilayer.io.result_check import ending
 from multilayer.io.results import open_result
 
 PLOTS_DIR = "plots"
@@ -37,11 +38,11 @@ _VELOCITY = colormaps["viridis"].with_extremes(bad=_AT_REST)
 """Colour map of u; masked cells (static material, u == 0 exactly) are grey."""
 _REPRESENTATIVE = 3
 """Number of columns drawn in the profile figures when no ``--at`` is given."""
-
-
-FIELDS = ("h", "u", "static_interface", "front", "mass")
-"""Variables whose non-finite values are reported (``front`` is NaN, not reported, when no
-cell is wetter than its threshold)."""
+MAX_TIMES = 12
+"""Most output times (``--times``) and columns (``--at``) drawn in one figure."""
+MAX_FRAMES = 600
+"""Most frames of an animation (one minute at 10 frames per second): output times spread
+evenly over the run when it has more."""
 
 
 def plot_run(
@@ -58,9 +59,14 @@ def plot_run(
     columns ``at``, default: :func:`representative_columns`) and ``static_interface``
     (b(t) and h(t) at the same columns), as ``fmt`` files; with ``animate`` also the
     section over time (:func:`animate_section`).  Returns the paths written and
-    notes on what could not be drawn (module docstring).
+    notes on how the run ended if it did not complete (module docstring).
     """
-    ds, notes = finite_part(open_result(directory))
+    if not 1 <= times <= MAX_TIMES or len(at) > MAX_TIMES:
+        given = f"--times {times}" if not 1 <= times <= MAX_TIMES else f"{len(at)} --at positions"
+        raise InputError(f"{given}: accepted: 1 to {MAX_TIMES} times and at most {MAX_TIMES} --at positions")
+    ds = open_result(directory)
+    end = ending(ds.attrs)
+    notes = [f"{end}; drawn up to t = {float(ds['time'][-1]):.6g} s"] if end else []
     out = Path(directory) / PLOTS_DIR
     out.mkdir(exist_ok=True)
     name = yaml.safe_load(ds.attrs["scenario"])["name"]
@@ -81,35 +87,6 @@ def plot_run(
     if animate:
         paths.append(animate_section(ds, name, out / "section"))
     return paths, notes
-
-
-def finite_part(ds: xr.Dataset) -> tuple[xr.Dataset, list[str]]:
-    """``ds`` with every non-finite value of :data:`FIELDS` set to NaN (a gap), and notes
-    on the run status and on each field that is not finite everywhere."""
-    notes = []
-    status = ds.attrs.get("run_status", "completed")
-    if status != "completed":
-        what = {"failed": "the run failed", "interrupted": "the run was interrupted"}.get(
-            status, f"the run is {status} (or its process was killed)"
-        )
-        why = ds.attrs.get("failure", "")
-        drawn = f"drawn up to t = {float(ds['time'][-1]):.6g} s"
-        notes.append(f"{what}: {why}; {drawn}" if why else f"{what}; {drawn}")
-    for name in FIELDS:
-        values = ds[name].values
-        bad = ~np.isfinite(values)
-        if name == "front":
-            bad &= ~np.isnan(values)
-        if bad.any():
-            first = np.unravel_index(np.argmax(bad), bad.shape)
-            t = float(ds["time"].values[first[0]])
-            where = f", x = {float(ds['x'].values[first[-1]]):.6g} m" if "x" in ds[name].dims else ""
-            notes.append(
-                f"{name}: {int(bad.sum())} of {bad.size} values are not finite "
-                f"(first {float(values[first])!r} at t = {t:.6g} s{where}); not drawn"
-            )
-            ds[name] = ds[name].where(~bad)
-    return ds, notes
 
 
 def column_indices(ds: xr.Dataset, at: Sequence[float]) -> list[int]:
@@ -137,6 +114,21 @@ def representative_columns(ds: xr.Dataset, count: int = _REPRESENTATIVE) -> list
         return cells.tolist()
     picks = ((np.arange(count) + 0.5) / count * cells.size).astype(int)
     return cells[picks].tolist()
+
+
+TITLE_CHARACTERS_PER_INCH = 10.5
+"""Characters of a figure title (Matplotlib's 'large' font, 12 pt) per inch of figure width,
+with room to spare: a longer title is wrapped, never cut at the figure's edges."""
+
+
+def _suptitle(fig: Figure, name: str, what: str) -> None:
+    """``name: what`` over ``fig``, wrapped to its width (the scenario name on a line of its
+    own when both do not fit)."""
+    width = max(int(fig.get_figwidth() * TITLE_CHARACTERS_PER_INCH), 20)
+    text = f"{name}: {what}"
+    if len(text) > width:
+        text = "\n".join([*textwrap.wrap(f"{name}:", width), *textwrap.wrap(what, width)])
+    fig.suptitle(text)
 
 
 def _time_indices(ds: xr.Dataset, n: int) -> np.ndarray:
@@ -184,12 +176,14 @@ def _draw_section(ax: Axes, ds: xr.Dataset, k: int, vmin: float, vmax: float) ->
     edges = np.append(sig[:, 0], sig[-1, 1])
     bed = ds["bed"].values
     h = snap["h"].values
-    z = bed + np.where(np.isfinite(h), h, 0.0) * edges[:, None]  # (L+1, N) interface heights
+    z = bed + h * edges[:, None]  # (L+1, N) interface heights
     xs, zs = _staircase(ds, z)
     # odd columns join neighbouring cells: zero width, never seen
-    colour = np.ma.masked_all((ds.sizes["layer"], xs.size - 1))
+    # masked, and zero beneath the mask: masked_all leaves the memory as it finds it, and the
+    # colour mapping normalises the values under the mask too (numpy overflow warnings)
+    colour = np.ma.masked_array(np.zeros((ds.sizes["layer"], xs.size - 1)), mask=True)
     u = snap["u"].values
-    colour[:, ::2] = np.ma.masked_where((u == 0.0) | ~np.isfinite(u), u)  # static (grey) or not finite
+    colour[:, ::2] = np.ma.masked_where(u == 0.0, u)  # static material is grey
     mesh = ax.pcolormesh(xs, zs, colour, cmap=_VELOCITY, vmin=vmin, vmax=vmax)
     ax.plot(*_staircase(ds, bed), color="k", lw=1.2, label="bed", zorder=3)
     ax.plot(*_staircase(ds, bed + h), color="tab:blue", lw=1.0, label="free surface")
@@ -249,7 +243,8 @@ def section_figure(ds: xr.Dataset, name: str, times: int = 4) -> Figure:
 
 
 def animate_section(ds: xr.Dataset, name: str, stem: Path, fps: int = 10) -> Path:
-    """The X-Z section at every output time, one frame each, with the time as a label.
+    """The X-Z section at every output time (at most :data:`MAX_FRAMES`), one frame each,
+    with the time as a label.
 
     Written as ``stem.mp4`` when Matplotlib finds ffmpeg, else as ``stem.gif`` (Pillow,
     installed with Matplotlib).  Returns the path written.
@@ -279,7 +274,7 @@ def animate_section(ds: xr.Dataset, name: str, stem: Path, fps: int = 10) -> Pat
     fig.canvas.draw()
     fig.set_layout_engine("none")  # the layout of the first frame holds for all
 
-    movie = animation.FuncAnimation(fig, frame, frames=ds.sizes["time"], repeat=False)
+    movie = animation.FuncAnimation(fig, frame, frames=_time_indices(ds, MAX_FRAMES), repeat=False)
     writer: animation.AbstractMovieWriter
     if animation.writers.is_available("ffmpeg"):
         path, writer = stem.with_suffix(".mp4"), animation.FFMpegWriter(fps=fps)
@@ -335,7 +330,7 @@ def front_figure(ds: xr.Dataset, name: str) -> Figure:
     ax_speed.set_ylabel("front velocity u_f (m/s)")
     ax_speed.set_title("u_f = dx_f/dt, finite differences between output times", fontsize="medium")
     ax_speed.set_xlabel("time t (s)")
-    fig.suptitle(f"{name}: front")
+    _suptitle(fig, name, "front")
     return fig
 
 
@@ -352,7 +347,7 @@ def mass_figure(ds: xr.Dataset, name: str) -> Figure:
     ax_change.plot(t, change, marker=".", color="tab:green")
     ax_change.set_ylabel("(V - V(0)) / V(0)" if volume[0] else "V - V(0) (m$^2$)")
     ax_change.set_xlabel("time t (s)")
-    fig.suptitle(f"{name}: volume (inflow and outflow change it)")
+    _suptitle(fig, name, "volume (inflow and outflow change it)")
     return fig
 
 
@@ -381,7 +376,7 @@ def profiles_figure(ds: xr.Dataset, name: str, columns: Sequence[int], times: in
         ax.set_title(_column_title(ds, i), fontsize="medium")
     axes[0].set_ylabel("height above the bed z - b, normal to the plane (m)")
     axes[-1].legend(fontsize="small")
-    fig.suptitle(f"{name}: velocity profiles u(z) at the layer centres")
+    _suptitle(fig, name, "velocity profiles u(z) at the layer centres")
     return fig
 
 
@@ -399,7 +394,7 @@ def static_interface_figure(ds: xr.Dataset, name: str, columns: Sequence[int]) -
         ax.set_title(_column_title(ds, i), fontsize="medium")
     axes[0].set_ylabel("height above the bed (m)")
     axes[-1].legend(fontsize="small")
-    fig.suptitle(f"{name}: top of the static region b(t) (0: flowing down to the bed; h: at rest)")
+    _suptitle(fig, name, "top of the static region b(t) (0: flowing down to the bed; h: at rest)")
     return fig
 
 

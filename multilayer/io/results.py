@@ -7,6 +7,14 @@ leaves a readable file holding every output time completed so far.  The classic 
 offset format is used on purpose: a netCDF-3 file whose writer dies is still valid up to
 its last synced record, whereas an HDF5-based file may be left unreadable.
 
+The attributes written when the run ends (``run_status``, ``failure``, ...) fit in room
+kept free in the header from the start (the ``header_space`` attribute, removed then):
+netCDF-C moves every record when the header grows, which would rewrite the whole file at
+the end of a run, and fail on a full disk.  Before each record the writer checks that it
+fits on the disk and under the file size limit (:mod:`multilayer.io.disk`): a run that
+fills the disk stops with :class:`DiskFull` between two records, the file holding every
+record written before, readable, and ``run_status: failed``.
+
 Checkpoints (``checkpoint.npz``) hold the full :meth:`Simulation.state_dict` plus the
 bookkeeping needed to continue the result file; they are replaced atomically
 (temporary file + :func:`os.replace`), so a checkpoint on disk is always complete.  They
@@ -22,121 +30,31 @@ import hashlib
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Final
+from typing import Any, Literal
 
 import netCDF4
 import numpy as np
 import xarray as xr
-from xarray.backends.locks import HDF5_LOCK, NETCDFC_LOCK, combine_locks
 
-from multilayer.errors import InputError
+from multilayer.errors import InputError, RunError
+from multilayer.io import disk
+from multilayer.io.netcdf_layout import HEADER_SPACE, NUMRECS_OFFSET, LayoutError, read_layout
+from multilayer.io.result_format import (  # noqa: F401 (this module's names, as before)
+    CHECKPOINT_FILE,
+    FORMAT,
+    NETCDF_LOCK,
+    RESULT_FILE,
+    VARIABLES,
+    result_path,
+)
 from multilayer.provenance import fipy_version, provenance
 
-RESULT_FILE = "result.nc"
-CHECKPOINT_FILE = "checkpoint.npz"
-FORMAT: Final = "NETCDF3_64BIT_OFFSET"
-#: netCDF-C is not thread-safe and netCDF4-python releases the GIL in its calls: the runs of a
-#: thread cluster write their result files while the study writes its own through xarray,
-#: which holds these same locks around every netCDF call, so the writer holds them too
-NETCDF_LOCK: Final = combine_locks([NETCDFC_LOCK, HDF5_LOCK])
+FAILURE_LENGTH = 8000
+"""Characters of the failure message kept in the ``failure`` attribute (run.log has it all)."""
 
-#: CF attributes of every coordinate and variable: (dimensions, attributes).
-VARIABLES: dict[str, tuple[tuple[str, ...], dict[str, str]]] = {
-    "time": (
-        ("time",),
-        {
-            "units": "s",
-            "long_name": "simulated time since release",
-            "standard_name": "time",
-            "axis": "T",
-        },
-    ),
-    "x": (
-        ("x",),
-        {
-            "units": "m",
-            "long_name": "downslope position of the cell centre along the plane",
-            "axis": "X",
-            "bounds": "x_bnds",
-        },
-    ),
-    "x_bnds": (
-        ("x", "nv"),
-        {
-            "units": "m",
-            "long_name": "downslope positions of the cell edges",
-        },
-    ),
-    "layer": (
-        ("layer",),
-        {
-            "units": "1",
-            "long_name": "layer index, 1 at the bed",
-            "axis": "Z",
-            "positive": "up",
-        },
-    ),
-    "sigma": (
-        ("layer",),
-        {
-            "units": "1",
-            "long_name": "height of the layer centre as a fraction of h",
-            "positive": "up",
-            "bounds": "sigma_bnds",
-        },
-    ),
-    "sigma_bnds": (
-        ("layer", "nv"),
-        {
-            "units": "1",
-            "long_name": "heights of the layer interfaces as fractions of h",
-        },
-    ),
-    "bed": (
-        ("x",),
-        {
-            "units": "m",
-            "long_name": "bed elevation b normal to the plane",
-        },
-    ),
-    "h": (
-        ("time", "x"),
-        {
-            "units": "m",
-            "long_name": "flow thickness normal to the plane",
-        },
-    ),
-    "u": (
-        ("time", "layer", "x"),
-        {
-            "units": "m s-1",
-            "long_name": "downslope layer velocity",
-            "coordinates": "sigma",
-        },
-    ),
-    "static_interface": (
-        ("time", "x"),
-        {
-            "units": "m",
-            "long_name": "height above the bed of the top of the static region",
-            "comment": "0: flowing down to the bed; h: the whole column at rest",
-        },
-    ),
-    "front": (
-        ("time",),
-        {
-            "units": "m",
-            "long_name": "downslope-most cell centre with h above threshold",
-        },
-    ),
-    "mass": (
-        ("time",),
-        {
-            "units": "m2",
-            "long_name": "integral of h over x (volume per unit width)",
-        },
-    ),
-}
+
+class DiskFull(RunError):
+    """A write found no room: the disk is full or the file size limit is reached (exit code 1)."""
 
 
 class ResultWriter:
@@ -151,6 +69,9 @@ class ResultWriter:
         self.path = Path(path)
         self.failure = ""
         """Why the run failed; written as the ``failure`` attribute on close when not empty."""
+        self._broken = False  # a write failed: the netCDF handle cannot be trusted
+        n_layers, n_cells = np.shape(sim.u)
+        self._record_bytes = 8 * ((n_layers + 2) * n_cells + 3)
         with NETCDF_LOCK:
             if records is None:
                 self._ds = netCDF4.Dataset(self.path, "w", format=FORMAT)
@@ -161,6 +82,7 @@ class ResultWriter:
                 self._ds.history += f"\n{_now()} multilayer run --resume"
                 self.records = records
             self._ds.run_status = "running"
+            self._ds.header_space = " " * HEADER_SPACE
             self._ds.sync()
 
     def _define(self, scenario: Any, sim: Any) -> None:
@@ -190,13 +112,13 @@ class ResultWriter:
             {
                 "Conventions": "CF-1.8",
                 "title": f"multilayer simulation: {scenario.name}",
-                "institution": os.environ.get("MULTILAYER_INSTITUTION", "not specified"),
+                "institution": _text(os.environ.get("MULTILAYER_INSTITUTION", "not specified")),
                 "source": f"multilayer {origin.version} (commit {origin.commit}): multilayer "
                 f"shallow-flow model of dense granular flows; X-sigma mesh and reference formulations "
                 f"in FiPy {fipy_version()}, state in numpy, transport and vertical step by numba "
                 f"kernels tested equal to them (transport_solver: {scenario.numerics.transport_solver}, "
                 f"vertical_solver: {scenario.numerics.vertical_solver})",
-                "history": f"{_now()} multilayer run {scenario.source or scenario.name}",
+                "history": _text(f"{_now()} multilayer run {scenario.source or scenario.name}"),
                 "references": "Fernandez-Nieto, Garres-Diaz, Mangeney & Narbona-Reina "
                 "(2016) J. Fluid Mech. 798; Bouchut, Ionescu & Mangeney "
                 "(2016) Commun. Math. Sci. 14",
@@ -216,69 +138,135 @@ class ResultWriter:
         the diagnostics written."""
         ds, i = self._ds, self.records
         diag = sim.diagnostics()
-        with NETCDF_LOCK:
-            ds["h"][i, :] = sim.h
-            ds["u"][i, :, :] = sim.u
-            ds["static_interface"][i, :] = diag["static_interface"]
-            ds["front"][i] = diag["front"]
-            ds["mass"][i] = diag["mass"]
-            ds["time"][i] = sim.t
-            ds.steps = int(sim.steps)
-            ds.sync()
+        if self._broken:
+            raise DiskFull(f"{self.path}: an earlier write failed; no more records are written")
+        self._ensure_room()
+        try:
+            with NETCDF_LOCK:
+                ds["h"][i, :] = sim.h
+                ds["u"][i, :, :] = sim.u
+                ds["static_interface"][i, :] = diag["static_interface"]
+                ds["front"][i] = diag["front"]
+                ds["mass"][i] = diag["mass"]
+                ds["time"][i] = sim.t
+                ds.steps = int(sim.steps)
+                ds.sync()
+        except (OSError, RuntimeError) as exc:
+            self._broken = True
+            # netCDF-C may report a later consequence of the failed write (still in define
+            # mode after its header update failed): the room left tells a full disk apart
+            free, limit = disk.room(self.path)
+            reason = disk.full_disk_reason(exc) or (limit.split(":")[0] if free < disk.SLACK else None)
+            if reason is None:
+                raise RunError(f"{self.path}: writing output time {i} failed ({exc})") from None
+            raise DiskFull(f"{reason}: writing output time {i} into {self.path} failed ({exc})") from None
         self.records = i + 1
         return diag
 
+    def _ensure_room(self) -> None:
+        """Raise :class:`DiskFull` unless the next record fits on the disk and under the
+        file size limit."""
+        free, limit = disk.room(self.path)
+        if free < self._record_bytes + disk.SLACK:
+            raise DiskFull(f"{limit}: the next record of {self.path} needs {self._record_bytes} bytes")
+
     def close(self, steps: int, wall_time_s: float, status: str = "completed", scenario: Any = None) -> None:
-        """Record the final step count, wall time and run status, then close the file."""
+        """Record the final step count, wall time and run status, then close the file.
+
+        The attributes take the room kept in the header (no record moves).  After a write
+        that failed (a full disk), the file is reopened to record them, its header first
+        set back to the records written whole: every record written before stays readable."""
         attrs: dict[str, Any] = {"steps": int(steps), "wall_time_s": float(wall_time_s), "run_status": status}
-        if scenario is not None:
+        if scenario is not None and not self._broken:
             attrs["scenario"] = scenario.resolved_yaml()
         if self.failure:
-            attrs["failure"] = self.failure
+            attrs["failure"] = self.failure[:FAILURE_LENGTH]
         with NETCDF_LOCK:
-            if not self.failure and "failure" in self._ds.ncattrs():  # a resumed run that failed before
-                self._ds.delncattr("failure")
-            self._ds.setncatts(attrs)
-            self._ds.close()
+            closed = False
+            try:
+                if not self._broken:
+                    _finish(self._ds, attrs)
+                self._ds.close()
+                closed = True
+            except (OSError, RuntimeError):
+                _abandon(self._ds)
+            if self._broken or not closed:
+                self._repair(attrs)
+
+    def _repair(self, attrs: dict[str, Any]) -> None:
+        """Set the record count of the header to the records written whole and write
+        ``attrs`` (a best effort: the reader names a file left inconsistent)."""
+        try:
+            layout = read_layout(self.path)
+            whole = min(self.records, layout.complete_records(self.path.stat().st_size))
+            if layout.numrecs != whole:
+                with open(self.path, "r+b") as stream:
+                    stream.seek(NUMRECS_OFFSET)
+                    stream.write(int(whole).to_bytes(4, "big"))
+            ds = netCDF4.Dataset(self.path, "a")
+        except (OSError, RuntimeError, LayoutError):
+            return
+        try:
+            _finish(ds, attrs)
+            ds.close()
+        except (OSError, RuntimeError):
+            _abandon(ds)
+
+
+def _finish(ds: netCDF4.Dataset, attrs: dict[str, Any]) -> None:
+    """Replace the reserved header space of ``ds`` by its final attributes ``attrs``."""
+    for name in ("header_space", "failure"):  # failure: of an earlier run that was resumed
+        if name in ds.ncattrs():
+            ds.delncattr(name)
+    ds.setncatts(attrs)
+
+
+def _abandon(ds: netCDF4.Dataset) -> None:
+    """Forget a dataset whose close failed: netCDF-C has released it, and netCDF4 would
+    close it again when the object is collected, which crashes the interpreter."""
+    netCDF4.Dataset.__dict__["_isopen"].__set__(ds, 0)
+
+
+def _text(value: str) -> str:
+    """``value`` as valid UTF-8 text, what a netCDF attribute holds: bytes of the
+    environment or of a path that are not UTF-8 (Python keeps them as lone surrogates)
+    become U+FFFD."""
+    return value.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
 
 
 def _now() -> str:
     return _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
 
 
-def open_result(path: str | os.PathLike, *, load: bool = True) -> xr.Dataset:
+def open_result(
+    path: str | os.PathLike, *, load: bool = True, use: Literal["answer", "records"] = "records"
+) -> xr.Dataset:
     """Load a result file (or the ``result.nc`` inside a directory) into memory, or with
     ``load=False`` open it lazily (close it after use, e.g. in a ``with`` block).
 
-    Only the records completed so far are returned: a record left half-written by a
-    crash (its time still the fill value) is dropped.
+    The file is checked first (:func:`multilayer.io.result_check.check_result`, for
+    ``use``: ``records`` accepts the records of a failed or interrupted run, ``answer``
+    only a completed run): a truncated, damaged or still running result is an
+    :class:`InputError` naming the file and what is wrong.
     """
-    path = Path(path)
-    if path.is_dir():
-        path = path / RESULT_FILE
-    if not path.is_file():
-        raise InputError(f"{path}: no result file (run `multilayer run` first)")
+    from multilayer.io.result_check import check_result  # it reads the constants of this module
+
+    file = check_result(path, use)
     try:
-        ds = xr.load_dataset(path) if load else xr.open_dataset(path)
+        return xr.load_dataset(file) if load else xr.open_dataset(file)
     except (OSError, ValueError) as exc:
-        raise InputError(f"{path}: not a readable netCDF result file ({exc})") from None
-    return ds.isel(time=np.flatnonzero(np.isfinite(ds["time"].values)))
+        raise InputError(f"{file}: not a readable netCDF result file ({exc})") from None
 
 
 def run_failure(path: str | os.PathLike) -> str | None:
     """Why the run in ``path`` (a result file or its directory) cannot be used: ``None`` if it
-    completed with finite ``h`` and ``u`` at every output time, else the reason (the failure
-    message, the run status, or where values are not finite).  This is how a sweep (and any
-    ensemble command) decides that a member failed."""
+    completed and its file passes every check of :func:`multilayer.io.result_check.check_result`,
+    else what is wrong (the failure message, the run status, the damage).  This is how a
+    sweep (and any ensemble command) decides that a member failed."""
+    from multilayer.io.result_check import check_result
+
     try:
-        with open_result(path, load=False) as ds:
-            status = ds.attrs.get("run_status", "unknown")
-            if status != "completed":
-                return f"run_status {status}" + (f": {ds.attrs['failure']}" if "failure" in ds.attrs else "")
-            for name in ("h", "u"):
-                finite = np.isfinite(ds[name].values)
-                if not finite.all():
-                    return f"{name} is not finite at {finite.size - np.count_nonzero(finite)} values"
+        check_result(path, "answer")
     except InputError as exc:
         return str(exc)
     return None
@@ -295,16 +283,33 @@ SUMMARY_KEYS = (
     "wall_time_s",
 )
 """The keys of :func:`summary`, in order."""
+SUMMARY_UNITS = {
+    "t_final": "s",
+    "front_final": "m",
+    "runout": "m",
+    "mass_final": "m2",
+    "max_speed_final": "m/s",
+    "static_interface_mean_final": "m",
+    "steps": "",
+    "wall_time_s": "s",
+}
+"""The unit of each key of :func:`summary` (CF spelling; steps are a count)."""
 
 
-def summary(path: str | os.PathLike) -> dict[str, float]:
-    """Scalar results of a run: the quantities ``expect`` checks can refer to.
+def summary(path: str | os.PathLike, *, checked: bool = True) -> dict[str, float]:
+    """Scalar results of a completed run: the quantities ``expect`` checks can refer to.
 
     ``runout`` is the final minus the initial front; ``max_speed_final`` the largest
     ``|u|`` at the final time; ``static_interface_mean_final`` the mean static-interface
-    height over the cells wetter than the front threshold (NaN if none).
+    height over the cells wetter than the front threshold (NaN if none).  The file is
+    checked first as the answer of a run (``checked=False``: by the run that has just
+    written it, whose every state passed the state guard).
     """
-    with open_result(path, load=False) as lazy:  # only the first and last records are read
+    if checked:
+        from multilayer.io.result_check import check_result
+
+        check_result(path, "answer")
+    with xr.open_dataset(result_path(path)) as lazy:  # only the first and last records are read
         ds = lazy.isel(time=[0, -1]).load()
     final = ds.isel(time=-1)
     wet = final["h"].values > ds["front"].attrs["threshold"]
@@ -355,10 +360,17 @@ def save_checkpoint(path: str | os.PathLike, ckpt: Checkpoint) -> None:
     arrays: dict[str, Any] = {f"state.{key}": np.asarray(value) for key, value in ckpt.state.items()}
     arrays.update({f"meta.{key}": np.asarray(getattr(ckpt, key)) for key in _META})
     arrays["checksum"] = np.asarray(_checksum(arrays))
-    with open(tmp, "wb") as f:
-        np.savez(f, **arrays)
-        f.flush()
-        os.fsync(f.fileno())
+    try:
+        with open(tmp, "wb") as f:
+            np.savez(f, **arrays)
+            f.flush()
+            os.fsync(f.fileno())
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)  # the space it took back; the previous checkpoint stands
+        reason = disk.full_disk_reason(exc)
+        if reason is None:
+            raise
+        raise DiskFull(f"{reason}: writing the checkpoint {path} failed ({exc})") from None
     os.replace(tmp, path)
 
 

@@ -24,6 +24,8 @@ messages of scenario files: ``<file>: <key.path> (line N): <what>; accepted: <..
 from __future__ import annotations
 
 import csv
+import io
+import itertools
 from pathlib import Path
 from typing import Annotated, Any, Literal, get_args
 
@@ -32,6 +34,8 @@ from pydantic import BaseModel, Field, ValidationError, field_validator, model_v
 
 from multilayer import scenario
 from multilayer.errors import InputError
+from multilayer.scenario.files import read_text
+from multilayer.scenario.limits import MAX_PROFILE_POINTS
 from multilayer.scenario.messages import StrictModel, describe, dotted, field, invalid
 from multilayer.scenario.overrides import as_overrides
 
@@ -156,8 +160,12 @@ class Observation(StrictModel):
 class Search(StrictModel):
     """Global search: differential evolution (Storn & Price 1997)."""
 
-    population: int = field(8, "an integer >= 4 (members per generation = population x parameters)", ge=4)
-    generations: int = field(15, "an integer >= 0 (0: the initial population only)", ge=0)
+    population: int = field(
+        8, "an integer from 4 to 10000 (members per generation = population x parameters)", ge=4, le=10_000
+    )
+    generations: int = field(
+        15, "an integer from 0 to 10000 (0: the initial population only)", ge=0, le=10_000
+    )
     tolerance: float = field(0.01, "a number >= 0 (relative spread of the misfits to stop at)", ge=0)
     seed: int = field(1, "an integer")
 
@@ -172,7 +180,7 @@ class Refine(StrictModel):
     standard deviations 3.5 times smaller than over 1-3 %, where they settle.
     """
 
-    evaluations: int = field(10, "an integer >= 0 (0: no refinement)", ge=0)
+    evaluations: int = field(10, "an integer from 0 to 10000 (0: no refinement)", ge=0, le=10_000)
     step: float = field(
         0.02, "a number in (0, 0.1]: finite-difference step as a fraction of the bounds", gt=0, le=0.1
     )
@@ -225,7 +233,9 @@ class SensitivityModel(_Study):
     """The sensitivity file as validated."""
 
     outputs: list[Scalar] = field(..., "a non-empty list of " + ", ".join(SCALARS), min_length=1)
-    samples: int = field(16, "a power of 2 >= 2 (base samples N; runs: N x (parameters + 2))", ge=2)
+    samples: int = field(
+        16, "a power of 2 from 2 to 65536 (base samples N; runs: N x (parameters + 2))", ge=2, le=65_536
+    )
     seed: int = field(1, "an integer")
     confidence: float = field(0.95, "a number in (0, 1)", gt=0, lt=1)
 
@@ -233,7 +243,9 @@ class SensitivityModel(_Study):
     @classmethod
     def _power_of_two(cls, n: int) -> int:
         if n & (n - 1):
-            raise invalid(f"got {n}", "a power of 2 >= 2 (Sobol' sequences are balanced at 2^k points)")
+            raise invalid(
+                f"got {n}", "a power of 2 from 2 to 65536 (Sobol' sequences are balanced at 2^k points)"
+            )
         return n
 
 
@@ -337,7 +349,44 @@ def load_calibration(path: str | Path) -> Calibration:
         _read(path, lines, i, obs, obs.experiment or next(iter(experiments)))
         for i, obs in enumerate(config.observations)
     ]
+    for i, observed in enumerate(data):
+        _check_span(path, lines, i, observed, base, config, experiments[observed.experiment])
     return Calibration(path=path, base=base, config=config, data=data)
+
+
+def _check_span(
+    path: Path, lines: dict, index: int, observed: ObservedData, base: Path, config: Any, extra: dict
+) -> None:
+    """:class:`InputError` if the observation lies outside the time or the domain its runs
+    simulate (the model would be compared there with values extrapolated from its ends);
+    a calibrated time.end or domain bound counts at its narrowest."""
+    run = scenario.load(base, as_overrides({**config.set, **extra}))
+    end, x_min, x_max = run.time.end, run.domain.x_min, run.domain.x_max
+    bounds = config.parameters
+    end = bounds["time.end"].bounds[0] if "time.end" in bounds else end
+    x_min = bounds["domain.x_min"].bounds[1] if "domain.x_min" in bounds else x_min
+    x_max = bounds["domain.x_max"].bounds[0] if "domain.x_max" in bounds else x_max
+    obs = observed.observation
+    where = _at(path, lines, "observations", index)
+    coordinates = np.asarray(observed.coordinate, dtype=float)
+    inside = coordinates.size == 0 or (coordinates.min() >= 0 and coordinates.max() <= end)
+    if obs.quantity in CURVES and not inside:
+        raise InputError(
+            f"{where}: observed at t = {coordinates.min():g} to {coordinates.max():g} s, outside the runs, "
+            f"which end at time.end = {end:g} s; accepted: observations within the simulated time, or a "
+            "longer time.end (set)"
+        )
+    if obs.quantity in PROFILES:
+        if obs.time is not None and obs.time > end:
+            raise InputError(
+                f"{_at(path, lines, 'observations', index, 'time')}: t = {obs.time:g} s is after the end of "
+                f"the runs (time.end = {end:g} s); accepted: a time within the simulated time"
+            )
+        if coordinates.size and not (coordinates.min() >= x_min and coordinates.max() <= x_max):
+            raise InputError(
+                f"{where}: observed at x = {coordinates.min():g} to {coordinates.max():g} m, outside the "
+                f"domain [{x_min:g}, {x_max:g}] m of the runs; accepted: positions inside the domain"
+            )
 
 
 def load_sensitivity(path: str | Path) -> Sensitivity:
@@ -409,9 +458,16 @@ def _unvalidated(obs: Observation, keys: str) -> RuntimeError:
 
 def _read_csv(file: Path, columns: list[str], where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """Columns of a CSV file with a header row, as floats."""
+    try:  # a regular file of at most limits.MAX_FILE_BYTES
+        text = read_text(file, "a CSV file of numbers", "a readable UTF-8 CSV file")
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
     try:
-        with file.open(newline="", encoding="utf-8") as stream:
-            rows = list(csv.DictReader(stream))
+        rows = list(itertools.islice(csv.DictReader(io.StringIO(text, newline="")), MAX_PROFILE_POINTS + 1))
+        if len(rows) > MAX_PROFILE_POINTS:
+            raise InputError(
+                f"{where}: {file} has more than {MAX_PROFILE_POINTS} rows; accepted: at most that"
+            )
         table = [[float(row[c]) for row in rows] for c in columns]
     except KeyError as exc:
         raise InputError(
@@ -437,6 +493,11 @@ def _read_netcdf(
                 raise InputError(
                     f"{where}: {file} has no variable {variable!r}; accepted: "
                     + ", ".join(map(str, ds.data_vars))
+                )
+            if ds[variable].size > MAX_PROFILE_POINTS:
+                raise InputError(
+                    f"{where}: {file}: {variable} holds {ds[variable].size} values; accepted: at most "
+                    f"{MAX_PROFILE_POINTS}"
                 )
             var = ds[variable].load()
     except (OSError, ValueError) as exc:

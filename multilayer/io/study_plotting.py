@@ -17,17 +17,49 @@ import numpy as np
 import xarray as xr
 from matplotlib.figure import Figure
 
+from multilayer.errors import InputError
 from multilayer.io.plotting import PLOTS_DIR
 
 _STAGE_COLOURS = {"search": "C0", "refine": "C1", "uncertainty": "C2"}
 _SI = {"runout": "m", "front_final": "m", "duration": "s", "mass_final": "m2", "front": "m", "h": "m"}
 
 
+REQUIRED = {
+    "calibration": (
+        ("best", "coordinate", "covariance", "fitted", "misfit", "observation", "observed", "observed_sd"),
+        ("parameter", "quantity", "stage", "values"),
+        (),
+    ),
+    "sensitivity": (
+        ("S1", "S1_conf", "ST", "ST_conf"),
+        ("output", "parameter"),
+        ("confidence_level", "base_samples"),
+    ),
+}
+"""What the figures of each kind of study file read: variables, coordinates, attributes."""
+
+
 def plot_study(directory: str | os.PathLike, filename: str) -> list[Path]:
-    """Write the figures of ``directory/filename`` into ``directory/plots/``."""
+    """Write the figures of ``directory/filename`` into ``directory/plots/``; an
+    :class:`InputError` naming the file if it is not a study file multilayer wrote."""
+    path = Path(directory) / filename
+    try:
+        ds = xr.load_dataset(path)
+    except (OSError, ValueError, RuntimeError) as exc:
+        raise InputError(
+            f"{path}: not a readable netCDF file ({exc}); accepted: a file written by multilayer"
+        ) from None
+    kind = "calibration" if "misfit" in ds else "sensitivity"
+    variables, coordinates, attributes = REQUIRED[kind]
+    missing = [name for name in (*variables, *coordinates) if name not in ds.variables]
+    missing += [f"attribute {name}" for name in attributes if name not in ds.attrs]
+    if missing:
+        raise InputError(
+            f"{path}: not a {kind} file: no {', '.join(missing)}; accepted: the file that multilayer "
+            f"{'calibrate' if kind == 'calibration' else kind} writes"
+        )
     out = Path(directory) / PLOTS_DIR
     out.mkdir(exist_ok=True)
-    ds = xr.load_dataset(Path(directory) / filename)
     if "misfit" in ds:
         figures = {"misfit.png": misfit_figure(ds), "pairs.png": pairs_figure(ds), "fit.png": fit_figure(ds)}
     else:

@@ -127,7 +127,9 @@ def catalogue() -> Catalogue:
             manager.register(module, name=source)
             others = [p for p in manager.get_plugins() if p is not module]
             manager.subset_hook_caller("multilayer_register_rheologies", others)(register=classes.append)
-        except Exception as exc:  # any failure of third-party code is reported, not raised
+        except KeyboardInterrupt:
+            raise
+        except BaseException as exc:  # noqa: BLE001 - any failure of third-party code (sys.exit too) is reported
             broken.append(Broken(source, f"{type(exc).__name__}: {exc}"))
             continue
         if not classes:
@@ -139,7 +141,10 @@ def catalogue() -> Catalogue:
                 )
             )
         for cls in classes:
-            problem = _problem(cls)
+            try:
+                problem = _problem(cls)
+            except Exception as exc:  # noqa: BLE001 - a class whose attributes raise
+                problem = f"{cls!r} cannot be inspected: {type(exc).__name__}: {exc}"
             if problem is None and cls.name in found:
                 problem = (
                     f"rheology name '{cls.name}' is already registered by "
@@ -241,10 +246,33 @@ def description(cls: type[Rheology]) -> str:
     return doc.strip().splitlines()[0] if doc.strip() else ""
 
 
+class ConstructorError(ValueError):
+    """A rheology's constructor raised (anything but the user's Ctrl-C) or returned nothing usable."""
+
+
+def construct(cls: type[Rheology], params: dict[str, Any]) -> Rheology:
+    """``cls(**params)``; a :class:`ConstructorError` (a ValueError: bad parameters) if the
+    constructor raises anything, ``sys.exit`` included (a ``TypeError`` or ``ValueError``
+    keeps its message, which says what is wrong with the parameters)."""
+    try:
+        return cls(**params)
+    except (TypeError, ValueError) as exc:
+        raise ConstructorError(str(exc)) from None
+    except KeyboardInterrupt:  # the user's Ctrl-C while the constructor ran
+        raise
+    except BaseException as exc:  # noqa: BLE001 - a third-party constructor's failure is bad parameters
+        call = f"{cls.__qualname__}({_arguments(params)})"
+        raise ConstructorError(f"{call} raised {type(exc).__name__}: {exc}") from None
+
+
+def _arguments(params: dict[str, Any]) -> str:
+    return ", ".join(f"{key}={value!r}" for key, value in params.items())
+
+
 def instantiate(spec: Spec) -> Rheology:
     """The plugin instance for a scenario's ``rheology`` or ``walls`` spec."""
     cls = lookup(spec.name)
     try:
-        return cls(**spec.params)
-    except (TypeError, ValueError) as exc:
+        return construct(cls, spec.params)
+    except ConstructorError as exc:
         raise InputError(f"rheology {spec.name}: {exc}; accepted: {signature_text(cls)}") from None

@@ -2,17 +2,30 @@
 
 from __future__ import annotations
 
+import os
+import stat
 from pathlib import Path
 
 from multilayer.errors import InputError
+from multilayer.scenario.limits import MAX_FILE_BYTES
 
 
 def read_text(path: Path, expected: str, readable: str) -> str:
     """The UTF-8 text of ``path``; :class:`InputError` naming it, with ``expected`` as what
-    is accepted if it is missing and ``readable`` if it cannot be read or decoded."""
+    is accepted if it is missing and ``readable`` if it cannot be read or decoded, is not
+    a regular file (a device or a pipe could be read for ever) or is longer than
+    :data:`~multilayer.scenario.limits.MAX_FILE_BYTES`."""
     try:
-        return path.read_text(encoding="utf-8")
+        if not stat.S_ISREG(os.stat(path).st_mode):
+            raise InputError(f"{path}: not a regular file; accepted: {readable}")
+        with open(path, "rb") as stream:
+            data = stream.read(MAX_FILE_BYTES + 1)
+        if len(data) > MAX_FILE_BYTES:
+            raise InputError(
+                f"{path}: longer than {MAX_FILE_BYTES} bytes; accepted: {readable} of at most that size"
+            )
+        return data.decode("utf-8")
     except FileNotFoundError:
         raise InputError(f"{path}: file not found; accepted: {expected}") from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
         raise InputError(f"{path}: cannot read the file ({exc}); accepted: {readable}") from None

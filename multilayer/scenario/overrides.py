@@ -10,6 +10,7 @@ from typing import Any
 import yaml
 
 from multilayer.errors import InputError
+from multilayer.scenario import limits
 from multilayer.scenario.messages import KeyPath, dotted
 from multilayer.scenario.source import Loader, format_value
 
@@ -39,6 +40,7 @@ def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> tuple[dic
                 f"--set {item!r}: expected KEY=VALUE or KEY+=VALUE; accepted: a dotted key path "
                 "and a YAML value, e.g. domain.cells=200 or initial+={shape: layer, thickness: 0.002}"
             )
+        limits.check_yaml(text, f"--set {key}", Loader)
         try:
             value = yaml.load(text, Loader=Loader)
         except yaml.YAMLError as exc:
@@ -52,7 +54,7 @@ def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> tuple[dic
         part: str | int
         for depth, part in enumerate(parts):
             if isinstance(node, list):
-                if not (part.isdigit() and int(part) < len(node)):
+                if not (part.isascii() and part.isdigit() and int(part) < len(node)):
                     raise InputError(
                         f"--set {key}: {dotted(path)} has {len(node)} entries; "
                         f"accepted indices: 0..{len(node) - 1}"

@@ -21,6 +21,7 @@ import numpy as np
 
 from multilayer.errors import InputError
 from multilayer.scenario.files import read_text
+from multilayer.scenario.limits import MAX_DEM_PIXELS, MAX_PROFILE_POINTS
 
 LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "km": 1e3}
 """Units accepted in a CSV header, with their value in metres."""
@@ -43,6 +44,11 @@ def read_csv_profile(path: str | Path, columns: Sequence[str]) -> np.ndarray:
     ]
     if not rows:
         raise InputError(f"{path}: empty file; accepted: {accepted_header} and at least 2 rows")
+    if len(rows) > MAX_PROFILE_POINTS + 1:
+        raise InputError(
+            f"{path}: {len(rows) - 1} data rows; accepted: at most {MAX_PROFILE_POINTS} (the profile is "
+            "resampled to the mesh: a finer one adds nothing)"
+        )
     line_no, header = rows[0]
     cells = header.split(",")
     factors = []
@@ -89,6 +95,9 @@ def read_dem_profile(
     vertex and ``Z`` the elevation of band 1, interpolated bilinearly between pixel
     centres every ``spacing`` (default: the smaller pixel size) and at every vertex.
     """
+    vertices = np.asarray(polyline, dtype=float)
+    if spacing is not None:  # the samples are counted before the DEM is read
+        _check_samples(path, vertices, spacing, "spacing")
     try:
         import rasterio
     except ImportError:
@@ -99,13 +108,18 @@ def read_dem_profile(
     path = Path(path)
     try:
         with rasterio.open(path) as dem:
+            if dem.width * dem.height > MAX_DEM_PIXELS:
+                raise InputError(
+                    f"{path}: {dem.width} x {dem.height} pixels; accepted: a DEM of at most "
+                    f"{MAX_DEM_PIXELS} pixels (crop it to the area of the polyline)"
+                )
             band = dem.read(1, masked=True).astype(float).filled(np.nan)
             to_pixel = ~dem.transform  # map (X, Y) -> fractional (column, row) of pixel edges
             pixel = min(abs(dem.transform.a), abs(dem.transform.e))
     except rasterio.errors.RasterioError as exc:
         raise InputError(f"{path}: cannot read the DEM ({exc}); accepted: a GeoTIFF file") from None
-    vertices = np.asarray(polyline, dtype=float)
     step = spacing or pixel
+    _check_samples(path, vertices, step, "spacing" if spacing else "dem (its pixel size)")
     xy, s = [vertices[0]], [0.0]
     for start, end in zip(vertices[:-1], vertices[1:]):
         length = float(np.hypot(*(end - start)))
@@ -125,6 +139,19 @@ def read_dem_profile(
             "(outside the DEM or a nodata pixel); accepted: a polyline inside the DEM's valid pixels"
         )
     return np.column_stack([s, z])
+
+
+def _check_samples(path: str | Path, vertices: np.ndarray, step: float, key: str) -> None:
+    """:class:`InputError` if sampling the polyline ``vertices`` every ``step`` (m) takes
+    more than :data:`MAX_PROFILE_POINTS` points (``key`` names what sets the step)."""
+    lengths = np.hypot(*np.diff(vertices, axis=0).T)
+    count = 1.0 + float(np.sum(np.maximum(1.0, np.ceil(lengths / step - 1e-9))))
+    if not count <= MAX_PROFILE_POINTS:  # a NaN or infinite length fails too
+        raise InputError(
+            f"{path}: bed.{key}: sampling the polyline ({float(np.sum(lengths)):.6g} m) every {step:g} m "
+            f"takes {count:.3g} points; accepted: at most {MAX_PROFILE_POINTS} points (a larger spacing, "
+            "a shorter polyline)"
+        )
 
 
 def _bilinear(band: np.ndarray, row: np.ndarray, col: np.ndarray) -> np.ndarray:

@@ -7,6 +7,7 @@ Each field's description is the "accepted" part of its messages
 
 from __future__ import annotations
 
+import math
 import typing
 from pathlib import Path
 from typing import Annotated, Any, Literal, get_args
@@ -26,12 +27,13 @@ from pydantic import (
 )
 
 from multilayer.engine import basal
+from multilayer.engine.mesh import cell_centres
 from multilayer.engine.pressure import model as pressure_models
 from multilayer.engine.threads import THREADS_ACCEPTED
 from multilayer.engine.transport import boundaries as lateral
 from multilayer.errors import InputError
 from multilayer.plugins import host as plugins
-from multilayer.scenario import messages, profiles
+from multilayer.scenario import limits, messages, profiles
 from multilayer.scenario.messages import (
     StrictModel,
     check_kind,
@@ -57,8 +59,8 @@ class Domain(StrictModel):
 
     x_min: float = field(..., "a number (m)")
     x_max: float = field(..., "a number > x_min (m)")
-    cells: int = field(..., "an integer >= 1", ge=1)
-    layers: int = field(1, "an integer >= 1", ge=1)
+    cells: int = field(..., f"an integer from 1 to {limits.MAX_CELLS}", ge=1, le=limits.MAX_CELLS)
+    layers: int = field(1, f"an integer from 1 to {limits.MAX_LAYERS}", ge=1, le=limits.MAX_LAYERS)
     layer_fractions: Any = field(
         "uniform", "'uniform', a list of `layers` numbers > 0 summing to 1, or {geometric: r > 0}"
     )
@@ -67,6 +69,12 @@ class Domain(StrictModel):
     @model_validator(mode="after")
     def _check(self) -> Domain:
         ordered(self.x_min, self.x_max)
+        if not math.isfinite(self.x_max - self.x_min):
+            raise invalid(
+                f"the domain is {self.x_max - self.x_min} m long",
+                "x_min and x_max less than 1e308 m apart",
+                "x_max",
+            )
         accepted = Domain.model_fields["layer_fractions"].description or ""
         value = self.layer_fractions
         if isinstance(value, list):
@@ -149,7 +157,7 @@ class PluginSpec(StrictModel):
             )
             raise invalid(message, plugins.signature_text(cls), key) from None
         try:
-            cls(**params)
+            plugins.construct(cls, params)
         except (TypeError, ValueError) as exc:
             raise invalid(f"{self.name}: {exc}", plugins.signature_text(cls)) from None
         return self.model_copy(update={"params": params})
@@ -293,6 +301,19 @@ class Bed(StrictModel):
             )
             self._map_points = None
 
+    def resample(self, domain: Domain) -> None:
+        """A profile read from a file with more points than ``domain`` has cells, sampled
+        once at the cell centres (where the engine samples the bed) and at the two ends:
+        the run is the same, and its record (every checkpoint, ``result.nc``) stays the
+        size of the mesh."""
+        if self.profile not in ("file", "dem") or not self.points or len(self.points) <= domain.cells + 2:
+            return
+        px, pb = np.asarray(self.points, dtype=float).T
+        x = np.concatenate(
+            [[domain.x_min], cell_centres(domain.x_min, domain.x_max, domain.cells), [domain.x_max]]
+        )
+        self.points = np.column_stack([x, np.interp(x, px, pb)]).tolist()
+
     @model_serializer(mode="wrap")
     def _as_points(self, handler: typing.Callable[[Bed], dict[str, Any]]) -> dict[str, Any]:
         """A bed read from a file is recorded as its points, so the record stands alone."""
@@ -430,6 +451,18 @@ class Time(StrictModel):
     end: float = field(..., "a number > 0 (s)", gt=0)
     cfl: float = field(0.45, "a number in (0, 1)", gt=0, lt=1)
     output_interval: float = field(..., "a number > 0 (s)", gt=0)
+
+    @model_validator(mode="after")
+    def _check(self) -> Time:
+        outputs = self.end / self.output_interval
+        if not outputs <= limits.MAX_OUTPUT_TIMES:
+            raise invalid(
+                f"{outputs:.3g} output times to time.end = {self.end:g} s",
+                f"at most {limits.MAX_OUTPUT_TIMES} output times: an interval of at least "
+                f"{self.end / limits.MAX_OUTPUT_TIMES:.3g} s",
+                "output_interval",
+            )
+        return self
 
 
 class Output(StrictModel):
@@ -604,6 +637,7 @@ class Scenario(StrictModel):
     @model_validator(mode="after")
     def _check(self) -> Scenario:
         self.bed.in_slope_frame(self.slope_deg)
+        self.bed.resample(self.domain)
         self.model.check_options(self.domain.layers)
         if self.walls is not None and self.domain.width is None:
             raise invalid(

@@ -15,6 +15,7 @@ from typing import Any
 import yaml
 
 from multilayer.errors import InputError
+from multilayer.scenario import limits
 from multilayer.scenario.files import read_text
 from multilayer.scenario.messages import KeyPath, dotted
 
@@ -54,6 +55,7 @@ def line_map(node: yaml.Node, where: str, path: KeyPath = (), lines=None) -> dic
 def parse_yaml(text: str, where: str) -> tuple[Any, dict[KeyPath, int]]:
     """The data of a YAML text and :func:`line_map`; :class:`InputError` naming ``where``
     and the line if it is malformed."""
+    limits.check_yaml(text, where, Loader)
     try:
         node = yaml.compose(text, Loader=Loader)
         data = yaml.load(text, Loader=Loader)

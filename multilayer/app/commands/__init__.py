@@ -112,21 +112,43 @@ def add_budget_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="SIZE",
         help="refuse a run whose result.nc would exceed SIZE, e.g. 2G (default: the free disk space)",
     )
-    parser.add_argument("--force", action="store_true", help="run even beyond the memory and output budget")
+    parser.add_argument(
+        "--max-steps",
+        type=positive_int,
+        metavar="N",
+        help="refuse a run estimated to take more than N time steps, and stop one that gets there "
+        "(default 10000000; validate prints the estimate)",
+    )
+    parser.add_argument(
+        "--force", action="store_true", help="run even beyond the memory, output and step budget"
+    )
 
 
 def budget(args: argparse.Namespace):
     """The :class:`~multilayer.app.resources.Budget` of the options of :func:`add_budget_arguments`."""
     from multilayer.app.resources import Budget
 
-    return Budget(args.max_memory, args.max_output, args.force)
+    return Budget(args.max_memory, args.max_output, args.force, args.max_steps)
+
+
+def directory(text: str) -> Path:
+    """argparse type: a directory path whose name netCDF can write (UTF-8; a name holding
+    other bytes is a usage error, exit code 2)."""
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        raise argparse.ArgumentTypeError(
+            f"{text.encode('utf-8', 'surrogateescape')!r} is not a UTF-8 name (netCDF files cannot be "
+            "named by other bytes); accepted: a directory name in UTF-8"
+        ) from None
+    return Path(text)
 
 
 def add_output_argument(parser: argparse.ArgumentParser, default: str) -> None:
     """``-o DIR``, ``--output DIR``: the output directory (``args.output``, a Path or None);
     ``default`` says where the output goes without it."""
     parser.add_argument(
-        "-o", "--output", metavar="DIR", type=Path, help=f"output directory (default: {default})"
+        "-o", "--output", metavar="DIR", type=directory, help=f"output directory (default: {default})"
     )
 
 

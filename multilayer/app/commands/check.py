@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 from multilayer import scenario as scenarios
 from multilayer.app import expectations as expect
+from multilayer.app.commands import directory
 from multilayer.errors import InputError, RunError
 
 HELP = "run scenario files and check their expect: lists (regression pins and reference values)"
@@ -29,7 +29,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "-o",
         "--output",
         metavar="DIR",
-        type=Path,
+        type=directory,
         help="keep the results in DIR/<scenario name> (default: a temporary directory, removed afterwards)",
     )
 

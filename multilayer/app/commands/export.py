@@ -7,8 +7,9 @@ Example: multilayer export results/erodible-bed-collapse --vtk
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
+import sys
 
+from multilayer.app.commands import directory
 from multilayer.errors import InputError
 
 HELP = "export DIR/result.nc to other formats (--vtk: ParaView)"
@@ -16,7 +17,9 @@ HELP = "export DIR/result.nc to other formats (--vtk: ParaView)"
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``multilayer export``."""
-    parser.add_argument("directory", metavar="DIR", type=Path, help="output directory of 'multilayer run'")
+    parser.add_argument(
+        "directory", metavar="DIR", type=directory, help="output directory of 'multilayer run'"
+    )
     parser.add_argument(
         "--vtk", action="store_true", help="VTK XML structured grids (.vts) and a .pvd time series"
     )
@@ -28,6 +31,8 @@ def main(args: argparse.Namespace) -> int:
 
     if not args.vtk:
         raise InputError("multilayer export: choose a format; accepted: --vtk")
-    paths = export_vtk(args.directory)
+    paths, end = export_vtk(args.directory)
     print(f"{paths[0]} ({len(paths) - 1} output times)")
+    if end:
+        print(f"multilayer: warning: {end}; exported up to its last output time", file=sys.stderr)
     return 0

@@ -13,9 +13,8 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
-from multilayer.app.commands import positive_int
+from multilayer.app.commands import directory, positive_int
 
 HELP = (
     "draw figures (and an animation) of DIR/result.nc, or of calibration.nc / sensitivity.nc, into DIR/plots/"
@@ -29,7 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "directory",
         metavar="DIR",
-        type=Path,
+        type=directory,
         help="output directory of 'multilayer run', 'calibrate' or 'sensitivity'",
     )
     parser.add_argument(

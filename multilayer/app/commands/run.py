@@ -7,6 +7,7 @@ Example: multilayer run scenarios/erodible_bed_collapse.yaml --set domain.cells=
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 from multilayer import scenario as scenarios
@@ -42,6 +43,22 @@ def main(args: argparse.Namespace) -> int:
     )
     if not args.quiet:
         print(f"{scenario.name}: wrote {Path(outdir) / 'result.nc'}")
-        for key, value in summary.items():
-            print(f"  {key} = {value:.6g}" if isinstance(value, float) else f"  {key} = {value}")
+        for line in summary_lines(summary, scenario.numerics.front_threshold):
+            print(f"  {line}")
     return 0
+
+
+def summary_lines(summary: dict[str, float], threshold: float) -> list[str]:
+    """The run summary, one ``key = value unit`` line each; a quantity that has no value
+    (no material above the front threshold at the end) says why."""
+    from multilayer.io.results import SUMMARY_UNITS
+
+    none = f"no cell thicker than the front threshold ({threshold:g} m) at the end"
+    why = {"front_final": none, "runout": none, "static_interface_mean_final": none}
+    lines = []
+    for key, value in summary.items():
+        text = f"{value:.6g}" if isinstance(value, float) else f"{value}"
+        unit = f" {SUMMARY_UNITS[key]}" if SUMMARY_UNITS.get(key) else ""
+        note = f" ({why[key]})" if isinstance(value, float) and math.isnan(value) and key in why else ""
+        lines.append(f"{key} = {text}{unit}{note}")
+    return lines

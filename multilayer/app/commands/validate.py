@@ -34,11 +34,13 @@ def main(args: argparse.Namespace) -> int:
     for path in args.files:
         try:
             scenario = scenarios.load(path, args.overrides)
-            need = resources.check(scenario, scenario.output.directory or Path("results"), budget(args))
+            limits = budget(args)
+            need = resources.check(scenario, scenario.output.directory or Path("results"), limits)
             dom = scenario.domain
             dx = (dom.x_max - dom.x_min) / dom.cells
             entries = factory.initial_entries(scenario)
             initial_state.check_entries(entries, dom.x_min, dom.x_max, dx, str(path))
+            steps = resources.check_steps(scenario, limits)
             expectations.validate(scenario)
         except InputError as exc:
             print(f"multilayer: error: {exc}", file=sys.stderr)
@@ -49,6 +51,7 @@ def main(args: argparse.Namespace) -> int:
             f"{path}: ok ({scenario.name}: {domain.cells} cells x {domain.layers} layers, "
             f"rheology {scenario.rheology.name}, t_end = {scenario.time.end:g} s; about "
             f"{resources.size_text(need.memory)} of memory, {need.records:.0f} output times, "
-            f"result.nc about {resources.size_text(need.output)})"
+            f"result.nc about {resources.size_text(need.output)}, about {steps.count:.2g} time steps "
+            f"(--max-steps {limits.step_limit:.3g}))"
         )
     return 2 if invalid else 0

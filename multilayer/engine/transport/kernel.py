@@ -200,7 +200,8 @@ class Edges(NamedTuple):
 class Arrays(NamedTuple):
     """The state ``H`` (N,), ``U`` (L, N) and bed ``B`` (N,); Heun's first stage ``H1``,
     ``Q1``; the result ``H_out``, ``U_out``; the mass fluxes through the window's end faces
-    per stage ``ends`` (2, 2)."""
+    per stage ``ends`` (2, 2); the fastest wave across each face of the window ``speeds``
+    (n + 1)."""
 
     H: np.ndarray
     U: np.ndarray
@@ -210,6 +211,7 @@ class Arrays(NamedTuple):
     H_out: np.ndarray
     U_out: np.ndarray
     ends: np.ndarray
+    speeds: np.ndarray
 
 
 @jit(error_model="numpy")
@@ -223,14 +225,15 @@ def _tile(stage, t0, t1, window, scheme, edges, arrays, work):
     to (H_out, U_out) at order 1 and to (H1, Q1) at order 2; ``stage`` 1: Heun's second
     stage from (H1, Q1), averaged with (H, U), to (H_out, U_out).  The mass fluxes through
     the end faces 0 and n of the window, as the cells next to them see them, go to
-    ``ends[stage]`` (summed over the layers from the bed up).
+    ``ends[stage]`` (summed over the layers from the bed up), the fastest wave across
+    each face that carries mass (0 for a face at rest) to ``speeds[t0 .. t1]``.
     """
     n, lo, left, right, at_rest = window.n, window.lo, window.left, window.right, window.at_rest
     l, dx, dt, order = scheme.l, scheme.dx, scheme.dt, scheme.order
     g_n, g_t, dry = scheme.g_n, scheme.g_t, scheme.dry
     inflow_h, inflow_u, gate_face, opening = edges.inflow_h, edges.inflow_u, edges.gate_face, edges.opening
     H, U, B, H1, Q1 = arrays.H, arrays.U, arrays.B, arrays.H1, arrays.Q1
-    H_out, U_out, ends = arrays.H_out, arrays.U_out, arrays.ends
+    H_out, U_out, ends, speeds = arrays.H_out, arrays.U_out, arrays.ends, arrays.speeds
     L = l.size
     m = t1 - t0
     (col, kind), scalars, layers, faces, fluxes, cells, (gate_h, gate_q) = work
@@ -332,6 +335,7 @@ def _tile(stage, t0, t1, window, scheme, edges, arrays, work):
         wl[f] = s_right / width
         wr[f] = -s_left / width
         moving[f] = 0.0 if rest else 1.0
+        speeds[t0 + f] = 0.0 if rest else max(-lowest, highest)
         jump[f] = s_left * s_right / width * moving[f]
         pL[f] = 0.5 * g_n * (hl * hl)
         pR[f] = 0.5 * g_n * (hr * hr)
@@ -518,6 +522,7 @@ class Workspace:
         self.u = np.zeros((layers, cells))
         self.written = (0, 0)
         self.ends = np.zeros((2, 2))  # mass fluxes through the end faces, per stage
+        self.speeds = np.zeros(cells + 1)  # the fastest wave across each face of the last stage
 
     def clear_outside(self, lo: int, hi: int) -> None:
         """Zero the result outside the columns ``lo .. hi-1`` (only what an earlier step
@@ -551,6 +556,7 @@ def transport(
     workspace: Workspace | None = None,
     threads: int = 1,
     boundary_mass: np.ndarray | None = None,
+    stage_speed: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``reference.transport`` compiled: returns h^{n+1} (N,) and u* (L, N).
 
@@ -589,8 +595,10 @@ def transport(
                 float(dx), float(dt), float(g_n), float(g_t), float(dry), int(order),
             ),
             Edges(inflow_h, inflow_u, gate, opening),
-            Arrays(h, u, b, ws.h1, ws.q1, ws.h, ws.u, ws.ends),
+            Arrays(h, u, b, ws.h1, ws.q1, ws.h, ws.u, ws.ends, ws.speeds),
         )  # fmt: skip
     if boundary_mass is not None:
         boundary_mass[:] = step_boundary_mass(ws.ends[:order], float(dt))
+    if stage_speed is not None:
+        stage_speed[0] = ws.speeds[: n + 1].max() if order == 2 else 0.0
     return ws.h, ws.u

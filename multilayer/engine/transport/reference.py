@@ -28,6 +28,8 @@ against bit for bit, written array by array as the equations read; it runs with
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from multilayer.engine.transport import boundaries
@@ -73,6 +75,21 @@ def courant_step(speed: float, dx: float, cfl: float) -> float:
     return min(cfl, POSITIVITY_LIMIT) * dx / speed if speed > 0 else np.inf
 
 
+def stage_courant_step(dt: float, start_speed: float, stage_speed: float, dx: float, cfl: float) -> float:
+    """Time step for a step of ``dt`` redone because the state Heun's second stage starts
+    from had waves of ``stage_speed``, beyond the positivity limit: the stage speed taken
+    to grow linearly with the step, from ``start_speed`` (the state at the start) to
+    ``stage_speed`` at ``dt`` (the state is accelerated by the step's forces), and the
+    Courant number of ``courant_step`` imposed on it:
+    ``dt' (start_speed + (stage_speed - start_speed) dt' / dt) = min(cfl, 1/2) dx``.
+    The result is below ``dt`` (a Courant number above 1/2 at ``dt``), at least
+    ``courant_step(stage_speed, ...)``."""
+    c = min(cfl, POSITIVITY_LIMIT) * dx
+    growth = max(stage_speed - start_speed, 0.0) / dt
+    step = 2.0 * c / (start_speed + math.sqrt(start_speed * start_speed + 4.0 * growth * c))
+    return step if step < dt else courant_step(stage_speed, dx, cfl)
+
+
 def _gated(flux_h, flux_q, hL, uL, hR, uR, l, g_n, gate):
     """Fluxes through a partly open gate face (engine/gate.py).  Returns the mass and
     momentum fluxes seen by the cells west and east of each face.
@@ -109,8 +126,10 @@ def _gated(flux_h, flux_q, hL, uL, hR, uR, l, g_n, gate):
 
 
 def _rates(h, u, b, l, *, dx, g_n, g_t, left, right, inflow, order, at_rest, gate=None):
-    """Time derivatives of h (N,) and of the layer momenta h_a u_a (L, N); ``gate`` is
-    ``(face, opening)``, a face of the window and the opening fractions (L,) there."""
+    """Time derivatives of h (N,) and of the layer momenta h_a u_a (L, N), the mass
+    fluxes through the two end faces and the fastest wave across a face that carries
+    mass (``max(-s_left, s_right)``); ``gate`` is ``(face, opening)``, a face of the
+    window and the opening fractions (L,) there."""
     h_ext, u_ext, b_ext = _ghosts(h, u, b, left, right, inflow)
     # cells 1 .. N+2 of the extended arrays (interior plus one ghost per side)
     if order == 2:
@@ -139,6 +158,7 @@ def _rates(h, u, b, l, *, dx, g_n, g_t, left, right, inflow, order, at_rest, gat
     s_right = np.where(at_rest, 1.0, np.maximum(s_right, 0.0))
     width = s_right - s_left
     wl, wr, jump = s_right / width, -s_left / width, s_left * s_right / width * ~at_rest
+    fastest = float(np.where(at_rest, 0.0, np.maximum(-s_left, s_right)).max(initial=0.0))
 
     # HLL fluxes of layer mass h_a and momentum h_a u_a (per unit l_a); no mass crosses a
     # face at rest, even when Heun's second stage sees the velocities of the first
@@ -168,7 +188,7 @@ def _rates(h, u, b, l, *, dx, g_n, g_t, left, right, inflow, order, at_rest, gat
     dq = -(east - west + bed_slope) / dx + exchange + g_t * l * h
     # the mass fluxes through the two end faces, as the cells next to them see them
     ends = (_layer_sum(flux_h_east[:, 0]), _layer_sum(flux_h_west[:, -1]))
-    return -div_Q, dq, ends
+    return -div_Q, dq, ends, fastest
 
 
 def _layer_sum(flux: np.ndarray) -> float:
@@ -192,23 +212,27 @@ def step_boundary_mass(stage_fluxes: np.ndarray, dt: float) -> np.ndarray:
 
 def _step(h, u, b, l, *, dt, dry, **kw):
     """Forward Euler (order 1) or Heun (order 2) step of the transport rates; returns
-    h, u and the mass through the two end faces (``step_boundary_mass``)."""
+    h, u, the mass through the two end faces (``step_boundary_mass``) and the fastest
+    wave across a face that carries mass in Heun's second stage (0 at order 1)."""
 
     def velocity(h_, q_):
         wet = h_ > dry
         return np.where(wet, q_ / (l * np.where(wet, h_, 1.0)), 0.0)
 
     q = l * h * u
-    dh, dq, ends = _rates(h, u, b, l, **kw)
+    dh, dq, ends, _ = _rates(h, u, b, l, **kw)
     stage_fluxes = [ends]
-    h1 = np.maximum(h + dt * dh, 0.0)  # >= 0 exactly; the clip removes round-off only
+    # >= 0 exactly when the stage meets the Courant condition of its own state (up to
+    # POSITIVITY_LIMIT): the clip then removes round-off only
+    h1 = np.maximum(h + dt * dh, 0.0)
     q1 = q + dt * dq
+    stage_speed = 0.0
     if kw["order"] == 2:  # Heun: the average of the state and two Euler steps
-        dh, dq, ends = _rates(h1, velocity(h1, q1), b, l, **kw)
+        dh, dq, ends, stage_speed = _rates(h1, velocity(h1, q1), b, l, **kw)
         stage_fluxes.append(ends)
         h1 = np.maximum(0.5 * (h + h1 + dt * dh), 0.0)
         q1 = 0.5 * (q + q1 + dt * dq)
-    return h1, velocity(h1, q1), step_boundary_mass(np.array(stage_fluxes), dt)
+    return h1, velocity(h1, q1), step_boundary_mass(np.array(stage_fluxes), dt), stage_speed
 
 
 MARGIN = 4
@@ -235,6 +259,7 @@ def transport(
     gate_face: int | None = None,
     opening: np.ndarray | None = None,
     boundary_mass: np.ndarray | None = None,
+    stage_speed: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """One explicit transport step: returns h^{n+1} (N,) and the velocities u* (L, N).
 
@@ -245,6 +270,9 @@ def transport(
     partly lifted gate (engine/gate.py); None: no gate.  ``boundary_mass`` (2,), if
     given, receives the mass (m^2 per unit width) that crossed the left and the right
     boundary during the step, positive in +x (the mass balance of ``state_check``).
+    ``stage_speed`` (1,), if given, receives the fastest wave (HLL speed) across a face
+    that carries mass in Heun's second stage (0 at order 1): the step keeps ``h >= 0``
+    only if ``dt`` meets the Courant condition of that stage too.
     """
     if opening is not None and gate_face is None:
         raise ValueError("transport: a gate opening was given without its gate_face")
@@ -271,7 +299,7 @@ def transport(
     if opening is not None and gate_face is not None and lo <= gate_face <= hi:
         gate = (gate_face - lo, np.asarray(opening, dtype=float))
     h_new, u_new = np.zeros_like(h), np.zeros_like(u)
-    h_new[window], u_new[:, window], crossed = _step(
+    h_new[window], u_new[:, window], crossed, fastest = _step(
         hw,
         uw,
         b[window],
@@ -290,4 +318,6 @@ def transport(
     )
     if boundary_mass is not None:
         boundary_mass[:] = crossed  # a window edge inside the domain is dry: no flux there
+    if stage_speed is not None:
+        stage_speed[0] = fastest
     return h_new, u_new

@@ -21,6 +21,7 @@ from typing import NamedTuple
 import numpy as np
 
 from multilayer.engine.compiled import jit
+from multilayer.engine.plugin_output import declared_form
 from multilayer.engine.vertical.forms import describes
 from multilayer.engine.vertical.stresses import ColumnStresses, StressModel
 
@@ -31,8 +32,8 @@ def yield_law_of(rheology, material) -> tuple[float, float] | None:
     below the class that declares the form)."""
     if not describes(rheology, "yield_stress_kernel", ("yield_stress", "static_yield_stress")):
         return None
-    declared = rheology.yield_stress_kernel(material)
-    if declared is None or declared[0] != "frictional":
+    declared = declared_form(rheology, "yield_stress_kernel", material, {"frictional": 2})
+    if declared is None:
         return None
     mu, mu_static = declared[1]
     return float(mu), float(mu_static)

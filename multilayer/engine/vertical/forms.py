@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from multilayer.engine.compiled import jit
+from multilayer.engine.plugin_output import declared_form
 
 
 @dataclass(frozen=True)
@@ -52,18 +53,19 @@ FORMS = {
 
 def law_of(rheology: Any, material: Any) -> tuple[int, np.ndarray] | None:
     """(form code, parameters) of a plugin's compiled viscosity, None if it has none (or
-    declares a form unknown here, or with the wrong number of parameters).
+    declares a form unknown here).  A known form with another number of parameters stops
+    the run naming the plugin (``plugin_output.declared_form``).
 
     A compiled form describes the ``viscosity`` of the class that declares it: where a
     subclass (or the instance) redefines ``viscosity`` below that class, the form is not
     used, and the step runs the plugin's own ``viscosity`` (numpy path)."""
     if not describes(rheology, "viscosity_kernel", ("viscosity",)):
         return None
-    declared = rheology.viscosity_kernel(material)
-    form = None if declared is None else FORMS.get(declared[0])
-    if form is None or len(declared[1]) != form.parameters:
+    parameters = {name: form.parameters for name, form in FORMS.items()}
+    declared = declared_form(rheology, "viscosity_kernel", material, parameters)
+    if declared is None:
         return None
-    return form.code, np.array(declared[1], dtype=float)
+    return FORMS[declared[0]].code, declared[1]
 
 
 @jit
@@ -128,7 +130,7 @@ def describes(rheology: object, kernel: str, methods: tuple[str, ...]) -> bool:
     """True when the definition of ``kernel`` that ``rheology`` uses comes from a class at
     or below every class whose definition of ``methods`` it uses (never when the instance
     itself defines one of them)."""
-    instance = vars(rheology)
+    instance = getattr(rheology, "__dict__", {})  # none with __slots__
     if kernel in instance or any(method in instance for method in methods):
         return False
     cls: Any = type(rheology)

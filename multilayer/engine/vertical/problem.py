@@ -77,3 +77,11 @@ class VerticalSolver(Protocol):
     def __call__(
         self, problem: ColumnProblem, guess: np.ndarray | None = None, threads: int = 1
     ) -> np.ndarray: ...
+
+
+def workspace_bytes(L: int) -> int:
+    """Bytes of the workspace of the exact solver of columns of ``L`` layers
+    (``column_solve._workspace``, one per thread, kept here where no kernel is compiled):
+    the piecewise-linear messages of every layer, quadratic in ``L``."""
+    cap = 8 * L + 16
+    return 8 * (2 * L * cap + 4 * cap + 3 * L + 8)

@@ -1,0 +1,68 @@
+"""Room left for the files of a run: the free space of the disk and the file size limit.
+
+A run appends to ``result.nc`` and replaces ``checkpoint.npz`` as it goes.  Two limits
+can stop a write half-way: the free space of the file system (``ENOSPC``, or ``EDQUOT``
+past a quota) and the largest file the process may write (``ulimit -f``,
+``RLIMIT_FSIZE``: ``EFBIG``).  Writers ask :func:`room` before each write, so that a full
+disk stops the run between two records, and name either limit with :func:`full_disk_reason`
+when a write fails anyway (another process filled the disk in between).
+"""
+
+from __future__ import annotations
+
+import errno
+import math
+import os
+import shutil
+from pathlib import Path
+
+FULL_ERRNOS = frozenset({errno.ENOSPC, errno.EFBIG, errno.EDQUOT})
+"""The errors of a write that found no room: disk full, file too large, quota exceeded."""
+SLACK = 8192
+"""Bytes asked for beyond what a write adds: the blocks of the file system it may start."""
+FULL_MESSAGES = ("no space left", "file too large", "disk quota exceeded")
+"""How netCDF-C and the C library word them (netCDF4 raises RuntimeError with the text)."""
+
+
+def free_space(directory: str | os.PathLike) -> float:
+    """Free space (bytes) of the file system holding ``directory`` (or its nearest
+    existing parent)."""
+    path = Path(directory).absolute()
+    while not path.exists() and path != path.parent:
+        path = path.parent
+    return float(shutil.disk_usage(path).free)
+
+
+def file_size_limit() -> float:
+    """The largest file this process may write (bytes; ``ulimit -f``), inf if unlimited."""
+    try:
+        import resource
+    except ImportError:  # not on this platform
+        return math.inf
+    soft, _hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    return math.inf if soft == resource.RLIM_INFINITY or soft < 0 else float(soft)
+
+
+def room(path: str | os.PathLike) -> tuple[float, str]:
+    """Bytes that can still be added to the file ``path`` (which may not exist yet) and
+    what limits them, in words: the free space of its disk or the file size limit."""
+    path = Path(path)
+    size = path.stat().st_size if path.exists() else 0
+    free = free_space(path.parent)
+    limit = file_size_limit()
+    if limit - size < free:
+        return max(limit - size, 0.0), f"file too large: the file size limit (ulimit -f) is {limit:.0f} bytes"
+    return free, f"disk full: {free:.0f} bytes free on the disk holding {path.parent}"
+
+
+def full_disk_reason(exc: BaseException) -> str | None:
+    """``"disk full"`` or ``"file too large"`` if ``exc`` is a write that found no room
+    (``OSError`` with ``ENOSPC``/``EDQUOT``/``EFBIG``, or netCDF4's ``RuntimeError`` saying
+    so), else None."""
+    number = getattr(exc, "errno", None)
+    text = str(exc).lower()
+    if number == errno.EFBIG or "file too large" in text:
+        return "file too large"
+    if number in FULL_ERRNOS or any(words in text for words in FULL_MESSAGES):
+        return "disk full"
+    return None

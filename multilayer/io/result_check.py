@@ -1,0 +1,206 @@
+"""Whether a result file holds what it claims: the one check every reader makes first.
+
+``plot``, ``export``, ``check``, ``summary``, sweeps, calibrations, ``--resume`` and
+``run_failure`` read ``result.nc`` through :func:`check_result`.  A file is refused
+(:class:`ResultFileError`, an :class:`InputError`: exit code 2, naming the file and what
+is wrong) when
+
+- it is not a netCDF file written by multilayer, or its header is damaged;
+- it is shorter than its header declares (truncated: netCDF-C reads the missing bytes
+  as zeros, without an error);
+- its ``run_status`` is ``running``: a run is still writing it, or the process that
+  wrote it ended without closing it;
+- a record fails its checks: time finite and increasing, ``h`` finite and ``>= 0``,
+  ``u`` finite, the static interface within ``[0, h]``, ``mass`` the integral of ``h``
+  to round-off and ``front`` the front of ``h`` (what the writer computed from the same
+  state), and the coordinates finite and increasing;
+- for a reader that takes the file as a run's answer (``use="answer"``), the run did
+  not complete (failed, interrupted).
+
+A reader that shows what was computed (``use="records"``: plot, export) also accepts a
+failed or interrupted run, whose records are whole; ``--resume`` (``use="resume"``)
+needs the first ``records`` records only, whatever the status.  The records are read
+one at a time (memory of one record).
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+from pathlib import Path
+from typing import Literal
+
+import netCDF4
+import numpy as np
+import yaml
+
+from multilayer.engine import diagnostics
+from multilayer.errors import InputError
+from multilayer.io.netcdf_layout import LayoutError, read_layout
+from multilayer.io.result_format import NETCDF_LOCK, VARIABLES, result_path
+
+Use = Literal["answer", "records", "resume"]
+STATUSES = ("completed", "failed", "interrupted", "running")
+ROUND_OFF = 64 * np.finfo(float).eps
+"""Relative round-off allowed between ``mass`` and the integral of ``h``."""
+
+
+class ResultFileError(InputError):
+    """A result file that cannot be read as what it claims (exit code 2)."""
+
+
+def check_result(path: str | os.PathLike, use: Use = "answer", records: int | None = None) -> Path:
+    """Check the result file ``path`` (or ``path/result.nc``) for ``use`` (module
+    docstring); returns its path, raises :class:`ResultFileError` naming what is wrong.
+    ``records``: with ``use="resume"``, the records that must be whole."""
+    file = result_path(path)
+    if not file.is_file():
+        raise ResultFileError(f"{file}: no result file; accepted: the output directory of `multilayer run`")
+
+    def bad(what: str, accepted: str = "a result file written by `multilayer run`, whole") -> ResultFileError:
+        return ResultFileError(f"{file}: {what}; accepted: {accepted}")
+
+    whole = _whole_records(file, bad)
+    try:
+        with NETCDF_LOCK, netCDF4.Dataset(file) as ds:
+            status = _status(ds, file, bad)
+            if use != "resume" and status == "running":
+                raise bad(
+                    "run_status is 'running': a run is still writing it, or the process writing it "
+                    "ended without closing it (killed, or the machine stopped)",
+                    "a finished run: wait for it to end, or continue it with `multilayer run "
+                    "SCENARIO -o DIR --resume`",
+                )
+            if use == "answer" and status != "completed":
+                why = f": {ds.getncattr('failure')}" if "failure" in ds.ncattrs() else ""
+                raise bad(f"the run did not complete (run_status {status}{why})", "a completed run")
+            count = len(ds.dimensions["time"]) if "time" in ds.dimensions else 0
+            needed = count if records is None else min(records, count)
+            if use == "resume" and records is not None and records > count:
+                raise bad(f"it holds {count} output times, fewer than the {records} of its checkpoint")
+            if whole < needed:
+                raise bad(
+                    f"truncated: {file.stat().st_size} bytes, {whole} of its {count} output times whole "
+                    "(the file is shorter than its header declares)"
+                )
+            _check_records(ds, needed, bad)
+    except (OSError, RuntimeError, KeyError, IndexError, ValueError, TypeError) as exc:
+        raise bad(f"not a readable multilayer result ({type(exc).__name__}: {exc})") from None
+    return file
+
+
+def _whole_records(file: Path, bad) -> int:
+    """Records the file holds entirely, as its classic netCDF header declares them (all of
+    them for a file in another netCDF format: netCDF-C checks those itself)."""
+    try:
+        layout = read_layout(file)
+    except LayoutError as exc:
+        with open(file, "rb") as stream:
+            if stream.read(4) == b"\x89HDF":
+                return 2**62
+        raise bad(f"not a netCDF result file ({exc})") from None
+    return layout.complete_records(file.stat().st_size)
+
+
+def _status(ds: netCDF4.Dataset, file: Path, bad) -> str:
+    """The run status of ``ds``; the variables and the scenario are those of a result."""
+    missing = [name for name in VARIABLES if name not in ds.variables]
+    if missing:
+        raise bad(f"not a multilayer result: no variable {', '.join(missing)}")
+    try:
+        scenario = yaml.safe_load(str(ds.getncattr("scenario")))
+    except (AttributeError, yaml.YAMLError):
+        scenario = None
+    if not isinstance(scenario, dict) or "name" not in scenario:
+        raise bad("its scenario attribute is missing or damaged")
+    status = str(ds.getncattr("run_status")) if "run_status" in ds.ncattrs() else ""
+    if status not in STATUSES:
+        raise bad(f"run_status {status!r} is not one of {', '.join(STATUSES)}")
+    return status
+
+
+CHUNK_VALUES = 2**23
+"""Values read at once when records are checked (64 MB of doubles): whole records."""
+
+
+def _check_records(ds: netCDF4.Dataset, count: int, bad) -> None:
+    """Raise ``bad(...)`` at the first of the first ``count`` records that fails its checks;
+    the records are read in chunks of about :data:`CHUNK_VALUES` values and screened at
+    once, the first failing one examined on its own for the message."""
+    ds.set_auto_mask(False)
+    x = np.asarray(ds["x"][:], dtype=float)
+    if x.size == 0 or not (np.all(np.isfinite(x)) and np.all(np.diff(x) > 0)):
+        raise bad("its cell centres x are not finite and increasing")
+    if not np.all(np.isfinite(np.asarray(ds["bed"][:], dtype=float))):
+        raise bad("its bed is not finite")
+    bounds = np.asarray(ds["x_bnds"][:], dtype=float)
+    dx = float(np.mean(bounds[:, 1] - bounds[:, 0]))
+    threshold = float(ds["front"].getncattr("threshold"))
+    layers = len(ds.dimensions["layer"])
+    step = max(1, CHUNK_VALUES // ((layers + 2) * x.size))
+    before = -np.inf
+    for start in range(0, count, step):
+        rows = slice(start, min(start + step, count))
+        t = np.asarray(ds["time"][rows], dtype=float)
+        h = np.asarray(ds["h"][rows, :], dtype=float)
+        u = np.asarray(ds["u"][rows, :, :], dtype=float)
+        static = np.asarray(ds["static_interface"][rows, :], dtype=float)
+        mass = np.asarray(ds["mass"][rows], dtype=float)
+        front = np.asarray(ds["front"][rows], dtype=float)
+        previous = np.concatenate([[before], t[:-1]])
+        suspect = ~(np.isfinite(t) & (t >= 0.0) & (t > previous))
+        suspect |= (
+            ~np.isfinite(h).all(axis=1) | ~np.isfinite(u).all(axis=(1, 2)) | ~np.isfinite(static).all(axis=1)
+        )
+        suspect |= (
+            (h.min(axis=1) < 0.0) | (static.min(axis=1) < 0.0) | (static > h * (1 + ROUND_OFF)).any(axis=1)
+        )
+        integral = h.sum(axis=1) * dx
+        scale = np.maximum(np.abs(integral), h.shape[1] * dx * h.max(axis=1, initial=0.0))
+        suspect |= ~(np.abs(mass - integral) <= ROUND_OFF * scale)
+        for bad_row in np.flatnonzero(suspect):
+            j = int(bad_row)
+            _check_record(bad, start + j, float(previous[j]), (t[j], h[j], u[j], static[j], mass[j]), x, dx)
+        for j in range(t.size):  # the front of each record, as the writer computed it
+            wet = diagnostics.front(x, h[j], threshold)
+            if not (front[j] == wet or (np.isnan(front[j]) and np.isnan(wet))):
+                what = f"front {float(front[j])!r} m is not the front of h ({wet:.6g} m)"
+                raise _record_error(bad, start + j, float(t[j]), what)
+        before = float(t[-1])
+
+
+def _check_record(bad, i: int, before: float, values: tuple, x: np.ndarray, dx: float) -> None:
+    """Raise ``bad(...)`` saying how output time ``i`` (its time, h, u, static interface and
+    mass in ``values``; ``before`` the time of the previous one) fails its checks."""
+    t, h, u, static, mass = values
+    record = functools.partial(_record_error, bad, i, float(t))
+    if not (np.isfinite(t) and t >= 0.0 and t > before):
+        raise record(f"time {float(t)!r} is not finite and after the previous one ({before:.6g} s)")
+    for name, field in (("h", h), ("u", u), ("static_interface", static)):
+        infinite = np.flatnonzero(~np.isfinite(field))
+        if infinite.size:
+            k = int(infinite[0])
+            raise record(f"{name} = {float(field.flat[k])!r} at x = {x[k % x.size]:.6g} m")
+    if h.min() < 0.0:
+        raise record(f"h = {h.min():.6g} m < 0 at x = {x[int(np.argmin(h))]:.6g} m")
+    if np.any(static < 0.0) or np.any(static > h * (1 + ROUND_OFF)):
+        raise record("the static interface is outside [0, h]")
+    expected = diagnostics.mass(h, dx)
+    if not abs(mass - expected) <= ROUND_OFF * max(abs(expected), h.size * dx * h.max(initial=0.0)):
+        raise record(f"mass {float(mass)!r} m2 is not the integral of h ({expected:.6g} m2)")
+
+
+def _record_error(bad, i: int, t: float, what: str) -> ResultFileError:
+    """The error of output time ``i`` (at ``t``) failing a check."""
+    return bad(f"output time {i} (t = {t:.6g} s) fails its checks: {what}")
+
+
+def ending(attrs: dict) -> str | None:
+    """How a run that did not complete ended, in words (None for a completed one): what a
+    reader that shows its records says beside them."""
+    status = attrs.get("run_status", "completed")
+    if status == "completed":
+        return None
+    what = {"failed": "the run failed", "interrupted": "the run was interrupted"}.get(status, f"run {status}")
+    why = attrs.get("failure", "")
+    return f"{what}: {why}" if why else what

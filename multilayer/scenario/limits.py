@@ -1,0 +1,85 @@
+"""Bounds on the size of what a user hands in, checked before anything is built from it.
+
+A YAML text is scanned event by event (PyYAML's parser: no node, no object built) before
+it is composed and loaded: its length, the depth of its nesting and the number of nodes
+it holds once every alias is expanded are bounded, and an alias inside the node it
+refers to (a recursive document) is refused.  An alias costs nothing to parse but is
+walked in full by every reader of the data (the line map, the validation, a deep copy):
+nine nested aliases of ten (the "billion laughs") make 10^9 nodes of a 1 kB text.
+Files (scenarios, sweeps, studies, CSV profiles) are read up to :data:`MAX_FILE_BYTES`
+(regular files only: a device or a pipe could be read for ever), a YAML text parsed up
+to :data:`MAX_YAML_CHARACTERS`,
+and profiles (CSV rows, DEM samples) hold at most :data:`MAX_PROFILE_POINTS` points.
+The bounds are far above any scenario (the shipped ones hold a few hundred nodes, the
+largest profile a few thousand points) and are listed in docs/reliability.md.
+"""
+
+from __future__ import annotations
+
+import yaml
+
+from multilayer.errors import InputError
+
+MAX_FILE_BYTES = 64 * 2**20
+"""Largest input file read (bytes): scenario, sweep and study YAML files, CSV profiles."""
+MAX_YAML_CHARACTERS = 8 * 2**20
+"""Longest YAML text (characters; PyYAML parses about 1 MB/s)."""
+MAX_DEPTH = 100
+"""Deepest nesting of YAML collections (a scenario nests 4 deep)."""
+MAX_NODES = 2_000_000
+"""Most YAML nodes (scalars and collections), every alias expanded."""
+MAX_PROFILE_POINTS = 1_000_000
+"""Most points of a profile: rows of a CSV file, samples of a DEM along its polyline."""
+MAX_CELLS = 10**9
+"""Most cells of a domain (the memory budget refuses far fewer on any machine)."""
+MAX_LAYERS = 10**5
+"""Most layers (the exact column solve keeps 128 L^2 bytes per thread: 1.3 TB here)."""
+MAX_OUTPUT_TIMES = 10**7
+"""Most output times of a run (``time.end / time.output_interval``), also under --force."""
+MAX_DEM_PIXELS = 400_000_000
+"""Largest DEM read (pixels; its band is read whole, 8 bytes a pixel)."""
+
+
+def check_yaml(text: str, where: str, loader: type) -> None:
+    """Raise :class:`InputError` naming ``where`` if the YAML ``text`` exceeds the bounds
+    of this module; malformed YAML is left to the loader, which names the line."""
+    if len(text) > MAX_YAML_CHARACTERS:
+        raise InputError(
+            f"{where}: {len(text)} characters of YAML; accepted: at most {MAX_YAML_CHARACTERS} (a scenario "
+            "file is a few kB; give long profiles as CSV files)"
+        )
+    sizes: dict[str, int] = {}  # anchor -> nodes of its node, aliases expanded
+    open_: list[tuple[str | None, int]] = []  # collections not closed yet: anchor, nodes before them
+    counted = 0  # nodes so far, aliases expanded
+    try:
+        for event in yaml.parse(text, Loader=loader):
+            if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+                open_.append((event.anchor, counted))
+                counted += 1
+                if len(open_) > MAX_DEPTH:
+                    raise _refused(where, event, f"collections nested more than {MAX_DEPTH} deep")
+            elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+                anchor, before = open_.pop()
+                if anchor is not None:
+                    sizes[anchor] = counted - before
+            elif isinstance(event, yaml.ScalarEvent):
+                counted += 1
+                if event.anchor is not None:
+                    sizes[event.anchor] = 1
+            elif isinstance(event, yaml.AliasEvent):
+                if any(anchor == event.anchor for anchor, _ in open_):
+                    raise _refused(where, event, f"the alias *{event.anchor} lies inside its own anchor")
+                counted += sizes.get(str(event.anchor), 1)
+            if counted > MAX_NODES:
+                raise _refused(where, event, f"more than {MAX_NODES} values once its aliases are expanded")
+    except yaml.YAMLError:
+        return  # the loader names the problem and its line
+
+
+def _refused(where: str, event: yaml.Event, what: str) -> InputError:
+    mark = event.start_mark
+    line = f" (line {mark.line + 1})" if mark is not None else ""
+    return InputError(
+        f"{where}{line}: {what}; accepted: a YAML document without an alias inside its own anchor, "
+        f"nested at most {MAX_DEPTH} deep, of at most {MAX_NODES} values with its aliases expanded"
+    )

@@ -1,0 +1,276 @@
+"""Hostile sizes and degenerate values are refused before anything is built from them
+(docs/reliability.md, "bounds"): exit 2 naming the file, the key and the bound, within
+seconds, never a MemoryError, a RecursionError or a run that never ends."""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from conftest import TINY_SCENARIO
+
+import multilayer
+from multilayer.app import resources
+from multilayer.engine.mesh import cell_centres
+from multilayer.io.results import load_checkpoint, open_result
+from multilayer.scenario import limits, profiles
+
+BILLION_LAUGHS = "a: &a [x, x, x, x, x, x, x, x, x, x]\n" + "".join(
+    f"{chr(98 + i)}: &{chr(98 + i)} [{', '.join([f'*{chr(97 + i)}'] * 10)}]\n" for i in range(9)
+)
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        (BILLION_LAUGHS, r" \(line 7\): more than 2000000 values once its aliases are expanded"),
+        ("name: &a [*a]\n", r" \(line 1\): the alias \*a lies inside its own anchor"),
+        ("a: &a\n  b: *a\n", r" \(line 2\): the alias \*a lies inside its own anchor"),
+        ("x: " + "[" * 5000 + "]" * 5000 + "\n", r" \(line 1\): collections nested more than 100 deep"),
+        (
+            "# padding\n" * (limits.MAX_YAML_CHARACTERS // 10 + 1),
+            r": \d+ characters of YAML; accepted: at most",
+        ),
+    ],
+)
+def test_hostile_yaml_is_refused_before_it_is_built(cli, write_scenario, text, expected):
+    path = write_scenario(text)
+    start = time.perf_counter()
+    for command in (("validate", path), ("run", path, "-o", path.parent / "out")):
+        result = cli(*command)
+        assert result.code == 2 and "Traceback" not in result.err
+        assert __import__("re").search(__import__("re").escape(str(path)) + expected, result.err), result.err
+    assert time.perf_counter() - start < 30  # the bomb took 29 s and 4 GB before
+    result = cli("validate", write_scenario(TINY_SCENARIO, name="tiny.yaml"), "--set", "initial=&a [*a]")
+    assert (
+        result.code == 2 and "--set initial (line 1): the alias *a lies inside its own anchor" in result.err
+    )
+
+
+def test_a_device_a_pipe_or_an_oversized_file_is_refused(tmp_path, cli, write_scenario, monkeypatch):
+    fifo = tmp_path / "pipe.yaml"
+    os.mkfifo(fifo)  # opening it to read would wait for a writer for ever
+    for path in ("/dev/zero", fifo):
+        result = cli("validate", path)
+        assert result.code == 2 and f"{path}: not a regular file" in result.err
+    bed = write_scenario({**TINY_SCENARIO, "bed": {"file": "/dev/zero"}})
+    result = cli("validate", bed)
+    assert result.code == 2 and "bed.file" in result.err and "/dev/zero: not a regular file" in result.err
+    monkeypatch.setattr("multilayer.scenario.files.MAX_FILE_BYTES", 1000)
+    big = write_scenario("# " + "x" * 2000 + "\n", name="big.yaml")
+    result = cli("validate", big)
+    assert result.code == 2 and f"{big}: longer than 1000 bytes" in result.err
+
+
+def test_profiles_beyond_their_bound_are_refused_before_they_are_sampled(
+    tmp_path, cli, write_scenario, monkeypatch
+):
+    monkeypatch.setattr(profiles, "MAX_PROFILE_POINTS", 100)
+    csv = tmp_path / "bed.csv"
+    csv.write_text("x (m), z (m)\n" + "".join(f"{i / 1000}, 0\n" for i in range(101)))
+    result = cli("validate", write_scenario({**TINY_SCENARIO, "bed": {"file": str(csv)}}))
+    assert result.code == 2 and "101 data rows; accepted: at most 100" in result.err
+    monkeypatch.undo()
+    dem = {"dem": "dem.tif", "polyline": [[0.0, 0.0], [1e9, 0.0]], "spacing": 1e-3}
+    start = time.perf_counter()
+    result = cli("validate", write_scenario({**TINY_SCENARIO, "bed": dem}))
+    assert result.code == 2 and "Traceback" not in result.err
+    assert "bed.spacing: sampling the polyline (1e+09 m) every 0.001 m takes 1e+12 points" in result.err
+    assert time.perf_counter() - start < 10  # 46 s to a MemoryError before
+
+
+def test_a_long_bed_profile_is_resampled_to_the_mesh_once(tmp_path, cli, write_scenario):
+    """2e4 rows for 40 cells: the bed the engine sees is the same (the profile sampled at the
+    cell centres, where the engine samples it), the record the size of the mesh (a file of
+    1e5 rows made a checkpoint of 12 MB and the run 24 times slower)."""
+    x = np.linspace(-0.1, 0.6, 20_000)
+    csv = tmp_path / "bed.csv"
+    csv.write_text("x (m), z (m)\n" + "".join(f"{a!r}, {0.01 * math.sin(20 * a)!r}\n" for a in x.tolist()))
+    path = write_scenario({**TINY_SCENARIO, "bed": {"file": "bed.csv"}})
+    scenario = multilayer.load(path)
+    assert len(scenario.bed.points) == 42
+    run = cli("run", path, "-o", tmp_path / "out", "-q")
+    assert run.code == 0, run.err
+    dom = scenario.domain
+    expected = np.interp(cell_centres(dom.x_min, dom.x_max, dom.cells), x, 0.01 * np.sin(20 * x))
+    np.testing.assert_array_equal(open_result(tmp_path / "out")["bed"].values, expected)
+    assert (tmp_path / "out" / "checkpoint.npz").stat().st_size < 50_000
+    assert len(load_checkpoint(tmp_path / "out" / "checkpoint.npz").scenario) < 10_000
+
+
+@pytest.mark.parametrize("override", ["gravity=1e300", "time.cfl=1e-300", "domain.x_max=1e-300"])
+def test_a_run_that_cannot_finish_is_refused_naming_the_keys_unless_the_user_says_so(
+    tmp_path, cli, write_scenario, override
+):
+    layer = {**TINY_SCENARIO, "initial": [{"shape": "layer", "thickness": 0.01}]}
+    path = write_scenario(layer)
+    for command in (("validate", path), ("run", path, "-o", tmp_path / "out")):
+        result = cli(*command, "--set", override)
+        assert result.code == 2 and "Traceback" not in result.err
+        assert "time.end, time.cfl, domain.x_min, domain.x_max, domain.cells, gravity: about" in result.err
+        assert "more than the default bound (--max-steps) (1e+07)" in result.err
+    assert not (tmp_path / "out" / "result.nc").exists()
+
+
+def test_validate_prints_the_steps_and_a_run_stops_at_its_bound_resumably(
+    tmp_path, cli, write_scenario, monkeypatch
+):
+    path = write_scenario({**TINY_SCENARIO, "time": {"end": 0.2, "output_interval": 0.05}})
+    checked = cli("validate", path, "--max-steps", "1000")
+    assert checked.code == 0
+    assert __import__("re").search(r"about \d\d time steps \(--max-steps 1e\+03\)\)", checked.out), (
+        checked.out
+    )
+    monkeypatch.setattr(resources, "steps", lambda scenario: resources.Steps(5.0, 1.0, 0.01, 0.01))
+    stopped = cli("run", path, "-o", tmp_path / "out", "-q", "--max-steps", "10")
+    assert stopped.code == 1 and "Traceback" not in stopped.err
+    assert "the run has taken 10 time steps, its bound (--max-steps, default 10000000)" in stopped.err
+    assert "--resume --max-steps 20" in stopped.err
+    resumed = cli("run", path, "-o", tmp_path / "out", "-q", "--resume", "--max-steps", "1000")
+    assert resumed.code == 0, resumed.err
+    assert open_result(tmp_path / "out").attrs["run_status"] == "completed"
+
+
+def test_memory_quadratic_in_the_layers_is_counted(cli, write_scenario):
+    """20 000 layers x 2 cells: the exact column solve keeps the messages of every layer,
+    128 L^2 bytes per thread (51 GB): it validated at 299 MB and failed to allocate."""
+    path = write_scenario(
+        {**TINY_SCENARIO, "domain": {"x_min": 0.0, "x_max": 0.5, "cells": 2, "layers": 20000}}
+    )
+    result = cli("validate", path, "--max-memory", "8G")
+    assert result.code == 2
+    assert __import__("re").search(r"2 cells x 20000 layers need about \d+(\.\d)? GB of memory", result.err)
+
+
+def _sweep(tmp_path: Path, parameters: dict, paired: bool = False) -> Path:
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(TINY_SCENARIO))
+    path = tmp_path / "sweep.yaml"
+    path.write_text(yaml.safe_dump({"base": "base.yaml", "parameters": parameters, "zip": paired}))
+    return path
+
+
+@pytest.mark.parametrize(
+    ("parameters", "paired", "expected"),
+    [
+        (
+            {f"k{i}": list(range(10)) for i in range(12)},
+            False,
+            "parameters (line 2): 1000000000000 members (10 x 10 x",
+        ),
+        (
+            {"rheology.mu_s": [0.4, 0.3, 0.40]},
+            False,
+            "parameters.rheology.mu_s (line 3): entries 0 and 2 give the same member (0.4)",
+        ),
+        (
+            {"rheology.mu_s": [0.3, 0.3], "rheology.nu": [0.01, 0.01]},
+            True,
+            "zip (line 9): entries 0 and 1 give the same member (0.3, 0.01)",
+        ),
+    ],
+)
+def test_a_sweep_too_large_or_with_equal_members_is_refused(tmp_path, cli, parameters, paired, expected):
+    start = time.perf_counter()
+    result = cli("sweep", _sweep(tmp_path, parameters, paired), "-o", tmp_path / "out")
+    assert result.code == 2 and "Traceback" not in result.err
+    assert expected in result.err, result.err
+    assert time.perf_counter() - start < 10
+
+
+def test_a_sweep_pairing_a_repeated_value_with_distinct_ones_is_valid(tmp_path):
+    from multilayer.app import sweep
+
+    plan = sweep.load(_sweep(tmp_path, {"rheology.mu_s": [0.3, 0.3], "rheology.nu": [0.01, 0.02]}, True))
+    assert len(plan.members()) == 2
+
+
+def test_plot_bounds_its_figures(cli, tmp_path):
+    result = cli("plot", tmp_path, "--times", "1000")
+    assert result.code == 2 and "--times 1000: accepted: 1 to 12 times" in result.err
+
+
+def _calibration(tmp_path: Path, times: str, end: float = 0.2, **search) -> Path:
+    base = {**TINY_SCENARIO, "time": {"end": end, "output_interval": end}}
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(base))
+    (tmp_path / "front.csv").write_text("t,x_f,sigma\n" + times)
+    path = tmp_path / "calibration.yaml"
+    config = {
+        "base": "base.yaml",
+        "parameters": {"rheology.mu_s": {"bounds": [0.2, 0.4]}},
+        "observations": [
+            {"name": "front", "quantity": "front", "file": "front.csv", "columns": ["t", "x_f", "sigma"]}
+        ],
+        "search": {"population": 4, "generations": 1, **search},
+    }
+    path.write_text(yaml.safe_dump(config))
+    return path
+
+
+def test_calibration_observations_outside_the_run_are_exit_2(tmp_path, cli):
+    result = cli("calibrate", _calibration(tmp_path, "5,0.2,0.01\n9,0.3,0.01\n"), "-o", tmp_path / "out")
+    assert result.code == 2 and "Traceback" not in result.err
+    assert "): observed at t = 5 to 9 s, outside the runs, which end at time.end = 0.2 s" in (result.err)
+    population = cli(
+        "calibrate", _calibration(tmp_path, "0.1,0.2,0.01\n", population=10**12), "-o", tmp_path / "o"
+    )
+    assert population.code == 2 and "search.population" in population.err
+
+
+@pytest.mark.parametrize(
+    ("override", "expected"),
+    [
+        (
+            "domain.cells=1" + "0" * 400,
+            "domain.cells (from --set): Input should be less than or equal to 1000000000",
+        ),
+        (
+            "domain.layers=1" + "0" * 400,
+            "domain.layers (from --set): Input should be less than or equal to 100000",
+        ),
+        (
+            "time.output_interval=1e-320",
+            "time.output_interval (from --set): inf output times to time.end = 0.05 s",
+        ),
+        (
+            "time.end=1e308",
+            "): inf output times to time.end = 1e+308 s; accepted: at most 10000000 output times",
+        ),
+        ("domain.x_min=-1e308", "narrower than one cell (dx = 2.5e+306 m)"),
+    ],
+)
+def test_numbers_too_large_for_the_estimates_are_exit_2(cli, write_scenario, override, expected):
+    """Integers past the range of a float and ratios that overflow to infinity reached the
+    estimates as OverflowError tracebacks."""
+    result = cli("validate", write_scenario(TINY_SCENARIO), "--set", override)
+    assert result.code == 2 and "Traceback" not in result.err
+    assert expected in result.err, result.err
+
+
+def test_api_overrides_that_are_no_scenario_value_are_input_errors():
+    from multilayer.errors import InputError
+
+    for value in (object(), float("nan"), {1, 2}):
+        with pytest.raises(InputError, match=r"overrides: time.end: .* is not a value of a scenario"):
+            multilayer.load(TINY_SCENARIO, overrides={"time.end": value})
+
+
+@pytest.mark.parametrize("content", [b"CDF\x02garbage", b"\x89HDF\r\n\x1a\ngarbage", b""])
+def test_a_damaged_study_file_is_exit_2_when_plotted(tmp_path, cli, content):
+    (tmp_path / "sensitivity.nc").write_bytes(content)
+    result = cli("plot", tmp_path)
+    assert result.code == 2 and "Traceback" not in result.err
+    assert f"{tmp_path / 'sensitivity.nc'}: not a" in result.err
+
+
+def test_a_member_marker_that_is_no_marker_means_run_again(tmp_path):
+    from multilayer.app import sweep
+
+    (tmp_path / "result.nc").write_bytes(b"")
+    for marker in ("[1, 2]", '{"fingerprint": "x"}', '{"fingerprint": "x", "summary": 3}', "{" * 5000):
+        (tmp_path / sweep.MARKER).write_text(marker)
+        assert sweep.completed(tmp_path, "x") is None

@@ -1,0 +1,132 @@
+"""A damaged result is never read as a good one (docs/reliability.md): every reader of
+``result.nc`` (plot, export, summary, run_failure, open_result, sweeps and calibrations,
+``--resume``) refuses a file that is truncated, still ``running`` or whose records fail
+their checks, with exit code 2 naming the file and what is wrong."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from collections.abc import Callable
+from pathlib import Path
+
+import netCDF4
+import numpy as np
+import pytest
+import yaml
+from conftest import TINY_SCENARIO
+
+from multilayer import scenario as scenarios
+from multilayer.app import runner, sweep
+from multilayer.errors import InputError
+from multilayer.io.results import SUMMARY_KEYS, open_result, run_failure, summary
+
+SHORT = {**TINY_SCENARIO, "name": "short", "time": {"end": 0.08, "output_interval": 0.02}}
+"""5 output times of the tiny column."""
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    directory = tmp_path_factory.mktemp("finished")
+    (directory / "short.yaml").write_text(yaml.safe_dump(SHORT), encoding="utf-8")
+    runner.run(scenarios.load(directory / "short.yaml"), directory / "out", quiet=True)
+    return directory
+
+
+def _truncate(path: Path) -> None:
+    os.truncate(path, path.stat().st_size * 2 // 3)
+
+
+def _status(status: str) -> Callable[[Path], None]:
+    def damage(path: Path) -> None:
+        with netCDF4.Dataset(path, "a") as ds:
+            ds.run_status = status
+
+    return damage
+
+
+def _set(name: str, index: tuple, value: float) -> Callable[[Path], None]:
+    def damage(path: Path) -> None:
+        with netCDF4.Dataset(path, "a") as ds:
+            ds[name][index] = value
+
+    return damage
+
+
+def _header(path: Path) -> None:
+    data = bytearray(path.read_bytes())
+    data[20:40] = b"\xff" * 20  # inside the dimension list
+    path.write_bytes(bytes(data))
+
+
+DAMAGES = {
+    "truncated": (_truncate, r"truncated: \d+ bytes, \d of its 5 output times whole"),
+    "running": (_status("running"), "run_status is 'running': a run is still writing it"),
+    "nan in h": (_set("h", (3, 7), np.nan), r"output time 3 \(t = 0.06 s\) fails its checks: h = nan at x"),
+    "negative h": (_set("h", (2, 1), -1e-3), r"output time 2 \(t = 0.04 s\) fails its checks: h = -0.001 m"),
+    "inf in u": (_set("u", (1, 2, 3), np.inf), r"output time 1 \(t = 0.02 s\) fails its checks: u = inf"),
+    "mass changed": (_set("mass", (4,), 1.0), r"output time 4 .* mass 1.0 m2 is not the integral of h"),
+    "front changed": (_set("front", (4,), 0.3), r"output time 4 .* front 0.3 m is not the front of h"),
+    "time reversed": (_set("time", (2,), 0.01), r"output time 2 .* is not finite and after the previous one"),
+    "h changed": (_set("h", (1, 0), 0.2), r"output time 1 .* mass .* is not the integral of h"),
+    "header": (_header, "not a (netCDF result file|readable multilayer result)"),
+    "not netCDF": (lambda path: path.write_text("not netCDF"), r"not a netCDF result file \(not a classic"),
+    "empty": (lambda path: path.write_bytes(b""), "not a netCDF result file"),
+}
+
+
+@pytest.fixture(params=list(DAMAGES))
+def damaged(request, finished: Path, tmp_path: Path) -> tuple[Path, str]:
+    shutil.copytree(finished, tmp_path, dirs_exist_ok=True)
+    damage, message = DAMAGES[request.param]
+    damage(tmp_path / "out" / "result.nc")
+    return tmp_path, message
+
+
+def test_every_reader_refuses_a_damaged_result_naming_the_file_and_the_damage(damaged, cli):
+    directory, message = damaged
+    outdir = directory / "out"
+    for command in (("plot", outdir), ("export", outdir, "--vtk")):
+        result = cli(*command)
+        assert result.code == 2, (command, result.err)
+        assert "Traceback" not in result.err
+        assert __import__("re").search(f"{outdir / 'result.nc'}: .*{message}", result.err), result.err
+    for read in (summary, open_result, lambda path: open_result(path, load=False)):
+        with pytest.raises(InputError, match=message):
+            read(outdir)
+    assert __import__("re").search(message, run_failure(outdir) or "")
+    fingerprint = sweep.scenario_fingerprint(scenarios.load(directory / "short.yaml"))
+    summary_ = dict.fromkeys(SUMMARY_KEYS, 0.0)
+    (outdir / sweep.MARKER).write_text(json.dumps({"fingerprint": fingerprint, "summary": summary_}))
+    assert sweep.completed(outdir, fingerprint) is None  # a sweep or calibration runs it again
+    assert not (outdir / "plots").exists() and not (outdir / "vtk").exists()
+
+
+def test_resume_of_a_truncated_result_is_exit_2_and_of_a_killed_run_goes_on(finished, tmp_path, cli):
+    shutil.copytree(finished, tmp_path, dirs_exist_ok=True)
+    outdir, path = tmp_path / "out", tmp_path / "short.yaml"
+    longer = yaml.safe_load(path.read_text())
+    longer["time"]["end"] = 0.12
+    path.write_text(yaml.safe_dump(longer))
+    _status("running")(outdir / "result.nc")  # killed: resumable, the records whole
+    assert cli("run", path, "-o", outdir, "-q", "--resume").code == 0
+    assert open_result(outdir).sizes["time"] == 7
+    _truncate(outdir / "result.nc")
+    resumed = cli("run", path, "-o", outdir, "-q", "--resume")
+    assert resumed.code == 2 and "Traceback" not in resumed.err
+    assert "truncated" in resumed.err and "or run without --resume to start afresh" in resumed.err
+
+
+def test_a_failed_or_interrupted_result_is_shown_with_a_note_and_is_not_an_answer(finished, tmp_path, cli):
+    shutil.copytree(finished, tmp_path, dirs_exist_ok=True)
+    outdir = tmp_path / "out"
+    with netCDF4.Dataset(outdir / "result.nc", "a") as ds:
+        ds.run_status = "failed"
+        ds.failure = "viscosity() returned nan"
+    shown = cli("export", outdir, "--vtk")
+    assert shown.code == 0
+    assert "the run failed: viscosity() returned nan; exported up to its last output time" in shown.err
+    assert "the run did not complete (run_status failed: viscosity() returned nan)" in run_failure(outdir)
+    with pytest.raises(InputError, match="accepted: a completed run"):
+        summary(outdir)

@@ -1,0 +1,134 @@
+"""A full disk or the file size limit (``ulimit -f``) during a run (docs/reliability.md):
+exit 1 naming it, every record written before kept and readable, ``run_status: failed``,
+no traceback, no crash; a run that cannot fit is refused before it starts (exit 2)."""
+
+from __future__ import annotations
+
+import resource
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from conftest import TINY_SCENARIO
+
+from multilayer.io import disk, results
+from multilayer.io.results import load_checkpoint, open_result
+
+MANY_OUTPUTS = {**TINY_SCENARIO, "name": "many", "time": {"end": 0.2, "output_interval": 0.005}}
+"""41 records of 1624 bytes: about 84 kB of result.nc."""
+LIMIT = 48 * 1024
+"""The file size limit of the child (bytes): the header and about 18 records."""
+
+CHILD = """
+import sys
+from multilayer.io import results
+if sys.argv[1] == "unchecked":  # the disk fills between the check and the write
+    results.ResultWriter._ensure_room = lambda self: None
+from multilayer.app.cli import main
+sys.exit(main(sys.argv[2:]))
+"""
+
+
+def _run_limited(tmp_path: Path, mode: str, *options: str) -> tuple[subprocess.CompletedProcess, Path]:
+    path = tmp_path / "many.yaml"
+    path.write_text(yaml.safe_dump(MANY_OUTPUTS), encoding="utf-8")
+    outdir = tmp_path / "out"
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (LIMIT, LIMIT))
+
+    done = subprocess.run(
+        [sys.executable, "-c", CHILD, mode, "run", str(path), "-o", str(outdir), "-q", *options],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        preexec_fn=limit,
+    )
+    return done, outdir
+
+
+def _assert_kept(outdir: Path, reason: str) -> None:
+    """The result holds the records written before the disk filled, readable, ``failed``."""
+    kept = open_result(outdir)
+    assert kept.attrs["run_status"] == "failed" and reason in kept.attrs["failure"]
+    t = kept["time"].values
+    assert 5 <= t.size < 41 and np.all(np.diff(t) > 0) and np.isfinite(kept["h"].values).all()
+    assert load_checkpoint(outdir / "checkpoint.npz").records >= t.size - 1
+
+
+def test_the_file_size_limit_stops_a_write_half_way_keeping_every_record_written_before(tmp_path):
+    """The write itself fails (EFBIG) under a real ``ulimit -f``, as when another process
+    fills the disk between the writer's check and its write: netCDF-C's buffers are abandoned
+    (closing them again crashed the interpreter) and the header set back to the records
+    written whole."""
+    done, outdir = _run_limited(tmp_path, "unchecked", "--force")
+    assert done.returncode == 1, done.stderr
+    assert "Traceback" not in done.stderr
+    assert "multilayer: run failed: scenario 'many': file too large: writing output time" in done.stderr
+    assert "once there is room, continue with: multilayer run" in done.stderr
+    _assert_kept(outdir, "file too large")
+    assert (outdir / "result.nc").stat().st_size <= LIMIT
+
+
+@pytest.mark.slow
+def test_the_file_size_limit_stops_the_run_before_a_record_that_does_not_fit(tmp_path):
+    done, outdir = _run_limited(tmp_path, "checked", "--force")
+    assert done.returncode == 1 and "Traceback" not in done.stderr
+    assert "file too large: the file size limit (ulimit -f) is 49152 bytes" in done.stderr
+    _assert_kept(outdir, "file too large")
+
+
+def test_a_run_beyond_the_file_size_limit_is_refused_unless_forced(
+    tmp_path, cli, write_scenario, monkeypatch
+):
+    monkeypatch.setattr(disk, "file_size_limit", lambda: float(LIMIT))
+    path = write_scenario(MANY_OUTPUTS)
+    refused = cli("run", path, "-o", tmp_path / "out", "-q")
+    assert refused.code == 2
+    assert "more than the file size limit of this process (ulimit -f) (48 kB)" in refused.err
+    assert not (tmp_path / "out" / "result.nc").exists()
+    forced = cli("run", path, "-o", tmp_path / "out", "-q", "--force")
+    assert forced.code == 1 and "file too large: the file size limit (ulimit -f) is 49152 bytes" in forced.err
+    _assert_kept(tmp_path / "out", "file too large")
+
+
+def test_a_full_disk_stops_the_run_naming_it_and_the_run_resumes_once_there_is_room(
+    tmp_path, cli, write_scenario, monkeypatch
+):
+    path = write_scenario(MANY_OUTPUTS)
+    outdir = tmp_path / "out"
+    real = disk.free_space
+    calls = []
+
+    def filling(directory):  # the disk fills after the tenth record
+        calls.append(directory)
+        return 1000.0 if len(calls) > 10 else real(directory)
+
+    monkeypatch.setattr(disk, "free_space", filling)
+    run = cli("run", path, "-o", outdir, "-q", "--force")
+    assert run.code == 1 and "Traceback" not in run.err
+    assert "disk full: 1000 bytes free on the disk holding" in run.err
+    _assert_kept(outdir, "disk full")
+    monkeypatch.setattr(disk, "free_space", real)
+    resumed = cli("run", path, "-o", outdir, "-q", "--resume")
+    assert resumed.code == 0, resumed.err
+    done = open_result(outdir)
+    assert done.attrs["run_status"] == "completed" and done.sizes["time"] == 41
+
+
+def test_a_checkpoint_that_does_not_fit_leaves_the_previous_one(tmp_path, monkeypatch):
+    path = tmp_path / "checkpoint.npz"
+    ckpt = results.Checkpoint({"t": 0.0, "steps": 0, "h": np.zeros(3), "u": np.zeros((1, 3))}, 1, 0.0, "x")
+    results.save_checkpoint(path, ckpt)
+
+    def full(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(np, "savez", full)
+    with pytest.raises(results.DiskFull, match=r"disk full: writing the checkpoint .* failed"):
+        results.save_checkpoint(path, ckpt)
+    assert not path.with_name(path.name + ".tmp").exists()
+    assert load_checkpoint(path).records == 1

@@ -1,0 +1,126 @@
+"""Inputs that reached a traceback or a misleading message (docs/reliability.md): each is
+now exit 2 (or the signal's code) with one message naming what is wrong."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+
+import netCDF4
+import pytest
+import yaml
+from conftest import TINY_SCENARIO
+
+from multilayer.app import lock
+
+
+@pytest.mark.parametrize("pid", ["abc", None, 1e30, 10**30, 0, -1, True, [1]])
+def test_a_malformed_lock_is_taken_over_as_unreadable(tmp_path, cli, write_scenario, pid):
+    """0 and -1 would make os.kill test a process group or every process (always alive)."""
+    outdir = tmp_path / "out"
+    outdir.mkdir()
+    holder = {"pid": pid, "host": socket.gethostname(), "started": "2026-01-01T00:00:00+00:00"}
+    (outdir / lock.LOCK_FILE).write_text(json.dumps(holder))
+    run = cli("run", write_scenario(TINY_SCENARIO), "-o", outdir, "-q")
+    assert run.code == 0, run.err
+    assert "taking over a stale lock (an unreadable lock: no such process)" in run.err
+    assert not (outdir / lock.LOCK_FILE).exists()
+
+
+def test_a_lock_that_is_a_directory_is_named(tmp_path, cli, write_scenario):
+    outdir = tmp_path / "out"
+    (outdir / lock.LOCK_FILE).mkdir(parents=True)
+    run = cli("run", write_scenario(TINY_SCENARIO), "-o", outdir, "-q")
+    assert run.code == 2 and "Traceback" not in run.err
+    assert f"{outdir / lock.LOCK_FILE}: a stale lock that cannot be removed" in run.err
+
+
+def test_unicode_digits_are_not_indices_nor_thread_counts(tmp_path, cli, write_scenario, monkeypatch):
+    path = write_scenario(TINY_SCENARIO)
+    result = cli("validate", path, "--set", "initial.².height=0.1")
+    assert result.code == 2 and "--set initial.².height: initial has 1 entries; accepted indices: 0..0" in (
+        result.err
+    )
+    monkeypatch.setenv("MULTILAYER_THREADS", "²")
+    run = cli("run", path, "-o", tmp_path / "out", "-q")
+    assert run.code == 2 and "MULTILAYER_THREADS='²'; accepted: 'auto' or an integer >= 1" in run.err
+
+
+def test_undecodable_bytes_in_the_environment_and_in_names(tmp_path, cli, monkeypatch):
+    """Bytes that are not UTF-8 (kept by Python as lone surrogates) in MULTILAYER_INSTITUTION
+    and in the scenario's file name are written as U+FFFD; an output directory named by such
+    bytes is refused (netCDF cannot name the file)."""
+    path = tmp_path / os.fsdecode(b"sc\xff.yaml")
+    path.write_text(yaml.safe_dump(TINY_SCENARIO))
+    monkeypatch.setenv("MULTILAYER_INSTITUTION", os.fsdecode(b"Uni\xff\xfe"))
+    run = cli("run", path, "-o", tmp_path / "out", "-q")
+    assert run.code == 0, run.err
+    with netCDF4.Dataset(tmp_path / "out" / "result.nc") as ds:
+        assert ds.institution == "Uni\ufffd\ufffd" and "sc\ufffd.yaml" in ds.history
+    refused = cli("run", path, "-o", tmp_path / os.fsdecode(b"o\xff"))
+    assert refused.code == 2 and "is not a UTF-8 name" in refused.err and "Traceback" not in refused.err
+
+
+@pytest.mark.parametrize("outdir", ["/proc/x", "/dev/null/x"])
+def test_an_output_directory_that_cannot_be_made_is_blamed(tmp_path, cli, write_scenario, outdir):
+    run = cli("run", write_scenario(TINY_SCENARIO), "-o", outdir)
+    assert run.code == 2 and "Traceback" not in run.err
+    assert f"{outdir}: cannot be created or written" in run.err and "(-o DIR or output.directory)" in run.err
+    assert "time.output_interval" not in run.err
+
+
+SLOW_START = """
+import sys, time, pathlib
+from multilayer.app.cli import main
+from multilayer.engine import simulation
+real = simulation.Simulation.__init__
+def slow(self, scenario):
+    pathlib.Path(sys.argv[-2]).joinpath("building").touch()  # the lock is held
+    time.sleep(30)
+    real(self, scenario)
+simulation.Simulation.__init__ = slow
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.slow  # a child process; the fault battery tries it too
+def test_a_run_stopped_during_start_up_says_so_and_leaves_no_lock(tmp_path):
+    path = tmp_path / "tiny.yaml"
+    path.write_text(yaml.safe_dump(TINY_SCENARIO))
+    outdir = tmp_path / "out"
+    proc = subprocess.Popen(
+        [sys.executable, "-c", SLOW_START, "run", str(path), "-o", str(outdir), "-q"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline = time.monotonic() + 120
+    while not (outdir / "building").exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGTERM)
+    _out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143, err
+    assert "Traceback" not in err
+    assert "stopped by SIGTERM during start-up, before the first step: nothing was computed" in err
+    assert not (outdir / lock.LOCK_FILE).exists() and not (outdir / "result.nc").exists()
+
+
+@pytest.mark.slow  # a child process; the fault battery tries it too
+def test_a_closed_stdout_ends_the_command_quietly(tmp_path, write_scenario):
+    path = write_scenario(TINY_SCENARIO)
+    reader = subprocess.Popen(["head", "-c", "0"], stdin=subprocess.PIPE)
+    done = subprocess.run(
+        [sys.executable, "-m", "multilayer", "validate", *[str(path)] * 50],
+        stdout=reader.stdin,
+        stderr=subprocess.PIPE,
+        text=True,
+        timeout=300,
+    )
+    reader.stdin.close()
+    reader.wait()
+    assert done.returncode in (0, 141) and "Traceback" not in done.stderr and "Exception" not in done.stderr

@@ -1,0 +1,213 @@
+"""Rheology plugins are contained (docs/reliability.md): they are given read-only copies,
+whatever they raise (``sys.exit``, ``KeyboardInterrupt``, any ``BaseException``) or
+return (complex, text) is a failure naming them, a constructor that fails is bad input;
+the user's own Ctrl-C still stops a run cleanly."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import yaml
+from conftest import TINY_SCENARIO
+
+from multilayer.app.simulation import Simulation
+from multilayer.io.results import open_result
+from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+from multilayer.scenario import from_dict
+
+SLUMP = {**TINY_SCENARIO, "name": "slump", "time": {"end": 0.1, "output_interval": 0.02}}
+PLUGIN = "rheology plugin 'drucker_prager' (multilayer.plugins.builtins.drucker_prager.DruckerPrager)"
+
+
+class Custom(BaseException):
+    """Neither an Exception nor an interrupt."""
+
+
+def _numpy_path(monkeypatch) -> None:
+    """The built-in law as a plugin without compiled forms: its Python methods run."""
+    monkeypatch.setattr(DruckerPrager, "viscosity_kernel", lambda self, material: None)
+    monkeypatch.setattr(DruckerPrager, "yield_stress_kernel", lambda self, material: None)
+
+
+def _after(calls: int, action):
+    """A yield_stress that behaves for ``calls`` calls, then does ``action``."""
+    real = DruckerPrager.yield_stress
+    count = [0]
+
+    def yield_stress(self, pressure, material):
+        count[0] += 1
+        return action(pressure) if count[0] > calls else real(self, pressure, material)
+
+    return yield_stress
+
+
+def _raise(exc: BaseException):
+    def action(pressure):
+        raise exc
+
+    return action
+
+
+@pytest.mark.parametrize(
+    ("action", "expected"),
+    [
+        (_raise(SystemExit(0)), "yield_stress() raised SystemExit: 0"),
+        (_raise(KeyboardInterrupt()), "yield_stress() raised KeyboardInterrupt"),
+        (_raise(Custom("odd")), "yield_stress() raised Custom: odd"),
+        (lambda p: np.zeros(p.shape, complex), "yield_stress() returned values of type complex128"),
+        (lambda p: np.full(p.shape, "1.0"), "yield_stress() returned values of type <U3"),
+        (lambda p: [[None] * p.shape[1]] * p.shape[0], "yield_stress() returned values of type object"),
+        (
+            lambda p: p.__setitem__(0, 0.0),
+            "yield_stress() raised ValueError: assignment destination is read-only",
+        ),
+    ],
+)
+def test_whatever_a_plugin_raises_or_returns_mid_run_is_exit_1_naming_it_keeping_the_last_state(
+    tmp_path, cli, write_scenario, monkeypatch, action, expected
+):
+    _numpy_path(monkeypatch)
+    monkeypatch.setattr(DruckerPrager, "yield_stress", _after(8, action))
+    run = cli("run", write_scenario(SLUMP), "-o", tmp_path / "out", "-q")
+    assert run.code == 1, run.err
+    assert "Traceback" not in run.err and PLUGIN in run.err and expected in run.err
+    kept = open_result(tmp_path / "out")
+    assert kept.attrs["run_status"] == "failed" and expected in kept.attrs["failure"]
+    assert kept.sizes["time"] >= 2  # the initial state, the outputs before and the last good state
+
+
+def _vandal(real, calls):
+    """A yield stress that forces its copy of the pressure writeable and scales it."""
+
+    def vandal(self, pressure, material):
+        calls.append(pressure)
+        kappa = real(self, pressure, material)
+        pressure.flags.writeable = True  # numpy allows it on an array that owns its data
+        pressure *= 10.0
+        return kappa
+
+    return vandal
+
+
+def _hoarder(real, calls):
+    """A yield stress that keeps what it returned and zeroes it at its next call."""
+
+    def hoarder(self, pressure, material):
+        for earlier in calls:
+            earlier *= 0.0
+        calls.append(real(self, pressure, material))
+        return calls[-1]
+
+    return hoarder
+
+
+@pytest.mark.parametrize("misbehaving", [_vandal, _hoarder])
+def test_a_plugin_changing_what_it_was_given_or_what_it_returned_changes_nothing(monkeypatch, misbehaving):
+    """It writes into its own copy of the pressure, or into the arrays it returned before:
+    the results are those of a clean twin, to the last bit (neither the state nor the
+    stresses are its to change)."""
+    _numpy_path(monkeypatch)
+    scenario = from_dict(SLUMP)
+    clean = Simulation(scenario)
+    clean.advance(0.05)
+    calls: list = []
+    monkeypatch.setattr(DruckerPrager, "yield_stress", misbehaving(DruckerPrager.yield_stress, calls))
+    twin = Simulation(scenario)
+    twin.advance(0.05)
+    assert len(calls) > 5
+    np.testing.assert_array_equal(twin.h, clean.h)
+    np.testing.assert_array_equal(twin.u, clean.u)
+
+
+@pytest.mark.parametrize(
+    ("declared", "expected"),
+    [
+        (("power", (1.0, 2.0)), "declares the form 'power' with parameters (1.0, 2.0); it takes 4 numbers"),
+        (("constant", ("a",)), "viscosity_kernel() returned values of type <U1"),
+        ("constant", "viscosity_kernel() returned 'constant'; must be None or (form name, parameters)"),
+        (SystemExit(3), "viscosity_kernel() raised SystemExit: 3"),
+    ],
+)
+def test_a_malformed_compiled_form_is_exit_1_naming_the_plugin(
+    tmp_path, cli, write_scenario, monkeypatch, declared, expected
+):
+    """The kernels read as many parameters as the form has: a declaration with fewer would be
+    read past its end (numba does not check bounds)."""
+
+    def viscosity_kernel(self, material):
+        if isinstance(declared, BaseException):
+            raise declared
+        return declared
+
+    monkeypatch.setattr(DruckerPrager, "viscosity_kernel", viscosity_kernel)
+    run = cli("run", write_scenario(SLUMP), "-o", tmp_path / "out", "-q")
+    assert run.code == 1 and "Traceback" not in run.err
+    assert PLUGIN in run.err and expected in run.err
+
+
+@pytest.mark.parametrize(
+    ("exc", "expected"),
+    [
+        (RuntimeError("no licence"), "raised RuntimeError: no licence"),
+        (SystemExit(1), "raised SystemExit: 1"),
+        (ZeroDivisionError("division by zero"), "raised ZeroDivisionError: division by zero"),
+    ],
+)
+def test_a_constructor_that_fails_is_exit_2_bad_parameters(
+    tmp_path, cli, write_scenario, monkeypatch, exc, expected
+):
+    def constructor(self, mu_s: float, nu: float, mu_start: float | None = None):
+        raise exc
+
+    monkeypatch.setattr(DruckerPrager, "__init__", constructor)
+    path = write_scenario(SLUMP)
+    for command in (("validate", path), ("run", path, "-o", tmp_path / "out")):
+        result = cli(*command)
+        assert result.code == 2, result.err
+        assert "Traceback" not in result.err
+        assert (
+            "rheology.name" not in result.err
+            and "drucker_prager: DruckerPrager(mu_s=0.3, nu=0.01)" in result.err
+        )
+        assert expected in result.err and "accepted: drucker_prager(mu_s: float, nu: float" in result.err
+
+
+SLOW_PLUGIN = """
+import sys, time
+from multilayer.app.cli import main
+from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+real = DruckerPrager.yield_stress
+def slow(self, pressure, material):
+    time.sleep(0.05)  # the user's Ctrl-C lands inside the plugin
+    return real(self, pressure, material)
+DruckerPrager.yield_stress = slow
+DruckerPrager.yield_stress_kernel = lambda self, material: None
+print("ready", flush=True)
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.slow  # a child process; the fault battery tries it too
+def test_the_users_ctrl_c_inside_a_plugin_still_stops_the_run_cleanly(tmp_path):
+    path = tmp_path / "slump.yaml"
+    path.write_text(yaml.safe_dump({**SLUMP, "time": {"end": 50.0, "output_interval": 0.02}}))
+    proc = subprocess.Popen(
+        [sys.executable, "-c", SLOW_PLUGIN, "run", str(path), "-o", str(tmp_path / "out"), "-q"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    assert proc.stdout.readline().strip() == "ready"
+    deadline = time.monotonic() + 120
+    while not (tmp_path / "out" / "checkpoint.npz").exists() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    proc.send_signal(signal.SIGINT)
+    _out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "interrupted by Ctrl-C (SIGINT)" in err and "Traceback" not in err
+    assert open_result(tmp_path / "out").attrs["run_status"] == "interrupted"
