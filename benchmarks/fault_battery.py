@@ -242,9 +242,9 @@ def _compiled_patch(assignment: str) -> str:
     """The scenario's built-in law given a parameter past its validation."""
     return (
         "real_init = simulation.Simulation.__init__\n"
-        "def init(self, scenario):\n"
-        "    real_init(self, scenario)\n"
-        f"    self.stresses.bulk.{assignment}\n"
+        "def init(self, *args, **kwargs):\n"
+        "    real_init(self, *args, **kwargs)\n"
+        f"    self.vertical.stresses.bulk.{assignment}\n"
         "simulation.Simulation.__init__ = init\n"
     )
 
@@ -535,10 +535,10 @@ FULL_CHECKPOINT = (
 SLOW_START = (
     "import pathlib\n"
     "real_init = simulation.Simulation.__init__\n"
-    "def slow(self, scenario):\n"
+    "def slow(self, *args, **kwargs):\n"
     "    pathlib.Path(sys.argv[sys.argv.index('-o') + 1]).joinpath('building').touch()\n"
     "    time.sleep(30)\n"
-    "    real_init(self, scenario)\n"
+    "    real_init(self, *args, **kwargs)\n"
     "simulation.Simulation.__init__ = slow\n"
 )
 FEW_STEPS = (  # the estimate says 5 steps: the bound is reached while running
