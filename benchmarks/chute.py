@@ -19,7 +19,7 @@ import argparse
 import numpy as np
 from common import timed
 
-from multilayer.engine.simulation import Simulation
+from multilayer.app.simulation import Simulation
 from multilayer.reference.exact import BagnoldFlow, jop_inertial_number
 from multilayer.scenario import from_dict
 

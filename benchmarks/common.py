@@ -14,11 +14,12 @@ import resource
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from multilayer.engine.simulation import Simulation
-from multilayer.engine.threads import ThreadPolicy, available_cores, workers_bound
+from multilayer.app.simulation import Simulation
+from multilayer.engine.threads import ThreadPolicy, available_cores
 
 
 @dataclass
@@ -33,9 +34,8 @@ class Timing:
     peak_bytes: int  # peak resident memory of the process
     fallback_share: float  # column solves that needed the O(L^2) dynamic programme
     side_by_side_share: float  # column steps solved side by side (engine/sheared_columns.py)
-    threads: dict[int, int]  # passes (steps and redone steps) run with each thread count
+    threads: dict[int, int]  # steps run with each thread count
     layer: str  # numba's threading layer (threads.py: TBB steals work)
-    bound: bool  # the TBB workers run each on a core of its own (threads.run_bound)
 
     def lines(self) -> list[str]:
         return [
@@ -48,9 +48,8 @@ class Timing:
             f"peak memory {self.peak_bytes / 2**20:.0f} MiB "
             f"({self.peak_bytes / self.cells:.0f} bytes per mesh cell), load average {self.load:.2f}",
             "threads: "
-            + ", ".join(f"{n} in {k} passes" for n, k in sorted(self.threads.items()))
-            + f" (a pass: a step, or a step redone for material set moving); threading layer {self.layer}"
-            + (", threads bound to cores" if self.bound and max(self.threads, default=1) > 1 else ""),
+            + ", ".join(f"{n} in {k} steps" for n, k in sorted(self.threads.items()))
+            + f"; threading layer {self.layer}",
         ]
 
 
@@ -93,7 +92,7 @@ def timed(
     layers = sim.fractions.size
     computed = [0]
 
-    def count(s: Simulation, dt: float) -> None:
+    def count(s: Any, dt: float) -> None:
         computed[0] += layers * int(np.count_nonzero(s.h > 0.0))
 
     # the profile counts CPU time of this process: on a shared machine wall time also
@@ -106,6 +105,7 @@ def timed(
     if profiler:
         profiler.disable()
     seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
+    compiled = sim.vertical.compiled
     timing = Timing(
         seconds,
         cpu,
@@ -115,13 +115,10 @@ def timed(
         sim.newton_iterations / max(sim.steps, 1),
         os.getloadavg()[0],
         peak_memory(),
-        sim.compiled_step.fallbacks / max(sim.compiled_step.solves, 1) if sim.compiled_step else float("nan"),
-        sim.compiled_step.columns_side_by_side / max(sim.compiled_step.columns, 1)
-        if sim.compiled_step
-        else float("nan"),
+        compiled.fallbacks / max(compiled.solves, 1) if compiled else float("nan"),
+        compiled.columns_side_by_side / max(compiled.columns, 1) if compiled else float("nan"),
         dict(sim.thread_policy.chosen),
         threading_layer(),
-        workers_bound(),
     )
     if profiler:
         pstats.Stats(profiler).sort_stats("tottime").print_stats(15)

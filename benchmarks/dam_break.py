@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 from common import timed
 
-from multilayer.engine.simulation import Simulation
+from multilayer.app.simulation import Simulation
 from multilayer.scenario import Scenario, from_dict
 
 WARM_UP_COLUMN = 20.0
@@ -124,7 +124,11 @@ def main() -> None:
         print(
             f"dam break: {args.cells} cells x {args.layers} layers, order {args.order}, "
             f"pressure {pressure}"
-            + (f" on {sim.pressure_layers} pressure layers" if pressure == "non_hydrostatic" else "")
+            + (
+                f" on {sim.config.pressure.options['pressure_layers']} pressure layers"
+                if pressure == "non_hydrostatic"
+                else ""
+            )
             + f", t = {sim.t:g}"
         )
         print("\n".join(timing.lines()))

@@ -46,7 +46,10 @@ CHILD = """
 import sys, time
 import numpy as np
 from multilayer.app.cli import main
-from multilayer.engine import column_kernel, simulation, transport, transport_kernel
+from multilayer.engine import simulation
+from multilayer.engine.vertical import column_solve as column_kernel
+from multilayer.engine.transport import reference as transport
+from multilayer.engine.transport import kernel as transport_kernel
 from multilayer.plugins.builtins.drucker_prager import DruckerPrager
 calls = [0]
 {patch}
@@ -239,9 +242,9 @@ def _compiled_patch(assignment: str) -> str:
     """The scenario's built-in law given a parameter past its validation."""
     return (
         "real_init = simulation.Simulation.__init__\n"
-        "def init(self, scenario):\n"
-        "    real_init(self, scenario)\n"
-        f"    self.stresses.bulk.{assignment}\n"
+        "def init(self, *args, **kwargs):\n"
+        "    real_init(self, *args, **kwargs)\n"
+        f"    self.vertical.stresses.bulk.{assignment}\n"
         "simulation.Simulation.__init__ = init\n"
     )
 
@@ -532,10 +535,10 @@ FULL_CHECKPOINT = (
 SLOW_START = (
     "import pathlib\n"
     "real_init = simulation.Simulation.__init__\n"
-    "def slow(self, scenario):\n"
+    "def slow(self, *args, **kwargs):\n"
     "    pathlib.Path(sys.argv[sys.argv.index('-o') + 1]).joinpath('building').touch()\n"
     "    time.sleep(30)\n"
-    "    real_init(self, scenario)\n"
+    "    real_init(self, *args, **kwargs)\n"
     "simulation.Simulation.__init__ = slow\n"
 )
 FEW_STEPS = (  # the estimate says 5 steps: the bound is reached while running

@@ -18,8 +18,9 @@ from unittest import mock
 import numpy as np
 from dam_break import scenario
 
-from multilayer.engine import column_kernel, state_check
-from multilayer.engine.simulation import Simulation
+from multilayer.app.simulation import Simulation
+from multilayer.engine import state_check
+from multilayer.engine.vertical import column_solve as column_kernel
 
 
 def _unchecked_call(plugin, method, args, **_):
@@ -33,7 +34,7 @@ def guards_off():
         mock.patch.object(state_check.StateGuard, "check_step", lambda *a, **k: None),
         mock.patch.object(state_check.StateGuard, "check_state", lambda *a, **k: None),
         mock.patch.object(column_kernel, "_require_finite", lambda *a: None),
-        mock.patch("multilayer.engine.stress.call", _unchecked_call),
+        mock.patch("multilayer.engine.vertical.stresses.call", _unchecked_call),
     ):
         yield
 

@@ -45,7 +45,7 @@ def point(columns: int, layers: int, steps: int) -> dict:
     from chute import DEPTH, bagnold_error, interior, scenario
     from common import peak_memory, timed
 
-    from multilayer.engine.simulation import Simulation
+    from multilayer.app.simulation import Simulation
 
     probe = Simulation(scenario(8, layers, 2, 1.0, 1))
     dt = probe.time_step()
@@ -58,14 +58,14 @@ def point(columns: int, layers: int, steps: int) -> dict:
         sim = Simulation(scenario(columns, layers, 2, end, 1))
         for _ in range(SETTLE):
             sim.step()
-        assert sim.compiled_step is not None  # the chute's laws have compiled forms
-        settled.update(columns=sim.compiled_step.columns, solves=sim.compiled_step.solves)
+        assert sim.vertical.compiled is not None  # the chute's laws have compiled forms
+        settled.update(columns=sim.vertical.compiled.columns, solves=sim.vertical.compiled.solves)
         return sim
 
     sim, timing = timed(settled_in, end)
     cells = columns * layers
     timed_steps = timing.steps - SETTLE
-    step = sim.compiled_step
+    step = sim.vertical.compiled
     assert step is not None
     far = interior(sim)
     return {

@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 from multilayer.app import runner
-from multilayer.engine.simulation import Simulation
+from multilayer.app.simulation import Simulation
 from multilayer.scenario import load
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -42,7 +42,7 @@ class Run:
     seconds: float  # time to solution
     steps: int
     rates: str  # cell-steps per second, whole mesh and cells holding material ("" for the control)
-    used: str  # the thread counts, whether bound to cores, and the cores it got
+    used: str  # the thread counts and the cores it got
     check: str  # the physical check of the answer
 
 
@@ -60,13 +60,12 @@ def time_to_solution(problem: str, threads: str) -> Run:
     if timing is None or check is None:
         raise RuntimeError(f"{problem}.py printed no time to solution or check:\n{out}")
     seconds, cpu = float(timing.group(1)), float(timing.group(2))
-    used = re.search(r"threads: (.*?) \(a pass", out)
-    bound = ", bound to cores" if "threads bound to cores" in out else ""
+    used = re.search(r"threads: (.*?)(?: \(a step|;)", out)
     return Run(
         seconds,
         int(timing.group(3)),
         f", {rates.group(1)} / {rates.group(2)} cell-steps/s" if rates else "",
-        f"{used.group(1) if used else '?'}{bound}; {cpu / seconds:.2f} cores",
+        f"{used.group(1) if used else '?'}; {cpu / seconds:.2f} cores",
         check.group(1),
     )
 

@@ -2,14 +2,16 @@
 
 The package is organised by role (docs/architecture.md):
 
-- :mod:`multilayer.engine`: the numerics (mesh, transport, stresses, vertical step, column
-  kernel, diagnostics, the time loop); it never imports I/O, the CLI or the plugin host;
+- :mod:`multilayer.engine`: the numerics (mesh, transport, vertical step, pressure models,
+  state, diagnostics, the time loop), built from typed configuration and plugin
+  instances; it imports nothing of the packages above it (scenario, io, app, plugin host);
 - :mod:`multilayer.reference`: exact and similarity solutions and the FiPy reference
-  formulation the fast kernels are tested against;
-- :mod:`multilayer.io`: scenario files, results, plots and exports;
+  formulations the fast kernels are tested against;
+- :mod:`multilayer.scenario`: scenario files (schema, YAML, overrides, messages);
+- :mod:`multilayer.io`: results, plots, exports and study files;
 - :mod:`multilayer.plugins`: the rheology plugin contract, the pluggy host, the built-ins;
-- :mod:`multilayer.app`: the command line, the runner and parameter sweeps;
-- :mod:`multilayer.testing`: scenario expectations and their pytest plugin.
+- :mod:`multilayer.app`: the factory of the engine, the command line, the runner, studies;
+- :mod:`multilayer.testing`: the pytest plugin of the scenarios' expectations.
 
 The public API (docs/api.md) is re-exported here and imported lazily, so
 ``import multilayer`` is cheap: :func:`load` and :func:`run` a scenario,
@@ -28,14 +30,14 @@ _EXPORTS = {
     "Material": "multilayer.plugins.contract",
     "Rheology": "multilayer.plugins.contract",
     "hookimpl": "multilayer.plugins.host",
-    "Simulation": "multilayer.engine.simulation",
+    "Simulation": "multilayer.app.simulation",
 }
 
 __all__ = ["Material", "Rheology", "Simulation", "__version__", "hookimpl", "load", "run"]
 
 if TYPE_CHECKING:
     from multilayer.app.api import load, run
-    from multilayer.engine.simulation import Simulation
+    from multilayer.app.simulation import Simulation
     from multilayer.plugins.contract import Material, Rheology
     from multilayer.plugins.host import hookimpl
 

@@ -21,12 +21,18 @@ SOURCE_ROOT = Path(__file__).resolve().parent.parent
 """The directory holding the ``multilayer`` package (a git work tree for a checkout)."""
 
 
-def installed_version() -> str:
-    """The version of the installed ``multilayer`` distribution (``0+unknown`` if none)."""
+def installed_version(distribution: str = "multilayer") -> str:
+    """The version of an installed distribution (``0+unknown`` if none), by default
+    ``multilayer``'s."""
     try:
-        return version("multilayer")
+        return version(distribution)
     except PackageNotFoundError:
         return "0+unknown"
+
+
+def fipy_version() -> str:
+    """The installed FiPy's version, from its package metadata (FiPy is not imported)."""
+    return installed_version("FiPy")
 
 
 @dataclass(frozen=True)

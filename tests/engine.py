@@ -5,7 +5,7 @@ from __future__ import annotations
 import copy
 from typing import Any
 
-from multilayer.engine.simulation import Simulation
+from multilayer.app.simulation import Simulation
 from multilayer.scenario import Scenario, from_dict
 
 BASE: dict[str, Any] = {

@@ -52,7 +52,7 @@ def _collapse(**changes):
 def _transport(threads: int) -> None:
     from test_transport_kernel import random_state
 
-    from multilayer.engine import transport_kernel
+    from multilayer.engine.transport import kernel as transport_kernel
 
     h, u, b, fractions = random_state(seed=1)
     kw = dict(dx=0.1, dt=0.004, g_n=9.0, g_t=1.5, left="wall", right="outflow", dry=1e-6, order=2)
@@ -61,16 +61,16 @@ def _transport(threads: int) -> None:
 
 def _newton(threads: int) -> None:
     sim = _collapse()
-    assert sim.compiled_step is not None
+    assert sim.vertical.compiled is not None
     ustar = sim.u + 0.01 * (sim.h > 0)
-    sim.compiled_step(sim.h, ustar, sim.u, 1e-3, threshold=1e-12, max_iterations=200, threads=threads)
+    sim.vertical.compiled(sim.h, ustar, sim.u, 1e-3, threshold=1e-12, max_iterations=200, threads=threads)
 
 
 def _numpy_path() -> None:
     """The exact column solver and the Newton control of the numpy vertical step."""
-    from multilayer.engine import column_kernel
-    from multilayer.engine.column_problem import ColumnProblem
-    from multilayer.engine.newton_control import examine_columns
+    from multilayer.engine.vertical import column_solve as column_kernel
+    from multilayer.engine.vertical.newton_control import examine_columns
+    from multilayer.engine.vertical.problem import ColumnProblem
 
     rng = np.random.default_rng(0)
     L, N = 3, 4
@@ -86,10 +86,9 @@ def _numpy_path() -> None:
 def _projection() -> None:
     """The non-hydrostatic projection alone (its kernels need no other task's)."""
     sim = _collapse(model=NON_HYDROSTATIC)
-    assert sim.projection is not None
     u = np.where(sim.h > 0, np.linspace(0.1, 1.0, sim.u.shape[0])[:, None], 0.0)
-    sim._project(sim.h, u, 1e-3)
-    sim.projection.yield_gravity(sim.q, sim.h, sim._projected)
+    sim.pressure.project(sim.state, sim.h, u, 1e-3)
+    sim.pressure.yield_gravity(sim.state, sim.h)
 
 
 def _steps(**changes) -> None:

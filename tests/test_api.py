@@ -24,6 +24,24 @@ SMALL = {"domain.cells": 60, "time.end": 0.1, "time.output_interval": 0.05}
 RUN_ATTRS = {"history", "wall_time_s"}
 
 
+RUN_LIGHT = """
+import sys
+sys.modules["dask"] = sys.modules["distributed"] = sys.modules["SALib"] = None  # not installed
+import multilayer
+multilayer.run(sys.argv[1], overrides={"domain.cells": 30, "time.end": 0.02, "time.output_interval": 0.02})
+print(sorted(m for m in ("fipy",) if m in sys.modules))
+"""
+
+
+def test_a_run_needs_neither_dask_nor_salib_and_imports_no_fipy():
+    """Without the studies extra a run goes; FiPy is imported where it is used (its mesh on
+    demand, the reference solvers; the version in result.nc is read from its package
+    metadata)."""
+    done = subprocess.run([sys.executable, "-c", RUN_LIGHT, str(SCENARIO)], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip().splitlines()[-1] == "[]"
+
+
 def test_import_multilayer_is_lazy_and_exports_the_api():
     code = "import sys, multilayer; print(sorted(m for m in ('fipy', 'numba', 'xarray') if m in sys.modules))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
@@ -97,3 +115,40 @@ def test_the_worked_example_of_docs_api_md_runs(monkeypatch: pytest.MonkeyPatch,
     import matplotlib.pyplot as plt
 
     plt.close("all")
+
+
+def test_the_engine_built_from_a_configuration_is_the_scenarios_to_the_bit():
+    """The engine needs no scenario: the same problem written as its typed configuration
+    (integer bounds, the non-hydrostatic pressure with its default options) runs to the
+    same bits as the scenario the factory turns into it."""
+    from multilayer.engine.config import InitialEntry, PressureConfig, SimulationConfig
+    from multilayer.engine.mesh import layer_fractions
+    from multilayer.engine.simulation import Simulation
+    from multilayer.plugins.builtins import DruckerPrager
+    from multilayer.plugins.contract import Material
+
+    config = SimulationConfig(
+        x_min=0, x_max=1, cells=40, fractions=tuple(layer_fractions(4)),
+        material=Material(density=1500.0, grain_diameter=1e-3, particle_density=2500.0), slope_deg=30.0,
+        initial=(InitialEntry("rectangle", x_min=0.2, x_max=0.4, height=0.05),), left="wall", right="outflow",
+        pressure=PressureConfig("non_hydrostatic"),
+    )  # fmt: skip
+    scenario = multilayer.load(
+        {
+            "name": "block",
+            "slope_deg": 30.0,
+            "domain": {"x_min": 0.0, "x_max": 1.0, "cells": 40, "layers": 4},
+            "material": {"density": 1500.0, "grain_diameter": 1e-3, "particle_density": 2500.0},
+            "rheology": {"name": "drucker_prager", "mu_s": 0.4, "nu": 0.0},
+            "initial": [{"shape": "rectangle", "x_min": 0.2, "x_max": 0.4, "height": 0.05}],
+            "boundaries": {"left": "wall", "right": "outflow"},
+            "time": {"end": 0.05, "output_interval": 0.05},
+            "model": {"pressure": "non_hydrostatic"},
+        }
+    )
+    alone, made = Simulation(config, DruckerPrager(mu_s=0.4, nu=0.0)), multilayer.Simulation(scenario)
+    alone.advance(0.3)
+    made.advance(0.3)
+    assert alone.steps == made.steps > 10 and alone.pressure.layers == 4
+    for name in ("h", "u", "w", "q"):
+        np.testing.assert_array_equal(getattr(alone, name), getattr(made, name))

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from multilayer.engine.simulation import Simulation
+from multilayer.app.simulation import Simulation
 from multilayer.engine.threads import parallel_chunks
 
 BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"

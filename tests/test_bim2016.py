@@ -11,7 +11,8 @@ import pytest
 from engine import simulation
 from test_vertical import simple_shear
 
-from multilayer.engine import bim2016, vertical_step
+from multilayer.engine.pressure import bim2016
+from multilayer.engine.vertical import newton as vertical_step
 
 THETA_DEG, PHI_DEG = 20.0, 30.0
 MU = math.tan(math.radians(PHI_DEG))
@@ -94,9 +95,9 @@ def steady_residual(theta_deg: float, pressure: str) -> tuple[float, float]:
     G = None
     if pressure == "bim2016":
         G = bim2016.yield_gravity(
-            sim.h, sim.u, sim.bed, sim.fractions, dx=sim.dx, gravity=g, theta=theta, base_slip=sim.base_slip
+            sim.h, sim.u, sim.bed, sim.fractions, dx=sim.dx, gravity=g, theta=theta, base_slip=~sim.base.bulk
         )
-    u, _ = vertical_step.implicit_step(sim.stresses, sim.h, ustar, U, dt, yield_gravity=G)
+    u, _ = vertical_step.implicit_step(sim.vertical.stresses, sim.h, ustar, U, dt, yield_gravity=G)
     i = sim.h.size // 2
     flowing = z[:, i] - 0.5 * sim.fractions[:, None][:, 0] * sim.h[i] > sim.h[i] - y0  # whole layer flows
     return float(np.abs(u[flowing, i] - U[flowing, i]).max() / dt), s

@@ -3,6 +3,7 @@ and the round trip scenario -> result.nc."""
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 
@@ -182,13 +183,11 @@ def test_output_directory_that_cannot_be_created(cli, tiny_scenario, write_scena
     assert not (blocker / "out").exists()
 
 
-@pytest.mark.parametrize(
-    ("variable", "value"), [("MULTILAYER_THREADS", "two"), ("MULTILAYER_BIND_THREADS", "yes")]
-)
 def test_a_wrong_thread_variable_stops_the_run_before_its_first_step(
-    cli, tiny_scenario, write_scenario, tmp_path, monkeypatch, variable, value
+    cli, tiny_scenario, write_scenario, tmp_path, monkeypatch
 ):
     """exit 2, the variable and what it accepts named, in the run's log too; no result."""
+    variable, value = "MULTILAYER_THREADS", "two"
     monkeypatch.setenv(variable, value)
     out = tmp_path / "out"
     result = cli("run", write_scenario(tiny_scenario), "-o", out)
@@ -277,6 +276,33 @@ def test_run_round_trip_writes_result(cli, tiny_scenario, write_scenario, tmp_pa
         assert ds.attrs["wall_time_s"] > 0
         scenario = yaml.safe_load(ds.attrs["scenario"])
         assert scenario["domain"]["cells"] == 20 and scenario["numerics"]["order"] == 2
+
+
+WITHOUT_STUDIES = """
+import contextlib, io, json, sys
+sys.modules["distributed"] = sys.modules["dask.distributed"] = sys.modules["SALib"] = None  # not installed
+from multilayer.app.cli import main
+said = {}
+for command in ("sweep", "calibrate", "sensitivity"):
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        code = main([command, sys.argv[1]])
+    said[command] = (code, err.getvalue())
+print(json.dumps(said))
+"""
+
+
+def test_the_study_commands_without_their_extra_say_how_to_install_it(tmp_path):
+    """exit 2 and the extra to install, before the file is read (none exists here); the
+    three commands in one process."""
+    done = subprocess.run(
+        [sys.executable, "-c", WITHOUT_STUDIES, str(tmp_path / "study.yaml")], capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr
+    for command, (code, err) in json.loads(done.stdout.strip().splitlines()[-1]).items():
+        assert code == 2 and "Traceback" not in err
+        assert f"multilayer {command} needs " in err
+        assert "accepted: install the studies extra with pip install 'multilayer[studies]'" in err
 
 
 def test_the_run_summary_gives_units_and_says_why_a_quantity_has_no_value(

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
-from multilayer.engine import column_kernel
-from multilayer.engine.column_problem import ColumnProblem
+from multilayer.engine.vertical import column_solve as column_kernel
+from multilayer.engine.vertical.problem import ColumnProblem
 
 
 def energy(u: np.ndarray, p: ColumnProblem) -> float:
@@ -132,9 +132,8 @@ def test_the_dynamic_programme_is_exact_when_its_messages_reach_far_out():
 
 @pytest.mark.parametrize("layers", [1, 7, 40])
 def test_the_memory_estimate_of_the_workspace_is_the_workspace(layers):
-    """resources counts the workspace of every thread from column_problem.workspace_bytes,
+    """resources counts the workspace of every thread from vertical.problem.workspace_bytes,
     which must be what _workspace allocates (quadratic in the layers)."""
-    from multilayer.engine.column_kernel import _workspace
-    from multilayer.engine.column_problem import workspace_bytes
+    from multilayer.engine.vertical.problem import workspace_bytes
 
-    assert sum(a.nbytes for a in _workspace(layers)) == workspace_bytes(layers)
+    assert sum(a.nbytes for a in column_kernel._workspace(layers)) == workspace_bytes(layers)

@@ -6,6 +6,7 @@ import math
 import numpy as np
 import pytest
 
+from multilayer.engine.initial_state import bagnold_shape
 from multilayer.plugins.builtins.jop_mu_i import JopMuI
 from multilayer.plugins.builtins.power_law_mu_i import PowerLawMuI
 from multilayer.plugins.contract import Material
@@ -13,7 +14,6 @@ from multilayer.reference.exact import (
     BagnoldFlow,
     InviscidSimpleShear,
     bagnold_depth,
-    bagnold_shape,
     coulomb_dam_break,
     friction_coefficient,
     inertial_number_for_slope,

@@ -16,9 +16,9 @@ import pytest
 import yaml
 
 from multilayer.app import cli
+from multilayer.app.expectations import Outcome, evaluate, report
 from multilayer.reference.exact import InviscidSimpleShear
 from multilayer.scenario.schema import Expect
-from multilayer.testing.expectations import Outcome, evaluate, report
 
 pytest_plugins = ["pytester"]
 

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from multilayer import scenario as scenarios
-from multilayer.engine import transport_kernel
+from multilayer.app.simulation import Simulation
 from multilayer.engine.gate import Gate
-from multilayer.engine.simulation import Simulation
+from multilayer.engine.transport import kernel as transport_kernel
 
 FLAGSHIP = Path(__file__).resolve().parent.parent / "scenarios" / "erodible_bed_collapse.yaml"
 COARSE = ("domain.x_max=1.25", "domain.cells=120", "domain.layers=4")

@@ -10,7 +10,7 @@ import pytest
 from engine import simulation
 
 from multilayer import scenario as scenarios
-from multilayer.engine.simulation import Simulation
+from multilayer.app.simulation import Simulation
 from multilayer.plugins.builtins import DruckerPrager, JopMuI, PowerLawMuI
 from multilayer.plugins.contract import Material
 
@@ -41,7 +41,7 @@ def test_a_layer_at_rest_between_the_two_angles_stays_exactly_at_rest(layers):
     assert np.all(sim.u == 0.0)
     # the same slope without hysteresis (mu_start = mu_s) sets it moving at once
     moving = _layer(BETWEEN, layers=layers)
-    moving.stresses.bulk.mu_start = MU_S
+    moving.vertical.stresses.bulk.mu_start = MU_S
     moving.step()
     assert np.all(moving.u > 0.0)
 
@@ -101,7 +101,7 @@ def test_mu_start_equal_to_mu_s_is_bit_identical_to_the_law_without_it():
     coarse = ["domain.x_max=1.25", "domain.cells=100", "domain.layers=4", law]
     plain = Simulation(scenarios.load(flagship, coarse))
     same = Simulation(scenarios.load(flagship, [*coarse, "rheology.mu_start=0.4770"]))
-    assert plain.stresses.bulk.mu_start == 0.4770  # the default
+    assert plain.vertical.stresses.bulk.mu_start == 0.4770  # the default
     for sim in (plain, same):
         sim.advance(0.2)
     assert plain.steps == same.steps

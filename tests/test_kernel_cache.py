@@ -1,11 +1,14 @@
 """numba's cache of the kernels is cleared when a kernel source changes (engine/kernel_cache.py):
-numba keys a cached function by its own file only, so a caller would keep a callee's old code."""
+numba keys a cached function by its own file only, so a caller would keep a callee's old code.
+The check runs before the first kernel is loaded or compiled, never at import, and two
+processes starting at once after an upgrade take turns."""
 
 from __future__ import annotations
 
 import os
 import subprocess
 import sys
+import time
 
 from multilayer.engine import kernel_cache
 
@@ -13,7 +16,8 @@ from multilayer.engine import kernel_cache
 def test_a_changed_kernel_source_clears_the_cached_kernels_once(tmp_path, monkeypatch):
     engine, cache = tmp_path / "engine", tmp_path / "engine" / "__pycache__"
     cache.mkdir(parents=True)
-    callee = engine / "callee.py"
+    (engine / "vertical").mkdir()
+    callee = engine / "vertical" / "callee.py"
     callee.write_text("from numba import njit\n")
     (engine / "plain.py").write_text("x = 1\n")  # not a kernel module: not part of the digest
     monkeypatch.setattr(kernel_cache, "ENGINE", engine)
@@ -28,42 +32,98 @@ def test_a_changed_kernel_source_clears_the_cached_kernels_once(tmp_path, monkey
     assert len(list(cache.glob("*.nb?"))) == 2
     (engine / "plain.py").write_text("x = 2\n")
     assert not kernel_cache.clear_if_stale(cache)
-    callee.write_text("from numba import njit  # edited\n")  # the callee alone changes
+    callee.write_text("from numba import njit  # edited\n")  # the callee alone changes, in a subpackage
     assert kernel_cache.clear_if_stale(cache)
     assert list(cache.glob("*.nb?")) == [] and (cache / "kernels.digest").is_file()
     assert not kernel_cache.clear_if_stale(cache)
 
 
-def test_the_digest_covers_the_engine_kernel_modules():
-    names = {path.name for path in kernel_cache.ENGINE.glob("*.py") if b"numba" in path.read_bytes()}
-    assert {"newton_kernel.py", "sheared_columns.py", "column_kernel.py", "viscous_law.py"} <= names
-    stamp = kernel_cache.cache_directory() / kernel_cache.STAMP
-    assert stamp.read_text() == kernel_cache.sources_digest()  # written on import
+def test_the_digest_covers_the_kernel_modules_of_every_engine_package():
+    names = {path.relative_to(kernel_cache.ENGINE).as_posix() for path in kernel_cache.kernel_modules()}
+    assert {
+        "vertical/newton_kernel.py",
+        "vertical/sheared_columns.py",
+        "vertical/column_solve.py",
+        "vertical/forms.py",
+        "transport/kernel.py",
+        "transport/boundaries.py",  # compiled into the transport kernel
+        "pressure/non_hydrostatic/banded.py",
+    } <= names
 
 
-CHECK_ELSEWHERE = """
+LAZY = """
+import sys
 from pathlib import Path
-from numba.core.caching import FunctionCache
-from multilayer.engine import kernel_cache, viscous_law  # the import writes the digest
-cache = kernel_cache.cache_directory()
-kernel = Path(FunctionCache(viscous_law._viscosity_and_slope.py_func).cache_path)
-print(cache, kernel, (cache / kernel_cache.STAMP).is_file())
-entry = cache / "newton_kernel._chunk-110.py311.nbi"
-entry.write_bytes(b"compiled")
-print(kernel_cache.clear_if_stale(), entry.exists())  # the same sources: kept
-(cache / kernel_cache.STAMP).write_text("the digest of other sources")
-print(kernel_cache.clear_if_stale(), entry.exists())  # other sources: deleted
+from multilayer.engine import kernel_cache
+import multilayer.engine.simulation
+from multilayer.engine.state import span
+import numpy as np
+directories = kernel_cache.cache_directories()
+print(all(d.is_relative_to(sys.argv[1]) for d in directories), len(directories) >= 4)
+print(any((d / kernel_cache.STAMP).exists() for d in directories))  # nothing at import
+span(np.array([0.0, 1.0, 0.0]))  # the first kernel: checked, then compiled and cached
+print(all((d / kernel_cache.STAMP).read_text() == kernel_cache.sources_digest() for d in directories))
 """
 
 
-def test_a_cache_outside_the_package_is_the_one_kept_consistent(tmp_path):
+def test_the_check_runs_before_the_first_kernel_not_at_import(tmp_path):
     """With ``NUMBA_CACHE_DIR`` (as on a cluster whose installation cannot be written),
-    numba caches the kernels under it: the digest is kept there (written on import), and
-    a kernel cached there is kept while the sources are the same, deleted once they
-    differ."""
+    numba caches the kernels under it, one directory per engine package: their digests
+    are written when the first kernel is loaded or compiled, not when the engine is
+    imported."""
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
-    done = subprocess.run([sys.executable, "-c", CHECK_ELSEWHERE], env=env, capture_output=True, text=True)
+    done = subprocess.run(
+        [sys.executable, "-c", LAZY, str(tmp_path)], env=env, capture_output=True, text=True
+    )
     assert done.returncode == 0, done.stderr
-    cache, kernel, stamped, *cleared = done.stdout.split()
-    assert cache == kernel and cache.startswith(str(tmp_path)) and stamped == "True"
-    assert cleared == ["False", "True", "True", "False"]
+    assert done.stdout.split() == ["True", "True", "False", "True"]
+
+
+RACER = """
+import sys, time
+from pathlib import Path
+go = Path(sys.argv[1])
+import numpy as np
+from multilayer.engine import kernel_cache
+from multilayer.engine.state import max_wave_speed
+Path(sys.argv[2]).touch()  # ready
+while not go.exists():  # both processes start the check at once
+    time.sleep(0.001)
+speed = max_wave_speed(np.array([0.0, 4.0]), np.array([[0.0, -1.0], [0.5, 2.0]]), 1.0)
+print(speed, len(kernel_cache.CLEARED))
+"""
+
+
+def test_two_processes_starting_at_once_after_an_upgrade(tmp_path):
+    """After an upgrade (the digests of other sources in the cache, and a kernel cached by
+    them), two processes that load their first kernel at the same moment both run the new
+    code: the cached kernels of the old sources are deleted once, by one of them, and the
+    other keeps what the first compiles since; neither fails."""
+    cache = tmp_path / "cache"
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache)}
+    prepare = (
+        "from multilayer.engine import kernel_cache\nfor d in kernel_cache.cache_directories():\n"
+        "    d.mkdir(parents=True, exist_ok=True)\n"
+        "    (d / kernel_cache.STAMP).write_text('an older version')\n"
+        "    (d / 'state.max_wave_speed-1.py311.nbi').write_bytes(b'of the older version')\n"
+        "print(len(kernel_cache.cache_directories()))\n"
+    )
+    directories = int(subprocess.run([sys.executable, "-c", prepare], env=env, capture_output=True, text=True,
+                                     check=True).stdout)  # fmt: skip
+    go, ready = tmp_path / "go", [tmp_path / "ready-1", tmp_path / "ready-2"]
+    racers = [
+        subprocess.Popen(
+            [sys.executable, "-c", RACER, str(go), str(flag)], env=env, stdout=subprocess.PIPE, text=True
+        )
+        for flag in ready
+    ]
+    deadline = time.monotonic() + 120
+    while not all(flag.exists() for flag in ready) and time.monotonic() < deadline:
+        time.sleep(0.01)  # both have imported the engine and wait
+    go.touch()
+    results = [racer.communicate(timeout=300)[0].split() for racer in racers]
+    assert [racer.returncode for racer in racers] == [0, 0]
+    assert [float(speed) for speed, _ in results] == [4.0, 4.0]  # max |u| + sqrt(g h) = 2 + 2
+    assert sum(int(cleared) for _, cleared in results) == directories  # each directory cleared once
+    assert not list(cache.rglob("state.max_wave_speed-1.py311.nbi"))
+    assert {path.read_text() for path in cache.rglob(kernel_cache.STAMP)} == {kernel_cache.sources_digest()}

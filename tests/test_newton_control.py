@@ -7,9 +7,10 @@ from __future__ import annotations
 import numpy as np
 from engine import simulation
 
-from multilayer.engine import column_kernel, vertical_step
-from multilayer.engine.column_problem import ColumnProblem
-from multilayer.engine.newton_control import error_bound, examine_columns
+from multilayer.engine.vertical import column_solve as column_kernel
+from multilayer.engine.vertical import newton as vertical_step
+from multilayer.engine.vertical.newton_control import error_bound, examine_columns
+from multilayer.engine.vertical.problem import ColumnProblem
 
 
 def bingham(rng, L, N) -> ColumnProblem:
@@ -125,7 +126,7 @@ def power_law_columns(L, N, dt, seed):
         rheology={"name": "power_law_mu_i", "mu_s": 0.38, "m": 0.3, "alpha": 0.2},
         base=[{"condition": "no_slip"}],
     )
-    stresses, law = sim.stresses, sim.stresses.bulk
+    stresses, law = sim.vertical.stresses, sim.vertical.stresses.bulk
     rng = np.random.default_rng(seed)
     h = rng.uniform(0.01, 0.5, N)
     ustar = rng.normal(0, 1, (L, N)) * 10 ** rng.uniform(-3, 2, N)

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from engine import simulation
 
-from multilayer.engine import newton_kernel, viscous_law
+from multilayer.engine.vertical import forms as viscous_law
+from multilayer.engine.vertical import newton_kernel
 from multilayer.plugins.builtins import DruckerPrager, JopMuI, PowerLawMuI, WallFriction
 from multilayer.plugins.contract import Material, Rheology
 
@@ -62,9 +63,9 @@ def test_a_law_without_a_compiled_form_keeps_the_numpy_path():
 
     assert viscous_law.law_of(Plain(), MATERIAL) is None
     sim = simulation(rheology={"name": "jop_mu_i", "mu_s": 0.38, "mu_2": 0.64, "I_0": 0.279})
-    assert sim.compiled_step.laws() is not None
-    sim.stresses.bulk = Plain()  # swapped on a running simulation: honoured
-    assert sim.compiled_step.laws() is None
+    assert sim.vertical.compiled.laws() is not None
+    sim.vertical.stresses.bulk = Plain()  # swapped on a running simulation: honoured
+    assert sim.vertical.compiled.laws() is None
 
 
 @pytest.mark.parametrize(
@@ -92,9 +93,9 @@ def test_compiled_step_equals_the_numpy_iteration_on_a_collapse(rheology, walls)
             initial=[{"shape": "rectangle", "x_min": 0.0, "x_max": 0.2, "height": 0.1}],
             boundaries={"left": "wall", "right": "outflow"},
         )
-        assert sim.compiled_step.laws() is not None
+        assert sim.vertical.compiled.laws() is not None
         if not compiled:
-            sim.compiled_step = None
+            sim.vertical.compiled = None
         for _ in range(60):
             sim.step()
         runs.append(sim)
@@ -106,8 +107,8 @@ def test_compiled_step_equals_the_numpy_iteration_on_a_collapse(rheology, walls)
     # at each step; through the transport (Courant numbers < 1) the thickness by less than
     # 2 x 60 thresholds relative to the velocity scale.
     assert abs(got.newton_iterations - ref.newton_iterations) <= 0.01 * ref.newton_iterations
-    threshold = ref.numerics.tolerance * ref.velocity_scale
-    np.testing.assert_allclose(got.h, ref.h, rtol=120 * threshold / ref.velocity_scale, atol=0.0)
+    threshold = ref.numerics.tolerance * ref.vertical.velocity_scale
+    np.testing.assert_allclose(got.h, ref.h, rtol=120 * threshold / ref.vertical.velocity_scale, atol=0.0)
     np.testing.assert_allclose(got.u, ref.u, rtol=0.0, atol=2 * threshold)
     assert np.array_equal(got.u == 0.0, ref.u == 0.0)
     assert (ref.u == 0.0).any() and (ref.u != 0.0).any()  # both static and moving layers
@@ -126,9 +127,9 @@ def test_threads_cut_the_columns_into_chunks_without_changing_the_answer():
         sim.step()
     ustar = sim.u + 0.01 * (sim.h > 0)
     kw = dict(threshold=1e-12, max_iterations=200)
-    one, its_one = sim.compiled_step(sim.h, ustar, sim.u, 1e-3, threads=1, **kw)
+    one, its_one = sim.vertical.compiled(sim.h, ustar, sim.u, 1e-3, threads=1, **kw)
     one = one.copy()
-    two, its_two = sim.compiled_step(sim.h, ustar, sim.u, 1e-3, threads=2, **kw)
+    two, its_two = sim.vertical.compiled(sim.h, ustar, sim.u, 1e-3, threads=2, **kw)
     assert np.array_equal(one, two) and np.array_equal(its_one, its_two)
 
 
@@ -150,15 +151,15 @@ def test_a_layer_at_rest_below_its_friction_angle_is_not_solved_and_stays_exactl
         )
         solves = [0]
         if compiled:
-            solved = sim.compiled_step
+            solved = sim.vertical.compiled
         else:
-            sim.compiled_step, exact = None, sim.solver
+            sim.vertical.compiled, exact = None, sim.vertical.solver
 
             def counted(problem, solves=solves, exact=exact, **kw):
                 solves[0] += problem.m.shape[1]
                 return exact(problem, **kw)
 
-            sim.solver = counted
+            sim.vertical.solver = counted
         for _ in range(5):
             sim.step()
         if compiled:
@@ -178,7 +179,7 @@ def test_a_structure_spoilt_by_round_off_is_rescued_exactly_without_the_dynamic_
     their locked interfaces and static layers, which the first attempt rejects."""
     from test_column_kernel import random_problem
 
-    from multilayer.engine import column_kernel
+    from multilayer.engine.vertical import column_solve as column_kernel
 
     rng = np.random.default_rng(7)
     problem = random_problem(rng, 12, 400)

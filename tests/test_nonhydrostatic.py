@@ -12,7 +12,9 @@ from engine import simulation
 from test_rest import held
 from test_vertical import simple_shear
 
-from multilayer.engine import nonhydrostatic
+from multilayer.engine.pressure.non_hydrostatic import banded
+from multilayer.engine.pressure.non_hydrostatic import constraint as assembly
+from multilayer.engine.pressure.non_hydrostatic import projection as nonhydrostatic
 from multilayer.errors import RunError
 
 G = 9.81
@@ -227,9 +229,9 @@ def test_projection_satisfies_the_constraint_and_never_adds_energy(periodic, pre
     moving = u != 0.0
     nodes = interpolation = None
     if pressure_layers < u.shape[0]:
-        nodes = nonhydrostatic.pressure_nodes(fractions, pressure_layers)
-        interpolation = nonhydrostatic.pressure_interpolation(fractions, nodes)
-    cons = nonhydrostatic.constraint(h, bed, fractions, 0.1, periodic, interpolation)
+        nodes = assembly.pressure_nodes(fractions, pressure_layers)
+        interpolation = assembly.pressure_interpolation(fractions, nodes)
+    cons = assembly.constraint(h, bed, fractions, 0.1, periodic, interpolation)
     V_star, dV, free = nonhydrostatic.correction(cons, moving, u, w, nodes=nodes)
     V = V_star + dV
     rows = np.flatnonzero((moving if nodes is None else moving[nodes]).ravel())
@@ -247,14 +249,14 @@ def test_pressure_interfaces_group_whole_layers_and_interpolate_linearly():
     sigma = g / L_p; the interpolation is the identity with a pressure on every layer and
     reproduces exactly a pressure linear in depth and zero at the surface (hydrostatic-like)."""
     uniform = np.full(8, 1 / 8)
-    assert nonhydrostatic.pressure_nodes(uniform, 4).tolist() == [0, 2, 4, 6]
-    assert nonhydrostatic.pressure_nodes(uniform, 3).tolist() == [0, 3, 5]  # sigma 0, 3/8, 5/8
-    assert np.array_equal(nonhydrostatic.pressure_interpolation(uniform, np.arange(8)), np.eye(8))
+    assert assembly.pressure_nodes(uniform, 4).tolist() == [0, 2, 4, 6]
+    assert assembly.pressure_nodes(uniform, 3).tolist() == [0, 3, 5]  # sigma 0, 3/8, 5/8
+    assert np.array_equal(assembly.pressure_interpolation(uniform, np.arange(8)), np.eye(8))
     fractions = np.array([0.05, 0.05, 0.1, 0.1, 0.2, 0.5])  # thin layers at the bed
-    nodes = nonhydrostatic.pressure_nodes(fractions, 3)
+    nodes = assembly.pressure_nodes(fractions, 3)
     assert nodes.tolist() == [0, 4, 5]  # sigma 0, 0.3, 0.5 for the targets 0, 1/3, 2/3
-    assert nonhydrostatic.pressure_nodes(fractions, 6).tolist() == list(range(6))
-    P = nonhydrostatic.pressure_interpolation(fractions, nodes)
+    assert assembly.pressure_nodes(fractions, 6).tolist() == list(range(6))
+    P = assembly.pressure_interpolation(fractions, nodes)
     sigma = np.concatenate([[0.0], np.cumsum(fractions)[:-1]])
     assert np.allclose(P @ (1.0 - sigma[nodes]), 1.0 - sigma, rtol=0, atol=1e-15)
     assert np.all((P >= 0.0) & (P <= 1.0))
@@ -266,10 +268,10 @@ def test_reduced_rows_are_the_interpolation_transpose_times_the_layer_rows(perio
     """On sloping interfaces and uneven layers the assembled reduced constraint is P^T E,
     E the constraint of every layer (P from cell a * N + i to g * N + i)."""
     h, _, _, bed, fractions = random_state(9, layers=6)
-    nodes = nonhydrostatic.pressure_nodes(fractions, pressure_layers)
-    P = nonhydrostatic.pressure_interpolation(fractions, nodes)
-    reduced = nonhydrostatic.constraint(h, bed, fractions, 0.1, periodic, P).E.toarray()
-    full = nonhydrostatic.constraint(h, bed, fractions, 0.1, periodic).E.toarray()
+    nodes = assembly.pressure_nodes(fractions, pressure_layers)
+    P = assembly.pressure_interpolation(fractions, nodes)
+    reduced = assembly.constraint(h, bed, fractions, 0.1, periodic, P).E.toarray()
+    full = assembly.constraint(h, bed, fractions, 0.1, periodic).E.toarray()
     expected = np.kron(P.T, np.eye(h.size)) @ full
     assert np.abs(reduced - expected).max() <= 1e-13 * np.abs(expected).max()
 
@@ -302,7 +304,7 @@ def test_fast_path_equals_the_fipy_reference_on_flat_interfaces(periodic, pressu
     fast = nonhydrostatic.project(
         h, u, w, np.zeros(N), fractions, dx=0.2, dt=0.01, periodic=periodic, pressure_layers=pressure_layers
     )
-    nodes = None if pressure_layers == L else nonhydrostatic.pressure_nodes(fractions, pressure_layers)
+    nodes = None if pressure_layers == L else assembly.pressure_nodes(fractions, pressure_layers)
     ref = nonhydrostatic_fipy.project(
         0.7, u, w, fractions, dx=0.2, dt=0.01, periodic=periodic, pressure_nodes=nodes
     )
@@ -344,7 +346,7 @@ def test_the_window_of_moving_columns_gives_the_whole_domain_answer():
     h, u, w, bed, fractions = random_state(5, cells=14)
     u[:, :3] = u[:, -4:] = 0.0
     fast = nonhydrostatic.project(h, u, w, bed, fractions, dx=0.1, dt=0.01)
-    cons = nonhydrostatic.constraint(h, bed, fractions, 0.1, False)
+    cons = assembly.constraint(h, bed, fractions, 0.1, False)
     _, dV, _ = nonhydrostatic.correction(cons, u != 0.0, u, w)
     L, F = u.shape[0], cons.left.size
     dv = dV[: L * F].reshape(L, F)
@@ -405,14 +407,14 @@ def test_cholesky_refactored_from_a_row_equals_the_whole_factorisation():
     after[35:] = rng.random(n - 35) < 0.5
     after[35] = not before[35]
     U = np.zeros(band.shape)
-    nonhydrostatic._factor(band, before, U, 0)
-    nonhydrostatic._factor(band, after, U, 35)
+    banded.factor(band, before, U, 0)
+    banded.factor(band, after, U, 35)
     fresh = np.zeros(band.shape)
-    nonhydrostatic._factor(band, after, fresh, 0)
+    banded.factor(band, after, fresh, 0)
     assert np.abs(U - fresh).max() < 1e-12 * np.abs(fresh).max()
     fixed = np.where(after[:, None] | after[None, :], 0.0, dense) + np.diag(after.astype(float))
     b = rng.normal(size=n)
-    assert np.allclose(fixed @ nonhydrostatic._substitute(U, b), b, rtol=0, atol=1e-10)
+    assert np.allclose(fixed @ banded.substitute(U, b), b, rtol=0, atol=1e-10)
 
 
 @pytest.mark.parametrize(("n", "w", "start"), [(61, 5, 0), (60, 5, 33), (9, 1, 4), (8, 0, 3), (1, 0, 0)])
@@ -429,8 +431,8 @@ def test_cholesky_two_rows_at_a_time_equals_the_dense_factor(n, w, start):
     fixed = rng.random(n) < 0.25
     U = np.zeros(band.shape)
     # first the factor of a set that differs from ``start`` on, then refactored from there
-    nonhydrostatic._factor(band, np.where(np.arange(n) < start, fixed, ~fixed), U, 0)
-    nonhydrostatic._factor(band, fixed, U, start)
+    banded.factor(band, np.where(np.arange(n) < start, fixed, ~fixed), U, 0)
+    banded.factor(band, fixed, U, start)
     reduced = np.where(fixed[:, None] | fixed[None, :], 0.0, dense) + np.diag(fixed.astype(float))
     upper = np.linalg.cholesky(reduced).T
     expected = np.array([[upper[i, i + d] if i + d < n else 0.0 for d in range(w + 1)] for i in range(n)])
@@ -452,11 +454,11 @@ def test_bounded_solve_equals_the_dense_solution_of_its_active_set():
     r = rng.normal(size=n) * 10.0
     bound = np.abs(rng.normal(size=n))
     settled = np.zeros(n, dtype=bool)
-    nonhydrostatic._bounded(band, r, bound, settled, 100)
+    banded.bounded(band, r, bound, settled, 100)
     # a guess wrong from row 60 on: the solves after the first restart there
     active = settled.copy()
     active[60:] = rng.random(n - 60) < 0.5
-    x, iterations = nonhydrostatic._bounded(band, r, bound, active, 100)
+    x, iterations = banded.bounded(band, r, bound, active, 100)
     assert iterations >= 2 and 0 < active.sum() < n and np.array_equal(active, settled)
     free = ~active
     expected = bound.copy()
@@ -475,8 +477,8 @@ def test_the_step_whose_newton_iteration_did_not_converge_now_converges_from_its
     momentum balance.  Every step now converges from its first seed."""
     from pathlib import Path
 
-    from multilayer.engine import vertical_step
-    from multilayer.engine.simulation import Simulation
+    from multilayer.app.simulation import Simulation
+    from multilayer.engine.vertical import newton as vertical_step
     from multilayer.scenario import load
 
     failures = []

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from test_nonhydrostatic import standing_wave_error
 
+from multilayer.app.simulation import Simulation
 from multilayer.engine import diagnostics
-from multilayer.engine.simulation import Simulation
 from multilayer.scenario import load
 
 pytestmark = pytest.mark.validation

@@ -15,7 +15,7 @@ import pytest
 import yaml
 from conftest import TINY_SCENARIO
 
-from multilayer.engine.simulation import Simulation
+from multilayer.app.simulation import Simulation
 from multilayer.io.results import open_result
 from multilayer.plugins.builtins.drucker_prager import DruckerPrager
 from multilayer.scenario import from_dict

@@ -30,7 +30,9 @@ def test_csv_bed_equals_the_same_bed_given_by_points(tmp_path, write_scenario, t
     from_points = load(_scenario(write_scenario, tiny_scenario, bed={"points": points}))
     from_file = load(_scenario(write_scenario, tiny_scenario, bed={"file": "bed.csv"}))
     np.testing.assert_allclose(from_file.bed.points, points, rtol=1e-15, atol=1e-18)
-    np.testing.assert_allclose(bed_profile(from_file.bed, X), bed_profile(from_points.bed, X), atol=1e-17)
+    np.testing.assert_allclose(
+        bed_profile(from_file.bed.points, X), bed_profile(from_points.bed.points, X), atol=1e-17
+    )
     # the result file records the points, so the record stands alone and loads back
     recorded = yaml.safe_load(from_file.resolved_yaml())
     assert recorded["bed"] == {"profile": "points", "points": from_file.bed.points}

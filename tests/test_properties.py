@@ -21,7 +21,7 @@ from engine import scenario
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from multilayer.engine.simulation import Simulation
+from multilayer.app.simulation import Simulation
 from multilayer.scenario import from_dict
 
 THOROUGH = 150

@@ -23,10 +23,12 @@ import yaml
 from conftest import TINY_SCENARIO
 
 from multilayer.app import lock
-from multilayer.engine import column_kernel, transport, transport_kernel
-from multilayer.engine import simulation as simulation_module
-from multilayer.engine.column_problem import ColumnProblem
+from multilayer.app import simulation as simulation_module
 from multilayer.engine.plugin_output import PluginOutputError
+from multilayer.engine.transport import kernel as transport_kernel
+from multilayer.engine.transport import reference as transport
+from multilayer.engine.vertical import column_solve as column_kernel
+from multilayer.engine.vertical.problem import ColumnProblem
 from multilayer.errors import RunError
 from multilayer.io.results import open_result, run_failure
 from multilayer.plugins.builtins.drucker_prager import DruckerPrager
@@ -52,7 +54,8 @@ _CHILD = """
 import sys, time, pathlib
 import numpy as np
 from multilayer.app.cli import main
-from multilayer.engine import column_kernel, simulation
+from multilayer.engine import simulation
+from multilayer.engine.vertical import column_solve as column_kernel
 from multilayer.plugins.builtins.drucker_prager import DruckerPrager
 from multilayer.plugins.builtins.jop_mu_i import JopMuI
 from multilayer.plugins.builtins.power_law_mu_i import PowerLawMuI
@@ -200,10 +203,10 @@ def test_a_compiled_viscosity_outside_the_contract_stops_the_kernel_as_the_pytho
     messages = []
     for compiled in (True, False):
         sim = simulation(**CHUTE)
-        assert sim.compiled_step is not None and sim.compiled_step.laws() is not None
-        sim.stresses.bulk = make()
+        assert sim.vertical.compiled is not None and sim.vertical.compiled.laws() is not None
+        sim.vertical.stresses.bulk = make()
         if not compiled:
-            sim.compiled_step = None  # the numpy Newton iteration, which calls viscosity() itself
+            sim.vertical.compiled = None  # the numpy Newton iteration, which calls viscosity() itself
         with pytest.raises(PluginOutputError) as caught, np.errstate(divide="ignore"):
             sim.step()
         assert sim.t == 0.0 and sim.steps == 0  # nothing was kept
@@ -226,7 +229,7 @@ def test_a_compiled_viscosity_outside_the_contract_is_exit_1_naming_the_plugin(t
 
     def with_bad_law(self, scenario):
         real(self, scenario)
-        self.stresses.bulk = BAD_COMPILED_LAWS["negative"][0]()
+        self.vertical.stresses.bulk = BAD_COMPILED_LAWS["negative"][0]()
 
     monkeypatch.setattr(simulation_module.Simulation, "__init__", with_bad_law)
     from engine import BASE
@@ -621,11 +624,11 @@ def test_stepping_past_the_end_or_without_progress_is_a_named_error_never_a_hang
 
 def test_a_singular_non_hydrostatic_system_and_a_non_finite_measure_are_run_errors(tmp_path):
     from multilayer.app import ensemble
-    from multilayer.engine.nonhydrostatic import _factor
+    from multilayer.engine.pressure.non_hydrostatic.banded import factor
 
     indefinite = np.array([[1.0, 2.0], [1.0, 0.0]])  # band rows A[i, i], A[i, i + 1] of [[1, 2], [2, 1]]
     with pytest.raises(RunError, match="the non-hydrostatic pressure system is not positive definite"):
-        _factor(indefinite, np.zeros(2, dtype=np.bool_), np.zeros((2, 2)), 0)
+        factor(indefinite, np.zeros(2, dtype=np.bool_), np.zeros((2, 2)), 0)
     with pytest.raises(RunError, match=r"a measured quantity is not finite \(\[nan\]\)"):
         ensemble._measured(lambda path: np.array([np.nan]), tmp_path)
 
@@ -639,7 +642,7 @@ def test_a_non_finite_non_hydrostatic_state_stops_the_step_keeping_the_last_good
     and the state stays that of the step before."""
     from engine import simulation
 
-    from multilayer.engine import nonhydrostatic
+    from multilayer.engine.pressure.non_hydrostatic import projection as nonhydrostatic
     from multilayer.engine.state_check import StateError
 
     sim = simulation(

@@ -15,7 +15,7 @@ from conftest import TINY_SCENARIO
 import multilayer
 from multilayer import scenario as scenarios
 from multilayer.app import runner
-from multilayer.engine.simulation import Simulation
+from multilayer.app.simulation import Simulation
 from multilayer.errors import InputError
 from multilayer.io.result_check import check_result
 from multilayer.io.results import (

@@ -21,7 +21,7 @@ from numba.core import event as numba_event
 from multilayer import scenario as scenarios
 from multilayer.app import compilation, runner
 from multilayer.app.progress import Progress
-from multilayer.engine.simulation import Simulation
+from multilayer.app.simulation import Simulation
 from multilayer.errors import RunError
 from multilayer.io.results import open_result
 
@@ -38,7 +38,7 @@ def _cli(*args: object) -> list[str]:
 _PACED_RUN = """
 import sys, time
 from multilayer.app.cli import main
-from multilayer.engine.simulation import Simulation
+from multilayer.app.simulation import Simulation
 step = Simulation.step
 def paced_step(self, t_max):
     time.sleep(0.02)

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import yaml
 
+from multilayer.app import factory
 from multilayer.errors import InputError
 from multilayer.scenario import Scenario, apply_overrides, from_dict, load
 
@@ -42,7 +43,7 @@ def test_defaults(tiny_scenario):
 )
 def test_layer_fractions(tiny_scenario, fractions, layers, expected):
     tiny_scenario["domain"].update(layers=layers, layer_fractions=fractions)
-    result = from_dict(tiny_scenario).domain.fractions()
+    result = np.array(factory.engine_config(from_dict(tiny_scenario)).fractions)
     np.testing.assert_allclose(result, expected, rtol=1e-14)
     assert result.sum() == pytest.approx(1.0, abs=1e-15)
 
@@ -190,10 +191,10 @@ def test_numerics_threads_accepts_auto_or_a_positive_integer(write_scenario, tin
 def test_pressure_layers_are_an_integer_up_to_the_layers(write_scenario, tiny_scenario, overrides):
     tiny_scenario["domain"]["layers"] = 4
     path = write_scenario(tiny_scenario)
-    sc = load(path, ["model.pressure=non_hydrostatic"])
-    assert sc.model.resolved_pressure_layers(4) == 4 and sc.model.resolved_pressure_layers(32) == 4
-    assert (
-        load(path, ["model.pressure=non_hydrostatic", "model.pressure_layers=2"]).model.pressure_layers == 2
-    )
+    assert factory.engine_config(load(path, ["model.pressure=non_hydrostatic"])).pressure.options == {
+        "pressure_layers": 4  # the default: min(4, layers)
+    }
+    sc = load(path, ["model.pressure=non_hydrostatic", "model.pressure_layers=2"])
+    assert sc.model.options == {"pressure_layers": 2} and "pressure_layers: 2" in sc.resolved_yaml()
     with pytest.raises(InputError, match=r"model\.pressure_layers \(from --set\): .*accepted: an integer"):
         load(path, overrides)

@@ -13,8 +13,8 @@ import pytest
 
 from multilayer import scenario as scenarios
 from multilayer.app import cli
+from multilayer.app import expectations as expect
 from multilayer.scenario.schema import QUANTITIES
-from multilayer.testing import expectations as expect
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 NAMES = (

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from engine import simulation
 
-from multilayer.engine.newton_kernel import CompiledStep
 from multilayer.engine.plugin_output import PluginOutputError
-from multilayer.engine.sheared_columns import BLOCK, stride
 from multilayer.engine.threads import CHUNKS_PER_THREAD
+from multilayer.engine.vertical.newton_kernel import CompiledStep
+from multilayer.engine.vertical.sheared_columns import BLOCK, stride
 from multilayer.plugins.builtins import JopMuI
 
 MATERIAL = {"density": 1550.0, "grain_diameter": 0.7e-3, "particle_density": 2500.0}
@@ -46,10 +46,10 @@ def _both(sim, steps=10, ustar_shift=0.01, guess_scale=1.0, threads=1, max_itera
         sim.step()
     ustar = sim.u + ustar_shift * (sim.h > 0)
     guess = guess_scale * sim.u
-    threshold = sim.numerics.tolerance * sim.velocity_scale
+    threshold = sim.numerics.tolerance * sim.vertical.velocity_scale
     results = []
     for side_by_side in (True, False):
-        step = CompiledStep(sim.stresses, side_by_side=side_by_side)
+        step = CompiledStep(sim.vertical.stresses, side_by_side=side_by_side)
         u, iterations = step(
             sim.h, ustar, guess, 1e-3, threshold=threshold, max_iterations=max_iterations, threads=threads
         )
@@ -133,10 +133,10 @@ def test_a_viscosity_outside_the_contract_in_a_block_is_reported_as_column_by_co
         sim.step()
     bad = JopMuI(0.38, 0.64, 0.279)
     bad.mu_2 = 0.2  # past validation: mu_2 < mu_s, a negative viscosity
-    sim.stresses.bulk = bad
+    sim.vertical.stresses.bulk = bad
     messages = []
     for side_by_side in (True, False):
-        step = CompiledStep(sim.stresses, side_by_side=side_by_side)
+        step = CompiledStep(sim.vertical.stresses, side_by_side=side_by_side)
         with pytest.raises(PluginOutputError) as caught, np.errstate(divide="ignore"):
             step(sim.h, sim.u, sim.u, 1e-3, threshold=1e-9, max_iterations=50)
         messages.append(str(caught.value))

@@ -1,5 +1,5 @@
 """The velocity-independent coefficients of the vertical step computed in one compiled pass
-(stress_kernel) against the numpy reference ``StressModel.columns``: the same bits."""
+(engine/vertical/coefficients.py) against the numpy reference ``StressModel.columns``: the same bits."""
 
 from __future__ import annotations
 
@@ -8,8 +8,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from multilayer.engine import stress
-from multilayer.engine.stress_kernel import CompiledCoefficients, yield_law_of
+from multilayer.engine.basal import BasalColumns
+from multilayer.engine.vertical import stresses as stress
+from multilayer.engine.vertical.coefficients import CompiledCoefficients, yield_law_of
 from multilayer.plugins.builtins import DruckerPrager, JopMuI, PowerLawMuI, WallFriction
 from multilayer.plugins.builtins._checks import FrictionalYield
 from multilayer.plugins.contract import Material
@@ -28,9 +29,14 @@ def _model(bulk, walls: bool, rng) -> tuple[stress.StressModel, np.ndarray]:
     N = 40
     fractions = rng.uniform(0.5, 1.5, 7)
     fractions /= fractions.sum()
-    kind = rng.choice([stress.NO_SLIP, stress.COULOMB, stress.FREE_SLIP], N)
+    kind = rng.choice(["no_slip", "coulomb", "free_slip"], N)
+    base = BasalColumns(  # Coulomb friction with a cohesion in some columns
+        bulk=kind == "no_slip",
+        friction=np.where(kind == "coulomb", rng.uniform(0.2, 0.6, N), 0.0),
+        cohesion=np.where(kind == "coulomb", rng.uniform(0.0, 50.0, N) * (rng.uniform(size=N) < 0.5), 0.0),
+    )
     model = stress.StressModel(
-        bulk, MATERIAL, fractions, 9.81 * np.cos(0.3), kind, rng.uniform(0.2, 0.6, N),
+        bulk, MATERIAL, fractions, 9.81 * np.cos(0.3), base,
         walls=WallFriction(mu_w=0.25) if walls else None, width=0.1 if walls else None,
         x=np.linspace(0.0, 1.0, N),
     )  # fmt: skip

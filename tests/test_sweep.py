@@ -430,7 +430,7 @@ parameters:
 def test_compiling_the_kernels_takes_one_single_threaded_step(tmp_path, monkeypatch):
     """``compile_kernels`` (run before local worker processes start) steps the member
     once on one thread, and leaves a member that fails to its own run."""
-    from multilayer.engine.simulation import Simulation
+    from multilayer.app.simulation import Simulation
 
     (tmp_path / "tiny.yaml").write_text(TINY)
     member = scenario.load(tmp_path / "tiny.yaml")

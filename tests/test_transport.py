@@ -172,7 +172,7 @@ def test_a_block_on_a_25_degree_slope_runs_to_t_20_with_its_mass_balanced(transp
     what the outflow carried, to round-off."""
     from conftest import TINY_SCENARIO
 
-    from multilayer.engine.simulation import Simulation
+    from multilayer.app.simulation import Simulation
     from multilayer.scenario import from_dict
 
     data = {**TINY_SCENARIO, "time": {"end": 20.0, "output_interval": 20.0}}

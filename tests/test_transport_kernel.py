@@ -12,7 +12,10 @@ import numpy as np
 import pytest
 from engine import simulation
 
-from multilayer.engine import transport, transport_kernel
+from multilayer.engine import state
+from multilayer.engine.transport import boundaries
+from multilayer.engine.transport import kernel as transport_kernel
+from multilayer.engine.transport import reference as transport
 
 BOUNDARIES = [("wall", "wall"), ("wall", "outflow"), ("periodic", "periodic"), ("inflow", "outflow")]
 
@@ -48,7 +51,7 @@ def both(h, u, b, fractions, **kw):
 @pytest.mark.parametrize("left, right", BOUNDARIES)
 def test_compiled_transport_equals_the_numpy_reference(order, left, right):
     h, u, b, fractions = random_state(seed=order)
-    inflow = transport.Inflow(0.7, np.linspace(0.2, 1.0, u.shape[0])) if left == "inflow" else None
+    inflow = boundaries.InflowState(0.7, np.linspace(0.2, 1.0, u.shape[0])) if left == "inflow" else None
     kw = dict(
         dx=0.1, dt=0.004, g_n=9.0, g_t=1.5, left=left, right=right, inflow=inflow, dry=1e-6, order=order
     )
@@ -128,14 +131,14 @@ def test_whole_runs_agree_with_either_transport(order):
 def test_wave_speed_and_moving_columns():
     h, u, _, _ = random_state(seed=3)
     expected = np.max(np.max(np.abs(u), axis=0) + np.sqrt(9.0 * h))
-    assert transport_kernel.max_wave_speed(h, u, 9.0) == expected
-    assert np.array_equal(transport_kernel.moving_columns(u), np.any(u != 0.0, axis=0))
+    assert state.max_wave_speed(h, u, 9.0) == expected
+    assert np.array_equal(state.moving_columns(u), np.any(u != 0.0, axis=0))
     # the survey at the start of a step: the same speed and columns, and the layers at rest
     u[:, ::3] = 0.0  # columns at rest
     u[1:, 1::3] = 0.0  # columns moving in their bottom layer only
     expected = np.max(np.max(np.abs(u), axis=0) + np.sqrt(9.0 * h))
     moving, rest = np.ones(h.size, bool), np.zeros(u.shape, bool)
-    assert transport_kernel.survey(h, u, 0.5, 9.0, moving, rest) == expected
+    assert state.survey(h, u, 0.5, 9.0, moving, rest) == expected
     assert np.array_equal(moving, np.any(u != 0.0, axis=0))
     assert np.array_equal(rest, (u == 0.0) & (h > 0.5))
     # material at rest set moving: added to the moving columns, dry or moving ones not
@@ -143,9 +146,9 @@ def test_wave_speed_and_moving_columns():
     u_new[:, rest.any(axis=0)] = 1.0
     before = moving.copy()
     assert (rest.any(axis=0) & ~before).any()
-    assert transport_kernel.start_moving(u_new, h, 0.5, moving)
+    assert state.start_moving(u_new, h, 0.5, moving)
     assert np.array_equal(moving, before | (rest.any(axis=0) & (h > 0.5)))
-    assert not transport_kernel.start_moving(u_new, h, 0.5, moving)
+    assert not state.start_moving(u_new, h, 0.5, moving)
 
 
 def test_a_reused_workspace_leaves_nothing_outside_a_narrower_window():

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from engine import simulation
 
-from multilayer.engine import column_kernel
-from multilayer.engine.simulation import Simulation
+from multilayer.app.simulation import Simulation
+from multilayer.engine.vertical import column_solve as column_kernel
 from multilayer.plugins.contract import Rheology
 from multilayer.reference import vertical_fipy
 from multilayer.reference.exact import BagnoldFlow, InviscidSimpleShear, jop_inertial_number
@@ -136,7 +136,7 @@ def test_bingham_layer_flows_as_a_rigid_plug_over_the_analytic_sheared_zone():
         initial=[{"shape": "layer", "thickness": h}],
         boundaries={"left": "periodic", "right": "periodic"},
     )
-    sim.stresses.bulk = Bingham(tau_y, eta)
+    sim.vertical.stresses.bulk = Bingham(tau_y, eta)
     sim.advance(30.0)  # 30 viscous times rho h^2 / eta
     drive = rho * 9.81 * math.sin(theta)
     z_p = h - tau_y / drive
@@ -181,7 +181,8 @@ def test_kernel_and_fipy_reference_solve_the_same_collapse_problem():
     sim.advance(0.05)
     wet = np.flatnonzero(sim.h > 0)
     u = sim.u[:, wet]
-    problem = sim.stresses.linearise(sim.stresses.columns(sim.h, wet), u, u, sim.time_step())
+    stresses = sim.vertical.stresses
+    problem = stresses.linearise(stresses.columns(sim.h, wet), u, u, sim.time_step())
     kernel = column_kernel.solve(problem, guess=u)
     reference = vertical_fipy.solve(problem)
     assert np.abs(reference - kernel).max() <= 1e-10

@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from multilayer.engine import column_kernel
-from multilayer.engine.column_problem import ColumnProblem
+from multilayer.engine.vertical import column_solve as column_kernel
+from multilayer.engine.vertical.problem import ColumnProblem
 from multilayer.errors import RunError
 from multilayer.reference import vertical_fipy
 

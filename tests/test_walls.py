@@ -49,6 +49,6 @@ def test_rigid_layer_accelerates_at_the_depth_averaged_rate_above_it(excess):
 def test_without_walls_the_same_layer_slides():
     """The walls are what holds it: remove them and mu = 0.3 < tan(theta) = 0.38."""
     sim = channel(THRESHOLD - 0.02)
-    sim.stresses.walls = None
+    sim.vertical.stresses.walls = None
     sim.advance(0.1)
     assert np.all(sim.u > 0.0)

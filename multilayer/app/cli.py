@@ -24,19 +24,17 @@ SUBCOMMANDS = ("run", "validate", "plugins", "sweep", "calibrate", "sensitivity"
 
 
 class _Version(argparse.Action):
-    """``--version``: the package and FiPy versions (FiPy imported only when asked)."""
+    """``--version``: the package and FiPy versions (from the package metadata)."""
 
     def __init__(self, option_strings: Sequence[str], dest: str, **kwargs: object):
         super().__init__(option_strings, dest, nargs=0, help="show version, commit and FiPy version")
 
     def __call__(self, parser, namespace, values, option_string=None):
-        import fipy
-
-        from multilayer.provenance import provenance
+        from multilayer.provenance import fipy_version, provenance
 
         origin = provenance()
         dirty = ", uncommitted changes" if origin.dirty == "true" else ""
-        print(f"multilayer {origin.version} (commit {origin.commit}{dirty}; FiPy {fipy.__version__})")
+        print(f"multilayer {origin.version} (commit {origin.commit}{dirty}; FiPy {fipy_version()})")
         parser.exit()
 
 

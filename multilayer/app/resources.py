@@ -9,7 +9,7 @@ output_interval)`` of them plus the initial state), each of ``(layers + 2) cells
 doubles (``u``, ``h``, the static interface; time, front, mass).
 
 The exact vertical step keeps, per thread, the piecewise-linear messages of every layer
-of a column (``column_problem.workspace_bytes``): quadratic in the layers, 51 GB at 20 000
+of a column (``engine.vertical.problem.workspace_bytes``): quadratic in the layers, 51 GB at 20 000
 layers, counted once per thread that can run (at most one per column).
 
 The steps are estimated with the Courant step of the fastest initial wave: the front of
@@ -88,7 +88,7 @@ class Budget:
 
 def estimate(scenario: Any) -> Estimate:
     """Peak memory and output size of ``scenario`` (module docstring)."""
-    from multilayer.engine.column_problem import workspace_bytes
+    from multilayer.engine.vertical.problem import workspace_bytes
 
     cells, layers = float(scenario.domain.cells), float(scenario.domain.layers)
     end, interval = scenario.time.end, scenario.time.output_interval
@@ -106,7 +106,7 @@ def steps(scenario: Any) -> Steps:
     fastest of its initial entries (their stack and their surface speeds: nothing the size
     of the mesh is built)."""
     from multilayer.engine import initial_state
-    from multilayer.engine.transport import POSITIVITY_LIMIT
+    from multilayer.engine.transport.reference import POSITIVITY_LIMIT
 
     depth, fastest = 0.0, 0.0
     for entry in scenario.initial:

@@ -48,7 +48,7 @@ from multilayer.app import resources
 from multilayer.app.compilation import compile_notice
 from multilayer.app.lock import locked
 from multilayer.app.progress import Progress
-from multilayer.engine.simulation import Simulation
+from multilayer.app.simulation import Simulation
 from multilayer.errors import InputError, Interrupted, RunError
 from multilayer.io.result_check import check_result
 from multilayer.io.results import (

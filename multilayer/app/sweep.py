@@ -285,7 +285,7 @@ def compile_kernels(member: scenario.Scenario) -> None:
     can corrupt it.  Once this process has written the cache, the workers only read it.
     A member that does not construct or step is left to report its own error when it runs.
     """
-    from multilayer.engine.simulation import Simulation
+    from multilayer.app.simulation import Simulation
 
     numerics = member.numerics.model_copy(update={"threads": 1})
     try:

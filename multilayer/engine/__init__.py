@@ -1,10 +1,9 @@
-"""The numerics of the multilayer model: mesh, transport, stresses, the exact vertical step,
-its compiled column kernel, diagnostics and the time loop (:class:`Simulation`).
+"""The numerics of the multilayer model: mesh, transport, the implicit vertical step,
+the pressure models, the state, diagnostics and the time loop (:class:`Simulation`).
 
-The engine reads a validated scenario but never imports I/O, the command line or the
-plugin host (a test enforces it).
+The engine is built from plain typed configuration (:mod:`multilayer.engine.config`) and
+the plugin instances handed to it; it never imports the scenario files, I/O, the command
+line or the plugin host (tests/test_architecture.py).  Importing it compiles, loads and
+registers nothing: the numba kernels are compiled (or loaded from numba's cache, checked
+against their sources) on their first call (:mod:`multilayer.engine.compiled`).
 """
-
-from multilayer.engine.kernel_cache import clear_if_stale
-
-clear_if_stale()  # before any kernel is loaded from numba's cache (kernel_cache.py)

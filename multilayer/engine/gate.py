@@ -14,7 +14,7 @@ the edge passes: its flux is multiplied by the **opening fraction**
     o_a = clip((e - h z_{a-1}) / (h l_a), 0, 1),
 
 ``h`` the thicker of the two columns on either side of the face (so nothing passes above
-the edge on either side), and the rest of the face is a wall (transport.py).  The opening
+the edge on either side), and the rest of the face is a wall (transport/reference.py).  The opening
 is evaluated once per step, at the middle of the step.
 """
 

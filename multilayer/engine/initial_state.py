@@ -15,23 +15,26 @@ the domain, or narrower than one cell (not represented by the mesh), is an
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
 
 import numpy as np
 
+from multilayer.engine.config import InitialEntry, Points, Velocity
 from multilayer.errors import InputError
-from multilayer.reference.exact import bagnold_shape
-
-if TYPE_CHECKING:  # the engine reads a validated scenario; it never loads one
-    from multilayer.scenario.schema import Bed, InitialShape, Velocity
 
 
-def bed_profile(bed: Bed, x: np.ndarray) -> np.ndarray:
-    """Bed elevation b(x): zero for ``flat``, piecewise linear through ``points``."""
-    if not bed.points:
+def bed_profile(points: Points | None, x: np.ndarray) -> np.ndarray:
+    """Bed elevation b(x): zero without ``points``, piecewise linear through them."""
+    if not points:
         return np.zeros_like(x)
-    px, pb = np.asarray(bed.points, dtype=float).T
+    px, pb = np.asarray(points, dtype=float).T
     return np.interp(x, px, pb)
+
+
+def bagnold_shape(height_fraction: np.ndarray) -> np.ndarray:
+    """Bagnold's profile scaled by its surface speed: ``1 - (1 - z/h)^(3/2)``, ``z/h`` in
+    [0, 1] (GDR MiDi 2004; Tsang, Dalziel & Vriend 2019, eq. 4.1)."""
+    depth = np.clip(1.0 - np.asarray(height_fraction, dtype=float), 0.0, 1.0)
+    return 1.0 - depth**1.5
 
 
 def cell_edges(x_min: float, x_max: float, cells: int) -> np.ndarray:
@@ -60,7 +63,7 @@ def cell_average(px: np.ndarray, py: np.ndarray, edges: np.ndarray) -> np.ndarra
     return np.diff(piecewise_linear_integral(px, py, edges)) / np.diff(edges)
 
 
-def entry_points(entry: InitialShape) -> tuple[np.ndarray, np.ndarray] | None:
+def entry_points(entry: InitialEntry) -> tuple[np.ndarray, np.ndarray] | None:
     """The thickness of a bounded entry as a piecewise-linear function (vertices), or None
     for a ``layer`` (uniform over the whole domain)."""
     if entry.shape == "layer":
@@ -74,7 +77,7 @@ def entry_points(entry: InitialShape) -> tuple[np.ndarray, np.ndarray] | None:
     return px, ph
 
 
-def entry_thickness(entry: InitialShape, edges: np.ndarray) -> np.ndarray:
+def entry_thickness(entry: InitialEntry, edges: np.ndarray) -> np.ndarray:
     """Cell-averaged thickness of one ``initial`` entry on the cells between ``edges`` (N+1,)."""
     points = entry_points(entry)
     if points is None:
@@ -83,10 +86,10 @@ def entry_thickness(entry: InitialShape, edges: np.ndarray) -> np.ndarray:
     return cell_average(*points, edges)
 
 
-def check_entries(entries: Sequence[InitialShape], x_min: float, x_max: float, dx: float, where: str) -> None:
+def check_entries(entries: Sequence[InitialEntry], x_min: float, x_max: float, dx: float, where: str) -> None:
     """:class:`InputError` naming the first entry with material outside the domain
     ``[x_min, x_max]`` or narrower than one cell of width ``dx``; ``where`` names the scenario."""
-    bounds = np.array([x_min, x_max])
+    bounds = np.array([x_min, x_max], dtype=float)
     for index, entry in enumerate(entries):
         points = entry_points(entry)
         if points is None:
@@ -125,7 +128,6 @@ def velocity_profile(velocity: Velocity | None, zeta: np.ndarray, thickness: np.
     if velocity is None:
         return np.zeros_like(zeta)
     if velocity.profile == "plug":
-        assert velocity.speed is not None  # required for a plug (scenario validation)
         return np.full_like(zeta, float(velocity.speed))
     if velocity.profile == "linear":
         return velocity.shear_rate * np.maximum(zeta - velocity.from_height, 0.0)
@@ -133,7 +135,7 @@ def velocity_profile(velocity: Velocity | None, zeta: np.ndarray, thickness: np.
 
 
 def initial_state(
-    entries: Sequence[InitialShape], x: np.ndarray, sigma: np.ndarray, edges: np.ndarray
+    entries: Sequence[InitialEntry], x: np.ndarray, sigma: np.ndarray, edges: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Cell-averaged thickness h (N,) and layer velocities u (L, N) at the cell centres
     ``x`` of the stacked ``initial`` entries (cells between ``edges``, (N+1,))."""

@@ -2,42 +2,69 @@
 
 numba caches a compiled function in a directory of its choice and keys it by the
 contents of that function's module file only.  A kernel that calls a kernel of another
-module (``newton_kernel`` calls ``sheared_columns``, ``column_kernel``,
-``newton_control``, ``viscous_law``, ``stress_kernel``) holds the callee's code in its
-own cache entry, so an edit of the callee alone, a ``git pull`` into an editable
-installation or an upgrade that changes it alone would leave the caller running the old
-code.  :func:`clear_if_stale` compares a digest of the kernel sources (the engine's
-modules that use numba) with the one stored in the cache directory and deletes the
-engine's cached kernels when they differ: every kernel is then compiled again on its
-first use.
+module (the fused Newton step calls the column solve, the compiled forms, the Newton
+control, ...) holds the callee's code in its own cache entry, so an edit of the callee
+alone, a ``git pull`` into an editable installation or an upgrade that changes it alone
+would leave the caller running the old code.  :func:`ensure_fresh` compares a digest of
+the kernel sources (the engine's modules that use numba) with the one stored in each
+cache directory and deletes the engine's cached kernels there when they differ: every
+kernel is then compiled again on its first use.
 
-The directory is the one numba chooses for the engine's modules: ``__pycache__`` beside
-them when it can be written and ``NUMBA_CACHE_DIR`` is not set; otherwise numba's own
-cache locators say where (a subdirectory of ``NUMBA_CACHE_DIR``, or of the user's cache
-directory for an installation without write access), at the cost of importing numba
-(about 0.25 s) when the engine is imported.
+It runs once per process, lazily: the engine's kernels are compiled through
+:func:`multilayer.engine.compiled.jit`, whose cache calls it before the first kernel is
+loaded or saved; importing the engine does nothing.  Two processes starting at once after
+an upgrade take turns (a lock file in each directory, where ``fcntl`` exists): the first
+deletes the old kernels and writes the new digest (written whole, by renaming), the second
+then finds the digest current and keeps what the first has compiled since.
+
+The directories are the ones numba chooses for the engine's modules: ``__pycache__``
+beside them when it can be written and ``NUMBA_CACHE_DIR`` is not set; otherwise numba's
+own cache locators say where (under ``NUMBA_CACHE_DIR``, or the user's cache directory for
+an installation without write access).
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import tempfile
+import threading
+import types
+from collections.abc import Iterator
 from pathlib import Path
 
+try:
+    import fcntl
+except ImportError:  # not on POSIX: no lock (a concurrent start may compile a kernel twice)
+    fcntl = None  # type: ignore[assignment]
+
 ENGINE = Path(__file__).parent
-IN_TREE = ENGINE / "__pycache__"
 STAMP = "kernels.digest"
-"""The digest's file name, in the cache directory."""
+"""The digest's file name, in each cache directory."""
+LOCK = "kernels.lock"
+"""The lock file's name, in each cache directory."""
+
+_checked = False
+_lock = threading.Lock()
+CLEARED: list[Path] = []
+"""The cache directories this process found stale and cleared."""
+
+
+MARKERS = (b"numba", b"multilayer.engine.compiled")
+"""A module whose text names one of these holds kernels (or code compiled into them)."""
+
+
+def kernel_modules() -> list[Path]:
+    """The engine's modules that use numba (:data:`MARKERS`), in path order."""
+    return [path for path in sorted(ENGINE.rglob("*.py")) if any(m in path.read_bytes() for m in MARKERS)]
 
 
 def sources_digest() -> str:
-    """SHA-256 of the engine's modules that use numba, in name order."""
+    """SHA-256 of the engine's modules that use numba, with their paths in the engine."""
     digest = hashlib.sha256()
-    for path in sorted(ENGINE.glob("*.py")):
-        text = path.read_bytes()
-        if b"numba" in text:
-            digest.update(path.name.encode() + b"\0" + text)
+    for path in kernel_modules():
+        digest.update(path.relative_to(ENGINE).as_posix().encode() + b"\0" + path.read_bytes())
     return digest.hexdigest()
 
 
@@ -52,46 +79,89 @@ def _writable(directory: Path) -> bool:
     return True
 
 
-def cache_directory() -> Path | None:
-    """The directory numba caches the engine's kernels in; None where it cannot cache.
+def _numba_cache_path(module: Path) -> Path | None:
+    """Where numba's cache locators put the kernels of ``module`` (None: nowhere): asked
+    of numba's ``FunctionCache`` for a function of that file."""
+    from numba.core.caching import FunctionCache
+
+    def probe() -> None:
+        return None
+
+    function = types.FunctionType(probe.__code__.replace(co_filename=str(module)), {})
+    try:
+        return Path(FunctionCache(function).cache_path)
+    except RuntimeError:  # no locator: numba caches nothing
+        return None
+
+
+def cache_directories() -> list[Path]:
+    """The directories numba caches the engine's kernels in, one per directory of kernel
+    modules (none where it cannot cache).
 
     Without ``NUMBA_CACHE_DIR`` and ``NUMBA_CACHE_LOCATOR_CLASSES`` in the environment,
     nor a ``.numba_config.yaml`` in the working directory (numba reads its settings from
-    it), numba caches in a writable ``__pycache__`` beside the module first, and that is
-    found without importing numba.  Otherwise numba's ``FunctionCache`` is asked for a
-    function of the engine's directory (its locators place every module of a directory
-    in the same directory)."""
+    it), numba caches in a writable ``__pycache__`` beside the module first, found without
+    asking numba.  Otherwise numba's ``FunctionCache`` is asked for a function of each
+    directory (its locators place every module of a directory in the same directory)."""
     configured = (
         os.environ.get("NUMBA_CACHE_DIR")
         or os.environ.get("NUMBA_CACHE_LOCATOR_CLASSES")
         or Path(".numba_config.yaml").exists()
     )
-    if not configured and _writable(IN_TREE):
-        return IN_TREE
-    from numba.core.caching import FunctionCache
+    found: list[Path] = []
+    for module in {path.parent: path for path in kernel_modules()}.values():
+        in_tree = module.parent / "__pycache__"
+        directory = in_tree if not configured and _writable(in_tree) else _numba_cache_path(module)
+        if directory is not None and directory not in found:
+            found.append(directory)
+    return found
 
+
+@contextlib.contextmanager
+def _locked(directory: Path) -> Iterator[None]:
+    """Hold the lock file of ``directory`` (other processes checking it wait)."""
+    if fcntl is None:
+        yield
+        return
+    with open(directory / LOCK, "a") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def clear_if_stale(directory: Path, digest: str | None = None) -> bool:
+    """Delete the engine's cached kernels in ``directory`` if the kernel sources (their
+    ``digest``, by default :func:`sources_digest`) changed since they were cached (True if
+    they did).  Where the directory cannot be written, nothing is done."""
+    current = sources_digest() if digest is None else digest
+    stamp = directory / STAMP
     try:
-        return Path(FunctionCache(sources_digest).cache_path)
-    except RuntimeError:  # no locator: numba caches nothing
-        return None
-
-
-def clear_if_stale(directory: Path | None = None) -> bool:
-    """Delete the engine's cached kernels in ``directory`` (by default
-    :func:`cache_directory`) if the kernel sources changed since they were cached (True
-    if it did).  Where the directory cannot be written, nothing is done."""
-    cache = directory if directory is not None else cache_directory()
-    if cache is None:
-        return False
-    stamp = cache / STAMP
-    try:
-        current = sources_digest()
-        if stamp.is_file() and stamp.read_text() == current:
-            return False
-        cache.mkdir(parents=True, exist_ok=True)
-        for entry in [*cache.glob("*.nbi"), *cache.glob("*.nbc")]:
-            entry.unlink(missing_ok=True)
-        stamp.write_text(current)
+        directory.mkdir(parents=True, exist_ok=True)
+        with _locked(directory):
+            if stamp.is_file() and stamp.read_text() == current:
+                return False
+            for entry in [*directory.glob("*.nbi"), *directory.glob("*.nbc")]:
+                entry.unlink(missing_ok=True)
+            with tempfile.NamedTemporaryFile("w", dir=directory, prefix=STAMP, delete=False) as new:
+                new.write(current)
+            os.replace(new.name, stamp)  # a reader sees the old digest or the new one, never a part
     except OSError:
         return False
     return True
+
+
+def ensure_fresh() -> None:
+    """:func:`clear_if_stale` in every cache directory of the engine's kernels, once per
+    process (called before the first kernel is loaded or compiled)."""
+    global _checked
+    if _checked:
+        return
+    with _lock:
+        if not _checked:
+            digest = sources_digest()
+            for directory in cache_directories():
+                if clear_if_stale(directory, digest):
+                    CLEARED.append(directory)
+            _checked = True

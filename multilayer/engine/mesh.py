@@ -14,6 +14,7 @@ that never use it (docs/performance.md).
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from functools import cached_property
 from typing import TYPE_CHECKING
 
@@ -21,6 +22,26 @@ import numpy as np
 
 if TYPE_CHECKING:
     import fipy
+
+
+def cell_centres(x_min: float, x_max: float, cells: int) -> np.ndarray:
+    """The centres ``x_min + (i + 1/2) dx`` of ``cells`` equal cells on ``[x_min, x_max]`` (m)."""
+    dx = (x_max - x_min) / cells
+    return float(x_min) + dx * (np.arange(cells) + 0.5)
+
+
+def layer_fractions(layers: int, rule: str | Sequence[float] | Mapping[str, float] = "uniform") -> np.ndarray:
+    """Layer fractions ``l_1 .. l_L`` (bottom to top), (L,), summing to 1, by the rule of the
+    scenario key ``domain.layer_fractions``: ``uniform``, ``1/L``; a list, as given
+    (renormalised to round-off); ``{geometric: r}``, ``l_a`` proportional to ``r**(a-1)``
+    (thin layers at the bed for r > 1)."""
+    if isinstance(rule, Mapping):
+        weights = float(rule["geometric"]) ** np.arange(layers)
+    elif isinstance(rule, str):
+        weights = np.ones(layers)
+    else:
+        weights = np.asarray(rule, dtype=float)
+    return weights / weights.sum()
 
 
 class LayeredMesh:
@@ -33,7 +54,7 @@ class LayeredMesh:
         self.x_min = float(x_min)
         self.dx = (x_max - x_min) / self.cells
         #: cell centres along the slope (N,)
-        self.x = self.x_min + self.dx * (np.arange(self.cells) + 0.5)
+        self.x = cell_centres(x_min, x_max, self.cells)
         #: layer fractions l_alpha (L,)
         self.fractions = fractions
         #: interface positions as a fraction of h, from the bed (0) to the surface (1), (L+1,)

@@ -6,7 +6,7 @@ what the simulation holds when the check fails):
 - ``h`` and every ``u_a`` are finite and ``h >= 0``;
 - mass balances the boundary fluxes.  The finite-volume update changes the mass
   ``sum h dx`` only through the two end faces, and the transport reports the mass that
-  crossed each of them in the step (``transport.step_boundary_mass``: the face fluxes of
+  crossed each of them in the step (``transport.reference.step_boundary_mass``: the face fluxes of
   the stages with their Heun weights, the inflow face included).  The change of mass
   minus that net inflow is round-off, bounded by ``64 eps`` times the scale of the
   terms summed, ``N dx max h + |left| + |right|``; on walls and periodic sides the
@@ -31,8 +31,8 @@ import math
 from collections.abc import Callable
 
 import numpy as np
-from numba import njit
 
+from multilayer.engine.compiled import jit
 from multilayer.errors import RunError
 
 ROUND_OFF = 64 * np.finfo(float).eps
@@ -165,7 +165,7 @@ def _bits(u: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(u, dtype=float).view(np.uint64)
 
 
-@njit(cache=True)
+@jit
 def _finite(bits: np.ndarray, lo: int, hi: int) -> bool:
     """True if every value of the columns ``lo .. hi-1`` of ``bits`` (L, N: the floats of
     ``_bits``) is finite: one pass testing the exponent (all ones for an infinity or a

@@ -37,7 +37,7 @@ import yaml
 from multilayer.engine import diagnostics
 from multilayer.errors import InputError
 from multilayer.io.netcdf_layout import LayoutError, read_layout
-from multilayer.io.results import NETCDF_LOCK, VARIABLES, result_path
+from multilayer.io.result_format import NETCDF_LOCK, VARIABLES, result_path
 
 Use = Literal["answer", "records", "resume"]
 STATUSES = ("completed", "failed", "interrupted", "running")

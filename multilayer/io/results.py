@@ -30,125 +30,24 @@ import hashlib
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Final, Literal
+from typing import Any, Literal
 
-import fipy
 import netCDF4
 import numpy as np
 import xarray as xr
-from xarray.backends.locks import HDF5_LOCK, NETCDFC_LOCK, combine_locks
 
 from multilayer.errors import InputError, RunError
 from multilayer.io import disk
 from multilayer.io.netcdf_layout import HEADER_SPACE, NUMRECS_OFFSET, LayoutError, read_layout
-from multilayer.provenance import provenance
-
-RESULT_FILE = "result.nc"
-CHECKPOINT_FILE = "checkpoint.npz"
-FORMAT: Final = "NETCDF3_64BIT_OFFSET"
-#: netCDF-C is not thread-safe and netCDF4-python releases the GIL in its calls: the runs of a
-#: thread cluster write their result files while the study writes its own through xarray,
-#: which holds these same locks around every netCDF call, so the writer holds them too
-NETCDF_LOCK: Final = combine_locks([NETCDFC_LOCK, HDF5_LOCK])
-
-#: CF attributes of every coordinate and variable: (dimensions, attributes).
-VARIABLES: dict[str, tuple[tuple[str, ...], dict[str, str]]] = {
-    "time": (
-        ("time",),
-        {
-            "units": "s",
-            "long_name": "simulated time since release",
-            "standard_name": "time",
-            "axis": "T",
-        },
-    ),
-    "x": (
-        ("x",),
-        {
-            "units": "m",
-            "long_name": "downslope position of the cell centre along the plane",
-            "axis": "X",
-            "bounds": "x_bnds",
-        },
-    ),
-    "x_bnds": (
-        ("x", "nv"),
-        {
-            "units": "m",
-            "long_name": "downslope positions of the cell edges",
-        },
-    ),
-    "layer": (
-        ("layer",),
-        {
-            "units": "1",
-            "long_name": "layer index, 1 at the bed",
-            "axis": "Z",
-            "positive": "up",
-        },
-    ),
-    "sigma": (
-        ("layer",),
-        {
-            "units": "1",
-            "long_name": "height of the layer centre as a fraction of h",
-            "positive": "up",
-            "bounds": "sigma_bnds",
-        },
-    ),
-    "sigma_bnds": (
-        ("layer", "nv"),
-        {
-            "units": "1",
-            "long_name": "heights of the layer interfaces as fractions of h",
-        },
-    ),
-    "bed": (
-        ("x",),
-        {
-            "units": "m",
-            "long_name": "bed elevation b normal to the plane",
-        },
-    ),
-    "h": (
-        ("time", "x"),
-        {
-            "units": "m",
-            "long_name": "flow thickness normal to the plane",
-        },
-    ),
-    "u": (
-        ("time", "layer", "x"),
-        {
-            "units": "m s-1",
-            "long_name": "downslope layer velocity",
-            "coordinates": "sigma",
-        },
-    ),
-    "static_interface": (
-        ("time", "x"),
-        {
-            "units": "m",
-            "long_name": "height above the bed of the top of the static region",
-            "comment": "0: flowing down to the bed; h: the whole column at rest",
-        },
-    ),
-    "front": (
-        ("time",),
-        {
-            "units": "m",
-            "long_name": "downslope-most cell centre with h above threshold",
-        },
-    ),
-    "mass": (
-        ("time",),
-        {
-            "units": "m2",
-            "long_name": "integral of h over x (volume per unit width)",
-        },
-    ),
-}
-
+from multilayer.io.result_format import (  # noqa: F401 (this module's names, as before)
+    CHECKPOINT_FILE,
+    FORMAT,
+    NETCDF_LOCK,
+    RESULT_FILE,
+    VARIABLES,
+    result_path,
+)
+from multilayer.provenance import fipy_version, provenance
 
 FAILURE_LENGTH = 8000
 """Characters of the failure message kept in the ``failure`` attribute (run.log has it all)."""
@@ -216,7 +115,7 @@ class ResultWriter:
                 "institution": _text(os.environ.get("MULTILAYER_INSTITUTION", "not specified")),
                 "source": f"multilayer {origin.version} (commit {origin.commit}): multilayer "
                 f"shallow-flow model of dense granular flows; X-sigma mesh and reference formulations "
-                f"in FiPy {fipy.__version__}, state in numpy, transport and vertical step by numba "
+                f"in FiPy {fipy_version()}, state in numpy, transport and vertical step by numba "
                 f"kernels tested equal to them (transport_solver: {scenario.numerics.transport_solver}, "
                 f"vertical_solver: {scenario.numerics.vertical_solver})",
                 "history": _text(f"{_now()} multilayer run {scenario.source or scenario.name}"),
@@ -230,7 +129,7 @@ class ResultWriter:
                 "multilayer_version": origin.version,
                 "multilayer_commit": origin.commit,
                 "multilayer_dirty": origin.dirty,
-                "fipy_version": fipy.__version__,
+                "fipy_version": fipy_version(),
             }
         )
 
@@ -337,12 +236,6 @@ def _text(value: str) -> str:
 
 def _now() -> str:
     return _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
-
-
-def result_path(path: str | os.PathLike) -> Path:
-    """``path`` itself, or the ``result.nc`` inside it when it is a directory."""
-    path = Path(path)
-    return path / RESULT_FILE if path.is_dir() else path
 
 
 def open_result(

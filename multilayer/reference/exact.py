@@ -179,12 +179,6 @@ def inertial_number_for_slope(mu: Callable[[float], float], theta_deg: float, up
     return float(brentq(lambda i: mu(i) - target, 0.0, upper, xtol=1e-14, rtol=1e-13))
 
 
-def bagnold_shape(height_fraction: np.ndarray) -> np.ndarray:
-    """Bagnold's profile scaled by its surface speed: ``1 - (1 - z/h)^(3/2)``, ``z/h`` in [0, 1]."""
-    depth = np.clip(1.0 - np.asarray(height_fraction, dtype=float), 0.0, 1.0)
-    return 1.0 - depth**1.5
-
-
 @dataclass(frozen=True)
 class BagnoldFlow:
     """Steady uniform mu(I) flow on a no-slip base (Tsang et al. 2019, eq. 4.1-4.3, u_s = 0).

@@ -1,6 +1,6 @@
 """Reference formulation of the non-hydrostatic pressure projection as FiPy terms.
 
-The fast path (``multilayer.engine.nonhydrostatic.project``) assembles the constraint
+The fast path (``multilayer.engine.pressure.non_hydrostatic.projection.project``) assembles the constraint
 ``E`` and solves ``A lam = E V*`` with ``A = E M^-1 E^T`` by banded Cholesky.  Here the same
 problem is written on the X-sigma ``Grid2D`` (``dx``, ``dy = l_a h``) for flat interfaces
 (uniform ``h``, flat bed) and every cell moving, where ``A`` splits into two diffusion
@@ -50,7 +50,7 @@ def project(
     periodic: bool = False,
     pressure_nodes: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The projection of ``nonhydrostatic.project`` for a uniform thickness ``h`` on a flat
+    """The projection of ``projection.project`` for a uniform thickness ``h`` on a flat
     bed with every cell moving: returns the new ``u``, ``w`` and the pressures ``q`` (L, N),
     with the pressure on the bottom interfaces of the layers ``pressure_nodes`` (default:
     every layer) interpolated on the others."""

@@ -1,7 +1,7 @@
 """Reference formulation of the implicit vertical step as FiPy terms.
 
 Per column the step minimises the energy ``E(u)`` of a
-:class:`~multilayer.engine.column_problem.ColumnProblem` (docs/model.md, "The implicit
+:class:`~multilayer.engine.vertical.problem.ColumnProblem` (docs/model.md, "The implicit
 vertical step")::
 
     E(u) = sum_a [ m_a/(2 dt) (u_a - u*_a)^2 + w_a |u_a| + cw_a/2 u_a^2 ]
@@ -45,7 +45,7 @@ from collections.abc import Sequence
 import fipy as fp
 import numpy as np
 
-from multilayer.engine.column_problem import ColumnProblem
+from multilayer.engine.vertical.problem import ColumnProblem
 from multilayer.errors import RunError
 
 PENALTY = 1.0

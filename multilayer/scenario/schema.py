@@ -15,6 +15,7 @@ from typing import Annotated, Any, Literal, get_args
 import numpy as np
 import yaml
 from pydantic import (
+    ConfigDict,
     Field,
     PrivateAttr,
     Strict,
@@ -25,9 +26,13 @@ from pydantic import (
     model_validator,
 )
 
+from multilayer.engine import basal
+from multilayer.engine.mesh import cell_centres
+from multilayer.engine.pressure import model as pressure_models
+from multilayer.engine.threads import THREADS_ACCEPTED
+from multilayer.engine.transport import boundaries as lateral
 from multilayer.errors import InputError
 from multilayer.plugins import host as plugins
-from multilayer.plugins.contract import Material, Rheology
 from multilayer.scenario import limits, messages, profiles
 from multilayer.scenario.messages import (
     StrictModel,
@@ -94,25 +99,6 @@ class Domain(StrictModel):
             raise invalid(f"got {value!r}", accepted, "layer_fractions")
         return self
 
-    def centres(self) -> np.ndarray:
-        """The cell centres ``x_min + (i + 1/2) dx`` (m), as the engine's mesh computes them."""
-        dx = (self.x_max - self.x_min) / self.cells
-        return self.x_min + dx * (np.arange(self.cells) + 0.5)
-
-    def fractions(self) -> np.ndarray:
-        """Layer fractions l_1..l_L (bottom to top), shape (L,), summing to 1.
-
-        ``uniform``: 1/L; a list: as given (renormalised to round-off);
-        ``{geometric: r}``: l_a proportional to r**(a-1) (thin layers at the bed for r > 1).
-        """
-        if isinstance(self.layer_fractions, list):
-            weights = np.asarray(self.layer_fractions, dtype=float)
-        elif isinstance(self.layer_fractions, dict):
-            weights = float(self.layer_fractions["geometric"]) ** np.arange(self.layers)
-        else:
-            weights = np.ones(self.layers)
-        return weights / weights.sum()
-
 
 class MaterialSpec(StrictModel):
     """Material constants (SI)."""
@@ -126,11 +112,6 @@ class MaterialSpec(StrictModel):
         if self.particle_density is None:
             self.particle_density = self.density
         return self
-
-    def as_material(self) -> Material:
-        """The :class:`multilayer.Material` handed to rheology plugins."""
-        rho_p = self.density if self.particle_density is None else self.particle_density
-        return Material(self.density, self.grain_diameter, rho_p)
 
 
 class PluginSpec(StrictModel):
@@ -181,35 +162,47 @@ class PluginSpec(StrictModel):
             raise invalid(f"{self.name}: {exc}", plugins.signature_text(cls)) from None
         return self.model_copy(update={"params": params})
 
-    def instantiate(self) -> Rheology:
-        """The plugin instance this spec describes."""
-        return plugins.instantiate(self)
-
 
 class BaseZone(StrictModel):
-    """Basal condition on [x_min, x_max] (unbounded where omitted)."""
+    """A basal condition (``multilayer.engine.basal``) with its parameters on
+    [x_min, x_max] (unbounded where omitted); in YAML flat, ``{condition: coulomb, mu: 0.3}``."""
 
-    condition: Literal["no_slip", "coulomb", "free_slip"] = field(
-        ..., "no_slip, coulomb (with mu) or free_slip"
-    )
-    mu: float | None = field(None, "a friction coefficient >= 0 (coulomb only)", ge=0)
+    model_config = ConfigDict(extra="allow")
+
+    condition: str = field(..., basal.accepted())
     x_min: float | None = field(None, "a number (m)")
     x_max: float | None = field(None, "a number > x_min (m)")
 
     @model_validator(mode="after")
     def _check(self) -> BaseZone:
-        check_kind(
-            self,
-            "condition",
-            {
-                "no_slip": ((), ("x_min", "x_max")),
-                "coulomb": (("mu",), ("x_min", "x_max")),
-                "free_slip": ((), ("x_min", "x_max")),
-            },
-        )
+        condition = basal.CONDITIONS.get(self.condition)
+        if condition is None:
+            raise invalid(f"got {self.condition!r}", basal.accepted(), "condition")
+        given = self.model_extra or {}
+        accepted = ", ".join(("condition", *condition.parameters, "x_min", "x_max"))
+        for key in condition.parameters:
+            if key not in given:
+                raise invalid(f"condition {self.condition} requires {key}", accepted, key)
+        for key, value in given.items():
+            if key not in condition.parameters:
+                raise invalid(f"not a key of condition {self.condition}", accepted, key)
+            number = type(value) in (int, float) and np.isfinite(value)
+            if not (number and value >= 0):
+                raise invalid(f"got {value!r}", condition.parameters[key], key)
         if self.x_min is not None and self.x_max is not None:
             ordered(self.x_min, self.x_max)
         return self
+
+    @property
+    def parameters(self) -> dict[str, float]:
+        """The condition's parameters (numbers >= 0)."""
+        return {key: float(value) for key, value in (self.model_extra or {}).items()}
+
+    @model_serializer
+    def _flat(self) -> dict[str, Any]:
+        data: dict[str, Any] = {"condition": self.condition, **(self.model_extra or {})}
+        data.update({key: getattr(self, key) for key in ("x_min", "x_max") if getattr(self, key) is not None})
+        return data
 
 
 def _file_in(info: ValidationInfo, name: Path) -> Path:
@@ -316,7 +309,9 @@ class Bed(StrictModel):
         if self.profile not in ("file", "dem") or not self.points or len(self.points) <= domain.cells + 2:
             return
         px, pb = np.asarray(self.points, dtype=float).T
-        x = np.concatenate([[domain.x_min], domain.centres(), [domain.x_max]])
+        x = np.concatenate(
+            [[domain.x_min], cell_centres(domain.x_min, domain.x_max, domain.cells), [domain.x_max]]
+        )
         self.points = np.column_stack([x, np.interp(x, px, pb)]).tolist()
 
     @model_serializer(mode="wrap")
@@ -409,29 +404,34 @@ class Inflow(StrictModel):
     velocity: Velocity = field(..., "a velocity profile")
 
 
-Boundary = Literal["wall", "outflow", "inflow", "periodic"]
-
-
 class Boundaries(StrictModel):
-    """Boundary conditions at x_min (left) and x_max (right)."""
+    """Boundary conditions at x_min (left) and x_max (right) (``multilayer.engine.transport.boundaries``)."""
 
-    left: Boundary = field("wall", "wall, outflow, inflow or periodic")
-    right: Boundary = field("wall", "wall, outflow, inflow or periodic")
+    left: str = field("wall", lateral.accepted())
+    right: str = field("wall", lateral.accepted())
     inflow: Inflow | None = field(None, "{thickness, velocity} (with an inflow side)")
+
+    @field_validator("left", "right")
+    @classmethod
+    def _known(cls, value: str) -> str:
+        if value not in lateral.BOUNDARIES:
+            raise invalid(f"got {value!r}", lateral.accepted())
+        return value
 
     @model_validator(mode="after")
     def _check(self) -> Boundaries:
-        if (self.left == "periodic") != (self.right == "periodic"):
-            key = "right" if self.left == "periodic" else "left"
-            raise invalid("periodic must be set on both sides", "periodic on both sides", key)
-        has_inflow = "inflow" in (self.left, self.right)
-        if has_inflow and self.inflow is None:
+        left, right = lateral.BOUNDARIES[self.left], lateral.BOUNDARIES[self.right]
+        if left.wraps != right.wraps:
+            key, name = ("right", left.name) if left.wraps else ("left", right.name)
+            raise invalid(f"{name} must be set on both sides", f"{name} on both sides", key)
+        fed = [side.name for side in (left, right) if side.needs_state]
+        if fed and self.inflow is None:
             raise invalid(
-                "an inflow side requires boundaries.inflow",
+                f"an {fed[0]} side requires boundaries.inflow",
                 "{thickness: h, velocity: {profile: plug, speed: u}}",
                 "inflow",
             )
-        if self.inflow is not None and not has_inflow:
+        if self.inflow is not None and not fed:
             raise invalid("inflow given but no side is inflow", "left: inflow or right: inflow", "inflow")
         return self
 
@@ -475,7 +475,7 @@ ExpectKind = Literal["regression", "reference"]
 EXPECT_KINDS: tuple[str, ...] = get_args(ExpectKind)
 ExactSolutionName = Literal["coulomb_dam_break", "inviscid_simple_shear", "bagnold", "granular_blasius"]
 EXACT_SOLUTIONS: tuple[str, ...] = get_args(ExactSolutionName)
-"""Exact solutions an ``expect`` entry can compare with (multilayer.testing.exact_solutions)."""
+"""Exact solutions an ``expect`` entry can compare with (multilayer.app.exact_solutions)."""
 
 
 class ExactComparison(StrictModel):
@@ -537,9 +537,6 @@ class Expect(StrictModel):
         return self
 
 
-THREADS_ACCEPTED = "auto or an integer >= 1 (the environment variable MULTILAYER_THREADS wins)"
-
-
 class Numerics(StrictModel):
     """Solver settings; the defaults suit every shipped scenario."""
 
@@ -560,25 +557,41 @@ class Numerics(StrictModel):
         raise invalid(f"got {value!r}", THREADS_ACCEPTED)
 
 
-DEFAULT_PRESSURE_LAYERS = 4  # the choice of docs/nonhydrostatic.md, "Fewer pressure layers"
-
-
 class Model(StrictModel):
-    """Model options: the pressure that enters the stresses (docs/nonhydrostatic.md)."""
+    """Model options: the pressure that enters the stresses and its options, flat in YAML
+    (``{pressure: non_hydrostatic, pressure_layers: 4}``; docs/nonhydrostatic.md)."""
 
-    pressure: Literal["hydrostatic", "bim2016", "non_hydrostatic"] = field(
-        "hydrostatic", "hydrostatic, bim2016 or non_hydrostatic"
-    )
-    pressure_layers: int | None = field(
-        None,
-        "an integer from 1 to domain.layers (with pressure: non_hydrostatic; default "
-        f"min({DEFAULT_PRESSURE_LAYERS}, layers))",
-        strict=True,
-    )
+    model_config = ConfigDict(extra="allow")
 
-    def resolved_pressure_layers(self, layers: int) -> int:
-        """The pressure layers of the non-hydrostatic option (docs/nonhydrostatic.md)."""
-        return min(DEFAULT_PRESSURE_LAYERS, layers) if self.pressure_layers is None else self.pressure_layers
+    pressure: str = field("hydrostatic", pressure_models.accepted())
+
+    @field_validator("pressure")
+    @classmethod
+    def _known(cls, value: str) -> str:
+        if value not in pressure_models.models():
+            raise invalid(f"got {value!r}", pressure_models.accepted())
+        return value
+
+    @property
+    def options(self) -> dict[str, Any]:
+        """The options given for the pressure model (``model.<option>``)."""
+        return dict(self.model_extra or {})
+
+    def check_options(self, layers: int) -> None:
+        """Each option given must be one of the pressure model's, with a value it accepts
+        for ``layers`` layers (an option of another model is named with that model)."""
+        chosen = pressure_models.models()[self.pressure]
+        for key, value in self.options.items():
+            owner = next((m for m in pressure_models.models().values() if key in m.options), None)
+            if owner is None:
+                raise invalid("unknown key", ", ".join(("pressure", *chosen.options)), f"model.{key}")
+            option = owner.options[key]
+            if owner is not chosen or not option.valid(value, layers):
+                raise invalid(
+                    f"got {value!r} with pressure {self.pressure} and {layers} layers",
+                    f"{option.accepted.format(layers=layers)}, with pressure: {owner.name}",
+                    f"model.{key}",
+                )
 
 
 class Scenario(StrictModel):
@@ -625,14 +638,7 @@ class Scenario(StrictModel):
     def _check(self) -> Scenario:
         self.bed.in_slope_frame(self.slope_deg)
         self.bed.resample(self.domain)
-        count = self.model.pressure_layers
-        misplaced = self.model.pressure != "non_hydrostatic"
-        if count is not None and (misplaced or not 1 <= count <= self.domain.layers):
-            raise invalid(
-                f"got {count!r} with pressure {self.model.pressure} and {self.domain.layers} layers",
-                f"an integer from 1 to domain.layers = {self.domain.layers}, with pressure: non_hydrostatic",
-                "model.pressure_layers",
-            )
+        self.model.check_options(self.domain.layers)
         if self.walls is not None and self.domain.width is None:
             raise invalid(
                 "walls need the channel width domain.width",

@@ -1,1 +1,2 @@
-"""Regression and reference expectations of scenario files, and their pytest plugin."""
+"""The pytest plugin of the ``expect:`` lists of scenario files (the checks themselves:
+:mod:`multilayer.app.expectations`)."""

@@ -6,7 +6,7 @@ carries a top-level ``expect:`` list once, with one test item per entry named
 ``<kind>[<quantity>]``: ``regression[front_final]`` for a value pinned from the code's
 own output, ``reference[mass_final]`` for an exact or published value (so
 ``pytest scenarios/ -k reference`` runs the validations only).  A failing item shows the
-expected vs obtained table of :mod:`multilayer.testing.expectations`.
+expected vs obtained table of :mod:`multilayer.app.expectations`.
 
 Only files named on the command line, or lying directly in a directory named there, are
 collected: a plain ``pytest`` run (``testpaths``) or a recursive directory walk never
@@ -71,8 +71,8 @@ class ScenarioFile(pytest.File):
         """Run the scenario once (on first use) and return its outcomes, or the error message."""
         if not hasattr(self, "_outcomes"):
             from multilayer import scenario as scenarios
+            from multilayer.app import expectations as expect
             from multilayer.errors import InputError, RunError
-            from multilayer.testing import expectations as expect
 
             try:
                 scenario = scenarios.load(self.path)
@@ -90,7 +90,7 @@ def _item_name(entry: object) -> str:
         return "expect"
     exact = entry.get("exact")
     if isinstance(exact, dict):
-        from multilayer.testing.expectations import exact_label
+        from multilayer.app.expectations import exact_label
 
         what = exact_label(*(exact.get(key, "unknown") for key in ("solution", "field", "norm")))
     else:

@@ -8,9 +8,9 @@ from dataclasses import dataclass
 
 import xarray as xr
 
+from multilayer.app import exact_solutions
 from multilayer.scenario import Scenario
 from multilayer.scenario.schema import ExactComparison
-from multilayer.testing import exact_solutions
 
 
 @dataclass(frozen=True)

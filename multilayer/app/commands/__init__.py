@@ -1,6 +1,7 @@
 """CLI subcommands: each module defines ``HELP``, ``add_arguments(parser)`` and ``main(args)``."""
 
 import argparse
+import importlib
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -16,6 +17,29 @@ def positive_int(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}")
     return value
+
+
+STUDIES_EXTRA = "pip install 'multilayer[studies]'"
+"""How to install what the study commands need (Dask distributed, SALib)."""
+
+
+def require(command: str, *modules: str) -> None:
+    """Raise :class:`~multilayer.errors.InputError` (exit code 2) naming what ``command``
+    needs and how to install it, unless every one of ``modules`` can be imported (the
+    packages of the optional ``studies`` extra)."""
+    from multilayer.errors import InputError
+
+    missing = []
+    for module in modules:
+        try:
+            importlib.import_module(module)
+        except ImportError:
+            missing.append(module)
+    if missing:
+        raise InputError(
+            f"multilayer {command} needs {' and '.join(missing)} (not installed); "
+            f"accepted: install the studies extra with {STUDIES_EXTRA}"
+        )
 
 
 def add_cluster_arguments(parser: argparse.ArgumentParser) -> None:

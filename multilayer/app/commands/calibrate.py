@@ -4,8 +4,9 @@ Global search (differential evolution, one Dask batch per generation), local ref
 (trust-region least squares) and a Laplace covariance at the best fit. DIR is -o/--output,
 else the file's output.directory, else results/<calibration file name>; it receives
 calibration.nc and members/<id>/ (one run each). Rerunning the same command after an
-interruption reuses every completed run. Exit code 2 if the file is invalid, 1 if no run
-succeeded. Details: docs/calibration.md.
+interruption reuses every completed run. Exit code 2 if the file is invalid or Dask is not
+installed (pip install 'multilayer[studies]'), 1 if no run succeeded. Details:
+docs/calibration.md.
 Example: multilayer calibrate docs/examples/twin.yaml --workers 2
 """
 
@@ -19,6 +20,7 @@ from multilayer.app.commands import (
     add_study_arguments,
     check_resume,
     cluster_description,
+    require,
     resume_command,
     study_ensemble,
 )
@@ -33,6 +35,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Validate the file, calibrate, write calibration.nc, print the fit."""
+    require("calibrate", "dask.distributed")
     from multilayer.app import calibration as calibrations
     from multilayer.errors import Interrupted
     from multilayer.io.study import load_calibration

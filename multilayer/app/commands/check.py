@@ -15,9 +15,9 @@ import argparse
 import sys
 
 from multilayer import scenario as scenarios
+from multilayer.app import expectations as expect
 from multilayer.app.commands import directory
 from multilayer.errors import InputError, RunError
-from multilayer.testing import expectations as expect
 
 HELP = "run scenario files and check their expect: lists (regression pins and reference values)"
 

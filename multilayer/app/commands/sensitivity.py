@@ -5,7 +5,7 @@ and total indices with bootstrap confidence intervals. DIR is -o/--output, else 
 file's output.directory, else results/<file name>; it receives sensitivity.nc and
 members/<id>/. Rerunning the command after an interruption reuses every completed run.
 Exit code 1 if a run failed (the indices are then not computed), 2 if the file is
-invalid. Needs SALib (pip install 'multilayer[calibration]'). Details: docs/calibration.md.
+invalid. Needs Dask and SALib (pip install 'multilayer[studies]'). Details: docs/calibration.md.
 Example: multilayer sensitivity docs/examples/erodible_sobol.yaml
 """
 
@@ -19,6 +19,7 @@ from multilayer.app.commands import (
     add_study_arguments,
     check_resume,
     cluster_description,
+    require,
     resume_command,
     study_ensemble,
 )
@@ -34,16 +35,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     """Validate the file, run the sample, write sensitivity.nc, print the indices."""
     from multilayer.app import sensitivity
-    from multilayer.errors import InputError, Interrupted
+    from multilayer.errors import Interrupted
     from multilayer.io.study import load_sensitivity
 
-    try:
-        import SALib  # noqa: F401
-    except ImportError:
-        raise InputError(
-            "multilayer sensitivity needs SALib; accepted: "
-            "install it with pip install 'multilayer[calibration]'"
-        ) from None
+    require("sensitivity", "dask.distributed", "SALib")
     study = load_sensitivity(args.config)
     outdir = Path(args.output or study.config.output.directory or Path("results") / study.path.stem)
     outdir.mkdir(parents=True, exist_ok=True)

@@ -4,7 +4,8 @@ The members run on a local Dask cluster (one single-threaded worker process per 
 --workers N) or, with --scheduler, on a running cluster. DIR is -o/--output, else the
 sweep file's output.directory, else results/<sweep file name>. Members completed by an
 earlier run are skipped. Exit code 1 if any member is invalid or failed (see
-DIR/summary.csv), 2 if the sweep file is invalid. Details: docs/sweeps.md.
+DIR/summary.csv), 2 if the sweep file is invalid or Dask is not installed (pip install
+'multilayer[studies]'). Details: docs/sweeps.md.
 Example: multilayer sweep friction-sweep.yaml --workers 4
 """
 
@@ -21,6 +22,7 @@ from multilayer.app.commands import (
     add_resume_argument,
     check_resume,
     cluster_description,
+    require,
     resume_command,
 )
 
@@ -71,6 +73,7 @@ class _Report:
 
 def main(args: argparse.Namespace) -> int:
     """Validate the sweep and its members, run them, write summary.csv, report."""
+    require("sweep", "dask.distributed")
     from multilayer.app import stopping
     from multilayer.app import sweep as sweeps  # Dask and the engine are imported only to run
     from multilayer.errors import Interrupted

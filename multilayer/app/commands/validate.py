@@ -13,11 +13,10 @@ import sys
 from pathlib import Path
 
 from multilayer import scenario as scenarios
-from multilayer.app import resources
+from multilayer.app import expectations, factory, resources
 from multilayer.app.commands import add_budget_arguments, add_set_argument, budget
 from multilayer.engine import initial_state
 from multilayer.errors import InputError
-from multilayer.testing import expectations
 
 HELP = "check scenario files without running them"
 
@@ -39,7 +38,8 @@ def main(args: argparse.Namespace) -> int:
             need = resources.check(scenario, scenario.output.directory or Path("results"), limits)
             dom = scenario.domain
             dx = (dom.x_max - dom.x_min) / dom.cells
-            initial_state.check_entries(scenario.initial, dom.x_min, dom.x_max, dx, str(path))
+            entries = factory.initial_entries(scenario)
+            initial_state.check_entries(entries, dom.x_min, dom.x_max, dx, str(path))
             steps = resources.check_steps(scenario, limits)
             expectations.validate(scenario)
         except InputError as exc:

@@ -6,17 +6,18 @@ They are registered through the same entry point and hook as third-party plugins
 
 from collections.abc import Callable
 
-import multilayer
 from multilayer.plugins.builtins.drucker_prager import DruckerPrager
 from multilayer.plugins.builtins.jop_mu_i import JopMuI
 from multilayer.plugins.builtins.power_law_mu_i import PowerLawMuI
 from multilayer.plugins.builtins.wall_friction import WallFriction
+from multilayer.plugins.contract import Rheology
+from multilayer.plugins.host import hookimpl
 
 __all__ = ["DruckerPrager", "JopMuI", "PowerLawMuI", "WallFriction"]
 
 
-@multilayer.hookimpl
-def multilayer_register_rheologies(register: Callable[[type[multilayer.Rheology]], None]) -> None:
+@hookimpl
+def multilayer_register_rheologies(register: Callable[[type[Rheology]], None]) -> None:
     """Register the four built-in laws."""
     for cls in (DruckerPrager, JopMuI, PowerLawMuI, WallFriction):
         register(cls)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-import multilayer
+from multilayer.plugins.contract import Rheology
 
 
 def non_negative(**values: float) -> None:
@@ -22,7 +22,7 @@ def positive(**values: float) -> None:
             raise ValueError(f"{key} must be > 0, got {value!r}")
 
 
-class FrictionalYield(multilayer.Rheology):
+class FrictionalYield(Rheology):
     """The Drucker-Prager yield part shared by the frictional laws: kappa = mu_s max(p, 0)
     while flowing, and ``mu_start max(p, 0)`` at rest (start/stop friction, Pouliquen &
     Forterre 2002: material at rest starts above tan(theta) = mu_start, flowing material

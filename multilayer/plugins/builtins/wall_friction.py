@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 
-import multilayer
 from multilayer.plugins.builtins._checks import non_negative
+from multilayer.plugins.contract import Rheology
 
 
-class WallFriction(multilayer.Rheology):
+class WallFriction(Rheology):
     """Coulomb side-wall friction mu_w p (no viscous part)."""
 
     name = "wall_friction"

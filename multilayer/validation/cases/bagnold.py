@@ -17,8 +17,8 @@ import numpy as np
 import xarray as xr
 from matplotlib.figure import Figure
 
+from multilayer.app import exact_solutions, factory
 from multilayer.reference import exact
-from multilayer.testing import exact_solutions
 from multilayer.validation.markdown import met, order_column, table
 from multilayer.validation.mesh_study import MeshStudy, file_comparison, file_error
 from multilayer.validation.runs import Context, Results, Run
@@ -92,7 +92,7 @@ def section(ctx: Context) -> str:
     bagnold = flow(ctx)
     scenario = ctx.load(SCENARIO)
     params = scenario.rheology.params
-    material = scenario.material.as_material()
+    material = factory.material(scenario)
     found = levels(ctx, results)
     study = MeshStudy(tuple(lv.layers for lv in found), tuple(lv.error for lv in found))
     means = [abs(lv.mean / bagnold.mean_velocity - 1) for lv in found]

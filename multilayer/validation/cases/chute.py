@@ -21,9 +21,9 @@ import numpy as np
 import xarray as xr
 from matplotlib.figure import Figure
 
+from multilayer.app import exact_solutions, factory
 from multilayer.reference import exact, similarity
 from multilayer.scenario import Scenario
-from multilayer.testing import exact_solutions
 from multilayer.validation.markdown import met, resolution, table
 from multilayer.validation.mesh_study import MeshStudy, file_comparison, file_error
 from multilayer.validation.runs import Context, Results, Run
@@ -122,7 +122,7 @@ def analyse(ds: xr.Dataset, scenario: Scenario) -> Analysis:
     chi = similarity.shape_factor(u, frac)
     ratio = u / u[-1]
     momentum = np.sum(frac[:, None] * h[None, :] * ratio * (1 - ratio), axis=0)
-    mat = scenario.material.as_material()
+    mat = factory.material(scenario)
     g_n = scenario.gravity * math.cos(math.radians(scenario.slope_deg))
     # inertial number at the centre of the bottom layer: d (du/dz) / sqrt(p / rho_p)
     wall_rate = u[0] / (0.5 * frac[0] * np.maximum(h, 1e-12))
@@ -196,7 +196,7 @@ def inflow(scenario: Scenario) -> tuple[float, float]:
 
 def _bagnold_depth(scenario: Scenario) -> float:
     """h_Bag (Tsang et al. 2019, eq. 4.3) for the scenario's power law, slope and inflow flux."""
-    p, mat = scenario.rheology.params, scenario.material.as_material()
+    p, mat = scenario.rheology.params, factory.material(scenario)
     h_in, speed = inflow(scenario)
     return exact.bagnold_depth(
         h_in * speed,
@@ -228,7 +228,7 @@ def jop_metrics(an: Analyses, case: str, scenario: Scenario) -> dict[str, float]
     z = (np.cumsum(a["frac"]) - a["frac"] / 2) * a["h"][i]
     k = int(np.searchsorted(z, 0.5 * a["h"][i]))
     rate = (a["u"][k, i] - a["u"][k - 1, i]) / (z[k] - z[k - 1])
-    mat = scenario.material.as_material()
+    mat = factory.material(scenario)
     g_n = scenario.gravity * math.cos(math.radians(scenario.slope_deg)) * mat.density / mat.particle_density
     i_mid = mat.grain_diameter * abs(rate) / math.sqrt(g_n * (a["h"][i] - 0.5 * (z[k] + z[k - 1])))
     return dict(

@@ -3,7 +3,7 @@ solution on a horizontal frictionless bed (Ritter 1892).
 
 Runs: ``coulomb_dam_break.yaml`` at five resolutions, as written and with
 ``slope_deg=0`` and a free-slip base.  Measure: the relative L1 error of h at the end time,
-the comparison of the file's own ``expect:`` entry (:mod:`multilayer.testing.exact_solutions`).
+the comparison of the file's own ``expect:`` entry (:mod:`multilayer.app.exact_solutions`).
 Criteria: first-order convergence, mass conserved to round-off, and the file's tolerance
 separating its resolution from a twice coarser one (:meth:`MeshStudy.separates`).
 """
@@ -16,8 +16,8 @@ import numpy as np
 import xarray as xr
 from matplotlib.figure import Figure
 
+from multilayer.app import exact_solutions
 from multilayer.scenario import Scenario
-from multilayer.testing import exact_solutions
 from multilayer.validation.markdown import met, order_column, table
 from multilayer.validation.mesh_study import MeshStudy, file_comparison, file_error
 from multilayer.validation.runs import Context, Results, Run

@@ -16,8 +16,8 @@ import numpy as np
 import xarray as xr
 from matplotlib.figure import Figure
 
+from multilayer.app import exact_solutions
 from multilayer.reference import exact
-from multilayer.testing import exact_solutions
 from multilayer.validation.markdown import met, resolution, table
 from multilayer.validation.mesh_study import MeshStudy, file_comparison, file_error
 from multilayer.validation.runs import Context, Results, Run

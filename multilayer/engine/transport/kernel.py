@@ -1,6 +1,6 @@
-"""Compiled transport step: the scheme of ``transport.py`` fused into one sweep per stage.
+"""Compiled transport step: the scheme of ``reference.py`` fused into one sweep per stage.
 
-``transport.py`` (numpy) is the reference formulation; this module computes the same
+``reference.py`` (numpy) is the reference formulation; this module computes the same
 step (hydrostatic reconstruction of Audusse et al. 2004, minmod slopes, HLL fluxes per
 layer, mass exchange with upwinded velocity, bed slope and gravity sources, forward
 Euler or Heun, a partly open gate) with the same floating-point operations in the same
@@ -19,51 +19,36 @@ threads one at a time (``threads.parallel_chunks``).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
-from multilayer.engine.threads import parallel_chunks, parallel_compiled
-from multilayer.engine.transport import MARGIN, step_boundary_mass
-
-WALL, OUTFLOW, INFLOW, PERIODIC = 0, 1, 2, 3
-BOUNDARY_CODES = {"wall": WALL, "outflow": OUTFLOW, "inflow": INFLOW, "periodic": PERIODIC}
-
+from multilayer.engine.compiled import jit, parallel_compiled
+from multilayer.engine.state import moving_columns
+from multilayer.engine.threads import numba_threads, parallel_chunks
+from multilayer.engine.transport import boundaries
+from multilayer.engine.transport.boundaries import COPY, STATE, WRAP
+from multilayer.engine.transport.reference import MARGIN, step_boundary_mass
 
 TILE = 8192
 """Cells (columns x layers) of one tile of the sweep: its work arrays stay in the L2 cache."""
 
 
-@njit(cache=True)
+@jit
 def _minmod(back, ahead):
-    """``transport._minmod_slope`` of one cell (the same value, bit for bit)."""
+    """``reference._minmod_slope`` of one cell (the same value, bit for bit)."""
     a, b = abs(back), abs(ahead)
     smaller = a if a < b else b
     signed = smaller if back > 0.0 else -smaller
     return signed if back * ahead > 0.0 else 0.0  # values, no branches: the loops vectorise
 
 
-@njit(cache=True)
-def _source(j, n, left, right):
-    """Window cell whose state column ``j`` (-2 .. n+1, ghosts outside 0 .. n-1) takes,
-    and how: 0 copied, 1 mirrored (u -> -u), 2 the inflow state instead."""
-    if j < 0:
-        g = -1 - j  # 0 for the ghost next to the boundary
-        if left == PERIODIC:
-            return (n - 1 - g) % n, 0
-        if left == WALL:
-            return min(g, n - 1), 1
-        return 0, 2 if left == INFLOW else 0
-    if j >= n:
-        g = j - n
-        if right == PERIODIC:
-            return g % n, 0
-        if right == WALL:
-            return max(n - 1 - g, 0), 1
-        return n - 1, 2 if right == INFLOW else 0
-    return j, 0
+_source = jit(boundaries.ghost_source)
+"""The window column (and how) of a state column of a tile (``boundaries.ghost_source``)."""
 
 
-@njit(cache=True)
+@jit
 def _work(L, T):
     """Work arrays of a tile of at most ``T`` cells of ``L`` layers (one set per chunk):
     per column (ghosts included), per layer and column, per face, per layer and face."""
@@ -77,7 +62,7 @@ def _work(L, T):
     return columns, scalars, layers, faces, fluxes, cells, gate
 
 
-@njit(cache=True)
+@jit
 def _block_sum(v, start, stop):
     """numpy's sum of at most 128 values: eight partial sums, then the rest in order."""
     n = stop - start
@@ -99,7 +84,7 @@ def _block_sum(v, start, stop):
     return total
 
 
-@njit(cache=True)
+@jit
 def _pairwise_sum(v):
     """``numpy.sum(v)`` in numpy's own order (pairwise: halves, down to blocks of at most
     128 values), so that the result is the same to the last bit.  (No recursion: numba's
@@ -128,9 +113,9 @@ def _pairwise_sum(v):
     return sums[0]
 
 
-@njit(cache=True, error_model="numpy")
+@jit(error_model="numpy")
 def _gated(f, hl, hr, uL, uR, l, g_n, opening, fh, fq, gate_h, gate_q):
-    """``transport._gated`` at face ``f`` of a tile: ``fh[:, f]``, ``fq[:, f]`` become the
+    """``reference._gated`` at face ``f`` of a tile: ``fh[:, f]``, ``fq[:, f]`` become the
     fluxes seen by the cell west of the gate, ``gate_h``, ``gate_q`` those seen by the
     cell east of it."""
     L = l.size
@@ -167,7 +152,7 @@ def _gated(f, hl, hr, uL, uR, l, g_n, opening, fh, fq, gate_h, gate_q):
         gate_q[a] = open_east + (1.0 - o) * wall_east
 
 
-@njit(cache=True, error_model="numpy")
+@jit(error_model="numpy")
 def _momentum_rate(i, west_flux, momentum, terms, exchange, pressure, slope, gravity, dx):
     """d_t(h_a u_a) of cell ``i`` of a tile: the momentum fluxes with the well-balanced
     pressure at its faces (``west_flux`` at its west face), the bed slope, the mass
@@ -178,11 +163,59 @@ def _momentum_rate(i, west_flux, momentum, terms, exchange, pressure, slope, gra
     return -(east - west + slope * terms[2, i] * terms[3, i]) / dx + exchange[i] + gravity * terms[4, i]
 
 
-@njit(cache=True, error_model="numpy")
-def _tile(
-    stage, order, t0, t1, n, lo, left, right, at_rest, H, U, B, Q1, H1, l, dx, dt, g_n, g_t, dry,
-    inflow_h, inflow_u, gate_face, opening, H_out, U_out, ends, speeds, work,
-):  # fmt: skip
+class Window(NamedTuple):
+    """The occupied window a step sweeps: ``n`` columns from column ``lo``, the ghost
+    rules of its sides (``boundaries``) and its ``n + 1`` faces at rest."""
+
+    n: int
+    lo: int
+    left: int
+    right: int
+    at_rest: np.ndarray
+
+
+class Scheme(NamedTuple):
+    """What the scheme reads besides the state: the layer fractions (L,), the steps in x
+    and t, ``g cos(theta)``, ``g sin(theta)``, the dry thickness and the order (1 or 2)."""
+
+    l: np.ndarray
+    dx: float
+    dt: float
+    g_n: float
+    g_t: float
+    dry: float
+    order: int
+
+
+class Edges(NamedTuple):
+    """The state of an inflow side (thickness, layer velocities) and the gate: its face in
+    the window (-1: none there) and the opening of each layer."""
+
+    inflow_h: float
+    inflow_u: np.ndarray
+    gate_face: int
+    opening: np.ndarray
+
+
+class Arrays(NamedTuple):
+    """The state ``H`` (N,), ``U`` (L, N) and bed ``B`` (N,); Heun's first stage ``H1``,
+    ``Q1``; the result ``H_out``, ``U_out``; the mass fluxes through the window's end faces
+    per stage ``ends`` (2, 2); the fastest wave across each face of the window ``speeds``
+    (n + 1)."""
+
+    H: np.ndarray
+    U: np.ndarray
+    B: np.ndarray
+    H1: np.ndarray
+    Q1: np.ndarray
+    H_out: np.ndarray
+    U_out: np.ndarray
+    ends: np.ndarray
+    speeds: np.ndarray
+
+
+@jit(error_model="numpy")
+def _tile(stage, t0, t1, window, scheme, edges, arrays, work):
     """One stage on the cells ``t0 .. t1-1`` of the window (faces ``t0 .. t1``), layer by
     layer over the tile's columns (contiguous rows of the (L, N) arrays).
 
@@ -195,6 +228,12 @@ def _tile(
     ``ends[stage]`` (summed over the layers from the bed up), the fastest wave across
     each face that carries mass (0 for a face at rest) to ``speeds[t0 .. t1]``.
     """
+    n, lo, left, right, at_rest = window.n, window.lo, window.left, window.right, window.at_rest
+    l, dx, dt, order = scheme.l, scheme.dx, scheme.dt, scheme.order
+    g_n, g_t, dry = scheme.g_n, scheme.g_t, scheme.dry
+    inflow_h, inflow_u, gate_face, opening = edges.inflow_h, edges.inflow_u, edges.gate_face, edges.opening
+    H, U, B, H1, Q1 = arrays.H, arrays.U, arrays.B, arrays.H1, arrays.Q1
+    H_out, U_out, ends, speeds = arrays.H_out, arrays.U_out, arrays.ends, arrays.speeds
     L = l.size
     m = t1 - t0
     (col, kind), scalars, layers, faces, fluxes, cells, (gate_h, gate_q) = work
@@ -424,32 +463,26 @@ def _tile(
                 U_out[a, c] = velocity if h_new > dry else 0.0
 
 
-def _stages(
-    chunks, order, n, lo, left, right, at_rest, H, U, B, Q1, H1, l, dx, dt, g_n, g_t, dry,
-    inflow_h, inflow_u, gate_face, opening, H_out, U_out, ends, speeds,
-):  # fmt: skip
-    """Both stages over the window in ``chunks`` independent pieces (taken by the threads in turn), each
-    swept in tiles of about ``TILE`` cells."""
-    T = max(8, TILE // l.size)
-    for stage in range(order):
+def _stages(chunks, window, scheme, edges, arrays):
+    """Both stages over the window in ``chunks`` independent pieces (taken by the threads in
+    turn), each swept in tiles of about ``TILE`` cells."""
+    L, n = scheme.l.size, window.n
+    T = max(8, TILE // L)
+    for stage in range(scheme.order):
         for k in prange(chunks):
             c0 = k * n // chunks
             c1 = (k + 1) * n // chunks
             if c1 > c0:
-                work = _work(l.size, min(T, c1 - c0))
+                work = _work(L, min(T, c1 - c0))
                 for t0 in range(c0, c1, T):
-                    _tile(
-                        stage, order, t0, min(t0 + T, c1), n, lo, left, right, at_rest, H, U, B, Q1, H1, l,
-                        dx, dt, g_n, g_t, dry, inflow_h, inflow_u, gate_face, opening, H_out, U_out, ends,
-                        speeds, work,
-                    )  # fmt: skip
+                    _tile(stage, t0, min(t0 + T, c1), window, scheme, edges, arrays, work)
 
 
-_stages_serial = njit(cache=True, error_model="numpy")(_stages)
+_stages_serial = jit(_stages, error_model="numpy")
 _stages_parallel = parallel_compiled(_stages, error_model="numpy")
 
 
-@njit(cache=True)
+@jit
 def _window(h, u, moving, left, right):
     """Occupied window [lo, hi) (material plus ``MARGIN`` dry cells per side) and the
     faces (hi - lo + 1) across which no wave travels (both sides at rest)."""
@@ -461,14 +494,14 @@ def _window(h, u, moving, left, right):
             if first < 0:
                 first = i
             last = i
-    lo = 0 if first < 0 or left in (INFLOW, PERIODIC) else max(first - MARGIN, 0)
-    hi = N if first < 0 or right in (INFLOW, PERIODIC) else min(last + 1 + MARGIN, N)
+    lo = 0 if first < 0 or left in (STATE, WRAP) else max(first - MARGIN, 0)
+    hi = N if first < 0 or right in (STATE, WRAP) else min(last + 1 + MARGIN, N)
     n = hi - lo
-    west_end = moving[lo] or left == INFLOW
-    east_end = moving[hi - 1] or right == INFLOW
-    if left == PERIODIC:
+    west_end = moving[lo] or left == STATE
+    east_end = moving[hi - 1] or right == STATE
+    if left == WRAP:
         west_end = moving[hi - 1]
-    if right == PERIODIC:
+    if right == WRAP:
         east_end = moving[lo]
     at_rest = np.empty(n + 1, np.bool_)
     for f in range(n + 1):
@@ -476,85 +509,6 @@ def _window(h, u, moving, left, right):
         east = east_end if f == n else moving[lo + f]
         at_rest[f] = not (west or east)
     return lo, hi, at_rest
-
-
-@njit(cache=True)
-def span(values: np.ndarray) -> tuple[int, int]:
-    """(first, last + 1) of the entries of ``values`` (N,) that are > 0 (or True);
-    (0, 0) for none."""
-    first = -1
-    last = -1
-    for i in range(values.size):
-        if values[i] > 0:
-            if first < 0:
-                first = i
-            last = i
-    return (first, last + 1) if first >= 0 else (0, 0)
-
-
-@njit(cache=True)
-def moving_columns(u: np.ndarray) -> np.ndarray:
-    """Columns (N,) with a non-zero velocity in some layer of ``u`` (L, N)."""
-    L, N = u.shape
-    out = np.zeros(N, np.bool_)
-    for a in range(L):
-        for i in range(N):
-            if u[a, i] != 0.0:
-                out[i] = True
-    return out
-
-
-@njit(cache=True)
-def max_wave_speed(h: np.ndarray, u: np.ndarray, g_n: float) -> float:
-    """Largest max_a |u_a| + sqrt(g cos(theta) h) over the columns (0 for none)."""
-    L, N = u.shape
-    fastest = np.zeros(N)
-    for a in range(L):
-        for i in range(N):
-            fastest[i] = max(fastest[i], abs(u[a, i]))
-    best = 0.0
-    for i in range(N):
-        best = max(best, fastest[i] + np.sqrt(g_n * max(h[i], 0.0)))
-    return best
-
-
-@njit(cache=True)
-def survey(h, u, dry, g_n, moving, rest):
-    """One pass over the state at the start of a step: fills ``moving`` (N,), the columns
-    with a non-zero velocity in some layer, and ``rest`` (L, N), the layers at rest
-    (``u == 0``) in columns thicker than ``dry``; returns the largest wave speed
-    ``max_a |u_a| + sqrt(g cos(theta) h)`` (as ``max_wave_speed``)."""
-    L, N = u.shape
-    fastest = np.zeros(N)
-    for i in range(N):
-        moving[i] = False
-    for a in range(L):
-        for i in range(N):
-            v = u[a, i]
-            moving[i] = moving[i] or v != 0.0
-            rest[a, i] = v == 0.0 and h[i] > dry
-            fastest[i] = max(fastest[i], abs(v))
-    best = 0.0
-    for i in range(N):
-        best = max(best, fastest[i] + np.sqrt(g_n * max(h[i], 0.0)))
-    return best
-
-
-@njit(cache=True)
-def start_moving(u, h, dry, moving):
-    """Add to ``moving`` the columns thicker than ``dry`` that were not moving and have a
-    non-zero velocity in ``u`` (material at rest that a step sets moving); True if any."""
-    L, N = u.shape
-    started = False
-    for i in range(N):
-        if moving[i] or not h[i] > dry:
-            continue
-        for a in range(L):
-            if u[a, i] != 0.0:
-                moving[i] = True
-                started = True
-                break
-    return started
 
 
 class Workspace:
@@ -604,14 +558,13 @@ def transport(
     boundary_mass: np.ndarray | None = None,
     stage_speed: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``transport.transport`` compiled: returns h^{n+1} (N,) and u* (L, N).
+    """``reference.transport`` compiled: returns h^{n+1} (N,) and u* (L, N).
 
     The result lives in ``workspace`` (a new one when None) and is overwritten by its
     next use.  ``threads > 1`` sweeps the window in chunks of at least 64 columns
     (``threads.parallel_chunks``) on that many threads.
     ``boundary_mass`` (2,), if given, receives the mass that crossed the left and the
-    right boundary, positive in +x, and ``stage_speed`` (1,) the fastest wave across a
-    face that carries mass in Heun's second stage (as ``transport.transport``).
+    right boundary, positive in +x (as ``reference.transport``).
     """
     if opening is not None and gate_face is None:
         raise ValueError("transport: a gate opening was given without its gate_face")
@@ -619,11 +572,11 @@ def transport(
     ws = workspace if workspace is not None else Workspace(L, N)
     if moving is None:
         moving = moving_columns(u)
-    codes = BOUNDARY_CODES[left], BOUNDARY_CODES[right]
+    codes = boundaries.rule(left), boundaries.rule(right)
     lo, hi, at_rest = _window(h, u, moving, *codes)
     n = hi - lo
-    left_kind = codes[0] if lo == 0 else OUTFLOW
-    right_kind = codes[1] if hi == N else OUTFLOW
+    left_kind = codes[0] if lo == 0 else COPY
+    right_kind = codes[1] if hi == N else COPY
     inflow_h = float(inflow.thickness) if inflow is not None else 0.0
     inflow_u = np.asarray(inflow.velocity, dtype=float) if inflow is not None else np.zeros(L)
     ws.clear_outside(lo, hi)
@@ -633,12 +586,17 @@ def transport(
     opening = np.asarray(opening, dtype=float) if gate >= 0 else np.zeros(L)
     chunks = parallel_chunks(threads, n, 64) if threads > 1 else 1
     stages = _stages_parallel if chunks > 1 else _stages_serial
-    stages(
-        chunks, order, n, lo, left_kind, right_kind, at_rest,
-        h, u, b, ws.q1, ws.h1, np.ascontiguousarray(fractions, dtype=float),
-        float(dx), float(dt), float(g_n), float(g_t), float(dry), inflow_h, inflow_u, gate, opening,
-        ws.h, ws.u, ws.ends, ws.speeds,
-    )  # fmt: skip
+    with numba_threads(threads if chunks > 1 else 1):
+        stages(
+            chunks,
+            Window(n, lo, left_kind, right_kind, at_rest),
+            Scheme(
+                np.ascontiguousarray(fractions, dtype=float),
+                float(dx), float(dt), float(g_n), float(g_t), float(dry), int(order),
+            ),
+            Edges(inflow_h, inflow_u, gate, opening),
+            Arrays(h, u, b, ws.h1, ws.q1, ws.h, ws.u, ws.ends, ws.speeds),
+        )  # fmt: skip
     if boundary_mass is not None:
         boundary_mass[:] = step_boundary_mass(ws.ends[:order], float(dt))
     if stage_speed is not None:

@@ -8,7 +8,7 @@ column are computed by one compiled function, :func:`column_coefficients`: colum
 column into arrays kept from step to step (:class:`CompiledCoefficients`, instead of a
 dozen numpy temporaries of their size per step), and inside the compiled Newton step
 (``newton_kernel``), which so never stores them for the whole mesh.  The operations
-are those of ``stress.StressModel.columns`` in the same order, so the coefficients are
+are those of ``stresses.StressModel.columns`` in the same order, so the coefficients are
 the same bits (tests/test_stress_kernel.py).  Any value outside the plugin contract
 (not finite, or negative) sends the call to ``StressModel.columns``, whose checks name
 the plugin, the method, the value and where.
@@ -19,11 +19,11 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
-from multilayer.engine.compiled_forms import describes
+from multilayer.engine.compiled import jit
 from multilayer.engine.plugin_output import declared_form
-from multilayer.engine.stress import COULOMB, NO_SLIP, ColumnStresses, StressModel
+from multilayer.engine.vertical.forms import describes
+from multilayer.engine.vertical.stresses import ColumnStresses, StressModel
 
 
 def yield_law_of(rheology, material) -> tuple[float, float] | None:
@@ -39,13 +39,13 @@ def yield_law_of(rheology, material) -> tuple[float, float] | None:
     return float(mu), float(mu_static)
 
 
-@njit(cache=True, inline="always")
+@jit(inline="always")
 def _frictional(mu, p):
     """``mu * numpy.maximum(p, 0.0)`` (a NaN pressure stays NaN and -0.0 gives +0.0, as in numpy)."""
     return mu * (p if (p > 0.0 or p != p) else 0.0)
 
 
-@njit(cache=True, inline="always")
+@jit(inline="always")
 def _within_contract(value):
     """1 if ``value`` is finite and >= 0 (the plugin contract), else 0 (a NaN fails)."""
     return (value >= 0.0) & (value < np.inf)
@@ -66,8 +66,9 @@ class YieldInputs(NamedTuple):
     depth_interface: np.ndarray  # (L,) (h - z_k) / h
     depth_centre: np.ndarray  # (L,) depth of the layer centres / h
     spacing_fraction: np.ndarray  # (L,) h_k / h across interface k
-    base_kind: np.ndarray  # (N,) NO_SLIP, COULOMB or FREE_SLIP
-    base_mu: np.ndarray  # (N,) Coulomb friction of the base
+    base_bulk: np.ndarray  # (N,) the bulk law holds the bed (basal.BasalColumns)
+    base_friction: np.ndarray  # (N,) otherwise kappa_0 = friction p_0 + cohesion
+    base_cohesion: np.ndarray  # (N,)
     mu: float  # the frictional forms: kappa = mu max(p, 0), mu_static max(p, 0) at rest
     mu_static: float
     walls: bool
@@ -75,87 +76,98 @@ class YieldInputs(NamedTuple):
     wall_scale: float  # 2 / W
 
 
-@njit(cache=True, inline="always")  # inlined: a call per column costs about 50 ns at L = 8
-def column_coefficients(
-    col, hj, rest, has_rest, yield_gravity, has_yield_gravity, g_n, rho, l, depth_interface,
-    depth_centre, spacing_fraction, base_kind, base_mu, mu, mu_static, walls, mu_wall, wall_scale,
-    m, kappa, w, pressure, spacing, viscous, wall_pressure,
-):  # fmt: skip
+class ColumnArrays(NamedTuple):
+    """The coefficients of ``StressModel.columns`` of one column, each (L,)."""
+
+    m: np.ndarray
+    kappa: np.ndarray
+    w: np.ndarray
+    pressure: np.ndarray
+    spacing: np.ndarray
+    viscous: np.ndarray
+    wall_pressure: np.ndarray
+
+
+def column_arrays(L: int) -> ColumnArrays:
+    """Empty :class:`ColumnArrays` of ``L`` layers."""
+    return ColumnArrays(
+        np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L, np.bool_), np.empty(L)
+    )
+
+
+@jit(inline="always")  # inlined: a call per column costs about 50 ns at L = 8
+def column_coefficients(col, hj, inputs, out):
     """Column ``col`` of thickness ``hj`` of ``StressModel.columns`` with the yield forms
     ``mu max(p, 0)``, ``mu_static max(p, 0)`` at rest and ``mu_wall max(pbar, 0)`` on the
-    walls (the fields of :class:`YieldInputs`, unpacked once by the caller: reading an
-    array out of a tuple per column would count a reference), into the (L,) arrays
-    ``m ... wall_pressure``.  Returns how many yield values are outside the plugin
-    contract (not finite and >= 0).
+    walls (:class:`YieldInputs` ``inputs``), into the (L,) arrays of ``out``
+    (:class:`ColumnArrays`).  Returns how many yield values are outside the plugin contract
+    (not finite and >= 0).  (Inlined, the fields of both tuples are read as the arrays
+    themselves: numba prunes the reference counts.)
 
     The one source of these coefficients on the compiled paths: the arrays of
     :class:`CompiledCoefficients` and, column by column, the Newton kernel
     (``newton_kernel``), which so never stores them for the whole mesh."""
-    g_p = rho * g_n
+    rho, l, rest, yield_gravity = inputs.rho, inputs.l, inputs.rest, inputs.yield_gravity
+    m, kappa, w, pressure, wall_pressure = out.m, out.kappa, out.w, out.pressure, out.wall_pressure
+    spacing, viscous = out.spacing, out.viscous
+    g_p = rho * inputs.g_n
     L = l.size
     checked = good = 0  # loops without branches, so that they vectorise
     for a in range(L):
         m[a] = rho * l[a] * hj
-        spacing[a] = spacing_fraction[a] * hj
-        wall_pressure[a] = g_p * depth_centre[a] * hj
+        spacing[a] = inputs.spacing_fraction[a] * hj
+        wall_pressure[a] = g_p * inputs.depth_centre[a] * hj
     for a in range(L):
         viscous[a] = True
-    if has_yield_gravity:
+    if inputs.has_yield_gravity:
         for a in range(L):
-            pressure[a] = rho * yield_gravity[a, col] * depth_interface[a] * hj
+            pressure[a] = rho * yield_gravity[a, col] * inputs.depth_interface[a] * hj
     else:
         for a in range(L):
-            pressure[a] = g_p * depth_interface[a] * hj
+            pressure[a] = g_p * inputs.depth_interface[a] * hj
     checked += L
     for a in range(L):
-        k = _frictional(mu, pressure[a])
+        k = _frictional(inputs.mu, pressure[a])
         kappa[a] = k
         good += _within_contract(k)
-    if has_rest:  # interface a is static where layer a and the one below (or the ground) rest
+    if inputs.has_rest:  # interface a is static where layer a and the one below (or the ground) rest
         for a in range(L):
             if rest[a, col] and (a == 0 or rest[a - 1, col]):
-                k = _frictional(mu_static, pressure[a])
+                k = _frictional(inputs.mu_static, pressure[a])
                 kappa[a] = k
                 checked += 1
                 good += _within_contract(k)
-    if walls:
+    if inputs.walls:
         checked += L
         for a in range(L):
-            tau = _frictional(mu_wall, wall_pressure[a])
-            w[a] = wall_scale * l[a] * hj * tau
+            tau = _frictional(inputs.mu_wall, wall_pressure[a])
+            w[a] = inputs.wall_scale * l[a] * hj * tau
             good += _within_contract(tau)
     else:
         for a in range(L):
             w[a] = 0.0
-    kind = base_kind[col]  # the basal condition replaces interface 0
-    if kind == COULOMB:
-        kappa[0] = base_mu[col] * pressure[0]
-    elif kind != NO_SLIP:  # free slip
-        kappa[0] = 0.0
-    viscous[0] = kind == NO_SLIP
+    if not inputs.base_bulk[col]:  # the basal condition: the friction of the bed at interface 0
+        kappa[0] = inputs.base_friction[col] * pressure[0] + inputs.base_cohesion[col]
+    viscous[0] = inputs.base_bulk[col]
     return checked - good
 
 
-@njit(cache=True)
+@jit
 def _coefficients(hw, wet, inputs, m, kappa, w, pressure, spacing, viscous, wall_pressure):
     """The arrays of ``ColumnStresses`` (L, n) of the columns ``wet`` of thicknesses
     ``hw``, column by column (:func:`column_coefficients`).  Returns how many yield values
     are outside the plugin contract."""
     L, n = m.shape
-    (rest, has_rest, gravity, has_gravity, g_n, rho, l, at_interface, at_centre, apart, base_kind,
-     base_mu, mu, mu_static, walls, mu_wall, wall_scale) = inputs  # fmt: skip
     bad = 0
-    mc, kc, wc, pc, sc, wpc = np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L)
-    vc = np.empty(L, np.bool_)
+    column = ColumnArrays(
+        np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L, np.bool_), np.empty(L)
+    )
     for j in range(n):
-        bad += column_coefficients(
-            wet[j], hw[j], rest, has_rest, gravity, has_gravity, g_n, rho, l, at_interface, at_centre,
-            apart, base_kind, base_mu, mu, mu_static, walls, mu_wall, wall_scale,
-            mc, kc, wc, pc, sc, vc, wpc,
-        )  # fmt: skip
+        bad += column_coefficients(wet[j], hw[j], inputs, column)
         for a in range(L):
-            m[a, j], kappa[a, j], w[a, j], pressure[a, j] = mc[a], kc[a], wc[a], pc[a]
-            spacing[a, j], viscous[a, j], wall_pressure[a, j] = sc[a], vc[a], wpc[a]
+            m[a, j], kappa[a, j], w[a, j] = column.m[a], column.kappa[a], column.w[a]
+            pressure[a, j], spacing[a, j] = column.pressure[a], column.spacing[a]
+            viscous[a, j], wall_pressure[a, j] = column.viscous[a], column.wall_pressure[a]
     return bad
 
 
@@ -202,7 +214,7 @@ class CompiledCoefficients:
             _NO_REST if rest is None else rest, rest is not None,
             _NO_GRAVITY if yield_gravity is None else np.ascontiguousarray(yield_gravity),
             yield_gravity is not None, float(s.g_n), float(s.material.density), *self._fractions(),
-            s.base_kind, s.base_mu, mu, mu_static, mu_wall is not None,
+            s.base.bulk, s.base.friction, s.base.cohesion, mu, mu_static, mu_wall is not None,
             0.0 if mu_wall is None else mu_wall, 2.0 / s.width,
         )  # fmt: skip
         return inputs, laws is not None

@@ -4,9 +4,10 @@ Hydrostatic pressure ``p(z) = rho g cos(theta) (h - z)`` (docs/model.md).  At th
 interface ``k`` below layer ``k`` (0-based; ``k = 0`` is the bed) the rheology gives the
 yield stress ``kappa_k = kappa(p_k)`` and the viscous conductance
 ``c_k = eta(|gamma_k|, p_k) / h_k`` with ``gamma_k = (u_k - u_{k-1}) / h_k`` and
-``h_k`` the distance between layer centres (``h_0 / 2`` at a no-slip bed).  The bed
-condition replaces interface 0: Coulomb ``kappa_0 = mu p_bed, c_0 = 0``; free slip
-``kappa_0 = c_0 = 0``.  Side walls of a channel of width ``W`` hold layer ``a`` with
+``h_k`` the distance between layer centres (``h_0 / 2`` at a no-slip bed).  The basal
+condition (:mod:`multilayer.engine.basal`) keeps the bulk law at interface 0 (no slip) or
+replaces it by the friction of the bed, ``kappa_0 = friction p_bed + cohesion, c_0 = 0``
+(Coulomb; free slip ``kappa_0 = c_0 = 0``).  Side walls of a channel of width ``W`` hold layer ``a`` with
 ``F_a = (2 / W) h_a tau_w(pbar_a)`` (Jop, Forterre & Pouliquen 2005; ``mu_w h / W`` summed over
 the layers), ``pbar_a`` the mean pressure over the layer.
 
@@ -25,11 +26,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from multilayer.engine.column_problem import ColumnProblem
+from multilayer.engine.basal import BasalColumns
 from multilayer.engine.plugin_output import call
+from multilayer.engine.vertical.problem import ColumnProblem
 from multilayer.plugins.contract import Material, Rheology
-
-NO_SLIP, COULOMB, FREE_SLIP = 0, 1, 2
 
 
 @dataclass
@@ -59,8 +59,7 @@ class StressModel:
         material: Material,
         fractions: np.ndarray,
         g_n: float,
-        base_kind: np.ndarray,
-        base_mu: np.ndarray,
+        base: BasalColumns,
         walls: Rheology | None = None,
         width: float | None = None,
         x: np.ndarray | None = None,
@@ -68,14 +67,13 @@ class StressModel:
         if walls is not None and width is None:
             raise ValueError("side walls need the channel width (domain.width)")
         self.bulk = bulk
-        self.x = np.arange(base_kind.size, dtype=float) if x is None else x
+        self.x = np.arange(base.bulk.size, dtype=float) if x is None else x
         self.t = 0.0  # time of the step being computed, for messages
         self.walls = walls
         self.width: float = np.inf if width is None else width
         self.material = material
         self.g_n = g_n
-        self.base_kind = base_kind
-        self.base_mu = base_mu
+        self.base = base
         self.l = fractions[:, None]
         below = np.concatenate([[0.0], np.cumsum(fractions)[:-1]])
         self.depth_interface = (1.0 - below)[:, None]  # (h - z_k) / h
@@ -94,11 +92,11 @@ class StressModel:
 
         ``rest`` (L, N) marks the layers at rest at the start of the step (None: none);
         ``yield_gravity`` (L, N), if given, replaces ``g cos(theta)`` in the interface
-        pressures ``p_k = rho G_k (h - z_k)`` (the pressure of ``bim2016.yield_gravity``).
+        pressures ``p_k = rho G_k (h - z_k)`` (the pressure of ``pressure.bim2016.yield_gravity``).
         """
         rho = self.material.density
         h = h[where]
-        base_kind, base_mu = self.base_kind[where], self.base_mu[where]
+        bulk, friction, cohesion = self.base.bulk[where], self.base.friction[where], self.base.cohesion[where]
         g_k = self.g_n if yield_gravity is None else yield_gravity[:, where]
         p = rho * g_k * self.depth_interface * h
         x = self.x[where]
@@ -114,9 +112,8 @@ class StressModel:
                 )
                 kappa = np.where(static, kappa_static, kappa)
         viscous = np.ones(p.shape, dtype=bool)
-        kappa[0] = np.where(base_kind == COULOMB, base_mu * p[0], kappa[0])
-        kappa[0] = np.where(base_kind == FREE_SLIP, 0.0, kappa[0])
-        viscous[0] = base_kind == NO_SLIP
+        kappa[0] = np.where(bulk, kappa[0], friction * p[0] + cohesion)  # the basal condition
+        viscous[0] = bulk
         pbar = rho * self.g_n * self.depth_centre * h
         if self.walls is not None:
             tau_w = self._call(

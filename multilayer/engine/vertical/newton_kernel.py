@@ -1,11 +1,11 @@
 """The implicit vertical step compiled: viscous linearisation and exact solve fused per column.
 
-``vertical_step.implicit_step`` iterates, over all unconverged columns at once, the Newton
+``newton.implicit_step`` iterates, over all unconverged columns at once, the Newton
 model of the viscous stresses (``StressModel.linearise``, numpy, calling the rheology
-plugins) and the exact solver (``column_kernel``).  Each column's iteration depends on
+plugins) and the exact solver (``column_solve``).  Each column's iteration depends on
 that column only, so the same iteration runs here column by column with every quantity in
 cache, when the bulk and wall laws declare a compiled form of their viscosity
-(``Rheology.viscosity_kernel``).  The model is that of ``stress.py``, evaluated with
+(``Rheology.viscosity_kernel``).  The model is that of ``stresses.py``, evaluated with
 what stays fixed during a step (masses, pressure parts, inverse spacings) computed once
 per column, except its slope: the compiled forms differentiate their stress exactly
 where the numpy path takes a forward difference.  The slope only sets the speed of the
@@ -14,32 +14,96 @@ round-off times the conditioning of the step, with the same layers at rest and N
 counts within 1 % (tests/test_newton_kernel.py).  Adjacent columns that are fully sheared
 (every interface yielded, no side walls) go through the same iteration several at a time,
 side by side (``sheared_columns``), to the same bits.
+
+What only this copy of the iteration does: it never leaves compiled code, and never
+stores the coefficients of the whole mesh (they are computed column by column): the path
+of every law with compiled forms, the built-in ones included.  The numpy iteration stays
+for laws written in Python and for another exact solver (``newton.py``).
 """
 
 from __future__ import annotations
 
 import functools
+from typing import NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
-from multilayer.engine import sheared_columns as sc
-from multilayer.engine.column_kernel import _active_set, _dynamic_programme, _workspace
-from multilayer.engine.newton_control import TRUSTED, energy_rise, error_bound
+from multilayer.engine.compiled import jit, parallel_compiled
 from multilayer.engine.plugin_output import PluginOutputError, outside_contract
-from multilayer.engine.sheared_columns import ALONE, BLOCK, cell, join, new_tile, sheared_block, unload
-from multilayer.engine.stress import INTERFACE, LAYER, ColumnStresses, StressModel
-from multilayer.engine.stress_kernel import CompiledCoefficients, column_coefficients
-from multilayer.engine.threads import parallel_chunks, parallel_compiled
-from multilayer.engine.viscous_law import _newton_model, _pressure_part, _viscosity_and_slope, law_of
+from multilayer.engine.threads import numba_threads, parallel_chunks
+from multilayer.engine.vertical import sheared_columns as sc
+from multilayer.engine.vertical.coefficients import (
+    ColumnArrays,
+    CompiledCoefficients,
+    column_coefficients,
+)
+from multilayer.engine.vertical.column_solve import _active_set, _dynamic_programme, _workspace
+from multilayer.engine.vertical.forms import _newton_model, _pressure_part, _viscosity_and_slope, law_of
+from multilayer.engine.vertical.newton_control import TRUSTED, energy_rise, error_bound
+from multilayer.engine.vertical.sheared_columns import (
+    ALONE,
+    BLOCK,
+    cell,
+    join,
+    new_tile,
+    sheared_block,
+    unload,
+)
+from multilayer.engine.vertical.stresses import INTERFACE, LAYER, ColumnStresses, StressModel
 
 YIELD_CONTRACT = 1 << 40
 """Fault code of a column whose compiled yield values are outside the plugin contract."""
-_NOT_GIVEN = (*(np.zeros((1, 1)),) * 5, np.zeros((1, 1), bool), np.zeros((1, 1)))
+_NOT_GIVEN = ColumnArrays(*(np.zeros((1, 1)),) * 5, np.zeros((1, 1), bool), np.zeros((1, 1)))
 """The ``given`` coefficients of ``_columns`` when they are computed in the kernel."""
 
 
-@njit(cache=True)
+class Columns(NamedTuple):
+    """The columns a call solves: the wet ones ``wet`` (n,) of the thicknesses ``h`` (N,),
+    their velocities after transport ``ustar`` and the guess ``guess`` (L, N)."""
+
+    wet: np.ndarray
+    h: np.ndarray
+    ustar: np.ndarray
+    guess: np.ndarray
+
+
+class Laws(NamedTuple):
+    """The compiled viscosity forms (``forms.FORMS`` code and parameters) of the bulk and
+    wall laws, the channel width (0: no walls) and the density."""
+
+    bulk_form: int
+    bulk_params: np.ndarray
+    wall_form: int
+    wall_params: np.ndarray
+    width: float
+    density: float
+
+
+class Control(NamedTuple):
+    """The step ``dt``, the velocity threshold of convergence, the iteration limit, and
+    whether fully sheared columns go side by side (``sheared_columns``)."""
+
+    dt: float
+    threshold: float
+    max_iterations: int
+    blocks: bool
+
+
+class Results(NamedTuple):
+    """What ``_columns`` writes: the velocities (L, N), and per wet column the Newton
+    iterations (-1: not converged), the solves by the dynamic programme, the fault code
+    and values, and whether it was solved side by side."""
+
+    u: np.ndarray
+    iterations: np.ndarray
+    fallbacks: np.ndarray
+    faults: np.ndarray
+    fault_values: np.ndarray
+    side_by_side: np.ndarray
+
+
+@jit
 def _true_stresses(
     u, inverse_spacing, conductance, bulk_form, bulk_params, factor, offset, eta, slope,
     walls, inverse_half, wall_form, wall_params, wall_factor, wall_offset, per_area, wall_eta, wall_slope,
@@ -73,11 +137,11 @@ def _true_stresses(
     return 0, 0.0, 0.0
 
 
-@njit(cache=True)  # not inlined: called only where the structure of the iterate fails
+@jit  # not inlined: called only where the structure of the iterate fails
 def _other_structures(
     inertia, momentum, kappa, c, w, cw, current, ustar, col, proposal, u, first, grounded, U, diag, low, rhs
 ):  # fmt: skip
-    """Where the active set (``column_kernel._active_set``) rejects the lock/sign
+    """Where the active set (``column_solve._active_set``) rejects the lock/sign
     structure of the iterate ``current``: solve with, in turn, the structure of the
     velocities ``ustar`` of column ``col`` before the step and that of ``current`` with
     its speeds and jumps below ``1e-9 max |current|`` set to 0 (the round-off of an
@@ -107,18 +171,28 @@ def _other_structures(
     return False
 
 
-@njit(cache=True)
-def _chunk(
-    k,
-    chunks, wet, h, inputs, fused, given, ustar, guess,
-    dt, bulk_form, bulk_params, wall_form, wall_params, width, density, threshold, max_iterations,
-    u_out, iterations, fallbacks, faults, fault_values, side_by_side, blocks,
-):  # fmt: skip
+@jit
+def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
     """Chunk ``k`` of ``chunks`` of :func:`_columns` (its wet columns ``k n // chunks`` to
     ``(k + 1) n // chunks``): compiled once, called on one thread as the one chunk
     (``_serial``) and by the parallel kernel per chunk."""
-    (rest, has_rest, gravity, has_gravity, g_n, rho, l, at_interface, at_centre, apart, base_kind,
-     base_mu, mu, mu_static, wall_law, mu_wall, wall_scale) = inputs  # fmt: skip
+    wet, h, ustar, guess = columns.wet, columns.h, columns.ustar, columns.guess
+    bulk_form, bulk_params, wall_form, wall_params = (
+        laws.bulk_form,
+        laws.bulk_params,
+        laws.wall_form,
+        laws.wall_params,
+    )
+    width, density = laws.width, laws.density
+    dt, threshold, max_iterations, blocks = (
+        control.dt,
+        control.threshold,
+        control.max_iterations,
+        control.blocks,
+    )
+    u_out, iterations, fallbacks, faults = out.u, out.iterations, out.fallbacks, out.faults
+    fault_values, side_by_side = out.fault_values, out.side_by_side
+    l = inputs.l
     L = l.size
     n = wet.size
     walls = width > 0.0
@@ -135,7 +209,7 @@ def _chunk(
     eta_c, slope_c, eta_n, slope_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
     weta_c, wslope_c, weta_n, wslope_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
     state_c, state_n = np.empty((4, L)), np.empty((4, L))  # of newton_control.examine
-    # the coefficients of StressModel.columns of the column (stress_kernel.column_coefficients)
+    # the coefficients of StressModel.columns of the column (coefficients.column_coefficients)
     tile = new_tile(L)  # the work arrays of sheared_block, and lane ALONE
     m, w0, pressure, spacing = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
     viscous, wall_pressure = np.empty(L, np.bool_), np.empty(L)
@@ -151,8 +225,12 @@ def _chunk(
     conductance, factor, offset = tile[sc.CONDUCTANCE, alone], tile[sc.FACTOR, alone], tile[sc.OFFSET, alone]
     wall_factor, wall_offset = np.zeros(L), np.zeros(L)
     per_area, wall_true = np.zeros(L), np.empty(L)
-    g_m, g_kappa, g_w, g_pressure, g_spacing, g_viscous, g_wall = given
+    column = ColumnArrays(
+        m, kappa, w0, pressure, spacing, viscous, wall_pressure
+    )  # into the tile's lane ALONE
     flags, finished = np.empty((4, BLOCK), np.bool_), np.zeros(BLOCK, np.bool_)
+    g_m, g_kappa, g_w, g_pressure = given.m, given.kappa, given.w, given.pressure  # read once per chunk
+    g_spacing, g_viscous, g_wall = given.spacing, given.viscous, given.wall_pressure
     start, stop = k * n // chunks, (k + 1) * n // chunks
     # The columns are set up in turn.  A group of BLOCK adjacent columns without walls goes
     # into the tile and is solved side by side (sheared_block); the columns it did not
@@ -176,11 +254,7 @@ def _chunk(
                 block = blocks and not walls and j + BLOCK <= stop and wet[j + BLOCK - 1] - col == BLOCK - 1
             # the coefficients of StressModel.columns: from the compiled yield forms, or given
             if fused:
-                fine = column_coefficients(
-                    col, h[col], rest, has_rest, gravity, has_gravity, g_n, rho, l, at_interface, at_centre,
-                    apart, base_kind, base_mu, mu, mu_static, wall_law, mu_wall, wall_scale,
-                    m, kappa, w0, pressure, spacing, viscous, wall_pressure,
-                ) == 0  # fmt: skip
+                fine = column_coefficients(col, h[col], inputs, column) == 0
             else:
                 fine = True
                 for a in range(L):
@@ -310,11 +384,7 @@ def _chunk(
             u_out[a, col] = current[a]
 
 
-def _columns(
-    chunks, wet, h, inputs, fused, given, ustar, guess,
-    dt, bulk_form, bulk_params, wall_form, wall_params, width, density, threshold, max_iterations,
-    u_out, iterations, fallbacks, faults, fault_values, side_by_side, blocks,
-):  # fmt: skip
+def _columns(chunks, columns, inputs, fused, given, laws, control, out):
     """Newton iterations of every wet column (``wet`` indexes the columns of h, ustar and
     guess); ``fallbacks`` counts the solves per column that needed the O(L^2) dynamic
     programme.  A column where a compiled viscosity is not finite and >= 0 stops
@@ -324,7 +394,7 @@ def _columns(
     (``faults``: ``YIELD_CONTRACT``).
 
     The coefficients of ``StressModel.columns`` come, with ``fused``, from the compiled
-    yield forms column by column (``stress_kernel.column_coefficients`` with ``inputs``),
+    yield forms column by column (``coefficients.column_coefficients`` with ``inputs``),
     so that the whole mesh never holds them (on a fully wet mesh, writing and reading
     them back costs more memory traffic than the Newton step of a column in cache);
     otherwise from the (L, n) arrays ``given`` (m, kappa, w, pressure, spacing, viscous,
@@ -342,11 +412,8 @@ def _columns(
     ``side_by_side`` marks the columns it solved); the others, and those that leave the
     block, are iterated here one by one, to the same bits."""
     for k in prange(chunks):
-        _chunk(  # k is unsigned under prange: one signature of _chunk for both kernels
-            np.int64(k), chunks, wet, h, inputs, fused, given, ustar, guess,
-            dt, bulk_form, bulk_params, wall_form, wall_params, width, density, threshold, max_iterations,
-            u_out, iterations, fallbacks, faults, fault_values, side_by_side, blocks,
-        )  # fmt: skip
+        # k is unsigned under prange: one signature of _chunk for both kernels
+        _chunk(np.int64(k), chunks, columns, inputs, fused, given, laws, control, out)
 
 
 _parallel = parallel_compiled(_columns)
@@ -398,7 +465,7 @@ class CompiledStep:
         """New velocities (L, N) and the Newton iterations of each wet column (-1: not
         converged within ``max_iterations``).  The velocities are overwritten by the next
         call.  ``rest`` and ``yield_gravity`` go to ``StressModel.columns`` (compiled:
-        ``stress_kernel.CompiledCoefficients``)."""
+        ``coefficients.CompiledCoefficients``)."""
         laws = self.laws()
         if laws is None:
             raise ValueError("a law of this stress model has no compiled form (see laws())")
@@ -411,41 +478,47 @@ class CompiledStep:
         u = self._out
         u[:, self._written[0] : self._written[1]] = 0.0  # zero outside them already
         self._written = (int(wet[0]), int(wet[-1]) + 1) if wet.size else (0, 0)
-        iterations = np.empty(wet.size, np.int64)
-        fallbacks = np.empty(wet.size, np.int64)
-        faults, fault_values = np.empty(wet.size, np.int64), np.empty((wet.size, 2))
-        side_by_side = np.zeros(wet.size, np.bool_)
+        out = Results(
+            u, np.empty(wet.size, np.int64), np.empty(wet.size, np.int64), np.empty(wet.size, np.int64),
+            np.empty((wet.size, 2)), np.zeros(wet.size, np.bool_),
+        )  # fmt: skip
+        iterations, fallbacks, faults = out.iterations, out.fallbacks, out.faults
         wall_form, wall_params = walls if walls is not None else (0, np.zeros(1))
-        width = float(self.stresses.width) if walls is not None else 0.0
+        columns = Columns(
+            wet,
+            np.ascontiguousarray(h, dtype=float),
+            np.ascontiguousarray(ustar),
+            np.ascontiguousarray(u_guess),
+        )
+        compiled_laws = Laws(
+            bulk_form, bulk_params, wall_form, wall_params,
+            float(self.stresses.width) if walls is not None else 0.0, float(self.stresses.material.density),
+        )  # fmt: skip
+        control = Control(float(dt), float(threshold), int(max_iterations), self.side_by_side)
         # one thread: the chunk kernel itself, as one chunk (no serial wrapper to compile)
         kernel = functools.partial(_parallel, parallel_chunks(threads, wet.size)) if threads > 1 else _serial
-        arguments = (
-            wet, np.ascontiguousarray(h, dtype=float), inputs, fused, given,
-            np.ascontiguousarray(ustar), np.ascontiguousarray(u_guess), float(dt),
-            bulk_form, bulk_params, wall_form, wall_params, width, float(self.stresses.material.density),
-            float(threshold), int(max_iterations), u, iterations, fallbacks, faults, fault_values,
-            side_by_side, self.side_by_side,
-        )  # fmt: skip
-        kernel(*arguments)
+        with numba_threads(threads):
+            kernel(columns, inputs, fused, given, compiled_laws, control, out)
         if faults.any():
             # the plugins' own methods: they raise, naming the plugin, for a yield value outside the contract
             cs = self.stresses.columns(h, wet, rest, yield_gravity)
             if (faults == YIELD_CONTRACT).any():  # a compiled yield form that disagrees with its plugin
-                side_by_side[:] = False
-                kernel(*arguments[:3], False, self._given(cs), *arguments[5:])
+                out.side_by_side[:] = False
+                with numba_threads(threads):
+                    kernel(columns, inputs, False, self._given(cs), compiled_laws, control, out)
             if faults.any():
-                raise self._fault(cs, faults, fault_values)
+                raise self._fault(cs, faults, out.fault_values)
         self.columns += wet.size
-        self.columns_side_by_side += int(np.count_nonzero(side_by_side))
+        self.columns_side_by_side += int(np.count_nonzero(out.side_by_side))
         self.solves += int(np.where(iterations < 0, max_iterations, iterations).sum())
         self.fallbacks += int(fallbacks.sum())
         return u, iterations
 
     @staticmethod
-    def _given(cs: ColumnStresses) -> tuple[np.ndarray, ...]:
+    def _given(cs: ColumnStresses) -> ColumnArrays:
         """The (L, n) coefficients of the kernel when they are not computed in it."""
         arrays = (cs.m, cs.kappa, cs.w, cs.pressure, cs.spacing, cs.viscous, cs.wall_pressure)
-        return tuple(np.ascontiguousarray(a) for a in arrays)
+        return ColumnArrays(*(np.ascontiguousarray(a) for a in arrays))
 
     def _fault(self, cs: ColumnStresses, faults: np.ndarray, values: np.ndarray) -> PluginOutputError:
         """The error naming the law, the viscosity and where, for the first column whose

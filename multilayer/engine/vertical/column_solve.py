@@ -1,7 +1,7 @@
 """Exact solver for one implicit vertical step of a chain of layers (the hot path).
 
 Per column the implicit step minimises the energy ``E(u)`` of a
-:class:`~multilayer.engine.column_problem.ColumnProblem` (docs/model.md, "The implicit
+:class:`~multilayer.engine.vertical.problem.ColumnProblem` (docs/model.md, "The implicit
 vertical step"), a strictly convex, piecewise-quadratic energy on a chain.  It is minimised exactly by
 dynamic programming over the layers (Johnson 2013, "A dynamic programming algorithm for
 the fused lasso"; Kolmogorov, Pock & Rolinek 2016, "Total variation on a tree"): the
@@ -28,19 +28,17 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
-from multilayer.engine.column_problem import ColumnProblem
-from multilayer.engine.threads import parallel_chunks, parallel_compiled
+from multilayer.engine.compiled import jit, parallel_compiled
+from multilayer.engine.threads import numba_threads, parallel_chunks
+from multilayer.engine.vertical.problem import ColumnProblem
 from multilayer.errors import RunError
 
 INF = np.inf
-RELATION = "float64[::1], float64[::1], int64, float64, float64"
-"""Argument types of a relation (X, Y, vertex count, end slopes): declared, so that a count
-passed as a constant (typed as that literal value) does not compile another copy."""
 
 
-@njit(cache=True)
+@jit
 def _between(x0, y0, x1, y1, x):
     """The ordinate at ``x0 < x < x1`` of the segment from ``(x0, y0)`` to ``(x1, y1)``,
     interpolated from its nearer end: a vertex far out on a ray (the messages hold some
@@ -50,7 +48,7 @@ def _between(x0, y0, x1, y1, x):
     return y1 - (x1 - x) / (x1 - x0) * (y1 - y0)
 
 
-@njit(f"({RELATION}, float64, int64)", cache=True)
+@jit
 def _at(X, Y, n, sl, sr, x, i):
     """Interval [lo, hi] of the relation at ``x``, scanning from vertex ``i``.
 
@@ -76,7 +74,7 @@ def _at(X, Y, n, sl, sr, x, i):
     return lo, hi, i
 
 
-@njit(f"({RELATION}, {RELATION}, float64[::1], float64[::1])", cache=True)
+@jit
 def _add(X1, Y1, n1, sl1, sr1, X2, Y2, n2, sl2, sr2, Xo, Yo):
     """Sum of two maximal monotone relations; writes vertices to Xo, Yo, returns (n, sl, sr)."""
     lo = max(X1[0] if sl1 == INF else -INF, X2[0] if sl2 == INF else -INF)
@@ -84,8 +82,8 @@ def _add(X1, Y1, n1, sl1, sr1, X2, Y2, n2, sl2, sr2, Xo, Yo):
     n = 0
     i1 = 0
     i2 = 0
-    j1 = 0
-    j2 = 0
+    j1 = np.int64(0)  # the scans of _at, typed int64 from the start (a literal 0 compiles _at again)
+    j2 = np.int64(0)
     while i1 < n1 or i2 < n2:
         # next breakpoint of the merged abscissae
         if i2 >= n2 or (i1 < n1 and X1[i1] <= X2[i2]):
@@ -124,7 +122,7 @@ def _add(X1, Y1, n1, sl1, sr1, X2, Y2, n2, sl2, sr2, Xo, Yo):
     return n, sl, sr
 
 
-@njit(cache=True)
+@jit
 def _inv(s):
     if s == 0.0:
         return INF
@@ -133,7 +131,7 @@ def _inv(s):
     return 1.0 / s
 
 
-@njit(cache=True)
+@jit
 def _root(X, Y, n, sl, sr):
     """The abscissa where a strictly increasing relation contains 0 (exact at vertices)."""
     i = 0
@@ -150,18 +148,19 @@ def _root(X, Y, n, sl, sr):
     return _between(Y[i - 1], X[i - 1], Y[i], X[i], 0.0)
 
 
-@njit(cache=True)
+@jit
 def _dynamic_programme(inertia, momentum, kappa, c, w, cw, u, ws):
     """Exact minimiser of E(u) for one column by dynamic programming (module docstring);
     ``inertia = m / dt`` and ``momentum = m u* / dt`` per layer."""
     L = inertia.shape[0]
     MX, MY, Mn, Msl, Msr, HX, HY, TX, TY, FX, FY, GX, GY = ws
+    pair = FX.size  # the 2 vertices of FX and GX, typed int64 (a literal 2 would compile _add again)
     # ground link: h_0' = g_0' (u_0 = 0)
     HX[0] = 0.0
     HX[1] = 0.0
     HY[0] = -kappa[0]
     HY[1] = kappa[0]
-    hn = 2
+    hn = pair
     hsl = c[0]
     hsr = c[0]
     for a in range(L):
@@ -171,7 +170,7 @@ def _dynamic_programme(inertia, momentum, kappa, c, w, cw, u, ws):
         FX[1] = 0.0
         FY[0] = -B - w[a]
         FY[1] = -B + w[a]
-        n, sl, sr = _add(FX, FY, 2, A, A, HX, HY, hn, hsl, hsr, MX[a], MY[a])
+        n, sl, sr = _add(FX, FY, pair, A, A, HX, HY, hn, hsl, hsr, MX[a], MY[a])
         if n < 0:
             u[:] = np.nan
             return
@@ -187,7 +186,7 @@ def _dynamic_programme(inertia, momentum, kappa, c, w, cw, u, ws):
         GY[0] = 0.0
         GY[1] = 0.0
         gs = _inv(c[a + 1])
-        n2, sl2, sr2 = _add(MY[a], MX[a], n, _inv(sl), _inv(sr), GX, GY, 2, gs, gs, TY, TX)
+        n2, sl2, sr2 = _add(MY[a], MX[a], n, _inv(sl), _inv(sr), GX, GY, pair, gs, gs, TY, TX)
         if n2 < 0:
             u[:] = np.nan
             return
@@ -206,14 +205,14 @@ def _dynamic_programme(inertia, momentum, kappa, c, w, cw, u, ws):
         GX[1] = v
         GY[0] = -k
         GY[1] = k
-        n, sl, sr = _add(MX[a], MY[a], Mn[a], Msl[a], Msr[a], GX, GY, 2, c[a + 1], c[a + 1], TX, TY)
+        n, sl, sr = _add(MX[a], MY[a], Mn[a], Msl[a], Msr[a], GX, GY, pair, c[a + 1], c[a + 1], TX, TY)
         if n < 0:
             u[:] = np.nan
             return
         u[a] = _root(TX, TY, n, sl, sr)
 
 
-@njit(cache=True)
+@jit
 def _workspace(L):
     cap = 8 * L + 16
     return (
@@ -233,12 +232,12 @@ def _workspace(L):
     )
 
 
-@njit(cache=True)
+@jit
 def _sign(x):
     return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
 
 
-@njit(cache=True, inline="always")  # in its callers: no array arguments marshalled per call
+@jit(inline="always")  # in its callers: no array arguments marshalled per call
 def _active_set(inertia, momentum, kappa, c, w, cw, guess, u, first, grounded, U, diag, low, rhs):
     """Solve with the lock/sign structure of ``guess``; True if it is the exact minimiser
     (``inertia = m / dt`` and ``momentum = m u* / dt`` per layer).
@@ -397,7 +396,7 @@ def _columns(m, ustar, dt, kappa, c, w, cw, guess, u, chunks):
                 _dynamic_programme(inertia, momentum, ki, ci, wi, cwi, ui, ws)
 
 
-_solve_serial: Any = njit(cache=True)(_columns)
+_solve_serial: Any = jit(_columns)
 _solve_parallel: Any = parallel_compiled(_columns)
 
 
@@ -406,8 +405,8 @@ def solve(problem: ColumnProblem, guess: np.ndarray | None = None, threads: int 
 
     ``guess`` (e.g. the previous velocities, (L, N)) proposes the structure of rigid and
     static groups; it only affects the speed.  ``threads > 1`` solves that many chunks of
-    columns in parallel (``threads.py`` chooses it).  This is a
-    :class:`~multilayer.engine.column_problem.VerticalSolver`; the compiled functions
+    columns in parallel (``engine/threads.py`` chooses it).  This is a
+    :class:`~multilayer.engine.vertical.problem.VerticalSolver`; the compiled functions
     take the coefficients as arrays (N, L), each column contiguous.
     """
     p = problem
@@ -422,7 +421,8 @@ def solve(problem: ColumnProblem, guess: np.ndarray | None = None, threads: int 
     u = np.empty_like(arrays[0])
     if threads > 1:
         chunks = parallel_chunks(threads, u.shape[0])
-        _solve_parallel(*arrays[:2], float(p.dt), *arrays[2:], guess, u, chunks)
+        with numba_threads(threads):
+            _solve_parallel(*arrays[:2], float(p.dt), *arrays[2:], guess, u, chunks)
     else:
         _solve_serial(*arrays[:2], float(p.dt), *arrays[2:], guess, u, 1)
     if not np.isfinite(np.sum(u)):

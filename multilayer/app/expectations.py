@@ -6,7 +6,7 @@ Each entry ``{kind, quantity, value, rtol, atol, source}`` (docs/scenarios.md) p
 
 where ``obtained`` is ``multilayer.io.results.summary(result.nc)[quantity]``, or, for an
 entry with ``exact:``, the relative error norm of a field against an exact solution
-(:mod:`multilayer.testing.exact_solutions`), expected 0 within ``atol``; a NaN never passes.
+(:mod:`multilayer.app.exact_solutions`), expected 0 within ``atol``; a NaN never passes.
 ``kind`` says what passing means: ``regression``, the value is pinned from the
 code's own output (a change detector); ``reference``, the value is an exact solution or a
 published result named in ``source`` (a validation).  The values hold for the scenario
@@ -24,9 +24,9 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from multilayer.app import exact_solutions
 from multilayer.scenario import Scenario
 from multilayer.scenario.schema import EXPECT_KINDS, Expect
-from multilayer.testing import exact_solutions
 
 
 @dataclass(frozen=True)

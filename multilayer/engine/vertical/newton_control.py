@@ -6,7 +6,7 @@ Per column the step minimises the strictly convex energy (docs/model.md)::
 
 with ``Psi_k(s) = kappa_k |s| + Phi_k(s)`` (``Phi_k' = tau_v``, the viscous stress) and
 ``W_a`` the wall term alike.  Each iteration solves a Bingham model of it exactly
-(``vertical_step``), and :func:`error_bound` and :func:`energy_rise` judge the model's
+(``newton``), and :func:`error_bound` and :func:`energy_rise` judge the model's
 minimiser ``u`` from the true stresses at ``u`` alone, without another solve:
 
 **Stopping: an a-posteriori error bound.**  ``E`` is strongly convex with modulus
@@ -68,18 +68,19 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from numba import njit
+
+from multilayer.engine.compiled import jit
 
 TRUSTED = 10
 """Newton steps kept without the energy test: the first iterations of a column."""
 
 
-@njit(cache=True)
+@jit
 def _sign(x):
     return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
 
 
-@njit(cache=True)
+@jit
 def _potential_rise(start, end, stress_start, stiffness_start, stress_end):
     """An upper bound of ``Phi(end) - Phi(start)`` for a potential whose derivative (the
     stress, >= 0) is concave in the magnitude: the tangent at ``start`` above it when the
@@ -89,7 +90,7 @@ def _potential_rise(start, end, stress_start, stiffness_start, stress_end):
     return -(start - end) * 0.5 * (stress_start + stress_end)
 
 
-@njit(cache=True, inline="always")  # in its callers: no array arguments marshalled per call
+@jit(inline="always")  # in its callers: no array arguments marshalled per call
 def error_bound(inertia, momentum, kappa, viscous, w, wall_viscous, u, limit):
     """The bound of the module docstring on ``max_a |u_a - u_exact,a|`` for one column,
     or ``inf`` once the pass finds it above twice ``limit`` (``limit = inf``: always the
@@ -134,7 +135,7 @@ def error_bound(inertia, momentum, kappa, viscous, w, wall_viscous, u, limit):
     return np.sqrt(residual / smallest)
 
 
-@njit(cache=True)
+@jit
 def energy_rise(inertia, momentum, kappa, viscous, w, wall_viscous, start, u, at_start):
     """An upper bound of ``E(u) - E(start)`` for one column (arguments of
     :func:`error_bound`; ``at_start`` (4, L) holds at ``start`` the viscous stresses, their
@@ -200,4 +201,4 @@ def _examine_rows(inertia, momentum, kappa, viscous, w, wall_viscous, start, u, 
     return bounds, rises
 
 
-_examine_compiled: Any = njit(cache=True)(_examine_rows)
+_examine_compiled: Any = jit(_examine_rows)

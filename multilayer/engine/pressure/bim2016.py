@@ -18,14 +18,21 @@ section 4.1 (eq. 4.24)::
     |sin(theta) - cos(theta) d_x eta| <= mu_s (cos(theta) + sin(theta) d_x eta).
 
 Only the yield stresses of the vertical step see this pressure; the transport keeps the
-hydrostatic pressure of the shallow model (docs/nonhydrostatic.md).
+hydrostatic pressure of the shallow model (docs/nonhydrostatic.md).  ``model.pressure:
+bim2016`` (:class:`Bim2016`).
 """
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from multilayer.engine.diagnostics import static_interface
+from multilayer.engine.pressure.model import PressureModel
+
+if TYPE_CHECKING:
+    from multilayer.engine.state import FlowState
 
 
 def slope(v: np.ndarray, wet: np.ndarray, dx: float) -> np.ndarray:
@@ -86,3 +93,24 @@ def yield_gravity(
     rest_top = bed + static_interface(h, u, np.concatenate([[0.0], np.cumsum(fractions)]))
     static = g_n - g_t * eta_slope + 2.0 * g_t * slope(rest_top, wet, dx)
     return np.maximum(np.where(at_rest, static, flowing), 0.0)
+
+
+class Bim2016(PressureModel):
+    """``model.pressure: bim2016``: :func:`yield_gravity` from the velocities at the start
+    of the step; the velocities of the vertical step are the step's."""
+
+    name = "bim2016"
+
+    def yield_gravity(self, state: FlowState, h: np.ndarray) -> np.ndarray:
+        s = self.setup
+        return yield_gravity(
+            h,
+            state.u,
+            s.bed,
+            s.fractions,
+            dx=s.dx,
+            gravity=s.gravity,
+            theta=s.theta,
+            base_slip=~s.base_bulk,
+            dry=s.dry,
+        )

@@ -8,7 +8,7 @@ vertical step")::
 
 :class:`ColumnProblem` holds its coefficients by name (they are all arrays of the same
 shape, so passing them by position would let two be swapped silently);
-:class:`VerticalSolver` is what the numba kernel (:mod:`multilayer.engine.column_kernel`)
+:class:`VerticalSolver` is what the numba kernel (:mod:`multilayer.engine.vertical.column_solve`)
 and the FiPy reference (:mod:`multilayer.reference.vertical_fipy`) provide.
 """
 
@@ -81,7 +81,7 @@ class VerticalSolver(Protocol):
 
 def workspace_bytes(L: int) -> int:
     """Bytes of the workspace of the exact solver of columns of ``L`` layers
-    (``column_kernel._workspace``, one per thread, kept here where no kernel is compiled):
+    (``column_solve._workspace``, one per thread, kept here where no kernel is compiled):
     the piecewise-linear messages of every layer, quadratic in ``L``."""
     cap = 8 * L + 16
     return 8 * (2 * L * cap + 4 * cap + 3 * L + 8)

@@ -2,7 +2,7 @@
 
 Where every interface of a column shears (the velocity jumps across each one, as in a
 chute flow or the body of an avalanche) and no side wall holds a layer, the active set of
-``column_kernel._active_set`` makes every layer a group of its own, and the exact solve
+``column_solve._active_set`` makes every layer a group of its own, and the exact solve
 of a Newton iteration is one Thomas sweep of the tridiagonal system
 
     (m_a/dt + c_a + c_{a+1}) u_a - c_a u_{a-1} - c_{a+1} u_{a+1}
@@ -10,7 +10,7 @@ of a Newton iteration is one Thomas sweep of the tridiagonal system
 
 with ``u_{-1} = 0`` (the bed), ``c_L = kappa_L = 0`` (the free surface), ``s_a`` the sign
 of the jump ``u_a - u_{a-1}`` of the iterate and ``kappa``, ``c`` the yield stresses and
-conductances of the Newton model at the iterate (``viscous_law._newton_model``).  The
+conductances of the Newton model at the iterate (``forms._newton_model``).  The
 solution is the exact minimiser of the step's energy when the jumps keep their signs.
 
 The forward sweep is a chain of dependent divisions, one per layer, and column by column
@@ -22,15 +22,20 @@ same iteration counts (tests/test_sheared_columns.py).  A column leaves the bloc
 ``_chunk`` solves it from the start, where it is not fully sheared, its structure is
 rejected, a viscosity is outside the plugin contract, or it is not converged before
 iteration ``TRUSTED`` (where the energy test of ``newton_control`` begins).
+
+What only this copy does: it is the same iteration as ``newton_kernel._chunk`` for a
+special case, kept for speed alone (the chains of divisions of several columns overlap;
+docs/performance.md); every answer it gives is ``_chunk``'s to the bit, so it can be
+switched off (``CompiledStep(side_by_side=False)``) without changing a result.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
-from multilayer.engine.newton_control import TRUSTED, _sign, error_bound
-from multilayer.engine.viscous_law import _newton_model, _viscosity_and_slope
+from multilayer.engine.compiled import jit
+from multilayer.engine.vertical.forms import _newton_model, _viscosity_and_slope
+from multilayer.engine.vertical.newton_control import TRUSTED, _sign, error_bound
 
 BLOCK = 8
 """Columns solved side by side: eight chains of divisions in flight, and the pass of the
@@ -60,7 +65,7 @@ ALONE = BLOCK
 ACTIVE, SHEARED, DONE, FINE = range(4)  # of the boolean lanes
 
 
-@njit(cache=True)
+@jit
 def stride(L):
     """Cells from one lane to the next in the tile's rows, for columns of ``L`` layers:
     ``L + 1`` (a cell of padding) below 32 layers; above, an odd number of cache lines (of
@@ -73,7 +78,7 @@ def stride(L):
     return 8 * (lines + 1 - lines % 2)
 
 
-@njit(cache=True)
+@jit
 def new_tile(L):
     """The tile of columns of ``L`` layers, zero but for the ``BED`` slot."""
     t = np.zeros((SLOTS, 1 + (BLOCK + 1) * stride(L)))
@@ -85,13 +90,13 @@ def new_tile(L):
     return t
 
 
-@njit(cache=True)
+@jit
 def cell(i, L):
     """The cell of layer 0 of lane ``i`` in the tile's rows (columns of ``L`` layers)."""
     return 1 + i * stride(L)
 
 
-@njit(cache=True)
+@jit
 def join(t, L, flags, i, fine):
     """Lane ``i`` of the block, whose per-step slots ``newton_kernel._chunk`` has set up
     (``fine``: its yield values are within the plugin contract), takes part in the block
@@ -104,7 +109,7 @@ def join(t, L, flags, i, fine):
     flags[ACTIVE, i] = take
 
 
-@njit(cache=True)
+@jit
 def unload(t, L, flags, i, viscous, wall_true, guess):
     """Column ``i`` of the block, one it did not finish, into lane ``ALONE`` (the
     column solved on its own by ``newton_kernel._chunk``), with the arrays of one column
@@ -120,7 +125,7 @@ def unload(t, L, flags, i, viscous, wall_true, guess):
     return flags[FINE, i]
 
 
-@njit(cache=True, error_model="numpy")
+@jit(error_model="numpy")
 def _stresses_and_model(t, L, u, form, params, flags):
     """At the velocities of slot ``u``: the true viscous stresses (slot ``TAU``; a
     viscosity outside the plugin contract ends the column's block iteration) and the
@@ -129,13 +134,18 @@ def _stresses_and_model(t, L, u, form, params, flags):
     The block's lanes are swept as one loop over their cells (the bed below the bottom
     cell of each lane); where some column is unsheared or outside the contract, its lanes
     are swept again one by one to tell which (the same values again).  The pass is
-    compiled once per form, the form a constant in it (its loop then has no branches)."""
+    compiled once per built-in form, the form a literal constant in it (its loop then has
+    no branches; ``forms.INERTIAL``, ``CONSTANT``, ``POWER``); any other form of
+    ``forms.FORMS`` runs the pass compiled for every form (the same values)."""
+    start, stop = cell(0, L), cell(BLOCK, L)
     if form == 1:
-        faults, unsheared = _sweep(t, u, 1, params, cell(0, L), cell(BLOCK, L))
+        faults, unsheared = _sweep(t, u, 1, params, start, stop)
     elif form == 0:
-        faults, unsheared = _sweep(t, u, 0, params, cell(0, L), cell(BLOCK, L))
+        faults, unsheared = _sweep(t, u, 0, params, start, stop)
+    elif form == 2:
+        faults, unsheared = _sweep(t, u, 2, params, start, stop)
     else:
-        faults, unsheared = _sweep(t, u, 2, params, cell(0, L), cell(BLOCK, L))
+        faults, unsheared = _sweep(t, u, form, params, start, stop)
     if faults == 0 and unsheared == 0:  # every column within the contract and fully sheared
         for i in range(BLOCK):
             flags[SHEARED, i] = True
@@ -147,7 +157,7 @@ def _stresses_and_model(t, L, u, form, params, flags):
         flags[SHEARED, i] = lane_unsheared == 0
 
 
-@njit(cache=True, error_model="numpy")
+@jit(error_model="numpy")
 def _sweep(t, u, form, params, start, stop):
     """Cells ``start ... stop - 1`` of the tile's rows of :func:`_stresses_and_model` (the
     velocities in slot ``u``); returns how many viscosities are outside the plugin contract
@@ -171,11 +181,11 @@ def _sweep(t, u, form, params, start, stop):
     return faults, unsheared
 
 
-@njit(cache=True, error_model="numpy")
+@jit(error_model="numpy")
 def _solve(t, L, new, flags):
     """The exact solve with one group per layer into slot ``new``: the forward sweep
     (inverse pivots ``DIAG``, right-hand sides ``RHS``) and the back substitution of
-    ``column_kernel._active_set``, and its optimality test: each yielded jump keeps its
+    ``column_solve._active_set``, and its optimality test: each yielded jump keeps its
     sign (a column whose structure is rejected leaves the block)."""
     for a in range(L):
         for i in range(BLOCK):
@@ -215,7 +225,7 @@ def _solve(t, L, new, flags):
             flags[ACTIVE, i] = False
 
 
-@njit(cache=True, error_model="numpy")
+@jit(error_model="numpy")
 def _converged(t, L, new, current, threshold, flags):
     """``DONE``: the error bound of ``newton_control.error_bound`` at slot ``new`` (true
     stresses in ``TAU``) is within ``threshold``, or else the largest change from slot
@@ -237,7 +247,7 @@ def _converged(t, L, new, current, threshold, flags):
         flags[DONE, i] = converged
 
 
-@njit(cache=True, error_model="numpy")
+@jit(error_model="numpy")
 def sheared_block(
     t, flags, finished, form, params, threshold, max_iterations, j0, c0,
     u_out, iterations, fallbacks, faults, fault_values, side_by_side,

@@ -14,54 +14,39 @@ layer whose wave speeds bracket the waves of every layer.  Time: forward Euler (
 or Heun's SSP-RK2 (order 2).  ``h >= 0`` for a Courant number up to 1/2, and a lake at
 rest stays at rest.  The mass exchanged between layers carries the velocity of the layer
 it comes from (upwinding: from above when ``G > 0``).  Stresses are left to the implicit
-vertical step (``vertical.py``).
+vertical step (``engine/vertical``).
 
 Material at rest does not carry waves: a face between two columns that are entirely at
 rest carries no mass during the step (and the centred pressure flux), so a heap held by
 friction keeps its shape to the last bit; whether it is held is decided by the vertical
 step (and ``Simulation.step`` redoes a step in which a column at rest starts moving).
+
+This numpy formulation is the reference the compiled transport (``kernel.py``) is tested
+against bit for bit, written array by array as the equations read; it runs with
+``numerics.transport_solver: numpy``.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
-GHOSTS = 2
+from multilayer.engine.transport import boundaries
+from multilayer.engine.transport.boundaries import GHOSTS
 
 
-@dataclass(frozen=True)
-class Inflow:
-    """Prescribed inflow state: thickness (m) and layer velocities (L,) (m/s)."""
-
-    thickness: float
-    velocity: np.ndarray
-
-
-def _ghost_sources(kind: str, side: str, N: int) -> np.ndarray:
-    """Cells whose state the two ghosts of ``side`` take, the ghost nearest the boundary
-    first: the edge cell (``outflow``, ``inflow``), its mirror images (``wall``), or the
-    cells at the other end (``periodic``)."""
-    left = side == "left"
-    if kind == "periodic":
-        return np.array([-1, -2] if left else [0, 1]) % N
-    if kind == "wall":
-        return np.clip([0, 1] if left else [N - 1, N - 2], 0, N - 1)
-    return np.full(GHOSTS, 0 if left else N - 1)
-
-
-def _ghosts(h, u, b, left, right, inflow: Inflow | None):
+def _ghosts(h, u, b, left, right, inflow: boundaries.InflowState | None):
     """The state extended by ``GHOSTS`` columns per side: ``wall`` mirrors (u -> -u),
     ``outflow`` copies, ``inflow`` prescribes h and u, ``periodic`` wraps."""
 
     def ghosts(kind, side):
-        idx = _ghost_sources(kind, side, h.size)
+        rule = boundaries.rule(kind)
+        idx = boundaries.ghost_sources(rule, side, h.size)
         hg, ug, bg = h[idx], u[:, idx], b[idx]
-        if kind == "wall":
+        if rule == boundaries.MIRROR:
             ug = -ug
-        elif kind == "inflow":
+        elif rule == boundaries.STATE:
             hg = np.full(GHOSTS, inflow.thickness)
             ug = np.repeat(inflow.velocity[:, None], GHOSTS, axis=1)
         return hg, ug, bg
@@ -267,7 +252,7 @@ def transport(
     g_t: float,
     left: str,
     right: str,
-    inflow: Inflow | None = None,
+    inflow: boundaries.InflowState | None = None,
     dry: float = 0.0,
     order: int = 2,
     moving: np.ndarray | None = None,
@@ -295,17 +280,18 @@ def transport(
     if moving is None:
         moving = np.any(u != 0.0, axis=0)
     occupied = np.flatnonzero((h > 0.0) | moving)
-    lo = 0 if occupied.size == 0 or left in ("inflow", "periodic") else max(occupied[0] - MARGIN, 0)
-    hi = N if occupied.size == 0 or right in ("inflow", "periodic") else min(occupied[-1] + 1 + MARGIN, N)
+    sides = boundaries.BOUNDARIES[left], boundaries.BOUNDARIES[right]
+    lo = 0 if occupied.size == 0 or sides[0].open else max(occupied[0] - MARGIN, 0)
+    hi = N if occupied.size == 0 or sides[1].open else min(occupied[-1] + 1 + MARGIN, N)
     # the dry cells outside the window stay dry and at rest; inside it, a window edge
     # away from the domain boundary is dry, which an outflow ghost copies exactly
     window = slice(lo, hi)
     hw, uw = h[window], u[:, window]
     moving = moving[window]
-    ends = [moving[0] or left == "inflow", moving[-1] or right == "inflow"]
-    if left == "periodic":
+    ends = [moving[0] or sides[0].needs_state, moving[-1] or sides[1].needs_state]
+    if sides[0].wraps:
         ends[0] = moving[-1]
-    if right == "periodic":
+    if sides[1].wraps:
         ends[1] = moving[0]
     moving_ext = np.concatenate([[ends[0]], moving, [ends[1]]])
     at_rest = ~(moving_ext[:-1] | moving_ext[1:])

@@ -9,11 +9,17 @@ strictly convex energy (docs/model.md; Bouchut, Ionescu & Mangeney 2016, eq. 1.3
 whose optimality conditions are the implicit momentum balance
 ``rho h_a (u_a - u*_a) / dt = tau_{a+1/2} - tau_{a-1/2} - F_a`` with the multivalued
 ``sgn`` of the yield stresses.  Each iteration solves a Bingham-type problem exactly
-(``column_kernel.solve`` or the FiPy reference ``vertical_fipy.solve``, both
-:class:`~multilayer.engine.column_problem.VerticalSolver`): the rate-dependent part
+(``column_solve.solve`` or the FiPy reference ``vertical_fipy.solve``, both
+:class:`~multilayer.engine.vertical.problem.VerticalSolver`): the rate-dependent part
 is replaced by its tangent at the current shear rates (``StressModel.linearise``, a
 Newton iteration whose fixed points are the exact solutions), until the velocities change
 by less than ``tolerance`` times the velocity scale.
+
+This is the iteration in numpy, over all unconverged columns at once: the one path that
+calls the rheology plugins' own Python methods (a third-party law without compiled forms,
+or one a subclass redefines) and the one that runs another exact solver of the column
+problem (the FiPy reference).  Where every law has compiled forms the same iteration runs
+compiled and fused per column (:mod:`.newton_kernel`; ``implicit_step(compiled=...)``).
 """
 
 from __future__ import annotations
@@ -22,24 +28,16 @@ from collections.abc import Callable
 
 import numpy as np
 
-from multilayer.engine import column_kernel
-from multilayer.engine.column_problem import ColumnProblem, VerticalSolver
-from multilayer.engine.newton_control import TRUSTED, examine_columns
-from multilayer.engine.newton_kernel import CompiledStep
-from multilayer.engine.stress import StressModel
+from multilayer.engine.vertical import column_solve
+from multilayer.engine.vertical.newton_control import TRUSTED, examine_columns
+from multilayer.engine.vertical.newton_kernel import CompiledStep
+from multilayer.engine.vertical.problem import VerticalSolver
+from multilayer.engine.vertical.stresses import StressModel
 from multilayer.errors import RunError
 
 
-def _fipy_solve(problem: ColumnProblem, guess: np.ndarray | None = None, threads: int = 1) -> np.ndarray:
-    """The FiPy reference path; it needs no guess (it starts from scratch each time)."""
-    from multilayer.reference import vertical_fipy
-
-    return vertical_fipy.solve(problem)
-
-
-def solver_for(name: str) -> VerticalSolver:
-    """The exact solver of one linearised step: ``kernel`` (numba) or ``fipy`` (reference)."""
-    return _fipy_solve if name == "fipy" else column_kernel.solve
+class NotConverged(RunError):
+    """The Newton iteration of the vertical step did not reach its tolerance."""
 
 
 def implicit_step(
@@ -49,7 +47,7 @@ def implicit_step(
     u_guess: np.ndarray,
     dt: float,
     *,
-    solver: VerticalSolver = column_kernel.solve,
+    solver: VerticalSolver = column_solve.solve,
     tolerance: float = 1e-10,
     max_iterations: int = 200,
     velocity_scale: float = 1.0,
@@ -140,8 +138,8 @@ def implicit_step(
     raise _not_converged(tolerance, max_iterations, todo.size)
 
 
-def _not_converged(tolerance: float, max_iterations: int, columns: int) -> RunError:
-    return RunError(
+def _not_converged(tolerance: float, max_iterations: int, columns: int) -> NotConverged:
+    return NotConverged(
         f"the viscous (Newton) iteration of the vertical step did not reach tolerance "
         f"{tolerance:g} in {max_iterations} iterations in {columns} column(s); "
         "raise numerics.max_iterations or numerics.tolerance"

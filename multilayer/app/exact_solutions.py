@@ -24,6 +24,7 @@ from typing import Protocol
 import numpy as np
 import xarray as xr
 
+from multilayer.app import factory
 from multilayer.errors import InputError
 from multilayer.reference import exact, similarity
 from multilayer.scenario import Scenario
@@ -92,7 +93,8 @@ class DamBreak:
         )
         assert reservoir is not None and reservoir.height is not None and reservoir.x_max is not None
         condition = _one_base(sc, "coulomb", "free_slip")
-        self.delta = math.degrees(math.atan(sc.base[0].mu or 0.0)) if condition == "coulomb" else 0.0
+        friction = sc.base[0].parameters.get("mu", 0.0) if condition == "coulomb" else 0.0
+        self.delta = math.degrees(math.atan(friction))
         self.theta = sc.slope_deg
         _require(
             self.theta > self.delta or self.theta == self.delta == 0.0,
@@ -189,7 +191,7 @@ class Bagnold(_UniformLayer):
                 i_theta = exact.power_law_inertial_number(sc.slope_deg, p["mu_s"], p["m"], p["alpha"])
         except ValueError as exc:
             raise NotApplicable("slope_deg", f"a slope with a steady flow ({exc})") from None
-        material = sc.material.as_material()
+        material = factory.material(sc)
         self.flow = exact.BagnoldFlow(
             self.depth,
             i_theta,

@@ -1,0 +1,136 @@
+"""The engine of a scenario: its typed configuration and its plugin instances.
+
+The engine is built from plain configuration (:mod:`multilayer.engine.config`) and the
+rheology plugin instances handed to it; it never sees a scenario file, the schema or the
+plugin host.  This module is the one place that turns a validated
+:class:`~multilayer.scenario.Scenario` into them: :func:`engine_config` copies the keys
+(and computes what the scenario notation implies: the layer fractions, the material, the
+pressure model's options), :func:`laws` instantiates the plugins through the plugin host,
+:func:`column_solver` picks the exact solver of the column problem (the FiPy reference
+for ``numerics.vertical_solver: fipy``); :class:`multilayer.app.simulation.Simulation`
+builds the engine's simulation of a scenario with them.  Importing this module imports
+no kernel (``multilayer validate`` uses it).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from types import MappingProxyType
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from multilayer.engine import config as cfg
+from multilayer.engine.mesh import layer_fractions
+from multilayer.engine.pressure.model import models, options
+from multilayer.plugins import host
+from multilayer.plugins.contract import Material, Rheology
+from multilayer.scenario import Scenario
+
+if TYPE_CHECKING:
+    from multilayer.engine.vertical.problem import ColumnProblem, VerticalSolver
+    from multilayer.scenario import schema
+
+
+def _velocity(spec: schema.Velocity) -> cfg.Velocity:
+    return cfg.Velocity(
+        spec.profile,
+        speed=spec.speed or 0.0,
+        shear_rate=spec.shear_rate or 0.0,
+        from_height=spec.from_height or 0.0,
+        surface_speed=spec.surface_speed or 0.0,
+    )
+
+
+def _points(points: list[list[float]] | None) -> cfg.Points | None:
+    return None if points is None else tuple((float(x), float(v)) for x, v in points)
+
+
+def _initial(entry: schema.InitialShape) -> cfg.InitialEntry:
+    return cfg.InitialEntry(
+        entry.shape,
+        thickness=entry.thickness,
+        x_min=entry.x_min,
+        x_max=entry.x_max,
+        height=entry.height,
+        points=_points(entry.points),
+        velocity=None if entry.velocity is None else _velocity(entry.velocity),
+    )
+
+
+def basal_regions(zones: Sequence[schema.BaseZone]) -> tuple[cfg.BasalRegion, ...]:
+    """The engine's basal regions of the ``base`` entries of a scenario."""
+    return tuple(
+        cfg.BasalRegion(z.condition, MappingProxyType(z.parameters), z.x_min, z.x_max) for z in zones
+    )
+
+
+def initial_entries(scenario: Scenario) -> tuple[cfg.InitialEntry, ...]:
+    """The engine's entries of the initial state of a scenario."""
+    return tuple(_initial(entry) for entry in scenario.initial)
+
+
+def material(scenario: Scenario) -> Material:
+    """The :class:`multilayer.Material` handed to the rheology plugins."""
+    spec = scenario.material
+    particle_density = spec.density if spec.particle_density is None else spec.particle_density
+    return Material(spec.density, spec.grain_diameter, particle_density)
+
+
+def engine_config(scenario: Scenario) -> cfg.SimulationConfig:
+    """The engine's configuration of ``scenario`` (its keys, docs/scenarios.md)."""
+    sc, dom, n = scenario, scenario.domain, scenario.numerics
+    fractions = layer_fractions(dom.layers, dom.layer_fractions)
+    model = models()[sc.model.pressure]
+    inflow = sc.boundaries.inflow
+    return cfg.SimulationConfig(
+        x_min=dom.x_min,
+        x_max=dom.x_max,
+        cells=dom.cells,
+        fractions=tuple(float(f) for f in fractions),
+        material=material(sc),
+        gravity=sc.gravity,
+        slope_deg=sc.slope_deg,
+        width=dom.width,
+        base=basal_regions(sc.base),
+        bed=_points(sc.bed.points),
+        initial=initial_entries(sc),
+        left=sc.boundaries.left,
+        right=sc.boundaries.right,
+        inflow=None if inflow is None else cfg.Inflow(inflow.thickness, _velocity(inflow.velocity)),
+        gate=None if sc.gate is None else cfg.GateConfig(sc.gate.x, sc.gate.lift_speed),
+        cfl=sc.time.cfl,
+        numerics=cfg.Numerics(
+            transport_solver=n.transport_solver,
+            threads=n.threads,
+            order=n.order,
+            tolerance=n.tolerance,
+            max_iterations=n.max_iterations,
+            dry_threshold=n.dry_threshold,
+            front_threshold=n.front_threshold,
+        ),
+        pressure=cfg.PressureConfig(
+            sc.model.pressure, MappingProxyType(options(model, sc.model.options, dom.layers))
+        ),
+        name=str(sc.source or "<scenario>"),
+    )
+
+
+def laws(scenario: Scenario) -> tuple[Rheology, Rheology | None]:
+    """The bulk and wall rheology plugin instances of ``scenario`` (the plugin host)."""
+    walls = None if scenario.walls is None else host.instantiate(scenario.walls)
+    return host.instantiate(scenario.rheology), walls
+
+
+def _fipy_solve(problem: ColumnProblem, guess: np.ndarray | None = None, threads: int = 1) -> np.ndarray:
+    """The FiPy reference solver of the column problem; it needs no guess (it starts from
+    scratch each time).  FiPy is imported on the first call."""
+    from multilayer.reference import vertical_fipy
+
+    return vertical_fipy.solve(problem)
+
+
+def column_solver(name: str) -> VerticalSolver | None:
+    """The exact solver of the column problem for ``numerics.vertical_solver``: None for
+    ``kernel`` (the engine's compiled one), the FiPy reference for ``fipy``."""
+    return _fipy_solve if name == "fipy" else None

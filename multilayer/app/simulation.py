@@ -1,0 +1,23 @@
+"""``multilayer.Simulation(scenario)``: the engine's simulation of a scenario (docs/api.md)."""
+
+from __future__ import annotations
+
+from multilayer.app import factory
+from multilayer.engine import simulation
+from multilayer.scenario import Scenario
+
+
+class Simulation(simulation.Simulation):
+    """``multilayer.Simulation(scenario)``: the engine's
+    :class:`~multilayer.engine.simulation.Simulation` of a validated scenario (from
+    :func:`multilayer.load`), which it keeps as ``scenario``."""
+
+    def __init__(self, scenario: Scenario):
+        self.scenario = scenario
+        bulk, walls = factory.laws(scenario)
+        super().__init__(
+            factory.engine_config(scenario),
+            bulk,
+            walls,
+            column_solver=factory.column_solver(scenario.numerics.vertical_solver),
+        )

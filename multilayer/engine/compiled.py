@@ -1,0 +1,65 @@
+"""How the engine compiles its kernels: numba's ``njit``, cached on disk, the cache checked
+against the kernel sources before its first use (:mod:`multilayer.engine.kernel_cache`).
+
+Every kernel of the engine is decorated with :func:`jit` (or made parallel by
+:func:`parallel_compiled`): numba's ``njit(cache=True, **options)``, whose on-disk cache
+first runs :func:`kernel_cache.ensure_fresh` (once per process) before it loads or saves a
+compiled kernel.  Nothing is compiled, loaded or checked when the engine is imported.
+"""
+
+from __future__ import annotations
+
+import types
+from collections.abc import Callable
+from typing import Any
+
+import numba
+from numba.core.caching import FunctionCache
+
+from multilayer.engine import kernel_cache
+
+
+class _CheckedCache(FunctionCache):
+    """numba's on-disk cache of one kernel, made consistent with the kernel sources
+    (:func:`kernel_cache.ensure_fresh`) before the first kernel of the process is loaded
+    or saved."""
+
+    def load_overload(self, sig: Any, target_context: Any) -> Any:
+        kernel_cache.ensure_fresh()
+        return super().load_overload(sig, target_context)
+
+    def save_overload(self, sig: Any, data: Any) -> None:
+        kernel_cache.ensure_fresh()
+        super().save_overload(sig, data)
+
+
+def _checked(dispatcher: Any) -> Any:
+    """``dispatcher`` with its on-disk cache enabled as ``cache=True`` would (numba's
+    ``Dispatcher.enable_caching``), through :class:`_CheckedCache`."""
+    dispatcher._cache = _CheckedCache(dispatcher.py_func)
+    return dispatcher
+
+
+def jit(function: Callable | None = None, **options: Any) -> Any:
+    """``numba.njit(cache=True, **options)``, the cache checked before its first use:
+    ``@jit`` or ``@jit(inline="always", ...)``."""
+    if function is None:
+        return lambda f: _checked(numba.njit(**options)(f))
+    return _checked(numba.njit(**options)(function))
+
+
+def parallel_compiled(function: Callable, **options: Any) -> Any:
+    """:func:`jit` with ``parallel=True`` of ``function``, compiled and cached apart from
+    its serial compilation.
+
+    numba's on-disk cache names a compilation by the function's qualified name and first
+    line and keys it by its signature only: a serial and a parallel compilation of one
+    function shared one entry, and whichever had been compiled last was loaded for both
+    (the parallel kernels ran the serial code).  The parallel one is compiled from a copy
+    of the function named ``<name>_parallel``."""
+    name = f"{function.__name__}_parallel"
+    qualname = f"{function.__qualname__}_parallel"
+    code = function.__code__.replace(co_name=name, co_qualname=qualname)
+    copy = types.FunctionType(code, function.__globals__, name, function.__defaults__, function.__closure__)
+    copy.__qualname__, copy.__doc__, copy.__module__ = qualname, function.__doc__, function.__module__
+    return jit(copy, parallel=True, **options)

@@ -1,0 +1,127 @@
+"""The engine's configuration: plain, typed, frozen values (SI units).
+
+A :class:`~multilayer.engine.simulation.Simulation` is built from a
+:class:`SimulationConfig` and the rheology plugin instances handed to it; the application
+makes both from a validated scenario (:mod:`multilayer.app.factory`), and a script or a
+test may make them directly.  Nothing here reads a file or knows the scenario schema:
+the names are those of the scenario keys (docs/scenarios.md) so that the factory is a
+one-to-one copy.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+
+from multilayer.plugins.contract import Material
+
+Points = tuple[tuple[float, float], ...]
+"""A piecewise-linear profile ``((x, value), ...)`` with increasing x (m)."""
+
+
+@dataclass(frozen=True)
+class Velocity:
+    """A velocity profile over the depth (``zeta`` above the bottom of its entry):
+    ``plug`` (``speed``), ``linear`` (``shear_rate`` above ``from_height``) or ``bagnold``
+    (``surface_speed``); see :func:`multilayer.engine.initial_state.velocity_profile`."""
+
+    profile: str
+    speed: float = 0.0
+    shear_rate: float = 0.0
+    from_height: float = 0.0
+    surface_speed: float = 0.0
+
+
+@dataclass(frozen=True)
+class InitialEntry:
+    """One contribution to the initial thickness (entries stack in order): a uniform
+    ``layer`` of ``thickness``, a ``rectangle`` (``x_min``, ``x_max``, ``height``) or a
+    ``profile`` through ``points``; with its velocity profile (None: at rest)."""
+
+    shape: str
+    thickness: float | None = None
+    x_min: float | None = None
+    x_max: float | None = None
+    height: float | None = None
+    points: Points | None = None
+    velocity: Velocity | None = None
+
+
+@dataclass(frozen=True)
+class BasalRegion:
+    """A basal condition (:mod:`multilayer.engine.basal`) with its parameters on
+    ``x_min <= x < x_max`` (unbounded where None); later regions win."""
+
+    condition: str
+    parameters: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
+    x_min: float | None = None
+    x_max: float | None = None
+
+
+@dataclass(frozen=True)
+class Inflow:
+    """The state prescribed at an ``inflow`` boundary: thickness (m) and velocity profile."""
+
+    thickness: float
+    velocity: Velocity
+
+
+@dataclass(frozen=True)
+class GateConfig:
+    """A gate on the face nearest ``x`` whose lower edge rises at ``lift_speed`` (m/s;
+    ``inf``: released at once); :mod:`multilayer.engine.gate`."""
+
+    x: float
+    lift_speed: float
+
+
+@dataclass(frozen=True)
+class Numerics:
+    """Solver settings (docs/scenarios.md, ``numerics``)."""
+
+    transport_solver: str = "kernel"
+    """``kernel`` (compiled) or ``numpy`` (the reference formulation)."""
+    threads: int | str = "auto"
+    order: int = 2
+    tolerance: float = 1e-10
+    max_iterations: int = 200
+    dry_threshold: float = 1e-6
+    front_threshold: float = 1e-3
+
+
+@dataclass(frozen=True)
+class PressureConfig:
+    """The pressure model (:mod:`multilayer.engine.pressure`) and its options."""
+
+    model: str = "hydrostatic"
+    options: Mapping[str, object] = field(default_factory=lambda: MappingProxyType({}))
+
+
+@dataclass(frozen=True)
+class SimulationConfig:
+    """Everything the engine reads of a problem, rheologies aside."""
+
+    x_min: float
+    x_max: float
+    cells: int
+    fractions: tuple[float, ...]
+    """Layer fractions ``l_a`` from the bed up, summing to 1 (``mesh.layer_fractions``)."""
+    material: Material
+    gravity: float = 9.81
+    slope_deg: float = 0.0
+    width: float | None = None
+    """Channel width (m) for side walls."""
+    base: tuple[BasalRegion, ...] = (BasalRegion("no_slip"),)
+    bed: Points | None = None
+    """Bed elevation through these points (None: flat)."""
+    initial: tuple[InitialEntry, ...] = ()
+    left: str = "wall"
+    right: str = "wall"
+    inflow: Inflow | None = None
+    gate: GateConfig | None = None
+    cfl: float = 0.45
+    numerics: Numerics = Numerics()
+    pressure: PressureConfig = PressureConfig()
+    name: str = "<scenario>"
+    """How messages name the problem (the scenario file)."""

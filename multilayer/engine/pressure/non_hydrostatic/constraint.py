@@ -1,0 +1,382 @@
+"""The constraint of the non-hydrostatic projection, assembled column by column.
+
+The rows ``E`` (or, with fewer pressure layers, ``P^T E``) of the layer divergence
+constraint of Fernandez-Nieto, Parisot, Penel & Sainte-Marie (2018) in the Keller-box
+form of Stelling & Zijlema (2003), for the unknowns ``V`` (the face velocities of each
+layer and the layer means ``wbar``), their masses ``M``, and the normal equations
+``A = E M^-1 E^T`` in band storage with ``r = E V*`` over the moving cells (the Notes of
+:mod:`multilayer.engine.pressure.non_hydrostatic.projection` state the rows).  The
+pressure interfaces of ``pressure_layers < L`` groups and their interpolation ``P`` are
+here too.  Compiled by numba.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from multilayer.engine.compiled import jit
+
+
+@dataclass
+class Constraint:
+    """The columns of the constraint matrix ``E``, unknown by unknown (module Notes).
+
+    Unknowns: the face velocities ``a * F + f`` then the ``wbar`` at ``L * F + a * N + i``;
+    unknown ``k`` has the entries ``values[pointer[k]:pointer[k + 1]]`` in the rows (cells
+    ``a * N + i``) ``cells[pointer[k]:pointer[k + 1]]``.  ``mass`` are the masses ``M``,
+    ``left`` and ``right`` the columns of the faces."""
+
+    pointer: np.ndarray
+    cells: np.ndarray
+    values: np.ndarray
+    mass: np.ndarray
+    left: np.ndarray
+    right: np.ndarray
+    shape: tuple[int, int]
+
+    @property
+    def E(self) -> sp.csr_matrix:
+        """``E`` as a sparse matrix (rows: cells, columns: unknowns)."""
+        counts = np.diff(self.pointer)
+        unknowns = np.repeat(np.arange(counts.size), counts)
+        return sp.csr_matrix((self.values, (self.cells, unknowns)), shape=self.shape)
+
+
+def faces(N: int, periodic: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Columns on the left and right of each face carrying a pressure correction."""
+    left = np.arange(N - 1)
+    if periodic and N > 1:
+        return np.append(left, N - 1), np.append(left + 1, 0)
+    return left, left + 1
+
+
+def constraint(
+    h: np.ndarray,
+    bed: np.ndarray,
+    fractions: np.ndarray,
+    dx: float,
+    periodic: bool,
+    interpolation: np.ndarray | None = None,
+) -> Constraint:
+    """The local rows ``E`` of the layer divergence constraint (module Notes), or with the
+    pressure ``interpolation`` ``P`` (L, L_p) of :func:`pressure_interpolation` the reduced
+    rows ``P^T E`` (one per pressure interface and column: cell ``g * N + i``)."""
+    L, N = fractions.size, h.size
+    P = np.eye(L) if interpolation is None else np.asarray(interpolation, dtype=float)
+    left, right = faces(N, periodic)
+    K, Lp = L * left.size + L * N, P.shape[1]
+    pointer, mass = np.empty(K + 1, np.int64), np.empty(K)
+    cells, values = (
+        np.empty(capacity(L, N, left.size, Lp), np.int64),
+        np.empty(capacity(L, N, left.size, Lp)),
+    )
+    n = entries(
+        np.asarray(h, dtype=float), np.asarray(bed, dtype=float), np.asarray(fractions, dtype=float),
+        float(dx), left, right, P, np.ones(K, np.bool_), np.arange(Lp * N), pointer, cells, values, mass,
+    )  # fmt: skip
+    cells, values = cells[:n], values[:n]
+    return Constraint(pointer, cells, values, mass, left, right, (P.shape[1] * N, L * left.size + L * N))
+
+
+def pressure_nodes(fractions: np.ndarray, pressure_layers: int) -> np.ndarray:
+    """The velocity layers whose bottom interfaces carry the pressure: ``pressure_layers``
+    groups of whole layers, each group's bottom interface the one nearest ``sigma = g /
+    L_p`` (equal fractions of the depth when the layer fractions allow it; every group
+    holds at least one layer).  ``pressure_layers == L`` gives every layer."""
+    L = fractions.size
+    sigma = np.concatenate([[0.0], np.cumsum(fractions)[:-1]])
+    nodes = np.zeros(pressure_layers, dtype=np.int64)
+    for g in range(1, pressure_layers):
+        lo, hi = nodes[g - 1] + 1, L - (pressure_layers - g)
+        candidates = np.arange(lo, hi + 1)
+        nodes[g] = candidates[np.argmin(np.abs(sigma[candidates] - g / pressure_layers))]
+    return nodes
+
+
+@functools.lru_cache(maxsize=8)
+def layering(fractions: tuple[float, ...], pressure_layers: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`pressure_nodes` and :func:`pressure_interpolation`, computed once per model."""
+    nodes = pressure_nodes(np.array(fractions), pressure_layers)
+    return nodes, pressure_interpolation(np.array(fractions), nodes)
+
+
+def pressure_interpolation(fractions: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """``P`` (L, L_p): the pressure on the bottom interface of every velocity layer,
+    linear in ``sigma`` between the pressure interfaces ``nodes`` (bottom interfaces of the
+    groups of :func:`pressure_nodes`) and zero at the free surface: ``q_a = sum_g P_a,g
+    q_g``.  With a node at every layer it is the identity."""
+    L, Lp = fractions.size, nodes.size
+    sigma = np.concatenate([[0.0], np.cumsum(fractions)[:-1]])
+    at = np.append(sigma[nodes], 1.0)  # the pressure interfaces and the surface
+    P = np.zeros((L, Lp))
+    for g in range(Lp):
+        P[nodes[g], g] = 1.0
+        for a in range(nodes[g] + 1, nodes[g + 1] if g + 1 < Lp else L):
+            weight = (at[g + 1] - sigma[a]) / (at[g + 1] - at[g])
+            P[a, g] = weight
+            if g + 1 < Lp:
+                P[a, g + 1] = 1.0 - weight
+    return P
+
+
+@jit
+def entries(h, bed, fractions, dx, left, right, P, free, row_of, pointer, cells, values, mass):
+    """``P^T E`` column by column (see :class:`Constraint`) for the unknowns ``free`` (the
+    others have no entries) in the rows ``row_of[cell] >= 0`` (the entries in the others
+    are left out): each entry is stored with its row ``row_of[cell]``.  In ``E``, ``F_c``
+    enters the rows ``c`` and ``c + 1`` with 1/2; ``S_j`` (interface ``j``, its velocity
+    ``vhat_j = beta_j,c-1 v_c-1 + beta_j,c v_c`` weighted by the thicknesses) enters row 0
+    with -1/2 (``j`` = 0, 1), row ``j - 1`` with -1/2 (``j >= 2``) and row ``j + 1`` with
+    +1/2; ``wbar_a`` enters row ``a`` with +1 and row ``a + 1`` with -1.  Each entry of row
+    ``a`` goes to the pressure rows ``g`` with ``P_a,g != 0``, times ``P_a,g`` (the
+    identity: ``E`` itself).  Written into ``pointer``, ``cells`` (the rows), ``values``
+    (at least :func:`capacity` long) and ``mass`` (``M``, of every unknown); returns the
+    number of entries."""
+    L, N, F = fractions.size, h.size, left.size
+    Lp = P.shape[1]
+    targets = np.zeros(L, np.int64)  # the pressure rows of each row of E: first, count
+    first = np.zeros(L, np.int64)
+    for a in range(L):
+        first[a] = Lp
+        for g in range(Lp):
+            if P[a, g] != 0.0:
+                first[a] = min(first[a], g)
+                targets[a] += 1
+    sigma = np.zeros(L + 1)
+    for a in range(L):
+        sigma[a + 1] = sigma[a] + fractions[a]
+    sigma[L] = 1.0
+    beta = np.zeros((L + 1, L))
+    beta[0, 0] = 1.0
+    beta[L, L - 1] = 1.0
+    for j in range(1, L):
+        total = fractions[j - 1] + fractions[j]
+        beta[j, j - 1], beta[j, j] = fractions[j] / total, fractions[j - 1] / total
+    rows, weights = np.empty(3, np.int64), np.empty(3)
+    touched_rows, at_left, at_right = np.empty(L, np.int64), np.empty(L), np.empty(L)
+    n = 0
+    if Lp < L:
+        # fewer pressure rows: the entries of a face unknown of layer c are, per pressure row
+        # g, h_face / dx times those of its F rows plus the slopes times those of its S rows
+        flux, slopes, lowest, highest = _face_coefficients(P, beta, L)
+    for c in range(L):
+        for f in range(F):
+            k = c * F + f
+            pointer[k] = n
+            i, e = left[f], right[f]
+            h_face = fractions[c] * 0.5 * (h[i] + h[e])
+            mass[k] = h_face
+            if not free[k]:
+                continue
+            # every entry of a face unknown is in a cell of its own (i != e)
+            if Lp < L:
+                s0 = ((bed[e] + sigma[c] * h[e]) - (bed[i] + sigma[c] * h[i])) / dx
+                s1 = ((bed[e] + sigma[c + 1] * h[e]) - (bed[i] + sigma[c + 1] * h[i])) / dx
+                ratio = h_face / dx
+                for g in range(lowest[c], highest[c] + 1):
+                    a0, a1, fc = slopes[0, c, g], slopes[1, c, g], flux[c, g]
+                    sloped = s0 * a0 + s1 * a1
+                    n = _store(cells, values, n, row_of[g * N + i], ratio * fc + sloped)
+                    n = _store(cells, values, n, row_of[g * N + e], sloped - ratio * fc)
+            else:
+                touched = 0  # the rows of E this unknown enters, in the order they first come
+                for row in range(c, min(c + 2, L)):
+                    touched = _accumulate(
+                        touched_rows, at_left, at_right, touched, row, 0.5 * h_face / dx, -0.5 * h_face / dx
+                    )
+                for j in (c, c + 1):
+                    if beta[j, c] == 0.0:
+                        continue
+                    slope = ((bed[e] + sigma[j] * h[e]) - (bed[i] + sigma[j] * h[i])) / dx
+                    for m in range(_slope_rows(j, L, rows, weights)):
+                        value = weights[m] * 0.5 * beta[j, c] * slope
+                        touched = _accumulate(touched_rows, at_left, at_right, touched, rows[m], value, value)
+                for t in range(touched):
+                    n = _store(cells, values, n, row_of[touched_rows[t] * N + i], at_left[t])
+                    n = _store(cells, values, n, row_of[touched_rows[t] * N + e], at_right[t])
+    for a in range(L):
+        for i in range(N):
+            k = L * F + a * N + i
+            pointer[k] = n
+            mass[k] = fractions[a] * h[i]
+            if not free[k]:
+                continue
+            for g in range(first[a], first[a] + targets[a]):
+                n = _store(cells, values, n, row_of[g * N + i], P[a, g])
+            if a + 1 < L:
+                for g in range(first[a + 1], first[a + 1] + targets[a + 1]):
+                    row = row_of[g * N + i]
+                    if row < 0:
+                        continue
+                    for m in range(pointer[k], n):  # the same row as one of wbar_a's: added
+                        if cells[m] == row:
+                            values[m] += -P[a + 1, g]
+                            break
+                    else:
+                        n = _store(cells, values, n, row, -P[a + 1, g])
+    pointer[L * F + L * N] = n
+    return n
+
+
+def capacity(L: int, N: int, F: int, Lp: int) -> int:
+    """Entries of :func:`entries` at most: the rows 0, c - 1, ..., c + 2 of ``E`` for a face
+    unknown of layer c, and a, a + 1 for ``wbar_a``, each going to the pressure rows it has
+    (1 or 2), in both columns of a face."""
+    return 2 * min(Lp, 10) * L * F + min(Lp, 4) * L * N
+
+
+@jit
+def _slope_rows(j, L, rows, weights):
+    """The rows of ``E`` that the slope flux ``S_j`` enters and their weights (see
+    :func:`entries`); returns their count."""
+    count = 0
+    if j <= 1:
+        rows[count], weights[count] = 0, -0.5
+        count += 1
+    if j >= 2:
+        rows[count], weights[count] = j - 1, -0.5
+        count += 1
+    if j <= L - 2:
+        rows[count], weights[count] = j + 1, 0.5
+        count += 1
+    return count
+
+
+@jit
+def _face_coefficients(P, beta, L):
+    """``flux[c, g]``: the entry of ``P^T E`` of a face unknown of layer ``c`` in pressure row
+    ``g`` per unit ``h_face / dx`` (left column; minus it in the right one), and
+    ``slopes[s, c, g]`` per unit slope of the interface ``c + s`` (both columns), and the
+    pressure rows ``lowest[c]..highest[c]`` where they are not all zero."""
+    Lp = P.shape[1]
+    flux, slopes = np.zeros((L, Lp)), np.zeros((2, L, Lp))
+    rows, weights = np.empty(3, np.int64), np.empty(3)
+    for c in range(L):
+        for row in range(c, min(c + 2, L)):
+            for g in range(Lp):
+                flux[c, g] += 0.5 * P[row, g]
+        for j in (c, c + 1):
+            if beta[j, c] == 0.0:
+                continue
+            for m in range(_slope_rows(j, L, rows, weights)):
+                for g in range(Lp):
+                    slopes[j - c, c, g] += weights[m] * 0.5 * beta[j, c] * P[rows[m], g]
+    lowest, highest = np.full(L, Lp, np.int64), np.full(L, -1, np.int64)
+    for c in range(L):
+        for g in range(Lp):
+            if flux[c, g] != 0.0 or slopes[0, c, g] != 0.0 or slopes[1, c, g] != 0.0:
+                lowest[c], highest[c] = min(lowest[c], g), max(highest[c], g)
+    return flux, slopes, lowest, highest
+
+
+@jit
+def _accumulate(touched_rows, at_left, at_right, touched, row, left_value, right_value):
+    """Add the entries of ``row`` in the left and right columns of a face unknown (a new
+    row at ``touched`` if it has none yet); returns the new count of rows."""
+    for t in range(touched):
+        if touched_rows[t] == row:
+            at_left[t] += left_value
+            at_right[t] += right_value
+            return touched
+    touched_rows[touched], at_left[touched], at_right[touched] = row, left_value, right_value
+    return touched + 1
+
+
+@jit
+def _store(rows, values, n, row, value):
+    """Store the entry ``value`` in ``row`` at ``n`` unless the row takes no part (``row <
+    0``); returns the new end."""
+    if row < 0:
+        return n
+    rows[n], values[n] = row, value
+    return n + 1
+
+
+@jit
+def unknowns(mass, left, right, moving, u, w, offset, nodes, free, V_star, row_of, rows):
+    """The free unknowns (faces with a moving side and material, the moving cells' ``wbar``),
+    the row of each cell (-1: none; the moving pressure interfaces ``nodes``, column by
+    column: ``A`` is then banded, of half-width about ``L_p + 3``), the cells of the rows
+    and ``V*``, for the columns ``offset ..`` of ``u`` and ``w`` (see :func:`correction`),
+    into ``free``, ``V_star``, ``row_of`` and ``rows``; returns the number of rows."""
+    L, N = moving.shape
+    F, Lp = left.size, nodes.size
+    for c in range(L):
+        for f in range(F):
+            k = c * F + f
+            free[k] = (moving[c, left[f]] or moving[c, right[f]]) and mass[k] > 0.0
+            V_star[k] = 0.5 * (u[c, offset + left[f]] + u[c, offset + right[f]])
+    for a in range(L):
+        for i in range(N):
+            k = L * F + a * N + i
+            free[k] = moving[a, i]
+            V_star[k] = w[a, offset + i] if moving[a, i] else 0.0
+    n = 0
+    for i in range(N):
+        for g in range(Lp):
+            row_of[g * N + i] = -1
+            if moving[nodes[g], i]:
+                row_of[g * N + i] = n
+                rows[n] = g * N + i
+                n += 1
+    return n
+
+
+@jit
+def normal_equations(pointer, cells, values, mass, free, row_of, n, v_star, storage):
+    """``A = E M^-1 E^T`` in band storage ``band[i, d] = A_i,i+d`` (``n`` rows, the band of
+    row ``i`` contiguous; in ``storage`` if it is large enough) and ``r = E V*``, over the
+    free unknowns and the rows ``row_of[cell] >= 0`` (module Notes)."""
+    width = 0
+    for k in range(free.size):
+        if not free[k]:
+            continue
+        lo, hi = n, -1
+        for e in range(pointer[k], pointer[k + 1]):
+            row = row_of[cells[e]]
+            if row >= 0:
+                lo, hi = min(lo, row), max(hi, row)
+        width = max(width, hi - lo)
+    if storage.size < n * (width + 1):
+        storage = np.empty(n * (width + 1))
+    band = storage[: n * (width + 1)].reshape((n, width + 1))
+    band[:] = 0.0
+    r = np.zeros(n)
+    rows, entries = np.empty(64, np.int64), np.empty(64)
+    for k in range(free.size):
+        if not free[k]:
+            continue
+        count = 0  # the entries of unknown k in the rows taking part
+        for e in range(pointer[k], pointer[k + 1]):
+            row = row_of[cells[e]]
+            if row >= 0:
+                rows[count], entries[count] = row, values[e]
+                count += 1
+        inverse = 1.0 / mass[k]
+        for e in range(count):
+            row = rows[e]
+            r[row] += entries[e] * v_star[k]
+            scaled = entries[e] * inverse
+            for d in range(count):
+                if rows[d] >= row:
+                    band[row, rows[d] - row] += scaled * entries[d]
+    return band, r
+
+
+@jit
+def correct(pointer, cells, values, mass, free, row_of, lam, dV):
+    """``dV = -M^-1 E^T lam`` on the free unknowns (zero elsewhere), into ``dV``."""
+    for k in range(free.size):
+        dV[k] = 0.0
+        if free[k]:
+            s = 0.0
+            for e in range(pointer[k], pointer[k + 1]):
+                row = row_of[cells[e]]
+                if row >= 0:
+                    s += values[e] * lam[row]
+            dV[k] = -s / mass[k]
+    return dV

@@ -1,0 +1,446 @@
+"""Non-hydrostatic pressure of the multilayer model: a vertical velocity per layer and an
+implicit pressure projection each step (docs/nonhydrostatic.md).
+
+The layer-averaged Euler hierarchy of Fernandez-Nieto, Parisot, Penel & Sainte-Marie
+(2018) adds to the hydrostatic multilayer system a vertical velocity ``w`` and a
+non-hydrostatic (kinematic) pressure ``q`` with, per layer ``a`` between the interfaces
+``z_a`` (below) and ``z_{a+1}`` (above),
+
+    d_t(h_a u_a) + ... = - d_x(h_a qbar_a) + q_{a+1} d_x z_{a+1} - q_a d_x z_a,
+    d_t(h_a wbar_a) + ... = - (q_{a+1} - q_a),
+    d_x(h_a u_a) - u_{a+1} d_x z_{a+1} + u_a d_x z_a + w_{a+1} - w_a = 0,
+
+with ``q = 0`` at the free surface, ``w_0 = u_0 d_x b`` at the bed, and, as in the
+Keller-box scheme of Stelling & Zijlema (2003), ``qbar_a`` and ``wbar_a`` the means of the
+interface values of layer ``a``.  Popinet (2020) uses the same layer quantities with a
+different vertical stencil; the Keller box is chosen because its linear dispersion is
+within 0.6 % of Airy's up to ``kh = 3`` with two layers and falls as ``1/L^2``
+(docs/nonhydrostatic.md has the table), where the centred stencil needs six layers for
+1 % at ``kh = 2``.
+
+Each step, after the transport and the exact-yield vertical step, the velocities are
+projected on the discrete constraint (a pressure-correction step, Chorin 1968):
+``V = V* - M^-1 E^T lam`` with ``E M^-1 E^T lam = E V*``.  ``lam`` is a multiplier of
+the rows of ``E`` below; the pressures ``q`` follow from the change of ``wbar``.
+
+The constraint and its normal equations are assembled in :mod:`.constraint`, solved by
+the banded Cholesky factorisation with active sets of :mod:`.banded`; this module
+advects ``w``, projects the moving cells and keeps the arrays of a simulation
+(:class:`Projection`).
+
+Notes
+-----
+Unknowns ``V``: the face velocities ``v_{a,f} = (u_{a,i} + u_{a,i+1}) / 2`` of each layer
+at each face ``f`` between columns ``i`` and ``i+1`` (mass ``h_{a,f}``, the mean of the
+two layer thicknesses) and the layer means ``wbar_{a,i}`` (mass ``h_{a,i}``).  With the
+layer flux divergence ``F_{a,i} = (h_{a,f+} v_{a,f+} - h_{a,f-} v_{a,f-}) / dx`` and the
+interface slope fluxes ``S_{j,i} = 1/2 sum_{f = f-, f+} vhat_{j,f} (z_{j,i+1/2 side} -
+z_{j,i-1/2 side}) / dx`` (``vhat`` the face velocity interpolated on interface ``j``;
+``j = 0`` the bed, ``j = L`` the surface), the constraint of each layer, recombined so that
+every row is local (an invertible recombination does not change the projection), is::
+
+    E_0 V = wbar_0 - (S_0 + S_1)/2 + F_0 / 2 = 0,
+    E_a V = wbar_a - wbar_{a-1} - (S_{a+1} - S_{a-1})/2 + (F_{a-1} + F_a)/2 = 0,   a >= 1,
+
+which is ``w_{a+1} - w_a = S_{a+1} - S_a - F_a`` with ``wbar_a = (w_a + w_{a+1})/2``.  The
+projection ``V = V* - M^-1 E^T lam`` is then exactly the Keller-box pressure force above
+with ``q_a = sum_{b >= a} h_b (wbar_b - wbar*_b) / dt = -lam_a / dt`` (``q_L = 0``), and,
+without the pressure bound, the kinetic energy ``1/2 V^T M V`` never grows (an
+orthogonal projection in the ``M`` norm).  The operator ``A = E M^-1 E^T`` is symmetric
+positive definite with a stencil of three columns by seven layers; with the unknowns
+ordered column by column it is banded (half-width ``L + 3``) and solved by banded
+Cholesky.  The total pressure is kept non-negative, ``lam_a <= dt g cos(theta) (h - z_a)``,
+by primal-dual active sets on ``1/2 lam^T A lam - lam^T E V*``.  Cell centres take the
+mean of the corrections of their two faces (an approximate projection, Almgren, Bell &
+Szymczak 1996).  Faces on a wall, outflow or inflow boundary carry no correction (zero
+normal pressure gradient); periodic domains connect their ends.
+
+Material at rest takes no part: only cells whose velocity after the vertical step is
+non-zero are constrained and corrected, so material held by the yield stress stays at
+``u == 0.0`` exactly, and a field that already satisfies the constraint (uniform flow) has
+``E V* = 0``, hence ``lam = 0`` and no change at all.
+``multilayer.reference.nonhydrostatic_fipy.project`` assembles the same operator
+from FiPy terms on the X-sigma mesh for flat interfaces
+(``multilayer/reference/nonhydrostatic_fipy.py``).
+
+Fewer pressure layers: with ``pressure_layers = L_p < L`` the pressure lives on the bottom
+interfaces of ``L_p`` groups of whole layers (:func:`pressure_nodes`) and, on every
+velocity interface, is its linear interpolation in sigma, zero at the surface
+(:func:`pressure_interpolation`, ``lam = P lam_p``).  The constraint is the Galerkin one,
+``P^T E V = 0`` (``L_p`` rows per column), and the projection ``V = V* - M^-1 E^T P
+lam_p`` with ``(P^T A P) lam_p = P^T E V*``: the orthogonal projection in the ``M`` norm on
+a larger subspace than ``E V = 0``, so it still never adds kinetic energy, and ``E V* = 0``
+(rest, uniform flow) still gives ``lam_p = 0``.  The band of ``P^T A P`` has half-width
+about ``L_p + 3``: the factorisation costs O(L_p^3) per column instead of O(L^3).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from multilayer.engine.compiled import jit
+from multilayer.engine.pressure.non_hydrostatic.banded import multipliers
+from multilayer.engine.pressure.non_hydrostatic.constraint import (
+    Constraint,
+    capacity,
+    correct,
+    entries,
+    faces,
+    layering,
+    normal_equations,
+    unknowns,
+)
+from multilayer.engine.state import span
+
+
+def correction(
+    cons: Constraint,
+    moving: np.ndarray,
+    u: np.ndarray,
+    w: np.ndarray,
+    lam_max: np.ndarray | None = None,
+    active: np.ndarray | None = None,
+    nodes: np.ndarray | None = None,
+    offset: int = 0,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``V*``, the correction ``dV = -M^-1 E^T lam`` and the free unknowns, over the rows
+    and unknowns of the moving cells (all vectors full length).
+
+    ``lam`` minimises ``1/2 lam^T A lam - lam^T E V*`` (``A lam = E V*``), subject to
+    ``lam <= lam_max`` (L_p, N) if given: with ``lam_a = -dt q_a`` this is the bound
+    ``p >= 0`` on the total pressure, solved by the primal-dual active-set method from the
+    guess ``active`` (L_p, N) of the cells where the bound holds (none by default; updated
+    in place to the final active set).  With pressure interfaces ``nodes`` (the velocity
+    layers of :func:`pressure_nodes`; default every layer) ``E`` is the reduced ``P^T E``
+    and its row ``g`` takes part where the layer ``nodes[g]`` moves.  The constraint's
+    columns are the columns ``offset ..`` of ``u`` and ``w`` (``moving`` has its N).
+    """
+    L, N = moving.shape
+    layers = np.arange(L) if nodes is None else nodes
+    K = cons.mass.size
+    free, V_star, row_of, rows = (
+        np.empty(K, np.bool_),
+        np.empty(K),
+        np.empty(layers.size * N, np.int64),
+        np.empty(layers.size * N, np.int64),
+    )
+    n = unknowns(cons.mass, cons.left, cons.right, moving, u, w, offset, layers, free, V_star, row_of, rows)
+    band, r = normal_equations(
+        cons.pointer, cons.cells, cons.values, cons.mass, free, row_of, n, V_star, np.empty(0)
+    )
+    lam = multipliers(band, r, rows[:n], lam_max, active)
+    dV = np.empty(K)
+    correct(cons.pointer, cons.cells, cons.values, cons.mass, free, row_of, lam, dV)
+    return V_star, dV, free
+
+
+class _Buffers:
+    """The work arrays of :func:`project_columns` for ``L`` layers, ``N`` columns and ``Lp``
+    pressure layers."""
+
+    def __init__(self, L: int, N: int, Lp: int):
+        K = 2 * L * N  # the unknowns: at most N faces and N cells per layer
+        self.free, self.V_star, self.dV, self.mass = (
+            np.empty(K, np.bool_),
+            np.empty(K),
+            np.empty(K),
+            np.empty(K),
+        )
+        self.pointer = np.empty(K + 1, np.int64)
+        self.cells, self.values = np.empty(capacity(L, N, N, Lp), np.int64), np.empty(capacity(L, N, N, Lp))
+        self.row_of, self.rows, self.own = (
+            np.empty(Lp * N, np.int64),
+            np.empty(Lp * N, np.int64),
+            np.arange(Lp * N),
+        )
+        # a band of half-width below 2 Lp (the rows of two columns; wider: periodic ends, a new one)
+        self.band = np.empty(Lp * N * 2 * Lp)
+        self.du = np.empty(L * N)
+
+
+def project(
+    h: np.ndarray,
+    u: np.ndarray,
+    w: np.ndarray,
+    bed: np.ndarray,
+    fractions: np.ndarray,
+    *,
+    dx: float,
+    dt: float,
+    periodic: bool = False,
+    dry: float = 0.0,
+    g_n: float | None = None,
+    tension_free: np.ndarray | None = None,
+    pressure_layers: int | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Project the moving cells on the non-hydrostatic constraint (module Notes), with the
+    pressure on ``pressure_layers`` groups of layers (default: every layer; module Notes,
+    "Fewer pressure layers").
+
+    ``u`` (L, N) are the velocities after the vertical step, ``w`` (L, N) the layer-mean
+    vertical velocities before the projection.  Returns the new ``u`` and ``w`` and the
+    kinematic pressures ``q`` (L, N) at the bottom interface of each layer (``q`` per unit
+    density, m^2/s^2; zero at the free surface).  Cells at rest (``u == 0.0``) or dry keep
+    ``u = w = 0``.  With ``g_n = g cos(theta)`` the total pressure
+    ``g_n (h - z) + q`` is kept non-negative (granular matter takes no tension); the cells
+    ``tension_free`` (L, N) where it was zero the step before (:func:`tension_free`) start
+    the active-set iteration (speed only: the answer does not depend on them).
+    """
+    u_new, w_new, q = u.copy(), np.zeros(w.shape), np.zeros(u.shape)
+    project_columns(
+        h, u, w, bed, fractions, (u_new, w_new, q), dx=dx, dt=dt, periodic=periodic, dry=dry, g_n=g_n,
+        tension_free=tension_free, pressure_layers=pressure_layers,
+    )  # fmt: skip
+    return u_new, w_new, q
+
+
+def project_columns(
+    h: np.ndarray,
+    u: np.ndarray,
+    w: np.ndarray,
+    bed: np.ndarray,
+    fractions: np.ndarray,
+    out: tuple[np.ndarray, np.ndarray, np.ndarray],
+    *,
+    dx: float,
+    dt: float,
+    periodic: bool = False,
+    dry: float = 0.0,
+    g_n: float | None = None,
+    tension_free: np.ndarray | None = None,
+    pressure_layers: int | None = None,
+    buffers: _Buffers | None = None,
+) -> tuple[int, int]:
+    """:func:`project` into ``out`` (u, w, q; L, N), written in the columns ``lo .. hi-1``
+    it returns only, those of the moving material and one column at rest on each side (the
+    faces beyond join cells at rest and carry no correction; every column if periodic):
+    ``out`` must hold ``u`` and zeros elsewhere (the answer there).  ``(0, 0)``: nothing
+    moves.
+    ``buffers``: the work arrays of the shape of ``u`` and these pressure layers (reused
+    from call to call: a new array touched afresh costs a page fault per 4 KiB)."""
+    L, N = u.shape
+    first, last = _moving_columns(u, h, dry)
+    if last < 0:
+        return 0, 0
+    lo, hi = (0, N) if periodic else (max(first - 1, 0), min(last + 2, N))
+    window = slice(lo, hi)
+    moving = _moving(u, h, dry, lo, hi)
+    nodes, P = layering(tuple(fractions), L if pressure_layers is None else pressure_layers)
+    lam_max = active = None
+    if g_n is not None:
+        # the bound at the pressure interfaces holds on every interface: both sides are
+        # linear in sigma between them
+        lam_max = dt * g_n * (depth_factors(fractions)[nodes, None] * h[window])
+        active = np.zeros(lam_max.shape, np.bool_) if tension_free is None else tension_free[nodes, window]
+    # the constraint of the free unknowns in the rows taking part only (``correction`` on
+    # ``constraint``, without the rest), in arrays reused from call to call
+    buffers = _Buffers(L, N, nodes.size) if buffers is None else buffers
+    thickness = np.where(h[window] > dry, h[window], 0.0)
+    left, right = faces(hi - lo, periodic)
+    face_mass = (fractions[:, None] * 0.5 * (thickness[left] + thickness[right])).ravel()
+    K = L * left.size + L * (hi - lo)
+    free, V_star, dV, mass = buffers.free[:K], buffers.V_star[:K], buffers.dV[:K], buffers.mass[:K]
+    row_of = buffers.row_of[: nodes.size * (hi - lo)]
+    n = unknowns(face_mass, left, right, moving, u, w, lo, nodes, free, V_star, row_of, buffers.rows)
+    pointer, entry_rows, values = buffers.pointer[: K + 1], buffers.cells, buffers.values
+    entries(
+        thickness, bed[window], fractions, dx, left, right, P, free, row_of, pointer, entry_rows, values, mass
+    )
+    own = buffers.own[:n]  # the entries are in rows already
+    band, r = normal_equations(pointer, entry_rows, values, mass, free, own, n, V_star, buffers.band)
+    lam = multipliers(band, r, buffers.rows[:n], lam_max, active)
+    correct(pointer, entry_rows, values, mass, free, own, lam, dV)
+    _finish(dV, u, w, h, fractions, moving, left, right, dt, lo, buffers.du, *out)
+    return lo, hi
+
+
+@jit
+def _moving(u, h, dry, lo, hi):
+    """The cells (L, hi - lo) of the columns ``lo .. hi-1`` that take part: ``u != 0`` where
+    ``h > dry``."""
+    moving = np.empty((u.shape[0], hi - lo), np.bool_)
+    for a in range(u.shape[0]):
+        for i in range(lo, hi):
+            moving[a, i - lo] = u[a, i] != 0.0 and h[i] > dry
+    return moving
+
+
+@jit
+def _finish(dV, u, w, h, fractions, moving, left, right, dt, lo, storage, u_out, w_out, q_out):
+    """The projected ``u`` (each column the mean of the corrections of its two faces), ``w``
+    and the pressures ``q_a = sum_{b >= a} h_b dw_b / dt`` of the columns ``lo ..`` (as many
+    as ``moving`` has) into ``u_out``, ``w_out`` and ``q_out`` (module Notes); ``storage``
+    holds the changes of ``u`` (at least L N long)."""
+    L, N = moving.shape
+    F = left.size
+    du = storage[: L * N].reshape((L, N))
+    du[:] = 0.0
+    for c in range(L):
+        for f in range(F):
+            half = 0.5 * dV[c * F + f]
+            du[c, left[f]] += half  # each column is the left of one face at most, and the right of one
+            du[c, right[f]] += half
+    for a in range(L):
+        for i in range(N):
+            if moving[a, i]:
+                u_out[a, lo + i] = u[a, lo + i] + du[a, i]
+                w_out[a, lo + i] = w[a, lo + i] + dV[L * F + a * N + i]
+            else:
+                u_out[a, lo + i] = u[a, lo + i]
+                w_out[a, lo + i] = 0.0
+    for i in range(N):
+        total = 0.0
+        for a in range(L - 1, -1, -1):
+            total += fractions[a] * h[lo + i] * dV[L * F + a * N + i]
+            q_out[a, lo + i] = total / dt
+
+
+@jit
+def _moving_columns(u, h, dry):
+    """The first and the last column with a moving cell (``u != 0`` where ``h > dry``);
+    ``(-1, -1)`` if none."""
+    first = last = -1
+    for i in range(h.size):
+        if h[i] > dry:
+            for a in range(u.shape[0]):
+                if u[a, i] != 0.0:
+                    if first < 0:
+                        first = i
+                    last = i
+                    break
+    return first, last
+
+
+@jit
+def _advect(w, u, dx, dt, periodic, lo, hi, out):
+    """First-order upwind transport of the layer vertical velocities by the layer
+    velocities, ``d_t w + u d_x w = 0`` (zero-gradient ends unless periodic), into the
+    columns ``lo .. hi-1`` of ``out``."""
+    L, N = w.shape
+    ratio = dt / dx
+    for a in range(L):
+        for i in range(lo, hi):
+            here, speed = w[a, i], u[a, i]
+            if speed > 0.0:
+                west = w[a, i - 1] if i > 0 else (w[a, N - 1] if periodic else here)
+                out[a, i] = here - ratio * (speed * (here - west))
+            elif speed < 0.0:
+                east = w[a, i + 1] if i < N - 1 else (w[a, 0] if periodic else here)
+                out[a, i] = here - ratio * (speed * (east - here))
+            else:
+                out[a, i] = here
+
+
+def depth_below(h: np.ndarray, fractions: np.ndarray) -> np.ndarray:
+    """Depth ``h - z_a`` (L, N) of the bottom interface of each layer below the surface."""
+    return depth_factors(fractions)[:, None] * h
+
+
+def depth_factors(fractions: np.ndarray) -> np.ndarray:
+    """``(h - z_a) / h`` of the bottom interface of each layer."""
+    return 1.0 - np.concatenate([[0.0], np.cumsum(fractions)[:-1]])
+
+
+def tension_free(
+    q: np.ndarray, h: np.ndarray, fractions: np.ndarray, g_n: float, columns: tuple[int, int] | None = None
+) -> np.ndarray:
+    """Interfaces (L, N) where the total pressure ``g_n (h - z) + q`` of a projection is
+    zero (to round-off: the bound ``p >= 0`` was active there), ``h`` being the thickness
+    the pressures ``q`` were computed with; ``columns`` (lo, hi): ``q`` is zero outside
+    the columns ``lo .. hi-1`` (where none is, for ``g_n > 0``)."""
+    lo, hi = (0, q.shape[1]) if columns is None else columns
+    out = np.zeros(q.shape, np.bool_)
+    _tension_free(q, h, depth_factors(fractions), g_n, lo, hi, out)
+    return out
+
+
+@jit
+def _tension_free(q, h, factors, g_n, lo, hi, out):
+    for a in range(q.shape[0]):
+        for i in range(lo, hi):
+            depth = factors[a] * h[i]
+            out[a, i] = depth > 0.0 and g_n * depth + q[a, i] <= 1e-9 * g_n * depth
+
+
+@jit
+def _yield_gravity(q, h, factors, g_n, lo, hi, out):
+    """Normal gravity ``G_k`` of the interface pressures with the non-hydrostatic part,
+    ``rho G_k (h - z_k) = rho g cos(theta) (h - z_k) + rho q_k``, never negative, into the
+    columns ``lo .. hi-1`` of ``out`` (``factors``: :func:`depth_factors`)."""
+    for a in range(q.shape[0]):
+        for i in range(lo, hi):
+            depth = factors[a] * h[i]
+            out[a, i] = max(g_n + (q[a, i] / depth if depth > 0.0 else 0.0), 0.0)
+
+
+class Projection:
+    """The non-hydrostatic part of a simulation's step (``w`` advected by the vertical
+    step's velocities, then :func:`project_columns`) and the normal gravity of the yield
+    stresses, into arrays (L, N) reused from step to step: every
+    array is written in the columns holding material only (the rest kept zero, or
+    ``g cos(theta)``), so a step's cost follows the material, not the domain."""
+
+    def __init__(
+        self,
+        fractions: np.ndarray,
+        bed: np.ndarray,
+        *,
+        dx: float,
+        periodic: bool,
+        dry: float,
+        g_n: float,
+        pressure_layers: int | None,
+    ):
+        self.fractions, self.bed = fractions, bed
+        self.dx, self.periodic, self.dry, self.g_n = dx, periodic, dry, g_n
+        self.pressure_layers = pressure_layers
+        shape = (fractions.size, bed.size)
+        self.u, self.w, self.q = np.zeros(shape), np.zeros(shape), np.zeros(shape)
+        self._w_star = np.zeros(shape)  # read at the moving cells only
+        self._buffers = _Buffers(*shape, layering(tuple(fractions), pressure_layers or shape[0])[0].size)
+        self._gravity = np.full(shape, max(g_n, 0.0))
+        self._written = (0, 0)  # the columns of u, w, q written by the last call
+        self._gravity_written = (0, 0)
+
+    def __call__(
+        self,
+        h: np.ndarray,
+        u: np.ndarray,
+        w: np.ndarray,
+        q: np.ndarray,
+        h_before: np.ndarray,
+        dt: float,
+        columns: tuple[int, int],
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The projected ``u``, ``w`` and the pressures ``q`` (overwritten by the next call)
+        of the vertical step's velocities ``u`` on the thickness ``h``, from the state's
+        ``w`` and ``q`` (on ``h_before``; both zero outside the columns ``columns``).  ``u``
+        is zero outside the columns holding material (the vertical step zeroes them)."""
+        lo, hi = span(h)
+        start, stop = self._written
+        self.u[:, start:stop] = 0.0
+        self.w[:, start:stop] = 0.0
+        self.q[:, start:stop] = 0.0
+        self.u[:, lo:hi] = u[:, lo:hi]
+        # only the moving cells take part, in the columns holding material
+        _advect(w, u, self.dx, dt, self.periodic, lo, hi, self._w_star)
+        first, last = project_columns(
+            h, u, self._w_star, self.bed, self.fractions, (self.u, self.w, self.q), dx=self.dx, dt=dt,
+            periodic=self.periodic, dry=self.dry, g_n=self.g_n,
+            tension_free=tension_free(q, h_before, self.fractions, self.g_n, columns),
+            pressure_layers=self.pressure_layers, buffers=self._buffers,
+        )  # fmt: skip
+        self._written = (min(lo, first), max(hi, last)) if last > first else (lo, hi)
+        return self.u, self.w, self.q
+
+    def yield_gravity(self, q: np.ndarray, h: np.ndarray, columns: tuple[int, int]) -> np.ndarray:
+        """Normal gravity ``G_k`` (L, N) of the interface pressures with the non-hydrostatic
+        part of ``q`` (zero outside the columns ``columns``) on the thickness ``h``,
+        ``rho G_k (h - z_k) = rho g cos(theta) (h - z_k) + rho q_k``, never negative
+        (overwritten by the next call)."""
+        start, stop = self._gravity_written
+        self._gravity[:, start:stop] = max(self.g_n, 0.0)
+        lo, hi = columns
+        _yield_gravity(q, h, depth_factors(self.fractions), self.g_n, lo, hi, self._gravity)
+        self._gravity_written = columns
+        return self._gravity

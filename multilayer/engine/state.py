@@ -1,0 +1,173 @@
+"""The state of the flow and how a step's result replaces it (the windowed commit).
+
+The state is the thickness ``h`` (N,) and the layer velocities ``u`` (L, N) at the cell
+centres, and the further fields per layer (L, N) that a model keeps in :attr:`FlowState.fields`:
+the vertical velocities ``w`` and pressures ``q`` of the non-hydrostatic pressure (zero
+under the other pressures) and whatever a model adds with :meth:`FlowState.add_field`
+(the Newton seed of the non-hydrostatic pressure; a grain-fluid mixture would add its
+solid fraction and pore pressure the same way).
+
+A step changes only the columns holding material: :meth:`FlowState.commit` copies ``u``
+in the columns that moved at the start of the step or hold material at its end, and the
+other fields in those that held material in this step or the last one (the columns
+outside are zero by construction and stay so).  :meth:`FlowState.survey` reads the
+state once at the start of a step: the moving columns, the layers at rest and the
+fastest wave.  The compiled scans of the state are here too.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from multilayer.engine.compiled import jit
+
+
+class FlowState:
+    """``h`` (N,), ``u`` (L, N) and the layer ``fields`` of a simulation, updated in place."""
+
+    def __init__(self, h: np.ndarray, u: np.ndarray):
+        L, N = u.shape
+        self.h = h
+        self.u = u
+        self.fields: dict[str, np.ndarray] = {}
+        self._defaults: dict[str, str | float] = {}
+        self.w = self.add_field("w")
+        """Layer-mean vertical velocities (L, N), m/s (the non-hydrostatic pressure)."""
+        self.q = self.add_field("q")
+        """Kinematic non-hydrostatic pressures at the bottom interface of each layer (L, N), m^2/s^2."""
+        self.window = (0, N)
+        """Columns ``lo .. hi-1`` outside which the fields are zero (those of the last step)."""
+        self.moving = np.zeros(N, dtype=bool)
+        """Columns with a non-zero velocity at the start of the step (:meth:`survey`)."""
+        self.rest = np.zeros((L, N), dtype=bool)
+        """Layers at rest (``u == 0``) at the start of the step, in columns thicker than dry."""
+
+    def add_field(self, name: str, default: str | float = 0.0) -> np.ndarray:
+        """A new layer field (L, N), initially ``default``: a number, or the name of a field
+        (or ``"u"``) whose values it starts from (and takes when a saved state lacks it)."""
+        values = np.empty_like(self.u)
+        values[...] = (
+            self.u if default == "u" else self.fields[default] if isinstance(default, str) else default
+        )
+        self.fields[name] = values
+        self._defaults[name] = default
+        return values
+
+    def survey(self, dry: float, g_n: float) -> float:
+        """Fill :attr:`moving` and :attr:`rest` from the state (columns thicker than ``dry``)
+        and return the largest wave speed ``max_a |u_a| + sqrt(g cos(theta) h)``."""
+        return survey(self.h, self.u, dry, g_n, self.moving, self.rest)
+
+    def commit(
+        self, h: np.ndarray, u: np.ndarray, fields: Mapping[str, np.ndarray], columns: tuple[int, int]
+    ) -> None:
+        """Take a step's result: ``h``, ``u`` and the layer ``fields`` it produced (the
+        others are kept), all zero outside the columns ``columns`` (lo, hi) that hold
+        material at its end, and ``u`` also outside those moving at its start."""
+        lo, hi = columns
+        self.h[...] = h
+        first, last = span(self.moving)
+        first, last = (lo, hi) if first == last else (min(first, lo), max(last, hi))
+        self.u[:, first:last] = u[:, first:last]
+        if fields:
+            start, stop = min(self.window[0], lo), max(self.window[1], hi)
+            for name, values in fields.items():
+                self.fields[name][:, start:stop] = values[:, start:stop]
+            self.window = (lo, hi)
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """Copies of ``h``, ``u`` and every field."""
+        return {"h": self.h.copy(), "u": self.u.copy(), **{k: v.copy() for k, v in self.fields.items()}}
+
+    def load_state(self, saved: Mapping[str, np.ndarray]) -> None:
+        """Restore :meth:`state_dict` (a field missing from ``saved`` takes its default)."""
+        self.h[...] = saved["h"]
+        self.u[...] = saved["u"]
+        for name, values in self.fields.items():
+            default = self._defaults[name]
+            fallback = (
+                self.u if default == "u" else self.fields[default] if isinstance(default, str) else default
+            )
+            values[...] = saved.get(name, fallback)
+        self.window = (0, self.h.size)
+
+
+@jit
+def span(values: np.ndarray) -> tuple[int, int]:
+    """(first, last + 1) of the entries of ``values`` (N,) that are > 0 (or True);
+    (0, 0) for none."""
+    first = -1
+    last = -1
+    for i in range(values.size):
+        if values[i] > 0:
+            if first < 0:
+                first = i
+            last = i
+    return (first, last + 1) if first >= 0 else (0, 0)
+
+
+@jit
+def moving_columns(u: np.ndarray) -> np.ndarray:
+    """Columns (N,) with a non-zero velocity in some layer of ``u`` (L, N)."""
+    L, N = u.shape
+    out = np.zeros(N, np.bool_)
+    for a in range(L):
+        for i in range(N):
+            if u[a, i] != 0.0:
+                out[i] = True
+    return out
+
+
+@jit
+def max_wave_speed(h: np.ndarray, u: np.ndarray, g_n: float) -> float:
+    """Largest max_a |u_a| + sqrt(g cos(theta) h) over the columns (0 for none)."""
+    L, N = u.shape
+    fastest = np.zeros(N)
+    for a in range(L):
+        for i in range(N):
+            fastest[i] = max(fastest[i], abs(u[a, i]))
+    best = 0.0
+    for i in range(N):
+        best = max(best, fastest[i] + np.sqrt(g_n * max(h[i], 0.0)))
+    return best
+
+
+@jit
+def survey(h, u, dry, g_n, moving, rest):
+    """One pass over the state at the start of a step: fills ``moving`` (N,), the columns
+    with a non-zero velocity in some layer, and ``rest`` (L, N), the layers at rest
+    (``u == 0``) in columns thicker than ``dry``; returns the largest wave speed
+    ``max_a |u_a| + sqrt(g cos(theta) h)`` (as ``max_wave_speed``)."""
+    L, N = u.shape
+    fastest = np.zeros(N)
+    for i in range(N):
+        moving[i] = False
+    for a in range(L):
+        for i in range(N):
+            v = u[a, i]
+            moving[i] = moving[i] or v != 0.0
+            rest[a, i] = v == 0.0 and h[i] > dry
+            fastest[i] = max(fastest[i], abs(v))
+    best = 0.0
+    for i in range(N):
+        best = max(best, fastest[i] + np.sqrt(g_n * max(h[i], 0.0)))
+    return best
+
+
+@jit
+def start_moving(u, h, dry, moving):
+    """Add to ``moving`` the columns thicker than ``dry`` that were not moving and have a
+    non-zero velocity in ``u`` (material at rest that a step sets moving); True if any."""
+    L, N = u.shape
+    started = False
+    for i in range(N):
+        if moving[i] or not h[i] > dry:
+            continue
+        for a in range(L):
+            if u[a, i] != 0.0:
+                moving[i] = True
+                started = True
+                break
+    return started

@@ -1,0 +1,159 @@
+"""The compiled forms of the laws: one registry of the compiled viscosity forms, their
+Newton model one value at a time, and whether the form a plugin declares describes it.
+
+A rheology plugin may declare its viscosity as one of the compiled forms of
+:data:`FORMS` (``Rheology.viscosity_kernel``, docs/plugins.md), for ``p = max(p, 0)``:
+``constant``, ``eta``; ``inertial``, ``A p / (B sqrt(p) + C |gamma|)`` (the mu(I) law of
+Jop, Forterre & Pouliquen 2006, eq. 2, less its yield part); ``power``, ``A p^e_p
+max(|gamma|, floor)^e_g``.  The compiled vertical step (``newton_kernel``,
+``sheared_columns``) evaluates them here, with the factors that depend on the pressure
+only computed once per layer and step (:func:`_pressure_part`).
+
+A new form is one :class:`Form` in :data:`FORMS` and its branch in :func:`_pressure_part`
+and :func:`_viscosity_and_slope` (with its exact slope), all in this module, and a test
+against the plugin's own ``viscosity`` (tests/test_newton_kernel.py); the side-by-side
+sweep of ``sheared_columns`` runs it as it is, and compiles a copy specialised to it only
+where a branch there names its code.
+
+A form describes the methods of the class that declares it (:func:`describes`): where a
+subclass (or the instance itself) redefines one of them below that class, the form no
+longer describes what the plugin computes, and the engine calls the plugin's own methods.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from multilayer.engine.compiled import jit
+from multilayer.engine.plugin_output import declared_form
+
+
+@dataclass(frozen=True)
+class Form:
+    """A compiled viscosity form: its name in ``viscosity_kernel``, its code in the kernels
+    and how many parameters it takes."""
+
+    name: str
+    code: int
+    parameters: int
+
+
+CONSTANT, INERTIAL, POWER = 0, 1, 2
+"""The codes of the built-in forms (the branches of :func:`_viscosity_and_slope`)."""
+FORMS = {
+    form.name: form
+    for form in (Form("constant", CONSTANT, 1), Form("inertial", INERTIAL, 3), Form("power", POWER, 4))
+}
+"""The compiled viscosity forms by name."""
+
+
+def law_of(rheology: Any, material: Any) -> tuple[int, np.ndarray] | None:
+    """(form code, parameters) of a plugin's compiled viscosity, None if it has none (or
+    declares a form unknown here).  A known form with another number of parameters stops
+    the run naming the plugin (``plugin_output.declared_form``).
+
+    A compiled form describes the ``viscosity`` of the class that declares it: where a
+    subclass (or the instance) redefines ``viscosity`` below that class, the form is not
+    used, and the step runs the plugin's own ``viscosity`` (numpy path)."""
+    if not describes(rheology, "viscosity_kernel", ("viscosity",)):
+        return None
+    parameters = {name: form.parameters for name, form in FORMS.items()}
+    declared = declared_form(rheology, "viscosity_kernel", material, parameters)
+    if declared is None:
+        return None
+    return FORMS[declared[0]].code, declared[1]
+
+
+@jit
+def _pressure_part(form, params, p):
+    """The factor of eta that depends on the pressure only, and the one added to the
+    rate term (computed once per column and step, not per Newton iteration)."""
+    p = max(p, 0.0)
+    if form == CONSTANT:
+        return params[0], 0.0
+    if form == INERTIAL:
+        return params[0] * p, params[1] * np.sqrt(p)
+    return params[0] * p ** params[1], 0.0  # POWER
+
+
+@jit
+def _viscosity_and_slope(form, params, rate, factor, offset):
+    """eta(rate, p) of the compiled forms (``Rheology.viscosity_kernel``) and the slope
+    d(eta rate)/d rate of the viscous stress, for ``rate >= 0``, from the pressure parts
+    ``factor, offset = _pressure_part(form, params, p)``.
+
+    The slope is exact: ``eta`` for the constant form; ``eta B sqrt(p) / (B sqrt(p) +
+    C rate)`` for the inertial form (``eta`` at rest); ``(1 + e_g) eta`` above the
+    floor of the power form, ``eta`` below it.
+    """
+    if form == CONSTANT:
+        return factor, factor
+    if form == INERTIAL:
+        denominator = offset + params[2] * rate
+        if denominator > 0.0:
+            inverse = 1.0 / denominator
+            eta = factor * inverse
+            return eta, eta * offset * inverse
+        return 0.0, 0.0
+    if rate > params[3]:  # POWER
+        eta = factor * rate ** params[2]
+        return eta, (1.0 + params[2]) * eta
+    eta = factor * params[3] ** params[2]
+    return eta, eta
+
+
+@jit
+def _viscosity(form, params, rate, factor, offset):
+    """eta(|gamma|, p) of the compiled forms (``Rheology.viscosity_kernel``) from the
+    pressure parts ``factor, offset = _pressure_part(form, params, p)``."""
+    return _viscosity_and_slope(form, params, abs(rate), factor, offset)[0]
+
+
+@jit
+def _newton_model(kappa, rate, eta, slope, secant):
+    """``stresses.StressModel._newton_model`` for one value from ``eta`` and the stress slope at
+    ``rate``: (yield stress, conductance) of the odd Bingham law through the stress at
+    ``rate``, tangent where its yield stress is >= 0, secant otherwise (and always with
+    ``secant``: the Kacanov model of ``newton_control``)."""
+    slope = max(slope, 0.0)
+    offset_yield = kappa + eta * rate - slope * rate
+    if offset_yield >= 0.0 and not secant:
+        return offset_yield, slope
+    return kappa, eta
+
+
+def describes(rheology: object, kernel: str, methods: tuple[str, ...]) -> bool:
+    """True when the definition of ``kernel`` that ``rheology`` uses comes from a class at
+    or below every class whose definition of ``methods`` it uses (never when the instance
+    itself defines one of them)."""
+    instance = getattr(rheology, "__dict__", {})  # none with __slots__
+    if kernel in instance or any(method in instance for method in methods):
+        return False
+    cls: Any = type(rheology)
+    # the definitions the class resolves now: a method patched on a class is a new key
+    return _class_describes(
+        cls, kernel, methods, tuple(getattr(cls, name, None) for name in (kernel, *methods))
+    )
+
+
+@functools.lru_cache(maxsize=256)
+def _class_describes(cls: Any, kernel: str, methods: tuple[str, ...], definitions: tuple) -> bool:
+    """``describes`` for the class ``cls`` whose attributes ``kernel, *methods`` resolve to
+    ``definitions`` (part of the key of the cache)."""
+    kernel_owner = _owner(cls, kernel)
+    if kernel_owner is None:
+        return False
+    for method in methods:
+        method_owner = _owner(cls, method)
+        if method_owner is None or not issubclass(kernel_owner, method_owner):
+            return False
+    return True
+
+
+def _owner(cls: Any, name: str) -> type | None:
+    """The class of ``cls.__mro__`` whose definition of ``name`` ``cls`` uses (None: none)."""
+    return next((base for base in cls.__mro__ if name in vars(base)), None)

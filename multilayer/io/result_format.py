@@ -1,0 +1,124 @@
+"""The names and variables of the result file ``result.nc`` (docs/results.md), shared by
+its writer and reader (:mod:`multilayer.io.results`, which re-exports them) and its checks
+(:mod:`multilayer.io.result_check`): the checks need them without the writer, which uses
+the checks (no import cycle)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Final
+
+from xarray.backends.locks import HDF5_LOCK, NETCDFC_LOCK, combine_locks
+
+RESULT_FILE = "result.nc"
+CHECKPOINT_FILE = "checkpoint.npz"
+FORMAT: Final = "NETCDF3_64BIT_OFFSET"
+#: netCDF-C is not thread-safe and netCDF4-python releases the GIL in its calls: the runs of a
+#: thread cluster write their result files while the study writes its own through xarray,
+#: which holds these same locks around every netCDF call, so the writer holds them too
+NETCDF_LOCK: Final = combine_locks([NETCDFC_LOCK, HDF5_LOCK])
+
+#: CF attributes of every coordinate and variable: (dimensions, attributes).
+VARIABLES: dict[str, tuple[tuple[str, ...], dict[str, str]]] = {
+    "time": (
+        ("time",),
+        {
+            "units": "s",
+            "long_name": "simulated time since release",
+            "standard_name": "time",
+            "axis": "T",
+        },
+    ),
+    "x": (
+        ("x",),
+        {
+            "units": "m",
+            "long_name": "downslope position of the cell centre along the plane",
+            "axis": "X",
+            "bounds": "x_bnds",
+        },
+    ),
+    "x_bnds": (
+        ("x", "nv"),
+        {
+            "units": "m",
+            "long_name": "downslope positions of the cell edges",
+        },
+    ),
+    "layer": (
+        ("layer",),
+        {
+            "units": "1",
+            "long_name": "layer index, 1 at the bed",
+            "axis": "Z",
+            "positive": "up",
+        },
+    ),
+    "sigma": (
+        ("layer",),
+        {
+            "units": "1",
+            "long_name": "height of the layer centre as a fraction of h",
+            "positive": "up",
+            "bounds": "sigma_bnds",
+        },
+    ),
+    "sigma_bnds": (
+        ("layer", "nv"),
+        {
+            "units": "1",
+            "long_name": "heights of the layer interfaces as fractions of h",
+        },
+    ),
+    "bed": (
+        ("x",),
+        {
+            "units": "m",
+            "long_name": "bed elevation b normal to the plane",
+        },
+    ),
+    "h": (
+        ("time", "x"),
+        {
+            "units": "m",
+            "long_name": "flow thickness normal to the plane",
+        },
+    ),
+    "u": (
+        ("time", "layer", "x"),
+        {
+            "units": "m s-1",
+            "long_name": "downslope layer velocity",
+            "coordinates": "sigma",
+        },
+    ),
+    "static_interface": (
+        ("time", "x"),
+        {
+            "units": "m",
+            "long_name": "height above the bed of the top of the static region",
+            "comment": "0: flowing down to the bed; h: the whole column at rest",
+        },
+    ),
+    "front": (
+        ("time",),
+        {
+            "units": "m",
+            "long_name": "downslope-most cell centre with h above threshold",
+        },
+    ),
+    "mass": (
+        ("time",),
+        {
+            "units": "m2",
+            "long_name": "integral of h over x (volume per unit width)",
+        },
+    ),
+}
+
+
+def result_path(path: str | os.PathLike) -> Path:
+    """``path`` itself, or the ``result.nc`` inside it when it is a directory."""
+    path = Path(path)
+    return path / RESULT_FILE if path.is_dir() else path
