@@ -1,4 +1,4 @@
-"""Documentation that cannot drift: every code block of README.md and docs/*.md is checked.
+"""Documentation that cannot drift: every code block of README.md and docs/**/*.md is checked.
 
 The rules (docs/index.md, "Documentation that is tested"):
 
@@ -56,7 +56,7 @@ from multilayer.app import cli, sweep  # noqa: E402
 from multilayer.scenario.source import Loader  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
 LANGUAGES = {"sh", "python", "yaml", "csv", "toml", "text"}
 RUNNABLE = {"sh", "python", "yaml"}
 LEVELS = ("default", "slow", "validation")
@@ -259,13 +259,13 @@ def _run_page(page: Path, level: str, tmp_path: Path) -> None:
             run_block(block, cwd)
 
 
-@pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(ROOT)))
 def test_every_block_is_fenced_and_marked_correctly(page: Path) -> None:
     blocks, problems = parse_page(page)
     assert not problems, "\n".join(problems)
 
 
-@pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(ROOT)))
 def test_blocks_equal_the_shipped_files(page: Path) -> None:
     """``file`` blocks are the shipped text; ``excerpt`` blocks agree key by key."""
     for block in parse_page(page)[0]:
@@ -290,7 +290,7 @@ def _written_figures() -> list[re.Pattern[str]]:
     return [re.compile(re.sub(r"\\\{\w*\\\}", r"\\w+", re.escape(name)) + "$") for name in names]
 
 
-@pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(ROOT)))
 def test_images_exist_and_are_generated(page: Path) -> None:
     """Every figure a page shows is in the repository and written by a documented script."""
     written = _written_figures()
@@ -300,18 +300,18 @@ def test_images_exist_and_are_generated(page: Path) -> None:
         assert any(p.match(name) for p in written), f"{page.name}: no documented script writes {target}"
 
 
-@pytest.mark.parametrize("page", _pages_with("default"), ids=lambda p: p.name)
+@pytest.mark.parametrize("page", _pages_with("default"), ids=lambda p: str(p.relative_to(ROOT)))
 def test_page_runs(page: Path, tmp_path: Path) -> None:
     _run_page(page, "default", tmp_path)
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("page", _pages_with("slow"), ids=lambda p: p.name)
+@pytest.mark.parametrize("page", _pages_with("slow"), ids=lambda p: str(p.relative_to(ROOT)))
 def test_page_runs_with_its_slow_blocks(page: Path, tmp_path: Path) -> None:
     _run_page(page, "slow", tmp_path)
 
 
 @pytest.mark.validation
-@pytest.mark.parametrize("page", _pages_with("validation"), ids=lambda p: p.name)
+@pytest.mark.parametrize("page", _pages_with("validation"), ids=lambda p: str(p.relative_to(ROOT)))
 def test_page_runs_with_its_validation_blocks(page: Path, tmp_path: Path) -> None:
     _run_page(page, "validation", tmp_path)
