@@ -39,6 +39,15 @@ def on_files(files: Any, config: Any) -> Any:
     return files
 
 
+_ROLE = re.compile(r":(?:mod|func|class|meth|data|attr|exc):(<code>)~?")
+"""A Sphinx cross-reference role left in front of its rendered name by mkdocstrings."""
+
+
+def on_page_content(html: str, page: Any, config: Any, files: Any) -> str:
+    """The API reference without the Sphinx roles of the docstrings (``:func:`load```)."""
+    return _ROLE.sub(r"\1", html)
+
+
 # --- scenario keys -------------------------------------------------------------------------
 
 
@@ -87,13 +96,15 @@ def _default_text(info: Any) -> str:
         text = f"`{default.model_dump(mode='json', exclude_none=True)}`".replace("'", "")
         return text if len(text) <= _SHORT else "the defaults below"
     if isinstance(default, list):
-        dumped = [d.model_dump(mode="json", exclude_none=True) if isinstance(d, BaseModel) else d for d in default]
+        dumped = [
+            d.model_dump(mode="json", exclude_none=True) if isinstance(d, BaseModel) else d for d in default
+        ]
         return f"`{dumped}`".replace("'", "")
     return f"`{default}`"
 
 
 def _cell(text: str) -> str:
-    return text.replace("|", "\\|").replace("\n", " ")
+    return text.replace("|", "\\|").replace("\n", " ").replace("<", "&lt;").replace(">", "&gt;")
 
 
 def _model_sections(model: type[BaseModel], path: str) -> list[str]:
@@ -172,7 +183,9 @@ def scenario_keys_page() -> str:
         for key, option in options.items():
             accepted = option.accepted.replace(" = {layers}", "").replace("{layers}", "domain.layers")
             defaults = {layers: option.default(layers) for layers in _LAYERS}
-            default = ", ".join(f"`{value}` for {layers} layer{'s' * (layers > 1)}" for layers, value in defaults.items())
+            default = ", ".join(
+                f"`{value}` for {layers} layer{'s' * (layers > 1)}" for layers, value in defaults.items()
+            )
             if len(set(defaults.values())) == 1:
                 default = f"`{defaults[1]}`"
             lines.append(f"| `{name}` | `{key}` | {default} | {_cell(accepted)} |")
@@ -212,7 +225,8 @@ def cli_page() -> str:
         "# Command-line options",
         "",
         "Generated from the parser of the `multilayer` command, so it is what `multilayer COMMAND "
-        "--help` prints. [Command line](../cli.md) explains the commands, their outputs and their exit codes.",
+        "--help` prints. [Command line](../cli.md) explains the commands, their outputs and "
+        "their exit codes.",
         "",
         "```text",
         _usage(parser),

@@ -266,9 +266,7 @@ def _speed_text(speed: float) -> str:
     return f"{speed * 1e3:.2g} mm/s" if speed < 0.01 else f"{speed:.3g} m/s"
 
 
-def section_figure(
-    ds: xr.Dataset, name: str, times: int = 4, xlim: Sequence[float] | None = None
-) -> Figure:
+def section_figure(ds: xr.Dataset, name: str, times: int = 4, xlim: Sequence[float] | None = None) -> Figure:
     """X-Z sections at ``times`` output times over ``xlim`` (default: where the material is,
     :func:`material_span`), z exaggerated by a round factor from the aspect of that window."""
     picks = _time_indices(ds, times)
