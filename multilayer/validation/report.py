@@ -1,6 +1,6 @@
-"""The validation report: one Markdown file holding an introduction and the section of each
-case between ``<!-- section: NAME -->`` and ``<!-- /section -->`` markers.  Regenerating some
-sections keeps the text of the others."""
+"""The validation report: one Markdown file holding an introduction, the section of each
+case between ``<!-- section: NAME -->`` and ``<!-- /section -->`` markers, and a closing
+text.  Regenerating some sections keeps the text of the others."""
 
 from __future__ import annotations
 
@@ -27,16 +27,16 @@ def read(path: Path) -> dict[str, str]:
     return dict(MARKED.findall(path.read_text())) if path.is_file() else {}
 
 
-def write(path: Path, intro: str, sections: dict[str, str], regenerate: str) -> None:
+def write(path: Path, intro: str, sections: dict[str, str], regenerate: str, outro: str = "") -> None:
     """The report: ``intro``, then every case's section between its markers (a placeholder
-    naming ``regenerate``, the command, for a section never generated)."""
+    naming ``regenerate``, the command, for a section never generated), then ``outro``."""
     body = [
         f"<!-- section: {name} -->\n"
         + sections.get(name, f"## {name}\n\nNot generated yet: run `{regenerate} {name}`.\n")
         + "<!-- /section -->\n"
         for name in cases()
     ]
-    path.write_text(intro + "\n" + "\n".join(body))
+    path.write_text(intro + "\n" + "\n".join(body) + (f"\n{outro}" if outro else ""))
 
 
 def main(
@@ -47,6 +47,7 @@ def main(
     runs: Path,
     intro: str,
     command: str,
+    outro: str = "",
 ) -> int:
     """Regenerate the sections named in ``argv`` (all by default) of ``report``; the figures
     go to ``figures/`` beside it and the runs to ``runs`` (reused while their scenario is
@@ -75,7 +76,7 @@ def main(
     for name in args.sections or names:
         print(f"section {name} ...", flush=True)
         sections[name] = cases()[name](ctx)
-        write(args.report, intro, sections, command)
+        write(args.report, intro, sections, command, outro)
     for failure in ctx.failures:
         print(f"  run {failure}")
     print(f"wrote {args.report}")
