@@ -77,6 +77,8 @@ def test_report_keeps_the_sections_not_regenerated(tmp_path):
     text = path.read_text()
     assert text.startswith("# Intro\n") and text.count("<!-- /section -->") == len(names)
     assert text.endswith("<!-- /section -->\n\n## How\n")  # the closing text after the sections
+    report.write(path, f"# Intro\n\n{report.CONTENTS}\n", {names[0]: "## First: a case (1)\n"}, "r")
+    assert path.read_text().startswith(f"# Intro\n\n- [First: a case (1)](#first-a-case-1)\n- [{names[1]}]")
 
 
 def test_report_command_refuses_unknown_sections(capsys):

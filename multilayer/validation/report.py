@@ -12,6 +12,8 @@ from pathlib import Path
 from multilayer.validation.runs import Context, default_jobs
 
 MARKED = re.compile(r"<!-- section: (\w+) -->\n(.*?)<!-- /section -->\n", re.S)
+CONTENTS = "<!-- contents -->"
+"""Where the introduction takes the list of the sections (:func:`contents`)."""
 Section = Callable[[Context], str]
 
 
@@ -27,15 +29,28 @@ def read(path: Path) -> dict[str, str]:
     return dict(MARKED.findall(path.read_text())) if path.is_file() else {}
 
 
+def _anchor(title: str) -> str:
+    """The anchor GitHub and the documentation site give a heading."""
+    return re.sub(r"[^\w\- ]", "", title.lower()).replace(" ", "-")
+
+
+def contents(sections: dict[str, str]) -> str:
+    """A list linking the first heading of every section, in report order."""
+    titles = [re.search(r"^## (.+)$", sections.get(name, f"## {name}"), re.M) for name in cases()]
+    return "\n".join(f"- [{t[1]}](#{_anchor(t[1])})" for t in titles if t)
+
+
 def write(path: Path, intro: str, sections: dict[str, str], regenerate: str, outro: str = "") -> None:
     """The report: ``intro``, then every case's section between its markers (a placeholder
-    naming ``regenerate``, the command, for a section never generated), then ``outro``."""
+    naming ``regenerate``, the command, for a section never generated), then ``outro``;
+    :data:`CONTENTS` in ``intro`` becomes the list of the sections."""
     body = [
         f"<!-- section: {name} -->\n"
         + sections.get(name, f"## {name}\n\nNot generated yet: run `{regenerate} {name}`.\n")
         + "<!-- /section -->\n"
         for name in cases()
     ]
+    intro = intro.replace(CONTENTS, contents(sections))
     path.write_text(intro + "\n" + "\n".join(body) + (f"\n{outro}" if outro else ""))
 
 
