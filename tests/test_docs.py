@@ -140,7 +140,7 @@ def _in_list(lines: list[str], i: int) -> bool:
 def _copy_of_repository(tmp_path: Path) -> Path:
     copy = tmp_path / "repo"
     ignore = shutil.ignore_patterns(
-        ".git", ".venv", "results", "__pycache__", "*.egg-info", ".pytest_cache", "build", "*.nc"
+        ".git", ".venv", "results", "__pycache__", "*.egg-info", ".pytest_cache", "build", "site", "*.nc"
     )
     shutil.copytree(ROOT, copy, ignore=ignore)
     return copy
@@ -246,7 +246,12 @@ def _runs(block: Block) -> bool:
 
 
 def _pages_with(level: str) -> list[Path]:
-    return [page for page in PAGES if any(b.level == level and _runs(b) for b in parse_page(page)[0])]
+    """The pages with a block of ``level`` to check (a page that only saves files is not run)."""
+    return [
+        page
+        for page in PAGES
+        if any(b.level == level and _runs(b) and "save" not in b.directives for b in parse_page(page)[0])
+    ]
 
 
 def _run_page(page: Path, level: str, tmp_path: Path) -> None:
