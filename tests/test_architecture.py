@@ -7,6 +7,7 @@ packages or between modules; the time step and the engine's modules stay short."
 from __future__ import annotations
 
 import ast
+import functools
 import importlib.metadata
 import re
 import sys
@@ -37,7 +38,8 @@ def _module(path: Path, root: Path = PACKAGE) -> str:
 MODULES = {_module(path): path for path in sorted(PACKAGE.rglob("*.py"))}
 
 
-def _imports(path: Path) -> set[str]:
+@functools.cache  # every test of this file reads the same modules
+def _imports(path: Path) -> frozenset[str]:
     """Every name ``path`` imports, anywhere in it (function bodies and ``TYPE_CHECKING``
     blocks included): ``a.b`` for ``import a.b``, ``a.b.c`` for ``from a.b import c`` (a
     module ``a.b.c``, or a name of ``a.b``)."""
@@ -47,7 +49,7 @@ def _imports(path: Path) -> set[str]:
             found.update(alias.name for alias in node.names)
         elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
             found.update(f"{node.module}.{alias.name}" for alias in node.names)
-    return found
+    return frozenset(found)
 
 
 def _resolve(name: str, modules: dict[str, Path]) -> str | None:
