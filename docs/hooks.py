@@ -22,6 +22,8 @@ from typing import Any
 from pydantic import BaseModel
 from pydantic_core import PydanticUndefined
 
+from multilayer.scenario.messages import model_in
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -49,17 +51,6 @@ def on_page_content(html: str, page: Any, config: Any, files: Any) -> str:
 
 
 # --- scenario keys -------------------------------------------------------------------------
-
-
-def _model_in(annotation: Any) -> type[BaseModel] | None:
-    """The pydantic model inside ``annotation`` (``X``, ``X | None``, ``list[X]``), if any."""
-    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
-        return annotation
-    for arg in typing.get_args(annotation):
-        model = _model_in(arg)
-        if model is not None:
-            return model
-    return None
 
 
 def _type_text(annotation: Any) -> str:
@@ -119,7 +110,7 @@ def _model_sections(model: type[BaseModel], path: str) -> list[str]:
             continue
         cells = [f"`{key}`", _type_text(info.annotation), _default_text(info), info.description or ""]
         lines.append("| " + " | ".join(_cell(c) for c in cells) + " |")
-        sub = _model_in(info.annotation)
+        sub = model_in(info.annotation)
         if sub is not None and "params" not in sub.model_fields:  # a plugin: the rheology table
             is_list = typing.get_origin(info.annotation) is list
             nested.append((sub, f"{path}.{key}".lstrip(".") + ("[]" if is_list else "")))
