@@ -69,6 +69,26 @@ def law_of(rheology: Any, material: Any) -> tuple[int, np.ndarray] | None:
 
 
 @jit
+def concave(form, params):
+    """True when the viscous stress ``eta(rate) rate`` of a compiled form is concave in the
+    rate (the tangent and chord bounds of ``newton_control.energy_rise`` hold): constant
+    and inertial forms, the power form with ``e_g <= 0``."""
+    return form == CONSTANT or form == INERTIAL or (form == POWER and params[2] <= 0.0)
+
+
+def concave_laws(laws: tuple[Any, ...], material: Any) -> bool:
+    """True when every law of ``laws`` (None: absent) has a compiled form that describes it
+    and is :func:`concave`; False for a law known only by its Python methods."""
+    for law in laws:
+        if law is None:
+            continue
+        form = law_of(law, material)
+        if form is None or not concave(*form):
+            return False
+    return True
+
+
+@jit
 def _pressure_part(form, params, p):
     """The factor of eta that depends on the pressure only, and the one added to the
     rate term (computed once per column and step, not per Newton iteration)."""
@@ -114,14 +134,13 @@ def _viscosity(form, params, rate, factor, offset):
 
 
 @jit
-def _newton_model(kappa, rate, eta, slope, secant):
+def _newton_model(kappa, rate, eta, slope):
     """``stresses.StressModel._newton_model`` for one value from ``eta`` and the stress slope at
     ``rate``: (yield stress, conductance) of the odd Bingham law through the stress at
-    ``rate``, tangent where its yield stress is >= 0, secant otherwise (and always with
-    ``secant``: the Kacanov model of ``newton_control``)."""
+    ``rate``, tangent where its yield stress is >= 0, secant otherwise."""
     slope = max(slope, 0.0)
     offset_yield = kappa + eta * rate - slope * rate
-    if offset_yield >= 0.0 and not secant:
+    if offset_yield >= 0.0:
         return offset_yield, slope
     return kappa, eta
 
