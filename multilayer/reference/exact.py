@@ -137,6 +137,25 @@ def jop_inertial_number(theta_deg: float, mu_s: float, mu_2: float, I_0: float) 
     return I_0 * (tan - mu_s) / (mu_2 - tan)
 
 
+def pouliquen_h_stop(theta_deg: float, mu_1: float, mu_2: float, L: float) -> float:
+    """``h_stop(theta) = L (mu_2 - tan theta) / (tan theta - mu_1)`` (Forterre & Pouliquen
+    2003): the thickest uniform layer at rest on the slope ``theta`` under the friction
+    ``mu_stop(h) = mu_1 + (mu_2 - mu_1) / (1 + h / L)`` (its inverse), for ``mu_1 < tan theta
+    < mu_2``."""
+    tan = math.tan(math.radians(theta_deg))
+    if not mu_1 < tan < mu_2:
+        raise ValueError(f"no h_stop: tan(theta) = {tan:.4g} is not between mu_1 and mu_2")
+    return L * (mu_2 - tan) / (tan - mu_1)
+
+
+def pouliquen_beta(I_0: float, L: float, grain_diameter: float, density_ratio: float) -> float:
+    """``beta`` of Pouliquen's (1999) flow rule ``Fr = beta h / h_stop`` for the steady flow
+    of :class:`BagnoldFlow` under ``max(mu_stop(h), mu_J(I))`` (Jop, Forterre & Pouliquen
+    2005, appendix A): ``I_theta = I_0 L / h_stop`` and ``Fr = (2/5) sqrt(rho/rho_p) I_theta
+    h / d``, so ``beta = (2/5) sqrt(rho/rho_p) I_0 L / d``."""
+    return 0.4 * math.sqrt(density_ratio) * I_0 * L / grain_diameter
+
+
 def power_law_inertial_number(theta_deg: float, mu_s: float, m: float, alpha: float) -> float:
     """``I_theta`` with ``mu_s + m I^alpha = tan(theta)`` (Tsang et al. 2019, eq. 4.10).
 

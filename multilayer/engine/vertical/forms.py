@@ -58,8 +58,9 @@ def law_of(rheology: Any, material: Any) -> tuple[int, np.ndarray] | None:
 
     A compiled form describes the ``viscosity`` of the class that declares it: where a
     subclass (or the instance) redefines ``viscosity`` below that class, the form is not
-    used, and the step runs the plugin's own ``viscosity`` (numpy path)."""
-    if not describes(rheology, "viscosity_kernel", ("viscosity",)):
+    used, and the step runs the plugin's own ``viscosity`` (numpy path); so does a law that
+    uses a column quantity (``Rheology.uses``: the compiled forms take none)."""
+    if getattr(rheology, "uses", ()) or not describes(rheology, "viscosity_kernel", ("viscosity",)):
         return None
     parameters = {name: form.parameters for name, form in FORMS.items()}
     declared = declared_form(rheology, "viscosity_kernel", material, parameters)

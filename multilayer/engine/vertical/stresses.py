@@ -44,6 +44,7 @@ class ColumnStresses:
     viscous: np.ndarray  # True where interface k carries the bulk viscosity (L, N)
     wall_pressure: np.ndarray  # mean layer pressures pbar_a (L, N)
     x: np.ndarray  # position of each column (N,), for messages
+    thickness: np.ndarray  # thickness h of each column (N,), for the laws that use it
 
 
 INTERFACE = "interface {index} (0 is the bed)"
@@ -100,7 +101,7 @@ class StressModel:
         g_k = self.g_n if yield_gravity is None else yield_gravity[:, where]
         p = rho * g_k * self.depth_interface * h
         x = self.x[where]
-        kappa = self._call(self.bulk, "yield_stress", (p, self.material), {"pressure": p}, x, INTERFACE)
+        kappa = self._call(self.bulk, "yield_stress", (p, self.material), {"pressure": p}, x, INTERFACE, h)
         if rest is not None:
             rest = rest[:, where]
             # interface k lies below layer k: static where layer k and the one below it
@@ -108,7 +109,7 @@ class StressModel:
             static = rest & np.vstack([np.ones_like(rest[:1]), rest[:-1]])
             if static.any():
                 kappa_static = self._call(
-                    self.bulk, "static_yield_stress", (p, self.material), {"pressure": p}, x, INTERFACE
+                    self.bulk, "static_yield_stress", (p, self.material), {"pressure": p}, x, INTERFACE, h
                 )
                 kappa = np.where(static, kappa_static, kappa)
         viscous = np.ones(p.shape, dtype=bool)
@@ -117,7 +118,7 @@ class StressModel:
         pbar = rho * self.g_n * self.depth_centre * h
         if self.walls is not None:
             tau_w = self._call(
-                self.walls, "yield_stress", (pbar, self.material), {"pressure": pbar}, x, LAYER
+                self.walls, "yield_stress", (pbar, self.material), {"pressure": pbar}, x, LAYER, h
             )
             w = (2.0 / self.width) * self.l * h * tau_w
         else:
@@ -131,10 +132,19 @@ class StressModel:
             viscous=viscous,
             wall_pressure=pbar,
             x=x,
+            thickness=h,
         )
 
-    def _call(self, law, method, args, inputs, x, position) -> np.ndarray:
-        return call(law, method, args, inputs=inputs, x=x, position=position, t=self.t)
+    def _call(self, law, method, args, inputs, x, position, thickness) -> np.ndarray:
+        """``law.method(*args)`` checked (``plugin_output.call``), given the column
+        thickness (N,) as ``thickness=`` (broadcast to the shape of the pressure) if the law
+        declares it in ``uses``."""
+        keywords = None
+        if "thickness" in getattr(law, "uses", ()):
+            shape = np.shape(next(iter(inputs.values())))
+            keywords = {"thickness": np.broadcast_to(thickness, shape)}
+            inputs = {**inputs, "thickness": keywords["thickness"]}
+        return call(law, method, args, inputs=inputs, x=x, position=position, t=self.t, keywords=keywords)
 
     def linearise(
         self,
@@ -224,4 +234,6 @@ class StressModel:
 
     def _viscosity(self, law, rate, pressure, cs, position) -> np.ndarray:
         inputs = {"shear rate": rate, "pressure": pressure}
-        return self._call(law, "viscosity", (rate, pressure, self.material), inputs, cs.x, position)
+        return self._call(
+            law, "viscosity", (rate, pressure, self.material), inputs, cs.x, position, cs.thickness
+        )
