@@ -81,6 +81,9 @@ class Rheology:
         * ``("constant", (eta,))``: ``eta``;
         * ``("inertial", (A, B, C))``: ``A p / (B sqrt(p) + C |gamma|)``, 0 where the
           denominator is 0 (Jop et al. 2006 mu(I));
+        * ``("inertial_quadratic", (A, B, C, D))``: ``(A p + D |gamma| sqrt(p)) / (B sqrt(p)
+          + C |gamma|)``, 0 where the denominator is 0 (mu(I) with Barker & Gray's 2017
+          high-I term), ``B > 0``;
         * ``("power", (A, e_p, e_g, floor))``: ``A p^e_p max(|gamma|, floor)^e_g``.
 
         The default, None, keeps this law on the numpy path (always correct).

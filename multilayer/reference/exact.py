@@ -124,14 +124,21 @@ class InviscidSimpleShear:
 # --------------------------------------------------------------------------- steady uniform flow
 
 
-def jop_inertial_number(theta_deg: float, mu_s: float, mu_2: float, I_0: float) -> float:
+def jop_inertial_number(theta_deg: float, mu_s: float, mu_2: float, I_0: float, mu_inf: float = 0.0) -> float:
     """``I_theta`` with ``mu(I_theta) = tan(theta)`` for the Jop et al. (2006) law.
 
     ``mu_s + (mu_2 - mu_s) I / (I_0 + I) = tan(theta)`` gives
     ``I_theta = I_0 (tan(theta) - mu_s) / (mu_2 - tan(theta))``; a steady flow needs
-    ``mu_s < tan(theta) < mu_2``.
+    ``mu_s < tan(theta) < mu_2``.  With the high-I term ``mu_inf I^2 / (I_0 + I)`` (Barker &
+    Gray 2017), ``mu_inf I^2 + (mu_2 - tan) I - (tan - mu_s) I_0 = 0``: its positive root,
+    for any ``tan(theta) > mu_s``.
     """
     tan = math.tan(math.radians(theta_deg))
+    if mu_inf > 0.0:
+        if not tan > mu_s:
+            raise ValueError(f"no steady flow: tan(theta) = {tan:.4g} <= mu_s = {mu_s:.4g}")
+        b, c = mu_2 - tan, (tan - mu_s) * I_0
+        return 2.0 * c / (b + math.sqrt(b * b + 4.0 * mu_inf * c))  # the positive root, without cancellation
     if not mu_s < tan < mu_2:
         raise ValueError(f"no steady flow: tan(theta) = {tan:.4g} is not between mu_s and mu_2")
     return I_0 * (tan - mu_s) / (mu_2 - tan)
