@@ -183,3 +183,47 @@ def test_the_result_variables_are_the_engines_forces():
     assert set(result_format.FORCES) == set(FORCES)
     for dims, attrs in result_format.FORCES.values():
         assert dims == ("time",) and attrs["units"] == "N m-1"
+
+
+def test_a_lake_at_rest_on_a_beach_pushes_the_bed_as_hard_as_the_walls():
+    """Water at rest between two walls over a bed rising from 0 to 0.5 m (no friction): the
+    walls take ``-rho g h_0^2 / 2`` and ``+rho g h_N^2 / 2`` (the thicknesses of the cells
+    next to them), the relief of the bed the difference, and nothing moves."""
+    sim = simulation(
+        domain={"cells": 50},
+        bed={"points": [[0.0, 0.0], [10.0, 0.5]]},
+        initial=[{"shape": "profile", "points": [[0.0, 1.0], [10.0, 0.5]]}],
+    )
+    sim.advance(0.2)
+    f = sim.forces.take()
+    assert np.abs(sim.u).max() < 1e-12
+    thrust = 0.5 * RHO * G * (sim.h[0] ** 2 - sim.h[-1] ** 2)
+    assert f["end_force_x"] == pytest.approx(-thrust, rel=1e-12)
+    assert f["bed_force_x"] == pytest.approx(thrust, rel=1e-9)
+
+
+def test_the_seismic_force_of_a_slide_that_stops_pulls_upslope_then_downslope_and_sums_to_zero():
+    """A column released on a slope gentler than its bed friction: while it accelerates the
+    force on the Earth less the weight points upslope, while it brakes downslope (the
+    signature inverted by landslide seismology, Ekstrom & Stark 2013), and once the
+    material is at rest again its impulse is zero: ``-(P_end - P_0)`` (a film reaches the
+    end walls: they are part of the Earth)."""
+    sim = simulation(
+        slope_deg=15.0,
+        domain={"x_min": 0.0, "x_max": 1.0, "cells": 50, "layers": 2},
+        rheology={"name": "drucker_prager", "mu_s": 0.5, "nu": 0.0},
+        base=[{"condition": "coulomb", "mu": 0.5}],
+        boundaries={"left": "wall", "right": "wall"},
+        initial=[{"shape": "rectangle", "x_min": 0.3, "x_max": 0.4, "height": 0.1}],
+    )
+    seismic, impulse, t0 = [], 0.0, 0.0
+    for t in np.arange(0.02, 1.0, 0.02):
+        sim.advance(t)
+        f = sim.forces.take()
+        on_earth = f["bed_force_x"] + f["wall_force_x"] + f["end_force_x"] + f["pressure_force_x"]
+        seismic.append(on_earth - f["gravity_force_x"])
+        impulse += (t - t0) * seismic[-1]
+        t0 = t
+    assert np.all(sim.u == 0.0)
+    assert seismic[0] < 0.0 < max(seismic)
+    assert abs(impulse) < 1e-12 * RHO * 0.1 * 0.1 * G
