@@ -2,7 +2,7 @@
 mechanics: a block sliding as a free body on a Coulomb slope, with and without side walls,
 held at rest by static friction, and the momentum balance of dam breaks (every term of
 ``P(t_k) - P(t_{k-1}) = (t_k - t_{k-1}) (gravity - bed - walls - ends - pressure -
-outflow)``), hydrostatic and non-hydrostatic."""
+outflow)``) and of the normal momentum, hydrostatic and non-hydrostatic."""
 
 from __future__ import annotations
 
@@ -108,18 +108,22 @@ def dam_break(pressure: str = "hydrostatic", width: float | None = None, **chang
 
 
 def balance(sim, times):
-    """The forces of each interval to ``times``, and the left-over of the momentum balance
-    of each (zero to round-off) relative to its largest term."""
-    P0, t0, records = sim.forces.momentum(sim.h, sim.u), sim.t, []
+    """The forces of each interval to ``times``, and the left-over of the downslope and
+    the normal momentum balances of each (zero to round-off) relative to its largest term;
+    the normal momentum ``rho sum_a h_a wbar_a dx`` (up) grows by ``bed_force_z -
+    gravity_force_z``, the force into the bed less the weight."""
+    momentum = sim.forces.momentum
+    P0, Pz0, t0, records = momentum(sim.h, sim.u), momentum(sim.h, sim.w), sim.t, []
     for t in times:
         sim.advance(t)
         f = sim.forces.take()
-        P = sim.forces.momentum(sim.h, sim.u)
+        P, Pz = momentum(sim.h, sim.u), momentum(sim.h, sim.w)
         terms = [f[k] for k in ("bed_force_x", "wall_force_x", "end_force_x", "pressure_force_x")]
         net = f["gravity_force_x"] - sum(terms) - f["outflow_momentum_x"]
-        scale = max(abs(P), abs(P0), (t - t0) * max(abs(v) for v in f.values()))
-        records.append((f, ((P - P0) - (t - t0) * net) / scale))
-        P0, t0 = P, t
+        scale = max(abs(P), abs(P0), abs(Pz), abs(Pz0), (t - t0) * max(abs(v) for v in f.values()))
+        normal = (Pz - Pz0) - (t - t0) * (f["bed_force_z"] - f["gravity_force_z"])
+        records.append((f, ((P - P0) - (t - t0) * net) / scale, normal / scale))
+        P0, Pz0, t0 = P, Pz, t
     return records
 
 
@@ -131,15 +135,17 @@ def test_the_momentum_of_a_dam_break_changes_by_the_impulse_of_its_forces(pressu
     exactly, a force the balance would miss without the end walls; the material leaves
     through the outflow later."""
     records = balance(dam_break(pressure), (0.05, 0.3, 0.8))
-    for _, left_over in records:
-        assert abs(left_over) < 1e-13
-    first, _ = records[0]
+    for _, left_over, normal in records:
+        assert abs(left_over) < 1e-13 and abs(normal) < 1e-13
+    first = records[0][0]
     thrust = 0.5 * RHO * G * 0.2**2
     if pressure == "hydrostatic":
         assert first["end_force_x"] == pytest.approx(-thrust, rel=ROUND_OFF)
         assert first["pressure_force_x"] == 0.0
-    else:  # the falling column presses less on the wall than its weight's hydrostatic thrust
+        assert all(f["bed_force_z"] == f["gravity_force_z"] for f, *_ in records)
+    else:  # the falling column presses less on the wall and on the bed than its weight
         assert first["end_force_x"] + first["pressure_force_x"] < -0.5 * thrust
+        assert first["bed_force_z"] < first["gravity_force_z"]
     assert records[0][0]["outflow_momentum_x"] == 0.0 < records[-1][0]["outflow_momentum_x"]
 
 
@@ -156,7 +162,7 @@ def test_a_dam_break_with_friction_and_side_walls_on_a_slope_balances_its_moment
         ),
         (0.05, 0.2),
     )
-    for f, left_over in records:
+    for f, left_over, _ in records:
         assert abs(left_over) < 1e-13
         assert f["bed_force_x"] > 0.0 and f["wall_force_x"] > 0.0 and f["end_force_x"] < 0.0
 

@@ -27,8 +27,11 @@ change of momentum to round-off:
   horizontal momentum, the force of that pressure on the relief of the bed and on the end
   walls (zero for the hydrostatic pressure).
 - **bed, normal** (``bed_force_z``): ``rho g cos(theta) h`` integrated over the step as
-  the transport's gravity is (``gravity_force_z``), plus the non-hydrostatic pressure at
-  the bed, ``rho q_0``, whose impulse is the projection's change of normal momentum.
+  the transport's gravity is (``gravity_force_z``), plus the step's change of the normal
+  momentum ``rho sum_a h_a wbar_a dx`` of the non-hydrostatic pressure model (the bed is
+  all the flow can push normal to the plane): the pressure at the bed ``rho q_0`` of the
+  projection, and the normal momentum the model drops where material stops (``w = 0``
+  there) or changes in its advection of ``w``, which is not in conservative form.
 - gravity along the slope on the flow (``gravity_force_x``) and the momentum leaving
   through open boundaries (``outflow_momentum_x``), which is no force on the Earth.
 
@@ -42,6 +45,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from multilayer.engine.state import FlowState
 from multilayer.engine.transport import boundaries
 from multilayer.engine.vertical.stresses import StressModel
 
@@ -86,21 +90,22 @@ class BedForce:
         self.transport_terms = np.zeros(3)
 
     def momentum(self, h: np.ndarray, u: np.ndarray) -> float:
-        """Downslope momentum per unit width ``rho sum_a h_a u_a dx`` (kg/s)."""
+        """Momentum per unit width ``rho sum_a h_a u_a dx`` (kg/s) of the layer velocities
+        ``u`` (downslope; normal with the vertical velocities ``w``)."""
         return self.rho * self.dx * float(np.sum(self.l * h * u))
 
     def record(
         self,
-        start: tuple[np.ndarray, np.ndarray],
+        start: FlowState,
         transported: tuple[np.ndarray, np.ndarray],
         u_vertical: np.ndarray,
         end: tuple[np.ndarray, dict[str, np.ndarray]],
         dt: float,
     ) -> None:
-        """Add the impulses of a step of ``dt``: from ``start`` (h, u) the transport gave
+        """Add the impulses of a step of ``dt``: from the state ``start`` the transport gave
         ``transported`` (h, u*), the vertical step ``u_vertical`` and the pressure model
         ``end`` (u, its layer fields)."""
-        (h0, u0), (h, ustar), (u, fields) = start, transported, end
+        (h0, u0), (h, ustar), (u, fields) = (start.h, start.u), transported, end
         left, right, mass_time = self.transport_terms
         rho = self.rho
         gravity = rho * self.g_t * mass_time
@@ -112,8 +117,8 @@ class BedForce:
         pressure = self.momentum(h, u_vertical) - self.momentum(h, u)
         weight = rho * self.g_n * mass_time
         normal = weight
-        if "q" in fields:  # the non-hydrostatic pressure at the bed
-            normal += rho * self.dx * dt * float(np.sum(fields["q"][0]))
+        if "w" in fields:  # the normal momentum of the non-hydrostatic pressure model
+            normal += self.momentum(h, fields["w"]) - self.momentum(h0, start.w)
         self.impulse += (relief + basal, normal, walls, end_walls, pressure, gravity, weight, outflow)
         self.elapsed += dt
 

@@ -221,7 +221,7 @@ class Simulation:
             dt = shorter
         columns = span(h)  # every non-zero velocity and field of the step's end lies within
         self._guard(h, u, fields, dt, columns)
-        self.forces.record((self.h, self.u), (h, ustar), u_vertical, (u, fields), dt)  # diagnostics
+        self.forces.record(self.state, (h, ustar), u_vertical, (u, fields), dt)  # diagnostics
         self.state.commit(h, u, fields, columns)
         self.newton_iterations += iterations
         self.steps += 1

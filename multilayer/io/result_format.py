@@ -132,7 +132,7 @@ FORCES: dict[str, tuple[tuple[str, ...], dict[str, str]]] = {
         {
             "units": "N m-1",
             "long_name": "force of the flow on the bed normal to the plane, positive into the bed",
-            "comment": f"{_FORCE}; weight and non-hydrostatic pressure",
+            "comment": f"{_FORCE}; weight and the change of normal momentum of the non-hydrostatic model",
         },
     ),
     "wall_force_x": (
