@@ -45,7 +45,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from multilayer.engine.state import FlowState
+from multilayer.engine.compiled import jit
+from multilayer.engine.state import FlowState, span
 from multilayer.engine.transport import boundaries
 from multilayer.engine.vertical.stresses import StressModel
 
@@ -105,38 +106,40 @@ class BedForce:
         """Add the impulses of a step of ``dt``: from the state ``start`` the transport gave
         ``transported`` (h, u*), the vertical step ``u_vertical`` and the pressure model
         ``end`` (u, its layer fields)."""
-        (h0, u0), (h, ustar), (u, fields) = (start.h, start.u), transported, end
+        (h, ustar), (u, fields) = transported, end
         left, right, mass_time = self.transport_terms
         rho = self.rho
+        walled = self.stresses.walls is not None
+        # the side walls' thresholds and viscous forces (not read without walls)
+        threshold, viscous = self.stresses.wall_forces(h, u_vertical) if walled else (ustar, ustar)
+        w = fields.get("w", start.w)  # the normal velocities (zero but with the non-hydrostatic pressure)
+        first, last = span(start.h + h)  # every column holding material before or after the step
+        sums = _sums(
+            self.l[:, 0], start.h, start.u, start.w, h, ustar, u_vertical, u, w, walled, threshold,
+            viscous, rho, dt, first, last,
+        )  # fmt: skip
+        before, transported_, vertical, after, normal_before, normal_after, basal, walls = (
+            rho * self.dx * sums
+        )
         gravity = rho * self.g_t * mass_time
-        change = self.momentum(h, ustar) - self.momentum(h0, u0)
         end_walls = rho * ((-left if self.walls[0] else 0.0) + (right if self.walls[1] else 0.0))
         outflow = rho * ((0.0 if self.walls[1] else right) - (0.0 if self.walls[0] else left))
-        relief = gravity + rho * (left - right) - change  # what the end faces and gravity do not carry
-        basal, walls = self._vertical(h, ustar, u_vertical, dt)
-        pressure = self.momentum(h, u_vertical) - self.momentum(h, u)
+        # what the end faces and gravity do not carry in the transport
+        relief = gravity + rho * (left - right) - (transported_ - before)
         weight = rho * self.g_n * mass_time
-        normal = weight
-        if "w" in fields:  # the normal momentum of the non-hydrostatic pressure model
-            normal += self.momentum(h, fields["w"]) - self.momentum(h0, start.w)
-        self.impulse += (relief + basal, normal, walls, end_walls, pressure, gravity, weight, outflow)
+        normal = weight + (normal_after - normal_before)
+        pressure = vertical - after
+        self.impulse += (
+            relief + basal / rho,
+            normal,
+            walls / rho,
+            end_walls,
+            pressure,
+            gravity,
+            weight,
+            outflow,
+        )
         self.elapsed += dt
-
-    def _vertical(self, h: np.ndarray, ustar: np.ndarray, u: np.ndarray, dt: float) -> tuple[float, float]:
-        """Impulses per unit width on the bed and on the side walls in the vertical step,
-        from the surface down (module docstring)."""
-        m = self.rho * self.l * h
-        threshold, viscous = self.stresses.wall_forces(h, u)
-        passed = np.zeros(h.size)  # dt sigma above the current layer
-        walls = np.zeros(h.size)
-        for a in range(u.shape[0] - 1, -1, -1):
-            load = passed + m[a] * (ustar[a] - u[a])
-            limit = dt * threshold[a]
-            moving = np.sign(u[a]) * (limit + dt * viscous[a])
-            held = np.where(u[a] != 0.0, moving, np.clip(load, -limit, limit))
-            walls += held
-            passed = load - held
-        return self.dx * float(np.sum(passed)), self.dx * float(np.sum(walls))
 
     def take(self) -> dict[str, float]:
         """The mean of each term over the time since the last call (N/m; NaN when no time
@@ -154,3 +157,39 @@ class BedForce:
         """Restore :meth:`state_dict` (none saved: a fresh start)."""
         self.impulse[:] = saved.get("force_impulse", 0.0)
         self.elapsed = float(saved.get("force_elapsed", 0.0))
+
+
+@jit
+def _sums(l, h0, u0, w0, h, ustar, u_vertical, u, w, walled, threshold, viscous, rho, dt, first, last):
+    """Over the columns ``first .. last-1``, per unit density and cell width: the downslope
+    momenta ``sum_a l_a h u`` at the start, after the transport, after the vertical step
+    and at the end of a step, the normal momenta at its start and end, and the impulses per
+    unit area on the bed and on the side walls in the vertical step times ``rho``, from
+    the surface down (module docstring): ``passed`` is ``dt sigma`` above the layer, a
+    moving layer's wall force is ``sgn(u_a) dt (threshold + viscous)``, a resting layer's
+    the load up to ``dt threshold`` (none unless ``walled``)."""
+    out = np.zeros(8)
+    for i in range(first, last):
+        passed = 0.0
+        for a in range(l.size - 1, -1, -1):
+            m0, m = l[a] * h0[i], l[a] * h[i]
+            out[0] += m0 * u0[a, i]
+            out[1] += m * ustar[a, i]
+            out[2] += m * u_vertical[a, i]
+            out[3] += m * u[a, i]
+            out[4] += m0 * w0[a, i]
+            out[5] += m * w[a, i]
+            load = passed + rho * m * (ustar[a, i] - u_vertical[a, i])
+            limit = dt * threshold[a, i] if walled else 0.0
+            if not walled:
+                held = 0.0
+            elif u_vertical[a, i] > 0.0:
+                held = limit + dt * viscous[a, i]
+            elif u_vertical[a, i] < 0.0:
+                held = -(limit + dt * viscous[a, i])
+            else:
+                held = min(max(load, -limit), limit)
+            out[7] += held
+            passed = load - held
+        out[6] += passed
+    return out
