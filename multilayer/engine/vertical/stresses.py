@@ -115,14 +115,7 @@ class StressModel:
         viscous = np.ones(p.shape, dtype=bool)
         kappa[0] = np.where(bulk, kappa[0], friction * p[0] + cohesion)  # the basal condition
         viscous[0] = bulk
-        pbar = rho * self.g_n * self.depth_centre * h
-        if self.walls is not None:
-            tau_w = self._call(
-                self.walls, "yield_stress", (pbar, self.material), {"pressure": pbar}, x, LAYER, h
-            )
-            w = (2.0 / self.width) * self.l * h * tau_w
-        else:
-            w = np.zeros_like(p)
+        pbar, w = self._wall_thresholds(h, x)
         return ColumnStresses(
             m=rho * self.l * h,
             kappa=kappa,
@@ -134,6 +127,33 @@ class StressModel:
             x=x,
             thickness=h,
         )
+
+    def _wall_thresholds(self, h: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The mean layer pressures ``pbar_a`` and the wall yield thresholds per unit area
+        ``(2 / W) h_a tau_w(pbar_a)`` (zero without walls) of columns of thickness ``h``."""
+        pbar = self.material.density * self.g_n * self.depth_centre * h
+        if self.walls is None:
+            return pbar, np.zeros_like(pbar)
+        tau_w = self._call(self.walls, "yield_stress", (pbar, self.material), {"pressure": pbar}, x, LAYER, h)
+        return pbar, (2.0 / self.width) * self.l * h * tau_w
+
+    def wall_forces(self, h: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The side walls' yield thresholds ``w_a`` and viscous forces ``|F_v|`` per unit
+        area of each layer (L, N) at the velocities ``u``: a layer moving at ``u_a`` is held
+        by ``sgn(u_a) (w_a + |F_v|)``, one at rest by at most ``w_a`` (Jop, Forterre &
+        Pouliquen 2005); zero without walls."""
+        threshold, viscous = np.zeros_like(u), np.zeros_like(u)
+        wet = np.flatnonzero(h > 0)
+        if self.walls is None or wet.size == 0:
+            return threshold, viscous
+        x, half = self.x[wet], 0.5 * self.width
+        pbar, threshold[:, wet] = self._wall_thresholds(h[wet], x)
+        rate = np.abs(u[:, wet]) / half
+        per_area = (2.0 / self.width) * self.l * h[wet]
+        inputs = {"shear rate": rate, "pressure": pbar}
+        eta = self._call(self.walls, "viscosity", (rate, pbar, self.material), inputs, x, LAYER, h[wet])
+        viscous[:, wet] = per_area * eta * rate
+        return threshold, viscous
 
     def _call(self, law, method, args, inputs, x, position, thickness) -> np.ndarray:
         """``law.method(*args)`` checked (``plugin_output.call``), given the column
