@@ -13,6 +13,7 @@ from multilayer.validation.cases import (
     erodible_bed,
     erodible_pressure,
     static_interface,
+    stopping,
 )
 from multilayer.validation.runs import Context
 
@@ -22,6 +23,7 @@ SECTIONS: dict[str, Callable[[Context], str]] = {
         static_interface,
         dam_break,
         bagnold,
+        stopping,
         chute,
         column_collapse,
         erodible_bed,
