@@ -23,6 +23,7 @@ import numpy as np
 from multilayer.engine import basal, diagnostics, initial_state
 from multilayer.engine.config import SimulationConfig
 from multilayer.engine.gate import Gate
+from multilayer.engine.mixture.flow import MixtureFlow
 from multilayer.engine.mesh import LayeredMesh
 from multilayer.engine.pressure.model import PressureModel, PressureSetup, models, options
 from multilayer.engine.state import FlowState, max_wave_speed, span, start_moving
@@ -101,6 +102,8 @@ class Simulation:
             np.ascontiguousarray(u0, dtype=float).reshape(self.fractions.size, c.cells),
         )
         self.bed = initial_state.bed_profile(c.bed, self.x)
+        self.mixture = self._mixture(bulk)
+        """The grain–fluid mixture (engine/mixture), None for dry grains."""
         self.pressure = self._pressure_model()
         self.vertical = VerticalStep(
             StressModel(
@@ -144,6 +147,27 @@ class Simulation:
             options=options(model, c.pressure.options, self.fractions.size),
         )
         return model(setup, self.state)
+
+    def _mixture(self, bulk: Rheology) -> MixtureFlow | None:
+        """The mixture of the configuration; the transport's gravity reduced by its
+        buoyancy (``engine/mixture/flow.py``)."""
+        c = self.config
+        if c.mixture is None:
+            return None
+        edges = initial_state.cell_edges(c.x_min, c.x_max, c.cells)
+        solid = np.zeros(c.cells)
+        for entry in c.initial:
+            h_entry, _ = initial_state.initial_state((entry,), self.x, self.sigma, edges)
+            solid += (entry.phi or 0.0) * h_entry
+        phi0 = np.where(self.h > 0.0, solid / np.where(self.h > 0.0, self.h, 1.0), 0.0)
+        mixture = MixtureFlow(
+            c.mixture, self.state, phi0, bulk, c.material, fractions=self.fractions, x=self.x, dx=self.dx,
+            g_n=self.g_n, g_t=self.g_t, periodic=boundaries.BOUNDARIES[self.left].wraps,
+            tolerance=c.numerics.tolerance, max_iterations=c.numerics.max_iterations,
+        )  # fmt: skip
+        self.g_n *= mixture.reduction
+        self.g_t *= mixture.reduction
+        return mixture
 
     def _velocity_scale(self) -> float:
         """The scale of the Newton tolerance: gravity waves on the deepest initial or
@@ -216,7 +240,7 @@ class Simulation:
                 iterations += more
                 if not start_moving(u_vertical, self.h, self.dry, self._stepping):
                     break
-            u, fields = self.pressure.project(self.state, h, u_vertical, dt)
+            u, fields = self._project(h, u_vertical, dt)
             if (shorter := self._courant_check(dt, speed)) is None:
                 break
             dt = shorter
@@ -265,7 +289,10 @@ class Simulation:
         self, h: np.ndarray, ustar: np.ndarray, dt: float, threads: int
     ) -> tuple[np.ndarray, int]:
         """The implicit vertical step (the yield pressures and Newton seeds of the pressure
-        model): the velocities and the Newton iterations."""
+        model), or the mixture's local step (which dilates ``h`` in place): the velocities
+        and the Newton iterations."""
+        if self.mixture is not None:
+            return self.mixture.step(self.h, h, self.u, ustar, dt, self.boundary_mass, self.dry)
         return self.vertical(
             h,
             ustar,
@@ -276,6 +303,11 @@ class Simulation:
             threads=threads,
             poll=self.poll,
         )
+
+    def _project(self, h: np.ndarray, u: np.ndarray, dt: float) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """The pressure model's projection; the layer fields of the step (the mixture's too)."""
+        u, fields = self.pressure.project(self.state, h, u, dt)
+        return u, fields if self.mixture is None else {**fields, **self.mixture.pending}
 
     def _courant_check(self, dt: float, speed: float) -> float | None:
         """None if the Courant condition held in Heun's second stage too; otherwise the
@@ -296,7 +328,10 @@ class Simulation:
         self, h: np.ndarray, u: np.ndarray, fields: dict[str, np.ndarray], dt: float, columns: tuple[int, int]
     ) -> None:
         """The state guard: an impossible state is never kept (the last good one stays)."""
-        self.guard.check_step(self.h, h, u, self.t, dt, self.boundary_mass, columns)
+        transported = h if self.mixture is None else self.mixture.transported
+        self.guard.check_step(self.h, transported, u, self.t, dt, self.boundary_mass, columns)
+        if self.mixture is not None:
+            self.mixture.check_step(h, self.t, dt, self.guard)
         for name, what in self.pressure.checked.items():
             self.guard.check_finite(
                 fields[name],
@@ -345,3 +380,5 @@ class Simulation:
         self.state.load_state(saved)
         self.guard.check_state(self.h, self.u, f"in the restored state at t = {self.t:.6g} s")
         self.guard.reset(self.h, self.steps)
+        if self.mixture is not None:
+            self.mixture.reset(self.steps)
