@@ -23,8 +23,8 @@ import numpy as np
 from multilayer.engine import basal, diagnostics, initial_state
 from multilayer.engine.config import SimulationConfig
 from multilayer.engine.gate import Gate
-from multilayer.engine.mixture.flow import MixtureFlow
 from multilayer.engine.mesh import LayeredMesh
+from multilayer.engine.mixture.flow import MixtureFlow
 from multilayer.engine.pressure.model import PressureModel, PressureSetup, models, options
 from multilayer.engine.state import FlowState, max_wave_speed, span, start_moving
 from multilayer.engine.state_check import StateGuard

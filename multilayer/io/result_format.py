@@ -117,6 +117,25 @@ VARIABLES: dict[str, tuple[tuple[str, ...], dict[str, str]]] = {
     ),
 }
 
+#: the variables of a grain–fluid mixture (docs/mixture.md), written when the run has one
+MIXTURE_VARIABLES: dict[str, tuple[tuple[str, ...], dict[str, str]]] = {
+    "phi": (
+        ("time", "x"),
+        {"units": "1", "long_name": "depth-averaged solid volume fraction of the mixture"},
+    ),
+    "phi_layer": (
+        ("time", "layer", "x"),
+        {"units": "1", "long_name": "solid volume fraction of each layer", "coordinates": "sigma"},
+    ),
+    "pore_pressure_excess": (
+        ("time", "x"),
+        {
+            "units": "Pa",
+            "long_name": "excess pore pressure at the bed (over the ambient fluid's hydrostatic pressure)",
+        },
+    ),
+}
+
 
 def result_path(path: str | os.PathLike) -> Path:
     """``path`` itself, or the ``result.nc`` inside it when it is a directory."""

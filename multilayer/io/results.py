@@ -42,6 +42,7 @@ from multilayer.io.netcdf_layout import HEADER_SPACE, NUMRECS_OFFSET, LayoutErro
 from multilayer.io.result_format import (  # noqa: F401 (this module's names, as before)
     CHECKPOINT_FILE,
     FORMAT,
+    MIXTURE_VARIABLES,
     NETCDF_LOCK,
     RESULT_FILE,
     VARIABLES,
@@ -71,7 +72,8 @@ class ResultWriter:
         """Why the run failed; written as the ``failure`` attribute on close when not empty."""
         self._broken = False  # a write failed: the netCDF handle cannot be trusted
         n_layers, n_cells = np.shape(sim.u)
-        self._record_bytes = 8 * ((n_layers + 2) * n_cells + 3)
+        self._mixture = getattr(sim, "mixture", None) is not None
+        self._record_bytes = 8 * ((n_layers + 2) * n_cells * (2 if self._mixture else 1) + 3)
         with NETCDF_LOCK:
             if records is None:
                 self._ds = netCDF4.Dataset(self.path, "w", format=FORMAT)
@@ -92,7 +94,8 @@ class ResultWriter:
         ds.createDimension("x", n_cells)
         ds.createDimension("layer", n_layers)
         ds.createDimension("nv", 2)
-        for name, (dims, attrs) in VARIABLES.items():
+        variables = {**VARIABLES, **MIXTURE_VARIABLES} if self._mixture else VARIABLES
+        for name, (dims, attrs) in variables.items():
             if name == "layer":
                 var = ds.createVariable(name, "i4", dims)
             else:
@@ -146,6 +149,10 @@ class ResultWriter:
                 ds["h"][i, :] = sim.h
                 ds["u"][i, :, :] = sim.u
                 ds["static_interface"][i, :] = diag["static_interface"]
+                if self._mixture:
+                    ds["phi"][i, :] = sim.mixture.phi(sim.h)
+                    ds["phi_layer"][i, :, :] = sim.mixture.phi_layers(sim.h)
+                    ds["pore_pressure_excess"][i, :] = sim.mixture.pore_pressure[0]
                 ds["front"][i] = diag["front"]
                 ds["mass"][i] = diag["mass"]
                 ds["time"][i] = sim.t
@@ -279,6 +286,8 @@ SUMMARY_KEYS = (
     "mass_final",
     "max_speed_final",
     "static_interface_mean_final",
+    "pore_pressure_bed_mean_final",
+    "phi_mean_final",
     "steps",
     "wall_time_s",
 )
@@ -290,6 +299,8 @@ SUMMARY_UNITS = {
     "mass_final": "m2",
     "max_speed_final": "m/s",
     "static_interface_mean_final": "m",
+    "pore_pressure_bed_mean_final": "Pa",
+    "phi_mean_final": "1",
     "steps": "",
     "wall_time_s": "s",
 }
@@ -301,7 +312,9 @@ def summary(path: str | os.PathLike, *, checked: bool = True) -> dict[str, float
 
     ``runout`` is the final minus the initial front; ``max_speed_final`` the largest
     ``|u|`` at the final time; ``static_interface_mean_final`` the mean static-interface
-    height over the cells wetter than the front threshold (NaN if none).  The file is
+    height over the cells wetter than the front threshold (NaN if none);
+    ``pore_pressure_bed_mean_final`` and ``phi_mean_final`` the means of the basal excess
+    pore pressure and of the solid fraction over those cells (NaN without a fluid).  The file is
     checked first as the answer of a run (``checked=False``: by the run that has just
     written it, whose every state passed the state guard).
     """
@@ -321,9 +334,18 @@ def summary(path: str | os.PathLike, *, checked: bool = True) -> dict[str, float
         "mass_final": float(final["mass"]),
         "max_speed_final": float(np.abs(final["u"].values).max()),
         "static_interface_mean_final": float(static.mean()) if static.size else float("nan"),
+        "pore_pressure_bed_mean_final": _wet_mean(final, "pore_pressure_excess", wet),
+        "phi_mean_final": _wet_mean(final, "phi", wet),
         "steps": int(ds.attrs["steps"]),
         "wall_time_s": float(ds.attrs["wall_time_s"]),
     }
+
+
+def _wet_mean(final: xr.Dataset, name: str, wet: np.ndarray) -> float:
+    """Mean of ``name`` over the wet cells (NaN if none or if the file lacks it)."""
+    if name not in final or not wet.any():
+        return float("nan")
+    return float(final[name].values[wet].mean())
 
 
 @dataclass

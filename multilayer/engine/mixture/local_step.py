@@ -40,7 +40,6 @@ from multilayer.engine.vertical.problem import ColumnProblem
 from multilayer.errors import RunError
 from multilayer.plugins.contract import Material, MixtureState, Rheology
 
-
 DERIVATIVE_STEP = 1e-7
 """Relative increment of the effective pressure for the derivative of a law's yield stress."""
 
