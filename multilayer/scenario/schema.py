@@ -707,7 +707,9 @@ class Scenario(StrictModel):
         for i, entry in enumerate(self.initial):
             if (entry.phi is None) != (self.fluid is None):
                 need = "is required with fluid" if self.fluid is not None else "is accepted with fluid only"
-                raise invalid(f"phi {need}", "a solid volume fraction in (0, 1), with fluid only", f"initial.{i}.phi")
+                raise invalid(
+                    f"phi {need}", "a solid volume fraction in (0, 1), with fluid only", f"initial.{i}.phi"
+                )
         if self.fluid is None:
             return
         grains = self.material.particle_density or self.material.density

@@ -1,0 +1,158 @@
+"""The grain–fluid mixture in x (engine/mixture/flow.py, local_step.py, solid_transport.py):
+conservation, exact rest, the dry limit, the uniform layer in a periodic domain, resume,
+and the scenario keys."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import multilayer
+from multilayer.engine.config import InitialEntry, MixtureConfig, SimulationConfig
+from multilayer.engine.mixture.flow import buoyant_fraction
+from multilayer.engine.simulation import Simulation
+from multilayer.errors import InputError
+from multilayer.plugins.builtins import DilatantCoulomb, DruckerPrager
+from multilayer.plugins.contract import Material
+
+# Pailha et al. (2008), first fluid
+FLUID = MixtureConfig(
+    fluid_density=1041.0, fluid_viscosity=96e-3, phi_critical=0.582, dilatancy=4.09, critical_shift=25.0
+)
+GRAINS = Material(density=1480.0, grain_diameter=160e-6, particle_density=2500.0)
+
+
+def mixture_run(initial, *, slope=25.0, cells=20, x_max=0.1, sides=("wall", "outflow"), mixture=FLUID, **kw):
+    config = SimulationConfig(
+        x_min=0.0, x_max=x_max, cells=cells, fractions=(1.0,), material=GRAINS, slope_deg=slope,
+        initial=tuple(initial), left=sides[0], right=sides[1], mixture=mixture, **kw,
+    )  # fmt: skip
+    return Simulation(config, DilatantCoulomb(delta_deg=22.5, K1=90.5))
+
+
+def test_solid_conserved_and_fluid_balanced_in_a_collapse():
+    sim = mixture_run([InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01, phi=0.56)], slope=10.0)
+    solid0, volume0 = sim.mixture.solid.sum() * sim.dx, sim.h.sum() * sim.dx
+    for _ in range(30):
+        sim.step()
+        sim.check_state()  # the guard: mixture volume = start + boundaries + ambient exchange
+    assert np.any(sim.u != 0.0)
+    assert abs(sim.mixture.solid.sum() * sim.dx - solid0) <= 1e-14 * solid0
+    # fluid: what the mixture holds more is what it drew from the ambient fluid
+    fluid = (sim.h.sum() - sim.mixture.solid.sum()) * sim.dx
+    assert fluid - (volume0 - solid0) == pytest.approx(sim.mixture.ambient_exchange, abs=1e-15)
+    phi = sim.mixture.phi(sim.h)[sim.h > 1e-4]
+    assert np.all((phi > 0.5) & (phi < 0.6))
+    assert sim.mixture.pore_pressure[0].max() > 0.0  # a loose packing contracts: positive excess
+
+
+def test_immersed_heap_at_rest_is_exact():
+    points = ((0.0, 0.0), (0.05, 0.004), (0.1, 0.0))  # surface slope 0.08, below tan(22.5 deg)
+    sim = mixture_run([InitialEntry("profile", points=points, phi=0.582)], slope=0.0, sides=("wall", "wall"))
+    h0, solid0 = sim.h.copy(), sim.mixture.solid.copy()
+    for _ in range(30):
+        sim.step()
+    assert np.all(sim.u == 0.0)
+    assert np.array_equal(sim.h, h0) and np.array_equal(sim.mixture.solid, solid0)
+    assert np.all(sim.mixture.pore_pressure == 0.0)
+
+
+def test_dry_limit_equals_the_dry_run():
+    """No fluid (rho_f = eta_f = 0) and no dilatancy (K = 0): the Coulomb collapse of the
+    dry engine with the bulk density rho_s phi."""
+    phi = 0.6
+    dry_mixture = MixtureConfig(0.0, 0.0, 0.582, 0.0, 0.0)
+    entry = InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01, phi=phi)
+    wet = mixture_run([entry], slope=20.0, mixture=dry_mixture)
+    config = SimulationConfig(
+        x_min=0.0, x_max=0.1, cells=20, fractions=(1.0,), slope_deg=20.0, left="wall", right="outflow",
+        material=Material(2500.0 * phi, 160e-6, 2500.0 * phi),
+        initial=(InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01),),
+    )  # fmt: skip
+    dry = Simulation(config, DruckerPrager(mu_s=math.tan(math.radians(22.5)), nu=0.0))
+    for _ in range(40):
+        wet.step()
+        dry.advance(wet.t)  # the same steps, but for a last one of round-off length
+    scale = np.abs(dry.u).max()
+    assert scale > 0.0
+    np.testing.assert_allclose(wet.h, dry.h, rtol=0, atol=1e-12 * dry.h.max())
+    np.testing.assert_allclose(wet.u, dry.u, rtol=0, atol=1e-10 * scale)
+
+
+def test_periodic_uniform_layer_is_the_column_step():
+    """A uniform layer in a periodic domain stays uniform, and its trajectory is the
+    local step of one column with the buoyant weight along the slope, to round-off."""
+    sim = mixture_run(
+        [InitialEntry("layer", thickness=4.9e-3, phi=0.584)], sides=("periodic", "periodic"), cells=4
+    )
+    column = sim.mixture.local
+    s, h, v = sim.mixture.solid[:, :1].copy(), sim.h[:1].copy(), np.zeros((1, 1))
+    g_t = 9.81 * math.sin(math.radians(25.0))
+    for _ in range(40):
+        dt = sim.step()
+        r = buoyant_fraction(s / h, 2500.0, 1041.0)
+        result = column(s, h, v + dt * r * g_t, dt)
+        v, h = result.u, result.h
+        assert np.ptp(sim.u) == 0.0 and np.ptp(sim.h) == 0.0
+        assert sim.u[0, 0] == pytest.approx(v[0, 0], rel=1e-12)
+        assert sim.h[0] == pytest.approx(h[0], rel=1e-14)
+    assert sim.mixture.pore_pressure[0, 0] < 0.0  # dense: dilates, held by suction
+    assert sim.mixture.phi(sim.h)[0] < 0.584
+
+
+def test_resume_carries_the_mixture_state():
+    entry = InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01, phi=0.59)
+    first = mixture_run([entry])
+    for _ in range(10):
+        first.step()
+    saved = first.state_dict()
+    assert {"solid", "pore_pressure"} <= set(saved)
+    for _ in range(10):
+        first.step()
+    second = mixture_run([entry])
+    second.load_state(saved)
+    for _ in range(10):
+        second.step()
+    assert np.array_equal(first.u, second.u) and np.array_equal(first.h, second.h)
+    assert np.array_equal(first.mixture.solid, second.mixture.solid)
+
+
+SCENARIO = {
+    "name": "immersed",
+    "domain": {"x_min": 0.0, "x_max": 0.1, "cells": 10},
+    "material": {"density": 1480, "grain_diameter": 160e-6, "particle_density": 2500},
+    "rheology": {"name": "dilatant_coulomb", "delta_deg": 22.5, "K1": 90.5},
+    "fluid": {"density": 1041, "viscosity": 0.096},
+    "mixture": {"phi_critical": 0.582, "dilatancy": 4.09, "critical_shift": 25.0},
+    "initial": [{"shape": "layer", "thickness": 0.005, "phi": 0.58}],
+    "time": {"end": 1.0, "output_interval": 0.5},
+}
+
+
+@pytest.mark.parametrize(
+    ("change", "key"),
+    [
+        ({"initial": [{"shape": "layer", "thickness": 0.005}]}, "initial.0.phi"),
+        ({"mixture": None}, "mixture"),
+        ({"fluid": {"density": 2600, "viscosity": 0.1}}, "fluid.density"),
+        ({"fluid": {"density": 1000, "viscosity": -1}}, "fluid.viscosity"),
+        ({"domain": {"x_min": 0.0, "x_max": 0.1, "cells": 10, "layers": 2}}, "domain.layers"),
+        (
+            {"mixture": {"phi_critical": 1.2, "dilatancy": 4.09, "critical_shift": 25.0}},
+            "mixture.phi_critical",
+        ),
+    ],
+)
+def test_mixture_keys_are_validated(change, key):
+    data = {**SCENARIO, **change}
+    data = {k: v for k, v in data.items() if v is not None}
+    with pytest.raises(InputError, match=key.replace(".", r"\.")):
+        multilayer.load(data)
+
+
+def test_a_dry_scenario_refuses_phi():
+    data = {k: v for k, v in SCENARIO.items() if k not in ("fluid", "mixture")}
+    with pytest.raises(InputError, match=r"initial\.0\.phi"):
+        multilayer.load(data)
