@@ -122,7 +122,7 @@ class MixtureFlow:
             s, hw = solid[:, wet], h[wet]
             phi = s / (self.fractions[:, None] * hw)
             correction = buoyant_fraction(phi, self.rho_s, self.rho_f) - self.reduction
-            result = self.local(s, hw, ustar[:, wet] + dt * correction * self.g_t, dt)
+            result = self.local(s, hw, ustar[:, wet] + dt * correction * self.g_t, dt, u_old[:, wet])
             u[:, wet], h[wet], pressure[:, wet] = result.u, result.h, result.pore_pressure
             iterations = result.iterations
         self.pending = {"solid": solid, "pore_pressure": pressure}

@@ -139,20 +139,29 @@ class LocalStep:
             phi, pore_pressure, cfg.fluid_viscosity, cfg.phi_critical, cfg.dilatancy, cfg.critical_shift
         )
 
-    def __call__(self, solid: np.ndarray, h_star: np.ndarray, ustar: np.ndarray, dt: float) -> LocalResult:
+    def __call__(
+        self,
+        solid: np.ndarray,
+        h_star: np.ndarray,
+        ustar: np.ndarray,
+        dt: float,
+        guess: np.ndarray | None = None,
+    ) -> LocalResult:
         """The step of columns holding ``solid`` (L, n) after transport to ``h_star`` (n,),
-        velocities ``ustar`` (L, n) (the buoyant weight along the slope included).
+        velocities ``ustar`` (L, n) (the buoyant weight along the slope included), the
+        iteration started from the velocities ``guess`` (default: at rest).
 
         Each iteration evaluates the closure at the last velocities and solves the column
-        problem exactly (a Newton iteration).  Where the yield stress grows with the shear
-        rate (a dilating packing: the effective pressure rises), it is linearised: its
-        tangent at the last shear rate is a viscosity, its value at zero rate the yield
-        stress (an increasing stress: the problem stays convex); where it falls (a
-        contracting packing), its value at the last shear rate is used."""
+        problem exactly (a Newton iteration).  The yield stress depends on the shear rate
+        through the effective pressure (it rises in a dilating packing, falls in a
+        contracting one); it is linearised at the last shear rate: its tangent joins the
+        viscosity and the intercept is the yield stress, wherever the stress still grows
+        with the rate (the problem stays convex); elsewhere its value at the last shear
+        rate is used."""
         m_before = self.masses(solid, h_star)
         momentum = m_before * ustar
         zeros = np.zeros_like(ustar)
-        h, v = h_star, zeros
+        h, v = h_star, zeros if guess is None else guess
         pore_pressure = zeros
         velocity_scale = float(np.abs(ustar).max(initial=0.0))
         for iteration in range(1, self.max_iterations + 1):
@@ -171,11 +180,10 @@ class LocalStep:
             tangent = (
                 (self.law.mixture_yield_stress(p_s + step, state, self.material) - flowing) / step * slope
             )
-            dilating = tangent > 0.0
-            kappa = np.where(dilating, np.maximum(flowing - tangent * gamma, 0.0), flowing)
-            eta = self.law.mixture_viscosity(gamma, p_s, state, self.material) + np.where(
-                dilating, tangent, 0.0
-            )
+            eta = self.law.mixture_viscosity(gamma, p_s, state, self.material)
+            newton = eta + tangent > 0.0
+            kappa = np.where(newton, np.maximum(flowing - tangent * gamma, 0.0), flowing)
+            eta = np.where(newton, eta + tangent, eta)
             m = 0.5 * (m_before + self.masses(solid, h_new))
             problem = ColumnProblem(
                 m=m, ustar=momentum / m, dt=dt, kappa=kappa, c=eta / (self.spacing * h_new), w=zeros, cw=zeros

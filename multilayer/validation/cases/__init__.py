@@ -13,6 +13,7 @@ from multilayer.validation.cases import (
     erodible_bed,
     erodible_pressure,
     static_interface,
+    submarine_collapse,
 )
 from multilayer.validation.runs import Context
 
@@ -26,6 +27,7 @@ SECTIONS: dict[str, Callable[[Context], str]] = {
         column_collapse,
         erodible_bed,
         erodible_pressure,
+        submarine_collapse,
     )
 }
 """Section name -> the case's section, in report order."""
