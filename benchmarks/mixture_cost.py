@@ -71,7 +71,8 @@ def main() -> None:
     for name in runs:
         print(
             f"{name:8s} {median[name]:.3f} s, {steps[name]} steps, "
-            f"{1e3 * median[name] / steps[name]:.3f} ms per step ({args.cells} cells x 1 layer, {args.end:g} s)"
+            f"{1e3 * median[name] / steps[name]:.3f} ms per step "
+            f"({args.cells} cells x 1 layer, {args.end:g} s)"
         )
     per_step = (median["mixture"] / steps["mixture"]) / (median["dry"] / steps["dry"])
     print(f"mixture / dry: {median['mixture'] / median['dry']:.2f} per run, {per_step:.2f} per step")
