@@ -5,6 +5,7 @@ and the scenario keys."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -196,3 +197,22 @@ def test_discrete_energy_identity_of_the_uniform_layer():
         expected = -dt * D - 0.5 * mass * (v - v0) ** 2
         # the step's iteration stops at numerics.tolerance = 1e-10 (measured: 4e-12)
         assert change == pytest.approx(expected, rel=1e-9)
+
+
+def test_result_file_holds_the_mixture_and_is_plotted(tmp_path):
+    """phi, phi_layer and the basal pore pressure in result.nc, their summary means, the figure."""
+    from multilayer.app import runner
+    from multilayer.io.plotting import mixture_figure
+    from multilayer.io.results import open_result
+
+    path = Path(__file__).resolve().parents[1] / "scenarios" / "immersed_layer_loose.yaml"
+    scenario = multilayer.load(path, {"time.end": 0.2, "time.output_interval": 0.1})
+    summary = runner.run(scenario, tmp_path, quiet=True)
+    assert summary["pore_pressure_bed_mean_final"] > 0.0  # loose: contracts
+    assert summary["phi_mean_final"] == pytest.approx(0.562, abs=1e-3)
+    ds = open_result(tmp_path)
+    assert (
+        ds["phi_layer"].dims == ("time", "layer", "x") and ds["pore_pressure_excess"].attrs["units"] == "Pa"
+    )
+    figure = mixture_figure(ds, scenario.name)  # drawn by plot_run beside the others
+    assert [ax.get_ylabel().split()[0] for ax in figure.axes] == ["solid", "excess", "mean"]

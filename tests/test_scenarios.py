@@ -31,7 +31,12 @@ NAMES = (
     "submarine_collapse_loose",
     "submarine_collapse_dense",
 )
-MIXTURES = {"immersed_layer_loose", "immersed_layer_dense", "submarine_collapse_loose", "submarine_collapse_dense"}
+MIXTURES = {
+    "immersed_layer_loose",
+    "immersed_layer_dense",
+    "submarine_collapse_loose",
+    "submarine_collapse_dense",
+}
 """Grain–fluid mixtures: their runs take seconds each (3 to 6 s), so they run under ``slow``."""
 
 
