@@ -216,3 +216,24 @@ def test_result_file_holds_the_mixture_and_is_plotted(tmp_path):
     )
     figure = mixture_figure(ds, scenario.name)  # drawn by plot_run beside the others
     assert [ax.get_ylabel().split()[0] for ax in figure.axes] == ["solid", "excess", "mean"]
+
+
+def test_a_law_without_mixture_methods_is_a_law_of_the_effective_pressure():
+    """The contract's defaults: drucker_prager (no mixture_* methods) with mu_s = tan(delta)
+    and rho nu = K1 eta_f runs in a mixture exactly as dilatant_coulomb without dilatancy."""
+    no_dilatancy = MixtureConfig(1041.0, 96e-3, 0.582, 0.0, 0.0)
+    entry = InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01, phi=0.58)
+    config = SimulationConfig(
+        x_min=0.0, x_max=0.1, cells=20, fractions=(1.0,), material=GRAINS, slope_deg=25.0,
+        initial=(entry,), left="wall", right="outflow", mixture=no_dilatancy,
+    )  # fmt: skip
+    dilatant = Simulation(config, DilatantCoulomb(delta_deg=22.5, K1=90.5))
+    coulomb = Simulation(
+        config, DruckerPrager(mu_s=math.tan(math.radians(22.5)), nu=90.5 * 96e-3 / GRAINS.density)
+    )
+    for _ in range(20):
+        dilatant.step()
+        coulomb.advance(dilatant.t)
+    assert np.abs(dilatant.u).max() > 0.0
+    np.testing.assert_allclose(coulomb.u, dilatant.u, rtol=1e-12, atol=1e-12 * np.abs(dilatant.u).max())
+    np.testing.assert_allclose(coulomb.h, dilatant.h, rtol=1e-13)

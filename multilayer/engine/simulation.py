@@ -292,7 +292,7 @@ class Simulation:
         model), or the mixture's local step (which dilates ``h`` in place): the velocities
         and the Newton iterations."""
         if self.mixture is not None:
-            return self.mixture.step(self.h, h, self.u, ustar, dt, self.boundary_mass, self.dry)
+            return self.mixture.step(self.h, h, self.u, ustar, dt, self.boundary_mass, self.dry, self.t)
         return self.vertical(
             h,
             ustar,

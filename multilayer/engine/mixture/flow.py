@@ -103,10 +103,12 @@ class MixtureFlow:
         dt: float,
         crossed: np.ndarray,
         dry: float,
+        t: float,
     ) -> tuple[np.ndarray, int]:
         """The solid transported with the step from ``h_old`` to ``h`` (velocities ``u_old``
         at its start, ``crossed`` the volume through the end faces), then the local step of
-        the columns thicker than ``dry`` from the velocities ``ustar``: returns the
+        the columns thicker than ``dry`` from the velocities ``ustar`` (the step from time
+        ``t``): returns the
         velocities and the iterations; ``h`` is dilated in place, the new fields wait in
         :attr:`pending` for the commit."""
         solid, self._crossed = solid_transport.transport(
@@ -122,7 +124,9 @@ class MixtureFlow:
             s, hw = solid[:, wet], h[wet]
             phi = s / (self.fractions[:, None] * hw)
             correction = buoyant_fraction(phi, self.rho_s, self.rho_f) - self.reduction
-            result = self.local(s, hw, ustar[:, wet] + dt * correction * self.g_t, dt, u_old[:, wet])
+            result = self.local(
+                s, hw, ustar[:, wet] + dt * correction * self.g_t, dt, u_old[:, wet], x=self.x[wet], t=t
+            )
             u[:, wet], h[wet], pressure[:, wet] = result.u, result.h, result.pore_pressure
             iterations = result.iterations
         self.pending = {"solid": solid, "pore_pressure": pressure}

@@ -35,8 +35,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from multilayer.engine.config import MixtureConfig
+from multilayer.engine.plugin_output import call
 from multilayer.engine.vertical.column_solve import solve
 from multilayer.engine.vertical.problem import ColumnProblem
+from multilayer.engine.vertical.stresses import INTERFACE
 from multilayer.errors import RunError
 from multilayer.plugins.contract import Material, MixtureState, Rheology
 
@@ -87,7 +89,7 @@ class LocalStep:
 
     def closure(
         self, solid: np.ndarray, h: np.ndarray, v: np.ndarray, pore_pressure: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """One sweep of the closure from the bed up at thickness ``h`` (n,) and velocities
         ``v`` (L, n), the pore pressures above each layer taken from ``pore_pressure``:
         the shear rates, the effective pressures at these rates, their derivatives with
@@ -146,10 +148,14 @@ class LocalStep:
         ustar: np.ndarray,
         dt: float,
         guess: np.ndarray | None = None,
+        *,
+        x: np.ndarray | None = None,
+        t: float = 0.0,
     ) -> LocalResult:
         """The step of columns holding ``solid`` (L, n) after transport to ``h_star`` (n,),
         velocities ``ustar`` (L, n) (the buoyant weight along the slope included), the
-        iteration started from the velocities ``guess`` (default: at rest).
+        iteration started from the velocities ``guess`` (default: at rest); ``x`` (n,) and
+        ``t`` place the columns in the messages of the checked plugin calls.
 
         Each iteration evaluates the closure at the last velocities and solves the column
         problem exactly (a Newton iteration).  The yield stress depends on the shear rate
@@ -158,6 +164,14 @@ class LocalStep:
         viscosity and the intercept is the yield stress, wherever the stress still grows
         with the rate (the problem stays convex); elsewhere its value at the last shear
         rate is used."""
+        where = np.zeros(h_star.size) if x is None else x
+
+        def law(method: str, *args: object) -> np.ndarray:
+            """The rheology's ``method`` (its pressure argument is third from the end of
+            ``args``), checked (engine/plugin_output.py)."""
+            inputs = {"pressure": np.asarray(args[-3])}
+            return call(self.law, method, args, inputs=inputs, x=where, position=INTERFACE, t=t)
+
         m_before = self.masses(solid, h_star)
         momentum = m_before * ustar
         zeros = np.zeros_like(ustar)
@@ -175,12 +189,10 @@ class LocalStep:
                 )
             h_new = h_star / growth
             state = self._state(solid, h, new_pressure)
-            flowing = self.law.mixture_yield_stress(p_s, state, self.material)
+            flowing = law("mixture_yield_stress", p_s, state, self.material)
             step = DERIVATIVE_STEP * np.maximum(np.abs(p_s), 1e-300)
-            tangent = (
-                (self.law.mixture_yield_stress(p_s + step, state, self.material) - flowing) / step * slope
-            )
-            eta = self.law.mixture_viscosity(gamma, p_s, state, self.material)
+            tangent = (law("mixture_yield_stress", p_s + step, state, self.material) - flowing) / step * slope
+            eta = law("mixture_viscosity", gamma, p_s, state, self.material)
             newton = eta + tangent > 0.0
             kappa = np.where(newton, np.maximum(flowing - tangent * gamma, 0.0), flowing)
             eta = np.where(newton, eta + tangent, eta)

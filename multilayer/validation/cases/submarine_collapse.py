@@ -93,7 +93,7 @@ def signs_met(m: dict[tuple[str, int], Measures], cells: int) -> bool:
 def section(ctx: Context) -> str:
     """The loose and dense columns at three resolutions against the abstract of Rondon et al. (2011)."""
     m = measures(ctx)
-    rows = []
+    rows: list[list[object]] = []
     for n in CELLS:
         if not all((p, n) in m for p in PACKINGS):
             rows.append([str(n), "run failed", "", "", "", "", "", ""])
