@@ -237,3 +237,11 @@ def test_a_law_without_mixture_methods_is_a_law_of_the_effective_pressure():
     assert np.abs(dilatant.u).max() > 0.0
     np.testing.assert_allclose(coulomb.u, dilatant.u, rtol=1e-12, atol=1e-12 * np.abs(dilatant.u).max())
     np.testing.assert_allclose(coulomb.h, dilatant.h, rtol=1e-13)
+
+
+def test_a_dry_scenario_refuses_the_mixture_quantities():
+    data = {k: v for k, v in SCENARIO.items() if k not in ("fluid", "mixture")}
+    data["initial"] = [{"shape": "layer", "thickness": 0.005}]
+    data["expect"] = [{"kind": "regression", "quantity": "phi_mean_final", "value": 0.5, "rtol": 0.1}]
+    with pytest.raises(InputError, match=r"expect\.0\.quantity"):
+        multilayer.load(data)

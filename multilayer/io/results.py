@@ -286,12 +286,12 @@ SUMMARY_KEYS = (
     "mass_final",
     "max_speed_final",
     "static_interface_mean_final",
-    "pore_pressure_bed_mean_final",
-    "phi_mean_final",
     "steps",
     "wall_time_s",
 )
 """The keys of :func:`summary`, in order."""
+MIXTURE_SUMMARY_KEYS = ("pore_pressure_bed_mean_final", "phi_mean_final")
+"""The further keys of :func:`summary` for a grain–fluid mixture."""
 SUMMARY_UNITS = {
     "t_final": "s",
     "front_final": "m",
@@ -313,8 +313,8 @@ def summary(path: str | os.PathLike, *, checked: bool = True) -> dict[str, float
     ``runout`` is the final minus the initial front; ``max_speed_final`` the largest
     ``|u|`` at the final time; ``static_interface_mean_final`` the mean static-interface
     height over the cells wetter than the front threshold (NaN if none);
-    ``pore_pressure_bed_mean_final`` and ``phi_mean_final`` the means of the basal excess
-    pore pressure and of the solid fraction over those cells (NaN without a fluid).  The file is
+    with a fluid, ``pore_pressure_bed_mean_final`` and ``phi_mean_final`` are the means of
+    the basal excess pore pressure and of the solid fraction over those cells.  The file is
     checked first as the answer of a run (``checked=False``: by the run that has just
     written it, whose every state passed the state guard).
     """
@@ -327,6 +327,7 @@ def summary(path: str | os.PathLike, *, checked: bool = True) -> dict[str, float
     final = ds.isel(time=-1)
     wet = final["h"].values > ds["front"].attrs["threshold"]
     static = final["static_interface"].values[wet]
+    mixture = {key: _wet_mean(final, name, wet) for key, name in _MIXTURE_MEANS.items() if name in final}
     return {
         "t_final": float(final["time"]),
         "front_final": float(final["front"]),
@@ -334,18 +335,18 @@ def summary(path: str | os.PathLike, *, checked: bool = True) -> dict[str, float
         "mass_final": float(final["mass"]),
         "max_speed_final": float(np.abs(final["u"].values).max()),
         "static_interface_mean_final": float(static.mean()) if static.size else float("nan"),
-        "pore_pressure_bed_mean_final": _wet_mean(final, "pore_pressure_excess", wet),
-        "phi_mean_final": _wet_mean(final, "phi", wet),
         "steps": int(ds.attrs["steps"]),
         "wall_time_s": float(ds.attrs["wall_time_s"]),
+        **mixture,
     }
 
 
+_MIXTURE_MEANS = dict(zip(MIXTURE_SUMMARY_KEYS, ("pore_pressure_excess", "phi")))
+
+
 def _wet_mean(final: xr.Dataset, name: str, wet: np.ndarray) -> float:
-    """Mean of ``name`` over the wet cells (NaN if none or if the file lacks it)."""
-    if name not in final or not wet.any():
-        return float("nan")
-    return float(final[name].values[wet].mean())
+    """Mean of ``name`` over the wet cells (NaN if none)."""
+    return float(final[name].values[wet].mean()) if wet.any() else float("nan")
 
 
 @dataclass

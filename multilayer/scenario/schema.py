@@ -55,6 +55,8 @@ Quantity = Literal[
 ]
 QUANTITIES: tuple[str, ...] = get_args(Quantity)
 """Quantities an ``expect`` entry can check (see multilayer.results.summary)."""
+MIXTURE_QUANTITIES = ("pore_pressure_bed_mean_final", "phi_mean_final")
+"""Those of a run with a fluid only."""
 
 _FRACTION_SUM_TOLERANCE = 1e-6
 
@@ -709,6 +711,13 @@ class Scenario(StrictModel):
                 need = "is required with fluid" if self.fluid is not None else "is accepted with fluid only"
                 raise invalid(
                     f"phi {need}", "a solid volume fraction in (0, 1), with fluid only", f"initial.{i}.phi"
+                )
+        for i, check in enumerate(self.expect):
+            if self.fluid is None and check.quantity in MIXTURE_QUANTITIES:
+                raise invalid(
+                    f"{check.quantity} is a quantity of a grain-fluid mixture",
+                    ", ".join(q for q in QUANTITIES if q not in MIXTURE_QUANTITIES) + " without fluid",
+                    f"expect.{i}.quantity",
                 )
         if self.fluid is None:
             return
