@@ -80,7 +80,7 @@ def _numpy_path() -> None:
     )  # fmt: skip
     u = column_kernel.solve(p)
     start, at_start = p.ustar, np.zeros((4, L, N))
-    examine_columns(p.m, p.ustar, p.kappa, p.c, p.w, p.cw, start, u, at_start)
+    examine_columns(p.m, p.ustar, p.kappa, p.c, p.w, p.cw, start, u, at_start, True)
 
 
 def _projection() -> None:

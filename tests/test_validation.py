@@ -18,6 +18,7 @@ from multilayer.validation.cases import (
     dam_break,
     erodible_bed,
     static_interface,
+    stopping,
     submarine_collapse,
 )
 from multilayer.validation.mesh_study import MeshStudy, file_comparison
@@ -90,6 +91,14 @@ def test_dam_break_file_tolerance_is_justified(ctx):
 
 
 # --------------------------------------------------------------------------- Bagnold
+
+
+def test_h_stop_is_exact_and_the_flow_rule_is_met_under_layer_refinement(ctx):
+    """Layers 0.1 % below h_stop(theta) stay at u == 0.0, 0.1 % above flow; the steady
+    Froude number converges to beta h / h_stop (pouliquen_forterre, docs/validation.md)."""
+    results = ctx.execute([*stopping.rest_runs(), *stopping.flow_runs()])
+    assert stopping.rest_met(results)
+    assert stopping.flow_rule_met(results)
 
 
 def test_bagnold_profile_converges_and_the_file_tolerance_is_justified(ctx):

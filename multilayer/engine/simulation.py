@@ -5,6 +5,7 @@ Each step is a Lie splitting of the multilayer system, first order in time::
     (h, h_a u*_a)^{n+1}  <- transport in x: fluxes, mass exchange, gravity  (transport/)
     u^{n+1/2}            <- argmin of the implicit stress energy per column (vertical/)
     (u, w, q)^{n+1}      <- the pressure model's projection                 (pressure/)
+    F                    <- the impulses on the bed and the walls            (bed_force.py)
 
 then the Courant check of the step's end (redo shorter if the waves grew faster), the
 state guard (an impossible state is never kept) and the windowed commit of the new state
@@ -21,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from multilayer.engine import basal, diagnostics, initial_state
+from multilayer.engine.bed_force import BedForce
 from multilayer.engine.config import SimulationConfig
 from multilayer.engine.gate import Gate
 from multilayer.engine.mesh import LayeredMesh
@@ -113,6 +115,10 @@ class Simulation:
             tolerance=c.numerics.tolerance,
             max_iterations=c.numerics.max_iterations,
             velocity_scale=self._velocity_scale(),
+        )
+        #: the force on the bed, side walls and end walls (bed_force.py)
+        self.forces = BedForce(
+            self.vertical.stresses, self.fractions, self.dx, self.g_n, self.g_t, c.left, c.right
         )
         # columns that take part in the step: those moving at its start, and material at
         # rest that it sets moving (allocated once)
@@ -232,25 +238,34 @@ class Simulation:
         threads = self.thread_policy.threads(self.fractions.size * int(np.count_nonzero(self.h)))
         while True:  # redone shorter while Heun's second stage breaks the Courant condition
             self._check_advances(dt)
-            np.copyto(self._stepping, self.state.moving)
-            iterations = 0
-            while True:  # redone while the step sets material at rest moving
-                h, ustar = self._transport(dt, threads)
-                u_vertical, more = self._vertical_step(h, ustar, dt, threads)
-                iterations += more
-                if not start_moving(u_vertical, self.h, self.dry, self._stepping):
-                    break
+            h, ustar, u_vertical, iterations = self._transport_and_stresses(dt, threads)
             u, fields = self._project(h, u_vertical, dt)
             if (shorter := self._courant_check(dt, speed)) is None:
                 break
             dt = shorter
         columns = span(h)  # every non-zero velocity and field of the step's end lies within
         self._guard(h, u, fields, dt, columns)
+        if self.mixture is None:  # the forces of a mixture are not computed (docs/mixture.md)
+            self.forces.record(self.state, (h, ustar), u_vertical, (u, fields), dt)  # diagnostics
         self.state.commit(h, u, fields, columns)
         self.newton_iterations += iterations
         self.steps += 1
         self.t = t_max if dt == t_max - self.t else self.t + dt  # lands on t_max when cut to reach it
         return dt
+
+    def _transport_and_stresses(
+        self, dt: float, threads: int
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+        """The transport and the vertical step, redone while the step sets material at
+        rest moving: the thickness, the velocities after each, the Newton iterations."""
+        np.copyto(self._stepping, self.state.moving)
+        iterations = 0
+        while True:
+            h, ustar = self._transport(dt, threads)
+            u_vertical, more = self._vertical_step(h, ustar, dt, threads)
+            iterations += more
+            if not start_moving(u_vertical, self.h, self.dry, self._stepping):
+                return h, ustar, u_vertical, iterations
 
     def _check_target(self, t_max: float) -> None:
         if not t_max > self.t:
@@ -280,7 +295,7 @@ class Simulation:
             self.h, self.u, self.bed, self.fractions, dx=self.dx, dt=dt, g_n=self.g_n, g_t=self.g_t,
             left=self.left, right=self.right, inflow=self.inflow, dry=self.dry, order=self.numerics.order,
             moving=self._stepping, boundary_mass=self.boundary_mass, stage_speed=self._stage_speed,
-            **options,
+            boundary_momentum=self.forces.transport_terms, **options,
         )  # fmt: skip
         self.guard.check_state(h, ustar, lambda: f"after transport from t = {self.t:.6g} s (dt = {dt:.3g} s)")
         return h, ustar
@@ -370,6 +385,7 @@ class Simulation:
             "steps": self.steps,
             "newton_iterations": self.newton_iterations,
             **self.state.state_dict(),
+            **self.forces.state_dict(),
         }
 
     def load_state(self, saved: dict) -> None:
@@ -378,6 +394,7 @@ class Simulation:
         self.steps = int(saved["steps"])
         self.newton_iterations = int(saved.get("newton_iterations", 0))
         self.state.load_state(saved)
+        self.forces.load_state(saved)
         self.guard.check_state(self.h, self.u, f"in the restored state at t = {self.t:.6g} s")
         self.guard.reset(self.h, self.steps)
         if self.mixture is not None:

@@ -41,6 +41,7 @@ from multilayer.io import disk
 from multilayer.io.netcdf_layout import HEADER_SPACE, NUMRECS_OFFSET, LayoutError, read_layout
 from multilayer.io.result_format import (  # noqa: F401 (this module's names, as before)
     CHECKPOINT_FILE,
+    FORCES,
     FORMAT,
     MIXTURE_VARIABLES,
     NETCDF_LOCK,
@@ -73,7 +74,9 @@ class ResultWriter:
         self._broken = False  # a write failed: the netCDF handle cannot be trusted
         n_layers, n_cells = np.shape(sim.u)
         self._mixture = getattr(sim, "mixture", None) is not None
-        self._record_bytes = 8 * ((n_layers + 2) * n_cells * (2 if self._mixture else 1) + 3)
+        # a mixture's records hold phi and p_e, not the forces (docs/mixture.md)
+        extra = (n_layers + 2) * n_cells if self._mixture else len(FORCES)
+        self._record_bytes = 8 * ((n_layers + 2) * n_cells + 3 + extra)
         with NETCDF_LOCK:
             if records is None:
                 self._ds = netCDF4.Dataset(self.path, "w", format=FORMAT)
@@ -94,7 +97,9 @@ class ResultWriter:
         ds.createDimension("x", n_cells)
         ds.createDimension("layer", n_layers)
         ds.createDimension("nv", 2)
-        variables = {**VARIABLES, **MIXTURE_VARIABLES} if self._mixture else VARIABLES
+        variables = VARIABLES
+        if self._mixture:  # the forces of a mixture are not computed (docs/mixture.md)
+            variables = {**{k: v for k, v in VARIABLES.items() if k not in FORCES}, **MIXTURE_VARIABLES}
         for name, (dims, attrs) in variables.items():
             if name == "layer":
                 var = ds.createVariable(name, "i4", dims)
@@ -141,6 +146,7 @@ class ResultWriter:
         the diagnostics written."""
         ds, i = self._ds, self.records
         diag = sim.diagnostics()
+        forces = {} if self._mixture else sim.forces.take()  # the means over the interval this record closes
         if self._broken:
             raise DiskFull(f"{self.path}: an earlier write failed; no more records are written")
         self._ensure_room()
@@ -155,6 +161,8 @@ class ResultWriter:
                     ds["pore_pressure_excess"][i, :] = sim.mixture.pore_pressure[0]
                 ds["front"][i] = diag["front"]
                 ds["mass"][i] = diag["mass"]
+                for name, value in forces.items():
+                    ds[name][i] = value
                 ds["time"][i] = sim.t
                 ds.steps = int(sim.steps)
                 ds.sync()
@@ -286,6 +294,8 @@ SUMMARY_KEYS = (
     "mass_final",
     "max_speed_final",
     "static_interface_mean_final",
+    "peak_seismic_force_x",
+    "peak_seismic_force_z",
     "steps",
     "wall_time_s",
 )
@@ -299,6 +309,8 @@ SUMMARY_UNITS = {
     "mass_final": "m2",
     "max_speed_final": "m/s",
     "static_interface_mean_final": "m",
+    "peak_seismic_force_x": "N/m",
+    "peak_seismic_force_z": "N/m",
     "pore_pressure_bed_mean_final": "Pa",
     "phi_mean_final": "1",
     "steps": "",
@@ -313,8 +325,11 @@ def summary(path: str | os.PathLike, *, checked: bool = True) -> dict[str, float
     ``runout`` is the final minus the initial front; ``max_speed_final`` the largest
     ``|u|`` at the final time; ``static_interface_mean_final`` the mean static-interface
     height over the cells wetter than the front threshold (NaN if none);
-    with a fluid, ``pore_pressure_bed_mean_final`` and ``phi_mean_final`` are the means of
-    the basal excess pore pressure and of the solid fraction over those cells.  The file is
+    ``peak_seismic_force_x`` and ``_z`` the largest magnitude of the seismic single force
+    per unit width, the force on the bed and the walls less the weight, over the output
+    intervals (:func:`seismic_force`; NaN for a single record); with a fluid,
+    ``pore_pressure_bed_mean_final`` and ``phi_mean_final`` are the means of the basal
+    excess pore pressure and of the solid fraction over the wet cells.  The file is
     checked first as the answer of a run (``checked=False``: by the run that has just
     written it, whose every state passed the state guard).
     """
@@ -324,6 +339,7 @@ def summary(path: str | os.PathLike, *, checked: bool = True) -> dict[str, float
         check_result(path, "answer")
     with xr.open_dataset(result_path(path)) as lazy:  # only the first and last records are read
         ds = lazy.isel(time=[0, -1]).load()
+        seismic = seismic_force(lazy[list(FORCES)].load()) if "bed_force_x" in lazy else None
     final = ds.isel(time=-1)
     wet = final["h"].values > ds["front"].attrs["threshold"]
     static = final["static_interface"].values[wet]
@@ -335,10 +351,28 @@ def summary(path: str | os.PathLike, *, checked: bool = True) -> dict[str, float
         "mass_final": float(final["mass"]),
         "max_speed_final": float(np.abs(final["u"].values).max()),
         "static_interface_mean_final": float(static.mean()) if static.size else float("nan"),
+        **{f"peak_seismic_force_{c}": _peak(seismic[i] if seismic else None) for i, c in enumerate("xz")},
         "steps": int(ds.attrs["steps"]),
         "wall_time_s": float(ds.attrs["wall_time_s"]),
         **mixture,
     }
+
+
+def seismic_force(ds: xr.Dataset) -> tuple[np.ndarray, np.ndarray]:
+    """The seismic single force per unit width (N/m) of each output interval, downslope and
+    normal: the mean force of the flow on the bed and the walls less its weight, ``F - M g``
+    (-dP/dt without outflow; Favreau et al. 2010, Toney & Allstadt 2021), NaN at the first
+    record."""
+    total = ds["bed_force_x"] + ds["wall_force_x"] + ds["end_force_x"] + ds["pressure_force_x"]
+    return (
+        (total - ds["gravity_force_x"]).values,
+        (ds["bed_force_z"] - ds["gravity_force_z"]).values,
+    )
+
+
+def _peak(values: np.ndarray | None) -> float:
+    """The largest magnitude of ``values`` after the first record (NaN if none)."""
+    return float(np.abs(values[1:]).max()) if values is not None and values.size > 1 else float("nan")
 
 
 _MIXTURE_MEANS = dict(zip(MIXTURE_SUMMARY_KEYS, ("pore_pressure_excess", "phi")))

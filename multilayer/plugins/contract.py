@@ -15,6 +15,13 @@ applies at an interface whose two adjacent layers were both at rest at the start
 step, :meth:`Rheology.yield_stress` everywhere else.  It is optional: by default it is the
 flowing yield stress, so laws written without it behave as before.
 
+A law that needs a quantity of its column declares it in :attr:`Rheology.uses`; the engine
+then passes it to :meth:`~Rheology.yield_stress`, :meth:`~Rheology.static_yield_stress` and
+:meth:`~Rheology.viscosity` as a keyword argument of the shape of the pressure array.
+``"thickness"``: the thickness ``h`` of the column (m), the same at every interface and
+layer of a column (for a law with a thickness below which flow stops, Pouliquen & Forterre
+2002).  Laws that declare nothing are called exactly as before.
+
 In a grain–fluid mixture (docs/mixture.md) the engine passes the effective (grain-contact)
 pressure ``p_s`` as ``pressure`` (Terzaghi's principle) and calls
 :meth:`Rheology.mixture_yield_stress` and :meth:`Rheology.mixture_viscosity`, which also
@@ -72,6 +79,8 @@ class Rheology:
 
     name: ClassVar[str]
     applies_to: ClassVar[Literal["bulk", "walls"]] = "bulk"
+    uses: ClassVar[tuple[Literal["thickness"], ...]] = ()
+    """The column quantities the law is given as keyword arguments (module docstring)."""
 
     def yield_stress(self, pressure: np.ndarray, material: Material) -> np.ndarray:
         """Rate-independent yield stress kappa(p) >= 0, in Pa."""
@@ -113,6 +122,9 @@ class Rheology:
         * ``("constant", (eta,))``: ``eta``;
         * ``("inertial", (A, B, C))``: ``A p / (B sqrt(p) + C |gamma|)``, 0 where the
           denominator is 0 (Jop et al. 2006 mu(I));
+        * ``("inertial_quadratic", (A, B, C, D))``: ``(A p + D |gamma| sqrt(p)) / (B sqrt(p)
+          + C |gamma|)``, 0 where the denominator is 0 (mu(I) with Barker & Gray's 2017
+          high-I term), ``B > 0``;
         * ``("power", (A, e_p, e_g, floor))``: ``A p^e_p max(|gamma|, floor)^e_g``.
 
         The default, None, keeps this law on the numpy path (always correct).

@@ -39,7 +39,7 @@ from multilayer.engine.plugin_output import call
 from multilayer.engine.vertical.column_solve import solve
 from multilayer.engine.vertical.problem import ColumnProblem
 from multilayer.engine.vertical.stresses import INTERFACE
-from multilayer.errors import RunError
+from multilayer.errors import InputError, RunError
 from multilayer.plugins.contract import Material, MixtureState, Rheology
 
 DERIVATIVE_STEP = 1e-7
@@ -70,6 +70,11 @@ class LocalStep:
         tolerance: float,
         max_iterations: int,
     ):
+        if law.uses:
+            raise InputError(
+                f"rheology {law.name}: a law that uses {', '.join(law.uses)} is not available with a fluid; "
+                f"accepted: a law without 'uses' (dilatant_coulomb, drucker_prager, ...)"
+            )
         self.config, self.law, self.material = config, law, material
         self.l = np.asarray(fractions, dtype=float)[:, None]
         self.spacing = 0.5 * (self.l + np.concatenate([[[0.0]], self.l[:-1]]))  # h_0/2 at the bed

@@ -12,8 +12,10 @@ whose optimality conditions are the implicit momentum balance
 (``column_solve.solve`` or the FiPy reference ``vertical_fipy.solve``, both
 :class:`~multilayer.engine.vertical.problem.VerticalSolver`): the rate-dependent part
 is replaced by its tangent at the current shear rates (``StressModel.linearise``, a
-Newton iteration whose fixed points are the exact solutions), until the velocities change
-by less than ``tolerance`` times the velocity scale.
+Newton iteration whose fixed points are the exact solutions), and the step towards the
+model's minimiser is taken in full or damped by an exact line search on the energy
+(``newton_control``), until the error bound of the velocities is within ``tolerance``
+times the velocity scale.
 
 This is the iteration in numpy, over all unconverged columns at once: the one path that
 calls the rheology plugins' own Python methods (a third-party law without compiled forms,
@@ -29,10 +31,11 @@ from collections.abc import Callable
 import numpy as np
 
 from multilayer.engine.vertical import column_solve
-from multilayer.engine.vertical.newton_control import TRUSTED, examine_columns
+from multilayer.engine.vertical.forms import concave_laws
+from multilayer.engine.vertical.newton_control import HALVINGS, examine_columns, slopes_along
 from multilayer.engine.vertical.newton_kernel import CompiledStep
 from multilayer.engine.vertical.problem import VerticalSolver
-from multilayer.engine.vertical.stresses import StressModel
+from multilayer.engine.vertical.stresses import ColumnStresses, StressModel
 from multilayer.errors import RunError
 
 
@@ -95,6 +98,7 @@ def implicit_step(
         else compiled.coefficients(h, wet, rest, yield_gravity)
     )
     inertia, momentum = cs.m / dt, cs.m * ustar[:, wet] / dt
+    concave = concave_laws((stresses.bulk, stresses.walls), stresses.material)
     current = u_guess[:, wet]
     at_current = stresses.viscous_stresses(cs, current)
     todo = np.arange(wet.size)  # wet columns still iterating
@@ -105,37 +109,76 @@ def implicit_step(
         at = current[cols]
         bound, _ = examine_columns(
             inertia[cols], momentum[cols], cs.kappa[cols], at_current[0][cols], cs.w[cols],
-            at_current[2][cols], at, at, at_current[:, :, resting],
+            at_current[2][cols], at, at, at_current[:, :, resting], concave,
         )  # fmt: skip
         todo = np.setdiff1d(todo, resting[bound <= threshold])
         if todo.size == 0:
             u[:, wet] = current
             return u, 1
-    secant = np.zeros(wet.size, dtype=bool)  # the next step from current is the Kacanov one
     for iteration in range(1, max_iterations + 1):
         if poll is not None:
             poll()
         cols = (slice(None), todo)
-        problem = stresses.linearise(cs, current, ustar[:, wet], dt, secant).columns(todo)
+        problem = stresses.linearise(cs, current, ustar[:, wet], dt).columns(todo)
         new = solver(problem, guess=current[cols], threads=threads)
         trial = current.copy()
         trial[cols] = new
         at_new = stresses.viscous_stresses(cs, trial)  # (like linearise, every column)
         bound, rise = examine_columns(
             inertia[cols], momentum[cols], cs.kappa[cols], at_new[0][cols], cs.w[cols], at_new[2][cols],
-            current[cols], new, at_current[:, :, todo],
+            current[cols], new, at_current[:, :, todo], concave,
         )  # fmt: skip
         change = np.max(np.abs(new - current[cols]), axis=0)
-        done = (bound <= threshold) | (~secant[todo] & (change <= threshold))
-        keep = done | secant[todo] | (rise <= 0.0) | (iteration < TRUSTED)
-        current[:, todo[keep]] = new[:, keep]
-        at_current[:, :, todo[keep]] = at_new[:, :, todo[keep]]
-        secant[todo] = ~keep
+        done = (bound <= threshold) | (change <= threshold)
+        full = done | (rise <= 0.0)
+        current[:, todo[full]] = new[:, full]
+        at_current[:, :, todo[full]] = at_new[:, :, todo[full]]
+        if not full.all():
+            damped = todo[~full]
+            current[:, damped] = _line_search(
+                stresses, cs, inertia, momentum, current, new[:, ~full], damped, threshold
+            )
+            at_current[:, :, damped] = stresses.viscous_stresses(cs, current)[:, :, damped]
         todo = todo[~done]
         if todo.size == 0:
             u[:, wet] = current
             return u, iteration
     raise _not_converged(tolerance, max_iterations, todo.size)
+
+
+def _line_search(
+    stresses: StressModel,
+    cs: ColumnStresses,
+    inertia: np.ndarray,
+    momentum: np.ndarray,
+    current: np.ndarray,
+    new: np.ndarray,
+    damped: np.ndarray,
+    threshold: float,
+) -> np.ndarray:
+    """The damped step of the columns ``damped`` from ``current`` towards the Newton model's
+    minimisers ``new`` (L, n): the minimiser of the convex ``phi(t) = E(u0 + t d)`` on
+    [0, 1], by bisection on the sign of ``phi'(t+)`` (``newton_control``)."""
+    cols = (slice(None), damped)
+    start = current[cols]
+    d = new - start
+    size = np.max(np.abs(d), axis=0)
+    lo, hi = np.zeros(damped.size), np.ones(damped.size)
+    trial = current.copy()
+    for _ in range(HALVINGS):
+        open_ = (hi - lo) * size > threshold
+        if not open_.any():
+            break
+        mid = 0.5 * (lo + hi)
+        trial[cols] = start + mid * d
+        at = stresses.viscous_stresses(cs, trial)
+        up = slopes_along(
+            inertia[cols], momentum[cols], cs.kappa[cols], at[0][cols], cs.w[cols], at[2][cols],
+            start, new, trial[cols], 1.0,
+        ) >= 0.0  # fmt: skip
+        hi = np.where(open_ & up, mid, hi)
+        lo = np.where(open_ & ~up, mid, lo)
+    return start + np.where(lo > 0.0, lo, hi) * d
 
 
 def _not_converged(tolerance: float, max_iterations: int, columns: int) -> NotConverged:

@@ -1,4 +1,4 @@
-"""When the Newton iteration of the vertical step stops, and which of its steps it keeps.
+"""When the Newton iteration of the vertical step stops, and how far it steps.
 
 Per column the step minimises the strictly convex energy (docs/model.md)::
 
@@ -31,36 +31,46 @@ strongly shear-thinning law), round-off in ``u`` can hold it above a tolerance o
 so a Newton step that changes no velocity by more than the threshold (the former
 criterion) also stops the iteration.
 
-**Globalisation: past the first iterations, keep a Newton step only if it lowers E.**
-From iteration ``TRUSTED`` of a column on, the iteration is a descent method on ``E``: a
-Newton step from ``u_0`` to the model's minimiser ``u`` is kept if an upper bound of
-``E(u) - E(u_0)`` is <= 0, computed from stresses alone (the plugins give no
-potentials).  Two bounds serve, the smaller is used: ``phi'(1-)`` for the convex
-``phi(t) = E(u_0 + t (u - u_0))`` (``E(u) - E(u_0) <= phi'(1-)``; the left derivative:
-``-kappa |ds|`` across a locked interface); and the exact inertial, yield and wall-threshold
-terms plus, for each viscous potential, its tangent at ``u_0`` where the rate grows and
-its chord where it shrinks (upper bounds when the viscous stress is concave in the rate:
-every built-in law but the shear-thickening power law, flow index > 1; for other laws a
-second-order estimate).  The second accepts the Newton steps that overshoot along ``d``
-but still lower ``E``, which the first alone would reject.  Both can fail to show the
-decrease of a good Newton step whose rates cross the whole curved part of a saturating law
-(a layer of a collapse front, 1 micrometre thick, locking from rates ~1e4 1/s, where the
-chord halves the potential of mu(I)); the secant steps that replace such steps are slow
-there (the secant/tangent ratio of mu(I) diverges for ``I >> I_0``), so the first
-``TRUSTED - 1`` Newton steps of a column are kept unconditionally (the plain iteration,
-which converged in 13 in that column; most columns need fewer than 10).
-A Newton step failing both is replaced by the step of the secant (Kacanov) model from
-``u_0``: true yield stresses and conductances ``eta(rate at u_0)``.  For a viscosity
-nonincreasing in the rate (every built-in law but the shear-thickening power law) the
-secant potential ``Phi(s0) + eta(s0) (s^2 - s0^2) / 2`` majorises ``Phi`` and touches it
-at ``s0``, so the secant step lowers ``E`` (majorise-minimise: Lange, Hunter & Yang 2000,
-"Optimization transfer using surrogate objective functions"; the Kacanov iteration
-converges on its own: Han, Jensen & Shimansky 1997, "The Kacanov method for some nonlinear
-problems").  From iteration ``TRUSTED`` on ``E`` thus decreases strictly at every kept
-step: the iterates cannot cycle, and a Newton iteration that stalls is carried by
-majorise-minimise steps.  Every iterate,
-the last included, is an exact output of the exact solver (static layers ``0.0``, plugs
-exact), and where every Newton step lowers ``E`` the iteration is the plain one.
+**Globalisation: an exact line search along the Newton step.**  From ``u_0`` the
+iteration solves the Newton model and takes the step ``d = u_N - u_0`` towards its
+minimiser ``u_N`` in full, or damped: ``u_0 + t* d`` with ``t*`` the minimiser over
+``[0, 1]`` of the convex ``phi(t) = E(u_0 + t d)``.  The plugins give stresses, not
+potentials, so every test is built from stresses (:func:`slope_along` is the one-sided
+``phi'``, a sum of stresses times velocity changes).  The full step is taken when an upper
+bound of ``E(u_N) - E(u_0)`` is ``<= 0`` (:func:`energy_rise`): the smaller of ``phi'(1-)``
+(``phi(1) - phi(0) <= phi'(1-)``) and the exact inertial, yield and wall-threshold terms
+plus a bound of each viscous potential's change: for laws whose viscous stress is known to
+be concave in the rate (``concave``: the compiled forms of every built-in law but the
+shear-thickening power law) its tangent at ``u_0`` where the rate grows and its chord where
+it shrinks; for any other law (a stress nondecreasing in the rate, the plugin contract)
+``tau_v(|s|) (|s| - |s_0|)`` with the stress at the end, an upper bound since the stress
+between is no larger.  (The tangent is no bound for a stress with a convex kink, such as
+the plateau of a law with a thickness-dependent threshold: with it the iteration cycled
+between two iterates each "lower" than the other.)
+Otherwise ``t*`` is found by bisection on the sign of ``phi'(t+)`` (one stress evaluation
+per halving, until the velocities it leaves undecided are within the threshold), and the
+step ends at the last ``t`` where ``phi'(t+) < 0``.
+
+*Descent* (the iteration cannot cycle).  (i) The Newton model ``E_m`` and ``E`` have the
+same subdifferential at ``u_0``: the model's law passes through the true stress at the
+current jumps and has the true yield stress where they vanish, and the inertial and wall
+terms are exact (docs/numerics.md).  So ``E'(u_0; d) = E_m'(u_0; d)``.  (ii) ``E_m`` is
+convex and ``u_N`` its minimiser, and both are strongly convex with modulus ``M``, so
+``E_m'(u_0; d) <= E_m(u_N) - E_m(u_0) - ||d||_M^2 / 2 < 0`` unless ``d = 0``, where
+``0`` is in ``dE(u_0)``: ``u_0`` is the exact step.  (iii) ``phi`` is convex with
+``phi'(0+) < 0``: a full step taken on ``phi'(1-) <= 0`` or on the rise bound lowers ``E``,
+and a damped ``t`` with ``phi'(t+) < 0`` has ``phi(t) - phi(0) <= t phi'(t-) <= t phi'(t+)
+< 0``.  Every iteration therefore lowers ``E`` strictly until the exact step is reached;
+with model curvatures bounded between ``M`` and a multiple of it, a damped Newton method
+with exact (or sufficient-decrease) line searches converges globally to the minimiser of a
+strongly convex ``smooth + sum kappa |s|`` energy (Lee, Sun & Saunders 2014, "Proximal
+Newton-type methods for minimizing composite functions", SIAM J. Optim. 24, 1420,
+Thm 3.1), and near it the rise bound shows the decrease of the full step, so the local rate
+is Newton's.  A damped iterate is not an output of the exact solver (a layer locked at
+``u_N`` but not at ``u_0`` is not locked in between); it only linearises the next model.
+The iteration ends at a full step whose error bound is within the threshold: an exact
+output (static layers ``0.0``, plugs exact).  Where no step is damped the iteration is the
+plain Newton iteration.
 """
 
 from __future__ import annotations
@@ -71,8 +81,9 @@ import numpy as np
 
 from multilayer.engine.compiled import jit
 
-TRUSTED = 10
-"""Newton steps kept without the energy test: the first iterations of a column."""
+HALVINGS = 60
+"""The most halvings of a line search (it stops once the velocities it leaves undecided are
+within the threshold: about 35 for a step of the velocity scale at a tolerance of 1e-10)."""
 
 
 @jit
@@ -81,10 +92,13 @@ def _sign(x):
 
 
 @jit
-def _potential_rise(start, end, stress_start, stiffness_start, stress_end):
+def _potential_rise(start, end, stress_start, stiffness_start, stress_end, concave):
     """An upper bound of ``Phi(end) - Phi(start)`` for a potential whose derivative (the
-    stress, >= 0) is concave in the magnitude: the tangent at ``start`` above it when the
-    magnitude grows, the chord below it when it shrinks."""
+    stress, >= 0) is nondecreasing in the magnitude: the stress at ``end`` times the change;
+    with ``concave`` (the stress concave in the magnitude) the tangent at ``start`` above it
+    when the magnitude grows, the chord below it when it shrinks."""
+    if not concave:
+        return (end - start) * stress_end
     if end >= start:
         return (end - start) * (stress_start + 0.5 * stiffness_start * (end - start))
     return -(start - end) * 0.5 * (stress_start + stress_end)
@@ -136,35 +150,52 @@ def error_bound(inertia, momentum, kappa, viscous, w, wall_viscous, u, limit):
 
 
 @jit
-def energy_rise(inertia, momentum, kappa, viscous, w, wall_viscous, start, u, at_start):
-    """An upper bound of ``E(u) - E(start)`` for one column (arguments of
-    :func:`error_bound`; ``at_start`` (4, L) holds at ``start`` the viscous stresses, their
-    derivatives with respect to the jump, the viscous wall forces and their derivatives):
-    the smaller of ``phi'(1-)`` and, for stresses concave in the rate, the exact inertial
-    and yield terms plus :func:`_potential_rise`."""
-    slope = 0.0  # phi'(1-)
-    rise = 0.0
+def slope_along(inertia, momentum, kappa, viscous, w, wall_viscous, start, end, v, side):
+    """The one-sided derivative ``phi'(t+)`` (``side`` 1) or ``phi'(t-)`` (``side`` -1) of
+    ``phi(t) = E(start + t (end - start))`` at the velocities ``v = start + t (end - start)``
+    of one column, from the true stresses at ``v`` (arguments of :func:`error_bound`,
+    ``viscous`` and ``wall_viscous`` at the jumps and speeds of ``v``): where a jump or a
+    speed of ``v`` is zero the yield stress adds ``side kappa |change|``."""
+    slope = 0.0
     for a in range(inertia.shape[0]):
-        below = u[a - 1] if a > 0 else 0.0
-        below_start = start[a - 1] if a > 0 else 0.0
-        jump = u[a] - below
-        jump_start = start[a] - below_start
-        d = u[a] - start[a]
-        d_jump = jump - jump_start
-        slope += (inertia[a] * u[a] - momentum[a]) * d
-        rise += d * (0.5 * inertia[a] * (u[a] + start[a]) - momentum[a])
-        rise += w[a] * (abs(u[a]) - abs(start[a])) + kappa[a] * (abs(jump) - abs(jump_start))
-        rise += _potential_rise(abs(start[a]), abs(u[a]), at_start[2, a], at_start[3, a], wall_viscous[a])
-        rise += _potential_rise(abs(jump_start), abs(jump), at_start[0, a], at_start[1, a], viscous[a])
-        if u[a] != 0.0:
-            slope += _sign(u[a]) * (w[a] + wall_viscous[a]) * d
+        jump = v[a] - (v[a - 1] if a > 0 else 0.0)
+        d = end[a] - start[a]
+        d_jump = (end[a] - (end[a - 1] if a > 0 else 0.0)) - (start[a] - (start[a - 1] if a > 0 else 0.0))
+        slope += (inertia[a] * v[a] - momentum[a]) * d
+        if v[a] != 0.0:
+            slope += _sign(v[a]) * (w[a] + wall_viscous[a]) * d
         else:
-            slope -= w[a] * abs(d)
+            slope += side * w[a] * abs(d)
         if jump != 0.0:
             slope += _sign(jump) * (kappa[a] + viscous[a]) * d_jump
         else:
-            slope -= kappa[a] * abs(d_jump)
-    return min(slope, rise)
+            slope += side * kappa[a] * abs(d_jump)
+    return slope
+
+
+@jit
+def energy_rise(
+    inertia, momentum, kappa, viscous, w, wall_viscous, start, u,
+    tau, stiffness, wall_tau, wall_stiffness, concave,
+):  # fmt: skip
+    """An upper bound of ``E(u) - E(start)`` for one column (arguments of
+    :func:`error_bound`; at ``start`` the viscous stresses ``tau``, their derivatives
+    ``stiffness`` with respect to the jump, the viscous wall forces ``wall_tau`` and their
+    derivatives ``wall_stiffness``; ``concave``: every viscous stress is concave in the
+    rate): the smaller of ``phi'(1-)`` (:func:`slope_along`) and the exact inertial and yield
+    terms plus :func:`_potential_rise`."""
+    rise = 0.0
+    for a in range(inertia.shape[0]):
+        jump = u[a] - (u[a - 1] if a > 0 else 0.0)
+        jump_start = start[a] - (start[a - 1] if a > 0 else 0.0)
+        d = u[a] - start[a]
+        rise += d * (0.5 * inertia[a] * (u[a] + start[a]) - momentum[a])
+        rise += w[a] * (abs(u[a]) - abs(start[a])) + kappa[a] * (abs(jump) - abs(jump_start))
+        rise += _potential_rise(
+            abs(start[a]), abs(u[a]), wall_tau[a], wall_stiffness[a], wall_viscous[a], concave
+        )
+        rise += _potential_rise(abs(jump_start), abs(jump), tau[a], stiffness[a], viscous[a], concave)
+    return min(slope_along(inertia, momentum, kappa, viscous, w, wall_viscous, start, u, u, -1.0), rise)
 
 
 def examine_columns(
@@ -177,18 +208,25 @@ def examine_columns(
     start: np.ndarray,
     u: np.ndarray,
     at_start: np.ndarray,
+    concave: bool,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`error_bound` and :func:`energy_rise` of every column of (L, N) arrays
     (``at_start`` (4, L, N)): (bounds (N,), rises (N,)).
 
     The columns are copied to contiguous rows first, so that one compilation of the two
     functions, the one of the compiled step (``newton_kernel``), serves every layout."""
-    rows = [np.ascontiguousarray(np.transpose(a), dtype=float) for a in (inertia, momentum, kappa, viscous)]
-    rows += [np.ascontiguousarray(np.transpose(a), dtype=float) for a in (w, wall_viscous, start, u)]
-    return _examine_compiled(*rows, np.ascontiguousarray(np.moveaxis(at_start, 2, 0), dtype=float))
+    rows = _rows(inertia, momentum, kappa, viscous, w, wall_viscous, start, u)
+    return _examine_compiled(
+        *rows, np.ascontiguousarray(np.moveaxis(at_start, 2, 0), dtype=float), bool(concave)
+    )
 
 
-def _examine_rows(inertia, momentum, kappa, viscous, w, wall_viscous, start, u, at_start):
+def _rows(*arrays: np.ndarray) -> list[np.ndarray]:
+    """(L, N) arrays as contiguous (N, L) float rows: one compilation serves every layout."""
+    return [np.ascontiguousarray(np.transpose(a), dtype=float) for a in arrays]
+
+
+def _examine_rows(inertia, momentum, kappa, viscous, w, wall_viscous, start, u, at_start, concave):
     """:func:`examine_columns` on (N, L) arrays and ``at_start`` (N, 4, L)."""
     n = inertia.shape[0]
     bounds, rises = np.empty(n), np.empty(n)
@@ -197,8 +235,38 @@ def _examine_rows(inertia, momentum, kappa, viscous, w, wall_viscous, start, u, 
         bounds[j] = error_bound(
             args[0], args[1], args[2], args[3], args[4], args[5], u[j], np.inf
         )  # inlined: no *args
-        rises[j] = energy_rise(*args, start[j], u[j], at_start[j])
+        at = at_start[j]
+        rises[j] = energy_rise(*args, start[j], u[j], at[0], at[1], at[2], at[3], concave)
     return bounds, rises
 
 
 _examine_compiled: Any = jit(_examine_rows)
+
+
+def slopes_along(
+    inertia: np.ndarray,
+    momentum: np.ndarray,
+    kappa: np.ndarray,
+    viscous: np.ndarray,
+    w: np.ndarray,
+    wall_viscous: np.ndarray,
+    start: np.ndarray,
+    end: np.ndarray,
+    v: np.ndarray,
+    side: float,
+) -> np.ndarray:
+    """:func:`slope_along` of every column of (L, N) arrays: (N,)."""
+    return _slopes_compiled(
+        *_rows(inertia, momentum, kappa, viscous, w, wall_viscous, start, end, v), float(side)
+    )
+
+
+@jit
+def _slopes_compiled(inertia, momentum, kappa, viscous, w, wall_viscous, start, end, v, side):
+    """:func:`slopes_along` on (N, L) arrays."""
+    out = np.empty(inertia.shape[0])
+    for j in range(inertia.shape[0]):
+        out[j] = slope_along(
+            inertia[j], momentum[j], kappa[j], viscous[j], w[j], wall_viscous[j], start[j], end[j], v[j], side
+        )
+    return out

@@ -39,8 +39,14 @@ from multilayer.engine.vertical.coefficients import (
     column_coefficients,
 )
 from multilayer.engine.vertical.column_solve import _active_set, _dynamic_programme, _workspace
-from multilayer.engine.vertical.forms import _newton_model, _pressure_part, _viscosity_and_slope, law_of
-from multilayer.engine.vertical.newton_control import TRUSTED, energy_rise, error_bound
+from multilayer.engine.vertical.forms import (
+    _newton_model,
+    _pressure_part,
+    _viscosity_and_slope,
+    concave,
+    law_of,
+)
+from multilayer.engine.vertical.newton_control import HALVINGS, energy_rise, error_bound, slope_along
 from multilayer.engine.vertical.sheared_columns import (
     ALONE,
     BLOCK,
@@ -197,6 +203,8 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
     n = wet.size
     walls = width > 0.0
     inverse_half = 2.0 / width if walls else 0.0
+    # the tangent and chord bounds of newton_control.energy_rise hold
+    concave_stresses = concave(bulk_form, bulk_params) and (not walls or concave(wall_form, wall_params))
     ws = _workspace(L)
     first = np.empty(L + 1, np.int64)
     grounded = np.empty(L, np.bool_)
@@ -204,7 +212,8 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
     kc, cc = np.empty(L), np.empty(L)  # the Newton model: interface yield stresses, conductances
     wc, cwc = np.empty(L), np.zeros(L)  # and wall thresholds, wall conductances
     current, new = np.empty(L), np.empty(L)
-    proposal = np.empty(L)  # a structure proposed to the active set (_other_structures)
+    # a structure proposed to the active set (_other_structures); a point of a line search
+    proposal = np.empty(L)
     # viscosities, stress slopes and viscous stresses at current and new (interfaces, walls)
     eta_c, slope_c, eta_n, slope_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
     weta_c, wslope_c, weta_n, wslope_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
@@ -307,7 +316,6 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
             walls, inverse_half, wall_form, wall_params, wall_factor, wall_offset, per_area, weta_c, wslope_c,
             state_c,
         )  # fmt: skip
-        secant = False  # the step from current is the Kacanov one (newton_control)
         last = max_iterations  # 0 for a guess at rest within the bound (see _columns)
         if fault == 0 and inertia[0] > 0.0 and current[0] == 0.0 and current[L - 1] == 0.0:
             if (
@@ -324,12 +332,12 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
             for a in range(L):
                 rate = abs(current[a] - below) * inverse_spacing[a]
                 below = current[a]
-                ka, t = _newton_model(kappa[a], rate, eta_c[a], slope_c[a], secant)
+                ka, t = _newton_model(kappa[a], rate, eta_c[a], slope_c[a])
                 kc[a] = ka if viscous[a] else kappa[a]
                 cc[a] = t * conductance[a]
                 if walls:
                     rate = abs(current[a]) * inverse_half
-                    wa, ta = _newton_model(wall[a], rate, weta_c[a], wslope_c[a], secant)
+                    wa, ta = _newton_model(wall[a], rate, weta_c[a], wslope_c[a])
                     wc[a] = per_area[a] * wa
                     cwc[a] = per_area[a] * ta * inverse_half
             if not inertia[0] > 0.0:  # no mass: nothing to solve
@@ -356,29 +364,54 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
                 error_bound(inertia, momentum, kappa, state_n[0], wall_true, state_n[2], new, threshold)
                 <= threshold
             )
-            if not (done or secant):
+            if not done:
                 change = 0.0
                 for a in range(L):
                     change = max(change, abs(new[a] - current[a]))
                 done = change <= threshold
-            keep = done or secant or iteration < TRUSTED
-            if (
-                keep
-                or energy_rise(
-                    inertia, momentum, kappa, state_n[0], wall_true, state_n[2], current, new, state_c
-                )
-                <= 0.0
-            ):
+            if done or energy_rise(
+                inertia, momentum, kappa, state_n[0], wall_true, state_n[2], current, new,
+                state_c[0], state_c[1], state_c[2], state_c[3], concave_stresses,
+            ) <= 0.0:  # fmt: skip
+                # the full step (newton_control)
                 current, new = new, current
                 eta_c, eta_n, slope_c, slope_n = eta_n, eta_c, slope_n, slope_c
                 weta_c, weta_n, wslope_c, wslope_n = weta_n, weta_c, wslope_n, wslope_c
                 state_c, state_n = state_n, state_c
-                secant = False
                 if done:
                     iterations[j] = iteration
                     break
-            else:  # a Newton step that may raise the energy: the secant step instead
-                secant = True
+                continue
+            # the damped step: the minimiser of phi(t) = E(current + t (new - current)) on [0, 1],
+            # bisected on the sign of phi'(t+); the closing pass evaluates the point taken
+            size = 0.0
+            for a in range(L):
+                size = max(size, abs(new[a] - current[a]))
+            lo, hi = 0.0, 1.0
+            for halving in range(HALVINGS + 1):
+                closing = halving == HALVINGS or not (hi - lo) * size > threshold
+                mid = (lo if lo > 0.0 else hi) if closing else 0.5 * (lo + hi)
+                for a in range(L):
+                    proposal[a] = current[a] + mid * (new[a] - current[a])
+                fault, fault_values[j, 0], fault_values[j, 1] = _true_stresses(
+                    proposal, inverse_spacing, conductance, bulk_form, bulk_params, factor, offset, eta_n,
+                    slope_n, walls, inverse_half, wall_form, wall_params, wall_factor, wall_offset, per_area,
+                    weta_n, wslope_n, state_n,
+                )  # fmt: skip
+                if fault != 0 or closing:
+                    break
+                if slope_along(
+                    inertia, momentum, kappa, state_n[0], wall_true, state_n[2], current, new, proposal, 1.0
+                ) >= 0.0:  # fmt: skip
+                    hi = mid
+                else:
+                    lo = mid
+            if fault != 0:
+                break
+            current, proposal = proposal, current
+            eta_c, eta_n, slope_c, slope_n = eta_n, eta_c, slope_n, slope_c
+            weta_c, weta_n, wslope_c, wslope_n = weta_n, weta_c, wslope_n, wslope_c
+            state_c, state_n = state_n, state_c
         faults[j] = fault
         for a in range(L):
             u_out[a, col] = current[a]

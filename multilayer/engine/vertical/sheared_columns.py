@@ -20,8 +20,8 @@ of the block, so that their chains overlap.  Each column's arithmetic is that of
 ``newton_kernel._chunk``, operation for operation: the same velocities to the bit, the
 same iteration counts (tests/test_sheared_columns.py).  A column leaves the block, and
 ``_chunk`` solves it from the start, where it is not fully sheared, its structure is
-rejected, a viscosity is outside the plugin contract, or it is not converged before
-iteration ``TRUSTED`` (where the energy test of ``newton_control`` begins).
+rejected, a viscosity is outside the plugin contract, or its Newton step is damped (the
+rise bound of ``newton_control`` is positive: ``_chunk`` makes the line search).
 
 What only this copy does: it is the same iteration as ``newton_kernel._chunk`` for a
 special case, kept for speed alone (the chains of divisions of several columns overlap;
@@ -34,15 +34,15 @@ from __future__ import annotations
 import numpy as np
 
 from multilayer.engine.compiled import jit
-from multilayer.engine.vertical.forms import _newton_model, _viscosity_and_slope
-from multilayer.engine.vertical.newton_control import TRUSTED, _sign, error_bound
+from multilayer.engine.vertical.forms import _newton_model, _viscosity_and_slope, concave
+from multilayer.engine.vertical.newton_control import _sign, energy_rise, error_bound
 
 BLOCK = 8
 """Columns solved side by side: eight chains of divisions in flight, and the pass of the
 stresses and the Newton model one loop over the 8 L cells of the block, long enough to
 run as vectors at L = 8 (compiled, the loop runs as vectors of 8 values from about 40
 cells on, and one cell at a time below: 22-29 against 51-53 ns per column and pass at
-L = 8).  The tile holds 19 values per layer for each of the BLOCK + 1 lanes, 186 KB at
+L = 8).  The tile holds 22 values per layer for each of the BLOCK + 1 lanes, 215 KB at
 L = 128."""
 
 # The tile (SLOTS, 1 + (BLOCK + 1) P) holds, in each slot (a row), one value per column
@@ -51,12 +51,14 @@ L = 128."""
 # m/dt, m u*/dt, the true yield stress, the wall threshold, 1/spacing, the conductance
 # per unit slope (0 where not viscous), whether viscous, the pressure parts of the law
 # and the guess; per iteration, the Newton model (yield stress, conductance, sign of the
-# jump), the forward sweep (inverse pivot, right-hand side), the true viscous stress at
-# the new velocities and the two iterates; fixed, 1.0 in the bottom cell of each lane
-# (the bed below it), 2.0 in the padding and 0.0 elsewhere.
+# jump), the forward sweep (inverse pivot, right-hand side), the two iterates and, at each,
+# the true viscous stresses and their derivatives (``TAU0 + k``, ``STIFF0 + k`` at the
+# iterate ``U0 + k``: the rise bound of ``newton_control`` needs both iterates'); fixed,
+# 1.0 in the bottom cell of each lane (the bed below it), 2.0 in the padding and 0.0
+# elsewhere.
 INERTIA, MOMENTUM, KAPPA, WALL, INV_SPACING, CONDUCTANCE, VISCOUS, FACTOR, OFFSET = range(9)
-GUESS, KC, CC, SIGN, DIAG, RHS, TAU, U0, U1, BED = range(9, 19)
-SLOTS = 19
+GUESS, KC, CC, SIGN, DIAG, RHS, U0, U1, TAU0, TAU1, STIFF0, STIFF1, BED = range(9, 22)
+SLOTS = 22
 ALONE = BLOCK
 """The lane of the tile that holds the per-step slots of a column solved on its own
 (``newton_kernel._chunk``); the block's lanes are 0 ... BLOCK - 1."""
@@ -127,7 +129,8 @@ def unload(t, L, flags, i, viscous, wall_true, guess):
 
 @jit(error_model="numpy")
 def _stresses_and_model(t, L, u, form, params, flags):
-    """At the velocities of slot ``u``: the true viscous stresses (slot ``TAU``; a
+    """At the velocities of slot ``u``: the true viscous stresses and their derivatives
+    (slots ``TAU0``, ``STIFF0`` + ``u - U0``; a
     viscosity outside the plugin contract ends the column's block iteration) and the
     Newton model there (``KC``, ``CC``, ``SIGN``), as ``newton_kernel._true_stresses``
     and the model of the next iteration; ``SHEARED`` tells whether every jump is nonzero.
@@ -163,6 +166,7 @@ def _sweep(t, u, form, params, start, stop):
     velocities in slot ``u``); returns how many viscosities are outside the plugin contract
     and how many jumps are zero, padding aside."""
     faults = unsheared = 0
+    tau, stiffness = TAU0 + (u - U0), STIFF0 + (u - U0)
     for x in range(np.uint64(start), np.uint64(stop)):  # unsigned: no test for negative indices
         g = t[u, x]
         below = 0.0 if t[BED, x] > 0.0 else t[u, x - np.uint64(1)]
@@ -173,8 +177,9 @@ def _sweep(t, u, form, params, start, stop):
         layer = t[BED, x] < 2.0  # not padding
         faults += layer and not within
         unsheared += layer and g == below
-        t[TAU, x] = eta * rate if t[CONDUCTANCE, x] > 0.0 else 0.0
-        kappa, conductance = _newton_model(t[KAPPA, x], rate, eta, slope, False)
+        t[tau, x] = eta * rate if t[CONDUCTANCE, x] > 0.0 else 0.0
+        t[stiffness, x] = max(slope, 0.0) * t[CONDUCTANCE, x]
+        kappa, conductance = _newton_model(t[KAPPA, x], rate, eta, slope)
         t[KC, x] = kappa if t[VISCOUS, x] > 0.0 else t[KAPPA, x]
         t[CC, x] = conductance * t[CONDUCTANCE, x]
         t[SIGN, x] = _sign(jump)
@@ -226,17 +231,19 @@ def _solve(t, L, new, flags):
 
 
 @jit(error_model="numpy")
-def _converged(t, L, new, current, threshold, flags):
-    """``DONE``: the error bound of ``newton_control.error_bound`` at slot ``new`` (true
-    stresses in ``TAU``) is within ``threshold``, or else the largest change from slot
-    ``current`` is: the test of ``_chunk``, column by column."""
+def _converged(t, L, new, current, threshold, concave_stress, flags):
+    """``DONE``: the error bound of ``newton_control.error_bound`` at slot ``new`` (its true
+    stresses in ``TAU0 + new - U0``) is within ``threshold``, or else the largest change from
+    slot ``current`` is: the test of ``_chunk``, column by column.  A column not done whose
+    rise bound (``newton_control.energy_rise``) is positive leaves the block (``ACTIVE``
+    False): ``_chunk`` damps its step."""
     for i in range(BLOCK):
         x = cell(i, L)
         lane = slice(x, x + L)
         wall = t[WALL, lane]  # 0 in every column that takes part (join): no wall threshold or force
+        tau = t[TAU0 + (new - U0), lane]
         bound = error_bound(
-            t[INERTIA, lane], t[MOMENTUM, lane], t[KAPPA, lane], t[TAU, lane], wall, wall, t[new, lane],
-            threshold,
+            t[INERTIA, lane], t[MOMENTUM, lane], t[KAPPA, lane], tau, wall, wall, t[new, lane], threshold
         )  # fmt: skip
         converged = bound <= threshold
         if not converged:
@@ -245,6 +252,14 @@ def _converged(t, L, new, current, threshold, flags):
                 change = max(change, abs(t[new, a] - t[current, a]))
             converged = change <= threshold
         flags[DONE, i] = converged
+        if not converged:
+            at = current - U0
+            rise = energy_rise(
+                t[INERTIA, lane], t[MOMENTUM, lane], t[KAPPA, lane], tau, wall, wall, t[current, lane],
+                t[new, lane], t[TAU0 + at, lane], t[STIFF0 + at, lane], wall, wall, concave_stress,
+            )  # fmt: skip
+            if rise > 0.0:
+                flags[ACTIVE, i] = False
 
 
 @jit(error_model="numpy")
@@ -261,13 +276,14 @@ def sheared_block(
     for i in range(BLOCK):
         finished[i] = False
     current, new = np.int64(U0), np.int64(U1)  # typed int64, not as literals: one compilation
+    concave_stress = concave(form, params)
     _stresses_and_model(t, L, current, form, params, flags)
     for i in range(BLOCK):
         flags[ACTIVE, i] = flags[ACTIVE, i] and flags[SHEARED, i]
-    for iteration in range(1, min(max_iterations, TRUSTED - 1) + 1):  # steps kept unconditionally
+    for iteration in range(1, max_iterations + 1):
         _solve(t, L, new, flags)
         _stresses_and_model(t, L, new, form, params, flags)  # the bound's stresses, the next model
-        _converged(t, L, new, current, threshold, flags)
+        _converged(t, L, new, current, threshold, concave_stress, flags)
         remaining = 0
         for i in range(BLOCK):
             if not flags[ACTIVE, i]:

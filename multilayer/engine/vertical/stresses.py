@@ -44,6 +44,7 @@ class ColumnStresses:
     viscous: np.ndarray  # True where interface k carries the bulk viscosity (L, N)
     wall_pressure: np.ndarray  # mean layer pressures pbar_a (L, N)
     x: np.ndarray  # position of each column (N,), for messages
+    thickness: np.ndarray  # thickness h of each column (N,), for the laws that use it
 
 
 INTERFACE = "interface {index} (0 is the bed)"
@@ -100,7 +101,7 @@ class StressModel:
         g_k = self.g_n if yield_gravity is None else yield_gravity[:, where]
         p = rho * g_k * self.depth_interface * h
         x = self.x[where]
-        kappa = self._call(self.bulk, "yield_stress", (p, self.material), {"pressure": p}, x, INTERFACE)
+        kappa = self._call(self.bulk, "yield_stress", (p, self.material), {"pressure": p}, x, INTERFACE, h)
         if rest is not None:
             rest = rest[:, where]
             # interface k lies below layer k: static where layer k and the one below it
@@ -108,20 +109,13 @@ class StressModel:
             static = rest & np.vstack([np.ones_like(rest[:1]), rest[:-1]])
             if static.any():
                 kappa_static = self._call(
-                    self.bulk, "static_yield_stress", (p, self.material), {"pressure": p}, x, INTERFACE
+                    self.bulk, "static_yield_stress", (p, self.material), {"pressure": p}, x, INTERFACE, h
                 )
                 kappa = np.where(static, kappa_static, kappa)
         viscous = np.ones(p.shape, dtype=bool)
         kappa[0] = np.where(bulk, kappa[0], friction * p[0] + cohesion)  # the basal condition
         viscous[0] = bulk
-        pbar = rho * self.g_n * self.depth_centre * h
-        if self.walls is not None:
-            tau_w = self._call(
-                self.walls, "yield_stress", (pbar, self.material), {"pressure": pbar}, x, LAYER
-            )
-            w = (2.0 / self.width) * self.l * h * tau_w
-        else:
-            w = np.zeros_like(p)
+        pbar, w = self._wall_thresholds(h, x)
         return ColumnStresses(
             m=rho * self.l * h,
             kappa=kappa,
@@ -131,10 +125,46 @@ class StressModel:
             viscous=viscous,
             wall_pressure=pbar,
             x=x,
+            thickness=h,
         )
 
-    def _call(self, law, method, args, inputs, x, position) -> np.ndarray:
-        return call(law, method, args, inputs=inputs, x=x, position=position, t=self.t)
+    def _wall_thresholds(self, h: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The mean layer pressures ``pbar_a`` and the wall yield thresholds per unit area
+        ``(2 / W) h_a tau_w(pbar_a)`` (zero without walls) of columns of thickness ``h``."""
+        pbar = self.material.density * self.g_n * self.depth_centre * h
+        if self.walls is None:
+            return pbar, np.zeros_like(pbar)
+        tau_w = self._call(self.walls, "yield_stress", (pbar, self.material), {"pressure": pbar}, x, LAYER, h)
+        return pbar, (2.0 / self.width) * self.l * h * tau_w
+
+    def wall_forces(self, h: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The side walls' yield thresholds ``w_a`` and viscous forces ``|F_v|`` per unit
+        area of each layer (L, N) at the velocities ``u``: a layer moving at ``u_a`` is held
+        by ``sgn(u_a) (w_a + |F_v|)``, one at rest by at most ``w_a`` (Jop, Forterre &
+        Pouliquen 2005); zero without walls."""
+        threshold, viscous = np.zeros_like(u), np.zeros_like(u)
+        wet = np.flatnonzero(h > 0)
+        if self.walls is None or wet.size == 0:
+            return threshold, viscous
+        x, half = self.x[wet], 0.5 * self.width
+        pbar, threshold[:, wet] = self._wall_thresholds(h[wet], x)
+        rate = np.abs(u[:, wet]) / half
+        per_area = (2.0 / self.width) * self.l * h[wet]
+        inputs = {"shear rate": rate, "pressure": pbar}
+        eta = self._call(self.walls, "viscosity", (rate, pbar, self.material), inputs, x, LAYER, h[wet])
+        viscous[:, wet] = per_area * eta * rate
+        return threshold, viscous
+
+    def _call(self, law, method, args, inputs, x, position, thickness) -> np.ndarray:
+        """``law.method(*args)`` checked (``plugin_output.call``), given the column
+        thickness (N,) as ``thickness=`` (broadcast to the shape of the pressure) if the law
+        declares it in ``uses``."""
+        keywords = None
+        if "thickness" in getattr(law, "uses", ()):
+            shape = np.shape(next(iter(inputs.values())))
+            keywords = {"thickness": np.broadcast_to(thickness, shape)}
+            inputs = {**inputs, "thickness": keywords["thickness"]}
+        return call(law, method, args, inputs=inputs, x=x, position=position, t=self.t, keywords=keywords)
 
     def linearise(
         self,
@@ -142,7 +172,6 @@ class StressModel:
         u: np.ndarray,
         ustar: np.ndarray,
         dt: float,
-        secant: np.ndarray | None = None,
     ) -> ColumnProblem:
         """The step's problem with the Newton model of the viscous part at ``u``.
 
@@ -154,15 +183,11 @@ class StressModel:
         stress) the secant ``T = tau_v(|s0|)/|s0|`` is used instead.  At a fixed point the
         law is exact either way: tangent or secant where the layers shear, and with the
         true yield stress where they are locked (``s0 = 0``).  ``ustar`` are the velocities
-        after transport and ``dt`` the step of the problem returned.  In the columns where
-        ``secant`` (N,) is True every law is replaced by its secant with the true yield
-        stress (the Kacanov model of ``newton_control``).
+        after transport and ``dt`` the step of the problem returned.
         """
         spacing = np.where(cs.spacing > 0, cs.spacing, 1.0)
         jump = np.abs(np.diff(u, axis=0, prepend=0.0))
-        kappa, c = self._newton_model(
-            self.bulk, cs.kappa, jump / spacing, cs.pressure, cs.x, INTERFACE, secant
-        )
+        kappa, c = self._newton_model(self.bulk, cs.kappa, jump / spacing, cs.pressure, cs, INTERFACE)
         kappa = np.where(cs.viscous, kappa, cs.kappa)
         c = np.where(cs.viscous & (cs.spacing > 0), c / spacing, 0.0)
         if self.walls is None:
@@ -174,39 +199,37 @@ class StressModel:
             cs.w / per_area.clip(min=1e-300),
             np.abs(u) / half,
             cs.wall_pressure,
-            cs.x,
+            cs,
             LAYER,
-            secant,
         )
         return ColumnProblem(
             m=cs.m, ustar=ustar, dt=dt, kappa=kappa, c=c, w=per_area * w, cw=per_area * c_w / half
         )
 
     def _newton_model(
-        self, law: Rheology, kappa: np.ndarray, rate: np.ndarray, pressure: np.ndarray, x, position, secant
+        self, law: Rheology, kappa: np.ndarray, rate: np.ndarray, pressure: np.ndarray, cs, position
     ) -> tuple[np.ndarray, np.ndarray]:
         """Yield stress and slope of the odd Bingham law through ``(rate, kappa + tau_v(rate))``.
 
         The slope is the tangent ``d tau_v / d gamma`` (forward difference, relative step
         1e-7; ``eta(0)`` at rest), or the secant ``tau_v / gamma`` (with the yield stress
-        ``kappa``) where the tangent would make the yield stress negative or the column is
-        ``secant`` (N,).  The slope only sets the speed of the iteration: the law
+        ``kappa``) where the tangent would make the yield stress negative.  The slope only
+        sets the speed of the iteration: the law
         passes through the true stress at ``rate`` in both cases.
         """
-        eta, tau, tangent = self._stress_and_tangent(law, rate, pressure, x, position)
+        eta, tau, tangent = self._stress_and_tangent(law, rate, pressure, cs, position)
         offset_yield = kappa + tau - tangent * rate
         use_tangent = offset_yield >= 0.0
-        if secant is not None:
-            use_tangent &= ~secant
         return np.where(use_tangent, offset_yield, kappa), np.where(use_tangent, tangent, eta)
 
-    def _stress_and_tangent(self, law: Rheology, rate: np.ndarray, pressure: np.ndarray, x, position):
+    def _stress_and_tangent(self, law: Rheology, rate: np.ndarray, pressure: np.ndarray, cs, position):
         """``eta``, ``tau_v = eta rate`` and ``max(d tau_v / d rate, 0)`` (forward difference,
-        relative step 1e-7; ``eta(0)`` at rest) at the shear rates ``rate >= 0``."""
+        relative step 1e-7; ``eta(0)`` at rest) at the shear rates ``rate >= 0`` of the
+        columns ``cs``."""
         step = 1e-7 * rate
-        eta = self._viscosity(law, rate, pressure, x, position)
+        eta = self._viscosity(law, rate, pressure, cs, position)
         tau = eta * rate
-        up = self._viscosity(law, rate + step, pressure, x, position) * (rate + step)
+        up = self._viscosity(law, rate + step, pressure, cs, position) * (rate + step)
         tangent = np.where(rate > 0, (up - tau) / np.where(step > 0, step, 1.0), eta)
         return eta, tau, np.maximum(tangent, 0.0)
 
@@ -216,7 +239,7 @@ class StressModel:
         forces ``|F_v|`` of the layers and their derivatives (``newton_control.energy_rise``)."""
         spacing = np.where(cs.spacing > 0, cs.spacing, 1.0)
         rate = np.abs(np.diff(u, axis=0, prepend=0.0)) / spacing
-        _, tau, tangent = self._stress_and_tangent(self.bulk, rate, cs.pressure, cs.x, INTERFACE)
+        _, tau, tangent = self._stress_and_tangent(self.bulk, rate, cs.pressure, cs, INTERFACE)
         viscous = cs.viscous & (cs.spacing > 0)
         out = np.zeros((4, *u.shape))
         out[0], out[1] = np.where(viscous, tau, 0.0), np.where(viscous, tangent / spacing, 0.0)
@@ -224,11 +247,13 @@ class StressModel:
             half = 0.5 * self.width
             per_area = (2.0 / self.width) * cs.m / self.material.density
             _, tau, tangent = self._stress_and_tangent(
-                self.walls, np.abs(u) / half, cs.wall_pressure, cs.x, LAYER
+                self.walls, np.abs(u) / half, cs.wall_pressure, cs, LAYER
             )
             out[2], out[3] = per_area * tau, per_area * tangent / half
         return out
 
-    def _viscosity(self, law, rate, pressure, x, position) -> np.ndarray:
+    def _viscosity(self, law, rate, pressure, cs, position) -> np.ndarray:
         inputs = {"shear rate": rate, "pressure": pressure}
-        return self._call(law, "viscosity", (rate, pressure, self.material), inputs, x, position)
+        return self._call(
+            law, "viscosity", (rate, pressure, self.material), inputs, cs.x, position, cs.thickness
+        )

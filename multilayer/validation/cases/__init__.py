@@ -13,6 +13,7 @@ from multilayer.validation.cases import (
     erodible_bed,
     erodible_pressure,
     static_interface,
+    stopping,
     submarine_collapse,
 )
 from multilayer.validation.runs import Context
@@ -23,6 +24,7 @@ SECTIONS: dict[str, Callable[[Context], str]] = {
         static_interface,
         dam_break,
         bagnold,
+        stopping,
         chute,
         column_collapse,
         erodible_bed,
