@@ -100,7 +100,8 @@ INVALID = [
         "unknown rheology name",
         {"rheology.name": "bingam"},
         "rheology.name",
-        "unknown rheology 'bingam'; accepted: drucker_prager, jop_mu_i, pouliquen_forterre, power_law_mu_i",
+        "unknown rheology 'bingam'; accepted: dilatant_coulomb, drucker_prager, jop_mu_i, "
+        "pouliquen_forterre, power_law_mu_i",
     ),
     (
         "walls law used for the bulk",

@@ -26,6 +26,7 @@ from multilayer.engine.bed_force import BedForce
 from multilayer.engine.config import SimulationConfig
 from multilayer.engine.gate import Gate
 from multilayer.engine.mesh import LayeredMesh
+from multilayer.engine.mixture.flow import MixtureFlow
 from multilayer.engine.pressure.model import PressureModel, PressureSetup, models, options
 from multilayer.engine.state import FlowState, max_wave_speed, span, start_moving
 from multilayer.engine.state_check import StateGuard
@@ -103,6 +104,8 @@ class Simulation:
             np.ascontiguousarray(u0, dtype=float).reshape(self.fractions.size, c.cells),
         )
         self.bed = initial_state.bed_profile(c.bed, self.x)
+        self.mixture = self._mixture(bulk)
+        """The grain–fluid mixture (engine/mixture), None for dry grains."""
         self.pressure = self._pressure_model()
         self.vertical = VerticalStep(
             StressModel(
@@ -150,6 +153,27 @@ class Simulation:
             options=options(model, c.pressure.options, self.fractions.size),
         )
         return model(setup, self.state)
+
+    def _mixture(self, bulk: Rheology) -> MixtureFlow | None:
+        """The mixture of the configuration; the transport's gravity reduced by its
+        buoyancy (``engine/mixture/flow.py``)."""
+        c = self.config
+        if c.mixture is None:
+            return None
+        edges = initial_state.cell_edges(c.x_min, c.x_max, c.cells)
+        solid = np.zeros(c.cells)
+        for entry in c.initial:
+            h_entry, _ = initial_state.initial_state((entry,), self.x, self.sigma, edges)
+            solid += (entry.phi or 0.0) * h_entry
+        phi0 = np.where(self.h > 0.0, solid / np.where(self.h > 0.0, self.h, 1.0), 0.0)
+        mixture = MixtureFlow(
+            c.mixture, self.state, phi0, bulk, c.material, fractions=self.fractions, x=self.x, dx=self.dx,
+            g_n=self.g_n, g_t=self.g_t, periodic=boundaries.BOUNDARIES[self.left].wraps,
+            tolerance=c.numerics.tolerance, max_iterations=c.numerics.max_iterations,
+        )  # fmt: skip
+        self.g_n *= mixture.reduction
+        self.g_t *= mixture.reduction
+        return mixture
 
     def _velocity_scale(self) -> float:
         """The scale of the Newton tolerance: gravity waves on the deepest initial or
@@ -215,13 +239,14 @@ class Simulation:
         while True:  # redone shorter while Heun's second stage breaks the Courant condition
             self._check_advances(dt)
             h, ustar, u_vertical, iterations = self._transport_and_stresses(dt, threads)
-            u, fields = self.pressure.project(self.state, h, u_vertical, dt)
+            u, fields = self._project(h, u_vertical, dt)
             if (shorter := self._courant_check(dt, speed)) is None:
                 break
             dt = shorter
         columns = span(h)  # every non-zero velocity and field of the step's end lies within
         self._guard(h, u, fields, dt, columns)
-        self.forces.record(self.state, (h, ustar), u_vertical, (u, fields), dt)  # diagnostics
+        if self.mixture is None:  # the forces of a mixture are not computed (docs/mixture.md)
+            self.forces.record(self.state, (h, ustar), u_vertical, (u, fields), dt)  # diagnostics
         self.state.commit(h, u, fields, columns)
         self.newton_iterations += iterations
         self.steps += 1
@@ -279,7 +304,10 @@ class Simulation:
         self, h: np.ndarray, ustar: np.ndarray, dt: float, threads: int
     ) -> tuple[np.ndarray, int]:
         """The implicit vertical step (the yield pressures and Newton seeds of the pressure
-        model): the velocities and the Newton iterations."""
+        model), or the mixture's local step (which dilates ``h`` in place): the velocities
+        and the Newton iterations."""
+        if self.mixture is not None:
+            return self.mixture.step(self.h, h, self.u, ustar, dt, self.boundary_mass, self.dry, self.t)
         return self.vertical(
             h,
             ustar,
@@ -290,6 +318,11 @@ class Simulation:
             threads=threads,
             poll=self.poll,
         )
+
+    def _project(self, h: np.ndarray, u: np.ndarray, dt: float) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """The pressure model's projection; the layer fields of the step (the mixture's too)."""
+        u, fields = self.pressure.project(self.state, h, u, dt)
+        return u, fields if self.mixture is None else {**fields, **self.mixture.pending}
 
     def _courant_check(self, dt: float, speed: float) -> float | None:
         """None if the Courant condition held in Heun's second stage too; otherwise the
@@ -310,7 +343,10 @@ class Simulation:
         self, h: np.ndarray, u: np.ndarray, fields: dict[str, np.ndarray], dt: float, columns: tuple[int, int]
     ) -> None:
         """The state guard: an impossible state is never kept (the last good one stays)."""
-        self.guard.check_step(self.h, h, u, self.t, dt, self.boundary_mass, columns)
+        transported = h if self.mixture is None else self.mixture.transported
+        self.guard.check_step(self.h, transported, u, self.t, dt, self.boundary_mass, columns)
+        if self.mixture is not None:
+            self.mixture.check_step(h, self.t, dt, self.guard)
         for name, what in self.pressure.checked.items():
             self.guard.check_finite(
                 fields[name],
@@ -361,3 +397,5 @@ class Simulation:
         self.forces.load_state(saved)
         self.guard.check_state(self.h, self.u, f"in the restored state at t = {self.t:.6g} s")
         self.guard.reset(self.h, self.steps)
+        if self.mixture is not None:
+            self.mixture.reset(self.steps)

@@ -59,7 +59,8 @@ def plot_run(
     (x_f(t) and u_f(t)), ``mass`` (volume per unit width), ``profiles`` (u(z) at the
     columns ``at``, default: :func:`representative_columns`) and ``static_interface``
     (b(t) and h(t) at the same columns), ``force`` (the forces on the bed and the walls,
-    :func:`force_figure`), as ``fmt`` files; with ``animate`` also the section over time
+    :func:`force_figure`), for a grain–fluid mixture ``mixture`` (phi(x) and the basal
+    excess pore pressure), as ``fmt`` files; with ``animate`` also the section over time
     (:func:`animate_section`).  The section, its animation and the thickness are drawn
     over ``xlim`` (m), by default where the material is (:func:`material_span`).  Returns
     the paths written and
@@ -86,6 +87,8 @@ def plot_run(
     }
     if "bed_force_x" in ds:  # files written before the forces lack them
         figures["force"] = force_figure(ds, name)
+    if "phi" in ds:
+        figures["mixture"] = mixture_figure(ds, name, times + 2)
     paths = []
     for stem, fig in figures.items():
         path = out / f"{stem}.{fmt}"
@@ -362,6 +365,32 @@ def thickness_figure(
     ax.set_ylabel("thickness h normal to the plane (m)")
     ax.legend(fontsize="small")
     ax.set_title(f"{name}: thickness profiles")
+    return fig
+
+
+def mixture_figure(ds: xr.Dataset, name: str, times: int = 6) -> Figure:
+    """A grain–fluid mixture: the solid fraction phi(x) and the basal excess pore pressure
+    p_e(x) at several output times (where the material is), and p_e at the bed averaged
+    over the material against time."""
+    fig = Figure(figsize=(8, 8), layout="constrained")
+    ax_phi, ax_pe, ax_time = fig.subplots(3, 1)
+    wet = ds["h"] > 0.0
+    for j, k in enumerate(_time_indices(ds, times)):
+        snap, color = ds.isel(time=k), _shade(j, times)
+        label = f"t = {float(snap['time']):.3g} s"
+        ax_phi.plot(ds["x"], snap["phi"].where(wet.isel(time=k)), color=color, label=label)
+        ax_pe.plot(ds["x"], snap["pore_pressure_excess"].where(wet.isel(time=k)), color=color, label=label)
+    mean = ds["pore_pressure_excess"].where(wet).mean("x")
+    ax_time.plot(ds["time"], mean, color="k")
+    ax_time.axhline(0.0, color="0.6", lw=0.8)
+    ax_phi.set_ylabel("solid fraction phi")
+    ax_pe.set_ylabel("excess pore pressure\nat the bed (Pa)")
+    for ax in (ax_phi, ax_pe):
+        ax.set_xlabel("x along the plane (m)")
+        ax.legend(fontsize="small")
+    ax_time.set_xlabel("time (s)")
+    ax_time.set_ylabel("mean excess pore\npressure at the bed (Pa)")
+    ax_phi.set_title(f"{name}: grain-fluid mixture")
     return fig
 
 

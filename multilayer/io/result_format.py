@@ -189,6 +189,24 @@ landslide seismology: the force the flow exerts (Toney & Allstadt 2021).  With o
 times t_k the downslope momentum P obeys P(t_k) - P(t_(k-1)) = (t_k - t_(k-1)) (gravity -
 bed - wall - end - pressure - outflow) to round-off; the first record (no interval) is NaN."""
 VARIABLES.update(FORCES)
+#: the variables of a grain–fluid mixture (docs/mixture.md), written when the run has one
+MIXTURE_VARIABLES: dict[str, tuple[tuple[str, ...], dict[str, str]]] = {
+    "phi": (
+        ("time", "x"),
+        {"units": "1", "long_name": "depth-averaged solid volume fraction of the mixture"},
+    ),
+    "phi_layer": (
+        ("time", "layer", "x"),
+        {"units": "1", "long_name": "solid volume fraction of each layer", "coordinates": "sigma"},
+    ),
+    "pore_pressure_excess": (
+        ("time", "x"),
+        {
+            "units": "Pa",
+            "long_name": "excess pore pressure at the bed (over the ambient fluid's hydrostatic pressure)",
+        },
+    ),
+}
 
 
 def result_path(path: str | os.PathLike) -> Path:

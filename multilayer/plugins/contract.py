@@ -21,6 +21,13 @@ then passes it to :meth:`~Rheology.yield_stress`, :meth:`~Rheology.static_yield_
 ``"thickness"``: the thickness ``h`` of the column (m), the same at every interface and
 layer of a column (for a law with a thickness below which flow stops, Pouliquen & Forterre
 2002).  Laws that declare nothing are called exactly as before.
+
+In a grain–fluid mixture (docs/mixture.md) the engine passes the effective (grain-contact)
+pressure ``p_s`` as ``pressure`` (Terzaghi's principle) and calls
+:meth:`Rheology.mixture_yield_stress` and :meth:`Rheology.mixture_viscosity`, which also
+receive the :class:`MixtureState`; by default they ignore it and call
+:meth:`~Rheology.yield_stress` and :meth:`~Rheology.viscosity`, so every law runs in a
+mixture as a law of the effective pressure.
 """
 
 from __future__ import annotations
@@ -41,6 +48,24 @@ class Material:
     """Grain diameter d, m."""
     particle_density: float
     """Density rho_p of the grains, kg/m^3 (enters the inertial number)."""
+
+
+@dataclass(frozen=True)
+class MixtureState:
+    """What a law may read of a grain–fluid mixture at the interfaces of a call (arrays of
+    the shape of ``pressure``): the solid volume fraction ``phi`` of the layer above each
+    interface and the excess pore pressure (Pa) there, with the constants of the
+    dilatancy closure (Bouchut, Fernández-Nieto, Mangeney & Narbona-Reina 2016)."""
+
+    phi: np.ndarray
+    pore_pressure: np.ndarray
+    fluid_viscosity: float
+    """eta_f, Pa s."""
+    phi_critical: float
+    dilatancy: float
+    """K of ``tan(psi) = K (phi - phi_eq)``."""
+    critical_shift: float
+    """K2 of ``phi_eq = phi_c - K2 eta_f gamma / p_s``."""
 
 
 class Rheology:
@@ -71,6 +96,22 @@ class Rheology:
     def viscosity(self, shear_rate: np.ndarray, pressure: np.ndarray, material: Material) -> np.ndarray:
         """Rate-dependent part eta(|gamma|, p) >= 0, in Pa s, finite at gamma = 0."""
         raise NotImplementedError
+
+    def mixture_yield_stress(
+        self, pressure: np.ndarray, mixture: MixtureState, material: Material
+    ) -> np.ndarray:
+        """Yield stress (Pa) at the effective pressure ``pressure`` in a grain–fluid mixture.
+
+        Default: :meth:`yield_stress` (the law ignores the solid fraction)."""
+        return self.yield_stress(pressure, material)
+
+    def mixture_viscosity(
+        self, shear_rate: np.ndarray, pressure: np.ndarray, mixture: MixtureState, material: Material
+    ) -> np.ndarray:
+        """Viscous part (Pa s) at the effective pressure in a grain–fluid mixture.
+
+        Default: :meth:`viscosity`."""
+        return self.viscosity(shear_rate, pressure, material)
 
     def viscosity_kernel(self, material: Material) -> tuple[str, tuple[float, ...]] | None:
         """Optional: the viscous part as one of the compiled forms of the engine, so that

@@ -14,6 +14,7 @@ from multilayer.validation.cases import (
     erodible_pressure,
     static_interface,
     stopping,
+    submarine_collapse,
 )
 from multilayer.validation.runs import Context
 
@@ -28,6 +29,7 @@ SECTIONS: dict[str, Callable[[Context], str]] = {
         column_collapse,
         erodible_bed,
         erodible_pressure,
+        submarine_collapse,
     )
 }
 """Section name -> the case's section, in report order."""
