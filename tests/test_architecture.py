@@ -7,6 +7,11 @@ packages or between modules; the time step and the engine's modules stay short."
 from __future__ import annotations
 
 import ast
+import functools
+import importlib.metadata
+import re
+import sys
+import tomllib
 from pathlib import Path
 
 import multilayer
@@ -33,7 +38,8 @@ def _module(path: Path, root: Path = PACKAGE) -> str:
 MODULES = {_module(path): path for path in sorted(PACKAGE.rglob("*.py"))}
 
 
-def _imports(path: Path) -> set[str]:
+@functools.cache  # every test of this file reads the same modules
+def _imports(path: Path) -> frozenset[str]:
     """Every name ``path`` imports, anywhere in it (function bodies and ``TYPE_CHECKING``
     blocks included): ``a.b`` for ``import a.b``, ``a.b.c`` for ``from a.b import c`` (a
     module ``a.b.c``, or a name of ``a.b``)."""
@@ -43,7 +49,7 @@ def _imports(path: Path) -> set[str]:
             found.update(alias.name for alias in node.names)
         elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
             found.update(f"{node.module}.{alias.name}" for alias in node.names)
-    return found
+    return frozenset(found)
 
 
 def _resolve(name: str, modules: dict[str, Path]) -> str | None:
@@ -119,6 +125,31 @@ def test_the_engine_imports_nothing_of_the_layers_above_it():
         if name.startswith(FORBIDDEN_FOR_ENGINE)
     ]
     assert not offences, "\n".join(offences)
+
+
+def _distributions(requirements: list[str]) -> set[str]:
+    return {re.split(r"[\[<>=!~; ]", r, maxsplit=1)[0].lower().replace("_", "-") for r in requirements}
+
+
+def test_every_third_party_import_is_a_declared_dependency():
+    """What the package imports comes with ``pip install .`` or with the extra that needs it:
+    ``pip install -e .`` then ``multilayer run`` once failed on ``import psutil``, which only
+    the test extra (through Dask) had installed."""
+    project = tomllib.loads((PACKAGE.parent / "pyproject.toml").read_text())["project"]
+    required = _distributions(project["dependencies"])
+    declared = required.union(
+        *(_distributions(extra) for extra in project["optional-dependencies"].values()),
+        *(_distributions(importlib.metadata.requires(d) or []) for d in required),  # pydantic-core
+    )
+    providers = importlib.metadata.packages_distributions()
+    missing = {}
+    for module, path in MODULES.items():
+        for top in {name.split(".")[0] for name in _imports(path)}:
+            if top in sys.stdlib_module_names or top in ("multilayer", "__future__"):
+                continue
+            if not _distributions(providers.get(top, [top])) & declared:
+                missing[top] = module
+    assert not missing, f"imported, not declared in pyproject.toml: {missing}"
 
 
 def test_only_the_validation_package_imports_itself():

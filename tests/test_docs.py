@@ -1,4 +1,4 @@
-"""Documentation that cannot drift: every code block of README.md and docs/*.md is checked.
+"""Documentation that cannot drift: every code block of README.md and docs/**/*.md is checked.
 
 The rules (docs/index.md, "Documentation that is tested"):
 
@@ -56,7 +56,7 @@ from multilayer.app import cli, sweep  # noqa: E402
 from multilayer.scenario.source import Loader  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
 LANGUAGES = {"sh", "python", "yaml", "csv", "toml", "text"}
 RUNNABLE = {"sh", "python", "yaml"}
 LEVELS = ("default", "slow", "validation")
@@ -140,7 +140,7 @@ def _in_list(lines: list[str], i: int) -> bool:
 def _copy_of_repository(tmp_path: Path) -> Path:
     copy = tmp_path / "repo"
     ignore = shutil.ignore_patterns(
-        ".git", ".venv", "results", "__pycache__", "*.egg-info", ".pytest_cache", "build", "*.nc"
+        ".git", ".venv", "results", "__pycache__", "*.egg-info", ".pytest_cache", "build", "site", "*.nc"
     )
     shutil.copytree(ROOT, copy, ignore=ignore)
     return copy
@@ -246,7 +246,12 @@ def _runs(block: Block) -> bool:
 
 
 def _pages_with(level: str) -> list[Path]:
-    return [page for page in PAGES if any(b.level == level and _runs(b) for b in parse_page(page)[0])]
+    """The pages with a block of ``level`` to check (a page that only saves files is not run)."""
+    return [
+        page
+        for page in PAGES
+        if any(b.level == level and _runs(b) and "save" not in b.directives for b in parse_page(page)[0])
+    ]
 
 
 def _run_page(page: Path, level: str, tmp_path: Path) -> None:
@@ -259,13 +264,13 @@ def _run_page(page: Path, level: str, tmp_path: Path) -> None:
             run_block(block, cwd)
 
 
-@pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(ROOT)))
 def test_every_block_is_fenced_and_marked_correctly(page: Path) -> None:
     blocks, problems = parse_page(page)
     assert not problems, "\n".join(problems)
 
 
-@pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(ROOT)))
 def test_blocks_equal_the_shipped_files(page: Path) -> None:
     """``file`` blocks are the shipped text; ``excerpt`` blocks agree key by key."""
     for block in parse_page(page)[0]:
@@ -290,7 +295,7 @@ def _written_figures() -> list[re.Pattern[str]]:
     return [re.compile(re.sub(r"\\\{\w*\\\}", r"\\w+", re.escape(name)) + "$") for name in names]
 
 
-@pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(ROOT)))
 def test_images_exist_and_are_generated(page: Path) -> None:
     """Every figure a page shows is in the repository and written by a documented script."""
     written = _written_figures()
@@ -300,18 +305,18 @@ def test_images_exist_and_are_generated(page: Path) -> None:
         assert any(p.match(name) for p in written), f"{page.name}: no documented script writes {target}"
 
 
-@pytest.mark.parametrize("page", _pages_with("default"), ids=lambda p: p.name)
+@pytest.mark.parametrize("page", _pages_with("default"), ids=lambda p: str(p.relative_to(ROOT)))
 def test_page_runs(page: Path, tmp_path: Path) -> None:
     _run_page(page, "default", tmp_path)
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("page", _pages_with("slow"), ids=lambda p: p.name)
+@pytest.mark.parametrize("page", _pages_with("slow"), ids=lambda p: str(p.relative_to(ROOT)))
 def test_page_runs_with_its_slow_blocks(page: Path, tmp_path: Path) -> None:
     _run_page(page, "slow", tmp_path)
 
 
 @pytest.mark.validation
-@pytest.mark.parametrize("page", _pages_with("validation"), ids=lambda p: p.name)
+@pytest.mark.parametrize("page", _pages_with("validation"), ids=lambda p: str(p.relative_to(ROOT)))
 def test_page_runs_with_its_validation_blocks(page: Path, tmp_path: Path) -> None:
     _run_page(page, "validation", tmp_path)

@@ -95,12 +95,65 @@ def test_section_states_slope_and_vertical_exaggeration(slump_dir: Path) -> None
     # x spans 0.3 m, z about 0.06 m: 0.22 * 0.3 / 0.06 = 1.1, rounded down to 1; 0.6 m wide: 2
     assert plotting.vertical_exaggeration(0.3, 0.06) == 1 and plotting.vertical_exaggeration(0.6, 0.06) == 2
     assert plotting.vertical_exaggeration(1.5, 0.15) == 2 and plotting.vertical_exaggeration(10, 0.05) == 20
-    factor = plotting.vertical_exaggeration(0.3, np.ptp(plotting._section_limits(ds)[1]))
+    (x0, x1), (z0, z1) = plotting._section_limits(ds)
+    factor = plotting.vertical_exaggeration(x1 - x0, z1 - z0)
     title = fig.get_suptitle()
     assert "inclined at 25 deg" in title and f"vertical exaggeration x{factor:g}" in title
     assert all(ax.get_aspect() == factor for ax in fig.axes[:2])
     mass = plotting.mass_figure(ds, "slump")
     assert mass.axes[0].get_ylabel() == "volume per unit width V (m$^2$)"
+
+
+def _bed_and_pile(moving: slice) -> xr.Dataset:
+    """A 2 mm bed layer on 100 cells of 1 cm over x in [0, 1] m, 2 cm thick and moving on
+    ``moving`` at the last of two output times; at rest everywhere at the first."""
+    edges = np.linspace(0.0, 1.0, 101)
+    h = np.full((2, 100), 0.002)
+    u = np.zeros((2, 2, 100))
+    h[:, moving] = 0.02
+    u[1, :, moving] = 0.5
+    return xr.Dataset(
+        {
+            "h": (("time", "x"), h),
+            "u": (("time", "layer", "x"), u),
+            "bed": ("x", np.zeros(100)),
+            "x_bnds": (("x", "nv"), np.column_stack([edges[:-1], edges[1:]])),
+            "front": ("time", np.zeros(2), {"threshold": 1e-3}),
+            "sigma_bnds": (("layer", "nv"), [[0.0, 0.5], [0.5, 1.0]]),
+            "static_interface": (("time", "x"), np.where(u[:, 0] == 0.0, h, 0.0)),
+        },
+        coords={"time": [0.0, 1.0]},
+        attrs={"scenario": "slope_deg: 0.0"},
+    )
+
+
+def test_section_is_cropped_to_where_the_material_moves() -> None:
+    """A bed layer that never moves is left out: the section spans the moving cells, 0.2 to
+    0.4 m, with a margin of 10 % of that span or two cells, whichever is larger, inside
+    the domain; its exaggeration follows the aspect of that window."""
+    ds = _bed_and_pile(slice(20, 40))
+    assert plotting.material_span(ds) == pytest.approx((0.18, 0.42))
+    ds = _bed_and_pile(slice(0, 90))
+    assert plotting.material_span(ds) == pytest.approx((0.0, 0.99))  # 0.09 m margin, cut at 0
+    (x0, x1), (z0, z1) = plotting._section_limits(ds)
+    assert (z0, z1) == pytest.approx((-0.001, 0.021))  # the thickest material, 5 % padding
+    # 0.99 m by 0.022 m: a factor 0.22 * 0.99 / 0.022 = 9.9, rounded down to 5
+    fig = plotting.section_figure(ds, "pile", times=2)
+    assert fig.axes[0].get_xlim() == pytest.approx((0.0, 0.99)) and fig.axes[0].get_aspect() == 5
+    still = _bed_and_pile(slice(20, 40))
+    still["u"][:] = 0.0  # nothing moves: where the material is, the whole domain here
+    assert plotting.material_span(still) == (0.0, 1.0)
+
+
+def test_plot_xlim(slump_dir: Path, cli) -> None:
+    """``--xlim X0 X1`` sets the section's x range; one outside the domain is exit code 2."""
+    ds = open_result(slump_dir)
+    fig = plotting.section_figure(ds, "slump", times=2, xlim=(0.05, 0.25))
+    assert fig.axes[0].get_xlim() == (0.05, 0.25)
+    result = cli("plot", slump_dir, "--xlim", "0.5", "0.9")
+    assert result.code == 2
+    assert "--xlim 0.5 0.9: accepted: X0 < X1 (m), overlapping the domain [0, 0.3]" in result.err
+    assert cli("plot", slump_dir, "--xlim", "0.2", "0.1").code == 2
 
 
 def test_the_force_figure_draws_the_interval_means_and_the_seismic_force(slump_dir: Path) -> None:

@@ -69,13 +69,16 @@ def test_runs_are_reused_while_their_scenario_is_unchanged(tmp_path):
 def test_report_keeps_the_sections_not_regenerated(tmp_path):
     path = tmp_path / "validation.md"
     names = list(SECTIONS)
-    report.write(path, "# Intro\n", {names[0]: "## First\n\nold\n"}, "regen")
+    report.write(path, "# Intro\n", {names[0]: "## First\n\nold\n"}, "regen", "## How\n")
     assert report.read(path) == {
         names[0]: "## First\n\nold\n",
         **{n: f"## {n}\n\nNot generated yet: run `regen {n}`.\n" for n in names[1:]},
     }
     text = path.read_text()
     assert text.startswith("# Intro\n") and text.count("<!-- /section -->") == len(names)
+    assert text.endswith("<!-- /section -->\n\n## How\n")  # the closing text after the sections
+    report.write(path, f"# Intro\n\n{report.CONTENTS}\n", {names[0]: "## First: a case (1)\n"}, "r")
+    assert path.read_text().startswith(f"# Intro\n\n- [First: a case (1)](#first-a-case-1)\n- [{names[1]}]")
 
 
 def test_report_command_refuses_unknown_sections(capsys):

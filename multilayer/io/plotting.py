@@ -51,6 +51,7 @@ def plot_run(
     at: Sequence[float] = (),
     fmt: str = "png",
     animate: bool = False,
+    xlim: Sequence[float] | None = None,
 ) -> tuple[list[Path], list[str]]:
     """Write the figures of ``directory/result.nc`` into ``directory/plots/``.
 
@@ -59,14 +60,17 @@ def plot_run(
     columns ``at``, default: :func:`representative_columns`) and ``static_interface``
     (b(t) and h(t) at the same columns), ``force`` (the forces on the bed and the walls,
     :func:`force_figure`), for a grain–fluid mixture ``mixture`` (phi(x) and the basal
-    excess pore pressure), as ``fmt`` files; with ``animate`` also the
-    section over time (:func:`animate_section`).  Returns the paths written and
+    excess pore pressure), as ``fmt`` files; with ``animate`` also the section over time
+    (:func:`animate_section`).  The section, its animation and the thickness are drawn
+    over ``xlim`` (m), by default where the material is (:func:`material_span`).  Returns
+    the paths written and
     notes on how the run ended if it did not complete (module docstring).
     """
     if not 1 <= times <= MAX_TIMES or len(at) > MAX_TIMES:
         given = f"--times {times}" if not 1 <= times <= MAX_TIMES else f"{len(at)} --at positions"
         raise InputError(f"{given}: accepted: 1 to {MAX_TIMES} times and at most {MAX_TIMES} --at positions")
     ds = open_result(directory)
+    xlim = checked_xlim(ds, xlim)
     end = ending(ds.attrs)
     notes = [f"{end}; drawn up to t = {float(ds['time'][-1]):.6g} s"] if end else []
     out = Path(directory) / PLOTS_DIR
@@ -74,8 +78,8 @@ def plot_run(
     name = yaml.safe_load(ds.attrs["scenario"])["name"]
     columns = column_indices(ds, at) if at else representative_columns(ds)
     figures = {
-        "section": section_figure(ds, name, times),
-        "thickness": thickness_figure(ds, name, times + 2),
+        "section": section_figure(ds, name, times, xlim),
+        "thickness": thickness_figure(ds, name, times + 2, xlim),
         "front": front_figure(ds, name),
         "mass": mass_figure(ds, name),
         "profiles": profiles_figure(ds, name, columns, times + 2),
@@ -91,7 +95,7 @@ def plot_run(
         fig.savefig(path, dpi=120, format=fmt)
         paths.append(path)
     if animate:
-        paths.append(animate_section(ds, name, out / "section"))
+        paths.append(animate_section(ds, name, out / "section", xlim=xlim))
     return paths, notes
 
 
@@ -165,14 +169,60 @@ def vertical_exaggeration(width: float, height: float, aspect: float = 0.22) -> 
     return max(f * decade for f in (1, 2, 5) if f * decade <= wanted)
 
 
-def _section_limits(ds: xr.Dataset) -> tuple[tuple[float, float], tuple[float, float]]:
-    """x and z limits holding the bed and the free surface at every output time."""
-    bed = ds["bed"].values
-    top = float(np.nanmax(bed + ds["h"].values, initial=float(bed.max())))
+SECTION_MARGIN = 0.1
+"""Margin of a cropped section on each side, as a fraction of the span of the material
+(at least :data:`SECTION_MARGIN_CELLS` cells)."""
+SECTION_MARGIN_CELLS = 2
+
+
+def material_span(ds: xr.Dataset) -> tuple[float, float]:
+    """The x range (m) a section is cropped to: the cells where material moves at some
+    output time (else where it lies above the front threshold, else the whole domain),
+    widened by :data:`SECTION_MARGIN` on each side and kept inside the domain.
+
+    A bed layer that never moves, such as the erodible bed ahead of the front, is left out."""
+    edges = ds["x_bnds"].values
+    lo, hi = float(edges[0, 0]), float(edges[-1, 1])
+    u, h = ds["u"].values, ds["h"].values
+    columns = np.flatnonzero((u != 0.0).any(axis=(0, 1)))
+    if not columns.size:
+        columns = np.flatnonzero((h > ds["front"].attrs["threshold"]).any(axis=0))
+    if not columns.size:
+        return lo, hi
+    x0, x1 = float(edges[columns[0], 0]), float(edges[columns[-1], 1])
+    cell = float(np.max(edges[:, 1] - edges[:, 0]))
+    margin = max(SECTION_MARGIN * (x1 - x0), SECTION_MARGIN_CELLS * cell)
+    return max(lo, x0 - margin), min(hi, x1 + margin)
+
+
+def checked_xlim(ds: xr.Dataset, xlim: Sequence[float] | None) -> tuple[float, float]:
+    """``xlim`` (``--xlim X0 X1``) if it is an interval overlapping the domain, else
+    :func:`material_span` when it is None; InputError otherwise."""
+    if xlim is None:
+        return material_span(ds)
+    edges = ds["x_bnds"].values
+    lo, hi = float(edges[0, 0]), float(edges[-1, 1])
+    x0, x1 = (float(x) for x in xlim)
+    if not (x0 < x1 and x0 < hi and x1 > lo):
+        raise InputError(
+            f"--xlim {x0:g} {x1:g}: accepted: X0 < X1 (m), overlapping the domain [{lo:g}, {hi:g}]"
+        )
+    return x0, x1
+
+
+def _section_limits(
+    ds: xr.Dataset, xlim: Sequence[float] | None = None
+) -> tuple[tuple[float, float], tuple[float, float]]:
+    """x limits (:func:`checked_xlim`) and z limits holding the bed and the free surface
+    between them at every output time."""
+    x0, x1 = checked_xlim(ds, xlim)
+    edges = ds["x_bnds"].values
+    inside = (edges[:, 1] > x0) & (edges[:, 0] < x1)
+    bed = ds["bed"].values[inside]
+    top = float(np.nanmax(bed + ds["h"].values[:, inside], initial=float(bed.max())))
     low = float(bed.min())
     pad = 0.05 * max(top - low, 1e-6)
-    edges = ds["x_bnds"].values
-    return (float(edges[0, 0]), float(edges[-1, 1])), (low - pad, top + pad)
+    return (x0, x1), (low - pad, top + pad)
 
 
 def _draw_section(ax: Axes, ds: xr.Dataset, k: int, vmin: float, vmax: float) -> QuadMesh:
@@ -222,10 +272,11 @@ def _speed_text(speed: float) -> str:
     return f"{speed * 1e3:.2g} mm/s" if speed < 0.01 else f"{speed:.3g} m/s"
 
 
-def section_figure(ds: xr.Dataset, name: str, times: int = 4) -> Figure:
-    """X-Z sections at ``times`` output times, z exaggerated by a stated round factor."""
+def section_figure(ds: xr.Dataset, name: str, times: int = 4, xlim: Sequence[float] | None = None) -> Figure:
+    """X-Z sections at ``times`` output times over ``xlim`` (default: where the material is,
+    :func:`material_span`), z exaggerated by a round factor from the aspect of that window."""
     picks = _time_indices(ds, times)
-    (x0, x1), (z0, z1) = _section_limits(ds)
+    (x0, x1), (z0, z1) = _section_limits(ds, xlim)
     exaggeration = vertical_exaggeration(x1 - x0, z1 - z0)
     panel = min(8.0 * exaggeration * (z1 - z0) / (x1 - x0), 2.5)
     fig = Figure(figsize=(10, (panel + 0.55) * len(picks) + 1.2), layout="constrained")
@@ -248,14 +299,16 @@ def section_figure(ds: xr.Dataset, name: str, times: int = 4) -> Figure:
     return fig
 
 
-def animate_section(ds: xr.Dataset, name: str, stem: Path, fps: int = 10) -> Path:
-    """The X-Z section at every output time (at most :data:`MAX_FRAMES`), one frame each,
-    with the time as a label.
+def animate_section(
+    ds: xr.Dataset, name: str, stem: Path, fps: int = 10, xlim: Sequence[float] | None = None
+) -> Path:
+    """The X-Z section over ``xlim`` (as :func:`section_figure`) at every output time (at
+    most :data:`MAX_FRAMES`), one frame each, with the time as a label.
 
     Written as ``stem.mp4`` when Matplotlib finds ffmpeg, else as ``stem.gif`` (Pillow,
     installed with Matplotlib).  Returns the path written.
     """
-    (x0, x1), (z0, z1) = _section_limits(ds)
+    (x0, x1), (z0, z1) = _section_limits(ds, xlim)
     exaggeration = vertical_exaggeration(x1 - x0, z1 - z0)
     panel = min(8.0 * exaggeration * (z1 - z0) / (x1 - x0), 4.0)
     fig = Figure(figsize=(10, panel + 1.6), layout="constrained")
@@ -290,8 +343,10 @@ def animate_section(ds: xr.Dataset, name: str, stem: Path, fps: int = 10) -> Pat
     return path
 
 
-def thickness_figure(ds: xr.Dataset, name: str, times: int = 6) -> Figure:
-    """Thickness profiles h(x) at several output times."""
+def thickness_figure(
+    ds: xr.Dataset, name: str, times: int = 6, xlim: Sequence[float] | None = None
+) -> Figure:
+    """Thickness profiles h(x) at several output times over ``xlim`` (as :func:`section_figure`)."""
     fig = Figure(figsize=(8, 4.5), layout="constrained")
     ax = fig.subplots()
     picks = _time_indices(ds, times)
@@ -305,6 +360,7 @@ def thickness_figure(ds: xr.Dataset, name: str, times: int = 6) -> Figure:
             color=_shade(j, len(picks)),
             label=f"t = {float(snap['time']):.3g} s",
         )
+    ax.set_xlim(*checked_xlim(ds, xlim))
     ax.set_xlabel("x along the plane (m)")
     ax.set_ylabel("thickness h normal to the plane (m)")
     ax.legend(fontsize="small")

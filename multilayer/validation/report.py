@@ -1,6 +1,6 @@
-"""The validation report: one Markdown file holding an introduction and the section of each
-case between ``<!-- section: NAME -->`` and ``<!-- /section -->`` markers.  Regenerating some
-sections keeps the text of the others."""
+"""The validation report: one Markdown file holding an introduction, the section of each
+case between ``<!-- section: NAME -->`` and ``<!-- /section -->`` markers, and a closing
+text.  Regenerating some sections keeps the text of the others."""
 
 from __future__ import annotations
 
@@ -12,6 +12,8 @@ from pathlib import Path
 from multilayer.validation.runs import Context, default_jobs
 
 MARKED = re.compile(r"<!-- section: (\w+) -->\n(.*?)<!-- /section -->\n", re.S)
+CONTENTS = "<!-- contents -->"
+"""Where the introduction takes the list of the sections (:func:`contents`)."""
 Section = Callable[[Context], str]
 
 
@@ -27,16 +29,29 @@ def read(path: Path) -> dict[str, str]:
     return dict(MARKED.findall(path.read_text())) if path.is_file() else {}
 
 
-def write(path: Path, intro: str, sections: dict[str, str], regenerate: str) -> None:
+def _anchor(title: str) -> str:
+    """The anchor GitHub and the documentation site give a heading."""
+    return re.sub(r"[^\w\- ]", "", title.lower()).replace(" ", "-")
+
+
+def contents(sections: dict[str, str]) -> str:
+    """A list linking the first heading of every section, in report order."""
+    titles = [re.search(r"^## (.+)$", sections.get(name, f"## {name}"), re.M) for name in cases()]
+    return "\n".join(f"- [{t[1]}](#{_anchor(t[1])})" for t in titles if t)
+
+
+def write(path: Path, intro: str, sections: dict[str, str], regenerate: str, outro: str = "") -> None:
     """The report: ``intro``, then every case's section between its markers (a placeholder
-    naming ``regenerate``, the command, for a section never generated)."""
+    naming ``regenerate``, the command, for a section never generated), then ``outro``;
+    :data:`CONTENTS` in ``intro`` becomes the list of the sections."""
     body = [
         f"<!-- section: {name} -->\n"
         + sections.get(name, f"## {name}\n\nNot generated yet: run `{regenerate} {name}`.\n")
         + "<!-- /section -->\n"
         for name in cases()
     ]
-    path.write_text(intro + "\n" + "\n".join(body))
+    intro = intro.replace(CONTENTS, contents(sections))
+    path.write_text(intro + "\n" + "\n".join(body) + (f"\n{outro}" if outro else ""))
 
 
 def main(
@@ -47,6 +62,7 @@ def main(
     runs: Path,
     intro: str,
     command: str,
+    outro: str = "",
 ) -> int:
     """Regenerate the sections named in ``argv`` (all by default) of ``report``; the figures
     go to ``figures/`` beside it and the runs to ``runs`` (reused while their scenario is
@@ -75,7 +91,7 @@ def main(
     for name in args.sections or names:
         print(f"section {name} ...", flush=True)
         sections[name] = cases()[name](ctx)
-        write(args.report, intro, sections, command)
+        write(args.report, intro, sections, command, outro)
     for failure in ctx.failures:
         print(f"  run {failure}")
     print(f"wrote {args.report}")

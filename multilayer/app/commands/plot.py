@@ -7,6 +7,7 @@ indices (docs/calibration.md).
 Examples:
   multilayer plot results/erodible-bed-collapse
   multilayer plot results/erodible-bed-collapse --at 0.2 --at 0.6 --format svg --animate
+  multilayer plot results/erodible-bed-collapse --xlim -0.25 1.5
 """
 
 from __future__ import annotations
@@ -48,6 +49,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "default: three columns spread over the material)",
     )
     parser.add_argument(
+        "--xlim",
+        type=float,
+        nargs=2,
+        metavar=("X0", "X1"),
+        help="downslope range (m) of the X-Z section, its animation and the thickness figure "
+        "(default: where the material moves, with a margin)",
+    )
+    parser.add_argument(
         "--format",
         dest="fmt",
         choices=FORMATS,
@@ -76,7 +85,7 @@ def main(args: argparse.Namespace) -> int:
         from multilayer.io.plotting import plot_run
 
         paths, notes = plot_run(
-            args.directory, times=args.times, at=args.at, fmt=args.fmt, animate=args.animate
+            args.directory, times=args.times, at=args.at, fmt=args.fmt, animate=args.animate, xlim=args.xlim
         )
     for path in paths:
         print(path)
