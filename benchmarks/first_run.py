@@ -87,7 +87,7 @@ def main() -> None:
         records = Path(out) / "records.json"
         env = {**os.environ, "NUMBA_CACHE_DIR": cache, "FIRST_RUN_RECORDS": str(records)}
         arguments = ["run", str(args.scenario), "-q", *(f"--set={override}" for override in args.overrides)]
-        times = {}
+        times: dict[str, tuple[float, float]] = {}
         for name in ("first (compiles the kernels)", "second (loads them)"):
             directory = Path(out) / name.split()[0]
             start = (
