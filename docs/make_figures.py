@@ -8,7 +8,8 @@ the functions of ``multilayer plot``:
 
 - ``docs/figures/readme_section.png``: the X-Z section at four times (README.md);
 - ``docs/figures/results_profiles.png``: u(z) at three columns (docs/results.md);
-- ``docs/figures/results_front.png``: the front x_f(t) and u_f(t) (docs/results.md).
+- ``docs/figures/results_front.png``: the front x_f(t) and u_f(t) (docs/results.md);
+- ``docs/figures/results_force.png``: the force on the bed and the walls (docs/results.md).
 
 The figures of docs/validation.md are drawn by ``python docs/make_validation.py``.
 """
@@ -49,6 +50,7 @@ def main() -> None:
             ds, scenario.name, plotting.representative_columns(ds), times=6
         ),
         "results_front.png": plotting.front_figure(ds, scenario.name),
+        "results_force.png": plotting.force_figure(ds, scenario.name),
     }
     for name, fig in figures.items():
         fig.savefig(FIGURES / name, dpi=100)

@@ -100,7 +100,8 @@ INVALID = [
         "unknown rheology name",
         {"rheology.name": "bingam"},
         "rheology.name",
-        "unknown rheology 'bingam'; accepted: drucker_prager, jop_mu_i, power_law_mu_i",
+        "unknown rheology 'bingam'; accepted: dilatant_coulomb, drucker_prager, jop_mu_i, "
+        "pouliquen_forterre, power_law_mu_i",
     ),
     (
         "walls law used for the bulk",
@@ -239,8 +240,8 @@ def test_version_help_and_plugins(cli):
     assert result.code == 0
     assert "jop_mu_i [bulk]: Jop et al. (2006) mu(I)" in result.out
     assert (
-        "parameters: jop_mu_i(mu_s: float, mu_2: float, I_0: float, mu_start: float | None = None)"
-        in result.out
+        "parameters: jop_mu_i(mu_s: float, mu_2: float, I_0: float, mu_start: float | None = None, "
+        "mu_inf: float = 0.0)" in result.out
     )
     assert "wall_friction [walls]" in result.out
     assert cli("frobnicate").code == 2  # argparse usage error

@@ -70,6 +70,11 @@ DAMAGES = {
     "front changed": (_set("front", (4,), 0.3), r"output time 4 .* front 0.3 m is not the front of h"),
     "time reversed": (_set("time", (2,), 0.01), r"output time 2 .* is not finite and after the previous one"),
     "h changed": (_set("h", (1, 0), 0.2), r"output time 1 .* mass .* is not the integral of h"),
+    "force changed": (
+        _set("bed_force_x", (3,), 1e3),
+        r"output time 3 .* the change of momentum since the previous output time, .* is not the impulse",
+    ),
+    "force at t = 0": (_set("end_force_x", (0,), 0.0), r"output time 0 .* end_force_x is 0.0, not NaN"),
     "header": (_header, "not a (netCDF result file|readable multilayer result)"),
     "not netCDF": (lambda path: path.write_text("not netCDF"), r"not a netCDF result file \(not a classic"),
     "empty": (lambda path: path.write_bytes(b""), "not a netCDF result file"),

@@ -15,6 +15,7 @@ from multilayer.plugins.contract import Material, Rheology
 MATERIAL = Material(density=1550.0, grain_diameter=0.7e-3, particle_density=2500.0)
 LAWS = [
     JopMuI(mu_s=0.38, mu_2=0.64, I_0=0.279),
+    JopMuI(mu_s=0.38, mu_2=0.64, I_0=0.279, mu_inf=0.05),
     PowerLawMuI(mu_s=0.38, m=0.3, alpha=0.5),
     PowerLawMuI(mu_s=0.38, m=0.3, alpha=1.5),
     DruckerPrager(mu_s=0.5, nu=1e-3),

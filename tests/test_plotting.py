@@ -62,7 +62,7 @@ def slump_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return outdir
 
 
-FIGURES = ["section", "thickness", "front", "mass", "profiles", "static_interface"]
+FIGURES = ["section", "thickness", "front", "mass", "profiles", "static_interface", "force"]
 
 
 def _assert_figures(directory: Path, names: list[str], fmt: str = "png") -> None:
@@ -101,6 +101,23 @@ def test_section_states_slope_and_vertical_exaggeration(slump_dir: Path) -> None
     assert all(ax.get_aspect() == factor for ax in fig.axes[:2])
     mass = plotting.mass_figure(ds, "slump")
     assert mass.axes[0].get_ylabel() == "volume per unit width V (m$^2$)"
+
+
+def test_the_force_figure_draws_the_interval_means_and_the_seismic_force(slump_dir: Path) -> None:
+    """The total downslope force is the sum of its parts, the seismic force its departure
+    from the weight, drawn as steps over the output intervals."""
+    ds = open_result(slump_dir)
+    fig = plotting.force_figure(ds, "slump")
+    forces, seismic = fig.axes[0], fig.axes[1]
+    lines = {line.get_label(): line for line in forces.get_lines()}
+    total = sum(ds[k].values for k in ("bed_force_x", "wall_force_x", "end_force_x", "pressure_force_x"))
+    np.testing.assert_array_equal(lines["total F_x"].get_ydata(), np.repeat(total[1:], 2))
+    np.testing.assert_array_equal(lines["total F_x"].get_xdata(), np.repeat(ds["time"].values, 2)[1:-1])
+    downslope = {line.get_label(): line for line in seismic.get_lines()}["downslope"]
+    np.testing.assert_allclose(
+        downslope.get_ydata(), np.repeat(total[1:] - ds["gravity_force_x"].values[1:], 2), rtol=1e-15
+    )
+    assert seismic.get_ylabel() == "F - M g (N/m)"
 
 
 def test_front_velocity_is_the_time_derivative_of_the_front() -> None:

@@ -225,7 +225,9 @@ def test_cli_lists_broken_plugin_and_still_runs(tmp_path, tiny_scenario, write_s
 
 def test_lookup_and_instantiate():
     with pytest.raises(
-        InputError, match="unknown rheology 'nope'; accepted: .*drucker_prager, jop_mu_i, power_law_mu_i$"
+        InputError,
+        match="unknown rheology 'nope'; accepted: .*drucker_prager, jop_mu_i, pouliquen_forterre, "
+        "power_law_mu_i$",
     ):
         plugins.lookup("nope", "bulk")
     with pytest.raises(

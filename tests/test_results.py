@@ -90,6 +90,23 @@ def test_summary_is_read_from_the_final_time(result_dir: Path) -> None:
     )
     assert s["wall_time_s"] == ds.attrs["wall_time_s"]
     assert s["steps"] == ds.attrs["steps"]
+    # the seismic force: the force on the bed and the walls less the weight, per interval
+    on_earth = ds["bed_force_x"] + ds["wall_force_x"] + ds["end_force_x"] + ds["pressure_force_x"]
+    seismic = (on_earth - ds["gravity_force_x"]).values
+    assert np.isnan(seismic[0]) and s["peak_seismic_force_x"] == np.abs(seismic[1:]).max() > 0
+    assert s["peak_seismic_force_z"] == 0.0  # hydrostatic on a plane: only downslope radiates
+
+
+def test_the_forces_balance_the_momentum_between_records(result_dir: Path) -> None:
+    """The means over each output interval times the interval are the change of momentum
+    (every reader checks it; here from the file's own numbers)."""
+    ds = xr.open_dataset(result_dir / "result.nc")
+    momentum = 1500.0 * 0.0125 * (ds["u"] * ds["h"] / 3).sum(("layer", "x")).values
+    gravity = ds["gravity_force_x"].values
+    assert gravity[1:] == pytest.approx(1500.0 * 0.005 * 9.81 * np.sin(np.radians(25.0)), rel=1e-12)
+    net = gravity - ds["bed_force_x"] - ds["end_force_x"] - ds["outflow_momentum_x"]
+    np.testing.assert_allclose(np.diff(momentum), 0.025 * net.values[1:], rtol=1e-10)
+    assert np.all(ds["wall_force_x"][1:] == 0.0) and np.all(ds["pressure_force_x"][1:] == 0.0)
 
 
 def test_records_are_whole_while_writing_a_reader_waits_for_the_end(tmp_path: Path) -> None:

@@ -28,6 +28,7 @@ def test_builtins_are_registered_through_the_entry_point():
     expected = {
         "drucker_prager": "bulk",
         "jop_mu_i": "bulk",
+        "pouliquen_forterre": "bulk",
         "power_law_mu_i": "bulk",
         "wall_friction": "walls",
     }
@@ -69,6 +70,21 @@ def test_jop_mu_i_limits():
     gamma_at_I0 = 0.279 * np.sqrt(P / 2500.0) / 1e-3
     mu = stress_ratio(law, np.array([1e-12, gamma_at_I0, 1e12]), P)
     np.testing.assert_allclose(mu, [0.38, 0.51, 0.64], rtol=1e-9)
+
+
+def test_jop_mu_i_high_i_term():
+    """mu_inf adds mu_inf I^2 / (I_0 + I) to mu(I) (Barker & Gray 2017): mu = mu_s at rest,
+    mu_s + 0.13 + 0.05 I_0 / 2 at I = I_0, growing like mu_inf I; mu_inf = 0 is Jop's law
+    bit for bit, with its compiled form."""
+    jop, zero = JopMuI(mu_s=0.38, mu_2=0.64, I_0=0.279), JopMuI(mu_s=0.38, mu_2=0.64, I_0=0.279, mu_inf=0.0)
+    law = JopMuI(mu_s=0.38, mu_2=0.64, I_0=0.279, mu_inf=0.05)
+    gamma = np.array([0.0, 1e-12, 3.0, 30.0, 3e5])
+    np.testing.assert_array_equal(zero.viscosity(gamma, P, MATERIAL), jop.viscosity(gamma, P, MATERIAL))
+    assert zero.viscosity_kernel(MATERIAL) == jop.viscosity_kernel(MATERIAL)
+    inertial = gamma[1:] * 1e-3 / np.sqrt(P / 2500.0)
+    expected = 0.38 + (0.26 * inertial + 0.05 * inertial**2) / (0.279 + inertial)
+    np.testing.assert_allclose(stress_ratio(law, gamma[1:], P), expected, rtol=1e-12)
+    assert law.viscosity_kernel(MATERIAL)[0] == "inertial_quadratic"
 
 
 def test_power_law_mu_i_hand_computed():

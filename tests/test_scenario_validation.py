@@ -127,7 +127,8 @@ time: {end: 1.0, output_interval: 0.1, cfll: 0.4}
     lines = str(info.value).splitlines()
     assert (
         f"{path}: rheology (line 7): jop_mu_i: I_0 must be > 0, got -0.3; accepted: "
-        "jop_mu_i(mu_s: float, mu_2: float, I_0: float, mu_start: float | None = None)" in lines
+        "jop_mu_i(mu_s: float, mu_2: float, I_0: float, mu_start: float | None = None, mu_inf: float = 0.0)"
+        in lines
     )
     assert (
         f"{path}: initial.1.x_max (line 12): x_max = 0.2 is not > x_min = 0.5; "

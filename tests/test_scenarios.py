@@ -26,7 +26,18 @@ NAMES = (
     "column_collapse",
     "column_collapse_channel",
     "bagnold_chute",
+    "immersed_layer_loose",
+    "immersed_layer_dense",
+    "submarine_collapse_loose",
+    "submarine_collapse_dense",
 )
+MIXTURES = {
+    "immersed_layer_loose",
+    "immersed_layer_dense",
+    "submarine_collapse_loose",
+    "submarine_collapse_dense",
+}
+"""Grain–fluid mixtures: their runs take seconds each (3 to 6 s), so they run under ``slow``."""
 
 
 def _path(name: str) -> Path:
@@ -88,8 +99,12 @@ def _outcomes(name: str) -> tuple[expect.Outcome, ...]:
     return tuple(expect.check(scenarios.load(_path(name))))
 
 
-def _with_kind(kind: str) -> list[str]:
-    return [n for n in NAMES if any(e.kind == kind for e in scenarios.load(_path(n)).expect)]
+def _with_kind(kind: str) -> list:
+    return [
+        pytest.param(n, marks=pytest.mark.slow) if n in MIXTURES else n
+        for n in NAMES
+        if any(e.kind == kind for e in scenarios.load(_path(n)).expect)
+    ]
 
 
 @pytest.mark.parametrize("name", _with_kind("reference"))

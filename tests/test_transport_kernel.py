@@ -33,17 +33,22 @@ def random_state(seed: int, cells: int = 240, layers: int = 5):
 
 
 def both(h, u, b, fractions, **kw):
-    """Both paths agree to the last bit on the state and on the mass through the boundaries."""
-    crossed = np.full(2, np.nan)
-    expected = transport.transport(h, u, b, fractions, boundary_mass=crossed, **kw)
+    """Both paths agree to the last bit on the state and on the mass and the momentum
+    through the boundaries (and the integral of the mass gravity acts on)."""
+    crossed, momentum = np.full(2, np.nan), np.full(3, np.nan)
+    expected = transport.transport(
+        h, u, b, fractions, boundary_mass=crossed, boundary_momentum=momentum, **kw
+    )
     for threads in (1, 3):
-        crossed_kernel = np.full(2, np.nan)
+        crossed_kernel, momentum_kernel = np.full(2, np.nan), np.full(3, np.nan)
         got = transport_kernel.transport(
-            h, u, b, fractions, threads=threads, boundary_mass=crossed_kernel, **kw
-        )
+            h, u, b, fractions, threads=threads, boundary_mass=crossed_kernel,
+            boundary_momentum=momentum_kernel, **kw,
+        )  # fmt: skip
         for e, g in zip(expected, got):
             np.testing.assert_array_equal(g, e)
         np.testing.assert_array_equal(crossed_kernel, crossed)
+        np.testing.assert_array_equal(momentum_kernel, momentum)
     return crossed
 
 

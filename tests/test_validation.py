@@ -18,6 +18,8 @@ from multilayer.validation.cases import (
     dam_break,
     erodible_bed,
     static_interface,
+    stopping,
+    submarine_collapse,
 )
 from multilayer.validation.mesh_study import MeshStudy, file_comparison
 from multilayer.validation.runs import Context
@@ -89,6 +91,14 @@ def test_dam_break_file_tolerance_is_justified(ctx):
 
 
 # --------------------------------------------------------------------------- Bagnold
+
+
+def test_h_stop_is_exact_and_the_flow_rule_is_met_under_layer_refinement(ctx):
+    """Layers 0.1 % below h_stop(theta) stay at u == 0.0, 0.1 % above flow; the steady
+    Froude number converges to beta h / h_stop (pouliquen_forterre, docs/validation.md)."""
+    results = ctx.execute([*stopping.rest_runs(), *stopping.flow_runs()])
+    assert stopping.rest_met(results)
+    assert stopping.flow_rule_met(results)
 
 
 def test_bagnold_profile_converges_and_the_file_tolerance_is_justified(ctx):
@@ -196,3 +206,17 @@ def test_pure_coulomb_friction_reverses_the_trend(ctx):
     measures, failed = erodible_bed.measure_all(ctx, keys)
     assert not failed
     assert erodible_bed.reverses_with_coulomb(erodible_bed.trends(measures))
+
+
+# --------------------------------------------------------------------------- submarine collapse
+
+
+def test_loose_column_runs_further_than_dense_with_the_published_pore_pressure_signs(ctx):
+    """Rondon, Pouliquen & Aussillous (2011): the loose column's run-out at least 1.5 times
+    the dense one's, positive against negative basal excess pore pressure, at every
+    resolution of the case (the stop-time ratio is not met: docs/validation.md)."""
+    m = submarine_collapse.measures(ctx)
+    assert len(m) == 2 * len(submarine_collapse.CELLS)
+    for n in submarine_collapse.CELLS:
+        assert submarine_collapse.ratios(m, n)[0] >= submarine_collapse.RUNOUT_RATIO
+        assert submarine_collapse.signs_met(m, n)

@@ -109,6 +109,42 @@ def test_bagnold_profile_is_the_steady_state_of_jop_mu_i():
     assert np.abs(sim.u[:, 0] - bagnold).max() < 0.0035 * bagnold.max()
 
 
+def test_the_high_i_term_gives_a_steady_bagnold_flow_beyond_mu_2():
+    """jop_mu_i with mu_inf = 0.05 (Barker & Gray 2017's high-I term) on a 35 degree slope,
+    steeper than atan(mu_2) where Jop's law has no steady flow: backward Euler steps of 1 s
+    of the vertical step (compiled, the inertial_quadratic form) reach the Bagnold profile of
+    I_theta = 2.06, the positive root of mu_inf I^2 + (mu_2 - tan) I - (tan - mu_s) I_0 = 0:
+    mean speed at 8 and 16 layers converging at second order, the Richardson limit within
+    1e-4 of the exact one."""
+    d, h, theta = 0.5e-3, 0.01, 35.0
+    mu_s, mu_2, i0, mu_inf = 0.38, 0.64, 0.279, 0.05
+    i_theta = jop_inertial_number(theta, mu_s, mu_2, i0, mu_inf)
+    assert i_theta == pytest.approx(2.06, abs=0.01)
+    exact = BagnoldFlow(h, i_theta, d, theta, density_ratio=1500.0 / 2500.0).mean_velocity
+    means = []
+    for layers in (8, 16):
+        sim = simulation(
+            slope_deg=theta,
+            domain={"x_min": 0.0, "x_max": 0.01, "cells": 1, "layers": layers},
+            material={"density": 1500.0, "grain_diameter": d, "particle_density": 2500.0},
+            rheology={"name": "jop_mu_i", "mu_s": mu_s, "mu_2": mu_2, "I_0": i0, "mu_inf": mu_inf},
+            base=[{"condition": "no_slip"}],
+            initial=[{"shape": "layer", "thickness": h}],
+            boundaries={"left": "periodic", "right": "periodic"},
+        )
+        u = sim.u.copy()
+        for _ in range(100):
+            ustar = u + 9.81 * math.sin(math.radians(theta))
+            new, _ = sim.vertical(sim.h, ustar, 1.0, [u], rest=None, yield_gravity=None, threads=1)
+            if np.abs(new - u).max() <= 1e-12 * exact:
+                break
+            u = new.copy()
+        means.append(float(sim.fractions @ new[:, 0]))
+    order = math.log2((means[0] - exact) / (means[1] - exact))
+    assert 1.8 < order < 2.2
+    assert (4 * means[1] - means[0]) / 3 == pytest.approx(exact, rel=1e-4)
+
+
 class Bingham(Rheology):
     """Bingham plastic: constant yield stress and viscosity."""
 

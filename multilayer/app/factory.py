@@ -55,6 +55,7 @@ def _initial(entry: schema.InitialShape) -> cfg.InitialEntry:
         height=entry.height,
         points=_points(entry.points),
         velocity=None if entry.velocity is None else _velocity(entry.velocity),
+        phi=entry.phi,
     )
 
 
@@ -75,6 +76,21 @@ def material(scenario: Scenario) -> Material:
     spec = scenario.material
     particle_density = spec.density if spec.particle_density is None else spec.particle_density
     return Material(spec.density, spec.grain_diameter, particle_density)
+
+
+def mixture(scenario: Scenario) -> cfg.MixtureConfig | None:
+    """The engine's grain–fluid mixture of ``scenario`` (its ``fluid`` and ``mixture`` keys)."""
+    fluid, closure = scenario.fluid, scenario.mixture
+    if fluid is None or closure is None:
+        return None
+    return cfg.MixtureConfig(
+        fluid_density=fluid.density,
+        fluid_viscosity=fluid.viscosity,
+        phi_critical=closure.phi_critical,
+        dilatancy=closure.dilatancy,
+        critical_shift=closure.critical_shift,
+        kozeny=closure.kozeny,
+    )
 
 
 def engine_config(scenario: Scenario) -> cfg.SimulationConfig:
@@ -112,6 +128,7 @@ def engine_config(scenario: Scenario) -> cfg.SimulationConfig:
         pressure=cfg.PressureConfig(
             sc.model.pressure, MappingProxyType(options(model, sc.model.options, dom.layers))
         ),
+        mixture=mixture(sc),
         name=str(sc.source or "<scenario>"),
     )
 

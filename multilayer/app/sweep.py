@@ -35,7 +35,13 @@ from typing import Any, Literal
 from multilayer import scenario
 from multilayer.app import runner, stopping
 from multilayer.errors import InputError, Interrupted, RunError
-from multilayer.io.results import CHECKPOINT_FILE, RESULT_FILE, SUMMARY_KEYS, run_failure
+from multilayer.io.results import (
+    CHECKPOINT_FILE,
+    MIXTURE_SUMMARY_KEYS,
+    RESULT_FILE,
+    SUMMARY_KEYS,
+    run_failure,
+)
 from multilayer.scenario import as_overrides, format_value
 
 SWEEP_KEYS = ("base", "parameters", "zip", "output", "description")
@@ -232,7 +238,7 @@ def completed(member_dir: Path, fingerprint: str) -> dict[str, float] | None:
     except (OSError, ValueError, RecursionError):
         return None
     summary = marker.get("summary") if isinstance(marker, dict) else None
-    if not (isinstance(summary, dict) and set(summary) == set(SUMMARY_KEYS)):
+    if not (isinstance(summary, dict) and set(summary) - set(MIXTURE_SUMMARY_KEYS) == set(SUMMARY_KEYS)):
         return None  # not a marker this module wrote: the member runs again
     if marker.get("fingerprint") != fingerprint or not (member_dir / RESULT_FILE).is_file():
         return None

@@ -46,6 +46,8 @@ class InitialEntry:
     height: float | None = None
     points: Points | None = None
     velocity: Velocity | None = None
+    phi: float | None = None
+    """Solid volume fraction of the entry in a grain–fluid mixture (None: a dry run)."""
 
 
 @dataclass(frozen=True)
@@ -99,6 +101,26 @@ class PressureConfig:
 
 
 @dataclass(frozen=True)
+class MixtureConfig:
+    """A grain–fluid mixture (:mod:`multilayer.engine.mixture`): the pore and ambient
+    fluid and the dilatancy closure of Bouchut et al. (2016); ``material.particle_density``
+    is the grain density.  The constants are those of docs/mixture.md."""
+
+    fluid_density: float
+    """rho_f (kg/m^3), below the grain density."""
+    fluid_viscosity: float
+    """eta_f (Pa s)."""
+    phi_critical: float
+    """phi_c, the critical volume fraction at rest."""
+    dilatancy: float
+    """K of ``tan(psi) = K (phi - phi_eq)``."""
+    critical_shift: float
+    """K2 of ``phi_eq = phi_c - K2 eta_f gamma / p_s``."""
+    kozeny: float = 150.0
+    """Carman–Kozeny constant of the permeability ``k = d^2 (1 - phi)^3 / (kozeny phi^2)``."""
+
+
+@dataclass(frozen=True)
 class SimulationConfig:
     """Everything the engine reads of a problem, rheologies aside."""
 
@@ -123,5 +145,7 @@ class SimulationConfig:
     cfl: float = 0.45
     numerics: Numerics = Numerics()
     pressure: PressureConfig = PressureConfig()
+    mixture: MixtureConfig | None = None
+    """A grain–fluid mixture (None: dry grains)."""
     name: str = "<scenario>"
     """How messages name the problem (the scenario file)."""

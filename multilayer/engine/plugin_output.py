@@ -132,17 +132,21 @@ def call(
     x: np.ndarray,
     position: str,
     t: float,
+    keywords: dict[str, np.ndarray] | None = None,
 ) -> np.ndarray:
-    """``plugin.method(*args)`` as a float array of the shape of ``inputs``' arrays, finite and >= 0.
+    """``plugin.method(*args, **keywords)`` as a float array of the shape of ``inputs``'
+    arrays, finite and >= 0.
 
     ``inputs`` names the array arguments (reported with a bad value), ``x`` (N,) is the
     position of each column and ``position`` names an entry of the first axis in messages,
     a template with ``{index}`` (0-based) and ``{number}`` (1-based); ``t`` is the time of
-    the step being computed.
+    the step being computed.  ``keywords`` are the column quantities the plugin declares in
+    ``uses`` (given read-only like the arguments).
     """
     shape = np.shape(next(iter(inputs.values())))
+    keywords = {} if keywords is None else {key: read_only(value) for key, value in keywords.items()}
     with contained(plugin, f"{method}()", t):
-        value = getattr(plugin, method)(*map(read_only, args))
+        value = getattr(plugin, method)(*map(read_only, args), **keywords)
     array = real_array(plugin, f"{method}()", value, t)
     if array.shape != shape:
         raise PluginOutputError(

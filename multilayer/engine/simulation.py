@@ -5,6 +5,7 @@ Each step is a Lie splitting of the multilayer system, first order in time::
     (h, h_a u*_a)^{n+1}  <- transport in x: fluxes, mass exchange, gravity  (transport/)
     u^{n+1/2}            <- argmin of the implicit stress energy per column (vertical/)
     (u, w, q)^{n+1}      <- the pressure model's projection                 (pressure/)
+    F                    <- the impulses on the bed and the walls            (bed_force.py)
 
 then the Courant check of the step's end (redo shorter if the waves grew faster), the
 state guard (an impossible state is never kept) and the windowed commit of the new state
@@ -21,9 +22,11 @@ from typing import Any
 import numpy as np
 
 from multilayer.engine import basal, diagnostics, initial_state
+from multilayer.engine.bed_force import BedForce
 from multilayer.engine.config import SimulationConfig
 from multilayer.engine.gate import Gate
 from multilayer.engine.mesh import LayeredMesh
+from multilayer.engine.mixture.flow import MixtureFlow
 from multilayer.engine.pressure.model import PressureModel, PressureSetup, models, options
 from multilayer.engine.state import FlowState, max_wave_speed, span, start_moving
 from multilayer.engine.state_check import StateGuard
@@ -101,6 +104,8 @@ class Simulation:
             np.ascontiguousarray(u0, dtype=float).reshape(self.fractions.size, c.cells),
         )
         self.bed = initial_state.bed_profile(c.bed, self.x)
+        self.mixture = self._mixture(bulk)
+        """The grain–fluid mixture (engine/mixture), None for dry grains."""
         self.pressure = self._pressure_model()
         self.vertical = VerticalStep(
             StressModel(
@@ -110,6 +115,10 @@ class Simulation:
             tolerance=c.numerics.tolerance,
             max_iterations=c.numerics.max_iterations,
             velocity_scale=self._velocity_scale(),
+        )
+        #: the force on the bed, side walls and end walls (bed_force.py)
+        self.forces = BedForce(
+            self.vertical.stresses, self.fractions, self.dx, self.g_n, self.g_t, c.left, c.right
         )
         # columns that take part in the step: those moving at its start, and material at
         # rest that it sets moving (allocated once)
@@ -144,6 +153,27 @@ class Simulation:
             options=options(model, c.pressure.options, self.fractions.size),
         )
         return model(setup, self.state)
+
+    def _mixture(self, bulk: Rheology) -> MixtureFlow | None:
+        """The mixture of the configuration; the transport's gravity reduced by its
+        buoyancy (``engine/mixture/flow.py``)."""
+        c = self.config
+        if c.mixture is None:
+            return None
+        edges = initial_state.cell_edges(c.x_min, c.x_max, c.cells)
+        solid = np.zeros(c.cells)
+        for entry in c.initial:
+            h_entry, _ = initial_state.initial_state((entry,), self.x, self.sigma, edges)
+            solid += (entry.phi or 0.0) * h_entry
+        phi0 = np.where(self.h > 0.0, solid / np.where(self.h > 0.0, self.h, 1.0), 0.0)
+        mixture = MixtureFlow(
+            c.mixture, self.state, phi0, bulk, c.material, fractions=self.fractions, x=self.x, dx=self.dx,
+            g_n=self.g_n, g_t=self.g_t, periodic=boundaries.BOUNDARIES[self.left].wraps,
+            tolerance=c.numerics.tolerance, max_iterations=c.numerics.max_iterations,
+        )  # fmt: skip
+        self.g_n *= mixture.reduction
+        self.g_t *= mixture.reduction
+        return mixture
 
     def _velocity_scale(self) -> float:
         """The scale of the Newton tolerance: gravity waves on the deepest initial or
@@ -208,25 +238,34 @@ class Simulation:
         threads = self.thread_policy.threads(self.fractions.size * int(np.count_nonzero(self.h)))
         while True:  # redone shorter while Heun's second stage breaks the Courant condition
             self._check_advances(dt)
-            np.copyto(self._stepping, self.state.moving)
-            iterations = 0
-            while True:  # redone while the step sets material at rest moving
-                h, ustar = self._transport(dt, threads)
-                u_vertical, more = self._vertical_step(h, ustar, dt, threads)
-                iterations += more
-                if not start_moving(u_vertical, self.h, self.dry, self._stepping):
-                    break
-            u, fields = self.pressure.project(self.state, h, u_vertical, dt)
+            h, ustar, u_vertical, iterations = self._transport_and_stresses(dt, threads)
+            u, fields = self._project(h, u_vertical, dt)
             if (shorter := self._courant_check(dt, speed)) is None:
                 break
             dt = shorter
         columns = span(h)  # every non-zero velocity and field of the step's end lies within
         self._guard(h, u, fields, dt, columns)
+        if self.mixture is None:  # the forces of a mixture are not computed (docs/mixture.md)
+            self.forces.record(self.state, (h, ustar), u_vertical, (u, fields), dt)  # diagnostics
         self.state.commit(h, u, fields, columns)
         self.newton_iterations += iterations
         self.steps += 1
         self.t = t_max if dt == t_max - self.t else self.t + dt  # lands on t_max when cut to reach it
         return dt
+
+    def _transport_and_stresses(
+        self, dt: float, threads: int
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+        """The transport and the vertical step, redone while the step sets material at
+        rest moving: the thickness, the velocities after each, the Newton iterations."""
+        np.copyto(self._stepping, self.state.moving)
+        iterations = 0
+        while True:
+            h, ustar = self._transport(dt, threads)
+            u_vertical, more = self._vertical_step(h, ustar, dt, threads)
+            iterations += more
+            if not start_moving(u_vertical, self.h, self.dry, self._stepping):
+                return h, ustar, u_vertical, iterations
 
     def _check_target(self, t_max: float) -> None:
         if not t_max > self.t:
@@ -256,7 +295,7 @@ class Simulation:
             self.h, self.u, self.bed, self.fractions, dx=self.dx, dt=dt, g_n=self.g_n, g_t=self.g_t,
             left=self.left, right=self.right, inflow=self.inflow, dry=self.dry, order=self.numerics.order,
             moving=self._stepping, boundary_mass=self.boundary_mass, stage_speed=self._stage_speed,
-            **options,
+            boundary_momentum=self.forces.transport_terms, **options,
         )  # fmt: skip
         self.guard.check_state(h, ustar, lambda: f"after transport from t = {self.t:.6g} s (dt = {dt:.3g} s)")
         return h, ustar
@@ -265,7 +304,10 @@ class Simulation:
         self, h: np.ndarray, ustar: np.ndarray, dt: float, threads: int
     ) -> tuple[np.ndarray, int]:
         """The implicit vertical step (the yield pressures and Newton seeds of the pressure
-        model): the velocities and the Newton iterations."""
+        model), or the mixture's local step (which dilates ``h`` in place): the velocities
+        and the Newton iterations."""
+        if self.mixture is not None:
+            return self.mixture.step(self.h, h, self.u, ustar, dt, self.boundary_mass, self.dry, self.t)
         return self.vertical(
             h,
             ustar,
@@ -276,6 +318,11 @@ class Simulation:
             threads=threads,
             poll=self.poll,
         )
+
+    def _project(self, h: np.ndarray, u: np.ndarray, dt: float) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """The pressure model's projection; the layer fields of the step (the mixture's too)."""
+        u, fields = self.pressure.project(self.state, h, u, dt)
+        return u, fields if self.mixture is None else {**fields, **self.mixture.pending}
 
     def _courant_check(self, dt: float, speed: float) -> float | None:
         """None if the Courant condition held in Heun's second stage too; otherwise the
@@ -296,7 +343,10 @@ class Simulation:
         self, h: np.ndarray, u: np.ndarray, fields: dict[str, np.ndarray], dt: float, columns: tuple[int, int]
     ) -> None:
         """The state guard: an impossible state is never kept (the last good one stays)."""
-        self.guard.check_step(self.h, h, u, self.t, dt, self.boundary_mass, columns)
+        transported = h if self.mixture is None else self.mixture.transported
+        self.guard.check_step(self.h, transported, u, self.t, dt, self.boundary_mass, columns)
+        if self.mixture is not None:
+            self.mixture.check_step(h, self.t, dt, self.guard)
         for name, what in self.pressure.checked.items():
             self.guard.check_finite(
                 fields[name],
@@ -335,6 +385,7 @@ class Simulation:
             "steps": self.steps,
             "newton_iterations": self.newton_iterations,
             **self.state.state_dict(),
+            **self.forces.state_dict(),
         }
 
     def load_state(self, saved: dict) -> None:
@@ -343,5 +394,8 @@ class Simulation:
         self.steps = int(saved["steps"])
         self.newton_iterations = int(saved.get("newton_iterations", 0))
         self.state.load_state(saved)
+        self.forces.load_state(saved)
         self.guard.check_state(self.h, self.u, f"in the restored state at t = {self.t:.6g} s")
         self.guard.reset(self.h, self.steps)
+        if self.mixture is not None:
+            self.mixture.reset(self.steps)

@@ -30,7 +30,7 @@ from matplotlib.patches import Patch
 
 from multilayer.errors import InputError
 from multilayer.io.result_check import ending
-from multilayer.io.results import open_result
+from multilayer.io.results import open_result, seismic_force
 
 PLOTS_DIR = "plots"
 _AT_REST = "0.82"
@@ -57,7 +57,9 @@ def plot_run(
     ``section`` (X-Z section at ``times`` times), ``thickness`` (h(x)), ``front``
     (x_f(t) and u_f(t)), ``mass`` (volume per unit width), ``profiles`` (u(z) at the
     columns ``at``, default: :func:`representative_columns`) and ``static_interface``
-    (b(t) and h(t) at the same columns), as ``fmt`` files; with ``animate`` also the
+    (b(t) and h(t) at the same columns), ``force`` (the forces on the bed and the walls,
+    :func:`force_figure`), for a grain–fluid mixture ``mixture`` (phi(x) and the basal
+    excess pore pressure), as ``fmt`` files; with ``animate`` also the
     section over time (:func:`animate_section`).  Returns the paths written and
     notes on how the run ended if it did not complete (module docstring).
     """
@@ -79,6 +81,10 @@ def plot_run(
         "profiles": profiles_figure(ds, name, columns, times + 2),
         "static_interface": static_interface_figure(ds, name, columns),
     }
+    if "bed_force_x" in ds:  # files written before the forces lack them
+        figures["force"] = force_figure(ds, name)
+    if "phi" in ds:
+        figures["mixture"] = mixture_figure(ds, name, times + 2)
     paths = []
     for stem, fig in figures.items():
         path = out / f"{stem}.{fmt}"
@@ -306,6 +312,32 @@ def thickness_figure(ds: xr.Dataset, name: str, times: int = 6) -> Figure:
     return fig
 
 
+def mixture_figure(ds: xr.Dataset, name: str, times: int = 6) -> Figure:
+    """A grain–fluid mixture: the solid fraction phi(x) and the basal excess pore pressure
+    p_e(x) at several output times (where the material is), and p_e at the bed averaged
+    over the material against time."""
+    fig = Figure(figsize=(8, 8), layout="constrained")
+    ax_phi, ax_pe, ax_time = fig.subplots(3, 1)
+    wet = ds["h"] > 0.0
+    for j, k in enumerate(_time_indices(ds, times)):
+        snap, color = ds.isel(time=k), _shade(j, times)
+        label = f"t = {float(snap['time']):.3g} s"
+        ax_phi.plot(ds["x"], snap["phi"].where(wet.isel(time=k)), color=color, label=label)
+        ax_pe.plot(ds["x"], snap["pore_pressure_excess"].where(wet.isel(time=k)), color=color, label=label)
+    mean = ds["pore_pressure_excess"].where(wet).mean("x")
+    ax_time.plot(ds["time"], mean, color="k")
+    ax_time.axhline(0.0, color="0.6", lw=0.8)
+    ax_phi.set_ylabel("solid fraction phi")
+    ax_pe.set_ylabel("excess pore pressure\nat the bed (Pa)")
+    for ax in (ax_phi, ax_pe):
+        ax.set_xlabel("x along the plane (m)")
+        ax.legend(fontsize="small")
+    ax_time.set_xlabel("time (s)")
+    ax_time.set_ylabel("mean excess pore\npressure at the bed (Pa)")
+    ax_phi.set_title(f"{name}: grain-fluid mixture")
+    return fig
+
+
 def front_velocity(ds: xr.Dataset) -> np.ndarray:
     """Front velocity u_f = dx_f/dt (m/s) by finite differences between output times
     (centred inside, one-sided at the ends; the front moves by whole cells)."""
@@ -348,6 +380,49 @@ def mass_figure(ds: xr.Dataset, name: str) -> Figure:
     ax_change.set_ylabel("(V - V(0)) / V(0)" if volume[0] else "V - V(0) (m$^2$)")
     ax_change.set_xlabel("time t (s)")
     _suptitle(fig, name, "volume (inflow and outflow change it)")
+    return fig
+
+
+def _intervals(ds: xr.Dataset, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(t, values) drawing the means over the output intervals (records 1 ..) as steps."""
+    t = ds["time"].values
+    return np.repeat(t, 2)[1:-1], np.repeat(values[1:], 2)
+
+
+def force_figure(ds: xr.Dataset, name: str) -> Figure:
+    """The forces the flow exerts per unit width, means over each output interval: downslope
+    on the bed, the side walls, the end walls and by the non-hydrostatic pressure, their sum
+    and the weight along the slope; and the seismic single force, their departure from the
+    weight ``F - M g`` (downslope and normal), the force on the Earth of landslide seismology."""
+    fig = Figure(figsize=(8, 6.5), layout="constrained")
+    ax_force, ax_seismic = fig.subplots(2, 1, sharex=True)
+    parts = {
+        "bed_force_x": "bed",
+        "wall_force_x": "side walls",
+        "end_force_x": "end walls",
+        "pressure_force_x": "non-hydrostatic pressure",
+    }
+    seismic_x, seismic_z = seismic_force(ds)
+    weight = ds["gravity_force_x"].values
+    for key, label in parts.items():
+        if np.any(ds[key].values[1:] != 0.0):
+            ax_force.plot(*_intervals(ds, ds[key].values), label=label)
+    ax_force.plot(*_intervals(ds, seismic_x + weight), color="k", label="total F_x")
+    ax_force.plot(*_intervals(ds, weight), color="0.5", ls="--", label="weight M g sin(theta)")
+    ax_force.axhline(0.0, color="0.6", lw=0.8)
+    ax_force.set_ylabel("downslope force (N/m)")
+    ax_force.set_title(
+        "force of the flow on the Earth per unit width, mean over each output interval", fontsize="medium"
+    )
+    ax_force.legend(fontsize="small")
+    ax_seismic.plot(*_intervals(ds, seismic_x), color="k", label="downslope")
+    ax_seismic.plot(*_intervals(ds, seismic_z), color="tab:purple", label="normal, into the bed")
+    ax_seismic.axhline(0.0, color="0.6", lw=0.8)
+    ax_seismic.set_ylabel("F - M g (N/m)")
+    ax_seismic.set_title("seismic single force: departure from the static weight (-dP/dt)", fontsize="medium")
+    ax_seismic.set_xlabel("time t (s)")
+    ax_seismic.legend(fontsize="small")
+    _suptitle(fig, name, "force on the bed and the walls")
     return fig
 
 

@@ -13,7 +13,10 @@ is wrong) when
 - a record fails its checks: time finite and increasing, ``h`` finite and ``>= 0``,
   ``u`` finite, the static interface within ``[0, h]``, ``mass`` the integral of ``h``
   to round-off and ``front`` the front of ``h`` (what the writer computed from the same
-  state), and the coordinates finite and increasing;
+  state), and the coordinates finite and increasing; the forces on the bed and the walls
+  NaN in the first record only, and balancing the change of momentum between two records
+  to round-off (``result_format.FORCES``; files written before these variables existed
+  lack all of them);
 - for a reader that takes the file as a run's answer (``use="answer"``), the run did
   not complete (failed, interrupted).
 
@@ -37,12 +40,16 @@ import yaml
 from multilayer.engine import diagnostics
 from multilayer.errors import InputError
 from multilayer.io.netcdf_layout import LayoutError, read_layout
-from multilayer.io.result_format import NETCDF_LOCK, VARIABLES, result_path
+from multilayer.io.result_format import FORCES, NETCDF_LOCK, VARIABLES, result_path
 
 Use = Literal["answer", "records", "resume"]
 STATUSES = ("completed", "failed", "interrupted", "running")
 ROUND_OFF = 64 * np.finfo(float).eps
 """Relative round-off allowed between ``mass`` and the integral of ``h``."""
+BALANCE_ROUND_OFF = 1e-9
+"""Relative round-off allowed in the momentum balance of the forces between two records
+(the impulses of every step summed: far above the round-off of a run of 10^6 steps, far
+below any damage)."""
 
 
 class ResultFileError(InputError):
@@ -105,6 +112,8 @@ def _whole_records(file: Path, bad) -> int:
 def _status(ds: netCDF4.Dataset, file: Path, bad) -> str:
     """The run status of ``ds``; the variables and the scenario are those of a result."""
     missing = [name for name in VARIABLES if name not in ds.variables]
+    if set(missing) == set(FORCES):  # written before the forces were
+        missing = []
     if missing:
         raise bad(f"not a multilayer result: no variable {', '.join(missing)}")
     try:
@@ -139,6 +148,8 @@ def _check_records(ds: netCDF4.Dataset, count: int, bad) -> None:
     layers = len(ds.dimensions["layer"])
     step = max(1, CHUNK_VALUES // ((layers + 2) * x.size))
     before = -np.inf
+    momentum = np.zeros(count)
+    fractions = np.diff(np.asarray(ds["sigma_bnds"][:], dtype=float), axis=1)
     for start in range(0, count, step):
         rows = slice(start, min(start + step, count))
         t = np.asarray(ds["time"][rows], dtype=float)
@@ -147,6 +158,7 @@ def _check_records(ds: netCDF4.Dataset, count: int, bad) -> None:
         static = np.asarray(ds["static_interface"][rows, :], dtype=float)
         mass = np.asarray(ds["mass"][rows], dtype=float)
         front = np.asarray(ds["front"][rows], dtype=float)
+        momentum[rows] = dx * np.sum(fractions[None] * h[:, None, :] * u, axis=(1, 2))
         previous = np.concatenate([[before], t[:-1]])
         suspect = ~(np.isfinite(t) & (t >= 0.0) & (t > previous))
         suspect |= (
@@ -167,6 +179,37 @@ def _check_records(ds: netCDF4.Dataset, count: int, bad) -> None:
                 what = f"front {float(front[j])!r} m is not the front of h ({wet:.6g} m)"
                 raise _record_error(bad, start + j, float(t[j]), what)
         before = float(t[-1])
+    if count and "bed_force_x" in ds.variables:
+        _check_forces(ds, count, momentum, bad)
+
+
+def _check_forces(ds: netCDF4.Dataset, count: int, momentum: np.ndarray, bad) -> None:
+    """The forces of the first ``count`` records: NaN in the first, finite after, and the
+    change of momentum between two records (``momentum``: ``sum_a h_a u_a dx`` of each,
+    per unit density) their mean times the interval (``result_format.FORCES``)."""
+    t = np.asarray(ds["time"][:count], dtype=float)
+    f = {name: np.asarray(ds[name][:count], dtype=float) for name in FORCES}
+    for name, values in f.items():
+        if not np.isnan(values[0]):
+            raise _record_error(bad, 0, float(t[0]), f"{name} is {float(values[0])!r}, not NaN (no interval)")
+        broken = np.flatnonzero(~np.isfinite(values[1:]))
+        if broken.size:
+            i = int(broken[0]) + 1
+            raise _record_error(bad, i, float(t[i]), f"{name} = {float(values[i])!r} is not finite")
+    density = float(yaml.safe_load(str(ds.getncattr("scenario")))["material"]["density"])
+    terms = ("bed_force_x", "wall_force_x", "end_force_x", "pressure_force_x", "outflow_momentum_x")
+    net = f["gravity_force_x"][1:] - sum(f[name][1:] for name in terms)
+    change = density * np.diff(momentum)
+    scale = np.abs(density * momentum[1:]) + np.abs(density * momentum[:-1])
+    scale += np.diff(t) * sum(np.abs(f[name][1:]) for name in (*terms, "gravity_force_x"))
+    off = np.flatnonzero(~(np.abs(change - np.diff(t) * net) <= BALANCE_ROUND_OFF * scale))
+    if off.size:
+        i = int(off[0]) + 1
+        what = (
+            f"the change of momentum since the previous output time, {float(change[i - 1]):.9g} N s/m, "
+            f"is not the impulse of its forces, {float(np.diff(t)[i - 1] * net[i - 1]):.9g} N s/m"
+        )
+        raise _record_error(bad, i, float(t[i]), what)
 
 
 def _check_record(bad, i: int, before: float, values: tuple, x: np.ndarray, dx: float) -> None:

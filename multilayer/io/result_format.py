@@ -117,6 +117,97 @@ VARIABLES: dict[str, tuple[tuple[str, ...], dict[str, str]]] = {
     ),
 }
 
+_FORCE = "mean over the interval since the previous output time, per unit channel width"
+FORCES: dict[str, tuple[tuple[str, ...], dict[str, str]]] = {
+    "bed_force_x": (
+        ("time",),
+        {
+            "units": "N m-1",
+            "long_name": "downslope force of the flow on the bed",
+            "comment": f"{_FORCE}; basal shear, pressure on the relief of the bed and on a gate",
+        },
+    ),
+    "bed_force_z": (
+        ("time",),
+        {
+            "units": "N m-1",
+            "long_name": "force of the flow on the bed normal to the plane, positive into the bed",
+            "comment": f"{_FORCE}; weight and the change of normal momentum of the non-hydrostatic model",
+        },
+    ),
+    "wall_force_x": (
+        ("time",),
+        {
+            "units": "N m-1",
+            "long_name": "downslope force of the flow on the side walls",
+            "comment": _FORCE,
+        },
+    ),
+    "end_force_x": (
+        ("time",),
+        {
+            "units": "N m-1",
+            "long_name": "downslope force of the flow on the end walls (wall boundaries)",
+            "comment": _FORCE,
+        },
+    ),
+    "pressure_force_x": (
+        ("time",),
+        {
+            "units": "N m-1",
+            "long_name": "downslope force of the non-hydrostatic pressure on the bed and the end walls",
+            "comment": f"{_FORCE}; zero with the hydrostatic pressure",
+        },
+    ),
+    "gravity_force_x": (
+        ("time",),
+        {
+            "units": "N m-1",
+            "long_name": "downslope component of the weight of the flow",
+            "comment": _FORCE,
+        },
+    ),
+    "gravity_force_z": (
+        ("time",),
+        {
+            "units": "N m-1",
+            "long_name": "component of the weight of the flow normal to the plane, into the bed",
+            "comment": _FORCE,
+        },
+    ),
+    "outflow_momentum_x": (
+        ("time",),
+        {
+            "units": "N m-1",
+            "long_name": "downslope momentum leaving through the open boundaries per unit time",
+            "comment": _FORCE,
+        },
+    ),
+}
+"""The forces on the Earth (multilayer.engine.bed_force), the sign convention of
+landslide seismology: the force the flow exerts (Toney & Allstadt 2021).  With output
+times t_k the downslope momentum P obeys P(t_k) - P(t_(k-1)) = (t_k - t_(k-1)) (gravity -
+bed - wall - end - pressure - outflow) to round-off; the first record (no interval) is NaN."""
+VARIABLES.update(FORCES)
+#: the variables of a grain–fluid mixture (docs/mixture.md), written when the run has one
+MIXTURE_VARIABLES: dict[str, tuple[tuple[str, ...], dict[str, str]]] = {
+    "phi": (
+        ("time", "x"),
+        {"units": "1", "long_name": "depth-averaged solid volume fraction of the mixture"},
+    ),
+    "phi_layer": (
+        ("time", "layer", "x"),
+        {"units": "1", "long_name": "solid volume fraction of each layer", "coordinates": "sigma"},
+    ),
+    "pore_pressure_excess": (
+        ("time", "x"),
+        {
+            "units": "Pa",
+            "long_name": "excess pore pressure at the bed (over the ambient fluid's hydrostatic pressure)",
+        },
+    ),
+}
+
 
 def result_path(path: str | os.PathLike) -> Path:
     """``path`` itself, or the ``result.nc`` inside it when it is a directory."""

@@ -41,7 +41,9 @@ from multilayer.io import disk
 from multilayer.io.netcdf_layout import HEADER_SPACE, NUMRECS_OFFSET, LayoutError, read_layout
 from multilayer.io.result_format import (  # noqa: F401 (this module's names, as before)
     CHECKPOINT_FILE,
+    FORCES,
     FORMAT,
+    MIXTURE_VARIABLES,
     NETCDF_LOCK,
     RESULT_FILE,
     VARIABLES,
@@ -71,7 +73,10 @@ class ResultWriter:
         """Why the run failed; written as the ``failure`` attribute on close when not empty."""
         self._broken = False  # a write failed: the netCDF handle cannot be trusted
         n_layers, n_cells = np.shape(sim.u)
-        self._record_bytes = 8 * ((n_layers + 2) * n_cells + 3)
+        self._mixture = getattr(sim, "mixture", None) is not None
+        # a mixture's records hold phi and p_e, not the forces (docs/mixture.md)
+        extra = (n_layers + 2) * n_cells if self._mixture else len(FORCES)
+        self._record_bytes = 8 * ((n_layers + 2) * n_cells + 3 + extra)
         with NETCDF_LOCK:
             if records is None:
                 self._ds = netCDF4.Dataset(self.path, "w", format=FORMAT)
@@ -92,7 +97,10 @@ class ResultWriter:
         ds.createDimension("x", n_cells)
         ds.createDimension("layer", n_layers)
         ds.createDimension("nv", 2)
-        for name, (dims, attrs) in VARIABLES.items():
+        variables = VARIABLES
+        if self._mixture:  # the forces of a mixture are not computed (docs/mixture.md)
+            variables = {**{k: v for k, v in VARIABLES.items() if k not in FORCES}, **MIXTURE_VARIABLES}
+        for name, (dims, attrs) in variables.items():
             if name == "layer":
                 var = ds.createVariable(name, "i4", dims)
             else:
@@ -138,6 +146,7 @@ class ResultWriter:
         the diagnostics written."""
         ds, i = self._ds, self.records
         diag = sim.diagnostics()
+        forces = {} if self._mixture else sim.forces.take()  # the means over the interval this record closes
         if self._broken:
             raise DiskFull(f"{self.path}: an earlier write failed; no more records are written")
         self._ensure_room()
@@ -146,8 +155,14 @@ class ResultWriter:
                 ds["h"][i, :] = sim.h
                 ds["u"][i, :, :] = sim.u
                 ds["static_interface"][i, :] = diag["static_interface"]
+                if self._mixture:
+                    ds["phi"][i, :] = sim.mixture.phi(sim.h)
+                    ds["phi_layer"][i, :, :] = sim.mixture.phi_layers(sim.h)
+                    ds["pore_pressure_excess"][i, :] = sim.mixture.pore_pressure[0]
                 ds["front"][i] = diag["front"]
                 ds["mass"][i] = diag["mass"]
+                for name, value in forces.items():
+                    ds[name][i] = value
                 ds["time"][i] = sim.t
                 ds.steps = int(sim.steps)
                 ds.sync()
@@ -279,10 +294,14 @@ SUMMARY_KEYS = (
     "mass_final",
     "max_speed_final",
     "static_interface_mean_final",
+    "peak_seismic_force_x",
+    "peak_seismic_force_z",
     "steps",
     "wall_time_s",
 )
 """The keys of :func:`summary`, in order."""
+MIXTURE_SUMMARY_KEYS = ("pore_pressure_bed_mean_final", "phi_mean_final")
+"""The further keys of :func:`summary` for a grain–fluid mixture."""
 SUMMARY_UNITS = {
     "t_final": "s",
     "front_final": "m",
@@ -290,6 +309,10 @@ SUMMARY_UNITS = {
     "mass_final": "m2",
     "max_speed_final": "m/s",
     "static_interface_mean_final": "m",
+    "peak_seismic_force_x": "N/m",
+    "peak_seismic_force_z": "N/m",
+    "pore_pressure_bed_mean_final": "Pa",
+    "phi_mean_final": "1",
     "steps": "",
     "wall_time_s": "s",
 }
@@ -301,7 +324,12 @@ def summary(path: str | os.PathLike, *, checked: bool = True) -> dict[str, float
 
     ``runout`` is the final minus the initial front; ``max_speed_final`` the largest
     ``|u|`` at the final time; ``static_interface_mean_final`` the mean static-interface
-    height over the cells wetter than the front threshold (NaN if none).  The file is
+    height over the cells wetter than the front threshold (NaN if none);
+    ``peak_seismic_force_x`` and ``_z`` the largest magnitude of the seismic single force
+    per unit width, the force on the bed and the walls less the weight, over the output
+    intervals (:func:`seismic_force`; NaN for a single record); with a fluid,
+    ``pore_pressure_bed_mean_final`` and ``phi_mean_final`` are the means of the basal
+    excess pore pressure and of the solid fraction over the wet cells.  The file is
     checked first as the answer of a run (``checked=False``: by the run that has just
     written it, whose every state passed the state guard).
     """
@@ -311,9 +339,11 @@ def summary(path: str | os.PathLike, *, checked: bool = True) -> dict[str, float
         check_result(path, "answer")
     with xr.open_dataset(result_path(path)) as lazy:  # only the first and last records are read
         ds = lazy.isel(time=[0, -1]).load()
+        seismic = seismic_force(lazy[list(FORCES)].load()) if "bed_force_x" in lazy else None
     final = ds.isel(time=-1)
     wet = final["h"].values > ds["front"].attrs["threshold"]
     static = final["static_interface"].values[wet]
+    mixture = {key: _wet_mean(final, name, wet) for key, name in _MIXTURE_MEANS.items() if name in final}
     return {
         "t_final": float(final["time"]),
         "front_final": float(final["front"]),
@@ -321,9 +351,36 @@ def summary(path: str | os.PathLike, *, checked: bool = True) -> dict[str, float
         "mass_final": float(final["mass"]),
         "max_speed_final": float(np.abs(final["u"].values).max()),
         "static_interface_mean_final": float(static.mean()) if static.size else float("nan"),
+        **{f"peak_seismic_force_{c}": _peak(seismic[i] if seismic else None) for i, c in enumerate("xz")},
         "steps": int(ds.attrs["steps"]),
         "wall_time_s": float(ds.attrs["wall_time_s"]),
+        **mixture,
     }
+
+
+def seismic_force(ds: xr.Dataset) -> tuple[np.ndarray, np.ndarray]:
+    """The seismic single force per unit width (N/m) of each output interval, downslope and
+    normal: the mean force of the flow on the bed and the walls less its weight, ``F - M g``
+    (-dP/dt without outflow; Favreau et al. 2010, Toney & Allstadt 2021), NaN at the first
+    record."""
+    total = ds["bed_force_x"] + ds["wall_force_x"] + ds["end_force_x"] + ds["pressure_force_x"]
+    return (
+        (total - ds["gravity_force_x"]).values,
+        (ds["bed_force_z"] - ds["gravity_force_z"]).values,
+    )
+
+
+def _peak(values: np.ndarray | None) -> float:
+    """The largest magnitude of ``values`` after the first record (NaN if none)."""
+    return float(np.abs(values[1:]).max()) if values is not None and values.size > 1 else float("nan")
+
+
+_MIXTURE_MEANS = dict(zip(MIXTURE_SUMMARY_KEYS, ("pore_pressure_excess", "phi")))
+
+
+def _wet_mean(final: xr.Dataset, name: str, wet: np.ndarray) -> float:
+    """Mean of ``name`` over the wet cells (NaN if none)."""
+    return float(final[name].values[wet].mean()) if wet.any() else float("nan")
 
 
 @dataclass

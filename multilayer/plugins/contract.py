@@ -14,6 +14,20 @@ A law may also declare a larger yield stress for material at rest, the start/sto
 applies at an interface whose two adjacent layers were both at rest at the start of the
 step, :meth:`Rheology.yield_stress` everywhere else.  It is optional: by default it is the
 flowing yield stress, so laws written without it behave as before.
+
+A law that needs a quantity of its column declares it in :attr:`Rheology.uses`; the engine
+then passes it to :meth:`~Rheology.yield_stress`, :meth:`~Rheology.static_yield_stress` and
+:meth:`~Rheology.viscosity` as a keyword argument of the shape of the pressure array.
+``"thickness"``: the thickness ``h`` of the column (m), the same at every interface and
+layer of a column (for a law with a thickness below which flow stops, Pouliquen & Forterre
+2002).  Laws that declare nothing are called exactly as before.
+
+In a grain–fluid mixture (docs/mixture.md) the engine passes the effective (grain-contact)
+pressure ``p_s`` as ``pressure`` (Terzaghi's principle) and calls
+:meth:`Rheology.mixture_yield_stress` and :meth:`Rheology.mixture_viscosity`, which also
+receive the :class:`MixtureState`; by default they ignore it and call
+:meth:`~Rheology.yield_stress` and :meth:`~Rheology.viscosity`, so every law runs in a
+mixture as a law of the effective pressure.
 """
 
 from __future__ import annotations
@@ -36,6 +50,24 @@ class Material:
     """Density rho_p of the grains, kg/m^3 (enters the inertial number)."""
 
 
+@dataclass(frozen=True)
+class MixtureState:
+    """What a law may read of a grain–fluid mixture at the interfaces of a call (arrays of
+    the shape of ``pressure``): the solid volume fraction ``phi`` of the layer above each
+    interface and the excess pore pressure (Pa) there, with the constants of the
+    dilatancy closure (Bouchut, Fernández-Nieto, Mangeney & Narbona-Reina 2016)."""
+
+    phi: np.ndarray
+    pore_pressure: np.ndarray
+    fluid_viscosity: float
+    """eta_f, Pa s."""
+    phi_critical: float
+    dilatancy: float
+    """K of ``tan(psi) = K (phi - phi_eq)``."""
+    critical_shift: float
+    """K2 of ``phi_eq = phi_c - K2 eta_f gamma / p_s``."""
+
+
 class Rheology:
     """Base class of rheology plugins.
 
@@ -47,6 +79,8 @@ class Rheology:
 
     name: ClassVar[str]
     applies_to: ClassVar[Literal["bulk", "walls"]] = "bulk"
+    uses: ClassVar[tuple[Literal["thickness"], ...]] = ()
+    """The column quantities the law is given as keyword arguments (module docstring)."""
 
     def yield_stress(self, pressure: np.ndarray, material: Material) -> np.ndarray:
         """Rate-independent yield stress kappa(p) >= 0, in Pa."""
@@ -63,6 +97,22 @@ class Rheology:
         """Rate-dependent part eta(|gamma|, p) >= 0, in Pa s, finite at gamma = 0."""
         raise NotImplementedError
 
+    def mixture_yield_stress(
+        self, pressure: np.ndarray, mixture: MixtureState, material: Material
+    ) -> np.ndarray:
+        """Yield stress (Pa) at the effective pressure ``pressure`` in a grain–fluid mixture.
+
+        Default: :meth:`yield_stress` (the law ignores the solid fraction)."""
+        return self.yield_stress(pressure, material)
+
+    def mixture_viscosity(
+        self, shear_rate: np.ndarray, pressure: np.ndarray, mixture: MixtureState, material: Material
+    ) -> np.ndarray:
+        """Viscous part (Pa s) at the effective pressure in a grain–fluid mixture.
+
+        Default: :meth:`viscosity`."""
+        return self.viscosity(shear_rate, pressure, material)
+
     def viscosity_kernel(self, material: Material) -> tuple[str, tuple[float, ...]] | None:
         """Optional: the viscous part as one of the compiled forms of the engine, so that
         the vertical step runs entirely compiled (docs/plugins.md, "Compiled forms").
@@ -72,6 +122,9 @@ class Rheology:
         * ``("constant", (eta,))``: ``eta``;
         * ``("inertial", (A, B, C))``: ``A p / (B sqrt(p) + C |gamma|)``, 0 where the
           denominator is 0 (Jop et al. 2006 mu(I));
+        * ``("inertial_quadratic", (A, B, C, D))``: ``(A p + D |gamma| sqrt(p)) / (B sqrt(p)
+          + C |gamma|)``, 0 where the denominator is 0 (mu(I) with Barker & Gray's 2017
+          high-I term), ``B > 0``;
         * ``("power", (A, e_p, e_g, floor))``: ``A p^e_p max(|gamma|, floor)^e_g``.
 
         The default, None, keeps this law on the numpy path (always correct).

@@ -124,17 +124,43 @@ class InviscidSimpleShear:
 # --------------------------------------------------------------------------- steady uniform flow
 
 
-def jop_inertial_number(theta_deg: float, mu_s: float, mu_2: float, I_0: float) -> float:
+def jop_inertial_number(theta_deg: float, mu_s: float, mu_2: float, I_0: float, mu_inf: float = 0.0) -> float:
     """``I_theta`` with ``mu(I_theta) = tan(theta)`` for the Jop et al. (2006) law.
 
     ``mu_s + (mu_2 - mu_s) I / (I_0 + I) = tan(theta)`` gives
     ``I_theta = I_0 (tan(theta) - mu_s) / (mu_2 - tan(theta))``; a steady flow needs
-    ``mu_s < tan(theta) < mu_2``.
+    ``mu_s < tan(theta) < mu_2``.  With the high-I term ``mu_inf I^2 / (I_0 + I)`` (Barker &
+    Gray 2017), ``mu_inf I^2 + (mu_2 - tan) I - (tan - mu_s) I_0 = 0``: its positive root,
+    for any ``tan(theta) > mu_s``.
     """
     tan = math.tan(math.radians(theta_deg))
+    if mu_inf > 0.0:
+        if not tan > mu_s:
+            raise ValueError(f"no steady flow: tan(theta) = {tan:.4g} <= mu_s = {mu_s:.4g}")
+        b, c = mu_2 - tan, (tan - mu_s) * I_0
+        return 2.0 * c / (b + math.sqrt(b * b + 4.0 * mu_inf * c))  # the positive root, without cancellation
     if not mu_s < tan < mu_2:
         raise ValueError(f"no steady flow: tan(theta) = {tan:.4g} is not between mu_s and mu_2")
     return I_0 * (tan - mu_s) / (mu_2 - tan)
+
+
+def pouliquen_h_stop(theta_deg: float, mu_1: float, mu_2: float, L: float) -> float:
+    """``h_stop(theta) = L (mu_2 - tan theta) / (tan theta - mu_1)`` (Forterre & Pouliquen
+    2003): the thickest uniform layer at rest on the slope ``theta`` under the friction
+    ``mu_stop(h) = mu_1 + (mu_2 - mu_1) / (1 + h / L)`` (its inverse), for ``mu_1 < tan theta
+    < mu_2``."""
+    tan = math.tan(math.radians(theta_deg))
+    if not mu_1 < tan < mu_2:
+        raise ValueError(f"no h_stop: tan(theta) = {tan:.4g} is not between mu_1 and mu_2")
+    return L * (mu_2 - tan) / (tan - mu_1)
+
+
+def pouliquen_beta(I_0: float, L: float, grain_diameter: float, density_ratio: float) -> float:
+    """``beta`` of Pouliquen's (1999) flow rule ``Fr = beta h / h_stop`` for the steady flow
+    of :class:`BagnoldFlow` under ``max(mu_stop(h), mu_J(I))`` (Jop, Forterre & Pouliquen
+    2005, appendix A): ``I_theta = I_0 L / h_stop`` and ``Fr = (2/5) sqrt(rho/rho_p) I_theta
+    h / d``, so ``beta = (2/5) sqrt(rho/rho_p) I_0 L / d``."""
+    return 0.4 * math.sqrt(density_ratio) * I_0 * L / grain_diameter
 
 
 def power_law_inertial_number(theta_deg: float, mu_s: float, m: float, alpha: float) -> float:

@@ -44,9 +44,19 @@ from multilayer.scenario.messages import (
     ordered,
 )
 
-Quantity = Literal["front_final", "mass_final", "runout", "max_speed_final", "static_interface_mean_final"]
+Quantity = Literal[
+    "front_final",
+    "mass_final",
+    "runout",
+    "max_speed_final",
+    "static_interface_mean_final",
+    "pore_pressure_bed_mean_final",
+    "phi_mean_final",
+]
 QUANTITIES: tuple[str, ...] = get_args(Quantity)
 """Quantities an ``expect`` entry can check (see multilayer.results.summary)."""
+MIXTURE_QUANTITIES = ("pore_pressure_bed_mean_final", "phi_mean_final")
+"""Those of a run with a fluid only."""
 
 _FRACTION_SUM_TOLERANCE = 1e-6
 
@@ -361,6 +371,7 @@ class InitialShape(StrictModel):
         None, "a CSV file with a header 'x (m), h (m)' (units m, cm, mm or km), relative to the scenario"
     )
     velocity: Velocity | None = field(None, "a velocity profile; default: at rest")
+    phi: float | None = field(None, "a solid volume fraction in (0, 1), with fluid only", gt=0, lt=1)
 
     @model_validator(mode="after")
     def _check(self, info: ValidationInfo) -> InitialShape:
@@ -373,9 +384,9 @@ class InitialShape(StrictModel):
             self,
             "shape",
             {
-                "layer": (("thickness",), ("velocity",)),
-                "rectangle": (("x_min", "x_max", "height"), ("velocity",)),
-                "profile": (("points",), ("velocity", "file")),
+                "layer": (("thickness",), ("velocity", "phi")),
+                "rectangle": (("x_min", "x_max", "height"), ("velocity", "phi")),
+                "profile": (("points",), ("velocity", "file", "phi")),
             },
         )
         if self.shape == "rectangle":
@@ -594,6 +605,22 @@ class Model(StrictModel):
                 )
 
 
+class Fluid(StrictModel):
+    """The pore and ambient fluid of a grain–fluid mixture (docs/mixture.md)."""
+
+    density: float = field(..., "a number >= 0 (kg/m^3), below material.particle_density", ge=0)
+    viscosity: float = field(..., "a number >= 0 (Pa s)", ge=0)
+
+
+class Mixture(StrictModel):
+    """The dilatancy closure of a grain–fluid mixture (docs/mixture.md)."""
+
+    phi_critical: float = field(..., "a number in (0, 1): the critical volume fraction at rest", gt=0, lt=1)
+    dilatancy: float = field(..., "a number >= 0: K of tan(psi) = K (phi - phi_eq)", ge=0)
+    critical_shift: float = field(..., "a number >= 0: K2 of phi_eq = phi_c - K2 eta_f gamma / p_s", ge=0)
+    kozeny: float = field(150.0, "a number > 0: the Carman-Kozeny constant; default 150", gt=0)
+
+
 class Scenario(StrictModel):
     """A validated scenario: attribute names are the YAML keys (docs/scenarios.md)."""
 
@@ -621,6 +648,8 @@ class Scenario(StrictModel):
     expect: list[Expect] = field([], "a list of {kind, quantity, value, rtol, atol, source}")
     numerics: Numerics = field(Numerics(), "a mapping of solver settings")
     model: Model = field(Model(), "a mapping with pressure")
+    fluid: Fluid | None = field(None, "{density, viscosity}; default: dry grains")
+    mixture: Mixture | None = field(None, "{phi_critical, dilatancy, critical_shift, kozeny}, with fluid")
 
     _source: Path | None = PrivateAttr(None)
 
@@ -668,7 +697,48 @@ class Scenario(StrictModel):
                 "entries whose x ranges cover [domain.x_min, domain.x_max]",
                 "base",
             )
+        self._check_mixture()
         return self
+
+    def _check_mixture(self) -> None:
+        """``fluid`` and ``mixture`` come together, with ``phi`` in every initial entry and
+        what the mixture's step supports (docs/mixture.md)."""
+        if (self.fluid is None) != (self.mixture is None):
+            key = "mixture" if self.mixture is None else "fluid"
+            raise invalid("fluid and mixture are given together", "both fluid and mixture, or neither", key)
+        for i, entry in enumerate(self.initial):
+            if (entry.phi is None) != (self.fluid is None):
+                need = "is required with fluid" if self.fluid is not None else "is accepted with fluid only"
+                raise invalid(
+                    f"phi {need}", "a solid volume fraction in (0, 1), with fluid only", f"initial.{i}.phi"
+                )
+        for i, check in enumerate(self.expect):
+            if self.fluid is None and check.quantity in MIXTURE_QUANTITIES:
+                raise invalid(
+                    f"{check.quantity} is a quantity of a grain-fluid mixture",
+                    ", ".join(q for q in QUANTITIES if q not in MIXTURE_QUANTITIES) + " without fluid",
+                    f"expect.{i}.quantity",
+                )
+        if self.fluid is None:
+            return
+        grains = self.material.particle_density or self.material.density
+        if not self.fluid.density < grains:
+            raise invalid(
+                f"fluid density {self.fluid.density} is not below the grain density {grains}",
+                "a number >= 0 below material.particle_density (kg/m^3)",
+                "fluid.density",
+            )
+        supported = (
+            (self.domain.layers == 1, "domain.layers", "1 with fluid (the layered closure is not available)"),
+            (self.model.pressure == "hydrostatic", "model.pressure", "hydrostatic with fluid"),
+            (self.walls is None, "walls", "no walls with fluid"),
+            (self.gate is None, "gate", "no gate with fluid"),
+            (self.boundaries.inflow is None, "boundaries", "wall, outflow or periodic sides with fluid"),
+            (all(z.condition == "no_slip" for z in self.base), "base", "no_slip with fluid"),
+        )
+        for ok, key, accepted in supported:
+            if not ok:
+                raise invalid("not supported with a fluid", accepted, key)
 
     @property
     def source(self) -> Path | None:

@@ -54,7 +54,14 @@ def summary_lines(summary: dict[str, float], threshold: float) -> list[str]:
     from multilayer.io.results import SUMMARY_UNITS
 
     none = f"no cell thicker than the front threshold ({threshold:g} m) at the end"
-    why = {"front_final": none, "runout": none, "static_interface_mean_final": none}
+    single = "a single output time: no interval to average the force over"
+    why = {
+        "front_final": none,
+        "runout": none,
+        "static_interface_mean_final": none,
+        "peak_seismic_force_x": single,
+        "peak_seismic_force_z": single,
+    }
     lines = []
     for key, value in summary.items():
         text = f"{value:.6g}" if isinstance(value, float) else f"{value}"

@@ -29,7 +29,7 @@ from multilayer.engine.state import moving_columns
 from multilayer.engine.threads import numba_threads, parallel_chunks
 from multilayer.engine.transport import boundaries
 from multilayer.engine.transport.boundaries import COPY, STATE, WRAP
-from multilayer.engine.transport.reference import MARGIN, step_boundary_mass
+from multilayer.engine.transport.reference import MARGIN, step_boundary_mass, step_mass_time
 
 TILE = 8192
 """Cells (columns x layers) of one tile of the sweep: its work arrays stay in the L2 cache."""
@@ -199,9 +199,9 @@ class Edges(NamedTuple):
 
 class Arrays(NamedTuple):
     """The state ``H`` (N,), ``U`` (L, N) and bed ``B`` (N,); Heun's first stage ``H1``,
-    ``Q1``; the result ``H_out``, ``U_out``; the mass fluxes through the window's end faces
-    per stage ``ends`` (2, 2); the fastest wave across each face of the window ``speeds``
-    (n + 1)."""
+    ``Q1``; the result ``H_out``, ``U_out``; the mass and momentum fluxes through the
+    window's end faces per stage ``ends`` (2, 4: mass left, right, momentum left, right);
+    the fastest wave across each face of the window ``speeds`` (n + 1)."""
 
     H: np.ndarray
     U: np.ndarray
@@ -369,9 +369,12 @@ def _tile(stage, t0, t1, window, scheme, edges, arrays, work):
         if t0 + f == 0 or t0 + f == n:
             seen_from_east = t0 + f == 0 and f == gate
             total = gate_h[0] if seen_from_east else fh[0, f]
+            momentum_total = gate_q[0] if seen_from_east else fq[0, f]
             for a in range(1, L):
                 total += gate_h[a] if seen_from_east else fh[a, f]
+                momentum_total += gate_q[a] if seen_from_east else fq[a, f]
             ends[stage, 0 if t0 + f == 0 else 1] = total
+            ends[stage, 2 if t0 + f == 0 else 3] = momentum_total
     # the cells: divergence of the layer mass fluxes, mass exchange, update
     for a in range(L):
         rate, mass = div_h[a], fh[a]
@@ -521,7 +524,7 @@ class Workspace:
         self.h = np.zeros(cells)
         self.u = np.zeros((layers, cells))
         self.written = (0, 0)
-        self.ends = np.zeros((2, 2))  # mass fluxes through the end faces, per stage
+        self.ends = np.zeros((2, 4))  # mass and momentum fluxes through the end faces, per stage
         self.speeds = np.zeros(cells + 1)  # the fastest wave across each face of the last stage
 
     def clear_outside(self, lo: int, hi: int) -> None:
@@ -557,6 +560,7 @@ def transport(
     threads: int = 1,
     boundary_mass: np.ndarray | None = None,
     stage_speed: np.ndarray | None = None,
+    boundary_momentum: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``reference.transport`` compiled: returns h^{n+1} (N,) and u* (L, N).
 
@@ -564,7 +568,8 @@ def transport(
     next use.  ``threads > 1`` sweeps the window in chunks of at least 64 columns
     (``threads.parallel_chunks``) on that many threads.
     ``boundary_mass`` (2,), if given, receives the mass that crossed the left and the
-    right boundary, positive in +x (as ``reference.transport``).
+    right boundary, positive in +x, and ``boundary_momentum`` (3,) the momentum and the
+    integral of the mass (as ``reference.transport``).
     """
     if opening is not None and gate_face is None:
         raise ValueError("transport: a gate opening was given without its gate_face")
@@ -598,7 +603,10 @@ def transport(
             Arrays(h, u, b, ws.h1, ws.q1, ws.h, ws.u, ws.ends, ws.speeds),
         )  # fmt: skip
     if boundary_mass is not None:
-        boundary_mass[:] = step_boundary_mass(ws.ends[:order], float(dt))
+        boundary_mass[:] = step_boundary_mass(ws.ends[:order, :2], float(dt))
+    if boundary_momentum is not None:
+        boundary_momentum[:2] = step_boundary_mass(ws.ends[:order, 2:], float(dt))
+        boundary_momentum[2] = step_mass_time(float(np.sum(h) * dx), ws.ends[:order, :2], float(dt))
     if stage_speed is not None:
         stage_speed[0] = ws.speeds[: n + 1].max() if order == 2 else 0.0
     return ws.h, ws.u

@@ -126,10 +126,10 @@ def _gated(flux_h, flux_q, hL, uL, hR, uR, l, g_n, gate):
 
 
 def _rates(h, u, b, l, *, dx, g_n, g_t, left, right, inflow, order, at_rest, gate=None):
-    """Time derivatives of h (N,) and of the layer momenta h_a u_a (L, N), the mass
-    fluxes through the two end faces and the fastest wave across a face that carries
-    mass (``max(-s_left, s_right)``); ``gate`` is ``(face, opening)``, a face of the
-    window and the opening fractions (L,) there."""
+    """Time derivatives of h (N,) and of the layer momenta h_a u_a (L, N), the mass and
+    the momentum fluxes through the two end faces (left, right, left, right) and the
+    fastest wave across a face that carries mass (``max(-s_left, s_right)``); ``gate`` is
+    ``(face, opening)``, a face of the window and the opening fractions (L,) there."""
     h_ext, u_ext, b_ext = _ghosts(h, u, b, left, right, inflow)
     # cells 1 .. N+2 of the extended arrays (interior plus one ghost per side)
     if order == 2:
@@ -186,8 +186,13 @@ def _rates(h, u, b, l, *, dx, g_n, g_t, left, right, inflow, order, at_rest, gat
     exchange[1:] -= u_G * G
 
     dq = -(east - west + bed_slope) / dx + exchange + g_t * l * h
-    # the mass fluxes through the two end faces, as the cells next to them see them
-    ends = (_layer_sum(flux_h_east[:, 0]), _layer_sum(flux_h_west[:, -1]))
+    # the mass and momentum fluxes through the two end faces, as the cells next to them see them
+    ends = (
+        _layer_sum(flux_h_east[:, 0]),
+        _layer_sum(flux_h_west[:, -1]),
+        _layer_sum(flux_q_east[:, 0]),
+        _layer_sum(flux_q_west[:, -1]),
+    )
     return -div_Q, dq, ends, fastest
 
 
@@ -204,16 +209,28 @@ def step_boundary_mass(stage_fluxes: np.ndarray, dt: float) -> np.ndarray:
     """Mass (m^2 per unit width) through the left and right end faces during a step of
     ``dt``, positive in +x, from the face mass fluxes of each stage ``(order, 2)``:
     ``dt F`` for forward Euler, ``dt (F_1 + F_2) / 2`` for Heun, whose update
-    ``h + dt (R(h) + R(h_1)) / 2`` weighs both stages by one half."""
+    ``h + dt (R(h) + R(h_1)) / 2`` weighs both stages by one half.  The same weights
+    give the momentum through the end faces from their momentum fluxes."""
     if stage_fluxes.shape[0] == 1:
         return dt * stage_fluxes[0]
     return 0.5 * dt * (stage_fluxes[0] + stage_fluxes[1])
 
 
+def step_mass_time(mass: float, stage_fluxes: np.ndarray, dt: float) -> float:
+    """The integral over the step of the mass per unit width that gravity acts on
+    (m^2 s): ``dt M`` for forward Euler, ``dt (M + M_1) / 2`` for Heun, whose first stage
+    holds ``M_1 = M - dt (F_right - F_left)`` (``mass`` = ``M`` at the start, the end-face
+    mass fluxes of the first stage in ``stage_fluxes[0]``)."""
+    if stage_fluxes.shape[0] == 1:
+        return dt * mass
+    return 0.5 * dt * (mass + (mass - dt * (stage_fluxes[0][1] - stage_fluxes[0][0])))
+
+
 def _step(h, u, b, l, *, dt, dry, **kw):
     """Forward Euler (order 1) or Heun (order 2) step of the transport rates; returns
-    h, u, the mass through the two end faces (``step_boundary_mass``) and the fastest
-    wave across a face that carries mass in Heun's second stage (0 at order 1)."""
+    h, u, the mass fluxes and the momentum fluxes through the two end faces of each stage
+    (order, 4) and the fastest wave across a face that carries mass in Heun's second stage
+    (0 at order 1)."""
 
     def velocity(h_, q_):
         wet = h_ > dry
@@ -232,7 +249,7 @@ def _step(h, u, b, l, *, dt, dry, **kw):
         stage_fluxes.append(ends)
         h1 = np.maximum(0.5 * (h + h1 + dt * dh), 0.0)
         q1 = 0.5 * (q + q1 + dt * dq)
-    return h1, velocity(h1, q1), step_boundary_mass(np.array(stage_fluxes), dt), stage_speed
+    return h1, velocity(h1, q1), np.array(stage_fluxes), stage_speed
 
 
 MARGIN = 4
@@ -260,6 +277,7 @@ def transport(
     opening: np.ndarray | None = None,
     boundary_mass: np.ndarray | None = None,
     stage_speed: np.ndarray | None = None,
+    boundary_momentum: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """One explicit transport step: returns h^{n+1} (N,) and the velocities u* (L, N).
 
@@ -272,7 +290,11 @@ def transport(
     boundary during the step, positive in +x (the mass balance of ``state_check``).
     ``stage_speed`` (1,), if given, receives the fastest wave (HLL speed) across a face
     that carries mass in Heun's second stage (0 at order 1): the step keeps ``h >= 0``
-    only if ``dt`` meets the Courant condition of that stage too.
+    only if ``dt`` meets the Courant condition of that stage too.  ``boundary_momentum``
+    (3,), if given, receives the momentum per unit width and density (m^3/s) that crossed
+    the left and the right boundary, positive in +x, and the integral over the step of
+    the mass that gravity acts on (``step_mass_time``): the terms of the transport's
+    momentum balance (``engine/bed_force.py``).
     """
     if opening is not None and gate_face is None:
         raise ValueError("transport: a gate opening was given without its gate_face")
@@ -299,7 +321,7 @@ def transport(
     if opening is not None and gate_face is not None and lo <= gate_face <= hi:
         gate = (gate_face - lo, np.asarray(opening, dtype=float))
     h_new, u_new = np.zeros_like(h), np.zeros_like(u)
-    h_new[window], u_new[:, window], crossed, fastest = _step(
+    h_new[window], u_new[:, window], stage_fluxes, fastest = _step(
         hw,
         uw,
         b[window],
@@ -316,8 +338,12 @@ def transport(
         at_rest=at_rest,
         gate=gate,
     )
+    # a window edge inside the domain is dry: no flux there
     if boundary_mass is not None:
-        boundary_mass[:] = crossed  # a window edge inside the domain is dry: no flux there
+        boundary_mass[:] = step_boundary_mass(stage_fluxes[:, :2], dt)
+    if boundary_momentum is not None:
+        boundary_momentum[:2] = step_boundary_mass(stage_fluxes[:, 2:], dt)
+        boundary_momentum[2] = step_mass_time(float(np.sum(h) * dx), stage_fluxes[:, :2], dt)
     if stage_speed is not None:
         stage_speed[0] = fastest
     return h_new, u_new

@@ -29,8 +29,11 @@ from multilayer.engine.vertical.stresses import ColumnStresses, StressModel
 def yield_law_of(rheology, material) -> tuple[float, float] | None:
     """``(mu, mu_static)`` of a plugin's compiled yield part, None if it has none (or if
     a subclass or the instance redefines ``yield_stress`` or ``static_yield_stress``
-    below the class that declares the form)."""
-    if not describes(rheology, "yield_stress_kernel", ("yield_stress", "static_yield_stress")):
+    below the class that declares the form, or if it uses a column quantity: the compiled
+    forms take none)."""
+    if getattr(rheology, "uses", ()) or not describes(
+        rheology, "yield_stress_kernel", ("yield_stress", "static_yield_stress")
+    ):
         return None
     declared = declared_form(rheology, "yield_stress_kernel", material, {"frictional": 2})
     if declared is None:
@@ -248,7 +251,7 @@ class CompiledCoefficients:
         m, kappa, w, pressure, spacing, viscous, wall_pressure = arrays
         return ColumnStresses(
             m=m, kappa=kappa, w=w, pressure=pressure, spacing=spacing, viscous=viscous,
-            wall_pressure=wall_pressure, x=s.x[where],
+            wall_pressure=wall_pressure, x=s.x[where], thickness=h[where],
         )  # fmt: skip
 
     def _arrays(self, L: int, n: int) -> tuple[np.ndarray, ...]:

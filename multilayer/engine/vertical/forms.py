@@ -4,7 +4,9 @@ Newton model one value at a time, and whether the form a plugin declares describ
 A rheology plugin may declare its viscosity as one of the compiled forms of
 :data:`FORMS` (``Rheology.viscosity_kernel``, docs/plugins.md), for ``p = max(p, 0)``:
 ``constant``, ``eta``; ``inertial``, ``A p / (B sqrt(p) + C |gamma|)`` (the mu(I) law of
-Jop, Forterre & Pouliquen 2006, eq. 2, less its yield part); ``power``, ``A p^e_p
+Jop, Forterre & Pouliquen 2006, eq. 2, less its yield part); ``inertial_quadratic``,
+``(A p + D |gamma| sqrt(p)) / (B sqrt(p) + C |gamma|)`` (the same with the high-I term
+``mu_inf I^2 / (I_0 + I)`` of Barker & Gray 2017); ``power``, ``A p^e_p
 max(|gamma|, floor)^e_g``.  The compiled vertical step (``newton_kernel``,
 ``sheared_columns``) evaluates them here, with the factors that depend on the pressure
 only computed once per layer and step (:func:`_pressure_part`).
@@ -42,11 +44,16 @@ class Form:
     parameters: int
 
 
-CONSTANT, INERTIAL, POWER = 0, 1, 2
+CONSTANT, INERTIAL, POWER, INERTIAL_QUADRATIC = 0, 1, 2, 3
 """The codes of the built-in forms (the branches of :func:`_viscosity_and_slope`)."""
 FORMS = {
     form.name: form
-    for form in (Form("constant", CONSTANT, 1), Form("inertial", INERTIAL, 3), Form("power", POWER, 4))
+    for form in (
+        Form("constant", CONSTANT, 1),
+        Form("inertial", INERTIAL, 3),
+        Form("power", POWER, 4),
+        Form("inertial_quadratic", INERTIAL_QUADRATIC, 4),
+    )
 }
 """The compiled viscosity forms by name."""
 
@@ -58,8 +65,9 @@ def law_of(rheology: Any, material: Any) -> tuple[int, np.ndarray] | None:
 
     A compiled form describes the ``viscosity`` of the class that declares it: where a
     subclass (or the instance) redefines ``viscosity`` below that class, the form is not
-    used, and the step runs the plugin's own ``viscosity`` (numpy path)."""
-    if not describes(rheology, "viscosity_kernel", ("viscosity",)):
+    used, and the step runs the plugin's own ``viscosity`` (numpy path); so does a law that
+    uses a column quantity (``Rheology.uses``: the compiled forms take none)."""
+    if getattr(rheology, "uses", ()) or not describes(rheology, "viscosity_kernel", ("viscosity",)):
         return None
     parameters = {name: form.parameters for name, form in FORMS.items()}
     declared = declared_form(rheology, "viscosity_kernel", material, parameters)
@@ -72,7 +80,11 @@ def law_of(rheology: Any, material: Any) -> tuple[int, np.ndarray] | None:
 def concave(form, params):
     """True when the viscous stress ``eta(rate) rate`` of a compiled form is concave in the
     rate (the tangent and chord bounds of ``newton_control.energy_rise`` hold): constant
-    and inertial forms, the power form with ``e_g <= 0``."""
+    and inertial forms, the power form with ``e_g <= 0``, the inertial_quadratic form with
+    ``A C >= B D`` (its stress is ``D/C`` times the rate plus an inertial one of
+    coefficient ``A - B D / C``)."""
+    if form == INERTIAL_QUADRATIC:
+        return params[0] * params[2] >= params[1] * params[3]
     return form == CONSTANT or form == INERTIAL or (form == POWER and params[2] <= 0.0)
 
 
@@ -95,7 +107,7 @@ def _pressure_part(form, params, p):
     p = max(p, 0.0)
     if form == CONSTANT:
         return params[0], 0.0
-    if form == INERTIAL:
+    if form == INERTIAL or form == INERTIAL_QUADRATIC:
         return params[0] * p, params[1] * np.sqrt(p)
     return params[0] * p ** params[1], 0.0  # POWER
 
@@ -107,7 +119,9 @@ def _viscosity_and_slope(form, params, rate, factor, offset):
     ``factor, offset = _pressure_part(form, params, p)``.
 
     The slope is exact: ``eta`` for the constant form; ``eta B sqrt(p) / (B sqrt(p) +
-    C rate)`` for the inertial form (``eta`` at rest); ``(1 + e_g) eta`` above the
+    C rate)`` for the inertial form (``eta`` at rest); for the inertial_quadratic one, with
+    ``o = B sqrt(p)``, ``E = D / B``: ``eta = (A p + E o rate) / (o + C rate)`` and the slope
+    ``(A p o + E o rate (2 o + C rate)) / (o + C rate)^2``; ``(1 + e_g) eta`` above the
     floor of the power form, ``eta`` below it.
     """
     if form == CONSTANT:
@@ -118,6 +132,15 @@ def _viscosity_and_slope(form, params, rate, factor, offset):
             inverse = 1.0 / denominator
             eta = factor * inverse
             return eta, eta * offset * inverse
+        return 0.0, 0.0
+    if form == INERTIAL_QUADRATIC:
+        denominator = offset + params[2] * rate
+        if denominator > 0.0:
+            inverse = 1.0 / denominator
+            e = params[3] / params[1] * offset * rate
+            return (factor + e) * inverse, (
+                factor * offset + e * (2.0 * offset + params[2] * rate)
+            ) * inverse * inverse
         return 0.0, 0.0
     if rate > params[3]:  # POWER
         eta = factor * rate ** params[2]

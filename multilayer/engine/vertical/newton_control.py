@@ -215,11 +215,15 @@ def examine_columns(
 
     The columns are copied to contiguous rows first, so that one compilation of the two
     functions, the one of the compiled step (``newton_kernel``), serves every layout."""
-    rows = [np.ascontiguousarray(np.transpose(a), dtype=float) for a in (inertia, momentum, kappa, viscous)]
-    rows += [np.ascontiguousarray(np.transpose(a), dtype=float) for a in (w, wall_viscous, start, u)]
+    rows = _rows(inertia, momentum, kappa, viscous, w, wall_viscous, start, u)
     return _examine_compiled(
         *rows, np.ascontiguousarray(np.moveaxis(at_start, 2, 0), dtype=float), bool(concave)
     )
+
+
+def _rows(*arrays: np.ndarray) -> list[np.ndarray]:
+    """(L, N) arrays as contiguous (N, L) float rows: one compilation serves every layout."""
+    return [np.ascontiguousarray(np.transpose(a), dtype=float) for a in arrays]
 
 
 def _examine_rows(inertia, momentum, kappa, viscous, w, wall_viscous, start, u, at_start, concave):
@@ -252,9 +256,9 @@ def slopes_along(
     side: float,
 ) -> np.ndarray:
     """:func:`slope_along` of every column of (L, N) arrays: (N,)."""
-    rows = [np.ascontiguousarray(np.transpose(a), dtype=float) for a in (inertia, momentum, kappa, viscous)]
-    rows += [np.ascontiguousarray(np.transpose(a), dtype=float) for a in (w, wall_viscous, start, end, v)]
-    return _slopes_compiled(*rows, float(side))
+    return _slopes_compiled(
+        *_rows(inertia, momentum, kappa, viscous, w, wall_viscous, start, end, v), float(side)
+    )
 
 
 @jit

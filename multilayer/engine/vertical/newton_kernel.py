@@ -413,15 +413,15 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
                     iterations[j] = iteration
                     break
                 continue
-            # the damped step: the minimiser of phi(t) = E(current + t (new - current)) on [0, 1]
+            # the damped step: the minimiser of phi(t) = E(current + t (new - current)) on [0, 1],
+            # bisected on the sign of phi'(t+); the closing pass evaluates the point taken
             size = 0.0
             for a in range(L):
                 size = max(size, abs(new[a] - current[a]))
             lo, hi = 0.0, 1.0
-            for _ in range(HALVINGS):
-                if not (hi - lo) * size > threshold:
-                    break
-                mid = 0.5 * (lo + hi)
+            for halving in range(HALVINGS + 1):
+                closing = halving == HALVINGS or not (hi - lo) * size > threshold
+                mid = (lo if lo > 0.0 else hi) if closing else 0.5 * (lo + hi)
                 for a in range(L):
                     proposal[a] = current[a] + mid * (new[a] - current[a])
                 fault, fault_values[j, 0], fault_values[j, 1] = _true_stresses(
@@ -429,7 +429,7 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
                     slope_n, walls, inverse_half, wall_form, wall_params, wall_factor, wall_offset, per_area,
                     weta_n, wslope_n, state_n,
                 )  # fmt: skip
-                if fault != 0:
+                if fault != 0 or closing:
                     break
                 if slope_along(
                     inertia, momentum, kappa, state_n[0], wall_true, state_n[2], current, new, proposal, 1.0
@@ -439,14 +439,10 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
                     lo = mid
             if fault != 0:
                 break
-            t = lo if lo > 0.0 else hi
-            for a in range(L):
-                current[a] = current[a] + t * (new[a] - current[a])
-            fault, fault_values[j, 0], fault_values[j, 1] = _true_stresses(
-                current, inverse_spacing, conductance, bulk_form, bulk_params, factor, offset, eta_c,
-                slope_c, walls, inverse_half, wall_form, wall_params, wall_factor, wall_offset, per_area,
-                weta_c, wslope_c, state_c,
-            )  # fmt: skip
+            current, proposal = proposal, current
+            eta_c, eta_n, slope_c, slope_n = eta_n, eta_c, slope_n, slope_c
+            weta_c, weta_n, wslope_c, wslope_n = weta_n, weta_c, wslope_n, wslope_c
+            state_c, state_n = state_n, state_c
         faults[j] = fault
         for a in range(L):
             u_out[a, col] = current[a]

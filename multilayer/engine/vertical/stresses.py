@@ -44,6 +44,7 @@ class ColumnStresses:
     viscous: np.ndarray  # True where interface k carries the bulk viscosity (L, N)
     wall_pressure: np.ndarray  # mean layer pressures pbar_a (L, N)
     x: np.ndarray  # position of each column (N,), for messages
+    thickness: np.ndarray  # thickness h of each column (N,), for the laws that use it
 
 
 INTERFACE = "interface {index} (0 is the bed)"
@@ -100,7 +101,7 @@ class StressModel:
         g_k = self.g_n if yield_gravity is None else yield_gravity[:, where]
         p = rho * g_k * self.depth_interface * h
         x = self.x[where]
-        kappa = self._call(self.bulk, "yield_stress", (p, self.material), {"pressure": p}, x, INTERFACE)
+        kappa = self._call(self.bulk, "yield_stress", (p, self.material), {"pressure": p}, x, INTERFACE, h)
         if rest is not None:
             rest = rest[:, where]
             # interface k lies below layer k: static where layer k and the one below it
@@ -108,20 +109,13 @@ class StressModel:
             static = rest & np.vstack([np.ones_like(rest[:1]), rest[:-1]])
             if static.any():
                 kappa_static = self._call(
-                    self.bulk, "static_yield_stress", (p, self.material), {"pressure": p}, x, INTERFACE
+                    self.bulk, "static_yield_stress", (p, self.material), {"pressure": p}, x, INTERFACE, h
                 )
                 kappa = np.where(static, kappa_static, kappa)
         viscous = np.ones(p.shape, dtype=bool)
         kappa[0] = np.where(bulk, kappa[0], friction * p[0] + cohesion)  # the basal condition
         viscous[0] = bulk
-        pbar = rho * self.g_n * self.depth_centre * h
-        if self.walls is not None:
-            tau_w = self._call(
-                self.walls, "yield_stress", (pbar, self.material), {"pressure": pbar}, x, LAYER
-            )
-            w = (2.0 / self.width) * self.l * h * tau_w
-        else:
-            w = np.zeros_like(p)
+        pbar, w = self._wall_thresholds(h, x)
         return ColumnStresses(
             m=rho * self.l * h,
             kappa=kappa,
@@ -131,10 +125,46 @@ class StressModel:
             viscous=viscous,
             wall_pressure=pbar,
             x=x,
+            thickness=h,
         )
 
-    def _call(self, law, method, args, inputs, x, position) -> np.ndarray:
-        return call(law, method, args, inputs=inputs, x=x, position=position, t=self.t)
+    def _wall_thresholds(self, h: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The mean layer pressures ``pbar_a`` and the wall yield thresholds per unit area
+        ``(2 / W) h_a tau_w(pbar_a)`` (zero without walls) of columns of thickness ``h``."""
+        pbar = self.material.density * self.g_n * self.depth_centre * h
+        if self.walls is None:
+            return pbar, np.zeros_like(pbar)
+        tau_w = self._call(self.walls, "yield_stress", (pbar, self.material), {"pressure": pbar}, x, LAYER, h)
+        return pbar, (2.0 / self.width) * self.l * h * tau_w
+
+    def wall_forces(self, h: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The side walls' yield thresholds ``w_a`` and viscous forces ``|F_v|`` per unit
+        area of each layer (L, N) at the velocities ``u``: a layer moving at ``u_a`` is held
+        by ``sgn(u_a) (w_a + |F_v|)``, one at rest by at most ``w_a`` (Jop, Forterre &
+        Pouliquen 2005); zero without walls."""
+        threshold, viscous = np.zeros_like(u), np.zeros_like(u)
+        wet = np.flatnonzero(h > 0)
+        if self.walls is None or wet.size == 0:
+            return threshold, viscous
+        x, half = self.x[wet], 0.5 * self.width
+        pbar, threshold[:, wet] = self._wall_thresholds(h[wet], x)
+        rate = np.abs(u[:, wet]) / half
+        per_area = (2.0 / self.width) * self.l * h[wet]
+        inputs = {"shear rate": rate, "pressure": pbar}
+        eta = self._call(self.walls, "viscosity", (rate, pbar, self.material), inputs, x, LAYER, h[wet])
+        viscous[:, wet] = per_area * eta * rate
+        return threshold, viscous
+
+    def _call(self, law, method, args, inputs, x, position, thickness) -> np.ndarray:
+        """``law.method(*args)`` checked (``plugin_output.call``), given the column
+        thickness (N,) as ``thickness=`` (broadcast to the shape of the pressure) if the law
+        declares it in ``uses``."""
+        keywords = None
+        if "thickness" in getattr(law, "uses", ()):
+            shape = np.shape(next(iter(inputs.values())))
+            keywords = {"thickness": np.broadcast_to(thickness, shape)}
+            inputs = {**inputs, "thickness": keywords["thickness"]}
+        return call(law, method, args, inputs=inputs, x=x, position=position, t=self.t, keywords=keywords)
 
     def linearise(
         self,
@@ -224,4 +254,6 @@ class StressModel:
 
     def _viscosity(self, law, rate, pressure, cs, position) -> np.ndarray:
         inputs = {"shear rate": rate, "pressure": pressure}
-        return self._call(law, "viscosity", (rate, pressure, self.material), inputs, cs.x, position)
+        return self._call(
+            law, "viscosity", (rate, pressure, self.material), inputs, cs.x, position, cs.thickness
+        )

@@ -13,6 +13,8 @@ from multilayer.validation.cases import (
     erodible_bed,
     erodible_pressure,
     static_interface,
+    stopping,
+    submarine_collapse,
 )
 from multilayer.validation.runs import Context
 
@@ -22,10 +24,12 @@ SECTIONS: dict[str, Callable[[Context], str]] = {
         static_interface,
         dam_break,
         bagnold,
+        stopping,
         chute,
         column_collapse,
         erodible_bed,
         erodible_pressure,
+        submarine_collapse,
     )
 }
 """Section name -> the case's section, in report order."""

@@ -1,0 +1,195 @@
+"""The force the flow exerts on its bed, its side walls and its end walls, step by step.
+
+What long-period seismic waves record of a landslide is the force it exerts on the
+Earth (Favreau, Mangeney, Lucas, Crosta & Bouchut 2010; Allstadt 2013): by action and
+reaction ``F = M g - dP/dt`` for a flow of mass ``M`` and momentum ``P``, whose departure
+from the static weight, ``F - M g = -dP/dt``, is the seismic single force.  The sign
+convention is that of the inversions: the force *on the Earth* (Toney & Allstadt 2021,
+lsforce), here per unit channel width (N/m) in the frame of the slope, ``x`` downslope and
+``z`` normal, positive into the bed.
+
+Each term is read from the step's own numbers, so that the impulses of a step balance its
+change of momentum to round-off:
+
+- **bed, downslope** (``bed_force_x``): the vertical step solves per column
+  ``m_a (u_a - u*_a) = dt (sigma_{a+1} - sigma_a - F_a)`` with ``sigma_L = 0``; summed
+  from the surface down, ``dt sigma_0`` is the impulse the column passes to the bed, the
+  side-wall forces ``F_a`` taken out (a moving layer's from the wall law; a layer at
+  rest's up to the walls' yield threshold, the rest passed down: the share of material
+  at rest is statically indeterminate).  Added to it, the transport's change of momentum
+  that gravity and the end faces do not carry: the pressure on the relief of the bed
+  (the source terms of the hydrostatic reconstruction, Audusse, Bouchut, Bristeau, Klein
+  & Perthame 2004), a gate, and the momentum the transport leaves in cells it keeps dry.
+- **side walls** (``wall_force_x``): ``dt sum_a F_a`` of the vertical step.
+- **end walls** (``end_force_x``, ``wall`` boundaries): the momentum flux of the transport
+  through the end face, ``rho g cos(theta) h^2 / 2`` for material at rest against it.
+- **pressure** (``pressure_force_x``): the non-hydrostatic pressure model's change of
+  horizontal momentum, the force of that pressure on the relief of the bed and on the end
+  walls (zero for the hydrostatic pressure).
+- **bed, normal** (``bed_force_z``): ``rho g cos(theta) h`` integrated over the step as
+  the transport's gravity is (``gravity_force_z``), plus the step's change of the normal
+  momentum ``rho sum_a h_a wbar_a dx`` of the non-hydrostatic pressure model (the bed is
+  all the flow can push normal to the plane): the pressure at the bed ``rho q_0`` of the
+  projection, and the normal momentum the model drops where material stops (``w = 0``
+  there) or changes in its advection of ``w``, which is not in conservative form.
+- gravity along the slope on the flow (``gravity_force_x``) and the momentum leaving
+  through open boundaries (``outflow_momentum_x``), which is no force on the Earth.
+
+The impulses accumulate until :meth:`BedForce.take`, which returns their means over the
+time since the last one: with output times ``t_k``, the downslope momentum per unit width
+obeys ``P(t_k) - P(t_{k-1}) = (t_k - t_{k-1}) (gravity - bed - walls - ends - pressure -
+outflow)`` to round-off (docs/results.md).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from multilayer.engine.compiled import jit
+from multilayer.engine.state import FlowState, span
+from multilayer.engine.transport import boundaries
+from multilayer.engine.vertical.stresses import StressModel
+
+FORCES = (
+    "bed_force_x",
+    "bed_force_z",
+    "wall_force_x",
+    "end_force_x",
+    "pressure_force_x",
+    "gravity_force_x",
+    "gravity_force_z",
+    "outflow_momentum_x",
+)
+"""The accumulated terms (module docstring), each a force per unit width (N/m) once divided
+by the time."""
+
+
+class BedForce:
+    """The impulses of the steps since the last :meth:`take` (module docstring)."""
+
+    def __init__(
+        self,
+        stresses: StressModel,
+        fractions: np.ndarray,
+        dx: float,
+        g_n: float,
+        g_t: float,
+        left: str,
+        right: str,
+    ):
+        self.stresses = stresses
+        self.rho = stresses.material.density
+        self.l = fractions[:, None]
+        self.dx, self.g_n, self.g_t = dx, g_n, g_t
+        self.walls = tuple(boundaries.rule(kind) == boundaries.MIRROR for kind in (left, right))
+        self.impulse = np.zeros(len(FORCES))
+        """Impulses per unit width (N s/m) since the last :meth:`take`, in the order of FORCES."""
+        self.elapsed = 0.0
+        """Time (s) since the last :meth:`take`."""
+        #: momentum (per unit density) through the left and right end faces in the last
+        #: transport and the integral of its mass over the step (filled by the transport)
+        self.transport_terms = np.zeros(3)
+
+    def momentum(self, h: np.ndarray, u: np.ndarray) -> float:
+        """Momentum per unit width ``rho sum_a h_a u_a dx`` (kg/s) of the layer velocities
+        ``u`` (downslope; normal with the vertical velocities ``w``)."""
+        return self.rho * self.dx * float(np.sum(self.l * h * u))
+
+    def record(
+        self,
+        start: FlowState,
+        transported: tuple[np.ndarray, np.ndarray],
+        u_vertical: np.ndarray,
+        end: tuple[np.ndarray, dict[str, np.ndarray]],
+        dt: float,
+    ) -> None:
+        """Add the impulses of a step of ``dt``: from the state ``start`` the transport gave
+        ``transported`` (h, u*), the vertical step ``u_vertical`` and the pressure model
+        ``end`` (u, its layer fields)."""
+        (h, ustar), (u, fields) = transported, end
+        left, right, mass_time = self.transport_terms
+        rho = self.rho
+        walled = self.stresses.walls is not None
+        # the side walls' thresholds and viscous forces (not read without walls)
+        threshold, viscous = self.stresses.wall_forces(h, u_vertical) if walled else (ustar, ustar)
+        w = fields.get("w", start.w)  # the normal velocities (zero but with the non-hydrostatic pressure)
+        first, last = span(start.h + h)  # every column holding material before or after the step
+        sums = _sums(
+            self.l[:, 0], start.h, start.u, start.w, h, ustar, u_vertical, u, w, walled, threshold,
+            viscous, rho, dt, first, last,
+        )  # fmt: skip
+        before, transported_, vertical, after, normal_before, normal_after, basal, walls = (
+            rho * self.dx * sums
+        )
+        gravity = rho * self.g_t * mass_time
+        end_walls = rho * ((-left if self.walls[0] else 0.0) + (right if self.walls[1] else 0.0))
+        outflow = rho * ((0.0 if self.walls[1] else right) - (0.0 if self.walls[0] else left))
+        # what the end faces and gravity do not carry in the transport
+        relief = gravity + rho * (left - right) - (transported_ - before)
+        weight = rho * self.g_n * mass_time
+        normal = weight + (normal_after - normal_before)
+        pressure = vertical - after
+        self.impulse += (
+            relief + basal / rho,
+            normal,
+            walls / rho,
+            end_walls,
+            pressure,
+            gravity,
+            weight,
+            outflow,
+        )
+        self.elapsed += dt
+
+    def take(self) -> dict[str, float]:
+        """The mean of each term over the time since the last call (N/m; NaN when no time
+        has passed), and a fresh start."""
+        means = self.impulse / self.elapsed if self.elapsed > 0 else np.full(len(FORCES), np.nan)
+        self.impulse[:] = 0.0
+        self.elapsed = 0.0
+        return dict(zip(FORCES, (float(v) for v in means), strict=True))
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """The impulses and the time since the last :meth:`take` (a checkpoint between outputs)."""
+        return {"force_impulse": self.impulse.copy(), "force_elapsed": np.asarray(self.elapsed)}
+
+    def load_state(self, saved: dict) -> None:
+        """Restore :meth:`state_dict` (none saved: a fresh start)."""
+        self.impulse[:] = saved.get("force_impulse", 0.0)
+        self.elapsed = float(saved.get("force_elapsed", 0.0))
+
+
+@jit
+def _sums(l, h0, u0, w0, h, ustar, u_vertical, u, w, walled, threshold, viscous, rho, dt, first, last):
+    """Over the columns ``first .. last-1``, per unit density and cell width: the downslope
+    momenta ``sum_a l_a h u`` at the start, after the transport, after the vertical step
+    and at the end of a step, the normal momenta at its start and end, and the impulses per
+    unit area on the bed and on the side walls in the vertical step times ``rho``, from
+    the surface down (module docstring): ``passed`` is ``dt sigma`` above the layer, a
+    moving layer's wall force is ``sgn(u_a) dt (threshold + viscous)``, a resting layer's
+    the load up to ``dt threshold`` (none unless ``walled``)."""
+    out = np.zeros(8)
+    for i in range(first, last):
+        passed = 0.0
+        for a in range(l.size - 1, -1, -1):
+            m0, m = l[a] * h0[i], l[a] * h[i]
+            out[0] += m0 * u0[a, i]
+            out[1] += m * ustar[a, i]
+            out[2] += m * u_vertical[a, i]
+            out[3] += m * u[a, i]
+            out[4] += m0 * w0[a, i]
+            out[5] += m * w[a, i]
+            load = passed + rho * m * (ustar[a, i] - u_vertical[a, i])
+            limit = dt * threshold[a, i] if walled else 0.0
+            if not walled:
+                held = 0.0
+            elif u_vertical[a, i] > 0.0:
+                held = limit + dt * viscous[a, i]
+            elif u_vertical[a, i] < 0.0:
+                held = -(limit + dt * viscous[a, i])
+            else:
+                held = min(max(load, -limit), limit)
+            out[7] += held
+            passed = load - held
+        out[6] += passed
+    return out

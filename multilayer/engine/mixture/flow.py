@@ -1,0 +1,148 @@
+"""A grain–fluid mixture in the time loop: its state, its transport and its local step
+(docs/mixture.md, "The mixture in x").
+
+The mixture (volume ``h``, solid ``s_a`` per layer, one velocity per layer) lies under an
+ambient fluid at rest whose free surface is horizontal and far above.  The fluid's
+hydrostatic pressure then balances its own weight, and the mixture feels the buoyant
+weight of its grains: per unit volume ``phi (rho_s - rho_f) g``, a fraction
+``r = phi (rho_s - rho_f) / (rho_s phi + rho_f (1 - phi))`` of the mixture's weight.  The
+transport in x runs with the gravity reduced by ``r`` of the initial packing (its waves
+and the pressure gradient); the local step adds the difference of the buoyant weight
+along the slope of the packing each column has now, so that the downslope force is exact
+(the pressure gradient keeps the initial ``r``: ``phi`` changes it by a few per cent).
+
+Conservation: the solid ``sum s dx`` changes only through the end faces
+(:mod:`~multilayer.engine.mixture.solid_transport`, checked every step like the mass),
+and the fluid the mixture draws in or expels when it dilates or contracts is taken from
+or given to the ambient fluid of the same column: the mixture volume balances the
+boundary fluxes plus that exchange, which :attr:`MixtureFlow.ambient_exchange` records.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from multilayer.engine.config import MixtureConfig
+from multilayer.engine.mixture import solid_transport
+from multilayer.engine.mixture.local_step import LocalStep
+from multilayer.engine.state import FlowState
+from multilayer.engine.state_check import StateGuard
+from multilayer.plugins.contract import Material, Rheology
+
+
+def buoyant_fraction(phi: np.ndarray | float, rho_s: float, rho_f: float) -> np.ndarray | float:
+    """``r = phi (rho_s - rho_f) / (rho_s phi + rho_f (1 - phi))``: the buoyant weight of
+    the grains over the weight of the mixture."""
+    return phi * (rho_s - rho_f) / (rho_s * phi + rho_f * (1.0 - phi))
+
+
+class MixtureFlow:
+    """The mixture of a simulation: the fields ``solid`` and ``pore_pressure`` of its
+    ``state`` (the solid initially ``phi0 h`` per layer), and its step."""
+
+    def __init__(
+        self,
+        config: MixtureConfig,
+        state: FlowState,
+        phi0: np.ndarray,
+        law: Rheology,
+        material: Material,
+        *,
+        fractions: np.ndarray,
+        x: np.ndarray,
+        dx: float,
+        g_n: float,
+        g_t: float,
+        periodic: bool,
+        tolerance: float,
+        max_iterations: int,
+    ):
+        self.config = config
+        self.fractions, self.dx, self.x, self.periodic = fractions, dx, x, periodic
+        self.g_t = g_t
+        self.rho_s, self.rho_f = material.particle_density, config.fluid_density
+        self.solid = state.add_field("solid")
+        """Solid volume per layer ``s_a`` (L, N), m."""
+        self.solid[...] = phi0 * fractions[:, None] * state.h
+        self.pore_pressure = state.add_field("pore_pressure")
+        """Excess pore pressure at the bottom of each layer (L, N), Pa (``[0]``: at the bed)."""
+        volume = float(state.h.sum())
+        mean = float(self.solid.sum()) / volume if volume > 0.0 else float(np.mean(phi0))
+        self.reduction = float(buoyant_fraction(mean, self.rho_s, self.rho_f))
+        """``r`` of the initial mean packing: the transport's gravity is reduced by it."""
+        self.local = LocalStep(config, law, material, fractions, g_n, tolerance, max_iterations)
+        self.guard = StateGuard(x, dx)
+        self.reset(0)
+        self.ambient_exchange = 0.0
+        """Fluid volume (m^2 per unit width) the mixture drew from the ambient fluid since the start."""
+        self.pending: dict[str, np.ndarray] = {}
+        self.transported = state.h
+        self._crossed = np.zeros(2)
+        self._before = self.solid
+
+    def reset(self, steps: int) -> None:
+        """Take the present solid as the reference of its balance (the start, or a restored state)."""
+        self.guard.reset(self.solid.sum(axis=0), steps)
+
+    def phi(self, h: np.ndarray) -> np.ndarray:
+        """Depth-averaged solid fraction (N,) at thickness ``h`` (0 where dry)."""
+        wet = h > 0.0
+        return np.where(wet, self.solid.sum(axis=0) / np.where(wet, h, 1.0), 0.0)
+
+    def phi_layers(self, h: np.ndarray) -> np.ndarray:
+        """Solid fraction of each layer (L, N) (0 where dry)."""
+        room = self.fractions[:, None] * h
+        return np.where(room > 0.0, self.solid / np.where(room > 0.0, room, 1.0), 0.0)
+
+    def step(
+        self,
+        h_old: np.ndarray,
+        h: np.ndarray,
+        u_old: np.ndarray,
+        ustar: np.ndarray,
+        dt: float,
+        crossed: np.ndarray,
+        dry: float,
+        t: float,
+    ) -> tuple[np.ndarray, int]:
+        """The solid transported with the step from ``h_old`` to ``h`` (velocities ``u_old``
+        at its start, ``crossed`` the volume through the end faces), then the local step of
+        the columns thicker than ``dry`` from the velocities ``ustar`` (the step from time
+        ``t``): returns the
+        velocities and the iterations; ``h`` is dilated in place, the new fields wait in
+        :attr:`pending` for the commit."""
+        solid, self._crossed = solid_transport.transport(
+            self.solid, h_old, h, u_old, self.fractions, crossed, self.dx, self.periodic
+        )
+        self._before = self.solid
+        self.transported = h.copy()
+        u = np.zeros_like(ustar)
+        pressure = np.zeros_like(ustar)
+        wet = h > dry
+        iterations = 0
+        if wet.any():
+            s, hw = solid[:, wet], h[wet]
+            phi = s / (self.fractions[:, None] * hw)
+            correction = buoyant_fraction(phi, self.rho_s, self.rho_f) - self.reduction
+            result = self.local(
+                s, hw, ustar[:, wet] + dt * correction * self.g_t, dt, u_old[:, wet], x=self.x[wet], t=t
+            )
+            u[:, wet], h[wet], pressure[:, wet] = result.u, result.h, result.pore_pressure
+            iterations = result.iterations
+        self.pending = {"solid": solid, "pore_pressure": pressure}
+        return u, iterations
+
+    def check_step(self, h: np.ndarray, t: float, dt: float, guard: StateGuard) -> None:
+        """The solid's balance and bounds after the step from ``t`` over ``dt`` (a
+        :class:`~multilayer.engine.state_check.StateError` otherwise), and the fluid drawn
+        from the ambient fluid added to the mixture volume's balance in ``guard``."""
+        solid = self.pending["solid"]
+        when = f"after the step from t = {t:.6g} s (dt = {dt:.3g} s)"
+        solid_transport.check(solid, h, self.fractions, when, self.x)
+        columns = solid.sum(axis=0)
+        self.guard.check_step(
+            self._before.sum(axis=0), columns, np.zeros((1, columns.size)), t, dt, self._crossed
+        )
+        exchange = (float(h.sum()) - float(self.transported.sum())) * self.dx
+        guard.net_inflow += exchange
+        self.ambient_exchange += exchange

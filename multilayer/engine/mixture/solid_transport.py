@@ -1,0 +1,98 @@
+"""Transport of the solid volume per layer with the mixture's own volume fluxes.
+
+The transport in x (``engine/transport``) moves the mixture volume ``h`` with face fluxes
+that it does not return; their sum over a step is recovered exactly from the change of
+``h`` and the flux through the left end face, ``F_{i+1/2} = F_{1/2} - dx sum_{j<=i}
+(h_j^{n+1} - h_j^n)``.  The solid of layer ``a`` crosses a face with the volume
+fraction of the upwind cell, ``phi_a F_a``, where the share ``F_a`` of layer ``a`` is its
+share of the upwind column's discharge ``l_a |u_a| / sum_b l_b |u_b|`` (``l_a`` at rest);
+the exchange between layers that keeps ``h_a = l_a h`` carries the solid of the layer the
+volume leaves (as the momentum exchange ``G`` of Fernández-Nieto et al. 2016).  Both are
+differences of the same face and interface values, so ``sum_i sum_a s_a dx`` changes only
+by the solid through the two end faces: exact conservation of the solid, and a uniform
+``phi`` stays uniform.  The fluid of the mixture, ``l_a h - s_a``, is the complement.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from multilayer.errors import RunError
+
+
+def face_volumes(h_old: np.ndarray, h_new: np.ndarray, left_volume: float, dx: float) -> np.ndarray:
+    """Mixture volume (m^2 per unit width) through each of the ``N + 1`` faces during a
+    step, positive in +x, from the change of ``h`` and the volume through the left face."""
+    faces = np.empty(h_old.size + 1)
+    faces[0] = 0.0
+    np.cumsum(h_new - h_old, out=faces[1:])
+    return left_volume - dx * faces
+
+
+def transport(
+    solid: np.ndarray,
+    h_old: np.ndarray,
+    h_new: np.ndarray,
+    u: np.ndarray,
+    fractions: np.ndarray,
+    crossed: np.ndarray,
+    dx: float,
+    periodic: bool,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The solid per layer ``s_a`` (L, N) after the transport step from ``h_old`` to
+    ``h_new`` (velocities ``u`` (L, N) at its start, ``crossed`` (2,) the mixture volume
+    through the end faces), and the solid through the two end faces (2,), positive in +x."""
+    L, N = solid.shape
+    l = fractions[:, None]
+    volumes = face_volumes(h_old, h_new, float(crossed[0]), dx)
+    wet = h_old > 0.0
+    phi = np.where(wet, solid / np.where(wet, l * h_old, 1.0), 0.0)
+    speed = l * np.abs(u)
+    discharge = speed.sum(axis=0)
+    share = np.where(discharge > 0.0, speed / np.where(discharge > 0.0, discharge, 1.0), l)
+    # upwind cell of each face (the boundary faces: the wrapped or the boundary cell)
+    west = np.arange(-1, N) % N if periodic else np.concatenate([[0], np.arange(N)])
+    east = np.arange(N + 1) % N if periodic else np.concatenate([np.arange(N), [N - 1]])
+    donor = np.where(volumes > 0.0, west, east)
+    phi = _filled(phi, wet, volumes)
+    layer_volumes = share[:, donor] * volumes
+    solid_fluxes = phi[:, donor] * layer_volumes
+    new = solid - np.diff(solid_fluxes, axis=1) / dx
+    # the exchange between layers that restores h_a = l_a h_new, with the solid of the
+    # layer the volume leaves (G > 0: from layer a + 1 down into layer a)
+    misfit = l * h_new - (l * h_old - np.diff(layer_volumes, axis=1) / dx)
+    G = np.cumsum(misfit, axis=0)[:-1]
+    carried = np.where(G > 0.0, phi[1:], phi[:-1]) * G
+    new[:-1] += carried
+    new[1:] -= carried
+    ends = np.array([solid_fluxes[:, 0].sum(), solid_fluxes[:, -1].sum()])
+    return new, ends
+
+
+def _filled(phi: np.ndarray, wet: np.ndarray, volumes: np.ndarray) -> np.ndarray:
+    """``phi`` with the columns dry at the start of the step given the fraction of the
+    wet column the volume reaching them comes from (they pass on what they received)."""
+    if wet.all() or not wet.any():
+        return phi
+    out = phi.copy()
+    N = wet.size
+    for i in range(N):  # downstream fronts (u > 0): from the west
+        if not wet[i] and volumes[i] > 0.0 and i > 0:
+            out[:, i] = out[:, i - 1]
+    for i in range(N - 1, -1, -1):  # upstream fronts (u < 0): from the east
+        if not wet[i] and volumes[i + 1] < 0.0 and i < N - 1:
+            out[:, i] = out[:, i + 1]
+    return out
+
+
+def check(solid: np.ndarray, h: np.ndarray, fractions: np.ndarray, when: str, x: np.ndarray) -> None:
+    """Raise :class:`RunError` unless ``0 <= s_a <= l_a h`` in every column and layer
+    (a solid fraction in [0, 1]) and ``s_a`` is finite."""
+    room = fractions[:, None] * h
+    bad = ~(np.isfinite(solid) & (solid >= 0.0) & (solid <= room * (1.0 + 1e-12)))
+    if bad.any():
+        a, i = (int(k) for k in np.unravel_index(np.argmax(bad), bad.shape))
+        raise RunError(
+            f"solid volume s = {float(solid[a, i])!r} m outside [0, {float(room[a, i])!r}] m (the layer's "
+            f"thickness) at x = {float(x[i]):.6g} m, layer {a + 1} (1 is at the bed) {when}"
+        )
