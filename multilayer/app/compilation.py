@@ -2,7 +2,7 @@
 
 numba compiles each kernel on its first use after installation (or after a change of the
 kernel sources, engine/kernel_cache.py) and caches it: the first run waits for it, about
-45 s on 2 cores (docs/performance.md, "Start-up"), inside its first step, before the
+45 s on 2 cores (docs/performance.md, "What the figures mean"), inside its first step, before the
 progress line can show anything.  :func:`compile_notice` says so once, when the first
 compilation starts, and reports in ``run.log`` how long the compilation took.
 """

@@ -149,21 +149,25 @@ def _other_structures(
 ):  # fmt: skip
     """Where the active set (``column_solve._active_set``) rejects the lock/sign
     structure of the iterate ``current``: solve with, in turn, the structure of the
-    velocities ``ustar`` of column ``col`` before the step and that of ``current`` with
+    velocities ``ustar`` of column ``col`` before the step, that of ``current`` with
     its speeds and jumps below ``1e-9 max |current|`` set to 0 (the round-off of an
-    earlier solve can open a locked interface or set moving a layer held by the walls).
-    True once one is the exact minimiser (each is checked for optimality by the active
-    set itself), False if neither is: then the O(L^2) dynamic programme solves.
+    earlier solve can open a locked interface or set moving a layer held by the walls),
+    and the trial structure of the column held at rest (:func:`_trial_structure`: the
+    structure of material leaving rest).  True once one is the exact minimiser (each is
+    checked for optimality by the active set itself), False if none is: then the O(L^2)
+    dynamic programme solves.
 
     A proposal costs an ordinary solve, the dynamic programme about 60 at L = 32; in the
-    peer dam break they take the share of the solves that need the programme from 0.22 %
-    to 0.09 %."""
+    peer dam break the first two take the share of the solves that need the programme
+    from 0.22 % to 0.09 %; the trial structure solves the first step of a uniform
+    layer released from rest on a slope steeper than its friction angle (every column
+    needed the programme there)."""
     L = current.shape[0]
-    for attempt in range(2):
+    for attempt in range(3):
         if attempt == 0:
             for a in range(L):
                 proposal[a] = ustar[a, col]
-        else:
+        elif attempt == 1:
             top = 0.0
             for a in range(L):
                 top = max(top, abs(current[a]))
@@ -172,9 +176,36 @@ def _other_structures(
                 value = current[a] if abs(current[a]) > 1e-9 * top else 0.0
                 proposal[a] = below if abs(value - below) <= 1e-9 * top else value
                 below = proposal[a]
+        else:
+            _trial_structure(momentum, kappa, w, proposal)
         if _active_set(inertia, momentum, kappa, c, w, cw, proposal, u, first, grounded, U, diag, low, rhs):
             return True
     return False
+
+
+@jit
+def _trial_structure(momentum, kappa, w, proposal):
+    """The lock/sign structure (as velocities for ``column_solve._active_set``) of a trial
+    from rest, as the elastic predictor of plasticity: with the whole column held at rest,
+    the interface below layer ``a`` carries the force ``F_a = sum_{b >= a} m_b u*_b / dt``
+    of the layers above, of which their walls hold at most ``sum_{b >= a} w_b``; an
+    interface where the rest exceeds its yield stress ``kappa_a`` slides in the direction
+    of ``F_a``, the others stay locked."""
+    L = momentum.shape[0]
+    force = 0.0
+    held = 0.0
+    for a in range(L - 1, -1, -1):  # the forces, top down, kept in proposal for the pass up
+        force += momentum[a]
+        held += w[a]
+        proposal[a] = force
+    below = 0.0  # the bed
+    for a in range(L):
+        force = proposal[a]
+        proposal[a] = below
+        if abs(force) > kappa[a] + held:
+            proposal[a] += 1.0 if force > 0.0 else -1.0
+        below = proposal[a]
+        held -= w[a]
 
 
 @jit

@@ -1,0 +1,94 @@
+"""Which numba kernels a run compiles: only those of what it uses (the first run after
+installing compiles them, docs/performance.md).  Counts, never timings."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+CHILD = r"""
+import gc, json, sys
+from numba.core import event
+from numba.core.registry import CPUDispatcher
+import multilayer
+
+compiled = []
+
+class Listener(event.Listener):
+    def on_start(self, e):
+        d = e.data.get("dispatcher")
+        if d is not None and d.py_func.__module__.startswith("multilayer"):
+            compiled.append(f"{d.py_func.__module__}.{d.py_func.__qualname__}")
+
+    def on_end(self, e):
+        pass
+
+overrides = {"domain.cells": 40, "time.end": 0.01, **json.loads(sys.argv[2])}
+with event.install_listener("numba:compile", Listener()):
+    sim = multilayer.Simulation(multilayer.load(sys.argv[1], overrides=overrides))
+    sim.advance(0.01)
+entries = sorted(
+    f"{d.py_func.__module__}.{d.py_func.__qualname__}"
+    for d in gc.get_objects()
+    if isinstance(d, CPUDispatcher) and d.overloads and d.py_func.__module__.startswith("multilayer")
+)
+print(json.dumps({"entries": entries, "compiled": compiled}))
+"""
+
+ENTRIES = [
+    "multilayer.engine.bed_force._sums",
+    "multilayer.engine.state.span",
+    "multilayer.engine.state.start_moving",
+    "multilayer.engine.state.survey",
+    "multilayer.engine.state_check._finite",
+    "multilayer.engine.transport.kernel._stages",
+    "multilayer.engine.transport.kernel._window",
+    "multilayer.engine.vertical.newton_kernel._chunk",
+]
+"""The kernels a hydrostatic run on one thread calls from Python, the ones it loads from
+numba's cache (their callees are compiled into them): no parallel kernel, nothing of the
+non-hydrostatic projection."""
+
+COMPILATIONS = 55
+"""At most this many compilations of the engine's functions (each kernel and each of its
+callees, once per signature) for that run with numba's cache empty (52 when this bound
+was set)."""
+
+
+def run(cache: str, **overrides: object) -> dict:
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            CHILD,
+            str(ROOT / "scenarios" / "erodible_bed_collapse.yaml"),
+            json.dumps(overrides),
+        ],
+        env={**os.environ, "NUMBA_CACHE_DIR": cache, "MULTILAYER_THREADS": "1"},
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    return json.loads(done.stdout)
+
+
+@pytest.mark.slow
+def test_a_hydrostatic_run_compiles_only_its_own_kernels():
+    """The README scenario (40 cells) on one thread, numba's cache empty: it compiles its
+    eight entry kernels and their callees, at most ``COMPILATIONS`` functions, none
+    parallel and none of the non-hydrostatic pressure; run again, it loads those eight
+    only and compiles nothing."""
+    with tempfile.TemporaryDirectory() as cache:
+        first = run(cache)
+        second = run(cache)
+    assert second["entries"] == sorted(ENTRIES) and set(ENTRIES) <= set(first["compiled"])
+    assert len(first["compiled"]) <= COMPILATIONS and second["compiled"] == []
+    assert not any("parallel" in name or "non_hydrostatic" in name for name in first["compiled"])
