@@ -49,21 +49,21 @@ def _collapse(**changes):
     return simulation(**settings)
 
 
-def _transport(threads: int) -> None:
+def _transport() -> None:
     from test_transport_kernel import random_state
 
     from multilayer.engine.transport import kernel as transport_kernel
 
     h, u, b, fractions = random_state(seed=1)
     kw = dict(dx=0.1, dt=0.004, g_n=9.0, g_t=1.5, left="wall", right="outflow", dry=1e-6, order=2)
-    transport_kernel.transport(h, u, b, fractions, threads=threads, **kw)
+    transport_kernel.transport(h, u, b, fractions, threads=1, **kw)
 
 
-def _newton(threads: int) -> None:
+def _newton() -> None:
     sim = _collapse()
     assert sim.vertical.compiled is not None
     ustar = sim.u + 0.01 * (sim.h > 0)
-    sim.vertical.compiled(sim.h, ustar, sim.u, 1e-3, threshold=1e-12, max_iterations=200, threads=threads)
+    sim.vertical.compiled(sim.h, ustar, sim.u, 1e-3, threshold=1e-12, max_iterations=200, threads=1)
 
 
 def _numpy_path() -> None:
@@ -98,16 +98,15 @@ def _steps(**changes) -> None:
 
 
 TASKS: list[tuple[str, Callable[[], None], tuple[str, ...]]] = [
-    ("newton", lambda: _newton(1), ()),
+    ("newton", _newton, ()),
     ("projection", _projection, ()),
-    ("transport", lambda: _transport(1), ()),
-    ("newton_threads", lambda: _newton(2), ("newton",)),
-    ("transport_threads", lambda: _transport(3), ("transport",)),
+    ("transport", _transport, ()),
     ("numpy_path", _numpy_path, ("newton",)),
     ("step", lambda: _steps(walls=WALLS, domain=WALLED), ("newton", "transport")),
     ("nonhydrostatic", lambda: _steps(model=NON_HYDROSTATIC), ("newton", "transport", "projection")),
 ]
-"""(name, task, the tasks whose kernels it calls): the longest first."""
+"""(name, task, the tasks whose kernels it calls): the longest first.  The parallel
+variants are not here: only tests under the ``slow`` marker compile them."""
 
 
 def directory(testrunuid: str) -> Path:

@@ -105,6 +105,7 @@ def test_twin_experiment_uncertainty_shrinks_with_the_noise(tmp_path, cluster, c
 # --------------------------------------------------------------------- failures, resume
 
 
+@pytest.mark.slow
 def test_failing_runs_are_counted_and_the_calibration_continues(tmp_path, cluster, monkeypatch, capsys):
     """Every run with mu_s > 0.55 fails (RunError): those parameter sets get misfit inf,
     status failed and the error, and the fit is still found."""
@@ -291,6 +292,7 @@ def test_sobol_indices_of_the_ishigami_function(tmp_path):
     assert np.all(result.s1_conf[0] < 0.15)
 
 
+@pytest.mark.slow  # the Sobol estimator runs by default: test_sobol_indices_of_the_ishigami_function
 def test_sensitivity_command_writes_every_run_and_the_indices(tmp_path, cluster, capsys):
     """One parameter, 8 base samples: 24 sample points (16 distinct runs: with one
     parameter AB_1 is B), all in sensitivity.nc, then sobol.png.  With one parameter all the

@@ -115,6 +115,7 @@ def test_compiled_step_equals_the_numpy_iteration_on_a_collapse(rheology, walls)
     assert (ref.u == 0.0).any() and (ref.u != 0.0).any()  # both static and moving layers
 
 
+@pytest.mark.slow  # compiles the parallel variant of the kernel
 def test_threads_cut_the_columns_into_chunks_without_changing_the_answer():
     sim = simulation(
         slope_deg=20.0,

@@ -248,6 +248,7 @@ def test_representative_columns_spread_over_the_deposit(slump_dir: Path) -> None
     assert picks[0] < np.median(wet) < picks[-1]
 
 
+@pytest.mark.slow  # a whole run and every figure, for one column
 def test_plot_single_column_run(tmp_path: Path, cli) -> None:
     runner.run(scenarios.from_dict(SHEAR), tmp_path, quiet=True)
     # the figure b(t) shows the analytic interface, to within one layer (0.5 mm)

@@ -209,6 +209,7 @@ def test_broken_plugin_is_reported_without_hiding_others(name, tmp_path, monkeyp
     assert catalogue.rheologies["drucker_prager"].source.startswith("multilayer ")
 
 
+@pytest.mark.slow  # installs a broken distribution in a child process
 def test_cli_lists_broken_plugin_and_still_runs(tmp_path, tiny_scenario, write_scenario):
     fake_distribution(tmp_path / "site", "import-fails", BROKEN["import-fails"][0])
     env = {**os.environ, "PYTHONPATH": str(tmp_path / "site")}

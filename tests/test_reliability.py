@@ -110,6 +110,7 @@ def _start(patch: str, *args: object) -> subprocess.Popen:
 # ----------------------------------------------------------------------------- plugin output
 
 
+@pytest.mark.slow  # a NaN plugin runs by default: test_a_sweep_marks_a_member_with_a_nan_plugin_failed
 def test_a_nan_returning_plugin_stops_the_run_within_ten_seconds_naming_it(tmp_path):
     """Within 10 s of CPU after start-up (it used to spin for ever); the wall-clock timeout
     is wider because the machine running the tests may be shared."""

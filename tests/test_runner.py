@@ -69,6 +69,7 @@ def _assert_same_result(a: Path, b: Path) -> None:
     assert ra.attrs["steps"] == rb.attrs["steps"]
 
 
+@pytest.mark.slow  # Ctrl-C and resume run by default: tests/test_study_stop.py, test_reliability.py
 def test_sigint_stops_cleanly_and_resume_gives_the_uninterrupted_answer(tmp_path: Path) -> None:
     path = tmp_path / "slump.yaml"
     path.write_text(yaml.safe_dump(SLUMP))

@@ -109,6 +109,7 @@ def test_columns_not_converged_within_the_iterations_are_the_same():
     assert (results[0][1] == -1).any()
 
 
+@pytest.mark.slow  # compiles the parallel variant of the kernel
 def test_two_threads_cut_blocks_into_chunks_to_the_same_bits():
     cells = 2 * CHUNKS_PER_THREAD * 2 * BLOCK  # two blocks per chunk
     results = _both(simulation(**{**CHUTE, "domain": {**CHUTE["domain"], "cells": cells}}), threads=2)

@@ -32,17 +32,18 @@ def random_state(seed: int, cells: int = 240, layers: int = 5):
     return h, u, b, fractions / fractions.sum()
 
 
-def both(h, u, b, fractions, **kw):
+def both(h, u, b, fractions, threads=(1,), **kw):
     """Both paths agree to the last bit on the state and on the mass and the momentum
-    through the boundaries (and the integral of the mass gravity acts on)."""
+    through the boundaries (and the integral of the mass gravity acts on), the kernel on
+    each number of ``threads``."""
     crossed, momentum = np.full(2, np.nan), np.full(3, np.nan)
     expected = transport.transport(
         h, u, b, fractions, boundary_mass=crossed, boundary_momentum=momentum, **kw
     )
-    for threads in (1, 3):
+    for count in threads:
         crossed_kernel, momentum_kernel = np.full(2, np.nan), np.full(3, np.nan)
         got = transport_kernel.transport(
-            h, u, b, fractions, threads=threads, boundary_mass=crossed_kernel,
+            h, u, b, fractions, threads=count, boundary_mass=crossed_kernel,
             boundary_momentum=momentum_kernel, **kw,
         )  # fmt: skip
         for e, g in zip(expected, got):
@@ -52,15 +53,18 @@ def both(h, u, b, fractions, **kw):
     return crossed
 
 
+@pytest.mark.parametrize("threaded", [False, pytest.param(True, marks=pytest.mark.slow)], ids=["1", "3"])
 @pytest.mark.parametrize("order", [1, 2])
 @pytest.mark.parametrize("left, right", BOUNDARIES)
-def test_compiled_transport_equals_the_numpy_reference(order, left, right):
+def test_compiled_transport_equals_the_numpy_reference(order, left, right, threaded):
     h, u, b, fractions = random_state(seed=order)
     inflow = boundaries.InflowState(0.7, np.linspace(0.2, 1.0, u.shape[0])) if left == "inflow" else None
     kw = dict(
         dx=0.1, dt=0.004, g_n=9.0, g_t=1.5, left=left, right=right, inflow=inflow, dry=1e-6, order=order
     )
     both(h, u, b, fractions, **kw)
+    if threaded:  # the parallel variant of the kernel (compiled only for this test)
+        both(h, u, b, fractions, threads=(3,), **kw)
     # material at rest: only some columns carry waves
     moving = np.random.default_rng(7).random(h.size) < 0.5
     both(h, u * moving, b, fractions, moving=moving, **kw)
