@@ -168,28 +168,33 @@ def _sums(l, h0, u0, w0, h, ustar, u_vertical, u, w, walled, threshold, viscous,
     the surface down (module docstring): ``passed`` is ``dt sigma`` above the layer, a
     moving layer's wall force is ``sgn(u_a) dt (threshold + viscous)``, a resting layer's
     the load up to ``dt threshold`` (none unless ``walled``)."""
-    out = np.zeros(8)
-    for i in range(first, last):
-        passed = 0.0
-        for a in range(l.size - 1, -1, -1):
+    # layer by layer from the surface down, the columns contiguous in memory (u is (L, N));
+    # ``passed`` carries each column's load to the next layer down
+    passed = np.zeros(last - first)
+    s0 = s1 = s2 = s3 = s4 = s5 = s7 = 0.0
+    for a in range(l.size - 1, -1, -1):
+        for j in range(last - first):
+            i = first + j
             m0, m = l[a] * h0[i], l[a] * h[i]
-            out[0] += m0 * u0[a, i]
-            out[1] += m * ustar[a, i]
-            out[2] += m * u_vertical[a, i]
-            out[3] += m * u[a, i]
-            out[4] += m0 * w0[a, i]
-            out[5] += m * w[a, i]
-            load = passed + rho * m * (ustar[a, i] - u_vertical[a, i])
-            limit = dt * threshold[a, i] if walled else 0.0
-            if not walled:
-                held = 0.0
-            elif u_vertical[a, i] > 0.0:
-                held = limit + dt * viscous[a, i]
-            elif u_vertical[a, i] < 0.0:
-                held = -(limit + dt * viscous[a, i])
-            else:
-                held = min(max(load, -limit), limit)
-            out[7] += held
-            passed = load - held
-        out[6] += passed
+            s0 += m0 * u0[a, i]
+            s1 += m * ustar[a, i]
+            s2 += m * u_vertical[a, i]
+            s3 += m * u[a, i]
+            s4 += m0 * w0[a, i]
+            s5 += m * w[a, i]
+            load = passed[j] + rho * m * (ustar[a, i] - u_vertical[a, i])
+            held = 0.0
+            if walled:
+                limit = dt * threshold[a, i]
+                if u_vertical[a, i] > 0.0:
+                    held = limit + dt * viscous[a, i]
+                elif u_vertical[a, i] < 0.0:
+                    held = -(limit + dt * viscous[a, i])
+                else:
+                    held = min(max(load, -limit), limit)
+            s7 += held
+            passed[j] = load - held
+    out = np.empty(8)
+    out[0], out[1], out[2], out[3], out[4], out[5], out[7] = s0, s1, s2, s3, s4, s5, s7
+    out[6] = passed.sum()
     return out
