@@ -130,7 +130,7 @@ def test_failing_runs_are_counted_and_the_calibration_continues(tmp_path, cluste
     assert {p.name for p in (tmp_path / "out" / "plots").iterdir()} == {"misfit.png", "pairs.png", "fit.png"}
 
 
-@pytest.mark.slow  # resuming after Ctrl-C runs by default: tests/test_study_stop.py
+@pytest.mark.slow
 def test_interrupted_calibration_resumes_from_its_completed_runs(tmp_path, cluster, capsys):
     """A rerun reuses every completed run (none is repeated) and gives the same fit; runs
     whose completion marker is missing (interrupted) run again and nothing else."""

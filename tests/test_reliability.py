@@ -556,8 +556,9 @@ def test_a_directory_in_use_is_refused_naming_the_holder_and_a_stale_lock_taken_
 
 @pytest.mark.parametrize(
     ("signum", "code"),
-    [(signal.SIGTERM, 143), pytest.param(signal.SIGHUP, 129, marks=pytest.mark.slow)],  # the same path
+    [(signal.SIGTERM, 143), (signal.SIGHUP, 129)],
 )
+@pytest.mark.slow  # the same path as Ctrl-C, which runs by default (test_ctrl_c_is_honoured_...)
 def test_sigterm_and_sighup_stop_like_ctrl_c(tmp_path, signum, code):
     path, outdir = _write(tmp_path, SLUMP), tmp_path / "out"
     proc = _start(PACED, "run", path, "-o", outdir)

@@ -56,6 +56,7 @@ def threads_cluster():
         yield local.scheduler_address
 
 
+@pytest.mark.slow
 def test_ctrl_c_stops_a_calibration_which_keeps_its_results_and_resumes(tmp_path, threads_cluster, capsys):
     """SIGINT during the second generation of the twin calibration, on a cluster of worker
     threads: exit 130 promptly, calibration.nc holds the first generation (written after it)

@@ -101,7 +101,14 @@ def test_the_environment_overrides_the_scenario(monkeypatch):
         threads.ThreadPolicy("auto")
 
 
-@pytest.mark.parametrize("argv", [["--help"], ["plugins"], ["validate", "scenarios/bagnold_chute.yaml"]])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        pytest.param(["--help"], marks=pytest.mark.slow),
+        pytest.param(["plugins"], marks=pytest.mark.slow),
+        ["validate", "scenarios/bagnold_chute.yaml"],
+    ],
+)
 def test_commands_that_run_nothing_import_neither_fipy_nor_numba(argv):
     code = (
         "import sys\n"
