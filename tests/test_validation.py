@@ -192,13 +192,14 @@ def test_channel_collapse_rests_exactly_and_its_verdicts_are_settled_by_the_mesh
     runs = {
         (a, dx): collapse_channel.run(a, dx) for a in collapse_channel.RATIOS for dx in collapse_channel.CELLS
     }
-    results = ctx.execute(list(runs.values()))
     scenario = ctx.load(collapse_channel.SCENARIO)
+    failures: list[str] = []
+    measured = collapse_channel.deposits(
+        ctx.execute(list(runs.values())), runs, scenario.material.grain_diameter, scenario.gravity, failures
+    )
+    assert not failures, failures
     tips: dict[float, dict[float, float]] = {}
-    for (a, dx), r in runs.items():
-        ds = results[r.name]
-        assert not isinstance(ds, str), ds
-        d = collapse_channel.Deposit.of(ds, a, scenario.material.grain_diameter, scenario.gravity)
+    for (a, dx), d in measured.items():
         assert d.speed == 0.0 and abs(d.mass_change) < 1e-12
         tips.setdefault(a, {})[dx] = d.tip
     for a, values in tips.items():

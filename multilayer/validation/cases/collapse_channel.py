@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import xarray as xr
@@ -24,7 +25,7 @@ from multilayer.io import observables
 from multilayer.validation import published
 from multilayer.validation.cases.column_collapse import L0, STOP_TIME, STOP_TOLERANCE
 from multilayer.validation.markdown import met, table
-from multilayer.validation.runs import Context, Run
+from multilayer.validation.runs import Context, Results, Run
 
 NAME = "collapse_channel"
 SCENARIO = "column_collapse_channel"
@@ -148,42 +149,52 @@ def order(values: dict[float, float]) -> float:
     return math.log2(d1 / d2)
 
 
+def deposits(
+    results: Results, runs: dict[tuple[float, Any], Run], grain: float, gravity: float, failures: list[str]
+) -> dict[tuple[float, Any], Deposit]:
+    """The measures of the runs ``runs`` (keyed by ``(a, ...)``) that did not fail; a failed
+    run's message goes to ``failures``."""
+    out = {}
+    for key, r in runs.items():
+        ds = results[r.name]
+        if isinstance(ds, str):
+            failures.append(f"{r.name}: {ds.split(';')[0]}")
+            continue
+        out[key] = Deposit.of(ds, key[0], grain, gravity)
+    return out
+
+
 def section(ctx: Context) -> str:
     scenario = ctx.load(SCENARIO)
     grain, gravity = scenario.material.grain_diameter, scenario.gravity
     runs = {(a, dx): run(a, dx) for dx in CELLS for a in RATIOS}  # the coarse meshes first
     others = {(a, key): run(a, CELLS[-1], key) for key in OTHERS for a in RATIOS}
     results = ctx.execute([*runs.values(), *others.values()])
+    failures: list[str] = []
+    meshes = deposits(results, runs, grain, gravity, failures)
     measured: dict[float, dict[float, Deposit]] = {a: {} for a in RATIOS}
-    failures = []
+    for (a, dx), d in meshes.items():
+        measured[a][dx] = d
+    other: dict[str, dict[float, Deposit]] = {key: {} for key in OTHERS}
+    for (a, key), d in deposits(results, others, grain, gravity, failures).items():
+        other[key][a] = d
     fig = Figure(figsize=(10, 4))
     ax, ax2 = fig.subplots(1, 2)
-    for (a, dx), r in runs.items():
-        ds = results[r.name]
-        if isinstance(ds, str):
-            failures.append(f"a = {a:g}, dx = {dx * 1e3:g} mm: {ds.split(';')[0]}")
-            continue
-        measured[a][dx] = Deposit.of(ds, a, grain, gravity)
-        if dx == CELLS[-1]:
+    for a in RATIOS:
+        ds = results[runs[(a, CELLS[-1])].name]
+        if not isinstance(ds, str):
             ax2.plot(ds["x"].values / L0, ds["h"].values[-1] / L0, label=f"a = {a:g}")
     complete = [a for a in RATIOS if len(measured[a]) == len(CELLS)]
-    other: dict[str, dict[float, Deposit]] = {key: {} for key in OTHERS}
-    for (a, key), r in others.items():
-        ds = results[r.name]
-        if isinstance(ds, str):
-            failures.append(f"{OTHERS[key][0]}, a = {a:g}: {ds.split(';')[0]}")
-            continue
-        other[key][a] = Deposit.of(ds, a, grain, gravity)
     finest = {a: measured[a][CELLS[-1]] for a in RATIOS if CELLS[-1] in measured[a]}
     other_rows = []
-    for label, deposits in [("recommended (`pouliquen_forterre`)", finest)] + [
+    for label, found in [("recommended (`pouliquen_forterre`)", finest)] + [
         (OTHERS[key][0], other[key]) for key in OTHERS
     ]:
         other_rows.append(
             [label]
             + [
-                f"{deposits[a].tip:.2f} ({deposits[a].tip / law(a, LAWS['A']):.2f}); {deposits[a].mass:.2f}"
-                if a in deposits
+                f"{found[a].tip:.2f} ({found[a].tip / law(a, LAWS['A']):.2f}); {found[a].mass:.2f}"
+                if a in found
                 else "run failed"
                 for a in RATIOS
             ]
