@@ -185,7 +185,7 @@ def test_non_hydrostatic_collapse_runout_grows_with_the_laws_exponent(ctx):
 
 
 def test_channel_collapse_rests_exactly_and_its_verdicts_are_settled_by_the_mesh(ctx):
-    """The recommended channel collapse on three meshes: every deposit exactly at rest, the
+    """The recommended channel collapse on four meshes: every deposit exactly at rest, the
     volume conserved, and at every aspect ratio the change of the tip run-out between the two
     finest meshes smaller than its distance to the 15 % band (the verdict, not met, does not
     depend on the mesh; docs/validation.md)."""
