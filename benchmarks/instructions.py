@@ -1,9 +1,10 @@
-"""Benchmark: instructions per cell-step of the chute's parts, counted by callgrind.
+"""Benchmark: instructions per cell-step of the parts of a step, counted by callgrind.
 
 Machine-independent evidence of the per-cell cost (a count, not a time: it does not
-move with the load of the machine).  The chute of ``chute.py`` (one thread) runs
-``--warm`` steps, then ``--steps`` steps during which valgrind's callgrind counts the
-instructions executed inside one region of the step:
+move with the load of the machine).  The chute of ``chute.py`` (or, ``--case
+dam_break``, the dam break of ``dam_break.py`` with ``--pressure``) on one thread runs
+``--warm`` steps (and to ``--warm-time``), then ``--steps`` steps during which valgrind's
+callgrind counts the instructions executed inside one region of the step:
 
 - ``step``: the whole step (``Simulation.step``);
 - ``transport``: the transport with its checks (``Simulation._transport``);
@@ -12,14 +13,16 @@ instructions executed inside one region of the step:
 - ``projection``: the pressure model's projection (``Simulation._project``).
 
 Each region is one run under valgrind (``--instr-atstart=no``: the import runs outside
-the instrumentation); numba's cache must be warm (the script runs the problem once
-natively first).  ``--peer PATH`` also counts the plain C kernel of the same step
-(``PATH`` its source, built with ``gcc -O3 -march=native -g``): two runs of different
-step counts, their difference per cell-step, split into its transport and vertical parts
-by the source lines of the kernel's two parts (callgrind_annotate).
+the instrumentation), divided by the cell-steps on cells holding material.  numba
+compiles for one instruction set (``CPU``; valgrind runs no AVX-512) into its own cache,
+filled by a first run outside valgrind.  ``--peer SOURCE`` also counts a plain C kernel
+of the same step (its source, built with ``gcc -O3 -march=CPU``, run as ``KERNEL N L
+STEPS``) on the same sizes: the difference of two runs of ``--steps`` and twice as many
+steps, per cell-step (its transport and vertical step together).
 
-    python benchmarks/instructions.py [--cells 2000] [--layers 64] [--steps 4] [--warm 3]
-        [--start bagnold|rest] [--pressure hydrostatic|non_hydrostatic] [--regions step,...]
+    python benchmarks/instructions.py [--case chute|dam_break] [--cells 2000] [--layers 64]
+        [--steps 4] [--warm 3] [--warm-time 0] [--start bagnold|rest]
+        [--pressure hydrostatic|non_hydrostatic] [--regions step,transport,...]
         [--peer kernel.c] [--json FILE]
 
 Needs valgrind, its headers (valgrind/callgrind.h) and a C compiler.
@@ -130,7 +133,10 @@ def callgrind(command: list[str], out: Path, env: dict[str, str] | None = None) 
         text=True,
         env=env,
     )
-    return int(re.search(r"^totals: (\d+)", out.read_text(), re.M).group(1)), run.stdout
+    totals = re.search(r"^totals: (\d+)", out.read_text(), re.M)
+    if totals is None:
+        raise SystemExit(f"callgrind wrote no totals to {out}")
+    return int(totals.group(1)), run.stdout
 
 
 def peer(source: Path, cells: int, layers: int, steps: int, workdir: Path) -> dict:
