@@ -187,7 +187,8 @@ def test_a_structure_spoilt_by_round_off_is_rescued_exactly_without_the_dynamic_
     problem = random_problem(rng, 12, 400)
     exact = column_kernel.solve(problem, guess=np.full(problem.shape, np.nan))  # dynamic programme
     L = problem.shape[0]
-    work = [np.empty(L + 1, np.int64), np.empty(L, np.bool_)] + [np.empty(L) for _ in range(4)]
+    work = [np.empty(L + 1, np.int64), np.empty(L, np.bool_), *(np.empty(L) for _ in range(4))]
+    work.append(np.empty(2, np.int64))  # the hint of a rejection
     rejected = rescued = 0
     for col in range(problem.shape[1]):
         inertia = problem.m[:, col] / problem.dt

@@ -238,7 +238,7 @@ def _sign(x):
 
 
 @jit(inline="always")  # in its callers: no array arguments marshalled per call
-def _active_set(inertia, momentum, kappa, c, w, cw, guess, u, first, grounded, U, diag, low, rhs):
+def _active_set(inertia, momentum, kappa, c, w, cw, guess, u, first, grounded, U, diag, low, rhs, hint):
     """Solve with the lock/sign structure of ``guess``; True if it is the exact minimiser
     (``inertia = m / dt`` and ``momentum = m u* / dt`` per layer).
 
@@ -253,8 +253,15 @@ def _active_set(inertia, momentum, kappa, c, w, cw, guess, u, first, grounded, U
     One pass up the column forms the groups, their equations and the forward sweep of
     the Thomas algorithm (each group is eliminated as soon as it is complete); one pass
     down substitutes back and checks optimality, so every layer is visited twice.
+
+    A rejected structure leaves in ``hint`` (2,) the interface of the first violation
+    found and its state in the update of a primal-dual active set method (Hintermüller,
+    Ito & Kunisch 2003): 0 to lock a yielded interface whose jump changed sign, +-1 to
+    open a locked one whose stress exceeds its yield stress (the sign of the stress,
+    hence of the jump); ``hint[0] = -1`` where the violation is of another kind.
     """
     L = inertia.shape[0]
+    hint[0] = -1
     scale = 0.0
     ng = 0
     below = 0.0
@@ -326,6 +333,7 @@ def _active_set(inertia, momentum, kappa, c, w, cw, guess, u, first, grounded, U
         if q + 1 < L:
             sig = low[j + 1]
             if kappa[q + 1] > 0.0 and (sig == 0.0 or sig * (U[j + 1] - Uj) < 0.0):
+                hint[0], hint[1] = q + 1, 0
                 return False  # the yielded interface above the group
             tau = kappa[q + 1] * sig + c[q + 1] * (U[j + 1] - Uj)
         else:
@@ -337,12 +345,14 @@ def _active_set(inertia, momentum, kappa, c, w, cw, guess, u, first, grounded, U
                 return False
             tau -= (inertia[a] + cw[a]) * Uj - momentum[a] + _sign(guess[a]) * w[a]
             if abs(tau) > kappa[a] + slack:
+                hint[0], hint[1] = a, 1 if tau > 0.0 else -1
                 return False
         if w[p] > 0.0 and _sign(guess[p]) * Uj < 0.0:
             return False
     if kappa[0] > 0.0 and not (grounded[0] and guess[0] == 0.0):  # the bed yielded
         sig = low[0]
         if sig == 0.0 or sig * U[0] < 0.0:
+            hint[0], hint[1] = 0, 0
             return False
     if held == 0:
         return True
@@ -362,6 +372,9 @@ def _active_set(inertia, momentum, kappa, c, w, cw, guess, u, first, grounded, U
             lo += momentum[a] - w[a]
             hi += momentum[a] + w[a]
             if a > p or (a == 0 and kappa[0] > 0.0 and guess[0] == 0.0):
+                if lo > kappa[a] + slack or hi < -kappa[a] - slack:  # the interface slides
+                    hint[0], hint[1] = a, 1 if lo > kappa[a] else -1
+                    return False
                 lo = max(lo, -kappa[a])
                 hi = min(hi, kappa[a])
                 if lo > hi + slack:
@@ -381,6 +394,7 @@ def _columns(m, ustar, dt, kappa, c, w, cw, guess, u, chunks):
         first = np.empty(L + 1, np.int64)
         grounded = np.empty(L, np.bool_)
         U, diag, low, rhs = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
+        hint = np.empty(2, np.int64)
         inertia, momentum = np.empty(L), np.empty(L)  # m_a / dt and m_a u*_a / dt
         for i in range(k * N // chunks, (k + 1) * N // chunks):
             if m[i, 0] <= 0.0:
@@ -391,7 +405,7 @@ def _columns(m, ustar, dt, kappa, c, w, cw, guess, u, chunks):
                 momentum[a] = m[i, a] * ustar[i, a] / dt
             ki, ci, wi, cwi, ui = kappa[i], c[i], w[i], cw[i], u[i]  # (_active_set is inlined: no *args)
             if not _active_set(
-                inertia, momentum, ki, ci, wi, cwi, guess[i], ui, first, grounded, U, diag, low, rhs
+                inertia, momentum, ki, ci, wi, cwi, guess[i], ui, first, grounded, U, diag, low, rhs, hint
             ):
                 _dynamic_programme(inertia, momentum, ki, ci, wi, cwi, ui, ws)
 

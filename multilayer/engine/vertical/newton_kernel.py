@@ -143,27 +143,36 @@ def _true_stresses(
     return 0, 0.0, 0.0
 
 
+REPAIRS = 8
+"""Structures repaired in turn (``_other_structures``) before the dynamic programme."""
+
+
 @jit  # not inlined: called only where the structure of the iterate fails
 def _other_structures(
-    inertia, momentum, kappa, c, w, cw, current, ustar, col, proposal, u, first, grounded, U, diag, low, rhs
+    inertia, momentum, kappa, c, w, cw, current, ustar, col, proposal, u, first, grounded, U, diag, low, rhs,
+    hint,
 ):  # fmt: skip
     """Where the active set (``column_solve._active_set``) rejects the lock/sign
-    structure of the iterate ``current``: solve with, in turn, the structure of the
-    velocities ``ustar`` of column ``col`` before the step, that of ``current`` with
-    its speeds and jumps below ``1e-9 max |current|`` set to 0 (the round-off of an
-    earlier solve can open a locked interface or set moving a layer held by the walls),
-    and the trial structure of the column held at rest (:func:`_trial_structure`: the
-    structure of material leaving rest).  True once one is the exact minimiser (each is
-    checked for optimality by the active set itself), False if none is: then the O(L^2)
-    dynamic programme solves.
+    structure of the iterate ``current`` (its ``hint`` of that rejection given): solve
+    with, in turn, the structure of the velocities ``ustar`` of column ``col`` before the
+    step, that of ``current`` with its speeds and jumps below ``1e-9 max |current|`` set to
+    0 (the round-off of an earlier solve can open a locked interface or set moving a layer
+    held by the walls), the trial structure of the column held at rest
+    (:func:`_trial_structure`: the structure of material leaving rest), and that of
+    ``current`` repaired up to ``REPAIRS`` times, one interface at a time, as each
+    rejection hints (:func:`_repaired`: the edge of a plug that moved by a layer).  True
+    once one is the exact minimiser (each is checked for optimality by the active set
+    itself), False if none is: then the O(L^2) dynamic programme solves.
 
     A proposal costs an ordinary solve, the dynamic programme about 60 at L = 32; in the
     peer dam break the first two take the share of the solves that need the programme
     from 0.22 % to 0.09 %; the trial structure solves the first step of a uniform
     layer released from rest on a slope steeper than its friction angle (every column
-    needed the programme there)."""
+    needed the programme there); the repairs solve most of the rest under a
+    non-hydrostatic pressure, whose columns hold several plugs whose edges move."""
     L = current.shape[0]
-    for attempt in range(3):
+    interface, state = hint[0], hint[1]  # the rejection of current
+    for attempt in range(3 + REPAIRS):
         if attempt == 0:
             for a in range(L):
                 proposal[a] = ustar[a, col]
@@ -176,11 +185,41 @@ def _other_structures(
                 value = current[a] if abs(current[a]) > 1e-9 * top else 0.0
                 proposal[a] = below if abs(value - below) <= 1e-9 * top else value
                 below = proposal[a]
-        else:
+        elif attempt == 2:
             _trial_structure(momentum, kappa, w, proposal)
-        if _active_set(inertia, momentum, kappa, c, w, cw, proposal, u, first, grounded, U, diag, low, rhs):
+        else:
+            if interface < 0:
+                return False
+            if attempt == 3:
+                for a in range(L):
+                    proposal[a] = current[a]
+            _repaired(proposal, interface, state)
+        if _active_set(
+            inertia, momentum, kappa, c, w, cw, proposal, u, first, grounded, U, diag, low, rhs, hint
+        ):  # fmt: skip
             return True
+        if attempt >= 3:
+            interface, state = hint[0], hint[1]
     return False
+
+
+@jit
+def _repaired(proposal, interface, state):
+    """The structure (velocities) ``proposal`` with its interface ``interface`` (0: the
+    bed) locked (``state`` 0) or sliding with the sign ``state``: the layers above move
+    with it, keeping their jumps (a locked one stays exactly locked)."""
+    below = proposal[interface - 1] if interface > 0 else 0.0
+    if state == 0:
+        value = below
+    else:
+        top = 0.0
+        for a in range(proposal.shape[0]):
+            top = max(top, abs(proposal[a]))
+        value = below + state * (1e-6 * top if top > 0.0 else 1.0)
+    shift = value - proposal[interface]
+    proposal[interface] = value
+    for a in range(interface + 1, proposal.shape[0]):
+        proposal[a] += shift
 
 
 @jit
@@ -240,6 +279,7 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
     first = np.empty(L + 1, np.int64)
     grounded = np.empty(L, np.bool_)
     U, diag, low, rhs = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
+    hint = np.empty(2, np.int64)  # of a structure the active set rejects
     kc, cc = np.empty(L), np.empty(L)  # the Newton model: interface yield stresses, conductances
     wc, cwc = np.empty(L), np.zeros(L)  # and wall thresholds, wall conductances
     current, new = np.empty(L), np.empty(L)
@@ -379,10 +419,10 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
                 iterations[j] = iteration
                 break
             if not _active_set(
-                inertia, momentum, kc, cc, wall_c, cwc, current, new, first, grounded, U, diag, low, rhs
+                inertia, momentum, kc, cc, wall_c, cwc, current, new, first, grounded, U, diag, low, rhs, hint
             ) and not _other_structures(
                 inertia, momentum, kc, cc, wall_c, cwc, current, ustar, col, proposal, new, first, grounded,
-                U, diag, low, rhs,
+                U, diag, low, rhs, hint,
             ):  # fmt: skip
                 _dynamic_programme(inertia, momentum, kc, cc, wall_c, cwc, new, ws)
                 fallbacks[j] += 1
