@@ -211,6 +211,53 @@ def test_a_structure_spoilt_by_round_off_is_rescued_exactly_without_the_dynamic_
     assert rejected > 100 and rescued > 0.9 * rejected
 
 
+def test_a_plug_edge_moved_by_one_interface_is_repaired_exactly_without_the_dynamic_programme():
+    """Columns without walls whose iterate is the exact answer with one interface changed:
+    a locked one opened (a jump of 1e-6 of the top speed) or a yielded one locked, as when
+    the edge of a plug moves by a layer between Newton iterates (under a non-hydrostatic
+    pressure, several plugs per column).  The active set rejects the structure and hints
+    the interface to change back (the primal-dual active set update): the repaired
+    structure is the exact minimiser, the dynamic programme's answer, with the same static
+    layers.  One violation changed at a time is not sure to end (a primal-dual update of one
+    interface can cycle, as in 1 of these 300 columns, whose random coefficients are far
+    from a flow's): such a column goes on to the programme, still exact."""
+    from test_column_kernel import random_problem
+
+    from multilayer.engine.vertical import column_solve as column_kernel
+    from multilayer.engine.vertical.problem import ColumnProblem
+
+    rng = np.random.default_rng(11)
+    p = random_problem(rng, 16, 300)
+    p = ColumnProblem(m=p.m, ustar=p.ustar, dt=p.dt, kappa=p.kappa, c=p.c, w=0 * p.w, cw=0 * p.cw)
+    exact = column_kernel.solve(p, guess=np.full(p.shape, np.nan))  # dynamic programme
+    L = p.shape[0]
+    work = [np.empty(L + 1, np.int64), np.empty(L, np.bool_), *(np.empty(L) for _ in range(4))]
+    work.append(np.empty(2, np.int64))
+    rejected = rescued = 0
+    for col in range(p.shape[1]):
+        inertia = p.m[:, col] / p.dt
+        momentum = inertia * p.ustar[:, col]
+        coefficients = [np.ascontiguousarray(a[:, col]) for a in (p.kappa, p.c, p.w, p.cw)]
+        top = np.abs(exact[:, col]).max()
+        spoilt = exact[:, col].copy()
+        i = rng.choice(np.flatnonzero(p.kappa[:, col] > 0.0))
+        below = spoilt[i - 1] if i > 0 else 0.0
+        jump = 1e-6 * top * rng.choice([-1.0, 1.0]) if spoilt[i] == below else 0.0
+        spoilt[i + 1 :] += below + jump - spoilt[i]
+        spoilt[i] = below + jump
+        u = np.empty(L)
+        if column_kernel._active_set(inertia, momentum, *coefficients, spoilt, u, *work):
+            continue
+        rejected += 1
+        if newton_kernel._other_structures(
+            inertia, momentum, *coefficients, spoilt, p.ustar, col, np.empty(L), u, *work
+        ):
+            rescued += 1
+            assert np.abs(u - exact[:, col]).max() <= 1e-11 * max(top, 1.0)
+            assert np.array_equal(u == 0.0, exact[:, col] == 0.0)
+    assert rejected > 100 and rejected - rescued <= rejected // 100
+
+
 def test_a_layer_released_from_rest_is_solved_without_the_dynamic_programme():
     """The onset of a flow: a uniform mu(I) layer (1 cm, 64 layers) at rest on a slope
     steeper than its friction angle (tan 24 deg > mu_s = 0.38).  The first iterate at rest
