@@ -256,7 +256,7 @@ def _active_set(inertia, momentum, kappa, c, w, cw, guess, u, first, grounded, U
 
     A rejected structure leaves in ``hint`` (2,) the interface of the first violation
     found and its state in the update of a primal-dual active set method (Hintermüller,
-    Ito & Kunisch 2003): 0 to lock a yielded interface whose jump changed sign, +-1 to
+    Ito & Kunisch 2003, SIAM J. Optim. 13): 0 to lock a yielded interface whose jump changed sign, +-1 to
     open a locked one whose stress exceeds its yield stress (the sign of the stress,
     hence of the jump); ``hint[0] = -1`` where the violation is of another kind.
     """
