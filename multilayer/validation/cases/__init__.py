@@ -12,6 +12,7 @@ from multilayer.validation.cases import (
     dam_break,
     erodible_bed,
     erodible_pressure,
+    erodible_study,
     static_interface,
     stopping,
     submarine_collapse,
@@ -28,6 +29,7 @@ SECTIONS: dict[str, Callable[[Context], str]] = {
         chute,
         column_collapse,
         erodible_bed,
+        erodible_study,
         erodible_pressure,
         submarine_collapse,
     )
