@@ -17,6 +17,7 @@ two finest meshes.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,6 +43,8 @@ OUTPUT = 0.02
 ORIGIN = -0.05
 """The column's front (m): run-outs are measured from it."""
 TIP_DIAMETERS = 3.0
+TAPER = (1.0, 3.0, 5.0, 10.0)
+"""Tip thresholds (grain diameters) of the taper table."""
 ZERO = 0.05
 """Below the critical slope a gain counts as zero within 5 % (of the rigid-bed run-out)."""
 WITHIN = 0.30
@@ -81,6 +84,8 @@ class Measures:
     t95: dict[str, float]
     t: np.ndarray
     tip: np.ndarray
+    tips: dict[float, float]
+    """Final tip (m from the column's front) at :data:`TAPER` grain diameters."""
     speed_end: float
     mass_change: float
 
@@ -99,6 +104,7 @@ def measure(ds: xr.Dataset, bed: float) -> Measures:
         {k: obs.time_to_fraction(t, f, obs.MASS_FRACTION) for k, f in fronts.items()},
         t,
         fronts["tip"],
+        {n: float(obs.tip(x, h[-1], d, n, bed)) - ORIGIN for n in TAPER},
         float(np.abs(ds["u"].values[-1]).max()),
         float(mass[-1] / mass[0] - 1.0),
     )
@@ -210,6 +216,20 @@ def section(ctx: Context) -> str:
             residual = float(np.max(np.abs(gains - (slope * np.array(BEDS) * 1000 + offset))))
             linear.append([f"{theta:g}", f"{slope * 100:+.2f}", f"{residual * 100:.2f}"])
 
+    # the shape of the deposit's end below theta_c: where it falls through 1-10 d above the bed
+    taper = []
+    for theta in [t for t in THETAS if t < theta_c]:
+        for bed in (0.0, BEDS[-1]):
+            m = found.get((theta, bed, finest))
+            if isinstance(m, Measures):
+                taper.append(
+                    [
+                        f"{theta:g}",
+                        f"{bed * 1000:g}",
+                        " / ".join(f"{m.tips[n]:.3f}" for n in TAPER),
+                        f"{m.runout['m95']:.3f}",
+                    ]
+                )
     fig = Figure(figsize=(14, 4))
     axes = fig.subplots(1, 3)
     for k, theta in enumerate(THETAS):
@@ -266,6 +286,26 @@ def section(ctx: Context) -> str:
         ]
         for w in MEASURES
     ]
+
+    def end_span(theta: float, bed: float) -> float:
+        m = found.get((theta, bed, finest))
+        return (m.tips[TAPER[0]] - m.tips[TAPER[-1]]) if isinstance(m, Measures) else math.nan
+
+    def tip_change(theta: float, n: float) -> float:
+        a, b = found.get((theta, 0.0, finest)), found.get((theta, BEDS[-1], finest))
+        if not isinstance(a, Measures) or not isinstance(b, Measures):
+            return math.nan
+        return b.tips[n] / a.tips[n] - 1.0
+
+    def slopes(test: Callable[[float], bool]) -> str:
+        chosen = [t for t in THETAS if test(duration_change(found, t, BEDS[-1], "t95", "tip"))]
+        return ", ".join(f"{t:g}" for t in chosen) or "no"
+
+    largest_change = max(
+        abs(gain(found, t, BEDS[-1], CELLS[-1], w) - gain(found, t, BEDS[-1], CELLS[-2], w))
+        for t in THETAS
+        for w in MEASURES
+    )
     verdict_header = [
         "measure",
         f"zero within {ZERO:.0%} below theta_c",
@@ -306,6 +346,11 @@ coarsest (percentage points):
 
 {table(["theta (deg)", "tip", "m95"], conv)}
 
+**The end of the deposit below theta_c** (finest mesh): the tip at {" / ".join(f"{n:g}" for n in TAPER)}
+grain diameters above the bed, and the mass front (m from the column's front):
+
+{table(["theta (deg)", "bed (mm)", "tip (m)", "m95 (m)"], taper)}
+
 **Linearity** in the bed thickness (the experiments: "almost linear"), tip, finest mesh:
 slope of the least-squares line and the largest deviation from it:
 
@@ -314,6 +359,27 @@ slope of the least-squares line and the largest deviation from it:
 **Verdicts** (finest mesh):
 
 {table(verdict_header, verdict_rows)}
+
+**Why not met.**  Below theta_c the tip loses up to {worst_zero["tip"] * 100:.0f} % while the mass
+front moves by {worst_zero["m95"] * 100:.1f} % at most: on the rigid bed the deposit ends in a
+taper {end_span(0.0, 0.0) * 100:.1f} cm long between {TAPER[0]:g} and {TAPER[-1]:g} grain diameters at 0 deg
+({end_span(10.0, 0.0) * 100:.1f} cm at 10 deg), over the {BEDS[-1] * 1000:g} mm bed in
+{end_span(0.0, BEDS[-1]) * 100:.1f} cm ({end_span(10.0, BEDS[-1]) * 100:.1f} cm); measured at
+{TAPER[-1]:g} grain diameters the change is {tip_change(0.0, TAPER[-1]) * 100:+.1f} % at 0 deg and
+{tip_change(10.0, TAPER[-1]) * 100:+.1f} % at 10 deg.
+Jop's mu(I) has no thickness below which flow stops, so on the rigid bed material keeps
+spreading into a wedge a few grains thick, which real beads do not (Pouliquen 1999); a law
+with a stopping thickness (`pouliquen_forterre`, its parameters measured on these beads)
+would be needed to test whether the tip then meets the target: not run here.  Near the
+repose angle the measures give {at_repose["tip"] / target:.2f} and {at_repose["m95"] / target:.2f} of
+the published {target:.0%} ({at_repose["tip"] * 100:+.1f} % and {at_repose["m95"] * 100:+.1f} %), converged
+(no 5 mm gain moves by more than {largest_change * 100:.1f} percentage points between the two
+finest meshes): the shortfall is the model's, not the
+mesh's.  The published gain is an upper bound over the study's slopes and beds; a
+per-slope comparison needs the values in the papers' figures.  The time to 95 % of the
+run-out by the tip over the {BEDS[-1] * 1000:g} mm bed grows at {slopes(lambda c: c > 0.0)} deg and falls
+at {slopes(lambda c: c < 0.0)} deg; the rigid-bed front that has not stopped by the end
+(stop time nan) creeps at the speed given in the last column.
 
 Runs that failed: {"; ".join(failed) if failed else "none"}.
 """
