@@ -90,7 +90,7 @@ class PartialRegularisation(Rheology):
         self.I_1 = well_posed_window(mu_s, mu_2, I_0)[0]
         if not math.isfinite(self.I_1):
             raise ValueError("Jop's law with these parameters is nowhere well posed")
-        mu_1 = float(jop_friction(self.I_1, mu_s, mu_2, I_0, mu_inf))
+        mu_1 = float(jop_friction(np.array(self.I_1), mu_s, mu_2, I_0, mu_inf))
         self.A = self.I_1 * math.exp(alpha / mu_1**2)
         """``A`` of the low-I branch (Barker & Gray 2017, eq. 6.4)."""
 

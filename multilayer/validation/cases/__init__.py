@@ -16,6 +16,7 @@ from multilayer.validation.cases import (
     static_interface,
     stopping,
     submarine_collapse,
+    well_posedness,
 )
 from multilayer.validation.runs import Context
 
@@ -26,6 +27,7 @@ SECTIONS: dict[str, Callable[[Context], str]] = {
         dam_break,
         bagnold,
         stopping,
+        well_posedness,
         chute,
         column_collapse,
         erodible_bed,
