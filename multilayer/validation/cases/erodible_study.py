@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import xarray as xr
+import yaml
 from matplotlib.figure import Figure
 
 from multilayer.io import observables as obs
@@ -92,7 +93,7 @@ class Measures:
 
 def measure(ds: xr.Dataset, bed: float) -> Measures:
     x, t, h = ds["x"].values, ds["time"].values, ds["h"].values
-    d = float(ds.attrs.get("grain_diameter", published.values(BEADS)["grain_diameter"]))
+    d = float(yaml.safe_load(ds.attrs["scenario"])["material"]["grain_diameter"])
     fronts = {
         "tip": np.array([obs.tip(x, row, d, TIP_DIAMETERS, bed) for row in h]) - ORIGIN,
         "m95": np.array([obs.mass_front(x, row, obs.MASS_FRACTION, bed) for row in h]) - ORIGIN,
