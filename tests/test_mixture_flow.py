@@ -139,7 +139,6 @@ SCENARIO = {
         ({"mixture": None}, "mixture"),
         ({"fluid": {"density": 2600, "viscosity": 0.1}}, "fluid.density"),
         ({"fluid": {"density": 1000, "viscosity": -1}}, "fluid.viscosity"),
-        ({"domain": {"x_min": 0.0, "x_max": 0.1, "cells": 10, "layers": 2}}, "domain.layers"),
         (
             {"mixture": {"phi_critical": 1.2, "dilatancy": 4.09, "critical_shift": 25.0}},
             "mixture.phi_critical",
