@@ -52,10 +52,11 @@ DERIVATIVE_STEP = 1e-7
 MAX_HALVINGS = 12
 """Halvings of a Newton update in the backtracking line search."""
 BISECTIONS = 50
-"""Bisections of the segment on which the pore pressures are searched where the line search
-finds no descent."""
+"""Bisections of the bracket of a pore pressure where the line search finds no descent."""
 EXPANSIONS = 30
-"""Doublings of the distance to pore pressures low enough for a column to rest."""
+"""Doublings of the distance to a pore pressure low enough for its interface to hold."""
+SWEEPS = 2
+"""Gauss–Seidel sweeps over the layers where the line search finds no descent."""
 CLOSURE_TOLERANCE = 1e-12
 """Residual of the effective pressures, relative to the largest in the column, at which the
 closure of several layers stops (round-off: the terms of ``M Phi`` are ~ p_s)."""
@@ -210,10 +211,9 @@ class LocalStep:
         (:meth:`closure`), and the Jacobian of the difference ``R(X)`` (by finite
         differences, one column solve per unknown; the columns are independent) gives the
         next trial, with a backtracking line search per column.  Where the line search
-        finds no descent (at the onset of a contracting packing ``R`` has a kink where
-        the column starts moving), the step is a bisection towards the liquefied state
-        ``p_e = P`` (no contact), where every component of ``R`` is positive, while at
-        rest ``R = p_e``: the sum of the pore-pressure components changes sign between."""
+        finds no descent (at the onset of a contracting packing ``R`` has a kink where the
+        column starts moving; a flowing branch can end in a fold), the pore pressures are
+        bracketed one by one (:meth:`_bisect`) and the iteration goes on from there."""
         where = np.zeros(h_star.size) if x is None else x
         L, n = ustar.shape
         m_before = self.masses(solid, h_star)
@@ -293,31 +293,36 @@ class LocalStep:
         k: np.ndarray,
         weight: np.ndarray,
     ) -> tuple[np.ndarray, Evaluation]:
-        """A sign change of the sum ``r`` of the pore-pressure components of the residual
-        of the columns ``k``, by bisection on a segment from ``X``: to the liquefied state
-        ``p_e = P`` (no contact, ``r > 0``) where ``r(X) < 0``, else down to pore
-        pressures low enough that the column rests (``r = sum p_e < 0``).  For one layer
-        this is a root of the step; for several it is where the Newton iteration goes on."""
+        """Nonlinear Gauss–Seidel sweeps over the pore pressures of the columns ``k``, each
+        component ``a`` the root of its own residual ``R_a`` by bisection, the others held:
+        ``R_a >= 0`` at the liquefied ``p_e,a = P_a`` (no contact at interface ``a``) and
+        ``R_a < 0`` for pore pressures low enough that interface ``a`` holds.  For one
+        layer this is a root of the step; for several it is where Newton's iteration
+        goes on."""
         L = weight.shape[0]
+        X = X.copy()
+        for _ in range(SWEEPS):
+            for a in range(L):
 
-        def r(trial: np.ndarray) -> np.ndarray:
-            return np.sum(evaluate(trial, k).residual[:L], axis=0)
+                def r(value: np.ndarray, a: int = a) -> np.ndarray:
+                    trial = X.copy()
+                    trial[a] = value
+                    return evaluate(trial, k).residual[a]
 
-        start = r(X)
-        up = start < 0.0
-        far = X.copy()
-        far[:L] = np.where(up, weight, X[:L] - weight)
-        for _ in range(EXPANSIONS):
-            low_enough = up | (r(far) < 0.0)
-            if low_enough.all():
-                break
-            far[:L] = np.where(low_enough, far[:L], far[:L] - 2.0 * (X[:L] - far[:L]) - weight)
-        low, high = np.zeros(k.size), np.ones(k.size)
-        for _ in range(BISECTIONS):
-            middle = 0.5 * (low + high)
-            same = (r(X + middle * (far - X)) < 0.0) == (start < 0.0)
-            low, high = np.where(same, middle, low), np.where(same, high, middle)
-        X = X + high * (far - X)
+                start = r(X[a])
+                up = start < 0.0
+                low = np.where(up, X[a], X[a] - weight[0])
+                high = np.where(up, weight[a], X[a])
+                for _ in range(EXPANSIONS):
+                    held = up | (r(low) < 0.0)
+                    if held.all():
+                        break
+                    low = np.where(held, low, low - 2.0 * (high - low))
+                for _ in range(BISECTIONS):
+                    middle = 0.5 * (low + high)
+                    negative = r(middle) < 0.0
+                    low, high = np.where(negative, middle, low), np.where(negative, high, middle)
+                X[a] = high
         return X, evaluate(X, k)
 
 

@@ -2,13 +2,13 @@
 Pouliquen & Aussillous 2011, Phys. Fluids 23, 073301; ``data/rondon2011_collapse.yaml``).
 
 Runs: ``submarine_collapse_loose.yaml`` and ``submarine_collapse_dense.yaml`` at
-:data:`CELLS`.  Measures: the run-out (final minus initial front), the time the column
-stops (every velocity exactly zero from then on), the time the front reaches 90 % of its
-run-out, and the basal excess pore pressure averaged under the initial column at its
-largest magnitude during the collapse.  Criteria: the loose run-out at least
-:data:`RUNOUT_RATIO` times the dense one and the dense collapse at least
-:data:`DURATION_RATIO` times as long to stop; positive against negative pore pressure;
-compared with the abstract's "twice less".
+:data:`CELLS`.  Measures: the run-out (final minus initial front), two durations — the
+time the column stops (every velocity exactly zero from then on) and the time the front
+reaches :data:`RUNOUT_SHARE` of its run-out — and the basal excess pore pressure averaged
+under the initial column at its largest magnitude during the collapse.  Criteria: the
+loose run-out at least :data:`RUNOUT_RATIO` times the dense one and the dense collapse at
+least :data:`DURATION_RATIO` times as long, by either duration; positive against negative
+pore pressure; compared with the abstract's "twice less".
 """
 
 from __future__ import annotations
@@ -34,7 +34,9 @@ COLUMN = 0.06
 RUNOUT_RATIO = 1.5
 """Goal: the loose run-out at least 1.5 times the dense one."""
 DURATION_RATIO = 2.0
-"""Goal: the dense collapse at least twice as long to stop as the loose one."""
+"""Goal: the dense collapse at least twice as long as the loose one."""
+RUNOUT_SHARE = 0.95
+"""The second duration: the time the front reaches this share of its final run-out."""
 PUBLISHED = published.values("rondon2011_collapse.yaml")
 Measures = dict[str, Any]
 
@@ -49,8 +51,8 @@ def runs() -> dict[tuple[str, int], Run]:
 
 
 def measure(ds: xr.Dataset) -> Measures:
-    """Run-out (m), stop time and time to 90 % of the run-out (s), and the basal excess pore
-    pressure under the initial column at its largest magnitude (Pa, signed)."""
+    """Run-out (m), stop time and time to :data:`RUNOUT_SHARE` of the run-out (s), and the
+    basal excess pore pressure under the initial column at its largest magnitude (Pa, signed)."""
     t = ds["time"].values
     run = ds["front"].values - float(ds["front"].values[0])
     final = float(run[-1])
@@ -63,7 +65,7 @@ def measure(ds: xr.Dataset) -> Measures:
     return {
         "runout": final,
         "stop": stop,
-        "t90": float(t[np.argmax(run >= 0.9 * final)]),
+        "t95": float(t[np.argmax(run >= RUNOUT_SHARE * final)]),
         "pressure": extreme,
         "resolution": resolution(ds),
     }
@@ -76,10 +78,11 @@ def measures(ctx: Context) -> dict[tuple[str, int], Measures]:
     return {key: measure(ds) for key, run in planned.items() if not isinstance(ds := results[run.name], str)}
 
 
-def ratios(m: dict[tuple[str, int], Measures], cells: int) -> tuple[float, float]:
-    """Loose over dense run-out and dense over loose stop time at ``cells``."""
+def ratios(m: dict[tuple[str, int], Measures], cells: int) -> tuple[float, float, float]:
+    """Loose over dense run-out, dense over loose stop time and time to
+    :data:`RUNOUT_SHARE` of the run-out at ``cells``."""
     loose, dense = m[("loose", cells)], m[("dense", cells)]
-    return loose["runout"] / dense["runout"], dense["stop"] / loose["stop"]
+    return loose["runout"] / dense["runout"], dense["stop"] / loose["stop"], dense["t95"] / loose["t95"]
 
 
 def signs_met(m: dict[tuple[str, int], Measures], cells: int) -> bool:
@@ -96,36 +99,56 @@ def section(ctx: Context) -> str:
     rows: list[list[object]] = []
     for n in CELLS:
         if not all((p, n) in m for p in PACKINGS):
-            rows.append([str(n), "run failed", "", "", "", "", "", ""])
+            rows.append([str(n), "run failed", "", "", "", "", ""])
             continue
-        runout, duration = ratios(m, n)
+        runout, stop, t95 = ratios(m, n)
         row: list[object] = [str(n)]
         for p in PACKINGS:
             q = m[(p, n)]
-            row.append(f"{q['runout']:.3f} / {q['stop']:.2f} / {q['t90']:.2f} / {q['pressure']:+.0f}")
-        row += [f"{runout:.2f}", f"{duration:.2f}", "yes" if signs_met(m, n) else "no"]
+            row.append(f"{q['runout']:.4f} / {q['stop']:.2f} / {q['t95']:.2f} / {q['pressure']:+.0f}")
+        row += [f"{runout:.2f}", f"{stop:.2f} / {t95:.2f}", "yes" if signs_met(m, n) else "no"]
         rows.append(row)
     finest = CELLS[-1]
     if all((p, finest) in m for p in PACKINGS):
-        runout, duration = ratios(m, finest)
-        coarser = ratios(m, CELLS[-2]) if all((p, CELLS[-2]) in m for p in PACKINGS) else (math.nan, math.nan)
+        runout, stop, t95 = ratios(m, finest)
+        nan3 = (math.nan, math.nan, math.nan)
+        coarser = ratios(m, CELLS[-2]) if all((p, CELLS[-2]) in m for p in PACKINGS) else nan3
         abstract = PUBLISHED["runout_ratio_loose_to_dense"]
+        dense = [m[("dense", n)] for n in CELLS if ("dense", n) in m]
         verdict = f"""- loose run-out at least {RUNOUT_RATIO:g} times the dense one: {runout:.2f} at {finest}
   cells ({coarser[0]:.2f} at {CELLS[-2]}): {met(runout >= RUNOUT_RATIO)}; the abstract's "twice
   less" is a ratio of {abstract:g}: the model's is {runout / abstract - 1:+.0%} from it;
-- dense collapse at least {DURATION_RATIO:g} times as long to stop: {duration:.2f} at {finest} cells
-  ({coarser[1]:.2f} at {CELLS[-2]}): {met(duration >= DURATION_RATIO)};
+- dense collapse at least {DURATION_RATIO:g} times as long: {stop:.2f} to stop and {t95:.2f} to
+  {RUNOUT_SHARE:.0%} of the run-out at {finest} cells ({coarser[1]:.2f} and {coarser[2]:.2f} at
+  {CELLS[-2]}): {met(min(stop, t95) >= DURATION_RATIO)}, and not converged: the dense stop time
+  is {", ".join(f"{q['stop']:.2f}" for q in dense)} s over the meshes while its run-out converges
+  ({", ".join(f"{q['runout']:.4f}" for q in dense)} m);
 - positive excess pore pressure under the loose column, negative under the dense one:
-  {met(signs_met(m, finest))}."""
+  {met(signs_met(m, finest))}.
+
+Why the dense collapse is short in this model.  A column at rest does not shear, so in a
+depth-averaged layer it does not dilate: the interior of the dense column keeps phi0 = 0.60
+and the static friction tan(delta) + K (phi0 - phi_c) = 0.488 (26 deg; 0.283 for the loose
+column), and only a wedge at its edge, steeper than that, moves.  The pore pressure that
+makes a dense packing creep grows with the square of the thickness (`p_e = -beta h^2 Phi /
+(2 (1 - phi)^2)`): in the wedge, a few millimetres to 2 cm thick, it relaxes 4 to 100 times
+faster than it would over the column's 4.2 cm, and at the front, where the shear rate
+`2 u / h` is largest, the packing dilates to the critical state within a few cells.  The
+dense duration is therefore that of a thin wedge, set by how thin the mesh lets its front
+be: it grows with the resolution while the run-out converges.  The model is not tuned to
+change this.  In the experiment the whole dense column fails along a shear band through
+its interior, which dilates and draws fluid over the column's full height; a single
+depth-averaged layer at rest cannot represent that (the layered mixture can shear inside
+the column: docs/mixture.md)."""
     else:
         verdict = "- the finest runs failed: no verdict."
     sample = m.get(("dense", CELLS[1]), {}).get("resolution", "n/a")
     header = [
         "cells",
-        "loose: run-out / stop / t90 / p_e",
-        "dense: run-out / stop / t90 / p_e",
+        "loose: run-out / stop / t95 / p_e",
+        "dense: run-out / stop / t95 / p_e",
         "run-out ratio",
-        "stop-time ratio",
+        "duration ratios: stop / t95",
         "signs",
     ]
     return f"""## Submarine column collapse, loose and dense
@@ -135,14 +158,15 @@ The collapse of a glass-bead column (6 cm long; 4.8 cm high at phi0 = 0.55, 4.2 
 `submarine_collapse_loose.yaml` and `submarine_collapse_dense.yaml`, the depth-averaged
 mixture of docs/mixture.md with the closure constants of the immersed layer (not fitted to
 this experiment), at {", ".join(str(n) for n in CELLS)} cells, run to 10 s (the files: 60 cells,
-4 s; dense at 60 cells: {sample}).
-Measures: run-out (m, final minus initial front at h = 1 mm), the time every velocity is
-zero from then on (s, to the output interval 0.05 s), the time the front reaches 90 % of
-the run-out (s), and the basal excess pore pressure averaged under the initial column at
-its largest magnitude (Pa).  Published: the abstract of Rondon et al. (2011) ("the runout
-distance is twice less" for dense packings, "the flow is slow", negative pore pressure
-during the flow; positive below loose columns); its figures could not be read here, so
-the durations and pressures are compared in sign and ratio only.
+5 s; dense at 60 cells: {sample}).
+Measures: run-out (m, final minus initial front at h = 1 mm), two durations: the time
+every velocity is zero from then on (s, to the output interval 0.05 s) and the time the
+front reaches {RUNOUT_SHARE:.0%} of the run-out (t95, s); and the basal excess pore pressure
+averaged under the initial column at its largest magnitude (Pa).  Published: the abstract
+of Rondon et al. (2011) ("the runout distance is twice less" for dense packings, "the flow
+is slow", negative pore pressure during the flow; positive below loose columns); its
+figures could not be read here, so the durations and pressures are compared in sign and
+ratio only.
 
 {table(header, rows)}
 
