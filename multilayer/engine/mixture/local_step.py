@@ -271,7 +271,7 @@ class LocalStep:
             for _ in range(MAX_HALVINGS):
                 trial = Xk + fraction * update
                 attempt = evaluate(trial, k)
-                better = attempt.norm < here.norm
+                better = (attempt.norm < here.norm) | (attempt.norm <= self.tolerance)
                 if better.all():
                     break
                 fraction = np.where(better, fraction, 0.5 * fraction)
