@@ -278,9 +278,12 @@ def test_uniform_layers_sliding_as_a_plug_are_the_one_layer_run():
     three = mixture_run(
         [entry], layers=3, cells=2, sides=("periodic", "periodic"), mixture=dry_dilatant, slope=30.0
     )
+    solid0 = three.mixture.solid.copy()
     for _ in range(15):
         dt = one.step()
         assert three.step() == pytest.approx(dt, rel=1e-14)
+        # the solid of each layer: the local step keeps it, the uniform transport moves none
+        np.testing.assert_allclose(three.mixture.solid, solid0, rtol=1e-15, atol=0.0)
         np.testing.assert_allclose(three.u, np.broadcast_to(one.u, three.u.shape), rtol=1e-12, atol=0.0)
         np.testing.assert_allclose(three.h, one.h, rtol=1e-12)
         phi = three.mixture.phi_layers(three.h)
