@@ -27,6 +27,7 @@ from matplotlib.figure import Figure
 
 from multilayer.io import observables as obs
 from multilayer.validation import published
+from multilayer.validation.cases import stopping
 from multilayer.validation.markdown import met, table
 from multilayer.validation.runs import Context, Run
 
@@ -307,6 +308,20 @@ def section(ctx: Context) -> str:
         for t in THETAS
         for w in MEASURES
     )
+    glass = stopping.law()
+    thin = [t for t in THETAS if glass.mu_1 < math.tan(math.radians(t)) and glass.h_stop(t) < BEDS[-1]]
+    h_stops = ", ".join(
+        f"{glass.h_stop(t) * 1000:.1f} mm at {t:g} deg"
+        for t in THETAS
+        if glass.mu_1 < math.tan(math.radians(t))
+    )
+    bed_verdict = (
+        f"thinner than the {BEDS[-1] * 1000:g} mm bed at {', '.join(f'{t:g}' for t in thin)} deg, so with "
+        "them the erodible bed, which stays at rest on its own in the experiments, would flow"
+        if thin
+        else "thicker than every bed of the study"
+    )
+    angles = f"{math.degrees(math.atan(glass.mu_1)):.1f}-{math.degrees(math.atan(glass.mu_2)):.2f}"
     verdict_header = [
         "measure",
         f"zero within {ZERO:.0%} below theta_c",
@@ -381,6 +396,15 @@ per-slope comparison needs the values in the papers' figures.  The time to 95 % 
 run-out by the tip over the {BEDS[-1] * 1000:g} mm bed grows at {slopes(lambda c: c > 0.0)} deg and falls
 at {slopes(lambda c: c < 0.0)} deg; the rigid-bed front that has not stopped by the end
 (stop time nan) creeps at the speed given in the last column.
+
+**The law of the column-collapse study.**  The configuration chosen for the column
+collapse (`column_collapse_channel.yaml`) uses `pouliquen_forterre` with the glass-bead
+constants of the stopping case ({stopping.source_text()}), whose h_stop is {h_stops}:
+{bed_verdict}.
+Those constants belong to other beads (friction angles {angles} deg, against the repose
+angle {published.values(BEADS)["repose_angle"]:g} deg of these); the law's constants for the beads of the
+erodible experiments are not in a source we could read, so this study keeps Jop's law with these
+beads' own parameters rather than constants fitted to the targets.
 
 Runs that failed: {"; ".join(failed) if failed else "none"}.
 """
