@@ -12,6 +12,8 @@ from pathlib import Path
 
 import pytest
 
+from multilayer.engine.threads import available_cores
+
 ROOT = Path(__file__).resolve().parents[1]
 
 CHILD = r"""
@@ -92,3 +94,53 @@ def test_a_hydrostatic_run_compiles_only_its_own_kernels():
     assert second["entries"] == sorted(ENTRIES) and set(ENTRIES) <= set(first["compiled"])
     assert len(first["compiled"]) <= COMPILATIONS and second["compiled"] == []
     assert not any("parallel" in name or "non_hydrostatic" in name for name in first["compiled"])
+
+
+AHEAD = r"""
+import json, sys
+from numba.core import event
+from multilayer.app.cli import main
+
+compiled = []
+
+class Listener(event.Listener):
+    def on_start(self, e):
+        d = e.data.get("dispatcher")
+        if d is not None and d.py_func.__module__.startswith("multilayer"):
+            compiled.append(d.py_func.__qualname__)
+
+    def on_end(self, e):
+        pass
+
+with event.install_listener("numba:compile", Listener()):
+    code = main(sys.argv[1:])
+print(json.dumps({"code": code, "compiled": compiled}))
+"""
+
+
+@pytest.mark.slow
+def test_the_first_run_compiles_the_newton_kernel_in_a_child_process():
+    """``multilayer run`` of the README scenario with numba's cache empty, on two cores:
+    the fused Newton kernel is compiled by the child process of
+    ``compilation.compile_ahead`` (into the cache, which the run loads it from), the
+    transport by the run's own process."""
+    if available_cores() < 2:
+        pytest.skip("compile_ahead needs two cores")
+    scenario = str(ROOT / "scenarios" / "erodible_bed_collapse.yaml")
+    with tempfile.TemporaryDirectory() as cache, tempfile.TemporaryDirectory() as out:
+        arguments = ["run", scenario, "-q", "-o", out, "--set", "domain.cells=40", "--set", "time.end=0.01"]
+        done = subprocess.run(
+            [sys.executable, "-c", AHEAD, *arguments],
+            env={**os.environ, "NUMBA_CACHE_DIR": cache, "MULTILAYER_THREADS": "1"},
+            capture_output=True,
+            text=True,
+            check=True,
+        )
+        first = json.loads(done.stdout.splitlines()[-1])
+        assert first["code"] == 0
+        assert "_stages" in first["compiled"] and "_chunk" not in first["compiled"]
+        assert not any(name in first["compiled"] for name in ("sheared_block", "_dynamic_programme"))
+        env = {**os.environ, "NUMBA_CACHE_DIR": cache}
+        check = "from multilayer.app.compilation import _newton_cached; print(_newton_cached())"
+        cached = subprocess.run([sys.executable, "-c", check], env=env, capture_output=True, text=True)
+        assert cached.stdout.strip() == "True"
