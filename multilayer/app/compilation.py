@@ -113,32 +113,49 @@ def _compile_vertical(scenario: Any) -> None:
     sim._vertical_step(sim.h, sim.u, sim.time_step(), 1)
 
 
-def compile_ahead(scenario: Any) -> None:
+def compile_ahead(scenario: Any) -> float | None:
     """Before the run of ``scenario``: when the fused Newton kernel is not in numba's cache
     and the process may use two cores, compile it in a child process (one vertical step of a
     small copy of the run) while this process compiles the transport (one transport of the
-    same copy), then wait for the child.  The run then loads both from the cache.
+    same copy), then wait for the child.  The run then loads both from the cache.  Returns
+    the seconds this took (None: no child was started).
 
-    A warm-up only: the child's output and failures are ignored (the run compiles what is
+    The copy is built, and its step found, before the child starts: the kernels both use
+    (the state checks, the wave speed) are then compiled here only, and the child loads
+    them (two processes compiling one function at once race on its cache entry).  A
+    warm-up only: the child's output and failures are ignored (the run compiles what is
     missing and reports its own errors), and its answer is never used."""
     if available_cores() < 2 or _newton_cached():
-        return
-    child = subprocess.Popen(
-        [sys.executable, "-m", __name__],
-        stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-    )  # fmt: skip
+        return None
+    from multilayer.app.simulation import Simulation
+
+    start = time.perf_counter()
+    try:
+        sim = Simulation(_small(scenario))
+        dt = sim.time_step()
+        data = pickle.dumps(scenario)
+    except Exception:  # the run reports it
+        return None
+    compiled = sim.vertical.compiled
+    if sim.mixture is not None or compiled is None or compiled.laws() is None:
+        return None  # the run does not use the fused Newton kernel
+    try:
+        child = subprocess.Popen(
+            [sys.executable, "-m", __name__],
+            stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        )  # fmt: skip
+    except OSError:
+        return None
     try:
         assert child.stdin is not None
-        with child.stdin:
-            child.stdin.write(pickle.dumps(scenario))
-        from multilayer.app.simulation import Simulation
-
         try:
-            sim = Simulation(_small(scenario))
-            sim._transport(sim.time_step(), 1)
+            with child.stdin:
+                child.stdin.write(data)
+            sim._transport(dt, 1)
         except Exception:  # the run reports it
             pass
         child.wait()
+        return time.perf_counter() - start
     finally:
         if child.poll() is None:  # interrupted: the child goes with the run
             child.kill()
