@@ -12,7 +12,8 @@ import pytest
 from engine import simulation
 
 from multilayer.engine.plugin_output import PluginOutputError
-from multilayer.engine.vertical import newton
+from multilayer.engine.vertical import forms, newton
+from multilayer.engine.vertical.coefficients import yield_law_of
 from multilayer.engine.vertical.forms import law_of
 from multilayer.plugins.builtins import PouliquenForterre
 from multilayer.plugins.contract import Material
@@ -27,13 +28,14 @@ I_0 = 5 * BETA * GRAIN / (2 * LENGTH * math.sqrt(PACKING))
 MATERIAL = Material(density=PACKING * GRAIN_DENSITY, grain_diameter=GRAIN, particle_density=GRAIN_DENSITY)
 
 
-def layer(theta, h, layers=8, speed=0.0, **extra):
+def layer(theta, h, layers=8, speed=0.0, compiled=True, **extra):
     """A uniform glass-bead layer of thickness ``h`` on the slope ``theta`` (4 periodic
-    columns), at rest or moving as a plug at ``speed``; ``extra`` parameters of the law."""
+    columns), at rest or moving as a plug at ``speed``; ``extra`` parameters of the law;
+    the compiled vertical step, or with ``compiled=False`` the numpy iteration."""
     initial = {"shape": "layer", "thickness": h}
     if speed:
         initial["velocity"] = {"profile": "plug", "speed": speed}
-    return simulation(
+    sim = simulation(
         slope_deg=theta,
         domain={"x_min": 0.0, "x_max": 0.04, "cells": 4, "layers": layers},
         material={
@@ -46,6 +48,10 @@ def layer(theta, h, layers=8, speed=0.0, **extra):
         initial=[initial],
         boundaries={"left": "periodic", "right": "periodic"},
     )
+    assert sim.vertical.compiled.laws() is not None  # the law has compiled forms
+    if not compiled:
+        sim.vertical.compiled = None
+    return sim
 
 
 def test_beta_of_the_law_is_the_flow_rule_s():
@@ -56,12 +62,16 @@ def test_beta_of_the_law_is_the_flow_rule_s():
         assert law.mu_stop(h_stop) == pytest.approx(math.tan(math.radians(theta)), rel=1e-14)
 
 
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "numpy"])
 @pytest.mark.parametrize("theta", [22.0, 25.0, 28.0])
-def test_h_stop_is_exact(theta):
+def test_h_stop_is_exact(theta, compiled):
     """A layer 0.1 % thinner than h_stop(theta) stays exactly at rest (u == 0.0); one 0.1 %
-    thicker flows."""
+    thicker flows; on both paths of the vertical step."""
     h_stop = pouliquen_h_stop(theta, MU_1, MU_2, LENGTH)
-    below, above = layer(theta, 0.999 * h_stop), layer(theta, 1.001 * h_stop)
+    below, above = (
+        layer(theta, 0.999 * h_stop, compiled=compiled),
+        layer(theta, 1.001 * h_stop, compiled=compiled),
+    )
     for _ in range(10):
         below.step()
         above.step()
@@ -96,10 +106,11 @@ def test_the_flow_rule_is_met_as_the_layers_are_refined(theta, ratio):
     assert (4 * fine - coarse) / 3 == pytest.approx(target, rel=1e-4)
 
 
-def test_a_layer_thinner_than_h_stop_launched_stops_exactly():
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "numpy"])
+def test_a_layer_thinner_than_h_stop_launched_stops_exactly(compiled):
     """0.8 h_stop(25 deg) launched at 5 cm/s decelerates through the kink of mu at I_c and
     comes exactly to rest (u == 0.0), and stays there."""
-    sim = layer(25.0, 0.8 * pouliquen_h_stop(25.0, MU_1, MU_2, LENGTH), speed=0.05)
+    sim = layer(25.0, 0.8 * pouliquen_h_stop(25.0, MU_1, MU_2, LENGTH), speed=0.05, compiled=compiled)
     while not np.all(sim.u == 0.0):
         assert sim.t < 1.0
         sim.step()
@@ -122,9 +133,8 @@ def test_the_start_friction_holds_a_layer_between_h_stop_and_h_start():
     assert np.all(held.u == 0.0) and np.all(free.u[-1] > 0.0)
 
 
-def test_the_law_is_given_the_column_thickness_and_has_no_compiled_form():
-    """Every call gets ``thickness`` = the column's h (broadcast like the pressure), and the
-    law runs on the numpy path (the compiled forms take no thickness)."""
+def test_the_law_is_given_the_column_thickness():
+    """Every call gets ``thickness`` = the column's h (broadcast like the pressure)."""
     sim = layer(25.0, 3e-3)
     sim.h[:] = [1e-3, 2e-3, 3e-3, 4e-3]
     law = sim.vertical.stresses.bulk
@@ -138,7 +148,107 @@ def test_the_law_is_given_the_column_thickness_and_has_no_compiled_form():
     law.yield_stress = recording
     sim.vertical.stresses.columns(sim.h, np.arange(4))
     assert seen and np.array_equal(seen[0], np.broadcast_to(sim.h, seen[0].shape))
-    assert law_of(PouliquenForterre(mu_1=MU_1, mu_2=MU_2, L=LENGTH, I_0=I_0), MATERIAL) is None
+
+
+def _random_columns(seed, n=400):
+    """Shear rates (0 and 1e-9 among them), pressures (negative and 0 among them) and column
+    thicknesses (h_stop(25 deg) 0.999 and 1.001 times among them) over decades."""
+    rng = np.random.default_rng(seed)
+    h_stop = pouliquen_h_stop(25.0, MU_1, MU_2, LENGTH)
+    rate = np.concatenate([[0.0, 1e-9, 1.0, 1.0], 10.0 ** rng.uniform(-6, 3, n)])
+    pressure = np.concatenate([[0.0, -1.0, 30.0, 30.0], 10.0 ** rng.uniform(-3, 4, n)])
+    h = np.concatenate([[1e-3, 1e-3, 0.999 * h_stop, 1.001 * h_stop], 10.0 ** rng.uniform(-4, -0.5, n)])
+    return rate, pressure, h
+
+
+def _compiled_law():
+    law = PouliquenForterre(mu_1=MU_1, mu_2=MU_2, L=LENGTH, I_0=I_0, mu_3=0.40)
+    form, params = law_of(law, MATERIAL)
+    assert form == forms.FORMS["inertial_plateau"].code
+    return law, form, params
+
+
+def test_the_compiled_viscosity_is_the_plugin_viscosity():
+    """The inertial_plateau form against the law's numpy viscosity on random columns: the
+    viscous stress eta |gamma| to 1e-12 of mu_2 p (round-off of the difference mu_J - mu_stop),
+    and exactly 0 on the same side of the kink I_c(h) but within round-off of it."""
+    law, form, params = _compiled_law()
+    rate, pressure, h = _random_columns(0)
+    parts = [forms._pressure_part(form, params, p, hj) for p, hj in zip(pressure, h)]
+    got = np.array([forms._viscosity(form, params, r, *part) for r, part in zip(rate, parts)]) * rate
+    ref = law.viscosity(rate, pressure, MATERIAL, thickness=h) * rate
+    scale = MU_2 * np.maximum(pressure, 0.0)
+    assert np.all(np.abs(got - ref) <= 1e-12 * scale)
+    assert np.all((got == 0.0) == (ref == 0.0) | (np.abs(ref) <= 1e-12 * scale))
+    assert (got == 0.0).sum() > 10 and (got > 0.0).sum() > 100  # both branches sampled
+
+
+def test_the_compiled_slope_is_the_derivative_of_the_plugin_stress():
+    """d(eta gamma)/d gamma of the form against a centred difference of the law's stress,
+    away from the kink at I_c(h)."""
+    law, form, params = _compiled_law()
+    rate, pressure, h = _random_columns(1)
+    rate, pressure, h = rate[4:], pressure[4:], h[4:]
+    step = 1e-6 * rate
+
+    def stress(r):
+        return law.viscosity(r, pressure, MATERIAL, thickness=h) * r
+
+    below, above = stress(rate - step), stress(rate + step)
+    smooth = (below > 0.0) | (above == 0.0)  # not across the kink
+    centred = (above - below) / (2.0 * step)
+    parts = [forms._pressure_part(form, params, p, hj) for p, hj in zip(pressure, h)]
+    got = np.array([forms._viscosity_and_slope(form, params, r, *part)[1] for r, part in zip(rate, parts)])
+    np.testing.assert_allclose(got[smooth], centred[smooth], rtol=1e-6, atol=1e-9 * np.abs(centred).max())
+    assert smooth.sum() > 390
+
+
+def test_the_compiled_yield_stresses_are_the_plugin_s_to_the_bit():
+    """frictional_thickness: (mu_1 + D / (1 + h / L)) max(p, 0), and mu_3 for the static one."""
+    law, _, _ = _compiled_law()
+    assert yield_law_of(law, MATERIAL) == (MU_1, 0.40, MU_2 - MU_1, LENGTH)
+    # a law that declares the thickness forms without using the thickness, or uses it with
+    # forms that take none, stays on the numpy path
+    plain = PouliquenForterre(mu_1=MU_1, mu_2=MU_2, L=LENGTH, I_0=I_0)
+    plain.uses = ()
+    assert law_of(plain, MATERIAL) is None and yield_law_of(plain, MATERIAL) is None
+
+
+def test_the_compiled_step_is_the_numpy_iteration_on_a_collapse():
+    """A glass-bead column collapsing on a 22 deg slope in a channel with side walls, on both
+    paths: the same velocities to twice the Newton threshold per step, the same thicknesses,
+    and exactly the same layers at rest (the deposit's tail thinner than h_stop(22 deg)
+    stops)."""
+    runs = []
+    for compiled in (False, True):
+        sim = simulation(
+            slope_deg=22.0,
+            domain={"x_min": 0.0, "x_max": 0.2, "cells": 25, "layers": 6, "width": 0.1},
+            material={
+                "density": PACKING * GRAIN_DENSITY,
+                "grain_diameter": GRAIN,
+                "particle_density": GRAIN_DENSITY,
+            },
+            rheology={"name": "pouliquen_forterre", "mu_1": MU_1, "mu_2": MU_2, "L": LENGTH, "I_0": I_0},
+            walls={"name": "wall_friction", "mu_w": 0.1853},
+            base=[{"condition": "no_slip"}],
+            initial=[{"shape": "rectangle", "x_min": 0.0, "x_max": 0.04, "height": 0.03}],
+            boundaries={"left": "wall", "right": "outflow"},
+        )
+        assert sim.vertical.compiled.laws() is not None
+        if not compiled:
+            sim.vertical.compiled = None
+        for _ in range(50):
+            sim.step()
+        runs.append(sim)
+    ref, got = runs
+    threshold = ref.numerics.tolerance * ref.vertical.velocity_scale
+    assert abs(got.newton_iterations - ref.newton_iterations) <= 0.02 * ref.newton_iterations
+    np.testing.assert_allclose(got.h, ref.h, rtol=100 * threshold / ref.vertical.velocity_scale, atol=0.0)
+    np.testing.assert_allclose(got.u, ref.u, rtol=0.0, atol=2 * threshold)
+    assert np.array_equal(got.u == 0.0, ref.u == 0.0)
+    wet = ref.h > 0
+    assert (ref.u[:, wet] == 0.0).any() and (ref.u != 0.0).any()  # both static and moving layers
 
 
 def test_a_bad_value_names_the_thickness_it_was_given():

@@ -11,7 +11,7 @@ import pytest
 from multilayer.engine.basal import BasalColumns
 from multilayer.engine.vertical import stresses as stress
 from multilayer.engine.vertical.coefficients import CompiledCoefficients, yield_law_of
-from multilayer.plugins.builtins import DruckerPrager, JopMuI, PowerLawMuI, WallFriction
+from multilayer.plugins.builtins import DruckerPrager, JopMuI, PouliquenForterre, PowerLawMuI, WallFriction
 from multilayer.plugins.builtins._checks import FrictionalYield
 from multilayer.plugins.contract import Material
 
@@ -20,6 +20,7 @@ BULK = {
     "jop_mu_i": JopMuI(mu_s=0.38, mu_2=0.64, I_0=0.279, mu_start=0.45),
     "power_law_mu_i": PowerLawMuI(mu_s=0.38, m=0.3, alpha=0.5),
     "drucker_prager": DruckerPrager(mu_s=0.5, nu=1e-3, mu_start=0.6),
+    "pouliquen_forterre": PouliquenForterre(mu_1=0.38, mu_2=0.64, L=0.02, I_0=0.279, mu_3=0.45),
 }
 
 
@@ -67,8 +68,11 @@ def test_compiled_coefficients_are_the_numpy_ones_bit_for_bit(name, walls, start
     if start_stop:  # the static yield stress was used where both layers were at rest
         static = rest[:, wet] & np.vstack([np.ones((1, wet.size), bool), rest[:-1, wet]])
         assert static[1:].any()
+        law = BULK[name]
+        mu_start = law.mu_stop(ref.thickness, law.mu_3) if name == "pouliquen_forterre" else law.mu_start
         np.testing.assert_array_equal(
-            got.kappa[1:][static[1:]], BULK[name].mu_start * ref.pressure[1:][static[1:]].clip(0)
+            got.kappa[1:][static[1:]],
+            np.broadcast_to(mu_start, static.shape)[1:][static[1:]] * ref.pressure[1:][static[1:]].clip(0),
         )
     # the arrays are reused: a second call with fewer columns gives its own answer
     again = compiled(h, wet[::2], rest, yield_gravity)
@@ -87,8 +91,9 @@ def test_a_redefined_yield_stress_keeps_the_plugins_own_methods():
         def static_yield_stress(self, pressure, material):
             return 3.0 * super().static_yield_stress(pressure, material)
 
-    assert yield_law_of(BULK["jop_mu_i"], MATERIAL) == (0.38, 0.45)
-    assert yield_law_of(WallFriction(0.25), MATERIAL) == (0.25, 0.25)
+    assert yield_law_of(BULK["jop_mu_i"], MATERIAL) == (0.38, 0.45, 0.0, np.inf)
+    assert yield_law_of(WallFriction(0.25), MATERIAL) == (0.25, 0.25, 0.0, np.inf)
+    assert yield_law_of(BULK["pouliquen_forterre"], MATERIAL) == (0.38, 0.45, 0.64 - 0.38, 0.02)
     assert yield_law_of(Doubled(0.38, 0.64, 0.279), MATERIAL) is None
     assert yield_law_of(Stiffer(0.5, 1e-3), MATERIAL) is None
     patched = JopMuI(0.38, 0.64, 0.279)

@@ -14,6 +14,7 @@ import pytest
 from multilayer.validation.cases import (
     bagnold,
     chute,
+    collapse_channel,
     column_collapse,
     dam_break,
     erodible_bed,
@@ -181,6 +182,28 @@ def test_non_hydrostatic_collapse_runout_grows_with_the_laws_exponent(ctx):
     """The run-out exponent beyond the law's transition within 0.15 of 2/3 (at 4 mm cells);
     its size is not met (docs/validation.md)."""
     assert column_collapse.follows_exponent(_collapses(ctx, "non_hydrostatic"))
+
+
+def test_channel_collapse_rests_exactly_and_its_verdicts_are_settled_by_the_mesh(ctx):
+    """The recommended channel collapse on four meshes: every deposit exactly at rest, the
+    volume conserved, and at every aspect ratio the change of the tip run-out between the two
+    finest meshes smaller than its distance to the 15 % band (the verdict, not met, does not
+    depend on the mesh; docs/validation.md)."""
+    runs = {
+        (a, dx): collapse_channel.run(a, dx) for a in collapse_channel.RATIOS for dx in collapse_channel.CELLS
+    }
+    scenario = ctx.load(collapse_channel.SCENARIO)
+    failures: list[str] = []
+    measured = collapse_channel.deposits(
+        ctx.execute(list(runs.values())), runs, scenario.material.grain_diameter, scenario.gravity, failures
+    )
+    assert not failures, failures
+    tips: dict[float, dict[float, float]] = {}
+    for (a, dx), d in measured.items():
+        assert d.speed == 0.0 and abs(d.mass_change) < 1e-12
+        tips.setdefault(a, {})[dx] = d.tip
+    for a, values in tips.items():
+        assert collapse_channel.verdict(values, collapse_channel.law(a, collapse_channel.LAWS["A"]))[1], a
 
 
 # --------------------------------------------------------------------------- erodible bed

@@ -125,7 +125,10 @@ class Rheology:
         * ``("inertial_quadratic", (A, B, C, D))``: ``(A p + D |gamma| sqrt(p)) / (B sqrt(p)
           + C |gamma|)``, 0 where the denominator is 0 (mu(I) with Barker & Gray's 2017
           high-I term), ``B > 0``;
-        * ``("power", (A, e_p, e_g, floor))``: ``A p^e_p max(|gamma|, floor)^e_g``.
+        * ``("power", (A, e_p, e_g, floor))``: ``A p^e_p max(|gamma|, floor)^e_g``;
+        * for a law with ``uses = ("thickness",)`` only, ``("inertial_plateau", (A, B, C,
+          D, L))``: ``max(0, A p |gamma| / (B sqrt(p) + C |gamma|) - D p / (1 + h / L)) /
+          |gamma|``, 0 at rest, ``h`` the column thickness (``pouliquen_forterre``).
 
         The default, None, keeps this law on the numpy path (always correct).
         """
@@ -137,7 +140,10 @@ class Rheology:
         pass (docs/plugins.md, "Compiled forms").
 
         Returns ``("frictional", (mu, mu_static))`` with :meth:`yield_stress` equal to
-        ``mu max(p, 0)`` and :meth:`static_yield_stress` to ``mu_static max(p, 0)``.
+        ``mu max(p, 0)`` and :meth:`static_yield_stress` to ``mu_static max(p, 0)``; for a
+        law with ``uses = ("thickness",)``, ``("frictional_thickness", (mu, mu_static, D,
+        L))``: ``mu`` and ``mu_static`` each plus ``D / (1 + h / L)``, ``h`` the column
+        thickness (``pouliquen_forterre``).
         The default, None, keeps the plugin's own methods (always correct).
         """
         return None

@@ -1,17 +1,18 @@
 """``StressModel.columns`` compiled: the velocity-independent coefficients, column by column.
 
 When the bulk law (and the wall law, with side walls) declare the compiled form of their
-yield part (``Rheology.yield_stress_kernel``: ``kappa = mu max(p, 0)``, ``mu_static
-max(p, 0)`` at rest), the masses, interface pressures and yield stresses (start/stop and
-basal conditions included), wall thresholds, spacings and mean layer pressures of a
-column are computed by one compiled function, :func:`column_coefficients`: column by
-column into arrays kept from step to step (:class:`CompiledCoefficients`, instead of a
-dozen numpy temporaries of their size per step), and inside the compiled Newton step
-(``newton_kernel``), which so never stores them for the whole mesh.  The operations
-are those of ``stresses.StressModel.columns`` in the same order, so the coefficients are
-the same bits (tests/test_stress_kernel.py).  Any value outside the plugin contract
-(not finite, or negative) sends the call to ``StressModel.columns``, whose checks name
-the plugin, the method, the value and where.
+yield part (``Rheology.yield_stress_kernel``: ``kappa = mu max(p, 0)``, ``mu_static max(p,
+0)`` at rest; for a law of the column thickness ``h``, ``frictional_thickness``, the
+friction of Forterre & Pouliquen 2003, ``(mu + D / (1 + h / L)) max(p, 0)``), the masses,
+interface pressures and yield stresses (start/stop and basal conditions included), wall
+thresholds, spacings and mean layer pressures of a column are computed by one compiled
+function, :func:`column_coefficients`: column by column into arrays kept from step to step
+(:class:`CompiledCoefficients`, instead of a dozen numpy temporaries of their size per
+step), and inside the compiled Newton step (``newton_kernel``), which so never stores them
+for the whole mesh. The operations are those of ``stresses.StressModel.columns`` in the same
+order, so the coefficients are the same bits (tests/test_stress_kernel.py). Any value
+outside the plugin contract (not finite, or negative) sends the call to
+``StressModel.columns``, whose checks name the plugin, the method, the value and where.
 """
 
 from __future__ import annotations
@@ -25,21 +26,28 @@ from multilayer.engine.plugin_output import declared_form
 from multilayer.engine.vertical.forms import describes
 from multilayer.engine.vertical.stresses import ColumnStresses, StressModel
 
+YIELD_FORMS = {"frictional": 2, "frictional_thickness": 4}
+"""The compiled yield forms and their numbers of parameters: ``(mu, mu_static)``, and
+``(mu, mu_static, D, L)`` (``mu + D / (1 + h / L)`` with the column thickness ``h``)."""
 
-def yield_law_of(rheology, material) -> tuple[float, float] | None:
-    """``(mu, mu_static)`` of a plugin's compiled yield part, None if it has none (or if
-    a subclass or the instance redefines ``yield_stress`` or ``static_yield_stress``
-    below the class that declares the form, or if it uses a column quantity: the compiled
-    forms take none)."""
-    if getattr(rheology, "uses", ()) or not describes(
-        rheology, "yield_stress_kernel", ("yield_stress", "static_yield_stress")
-    ):
+
+def yield_law_of(rheology, material) -> tuple[float, float, float, float] | None:
+    """``(mu, mu_static, D, L)`` of a plugin's compiled yield part (``D = 0``, ``L = inf``
+    for the ``frictional`` form), None if it has none (or if a subclass or the instance
+    redefines ``yield_stress`` or ``static_yield_stress`` below the class that declares the
+    form, or if the column quantities it uses, ``Rheology.uses``, are not those of its form:
+    the thickness for ``frictional_thickness``, none for ``frictional``)."""
+    if not describes(rheology, "yield_stress_kernel", ("yield_stress", "static_yield_stress")):
         return None
-    declared = declared_form(rheology, "yield_stress_kernel", material, {"frictional": 2})
-    if declared is None:
+    uses = tuple(getattr(rheology, "uses", ()))
+    declared = declared_form(rheology, "yield_stress_kernel", material, YIELD_FORMS)
+    if declared is None or uses != (("thickness",) if declared[0] == "frictional_thickness" else ()):
         return None
-    mu, mu_static = declared[1]
-    return float(mu), float(mu_static)
+    if declared[0] == "frictional":
+        mu, mu_static = declared[1]
+        return float(mu), float(mu_static), 0.0, np.inf
+    mu, mu_static, drop, length = declared[1]
+    return float(mu), float(mu_static), float(drop), float(length)
 
 
 @jit(inline="always")
@@ -74,6 +82,9 @@ class YieldInputs(NamedTuple):
     base_cohesion: np.ndarray  # (N,)
     mu: float  # the frictional forms: kappa = mu max(p, 0), mu_static max(p, 0) at rest
     mu_static: float
+    thickness_law: bool  # frictional_thickness: mu + D / (1 + h / L) and mu_static + D / (1 + h / L)
+    drop: float  # D
+    length: float  # L
     walls: bool
     mu_wall: float  # tau_w = mu_wall max(pbar, 0)
     wall_scale: float  # 2 / W
@@ -100,12 +111,12 @@ def column_arrays(L: int) -> ColumnArrays:
 
 @jit(inline="always")  # inlined: a call per column costs about 50 ns at L = 8
 def column_coefficients(col, hj, inputs, out):
-    """Column ``col`` of thickness ``hj`` of ``StressModel.columns`` with the yield forms
-    ``mu max(p, 0)``, ``mu_static max(p, 0)`` at rest and ``mu_wall max(pbar, 0)`` on the
-    walls (:class:`YieldInputs` ``inputs``), into the (L,) arrays of ``out``
-    (:class:`ColumnArrays`).  Returns how many yield values are outside the plugin contract
-    (not finite and >= 0).  (Inlined, the fields of both tuples are read as the arrays
-    themselves: numba prunes the reference counts.)
+    """Column ``col`` of thickness ``hj`` of ``StressModel.columns`` with the yield forms ``mu
+    max(p, 0)``, ``mu_static max(p, 0)`` at rest (each plus ``D / (1 + hj / L)`` with
+    ``thickness_law``) and ``mu_wall max(pbar, 0)`` on the walls (:class:`YieldInputs`
+    ``inputs``), into the (L,) arrays of ``out`` (:class:`ColumnArrays`). Returns how many
+    yield values are outside the plugin contract (not finite and >= 0). (Inlined, the fields
+    of both tuples are read as the arrays themselves: numba prunes the reference counts.)
 
     The one source of these coefficients on the compiled paths: the arrays of
     :class:`CompiledCoefficients` and, column by column, the Newton kernel
@@ -129,14 +140,18 @@ def column_coefficients(col, hj, inputs, out):
         for a in range(L):
             pressure[a] = g_p * inputs.depth_interface[a] * hj
     checked += L
+    mu, mu_static = inputs.mu, inputs.mu_static
+    if inputs.thickness_law:  # the operations of pouliquen_forterre.mu_stop
+        mu = mu + inputs.drop / (1.0 + hj / inputs.length)
+        mu_static = mu_static + inputs.drop / (1.0 + hj / inputs.length)
     for a in range(L):
-        k = _frictional(inputs.mu, pressure[a])
+        k = _frictional(mu, pressure[a])
         kappa[a] = k
         good += _within_contract(k)
     if inputs.has_rest:  # interface a is static where layer a and the one below (or the ground) rest
         for a in range(L):
             if rest[a, col] and (a == 0 or rest[a - 1, col]):
-                k = _frictional(inputs.mu_static, pressure[a])
+                k = _frictional(mu_static, pressure[a])
                 kappa[a] = k
                 checked += 1
                 good += _within_contract(k)
@@ -192,9 +207,9 @@ class CompiledCoefficients:
         self._floats, self._flags = np.empty(0), np.empty(0, bool)
         self._fraction_cache: tuple[np.ndarray, Fractions] | None = None  # (s.l, _fractions())
 
-    def laws(self) -> tuple[tuple[float, float], float | None] | None:
-        """((mu, mu_static) of the bulk law, mu of the wall law or None), or None when a
-        law has no compiled yield form."""
+    def laws(self) -> tuple[tuple[float, float, float, float], float | None] | None:
+        """((mu, mu_static, D, L) of the bulk law, mu of the wall law or None), or None when
+        a law has no compiled yield form (or the wall law's depends on the thickness)."""
         s = self.stresses
         bulk = yield_law_of(s.bulk, s.material)
         if bulk is None:
@@ -202,7 +217,7 @@ class CompiledCoefficients:
         if s.walls is None:
             return bulk, None
         walls = yield_law_of(s.walls, s.material)
-        return None if walls is None else (bulk, walls[0])
+        return None if walls is None or walls[2] != 0.0 else (bulk, walls[0])
 
     def inputs(
         self, rest: np.ndarray | None = None, yield_gravity: np.ndarray | None = None
@@ -212,12 +227,15 @@ class CompiledCoefficients:
         yield forms (if not, the frictional coefficients are NaN placeholders)."""
         laws = self.laws()
         s = self.stresses
-        (mu, mu_static), mu_wall = ((np.nan, np.nan), None) if laws is None else laws
+        (mu, mu_static, drop, length), mu_wall = (
+            ((np.nan, np.nan, 0.0, np.inf), None) if laws is None else laws
+        )
         inputs = YieldInputs(
             _NO_REST if rest is None else rest, rest is not None,
             _NO_GRAVITY if yield_gravity is None else np.ascontiguousarray(yield_gravity),
             yield_gravity is not None, float(s.g_n), float(s.material.density), *self._fractions(),
-            s.base.bulk, s.base.friction, s.base.cohesion, mu, mu_static, mu_wall is not None,
+            s.base.bulk, s.base.friction, s.base.cohesion, mu, mu_static, drop != 0.0, drop, length,
+            mu_wall is not None,
             0.0 if mu_wall is None else mu_wall, 2.0 / s.width,
         )  # fmt: skip
         return inputs, laws is not None

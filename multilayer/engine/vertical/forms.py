@@ -1,15 +1,19 @@
 """The compiled forms of the laws: one registry of the compiled viscosity forms, their
 Newton model one value at a time, and whether the form a plugin declares describes it.
 
-A rheology plugin may declare its viscosity as one of the compiled forms of
-:data:`FORMS` (``Rheology.viscosity_kernel``, docs/plugins.md), for ``p = max(p, 0)``:
-``constant``, ``eta``; ``inertial``, ``A p / (B sqrt(p) + C |gamma|)`` (the mu(I) law of
-Jop, Forterre & Pouliquen 2006, eq. 2, less its yield part); ``inertial_quadratic``,
-``(A p + D |gamma| sqrt(p)) / (B sqrt(p) + C |gamma|)`` (the same with the high-I term
-``mu_inf I^2 / (I_0 + I)`` of Barker & Gray 2017); ``power``, ``A p^e_p
-max(|gamma|, floor)^e_g``.  The compiled vertical step (``newton_kernel``,
-``sheared_columns``) evaluates them here, with the factors that depend on the pressure
-only computed once per layer and step (:func:`_pressure_part`).
+A rheology plugin may declare its viscosity as one of the compiled forms of :data:`FORMS`
+(``Rheology.viscosity_kernel``, docs/plugins.md), for ``p = max(p, 0)``: ``constant``,
+``eta``; ``inertial``, ``A p / (B sqrt(p) + C |gamma|)`` (the mu(I) law of Jop, Forterre &
+Pouliquen 2006, eq. 2, less its yield part); ``inertial_quadratic``, ``(A p + D |gamma|
+sqrt(p)) / (B sqrt(p) + C |gamma|)`` (the same with the high-I term ``mu_inf I^2 / (I_0 +
+I)`` of Barker & Gray 2017); ``power``, ``A p^e_p max(|gamma|, floor)^e_g``;
+``inertial_plateau``, the viscous stress ``max(0, A p |gamma| / (B sqrt(p) + C |gamma|) - D
+p / (1 + h / L))`` divided by ``|gamma|`` (the mu(I) of Jop, Forterre & Pouliquen 2005 above
+the thickness-dependent stop friction of Forterre & Pouliquen 2003, ``pouliquen_forterre``),
+the one form that takes the column thickness ``h`` (a law that declares ``Rheology.uses =
+("thickness",)``). The compiled vertical step (``newton_kernel``, ``sheared_columns``)
+evaluates them here, with the factors that depend on the pressure only computed once per
+layer and step (:func:`_pressure_part`).
 
 A new form is one :class:`Form` in :data:`FORMS` and its branch in :func:`_pressure_part`
 and :func:`_viscosity_and_slope` (with its exact slope), all in this module, and a test
@@ -42,9 +46,10 @@ class Form:
     name: str
     code: int
     parameters: int
+    thickness: bool = False  # takes the column thickness (laws with Rheology.uses = ("thickness",))
 
 
-CONSTANT, INERTIAL, POWER, INERTIAL_QUADRATIC = 0, 1, 2, 3
+CONSTANT, INERTIAL, POWER, INERTIAL_QUADRATIC, INERTIAL_PLATEAU = 0, 1, 2, 3, 4
 """The codes of the built-in forms (the branches of :func:`_viscosity_and_slope`)."""
 FORMS = {
     form.name: form
@@ -53,6 +58,7 @@ FORMS = {
         Form("inertial", INERTIAL, 3),
         Form("power", POWER, 4),
         Form("inertial_quadratic", INERTIAL_QUADRATIC, 4),
+        Form("inertial_plateau", INERTIAL_PLATEAU, 5, thickness=True),
     )
 }
 """The compiled viscosity forms by name."""
@@ -65,13 +71,17 @@ def law_of(rheology: Any, material: Any) -> tuple[int, np.ndarray] | None:
 
     A compiled form describes the ``viscosity`` of the class that declares it: where a
     subclass (or the instance) redefines ``viscosity`` below that class, the form is not
-    used, and the step runs the plugin's own ``viscosity`` (numpy path); so does a law that
-    uses a column quantity (``Rheology.uses``: the compiled forms take none)."""
-    if getattr(rheology, "uses", ()) or not describes(rheology, "viscosity_kernel", ("viscosity",)):
+    used, and the step runs the plugin's own ``viscosity`` (numpy path); so does a law whose
+    column quantities (``Rheology.uses``) are not those its form takes (the thickness forms
+    for a law that uses the thickness, the others for a law that uses nothing)."""
+    if not describes(rheology, "viscosity_kernel", ("viscosity",)):
+        return None
+    uses = tuple(getattr(rheology, "uses", ()))
+    if uses not in ((), ("thickness",)):
         return None
     parameters = {name: form.parameters for name, form in FORMS.items()}
     declared = declared_form(rheology, "viscosity_kernel", material, parameters)
-    if declared is None:
+    if declared is None or FORMS[declared[0]].thickness != bool(uses):
         return None
     return FORMS[declared[0]].code, declared[1]
 
@@ -82,7 +92,8 @@ def concave(form, params):
     rate (the tangent and chord bounds of ``newton_control.energy_rise`` hold): constant
     and inertial forms, the power form with ``e_g <= 0``, the inertial_quadratic form with
     ``A C >= B D`` (its stress is ``D/C`` times the rate plus an inertial one of
-    coefficient ``A - B D / C``)."""
+    coefficient ``A - B D / C``); never the inertial_plateau form (its stress is 0 up to
+    the rate where the inertial stress reaches the plateau: convex there)."""
     if form == INERTIAL_QUADRATIC:
         return params[0] * params[2] >= params[1] * params[3]
     return form == CONSTANT or form == INERTIAL or (form == POWER and params[2] <= 0.0)
@@ -101,14 +112,18 @@ def concave_laws(laws: tuple[Any, ...], material: Any) -> bool:
 
 
 @jit
-def _pressure_part(form, params, p):
-    """The factor of eta that depends on the pressure only, and the one added to the
-    rate term (computed once per column and step, not per Newton iteration)."""
+def _pressure_part(form, params, p, h):
+    """The factor of eta that depends on the pressure (and the column thickness ``h``)
+    only, and the one added to the rate term (computed once per column and step, not per
+    Newton iteration); for the inertial_plateau form, the plateau stress
+    ``D p / (1 + h / L)`` and the pressure."""
     p = max(p, 0.0)
     if form == CONSTANT:
         return params[0], 0.0
     if form == INERTIAL or form == INERTIAL_QUADRATIC:
         return params[0] * p, params[1] * np.sqrt(p)
+    if form == INERTIAL_PLATEAU:
+        return params[3] / (1.0 + h / params[4]) * p, p
     return params[0] * p ** params[1], 0.0  # POWER
 
 
@@ -122,7 +137,10 @@ def _viscosity_and_slope(form, params, rate, factor, offset):
     C rate)`` for the inertial form (``eta`` at rest); for the inertial_quadratic one, with
     ``o = B sqrt(p)``, ``E = D / B``: ``eta = (A p + E o rate) / (o + C rate)`` and the slope
     ``(A p o + E o rate (2 o + C rate)) / (o + C rate)^2``; ``(1 + e_g) eta`` above the
-    floor of the power form, ``eta`` below it.
+    floor of the power form, ``eta`` below it; for the inertial_plateau form (``factor``
+    the plateau stress ``s``, ``offset`` the pressure ``p``, ``o = B sqrt(p)``), ``eta =
+    (A p rate / (o + C rate) - s) / rate`` and the slope ``A p o / (o + C rate)^2`` where
+    the inertial stress exceeds the plateau, 0 and 0 elsewhere (0 at rest, as the law).
     """
     if form == CONSTANT:
         return factor, factor
@@ -141,6 +159,16 @@ def _viscosity_and_slope(form, params, rate, factor, offset):
             return (factor + e) * inverse, (
                 factor * offset + e * (2.0 * offset + params[2] * rate)
             ) * inverse * inverse
+        return 0.0, 0.0
+    if form == INERTIAL_PLATEAU:
+        o = params[1] * np.sqrt(offset)
+        denominator = o + params[2] * rate
+        if denominator > 0.0 and rate > 0.0:
+            inverse = 1.0 / denominator
+            inertial = params[0] * offset * inverse
+            tau = inertial * rate - factor
+            if tau > 0.0:
+                return tau / rate, inertial * o * inverse
         return 0.0, 0.0
     if rate > params[3]:  # POWER
         eta = factor * rate ** params[2]

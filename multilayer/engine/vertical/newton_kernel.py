@@ -310,7 +310,7 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
                 inverse = 1.0 / s if s > 0.0 else 1.0
                 tile[sc.INV_SPACING, o + a] = inverse
                 tile[sc.CONDUCTANCE, o + a] = inverse if (viscous[a] and s > 0.0) else 0.0
-                parts = _pressure_part(bulk_form, bulk_params, pressure[a])
+                parts = _pressure_part(bulk_form, bulk_params, pressure[a], h[col])
                 tile[sc.FACTOR, o + a], tile[sc.OFFSET, o + a] = parts
                 current[a] = guess[a, col]
                 if block:  # (kappa was written into lane ALONE, whose slot it is)
@@ -320,7 +320,9 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
                     tile[sc.U0, o + a] = current[a]
                     tile[sc.WALL, o + a] = w0[a]
                 elif walls:
-                    wall_factor[a], wall_offset[a] = _pressure_part(wall_form, wall_params, wall_pressure[a])
+                    wall_factor[a], wall_offset[a] = _pressure_part(
+                        wall_form, wall_params, wall_pressure[a], h[col]
+                    )
                     per_area[a] = (2.0 / width) * mass / density
                     wall[a] = w0[a] / max(per_area[a], 1e-300)
                     wall_true[a] = per_area[a] * wall[a]

@@ -71,3 +71,16 @@ class PouliquenForterre(Rheology):
         mu_j = self.mu_1 + (self.mu_2 - self.mu_1) * inertial / (self.I_0 + inertial)
         tau = p * np.maximum(mu_j - self.mu_stop(thickness), 0.0)
         return np.divide(tau, rate, out=np.zeros(tau.shape), where=rate > 0)
+
+    def yield_stress_kernel(self, material):
+        """The ``frictional_thickness`` form of :meth:`yield_stress` and
+        :meth:`static_yield_stress` (the operations of :meth:`mu_stop`)."""
+        return "frictional_thickness", (self.mu_1, self.mu_3, self.mu_2 - self.mu_1, self.L)
+
+    def viscosity_kernel(self, material):
+        """The ``inertial_plateau`` form of :meth:`viscosity`: ``(mu_2 - mu_1) p I / (I_0 + I)``
+        is ``A p |gamma| / (B sqrt(p) + C |gamma|)`` with ``C = d sqrt(rho_p)``, ``A = (mu_2 -
+        mu_1) C``, ``B = I_0``, less the plateau ``(mu_2 - mu_1) p / (1 + h / L)``."""
+        scale = material.grain_diameter * np.sqrt(material.particle_density)
+        drop = self.mu_2 - self.mu_1
+        return "inertial_plateau", (drop * scale, self.I_0, scale, drop, self.L)

@@ -8,6 +8,7 @@ from collections.abc import Callable
 from multilayer.validation.cases import (
     bagnold,
     chute,
+    collapse_channel,
     column_collapse,
     dam_break,
     erodible_bed,
@@ -27,6 +28,7 @@ SECTIONS: dict[str, Callable[[Context], str]] = {
         stopping,
         chute,
         column_collapse,
+        collapse_channel,
         erodible_bed,
         erodible_pressure,
         submarine_collapse,

@@ -1,0 +1,204 @@
+"""Benchmark: instructions per cell-step of the parts of a step, counted by callgrind.
+
+Machine-independent evidence of the per-cell cost (a count, not a time: it does not
+move with the load of the machine).  The chute of ``chute.py`` (or, ``--case
+dam_break``, the dam break of ``dam_break.py`` with ``--pressure``) on one thread runs
+``--warm`` steps (and to ``--warm-time``), then ``--steps`` steps during which valgrind's
+callgrind counts the instructions executed inside one region of the step:
+
+- ``step``: the whole step (``Simulation.step``);
+- ``transport``: the transport with its checks (``Simulation._transport``);
+- ``transport_kernel``: the compiled transport sweep alone;
+- ``vertical``: the implicit vertical step (``Simulation._vertical_step``);
+- ``projection``: the pressure model's projection (``Simulation._project``).
+
+Each region is one run under valgrind (``--instr-atstart=no``: the import runs outside
+the instrumentation), divided by the cell-steps on cells holding material.  numba
+compiles for one instruction set (``CPU``; valgrind runs no AVX-512) into its own cache,
+filled by a first run outside valgrind.  ``--peer SOURCE`` also counts a plain C kernel
+of the same step (its source, built with ``gcc -O3 -march=CPU``, run as ``KERNEL N L
+STEPS``) on the same sizes: the difference of two runs of ``--steps`` and twice as many
+steps, per cell-step (its transport and vertical step together).
+
+    python benchmarks/instructions.py [--case chute|dam_break] [--cells 2000] [--layers 64]
+        [--steps 4] [--warm 3] [--warm-time 0] [--start bagnold|rest]
+        [--pressure hydrostatic|non_hydrostatic] [--regions step,transport,...]
+        [--peer kernel.c] [--json FILE]
+
+Needs valgrind, its headers (valgrind/callgrind.h) and a C compiler.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ctypes
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+HELPER = r"""
+#include <valgrind/callgrind.h>
+void start(void) { CALLGRIND_START_INSTRUMENTATION; }
+void toggle(void) { CALLGRIND_TOGGLE_COLLECT; }
+"""
+CPU = "haswell"
+"""The instruction set counted, the same for numba and the C kernel (valgrind runs neither
+AVX-512 nor the host's own CPU model: numba's cache is keyed by the CPU it compiled for)."""
+FEATURES = "+avx,+avx2,+fma,+bmi,+bmi2,+f16c,+lzcnt,+movbe,+popcnt,+sse4.2"
+REGIONS = ("step", "transport", "transport_kernel", "vertical", "projection")
+
+
+def helper(directory: Path) -> Path:
+    """The shared library of the two callgrind client requests, built once."""
+    library = directory / "callgrind_toggle.so"
+    if not library.exists():
+        source = directory / "callgrind_toggle.c"
+        source.write_text(HELPER)
+        subprocess.run(["cc", "-O1", "-shared", "-fPIC", "-o", str(library), str(source)], check=True)
+    return library
+
+
+def wrap(owner, name: str, toggle) -> None:
+    """Count the instructions inside ``owner.name`` (an attribute: a method of the
+    simulation or a function of a module)."""
+    inner = getattr(owner, name)
+
+    def counted(*args, **kwargs):
+        toggle()
+        try:
+            return inner(*args, **kwargs)
+        finally:
+            toggle()
+
+    setattr(owner, name, counted)
+
+
+def simulation(args: argparse.Namespace):
+    """The benchmark's problem on one thread: the chute (``chute.py``) or the dam break
+    (``dam_break.py``) with the pressure model ``args.pressure``."""
+    sys.path.insert(0, str(Path(__file__).parent))
+    from multilayer.app.simulation import Simulation
+
+    if args.case == "chute":
+        from chute import scenario
+
+        return Simulation(scenario(args.cells, args.layers, 2, 1.0, 1, args.start))
+    from dam_break import scenario as dam_break
+
+    return Simulation(dam_break(args.cells, args.layers, 2, 5.0, 1, args.pressure, args.pressure_layers))
+
+
+def run_region(args: argparse.Namespace) -> None:
+    """Inside valgrind: the problem, counting the instructions of ``args.region``."""
+    from multilayer.engine.transport import kernel
+
+    lib = ctypes.CDLL(str(helper(Path(args.workdir))))
+    sim = simulation(args)
+    while sim.steps < args.warm or sim.t < args.warm_time:
+        sim.step()
+    if args.region == "transport_kernel":
+        wrap(kernel, "_stages_serial", lib.toggle)
+    elif args.region != "step":
+        method = {"transport": "_transport", "vertical": "_vertical_step", "projection": "_project"}
+        wrap(sim, method[args.region], lib.toggle)
+    lib.start()
+    newton, cells = sim.newton_iterations, 0
+    for _ in range(args.steps):
+        cells += sim.fractions.size * int((sim.h > 0.0).sum())
+        if args.region == "step":
+            lib.toggle()
+        sim.step()
+        if args.region == "step":
+            lib.toggle()
+    print("RESULT " + json.dumps({"cell_steps": cells, "newton": sim.newton_iterations - newton}))
+
+
+def environment(cache: Path) -> dict[str, str]:
+    """One thread; numba compiling for ``CPU`` into its own cache ``cache``."""
+    return {**os.environ, "NUMBA_NUM_THREADS": "1", "NUMBA_CPU_NAME": CPU, "NUMBA_CPU_FEATURES": FEATURES,
+            "NUMBA_CACHE_DIR": str(cache)}  # fmt: skip
+
+
+def callgrind(command: list[str], out: Path, env: dict[str, str] | None = None) -> tuple[int, str]:
+    """Run ``command`` under callgrind: the instructions it counted, its output."""
+    options = ["--instr-atstart=no", "--collect-atstart=no"] if command[0] == sys.executable else []
+    run = subprocess.run(
+        ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", *options, *command],
+        check=True,
+        capture_output=True,
+        text=True,
+        env=env,
+    )
+    totals = re.search(r"^totals: (\d+)", out.read_text(), re.M)
+    if totals is None:
+        raise SystemExit(f"callgrind wrote no totals to {out}")
+    return int(totals.group(1)), run.stdout
+
+
+def peer(source: Path, cells: int, layers: int, steps: int, workdir: Path) -> dict:
+    """Instructions per cell-step of the C kernel (transport and vertical step together),
+    from two runs of ``steps`` and ``2 steps`` steps (the set-up cancels)."""
+    binary = workdir / "kernel"
+    subprocess.run(["gcc", "-O3", f"-march={CPU}", "-o", str(binary), str(source), "-lm"], check=True)
+    counts = [callgrind([str(binary), str(cells), str(layers), str(n)], workdir / f"peer.{n}.out")[0]
+              for n in (steps, 2 * steps)]  # fmt: skip
+    return {"instructions": counts[1] - counts[0], "cell_steps": steps * cells * layers,
+            "per_cell_step": (counts[1] - counts[0]) / (steps * cells * layers)}  # fmt: skip
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--case", default="chute", choices=("chute", "dam_break"))
+    parser.add_argument("--cells", type=int, default=2000)
+    parser.add_argument("--layers", type=int, default=64)
+    parser.add_argument("--steps", type=int, default=4, help="steps counted")
+    parser.add_argument("--warm", type=int, default=3, help="steps run before counting")
+    parser.add_argument("--warm-time", type=float, default=0.0, help="time run before counting")
+    parser.add_argument("--start", default="bagnold", choices=("bagnold", "rest"))
+    parser.add_argument("--pressure", default="hydrostatic", choices=("hydrostatic", "non_hydrostatic"))
+    parser.add_argument("--pressure-layers", type=int, default=None)
+    parser.add_argument("--regions", default=",".join(REGIONS))
+    parser.add_argument("--peer", type=Path, help="the C kernel's source, counted on the same sizes")
+    parser.add_argument("--json", type=Path, help="write the counts to this file")
+    cache = Path(tempfile.gettempdir()) / "instructions-numba-cache"
+    parser.add_argument(
+        "--cache", type=Path, default=cache, help=f"numba's cache of the counted runs ({CPU})"
+    )
+    parser.add_argument("--region", help=argparse.SUPPRESS)
+    parser.add_argument("--workdir", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.region:
+        run_region(args)
+        return
+    workdir = Path(tempfile.mkdtemp(prefix="instructions-"))
+    helper(workdir)
+    forwarded = [
+        f"--case={args.case}", f"--cells={args.cells}", f"--layers={args.layers}", f"--steps={args.steps}",
+        f"--warm={args.warm}", f"--warm-time={args.warm_time}", f"--start={args.start}",
+        f"--pressure={args.pressure}",
+        *([f"--pressure-layers={args.pressure_layers}"] if args.pressure_layers else []),
+    ]  # fmt: skip
+    env = environment(args.cache)
+    command = [sys.executable, __file__, *forwarded, "--workdir", str(workdir), "--region"]
+    subprocess.run([*command, "step"], check=True, stdout=subprocess.DEVNULL, env=env)  # numba's cache
+    counts: dict = {}
+    for region in args.regions.split(","):
+        total, output = callgrind([*command, region], workdir / f"{region}.out", env)
+        result = json.loads(output.split("RESULT ", 1)[1])
+        counts[region] = {"instructions": total, **result, "per_cell_step": total / result["cell_steps"]}
+        print(f"{region}: {total / result['cell_steps']:.1f} instructions per cell-step ({result})")
+    if args.peer:
+        counts["C kernel"] = peer(args.peer, args.cells, args.layers, args.steps, workdir)
+        print(f"C kernel: {counts['C kernel']['per_cell_step']:.1f} instructions per cell-step")
+    if args.json:
+        args.json.write_text(
+            json.dumps({"arguments": forwarded, "cpu": CPU, "counts": counts}, indent=1) + "\n"
+        )
+
+
+if __name__ == "__main__":
+    main()
