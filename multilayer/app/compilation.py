@@ -113,11 +113,28 @@ def _compile_vertical(scenario: Any) -> None:
     sim._vertical_step(sim.h, sim.u, sim.time_step(), 1)
 
 
+def _compile_newton_callees() -> None:
+    """Compile (or load) the two callees of the fused Newton kernel that its compilation
+    reaches last, the structure proposals and the dynamic programme of the exact solve
+    (about 6 s of its 27), by the one signature it calls them with (arrays of float64,
+    int64 and bool, contiguous; the programme's work arrays): the kernel, compiled in the
+    child process, then links them from the cache (tests/test_compiled_kernels.py checks
+    that the cache holds one signature of each)."""
+    from numba import types
+
+    from multilayer.engine.vertical import column_solve, newton_kernel
+
+    f, f2, i, b = types.float64[::1], types.float64[:, ::1], types.int64[::1], types.boolean[::1]
+    column_solve._dynamic_programme.compile((f,) * 7 + (types.Tuple((f2, f2, i, *(f,) * 10)),))
+    newton_kernel._other_structures.compile((f,) * 7 + (f2, types.int64, f, f, i, b) + (f,) * 4)
+
+
 def compile_ahead(scenario: Any) -> float | None:
     """Before the run of ``scenario``: when the fused Newton kernel is not in numba's cache
     and the process may use two cores, compile it in a child process (one vertical step of a
-    small copy of the run) while this process compiles the transport (one transport of the
-    same copy), then wait for the child.  The run then loads both from the cache.  Returns
+    small copy of the run) while this process compiles two of its callees
+    (:func:`_compile_newton_callees`) and the transport (one transport of the same copy),
+    then wait for the child.  The run then loads both from the cache.  Returns
     the seconds this took (None: no child was started).
 
     The copy is built, and its step found, before the child starts: the kernels both use
@@ -151,6 +168,7 @@ def compile_ahead(scenario: Any) -> float | None:
         try:
             with child.stdin:
                 child.stdin.write(data)
+            _compile_newton_callees()
             sim._transport(dt, 1)
         except Exception:  # the run reports it
             pass
