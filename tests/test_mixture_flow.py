@@ -1,6 +1,7 @@
-"""The grain–fluid mixture in x (engine/mixture/flow.py, local_step.py, solid_transport.py):
-conservation, exact rest, the dry limit, the uniform layer in a periodic domain, resume,
-and the scenario keys."""
+"""The grain–fluid mixture in x, in one layer and in several (engine/mixture/flow.py,
+local_step.py, solid_transport.py): conservation, exact rest, the dry limit, the uniform
+layer in a periodic domain, layers equal to one layer where the model says so, the coupled
+closure of several layers, resume, the result file, and the scenario keys."""
 
 from __future__ import annotations
 
@@ -25,16 +26,26 @@ FLUID = MixtureConfig(
 GRAINS = Material(density=1480.0, grain_diameter=160e-6, particle_density=2500.0)
 
 
-def mixture_run(initial, *, slope=25.0, cells=20, x_max=0.1, sides=("wall", "outflow"), mixture=FLUID, **kw):
+def mixture_run(
+    initial, *, slope=25.0, cells=20, x_max=0.1, sides=("wall", "outflow"), mixture=FLUID, layers=1, **kw
+):
     config = SimulationConfig(
-        x_min=0.0, x_max=x_max, cells=cells, fractions=(1.0,), material=GRAINS, slope_deg=slope,
-        initial=tuple(initial), left=sides[0], right=sides[1], mixture=mixture, **kw,
+        x_min=0.0, x_max=x_max, cells=cells, fractions=(1.0 / layers,) * layers, material=GRAINS,
+        slope_deg=slope, initial=tuple(initial), left=sides[0], right=sides[1], mixture=mixture, **kw,
     )  # fmt: skip
     return Simulation(config, DilatantCoulomb(delta_deg=22.5, K1=90.5))
 
 
-def test_solid_conserved_and_fluid_balanced_in_a_collapse():
-    sim = mixture_run([InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01, phi=0.56)], slope=10.0)
+@pytest.mark.parametrize(
+    ("layers", "phi"),
+    [(1, 0.56), pytest.param(3, 0.56, marks=pytest.mark.slow), pytest.param(3, 0.6, marks=pytest.mark.slow)],
+)
+def test_solid_conserved_and_fluid_balanced_in_a_collapse(layers, phi):
+    """Loose (contracting) and dense (dilating) collapses, in one layer and in three: the
+    solid is conserved to round-off, the pore fluid gained is what the ambient fluid lost,
+    and the basal excess pore pressure of largest magnitude has the sign of the packing."""
+    entry = InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01, phi=phi)
+    sim = mixture_run([entry], slope=10.0, layers=layers)
     solid0, volume0 = sim.mixture.solid.sum() * sim.dx, sim.h.sum() * sim.dx
     for _ in range(15):
         sim.step()
@@ -44,14 +55,18 @@ def test_solid_conserved_and_fluid_balanced_in_a_collapse():
     # fluid: what the mixture holds more is what it drew from the ambient fluid
     fluid = (sim.h.sum() - sim.mixture.solid.sum()) * sim.dx
     assert fluid - (volume0 - solid0) == pytest.approx(sim.mixture.ambient_exchange, abs=1e-15)
-    phi = sim.mixture.phi(sim.h)[sim.h > 1e-4]
-    assert np.all((phi > 0.5) & (phi < 0.6))
-    assert sim.mixture.pore_pressure[0].max() > 0.0  # a loose packing contracts: positive excess
+    phi_now = sim.mixture.phi(sim.h)[sim.h > 1e-4]
+    assert np.all((phi_now > 0.5) & (phi_now < 0.61))
+    bed = sim.mixture.pore_pressure[0]
+    assert math.copysign(1.0, FLUID.phi_critical - phi) * bed[np.argmax(np.abs(bed))] > 0.0
 
 
-def test_immersed_heap_at_rest_is_exact():
+@pytest.mark.parametrize("layers", [1, 3])
+def test_immersed_heap_at_rest_is_exact(layers):
     points = ((0.0, 0.0), (0.05, 0.004), (0.1, 0.0))  # surface slope 0.08, below tan(22.5 deg)
-    sim = mixture_run([InitialEntry("profile", points=points, phi=0.582)], slope=0.0, sides=("wall", "wall"))
+    sim = mixture_run(
+        [InitialEntry("profile", points=points, phi=0.582)], slope=0.0, sides=("wall", "wall"), layers=layers
+    )
     h0, solid0 = sim.h.copy(), sim.mixture.solid.copy()
     for _ in range(30):
         sim.step()
@@ -60,15 +75,17 @@ def test_immersed_heap_at_rest_is_exact():
     assert np.all(sim.mixture.pore_pressure == 0.0)
 
 
-def test_dry_limit_equals_the_dry_run():
+@pytest.mark.parametrize("layers", [1, 3])
+def test_dry_limit_equals_the_dry_run(layers):
     """No fluid (rho_f = eta_f = 0) and no dilatancy (K = 0): the Coulomb collapse of the
-    dry engine with the bulk density rho_s phi."""
+    dry engine with the bulk density rho_s phi, in one layer and in three."""
     phi = 0.6
     dry_mixture = MixtureConfig(0.0, 0.0, 0.582, 0.0, 0.0)
     entry = InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01, phi=phi)
-    wet = mixture_run([entry], slope=20.0, mixture=dry_mixture)
+    wet = mixture_run([entry], slope=20.0, mixture=dry_mixture, layers=layers)
     config = SimulationConfig(
-        x_min=0.0, x_max=0.1, cells=20, fractions=(1.0,), slope_deg=20.0, left="wall", right="outflow",
+        x_min=0.0, x_max=0.1, cells=20, fractions=(1.0 / layers,) * layers, slope_deg=20.0, left="wall",
+        right="outflow",
         material=Material(2500.0 * phi, 160e-6, 2500.0 * phi),
         initial=(InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01),),
     )  # fmt: skip
@@ -139,7 +156,6 @@ SCENARIO = {
         ({"mixture": None}, "mixture"),
         ({"fluid": {"density": 2600, "viscosity": 0.1}}, "fluid.density"),
         ({"fluid": {"density": 1000, "viscosity": -1}}, "fluid.viscosity"),
-        ({"domain": {"x_min": 0.0, "x_max": 0.1, "cells": 10, "layers": 2}}, "domain.layers"),
         (
             {"mixture": {"phi_critical": 1.2, "dilatancy": 4.09, "critical_shift": 25.0}},
             "mixture.phi_critical",
@@ -245,3 +261,85 @@ def test_a_dry_scenario_refuses_the_mixture_quantities():
     data["expect"] = [{"kind": "regression", "quantity": "phi_mean_final", "value": 0.5, "rtol": 0.1}]
     with pytest.raises(InputError, match=r"expect\.0\.quantity"):
         multilayer.load(data)
+
+
+def test_uniform_layers_sliding_as_a_plug_are_the_one_layer_run():
+    """Without fluid (rho_f = eta_f = 0) but with dilatancy (K > 0), a uniform dense layer
+    slides as a plug on the bed: the dilation of the sheared bottom layer, l_0 h Phi_0 =
+    2 |u| K (phi - phi_c), is the one-layer column's, and the yield stresses of the interfaces
+    are proportional to the weight above them, so three layers move as the single layer
+    does, and their solid fractions stay equal: the same run to 1e-12 (the Newton iterations
+    stop at numerics.tolerance = 1e-10 of the residual; measured: 3e-14)."""
+    dry_dilatant = MixtureConfig(0.0, 0.0, 0.582, 4.09, 0.0)
+    entry = InitialEntry("layer", thickness=4.9e-3, phi=0.59)
+    one = mixture_run(
+        [entry], layers=1, cells=2, sides=("periodic", "periodic"), mixture=dry_dilatant, slope=30.0
+    )
+    three = mixture_run(
+        [entry], layers=3, cells=2, sides=("periodic", "periodic"), mixture=dry_dilatant, slope=30.0
+    )
+    solid0 = three.mixture.solid.copy()
+    for _ in range(15):
+        dt = one.step()
+        assert three.step() == pytest.approx(dt, rel=1e-14)
+        # the solid of each layer: the local step keeps it, the uniform transport moves none
+        np.testing.assert_allclose(three.mixture.solid, solid0, rtol=1e-15, atol=0.0)
+        np.testing.assert_allclose(three.u, np.broadcast_to(one.u, three.u.shape), rtol=1e-12, atol=0.0)
+        np.testing.assert_allclose(three.h, one.h, rtol=1e-12)
+        phi = three.mixture.phi_layers(three.h)
+        np.testing.assert_allclose(phi, np.broadcast_to(one.mixture.phi(one.h), phi.shape), rtol=1e-12)
+    assert one.u.min() > 0.0 and one.mixture.phi(one.h)[0] < 0.59  # it slides and dilates
+
+
+@pytest.mark.slow
+def test_the_closure_of_several_layers_is_solved():
+    """In a sheared dense column of four layers the effective pressures solve
+    p_s = P + M Phi(p_s) (the pore pressures the dilation of every layer creates), and the
+    local step converges in a few Newton iterations (counted: deterministic; a regression bound)."""
+    sim = mixture_run(
+        [InitialEntry("layer", thickness=4.9e-3, phi=0.588)],
+        layers=4,
+        cells=2,
+        sides=("periodic", "periodic"),
+    )
+    iterations = []
+    for _ in range(20):
+        sim.step()
+        iterations.append(sim.newton_iterations)
+    local = sim.mixture.local
+    solid, h = sim.mixture.solid[:, :1], sim.h[:1]
+    gamma, p_s, dilation, pressure = local.closure(solid, h, sim.u[:, :1])
+    assert np.all(gamma[0] > 0.0) and np.all(dilation[0] > 0.0)  # dense: the bed shears and dilates
+    weight = local.buoyant_g_n * np.cumsum(solid[::-1], axis=0)[::-1]
+    np.testing.assert_allclose(p_s, weight - pressure, rtol=1e-14)
+    # the pore pressure integrated from the top down, layer by layer (trapezoidal)
+    thickness, phi = local.l * h, solid / (local.l * h)
+    D = local.drag(phi) / (1.0 - phi) ** 2
+    rise = np.concatenate([[[0.0]], np.cumsum(thickness * dilation, axis=0)])
+    expected = np.zeros(5)
+    for a in range(3, -1, -1):
+        expected[a] = expected[a + 1] - D[a, 0] * thickness[a, 0] * 0.5 * (rise[a, 0] + rise[a + 1, 0])
+    np.testing.assert_allclose(pressure[:, 0], expected[:4], rtol=1e-12)
+    assert pressure[0, 0] < 0.0
+    steps = np.diff([0, *iterations])
+    # measured: 14 at the onset from rest (where the search for the moving branch brackets
+    # the pore pressures), then 3 per step
+    assert steps[0] <= 20 and steps[1:].max() <= 4, steps
+
+
+@pytest.mark.slow
+def test_layered_result_holds_phi_per_layer_and_is_plotted(tmp_path):
+    from multilayer.app import runner
+    from multilayer.io.plotting import mixture_figure
+    from multilayer.io.results import open_result
+
+    path = Path(__file__).resolve().parents[1] / "scenarios" / "immersed_layer_dense.yaml"
+    overrides = {"time.end": 0.1, "time.output_interval": 0.1, "domain.layers": 3, "domain.cells": 4}
+    scenario = multilayer.load(path, overrides)
+    summary = runner.run(scenario, tmp_path, quiet=True)
+    assert summary["pore_pressure_bed_mean_final"] < 0.0  # dense: dilates
+    ds = open_result(tmp_path)
+    assert ds.sizes["layer"] == 3 and ds["phi_layer"].dims == ("time", "layer", "x")
+    figure = mixture_figure(ds, scenario.name)
+    assert figure.axes[3].get_ylabel().startswith("phi per layer")
+    assert len(figure.axes[3].lines) == 3

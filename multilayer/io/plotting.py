@@ -371,9 +371,12 @@ def thickness_figure(
 def mixture_figure(ds: xr.Dataset, name: str, times: int = 6) -> Figure:
     """A grain–fluid mixture: the solid fraction phi(x) and the basal excess pore pressure
     p_e(x) at several output times (where the material is), and p_e at the bed averaged
-    over the material against time."""
-    fig = Figure(figsize=(8, 8), layout="constrained")
-    ax_phi, ax_pe, ax_time = fig.subplots(3, 1)
+    over the material against time; with several layers, the solid fraction of each layer
+    at the last output time."""
+    layered = ds.sizes.get("layer", 1) > 1
+    fig = Figure(figsize=(8, 10.5 if layered else 8), layout="constrained")
+    axes = fig.subplots(4 if layered else 3, 1)
+    ax_phi, ax_pe, ax_time = axes[:3]
     wet = ds["h"] > 0.0
     for j, k in enumerate(_time_indices(ds, times)):
         snap, color = ds.isel(time=k), _shade(j, times)
@@ -391,6 +394,14 @@ def mixture_figure(ds: xr.Dataset, name: str, times: int = 6) -> Figure:
     ax_time.set_xlabel("time (s)")
     ax_time.set_ylabel("mean excess pore\npressure at the bed (Pa)")
     ax_phi.set_title(f"{name}: grain-fluid mixture")
+    if layered:
+        last, ax_layers = ds.isel(time=-1), axes[3]
+        for a in range(ds.sizes["layer"]):
+            layer = last["phi_layer"].isel(layer=a).where(last["h"] > 0.0)
+            ax_layers.plot(ds["x"], layer, color=_shade(a, ds.sizes["layer"]), label=f"layer {a + 1}")
+        ax_layers.set_xlabel("x along the plane (m)")
+        ax_layers.set_ylabel(f"phi per layer\nat t = {float(last['time']):.3g} s")
+        ax_layers.legend(fontsize="small", title="1 is at the bed")
     return fig
 
 

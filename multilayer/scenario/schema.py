@@ -729,7 +729,6 @@ class Scenario(StrictModel):
                 "fluid.density",
             )
         supported = (
-            (self.domain.layers == 1, "domain.layers", "1 with fluid (the layered closure is not available)"),
             (self.model.pressure == "hydrostatic", "model.pressure", "hydrostatic with fluid"),
             (self.walls is None, "walls", "no walls with fluid"),
             (self.gate is None, "gate", "no gate with fluid"),

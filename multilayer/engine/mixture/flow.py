@@ -125,7 +125,14 @@ class MixtureFlow:
             phi = s / (self.fractions[:, None] * hw)
             correction = buoyant_fraction(phi, self.rho_s, self.rho_f) - self.reduction
             result = self.local(
-                s, hw, ustar[:, wet] + dt * correction * self.g_t, dt, u_old[:, wet], x=self.x[wet], t=t
+                s,
+                hw,
+                ustar[:, wet] + dt * correction * self.g_t,
+                dt,
+                u_old[:, wet],
+                self.pore_pressure[:, wet],
+                x=self.x[wet],
+                t=t,
             )
             u[:, wet], h[wet], pressure[:, wet] = result.u, result.h, result.pore_pressure
             iterations = result.iterations

@@ -15,22 +15,27 @@ dilation rate and the effective pressure::
 
 with ``W_a = sum_{b < a} h_b Phi_b`` the grains' vertical velocity at interface ``a``
 (Darcy's law for the fluid they displace, integrated from the top of the mixture down;
-for one layer it is the uniform layer's ``p_e = -beta h^2 Phi / (2 (1 - phi)^2)``).  The
-own layer's term makes ``p_s,a`` the root of a quadratic, as in the uniform layer.
+for one layer it is the uniform layer's ``p_e = -beta h^2 Phi / (2 (1 - phi)^2)``).  Every
+layer's dilation sets the pore pressure of every interface below the top: at given
+velocities the effective pressures solve one coupled system per column
+(:meth:`LocalStep.closure`).
 
 The step, backward Euler: the thickness ``h' = h* / (1 - dt sum_a l_a Phi_a)`` (the fluid
 drawn from or expelled to the ambient fluid; ``s_a`` unchanged), and the velocities the
 exact minimiser of the column problem (``engine/vertical``) with masses
 ``rho_s s_a + rho_f (fluid before + fluid after) / 2`` (the fluid joins at rest: the
 exchange term of the uniform layer's energy identity), the yield stress and viscosity of
-the rheology at the effective pressure.  Velocities, pressures and thickness are iterated
-to a fixed point; at rest ``gamma = 0``, so ``Phi = 0``, ``p_e = 0`` and ``h' = h*`` bit
-for bit: a column held by friction stays at ``v == 0.0``.
+the rheology at the effective pressure.  The pore pressures and the thickness of the whole
+column are the unknowns of a Newton iteration with the exact column solve inside; at rest
+``gamma = 0``, so ``Phi = 0``, ``p_e = 0`` and ``h' = h*`` bit for bit: a column held by
+friction stays at ``v == 0.0``.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -43,7 +48,18 @@ from multilayer.errors import InputError, RunError
 from multilayer.plugins.contract import Material, MixtureState, Rheology
 
 DERIVATIVE_STEP = 1e-7
-"""Relative increment of the effective pressure for the derivative of a law's yield stress."""
+"""Relative increment of an unknown for the finite-difference Jacobian of the Newton iteration."""
+MAX_HALVINGS = 12
+"""Halvings of a Newton update in the backtracking line search."""
+BISECTIONS = 50
+"""Bisections of the bracket of a pore pressure where the line search finds no descent."""
+EXPANSIONS = 30
+"""Doublings of the distance to a pore pressure low enough for its interface to hold."""
+SWEEPS = 2
+"""Gauss–Seidel sweeps over the layers where the line search finds no descent."""
+CLOSURE_TOLERANCE = 1e-12
+"""Residual of the effective pressures, relative to the largest in the column, at which the
+closure of several layers stops (round-off: the terms of ``M Phi`` are ~ p_s)."""
 
 
 @dataclass(frozen=True)
@@ -93,51 +109,75 @@ class LocalStep:
         return self.config.kozeny * self.config.fluid_viscosity * phi * phi / (d * d * (1.0 - phi))
 
     def closure(
-        self, solid: np.ndarray, h: np.ndarray, v: np.ndarray, pore_pressure: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """One sweep of the closure from the bed up at thickness ``h`` (n,) and velocities
-        ``v`` (L, n), the pore pressures above each layer taken from ``pore_pressure``:
-        the shear rates, the effective pressures at these rates, their derivatives with
-        respect to the shear rate (the terms from above and below held), the dilation rates
-        ``Phi_a`` and the new excess pore pressures (all (L, n))."""
+        self, solid: np.ndarray, h: np.ndarray, v: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The closure of columns of thickness ``h`` (n,) moving with the layer velocities
+        ``v`` (L, n), solved exactly: the shear rates, the effective pressures, the dilation
+        rates and the excess pore pressures (all (L, n)).
+
+        The pore pressures are linear in the dilation rates, ``p_e = -M Phi`` (``M >= 0``,
+        the integral from the top down), and ``Phi_b = gamma_b K (phi_b - phi_c) + C_b /
+        p_s,b`` with ``C_b = K K2 eta_f gamma_b^2``: the effective pressures solve
+        ``p_s = P + M Phi(p_s)``, for one layer the quadratic of the uniform layer (whose
+        non-negative root starts the iteration), for several a Newton iteration that keeps
+        ``p_s > 0`` where ``C > 0`` (the system's map is decreasing in ``p_s``: one root)."""
         cfg, l = self.config, self.l
-        L = l.shape[0]
         thickness = l * h
         phi = solid / thickness
         gamma = np.abs(np.diff(v, axis=0, prepend=0.0)) / (self.spacing * h)
         weight = self.buoyant_g_n * np.cumsum(solid[::-1], axis=0)[::-1]
         D = self.drag(phi) / (1.0 - phi) ** 2
-        B = 0.5 * D * thickness * thickness
-        K, shift = cfg.dilatancy, cfg.critical_shift * cfg.fluid_viscosity
-        p_s, slope, dilation = np.empty_like(v), np.empty_like(v), np.empty_like(v)
-        rise = np.zeros_like(h)  # W_a: the grains' vertical velocity at interface a
+        L = l.shape[0]
+        # M[a, b]: minus the pore pressure at the bottom of layer a per unit dilation rate of
+        # layer b (b lifts the layers above it, and the fluid its own rise draws crosses
+        # half of b on average)
+        Dh = D * thickness
+        M = np.empty((L, L, h.size))
         for a in range(L):
-            above = pore_pressure[a + 1] if a + 1 < L else 0.0
-            A = (
-                weight[a]
-                - above
-                + D[a] * thickness[a] * rise
-                + B[a] * gamma[a] * K * (phi[a] - cfg.phi_critical)
-            )
-            C = B[a] * K * shift * gamma[a] ** 2
-            root = np.sqrt(A * A + 4.0 * C)
-            positive = np.where(A >= 0.0, 0.5 * (A + root), 2.0 * C / np.where(root - A > 0.0, root - A, 1.0))
-            p_s[a] = np.where(C > 0.0, positive, np.maximum(A, 0.0))
-            # p_s^2 - A p_s - C = 0: d p_s / d gamma = (A' p_s + C') / (2 p_s - A)
-            denominator = 2.0 * p_s[a] - A
-            rate = B[a] * K * (phi[a] - cfg.phi_critical) * p_s[a] + 2.0 * B[a] * K * shift * gamma[a]
-            slope[a] = np.where(denominator > 0.0, rate / np.where(denominator > 0.0, denominator, 1.0), 0.0)
-            viscous = np.where(p_s[a] > 0.0, shift * gamma[a] / np.where(p_s[a] > 0.0, p_s[a], 1.0), 0.0)
-            dilation[a] = gamma[a] * K * (phi[a] - cfg.phi_critical + viscous)
-            rise = rise + thickness[a] * dilation[a]
-        # the pore pressures of these dilation rates, from the top of the mixture down
-        new = np.empty_like(v)
-        top = np.zeros_like(h)
-        for a in range(L - 1, -1, -1):
-            lower = rise - thickness[a] * dilation[a]
-            top = top - D[a] * thickness[a] * 0.5 * (lower + rise)
-            new[a], rise = top, lower
-        return gamma, p_s, slope, dilation, new
+            for b in range(L):
+                M[a, b] = thickness[b] * (Dh[max(a, b + 1) :].sum(axis=0) + (0.5 * Dh[b] if b >= a else 0.0))
+        linear = gamma * cfg.dilatancy * (phi - cfg.phi_critical)
+        C = cfg.dilatancy * cfg.critical_shift * cfg.fluid_viscosity * gamma * gamma
+        A = weight + np.einsum("abn,bn->an", M, linear)
+        diagonal = np.einsum("aan->an", M)
+        root = np.sqrt(A * A + 4.0 * diagonal * C)
+        positive = np.where(
+            A >= 0.0, 0.5 * (A + root), 2.0 * diagonal * C / np.where(root - A > 0.0, root - A, 1.0)
+        )
+        p_s = np.where(diagonal * C > 0.0, positive, np.maximum(A, 0.0))
+        if L > 1:
+            p_s = self._coupled(p_s, weight, M, linear, C)
+        contact = p_s > 0.0
+        dilation = linear + np.where(contact, C / np.where(contact, p_s, 1.0), 0.0)
+        pore_pressure = weight - p_s
+        return gamma, p_s, dilation, pore_pressure
+
+    def _coupled(
+        self, p_s: np.ndarray, weight: np.ndarray, M: np.ndarray, linear: np.ndarray, C: np.ndarray
+    ) -> np.ndarray:
+        """Newton's iteration for ``p_s = P + M Phi(p_s)`` from ``p_s`` (each layer's own
+        root, the other layers' viscous shift left out), halving a step that would make
+        an effective pressure with ``C > 0`` non-positive."""
+        viscous = C > 0.0
+        L = p_s.shape[0]
+        identity = np.eye(L)[None]
+        for _ in range(self.max_iterations):
+            x = np.where(viscous, p_s, 1.0)
+            shift = np.where(viscous, C / x, 0.0)
+            residual = p_s - weight - np.einsum("abn,bn->an", M, linear + shift)
+            if np.all(np.abs(residual) <= CLOSURE_TOLERANCE * np.maximum(np.abs(p_s).max(axis=0), weight[0])):
+                return p_s
+            jacobian = identity + np.transpose(M * np.where(viscous, C / (x * x), 0.0)[None], (2, 0, 1))
+            step = np.linalg.solve(jacobian, -residual.T[..., None])[..., 0].T
+            trial = p_s + step
+            while np.any(viscous & ~(trial > 0.0)):
+                step = np.where(viscous & ~(trial > 0.0), 0.5 * step, step)
+                trial = p_s + step
+            p_s = trial
+        raise RunError(
+            f"the mixture's closure did not converge in {self.max_iterations} iterations "
+            f"(numerics.max_iterations)"
+        )
 
     def _state(self, solid: np.ndarray, h: np.ndarray, pore_pressure: np.ndarray) -> MixtureState:
         cfg = self.config
@@ -153,77 +193,166 @@ class LocalStep:
         ustar: np.ndarray,
         dt: float,
         guess: np.ndarray | None = None,
+        pressure_guess: np.ndarray | None = None,
         *,
         x: np.ndarray | None = None,
         t: float = 0.0,
     ) -> LocalResult:
         """The step of columns holding ``solid`` (L, n) after transport to ``h_star`` (n,),
         velocities ``ustar`` (L, n) (the buoyant weight along the slope included), the
-        iteration started from the velocities ``guess`` (default: at rest); ``x`` (n,) and
-        ``t`` place the columns in the messages of the checked plugin calls.
+        iteration started from the velocities ``guess`` and the excess pore pressures
+        ``pressure_guess`` (default: at rest); ``x`` (n,) and ``t`` place the columns in
+        the messages of the checked plugin calls.
 
-        Each iteration evaluates the closure at the last velocities and solves the column
-        problem exactly (a Newton iteration).  The yield stress depends on the shear rate
-        through the effective pressure (it rises in a dilating packing, falls in a
-        contracting one); it is linearised at the last shear rate: its tangent joins the
-        viscosity and the intercept is the yield stress, wherever the stress still grows
-        with the rate (the problem stays convex); elsewhere its value at the last shear
-        rate is used."""
+        A Newton iteration on the unknowns of the whole column at once, ``X = (p_e, h)``
+        (its ``L`` excess pore pressures and its thickness): at trial values the rheology
+        at the effective pressures gives the velocities by the exact column solve, the
+        closure gives the pore pressures and the thickness these velocities create
+        (:meth:`closure`), and the Jacobian of the difference ``R(X)`` (by finite
+        differences, one column solve per unknown; the columns are independent) gives the
+        next trial, with a backtracking line search per column.  Where the line search
+        finds no descent (at the onset of a contracting packing ``R`` has a kink where the
+        column starts moving; a flowing branch can end in a fold), the pore pressures are
+        bracketed one by one (:meth:`_bisect`) and the iteration goes on from there."""
         where = np.zeros(h_star.size) if x is None else x
-
-        def law(method: str, *args: object) -> np.ndarray:
-            """The rheology's ``method`` (its pressure argument is third from the end of
-            ``args``), checked (engine/plugin_output.py)."""
-            inputs = {"pressure": np.asarray(args[-3])}
-            return call(self.law, method, args, inputs=inputs, x=where, position=INTERFACE, t=t)
-
+        L, n = ustar.shape
         m_before = self.masses(solid, h_star)
         momentum = m_before * ustar
-        zeros = np.zeros_like(ustar)
-        h, v = h_star, zeros if guess is None else guess
-        pore_pressure = zeros
-        velocity_scale = float(np.abs(ustar).max(initial=0.0))
-        for iteration in range(1, self.max_iterations + 1):
-            gamma, p_s, slope, dilation, new_pressure = self.closure(solid, h, v, pore_pressure)
-            growth = 1.0 - dt * np.sum(self.l * dilation, axis=0)
-            if not np.all(growth > 0.0):
-                i = int(np.argmin(growth))
-                raise RunError(
-                    f"the mixture's dilation rate {float(np.sum(self.l[:, 0] * dilation[:, i])):.6g} 1/s "
-                    f"exceeds 1/dt = {1.0 / dt:.6g} 1/s in column {i}: no thickness balances it"
-                )
-            h_new = h_star / growth
-            state = self._state(solid, h, new_pressure)
-            flowing = law("mixture_yield_stress", p_s, state, self.material)
-            step = DERIVATIVE_STEP * np.maximum(np.abs(p_s), 1e-300)
-            tangent = (law("mixture_yield_stress", p_s + step, state, self.material) - flowing) / step * slope
-            eta = law("mixture_viscosity", gamma, p_s, state, self.material)
-            newton = eta + tangent > 0.0
-            kappa = np.where(newton, np.maximum(flowing - tangent * gamma, 0.0), flowing)
-            eta = np.where(newton, eta + tangent, eta)
-            m = 0.5 * (m_before + self.masses(solid, h_new))
+        weight = self.buoyant_g_n * np.cumsum(solid[::-1], axis=0)[::-1]
+        scale = np.concatenate([np.maximum(weight, np.finfo(float).tiny), h_star[None, :]])
+        velocities = np.zeros_like(ustar) if guess is None else guess
+        gamma = np.zeros_like(ustar)
+
+        def law(method: str, k: np.ndarray, *args: object) -> np.ndarray:
+            """The rheology's ``method`` in the columns ``k`` (its pressure argument is
+            third from the end of ``args``), checked (engine/plugin_output.py)."""
+            inputs = {"pressure": np.asarray(args[-3])}
+            return call(self.law, method, args, inputs=inputs, x=where[k], position=INTERFACE, t=t)
+
+        def evaluate(X: np.ndarray, k: np.ndarray) -> Evaluation:
+            """At the trial ``X = (p_e, h)`` (L + 1, len(k)) of the columns ``k``."""
+            p, h = X[:L], X[L]
+            s = solid[:, k]
+            p_s = weight[:, k] - p
+            state = self._state(s, h, p)
+            kappa = law("mixture_yield_stress", k, p_s, state, self.material)
+            eta = law("mixture_viscosity", k, gamma[:, k], p_s, state, self.material)
+            m = 0.5 * (m_before[:, k] + self.masses(s, h))
+            free = np.zeros_like(m)
             problem = ColumnProblem(
-                m=m, ustar=momentum / m, dt=dt, kappa=kappa, c=eta / (self.spacing * h_new), w=zeros, cw=zeros
+                m=m, ustar=momentum[:, k] / m, dt=dt, kappa=kappa, c=eta / (self.spacing * h), w=free, cw=free
             )
-            v_new = solve(problem, v)
-            velocity_scale = max(velocity_scale, float(np.abs(v_new).max(initial=0.0)))
-            done = iteration > 1 and all(
-                _close(new, old, self.tolerance * scale)
-                for new, old, scale in zip(
-                    (v_new, h_new, new_pressure),
-                    (v, h, pore_pressure),
-                    (velocity_scale, float(h_star.max(initial=0.0)), float(np.abs(p_s).max(initial=0.0))),
-                )
-            )
-            v, h, pore_pressure = v_new, h_new, new_pressure
-            if done:
-                return LocalResult(v, h, pore_pressure, iteration)
+            v = solve(problem, velocities[:, k])
+            rates, _, dilation, pressure = self.closure(s, h, v)
+            growth = 1.0 - dt * np.sum(self.l * dilation, axis=0)
+            h_new = np.where(growth > 0.0, h_star[k] / np.where(growth > 0.0, growth, 1.0), np.inf)
+            residual = (X - np.concatenate([pressure, h_new[None, :]])) / scale[:, k]
+            residual = np.where(np.isfinite(residual), residual, np.inf)
+            return Evaluation(v, rates, pressure, h_new, residual, np.abs(residual).max(axis=0))
+
+        X = np.concatenate(
+            [np.zeros_like(ustar) if pressure_guess is None else pressure_guess, h_star[None, :]]
+        )
+        now = evaluate(X, np.arange(n))
+        for iteration in range(1, self.max_iterations + 1):
+            k = np.flatnonzero(~(now.norm <= self.tolerance))
+            if not k.size:
+                return LocalResult(now.v, now.h, now.pressure, iteration)
+            velocities, gamma = now.v, now.rates
+            Xk, here = X[:, k], now.take(k)
+            jacobian = np.empty((k.size, L + 1, L + 1))
+            for j in range(L + 1):
+                step = DERIVATIVE_STEP * np.maximum(np.abs(Xk[j]), scale[j, k])
+                trial = Xk.copy()
+                trial[j] += step
+                jacobian[:, :, j] = ((evaluate(trial, k).residual - here.residual) / step).T
+            update = _solve_batched(jacobian, -here.residual.T).T
+            fraction = np.ones(k.size)
+            for _ in range(MAX_HALVINGS):
+                trial = Xk + fraction * update
+                attempt = evaluate(trial, k)
+                better = (attempt.norm < here.norm) | (attempt.norm <= self.tolerance)
+                if better.all():
+                    break
+                fraction = np.where(better, fraction, 0.5 * fraction)
+            stuck = np.flatnonzero(~better)
+            if stuck.size:
+                trial[:, stuck], found = self._bisect(evaluate, Xk[:, stuck], k[stuck], weight[:, k[stuck]])
+                attempt = attempt.merge(stuck, found)
+            X[:, k] = trial
+            now = now.merge(k, attempt)
         raise RunError(
             f"the mixture's local step did not converge in {self.max_iterations} iterations "
             f"(numerics.max_iterations)"
         )
 
+    @staticmethod
+    def _bisect(
+        evaluate: Callable[[np.ndarray, np.ndarray], Evaluation],
+        X: np.ndarray,
+        k: np.ndarray,
+        weight: np.ndarray,
+    ) -> tuple[np.ndarray, Evaluation]:
+        """Nonlinear Gauss–Seidel sweeps over the pore pressures of the columns ``k``, each
+        component ``a`` the root of its own residual ``R_a`` by bisection, the others held:
+        ``R_a >= 0`` at the liquefied ``p_e,a = P_a`` (no contact at interface ``a``) and
+        ``R_a < 0`` for pore pressures low enough that interface ``a`` holds.  For one
+        layer this is a root of the step; for several it is where Newton's iteration
+        goes on."""
+        L = weight.shape[0]
+        X = X.copy()
+        for _ in range(SWEEPS):
+            for a in range(L):
 
-def _close(new: np.ndarray, old: np.ndarray, bound: float) -> bool:
-    """Whether ``new`` and ``old`` differ by at most ``bound`` everywhere."""
-    return bool(np.all(np.abs(new - old) <= bound))
+                def r(value: np.ndarray, a: int = a) -> np.ndarray:
+                    trial = X.copy()
+                    trial[a] = value
+                    return evaluate(trial, k).residual[a]
+
+                start = r(X[a])
+                up = start < 0.0
+                low = np.where(up, X[a], X[a] - weight[0])
+                high = np.where(up, weight[a], X[a])
+                for _ in range(EXPANSIONS):
+                    held = up | (r(low) < 0.0)
+                    if held.all():
+                        break
+                    low = np.where(held, low, low - 2.0 * (high - low))
+                for _ in range(BISECTIONS):
+                    middle = 0.5 * (low + high)
+                    negative = r(middle) < 0.0
+                    low, high = np.where(negative, middle, low), np.where(negative, high, middle)
+                X[a] = high
+        return X, evaluate(X, k)
+
+
+class Evaluation(NamedTuple):
+    """The local step's map at a trial ``X`` in some columns."""
+
+    v: np.ndarray  # (L, k) velocities of the column solve
+    rates: np.ndarray  # (L, k) interface shear rates
+    pressure: np.ndarray  # (L, k) excess pore pressures of the closure at these velocities
+    h: np.ndarray  # (k,) thickness of the dilation at these velocities
+    residual: np.ndarray  # (L + 1, k) X minus what it produces, scaled
+    norm: np.ndarray  # (k,) largest scaled component of the residual
+
+    def take(self, k: np.ndarray) -> Evaluation:
+        """This evaluation in the columns ``k`` only."""
+        return Evaluation(*(part[..., k] for part in self))
+
+    def merge(self, k: np.ndarray, other: Evaluation) -> Evaluation:
+        """This evaluation with the columns ``k`` replaced by ``other``'s."""
+        parts = []
+        for mine, theirs in zip(self, other):
+            mine = mine.copy()
+            mine[..., k] = theirs
+            parts.append(mine)
+        return Evaluation(*parts)
+
+
+def _solve_batched(jacobian: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """``jacobian^-1 rhs`` per column (n, k, k) x (n, k); least squares where singular."""
+    try:
+        return np.linalg.solve(jacobian, rhs[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        return np.stack([np.linalg.lstsq(J, r, rcond=None)[0] for J, r in zip(jacobian, rhs)])

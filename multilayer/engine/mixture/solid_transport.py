@@ -65,8 +65,24 @@ def transport(
     carried = np.where(G > 0.0, phi[1:], phi[:-1]) * G
     new[:-1] += carried
     new[1:] -= carried
+    _share_excess(new, l * h_new)
     ends = np.array([solid_fluxes[:, 0].sum(), solid_fluxes[:, -1].sum()])
     return new, ends
+
+
+def _share_excess(solid: np.ndarray, room: np.ndarray) -> None:
+    """Move in place the solid a layer holds beyond its thickness ``room`` (a thin layer at
+    a front can pass on more volume than it held: its share of the discharge is that of the
+    column) to the other layers of its column, in proportion to their free room: the
+    column's solid is unchanged, and no layer exceeds its thickness if the column does not."""
+    excess = np.maximum(solid - room, 0.0)
+    if not excess.any():
+        return
+    solid -= excess
+    free = room - solid
+    total = free.sum(axis=0)
+    share = np.where(total > 0.0, excess.sum(axis=0) / np.where(total > 0.0, total, 1.0), 0.0)
+    solid += np.where(total > 0.0, free * share, excess)  # no room: left as it was (the check stops the run)
 
 
 def _filled(phi: np.ndarray, wet: np.ndarray, volumes: np.ndarray) -> np.ndarray:
