@@ -172,19 +172,12 @@ def test_a_layer_at_rest_below_its_friction_angle_is_not_solved_and_stays_exactl
             assert np.all(sim.u == 0.0) and solves[0] == 0
 
 
-def test_a_structure_spoilt_by_round_off_is_rescued_exactly_without_the_dynamic_programme():
-    """Where the active set rejects the structure of an iterate, the structures proposed
-    next (the velocities before the step; the iterate with its round-off speeds and jumps
-    closed) are checked for optimality by the active set itself: a rescued solve is the
-    exact minimiser, the dynamic programme's answer, with the same static layers.  The
-    iterates here are exact answers with jumps of 1e-13 of the top speed added across
-    their locked interfaces and static layers, which the first attempt rejects."""
-    from test_column_kernel import random_problem
-
+def _rescues(problem, spoil) -> tuple[int, int]:
+    """Columns of ``problem`` whose structure ``spoil(exact column)`` the active set rejects,
+    and of those the ones ``newton_kernel._other_structures`` rescues, each checked to be
+    the exact minimiser (the dynamic programme's answer) with the same static layers."""
     from multilayer.engine.vertical import column_solve as column_kernel
 
-    rng = np.random.default_rng(7)
-    problem = random_problem(rng, 12, 400)
     exact = column_kernel.solve(problem, guess=np.full(problem.shape, np.nan))  # dynamic programme
     L = problem.shape[0]
     work = [np.empty(L + 1, np.int64), np.empty(L, np.bool_), *(np.empty(L) for _ in range(4))]
@@ -196,8 +189,7 @@ def test_a_structure_spoilt_by_round_off_is_rescued_exactly_without_the_dynamic_
         parts = (problem.kappa, problem.c, problem.w, problem.cw)
         coefficients = [np.ascontiguousarray(a[:, col]) for a in parts]
         top = np.abs(exact[:, col]).max()
-        locked = np.diff(exact[:, col], prepend=0.0) == 0  # static layers and plugs
-        spoilt = exact[:, col] + 1e-13 * top * rng.choice([-1.0, 1.0], L) * locked
+        spoilt = spoil(exact[:, col].copy(), coefficients[0])
         u = np.empty(L)
         if column_kernel._active_set(inertia, momentum, *coefficients, spoilt, u, *work):
             continue
@@ -208,6 +200,25 @@ def test_a_structure_spoilt_by_round_off_is_rescued_exactly_without_the_dynamic_
             rescued += 1
             assert np.abs(u - exact[:, col]).max() <= 1e-11 * max(top, 1.0)
             assert np.array_equal(u == 0.0, exact[:, col] == 0.0)
+    return rejected, rescued
+
+
+def test_a_structure_spoilt_by_round_off_is_rescued_exactly_without_the_dynamic_programme():
+    """Where the active set rejects the structure of an iterate, the structures proposed
+    next (the velocities before the step; the iterate with its round-off speeds and jumps
+    closed) are checked for optimality by the active set itself: a rescued solve is the
+    exact minimiser, the dynamic programme's answer, with the same static layers.  The
+    iterates here are exact answers with jumps of 1e-13 of the top speed added across
+    their locked interfaces and static layers, which the first attempt rejects."""
+    from test_column_kernel import random_problem
+
+    rng = np.random.default_rng(7)
+
+    def spoil(u, kappa):
+        locked = np.diff(u, prepend=0.0) == 0  # static layers and plugs
+        return u + 1e-13 * np.abs(u).max() * rng.choice([-1.0, 1.0], u.size) * locked
+
+    rejected, rescued = _rescues(random_problem(rng, 12, 400), spoil)
     assert rejected > 100 and rescued > 0.9 * rejected
 
 
@@ -223,38 +234,21 @@ def test_a_plug_edge_moved_by_one_interface_is_repaired_exactly_without_the_dyna
     from a flow's): such a column goes on to the programme, still exact."""
     from test_column_kernel import random_problem
 
-    from multilayer.engine.vertical import column_solve as column_kernel
     from multilayer.engine.vertical.problem import ColumnProblem
 
     rng = np.random.default_rng(11)
     p = random_problem(rng, 16, 300)
     p = ColumnProblem(m=p.m, ustar=p.ustar, dt=p.dt, kappa=p.kappa, c=p.c, w=0 * p.w, cw=0 * p.cw)
-    exact = column_kernel.solve(p, guess=np.full(p.shape, np.nan))  # dynamic programme
-    L = p.shape[0]
-    work = [np.empty(L + 1, np.int64), np.empty(L, np.bool_), *(np.empty(L) for _ in range(4))]
-    work.append(np.empty(2, np.int64))
-    rejected = rescued = 0
-    for col in range(p.shape[1]):
-        inertia = p.m[:, col] / p.dt
-        momentum = inertia * p.ustar[:, col]
-        coefficients = [np.ascontiguousarray(a[:, col]) for a in (p.kappa, p.c, p.w, p.cw)]
-        top = np.abs(exact[:, col]).max()
-        spoilt = exact[:, col].copy()
-        i = rng.choice(np.flatnonzero(p.kappa[:, col] > 0.0))
-        below = spoilt[i - 1] if i > 0 else 0.0
-        jump = 1e-6 * top * rng.choice([-1.0, 1.0]) if spoilt[i] == below else 0.0
-        spoilt[i + 1 :] += below + jump - spoilt[i]
-        spoilt[i] = below + jump
-        u = np.empty(L)
-        if column_kernel._active_set(inertia, momentum, *coefficients, spoilt, u, *work):
-            continue
-        rejected += 1
-        if newton_kernel._other_structures(
-            inertia, momentum, *coefficients, spoilt, p.ustar, col, np.empty(L), u, *work
-        ):
-            rescued += 1
-            assert np.abs(u - exact[:, col]).max() <= 1e-11 * max(top, 1.0)
-            assert np.array_equal(u == 0.0, exact[:, col] == 0.0)
+
+    def spoil(u, kappa):
+        i = rng.choice(np.flatnonzero(kappa > 0.0))
+        below = u[i - 1] if i > 0 else 0.0
+        jump = 1e-6 * np.abs(u).max() * rng.choice([-1.0, 1.0]) if u[i] == below else 0.0
+        u[i + 1 :] += below + jump - u[i]
+        u[i] = below + jump
+        return u
+
+    rejected, rescued = _rescues(p, spoil)
     assert rejected > 100 and rejected - rescued <= rejected // 100
 
 
