@@ -18,9 +18,11 @@ from multilayer.validation.cases import (
     column_collapse,
     dam_break,
     erodible_bed,
+    erodible_study,
     static_interface,
     stopping,
     submarine_collapse,
+    well_posedness,
 )
 from multilayer.validation.mesh_study import MeshStudy, file_comparison
 from multilayer.validation.runs import Context
@@ -229,6 +231,26 @@ def test_pure_coulomb_friction_reverses_the_trend(ctx):
     measures, failed = erodible_bed.measure_all(ctx, keys)
     assert not failed
     assert erodible_bed.reverses_with_coulomb(erodible_bed.trends(measures))
+
+
+def test_mass_front_sees_no_effect_of_the_bed_below_the_critical_slope(ctx):
+    """Mangeney et al. (2010): no effect of the erodible bed below theta_c ~ theta_r / 2; the
+    95 % mass front of the finest mesh moves by less than 5 % at 0 and 10 deg."""
+    below = tuple(t for t in erodible_study.THETAS if t < erodible_study.critical_slope())
+    found = erodible_study.measure_all(ctx, erodible_study.keys(below))
+    assert not [v for v in found.values() if isinstance(v, str)]
+    assert erodible_study.zero_below_critical(found, "m95")
+
+
+# --------------------------------------------------------------------------- well-posedness
+
+
+@pytest.mark.parametrize("theta", well_posedness.STEADY_SLOPES)
+def test_regularised_law_flows_as_bagnold_at_its_own_inertial_number(ctx, theta):
+    """Barker & Gray (2017): the steady uniform flow of the regularised law is Bagnold's
+    profile at the I_theta of its low branch (26 deg) or of Jop's law (30 deg)."""
+    found = well_posedness.steady(ctx, theta, well_posedness.STEADY_LAYERS[-1])
+    assert found.error < well_posedness.MAX_STEADY_ERROR
 
 
 # --------------------------------------------------------------------------- submarine collapse

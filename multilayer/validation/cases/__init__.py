@@ -13,9 +13,11 @@ from multilayer.validation.cases import (
     dam_break,
     erodible_bed,
     erodible_pressure,
+    erodible_study,
     static_interface,
     stopping,
     submarine_collapse,
+    well_posedness,
 )
 from multilayer.validation.runs import Context
 
@@ -26,10 +28,12 @@ SECTIONS: dict[str, Callable[[Context], str]] = {
         dam_break,
         bagnold,
         stopping,
+        well_posedness,
         chute,
         column_collapse,
         collapse_channel,
         erodible_bed,
+        erodible_study,
         erodible_pressure,
         submarine_collapse,
     )

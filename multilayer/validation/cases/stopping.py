@@ -65,6 +65,11 @@ def law() -> Law:
     return Law(math.tan(math.radians(v["delta_1"])), math.tan(math.radians(v["delta_2"])), v["L"], v["beta"])
 
 
+def source_text() -> str:
+    """The citation of the glass-bead constants."""
+    return published.source(DATA).cite()
+
+
 def run(name: str, theta: float, h: float, layers: int, end: float) -> Run:
     g = law()
     rheology = f"{{name: pouliquen_forterre, mu_1: {g.mu_1!r}, mu_2: {g.mu_2!r}, L: {g.L!r}, I_0: {g.I_0!r}}}"
@@ -183,7 +188,7 @@ def section(ctx: Context) -> str:
                 flow_rows.append(
                     [f"{theta:g}", f"{ratio:g}", n, f"{f.froude:.5f}", f"{e:+.2e}", o, f"{f.change:.1e}"]
                 )
-    source = published.source(DATA).cite()
+    source = source_text()
     beta_law = pouliquen_beta(g.I_0, g.L, GRAIN, PACKING)
     return f"""## Stopping thickness and flow rule (`pouliquen_forterre`)
 
