@@ -10,7 +10,9 @@ The default scenario is the README's.  ``--set`` is passed on to ``multilayer ru
 
 ``--kernels`` runs the first one under a listener of numba's compilations and lists the
 CPU time numba spent on each function of the engine it compiled, its callees' compilations
-excluded (numba compiles a kernel's callees inside it, then optimises them again in it),
+excluded (numba compiles a kernel's callees inside it, then optimises them again in it);
+the listener sees the run's process only, not the child that compiles the Newton kernel
+beside it (``multilayer.app.compilation.compile_ahead``: its CPU time is in the run's),
 and ``--json FILE`` writes that list with the times, the commit and the load average.
 
     python benchmarks/first_run.py [SCENARIO.yaml] [--set KEY=VALUE ...] [--kernels [--json FILE]]

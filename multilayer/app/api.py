@@ -75,8 +75,9 @@ def run(
     exactly as ``multilayer run -o outdir`` does.  Without it the run goes through a
     temporary directory that is removed afterwards.  The Dataset has the layout of
     docs/results.md.  ``scenario`` is anything :func:`load` takes; ``quiet=False`` shows
-    the progress line (and says so when numba compiles the kernels, about 45 s once after
-    installing).  Raises :class:`multilayer.errors.RunError` if the engine fails.
+    the progress line (and says so when numba compiles the kernels, once after installing;
+    the Newton kernel in a child process where a second core is free).  Raises
+    :class:`multilayer.errors.RunError` if the engine fails.
     """
     from multilayer.app import runner  # the engine is imported only to run
 

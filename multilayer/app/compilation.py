@@ -1,21 +1,30 @@
-"""What a run says while numba compiles the engine's kernels.
+"""What a run does and says while numba compiles the engine's kernels.
 
 numba compiles each kernel on its first use after installation (or after a change of the
-kernel sources, engine/kernel_cache.py) and caches it: the first run waits for it, about
-45 s on 2 cores (docs/performance.md, "What the figures mean"), inside its first step, before the
-progress line can show anything.  :func:`compile_notice` says so once, when the first
-compilation starts, and reports in ``run.log`` how long the compilation took.
+kernel sources, engine/kernel_cache.py) and caches it: the first run waits for it inside
+its first step, before the progress line can show anything (docs/performance.md, "What
+the figures mean").  :func:`compile_notice` says so once, when the first compilation
+starts, and reports in ``run.log`` how long the compilation took.  :func:`compile_ahead`
+shortens that wait where a second core is free: the fused Newton kernel, the largest,
+is compiled in a child process while this one compiles the transport.
 """
 
 from __future__ import annotations
 
 import logging
+import pickle
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
 
 from numba.core import event as numba_event
+
+from multilayer.engine.threads import available_cores
 
 NOTICE = (
     "compiling the numba kernels for their first use: once after installing or updating "
@@ -71,3 +80,108 @@ def compile_notice(log: logging.Logger, say: Callable[[str], None] | None) -> It
         finally:
             if compilations.seconds is not None:
                 log.info("numba compiled kernels for %.1f s (cached for later runs)", compilations.seconds)
+
+
+SMALL = 16
+"""Columns of the copy of a run that compiles its kernels (their types do not depend on the
+mesh size)."""
+
+
+def _small(scenario: Any) -> Any:
+    """``scenario`` on :data:`SMALL` columns, one thread: the same kernels, the same types."""
+    domain = scenario.domain.model_copy(update={"cells": min(SMALL, scenario.domain.cells)})
+    numerics = scenario.numerics.model_copy(update={"threads": 1})
+    return scenario.model_copy(update={"domain": domain, "numerics": numerics})
+
+
+def _newton_cached() -> bool:
+    """Whether numba's cache holds a compilation of the fused Newton kernel (its index file,
+    once the cache is checked against the kernel sources, engine/kernel_cache.py)."""
+    from multilayer.engine import kernel_cache
+    from multilayer.engine.vertical import newton_kernel
+
+    kernel_cache.ensure_fresh()
+    return Path(newton_kernel._chunk._cache._cache_file._index_path).exists()
+
+
+def _compile_vertical(scenario: Any) -> None:
+    """Compile (or load) the kernels of the vertical step of ``scenario`` by one vertical
+    step of its small copy from its initial state."""
+    from multilayer.app.simulation import Simulation
+
+    sim = Simulation(_small(scenario))
+    sim._vertical_step(sim.h, sim.u, sim.time_step(), 1)
+
+
+def _compile_newton_callees() -> None:
+    """Compile (or load) the two callees of the fused Newton kernel that its compilation
+    reaches last, the structure proposals and the dynamic programme of the exact solve
+    (about 6 s of its 27), by the one signature it calls them with (arrays of float64,
+    int64 and bool, contiguous; the programme's work arrays): the kernel, compiled in the
+    child process, then links them from the cache (tests/test_compiled_kernels.py checks
+    that the cache holds one signature of each)."""
+    from numba import types
+
+    from multilayer.engine.vertical import column_solve, newton_kernel
+
+    f, f2, i, b = types.float64[::1], types.float64[:, ::1], types.int64[::1], types.boolean[::1]
+    column_solve._dynamic_programme.compile((f,) * 7 + (types.Tuple((f2, f2, i, *(f,) * 10)),))
+    newton_kernel._other_structures.compile((f,) * 7 + (f2, types.int64, f, f, i, b) + (f,) * 4)
+
+
+def compile_ahead(scenario: Any) -> float | None:
+    """Before the run of ``scenario``: when the fused Newton kernel is not in numba's cache
+    and the process may use two cores, compile it in a child process (one vertical step of a
+    small copy of the run) while this process compiles two of its callees
+    (:func:`_compile_newton_callees`) and the transport (one transport of the same copy),
+    then wait for the child.  The run then loads both from the cache.  Returns
+    the seconds this took (None: no child was started).
+
+    The copy is built, and its step found, before the child starts: the kernels both use
+    (the state checks, the wave speed) are then compiled here only, and the child loads
+    them (two processes compiling one function at once race on its cache entry).  A
+    warm-up only: the child's output and failures are ignored (the run compiles what is
+    missing and reports its own errors), and its answer is never used."""
+    if available_cores() < 2 or _newton_cached():
+        return None
+    from multilayer.app.simulation import Simulation
+
+    start = time.perf_counter()
+    try:
+        sim = Simulation(_small(scenario))
+        dt = sim.time_step()
+        data = pickle.dumps(scenario)
+    except Exception:  # the run reports it
+        return None
+    compiled = sim.vertical.compiled
+    if sim.mixture is not None or compiled is None or compiled.laws() is None:
+        return None  # the run does not use the fused Newton kernel
+    try:
+        child = subprocess.Popen(
+            [sys.executable, "-m", __name__],
+            stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        )  # fmt: skip
+    except OSError:
+        return None
+    try:
+        assert child.stdin is not None
+        try:
+            with child.stdin:
+                child.stdin.write(data)
+            _compile_newton_callees()
+            sim._transport(dt, 1)
+        except Exception:  # the run reports it
+            pass
+        child.wait()
+        return time.perf_counter() - start
+    finally:
+        if child.poll() is None:  # interrupted: the child goes with the run
+            child.kill()
+            child.wait()
+
+
+if __name__ == "__main__":  # the child process of compile_ahead
+    try:
+        _compile_vertical(pickle.loads(sys.stdin.buffer.read()))
+    except Exception:  # the run reports it
+        sys.exit(1)

@@ -45,7 +45,7 @@ import yaml
 
 from multilayer import scenario as scenarios
 from multilayer.app import resources
-from multilayer.app.compilation import compile_notice
+from multilayer.app.compilation import compile_ahead, compile_notice
 from multilayer.app.lock import locked
 from multilayer.app.progress import Progress
 from multilayer.app.simulation import Simulation
@@ -184,6 +184,9 @@ def _run(
     )
     text = scenario.resolved_yaml()  # written with every checkpoint: computed once
     log.info("parameters:\n%s", text.rstrip())
+    ahead = compile_ahead(scenario)  # the kernels, on two cores where they are not cached yet
+    if ahead is not None:
+        log.info("numba compiled the Newton kernel in a child process beside the transport: %.1f s", ahead)
     sim = Simulation(scenario)
     result_path, ckpt_path = outdir / RESULT_FILE, outdir / CHECKPOINT_FILE
     stop.starting = False  # from here a signal is honoured between kernel calls, the state kept

@@ -237,7 +237,7 @@ def _sign(x):
     return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
 
 
-@jit(inline="always")  # in its callers: no array arguments marshalled per call
+@jit  # compiled once, linked into its callers (numba inlining typed and lowered it at each call)
 def _active_set(inertia, momentum, kappa, c, w, cw, guess, u, first, grounded, U, diag, low, rhs):
     """Solve with the lock/sign structure of ``guess``; True if it is the exact minimiser
     (``inertia = m / dt`` and ``momentum = m u* / dt`` per layer).

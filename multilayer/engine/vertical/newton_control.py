@@ -104,7 +104,7 @@ def _potential_rise(start, end, stress_start, stiffness_start, stress_end, conca
     return -(start - end) * 0.5 * (stress_start + stress_end)
 
 
-@jit(inline="always")  # in its callers: no array arguments marshalled per call
+@jit  # compiled once, linked into its callers (numba inlining typed and lowered it at each call)
 def error_bound(inertia, momentum, kappa, viscous, w, wall_viscous, u, limit):
     """The bound of the module docstring on ``max_a |u_a - u_exact,a|`` for one column,
     or ``inf`` once the pass finds it above twice ``limit`` (``limit = inf``: always the

@@ -422,7 +422,8 @@ Reference: Mangeney et al. (2010) and Farin et al. (2014) (experiments), Fernand
 et al. (2016) (multilayer mu(I) computations): above a critical slope of about 10-16 deg
 the run-out and the duration grow with the erodible-bed thickness, most strongly near
 22-23 deg; with a constant friction coefficient the trend reverses (Fernandez-Nieto et al.
-2016).  We quote no percentages from the experiments: we could not check them in a source.
+2016).  The one percentage we could check in a source, a run-out increased "by up to 40 %"
+near the repose angle (Mangeney et al. 2010, abstract), is compared in the three-mesh study below.
 
 {figure}
 
