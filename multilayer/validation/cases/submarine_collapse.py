@@ -207,13 +207,16 @@ the mesh is refined and, at a fixed mesh, as the time step is shortened (second 
 at {CELLS[0]} cells the dense column's centre of mass takes {slow(CFLS[0])} s to reach
 {RUNOUT_SHARE:.0%} of its displacement at the files' step and {slow(CFLS[-1])} s at
 {CFLS[0] / CFLS[-1]:g} times shorter steps; the loose one's {fast(CFLS[0])} and
-{fast(CFLS[-1])} s), while the run-out changes by a few per cent.  The cause of the
-time-step dependence is not identified: the wedge's cells start and stop several times
+{fast(CFLS[-1])} s), while the run-out changes by a few per cent.  The
+time-step dependence comes from the second-order transport: Heun's second stage moves
+the mixture with the velocities of its first stage, which felt the pressure gradient over
+a whole step but not the friction of the local step, and in the creeping wedge that push
+is tens to hundreds of times the wedge's velocity ([mixture.md](mixture.md), "The time
+step of a creeping collapse"); the wedge's cells start and stop several times
 (up to {restarts(CFLS[0])} restarts of one cell between output times at the files' step,
 {restarts(CFLS[-1])} at {CFLS[0] / CFLS[-1]:g} times shorter steps), and the creep lasts longer as
-the step shrinks.  What would be needed: the time-step error of the split step (transport, then
-the implicit local step) in a creeping, dilating packing identified and removed, and a
-study to convergence; these runs give no verdict on the durations.  The model is not
+the step shrinks.  What would be needed: the friction felt within each stage of the
+transport, and a study to convergence; these runs give no verdict on the durations.  The model is not
 tuned to change this.  In the experiment the whole dense
 column fails along a shear band through its interior, which dilates and draws fluid over
 the column's full height.  Shallow layers cannot represent that: their pressure is
