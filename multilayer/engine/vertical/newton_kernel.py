@@ -160,7 +160,7 @@ def _other_structures(
     held by the walls), the trial structure of the column held at rest
     (:func:`_trial_structure`: the structure of material leaving rest), and that of
     ``current`` repaired up to ``REPAIRS`` times, one interface at a time, as each
-    rejection hints (:func:`_repaired`: the edge of a plug that moved by a layer).  True
+    rejection hints (the edge of a plug that moved by a layer).  True
     once one is the exact minimiser (each is checked for optimality by the active set
     itself), False if none is: then the O(L^2) dynamic programme solves.
 
@@ -193,7 +193,19 @@ def _other_structures(
             if attempt == 3:
                 for a in range(L):
                     proposal[a] = current[a]
-            _repaired(proposal, interface, state)
+            # the interface locked (state 0) or sliding with the sign state; the layers
+            # above move with it, keeping their jumps (a locked one stays exactly locked)
+            below = proposal[interface - 1] if interface > 0 else 0.0
+            value = below
+            if state != 0:
+                top = 0.0
+                for a in range(L):
+                    top = max(top, abs(proposal[a]))
+                value = below + state * (1e-6 * top if top > 0.0 else 1.0)
+            shift = value - proposal[interface]
+            proposal[interface] = value
+            for a in range(interface + 1, L):
+                proposal[a] += shift
         if _active_set(
             inertia, momentum, kappa, c, w, cw, proposal, u, first, grounded, U, diag, low, rhs, hint
         ):  # fmt: skip
@@ -201,25 +213,6 @@ def _other_structures(
         if attempt >= 3:
             interface, state = hint[0], hint[1]
     return False
-
-
-@jit
-def _repaired(proposal, interface, state):
-    """The structure (velocities) ``proposal`` with its interface ``interface`` (0: the
-    bed) locked (``state`` 0) or sliding with the sign ``state``: the layers above move
-    with it, keeping their jumps (a locked one stays exactly locked)."""
-    below = proposal[interface - 1] if interface > 0 else 0.0
-    if state == 0:
-        value = below
-    else:
-        top = 0.0
-        for a in range(proposal.shape[0]):
-            top = max(top, abs(proposal[a]))
-        value = below + state * (1e-6 * top if top > 0.0 else 1.0)
-    shift = value - proposal[interface]
-    proposal[interface] = value
-    for a in range(interface + 1, proposal.shape[0]):
-        proposal[a] += shift
 
 
 @jit
