@@ -403,7 +403,7 @@ def _columns(m, ustar, dt, kappa, c, w, cw, guess, u, chunks):
             for a in range(L):
                 inertia[a] = m[i, a] / dt
                 momentum[a] = m[i, a] * ustar[i, a] / dt
-            ki, ci, wi, cwi, ui = kappa[i], c[i], w[i], cw[i], u[i]  # (_active_set is inlined: no *args)
+            ki, ci, wi, cwi, ui = kappa[i], c[i], w[i], cw[i], u[i]
             if not _active_set(
                 inertia, momentum, ki, ci, wi, cwi, guess[i], ui, first, grounded, U, diag, low, rhs, hint
             ):
