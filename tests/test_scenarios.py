@@ -31,13 +31,16 @@ NAMES = (
     "submarine_collapse_loose",
     "submarine_collapse_dense",
 )
-MIXTURES = {
+SLOW_RUNS = {
     "immersed_layer_loose",
     "immersed_layer_dense",
     "submarine_collapse_loose",
     "submarine_collapse_dense",
+    "erodible_bed_collapse_coulomb",
 }
-"""Grain–fluid mixtures: their runs take seconds each (3 to 6 s), so they run under ``slow``."""
+"""Runs of 3 to 6 s each, so they run under ``slow``: the grain–fluid mixtures, and the
+Coulomb variant of the erodible bed (its one reference, the conserved volume, is checked by
+the default run of ``erodible_bed_collapse``)."""
 
 
 def _path(name: str) -> Path:
@@ -101,7 +104,7 @@ def _outcomes(name: str) -> tuple[expect.Outcome, ...]:
 
 def _with_kind(kind: str) -> list:
     return [
-        pytest.param(n, marks=pytest.mark.slow) if n in MIXTURES else n
+        pytest.param(n, marks=pytest.mark.slow) if n in SLOW_RUNS else n
         for n in NAMES
         if any(e.kind == kind for e in scenarios.load(_path(n)).expect)
     ]
