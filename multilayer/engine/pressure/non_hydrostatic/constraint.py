@@ -38,7 +38,7 @@ class Constraint:
     left: np.ndarray
     right: np.ndarray
     shape: tuple[int, int]
-    geometry: tuple
+    geometry: tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray, np.ndarray, np.ndarray]
 
     @property
     def E(self) -> sp.csr_matrix:
