@@ -3,7 +3,8 @@
 Machine-independent evidence of the per-cell cost (a count, not a time: it does not
 move with the load of the machine).  The chute of ``chute.py`` (or, ``--case
 dam_break``, the dam break of ``dam_break.py`` with ``--pressure``) on one thread runs
-``--warm`` steps (and to ``--warm-time``), then ``--steps`` steps during which valgrind's
+``--warm`` steps (and to ``--warm-time``), then ``--steps`` steps (or, ``--until T``, the
+steps to the time ``T``, the last one cut to land on it) during which valgrind's
 callgrind counts the instructions executed inside one region of the step:
 
 - ``step``: the whole step (``Simulation.step``);
@@ -21,7 +22,7 @@ STEPS``) on the same sizes: the difference of two runs of ``--steps`` and twice 
 steps, per cell-step (its transport and vertical step together).
 
     python benchmarks/instructions.py [--case chute|dam_break] [--cells 2000] [--layers 64]
-        [--steps 4] [--warm 3] [--warm-time 0] [--start bagnold|rest]
+        [--steps 4 | --until T] [--warm 3] [--warm-time 0] [--start bagnold|rest]
         [--pressure hydrostatic|non_hydrostatic] [--regions step,transport,...]
         [--peer kernel.c] [--json FILE]
 
@@ -94,6 +95,8 @@ def simulation(args: argparse.Namespace):
 
 def run_region(args: argparse.Namespace) -> None:
     """Inside valgrind: the problem, counting the instructions of ``args.region``."""
+    import numpy as np
+
     from multilayer.engine.transport import kernel
 
     lib = ctypes.CDLL(str(helper(Path(args.workdir))))
@@ -106,15 +109,16 @@ def run_region(args: argparse.Namespace) -> None:
         method = {"transport": "_transport", "vertical": "_vertical_step", "projection": "_project"}
         wrap(sim, method[args.region], lib.toggle)
     lib.start()
-    newton, cells = sim.newton_iterations, 0
-    for _ in range(args.steps):
+    newton, cells, steps = sim.newton_iterations, 0, sim.steps
+    while sim.t < args.until if args.until is not None else sim.steps - steps < args.steps:
         cells += sim.fractions.size * int((sim.h > 0.0).sum())
         if args.region == "step":
             lib.toggle()
-        sim.step()
+        sim.step(np.inf if args.until is None else args.until)
         if args.region == "step":
             lib.toggle()
-    print("RESULT " + json.dumps({"cell_steps": cells, "newton": sim.newton_iterations - newton}))
+    result = {"cell_steps": cells, "newton": sim.newton_iterations - newton, "steps": sim.steps - steps}
+    print("RESULT " + json.dumps(result))
 
 
 def environment(cache: Path) -> dict[str, str]:
@@ -156,6 +160,7 @@ def main() -> None:
     parser.add_argument("--cells", type=int, default=2000)
     parser.add_argument("--layers", type=int, default=64)
     parser.add_argument("--steps", type=int, default=4, help="steps counted")
+    parser.add_argument("--until", type=float, help="count the steps to this time instead")
     parser.add_argument("--warm", type=int, default=3, help="steps run before counting")
     parser.add_argument("--warm-time", type=float, default=0.0, help="time run before counting")
     parser.add_argument("--start", default="bagnold", choices=("bagnold", "rest"))
@@ -178,6 +183,7 @@ def main() -> None:
     helper(workdir)
     forwarded = [
         f"--case={args.case}", f"--cells={args.cells}", f"--layers={args.layers}", f"--steps={args.steps}",
+        *([f"--until={args.until}"] if args.until is not None else []),
         f"--warm={args.warm}", f"--warm-time={args.warm_time}", f"--start={args.start}",
         f"--pressure={args.pressure}",
         *([f"--pressure-layers={args.pressure_layers}"] if args.pressure_layers else []),

@@ -244,6 +244,40 @@ def test_projection_satisfies_the_constraint_and_never_adds_energy(periodic, pre
     assert np.all(dV[~free] == 0.0)
 
 
+@pytest.mark.parametrize("pressure_layers", [6, 3])
+@pytest.mark.parametrize("periodic", [False, True])
+def test_normal_equations_added_up_as_stored_equal_the_sparse_product(periodic, pressure_layers):
+    """The band of A and r, added up unknown by unknown as the constraint is stored, equal
+    E M^-1 E^T and E V* of the stored constraint as a sparse matrix (moving rows and free
+    unknowns only) to round-off, on sloping interfaces, uneven layers and partly static
+    columns; the band is as narrow as A (its last diagonal not all zero)."""
+    h, u, w, bed, fractions = random_state(11, layers=6)
+    nodes, P = assembly.layering(tuple(fractions), pressure_layers)
+    cons = assembly.constraint(h, bed, fractions, 0.1, periodic, P)
+    moving = u != 0.0
+    K, N = cons.mass.size, u.shape[1]
+    free, V_star = np.empty(K, np.bool_), np.empty(K)
+    row_of, rows = np.empty(nodes.size * N, np.int64), np.empty(nodes.size * N, np.int64)
+    n = assembly.unknowns(
+        cons.mass, cons.left, cons.right, moving, u, w, 0, nodes, free, V_star, row_of, rows
+    )
+    arrays = (
+        np.empty(K + 1, np.int64),
+        np.empty(cons.cells.size, np.int64),
+        np.empty(cons.cells.size),
+        np.empty(K),
+    )
+    band, r = assembly.normal_equations(*cons.geometry, free, row_of, n, V_star, np.empty(0), arrays)
+    E = cons.E[rows[:n]][:, np.flatnonzero(free)].toarray()
+    A = E @ np.diag(1.0 / cons.mass[free]) @ E.T
+    dense = np.zeros((n, n))
+    for d in range(band.shape[1]):
+        dense[np.arange(n - d), np.arange(d, n)] = dense[np.arange(d, n), np.arange(n - d)] = band[: n - d, d]
+    assert np.abs(dense - A).max() <= 1e-13 * np.abs(A).max()
+    assert np.abs(r - E @ V_star[free]).max() <= 1e-13 * np.abs(r).max()
+    assert np.any(band[:, -1] != 0.0)
+
+
 def test_pressure_interfaces_group_whole_layers_and_interpolate_linearly():
     """Pressure layers: groups of whole layers whose bottom interfaces are the nearest to
     sigma = g / L_p; the interpolation is the identity with a pressure on every layer and

@@ -28,7 +28,8 @@ class Constraint:
     Unknowns: the face velocities ``a * F + f`` then the ``wbar`` at ``L * F + a * N + i``;
     unknown ``k`` has the entries ``values[pointer[k]:pointer[k + 1]]`` in the rows (cells
     ``a * N + i``) ``cells[pointer[k]:pointer[k + 1]]``.  ``mass`` are the masses ``M``,
-    ``left`` and ``right`` the columns of the faces."""
+    ``left`` and ``right`` the columns of the faces; ``geometry`` the arguments of
+    :func:`entries` that made it, up to ``P``."""
 
     pointer: np.ndarray
     cells: np.ndarray
@@ -37,6 +38,7 @@ class Constraint:
     left: np.ndarray
     right: np.ndarray
     shape: tuple[int, int]
+    geometry: tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray, np.ndarray, np.ndarray]
 
     @property
     def E(self) -> sp.csr_matrix:
@@ -74,12 +76,15 @@ def constraint(
         np.empty(capacity(L, N, left.size, Lp), np.int64),
         np.empty(capacity(L, N, left.size, Lp)),
     )
-    n = entries(
+    geometry = (
         np.asarray(h, dtype=float), np.asarray(bed, dtype=float), np.asarray(fractions, dtype=float),
-        float(dx), left, right, P, np.ones(K, np.bool_), np.arange(Lp * N), pointer, cells, values, mass,
+        float(dx), left, right, P,
     )  # fmt: skip
+    no_band = (np.empty(0), np.empty((0, 1)), np.empty(0))
+    n = entries(*geometry, np.ones(K, np.bool_), np.arange(Lp * N), pointer, cells, values, mass, *no_band)[0]
     cells, values = cells[:n], values[:n]
-    return Constraint(pointer, cells, values, mass, left, right, (P.shape[1] * N, L * left.size + L * N))
+    shape = (P.shape[1] * N, L * left.size + L * N)
+    return Constraint(pointer, cells, values, mass, left, right, shape, geometry)
 
 
 def pressure_nodes(fractions: np.ndarray, pressure_layers: int) -> np.ndarray:
@@ -124,7 +129,9 @@ def pressure_interpolation(fractions: np.ndarray, nodes: np.ndarray) -> np.ndarr
 
 
 @jit
-def entries(h, bed, fractions, dx, left, right, P, free, row_of, pointer, cells, values, mass):
+def entries(
+    h, bed, fractions, dx, left, right, P, free, row_of, pointer, cells, values, mass, v_star, band, r
+):
     """``P^T E`` column by column (see :class:`Constraint`) for the unknowns ``free`` (the
     others have no entries) in the rows ``row_of[cell] >= 0`` (the entries in the others
     are left out): each entry is stored with its row ``row_of[cell]``.  In ``E``, ``F_c``
@@ -134,8 +141,11 @@ def entries(h, bed, fractions, dx, left, right, P, free, row_of, pointer, cells,
     +1/2; ``wbar_a`` enters row ``a`` with +1 and row ``a + 1`` with -1.  Each entry of row
     ``a`` goes to the pressure rows ``g`` with ``P_a,g != 0``, times ``P_a,g`` (the
     identity: ``E`` itself).  Written into ``pointer``, ``cells`` (the rows), ``values``
-    (at least :func:`capacity` long) and ``mass`` (``M``, of every unknown); returns the
-    number of entries."""
+    (at least :func:`capacity` long) and ``mass`` (``M``, of every unknown).  With a
+    ``band`` of rows (not empty), the terms of each free unknown are added, as it is
+    stored, to ``A = E M^-1 E^T`` (band storage ``band[i, d] = A_i,i+d``, of a half-width
+    large enough) and to ``r = E V*`` (module Notes).  Returns the number of entries and
+    the half-width of ``A`` (the largest spread of the rows of an unknown)."""
     L, N, F = fractions.size, h.size, left.size
     Lp = P.shape[1]
     targets = np.zeros(L, np.int64)  # the pressure rows of each row of E: first, count
@@ -157,69 +167,86 @@ def entries(h, bed, fractions, dx, left, right, P, free, row_of, pointer, cells,
         total = fractions[j - 1] + fractions[j]
         beta[j, j - 1], beta[j, j] = fractions[j] / total, fractions[j - 1] / total
     rows, weights = np.empty(3, np.int64), np.empty(3)
-    touched_rows, at_left, at_right = np.empty(L, np.int64), np.empty(L), np.empty(L)
-    n = 0
+    seen, at_left, at_right = np.empty(L, np.int64), np.empty(L), np.empty(L)
+    n = width = 0
     if Lp < L:
         # fewer pressure rows: the entries of a face unknown of layer c are, per pressure row
         # g, h_face / dx times those of its F rows plus the slopes times those of its S rows
         flux, slopes, lowest, highest = _face_coefficients(P, beta, L)
-    for c in range(L):
-        for f in range(F):
-            k = c * F + f
-            pointer[k] = n
+    c = f = a = column = 0  # the unknown k: the face f of layer c (k < L F), else wbar_a of a column
+    for k in range(L * F + L * N):
+        pointer[k] = n
+        if k < L * F:
             i, e = left[f], right[f]
             h_face = fractions[c] * 0.5 * (h[i] + h[e])
             mass[k] = h_face
-            if not free[k]:
-                continue
-            # every entry of a face unknown is in a cell of its own (i != e)
-            if Lp < L:
-                s0 = ((bed[e] + sigma[c] * h[e]) - (bed[i] + sigma[c] * h[i])) / dx
-                s1 = ((bed[e] + sigma[c + 1] * h[e]) - (bed[i] + sigma[c + 1] * h[i])) / dx
-                ratio = h_face / dx
-                for g in range(lowest[c], highest[c] + 1):
-                    a0, a1, fc = slopes[0, c, g], slopes[1, c, g], flux[c, g]
-                    sloped = s0 * a0 + s1 * a1
-                    n = _store(cells, values, n, row_of[g * N + i], ratio * fc + sloped)
-                    n = _store(cells, values, n, row_of[g * N + e], sloped - ratio * fc)
-            else:
-                touched = 0  # the rows of E this unknown enters, in the order they first come
-                for row in range(c, min(c + 2, L)):
-                    touched = _accumulate(
-                        touched_rows, at_left, at_right, touched, row, 0.5 * h_face / dx, -0.5 * h_face / dx
-                    )
-                for j in (c, c + 1):
-                    if beta[j, c] == 0.0:
-                        continue
-                    slope = ((bed[e] + sigma[j] * h[e]) - (bed[i] + sigma[j] * h[i])) / dx
-                    for m in range(_slope_rows(j, L, rows, weights)):
-                        value = weights[m] * 0.5 * beta[j, c] * slope
-                        touched = _accumulate(touched_rows, at_left, at_right, touched, rows[m], value, value)
-                for t in range(touched):
-                    n = _store(cells, values, n, row_of[touched_rows[t] * N + i], at_left[t])
-                    n = _store(cells, values, n, row_of[touched_rows[t] * N + e], at_right[t])
-    for a in range(L):
-        for i in range(N):
-            k = L * F + a * N + i
-            pointer[k] = n
+            if free[k]:
+                # every entry of a face unknown is in a cell of its own (i != e)
+                if Lp < L:
+                    s0 = ((bed[e] + sigma[c] * h[e]) - (bed[i] + sigma[c] * h[i])) / dx
+                    s1 = ((bed[e] + sigma[c + 1] * h[e]) - (bed[i] + sigma[c + 1] * h[i])) / dx
+                    ratio = h_face / dx
+                    for g in range(lowest[c], highest[c] + 1):
+                        a0, a1, fc = slopes[0, c, g], slopes[1, c, g], flux[c, g]
+                        sloped = s0 * a0 + s1 * a1
+                        n = _store(cells, values, n, row_of[g * N + i], ratio * fc + sloped)
+                        n = _store(cells, values, n, row_of[g * N + e], sloped - ratio * fc)
+                else:
+                    touched = 0  # the rows of E this unknown enters, in the order they first come
+                    for row in range(c, min(c + 2, L)):
+                        flux_left, flux_right = 0.5 * h_face / dx, -0.5 * h_face / dx
+                        touched = _accumulate(seen, at_left, at_right, touched, row, flux_left, flux_right)
+                    for j in (c, c + 1):
+                        if beta[j, c] == 0.0:
+                            continue
+                        slope = ((bed[e] + sigma[j] * h[e]) - (bed[i] + sigma[j] * h[i])) / dx
+                        for m in range(_slope_rows(j, L, rows, weights)):
+                            value = weights[m] * 0.5 * beta[j, c] * slope
+                            touched = _accumulate(seen, at_left, at_right, touched, rows[m], value, value)
+                    for t in range(touched):
+                        n = _store(cells, values, n, row_of[seen[t] * N + i], at_left[t])
+                        n = _store(cells, values, n, row_of[seen[t] * N + e], at_right[t])
+            f += 1
+            if f == F:
+                c, f = c + 1, 0
+        else:
+            i = column
             mass[k] = fractions[a] * h[i]
-            if not free[k]:
-                continue
-            for g in range(first[a], first[a] + targets[a]):
-                n = _store(cells, values, n, row_of[g * N + i], P[a, g])
-            if a + 1 < L:
-                for g in range(first[a + 1], first[a + 1] + targets[a + 1]):
-                    row = row_of[g * N + i]
-                    if row < 0:
-                        continue
-                    for m in range(pointer[k], n):  # the same row as one of wbar_a's: added
-                        if cells[m] == row:
-                            values[m] += -P[a + 1, g]
-                            break
+            if free[k]:
+                for g in range(first[a], first[a] + targets[a]):
+                    n = _store(cells, values, n, row_of[g * N + i], P[a, g])
+                if a + 1 < L:
+                    for g in range(first[a + 1], first[a + 1] + targets[a + 1]):
+                        row = row_of[g * N + i]
+                        if row < 0:
+                            continue
+                        for m in range(pointer[k], n):  # the same row as one of wbar_a's: added
+                            if cells[m] == row:
+                                values[m] += -P[a + 1, g]
+                                break
+                        else:
+                            n = _store(cells, values, n, row, -P[a + 1, g])
+            column += 1
+            if column == N:
+                a, column = a + 1, 0
+        if band.shape[0] > 0 and free[k]:
+            # the terms of unknown k, each pair of its (distinct) rows once
+            inverse, lo, hi = 1.0 / mass[k], band.shape[0], -1
+            for p in range(pointer[k], n):
+                row = cells[p]
+                lo, hi = min(lo, row), max(hi, row)
+                r[row] += values[p] * v_star[k]
+                scaled = values[p] * inverse
+                band[row, 0] += scaled * values[p]
+                for q in range(p + 1, n):
+                    other = cells[q]
+                    if other > row:
+                        band[row, other - row] += scaled * values[q]
                     else:
-                        n = _store(cells, values, n, row, -P[a + 1, g])
+                        band[other, row - other] += (values[q] * inverse) * values[p]
+            width = max(width, hi - lo)
     pointer[L * F + L * N] = n
-    return n
+    return n, width
 
 
 def capacity(L: int, N: int, F: int, Lp: int) -> int:
@@ -326,57 +353,76 @@ def unknowns(mass, left, right, moving, u, w, offset, nodes, free, V_star, row_o
     return n
 
 
-@jit
-def normal_equations(pointer, cells, values, mass, free, row_of, n, v_star, storage):
+def normal_equations(
+    h: np.ndarray,
+    bed: np.ndarray,
+    fractions: np.ndarray,
+    dx: float,
+    left: np.ndarray,
+    right: np.ndarray,
+    P: np.ndarray,
+    free: np.ndarray,
+    row_of: np.ndarray,
+    n: int,
+    v_star: np.ndarray,
+    storage: np.ndarray,
+    arrays: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+) -> tuple[np.ndarray, np.ndarray]:
     """``A = E M^-1 E^T`` in band storage ``band[i, d] = A_i,i+d`` (``n`` rows, the band of
     row ``i`` contiguous; in ``storage`` if it is large enough) and ``r = E V*``, over the
-    free unknowns and the rows ``row_of[cell] >= 0`` (module Notes)."""
-    width = 0
-    for k in range(free.size):
-        if not free[k]:
-            continue
-        lo, hi = n, -1
-        for e in range(pointer[k], pointer[k + 1]):
-            row = row_of[cells[e]]
-            if row >= 0:
-                lo, hi = min(lo, row), max(hi, row)
-        width = max(width, hi - lo)
-    if storage.size < n * (width + 1):
-        storage = np.empty(n * (width + 1))
-    band = storage[: n * (width + 1)].reshape((n, width + 1))
-    band[:] = 0.0
+    free unknowns and the rows ``row_of[cell] >= 0`` (module Notes), added up by
+    :func:`entries` (its arguments up to ``row_of``) as it stores the constraint in
+    ``arrays`` (``pointer``, ``cells``, ``values``, ``mass``; the cells are the rows)."""
+    bound = _band_bound(row_of, left, right, h.size, P.shape[1])
+    if storage.size < n * (bound + 1):
+        storage = np.empty(n * (bound + 1))
+    wide = storage[: n * (bound + 1)].reshape((n, bound + 1))
+    wide[:] = 0.0
     r = np.zeros(n)
-    rows, entries = np.empty(64, np.int64), np.empty(64)
-    for k in range(free.size):
-        if not free[k]:
-            continue
-        count = 0  # the entries of unknown k in the rows taking part
-        for e in range(pointer[k], pointer[k + 1]):
-            row = row_of[cells[e]]
-            if row >= 0:
-                rows[count], entries[count] = row, values[e]
-                count += 1
-        inverse = 1.0 / mass[k]
-        for e in range(count):
-            row = rows[e]
-            r[row] += entries[e] * v_star[k]
-            scaled = entries[e] * inverse
-            for d in range(count):
-                if rows[d] >= row:
-                    band[row, rows[d] - row] += scaled * entries[d]
-    return band, r
+    _, width = entries(h, bed, fractions, dx, left, right, P, free, row_of, *arrays, v_star, wide, r)
+    return _narrow(storage, n, bound, width), r
 
 
 @jit
-def correct(pointer, cells, values, mass, free, row_of, lam, dV):
-    """``dV = -M^-1 E^T lam`` on the free unknowns (zero elsewhere), into ``dV``."""
+def _band_bound(row_of, left, right, N, Lp):
+    """The half-width of the band at most: the spread of the rows of a column, or of the
+    two columns of a face."""
+    lowest, highest = np.full(N, Lp * N, np.int64), np.full(N, -1, np.int64)
+    for g in range(Lp):
+        for i in range(N):
+            row = row_of[g * N + i]
+            if row >= 0:
+                lowest[i], highest[i] = min(lowest[i], row), max(highest[i], row)
+    bound = 0
+    for i in range(N):
+        if highest[i] >= 0:
+            bound = max(bound, highest[i] - lowest[i])
+    for f in range(left.size):
+        i, e = left[f], right[f]
+        if highest[i] >= 0 and highest[e] >= 0:
+            bound = max(bound, max(highest[i], highest[e]) - min(lowest[i], lowest[e]))
+    return bound
+
+
+@jit
+def _narrow(storage, n, bound, width):
+    """The band of ``n`` rows stored with the half-width ``bound`` in ``storage``, moved in
+    place to the half-width ``width <= bound`` (each row to a lower address)."""
+    for row in range(n):
+        for d in range(width + 1):
+            storage[row * (width + 1) + d] = storage[row * (bound + 1) + d]
+    return storage[: n * (width + 1)].reshape((n, width + 1))
+
+
+@jit
+def correct(pointer, cells, values, mass, free, lam, dV):
+    """``dV = -M^-1 E^T lam`` on the free unknowns (zero elsewhere), into ``dV``, from the
+    constraint stored by :func:`entries` in the rows taking part (``cells``: rows)."""
     for k in range(free.size):
         dV[k] = 0.0
         if free[k]:
             s = 0.0
             for e in range(pointer[k], pointer[k + 1]):
-                row = row_of[cells[e]]
-                if row >= 0:
-                    s += values[e] * lam[row]
+                s += values[e] * lam[cells[e]]
             dV[k] = -s / mass[k]
     return dV

@@ -84,7 +84,6 @@ from multilayer.engine.pressure.non_hydrostatic.constraint import (
     Constraint,
     capacity,
     correct,
-    entries,
     faces,
     layering,
     normal_equations,
@@ -125,12 +124,16 @@ def correction(
         np.empty(layers.size * N, np.int64),
     )
     n = unknowns(cons.mass, cons.left, cons.right, moving, u, w, offset, layers, free, V_star, row_of, rows)
-    band, r = normal_equations(
-        cons.pointer, cons.cells, cons.values, cons.mass, free, row_of, n, V_star, np.empty(0)
+    arrays = (
+        np.empty(K + 1, np.int64),
+        np.empty(cons.cells.size, np.int64),
+        np.empty(cons.cells.size),
+        np.empty(K),
     )
+    band, r = normal_equations(*cons.geometry, free, row_of, n, V_star, np.empty(0), arrays)
     lam = multipliers(band, r, rows[:n], lam_max, active)
     dV = np.empty(K)
-    correct(cons.pointer, cons.cells, cons.values, cons.mass, free, row_of, lam, dV)
+    correct(*arrays, free, lam, dV)
     return V_star, dV, free
 
 
@@ -148,11 +151,7 @@ class _Buffers:
         )
         self.pointer = np.empty(K + 1, np.int64)
         self.cells, self.values = np.empty(capacity(L, N, N, Lp), np.int64), np.empty(capacity(L, N, N, Lp))
-        self.row_of, self.rows, self.own = (
-            np.empty(Lp * N, np.int64),
-            np.empty(Lp * N, np.int64),
-            np.arange(Lp * N),
-        )
+        self.row_of, self.rows = np.empty(Lp * N, np.int64), np.empty(Lp * N, np.int64)
         # a band of half-width below 2 Lp (the rows of two columns; wider: periodic ends, a new one)
         self.band = np.empty(Lp * N * 2 * Lp)
         self.du = np.empty(L * N)
@@ -242,14 +241,11 @@ def project_columns(
     free, V_star, dV, mass = buffers.free[:K], buffers.V_star[:K], buffers.dV[:K], buffers.mass[:K]
     row_of = buffers.row_of[: nodes.size * (hi - lo)]
     n = unknowns(face_mass, left, right, moving, u, w, lo, nodes, free, V_star, row_of, buffers.rows)
-    pointer, entry_rows, values = buffers.pointer[: K + 1], buffers.cells, buffers.values
-    entries(
-        thickness, bed[window], fractions, dx, left, right, P, free, row_of, pointer, entry_rows, values, mass
-    )
-    own = buffers.own[:n]  # the entries are in rows already
-    band, r = normal_equations(pointer, entry_rows, values, mass, free, own, n, V_star, buffers.band)
+    arrays = (buffers.pointer[: K + 1], buffers.cells, buffers.values, mass)
+    geometry = (thickness, bed[window], fractions, dx, left, right, P)
+    band, r = normal_equations(*geometry, free, row_of, n, V_star, buffers.band, arrays)
     lam = multipliers(band, r, buffers.rows[:n], lam_max, active)
-    correct(pointer, entry_rows, values, mass, free, own, lam, dV)
+    correct(*arrays, free, lam, dV)
     _finish(dV, u, w, h, fractions, moving, left, right, dt, lo, buffers.du, *out)
     return lo, hi
 
