@@ -309,8 +309,9 @@ def test_the_study_commands_without_their_extra_say_how_to_install_it(tmp_path):
 def test_the_run_summary_gives_units_and_says_why_a_quantity_has_no_value(
     cli, tiny_scenario, write_scenario, tmp_path
 ):
-    """The material slides out of the domain, leaving a film thinner than the front
-    threshold: no front at the end."""
+    """The material slides out of the domain over a free-slip bed, leaving a film thinner
+    than the front threshold: no front at the end."""
+    tiny_scenario["base"] = [{"condition": "free_slip"}]
     tiny_scenario["time"] = {"end": 20.0, "output_interval": 20.0}
     tiny_scenario["numerics"] = {"front_threshold": 0.01}
     result = cli("run", write_scenario(tiny_scenario), "-o", tmp_path / "out")

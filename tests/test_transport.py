@@ -183,7 +183,12 @@ def test_a_block_on_a_25_degree_slope_runs_to_t_20_with_its_mass_balanced(transp
     mass = sim.diagnostics()["mass"]
     assert sim.t == 20.0 and sim.h.min() >= 0.0
     assert abs(mass - mass0 - sim.net_inflow) <= 1e-13 * mass0
-    assert mass < 0.05 * mass0  # most of it slid out (tan 25 deg = 0.47 > mu_s)
+    # a viscous film creeping over the no-slip bed (tan 25 deg = 0.47 > mu_s) crosses the
+    # open end: regression, measured 5.2 % of the mass gone by t = 20 s (more than 95 % with
+    # a vertical step after both transport stages only, whose second stage outran the
+    # friction: at Courant 0.1 that scheme's front at t = 5 s is 0.344 m, this one's and the
+    # first-order scheme's 0.319 m)
+    assert 0.94 * mass0 < mass < 0.96 * mass0
 
 
 def test_lake_at_rest_over_a_bump_stays_at_rest():

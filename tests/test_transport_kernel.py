@@ -79,6 +79,40 @@ def test_compiled_transport_equals_the_numpy_reference(order, left, right, threa
         assert crossed[0] == crossed[1]
 
 
+@pytest.mark.parametrize("left, right", BOUNDARIES)
+def test_heun_stages_alone_equal_the_reference_and_compose_to_heun(left, right):
+    """Each of Heun's stages alone (the split step of ``Simulation.step``) gives the same
+    bits on both paths, the second from any given state (here the first stage's, part of
+    it stopped as a vertical step would); from the first stage's own result the two make
+    Heun's step (to round-off: its momentum goes through the velocity)."""
+    h, u, b, fractions = random_state(seed=3)
+    inflow = boundaries.InflowState(0.7, np.linspace(0.2, 1.0, u.shape[0])) if left == "inflow" else None
+    kw = dict(dx=0.1, dt=0.004, g_n=9.0, g_t=1.5, left=left, right=right, inflow=inflow, dry=1e-6, order=2)
+    both(h, u, b, fractions, stage=0, **kw)
+    h1, u1 = (a.copy() for a in transport.transport(h, u, b, fractions, stage=0, **kw))
+    stopped = u1 * (np.random.default_rng(5).random(h.size) < 0.5)
+    crossed, momentum = np.zeros(2), np.zeros(3)
+    reference = transport.transport(
+        h, u, b, fractions, stage=1, first=(h1, stopped), boundary_mass=crossed,
+        boundary_momentum=momentum, **kw,
+    )  # fmt: skip
+    workspace = transport_kernel.Workspace(*u.shape)
+    transport_kernel.transport(h, u, b, fractions, stage=0, workspace=workspace, **kw)
+    crossed_kernel, momentum_kernel = np.zeros(2), np.zeros(3)
+    got = transport_kernel.transport(
+        h, u, b, fractions, stage=1, first=(h1, stopped), workspace=workspace, boundary_mass=crossed_kernel,
+        boundary_momentum=momentum_kernel, **kw,
+    )  # fmt: skip
+    for e, g in zip((*reference, crossed, momentum), (*got, crossed_kernel, momentum_kernel), strict=True):
+        np.testing.assert_array_equal(g, e)
+    with pytest.raises(ValueError, match="workspace of its first"):
+        transport_kernel.transport(h, u, b, fractions, stage=1, first=(h1, stopped), **kw)
+    whole = transport.transport(h, u, b, fractions, **kw)
+    split = transport.transport(h, u, b, fractions, stage=1, first=(h1, u1), **kw)
+    np.testing.assert_allclose(split[0], whole[0], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(split[1], whole[1], rtol=1e-12, atol=1e-13)
+
+
 @pytest.mark.parametrize("order", [1, 2])
 @pytest.mark.parametrize("layers", [3, 40, 150])
 def test_compiled_gate_equals_the_numpy_reference(order, layers):

@@ -16,11 +16,14 @@ change of momentum to round-off:
   from the surface down, ``dt sigma_0`` is the impulse the column passes to the bed, the
   side-wall forces ``F_a`` taken out (a moving layer's from the wall law; a layer at
   rest's up to the walls' yield threshold, the rest passed down: the share of material
-  at rest is statically indeterminate).  Added to it, the transport's change of momentum
+  at rest is statically indeterminate).  A step of order 2 has two vertical steps
+  (``Simulation.step``): the one after Heun's first stage enters the step's momentum
+  with the weight 1/2 of that stage in Heun's average, the one after the average with
+  weight 1, and so do their impulses.  Added to them, the transport's change of momentum
   that gravity and the end faces do not carry: the pressure on the relief of the bed
   (the source terms of the hydrostatic reconstruction, Audusse, Bouchut, Bristeau, Klein
   & Perthame 2004), a gate, and the momentum the transport leaves in cells it keeps dry.
-- **side walls** (``wall_force_x``): ``dt sum_a F_a`` of the vertical step.
+- **side walls** (``wall_force_x``): ``dt sum_a F_a`` of the vertical steps, weighted alike.
 - **end walls** (``end_force_x``, ``wall`` boundaries): the momentum flux of the transport
   through the end face, ``rho g cos(theta) h^2 / 2`` for material at rest against it.
 - **pressure** (``pressure_force_x``): the non-hydrostatic pressure model's change of
@@ -43,6 +46,9 @@ outflow)`` to round-off (docs/results.md).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import NamedTuple
+
 import numpy as np
 
 from multilayer.engine.compiled import jit
@@ -62,6 +68,17 @@ FORCES = (
 )
 """The accumulated terms (module docstring), each a force per unit width (N/m) once divided
 by the time."""
+
+
+class VerticalImpulse(NamedTuple):
+    """A vertical step of a time step: its ``weight`` in the step's momentum, the thickness
+    ``h`` and velocities ``ustar`` it started from, its velocities ``u`` and its step ``dt``."""
+
+    weight: float
+    h: np.ndarray
+    ustar: np.ndarray
+    u: np.ndarray
+    dt: float
 
 
 class BedForce:
@@ -98,37 +115,34 @@ class BedForce:
     def record(
         self,
         start: FlowState,
-        transported: tuple[np.ndarray, np.ndarray],
-        u_vertical: np.ndarray,
+        vertical: Sequence[VerticalImpulse],
         end: tuple[np.ndarray, dict[str, np.ndarray]],
         dt: float,
     ) -> None:
-        """Add the impulses of a step of ``dt``: from the state ``start`` the transport gave
-        ``transported`` (h, u*), the vertical step ``u_vertical`` and the pressure model
-        ``end`` (u, its layer fields)."""
-        (h, ustar), (u, fields) = transported, end
+        """Add the impulses of a step of ``dt`` from the state ``start``: its vertical steps
+        in order (the last one's ``h``, ``ustar`` the transport's result, weight 1) and the
+        pressure model's ``end`` (u, its layer fields)."""
+        *earlier, last = vertical
+        u, fields = end
         left, right, mass_time = self.transport_terms
         rho = self.rho
-        walled = self.stresses.walls is not None
-        # the side walls' thresholds and viscous forces (not read without walls)
-        threshold, viscous = self.stresses.wall_forces(h, u_vertical) if walled else (ustar, ustar)
         w = fields.get("w", start.w)  # the normal velocities (zero but with the non-hydrostatic pressure)
-        first, last = span(start.h + h)  # every column holding material before or after the step
-        sums = _sums(
-            self.l[:, 0], start.h, start.u, start.w, h, ustar, u_vertical, u, w, walled, threshold,
-            viscous, rho, dt, first, last,
-        )  # fmt: skip
-        before, transported_, vertical, after, normal_before, normal_after, basal, walls = (
-            rho * self.dx * sums
-        )
+        # every column holding material before, during or after the step
+        first, stop = span(start.h + sum(step.h for step in vertical))
+        sums = [self._sums(start, step, u, w, first, stop) for step in vertical]
+        before, transported_, vertical_, after, normal_before, normal_after, basal, walls = sums[-1]
+        # the earlier vertical steps' change of momentum, carried into the transport's result
+        held = sum(step.weight * (s[1] - s[2]) for step, s in zip(earlier, sums, strict=False))
+        basal = sum(step.weight * s[6] for step, s in zip(vertical, sums, strict=True))
+        walls = sum(step.weight * s[7] for step, s in zip(vertical, sums, strict=True))
         gravity = rho * self.g_t * mass_time
         end_walls = rho * ((-left if self.walls[0] else 0.0) + (right if self.walls[1] else 0.0))
         outflow = rho * ((0.0 if self.walls[1] else right) - (0.0 if self.walls[0] else left))
         # what the end faces and gravity do not carry in the transport
-        relief = gravity + rho * (left - right) - (transported_ - before)
+        relief = gravity + rho * (left - right) - (transported_ + held - before)
         weight = rho * self.g_n * mass_time
         normal = weight + (normal_after - normal_before)
-        pressure = vertical - after
+        pressure = vertical_ - after
         self.impulse += (
             relief + basal / rho,
             normal,
@@ -140,6 +154,19 @@ class BedForce:
             outflow,
         )
         self.elapsed += dt
+
+    def _sums(
+        self, start: FlowState, step: VerticalImpulse, u: np.ndarray, w: np.ndarray, first: int, stop: int
+    ) -> np.ndarray:
+        """``_sums`` of a vertical step (times ``rho dx``), ``u``, ``w`` the step's end."""
+        walled = self.stresses.walls is not None
+        # the side walls' thresholds and viscous forces (not read without walls)
+        threshold, viscous = self.stresses.wall_forces(step.h, step.u) if walled else (step.ustar, step.ustar)
+        sums = _sums(
+            self.l[:, 0], start.h, start.u, start.w, step.h, step.ustar, step.u, u, w, walled, threshold,
+            viscous, self.rho, step.dt, first, stop,
+        )  # fmt: skip
+        return self.rho * self.dx * sums
 
     def take(self) -> dict[str, float]:
         """The mean of each term over the time since the last call (N/m; NaN when no time

@@ -1,16 +1,31 @@
 """The time loop of the multilayer model (docs/model.md, "Time stepping").
 
-Each step is a Lie splitting of the multilayer system, first order in time::
+A step of the transport T (fluxes, mass exchange, gravity: transport/), the implicit
+stresses V (the argmin of the stress energy per column, exact yield: vertical/; the local
+step of a mixture: mixture/), the pressure model's projection P (pressure/) and the
+impulses on the bed (bed_force.py).  At first order (``numerics.order: 1``) it is the
+Lie splitting ``U^{n+1} = P V_dt T_dt U^n`` (T a forward Euler step).  At second order
+the stresses are felt within each stage of Heun's method (SSP-RK2, Gottlieb & Shu 1998)::
 
-    (h, h_a u*_a)^{n+1}  <- transport in x: fluxes, mass exchange, gravity  (transport/)
-    u^{n+1/2}            <- argmin of the implicit stress energy per column (vertical/)
-    (u, w, q)^{n+1}      <- the pressure model's projection                 (pressure/)
-    F                    <- the impulses on the bed and the walls            (bed_force.py)
+    U^(1)    <- V_dt T_dt U^n                       the first stage, then the stresses
+    U^(2)    <- T_dt U^(1)                          the second stage from that state
+    Ubar     <- (U^n + U^(2)) / 2                   Heun's average (h, h_a u_a)
+    U^{n+1}  <- P V_{dt/2} Ubar                     the stresses of the other half step
+    F        <- the impulses of both V (weights 1/2, 1) and of P   (bed_force.py)
 
-then the Courant check of the step's end (redo shorter if the waves grew faster), the
+so the second stage moves material with velocities that have felt the friction (a
+transport stage alone would carry the push of gravity and of the pressure gradient over
+a whole step, hundreds of times the velocity of a creeping wedge), the friction acts
+over ``dt/2 + dt/2`` to first order, and the step ends with a vertical step: material
+at rest at ``n`` stays exactly at rest (both V hold it), and material that stops does so
+exactly (u == 0).  Heun on the whole split step, ``(U^n + S S U^n)/2`` with
+``S = V T``, would end with an average: a column stopped by both V would keep half its
+velocity, never exactly zero (docs/numerics.md).
+
+Then the Courant check of the step's end (redo shorter if the waves grew faster), the
 state guard (an impossible state is never kept) and the windowed commit of the new state
-(state.py).  Material at rest that the step sets moving carries waves from the start of
-the step: the transport and the vertical step are redone until that set is complete.
+(state.py).  Material at rest that either vertical step sets moving carries waves from
+the start of the step: the stages are redone until that set is complete.
 """
 
 from __future__ import annotations
@@ -22,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from multilayer.engine import basal, diagnostics, initial_state
-from multilayer.engine.bed_force import BedForce
+from multilayer.engine.bed_force import BedForce, VerticalImpulse
 from multilayer.engine.config import SimulationConfig
 from multilayer.engine.gate import Gate
 from multilayer.engine.mesh import LayeredMesh
@@ -238,34 +253,48 @@ class Simulation:
         threads = self.thread_policy.threads(self.fractions.size * int(np.count_nonzero(self.h)))
         while True:  # redone shorter while Heun's second stage breaks the Courant condition
             self._check_advances(dt)
-            h, ustar, u_vertical, iterations = self._transport_and_stresses(dt, threads)
-            u, fields = self._project(h, u_vertical, dt)
+            vertical, iterations = self._transport_and_stresses(dt, threads)
+            h = vertical[-1].h
+            u, fields = self._project(h, vertical[-1].u, dt)
             if (shorter := self._courant_check(dt, speed)) is None:
                 break
             dt = shorter
         columns = span(h)  # every non-zero velocity and field of the step's end lies within
         self._guard(h, u, fields, dt, columns)
         if self.mixture is None:  # the forces of a mixture are not computed (docs/mixture.md)
-            self.forces.record(self.state, (h, ustar), u_vertical, (u, fields), dt)  # diagnostics
+            self.forces.record(self.state, vertical, (u, fields), dt)  # diagnostics
         self.state.commit(h, u, fields, columns)
         self.newton_iterations += iterations
         self.steps += 1
         self.t = t_max if dt == t_max - self.t else self.t + dt  # lands on t_max when cut to reach it
         return dt
 
-    def _transport_and_stresses(
-        self, dt: float, threads: int
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
-        """The transport and the vertical step, redone while the step sets material at
-        rest moving: the thickness, the velocities after each, the Newton iterations."""
+    def _transport_and_stresses(self, dt: float, threads: int) -> tuple[list[VerticalImpulse], int]:
+        """The transport stages, each followed by a vertical step (module docstring), redone
+        while the step sets material at rest moving: the vertical steps and the Newton
+        iterations."""
         np.copyto(self._stepping, self.state.moving)
         iterations = 0
         while True:
-            h, ustar = self._transport(dt, threads)
-            u_vertical, more = self._vertical_step(h, ustar, dt, threads)
+            if self.numerics.order == 1:
+                h, ustar = self._transport(dt, threads)
+                u, more = self._vertical_step(h, ustar, dt, threads)
+                vertical = [VerticalImpulse(1.0, h, ustar, u, dt)]
+            else:
+                h1, u1_star = (a.copy() for a in self._transport(dt, threads, stage=0))  # reused by stage 1
+                u1, counted = self._vertical_step(h1, u1_star, dt, threads)
+                h, ustar = self._transport(dt, threads, stage=1, first=(h1, u1))
+                u, more = self._vertical_step(h, ustar, 0.5 * dt, threads, first=(h1, u1))
+                more += counted
+                vertical = [
+                    VerticalImpulse(0.5, h1, u1_star, u1, dt),
+                    VerticalImpulse(1.0, h, ustar, u, 0.5 * dt),
+                ]
             iterations += more
-            if not start_moving(u_vertical, self.h, self.dry, self._stepping):
-                return h, ustar, u_vertical, iterations
+            # material at rest set moving by any vertical step (both: every one is marked)
+            started = [start_moving(step.u, self.h, self.dry, self._stepping) for step in vertical]
+            if not any(started):
+                return vertical, iterations
 
     def _check_target(self, t_max: float) -> None:
         if not t_max > self.t:
@@ -282,9 +311,17 @@ class Simulation:
                 f"below the resolution of t when the run is too long for its step)"
             )
 
-    def _transport(self, dt: float, threads: int) -> tuple[np.ndarray, np.ndarray]:
+    def _transport(
+        self,
+        dt: float,
+        threads: int,
+        *,
+        stage: int | None = None,
+        first: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Transport over ``dt`` (h and the velocities u*) of the columns that take part
-        in the step (docs/model.md), checked by the state guard."""
+        in the step (docs/model.md), or one of Heun's stages (``stage``, the second from
+        ``first``), checked by the state guard."""
         self.vertical.stresses.t = self.t  # the time of the step, for the messages of the plugin calls
         options: dict[str, Any] = {}
         if self.gate is not None:
@@ -295,18 +332,28 @@ class Simulation:
             self.h, self.u, self.bed, self.fractions, dx=self.dx, dt=dt, g_n=self.g_n, g_t=self.g_t,
             left=self.left, right=self.right, inflow=self.inflow, dry=self.dry, order=self.numerics.order,
             moving=self._stepping, boundary_mass=self.boundary_mass, stage_speed=self._stage_speed,
-            boundary_momentum=self.forces.transport_terms, **options,
+            boundary_momentum=self.forces.transport_terms, stage=stage, first=first, **options,
         )  # fmt: skip
         self.guard.check_state(h, ustar, lambda: f"after transport from t = {self.t:.6g} s (dt = {dt:.3g} s)")
         return h, ustar
 
     def _vertical_step(
-        self, h: np.ndarray, ustar: np.ndarray, dt: float, threads: int
+        self,
+        h: np.ndarray,
+        ustar: np.ndarray,
+        dt: float,
+        threads: int,
+        first: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> tuple[np.ndarray, int]:
-        """The implicit vertical step (the yield pressures and Newton seeds of the pressure
-        model), or the mixture's local step (which dilates ``h`` in place): the velocities
-        and the Newton iterations."""
+        """The implicit vertical step over ``dt`` (the yield pressures and Newton seeds of
+        the pressure model), or the mixture's local step (which dilates ``h`` in place;
+        ``first``: after Heun's average, the state of its second stage's start): the
+        velocities and the Newton iterations."""
         if self.mixture is not None:
+            if first is not None:
+                return self.mixture.average_step(
+                    self.h, first, h, ustar=ustar, dt=dt, crossed=self.boundary_mass, dry=self.dry, t=self.t
+                )
             return self.mixture.step(self.h, h, self.u, ustar, dt, self.boundary_mass, self.dry, self.t)
         return self.vertical(
             h,
@@ -331,8 +378,8 @@ class Simulation:
         The second stage is a forward Euler step from the first stage's state: it keeps
         ``h >= 0`` (and the scheme its stability) under the Courant condition of that
         state's waves (Gottlieb & Shu 1998), which the state at the start cannot foresee:
-        the transport accelerates the material by gravity without the friction of the
-        vertical step (a thin film nearly at rest on a steep slope: ``g sin(theta) dt`` far
+        the first stage accelerates the material by gravity and the pressure gradient (a
+        thin film on a steep slope, little held by its friction: ``g sin(theta) dt`` far
         above ``sqrt(g h)``).  (A non-finite state passes: the state guard names it.)"""
         stage_speed = float(self._stage_speed[0])
         if dt <= courant_step(stage_speed, self.dx, POSITIVITY_LIMIT) or not math.isfinite(stage_speed):
@@ -343,8 +390,8 @@ class Simulation:
         self, h: np.ndarray, u: np.ndarray, fields: dict[str, np.ndarray], dt: float, columns: tuple[int, int]
     ) -> None:
         """The state guard: an impossible state is never kept (the last good one stays)."""
-        transported = h if self.mixture is None else self.mixture.transported
-        self.guard.check_step(self.h, transported, u, self.t, dt, self.boundary_mass, columns)
+        start, transported = (self.h, h) if self.mixture is None else self.mixture.balanced(self.h)
+        self.guard.check_step(start, transported, u, self.t, dt, self.boundary_mass, columns)
         if self.mixture is not None:
             self.mixture.check_step(h, self.t, dt, self.guard)
         for name, what in self.pressure.checked.items():

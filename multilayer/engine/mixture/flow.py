@@ -77,7 +77,11 @@ class MixtureFlow:
         """Fluid volume (m^2 per unit width) the mixture drew from the ambient fluid since the start."""
         self.pending: dict[str, np.ndarray] = {}
         self.transported = state.h
+        self.drawn = np.zeros_like(state.h)
+        """Fluid volume (N,) the local steps before the last one of a step drew in, with
+        the weight of their stage (1/2 for Heun's first: :meth:`average_step`)."""
         self._crossed = np.zeros(2)
+        self._volumes = np.zeros(2)
         self._before = self.solid
 
     def reset(self, steps: int) -> None:
@@ -105,15 +109,66 @@ class MixtureFlow:
         dry: float,
         t: float,
     ) -> tuple[np.ndarray, int]:
-        """The solid transported with the step from ``h_old`` to ``h`` (velocities ``u_old``
-        at its start, ``crossed`` the volume through the end faces), then the local step of
-        the columns thicker than ``dry`` from the velocities ``ustar`` (the step from time
-        ``t``): returns the
-        velocities and the iterations; ``h`` is dilated in place, the new fields wait in
-        :attr:`pending` for the commit."""
+        """The solid transported with the step (or Heun's first stage) from ``h_old`` to
+        ``h`` (velocities ``u_old`` at its start, ``crossed`` the volume through the end
+        faces), then the local step of the columns thicker than ``dry`` from the velocities
+        ``ustar`` (the step from time ``t``): returns the velocities and the iterations;
+        ``h`` is dilated in place, the new fields wait in :attr:`pending` for the commit."""
         solid, self._crossed = solid_transport.transport(
             self.solid, h_old, h, u_old, self.fractions, crossed, self.dx, self.periodic
         )
+        self._volumes = crossed.copy()
+        self.drawn = np.zeros_like(h)
+        return self._local(solid, h, ustar, dt, u_old, self.pore_pressure, dry, t)
+
+    def average_step(
+        self,
+        h_old: np.ndarray,
+        first: tuple[np.ndarray, np.ndarray],
+        h: np.ndarray,
+        *,
+        ustar: np.ndarray,
+        crossed: np.ndarray,
+        dt: float,
+        dry: float,
+        t: float,
+    ) -> tuple[np.ndarray, int]:
+        """After Heun's second transport stage from ``first`` = (h_1, u_1) (the result of
+        :meth:`step` over the whole step) and its average ``h`` with ``h_old``: the solid
+        of that stage (from ``h_1`` to ``2 h - h_old``, ``2 crossed`` minus the first
+        stage's volume through the end faces) averaged with the solid at the start as the
+        transport averages ``h``, then the local step of ``dt`` (half the time step) from
+        ``ustar``.  The fluid the first stage drew in enters ``h`` with the weight 1/2
+        (:attr:`drawn`)."""
+        h1, u1 = first
+        drawn = 0.5 * (h1 - self.transported)
+        solid1, crossed1 = self.pending["solid"], self._crossed
+        solid2, crossed2 = solid_transport.transport(
+            solid1, h1, np.maximum(2.0 * h - h_old, 0.0), u1, self.fractions, 2.0 * crossed - self._volumes,
+            self.dx, self.periodic,
+        )  # fmt: skip
+        self._crossed = 0.5 * (crossed1 + crossed2)
+        # a column the average leaves empty holds no solid (round-off of the second stage's
+        # volumes, recovered from ``2 h - h_old``)
+        solid = np.where(h > 0.0, 0.5 * (self.solid + solid2), 0.0)
+        velocities, iterations = self._local(solid, h, ustar, dt, u1, self.pending["pore_pressure"], dry, t)
+        self.drawn = drawn
+        return velocities, iterations
+
+    def _local(
+        self,
+        solid: np.ndarray,
+        h: np.ndarray,
+        ustar: np.ndarray,
+        dt: float,
+        guess: np.ndarray,
+        pressure_guess: np.ndarray,
+        dry: float,
+        t: float,
+    ) -> tuple[np.ndarray, int]:
+        """The local step of ``dt`` of the columns thicker than ``dry`` holding ``solid`` at
+        the thickness ``h`` (dilated in place) from the velocities ``ustar``, the Newton
+        iteration started from ``guess`` and ``pressure_guess``."""
         self._before = self.solid
         self.transported = h.copy()
         u = np.zeros_like(ustar)
@@ -129,8 +184,8 @@ class MixtureFlow:
                 hw,
                 ustar[:, wet] + dt * correction * self.g_t,
                 dt,
-                u_old[:, wet],
-                self.pore_pressure[:, wet],
+                guess[:, wet],
+                pressure_guess[:, wet],
                 x=self.x[wet],
                 t=t,
             )
@@ -138,6 +193,12 @@ class MixtureFlow:
             iterations = result.iterations
         self.pending = {"solid": solid, "pore_pressure": pressure}
         return u, iterations
+
+    def balanced(self, h_old: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The mixture volume whose change the transport's boundary fluxes balance over the
+        step from ``h_old``: ``h_old`` plus the fluid the earlier stages drew in (with their
+        weight), and the transport's result before the last local step."""
+        return h_old + self.drawn, self.transported
 
     def check_step(self, h: np.ndarray, t: float, dt: float, guard: StateGuard) -> None:
         """The solid's balance and bounds after the step from ``t`` over ``dt`` (a
@@ -150,6 +211,6 @@ class MixtureFlow:
         self.guard.check_step(
             self._before.sum(axis=0), columns, np.zeros((1, columns.size)), t, dt, self._crossed
         )
-        exchange = (float(h.sum()) - float(self.transported.sum())) * self.dx
+        exchange = (float(h.sum()) - float(self.transported.sum()) + float(self.drawn.sum())) * self.dx
         guard.net_inflow += exchange
         self.ambient_exchange += exchange

@@ -29,7 +29,13 @@ from multilayer.engine.state import moving_columns
 from multilayer.engine.threads import numba_threads, parallel_chunks
 from multilayer.engine.transport import boundaries
 from multilayer.engine.transport.boundaries import COPY, STATE, WRAP
-from multilayer.engine.transport.reference import MARGIN, step_boundary_mass, step_mass_time
+from multilayer.engine.transport.reference import (
+    MARGIN,
+    second_stage_start,
+    stages,
+    step_boundary_mass,
+    step_mass_time,
+)
 
 TILE = 8192
 """Cells (columns x layers) of one tile of the sweep: its work arrays stay in the L2 cache."""
@@ -176,7 +182,8 @@ class Window(NamedTuple):
 
 class Scheme(NamedTuple):
     """What the scheme reads besides the state: the layer fractions (L,), the steps in x
-    and t, ``g cos(theta)``, ``g sin(theta)``, the dry thickness and the order (1 or 2)."""
+    and t, ``g cos(theta)``, ``g sin(theta)``, the dry thickness, the order (1 or 2) and
+    whether the call is Heun's first stage alone (its result is then the output)."""
 
     l: np.ndarray
     dx: float
@@ -185,6 +192,7 @@ class Scheme(NamedTuple):
     g_t: float
     dry: float
     order: int
+    alone: bool
 
 
 class Edges(NamedTuple):
@@ -222,14 +230,14 @@ def _tile(stage, t0, t1, window, scheme, edges, arrays, work):
     Columns ``t0-2 .. t1+1`` (ghosts included) are loaded, the cells ``t0-1 .. t1``
     reconstructed, the faces ``t0 .. t1`` get their HLL fluxes (the gate's at
     ``gate_face``), and the cells are updated.  ``stage`` 0: forward Euler from (H, U),
-    to (H_out, U_out) at order 1 and to (H1, Q1) at order 2; ``stage`` 1: Heun's second
-    stage from (H1, Q1), averaged with (H, U), to (H_out, U_out).  The mass fluxes through
+    to (H_out, U_out) at order 1 or alone and to (H1, Q1) otherwise; ``stage`` 1: Heun's
+    second stage from (H1, Q1), averaged with (H, U), to (H_out, U_out).  The mass fluxes through
     the end faces 0 and n of the window, as the cells next to them see them, go to
     ``ends[stage]`` (summed over the layers from the bed up), the fastest wave across
     each face that carries mass (0 for a face at rest) to ``speeds[t0 .. t1]``.
     """
     n, lo, left, right, at_rest = window.n, window.lo, window.left, window.right, window.at_rest
-    l, dx, dt, order = scheme.l, scheme.dx, scheme.dt, scheme.order
+    l, dx, dt, order, alone = scheme.l, scheme.dx, scheme.dt, scheme.order, scheme.alone
     g_n, g_t, dry = scheme.g_n, scheme.g_t, scheme.dry
     inflow_h, inflow_u, gate_face, opening = edges.inflow_h, edges.inflow_u, edges.gate_face, edges.opening
     H, U, B, H1, Q1 = arrays.H, arrays.U, arrays.B, arrays.H1, arrays.Q1
@@ -245,7 +253,7 @@ def _tile(stage, t0, t1, window, scheme, edges, arrays, work):
     div_h, div_Q, G, exchange, dq = cells[:L], cells[L], cells[L + 1], cells[L + 2], cells[L + 3]
     terms = cells[L + 4 :]
     from_q = stage == 1
-    final = stage == 1 or order == 1
+    final = stage == 1 or order == 1 or alone
     # load the state of the columns t0-2 .. t1+1 (index k = column - t0 + 2)
     for k in range(m + 4):
         src, how = _source(t0 - 2 + k, n, left, right)
@@ -466,12 +474,12 @@ def _tile(stage, t0, t1, window, scheme, edges, arrays, work):
                 U_out[a, c] = velocity if h_new > dry else 0.0
 
 
-def _stages(chunks, window, scheme, edges, arrays):
-    """Both stages over the window in ``chunks`` independent pieces (taken by the threads in
-    turn), each swept in tiles of about ``TILE`` cells."""
+def _stages(first, last, chunks, window, scheme, edges, arrays):
+    """The stages ``first .. last-1`` over the window in ``chunks`` independent pieces
+    (taken by the threads in turn), each swept in tiles of about ``TILE`` cells."""
     L, n = scheme.l.size, window.n
     T = max(8, TILE // L)
-    for stage in range(scheme.order):
+    for stage in range(first, last):
         for k in prange(chunks):
             c0 = k * n // chunks
             c1 = (k + 1) * n // chunks
@@ -561,12 +569,17 @@ def transport(
     boundary_mass: np.ndarray | None = None,
     stage_speed: np.ndarray | None = None,
     boundary_momentum: np.ndarray | None = None,
+    stage: int | None = None,
+    first: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``reference.transport`` compiled: returns h^{n+1} (N,) and u* (L, N).
+    """``reference.transport`` compiled: returns h^{n+1} (N,) and u* (L, N) (or the
+    result of the ``stage`` alone, ``first`` the state of Heun's second stage, as there).
 
     The result lives in ``workspace`` (a new one when None) and is overwritten by its
-    next use.  ``threads > 1`` sweeps the window in chunks of at least 64 columns
-    (``threads.parallel_chunks``) on that many threads.
+    next use; Heun's second stage alone (``stage=1``) needs the workspace of the first
+    (the mass and momentum through the end faces in that stage).  ``threads > 1`` sweeps
+    the window in chunks of at least 64 columns (``threads.parallel_chunks``) on that many
+    threads.
     ``boundary_mass`` (2,), if given, receives the mass that crossed the left and the
     right boundary, positive in +x, and ``boundary_momentum`` (3,) the momentum and the
     integral of the mass (as ``reference.transport``).
@@ -589,24 +602,31 @@ def transport(
     if opening is not None and gate_face is not None and lo <= gate_face <= hi:
         gate = gate_face - lo
     opening = np.asarray(opening, dtype=float) if gate >= 0 else np.zeros(L)
+    l = np.ascontiguousarray(fractions, dtype=float)
+    begin, end = stages(order, stage)
+    if begin == 1:  # Heun's second stage starts from the given state
+        if workspace is None:
+            raise ValueError("transport: Heun's second stage alone needs the workspace of its first")
+        h1, u1 = second_stage_start(first)
+        ws.h1[lo:hi] = h1[lo:hi]
+        ws.q1[:, lo:hi] = l[:, None] * h1[lo:hi] * u1[:, lo:hi]
     chunks = parallel_chunks(threads, n, 64) if threads > 1 else 1
-    stages = _stages_parallel if chunks > 1 else _stages_serial
+    sweep = _stages_parallel if chunks > 1 else _stages_serial
     with numba_threads(threads if chunks > 1 else 1):
-        stages(
+        sweep(
+            begin,
+            end,
             chunks,
             Window(n, lo, left_kind, right_kind, at_rest),
-            Scheme(
-                np.ascontiguousarray(fractions, dtype=float),
-                float(dx), float(dt), float(g_n), float(g_t), float(dry), int(order),
-            ),
+            Scheme(l, float(dx), float(dt), float(g_n), float(g_t), float(dry), int(order), stage == 0),
             Edges(inflow_h, inflow_u, gate, opening),
             Arrays(h, u, b, ws.h1, ws.q1, ws.h, ws.u, ws.ends, ws.speeds),
         )  # fmt: skip
     if boundary_mass is not None:
-        boundary_mass[:] = step_boundary_mass(ws.ends[:order, :2], float(dt))
+        boundary_mass[:] = step_boundary_mass(ws.ends[:end, :2], float(dt))
     if boundary_momentum is not None:
-        boundary_momentum[:2] = step_boundary_mass(ws.ends[:order, 2:], float(dt))
-        boundary_momentum[2] = step_mass_time(float(np.sum(h) * dx), ws.ends[:order, :2], float(dt))
+        boundary_momentum[:2] = step_boundary_mass(ws.ends[:end, 2:], float(dt))
+        boundary_momentum[2] = step_mass_time(float(np.sum(h) * dx), ws.ends[:end, :2], float(dt))
     if stage_speed is not None:
-        stage_speed[0] = ws.speeds[: n + 1].max() if order == 2 else 0.0
+        stage_speed[0] = ws.speeds[: n + 1].max() if end == 2 else 0.0
     return ws.h, ws.u

@@ -226,16 +226,37 @@ def step_mass_time(mass: float, stage_fluxes: np.ndarray, dt: float) -> float:
     return 0.5 * dt * (mass + (mass - dt * (stage_fluxes[0][1] - stage_fluxes[0][0])))
 
 
-def _step(h, u, b, l, *, dt, dry, **kw):
-    """Forward Euler (order 1) or Heun (order 2) step of the transport rates; returns
-    h, u, the mass fluxes and the momentum fluxes through the two end faces of each stage
-    (order, 4) and the fastest wave across a face that carries mass in Heun's second stage
-    (0 at order 1)."""
+def stages(order: int, stage: int | None) -> tuple[int, int]:
+    """The stages (first, last + 1) a transport call runs: all those of the ``order``
+    (``stage`` None), Heun's first stage alone (0: a forward Euler step) or its second
+    stage alone (1, from a given state: ``Simulation.step`` applies the vertical step
+    between the two)."""
+    if stage is None:
+        return 0, order
+    if stage not in (0, 1) or (stage == 1 and order != 2):
+        raise ValueError(f"transport: stage {stage!r} of a step of order {order} (0, or 1 at order 2)")
+    return stage, stage + 1
+
+
+def second_stage_start(first: tuple[np.ndarray, np.ndarray] | None) -> tuple[np.ndarray, np.ndarray]:
+    """The state (h (N,), u (L, N)) Heun's second stage starts from, required alone."""
+    if first is None:
+        raise ValueError("transport: Heun's second stage alone needs the state it starts from (first)")
+    return first
+
+
+def _step(h, u, b, l, *, dt, dry, stage, first, **kw):
+    """Forward Euler (order 1) or Heun (order 2) step of the transport rates, or one of
+    Heun's stages (``stages``; the second from the state ``first``); returns h, u, the mass
+    fluxes and the momentum fluxes through the two end faces of each stage (stages, 4; the
+    first stage's are computed for the second's weights) and the fastest wave across a
+    face that carries mass in Heun's second stage (0 without it)."""
 
     def velocity(h_, q_):
         wet = h_ > dry
         return np.where(wet, q_ / (l * np.where(wet, h_, 1.0)), 0.0)
 
+    begin, end = stages(kw["order"], stage)
     q = l * h * u
     dh, dq, ends, _ = _rates(h, u, b, l, **kw)
     stage_fluxes = [ends]
@@ -243,8 +264,11 @@ def _step(h, u, b, l, *, dt, dry, **kw):
     # POSITIVITY_LIMIT): the clip then removes round-off only
     h1 = np.maximum(h + dt * dh, 0.0)
     q1 = q + dt * dq
+    if begin == 1:
+        h1, u1 = first
+        q1 = l * h1 * u1
     stage_speed = 0.0
-    if kw["order"] == 2:  # Heun: the average of the state and two Euler steps
+    if end == 2:  # Heun: the average of the state and two Euler steps
         dh, dq, ends, stage_speed = _rates(h1, velocity(h1, q1), b, l, **kw)
         stage_fluxes.append(ends)
         h1 = np.maximum(0.5 * (h + h1 + dt * dh), 0.0)
@@ -278,6 +302,8 @@ def transport(
     boundary_mass: np.ndarray | None = None,
     stage_speed: np.ndarray | None = None,
     boundary_momentum: np.ndarray | None = None,
+    stage: int | None = None,
+    first: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """One explicit transport step: returns h^{n+1} (N,) and the velocities u* (L, N).
 
@@ -294,7 +320,10 @@ def transport(
     (3,), if given, receives the momentum per unit width and density (m^3/s) that crossed
     the left and the right boundary, positive in +x, and the integral over the step of
     the mass that gravity acts on (``step_mass_time``): the terms of the transport's
-    momentum balance (``engine/bed_force.py``).
+    momentum balance (``engine/bed_force.py``).  ``stage`` 0 or 1 runs one of Heun's
+    stages alone (``stages``): the first returns its forward Euler step, the second starts
+    from ``first`` = (h_1, u_1) and returns the average with the state; the boundary terms
+    then hold those of the stages so far.
     """
     if opening is not None and gate_face is None:
         raise ValueError("transport: a gate opening was given without its gate_face")
@@ -320,6 +349,9 @@ def transport(
     gate = None
     if opening is not None and gate_face is not None and lo <= gate_face <= hi:
         gate = (gate_face - lo, np.asarray(opening, dtype=float))
+    if stages(order, stage)[0] == 1:
+        h1, u1 = second_stage_start(first)
+        first = (h1[window], u1[:, window])
     h_new, u_new = np.zeros_like(h), np.zeros_like(u)
     h_new[window], u_new[:, window], stage_fluxes, fastest = _step(
         hw,
@@ -328,6 +360,8 @@ def transport(
         fractions[:, None],
         dt=dt,
         dry=dry,
+        stage=stage,
+        first=first,
         dx=dx,
         g_n=g_n,
         g_t=g_t,
