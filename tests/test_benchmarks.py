@@ -31,6 +31,7 @@ for script in sys.argv[1:]:
 """
 
 
+@pytest.mark.slow
 def test_benchmark_scripts_show_their_options():
     """Each script's ``--help`` exits 0 with its usage (all in one process: the imports of
     the engine once)."""

@@ -66,6 +66,7 @@ def calibrate(path: Path, outdir: Path, scheduler: str, capsys) -> tuple[int, xr
 # --------------------------------------------------------------------- twin experiment
 
 
+@pytest.mark.slow
 def test_twin_experiment_recovers_mu_s_and_mu_2_within_their_uncertainty(tmp_path, cluster, capsys):
     """Noise 1 mm: the fit lies within 3 standard deviations of the truth and its misfit
     is a plausible chi-square value for the 16 - 2 degrees of freedom."""

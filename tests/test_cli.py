@@ -293,6 +293,7 @@ print(json.dumps(said))
 """
 
 
+@pytest.mark.slow
 def test_the_study_commands_without_their_extra_say_how_to_install_it(tmp_path):
     """exit 2 and the extra to install, before the file is read (none exists here); the
     three commands in one process."""

@@ -317,6 +317,7 @@ def test_pytest_runs_a_named_file_and_selects_by_kind(pytester):
     only.assert_outcomes(passed=1, deselected=1)
 
 
+@pytest.mark.slow
 def test_pytest_without_arguments_collects_no_yaml(pytester):
     """A plain `pytest` (no paths named) never turns YAML files into scenario runs."""
     _write(pytester.path, "false.yaml", FALSE)

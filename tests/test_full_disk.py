@@ -59,6 +59,7 @@ def _assert_kept(outdir: Path, reason: str) -> None:
     assert load_checkpoint(outdir / "checkpoint.npz").records >= t.size - 1
 
 
+@pytest.mark.slow
 def test_the_file_size_limit_stops_a_write_half_way_keeping_every_record_written_before(tmp_path):
     """The write itself fails (EFBIG) under a real ``ulimit -f``, as when another process
     fills the disk between the writer's check and its write: netCDF-C's buffers are abandoned

@@ -10,6 +10,8 @@ import subprocess
 import sys
 import time
 
+import pytest
+
 from multilayer.engine import kernel_cache
 
 
@@ -94,6 +96,7 @@ print(speed, len(kernel_cache.CLEARED))
 """
 
 
+@pytest.mark.slow
 def test_two_processes_starting_at_once_after_an_upgrade(tmp_path):
     """After an upgrade (the digests of other sources in the cache, and a kernel cached by
     them), two processes that load their first kernel at the same moment both run the new

@@ -129,6 +129,7 @@ def solitary(
     return (peak_x - x0) / t_end / c - 1.0, peak / amplitude - 1.0, shape
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("layers", "pressure_layers"), [(2, None), (8, 2)])
 def test_solitary_wave_keeps_its_shape_and_speed(layers, pressure_layers):
     """A/H = 0.1 over 3 s (10 m, about 2.6 wave lengths), dx = H/5: speed within 2.5 %,
@@ -310,6 +311,7 @@ def test_reduced_rows_are_the_interpolation_transpose_times_the_layer_rows(perio
     assert np.abs(reduced - expected).max() <= 1e-13 * np.abs(expected).max()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("pressure_layers", [None, 2])
 def test_static_cells_are_not_touched(pressure_layers):
     h, u, w, bed, fractions = random_state(2)

@@ -180,6 +180,7 @@ def test_front_velocity_is_the_time_derivative_of_the_front() -> None:
     np.testing.assert_allclose(plotting.front_velocity(ds)[1:-1], 0.5 - 0.4 * t[1:-1], rtol=1e-12)
 
 
+@pytest.mark.slow
 def test_plot_at_chosen_positions_and_formats(slump_dir: Path, cli, tmp_path: Path) -> None:
     result = cli("plot", slump_dir, "--at", "0.055", "--at", "0.0551", "--at", "0.205", "--format", "svg")
     assert result.code == 0, result.err
@@ -302,6 +303,7 @@ def test_a_long_title_is_wrapped_within_the_figure(slump_dir: Path, figure: str)
     assert frame.x0 <= title.x0 and title.x1 <= frame.x1, (title, frame)
 
 
+@pytest.mark.slow
 def test_plot_prints_no_warning_of_the_colour_mapping(slump_dir: Path, cli) -> None:
     """The section's colours are masked cells (at rest, the joins between cells): the values
     under the mask were uninitialised memory, which the colour mapping normalised too

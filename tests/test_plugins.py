@@ -73,6 +73,7 @@ def bingham_scenario(tiny_scenario, **params):
     return tiny_scenario
 
 
+@pytest.mark.slow
 def test_installed_plugin_is_listed(bingham):
     result = subprocess.run([*MULTILAYER, "plugins"], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
@@ -82,6 +83,7 @@ def test_installed_plugin_is_listed(bingham):
     assert "jop_mu_i [bulk]" in result.stdout  # the built-ins are still there
 
 
+@pytest.mark.slow
 def test_installed_plugin_usable_by_name(bingham, tiny_scenario, write_scenario):
     path = write_scenario(bingham_scenario(tiny_scenario, tau_y=40.0, eta=2.0))
     result = subprocess.run([*MULTILAYER, "validate", str(path)], capture_output=True, text=True)
@@ -90,6 +92,7 @@ def test_installed_plugin_usable_by_name(bingham, tiny_scenario, write_scenario)
     np.testing.assert_array_equal(law.yield_stress(np.zeros(3), Material(1500, 1e-3, 2500)), 40.0)
 
 
+@pytest.mark.slow
 def test_installed_plugin_parameters_are_validated(bingham, tiny_scenario, write_scenario):
     for params, key, needle in [
         ({"tau_y": 40.0, "eta": 2.0, "tau_z": 1.0}, "rheology.tau_z", "unknown parameter of bingham"),

@@ -584,6 +584,7 @@ def test_sigterm_and_sighup_stop_like_ctrl_c(tmp_path, signum, code):
 # ----------------------------------------------------------------------------- plot
 
 
+@pytest.mark.slow
 def test_plot_of_a_failed_result_draws_its_records_and_says_how_it_ended(tmp_path, cli):
     _path, outdir = _finished(tmp_path, cli)
     with netCDF4.Dataset(outdir / "result.nc", "a") as ds:

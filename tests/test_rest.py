@@ -21,6 +21,7 @@ def held(sim, steps: int) -> tuple[float, float]:
     return float(np.abs(sim.u).max()), float(np.abs(sim.h - h0).max())
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("rheology", [JOP, DRUCKER_PRAGER], ids=["jop_mu_i", "drucker_prager"])
 def test_heap_below_the_friction_angle_on_an_inclined_no_slip_bed(rheology):
     """A triangular heap with flanks of slope 0.1 on a 10 degree plane: the driving

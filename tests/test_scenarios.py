@@ -36,11 +36,15 @@ SLOW_RUNS = {
     "immersed_layer_dense",
     "submarine_collapse_loose",
     "submarine_collapse_dense",
+    "erodible_bed_collapse",
     "erodible_bed_collapse_coulomb",
+    "column_collapse",
+    "column_collapse_channel",
+    "smooth_to_rough_chute",
 }
-"""Runs of 3 to 6 s each, so they run under ``slow``: the grain–fluid mixtures, and the
-Coulomb variant of the erodible bed (its one reference, the conserved volume, is checked by
-the default run of ``erodible_bed_collapse``)."""
+"""Runs of 2 to 13 s of CPU each, so they run under ``slow``: the grain–fluid mixtures, the
+collapses on erodible beds, in a channel and on a rough bed, and the chute's boundary layer.
+The default run keeps the scenarios checked against exact solutions in a second or less."""
 
 
 def _path(name: str) -> Path:
@@ -129,7 +133,15 @@ COARSE = {"domain.cells": [30], "domain.layers": [2], "time.end": [0.02], "time.
 """Added to a shipped sweep to run every member in a fraction of a second."""
 
 
-@pytest.mark.parametrize("path", SWEEPS, ids=[p.stem for p in SWEEPS])
+QUICK_SWEEP = "column_collapse_gate"
+"""The sweep the default run runs; the others run under ``slow`` (1-3 s of CPU each)."""
+
+
+@pytest.mark.parametrize(
+    "path",
+    [p if p.stem == QUICK_SWEEP else pytest.param(p, marks=pytest.mark.slow) for p in SWEEPS],
+    ids=[p.stem for p in SWEEPS],
+)
 def test_shipped_sweep_is_valid_and_runs_small(path, tmp_path):
     """Every member is a valid scenario; a coarse copy of the sweep runs all of them."""
     from dask.distributed import LocalCluster

@@ -50,7 +50,9 @@ def coulomb_error(cells: int, layers: int, internal_friction: float) -> float:
     return float(np.sum(np.abs(sim.h - exact)[window]) / np.sum(exact[window]))
 
 
-@pytest.mark.parametrize("layers, internal_friction", [(1, 0.0), (4, 1.0)])
+@pytest.mark.parametrize(
+    "layers, internal_friction", [(1, 0.0), pytest.param(4, 1.0, marks=pytest.mark.slow)]
+)
 def test_coulomb_dam_break_on_a_slope(layers, internal_friction):
     """30 degree slope, basal friction angle 20 degrees; with 4 layers a strong internal
     friction keeps the column a plug, as the depth-averaged solution assumes.  The error

@@ -208,8 +208,9 @@ COLLAPSE = dict(
 )
 
 
+@pytest.mark.slow
 def test_kernel_and_fipy_reference_solve_the_same_collapse_problem():
-    """The short comparison of the default run: one linearised vertical step of a mu(I)
+    """One linearised vertical step of a mu(I)
     collapse over an erodible layer with side walls (after 3 steps), solved by the numba
     kernel and by the FiPy formulation: the same velocities to 1e-10 and the same layers
     exactly at rest."""
