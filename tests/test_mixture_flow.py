@@ -5,6 +5,7 @@ closure of several layers, resume, the result file, and the scenario keys."""
 
 from __future__ import annotations
 
+import functools
 import math
 from pathlib import Path
 
@@ -53,6 +54,7 @@ def test_solid_conserved_and_fluid_balanced_in_a_collapse(layers, phi):
     assert np.all((phi_now > 0.5) & (phi_now < 0.61))
 
 
+@functools.cache
 def small_collapse(layers: int, phi: float) -> tuple[Simulation, float, float]:
     """A 1 cm x 3 cm column at ``phi`` on a 10 degree slope after 15 steps, the guard
     checked at each; its solid and its volume at the start."""
@@ -65,28 +67,66 @@ def small_collapse(layers: int, phi: float) -> tuple[Simulation, float, float]:
     return sim, solid0, volume0
 
 
-LOOSE_FRONT = pytest.mark.xfail(
-    strict=True,
-    reason="the front of the loose 1 cm column dilates under its shear rate 2u/h more than its "
-    "body contracts: the basal pressure of largest magnitude after 15 steps is -22.7 Pa at the "
-    "front (one layer), where a local step after both transport stages only gave +27.3 Pa under "
-    "the body; not investigated further",
-)
+def pressure_below_the_column(layers: int, phi: float, t_end: float = 1.0) -> float:
+    """The basal excess pore pressure averaged below the initial column of
+    :func:`small_collapse` (``x < 3 cm``), at its largest magnitude over the first
+    ``t_end`` seconds (Pa, signed): the measure of the validation case
+    ``submarine_collapse``."""
+    entry = InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01, phi=phi)
+    sim = mixture_run([entry], slope=10.0, layers=layers)
+    below = sim.x < 0.03
+    means = []
+    while sim.t < t_end:
+        sim.step(t_end)
+        means.append(sim.mixture.pore_pressure[0, below].mean())
+    return float(means[int(np.argmax(np.abs(means)))])
 
 
 @pytest.mark.parametrize(
     ("layers", "phi"),
     [
-        pytest.param(1, 0.56, marks=LOOSE_FRONT),
-        pytest.param(3, 0.56, marks=[pytest.mark.slow, LOOSE_FRONT]),
+        (1, 0.56),
+        pytest.param(1, 0.6, marks=pytest.mark.slow),
+        pytest.param(3, 0.56, marks=pytest.mark.slow),
         pytest.param(3, 0.6, marks=pytest.mark.slow),
     ],
 )
-def test_the_basal_pore_pressure_has_the_sign_of_the_packing(layers, phi):
-    """The basal excess pore pressure of largest magnitude has the sign of the packing:
-    positive under a loose (contracting) column, negative under a dense (dilating) one."""
-    bed = small_collapse(layers, phi)[0].mixture.pore_pressure[0]
-    assert math.copysign(1.0, FLUID.phi_critical - phi) * bed[np.argmax(np.abs(bed))] > 0.0
+def test_the_pore_pressure_below_the_column_has_the_sign_of_the_packing(layers, phi):
+    """What Rondon, Pouliquen & Aussillous (2011) measured: the excess pore pressure at the
+    bed below the column, positive below a loose (contracting) column, negative below a
+    dense (dilating) one.  Averaged below the initial column, at its largest magnitude over
+    the first second (measured, one layer, loose, at 20, 40 and 80 cells: +13.0, +19.1 and
+    +27.6 Pa, while the dilating corner of the first steps gives -5.4, -9.3 and -10.9 Pa;
+    dense at 20 cells: -9.5 Pa, never positive)."""
+    assert math.copysign(1.0, FLUID.phi_critical - phi) * pressure_below_the_column(layers, phi) > 0.0
+
+
+def test_a_moving_front_dilates_where_its_critical_state_says():
+    """At the thin fast front of a loose column the model itself predicts dilation: the
+    shear rate ``gamma = 2 |u| / h`` is large and the buoyant weight ``P`` small, so the
+    critical fraction at the hydrostatic effective pressure,
+    ``phi_eq(P) = phi_c - K2 eta_f gamma / P`` (Pailha & Pouliquen 2009, as in Bouchut et
+    al. 2016), falls below ``phi``.  As the closure's dilation rate decreases with ``p_s``
+    and ``p_s = P + B Phi(p_s)``, ``p_e`` has exactly the sign of ``phi_eq(P) - phi`` in
+    every moving column, and a loose packing's suction is bounded by the thin-layer limit
+    of the quadratic, ``p_e >= -sqrt(c) = -2 |u| sqrt(K K2 eta_f beta / 2) / (1 - phi)``
+    (measured after 15 steps: +12.1 Pa under the body, -22.7 Pa at the front, bound
+    -211 Pa; -22.6 Pa with half the step; -52 and -80 Pa at 40 and 80 cells, where the
+    resolved front is thinner and faster)."""
+    sim = small_collapse(1, 0.56)[0]
+    u = np.abs(sim.u[0])
+    moving = u > 0.0
+    h, u, p_e = sim.h[moving], u[moving], sim.mixture.pore_pressure[0, moving]
+    phi = sim.mixture.phi(sim.h)[moving]
+    P = (GRAINS.particle_density - FLUID.fluid_density) * 9.81 * math.cos(math.radians(10.0)) * phi * h
+    phi_eq = FLUID.phi_critical - FLUID.critical_shift * FLUID.fluid_viscosity * (2.0 * u / h) / P
+    assert np.any(phi_eq > phi) and np.any(phi_eq < phi)  # a contracting body, a dilating front
+    np.testing.assert_array_equal(np.sign(p_e), np.sign(phi_eq - phi))
+    beta = sim.mixture.local.drag(phi)
+    suction = 2.0 * u * np.sqrt(FLUID.dilatancy * FLUID.critical_shift * FLUID.fluid_viscosity * beta / 2.0)
+    assert np.all(p_e >= -suction / (1.0 - phi))
+    front = np.argmin(p_e)
+    assert h[front] < 0.5 * h.max() and -p_e[front] > p_e.max()  # the thin front sucks hardest
 
 
 @pytest.mark.parametrize("layers", [1, 3])
