@@ -96,9 +96,9 @@ def test_the_pore_pressure_below_the_column_has_the_sign_of_the_packing(layers, 
     """What Rondon, Pouliquen & Aussillous (2011) measured: the excess pore pressure at the
     bed below the column, positive below a loose (contracting) column, negative below a
     dense (dilating) one.  Averaged below the initial column, at its largest magnitude over
-    the first second (measured, one layer, loose, at 20, 40 and 80 cells: +13.0, +19.1 and
-    +27.6 Pa, while the dilating corner of the first steps gives -5.4, -9.3 and -10.9 Pa;
-    dense at 20 cells: -9.5 Pa, never positive)."""
+    the first second (measured, one layer, at 20, 40 and 80 cells: loose +13.0, +23.1 and
+    +30.3 Pa, while the dilating corner of the first steps gives -5.4, -9.3 and -10.9 Pa;
+    dense -9.5, -13.6 and -16.4 Pa, never positive)."""
     assert math.copysign(1.0, FLUID.phi_critical - phi) * pressure_below_the_column(layers, phi) > 0.0
 
 
