@@ -56,7 +56,7 @@ it contracts, and where it dilates iff
 ``kappa_a + (K1 + K K2) eta_f gamma_a >= lambda_a tan(psi_a) P_bar``.  For one layer
 ``lambda P_bar = P <= p_s`` whenever it dilates, so ``D >= 0`` always and
 ``D = (tan(delta) p_s + K1 eta_f gamma - tan(psi) p_e) |v|`` (the uniform layer's); at the
-bed of a uniform column ``lambda_0 P_bar = P_0`` too.  An interface high in a column, where
+bed of a column of one packing ``lambda_0 P_bar = P_0`` too.  An interface high in a column, where
 ``p_s,a`` is well below ``P_bar``, that shears and dilates alone breaks it: the energy of
 the scheme then grows (tests/test_mixture_flow.py, docs/mixture.md).
 """
