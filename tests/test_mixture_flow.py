@@ -112,8 +112,8 @@ def test_a_moving_front_dilates_where_its_critical_state_says():
     every moving column, and a loose packing's suction is bounded by the thin-layer limit
     of the quadratic, ``p_e >= -sqrt(c) = -2 |u| sqrt(K K2 eta_f beta / 2) / (1 - phi)``
     (measured after 15 steps: +12.1 Pa under the body, -22.7 Pa at the front, bound
-    -211 Pa; -22.6 Pa with half the step; -52 and -80 Pa at 40 and 80 cells, where the
-    resolved front is thinner and faster)."""
+    -211 Pa; -22.6 Pa with half the step; -52, -80, -128 and -174 Pa at 40, 80, 160 and
+    320 cells, where the resolved front is steeper and sheared faster)."""
     sim = small_collapse(1, 0.56)[0]
     u = np.abs(sim.u[0])
     moving = u > 0.0
