@@ -1,10 +1,12 @@
 """The grain–fluid mixture in x, in one layer and in several (engine/mixture/flow.py,
-local_step.py, solid_transport.py): conservation, exact rest, the dry limit, the uniform
-layer in a periodic domain, layers equal to one layer where the model says so, the coupled
-closure of several layers, resume, the result file, and the scenario keys."""
+local_step.py, solid_transport.py): conservation, the sign of the pore pressure below a
+column and at its front, exact rest, the dry limit, the uniform layer in a periodic domain,
+layers equal to one layer where the model says so, the coupled closure of several layers,
+the discrete energy in layers, resume, the result file, and the scenario keys."""
 
 from __future__ import annotations
 
+import functools
 import math
 from pathlib import Path
 
@@ -53,6 +55,7 @@ def test_solid_conserved_and_fluid_balanced_in_a_collapse(layers, phi):
     assert np.all((phi_now > 0.5) & (phi_now < 0.61))
 
 
+@functools.cache
 def small_collapse(layers: int, phi: float) -> tuple[Simulation, float, float]:
     """A 1 cm x 3 cm column at ``phi`` on a 10 degree slope after 15 steps, the guard
     checked at each; its solid and its volume at the start."""
@@ -65,28 +68,66 @@ def small_collapse(layers: int, phi: float) -> tuple[Simulation, float, float]:
     return sim, solid0, volume0
 
 
-LOOSE_FRONT = pytest.mark.xfail(
-    strict=True,
-    reason="the front of the loose 1 cm column dilates under its shear rate 2u/h more than its "
-    "body contracts: the basal pressure of largest magnitude after 15 steps is -22.7 Pa at the "
-    "front (one layer), where a local step after both transport stages only gave +27.3 Pa under "
-    "the body; not investigated further",
-)
+def pressure_below_the_column(layers: int, phi: float, t_end: float = 1.0) -> float:
+    """The basal excess pore pressure averaged below the initial column of
+    :func:`small_collapse` (``x < 3 cm``), at its largest magnitude over the first
+    ``t_end`` seconds (Pa, signed): the measure of the validation case
+    ``submarine_collapse``."""
+    entry = InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01, phi=phi)
+    sim = mixture_run([entry], slope=10.0, layers=layers)
+    below = sim.x < 0.03
+    means = []
+    while sim.t < t_end:
+        sim.step(t_end)
+        means.append(sim.mixture.pore_pressure[0, below].mean())
+    return float(means[int(np.argmax(np.abs(means)))])
 
 
 @pytest.mark.parametrize(
     ("layers", "phi"),
     [
-        pytest.param(1, 0.56, marks=LOOSE_FRONT),
-        pytest.param(3, 0.56, marks=[pytest.mark.slow, LOOSE_FRONT]),
+        (1, 0.56),
+        pytest.param(1, 0.6, marks=pytest.mark.slow),
+        pytest.param(3, 0.56, marks=pytest.mark.slow),
         pytest.param(3, 0.6, marks=pytest.mark.slow),
     ],
 )
-def test_the_basal_pore_pressure_has_the_sign_of_the_packing(layers, phi):
-    """The basal excess pore pressure of largest magnitude has the sign of the packing:
-    positive under a loose (contracting) column, negative under a dense (dilating) one."""
-    bed = small_collapse(layers, phi)[0].mixture.pore_pressure[0]
-    assert math.copysign(1.0, FLUID.phi_critical - phi) * bed[np.argmax(np.abs(bed))] > 0.0
+def test_the_pore_pressure_below_the_column_has_the_sign_of_the_packing(layers, phi):
+    """What Rondon, Pouliquen & Aussillous (2011) measured: the excess pore pressure at the
+    bed below the column, positive below a loose (contracting) column, negative below a
+    dense (dilating) one.  Averaged below the initial column, at its largest magnitude over
+    the first second (measured, one layer, at 20, 40 and 80 cells: loose +13.0, +23.1 and
+    +30.3 Pa, while the dilating corner of the first steps gives -5.4, -9.3 and -10.9 Pa;
+    dense -9.5, -13.6 and -16.4 Pa, never positive)."""
+    assert math.copysign(1.0, FLUID.phi_critical - phi) * pressure_below_the_column(layers, phi) > 0.0
+
+
+def test_a_moving_front_dilates_where_its_critical_state_says():
+    """At the thin fast front of a loose column the model itself predicts dilation: the
+    shear rate ``gamma = 2 |u| / h`` is large and the buoyant weight ``P`` small, so the
+    critical fraction at the hydrostatic effective pressure,
+    ``phi_eq(P) = phi_c - K2 eta_f gamma / P`` (Pailha & Pouliquen 2009, as in Bouchut et
+    al. 2016), falls below ``phi``.  As the closure's dilation rate decreases with ``p_s``
+    and ``p_s = P + B Phi(p_s)``, ``p_e`` has exactly the sign of ``phi_eq(P) - phi`` in
+    every moving column, and a loose packing's suction is bounded by the thin-layer limit
+    of the quadratic, ``p_e >= -sqrt(c) = -2 |u| sqrt(K K2 eta_f beta / 2) / (1 - phi)``
+    (measured after 15 steps: +12.1 Pa under the body, -22.7 Pa at the front, bound
+    -211 Pa; -22.6 Pa with half the step; -52, -80, -128 and -174 Pa at 40, 80, 160 and
+    320 cells, where the resolved front is steeper and sheared faster)."""
+    sim = small_collapse(1, 0.56)[0]
+    u = np.abs(sim.u[0])
+    moving = u > 0.0
+    h, u, p_e = sim.h[moving], u[moving], sim.mixture.pore_pressure[0, moving]
+    phi = sim.mixture.phi(sim.h)[moving]
+    P = (GRAINS.particle_density - FLUID.fluid_density) * 9.81 * math.cos(math.radians(10.0)) * phi * h
+    phi_eq = FLUID.phi_critical - FLUID.critical_shift * FLUID.fluid_viscosity * (2.0 * u / h) / P
+    assert np.any(phi_eq > phi) and np.any(phi_eq < phi)  # a contracting body, a dilating front
+    np.testing.assert_array_equal(np.sign(p_e), np.sign(phi_eq - phi))
+    beta = sim.mixture.local.drag(phi)
+    suction = 2.0 * u * np.sqrt(FLUID.dilatancy * FLUID.critical_shift * FLUID.fluid_viscosity * beta / 2.0)
+    assert np.all(p_e >= -suction / (1.0 - phi))
+    front = np.argmin(p_e)
+    assert h[front] < 0.5 * h.max() and -p_e[front] > p_e.max()  # the thin front sucks hardest
 
 
 @pytest.mark.parametrize("layers", [1, 3])
@@ -214,46 +255,65 @@ def test_a_dry_scenario_refuses_phi():
         multilayer.load(data)
 
 
-def test_discrete_energy_identity_of_the_uniform_layer():
-    """Per unit area, for the Lie splitting (``numerics.order: 1``: one local step per time
-    step), with the grains' buoyant weight P (normal) and F (downslope) and the
-    distance X travelled, E = m v^2/2 + P h/2 - F X obeys, step by step,
-    E' - E = -dt D' - m (v' - v)^2 / 2 with D = tan(delta) p_s |v| + K1 eta_f gamma |v|
-    - tan(psi) p_e |v| >= 0 (gamma = 2 |v| / h: the lifting work of dilation, P |v| tan(psi),
-    is what the dilatancy friction at p_s = P pays; the rest is Darcy's dissipation)."""
-    phi0, theta = 0.584, math.radians(25.0)
-    sim = mixture_run(  # order 1: one local step per time step, whose identity this is
-        [InitialEntry("layer", thickness=4.9e-3, phi=phi0)], sides=("periodic", "periodic"), cells=2,
-        numerics=Numerics(order=1),
+@pytest.mark.parametrize(
+    ("packings", "slope", "dissipative"),
+    [((0.584,), 25.0, True), ((0.584,) * 3, 25.0, True), ((0.64,) * 19 + (0.57,), 32.0, False)],
+    ids=["one layer", "three layers", "twenty layers, a loose top"],
+)
+def test_discrete_energy_of_the_layered_local_step(packings, slope, dissipative):
+    """The discrete energy identity of the local step in layers (``LocalStep``, Notes), for
+    the Lie splitting (``numerics.order: 1``: one local step per time step) of a uniform
+    column whose layers hold the packings ``packings`` (bottom up), step by step to 1e-9 of
+    its terms (measured: 9e-12 or less), and the sign of its dissipation.  One and three
+    uniform layers dissipate at every interface.  Twenty layers, the top one loose (0.57)
+    over dense ones (0.64), on a slope (32 deg) that only the top interface yields to: its
+    dilatancy friction pays 0.81 of the lift the fixed fractions charge for its dilation (the
+    column's mean buoyant weight against the 1.8 Pa on that interface), and the energy grows
+    (measured: D = -1.3e-6 W/m^2)."""
+    sim = mixture_run(
+        [InitialEntry("layer", thickness=4.9e-3, phi=0.6)], layers=len(packings), cells=2,
+        sides=("periodic", "periodic"), slope=slope, numerics=Numerics(order=1),
     )  # fmt: skip
-    s = float(sim.mixture.solid[0, 0])
-    weight = (2500.0 - 1041.0) * 9.81 * s
-    P, F = weight * math.cos(theta), weight * math.sin(theta)
+    l = sim.mixture.fractions
+    sim.mixture.solid[...] = (np.array(packings) * l)[:, None] * sim.h
+    sim.mixture.reset(0)
+    s, theta = sim.mixture.solid[:, 0].copy(), math.radians(slope)
+    rho_s, rho_f, eta = GRAINS.particle_density, FLUID.fluid_density, FLUID.fluid_viscosity
+    w, F = (rho_s - rho_f) * 9.81 * s * math.cos(theta), (rho_s - rho_f) * 9.81 * s * math.sin(theta)
+    centre = np.cumsum(l) - l / 2  # of each layer, over h
+    mean_weight = float(np.sum(w * centre))  # P_bar: the potential energy is h P_bar
+    spacing = (l + np.concatenate([[0.0], l[:-1]])) / 2  # of the interface below each layer, over h
+    tan_delta, K, K2, phi_c = (
+        math.tan(math.radians(22.5)),
+        FLUID.dilatancy,
+        FLUID.critical_shift,
+        FLUID.phi_critical,
+    )
+    X = np.zeros(len(l))
 
-    def energy(x: float) -> float:
-        h, v = float(sim.h[0]), float(sim.u[0, 0])
-        mass = 2500.0 * s + 1041.0 * (h - s)
-        return 0.5 * mass * v * v + 0.5 * P * h - F * x
+    def energy() -> float:
+        h, v = float(sim.h[0]), sim.u[:, 0]
+        mass = rho_s * s + rho_f * (l * h - s)
+        return float(np.sum(mass * v * v) / 2.0 + h * mean_weight - np.sum(F * X))
 
-    x = 0.0
-    for _ in range(30):
-        before, v0, h0 = energy(x), float(sim.u[0, 0]), float(sim.h[0])
-        mass = 2500.0 * s + 1041.0 * (h0 - s)
+    for _ in range(8 if dissipative else 3):
+        before, v0, h0 = energy(), sim.u[:, 0].copy(), float(sim.h[0])
+        mass = rho_s * s + rho_f * (l * h0 - s)
         dt = sim.step()
-        h, v, p_e = float(sim.h[0]), float(sim.u[0, 0]), float(sim.mixture.pore_pressure[0, 0])
-        x += dt * v
-        gamma, p_s = 2.0 * abs(v) / h, P - p_e
-        tan_psi = FLUID.dilatancy * (
-            s / h - FLUID.phi_critical + FLUID.critical_shift * FLUID.fluid_viscosity * gamma / p_s
-        )
-        D = (math.tan(math.radians(22.5)) * p_s + 90.5 * FLUID.fluid_viscosity * gamma - tan_psi * p_e) * abs(
-            v
-        )
-        assert D >= 0.0
-        change = energy(x) - before
-        expected = -dt * D - 0.5 * mass * (v - v0) ** 2
-        # the step's iteration stops at numerics.tolerance = 1e-10 (measured: 4e-12)
-        assert change == pytest.approx(expected, rel=1e-9)
+        h, v, p_e = float(sim.h[0]), sim.u[:, 0], sim.mixture.pore_pressure[:, 0]
+        X += dt * v
+        jump = np.abs(np.diff(v, prepend=0.0))
+        gamma, p_s, phi = jump / (spacing * h), np.cumsum(w[::-1])[::-1] - p_e, s / (l * h)
+        tan_psi = K * (phi - phi_c + K2 * eta * gamma / p_s)
+        yield_stress = np.maximum(tan_delta + K * (phi - phi_c), 0.0) * p_s
+        d = jump * (yield_stress + (90.5 + K * K2) * eta * gamma - l / spacing * tan_psi * mean_weight)
+        change, kinetic = energy() - before, float(np.sum(mass * (v - v0) ** 2)) / 2.0
+        terms = dt * np.sum(jump * (yield_stress + (90.5 + K * K2) * eta * gamma)) + (h - h0) * mean_weight
+        assert change == pytest.approx(-dt * d.sum() - kinetic, rel=0.0, abs=1e-9 * (terms + kinetic))
+        if dissipative:
+            assert np.all(d >= 0.0) and np.all(jump[1:] > 0.0)
+        else:  # only the top interface yields, and there the lift is not paid
+            assert np.all(jump[:-1] == 0.0) and d[-1] < 0.0 and change > 0.0
 
 
 def test_result_file_holds_the_mixture_and_is_plotted(tmp_path):
@@ -336,12 +396,15 @@ def test_uniform_layers_sliding_as_a_plug_are_the_one_layer_run():
 def test_the_closure_of_several_layers_is_solved():
     """In a sheared dense column of four layers the effective pressures solve
     p_s = P + M Phi(p_s) (the pore pressures the dilation of every layer creates), and the
-    local step converges in a few Newton iterations (counted: deterministic; a regression bound)."""
+    local step converges in a few Newton iterations (counted: deterministic; a regression
+    bound), at order 1, one local step per time step (at order 2 a time step has two, one
+    after each transport stage: measured 20 = 14 + 6, then 6 = 3 + 3)."""
     sim = mixture_run(
         [InitialEntry("layer", thickness=4.9e-3, phi=0.588)],
         layers=4,
         cells=2,
         sides=("periodic", "periodic"),
+        numerics=Numerics(order=1),
     )
     iterations = []
     for _ in range(20):

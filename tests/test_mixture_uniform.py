@@ -15,6 +15,8 @@ from multilayer.engine.mixture.uniform_layer import LayerState, UniformLayer, on
 from multilayer.errors import InputError, RunError
 from multilayer.reference.exact import InviscidSimpleShear
 from multilayer.reference.immersed_layer import (
+    creeping_pore_pressure,
+    flowing_pore_pressure,
     pailha_2008_layer,
     reference_solution,
     steady_flow,
@@ -125,6 +127,38 @@ def test_loose_layers_start_at_once_with_positive_pore_pressure_dense_ones_late_
     assert loose.v[5] > 100.0 * dense.v[5]  # at 10 s
     assert onset_time(loose.t, loose.v, 1e-4) < 1.0 < 200.0 < onset_time(dense.t, dense.v, 1e-4) < 500.0
     assert dense.v[-1] > 1e-4  # ... and then flows
+
+
+@pytest.mark.parametrize(
+    ("phi0", "t_end", "limit", "tolerance"),
+    [
+        (0.562, 20.0, flowing_pore_pressure, 0.03),
+        (0.571, 20.0, flowing_pore_pressure, 0.04),
+        (0.592, 100.0, creeping_pore_pressure, 0.04),
+    ],
+)
+def test_the_pore_pressure_magnitudes_are_quasi_static_balances(phi0, t_end, limit, tolerance):
+    """Pailha et al. (2008) viscous fluid: the Darcy drag is stiff, so from 1 s on a loose
+    layer flows with the pore pressure that keeps it at its critical state and a dense one
+    creeps with the suction that holds it at its static threshold, each at the present
+    packing (measured: within 1.9 %, 3.1 % and 3.6 %).  The distance to the limit falls at
+    least at first order in the inverse drag (Carman-Kozeny constant 75, 150, 300: ratios
+    2.0 and 2.1, 1.9 and 1.9, 3.1 and 2.3), and a flowing layer's pressure does not depend on
+    the dilatancy constant (K halved: 0.8 % and 1.3 % at 10 s)."""
+    layer = pailha_2008_layer(phi0)
+
+    def distance(**change: float) -> tuple[float, float]:
+        other = dataclasses.replace(layer, material=dataclasses.replace(layer.material, **change))
+        run = other.run(t_end, 0.5)
+        later = run.t >= 1.0
+        expected = np.array([limit(other, phi) for phi in run.phi[later]])
+        return float(np.abs(run.p_e[later] / expected - 1.0).max()), float(np.interp(10.0, run.t, run.p_e))
+
+    (soft, _), (base, at_10), (stiff, _) = (distance(kozeny=k) for k in (75.0, 150.0, 300.0))
+    assert base <= tolerance
+    assert soft / base >= 1.8 and base / stiff >= 1.8
+    if limit is flowing_pore_pressure:
+        assert distance(K=layer.material.K / 2.0)[1] == pytest.approx(at_10, rel=0.02)
 
 
 @pytest.fixture(scope="module")

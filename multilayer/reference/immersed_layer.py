@@ -13,6 +13,8 @@
 * The laboratory layers of Pailha, Nicolas & Pouliquen (2008, Phys. Fluids 20, 111701)
   with the parameters used with the model of Bouchut et al. (2016), and the model's
   characteristic times.
+* The basal excess pore pressure of a loose layer flowing and of a dense layer creeping,
+  in the limit of a stiff Darcy drag: quasi-static balances of the model.
 """
 
 from __future__ import annotations
@@ -97,6 +99,35 @@ def steady_flow(layer: UniformLayer) -> LayerState | None:
     if mat.phi_c - mat.K2 * mat.eta_f * gamma / layer.weight <= 0.0:
         return None
     return state(float(gamma))
+
+
+def flowing_pore_pressure(layer: UniformLayer, phi: float) -> float:
+    """The basal excess pore pressure (Pa) of ``layer`` (``k_b = 0``) flowing steadily at
+    packing ``phi`` below its flowing critical fraction, in the limit of a stiff Darcy drag
+    (Bouchut et al. 2016's closure): ``p_e = -B Phi`` with ``B`` large keeps ``Phi ~ 0``, so
+    the packing is at its critical state, ``phi = phi_c - K2 eta_f gamma / p_s``, and
+    ``tan(psi) ~ 0``, so the grains' friction balances the drive,
+    ``F = tan(delta) p_s + K1 eta_f gamma``.  Eliminating ``gamma``::
+
+        p_e = P - p_s = P (1 - K2 tan(theta) / (K1 (phi_c - phi) + K2 tan(delta)))
+
+    It depends on the friction constants and the packing, not on ``K`` nor on the
+    permeability (they set how slowly ``phi`` relaxes)."""
+    mat = layer.material
+    return layer.weight - layer.drive * mat.K2 / (mat.K1 * (mat.phi_c - phi) + mat.K2 * mat.tan_delta)
+
+
+def creeping_pore_pressure(layer: UniformLayer, phi: float) -> float:
+    """The basal excess pore pressure (Pa) of ``layer`` creeping at packing ``phi`` above
+    ``phi_c`` (Bouchut et al. 2016's closure): at a vanishing shear rate
+    ``tan(psi) = K (phi - phi_c)`` and the friction at the effective pressure balances the
+    drive, ``F = (tan(delta) + K (phi - phi_c)) p_s``, so the suction is what holds the
+    layer at its static threshold::
+
+        p_e = P (1 - tan(theta) / (tan(delta) + K (phi - phi_c)))
+
+    It depends on ``K`` and the packing, not on the permeability."""
+    return layer.weight - layer.drive / layer.material.static_friction(phi)
 
 
 def reference_solution(

@@ -29,6 +29,36 @@ the rheology at the effective pressure.  The pore pressures and the thickness of
 column are the unknowns of a Newton iteration with the exact column solve inside; at rest
 ``gamma = 0``, so ``Phi = 0``, ``p_e = 0`` and ``h' = h*`` bit for bit: a column held by
 friction stays at ``v == 0.0``.
+
+Notes
+-----
+The discrete energy of a uniform column (no transport; one local step per time step, the
+Lie splitting of ``numerics.order: 1``), per unit area, with the buoyant weights
+``w_a = (rho_s - rho_f) g cos(theta) s_a`` and ``F_a = (rho_s - rho_f) g sin(theta) s_a``,
+``X_a`` the distance layer ``a`` travelled, ``c_a = sum_{b < a} l_b + l_a / 2`` the height
+of its centre over ``h`` and ``P_bar = sum_a w_a c_a``::
+
+    E = sum_a m_a v_a^2 / 2 + h P_bar - sum_a F_a X_a
+
+The column solve's momentum balance times ``v'``, the masses of the fluid joining at
+rest and ``h' - h = dt h' sum_a l_a Phi_a`` give exactly::
+
+    E' - E = -dt D' - sum_a m_a (v'_a - v_a)^2 / 2
+    D = sum_a |v_a - v_{a-1}| (kappa_a + (K1 + K K2) eta_f gamma_a - lambda_a tan(psi_a) P_bar)
+
+with ``kappa_a`` the rheology's yield stress, ``(K1 + K K2) eta_f`` its viscosity (the law
+``dilatant_coulomb``), ``lambda_a = l_a / spacing_a`` and ``tan(psi_a) = Phi_a / gamma_a``.
+The last term is the lift: the fractions are fixed, so the dilation of layer ``a`` raises
+every layer and costs the column's mean buoyant weight ``P_bar`` per unit rise, while its
+dilatancy friction pays with the interface's own ``p_s,a`` (``kappa + K K2 eta_f gamma >=
+(tan(delta) + tan(psi)) p_s``).  Each interface dissipates, ``D >= 0`` term by term, where
+it contracts, and where it dilates iff
+``kappa_a + (K1 + K K2) eta_f gamma_a >= lambda_a tan(psi_a) P_bar``.  For one layer
+``lambda P_bar = P <= p_s`` whenever it dilates, so ``D >= 0`` always and
+``D = (tan(delta) p_s + K1 eta_f gamma - tan(psi) p_e) |v|`` (the uniform layer's); at the
+bed of a column of one packing ``lambda_0 P_bar = P_0`` too.  An interface high in a column, where
+``p_s,a`` is well below ``P_bar``, that shears and dilates alone breaks it: the energy of
+the scheme then grows (tests/test_mixture_flow.py, docs/mixture.md).
 """
 
 from __future__ import annotations
