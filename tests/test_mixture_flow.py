@@ -480,3 +480,23 @@ def test_dense_collapse_stop_time_converges_at_first_order_in_dt(order):
     assert np.all(in_steps[1:] <= max(in_steps[0], 1.0)), (stops, steps)
     moves = np.abs(np.diff(centres))
     assert moves[-1] < moves[0] / 3.0, centres
+
+
+@pytest.mark.slow
+def test_the_shipped_submarine_collapses_as_shipped_meet_the_loose_dense_contrast():
+    """Rondon, Pouliquen & Aussillous (2011): a loose column runs out further than a dense
+    one and stops sooner.  The two shipped files, as shipped: the loose run-out at least 1.5
+    times the dense one, the loose column at rest before the end of its file (5 s) and the
+    dense one still moving at the end of its own (10 s), so the dense collapse lasts at least
+    twice as long."""
+    scenarios = Path(__file__).resolve().parents[1] / "scenarios"
+    loose, dense = (
+        multilayer.run(multilayer.load(scenarios / f"submarine_collapse_{n}.yaml"))
+        for n in ("loose", "dense")
+    )
+    runout = {n: float(ds["front"][-1] - ds["front"][0]) for n, ds in (("loose", loose), ("dense", dense))}
+    assert runout["loose"] >= 1.5 * runout["dense"], runout
+    moving = np.abs(loose["u"]).max(dim=[d for d in loose["u"].dims if d != "time"]) > 0.0
+    loose_stop = float(loose["time"][moving.values][-1])  # the last output time with motion
+    assert np.abs(dense["u"].isel(time=-1)).max() > 0.0
+    assert float(dense["time"][-1]) >= 2.0 * loose_stop, (loose_stop, float(dense["time"][-1]))

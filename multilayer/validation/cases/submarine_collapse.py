@@ -250,7 +250,7 @@ The collapse of a glass-bead column (6 cm long; 4.8 cm high at phi0 = 0.55, 4.2 
 `submarine_collapse_loose.yaml` and `submarine_collapse_dense.yaml`, the depth-averaged
 mixture of docs/mixture.md with the closure constants of the immersed layer (not fitted to
 this experiment), at {", ".join(str(n) for n in CELLS)} cells, run to 10 s (the files: 60 cells,
-5 s; dense at 60 cells: {sample}).
+the loose column to 5 s, the dense one to 10 s; dense at 60 cells: {sample}).
 Measures: run-out (m, final minus initial front at h = 1 mm), three durations: the time
 every velocity is zero from then on (stop, s, to the output interval 0.05 s), the time the
 front reaches {RUNOUT_SHARE:.0%} of the run-out (t95, s; the front moves by whole cells) and
