@@ -79,10 +79,10 @@ import sys, time, pathlib
 from multilayer.app.cli import main
 from multilayer.engine import simulation
 real = simulation.Simulation.__init__
-def slow(self, scenario):
+def slow(self, *args, **kwargs):
     pathlib.Path(sys.argv[-2]).joinpath("building").touch()  # the lock is held
     time.sleep(30)
-    real(self, scenario)
+    real(self, *args, **kwargs)
 simulation.Simulation.__init__ = slow
 sys.exit(main(sys.argv[1:]))
 """

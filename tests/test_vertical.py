@@ -231,16 +231,20 @@ def test_kernel_and_fipy_reference_solve_the_same_collapse_problem():
 def test_kernel_and_fipy_reference_give_the_same_step():
     """Steps of a mu(I) collapse over an erodible layer with side walls, each solved from
     the same state by the numba kernel and by the FiPy formulation: the velocities agree
-    to 1e-10 and the static layers are the same ones (minutes through FiPy)."""
+    to 1e-10 and the static layers are the same ones (minutes through FiPy).  The second
+    transport stage moves the material with the first stage's velocities, so the
+    thicknesses differ by at most the flux of that velocity difference over the step,
+    ``dt / dx * max(h) * 1e-10`` (with a factor 4 for the reconstruction's slopes)."""
     kernel = simulation(**COLLAPSE)
     reference = simulation(**COLLAPSE, numerics={"vertical_solver": "fipy"})
     for _ in range(6):
         reference.load_state(kernel.state_dict())
-        t_next = kernel.t + 0.5 * kernel.time_step()
+        dt = 0.5 * kernel.time_step()
+        t_next = kernel.t + dt
         kernel.step(t_next)
         reference.step(t_next)
         assert np.abs(reference.u - kernel.u).max() <= 1e-10
-        assert np.array_equal(reference.h, kernel.h)
+        assert np.abs(reference.h - kernel.h).max() <= 4.0 * dt / kernel.dx * kernel.h.max() * 1e-10
         assert np.array_equal(reference.u == 0.0, kernel.u == 0.0)
     assert np.any(kernel.u == 0.0) and np.abs(kernel.u).max() > 0.05
 
