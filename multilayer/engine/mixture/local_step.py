@@ -264,6 +264,12 @@ class LocalStep:
         def evaluate(X: np.ndarray, k: np.ndarray) -> Evaluation:
             """At the trial ``X = (p_e, h)`` (L + 1, len(k)) of the columns ``k``."""
             p, h = X[:L], X[L]
+            if not np.isfinite(p.sum()):  # the rheology would be blamed for the pressure it is given
+                column = int(np.flatnonzero(~np.isfinite(p).all(axis=0))[0])
+                raise RunError(
+                    "the mixture's local step diverged: a trial excess pore pressure is not finite "
+                    f"(at x = {where[k][column]:.6g} m, t = {t:.6g} s)"
+                )
             s = solid[:, k]
             p_s = weight[:, k] - p
             state = self._state(s, h, p)
