@@ -169,6 +169,14 @@ BAD_VALUES: list[tuple[str, dict, str]] = [
     ("mixture phi_critical 0.75", {**MIXTURE, "mixture.phi_critical": 0.75}, "mixture.phi_critical"),
     ("mixture fluid viscosity 1e306", {**MIXTURE, "fluid.viscosity": 1e306}, "fluid.viscosity"),
     (
+        "mixture pouliquen_forterre",
+        {
+            **MIXTURE,
+            "rheology": {"name": "pouliquen_forterre", "mu_1": 0.38, "mu_2": 0.64, "L": 1e-3, "I_0": 0.3},
+        },
+        "rheology",
+    ),
+    (
         "mixture grain_diameter 1e-300",
         {**MIXTURE, "material.grain_diameter": 1e-300},
         "material.grain_diameter",

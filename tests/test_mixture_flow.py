@@ -251,6 +251,11 @@ SCENARIO = {
             {"material": {"density": 1480, "grain_diameter": 160e-6, "particle_density": 1400}},
             "material.particle_density",
         ),
+        # a law of the layer's thickness, which the mixture's local step cannot give it
+        (
+            {"rheology": {"name": "pouliquen_forterre", "mu_1": 0.38, "mu_2": 0.64, "L": 1e-3, "I_0": 0.3}},
+            "rheology",
+        ),
         # a Darcy drag that is not a finite number, named by the key that makes it so
         ({"fluid": {"density": 1041, "viscosity": 1e300}}, "fluid.viscosity"),
         (

@@ -742,6 +742,11 @@ class Scenario(StrictModel):
             (self.model.pressure == "hydrostatic", "model.pressure", "hydrostatic with fluid"),
             (self.walls is None, "walls", "no walls with fluid"),
             (self.gate is None, "gate", "no gate with fluid"),
+            (
+                not plugins.lookup(self.rheology.name, "bulk").uses,
+                "rheology",
+                "a law without 'uses' (dilatant_coulomb, drucker_prager, ...) with fluid",
+            ),
             (self.boundaries.inflow is None, "boundaries", "wall, outflow or periodic sides with fluid"),
             (all(z.condition == "no_slip" for z in self.base), "base", "no_slip with fluid"),
         )
