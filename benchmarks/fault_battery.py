@@ -632,6 +632,16 @@ def round_two() -> list[Case]:
     )
     out.append(
         Case(
+            "mixture: dilatancy 1e300, run",
+            run,
+            1,
+            "mixture.dilatancy",
+            setup=partial(_scenario, changes={**MIXTURE, "mixture.dilatancy": 1e300}),
+            keeps_output=True,
+        )
+    )
+    out.append(
+        Case(
             "disk: ulimit -f, checked",
             forced,
             1,

@@ -275,19 +275,25 @@ def test_mixture_keys_are_validated(change, key):
         multilayer.load(data)
 
 
-@pytest.mark.parametrize("layers", [1, 3])
-def test_a_closure_that_overflows_stops_the_run_naming_its_keys(layers):
-    """A finite drag (4.7e307 Pa s/m^2, below the validation's bound) whose closure
-    overflows: the run stops with a message naming the keys of the drag, never a plugin
-    blamed for the pressure it was given, never a halving loop on a NaN step (3 layers)."""
+@pytest.mark.parametrize(
+    ("layers", "dilatancy", "viscosity"), [(1, 4.09, 1e298), (3, 4.09, 1e298), (3, 1e300, 96e-3)]
+)
+def test_a_closure_that_overflows_stops_the_run_naming_its_keys(layers, dilatancy, viscosity):
+    """A finite drag (4.7e307 Pa s/m^2, below the validation's bound) or a dilatancy
+    constant of 1e300 whose closure overflows: the run stops with a message naming the
+    closure's keys, never a plugin blamed for the pressure it was given, never a halving
+    loop on a NaN step (3 layers)."""
     viscous = MixtureConfig(
-        fluid_density=1041.0, fluid_viscosity=1e298, phi_critical=0.582, dilatancy=4.09, critical_shift=25.0
+        fluid_density=1041.0,
+        fluid_viscosity=viscosity,
+        phi_critical=0.582,
+        dilatancy=dilatancy,
+        critical_shift=25.0,
     )
     entry = InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01, phi=0.58)
     sim = mixture_run([entry], slope=10.0, layers=layers, cells=6, mixture=viscous)
-    with pytest.raises(
-        RunError, match=r"closure overflowed.*fluid\.viscosity, material\.grain_diameter and mixture\.kozeny"
-    ):
+    keys = r"fluid\.viscosity, material\.grain_diameter and mixture\.kozeny, and with mixture\.dilatancy"
+    with pytest.raises(RunError, match=f"closure overflowed.*{keys}"):
         sim.step()
 
 

@@ -390,12 +390,14 @@ class Evaluation(NamedTuple):
 
 def _finite(values: np.ndarray) -> None:
     """Stop the run if the closure's effective pressures (or their Newton step) are not
-    finite: its coefficients overflowed, never a fault of the rheology given them."""
+    finite: its coefficients overflowed (the drag, ``K``, ``K2``), never a fault of the
+    rheology given them."""
     if not np.isfinite(values.sum()):
         raise RunError(
             "the mixture's closure overflowed: its effective pressures are not finite numbers "
             "(they scale with the Darcy drag kozeny eta_f phi^2 / (d^2 (1 - phi)) of fluid.viscosity, "
-            "material.grain_diameter and mixture.kozeny)"
+            "material.grain_diameter and mixture.kozeny, and with mixture.dilatancy and "
+            "mixture.critical_shift)"
         )
 
 
