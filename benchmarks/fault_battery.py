@@ -620,26 +620,22 @@ def round_two() -> list[Case]:
             )
     many = partial(_scenario, changes=MANY_OUTPUTS)
     forced = [*run, "--force"]
-    out.append(  # a finite drag (1.2e308) whose closure overflows: it was halved for ever
-        Case(
-            "mixture: closure overflowing, run",
-            run,
-            1,
-            "the mixture's closure overflowed",
-            setup=partial(_scenario, changes={**MIXTURE, "fluid.viscosity": 1e300}),
-            keeps_output=True,
+    # a finite drag (1.2e308) whose closure overflows (it was halved for ever), and K = 1e300
+    for name, key, phrase in (
+        ("closure overflowing", "fluid.viscosity", "the mixture's closure overflowed"),
+        ("dilatancy 1e300", "mixture.dilatancy", "mixture.dilatancy"),
+    ):
+        changes = {**MIXTURE, key: 1e300}
+        out.append(
+            Case(
+                f"mixture: {name}, run",
+                run,
+                1,
+                phrase,
+                setup=partial(_scenario, changes=changes),
+                keeps_output=True,
+            )
         )
-    )
-    out.append(
-        Case(
-            "mixture: dilatancy 1e300, run",
-            run,
-            1,
-            "mixture.dilatancy",
-            setup=partial(_scenario, changes={**MIXTURE, "mixture.dilatancy": 1e300}),
-            keeps_output=True,
-        )
-    )
     out.append(
         Case(
             "disk: ulimit -f, checked",
