@@ -12,6 +12,7 @@ line per case and the counts.
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import os
 import resource
@@ -90,9 +91,9 @@ def _scenario(directory: Path, changes: dict | None = None, text: str | None = N
         if value is _DELETE:
             del node[last]
         elif isinstance(node, list):
-            node[int(last)] = value
+            node[int(last)] = copy.deepcopy(value)
         else:
-            node[last] = value
+            node[last] = copy.deepcopy(value)  # a mapping shared by cases stays as given
     path.write_text(yaml.safe_dump(data))
     return path
 
@@ -100,6 +101,12 @@ def _scenario(directory: Path, changes: dict | None = None, text: str | None = N
 _DELETE = object()
 INF, NAN = float("inf"), float("nan")
 
+# TINY as a grain-fluid mixture (docs/mixture.md)
+MIXTURE = {
+    "fluid": {"density": 1000.0, "viscosity": 1e-3},
+    "mixture": {"phi_critical": 0.58, "dilatancy": 4.0, "critical_shift": 25.0},
+    "initial.0.phi": 0.58,
+}
 # (name, {dotted key: value}, phrase); validate and run are both tried for each
 BAD_VALUES: list[tuple[str, dict, str]] = [
     ("x_max inf", {"domain.x_max": INF}, "domain.x_max"),
@@ -157,6 +164,23 @@ BAD_VALUES: list[tuple[str, dict, str]] = [
     ("max_iterations 0", {"numerics": {"max_iterations": 0}}, "numerics.max_iterations"),
     ("name missing", {"name": _DELETE}, "name"),
     ("unknown top key", {"colour": "red"}, "colour"),
+    ("grains lighter than the bulk", {"material.particle_density": 1000.0}, "material.particle_density"),
+    ("mixture phi 0.9", {**MIXTURE, "initial.0.phi": 0.9}, "initial.0.phi"),
+    ("mixture phi_critical 0.75", {**MIXTURE, "mixture.phi_critical": 0.75}, "mixture.phi_critical"),
+    ("mixture fluid viscosity 1e306", {**MIXTURE, "fluid.viscosity": 1e306}, "fluid.viscosity"),
+    (
+        "mixture pouliquen_forterre",
+        {
+            **MIXTURE,
+            "rheology": {"name": "pouliquen_forterre", "mu_1": 0.38, "mu_2": 0.64, "L": 1e-3, "I_0": 0.3},
+        },
+        "rheology",
+    ),
+    (
+        "mixture grain_diameter 1e-300",
+        {**MIXTURE, "material.grain_diameter": 1e-300},
+        "material.grain_diameter",
+    ),
 ]
 
 BAD_FILES: list[tuple[str, str, str]] = [
@@ -596,6 +620,22 @@ def round_two() -> list[Case]:
             )
     many = partial(_scenario, changes=MANY_OUTPUTS)
     forced = [*run, "--force"]
+    # a finite drag (1.2e308) whose closure overflows (it was halved for ever), and K = 1e300
+    for name, key, phrase in (
+        ("closure overflowing", "fluid.viscosity", "the mixture's closure overflowed"),
+        ("dilatancy 1e300", "mixture.dilatancy", "mixture.dilatancy"),
+    ):
+        changes = {**MIXTURE, key: 1e300}
+        out.append(
+            Case(
+                f"mixture: {name}, run",
+                run,
+                1,
+                phrase,
+                setup=partial(_scenario, changes=changes),
+                keeps_output=True,
+            )
+        )
     out.append(
         Case(
             "disk: ulimit -f, checked",

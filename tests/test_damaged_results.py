@@ -1,7 +1,7 @@
 """A damaged result is never read as a good one (docs/reliability.md): every reader of
 ``result.nc`` (plot, export, summary, run_failure, open_result, sweeps and calibrations,
 ``--resume``) refuses a file that is truncated, still ``running`` or whose records fail
-their checks, with exit code 2 naming the file and what is wrong."""
+their checks (a grain-fluid mixture's too), with exit code 2 naming the file and what is wrong."""
 
 from __future__ import annotations
 
@@ -24,14 +24,32 @@ from multilayer.io.results import SUMMARY_KEYS, open_result, run_failure, summar
 
 SHORT = {**TINY_SCENARIO, "name": "short", "time": {"end": 0.08, "output_interval": 0.02}}
 """5 output times of the tiny column."""
+IMMERSED = {
+    **SHORT,
+    "domain": {"x_min": 0.0, "x_max": 0.5, "cells": 20, "layers": 1},
+    "rheology": {"name": "dilatant_coulomb", "delta_deg": 22.5, "K1": 90.5},
+    "material": {"density": 1500.0, "grain_diameter": 160e-6, "particle_density": 2500.0},
+    "fluid": {"density": 1041.0, "viscosity": 0.096},
+    "mixture": {"phi_critical": 0.58, "dilatancy": 4.0, "critical_shift": 25.0},
+    "initial": [{"shape": "rectangle", "x_min": 0.0, "x_max": 0.1, "height": 0.05, "phi": 0.55}],
+}
+"""The same as a loose grain-fluid mixture in the first fluid of Pailha et al. (2008), in one layer."""
+
+
+def _finish(directory: Path, scenario: dict) -> Path:
+    (directory / "short.yaml").write_text(yaml.safe_dump(scenario), encoding="utf-8")
+    runner.run(scenarios.load(directory / "short.yaml"), directory / "out", quiet=True)
+    return directory
 
 
 @pytest.fixture(scope="module")
 def finished(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    directory = tmp_path_factory.mktemp("finished")
-    (directory / "short.yaml").write_text(yaml.safe_dump(SHORT), encoding="utf-8")
-    runner.run(scenarios.load(directory / "short.yaml"), directory / "out", quiet=True)
-    return directory
+    return _finish(tmp_path_factory.mktemp("finished"), SHORT)
+
+
+@pytest.fixture(scope="module")
+def finished_mixture(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return _finish(tmp_path_factory.mktemp("finished_mixture"), IMMERSED)
 
 
 def _truncate(path: Path) -> None:
@@ -79,12 +97,26 @@ DAMAGES = {
     "not netCDF": (lambda path: path.write_text("not netCDF"), r"not a netCDF result file \(not a classic"),
     "empty": (lambda path: path.write_bytes(b""), "not a netCDF result file"),
 }
+MIXTURE_DAMAGES = {
+    "mixture: nan in phi": (_set("phi", (2, 3), np.nan), r"output time 2 .* phi = nan is not in \[0, 1\)"),
+    "mixture: phi 2": (
+        _set("phi_layer", (1, 0, 2), 2.0),
+        r"output time 1 .* phi_layer = 2.0 is not in \[0, 1\)",
+    ),
+    "mixture: pore pressure inf": (
+        _set("pore_pressure_excess", (3, 1), np.inf),
+        r"output time 3 .* pore_pressure_excess = inf is not finite",
+    ),
+}
+"""Damages of a grain-fluid mixture's variables."""
 
 
-@pytest.fixture(params=list(DAMAGES))
-def damaged(request, finished: Path, tmp_path: Path) -> tuple[Path, str]:
+@pytest.fixture(params=[*DAMAGES, *MIXTURE_DAMAGES])
+def damaged(request, tmp_path: Path) -> tuple[Path, str]:
+    mixture = request.param in MIXTURE_DAMAGES
+    finished = request.getfixturevalue("finished_mixture" if mixture else "finished")
     shutil.copytree(finished, tmp_path, dirs_exist_ok=True)
-    damage, message = DAMAGES[request.param]
+    damage, message = (MIXTURE_DAMAGES if mixture else DAMAGES)[request.param]
     damage(tmp_path / "out" / "result.nc")
     return tmp_path, message
 

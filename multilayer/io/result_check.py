@@ -16,7 +16,8 @@ is wrong) when
   state), and the coordinates finite and increasing; the forces on the bed and the walls
   NaN in the first record only, and balancing the change of momentum between two records
   to round-off (``result_format.FORCES``; files written before these variables existed
-  lack all of them);
+  lack all of them); a mixture's solid volume fractions in ``[0, 1)`` and its excess pore
+  pressure finite;
 - for a reader that takes the file as a run's answer (``use="answer"``), the run did
   not complete (failed, interrupted).
 
@@ -40,7 +41,7 @@ import yaml
 from multilayer.engine import diagnostics
 from multilayer.errors import InputError
 from multilayer.io.netcdf_layout import LayoutError, read_layout
-from multilayer.io.result_format import FORCES, NETCDF_LOCK, VARIABLES, result_path
+from multilayer.io.result_format import FORCES, MIXTURE_VARIABLES, NETCDF_LOCK, VARIABLES, result_path
 
 Use = Literal["answer", "records", "resume"]
 STATUSES = ("completed", "failed", "interrupted", "running")
@@ -184,6 +185,27 @@ def _check_records(ds: netCDF4.Dataset, count: int, bad) -> None:
         before = float(t[-1])
     if count and "bed_force_x" in ds.variables:
         _check_forces(ds, count, momentum, bad)
+    if "phi" in ds.variables:
+        _check_mixture(ds, count, step, bad)
+
+
+def _check_mixture(ds: netCDF4.Dataset, count: int, step: int, bad) -> None:
+    """The mixture's records (``result_format.MIXTURE_VARIABLES``), ``step`` at a time: the
+    solid volume fractions in ``[0, 1)`` (0 where there is no mixture) and the excess pore
+    pressure finite."""
+    for start in range(0, count, step):
+        rows = slice(start, min(start + step, count))
+        for name in MIXTURE_VARIABLES:
+            values = np.asarray(ds[name][rows], dtype=float)
+            flat = values.reshape(values.shape[0], -1)
+            ok = np.isfinite(flat) if name == "pore_pressure_excess" else (flat >= 0.0) & (flat < 1.0)
+            broken = np.flatnonzero(~ok.all(axis=1))
+            if broken.size:
+                j = int(broken[0])
+                value = float(flat[j][~ok[j]][0])
+                accepted = "finite" if name == "pore_pressure_excess" else "in [0, 1)"
+                t = float(ds["time"][start + j])
+                raise _record_error(bad, start + j, t, f"{name} = {value!r} is not {accepted}")
 
 
 def _check_forces(ds: netCDF4.Dataset, count: int, momentum: np.ndarray, bad) -> None:

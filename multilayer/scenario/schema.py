@@ -28,6 +28,7 @@ from pydantic import (
 
 from multilayer.engine import basal
 from multilayer.engine.mesh import cell_centres
+from multilayer.engine.mixture import closure
 from multilayer.engine.pressure import model as pressure_models
 from multilayer.engine.threads import THREADS_ACCEPTED
 from multilayer.engine.transport import boundaries as lateral
@@ -59,6 +60,7 @@ MIXTURE_QUANTITIES = ("pore_pressure_bed_mean_final", "phi_mean_final")
 """Those of a run with a fluid only."""
 
 _FRACTION_SUM_TOLERANCE = 1e-6
+_PACKING = f"a solid volume fraction in (0, {closure.DENSEST_PACKING:.4f}) (the densest packing of spheres)"
 
 
 Point = Annotated[list[float], Field(min_length=2, max_length=2)]
@@ -121,6 +123,13 @@ class MaterialSpec(StrictModel):
     def _default_particle_density(self) -> MaterialSpec:
         if self.particle_density is None:
             self.particle_density = self.density
+        if not self.density <= self.particle_density:
+            raise invalid(
+                f"the bulk density {self.density} exceeds the grain density {self.particle_density}"
+                " (a solid volume fraction above 1)",
+                "a number >= density (kg/m^3): the density of the grains",
+                "particle_density",
+            )
         return self
 
 
@@ -371,7 +380,7 @@ class InitialShape(StrictModel):
         None, "a CSV file with a header 'x (m), h (m)' (units m, cm, mm or km), relative to the scenario"
     )
     velocity: Velocity | None = field(None, "a velocity profile; default: at rest")
-    phi: float | None = field(None, "a solid volume fraction in (0, 1), with fluid only", gt=0, lt=1)
+    phi: float | None = field(None, f"{_PACKING}, with fluid only", gt=0, lt=closure.DENSEST_PACKING)
 
     @model_validator(mode="after")
     def _check(self, info: ValidationInfo) -> InitialShape:
@@ -615,7 +624,9 @@ class Fluid(StrictModel):
 class Mixture(StrictModel):
     """The dilatancy closure of a grain–fluid mixture (docs/mixture.md)."""
 
-    phi_critical: float = field(..., "a number in (0, 1): the critical volume fraction at rest", gt=0, lt=1)
+    phi_critical: float = field(
+        ..., f"{_PACKING}: the critical volume fraction at rest", gt=0, lt=closure.DENSEST_PACKING
+    )
     dilatancy: float = field(..., "a number >= 0: K of tan(psi) = K (phi - phi_eq)", ge=0)
     critical_shift: float = field(..., "a number >= 0: K2 of phi_eq = phi_c - K2 eta_f gamma / p_s", ge=0)
     kozeny: float = field(150.0, "a number > 0: the Carman-Kozeny constant; default 150", gt=0)
@@ -709,9 +720,7 @@ class Scenario(StrictModel):
         for i, entry in enumerate(self.initial):
             if (entry.phi is None) != (self.fluid is None):
                 need = "is required with fluid" if self.fluid is not None else "is accepted with fluid only"
-                raise invalid(
-                    f"phi {need}", "a solid volume fraction in (0, 1), with fluid only", f"initial.{i}.phi"
-                )
+                raise invalid(f"phi {need}", f"{_PACKING}, with fluid only", f"initial.{i}.phi")
         for i, check in enumerate(self.expect):
             if self.fluid is None and check.quantity in MIXTURE_QUANTITIES:
                 raise invalid(
@@ -728,16 +737,43 @@ class Scenario(StrictModel):
                 "a number >= 0 below material.particle_density (kg/m^3)",
                 "fluid.density",
             )
+        self._check_drag(grains)
         supported = (
             (self.model.pressure == "hydrostatic", "model.pressure", "hydrostatic with fluid"),
             (self.walls is None, "walls", "no walls with fluid"),
             (self.gate is None, "gate", "no gate with fluid"),
+            (
+                not plugins.lookup(self.rheology.name, "bulk").uses,
+                "rheology",
+                "a law without 'uses' (dilatant_coulomb, drucker_prager, ...) with fluid",
+            ),
             (self.boundaries.inflow is None, "boundaries", "wall, outflow or periodic sides with fluid"),
             (all(z.condition == "no_slip" for z in self.base), "base", "no_slip with fluid"),
         )
         for ok, key, accepted in supported:
             if not ok:
                 raise invalid("not supported with a fluid", accepted, key)
+
+    def _check_drag(self, grains: float) -> None:
+        """The Darcy drag of every packing given (:func:`closure.drag`) is a finite number:
+        the closure's pore pressures are products of it (docs/mixture.md)."""
+        assert self.fluid is not None and self.mixture is not None  # with fluid (checked by the caller)
+        d, eta, kozeny = self.material.grain_diameter, self.fluid.viscosity, self.mixture.kozeny
+        packings = [(f"initial.{i}.phi", e.phi) for i, e in enumerate(self.initial)]
+        for key, phi in [*packings, ("mixture.phi_critical", self.mixture.phi_critical)]:
+            with np.errstate(all="ignore"):
+                beta = closure.drag(np.float64(kozeny), np.float64(eta), np.float64(d), np.float64(phi))
+                culprit = (
+                    "material.grain_diameter"
+                    if not np.isfinite(1.0 / np.float64(d * d))
+                    else ("fluid.viscosity" if eta >= kozeny else "mixture.kozeny")
+                )
+            if not np.isfinite(beta):
+                raise invalid(
+                    f"the Darcy drag kozeny eta_f phi^2 / (d^2 (1 - phi)) at {key} = {phi} is {beta}",
+                    "fluid.viscosity, material.grain_diameter and mixture.kozeny giving a finite drag",
+                    culprit,
+                )
 
     @property
     def source(self) -> Path | None:

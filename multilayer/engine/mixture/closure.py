@@ -26,9 +26,19 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 from multilayer.errors import InputError
+
+DENSEST_PACKING = math.pi / math.sqrt(18.0)
+"""``pi / sqrt(18) = 0.7405``: no packing of equal spheres is denser (Hales 2005, Ann. Math.
+162, the Kepler conjecture); a solid volume fraction at or above it is impossible."""
+
+
+def drag(kozeny: float, eta_f: float, d: float, phi: Any) -> Any:
+    """Drag coefficient of Darcy's law with the Carman–Kozeny permeability, ``beta = (1 - phi)^2
+    eta_f / k = c_k eta_f phi^2 / (d^2 (1 - phi))`` (Pa s/m2), for a number or an array ``phi``."""
+    return kozeny * eta_f * phi * phi / (d * d * (1.0 - phi))
 
 
 @dataclass(frozen=True)
@@ -75,8 +85,8 @@ class MixtureMaterial:
         return math.tan(math.radians(self.delta_deg))
 
     def drag(self, phi: float) -> float:
-        """Drag coefficient ``beta = (1 - phi)^2 eta_f / k = c_k eta_f phi^2 / (d^2 (1 - phi))`` (Pa s/m2)."""
-        return self.kozeny * self.eta_f * phi * phi / (self.d * self.d * (1.0 - phi))
+        """Drag coefficient ``beta`` (:func:`drag`, Pa s/m2)."""
+        return float(drag(self.kozeny, self.eta_f, self.d, phi))
 
     def static_friction(self, phi: float) -> float:
         """Friction coefficient at rest, ``tan(delta) + K (phi - phi_c)`` (``phi_eq = phi_c`` at rest)."""

@@ -70,6 +70,7 @@ from typing import NamedTuple
 import numpy as np
 
 from multilayer.engine.config import MixtureConfig
+from multilayer.engine.mixture.closure import drag as darcy_drag
 from multilayer.engine.plugin_output import call
 from multilayer.engine.vertical.column_solve import solve
 from multilayer.engine.vertical.problem import ColumnProblem
@@ -134,9 +135,8 @@ class LocalStep:
 
     def drag(self, phi: np.ndarray) -> np.ndarray:
         """``beta = kozeny eta_f phi^2 / (d^2 (1 - phi))`` (Pa s/m^2): Darcy's law with the
-        Carman–Kozeny permeability (``closure.MixtureMaterial.drag``)."""
-        d = self.material.grain_diameter
-        return self.config.kozeny * self.config.fluid_viscosity * phi * phi / (d * d * (1.0 - phi))
+        Carman–Kozeny permeability (:func:`multilayer.engine.mixture.closure.drag`)."""
+        return darcy_drag(self.config.kozeny, self.config.fluid_viscosity, self.material.grain_diameter, phi)
 
     def closure(
         self, solid: np.ndarray, h: np.ndarray, v: np.ndarray
@@ -177,6 +177,7 @@ class LocalStep:
         p_s = np.where(diagonal * C > 0.0, positive, np.maximum(A, 0.0))
         if L > 1:
             p_s = self._coupled(p_s, weight, M, linear, C)
+        _finite(p_s)
         contact = p_s > 0.0
         dilation = linear + np.where(contact, C / np.where(contact, p_s, 1.0), 0.0)
         pore_pressure = weight - p_s
@@ -199,6 +200,7 @@ class LocalStep:
                 return p_s
             jacobian = identity + np.transpose(M * np.where(viscous, C / (x * x), 0.0)[None], (2, 0, 1))
             step = np.linalg.solve(jacobian, -residual.T[..., None])[..., 0].T
+            _finite(step)  # a step that is not finite would be halved for ever
             trial = p_s + step
             while np.any(viscous & ~(trial > 0.0)):
                 step = np.where(viscous & ~(trial > 0.0), 0.5 * step, step)
@@ -262,6 +264,12 @@ class LocalStep:
         def evaluate(X: np.ndarray, k: np.ndarray) -> Evaluation:
             """At the trial ``X = (p_e, h)`` (L + 1, len(k)) of the columns ``k``."""
             p, h = X[:L], X[L]
+            if not np.isfinite(p.sum()):  # the rheology would be blamed for the pressure it is given
+                column = int(np.flatnonzero(~np.isfinite(p).all(axis=0))[0])
+                raise RunError(
+                    "the mixture's local step diverged: a trial excess pore pressure is not finite "
+                    f"(at x = {where[k][column]:.6g} m, t = {t:.6g} s)"
+                )
             s = solid[:, k]
             p_s = weight[:, k] - p
             state = self._state(s, h, p)
@@ -378,6 +386,19 @@ class Evaluation(NamedTuple):
             mine[..., k] = theirs
             parts.append(mine)
         return Evaluation(*parts)
+
+
+def _finite(values: np.ndarray) -> None:
+    """Stop the run if the closure's effective pressures (or their Newton step) are not
+    finite: its coefficients overflowed (the drag, ``K``, ``K2``), never a fault of the
+    rheology given them."""
+    if not np.isfinite(values.sum()):
+        raise RunError(
+            "the mixture's closure overflowed: its effective pressures are not finite numbers "
+            "(they scale with the Darcy drag kozeny eta_f phi^2 / (d^2 (1 - phi)) of fluid.viscosity, "
+            "material.grain_diameter and mixture.kozeny, and with mixture.dilatancy and "
+            "mixture.critical_shift)"
+        )
 
 
 def _solve_batched(jacobian: np.ndarray, rhs: np.ndarray) -> np.ndarray:
