@@ -50,6 +50,7 @@ from multilayer.engine.transport import boundaries
 from multilayer.engine.transport import kernel as transport_kernel
 from multilayer.engine.transport import reference as transport_reference
 from multilayer.engine.transport.reference import POSITIVITY_LIMIT, courant_step, stage_courant_step
+from multilayer.engine.vertical.extrapolation import SeedExtrapolation
 from multilayer.engine.vertical.problem import VerticalSolver
 from multilayer.engine.vertical.step import VerticalStep
 from multilayer.engine.vertical.stresses import StressModel
@@ -131,6 +132,8 @@ class Simulation:
             max_iterations=c.numerics.max_iterations,
             velocity_scale=self._velocity_scale(),
         )
+        #: the Newton seed of the step's first vertical step, extrapolated from the last steps
+        self.seeds = SeedExtrapolation(self.u.shape)
         #: the force on the bed, side walls and end walls (bed_force.py)
         self.forces = BedForce(
             self.vertical.stresses, self.fractions, self.dx, self.g_n, self.g_t, c.left, c.right
@@ -263,6 +266,7 @@ class Simulation:
         self._guard(h, u, fields, dt, columns)
         if self.mixture is None:  # the forces of a mixture are not computed (docs/mixture.md)
             self.forces.record(self.state, vertical, (u, fields), dt)  # diagnostics
+        self.seeds.accept(dt)
         self.state.commit(h, u, fields, columns)
         self.newton_iterations += iterations
         self.steps += 1
@@ -349,9 +353,11 @@ class Simulation:
         """The implicit vertical step over ``dt`` (the yield pressures and Newton seeds of
         the pressure model), or the mixture's local step (which dilates ``h`` in place;
         ``first``: after Heun's average, the state of its second stage's start): the
-        velocities and the Newton iterations.  After the average the Newton iteration
-        starts from the first stage's velocities, within O(dt^2) of the answer in a smooth
-        flow where the state's are O(dt) away: a seed changes the work, not the answer."""
+        velocities and the Newton iterations.  The Newton iteration starts from a seed
+        within O(dt^2) of the answer in a smooth flow (the state's velocities are O(dt)
+        away; a seed changes the work, not the answer): the pressure model's seed
+        extrapolated from the last step (``extrapolation.py``), or after Heun's average the
+        first stage's velocities."""
         if self.mixture is not None:
             if first is not None:
                 return self.mixture.average_step(
@@ -359,11 +365,12 @@ class Simulation:
                 )
             return self.mixture.step(self.h, h, self.u, ustar, dt, self.boundary_mass, self.dry, self.t)
         seeds = self.pressure.seeds(self.state)
+        guess = first[1] if first is not None else self.seeds(seeds[0], dt, span(h))
         return self.vertical(
             h,
             ustar,
             dt,
-            seeds if first is None else (first[1], *seeds),
+            seeds if guess is None else (guess, *seeds),
             rest=self.state.rest,
             yield_gravity=self.pressure.yield_gravity(self.state, h),
             threads=threads,
@@ -446,6 +453,7 @@ class Simulation:
         self.newton_iterations = int(saved.get("newton_iterations", 0))
         self.state.load_state(saved)
         self.forces.load_state(saved)
+        self.seeds.reset()
         self.guard.check_state(self.h, self.u, f"in the restored state at t = {self.t:.6g} s")
         self.guard.reset(self.h, self.steps)
         if self.mixture is not None:
