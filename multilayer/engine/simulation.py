@@ -279,27 +279,29 @@ class Simulation:
         iterations."""
         np.copyto(self._stepping, self.state.moving)
         iterations = 0
-        while True:
-            if self.numerics.order == 1:
-                h, ustar = self._transport(dt, threads)
-                u, more = self._vertical_step(h, ustar, dt, threads)
-                vertical = [VerticalImpulse(1.0, h, ustar, u, dt)]
-            else:
-                h1, u1_star = (a.copy() for a in self._transport(dt, threads, stage=0))  # reused by stage 1
-                u1, counted = self._vertical_step(h1, u1_star, dt, threads)
-                u1 = u1.copy()  # the vertical step's result is overwritten by its next call
-                h, ustar = self._transport(dt, threads, stage=1, first=(h1, u1))
-                u, more = self._vertical_step(h, ustar, 0.5 * dt, threads, first=(h1, u1))
-                more += counted
-                vertical = [
-                    VerticalImpulse(0.5, h1, u1_star, u1, dt),
-                    VerticalImpulse(1.0, h, ustar, u, 0.5 * dt),
-                ]
-            iterations += more
-            # material at rest set moving by any vertical step (both: every one is marked)
-            started = [start_moving(step.u, self.h, self.dry, self._stepping) for step in vertical]
-            if not any(started):
-                return vertical, iterations
+        with self.vertical.stresses.forms_held():  # the laws read once in the time step
+            while True:
+                if self.numerics.order == 1:
+                    h, ustar = self._transport(dt, threads)
+                    u, more = self._vertical_step(h, ustar, dt, threads)
+                    vertical = [VerticalImpulse(1.0, h, ustar, u, dt)]
+                else:
+                    h1, u1_star = self._transport(dt, threads, stage=0)
+                    if self.transport is transport_kernel.transport:  # its workspace is reused by stage 1
+                        h1, u1_star = self.workspace.keep()
+                    u1, counted = self._vertical_step(h1, u1_star, dt, threads)
+                    h, ustar = self._transport(dt, threads, stage=1, first=(h1, u1))
+                    u, more = self._vertical_step(h, ustar, 0.5 * dt, threads, first=(h1, u1))
+                    more += counted
+                    vertical = [
+                        VerticalImpulse(0.5, h1, u1_star, u1, dt),
+                        VerticalImpulse(1.0, h, ustar, u, 0.5 * dt),
+                    ]
+                iterations += more
+                # material at rest set moving by any vertical step (both: every one is marked)
+                started = [start_moving(step.u, self.h, self.dry, self._stepping) for step in vertical]
+                if not any(started):
+                    return vertical, iterations
 
     def _check_target(self, t_max: float) -> None:
         if not t_max > self.t:

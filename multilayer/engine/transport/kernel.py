@@ -524,7 +524,8 @@ def _window(h, u, moving, left, right):
 
 class Workspace:
     """Arrays of one mesh size reused by every step: the Heun stage and the result, and
-    the columns ``written`` (lo, hi) of the result that may be non-zero."""
+    the columns ``written`` (lo, hi) of the result that may be non-zero; a copy of the
+    result (:meth:`keep`) and its columns ``kept`` that may be non-zero."""
 
     def __init__(self, layers: int, cells: int):
         self.h1 = np.zeros(cells)
@@ -534,6 +535,9 @@ class Workspace:
         self.written = (0, 0)
         self.ends = np.zeros((2, 4))  # mass and momentum fluxes through the end faces, per stage
         self.speeds = np.zeros(cells + 1)  # the fastest wave across each face of the last stage
+        self.h_kept = np.zeros(cells)
+        self.u_kept = np.zeros((layers, cells))
+        self.kept = (0, 0)
 
     def clear_outside(self, lo: int, hi: int) -> None:
         """Zero the result outside the columns ``lo .. hi-1`` (only what an earlier step
@@ -544,6 +548,17 @@ class Workspace:
                 self.h[start:stop] = 0.0
                 self.u[:, start:stop] = 0.0
         self.written = (lo, hi)
+
+    def keep(self) -> tuple[np.ndarray, np.ndarray]:
+        """A copy of the result (h, u) that the next use does not overwrite (Heun's first
+        stage, kept through the second): its columns ``written`` copied, zero outside."""
+        before, after = self.kept
+        self.h_kept[before:after] = 0.0
+        self.u_kept[:, before:after] = 0.0
+        lo, hi = self.kept = self.written
+        self.h_kept[lo:hi] = self.h[lo:hi]
+        self.u_kept[:, lo:hi] = self.u[:, lo:hi]
+        return self.h_kept, self.u_kept
 
 
 def transport(
