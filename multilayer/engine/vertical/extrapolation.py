@@ -22,7 +22,7 @@ MAX_RATIO = 1.0
 
 
 class SeedExtrapolation:
-    """The seeds of the last step, and the extrapolated seed of the next (module docstring)."""
+    """The Newton seed at the start of the last step, and the next one extrapolated (module docstring)."""
 
     def __init__(self, shape: tuple[int, int]):
         self._last = np.zeros(shape)  # the seed at the start of the last accepted step
