@@ -181,9 +181,13 @@ def test_wave_speed_and_moving_columns():
     u[1:, 1::3] = 0.0  # columns moving in their bottom layer only
     expected = np.max(np.max(np.abs(u), axis=0) + np.sqrt(9.0 * h))
     moving, rest = np.ones(h.size, bool), np.zeros(u.shape, bool)
-    assert state.survey(h, u, 0.5, 9.0, moving, rest) == expected
+    N = h.size
+    speed, surveyed, velocities = state.survey(h, u, 0.5, 9.0, moving, rest, (0, N), (0, N))
+    assert speed == expected and surveyed == (0, N)
     assert np.array_equal(moving, np.any(u != 0.0, axis=0))
     assert np.array_equal(rest, (u == 0.0) & (h > 0.5))
+    first, last = np.flatnonzero(moving)[[0, -1]]
+    assert velocities == (first, last + 1)
     # material at rest set moving: added to the moving columns, dry or moving ones not
     u_new = u.copy()
     u_new[:, rest.any(axis=0)] = 1.0
@@ -192,6 +196,38 @@ def test_wave_speed_and_moving_columns():
     assert state.start_moving(u_new, h, 0.5, moving)
     assert np.array_equal(moving, before | (rest.any(axis=0) & (h > 0.5)))
     assert not state.start_moving(u_new, h, 0.5, moving)
+    # material and velocities left in a few columns only: the survey reads those (and the
+    # columns that may hold velocities) and clears the flags of the last survey outside
+    h_few, u_few = np.zeros_like(h), np.zeros_like(u)
+    h_few[100:110] = np.linspace(0.2, 2.0, 10)
+    u_few[:, 102:115] = 1.0  # (velocities without material: read too)
+    u_few[:, 104] = u_few[1:, 106] = 0.0
+    speed, surveyed, velocities = state.survey(h_few, u_few, 0.5, 9.0, moving, rest, (102, 115), (0, N))
+    assert speed == np.max(np.max(np.abs(u_few), axis=0) + np.sqrt(9.0 * h_few)) and surveyed == (100, 115)
+    assert np.array_equal(moving, np.any(u_few != 0.0, axis=0))
+    assert np.array_equal(rest, (u_few == 0.0) & (h_few > 0.5))
+    first, last = np.flatnonzero(moving)[[0, -1]]
+    assert velocities == (first, last + 1)
+
+
+def test_the_survey_of_a_running_dam_break_reads_only_its_material_and_finds_every_flag():
+    """A Coulomb dam break whose material covers a fifth of the mesh: at every step the
+    survey (of the columns holding material or velocities) gives the moving columns, the
+    layers at rest and the wave speed of a survey of the whole mesh."""
+    sim = simulation(
+        domain={"x_min": 0.0, "x_max": 10.0, "cells": 200, "layers": 4},
+        rheology={"name": "drucker_prager", "mu_s": 0.4, "nu": 0.0},
+        base=[{"condition": "no_slip"}],
+        initial=[{"shape": "rectangle", "x_min": 0.0, "x_max": 1.0, "height": 0.5}],
+    )
+    N = sim.h.size
+    for _ in range(40):
+        sim.step()
+        moving, rest = np.zeros(N, bool), np.zeros(sim.u.shape, bool)
+        whole = state.survey(sim.h, sim.u, sim.dry, sim.g_n, moving, rest, (0, N), (0, N))[0]
+        assert sim.state.survey(sim.dry, sim.g_n) == whole
+        assert np.array_equal(sim.state.moving, moving) and np.array_equal(sim.state.rest, rest)
+        assert sim.state._surveyed[1] - sim.state._surveyed[0] < N // 2
 
 
 def test_a_reused_workspace_leaves_nothing_outside_a_narrower_window():

@@ -50,6 +50,7 @@ from multilayer.engine.transport import boundaries
 from multilayer.engine.transport import kernel as transport_kernel
 from multilayer.engine.transport import reference as transport_reference
 from multilayer.engine.transport.reference import POSITIVITY_LIMIT, courant_step, stage_courant_step
+from multilayer.engine.vertical.extrapolation import SeedExtrapolation
 from multilayer.engine.vertical.problem import VerticalSolver
 from multilayer.engine.vertical.step import VerticalStep
 from multilayer.engine.vertical.stresses import StressModel
@@ -131,6 +132,8 @@ class Simulation:
             max_iterations=c.numerics.max_iterations,
             velocity_scale=self._velocity_scale(),
         )
+        #: the Newton seed of the step's first vertical step, extrapolated from the last steps
+        self.seeds = SeedExtrapolation(self.u.shape)
         #: the force on the bed, side walls and end walls (bed_force.py)
         self.forces = BedForce(
             self.vertical.stresses, self.fractions, self.dx, self.g_n, self.g_t, c.left, c.right
@@ -263,6 +266,7 @@ class Simulation:
         self._guard(h, u, fields, dt, columns)
         if self.mixture is None:  # the forces of a mixture are not computed (docs/mixture.md)
             self.forces.record(self.state, vertical, (u, fields), dt)  # diagnostics
+        self.seeds.accept(dt)
         self.state.commit(h, u, fields, columns)
         self.newton_iterations += iterations
         self.steps += 1
@@ -275,26 +279,29 @@ class Simulation:
         iterations."""
         np.copyto(self._stepping, self.state.moving)
         iterations = 0
-        while True:
-            if self.numerics.order == 1:
-                h, ustar = self._transport(dt, threads)
-                u, more = self._vertical_step(h, ustar, dt, threads)
-                vertical = [VerticalImpulse(1.0, h, ustar, u, dt)]
-            else:
-                h1, u1_star = (a.copy() for a in self._transport(dt, threads, stage=0))  # reused by stage 1
-                u1, counted = self._vertical_step(h1, u1_star, dt, threads)
-                h, ustar = self._transport(dt, threads, stage=1, first=(h1, u1))
-                u, more = self._vertical_step(h, ustar, 0.5 * dt, threads, first=(h1, u1))
-                more += counted
-                vertical = [
-                    VerticalImpulse(0.5, h1, u1_star, u1, dt),
-                    VerticalImpulse(1.0, h, ustar, u, 0.5 * dt),
-                ]
-            iterations += more
-            # material at rest set moving by any vertical step (both: every one is marked)
-            started = [start_moving(step.u, self.h, self.dry, self._stepping) for step in vertical]
-            if not any(started):
-                return vertical, iterations
+        with self.vertical.stresses.forms_held():  # the laws read once in the time step
+            while True:
+                if self.numerics.order == 1:
+                    h, ustar = self._transport(dt, threads)
+                    u, more = self._vertical_step(h, ustar, dt, threads)
+                    vertical = [VerticalImpulse(1.0, h, ustar, u, dt)]
+                else:
+                    h1, u1_star = self._transport(dt, threads, stage=0)
+                    if self.transport is transport_kernel.transport:  # its workspace is reused by stage 1
+                        h1, u1_star = self.workspace.keep()
+                    u1, counted = self._vertical_step(h1, u1_star, dt, threads)
+                    h, ustar = self._transport(dt, threads, stage=1, first=(h1, u1))
+                    u, more = self._vertical_step(h, ustar, 0.5 * dt, threads, first=(h1, u1))
+                    more += counted
+                    vertical = [
+                        VerticalImpulse(0.5, h1, u1_star, u1, dt),
+                        VerticalImpulse(1.0, h, ustar, u, 0.5 * dt),
+                    ]
+                iterations += more
+                # material at rest set moving by any vertical step (both: every one is marked)
+                started = [start_moving(step.u, self.h, self.dry, self._stepping) for step in vertical]
+                if not any(started):
+                    return vertical, iterations
 
     def _check_target(self, t_max: float) -> None:
         if not t_max > self.t:
@@ -334,7 +341,11 @@ class Simulation:
             moving=self._stepping, boundary_mass=self.boundary_mass, stage_speed=self._stage_speed,
             boundary_momentum=self.forces.transport_terms, stage=stage, first=first, **options,
         )  # fmt: skip
-        self.guard.check_state(h, ustar, lambda: f"after transport from t = {self.t:.6g} s (dt = {dt:.3g} s)")
+        # the compiled transport's result is zero outside the columns it wrote
+        columns = self.workspace.written if self.transport is transport_kernel.transport else None
+        self.guard.check_state(
+            h, ustar, lambda: f"after transport from t = {self.t:.6g} s (dt = {dt:.3g} s)", columns
+        )
         return h, ustar
 
     def _vertical_step(
@@ -348,18 +359,24 @@ class Simulation:
         """The implicit vertical step over ``dt`` (the yield pressures and Newton seeds of
         the pressure model), or the mixture's local step (which dilates ``h`` in place;
         ``first``: after Heun's average, the state of its second stage's start): the
-        velocities and the Newton iterations."""
+        velocities and the Newton iterations.  The Newton iteration starts from a seed
+        within O(dt^2) of the answer in a smooth flow (the state's velocities are O(dt)
+        away; a seed changes the work, not the answer): the pressure model's seed
+        extrapolated from the last step (``extrapolation.py``), or after Heun's average the
+        first stage's velocities."""
         if self.mixture is not None:
             if first is not None:
                 return self.mixture.average_step(
                     self.h, first, h, ustar=ustar, dt=dt, crossed=self.boundary_mass, dry=self.dry, t=self.t
                 )
             return self.mixture.step(self.h, h, self.u, ustar, dt, self.boundary_mass, self.dry, self.t)
+        seeds = self.pressure.seeds(self.state)
+        guess = first[1] if first is not None else self.seeds(seeds[0], dt, span(h))
         return self.vertical(
             h,
             ustar,
             dt,
-            self.pressure.seeds(self.state),
+            seeds if guess is None else (guess, *seeds),
             rest=self.state.rest,
             yield_gravity=self.pressure.yield_gravity(self.state, h),
             threads=threads,
@@ -442,6 +459,7 @@ class Simulation:
         self.newton_iterations = int(saved.get("newton_iterations", 0))
         self.state.load_state(saved)
         self.forces.load_state(saved)
+        self.seeds.reset()
         self.guard.check_state(self.h, self.u, f"in the restored state at t = {self.t:.6g} s")
         self.guard.reset(self.h, self.steps)
         if self.mixture is not None:

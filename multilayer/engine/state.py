@@ -12,7 +12,9 @@ in the columns that moved at the start of the step or hold material at its end, 
 other fields in those that held material in this step or the last one (the columns
 outside are zero by construction and stay so).  :meth:`FlowState.survey` reads the
 state once at the start of a step: the moving columns, the layers at rest and the
-fastest wave.  The compiled scans of the state are here too.
+fastest wave, in the columns that hold material or may hold velocities (those a step
+wrote; every column after the state is set from outside: a velocity set in a column
+without material later is not seen).  The compiled scans of the state are here too.
 """
 
 from __future__ import annotations
@@ -43,6 +45,8 @@ class FlowState:
         """Columns with a non-zero velocity at the start of the step (:meth:`survey`)."""
         self.rest = np.zeros((L, N), dtype=bool)
         """Layers at rest (``u == 0``) at the start of the step, in columns thicker than dry."""
+        self._velocities = (0, N)  # columns outside which u is zero
+        self._surveyed = (0, N)  # columns outside which moving and rest are False
 
     def add_field(self, name: str, default: str | float = 0.0) -> np.ndarray:
         """A new layer field (L, N), initially ``default``: a number, or the name of a field
@@ -58,7 +62,10 @@ class FlowState:
     def survey(self, dry: float, g_n: float) -> float:
         """Fill :attr:`moving` and :attr:`rest` from the state (columns thicker than ``dry``)
         and return the largest wave speed ``max_a |u_a| + sqrt(g cos(theta) h)``."""
-        return survey(self.h, self.u, dry, g_n, self.moving, self.rest)
+        speed, self._surveyed, self._velocities = survey(
+            self.h, self.u, dry, g_n, self.moving, self.rest, self._velocities, self._surveyed
+        )
+        return speed
 
     def commit(
         self, h: np.ndarray, u: np.ndarray, fields: Mapping[str, np.ndarray], columns: tuple[int, int]
@@ -71,6 +78,7 @@ class FlowState:
         first, last = span(self.moving)
         first, last = (lo, hi) if first == last else (min(first, lo), max(last, hi))
         self.u[:, first:last] = u[:, first:last]
+        self._velocities = (first, last)  # u was zero outside the moving columns
         if fields:
             start, stop = min(self.window[0], lo), max(self.window[1], hi)
             for name, values in fields.items():
@@ -91,7 +99,7 @@ class FlowState:
                 self.u if default == "u" else self.fields[default] if isinstance(default, str) else default
             )
             values[...] = saved.get(name, fallback)
-        self.window = (0, self.h.size)
+        self.window = self._velocities = (0, self.h.size)
 
 
 @jit
@@ -135,25 +143,37 @@ def max_wave_speed(h: np.ndarray, u: np.ndarray, g_n: float) -> float:
 
 
 @jit
-def survey(h, u, dry, g_n, moving, rest):
+def survey(h, u, dry, g_n, moving, rest, velocities, surveyed):
     """One pass over the state at the start of a step: fills ``moving`` (N,), the columns
     with a non-zero velocity in some layer, and ``rest`` (L, N), the layers at rest
     (``u == 0``) in columns thicker than ``dry``; returns the largest wave speed
-    ``max_a |u_a| + sqrt(g cos(theta) h)`` (as ``max_wave_speed``)."""
+    ``max_a |u_a| + sqrt(g cos(theta) h)`` (as ``max_wave_speed``), the columns (lo, hi)
+    read and those of the moving columns.  Only the columns holding material and
+    ``velocities`` (lo, hi), outside which ``u`` is zero, are read; ``moving`` and ``rest``
+    are cleared in the columns ``surveyed`` (lo, hi) by the last call outside them."""
     L, N = u.shape
+    lo, hi = span(h)
+    if velocities[1] > velocities[0]:
+        lo, hi = (min(lo, velocities[0]), max(hi, velocities[1])) if hi > lo else velocities
+    for i in range(surveyed[0], surveyed[1]):
+        if i < lo or i >= hi:
+            moving[i] = False
+            for a in range(L):
+                rest[a, i] = False
     fastest = np.zeros(N)
-    for i in range(N):
+    for i in range(lo, hi):
         moving[i] = False
     for a in range(L):
-        for i in range(N):
+        for i in range(lo, hi):
             v = u[a, i]
             moving[i] = moving[i] or v != 0.0
             rest[a, i] = v == 0.0 and h[i] > dry
             fastest[i] = max(fastest[i], abs(v))
     best = 0.0
-    for i in range(N):
+    for i in range(lo, hi):
         best = max(best, fastest[i] + np.sqrt(g_n * max(h[i], 0.0)))
-    return best
+    first, last = span(moving[lo:hi])
+    return best, (lo, hi), (lo + first, lo + last) if last > first else (0, 0)
 
 
 @jit

@@ -524,7 +524,8 @@ def _window(h, u, moving, left, right):
 
 class Workspace:
     """Arrays of one mesh size reused by every step: the Heun stage and the result, and
-    the columns ``written`` (lo, hi) of the result that may be non-zero."""
+    the columns ``written`` (lo, hi) of the result that may be non-zero; a copy of the
+    result (:meth:`keep`) and its columns ``kept`` that may be non-zero."""
 
     def __init__(self, layers: int, cells: int):
         self.h1 = np.zeros(cells)
@@ -534,16 +535,34 @@ class Workspace:
         self.written = (0, 0)
         self.ends = np.zeros((2, 4))  # mass and momentum fluxes through the end faces, per stage
         self.speeds = np.zeros(cells + 1)  # the fastest wave across each face of the last stage
+        self.h_kept = np.zeros(cells)
+        self.u_kept = np.zeros((layers, cells))
+        self.kept = (0, 0)
 
     def clear_outside(self, lo: int, hi: int) -> None:
         """Zero the result outside the columns ``lo .. hi-1`` (only what an earlier step
         wrote there: the window of a dam break is a tenth of the mesh)."""
-        before, after = self.written
-        for start, stop in ((before, min(lo, after)), (max(hi, before), after)):
-            if stop > start:
-                self.h[start:stop] = 0.0
-                self.u[:, start:stop] = 0.0
+        _zero_outside(self.h, self.u, self.written, lo, hi)
         self.written = (lo, hi)
+
+    def keep(self) -> tuple[np.ndarray, np.ndarray]:
+        """A copy of the result (h, u) that the next use does not overwrite (Heun's first
+        stage, kept through the second): its columns ``written`` copied, zero outside."""
+        lo, hi = self.written
+        _zero_outside(self.h_kept, self.u_kept, self.kept, lo, hi)
+        self.kept = (lo, hi)
+        self.h_kept[lo:hi] = self.h[lo:hi]
+        self.u_kept[:, lo:hi] = self.u[:, lo:hi]
+        return self.h_kept, self.u_kept
+
+
+def _zero_outside(h: np.ndarray, u: np.ndarray, written: tuple[int, int], lo: int, hi: int) -> None:
+    """Zero ``h`` (N,) and ``u`` (L, N) in the columns ``written`` (lo, hi) outside ``lo .. hi-1``."""
+    before, after = written
+    for start, stop in ((before, min(lo, after)), (max(hi, before), after)):
+        if stop > start:
+            h[start:stop] = 0.0
+            u[:, start:stop] = 0.0
 
 
 def transport(

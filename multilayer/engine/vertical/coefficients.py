@@ -210,6 +210,9 @@ class CompiledCoefficients:
     def laws(self) -> tuple[tuple[float, float, float, float], float | None] | None:
         """((mu, mu_static, D, L) of the bulk law, mu of the wall law or None), or None when
         a law has no compiled yield form (or the wall law's depends on the thickness)."""
+        return self.stresses.forms("yield", self._read_laws)
+
+    def _read_laws(self) -> tuple[tuple[float, float, float, float], float | None] | None:
         s = self.stresses
         bulk = yield_law_of(s.bulk, s.material)
         if bulk is None:

@@ -536,11 +536,15 @@ class CompiledStep:
         self.columns_side_by_side = 0  # of which solved side by side
         self.solves = 0  # column solves so far
         self.fallbacks = 0  # of which by the O(L^2) dynamic programme (the active set failed)
-        self._out: np.ndarray | None = None  # the result, reused from step to step
-        self._written = (0, 0)  # its columns that may be non-zero
+        # the results, two reused in turn from call to call, and their columns that may be non-zero
+        self._out: list[np.ndarray] = []
+        self._written = [(0, 0), (0, 0)]
 
     def laws(self) -> tuple[tuple[int, np.ndarray], tuple[int, np.ndarray] | None] | None:
         """(bulk, walls) compiled forms, None when some law has none."""
+        return self.stresses.forms("viscosity", self._read_laws)
+
+    def _read_laws(self) -> tuple[tuple[int, np.ndarray], tuple[int, np.ndarray] | None] | None:
         s = self.stresses
         bulk = law_of(s.bulk, s.material)
         walls = law_of(s.walls, s.material) if s.walls is not None else None
@@ -562,8 +566,9 @@ class CompiledStep:
         yield_gravity: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """New velocities (L, N) and the Newton iterations of each wet column (-1: not
-        converged within ``max_iterations``).  The velocities are overwritten by the next
-        call.  ``rest`` and ``yield_gravity`` go to ``StressModel.columns`` (compiled:
+        converged within ``max_iterations``).  The velocities are overwritten by the call
+        after the next (a time step of order 2 keeps its first vertical step's while it
+        makes the second).  ``rest`` and ``yield_gravity`` go to ``StressModel.columns`` (compiled:
         ``coefficients.CompiledCoefficients``)."""
         laws = self.laws()
         if laws is None:
@@ -572,11 +577,13 @@ class CompiledStep:
         wet = np.flatnonzero(h > 0)
         inputs, fused = self.coefficients.inputs(rest, yield_gravity)
         given = _NOT_GIVEN if fused else self._given(self.coefficients(h, wet, rest, yield_gravity))
-        if self._out is None or self._out.shape != ustar.shape:
-            self._out, self._written = np.zeros_like(ustar), (0, 0)
-        u = self._out
-        u[:, self._written[0] : self._written[1]] = 0.0  # zero outside them already
-        self._written = (int(wet[0]), int(wet[-1]) + 1) if wet.size else (0, 0)
+        if not self._out or self._out[0].shape != ustar.shape:
+            self._out, self._written = [np.zeros_like(ustar), np.zeros_like(ustar)], [(0, 0), (0, 0)]
+        self._out.reverse()  # the other one: the result of the last call stays
+        self._written.reverse()
+        u = self._out[0]
+        u[:, self._written[0][0] : self._written[0][1]] = 0.0  # zero outside them already
+        self._written[0] = (int(wet[0]), int(wet[-1]) + 1) if wet.size else (0, 0)
         out = Results(
             u, np.empty(wet.size, np.int64), np.empty(wet.size, np.int64), np.empty(wet.size, np.int64),
             np.empty((wet.size, 2)), np.zeros(wet.size, np.bool_),

@@ -22,7 +22,10 @@ Every plugin value is checked where it is used (shape, finite, >= 0;
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -81,6 +84,26 @@ class StressModel:
         self.depth_centre = (1.0 - below - 0.5 * fractions)[:, None]
         spacing = 0.5 * (fractions + np.concatenate([[0.0], fractions[:-1]]))
         self.spacing_fraction = spacing[:, None]  # h_0/2 at the bed, (l_{k-1} + l_k)/2 above
+        self._held: dict[str, Any] | None = None  # the laws' compiled forms read in this time step
+
+    @contextmanager
+    def forms_held(self) -> Iterator[None]:
+        """Within: the laws' compiled forms read once (the vertical steps of a time step);
+        outside, at each use (a law swapped on a running simulation is honoured)."""
+        self._held = {}
+        try:
+            yield
+        finally:
+            self._held = None
+
+    def forms(self, kind: str, read: Callable[[], Any]) -> Any:
+        """``read()``, the compiled forms ``kind`` of the laws, or what it gave first within
+        :meth:`forms_held`."""
+        if self._held is None:
+            return read()
+        if kind not in self._held:
+            self._held[kind] = read()
+        return self._held[kind]
 
     def columns(
         self,

@@ -1,0 +1,65 @@
+"""The Newton seed of a vertical step, extrapolated in time from the last two steps.
+
+The Newton iteration of the vertical step (``newton.py``, ``newton_kernel.py``) starts
+from a seed, which changes its work and never its answer (the same stopping test ends
+it).  The state's velocities ``u^n`` lie O(dt) from the step's answer; the linear
+extrapolation ``u^n + r (u^n - u^{n-1})``, ``r = dt / dt_{n-1}``, lies O(dt^2) from it in
+a smooth flow, where one Newton iteration then meets the tolerance.  A layer at rest
+(``u^n == 0``) keeps the seed 0, so that the guess of a column at rest is the column at
+rest (``newton_kernel._columns`` skips it when that is within the error bound); ``r`` is
+at most 1 (the step after one cut short to land on an output time does not amplify the
+last difference), and 0 (no extrapolation) where ``u^{n-1}`` is not known.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from multilayer.engine.compiled import jit
+
+MAX_RATIO = 1.0
+"""The largest ratio ``r`` of the step to the last one that the extrapolation takes."""
+
+
+class SeedExtrapolation:
+    """The Newton seed at the start of the last step, and the next one extrapolated (module docstring)."""
+
+    def __init__(self, shape: tuple[int, int]):
+        self._last = np.zeros(shape)  # the seed at the start of the last accepted step
+        self._start = np.zeros(shape)  # the seed at the start of this step
+        self._guess = np.zeros(shape)
+        self._window = (0, 0)  # the columns of _last that hold its seed
+        self._pending = (0, 0)  # those of _start
+        self._dt = 0.0  # the last accepted step; 0: none known
+
+    def __call__(self, seed: np.ndarray, dt: float, columns: tuple[int, int]) -> np.ndarray | None:
+        """The seed of a step of ``dt`` from ``seed`` (L, N), the seed at its start, in the
+        columns ``columns`` (lo, hi), the others not set; None where no last step is known.
+        ``seed`` is kept until :meth:`accept`."""
+        ratio = min(dt / self._dt, MAX_RATIO) if self._dt > 0.0 else 0.0
+        (first, stop), (lo, hi) = self._window, columns
+        _extrapolate(seed, self._last, first, stop, ratio, self._guess, self._start, lo, hi)
+        self._pending = columns
+        return self._guess if ratio > 0.0 else None
+
+    def accept(self, dt: float) -> None:
+        """The step of ``dt`` whose seed was last given is taken: its start is the last step."""
+        self._last, self._start = self._start, self._last
+        self._window, self._dt = self._pending, dt
+
+    def reset(self) -> None:
+        """No last step known (a state restored)."""
+        self._dt = 0.0
+        self._window = (0, 0)
+
+
+@jit
+def _extrapolate(seed, last, first, stop, ratio, guess, start, lo, hi):
+    """Over the columns ``lo .. hi-1``: ``start = seed`` and ``guess = seed + ratio (seed -
+    last)`` where ``seed != 0`` and ``last`` holds the last step's seed (its columns
+    ``first .. stop-1``), else ``seed``."""
+    for a in range(seed.shape[0]):
+        for i in range(lo, hi):
+            v = seed[a, i]
+            start[a, i] = v
+            guess[a, i] = v + ratio * (v - last[a, i]) if v != 0.0 and first <= i < stop else v
