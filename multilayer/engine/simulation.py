@@ -450,6 +450,7 @@ class Simulation:
             "newton_iterations": self.newton_iterations,
             **self.state.state_dict(),
             **self.forces.state_dict(),
+            **self.seeds.state_dict(),
         }
 
     def load_state(self, saved: dict) -> None:
@@ -459,7 +460,7 @@ class Simulation:
         self.newton_iterations = int(saved.get("newton_iterations", 0))
         self.state.load_state(saved)
         self.forces.load_state(saved)
-        self.seeds.reset()
+        self.seeds.load_state(saved)
         self.guard.check_state(self.h, self.u, f"in the restored state at t = {self.t:.6g} s")
         self.guard.reset(self.h, self.steps)
         if self.mixture is not None:

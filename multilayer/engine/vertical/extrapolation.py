@@ -48,9 +48,23 @@ class SeedExtrapolation:
         self._window, self._dt = self._pending, dt
 
     def reset(self) -> None:
-        """No last step known (a state restored)."""
+        """No last step known."""
         self._dt = 0.0
         self._window = (0, 0)
+
+    def state_dict(self) -> dict:
+        """The last step's seed, its columns and its step, so that a restored run
+        extrapolates as the uninterrupted one does (a resumed run equals it bit for bit)."""
+        return {"seed_last": self._last.copy(), "seed_window": np.array(self._window), "seed_dt": self._dt}
+
+    def load_state(self, saved: dict) -> None:
+        """Restore :meth:`state_dict`; a state saved without it restarts the extrapolation."""
+        if "seed_dt" not in saved:
+            self.reset()
+            return
+        self._last[...] = saved["seed_last"]
+        first, stop = (int(v) for v in np.asarray(saved["seed_window"]))
+        self._window, self._dt = (first, stop), float(saved["seed_dt"])
 
 
 @jit
