@@ -32,6 +32,7 @@ def random_problem(rng, L, N) -> ColumnProblem:
     )
 
 
+@pytest.mark.slow
 def test_no_velocity_profile_has_lower_energy_than_the_solution():
     rng = np.random.default_rng(1)
     problem = random_problem(rng, 5, 15)

@@ -168,7 +168,7 @@ def test_dry_limit_equals_the_dry_run(layers):
     np.testing.assert_allclose(wet.u, dry.u, rtol=0, atol=1e-10 * scale)
 
 
-@pytest.mark.parametrize("order", [1, 2])
+@pytest.mark.parametrize("order", [1, pytest.param(2, marks=pytest.mark.slow)])
 def test_periodic_uniform_layer_is_the_column_step(order):
     """A uniform layer in a periodic domain stays uniform, and its trajectory is the
     local step of one column with the buoyant weight along the slope, to round-off: at

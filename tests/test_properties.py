@@ -1,6 +1,7 @@
 """Property-based tests (Hypothesis): engine invariants and scenario-loader robustness.
 
-The default run tries a few examples of each property (``quick``), the same ones in every
+The default run tries a few examples of each property (``quick``; that of ``validate`` in a
+child process under ``slow``), the same ones in every
 run (derandomized, no example database): a default run passes or fails alike on every
 clone.  ``-m properties`` runs many more (``thorough``), new ones each time; an example it
 finds failing is pinned as a regular test (``test_the_examples_the_wide_search_found``).
@@ -268,7 +269,9 @@ def test_scenario_mutations_load_or_fail_with_input_error(examples):
     check()
 
 
-@pytest.mark.parametrize("examples", EXAMPLES)
+@pytest.mark.parametrize(  # 5 s of CPU; the in-process mutations run by default
+    "examples", [pytest.param(6, id="quick", marks=pytest.mark.slow), EXAMPLES[1]]
+)
 def test_validate_of_mutated_files_exits_0_or_2_without_traceback(tmp_path_factory, examples):
     """The command line on mutated files: exit 0 or 2, never a traceback."""
     directory = tmp_path_factory.mktemp("mutations")

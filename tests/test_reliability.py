@@ -366,7 +366,7 @@ BALANCE_CASES = {
 }
 
 
-@pytest.mark.parametrize("solver", ["numpy", "kernel"])
+@pytest.mark.parametrize("solver", [pytest.param("numpy", marks=pytest.mark.slow), "kernel"])
 @pytest.mark.parametrize("case", BALANCE_CASES)
 def test_mass_balances_the_boundary_fluxes_to_round_off_on_every_kind_of_boundary(case, solver):
     """mass(t) = mass(0) + the mass that crossed the boundaries, to round-off, with either

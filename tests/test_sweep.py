@@ -382,6 +382,7 @@ def test_second_run_of_a_completed_sweep_runs_nothing(friction_sweep, scheduler)
 # --------------------------------------------------------------------- failures, local cluster
 
 
+@pytest.mark.slow
 def test_a_failing_member_does_not_stop_the_others_and_reruns_alone(tmp_path, monkeypatch, capsys):
     from dask.distributed import LocalCluster
 

@@ -189,6 +189,7 @@ def test_reused_equation_equals_fresh_one_after_coefficients_change():
     np.testing.assert_array_equal(reused(second_problem), vertical_fipy.VerticalStep(mesh)(second_problem))
 
 
+@pytest.mark.slow
 def test_dry_columns_and_non_convergence():
     L, N = 3, 2
     m = np.ones((L, N)) * [[1.0, 0.0]]
