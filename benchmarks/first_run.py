@@ -8,6 +8,10 @@ start, the imports, the run, the result file) and their difference, the compilat
 The default scenario is the README's.  ``--set`` is passed on to ``multilayer run``
 (``--set numerics.threads=2`` compiles the parallel kernels too, on a large enough mesh).
 
+``--compile`` runs ``multilayer compile`` (the installation's step that compiles the
+kernels ahead, in parallel) into that cache first and prints its wall and CPU time: the
+first run then loads the kernels as the second does.
+
 ``--kernels`` runs the first one under a listener of numba's compilations and lists the
 CPU time numba spent on each function of the engine it compiled, its callees' compilations
 excluded (numba compiles a kernel's callees inside it, then optimises them again in it);
@@ -15,7 +19,7 @@ the listener sees the run's process only, not the child that compiles the Newton
 beside it (``multilayer.app.compilation.compile_ahead``: its CPU time is in the run's),
 and ``--json FILE`` writes that list with the times, the commit and the load average.
 
-    python benchmarks/first_run.py [SCENARIO.yaml] [--set KEY=VALUE ...] [--kernels [--json FILE]]
+    python benchmarks/first_run.py [SCENARIO.yaml] [--set KEY=VALUE ...] [--compile] [--kernels [--json FILE]]
 """
 
 from __future__ import annotations
@@ -82,6 +86,7 @@ def main() -> None:
         "scenario", nargs="?", type=Path, default=ROOT / "scenarios" / "erodible_bed_collapse.yaml"
     )
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    parser.add_argument("--compile", action="store_true", help="run 'multilayer compile' first")
     parser.add_argument("--kernels", action="store_true", help="list the compile time of each function")
     parser.add_argument("--json", type=Path, help="with --kernels: write the list and the times there")
     args = parser.parse_args()
@@ -90,6 +95,9 @@ def main() -> None:
         env = {**os.environ, "NUMBA_CACHE_DIR": cache, "FIRST_RUN_RECORDS": str(records)}
         arguments = ["run", str(args.scenario), "-q", *(f"--set={override}" for override in args.overrides)]
         times: dict[str, tuple[float, float]] = {}
+        if args.compile:
+            ahead = timed_command([sys.executable, "-m", "multilayer", "compile"], env)
+            print(f"{'multilayer compile':30s} wall {ahead[0]:6.1f} s, CPU {ahead[1]:6.1f} s", flush=True)
         for name in ("first (compiles the kernels)", "second (loads them)"):
             directory = Path(out) / name.split()[0]
             start = (

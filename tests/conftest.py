@@ -3,32 +3,51 @@
 from __future__ import annotations
 
 import copy
+import tempfile
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import kernel_warmup
 import pytest
 import yaml
 
 from multilayer.app.cli import main
+from multilayer.app.precompile import compile_kernels
 
 WARM_UP_ITEMS = 100
 """A run of at least this many tests on two or more xdist workers compiles the numba
-kernels first, each kernel in one worker (tests/kernel_warmup.py)."""
+kernels first (``multilayer compile``, in parallel processes) in the first worker while
+the others wait, so that no two workers compile the same kernel."""
+WARM_UP_WAIT = 900.0
+"""Seconds a worker waits for the first one's compilation before going on without it."""
+
+
+def _warm_up_done(worker: dict[str, Any]) -> Path:
+    return Path(tempfile.gettempdir()) / f"multilayer-kernels-{worker['testrunuid']}.done"
 
 
 def pytest_collection_finish(session: pytest.Session) -> None:
     worker = getattr(session.config, "workerinput", None)
-    if worker and worker["workercount"] > 1 and len(session.items) >= WARM_UP_ITEMS:
-        kernel_warmup.warm_up(kernel_warmup.directory(worker["testrunuid"]))
+    if not worker or worker["workercount"] < 2 or len(session.items) < WARM_UP_ITEMS:
+        return
+    done = _warm_up_done(worker)
+    if worker["workerid"] == "gw0":
+        try:
+            compile_kernels(worker["workercount"])  # a failure is left to the tests to report
+        finally:
+            done.touch()
+        return
+    deadline = time.monotonic() + WARM_UP_WAIT
+    while not done.exists() and time.monotonic() < deadline:
+        time.sleep(0.1)
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
     worker = getattr(config, "workerinput", None)
     if worker:
-        kernel_warmup.remove(kernel_warmup.directory(worker["testrunuid"]))
+        _warm_up_done(worker).unlink(missing_ok=True)
 
 
 TINY_SCENARIO: dict[str, Any] = {

@@ -153,3 +153,95 @@ def test_the_first_run_compiles_the_newton_kernel_in_a_child_process():
         env = {**os.environ, "NUMBA_CACHE_DIR": cache}
         cached = subprocess.run([sys.executable, "-c", check], env=env, capture_output=True, text=True)
         assert cached.stdout.split() == ["True", "1", "1"], cached.stderr
+
+
+SHIPPED = sorted(str(path) for path in (ROOT / "scenarios").glob("*.yaml"))
+
+AFTER_COMPILE = (
+    LISTENER
+    + r"""
+import json, sys
+import multilayer
+
+found = {}
+for path in sys.argv[1:]:
+    compiled.clear()
+    with event.install_listener("numba:compile", Listener()):
+        overrides = {"domain.cells": 40, "numerics.threads": 1}
+        sim = multilayer.Simulation(multilayer.load(path, overrides=overrides))
+        for _ in range(2):
+            sim.step()
+    found[path] = list(compiled)
+print(json.dumps(found))
+"""
+)
+
+
+@pytest.mark.slow
+def test_after_multilayer_compile_no_shipped_scenario_compiles_a_kernel(tmp_path):
+    """``multilayer compile`` with numba's cache empty, then two steps of every shipped
+    scenario (one thread): none compiles anything, so the first run after installing
+    starts computing at once."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
+
+    def child(*arguments: str) -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, *arguments], env=env, capture_output=True, text=True)
+
+    done = child("-m", "multilayer", "compile")
+    assert done.returncode == 0 and "compiled the kernels in" in done.stdout, done.stderr
+    again = child("-m", "multilayer", "compile")
+    assert again.returncode == 0 and "the kernels are compiled and cached" in again.stdout
+    runs = child("-c", AFTER_COMPILE, *SHIPPED)
+    assert json.loads(runs.stdout) == {path: [] for path in SHIPPED}, runs.stderr
+
+
+def test_a_run_after_compile_kernels_compiles_nothing(tiny_scenario):
+    """Once :func:`compile_kernels` has cached its tasks' kernels (the test run's warm-up
+    did, or this call does), a small run under another law, hydrostatic or not, with side
+    walls, compiles no kernel of the engine: the tasks cover the signatures of a run."""
+    from numba.core import event
+
+    import multilayer
+    from multilayer.app.precompile import compile_kernels
+    from multilayer.engine import kernel_cache
+
+    assert not compile_kernels().failed and kernel_cache.is_compiled()
+    names: list[str] = []
+
+    class Listener(event.Listener):
+        def on_start(self, e):
+            names.append(e.data["dispatcher"].py_func.__qualname__)
+
+        def on_end(self, e):
+            pass
+
+    tiny_scenario["walls"] = {"name": "wall_friction", "mu_w": 0.2}
+    tiny_scenario["domain"]["width"] = 0.1
+    for pressure in ("hydrostatic", "non_hydrostatic"):
+        with event.install_listener("numba:compile", Listener()):
+            sim = multilayer.Simulation(multilayer.load(tiny_scenario, {"model.pressure": pressure}))
+            for _ in range(3):
+                sim.step()
+        assert sim.t > 0 and names == []
+
+
+def test_a_failing_task_is_named_by_the_worker(monkeypatch, capsys):
+    """A task that raises is answered ``failed NAME ERROR`` (``multilayer compile`` exits 1
+    naming it); the next task still runs."""
+    import io
+
+    from multilayer.app import precompile
+
+    def broken() -> None:
+        raise RuntimeError("no\nluck")
+
+    tasks = (precompile.Task("broken", broken), precompile.Task("fine", lambda: None))
+    monkeypatch.setattr(precompile, "TASKS", tasks)
+    monkeypatch.setattr(sys, "stdin", io.StringIO("broken\nfine\n"))
+    precompile._worker()
+    assert capsys.readouterr().out.splitlines() == ["failed broken RuntimeError: no luck", "done fine"]
+
+
+def test_compile_refuses_a_process_count_below_one(cli):
+    result = cli("compile", "--processes", "0")
+    assert result.code == 2 and "--processes" in result.err and "integer >= 1" in result.err

@@ -40,6 +40,26 @@ def test_a_changed_kernel_source_clears_the_cached_kernels_once(tmp_path, monkey
     assert not kernel_cache.clear_if_stale(cache)
 
 
+def test_the_compiled_mark_holds_for_the_sources_it_was_made_for(tmp_path, monkeypatch):
+    """``multilayer compile``'s mark says the cache holds its kernels only for the kernel
+    sources and numba it was written for: an edit of a kernel source makes it false, and
+    clearing the stale cache deletes it."""
+    engine = tmp_path / "engine"
+    (engine / "vertical").mkdir(parents=True)
+    kernel = engine / "vertical" / "kernel.py"
+    kernel.write_text("from numba import njit\n")
+    monkeypatch.setattr(kernel_cache, "ENGINE", engine)
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    monkeypatch.chdir(tmp_path)
+    assert not kernel_cache.is_compiled()
+    kernel_cache.mark_compiled()
+    cache = engine / "vertical" / "__pycache__"
+    assert kernel_cache.cache_directories() == [cache] and kernel_cache.is_compiled()
+    kernel.write_text("from numba import njit  # edited\n")
+    assert not kernel_cache.is_compiled()
+    assert kernel_cache.clear_if_stale(cache) and not (cache / kernel_cache.COMPILED).exists()
+
+
 def test_the_digest_covers_the_kernel_modules_of_every_engine_package():
     names = {path.relative_to(kernel_cache.ENGINE).as_posix() for path in kernel_cache.kernel_modules()}
     assert {

@@ -20,7 +20,9 @@ from collections.abc import Iterator, Sequence
 
 from multilayer.errors import InputError, Interrupted, RunError
 
-SUBCOMMANDS = ("run", "validate", "plugins", "sweep", "calibrate", "sensitivity", "check", "plot", "export")
+SUBCOMMANDS = (
+    "run", "validate", "compile", "plugins", "sweep", "calibrate", "sensitivity", "check", "plot", "export",
+)  # fmt: skip
 
 
 class _Version(argparse.Action):

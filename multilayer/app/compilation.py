@@ -1,9 +1,10 @@
 """What a run does and says while numba compiles the engine's kernels.
 
 numba compiles each kernel on its first use after installation (or after a change of the
-kernel sources, engine/kernel_cache.py) and caches it: the first run waits for it inside
-its first step, before the progress line can show anything (docs/performance.md, "What
-the figures mean").  :func:`compile_notice` says so once, when the first compilation
+kernel sources, engine/kernel_cache.py) and caches it, unless ``multilayer compile``
+(app/precompile.py) did so ahead: the first run then waits for it inside its first step,
+before the progress line can show anything (docs/performance.md, "What the figures
+mean").  :func:`compile_notice` says so once, when the first compilation
 starts, and reports in ``run.log`` how long the compilation took.  :func:`compile_ahead`
 shortens that wait where a second core is free: the fused Newton kernel, the largest,
 is compiled in a child process while this one compiles the transport.
@@ -28,7 +29,8 @@ from multilayer.engine.threads import available_cores
 
 NOTICE = (
     "compiling the numba kernels for their first use: once after installing or updating "
-    "multilayer, about a minute on 2 cores, then cached for later runs"
+    "multilayer, about a minute, then cached for later runs ('multilayer compile' does it "
+    "ahead, in parallel)"
 )
 
 

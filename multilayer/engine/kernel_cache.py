@@ -16,6 +16,9 @@ loaded or saved; importing the engine does nothing.  Two processes starting at o
 an upgrade take turns (a lock file in each directory, where ``fcntl`` exists): the first
 deletes the old kernels and writes the new digest (written whole, by renaming), the second
 then finds the digest current and keeps what the first has compiled since.
+``multilayer compile`` (app/precompile.py) marks the directories compiled for the digest
+and numba's version once it has cached its kernels (:func:`mark_compiled`,
+:func:`is_compiled`).
 
 The directories are the ones numba chooses for the engine's modules: ``__pycache__``
 beside them when it can be written and ``NUMBA_CACHE_DIR`` is not set; otherwise numba's
@@ -44,6 +47,9 @@ STAMP = "kernels.digest"
 """The digest's file name, in each cache directory."""
 LOCK = "kernels.lock"
 """The lock file's name, in each cache directory."""
+COMPILED = "kernels.compiled"
+"""The name of the file, in each cache directory, that says every kernel of
+``multilayer compile`` is cached (:func:`mark_compiled`)."""
 
 _checked = False
 _lock = threading.Lock()
@@ -142,7 +148,7 @@ def clear_if_stale(directory: Path, digest: str | None = None) -> bool:
         with _locked(directory):
             if stamp.is_file() and stamp.read_text() == current:
                 return False
-            for entry in [*directory.glob("*.nbi"), *directory.glob("*.nbc")]:
+            for entry in [*directory.glob("*.nbi"), *directory.glob("*.nbc"), directory / COMPILED]:
                 entry.unlink(missing_ok=True)
             with tempfile.NamedTemporaryFile("w", dir=directory, prefix=STAMP, delete=False) as new:
                 new.write(current)
@@ -165,3 +171,35 @@ def ensure_fresh() -> None:
                 if clear_if_stale(directory, digest):
                     CLEARED.append(directory)
             _checked = True
+
+
+def _compiled_text() -> str:
+    """What :data:`COMPILED` holds: the kernel sources' digest and numba's version (numba
+    drops its cache when its version changes)."""
+    import numba
+
+    return f"{sources_digest()}\nnumba {numba.__version__}\n"
+
+
+def mark_compiled() -> None:
+    """Record in every cache directory that the kernels of ``multilayer compile`` are
+    cached for the current sources and numba (written whole, by renaming)."""
+    text = _compiled_text()
+    for directory in cache_directories():
+        try:
+            with tempfile.NamedTemporaryFile("w", dir=directory, prefix=COMPILED, delete=False) as new:
+                new.write(text)
+            os.replace(new.name, directory / COMPILED)
+        except OSError:  # numba cannot cache there either
+            pass
+
+
+def is_compiled() -> bool:
+    """Whether :func:`mark_compiled` recorded the current sources and numba in every cache
+    directory (False where numba cannot cache)."""
+    text = _compiled_text()
+    directories = cache_directories()
+    try:
+        return bool(directories) and all((d / COMPILED).read_text() == text for d in directories)
+    except OSError:
+        return False

@@ -43,7 +43,9 @@ def factor(band, fixed, U, start):
                 U[p, d] -= U[m, k] * U[m, d + k]
         for d in range(start - p, w + 1):
             U[p, d] /= U[p, 0]
-    U[start:] = band[start:]
+    for i in range(start, n):  # U[start:] = band[start:], without numba's shape check (its message
+        for d in range(w + 1):  # formatting alone costs more compile time than the factorisation)
+            U[i, d] = band[i, d]
     for i in range(start, n):
         if fixed[i]:
             U[i] = 0.0
@@ -113,7 +115,8 @@ def _forward(U, b, y, start):
     rows from ``start`` are applied first, in the order of a whole solve: the same result,
     bit for bit)."""
     n, w = U.shape[0], U.shape[1] - 1
-    y[start:] = b[start:]
+    for i in range(start, n):  # y[start:] = b[start:] (as in factor)
+        y[i] = b[i]
     for i in range(max(0, start - w), start):
         for d in range(start - i, min(w, n - 1 - i) + 1):
             y[i + d] -= U[i, d] * y[i]
@@ -148,11 +151,12 @@ def bounded(band, r, lam_max, active, max_iterations):
     n, w = band.shape[0], band.shape[1] - 1
     U = np.empty(band.shape)  # the first factorisation (start 0) writes all of it
     rhs, y = np.empty(n), np.empty(n)
-    start = 0
+    start = np.int64(0)  # not a literal 0: numba would also compile factor for it
     for iteration in range(1, max_iterations + 1):
         factor(band, active, U, start)
         # the bounded unknowns move to the right-hand side of the free rows
-        rhs[:] = r
+        for j in range(n):  # rhs[:] = r (as in factor)
+            rhs[j] = r[j]
         for j in range(n):
             if active[j]:
                 rhs[j] = lam_max[j]

@@ -168,7 +168,7 @@ def entries(
         beta[j, j - 1], beta[j, j] = fractions[j] / total, fractions[j - 1] / total
     rows, weights = np.empty(3, np.int64), np.empty(3)
     seen, at_left, at_right = np.empty(L, np.int64), np.empty(L), np.empty(L)
-    n = width = 0
+    n = width = np.int64(0)  # not literal 0s: numba would also compile the callees for them
     if Lp < L:
         # fewer pressure rows: the entries of a face unknown of layer c are, per pressure row
         # g, h_face / dx times those of its F rows plus the slopes times those of its S rows
@@ -192,7 +192,7 @@ def entries(
                         n = _store(cells, values, n, row_of[g * N + i], ratio * fc + sloped)
                         n = _store(cells, values, n, row_of[g * N + e], sloped - ratio * fc)
                 else:
-                    touched = 0  # the rows of E this unknown enters, in the order they first come
+                    touched = np.int64(0)  # the rows of E this unknown enters, in the order they first come
                     for row in range(c, min(c + 2, L)):
                         flux_left, flux_right = 0.5 * h_face / dx, -0.5 * h_face / dx
                         touched = _accumulate(seen, at_left, at_right, touched, row, flux_left, flux_right)

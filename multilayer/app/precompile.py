@@ -1,0 +1,215 @@
+"""Compiling the engine's numba kernels ahead of the first run: ``multilayer compile``.
+
+numba compiles a kernel on its first use and caches it on disk (engine/kernel_cache.py).
+Without this step the first run after installing waits for the compilation, about a
+minute of one core, most of it numba's own typing and lowering of the fused Newton
+kernel, the transport and the non-hydrostatic projection (docs/performance.md, "The
+first run").  :func:`compile_kernels` does that work once, as a step of the
+installation, in parallel child processes: each :data:`TASKS` entry runs the engine's
+real code path on a small built-in scenario (16 columns, one thread), so it compiles the
+signatures every run uses.  A task starts once the tasks whose kernels it calls are
+compiled (two processes compiling one kernel at once would both do the work).  When all
+of them succeed the cache is marked compiled for the current kernel sources and numba
+version (:func:`multilayer.engine.kernel_cache.mark_compiled`), and a later call returns
+at once.  The parallel (threaded) variants of the kernels are not compiled here: a run
+with ``numerics.threads`` above 1 compiles them on its first use.
+"""
+
+from __future__ import annotations
+
+import select
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from multilayer.engine import kernel_cache
+from multilayer.engine.threads import available_cores
+
+COLLAPSE: dict[str, Any] = {
+    "name": "compile",
+    "slope_deg": 20.0,
+    "domain": {"x_min": 0.0, "x_max": 1.0, "cells": 16, "layers": 4, "width": 0.1},
+    "material": {"density": 1550.0, "grain_diameter": 0.7e-3, "particle_density": 2500.0},
+    "rheology": {"name": "jop_mu_i", "mu_s": 0.38, "mu_2": 0.64, "I_0": 0.279},
+    "walls": {"name": "wall_friction", "mu_w": 0.2},
+    "base": [{"condition": "no_slip"}],
+    "initial": [{"shape": "rectangle", "x_min": 0.0, "x_max": 0.5, "height": 0.1}],
+    "numerics": {"threads": 1},
+    "time": {"end": 1.0, "output_interval": 1.0},
+}
+"""The small granular collapse the tasks step: Jop's mu(I), a no-slip base and side walls
+(the kernels' types do not depend on the law, the mesh size or the parameters)."""
+
+
+def _simulation(pressure: str = "hydrostatic") -> Any:
+    """A :class:`multilayer.Simulation` of :data:`COLLAPSE` with the given pressure model."""
+    from multilayer.app.api import load
+    from multilayer.app.simulation import Simulation
+
+    return Simulation(load(COLLAPSE, {"model.pressure": pressure}))
+
+
+def _newton() -> None:
+    """The fused Newton kernel of the vertical step, with everything it calls."""
+    sim = _simulation()
+    sim._vertical_step(sim.h, sim.u, sim.time_step(), 1)
+
+
+def _projection() -> None:
+    """The non-hydrostatic projection (its kernels call none of the other tasks')."""
+    import numpy as np
+
+    sim = _simulation("non_hydrostatic")
+    u = np.where(sim.h > 0, np.linspace(0.1, 1.0, sim.u.shape[0])[:, None], 0.0)
+    sim.pressure.project(sim.state, sim.h, u, 1e-3)
+    sim.pressure.yield_gravity(sim.state, sim.h)
+
+
+def _transport() -> None:
+    """The transport of the layers."""
+    sim = _simulation()
+    sim._transport(sim.time_step(), 1)
+
+
+def _numpy_path() -> None:
+    """The exact column solve and the Newton control of the vertical step of laws without
+    compiled forms (third-party rheologies)."""
+    import numpy as np
+
+    from multilayer.engine.vertical import column_solve
+    from multilayer.engine.vertical.newton_control import examine_columns
+    from multilayer.engine.vertical.problem import ColumnProblem
+
+    rng = np.random.default_rng(0)
+    shape = (3, 4)
+    p = ColumnProblem(
+        m=rng.uniform(0.5, 2, shape), ustar=rng.normal(0, 1, shape), dt=0.1, kappa=rng.uniform(0, 1, shape),
+        c=rng.uniform(0, 1, shape), w=np.zeros(shape), cw=np.zeros(shape),
+    )  # fmt: skip
+    u = column_solve.solve(p)
+    examine_columns(p.m, p.ustar, p.kappa, p.c, p.w, p.cw, p.ustar, u, np.zeros((4, *shape)), True)
+
+
+def _steps(pressure: str) -> Callable[[], None]:
+    def steps() -> None:
+        """Three whole steps (the state checks, the bed force, the seed extrapolation)."""
+        sim = _simulation(pressure)
+        for _ in range(3):
+            sim.step()
+
+    return steps
+
+
+@dataclass(frozen=True)
+class Task:
+    """One child process's work: ``run`` compiles (or loads) its kernels once the tasks
+    named in ``needs`` are done."""
+
+    name: str
+    run: Callable[[], None]
+    needs: tuple[str, ...] = ()
+
+
+TASKS: tuple[Task, ...] = (
+    Task("newton", _newton),
+    Task("projection", _projection),
+    Task("transport", _transport),
+    Task("numpy_path", _numpy_path, ("newton",)),
+    Task("hydrostatic_steps", _steps("hydrostatic"), ("newton", "transport")),
+    Task("non_hydrostatic_steps", _steps("non_hydrostatic"), ("newton", "transport", "projection")),
+)
+"""The longest first: on two cores the Newton kernel compiles beside the projection and
+then the transport."""
+
+
+@dataclass
+class Report:
+    """What :func:`compile_kernels` did: ``seconds`` of wall time, the ``processes`` used,
+    and the tasks that ``failed`` with the last line each wrote to stderr (empty: every
+    kernel is compiled and cached); ``cached`` is True when nothing had to be done."""
+
+    seconds: float = 0.0
+    processes: int = 0
+    cached: bool = False
+    failed: dict[str, str] = field(default_factory=dict)
+
+
+def _worker() -> None:
+    """A child process of :func:`compile_kernels`: runs the tasks named on its stdin, one
+    per line, and answers each with ``done NAME`` or ``failed NAME MESSAGE`` on stdout."""
+    tasks = {task.name: task for task in TASKS}
+    for line in sys.stdin:
+        name = line.strip()
+        try:
+            tasks[name].run()
+        except Exception as error:  # reported by the parent
+            answer = f"failed {name} {type(error).__name__}: {error}".replace("\n", " ")
+        else:
+            answer = f"done {name}"
+        print(answer, flush=True)
+
+
+def compile_kernels(processes: int | None = None) -> Report:
+    """Compile every kernel of :data:`TASKS` into numba's cache in ``processes`` child
+    processes (None: the cores this process may use), each task once the tasks it
+    ``needs`` are done; nothing when the cache is already marked compiled for the current
+    sources.  Interrupted, the children are stopped with it."""
+    kernel_cache.ensure_fresh()
+    if kernel_cache.is_compiled():
+        return Report(cached=True)
+    processes = max(1, min(len(TASKS), available_cores() if processes is None else processes))
+    start = time.perf_counter()
+    report = Report(processes=processes)
+    children = [
+        subprocess.Popen(
+            [sys.executable, "-m", __name__],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL,
+            text=True,
+            bufsize=1,
+        )  # fmt: skip
+        for _ in range(processes)
+    ]
+    pending, done = list(TASKS), set[str]()
+    busy: dict[int, str] = {}  # a child's stdout descriptor: its task
+    try:
+        while pending or busy:
+            for child in children:
+                ready = [t for t in pending if all(n in done for n in t.needs)]
+                if child.stdout is None or child.stdout.fileno() in busy or not ready:
+                    continue
+                assert child.stdin is not None
+                child.stdin.write(ready[0].name + "\n")
+                child.stdin.flush()
+                busy[child.stdout.fileno()] = ready[0].name
+                pending.remove(ready[0])
+            if not busy:  # a task's needs were never done: cannot happen with TASKS
+                break
+            readable, _, _ = select.select(list(busy), [], [])
+            for fd in readable:
+                child = next(c for c in children if c.stdout is not None and c.stdout.fileno() == fd)
+                assert child.stdout is not None
+                answer = child.stdout.readline()
+                name = busy.pop(fd)
+                if not answer.startswith("done "):
+                    report.failed[name] = answer.split(" ", 2)[2].strip() if answer else "the process ended"
+                done.add(name)
+    finally:
+        for child in children:
+            if child.stdin is not None:
+                child.stdin.close()
+            if pending or busy:  # interrupted or failed: stop at once
+                child.kill()
+            child.wait()
+    report.seconds = time.perf_counter() - start
+    if not report.failed:
+        kernel_cache.mark_compiled()
+    return report
+
+
+if __name__ == "__main__":
+    _worker()
