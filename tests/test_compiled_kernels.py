@@ -245,3 +245,11 @@ def test_a_failing_task_is_named_by_the_worker(monkeypatch, capsys):
 def test_compile_refuses_a_process_count_below_one(cli):
     result = cli("compile", "--processes", "0")
     assert result.code == 2 and "--processes" in result.err and "integer >= 1" in result.err
+
+
+def test_compile_says_when_numba_cannot_cache(cli, monkeypatch):
+    from multilayer.engine import kernel_cache
+
+    monkeypatch.setattr(kernel_cache, "cache_directories", lambda: [])
+    result = cli("compile")
+    assert result.code == 1 and "NUMBA_CACHE_DIR" in result.err and result.out == ""

@@ -29,13 +29,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    """Compile; exit 1 naming the tasks that failed."""
+    """Compile; exit 1 naming the tasks that failed, or when numba cannot cache."""
     from multilayer.app.precompile import compile_kernels
     from multilayer.engine.kernel_cache import cache_directories
 
-    report = compile_kernels(args.processes)
     directories = [str(d) for d in cache_directories()]
-    where = os.path.commonpath(directories) if directories else "nowhere: numba cannot cache here"
+    if not directories:
+        print(
+            "multilayer compile: numba finds no directory it can write its cache to here, so every "
+            "run compiles the kernels it uses; set NUMBA_CACHE_DIR to a writable directory",
+            file=sys.stderr,
+        )
+        return 1
+    report = compile_kernels(args.processes)
+    where = os.path.commonpath(directories)
     if report.cached:
         print(f"the kernels are compiled and cached ({where})")
         return 0
