@@ -52,7 +52,7 @@ def test_the_compiled_mark_holds_for_the_sources_it_was_made_for(tmp_path, monke
     monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
     monkeypatch.chdir(tmp_path)
     assert not kernel_cache.is_compiled()
-    kernel_cache.mark_compiled()
+    kernel_cache.mark_compiled(kernel_cache.compiled_text())
     cache = engine / "vertical" / "__pycache__"
     assert kernel_cache.cache_directories() == [cache] and kernel_cache.is_compiled()
     kernel.write_text("from numba import njit  # edited\n")

@@ -160,6 +160,7 @@ def compile_kernels(processes: int | None = None) -> Report:
     kernel_cache.ensure_fresh()
     if kernel_cache.is_compiled():
         return Report(cached=True)
+    sources = kernel_cache.compiled_text()  # an edit during the compilation leaves no mark
     processes = max(1, min(len(TASKS), available_cores() if processes is None else processes))
     start = time.perf_counter()
     report = Report(processes=processes)
@@ -207,7 +208,7 @@ def compile_kernels(processes: int | None = None) -> Report:
             child.wait()
     report.seconds = time.perf_counter() - start
     if not report.failed:
-        kernel_cache.mark_compiled()
+        kernel_cache.mark_compiled(sources)
     return report
 
 

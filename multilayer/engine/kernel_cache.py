@@ -173,7 +173,7 @@ def ensure_fresh() -> None:
             _checked = True
 
 
-def _compiled_text() -> str:
+def compiled_text() -> str:
     """What :data:`COMPILED` holds: the kernel sources' digest and numba's version (numba
     drops its cache when its version changes)."""
     import numba
@@ -181,10 +181,10 @@ def _compiled_text() -> str:
     return f"{sources_digest()}\nnumba {numba.__version__}\n"
 
 
-def mark_compiled() -> None:
+def mark_compiled(text: str) -> None:
     """Record in every cache directory that the kernels of ``multilayer compile`` are
-    cached for the current sources and numba (written whole, by renaming)."""
-    text = _compiled_text()
+    cached for the sources and numba of ``text`` (:func:`compiled_text` when the
+    compilation started), written whole, by renaming."""
     for directory in cache_directories():
         try:
             with tempfile.NamedTemporaryFile("w", dir=directory, prefix=COMPILED, delete=False) as new:
@@ -197,7 +197,7 @@ def mark_compiled() -> None:
 def is_compiled() -> bool:
     """Whether :func:`mark_compiled` recorded the current sources and numba in every cache
     directory (False where numba cannot cache)."""
-    text = _compiled_text()
+    text = compiled_text()
     directories = cache_directories()
     try:
         return bool(directories) and all((d / COMPILED).read_text() == text for d in directories)
