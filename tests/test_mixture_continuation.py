@@ -49,9 +49,9 @@ def loose_column(slope: float) -> Simulation:
 )
 def test_a_loose_column_of_millimetre_beads_in_water_runs(slope):
     """Its thin front, fast and at a low effective pressure, dilates within a step far past
-    the packing where its friction vanishes (h' = 1.6 h*, phi 0.557 -> 0.35 at 0 degrees):
-    the Newton iteration of that step diverges (0 degrees) or stalls (20 degrees) at the
-    second step, and 2 sub-steps converge.  Over the first 5 steps the solid is conserved
+    the packing where its friction vanishes (the root of one step: h' = 1.6 h*, phi 0.557
+    -> 0.35 at 0 degrees): the Newton iteration of that step diverges (0 degrees) or stalls
+    (20 degrees) at the second step, and 2 sub-steps converge.  Over the first 5 steps the solid is conserved
     to round-off, the fluid the mixture gained is what the ambient fluid lost, and the bed
     excess pore pressure below the column is positive, as below every loose (contracting)
     column (test_mixture_flow.py; Rondon et al. 2011).  At 25 degrees one step converges
@@ -122,8 +122,8 @@ def substepped(h: float, phi: float, v: float, dt: float, k: int) -> np.ndarray:
 
 
 def test_a_column_in_substeps_converges_at_first_order_to_its_relaxation():
-    """A column of 5 mm at phi = 0.55 sliding at 0.2 m/s, dt = 0.014 s (rho_s/beta = 0.024
-    s: the drag does not relax within the step): the local step in 4, 8 and 16 sub-steps
+    """A column of 5 mm at phi = 0.55 sliding at 0.2 m/s, dt = 0.014 s (rho_s/beta = 0.025
+    s, longer than the step, as at the failing front): the local step in 4, 8 and 16 sub-steps
     against the relaxation it discretises (:func:`relaxation`): the error in ``v`` and in
     ``h`` halves as the sub-steps halve (measured: ratios 1.91 and 1.95 in ``v``, 1.90 and
     1.95 in ``h``; errors 8.4e-4 m/s and 8.1e-6 m at 4 sub-steps)."""
@@ -138,7 +138,7 @@ def test_a_column_in_substeps_converges_at_first_order_to_its_relaxation():
 def test_the_front_column_is_done_in_two_substeps_and_they_approach_its_relaxation():
     """The front column whose one step diverges (:data:`FRONT`): the local step redoes it in
     2 sub-steps, bit for bit the step in 2 sub-steps, and more sub-steps approach the
-    relaxation it discretises (the front dilates to phi = 0.29; the error in ``v`` falls
+    relaxation it discretises (the front dilates to phi = 0.29, 0.31 in 2 sub-steps; the error in ``v`` falls
     from 1.7e-2 m/s at 2 sub-steps to 4.8e-3 m/s at 16, 1.6e-3 m/s at 64: at these steps not
     yet the first-order rate of a smooth relaxation)."""
     h, phi, v, dt = FRONT
