@@ -193,7 +193,7 @@ class LocalStep:
         C = cfg.dilatancy * cfg.critical_shift * cfg.fluid_viscosity * gamma * gamma
         A = weight + np.einsum("abn,bn->an", M, linear)
         diagonal = np.einsum("aan->an", M)
-        root = np.sqrt(np.maximum(A * A + 4.0 * diagonal * C, 0.0))  # < 0 only where diagonal C < 0, unused
+        root = np.sqrt(A * A + 4.0 * diagonal * C)
         positive = np.where(
             A >= 0.0, 0.5 * (A + root), 2.0 * diagonal * C / np.where(root - A > 0.0, root - A, 1.0)
         )
@@ -274,10 +274,11 @@ class LocalStep:
         pressure = np.zeros_like(ustar) if pressure_guess is None else pressure_guess.copy()
         going, iterations = np.arange(n), 0
         failed, diverged = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+        closure_error: RunError | None = None
         for j in range(substeps):
             if not going.size:
                 break
-            result, converged, burst = self._newton(
+            result, converged, burst, error = self._newton(
                 solid[:, going], h[going], u[:, going], dt / substeps, velocities[:, going],
                 pressure[:, going], where[going], t + j * (dt / substeps),
             )  # fmt: skip
@@ -287,11 +288,12 @@ class LocalStep:
             pressure[:, done] = result.pore_pressure[:, converged]
             velocities[:, done] = u[:, done]
             failed[going[~converged]], diverged[going[burst]] = True, True
+            closure_error = error or closure_error
             going = done
         k = np.flatnonzero(failed)
         if k.size and 2 * substeps > MAX_SUBSTEPS:
             column = np.flatnonzero(diverged if diverged.any() else failed)[0]
-            raise self._failure(where[column], t, bool(diverged.any()))
+            raise self._failure(where[column], t, bool(diverged.any()), closure_error)
         if k.size:
             start = (None if given is None else given[:, k] for given in (guess, pressure_guess))
             again = self(
@@ -301,10 +303,13 @@ class LocalStep:
             iterations += again.iterations
         return LocalResult(u, h, pressure, iterations)
 
-    def _failure(self, x: float, t: float, diverged: bool) -> RunError:
+    def _failure(self, x: float, t: float, diverged: bool, closure_error: RunError | None) -> RunError:
         """The error of a local step that failed at ``x`` from ``t`` in up to
-        :data:`MAX_SUBSTEPS` sub-steps, ``diverged`` where a trial pore pressure was not finite."""
+        :data:`MAX_SUBSTEPS` sub-steps, ``diverged`` where a trial pore pressure was not finite
+        or its closure failed (``closure_error``, the closure's own message, if it did)."""
         place = f"(at x = {x:.6g} m, t = {t:.6g} s; also in up to {MAX_SUBSTEPS} sub-steps)"
+        if diverged and closure_error is not None:
+            return RunError(f"{closure_error} {place}")
         if diverged:
             return RunError(
                 f"the mixture's local step diverged: a trial excess pore pressure is not finite {place}"
@@ -324,10 +329,13 @@ class LocalStep:
         pressure_guess: np.ndarray,
         where: np.ndarray,
         t: float,
-    ) -> tuple[LocalResult, np.ndarray, np.ndarray]:
+    ) -> tuple[LocalResult, np.ndarray, np.ndarray, RunError | None]:
         """One backward-Euler step of ``dt`` of the columns (the arguments of
-        :meth:`__call__`): its result, where it converged and where a trial excess pore
-        pressure was not finite (n,) (such a column leaves the iteration, unconverged).
+        :meth:`__call__`): its result, where it converged, where it diverged (n,) (a trial
+        excess pore pressure not finite, or a trial state whose closure failed) and the
+        closure's error if one did.  A column that diverges leaves the iteration,
+        unconverged, as does one whose iterate comes back to where it started, bit for bit
+        (the iteration would repeat itself).
 
         A Newton iteration on the unknowns of the whole column at once, ``X = (p_e, h)``
         (its ``L`` excess pore pressures and its thickness): at trial values the rheology
@@ -347,6 +355,7 @@ class LocalStep:
         velocities = guess
         gamma = np.zeros_like(ustar)
         diverged, stalled = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+        closure_errors: list[RunError] = []
 
         def law(method: str, k: np.ndarray, *args: object) -> np.ndarray:
             """The rheology's ``method`` in the columns ``k`` (its pressure argument is
@@ -357,7 +366,9 @@ class LocalStep:
         def evaluate(X: np.ndarray, k: np.ndarray) -> Evaluation:
             """At the trial ``X = (p_e, h)`` (L + 1, len(k)) of the columns ``k``; a column
             whose trial pore pressures are not finite is marked diverged, its residual
-            infinite, and not evaluated (the rheology is never handed them)."""
+            infinite, and not evaluated (the rheology is never handed them); where the
+            closure fails, the columns are evaluated one by one and those whose closure
+            fails are marked diverged."""
             burst = ~np.isfinite(X[:L]).all(axis=0)
             if burst.any():
                 diverged[k[burst]] = True
@@ -376,7 +387,15 @@ class LocalStep:
                 m=m, ustar=momentum[:, k] / m, dt=dt, kappa=kappa, c=eta / (self.spacing * h), w=free, cw=free
             )
             v = solve(problem, velocities[:, k])
-            rates, _, dilation, pressure = self.closure(s, h, v)
+            try:  # a trial state may overflow the closure: _finite and the residual check it
+                with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+                    rates, _, dilation, pressure = self.closure(s, h, v)
+            except RunError as error:  # at a trial state: the run stopped here before sub-steps
+                if k.size > 1:
+                    return Evaluation.join([evaluate(X[:, [c]], k[[c]]) for c in range(k.size)])
+                diverged[k] = True
+                closure_errors.append(error)
+                return Evaluation.diverged(X)
             growth = 1.0 - dt * np.sum(self.l * dilation, axis=0)
             h_new = np.where(growth > 0.0, h_star[k] / np.where(growth > 0.0, growth, 1.0), np.inf)
             residual = (X - np.concatenate([pressure, h_new[None, :]])) / scale[:, k]
@@ -412,12 +431,13 @@ class LocalStep:
             if stuck.size:
                 trial[:, stuck], found = self._bisect(evaluate, Xk[:, stuck], k[stuck], weight[:, k[stuck]])
                 attempt = attempt.merge(stuck, found)
-            # back where it started, bit for bit: the iteration's fixed point, never a root
+            # back where it started, bit for bit: the iteration would repeat itself, never converging
             stalled[k] = _same(trial, Xk) & _same(attempt.v, here.v) & _same(attempt.rates, here.rates)
             X[:, k] = trial
             now = now.merge(k, attempt)
         converged = (now.norm <= self.tolerance) & ~diverged
-        return LocalResult(now.v, now.h, now.pressure, iteration), converged, diverged
+        error = closure_errors[0] if closure_errors else None
+        return LocalResult(now.v, now.h, now.pressure, iteration), converged, diverged, error
 
     @staticmethod
     def _bisect(
@@ -475,6 +495,11 @@ class Evaluation(NamedTuple):
         L, k = X.shape[0] - 1, X.shape[1]
         residual = np.full(X.shape, np.inf)
         return Evaluation(np.zeros((L, k)), np.zeros((L, k)), X[:L], X[L], residual, residual[0])
+
+    @staticmethod
+    def join(parts: list[Evaluation]) -> Evaluation:
+        """The evaluations ``parts`` of consecutive columns side by side."""
+        return Evaluation(*(np.concatenate(fields, axis=-1) for fields in zip(*parts)))
 
     def take(self, k: np.ndarray) -> Evaluation:
         """This evaluation in the columns ``k`` only."""
