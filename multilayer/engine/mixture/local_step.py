@@ -2,12 +2,14 @@
 excess pore pressure of every column (docs/mixture.md, "The mixture in x and in layers").
 
 The mixture moves with one velocity per layer (the drag relaxation, ``rho_s / beta`` ~
-1e-5 s, is far below the step: Bouchut et al. 2025 "velocity equality"), under an ambient
-fluid at rest.  Layer ``a`` (thickness ``h_a = l_a h``) holds the solid volume ``s_a``,
-``phi_a = s_a / h_a``.  At interface ``a`` (below layer ``a``, ``a = 0`` the bed) the
-shear rate is ``gamma_a = |v_a - v_{a-1}| / (spacing_a h)`` and the closure of Bouchut,
-Fernández-Nieto, Mangeney & Narbona-Reina (2016, J. Fluid Mech. 801) gives the layer's
-dilation rate and the effective pressure::
+1e-5 s for fine grains in a viscous fluid, is far below the step: Bouchut et al. 2025
+"velocity equality"; for millimetre beads in water it is ~0.02 s, longer than a step, and
+the step is the limit of a stiff drag), under an ambient fluid at rest.  Layer ``a``
+(thickness ``h_a = l_a h``) holds the solid volume ``s_a``, ``phi_a = s_a / h_a``.  At
+interface ``a`` (below layer ``a``, ``a = 0`` the bed) the shear rate is
+``gamma_a = |v_a - v_{a-1}| / (spacing_a h)`` and the closure of Bouchut, Fernández-Nieto,
+Mangeney & Narbona-Reina (2016, J. Fluid Mech. 801) gives the layer's dilation rate and the
+effective pressure::
 
     Phi_a = gamma_a K (phi_a - phi_c + K2 eta_f gamma_a / p_s,a)
     p_s,a = P_a - p_e,a,   P_a = (rho_s - rho_f) g cos(theta) sum_{b >= a} s_b
@@ -30,8 +32,25 @@ column are the unknowns of a Newton iteration with the exact column solve inside
 ``gamma = 0``, so ``Phi = 0``, ``p_e = 0`` and ``h' = h*`` bit for bit: a column held by
 friction stays at ``v == 0.0``.
 
+Continuation in ``dt``: a column whose Newton iteration does not converge (it stalls, or
+runs out of ``numerics.max_iterations``) or diverges is done again as ``k = 2, 4, ...,``
+:data:`MAX_SUBSTEPS` successive backward-Euler steps of ``dt / k`` of the same local
+relaxation, each solved by the same iteration from the state the one before reached.  A
+thin fast front at a low effective pressure dilates within one step far past the packing
+where its friction vanishes (``K2 eta_f gamma / p_s`` large): the root of the step is far
+from its start, beyond a kink of the map; over a shorter step it is near.  The composition
+of the sub-steps is a backward Euler of ``k`` steps, first order in ``dt / k``
+(tests/test_mixture_continuation.py); the columns that converge in one step are never
+sub-stepped, so their answer is unchanged bit for bit.
+
 Notes
 -----
+Conservation holds in sub-steps as in one step: the local step never changes the solid
+``s_a`` of a column, and the fluid it draws in or expels is exchanged with the ambient
+fluid of the same column only (no flux crosses a face in the local step): the mixture
+volume's balance (engine/mixture/flow.py) records that exchange as the column's final
+minus its starting thickness, whatever the steps between.
+
 The discrete energy of a uniform column (no transport; one local step per time step, the
 Lie splitting of ``numerics.order: 1``), per unit area, with the buoyant weights
 ``w_a = (rho_s - rho_f) g cos(theta) s_a`` and ``F_a = (rho_s - rho_f) g sin(theta) s_a``,
@@ -88,6 +107,10 @@ EXPANSIONS = 30
 """Doublings of the distance to a pore pressure low enough for its interface to hold."""
 SWEEPS = 2
 """Gauss–Seidel sweeps over the layers where the line search finds no descent."""
+MAX_SUBSTEPS = 256
+"""Most backward-Euler sub-steps of one local step in a column whose Newton iteration fails
+(continuation in ``dt``: 2, 4, ..., 256; the front of a loose column of millimetre beads
+in water needed up to 128, at 80 cells)."""
 CLOSURE_TOLERANCE = 1e-12
 """Residual of the effective pressures, relative to the largest in the column, at which the
 closure of several layers stops (round-off: the terms of ``M Phi`` are ~ p_s)."""
@@ -229,12 +252,90 @@ class LocalStep:
         *,
         x: np.ndarray | None = None,
         t: float = 0.0,
+        substeps: int = 1,
     ) -> LocalResult:
         """The step of columns holding ``solid`` (L, n) after transport to ``h_star`` (n,),
         velocities ``ustar`` (L, n) (the buoyant weight along the slope included), the
         iteration started from the velocities ``guess`` and the excess pore pressures
         ``pressure_guess`` (default: at rest); ``x`` (n,) and ``t`` place the columns in
         the messages of the checked plugin calls.
+
+        The step is ``substeps`` successive backward-Euler steps of ``dt / substeps`` (one
+        by default), each from the state the one before reached (its velocities, thickness
+        and pore pressures the next one's start and guess), each solved by :meth:`_newton`.
+        A column whose iteration does not converge or diverges in one of them is done again
+        from the start in twice as many (continuation in ``dt``: over a shorter step the
+        root lies nearer its start), up to :data:`MAX_SUBSTEPS`; the other columns keep
+        their result, so a column that converges in one step is never sub-stepped."""
+        where = np.zeros(h_star.size) if x is None else x
+        n = h_star.size
+        u, h = ustar.copy(), h_star.copy()
+        velocities = np.zeros_like(ustar) if guess is None else guess.copy()
+        pressure = np.zeros_like(ustar) if pressure_guess is None else pressure_guess.copy()
+        going, iterations = np.arange(n), 0
+        failed, diverged = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+        closure_error: RunError | None = None
+        for j in range(substeps):
+            if not going.size:
+                break
+            result, converged, burst, error = self._newton(
+                solid[:, going], h[going], u[:, going], dt / substeps, velocities[:, going],
+                pressure[:, going], where[going], t + j * (dt / substeps),
+            )  # fmt: skip
+            iterations += result.iterations
+            done = going[converged]
+            u[:, done], h[done] = result.u[:, converged], result.h[converged]
+            pressure[:, done] = result.pore_pressure[:, converged]
+            velocities[:, done] = u[:, done]
+            failed[going[~converged]], diverged[going[burst]] = True, True
+            closure_error = error or closure_error
+            going = done
+        k = np.flatnonzero(failed)
+        if k.size and 2 * substeps > MAX_SUBSTEPS:
+            column = np.flatnonzero(diverged if diverged.any() else failed)[0]
+            raise self._failure(where[column], t, bool(diverged.any()), closure_error)
+        if k.size:
+            start = (None if given is None else given[:, k] for given in (guess, pressure_guess))
+            again = self(
+                solid[:, k], h_star[k], ustar[:, k], dt, *start, x=where[k], t=t, substeps=2 * substeps
+            )
+            u[:, k], h[k], pressure[:, k] = again.u, again.h, again.pore_pressure
+            iterations += again.iterations
+        return LocalResult(u, h, pressure, iterations)
+
+    def _failure(self, x: float, t: float, diverged: bool, closure_error: RunError | None) -> RunError:
+        """The error of a local step that failed at ``x`` from ``t`` in up to
+        :data:`MAX_SUBSTEPS` sub-steps, ``diverged`` where a trial pore pressure was not finite
+        or its closure failed (``closure_error``, the closure's own message, if it did)."""
+        place = f"(at x = {x:.6g} m, t = {t:.6g} s; also in up to {MAX_SUBSTEPS} sub-steps)"
+        if diverged and closure_error is not None:
+            return RunError(f"{closure_error} {place}")
+        if diverged:
+            return RunError(
+                f"the mixture's local step diverged: a trial excess pore pressure is not finite {place}"
+            )
+        return RunError(
+            "the mixture's local step did not converge: its Newton iteration stalled or ran out of "
+            f"numerics.max_iterations = {self.max_iterations} {place}"
+        )
+
+    def _newton(
+        self,
+        solid: np.ndarray,
+        h_star: np.ndarray,
+        ustar: np.ndarray,
+        dt: float,
+        guess: np.ndarray,
+        pressure_guess: np.ndarray,
+        where: np.ndarray,
+        t: float,
+    ) -> tuple[LocalResult, np.ndarray, np.ndarray, RunError | None]:
+        """One backward-Euler step of ``dt`` of the columns (the arguments of
+        :meth:`__call__`): its result, where it converged, where it diverged (n,) (a trial
+        excess pore pressure not finite, or a trial state whose closure failed) and the
+        closure's error if one did.  A column that diverges leaves the iteration,
+        unconverged, as does one whose iterate comes back to where it started, bit for bit
+        (the iteration would repeat itself).
 
         A Newton iteration on the unknowns of the whole column at once, ``X = (p_e, h)``
         (its ``L`` excess pore pressures and its thickness): at trial values the rheology
@@ -246,14 +347,15 @@ class LocalStep:
         finds no descent (at the onset of a contracting packing ``R`` has a kink where the
         column starts moving; a flowing branch can end in a fold), the pore pressures are
         bracketed one by one (:meth:`_bisect`) and the iteration goes on from there."""
-        where = np.zeros(h_star.size) if x is None else x
         L, n = ustar.shape
         m_before = self.masses(solid, h_star)
         momentum = m_before * ustar
         weight = self.buoyant_g_n * np.cumsum(solid[::-1], axis=0)[::-1]
         scale = np.concatenate([np.maximum(weight, np.finfo(float).tiny), h_star[None, :]])
-        velocities = np.zeros_like(ustar) if guess is None else guess
+        velocities = guess
         gamma = np.zeros_like(ustar)
+        diverged, stalled = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+        closure_errors: list[RunError] = []
 
         def law(method: str, k: np.ndarray, *args: object) -> np.ndarray:
             """The rheology's ``method`` in the columns ``k`` (its pressure argument is
@@ -262,14 +364,18 @@ class LocalStep:
             return call(self.law, method, args, inputs=inputs, x=where[k], position=INTERFACE, t=t)
 
         def evaluate(X: np.ndarray, k: np.ndarray) -> Evaluation:
-            """At the trial ``X = (p_e, h)`` (L + 1, len(k)) of the columns ``k``."""
+            """At the trial ``X = (p_e, h)`` (L + 1, len(k)) of the columns ``k``; a column
+            whose trial pore pressures are not finite is marked diverged, its residual
+            infinite, and not evaluated (the rheology is never handed them); where the
+            closure fails, the columns are evaluated one by one and those whose closure
+            fails are marked diverged."""
+            burst = ~np.isfinite(X[:L]).all(axis=0)
+            if burst.any():
+                diverged[k[burst]] = True
+                fine = np.flatnonzero(~burst)
+                blank = Evaluation.diverged(X)
+                return blank.merge(fine, evaluate(X[:, fine], k[fine])) if fine.size else blank
             p, h = X[:L], X[L]
-            if not np.isfinite(p.sum()):  # the rheology would be blamed for the pressure it is given
-                column = int(np.flatnonzero(~np.isfinite(p).all(axis=0))[0])
-                raise RunError(
-                    "the mixture's local step diverged: a trial excess pore pressure is not finite "
-                    f"(at x = {where[k][column]:.6g} m, t = {t:.6g} s)"
-                )
             s = solid[:, k]
             p_s = weight[:, k] - p
             state = self._state(s, h, p)
@@ -281,21 +387,28 @@ class LocalStep:
                 m=m, ustar=momentum[:, k] / m, dt=dt, kappa=kappa, c=eta / (self.spacing * h), w=free, cw=free
             )
             v = solve(problem, velocities[:, k])
-            rates, _, dilation, pressure = self.closure(s, h, v)
+            try:  # a trial state may overflow the closure: _finite and the residual check it
+                with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+                    rates, _, dilation, pressure = self.closure(s, h, v)
+            except RunError as error:  # at a trial state: the run stopped here before sub-steps
+                if k.size > 1:
+                    return Evaluation.join([evaluate(X[:, [c]], k[[c]]) for c in range(k.size)])
+                diverged[k] = True
+                closure_errors.append(error)
+                return Evaluation.diverged(X)
             growth = 1.0 - dt * np.sum(self.l * dilation, axis=0)
             h_new = np.where(growth > 0.0, h_star[k] / np.where(growth > 0.0, growth, 1.0), np.inf)
             residual = (X - np.concatenate([pressure, h_new[None, :]])) / scale[:, k]
             residual = np.where(np.isfinite(residual), residual, np.inf)
             return Evaluation(v, rates, pressure, h_new, residual, np.abs(residual).max(axis=0))
 
-        X = np.concatenate(
-            [np.zeros_like(ustar) if pressure_guess is None else pressure_guess, h_star[None, :]]
-        )
+        X = np.concatenate([pressure_guess, h_star[None, :]])
         now = evaluate(X, np.arange(n))
-        for iteration in range(1, self.max_iterations + 1):
-            k = np.flatnonzero(~(now.norm <= self.tolerance))
-            if not k.size:
-                return LocalResult(now.v, now.h, now.pressure, iteration)
+        iteration = 1
+        while (k := np.flatnonzero(~(now.norm <= self.tolerance) & ~diverged & ~stalled)).size:
+            if iteration > self.max_iterations:
+                break
+            iteration += 1
             velocities, gamma = now.v, now.rates
             Xk, here = X[:, k], now.take(k)
             jacobian = np.empty((k.size, L + 1, L + 1))
@@ -303,7 +416,8 @@ class LocalStep:
                 step = DERIVATIVE_STEP * np.maximum(np.abs(Xk[j]), scale[j, k])
                 trial = Xk.copy()
                 trial[j] += step
-                jacobian[:, :, j] = ((evaluate(trial, k).residual - here.residual) / step).T
+                with np.errstate(invalid="ignore"):  # inf - inf: a trial with no thickness, next diverged
+                    jacobian[:, :, j] = ((evaluate(trial, k).residual - here.residual) / step).T
             update = _solve_batched(jacobian, -here.residual.T).T
             fraction = np.ones(k.size)
             for _ in range(MAX_HALVINGS):
@@ -313,16 +427,17 @@ class LocalStep:
                 if better.all():
                     break
                 fraction = np.where(better, fraction, 0.5 * fraction)
-            stuck = np.flatnonzero(~better)
+            stuck = np.flatnonzero(~better & ~diverged[k])
             if stuck.size:
                 trial[:, stuck], found = self._bisect(evaluate, Xk[:, stuck], k[stuck], weight[:, k[stuck]])
                 attempt = attempt.merge(stuck, found)
+            # back where it started, bit for bit: the iteration would repeat itself, never converging
+            stalled[k] = _same(trial, Xk) & _same(attempt.v, here.v) & _same(attempt.rates, here.rates)
             X[:, k] = trial
             now = now.merge(k, attempt)
-        raise RunError(
-            f"the mixture's local step did not converge in {self.max_iterations} iterations "
-            f"(numerics.max_iterations)"
-        )
+        converged = (now.norm <= self.tolerance) & ~diverged
+        error = closure_errors[0] if closure_errors else None
+        return LocalResult(now.v, now.h, now.pressure, iteration), converged, diverged, error
 
     @staticmethod
     def _bisect(
@@ -374,6 +489,19 @@ class Evaluation(NamedTuple):
     residual: np.ndarray  # (L + 1, k) X minus what it produces, scaled
     norm: np.ndarray  # (k,) largest scaled component of the residual
 
+    @staticmethod
+    def diverged(X: np.ndarray) -> Evaluation:
+        """At trials ``X`` (L + 1, k) the step cannot evaluate (not finite, or whose closure
+        fails): no velocities, an infinite residual."""
+        L, k = X.shape[0] - 1, X.shape[1]
+        residual = np.full(X.shape, np.inf)
+        return Evaluation(np.zeros((L, k)), np.zeros((L, k)), X[:L], X[L], residual, residual[0])
+
+    @staticmethod
+    def join(parts: list[Evaluation]) -> Evaluation:
+        """The evaluations ``parts`` of consecutive columns side by side."""
+        return Evaluation(*(np.concatenate(fields, axis=-1) for fields in zip(*parts)))
+
     def take(self, k: np.ndarray) -> Evaluation:
         """This evaluation in the columns ``k`` only."""
         return Evaluation(*(part[..., k] for part in self))
@@ -386,6 +514,11 @@ class Evaluation(NamedTuple):
             mine[..., k] = theirs
             parts.append(mine)
         return Evaluation(*parts)
+
+
+def _same(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Per column (axis 1), whether ``a`` and ``b`` are equal bit for bit in every layer."""
+    return (a == b).all(axis=0)
 
 
 def _finite(values: np.ndarray) -> None:
