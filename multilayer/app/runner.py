@@ -163,6 +163,13 @@ def _output_directory(outdir: Path) -> list[Path]:
         raise InputError(
             f"{outdir}: cannot be created or written ({exc.strerror or exc}); {accepted}"
         ) from None
+    for name in (RESULT_FILE, CHECKPOINT_FILE, LOG_FILE):  # a pipe or a device would be written for ever
+        path = outdir / name
+        if path.exists() and not path.is_file():
+            raise InputError(
+                f"{path}: exists and is not a regular file (a directory, a pipe or a device); accepted: an "
+                f"output directory where {RESULT_FILE}, {CHECKPOINT_FILE} and {LOG_FILE} are files or absent"
+            )
     return missing
 
 

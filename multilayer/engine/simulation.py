@@ -102,8 +102,7 @@ class Simulation:
             self.inflow = boundaries.InflowState(float(thickness), u_in)
         self.gate = None
         if c.gate is not None:
-            faces = c.x_min + self.dx * np.arange(c.cells + 1)
-            self.gate = Gate(c.gate.x, c.gate.lift_speed, faces, self.mesh.interfaces)
+            self.gate = Gate(c.gate.x, c.gate.lift_speed, c.x_min, self.dx, c.cells, self.mesh.interfaces)
         #: the transport: the compiled kernel, or the numpy reference formulation
         compiled = c.numerics.transport_solver == "kernel"
         self.transport: Callable[..., tuple[np.ndarray, np.ndarray]] = (

@@ -38,6 +38,7 @@ from multilayer.scenario.files import read_text
 from multilayer.scenario.limits import MAX_PROFILE_POINTS
 from multilayer.scenario.messages import StrictModel, describe, dotted, field, invalid
 from multilayer.scenario.overrides import as_overrides
+from multilayer.scenario.profiles import csv_number
 
 Scalar = Literal["runout", "front_final", "duration", "mass_final"]
 """Scalar quantities measured on a run (multilayer.io.observables)."""
@@ -468,7 +469,7 @@ def _read_csv(file: Path, columns: list[str], where: str) -> tuple[np.ndarray, n
             raise InputError(
                 f"{where}: {file} has more than {MAX_PROFILE_POINTS} rows; accepted: at most that"
             )
-        table = [[float(row[c]) for row in rows] for c in columns]
+        table = [[csv_number(row[c]) for row in rows] for c in columns]
     except KeyError as exc:
         raise InputError(
             f"{where}: {file} has no column {exc}; accepted: a CSV file with a header row"

@@ -27,6 +27,16 @@ LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "km": 1e3}
 """Units accepted in a CSV header, with their value in metres."""
 
 _HEADER_CELL = re.compile(r"^\s*([A-Za-z_]\w*)\s*[\(\[]\s*([A-Za-z]+)\s*[\)\]]\s*$")
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+
+
+def csv_number(text: str) -> float:
+    """A number of a CSV file, in ASCII decimal notation: ``float`` alone also reads
+    ``1_000``, ``nan`` and the digits of other scripts, which no CSV writer means as a
+    number (ValueError for them)."""
+    if not _NUMBER.fullmatch(text.strip()):
+        raise ValueError(f"could not convert {text.strip()!r} to a number")
+    return float(text)
 
 
 def read_csv_profile(path: str | Path, columns: Sequence[str]) -> np.ndarray:
@@ -67,7 +77,7 @@ def read_csv_profile(path: str | Path, columns: Sequence[str]) -> np.ndarray:
     for line_no, line in rows[1:]:
         fields = line.split(",")
         try:
-            x, value = (float(f) for f in fields) if len(fields) == 2 else (math.nan, None)
+            x, value = (csv_number(f) for f in fields) if len(fields) == 2 else (math.nan, None)
         except ValueError:
             x = math.nan
         if not (math.isfinite(x) and value is not None and math.isfinite(value)):

@@ -1,0 +1,192 @@
+"""Hostile inputs of the Python API, the files a scenario names, ``--set``, the output
+directory, the gate and ``validate`` (docs/reliability.md): each is an
+:class:`InputError` (exit 2) naming what is wrong and what is accepted, never a
+traceback, a hang or a value read otherwise than the user meant."""
+
+from __future__ import annotations
+
+import copy
+import os
+
+import numpy as np
+import pytest
+import yaml
+from conftest import TINY_SCENARIO
+
+import multilayer
+from multilayer.errors import InputError
+from multilayer.io.results import CHECKPOINT_FILE, RESULT_FILE
+
+BED = "x (m), z (m)\n0.0, 0.0\n0.5, -0.1\n"
+
+
+def _recursive() -> dict:
+    data = copy.deepcopy(TINY_SCENARIO)
+    data["rheology"]["self"] = data
+    return data
+
+
+def _deep() -> dict:
+    data = copy.deepcopy(TINY_SCENARIO)
+    node = data["rheology"]
+    for _ in range(5000):
+        node["a"] = node = {}
+    return data
+
+
+@pytest.mark.parametrize(
+    ("call", "phrase"),
+    [
+        (lambda: multilayer.load(5), "scenario: got 5; accepted: a Scenario, a mapping"),
+        (lambda: multilayer.load(None), "scenario: got None"),
+        (lambda: multilayer.load(b"scenario.yaml"), "scenario: got b'scenario.yaml'"),
+        (lambda: multilayer.load(TINY_SCENARIO, 5), "overrides: got 5; accepted: a mapping of dotted keys"),
+        (lambda: multilayer.load(TINY_SCENARIO, None), "overrides: got None"),
+        (lambda: multilayer.load(TINY_SCENARIO, [5]), "overrides: got [5]"),
+        (lambda: multilayer.load(TINY_SCENARIO, {5: 1}), "overrides: key 5; accepted"),
+        (lambda: multilayer.load(TINY_SCENARIO, {"a=b": 1}), "overrides: key 'a=b'; accepted"),
+        (
+            lambda: multilayer.load(TINY_SCENARIO, {"time.end": np.nan}),
+            "overrides: time.end: nan is not a value",
+        ),
+        (
+            lambda: multilayer.load(_recursive()),
+            "<scenario>: rheology.self.rheology.self.(...): more than 100",
+        ),
+        (lambda: multilayer.load(_deep()), "<scenario>: rheology.a.a.a.(...): more than 100 nested"),
+        (
+            lambda: multilayer.run(TINY_SCENARIO, 5),
+            "outdir: got 5; accepted: None or the path of a directory",
+        ),
+    ],
+)
+def test_the_api_refuses_what_it_does_not_take_naming_the_argument(call, phrase):
+    """Wrong types of ``source``, ``overrides`` and ``outdir``, and Python data that no YAML
+    text could hold (a mapping holding itself, nesting 5000 deep) are an InputError; they
+    were a TypeError, an AttributeError or a RecursionError from deep inside."""
+    with pytest.raises(InputError) as caught:
+        call()
+    assert phrase in str(caught.value)
+
+
+def test_numpy_values_in_a_mapping_are_read_as_the_numbers_they_hold():
+    """A notebook's numpy scalars and arrays (``np.int64`` cells, an array of fractions)
+    give the scenario of the plain numbers, where cells were refused and an array gave
+    "the truth value of an array is ambiguous"."""
+    data = copy.deepcopy(TINY_SCENARIO)
+    data["domain"].update(
+        cells=np.int64(40), x_max=np.float32(0.5), layer_fractions=np.array([0.5, 0.25, 0.25])
+    )
+    plain = copy.deepcopy(TINY_SCENARIO)
+    plain["domain"]["layer_fractions"] = [0.5, 0.25, 0.25]
+    assert multilayer.load(data).resolved_yaml() == multilayer.load(plain).resolved_yaml()
+    overridden = multilayer.load(
+        TINY_SCENARIO, {"domain.cells": np.int64(30), "rheology.mu_s": np.float64(0.4)}
+    )
+    assert overridden.domain.cells == 30 and overridden.rheology.params["mu_s"] == 0.4
+
+
+def test_a_long_value_is_quoted_cut_in_the_message():
+    """A list of 300 000 fractions was quoted whole: a message of 1.5 MB."""
+    data = copy.deepcopy(TINY_SCENARIO)
+    data["domain"]["layer_fractions"] = [1.0] * 300_000
+    with pytest.raises(InputError, match=r"domain\.layer_fractions: expected 3 numbers > 0") as caught:
+        multilayer.load(data)
+    assert len(str(caught.value)) < 400
+
+
+@pytest.mark.parametrize("x", [0.0, 0.006, 0.5, 0.494])
+def test_a_gate_on_an_end_face_of_the_domain_is_refused(x):
+    """The gate stands on the face nearest to ``x``; on an end face (40 cells of 12.5 mm:
+    x within 6.25 mm of an end) the side's boundary holds or releases the material.  A
+    gate there on periodic sides created 37 % of the mass with no error."""
+    data = copy.deepcopy(TINY_SCENARIO)
+    data["gate"] = {"x": x, "lift_speed": 0.0}
+    with pytest.raises(
+        InputError, match=r"gate\.x: gate at x = .* stands on an end face of the domain"
+    ) as caught:
+        multilayer.load(data)
+    assert "accepted: a number in (0.00625, 0.49375] (m)" in str(caught.value)
+    data["gate"]["x"] = 0.007 if x < 0.25 else 0.49375
+    assert multilayer.load(data).gate.x == data["gate"]["x"]
+
+
+@pytest.mark.parametrize(
+    ("bed", "phrase"),
+    [
+        ("\ufeff" + BED.replace("\n", "\r\n"), None),  # a spreadsheet's byte order mark and line ends
+        (BED.replace("-0.1", "\u0661"), "got '0.5, \u0661'"),  # an Arabic-Indic digit, read as 1 by float
+        (BED.replace("-0.1", "1_000"), "got '0.5, 1_000'"),  # read as 1000 by float
+    ],
+)
+def test_csv_numbers_are_ascii_decimals_and_a_byte_order_mark_is_no_header(tmp_path, bed, phrase):
+    (tmp_path / "bed.csv").write_text(bed, encoding="utf-8", newline="")
+    data = {**copy.deepcopy(TINY_SCENARIO), "bed": {"file": "bed.csv"}}
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(data))
+    if phrase is None:
+        (tmp_path / "plain.csv").write_text(BED)
+        (tmp_path / "plain.yaml").write_text(yaml.safe_dump({**data, "bed": {"file": "plain.csv"}}))
+        plain = multilayer.load(tmp_path / "plain.yaml").bed.points
+        np.testing.assert_array_equal(multilayer.load(tmp_path / "s.yaml").bed.points, plain)
+        return
+    with pytest.raises(InputError, match="bed.csv: line 3: expected two numbers") as caught:
+        multilayer.load(tmp_path / "s.yaml")
+    assert phrase in str(caught.value)
+
+
+@pytest.mark.parametrize("item", ["=", "a..b=1", ".domain=1", "domain.=1", "domain..cells=1"])
+def test_a_key_path_with_an_empty_part_is_malformed(tmp_path, cli, write_scenario, item):
+    """``--set a..b=1`` was "a: unknown key" and ``.domain=1`` "(top level): unknown key"."""
+    result = cli("validate", write_scenario(TINY_SCENARIO), "--set", item)
+    assert result.code == 2 and "Traceback" not in result.err
+    assert (
+        f"--set '{item}': expected KEY=VALUE or KEY+=VALUE; accepted: a dotted key path (no part empty)"
+        in result.err
+    )
+
+
+def test_spaces_around_a_key_are_not_part_of_it(write_scenario):
+    """``--set "domain.cells = 30"`` named the key ``"domain.cells "``, unknown."""
+    assert multilayer.load(write_scenario(TINY_SCENARIO), ["domain.cells = 30"]).domain.cells == 30
+
+
+@pytest.mark.parametrize("name", [RESULT_FILE, CHECKPOINT_FILE, "run.log"])
+@pytest.mark.parametrize("kind", ["directory", "pipe", "device"])
+def test_an_output_file_that_is_no_regular_file_is_refused_before_the_run(
+    tmp_path, cli, write_scenario, name, kind
+):
+    """``result.nc`` linked to /dev/zero was written into it and the summary was a
+    traceback; a pipe hung the command after its message."""
+    outdir = tmp_path / "out"
+    outdir.mkdir()
+    path = outdir / name
+    {
+        "directory": path.mkdir,
+        "pipe": lambda: os.mkfifo(path),
+        "device": lambda: path.symlink_to("/dev/zero"),
+    }[kind]()
+    result = cli("run", write_scenario(TINY_SCENARIO), "-o", outdir, "-q")
+    assert result.code == 2 and "Traceback" not in result.err
+    assert f"{path}: exists and is not a regular file" in result.err
+
+
+def test_validate_checks_sweep_and_study_files_with_every_member(tmp_path, cli, write_scenario):
+    """``validate`` refused every sweep file as a scenario missing name, domain, ...; it
+    checks a sweep with each of its members, and calibration and sensitivity files as
+    their commands read them."""
+    write_scenario(TINY_SCENARIO, "base.yaml")
+    sweep = write_scenario({"base": "base.yaml", "parameters": {"rheology.mu_s": [0.3, 0.4]}}, "sweep.yaml")
+    result = cli("validate", sweep)
+    assert result.code == 0 and f"{sweep}: ok (sweep of 2 members of" in result.out
+    bad = write_scenario({"base": "base.yaml", "parameters": {"domain.cells": [40, 0]}}, "bad.yaml")
+    result = cli("validate", bad)
+    assert result.code == 2 and "Traceback" not in result.err
+    assert "bad.yaml: member m001-" in result.err and "(domain.cells=0)" in result.err
+    sensitivity = {
+        "base": "base.yaml",
+        "parameters": {"rheology.mu_s": {"bounds": [0.3, 0.4]}},
+        "outputs": ["runout"],
+        "samples": 2,
+    }
+    result = cli("validate", write_scenario(sensitivity, "sobol.yaml"))
+    assert result.code == 0 and "ok (sensitivity of runout to rheology.mu_s)" in result.out, result.err
