@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import copy
 import os
+import shutil
 
 import numpy as np
 import pytest
@@ -15,6 +16,7 @@ from conftest import TINY_SCENARIO
 
 import multilayer
 from multilayer.errors import InputError
+from multilayer.io import results
 from multilayer.io.results import CHECKPOINT_FILE, RESULT_FILE
 
 BED = "x (m), z (m)\n0.0, 0.0\n0.5, -0.1\n"
@@ -190,3 +192,55 @@ def test_validate_checks_sweep_and_study_files_with_every_member(tmp_path, cli, 
     }
     result = cli("validate", write_scenario(sensitivity, "sobol.yaml"))
     assert result.code == 0 and "ok (sensitivity of runout to rheology.mu_s)" in result.out, result.err
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory):
+    """A finished run of the tiny scenario (its checkpoint and result), copied per test."""
+    directory = tmp_path_factory.mktemp("finished")
+    path = directory / "scenario.yaml"
+    path.write_text(yaml.safe_dump(TINY_SCENARIO))
+    multilayer.run(path, directory / "out")
+    return path, directory / "out"
+
+
+@pytest.mark.parametrize(
+    ("entry", "value", "phrase"),
+    [
+        (
+            "state.u",
+            lambda a: a.T.copy(),
+            "u: float64 values of shape (40, 3), where float64 of shape (3, 40)",
+        ),
+        ("state.seed_window", lambda a: np.array([-5, 400]), "seed_window = [-5, 400], outside the columns"),
+        ("state.steps", lambda a: np.array(-5), "steps = -5, where a number >= 0"),
+        ("state.bogus", lambda a: np.zeros(3), "bogus: an entry this version of multilayer does not write"),
+        (
+            "state.t",
+            lambda a: np.array(np.nan),
+            "corrupt checkpoint (state.t holds values that are not finite)",
+        ),
+        ("state.t", lambda a: np.array("abc"), "corrupt checkpoint (state.t holds <U3)"),
+        ("meta.scenario", lambda a: np.array(5), "corrupt checkpoint (meta.scenario is not text"),
+    ],
+)
+def test_a_checkpoint_of_another_layout_is_refused_naming_the_entry(
+    tmp_path, cli, finished, entry, value, phrase
+):
+    """A checkpoint whose checksum holds but whose entries this version does not write as
+    they are (another version, or edited): a transposed or shorter array, a step count of
+    another type were tracebacks (ValueError from deep inside), a seed window outside the
+    mesh was read into a compiled loop, a NaN time resumed as "completed"."""
+    path, source = finished
+    outdir = tmp_path / "out"
+    shutil.copytree(source, outdir)
+    ckpt = outdir / CHECKPOINT_FILE
+    arrays = dict(np.load(ckpt))
+    arrays.pop("checksum")
+    arrays[entry] = value(arrays.get(entry))
+    arrays["checksum"] = np.asarray(results._checksum(arrays))
+    with open(ckpt, "wb") as stream:
+        np.savez(stream, **arrays)
+    result = cli("run", path, "-o", outdir, "--resume", "--set", "time.end=0.1", "-q")
+    assert result.code == 2 and "Traceback" not in result.err
+    assert f"{ckpt}: " in result.err and phrase in result.err and "start again without --resume" in result.err

@@ -203,7 +203,13 @@ def _run(
         writer.write(sim)
         wall_before = 0.0
     else:
-        sim.load_state(ckpt.state)
+        try:
+            sim.load_state(ckpt.state)
+        except InputError as exc:
+            raise InputError(
+                f"{ckpt_path}: {exc}: not a checkpoint this version of multilayer writes for this scenario; "
+                "start again without --resume (the run is then computed afresh)"
+            ) from None
         writer = ResultWriter(result_path, scenario, sim, records=ckpt.records)
         wall_before = ckpt.wall_time_s
         log.info("restored the checkpoint at t = %.6g s, step %d", sim.t, sim.steps)

@@ -44,7 +44,7 @@ from multilayer.engine.mesh import LayeredMesh
 from multilayer.engine.mixture.flow import MixtureFlow
 from multilayer.engine.pressure.model import PressureModel, PressureSetup, models, options
 from multilayer.engine.state import FlowState, max_wave_speed, span, start_moving
-from multilayer.engine.state_check import StateGuard
+from multilayer.engine.state_check import StateGuard, check_restored
 from multilayer.engine.threads import ThreadPolicy
 from multilayer.engine.transport import boundaries
 from multilayer.engine.transport import kernel as transport_kernel
@@ -453,7 +453,9 @@ class Simulation:
         }
 
     def load_state(self, saved: dict) -> None:
-        """Restore a state saved by ``state_dict``."""
+        """Restore a state saved by ``state_dict`` (:class:`InputError` naming an entry
+        this simulation does not hold, or holds with another shape)."""
+        check_restored(saved, self.state_dict())
         self.t = float(saved["t"])
         self.steps = int(saved["steps"])
         self.newton_iterations = int(saved.get("newton_iterations", 0))
