@@ -244,3 +244,13 @@ def test_a_checkpoint_of_another_layout_is_refused_naming_the_entry(
     result = cli("run", path, "-o", outdir, "--resume", "--set", "time.end=0.1", "-q")
     assert result.code == 2 and "Traceback" not in result.err
     assert f"{ckpt}: " in result.err and phrase in result.err and "start again without --resume" in result.err
+
+
+@pytest.mark.parametrize("key", ["file", "dem"])
+def test_a_pipe_as_a_bed_file_is_refused_without_waiting_for_a_writer(tmp_path, key):
+    """A DEM is read by GDAL, which would wait for ever on a pipe: checked as the CSV is."""
+    os.mkfifo(tmp_path / "bed")
+    extra = {"polyline": [[0.0, 0.0], [1.0, 0.0]]} if key == "dem" else {}
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump({**TINY_SCENARIO, "bed": {key: "bed", **extra}}))
+    with pytest.raises(InputError, match=f"bed.{key} .*bed: not a regular file"):
+        multilayer.load(tmp_path / "s.yaml")

@@ -31,3 +31,17 @@ def read_text(path: Path, expected: str, readable: str) -> str:
         raise InputError(f"{path}: file not found; accepted: {expected}") from None
     except (OSError, UnicodeDecodeError, ValueError) as exc:
         raise InputError(f"{path}: cannot read the file ({exc}); accepted: {readable}") from None
+
+
+def check_regular(path: Path, expected: str, readable: str) -> None:
+    """:class:`InputError` as :func:`read_text` gives it if ``path`` is missing or not a
+    regular file, for a file read by another library (a DEM, read by GDAL, would wait
+    for ever on a pipe)."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        raise InputError(f"{path}: file not found; accepted: {expected}") from None
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path}: cannot read the file ({exc}); accepted: {readable}") from None
+    if not stat.S_ISREG(mode):
+        raise InputError(f"{path}: not a regular file; accepted: {readable}")

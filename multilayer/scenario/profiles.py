@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from multilayer.errors import InputError
-from multilayer.scenario.files import read_text
+from multilayer.scenario.files import check_regular, read_text
 from multilayer.scenario.limits import MAX_DEM_PIXELS, MAX_PROFILE_POINTS
 
 LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "km": 1e3}
@@ -108,6 +108,7 @@ def read_dem_profile(
     vertices = np.asarray(polyline, dtype=float)
     if spacing is not None:  # the samples are counted before the DEM is read
         _check_samples(path, vertices, spacing, "spacing")
+    check_regular(Path(path), "a GeoTIFF file", "a readable GeoTIFF file")
     try:
         import rasterio
     except ImportError:
