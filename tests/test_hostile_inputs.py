@@ -254,3 +254,24 @@ def test_a_pipe_as_a_bed_file_is_refused_without_waiting_for_a_writer(tmp_path, 
     (tmp_path / "s.yaml").write_text(yaml.safe_dump({**TINY_SCENARIO, "bed": {key: "bed", **extra}}))
     with pytest.raises(InputError, match=f"bed.{key} .*bed: not a regular file"):
         multilayer.load(tmp_path / "s.yaml")
+
+
+@pytest.mark.parametrize(
+    ("call", "phrase"),
+    [
+        (lambda sim: multilayer.Simulation(TINY_SCENARIO), "Simulation: got {'name': 'tiny'"),
+        (lambda sim: sim.advance(np.nan), "advance(t_target=nan): accepted: a finite number (s)"),
+        (lambda sim: sim.advance(np.inf), "advance(t_target=inf): accepted: a finite number (s)"),
+        (lambda sim: sim.advance(None), "advance(t_target=None): accepted"),
+        (lambda sim: sim.step("0.1"), "step(t_max='0.1'): t_max must be a number later than"),
+    ],
+)
+def test_stepping_by_hand_refuses_what_is_no_scenario_or_no_time(call, phrase):
+    """``Simulation(mapping)`` was an AttributeError, ``advance(nan)`` did nothing,
+    ``advance(inf)`` never ended, a time of text was a TypeError."""
+    sim = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
+    with pytest.raises(InputError) as caught:
+        call(sim)
+    assert phrase in str(caught.value)
+    sim.advance(np.array(0.01))  # a 0-d array (a time read from a Dataset) is a time
+    assert sim.t == 0.01

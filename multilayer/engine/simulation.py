@@ -31,6 +31,7 @@ the start of the step: the stages are redone until that set is complete.
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Callable
 from typing import Any
 
@@ -303,9 +304,9 @@ class Simulation:
                     return vertical, iterations
 
     def _check_target(self, t_max: float) -> None:
-        if not t_max > self.t:
+        if not _time(t_max) > self.t:
             raise InputError(
-                f"step(t_max={t_max!r}): t_max must be later than the current time t = {self.t!r} s"
+                f"step(t_max={t_max!r}): t_max must be a number later than the current time t = {self.t!r} s"
             )
 
     def _check_advances(self, dt: float) -> None:
@@ -419,7 +420,11 @@ class Simulation:
             )
 
     def advance(self, t_target: float, on_step: Callable[[Simulation, float], None] | None = None) -> None:
-        """Step until ``t == t_target``; ``on_step(sim, dt)`` is called after every step."""
+        """Step until ``t == t_target`` (a finite number: :class:`InputError` otherwise, where
+        the stepping would never end or never start); ``on_step(sim, dt)`` is called after
+        every step."""
+        if not math.isfinite(_time(t_target)):
+            raise InputError(f"advance(t_target={t_target!r}): accepted: a finite number (s)")
         while self.t < t_target:
             dt = self.step(t_target)
             if on_step is not None:
@@ -466,3 +471,9 @@ class Simulation:
         self.guard.reset(self.h, self.steps)
         if self.mixture is not None:
             self.mixture.reset(self.steps)
+
+
+def _time(value: object) -> float:
+    """``value`` as a time (s): a real number or a 0-d array of one; NaN for anything else."""
+    item = value.item() if isinstance(value, np.ndarray) and value.ndim == 0 else value
+    return float(item) if isinstance(item, numbers.Real) else math.nan

@@ -461,7 +461,9 @@ class Boundaries(StrictModel):
 class GateSpec(StrictModel):
     """A gate holding the initial column, lifted at the start of the run (engine/gate.py)."""
 
-    x: float = field(..., "a number in [domain.x_min, domain.x_max] (m); snapped to the nearest cell face")
+    x: float = field(
+        ..., "a number in (domain.x_min + dx/2, domain.x_max - dx/2] (m); snapped to the nearest cell face"
+    )
     lift_speed: float = field(
         ..., "a number >= 0 (m/s), normal to the plane; .inf: instantaneous release", ge=0, allow_inf_nan=True
     )
