@@ -967,6 +967,16 @@ def round_three() -> list[Case]:
                 setup=_bed_file("bed.csv", text),
             )
         )
+    for x1 in ("inf", "1e308"):
+        out.append(
+            Case(
+                f"plot: --xlim 0 {x1}",
+                ["plot", "{dir}/out", "--xlim", "0", x1],
+                2,
+                "times as wide",
+                setup=_finished_run,
+            )
+        )
     out.append(
         Case(
             "bed DEM: a pipe",

@@ -275,3 +275,15 @@ def test_stepping_by_hand_refuses_what_is_no_scenario_or_no_time(call, phrase):
     assert phrase in str(caught.value)
     sim.advance(np.array(0.01))  # a 0-d array (a time read from a Dataset) is a time
     assert sim.t == 0.01
+
+
+@pytest.mark.parametrize("x1", ["inf", "1e308"])
+def test_a_plot_window_without_end_is_refused(tmp_path, cli, finished, x1):
+    """``--xlim 0 inf`` and ``--xlim 0 1e308`` were an OverflowError in the vertical
+    exaggeration."""
+    _, source = finished
+    outdir = tmp_path / "out"
+    shutil.copytree(source, outdir)
+    result = cli("plot", outdir, "--xlim", "0", x1)
+    assert result.code == 2 and "Traceback" not in result.err
+    assert "at most 1000 times as wide" in result.err

@@ -195,6 +195,10 @@ def material_span(ds: xr.Dataset) -> tuple[float, float]:
     return max(lo, x0 - margin), min(hi, x1 + margin)
 
 
+XLIM_SPAN = 1000.0
+"""Widest window of ``--xlim``, in lengths of the domain (wider, the domain is a dot)."""
+
+
 def checked_xlim(ds: xr.Dataset, xlim: Sequence[float] | None) -> tuple[float, float]:
     """``xlim`` (``--xlim X0 X1``) if it is an interval overlapping the domain, else
     :func:`material_span` when it is None; InputError otherwise."""
@@ -203,9 +207,10 @@ def checked_xlim(ds: xr.Dataset, xlim: Sequence[float] | None) -> tuple[float, f
     edges = ds["x_bnds"].values
     lo, hi = float(edges[0, 0]), float(edges[-1, 1])
     x0, x1 = (float(x) for x in xlim)
-    if not (x0 < x1 and x0 < hi and x1 > lo):
+    if not (x0 < x1 and x0 < hi and x1 > lo and x1 - x0 <= XLIM_SPAN * (hi - lo)):
         raise InputError(
-            f"--xlim {x0:g} {x1:g}: accepted: X0 < X1 (m), overlapping the domain [{lo:g}, {hi:g}]"
+            f"--xlim {x0:g} {x1:g}: accepted: X0 < X1 (m), overlapping the domain [{lo:g}, {hi:g}], at most "
+            f"{XLIM_SPAN:g} times as wide"
         )
     return x0, x1
 
