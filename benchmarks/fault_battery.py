@@ -956,8 +956,8 @@ def round_three() -> list[Case]:
         ("steps a float", "state.steps", np.array(2.5), "steps: float64 values"),
     ):
         out.append(Case(f"checkpoint: {name}", resume, 2, phrase, setup=_checkpoint_entry(entry, value)))
-    for name, value in (("Arabic-Indic digit", "\u0661"), ("underscore", "1_000")):
-        text = f"x (m), z (m)\n0.0, 0.0\n0.5, {value}\n"
+    for name, number in (("Arabic-Indic digit", "\u0661"), ("underscore", "1_000")):
+        text = f"x (m), z (m)\n0.0, 0.0\n0.5, {number}\n"
         out.append(
             Case(
                 f"bed CSV: {name}",

@@ -287,3 +287,21 @@ def test_a_plot_window_without_end_is_refused(tmp_path, cli, finished, x1):
     result = cli("plot", outdir, "--xlim", "0", x1)
     assert result.code == 2 and "Traceback" not in result.err
     assert "at most 1000 times as wide" in result.err
+
+
+@pytest.mark.parametrize(
+    ("text", "value"),
+    [("010", 10), ("0o10", 8), ("0x28", 40), ("1:20", "1:20"), ("0_3", "0_3"), ("1e1", 10.0)],
+)
+def test_numbers_are_read_by_the_yaml_1_2_core_schema(text, value):
+    """YAML 1.1 (PyYAML's rule) read ``010`` as eight, ``1:20`` as 80 and ``0_3`` as 3:
+    ``cells: 0100`` ran 64 cells without a word; text is refused where a number is expected."""
+    from multilayer.scenario.source import Loader
+
+    read = yaml.load(text, Loader=Loader)
+    assert read == value and type(read) is type(value)
+    if isinstance(value, str):
+        with pytest.raises(
+            InputError, match=f"domain.cells .*Input should be a valid integer \\(got '{value}'\\)"
+        ):
+            multilayer.load(TINY_SCENARIO, [f"domain.cells={text}"])
