@@ -305,3 +305,13 @@ def test_numbers_are_read_by_the_yaml_1_2_core_schema(text, value):
             InputError, match=f"domain.cells .*Input should be a valid integer \\(got '{value}'\\)"
         ):
             multilayer.load(TINY_SCENARIO, [f"domain.cells={text}"])
+
+
+def test_a_base_or_result_that_exists_but_is_no_file_is_not_called_missing(tmp_path, cli, write_scenario):
+    """A sweep's base ``/dev/zero`` was "not found", a directory named result.nc "no result file"."""
+    sweep = write_scenario({"base": "/dev/zero", "parameters": {"rheology.mu_s": [0.3]}}, "sweep.yaml")
+    result = cli("validate", sweep)
+    assert result.code == 2 and "scenario file /dev/zero is not a regular file" in result.err
+    (tmp_path / "out" / RESULT_FILE).mkdir(parents=True)
+    result = cli("plot", tmp_path / "out")
+    assert result.code == 2 and f"{tmp_path / 'out' / RESULT_FILE}: not a regular file" in result.err

@@ -134,8 +134,12 @@ def load(path: str | Path) -> Sweep:
     if not isinstance(data["base"], str) or not data["base"]:
         raise bad(("base",), f"got {shown(data['base'])}", base_accepted)
     base = path.parent / data["base"]
-    if not base.is_file():
-        raise bad(("base",), f"scenario file {base} not found", base_accepted)
+    if not base.is_file():  # a directory or a pipe is no scenario file either
+        raise bad(
+            ("base",),
+            f"scenario file {base} {'is not a regular file' if base.exists() else 'not found'}",
+            base_accepted,
+        )
     try:
         scenario.load(base)
     except InputError as exc:

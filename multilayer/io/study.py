@@ -312,8 +312,9 @@ def _check_base(path: Path, lines: dict, config: _Study, experiments: dict[str, 
     and upper bounds must be a valid scenario (the key named otherwise)."""
     base = path.parent / config.base
     if not base.is_file():
+        missing = "is not a regular file" if base.exists() else "not found"
         raise InputError(
-            f"{_at(path, lines, 'base')}: scenario file {base} not found; "
+            f"{_at(path, lines, 'base')}: scenario file {base} {missing}; "
             "accepted: the path of a scenario file, relative to this file"
         )
     try:
@@ -416,7 +417,8 @@ def _read(path: Path, lines: dict, index: int, obs: Observation, experiment: str
         raise _unvalidated(obs, "file")
     file = path.parent / obs.file
     if not file.is_file():
-        raise InputError(f"{where}: {file} not found; accepted: a CSV or netCDF file, relative to {path}")
+        missing = "is not a regular file" if file.exists() else "not found"
+        raise InputError(f"{where}: {file} {missing}; accepted: a CSV or netCDF file, relative to {path}")
     if file.suffix == ".nc":
         if obs.variable is None:
             raise _unvalidated(obs, "variable")
