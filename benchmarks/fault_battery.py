@@ -892,6 +892,14 @@ def _bed_file(name: str, text: str | None) -> Callable[[Path], None]:
     return setup
 
 
+def _piped_output(directory: Path, file: str) -> None:
+    """A finished run whose ``out/<file>`` (a figure or a VTK file) is a pipe."""
+    _finished_run(directory)
+    path = directory / "out" / file
+    path.parent.mkdir(exist_ok=True)
+    os.mkfifo(path)
+
+
 def _sweep_file(directory: Path) -> None:
     _scenario(directory)
     sweep = {"base": "scenario.yaml", "parameters": {"domain.cells": [40, 0]}}
@@ -965,6 +973,19 @@ def round_three() -> list[Case]:
                 2,
                 "expected two numbers",
                 setup=_bed_file("bed.csv", text),
+            )
+        )
+    for command, file in (
+        (["plot", "{dir}/out"], "plots/front.png"),
+        (["export", "{dir}/out", "--vtk"], "vtk/result.pvd"),
+    ):
+        out.append(
+            Case(
+                f"{command[0]}: {file} a pipe",
+                command,
+                2,
+                "exists and is not a regular file",
+                setup=partial(_piped_output, file=file),
             )
         )
     for x1 in ("inf", "1e308"):

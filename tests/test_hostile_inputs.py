@@ -315,3 +315,17 @@ def test_a_base_or_result_that_exists_but_is_no_file_is_not_called_missing(tmp_p
     (tmp_path / "out" / RESULT_FILE).mkdir(parents=True)
     result = cli("plot", tmp_path / "out")
     assert result.code == 2 and f"{tmp_path / 'out' / RESULT_FILE}: not a regular file" in result.err
+
+
+@pytest.mark.parametrize(("command", "file"), [("plot", "plots/front.png"), ("export", "vtk/result.pvd")])
+def test_a_figure_or_vtk_file_that_is_a_pipe_is_refused(tmp_path, cli, finished, command, file):
+    """``export --vtk`` waited for ever on a pipe named vtk/result.pvd (plot as well on a
+    pipe named after one of its figures)."""
+    _, source = finished
+    outdir = tmp_path / "out"
+    shutil.copytree(source, outdir)
+    (outdir / file).parent.mkdir(exist_ok=True)
+    os.mkfifo(outdir / file)
+    result = cli(command, outdir, *(["--vtk"] if command == "export" else []))
+    assert result.code == 2 and "Traceback" not in result.err
+    assert f"{outdir / file}: exists and is not a regular file" in result.err

@@ -50,6 +50,7 @@ from multilayer.app.lock import locked
 from multilayer.app.progress import Progress
 from multilayer.app.simulation import Simulation
 from multilayer.errors import InputError, Interrupted, RunError
+from multilayer.io.disk import writable
 from multilayer.io.result_check import check_result
 from multilayer.io.results import (
     CHECKPOINT_FILE,
@@ -163,13 +164,8 @@ def _output_directory(outdir: Path) -> list[Path]:
         raise InputError(
             f"{outdir}: cannot be created or written ({exc.strerror or exc}); {accepted}"
         ) from None
-    for name in (RESULT_FILE, CHECKPOINT_FILE, LOG_FILE):  # a pipe or a device would be written for ever
-        path = outdir / name
-        if path.exists() and not path.is_file():
-            raise InputError(
-                f"{path}: exists and is not a regular file (a directory, a pipe or a device); accepted: an "
-                f"output directory where {RESULT_FILE}, {CHECKPOINT_FILE} and {LOG_FILE} are files or absent"
-            )
+    for name in (RESULT_FILE, CHECKPOINT_FILE, LOG_FILE):
+        writable(outdir / name)
     return missing
 
 

@@ -29,6 +29,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
 from multilayer.errors import InputError
+from multilayer.io.disk import writable
 from multilayer.io.result_check import ending
 from multilayer.io.results import open_result, seismic_force
 
@@ -92,7 +93,7 @@ def plot_run(
     paths = []
     for stem, fig in figures.items():
         path = out / f"{stem}.{fmt}"
-        fig.savefig(path, dpi=120, format=fmt)
+        fig.savefig(writable(path), dpi=120, format=fmt)
         paths.append(path)
     if animate:
         paths.append(animate_section(ds, name, out / "section", xlim=xlim))
@@ -344,7 +345,7 @@ def animate_section(
         path, writer = stem.with_suffix(".mp4"), animation.FFMpegWriter(fps=fps)
     else:
         path, writer = stem.with_suffix(".gif"), animation.PillowWriter(fps=fps)
-    movie.save(path, writer=writer, dpi=100)
+    movie.save(writable(path), writer=writer, dpi=100)
     return path
 
 
