@@ -329,3 +329,27 @@ def test_a_figure_or_vtk_file_that_is_a_pipe_is_refused(tmp_path, cli, finished,
     result = cli(command, outdir, *(["--vtk"] if command == "export" else []))
     assert result.code == 2 and "Traceback" not in result.err
     assert f"{outdir / file}: exists and is not a regular file" in result.err
+
+
+def test_a_damaged_result_is_named_without_numpy_warnings(tmp_path, finished):
+    """A NaN thickness and an infinite velocity in result.nc: the checks name the record;
+    numpy's "invalid value encountered in multiply" was printed before the message."""
+    import warnings
+
+    import netCDF4
+
+    from multilayer.io.result_check import check_result
+
+    _, source = finished
+    outdir = tmp_path / "out"
+    shutil.copytree(source, outdir)
+    with netCDF4.Dataset(outdir / RESULT_FILE, "a") as ds:
+        ds["h"][1, 2:9] = np.nan
+        ds["u"][1, 1, :] = np.inf
+    with (
+        warnings.catch_warnings(record=True) as caught,
+        pytest.raises(InputError, match="fails its checks: h = nan"),
+    ):
+        warnings.simplefilter("always")
+        check_result(outdir)
+    assert not [str(w.message) for w in caught if issubclass(w.category, RuntimeWarning)]

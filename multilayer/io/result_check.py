@@ -134,6 +134,7 @@ CHUNK_VALUES = 2**23
 """Values read at once when records are checked (64 MB of doubles): whole records."""
 
 
+@np.errstate(invalid="ignore", over="ignore")  # damaged values are named by the checks, not warned of
 def _check_records(ds: netCDF4.Dataset, count: int, bad) -> None:
     """Raise ``bad(...)`` at the first of the first ``count`` records that fails its checks;
     the records are read in chunks of about :data:`CHUNK_VALUES` values and screened at
