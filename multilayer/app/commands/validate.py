@@ -4,10 +4,10 @@ Every file is checked; each invalid one gets one message naming the file, the ke
 the YAML line and what is accepted.  The memory and output size of each run are
 estimated and checked against the budget, as `multilayer run` does, and every ``expect:``
 comparison with an exact solution must apply to the file, as `multilayer check` requires.
-A sweep file (its keys among base, parameters, zip, output, description) is checked with
-every member, as `multilayer sweep` would run it; a calibration or sensitivity file (a
-``base`` with ``observations``, or with ``outputs``), as `multilayer calibrate` and
-`multilayer sensitivity` read it.
+A sweep file (a ``base`` that is a path) is checked with every member, as `multilayer
+sweep` would run it; a calibration or sensitivity file (such a ``base`` with
+``observations``, or with ``outputs``), as `multilayer calibrate` and `multilayer
+sensitivity` read it.
 """
 
 from __future__ import annotations
@@ -48,13 +48,23 @@ def main(args: argparse.Namespace) -> int:
 
 
 def _check_file(path: str, args: argparse.Namespace) -> str:
-    """The summary of a valid file of any kind (:class:`InputError` otherwise)."""
-    from multilayer.app import sweep as sweeps
+    """The summary of a valid file of any kind (:class:`InputError` otherwise): a file whose
+    ``base`` is a path (a scenario's is a list of basal conditions) is a calibration with
+    ``observations``, a sensitivity study with ``outputs``, else a sweep."""
     from multilayer.io import study
 
     data, _ = scenarios.read_yaml(path)
-    keys = set(data) if isinstance(data, dict) and "base" in data else set()
-    if keys and keys <= set(sweeps.SWEEP_KEYS):
+    study_base = isinstance(data, dict) and isinstance(data.get("base"), str)
+    if study_base and "observations" in data:
+        calibration = study.load_calibration(path)
+        searched = ", ".join(calibration.config.parameters)
+        return f"calibration of {searched} against {len(calibration.data)} observations"
+    if study_base and "outputs" in data:
+        config = study.load_sensitivity(path).config
+        return f"sensitivity of {', '.join(config.outputs)} to {', '.join(config.parameters)}"
+    if study_base:
+        from multilayer.app import sweep as sweeps  # the engine, for the sweep's runs
+
         plan = sweeps.load(path)
         members = plan.members()
         for member in members:
@@ -64,13 +74,6 @@ def _check_file(path: str, args: argparse.Namespace) -> str:
             except InputError as exc:
                 raise InputError(f"{where}:\n{exc}") from None
         return f"sweep of {len(members)} members of {plan.base}, each valid"
-    if "observations" in keys:
-        calibration = study.load_calibration(path)
-        searched = ", ".join(calibration.config.parameters)
-        return f"calibration of {searched} against {len(calibration.data)} observations"
-    if "outputs" in keys:
-        config = study.load_sensitivity(path).config
-        return f"sensitivity of {', '.join(config.outputs)} to {', '.join(config.parameters)}"
     return _check(scenarios.load(path, args.overrides), path, args)
 
 
