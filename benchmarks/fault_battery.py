@@ -843,6 +843,173 @@ def round_two() -> list[Case]:
     return out
 
 
+def _output_file(name: str, kind: str) -> Callable[[Path], None]:
+    """``out/<name>`` made a directory, a pipe or a link to /dev/zero before the run."""
+
+    def setup(directory: Path) -> None:
+        _scenario(directory)
+        path = directory / "out" / name
+        path.parent.mkdir()
+        {
+            "directory": path.mkdir,
+            "pipe": lambda: os.mkfifo(path),
+            "device": lambda: path.symlink_to("/dev/zero"),
+        }[kind]()
+
+    return setup
+
+
+def _checkpoint_entry(entry: str, value: Any) -> Callable[[Path], None]:
+    """A finished run whose checkpoint holds ``entry = value`` under a valid checksum."""
+
+    def setup(directory: Path) -> None:
+        from multilayer.io import results
+
+        _finished_run(directory)
+        ckpt = directory / "out" / "checkpoint.npz"
+        arrays: dict[str, Any] = dict(np.load(ckpt))
+        arrays.pop("checksum")
+        arrays[entry] = value(arrays[entry]) if callable(value) else value
+        arrays["checksum"] = np.asarray(results._checksum(arrays))
+        with open(ckpt, "wb") as stream:
+            np.savez(stream, **arrays)
+
+    return setup
+
+
+def _bed_file(name: str, text: str | None) -> Callable[[Path], None]:
+    """A scenario whose bed is read from ``name``: a CSV of ``text``, or a pipe (None)."""
+
+    def setup(directory: Path) -> None:
+        key = "dem" if name.endswith(".tif") else "file"
+        extra = {"polyline": [[0.0, 0.0], [1.0, 0.0]], "spacing": 0.1} if key == "dem" else {}
+        _scenario(directory, {"bed": {key: name, **extra}})
+        if text is None:
+            os.mkfifo(directory / name)
+        else:
+            (directory / name).write_text(text, encoding="utf-8")
+
+    return setup
+
+
+def _piped_output(directory: Path, file: str) -> None:
+    """A finished run whose ``out/<file>`` (a figure or a VTK file) is a pipe."""
+    _finished_run(directory)
+    path = directory / "out" / file
+    path.parent.mkdir(exist_ok=True)
+    os.mkfifo(path)
+
+
+def _sweep_file(directory: Path) -> None:
+    _scenario(directory)
+    sweep = {"base": "scenario.yaml", "parameters": {"domain.cells": [40, 0]}}
+    (directory / "sweep.yaml").write_text(yaml.safe_dump(sweep))
+
+
+def round_three() -> list[Case]:
+    """The hostile cases of the third round (docs/reliability.md): the gate on an end face,
+    sweeps through validate, --set key paths with an empty part, output files that are no
+    regular files, checkpoints of another layout, numbers of a CSV file, a pipe as a DEM."""
+    out: list[Case] = []
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    for x in (0.0, 0.5):
+        for command in (["validate", "{scenario}"], run):
+            out.append(
+                Case(
+                    f"gate at x = {x}: {command[0]}",
+                    command,
+                    2,
+                    "stands on an end face of the domain",
+                    setup=partial(_scenario, changes={"gate": {"x": x, "lift_speed": 0.0}}),
+                )
+            )
+    out.append(
+        Case(
+            "validate: sweep with an invalid member",
+            ["validate", "{dir}/sweep.yaml"],
+            2,
+            "member m001-",
+            setup=_sweep_file,
+        )
+    )
+    for item in ("a..b=1", ".domain=1", "domain.=1"):
+        out.append(
+            Case(
+                f"--set {item}",
+                ["validate", "{scenario}", "--set", item],
+                2,
+                "no part empty",
+                setup=_scenario,
+            )
+        )
+    for name in ("result.nc", "checkpoint.npz", "run.log"):
+        for kind in ("directory", "pipe", "device"):
+            out.append(
+                Case(
+                    f"output: {name} a {kind}",
+                    run,
+                    2,
+                    "exists and is not a regular file",
+                    setup=_output_file(name, kind),
+                )
+            )
+    resume = ["run", "{scenario}", "-o", "{dir}/out", "--resume", "--set", "time.end=0.3", "-q"]
+    for name, entry, value, phrase in (
+        ("u transposed", "state.u", lambda a: a.T.copy(), "u: float64 values of shape (40, 3)"),
+        ("h shorter", "state.h", lambda a: a[:-1].copy(), "h: float64 values of shape (39,)"),
+        ("seed window outside", "state.seed_window", np.array([-5, 400]), "outside the columns of the mesh"),
+        ("t NaN", "state.t", np.array(np.nan), "state.t holds values that are not finite"),
+        ("t text", "state.t", np.array("abc"), "state.t holds <U3"),
+        ("scenario a number", "meta.scenario", np.array(5), "meta.scenario is not text"),
+        ("steps a float", "state.steps", np.array(2.5), "steps: float64 values"),
+    ):
+        out.append(Case(f"checkpoint: {name}", resume, 2, phrase, setup=_checkpoint_entry(entry, value)))
+    for name, number in (("Arabic-Indic digit", "\u0661"), ("underscore", "1_000")):
+        text = f"x (m), z (m)\n0.0, 0.0\n0.5, {number}\n"
+        out.append(
+            Case(
+                f"bed CSV: {name}",
+                ["validate", "{scenario}"],
+                2,
+                "expected two numbers",
+                setup=_bed_file("bed.csv", text),
+            )
+        )
+    for command, file in (
+        (["plot", "{dir}/out"], "plots/front.png"),
+        (["export", "{dir}/out", "--vtk"], "vtk/result.pvd"),
+    ):
+        out.append(
+            Case(
+                f"{command[0]}: {file} a pipe",
+                command,
+                2,
+                "exists and is not a regular file",
+                setup=partial(_piped_output, file=file),
+            )
+        )
+    for x1 in ("inf", "1e308"):
+        out.append(
+            Case(
+                f"plot: --xlim 0 {x1}",
+                ["plot", "{dir}/out", "--xlim", "0", x1],
+                2,
+                "times as wide",
+                setup=_finished_run,
+            )
+        )
+    out.append(
+        Case(
+            "bed DEM: a pipe",
+            ["validate", "{scenario}"],
+            2,
+            "not a regular file",
+            setup=_bed_file("dem.tif", None),
+        )
+    )
+    return out
+
+
 def cases() -> list[Case]:
     out: list[Case] = []
     budget = ["--max-memory", "8G", "--max-output", "1G"]
@@ -995,7 +1162,7 @@ def cases() -> list[Case]:
             Case(f"plot: {how} result", ["plot", "{dir}/out"], code, phrase, setup=_result_damage(how))
         )
     out.append(Case("plot: no result", ["plot", "{dir}"], 2, "no result file"))
-    return out + round_two()
+    return out + round_two() + round_three()
 
 
 def _records(path: Path) -> int:
@@ -1050,6 +1217,8 @@ def attempt(case: Case) -> Case:
             problems.append(f"exit {proc.returncode}, expected {case.code}")
         if "Traceback" in err:
             problems.append("traceback")
+        if "encountered in" in err:  # numpy's RuntimeWarnings: the message is the run's own
+            problems.append("numpy warning")
         if case.phrase not in err:
             problems.append(f"stderr lacks {case.phrase!r}")
         if case.keeps_output and _records(directory / "out" / "result.nc") < 1:

@@ -23,7 +23,7 @@ def _run(*overrides: str, t_end: float = 0.25) -> Simulation:
 
 def test_opening_fractions_are_the_parts_of_the_layers_below_the_edge():
     interfaces = np.array([0.0, 0.25, 0.5, 0.75, 1.0])
-    gate = Gate(0.0, 0.1, np.linspace(-1.0, 1.0, 11), interfaces)
+    gate = Gate(0.0, 0.1, -1.0, 0.2, 10, interfaces)
     assert gate.face == 5 and gate.x == 0.0
     h = np.zeros(10)
     h[4] = 0.08  # the column west of the face; the east one is dry
@@ -31,7 +31,7 @@ def test_opening_fractions_are_the_parts_of_the_layers_below_the_edge():
     np.testing.assert_allclose(gate.opening(h, 0.3), [1.0, 0.5, 0.0, 0.0], rtol=0, atol=1e-15)
     np.testing.assert_array_equal(gate.opening(h, 0.0), 0.0)
     assert gate.opening(h, 0.8) is None  # the edge is above the material: no gate
-    assert Gate(0.0, np.inf, np.linspace(-1, 1, 11), interfaces).opening(h, 0.0) is None
+    assert Gate(0.0, np.inf, -1.0, 0.2, 10, interfaces).opening(h, 0.0) is None
 
 
 def test_infinite_lift_speed_is_the_instantaneous_release_bit_for_bit():

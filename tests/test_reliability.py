@@ -619,7 +619,7 @@ def test_stepping_past_the_end_or_without_progress_is_a_named_error_never_a_hang
     sim = simulation(initial=[{"shape": "rectangle", "x_min": 0.0, "x_max": 2.0, "height": 0.5}])
     sim.step()
     with pytest.raises(
-        InputError, match=r"step\(t_max=0.0\): t_max must be later than the current time t = "
+        InputError, match=r"step\(t_max=0.0\): t_max must be a number later than the current time t = "
     ):
         sim.step(0.0)
     sim.load_state({**sim.state_dict(), "t": 1e17})  # dt ~ 1e-2 s is below the spacing of floats at 1e17

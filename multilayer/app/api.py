@@ -20,7 +20,8 @@ import yaml
 from multilayer import scenario as scenarios
 from multilayer.errors import InputError
 from multilayer.io.results import open_result
-from multilayer.scenario import Scenario
+from multilayer.scenario import Scenario, limits
+from multilayer.scenario.messages import shown
 
 ScenarioLike = Scenario | str | os.PathLike | Mapping[str, Any]
 Overrides = Mapping[str, Any] | Sequence[str]
@@ -28,19 +29,27 @@ Overrides = Mapping[str, Any] | Sequence[str]
 
 def _override_strings(overrides: Overrides) -> list[str]:
     """``--set`` strings from ``{"domain.cells": 200}`` or ``["domain.cells=200"]``."""
+    accepted = 'a mapping of dotted keys to values, or a list of "KEY=VALUE" strings'
     if isinstance(overrides, Mapping):
         strings = []
         for key, value in overrides.items():
+            if not isinstance(key, str) or "=" in key:
+                raise InputError(
+                    f"overrides: key {shown(key)}; accepted: {accepted} (keys are strings without '=')"
+                )
             try:
-                strings.append(f"{key}={json.dumps(value, allow_nan=False)}")  # JSON is YAML
+                text = json.dumps(limits.plain_data(value, f"overrides: {key}"), allow_nan=False)
             except (TypeError, ValueError):
                 raise InputError(
-                    f"overrides: {key}: {value!r} is not a value of a scenario; accepted: finite numbers, "
-                    "strings, booleans, None, and lists and mappings of them"
+                    f"overrides: {key}: {shown(value)} is not a value of a scenario; accepted: finite "
+                    "numbers, strings, booleans, None, and lists and mappings of them"
                 ) from None
+            strings.append(f"{key}={text}")  # JSON is YAML
         return strings
     if isinstance(overrides, str):
         return [overrides]
+    if not isinstance(overrides, Sequence) or not all(isinstance(item, str) for item in overrides):
+        raise InputError(f"overrides: got {shown(overrides)}; accepted: {accepted}")
     return list(overrides)
 
 
@@ -58,8 +67,17 @@ def load(source: ScenarioLike, overrides: Overrides = ()) -> Scenario:
         data = yaml.safe_load(source.resolved_yaml())
         return scenarios.from_dict(data, source=source.source, overrides=sets)
     if isinstance(source, Mapping):
-        return scenarios.from_dict(dict(source), overrides=sets)
-    return scenarios.load(Path(source), sets)
+        return scenarios.from_dict(limits.plain_data(source, "<scenario>"), overrides=sets)
+    return scenarios.load(
+        _path(source, "scenario", "a Scenario, a mapping of scenario keys or the path of a YAML file"), sets
+    )
+
+
+def _path(value: object, what: str, accepted: str) -> Path:
+    """``value`` as a path (:class:`InputError` naming ``what`` if it is none)."""
+    if not isinstance(value, (str, os.PathLike)) or isinstance(os.fspath(value), bytes):
+        raise InputError(f"{what}: got {shown(value)}; accepted: {accepted}")
+    return Path(value)
 
 
 def run(
@@ -83,6 +101,7 @@ def run(
 
     loaded = load(scenario, overrides)
     if outdir is not None:
+        outdir = _path(outdir, "outdir", "None or the path of a directory")
         runner.run(loaded, outdir, quiet=quiet)
         return open_result(outdir)
     with tempfile.TemporaryDirectory(prefix="multilayer-") as tmp:

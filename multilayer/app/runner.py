@@ -50,6 +50,7 @@ from multilayer.app.lock import locked
 from multilayer.app.progress import Progress
 from multilayer.app.simulation import Simulation
 from multilayer.errors import InputError, Interrupted, RunError
+from multilayer.io.disk import writable
 from multilayer.io.result_check import check_result
 from multilayer.io.results import (
     CHECKPOINT_FILE,
@@ -163,6 +164,8 @@ def _output_directory(outdir: Path) -> list[Path]:
         raise InputError(
             f"{outdir}: cannot be created or written ({exc.strerror or exc}); {accepted}"
         ) from None
+    for name in (RESULT_FILE, CHECKPOINT_FILE, LOG_FILE):
+        writable(outdir / name)
     return missing
 
 
@@ -196,7 +199,13 @@ def _run(
         writer.write(sim)
         wall_before = 0.0
     else:
-        sim.load_state(ckpt.state)
+        try:
+            sim.load_state(ckpt.state)
+        except InputError as exc:
+            raise InputError(
+                f"{ckpt_path}: {exc}: not a checkpoint this version of multilayer writes for this scenario; "
+                "start again without --resume (the run is then computed afresh)"
+            ) from None
         writer = ResultWriter(result_path, scenario, sim, records=ckpt.records)
         wall_before = ckpt.wall_time_s
         log.info("restored the checkpoint at t = %.6g s, step %d", sim.t, sim.steps)

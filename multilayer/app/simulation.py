@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from multilayer.app import factory
 from multilayer.engine import simulation
+from multilayer.errors import InputError
 from multilayer.scenario import Scenario
+from multilayer.scenario.messages import shown
 
 
 class Simulation(simulation.Simulation):
@@ -13,6 +15,11 @@ class Simulation(simulation.Simulation):
     :func:`multilayer.load`), which it keeps as ``scenario``."""
 
     def __init__(self, scenario: Scenario):
+        if not isinstance(scenario, Scenario):
+            raise InputError(
+                f"Simulation: got {shown(scenario)}; accepted: a Scenario, as multilayer.load returns "
+                "it from a file or a mapping"
+            )
         self.scenario = scenario
         bulk, walls = factory.laws(scenario)
         super().__init__(

@@ -43,6 +43,7 @@ from multilayer.io.results import (
     run_failure,
 )
 from multilayer.scenario import as_overrides, format_value
+from multilayer.scenario.messages import shown
 
 SWEEP_KEYS = ("base", "parameters", "zip", "output", "description")
 """Top-level keys accepted in a sweep file."""
@@ -131,10 +132,14 @@ def load(path: str | Path) -> Sweep:
     if "base" not in data:
         raise bad(("base",), "required key is missing", base_accepted)
     if not isinstance(data["base"], str) or not data["base"]:
-        raise bad(("base",), f"got {data['base']!r}", base_accepted)
+        raise bad(("base",), f"got {shown(data['base'])}", base_accepted)
     base = path.parent / data["base"]
-    if not base.is_file():
-        raise bad(("base",), f"scenario file {base} not found", base_accepted)
+    if not base.is_file():  # a directory or a pipe is no scenario file either
+        raise bad(
+            ("base",),
+            f"scenario file {base} {'is not a regular file' if base.exists() else 'not found'}",
+            base_accepted,
+        )
     try:
         scenario.load(base)
     except InputError as exc:
@@ -144,7 +149,7 @@ def load(path: str | Path) -> Sweep:
     if not isinstance(parameters, dict) or not parameters:
         raise bad(
             ("parameters",),
-            f"got {parameters!r}",
+            f"got {shown(parameters)}",
             "a non-empty mapping of dotted scenario keys to lists of values, "
             "e.g. {rheology.mu_s: [0.4, 0.5]}",
         )
@@ -156,11 +161,11 @@ def load(path: str | Path) -> Sweep:
                 "a dotted scenario key such as domain.cells or initial.0.thickness",
             )
         if not isinstance(values, list) or not values:
-            raise bad(("parameters", key), f"got {values!r}", "a non-empty list of values")
+            raise bad(("parameters", key), f"got {shown(values)}", "a non-empty list of values")
 
     paired = data.get("zip", False)
     if not isinstance(paired, bool):
-        raise bad(("zip",), f"got {paired!r}", "true or false")
+        raise bad(("zip",), f"got {shown(paired)}", "true or false")
     lengths = {key: len(values) for key, values in parameters.items()}
     if paired and len(set(lengths.values())) > 1:
         raise bad(
@@ -196,13 +201,13 @@ def load(path: str | Path) -> Sweep:
 
     output = data.get("output", {})
     if not isinstance(output, dict):
-        raise bad(("output",), f"got {output!r}", "a mapping with the key directory")
+        raise bad(("output",), f"got {shown(output)}", "a mapping with the key directory")
     for key in output:
         if key != "directory":
             raise bad(("output", str(key)), "unknown key", "directory")
     directory = output.get("directory")
     if directory is not None and (not isinstance(directory, str) or not directory):
-        raise bad(("output", "directory"), f"got {directory!r}", "a directory path")
+        raise bad(("output", "directory"), f"got {shown(directory)}", "a directory path")
 
     return Sweep(
         path=path,

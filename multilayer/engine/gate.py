@@ -25,13 +25,24 @@ import math
 import numpy as np
 
 
-class Gate:
-    """A gate on the face nearest to ``x`` whose lower edge rises at ``lift_speed`` (m/s)."""
+def gate_face(x: float, x_min: float, dx: float, cells: int) -> int:
+    """The index of the face nearest to ``x`` among the ``cells + 1`` faces ``x_min + i dx``
+    (face i between cells i-1 and i), the lower one on a tie."""
+    guess = min(max(math.floor((x - x_min) / dx), 0), cells)
+    near = range(max(guess - 1, 0), min(guess + 2, cells) + 1)  # the floor may be one off
+    return min(near, key=lambda i: (abs(x_min + dx * i - x), i))
 
-    def __init__(self, x: float, lift_speed: float, x_faces: np.ndarray, interfaces: np.ndarray):
+
+class Gate:
+    """A gate on the face nearest to ``x`` whose lower edge rises at ``lift_speed`` (m/s),
+    on a mesh of ``cells`` cells of ``dx`` from ``x_min``."""
+
+    def __init__(
+        self, x: float, lift_speed: float, x_min: float, dx: float, cells: int, interfaces: np.ndarray
+    ):
         #: index of the gate face among the N + 1 faces (face i lies between cells i-1 and i)
-        self.face = int(np.argmin(np.abs(x_faces - x)))
-        self.x = float(x_faces[self.face])
+        self.face = gate_face(x, x_min, dx, cells)
+        self.x = x_min + dx * self.face
         self.lift_speed = float(lift_speed)
         self._bottoms = interfaces[:-1]  # z_{a-1}: bottom of each layer as a fraction of h
         self._fractions = np.diff(interfaces)

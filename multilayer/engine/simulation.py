@@ -31,6 +31,7 @@ the start of the step: the stages are redone until that set is complete.
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Callable
 from typing import Any
 
@@ -44,7 +45,7 @@ from multilayer.engine.mesh import LayeredMesh
 from multilayer.engine.mixture.flow import MixtureFlow
 from multilayer.engine.pressure.model import PressureModel, PressureSetup, models, options
 from multilayer.engine.state import FlowState, max_wave_speed, span, start_moving
-from multilayer.engine.state_check import StateGuard
+from multilayer.engine.state_check import StateGuard, check_restored
 from multilayer.engine.threads import ThreadPolicy
 from multilayer.engine.transport import boundaries
 from multilayer.engine.transport import kernel as transport_kernel
@@ -102,8 +103,7 @@ class Simulation:
             self.inflow = boundaries.InflowState(float(thickness), u_in)
         self.gate = None
         if c.gate is not None:
-            faces = c.x_min + self.dx * np.arange(c.cells + 1)
-            self.gate = Gate(c.gate.x, c.gate.lift_speed, faces, self.mesh.interfaces)
+            self.gate = Gate(c.gate.x, c.gate.lift_speed, c.x_min, self.dx, c.cells, self.mesh.interfaces)
         #: the transport: the compiled kernel, or the numpy reference formulation
         compiled = c.numerics.transport_solver == "kernel"
         self.transport: Callable[..., tuple[np.ndarray, np.ndarray]] = (
@@ -304,9 +304,9 @@ class Simulation:
                     return vertical, iterations
 
     def _check_target(self, t_max: float) -> None:
-        if not t_max > self.t:
+        if not _time(t_max) > self.t:
             raise InputError(
-                f"step(t_max={t_max!r}): t_max must be later than the current time t = {self.t!r} s"
+                f"step(t_max={t_max!r}): t_max must be a number later than the current time t = {self.t!r} s"
             )
 
     def _check_advances(self, dt: float) -> None:
@@ -420,7 +420,11 @@ class Simulation:
             )
 
     def advance(self, t_target: float, on_step: Callable[[Simulation, float], None] | None = None) -> None:
-        """Step until ``t == t_target``; ``on_step(sim, dt)`` is called after every step."""
+        """Step until ``t == t_target`` (a finite number: :class:`InputError` otherwise, where
+        the stepping would never end or never start); ``on_step(sim, dt)`` is called after
+        every step."""
+        if not math.isfinite(_time(t_target)):
+            raise InputError(f"advance(t_target={t_target!r}): accepted: a finite number (s)")
         while self.t < t_target:
             dt = self.step(t_target)
             if on_step is not None:
@@ -454,7 +458,9 @@ class Simulation:
         }
 
     def load_state(self, saved: dict) -> None:
-        """Restore a state saved by ``state_dict``."""
+        """Restore a state saved by ``state_dict`` (:class:`InputError` naming an entry
+        this simulation does not hold, or holds with another shape)."""
+        check_restored(saved, self.state_dict())
         self.t = float(saved["t"])
         self.steps = int(saved["steps"])
         self.newton_iterations = int(saved.get("newton_iterations", 0))
@@ -465,3 +471,9 @@ class Simulation:
         self.guard.reset(self.h, self.steps)
         if self.mixture is not None:
             self.mixture.reset(self.steps)
+
+
+def _time(value: object) -> float:
+    """``value`` as a time (s): a real number or a 0-d array of one; NaN for anything else."""
+    item = value.item() if isinstance(value, np.ndarray) and value.ndim == 0 else value
+    return float(item) if isinstance(item, numbers.Real) else math.nan

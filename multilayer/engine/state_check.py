@@ -28,12 +28,13 @@ quantity, its value and where (x, layer, time).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from typing import Any
 
 import numpy as np
 
 from multilayer.engine.compiled import jit
-from multilayer.errors import RunError
+from multilayer.errors import InputError, RunError
 
 ROUND_OFF = 64 * np.finfo(float).eps
 
@@ -177,3 +178,28 @@ def _finite(bits: np.ndarray, lo: int, hi: int) -> bool:
         for i in range(row.size):
             found |= np.uint64((row[i] & exponent) == exponent)
     return found == 0
+
+
+_COUNTS = ("t", "steps", "newton_iterations", "force_elapsed", "seed_dt")
+"""Entries of a state that are never negative."""
+
+
+def check_restored(saved: Mapping[str, Any], fresh: Mapping[str, Any]) -> None:
+    """A state to restore (a checkpoint) holds entries of ``fresh``, the state of the same
+    simulation at its start, each of its shape, real numbers (integers where it holds
+    integers); the times and counts are not negative and the seed's columns lie in the
+    mesh.  :class:`InputError` naming the entry otherwise (a checkpoint of another version
+    or layout, or edited); the state guard then checks ``h`` and ``u``."""
+    for key, value in saved.items():
+        if key not in fresh:
+            raise InputError(f"{key}: an entry this version of multilayer does not write")
+        a, ref = np.asarray(value), np.asarray(fresh[key])
+        if a.shape != ref.shape or a.dtype.kind not in ("iu" if ref.dtype.kind in "iu" else "iuf"):
+            raise InputError(
+                f"{key}: {a.dtype} values of shape {a.shape}, where {ref.dtype} of shape {ref.shape}"
+            )
+        if key in _COUNTS and not a >= 0:
+            raise InputError(f"{key} = {a}, where a number >= 0")
+    first, stop = np.asarray(saved.get("seed_window", (0, 0)))
+    if not 0 <= first <= stop <= np.asarray(fresh["h"]).size:
+        raise InputError(f"seed_window = [{first}, {stop}], outside the columns of the mesh")

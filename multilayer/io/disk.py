@@ -16,6 +16,8 @@ import os
 import shutil
 from pathlib import Path
 
+from multilayer.errors import InputError
+
 FULL_ERRNOS = frozenset({errno.ENOSPC, errno.EFBIG, errno.EDQUOT})
 """The errors of a write that found no room: disk full, file too large, quota exceeded."""
 SLACK = 8192
@@ -66,3 +68,15 @@ def full_disk_reason(exc: BaseException) -> str | None:
     if number in FULL_ERRNOS or any(words in text for words in FULL_MESSAGES):
         return "disk full"
     return None
+
+
+def writable(path: Path) -> Path:
+    """``path``, where a file is about to be written: absent or a regular file.  A pipe
+    there would take the write for ever and a device swallow it, a directory refuse it:
+    :class:`InputError` naming it otherwise."""
+    if path.exists() and not path.is_file():
+        raise InputError(
+            f"{path}: exists and is not a regular file (a directory, a pipe or a device); accepted: "
+            "no file there, or a regular file to replace"
+        )
+    return path

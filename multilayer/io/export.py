@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from multilayer.io.disk import writable
 from multilayer.io.result_check import ending
 from multilayer.io.results import open_result
 
@@ -32,11 +33,11 @@ def export_vtk(directory: str | os.PathLike) -> tuple[list[Path], str | None]:
     entries, paths = [], []
     for k in range(ds.sizes["time"]):
         path = out / f"result_{k:04d}.vts"
-        path.write_text(structured_grid(ds.isel(time=k)))
+        writable(path).write_text(structured_grid(ds.isel(time=k)))
         paths.append(path)
         entries.append(f'    <DataSet timestep="{float(ds["time"][k])!r}" file="{path.name}"/>')
     pvd = out / "result.pvd"
-    pvd.write_text(
+    writable(pvd).write_text(
         '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n'
         "  <Collection>\n" + "\n".join(entries) + "\n  </Collection>\n"
         "</VTKFile>\n"

@@ -29,6 +29,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
 from multilayer.errors import InputError
+from multilayer.io.disk import writable
 from multilayer.io.result_check import ending
 from multilayer.io.results import open_result, seismic_force
 
@@ -92,7 +93,7 @@ def plot_run(
     paths = []
     for stem, fig in figures.items():
         path = out / f"{stem}.{fmt}"
-        fig.savefig(path, dpi=120, format=fmt)
+        fig.savefig(writable(path), dpi=120, format=fmt)
         paths.append(path)
     if animate:
         paths.append(animate_section(ds, name, out / "section", xlim=xlim))
@@ -195,6 +196,10 @@ def material_span(ds: xr.Dataset) -> tuple[float, float]:
     return max(lo, x0 - margin), min(hi, x1 + margin)
 
 
+XLIM_SPAN = 1000.0
+"""Widest window of ``--xlim``, in lengths of the domain (wider, the domain is a dot)."""
+
+
 def checked_xlim(ds: xr.Dataset, xlim: Sequence[float] | None) -> tuple[float, float]:
     """``xlim`` (``--xlim X0 X1``) if it is an interval overlapping the domain, else
     :func:`material_span` when it is None; InputError otherwise."""
@@ -203,9 +208,10 @@ def checked_xlim(ds: xr.Dataset, xlim: Sequence[float] | None) -> tuple[float, f
     edges = ds["x_bnds"].values
     lo, hi = float(edges[0, 0]), float(edges[-1, 1])
     x0, x1 = (float(x) for x in xlim)
-    if not (x0 < x1 and x0 < hi and x1 > lo):
+    if not (x0 < x1 and x0 < hi and x1 > lo and x1 - x0 <= XLIM_SPAN * (hi - lo)):
         raise InputError(
-            f"--xlim {x0:g} {x1:g}: accepted: X0 < X1 (m), overlapping the domain [{lo:g}, {hi:g}]"
+            f"--xlim {x0:g} {x1:g}: accepted: X0 < X1 (m), overlapping the domain [{lo:g}, {hi:g}], at most "
+            f"{XLIM_SPAN:g} times as wide"
         )
     return x0, x1
 
@@ -339,7 +345,7 @@ def animate_section(
         path, writer = stem.with_suffix(".mp4"), animation.FFMpegWriter(fps=fps)
     else:
         path, writer = stem.with_suffix(".gif"), animation.PillowWriter(fps=fps)
-    movie.save(path, writer=writer, dpi=100)
+    movie.save(writable(path), writer=writer, dpi=100)
     return path
 
 

@@ -63,7 +63,8 @@ def check_result(path: str | os.PathLike, use: Use = "answer", records: int | No
     ``records``: with ``use="resume"``, the records that must be whole."""
     file = result_path(path)
     if not file.is_file():
-        raise ResultFileError(f"{file}: no result file; accepted: the output directory of `multilayer run`")
+        missing = "not a regular file" if file.exists() else "no result file"
+        raise ResultFileError(f"{file}: {missing}; accepted: the output directory of `multilayer run`")
 
     def bad(what: str, accepted: str = "a result file written by `multilayer run`, whole") -> ResultFileError:
         return ResultFileError(f"{file}: {what}; accepted: {accepted}")
@@ -133,6 +134,7 @@ CHUNK_VALUES = 2**23
 """Values read at once when records are checked (64 MB of doubles): whole records."""
 
 
+@np.errstate(invalid="ignore", over="ignore")  # damaged values are named by the checks, not warned of
 def _check_records(ds: netCDF4.Dataset, count: int, bad) -> None:
     """Raise ``bad(...)`` at the first of the first ``count`` records that fails its checks;
     the records are read in chunks of about :data:`CHUNK_VALUES` values and screened at

@@ -460,4 +460,14 @@ def load_checkpoint(path: str | os.PathLike) -> Checkpoint:
             raise KeyError(", ".join(sorted(missing)))
     except KeyError as exc:
         raise corrupt(f"missing {exc}") from None
+    # a checkpoint of another version or edited: numbers where numbers are read, text for the scenario
+    for key, a in arrays.items():
+        if key != "meta.scenario" and (a.dtype.kind not in "iuf" or not np.isfinite(a).all()):
+            raise corrupt(f"{key} holds {'values that are not finite' if a.dtype.kind in 'iuf' else a.dtype}")
+    if (
+        not isinstance(meta["scenario"], str)
+        or arrays["meta.records"].dtype.kind not in "iu"
+        or meta["records"] < 1
+    ):
+        raise corrupt("meta.scenario is not text or meta.records no count of records")
     return Checkpoint(state=state, **meta)

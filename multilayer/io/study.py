@@ -38,6 +38,7 @@ from multilayer.scenario.files import read_text
 from multilayer.scenario.limits import MAX_PROFILE_POINTS
 from multilayer.scenario.messages import StrictModel, describe, dotted, field, invalid
 from multilayer.scenario.overrides import as_overrides
+from multilayer.scenario.profiles import csv_number
 
 Scalar = Literal["runout", "front_final", "duration", "mass_final"]
 """Scalar quantities measured on a run (multilayer.io.observables)."""
@@ -311,8 +312,9 @@ def _check_base(path: Path, lines: dict, config: _Study, experiments: dict[str, 
     and upper bounds must be a valid scenario (the key named otherwise)."""
     base = path.parent / config.base
     if not base.is_file():
+        missing = "is not a regular file" if base.exists() else "not found"
         raise InputError(
-            f"{_at(path, lines, 'base')}: scenario file {base} not found; "
+            f"{_at(path, lines, 'base')}: scenario file {base} {missing}; "
             "accepted: the path of a scenario file, relative to this file"
         )
     try:
@@ -415,7 +417,8 @@ def _read(path: Path, lines: dict, index: int, obs: Observation, experiment: str
         raise _unvalidated(obs, "file")
     file = path.parent / obs.file
     if not file.is_file():
-        raise InputError(f"{where}: {file} not found; accepted: a CSV or netCDF file, relative to {path}")
+        missing = "is not a regular file" if file.exists() else "not found"
+        raise InputError(f"{where}: {file} {missing}; accepted: a CSV or netCDF file, relative to {path}")
     if file.suffix == ".nc":
         if obs.variable is None:
             raise _unvalidated(obs, "variable")
@@ -468,7 +471,7 @@ def _read_csv(file: Path, columns: list[str], where: str) -> tuple[np.ndarray, n
             raise InputError(
                 f"{where}: {file} has more than {MAX_PROFILE_POINTS} rows; accepted: at most that"
             )
-        table = [[float(row[c]) for row in rows] for c in columns]
+        table = [[csv_number(row[c]) for row in rows] for c in columns]
     except KeyError as exc:
         raise InputError(
             f"{where}: {file} has no column {exc}; accepted: a CSV file with a header row"

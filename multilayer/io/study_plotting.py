@@ -18,6 +18,7 @@ import xarray as xr
 from matplotlib.figure import Figure
 
 from multilayer.errors import InputError
+from multilayer.io.disk import writable
 from multilayer.io.plotting import PLOTS_DIR
 
 _STAGE_COLOURS = {"search": "C0", "refine": "C1", "uncertainty": "C2"}
@@ -66,7 +67,7 @@ def plot_study(directory: str | os.PathLike, filename: str) -> list[Path]:
         figures = {"sobol.png": sobol_figure(ds)}
     paths = []
     for name, fig in figures.items():
-        fig.savefig(out / name, dpi=120)
+        fig.savefig(writable(out / name), dpi=120)
         paths.append(out / name)
     return paths
 

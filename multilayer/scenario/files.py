@@ -11,21 +11,37 @@ from multilayer.scenario.limits import MAX_FILE_BYTES
 
 
 def read_text(path: Path, expected: str, readable: str) -> str:
-    """The UTF-8 text of ``path``; :class:`InputError` naming it, with ``expected`` as what
-    is accepted if it is missing and ``readable`` if it cannot be read or decoded, is not
-    a regular file (a device or a pipe could be read for ever) or is longer than
-    :data:`~multilayer.scenario.limits.MAX_FILE_BYTES`."""
-    try:
-        if not stat.S_ISREG(os.stat(path).st_mode):
+    """The UTF-8 text of ``path`` (without a byte order mark); :class:`InputError` naming
+    it, with ``expected`` as what is accepted if it is missing and ``readable`` if it
+    cannot be read or decoded, is not a regular file (a device or a pipe could be read
+    for ever) or is longer than :data:`~multilayer.scenario.limits.MAX_FILE_BYTES`."""
+    try:  # opened without waiting for a writer (a pipe), then checked as opened
+        descriptor = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+        if not stat.S_ISREG(os.fstat(descriptor).st_mode):
+            os.close(descriptor)
             raise InputError(f"{path}: not a regular file; accepted: {readable}")
-        with open(path, "rb") as stream:
+        with os.fdopen(descriptor, "rb") as stream:
             data = stream.read(MAX_FILE_BYTES + 1)
         if len(data) > MAX_FILE_BYTES:
             raise InputError(
                 f"{path}: longer than {MAX_FILE_BYTES} bytes; accepted: {readable} of at most that size"
             )
-        return data.decode("utf-8")
+        return data.decode("utf-8-sig")  # a byte order mark (spreadsheets write one) is no text
     except FileNotFoundError:
         raise InputError(f"{path}: file not found; accepted: {expected}") from None
     except (OSError, UnicodeDecodeError, ValueError) as exc:
         raise InputError(f"{path}: cannot read the file ({exc}); accepted: {readable}") from None
+
+
+def check_regular(path: Path, expected: str, readable: str) -> None:
+    """:class:`InputError` as :func:`read_text` gives it if ``path`` is missing or not a
+    regular file, for a file read by another library (a DEM, read by GDAL, would wait
+    for ever on a pipe)."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        raise InputError(f"{path}: file not found; accepted: {expected}") from None
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path}: cannot read the file ({exc}); accepted: {readable}") from None
+    if not stat.S_ISREG(mode):
+        raise InputError(f"{path}: not a regular file; accepted: {readable}")

@@ -16,6 +16,10 @@ largest profile a few thousand points) and are listed in docs/reliability.md.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
 import yaml
 
 from multilayer.errors import InputError
@@ -74,6 +78,37 @@ def check_yaml(text: str, where: str, loader: type) -> None:
                 raise _refused(where, event, f"more than {MAX_NODES} values once its aliases are expanded")
     except yaml.YAMLError:
         return  # the loader names the problem and its line
+
+
+def plain_data(value: Any, where: str) -> Any:
+    """A copy of ``value``, a scenario or a value given as Python data (``multilayer.load``
+    of a mapping), in the types YAML gives: numpy scalars and arrays as numbers and lists,
+    tuples as lists.  :class:`InputError` naming ``where`` and the key beyond the bounds of
+    a YAML text (nesting, number of values); a structure that holds itself nests without end."""
+    count = 0
+
+    def plain(item: Any, path: tuple[Any, ...]) -> Any:
+        nonlocal count
+        count += 1 + (item.size if isinstance(item, np.ndarray) else 0)
+        if len(path) > MAX_DEPTH or count > MAX_NODES:
+            key = ".".join(str(k) for k in path[:4]) + (".(...)" if len(path) > 4 else "")
+            raise InputError(
+                f"{where}: {key or '(top level)'}: more than {MAX_DEPTH} nested collections or {MAX_NODES} "
+                f"values; accepted: mappings and lists nested at most {MAX_DEPTH} deep, not holding "
+                f"themselves, of at most {MAX_NODES} values"
+            )
+        if isinstance(item, Mapping):
+            return {
+                (key.item() if isinstance(key, np.generic) else key): plain(entry, (*path, key))
+                for key, entry in item.items()
+            }
+        if isinstance(item, np.ndarray):
+            return item.tolist()
+        if isinstance(item, (list, tuple)):
+            return [plain(entry, (*path, index)) for index, entry in enumerate(item)]
+        return item.item() if isinstance(item, np.generic) else item
+
+    return plain(value, ())
 
 
 def _refused(where: str, event: yaml.Event, what: str) -> InputError:

@@ -104,6 +104,12 @@ def model_in(annotation: Any) -> type[BaseModel] | None:
     return None
 
 
+def shown(value: Any) -> str:
+    """``repr(value)`` cut to 60 characters: a message quotes what it got, not a whole list."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 def describe(error: Mapping[str, Any], root: type[BaseModel]) -> tuple[KeyPath, str, str]:
     """(key path, what is wrong, what is accepted) of one pydantic error in the model ``root``."""
     loc, kind, ctx = tuple(error["loc"]), error["type"], error.get("ctx") or {}
@@ -114,8 +120,7 @@ def describe(error: Mapping[str, Any], root: type[BaseModel]) -> tuple[KeyPath, 
         return loc, "unknown key", accepted(loc[:-1], last_is_key=True, root=root)
     if kind == "missing":
         return loc, "required key is missing", accepted(loc, last_is_key=False, root=root)
-    got = repr(error.get("input"))
-    got = got if len(got) <= 60 else got[:57] + "..."
+    got = shown(error.get("input"))
     what = (
         f"got {got}"
         if kind == "literal_error"

@@ -11,7 +11,7 @@ import yaml
 
 from multilayer.errors import InputError
 from multilayer.scenario import limits
-from multilayer.scenario.messages import KeyPath, dotted
+from multilayer.scenario.messages import KeyPath, dotted, shown
 from multilayer.scenario.source import Loader, format_value
 
 
@@ -33,19 +33,21 @@ def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> tuple[dic
     paths: list[KeyPath] = []
     for item in overrides:
         key, sep, text = item.partition("=")
+        key = key.strip()  # "domain.cells = 200" names domain.cells
         append = key.endswith("+")
-        key = key.removesuffix("+")
-        if not sep or not key:
+        key = key.removesuffix("+").rstrip()
+        if not sep or "" in key.split("."):
             raise InputError(
-                f"--set {item!r}: expected KEY=VALUE or KEY+=VALUE; accepted: a dotted key path "
-                "and a YAML value, e.g. domain.cells=200 or initial+={shape: layer, thickness: 0.002}"
+                f"--set {shown(item)}: expected KEY=VALUE or KEY+=VALUE; accepted: a dotted key path "
+                "(no part empty) and a YAML value, e.g. domain.cells=200 or initial+={shape: layer, "
+                "thickness: 0.002}"
             )
         limits.check_yaml(text, f"--set {key}", Loader)
         try:
             value = yaml.load(text, Loader=Loader)
         except yaml.YAMLError as exc:
             raise InputError(
-                f"--set {key}: malformed YAML value {text!r}; accepted: a YAML "
+                f"--set {key}: malformed YAML value {shown(text)}; accepted: a YAML "
                 f"scalar, list or mapping ({getattr(exc, 'problem', exc)})"
             ) from None
         node: Any = data

@@ -20,13 +20,23 @@ from pathlib import Path
 import numpy as np
 
 from multilayer.errors import InputError
-from multilayer.scenario.files import read_text
+from multilayer.scenario.files import check_regular, read_text
 from multilayer.scenario.limits import MAX_DEM_PIXELS, MAX_PROFILE_POINTS
 
 LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "km": 1e3}
 """Units accepted in a CSV header, with their value in metres."""
 
 _HEADER_CELL = re.compile(r"^\s*([A-Za-z_]\w*)\s*[\(\[]\s*([A-Za-z]+)\s*[\)\]]\s*$")
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+
+
+def csv_number(text: str) -> float:
+    """A number of a CSV file, in ASCII decimal notation: ``float`` alone also reads
+    ``1_000``, ``nan`` and the digits of other scripts, which no CSV writer means as a
+    number (ValueError for them)."""
+    if not _NUMBER.fullmatch(text.strip()):
+        raise ValueError(f"could not convert {text.strip()!r} to a number")
+    return float(text)
 
 
 def read_csv_profile(path: str | Path, columns: Sequence[str]) -> np.ndarray:
@@ -67,7 +77,7 @@ def read_csv_profile(path: str | Path, columns: Sequence[str]) -> np.ndarray:
     for line_no, line in rows[1:]:
         fields = line.split(",")
         try:
-            x, value = (float(f) for f in fields) if len(fields) == 2 else (math.nan, None)
+            x, value = (csv_number(f) for f in fields) if len(fields) == 2 else (math.nan, None)
         except ValueError:
             x = math.nan
         if not (math.isfinite(x) and value is not None and math.isfinite(value)):
@@ -98,6 +108,7 @@ def read_dem_profile(
     vertices = np.asarray(polyline, dtype=float)
     if spacing is not None:  # the samples are counted before the DEM is read
         _check_samples(path, vertices, spacing, "spacing")
+    check_regular(Path(path), "a GeoTIFF file", "a readable GeoTIFF file")
     try:
         import rasterio
     except ImportError:

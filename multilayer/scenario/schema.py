@@ -27,6 +27,7 @@ from pydantic import (
 )
 
 from multilayer.engine import basal
+from multilayer.engine.gate import gate_face
 from multilayer.engine.mesh import cell_centres
 from multilayer.engine.mixture import closure
 from multilayer.engine.pressure import model as pressure_models
@@ -43,6 +44,7 @@ from multilayer.scenario.messages import (
     increasing,
     invalid,
     ordered,
+    shown,
 )
 
 Quantity = Literal[
@@ -94,7 +96,7 @@ class Domain(StrictModel):
                 isinstance(v, (int, float)) and not isinstance(v, bool) and 0 < v < np.inf for v in value
             ):
                 raise invalid(
-                    f"expected {self.layers} numbers > 0, got {value!r}", accepted, "layer_fractions"
+                    f"expected {self.layers} numbers > 0, got {shown(value)}", accepted, "layer_fractions"
                 )
             if abs(sum(value) - 1) > _FRACTION_SUM_TOLERANCE:
                 raise invalid(f"fractions sum to {sum(value)!r}, not 1", accepted, "layer_fractions")
@@ -106,9 +108,9 @@ class Domain(StrictModel):
                 or not isinstance(ratio, (int, float))
                 or not 0 < ratio < np.inf
             ):
-                raise invalid(f"got {value!r}", accepted, "layer_fractions")
+                raise invalid(f"got {shown(value)}", accepted, "layer_fractions")
         elif value != "uniform":
-            raise invalid(f"got {value!r}", accepted, "layer_fractions")
+            raise invalid(f"got {shown(value)}", accepted, "layer_fractions")
         return self
 
 
@@ -172,7 +174,7 @@ class PluginSpec(StrictModel):
                 if error["type"] == "extra_forbidden"
                 else f"missing parameter of {self.name}"
                 if error["type"] == "missing"
-                else f"{self.name}: {error['msg']} (got {error['input']!r})"
+                else f"{self.name}: {error['msg']} (got {shown(error['input'])})"
             )
             raise invalid(message, plugins.signature_text(cls), key) from None
         try:
@@ -196,7 +198,7 @@ class BaseZone(StrictModel):
     def _check(self) -> BaseZone:
         condition = basal.CONDITIONS.get(self.condition)
         if condition is None:
-            raise invalid(f"got {self.condition!r}", basal.accepted(), "condition")
+            raise invalid(f"got {shown(self.condition)}", basal.accepted(), "condition")
         given = self.model_extra or {}
         accepted = ", ".join(("condition", *condition.parameters, "x_min", "x_max"))
         for key in condition.parameters:
@@ -207,7 +209,7 @@ class BaseZone(StrictModel):
                 raise invalid(f"not a key of condition {self.condition}", accepted, key)
             number = type(value) in (int, float) and np.isfinite(value)
             if not (number and value >= 0):
-                raise invalid(f"got {value!r}", condition.parameters[key], key)
+                raise invalid(f"got {shown(value)}", condition.parameters[key], key)
         if self.x_min is not None and self.x_max is not None:
             ordered(self.x_min, self.x_max)
         return self
@@ -435,7 +437,7 @@ class Boundaries(StrictModel):
     @classmethod
     def _known(cls, value: str) -> str:
         if value not in lateral.BOUNDARIES:
-            raise invalid(f"got {value!r}", lateral.accepted())
+            raise invalid(f"got {shown(value)}", lateral.accepted())
         return value
 
     @model_validator(mode="after")
@@ -459,7 +461,9 @@ class Boundaries(StrictModel):
 class GateSpec(StrictModel):
     """A gate holding the initial column, lifted at the start of the run (engine/gate.py)."""
 
-    x: float = field(..., "a number in [domain.x_min, domain.x_max] (m); snapped to the nearest cell face")
+    x: float = field(
+        ..., "a number in (domain.x_min + dx/2, domain.x_max - dx/2] (m); snapped to the nearest cell face"
+    )
     lift_speed: float = field(
         ..., "a number >= 0 (m/s), normal to the plane; .inf: instantaneous release", ge=0, allow_inf_nan=True
     )
@@ -574,7 +578,7 @@ class Numerics(StrictModel):
     def _threads(cls, value: Any) -> int | str:
         if value == "auto" or (type(value) is int and value >= 1):
             return value
-        raise invalid(f"got {value!r}", THREADS_ACCEPTED)
+        raise invalid(f"got {shown(value)}", THREADS_ACCEPTED)
 
 
 class Model(StrictModel):
@@ -589,7 +593,7 @@ class Model(StrictModel):
     @classmethod
     def _known(cls, value: str) -> str:
         if value not in pressure_models.models():
-            raise invalid(f"got {value!r}", pressure_models.accepted())
+            raise invalid(f"got {shown(value)}", pressure_models.accepted())
         return value
 
     @property
@@ -608,7 +612,7 @@ class Model(StrictModel):
             option = owner.options[key]
             if owner is not chosen or not option.valid(value, layers):
                 raise invalid(
-                    f"got {value!r} with pressure {self.pressure} and {layers} layers",
+                    f"got {shown(value)} with pressure {self.pressure} and {layers} layers",
                     f"{option.accepted.format(layers=layers)}, with pressure: {owner.name}",
                     f"model.{key}",
                 )
@@ -685,12 +689,8 @@ class Scenario(StrictModel):
                 "domain.width > 0 (m) together with walls",
                 "walls",
             )
-        if self.gate is not None and not self.domain.x_min <= self.gate.x <= self.domain.x_max:
-            raise invalid(
-                f"gate at x = {self.gate.x} is outside the domain",
-                f"a number in [{self.domain.x_min}, {self.domain.x_max}] (m)",
-                "gate.x",
-            )
+        if self.gate is not None:
+            self._check_gate()
         covered, gap = self.domain.x_min, None
         for lo, hi in sorted(
             (-np.inf if z.x_min is None else z.x_min, np.inf if z.x_max is None else z.x_max)
@@ -710,6 +710,24 @@ class Scenario(StrictModel):
             )
         self._check_mixture()
         return self
+
+    def _check_gate(self) -> None:
+        """The gate stands on a face inside the domain: on an end face the side's boundary
+        holds or releases the material and a gate would make it leak or appear."""
+        x, lo, hi, cells = self.gate.x, self.domain.x_min, self.domain.x_max, self.domain.cells  # type: ignore[union-attr]
+        dx = (hi - lo) / cells
+        accepted = (
+            f"a number in ({lo + dx / 2:.6g}, {hi - dx / 2:.6g}] (m): the nearest cell face inside the domain"
+        )
+        if not lo <= x <= hi:
+            raise invalid(f"gate at x = {x} is outside the domain", accepted, "gate.x")
+        if gate_face(x, lo, dx, cells) in (0, cells):
+            raise invalid(
+                f"gate at x = {x} stands on an end face of the domain (the face of its cells nearest to x), "
+                "where the side's boundary holds or releases the material",
+                accepted,
+                "gate.x",
+            )
 
     def _check_mixture(self) -> None:
         """``fluid`` and ``mixture`` come together, with ``phi`` in every initial entry and

@@ -19,16 +19,39 @@ from multilayer.scenario import limits
 from multilayer.scenario.files import read_text
 from multilayer.scenario.messages import KeyPath, dotted
 
+_INT, _FLOAT = "tag:yaml.org,2002:int", "tag:yaml.org,2002:float"
+
 
 class Loader(yaml.SafeLoader):
-    """SafeLoader that also reads ``1e-3`` and ``2E5`` as floats (the YAML 1.2 rule)."""
+    """SafeLoader reading numbers by the YAML 1.2 core schema: ``1e-3`` and ``2E5`` are
+    floats, ``010`` is ten (YAML 1.1, PyYAML's rule, read eight), and ``1:20`` or
+    ``0_3`` are text, refused where a number is expected (YAML 1.1 read 80 and 3)."""
+
+    yaml_implicit_resolvers = {
+        first: [(tag, rule) for tag, rule in resolvers if tag not in (_INT, _FLOAT)]
+        for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()
+    }
+
+
+def _integer(loader: yaml.SafeLoader, node: yaml.ScalarNode) -> int:
+    """An integer of the YAML 1.2 core schema: decimal, ``0o`` octal or ``0x`` hexadecimal."""
+    text = str(loader.construct_scalar(node))
+    sign, digits = (-1, text[1:]) if text[0] == "-" else (1, text.lstrip("+"))
+    base = {"0o": 8, "0x": 16}.get(digits[:2], 10)
+    return sign * int(digits[2:] if base != 10 else digits, base)
 
 
 Loader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(r"^[-+]?[0-9][0-9_]*(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
-    list("-+0123456789"),
+    _INT, re.compile(r"^(?:[-+]?[0-9]+|0o[0-7]+|0x[0-9a-fA-F]+)$"), list("-+0123456789")
 )
+Loader.add_implicit_resolver(
+    _FLOAT,
+    re.compile(
+        r"^(?:[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$"
+    ),
+    list("-+0123456789."),
+)
+Loader.add_constructor(_INT, _integer)
 
 
 def line_map(node: yaml.Node, where: str, path: KeyPath = (), lines=None) -> dict[KeyPath, int]:

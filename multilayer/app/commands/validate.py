@@ -1,9 +1,13 @@
-"""Check scenario files without running them (exit 2 if any is invalid).
+"""Check scenario, sweep and study files without running them (exit 2 if any is invalid).
 
 Every file is checked; each invalid one gets one message naming the file, the key path,
 the YAML line and what is accepted.  The memory and output size of each run are
 estimated and checked against the budget, as `multilayer run` does, and every ``expect:``
 comparison with an exact solution must apply to the file, as `multilayer check` requires.
+A sweep file (a ``base`` that is a path) is checked with every member, as `multilayer
+sweep` would run it; a calibration or sensitivity file (such a ``base`` with
+``observations``, or with ``outputs``), as `multilayer calibrate` and `multilayer
+sensitivity` read it.
 """
 
 from __future__ import annotations
@@ -17,14 +21,15 @@ from multilayer.app import expectations, factory, resources
 from multilayer.app.commands import add_budget_arguments, add_set_argument, budget
 from multilayer.engine import initial_state
 from multilayer.errors import InputError
+from multilayer.scenario import Scenario
 
-HELP = "check scenario files without running them"
+HELP = "check scenario, sweep and study files without running them"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``multilayer validate``."""
-    parser.add_argument("files", metavar="FILE", nargs="+", help="scenario YAML files")
-    add_set_argument(parser, "override a key in every file, as for 'multilayer run'")
+    parser.add_argument("files", metavar="FILE", nargs="+", help="scenario, sweep or study YAML files")
+    add_set_argument(parser, "override a key in every scenario file and every member of a sweep")
     add_budget_arguments(parser)
 
 
@@ -33,25 +38,60 @@ def main(args: argparse.Namespace) -> int:
     invalid = 0
     for path in args.files:
         try:
-            scenario = scenarios.load(path, args.overrides)
-            limits = budget(args)
-            need = resources.check(scenario, scenario.output.directory or Path("results"), limits)
-            dom = scenario.domain
-            dx = (dom.x_max - dom.x_min) / dom.cells
-            entries = factory.initial_entries(scenario)
-            initial_state.check_entries(entries, dom.x_min, dom.x_max, dx, str(path))
-            steps = resources.check_steps(scenario, limits)
-            expectations.validate(scenario)
+            line = _check_file(path, args)
         except InputError as exc:
             print(f"multilayer: error: {exc}", file=sys.stderr)
             invalid += 1
             continue
-        domain = scenario.domain
-        print(
-            f"{path}: ok ({scenario.name}: {domain.cells} cells x {domain.layers} layers, "
-            f"rheology {scenario.rheology.name}, t_end = {scenario.time.end:g} s; about "
-            f"{resources.size_text(need.memory)} of memory, {need.records:.0f} output times, "
-            f"result.nc about {resources.size_text(need.output)}, about {steps.count:.2g} time steps "
-            f"(--max-steps {limits.step_limit:.3g}))"
-        )
+        print(f"{path}: ok ({line})")
     return 2 if invalid else 0
+
+
+def _check_file(path: str, args: argparse.Namespace) -> str:
+    """The summary of a valid file of any kind (:class:`InputError` otherwise): a file whose
+    ``base`` is a path (a scenario's is a list of basal conditions) is a calibration with
+    ``observations``, a sensitivity study with ``outputs``, else a sweep."""
+    from multilayer.io import study
+
+    data, _ = scenarios.read_yaml(path)
+    study_base = isinstance(data, dict) and isinstance(data.get("base"), str)
+    if study_base and "observations" in data:
+        calibration = study.load_calibration(path)
+        searched = ", ".join(calibration.config.parameters)
+        return f"calibration of {searched} against {len(calibration.data)} observations"
+    if study_base and "outputs" in data:
+        config = study.load_sensitivity(path).config
+        return f"sensitivity of {', '.join(config.outputs)} to {', '.join(config.parameters)}"
+    if study_base:
+        from multilayer.app import sweep as sweeps  # the engine, for the sweep's runs
+
+        plan = sweeps.load(path)
+        members = plan.members()
+        for member in members:
+            where = f"{path}: member {member.id} ({', '.join(member.overrides)})"
+            try:
+                _check(scenarios.load(plan.base, [*member.overrides, *args.overrides]), plan.base, args)
+            except InputError as exc:
+                raise InputError(f"{where}:\n{exc}") from None
+        return f"sweep of {len(members)} members of {plan.base}, each valid"
+    return _check(scenarios.load(path, args.overrides), path, args)
+
+
+def _check(scenario: Scenario, path: str | Path, args: argparse.Namespace) -> str:
+    """The summary of a valid scenario: its size and estimates (:class:`InputError` if it
+    is beyond the budget, holds material outside its domain or expects what cannot apply)."""
+    limits = budget(args)
+    need = resources.check(scenario, scenario.output.directory or Path("results"), limits)
+    dom = scenario.domain
+    dx = (dom.x_max - dom.x_min) / dom.cells
+    entries = factory.initial_entries(scenario)
+    initial_state.check_entries(entries, dom.x_min, dom.x_max, dx, str(path))
+    steps = resources.check_steps(scenario, limits)
+    expectations.validate(scenario)
+    return (
+        f"{scenario.name}: {dom.cells} cells x {dom.layers} layers, "
+        f"rheology {scenario.rheology.name}, t_end = {scenario.time.end:g} s; about "
+        f"{resources.size_text(need.memory)} of memory, {need.records:.0f} output times, "
+        f"result.nc about {resources.size_text(need.output)}, about {steps.count:.2g} time steps "
+        f"(--max-steps {limits.step_limit:.3g})"
+    )

@@ -1,0 +1,355 @@
+"""Hostile inputs of the Python API, the files a scenario names, ``--set``, the output
+directory, the gate and ``validate`` (docs/reliability.md): each is an
+:class:`InputError` (exit 2) naming what is wrong and what is accepted, never a
+traceback, a hang or a value read otherwise than the user meant."""
+
+from __future__ import annotations
+
+import copy
+import os
+import shutil
+
+import numpy as np
+import pytest
+import yaml
+from conftest import TINY_SCENARIO
+
+import multilayer
+from multilayer.errors import InputError
+from multilayer.io import results
+from multilayer.io.results import CHECKPOINT_FILE, RESULT_FILE
+
+BED = "x (m), z (m)\n0.0, 0.0\n0.5, -0.1\n"
+
+
+def _recursive() -> dict:
+    data = copy.deepcopy(TINY_SCENARIO)
+    data["rheology"]["self"] = data
+    return data
+
+
+def _deep() -> dict:
+    data = copy.deepcopy(TINY_SCENARIO)
+    node = data["rheology"]
+    for _ in range(5000):
+        node["a"] = node = {}
+    return data
+
+
+@pytest.mark.parametrize(
+    ("call", "phrase"),
+    [
+        (lambda: multilayer.load(5), "scenario: got 5; accepted: a Scenario, a mapping"),
+        (lambda: multilayer.load(None), "scenario: got None"),
+        (lambda: multilayer.load(b"scenario.yaml"), "scenario: got b'scenario.yaml'"),
+        (lambda: multilayer.load(TINY_SCENARIO, 5), "overrides: got 5; accepted: a mapping of dotted keys"),
+        (lambda: multilayer.load(TINY_SCENARIO, None), "overrides: got None"),
+        (lambda: multilayer.load(TINY_SCENARIO, [5]), "overrides: got [5]"),
+        (lambda: multilayer.load(TINY_SCENARIO, {5: 1}), "overrides: key 5; accepted"),
+        (lambda: multilayer.load(TINY_SCENARIO, {"a=b": 1}), "overrides: key 'a=b'; accepted"),
+        (
+            lambda: multilayer.load(TINY_SCENARIO, {"time.end": np.nan}),
+            "overrides: time.end: nan is not a value",
+        ),
+        (
+            lambda: multilayer.load(_recursive()),
+            "<scenario>: rheology.self.rheology.self.(...): more than 100",
+        ),
+        (lambda: multilayer.load(_deep()), "<scenario>: rheology.a.a.a.(...): more than 100 nested"),
+        (
+            lambda: multilayer.run(TINY_SCENARIO, 5),
+            "outdir: got 5; accepted: None or the path of a directory",
+        ),
+    ],
+)
+def test_the_api_refuses_what_it_does_not_take_naming_the_argument(call, phrase):
+    """Wrong types of ``source``, ``overrides`` and ``outdir``, and Python data that no YAML
+    text could hold (a mapping holding itself, nesting 5000 deep) are an InputError; they
+    were a TypeError, an AttributeError or a RecursionError from deep inside."""
+    with pytest.raises(InputError) as caught:
+        call()
+    assert phrase in str(caught.value)
+
+
+def test_numpy_values_in_a_mapping_are_read_as_the_numbers_they_hold():
+    """A notebook's numpy scalars and arrays (``np.int64`` cells, an array of fractions)
+    give the scenario of the plain numbers, where cells were refused and an array gave
+    "the truth value of an array is ambiguous"."""
+    data = copy.deepcopy(TINY_SCENARIO)
+    data["domain"].update(
+        cells=np.int64(40), x_max=np.float32(0.5), layer_fractions=np.array([0.5, 0.25, 0.25])
+    )
+    plain = copy.deepcopy(TINY_SCENARIO)
+    plain["domain"]["layer_fractions"] = [0.5, 0.25, 0.25]
+    assert multilayer.load(data).resolved_yaml() == multilayer.load(plain).resolved_yaml()
+    overridden = multilayer.load(
+        TINY_SCENARIO, {"domain.cells": np.int64(30), "rheology.mu_s": np.float64(0.4)}
+    )
+    assert overridden.domain.cells == 30 and overridden.rheology.params["mu_s"] == 0.4
+
+
+def test_a_long_value_is_quoted_cut_in_the_message():
+    """A list of 300 000 fractions was quoted whole: a message of 1.5 MB."""
+    data = copy.deepcopy(TINY_SCENARIO)
+    data["domain"]["layer_fractions"] = [1.0] * 300_000
+    with pytest.raises(InputError, match=r"domain\.layer_fractions: expected 3 numbers > 0") as caught:
+        multilayer.load(data)
+    assert len(str(caught.value)) < 400
+
+
+@pytest.mark.parametrize("x", [0.0, 0.006, 0.5, 0.494])
+def test_a_gate_on_an_end_face_of_the_domain_is_refused(x):
+    """The gate stands on the face nearest to ``x``; on an end face (40 cells of 12.5 mm:
+    x within 6.25 mm of an end) the side's boundary holds or releases the material.  A
+    gate there on periodic sides created 37 % of the mass with no error."""
+    data = copy.deepcopy(TINY_SCENARIO)
+    data["gate"] = {"x": x, "lift_speed": 0.0}
+    with pytest.raises(
+        InputError, match=r"gate\.x: gate at x = .* stands on an end face of the domain"
+    ) as caught:
+        multilayer.load(data)
+    assert "accepted: a number in (0.00625, 0.49375] (m)" in str(caught.value)
+    data["gate"]["x"] = 0.007 if x < 0.25 else 0.49375
+    assert multilayer.load(data).gate.x == data["gate"]["x"]
+
+
+@pytest.mark.parametrize(
+    ("bed", "phrase"),
+    [
+        ("\ufeff" + BED.replace("\n", "\r\n"), None),  # a spreadsheet's byte order mark and line ends
+        (BED.replace("-0.1", "\u0661"), "got '0.5, \u0661'"),  # an Arabic-Indic digit, read as 1 by float
+        (BED.replace("-0.1", "1_000"), "got '0.5, 1_000'"),  # read as 1000 by float
+    ],
+)
+def test_csv_numbers_are_ascii_decimals_and_a_byte_order_mark_is_no_header(tmp_path, bed, phrase):
+    (tmp_path / "bed.csv").write_text(bed, encoding="utf-8", newline="")
+    data = {**copy.deepcopy(TINY_SCENARIO), "bed": {"file": "bed.csv"}}
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(data))
+    if phrase is None:
+        (tmp_path / "plain.csv").write_text(BED)
+        (tmp_path / "plain.yaml").write_text(yaml.safe_dump({**data, "bed": {"file": "plain.csv"}}))
+        plain = multilayer.load(tmp_path / "plain.yaml").bed.points
+        np.testing.assert_array_equal(multilayer.load(tmp_path / "s.yaml").bed.points, plain)
+        return
+    with pytest.raises(InputError, match="bed.csv: line 3: expected two numbers") as caught:
+        multilayer.load(tmp_path / "s.yaml")
+    assert phrase in str(caught.value)
+
+
+@pytest.mark.parametrize("item", ["=", "a..b=1", ".domain=1", "domain.=1", "domain..cells=1"])
+def test_a_key_path_with_an_empty_part_is_malformed(tmp_path, cli, write_scenario, item):
+    """``--set a..b=1`` was "a: unknown key" and ``.domain=1`` "(top level): unknown key"."""
+    result = cli("validate", write_scenario(TINY_SCENARIO), "--set", item)
+    assert result.code == 2 and "Traceback" not in result.err
+    assert (
+        f"--set '{item}': expected KEY=VALUE or KEY+=VALUE; accepted: a dotted key path (no part empty)"
+        in result.err
+    )
+
+
+def test_spaces_around_a_key_are_not_part_of_it(write_scenario):
+    """``--set "domain.cells = 30"`` named the key ``"domain.cells "``, unknown."""
+    assert multilayer.load(write_scenario(TINY_SCENARIO), ["domain.cells = 30"]).domain.cells == 30
+
+
+@pytest.mark.parametrize("name", [RESULT_FILE, CHECKPOINT_FILE, "run.log"])
+@pytest.mark.parametrize("kind", ["directory", "pipe", "device"])
+def test_an_output_file_that_is_no_regular_file_is_refused_before_the_run(
+    tmp_path, cli, write_scenario, name, kind
+):
+    """``result.nc`` linked to /dev/zero was written into it and the summary was a
+    traceback; a pipe hung the command after its message."""
+    outdir = tmp_path / "out"
+    outdir.mkdir()
+    path = outdir / name
+    {
+        "directory": path.mkdir,
+        "pipe": lambda: os.mkfifo(path),
+        "device": lambda: path.symlink_to("/dev/zero"),
+    }[kind]()
+    result = cli("run", write_scenario(TINY_SCENARIO), "-o", outdir, "-q")
+    assert result.code == 2 and "Traceback" not in result.err
+    assert f"{path}: exists and is not a regular file" in result.err
+
+
+def test_validate_checks_sweep_and_study_files_with_every_member(tmp_path, cli, write_scenario):
+    """``validate`` refused every sweep file as a scenario missing name, domain, ...; it
+    checks a sweep with each of its members, and calibration and sensitivity files as
+    their commands read them."""
+    write_scenario(TINY_SCENARIO, "base.yaml")
+    sweep = write_scenario({"base": "base.yaml", "parameters": {"rheology.mu_s": [0.3, 0.4]}}, "sweep.yaml")
+    result = cli("validate", sweep)
+    assert result.code == 0 and f"{sweep}: ok (sweep of 2 members of" in result.out
+    bad = write_scenario({"base": "base.yaml", "parameters": {"domain.cells": [40, 0]}}, "bad.yaml")
+    result = cli("validate", bad)
+    assert result.code == 2 and "Traceback" not in result.err
+    assert "bad.yaml: member m001-" in result.err and "(domain.cells=0)" in result.err
+    sensitivity = {
+        "base": "base.yaml",
+        "parameters": {"rheology.mu_s": {"bounds": [0.3, 0.4]}},
+        "outputs": ["runout"],
+        "samples": 2,
+    }
+    result = cli("validate", write_scenario(sensitivity, "sobol.yaml"))
+    assert result.code == 0 and "ok (sensitivity of runout to rheology.mu_s)" in result.out, result.err
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory):
+    """A finished run of the tiny scenario (its checkpoint and result), copied per test."""
+    directory = tmp_path_factory.mktemp("finished")
+    path = directory / "scenario.yaml"
+    path.write_text(yaml.safe_dump(TINY_SCENARIO))
+    multilayer.run(path, directory / "out")
+    return path, directory / "out"
+
+
+@pytest.mark.parametrize(
+    ("entry", "value", "phrase"),
+    [
+        (
+            "state.u",
+            lambda a: a.T.copy(),
+            "u: float64 values of shape (40, 3), where float64 of shape (3, 40)",
+        ),
+        ("state.seed_window", lambda a: np.array([-5, 400]), "seed_window = [-5, 400], outside the columns"),
+        ("state.steps", lambda a: np.array(-5), "steps = -5, where a number >= 0"),
+        ("state.bogus", lambda a: np.zeros(3), "bogus: an entry this version of multilayer does not write"),
+        (
+            "state.t",
+            lambda a: np.array(np.nan),
+            "corrupt checkpoint (state.t holds values that are not finite)",
+        ),
+        ("state.t", lambda a: np.array("abc"), "corrupt checkpoint (state.t holds <U3)"),
+        ("meta.scenario", lambda a: np.array(5), "corrupt checkpoint (meta.scenario is not text"),
+    ],
+)
+def test_a_checkpoint_of_another_layout_is_refused_naming_the_entry(
+    tmp_path, cli, finished, entry, value, phrase
+):
+    """A checkpoint whose checksum holds but whose entries this version does not write as
+    they are (another version, or edited): a transposed or shorter array, a step count of
+    another type were tracebacks (ValueError from deep inside), a seed window outside the
+    mesh was read into a compiled loop, a NaN time resumed as "completed"."""
+    path, source = finished
+    outdir = tmp_path / "out"
+    shutil.copytree(source, outdir)
+    ckpt = outdir / CHECKPOINT_FILE
+    arrays = dict(np.load(ckpt))
+    arrays.pop("checksum")
+    arrays[entry] = value(arrays.get(entry))
+    arrays["checksum"] = np.asarray(results._checksum(arrays))
+    with open(ckpt, "wb") as stream:
+        np.savez(stream, **arrays)
+    result = cli("run", path, "-o", outdir, "--resume", "--set", "time.end=0.1", "-q")
+    assert result.code == 2 and "Traceback" not in result.err
+    assert f"{ckpt}: " in result.err and phrase in result.err and "start again without --resume" in result.err
+
+
+@pytest.mark.parametrize("key", ["file", "dem"])
+def test_a_pipe_as_a_bed_file_is_refused_without_waiting_for_a_writer(tmp_path, key):
+    """A DEM is read by GDAL, which would wait for ever on a pipe: checked as the CSV is."""
+    os.mkfifo(tmp_path / "bed")
+    extra = {"polyline": [[0.0, 0.0], [1.0, 0.0]]} if key == "dem" else {}
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump({**TINY_SCENARIO, "bed": {key: "bed", **extra}}))
+    with pytest.raises(InputError, match=f"bed.{key} .*bed: not a regular file"):
+        multilayer.load(tmp_path / "s.yaml")
+
+
+@pytest.mark.parametrize(
+    ("call", "phrase"),
+    [
+        (lambda sim: multilayer.Simulation(TINY_SCENARIO), "Simulation: got {'name': 'tiny'"),
+        (lambda sim: sim.advance(np.nan), "advance(t_target=nan): accepted: a finite number (s)"),
+        (lambda sim: sim.advance(np.inf), "advance(t_target=inf): accepted: a finite number (s)"),
+        (lambda sim: sim.advance(None), "advance(t_target=None): accepted"),
+        (lambda sim: sim.step("0.1"), "step(t_max='0.1'): t_max must be a number later than"),
+    ],
+)
+def test_stepping_by_hand_refuses_what_is_no_scenario_or_no_time(call, phrase):
+    """``Simulation(mapping)`` was an AttributeError, ``advance(nan)`` did nothing,
+    ``advance(inf)`` never ended, a time of text was a TypeError."""
+    sim = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
+    with pytest.raises(InputError) as caught:
+        call(sim)
+    assert phrase in str(caught.value)
+    sim.advance(np.array(0.01))  # a 0-d array (a time read from a Dataset) is a time
+    assert sim.t == 0.01
+
+
+@pytest.mark.parametrize("x1", ["inf", "1e308"])
+def test_a_plot_window_without_end_is_refused(tmp_path, cli, finished, x1):
+    """``--xlim 0 inf`` and ``--xlim 0 1e308`` were an OverflowError in the vertical
+    exaggeration."""
+    _, source = finished
+    outdir = tmp_path / "out"
+    shutil.copytree(source, outdir)
+    result = cli("plot", outdir, "--xlim", "0", x1)
+    assert result.code == 2 and "Traceback" not in result.err
+    assert "at most 1000 times as wide" in result.err
+
+
+@pytest.mark.parametrize(
+    ("text", "value"),
+    [("010", 10), ("0o10", 8), ("0x28", 40), ("1:20", "1:20"), ("0_3", "0_3"), ("1e1", 10.0)],
+)
+def test_numbers_are_read_by_the_yaml_1_2_core_schema(text, value):
+    """YAML 1.1 (PyYAML's rule) read ``010`` as eight, ``1:20`` as 80 and ``0_3`` as 3:
+    ``cells: 0100`` ran 64 cells without a word; text is refused where a number is expected."""
+    from multilayer.scenario.source import Loader
+
+    read = yaml.load(text, Loader=Loader)
+    assert read == value and type(read) is type(value)
+    if isinstance(value, str):
+        with pytest.raises(
+            InputError, match=f"domain.cells .*Input should be a valid integer \\(got '{value}'\\)"
+        ):
+            multilayer.load(TINY_SCENARIO, [f"domain.cells={text}"])
+
+
+def test_a_base_or_result_that_exists_but_is_no_file_is_not_called_missing(tmp_path, cli, write_scenario):
+    """A sweep's base ``/dev/zero`` was "not found", a directory named result.nc "no result file"."""
+    sweep = write_scenario({"base": "/dev/zero", "parameters": {"rheology.mu_s": [0.3]}}, "sweep.yaml")
+    result = cli("validate", sweep)
+    assert result.code == 2 and "scenario file /dev/zero is not a regular file" in result.err
+    (tmp_path / "out" / RESULT_FILE).mkdir(parents=True)
+    result = cli("plot", tmp_path / "out")
+    assert result.code == 2 and f"{tmp_path / 'out' / RESULT_FILE}: not a regular file" in result.err
+
+
+@pytest.mark.parametrize(("command", "file"), [("plot", "plots/front.png"), ("export", "vtk/result.pvd")])
+def test_a_figure_or_vtk_file_that_is_a_pipe_is_refused(tmp_path, cli, finished, command, file):
+    """``export --vtk`` waited for ever on a pipe named vtk/result.pvd (plot as well on a
+    pipe named after one of its figures)."""
+    _, source = finished
+    outdir = tmp_path / "out"
+    shutil.copytree(source, outdir)
+    (outdir / file).parent.mkdir(exist_ok=True)
+    os.mkfifo(outdir / file)
+    result = cli(command, outdir, *(["--vtk"] if command == "export" else []))
+    assert result.code == 2 and "Traceback" not in result.err
+    assert f"{outdir / file}: exists and is not a regular file" in result.err
+
+
+def test_a_damaged_result_is_named_without_numpy_warnings(tmp_path, finished):
+    """A NaN thickness and an infinite velocity in result.nc: the checks name the record;
+    numpy's "invalid value encountered in multiply" was printed before the message."""
+    import warnings
+
+    import netCDF4
+
+    from multilayer.io.result_check import check_result
+
+    _, source = finished
+    outdir = tmp_path / "out"
+    shutil.copytree(source, outdir)
+    with netCDF4.Dataset(outdir / RESULT_FILE, "a") as ds:
+        ds["h"][1, 2:9] = np.nan
+        ds["u"][1, 1, :] = np.inf
+    with (
+        warnings.catch_warnings(record=True) as caught,
+        pytest.raises(InputError, match="fails its checks: h = nan"),
+    ):
+        warnings.simplefilter("always")
+        check_result(outdir)
+    assert not [str(w.message) for w in caught if issubclass(w.category, RuntimeWarning)]
