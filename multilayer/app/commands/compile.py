@@ -50,5 +50,6 @@ def main(args: argparse.Namespace) -> int:
         print(f"multilayer compile: {name} failed: {message}", file=sys.stderr)
     if report.failed:
         return 1
-    print(f"compiled the kernels in {report.seconds:.1f} s ({report.processes} processes); cached in {where}")
+    processes = f"{report.processes} process" + ("es" if report.processes > 1 else "")
+    print(f"compiled the kernels in {report.seconds:.1f} s ({processes}); cached in {where}")
     return 0
