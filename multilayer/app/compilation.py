@@ -7,13 +7,13 @@ before the progress line can show anything (docs/performance.md, "What the figur
 mean").  :func:`compile_notice` says so once, when the first compilation
 starts, and reports in ``run.log`` how long the compilation took.  :func:`compile_ahead`
 shortens that wait where a second core is free: the fused Newton kernel, the largest,
-is compiled in a child process while this one compiles the transport.
+is compiled in a child process (a worker of app/precompile.py) while this one compiles
+the transport.
 """
 
 from __future__ import annotations
 
 import logging
-import pickle
 import subprocess
 import sys
 import threading
@@ -106,15 +106,6 @@ def _newton_cached() -> bool:
     return Path(newton_kernel._chunk._cache._cache_file._index_path).exists()
 
 
-def _compile_vertical(scenario: Any) -> None:
-    """Compile (or load) the kernels of the vertical step of ``scenario`` by one vertical
-    step of its small copy from its initial state."""
-    from multilayer.app.simulation import Simulation
-
-    sim = Simulation(_small(scenario))
-    sim._vertical_step(sim.h, sim.u, sim.time_step(), 1)
-
-
 def _compile_newton_callees() -> None:
     """Compile (or load) the two callees of the fused Newton kernel that its compilation
     reaches last, the structure proposals and the dynamic programme of the exact solve
@@ -133,11 +124,11 @@ def _compile_newton_callees() -> None:
 
 def compile_ahead(scenario: Any) -> float | None:
     """Before the run of ``scenario``: when the fused Newton kernel is not in numba's cache
-    and the process may use two cores, compile it in a child process (one vertical step of a
-    small copy of the run) while this process compiles two of its callees
-    (:func:`_compile_newton_callees`) and the transport (one transport of the same copy),
-    then wait for the child.  The run then loads both from the cache.  Returns
-    the seconds this took (None: no child was started).
+    and the process may use two cores, compile it in a child process (the ``newton`` task of
+    ``multilayer compile``, app/precompile.py: its types are every run's) while this process
+    compiles two of its callees (:func:`_compile_newton_callees`) and the transport (one
+    transport of a small copy of the run), then wait for the child.  The run then loads
+    both from the cache.  Returns the seconds this took (None: no child was started).
 
     The copy is built, and its step found, before the child starts: the kernels both use
     (the state checks, the wave speed) are then compiled here only, and the child loads
@@ -152,7 +143,6 @@ def compile_ahead(scenario: Any) -> float | None:
     try:
         sim = Simulation(_small(scenario))
         dt = sim.time_step()
-        data = pickle.dumps(scenario)
     except Exception:  # the run reports it
         return None
     compiled = sim.vertical.compiled
@@ -160,8 +150,8 @@ def compile_ahead(scenario: Any) -> float | None:
         return None  # the run does not use the fused Newton kernel
     try:
         child = subprocess.Popen(
-            [sys.executable, "-m", __name__],
-            stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            [sys.executable, "-m", "multilayer.app.precompile"],
+            stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, text=True,
         )  # fmt: skip
     except OSError:
         return None
@@ -169,7 +159,7 @@ def compile_ahead(scenario: Any) -> float | None:
         assert child.stdin is not None
         try:
             with child.stdin:
-                child.stdin.write(data)
+                child.stdin.write("newton\n")
             _compile_newton_callees()
             sim._transport(dt, 1)
         except Exception:  # the run reports it
@@ -180,10 +170,3 @@ def compile_ahead(scenario: Any) -> float | None:
         if child.poll() is None:  # interrupted: the child goes with the run
             child.kill()
             child.wait()
-
-
-if __name__ == "__main__":  # the child process of compile_ahead
-    try:
-        _compile_vertical(pickle.loads(sys.stdin.buffer.read()))
-    except Exception:  # the run reports it
-        sys.exit(1)

@@ -138,7 +138,8 @@ class Report:
 
 
 def _worker() -> None:
-    """A child process of :func:`compile_kernels`: runs the tasks named on its stdin, one
+    """A child process of :func:`compile_kernels` (or of a run's
+    ``compilation.compile_ahead``): runs the tasks named on its stdin, one
     per line, and answers each with ``done NAME`` or ``failed NAME MESSAGE`` on stdout."""
     tasks = {task.name: task for task in TASKS}
     for line in sys.stdin:
@@ -203,7 +204,7 @@ def compile_kernels(processes: int | None = None) -> Report:
         for child in children:
             if child.stdin is not None:
                 child.stdin.close()
-            if pending or busy:  # interrupted or failed: stop at once
+            if pending or busy:  # interrupted: stop at once
                 child.kill()
             child.wait()
     report.seconds = time.perf_counter() - start
