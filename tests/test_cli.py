@@ -247,6 +247,40 @@ def test_version_help_and_plugins(cli):
     assert cli("frobnicate").code == 2  # argparse usage error
 
 
+def test_a_command_imports_its_own_module_only():
+    """``multilayer run`` parses its arguments as the full parser does, without importing
+    the other commands' modules (``validate`` and ``check`` hold the exact solutions and
+    SciPy's integrators, a fifth of a second at every start)."""
+    code = (
+        "import sys\n"
+        "from multilayer.app import cli\n"
+        "argv = ['run', 'a.yaml', '--set', 'time.end=1', '-q']\n"
+        "mine = cli.build_parser(cli._command(argv)).parse_args(argv)\n"
+        "loaded = sorted(m for m in sys.modules if m.startswith('multilayer.app.commands.'))\n"
+        "print(loaded, 'multilayer.app.exact_solutions' in sys.modules)\n"
+        "full = cli.build_parser().parse_args(argv)\n"
+        "print(vars(mine) == vars(full))\n"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert result.stdout.splitlines() == ["['multilayer.app.commands.run'] False", "True"]
+
+
+@pytest.mark.parametrize(
+    "argv, command",
+    [
+        (["run", "a.yaml"], "run"),
+        (["--version"], None),
+        (["-h", "plot"], "plot"),
+        (["runs"], None),
+        ([], None),
+    ],
+)
+def test_the_command_is_the_first_word_that_is_not_an_option(argv, command):
+    from multilayer.app.cli import _command
+
+    assert _command(argv) == command
+
+
 @pytest.mark.parametrize("error, code", [(RunError("solver diverged"), 1), (KeyboardInterrupt(), 130)])
 def test_run_failures_exit_codes(cli, tiny_scenario, write_scenario, monkeypatch, error, code):
     def failing(*args, **kwargs):

@@ -40,8 +40,10 @@ class _Version(argparse.Action):
         parser.exit()
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser with every subcommand of :data:`SUBCOMMANDS`."""
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The argument parser with every subcommand of :data:`SUBCOMMANDS`; given the
+    ``command`` to run, only its module is imported (the others are bare names, which is
+    all parsing needs: a run does not import the modules of ``validate`` or ``plot``)."""
     parser = argparse.ArgumentParser(
         prog="multilayer",
         description="Multilayer shallow-flow simulator of dense granular flows. "
@@ -52,6 +54,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action=_Version)
     commands = parser.add_subparsers(title="commands", dest="command", metavar="COMMAND", required=True)
     for name in SUBCOMMANDS:
+        if command is not None and name != command:
+            commands.add_parser(name)
+            continue
         module = importlib.import_module(f"multilayer.app.commands.{name}")
         sub = commands.add_parser(
             name,
@@ -62,6 +67,13 @@ def build_parser() -> argparse.ArgumentParser:
         module.add_arguments(sub)
         sub.set_defaults(handler=module.main)
     return parser
+
+
+def _command(argv: Sequence[str]) -> str | None:
+    """The subcommand ``argv`` names (its first word that is not an option), None if it
+    names none of :data:`SUBCOMMANDS`."""
+    words = [word for word in argv if not word.startswith("-")]
+    return words[0] if words and words[0] in SUBCOMMANDS else None
 
 
 def _warning(message, category, filename, lineno, file=None, line=None) -> None:
@@ -95,7 +107,8 @@ def _signals_stop() -> Iterator[None]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse ``argv`` (default ``sys.argv[1:]``), run the subcommand, return the exit code."""
-    args = build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = build_parser(_command(argv)).parse_args(argv)
     warnings.showwarning = _warning
     with _signals_stop():
         return _dispatch(args)

@@ -337,37 +337,40 @@ def summary(path: str | os.PathLike, *, checked: bool = True) -> dict[str, float
         from multilayer.io.result_check import check_result
 
         check_result(path, "answer")
-    with xr.open_dataset(result_path(path)) as lazy:  # only the first and last records are read
-        ds = lazy.isel(time=[0, -1]).load()
-        seismic = seismic_force(lazy[list(FORCES)].load()) if "bed_force_x" in lazy else None
-    final = ds.isel(time=-1)
-    wet = final["h"].values > ds["front"].attrs["threshold"]
-    static = final["static_interface"].values[wet]
+    # read with netCDF4 itself: the first and last records, the forces of every record
+    with netCDF4.Dataset(result_path(path)) as nc:
+        nc.set_auto_mask(False)  # NaN fills stay NaN, as xarray reads them
+        records = {name: var for name, var in nc.variables.items() if var.dimensions[:1] == ("time",)}
+        first, final = ({name: var[index] for name, var in records.items()} for index in (0, -1))
+        threshold = float(nc["front"].getncattr("threshold"))
+        seismic = seismic_force(nc.variables) if "bed_force_x" in records else None
+        steps, wall_time = int(nc.getncattr("steps")), float(nc.getncattr("wall_time_s"))
+    wet = final["h"] > threshold
+    static = final["static_interface"][wet]
     mixture = {key: _wet_mean(final, name, wet) for key, name in _MIXTURE_MEANS.items() if name in final}
     return {
         "t_final": float(final["time"]),
         "front_final": float(final["front"]),
-        "runout": float(final["front"] - ds["front"][0]),
+        "runout": float(final["front"] - first["front"]),
         "mass_final": float(final["mass"]),
-        "max_speed_final": float(np.abs(final["u"].values).max()),
+        "max_speed_final": float(np.abs(final["u"]).max()),
         "static_interface_mean_final": float(static.mean()) if static.size else float("nan"),
         **{f"peak_seismic_force_{c}": _peak(seismic[i] if seismic else None) for i, c in enumerate("xz")},
-        "steps": int(ds.attrs["steps"]),
-        "wall_time_s": float(ds.attrs["wall_time_s"]),
+        "steps": steps,
+        "wall_time_s": wall_time,
         **mixture,
     }
 
 
-def seismic_force(ds: xr.Dataset) -> tuple[np.ndarray, np.ndarray]:
+def seismic_force(ds: Any) -> tuple[np.ndarray, np.ndarray]:
     """The seismic single force per unit width (N/m) of each output interval, downslope and
     normal: the mean force of the flow on the bed and the walls less its weight, ``F - M g``
     (-dP/dt without outflow; Favreau et al. 2010, Toney & Allstadt 2021), NaN at the first
-    record."""
-    total = ds["bed_force_x"] + ds["wall_force_x"] + ds["end_force_x"] + ds["pressure_force_x"]
-    return (
-        (total - ds["gravity_force_x"]).values,
-        (ds["bed_force_z"] - ds["gravity_force_z"]).values,
-    )
+    record.  ``ds`` maps the names of :data:`FORCES` to their records (a result's
+    ``xarray.Dataset``, or arrays)."""
+    f = {name: np.asarray(ds[name][:], dtype=float) for name in FORCES}
+    total = f["bed_force_x"] + f["wall_force_x"] + f["end_force_x"] + f["pressure_force_x"]
+    return total - f["gravity_force_x"], f["bed_force_z"] - f["gravity_force_z"]
 
 
 def _peak(values: np.ndarray | None) -> float:
@@ -378,9 +381,9 @@ def _peak(values: np.ndarray | None) -> float:
 _MIXTURE_MEANS = dict(zip(MIXTURE_SUMMARY_KEYS, ("pore_pressure_excess", "phi")))
 
 
-def _wet_mean(final: xr.Dataset, name: str, wet: np.ndarray) -> float:
+def _wet_mean(final: dict[str, np.ndarray], name: str, wet: np.ndarray) -> float:
     """Mean of ``name`` over the wet cells (NaN if none)."""
-    return float(final[name].values[wet].mean()) if wet.any() else float("nan")
+    return float(final[name][wet].mean()) if wet.any() else float("nan")
 
 
 @dataclass
