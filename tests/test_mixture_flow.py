@@ -336,9 +336,13 @@ def test_discrete_energy_of_the_layered_local_step(packings, slope, dissipative)
     its terms (measured: 9e-12 or less), and the sign of its dissipation.  One and three
     uniform layers dissipate at every interface.  Twenty layers, the top one loose (0.57)
     over dense ones (0.64), on a slope (32 deg) that only the top interface yields to: its
-    dilatancy friction pays 0.81 of the lift the fixed fractions charge for its dilation (the
-    column's mean buoyant weight against the 1.8 Pa on that interface), and the energy grows
-    (measured: D = -1.3e-6 W/m^2)."""
+    friction pays 0.81 of the lift the fixed fractions charge for its dilation (the column's
+    mean buoyant weight against the 1.8 Pa on that interface), and the energy grows
+    (measured: D = -1.3e-6 W/m^2).  With the model's lift (the dilation of a layer raises
+    the layers above it and half of itself) the same state dissipates (measured: +5.3e-6
+    W/m^2), while at the bed of the three layers the dilatancy friction pays less than that
+    lift (measured: 0.65 of it): the model's kinematics with a packing uniform per layer has
+    no unconditional inequality either.  For one layer the two lifts coincide."""
     sim = mixture_run(
         [InitialEntry("layer", thickness=4.9e-3, phi=0.6)], layers=len(packings), cells=2,
         sides=("periodic", "periodic"), slope=slope, numerics=Numerics(order=1),
@@ -376,13 +380,19 @@ def test_discrete_energy_of_the_layered_local_step(packings, slope, dissipative)
         tan_psi = K * (phi - phi_c + K2 * eta * gamma / p_s)
         yield_stress = np.maximum(tan_delta + K * (phi - phi_c), 0.0) * p_s
         d = jump * (yield_stress + (90.5 + K * K2) * eta * gamma - l / spacing * tan_psi * mean_weight)
+        lift = l * h * gamma * tan_psi * (np.cumsum(w[::-1])[::-1] - w / 2)  # model's: P_(a+1) + w_a/2
+        model = jump * (yield_stress + (90.5 + K * K2) * eta * gamma) - lift
         change, kinetic = energy() - before, float(np.sum(mass * (v - v0) ** 2)) / 2.0
         terms = dt * np.sum(jump * (yield_stress + (90.5 + K * K2) * eta * gamma)) + (h - h0) * mean_weight
         assert change == pytest.approx(-dt * d.sum() - kinetic, rel=0.0, abs=1e-9 * (terms + kinetic))
+        if len(l) == 1:
+            assert model == pytest.approx(d, rel=1e-12)
         if dissipative:
             assert np.all(d >= 0.0) and np.all(jump[1:] > 0.0)
-        else:  # only the top interface yields, and there the lift is not paid
-            assert np.all(jump[:-1] == 0.0) and d[-1] < 0.0 and change > 0.0
+        if dissipative and len(l) > 1:  # the bed's dilatancy friction short of the model's lift
+            assert jump[0] * tan_psi[0] * p_s[0] < lift[0] and model[0] > 0.0
+        if not dissipative:  # only the top interface yields: the scheme's lift is not paid, the model's is
+            assert np.all(jump[:-1] == 0.0) and d[-1] < 0.0 and change > 0.0 and model[-1] > 0.0
 
 
 def test_result_file_holds_the_mixture_and_is_plotted(tmp_path):
