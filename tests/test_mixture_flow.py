@@ -17,10 +17,11 @@ import pytest
 import multilayer
 from multilayer.engine.config import InitialEntry, MixtureConfig, Numerics, SimulationConfig
 from multilayer.engine.mixture.flow import buoyant_fraction
+from multilayer.engine.mixture.local_step import LocalStep
 from multilayer.engine.simulation import Simulation
 from multilayer.errors import InputError, RunError
 from multilayer.plugins.builtins import DilatantCoulomb, DruckerPrager
-from multilayer.plugins.contract import Material
+from multilayer.plugins.contract import Material, MixtureState
 
 # Pailha et al. (2008), first fluid
 FLUID = MixtureConfig(
@@ -393,6 +394,44 @@ def test_discrete_energy_of_the_layered_local_step(packings, slope, dissipative)
             assert jump[0] * tan_psi[0] * p_s[0] < lift[0] and model[0] > 0.0
         if not dissipative:  # only the top interface yields: the scheme's lift is not paid, the model's is
             assert np.all(jump[:-1] == 0.0) and d[-1] < 0.0 and change > 0.0 and model[-1] > 0.0
+
+
+@pytest.mark.parametrize("layers", [1, 3])
+def test_the_energy_identity_of_the_local_step_on_random_columns(layers):
+    """The identity of ``LocalStep`` (Notes) ``E' - E = -dt D' - sum_a m_a (v'_a - v_a)^2 / 2``
+    with ``E = sum_a m_a v_a^2 / 2 + h P_bar``, on 48 random columns (packings 0.52-0.64,
+    1-10 mm, layer velocity increments 1e-4 to 0.2 m/s, one step of 5 ms, no drive): to 1e-9
+    of its terms (measured: 2.4e-12 or less), and for one layer ``D >= 0`` in each column,
+    dilating or contracting (measured: 20 and 2 of the 22 that move; the inequality of one
+    layer holds without condition)."""
+    rng = np.random.default_rng(2016)
+    l, law = np.full(layers, 1.0 / layers), DilatantCoulomb(delta_deg=22.5, K1=90.5)
+    local = LocalStep(FLUID, law, GRAINS, l, 9.81 * math.cos(math.radians(25.0)), 1e-10, 200)
+    h0 = rng.uniform(1e-3, 1e-2, 48)
+    solid = rng.uniform(0.52, 0.64, (layers, 48)) * l[:, None] * h0
+    v0 = np.cumsum(10.0 ** rng.uniform(-4.0, -0.7, (layers, 48)), axis=0)
+    dt = 5e-3
+    step = local(solid, h0, v0, dt)
+    h, v = step.h, step.u
+    mean_weight = np.sum(local.buoyant_g_n * solid * (np.cumsum(l) - l / 2)[:, None], axis=0)
+    gamma, p_s, dilation, p_e = local.closure(solid, h, v)
+    cfg = FLUID
+    phi = solid / (l[:, None] * h)
+    state = MixtureState(phi, p_e, cfg.fluid_viscosity, cfg.phi_critical, cfg.dilatancy, cfg.critical_shift)
+    viscosity = law.mixture_viscosity(gamma, p_s, state, GRAINS)
+    stress = law.mixture_yield_stress(p_s, state, GRAINS) + viscosity * gamma
+    work = np.abs(np.diff(v, axis=0, prepend=0.0)) * stress
+    lift = (l[:, None] * h * dilation * mean_weight).sum(axis=0)  # |jump| lambda tan(psi) P_bar, summed
+    m0, m1 = local.masses(solid, h0), local.masses(solid, h)
+    kinetic = np.sum(m0 * (v - v0) ** 2, axis=0) / 2.0
+    change = np.sum(m1 * v * v - m0 * v0 * v0, axis=0) / 2.0 + (h - h0) * mean_weight
+    D = work.sum(axis=0) - lift
+    terms = dt * work.sum(axis=0) + np.abs(h - h0) * mean_weight + kinetic
+    assert np.all(np.abs(change + dt * D + kinetic) <= 1e-9 * terms)
+    if layers == 1:
+        moving = v[0] > 0.0
+        assert np.all(D >= 0.0)
+        assert np.any(moving & (dilation[0] > 0.0)) and np.any(moving & (dilation[0] < 0.0))
 
 
 def test_result_file_holds_the_mixture_and_is_plotted(tmp_path):
