@@ -78,6 +78,14 @@ it contracts, and where it dilates iff
 bed of a column of one packing ``lambda_0 P_bar = P_0`` too.  An interface high in a column, where
 ``p_s,a`` is well below ``P_bar``, that shears and dilates alone breaks it: the energy of
 the scheme then grows (tests/test_mixture_flow.py, docs/mixture.md).
+
+This is the step's kinematics, not the closure's: in the continuous model (``div v = gamma
+tan(psi)``, shear stress ``(tan(delta) + tan(psi)) p_s``; Bouchut et al. 2016) the work of
+``p_s`` on the dilation is paid at the same point by the dilatancy friction, and the grains
+rise only above the place that dilates, as the Darcy integral of :meth:`LocalStep.closure`
+has it: the dilation of layer ``a`` then costs ``P_{a+1} + w_a / 2`` per unit rise instead of
+``P_bar``.  With one packing per layer that lift is not paid unconditionally either: at the
+bed of several layers ``lambda_0 (P_1 + w_0 / 2) = P_0 + P_1 > P_0``.
 """
 
 from __future__ import annotations
