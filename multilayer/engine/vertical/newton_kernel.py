@@ -276,6 +276,7 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
     kc, cc = np.empty(L), np.empty(L)  # the Newton model: interface yield stresses, conductances
     wc, cwc = np.empty(L), np.zeros(L)  # and wall thresholds, wall conductances
     current, new = np.empty(L), np.empty(L)
+    zero = np.zeros(L)  # the viscous stresses of a column at rest
     # a structure proposed to the active set (_other_structures); a point of a line search
     proposal = np.empty(L)
     # viscosities, stress slopes and viscous stresses at current and new (interfaces, walls)
@@ -377,19 +378,35 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
         wall_c = wc if walls else wall
         iterations[j] = -1
         fallbacks[j] = 0
-        fault, fault_values[j, 0], fault_values[j, 1] = _true_stresses(
-            current, inverse_spacing, conductance, bulk_form, bulk_params, factor, offset, eta_c, slope_c,
-            walls, inverse_half, wall_form, wall_params, wall_factor, wall_offset, per_area, weta_c, wslope_c,
-            state_c,
-        )  # fmt: skip
-        last = max_iterations  # 0 for a guess at rest within the bound (see _columns)
-        if fault == 0 and inertia[0] > 0.0 and current[0] == 0.0 and current[L - 1] == 0.0:
+        # a guess at rest in every layer has no jump and no slip: no viscous stress, whatever
+        # the laws, and the bound reads none; the laws are evaluated for a column to iterate
+        resting = inertia[0] > 0.0
+        for a in range(L):
+            resting = resting and current[a] == 0.0
+        bound = np.inf
+        if resting:
+            bound = error_bound(inertia, momentum, kappa, zero, wall_true, zero, current, threshold)
+        fault, fault_values[j, 0], fault_values[j, 1] = 0, 0.0, 0.0
+        if not bound <= threshold:
+            fault, fault_values[j, 0], fault_values[j, 1] = _true_stresses(
+                current, inverse_spacing, conductance, bulk_form, bulk_params, factor, offset, eta_c, slope_c,
+                walls, inverse_half, wall_form, wall_params, wall_factor, wall_offset, per_area, weta_c,
+                wslope_c, state_c,
+            )  # fmt: skip
             if (
-                error_bound(inertia, momentum, kappa, state_c[0], wall_true, state_c[2], current, threshold)
-                <= threshold
+                fault == 0
+                and not resting
+                and inertia[0] > 0.0
+                and current[0] == 0.0
+                and current[L - 1] == 0.0
             ):
-                iterations[j] = 0
-                last = 0
+                bound = error_bound(
+                    inertia, momentum, kappa, state_c[0], wall_true, state_c[2], current, threshold
+                )
+        last = max_iterations  # 0 for a guess at rest within the bound (see _columns)
+        if fault == 0 and bound <= threshold:
+            iterations[j] = 0
+            last = 0
         for iteration in range(1, last + 1):
             if fault != 0:
                 break
@@ -504,7 +521,10 @@ def _columns(chunks, columns, inputs, fused, given, laws, control, out):
     once per chunk: per-column views or tuples of arrays each cost reference counting).
     A column whose guess is at rest at the bed and the surface and already within the
     error bound of ``newton_control`` is not solved (``iterations`` 0): the bound is
-    rigorous, so the guess is as good an answer as a converged iterate.
+    rigorous, so the guess is as good an answer as a converged iterate.  A guess at rest in
+    every layer has no velocity jump and no slip, hence no viscous stress whatever the laws:
+    its bound is computed without evaluating them (the laws of the material at rest, most
+    of a deposit, are evaluated only where a column has to be iterated).
 
     With ``blocks``, adjacent columns without side walls are set up ``BLOCK`` at a time
     and iterated side by side while fully sheared (``sheared_columns.sheared_block``;
