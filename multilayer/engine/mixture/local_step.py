@@ -33,13 +33,13 @@ column are the unknowns of a Newton iteration with the exact column solve inside
 friction stays at ``v == 0.0``.
 
 Continuation in ``dt``: a column whose Newton iteration does not converge (it stalls,
-wanders, or runs out of ``numerics.max_iterations``) or diverges is done again as ``k = 2, 4, ...,``
-:data:`MAX_SUBSTEPS` successive backward-Euler steps of ``dt / k`` of the same local
-relaxation, each solved by the same iteration from the state the one before reached.  A
-thin fast front at a low effective pressure dilates within one step far past the packing
-where its friction vanishes (``K2 eta_f gamma / p_s`` large): the root of the step is far
-from its start, beyond a kink of the map; over a shorter step it is near.  The composition
-of the sub-steps is a backward Euler of ``k`` steps, first order in ``dt / k``
+wanders, or runs out of ``numerics.max_iterations``) or diverges is done again as
+``k = 2, 4, ...,`` :data:`MAX_SUBSTEPS` successive backward-Euler steps of ``dt / k`` of the
+same local relaxation, each solved by the same iteration from the state the one before
+reached.  A thin fast front at a low effective pressure dilates within one step far past
+the packing where its friction vanishes (``K2 eta_f gamma / p_s`` large): the root of the
+step is far from its start, beyond a kink of the map; over a shorter step it is near.  The
+composition of the sub-steps is a backward Euler of ``k`` steps, first order in ``dt / k``
 (tests/test_mixture_continuation.py); the columns that converge in one step are never
 sub-stepped, so their answer is unchanged bit for bit.
 
