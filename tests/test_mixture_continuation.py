@@ -2,8 +2,9 @@
 ``dt``): a loose column of millimetre beads in water whose thin front's Newton iteration
 fails in one step runs, conserving the solid and the fluid, with the pore pressure of a
 loose packing below it; a column in ``k`` sub-steps converges at first order to the
-local relaxation the step discretises, solved by Radau IIA; a column that fails in every
-sub-step still stops the run."""
+local relaxation the step discretises, solved by Radau IIA; a column whose iteration
+wanders goes to the sub-steps within the window; a column that fails in every sub-step
+still stops the run."""
 
 from __future__ import annotations
 
@@ -14,7 +15,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from multilayer.engine.config import InitialEntry, MixtureConfig, SimulationConfig
-from multilayer.engine.mixture.local_step import LocalStep
+from multilayer.engine.mixture import local_step
+from multilayer.engine.mixture.local_step import WINDOW, LocalStep
 from multilayer.engine.simulation import Simulation
 from multilayer.errors import RunError
 from multilayer.plugins.builtins import DilatantCoulomb
@@ -31,6 +33,10 @@ FRONT = (8.7566e-4, 0.55758653, 0.26670506, 0.014280705)
 """``h*`` (m), ``phi``, ``u*`` (m/s) and ``dt`` (s) of the front column (x = 0.0825 m) of
 the loose column below at 0 degrees, at its second step (measured), where the Newton
 iteration of one step diverges."""
+WANDERING = (7.647190711881705e-4, 0.5575865302959222, 0.2667050642254405, 0.012471397424917822)
+"""``h*`` (m), ``phi``, ``u*`` (m/s) and ``dt`` (s) of the front column of the same run at
+the same time (t = 0.0146 s) in a step of 12.5 ms (measured), where the Newton iteration of
+one step wanders."""
 
 
 def loose_column(slope: float, layers: int) -> Simulation:
@@ -155,6 +161,39 @@ def test_the_front_column_is_done_in_two_substeps_and_they_approach_its_relaxati
     exact = relaxation(local, solid, h, v, dt, 1e-8)  # the errors are 1e-3 of v and more
     errors = [np.abs(substepped(h, phi, v, dt, k) - exact)[0] for k in (2, 4, 8, 16)]
     assert np.all(np.diff(errors) < 0.0), errors
+
+
+def test_a_wandering_column_goes_to_the_substeps_within_the_window(monkeypatch):
+    """The column :data:`WANDERING`: its line search creeps (the residual norm falls by less
+    than 1 % an iteration), then the bracketing sends it above its least norm again and
+    again without a repetition bit for bit (no stall), near 0.38, never converging (it would
+    run all 200 iterations of numerics.max_iterations).  Counted: its iteration stops,
+    unconverged and not diverged (so the step goes to the sub-steps, as for the column of
+    :func:`test_the_front_column_is_done_in_two_substeps_and_they_approach_its_relaxation`),
+    the :data:`WINDOW`-th iteration after its least norm last fell, the first time a window
+    had no new least norm (measured: after 49 iterations, the least norm last lowered by the
+    44th)."""
+    norms: list[float] = []
+    progress = local_step._progress
+
+    def spy(best: np.ndarray, since: np.ndarray, norm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        norms.extend(norm)
+        return progress(best, since, norm)
+
+    monkeypatch.setattr(local_step, "_progress", spy)
+    h, phi, v, dt = WANDERING
+    local, solid, thickness = one_column(h, phi)
+    rest = np.zeros((1, 1))
+    result, converged, diverged, _ = local._newton(
+        solid, thickness, np.array([[v]]), dt, rest, rest, np.zeros(1), 0.0
+    )
+    assert not converged[0] and not diverged[0]
+    assert result.iterations == len(norms) + 1 < local.max_iterations / 3
+    least = np.minimum.accumulate(norms)
+    new = np.flatnonzero(np.diff(least) < 0.0) + 1  # the iterations that lowered the least norm
+    assert len(norms) - 1 - new[-1] == WINDOW  # exactly WINDOW since the last
+    assert np.all(np.diff(new) <= WINDOW)  # no earlier window without one
+    assert min(norms) > 0.3, (len(norms), new[-1])  # far from the tolerance, 1e-10
 
 
 def test_a_column_that_fails_in_every_substep_stops_the_run():
