@@ -4,11 +4,24 @@ The Newton iteration of the vertical step (``newton.py``, ``newton_kernel.py``) 
 from a seed, which changes its work and never its answer (the same stopping test ends
 it).  The state's velocities ``u^n`` lie O(dt) from the step's answer; the linear
 extrapolation ``u^n + r (u^n - u^{n-1})``, ``r = dt / dt_{n-1}``, lies O(dt^2) from it in
-a smooth flow, where one Newton iteration then meets the tolerance.  A layer at rest
-(``u^n == 0``) keeps the seed 0, so that the guess of a column at rest is the column at
-rest (``newton_kernel._columns`` skips it when that is within the error bound); ``r`` is
-at most 1 (the step after one cut short to land on an output time does not amplify the
-last difference), and 0 (no extrapolation) where ``u^{n-1}`` is not known.
+a smooth flow, where one Newton iteration then meets the tolerance.  ``r`` is at most 1
+(the step after one cut short to land on an output time does not amplify the last
+difference), and 0 (no extrapolation) where ``u^{n-1}`` is not known.
+
+The seed also proposes the lock/sign structure of the first Newton solve
+(``column_solve._active_set``): which interfaces are locked, and the sign of each jump.
+So the extrapolation is made jump by jump, from the bed up, and keeps the structure of
+``u^n``: the jump ``s`` of ``u^n`` across an interface becomes ``s + r (s - s^{n-1})``
+where that has the sign of ``s``, else stays ``s``.  A locked interface (``s = 0``)
+stays locked, so a plug of ``u^n`` stays one, and a jump extrapolated through zero keeps
+its sign; where every extrapolated jump keeps its sign and no layer below is at rest,
+the seed is the linear extrapolation above.  A
+layer at rest (``u^n == 0``) keeps the seed 0, so that the guess of a column at rest is
+the column at rest (``newton_kernel._columns`` skips it when that is within the error
+bound).  Extrapolated layer by layer instead, a plug of ``u^n`` whose layers moved apart
+at ``n - 1`` (its edge moved) comes out sheared, and a jump that shrinks comes out
+reversed: structures the exact solve rejects, several interfaces at once, more than its
+repairs (``newton_kernel._other_structures``) mend.
 """
 
 from __future__ import annotations
@@ -69,11 +82,20 @@ class SeedExtrapolation:
 
 @jit
 def _extrapolate(seed, last, first, stop, ratio, guess, start, lo, hi):
-    """Over the columns ``lo .. hi-1``: ``start = seed`` and ``guess = seed + ratio (seed -
-    last)`` where ``seed != 0`` and ``last`` holds the last step's seed (its columns
-    ``first .. stop-1``), else ``seed``."""
-    for a in range(seed.shape[0]):
-        for i in range(lo, hi):
+    """Over the columns ``lo .. hi-1``: ``start = seed`` and ``guess`` the seed extrapolated
+    jump by jump (module docstring) where ``seed != 0`` and ``last`` holds the last step's
+    seed (its columns ``first .. stop-1``), else ``seed``."""
+    L = seed.shape[0]
+    for i in range(lo, hi):
+        known = first <= i < stop
+        below, below_last, below_guess = 0.0, 0.0, 0.0  # the bed
+        for a in range(L):
             v = seed[a, i]
             start[a, i] = v
-            guess[a, i] = v + ratio * (v - last[a, i]) if v != 0.0 and first <= i < stop else v
+            if v == 0.0 or not known:
+                guess[a, i] = v
+            else:
+                jump = v - below
+                change = jump + ratio * (jump - (last[a, i] - below_last))
+                guess[a, i] = below_guess + (change if change * jump > 0.0 else jump)
+            below, below_last, below_guess = v, last[a, i], guess[a, i]

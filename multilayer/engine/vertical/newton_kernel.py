@@ -143,10 +143,6 @@ def _true_stresses(
     return 0, 0.0, 0.0
 
 
-REPAIRS = 8
-"""Structures repaired in turn (``_other_structures``) before the dynamic programme."""
-
-
 @jit  # not inlined: called only where the structure of the iterate fails
 def _other_structures(
     inertia, momentum, kappa, c, w, cw, current, ustar, col, proposal, u, first, grounded, U, diag, low, rhs,
@@ -159,12 +155,13 @@ def _other_structures(
     0 (the round-off of an earlier solve can open a locked interface or set moving a layer
     held by the walls), the trial structure of the column held at rest
     (:func:`_trial_structure`: the structure of material leaving rest), and that of
-    ``current`` repaired up to ``REPAIRS`` times, one interface at a time, as each
-    rejection hints (the edge of a plug that moved by a layer).  True
+    ``current`` repaired up to L times (one per interface), one interface at a time, as
+    each rejection hints (the edge of a plug that moved by a layer).  True
     once one is the exact minimiser (each is checked for optimality by the active set
     itself), False if none is: then the O(L^2) dynamic programme solves.
 
-    A proposal costs an ordinary solve, the dynamic programme about 60 at L = 32; in the
+    A proposal costs an ordinary solve, the dynamic programme about 60 at L = 32 (so a
+    column that still needs the programme costs at most L + 3 solves more); in the
     peer dam break the first two take the share of the solves that need the programme
     from 0.22 % to 0.09 %; the trial structure solves the first step of a uniform
     layer released from rest on a slope steeper than its friction angle (every column
@@ -172,7 +169,7 @@ def _other_structures(
     non-hydrostatic pressure, whose columns hold several plugs whose edges move."""
     L = current.shape[0]
     interface, state = hint[0], hint[1]  # the rejection of current
-    for attempt in range(3 + REPAIRS):
+    for attempt in range(3 + L):
         if attempt == 0:
             for a in range(L):
                 proposal[a] = ustar[a, col]
