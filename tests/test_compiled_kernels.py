@@ -120,6 +120,18 @@ print(json.dumps({"code": code, "compiled": compiled}))
 )
 
 
+def test_the_newton_callees_compiled_ahead_take_the_arguments_they_are_given():
+    """The run's own share of a first compilation (``compilation._compile_newton_callees``)
+    gives each callee of the Newton kernel as many argument types as it takes: a missing
+    one was a TypeError that the warm-up swallows (the kernel then compiled them itself)."""
+    import inspect
+
+    from multilayer.app.compilation import newton_callees
+
+    for kernel, signature in newton_callees():
+        assert len(signature) == len(inspect.signature(kernel.py_func).parameters), kernel.py_func.__name__
+
+
 @pytest.mark.slow
 def test_the_first_run_compiles_the_newton_kernel_in_a_child_process():
     """``multilayer run`` of the README scenario with numba's cache empty, on two cores:

@@ -113,13 +113,22 @@ def _compile_newton_callees() -> None:
     int64 and bool, contiguous; the programme's work arrays): the kernel, compiled in the
     child process, then links them from the cache (tests/test_compiled_kernels.py checks
     that the cache holds one signature of each)."""
+    for kernel, signature in newton_callees():
+        kernel.compile(signature)
+
+
+def newton_callees() -> list[tuple[Any, tuple]]:
+    """The callees of :func:`_compile_newton_callees` and the argument types the fused
+    Newton kernel calls them with."""
     from numba import types
 
     from multilayer.engine.vertical import column_solve, newton_kernel
 
     f, f2, i, b = types.float64[::1], types.float64[:, ::1], types.int64[::1], types.boolean[::1]
-    column_solve._dynamic_programme.compile((f,) * 7 + (types.Tuple((f2, f2, i, *(f,) * 10)),))
-    newton_kernel._other_structures.compile((f,) * 7 + (f2, types.int64, f, f, i, b) + (f,) * 4)
+    return [
+        (column_solve._dynamic_programme, (f,) * 7 + (types.Tuple((f2, f2, i, *(f,) * 10)),)),
+        (newton_kernel._other_structures, (f,) * 7 + (f2, types.int64, f, f, i, b) + (f,) * 4 + (i,)),
+    ]
 
 
 def compile_ahead(scenario: Any) -> float | None:
