@@ -15,7 +15,7 @@ import yaml
 from conftest import TINY_SCENARIO
 
 import multilayer
-from multilayer.errors import InputError
+from multilayer.errors import InputError, RunError
 from multilayer.io import results
 from multilayer.io.results import CHECKPOINT_FILE, RESULT_FILE
 
@@ -50,6 +50,10 @@ def _deep() -> dict:
         (
             lambda: multilayer.load(TINY_SCENARIO, {"time.end": np.nan}),
             "overrides: time.end: nan is not a value",
+        ),
+        (
+            lambda: multilayer.load(TINY_SCENARIO, {"time.end": 5e-324}),
+            "time.end (from --set): 5e-324 s, too short to step (half of a denormal step is zero)",
         ),
         (
             lambda: multilayer.load(_recursive()),
@@ -263,18 +267,51 @@ def test_a_pipe_as_a_bed_file_is_refused_without_waiting_for_a_writer(tmp_path, 
         (lambda sim: sim.advance(np.nan), "advance(t_target=nan): accepted: a finite number (s)"),
         (lambda sim: sim.advance(np.inf), "advance(t_target=inf): accepted: a finite number (s)"),
         (lambda sim: sim.advance(None), "advance(t_target=None): accepted"),
-        (lambda sim: sim.step("0.1"), "step(t_max='0.1'): t_max must be a number later than"),
+        (lambda sim: sim.step("0.1"), "step(t_max='0.1'): t_max must be a number at least"),
+        (
+            lambda sim: sim.step(5e-324),
+            "step(t_max=5e-324): t_max must be a number at least 4.45e-308 s later",
+        ),
+        (
+            lambda sim: sim.advance(1e308),
+            "advance(t_target=1e+308): 1e+308 s from t = 0 s in steps of at most",
+        ),
+        (lambda sim: sim.advance(1.0, max_steps=10), "more than max_steps = 10; accepted: a nearer t_target"),
+        (
+            lambda sim: sim.advance(0.01, max_steps=0),
+            "advance(max_steps=0): accepted: an integer >= 1, or None",
+        ),
+        (lambda sim: sim.advance(0.01, max_steps=2.5), "advance(max_steps=2.5): accepted"),
+        (lambda sim: sim.advance(0.01, max_steps=True), "advance(max_steps=True): accepted"),
     ],
 )
 def test_stepping_by_hand_refuses_what_is_no_scenario_or_no_time(call, phrase):
     """``Simulation(mapping)`` was an AttributeError, ``advance(nan)`` did nothing,
-    ``advance(inf)`` never ended, a time of text was a TypeError."""
+    ``advance(inf)`` never ended, nor ``advance(1e308)`` (10^311 steps), a time of text was a
+    TypeError, a step of 5e-324 s a ZeroDivisionError in the implicit step (half of it is 0)."""
     sim = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
     with pytest.raises(InputError) as caught:
         call(sim)
     assert phrase in str(caught.value)
     sim.advance(np.array(0.01))  # a 0-d array (a time read from a Dataset) is a time
     assert sim.t == 0.01
+
+
+def test_advance_stops_at_its_step_bound_and_continues_to_the_same_state():
+    """``advance(t, max_steps=n)`` takes n steps and stops short of ``t`` with a RunError,
+    the state of its last step kept: advancing again ends on the state of one uninterrupted
+    advance, to the last bit."""
+    whole = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
+    whole.advance(0.05)
+    sim = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
+    with pytest.raises(
+        RunError, match=r"advance\(t_target=0.05\): took max_steps = 6 time steps, reaching t = "
+    ):
+        sim.advance(0.05, max_steps=6)  # 5.9 Courant steps of the initial state: 7 steps
+    assert sim.steps == 6 and 0.0 < sim.t < 0.05 < whole.steps
+    sim.advance(0.05)
+    assert (sim.steps, sim.t) == (whole.steps, whole.t)
+    assert np.array_equal(sim.h, whole.h) and np.array_equal(sim.u, whole.u)
 
 
 @pytest.mark.parametrize("x1", ["inf", "1e308"])

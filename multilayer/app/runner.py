@@ -238,7 +238,7 @@ def _run(
     status = "failed"
     try:
         for t_out in times[times > sim.t + 1e-9 * scenario.time.end]:
-            sim.advance(t_out, on_step=on_step)
+            sim.advance(t_out, on_step=on_step, max_steps=None)  # bounded by on_step, over the run
             sim.check_state()
             diag = writer.write(sim)
             saved_t = checkpoint()
