@@ -6,8 +6,11 @@ traceback, a hang or a value read otherwise than the user meant."""
 from __future__ import annotations
 
 import copy
+import json
 import os
 import shutil
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -390,3 +393,57 @@ def test_a_damaged_result_is_named_without_numpy_warnings(tmp_path, finished):
         warnings.simplefilter("always")
         check_result(outdir)
     assert not [str(w.message) for w in caught if issubclass(w.category, RuntimeWarning)]
+
+
+READ_ONLY_CHILD = """
+import contextlib, io, json, sys
+from multilayer.app.cli import main
+for argv in json.loads(sys.argv[1]):
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        code = main(argv)
+    print(json.dumps([code, err.getvalue()]))
+"""
+
+
+@pytest.mark.slow  # a child process: plot and export import matplotlib and VTK writers (7 s)
+@pytest.mark.skipif(os.geteuid() != 0 or not shutil.which("setpriv"), reason="drops root's capabilities")
+def test_read_only_output_directories_and_files_are_named(tmp_path, finished):
+    """Run as a user who may not write there (root without the capabilities that override
+    the permission bits): a run into a read-only directory, over a read-only result.nc,
+    ``--resume`` of a read-only result.nc, ``plot`` and ``export`` of a read-only run
+    directory: exit 2 naming the path and the cause, no traceback (a read-only file was
+    reported as "a directory that can be created and written")."""
+    path, source = finished
+    (tmp_path / "locked").mkdir(mode=0o555)
+    for name in ("over", "resumed", "shown"):
+        shutil.copytree(source, tmp_path / name)
+    for name in ("over", "resumed"):
+        (tmp_path / name / RESULT_FILE).chmod(0o444)
+    (tmp_path / "shown").chmod(0o555)
+    cases = [
+        (["run", path, "-o", "locked", "-q"], "locked: cannot be created or written (Permission denied)"),
+        (
+            ["run", path, "-o", "locked/sub", "-q"],
+            "locked/sub: cannot be created or written (Permission denied)",
+        ),
+        (
+            ["run", path, "-o", "over", "-q"],
+            f"over/{RESULT_FILE}: Permission denied; accepted: a directory this",
+        ),
+        (
+            ["run", path, "-o", "resumed", "-q", "--resume", "--set", "time.end=0.1"],
+            f"resumed/{RESULT_FILE}: Permission denied",
+        ),
+        (["plot", "shown"], "shown/plots: Permission denied"),
+        (["export", "shown", "--vtk"], "shown/vtk: Permission denied"),
+    ]
+    child = subprocess.run(
+        ["setpriv", "--bounding-set=-dac_override,-dac_read_search,-fowner", sys.executable, "-c",
+         READ_ONLY_CHILD, json.dumps([[str(a) for a in argv] for argv, _ in cases])],
+        cwd=tmp_path, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert child.returncode == 0, child.stderr
+    for (argv, phrase), line in zip(cases, child.stdout.splitlines(), strict=True):
+        code, err = json.loads(line)
+        assert code == 2 and phrase in err and "Traceback" not in err, (argv, err)

@@ -6,6 +6,7 @@ processes starting at once after an upgrade take turns."""
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -150,3 +151,30 @@ def test_two_processes_starting_at_once_after_an_upgrade(tmp_path):
     assert sum(int(cleared) for _, cleared in results) == directories  # each directory cleared once
     assert not list(cache.rglob("state.max_wave_speed-1.py311.nbi"))
     assert {path.read_text() for path in cache.rglob(kernel_cache.STAMP)} == {kernel_cache.sources_digest()}
+
+
+CAPABILITIES = "-dac_override,-dac_read_search,-fowner"  # root then obeys the permission bits
+
+
+@pytest.mark.skipif(os.geteuid() != 0 or not shutil.which("setpriv"), reason="drops root's capabilities")
+def test_kernels_run_uncached_with_a_warning_where_numba_can_write_no_cache(tmp_path):
+    """A read-only installation and home (no ``NUMBA_CACHE_DIR``): numba's ``cache=True``
+    raised "no locator available" when the engine was imported, a traceback on every
+    run.  The kernel is compiled in memory, gives its answer, and a warning says why."""
+    package = tmp_path / "readonly"
+    package.mkdir()
+    (package / "kernels.py").write_text(
+        "from multilayer.engine.compiled import jit\n\n@jit\ndef twice(x):\n    return 2.0 * x\n"
+    )
+    package.chmod(0o555)
+    env = {**os.environ, "HOME": str(package), "XDG_CACHE_HOME": str(package), "PYTHONPATH": str(package)}
+    env.pop("NUMBA_CACHE_DIR", None)
+    code = "import kernels; print(kernels.twice(1.5), type(kernels.twice._cache).__name__)"
+    child = subprocess.run(
+        ["setpriv", f"--bounding-set={CAPABILITIES}", sys.executable, "-W", "always", "-c", code],
+        env=env, capture_output=True, text=True, cwd=package, timeout=120,
+    )  # fmt: skip
+    assert child.returncode == 0, child.stderr
+    assert child.stdout.split() == ["3.0", "NullCache"]
+    assert "numba finds no directory it can write its cache to" in child.stderr
+    assert "Traceback" not in child.stderr and [p.name for p in package.iterdir()] == ["kernels.py"]

@@ -115,8 +115,10 @@ def _dispatch(args: argparse.Namespace) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # nothing more to flush at exit
         return 128 + 13  # as if SIGPIPE had ended the process
     except OSError as exc:  # a path given on the command line cannot be created or written
+        what = f"{exc.filename}: {exc.strerror}" if exc.filename is not None and exc.strerror else str(exc)
         print(
-            f"multilayer: error: {exc}; accepted: a directory that can be created and written",
+            f"multilayer: error: {what}; accepted: a directory this user can write and files in it "
+            "that are not read-only",
             file=sys.stderr,
         )
         return 2

@@ -9,7 +9,9 @@ compiled kernel.  Nothing is compiled, loaded or checked when the engine is impo
 
 from __future__ import annotations
 
+import functools
 import types
+import warnings
 from collections.abc import Callable
 from typing import Any
 
@@ -35,9 +37,26 @@ class _CheckedCache(FunctionCache):
 
 def _checked(dispatcher: Any) -> Any:
     """``dispatcher`` with its on-disk cache enabled as ``cache=True`` would (numba's
-    ``Dispatcher.enable_caching``), through :class:`_CheckedCache`."""
-    dispatcher._cache = _CheckedCache(dispatcher.py_func)
+    ``Dispatcher.enable_caching``), through :class:`_CheckedCache`; without it where numba
+    finds no directory it can write (a read-only installation, no writable home nor
+    ``NUMBA_CACHE_DIR``: ``cache=True`` raises there), with a warning: the kernels are then
+    compiled in memory by every process."""
+    try:
+        dispatcher._cache = _CheckedCache(dispatcher.py_func)
+    except RuntimeError:  # numba: "cannot cache function ...: no locator available"
+        _warn_uncached()
     return dispatcher
+
+
+@functools.cache
+def _warn_uncached() -> None:
+    """Say once per process that the kernels are not cached."""
+    warnings.warn(
+        "numba finds no directory it can write its cache to (beside the engine's modules, "
+        "NUMBA_CACHE_DIR, the user's cache directory): the kernels are compiled in memory by "
+        "every run (about a minute); set NUMBA_CACHE_DIR to a writable directory",
+        stacklevel=2,
+    )
 
 
 def jit(function: Callable | None = None, **options: Any) -> Any:
