@@ -18,6 +18,7 @@ import threading
 import warnings
 from collections.abc import Iterator, Sequence
 
+from multilayer.app import numba_environment
 from multilayer.errors import InputError, Interrupted, RunError
 
 SUBCOMMANDS = (
@@ -65,7 +66,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _warning(message, category, filename, lineno, file=None, line=None) -> None:
-    print(f"multilayer: warning: {message}", file=sys.stderr if file is None else file)
+    text = str(message)
+    if "Traceback (most recent call last):" in text:  # numba quotes one for a variable it cannot read
+        lines = text.splitlines()
+        text = f"{lines[0]} ({lines[-1]})"
+    print(f"multilayer: warning: {text}", file=sys.stderr if file is None else file)
 
 
 @contextlib.contextmanager
@@ -104,6 +109,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _dispatch(args: argparse.Namespace) -> int:
     """The exit code of the subcommand of ``args`` (docs/cli.md)."""
     try:
+        numba_environment.check()
         return args.handler(args)
     except InputError as exc:
         print(f"multilayer: error: {exc}", file=sys.stderr)
