@@ -192,6 +192,17 @@ BAD_FILES: list[tuple[str, str, str]] = [
     ("a list", "- 1\n- 2\n", "top level"),
     ("duplicate key", yaml.safe_dump(TINY) + "name: again\n", "duplicate key"),
     ("binary garbage", "\x00\x01\x02\xff", "scenario.yaml"),
+    (
+        "a !!python/object tag",
+        yaml.safe_dump(TINY).replace("name: tiny", "name: !!python/object:os.system x"),
+        "could not determine a constructor",
+    ),
+    ("a tab as indentation", yaml.safe_dump(TINY).replace("\n  ", "\n\t", 1), "that cannot start any token"),
+    (
+        "a merge key given twice",
+        yaml.safe_dump(TINY) + "a: &a {b: 1}\nc: {<<: *a, <<: *a}\n",
+        "duplicate key",
+    ),
 ]
 
 PLUGIN_FAULTS: list[tuple[str, str, str]] = [
@@ -1015,7 +1026,6 @@ def round_three() -> list[Case]:
 
 NOT_ROOT = ["setpriv", "--bounding-set=-dac_override,-dac_read_search,-fowner"]
 """Root without the capabilities that override the permission bits: a user of the files."""
-TINY_TEXT = yaml.safe_dump(TINY)
 PERIODIC = {"boundaries": {"left": "periodic", "right": "periodic"}}
 UNMATCHED_PERIODIC = (  # 1e-12 m2 more enters the left side than leaves the right one, put into the flow
     "if kwargs.get('stage') != 0: kwargs['boundary_mass'][0] += 1e-12; "
@@ -1041,7 +1051,7 @@ def _read_only(what: str) -> Callable[[Path], None]:
 def round_four() -> list[Case]:
     """The hostile cases of the fourth round (docs/reliability.md): numba's environment,
     a denormal end time, periodic sides that do not match, read-only outputs (as a user,
-    where root can drop its capabilities), YAML tags, tabs and merge keys."""
+    where root can drop its capabilities); YAML tags, tabs and merge keys are in BAD_FILES."""
     run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
     out = [
         Case(
@@ -1109,24 +1119,6 @@ def round_four() -> list[Case]:
             out.append(
                 Case(f"as a user: {name}", command, 2, phrase, setup=_read_only(what), prefix=NOT_ROOT)
             )
-    for name, text, phrase in (
-        (
-            "a !!python/object tag",
-            TINY_TEXT.replace("name: tiny", "name: !!python/object:os.system x"),
-            "could not determine a constructor",
-        ),
-        ("a tab as indentation", TINY_TEXT.replace("\n  ", "\n\t", 1), "that cannot start any token"),
-        ("a merge key given twice", TINY_TEXT + "a: &a {b: 1}\nc: {<<: *a, <<: *a}\n", "duplicate key"),
-    ):
-        out.append(
-            Case(
-                f"validate: {name}",
-                ["validate", "{scenario}"],
-                2,
-                phrase,
-                setup=partial(_scenario, text=text),
-            )
-        )
     return out
 
 
