@@ -194,11 +194,13 @@ def test_kernels_run_uncached_with_a_warning_where_numba_can_write_no_cache(tmp_
     assert "Traceback" not in child.stderr and [p.name for p in package.iterdir()] == ["kernels.py"]
 
 
-def test_a_damaged_cache_entry_is_compiled_again_with_one_warning(tmp_path, monkeypatch):
-    """numba unpickles its cached kernels: a truncated entry (a full disk, a killed writer)
-    was an UnpicklingError from deep inside numba on every run.  Now a miss: the kernel is
-    compiled again, gives its answer and its entry is written anew; one warning per cache
-    directory."""
+@pytest.mark.parametrize("files", ["*.nbc", "*.nbi"])
+def test_a_damaged_cache_entry_is_compiled_again_with_one_warning(tmp_path, monkeypatch, files):
+    """numba unpickles its cached kernels (``.nbc``) and their index (``.nbi``): a truncated
+    file (a full disk, a killed writer) was an UnpicklingError from deep inside numba on
+    every run (a damaged index at the save after compiling).  Now a miss: the kernel is
+    compiled again, gives its answer and its entry (or index) is written anew; one warning
+    per cache directory."""
     from multilayer.engine import compiled
 
     (tmp_path / "damaged_kernels.py").write_text(
@@ -209,15 +211,15 @@ def test_a_damaged_cache_entry_is_compiled_again_with_one_warning(tmp_path, monk
     monkeypatch.setattr(compiled, "_damaged", set())
     module = importlib.import_module("damaged_kernels")
     try:
-        _compiled_again(tmp_path, module)
+        _compiled_again(tmp_path, module, files)
     finally:
         del sys.modules["damaged_kernels"]
 
 
-def _compiled_again(tmp_path, module) -> None:
+def _compiled_again(tmp_path, module, files) -> None:
     """The checks of the test above on the imported module of two kernels."""
     assert (module.twice(1.5), module.thrice(1.5)) == (3.0, 4.5)  # compiled and cached
-    entries = sorted((tmp_path / "__pycache__").glob("*.nbc"))
+    entries = sorted((tmp_path / "__pycache__").glob(files))
     assert len(entries) == 2
     for entry in entries:
         os.truncate(entry, entry.stat().st_size // 2)
