@@ -442,8 +442,7 @@ class Simulation:
         if not math.isfinite(_time(t_target)):
             raise InputError(f"advance(t_target={t_target!r}): accepted: a finite number (s)")
         bound = _step_bound(max_steps)
-        dt = self.time_step()
-        if self.t < t_target and (t_target - self.t) / dt > bound:
+        if self.t < t_target and bound < math.inf and (t_target - self.t) / (dt := self.time_step()) > bound:
             raise InputError(
                 f"advance(t_target={t_target!r}): {t_target - self.t:.3g} s from t = {self.t:.6g} s in steps "
                 f"of at most {dt:.3g} s (the Courant step now) take more than max_steps = {max_steps}; "
