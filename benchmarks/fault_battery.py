@@ -1061,6 +1061,7 @@ def round_four() -> list[Case]:
             f"environment variable {variable}",
             setup=_scenario,
             env={variable: value},
+            plain=True,
         )
         for variable, value in (
             ("NUMBA_NUM_THREADS", "0"),
@@ -1076,6 +1077,7 @@ def round_four() -> list[Case]:
             "could not be parsed. (ValueError",
             setup=_scenario,
             env={"NUMBA_OPT": "x"},
+            plain=True,
         )
     )
     for command in (["validate", "{scenario}"], run):
