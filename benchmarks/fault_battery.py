@@ -16,6 +16,7 @@ import copy
 import json
 import os
 import resource
+import shutil
 import signal
 import socket
 import subprocess
@@ -73,6 +74,8 @@ class Case:
     env: dict[str, str] = field(default_factory=dict)  # added to the child's environment
     file_limit: int | None = None  # RLIMIT_FSIZE of the child (ulimit -f), bytes
     signal_when: tuple[str, int] | None = None  # (file in the case's directory, signal) sent once it exists
+    prefix: list[str] = field(default_factory=list)  # a command the child runs under (setpriv)
+    plain: bool = False  # the command line itself, nothing imported before (numba's environment)
     result: dict = field(default_factory=dict)
 
 
@@ -189,6 +192,17 @@ BAD_FILES: list[tuple[str, str, str]] = [
     ("a list", "- 1\n- 2\n", "top level"),
     ("duplicate key", yaml.safe_dump(TINY) + "name: again\n", "duplicate key"),
     ("binary garbage", "\x00\x01\x02\xff", "scenario.yaml"),
+    (
+        "a !!python/object tag",
+        yaml.safe_dump(TINY).replace("name: tiny", "name: !!python/object:os.system x"),
+        "could not determine a constructor",
+    ),
+    ("a tab as indentation", yaml.safe_dump(TINY).replace("\n  ", "\n\t", 1), "that cannot start any token"),
+    (
+        "a merge key given twice",
+        yaml.safe_dump(TINY) + "a: &a {b: 1}\nc: {<<: *a, <<: *a}\n",
+        "duplicate key",
+    ),
 ]
 
 PLUGIN_FAULTS: list[tuple[str, str, str]] = [
@@ -1010,6 +1024,106 @@ def round_three() -> list[Case]:
     return out
 
 
+NOT_ROOT = ["setpriv", "--bounding-set=-dac_override,-dac_read_search,-fowner"]
+"""Root without the capabilities that override the permission bits: a user of the files."""
+PERIODIC = {"boundaries": {"left": "periodic", "right": "periodic"}}
+UNMATCHED_PERIODIC = (  # 1e-12 m2 more enters the left side than leaves the right one, put into the flow
+    "if kwargs.get('stage') != 0: kwargs['boundary_mass'][0] += 1e-12; "
+    "h[int(np.argmax(h))] += 1e-12 / kwargs['dx']"
+)
+
+
+def _read_only(what: str) -> Callable[[Path], None]:
+    """``out`` read-only (``dir``), or its ``result.nc`` in a finished run (``file``)."""
+
+    def setup(directory: Path) -> None:
+        if what == "dir":
+            _scenario(directory)
+            (directory / "out").mkdir(mode=0o555)
+            return
+        _finished_run(directory)
+        target = directory / "out" / ("result.nc" if what == "file" else "")
+        target.chmod(0o444 if what == "file" else 0o555)
+
+    return setup
+
+
+def round_four() -> list[Case]:
+    """The hostile cases of the fourth round (docs/reliability.md): numba's environment,
+    a denormal end time, periodic sides that do not match, read-only outputs (as a user,
+    where root can drop its capabilities); YAML tags, tabs and merge keys are in BAD_FILES."""
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    out = [
+        Case(
+            f"env {variable}={value}",
+            run,
+            2,
+            f"environment variable {variable}",
+            setup=_scenario,
+            env={variable: value},
+            plain=True,
+        )
+        for variable, value in (
+            ("NUMBA_NUM_THREADS", "0"),
+            ("NUMBA_DISABLE_JIT", "1"),
+            ("NUMBA_THREADING_LAYER", "x"),
+        )
+    ]
+    out.append(
+        Case(
+            "env NUMBA_OPT=x",
+            run,
+            0,
+            "could not be parsed. (ValueError",
+            setup=_scenario,
+            env={"NUMBA_OPT": "x"},
+            plain=True,
+        )
+    )
+    for command in (["validate", "{scenario}"], run):
+        out.append(
+            Case(
+                f"time.end 5e-324: {command[0]}",
+                command,
+                2,
+                "too short to step",
+                setup=partial(_scenario, changes={"time.end": 5e-324}),
+            )
+        )
+    out.append(
+        Case(
+            "engine: periodic sides that do not match",
+            run,
+            1,
+            "the periodic sides do not match",
+            patch=_transport_patch(UNMATCHED_PERIODIC),
+            setup=partial(_scenario, changes=PERIODIC),
+            keeps_output=True,
+        )
+    )
+    if os.geteuid() == 0 and shutil.which("setpriv"):
+        for name, command, what, phrase in (
+            (
+                "run into a read-only directory",
+                run,
+                "dir",
+                "out: cannot be created or written (Permission denied)",
+            ),
+            ("run over a read-only result.nc", run, "file", "out/result.nc: Permission denied"),
+            ("plot of a read-only directory", ["plot", "{dir}/out"], "run", "out/plots: Permission denied"),
+            (
+                "export of a read-only directory",
+                ["export", "{dir}/out", "--vtk"],
+                "run",
+                "out/vtk: Permission denied",
+            ),
+        ):
+            out.append(
+                Case(f"as a user: {name}", command, 2, phrase, setup=_read_only(what), prefix=NOT_ROOT)
+            )
+    return out
+
+
 def cases() -> list[Case]:
     out: list[Case] = []
     budget = ["--max-memory", "8G", "--max-output", "1G"]
@@ -1162,7 +1276,7 @@ def cases() -> list[Case]:
             Case(f"plot: {how} result", ["plot", "{dir}/out"], code, phrase, setup=_result_damage(how))
         )
     out.append(Case("plot: no result", ["plot", "{dir}"], 2, "no result file"))
-    return out + round_two() + round_three()
+    return out + round_two() + round_three() + round_four()
 
 
 def _records(path: Path) -> int:
@@ -1181,7 +1295,8 @@ def attempt(case: Case) -> Case:
         if case.setup is not None:
             case.setup(directory)
         argv = [a.format(scenario=directory / "scenario.yaml", dir=directory) for a in case.argv]
-        command = [sys.executable, "-c", CHILD.format(patch=case.patch), *argv]
+        child = ["-m", "multilayer"] if case.plain else ["-c", CHILD.format(patch=case.patch)]
+        command = [*case.prefix, sys.executable, *child, *argv]
         limit = case.file_limit
 
         def limited() -> None:

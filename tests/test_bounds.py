@@ -274,3 +274,31 @@ def test_a_member_marker_that_is_no_marker_means_run_again(tmp_path):
     for marker in ("[1, 2]", '{"fingerprint": "x"}', '{"fingerprint": "x", "summary": 3}', "{" * 5000):
         (tmp_path / sweep.MARKER).write_text(marker)
         assert sweep.completed(tmp_path, "x") is None
+
+
+def test_a_mesh_that_does_not_fit_in_memory_under_force_is_named_not_a_traceback(
+    tmp_path, cli, write_scenario
+):
+    """``--force`` skips the memory estimate; a mesh that then does not fit was a numpy
+    ``MemoryError`` traceback while the simulation was built.  Under an address-space limit
+    of 1 GiB above what the process holds, 10^8 cells (2.2 GiB for one array): exit 2
+    naming the keys, numpy's words and the estimate, no result left."""
+    import resource
+
+    import psutil
+
+    path = write_scenario({**TINY_SCENARIO, "domain": {**TINY_SCENARIO["domain"], "cells": 10**8}})
+    limit = psutil.Process().memory_info().vms + 2**30
+    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
+    try:
+        result = cli("run", path, "-o", tmp_path / "out", "--force", "-q")
+    finally:
+        resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
+    assert result.code == 2 and "Traceback" not in result.err
+    assert (
+        "domain.cells, domain.layers: 100000000 cells x 3 layers do not fit in memory (Unable to allocate"
+        in (result.err)
+    )
+    assert "the estimate is about 727 GB); accepted: fewer cells or layers" in result.err
+    assert not (tmp_path / "out" / "result.nc").exists()

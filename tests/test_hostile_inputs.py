@@ -6,8 +6,11 @@ traceback, a hang or a value read otherwise than the user meant."""
 from __future__ import annotations
 
 import copy
+import json
 import os
 import shutil
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -15,7 +18,7 @@ import yaml
 from conftest import TINY_SCENARIO
 
 import multilayer
-from multilayer.errors import InputError
+from multilayer.errors import InputError, RunError
 from multilayer.io import results
 from multilayer.io.results import CHECKPOINT_FILE, RESULT_FILE
 
@@ -50,6 +53,10 @@ def _deep() -> dict:
         (
             lambda: multilayer.load(TINY_SCENARIO, {"time.end": np.nan}),
             "overrides: time.end: nan is not a value",
+        ),
+        (
+            lambda: multilayer.load(TINY_SCENARIO, {"time.end": 5e-324}),
+            "time.end (from --set): 5e-324 s, too short to step (half of a denormal step is zero)",
         ),
         (
             lambda: multilayer.load(_recursive()),
@@ -263,18 +270,51 @@ def test_a_pipe_as_a_bed_file_is_refused_without_waiting_for_a_writer(tmp_path, 
         (lambda sim: sim.advance(np.nan), "advance(t_target=nan): accepted: a finite number (s)"),
         (lambda sim: sim.advance(np.inf), "advance(t_target=inf): accepted: a finite number (s)"),
         (lambda sim: sim.advance(None), "advance(t_target=None): accepted"),
-        (lambda sim: sim.step("0.1"), "step(t_max='0.1'): t_max must be a number later than"),
+        (lambda sim: sim.step("0.1"), "step(t_max='0.1'): t_max must be a number at least"),
+        (
+            lambda sim: sim.step(5e-324),
+            "step(t_max=5e-324): t_max must be a number at least 4.45e-308 s later",
+        ),
+        (
+            lambda sim: sim.advance(1e308),
+            "advance(t_target=1e+308): 1e+308 s from t = 0 s in steps of at most",
+        ),
+        (lambda sim: sim.advance(1.0, max_steps=10), "more than max_steps = 10; accepted: a nearer t_target"),
+        (
+            lambda sim: sim.advance(0.01, max_steps=0),
+            "advance(max_steps=0): accepted: an integer >= 1, or None",
+        ),
+        (lambda sim: sim.advance(0.01, max_steps=2.5), "advance(max_steps=2.5): accepted"),
+        (lambda sim: sim.advance(0.01, max_steps=True), "advance(max_steps=True): accepted"),
     ],
 )
 def test_stepping_by_hand_refuses_what_is_no_scenario_or_no_time(call, phrase):
     """``Simulation(mapping)`` was an AttributeError, ``advance(nan)`` did nothing,
-    ``advance(inf)`` never ended, a time of text was a TypeError."""
+    ``advance(inf)`` never ended, nor ``advance(1e308)`` (10^311 steps), a time of text was a
+    TypeError, a step of 5e-324 s a ZeroDivisionError in the implicit step (half of it is 0)."""
     sim = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
     with pytest.raises(InputError) as caught:
         call(sim)
     assert phrase in str(caught.value)
     sim.advance(np.array(0.01))  # a 0-d array (a time read from a Dataset) is a time
     assert sim.t == 0.01
+
+
+def test_advance_stops_at_its_step_bound_and_continues_to_the_same_state():
+    """``advance(t, max_steps=n)`` takes n steps and stops short of ``t`` with a RunError,
+    the state of its last step kept: advancing again ends on the state of one uninterrupted
+    advance, to the last bit."""
+    whole = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
+    whole.advance(0.05)
+    sim = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
+    with pytest.raises(
+        RunError, match=r"advance\(t_target=0.05\): took max_steps = 6 time steps, reaching t = "
+    ):
+        sim.advance(0.05, max_steps=6)  # 5.9 Courant steps of the initial state: 7 steps
+    assert sim.steps == 6 and 0.0 < sim.t < 0.05 < whole.steps
+    sim.advance(0.05)
+    assert (sim.steps, sim.t) == (whole.steps, whole.t)
+    assert np.array_equal(sim.h, whole.h) and np.array_equal(sim.u, whole.u)
 
 
 @pytest.mark.parametrize("x1", ["inf", "1e308"])
@@ -353,3 +393,57 @@ def test_a_damaged_result_is_named_without_numpy_warnings(tmp_path, finished):
         warnings.simplefilter("always")
         check_result(outdir)
     assert not [str(w.message) for w in caught if issubclass(w.category, RuntimeWarning)]
+
+
+READ_ONLY_CHILD = """
+import contextlib, io, json, sys
+from multilayer.app.cli import main
+for argv in json.loads(sys.argv[1]):
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        code = main(argv)
+    print(json.dumps([code, err.getvalue()]))
+"""
+
+
+@pytest.mark.slow  # a child process: plot and export import matplotlib and VTK writers (7 s)
+@pytest.mark.skipif(os.geteuid() != 0 or not shutil.which("setpriv"), reason="drops root's capabilities")
+def test_read_only_output_directories_and_files_are_named(tmp_path, finished):
+    """Run as a user who may not write there (root without the capabilities that override
+    the permission bits): a run into a read-only directory, over a read-only result.nc,
+    ``--resume`` of a read-only result.nc, ``plot`` and ``export`` of a read-only run
+    directory: exit 2 naming the path and the cause, no traceback (a read-only file was
+    reported as "a directory that can be created and written")."""
+    path, source = finished
+    (tmp_path / "locked").mkdir(mode=0o555)
+    for name in ("over", "resumed", "shown"):
+        shutil.copytree(source, tmp_path / name)
+    for name in ("over", "resumed"):
+        (tmp_path / name / RESULT_FILE).chmod(0o444)
+    (tmp_path / "shown").chmod(0o555)
+    cases = [
+        (["run", path, "-o", "locked", "-q"], "locked: cannot be created or written (Permission denied)"),
+        (
+            ["run", path, "-o", "locked/sub", "-q"],
+            "locked/sub: cannot be created or written (Permission denied)",
+        ),
+        (
+            ["run", path, "-o", "over", "-q"],
+            f"over/{RESULT_FILE}: Permission denied; accepted: a directory this",
+        ),
+        (
+            ["run", path, "-o", "resumed", "-q", "--resume", "--set", "time.end=0.1"],
+            f"resumed/{RESULT_FILE}: Permission denied",
+        ),
+        (["plot", "shown"], "shown/plots: Permission denied"),
+        (["export", "shown", "--vtk"], "shown/vtk: Permission denied"),
+    ]
+    child = subprocess.run(
+        ["setpriv", "--bounding-set=-dac_override,-dac_read_search,-fowner", sys.executable, "-c",
+         READ_ONLY_CHILD, json.dumps([[str(a) for a in argv] for argv, _ in cases])],
+        cwd=tmp_path, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert child.returncode == 0, child.stderr
+    for (argv, phrase), line in zip(cases, child.stdout.splitlines(), strict=True):
+        code, err = json.loads(line)
+        assert code == 2 and phrase in err and "Traceback" not in err, (argv, err)

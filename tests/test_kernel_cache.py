@@ -5,10 +5,13 @@ processes starting at once after an upgrade take turns."""
 
 from __future__ import annotations
 
+import importlib
 import os
+import shutil
 import subprocess
 import sys
 import time
+import warnings
 
 import pytest
 
@@ -58,6 +61,18 @@ def test_the_compiled_mark_holds_for_the_sources_it_was_made_for(tmp_path, monke
     kernel.write_text("from numba import njit  # edited\n")
     assert not kernel_cache.is_compiled()
     assert kernel_cache.clear_if_stale(cache) and not (cache / kernel_cache.COMPILED).exists()
+
+
+@pytest.mark.parametrize("damage", [b"\x90\xff\x00garbage", b"", b"not the digest\n"])
+def test_a_mark_that_is_not_text_is_not_compiled(tmp_path, monkeypatch, damage):
+    """A ``kernels.compiled`` mark overwritten with bytes that are not UTF-8 was a
+    UnicodeDecodeError of ``multilayer compile``; any mark but the one it writes means not
+    compiled (and ``multilayer compile`` compiles)."""
+    monkeypatch.setattr(kernel_cache, "cache_directories", lambda: [tmp_path])
+    kernel_cache.mark_compiled(kernel_cache.compiled_text())
+    assert kernel_cache.is_compiled()
+    (tmp_path / kernel_cache.COMPILED).write_bytes(damage)
+    assert not kernel_cache.is_compiled()
 
 
 def test_the_digest_covers_the_kernel_modules_of_every_engine_package():
@@ -150,3 +165,69 @@ def test_two_processes_starting_at_once_after_an_upgrade(tmp_path):
     assert sum(int(cleared) for _, cleared in results) == directories  # each directory cleared once
     assert not list(cache.rglob("state.max_wave_speed-1.py311.nbi"))
     assert {path.read_text() for path in cache.rglob(kernel_cache.STAMP)} == {kernel_cache.sources_digest()}
+
+
+CAPABILITIES = "-dac_override,-dac_read_search,-fowner"  # root then obeys the permission bits
+
+
+@pytest.mark.skipif(os.geteuid() != 0 or not shutil.which("setpriv"), reason="drops root's capabilities")
+def test_kernels_run_uncached_with_a_warning_where_numba_can_write_no_cache(tmp_path):
+    """A read-only installation and home (no ``NUMBA_CACHE_DIR``): numba's ``cache=True``
+    raised "no locator available" when the engine was imported, a traceback on every
+    run.  The kernel is compiled in memory, gives its answer, and a warning says why."""
+    package = tmp_path / "readonly"
+    package.mkdir()
+    (package / "kernels.py").write_text(
+        "from multilayer.engine.compiled import jit\n\n@jit\ndef twice(x):\n    return 2.0 * x\n"
+    )
+    package.chmod(0o555)
+    env = {**os.environ, "HOME": str(package), "XDG_CACHE_HOME": str(package), "PYTHONPATH": str(package)}
+    env.pop("NUMBA_CACHE_DIR", None)
+    code = "import kernels; print(kernels.twice(1.5), type(kernels.twice._cache).__name__)"
+    child = subprocess.run(
+        ["setpriv", f"--bounding-set={CAPABILITIES}", sys.executable, "-W", "always", "-c", code],
+        env=env, capture_output=True, text=True, cwd=package, timeout=120,
+    )  # fmt: skip
+    assert child.returncode == 0, child.stderr
+    assert child.stdout.split() == ["3.0", "NullCache"]
+    assert "numba finds no directory it can write its cache to" in child.stderr
+    assert "Traceback" not in child.stderr and [p.name for p in package.iterdir()] == ["kernels.py"]
+
+
+@pytest.mark.parametrize("files", ["*.nbc", "*.nbi"])
+def test_a_damaged_cache_entry_is_compiled_again_with_one_warning(tmp_path, monkeypatch, files):
+    """numba unpickles its cached kernels (``.nbc``) and their index (``.nbi``): a truncated
+    file (a full disk, a killed writer) was an UnpicklingError from deep inside numba on
+    every run (a damaged index at the save after compiling).  Now a miss: the kernel is
+    compiled again, gives its answer and its entry (or index) is written anew; one warning
+    per cache directory."""
+    from multilayer.engine import compiled
+
+    (tmp_path / "damaged_kernels.py").write_text(
+        "from multilayer.engine.compiled import jit\n\n\n@jit\ndef twice(x):\n    return 2.0 * x\n\n\n"
+        "@jit\ndef thrice(x):\n    return 3.0 * x\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(compiled, "_damaged", set())
+    module = importlib.import_module("damaged_kernels")
+    try:
+        _compiled_again(tmp_path, module, files)
+    finally:
+        del sys.modules["damaged_kernels"]
+
+
+def _compiled_again(tmp_path, module, files) -> None:
+    """The checks of the test above on the imported module of two kernels."""
+    assert (module.twice(1.5), module.thrice(1.5)) == (3.0, 4.5)  # compiled and cached
+    entries = sorted((tmp_path / "__pycache__").glob(files))
+    assert len(entries) == 2
+    for entry in entries:
+        os.truncate(entry, entry.stat().st_size // 2)
+    module = importlib.reload(module)
+    with pytest.warns(UserWarning, match=r"numba's cache in .* holds kernels that cannot be read") as caught:
+        assert (module.twice(1.5), module.thrice(1.5)) == (3.0, 4.5)
+    assert len(caught) == 1 and "compiled again" in str(caught[0].message)
+    module = importlib.reload(module)  # the entries were written again: loaded without a word
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert (module.twice(2.0), module.thrice(2.0)) == (4.0, 6.0)

@@ -124,3 +124,51 @@ def test_a_closed_stdout_ends_the_command_quietly(tmp_path, write_scenario):
     reader.stdin.close()
     reader.wait()
     assert done.returncode in (0, 141) and "Traceback" not in done.stderr and "Exception" not in done.stderr
+
+
+@pytest.mark.parametrize(
+    ("variable", "value", "accepted"),
+    [
+        ("NUMBA_NUM_THREADS", "0", "an integer >= 1 (ASCII digits), or unset"),  # numba: ValueError at import
+        ("NUMBA_NUM_THREADS", "two", "an integer >= 1"),  # numba: a warning quoting a traceback
+        ("NUMBA_DISABLE_JIT", "1", "0 or unset: the engine's kernels need numba's compiler"),
+        (
+            "NUMBA_THREADING_LAYER",
+            "bogus",
+            "default, safe, forksafe, threadsafe, tbb, omp, workqueue, or unset",
+        ),
+    ],
+)
+def test_numba_variables_the_engine_cannot_run_with_are_refused_first(
+    tmp_path, cli, write_scenario, monkeypatch, variable, value, accepted
+):
+    """numba reads its environment once, at its import: ``NUMBA_NUM_THREADS=0`` was a
+    traceback there, ``NUMBA_DISABLE_JIT=1`` an AttributeError in the engine's cache, an
+    unknown threading layer a failure in the first parallel kernel, mid-run (exit 1)."""
+    monkeypatch.setenv(variable, value)
+    scenario = write_scenario(TINY_SCENARIO)
+    for argv in (("validate", scenario), ("run", scenario, "-o", tmp_path / "out", "-q")):
+        result = cli(*argv)
+        assert result.code == 2 and "Traceback" not in result.err
+        assert (
+            f"multilayer: error: environment variable {variable}={value!r}; accepted: {accepted}"
+            in result.err
+        )
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_warning_that_quotes_a_traceback_is_printed_without_it(capsys):
+    """numba warns about a variable it cannot read (``NUMBA_OPT=x``, then ignored) quoting
+    the traceback of its parse: the command line prints the first and the last line."""
+    from multilayer.app import cli
+
+    quoted = (
+        "Environment variable 'NUMBA_OPT' is defined but its associated value 'x' could not be parsed.\n"
+        'The parse failed with exception:\nTraceback (most recent call last):\n  File "config.py"\n'
+        "ValueError: unsupported value 'x'"
+    )
+    cli._warning(RuntimeWarning(quoted), RuntimeWarning, "config.py", 1)
+    assert capsys.readouterr().err == (
+        "multilayer: warning: Environment variable 'NUMBA_OPT' is defined but its associated value 'x' could "
+        "not be parsed. (ValueError: unsupported value 'x')\n"
+    )

@@ -18,6 +18,7 @@ import threading
 import warnings
 from collections.abc import Iterator, Sequence
 
+from multilayer.app import numba_environment
 from multilayer.errors import InputError, Interrupted, RunError
 
 SUBCOMMANDS = (
@@ -77,7 +78,11 @@ def _command(argv: Sequence[str]) -> str | None:
 
 
 def _warning(message, category, filename, lineno, file=None, line=None) -> None:
-    print(f"multilayer: warning: {message}", file=sys.stderr if file is None else file)
+    text = str(message)
+    if "Traceback (most recent call last):" in text:  # numba quotes one for a variable it cannot read
+        lines = text.splitlines()
+        text = f"{lines[0]} ({lines[-1]})"
+    print(f"multilayer: warning: {text}", file=sys.stderr if file is None else file)
 
 
 @contextlib.contextmanager
@@ -117,6 +122,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _dispatch(args: argparse.Namespace) -> int:
     """The exit code of the subcommand of ``args`` (docs/cli.md)."""
     try:
+        numba_environment.check()
         return args.handler(args)
     except InputError as exc:
         print(f"multilayer: error: {exc}", file=sys.stderr)
@@ -128,8 +134,10 @@ def _dispatch(args: argparse.Namespace) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # nothing more to flush at exit
         return 128 + 13  # as if SIGPIPE had ended the process
     except OSError as exc:  # a path given on the command line cannot be created or written
+        what = f"{exc.filename}: {exc.strerror}" if exc.filename is not None and exc.strerror else str(exc)
         print(
-            f"multilayer: error: {exc}; accepted: a directory that can be created and written",
+            f"multilayer: error: {what}; accepted: a directory this user can write and files in it "
+            "that are not read-only",
             file=sys.stderr,
         )
         return 2

@@ -98,12 +98,15 @@ def _small(scenario: Any) -> Any:
 
 def _newton_cached() -> bool:
     """Whether numba's cache holds a compilation of the fused Newton kernel (its index file,
-    once the cache is checked against the kernel sources, engine/kernel_cache.py)."""
+    once the cache is checked against the kernel sources, engine/kernel_cache.py); True
+    too where numba caches nothing (engine/compiled.py): a child's compilation would not
+    reach the run."""
     from multilayer.engine import kernel_cache
     from multilayer.engine.vertical import newton_kernel
 
     kernel_cache.ensure_fresh()
-    return Path(newton_kernel._chunk._cache._cache_file._index_path).exists()
+    cache_file = getattr(newton_kernel._chunk._cache, "_cache_file", None)
+    return cache_file is None or Path(cache_file._index_path).exists()
 
 
 def _compile_newton_callees() -> None:

@@ -39,14 +39,13 @@ from typing import Any
 
 import numpy as np
 
+from multilayer.engine.config import MAX_STEPS
 from multilayer.errors import InputError
 from multilayer.io import disk
 from multilayer.io.netcdf_layout import HEADER_SPACE
 
 BYTES_PER_CELL = 2600
 BASE_BYTES = 200 * 2**20
-MAX_STEPS = 10_000_000
-"""Default bound on the time steps of a run (``--max-steps``)."""
 _UNITS = {"": 1, "k": 2**10, "m": 2**20, "g": 2**30, "t": 2**40}
 
 

@@ -190,7 +190,15 @@ def _run(
     ahead = compile_ahead(scenario)  # the kernels, on two cores where they are not cached yet
     if ahead is not None:
         log.info("numba compiled the Newton kernel in a child process beside the transport: %.1f s", ahead)
-    sim = Simulation(scenario)
+    try:
+        sim = Simulation(scenario)
+    except MemoryError as exc:  # beyond the estimate, or its check skipped (--force, --max-memory)
+        where, domain = scenario.source or "<scenario>", scenario.domain
+        raise InputError(
+            f"{where}: domain.cells, domain.layers: {domain.cells} cells x {domain.layers} layers do not "
+            f"fit in memory ({exc}; the estimate is about "
+            f"{resources.size_text(resources.estimate(scenario).memory)}); accepted: fewer cells or layers"
+        ) from None
     result_path, ckpt_path = outdir / RESULT_FILE, outdir / CHECKPOINT_FILE
     stop.starting = False  # from here a signal is honoured between kernel calls, the state kept
     if ckpt is None:
@@ -238,7 +246,7 @@ def _run(
     status = "failed"
     try:
         for t_out in times[times > sim.t + 1e-9 * scenario.time.end]:
-            sim.advance(t_out, on_step=on_step)
+            sim.advance(t_out, on_step=on_step, max_steps=None)  # bounded by on_step, over the run
             sim.check_state()
             diag = writer.write(sim)
             saved_t = checkpoint()

@@ -9,8 +9,12 @@ compiled kernel.  Nothing is compiled, loaded or checked when the engine is impo
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import types
+import warnings
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numba
@@ -22,22 +26,67 @@ from multilayer.engine import kernel_cache
 class _CheckedCache(FunctionCache):
     """numba's on-disk cache of one kernel, made consistent with the kernel sources
     (:func:`kernel_cache.ensure_fresh`) before the first kernel of the process is loaded
-    or saved."""
+    or saved.  An entry that cannot be read (a truncated or damaged file: numba raised
+    the unpickling error) is a miss: the kernel is compiled again and the entry
+    rewritten (a damaged index anew), with a warning."""
 
     def load_overload(self, sig: Any, target_context: Any) -> Any:
         kernel_cache.ensure_fresh()
-        return super().load_overload(sig, target_context)
+        try:
+            return super().load_overload(sig, target_context)
+        except Exception as exc:  # pickle, zlib, EOF, attribute errors of a damaged entry
+            _warn_damaged(self._cache_path, f"{self._py_func.__qualname__}: {type(exc).__name__}: {exc}")
+            return None
 
     def save_overload(self, sig: Any, data: Any) -> None:
         kernel_cache.ensure_fresh()
-        super().save_overload(sig, data)
+        try:
+            super().save_overload(sig, data)
+        except Exception as exc:  # its index cannot be read: written anew, without the old entries
+            _warn_damaged(self._cache_path, f"{self._py_func.__qualname__}: {type(exc).__name__}: {exc}")
+            with contextlib.suppress(Exception):  # the kernel is compiled: it runs uncached otherwise
+                Path(self._cache_file._index_path).unlink(missing_ok=True)
+                super().save_overload(sig, data)
 
 
 def _checked(dispatcher: Any) -> Any:
     """``dispatcher`` with its on-disk cache enabled as ``cache=True`` would (numba's
-    ``Dispatcher.enable_caching``), through :class:`_CheckedCache`."""
-    dispatcher._cache = _CheckedCache(dispatcher.py_func)
+    ``Dispatcher.enable_caching``), through :class:`_CheckedCache`; without it where numba
+    finds no directory it can write (a read-only installation, no writable home nor
+    ``NUMBA_CACHE_DIR``: ``cache=True`` raises there), with a warning: the kernels are then
+    compiled in memory by every process."""
+    try:
+        dispatcher._cache = _CheckedCache(dispatcher.py_func)
+    except RuntimeError:  # numba: "cannot cache function ...: no locator available"
+        _warn_uncached()
     return dispatcher
+
+
+_damaged: set[str] = set()
+"""The cache directories :func:`_warn_damaged` has warned about."""
+
+
+def _warn_damaged(directory: str, first: str) -> None:
+    """Say once per cache directory that entries of it cannot be read."""
+    if directory in _damaged:
+        return
+    _damaged.add(directory)
+    warnings.warn(
+        f"numba's cache in {directory} holds kernels that cannot be read (the first: {first}); "
+        "they are compiled again",
+        stacklevel=3,
+    )
+
+
+@functools.cache
+def _warn_uncached() -> None:
+    """Say once per process that the kernels are not cached."""
+    warnings.warn(
+        "numba finds no directory it can write its cache to (beside the engine's modules, "
+        "NUMBA_CACHE_DIR, the user's cache directory): the kernels are compiled in memory by "
+        "every run (about a minute); set NUMBA_CACHE_DIR to a writable directory",
+        stacklevel=2,
+    )
 
 
 def jit(function: Callable | None = None, **options: Any) -> Any:

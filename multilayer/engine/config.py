@@ -16,6 +16,10 @@ from types import MappingProxyType
 
 from multilayer.plugins.contract import Material
 
+MAX_STEPS = 10_000_000
+"""Default bound on the time steps of one ``Simulation.advance`` and of a run
+(``multilayer run --max-steps``): a loop that depends on input never runs without one."""
+
 Points = tuple[tuple[float, float], ...]
 """A piecewise-linear profile ``((x, value), ...)`` with increasing x (m)."""
 

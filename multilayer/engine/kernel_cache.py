@@ -196,10 +196,11 @@ def mark_compiled(text: str) -> None:
 
 def is_compiled() -> bool:
     """Whether :func:`mark_compiled` recorded the current sources and numba in every cache
-    directory (False where numba cannot cache)."""
+    directory (False where numba cannot cache, or a mark holds anything else, bytes that
+    are not text included)."""
     text = compiled_text()
     directories = cache_directories()
     try:
-        return bool(directories) and all((d / COMPILED).read_text() == text for d in directories)
+        return bool(directories) and all((d / COMPILED).read_bytes() == text.encode() for d in directories)
     except OSError:
         return False

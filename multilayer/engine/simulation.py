@@ -39,7 +39,7 @@ import numpy as np
 
 from multilayer.engine import basal, diagnostics, initial_state
 from multilayer.engine.bed_force import BedForce, VerticalImpulse
-from multilayer.engine.config import SimulationConfig
+from multilayer.engine.config import MAX_STEPS, SimulationConfig
 from multilayer.engine.gate import Gate
 from multilayer.engine.mesh import LayeredMesh
 from multilayer.engine.mixture.flow import MixtureFlow
@@ -57,6 +57,10 @@ from multilayer.engine.vertical.step import VerticalStep
 from multilayer.engine.vertical.stresses import StressModel
 from multilayer.errors import InputError, RunError
 from multilayer.plugins.contract import Rheology
+
+MIN_STEP = 2.0 * float(np.finfo(float).tiny)
+"""Shortest time step (s): the implicit step of the stresses over ``dt / 2`` divides by it,
+which must be a normal number (half of a denormal step rounds to zero)."""
 
 
 class Simulation:
@@ -144,7 +148,7 @@ class Simulation:
         self.t = 0.0
         self.steps = 0
         self.newton_iterations = 0
-        self.guard = StateGuard(self.x, self.dx)
+        self.guard = StateGuard(self.x, self.dx, periodic=boundaries.BOUNDARIES[self.left].wraps)
         self.guard.check_state(self.h, self.u, "in the initial state")
         self.guard.reset(self.h, self.steps)
         #: mass (m2) through the left and right boundary in the last step, positive in +x
@@ -304,14 +308,16 @@ class Simulation:
                     return vertical, iterations
 
     def _check_target(self, t_max: float) -> None:
-        if not _time(t_max) > self.t:
+        if not _time(t_max) - self.t >= MIN_STEP:
             raise InputError(
-                f"step(t_max={t_max!r}): t_max must be a number later than the current time t = {self.t!r} s"
+                f"step(t_max={t_max!r}): t_max must be a number at least {MIN_STEP:.3g} s later than the "
+                f"current time t = {self.t!r} s"
             )
 
     def _check_advances(self, dt: float) -> None:
-        """Refuse a step that would not advance t: never loop on it."""
-        if not (dt > 0 and self.t + dt > self.t):
+        """Refuse a step that would not advance t (never loop on it) or that the implicit
+        step cannot divide by (:data:`MIN_STEP`)."""
+        if not (dt >= MIN_STEP and self.t + dt > self.t):
             raise RunError(
                 f"the time step dt = {dt!r} s at t = {self.t!r} s does not advance the time (the fastest "
                 f"wave speed is {max_wave_speed(self.h, self.u, self.g_n)!r} m/s; dt "
@@ -419,14 +425,38 @@ class Simulation:
                 columns,
             )
 
-    def advance(self, t_target: float, on_step: Callable[[Simulation, float], None] | None = None) -> None:
+    def advance(
+        self,
+        t_target: float,
+        on_step: Callable[[Simulation, float], None] | None = None,
+        *,
+        max_steps: int | None = MAX_STEPS,
+    ) -> None:
         """Step until ``t == t_target`` (a finite number: :class:`InputError` otherwise, where
         the stepping would never end or never start); ``on_step(sim, dt)`` is called after
-        every step."""
+        every step.  At most ``max_steps`` steps (``None``: no bound): :class:`InputError`
+        before the first step when the Courant step of the state now already needs more
+        (``(t_target - t) / time_step()``, a lower bound: the waves may grow), and
+        :class:`RunError` once that many are taken short of ``t_target`` (the state is
+        that of the last step: ``advance`` again continues)."""
         if not math.isfinite(_time(t_target)):
             raise InputError(f"advance(t_target={t_target!r}): accepted: a finite number (s)")
+        bound = _step_bound(max_steps)
+        if self.t < t_target and bound < math.inf and (t_target - self.t) / (dt := self.time_step()) > bound:
+            raise InputError(
+                f"advance(t_target={t_target!r}): {t_target - self.t:.3g} s from t = {self.t:.6g} s in steps "
+                f"of at most {dt:.3g} s (the Courant step now) take more than max_steps = {max_steps}; "
+                "accepted: a nearer t_target, a larger max_steps, or max_steps=None for no bound"
+            )
+        taken = 0
         while self.t < t_target:
+            if taken >= bound:
+                raise RunError(
+                    f"advance(t_target={t_target!r}): took max_steps = {max_steps} time steps, reaching "
+                    f"t = {self.t:.6g} s; advance again to continue, or give a larger max_steps"
+                )
             dt = self.step(t_target)
+            taken += 1
             if on_step is not None:
                 on_step(self, dt)
 
@@ -471,6 +501,16 @@ class Simulation:
         self.guard.reset(self.h, self.steps)
         if self.mixture is not None:
             self.mixture.reset(self.steps)
+
+
+def _step_bound(max_steps: object) -> float:
+    """``max_steps`` of :meth:`Simulation.advance` as a bound (inf for None);
+    :class:`InputError` unless an integer >= 1 or None."""
+    if max_steps is None:
+        return math.inf
+    if isinstance(max_steps, bool) or not isinstance(max_steps, numbers.Integral) or max_steps < 1:
+        raise InputError(f"advance(max_steps={max_steps!r}): accepted: an integer >= 1, or None for no bound")
+    return float(max_steps)
 
 
 def _time(value: object) -> float:

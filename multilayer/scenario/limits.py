@@ -40,6 +40,10 @@ MAX_LAYERS = 10**5
 """Most layers (the exact column solve keeps 128 L^2 bytes per thread: 1.3 TB here)."""
 MAX_OUTPUT_TIMES = 10**7
 """Most output times of a run (``time.end / time.output_interval``), also under --force."""
+MIN_END = 1e-290
+"""Shortest ``time.end`` (s): the output times of a run are at least ``1e-9 time.end``
+apart, so every step stays far above the shortest the engine takes (``MIN_STEP`` of
+engine/simulation.py, 4.45e-308 s; half of a denormal step is zero)."""
 MAX_DEM_PIXELS = 400_000_000
 """Largest DEM read (pixels; its band is read whole, 8 bytes a pixel)."""
 

@@ -478,6 +478,12 @@ class Time(StrictModel):
 
     @model_validator(mode="after")
     def _check(self) -> Time:
+        if self.end < limits.MIN_END:
+            raise invalid(
+                f"{self.end!r} s, too short to step (half of a denormal step is zero)",
+                f"a number >= {limits.MIN_END:g} (s)",
+                "end",
+            )
         outputs = self.end / self.output_interval
         if not outputs <= limits.MAX_OUTPUT_TIMES:
             raise invalid(
