@@ -64,7 +64,25 @@ FORMS = {
 """The compiled viscosity forms by name."""
 
 
-def law_of(rheology: Any, material: Any) -> tuple[int, np.ndarray] | None:
+PARAMETERS = max(form.parameters for form in FORMS.values())
+"""The length of the parameter tuples the kernels take (:func:`parameters`)."""
+Parameters = tuple[float, float, float, float, float]
+
+
+def parameters(values: Any) -> Parameters:
+    """The parameters of a compiled form as the kernels take them: a tuple of
+    :data:`PARAMETERS` floats, padded with zeros.  A tuple, not an array: numba counts the
+    references of an array passed to a function it does not inline, two atomic operations
+    per call, which cost five times the evaluation of the law itself."""
+    floats = [float(v) for v in np.ravel(values)]
+    return (*floats, *(0.0,) * (PARAMETERS - len(floats)))  # type: ignore[return-value]
+
+
+NO_PARAMETERS = parameters(())
+"""The parameters of an absent law (no side walls)."""
+
+
+def law_of(rheology: Any, material: Any) -> tuple[int, Parameters] | None:
     """(form code, parameters) of a plugin's compiled viscosity, None if it has none (or
     declares a form unknown here).  A known form with another number of parameters stops
     the run naming the plugin (``plugin_output.declared_form``).
@@ -79,11 +97,11 @@ def law_of(rheology: Any, material: Any) -> tuple[int, np.ndarray] | None:
     uses = tuple(getattr(rheology, "uses", ()))
     if uses not in ((), ("thickness",)):
         return None
-    parameters = {name: form.parameters for name, form in FORMS.items()}
-    declared = declared_form(rheology, "viscosity_kernel", material, parameters)
+    counts = {name: form.parameters for name, form in FORMS.items()}
+    declared = declared_form(rheology, "viscosity_kernel", material, counts)
     if declared is None or FORMS[declared[0]].thickness != bool(uses):
         return None
-    return FORMS[declared[0]].code, declared[1]
+    return FORMS[declared[0]].code, parameters(declared[1])
 
 
 @jit

@@ -40,6 +40,8 @@ from multilayer.engine.vertical.coefficients import (
 )
 from multilayer.engine.vertical.column_solve import _active_set, _dynamic_programme, _workspace
 from multilayer.engine.vertical.forms import (
+    NO_PARAMETERS,
+    Parameters,
     _newton_model,
     _pressure_part,
     _viscosity_and_slope,
@@ -79,9 +81,9 @@ class Laws(NamedTuple):
     wall laws, the channel width (0: no walls) and the density."""
 
     bulk_form: int
-    bulk_params: np.ndarray
+    bulk_params: Parameters
     wall_form: int
-    wall_params: np.ndarray
+    wall_params: Parameters
     width: float
     density: float
 
@@ -557,11 +559,11 @@ class CompiledStep:
         self._out: list[np.ndarray] = []
         self._written = [(0, 0), (0, 0)]
 
-    def laws(self) -> tuple[tuple[int, np.ndarray], tuple[int, np.ndarray] | None] | None:
+    def laws(self) -> tuple[tuple[int, Parameters], tuple[int, Parameters] | None] | None:
         """(bulk, walls) compiled forms, None when some law has none."""
         return self.stresses.forms("viscosity", self._read_laws)
 
-    def _read_laws(self) -> tuple[tuple[int, np.ndarray], tuple[int, np.ndarray] | None] | None:
+    def _read_laws(self) -> tuple[tuple[int, Parameters], tuple[int, Parameters] | None] | None:
         s = self.stresses
         bulk = law_of(s.bulk, s.material)
         walls = law_of(s.walls, s.material) if s.walls is not None else None
@@ -606,7 +608,7 @@ class CompiledStep:
             np.empty((wet.size, 2)), np.zeros(wet.size, np.bool_),
         )  # fmt: skip
         iterations, fallbacks, faults = out.iterations, out.fallbacks, out.faults
-        wall_form, wall_params = walls if walls is not None else (0, np.zeros(1))
+        wall_form, wall_params = walls if walls is not None else (0, NO_PARAMETERS)
         columns = Columns(
             wet,
             np.ascontiguousarray(h, dtype=float),
