@@ -65,24 +65,32 @@ FORMS = {
 
 
 PARAMETERS = max(form.parameters for form in FORMS.values())
-"""The length of the parameter tuples the kernels take (:func:`parameters`)."""
-Parameters = tuple[float, float, float, float, float]
+"""The number of parameters every form is given (:func:`parameters`)."""
 
 
-def parameters(values: Any) -> Parameters:
-    """The parameters of a compiled form as the kernels take them: a tuple of
-    :data:`PARAMETERS` floats, padded with zeros.  A tuple, not an array: numba counts the
-    references of an array passed to a function it does not inline, two atomic operations
-    per call, which cost five times the evaluation of the law itself."""
-    floats = [float(v) for v in np.ravel(values)]
-    return (*floats, *(0.0,) * (PARAMETERS - len(floats)))  # type: ignore[return-value]
+def parameters(values: Any) -> np.ndarray:
+    """The parameters of a compiled form, padded with zeros to :data:`PARAMETERS` floats
+    (the kernels read them as a tuple, :func:`as_tuple`)."""
+    floats = np.zeros(PARAMETERS)
+    given = np.ravel(np.asarray(values, dtype=float))
+    floats[: given.size] = given
+    return floats
 
 
 NO_PARAMETERS = parameters(())
 """The parameters of an absent law (no side walls)."""
 
 
-def law_of(rheology: Any, material: Any) -> tuple[int, Parameters] | None:
+@jit(inline="always")
+def as_tuple(params):
+    """The :data:`PARAMETERS` parameters of a form as a tuple: numba counts the
+    references of an array passed to a function it does not inline, two atomic
+    operations per call, which cost five times the evaluation of a law itself; a tuple
+    of floats has none.  A kernel converts once and passes the tuple to the forms."""
+    return (params[0], params[1], params[2], params[3], params[4])
+
+
+def law_of(rheology: Any, material: Any) -> tuple[int, np.ndarray] | None:
     """(form code, parameters) of a plugin's compiled viscosity, None if it has none (or
     declares a form unknown here).  A known form with another number of parameters stops
     the run naming the plugin (``plugin_output.declared_form``).

@@ -41,10 +41,10 @@ from multilayer.engine.vertical.coefficients import (
 from multilayer.engine.vertical.column_solve import _active_set, _dynamic_programme, _workspace
 from multilayer.engine.vertical.forms import (
     NO_PARAMETERS,
-    Parameters,
     _newton_model,
     _pressure_part,
     _viscosity_and_slope,
+    as_tuple,
     concave,
     law_of,
 )
@@ -81,9 +81,9 @@ class Laws(NamedTuple):
     wall laws, the channel width (0: no walls) and the density."""
 
     bulk_form: int
-    bulk_params: Parameters
+    bulk_params: np.ndarray
     wall_form: int
-    wall_params: Parameters
+    wall_params: np.ndarray
     width: float
     density: float
 
@@ -245,11 +245,12 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
     ``(k + 1) n // chunks``): compiled once, called on one thread as the one chunk
     (``_serial``) and by the parallel kernel per chunk."""
     wet, h, ustar, guess = columns.wet, columns.h, columns.ustar, columns.guess
+    # the parameters as tuples: passed to the forms without reference counting
     bulk_form, bulk_params, wall_form, wall_params = (
         laws.bulk_form,
-        laws.bulk_params,
+        as_tuple(laws.bulk_params),
         laws.wall_form,
-        laws.wall_params,
+        as_tuple(laws.wall_params),
     )
     width, density = laws.width, laws.density
     dt, threshold, max_iterations, blocks = (
@@ -559,11 +560,11 @@ class CompiledStep:
         self._out: list[np.ndarray] = []
         self._written = [(0, 0), (0, 0)]
 
-    def laws(self) -> tuple[tuple[int, Parameters], tuple[int, Parameters] | None] | None:
+    def laws(self) -> tuple[tuple[int, np.ndarray], tuple[int, np.ndarray] | None] | None:
         """(bulk, walls) compiled forms, None when some law has none."""
         return self.stresses.forms("viscosity", self._read_laws)
 
-    def _read_laws(self) -> tuple[tuple[int, Parameters], tuple[int, Parameters] | None] | None:
+    def _read_laws(self) -> tuple[tuple[int, np.ndarray], tuple[int, np.ndarray] | None] | None:
         s = self.stresses
         bulk = law_of(s.bulk, s.material)
         walls = law_of(s.walls, s.material) if s.walls is not None else None
