@@ -23,6 +23,16 @@ LAWS = [
 ]
 
 
+def test_the_kernels_read_every_parameter_of_every_form():
+    """``forms.as_tuple`` (the parameters the Newton kernel hands the forms) holds all
+    ``PARAMETERS`` of ``forms.parameters``, and every form fits in them: a form with more
+    would have its last parameters dropped."""
+    values = viscous_law.parameters(np.arange(1.0, viscous_law.PARAMETERS + 1.0))
+    assert viscous_law.as_tuple(values) == tuple(values)
+    assert all(form.parameters <= viscous_law.PARAMETERS for form in viscous_law.FORMS.values())
+    assert viscous_law.parameters([2.0]).tolist() == [2.0] + [0.0] * (viscous_law.PARAMETERS - 1)
+
+
 @pytest.mark.parametrize("law", LAWS, ids=lambda law: f"{law.name}")
 def test_compiled_viscosity_is_the_plugin_viscosity(law):
     rng = np.random.default_rng(0)

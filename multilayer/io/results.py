@@ -337,11 +337,12 @@ def summary(path: str | os.PathLike, *, checked: bool = True) -> dict[str, float
         from multilayer.io.result_check import check_result
 
         check_result(path, "answer")
-    # read with netCDF4 itself: the first and last records, the forces of every record
+    # read with netCDF4 itself: the last record, the first front, the forces of every record
     with netCDF4.Dataset(result_path(path)) as nc:
         nc.set_auto_mask(False)  # NaN fills stay NaN, as xarray reads them
         records = {name: var for name, var in nc.variables.items() if var.dimensions[:1] == ("time",)}
-        first, final = ({name: var[index] for name, var in records.items()} for index in (0, -1))
+        final = {name: var[-1] for name, var in records.items()}
+        front0 = float(nc["front"][0])
         threshold = float(nc["front"].getncattr("threshold"))
         seismic = seismic_force(nc.variables) if "bed_force_x" in records else None
         steps, wall_time = int(nc.getncattr("steps")), float(nc.getncattr("wall_time_s"))
@@ -351,7 +352,7 @@ def summary(path: str | os.PathLike, *, checked: bool = True) -> dict[str, float
     return {
         "t_final": float(final["time"]),
         "front_final": float(final["front"]),
-        "runout": float(final["front"] - first["front"]),
+        "runout": float(final["front"] - front0),
         "mass_final": float(final["mass"]),
         "max_speed_final": float(np.abs(final["u"]).max()),
         "static_interface_mean_final": float(static.mean()) if static.size else float("nan"),
