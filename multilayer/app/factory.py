@@ -128,6 +128,7 @@ def engine_config(scenario: Scenario) -> cfg.SimulationConfig:
         pressure=cfg.PressureConfig(
             sc.model.pressure, MappingProxyType(options(model, sc.model.options, dom.layers))
         ),
+        normal_stress=sc.model.normal_stress,
         mixture=mixture(sc),
         name=str(sc.source or "<scenario>"),
     )

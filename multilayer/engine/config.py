@@ -149,6 +149,8 @@ class SimulationConfig:
     cfl: float = 0.45
     numerics: Numerics = Numerics()
     pressure: PressureConfig = PressureConfig()
+    normal_stress: bool = False
+    """The longitudinal normal stress of the layers (:mod:`multilayer.engine.normal_stress`)."""
     mixture: MixtureConfig | None = None
     """A grain–fluid mixture (None: dry grains)."""
     name: str = "<scenario>"

@@ -1,6 +1,8 @@
 """The time loop of the multilayer model (docs/model.md, "Time stepping").
 
-A step of the transport T (fluxes, mass exchange, gravity: transport/), the implicit
+A step of the transport T (fluxes, mass exchange, gravity: transport/; with
+``model.normal_stress`` followed by the implicit longitudinal normal stress,
+normal_stress.py), the implicit
 stresses V (the argmin of the stress energy per column, exact yield: vertical/; the local
 step of a mixture: mixture/), the pressure model's projection P (pressure/) and the
 impulses on the bed (bed_force.py).  At first order (``numerics.order: 1``) it is the
@@ -43,6 +45,7 @@ from multilayer.engine.config import MAX_STEPS, SimulationConfig
 from multilayer.engine.gate import Gate
 from multilayer.engine.mesh import LayeredMesh
 from multilayer.engine.mixture.flow import MixtureFlow
+from multilayer.engine.normal_stress import NormalStress
 from multilayer.engine.pressure.model import PressureModel, PressureSetup, models, options
 from multilayer.engine.state import FlowState, max_wave_speed, span, start_moving
 from multilayer.engine.state_check import StateGuard, check_restored
@@ -135,6 +138,14 @@ class Simulation:
             tolerance=c.numerics.tolerance,
             max_iterations=c.numerics.max_iterations,
             velocity_scale=self._velocity_scale(),
+        )
+        if c.normal_stress and c.mixture is not None:
+            raise InputError(f"{c.name}: model.normal_stress: accepted: false with a grain-fluid mixture")
+        #: the longitudinal normal stress after each transport stage (None: off)
+        self.normal_stress = (
+            NormalStress(self.vertical.stresses, self.fractions, self.dx, c.numerics.tolerance)
+            if c.normal_stress
+            else None
         )
         #: the Newton seed of the step's first vertical step, extrapolated from the last steps
         self.seeds = SeedExtrapolation(self.u.shape)
@@ -352,6 +363,11 @@ class Simulation:
         self.guard.check_state(
             h, ustar, lambda: f"after transport from t = {self.t:.6g} s (dt = {dt:.3g} s)", columns
         )
+        if self.normal_stress is not None:  # in place: the compiled transport's workspace keeps it
+            self.normal_stress(
+                h, ustar, self.u, self.pressure.yield_gravity(self.state, h), dt,
+                velocity_scale=self.vertical.velocity_scale, max_iterations=self.numerics.max_iterations,
+            )  # fmt: skip
         return h, ustar
 
     def _vertical_step(

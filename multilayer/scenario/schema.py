@@ -594,6 +594,9 @@ class Model(StrictModel):
     model_config = ConfigDict(extra="allow")
 
     pressure: str = field("hydrostatic", pressure_models.accepted())
+    normal_stress: bool = field(
+        False, "true or false: the longitudinal normal stress of each layer (docs/model.md)"
+    )
 
     @field_validator("pressure")
     @classmethod
@@ -764,6 +767,7 @@ class Scenario(StrictModel):
         self._check_drag(grains)
         supported = (
             (self.model.pressure == "hydrostatic", "model.pressure", "hydrostatic with fluid"),
+            (not self.model.normal_stress, "model.normal_stress", "false with fluid"),
             (self.walls is None, "walls", "no walls with fluid"),
             (self.gate is None, "gate", "no gate with fluid"),
             (

@@ -52,6 +52,7 @@ class ColumnStresses:
 
 INTERFACE = "interface {index} (0 is the bed)"
 LAYER = "layer {number} (1 is at the bed)"
+NORMAL = "a face between two columns of a layer (model.normal_stress)"
 
 
 class StressModel:
@@ -274,6 +275,15 @@ class StressModel:
             )
             out[2], out[3] = per_area * tau, per_area * tangent / half
         return out
+
+    def bulk_stress(self, rate: np.ndarray, pressure: np.ndarray, h: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """The stress norm ``kappa(p) + eta(rate, p) rate`` of the bulk law (flowing yield
+        stress) at the shear rates ``rate`` and pressures ``pressure`` of columns of
+        thickness ``h`` at ``x`` (flat arrays of one shape)."""
+        inputs = {"shear rate": rate, "pressure": pressure}
+        kappa = self._call(self.bulk, "yield_stress", (pressure, self.material), inputs, x, NORMAL, h)
+        eta = self._call(self.bulk, "viscosity", (rate, pressure, self.material), inputs, x, NORMAL, h)
+        return kappa + eta * rate
 
     def _viscosity(self, law, rate, pressure, cs, position) -> np.ndarray:
         inputs = {"shear rate": rate, "pressure": pressure}
