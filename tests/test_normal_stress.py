@@ -10,6 +10,7 @@ import pytest
 import multilayer
 from multilayer.engine.normal_stress import Chains, chains, plastic_chain_step
 from multilayer.errors import InputError
+from multilayer.validation.runs import SCENARIOS
 
 RHO, G, MU = 1500.0, 9.81, 0.5
 
@@ -122,7 +123,9 @@ def test_material_at_rest_stays_exactly_at_rest():
     assert heap.steps >= 10 and np.all(heap.u == 0.0)
 
 
-def test_the_key_is_a_boolean_off_by_default(tiny_scenario):
+def test_the_key_is_a_boolean_off_by_default_and_not_with_a_fluid(tiny_scenario):
     assert multilayer.Simulation(multilayer.load(tiny_scenario)).normal_stress is None
     with pytest.raises(InputError, match=r"model\.normal_stress.*accepted: true or false"):
         multilayer.load(tiny_scenario, {"model.normal_stress": "yes"})
+    with pytest.raises(InputError, match=r"model\.normal_stress.*not supported with a fluid"):
+        multilayer.load(SCENARIOS / "immersed_layer_loose.yaml", {"model.normal_stress": True})
