@@ -17,6 +17,9 @@ pressures with the non-hydrostatic part q):
   D_xz^2)``, ``D_xz = du/dz / 2`` and ``I = 2 |D| d / sqrt(p / rho_p)``, with ``D_xx = du/dx`` at
   fixed ``z`` from the sigma coordinates, ``du/dx|_sigma - (dz/dx|_sigma) du/dz``, on the faces
   between two columns holding material;
+- on the same faces, the bulk shear power ``mu(I) p |du/dz|`` of the model and the dissipation
+  ``2 mu(I) p |D|`` of the tensor law, which is less than their sum (``tau_xz`` falls to
+  ``mu(I) p D_xz / |D|`` where the material stretches);
 - the potential energy ``rho g sum h^2/2 dx`` (flat bed) and the kinetic energy
   ``rho/2 sum l_a h (u_a^2 + w_a^2) dx``; what the shear power does not account for of their
   loss is dissipated by the numerics (transport, projection of the pressure).
@@ -63,6 +66,10 @@ class Sample:
     normal: float
     along_sigma: float
     """``P_xx`` with ``D_xx = du/dx|_sigma`` (without the slope of the layers)."""
+    face_shear: float
+    """The bulk shear power ``mu(I) p |du/dz|`` on the same faces as ``P_xx``."""
+    tensor: float
+    """The dissipation ``2 mu(I) p |D|`` of the tensor law on those faces (``I`` from ``2|D|``)."""
 
 
 def sample(sim: Simulation) -> Sample:
@@ -101,6 +108,9 @@ def sample(sim: Simulation) -> Sample:
             * dx
         )
 
+    d_xx = along - dzdx * dudz_f
+    norm = np.sqrt(d_xx**2 + (0.5 * dudz_f) ** 2)
+    rate = np.abs(dudz_f)
     return Sample(
         t=sim.t,
         potential=float(rho * sim.g_n * np.sum(0.5 * h**2 + sim.bed * h) * dx),
@@ -108,8 +118,12 @@ def sample(sim: Simulation) -> Sample:
         bed=float(shear[0].sum()),
         internal=float(shear[1:].sum()),
         walls=float(np.sum((threshold + viscous) * np.abs(held)) * dx),
-        normal=power(along - dzdx * dudz_f),
+        normal=power(d_xx),
         along_sigma=power(along),
+        face_shear=float(np.sum(total_stress(stresses.bulk, rate, p_f, sim, hf) * rate * l * hf) * dx),
+        tensor=float(
+            np.sum(2.0 * total_stress(stresses.bulk, 2.0 * norm, p_f, sim, hf) * norm * l * hf) * dx
+        ),
     )
 
 
@@ -139,7 +153,7 @@ def report(a: float, dx: float, samples: list[Sample]) -> None:
         f"a = {a:g}, dx = {dx * 1e3:g} mm: E_p(0) = {first.potential:.4g} J/m, largest kinetic energy "
         f"{samples[peak].kinetic:.4g} J/m at t = {samples[peak].t:.3f} s, end t = {last.t:.3f} s"
     )
-    powers = ("bed", "internal", "walls", "normal", "along_sigma")
+    powers = ("bed", "internal", "walls", "normal", "along_sigma", "face_shear", "tensor")
     for label, (start, stop) in (("fall", (0, peak)), ("spreading", (peak, len(samples) - 1))):
         released = samples[start].potential + samples[start].kinetic
         lost = released - samples[stop].potential - samples[stop].kinetic
@@ -151,7 +165,10 @@ def report(a: float, dx: float, samples: list[Sample]) -> None:
             f"(sum {shear:.4g}, {shear / lost:.0%} of the loss; numerics {1 - shear / lost:.0%}); "
             f"normal stress would add {e['normal']:.4g} = {e['normal'] / shear:.1%} of the shear, "
             f"{e['normal'] / samples[peak].kinetic:.1%} of the largest kinetic energy "
-            f"(with D_xx = du/dx|_sigma: {e['along_sigma'] / shear:.1%} of the shear)"
+            f"(with D_xx = du/dx|_sigma: {e['along_sigma'] / shear:.1%} of the shear); on the faces, the "
+            f"tensor law dissipates {e['tensor']:.4g} = "
+            f"{e['tensor'] / (e['face_shear'] + e['normal']):.0%} of shear + normal there "
+            f"({e['face_shear']:.4g} + {e['normal']:.4g})"
         )
     ratios = [s.normal / (s.bed + s.internal + s.walls) for s in samples if s.bed + s.internal + s.walls > 0]
     print(
