@@ -473,6 +473,10 @@ What the runs show about why:
 - **The pressure.**  The hydrostatic pressure lengthens the tip run-out by
   {", ".join(f"{100 * c:+.0f}" for c in change("hydrostatic"))} % (the same a): the
   non-hydrostatic one is needed.
+- **The normal stress.**  The layers carry the shear stress only; the deviatoric normal
+  stress of the mu(I) tensor law, which a stretching column also feels, is an option
+  (`model.normal_stress`), not part of this configuration: it over-corrects these run-outs
+  and does not settle with the mesh ([The model](model.md), "Longitudinal normal stress").
 {release_text}{gate_text}- **The coarsest mesh can mislead.**  With {CELLS[0] * 1e3:g} mm cells (the column
   {L0 / CELLS[0]:g} cells wide) the tip differs by more than 10 % from the next mesh's at
   a = {", ".join(f"{a:g}" for a in coarse_off) or "none"}.
