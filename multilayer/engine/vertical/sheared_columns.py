@@ -98,7 +98,7 @@ def cell(i, L):
     return 1 + i * stride(L)
 
 
-@jit
+@jit(borrowing=True)
 def join(t, L, flags, i, fine):
     """Lane ``i`` of the block, whose per-step slots ``newton_kernel._chunk`` has set up
     (``fine``: its yield values are within the plugin contract), takes part in the block
@@ -111,7 +111,7 @@ def join(t, L, flags, i, fine):
     flags[ACTIVE, i] = take
 
 
-@jit
+@jit(borrowing=True)
 def unload(t, L, flags, i, viscous, wall_true, guess):
     """Column ``i`` of the block, one it did not finish, into lane ``ALONE`` (the
     column solved on its own by ``newton_kernel._chunk``), with the arrays of one column
@@ -127,7 +127,7 @@ def unload(t, L, flags, i, viscous, wall_true, guess):
     return flags[FINE, i]
 
 
-@jit(error_model="numpy")
+@jit(borrowing=True, error_model="numpy")
 def _stresses_and_model(t, L, u, form, params, flags):
     """At the velocities of slot ``u``: the true viscous stresses and their derivatives
     (slots ``TAU0``, ``STIFF0`` + ``u - U0``; a
@@ -160,7 +160,7 @@ def _stresses_and_model(t, L, u, form, params, flags):
         flags[SHEARED, i] = lane_unsheared == 0
 
 
-@jit(error_model="numpy")
+@jit(borrowing=True, error_model="numpy")
 def _sweep(t, u, form, params, start, stop):
     """Cells ``start ... stop - 1`` of the tile's rows of :func:`_stresses_and_model` (the
     velocities in slot ``u``); returns how many viscosities are outside the plugin contract
@@ -186,7 +186,7 @@ def _sweep(t, u, form, params, start, stop):
     return faults, unsheared
 
 
-@jit(error_model="numpy")
+@jit(borrowing=True, error_model="numpy")
 def _solve(t, L, new, flags):
     """The exact solve with one group per layer into slot ``new``: the forward sweep
     (inverse pivots ``DIAG``, right-hand sides ``RHS``) and the back substitution of
@@ -230,7 +230,7 @@ def _solve(t, L, new, flags):
             flags[ACTIVE, i] = False
 
 
-@jit(error_model="numpy")
+@jit(borrowing=True, error_model="numpy")
 def _converged(t, L, new, current, threshold, concave_stress, flags):
     """``DONE``: the error bound of ``newton_control.error_bound`` at slot ``new`` (its true
     stresses in ``TAU0 + new - U0``) is within ``threshold``, or else the largest change from
@@ -262,7 +262,7 @@ def _converged(t, L, new, current, threshold, concave_stress, flags):
                 flags[ACTIVE, i] = False
 
 
-@jit(error_model="numpy")
+@jit(borrowing=True, error_model="numpy")
 def sheared_block(
     t, flags, finished, form, params, threshold, max_iterations, j0, c0,
     u_out, iterations, fallbacks, faults, fault_values, side_by_side,
