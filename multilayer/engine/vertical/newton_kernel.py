@@ -362,22 +362,23 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
             lane = j - j0 if block else ALONE
             o = cell(lane, L)  # the lane's layer 0 in the tile's rows
             for a in range(L):  # what stays fixed during the iteration
+                x = np.uint64(o + a)  # unsigned: no test for negative indices
                 mass = m[a]
-                tile[sc.INERTIA, o + a] = mass / dt
-                tile[sc.MOMENTUM, o + a] = mass * ustar[a, col] / dt
+                tile[sc.INERTIA, x] = mass / dt
+                tile[sc.MOMENTUM, x] = mass * ustar[a, col] / dt
                 s = spacing[a]
                 inverse = 1.0 / s if s > 0.0 else 1.0
-                tile[sc.INV_SPACING, o + a] = inverse
-                tile[sc.CONDUCTANCE, o + a] = inverse if (viscous[a] and s > 0.0) else 0.0
+                tile[sc.INV_SPACING, x] = inverse
+                tile[sc.CONDUCTANCE, x] = inverse if (viscous[a] and s > 0.0) else 0.0
                 parts = _pressure_part(bulk_form, bulk_params, pressure[a], h[col])
-                tile[sc.FACTOR, o + a], tile[sc.OFFSET, o + a] = parts
+                tile[sc.FACTOR, x], tile[sc.OFFSET, x] = parts
                 current[a] = guess[a, col]
                 if block:  # (kappa was written into lane ALONE, whose slot it is)
-                    tile[sc.KAPPA, o + a] = kappa[a]
-                    tile[sc.VISCOUS, o + a] = 1.0 if viscous[a] else 0.0
-                    tile[sc.GUESS, o + a] = current[a]
-                    tile[sc.U0, o + a] = current[a]
-                    tile[sc.WALL, o + a] = w0[a]
+                    tile[sc.KAPPA, x] = kappa[a]
+                    tile[sc.VISCOUS, x] = 1.0 if viscous[a] else 0.0
+                    tile[sc.GUESS, x] = current[a]
+                    tile[sc.U0, x] = current[a]
+                    tile[sc.WALL, x] = w0[a]
                 elif walls:
                     wall_factor[a], wall_offset[a] = _pressure_part(
                         wall_form, wall_params, wall_pressure[a], h[col]

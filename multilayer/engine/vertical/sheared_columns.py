@@ -191,35 +191,37 @@ def _solve(t, L, new, flags):
     """The exact solve with one group per layer into slot ``new``: the forward sweep
     (inverse pivots ``DIAG``, right-hand sides ``RHS``) and the back substitution of
     ``column_solve._active_set``, and its optimality test: each yielded jump keeps its
-    sign (a column whose structure is rejected leaves the block)."""
+    sign (a column whose structure is rejected leaves the block).  The cells are unsigned
+    (as in :func:`_sweep`): no test for negative indices."""
+    one = np.uint64(1)
     for a in range(L):
         for i in range(BLOCK):
-            x = cell(i, L) + a
+            x = np.uint64(cell(i, L) + a)
             d = 0.0 + (t[INERTIA, x] + 0.0)  # _active_set's sums, in its order (cw = w = 0)
             r = 0.0 + t[MOMENTUM, x]
             c = t[CC, x]
             d += c
             r -= t[KC, x] * t[SIGN, x]
             if a + 1 < L:
-                d += t[CC, x + 1]
-                r += t[KC, x + 1] * t[SIGN, x + 1]
+                d += t[CC, x + one]
+                r += t[KC, x + one] * t[SIGN, x + one]
             if a > 0 and c != 0.0:
-                f = -c * t[DIAG, x - 1]
+                f = -c * t[DIAG, x - one]
                 d -= f * (-c)
-                r -= f * t[RHS, x - 1]
+                r -= f * t[RHS, x - one]
             if not d > 0.0:
                 flags[ACTIVE, i] = False
             t[DIAG, x] = 1.0 / d
             t[RHS, x] = r
     for a in range(L - 1, -1, -1):
         for i in range(BLOCK):
-            x = cell(i, L) + a
+            x = np.uint64(cell(i, L) + a)
             r = t[RHS, x]
             if a + 1 < L:
-                above = t[new, x + 1]
-                r += t[CC, x + 1] * above
+                above = t[new, x + one]
+                r += t[CC, x + one] * above
                 u = r * t[DIAG, x]
-                if t[KC, x + 1] > 0.0 and t[SIGN, x + 1] * (above - u) < 0.0:
+                if t[KC, x + one] > 0.0 and t[SIGN, x + one] * (above - u) < 0.0:
                     flags[ACTIVE, i] = False
             else:
                 u = r * t[DIAG, x]
