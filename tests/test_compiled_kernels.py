@@ -10,8 +10,11 @@ import sys
 import tempfile
 from pathlib import Path
 
+import numpy as np
 import pytest
+from numba.core.errors import TypingError
 
+from multilayer.engine.compiled import jit
 from multilayer.engine.threads import available_cores
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -134,6 +137,34 @@ def test_the_newton_callees_compiled_ahead_take_the_arguments_they_are_given():
 
     for kernel, signature in newton_callees():
         assert len(signature) == len(inspect.signature(kernel.py_func).parameters), kernel.py_func.__name__
+
+
+@jit(borrowing=True)
+def _row_sums(a, passes):
+    """The sum of ``a`` (2-D) taken ``passes`` times through a view of each row."""
+    total = 0.0
+    for _ in range(passes):
+        for i in range(a.shape[0]):
+            row = a[i]
+            for value in row:
+                total += value
+    return total
+
+
+@jit(borrowing=True)
+def _allocating(n):
+    return np.zeros(n).sum()
+
+
+def test_a_borrowing_kernel_reads_views_of_what_it_borrows_and_cannot_allocate():
+    """``compiled.jit(borrowing=True)``, the kernels of the Newton iteration: compiled
+    without numba's reference counting, a kernel reads views of the arrays its caller holds
+    (a sum of integers, exact) and an allocation in it is an error of compilation, not a
+    leak."""
+    a = np.arange(12.0).reshape(3, 4)
+    assert _row_sums(a, 1000) == 66.0 * 1000
+    with pytest.raises(TypingError):
+        _allocating(3)
 
 
 @pytest.mark.slow
