@@ -10,8 +10,11 @@ import sys
 import tempfile
 from pathlib import Path
 
+import numpy as np
 import pytest
+from numba.core.errors import TypingError
 
+from multilayer.engine.compiled import jit
 from multilayer.engine.threads import available_cores
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -70,13 +73,14 @@ whose bound on the steps reads the Courant step), the ones it loads from numba's
 (their callees are compiled into them): no parallel kernel, nothing of the non-hydrostatic
 projection."""
 
-COMPILATIONS = 58
+COMPILATIONS = 59
 """At most this many compilations of the engine's functions (each kernel and each of its
 callees, once per signature) for that run with numba's cache empty (52 when this bound
 was set; two more since the column solve's active set and the Newton control's error
 bound are compiled once as callees rather than inlined by numba at each call, one more
 for the extrapolated Newton seed, one more for the wave speed that ``advance`` reads to
-bound its steps)."""
+bound its steps, one more for the Newton kernel's iteration of a chunk, compiled without
+reference counting apart from the chunk that allocates its work arrays)."""
 
 
 def run(cache: str, **overrides: object) -> dict:
@@ -133,6 +137,34 @@ def test_the_newton_callees_compiled_ahead_take_the_arguments_they_are_given():
 
     for kernel, signature in newton_callees():
         assert len(signature) == len(inspect.signature(kernel.py_func).parameters), kernel.py_func.__name__
+
+
+@jit(borrowing=True)
+def _row_sums(a, passes):
+    """The sum of ``a`` (2-D) taken ``passes`` times through a view of each row."""
+    total = 0.0
+    for _ in range(passes):
+        for i in range(a.shape[0]):
+            row = a[i]
+            for value in row:
+                total += value
+    return total
+
+
+@jit(borrowing=True)
+def _allocating(n):
+    return np.zeros(n).sum()
+
+
+def test_a_borrowing_kernel_reads_views_of_what_it_borrows_and_cannot_allocate():
+    """``compiled.jit(borrowing=True)``, the kernels of the Newton iteration: compiled
+    without numba's reference counting, a kernel reads views of the arrays its caller holds
+    (a sum of integers, exact) and an allocation in it is an error of compilation, not a
+    leak."""
+    a = np.arange(12.0).reshape(3, 4)
+    assert _row_sums(a, 1000) == 66.0 * 1000
+    with pytest.raises(TypingError):
+        _allocating(3)
 
 
 @pytest.mark.slow

@@ -89,9 +89,22 @@ def _warn_uncached() -> None:
     )
 
 
-def jit(function: Callable | None = None, **options: Any) -> Any:
+def jit(function: Callable | None = None, *, borrowing: bool = False, **options: Any) -> Any:
     """``numba.njit(cache=True, **options)``, the cache checked before its first use:
-    ``@jit`` or ``@jit(inline="always", ...)``."""
+    ``@jit`` or ``@jit(inline="always", ...)``.
+
+    ``borrowing``: a kernel that neither allocates nor returns an array, compiled without
+    numba's reference counting (its ``_nrt=False``, as numba's own string helpers), so that it
+    borrows the arrays it is given from its caller, which holds them for the call.  numba
+    counts a reference to every array argument at a function's entry and releases it at
+    each exit, two atomic operations per array and call, and its pruning of these pairs
+    (llvmlite's RefPrune) gives up on a function whose control flow between entry and exit
+    runs through more than 15 blocks (a loop with branches): most kernels.  numba's own
+    inlining (``inline="always"``) lowers a callee in its caller, reference counts
+    included: a borrowing kernel is compiled on its own (LLVM may still inline it).  An
+    allocation in a borrowing kernel is a compilation error."""
+    if borrowing:
+        options["_nrt"] = False
     if function is None:
         return lambda f: _checked(numba.njit(**options)(f))
     return _checked(numba.njit(**options)(function))

@@ -48,7 +48,7 @@ def _between(x0, y0, x1, y1, x):
     return y1 - (x1 - x) / (x1 - x0) * (y1 - y0)
 
 
-@jit
+@jit(borrowing=True)
 def _at(X, Y, n, sl, sr, x, i):
     """Interval [lo, hi] of the relation at ``x``, scanning from vertex ``i``.
 
@@ -74,7 +74,7 @@ def _at(X, Y, n, sl, sr, x, i):
     return lo, hi, i
 
 
-@jit
+@jit(borrowing=True)
 def _add(X1, Y1, n1, sl1, sr1, X2, Y2, n2, sl2, sr2, Xo, Yo):
     """Sum of two maximal monotone relations; writes vertices to Xo, Yo, returns (n, sl, sr)."""
     lo = max(X1[0] if sl1 == INF else -INF, X2[0] if sl2 == INF else -INF)
@@ -131,7 +131,7 @@ def _inv(s):
     return 1.0 / s
 
 
-@jit
+@jit(borrowing=True)
 def _root(X, Y, n, sl, sr):
     """The abscissa where a strictly increasing relation contains 0 (exact at vertices)."""
     i = 0
@@ -148,7 +148,7 @@ def _root(X, Y, n, sl, sr):
     return _between(Y[i - 1], X[i - 1], Y[i], X[i], 0.0)
 
 
-@jit
+@jit(borrowing=True)
 def _dynamic_programme(inertia, momentum, kappa, c, w, cw, u, ws):
     """Exact minimiser of E(u) for one column by dynamic programming (module docstring);
     ``inertia = m / dt`` and ``momentum = m u* / dt`` per layer."""
@@ -237,7 +237,7 @@ def _sign(x):
     return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
 
 
-@jit  # compiled once, linked into its callers (numba inlining typed and lowered it at each call)
+@jit(borrowing=True)  # compiled once, linked into its callers (numba inlining lowered it at each call)
 def _active_set(inertia, momentum, kappa, c, w, cw, guess, u, first, grounded, U, diag, low, rhs, hint):
     """Solve with the lock/sign structure of ``guess``; True if it is the exact minimiser
     (``inertia = m / dt`` and ``momentum = m u* / dt`` per layer).

@@ -104,7 +104,7 @@ def _potential_rise(start, end, stress_start, stiffness_start, stress_end, conca
     return -(start - end) * 0.5 * (stress_start + stress_end)
 
 
-@jit  # compiled once, linked into its callers (numba inlining typed and lowered it at each call)
+@jit(borrowing=True)  # compiled once, linked into its callers (numba inlining lowered it at each call)
 def error_bound(inertia, momentum, kappa, viscous, w, wall_viscous, u, limit):
     """The bound of the module docstring on ``max_a |u_a - u_exact,a|`` for one column,
     or ``inf`` once the pass finds it above twice ``limit`` (``limit = inf``: always the
@@ -149,7 +149,7 @@ def error_bound(inertia, momentum, kappa, viscous, w, wall_viscous, u, limit):
     return np.sqrt(residual / smallest)
 
 
-@jit
+@jit(borrowing=True)
 def slope_along(inertia, momentum, kappa, viscous, w, wall_viscous, start, end, v, side):
     """The one-sided derivative ``phi'(t+)`` (``side`` 1) or ``phi'(t-)`` (``side`` -1) of
     ``phi(t) = E(start + t (end - start))`` at the velocities ``v = start + t (end - start)``
@@ -173,7 +173,7 @@ def slope_along(inertia, momentum, kappa, viscous, w, wall_viscous, start, end, 
     return slope
 
 
-@jit
+@jit(borrowing=True)
 def energy_rise(
     inertia, momentum, kappa, viscous, w, wall_viscous, start, u,
     tau, stiffness, wall_tau, wall_stiffness, concave,

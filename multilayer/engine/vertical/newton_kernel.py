@@ -111,7 +111,7 @@ class Results(NamedTuple):
     side_by_side: np.ndarray
 
 
-@jit
+@jit(borrowing=True)
 def _true_stresses(
     u, inverse_spacing, conductance, bulk_form, bulk_params, factor, offset, eta, slope,
     walls, inverse_half, wall_form, wall_params, wall_factor, wall_offset, per_area, wall_eta, wall_slope,
@@ -145,7 +145,7 @@ def _true_stresses(
     return 0, 0.0, 0.0
 
 
-@jit  # not inlined: called only where the structure of the iterate fails
+@jit(borrowing=True)  # not inlined: called only where the structure of the iterate fails
 def _other_structures(
     inertia, momentum, kappa, c, w, cw, current, ustar, col, proposal, u, first, grounded, U, diag, low, rhs,
     hint,
@@ -214,7 +214,7 @@ def _other_structures(
     return False
 
 
-@jit
+@jit(borrowing=True)
 def _trial_structure(momentum, kappa, w, proposal):
     """The lock/sign structure (as velocities for ``column_solve._active_set``) of a trial
     from rest, as the elastic predictor of plasticity: with the whole column held at rest,
@@ -243,7 +243,44 @@ def _trial_structure(momentum, kappa, w, proposal):
 def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
     """Chunk ``k`` of ``chunks`` of :func:`_columns` (its wet columns ``k n // chunks`` to
     ``(k + 1) n // chunks``): compiled once, called on one thread as the one chunk
-    (``_serial``) and by the parallel kernel per chunk."""
+    (``_serial``) and by the parallel kernel per chunk.  Allocates the work arrays of the
+    chunk, then iterates its columns (:func:`_iterate`, without reference counting)."""
+    L = inputs.l.size
+    work = (
+        _workspace(L),
+        np.empty(L + 1, np.int64),  # first, grounded, U, diag, low, rhs of the active set
+        np.empty(L, np.bool_),
+        np.empty(L),
+        np.empty(L),
+        np.empty(L),
+        np.empty(L),
+        np.empty(2, np.int64),  # hint: of a structure the active set rejects
+        np.empty(L),  # kc, cc: the Newton model's interface yield stresses, conductances
+        np.empty(L),
+        np.empty(L),  # wc, cwc: and wall thresholds, wall conductances
+        np.zeros(L),
+        np.empty(L),  # current, new
+        np.empty(L),
+        np.zeros(L),  # zero: the viscous stresses of a column at rest
+        np.empty(L),  # proposal: a structure proposed to the active set; a point of a line search
+        np.empty((4, L)),  # viscosities, stress slopes, wall viscosities, wall slopes at current
+        np.empty((4, L)),  # and at new
+        np.empty((4, L)),  # state_c, state_n of newton_control.energy_rise
+        np.empty((4, L)),
+        new_tile(L),  # the work arrays of sheared_block, and lane ALONE
+        np.empty((4, L)),  # m, w0, pressure, spacing
+        np.empty(L, np.bool_),  # viscous
+        np.zeros((5, L)),  # wall_pressure, wall_factor, wall_offset, per_area, wall_true
+        np.empty((4, BLOCK), np.bool_),  # flags, finished of sheared_block
+        np.zeros(BLOCK, np.bool_),
+    )
+    _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
+
+
+@jit(borrowing=True)  # reference counting cost a fifth of the instructions of a column at rest
+def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work):
+    """The Newton iterations of the columns of chunk ``k`` (:func:`_chunk`) in its work
+    arrays ``work``: borrowed (``compiled.jit``), as are the arrays of every callee."""
     wet, h, ustar, guess = columns.wet, columns.h, columns.ustar, columns.guess
     # the parameters as tuples: passed to the forms without reference counting
     bulk_form, bulk_params, wall_form, wall_params = (
@@ -261,32 +298,22 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
     )
     u_out, iterations, fallbacks, faults = out.u, out.iterations, out.fallbacks, out.faults
     fault_values, side_by_side = out.fault_values, out.side_by_side
-    l = inputs.l
-    L = l.size
+    L = inputs.l.size
     n = wet.size
     walls = width > 0.0
     inverse_half = 2.0 / width if walls else 0.0
     # the tangent and chord bounds of newton_control.energy_rise hold
     concave_stresses = concave(bulk_form, bulk_params) and (not walls or concave(wall_form, wall_params))
-    ws = _workspace(L)
-    first = np.empty(L + 1, np.int64)
-    grounded = np.empty(L, np.bool_)
-    U, diag, low, rhs = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
-    hint = np.empty(2, np.int64)  # of a structure the active set rejects
-    kc, cc = np.empty(L), np.empty(L)  # the Newton model: interface yield stresses, conductances
-    wc, cwc = np.empty(L), np.zeros(L)  # and wall thresholds, wall conductances
-    current, new = np.empty(L), np.empty(L)
-    zero = np.zeros(L)  # the viscous stresses of a column at rest
-    # a structure proposed to the active set (_other_structures); a point of a line search
-    proposal = np.empty(L)
+    ws, first, grounded, U, diag, low, rhs, hint = work[:8]
+    kc, cc, wc, cwc, current, new, zero, proposal = work[8:16]
     # viscosities, stress slopes and viscous stresses at current and new (interfaces, walls)
-    eta_c, slope_c, eta_n, slope_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
-    weta_c, wslope_c, weta_n, wslope_n = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
-    state_c, state_n = np.empty((4, L)), np.empty((4, L))  # of newton_control.examine
+    laws_c, laws_n, state_c, state_n, tile, coefficients, viscous, walls_of = work[16:24]
+    flags, finished = work[24], work[25]
+    eta_c, slope_c, weta_c, wslope_c = laws_c[0], laws_c[1], laws_c[2], laws_c[3]
+    eta_n, slope_n, weta_n, wslope_n = laws_n[0], laws_n[1], laws_n[2], laws_n[3]
     # the coefficients of StressModel.columns of the column (coefficients.column_coefficients)
-    tile = new_tile(L)  # the work arrays of sheared_block, and lane ALONE
-    m, w0, pressure, spacing = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
-    viscous, wall_pressure = np.empty(L, np.bool_), np.empty(L)
+    m, w0, pressure, spacing = coefficients[0], coefficients[1], coefficients[2], coefficients[3]
+    wall_pressure = walls_of[0]
     # and from them, per layer, in the tile (lane ALONE: the column solved on its own;
     # the lanes of a block are set up straight into their own): m_a / dt, m_a u*_a / dt,
     # the yield stresses, inverse spacing, conductance per unit slope (0 where not
@@ -297,12 +324,10 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
     inertia, momentum, kappa = tile[sc.INERTIA, alone], tile[sc.MOMENTUM, alone], tile[sc.KAPPA, alone]
     wall, inverse_spacing = tile[sc.WALL, alone], tile[sc.INV_SPACING, alone]
     conductance, factor, offset = tile[sc.CONDUCTANCE, alone], tile[sc.FACTOR, alone], tile[sc.OFFSET, alone]
-    wall_factor, wall_offset = np.zeros(L), np.zeros(L)
-    per_area, wall_true = np.zeros(L), np.empty(L)
+    wall_factor, wall_offset, per_area, wall_true = walls_of[1], walls_of[2], walls_of[3], walls_of[4]
     column = ColumnArrays(
         m, kappa, w0, pressure, spacing, viscous, wall_pressure
     )  # into the tile's lane ALONE
-    flags, finished = np.empty((4, BLOCK), np.bool_), np.zeros(BLOCK, np.bool_)
     g_m, g_kappa, g_w, g_pressure = given.m, given.kappa, given.w, given.pressure  # read once per chunk
     g_spacing, g_viscous, g_wall = given.spacing, given.viscous, given.wall_pressure
     start, stop = k * n // chunks, (k + 1) * n // chunks
@@ -337,22 +362,23 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
             lane = j - j0 if block else ALONE
             o = cell(lane, L)  # the lane's layer 0 in the tile's rows
             for a in range(L):  # what stays fixed during the iteration
+                x = np.uint64(o + a)  # unsigned: no test for negative indices
                 mass = m[a]
-                tile[sc.INERTIA, o + a] = mass / dt
-                tile[sc.MOMENTUM, o + a] = mass * ustar[a, col] / dt
+                tile[sc.INERTIA, x] = mass / dt
+                tile[sc.MOMENTUM, x] = mass * ustar[a, col] / dt
                 s = spacing[a]
                 inverse = 1.0 / s if s > 0.0 else 1.0
-                tile[sc.INV_SPACING, o + a] = inverse
-                tile[sc.CONDUCTANCE, o + a] = inverse if (viscous[a] and s > 0.0) else 0.0
+                tile[sc.INV_SPACING, x] = inverse
+                tile[sc.CONDUCTANCE, x] = inverse if (viscous[a] and s > 0.0) else 0.0
                 parts = _pressure_part(bulk_form, bulk_params, pressure[a], h[col])
-                tile[sc.FACTOR, o + a], tile[sc.OFFSET, o + a] = parts
+                tile[sc.FACTOR, x], tile[sc.OFFSET, x] = parts
                 current[a] = guess[a, col]
                 if block:  # (kappa was written into lane ALONE, whose slot it is)
-                    tile[sc.KAPPA, o + a] = kappa[a]
-                    tile[sc.VISCOUS, o + a] = 1.0 if viscous[a] else 0.0
-                    tile[sc.GUESS, o + a] = current[a]
-                    tile[sc.U0, o + a] = current[a]
-                    tile[sc.WALL, o + a] = w0[a]
+                    tile[sc.KAPPA, x] = kappa[a]
+                    tile[sc.VISCOUS, x] = 1.0 if viscous[a] else 0.0
+                    tile[sc.GUESS, x] = current[a]
+                    tile[sc.U0, x] = current[a]
+                    tile[sc.WALL, x] = w0[a]
                 elif walls:
                     wall_factor[a], wall_offset[a] = _pressure_part(
                         wall_form, wall_params, wall_pressure[a], h[col]

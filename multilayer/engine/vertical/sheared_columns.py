@@ -98,7 +98,7 @@ def cell(i, L):
     return 1 + i * stride(L)
 
 
-@jit
+@jit(borrowing=True)
 def join(t, L, flags, i, fine):
     """Lane ``i`` of the block, whose per-step slots ``newton_kernel._chunk`` has set up
     (``fine``: its yield values are within the plugin contract), takes part in the block
@@ -111,7 +111,7 @@ def join(t, L, flags, i, fine):
     flags[ACTIVE, i] = take
 
 
-@jit
+@jit(borrowing=True)
 def unload(t, L, flags, i, viscous, wall_true, guess):
     """Column ``i`` of the block, one it did not finish, into lane ``ALONE`` (the
     column solved on its own by ``newton_kernel._chunk``), with the arrays of one column
@@ -127,7 +127,7 @@ def unload(t, L, flags, i, viscous, wall_true, guess):
     return flags[FINE, i]
 
 
-@jit(error_model="numpy")
+@jit(borrowing=True, error_model="numpy")
 def _stresses_and_model(t, L, u, form, params, flags):
     """At the velocities of slot ``u``: the true viscous stresses and their derivatives
     (slots ``TAU0``, ``STIFF0`` + ``u - U0``; a
@@ -160,7 +160,7 @@ def _stresses_and_model(t, L, u, form, params, flags):
         flags[SHEARED, i] = lane_unsheared == 0
 
 
-@jit(error_model="numpy")
+@jit(borrowing=True, error_model="numpy")
 def _sweep(t, u, form, params, start, stop):
     """Cells ``start ... stop - 1`` of the tile's rows of :func:`_stresses_and_model` (the
     velocities in slot ``u``); returns how many viscosities are outside the plugin contract
@@ -186,40 +186,42 @@ def _sweep(t, u, form, params, start, stop):
     return faults, unsheared
 
 
-@jit(error_model="numpy")
+@jit(borrowing=True, error_model="numpy")
 def _solve(t, L, new, flags):
     """The exact solve with one group per layer into slot ``new``: the forward sweep
     (inverse pivots ``DIAG``, right-hand sides ``RHS``) and the back substitution of
     ``column_solve._active_set``, and its optimality test: each yielded jump keeps its
-    sign (a column whose structure is rejected leaves the block)."""
+    sign (a column whose structure is rejected leaves the block).  The cells are unsigned
+    (as in :func:`_sweep`): no test for negative indices."""
+    one = np.uint64(1)
     for a in range(L):
         for i in range(BLOCK):
-            x = cell(i, L) + a
+            x = np.uint64(cell(i, L) + a)
             d = 0.0 + (t[INERTIA, x] + 0.0)  # _active_set's sums, in its order (cw = w = 0)
             r = 0.0 + t[MOMENTUM, x]
             c = t[CC, x]
             d += c
             r -= t[KC, x] * t[SIGN, x]
             if a + 1 < L:
-                d += t[CC, x + 1]
-                r += t[KC, x + 1] * t[SIGN, x + 1]
+                d += t[CC, x + one]
+                r += t[KC, x + one] * t[SIGN, x + one]
             if a > 0 and c != 0.0:
-                f = -c * t[DIAG, x - 1]
+                f = -c * t[DIAG, x - one]
                 d -= f * (-c)
-                r -= f * t[RHS, x - 1]
+                r -= f * t[RHS, x - one]
             if not d > 0.0:
                 flags[ACTIVE, i] = False
             t[DIAG, x] = 1.0 / d
             t[RHS, x] = r
     for a in range(L - 1, -1, -1):
         for i in range(BLOCK):
-            x = cell(i, L) + a
+            x = np.uint64(cell(i, L) + a)
             r = t[RHS, x]
             if a + 1 < L:
-                above = t[new, x + 1]
-                r += t[CC, x + 1] * above
+                above = t[new, x + one]
+                r += t[CC, x + one] * above
                 u = r * t[DIAG, x]
-                if t[KC, x + 1] > 0.0 and t[SIGN, x + 1] * (above - u) < 0.0:
+                if t[KC, x + one] > 0.0 and t[SIGN, x + one] * (above - u) < 0.0:
                     flags[ACTIVE, i] = False
             else:
                 u = r * t[DIAG, x]
@@ -230,7 +232,7 @@ def _solve(t, L, new, flags):
             flags[ACTIVE, i] = False
 
 
-@jit(error_model="numpy")
+@jit(borrowing=True, error_model="numpy")
 def _converged(t, L, new, current, threshold, concave_stress, flags):
     """``DONE``: the error bound of ``newton_control.error_bound`` at slot ``new`` (its true
     stresses in ``TAU0 + new - U0``) is within ``threshold``, or else the largest change from
@@ -262,7 +264,7 @@ def _converged(t, L, new, current, threshold, concave_stress, flags):
                 flags[ACTIVE, i] = False
 
 
-@jit(error_model="numpy")
+@jit(borrowing=True, error_model="numpy")
 def sheared_block(
     t, flags, finished, form, params, threshold, max_iterations, j0, c0,
     u_out, iterations, fallbacks, faults, fault_values, side_by_side,
