@@ -1124,6 +1124,37 @@ def round_four() -> list[Case]:
     return out
 
 
+def round_five() -> list[Case]:
+    """The hostile cases of the fifth round (docs/reliability.md): an initial state whose
+    sums overflow, through ``validate`` and ``run``, and a sweep value written twice
+    differently."""
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    mass = "its mass, the integral of its thickness"  # validate; run bounds the steps first
+    out = [
+        Case(f"{name}: {command[0]}", command, 2, phrase, setup=partial(_scenario, changes=changes))
+        for name, changes, phrases in (
+            ("initial height 1e308", {"initial.0.height": 1e308}, (mass, "about inf time steps")),
+            (
+                "initial layer 1e308",
+                {"initial": [{"shape": "layer", "thickness": 1e308}]},
+                ("about inf time steps",) * 2,
+            ),
+            ("domain 1e308 m long", {"domain.x_max": 1e308}, ("no number of cells is enough",) * 2),
+        )
+        for command, phrase in zip((["validate", "{scenario}"], run), phrases, strict=True)
+    ]
+    out.append(
+        Case(
+            "sweep: 20 and 20.0",
+            ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/sweep-out"],
+            2,
+            "give the same member",
+            setup=_sweep({"slope_deg": [20, 21, 20.0]}),
+        )
+    )
+    return out
+
+
 def cases() -> list[Case]:
     out: list[Case] = []
     budget = ["--max-memory", "8G", "--max-output", "1G"]
@@ -1276,7 +1307,7 @@ def cases() -> list[Case]:
             Case(f"plot: {how} result", ["plot", "{dir}/out"], code, phrase, setup=_result_damage(how))
         )
     out.append(Case("plot: no result", ["plot", "{dir}"], 2, "no result file"))
-    return out + round_two() + round_three() + round_four()
+    return out + round_two() + round_three() + round_four() + round_five()
 
 
 def _records(path: Path) -> int:

@@ -44,7 +44,8 @@ if TYPE_CHECKING:
 
 def __getattr__(name: str) -> Any:
     """Import a public name on first use (PEP 562); ``__version__`` is the installed
-    version, set from git by setuptools-scm (:mod:`multilayer.provenance`)."""
+    version, set from git by setuptools-scm (:mod:`multilayer.provenance`).  A variable of
+    numba's environment that its import fails on is named (an ``InputError``)."""
     if name == "__version__":
         from multilayer.provenance import installed_version
 
@@ -52,7 +53,10 @@ def __getattr__(name: str) -> Any:
         return globals()[name]
     if name not in _EXPORTS:
         raise AttributeError(f"module 'multilayer' has no attribute {name!r}")
-    value = getattr(importlib.import_module(_EXPORTS[name]), name)
+    from multilayer.app.numba_environment import named
+
+    with named():  # numba's import reads its variables: a value it fails on is named
+        value = getattr(importlib.import_module(_EXPORTS[name]), name)
     globals()[name] = value
     return value
 

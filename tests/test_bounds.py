@@ -172,6 +172,21 @@ def _sweep(tmp_path: Path, parameters: dict, paired: bool = False) -> Path:
             True,
             "zip (line 9): entries 0 and 1 give the same member (0.3, 0.01)",
         ),
+        (
+            {"slope_deg": [20, 21, 20.0]},
+            False,
+            "parameters.slope_deg (line 3): entries 0 and 2 give the same member",
+        ),
+        (
+            {
+                "rheology": [
+                    {"name": "drucker_prager", "mu_s": 1, "nu": 0},
+                    {"name": "drucker_prager", "mu_s": 1.0, "nu": 0.0},
+                ]
+            },
+            False,
+            "parameters.rheology (line 3): entries 0 and 1 give the same member",
+        ),
     ],
 )
 def test_a_sweep_too_large_or_with_equal_members_is_refused(tmp_path, cli, parameters, paired, expected):

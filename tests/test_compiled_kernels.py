@@ -242,6 +242,33 @@ def test_after_multilayer_compile_no_shipped_scenario_compiles_a_kernel(tmp_path
     assert json.loads(runs.stdout) == {path: [] for path in SHIPPED}, runs.stderr
 
 
+@pytest.mark.slow
+def test_two_compiles_and_a_run_at_once_on_an_empty_cache(tmp_path, write_scenario, tiny_scenario):
+    """Two ``multilayer compile`` and a run started together on an empty cache
+    (``NUMBA_CACHE_DIR`` a fresh directory): all three end well, one compile waits for the
+    other (then finds the kernels cached, or compiles again what the run rewrote since
+    the mark), the run compiles what it needs beside them (numba writes each entry whole,
+    by renaming), and afterwards no shipped scenario compiles a kernel."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"), "MULTILAYER_THREADS": "1"}
+    scenario = write_scenario(tiny_scenario)
+    commands = [["compile"], ["compile"], ["run", str(scenario), "-o", str(tmp_path / "out"), "-q"]]
+    children = [
+        subprocess.Popen([sys.executable, "-m", "multilayer", *command], env=env, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+        for command in commands
+    ]  # fmt: skip
+    outputs = [child.communicate(timeout=1200) for child in children]
+    assert [child.returncode for child in children] == [0, 0, 0], outputs
+    assert outputs[0][0].startswith("compiled the kernels in") or outputs[1][0].startswith(
+        "compiled the kernels in"
+    )
+    assert sum("waiting for another multilayer compile" in err for _, err in outputs[:2]) == 1
+    runs = subprocess.run(
+        [sys.executable, "-c", AFTER_COMPILE, *SHIPPED], env=env, capture_output=True, text=True
+    )
+    assert json.loads(runs.stdout) == {path: [] for path in SHIPPED}, runs.stderr
+
+
 def test_a_run_after_compile_kernels_compiles_nothing(tiny_scenario):
     """Once :func:`compile_kernels` has cached its tasks' kernels (the test run's warm-up
     did, or this call does), a small run under another law, hydrostatic or not, with side

@@ -447,3 +447,28 @@ def test_read_only_output_directories_and_files_are_named(tmp_path, finished):
     for (argv, phrase), line in zip(cases, child.stdout.splitlines(), strict=True):
         code, err = json.loads(line)
         assert code == 2 and phrase in err and "Traceback" not in err, (argv, err)
+
+
+@pytest.mark.parametrize(
+    ("override", "phrase"),
+    [
+        (
+            "initial.0.height=1e308",
+            "initial.0 (rectangle on x in [0, 0.1] m): its mass, the integral of its thickness",
+        ),
+        (
+            "initial=[{shape: profile, points: [[0, 1e308], [0.2, 1e308]]}]",
+            "initial.0 (profile on x in [0, 0.2] m)",
+        ),
+        ("initial=[{shape: layer, thickness: 1e308}]", "about inf time steps"),
+        ("domain.x_max=1e308", "no number of cells is enough"),
+    ],
+)
+def test_an_initial_state_whose_sums_overflow_is_named(cli, write_scenario, override, phrase):
+    """A thickness near 1e308 m: the rectangle's and the profile's mass overflowed (a numpy
+    warning, then a ZeroDivisionError traceback of the step estimate: waves faster than
+    1e308 m/s), a layer's waves too; a 0.1 m shape in a 1e308 m domain asked for ``inf``
+    cells.  Each is exit 2 naming the entry or the step estimate, without a warning."""
+    result = cli("validate", write_scenario(TINY_SCENARIO), "--set", override)
+    assert result.code == 2 and "Traceback" not in result.err and "warning" not in result.err, result.err
+    assert phrase in result.err and result.err.count("\n") == 1, result.err

@@ -55,8 +55,10 @@ def test_the_compiled_mark_holds_for_the_sources_it_was_made_for(tmp_path, monke
     monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
     monkeypatch.chdir(tmp_path)
     assert not kernel_cache.is_compiled()
-    kernel_cache.mark_compiled(kernel_cache.compiled_text())
     cache = engine / "vertical" / "__pycache__"
+    cache.mkdir(exist_ok=True)
+    (cache / "kernel.f-1.py311.nbi").write_bytes(b"index")
+    kernel_cache.mark_compiled(kernel_cache.compiled_text())
     assert kernel_cache.cache_directories() == [cache] and kernel_cache.is_compiled()
     kernel.write_text("from numba import njit  # edited\n")
     assert not kernel_cache.is_compiled()
@@ -69,10 +71,84 @@ def test_a_mark_that_is_not_text_is_not_compiled(tmp_path, monkeypatch, damage):
     UnicodeDecodeError of ``multilayer compile``; any mark but the one it writes means not
     compiled (and ``multilayer compile`` compiles)."""
     monkeypatch.setattr(kernel_cache, "cache_directories", lambda: [tmp_path])
+    (tmp_path / "kernel.f-1.py311.nbi").write_bytes(b"index")
     kernel_cache.mark_compiled(kernel_cache.compiled_text())
     assert kernel_cache.is_compiled()
     (tmp_path / kernel_cache.COMPILED).write_bytes(damage)
     assert not kernel_cache.is_compiled()
+
+
+def _fifo(path):
+    path.unlink()
+    os.mkfifo(path)
+
+
+DAMAGE = {
+    "kernel truncated": lambda d: os.truncate(d / "kernel.f-1.py311.1.nbc", 3),
+    "kernel overwritten, same size": lambda d: (d / "kernel.f-1.py311.1.nbc").write_bytes(b"KERNEL"),
+    "index emptied": lambda d: (d / "kernel.f-1.py311.nbi").write_bytes(b""),
+    "kernel deleted": lambda d: (d / "kernel.f-1.py311.1.nbc").unlink(),
+    "kernel a directory": lambda d: (
+        (d / "kernel.f-1.py311.1.nbc").unlink(),
+        (d / "kernel.f-1.py311.1.nbc").mkdir(),
+    ),
+    "kernel a pipe": lambda d: _fifo(d / "kernel.f-1.py311.1.nbc"),
+    "mark listing no file": lambda d: (d / kernel_cache.COMPILED).write_text(kernel_cache.compiled_text()),
+    "mark naming a file elsewhere": lambda d: (d / kernel_cache.COMPILED).write_text(
+        kernel_cache.compiled_text() + f"{'0' * 64} ../kernel.f-1.py311.nbi\n"
+    ),
+}
+
+
+@pytest.mark.parametrize("damage", DAMAGE)
+def test_compile_checks_the_cached_files_its_mark_records(tmp_path, monkeypatch, cli, damage):
+    """``multilayer compile`` said "compiled and cached" when its mark was current though
+    the cached files were damaged since (runs compiled them again, with a warning).  The
+    mark records the SHA-256 of every cached file; a file missing, changed or no regular
+    file (a pipe is never read) means not compiled, and the command compiles.  When the
+    cache is whole it says how many files it checked."""
+    from multilayer.app import precompile
+
+    monkeypatch.setattr(kernel_cache, "cache_directories", lambda: [tmp_path])
+    monkeypatch.setattr(kernel_cache, "ensure_fresh", lambda: None)
+    (tmp_path / "kernel.f-1.py311.nbi").write_bytes(b"index")
+    (tmp_path / "kernel.f-1.py311.1.nbc").write_bytes(b"kernel")
+    kernel_cache.mark_compiled(kernel_cache.compiled_text())
+    (tmp_path / "kernel.g_parallel-9.py311.nbi").write_bytes(b"compiled by a run since: not recorded")
+    result = cli("compile")
+    assert result.code == 0 and result.out.startswith("the kernels are compiled and cached")
+    assert "2 cached files checked" in result.out
+    DAMAGE[damage](tmp_path)
+    compiled = []
+    monkeypatch.setattr(
+        precompile, "_compile", lambda processes: compiled.append(processes) or precompile.Report()
+    )
+    result = cli("compile")
+    assert result.code == 0 and compiled == [None] and "compiled the kernels in" in result.out
+
+
+def test_a_second_compile_waits_for_the_first_then_finds_its_kernels(tmp_path, monkeypatch):
+    """Two ``multilayer compile`` at once on an empty cache both compiled every kernel (two
+    processes each, 323 s each on two busy cores, both exit 0).  The second now waits for
+    the first (and says so), then finds the kernels cached and compiles nothing."""
+    import threading
+
+    from multilayer.app import precompile
+
+    monkeypatch.setattr(kernel_cache, "cache_directories", lambda: [tmp_path])
+    monkeypatch.setattr(kernel_cache, "ensure_fresh", lambda: None)
+    compiled, waiting, reports = [], threading.Event(), []
+    monkeypatch.setattr(
+        precompile, "_compile", lambda processes: compiled.append(processes) or precompile.Report()
+    )
+    second = threading.Thread(target=lambda: reports.append(precompile.compile_kernels(None, waiting.set)))
+    with kernel_cache.compiling(lambda: pytest.fail("nobody holds the lock yet")):
+        second.start()
+        assert waiting.wait(30)
+        (tmp_path / "kernel.f-1.py311.nbi").write_bytes(b"index")  # the first compiles
+        kernel_cache.mark_compiled(kernel_cache.compiled_text())
+    second.join(30)
+    assert compiled == [] and reports[0].cached and reports[0].checked == 1
 
 
 def test_the_digest_covers_the_kernel_modules_of_every_engine_package():

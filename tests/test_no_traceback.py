@@ -157,6 +157,50 @@ def test_numba_variables_the_engine_cannot_run_with_are_refused_first(
     assert not (tmp_path / "out").exists()
 
 
+LIBRARY_IMPORT = """
+import sys
+import multilayer
+for what in ("multilayer.Simulation", "multilayer.run(sys.argv[1], quiet=True)", "multilayer.Simulation"):
+    try:
+        eval(what)
+        print("imported")
+    except multilayer.errors.InputError as error:
+        print(type(error.__cause__).__name__, error)
+"""
+
+
+@pytest.mark.parametrize(
+    ("variable", "value", "cause", "accepted"),
+    [
+        ("NUMBA_NUM_THREADS", "0", "ValueError", "an integer >= 1 (ASCII digits), or unset"),
+        pytest.param(
+            "NUMBA_DISABLE_JIT",
+            "1",
+            "AttributeError",
+            "0 or unset: the engine's kernels need numba's compiler",
+            marks=pytest.mark.slow,  # 2 s of CPU importing the engine
+        ),
+    ],
+)
+def test_a_numba_variable_numbas_import_fails_on_is_named_by_the_library(
+    write_scenario, variable, value, cause, accepted
+):
+    """Set before ``import multilayer`` in Python, no command line checks them:
+    ``NUMBA_NUM_THREADS=0`` was numba's own ValueError from deep inside its import (where
+    the engine is first imported: ``multilayer.Simulation``, ``multilayer.run``), and
+    ``NUMBA_DISABLE_JIT=1`` an AttributeError of the engine's cache.  The library cannot
+    change numba's import; where it fails, an ``InputError`` names the variable, from
+    numba's exception, every time it is tried.  ``import multilayer`` alone imports no
+    numba and succeeds."""
+    env = {**os.environ, variable: value}
+    child = subprocess.run(
+        [sys.executable, "-c", LIBRARY_IMPORT, str(write_scenario(TINY_SCENARIO))],
+        env=env, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    named = f"{cause} environment variable {variable}={value!r}; accepted: {accepted}"
+    assert child.stdout.splitlines() == [named] * 3, child.stderr
+
+
 def test_a_warning_that_quotes_a_traceback_is_printed_without_it(capsys):
     """numba warns about a variable it cannot read (``NUMBA_OPT=x``, then ignored) quoting
     the traceback of its parse: the command line prints the first and the last line."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import math
 import shlex
 import signal
 import subprocess
@@ -168,6 +169,25 @@ def test_output_times_land_on_multiples_of_the_interval_and_the_end() -> None:
     np.testing.assert_allclose(np.diff(times), 0.05, atol=1e-15)
     np.testing.assert_allclose(runner.output_times(1.0, 0.3), [0.3, 0.6, 0.9, 1.0])
     np.testing.assert_array_equal(runner.output_times(1.0, 2.0), [1.0])
+
+
+@pytest.mark.parametrize(
+    ("end", "interval"),
+    [(0.3, 0.1), (1e-7 * 3, 1e-7), (0.30000000009, 0.1), (3.0000000000000004e-07, 1e-07),
+     (1.0000000000000002, 0.1), (2.5000000000025002, 0.5), (0.1 * 3 * (1 + 2e-9), 0.1), (5.0, 1 / 7)],
+)  # fmt: skip
+def test_the_last_output_time_is_time_end_exactly(end: float, interval: float) -> None:
+    """``time.end / time.output_interval`` within 1e-9 above a whole number n: the n-th
+    multiple was the last output time, one rounding unit (or up to 1e-9 interval) before
+    ``time.end``.  The times are the documented ones: the multiples more than 1e-9 interval
+    before the end, then ``time.end`` exactly, as many as the resource estimate counts
+    (app/resources.py)."""
+    times = runner.output_times(end, interval)
+    assert times[-1] == end
+    k = np.arange(1, times.size)
+    np.testing.assert_array_equal(times[:-1], k * interval)
+    assert np.all(np.diff(times) > 1e-9 * interval)
+    assert times.size == math.ceil(end / interval - 1e-9)
 
 
 class _Sim:

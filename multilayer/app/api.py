@@ -97,7 +97,10 @@ def run(
     the Newton kernel in a child process where a second core is free).  Raises
     :class:`multilayer.errors.RunError` if the engine fails.
     """
-    from multilayer.app import runner  # the engine is imported only to run
+    from multilayer.app.numba_environment import named
+
+    with named():
+        from multilayer.app import runner  # the engine is imported only to run
 
     loaded = load(scenario, overrides)
     if outdir is not None:

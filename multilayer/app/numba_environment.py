@@ -9,12 +9,18 @@ command line before a command imports numba (numba reads them once, at its impor
   threading layer"); another name failed in the first parallel kernel, mid-run.
 
 Other variables numba cannot read it warns about and ignores (the command line prints
-the warning without the traceback it quotes).
+the warning without the traceback it quotes).  Through the Python API the variables are
+set before the host imports anything, and the library cannot change numba's import: where
+the import of the engine fails (numba's own ``ValueError`` for ``NUMBA_NUM_THREADS=0``,
+the engine's kernels not numba functions under ``NUMBA_DISABLE_JIT=1``), :func:`named`
+names the variable instead.
 """
 
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 from multilayer.errors import InputError
 
@@ -34,6 +40,21 @@ def check() -> None:
     layer = os.environ.get("NUMBA_THREADING_LAYER")
     if layer is not None and layer not in THREADING_LAYERS:
         _refuse("NUMBA_THREADING_LAYER", layer, ", ".join(THREADING_LAYERS) + ", or unset")
+
+
+@contextmanager
+def named() -> Iterator[None]:
+    """Within the block (an import of the engine, which imports numba), an exception
+    raised where a variable of the module docstring holds a value the engine cannot run
+    with is the :class:`InputError` of :func:`check` naming it, from that exception."""
+    try:
+        yield
+    except Exception as failure:
+        try:
+            check()
+        except InputError as error:
+            raise error from failure
+        raise
 
 
 def _refuse(name: str, value: str, accepted: str) -> None:

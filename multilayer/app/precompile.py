@@ -129,11 +129,13 @@ then the transport."""
 class Report:
     """What :func:`compile_kernels` did: ``seconds`` of wall time, the ``processes`` used,
     and the tasks that ``failed`` with the last line each wrote to stderr (empty: every
-    kernel is compiled and cached); ``cached`` is True when nothing had to be done."""
+    kernel is compiled and cached); ``cached`` is True when nothing had to be done (the
+    ``checked`` cached files found as the mark of the compilation recorded them)."""
 
     seconds: float = 0.0
     processes: int = 0
     cached: bool = False
+    checked: int = 0
     failed: dict[str, str] = field(default_factory=dict)
 
 
@@ -153,14 +155,23 @@ def _worker() -> None:
         print(answer, flush=True)
 
 
-def compile_kernels(processes: int | None = None) -> Report:
+def compile_kernels(processes: int | None = None, on_wait: Callable[[], None] = lambda: None) -> Report:
     """Compile every kernel of :data:`TASKS` into numba's cache in ``processes`` child
     processes (None: the cores this process may use), each task once the tasks it
     ``needs`` are done; nothing when the cache is already marked compiled for the current
-    sources.  Interrupted, the children are stopped with it."""
-    kernel_cache.ensure_fresh()
-    if kernel_cache.is_compiled():
-        return Report(cached=True)
+    sources and every file the mark records is unchanged (``checked`` of them).  One call
+    at a time per cache (``on_wait`` is called when another holds it, then this one
+    waits).  Interrupted, the children are stopped with it."""
+    with kernel_cache.compiling(on_wait):
+        kernel_cache.ensure_fresh()
+        checked = kernel_cache.compiled_files()
+        if checked is not None:
+            return Report(cached=True, checked=checked)
+        return _compile(processes)
+
+
+def _compile(processes: int | None) -> Report:
+    """:func:`compile_kernels` once the cache is found not compiled."""
     sources = kernel_cache.compiled_text()  # an edit during the compilation leaves no mark
     processes = max(1, min(len(TASKS), available_cores() if processes is None else processes))
     start = time.perf_counter()

@@ -67,11 +67,14 @@ LOG_FILE = "run.log"
 
 
 def output_times(end: float, interval: float | None) -> np.ndarray:
-    """Output times ``k * interval`` (k = 1, 2, ...) capped by ``end``, ending at ``end``."""
+    """Output times ``k * interval`` (k = 1, 2, ...) more than ``1e-9 interval`` before
+    ``end``, then ``end`` itself: the last record is at ``end`` exactly, also where
+    ``end / interval`` is a whole number to round-off (``k * interval`` one rounding unit
+    below ``end`` was the last)."""
     if not interval or interval >= end:
         return np.array([end])
-    n = int(np.ceil(end / interval - 1e-9))
-    return np.minimum(np.arange(1, n + 1) * interval, end)
+    times = np.arange(1, int(np.ceil(end / interval)) + 1) * interval
+    return np.append(times[times < end - 1e-9 * interval], end)
 
 
 def run(

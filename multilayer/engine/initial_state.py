@@ -14,6 +14,7 @@ the domain, or narrower than one cell (not represented by the mesh), is an
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -93,6 +94,8 @@ def check_entries(entries: Sequence[InitialEntry], x_min: float, x_max: float, d
     for index, entry in enumerate(entries):
         points = entry_points(entry)
         if points is None:
+            assert entry.thickness is not None  # required for a layer (scenario validation)
+            _finite_mass(float(entry.thickness) * float(x_max - x_min), f"{where}: initial.{index} (layer)")
             continue
         px, ph = points
         wet = np.flatnonzero(ph > 0)
@@ -102,9 +105,11 @@ def check_entries(entries: Sequence[InitialEntry], x_min: float, x_max: float, d
                 "accepted: a shape with some thickness > 0"
             )
         lo, hi = px[max(wet[0] - 1, 0)], px[min(wet[-1] + 1, px.size - 1)]  # support of the thickness
-        total = float(piecewise_linear_integral(px, ph, np.array([px[-1]]))[0])
-        inside = float(np.diff(piecewise_linear_integral(px, ph, bounds))[0])
         name = f"{where}: initial.{index} ({entry.shape} on x in [{lo:g}, {hi:g}] m)"
+        with np.errstate(over="ignore", invalid="ignore"):  # named below
+            total = float(piecewise_linear_integral(px, ph, np.array([px[-1]]))[0])
+            inside = float(np.diff(piecewise_linear_integral(px, ph, bounds))[0])
+        _finite_mass(total, name)
         domain = f"[{x_min:g}, {x_max:g}] m"
         if inside < total * (1 - 1e-12):
             raise InputError(
@@ -112,11 +117,26 @@ def check_entries(entries: Sequence[InitialEntry], x_min: float, x_max: float, d
                 f"x in {domain}; accepted: shapes inside domain.x_min .. domain.x_max"
             )
         if hi - lo < dx * (1 - 1e-9):  # one cell wide, to round-off
+            cells = float(x_max - x_min) / float(hi - lo)  # Python's floats: no overflow warning
             raise InputError(
                 f"{name}: {hi - lo:.6g} m wide, narrower than one cell (dx = {dx:.6g} m): "
                 f"the mesh cannot represent it; accepted: a shape at least one cell wide "
-                f"(raise domain.cells to at least {np.ceil((x_max - x_min) / (hi - lo)):.6g})"
+                + (
+                    f"(raise domain.cells to at least {math.ceil(cells):.6g})"
+                    if math.isfinite(cells)
+                    else "(a wider shape or a shorter domain: no number of cells is enough)"
+                )
             )
+
+
+def _finite_mass(mass: float, name: str) -> None:
+    """:class:`InputError` naming the entry ``name`` when its mass (m2) is no finite number
+    (a thickness near 1e308 m: every sum of the state overflows)."""
+    if not math.isfinite(mass):
+        raise InputError(
+            f"{name}: its mass, the integral of its thickness, is no finite number (more than 1e308 m2); "
+            "accepted: thicknesses whose integral over the domain is a finite number"
+        )
 
 
 def velocity_profile(velocity: Velocity | None, zeta: np.ndarray, thickness: np.ndarray) -> np.ndarray:

@@ -34,7 +34,7 @@ import os
 import tempfile
 import threading
 import types
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 try:
@@ -47,6 +47,8 @@ STAMP = "kernels.digest"
 """The digest's file name, in each cache directory."""
 LOCK = "kernels.lock"
 """The lock file's name, in each cache directory."""
+COMPILING = "kernels.compiling"
+"""The lock file of ``multilayer compile`` (:func:`compiling`), in the first cache directory."""
 COMPILED = "kernels.compiled"
 """The name of the file, in each cache directory, that says every kernel of
 ``multilayer compile`` is cached (:func:`mark_compiled`)."""
@@ -124,17 +126,38 @@ def cache_directories() -> list[Path]:
 
 
 @contextlib.contextmanager
-def _locked(directory: Path) -> Iterator[None]:
-    """Hold the lock file of ``directory`` (other processes checking it wait)."""
+def _locked(directory: Path, name: str = LOCK, on_wait: Callable[[], None] | None = None) -> Iterator[None]:
+    """Hold the lock file ``name`` of ``directory`` (other processes taking it wait;
+    ``on_wait`` is called first when one holds it)."""
     if fcntl is None:
         yield
         return
-    with open(directory / LOCK, "a") as handle:
-        fcntl.flock(handle, fcntl.LOCK_EX)
+    with open(directory / name, "a") as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            if on_wait is not None:
+                on_wait()
+            fcntl.flock(handle, fcntl.LOCK_EX)
         try:
             yield
         finally:
             fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+@contextlib.contextmanager
+def compiling(on_wait: Callable[[], None]) -> Iterator[None]:
+    """Hold the lock of ``multilayer compile`` (:data:`COMPILING` in the first cache
+    directory; nothing where numba caches nothing): two at once, the second waits for the
+    first (``on_wait`` says so), then finds its kernels cached instead of compiling them
+    again.  A process that dies releases it."""
+    directories = cache_directories()
+    with contextlib.ExitStack() as stack:
+        if directories:
+            with contextlib.suppress(OSError):  # numba cannot cache there either: unlocked
+                directories[0].mkdir(parents=True, exist_ok=True)
+                stack.enter_context(_locked(directories[0], COMPILING, on_wait))
+        yield
 
 
 def clear_if_stale(directory: Path, digest: str | None = None) -> bool:
@@ -181,26 +204,60 @@ def compiled_text() -> str:
     return f"{sources_digest()}\nnumba {numba.__version__}\n"
 
 
+def _file_digest(path: Path) -> str | None:
+    """SHA-256 of the regular file ``path`` (None: missing, not a regular file, unreadable)."""
+    try:
+        if not path.is_file():  # a pipe or a device would be read for ever
+            return None
+        return hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError:
+        return None
+
+
 def mark_compiled(text: str) -> None:
     """Record in every cache directory that the kernels of ``multilayer compile`` are
     cached for the sources and numba of ``text`` (:func:`compiled_text` when the
-    compilation started), written whole, by renaming."""
+    compilation started), with the SHA-256 of each cached file (``.nbi`` index, ``.nbc``
+    kernel) there, written whole, by renaming."""
     for directory in cache_directories():
         try:
-            with tempfile.NamedTemporaryFile("w", dir=directory, prefix=COMPILED, delete=False) as new:
-                new.write(text)
+            files = sorted([*directory.glob("*.nbi"), *directory.glob("*.nbc")])
+            listing = "".join(f"{digest} {path.name}\n" for path in files if (digest := _file_digest(path)))
+            with tempfile.NamedTemporaryFile(
+                "w", encoding="utf-8", dir=directory, prefix=COMPILED, delete=False
+            ) as new:
+                new.write(text + listing)
             os.replace(new.name, directory / COMPILED)
         except OSError:  # numba cannot cache there either
             pass
 
 
+def compiled_files() -> int | None:
+    """How many cached files :func:`mark_compiled` recorded in every cache directory, each
+    found with the digest recorded, for the current sources and numba; None when a
+    directory has no such mark (numba cannot cache, a mark holds anything else, bytes
+    that are not text or no file included) or a recorded file is missing or changed since
+    (a damaged cache: numba compiles that kernel again on its next use)."""
+    text = compiled_text().encode()
+    directories = cache_directories()
+    checked = 0
+    for directory in directories:
+        try:
+            mark = (directory / COMPILED).read_bytes()
+            lines = mark[len(text) :].decode("utf-8").splitlines() if mark.startswith(text) else None
+        except (OSError, UnicodeDecodeError):
+            return None
+        if not lines:  # what multilayer compile leaves lists its kernels
+            return None
+        for line in lines:
+            digest, _, name = line.partition(" ")
+            if name != Path(name).name or _file_digest(directory / name) != digest:
+                return None
+        checked += len(lines)
+    return checked if directories else None
+
+
 def is_compiled() -> bool:
     """Whether :func:`mark_compiled` recorded the current sources and numba in every cache
-    directory (False where numba cannot cache, or a mark holds anything else, bytes that
-    are not text included)."""
-    text = compiled_text()
-    directories = cache_directories()
-    try:
-        return bool(directories) and all((d / COMPILED).read_bytes() == text.encode() for d in directories)
-    except OSError:
-        return False
+    directory and the files it recorded are unchanged (:func:`compiled_files`)."""
+    return compiled_files() is not None

@@ -80,6 +80,9 @@ def check_yaml(text: str, where: str, loader: type) -> None:
                 counted += sizes.get(str(event.anchor), 1)
             if counted > MAX_NODES:
                 raise _refused(where, event, f"more than {MAX_NODES} values once its aliases are expanded")
+    except yaml.MarkedYAMLError as exc:
+        if "maximum nesting depth" in str(exc.problem):  # libyaml's own bound, 1000 deep, met scanning ahead
+            raise _refused(where, exc, f"collections nested more than {MAX_DEPTH} deep") from None
     except yaml.YAMLError:
         return  # the loader names the problem and its line
 
@@ -115,8 +118,8 @@ def plain_data(value: Any, where: str) -> Any:
     return plain(value, ())
 
 
-def _refused(where: str, event: yaml.Event, what: str) -> InputError:
-    mark = event.start_mark
+def _refused(where: str, event: yaml.Event | yaml.MarkedYAMLError, what: str) -> InputError:
+    mark = event.problem_mark if isinstance(event, yaml.MarkedYAMLError) else event.start_mark
     line = f" (line {mark.line + 1})" if mark is not None else ""
     return InputError(
         f"{where}{line}: {what}; accepted: a YAML document without an alias inside its own anchor, "

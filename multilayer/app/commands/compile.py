@@ -41,10 +41,14 @@ def main(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 1
-    report = compile_kernels(args.processes)
+
+    def waiting() -> None:
+        print("multilayer compile: waiting for another multilayer compile of this cache", file=sys.stderr)
+
+    report = compile_kernels(args.processes, waiting)
     where = os.path.commonpath(directories)
     if report.cached:
-        print(f"the kernels are compiled and cached ({where})")
+        print(f"the kernels are compiled and cached ({where}; {report.checked} cached files checked)")
         return 0
     for name, message in report.failed.items():
         print(f"multilayer compile: {name} failed: {message}", file=sys.stderr)
