@@ -168,13 +168,20 @@ def _compiled_law():
     return law, form, params
 
 
+def _pressure_part(form, params, p, h):
+    """(factor, offset) of the compiled form's pressure parts at the pressure ``p``."""
+    factor, offset = np.empty(1), np.empty(1)
+    forms._pressure_parts(form, params, np.array([p]), h, factor, offset, 0)
+    return factor[0], offset[0]
+
+
 def test_the_compiled_viscosity_is_the_plugin_viscosity():
     """The inertial_plateau form against the law's numpy viscosity on random columns: the
     viscous stress eta |gamma| to 1e-12 of mu_2 p (round-off of the difference mu_J - mu_stop),
     and exactly 0 on the same side of the kink I_c(h) but within round-off of it."""
     law, form, params = _compiled_law()
     rate, pressure, h = _random_columns(0)
-    parts = [forms._pressure_part(form, params, p, hj) for p, hj in zip(pressure, h)]
+    parts = [_pressure_part(form, params, p, hj) for p, hj in zip(pressure, h)]
     got = np.array([forms._viscosity(form, params, r, *part) for r, part in zip(rate, parts)]) * rate
     ref = law.viscosity(rate, pressure, MATERIAL, thickness=h) * rate
     scale = MU_2 * np.maximum(pressure, 0.0)
@@ -197,7 +204,7 @@ def test_the_compiled_slope_is_the_derivative_of_the_plugin_stress():
     below, above = stress(rate - step), stress(rate + step)
     smooth = (below > 0.0) | (above == 0.0)  # not across the kink
     centred = (above - below) / (2.0 * step)
-    parts = [forms._pressure_part(form, params, p, hj) for p, hj in zip(pressure, h)]
+    parts = [_pressure_part(form, params, p, hj) for p, hj in zip(pressure, h)]
     got = np.array([forms._viscosity_and_slope(form, params, r, *part)[1] for r, part in zip(rate, parts)])
     np.testing.assert_allclose(got[smooth], centred[smooth], rtol=1e-6, atol=1e-9 * np.abs(centred).max())
     assert smooth.sum() > 390

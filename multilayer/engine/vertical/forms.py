@@ -13,9 +13,9 @@ the thickness-dependent stop friction of Forterre & Pouliquen 2003, ``pouliquen_
 the one form that takes the column thickness ``h`` (a law that declares ``Rheology.uses =
 ("thickness",)``). The compiled vertical step (``newton_kernel``, ``sheared_columns``)
 evaluates them here, with the factors that depend on the pressure only computed once per
-layer and step (:func:`_pressure_part`).
+layer and step (:func:`_pressure_parts`).
 
-A new form is one :class:`Form` in :data:`FORMS` and its branch in :func:`_pressure_part`
+A new form is one :class:`Form` in :data:`FORMS` and its branch in :func:`_pressure_parts`
 and :func:`_viscosity_and_slope` (with its exact slope), all in this module, and a test
 against the plugin's own ``viscosity`` (tests/test_newton_kernel.py); the side-by-side
 sweep of ``sheared_columns`` runs it as it is, and compiles a copy specialised to it only
@@ -137,27 +137,41 @@ def concave_laws(laws: tuple[Any, ...], material: Any) -> bool:
     return True
 
 
-@jit
-def _pressure_part(form, params, p, h):
-    """The factor of eta that depends on the pressure (and the column thickness ``h``)
-    only, and the one added to the rate term (computed once per column and step, not per
-    Newton iteration); for the inertial_plateau form, the plateau stress
-    ``D p / (1 + h / L)`` and the pressure."""
-    p = max(p, 0.0)
+@jit(borrowing=True)
+def _pressure_parts(form, params, pressure, h, factor, offset, start):
+    """The factors of eta that depend on the pressure (and the column thickness ``h``)
+    only, and the ones added to the rate term, of the layers of ``pressure`` (computed once
+    per column and step, not per Newton iteration): into ``factor`` and ``offset`` from
+    ``start`` on.  For the inertial_plateau form, the plateau stress ``D p / (1 + h / L)``
+    and the pressure.  The form's switch is taken once per column, outside the layers."""
+    n = pressure.shape[0]  # (the cells unsigned: no test for negative indices)
     if form == CONSTANT:
-        return params[0], 0.0
-    if form == INERTIAL or form == INERTIAL_QUADRATIC:
-        return params[0] * p, params[1] * np.sqrt(p)
-    if form == INERTIAL_PLATEAU:
-        return params[3] / (1.0 + h / params[4]) * p, p
-    return params[0] * p ** params[1], 0.0  # POWER
+        for a in range(n):
+            x = np.uint64(start + a)
+            factor[x], offset[x] = params[0], 0.0
+    elif form == INERTIAL or form == INERTIAL_QUADRATIC:
+        for a in range(n):
+            p = max(pressure[a], 0.0)
+            x = np.uint64(start + a)
+            factor[x], offset[x] = params[0] * p, params[1] * np.sqrt(p)
+    elif form == INERTIAL_PLATEAU:
+        plateau = params[3] / (1.0 + h / params[4])
+        for a in range(n):
+            p = max(pressure[a], 0.0)
+            x = np.uint64(start + a)
+            factor[x], offset[x] = plateau * p, p
+    else:  # POWER
+        for a in range(n):
+            p = max(pressure[a], 0.0)
+            x = np.uint64(start + a)
+            factor[x], offset[x] = params[0] * p ** params[1], 0.0
 
 
 @jit
 def _viscosity_and_slope(form, params, rate, factor, offset):
     """eta(rate, p) of the compiled forms (``Rheology.viscosity_kernel``) and the slope
     d(eta rate)/d rate of the viscous stress, for ``rate >= 0``, from the pressure parts
-    ``factor, offset = _pressure_part(form, params, p)``.
+    ``factor, offset`` of :func:`_pressure_parts`.
 
     The slope is exact: ``eta`` for the constant form; ``eta B sqrt(p) / (B sqrt(p) +
     C rate)`` for the inertial form (``eta`` at rest); for the inertial_quadratic one, with
@@ -206,7 +220,7 @@ def _viscosity_and_slope(form, params, rate, factor, offset):
 @jit
 def _viscosity(form, params, rate, factor, offset):
     """eta(|gamma|, p) of the compiled forms (``Rheology.viscosity_kernel``) from the
-    pressure parts ``factor, offset = _pressure_part(form, params, p)``."""
+    pressure parts ``factor, offset`` of :func:`_pressure_parts`."""
     return _viscosity_and_slope(form, params, abs(rate), factor, offset)[0]
 
 

@@ -42,7 +42,7 @@ from multilayer.engine.vertical.column_solve import _active_set, _dynamic_progra
 from multilayer.engine.vertical.forms import (
     NO_PARAMETERS,
     _newton_model,
-    _pressure_part,
+    _pressure_parts,
     _viscosity_and_slope,
     as_tuple,
     concave,
@@ -325,6 +325,7 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
     wall, inverse_spacing = tile[sc.WALL, alone], tile[sc.INV_SPACING, alone]
     conductance, factor, offset = tile[sc.CONDUCTANCE, alone], tile[sc.FACTOR, alone], tile[sc.OFFSET, alone]
     wall_factor, wall_offset, per_area, wall_true = walls_of[1], walls_of[2], walls_of[3], walls_of[4]
+    factors, offsets = tile[sc.FACTOR], tile[sc.OFFSET]  # the rows of every lane
     column = ColumnArrays(
         m, kappa, w0, pressure, spacing, viscous, wall_pressure
     )  # into the tile's lane ALONE
@@ -361,32 +362,39 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
                     spacing[a], viscous[a], wall_pressure[a] = g_spacing[a, j], g_viscous[a, j], g_wall[a, j]
             lane = j - j0 if block else ALONE
             o = cell(lane, L)  # the lane's layer 0 in the tile's rows
-            for a in range(L):  # what stays fixed during the iteration
+            # what stays fixed during the iteration, a few rows per loop over the layers (a
+            # loop over all of them reloads its rows' pointers), the laws' switch outside them
+            for a in range(L):
                 x = np.uint64(o + a)  # unsigned: no test for negative indices
-                mass = m[a]
-                tile[sc.INERTIA, x] = mass / dt
-                tile[sc.MOMENTUM, x] = mass * ustar[a, col] / dt
+                tile[sc.INERTIA, x] = m[a] / dt
+                tile[sc.MOMENTUM, x] = m[a] * ustar[a, col] / dt
+                current[a] = guess[a, col]
+            for a in range(L):
+                x = np.uint64(o + a)
                 s = spacing[a]
                 inverse = 1.0 / s if s > 0.0 else 1.0
                 tile[sc.INV_SPACING, x] = inverse
                 tile[sc.CONDUCTANCE, x] = inverse if (viscous[a] and s > 0.0) else 0.0
-                parts = _pressure_part(bulk_form, bulk_params, pressure[a], h[col])
-                tile[sc.FACTOR, x], tile[sc.OFFSET, x] = parts
-                current[a] = guess[a, col]
-                if block:  # (kappa was written into lane ALONE, whose slot it is)
+            _pressure_parts(bulk_form, bulk_params, pressure, h[col], factors, offsets, o)
+            if block:  # (kappa was written into lane ALONE, whose slot it is)
+                for a in range(L):
+                    x = np.uint64(o + a)
                     tile[sc.KAPPA, x] = kappa[a]
                     tile[sc.VISCOUS, x] = 1.0 if viscous[a] else 0.0
                     tile[sc.GUESS, x] = current[a]
                     tile[sc.U0, x] = current[a]
                     tile[sc.WALL, x] = w0[a]
-                elif walls:
-                    wall_factor[a], wall_offset[a] = _pressure_part(
-                        wall_form, wall_params, wall_pressure[a], h[col]
-                    )
-                    per_area[a] = (2.0 / width) * mass / density
+            elif walls:
+                start_of_walls = np.int64(0)  # not the literal 0: one compilation for both laws
+                _pressure_parts(
+                    wall_form, wall_params, wall_pressure, h[col], wall_factor, wall_offset, start_of_walls
+                )
+                for a in range(L):
+                    per_area[a] = (2.0 / width) * m[a] / density
                     wall[a] = w0[a] / max(per_area[a], 1e-300)
                     wall_true[a] = per_area[a] * wall[a]
-                else:
+            else:
+                for a in range(L):
                     wall[a] = w0[a]
                     wall_true[a] = wall[a]
             if block:
