@@ -38,19 +38,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from multilayer.app.simulation import Simulation
-from multilayer.plugins.contract import Rheology
 from multilayer.validation.cases import collapse_channel
 from multilayer.validation.runs import Run
-
-
-def total_stress(
-    law: Rheology, rate: np.ndarray, p: np.ndarray, sim: Simulation, h: np.ndarray
-) -> np.ndarray:
-    """``kappa(p) + eta(rate, p) rate`` of the bulk law (contract.py), its column thickness
-    ``h`` given if it uses it."""
-    material = sim.vertical.stresses.material
-    keywords = {"thickness": np.broadcast_to(h, p.shape)} if "thickness" in law.uses else {}
-    return law.yield_stress(p, material, **keywords) + law.viscosity(rate, p, material, **keywords) * rate
 
 
 @dataclass
@@ -95,6 +84,7 @@ def sample(sim: Simulation) -> Sample:
     index = np.cumsum(wet) - 1  # column -> its position among the wet ones
     i, j = index[left], index[left + 1]
     hf = 0.5 * (hw[i] + hw[j])
+    xf = 0.5 * (stresses.x[wet][i] + stresses.x[wet][j])
     dzdx = (bw[j] - bw[i] + sim.sigma[:, None] * (hw[j] - hw[i])) / dx
     dudz_f = 0.5 * (dudz[:, i] + dudz[:, j])
     p_f = 0.5 * (p_centre[:, i] + p_centre[:, j])
@@ -102,7 +92,7 @@ def sample(sim: Simulation) -> Sample:
 
     def power(d_xx: np.ndarray) -> float:
         norm = np.sqrt(d_xx**2 + (0.5 * dudz_f) ** 2)
-        mu_p = total_stress(stresses.bulk, 2.0 * norm, p_f, sim, hf)
+        mu_p = stresses.bulk_stress(2.0 * norm, p_f, hf, xf)
         return float(
             np.sum(2.0 * mu_p * np.divide(d_xx**2, norm, out=np.zeros_like(norm), where=norm > 0) * l * hf)
             * dx
@@ -120,10 +110,8 @@ def sample(sim: Simulation) -> Sample:
         walls=float(np.sum((threshold + viscous) * np.abs(held)) * dx),
         normal=power(d_xx),
         along_sigma=power(along),
-        face_shear=float(np.sum(total_stress(stresses.bulk, rate, p_f, sim, hf) * rate * l * hf) * dx),
-        tensor=float(
-            np.sum(2.0 * total_stress(stresses.bulk, 2.0 * norm, p_f, sim, hf) * norm * l * hf) * dx
-        ),
+        face_shear=float(np.sum(stresses.bulk_stress(rate, p_f, hf, xf) * rate * l * hf) * dx),
+        tensor=float(np.sum(2.0 * stresses.bulk_stress(2.0 * norm, p_f, hf, xf) * norm * l * hf) * dx),
     )
 
 
