@@ -3,40 +3,49 @@ docs/model.md, "Longitudinal normal stress").
 
 The mu(I) stress ``tau = mu(I) p D / |D|`` (Jop, Forterre & Pouliquen 2006; Lagree, Staron &
 Popinet 2011, eq. 2.1-2.3) has ``tau_xx = -tau_zz = mu(I) p D_xx / |D|`` with ``|D| =
-sqrt(D_xx^2 + D_xz^2)``.  With ``sigma_zz`` set by the vertical balance, ``sigma_xx =
-sigma_zz + 2 tau_xx``: layer ``a`` feels the momentum flux ``d_x(2 h_a tau_xx,a)`` (the earth
-pressure of a yielding material, Savage & Hutter 1989), which the shear stresses of the
-vertical step leave out.  Here ``D_xx = d_x u_a`` along the layer and ``D_xz`` is lagged from
-the velocities at the start of the step.
+sqrt(D_xx^2 + D_xz^2)``, ``p`` the mean pressure.  The vertical balance of the layers sets
+``P = -sigma_zz`` (hydrostatic, or with the pressure model's yield gravity), so ``p = P +
+tau_zz = P - tau_xx`` and ``sigma_xx = sigma_zz + 2 tau_xx``: layer ``a`` feels the momentum
+flux ``d_x(2 h_a tau_xx,a)`` (the earth pressure of a yielding material, Savage & Hutter
+1989), which the shear stresses of the vertical step leave out, and its friction acts at the
+mean pressure ``P - tau_xx``.  With the bulk law's stress norm ``tau(p)`` linearised about
+``P``, ``tau(p) = tau_f + e_f (p - P)``, ``e_f = d tau / d p`` (``mu`` for a Coulomb law),
+``tau_xx = tau_f c / (1 + e_f c)``, ``c = D_xx / |D|``: the active (``c = 1``) and passive
+(``c = -1``) limits ``tau_f / (1 + e_f)`` and ``-tau_f / (1 - e_f)``.  Here ``D_xx = d_x u_a``
+along the layer, ``D_xz`` and the rate of the law are lagged from the velocities at the start
+of the step.
 
 The step after each transport stage is the argmin, per layer along x over each run of
 columns holding material (a chain), of::
 
-    sum_i M_i (u_i - u*_i)^2 / 2 + sum_f A_f sqrt(s_f^2 + B_f^2),   s_f = u_(i+1) - u_i,
+    sum_i M_i (u_i - u*_i)^2 / 2 + sum_f A_f psi_f(s_f),   s_f = u_(i+1) - u_i,
 
 ``M_i = rho l_a h_i dx``, ``A_f = 2 dt l_a h_f tau_f`` with ``tau_f`` the stress norm of the
-bulk law ``kappa(p) + eta(2|D|, p) 2|D|`` at the face's mean layer pressure and lagged rate,
-``B_f = dx |D_xz|``.  Its optimality condition is the implicit step ``M_i (u_i - u*_i) =
-Z_(i+1/2) - Z_(i-1/2)`` with ``Z_f = A_f s_f / sqrt(s_f^2 + B_f^2) = 2 dt l_a h_f tau_xx``:
-``|tau_xx| <= tau_f``, the plastic limit (``B_f = 0``, a plug) exact, no regularisation.  It
-is unconditionally stable and dissipative: ``sum M_i (u_i^2 - u*_i^2) / 2 = -sum M_i (u_i -
-u*_i)^2 / 2 - sum Z_f s_f``, ``Z_f s_f >= 0``; it conserves each chain's momentum (no
-stress at a chain's ends); ``u* = 0`` gives ``u = 0`` exactly.
+bulk law ``kappa(P) + eta(2|D|, P) 2|D|`` at the face's mean layer pressure and lagged rate,
+``psi_f' = F(phi)``, ``F(phi) = sin(phi) / (1 + e_f sin(phi))``, ``tan(phi) = s_f / B_f``,
+``B_f = dx |D_xz|`` (``psi_f`` is convex: ``F`` increases with ``s_f``).  Its optimality
+condition is the implicit step ``M_i (u_i - u*_i) = Z_(i+1/2) - Z_(i-1/2)`` with ``Z_f = A_f
+F(phi_f) = 2 dt l_a h_f tau_xx``: ``-tau_f / (1 - e_f) <= tau_xx <= tau_f / (1 + e_f)``, the
+plastic limit (``B_f = 0``, a plug) exact, no regularisation.  It is unconditionally stable
+and dissipative: ``sum M_i (u_i^2 - u*_i^2) / 2 = -sum M_i (u_i - u*_i)^2 / 2 - sum Z_f s_f``,
+``Z_f s_f >= 0``; it conserves each chain's momentum (no stress at a chain's ends); ``u* = 0``
+gives ``u = 0`` exactly.  The vertical step that follows sees the mean pressures ``P -
+tau_xx`` (:meth:`NormalStress.yield_gravity`).
 
-It is solved in the dual: minimise ``sum_i M_i u_i^2 / 2 - sum_f B_f sqrt(A_f^2 - Z_f^2)``
-over ``|Z_f| <= A_f`` with ``u_i = u*_i + (Z_(i+1/2) - Z_(i-1/2)) / M_i`` (Fenchel duality; the
-Hessian is tridiagonal), by a projected Newton method (Bertsekas 1982, SIAM J. Control
-Optim. 20, 221) in ``Z_f`` on the plastic faces and in the angle ``phi_f``, ``Z_f = A_f
-sin(phi_f)``, on the others, whose optimum ``phi_f = atan(s_f / B_f)`` lies inside
-``(-pi/2, pi/2)`` however close ``|Z_f|`` comes to ``A_f``; backtracking until the dual
-objective falls (or, below its round-off, until the slope along the step is not positive);
-converged when the Newton step would move no velocity by more than the tolerance (or than
-the round-off of its cell's impulses).  Where an angle's curvature is too small the step is
-damped (Levenberg-Marquardt); where the projected Newton step does not descend, the plastic
-faces it takes across their bounds are fixed there and the step solved again, then a scaled
-gradient step is tried.  A random stress test with masses, ``A_f`` and ``B_f`` over 1 to 8
-decades stalled in 2 of 240 problems: such a step stops the run with a message (never a
-silent answer).
+It is solved in the dual: minimise ``sum_i M_i u_i^2 / 2 + sum_f psi_f*(Z_f)`` over the
+bounds with ``u_i = u*_i + (Z_(i+1/2) - Z_(i-1/2)) / M_i`` (Fenchel duality; the Hessian is
+tridiagonal; ``d psi_f* / d phi = A_f B_f sin(phi) / (1 + e_f sin(phi))^2``), by a projected
+Newton method (Bertsekas 1982, SIAM J. Control Optim. 20, 221) in ``Z_f`` on the plastic faces
+and in the angle ``phi_f``, ``Z_f = A_f F(phi_f)``, on the others, whose optimum ``phi_f =
+atan(s_f / B_f)`` lies inside ``(-pi/2, pi/2)`` however close ``Z_f`` comes to its bounds;
+backtracking until the dual objective falls (or, below its round-off, until the slope along
+the step is not positive); converged when the Newton step would move no velocity by more than
+the tolerance (or than the round-off of its cell's impulses).  Where an angle's curvature is
+too small the step is damped (Levenberg-Marquardt); where the projected Newton step does not
+descend, the plastic faces it takes across their bounds are fixed there and the step solved
+again, then a scaled gradient step is tried.  It converged on 240 random problems with masses,
+``A_f`` and ``B_f`` over up to 8 decades and ``|e_f| < 0.8`` (a slow test); a step that does
+not stops the run with a message (never a silent answer).
 """
 
 from __future__ import annotations
@@ -53,6 +62,11 @@ TURN = 0.5
 """The largest change of an angle ``phi_f`` in one Newton step (rad): far from its optimum
 the dual objective is not convex in ``phi_f`` (each angle's step is cut to it, or, where that
 would not descend, the whole step scaled)."""
+
+
+PRESSURE_STEP = 1e-4
+"""The relative pressure step of the central difference ``d tau / d p`` (its truncation error
+of order ``1e-8`` of ``e_f``)."""
 
 
 ROUNDING = 100.0
@@ -85,20 +99,24 @@ def plastic_chain_step(
     faces: Chains,
     a: np.ndarray,
     b: np.ndarray,
+    e: np.ndarray | float = 0.0,
     *,
     tolerance: float,
     max_iterations: int,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The argmin ``u`` of the module docstring's problem and the face impulses ``Z``, for
-    the velocities ``ustar`` and masses ``mass`` (flat arrays) and the faces' ``a`` (A_f)
-    and ``b`` (B_f); converged when the Newton step would change no velocity by more than
-    ``tolerance``.  :class:`RunError` after ``max_iterations``."""
+    the velocities ``ustar`` and masses ``mass`` (flat arrays), the faces' ``a`` (A_f),
+    ``b`` (B_f) and pressure sensitivities ``e`` (e_f, ``|e_f| < 1``); converged when the
+    Newton step would change no velocity by more than ``tolerance``.  :class:`RunError`
+    after ``max_iterations``."""
     inv = 1.0 / mass
+    e = np.broadcast_to(np.asarray(e, dtype=float), a.shape)
     smooth = (b > 0.0) & (a > 0.0)
+    low, high = -a / (1.0 - e), a / (1.0 + e)  # the plastic faces' bounds: Z_f = A_f F(-+pi/2)
     left, right = faces.left, faces.right
     off = -inv[right] * faces.linked  # the coupling of face f and f + 1 through their cell
-    # the unknowns: Z_f on the plastic faces (|Z_f| <= A_f), the angle phi_f with Z_f = A_f sin(phi_f)
-    # on the smooth ones, whose optimum phi_f = atan(s_f / B_f) is inside (-pi/2, pi/2)
+    # the unknowns: Z_f on the plastic faces (low <= Z_f <= high), the angle phi_f with Z_f = A_f
+    # F(phi_f) on the smooth ones, whose optimum phi_f = atan(s_f / B_f) is inside (-pi/2, pi/2)
     v = np.zeros(a.size)
     z = np.zeros(a.size)
     u = ustar.copy()
@@ -110,6 +128,11 @@ def plastic_chain_step(
         np.add.at(du, right, -dz * inv[right])
         return du
 
+    def gradient(v: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """dZ/dv and the dual gradient ``A F'(phi) (B tan(phi) - s)`` in ``v``."""
+        jacobian = np.where(smooth, a * law_slope(v, e), 1.0)
+        return jacobian, -s * jacobian + np.where(smooth, a * b * barrier_integrand(v, e), 0.0)
+
     def search(
         v: np.ndarray, z: np.ndarray, u: np.ndarray, step: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
@@ -119,15 +142,13 @@ def plastic_chain_step(
         alpha = 1.0
         while alpha >= 1e-12:
             trial = v + alpha * step
-            trial = np.where(smooth, np.clip(trial, -0.5 * np.pi, 0.5 * np.pi), np.clip(trial, -a, a))
-            z_trial = np.where(smooth, a * np.sin(trial), trial)
+            trial = np.where(smooth, np.clip(trial, -0.5 * np.pi, 0.5 * np.pi), np.clip(trial, low, high))
+            z_trial = np.where(smooth, a * law(trial, e), trial)
             du = change(z_trial - z)
-            # b a (cos(trial) - cos(v)), written without cancellation
-            barrier = -2.0 * b * a * np.sin(0.5 * (trial + v)) * np.sin(0.5 * (trial - v))
-            rise = np.sum(mass * du * (u + 0.5 * du)) - np.sum(np.where(smooth, barrier, 0.0))
+            barrier = np.where(smooth, a * b * barrier_change(v, trial, e), 0.0)
+            rise = np.sum(mass * du * (u + 0.5 * du)) + np.sum(barrier)
             moved = u + du
-            slope = -(moved[right] - moved[left]) * np.where(smooth, a * np.cos(trial), 1.0)
-            slope += np.where(smooth, b * a * np.sin(trial), 0.0)
+            _, slope = gradient(trial, moved[right] - moved[left])
             if rise <= 0.0 or np.sum(slope * (trial - v)) <= 0.0:
                 return trial, z_trial, moved
             alpha *= 0.5
@@ -143,12 +164,11 @@ def plastic_chain_step(
 
     for _ in range(max_iterations):
         s = u[right] - u[left]
-        jacobian = np.where(smooth, a * np.cos(v), 1.0)  # dZ/dv
-        g = -s * jacobian + np.where(smooth, b * a * np.sin(v), 0.0)  # the dual gradient in v
-        active = (a <= 0.0) | ~smooth & (((z >= a) & (g < 0.0)) | ((z <= -a) & (g > 0.0)))
-        # the angles' curvature, its part a s sin(phi) taken positive (where it is not, phi lies
+        jacobian, g = gradient(v, s)
+        active = (a <= 0.0) | ~smooth & (((z >= high) & (g < 0.0)) | ((z <= low) & (g > 0.0)))
+        # the angles' curvature, its part -s A F''(phi) taken positive (where it is not, phi lies
         # on the wrong side of zero, far from its optimum)
-        curvature = np.where(smooth, b * a * np.cos(v) + np.abs(a * s * np.sin(v)), 0.0)
+        curvature = np.where(smooth, a * b * barrier_slope(v, e) + np.abs(a * s * law_curvature(v, e)), 0.0)
         diagonal = jacobian**2 * (inv[left] + inv[right]) + curvature
         # damped where the curvature is too small to keep the angle's step within TURN (Levenberg
         # -Marquardt: the Hessian stays positive definite, the step a descent direction)
@@ -165,9 +185,9 @@ def plastic_chain_step(
             return u, z
         # the plastic faces the step takes across their bounds go to them, the others solved again
         step, fixed, moves = plain, active.copy(), np.zeros(a.size)
-        while (crossing := ~smooth & ~fixed & (np.abs(z + step) > a)).any():
+        while (crossing := ~smooth & ~fixed & ((z + step > high) | (z + step < low))).any():
             fixed |= crossing
-            moves = np.where(crossing, np.sign(step) * a - z, moves)
+            moves = np.where(crossing, np.where(step > 0.0, high, low) - z, moves)
             step = newton_step(fixed, moves, g, diagonal, coupling)
         found = search(v, z, u, turned(step, g))
         if found is None:  # the projected Newton step
@@ -179,6 +199,48 @@ def plastic_chain_step(
     raise RunError(
         f"the normal-stress step did not converge in {max_iterations} iterations (numerics.max_iterations)"
     )
+
+
+def law(phi: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """``F(phi) = sin(phi) / (1 + e sin(phi))``: ``tau_xx / tau`` at ``D_xx / |D| = sin(phi)``."""
+    return np.sin(phi) / (1.0 + e * np.sin(phi))
+
+
+def law_slope(phi: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """``F'(phi) = cos(phi) / (1 + e sin(phi))^2``."""
+    return np.cos(phi) / (1.0 + e * np.sin(phi)) ** 2
+
+
+def law_curvature(phi: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """``F''(phi) = -(sin(phi) (1 + e sin(phi)) + 2 e cos(phi)^2) / (1 + e sin(phi))^3``."""
+    sin = np.sin(phi)
+    return -(sin * (1.0 + e * sin) + 2.0 * e * np.cos(phi) ** 2) / (1.0 + e * sin) ** 3
+
+
+def barrier_integrand(phi: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """``tan(phi) F'(phi) = sin(phi) / (1 + e sin(phi))^2``: the derivative of the dual term
+    ``psi*(Z) / (A B)`` in ``phi`` (``B tan(phi) = s`` at the optimum)."""
+    return np.sin(phi) / (1.0 + e * np.sin(phi)) ** 2
+
+
+def barrier_slope(phi: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """The derivative of :func:`barrier_integrand`, ``cos(phi) (1 - e sin(phi)) / (1 + e sin(phi))^3``."""
+    return np.cos(phi) * (1.0 - e * np.sin(phi)) / (1.0 + e * np.sin(phi)) ** 3
+
+
+NODES, WEIGHTS = np.polynomial.legendre.leggauss(16)
+"""Gauss-Legendre rule of :func:`barrier_change`: its integrand is analytic, its nearest
+poles ``sin(phi) = -1/e`` at ``acosh(1/|e|)`` from the real axis (error below 1e-15 of the
+integral of its absolute value for ``|e| <= 0.8``, below 1e-12 at 0.9, on changes up to
+:data:`TURN`: tested)."""
+
+
+def barrier_change(start: np.ndarray, end: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """``(psi*(Z(end)) - psi*(Z(start))) / (A B)``, the integral of :func:`barrier_integrand`
+    from ``start`` to ``end`` (computed as one integral: no cancellation between two values)."""
+    half = 0.5 * (end - start)
+    phi = 0.5 * (end + start) + half * NODES[:, None]
+    return half * np.sum(WEIGHTS[:, None] * barrier_integrand(phi, e), axis=0)
 
 
 def newton_step(
@@ -197,13 +259,16 @@ def newton_step(
 
 
 class NormalStress:
-    """The step of the module docstring on the layered columns of ``stresses``."""
+    """The step of the module docstring on the layered columns of ``stresses``; it keeps the
+    layers' ``tau_xx`` (L, N) of its last call for the mean pressure of the vertical step
+    (:meth:`yield_gravity`)."""
 
     def __init__(self, stresses: StressModel, fractions: np.ndarray, dx: float, tolerance: float):
         self.stresses = stresses
         self.l = fractions[:, None]
         self.dx = dx
         self.tolerance = tolerance
+        self.tau_xx: np.ndarray | None = None
 
     def __call__(
         self,
@@ -218,15 +283,16 @@ class NormalStress:
     ) -> None:
         """Apply the step of ``dt`` to ``ustar`` (L, N) in place on the thickness ``h``
         after transport, the rate lagged from the velocities ``u`` at the step's start and the
-        pressures from ``yield_gravity`` (None: ``g cos(theta)``)."""
+        pressures ``P`` from ``yield_gravity`` (None: ``g cos(theta)``)."""
         wet = h > 0.0
         L = ustar.shape[0]
         faces = chains(wet, L)
+        self.tau_xx = np.zeros(ustar.shape)
         if faces.left.size == 0:
             return
         rho = self.stresses.material.density
         g = self.stresses.g_n if yield_gravity is None else yield_gravity
-        interfaces = rho * g * self.stresses.depth_interface * h  # p_k (L, N)
+        interfaces = rho * g * self.stresses.depth_interface * h  # P_k (L, N)
         pbar = 0.5 * (interfaces + np.vstack([interfaces[1:], np.zeros((1, h.size))]))
         spacing = np.where(wet, self.stresses.spacing_fraction * h, 1.0)
         gradient = np.diff(u, axis=0, prepend=0.0) / spacing
@@ -239,20 +305,62 @@ class NormalStress:
         rate = 2.0 * np.sqrt(d_xx**2 + d_xz**2)
         p = 0.5 * (pbar.ravel()[faces.left] + pbar.ravel()[faces.right])
         hf = 0.5 * (h[i] + h[j])
-        tau = self.stresses.bulk_stress(rate, p, hf, 0.5 * (self.stresses.x[i] + self.stresses.x[j]))
+        x = 0.5 * (self.stresses.x[i] + self.stresses.x[j])
+        tau = self.stresses.bulk_stress(rate, p, hf, x)
+        e = self.pressure_sensitivity(rate, p, hf, x, layer)
         a = 2.0 * dt * self.l[layer, 0] * hf * tau
         b = self.dx * d_xz
         mass = (rho * self.l * h * self.dx).ravel()
         cells = np.union1d(faces.left, faces.right)
         index = np.searchsorted(cells, [faces.left, faces.right])
         local = Chains(index[0], index[1], faces.linked)
-        new, _ = plastic_chain_step(
+        new, z = plastic_chain_step(
             ustar.ravel()[cells],
             mass[cells],
             local,
             a,
             b,
+            e,
             tolerance=self.tolerance * velocity_scale,
             max_iterations=max_iterations,
         )
         ustar[np.unravel_index(cells, ustar.shape)] = new
+        # each cell's tau_xx: the mean of its faces' Z_f / (2 dt l_a h_f)
+        stress, count = np.zeros(ustar.size), np.zeros(ustar.size)
+        for side in (faces.left, faces.right):
+            np.add.at(stress, side, z / (2.0 * dt * self.l[layer, 0] * hf))
+            np.add.at(count, side, 1.0)
+        self.tau_xx = (stress / np.maximum(count, 1.0)).reshape(ustar.shape)
+
+    def pressure_sensitivity(
+        self, rate: np.ndarray, p: np.ndarray, h: np.ndarray, x: np.ndarray, layer: np.ndarray
+    ) -> np.ndarray:
+        """``e_f = d tau / d p`` of the bulk law at the faces' rates (a central difference of
+        relative step :data:`PRESSURE_STEP`; 0 on a face without pressure, whose stress is the
+        law's at ``p = 0``); :class:`RunError` where ``|e_f| >= 1`` (an unbounded passive
+        pressure)."""
+        dp = PRESSURE_STEP * p
+        change = self.stresses.bulk_stress(rate, p + dp, h, x) - self.stresses.bulk_stress(rate, p - dp, h, x)
+        e = np.divide(change, 2.0 * dp, out=np.zeros(p.shape), where=dp > 0.0)
+        bad = ~(np.abs(e) < 1.0)
+        if bad.any():
+            f = int(np.flatnonzero(bad)[0])
+            raise RunError(
+                f"the normal stress needs a bulk law whose stress changes by less than the pressure "
+                f"(|d tau / d p| < 1): d tau / d p = {e[f]:.6g} at x = {x[f]:.6g} m, layer {int(layer[f])}, "
+                f"pressure {p[f]:.6g} Pa, shear rate {rate[f]:.6g} 1/s (model.normal_stress)"
+            )
+        return e
+
+    def yield_gravity(self, yield_gravity: np.ndarray | None, h: np.ndarray) -> np.ndarray:
+        """The normal gravity ``G_k`` (L, N) of the mean pressures ``p_k = P_k - tau_xx(z_k)``
+        at the interfaces (``tau_xx`` of the last step, the mean of the two layers at an
+        interface, the bottom layer's at the bed) for the yield pressures ``P_k`` of
+        ``yield_gravity`` (None: ``g cos(theta)``)."""
+        given = self.stresses.g_n if yield_gravity is None else yield_gravity
+        g = np.broadcast_to(given, (self.l.size, h.size))
+        if self.tau_xx is None:
+            return np.array(g)
+        tau = np.vstack([self.tau_xx[:1], 0.5 * (self.tau_xx[1:] + self.tau_xx[:-1])])
+        depth = self.stresses.material.density * self.stresses.depth_interface * h
+        return g - np.divide(tau, depth, out=np.zeros(tau.shape), where=depth > 0.0)

@@ -400,10 +400,17 @@ class Simulation:
             dt,
             seeds if guess is None else (guess, *seeds),
             rest=self.state.rest,
-            yield_gravity=self.pressure.yield_gravity(self.state, h),
+            yield_gravity=self._yield_gravity(h),
             threads=threads,
             poll=self.poll,
         )
+
+    def _yield_gravity(self, h: np.ndarray) -> np.ndarray | None:
+        """The normal gravity of the vertical step's yield pressures: the pressure model's
+        (None: ``g cos(theta)``), with ``model.normal_stress`` the mean pressures
+        ``P - tau_xx`` of the last normal-stress step (engine/normal_stress.py)."""
+        gravity = self.pressure.yield_gravity(self.state, h)
+        return gravity if self.normal_stress is None else self.normal_stress.yield_gravity(gravity, h)
 
     def _project(self, h: np.ndarray, u: np.ndarray, dt: float) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """The pressure model's projection; the layer fields of the step (the mixture's too)."""
