@@ -30,7 +30,8 @@ plastic limit (``B_f = 0``, a plug) exact, no regularisation.  It is uncondition
 and dissipative: ``sum M_i (u_i^2 - u*_i^2) / 2 = -sum M_i (u_i - u*_i)^2 / 2 - sum Z_f s_f``,
 ``Z_f s_f >= 0``; it conserves each chain's momentum (no stress at a chain's ends); ``u* = 0``
 gives ``u = 0`` exactly.  The vertical step that follows sees the mean pressures ``P -
-tau_xx`` (:meth:`NormalStress.yield_gravity`).
+tau_xx`` (:meth:`NormalStress.yield_gravity`: ``P_k (1 - r_k)``, ``r = tau_xx / P`` of the
+layers, exact where the layers are in one plastic state, ``tau_xx`` proportional to ``P``).
 
 It is solved in the dual: minimise ``sum_i M_i u_i^2 / 2 + sum_f psi_f*(Z_f)`` over the
 bounds with ``u_i = u*_i + (Z_(i+1/2) - Z_(i-1/2)) / M_i`` (Fenchel duality; the Hessian is
@@ -260,7 +261,7 @@ def newton_step(
 
 class NormalStress:
     """The step of the module docstring on the layered columns of ``stresses``; it keeps the
-    layers' ``tau_xx`` (L, N) of its last call for the mean pressure of the vertical step
+    layers' ``tau_xx`` of its last call for the mean pressure of the vertical step
     (:meth:`yield_gravity`)."""
 
     def __init__(self, stresses: StressModel, fractions: np.ndarray, dx: float, tolerance: float):
@@ -268,7 +269,10 @@ class NormalStress:
         self.l = fractions[:, None]
         self.dx = dx
         self.tolerance = tolerance
-        self.tau_xx: np.ndarray | None = None
+        self.tau_xx: np.ndarray = np.zeros((fractions.size, stresses.x.size))
+        """``tau_xx`` (L, N) of the layers in the last step (Pa)."""
+        self.relief: np.ndarray = np.zeros(self.tau_xx.shape)
+        """``r = tau_xx / P`` (L, N) of the layers in the last step: their mean pressure is ``P (1 - r)``."""
 
     def __call__(
         self,
@@ -287,7 +291,7 @@ class NormalStress:
         wet = h > 0.0
         L = ustar.shape[0]
         faces = chains(wet, L)
-        self.tau_xx = np.zeros(ustar.shape)
+        self.tau_xx, self.relief = np.zeros(ustar.shape), np.zeros(ustar.shape)
         if faces.left.size == 0:
             return
         rho = self.stresses.material.density
@@ -331,6 +335,7 @@ class NormalStress:
             np.add.at(stress, side, z / (2.0 * dt * self.l[layer, 0] * hf))
             np.add.at(count, side, 1.0)
         self.tau_xx = (stress / np.maximum(count, 1.0)).reshape(ustar.shape)
+        self.relief = np.divide(self.tau_xx, pbar, out=np.zeros(pbar.shape), where=pbar > 0.0)
 
     def pressure_sensitivity(
         self, rate: np.ndarray, p: np.ndarray, h: np.ndarray, x: np.ndarray, layer: np.ndarray
@@ -353,14 +358,12 @@ class NormalStress:
         return e
 
     def yield_gravity(self, yield_gravity: np.ndarray | None, h: np.ndarray) -> np.ndarray:
-        """The normal gravity ``G_k`` (L, N) of the mean pressures ``p_k = P_k - tau_xx(z_k)``
-        at the interfaces (``tau_xx`` of the last step, the mean of the two layers at an
-        interface, the bottom layer's at the bed) for the yield pressures ``P_k`` of
-        ``yield_gravity`` (None: ``g cos(theta)``)."""
+        """The normal gravity ``G_k (1 - r_k)`` (L, N) of the mean pressures ``p_k = P_k (1 -
+        r_k)`` at the interfaces, for the yield pressures ``P_k = rho G_k (h - z_k)`` of
+        ``yield_gravity`` (None: ``g cos(theta)``): ``r = tau_xx / P`` of the layers in the last
+        step (:attr:`relief`), the mean of the two layers at an interface, the bottom layer's
+        at the bed; ``p_k >= 0`` (no tension)."""
         given = self.stresses.g_n if yield_gravity is None else yield_gravity
         g = np.broadcast_to(given, (self.l.size, h.size))
-        if self.tau_xx is None:
-            return np.array(g)
-        tau = np.vstack([self.tau_xx[:1], 0.5 * (self.tau_xx[1:] + self.tau_xx[:-1])])
-        depth = self.stresses.material.density * self.stresses.depth_interface * h
-        return g - np.divide(tau, depth, out=np.zeros(tau.shape), where=depth > 0.0)
+        relief = np.vstack([self.relief[:1], 0.5 * (self.relief[1:] + self.relief[:-1])])
+        return g * np.maximum(1.0 - relief, 0.0)
