@@ -9,7 +9,15 @@ import pytest
 from scipy.integrate import quad
 
 import multilayer
-from multilayer.engine.normal_stress import ROUNDING, TURN, Chains, barrier_change, chains, plastic_chain_step
+from multilayer.engine.normal_stress import (
+    ROUNDING,
+    TURN,
+    Chains,
+    barrier_change,
+    chains,
+    compiled_chain_step,
+    plastic_chain_step,
+)
 from multilayer.errors import InputError, RunError
 from multilayer.validation.runs import SCENARIOS
 
@@ -161,6 +169,53 @@ def test_the_step_dissipates_conserves_momentum_and_solves_the_plastic_law(seed,
     below = plastic & (z < high * (1 - 1e-9)) & (z > low * (1 - 1e-9))
     assert np.all(np.abs(s[below]) <= 1e-10)
     assert np.all(z[plastic & (np.abs(s) > 1e-10)] * s[plastic & (np.abs(s) > 1e-10)] > 0)
+
+
+@pytest.mark.parametrize("sensitive", [False, True])
+@pytest.mark.parametrize("wide", [False, True])
+@pytest.mark.parametrize("seed", range(5))
+def test_the_compiled_step_is_the_reference_step(seed, wide, sensitive):
+    """The compiled kernel (normal_stress_kernel.chain_step, its own Thomas solve of the Newton
+    steps) gives the numpy reference's velocities to 1e-12 m/s and impulses to 1e-12 of A_f on
+    the random problems above (dry gaps, half the faces plastic, up to 8 decades), both solved
+    to 1e-14 m/s: the two are the same algorithm, their sums taken in different orders."""
+    ustar, mass, faces, a, b = random_problem(seed, wide=wide)
+    e = np.random.default_rng(seed + 100).uniform(-0.8, 0.8, a.size) if sensitive else 0.0
+    expected = plastic_chain_step(ustar, mass, faces, a, b, e, tolerance=1e-14, max_iterations=200)
+    u, z = compiled_chain_step(ustar, mass, faces, a, b, e, tolerance=1e-14, max_iterations=200)
+    np.testing.assert_allclose(u, expected[0], rtol=0, atol=1e-12)
+    assert np.all(np.abs(z - expected[1]) <= 1e-12 * a)
+
+
+def test_the_compiled_step_on_one_face_at_rest_and_without_convergence():
+    """A chain of one face per layer (two wet columns), stretched plastic (B = 0) or smooth:
+    the kernel gives the reference's answer, which conserves momentum with u_2 - u_1 = 0 or
+    the plastic impulse Z = A / (1 + e) (the active limit); u* = 0 stays exactly 0; and a step
+    cut short of convergence raises the reference's message."""
+    wet = np.array([False, True, True, False])
+    faces = chains(wet, 2)
+    assert faces.left.size == 2 and not faces.linked.any()
+    mass = np.array([1.0, 0.02, 0.03, 1.0, 1.0, 0.01, 0.05, 1.0])
+    ustar = np.array([0.0, -0.5, 0.5, 0.0, 0.0, -0.3, 0.4, 0.0])
+    a, e = np.array([1e-3, 2e-3]), np.array([0.3, -0.2])
+    for b in (np.zeros(2), np.array([0.01, 0.1])):
+        expected = plastic_chain_step(ustar, mass, faces, a, b, e, tolerance=1e-14, max_iterations=50)
+        u, z = compiled_chain_step(ustar, mass, faces, a, b, e, tolerance=1e-14, max_iterations=50)
+        np.testing.assert_allclose(u, expected[0], rtol=0, atol=1e-12)
+        assert np.all(np.abs(z - expected[1]) <= 1e-12 * a)
+        assert np.all(u[~np.tile(wet, 2)] == 0.0)  # the dry cells feel nothing
+        for layer in (slice(1, 3), slice(5, 7)):
+            assert np.sum(mass[layer] * u[layer]) == pytest.approx(
+                np.sum(mass[layer] * ustar[layer]), abs=1e-15
+            )
+        if not b.any():  # the stretches exceed what the plastic limit can stop
+            np.testing.assert_allclose(z, a / (1 + e), rtol=1e-12)
+    u, z = compiled_chain_step(np.zeros(8), mass, faces, a, b, e, tolerance=1e-12, max_iterations=5)
+    assert np.all(u == 0.0) and np.all(z == 0.0)
+    ustar, mass, faces, a, b = random_problem(3, wide=True)
+    for step in (plastic_chain_step, compiled_chain_step):
+        with pytest.raises(RunError, match=r"^the normal-stress step did not converge in 2 iterations "):
+            step(ustar, mass, faces, a, b, tolerance=1e-14, max_iterations=2)
 
 
 @pytest.mark.slow

@@ -46,7 +46,9 @@ too small the step is damped (Levenberg-Marquardt); where the projected Newton s
 descend, the plastic faces it takes across their bounds are fixed there and the step solved
 again, then a scaled gradient step is tried.  It converged on 240 random problems with masses,
 ``A_f`` and ``B_f`` over up to 8 decades and ``|e_f| < 0.8`` (a slow test); a step that does
-not stops the run with a message (never a silent answer).
+not stops the run with a message (never a silent answer).  :func:`plastic_chain_step` is the
+numpy reference of the method; the engine runs its compiled kernel
+(:mod:`multilayer.engine.normal_stress_kernel`, :func:`compiled_chain_step`), tested equal to it.
 """
 
 from __future__ import annotations
@@ -56,23 +58,13 @@ from typing import NamedTuple
 import numpy as np
 from scipy.linalg import solve_banded
 
+from multilayer.engine.normal_stress_kernel import NODES, ROUNDING, TURN, WEIGHTS, chain_step
 from multilayer.engine.vertical.stresses import StressModel
 from multilayer.errors import RunError
-
-TURN = 0.5
-"""The largest change of an angle ``phi_f`` in one Newton step (rad): far from its optimum
-the dual objective is not convex in ``phi_f`` (each angle's step is cut to it, or, where that
-would not descend, the whole step scaled)."""
-
 
 PRESSURE_STEP = 1e-4
 """The relative pressure step of the central difference ``d tau / d p`` (its truncation error
 of order ``1e-8`` of ``e_f``)."""
-
-
-ROUNDING = 100.0
-"""The round-off of a velocity ``u_i = u*_i + (Z_(i+1/2) - Z_(i-1/2)) / M_i`` in units of the
-machine epsilon times its terms: below it the iteration cannot go."""
 
 
 class Chains(NamedTuple):
@@ -197,9 +189,40 @@ def plastic_chain_step(
             found = search(v, z, u, turned(-np.where(active, 0.0, g) / diagonal, g))
         if found is not None:
             v, z, u = found
-    raise RunError(
+    raise not_converged(max_iterations)
+
+
+def not_converged(max_iterations: int) -> RunError:
+    """The error of a step that did not converge in ``max_iterations``."""
+    return RunError(
         f"the normal-stress step did not converge in {max_iterations} iterations (numerics.max_iterations)"
     )
+
+
+def compiled_chain_step(
+    ustar: np.ndarray,
+    mass: np.ndarray,
+    faces: Chains,
+    a: np.ndarray,
+    b: np.ndarray,
+    e: np.ndarray | float = 0.0,
+    *,
+    tolerance: float,
+    max_iterations: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`plastic_chain_step` by its compiled kernel
+    (:func:`multilayer.engine.normal_stress_kernel.chain_step`), the same arguments and
+    results, equal to round-off (tested)."""
+    u, z = np.empty(ustar.size), np.empty(a.size)
+    e = np.ascontiguousarray(np.broadcast_to(np.asarray(e, dtype=float), a.shape))
+    index = [np.ascontiguousarray(side, dtype=np.int64) for side in (faces.left, faces.right)]
+    arrays = [np.ascontiguousarray(array, dtype=float) for array in (ustar, mass, a, b)]
+    linked = np.ascontiguousarray(faces.linked, dtype=np.bool_)
+    if not chain_step(
+        *arrays[:2], *index, linked, *arrays[2:], e, float(tolerance), int(max_iterations), u, z
+    ):
+        raise not_converged(max_iterations)
+    return u, z
 
 
 def law(phi: np.ndarray, e: np.ndarray) -> np.ndarray:
@@ -227,13 +250,6 @@ def barrier_integrand(phi: np.ndarray, e: np.ndarray) -> np.ndarray:
 def barrier_slope(phi: np.ndarray, e: np.ndarray) -> np.ndarray:
     """The derivative of :func:`barrier_integrand`, ``cos(phi) (1 - e sin(phi)) / (1 + e sin(phi))^3``."""
     return np.cos(phi) * (1.0 - e * np.sin(phi)) / (1.0 + e * np.sin(phi)) ** 3
-
-
-NODES, WEIGHTS = np.polynomial.legendre.leggauss(16)
-"""Gauss-Legendre rule of :func:`barrier_change`: its integrand is analytic, its nearest
-poles ``sin(phi) = -1/e`` at ``acosh(1/|e|)`` from the real axis (error below 1e-15 of the
-integral of its absolute value for ``|e| <= 0.8``, below 1e-12 at 0.9, on changes up to
-:data:`TURN`: tested)."""
 
 
 def barrier_change(start: np.ndarray, end: np.ndarray, e: np.ndarray) -> np.ndarray:
@@ -318,7 +334,7 @@ class NormalStress:
         cells = np.union1d(faces.left, faces.right)
         index = np.searchsorted(cells, [faces.left, faces.right])
         local = Chains(index[0], index[1], faces.linked)
-        new, z = plastic_chain_step(
+        new, z = compiled_chain_step(
             ustar.ravel()[cells],
             mass[cells],
             local,
