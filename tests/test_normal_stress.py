@@ -10,6 +10,7 @@ from scipy.integrate import quad
 
 import multilayer
 from multilayer.engine.normal_stress import (
+    PRESSURE_STEP,
     ROUNDING,
     TURN,
     Chains,
@@ -82,6 +83,25 @@ def test_a_law_more_sensitive_to_the_pressure_than_the_pressure_itself_stops_the
         steep.normal_stress(
             steep.h, ustar, np.zeros_like(ustar), None, 1e-4, velocity_scale=1.0, max_iterations=50
         )
+
+
+def test_the_bulk_law_at_the_three_pressures_is_asked_once():
+    """tau_f and e_f = d tau / d p (central difference) from one call of the law's hooks at p,
+    p + dp and p - dp stacked are those of three calls, to the bit (the laws act point by
+    point): the recommended collapse law, h_stop and all, at random rates, pressures (one
+    zero), thicknesses and positions."""
+    sim = multilayer.Simulation(
+        multilayer.load(SCENARIOS / "column_collapse_channel.yaml", {"model.normal_stress": True})
+    )
+    rng = np.random.default_rng(1)
+    rate, p = 10.0 ** rng.uniform(-3, 2, 50), rng.uniform(0.0, 2000.0, 50)
+    p[0] = 0.0
+    h, x, layers = rng.uniform(1e-3, 0.1, 50), rng.uniform(0.0, 0.3, 50), rng.integers(0, 8, 50)
+    tau, e = sim.normal_stress.bulk_law(rate, p, h, x, layers)
+    law, dp = sim.normal_stress.stresses.bulk_stress, PRESSURE_STEP * p
+    assert np.array_equal(tau, law(rate, p, h, x))
+    change = law(rate, p + dp, h, x) - law(rate, p - dp, h, x)
+    assert np.array_equal(e, np.divide(change, 2 * dp, out=np.zeros(50), where=dp > 0)) and e[0] == 0.0
 
 
 def integrand(phi: float, e: float) -> float:

@@ -326,14 +326,15 @@ class NormalStress:
         p = 0.5 * (pbar.ravel()[faces.left] + pbar.ravel()[faces.right])
         hf = 0.5 * (h[i] + h[j])
         x = 0.5 * (self.stresses.x[i] + self.stresses.x[j])
-        tau = self.stresses.bulk_stress(rate, p, hf, x)
-        e = self.pressure_sensitivity(rate, p, hf, x, layer)
+        tau, e = self.bulk_law(rate, p, hf, x, layer)
         a = 2.0 * dt * self.l[layer, 0] * hf * tau
         b = self.dx * d_xz
         mass = (rho * self.l * h * self.dx).ravel()
-        cells = np.union1d(faces.left, faces.right)
-        index = np.searchsorted(cells, [faces.left, faces.right])
-        local = Chains(index[0], index[1], faces.linked)
+        present = np.zeros(ustar.size, dtype=bool)  # the cells of the chains, in order
+        present[faces.left] = present[faces.right] = True
+        cells = np.flatnonzero(present)
+        position = np.cumsum(present) - 1
+        local = Chains(position[faces.left], position[faces.right], faces.linked)
         new, z = compiled_chain_step(
             ustar.ravel()[cells],
             mass[cells],
@@ -346,23 +347,25 @@ class NormalStress:
         )
         ustar[np.unravel_index(cells, ustar.shape)] = new
         # each cell's tau_xx: the mean of its faces' Z_f / (2 dt l_a h_f)
-        stress, count = np.zeros(ustar.size), np.zeros(ustar.size)
-        for side in (faces.left, faces.right):
-            np.add.at(stress, side, z / (2.0 * dt * self.l[layer, 0] * hf))
-            np.add.at(count, side, 1.0)
+        per_face, n = z / (2.0 * dt * self.l[layer, 0] * hf), ustar.size
+        stress = np.bincount(faces.left, per_face, n) + np.bincount(faces.right, per_face, n)
+        count = np.bincount(faces.left, minlength=n) + np.bincount(faces.right, minlength=n)
         self.tau_xx = (stress / np.maximum(count, 1.0)).reshape(ustar.shape)
         self.relief = np.divide(self.tau_xx, pbar, out=np.zeros(pbar.shape), where=pbar > 0.0)
 
-    def pressure_sensitivity(
+    def bulk_law(
         self, rate: np.ndarray, p: np.ndarray, h: np.ndarray, x: np.ndarray, layer: np.ndarray
-    ) -> np.ndarray:
-        """``e_f = d tau / d p`` of the bulk law at the faces' rates (a central difference of
-        relative step :data:`PRESSURE_STEP`; 0 on a face without pressure, whose stress is the
-        law's at ``p = 0``); :class:`RunError` where ``|e_f| >= 1`` (an unbounded passive
-        pressure)."""
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The bulk law's stress norm ``tau_f`` and ``e_f = d tau / d p`` at the faces' rates
+        and pressures ``p`` (a central difference of relative step :data:`PRESSURE_STEP`; 0 on
+        a face without pressure, whose stress is the law's at ``p = 0``), the law asked once
+        at the three pressures of every face; :class:`RunError` where ``|e_f| >= 1`` (an
+        unbounded passive pressure)."""
         dp = PRESSURE_STEP * p
-        change = self.stresses.bulk_stress(rate, p + dp, h, x) - self.stresses.bulk_stress(rate, p - dp, h, x)
-        e = np.divide(change, 2.0 * dp, out=np.zeros(p.shape), where=dp > 0.0)
+        pressures = np.concatenate([p, p + dp, p - dp])
+        stress = self.stresses.bulk_stress(np.tile(rate, 3), pressures, np.tile(h, 3), np.tile(x, 3))
+        tau, up, down = stress.reshape(3, p.size)
+        e = np.divide(up - down, 2.0 * dp, out=np.zeros(p.shape), where=dp > 0.0)
         bad = ~(np.abs(e) < 1.0)
         if bad.any():
             f = int(np.flatnonzero(bad)[0])
@@ -371,7 +374,7 @@ class NormalStress:
                 f"(|d tau / d p| < 1): d tau / d p = {e[f]:.6g} at x = {x[f]:.6g} m, layer {int(layer[f])}, "
                 f"pressure {p[f]:.6g} Pa, shear rate {rate[f]:.6g} 1/s (model.normal_stress)"
             )
-        return e
+        return tau, e
 
     def yield_gravity(self, yield_gravity: np.ndarray | None, h: np.ndarray) -> np.ndarray:
         """The normal gravity ``G_k (1 - r_k)`` (L, N) of the mean pressures ``p_k = P_k (1 -
