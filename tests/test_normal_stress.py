@@ -4,6 +4,8 @@ exact rest, and the scenario key."""
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 import pytest
 from scipy.integrate import quad
@@ -16,13 +18,14 @@ from multilayer.engine.normal_stress import (
     Chains,
     barrier_change,
     chains,
-    compiled_chain_step,
     plastic_chain_step,
 )
 from multilayer.errors import InputError, RunError
 from multilayer.validation.runs import SCENARIOS
 
 RHO, G, MU = 1500.0, 9.81, 0.5
+compiled_chain_step = partial(plastic_chain_step, compiled=True)
+"""The step by the engine's kernel."""
 
 
 def layer(

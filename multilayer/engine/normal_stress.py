@@ -48,7 +48,7 @@ again, then a scaled gradient step is tried.  It converged on 240 random problem
 ``A_f`` and ``B_f`` over up to 8 decades and ``|e_f| < 0.8`` (a slow test); a step that does
 not stops the run with a message (never a silent answer).  :func:`plastic_chain_step` is the
 numpy reference of the method; the engine runs its compiled kernel
-(:mod:`multilayer.engine.normal_stress_kernel`, :func:`compiled_chain_step`), tested equal to it.
+(:mod:`multilayer.engine.normal_stress_kernel`, ``compiled=True``), tested equal to it.
 """
 
 from __future__ import annotations
@@ -96,14 +96,19 @@ def plastic_chain_step(
     *,
     tolerance: float,
     max_iterations: int,
+    compiled: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The argmin ``u`` of the module docstring's problem and the face impulses ``Z``, for
     the velocities ``ustar`` and masses ``mass`` (flat arrays), the faces' ``a`` (A_f),
     ``b`` (B_f) and pressure sensitivities ``e`` (e_f, ``|e_f| < 1``); converged when the
     Newton step would change no velocity by more than ``tolerance``.  :class:`RunError`
-    after ``max_iterations``."""
-    inv = 1.0 / mass
+    after ``max_iterations``.  ``compiled``: by the kernel
+    :func:`multilayer.engine.normal_stress_kernel.chain_step` (the engine's; equal to round-off,
+    tested), else by the numpy code here (its reference)."""
     e = np.broadcast_to(np.asarray(e, dtype=float), a.shape)
+    if compiled:
+        return _compiled_step(ustar, mass, faces, a, b, e, tolerance=tolerance, iterations=max_iterations)
+    inv = 1.0 / mass
     smooth = (b > 0.0) & (a > 0.0)
     low, high = -a / (1.0 - e), a / (1.0 + e)  # the plastic faces' bounds: Z_f = A_f F(-+pi/2)
     left, right = faces.left, faces.right
@@ -199,29 +204,18 @@ def not_converged(max_iterations: int) -> RunError:
     )
 
 
-def compiled_chain_step(
-    ustar: np.ndarray,
-    mass: np.ndarray,
-    faces: Chains,
-    a: np.ndarray,
-    b: np.ndarray,
-    e: np.ndarray | float = 0.0,
-    *,
-    tolerance: float,
-    max_iterations: int,
+def _compiled_step(
+    ustar: np.ndarray, mass: np.ndarray, faces: Chains, *data: np.ndarray, tolerance: float, iterations: int
 ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`plastic_chain_step` by its compiled kernel
-    (:func:`multilayer.engine.normal_stress_kernel.chain_step`), the same arguments and
-    results, equal to round-off (tested)."""
-    u, z = np.empty(ustar.size), np.empty(a.size)
-    e = np.ascontiguousarray(np.broadcast_to(np.asarray(e, dtype=float), a.shape))
+    """:func:`plastic_chain_step` by its kernel (``iterations``: ``max_iterations``), for the
+    faces' ``data`` ``a``, ``b``, ``e``."""
+    u, z = np.empty(ustar.size), np.empty(faces.left.size)
+    cells = [np.ascontiguousarray(array, dtype=float) for array in (ustar, mass)]
     index = [np.ascontiguousarray(side, dtype=np.int64) for side in (faces.left, faces.right)]
-    arrays = [np.ascontiguousarray(array, dtype=float) for array in (ustar, mass, a, b)]
     linked = np.ascontiguousarray(faces.linked, dtype=np.bool_)
-    if not chain_step(
-        *arrays[:2], *index, linked, *arrays[2:], e, float(tolerance), int(max_iterations), u, z
-    ):
-        raise not_converged(max_iterations)
+    arrays = [np.ascontiguousarray(array, dtype=float) for array in data]
+    if not chain_step(*cells, *index, linked, *arrays, float(tolerance), int(iterations), u, z):
+        raise not_converged(iterations)
     return u, z
 
 
@@ -335,7 +329,7 @@ class NormalStress:
         cells = np.flatnonzero(present)
         position = np.cumsum(present) - 1
         local = Chains(position[faces.left], position[faces.right], faces.linked)
-        new, z = compiled_chain_step(
+        new, z = plastic_chain_step(
             ustar.ravel()[cells],
             mass[cells],
             local,
@@ -344,6 +338,7 @@ class NormalStress:
             e,
             tolerance=self.tolerance * velocity_scale,
             max_iterations=max_iterations,
+            compiled=True,
         )
         ustar[np.unravel_index(cells, ustar.shape)] = new
         # each cell's tau_xx: the mean of its faces' Z_f / (2 dt l_a h_f)
