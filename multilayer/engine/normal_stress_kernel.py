@@ -128,21 +128,19 @@ def _search(v, z, u, step, mass, inv, left, right, a, b, e, smooth, low, high, w
     dz, s, jacobian, slope = work[0], work[1], work[2], work[3]
     alpha = 1.0
     while alpha >= 1e-12:
-        barrier = 0.0
         for f in range(v.size):
             t = v[f] + alpha * step[f]
             if smooth[f]:
                 t = min(max(t, -HALF_PI), HALF_PI)
                 sin = np.sin(t)
                 z_trial[f] = a[f] * (sin / (1.0 + e[f] * sin))
-                barrier += a[f] * b[f] * _barrier_change(v[f], t, e[f])
             else:
                 t = min(max(t, low[f]), high[f])
                 z_trial[f] = t
             trial[f] = t
             dz[f] = z_trial[f] - z[f]
         _change(dz, left, right, inv, moved)
-        rise = barrier
+        rise = 0.0
         for i in range(u.size):
             rise += mass[i] * moved[i] * (u[i] + 0.5 * moved[i])
             moved[i] += u[i]
@@ -152,7 +150,12 @@ def _search(v, z, u, step, mass, inv, left, right, a, b, e, smooth, low, high, w
         along = 0.0
         for f in range(v.size):
             along += slope[f] * (trial[f] - v[f])
-        if rise <= 0.0 or along <= 0.0:
+        if along <= 0.0:  # accepted whatever the rise: the dual term's change is not needed
+            return True
+        for f in range(v.size):
+            if smooth[f]:
+                rise += a[f] * b[f] * _barrier_change(v[f], trial[f], e[f])
+        if rise <= 0.0:
             return True
         alpha *= 0.5
     return False
