@@ -21,6 +21,12 @@ the dual objective is not convex in ``phi_f`` (each angle's step is cut to it, o
 would not descend, the whole step scaled)."""
 
 
+STALL = 0.01
+"""A step that moves no velocity by more than this fraction of its Newton step's largest
+change has stalled (the path met a bound of a plastic face the Newton step would take
+across): the next iteration tries the scaled gradient step first."""
+
+
 ROUNDING = 100.0
 """The round-off of a velocity ``u_i = u*_i + (Z_(i+1/2) - Z_(i-1/2)) / M_i`` in units of the
 machine epsilon times its terms: below it the iteration cannot go."""
@@ -185,6 +191,7 @@ def chain_step(ustar, mass, left, right, linked, a, b, e, tolerance, max_iterati
     fixed = np.empty(k, dtype=np.bool_)
     cells = np.empty((3, n))
     du, held, moved = cells[0], cells[1], cells[2]
+    stalled = False
     for _ in range(max_iterations):
         for f in range(k):
             s[f] = u[right[f]] - u[left[f]]
@@ -214,11 +221,12 @@ def chain_step(ustar, mass, left, right, linked, a, b, e, tolerance, max_iterati
             direction[f] = jacobian[f] * plain[f]
         _change(direction, left, right, inv, du)
         converged = True
+        size = 0.0
         for i in range(n):
             floor = ROUNDING * EPSILON * (held[i] * inv[i] + abs(ustar[i]))
             if abs(du[i]) > max(tolerance, floor):
                 converged = False
-                break
+            size = max(size, abs(du[i]))
         if converged:
             return True
         # the plastic faces the step takes across their bounds go to them, the others solved again
@@ -235,7 +243,8 @@ def chain_step(ustar, mass, left, right, linked, a, b, e, tolerance, max_iterati
                 break
             _newton_step(fixed, moves, g, diagonal, coupling, upper, rhs, step)
         found = False
-        for attempt in range(3):
+        for tried in range(3):
+            attempt = (tried + 2) % 3 if stalled else tried  # after a stalled step the gradient step first
             if attempt == 0:  # the step with the crossing faces at their bounds
                 _turned(step, g, smooth, direction)
             elif attempt == 1:  # the projected Newton step
@@ -266,8 +275,12 @@ def chain_step(ustar, mass, left, right, linked, a, b, e, tolerance, max_iterati
             )
             if found:
                 break
+        progress = 0.0
         if found:
+            for i in range(n):
+                progress = max(progress, abs(moved[i] - u[i]))
             v[:] = trial
             z[:] = z_trial
             u[:] = moved
+        stalled = progress < STALL * size
     return False
