@@ -272,7 +272,8 @@ def test_two_compiles_and_a_run_at_once_on_an_empty_cache(tmp_path, write_scenar
 def test_a_run_after_compile_kernels_compiles_nothing(tiny_scenario):
     """Once :func:`compile_kernels` has cached its tasks' kernels (the test run's warm-up
     did, or this call does), a small run under another law, hydrostatic or not, with side
-    walls, compiles no kernel of the engine: the tasks cover the signatures of a run."""
+    walls, with the normal stress or not, compiles no kernel of the engine: the tasks cover
+    the signatures of a run."""
     from numba.core import event
 
     import multilayer
@@ -291,9 +292,10 @@ def test_a_run_after_compile_kernels_compiles_nothing(tiny_scenario):
 
     tiny_scenario["walls"] = {"name": "wall_friction", "mu_w": 0.2}
     tiny_scenario["domain"]["width"] = 0.1
-    for pressure in ("hydrostatic", "non_hydrostatic"):
+    for overrides in ({"model.pressure": "hydrostatic"}, {"model.pressure": "non_hydrostatic"},
+                      {"model.normal_stress": True}):  # fmt: skip
         with event.install_listener("numba:compile", Listener()):
-            sim = multilayer.Simulation(multilayer.load(tiny_scenario, {"model.pressure": pressure}))
+            sim = multilayer.Simulation(multilayer.load(tiny_scenario, overrides))
             for _ in range(3):
                 sim.step()
         assert sim.t > 0 and names == []

@@ -74,6 +74,15 @@ def _transport() -> None:
     sim._transport(sim.time_step(), 1)
 
 
+def _normal_stress() -> None:
+    """The normal-stress step after the transport (``model.normal_stress``)."""
+    from multilayer.app.api import load
+    from multilayer.app.simulation import Simulation
+
+    sim = Simulation(load(COLLAPSE, {"model.normal_stress": True}))
+    sim._transport(sim.time_step(), 1)
+
+
 def _numpy_path() -> None:
     """The exact column solve and the Newton control of the vertical step of laws without
     compiled forms (third-party rheologies)."""
@@ -118,6 +127,7 @@ TASKS: tuple[Task, ...] = (
     Task("projection", _projection),
     Task("transport", _transport),
     Task("numpy_path", _numpy_path, ("newton",)),
+    Task("normal_stress", _normal_stress, ("transport",)),
     Task("hydrostatic_steps", _steps("hydrostatic"), ("newton", "transport")),
     Task("non_hydrostatic_steps", _steps("non_hydrostatic"), ("newton", "transport", "projection")),
 )

@@ -44,9 +44,15 @@ the step is not positive); converged when the Newton step would move no velocity
 the tolerance (or than the round-off of its cell's impulses).  Where an angle's curvature is
 too small the step is damped (Levenberg-Marquardt); where the projected Newton step does not
 descend, the plastic faces it takes across their bounds are fixed there and the step solved
-again, then a scaled gradient step is tried.  It converged on 240 random problems with masses,
-``A_f`` and ``B_f`` over up to 8 decades and ``|e_f| < 0.8`` (a slow test); a step that does
-not stops the run with a message (never a silent answer).
+again, then a scaled gradient step is tried; after a step that stalled (it moved no velocity
+by :data:`STALL` of its Newton step's change: one line search serves every chain, and a
+chain's plastic faces can meet their bounds along a path another chain's angles cut short)
+the gradient step goes first.  It converged on 250 random problems with masses, ``A_f`` and
+``B_f`` over up to 8 decades and ``|e_f| < 0.8`` (a slow test) and on a step of a collapse that
+stalled without the rule; a step that does not converge stops the run with a message (never a
+silent answer).  :func:`plastic_chain_step` is the
+numpy reference of the method; the engine runs its compiled kernel
+(:mod:`multilayer.engine.normal_stress_kernel`, ``compiled=True``), tested equal to it.
 """
 
 from __future__ import annotations
@@ -56,23 +62,13 @@ from typing import NamedTuple
 import numpy as np
 from scipy.linalg import solve_banded
 
+from multilayer.engine.normal_stress_kernel import NODES, ROUNDING, STALL, TURN, WEIGHTS, chain_step
 from multilayer.engine.vertical.stresses import StressModel
 from multilayer.errors import RunError
-
-TURN = 0.5
-"""The largest change of an angle ``phi_f`` in one Newton step (rad): far from its optimum
-the dual objective is not convex in ``phi_f`` (each angle's step is cut to it, or, where that
-would not descend, the whole step scaled)."""
-
 
 PRESSURE_STEP = 1e-4
 """The relative pressure step of the central difference ``d tau / d p`` (its truncation error
 of order ``1e-8`` of ``e_f``)."""
-
-
-ROUNDING = 100.0
-"""The round-off of a velocity ``u_i = u*_i + (Z_(i+1/2) - Z_(i-1/2)) / M_i`` in units of the
-machine epsilon times its terms: below it the iteration cannot go."""
 
 
 class Chains(NamedTuple):
@@ -104,14 +100,19 @@ def plastic_chain_step(
     *,
     tolerance: float,
     max_iterations: int,
+    compiled: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The argmin ``u`` of the module docstring's problem and the face impulses ``Z``, for
     the velocities ``ustar`` and masses ``mass`` (flat arrays), the faces' ``a`` (A_f),
     ``b`` (B_f) and pressure sensitivities ``e`` (e_f, ``|e_f| < 1``); converged when the
     Newton step would change no velocity by more than ``tolerance``.  :class:`RunError`
-    after ``max_iterations``."""
-    inv = 1.0 / mass
+    after ``max_iterations``.  ``compiled``: by the kernel
+    :func:`multilayer.engine.normal_stress_kernel.chain_step` (the engine's; equal to round-off,
+    tested), else by the numpy code here (its reference)."""
     e = np.broadcast_to(np.asarray(e, dtype=float), a.shape)
+    if compiled:
+        return _compiled_step(ustar, mass, faces, a, b, e, tolerance=tolerance, iterations=max_iterations)
+    inv = 1.0 / mass
     smooth = (b > 0.0) & (a > 0.0)
     low, high = -a / (1.0 - e), a / (1.0 + e)  # the plastic faces' bounds: Z_f = A_f F(-+pi/2)
     left, right = faces.left, faces.right
@@ -163,6 +164,7 @@ def plastic_chain_step(
             return clipped
         return step * TURN / max(TURN, float(np.max(np.abs(step[smooth]), initial=0.0)))
 
+    stalled = False
     for _ in range(max_iterations):
         s = u[right] - u[left]
         jacobian, g = gradient(v, s)
@@ -182,7 +184,8 @@ def plastic_chain_step(
         np.add.at(held, left, np.abs(z))
         np.add.at(held, right, np.abs(z))
         floor = ROUNDING * np.finfo(float).eps * (held * inv + np.abs(ustar))
-        if not np.any(np.abs(change(jacobian * plain)) > np.maximum(tolerance, floor)):
+        size = np.abs(change(jacobian * plain))
+        if not np.any(size > np.maximum(tolerance, floor)):
             return u, z
         # the plastic faces the step takes across their bounds go to them, the others solved again
         step, fixed, moves = plain, active.copy(), np.zeros(a.size)
@@ -190,16 +193,39 @@ def plastic_chain_step(
             fixed |= crossing
             moves = np.where(crossing, np.where(step > 0.0, high, low) - z, moves)
             step = newton_step(fixed, moves, g, diagonal, coupling)
-        found = search(v, z, u, turned(step, g))
-        if found is None:  # the projected Newton step
-            found = search(v, z, u, turned(plain, g))
-        if found is None:  # a scaled gradient step
-            found = search(v, z, u, turned(-np.where(active, 0.0, g) / diagonal, g))
+        # the step with the crossing faces at their bounds, the projected Newton step, a scaled
+        # gradient step; after a stalled step (STALL) the gradient step first
+        attempts = [step, plain, -np.where(active, 0.0, g) / diagonal]
+        found = None
+        for direction in attempts[2:] + attempts[:2] if stalled else attempts:
+            if (found := search(v, z, u, turned(direction, g))) is not None:
+                break
+        stalled = found is None or np.max(np.abs(found[2] - u)) < STALL * np.max(size)
         if found is not None:
             v, z, u = found
-    raise RunError(
+    raise not_converged(max_iterations)
+
+
+def not_converged(max_iterations: int) -> RunError:
+    """The error of a step that did not converge in ``max_iterations``."""
+    return RunError(
         f"the normal-stress step did not converge in {max_iterations} iterations (numerics.max_iterations)"
     )
+
+
+def _compiled_step(
+    ustar: np.ndarray, mass: np.ndarray, faces: Chains, *data: np.ndarray, tolerance: float, iterations: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`plastic_chain_step` by its kernel (``iterations``: ``max_iterations``), for the
+    faces' ``data`` ``a``, ``b``, ``e``."""
+    u, z = np.empty(ustar.size), np.empty(faces.left.size)
+    cells = [np.ascontiguousarray(array, dtype=float) for array in (ustar, mass)]
+    index = [np.ascontiguousarray(side, dtype=np.int64) for side in (faces.left, faces.right)]
+    linked = np.ascontiguousarray(faces.linked, dtype=np.bool_)
+    arrays = [np.ascontiguousarray(array, dtype=float) for array in data]
+    if not chain_step(*cells, *index, linked, *arrays, float(tolerance), int(iterations), u, z):
+        raise not_converged(iterations)
+    return u, z
 
 
 def law(phi: np.ndarray, e: np.ndarray) -> np.ndarray:
@@ -227,13 +253,6 @@ def barrier_integrand(phi: np.ndarray, e: np.ndarray) -> np.ndarray:
 def barrier_slope(phi: np.ndarray, e: np.ndarray) -> np.ndarray:
     """The derivative of :func:`barrier_integrand`, ``cos(phi) (1 - e sin(phi)) / (1 + e sin(phi))^3``."""
     return np.cos(phi) * (1.0 - e * np.sin(phi)) / (1.0 + e * np.sin(phi)) ** 3
-
-
-NODES, WEIGHTS = np.polynomial.legendre.leggauss(16)
-"""Gauss-Legendre rule of :func:`barrier_change`: its integrand is analytic, its nearest
-poles ``sin(phi) = -1/e`` at ``acosh(1/|e|)`` from the real axis (error below 1e-15 of the
-integral of its absolute value for ``|e| <= 0.8``, below 1e-12 at 0.9, on changes up to
-:data:`TURN`: tested)."""
 
 
 def barrier_change(start: np.ndarray, end: np.ndarray, e: np.ndarray) -> np.ndarray:
@@ -310,14 +329,15 @@ class NormalStress:
         p = 0.5 * (pbar.ravel()[faces.left] + pbar.ravel()[faces.right])
         hf = 0.5 * (h[i] + h[j])
         x = 0.5 * (self.stresses.x[i] + self.stresses.x[j])
-        tau = self.stresses.bulk_stress(rate, p, hf, x)
-        e = self.pressure_sensitivity(rate, p, hf, x, layer)
+        tau, e = self.bulk_law(rate, p, hf, x, layer)
         a = 2.0 * dt * self.l[layer, 0] * hf * tau
         b = self.dx * d_xz
         mass = (rho * self.l * h * self.dx).ravel()
-        cells = np.union1d(faces.left, faces.right)
-        index = np.searchsorted(cells, [faces.left, faces.right])
-        local = Chains(index[0], index[1], faces.linked)
+        present = np.zeros(ustar.size, dtype=bool)  # the cells of the chains, in order
+        present[faces.left] = present[faces.right] = True
+        cells = np.flatnonzero(present)
+        position = np.cumsum(present) - 1
+        local = Chains(position[faces.left], position[faces.right], faces.linked)
         new, z = plastic_chain_step(
             ustar.ravel()[cells],
             mass[cells],
@@ -327,26 +347,29 @@ class NormalStress:
             e,
             tolerance=self.tolerance * velocity_scale,
             max_iterations=max_iterations,
+            compiled=True,
         )
         ustar[np.unravel_index(cells, ustar.shape)] = new
         # each cell's tau_xx: the mean of its faces' Z_f / (2 dt l_a h_f)
-        stress, count = np.zeros(ustar.size), np.zeros(ustar.size)
-        for side in (faces.left, faces.right):
-            np.add.at(stress, side, z / (2.0 * dt * self.l[layer, 0] * hf))
-            np.add.at(count, side, 1.0)
+        per_face, n = z / (2.0 * dt * self.l[layer, 0] * hf), ustar.size
+        stress = np.bincount(faces.left, per_face, n) + np.bincount(faces.right, per_face, n)
+        count = np.bincount(faces.left, minlength=n) + np.bincount(faces.right, minlength=n)
         self.tau_xx = (stress / np.maximum(count, 1.0)).reshape(ustar.shape)
         self.relief = np.divide(self.tau_xx, pbar, out=np.zeros(pbar.shape), where=pbar > 0.0)
 
-    def pressure_sensitivity(
+    def bulk_law(
         self, rate: np.ndarray, p: np.ndarray, h: np.ndarray, x: np.ndarray, layer: np.ndarray
-    ) -> np.ndarray:
-        """``e_f = d tau / d p`` of the bulk law at the faces' rates (a central difference of
-        relative step :data:`PRESSURE_STEP`; 0 on a face without pressure, whose stress is the
-        law's at ``p = 0``); :class:`RunError` where ``|e_f| >= 1`` (an unbounded passive
-        pressure)."""
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The bulk law's stress norm ``tau_f`` and ``e_f = d tau / d p`` at the faces' rates
+        and pressures ``p`` (a central difference of relative step :data:`PRESSURE_STEP`; 0 on
+        a face without pressure, whose stress is the law's at ``p = 0``), the law asked once
+        at the three pressures of every face; :class:`RunError` where ``|e_f| >= 1`` (an
+        unbounded passive pressure)."""
         dp = PRESSURE_STEP * p
-        change = self.stresses.bulk_stress(rate, p + dp, h, x) - self.stresses.bulk_stress(rate, p - dp, h, x)
-        e = np.divide(change, 2.0 * dp, out=np.zeros(p.shape), where=dp > 0.0)
+        pressures = np.concatenate([p, p + dp, p - dp])
+        stress = self.stresses.bulk_stress(np.tile(rate, 3), pressures, np.tile(h, 3), np.tile(x, 3))
+        tau, up, down = stress.reshape(3, p.size)
+        e = np.divide(up - down, 2.0 * dp, out=np.zeros(p.shape), where=dp > 0.0)
         bad = ~(np.abs(e) < 1.0)
         if bad.any():
             f = int(np.flatnonzero(bad)[0])
@@ -355,7 +378,7 @@ class NormalStress:
                 f"(|d tau / d p| < 1): d tau / d p = {e[f]:.6g} at x = {x[f]:.6g} m, layer {int(layer[f])}, "
                 f"pressure {p[f]:.6g} Pa, shear rate {rate[f]:.6g} 1/s (model.normal_stress)"
             )
-        return e
+        return tau, e
 
     def yield_gravity(self, yield_gravity: np.ndarray | None, h: np.ndarray) -> np.ndarray:
         """The normal gravity ``G_k (1 - r_k)`` (L, N) of the mean pressures ``p_k = P_k (1 -
