@@ -44,7 +44,7 @@ import numpy as np
 import yaml
 
 from multilayer import scenario as scenarios
-from multilayer.app import resources
+from multilayer.app import numba_environment, resources
 from multilayer.app.compilation import compile_ahead, compile_notice
 from multilayer.app.lock import locked
 from multilayer.app.progress import Progress
@@ -99,6 +99,7 @@ def run(
     do not reach (:mod:`multilayer.app.stopping`).  ``quiet=None`` shows the progress
     line only on a terminal.
     """
+    numba_environment.check()  # before anything is made (set in Python, no command checked it)
     outdir = Path(outdir)
     if resume and not outdir.is_dir():
         raise InputError(

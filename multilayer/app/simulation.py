@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from multilayer.app import factory
+from multilayer.app import factory, numba_environment
 from multilayer.engine import simulation
 from multilayer.errors import InputError
 from multilayer.scenario import Scenario
@@ -12,7 +12,10 @@ from multilayer.scenario.messages import shown
 class Simulation(simulation.Simulation):
     """``multilayer.Simulation(scenario)``: the engine's
     :class:`~multilayer.engine.simulation.Simulation` of a validated scenario (from
-    :func:`multilayer.load`), which it keeps as ``scenario``."""
+    :func:`multilayer.load`), which it keeps as ``scenario``.  numba's variables are
+    checked first (:func:`multilayer.app.numba_environment.check`): numba reads
+    ``NUMBA_THREADING_LAYER`` at its first parallel kernel, where an unknown layer was
+    numba's own ``ValueError``, mid-run."""
 
     def __init__(self, scenario: Scenario):
         if not isinstance(scenario, Scenario):
@@ -20,6 +23,7 @@ class Simulation(simulation.Simulation):
                 f"Simulation: got {shown(scenario)}; accepted: a Scenario, as multilayer.load returns "
                 "it from a file or a mapping"
             )
+        numba_environment.check()
         self.scenario = scenario
         bulk, walls = factory.laws(scenario)
         super().__init__(
