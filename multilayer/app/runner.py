@@ -122,7 +122,7 @@ def run(
 
     stop = _StopRequest(stop_when)
     with locked(outdir, notice), stop.installed():
-        ckpt = _checkpoint_to_resume(scenario, outdir) if resume else None
+        ckpt = _checkpoint_to_resume(scenario, outdir, notice) if resume else None
         log = logging.Logger("multilayer.run")
         handler = _LogFile(outdir / LOG_FILE, mode="a" if resume else "w", encoding="utf-8")
         handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
@@ -324,8 +324,10 @@ def _keep_last_good_state(sim: Any, writer: ResultWriter, checkpoint: Any, saved
     return f" and the last good state at t={sim.t:.6g} s (also in the checkpoint)"
 
 
-def _checkpoint_to_resume(scenario: Any, outdir: Path) -> Checkpoint:
-    """The checkpoint in ``outdir``, checked to belong to ``scenario``."""
+def _checkpoint_to_resume(scenario: Any, outdir: Path, notice: Callable[[str], None]) -> Checkpoint:
+    """The checkpoint in ``outdir``, checked to belong to ``scenario``: every key but
+    :data:`_FREE_KEYS` the same, ``time.end`` not before the checkpoint.  A change of
+    another free key (a new name) is allowed and said through ``notice``."""
     ckpt_path = outdir / CHECKPOINT_FILE
     if not (ckpt_path.is_file() and (outdir / RESULT_FILE).is_file()):
         raise InputError(
@@ -337,12 +339,19 @@ def _checkpoint_to_resume(scenario: Any, outdir: Path) -> Checkpoint:
         check_result(outdir, "resume", records=ckpt.records)
     except InputError as exc:
         raise InputError(f"{exc}, or run without --resume to start afresh") from None
-    changed = _changed_keys(yaml.safe_load(ckpt.scenario), yaml.safe_load(scenario.resolved_yaml()))
+    saved, resolved = yaml.safe_load(ckpt.scenario), yaml.safe_load(scenario.resolved_yaml())
+    changed = _changed_keys(saved, resolved)
     if changed:
         raise InputError(
             f"{ckpt_path}: the checkpoint belongs to a different scenario (changed: "
             f"{', '.join(changed)}); resume with the same scenario file and --set "
-            f"options (only time.end may change), or run without --resume"
+            f"options (only {', '.join(sorted(_FREE_KEYS))} may change), or run without --resume"
+        )
+    relabelled = [key for key in _changed_keys(saved, resolved, free=frozenset()) if key != "time.end"]
+    if relabelled:
+        notice(
+            f"{ckpt_path}: resuming with {', '.join(relabelled)} changed (no part of the computed "
+            f"solution; the result and the checkpoint take the new values)"
         )
     t_saved = float(ckpt.state["t"])
     if t_saved > scenario.time.end * (1 + 1e-12):
@@ -354,7 +363,8 @@ def _checkpoint_to_resume(scenario: Any, outdir: Path) -> Checkpoint:
     return ckpt
 
 
-#: Keys that do not change the computed solution; ``time.end`` may grow to extend a run.
+#: Keys that do not change the computed solution, the only ones a resumed run may change
+#: (docs/cli.md, ``--resume``); ``time.end`` may grow to extend a run.
 _FREE_KEYS = frozenset({"name", "description", "output", "expect", "time.end"})
 
 
