@@ -472,3 +472,27 @@ def test_an_initial_state_whose_sums_overflow_is_named(cli, write_scenario, over
     result = cli("validate", write_scenario(TINY_SCENARIO), "--set", override)
     assert result.code == 2 and "Traceback" not in result.err and "warning" not in result.err, result.err
     assert phrase in result.err and result.err.count("\n") == 1, result.err
+
+
+LONG = "/".join(["a" * 200] * 25)
+"""A path of 5024 characters: longer than the system takes (``File name too long``)."""
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["validate", f"{LONG}/scenario.yaml"],
+        ["check", f"{LONG}/scenario.yaml"],
+        ["run", "SCENARIO", "-o", LONG, "-q"],
+        ["plot", LONG],
+        ["validate", "SCENARIO", "--set", f"bed={{file: {LONG}/bed.csv}}"],
+    ],
+)
+def test_a_path_too_long_for_the_system_is_quoted_once(tmp_path, cli, write_scenario, monkeypatch, argv):
+    """The system's error quotes the path it could not open: the message, which names the
+    path, quoted it a second time, 10 kB for a path of 5 kB."""
+    scenario = str(write_scenario(TINY_SCENARIO))
+    monkeypatch.chdir(tmp_path)
+    result = cli(*[scenario if word == "SCENARIO" else word for word in argv])
+    assert result.code == 2 and "Traceback" not in result.err, result.err
+    assert result.err.count(LONG) == 1 and "File name too long" in result.err, result.err[-300:]

@@ -49,7 +49,7 @@ from multilayer.app.compilation import compile_ahead, compile_notice
 from multilayer.app.lock import locked
 from multilayer.app.progress import Progress
 from multilayer.app.simulation import Simulation
-from multilayer.errors import InputError, Interrupted, RunError
+from multilayer.errors import InputError, Interrupted, RunError, reason
 from multilayer.io.disk import writable
 from multilayer.io.result_check import check_result
 from multilayer.io.results import (
@@ -165,9 +165,7 @@ def _output_directory(outdir: Path) -> list[Path]:
         with tempfile.TemporaryFile(dir=outdir):
             pass
     except OSError as exc:
-        raise InputError(
-            f"{outdir}: cannot be created or written ({exc.strerror or exc}); {accepted}"
-        ) from None
+        raise InputError(f"{outdir}: cannot be created or written ({reason(exc)}); {accepted}") from None
     for name in (RESULT_FILE, CHECKPOINT_FILE, LOG_FILE):
         writable(outdir / name)
     return missing

@@ -6,7 +6,7 @@ import os
 import stat
 from pathlib import Path
 
-from multilayer.errors import InputError
+from multilayer.errors import InputError, reason
 from multilayer.scenario.limits import MAX_FILE_BYTES
 
 
@@ -30,7 +30,7 @@ def read_text(path: Path, expected: str, readable: str) -> str:
     except FileNotFoundError:
         raise InputError(f"{path}: file not found; accepted: {expected}") from None
     except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise InputError(f"{path}: cannot read the file ({exc}); accepted: {readable}") from None
+        raise InputError(f"{path}: cannot read the file ({reason(exc)}); accepted: {readable}") from None
 
 
 def check_regular(path: Path, expected: str, readable: str) -> None:
@@ -42,6 +42,6 @@ def check_regular(path: Path, expected: str, readable: str) -> None:
     except FileNotFoundError:
         raise InputError(f"{path}: file not found; accepted: {expected}") from None
     except (OSError, ValueError) as exc:
-        raise InputError(f"{path}: cannot read the file ({exc}); accepted: {readable}") from None
+        raise InputError(f"{path}: cannot read the file ({reason(exc)}); accepted: {readable}") from None
     if not stat.S_ISREG(mode):
         raise InputError(f"{path}: not a regular file; accepted: {readable}")
