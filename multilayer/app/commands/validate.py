@@ -68,11 +68,12 @@ def _check_file(path: str, args: argparse.Namespace) -> str:
         plan = sweeps.load(path)
         members = plan.members()
         for member in members:
-            where = f"{path}: member {member.id} ({', '.join(member.overrides)})"
             try:
-                _check(scenarios.load(plan.base, [*member.overrides, *args.overrides]), plan.base, args)
+                _check(plan.member_scenario(member, args.overrides), plan.base, args)
             except InputError as exc:
-                raise InputError(f"{where}:\n{exc}") from None
+                raise InputError(
+                    f"{path}: member {member.id} ({', '.join(member.overrides)}):\n{exc}"
+                ) from None
         return f"sweep of {len(members)} members of {plan.base}, each valid"
     return _check(scenarios.load(path, args.overrides), path, args)
 
