@@ -160,6 +160,8 @@ def _output_directory(outdir: Path) -> list[Path]:
             f"{outdir}: not a UTF-8 name (netCDF files cannot be named by other bytes); {accepted}"
         ) from None
     missing = [path for path in (outdir, *outdir.parents) if not path.exists()]
+    if outdir.exists() and not outdir.is_dir():  # mkdir says only "File exists"
+        raise InputError(f"{outdir}: a file, not a directory; {accepted}")
     try:
         outdir.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryFile(dir=outdir):

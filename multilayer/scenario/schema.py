@@ -650,8 +650,10 @@ class Scenario(StrictModel):
 
     name: str = field(
         ...,
-        "letters, digits, '-', '_' and '.', starting with a letter or digit",
+        "letters, digits, '-', '_' and '.', starting with a letter or digit, at most 255 of them "
+        "(the default output directory is results/<name>, and a file name has at most 255 bytes)",
         pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]*$",
+        max_length=255,
     )
     description: str | None = field(None, "free text")
     gravity: float = field(9.81, "a number > 0 (m/s^2)", gt=0)

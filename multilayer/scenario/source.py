@@ -92,6 +92,14 @@ def parse_yaml(text: str, where: str) -> tuple[Any, dict[KeyPath, int]]:
     try:
         node = yaml.compose(text, Loader=Loader)
         data = yaml.load(text, Loader=Loader)
+    except yaml.reader.ReaderError as exc:  # a character YAML does not take: its place, one line
+        start = text.rfind("\n", 0, exc.position) + 1
+        line = f" (line {text.count(chr(10), 0, exc.position) + 1}, column {exc.position - start + 1})"
+        code = exc.character if isinstance(exc.character, int) else ord(exc.character)
+        problem = f"the character U+{code:04X} ({exc.reason})"
+        raise InputError(
+            f"{where}{line}: malformed YAML: {problem}; accepted: a YAML mapping of scenario keys"
+        ) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""

@@ -88,6 +88,7 @@ def _check(scenario: Scenario, path: str | Path, args: argparse.Namespace) -> st
     entries = factory.initial_entries(scenario)
     initial_state.check_entries(entries, dom.x_min, dom.x_max, dx, str(path))
     steps = resources.check_steps(scenario, limits)
+    factory.check_pressure(scenario)  # as the run: after the estimate of its steps
     expectations.validate(scenario)
     return (
         f"{scenario.name}: {dom.cells} cells x {dom.layers} layers, "
