@@ -1155,6 +1155,132 @@ def round_five() -> list[Case]:
     return out
 
 
+def _scenario_bytes(content: bytes) -> Callable[[Path], None]:
+    def setup(directory: Path) -> None:
+        (directory / "scenario.yaml").write_bytes(content)
+
+    return setup
+
+
+def _scenario_directory(directory: Path) -> None:
+    (directory / "scenario.yaml").mkdir()
+
+
+def _output_is_a_file(directory: Path) -> None:
+    _scenario(directory)
+    (directory / "out").write_text("")
+
+
+LONG_PATH = "/".join(["a" * 200] * 25)  # 5024 characters: File name too long
+
+
+def round_six() -> list[Case]:
+    """The hostile cases of the sixth round (docs/reliability.md): keys YAML reads as no
+    text, scenario files in other encodings, a name longer than a file name, a directory
+    as the scenario, a pressure beyond 1e308 Pa, a plugin value that overflows, ``-o`` a
+    file, a path too long for the system, resumes of a changed or relabelled scenario, a
+    sweep beyond its members."""
+    validate, run = ["validate", "{scenario}"], ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    text = yaml.safe_dump(TINY)
+    files = [
+        ("a key true", text + "true: x\n", "key True is not text; accepted: name"),
+        ("a key null", text + "null: x\n", "key None is not text"),
+        (
+            "a name of 300 characters",
+            text.replace("name: tiny", "name: " + "n" * 300),
+            "at most 255 characters",
+        ),
+    ]
+    out = [
+        Case(f"validate: {name}", validate, 2, phrase, setup=partial(_scenario, text=body))
+        for name, body, phrase in files
+    ]
+    for name, content, phrase in (
+        (
+            "UTF-16 with its byte order mark",
+            text.encode("utf-16"),
+            "UTF-16 text (it starts with the byte order mark",
+        ),
+        ("UTF-32", text.encode("utf-32"), "UTF-32 text"),
+        ("a Latin-1 byte", text.encode() + b"description: caf\xe9\n", "not UTF-8 text: byte 0xE9 at line"),
+        ("a NUL character", text.encode() + b"description: a\x00b\n", "the character U+0000"),
+    ):
+        out.append(Case(f"validate: {name}", validate, 2, phrase, setup=_scenario_bytes(content)))
+    out.append(
+        Case(
+            "validate: a directory as the scenario",
+            validate,
+            2,
+            "not a regular file",
+            setup=_scenario_directory,
+        )
+    )
+    heavy = partial(_scenario, changes={"material.density": 1e308})
+    for command in (validate, run):
+        out.append(
+            Case(
+                f"{command[0]}: density 1e308",
+                command,
+                2,
+                "the pressure under the initial material",
+                setup=heavy,
+            )
+        )
+    out.append(
+        Case(
+            "run: mu_s 1e308 (overflows in the plugin)",
+            run,
+            1,
+            "yield_stress() returned inf",
+            setup=partial(_scenario, changes={"rheology.mu_s": 1e308}),
+        )
+    )
+    out.append(Case("run: -o a file", run, 2, "a file, not a directory", setup=_output_is_a_file))
+    for command in (
+        ["validate", "{dir}/" + LONG_PATH + "/s.yaml"],
+        ["run", "{scenario}", "-o", "{dir}/" + LONG_PATH, "-q"],
+    ):
+        out.append(
+            Case(
+                f"{command[0]}: a path of 5024 characters", command, 2, "File name too long", setup=_scenario
+            )
+        )
+    resume = ["run", "{scenario}", "-o", "{dir}/out", "-q", "--resume", "--set"]
+    out.append(
+        Case(
+            "run: --resume with numerics changed",
+            [*resume, "numerics.tolerance=1e-9"],
+            2,
+            "changed: numerics.tolerance",
+            setup=_finished_run,
+        )
+    )
+    out.append(
+        Case(
+            "run: --resume renamed",
+            [*resume, "name=renamed"],
+            0,
+            "resuming with name changed",
+            setup=_finished_run,
+        )
+    )
+    out.append(
+        Case(
+            "sweep: 10100 members",
+            ["validate", "{dir}/sweep.yaml"],
+            2,
+            "at most 10000 members",
+            setup=_sweep(
+                {
+                    "slope_deg": [20 + i / 1000 for i in range(101)],
+                    "rheology.mu_s": [0.3 + i / 1e4 for i in range(100)],
+                }
+            ),
+        )
+    )
+    return out
+
+
 def cases() -> list[Case]:
     out: list[Case] = []
     budget = ["--max-memory", "8G", "--max-output", "1G"]
@@ -1307,7 +1433,7 @@ def cases() -> list[Case]:
             Case(f"plot: {how} result", ["plot", "{dir}/out"], code, phrase, setup=_result_damage(how))
         )
     out.append(Case("plot: no result", ["plot", "{dir}"], 2, "no result file"))
-    return out + round_two() + round_three() + round_four() + round_five()
+    return out + round_two() + round_three() + round_four() + round_five() + round_six()
 
 
 def _records(path: Path) -> int:

@@ -17,3 +17,11 @@ class Interrupted(KeyboardInterrupt):
     def __init__(self, message: str, signum: int = 2):
         super().__init__(message)
         self.exit_code = 128 + int(signum)
+
+
+def reason(exc: BaseException) -> str:
+    """What ``exc`` says went wrong, without the path an ``OSError`` quotes: the message it
+    goes into names the file once (a path of thousands of characters was quoted twice)."""
+    if isinstance(exc, OSError) and exc.strerror:
+        return exc.strerror
+    return str(exc)

@@ -197,6 +197,46 @@ def test_a_sweep_too_large_or_with_equal_members_is_refused(tmp_path, cli, param
     assert time.perf_counter() - start < 10
 
 
+def test_a_sweep_beyond_the_members_validate_checks_in_seconds_is_refused_at_once(tmp_path, cli):
+    """``validate`` checks every member as ``sweep`` builds it (about 2 ms of CPU each for
+    the tiny scenario): 10^5 members ground through minutes (about 12 ms each, the base
+    file read and the scenario written out as YAML twice per member).  The bound is 10^4
+    members; beyond it the file is refused before any member is built."""
+    from multilayer.app.sweep import MAX_MEMBERS
+
+    assert MAX_MEMBERS == 10_000
+    path = _sweep(
+        tmp_path,
+        {
+            "slope_deg": [20 + i / 1000 for i in range(101)],
+            "rheology.mu_s": [0.3 + i / 1e4 for i in range(100)],
+        },
+    )
+    start = time.process_time()
+    result = cli("validate", path)
+    assert result.code == 2 and "Traceback" not in result.err
+    assert "parameters (line 2): 10100 members (100 x 101); accepted: at most 10000 members" in result.err
+    assert time.process_time() - start < 1
+
+
+def test_a_sweep_reads_its_base_file_once_for_all_members(tmp_path, cli, monkeypatch):
+    """Each member is the base scenario with its values applied: the base file is read a
+    fixed number of times (the sweep's own check, then once for the members), not once
+    per member."""
+    from multilayer.scenario import source
+
+    reads: list[str] = []
+    read_text = source.read_text
+    monkeypatch.setattr(source, "read_text", lambda path, *args: reads.append(path) or read_text(path, *args))
+    counts = []
+    for size in (2, 40):
+        reads.clear()
+        result = cli("validate", _sweep(tmp_path, {"slope_deg": [20 + i / 10 for i in range(size)]}))
+        assert result.code == 0 and f"sweep of {size} members" in result.out, result.err
+        counts.append(len(reads))
+    assert counts[0] == counts[1] <= 4
+
+
 def test_a_sweep_pairing_a_repeated_value_with_distinct_ones_is_valid(tmp_path):
     from multilayer.app import sweep
 

@@ -8,9 +8,11 @@ from __future__ import annotations
 import copy
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
+import threading
 
 import numpy as np
 import pytest
@@ -472,3 +474,148 @@ def test_an_initial_state_whose_sums_overflow_is_named(cli, write_scenario, over
     result = cli("validate", write_scenario(TINY_SCENARIO), "--set", override)
     assert result.code == 2 and "Traceback" not in result.err and "warning" not in result.err, result.err
     assert phrase in result.err and result.err.count("\n") == 1, result.err
+
+
+LONG = "/".join(["a" * 200] * 25)
+"""A path of 5024 characters: longer than the system takes (``File name too long``)."""
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["validate", f"{LONG}/scenario.yaml"],
+        ["check", f"{LONG}/scenario.yaml"],
+        ["run", "SCENARIO", "-o", LONG, "-q"],
+        ["plot", LONG],
+        ["validate", "SCENARIO", "--set", f"bed={{file: {LONG}/bed.csv}}"],
+    ],
+)
+def test_a_path_too_long_for_the_system_is_quoted_once(tmp_path, cli, write_scenario, monkeypatch, argv):
+    """The system's error quotes the path it could not open: the message, which names the
+    path, quoted it a second time, 10 kB for a path of 5 kB."""
+    scenario = str(write_scenario(TINY_SCENARIO))
+    monkeypatch.chdir(tmp_path)
+    result = cli(*[scenario if word == "SCENARIO" else word for word in argv])
+    assert result.code == 2 and "Traceback" not in result.err, result.err
+    assert result.err.count(LONG) == 1 and "File name too long" in result.err, result.err[-300:]
+
+
+@pytest.mark.parametrize(
+    ("text", "phrase"),
+    [
+        ("1: x\n", "(top level): key 1 is not text; accepted: name, description, gravity"),
+        ("true: x\n", "(top level): key True is not text"),  # pydantic's own message said "1"
+        ("null: x\n", "(top level): key None is not text"),
+        (
+            "domain: {x_min: 0.0, x_max: 0.5, cells: 40, 5: 1}\n",
+            "domain (line 21): key 5 is not text; accepted: x_min",
+        ),
+    ],
+)
+def test_a_key_yaml_reads_as_no_text_is_named_with_the_keys_accepted(cli, write_scenario, text, phrase):
+    """YAML reads ``1:``, ``true:`` and ``null:`` as keys that are a number, a boolean and
+    null: pydantic's "Keys should be strings" named the key ``True`` as ``1``, and said
+    nothing of what is accepted."""
+    data = {key: value for key, value in TINY_SCENARIO.items() if not text.startswith(key)}
+    result = cli("validate", write_scenario(yaml.safe_dump(data) + text))
+    assert result.code == 2 and "Traceback" not in result.err
+    assert phrase in result.err, result.err
+
+
+@pytest.mark.parametrize(
+    ("content", "phrase"),
+    [
+        ("x".encode("utf-16"), "UTF-16 text (it starts with the byte order mark FF FE), not UTF-8"),
+        ("x".encode("utf-32"), "UTF-32 text (it starts with the byte order mark FF FE 00 00), not UTF-8"),
+        (b"name: tiny\ndescription: caf\xe9\n", "not UTF-8 text: byte 0xE9 at line 2"),
+        (b"name: tiny\ndescription: a\x00b\n", "(line 2, column 15): malformed YAML: the character U+0000"),
+    ],
+)
+def test_a_scenario_file_in_another_encoding_is_named_with_the_place(tmp_path, cli, content, phrase):
+    """An editor's "Unicode" (UTF-16 with its byte order mark) was "'utf-8' codec can't
+    decode byte 0xff in position 0"; a control character, a message of two lines quoting
+    "<unicode string>" and a position in characters."""
+    path = tmp_path / "scenario.yaml"
+    path.write_bytes(content)
+    result = cli("validate", path)
+    assert result.code == 2 and "Traceback" not in result.err and result.err.count("\n") == 1
+    assert phrase in result.err, result.err
+
+
+def test_a_name_longer_than_a_file_name_is_refused(cli, write_scenario):
+    """The default output directory is ``results/<name>``: a name of 300 characters
+    validated, and the run then failed to make its directory."""
+    result = cli("validate", write_scenario({**TINY_SCENARIO, "name": "n" * 300}))
+    assert result.code == 2 and "name (line 1): String should have at most 255 characters" in result.err
+
+
+@pytest.mark.parametrize("command", ["validate", "run"])
+def test_a_pressure_beyond_1e308_is_named_before_the_run(tmp_path, cli, write_scenario, command):
+    """A density of 1e308 kg/m^3 validated; the run's first step then blamed the rheology
+    ("yield_stress() returned inf ... for pressure = inf", exit 1)."""
+    argv = [command, write_scenario(TINY_SCENARIO), "--set", "material.density=1e308"]
+    result = cli(*argv, *(["-o", tmp_path / "out", "-q"] if command == "run" else []))
+    assert result.code == 2 and "Traceback" not in result.err
+    assert "material.density, gravity, initial: the pressure under the initial material" in result.err
+    assert not (tmp_path / "out" / RESULT_FILE).exists()
+
+
+def test_a_plugin_value_that_overflows_is_named_without_a_numpy_warning(tmp_path, cli, write_scenario):
+    """``mu_s: 1e308`` times the pressure overflows inside the plugin: numpy's "overflow
+    encountered in multiply" came before the message that names the value."""
+    argv = [
+        "run",
+        write_scenario(TINY_SCENARIO),
+        "--set",
+        "rheology.mu_s=1e308",
+        "-o",
+        tmp_path / "out",
+        "-q",
+    ]
+    result = cli(*argv)
+    assert result.code == 1 and "warning" not in result.err, result.err
+    assert "yield_stress() returned inf (must be finite)" in result.err
+
+
+def test_an_output_directory_that_is_a_file_is_named_so(tmp_path, cli, write_scenario):
+    (tmp_path / "out").write_text("")
+    result = cli("run", write_scenario(TINY_SCENARIO), "-o", tmp_path / "out", "-q")
+    assert result.code == 2 and f"{tmp_path / 'out'}: a file, not a directory; accepted" in result.err
+
+
+@pytest.mark.parametrize(
+    ("call", "phrase"),
+    [
+        (lambda sim: sim.advance(True), "advance(t_target=True): a boolean; accepted: a number of seconds"),
+        (lambda sim: sim.advance(10**400), "more than 1e308 s; accepted: a finite number (s)"),
+        (lambda sim: sim.step(np.True_), "step(t_max=np.True_): a boolean"),
+        (lambda sim: sim.load_state(None), "load_state(saved=None): accepted: a mapping"),
+    ],
+)
+def test_times_of_the_api_are_numbers_read_as_floats(call, phrase):
+    """``advance(True)`` stepped to t = 1 and kept ``t = True``; ``advance(10**400)`` was
+    Python's OverflowError; ``load_state(None)`` an AttributeError.  A numpy float is read
+    as a Python float: ``advance(np.float32(0.01))`` kept a float32 ``t``."""
+    sim = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
+    with pytest.raises(InputError, match=re.escape(phrase)):
+        call(sim)
+    sim.advance(np.float32(0.01))
+    assert type(sim.t) is float and sim.t == float(np.float32(0.01))
+
+
+def test_two_threads_stepping_one_simulation_take_turns():
+    """Two threads advancing one simulation to 0.1 s interleaved the stages of their steps:
+    it ended past 0.1 s with another state, silently.  They now take turns: the state is
+    that of one call, to the bit."""
+    scenario = multilayer.load(TINY_SCENARIO, {"time.end": 0.5})
+    alone = multilayer.Simulation(scenario)
+    alone.advance(0.1)
+    shared = multilayer.Simulation(scenario)
+    threads = [threading.Thread(target=shared.advance, args=(0.1,)) for _ in range(2)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert shared.t == 0.1 and shared.steps == alone.steps
+    np.testing.assert_array_equal(shared.h, alone.h)
+    np.testing.assert_array_equal(shared.u, alone.u)

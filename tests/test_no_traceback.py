@@ -201,6 +201,26 @@ def test_a_numba_variable_numbas_import_fails_on_is_named_by_the_library(
     assert child.stdout.splitlines() == [named] * 3, child.stderr
 
 
+def test_an_unknown_threading_layer_set_in_python_is_named_before_the_run(
+    tmp_path, monkeypatch, write_scenario
+):
+    """numba reads ``NUMBA_THREADING_LAYER`` at its first parallel kernel (not at its
+    import): set in Python, where no command checks it, an unknown layer was numba's own
+    ``ValueError`` at the first step on two threads.  ``multilayer.Simulation`` and
+    ``multilayer.run`` name it before anything is built or written."""
+    import multilayer
+
+    monkeypatch.setenv("NUMBA_THREADING_LAYER", "x")
+    monkeypatch.setenv("MULTILAYER_THREADS", "2")
+    scenario = multilayer.load(write_scenario(TINY_SCENARIO))
+    named = "environment variable NUMBA_THREADING_LAYER='x'; accepted: default, safe, forksafe"
+    with pytest.raises(multilayer.errors.InputError, match=named):
+        multilayer.Simulation(scenario)
+    with pytest.raises(multilayer.errors.InputError, match=named):
+        multilayer.run(scenario, tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+
+
 def test_a_warning_that_quotes_a_traceback_is_printed_without_it(capsys):
     """numba warns about a variable it cannot read (``NUMBA_OPT=x``, then ignored) quoting
     the traceback of its parse: the command line prints the first and the last line."""

@@ -132,6 +132,40 @@ def test_resume_needs_a_checkpoint_of_the_same_scenario(tmp_path: Path, cli, wri
     assert "beyond time.end" in result.err and "Traceback" not in result.err
 
 
+@pytest.mark.parametrize(
+    ("changes", "refused"),
+    [
+        (["name=renamed", "description=another text", "expect=[]"], None),
+        (["numerics.tolerance=1e-9"], "numerics.tolerance"),
+        (["time.output_interval=0.01"], "time.output_interval"),
+        (["material.density=1600"], "material.density, material.particle_density"),
+    ],
+)
+def test_a_checkpoint_resumes_only_the_physics_and_numerics_it_computed(
+    tmp_path: Path, cli, write_scenario, changes, refused
+) -> None:
+    """What a checkpoint must match to be resumed: every key that enters the computed
+    solution (physics, numerics, output times); the labels (``name``, ``description``,
+    ``expect``, ``output``) may change, and ``time.end`` may grow.  A relabelled resume
+    was silent: it is said on stderr and in ``run.log``, the result then carries the new
+    labels and its records are those of the run in one go."""
+    path = write_scenario(dict(SLUMP, time={"end": 0.02, "output_interval": 0.02}))
+    assert cli("run", path, "-o", tmp_path / "run", "-q").code == 0
+    options = [word for change in [*changes, "time.end=0.04"] for word in ("--set", change)]
+    result = cli("run", path, "-o", tmp_path / "run", "--resume", "-q", *options)
+    if refused:
+        assert result.code == 2 and "Traceback" not in result.err
+        assert f"the checkpoint belongs to a different scenario (changed: {refused}); " in result.err
+        assert "(only description, expect, name, output, time.end may change)" in result.err
+        return
+    assert result.code == 0, result.err
+    said = "resuming with description, name changed (no part of the computed solution;"
+    assert said in result.err and said in (tmp_path / "run" / "run.log").read_text()
+    assert cli("run", path, "-o", tmp_path / "direct", "-q", *options).code == 0
+    _assert_same_result(tmp_path / "run", tmp_path / "direct")
+    assert yaml.safe_load(open_result(tmp_path / "run").attrs["scenario"])["name"] == "renamed"
+
+
 def test_engine_failure_keeps_the_output_times_done(tmp_path: Path, monkeypatch) -> None:
     step = Simulation.step
 

@@ -14,6 +14,7 @@ no kernel (``multilayer validate`` uses it).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from types import MappingProxyType
 from typing import TYPE_CHECKING
@@ -21,6 +22,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from multilayer.engine import config as cfg
+from multilayer.engine import initial_state
 from multilayer.engine.mesh import layer_fractions
 from multilayer.engine.pressure.model import models, options
 from multilayer.plugins import host
@@ -69,6 +71,13 @@ def basal_regions(zones: Sequence[schema.BaseZone]) -> tuple[cfg.BasalRegion, ..
 def initial_entries(scenario: Scenario) -> tuple[cfg.InitialEntry, ...]:
     """The engine's entries of the initial state of a scenario."""
     return tuple(_initial(entry) for entry in scenario.initial)
+
+
+def check_pressure(scenario: Scenario) -> None:
+    """:func:`multilayer.engine.initial_state.check_pressure` of the scenario's initial
+    state under its bulk density and gravity (``InputError`` naming them)."""
+    weight = scenario.material.density * scenario.gravity * math.cos(math.radians(scenario.slope_deg))
+    initial_state.check_pressure(initial_entries(scenario), weight, str(scenario.source or "<scenario>"))
 
 
 def material(scenario: Scenario) -> Material:

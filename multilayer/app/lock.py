@@ -19,7 +19,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from multilayer.errors import InputError
+from multilayer.errors import InputError, reason
 
 LOCK_FILE = "run.lock"
 
@@ -80,7 +80,7 @@ def locked(directory: Path, notice: Callable[[str], None] = lambda message: None
                     path.unlink(missing_ok=True)
                 except OSError as exc:  # a directory, or a directory we may not change
                     raise InputError(
-                        f"{path}: a stale lock that cannot be removed ({exc}); accepted: remove it"
+                        f"{path}: a stale lock that cannot be removed ({reason(exc)}); accepted: remove it"
                     ) from None
                 continue
             raise InputError(

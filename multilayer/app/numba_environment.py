@@ -13,7 +13,9 @@ the warning without the traceback it quotes).  Through the Python API the variab
 set before the host imports anything, and the library cannot change numba's import: where
 the import of the engine fails (numba's own ``ValueError`` for ``NUMBA_NUM_THREADS=0``,
 the engine's kernels not numba functions under ``NUMBA_DISABLE_JIT=1``), :func:`named`
-names the variable instead.
+names the variable instead; ``multilayer.Simulation`` and the runner call :func:`check`
+before anything is built (numba reads ``NUMBA_THREADING_LAYER`` only at its first
+parallel kernel).
 """
 
 from __future__ import annotations

@@ -90,14 +90,19 @@ def estimate(scenario: Any) -> Estimate:
     from multilayer.engine.vertical.problem import workspace_bytes
 
     cells, layers = float(scenario.domain.cells), float(scenario.domain.layers)
-    end, interval = scenario.time.end, scenario.time.output_interval
-    records = 1.0 + (1.0 if interval >= end else math.ceil(end / interval - 1e-9))
+    records = output_records(scenario)
     per_record = 8.0 * ((layers + 2.0) * cells + 3.0)
     fixed = 8.0 * (5.0 * cells + 4.0 * layers) + len(scenario.resolved_yaml()) + 16384 + HEADER_SPACE
     threads = scenario.numerics.threads
     workspaces = min(cells, threads if isinstance(threads, int) else float(os.cpu_count() or 1))
     memory = BASE_BYTES + BYTES_PER_CELL * cells * layers + workspaces * workspace_bytes(int(layers))
     return Estimate(memory, fixed + records * per_record, records)
+
+
+def output_records(scenario: Any) -> float:
+    """The output times of ``scenario``, its start included."""
+    end, interval = scenario.time.end, scenario.time.output_interval
+    return 1.0 + (1.0 if interval >= end else math.ceil(end / interval - 1e-9))
 
 
 def steps(scenario: Any) -> Steps:
@@ -124,7 +129,7 @@ def steps(scenario: Any) -> Steps:
     dx = (dom.x_max - dom.x_min) / dom.cells
     dt = min(scenario.time.cfl, POSITIVITY_LIMIT) * dx / speed if speed > 0 else math.inf
     count = scenario.time.end / dt if dt > 0 else math.inf  # waves past 1e308 m/s: a step of 0 s
-    return Steps(count + estimate(scenario).records, speed, dx, dt)
+    return Steps(count + output_records(scenario), speed, dx, dt)
 
 
 def size_text(n: float) -> str:

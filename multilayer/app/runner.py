@@ -44,12 +44,12 @@ import numpy as np
 import yaml
 
 from multilayer import scenario as scenarios
-from multilayer.app import resources
+from multilayer.app import numba_environment, resources
 from multilayer.app.compilation import compile_ahead, compile_notice
 from multilayer.app.lock import locked
 from multilayer.app.progress import Progress
 from multilayer.app.simulation import Simulation
-from multilayer.errors import InputError, Interrupted, RunError
+from multilayer.errors import InputError, Interrupted, RunError, reason
 from multilayer.io.disk import writable
 from multilayer.io.result_check import check_result
 from multilayer.io.results import (
@@ -99,6 +99,7 @@ def run(
     do not reach (:mod:`multilayer.app.stopping`).  ``quiet=None`` shows the progress
     line only on a terminal.
     """
+    numba_environment.check()  # before anything is made (set in Python, no command checked it)
     outdir = Path(outdir)
     if resume and not outdir.is_dir():
         raise InputError(
@@ -121,7 +122,7 @@ def run(
 
     stop = _StopRequest(stop_when)
     with locked(outdir, notice), stop.installed():
-        ckpt = _checkpoint_to_resume(scenario, outdir) if resume else None
+        ckpt = _checkpoint_to_resume(scenario, outdir, notice) if resume else None
         log = logging.Logger("multilayer.run")
         handler = _LogFile(outdir / LOG_FILE, mode="a" if resume else "w", encoding="utf-8")
         handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
@@ -159,14 +160,14 @@ def _output_directory(outdir: Path) -> list[Path]:
             f"{outdir}: not a UTF-8 name (netCDF files cannot be named by other bytes); {accepted}"
         ) from None
     missing = [path for path in (outdir, *outdir.parents) if not path.exists()]
+    if outdir.exists() and not outdir.is_dir():  # mkdir says only "File exists"
+        raise InputError(f"{outdir}: a file, not a directory; {accepted}")
     try:
         outdir.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryFile(dir=outdir):
             pass
     except OSError as exc:
-        raise InputError(
-            f"{outdir}: cannot be created or written ({exc.strerror or exc}); {accepted}"
-        ) from None
+        raise InputError(f"{outdir}: cannot be created or written ({reason(exc)}); {accepted}") from None
     for name in (RESULT_FILE, CHECKPOINT_FILE, LOG_FILE):
         writable(outdir / name)
     return missing
@@ -323,8 +324,10 @@ def _keep_last_good_state(sim: Any, writer: ResultWriter, checkpoint: Any, saved
     return f" and the last good state at t={sim.t:.6g} s (also in the checkpoint)"
 
 
-def _checkpoint_to_resume(scenario: Any, outdir: Path) -> Checkpoint:
-    """The checkpoint in ``outdir``, checked to belong to ``scenario``."""
+def _checkpoint_to_resume(scenario: Any, outdir: Path, notice: Callable[[str], None]) -> Checkpoint:
+    """The checkpoint in ``outdir``, checked to belong to ``scenario``: every key but
+    :data:`_FREE_KEYS` the same, ``time.end`` not before the checkpoint.  A change of
+    another free key (a new name) is allowed and said through ``notice``."""
     ckpt_path = outdir / CHECKPOINT_FILE
     if not (ckpt_path.is_file() and (outdir / RESULT_FILE).is_file()):
         raise InputError(
@@ -336,12 +339,19 @@ def _checkpoint_to_resume(scenario: Any, outdir: Path) -> Checkpoint:
         check_result(outdir, "resume", records=ckpt.records)
     except InputError as exc:
         raise InputError(f"{exc}, or run without --resume to start afresh") from None
-    changed = _changed_keys(yaml.safe_load(ckpt.scenario), yaml.safe_load(scenario.resolved_yaml()))
+    saved, resolved = yaml.safe_load(ckpt.scenario), yaml.safe_load(scenario.resolved_yaml())
+    changed = _changed_keys(saved, resolved)
     if changed:
         raise InputError(
             f"{ckpt_path}: the checkpoint belongs to a different scenario (changed: "
             f"{', '.join(changed)}); resume with the same scenario file and --set "
-            f"options (only time.end may change), or run without --resume"
+            f"options (only {', '.join(sorted(_FREE_KEYS))} may change), or run without --resume"
+        )
+    relabelled = [key for key in _changed_keys(saved, resolved, free=frozenset()) if key != "time.end"]
+    if relabelled:
+        notice(
+            f"{ckpt_path}: resuming with {', '.join(relabelled)} changed (no part of the computed "
+            f"solution; the result and the checkpoint take the new values)"
         )
     t_saved = float(ckpt.state["t"])
     if t_saved > scenario.time.end * (1 + 1e-12):
@@ -353,7 +363,8 @@ def _checkpoint_to_resume(scenario: Any, outdir: Path) -> Checkpoint:
     return ckpt
 
 
-#: Keys that do not change the computed solution; ``time.end`` may grow to extend a run.
+#: Keys that do not change the computed solution, the only ones a resumed run may change
+#: (docs/cli.md, ``--resume``); ``time.end`` may grow to extend a run.
 _FREE_KEYS = frozenset({"name", "description", "output", "expect", "time.end"})
 
 

@@ -2,7 +2,14 @@
 
 from __future__ import annotations
 
-from multilayer.app import factory
+import numbers
+import threading
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+
+from multilayer.app import factory, numba_environment
 from multilayer.engine import simulation
 from multilayer.errors import InputError
 from multilayer.scenario import Scenario
@@ -12,7 +19,10 @@ from multilayer.scenario.messages import shown
 class Simulation(simulation.Simulation):
     """``multilayer.Simulation(scenario)``: the engine's
     :class:`~multilayer.engine.simulation.Simulation` of a validated scenario (from
-    :func:`multilayer.load`), which it keeps as ``scenario``."""
+    :func:`multilayer.load`), which it keeps as ``scenario``.  numba's variables are
+    checked first (:func:`multilayer.app.numba_environment.check`): numba reads
+    ``NUMBA_THREADING_LAYER`` at its first parallel kernel, where an unknown layer was
+    numba's own ``ValueError``, mid-run."""
 
     def __init__(self, scenario: Scenario):
         if not isinstance(scenario, Scenario):
@@ -20,6 +30,8 @@ class Simulation(simulation.Simulation):
                 f"Simulation: got {shown(scenario)}; accepted: a Scenario, as multilayer.load returns "
                 "it from a file or a mapping"
             )
+        numba_environment.check()
+        self._one_at_a_time = threading.RLock()
         self.scenario = scenario
         bulk, walls = factory.laws(scenario)
         super().__init__(
@@ -28,3 +40,57 @@ class Simulation(simulation.Simulation):
             walls,
             column_solver=factory.column_solver(scenario.numerics.vertical_solver),
         )
+        factory.check_pressure(scenario)  # after the engine's checks of the initial entries
+
+    def advance(
+        self,
+        t_target: float,
+        on_step: Callable[[Any, float], None] | None = None,
+        *,
+        max_steps: int | None = simulation.MAX_STEPS,
+    ) -> None:
+        """The engine's :meth:`~multilayer.engine.simulation.Simulation.advance`, its target
+        read as :func:`_time` reads it, one thread at a time (:meth:`step`)."""
+        target = _time(t_target, "advance(t_target")
+        with self._one_at_a_time:
+            super().advance(target, on_step, max_steps=max_steps)
+
+    def step(self, t_max: float = np.inf) -> float:
+        """The engine's :meth:`~multilayer.engine.simulation.Simulation.step`, its bound read
+        as :func:`_time` reads it.  Calls from several threads on one simulation take turns
+        (with ``advance`` and ``load_state``): two threads stepping it at once interleaved
+        the stages of their steps, and ``advance(0.2)`` from two threads ended past 0.2 s
+        with another state than one call, silently."""
+        bound = _time(t_max, "step(t_max")
+        with self._one_at_a_time:
+            return super().step(bound)
+
+    def load_state(self, saved: dict) -> None:
+        """The engine's :meth:`~multilayer.engine.simulation.Simulation.load_state`, not
+        during another thread's step; :class:`InputError` for what is no mapping."""
+        if not isinstance(saved, Mapping):
+            raise InputError(
+                f"load_state(saved={shown(saved)}): accepted: a mapping as state_dict() gives it"
+            )
+        with self._one_at_a_time:
+            super().load_state(saved)
+
+
+def _time(value: Any, call: str) -> Any:
+    """A time given to the API as a Python float, which the engine keeps as ``t`` when it
+    lands on it: a boolean is no time (``advance(True)`` made ``t`` the boolean), a number
+    of numpy (``np.float32``) or a 0-d array is its value as a float (``t`` kept its type,
+    and float32 arithmetic after), an integer past 1e308 none the engine can reach
+    (Python's ``OverflowError``).  :class:`InputError` naming the call for those; anything
+    else is left to the engine's checks."""
+    item = value.item() if isinstance(value, np.ndarray) and value.ndim == 0 else value
+    if isinstance(item, bool | np.bool_):
+        raise InputError(f"{call}={value!r}): a boolean; accepted: a number of seconds")
+    if not isinstance(item, numbers.Real):
+        return value
+    try:
+        return float(item)
+    except OverflowError:
+        raise InputError(
+            f"{call}={shown(value)}): more than 1e308 s; accepted: a finite number (s)"
+        ) from None

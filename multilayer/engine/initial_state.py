@@ -129,6 +129,23 @@ def check_entries(entries: Sequence[InitialEntry], x_min: float, x_max: float, d
             )
 
 
+def check_pressure(entries: Sequence[InitialEntry], weight: float, where: str) -> None:
+    """:class:`InputError` when the hydrostatic pressure under the deepest column the
+    entries can stack, ``weight`` (density g cos(theta), Pa/m) times the sum of their
+    largest thicknesses, is no finite number: every stress of the run is then infinite,
+    which the rheology was blamed for at the first step."""
+    depth = 0.0
+    for entry in entries:
+        points = entry_points(entry)
+        depth += float(entry.thickness) if points is None else float(points[1].max())  # type: ignore[arg-type]
+    if not math.isfinite(weight * depth):  # Python's floats: inf without a warning
+        raise InputError(
+            f"{where}: material.density, gravity, initial: the pressure under the initial material, "
+            f"density g cos(slope_deg) h = {weight:.6g} Pa/m x {depth:.6g} m, is no finite number (more "
+            "than 1e308 Pa); accepted: a density, gravity and thickness whose product is a finite number"
+        )
+
+
 def _finite_mass(mass: float, name: str) -> None:
     """:class:`InputError` naming the entry ``name`` when its mass (m2) is no finite number
     (a thickness near 1e308 m: every sum of the state overflows)."""

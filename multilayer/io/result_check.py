@@ -39,7 +39,7 @@ import numpy as np
 import yaml
 
 from multilayer.engine import diagnostics
-from multilayer.errors import InputError
+from multilayer.errors import InputError, reason
 from multilayer.io.netcdf_layout import LayoutError, read_layout
 from multilayer.io.result_format import FORCES, MIXTURE_VARIABLES, NETCDF_LOCK, VARIABLES, result_path
 
@@ -94,7 +94,7 @@ def check_result(path: str | os.PathLike, use: Use = "answer", records: int | No
                 )
             _check_records(ds, needed, bad)
     except (OSError, RuntimeError, KeyError, IndexError, ValueError, TypeError) as exc:
-        raise bad(f"not a readable multilayer result ({type(exc).__name__}: {exc})") from None
+        raise bad(f"not a readable multilayer result ({type(exc).__name__}: {reason(exc)})") from None
     return file
 
 

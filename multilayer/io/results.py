@@ -36,7 +36,7 @@ import netCDF4
 import numpy as np
 import xarray as xr
 
-from multilayer.errors import InputError, RunError
+from multilayer.errors import InputError, RunError, reason
 from multilayer.io import disk
 from multilayer.io.netcdf_layout import HEADER_SPACE, NUMRECS_OFFSET, LayoutError, read_layout
 from multilayer.io.result_format import (  # noqa: F401 (this module's names, as before)
@@ -270,7 +270,7 @@ def open_result(
     try:
         return xr.load_dataset(file) if load else xr.open_dataset(file)
     except (OSError, ValueError) as exc:
-        raise InputError(f"{file}: not a readable netCDF result file ({exc})") from None
+        raise InputError(f"{file}: not a readable netCDF result file ({reason(exc)})") from None
 
 
 def run_failure(path: str | os.PathLike) -> str | None:

@@ -33,7 +33,7 @@ import numpy as np
 from pydantic import BaseModel, Field, ValidationError, field_validator, model_validator
 
 from multilayer import scenario
-from multilayer.errors import InputError
+from multilayer.errors import InputError, reason
 from multilayer.scenario.files import read_text
 from multilayer.scenario.limits import MAX_PROFILE_POINTS
 from multilayer.scenario.messages import StrictModel, describe, dotted, field, invalid
@@ -477,7 +477,9 @@ def _read_csv(file: Path, columns: list[str], where: str) -> tuple[np.ndarray, n
             f"{where}: {file} has no column {exc}; accepted: a CSV file with a header row"
         ) from None
     except (OSError, ValueError, TypeError) as exc:
-        raise InputError(f"{where}: cannot read {file} ({exc}); accepted: a CSV file of numbers") from None
+        raise InputError(
+            f"{where}: cannot read {file} ({reason(exc)}); accepted: a CSV file of numbers"
+        ) from None
     if not table[0]:
         raise InputError(f"{where}: {file} has no rows; accepted: a CSV file with data")
     arrays = [np.asarray(t, dtype=float) for t in table]
@@ -504,7 +506,7 @@ def _read_netcdf(
                 )
             var = ds[variable].load()
     except (OSError, ValueError) as exc:
-        raise InputError(f"{where}: cannot read {file} ({exc}); accepted: a netCDF file") from None
+        raise InputError(f"{where}: cannot read {file} ({reason(exc)}); accepted: a netCDF file") from None
     if var.ndim != 1:
         raise InputError(f"{where}: {file}: {variable} has {var.ndim} dimensions; accepted: one")
     coord = var[var.dims[0]]

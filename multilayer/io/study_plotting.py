@@ -17,7 +17,7 @@ import numpy as np
 import xarray as xr
 from matplotlib.figure import Figure
 
-from multilayer.errors import InputError
+from multilayer.errors import InputError, reason
 from multilayer.io.disk import writable
 from multilayer.io.plotting import PLOTS_DIR
 
@@ -48,7 +48,7 @@ def plot_study(directory: str | os.PathLike, filename: str) -> list[Path]:
         ds = xr.load_dataset(path)
     except (OSError, ValueError, RuntimeError) as exc:
         raise InputError(
-            f"{path}: not a readable netCDF file ({exc}); accepted: a file written by multilayer"
+            f"{path}: not a readable netCDF file ({reason(exc)}); accepted: a file written by multilayer"
         ) from None
     kind = "calibration" if "misfit" in ds else "sensitivity"
     variables, coordinates, attributes = REQUIRED[kind]

@@ -6,7 +6,7 @@ import os
 import stat
 from pathlib import Path
 
-from multilayer.errors import InputError
+from multilayer.errors import InputError, reason
 from multilayer.scenario.limits import MAX_FILE_BYTES
 
 
@@ -26,11 +26,32 @@ def read_text(path: Path, expected: str, readable: str) -> str:
             raise InputError(
                 f"{path}: longer than {MAX_FILE_BYTES} bytes; accepted: {readable} of at most that size"
             )
-        return data.decode("utf-8-sig")  # a byte order mark (spreadsheets write one) is no text
+        try:
+            return data.decode("utf-8-sig")  # a byte order mark (spreadsheets write one) is no text
+        except UnicodeDecodeError as exc:
+            raise InputError(f"{path}: {_not_utf8(data, exc.start)}; accepted: {readable}") from None
     except FileNotFoundError:
         raise InputError(f"{path}: file not found; accepted: {expected}") from None
     except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise InputError(f"{path}: cannot read the file ({exc}); accepted: {readable}") from None
+        raise InputError(f"{path}: cannot read the file ({reason(exc)}); accepted: {readable}") from None
+
+
+_BYTE_ORDER_MARKS = (
+    (b"\xff\xfe\x00\x00", "UTF-32"),
+    (b"\x00\x00\xfe\xff", "UTF-32"),
+    (b"\xff\xfe", "UTF-16"),
+    (b"\xfe\xff", "UTF-16"),
+)
+
+
+def _not_utf8(data: bytes, start: int) -> str:
+    """What a text that is not UTF-8 is: UTF-16 or UTF-32 by its byte order mark (an editor's
+    "Unicode"), else the first byte that is not UTF-8 and its line."""
+    for mark, encoding in _BYTE_ORDER_MARKS:
+        if data.startswith(mark):
+            return f"{encoding} text (it starts with the byte order mark {mark.hex(' ').upper()}), not UTF-8"
+    line = data.count(b"\n", 0, start) + 1
+    return f"not UTF-8 text: byte 0x{data[start]:02X} at line {line}"
 
 
 def check_regular(path: Path, expected: str, readable: str) -> None:
@@ -42,6 +63,6 @@ def check_regular(path: Path, expected: str, readable: str) -> None:
     except FileNotFoundError:
         raise InputError(f"{path}: file not found; accepted: {expected}") from None
     except (OSError, ValueError) as exc:
-        raise InputError(f"{path}: cannot read the file ({exc}); accepted: {readable}") from None
+        raise InputError(f"{path}: cannot read the file ({reason(exc)}); accepted: {readable}") from None
     if not stat.S_ISREG(mode):
         raise InputError(f"{path}: not a regular file; accepted: {readable}")

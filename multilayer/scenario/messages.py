@@ -118,6 +118,13 @@ def describe(error: Mapping[str, Any], root: type[BaseModel]) -> tuple[KeyPath, 
         return loc + key, ctx["message"], ctx["accepted"]
     if kind == "extra_forbidden":
         return loc, "unknown key", accepted(loc[:-1], last_is_key=True, root=root)
+    if kind == "invalid_key":  # a key YAML reads as a number, a boolean or null (pydantic shows True as 1)
+        where = loc[:-1]
+        return (
+            where,
+            f"key {shown(error.get('input'))} is not text",
+            accepted(where, last_is_key=True, root=root),
+        )
     if kind == "missing":
         return loc, "required key is missing", accepted(loc, last_is_key=False, root=root)
     got = shown(error.get("input"))

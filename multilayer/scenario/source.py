@@ -24,9 +24,11 @@ from multilayer.scenario.messages import KeyPath, dotted
 _INT, _FLOAT = "tag:yaml.org,2002:int", "tag:yaml.org,2002:float"
 
 
-try:
+try:  # libyaml's parser and emitter, with PyYAML's safe constructors and representers
+    from yaml import CSafeDumper as SafeDumper
     from yaml import CSafeLoader as _SafeLoader
-except ImportError:  # PyYAML built without libyaml: its own parser, about ten times slower
+except ImportError:  # PyYAML built without libyaml: its own, about ten (four) times slower
+    from yaml import SafeDumper  # type: ignore[assignment]
     from yaml import SafeLoader as _SafeLoader  # type: ignore[assignment]
 
 
@@ -90,6 +92,14 @@ def parse_yaml(text: str, where: str) -> tuple[Any, dict[KeyPath, int]]:
     try:
         node = yaml.compose(text, Loader=Loader)
         data = yaml.load(text, Loader=Loader)
+    except yaml.reader.ReaderError as exc:  # a character YAML does not take: its place, one line
+        start = text.rfind("\n", 0, exc.position) + 1
+        line = f" (line {text.count(chr(10), 0, exc.position) + 1}, column {exc.position - start + 1})"
+        code = exc.character if isinstance(exc.character, int) else ord(exc.character)
+        problem = f"the character U+{code:04X} ({exc.reason})"
+        raise InputError(
+            f"{where}{line}: malformed YAML: {problem}; accepted: a YAML mapping of scenario keys"
+        ) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
@@ -106,6 +116,12 @@ def read_yaml(path: str | Path, kind: str = "scenario") -> tuple[Any, dict[KeyPa
     path = Path(path)
     text = read_text(path, f"a path to a {kind} YAML file", "a readable UTF-8 YAML file")
     return parse_yaml(text, str(path))
+
+
+def dump(data: Any) -> str:
+    """``data`` as ``yaml.safe_dump(data, sort_keys=False)`` writes it, by libyaml's emitter
+    where PyYAML has it."""
+    return yaml.dump(data, Dumper=SafeDumper, sort_keys=False)
 
 
 class Dumper(yaml.SafeDumper):

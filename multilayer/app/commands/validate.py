@@ -68,11 +68,12 @@ def _check_file(path: str, args: argparse.Namespace) -> str:
         plan = sweeps.load(path)
         members = plan.members()
         for member in members:
-            where = f"{path}: member {member.id} ({', '.join(member.overrides)})"
             try:
-                _check(scenarios.load(plan.base, [*member.overrides, *args.overrides]), plan.base, args)
+                _check(plan.member_scenario(member, args.overrides), plan.base, args)
             except InputError as exc:
-                raise InputError(f"{where}:\n{exc}") from None
+                raise InputError(
+                    f"{path}: member {member.id} ({', '.join(member.overrides)}):\n{exc}"
+                ) from None
         return f"sweep of {len(members)} members of {plan.base}, each valid"
     return _check(scenarios.load(path, args.overrides), path, args)
 
@@ -87,6 +88,7 @@ def _check(scenario: Scenario, path: str | Path, args: argparse.Namespace) -> st
     entries = factory.initial_entries(scenario)
     initial_state.check_entries(entries, dom.x_min, dom.x_max, dx, str(path))
     steps = resources.check_steps(scenario, limits)
+    factory.check_pressure(scenario)  # as the run: after the estimate of its steps
     expectations.validate(scenario)
     return (
         f"{scenario.name}: {dom.cells} cells x {dom.layers} layers, "

@@ -19,6 +19,7 @@ Per step (``Simulation.step``) a model gives
 
 from __future__ import annotations
 
+import functools
 import importlib
 import pkgutil
 from collections.abc import Callable, Mapping
@@ -97,8 +98,10 @@ class PressureModel:
         return u, {}
 
 
+@functools.cache  # the package's modules are found once (validating a scenario asks every time)
 def models() -> dict[str, type[PressureModel]]:
-    """The pressure models of this package by name (a module holds one)."""
+    """The pressure models of this package by name (a module holds one), the same mapping
+    on every call (not to be changed)."""
     package = importlib.import_module(__package__ or "multilayer.engine.pressure")
     found: dict[str, type[PressureModel]] = {}
     for info in sorted(pkgutil.iter_modules(package.__path__), key=lambda i: i.name):
