@@ -34,6 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from multilayer.engine.compiled import jit
+from multilayer.engine.vertical.coefficients import _within_contract
 from multilayer.engine.vertical.forms import _newton_model, _viscosity_and_slope, concave
 from multilayer.engine.vertical.newton_control import _sign, energy_rise, error_bound
 
@@ -173,7 +174,7 @@ def _sweep(t, u, form, params, start, stop):
         jump = g - below
         rate = abs(jump) * t[INV_SPACING, x]
         eta, slope = _viscosity_and_slope(form, params, rate, t[FACTOR, x], t[OFFSET, x])
-        within = (eta >= 0.0) & (eta < np.inf)  # the plugin contract
+        within = _within_contract(eta)  # the plugin contract
         layer = t[BED, x] < 2.0  # not padding
         faults += layer and not within
         unsheared += layer and g == below
