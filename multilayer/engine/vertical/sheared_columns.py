@@ -106,7 +106,7 @@ def join(t, L, flags, i, fine):
     iteration if ``fine``, with mass and without a wall threshold."""
     x = cell(i, L)
     take = fine and t[INERTIA, x] > 0.0
-    for a in range(x, x + L):
+    for a in range(np.uint64(x), np.uint64(x + L)):  # unsigned: no test for negative indices
         take = take and t[WALL, a] == 0.0
     flags[FINE, i] = fine
     flags[ACTIVE, i] = take
