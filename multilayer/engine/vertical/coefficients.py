@@ -58,8 +58,11 @@ def _frictional(mu, p):
 
 @jit(inline="always")
 def _within_contract(value):
-    """1 if ``value`` is finite and >= 0 (the plugin contract), else 0 (a NaN fails)."""
-    return (value >= 0.0) & (value < np.inf)
+    """1 if ``value`` is finite and >= 0 (the plugin contract), else 0 (a NaN fails).  Finite
+    as ``value * 0.0 == 0.0`` (NaN for an infinite or NaN value), the same test as ``value <
+    inf``, which LLVM turns into a test of the value's bits: about 17 instructions per
+    vector of values instead of 3 in a vectorised loop."""
+    return (value >= 0.0) & (value * 0.0 == 0.0)
 
 
 class YieldInputs(NamedTuple):
