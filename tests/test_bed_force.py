@@ -102,7 +102,7 @@ def dam_break(pressure: str = "hydrostatic", width: float | None = None, **chang
         domain=domain,
         boundaries={"left": "wall", "right": "outflow"},
         initial=[{"shape": "rectangle", "x_min": 0.0, "x_max": 0.5, "height": 0.2}],
-        model={"pressure": pressure},
+        model={"pressure": pressure, **changes.pop("model", {})},
         **changes,
     )
 
@@ -165,6 +165,27 @@ def test_a_dam_break_with_friction_and_side_walls_on_a_slope_balances_its_moment
     for f, left_over, _ in records:
         assert abs(left_over) < 1e-13
         assert f["bed_force_x"] > 0.0 and f["wall_force_x"] > 0.0 and f["end_force_x"] < 0.0
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_the_normal_stress_keeps_the_momentum_balance(order):
+    """model.normal_stress exchanges momentum between the columns of a layer only (its
+    impulses cancel along each run of columns): with it, the slope's dam break with friction
+    and side walls still balances its momentum to round-off, at both orders."""
+    records = balance(
+        dam_break(
+            slope_deg=20.0,
+            rheology={"name": "jop_mu_i", "mu_s": 0.38, "mu_2": 0.64, "I_0": 0.28},
+            base=[{"condition": "coulomb", "mu": 0.3}],
+            walls={"name": "wall_friction", "mu_w": 0.2},
+            width=0.1,
+            model={"normal_stress": True},
+            numerics={"order": order},
+        ),
+        (0.05, 0.2),
+    )
+    for _, left_over, _ in records:
+        assert abs(left_over) < 1e-13
 
 
 def test_the_transport_conserves_momentum_on_a_flat_bed():

@@ -138,3 +138,28 @@ def test_the_memory_estimate_of_the_workspace_is_the_workspace(layers):
     from multilayer.engine.vertical.problem import workspace_bytes
 
     assert sum(a.nbytes for a in column_kernel._workspace(layers)) == workspace_bytes(layers)
+
+
+def test_a_column_thinner_than_1e_70_m_whose_pivot_underflows_is_solved():
+    """A front column 4.3e-74 m thick, at rest after transport (u* = 0) with a Newton seed of
+    tiny velocities, found in a collapse: the active-set solve's pivot underflows to zero.
+    The compiled step raised ZeroDivisionError; the answer of u* = 0 is u = 0 exactly (no
+    load, no stress)."""
+    import multilayer
+    from multilayer.validation.runs import SCENARIOS
+
+    sim = multilayer.Simulation(
+        multilayer.load(
+            SCENARIOS / "column_collapse_channel.yaml",
+            {"domain.cells": 4, "domain.x_max": 0.008, "initial.0.x_max": 0.004},
+        )
+    )
+    seed = [7.886258043483493e-90, 2.1985859322473188e-114, 4.357695013479453e-22, 1.3083949933391305e-114]
+    seed += [8.358229349887259e-100, 7.352432240078284e-88, 1.6160532382101908e-132, 1.2920971115172889e-134]
+    h, guess = np.zeros(4), np.zeros((8, 4))
+    h[1], guess[:, 1] = 4.264360514057591e-74, seed
+    u, iterations = sim.vertical.compiled(
+        h, np.zeros((8, 4)), guess, 4.3138398641486936e-4, threshold=9.904544411531516e-11,
+        max_iterations=200, rest=np.zeros((8, 4), dtype=bool), yield_gravity=np.full((8, 4), 9.81),
+    )  # fmt: skip
+    assert iterations[0] >= 0 and np.all(u == 0.0)

@@ -30,7 +30,12 @@ compiled_chain_step = partial(plastic_chain_step, compiled=True)
 
 
 def layer(
-    cells: int = 30, layers: int = 2, thickness: float = 0.02, mu: float = MU, **model
+    cells: int = 30,
+    layers: int = 2,
+    thickness: float = 0.02,
+    mu: float = MU,
+    numerics: dict | None = None,
+    **model,
 ) -> multilayer.Simulation:
     """A uniform Coulomb layer (friction ``mu``) on a flat bed with the normal stress on."""
     return multilayer.Simulation(
@@ -43,6 +48,7 @@ def layer(
                 "initial": [{"shape": "layer", "thickness": thickness}],
                 "time": {"end": 0.1, "output_interval": 0.05},
                 "model": {"normal_stress": True, **model},
+                "numerics": numerics or {},
             }
         )
     )
@@ -276,13 +282,18 @@ def test_a_step_that_stalled_in_a_collapse_converges_and_the_kernel_agrees():
     assert np.all(z * s >= -1e-14)
 
 
-def test_material_at_rest_stays_exactly_at_rest():
-    """u* = 0 gives u = 0 exactly, and a heap whose flanks (10 degrees) are below its friction
-    angle stays exactly at rest with the normal stress on (no stress creates motion)."""
+@pytest.mark.parametrize("degrees", [10.0, 22.0])
+def test_material_at_rest_stays_exactly_at_rest(degrees):
+    """u* = 0 gives u = 0 and Z = 0 exactly, and a heap whose flanks are below its friction
+    angle (atan(0.5) = 26.6 deg) stays exactly at rest with the normal stress on, also at 22
+    deg, steeper than the friction of its active mean pressure, atan(mu / (1 + mu)) = 18.4
+    deg: the normal stress follows the vertical step, which holds the heap at the full
+    pressure, and exerts no stress on material at rest (no stress creates motion)."""
     ustar, mass, faces, a, b = random_problem(0)
     u, z = plastic_chain_step(np.zeros_like(ustar), mass, faces, a, b, tolerance=1e-12, max_iterations=5)
     assert np.all(u == 0.0) and np.all(z == 0.0)
-    slope = np.tan(np.radians(10.0))
+    slope = np.tan(np.radians(degrees))
+    assert MU / (1 + MU) < np.tan(np.radians(22.0)) < MU
     heap = multilayer.Simulation(
         multilayer.load(
             {
@@ -297,7 +308,82 @@ def test_material_at_rest_stays_exactly_at_rest():
         )
     )
     heap.advance(0.05)
-    assert heap.steps >= 10 and np.all(heap.u == 0.0)
+    assert heap.steps >= 10 and np.all(heap.u == 0.0) and np.all(heap.normal_stress.relief == 0.0)
+
+
+class Recorded:
+    """A normal-stress step that records its time step and the velocities it is given."""
+
+    def __init__(self, step, seen: list):
+        self.step, self.seen = step, seen
+
+    def __call__(self, h, ustar, u, yield_gravity, dt, **kwargs):
+        self.seen.append(("normal", dt, ustar.copy()))
+        self.step(h, ustar, u, yield_gravity, dt, **kwargs)
+
+    def __getattr__(self, name):
+        return getattr(self.step, name)
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_the_normal_stress_acts_over_the_step_as_the_vertical_step_does(order, monkeypatch):
+    """In each stage the normal stress follows the vertical step, on its velocities, over the
+    same time: dt at first order; dt, then dt/2 after Heun's average at second order
+    (engine/simulation.py), so that it acts over dt/2 + dt/2 to first order, as the friction."""
+    sim = layer(numerics={"order": order})
+    seen: list[tuple[str, float, np.ndarray]] = []
+    vertical_step = sim._vertical_step
+
+    def recorded(h, ustar, dt, threads, first=None):
+        u, iterations = vertical_step(h, ustar, dt, threads, first)
+        seen.append(("vertical", dt, u.copy()))
+        return u, iterations
+
+    monkeypatch.setattr(sim, "_vertical_step", recorded)
+    monkeypatch.setattr(sim, "normal_stress", Recorded(sim.normal_stress, seen))
+    sim.u[:] = np.linspace(-1.0, 1.0, sim.x.size)  # stretched: the stress is felt
+    dt = sim.step()
+    assert [kind for kind, _, _ in seen] == ["vertical", "normal"] * order
+    assert [step for _, step, _ in seen] == ([dt, dt] if order == 1 else [dt, dt, 0.5 * dt, 0.5 * dt])
+    for (_, _, after_vertical), (_, _, before_normal) in zip(seen[::2], seen[1::2], strict=True):
+        assert np.array_equal(after_vertical, before_normal)
+
+
+def test_the_relief_is_bounded_by_the_plastic_limits_at_a_front():
+    """r = tau_xx / p, the mean of a cell's faces' ratios, lies within the active and passive
+    limits mu / (1 + mu) and -mu / (1 - mu) however thin a cell beside a thick one (a cell's
+    own P, far below its faces', gave r = -7.5e25 and a vertical step's pressure 7e26 g)."""
+    sim = layer(cells=30, layers=2)
+    sim.h[:] = np.where(sim.x < 0.15, 0.02, 2e-6)  # a step down to 2 micrometres
+    for rate in (5.0, -5.0):
+        ustar = np.tile(rate * sim.x, (2, 1))
+        sim.normal_stress(
+            sim.h, ustar, np.zeros_like(ustar), None, 1e-4, velocity_scale=1.0, max_iterations=50
+        )
+        relief = sim.normal_stress.relief
+        assert np.all(relief <= MU / (1 + MU) * (1 + 1e-12)) and np.all(
+            relief >= -MU / (1 - MU) * (1 + 1e-12)
+        )
+        assert np.abs(relief).max() > 0.9 * MU / (1 + MU)  # at the limit where it stretches
+
+
+def test_a_resumed_run_with_the_normal_stress_equals_the_uninterrupted_one():
+    """The relief is part of the state: a run restored from a state saved mid-run goes on as
+    the uninterrupted one, bit for bit."""
+    scenario = multilayer.load(SCENARIOS / "column_collapse_channel.yaml", {"model.normal_stress": True})
+    whole = multilayer.Simulation(scenario)
+    whole.advance(0.01)
+    saved = whole.state_dict()
+    assert np.any(saved["normal_stress_relief"] != 0.0)
+    resumed = multilayer.Simulation(scenario)
+    resumed.load_state(saved)
+    for sim in (whole, resumed):
+        sim.advance(0.02)
+    assert np.array_equal(whole.u, resumed.u) and np.array_equal(whole.h, resumed.h)
+    with pytest.raises(InputError, match="normal_stress_relief"):
+        resumed.load_state(
+            {**saved, "normal_stress_relief": np.full_like(saved["normal_stress_relief"], np.nan)}
+        )
 
 
 def test_the_key_is_a_boolean_off_by_default_and_not_with_a_fluid(tiny_scenario):

@@ -75,7 +75,7 @@ def _transport() -> None:
 
 
 def _normal_stress() -> None:
-    """The normal-stress step after the transport (``model.normal_stress``)."""
+    """The normal-stress step after each vertical step (``model.normal_stress``)."""
     from multilayer.app.api import load
     from multilayer.app.simulation import Simulation
 

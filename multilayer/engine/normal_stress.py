@@ -15,8 +15,8 @@ mean pressure ``P - tau_xx``.  With the bulk law's stress norm ``tau(p)`` linear
 along the layer, ``D_xz`` and the rate of the law are lagged from the velocities at the start
 of the step.
 
-The step after each transport stage is the argmin, per layer along x over each run of
-columns holding material (a chain), of::
+The step after each vertical step (engine/simulation.py) is the argmin, per layer along x
+over each run of columns thicker than the dry threshold (a chain), of::
 
     sum_i M_i (u_i - u*_i)^2 / 2 + sum_f A_f psi_f(s_f),   s_f = u_(i+1) - u_i,
 
@@ -29,9 +29,11 @@ F(phi_f) = 2 dt l_a h_f tau_xx``: ``-tau_f / (1 - e_f) <= tau_xx <= tau_f / (1 +
 plastic limit (``B_f = 0``, a plug) exact, no regularisation.  It is unconditionally stable
 and dissipative: ``sum M_i (u_i^2 - u*_i^2) / 2 = -sum M_i (u_i - u*_i)^2 / 2 - sum Z_f s_f``,
 ``Z_f s_f >= 0``; it conserves each chain's momentum (no stress at a chain's ends); ``u* = 0``
-gives ``u = 0`` exactly.  The vertical step that follows sees the mean pressures ``P -
-tau_xx`` (:meth:`NormalStress.yield_gravity`: ``P_k (1 - r_k)``, ``r = tau_xx / P`` of the
-layers, exact where the layers are in one plastic state, ``tau_xx`` proportional to ``P``).
+gives ``u = 0`` and ``Z = 0`` exactly (no stress in material the vertical step holds at
+rest).  The next vertical step sees the mean pressures ``P - tau_xx`` of this one
+(:meth:`NormalStress.yield_gravity`: ``P_k (1 - r_k)``, ``r = tau_xx / P`` of the layers,
+the mean of a cell's faces' ratios, exact where the layers are in one plastic state,
+``tau_xx`` proportional to ``P``).
 
 It is solved in the dual: minimise ``sum_i M_i u_i^2 / 2 + sum_f psi_f*(Z_f)`` over the
 bounds with ``u_i = u*_i + (Z_(i+1/2) - Z_(i-1/2)) / M_i`` (Fenchel duality; the Hessian is
@@ -64,7 +66,7 @@ from scipy.linalg import solve_banded
 
 from multilayer.engine.normal_stress_kernel import NODES, ROUNDING, STALL, TURN, WEIGHTS, chain_step
 from multilayer.engine.vertical.stresses import StressModel
-from multilayer.errors import RunError
+from multilayer.errors import InputError, RunError
 
 PRESSURE_STEP = 1e-4
 """The relative pressure step of the central difference ``d tau / d p`` (its truncation error
@@ -280,18 +282,24 @@ def newton_step(
 
 class NormalStress:
     """The step of the module docstring on the layered columns of ``stresses``; it keeps the
-    layers' ``tau_xx`` of its last call for the mean pressure of the vertical step
-    (:meth:`yield_gravity`)."""
+    layers' ``tau_xx`` of its last call for the mean pressure of the next vertical step
+    (:meth:`yield_gravity`), a part of the run's state (:meth:`state_dict`)."""
 
-    def __init__(self, stresses: StressModel, fractions: np.ndarray, dx: float, tolerance: float):
+    def __init__(
+        self, stresses: StressModel, fractions: np.ndarray, dx: float, tolerance: float, dry: float = 0.0
+    ):
         self.stresses = stresses
+        self.dry = dry
+        """The thickness (m) at and below which a column is dry (``numerics.dry_threshold``):
+        outside the chains, as the transport keeps it at rest."""
         self.l = fractions[:, None]
         self.dx = dx
         self.tolerance = tolerance
         self.tau_xx: np.ndarray = np.zeros((fractions.size, stresses.x.size))
         """``tau_xx`` (L, N) of the layers in the last step (Pa)."""
         self.relief: np.ndarray = np.zeros(self.tau_xx.shape)
-        """``r = tau_xx / P`` (L, N) of the layers in the last step: their mean pressure is ``P (1 - r)``."""
+        """``r = tau_xx / P`` (L, N) of the layers in the last step, the mean of their faces':
+        their mean pressure is ``P (1 - r)``."""
 
     def __call__(
         self,
@@ -305,9 +313,9 @@ class NormalStress:
         max_iterations: int,
     ) -> None:
         """Apply the step of ``dt`` to ``ustar`` (L, N) in place on the thickness ``h``
-        after transport, the rate lagged from the velocities ``u`` at the step's start and the
+        after a vertical step, the rate lagged from the velocities ``u`` at the step's start and the
         pressures ``P`` from ``yield_gravity`` (None: ``g cos(theta)``)."""
-        wet = h > 0.0
+        wet = h > self.dry
         L = ustar.shape[0]
         faces = chains(wet, L)
         self.tau_xx, self.relief = np.zeros(ustar.shape), np.zeros(ustar.shape)
@@ -350,12 +358,21 @@ class NormalStress:
             compiled=True,
         )
         ustar[np.unravel_index(cells, ustar.shape)] = new
-        # each cell's tau_xx: the mean of its faces' Z_f / (2 dt l_a h_f)
-        per_face, n = z / (2.0 * dt * self.l[layer, 0] * hf), ustar.size
-        stress = np.bincount(faces.left, per_face, n) + np.bincount(faces.right, per_face, n)
+        # each cell's tau_xx and r: the means over its faces of Z_f / (2 dt l_a h_f) and of
+        # that over the face's pressure (bounded by the law's plastic limits, tau_f / p_f over
+        # 1 +- e_f, where a thin cell at a front beside a thick one has P far below its faces')
+        per_face = z / (2.0 * dt * self.l[layer, 0] * hf)
+        ratio = np.divide(per_face, p, out=np.zeros(p.shape), where=p > 0.0)
+        self.tau_xx = self._cell_mean(faces, per_face, ustar.shape)
+        self.relief = self._cell_mean(faces, ratio, ustar.shape)
+
+    @staticmethod
+    def _cell_mean(faces: Chains, values: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+        """The mean over each cell's faces of the faces' ``values`` (0 off the chains)."""
+        n = int(np.prod(shape))
+        total = np.bincount(faces.left, values, n) + np.bincount(faces.right, values, n)
         count = np.bincount(faces.left, minlength=n) + np.bincount(faces.right, minlength=n)
-        self.tau_xx = (stress / np.maximum(count, 1.0)).reshape(ustar.shape)
-        self.relief = np.divide(self.tau_xx, pbar, out=np.zeros(pbar.shape), where=pbar > 0.0)
+        return (total / np.maximum(count, 1.0)).reshape(shape)
 
     def bulk_law(
         self, rate: np.ndarray, p: np.ndarray, h: np.ndarray, x: np.ndarray, layer: np.ndarray
@@ -390,3 +407,16 @@ class NormalStress:
         g = np.broadcast_to(given, (self.l.size, h.size))
         relief = np.vstack([self.relief[:1], 0.5 * (self.relief[1:] + self.relief[:-1])])
         return g * np.maximum(1.0 - relief, 0.0)
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """The relief of the last step (:attr:`relief`): the next vertical step's mean
+        pressures, so that a resumed run equals the uninterrupted one bit for bit."""
+        return {"normal_stress_relief": self.relief.copy()}
+
+    def load_state(self, saved: dict) -> None:
+        """Restore :meth:`state_dict` (none saved: no relief, as at the start of a run);
+        :class:`InputError` for a relief that is not finite."""
+        relief = np.asarray(saved.get("normal_stress_relief", np.zeros(self.relief.shape)), dtype=float)
+        if not np.all(np.isfinite(relief)):
+            raise InputError("normal_stress_relief: values that are not finite, where finite numbers")
+        self.relief = relief.copy()

@@ -1,32 +1,35 @@
 """The time loop of the multilayer model (docs/model.md, "Time stepping").
 
-A step of the transport T (fluxes, mass exchange, gravity: transport/; with
-``model.normal_stress`` followed by the implicit longitudinal normal stress,
-normal_stress.py), the implicit
+A step of the transport T (fluxes, mass exchange, gravity: transport/), the implicit
 stresses V (the argmin of the stress energy per column, exact yield: vertical/; the local
-step of a mixture: mixture/), the pressure model's projection P (pressure/) and the
-impulses on the bed (bed_force.py).  At first order (``numerics.order: 1``) it is the
-Lie splitting ``U^{n+1} = P V_dt T_dt U^n`` (T a forward Euler step).  At second order
-the stresses are felt within each stage of Heun's method (SSP-RK2, Gottlieb & Shu 1998)::
+step of a mixture: mixture/), with ``model.normal_stress`` the implicit longitudinal normal
+stress N after it (normal_stress.py; the identity without it), the pressure model's
+projection P (pressure/) and the impulses on the bed (bed_force.py).  At first order
+(``numerics.order: 1``) it is the Lie splitting ``U^{n+1} = P N V_dt T_dt U^n`` (T a
+forward Euler step).  At second order the stresses are felt within each stage of Heun's
+method (SSP-RK2, Gottlieb & Shu 1998)::
 
-    U^(1)    <- V_dt T_dt U^n                       the first stage, then the stresses
+    U^(1)    <- N_dt V_dt T_dt U^n                  the first stage, then the stresses
     U^(2)    <- T_dt U^(1)                          the second stage from that state
     Ubar     <- (U^n + U^(2)) / 2                   Heun's average (h, h_a u_a)
-    U^{n+1}  <- P V_{dt/2} Ubar                     the stresses of the other half step
+    U^{n+1}  <- P N_{dt/2} V_{dt/2} Ubar            the stresses of the other half step
     F        <- the impulses of both V (weights 1/2, 1) and of P   (bed_force.py)
 
 so the second stage moves material with velocities that have felt the friction (a
 transport stage alone would carry the push of gravity and of the pressure gradient over
-a whole step, hundreds of times the velocity of a creeping wedge), the friction acts
-over ``dt/2 + dt/2`` to first order, and the step ends with a vertical step: material
+a whole step, hundreds of times the velocity of a creeping wedge), the stresses act
+over ``dt/2 + dt/2`` to first order, and the step ends with the stress steps: material
 at rest at ``n`` stays exactly at rest (both V hold it), and material that stops does so
-exactly (u == 0).  Heun on the whole split step, ``(U^n + S S U^n)/2`` with
-``S = V T``, would end with an average: a column stopped by both V would keep half its
-velocity, never exactly zero (docs/numerics.md).
+exactly (u == 0).  N follows V so that it sees what V leaves: on material V holds at rest
+it exerts no stress (``u* = 0`` gives ``Z = 0``), and the mean pressure ``P - tau_xx`` at
+which V's friction acts is that of the last N (one stage before; kept in the state, so a
+resumed run equals the uninterrupted one).  Heun on the whole split step,
+``(U^n + S S U^n)/2`` with ``S = V T``, would end with an average: a column stopped by
+both V would keep half its velocity, never exactly zero (docs/numerics.md).
 
 Then the Courant check of the step's end (redo shorter if the waves grew faster), the
 state guard (an impossible state is never kept) and the windowed commit of the new state
-(state.py).  Material at rest that either vertical step sets moving carries waves from
+(state.py).  Material at rest that either stress step sets moving carries waves from
 the start of the step: the stages are redone until that set is complete.
 """
 
@@ -141,9 +144,9 @@ class Simulation:
         )
         if c.normal_stress and c.mixture is not None:
             raise InputError(f"{c.name}: model.normal_stress: accepted: false with a grain-fluid mixture")
-        #: the longitudinal normal stress after each transport stage (None: off)
+        #: the longitudinal normal stress after each vertical step (None: off)
         self.normal_stress = (
-            NormalStress(self.vertical.stresses, self.fractions, self.dx, c.numerics.tolerance)
+            NormalStress(self.vertical.stresses, self.fractions, self.dx, c.numerics.tolerance, self.dry)
             if c.normal_stress
             else None
         )
@@ -271,9 +274,9 @@ class Simulation:
         threads = self.thread_policy.threads(self.fractions.size * int(np.count_nonzero(self.h)))
         while True:  # redone shorter while Heun's second stage breaks the Courant condition
             self._check_advances(dt)
-            vertical, iterations = self._transport_and_stresses(dt, threads)
+            vertical, u, iterations = self._transport_and_stresses(dt, threads)
             h = vertical[-1].h
-            u, fields = self._project(h, vertical[-1].u, dt)
+            u, fields = self._project(h, u, dt)
             if (shorter := self._courant_check(dt, speed)) is None:
                 break
             dt = shorter
@@ -288,9 +291,12 @@ class Simulation:
         self.t = t_max if dt == t_max - self.t else self.t + dt  # lands on t_max when cut to reach it
         return dt
 
-    def _transport_and_stresses(self, dt: float, threads: int) -> tuple[list[VerticalImpulse], int]:
-        """The transport stages, each followed by a vertical step (module docstring), redone
-        while the step sets material at rest moving: the vertical steps and the Newton
+    def _transport_and_stresses(
+        self, dt: float, threads: int
+    ) -> tuple[list[VerticalImpulse], np.ndarray, int]:
+        """The transport stages, each followed by a vertical step and the normal stress's
+        (module docstring), redone while the step sets material at rest moving: the
+        vertical steps, the velocities after the last stress step and the Newton
         iterations."""
         np.copyto(self._stepping, self.state.moving)
         iterations = 0
@@ -298,25 +304,29 @@ class Simulation:
             while True:
                 if self.numerics.order == 1:
                     h, ustar = self._transport(dt, threads)
-                    u, more = self._vertical_step(h, ustar, dt, threads)
-                    vertical = [VerticalImpulse(1.0, h, ustar, u, dt)]
+                    u_vertical, more = self._vertical_step(h, ustar, dt, threads)
+                    u = self._normal_stress(h, u_vertical, dt)
+                    vertical, ends = [VerticalImpulse(1.0, h, ustar, u_vertical, dt)], [u]
                 else:
                     h1, u1_star = self._transport(dt, threads, stage=0)
                     if self.transport is transport_kernel.transport:  # its workspace is reused by stage 1
                         h1, u1_star = self.workspace.keep()
-                    u1, counted = self._vertical_step(h1, u1_star, dt, threads)
+                    u1_vertical, counted = self._vertical_step(h1, u1_star, dt, threads)
+                    u1 = self._normal_stress(h1, u1_vertical, dt)
                     h, ustar = self._transport(dt, threads, stage=1, first=(h1, u1))
-                    u, more = self._vertical_step(h, ustar, 0.5 * dt, threads, first=(h1, u1))
+                    u_vertical, more = self._vertical_step(h, ustar, 0.5 * dt, threads, first=(h1, u1))
+                    u = self._normal_stress(h, u_vertical, 0.5 * dt)
                     more += counted
                     vertical = [
-                        VerticalImpulse(0.5, h1, u1_star, u1, dt),
-                        VerticalImpulse(1.0, h, ustar, u, 0.5 * dt),
+                        VerticalImpulse(0.5, h1, u1_star, u1_vertical, dt),
+                        VerticalImpulse(1.0, h, ustar, u_vertical, 0.5 * dt),
                     ]
+                    ends = [u1, u]
                 iterations += more
-                # material at rest set moving by any vertical step (both: every one is marked)
-                started = [start_moving(step.u, self.h, self.dry, self._stepping) for step in vertical]
+                # material at rest set moving by any stress step (all: every one is marked)
+                started = [start_moving(end, self.h, self.dry, self._stepping) for end in ends]
                 if not any(started):
-                    return vertical, iterations
+                    return vertical, u, iterations
 
     def _check_target(self, t_max: float) -> None:
         if not _time(t_max) - self.t >= MIN_STEP:
@@ -363,12 +373,19 @@ class Simulation:
         self.guard.check_state(
             h, ustar, lambda: f"after transport from t = {self.t:.6g} s (dt = {dt:.3g} s)", columns
         )
-        if self.normal_stress is not None:  # in place: the compiled transport's workspace keeps it
-            self.normal_stress(
-                h, ustar, self.u, self.pressure.yield_gravity(self.state, h), dt,
-                velocity_scale=self.vertical.velocity_scale, max_iterations=self.numerics.max_iterations,
-            )  # fmt: skip
         return h, ustar
+
+    def _normal_stress(self, h: np.ndarray, u: np.ndarray, dt: float) -> np.ndarray:
+        """The longitudinal normal stress's step of ``dt`` (normal_stress.py) on the
+        velocities ``u`` of a vertical step (a new array; ``u`` itself without it)."""
+        if self.normal_stress is None:
+            return u
+        u = u.copy()
+        self.normal_stress(
+            h, u, self.u, self.pressure.yield_gravity(self.state, h), dt,
+            velocity_scale=self.vertical.velocity_scale, max_iterations=self.numerics.max_iterations,
+        )  # fmt: skip
+        return u
 
     def _vertical_step(
         self,
@@ -508,6 +525,7 @@ class Simulation:
             **self.state.state_dict(),
             **self.forces.state_dict(),
             **self.seeds.state_dict(),
+            **(self.normal_stress.state_dict() if self.normal_stress is not None else {}),
         }
 
     def load_state(self, saved: dict) -> None:
@@ -520,6 +538,8 @@ class Simulation:
         self.state.load_state(saved)
         self.forces.load_state(saved)
         self.seeds.load_state(saved)
+        if self.normal_stress is not None:
+            self.normal_stress.load_state(saved)
         self.guard.check_state(self.h, self.u, f"in the restored state at t = {self.t:.6g} s")
         self.guard.reset(self.h, self.steps)
         if self.mixture is not None:

@@ -237,7 +237,9 @@ def _sign(x):
     return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
 
 
-@jit(borrowing=True)  # compiled once, linked into its callers (numba inlining lowered it at each call)
+# compiled once, linked into its callers (numba inlining lowered it at each call); a pivot of
+# a column a few 1e-74 m thick can underflow to zero: its inverse is inf, not an exception
+@jit(borrowing=True, error_model="numpy")
 def _active_set(inertia, momentum, kappa, c, w, cw, guess, u, first, grounded, U, diag, low, rhs, hint):
     """Solve with the lock/sign structure of ``guess``; True if it is the exact minimiser
     (``inertia = m / dt`` and ``momentum = m u* / dt`` per layer).
