@@ -1228,11 +1228,11 @@ def round_six() -> list[Case]:
         )
     out.append(
         Case(
-            "run: mu_s 1e308 (overflows in the plugin)",
+            "run: mu_s 1e100 times a pressure of 4e209 Pa (overflows in the plugin)",
             run,
             1,
             "yield_stress() returned inf",
-            setup=partial(_scenario, changes={"rheology.mu_s": 1e308}),
+            setup=partial(_scenario, changes={"rheology.mu_s": 1e100, "material.density": 1e210}),
         )
     )
     out.append(Case("run: -o a file", run, 2, "a file, not a directory", setup=_output_is_a_file))

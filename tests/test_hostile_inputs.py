@@ -561,13 +561,15 @@ def test_a_pressure_beyond_1e308_is_named_before_the_run(tmp_path, cli, write_sc
 
 
 def test_a_plugin_value_that_overflows_is_named_without_a_numpy_warning(tmp_path, cli, write_scenario):
-    """``mu_s: 1e308`` times the pressure overflows inside the plugin: numpy's "overflow
-    encountered in multiply" came before the message that names the value."""
+    """``mu_s: 1e100`` times a pressure of 4e209 Pa overflows inside the plugin: numpy's
+    "overflow encountered in multiply" came before the message that names the value."""
     argv = [
         "run",
         write_scenario(TINY_SCENARIO),
         "--set",
-        "rheology.mu_s=1e308",
+        "rheology.mu_s=1e100",
+        "--set",
+        "material.density=1e210",
         "-o",
         tmp_path / "out",
         "-q",
@@ -619,3 +621,68 @@ def test_two_threads_stepping_one_simulation_take_turns():
     assert shared.t == 0.1 and shared.steps == alone.steps
     np.testing.assert_array_equal(shared.h, alone.h)
     np.testing.assert_array_equal(shared.u, alone.u)
+
+
+@pytest.mark.parametrize(
+    ("override", "phrase"),
+    [
+        ("rheology.mu_s=1e308", "drucker_prager: mu_s must be at most 1e+100, got 1e+308"),
+        ("rheology.nu=1e308", "drucker_prager: nu must be at most 1e+100, got 1e+308"),
+        (
+            "rheology={name: jop_mu_i, mu_s: 0.3, mu_2: 0.6, I_0: 1e-308}",
+            "jop_mu_i: I_0 must be between 1e-100 and 1e+100, got 1e-308",
+        ),
+        (
+            "rheology={name: pouliquen_forterre, mu_1: 0.3, mu_2: 1e308, L: 1e-3, I_0: 0.3}",
+            "pouliquen_forterre: mu_2 must be at most 1e+100, got 1e+308",
+        ),
+    ],
+)
+def test_a_built_in_laws_parameter_beyond_its_bounds_is_named(
+    tmp_path, cli, write_scenario, override, phrase
+):
+    """``mu_s: 1e308`` (or ``nu``, or ``mu_2``) times any pressure overflowed in the law, and
+    ``I_0: 1e-308`` made the vertical step fail: the run stopped at its first step (exit 1,
+    blaming the plugin or the transport).  The built-in laws bound their parameters."""
+    path = write_scenario(TINY_SCENARIO)
+    for argv in (["validate", path], ["run", path, "-o", tmp_path / "out", "-q"]):
+        result = cli(*argv, "--set", override)
+        assert result.code == 2 and "Traceback" not in result.err and result.err.count("\n") == 1
+        assert f"{path}: rheology (from --set): {phrase}; accepted: " in result.err, result.err
+    assert not (tmp_path / "out" / RESULT_FILE).exists()
+
+
+@pytest.mark.parametrize(
+    ("values", "phrase"),
+    [
+        ("[.nan, .nan]", "entry 0 (.nan) is not a finite number"),
+        ("[0.3, .inf, .inf]", "entry 1 (.inf) is not a finite number"),
+    ],
+)
+def test_a_sweep_value_that_is_no_finite_number_is_named_so(tmp_path, cli, values, phrase):
+    """``[.nan, .nan]`` was refused as a member given twice (NaN read as the same text)."""
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(TINY_SCENARIO))
+    path = tmp_path / "sweep.yaml"
+    path.write_text(f"base: base.yaml\nparameters:\n  rheology.mu_s: {values}\n")
+    for argv in (["validate", path], ["sweep", path, "-o", tmp_path / "out"]):
+        result = cli(*argv)
+        assert result.code == 2 and "Traceback" not in result.err
+        assert f"{path}: parameters.rheology.mu_s (line 3): {phrase}; accepted: finite numbers" in result.err
+
+
+def test_a_zero_pivot_of_the_normal_stress_step_is_a_run_error_naming_the_face():
+    """The compiled normal-stress step was compiled with numba's default error model: a zero
+    pivot of its Newton system (here a face between two cells of infinite mass) raised
+    numba's bare "division by zero".  It is compiled with numpy's, as the other kernels, and
+    its result is checked: a :class:`RunError` naming the face and its numbers."""
+    from multilayer.engine.normal_stress import chains, plastic_chain_step
+
+    faces = chains(np.array([False, True, True, False]), 1)
+    mass, ustar = np.array([1.0, np.inf, np.inf, 1.0]), np.array([0.0, -0.5, 0.5, 0.0])
+    with pytest.raises(
+        RunError, match=r"^the normal-stress step is not finite at x = 0.1 m, layer 0 \(a zero pivot"
+    ):
+        plastic_chain_step(
+            ustar, mass, faces, np.array([1e-3]), np.zeros(1), tolerance=1e-12, max_iterations=50,
+            compiled=True, where=lambda f: f"x = 0.1 m, layer {f}",
+        )  # fmt: skip

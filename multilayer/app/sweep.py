@@ -129,6 +129,15 @@ def _as_read(value: Any) -> Any:
     return value
 
 
+def _non_finite(value: Any) -> bool:
+    """True if ``value`` holds an infinity or a NaN (mappings and lists through)."""
+    if isinstance(value, dict):
+        return any(_non_finite(item) for item in value.values())
+    if isinstance(value, list):
+        return any(_non_finite(item) for item in value)
+    return isinstance(value, float) and not math.isfinite(value)
+
+
 def load(path: str | Path) -> Sweep:
     """Read and strictly validate a sweep file; raise :class:`InputError` on bad input.
 
@@ -208,6 +217,19 @@ def load(path: str | Path) -> Sweep:
             f"{count} members ({' x '.join(str(n) for n in lengths.values())})",
             f"at most {MAX_MEMBERS} members: fewer values, or several sweeps",
         )
+    for key, values in parameters.items():  # NaN is no value twice: NaN != NaN
+        for index, value in enumerate(values):
+            if _non_finite(value):
+                raise bad(
+                    ("parameters", key),
+                    f"entry {index} ({format_value(value)}) "
+                    + (
+                        "holds a number that is not finite"
+                        if isinstance(value, list | dict)
+                        else "is not a finite number"
+                    ),
+                    "finite numbers (no number in a scenario may be infinite or NaN)",
+                )
     # the members' overrides as they will read (0.4 and 0.40 are one value, and so are 20
     # and 20.0, the same number to the schema): a product of lists has two equal members
     # when one list holds a value twice; paired lists, when a tuple of values comes twice.
