@@ -336,6 +336,32 @@ def run_member(
     return summary
 
 
+@dataclass(frozen=True)
+class Failed:
+    """What a member's task returns when it fails.  Raised on a worker process, the failure
+    was logged by Dask there ("Compute Failed") with its traceback, on the user's terminal,
+    once per failed member; the study reports it itself."""
+
+    error: str
+
+
+def contained(task: Callable[..., Any], *args: Any) -> Any:
+    """``task(*args)`` on a worker, a failure returned as :class:`Failed` (its type and
+    message)."""
+    try:
+        return task(*args)
+    except Exception as exc:  # noqa: BLE001 - reported by the study, not in Dask's log
+        return Failed(f"{type(exc).__name__}: {exc}")
+
+
+def result_of(future: Any) -> Any:
+    """The value of a member's ``future``, or :class:`Failed` (a worker lost, say)."""
+    try:
+        return future.result()
+    except Exception as exc:  # noqa: BLE001 - a failed member must not stop the study
+        return Failed(f"{type(exc).__name__}: {exc}")
+
+
 def compile_kernels(member: scenario.Scenario) -> None:
     """Compile the engine's kernels in this process, or load them from numba's cache, by
     one single-threaded step of ``member``, before worker processes start.
@@ -466,6 +492,7 @@ def _run(
         with dask_client(scheduler, workers, warm_up=pending[0][1]) as client:
             futures = {
                 client.submit(
+                    contained,
                     run_member,
                     member_scenario,
                     str(outdir / member.id),
@@ -477,12 +504,12 @@ def _run(
                 for member, member_scenario, fingerprint in pending
             }
             for done, future in enumerate(stopping.as_completed(client, list(futures), outdir), start=1):
-                member = futures[future]
-                try:
-                    outcomes[member.index] = Outcome(member, "ok", summary=future.result())
-                except Exception as exc:  # noqa: BLE001 - a failed member must not stop the sweep
-                    message = f"{type(exc).__name__}: {exc}"
-                    outcomes[member.index] = Outcome(member, "failed", message)
+                member, result = futures[future], result_of(future)
+                outcomes[member.index] = (
+                    Outcome(member, "failed", result.error)
+                    if isinstance(result, Failed)
+                    else Outcome(member, "ok", summary=result)
+                )
                 if on_progress is not None:
                     on_progress(done, len(pending))
 
