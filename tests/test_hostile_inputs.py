@@ -703,21 +703,17 @@ def test_the_normal_stress_with_each_option_keeps_a_layer_below_its_friction_exa
     """``model.normal_stress`` with walls, periodic sides, one layer, the non-hydrostatic
     pressure, a Coulomb base or a start friction: a uniform layer on 10 degrees (friction
     0.5, tan(26.6 degrees)) stays exactly at rest, ``u == 0`` and ``h`` to the bit."""
-    data = {
-        "name": "rest",
+    at_rest = {
         "slope_deg": 10.0,
-        "domain": {"x_min": 0.0, "x_max": 0.2, "cells": 20, "layers": 3},
-        "material": {"density": 1500.0, "grain_diameter": 1e-3},
-        "rheology": {"name": "drucker_prager", "mu_s": 0.5, "nu": 0.0},
+        "domain.x_max": 0.2,
+        "domain.cells": 20,
+        "rheology.mu_s": 0.5,
+        "rheology.nu": 0.0,
         "initial": [{"shape": "layer", "thickness": 0.02}],
-        "boundaries": {"left": "wall", "right": "wall"},
-        "time": {"end": 0.05, "output_interval": 0.05},
-        "model": {"normal_stress": True},
+        "boundaries.right": "wall",
+        "model.normal_stress": True,
     }
-    overrides = dict(NORMAL_STRESS_AT_REST[option])
-    for key in [k for k in overrides if "." not in k]:
-        data[key] = overrides.pop(key)
-    sim = multilayer.Simulation(multilayer.load(data, overrides))
+    sim = multilayer.Simulation(multilayer.load(TINY_SCENARIO, {**at_rest, **NORMAL_STRESS_AT_REST[option]}))
     h = sim.h.copy()
     sim.advance(0.05)
     assert sim.steps >= 5 and np.all(sim.u == 0.0)
