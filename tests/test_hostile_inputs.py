@@ -197,7 +197,7 @@ def test_validate_checks_sweep_and_study_files_with_every_member(tmp_path, cli, 
         "base": "base.yaml",
         "parameters": {"rheology.mu_s": {"bounds": [0.3, 0.4]}},
         "outputs": ["runout"],
-        "samples": 2,
+        "samples": 32,  # 2 is refused by the design's check, as the command refuses it
     }
     result = cli("validate", write_scenario(sensitivity, "sobol.yaml"))
     assert result.code == 0 and "ok (sensitivity of runout to rheology.mu_s)" in result.out, result.err
