@@ -1228,11 +1228,11 @@ def round_six() -> list[Case]:
         )
     out.append(
         Case(
-            "run: mu_s 1e308 (overflows in the plugin)",
+            "run: mu_s 1e100 times a pressure of 4e209 Pa (overflows in the plugin)",
             run,
             1,
             "yield_stress() returned inf",
-            setup=partial(_scenario, changes={"rheology.mu_s": 1e308}),
+            setup=partial(_scenario, changes={"rheology.mu_s": 1e100, "material.density": 1e210}),
         )
     )
     out.append(Case("run: -o a file", run, 2, "a file, not a directory", setup=_output_is_a_file))
@@ -1276,6 +1276,70 @@ def round_six() -> list[Case]:
                     "rheology.mu_s": [0.3 + i / 1e4 for i in range(100)],
                 }
             ),
+        )
+    )
+    return out
+
+
+def _sobol(directory: Path) -> None:
+    (directory / "base.yaml").write_text(yaml.safe_dump(TINY))
+    config = {
+        "base": "base.yaml",
+        "parameters": {
+            "rheology.mu_s": {"bounds": [0.3, 0.4]},
+            "numerics.tolerance": {"bounds": [1e-300, 2e-300]},
+        },
+        "outputs": ["runout"],
+        "samples": 2,
+    }
+    (directory / "sobol.yaml").write_text(yaml.safe_dump(config))
+
+
+def round_seven() -> list[Case]:
+    """The hostile cases of the seventh round (docs/reliability.md): a built-in law's
+    parameter beyond its bounds, a sweep value that is not a number, a study member that
+    fails on a worker process, a Sobol' design on a range 1e-300 wide."""
+    validate, run = ["validate", "{scenario}"], ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    big = partial(_scenario, changes={"rheology.mu_s": 1e308})
+    out = [
+        Case(f"{command[0]}: mu_s 1e308", command, 2, "mu_s must be at most 1e+100", setup=big)
+        for command in (validate, run)
+    ]
+    jop = {"name": "jop_mu_i", "mu_s": 0.3, "mu_2": 0.6, "I_0": 1e-308}
+    out.append(
+        Case(
+            "validate: I_0 1e-308",
+            validate,
+            2,
+            "I_0 must be between 1e-100 and 1e+100",
+            setup=partial(_scenario, changes={"rheology": jop}),
+        )
+    )
+    out.append(
+        Case(
+            "sweep: values [.nan, .nan]",
+            ["validate", "{dir}/sweep.yaml"],
+            2,
+            "entry 0 (.nan) is not a finite number",
+            setup=_sweep({"rheology.mu_s": [NAN, NAN]}),
+        )
+    )
+    out.append(
+        Case(
+            "sweep: a member failing on a worker process",
+            ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/out", "--workers", "1"],
+            1,
+            "did not reach tolerance 1e-300",
+            setup=_sweep({"numerics.tolerance": [1e-300, 1e-10]}),
+        )
+    )
+    out.append(
+        Case(
+            "validate: a Sobol' design on a range 1e-300 wide",
+            ["validate", "{dir}/sobol.yaml"],
+            2,
+            "two halves of the Sobol' design are correlated",
+            setup=_sobol,
         )
     )
     return out
@@ -1433,7 +1497,7 @@ def cases() -> list[Case]:
             Case(f"plot: {how} result", ["plot", "{dir}/out"], code, phrase, setup=_result_damage(how))
         )
     out.append(Case("plot: no result", ["plot", "{dir}"], 2, "no result file"))
-    return out + round_two() + round_three() + round_four() + round_five() + round_six()
+    return out + round_two() + round_three() + round_four() + round_five() + round_six() + round_seven()
 
 
 def _records(path: Path) -> int:

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import copy
+import os
+import shutil
 import tempfile
 import time
 from collections.abc import Callable
@@ -26,6 +28,19 @@ WARM_UP_WAIT = 900.0
 
 def _warm_up_done(worker: dict[str, Any]) -> Path:
     return Path(tempfile.gettempdir()) / f"multilayer-kernels-{worker['testrunuid']}.done"
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """A run without the thorough property search (the default) writes nothing where it is
+    started: Hypothesis's storage (its cache of the constants of the modules it tests, made
+    even with no example database) goes to a temporary directory removed at the end, not
+    to ``.hypothesis/`` in the current directory; ``-m properties`` keeps its example
+    database there.  xdist's workers inherit the directory."""
+    if "HYPOTHESIS_STORAGE_DIRECTORY" in os.environ or "not properties" not in (config.option.markexpr or ""):
+        return
+    directory = tempfile.mkdtemp(prefix="multilayer-hypothesis-")
+    os.environ["HYPOTHESIS_STORAGE_DIRECTORY"] = directory
+    config.add_cleanup(lambda: shutil.rmtree(directory, ignore_errors=True))
 
 
 def pytest_collection_finish(session: pytest.Session) -> None:

@@ -40,12 +40,12 @@ BILLION_LAUGHS = "a: &a [x, x, x, x, x, x, x, x, x, x]\n" + "".join(
 )
 def test_hostile_yaml_is_refused_before_it_is_built(cli, write_scenario, text, expected):
     path = write_scenario(text)
-    start = time.perf_counter()
+    start = time.process_time()  # CPU: the verdict holds on a loaded machine
     for command in (("validate", path), ("run", path, "-o", path.parent / "out")):
         result = cli(*command)
         assert result.code == 2 and "Traceback" not in result.err
         assert __import__("re").search(__import__("re").escape(str(path)) + expected, result.err), result.err
-    assert time.perf_counter() - start < 30  # the bomb took 29 s and 4 GB before
+    assert time.process_time() - start < 30  # the bomb took 29 s and 4 GB before
     result = cli("validate", write_scenario(TINY_SCENARIO, name="tiny.yaml"), "--set", "initial=&a [*a]")
     assert (
         result.code == 2 and "--set initial (line 1): the alias *a lies inside its own anchor" in result.err
@@ -77,11 +77,11 @@ def test_profiles_beyond_their_bound_are_refused_before_they_are_sampled(
     assert result.code == 2 and "101 data rows; accepted: at most 100" in result.err
     monkeypatch.undo()
     dem = {"dem": "dem.tif", "polyline": [[0.0, 0.0], [1e9, 0.0]], "spacing": 1e-3}
-    start = time.perf_counter()
+    start = time.process_time()  # CPU: the verdict holds on a loaded machine
     result = cli("validate", write_scenario({**TINY_SCENARIO, "bed": dem}))
     assert result.code == 2 and "Traceback" not in result.err
     assert "bed.spacing: sampling the polyline (1e+09 m) every 0.001 m takes 1e+12 points" in result.err
-    assert time.perf_counter() - start < 10  # 46 s to a MemoryError before
+    assert time.process_time() - start < 10  # 46 s to a MemoryError before
 
 
 def test_a_long_bed_profile_is_resampled_to_the_mesh_once(tmp_path, cli, write_scenario):
@@ -190,11 +190,11 @@ def _sweep(tmp_path: Path, parameters: dict, paired: bool = False) -> Path:
     ],
 )
 def test_a_sweep_too_large_or_with_equal_members_is_refused(tmp_path, cli, parameters, paired, expected):
-    start = time.perf_counter()
+    start = time.process_time()  # CPU: the verdict holds on a loaded machine
     result = cli("sweep", _sweep(tmp_path, parameters, paired), "-o", tmp_path / "out")
     assert result.code == 2 and "Traceback" not in result.err
     assert expected in result.err, result.err
-    assert time.perf_counter() - start < 10
+    assert time.process_time() - start < 10
 
 
 def test_a_sweep_beyond_the_members_validate_checks_in_seconds_is_refused_at_once(tmp_path, cli):

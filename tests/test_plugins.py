@@ -161,6 +161,16 @@ BROKEN = {
         "is not a subclass of multilayer.Rheology",
     ),
     "no-hookimpl": ("def multilayer_register_rheologies(register):\n    pass\n", "registers no rheology"),
+    "exits-on-import": ("import sys\nsys.exit(3)\n", "SystemExit: 3"),
+    "registers-a-number": (
+        """
+        import multilayer
+        @multilayer.hookimpl
+        def multilayer_register_rheologies(register):
+            register(42)
+        """,
+        "42 is not a subclass of multilayer.Rheology",
+    ),
     "bad-applies-to": (
         """
         import multilayer

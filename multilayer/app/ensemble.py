@@ -154,6 +154,7 @@ class Ensemble:
         if submit:
             futures = {
                 self.client.submit(
+                    sweep.contained,
                     _run_and_measure,
                     member_scenario,
                     str(self.outdir / ident),
@@ -168,13 +169,13 @@ class Ensemble:
             for done, future in enumerate(
                 stopping.as_completed(self.client, list(futures), self.outdir), start=1
             ):
-                ident = futures[future]
+                ident, result = futures[future], sweep.result_of(future)
                 measured: np.ndarray | None
                 status: Status
-                try:
-                    measured, status, error = future.result(), "ok", ""
-                except Exception as exc:  # noqa: BLE001 - a failed member must not stop the study
-                    measured, status, error = None, "failed", f"{type(exc).__name__}: {exc}"
+                if isinstance(result, sweep.Failed):
+                    measured, status, error = None, "failed", result.error
+                else:
+                    measured, status, error = result, "ok", ""
                 for i in pending[ident]:
                     results[i] = Evaluation(ident, points[i], status, measured, error)
                 self.ran += 1

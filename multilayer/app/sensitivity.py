@@ -59,9 +59,15 @@ def sample(study: Sensitivity) -> np.ndarray:
     from SALib.sample import sobol
 
     n, names = study.config.samples, list(study.config.parameters)
-    points = sobol.sample(_problem(study), n, calc_second_order=False, scramble=True, seed=study.config.seed)
-    blocks = points.reshape(n, len(names) + 2, len(names))
-    r = [abs(np.corrcoef(blocks[:, 0, j], blocks[:, -1, j])[0, 1]) for j in range(len(names))]
+    problem = _problem(study)
+    points = sobol.sample(problem, n, calc_second_order=False, scramble=True, seed=study.config.seed)
+    # in the unit cube (a range 1e-300 wide made the variances 0: a correlation 0/0, NaN,
+    # which passed the check with a numpy warning); a constant column counts as correlated
+    lower, upper = np.array(problem["bounds"], dtype=float).T
+    blocks = ((points - lower) / (upper - lower)).reshape(n, len(names) + 2, len(names))
+    with np.errstate(all="ignore"):
+        r = [abs(np.corrcoef(blocks[:, 0, j], blocks[:, -1, j])[0, 1]) for j in range(len(names))]
+    r = [value if np.isfinite(value) else 1.0 for value in r]
     worst = int(np.argmax(r))
     if r[worst] > MAX_AB_CORRELATION:
         raise InputError(

@@ -129,6 +129,15 @@ def _as_read(value: Any) -> Any:
     return value
 
 
+def _non_finite(value: Any) -> bool:
+    """True if ``value`` holds an infinity or a NaN (mappings and lists through)."""
+    if isinstance(value, dict):
+        return any(_non_finite(item) for item in value.values())
+    if isinstance(value, list):
+        return any(_non_finite(item) for item in value)
+    return isinstance(value, float) and not math.isfinite(value)
+
+
 def load(path: str | Path) -> Sweep:
     """Read and strictly validate a sweep file; raise :class:`InputError` on bad input.
 
@@ -208,6 +217,19 @@ def load(path: str | Path) -> Sweep:
             f"{count} members ({' x '.join(str(n) for n in lengths.values())})",
             f"at most {MAX_MEMBERS} members: fewer values, or several sweeps",
         )
+    for key, values in parameters.items():  # NaN is no value twice: NaN != NaN
+        for index, value in enumerate(values):
+            if _non_finite(value):
+                raise bad(
+                    ("parameters", key),
+                    f"entry {index} ({format_value(value)}) "
+                    + (
+                        "holds a number that is not finite"
+                        if isinstance(value, list | dict)
+                        else "is not a finite number"
+                    ),
+                    "finite numbers (no number in a scenario may be infinite or NaN)",
+                )
     # the members' overrides as they will read (0.4 and 0.40 are one value, and so are 20
     # and 20.0, the same number to the schema): a product of lists has two equal members
     # when one list holds a value twice; paired lists, when a tuple of values comes twice.
@@ -312,6 +334,32 @@ def run_member(
     partial.write_text(json.dumps(marker, indent=2) + "\n")
     os.replace(partial, directory / MARKER)
     return summary
+
+
+@dataclass(frozen=True)
+class Failed:
+    """What a member's task returns when it fails.  Raised on a worker process, the failure
+    was logged by Dask there ("Compute Failed") with its traceback, on the user's terminal,
+    once per failed member; the study reports it itself."""
+
+    error: str
+
+
+def contained(task: Callable[..., Any], *args: Any) -> Any:
+    """``task(*args)`` on a worker, a failure returned as :class:`Failed` (its type and
+    message)."""
+    try:
+        return task(*args)
+    except Exception as exc:  # noqa: BLE001 - reported by the study, not in Dask's log
+        return Failed(f"{type(exc).__name__}: {exc}")
+
+
+def result_of(future: Any) -> Any:
+    """The value of a member's ``future``, or :class:`Failed` (a worker lost, say)."""
+    try:
+        return future.result()
+    except Exception as exc:  # noqa: BLE001 - a failed member must not stop the study
+        return Failed(f"{type(exc).__name__}: {exc}")
 
 
 def compile_kernels(member: scenario.Scenario) -> None:
@@ -444,6 +492,7 @@ def _run(
         with dask_client(scheduler, workers, warm_up=pending[0][1]) as client:
             futures = {
                 client.submit(
+                    contained,
                     run_member,
                     member_scenario,
                     str(outdir / member.id),
@@ -455,12 +504,12 @@ def _run(
                 for member, member_scenario, fingerprint in pending
             }
             for done, future in enumerate(stopping.as_completed(client, list(futures), outdir), start=1):
-                member = futures[future]
-                try:
-                    outcomes[member.index] = Outcome(member, "ok", summary=future.result())
-                except Exception as exc:  # noqa: BLE001 - a failed member must not stop the sweep
-                    message = f"{type(exc).__name__}: {exc}"
-                    outcomes[member.index] = Outcome(member, "failed", message)
+                member, result = futures[future], result_of(future)
+                outcomes[member.index] = (
+                    Outcome(member, "failed", result.error)
+                    if isinstance(result, Failed)
+                    else Outcome(member, "ok", summary=result)
+                )
                 if on_progress is not None:
                     on_progress(done, len(pending))
 

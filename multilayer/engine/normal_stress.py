@@ -59,12 +59,21 @@ numpy reference of the method; the engine runs its compiled kernel
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
 from scipy.linalg import solve_banded
 
-from multilayer.engine.normal_stress_kernel import NODES, ROUNDING, STALL, TURN, WEIGHTS, chain_step
+from multilayer.engine.normal_stress_kernel import (
+    NODES,
+    NOT_CONVERGED,
+    ROUNDING,
+    STALL,
+    TURN,
+    WEIGHTS,
+    chain_step,
+)
 from multilayer.engine.vertical.stresses import StressModel
 from multilayer.errors import InputError, RunError
 
@@ -103,6 +112,7 @@ def plastic_chain_step(
     tolerance: float,
     max_iterations: int,
     compiled: bool = False,
+    where: Callable[[int], str] = "face {}".format,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The argmin ``u`` of the module docstring's problem and the face impulses ``Z``, for
     the velocities ``ustar`` and masses ``mass`` (flat arrays), the faces' ``a`` (A_f),
@@ -110,10 +120,13 @@ def plastic_chain_step(
     Newton step would change no velocity by more than ``tolerance``.  :class:`RunError`
     after ``max_iterations``.  ``compiled``: by the kernel
     :func:`multilayer.engine.normal_stress_kernel.chain_step` (the engine's; equal to round-off,
-    tested), else by the numpy code here (its reference)."""
+    tested), else by the numpy code here (its reference); ``where(f)`` names face ``f`` in
+    the kernel's :class:`RunError` on a step that is not finite."""
     e = np.broadcast_to(np.asarray(e, dtype=float), a.shape)
     if compiled:
-        return _compiled_step(ustar, mass, faces, a, b, e, tolerance=tolerance, iterations=max_iterations)
+        return _compiled_step(
+            ustar, mass, faces, a, b, e, tolerance=tolerance, iterations=max_iterations, where=where
+        )
     inv = 1.0 / mass
     smooth = (b > 0.0) & (a > 0.0)
     low, high = -a / (1.0 - e), a / (1.0 + e)  # the plastic faces' bounds: Z_f = A_f F(-+pi/2)
@@ -216,18 +229,37 @@ def not_converged(max_iterations: int) -> RunError:
 
 
 def _compiled_step(
-    ustar: np.ndarray, mass: np.ndarray, faces: Chains, *data: np.ndarray, tolerance: float, iterations: int
+    ustar: np.ndarray,
+    mass: np.ndarray,
+    faces: Chains,
+    *data: np.ndarray,
+    tolerance: float,
+    iterations: int,
+    where: Callable[[int], str],
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`plastic_chain_step` by its kernel (``iterations``: ``max_iterations``), for the
-    faces' ``data`` ``a``, ``b``, ``e``."""
+    faces' ``data`` ``a``, ``b``, ``e``; :class:`RunError` naming the face (``where``) whose
+    Newton step or result is not finite."""
     u, z = np.empty(ustar.size), np.empty(faces.left.size)
     cells = [np.ascontiguousarray(array, dtype=float) for array in (ustar, mass)]
     index = [np.ascontiguousarray(side, dtype=np.int64) for side in (faces.left, faces.right)]
     linked = np.ascontiguousarray(faces.linked, dtype=np.bool_)
     arrays = [np.ascontiguousarray(array, dtype=float) for array in data]
-    if not chain_step(*cells, *index, linked, *arrays, float(tolerance), int(iterations), u, z):
+    status = chain_step(*cells, *index, linked, *arrays, float(tolerance), int(iterations), u, z)
+    if status == NOT_CONVERGED:
         raise not_converged(iterations)
-    return u, z
+    if status < 0:  # converged: its result checked as the other kernels' are
+        finite = np.isfinite(u[faces.left]) & np.isfinite(u[faces.right]) & np.isfinite(z)
+        if finite.all():
+            return u, z
+        status = int(np.flatnonzero(~finite)[0])
+    f, (left, right) = status, (faces.left[status], faces.right[status])
+    raise RunError(
+        f"the normal-stress step is not finite at {where(f)} (a zero pivot of its Newton system or "
+        f"an overflow): A_f = {data[0][f]:.6g} kg/s, B_f = {data[1][f]:.6g} m/s, e_f = {data[2][f]:.6g}, "
+        f"the masses of its cells {mass[left]:.6g} and {mass[right]:.6g} kg/m, their velocities "
+        f"{ustar[left]:.6g} and {ustar[right]:.6g} m/s (model.normal_stress)"
+    )
 
 
 def law(phi: np.ndarray, e: np.ndarray) -> np.ndarray:
@@ -356,6 +388,7 @@ class NormalStress:
             tolerance=self.tolerance * velocity_scale,
             max_iterations=max_iterations,
             compiled=True,
+            where=lambda f: f"x = {x[f]:.6g} m, layer {int(layer[f])}",
         )
         ustar[np.unravel_index(cells, ustar.shape)] = new
         # each cell's tau_xx and r: the means over its faces of Z_f / (2 dt l_a h_f) and of

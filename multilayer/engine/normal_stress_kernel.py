@@ -42,8 +42,12 @@ at 0.9, on changes up to :data:`TURN`: tested)."""
 HALF_PI = 0.5 * np.pi
 EPSILON = float(np.finfo(float).eps)
 
+CONVERGED, NOT_CONVERGED = -1, -2
+"""What :func:`chain_step` returns when it converged or did not within its iterations; a face
+index ``>= 0`` is the first face whose Newton step is not finite (a zero pivot)."""
 
-@jit
+
+@jit(error_model="numpy")
 def _barrier_change(start: float, end: float, e: float) -> float:
     """The integral of ``sin(phi) / (1 + e sin(phi))^2`` from ``start`` to ``end``
     (:data:`NODES`, :data:`WEIGHTS`)."""
@@ -56,7 +60,7 @@ def _barrier_change(start: float, end: float, e: float) -> float:
     return half * total
 
 
-@jit
+@jit(error_model="numpy")
 def _gradient(v, s, a, b, e, smooth, jacobian, g):
     """``dZ/dv`` into ``jacobian`` and the dual gradient into ``g`` at the angles or impulses
     ``v`` and face velocity jumps ``s``."""
@@ -71,7 +75,7 @@ def _gradient(v, s, a, b, e, smooth, jacobian, g):
             g[f] = -s[f]
 
 
-@jit
+@jit(error_model="numpy")
 def _change(dz, left, right, inv, du):
     """The velocities' change ``du`` of the impulses' change ``dz``."""
     du[:] = 0.0
@@ -80,7 +84,7 @@ def _change(dz, left, right, inv, du):
         du[right[f]] -= dz[f] * inv[right[f]]
 
 
-@jit
+@jit(error_model="numpy")
 def _newton_step(fixed, moves, g, diagonal, coupling, upper, rhs, step):
     """The Newton step ``step`` of the tridiagonal Hessian (``diagonal``, ``coupling`` of each
     face with the next) and gradient ``g``, the faces ``fixed`` moved by ``moves`` (their rows
@@ -107,7 +111,16 @@ def _newton_step(fixed, moves, g, diagonal, coupling, upper, rhs, step):
         step[f] = rhs[f] - (upper[f] * step[f + 1] if f < k - 1 else 0.0)
 
 
-@jit
+@jit(error_model="numpy")
+def _first_not_finite(values):
+    """The index of the first value that is not finite, -1 if none."""
+    for f in range(values.size):
+        if not np.isfinite(values[f]):
+            return f
+    return -1
+
+
+@jit(error_model="numpy")
 def _turned(step, g, smooth, out):
     """``step`` with each angle's change cut to :data:`TURN`, or scaled as a whole where that
     would not descend along ``g``, into ``out``."""
@@ -125,7 +138,7 @@ def _turned(step, g, smooth, out):
         out[f] = step[f] * TURN / largest
 
 
-@jit
+@jit(error_model="numpy")
 def _search(v, z, u, step, mass, inv, left, right, a, b, e, smooth, low, high, work, trial, z_trial, moved):
     """Backtracking on the projected path from ``v`` along ``step`` until the dual objective
     falls (or, below its round-off, until the slope along the step is not positive): True
@@ -167,10 +180,12 @@ def _search(v, z, u, step, mass, inv, left, right, a, b, e, smooth, low, high, w
     return False
 
 
-@jit
+@jit(error_model="numpy")
 def chain_step(ustar, mass, left, right, linked, a, b, e, tolerance, max_iterations, u, z):
     """``normal_stress.plastic_chain_step`` compiled: the velocities into ``u`` and the face
-    impulses into ``z``; True when converged within ``max_iterations``."""
+    impulses into ``z``; :data:`CONVERGED` within ``max_iterations``, :data:`NOT_CONVERGED`,
+    or the first face whose Newton step is not finite (compiled with numpy's error model, as
+    the other kernels: a zero pivot gives an infinity, checked here, not numba's exception)."""
     n, k = ustar.size, a.size
     inv = 1.0 / mass
     smooth = (b > 0.0) & (a > 0.0)
@@ -214,6 +229,9 @@ def chain_step(ustar, mass, left, right, linked, a, b, e, tolerance, max_iterati
         for f in range(k - 1):
             coupling[f] = off[f] * jacobian[f] * jacobian[f + 1]
         _newton_step(active, moves, g, diagonal, coupling, upper, rhs, plain)
+        bad = _first_not_finite(plain)
+        if bad >= 0:
+            return bad
         held[:] = 0.0
         for f in range(k):
             held[left[f]] += abs(z[f])
@@ -228,7 +246,7 @@ def chain_step(ustar, mass, left, right, linked, a, b, e, tolerance, max_iterati
                 converged = False
             size = max(size, abs(du[i]))
         if converged:
-            return True
+            return CONVERGED
         # the plastic faces the step takes across their bounds go to them, the others solved again
         step[:] = plain
         fixed[:] = active
@@ -242,6 +260,9 @@ def chain_step(ustar, mass, left, right, linked, a, b, e, tolerance, max_iterati
             if not crossing:
                 break
             _newton_step(fixed, moves, g, diagonal, coupling, upper, rhs, step)
+            bad = _first_not_finite(step)
+            if bad >= 0:
+                return bad
         found = False
         for tried in range(3):
             attempt = (tried + 2) % 3 if stalled else tried  # after a stalled step the gradient step first
@@ -283,4 +304,4 @@ def chain_step(ustar, mass, left, right, linked, a, b, e, tolerance, max_iterati
             z[:] = z_trial
             u[:] = moved
         stalled = progress < STALL * size
-    return False
+    return NOT_CONVERGED

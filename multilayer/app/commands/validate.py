@@ -60,7 +60,11 @@ def _check_file(path: str, args: argparse.Namespace) -> str:
         searched = ", ".join(calibration.config.parameters)
         return f"calibration of {searched} against {len(calibration.data)} observations"
     if study_base and "outputs" in data:
-        config = study.load_sensitivity(path).config
+        from multilayer.app import sensitivity  # SALib's design, checked as the command does
+
+        loaded = study.load_sensitivity(path)
+        sensitivity.sample(loaded)
+        config = loaded.config
         return f"sensitivity of {', '.join(config.outputs)} to {', '.join(config.parameters)}"
     if study_base:
         from multilayer.app import sweep as sweeps  # the engine, for the sweep's runs

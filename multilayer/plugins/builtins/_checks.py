@@ -7,19 +7,34 @@ import numpy as np
 
 from multilayer.plugins.contract import Rheology
 
+LARGEST = 1e100
+"""The largest magnitude of a built-in law's parameter, and ``1 / LARGEST`` the smallest one
+a law divides by (``I_0``, ``L``, ``shear_rate_floor``, ``alpha``).  The laws multiply and
+divide their parameters by the run's pressures, rates and lengths and by each other:
+``mu_s: 1e308`` times any pressure overflowed in the law, ``I_0: 1e-308`` in the vertical
+step (the run stopped at its first step, exit 1).  Within these bounds the laws' constants
+and their products with each other are finite numbers; granular and fluid parameters lie
+many decades inside them."""
+
 
 def non_negative(**values: float) -> None:
-    """Raise ValueError naming the first parameter that is negative (or nan)."""
+    """Raise ValueError naming the first parameter that is negative (or nan) or above
+    :data:`LARGEST`."""
     for key, value in values.items():
         if not value >= 0:
             raise ValueError(f"{key} must be >= 0, got {value!r}")
+        if value > LARGEST:
+            raise ValueError(f"{key} must be at most {LARGEST:g}, got {value!r}")
 
 
 def positive(**values: float) -> None:
-    """Raise ValueError naming the first parameter that is not > 0."""
+    """Raise ValueError naming the first parameter that is not > 0, or beyond :data:`LARGEST`
+    or its inverse."""
     for key, value in values.items():
         if not value > 0:
             raise ValueError(f"{key} must be > 0, got {value!r}")
+        if not 1 / LARGEST <= value <= LARGEST:
+            raise ValueError(f"{key} must be between {1 / LARGEST:g} and {LARGEST:g}, got {value!r}")
 
 
 class FrictionalYield(Rheology):
@@ -37,6 +52,7 @@ class FrictionalYield(Rheology):
         mu_start = mu_s if mu_start is None else mu_start
         if not mu_start >= mu_s:
             raise ValueError(f"mu_start must be >= mu_s = {mu_s!r}, got {mu_start!r}")
+        non_negative(mu_start=mu_start)
         self.mu_s = mu_s
         self.mu_start = mu_start
 

@@ -41,6 +41,7 @@ class JopMuI(FrictionalYield):
         self.mu_inf = mu_inf
         if not mu_2 >= mu_s:
             raise ValueError(f"mu_2 must be >= mu_s = {mu_s!r}, got {mu_2!r}")
+        non_negative(mu_2=mu_2)
         self.mu_2 = mu_2
         self.I_0 = I_0
 

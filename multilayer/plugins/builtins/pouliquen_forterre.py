@@ -46,6 +46,7 @@ class PouliquenForterre(Rheology):
         mu_3 = mu_1 if mu_3 is None else mu_3
         if not mu_3 >= mu_1:
             raise ValueError(f"mu_3 must be >= mu_1 = {mu_1!r}, got {mu_3!r}")
+        non_negative(mu_2=mu_2, mu_3=mu_3)
         self.mu_1, self.mu_2, self.L, self.I_0, self.mu_3 = mu_1, mu_2, L, I_0, mu_3
 
     def mu_stop(self, thickness: np.ndarray, constant: float | None = None) -> np.ndarray:
