@@ -80,7 +80,9 @@ def _normal_stress() -> None:
     from multilayer.app.simulation import Simulation
 
     sim = Simulation(load(COLLAPSE, {"model.normal_stress": True}))
-    sim._transport(sim.time_step(), 1)
+    dt = sim.time_step()
+    h, ustar = sim._transport(dt, 1)
+    sim._normal_stress(h, ustar, dt)  # on the transport's velocities: no vertical step compiled here
 
 
 def _numpy_path() -> None:
