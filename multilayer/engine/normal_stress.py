@@ -317,9 +317,7 @@ class NormalStress:
     layers' ``tau_xx`` of its last call for the mean pressure of the next vertical step
     (:meth:`yield_gravity`), a part of the run's state (:meth:`state_dict`)."""
 
-    def __init__(
-        self, stresses: StressModel, fractions: np.ndarray, dx: float, tolerance: float, dry: float = 0.0
-    ):
+    def __init__(self, stresses: StressModel, fractions: np.ndarray, dx: float, tolerance: float, dry: float):
         self.stresses = stresses
         self.dry = dry
         """The thickness (m) at and below which a column is dry (``numerics.dry_threshold``):
