@@ -78,8 +78,16 @@ from multilayer.engine.vertical.stresses import StressModel
 from multilayer.errors import InputError, RunError
 
 PRESSURE_STEP = 1e-4
-"""The relative pressure step of the central difference ``d tau / d p`` (its truncation error
-of order ``1e-8`` of ``e_f``)."""
+"""The relative pressure step of the central differences of ``d tau / d p``: their truncation
+error of order ``1e-8`` of ``e_f``, their round-off ``LAW_ROUNDING eps / 1e-4``, 3e-11, times
+the ratio of the law's parts to the pressure (both small for a law of stresses proportional to
+the pressure, :meth:`NormalStress.bulk_law`)."""
+
+
+LAW_ROUNDING = 16.0
+"""The round-off of a bulk law's stress in units of the machine epsilon times the stress (a
+few operations of its hooks): the error bound of ``d tau / d p`` is it times the stresses
+differenced over the pressure step (:meth:`NormalStress.bulk_law`)."""
 
 
 class Chains(NamedTuple):
@@ -409,24 +417,46 @@ class NormalStress:
         self, rate: np.ndarray, p: np.ndarray, h: np.ndarray, x: np.ndarray, layer: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """The bulk law's stress norm ``tau_f`` and ``e_f = d tau / d p`` at the faces' rates
-        and pressures ``p`` (a central difference of relative step :data:`PRESSURE_STEP`; 0 on
-        a face without pressure, whose stress is the law's at ``p = 0``), the law asked once
-        at the three pressures of every face; :class:`RunError` where ``|e_f| >= 1`` (an
-        unbounded passive pressure)."""
+        and pressures ``p`` (0 on a face without pressure, whose stress is the law's at ``p =
+        0``), the law asked once at the three pressures of every face.
+
+        ``e_f`` is the sum of the central differences (relative step :data:`PRESSURE_STEP`)
+        of the law's two parts, the yield stress ``kappa(p)`` and the viscous stress ``eta
+        rate``, each taken apart: a viscous stress that does not depend on the pressure (a
+        Drucker-Prager viscosity) then adds nothing, exactly, where the difference of the
+        sum ``kappa + eta rate`` would lose ``d kappa / d p`` to its round-off (``eps tau /
+        dp``: ``d tau / d p = 1.08`` for ``mu_s = 0.3`` at a thin front sheared at 1e7 1/s,
+        ``tau / p = 1e12``).  With its round-off bound (:data:`LAW_ROUNDING`),
+        :class:`RunError` where ``|e_f| >= 1`` beyond it (an unbounded passive pressure), or
+        where ``|e_f| >= 1`` within it (the law's slope not resolved)."""
         dp = PRESSURE_STEP * p
         pressures = np.concatenate([p, p + dp, p - dp])
-        stress = self.stresses.bulk_stress(np.tile(rate, 3), pressures, np.tile(h, 3), np.tile(x, 3))
-        tau, up, down = stress.reshape(3, p.size)
-        e = np.divide(up - down, 2.0 * dp, out=np.zeros(p.shape), where=dp > 0.0)
-        bad = ~(np.abs(e) < 1.0)
-        if bad.any():
-            f = int(np.flatnonzero(bad)[0])
-            raise RunError(
-                f"the normal stress needs a bulk law whose stress changes by less than the pressure "
-                f"(|d tau / d p| < 1): d tau / d p = {e[f]:.6g} at x = {x[f]:.6g} m, layer {int(layer[f])}, "
-                f"pressure {p[f]:.6g} Pa, shear rate {rate[f]:.6g} 1/s (model.normal_stress)"
-            )
-        return tau, e
+        parts = self.stresses.bulk_parts(np.tile(rate, 3), pressures, np.tile(h, 3), np.tile(x, 3))
+        (kappa, kappa_up, kappa_down), (viscous, viscous_up, viscous_down) = (
+            part.reshape(3, p.size) for part in parts
+        )
+        step = pressures[p.size : 2 * p.size] - pressures[2 * p.size :]  # exact (Sterbenz)
+        change = (kappa_up - kappa_down) + (viscous_up - viscous_down)
+        e = np.divide(change, step, out=np.zeros(p.shape), where=step > 0.0)
+        sizes = np.abs(kappa_up) + np.abs(kappa_down) + np.abs(viscous_up) + np.abs(viscous_down)
+        bound = np.divide(
+            LAW_ROUNDING * np.finfo(float).eps * sizes, step, out=np.zeros(p.shape), where=step > 0.0
+        )
+        steep, unresolved = ~(np.abs(e) < 1.0 + bound), ~(np.abs(e) < 1.0)
+        for bad, what in (
+            (steep, ""),
+            (unresolved, ", not resolved from the round-off of the law's stresses"),
+        ):
+            if bad.any():
+                f = int(np.flatnonzero(bad)[0])
+                raise RunError(
+                    f"the normal stress needs a bulk law whose stress changes by less than the pressure "
+                    f"(|d tau / d p| < 1): d tau / d p = {e[f]:.6g} +- {bound[f]:.3g}{what} at x = "
+                    f"{x[f]:.6g} m, layer {int(layer[f])}, pressure {p[f]:.6g} Pa, shear rate "
+                    f"{rate[f]:.6g} 1/s, yield stress {kappa[f]:.6g} Pa, viscous stress "
+                    f"{viscous[f]:.6g} Pa (model.normal_stress)"
+                )
+        return kappa + viscous, e
 
     def yield_gravity(self, yield_gravity: np.ndarray | None, h: np.ndarray) -> np.ndarray:
         """The normal gravity ``G_k (1 - r_k)`` (L, N) of the mean pressures ``p_k = P_k (1 -
