@@ -35,6 +35,13 @@ rest).  The next vertical step sees the mean pressures ``P - tau_xx`` of this on
 the mean of a cell's faces' ratios, exact where the layers are in one plastic state,
 ``tau_xx`` proportional to ``P``).
 
+The step stresses only material that moves (its rate is lagged): a deposit that the vertical
+step's friction alone cannot hold, but the friction and the normal stress together can, would
+creep, the vertical step letting it move by ``O(dt)`` and this step taking back most of it,
+never all.  :func:`joint_rest` finds where rest is the answer of the two steps together,
+with the normal stress of material at rest (rate zero: any ``tau_xx`` between the plastic
+limits, the tensor law's stress at ``D = 0``), and the engine then ends the step at rest.
+
 It is solved in the dual: minimise ``sum_i M_i u_i^2 / 2 + sum_f psi_f*(Z_f)`` over the
 bounds with ``u_i = u*_i + (Z_(i+1/2) - Z_(i-1/2)) / M_i`` (Fenchel duality; the Hessian is
 tridiagonal; ``d psi_f* / d phi = A_f B_f sin(phi) / (1 + e_f sin(phi))^2``), by a projected
@@ -88,6 +95,16 @@ LAW_ROUNDING = 16.0
 """The round-off of a bulk law's stress in units of the machine epsilon times the stress (a
 few operations of its hooks): the error bound of ``d tau / d p`` is it times the stresses
 differenced over the pressure step (:meth:`NormalStress.bulk_law`)."""
+
+
+CONTRACTION = 0.9
+"""The largest velocity of a round of :func:`joint_rest` at most this fraction of the last's:
+else the rounds are abandoned (they converge linearly towards rest where rest is the answer,
+0.3-0.8 a round in a collapse's deposit; a flow keeps its velocities)."""
+
+MARGIN = 1e-2
+"""The friction :func:`joint_rest` leaves unused in its search (a fraction of the vertical
+step's yield stresses), so that the rest it finds is held by the full friction exactly."""
 
 
 class Chains(NamedTuple):
@@ -227,6 +244,48 @@ def plastic_chain_step(
         if found is not None:
             v, z, u = found
     raise not_converged(max_iterations)
+
+
+def joint_rest(
+    vertical: Callable[[np.ndarray], np.ndarray],
+    normal: Callable[[np.ndarray], np.ndarray],
+    ustar: np.ndarray,
+    split: np.ndarray,
+    rounds: int,
+) -> np.ndarray | None:
+    """The certificate that rest, ``u = 0``, is the answer of the vertical step ``V``
+    (``vertical``) and the normal-stress step at rest ``N_0`` (``normal``: rate zero, every
+    face plastic, ``tau_xx`` anywhere between its passive and active limits) taken together
+    from ``ustar``: the velocity change ``q`` of ``N_0``'s impulses such that ``V(ustar - q)
+    == 0`` exactly; None if none is found in ``rounds`` rounds, or at once where the answer
+    of the two steps one after the other, ``split``, keeps more than :data:`CONTRACTION` of
+    the largest velocity of ``ustar`` (a flow, not material coming to rest).
+
+    Found by the Dykstra-like alternation (Bauschke & Combettes 2008, Pacific J. Optim. 4,
+    383) of ``N_0`` and ``V_m(w) = (1 - m) V(w / (1 - m))``, ``m`` = :data:`MARGIN`, the
+    step of the energy ``(1 - m)^2 Phi(u / (1 - m))`` whose velocities held at rest are those
+    of ``V`` times ``1 - m``: its iterates ``x``, ``p``, ``q`` (``x + p + q = ustar``
+    throughout) converge to the argmin of the two energies together, and where that is rest,
+    ``x + p`` to a velocity ``V_m`` holds on the boundary of its set, inside ``V``'s, which
+    ``V`` then holds exactly after finitely many rounds.  Abandoned where a round does not
+    shrink the largest velocity ``x`` to :data:`CONTRACTION` of the last (the answer is not
+    rest, or the round-off is reached)."""
+    size = float(np.max(np.abs(ustar)))
+    if not np.max(np.abs(split)) <= CONTRACTION * size:
+        return None
+    shrink = 1.0 - MARGIN
+    x, p, q = ustar, np.zeros(ustar.shape), np.zeros(ustar.shape)
+    for _ in range(rounds):
+        y = shrink * vertical((x + p) / shrink)
+        if not np.any(y) and not np.any(vertical(x + p)):
+            return q
+        p = x + p - y
+        x = normal(y + q)
+        q = y + q - x
+        if not (shrunk := float(np.max(np.abs(x)))) <= CONTRACTION * size:
+            return None
+        size = shrunk
+    return None
 
 
 def not_converged(max_iterations: int) -> RunError:
