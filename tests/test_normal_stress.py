@@ -22,6 +22,7 @@ from multilayer.engine.normal_stress import (
     barrier_change,
     chains,
     joint_rest,
+    not_converged,
     plastic_chain_step,
 )
 from multilayer.errors import InputError, RunError
@@ -449,12 +450,23 @@ def test_rest_of_the_two_steps_together_is_found_exactly_where_it_is_their_answe
         )[0]
 
     assert np.any(vertical(ustar))  # V alone does not hold it
-    q = joint_rest(vertical, normal, ustar, normal(vertical(ustar)), 200)
+    q = joint_rest(vertical, normal, ustar, normal(vertical(ustar)), np.zeros(3), mass, 200)
     assert (q is not None) == rest
     if rest:
         assert np.all(vertical(ustar - q) == 0.0) and abs(q.sum()) < 1e-16
         impulses = -np.cumsum(q)[:2]  # Z_f: the change of the cells left of each face
         assert np.all(np.abs(impulses) <= bound * (1 + 1e-12))
+
+
+def test_a_search_for_rest_whose_step_does_not_converge_is_abandoned_not_the_run():
+    """The search is an addition to the split step: a step in it that does not converge
+    (its Newton iteration) ends the search without a certificate, not the run."""
+
+    def stuck(w):
+        raise not_converged(5)
+
+    ustar = np.array([0.3, 0.0, 0.0])
+    assert joint_rest(lambda w: 0.5 * w, stuck, ustar, np.zeros(3), np.zeros(3), np.ones(3), 10) is None
 
 
 def test_a_collapse_deposit_comes_exactly_to_rest_and_a_resumed_run_stays_there():

@@ -81,6 +81,7 @@ from multilayer.engine.normal_stress_kernel import (
     WEIGHTS,
     chain_step,
 )
+from multilayer.engine.vertical.newton import NotConverged
 from multilayer.engine.vertical.stresses import StressModel
 from multilayer.errors import InputError, RunError
 
@@ -98,9 +99,9 @@ differenced over the pressure step (:meth:`NormalStress.bulk_law`)."""
 
 
 CONTRACTION = 0.9
-"""The largest velocity of a round of :func:`joint_rest` at most this fraction of the last's:
-else the rounds are abandoned (they converge linearly towards rest where rest is the answer,
-0.3-0.8 a round in a collapse's deposit; a flow keeps its velocities)."""
+"""The velocities of a round of :func:`joint_rest` at most this fraction of the last's (in
+the norm of the kinetic energy): else the rounds are abandoned (they converge linearly
+towards rest where rest is the answer; a flow keeps its velocities)."""
 
 MARGIN = 1e-2
 """The friction :func:`joint_rest` leaves unused in its search (a fraction of the vertical
@@ -251,15 +252,21 @@ def joint_rest(
     normal: Callable[[np.ndarray], np.ndarray],
     ustar: np.ndarray,
     split: np.ndarray,
+    start: np.ndarray,
+    mass: np.ndarray,
     rounds: int,
 ) -> np.ndarray | None:
     """The certificate that rest, ``u = 0``, is the answer of the vertical step ``V``
     (``vertical``) and the normal-stress step at rest ``N_0`` (``normal``: rate zero, every
     face plastic, ``tau_xx`` anywhere between its passive and active limits) taken together
     from ``ustar``: the velocity change ``q`` of ``N_0``'s impulses such that ``V(ustar - q)
-    == 0`` exactly; None if none is found in ``rounds`` rounds, or at once where the answer
-    of the two steps one after the other, ``split``, keeps more than :data:`CONTRACTION` of
-    the largest velocity of ``ustar`` (a flow, not material coming to rest).
+    == 0`` exactly; None if none is found in ``rounds`` rounds, at once where the answer of
+    the two steps one after the other, ``split``, is faster than :data:`CONTRACTION` of the
+    change of the velocities ``start`` of the time step in ``ustar`` (material moving faster
+    than the step's forces could set it moving from rest: a flow, not material coming to
+    rest), or where a step does not converge (:class:`NotConverged`: the search is abandoned,
+    not the run).  Norms are those of the kinetic energy, the cells' ``mass`` (any factor)
+    the weights, as in both steps.
 
     Found by the Dykstra-like alternation (Bauschke & Combettes 2008, Pacific J. Optim. 4,
     383) of ``N_0`` and ``V_m(w) = (1 - m) V(w / (1 - m))``, ``m`` = :data:`MARGIN`, the
@@ -268,29 +275,36 @@ def joint_rest(
     throughout) converge to the argmin of the two energies together, and where that is rest,
     ``x + p`` to a velocity ``V_m`` holds on the boundary of its set, inside ``V``'s, which
     ``V`` then holds exactly after finitely many rounds.  Abandoned where a round does not
-    shrink the largest velocity ``x`` to :data:`CONTRACTION` of the last (the answer is not
-    rest, or the round-off is reached)."""
-    size = float(np.max(np.abs(ustar)))
-    if not np.max(np.abs(split)) <= CONTRACTION * size:
+    shrink the norm of ``x`` to :data:`CONTRACTION` of the last (the answer is not rest, or
+    the round-off is reached)."""
+
+    def norm(v: np.ndarray) -> float:
+        return float(np.sqrt(np.sum(mass * v * v)))
+
+    if not norm(split) <= CONTRACTION * norm(ustar - start):
         return None
+    size = norm(ustar)
     shrink = 1.0 - MARGIN
     x, p, q = ustar, np.zeros(ustar.shape), np.zeros(ustar.shape)
-    for _ in range(rounds):
-        y = shrink * vertical((x + p) / shrink)
-        if not np.any(y) and not np.any(vertical(x + p)):
-            return q
-        p = x + p - y
-        x = normal(y + q)
-        q = y + q - x
-        if not (shrunk := float(np.max(np.abs(x)))) <= CONTRACTION * size:
-            return None
-        size = shrunk
+    try:
+        for _ in range(rounds):
+            y = shrink * vertical((x + p) / shrink)
+            if not np.any(y) and not np.any(vertical(x + p)):
+                return q
+            p = x + p - y
+            x = normal(y + q)
+            q = y + q - x
+            if not (shrunk := norm(x)) <= CONTRACTION * size:
+                return None
+            size = shrunk
+    except NotConverged:
+        return None
     return None
 
 
-def not_converged(max_iterations: int) -> RunError:
+def not_converged(max_iterations: int) -> NotConverged:
     """The error of a step that did not converge in ``max_iterations``."""
-    return RunError(
+    return NotConverged(
         f"the normal-stress step did not converge in {max_iterations} iterations (numerics.max_iterations)"
     )
 

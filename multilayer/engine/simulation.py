@@ -405,6 +405,8 @@ class Simulation:
             lambda w: self._normal_stress(h, w, dt, at_rest),
             ustar,
             u,
+            self.u,
+            self.fractions[:, None] * h,
             self.numerics.max_iterations,
         )
         if q is None:
