@@ -185,8 +185,8 @@ def test_a_collapse_held_at_rest_by_the_normal_stress_balances_its_momentum():
     """The channel collapse (side walls, non-hydrostatic pressure) with the normal stress,
     coarse: it comes to rest by 0.3 s, held by its friction and its normal stress together
     (the vertical step's impulse from u* less the normal stress's velocity change): the
-    balance to round-off while it stops and at rest, where the bed and the walls carry
-    nothing downslope on the flat bed but the end wall's push."""
+    balance to round-off while it stops and at rest, where the bed and the side walls hold
+    the end wall's push (no downslope gravity on the flat bed)."""
     sim = collapse_deposit()
     records = balance(sim, (0.1, 0.3, 0.4))
     assert np.all(sim.u == 0.0)
@@ -194,6 +194,7 @@ def test_a_collapse_held_at_rest_by_the_normal_stress_balances_its_momentum():
         assert abs(left_over) < 1e-13 and abs(normal) < 1e-13
     f = records[-1][0]
     assert f["bed_force_x"] + f["wall_force_x"] + f["end_force_x"] == pytest.approx(0.0, abs=1e-12)
+    assert f["end_force_x"] < 0.0 < f["bed_force_x"]
 
 
 def test_the_transport_conserves_momentum_on_a_flat_bed():
