@@ -5,8 +5,10 @@ from __future__ import annotations
 import copy
 from typing import Any
 
+import multilayer
 from multilayer.app.simulation import Simulation
 from multilayer.scenario import Scenario, from_dict
+from multilayer.validation.runs import SCENARIOS
 
 BASE: dict[str, Any] = {
     "name": "engine-test",
@@ -41,3 +43,20 @@ def scenario(**changes: Any) -> Scenario:
 
 def simulation(**changes: Any) -> Simulation:
     return Simulation(scenario(**changes))
+
+
+def collapse_deposit() -> Simulation:
+    """The channel collapse (side walls, non-hydrostatic pressure) at a = 0.5 on a coarse
+    mesh (4 mm x 4 layers) with the normal stress: it spreads and stops by t = 0.3 s."""
+    return multilayer.Simulation(
+        multilayer.load(
+            SCENARIOS / "column_collapse_channel.yaml",
+            {
+                "initial.0.height": 0.025,
+                "domain.x_max": 0.2,
+                "domain.cells": 50,
+                "domain.layers": 4,
+                "model.normal_stress": True,
+            },
+        )
+    )

@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 import pytest
-from engine import simulation
+from engine import collapse_deposit, simulation
 
 from multilayer.engine.bed_force import FORCES
 from multilayer.engine.transport import reference as transport
@@ -179,6 +179,22 @@ def test_the_normal_stress_keeps_the_momentum_balance(order):
     for _, left_over, _ in balance(sim, (0.05, 0.2)):
         assert abs(left_over) < 1e-13
     assert np.any(sim.normal_stress.tau_xx != 0.0)  # the stress acted
+
+
+def test_a_collapse_held_at_rest_by_the_normal_stress_balances_its_momentum():
+    """The channel collapse (side walls, non-hydrostatic pressure) with the normal stress,
+    coarse: it comes to rest by 0.3 s, held by its friction and its normal stress together
+    (the vertical step's impulse from u* less the normal stress's velocity change): the
+    balance to round-off while it stops and at rest, where the bed and the side walls hold
+    the end wall's push (no downslope gravity on the flat bed)."""
+    sim = collapse_deposit()
+    records = balance(sim, (0.1, 0.3, 0.4))
+    assert np.all(sim.u == 0.0)
+    for _, left_over, normal in records:
+        assert abs(left_over) < 1e-13 and abs(normal) < 1e-13
+    f = records[-1][0]
+    assert f["bed_force_x"] + f["wall_force_x"] + f["end_force_x"] == pytest.approx(0.0, abs=1e-12)
+    assert f["end_force_x"] < 0.0 < f["bed_force_x"]
 
 
 def test_the_transport_conserves_momentum_on_a_flat_bed():

@@ -82,7 +82,7 @@ def _normal_stress() -> None:
     sim = Simulation(load(COLLAPSE, {"model.normal_stress": True}))
     dt = sim.time_step()
     h, ustar = sim._transport(dt, 1)
-    sim._normal_stress(h, ustar, dt)  # on the transport's velocities: no vertical step compiled here
+    sim._normal_stress(h, ustar, dt, sim.u)  # on the transport's velocities: no vertical step compiled here
 
 
 def _numpy_path() -> None:

@@ -35,6 +35,13 @@ rest).  The next vertical step sees the mean pressures ``P - tau_xx`` of this on
 the mean of a cell's faces' ratios, exact where the layers are in one plastic state,
 ``tau_xx`` proportional to ``P``).
 
+The step stresses only material that moves (its rate is lagged): a deposit that the vertical
+step's friction alone cannot hold, but the friction and the normal stress together can, would
+creep, the vertical step letting it move by ``O(dt)`` and this step taking back most of it,
+never all.  :func:`joint_rest` finds where rest is the answer of the two steps together,
+with the normal stress of material at rest (rate zero: any ``tau_xx`` between the plastic
+limits, the tensor law's stress at ``D = 0``), and the engine then ends the step at rest.
+
 It is solved in the dual: minimise ``sum_i M_i u_i^2 / 2 + sum_f psi_f*(Z_f)`` over the
 bounds with ``u_i = u*_i + (Z_(i+1/2) - Z_(i-1/2)) / M_i`` (Fenchel duality; the Hessian is
 tridiagonal; ``d psi_f* / d phi = A_f B_f sin(phi) / (1 + e_f sin(phi))^2``), by a projected
@@ -74,12 +81,31 @@ from multilayer.engine.normal_stress_kernel import (
     WEIGHTS,
     chain_step,
 )
+from multilayer.engine.vertical.newton import NotConverged
 from multilayer.engine.vertical.stresses import StressModel
 from multilayer.errors import InputError, RunError
 
 PRESSURE_STEP = 1e-4
-"""The relative pressure step of the central difference ``d tau / d p`` (its truncation error
-of order ``1e-8`` of ``e_f``)."""
+"""The relative pressure step of the central differences of ``d tau / d p``: their truncation
+error of order ``1e-8`` of ``e_f``, their round-off ``LAW_ROUNDING eps / 1e-4``, 3e-11, times
+the ratio of the law's parts to the pressure (both small for a law of stresses proportional to
+the pressure, :meth:`NormalStress.bulk_law`)."""
+
+
+LAW_ROUNDING = 16.0
+"""The round-off of a bulk law's stress in units of the machine epsilon times the stress (a
+few operations of its hooks): the error bound of ``d tau / d p`` is it times the stresses
+differenced over the pressure step (:meth:`NormalStress.bulk_law`)."""
+
+
+CONTRACTION = 0.9
+"""The velocities of a round of :func:`joint_rest` at most this fraction of the last's (in
+the norm of the kinetic energy): else the rounds are abandoned (they converge linearly
+towards rest where rest is the answer; a flow keeps its velocities)."""
+
+MARGIN = 1e-2
+"""The friction :func:`joint_rest` leaves unused in its search (a fraction of the vertical
+step's yield stresses), so that the rest it finds is held by the full friction exactly."""
 
 
 class Chains(NamedTuple):
@@ -221,9 +247,64 @@ def plastic_chain_step(
     raise not_converged(max_iterations)
 
 
-def not_converged(max_iterations: int) -> RunError:
+def joint_rest(
+    vertical: Callable[[np.ndarray], np.ndarray],
+    normal: Callable[[np.ndarray], np.ndarray],
+    ustar: np.ndarray,
+    split: np.ndarray,
+    start: np.ndarray,
+    mass: np.ndarray,
+    rounds: int,
+) -> np.ndarray | None:
+    """The certificate that rest, ``u = 0``, is the answer of the vertical step ``V``
+    (``vertical``) and the normal-stress step at rest ``N_0`` (``normal``: rate zero, every
+    face plastic, ``tau_xx`` anywhere between its passive and active limits) taken together
+    from ``ustar``: the velocity change ``q`` of ``N_0``'s impulses such that ``V(ustar - q)
+    == 0`` exactly; None if none is found in ``rounds`` rounds, at once where the answer of
+    the two steps one after the other, ``split``, is faster than :data:`CONTRACTION` of the
+    change of the velocities ``start`` of the time step in ``ustar`` (material moving faster
+    than the step's forces could set it moving from rest: a flow, not material coming to
+    rest), or where a step does not converge (:class:`NotConverged`: the search is abandoned,
+    not the run).  Norms are those of the kinetic energy, the cells' ``mass`` (any factor)
+    the weights, as in both steps.
+
+    Found by the Dykstra-like alternation (Bauschke & Combettes 2008, Pacific J. Optim. 4,
+    383) of ``N_0`` and ``V_m(w) = (1 - m) V(w / (1 - m))``, ``m`` = :data:`MARGIN`, the
+    step of the energy ``(1 - m)^2 Phi(u / (1 - m))`` whose velocities held at rest are those
+    of ``V`` times ``1 - m``: its iterates ``x``, ``p``, ``q`` (``x + p + q = ustar``
+    throughout) converge to the argmin of the two energies together, and where that is rest,
+    ``x + p`` to a velocity ``V_m`` holds on the boundary of its set, inside ``V``'s, which
+    ``V`` then holds exactly after finitely many rounds.  Abandoned where a round does not
+    shrink the norm of ``x`` to :data:`CONTRACTION` of the last (the answer is not rest, or
+    the round-off is reached)."""
+
+    def norm(v: np.ndarray) -> float:
+        return float(np.sqrt(np.sum(mass * v * v)))
+
+    if not norm(split) <= CONTRACTION * norm(ustar - start):
+        return None
+    size = norm(ustar)
+    shrink = 1.0 - MARGIN
+    x, p, q = ustar, np.zeros(ustar.shape), np.zeros(ustar.shape)
+    try:
+        for _ in range(rounds):
+            y = shrink * vertical((x + p) / shrink)
+            if not np.any(y) and not np.any(vertical(x + p)):
+                return q
+            p = x + p - y
+            x = normal(y + q)
+            q = y + q - x
+            if not (shrunk := norm(x)) <= CONTRACTION * size:
+                return None
+            size = shrunk
+    except NotConverged:
+        return None
+    return None
+
+
+def not_converged(max_iterations: int) -> NotConverged:
     """The error of a step that did not converge in ``max_iterations``."""
-    return RunError(
+    return NotConverged(
         f"the normal-stress step did not converge in {max_iterations} iterations (numerics.max_iterations)"
     )
 
@@ -409,24 +490,46 @@ class NormalStress:
         self, rate: np.ndarray, p: np.ndarray, h: np.ndarray, x: np.ndarray, layer: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """The bulk law's stress norm ``tau_f`` and ``e_f = d tau / d p`` at the faces' rates
-        and pressures ``p`` (a central difference of relative step :data:`PRESSURE_STEP`; 0 on
-        a face without pressure, whose stress is the law's at ``p = 0``), the law asked once
-        at the three pressures of every face; :class:`RunError` where ``|e_f| >= 1`` (an
-        unbounded passive pressure)."""
+        and pressures ``p`` (0 on a face without pressure, whose stress is the law's at ``p =
+        0``), the law asked once at the three pressures of every face.
+
+        ``e_f`` is the sum of the central differences (relative step :data:`PRESSURE_STEP`)
+        of the law's two parts, the yield stress ``kappa(p)`` and the viscous stress ``eta
+        rate``, each taken apart: a viscous stress that does not depend on the pressure (a
+        Drucker-Prager viscosity) then adds nothing, exactly, where the difference of the
+        sum ``kappa + eta rate`` would lose ``d kappa / d p`` to its round-off (``eps tau /
+        dp``: ``d tau / d p = 1.08`` for ``mu_s = 0.3`` at a thin front sheared at 1e7 1/s,
+        ``tau / p = 1e12``).  With its round-off bound (:data:`LAW_ROUNDING`),
+        :class:`RunError` where ``|e_f| >= 1`` beyond it (an unbounded passive pressure), or
+        where ``|e_f| >= 1`` within it (the law's slope not resolved)."""
         dp = PRESSURE_STEP * p
         pressures = np.concatenate([p, p + dp, p - dp])
-        stress = self.stresses.bulk_stress(np.tile(rate, 3), pressures, np.tile(h, 3), np.tile(x, 3))
-        tau, up, down = stress.reshape(3, p.size)
-        e = np.divide(up - down, 2.0 * dp, out=np.zeros(p.shape), where=dp > 0.0)
-        bad = ~(np.abs(e) < 1.0)
-        if bad.any():
-            f = int(np.flatnonzero(bad)[0])
-            raise RunError(
-                f"the normal stress needs a bulk law whose stress changes by less than the pressure "
-                f"(|d tau / d p| < 1): d tau / d p = {e[f]:.6g} at x = {x[f]:.6g} m, layer {int(layer[f])}, "
-                f"pressure {p[f]:.6g} Pa, shear rate {rate[f]:.6g} 1/s (model.normal_stress)"
-            )
-        return tau, e
+        parts = self.stresses.bulk_parts(np.tile(rate, 3), pressures, np.tile(h, 3), np.tile(x, 3))
+        (kappa, kappa_up, kappa_down), (viscous, viscous_up, viscous_down) = (
+            part.reshape(3, p.size) for part in parts
+        )
+        step = pressures[p.size : 2 * p.size] - pressures[2 * p.size :]  # exact (Sterbenz)
+        change = (kappa_up - kappa_down) + (viscous_up - viscous_down)
+        e = np.divide(change, step, out=np.zeros(p.shape), where=step > 0.0)
+        sizes = np.abs(kappa_up) + np.abs(kappa_down) + np.abs(viscous_up) + np.abs(viscous_down)
+        bound = np.divide(
+            LAW_ROUNDING * np.finfo(float).eps * sizes, step, out=np.zeros(p.shape), where=step > 0.0
+        )
+        steep, unresolved = ~(np.abs(e) < 1.0 + bound), ~(np.abs(e) < 1.0)
+        for bad, what in (
+            (steep, ""),
+            (unresolved, ", not resolved from the round-off of the law's stresses"),
+        ):
+            if bad.any():
+                f = int(np.flatnonzero(bad)[0])
+                raise RunError(
+                    f"the normal stress needs a bulk law whose stress changes by less than the pressure "
+                    f"(|d tau / d p| < 1): d tau / d p = {e[f]:.6g} +- {bound[f]:.3g}{what} at x = "
+                    f"{x[f]:.6g} m, layer {int(layer[f])}, pressure {p[f]:.6g} Pa, shear rate "
+                    f"{rate[f]:.6g} 1/s, yield stress {kappa[f]:.6g} Pa, viscous stress "
+                    f"{viscous[f]:.6g} Pa (model.normal_stress)"
+                )
+        return kappa + viscous, e
 
     def yield_gravity(self, yield_gravity: np.ndarray | None, h: np.ndarray) -> np.ndarray:
         """The normal gravity ``G_k (1 - r_k)`` (L, N) of the mean pressures ``p_k = P_k (1 -

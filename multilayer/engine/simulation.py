@@ -23,7 +23,9 @@ at rest at ``n`` stays exactly at rest (both V hold it), and material that stops
 exactly (u == 0).  N follows V so that it sees what V leaves: on material V holds at rest
 it exerts no stress (``u* = 0`` gives ``Z = 0``), and the mean pressure ``P - tau_xx`` at
 which V's friction acts is that of the last N (one stage before; kept in the state, so a
-resumed run equals the uninterrupted one).  Heun on the whole split step,
+resumed run equals the uninterrupted one); where the two leave material moving that they
+would hold at rest together (a deposit held by its friction and its earth pressure), the
+step ends at that rest (normal_stress.joint_rest).  Heun on the whole split step,
 ``(U^n + S S U^n)/2`` with ``S = V T``, would end with an average: a column stopped by
 both V would keep half its velocity, never exactly zero (docs/numerics.md).
 
@@ -48,7 +50,7 @@ from multilayer.engine.config import MAX_STEPS, SimulationConfig
 from multilayer.engine.gate import Gate
 from multilayer.engine.mesh import LayeredMesh
 from multilayer.engine.mixture.flow import MixtureFlow
-from multilayer.engine.normal_stress import NormalStress
+from multilayer.engine.normal_stress import NormalStress, joint_rest
 from multilayer.engine.pressure.model import PressureModel, PressureSetup, models, options
 from multilayer.engine.state import FlowState, max_wave_speed, span, start_moving
 from multilayer.engine.state_check import StateGuard, check_restored
@@ -304,24 +306,17 @@ class Simulation:
             while True:
                 if self.numerics.order == 1:
                     h, ustar = self._transport(dt, threads)
-                    u_vertical, more = self._vertical_step(h, ustar, dt, threads)
-                    u = self._normal_stress(h, u_vertical, dt)
-                    vertical, ends = [VerticalImpulse(1.0, h, ustar, u_vertical, dt)], [u]
+                    step, u, more = self._stress_steps(1.0, h, ustar, dt, threads)
+                    vertical, ends = [step], [u]
                 else:
                     h1, u1_star = self._transport(dt, threads, stage=0)
                     if self.transport is transport_kernel.transport:  # its workspace is reused by stage 1
                         h1, u1_star = self.workspace.keep()
-                    u1_vertical, counted = self._vertical_step(h1, u1_star, dt, threads)
-                    u1 = self._normal_stress(h1, u1_vertical, dt)
+                    first, u1, counted = self._stress_steps(0.5, h1, u1_star, dt, threads)
                     h, ustar = self._transport(dt, threads, stage=1, first=(h1, u1))
-                    u_vertical, more = self._vertical_step(h, ustar, 0.5 * dt, threads, first=(h1, u1))
-                    u = self._normal_stress(h, u_vertical, 0.5 * dt)
+                    second, u, more = self._stress_steps(1.0, h, ustar, 0.5 * dt, threads, first=(h1, u1))
                     more += counted
-                    vertical = [
-                        VerticalImpulse(0.5, h1, u1_star, u1_vertical, dt),
-                        VerticalImpulse(1.0, h, ustar, u_vertical, 0.5 * dt),
-                    ]
-                    ends = [u1, u]
+                    vertical, ends = [first, second], [u1, u]
                 iterations += more
                 # material at rest set moving by any stress step (all: every one is marked)
                 started = [start_moving(end, self.h, self.dry, self._stepping) for end in ends]
@@ -375,14 +370,59 @@ class Simulation:
         )
         return h, ustar
 
-    def _normal_stress(self, h: np.ndarray, u: np.ndarray, dt: float) -> np.ndarray:
+    def _stress_steps(
+        self,
+        weight: float,
+        h: np.ndarray,
+        ustar: np.ndarray,
+        dt: float,
+        threads: int,
+        first: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> tuple[VerticalImpulse, np.ndarray, int]:
+        """The vertical step over ``dt`` of the velocities ``ustar`` on ``h`` (``first``: see
+        :meth:`_vertical_step`), then the normal stress's: the vertical step's impulse (of
+        ``weight``), the velocities at the end and the Newton iterations.  Where the two
+        leave the material moving, rest when it is the answer of the two steps together
+        (:func:`multilayer.engine.normal_stress.joint_rest`, the normal stress of material
+        at rest: docs/model.md, "Longitudinal normal stress"): its vertical step's impulse
+        from ``ustar - q``, ``q`` the normal stress's (the same momentum)."""
+        u_vertical, iterations = self._vertical_step(h, ustar, dt, threads, first)
+        u = self._normal_stress(h, u_vertical, dt, self.u)
+        normal = self.normal_stress
+        if normal is None or not np.any(u):
+            return VerticalImpulse(weight, h, ustar, u_vertical, dt), u, iterations
+        plain = normal.tau_xx, normal.relief  # the step's stresses (each call makes new arrays)
+        count = [iterations]
+
+        def vertical(w: np.ndarray) -> np.ndarray:
+            held, more = self._vertical_step(h, w, dt, threads, first)
+            count[0] += more
+            return held
+
+        at_rest = np.zeros(u.shape)  # the lagged velocities of the normal stress at rest: rate zero
+        q = joint_rest(
+            vertical,
+            lambda w: self._normal_stress(h, w, dt, at_rest),
+            ustar,
+            u,
+            self.u,
+            self.fractions[:, None] * h,
+            self.numerics.max_iterations,
+        )
+        if q is None:
+            normal.tau_xx, normal.relief = plain
+            return VerticalImpulse(weight, h, ustar, u_vertical, dt), u, count[0]
+        return VerticalImpulse(weight, h, ustar - q, np.zeros(u.shape), dt), np.zeros(u.shape), count[0]
+
+    def _normal_stress(self, h: np.ndarray, u: np.ndarray, dt: float, lagged: np.ndarray) -> np.ndarray:
         """The longitudinal normal stress's step of ``dt`` (normal_stress.py) on the
-        velocities ``u`` of a vertical step (a new array; ``u`` itself without it)."""
+        velocities ``u`` of a vertical step, its rate from the velocities ``lagged`` (a new
+        array; ``u`` itself without it)."""
         if self.normal_stress is None:
             return u
         u = u.copy()
         self.normal_stress(
-            h, u, self.u, self.pressure.yield_gravity(self.state, h), dt,
+            h, u, lagged, self.pressure.yield_gravity(self.state, h), dt,
             velocity_scale=self.vertical.velocity_scale, max_iterations=self.numerics.max_iterations,
         )  # fmt: skip
         return u

@@ -40,7 +40,8 @@ from multilayer.errors import RunError
 
 
 class NotConverged(RunError):
-    """The Newton iteration of the vertical step did not reach its tolerance."""
+    """The Newton iteration of the vertical step (or of the normal-stress step,
+    engine/normal_stress.py) did not reach its tolerance."""
 
 
 def implicit_step(

@@ -280,10 +280,18 @@ class StressModel:
         """The stress norm ``kappa(p) + eta(rate, p) rate`` of the bulk law (flowing yield
         stress) at the shear rates ``rate`` and pressures ``pressure`` of columns of
         thickness ``h`` at ``x`` (flat arrays of one shape)."""
+        kappa, viscous = self.bulk_parts(rate, pressure, h, x)
+        return kappa + viscous
+
+    def bulk_parts(
+        self, rate: np.ndarray, pressure: np.ndarray, h: np.ndarray, x: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The two parts of :meth:`bulk_stress`: the yield stress ``kappa(p)`` and the viscous
+        stress ``eta(rate, p) rate``."""
         inputs = {"shear rate": rate, "pressure": pressure}
         kappa = self._call(self.bulk, "yield_stress", (pressure, self.material), inputs, x, NORMAL, h)
         eta = self._call(self.bulk, "viscosity", (rate, pressure, self.material), inputs, x, NORMAL, h)
-        return kappa + eta * rate
+        return kappa, eta * rate
 
     def _viscosity(self, law, rate, pressure, cs, position) -> np.ndarray:
         inputs = {"shear rate": rate, "pressure": pressure}
