@@ -257,6 +257,13 @@ COMPILED_FAULTS: list[tuple[str, dict, str, str]] = [
         "shear_rate_floor = 0.0",
         "returned inf",
     ),
+    # I_0 below its bound: the Newton iterate of the compiled step not finite
+    (
+        "mu(I) with I_0 1e-50",
+        {"name": "jop_mu_i", "mu_s": 0.3, "mu_2": 0.6, "I_0": 0.3},
+        "I_0 = 1e-50",
+        "vertical step's exact solve gave the velocity u = inf",
+    ),
     # the compiled yield form (stress_kernel) outside the contract
     (
         "Drucker-Prager mu_s nan",
@@ -1311,7 +1318,7 @@ def round_seven() -> list[Case]:
             "validate: I_0 1e-308",
             validate,
             2,
-            "I_0 must be between 1e-100 and 1e+100",
+            "I_0 must be between 1e-08 and 1e+100",
             setup=partial(_scenario, changes={"rheology": jop}),
         )
     )

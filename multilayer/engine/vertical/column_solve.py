@@ -454,3 +454,13 @@ def _require_finite(name: str, array: np.ndarray) -> None:
             f"column kernel: {name} is {float(array[i, a])!r} in column {i} of the {array.shape[0]} "
             f"solved, layer or interface {a}; the kernel only accepts finite values"
         )
+
+
+def not_finite(values: np.ndarray, x: float, t: float) -> RunError:
+    """The error of a column whose Newton iterate (``values``: its value and layer) is not
+    finite: its coefficients are beyond double precision."""
+    return RunError(
+        f"the vertical step's exact solve gave the velocity u = {float(values[0])!r} at x = {x:.6g} m, layer "
+        f"{int(values[1]) + 1} (1 is at the bed), t = {t:.6g} s: the column's coefficients (the laws' "
+        "conductances against the layers' masses) are beyond double precision"
+    )
