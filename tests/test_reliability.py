@@ -794,3 +794,39 @@ def test_the_resume_command_sets_whole_a_mapping_a_set_replaced(tmp_path):
     given = [words[i + 1] for i, word in enumerate(words) if word == "--set"]
     assert any(item.startswith("rheology={") for item in given), given
     assert multilayer.load(path, given).resolved_yaml() == scenario.resolved_yaml()
+
+
+@pytest.mark.slow
+def test_the_commands_leave_no_file_in_tmpdir_and_only_the_documented_caches_in_home(tmp_path):
+    """``run``, ``plot``, ``export`` and ``sweep`` with ``HOME`` and ``TMPDIR`` empty
+    directories: a sweep left Dask's ``dask-scratch-space`` with two lock files in TMPDIR;
+    in HOME only matplotlib's font cache and its empty configuration directory (docs/cli.md)."""
+    home, tmp = tmp_path / "home", tmp_path / "tmp"
+    home.mkdir()
+    tmp.mkdir()
+    env = {
+        k: v for k, v in os.environ.items() if k not in ("XDG_CACHE_HOME", "XDG_CONFIG_HOME", "MPLCONFIGDIR")
+    }
+    env.update(HOME=str(home), TMPDIR=str(tmp))
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(TINY_SCENARIO))
+    (tmp_path / "sweep.yaml").write_text("base: base.yaml\nparameters:\n  rheology.mu_s: [0.3, 0.31]\n")
+    out = tmp_path / "out"
+    for argv in (
+        ["run", "base.yaml", "-o", str(out), "-q"],
+        ["plot", str(out)],
+        ["export", str(out), "--vtk"],
+        ["sweep", "sweep.yaml", "-o", str(tmp_path / "sweep-out"), "--workers", "1"],
+    ):
+        done = subprocess.run(
+            [sys.executable, "-m", "multilayer", *argv], cwd=tmp_path, env=env, capture_output=True, text=True
+        )
+        assert done.returncode == 0, done.stderr
+    assert list(tmp.iterdir()) == []
+    left = {p.relative_to(home).as_posix() for p in home.rglob("*") if p.is_file()}
+    assert all(re.fullmatch(r"\.cache/matplotlib/fontlist-v[\d.]+\.json", name) for name in left), left
+    assert {p.relative_to(home).as_posix() for p in home.rglob("*") if p.is_dir()} <= {
+        ".cache",
+        ".cache/matplotlib",
+        ".config",
+        ".config/matplotlib",
+    }
