@@ -55,7 +55,9 @@ def positive(**values: float) -> None:
 
 def inertial_scale(I_0: float) -> None:
     """Raise ValueError unless ``I_0`` of a mu(I) law is between :data:`SMALLEST_I_0` and
-    :data:`LARGEST` (a NaN is not)."""
+    :data:`LARGEST`."""
+    if not I_0 > 0:
+        raise ValueError(f"I_0 must be > 0, got {I_0!r}")
     if not SMALLEST_I_0 <= I_0 <= LARGEST:
         raise ValueError(
             f"I_0 must be between {SMALLEST_I_0:g} and {LARGEST:g}, got {I_0!r} (below, the friction's "
