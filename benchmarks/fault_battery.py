@@ -257,6 +257,13 @@ COMPILED_FAULTS: list[tuple[str, dict, str, str]] = [
         "shear_rate_floor = 0.0",
         "returned inf",
     ),
+    # I_0 below its bound: the Newton iterate of the compiled step not finite
+    (
+        "mu(I) with I_0 1e-50",
+        {"name": "jop_mu_i", "mu_s": 0.3, "mu_2": 0.6, "I_0": 0.3},
+        "I_0 = 1e-50",
+        "vertical step's exact solve gave the velocity u = inf",
+    ),
     # the compiled yield form (stress_kernel) outside the contract
     (
         "Drucker-Prager mu_s nan",
@@ -1311,7 +1318,7 @@ def round_seven() -> list[Case]:
             "validate: I_0 1e-308",
             validate,
             2,
-            "I_0 must be between 1e-100 and 1e+100",
+            "I_0 must be between 1e-08 and 1e+100",
             setup=partial(_scenario, changes={"rheology": jop}),
         )
     )
@@ -1340,6 +1347,80 @@ def round_seven() -> list[Case]:
             2,
             "two halves of the Sobol' design are correlated",
             setup=_sobol,
+        )
+    )
+    return out
+
+
+FIPY_SOLVING = (  # a file marks the first call of the FiPy reference solver
+    "import pathlib\n"
+    "from multilayer.reference import vertical_fipy\n"
+    "real_call = vertical_fipy.VerticalStep.__call__\n"
+    "def marked(self, *args, **kwargs):\n"
+    "    pathlib.Path(sys.argv[sys.argv.index('-o') + 1]).joinpath('solving').touch()\n"
+    "    return real_call(self, *args, **kwargs)\n"
+    "vertical_fipy.VerticalStep.__call__ = marked\n"
+)
+
+
+def _link_to_a_file(directory: Path) -> None:
+    _scenario(directory)
+    (directory / "out").symlink_to(directory / "scenario.yaml")
+
+
+def _odd_path(directory: Path) -> None:
+    odd = directory / "uni ñ" / "sc\nn.yaml"
+    odd.parent.mkdir()
+    odd.write_text(yaml.safe_dump(TINY))
+
+
+def round_eight() -> list[Case]:
+    """The hostile cases of the eighth round (docs/reliability.md): a mu(I) law's ``I_0``
+    below what the vertical step resolves, SIGTERM during a FiPy solve, ``--set`` of
+    1e999 cells, ``-o`` a link to a file, paths with a newline and characters beyond ASCII."""
+    validate, run = ["validate", "{scenario}"], ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    jop = {"name": "jop_mu_i", "mu_s": 0.3, "mu_2": 0.6, "I_0": 1e-50}
+    pf = {"name": "pouliquen_forterre", "mu_1": 0.3, "mu_2": 0.6, "L": 1e-3, "I_0": 1e-9}
+    out = [
+        Case(
+            f"{command[0]}: {law['name']} I_0 {law['I_0']:g}",
+            command,
+            2,
+            "I_0 must be between 1e-08",
+            setup=partial(_scenario, changes={"rheology": law}),
+        )
+        for law in (jop, pf)
+        for command in (validate, run)
+    ]
+    out.append(
+        Case(
+            "signal: SIGTERM during a FiPy solve",
+            ["run", "{scenario}", "-o", "{dir}/out", "--set", "numerics.vertical_solver=fipy"],
+            143,
+            "resume with:",
+            patch=FIPY_SOLVING,
+            setup=_scenario,
+            signal_when=("out/solving", signal.SIGTERM),
+            keeps_output=True,
+        )
+    )
+    out.append(
+        Case(
+            "--set domain.cells=1e999",
+            [*validate, "--set", "domain.cells=1e999"],
+            2,
+            "domain.cells (from --set)",
+            setup=_scenario,
+        )
+    )
+    out.append(Case("run: -o a link to a file", run, 2, "a file, not a directory", setup=_link_to_a_file))
+    out.append(
+        Case(
+            "run: a newline and non-ASCII characters in the paths",
+            ["run", "{dir}/uni ñ/sc\nn.yaml", "-o", "{dir}/uni ñ/résumé ☃", "-q"],
+            0,
+            "",
+            setup=_odd_path,
         )
     )
     return out
@@ -1497,7 +1578,16 @@ def cases() -> list[Case]:
             Case(f"plot: {how} result", ["plot", "{dir}/out"], code, phrase, setup=_result_damage(how))
         )
     out.append(Case("plot: no result", ["plot", "{dir}"], 2, "no result file"))
-    return out + round_two() + round_three() + round_four() + round_five() + round_six() + round_seven()
+    return (
+        out
+        + round_two()
+        + round_three()
+        + round_four()
+        + round_five()
+        + round_six()
+        + round_seven()
+        + round_eight()
+    )
 
 
 def _records(path: Path) -> int:

@@ -623,6 +623,9 @@ def test_two_threads_stepping_one_simulation_take_turns():
     np.testing.assert_array_equal(shared.u, alone.u)
 
 
+RISE = " (below, the friction's rise with the inertial number is finer than the vertical step resolves)"
+
+
 @pytest.mark.parametrize(
     ("override", "phrase"),
     [
@@ -630,7 +633,15 @@ def test_two_threads_stepping_one_simulation_take_turns():
         ("rheology.nu=1e308", "drucker_prager: nu must be at most 1e+100, got 1e+308"),
         (
             "rheology={name: jop_mu_i, mu_s: 0.3, mu_2: 0.6, I_0: 1e-308}",
-            "jop_mu_i: I_0 must be between 1e-100 and 1e+100, got 1e-308",
+            "jop_mu_i: I_0 must be between 1e-08 and 1e+100, got 1e-308" + RISE,
+        ),
+        (
+            "rheology={name: jop_mu_i, mu_s: 0.3, mu_2: 0.6, I_0: 1e-50}",
+            "jop_mu_i: I_0 must be between 1e-08 and 1e+100, got 1e-50" + RISE,
+        ),
+        (
+            "rheology={name: pouliquen_forterre, mu_1: 0.3, mu_2: 0.6, L: 1e-3, I_0: 1e-9}",
+            "pouliquen_forterre: I_0 must be between 1e-08 and 1e+100, got 1e-09" + RISE,
         ),
         (
             "rheology={name: pouliquen_forterre, mu_1: 0.3, mu_2: 1e308, L: 1e-3, I_0: 0.3}",
@@ -643,7 +654,10 @@ def test_a_built_in_laws_parameter_beyond_its_bounds_is_named(
 ):
     """``mu_s: 1e308`` (or ``nu``, or ``mu_2``) times any pressure overflowed in the law, and
     ``I_0: 1e-308`` made the vertical step fail: the run stopped at its first step (exit 1,
-    blaming the plugin or the transport).  The built-in laws bound their parameters."""
+    blaming the plugin or the transport).  ``I_0: 1e-50``, within those bounds, stopped it
+    at step 25 with ``h = nan`` blamed on the transport (numba's "division by zero" before
+    the active set took numpy's error model): a mu(I) law's ``I_0`` is at least 1e-8
+    (``_checks.SMALLEST_I_0``).  The built-in laws bound their parameters."""
     path = write_scenario(TINY_SCENARIO)
     for argv in (["validate", path], ["run", path, "-o", tmp_path / "out", "-q"]):
         result = cli(*argv, "--set", override)
@@ -668,6 +682,25 @@ def test_a_sweep_value_that_is_no_finite_number_is_named_so(tmp_path, cli, value
         result = cli(*argv)
         assert result.code == 2 and "Traceback" not in result.err
         assert f"{path}: parameters.rheology.mu_s (line 3): {phrase}; accepted: finite numbers" in result.err
+
+
+def test_a_vertical_step_iterate_that_is_not_finite_is_a_run_error_naming_the_column():
+    """A mu(I) law given ``I_0 = 1e-50`` past its check: its viscosity at rest, 1e51 Pa s/m
+    against layers of 4e3 kg/(m^2 s), cancelled the inertia out of a pivot of the compiled
+    active set, whose ``u = inf`` compared as converged (its error bound and change compare
+    false with NaN) and reached the transport of Heun's second stage (``h = nan`` "after
+    transport").  The iterate is checked: a RunError naming the vertical step, x and layer."""
+    scenario = multilayer.load(
+        TINY_SCENARIO,
+        {"rheology": {"name": "jop_mu_i", "mu_s": 0.3, "mu_2": 0.6, "I_0": 0.3}, "numerics.threads": 1},
+    )
+    sim = multilayer.Simulation(scenario)
+    sim.vertical.stresses.bulk.I_0 = 1e-50
+    with pytest.raises(
+        RunError, match=r"vertical step's exact solve gave the velocity u = (inf|-inf|nan) at x = "
+    ):
+        sim.advance(0.2)
+    assert np.isfinite(sim.u).all() and np.isfinite(sim.h).all()  # the last good state kept
 
 
 def test_a_zero_pivot_of_the_normal_stress_step_is_a_run_error_naming_the_face():

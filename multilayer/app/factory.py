@@ -15,7 +15,7 @@ no kernel (``multilayer validate`` uses it).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from types import MappingProxyType
 from typing import TYPE_CHECKING
 
@@ -149,12 +149,18 @@ def laws(scenario: Scenario) -> tuple[Rheology, Rheology | None]:
     return host.instantiate(scenario.rheology), walls
 
 
-def _fipy_solve(problem: ColumnProblem, guess: np.ndarray | None = None, threads: int = 1) -> np.ndarray:
+def _fipy_solve(
+    problem: ColumnProblem,
+    guess: np.ndarray | None = None,
+    threads: int = 1,
+    poll: Callable[[], None] | None = None,
+) -> np.ndarray:
     """The FiPy reference solver of the column problem; it needs no guess (it starts from
-    scratch each time).  FiPy is imported on the first call."""
+    scratch each time) and calls ``poll`` between its iterations.  FiPy is imported on the
+    first call."""
     from multilayer.reference import vertical_fipy
 
-    return vertical_fipy.solve(problem)
+    return vertical_fipy.solve(problem, poll=poll)
 
 
 def column_solver(name: str) -> VerticalSolver | None:

@@ -397,13 +397,35 @@ def _resume_command(scenario: Any, outdir: Path) -> str:
         on_file = yaml.safe_load(scenarios.load(scenario.source).resolved_yaml())
     except InputError:  # the file changed or went away since the start
         on_file = {}
+    settings: dict[str, Any] = {}
     for key in _changed_keys(on_file, resolved, free=frozenset()):
-        value = resolved
-        for part in key.split("."):
-            value = value[int(part)] if isinstance(value, list) else value.get(part)
-        if value is not None:  # keys only in the file cannot be unset by --set
+        # a key only in the file cannot be unset by --set: its nearest mapping or list in the
+        # run is set whole (a --set rheology={...} replacing the file's law had left the
+        # file's other parameters in the command, which then failed)
+        parts = key.split(".")
+        while (value := _at_path(resolved, parts)) is _MISSING and len(parts) > 1:
+            parts = parts[:-1]
+        if value is not _MISSING:
+            settings[".".join(parts)] = value
+    for key, value in settings.items():
+        if not any(key.startswith(f"{other}.") for other in settings):  # not inside one set whole
             words += ["--set", f"{key}={json.dumps(value)}"]  # JSON is YAML
     return shlex.join(words)
+
+
+_MISSING = object()
+
+
+def _at_path(data: Any, parts: list[str]) -> Any:
+    """The value of ``data`` at the dotted key ``parts``, or :data:`_MISSING`."""
+    for part in parts:
+        if isinstance(data, list) and part.isdigit() and int(part) < len(data):
+            data = data[int(part)]
+        elif isinstance(data, dict) and part in data:
+            data = data[part]
+        else:
+            return _MISSING
+    return data
 
 
 class _Stop(BaseException):

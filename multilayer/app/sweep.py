@@ -27,6 +27,8 @@ import itertools
 import json
 import math
 import os
+import shutil
+import tempfile
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -396,6 +398,7 @@ def dask_client(
     """A Dask client on the cluster at ``scheduler``, or on a new local cluster with
     ``workers`` single-threaded worker processes (default: one per core), started after
     :func:`compile_kernels` of ``warm_up`` (a member scenario)."""
+    import dask
     from dask.distributed import Client, LocalCluster
     from dask.system import CPU_COUNT
 
@@ -412,20 +415,28 @@ def dask_client(
         return
     if warm_up is not None:
         compile_kernels(warm_up)
-    cluster = LocalCluster(
-        n_workers=workers or CPU_COUNT,
-        threads_per_worker=1,
-        processes=True,
-        dashboard_address=":0",
-        preload=[stopping.__name__],  # the workers ignore Ctrl-C: this process stops them
-    )
+    # the workers' scratch space in a directory of its own, removed after: Dask left its
+    # dask-scratch-space with two lock files in TMPDIR after every study
+    scratch = tempfile.mkdtemp(prefix="multilayer-dask-", dir=dask.config.get("temporary-directory", None))
     try:
-        with Client(cluster) as client:
-            yield client
-    except BaseException:  # a stop (stopping.Interrupted) or a failure: do not wait for the workers
-        stopping.close_quickly(cluster)
-        raise
-    cluster.close()
+        with dask.config.set({"temporary-directory": scratch}):  # the nannies' too
+            cluster = LocalCluster(
+                n_workers=workers or CPU_COUNT,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=":0",
+                local_directory=scratch,
+                preload=[stopping.__name__],  # the workers ignore Ctrl-C: this process stops them
+            )
+        try:
+            with Client(cluster) as client:
+                yield client
+        except BaseException:  # a stop (stopping.Interrupted) or a failure: do not wait for the workers
+            stopping.close_quickly(cluster)
+            raise
+        cluster.close()
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
 
 
 def run(

@@ -40,7 +40,7 @@ See docs/numerics.md, "Vertical step: FiPy reference formulation".
 from __future__ import annotations
 
 import functools
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import fipy as fp
 import numpy as np
@@ -127,12 +127,21 @@ class VerticalStep:
         self.equation.solve(var=self.u, solver=self.solver)
         return np.array(self.u.value).reshape(self.L, self.N)
 
-    def __call__(self, problem: ColumnProblem, *, tol: float = 1e-12, max_iter: int = 20000) -> np.ndarray:
+    def __call__(
+        self,
+        problem: ColumnProblem,
+        *,
+        tol: float = 1e-12,
+        max_iter: int = 20000,
+        poll: Callable[[], None] | None = None,
+    ) -> np.ndarray:
         """Minimiser of E(u) for every column by ALG2 (module docstring).
 
         Converged when the primal residuals ``|Du - s|, |u - t|`` and the changes of
         ``s, t`` in one iteration (the dual residuals divided by ``r``) are all below
         ``tol * max|u*|``.  Raises :class:`~multilayer.errors.RunError` otherwise.
+        ``poll()`` is called before every iteration (a FiPy solve each): it may raise to
+        abandon the solve, as a run does on a signal (a call takes up to minutes).
         """
         p, dt = problem, problem.dt
         coefficients = (p.m, p.ustar, p.kappa, p.c, p.w, p.cw)
@@ -154,6 +163,8 @@ class VerticalStep:
         scale = tol * np.abs(np.where(wet, ustar, 0.0)).max(initial=0.0)
         self.u.setValue(0.0)
         for iteration in range(1, max_iter + 1):  # noqa: B007 (read after the loop)
+            if poll is not None:
+                poll()
             u = self.solve_u(inertia * ustar + rw * t - mu, r * s - lam)
             du = np.diff(u, axis=0, prepend=0.0)
             du_relaxed = RELAXATION * du + (1.0 - RELAXATION) * s
@@ -207,6 +218,7 @@ def solve(
     fractions: Sequence[float] | None = None,
     tol: float = 1e-12,
     max_iter: int = 20000,
+    poll: Callable[[], None] | None = None,
 ) -> np.ndarray:
     """Implicit vertical step for all columns on one FiPy mesh (module docstring).
 
@@ -216,7 +228,7 @@ def solve(
     """
     L, N = problem.shape
     step = _uniform_step(N, L) if fractions is None else VerticalStep(column_mesh(N, fractions))
-    return step(problem, tol=tol, max_iter=max_iter)
+    return step(problem, tol=tol, max_iter=max_iter, poll=poll)
 
 
 @functools.lru_cache(maxsize=8)

@@ -25,6 +25,7 @@ progress or would overflow the workspace gives up and marks the column NaN, whic
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -416,13 +417,19 @@ _solve_serial: Any = jit(_columns)
 _solve_parallel: Any = parallel_compiled(_columns)
 
 
-def solve(problem: ColumnProblem, guess: np.ndarray | None = None, threads: int = 1) -> np.ndarray:
+def solve(
+    problem: ColumnProblem,
+    guess: np.ndarray | None = None,
+    threads: int = 1,
+    poll: Callable[[], None] | None = None,
+) -> np.ndarray:
     """Exact minimiser of the implicit vertical step for every column (L, N).
 
     ``guess`` (e.g. the previous velocities, (L, N)) proposes the structure of rigid and
     static groups; it only affects the speed.  ``threads > 1`` solves that many chunks of
     columns in parallel (``engine/threads.py`` chooses it).  This is a
-    :class:`~multilayer.engine.vertical.problem.VerticalSolver`; the compiled functions
+    :class:`~multilayer.engine.vertical.problem.VerticalSolver` (one compiled call: ``poll``
+    is not called within it); the compiled functions
     take the coefficients as arrays (N, L), each column contiguous.
     """
     p = problem
@@ -454,3 +461,13 @@ def _require_finite(name: str, array: np.ndarray) -> None:
             f"column kernel: {name} is {float(array[i, a])!r} in column {i} of the {array.shape[0]} "
             f"solved, layer or interface {a}; the kernel only accepts finite values"
         )
+
+
+def not_finite(values: np.ndarray, x: float, t: float) -> RunError:
+    """The error of a column whose Newton iterate (``values``: its value and layer) is not
+    finite: its coefficients are beyond double precision."""
+    return RunError(
+        f"the vertical step's exact solve gave the velocity u = {float(values[0])!r} at x = {x:.6g} m, layer "
+        f"{int(values[1]) + 1} (1 is at the bed), t = {t:.6g} s: the column's coefficients (the laws' "
+        "conductances against the layers' masses) are beyond double precision"
+    )

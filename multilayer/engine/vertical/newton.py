@@ -121,7 +121,7 @@ def implicit_step(
             poll()
         cols = (slice(None), todo)
         problem = stresses.linearise(cs, current, ustar[:, wet], dt).columns(todo)
-        new = solver(problem, guess=current[cols], threads=threads)
+        new = solver(problem, guess=current[cols], threads=threads, poll=poll)
         trial = current.copy()
         trial[cols] = new
         at_new = stresses.viscous_stresses(cs, trial)  # (like linearise, every column)

@@ -38,7 +38,7 @@ from multilayer.engine.vertical.coefficients import (
     CompiledCoefficients,
     column_coefficients,
 )
-from multilayer.engine.vertical.column_solve import _active_set, _dynamic_programme, _workspace
+from multilayer.engine.vertical.column_solve import _active_set, _dynamic_programme, _workspace, not_finite
 from multilayer.engine.vertical.forms import (
     NO_PARAMETERS,
     _newton_model,
@@ -62,6 +62,7 @@ from multilayer.engine.vertical.stresses import INTERFACE, LAYER, ColumnStresses
 
 YIELD_CONTRACT = 1 << 40
 """Fault code of a column whose compiled yield values are outside the plugin contract."""
+NOT_FINITE = 1 << 41  # of a column whose iterate is not finite (its value and layer)
 _NOT_GIVEN = ColumnArrays(*(np.zeros((1, 1)),) * 5, np.zeros((1, 1), bool), np.zeros((1, 1)))
 """The ``given`` coefficients of ``_columns`` when they are computed in the kernel."""
 
@@ -123,6 +124,8 @@ def _true_stresses(
     code of ``_columns`` (0: every viscosity finite and >= 0), the viscosity and the rate."""
     below = 0.0
     for a in range(u.shape[0]):
+        if not abs(u[a]) < np.inf:  # an iterate that is not finite compares as converged
+            return NOT_FINITE, u[a], a
         rate = abs(u[a] - below) * inverse_spacing[a]
         below = u[a]
         eta[a], slope[a] = _viscosity_and_slope(bulk_form, bulk_params, rate, factor[a], offset[a])
@@ -541,7 +544,7 @@ def _columns(chunks, columns, inputs, fused, given, laws, control, out):
     iterating: ``faults`` gets a + 1 for the bulk law at interface a, -(a + 1) for the
     wall law of layer a (0: none) and ``fault_values`` the viscosity and the shear rate;
     a column whose compiled yield values are outside the plugin contract is not solved
-    (``faults``: ``YIELD_CONTRACT``).
+    (``faults``: ``YIELD_CONTRACT``), one whose iterate is not finite stops (``NOT_FINITE``).
 
     The coefficients of ``StressModel.columns`` come, with ``fused``, from the compiled
     yield forms column by column (``coefficients.column_coefficients`` with ``inputs``),
@@ -660,6 +663,9 @@ class CompiledStep:
         with numba_threads(threads):
             kernel(columns, inputs, fused, given, compiled_laws, control, out)
         if faults.any():
+            if (bad := np.flatnonzero(faults == NOT_FINITE)).size:  # never taken as converged
+                x = float(self.stresses.x[wet[bad[0]]])
+                raise not_finite(out.fault_values[bad[0]], x, self.stresses.t)
             # the plugins' own methods: they raise, naming the plugin, for a yield value outside the contract
             cs = self.stresses.columns(h, wet, rest, yield_gravity)
             if (faults == YIELD_CONTRACT).any():  # a compiled yield form that disagrees with its plugin

@@ -14,6 +14,7 @@ and the FiPy reference (:mod:`multilayer.reference.vertical_fipy`) provide.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, fields
 from typing import Protocol
 
@@ -71,11 +72,17 @@ class VerticalSolver(Protocol):
     """An exact minimiser of ``E(u)``: returns the new velocities (L, N).
 
     ``guess`` (e.g. the previous velocities) may be used to speed the solve up; it never
-    changes the answer.  ``threads`` is the number of threads a solver may use.
+    changes the answer.  ``threads`` is the number of threads a solver may use.  ``poll()``,
+    if given, is called between the solver's own iterations and may raise to abandon the
+    solve (how a run honours a signal within a long solve).
     """
 
     def __call__(
-        self, problem: ColumnProblem, guess: np.ndarray | None = None, threads: int = 1
+        self,
+        problem: ColumnProblem,
+        guess: np.ndarray | None = None,
+        threads: int = 1,
+        poll: Callable[[], None] | None = None,
     ) -> np.ndarray: ...
 
 

@@ -192,7 +192,8 @@ def _solve(t, L, new, flags):
     """The exact solve with one group per layer into slot ``new``: the forward sweep
     (inverse pivots ``DIAG``, right-hand sides ``RHS``) and the back substitution of
     ``column_solve._active_set``, and its optimality test: each yielded jump keeps its
-    sign (a column whose structure is rejected leaves the block).  The cells are unsigned
+    sign (a column whose structure is rejected, or whose velocities are not finite, leaves
+    the block).  The cells are unsigned
     (as in :func:`_sweep`): no test for negative indices."""
     one = np.uint64(1)
     for a in range(L):
@@ -226,6 +227,8 @@ def _solve(t, L, new, flags):
                     flags[ACTIVE, i] = False
             else:
                 u = r * t[DIAG, x]
+            if not abs(u) < np.inf:  # _chunk names the column
+                flags[ACTIVE, i] = False
             t[new, x] = u
     for i in range(BLOCK):  # the bed
         x = cell(i, L)

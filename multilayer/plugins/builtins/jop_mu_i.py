@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from multilayer.plugins.builtins._checks import FrictionalYield, non_negative, positive
+from multilayer.plugins.builtins._checks import FrictionalYield, inertial_scale, non_negative
 
 
 class JopMuI(FrictionalYield):
@@ -36,7 +36,7 @@ class JopMuI(FrictionalYield):
         ``mu_start`` >= ``mu_s``: friction of material at rest (-), default ``mu_s``;
         ``mu_inf`` >= 0: the high-I coefficient (-), default 0 (Jop's law)."""
         self._set_friction(mu_s, mu_start)
-        positive(I_0=I_0)
+        inertial_scale(I_0)
         non_negative(mu_inf=mu_inf)
         self.mu_inf = mu_inf
         if not mu_2 >= mu_s:

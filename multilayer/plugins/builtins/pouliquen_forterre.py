@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from multilayer.plugins.builtins._checks import non_negative, positive
+from multilayer.plugins.builtins._checks import inertial_scale, non_negative, positive
 from multilayer.plugins.contract import Rheology
 
 
@@ -40,7 +40,8 @@ class PouliquenForterre(Rheology):
         h_stop(theta); ``I_0`` > 0 (-); ``mu_3`` >= ``mu_1`` (-): the start friction's
         constant, default ``mu_1`` (no hysteresis)."""
         non_negative(mu_1=mu_1)
-        positive(L=L, I_0=I_0)
+        positive(L=L)
+        inertial_scale(I_0)
         if not mu_2 > mu_1:
             raise ValueError(f"mu_2 must be > mu_1 = {mu_1!r}, got {mu_2!r}")
         mu_3 = mu_1 if mu_3 is None else mu_3
