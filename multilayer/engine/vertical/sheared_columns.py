@@ -43,8 +43,8 @@ BLOCK = 8
 stresses and the Newton model one loop over the 8 L cells of the block, long enough to
 run as vectors at L = 8 (compiled, the loop runs as vectors of 8 values from about 40
 cells on, and one cell at a time below: 22-29 against 51-53 ns per column and pass at
-L = 8).  The tile holds 22 values per layer for each of the BLOCK + 1 lanes, 215 KB at
-L = 128."""
+L = 8).  The tile holds 20 values per layer for each of the BLOCK + 1 lanes, 196 KB at
+L = 128, and the sweeps of the solve 7 per layer and lane, 57 KB."""
 
 # The tile (SLOTS, 1 + (BLOCK + 1) P) holds, in each slot (a row), one value per column
 # (lane) and layer: layer a of lane i in cell 1 + i P + a, P = stride(L) (the cells
@@ -52,14 +52,19 @@ L = 128."""
 # m/dt, m u*/dt, the true yield stress, the wall threshold, 1/spacing, the conductance
 # per unit slope (0 where not viscous), whether viscous, the pressure parts of the law
 # and the guess; per iteration, the Newton model (yield stress, conductance, sign of the
-# jump), the forward sweep (inverse pivot, right-hand side), the two iterates and, at each,
+# jump), the two iterates and, at each,
 # the true viscous stresses and their derivatives (``TAU0 + k``, ``STIFF0 + k`` at the
 # iterate ``U0 + k``: the rise bound of ``newton_control`` needs both iterates'); fixed,
 # 1.0 in the bottom cell of each lane (the bed below it), 2.0 in the padding and 0.0
 # elsewhere.
 INERTIA, MOMENTUM, KAPPA, WALL, INV_SPACING, CONDUCTANCE, VISCOUS, FACTOR, OFFSET = range(9)
-GUESS, KC, CC, SIGN, DIAG, RHS, U0, U1, TAU0, TAU1, STIFF0, STIFF1, BED = range(9, 22)
-SLOTS = 22
+GUESS, KC, CC, SIGN, U0, U1, TAU0, TAU1, STIFF0, STIFF1, BED = range(9, 20)
+SLOTS = 20
+# The values of each layer in the sweeps of :func:`_solve`: its pivot (then the inverse
+# pivot), right-hand side, conductance below, sign of the jump above where that interface
+# has a yield stress (else 0), the pivot tested, the velocity and its test of the sign.
+PIVOT, RIGHT, COUPLING, CHECK, TRIED, SOLVED, VIOLATION = range(7)
+SWEEPS = 7
 ALONE = BLOCK
 """The lane of the tile that holds the per-step slots of a column solved on its own
 (``newton_kernel._chunk``); the block's lanes are 0 ... BLOCK - 1."""
@@ -91,6 +96,12 @@ def new_tile(L):
         t[BED, x] = 1.0
         t[BED, x + 1 : x + L] = 0.0
     return t
+
+
+@jit
+def new_sweeps(L):
+    """The work array of :func:`_solve` for columns of ``L`` layers."""
+    return np.empty(SWEEPS * BLOCK * L)
 
 
 @jit
@@ -188,49 +199,84 @@ def _sweep(t, u, form, params, start, stop):
 
 
 @jit(borrowing=True, error_model="numpy")
-def _solve(t, L, new, flags):
-    """The exact solve with one group per layer into slot ``new``: the forward sweep
-    (inverse pivots ``DIAG``, right-hand sides ``RHS``) and the back substitution of
-    ``column_solve._active_set``, and its optimality test: each yielded jump keeps its
-    sign (a column whose structure is rejected leaves the block).  The cells are unsigned
-    (as in :func:`_sweep`): no test for negative indices."""
-    one = np.uint64(1)
-    for a in range(L):
-        for i in range(BLOCK):
-            x = np.uint64(cell(i, L) + a)
+def _solve(t, w, L, new, flags):
+    """The exact solve with one group per layer into slot ``new``: the forward sweep and
+    the back substitution of ``column_solve._active_set``, and its optimality test: each
+    pivot is positive and each yielded jump keeps its sign (a column whose structure is
+    rejected leaves the block).
+
+    The sweeps run in ``w`` (:func:`new_sweeps`), which holds each layer's ``SWEEPS``
+    values of the ``BLOCK`` lanes side by side (value k of layer a of lane i in ``(a
+    SWEEPS + k) BLOCK + i``), so that each step of the sweeps runs the block's layer as
+    vectors (its values a fixed distance apart: the compiler sees that they do not
+    overlap; the loop over the lanes bounded by ``flags.shape[1]``, a number it does not
+    unroll but vectorises): 397 against 448 instructions per cell-step of the vertical
+    step in the chute of ``benchmarks/instructions.py``.  The equations of each layer
+    (``_active_set``'s sums, in its order) are formed lane by lane from the tile, swept
+    and substituted back layer by layer (each operation that of ``_active_set``: the same
+    bits), and the velocities go back to slot ``new`` of the tile, lane by lane, with the
+    test.  Indices are unsigned (as in :func:`_sweep`): no test for negative indices."""
+    one, lanes, layers = np.uint64(1), np.uint64(BLOCK), np.uint64(L)
+    step = np.uint64(SWEEPS * BLOCK)  # from one layer to the next in w
+    pivot, right, coupling, check = np.uint64(PIVOT), np.uint64(RIGHT), np.uint64(COUPLING), np.uint64(CHECK)
+    tried, solved, sign = np.uint64(TRIED), np.uint64(SOLVED), np.uint64(VIOLATION)
+    count = np.uint64(flags.shape[1])  # BLOCK, as a bound the compiler does not unroll but vectorises
+    for lane in range(BLOCK):  # the equations, from the lanes of the tile
+        x0, i = np.uint64(cell(lane, L)), np.uint64(lane)
+        for a in range(layers - one):  # below the top: with the interface above
+            x, s = x0 + a, a * step + i
+            c, k_above, s_above = t[CC, x], t[KC, x + one], t[SIGN, x + one]
             d = 0.0 + (t[INERTIA, x] + 0.0)  # _active_set's sums, in its order (cw = w = 0)
             r = 0.0 + t[MOMENTUM, x]
-            c = t[CC, x]
             d += c
             r -= t[KC, x] * t[SIGN, x]
-            if a + 1 < L:
-                d += t[CC, x + one]
-                r += t[KC, x + one] * t[SIGN, x + one]
-            if a > 0 and c != 0.0:
-                f = -c * t[DIAG, x - one]
-                d -= f * (-c)
-                r -= f * t[RHS, x - one]
-            if not d > 0.0:
-                flags[ACTIVE, i] = False
-            t[DIAG, x] = 1.0 / d
-            t[RHS, x] = r
-    for a in range(L - 1, -1, -1):
-        for i in range(BLOCK):
-            x = np.uint64(cell(i, L) + a)
-            r = t[RHS, x]
-            if a + 1 < L:
-                above = t[new, x + one]
-                r += t[CC, x + one] * above
-                u = r * t[DIAG, x]
-                if t[KC, x + one] > 0.0 and t[SIGN, x + one] * (above - u) < 0.0:
-                    flags[ACTIVE, i] = False
-            else:
-                u = r * t[DIAG, x]
-            t[new, x] = u
-    for i in range(BLOCK):  # the bed
-        x = cell(i, L)
-        if t[KC, x] > 0.0 and t[SIGN, x] * t[new, x] < 0.0:
-            flags[ACTIVE, i] = False
+            d += t[CC, x + one]
+            r += k_above * s_above
+            w[s + coupling * lanes] = c
+            w[s + pivot * lanes] = d
+            w[s + right * lanes] = r
+            w[s + check * lanes] = s_above if k_above > 0.0 else 0.0  # a yielded interface above
+        x, s = x0 + layers - one, (layers - one) * step + i  # the top layer
+        c = t[CC, x]
+        w[s + coupling * lanes] = c
+        w[s + pivot * lanes] = 0.0 + (t[INERTIA, x] + 0.0) + c
+        w[s + right * lanes] = 0.0 + t[MOMENTUM, x] - t[KC, x] * t[SIGN, x]
+    for i in range(lanes):  # layer 0: nothing below to eliminate
+        d = w[pivot * lanes + i]
+        w[tried * lanes + i] = d
+        w[pivot * lanes + i] = 1.0 / d
+    for a in range(one, layers):  # the forward sweep
+        for i in range(count):
+            s, b = a * step + i, (a - one) * step + i
+            c, d, r = w[s + coupling * lanes], w[s + pivot * lanes], w[s + right * lanes]
+            f = -c * w[b + pivot * lanes]
+            eliminated_d = d - f * (-c)
+            eliminated_r = r - f * w[b + right * lanes]
+            d = eliminated_d if c != 0.0 else d
+            w[s + right * lanes] = eliminated_r if c != 0.0 else r
+            w[s + tried * lanes] = d
+            w[s + pivot * lanes] = 1.0 / d
+    top = (layers - one) * step
+    for i in range(lanes):  # the back substitution
+        s = top + i
+        w[s + solved * lanes] = w[s + right * lanes] * w[s + pivot * lanes]
+        w[s + sign * lanes] = 0.0
+    for b in range(one, layers):
+        for i in range(count):
+            s = (layers - one - b) * step + i
+            above = w[s + step + solved * lanes]
+            u = (w[s + right * lanes] + w[s + step + coupling * lanes] * above) * w[s + pivot * lanes]
+            w[s + sign * lanes] = w[s + check * lanes] * (above - u)
+            w[s + solved * lanes] = u
+    for lane in range(BLOCK):  # into slot new, and the test
+        x0, i = np.uint64(cell(lane, L)), np.uint64(lane)
+        rejected = False
+        for a in range(layers):
+            s = a * step + i
+            t[new, x0 + a] = w[s + solved * lanes]
+            rejected = rejected | (not w[s + tried * lanes] > 0.0) | (w[s + sign * lanes] < 0.0)
+        if rejected or (t[KC, x0] > 0.0 and t[SIGN, x0] * t[new, x0] < 0.0):  # the bed
+            flags[ACTIVE, lane] = False
 
 
 @jit(borrowing=True, error_model="numpy")
@@ -270,7 +316,7 @@ def _converged(t, L, new, current, threshold, concave_stress, flags):
 
 @jit(borrowing=True, error_model="numpy")
 def sheared_block(
-    t, flags, finished, form, params, threshold, max_iterations, j0, c0,
+    t, sweeps, flags, finished, form, params, threshold, max_iterations, j0, c0,
     u_out, iterations, fallbacks, faults, fault_values, side_by_side,
 ):  # fmt: skip
     """The Newton iteration of ``newton_kernel._chunk`` for the ``BLOCK`` columns set up
@@ -287,7 +333,7 @@ def sheared_block(
     for i in range(BLOCK):
         flags[ACTIVE, i] = flags[ACTIVE, i] and flags[SHEARED, i]
     for iteration in range(1, max_iterations + 1):
-        _solve(t, L, new, flags)
+        _solve(t, sweeps, L, new, flags)
         _stresses_and_model(t, L, new, form, params, flags)  # the bound's stresses, the next model
         _converged(t, L, new, current, threshold, concave_stress, flags)
         remaining = 0
