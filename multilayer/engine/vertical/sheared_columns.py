@@ -62,7 +62,8 @@ GUESS, KC, CC, SIGN, U0, U1, TAU0, TAU1, STIFF0, STIFF1, BED = range(9, 20)
 SLOTS = 20
 # The values of each layer in the sweeps of :func:`_solve`: its pivot (then the inverse
 # pivot), right-hand side, conductance below, sign of the jump above where that interface
-# has a yield stress (else 0), the pivot tested, the velocity and its test of the sign.
+# has a yield stress (else 0), the pivots not positive up to it, the velocity, and those
+# pivots and the yielded jumps above it whose sign changed.
 PIVOT, RIGHT, COUPLING, CHECK, TRIED, SOLVED, VIOLATION = range(7)
 SWEEPS = 7
 ALONE = BLOCK
@@ -116,11 +117,11 @@ def join(t, L, flags, i, fine):
     (``fine``: its yield values are within the plugin contract), takes part in the block
     iteration if ``fine``, with mass and without a wall threshold."""
     x = cell(i, L)
-    take = fine and t[INERTIA, x] > 0.0
+    held = 0  # layers with a wall threshold (or NaN), counted without branches: as vectors
     for a in range(np.uint64(x), np.uint64(x + L)):  # unsigned: no test for negative indices
-        take = take and t[WALL, a] == 0.0
+        held += not t[WALL, a] == 0.0
     flags[FINE, i] = fine
-    flags[ACTIVE, i] = take
+    flags[ACTIVE, i] = fine and t[INERTIA, x] > 0.0 and held == 0
 
 
 @jit(borrowing=True)
@@ -210,12 +211,12 @@ def _solve(t, w, L, new, flags):
     SWEEPS + k) BLOCK + i``), so that each step of the sweeps runs the block's layer as
     vectors (its values a fixed distance apart: the compiler sees that they do not
     overlap; the loop over the lanes bounded by ``flags.shape[1]``, a number it does not
-    unroll but vectorises): 397 against 448 instructions per cell-step of the vertical
-    step in the chute of ``benchmarks/instructions.py``.  The equations of each layer
-    (``_active_set``'s sums, in its order) are formed lane by lane from the tile, swept
-    and substituted back layer by layer (each operation that of ``_active_set``: the same
-    bits), and the velocities go back to slot ``new`` of the tile, lane by lane, with the
-    test.  Indices are unsigned (as in :func:`_sweep`): no test for negative indices."""
+    unroll but vectorises).  The equations of each layer (``_active_set``'s sums, in its
+    order) are formed lane by lane from the tile, swept and substituted back layer by
+    layer (each operation that of ``_active_set``: the same bits), counting the failures
+    of the test up the column and back down (so that layer 0 holds each lane's), and the
+    velocities go back to slot ``new`` of the tile, lane by lane.  Indices are unsigned
+    (as in :func:`_sweep`): no test for negative indices."""
     one, lanes, layers = np.uint64(1), np.uint64(BLOCK), np.uint64(L)
     step = np.uint64(SWEEPS * BLOCK)  # from one layer to the next in w
     pivot, right, coupling, check = np.uint64(PIVOT), np.uint64(RIGHT), np.uint64(COUPLING), np.uint64(CHECK)
@@ -243,7 +244,7 @@ def _solve(t, w, L, new, flags):
         w[s + right * lanes] = 0.0 + t[MOMENTUM, x] - t[KC, x] * t[SIGN, x]
     for i in range(lanes):  # layer 0: nothing below to eliminate
         d = w[pivot * lanes + i]
-        w[tried * lanes + i] = d
+        w[tried * lanes + i] = 0.0 if d > 0.0 else 1.0
         w[pivot * lanes + i] = 1.0 / d
     for a in range(one, layers):  # the forward sweep
         for i in range(count):
@@ -254,28 +255,26 @@ def _solve(t, w, L, new, flags):
             eliminated_r = r - f * w[b + right * lanes]
             d = eliminated_d if c != 0.0 else d
             w[s + right * lanes] = eliminated_r if c != 0.0 else r
-            w[s + tried * lanes] = d
+            w[s + tried * lanes] = w[b + tried * lanes] + (0.0 if d > 0.0 else 1.0)
             w[s + pivot * lanes] = 1.0 / d
     top = (layers - one) * step
     for i in range(lanes):  # the back substitution
         s = top + i
         w[s + solved * lanes] = w[s + right * lanes] * w[s + pivot * lanes]
-        w[s + sign * lanes] = 0.0
+        w[s + sign * lanes] = w[s + tried * lanes]
     for b in range(one, layers):
         for i in range(count):
             s = (layers - one - b) * step + i
             above = w[s + step + solved * lanes]
             u = (w[s + right * lanes] + w[s + step + coupling * lanes] * above) * w[s + pivot * lanes]
-            w[s + sign * lanes] = w[s + check * lanes] * (above - u)
+            violated = w[s + check * lanes] * (above - u) < 0.0
+            w[s + sign * lanes] = w[s + step + sign * lanes] + (1.0 if violated else 0.0)
             w[s + solved * lanes] = u
     for lane in range(BLOCK):  # into slot new, and the test
         x0, i = np.uint64(cell(lane, L)), np.uint64(lane)
-        rejected = False
         for a in range(layers):
-            s = a * step + i
-            t[new, x0 + a] = w[s + solved * lanes]
-            rejected = rejected | (not w[s + tried * lanes] > 0.0) | (w[s + sign * lanes] < 0.0)
-        if rejected or (t[KC, x0] > 0.0 and t[SIGN, x0] * t[new, x0] < 0.0):  # the bed
+            t[new, x0 + a] = w[a * step + solved * lanes + i]
+        if w[sign * lanes + i] > 0.0 or (t[KC, x0] > 0.0 and t[SIGN, x0] * t[new, x0] < 0.0):  # the bed
             flags[ACTIVE, lane] = False
 
 
@@ -294,10 +293,11 @@ def _converged(t, L, new, current, threshold, concave_stress, flags):
         wall = t[WALL, lane]  # 0 in every column that takes part (join): no wall threshold or force
         tau = t[TAU0 + (new - U0), lane]
         u_new, u_current = t[new, lane], t[current, lane]
-        change = 0.0
+        # the largest change within threshold (max ignores a NaN change, as this count)
+        beyond = 0
         for a in range(L):
-            change = max(change, abs(u_new[a] - u_current[a]))
-        converged = change <= threshold
+            beyond += abs(u_new[a] - u_current[a]) > threshold
+        converged = beyond == 0 and 0.0 <= threshold
         if not converged:
             bound = error_bound(
                 t[INERTIA, lane], t[MOMENTUM, lane], t[KAPPA, lane], tau, wall, wall, u_new, threshold
