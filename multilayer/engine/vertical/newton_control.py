@@ -182,8 +182,24 @@ def energy_rise(
     :func:`error_bound`; at ``start`` the viscous stresses ``tau``, their derivatives
     ``stiffness`` with respect to the jump, the viscous wall forces ``wall_tau`` and their
     derivatives ``wall_stiffness``; ``concave``: every viscous stress is concave in the
-    rate): the smaller of ``phi'(1-)`` (:func:`slope_along`) and the exact inertial and yield
-    terms plus :func:`_potential_rise`."""
+    rate): the smaller of ``phi'(1-)`` (:func:`slope_along`) and :func:`rise_bound`."""
+    rise = rise_bound(
+        inertia, momentum, kappa, viscous, w, wall_viscous, start, u,
+        tau, stiffness, wall_tau, wall_stiffness, concave,
+    )  # fmt: skip
+    return min(slope_along(inertia, momentum, kappa, viscous, w, wall_viscous, start, u, u, -1.0), rise)
+
+
+@jit(borrowing=True)
+def rise_bound(
+    inertia, momentum, kappa, viscous, w, wall_viscous, start, u,
+    tau, stiffness, wall_tau, wall_stiffness, concave,
+):  # fmt: skip
+    """The exact inertial, yield and wall-threshold terms of ``E(u) - E(start)`` plus
+    :func:`_potential_rise` of each viscous potential (the arguments of
+    :func:`energy_rise`): the second of its bounds.  Where this one is not positive, the
+    smaller of the two (or NaN, where ``phi'(1-)`` is) is not positive either: a caller
+    that only asks whether the rise is positive (``sheared_columns``) stops there."""
     rise = 0.0
     for a in range(inertia.shape[0]):
         jump = u[a] - (u[a - 1] if a > 0 else 0.0)
@@ -195,7 +211,7 @@ def energy_rise(
             abs(start[a]), abs(u[a]), wall_tau[a], wall_stiffness[a], wall_viscous[a], concave
         )
         rise += _potential_rise(abs(jump_start), abs(jump), tau[a], stiffness[a], viscous[a], concave)
-    return min(slope_along(inertia, momentum, kappa, viscous, w, wall_viscous, start, u, u, -1.0), rise)
+    return rise
 
 
 def examine_columns(

@@ -36,7 +36,7 @@ import numpy as np
 from multilayer.engine.compiled import jit
 from multilayer.engine.vertical.coefficients import _within_contract
 from multilayer.engine.vertical.forms import _newton_model, _viscosity_and_slope, concave
-from multilayer.engine.vertical.newton_control import _sign, energy_rise, error_bound
+from multilayer.engine.vertical.newton_control import _sign, error_bound, rise_bound, slope_along
 
 BLOCK = 8
 """Columns solved side by side: eight chains of divisions in flight, and the pass of the
@@ -306,10 +306,18 @@ def _converged(t, L, new, current, threshold, concave_stress, flags):
         flags[DONE, i] = converged
         if not converged:
             at = current - U0
-            rise = energy_rise(
+            rise = rise_bound(
                 t[INERTIA, lane], t[MOMENTUM, lane], t[KAPPA, lane], tau, wall, wall, u_current, u_new,
                 t[TAU0 + at, lane], t[STIFF0 + at, lane], wall, wall, concave_stress,
             )  # fmt: skip
+            if not rise <= 0.0:  # newton_control.energy_rise, the smaller of it and phi'(1-)
+                rise = min(
+                    slope_along(
+                        t[INERTIA, lane], t[MOMENTUM, lane], t[KAPPA, lane], tau, wall, wall, u_current,
+                        u_new, u_new, -1.0,
+                    ),
+                    rise,
+                )  # fmt: skip
             if rise > 0.0:
                 flags[ACTIVE, i] = False
 
