@@ -104,6 +104,17 @@ def _potential_rise(start, end, stress_start, stiffness_start, stress_end, conca
     return -(start - end) * 0.5 * (stress_start + stress_end)
 
 
+@jit
+def zeroing(lo, hi, momentum, inertia, u, w, wall_viscous):
+    """The interval of ``sigma_a`` that zeroes ``g_a`` of one layer (:func:`error_bound`)
+    given ``sigma_{a+1}`` in ``[lo, hi]``, its speed ``u`` and its wall terms."""
+    excess = momentum - inertia * u  # m_a/dt (u*_a - u_a)
+    if u != 0.0:
+        f = _sign(u) * (w + wall_viscous)
+        return lo + excess - f, hi + excess - f
+    return lo + excess - w, hi + excess + w
+
+
 @jit(borrowing=True)  # compiled once, linked into its callers (numba inlining lowered it at each call)
 def error_bound(inertia, momentum, kappa, viscous, w, wall_viscous, u, limit):
     """The bound of the module docstring on ``max_a |u_a - u_exact,a|`` for one column,
@@ -125,12 +136,7 @@ def error_bound(inertia, momentum, kappa, viscous, w, wall_viscous, u, limit):
     smallest = np.inf
     for a in range(L - 1, -1, -1):
         jump = u[a] - (u[a - 1] if a > 0 else 0.0)
-        excess = momentum[a] - inertia[a] * u[a]  # m_a/dt (u*_a - u_a)
-        if u[a] != 0.0:
-            f = _sign(u[a]) * (w[a] + wall_viscous[a])
-            lo_zero, hi_zero = lo + excess - f, hi + excess - f
-        else:
-            lo_zero, hi_zero = lo + excess - w[a], hi + excess + w[a]
+        lo_zero, hi_zero = zeroing(lo, hi, momentum[a], inertia[a], u[a], w[a], wall_viscous[a])
         gap = 0.0
         if jump != 0.0:
             sigma = _sign(jump) * (kappa[a] + viscous[a])

@@ -36,7 +36,7 @@ import numpy as np
 from multilayer.engine.compiled import jit
 from multilayer.engine.vertical.coefficients import _within_contract
 from multilayer.engine.vertical.forms import _newton_model, _viscosity_and_slope, concave
-from multilayer.engine.vertical.newton_control import _sign, error_bound, rise_bound, slope_along
+from multilayer.engine.vertical.newton_control import _sign, error_bound, rise_bound, slope_along, zeroing
 
 BLOCK = 8
 """Columns solved side by side: eight chains of divisions in flight, and the pass of the
@@ -58,8 +58,8 @@ L = 128, and the sweeps of the solve 7 per layer and lane, 57 KB."""
 # 1.0 in the bottom cell of each lane (the bed below it), 2.0 in the padding and 0.0
 # elsewhere.
 INERTIA, MOMENTUM, KAPPA, WALL, INV_SPACING, CONDUCTANCE, VISCOUS, FACTOR, OFFSET = range(9)
-GUESS, KC, CC, SIGN, U0, U1, TAU0, TAU1, STIFF0, STIFF1, BED = range(9, 20)
-SLOTS = 20
+GUESS, KC, CC, SIGN, U0, U1, TAU0, TAU1, STIFF0, STIFF1, BED, GAP = range(9, 21)
+SLOTS = 21
 # The values of each layer in the sweeps of :func:`_solve`: its pivot (then the inverse
 # pivot), right-hand side, conductance below, sign of the jump above where that interface
 # has a yield stress (else 0), the pivots not positive up to it, the velocity, and those
@@ -298,7 +298,9 @@ def _converged(t, L, new, current, threshold, concave_stress, flags):
         for a in range(L):
             beyond += abs(u_new[a] - u_current[a]) > threshold
         converged = beyond == 0 and 0.0 <= threshold
-        if not converged:
+        if not converged and flags[SHEARED, i]:
+            converged = _within_bound(t, x, L, new, threshold)
+        elif not converged:
             bound = error_bound(
                 t[INERTIA, lane], t[MOMENTUM, lane], t[KAPPA, lane], tau, wall, wall, u_new, threshold
             )  # fmt: skip
@@ -320,6 +322,41 @@ def _converged(t, L, new, current, threshold, concave_stress, flags):
                 )  # fmt: skip
             if rise > 0.0:
                 flags[ACTIVE, i] = False
+
+
+@jit(borrowing=True, error_model="numpy")
+def _within_bound(t, x, L, new, limit):
+    """``newton_control.error_bound(...) <= limit`` at the velocities of slot ``new`` of the
+    lane whose layer 0 is cell ``x``, the arguments of :func:`_converged`, for a lane whose
+    every jump is nonzero (``SHEARED``).  Then the stress of each interface is single-valued
+    (``sign(jump) (kappa + tau_v)``), so that the gap of each layer depends on its values
+    and the stress above alone: the gaps of all layers are computed in one pass as vectors
+    (into slot ``GAP``; each operation that of ``error_bound``), then added up from the
+    surface down as there.  The answer is ``error_bound``'s: where the sum exceeds ``4
+    limit^2`` times the smallest ``m/dt`` so far, the bound exceeds ``2 limit`` (the sum
+    only grows and the smallest only shrinks), so the test may be made at every layer."""
+    one, tau = np.uint64(1), TAU0 + (new - U0)
+    start, top = np.uint64(x), np.uint64(x + L - 1)
+    for y in range(start, top + one):  # unsigned: no test for negative indices
+        u = t[new, y]
+        below = 0.0 if t[BED, y] > 0.0 else t[new, y - one]
+        above = 0.0  # the stress of the interface above: 0 at the free surface
+        if y < top:
+            above = _sign(t[new, y + one] - u) * (t[KAPPA, y + one] + t[tau, y + one])
+        lo, hi = zeroing(above, above, t[MOMENTUM, y], t[INERTIA, y], u, t[WALL, y], t[WALL, y])
+        sigma = _sign(u - below) * (t[KAPPA, y] + t[tau, y])
+        gap = max(lo - sigma, sigma - hi, 0.0)
+        t[GAP, y] = gap * gap / t[INERTIA, y] if gap > 0.0 else 0.0
+    cap = 4.0 * limit * limit
+    residual = 0.0
+    smallest = np.inf
+    for b in range(np.uint64(L)):
+        y = top - b
+        smallest = min(smallest, t[INERTIA, y])
+        residual += t[GAP, y]
+        if residual > cap * smallest:
+            return False
+    return np.sqrt(residual / smallest) <= limit
 
 
 @jit(borrowing=True, error_model="numpy")
