@@ -366,10 +366,10 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
             o = cell(lane, L)  # the lane's layer 0 in the tile's rows
             # what stays fixed during the iteration, a few rows per loop over the layers (a
             # loop over all of them reloads its rows' pointers), the laws' switch outside them
-            for a in range(L):
-                x = np.uint64(o + a)  # unsigned: no test for negative indices
-                tile[sc.INERTIA, x] = m[a] / dt
-                tile[sc.MOMENTUM, x] = m[a] * ustar[a, col] / dt
+            for a in range(L):  # contiguous: as vectors
+                tile[sc.INERTIA, np.uint64(o + a)] = m[a] / dt  # unsigned: no test for negative indices
+            for a in range(L):  # a column of the (L, N) arrays
+                tile[sc.MOMENTUM, np.uint64(o + a)] = m[a] * ustar[a, col] / dt
                 current[a] = guess[a, col]
             for a in range(L):
                 x = np.uint64(o + a)
