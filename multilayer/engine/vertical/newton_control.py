@@ -104,7 +104,7 @@ def _potential_rise(start, end, stress_start, stiffness_start, stress_end, conca
     return -(start - end) * 0.5 * (stress_start + stress_end)
 
 
-@jit
+@jit(inline="always")  # inlined: as the lines it replaces in error_bound
 def zeroing(lo, hi, momentum, inertia, u, w, wall_viscous):
     """The interval of ``sigma_a`` that zeroes ``g_a`` of one layer (:func:`error_bound`)
     given ``sigma_{a+1}`` in ``[lo, hi]``, its speed ``u`` and its wall terms."""
