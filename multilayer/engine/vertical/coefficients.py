@@ -194,19 +194,6 @@ def _coefficients(hw, wet, inputs, m, kappa, w, pressure, spacing, viscous, wall
     return bad
 
 
-@jit
-def _resting(rest):
-    """The columns of ``rest`` (L, N) with a layer at rest (a compiled call: numpy's
-    reduction costs some ten thousand instructions a call, as much as the loops it saves in
-    a few hundred columns of 8 layers)."""
-    L, N = rest.shape
-    out = np.zeros(N, np.bool_)
-    for a in range(L):
-        for i in range(N):
-            out[i] |= rest[a, i]
-    return out
-
-
 _NO_REST = np.zeros((1, 1), dtype=bool)
 _NO_RESTING = np.zeros(1, dtype=bool)
 _NO_GRAVITY = np.zeros((1, 1))
@@ -254,7 +241,7 @@ class CompiledCoefficients:
         )
         inputs = YieldInputs(
             _NO_REST if rest is None else rest, rest is not None,
-            _NO_RESTING if rest is None else _resting(rest),
+            _NO_RESTING if rest is None else np.logical_or.reduce(rest, axis=0),
             _NO_GRAVITY if yield_gravity is None else np.ascontiguousarray(yield_gravity),
             yield_gravity is not None, float(s.g_n), float(s.material.density), *self._fractions(),
             s.base.bulk, s.base.friction, s.base.cohesion, mu, mu_static, drop != 0.0, drop, length,

@@ -54,7 +54,6 @@ from multilayer.engine.vertical.sheared_columns import (
     BLOCK,
     cell,
     join,
-    new_sweeps,
     new_tile,
     sheared_block,
     unload,
@@ -274,7 +273,7 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
         np.zeros((5, L)),  # wall_pressure, wall_factor, wall_offset, per_area, wall_true
         np.empty((4, BLOCK), np.bool_),  # flags, finished of sheared_block
         np.zeros(BLOCK, np.bool_),
-        new_sweeps(L),  # the sweeps of sheared_block
+        np.empty(sc.SWEEPS * BLOCK * L),  # the sweeps of sheared_block
     )
     _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
 

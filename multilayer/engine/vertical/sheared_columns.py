@@ -100,12 +100,6 @@ def new_tile(L):
 
 
 @jit
-def new_sweeps(L):
-    """The work array of :func:`_solve` for columns of ``L`` layers."""
-    return np.empty(SWEEPS * BLOCK * L)
-
-
-@jit
 def cell(i, L):
     """The cell of layer 0 of lane ``i`` in the tile's rows (columns of ``L`` layers)."""
     return 1 + i * stride(L)
@@ -206,7 +200,7 @@ def _solve(t, w, L, new, flags):
     pivot is positive and each yielded jump keeps its sign (a column whose structure is
     rejected leaves the block).
 
-    The sweeps run in ``w`` (:func:`new_sweeps`), which holds each layer's ``SWEEPS``
+    The sweeps run in ``w`` (``SWEEPS BLOCK L`` values), which holds each layer's ``SWEEPS``
     values of the ``BLOCK`` lanes side by side (value k of layer a of lane i in ``(a
     SWEEPS + k) BLOCK + i``), so that each step of the sweeps runs the block's layer as
     vectors (its values a fixed distance apart: the compiler sees that they do not
