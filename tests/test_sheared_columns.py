@@ -143,3 +143,44 @@ def test_a_viscosity_outside_the_contract_in_a_block_is_reported_as_column_by_co
         messages.append(str(caught.value))
     assert messages[0] == messages[1]
     assert "viscosity_kernel" in messages[0]
+
+
+def test_the_bound_of_a_sheared_lane_decides_as_the_error_bound():
+    """The error bound of a lane whose every jump is nonzero, summed from gaps computed as
+    vectors (``sheared_columns._within_bound``), against ``newton_control.error_bound`` on
+    the same values: the same answer to ``bound <= limit`` for limits about the bound
+    (within a few ulps, twice it, half of it), 0, inf and NaN, on iterates far from and near
+    the exact step, with layers at rest (a speed of 0 between nonzero jumps) and without
+    mass in some layer's excess."""
+    from multilayer.engine.vertical import sheared_columns as sc
+    from multilayer.engine.vertical.newton_control import error_bound
+
+    rng = np.random.default_rng(7)
+    for L in (1, 2, 8, 33):
+        t = sc.new_tile(L)
+        x = sc.cell(3, L)
+        lane = slice(x, x + L)
+        for trial in range(200):
+            jumps = rng.choice([-1.0, 1.0], L) * rng.uniform(1e-3, 1.0, L)
+            u = np.cumsum(jumps)
+            if trial % 4 == 1 and L > 1:  # a layer at rest, the jumps below and above it nonzero
+                a = int(rng.integers(1, L))
+                u[a:] -= u[a]
+                u[a:] += np.concatenate(([0.0], np.cumsum(rng.uniform(0.1, 1.0, L - a - 1))))
+            inertia = rng.uniform(0.5, 2.0, L)
+            kappa, tau = rng.uniform(0.0, 1.0, L), rng.uniform(0.0, 1.0, L)
+            # a momentum that balances the stresses (an exact step) up to a small residual
+            sigma = np.sign(np.diff(u, prepend=0.0)) * (kappa + tau)
+            balance = inertia * u + sigma - np.append(sigma[1:], 0.0)
+            momentum = balance + (10.0 ** rng.uniform(-14, 0)) * rng.standard_normal(L)
+            if trial % 5 == 2:
+                momentum[rng.integers(L)] = balance[0]  # some layer's excess far off
+            wall = np.zeros(L)
+            t[sc.U0, lane], t[sc.INERTIA, lane], t[sc.MOMENTUM, lane] = u, inertia, momentum
+            t[sc.KAPPA, lane], t[sc.TAU0, lane], t[sc.WALL, lane] = kappa, tau, wall
+            assert np.all(np.diff(u, prepend=0.0) != 0.0)
+            bound = error_bound(inertia, momentum, kappa, tau, wall, wall, u, np.inf)
+            for limit in (bound, np.nextafter(bound, 0.0), np.nextafter(bound, np.inf), 2.0 * bound,
+                          0.5 * bound, 0.0, np.inf, np.nan):  # fmt: skip
+                expected = error_bound(inertia, momentum, kappa, tau, wall, wall, u, limit) <= limit
+                assert sc._within_bound(t, x, L, np.int64(sc.U0), limit) == expected, (L, trial, limit)

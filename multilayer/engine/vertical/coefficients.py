@@ -72,6 +72,7 @@ class YieldInputs(NamedTuple):
 
     rest: np.ndarray  # (L, N) layers at rest at the start of the step
     has_rest: bool
+    resting: np.ndarray  # (N,) the columns with a layer at rest (any of rest)
     yield_gravity: np.ndarray  # (L, N) replaces g cos(theta) in the interface pressures
     has_yield_gravity: bool
     g_n: float
@@ -151,7 +152,8 @@ def column_coefficients(col, hj, inputs, out):
         k = _frictional(mu, pressure[a])
         kappa[a] = k
         good += _within_contract(k)
-    if inputs.has_rest:  # interface a is static where layer a and the one below (or the ground) rest
+    # interface a is static where layer a and the one below (or the ground) rest
+    if inputs.has_rest and inputs.resting[col]:
         for a in range(L):
             if rest[a, col] and (a == 0 or rest[a - 1, col]):
                 k = _frictional(mu_static, pressure[a])
@@ -193,6 +195,7 @@ def _coefficients(hw, wet, inputs, m, kappa, w, pressure, spacing, viscous, wall
 
 
 _NO_REST = np.zeros((1, 1), dtype=bool)
+_NO_RESTING = np.zeros(1, dtype=bool)
 _NO_GRAVITY = np.zeros((1, 1))
 Fractions = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 """``l, depth_interface, depth_centre, spacing_fraction`` of a model, each (L,)."""
@@ -238,6 +241,7 @@ class CompiledCoefficients:
         )
         inputs = YieldInputs(
             _NO_REST if rest is None else rest, rest is not None,
+            _NO_RESTING if rest is None else np.logical_or.reduce(rest, axis=0),
             _NO_GRAVITY if yield_gravity is None else np.ascontiguousarray(yield_gravity),
             yield_gravity is not None, float(s.g_n), float(s.material.density), *self._fractions(),
             s.base.bulk, s.base.friction, s.base.cohesion, mu, mu_static, drop != 0.0, drop, length,

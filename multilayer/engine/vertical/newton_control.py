@@ -104,6 +104,17 @@ def _potential_rise(start, end, stress_start, stiffness_start, stress_end, conca
     return -(start - end) * 0.5 * (stress_start + stress_end)
 
 
+@jit(inline="always")  # inlined: as the lines it replaces in error_bound
+def zeroing(lo, hi, momentum, inertia, u, w, wall_viscous):
+    """The interval of ``sigma_a`` that zeroes ``g_a`` of one layer (:func:`error_bound`)
+    given ``sigma_{a+1}`` in ``[lo, hi]``, its speed ``u`` and its wall terms."""
+    excess = momentum - inertia * u  # m_a/dt (u*_a - u_a)
+    if u != 0.0:
+        f = _sign(u) * (w + wall_viscous)
+        return lo + excess - f, hi + excess - f
+    return lo + excess - w, hi + excess + w
+
+
 @jit(borrowing=True)  # compiled once, linked into its callers (numba inlining lowered it at each call)
 def error_bound(inertia, momentum, kappa, viscous, w, wall_viscous, u, limit):
     """The bound of the module docstring on ``max_a |u_a - u_exact,a|`` for one column,
@@ -125,12 +136,7 @@ def error_bound(inertia, momentum, kappa, viscous, w, wall_viscous, u, limit):
     smallest = np.inf
     for a in range(L - 1, -1, -1):
         jump = u[a] - (u[a - 1] if a > 0 else 0.0)
-        excess = momentum[a] - inertia[a] * u[a]  # m_a/dt (u*_a - u_a)
-        if u[a] != 0.0:
-            f = _sign(u[a]) * (w[a] + wall_viscous[a])
-            lo_zero, hi_zero = lo + excess - f, hi + excess - f
-        else:
-            lo_zero, hi_zero = lo + excess - w[a], hi + excess + w[a]
+        lo_zero, hi_zero = zeroing(lo, hi, momentum[a], inertia[a], u[a], w[a], wall_viscous[a])
         gap = 0.0
         if jump != 0.0:
             sigma = _sign(jump) * (kappa[a] + viscous[a])
@@ -182,8 +188,24 @@ def energy_rise(
     :func:`error_bound`; at ``start`` the viscous stresses ``tau``, their derivatives
     ``stiffness`` with respect to the jump, the viscous wall forces ``wall_tau`` and their
     derivatives ``wall_stiffness``; ``concave``: every viscous stress is concave in the
-    rate): the smaller of ``phi'(1-)`` (:func:`slope_along`) and the exact inertial and yield
-    terms plus :func:`_potential_rise`."""
+    rate): the smaller of ``phi'(1-)`` (:func:`slope_along`) and :func:`rise_bound`."""
+    rise = rise_bound(
+        inertia, momentum, kappa, viscous, w, wall_viscous, start, u,
+        tau, stiffness, wall_tau, wall_stiffness, concave,
+    )  # fmt: skip
+    return min(slope_along(inertia, momentum, kappa, viscous, w, wall_viscous, start, u, u, -1.0), rise)
+
+
+@jit(borrowing=True)
+def rise_bound(
+    inertia, momentum, kappa, viscous, w, wall_viscous, start, u,
+    tau, stiffness, wall_tau, wall_stiffness, concave,
+):  # fmt: skip
+    """The exact inertial, yield and wall-threshold terms of ``E(u) - E(start)`` plus
+    :func:`_potential_rise` of each viscous potential (the arguments of
+    :func:`energy_rise`): the second of its bounds.  Where this one is not positive, the
+    smaller of the two (or NaN, where ``phi'(1-)`` is) is not positive either: a caller
+    that only asks whether the rise is positive (``sheared_columns``) stops there."""
     rise = 0.0
     for a in range(inertia.shape[0]):
         jump = u[a] - (u[a - 1] if a > 0 else 0.0)
@@ -195,7 +217,7 @@ def energy_rise(
             abs(start[a]), abs(u[a]), wall_tau[a], wall_stiffness[a], wall_viscous[a], concave
         )
         rise += _potential_rise(abs(jump_start), abs(jump), tau[a], stiffness[a], viscous[a], concave)
-    return min(slope_along(inertia, momentum, kappa, viscous, w, wall_viscous, start, u, u, -1.0), rise)
+    return rise
 
 
 def examine_columns(

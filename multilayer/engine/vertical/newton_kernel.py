@@ -276,6 +276,7 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
         np.zeros((5, L)),  # wall_pressure, wall_factor, wall_offset, per_area, wall_true
         np.empty((4, BLOCK), np.bool_),  # flags, finished of sheared_block
         np.zeros(BLOCK, np.bool_),
+        np.empty(sc.SWEEPS * BLOCK * L),  # the sweeps of sheared_block
     )
     _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
 
@@ -311,7 +312,7 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
     kc, cc, wc, cwc, current, new, zero, proposal = work[8:16]
     # viscosities, stress slopes and viscous stresses at current and new (interfaces, walls)
     laws_c, laws_n, state_c, state_n, tile, coefficients, viscous, walls_of = work[16:24]
-    flags, finished = work[24], work[25]
+    flags, finished, sweeps = work[24], work[25], work[26]
     eta_c, slope_c, weta_c, wslope_c = laws_c[0], laws_c[1], laws_c[2], laws_c[3]
     eta_n, slope_n, weta_n, wslope_n = laws_n[0], laws_n[1], laws_n[2], laws_n[3]
     # the coefficients of StressModel.columns of the column (coefficients.column_coefficients)
@@ -367,10 +368,10 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
             o = cell(lane, L)  # the lane's layer 0 in the tile's rows
             # what stays fixed during the iteration, a few rows per loop over the layers (a
             # loop over all of them reloads its rows' pointers), the laws' switch outside them
-            for a in range(L):
-                x = np.uint64(o + a)  # unsigned: no test for negative indices
-                tile[sc.INERTIA, x] = m[a] / dt
-                tile[sc.MOMENTUM, x] = m[a] * ustar[a, col] / dt
+            for a in range(L):  # contiguous: as vectors
+                tile[sc.INERTIA, np.uint64(o + a)] = m[a] / dt  # unsigned: no test for negative indices
+            for a in range(L):  # a column of the (L, N) arrays
+                tile[sc.MOMENTUM, np.uint64(o + a)] = m[a] * ustar[a, col] / dt
                 current[a] = guess[a, col]
             for a in range(L):
                 x = np.uint64(o + a)
@@ -404,7 +405,7 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
                 join(tile, L, flags, lane, fine)
                 if lane == BLOCK - 1:
                     sheared_block(
-                        tile, flags, finished, bulk_form, bulk_params, threshold, max_iterations, j0,
+                        tile, sweeps, flags, finished, bulk_form, bulk_params, threshold, max_iterations, j0,
                         wet[j0], u_out, iterations, fallbacks, faults, fault_values, side_by_side,
                     )  # fmt: skip
                     drain = 0

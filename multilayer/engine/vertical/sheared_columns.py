@@ -36,15 +36,15 @@ import numpy as np
 from multilayer.engine.compiled import jit
 from multilayer.engine.vertical.coefficients import _within_contract
 from multilayer.engine.vertical.forms import _newton_model, _viscosity_and_slope, concave
-from multilayer.engine.vertical.newton_control import _sign, energy_rise, error_bound
+from multilayer.engine.vertical.newton_control import _sign, error_bound, rise_bound, slope_along, zeroing
 
 BLOCK = 8
 """Columns solved side by side: eight chains of divisions in flight, and the pass of the
 stresses and the Newton model one loop over the 8 L cells of the block, long enough to
 run as vectors at L = 8 (compiled, the loop runs as vectors of 8 values from about 40
 cells on, and one cell at a time below: 22-29 against 51-53 ns per column and pass at
-L = 8).  The tile holds 22 values per layer for each of the BLOCK + 1 lanes, 215 KB at
-L = 128."""
+L = 8).  The tile holds 20 values per layer for each of the BLOCK + 1 lanes, 196 KB at
+L = 128, and the sweeps of the solve 7 per layer and lane, 57 KB."""
 
 # The tile (SLOTS, 1 + (BLOCK + 1) P) holds, in each slot (a row), one value per column
 # (lane) and layer: layer a of lane i in cell 1 + i P + a, P = stride(L) (the cells
@@ -52,14 +52,20 @@ L = 128."""
 # m/dt, m u*/dt, the true yield stress, the wall threshold, 1/spacing, the conductance
 # per unit slope (0 where not viscous), whether viscous, the pressure parts of the law
 # and the guess; per iteration, the Newton model (yield stress, conductance, sign of the
-# jump), the forward sweep (inverse pivot, right-hand side), the two iterates and, at each,
+# jump), the two iterates and, at each,
 # the true viscous stresses and their derivatives (``TAU0 + k``, ``STIFF0 + k`` at the
 # iterate ``U0 + k``: the rise bound of ``newton_control`` needs both iterates'); fixed,
 # 1.0 in the bottom cell of each lane (the bed below it), 2.0 in the padding and 0.0
 # elsewhere.
 INERTIA, MOMENTUM, KAPPA, WALL, INV_SPACING, CONDUCTANCE, VISCOUS, FACTOR, OFFSET = range(9)
-GUESS, KC, CC, SIGN, DIAG, RHS, U0, U1, TAU0, TAU1, STIFF0, STIFF1, BED = range(9, 22)
-SLOTS = 22
+GUESS, KC, CC, SIGN, U0, U1, TAU0, TAU1, STIFF0, STIFF1, BED, GAP = range(9, 21)
+SLOTS = 21
+# The values of each layer in the sweeps of :func:`_solve`: its pivot (then the inverse
+# pivot), right-hand side, conductance below, sign of the jump above where that interface
+# has a yield stress (else 0), the pivots not positive up to it, the velocity, and those
+# pivots and the yielded jumps above it whose sign changed.
+PIVOT, RIGHT, COUPLING, CHECK, TRIED, SOLVED, VIOLATION = range(7)
+SWEEPS = 7
 ALONE = BLOCK
 """The lane of the tile that holds the per-step slots of a column solved on its own
 (``newton_kernel._chunk``); the block's lanes are 0 ... BLOCK - 1."""
@@ -105,11 +111,11 @@ def join(t, L, flags, i, fine):
     (``fine``: its yield values are within the plugin contract), takes part in the block
     iteration if ``fine``, with mass and without a wall threshold."""
     x = cell(i, L)
-    take = fine and t[INERTIA, x] > 0.0
+    held = 0  # layers with a wall threshold (or NaN), counted without branches: as vectors
     for a in range(np.uint64(x), np.uint64(x + L)):  # unsigned: no test for negative indices
-        take = take and t[WALL, a] == 0.0
+        held += not t[WALL, a] == 0.0
     flags[FINE, i] = fine
-    flags[ACTIVE, i] = take
+    flags[ACTIVE, i] = fine and t[INERTIA, x] > 0.0 and held == 0
 
 
 @jit(borrowing=True)
@@ -188,52 +194,87 @@ def _sweep(t, u, form, params, start, stop):
 
 
 @jit(borrowing=True, error_model="numpy")
-def _solve(t, L, new, flags):
-    """The exact solve with one group per layer into slot ``new``: the forward sweep
-    (inverse pivots ``DIAG``, right-hand sides ``RHS``) and the back substitution of
-    ``column_solve._active_set``, and its optimality test: each yielded jump keeps its
-    sign (a column whose structure is rejected, or whose velocities are not finite, leaves
-    the block).  The cells are unsigned
+def _solve(t, w, L, new, flags):
+    """The exact solve with one group per layer into slot ``new``: the forward sweep and
+    the back substitution of ``column_solve._active_set``, and its optimality test: each
+    pivot is positive and each yielded jump keeps its sign (a column whose structure is
+    rejected, or whose velocities are not finite, leaves the block).
+
+    The sweeps run in ``w`` (``SWEEPS BLOCK L`` values), which holds each layer's ``SWEEPS``
+    values of the ``BLOCK`` lanes side by side (value k of layer a of lane i in ``(a
+    SWEEPS + k) BLOCK + i``), so that each step of the sweeps runs the block's layer as
+    vectors (its values a fixed distance apart: the compiler sees that they do not
+    overlap; the loop over the lanes bounded by ``flags.shape[1]``, a number it does not
+    unroll but vectorises).  The equations of each layer (``_active_set``'s sums, in its
+    order) are formed lane by lane from the tile, swept and substituted back layer by
+    layer (each operation that of ``_active_set``: the same bits), counting the failures
+    of the test up the column and back down (so that layer 0 holds each lane's), and the
+    velocities go back to slot ``new`` of the tile, lane by lane.  Indices are unsigned
     (as in :func:`_sweep`): no test for negative indices."""
-    one = np.uint64(1)
-    for a in range(L):
-        for i in range(BLOCK):
-            x = np.uint64(cell(i, L) + a)
+    one, lanes, layers = np.uint64(1), np.uint64(BLOCK), np.uint64(L)
+    step = np.uint64(SWEEPS * BLOCK)  # from one layer to the next in w
+    pivot, right, coupling, check = np.uint64(PIVOT), np.uint64(RIGHT), np.uint64(COUPLING), np.uint64(CHECK)
+    tried, solved, sign = np.uint64(TRIED), np.uint64(SOLVED), np.uint64(VIOLATION)
+    count = np.uint64(flags.shape[1])  # BLOCK, as a bound the compiler does not unroll but vectorises
+    for lane in range(BLOCK):  # the equations, from the lanes of the tile
+        x0, i = np.uint64(cell(lane, L)), np.uint64(lane)
+        for a in range(layers - one):  # below the top: with the interface above
+            x, s = x0 + a, a * step + i
+            c, k_above, s_above = t[CC, x], t[KC, x + one], t[SIGN, x + one]
             d = 0.0 + (t[INERTIA, x] + 0.0)  # _active_set's sums, in its order (cw = w = 0)
             r = 0.0 + t[MOMENTUM, x]
-            c = t[CC, x]
             d += c
             r -= t[KC, x] * t[SIGN, x]
-            if a + 1 < L:
-                d += t[CC, x + one]
-                r += t[KC, x + one] * t[SIGN, x + one]
-            if a > 0 and c != 0.0:
-                f = -c * t[DIAG, x - one]
-                d -= f * (-c)
-                r -= f * t[RHS, x - one]
-            if not d > 0.0:
-                flags[ACTIVE, i] = False
-            t[DIAG, x] = 1.0 / d
-            t[RHS, x] = r
-    for a in range(L - 1, -1, -1):
-        for i in range(BLOCK):
-            x = np.uint64(cell(i, L) + a)
-            r = t[RHS, x]
-            if a + 1 < L:
-                above = t[new, x + one]
-                r += t[CC, x + one] * above
-                u = r * t[DIAG, x]
-                if t[KC, x + one] > 0.0 and t[SIGN, x + one] * (above - u) < 0.0:
-                    flags[ACTIVE, i] = False
-            else:
-                u = r * t[DIAG, x]
-            if not abs(u) < np.inf:  # _chunk names the column
-                flags[ACTIVE, i] = False
-            t[new, x] = u
-    for i in range(BLOCK):  # the bed
-        x = cell(i, L)
-        if t[KC, x] > 0.0 and t[SIGN, x] * t[new, x] < 0.0:
-            flags[ACTIVE, i] = False
+            d += t[CC, x + one]
+            r += k_above * s_above
+            w[s + coupling * lanes] = c
+            w[s + pivot * lanes] = d
+            w[s + right * lanes] = r
+            w[s + check * lanes] = s_above if k_above > 0.0 else 0.0  # a yielded interface above
+        x, s = x0 + layers - one, (layers - one) * step + i  # the top layer
+        c = t[CC, x]
+        w[s + coupling * lanes] = c
+        w[s + pivot * lanes] = 0.0 + (t[INERTIA, x] + 0.0) + c
+        w[s + right * lanes] = 0.0 + t[MOMENTUM, x] - t[KC, x] * t[SIGN, x]
+    for i in range(lanes):  # layer 0: nothing below to eliminate
+        d = w[pivot * lanes + i]
+        w[tried * lanes + i] = 0.0 if d > 0.0 else 1.0
+        w[pivot * lanes + i] = 1.0 / d
+    for a in range(one, layers):  # the forward sweep
+        for i in range(count):
+            s, b = a * step + i, (a - one) * step + i
+            c, d, r = w[s + coupling * lanes], w[s + pivot * lanes], w[s + right * lanes]
+            f = -c * w[b + pivot * lanes]
+            eliminated_d = d - f * (-c)
+            eliminated_r = r - f * w[b + right * lanes]
+            d = eliminated_d if c != 0.0 else d
+            w[s + right * lanes] = eliminated_r if c != 0.0 else r
+            w[s + tried * lanes] = w[b + tried * lanes] + (0.0 if d > 0.0 else 1.0)
+            w[s + pivot * lanes] = 1.0 / d
+    top = (layers - one) * step
+    for i in range(lanes):  # the back substitution
+        s = top + i
+        w[s + solved * lanes] = w[s + right * lanes] * w[s + pivot * lanes]
+        w[s + sign * lanes] = w[s + tried * lanes]
+    for b in range(one, layers):
+        for i in range(count):
+            s = (layers - one - b) * step + i
+            above = w[s + step + solved * lanes]
+            u = (w[s + right * lanes] + w[s + step + coupling * lanes] * above) * w[s + pivot * lanes]
+            violated = w[s + check * lanes] * (above - u) < 0.0
+            w[s + sign * lanes] = w[s + step + sign * lanes] + (1.0 if violated else 0.0)
+            w[s + solved * lanes] = u
+    for lane in range(BLOCK):  # into slot new, and the test
+        x0, i = np.uint64(cell(lane, L)), np.uint64(lane)
+        infinite = 0.0  # velocities that are not finite: _chunk names the column
+        for a in range(layers):
+            u = w[a * step + solved * lanes + i]
+            infinite += 0.0 if abs(u) < np.inf else 1.0
+            t[new, x0 + a] = u
+        if w[sign * lanes + i] + infinite > 0.0 or (
+            t[KC, x0] > 0.0 and t[SIGN, x0] * t[new, x0] < 0.0
+        ):  # the bed
+            flags[ACTIVE, lane] = False
 
 
 @jit(borrowing=True, error_model="numpy")
@@ -251,11 +292,14 @@ def _converged(t, L, new, current, threshold, concave_stress, flags):
         wall = t[WALL, lane]  # 0 in every column that takes part (join): no wall threshold or force
         tau = t[TAU0 + (new - U0), lane]
         u_new, u_current = t[new, lane], t[current, lane]
-        change = 0.0
+        # the largest change within threshold (max ignores a NaN change, as this count)
+        beyond = 0
         for a in range(L):
-            change = max(change, abs(u_new[a] - u_current[a]))
-        converged = change <= threshold
-        if not converged:
+            beyond += abs(u_new[a] - u_current[a]) > threshold
+        converged = beyond == 0 and 0.0 <= threshold
+        if not converged and flags[SHEARED, i]:
+            converged = _within_bound(t, x, L, new, threshold)
+        elif not converged:
             bound = error_bound(
                 t[INERTIA, lane], t[MOMENTUM, lane], t[KAPPA, lane], tau, wall, wall, u_new, threshold
             )  # fmt: skip
@@ -263,17 +307,60 @@ def _converged(t, L, new, current, threshold, concave_stress, flags):
         flags[DONE, i] = converged
         if not converged:
             at = current - U0
-            rise = energy_rise(
+            rise = rise_bound(
                 t[INERTIA, lane], t[MOMENTUM, lane], t[KAPPA, lane], tau, wall, wall, u_current, u_new,
                 t[TAU0 + at, lane], t[STIFF0 + at, lane], wall, wall, concave_stress,
             )  # fmt: skip
+            if not rise <= 0.0:  # newton_control.energy_rise, the smaller of it and phi'(1-)
+                rise = min(
+                    slope_along(
+                        t[INERTIA, lane], t[MOMENTUM, lane], t[KAPPA, lane], tau, wall, wall, u_current,
+                        u_new, u_new, -1.0,
+                    ),
+                    rise,
+                )  # fmt: skip
             if rise > 0.0:
                 flags[ACTIVE, i] = False
 
 
 @jit(borrowing=True, error_model="numpy")
+def _within_bound(t, x, L, new, limit):
+    """``newton_control.error_bound(...) <= limit`` at the velocities of slot ``new`` of the
+    lane whose layer 0 is cell ``x``, the arguments of :func:`_converged`, for a lane whose
+    every jump is nonzero (``SHEARED``).  Then the stress of each interface is single-valued
+    (``sign(jump) (kappa + tau_v)``), so that the gap of each layer depends on its values
+    and the stress above alone: the gaps of all layers are computed in one pass as vectors
+    (into slot ``GAP``; each operation that of ``error_bound``), then added up from the
+    surface down as there.  The answer is ``error_bound``'s: where the sum exceeds ``4
+    limit^2`` times the smallest ``m/dt`` so far, the bound exceeds ``2 limit`` (the sum
+    only grows and the smallest only shrinks), so the test may be made at every layer."""
+    one, tau = np.uint64(1), TAU0 + (new - U0)
+    start, top = np.uint64(x), np.uint64(x + L - 1)
+    for y in range(start, top + one):  # unsigned: no test for negative indices
+        u = t[new, y]
+        below = 0.0 if t[BED, y] > 0.0 else t[new, y - one]
+        above = 0.0  # the stress of the interface above: 0 at the free surface
+        if y < top:
+            above = _sign(t[new, y + one] - u) * (t[KAPPA, y + one] + t[tau, y + one])
+        lo, hi = zeroing(above, above, t[MOMENTUM, y], t[INERTIA, y], u, t[WALL, y], t[WALL, y])
+        sigma = _sign(u - below) * (t[KAPPA, y] + t[tau, y])
+        gap = max(lo - sigma, sigma - hi, 0.0)
+        t[GAP, y] = gap * gap / t[INERTIA, y] if gap > 0.0 else 0.0
+    cap = 4.0 * limit * limit
+    residual = 0.0
+    smallest = np.inf
+    for b in range(np.uint64(L)):
+        y = top - b
+        smallest = min(smallest, t[INERTIA, y])
+        residual += t[GAP, y]
+        if residual > cap * smallest:
+            return False
+    return np.sqrt(residual / smallest) <= limit
+
+
+@jit(borrowing=True, error_model="numpy")
 def sheared_block(
-    t, flags, finished, form, params, threshold, max_iterations, j0, c0,
+    t, sweeps, flags, finished, form, params, threshold, max_iterations, j0, c0,
     u_out, iterations, fallbacks, faults, fault_values, side_by_side,
 ):  # fmt: skip
     """The Newton iteration of ``newton_kernel._chunk`` for the ``BLOCK`` columns set up
@@ -290,7 +377,7 @@ def sheared_block(
     for i in range(BLOCK):
         flags[ACTIVE, i] = flags[ACTIVE, i] and flags[SHEARED, i]
     for iteration in range(1, max_iterations + 1):
-        _solve(t, L, new, flags)
+        _solve(t, sweeps, L, new, flags)
         _stresses_and_model(t, L, new, form, params, flags)  # the bound's stresses, the next model
         _converged(t, L, new, current, threshold, concave_stress, flags)
         remaining = 0
