@@ -539,13 +539,12 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
 
 
 def _columns(chunks, columns, inputs, fused, given, laws, control, out):
-    """Newton iterations of every wet column (``wet`` indexes the columns of h, ustar and
-    guess); ``fallbacks`` counts the solves per column that needed the O(L^2) dynamic
-    programme.  A column where a compiled viscosity is not finite and >= 0 stops
-    iterating: ``faults`` gets a + 1 for the bulk law at interface a, -(a + 1) for the
-    wall law of layer a (0: none) and ``fault_values`` the viscosity and the shear rate;
-    a column whose compiled yield values are outside the plugin contract is not solved
-    (``faults``: ``YIELD_CONTRACT``), one whose iterate is not finite stops (``NOT_FINITE``).
+    """Newton iterations of every wet column (``wet`` indexes the columns of h, ustar and guess);
+    ``fallbacks`` counts the solves per column that needed the O(L^2) dynamic programme.  A
+    column where a compiled viscosity is not finite and >= 0 stops iterating: ``faults`` gets
+    a + 1 for the bulk law at interface a, -(a + 1) for the wall law of layer a (0: none),
+    ``fault_values`` the viscosity and the shear rate; one with compiled yield values outside
+    the plugin contract is not solved (``YIELD_CONTRACT``), one with an iterate not finite stops.
 
     The coefficients of ``StressModel.columns`` come, with ``fused``, from the compiled
     yield forms column by column (``coefficients.column_coefficients`` with ``inputs``),
