@@ -1,24 +1,23 @@
 """The implicit vertical step compiled: viscous linearisation and exact solve fused per column.
 
-``newton.implicit_step`` iterates, over all unconverged columns at once, the Newton
-model of the viscous stresses (``StressModel.linearise``, numpy, calling the rheology
-plugins) and the exact solver (``column_solve``).  Each column's iteration depends on
-that column only, so the same iteration runs here column by column with every quantity in
-cache, when the bulk and wall laws declare a compiled form of their viscosity
-(``Rheology.viscosity_kernel``).  The model is that of ``stresses.py``, evaluated with
-what stays fixed during a step (masses, pressure parts, inverse spacings) computed once
-per column, except its slope: the compiled forms differentiate their stress exactly
-where the numpy path takes a forward difference.  The slope only sets the speed of the
-iteration (the model passes through the true stress either way), so both paths agree to
-round-off times the conditioning of the step, with the same layers at rest and Newton
-counts within 1 % (tests/test_newton_kernel.py).  Adjacent columns that are fully sheared
-(every interface yielded, no side walls) go through the same iteration several at a time,
-side by side (``sheared_columns``), to the same bits.
+``newton.implicit_step`` iterates, over all unconverged columns at once, the Newton model of
+the viscous stresses (``StressModel.linearise``, numpy, calling the rheology plugins) and the
+exact solver (``column_solve``).  Each column's iteration depends on that column only, so the
+same iteration runs here column by column with every quantity in cache, when the bulk and
+wall laws declare a compiled form of their viscosity (``Rheology.viscosity_kernel``).  The
+model is that of ``stresses.py``, evaluated with what stays fixed during a step (masses,
+pressure parts, inverse spacings) computed once per column, except its slope: the compiled
+forms differentiate their stress exactly where the numpy path takes a forward difference.
+The slope only sets the speed of the iteration (the model passes through the true stress
+either way), so both paths agree to round-off times the conditioning of the step, with the
+same layers at rest and Newton counts within 1 % (tests/test_newton_kernel.py).  Adjacent
+columns that are fully sheared (every interface yielded, no side walls) go through the same
+iteration several at a time, side by side (``sheared_columns``), to the same bits.
 
-What only this copy of the iteration does: it never leaves compiled code, and never
-stores the coefficients of the whole mesh (they are computed column by column): the path
-of every law with compiled forms, the built-in ones included.  The numpy iteration stays
-for laws written in Python and for another exact solver (``newton.py``).
+What only this copy of the iteration does: it never leaves compiled code, and never stores
+the coefficients of the whole mesh (they are computed column by column): the path of every
+law with compiled forms, the built-in ones included.  The numpy iteration stays for laws
+written in Python and for another exact solver (``newton.py``).
 """
 
 from __future__ import annotations
@@ -60,9 +59,8 @@ from multilayer.engine.vertical.sheared_columns import (
 )
 from multilayer.engine.vertical.stresses import INTERFACE, LAYER, ColumnStresses, StressModel
 
-YIELD_CONTRACT = 1 << 40
-"""Fault code of a column whose compiled yield values are outside the plugin contract."""
-NOT_FINITE = 1 << 41  # of a column whose iterate is not finite (its value and layer)
+YIELD_CONTRACT, NOT_FINITE = 1 << 40, 1 << 41
+"""Fault codes of a column: compiled yield values outside the plugin contract; an iterate not finite."""
 _NOT_GIVEN = ColumnArrays(*(np.zeros((1, 1)),) * 5, np.zeros((1, 1), bool), np.zeros((1, 1)))
 """The ``given`` coefficients of ``_columns`` when they are computed in the kernel."""
 
@@ -114,22 +112,22 @@ class Results(NamedTuple):
 
 @jit(borrowing=True)
 def _true_stresses(
-    u, inverse_spacing, conductance, bulk_form, bulk_params, factor, offset, eta, slope,
-    walls, inverse_half, wall_form, wall_params, wall_factor, wall_offset, per_area, wall_eta, wall_slope,
-    state,
+    u, inverse_spacing, conductance, bulk_form, bulk_params, factor, offset, eta, slope, walls,
+    inverse_half, wall_form, wall_params, wall_factor, wall_offset, per_area, wall_eta, wall_slope, state,
 ):  # fmt: skip
-    """Viscosities and stress slopes at the velocities ``u`` of one column, and ``state``
-    (4, L) of ``newton_control.energy_rise``: viscous stresses ``|tau_v|`` and their derivatives
-    with respect to the jump, viscous wall forces and their derivatives.  Returns the fault
-    code of ``_columns`` (0: every viscosity finite and >= 0), the viscosity and the rate."""
+    """Viscosities and stress slopes at the velocities ``u`` of one column, and ``state`` (4, L)
+    of ``newton_control.energy_rise``: viscous stresses ``|tau_v|`` and their derivatives with
+    respect to the jump, viscous wall forces and their derivatives.  Returns the fault code of
+    ``_columns`` (0: every viscosity finite and >= 0; ``NOT_FINITE`` where a velocity is not,
+    the law not at fault), the viscosity (or velocity) and the rate (or layer)."""
     below = 0.0
     for a in range(u.shape[0]):
-        if not abs(u[a]) < np.inf:  # an iterate that is not finite compares as converged
-            return NOT_FINITE, u[a], a
         rate = abs(u[a] - below) * inverse_spacing[a]
         below = u[a]
         eta[a], slope[a] = _viscosity_and_slope(bulk_form, bulk_params, rate, factor[a], offset[a])
         if not (eta[a] >= 0.0 and eta[a] < np.inf):  # the plugin contract
+            if not rate < np.inf:  # not the law's fault: an iterate that is not finite
+                return (NOT_FINITE, u[a], a) if not abs(u[a]) < np.inf else (NOT_FINITE, u[a - 1], a - 1)
             return a + 1, eta[a], rate
         viscous = conductance[a] > 0.0
         state[0, a] = eta[a] * rate if viscous else 0.0
@@ -142,7 +140,7 @@ def _true_stresses(
                 wall_form, wall_params, rate, wall_factor[a], wall_offset[a]
             )
             if not (wall_eta[a] >= 0.0 and wall_eta[a] < np.inf):
-                return -(a + 1), wall_eta[a], rate
+                return (-(a + 1), wall_eta[a], rate) if rate < np.inf else (NOT_FINITE, u[a], a)
             state[2, a] = per_area[a] * wall_eta[a] * rate
             state[3, a] = per_area[a] * max(wall_slope[a], 0.0) * inverse_half
     return 0, 0.0, 0.0
@@ -318,12 +316,11 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
     # the coefficients of StressModel.columns of the column (coefficients.column_coefficients)
     m, w0, pressure, spacing = coefficients[0], coefficients[1], coefficients[2], coefficients[3]
     wall_pressure = walls_of[0]
-    # and from them, per layer, in the tile (lane ALONE: the column solved on its own;
-    # the lanes of a block are set up straight into their own): m_a / dt, m_a u*_a / dt,
-    # the yield stresses, inverse spacing, conductance per unit slope (0 where not
-    # viscous), pressure parts of the bulk law, the wall yield threshold per unit area
-    # (else the wall threshold); with walls, the pressure parts of the wall law, the wall
-    # area factor (2 / W) h_a, and the true wall thresholds
+    # and from them, per layer, in the tile (lane ALONE: the column solved on its own; the lanes of a
+    # block are set up straight into their own): m_a / dt, m_a u*_a / dt, the yield stresses, inverse
+    # spacing, conductance per unit slope (0 where not viscous), pressure parts of the bulk law, the
+    # wall yield threshold per unit area (else the wall threshold); with walls, the pressure parts
+    # of the wall law, the wall area factor (2 / W) h_a, and the true wall thresholds
     alone = slice(cell(ALONE, L), cell(ALONE, L) + L)
     inertia, momentum, kappa = tile[sc.INERTIA, alone], tile[sc.MOMENTUM, alone], tile[sc.KAPPA, alone]
     wall, inverse_spacing = tile[sc.WALL, alone], tile[sc.INV_SPACING, alone]
@@ -336,9 +333,9 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
     g_m, g_kappa, g_w, g_pressure = given.m, given.kappa, given.w, given.pressure  # read once per chunk
     g_spacing, g_viscous, g_wall = given.spacing, given.viscous, given.wall_pressure
     start, stop = k * n // chunks, (k + 1) * n // chunks
-    # The columns are set up in turn.  A group of BLOCK adjacent columns without walls goes
-    # into the tile and is solved side by side (sheared_block); the columns it did not
-    # finish come back from the tile one by one (``drain``) to the iteration below.
+    # The columns are set up in turn.  A group of BLOCK adjacent columns without walls goes into
+    # the tile and is solved side by side (sheared_block); the columns it did not finish come
+    # back from the tile one by one (``drain``) to the iteration below.
     following, j0, block, drain = start, start, False, BLOCK
     while True:
         if drain < BLOCK:  # a column of the last block that it did not finish
@@ -366,8 +363,8 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
                     spacing[a], viscous[a], wall_pressure[a] = g_spacing[a, j], g_viscous[a, j], g_wall[a, j]
             lane = j - j0 if block else ALONE
             o = cell(lane, L)  # the lane's layer 0 in the tile's rows
-            # what stays fixed during the iteration, a few rows per loop over the layers (a
-            # loop over all of them reloads its rows' pointers), the laws' switch outside them
+            # what stays fixed during the iteration, a few rows per loop over the layers (a loop
+            # over all reloads its rows' pointers), the laws' switch outside them
             for a in range(L):  # contiguous: as vectors
                 tile[sc.INERTIA, np.uint64(o + a)] = m[a] / dt  # unsigned: no test for negative indices
             for a in range(L):  # a column of the (L, N) arrays
@@ -416,8 +413,8 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
         wall_c = wc if walls else wall
         iterations[j] = -1
         fallbacks[j] = 0
-        # a guess at rest in every layer has no jump and no slip: no viscous stress, whatever
-        # the laws, and the bound reads none; the laws are evaluated for a column to iterate
+        # a guess at rest in every layer has no jump and no slip: no viscous stress, whatever the
+        # laws, and the bound reads none; the laws are evaluated for a column to iterate
         resting = inertia[0] > 0.0
         for a in range(L):
             resting = resting and current[a] == 0.0
@@ -536,6 +533,9 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
         faults[j] = fault
         for a in range(L):
             u_out[a, col] = current[a]
+            if not abs(current[a]) < np.inf and fault == 0:  # a non-finite iterate compares as converged
+                fault = faults[j] = NOT_FINITE
+                fault_values[j, 0], fault_values[j, 1] = current[a], a
 
 
 def _columns(chunks, columns, inputs, fused, given, laws, control, out):

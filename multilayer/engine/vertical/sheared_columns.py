@@ -198,7 +198,7 @@ def _solve(t, w, L, new, flags):
     """The exact solve with one group per layer into slot ``new``: the forward sweep and
     the back substitution of ``column_solve._active_set``, and its optimality test: each
     pivot is positive and each yielded jump keeps its sign (a column whose structure is
-    rejected, or whose velocities are not finite, leaves the block).
+    rejected leaves the block).
 
     The sweeps run in ``w`` (``SWEEPS BLOCK L`` values), which holds each layer's ``SWEEPS``
     values of the ``BLOCK`` lanes side by side (value k of layer a of lane i in ``(a
@@ -266,14 +266,9 @@ def _solve(t, w, L, new, flags):
             w[s + solved * lanes] = u
     for lane in range(BLOCK):  # into slot new, and the test
         x0, i = np.uint64(cell(lane, L)), np.uint64(lane)
-        infinite = 0.0  # velocities that are not finite: _chunk names the column
         for a in range(layers):
-            u = w[a * step + solved * lanes + i]
-            infinite += 0.0 if abs(u) < np.inf else 1.0
-            t[new, x0 + a] = u
-        if w[sign * lanes + i] + infinite > 0.0 or (
-            t[KC, x0] > 0.0 and t[SIGN, x0] * t[new, x0] < 0.0
-        ):  # the bed
+            t[new, x0 + a] = w[a * step + solved * lanes + i]
+        if w[sign * lanes + i] > 0.0 or (t[KC, x0] > 0.0 and t[SIGN, x0] * t[new, x0] < 0.0):  # the bed
             flags[ACTIVE, lane] = False
 
 
@@ -387,6 +382,12 @@ def sheared_block(
             if flags[DONE, i]:
                 j = j0 + i
                 x = cell(i, L)
+                infinite = 0.0  # velocities that are not finite (compared as converged): _chunk names them
+                for a in range(L):
+                    infinite += 0.0 if abs(t[new, x + a]) < np.inf else 1.0
+                if infinite > 0.0:
+                    flags[ACTIVE, i] = False
+                    continue
                 for a in range(L):
                     u_out[a, c0 + i] = t[new, x + a]
                 iterations[j] = iteration
