@@ -309,19 +309,23 @@ def _tile(stage, t0, t1, window, scheme, edges, arrays, work):
             east[k] = uc + 0.5 * du
     # faces f = 0 .. m (window face t0 + f) between the cells k = f + 1 and f + 2:
     # hydrostatic reconstruction and HLL wave speeds bracketing every layer's waves
+    # the slowest and fastest layer on each side of each face, row by row (contiguous
+    # rows, selects: the loops vectorise), kept in rows that the next loop overwrites
     for f in range(m + 1):
-        # the slowest and fastest layer on each side (one face at a time: accumulating
-        # them row by row in arrays was slowed by false store-load dependencies), kept
-        # in rows that the next loop overwrites
-        s_lo = s_hi = u_e[0, f + 1]
-        r_lo = r_hi = u_w[0, f + 2]
-        for a in range(1, L):
-            left_value, right_value = u_e[a, f + 1], u_w[a, f + 2]
-            s_lo = left_value if left_value < s_lo else s_lo
-            s_hi = left_value if left_value > s_hi else s_hi
-            r_lo = right_value if right_value < r_lo else r_lo
-            r_hi = right_value if right_value > r_hi else r_hi
-        wl[f], wr[f], pL[f], pR[f] = s_lo, s_hi, r_lo, r_hi
+        wl[f] = wr[f] = u_e[0, f + 1]
+        pL[f] = pR[f] = u_w[0, f + 2]
+    for a in range(1, L):
+        east, west = u_e[a], u_w[a]
+        for f in range(m + 1):
+            value = east[f + 1]
+            s_lo, s_hi = wl[f], wr[f]
+            wl[f] = value if value < s_lo else s_lo
+            wr[f] = value if value > s_hi else s_hi
+        for f in range(m + 1):
+            value = west[f + 2]
+            r_lo, r_hi = pL[f], pR[f]
+            pL[f] = value if value < r_lo else r_lo
+            pR[f] = value if value > r_hi else r_hi
     # the face scalars, face by face without inner loops (they vectorise)
     for f in range(m + 1):
         s_lo, s_hi, r_lo, r_hi = wl[f], wr[f], pL[f], pR[f]
