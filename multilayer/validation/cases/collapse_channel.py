@@ -68,7 +68,7 @@ tensor law at the mean pressure (``model.normal_stress``, docs/model.md)."""
 STRESSED_END = 0.8
 """The least simulated time (s) with the normal stress: twice the others'."""
 STRESSED_CELLS = CELLS
-"""Its mesh study (m): the same four meshes (a run with it costs 3.9-5.3 times one without)."""
+"""Its mesh study (m): the same four meshes (a run with it costs 4.9-7.5 times one without, docs/model.md)."""
 
 X_MAX = {0.5: 0.2, 1.0: 0.24, 2.0: 0.4, 4.0: 0.72, 7.0: 1.04, 10.0: 1.2}
 """Domain per a (m): longer than the deposit, a multiple of every cell size."""
