@@ -222,6 +222,17 @@ class Arrays(NamedTuple):
     speeds: np.ndarray
 
 
+@jit(inline="always")
+def _widen(values, offset, count, lo, hi):
+    """``lo[f]``, ``hi[f]``: the smallest and largest of themselves and ``values[f + offset]``,
+    ``f < count`` (selects over contiguous rows: the loop vectorises)."""
+    for f in range(count):
+        value = values[f + offset]
+        low, high = lo[f], hi[f]
+        lo[f] = value if value < low else low
+        hi[f] = value if value > high else high
+
+
 @jit(error_model="numpy")
 def _tile(stage, t0, t1, window, scheme, edges, arrays, work):
     """One stage on the cells ``t0 .. t1-1`` of the window (faces ``t0 .. t1``), layer by
@@ -315,17 +326,8 @@ def _tile(stage, t0, t1, window, scheme, edges, arrays, work):
         wl[f] = wr[f] = u_e[0, f + 1]
         pL[f] = pR[f] = u_w[0, f + 2]
     for a in range(1, L):
-        east, west = u_e[a], u_w[a]
-        for f in range(m + 1):
-            value = east[f + 1]
-            s_lo, s_hi = wl[f], wr[f]
-            wl[f] = value if value < s_lo else s_lo
-            wr[f] = value if value > s_hi else s_hi
-        for f in range(m + 1):
-            value = west[f + 2]
-            r_lo, r_hi = pL[f], pR[f]
-            pL[f] = value if value < r_lo else r_lo
-            pR[f] = value if value > r_hi else r_hi
+        _widen(u_e[a], 1, m + 1, wl, wr)  # the east values of the cells left of the faces
+        _widen(u_w[a], 2, m + 1, pL, pR)  # the west values of the cells right of them
     # the face scalars, face by face without inner loops (they vectorise)
     for f in range(m + 1):
         s_lo, s_hi, r_lo, r_hi = wl[f], wr[f], pL[f], pR[f]
