@@ -182,3 +182,27 @@ def test_a_column_locking_from_the_surface_down_is_solved_without_the_dynamic_pr
     assert how == "active set"
     assert np.abs(u - exact).max() <= 1e-14 * np.abs(exact).max()
     assert u[0] == 0.0 and np.array_equal(u == 0.0, exact == 0.0)
+
+
+def test_the_seed_of_each_column_is_that_column_extrapolated_on_its_own():
+    """``_extrapolate`` passes the (L, N) arrays layer by layer: over a window of columns
+    ``lo .. hi-1``, part of them with a last seed (``first .. stop-1``), each column's
+    seed is the one of that column extrapolated alone (jump by jump, layers at rest kept
+    0, the columns without a last seed not extrapolated), to the bit, and the columns
+    outside the window are not written."""
+    rng = np.random.default_rng(3)
+    L, N = 9, 40
+    now, last = rng.normal(size=(L, N)), rng.normal(size=(L, N))
+    now[rng.random((L, N)) < 0.3] = 0.0  # layers at rest, and locked interfaces
+    last[rng.random((L, N)) < 0.3] = 0.0
+    for lo, hi, first, stop, ratio in ((3, 37, 0, 40, 1.0), (0, 40, 10, 25, 0.5), (5, 30, 28, 40, 0.7)):
+        guess, start = np.full((L, N), 7.0), np.full((L, N), 7.0)
+        _extrapolate(now, last, first, stop, ratio, guess, start, lo, hi)
+        for i in range(N):
+            alone, alone_start = np.empty((L, 1)), np.empty((L, 1))
+            known = 1 if first <= i < stop else 0
+            column = (now[:, i : i + 1].copy(), last[:, i : i + 1].copy())
+            _extrapolate(*column, 0, known, ratio, alone, alone_start, 0, 1)
+            inside = lo <= i < hi
+            assert guess[:, i].tobytes() == (alone[:, 0] if inside else np.full(L, 7.0)).tobytes()
+            assert start[:, i].tobytes() == (now[:, i] if inside else np.full(L, 7.0)).tobytes()

@@ -84,18 +84,31 @@ class SeedExtrapolation:
 def _extrapolate(seed, last, first, stop, ratio, guess, start, lo, hi):
     """Over the columns ``lo .. hi-1``: ``start = seed`` and ``guess`` the seed extrapolated
     jump by jump (module docstring) where ``seed != 0`` and ``last`` holds the last step's
-    seed (its columns ``first .. stop-1``), else ``seed``."""
+    seed (its columns ``first .. stop-1``), else ``seed``.
+
+    Layer by layer, each a pass along the rows of the (L, N) arrays (the values below a
+    layer are those of the row before it, just passed): a pass column by column reads the
+    rows of the four arrays a cache line apart, a stream per layer that the processor does
+    not prefetch (on a mesh whose arrays exceed its caches, the pass costs several times its
+    instructions)."""
     L = seed.shape[0]
-    for i in range(lo, hi):
-        known = first <= i < stop
-        below, below_last, below_guess = 0.0, 0.0, 0.0  # the bed
-        for a in range(L):
-            v = seed[a, i]
-            start[a, i] = v
-            if v == 0.0 or not known:
-                guess[a, i] = v
-            else:
-                jump = v - below
-                change = jump + ratio * (jump - (last[a, i] - below_last))
-                guess[a, i] = below_guess + (change if change * jump > 0.0 else jump)
-            below, below_last, below_guess = v, last[a, i], guess[a, i]
+    known_lo = min(max(lo, first), hi)  # the columns where last is known: known_lo .. known_hi-1
+    known_hi = max(min(hi, stop), known_lo)
+    bed = np.zeros(hi)  # the values below layer 0
+    lo, hi, known_lo, known_hi = np.uint64(lo), np.uint64(hi), np.uint64(known_lo), np.uint64(known_hi)
+    for a in range(L):  # the indices unsigned: no test for negative ones
+        now, before, new = seed[a], last[a], guess[a]
+        rows_below = (seed[a - 1], last[a - 1], guess[a - 1]) if a > 0 else (bed, bed, bed)
+        below, below_last, below_guess = rows_below
+        for i in range(lo, hi):  # one stream stored per loop
+            start[a, i] = now[i]
+        for i in range(lo, known_lo):
+            new[i] = now[i]
+        for i in range(known_hi, hi):
+            new[i] = now[i]
+        for i in range(known_lo, known_hi):
+            v = now[i]
+            jump = v - below[i]
+            change = jump + ratio * (jump - (before[i] - below_last[i]))
+            extrapolated = below_guess[i] + (change if change * jump > 0.0 else jump)
+            new[i] = v if v == 0.0 else extrapolated
