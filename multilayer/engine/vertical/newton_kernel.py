@@ -638,8 +638,8 @@ class CompiledStep:
             self._out, self._written = [np.zeros_like(ustar), np.zeros_like(ustar)], [(0, 0), (0, 0)]
         self._out.reverse()  # the other one: the result of the last call stays
         self._written.reverse()
-        u = self._out[0]
-        u[:, self._written[0][0] : self._written[0][1]] = 0.0  # zero outside them already
+        (lo, hi), u = self._written[0], self._out[0]
+        u[:, lo:hi][:, ~(h[lo:hi] > 0.0)] = 0.0  # zero outside them already; the kernel writes the wet ones
         self._written[0] = (int(wet[0]), int(wet[-1]) + 1) if wet.size else (0, 0)
         out = Results(
             u, np.empty(wet.size, np.int64), np.empty(wet.size, np.int64), np.empty(wet.size, np.int64),
