@@ -382,14 +382,17 @@ def sheared_block(
             if flags[DONE, i]:
                 j = j0 + i
                 x = cell(i, L)
-                infinite = 0.0  # velocities that are not finite (compared as converged): _chunk names them
-                for a in range(L):
-                    infinite += 0.0 if abs(t[new, x + a]) < np.inf else 1.0
-                if infinite > 0.0:
+                # velocities that are not finite (compared as converged): _chunk names them; counted
+                # without branches and indexed unsigned (no test for negative indices): as vectors
+                infinite = 0
+                for y in range(np.uint64(x), np.uint64(x + L)):
+                    infinite += not abs(t[new, y]) < np.inf
+                if infinite > 0:
                     flags[ACTIVE, i] = False
                     continue
-                for a in range(L):
-                    u_out[a, c0 + i] = t[new, x + a]
+                column = np.uint64(c0 + i)
+                for a in range(np.uint64(L)):
+                    u_out[a, column] = t[new, np.uint64(x) + a]
                 iterations[j] = iteration
                 fallbacks[j] = 0
                 faults[j] = 0
