@@ -19,12 +19,15 @@ compiles for one instruction set (``CPU``; valgrind runs no AVX-512) into its ow
 filled by a first run outside valgrind.  ``--peer SOURCE`` also counts a plain C kernel
 of the same step (its source, built with ``gcc -O3 -march=CPU``, run as ``KERNEL N L
 STEPS``) on the same sizes: the difference of two runs of ``--steps`` and twice as many
-steps, per cell-step (its transport and vertical step together).
+steps, per cell-step (its transport and vertical step together).  ``--cache-sim`` also
+simulates the data caches (callgrind's ``--cache-sim``, no prefetching: a count of the
+lines moved, not of their cost) as ``CACHES``, an L1 of 48 KiB and an L2 of 2 MiB per core
+as the last level, and gives their misses per cell-step beside the instructions.
 
     python benchmarks/instructions.py [--case chute|dam_break] [--cells 2000] [--layers 64]
         [--steps 4 | --until T] [--warm 3] [--warm-time 0] [--start bagnold|rest]
         [--pressure hydrostatic|non_hydrostatic] [--regions step,transport,...]
-        [--peer kernel.c] [--json FILE]
+        [--peer kernel.c] [--cache-sim] [--json FILE]
 
 Needs valgrind, its headers (valgrind/callgrind.h) and a C compiler.
 """
@@ -51,6 +54,9 @@ CPU = "haswell"
 AVX-512 nor the host's own CPU model: numba's cache is keyed by the CPU it compiled for)."""
 FEATURES = "+avx,+avx2,+fma,+bmi,+bmi2,+f16c,+lzcnt,+movbe,+popcnt,+sse4.2"
 REGIONS = ("step", "transport", "transport_kernel", "vertical", "projection")
+CACHES = ["--cache-sim=yes", "--D1=49152,12,64", "--LL=2097152,16,64"]
+"""The simulated data caches of ``--cache-sim`` (size, ways, line): the L1 and the L2 of a
+core of the machine the project is measured on, the L2 as the last level."""
 
 
 def helper(directory: Path) -> Path:
@@ -127,31 +133,55 @@ def environment(cache: Path) -> dict[str, str]:
             "NUMBA_CACHE_DIR": str(cache)}  # fmt: skip
 
 
-def callgrind(command: list[str], out: Path, env: dict[str, str] | None = None) -> tuple[int, str]:
-    """Run ``command`` under callgrind: the instructions it counted, its output."""
+def callgrind(
+    command: list[str], out: Path, env: dict[str, str] | None = None, caches: bool = False
+) -> tuple[dict[str, int], str]:
+    """Run ``command`` under callgrind: the events it counted (``Ir`` the instructions; with
+    ``caches`` also the misses of the simulated caches, ``CACHES``), its output."""
     options = ["--instr-atstart=no", "--collect-atstart=no"] if command[0] == sys.executable else []
     run = subprocess.run(
-        ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", *options, *command],
+        ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", *options, *(CACHES if caches else []),
+         *command],
         check=True,
         capture_output=True,
         text=True,
         env=env,
-    )
-    totals = re.search(r"^totals: (\d+)", out.read_text(), re.M)
-    if totals is None:
+    )  # fmt: skip
+    text = out.read_text()
+    events, totals = re.search(r"^events: (.*)$", text, re.M), re.search(r"^totals: (.*)$", text, re.M)
+    if events is None or totals is None:
         raise SystemExit(f"callgrind wrote no totals to {out}")
-    return int(totals.group(1)), run.stdout
+    return dict(zip(events.group(1).split(), map(int, totals.group(1).split()), strict=True)), run.stdout
 
 
-def peer(source: Path, cells: int, layers: int, steps: int, workdir: Path) -> dict:
+def misses(events: dict[str, int], cell_steps: int) -> dict[str, float]:
+    """Misses of the simulated data caches per cell-step (reads and writes): L1, last level."""
+    if "D1mr" not in events:
+        return {}
+    return {
+        "D1_misses": (events["D1mr"] + events["D1mw"]) / cell_steps,
+        "LL_misses": (events["DLmr"] + events["DLmw"]) / cell_steps,
+    }
+
+
+def described(counts: dict) -> str:
+    """The simulated cache misses per cell-step in ``counts``, if any, as text."""
+    if "D1_misses" not in counts:
+        return ""
+    return f", {counts['D1_misses']:.2f} L1 and {counts['LL_misses']:.2f} last-level misses"
+
+
+def peer(source: Path, cells: int, layers: int, steps: int, workdir: Path, caches: bool) -> dict:
     """Instructions per cell-step of the C kernel (transport and vertical step together),
-    from two runs of ``steps`` and ``2 steps`` steps (the set-up cancels)."""
+    from two runs of ``steps`` and ``2 steps`` steps (the set-up cancels); with ``caches``
+    the simulated cache misses too."""
     binary = workdir / "kernel"
     subprocess.run(["gcc", "-O3", f"-march={CPU}", "-o", str(binary), str(source), "-lm"], check=True)
-    counts = [callgrind([str(binary), str(cells), str(layers), str(n)], workdir / f"peer.{n}.out")[0]
-              for n in (steps, 2 * steps)]  # fmt: skip
-    return {"instructions": counts[1] - counts[0], "cell_steps": steps * cells * layers,
-            "per_cell_step": (counts[1] - counts[0]) / (steps * cells * layers)}  # fmt: skip
+    runs = {n: [str(binary), str(cells), str(layers), str(n)] for n in (steps, 2 * steps)}
+    counts = [callgrind(run, workdir / f"peer.{n}.out", None, caches)[0] for n, run in runs.items()]
+    difference, cell_steps = {k: counts[1][k] - counts[0][k] for k in counts[0]}, steps * cells * layers
+    return {"instructions": difference["Ir"], "cell_steps": cell_steps,
+            "per_cell_step": difference["Ir"] / cell_steps, **misses(difference, cell_steps)}  # fmt: skip
 
 
 def main() -> None:
@@ -168,6 +198,7 @@ def main() -> None:
     parser.add_argument("--pressure-layers", type=int, default=None)
     parser.add_argument("--regions", default=",".join(REGIONS))
     parser.add_argument("--peer", type=Path, help="the C kernel's source, counted on the same sizes")
+    parser.add_argument("--cache-sim", action="store_true", help="also count simulated cache misses")
     parser.add_argument("--json", type=Path, help="write the counts to this file")
     cache = Path(tempfile.gettempdir()) / "instructions-numba-cache"
     parser.add_argument(
@@ -193,13 +224,16 @@ def main() -> None:
     subprocess.run([*command, "step"], check=True, stdout=subprocess.DEVNULL, env=env)  # numba's cache
     counts: dict = {}
     for region in args.regions.split(","):
-        total, output = callgrind([*command, region], workdir / f"{region}.out", env)
+        events, output = callgrind([*command, region], workdir / f"{region}.out", env, args.cache_sim)
         result = json.loads(output.split("RESULT ", 1)[1])
-        counts[region] = {"instructions": total, **result, "per_cell_step": total / result["cell_steps"]}
-        print(f"{region}: {total / result['cell_steps']:.1f} instructions per cell-step ({result})")
+        total, simulated = events["Ir"], misses(events, result["cell_steps"])
+        per_cell_step = total / result["cell_steps"]
+        counts[region] = {"instructions": total, **result, "per_cell_step": per_cell_step, **simulated}
+        print(f"{region}: {per_cell_step:.1f} instructions per cell-step{described(simulated)} ({result})")
     if args.peer:
-        counts["C kernel"] = peer(args.peer, args.cells, args.layers, args.steps, workdir)
-        print(f"C kernel: {counts['C kernel']['per_cell_step']:.1f} instructions per cell-step")
+        counts["C kernel"] = peer(args.peer, args.cells, args.layers, args.steps, workdir, args.cache_sim)
+        print(f"C kernel: {counts['C kernel']['per_cell_step']:.1f} instructions per cell-step"
+              f"{described(counts['C kernel'])}")  # fmt: skip
     if args.json:
         args.json.write_text(
             json.dumps({"arguments": forwarded, "cpu": CPU, "counts": counts}, indent=1) + "\n"
