@@ -585,6 +585,16 @@ def test_an_output_directory_that_is_a_file_is_named_so(tmp_path, cli, write_sce
     assert result.code == 2 and f"{tmp_path / 'out'}: a file, not a directory; accepted" in result.err
 
 
+@pytest.mark.parametrize("target", ["missing/out", "out"])
+def test_an_output_directory_that_is_a_link_to_nothing_is_named_so(tmp_path, cli, write_scenario, target):
+    """``-o`` a link whose target does not exist, or to itself: "cannot be created or
+    written (File exists)", mkdir's words, which name no cause."""
+    (tmp_path / "out").symlink_to(target)
+    result = cli("run", write_scenario(TINY_SCENARIO), "-o", tmp_path / "out", "-q")
+    assert result.code == 2, result.err
+    assert f"{tmp_path / 'out'}: a symbolic link to {target}, which does not exist" in result.err
+
+
 @pytest.mark.parametrize(
     ("call", "phrase"),
     [
