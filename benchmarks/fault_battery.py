@@ -1426,6 +1426,131 @@ def round_eight() -> list[Case]:
     return out
 
 
+def _kernel_modules(directory: Path) -> None:
+    """A caller kernel and its callee (answer ``1.0 * x``) in ``directory/engine``."""
+    _scenario(directory)
+    engine = directory / "engine"
+    engine.mkdir()
+    jit = "from multilayer.engine.compiled import jit\n"
+    (engine / "callee.py").write_text(jit + "\n\n@jit\ndef f(x):\n    return 1.0 * x\n")
+    (engine / "caller.py").write_text(jit + "from callee import f\n\n\n@jit\ndef g(x):\n    return f(x)\n")
+
+
+# the callee edited after this process imported it, before its first kernel; a second
+# process must then run the edited callee (it loaded the old one from numba's cache)
+EDITED_AFTER_IMPORT = """
+import subprocess
+from pathlib import Path
+from multilayer.engine import kernel_cache
+engine = Path(sys.argv[2]).parent / "engine"
+sys.path.insert(0, str(engine))
+kernel_cache.ENGINE = engine
+import caller
+callee = engine / "callee.py"
+callee.write_text(callee.read_text().replace("1.0 * x", "2.0 * x"))
+caller.g(1.0)
+later = subprocess.run(
+    [sys.executable, "-c", "import sys; sys.path.insert(0, sys.argv[1]); "
+     "from multilayer.engine import kernel_cache; from pathlib import Path; "
+     "kernel_cache.ENGINE = Path(sys.argv[1]); import caller; print(caller.g(1.0))", str(engine)],
+    capture_output=True, text=True,
+)
+if later.stdout.split() != ["2.0"]:
+    sys.exit(f"the next process ran the old kernel: {later.stdout.strip()} {later.stderr[-200:]}")
+"""
+
+
+def _api(body: str) -> str:
+    """A patch that runs ``body`` (Python API calls) and reports its InputError as the
+    command line does (exit 2); anything else is not handled."""
+    indented = "".join(f"    {line}\n" for line in body.strip().splitlines())
+    return (
+        "import multilayer\nfrom multilayer.errors import InputError\ntry:\n" + indented
+        + "except InputError as exc:\n    print(f'multilayer: error: {exc}', file=sys.stderr)\n"
+        "    sys.exit(2)\n"
+    )  # fmt: skip
+
+
+API_MISUSE: list[tuple[str, str, str]] = [
+    (
+        "a scenario given layers = 0 after loading",
+        "sc = multilayer.load(sys.argv[2])\nsc.domain.layers = 0\nmultilayer.Simulation(sc).step()",
+        "domain.layers: Input should be greater than or equal to 1",
+    ),
+    (
+        "load_state of a state missing t",
+        "sim = multilayer.Simulation(multilayer.load(sys.argv[2]))\nsim.load_state({})",
+        "t: missing",
+    ),
+    (
+        "load_state of a NaN force impulse",
+        "import numpy as np\nsim = multilayer.Simulation(multilayer.load(sys.argv[2]))\n"
+        "saved = sim.state_dict()\nsaved['force_impulse'] = saved['force_impulse'] * np.nan\n"
+        "sim.load_state(saved)",
+        "force_impulse holds values that are not finite",
+    ),
+    (
+        "advance to a time before now",
+        "sim = multilayer.Simulation(multilayer.load(sys.argv[2]))\nsim.advance(0.01)\nsim.advance(0.005)",
+        "earlier than the current time",
+    ),
+    (
+        "an engine configuration of no layer",
+        "from multilayer.engine.config import SimulationConfig\nfrom multilayer.app.factory import "
+        "engine_config\nimport dataclasses\nconfig = engine_config(multilayer.load(sys.argv[2]))\n"
+        "dataclasses.replace(config, fractions=())",
+        "fractions = (); accepted",
+    ),
+]
+
+
+def _linked_output(directory: Path, target: str) -> None:
+    _scenario(directory)
+    (directory / "out").symlink_to(target)
+
+
+def round_nine() -> list[Case]:
+    """The hostile cases of the ninth round (docs/reliability.md): a kernel module edited
+    while a process runs, the Python API given a scenario changed after loading or states
+    and times it cannot take, ``-o`` a link to nothing or to itself, ``numerics.order``
+    true or 2.0."""
+    validate = ["validate", "{scenario}"]
+    out = [
+        Case(
+            "numba's cache: a callee edited after the import",
+            validate,
+            0,
+            "is not the code this process runs",
+            patch=EDITED_AFTER_IMPORT,
+            setup=_kernel_modules,
+        )
+    ]
+    for name, body, phrase in API_MISUSE:
+        out.append(Case(f"API: {name}", validate, 2, phrase, patch=_api(body), setup=_scenario))
+    for name, target in (("nothing", "missing/out"), ("itself", "out")):
+        out.append(
+            Case(
+                f"run: -o a link to {name}",
+                ["run", "{scenario}", "-o", "{dir}/out", "-q"],
+                2,
+                "which does not exist (or links back to itself)",
+                setup=partial(_linked_output, target=target),
+            )
+        )
+    for value in (True, 2.0):
+        out.extend(
+            Case(
+                f"{command[0]}: numerics.order {value}",
+                command,
+                2,
+                "accepted: 1 or 2 (order of the transport step",
+                setup=partial(_scenario, changes={"numerics": {"order": value}}),
+            )
+            for command in (validate, ["run", "{scenario}", "-o", "{dir}/out", "-q"])
+        )
+    return out
+
+
 def cases() -> list[Case]:
     out: list[Case] = []
     budget = ["--max-memory", "8G", "--max-output", "1G"]
@@ -1587,6 +1712,7 @@ def cases() -> list[Case]:
         + round_six()
         + round_seven()
         + round_eight()
+        + round_nine()
     )
 
 
