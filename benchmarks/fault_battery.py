@@ -104,6 +104,9 @@ def _scenario(directory: Path, changes: dict | None = None, text: str | None = N
 _DELETE = object()
 INF, NAN = float("inf"), float("nan")
 
+JOP = {"name": "jop_mu_i", "mu_s": 0.3, "mu_2": 0.6, "I_0": 0.3}
+"""Jop's mu(I) on TINY: one Newton iteration does not converge at the first step."""
+
 # TINY as a grain-fluid mixture (docs/mixture.md)
 MIXTURE = {
     "fluid": {"density": 1000.0, "viscosity": 1e-3},
@@ -502,9 +505,9 @@ def _damaged_result(how: str) -> Callable[[Path], None]:
     return setup
 
 
-def _sweep(parameters: dict, paired: bool = False) -> Callable[[Path], None]:
+def _sweep(parameters: dict, paired: bool = False, base: dict = TINY) -> Callable[[Path], None]:
     def setup(directory: Path) -> None:
-        (directory / "base.yaml").write_text(yaml.safe_dump(TINY))
+        (directory / "base.yaml").write_text(yaml.safe_dump(base))
         sweep = {"base": "base.yaml", "parameters": parameters, "zip": paired}
         (directory / "sweep.yaml").write_text(yaml.safe_dump(sweep))
 
@@ -1294,7 +1297,7 @@ def _sobol(directory: Path) -> None:
         "base": "base.yaml",
         "parameters": {
             "rheology.mu_s": {"bounds": [0.3, 0.4]},
-            "numerics.tolerance": {"bounds": [1e-300, 2e-300]},
+            "slope_deg": {"bounds": [1e-300, 2e-300]},
         },
         "outputs": ["runout"],
         "samples": 2,
@@ -1336,8 +1339,8 @@ def round_seven() -> list[Case]:
             "sweep: a member failing on a worker process",
             ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/out", "--workers", "1"],
             1,
-            "did not reach tolerance 1e-300",
-            setup=_sweep({"numerics.tolerance": [1e-300, 1e-10]}),
+            "did not reach tolerance 1e-10 in 1 iterations",
+            setup=_sweep({"numerics.max_iterations": [1, 200]}, base={**TINY, "rheology": JOP}),
         )
     )
     out.append(
@@ -1512,8 +1515,8 @@ def _linked_output(directory: Path, target: str) -> None:
 def round_nine() -> list[Case]:
     """The hostile cases of the ninth round (docs/reliability.md): a kernel module edited
     while a process runs, the Python API given a scenario changed after loading or states
-    and times it cannot take, ``-o`` a link to nothing or to itself, ``numerics.order``
-    true or 2.0."""
+    and times it cannot take, ``-o`` a link to nothing or to itself, Newton settings no
+    run can use (10^29 iterations, a tolerance of 1e-16), ``numerics.order`` true or 2.0."""
     validate = ["validate", "{scenario}"]
     out = [
         Case(
@@ -1536,6 +1539,20 @@ def round_nine() -> list[Case]:
                 "which does not exist (or links back to itself)",
                 setup=partial(_linked_output, target=target),
             )
+        )
+    for numerics, phrase in (
+        ({"max_iterations": 10**29}, "numerics.max_iterations"),
+        ({"tolerance": 1e-16}, "numerics.tolerance"),
+    ):
+        out.extend(
+            Case(
+                f"{command[0]}: numerics {numerics}",
+                command,
+                2,
+                phrase,
+                setup=partial(_scenario, changes={"numerics": numerics}),
+            )
+            for command in (validate, ["run", "{scenario}", "-o", "{dir}/out", "-q"])
         )
     for value in (True, 2.0):
         out.extend(

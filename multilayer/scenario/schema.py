@@ -577,8 +577,14 @@ class Numerics(StrictModel):
     transport_solver: Literal["kernel", "numpy"] = field("kernel", "kernel or numpy")
     threads: Any = field("auto", THREADS_ACCEPTED)
     order: Literal[1, 2] = field(2, _ORDER)
-    tolerance: float = field(1e-10, "a number > 0", gt=0)
-    max_iterations: int = field(200, "an integer >= 1", ge=1)
+    tolerance: float = field(
+        1e-10,
+        f"a number >= {limits.MIN_TOLERANCE:g} (relative to the velocity scale; below, round-off decides)",
+        ge=limits.MIN_TOLERANCE,
+    )
+    max_iterations: int = field(
+        200, f"an integer from 1 to {limits.MAX_ITERATIONS}", ge=1, le=limits.MAX_ITERATIONS
+    )
     dry_threshold: float = field(1e-6, "a number > 0 (m)", gt=0)
     front_threshold: float = field(1e-3, "a number > 0 (m)", gt=0)
 
