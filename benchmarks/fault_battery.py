@@ -1512,11 +1512,24 @@ def _linked_output(directory: Path, target: str) -> None:
     (directory / "out").symlink_to(target)
 
 
+def _sensitivity_file(directory: Path, s1: np.ndarray, dims: tuple[str, ...]) -> None:
+    """A sensitivity.nc of one output and two parameters whose S1 is ``s1`` over ``dims``."""
+    import xarray as xr
+
+    both, good = ("output", "parameter"), np.array([[0.5, 0.3]])
+    indices = {"S1": (dims, s1), **{name: (both, good) for name in ("S1_conf", "ST", "ST_conf")}}
+    coords = {"output": ["runout"], "parameter": ["mu_s", "nu"]}
+    xr.Dataset(indices, coords=coords, attrs={"confidence_level": 0.95, "base_samples": 64}).to_netcdf(
+        directory / "sensitivity.nc"
+    )
+
+
 def round_nine() -> list[Case]:
     """The hostile cases of the ninth round (docs/reliability.md): a kernel module edited
     while a process runs, the Python API given a scenario changed after loading or states
     and times it cannot take, ``-o`` a link to nothing or to itself, Newton settings no
-    run can use (10^29 iterations, a tolerance of 1e-16), ``numerics.order`` true or 2.0."""
+    run can use (10^29 iterations, a tolerance of 1e-16), a sensitivity.nc whose indices
+    are not as written, ``numerics.order`` true or 2.0."""
     validate = ["validate", "{scenario}"]
     out = [
         Case(
@@ -1553,6 +1566,19 @@ def round_nine() -> list[Case]:
                 setup=partial(_scenario, changes={"numerics": numerics}),
             )
             for command in (validate, ["run", "{scenario}", "-o", "{dir}/out", "-q"])
+        )
+    for name, s1, dims, phrase in (
+        ("over other dimensions", np.array([0.5, 0.3]), ("parameter",), "S1 over ('parameter',), where over"),
+        ("infinite", np.array([[np.inf, 0.3]]), ("output", "parameter"), "S1 holds infinite values"),
+    ):
+        out.append(
+            Case(
+                f"plot: a sensitivity.nc whose S1 is {name}",
+                ["plot", "{dir}"],
+                2,
+                phrase,
+                setup=partial(_sensitivity_file, s1=s1, dims=dims),
+            )
         )
     for value in (True, 2.0):
         out.extend(
