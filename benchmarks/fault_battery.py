@@ -104,6 +104,9 @@ def _scenario(directory: Path, changes: dict | None = None, text: str | None = N
 _DELETE = object()
 INF, NAN = float("inf"), float("nan")
 
+JOP = {"name": "jop_mu_i", "mu_s": 0.3, "mu_2": 0.6, "I_0": 0.3}
+"""Jop's mu(I) on TINY: one Newton iteration does not converge at the first step."""
+
 # TINY as a grain-fluid mixture (docs/mixture.md)
 MIXTURE = {
     "fluid": {"density": 1000.0, "viscosity": 1e-3},
@@ -502,9 +505,9 @@ def _damaged_result(how: str) -> Callable[[Path], None]:
     return setup
 
 
-def _sweep(parameters: dict, paired: bool = False) -> Callable[[Path], None]:
+def _sweep(parameters: dict, paired: bool = False, base: dict = TINY) -> Callable[[Path], None]:
     def setup(directory: Path) -> None:
-        (directory / "base.yaml").write_text(yaml.safe_dump(TINY))
+        (directory / "base.yaml").write_text(yaml.safe_dump(base))
         sweep = {"base": "base.yaml", "parameters": parameters, "zip": paired}
         (directory / "sweep.yaml").write_text(yaml.safe_dump(sweep))
 
@@ -1294,7 +1297,7 @@ def _sobol(directory: Path) -> None:
         "base": "base.yaml",
         "parameters": {
             "rheology.mu_s": {"bounds": [0.3, 0.4]},
-            "numerics.tolerance": {"bounds": [1e-300, 2e-300]},
+            "slope_deg": {"bounds": [1e-300, 2e-300]},
         },
         "outputs": ["runout"],
         "samples": 2,
@@ -1336,8 +1339,8 @@ def round_seven() -> list[Case]:
             "sweep: a member failing on a worker process",
             ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/out", "--workers", "1"],
             1,
-            "did not reach tolerance 1e-300",
-            setup=_sweep({"numerics.tolerance": [1e-300, 1e-10]}),
+            "did not reach tolerance 1e-10 in 1 iterations",
+            setup=_sweep({"numerics.max_iterations": [1, 200]}, base={**TINY, "rheology": JOP}),
         )
     )
     out.append(
@@ -1423,6 +1426,171 @@ def round_eight() -> list[Case]:
             setup=_odd_path,
         )
     )
+    return out
+
+
+def _kernel_modules(directory: Path) -> None:
+    """A caller kernel and its callee (answer ``1.0 * x``) in ``directory/engine``."""
+    _scenario(directory)
+    engine = directory / "engine"
+    engine.mkdir()
+    jit = "from multilayer.engine.compiled import jit\n"
+    (engine / "callee.py").write_text(jit + "\n\n@jit\ndef f(x):\n    return 1.0 * x\n")
+    (engine / "caller.py").write_text(jit + "from callee import f\n\n\n@jit\ndef g(x):\n    return f(x)\n")
+
+
+# the callee edited after this process imported it, before its first kernel; a second
+# process must then run the edited callee (it loaded the old one from numba's cache)
+EDITED_AFTER_IMPORT = """
+import subprocess
+from pathlib import Path
+from multilayer.engine import kernel_cache
+engine = Path(sys.argv[2]).parent / "engine"
+sys.path.insert(0, str(engine))
+kernel_cache.ENGINE = engine
+import caller
+callee = engine / "callee.py"
+callee.write_text(callee.read_text().replace("1.0 * x", "2.0 * x"))
+caller.g(1.0)
+later = subprocess.run(
+    [sys.executable, "-c", "import sys; sys.path.insert(0, sys.argv[1]); "
+     "from multilayer.engine import kernel_cache; from pathlib import Path; "
+     "kernel_cache.ENGINE = Path(sys.argv[1]); import caller; print(caller.g(1.0))", str(engine)],
+    capture_output=True, text=True,
+)
+if later.stdout.split() != ["2.0"]:
+    sys.exit(f"the next process ran the old kernel: {later.stdout.strip()} {later.stderr[-200:]}")
+"""
+
+
+def _api(body: str) -> str:
+    """A patch that runs ``body`` (Python API calls) and reports its InputError as the
+    command line does (exit 2); anything else is not handled."""
+    indented = "".join(f"    {line}\n" for line in body.strip().splitlines())
+    return (
+        "import multilayer\nfrom multilayer.errors import InputError\ntry:\n" + indented
+        + "except InputError as exc:\n    print(f'multilayer: error: {exc}', file=sys.stderr)\n"
+        "    sys.exit(2)\n"
+    )  # fmt: skip
+
+
+API_MISUSE: list[tuple[str, str, str]] = [
+    (
+        "a scenario given layers = 0 after loading",
+        "sc = multilayer.load(sys.argv[2])\nsc.domain.layers = 0\nmultilayer.Simulation(sc).step()",
+        "domain.layers: Input should be greater than or equal to 1",
+    ),
+    (
+        "load_state of a state missing t",
+        "sim = multilayer.Simulation(multilayer.load(sys.argv[2]))\nsim.load_state({})",
+        "t: missing",
+    ),
+    (
+        "load_state of a NaN force impulse",
+        "import numpy as np\nsim = multilayer.Simulation(multilayer.load(sys.argv[2]))\n"
+        "saved = sim.state_dict()\nsaved['force_impulse'] = saved['force_impulse'] * np.nan\n"
+        "sim.load_state(saved)",
+        "force_impulse holds values that are not finite",
+    ),
+    (
+        "advance to a time before now",
+        "sim = multilayer.Simulation(multilayer.load(sys.argv[2]))\nsim.advance(0.01)\nsim.advance(0.005)",
+        "earlier than the current time",
+    ),
+    (
+        "an engine configuration of no layer",
+        "from multilayer.engine.config import SimulationConfig\nfrom multilayer.app.factory import "
+        "engine_config\nimport dataclasses\nconfig = engine_config(multilayer.load(sys.argv[2]))\n"
+        "dataclasses.replace(config, fractions=())",
+        "fractions = (); accepted",
+    ),
+]
+
+
+def _linked_output(directory: Path, target: str) -> None:
+    _scenario(directory)
+    (directory / "out").symlink_to(target)
+
+
+def _sensitivity_file(directory: Path, s1: np.ndarray, dims: tuple[str, ...]) -> None:
+    """A sensitivity.nc of one output and two parameters whose S1 is ``s1`` over ``dims``."""
+    import xarray as xr
+
+    both, good = ("output", "parameter"), np.array([[0.5, 0.3]])
+    indices = {"S1": (dims, s1), **{name: (both, good) for name in ("S1_conf", "ST", "ST_conf")}}
+    coords = {"output": ["runout"], "parameter": ["mu_s", "nu"]}
+    xr.Dataset(indices, coords=coords, attrs={"confidence_level": 0.95, "base_samples": 64}).to_netcdf(
+        directory / "sensitivity.nc"
+    )
+
+
+def round_nine() -> list[Case]:
+    """The hostile cases of the ninth round (docs/reliability.md): a kernel module edited
+    while a process runs, the Python API given a scenario changed after loading or states
+    and times it cannot take, ``-o`` a link to nothing or to itself, Newton settings no
+    run can use (10^29 iterations, a tolerance of 1e-16), a sensitivity.nc whose indices
+    are not as written, ``numerics.order`` true or 2.0."""
+    validate = ["validate", "{scenario}"]
+    out = [
+        Case(
+            "numba's cache: a callee edited after the import",
+            validate,
+            0,
+            "is not the code this process runs",
+            patch=EDITED_AFTER_IMPORT,
+            setup=_kernel_modules,
+        )
+    ]
+    for name, body, phrase in API_MISUSE:
+        out.append(Case(f"API: {name}", validate, 2, phrase, patch=_api(body), setup=_scenario))
+    for name, target in (("nothing", "missing/out"), ("itself", "out")):
+        out.append(
+            Case(
+                f"run: -o a link to {name}",
+                ["run", "{scenario}", "-o", "{dir}/out", "-q"],
+                2,
+                "which does not exist (or links back to itself)",
+                setup=partial(_linked_output, target=target),
+            )
+        )
+    for numerics, phrase in (
+        ({"max_iterations": 10**29}, "numerics.max_iterations"),
+        ({"tolerance": 1e-16}, "numerics.tolerance"),
+    ):
+        out.extend(
+            Case(
+                f"{command[0]}: numerics {numerics}",
+                command,
+                2,
+                phrase,
+                setup=partial(_scenario, changes={"numerics": numerics}),
+            )
+            for command in (validate, ["run", "{scenario}", "-o", "{dir}/out", "-q"])
+        )
+    for name, s1, dims, phrase in (
+        ("over other dimensions", np.array([0.5, 0.3]), ("parameter",), "S1 over ('parameter',), where over"),
+        ("infinite", np.array([[np.inf, 0.3]]), ("output", "parameter"), "S1 holds infinite values"),
+    ):
+        out.append(
+            Case(
+                f"plot: a sensitivity.nc whose S1 is {name}",
+                ["plot", "{dir}"],
+                2,
+                phrase,
+                setup=partial(_sensitivity_file, s1=s1, dims=dims),
+            )
+        )
+    for value in (True, 2.0):
+        out.extend(
+            Case(
+                f"{command[0]}: numerics.order {value}",
+                command,
+                2,
+                "accepted: 1 or 2 (order of the transport step",
+                setup=partial(_scenario, changes={"numerics": {"order": value}}),
+            )
+            for command in (validate, ["run", "{scenario}", "-o", "{dir}/out", "-q"])
+        )
     return out
 
 
@@ -1587,6 +1755,7 @@ def cases() -> list[Case]:
         + round_six()
         + round_seven()
         + round_eight()
+        + round_nine()
     )
 
 

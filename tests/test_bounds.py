@@ -322,6 +322,37 @@ def test_a_damaged_study_file_is_exit_2_when_plotted(tmp_path, cli, content):
     assert f"{tmp_path / 'sensitivity.nc'}: not a" in result.err
 
 
+def _sensitivity_file(path, s1, dims=("output", "parameter")):
+    """A sensitivity.nc of one output and two parameters whose S1 is ``s1`` over ``dims``."""
+    import xarray as xr
+
+    both, good = ("output", "parameter"), np.array([[0.5, 0.3]])
+    indices = {"S1": (dims, s1), **{name: (both, good) for name in ("S1_conf", "ST", "ST_conf")}}
+    coords = {"output": ["runout"], "parameter": ["mu_s", "nu"]}
+    xr.Dataset(indices, coords=coords, attrs={"confidence_level": 0.95, "base_samples": 64}).to_netcdf(path)
+
+
+@pytest.mark.parametrize(
+    ("s1", "dims", "phrase"),
+    [
+        (np.array([0.5, 0.3]), ("parameter",), "S1 over ('parameter',), where over ('output', 'parameter')"),
+        (np.array([[np.inf, 0.3]]), ("output", "parameter"), "S1 holds infinite values, where numbers"),
+        (np.array([[1, 0]]), ("output", "parameter"), "S1 holds values of type int64"),
+    ],
+)
+def test_a_study_file_whose_indices_are_not_as_written_is_exit_2(tmp_path, cli, s1, dims, phrase):
+    """Indices over other dimensions than the study writes were drawn (exit 0), infinite
+    ones drawn with numpy's "invalid value encountered in dot"; xarray's message for a file
+    that is not netCDF ran on for three lines with links."""
+    _sensitivity_file(tmp_path / "sensitivity.nc", s1, dims)
+    result = cli("plot", tmp_path)
+    assert result.code == 2 and "warning" not in result.err, result.err
+    assert f"{tmp_path / 'sensitivity.nc'}: {phrase}" in result.err
+    (tmp_path / "sensitivity.nc").write_bytes(b"garbage")
+    result = cli("plot", tmp_path)
+    assert result.code == 2 and len(result.err.strip().splitlines()) == 1, result.err
+
+
 def test_a_member_marker_that_is_no_marker_means_run_again(tmp_path):
     from multilayer.app import sweep
 

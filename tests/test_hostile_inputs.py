@@ -585,6 +585,16 @@ def test_an_output_directory_that_is_a_file_is_named_so(tmp_path, cli, write_sce
     assert result.code == 2 and f"{tmp_path / 'out'}: a file, not a directory; accepted" in result.err
 
 
+@pytest.mark.parametrize("target", ["missing/out", "out"])
+def test_an_output_directory_that_is_a_link_to_nothing_is_named_so(tmp_path, cli, write_scenario, target):
+    """``-o`` a link whose target does not exist, or to itself: "cannot be created or
+    written (File exists)", mkdir's words, which name no cause."""
+    (tmp_path / "out").symlink_to(target)
+    result = cli("run", write_scenario(TINY_SCENARIO), "-o", tmp_path / "out", "-q")
+    assert result.code == 2, result.err
+    assert f"{tmp_path / 'out'}: a symbolic link to {target}, which does not exist" in result.err
+
+
 @pytest.mark.parametrize(
     ("call", "phrase"),
     [
@@ -797,9 +807,10 @@ def test_a_failed_member_of_a_study_is_reported_by_the_study_not_in_dasks_log(tm
 
     from multilayer.app import cli
 
-    (tmp_path / "tiny.yaml").write_text(yaml.safe_dump(TINY_SCENARIO))
+    jop = {"name": "jop_mu_i", "mu_s": 0.3, "mu_2": 0.6, "I_0": 0.3}  # one iteration is too few
+    (tmp_path / "tiny.yaml").write_text(yaml.safe_dump({**TINY_SCENARIO, "rheology": jop}))
     path = tmp_path / "sweep.yaml"
-    path.write_text("base: tiny.yaml\nparameters:\n  numerics.tolerance: [1.0e-300, 1.0e-10]\n")
+    path.write_text("base: tiny.yaml\nparameters:\n  numerics.max_iterations: [1, 200]\n")
     caplog.set_level(logging.ERROR, logger="distributed")
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0") as cluster:
         code = cli.main(
@@ -807,7 +818,8 @@ def test_a_failed_member_of_a_study_is_reported_by_the_study_not_in_dasks_log(tm
         )
     assert code == 1
     rows = (tmp_path / "out" / "summary.csv").read_text()
-    assert ",failed,RunError: " in rows and "did not reach tolerance 1e-300" in rows and ",ok," in rows
+    assert ",failed,RunError: " in rows and "did not reach tolerance 1e-10 in 1 iterations" in rows
+    assert ",ok," in rows
     assert not [r for r in caplog.records if "Compute Failed" in r.getMessage() or r.exc_info]
 
 
@@ -820,9 +832,125 @@ def test_a_sobol_design_on_a_range_1e_300_wide_is_checked_as_any_other(tmp_path,
     path = tmp_path / "sobol.yaml"
     path.write_text(
         "base: tiny.yaml\nparameters:\n  rheology.mu_s: {bounds: [0.3, 0.4]}\n"
-        "  numerics.tolerance: {bounds: [1.0e-300, 2.0e-300]}\noutputs: [runout]\nsamples: 2\n"
+        "  slope_deg: {bounds: [1.0e-300, 2.0e-300]}\noutputs: [runout]\nsamples: 2\n"
     )
     for argv in (["validate", path], ["sensitivity", path, "-o", tmp_path / "out"]):
         result = cli(*argv)
         assert result.code == 2 and "warning" not in result.err and "Traceback" not in result.err
         assert "samples: with 2 base samples the two halves of the Sobol' design are correlated" in result.err
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "phrase"),
+    [
+        ("domain.layers", 0, "domain.layers: Input should be greater than or equal to 1 (got 0)"),
+        ("domain.cells", -5, "domain.cells: Input should be greater than or equal to 1 (got -5)"),
+        ("time.end", float("nan"), "time.end: Input should be a finite number (got nan)"),
+        ("gravity", float("inf"), "gravity: Input should be a finite number (got inf)"),
+    ],
+)
+def test_a_scenario_changed_after_loading_is_validated_again_by_the_simulation(key, value, phrase):
+    """pydantic checks no assignment: ``scenario.domain.layers = 0`` after ``multilayer.load``
+    was built into a simulation whose kernels wrote outside their arrays (a mass error of
+    1.8e255 m2, then "double free or corruption" when Python exited), ``cells = -5`` was
+    numpy's "negative dimensions" and ``time.end = nan`` a simulation.  ``Simulation``
+    validates a changed scenario again (an InputError naming the key) and keeps the
+    validated copy; a valid change is honoured."""
+    scenario = multilayer.load(TINY_SCENARIO)
+    section, name = key.split(".") if "." in key else (None, key)
+    setattr(getattr(scenario, section) if section else scenario, name, value)
+    with pytest.raises(InputError) as caught:
+        multilayer.Simulation(scenario)
+    assert phrase in str(caught.value)
+    changed = multilayer.load(TINY_SCENARIO)
+    changed.domain.cells = 20
+    sim = multilayer.Simulation(changed)
+    assert sim.h.size == 20 and not sim.scenario.changed_since_validation()
+
+
+def test_load_state_names_a_missing_or_non_finite_entry_and_restores_nothing():
+    """``load_state({})`` was a KeyError; a state whose vertical velocity, force impulse or
+    Newton seed held NaN was restored and stepped on (the NaN force reached the result).
+    Each is an InputError naming the entry, before anything is restored."""
+    sim = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
+    sim.advance(0.01)
+    saved = sim.state_dict()
+    with pytest.raises(InputError, match=r"^t: missing; accepted: what state_dict\(\) gives"):
+        sim.load_state({})
+    with pytest.raises(InputError, match=r"^seed_last: missing"):
+        sim.load_state({k: v for k, v in saved.items() if k != "seed_last"})
+    for key in ("w", "force_impulse", "seed_last", "seed_dt"):
+        damaged = dict(saved)
+        damaged[key] = np.full_like(np.asarray(saved[key], dtype=float), np.nan)
+        with pytest.raises(InputError, match=rf"^{key} holds values that are not finite"):
+            sim.load_state(damaged)
+    assert sim.t == saved["t"] and np.array_equal(sim.h, saved["h"])
+    sim.load_state({k: v for k, v in saved.items() if not k.startswith("seed_")})  # restarts the seed
+
+
+def test_advance_refuses_a_time_before_now_and_an_on_step_that_is_no_function():
+    """``advance(0.005)`` at t = 0.01 s returned with t = 0.01 s, as if it had gone there;
+    ``on_step=5`` was a TypeError after the first step was taken."""
+    sim = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
+    sim.advance(0.01)
+    with pytest.raises(InputError, match=r"advance\(t_target=0.005\): earlier than the current time"):
+        sim.advance(0.005)
+    steps = sim.steps
+    with pytest.raises(InputError, match=r"advance\(on_step=5\): accepted: None or a function"):
+        sim.advance(0.02, on_step=5)
+    assert sim.steps == steps and sim.t == 0.01
+    sim.advance(0.01)  # where it is: nothing to do
+
+
+@pytest.mark.parametrize("value", [True, 2.0])
+def test_a_transport_order_that_is_no_integer_is_refused(value):
+    """``numerics.order: true`` and ``2.0`` validated (pydantic matches a ``Literal`` by
+    equality): a boolean where a number goes, which ran as first order."""
+    data = copy.deepcopy(TINY_SCENARIO)
+    data["numerics"] = {"order": value}
+    with pytest.raises(InputError, match=rf"numerics\.order: got {value!r}; accepted: 1 or 2"):
+        multilayer.load(data)
+
+
+@pytest.mark.parametrize(
+    ("changes", "phrase"),
+    [
+        ({"fractions": ()}, "fractions = (); accepted: one number in (0, 1] per layer"),
+        ({"cells": 0}, "cells = 0; accepted: integers > 0"),
+        ({"x_max": float("nan")}, "accepted: finite numbers, x_max > x_min"),
+    ],
+)
+def test_the_engines_configuration_refuses_a_mesh_its_kernels_cannot_index(changes, phrase):
+    """The engine built by a script (docs/architecture.md) with no layer aborted the Python
+    process ("double free or corruption": its kernels wrote outside their arrays); no cell
+    was a ZeroDivisionError.  Its configuration refuses them, naming the field."""
+    from multilayer.engine.config import SimulationConfig
+    from multilayer.plugins.contract import Material
+
+    base = {
+        "x_min": 0.0, "x_max": 1.0, "cells": 10, "fractions": (0.5, 0.5),
+        "material": Material(density=1500.0, grain_diameter=1e-3, particle_density=2500.0),
+    }  # fmt: skip
+    with pytest.raises(InputError, match=re.escape(phrase)):
+        SimulationConfig(**{**base, **changes})
+
+
+@pytest.mark.parametrize(
+    ("numerics", "phrase"),
+    [
+        ({"max_iterations": 10**29}, "numerics.max_iterations: Input should be less than"),
+        ({"max_iterations": 10**5 + 1}, "accepted: an integer from 1 to 100000"),
+        ({"tolerance": 1e-16}, "numerics.tolerance: Input should be greater than or equal to"),
+        ({"tolerance": 5e-324}, "accepted: a number >= 1e-14 (relative to the velocity scale"),
+    ],
+)
+def test_newton_settings_no_run_can_use_are_refused(numerics, phrase):
+    """``max_iterations`` of 1.2e29 validated and stopped the run at its first step with
+    numba's typing error ("Int value is too large", exit 1); 1e18 would iterate without
+    end.  A tolerance below 1e-14 of the velocity scale validated and failed mid-run, its
+    convergence decided by round-off (exit 1 at step 37 with 2.3e-16)."""
+    data = copy.deepcopy(TINY_SCENARIO)
+    data["numerics"] = numerics
+    with pytest.raises(InputError) as caught:
+        multilayer.load(data)
+    assert phrase in str(caught.value)

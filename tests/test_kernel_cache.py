@@ -307,3 +307,100 @@ def _compiled_again(tmp_path, module, files) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert (module.twice(2.0), module.thrice(2.0)) == (4.0, 6.0)
+
+
+EDITED = """
+import sys, time
+from pathlib import Path
+engine = Path(sys.argv[1])
+sys.path.insert(0, str(engine))
+from multilayer.engine import kernel_cache
+kernel_cache.ENGINE = engine
+import caller
+for command in sys.argv[2:]:
+    if command == "edit":  # after the import, before the first kernel
+        callee = engine / "callee.py"
+        callee.write_text(callee.read_text().replace("1.0 * x", "2.0 * x"))
+    elif command == "wait":
+        print(flush=True)
+        while not (engine / "go").exists():
+            time.sleep(0.01)
+    else:
+        print(caller.g(float(command) if "." in command else int(command)), flush=True)
+"""
+
+
+def _kernel_modules(engine):
+    """A caller kernel in one module and its callee in another, the callee's answer x."""
+    engine.mkdir()
+    jit = "from multilayer.engine.compiled import jit\n"
+    (engine / "callee.py").write_text(jit + "\n\n@jit\ndef f(x):\n    return 1.0 * x\n")
+    (engine / "caller.py").write_text(jit + "from callee import f\n\n\n@jit\ndef g(x):\n    return f(x)\n")
+
+
+def _edited(engine, *commands, bytecode=False, **popen):
+    env = {name: value for name, value in os.environ.items() if name != "PYTHONDONTWRITEBYTECODE"}
+    if not bytecode:  # Python compiles the source it reads
+        env["PYTHONDONTWRITEBYTECODE"] = "1"
+    argv = [sys.executable, "-c", EDITED, str(engine), *commands]
+    if popen:
+        return subprocess.Popen(argv, env=env, text=True, **popen)
+    return subprocess.run(argv, env=env, capture_output=True, text=True, timeout=300)
+
+
+def test_a_callee_edited_after_the_import_leaves_no_old_code_in_the_cache(tmp_path):
+    """A process that imported the kernel modules, then found one edited when it compiled
+    its first kernel, cached its old code under the new sources' digest: every later run
+    loaded the caller with the old callee compiled into it (1.0 after the callee said
+    2.0).  Now that process caches nothing, says why, and the next run compiles the file."""
+    engine = tmp_path / "engine"
+    _kernel_modules(engine)
+    during = _edited(engine, "edit", "1.0")
+    assert during.returncode == 0, during.stderr
+    assert during.stdout.split() == ["1.0"]  # the code it imported
+    assert "callee.py is not the code this process runs" in during.stderr
+    after = _edited(engine, "1.0")
+    assert after.returncode == 0 and after.stdout.split() == ["2.0"], after.stderr
+
+
+@pytest.mark.slow
+def test_a_process_older_than_the_cache_neither_saves_nor_loads_its_kernels(tmp_path):
+    """A process started before an edit checked the cache then, and compiled (and cached)
+    kernels later: after a newer process had cleared the directory for the new sources,
+    the old process's kernel was saved there and loaded by every later run (1.0 after the
+    callee said 2).  A kernel is saved or loaded only where the digest is the process's."""
+    engine = tmp_path / "engine"
+    _kernel_modules(engine)
+    old = _edited(engine, "1.0", "wait", "1", stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    assert old.stdout is not None and old.stdout.readline().strip() == "1.0"
+    assert old.stdout.readline() == "\n"  # waiting, its cache checked
+    callee = engine / "callee.py"
+    callee.write_text(callee.read_text().replace("1.0 * x", "2.0 * x"))
+    assert _edited(engine, "1.0").stdout.split() == ["2.0"]  # clears and caches the new kernels
+    (engine / "go").touch()
+    out, err = old.communicate(timeout=300)
+    assert old.returncode == 0 and out.split() == ["1.0"], err  # its own code, compiled, not saved
+    assert _edited(engine, "1").stdout.split() == ["2.0"]
+
+
+def test_bytecode_of_an_earlier_version_is_not_cached_and_compiled_anew(tmp_path):
+    """Python runs a module's ``.pyc`` when its header holds the source's time (whole
+    seconds) and size: a kernel module rewritten with both kept (a copy keeping the time,
+    or an edit within the second) ran its old code, which was cached under the new
+    sources' digest; after a touch, the caller still held the old callee (1.0, for
+    ever).  Now that process caches nothing and the pyc is compiled anew."""
+    import py_compile
+
+    engine = tmp_path / "engine"
+    _kernel_modules(engine)
+    callee = engine / "callee.py"
+    py_compile.compile(str(callee), invalidation_mode=py_compile.PycInvalidationMode.TIMESTAMP, doraise=True)
+    stat = callee.stat()
+    callee.write_text(callee.read_text().replace("1.0 * x", "2.0 * x"))  # the same size
+    os.utime(callee, ns=(stat.st_atime_ns, stat.st_mtime_ns))
+    stale = _edited(engine, "1.0", bytecode=True)
+    assert stale.returncode == 0 and stale.stdout.split() == ["1.0"], stale.stderr  # Python's choice
+    assert "callee.py is not the code this process runs" in stale.stderr
+    assert _edited(engine, "1.0", bytecode=True).stdout.split() == ["2.0"]
+    callee.touch()
+    assert _edited(engine, "1.0", bytecode=True).stdout.split() == ["2.0"]

@@ -15,7 +15,6 @@ from pathlib import Path
 from typing import Any
 
 import xarray as xr
-import yaml
 
 from multilayer import scenario as scenarios
 from multilayer.errors import InputError
@@ -64,8 +63,7 @@ def load(source: ScenarioLike, overrides: Overrides = ()) -> Scenario:
     """
     sets = _override_strings(overrides)
     if isinstance(source, Scenario):
-        data = yaml.safe_load(source.resolved_yaml())
-        return scenarios.from_dict(data, source=source.source, overrides=sets)
+        return scenarios.validated_again(source, sets)
     if isinstance(source, Mapping):
         return scenarios.from_dict(limits.plain_data(source, "<scenario>"), overrides=sets)
     return scenarios.load(

@@ -162,6 +162,11 @@ def _output_directory(outdir: Path) -> list[Path]:
     missing = [path for path in (outdir, *outdir.parents) if not path.exists()]
     if outdir.exists() and not outdir.is_dir():  # mkdir says only "File exists"
         raise InputError(f"{outdir}: a file, not a directory; {accepted}")
+    if outdir.is_symlink() and not outdir.exists():  # mkdir says "File exists" here too
+        raise InputError(
+            f"{outdir}: a symbolic link to {os.readlink(outdir)}, which does not exist (or links back to "
+            f"itself); {accepted}"
+        )
     try:
         outdir.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryFile(dir=outdir):

@@ -12,14 +12,16 @@ import numpy as np
 from multilayer.app import factory, numba_environment
 from multilayer.engine import simulation
 from multilayer.errors import InputError
-from multilayer.scenario import Scenario
+from multilayer.scenario import Scenario, validated_again
 from multilayer.scenario.messages import shown
 
 
 class Simulation(simulation.Simulation):
     """``multilayer.Simulation(scenario)``: the engine's
     :class:`~multilayer.engine.simulation.Simulation` of a validated scenario (from
-    :func:`multilayer.load`), which it keeps as ``scenario``.  numba's variables are
+    :func:`multilayer.load`), which it keeps as ``scenario``; a scenario whose keys were
+    assigned since it was validated is validated again (:class:`InputError` naming the
+    key), and the simulation keeps the validated copy.  numba's variables are
     checked first (:func:`multilayer.app.numba_environment.check`): numba reads
     ``NUMBA_THREADING_LAYER`` at its first parallel kernel, where an unknown layer was
     numba's own ``ValueError``, mid-run."""
@@ -30,6 +32,8 @@ class Simulation(simulation.Simulation):
                 f"Simulation: got {shown(scenario)}; accepted: a Scenario, as multilayer.load returns "
                 "it from a file or a mapping"
             )
+        if scenario.changed_since_validation():  # keys assigned since multilayer.load: checked again
+            scenario = validated_again(scenario)
         numba_environment.check()
         self._one_at_a_time = threading.RLock()
         self.scenario = scenario

@@ -26,27 +26,44 @@ from multilayer.engine import kernel_cache
 class _CheckedCache(FunctionCache):
     """numba's on-disk cache of one kernel, made consistent with the kernel sources
     (:func:`kernel_cache.ensure_fresh`) before the first kernel of the process is loaded
-    or saved.  An entry that cannot be read (a truncated or damaged file: numba raised
-    the unpickling error) is a miss: the kernel is compiled again and the entry
-    rewritten (a damaged index anew), with a warning."""
+    or saved; a kernel of the engine is loaded or saved only while its directory holds
+    the kernels of the sources this process compiles (:func:`kernel_cache.current`).  An
+    entry that cannot be read (a truncated or damaged file: numba raised the unpickling
+    error) is a miss: the kernel is compiled again and the entry rewritten (a damaged index
+    anew), with a warning."""
+
+    def __init__(self, py_func: Callable) -> None:
+        super().__init__(py_func)
+        self._engine = kernel_cache.defined(Path(py_func.__code__.co_filename))
+
+    def _current(self) -> contextlib.AbstractContextManager[bool]:
+        """:func:`kernel_cache.current` of this kernel's directory (True outside the engine)."""
+        if self._engine:
+            return kernel_cache.current(Path(self._cache_path))
+        kernel_cache.ensure_fresh()
+        return contextlib.nullcontext(True)
 
     def load_overload(self, sig: Any, target_context: Any) -> Any:
-        kernel_cache.ensure_fresh()
-        try:
-            return super().load_overload(sig, target_context)
-        except Exception as exc:  # pickle, zlib, EOF, attribute errors of a damaged entry
-            _warn_damaged(self._cache_path, f"{self._py_func.__qualname__}: {type(exc).__name__}: {exc}")
-            return None
+        with self._current() as current:
+            if not current:
+                return None
+            try:
+                return super().load_overload(sig, target_context)
+            except Exception as exc:  # pickle, zlib, EOF, attribute errors of a damaged entry
+                _warn_damaged(self._cache_path, f"{self._py_func.__qualname__}: {type(exc).__name__}: {exc}")
+                return None
 
     def save_overload(self, sig: Any, data: Any) -> None:
-        kernel_cache.ensure_fresh()
-        try:
-            super().save_overload(sig, data)
-        except Exception as exc:  # its index cannot be read: written anew, without the old entries
-            _warn_damaged(self._cache_path, f"{self._py_func.__qualname__}: {type(exc).__name__}: {exc}")
-            with contextlib.suppress(Exception):  # the kernel is compiled: it runs uncached otherwise
-                Path(self._cache_file._index_path).unlink(missing_ok=True)
+        with self._current() as current:
+            if not current:
+                return
+            try:
                 super().save_overload(sig, data)
+            except Exception as exc:  # its index cannot be read: written anew, without the old entries
+                _warn_damaged(self._cache_path, f"{self._py_func.__qualname__}: {type(exc).__name__}: {exc}")
+                with contextlib.suppress(Exception):  # the kernel is compiled: it runs uncached otherwise
+                    Path(self._cache_file._index_path).unlink(missing_ok=True)
+                    super().save_overload(sig, data)
 
 
 def _checked(dispatcher: Any) -> Any:

@@ -10,10 +10,13 @@ one-to-one copy.
 
 from __future__ import annotations
 
+import math
+import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 
+from multilayer.errors import InputError
 from multilayer.plugins.contract import Material
 
 MAX_STEPS = 10_000_000
@@ -155,3 +158,23 @@ class SimulationConfig:
     """A grain–fluid mixture (None: dry grains)."""
     name: str = "<scenario>"
     """How messages name the problem (the scenario file)."""
+
+    def __post_init__(self) -> None:
+        """The mesh the kernels index without checking, checked as a script builds it (the
+        scenario's schema checks every key): no layer wrote outside the kernels' arrays
+        ("double free or corruption", the process aborted), no cell divided by zero."""
+        mesh = {"x_min": self.x_min, "x_max": self.x_max}
+        if not all(isinstance(v, numbers.Real) and math.isfinite(v) for v in mesh.values()) or not (
+            self.x_max > self.x_min
+        ):
+            raise InputError(f"{self.name}: SimulationConfig {mesh}; accepted: finite numbers, x_max > x_min")
+        if isinstance(self.cells, bool) or not isinstance(self.cells, numbers.Integral) or self.cells < 1:
+            raise InputError(f"{self.name}: SimulationConfig cells = {self.cells!r}; accepted: integers > 0")
+        fractions = tuple(self.fractions)
+        if not fractions or not all(
+            isinstance(f, numbers.Real) and not isinstance(f, bool) and 0 < f <= 1 for f in fractions
+        ):
+            raise InputError(
+                f"{self.name}: SimulationConfig fractions = {fractions!r:.60}; accepted: one number in "
+                "(0, 1] per layer, at least one, summing to 1 (mesh.layer_fractions)"
+            )

@@ -16,6 +16,18 @@ loaded or saved; importing the engine does nothing.  Two processes starting at o
 an upgrade take turns (a lock file in each directory, where ``fcntl`` exists): the first
 deletes the old kernels and writes the new digest (written whole, by renaming), the second
 then finds the digest current and keeps what the first has compiled since.
+
+The digest must be that of the code the process compiles, which Python read when it
+imported each module.  A module whose file changes between its import and the check
+(an edit, a ``git checkout`` or a reinstallation while a process runs) would otherwise
+have its old code cached under the new sources' digest, and every later process would
+load it: the caller of an edited callee kept the old callee.  Each kernel module's file
+is therefore digested when its kernels are defined (:func:`defined`, at its import); a
+file that differs at the check, or a module imported after the check whose file differs
+from the digest, means this process caches nothing (one warning naming the file).  Every
+load and save of a kernel holds the directory's lock and needs its digest to be the
+process's (:func:`current`): a process that started before an upgrade neither loads the
+new kernels nor saves its old ones into a directory a newer process has cleared.
 ``multilayer compile`` (app/precompile.py) marks the directories compiled for the digest
 and numba's version once it has cached its kernels (:func:`mark_compiled`,
 :func:`is_compiled`).
@@ -34,6 +46,7 @@ import os
 import tempfile
 import threading
 import types
+import warnings
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -57,6 +70,13 @@ _checked = False
 _lock = threading.Lock()
 CLEARED: list[Path] = []
 """The cache directories this process found stale and cleared."""
+_defined: dict[Path, str] = {}
+"""SHA-256 of each kernel module's file when its kernels were defined (:func:`defined`)."""
+_sources: dict[Path, str] = {}
+"""SHA-256 of each kernel module's file at the check (:func:`ensure_fresh`)."""
+_digest: str | None = None
+"""The digest of the kernel sources this process compiles, once checked; None: not
+checked yet, or the files are not the code this process runs (nothing is cached)."""
 
 
 MARKERS = (b"numba", b"multilayer.engine.compiled")
@@ -68,12 +88,22 @@ def kernel_modules() -> list[Path]:
     return [path for path in sorted(ENGINE.rglob("*.py")) if any(m in path.read_bytes() for m in MARKERS)]
 
 
+def _module_digests() -> dict[Path, str]:
+    """SHA-256 of each of :func:`kernel_modules`."""
+    return {path: hashlib.sha256(path.read_bytes()).hexdigest() for path in kernel_modules()}
+
+
+def _combined(digests: dict[Path, str]) -> str:
+    """One digest of the modules' digests, with their paths in the engine."""
+    digest = hashlib.sha256()
+    for path, module in digests.items():
+        digest.update(path.relative_to(ENGINE).as_posix().encode() + b"\0" + module.encode())
+    return digest.hexdigest()
+
+
 def sources_digest() -> str:
     """SHA-256 of the engine's modules that use numba, with their paths in the engine."""
-    digest = hashlib.sha256()
-    for path in kernel_modules():
-        digest.update(path.relative_to(ENGINE).as_posix().encode() + b"\0" + path.read_bytes())
-    return digest.hexdigest()
+    return _combined(_module_digests())
 
 
 def _writable(directory: Path) -> bool:
@@ -181,19 +211,131 @@ def clear_if_stale(directory: Path, digest: str | None = None) -> bool:
     return True
 
 
+def _changed_since_import(path: Path) -> None:
+    """Cache nothing more in this process: ``path``, a kernel module it imported, is not
+    the file it ran (one warning)."""
+    global _digest
+    _digest = None
+    warnings.warn(
+        f"{path} is not the code this process runs (the file changed after it was imported, or "
+        "Python ran the bytecode of an earlier version of it): its kernels are compiled and not "
+        "cached (the next run compiles the file)",
+        stacklevel=2,
+    )
+
+
+def _bytecode_is_of(module: Path, source: bytes) -> bool:
+    """Whether the bytecode Python keeps for ``module`` (its ``.pyc``), if Python ran it,
+    is that of ``source``; rewritten as a pyc Python checks against the source's hash.
+
+    Python runs a ``.pyc`` whose header holds the source's modification time, in whole
+    seconds, and size: a file rewritten with the same size within the same second, or
+    copied with its time kept (``cp -p``, ``rsync -t``, an archive), ran its previous
+    code, in every process until the file was touched.  Such a pyc is compiled anew (as
+    a hash-checked pyc, which Python then validates by the source's contents itself: the
+    cost of this comparison is paid once) and False returned.  Where it cannot be
+    written (a read-only installation, ``PYTHONDONTWRITEBYTECODE``: a stale one is
+    removed), the comparison is made by every process (about 3 ms a module)."""
+    import importlib.util
+    import marshal
+    import py_compile
+    import sys
+
+    try:
+        cached = Path(importlib.util.cache_from_source(str(module)))
+        header = cached.read_bytes()
+        stat = module.stat()
+    except (OSError, NotImplementedError, ValueError):  # no bytecode: Python compiled the source
+        return True
+    if header[:4] != importlib.util.MAGIC_NUMBER or len(header) < 16:  # Python ignores it
+        return True
+    flags = int.from_bytes(header[4:8], "little")
+    if flags & 1:  # hash-based: Python checked it against the source it read (flag 2) or not
+        of_source = header[8:16] == importlib.util.source_hash(source)
+        if of_source and flags & 2:
+            return True
+    elif header[8:16] != (int(stat.st_mtime) & 0xFFFFFFFF).to_bytes(4, "little") + (
+        stat.st_size & 0xFFFFFFFF
+    ).to_bytes(4, "little"):
+        return True  # Python did not run it: the header is not the file's
+    else:
+        try:
+            of_source = marshal.loads(header[16:]) == compile(source, str(module), "exec", dont_inherit=True)
+        except (ValueError, EOFError, TypeError, SyntaxError):
+            of_source = False
+    with contextlib.suppress(OSError, py_compile.PyCompileError):
+        if not sys.dont_write_bytecode:
+            py_compile.compile(
+                str(module),
+                cfile=str(cached),
+                doraise=True,
+                invalidation_mode=py_compile.PycInvalidationMode.CHECKED_HASH,
+            )
+        elif not of_source:  # removed: the next process compiles the source
+            cached.unlink()
+    return of_source
+
+
+def defined(module: Path) -> bool:
+    """Record the file of a module whose kernels are being defined (its import), the first
+    time; True if it is one of the engine's modules (whose cache :func:`current` checks).
+    Code that is not the file's (Python ran a ``.pyc`` of its previous contents,
+    :func:`_bytecode_is_of`) stops the caching, and so does, imported after the check, a
+    file that is not the one digested then (changed since)."""
+    module = Path(module)
+    if not module.is_relative_to(ENGINE):
+        return False
+    with _lock:
+        if module not in _defined:
+            try:
+                source = module.read_bytes()
+                _defined[module] = hashlib.sha256(source).hexdigest()
+                ran_source = _bytecode_is_of(module, source)
+            except OSError:
+                _defined[module], ran_source = "", True
+            if not ran_source:
+                _defined[module] = "the bytecode of an earlier version"
+            if _checked and _digest is not None and _sources.get(module) != _defined[module]:
+                _changed_since_import(module)
+    return True
+
+
 def ensure_fresh() -> None:
     """:func:`clear_if_stale` in every cache directory of the engine's kernels, once per
-    process (called before the first kernel is loaded or compiled)."""
-    global _checked
+    process (called before the first kernel is loaded or compiled), unless a kernel module
+    this process imported has changed since (then nothing is cached)."""
+    global _checked, _digest
     if _checked:
         return
     with _lock:
         if not _checked:
-            digest = sources_digest()
-            for directory in cache_directories():
-                if clear_if_stale(directory, digest):
-                    CLEARED.append(directory)
+            _sources.update(_module_digests())
+            changed = [path for path, digest in _defined.items() if _sources.get(path) != digest]
+            if changed:
+                _changed_since_import(changed[0])
+            else:
+                _digest = _combined(_sources)
+                for directory in cache_directories():
+                    if clear_if_stale(directory, _digest):
+                        CLEARED.append(directory)
             _checked = True
+
+
+@contextlib.contextmanager
+def current(directory: Path) -> Iterator[bool]:
+    """Hold the lock of the cache ``directory`` (after :func:`ensure_fresh`); yields whether
+    its kernels are those of the sources this process compiles (its digest file holds the
+    process's digest): a kernel is loaded from it or saved into it only then."""
+    ensure_fresh()
+    with contextlib.ExitStack() as stack:
+        fresh = False
+        if _digest is not None:
+            try:
+                stack.enter_context(_locked(directory))
+                fresh = (directory / STAMP).read_text() == _digest
+            except (OSError, UnicodeDecodeError):
+                fresh = False
+        yield fresh
 
 
 def compiled_text() -> str:

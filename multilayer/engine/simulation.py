@@ -512,15 +512,24 @@ class Simulation:
         *,
         max_steps: int | None = MAX_STEPS,
     ) -> None:
-        """Step until ``t == t_target`` (a finite number: :class:`InputError` otherwise, where
-        the stepping would never end or never start); ``on_step(sim, dt)`` is called after
-        every step.  At most ``max_steps`` steps (``None``: no bound): :class:`InputError`
-        before the first step when the Courant step of the state now already needs more
+        """Step until ``t == t_target`` (a finite number not before ``t``: :class:`InputError`
+        otherwise, where the stepping would never end or never start, or went back
+        silently); ``on_step(sim, dt)`` is called after every step (a value that is not
+        callable is an :class:`InputError` before the first, not a ``TypeError`` after it).
+        At most ``max_steps`` steps (``None``: no bound): :class:`InputError` before the
+        first step when the Courant step of the state now already needs more
         (``(t_target - t) / time_step()``, a lower bound: the waves may grow), and
         :class:`RunError` once that many are taken short of ``t_target`` (the state is
         that of the last step: ``advance`` again continues)."""
         if not math.isfinite(_time(t_target)):
             raise InputError(f"advance(t_target={t_target!r}): accepted: a finite number (s)")
+        if t_target < self.t:
+            raise InputError(
+                f"advance(t_target={t_target!r}): earlier than the current time t = {self.t!r} s; accepted: "
+                "a time not before t (a simulation steps forward only: load_state restores an earlier state)"
+            )
+        if on_step is not None and not callable(on_step):
+            raise InputError(f"advance(on_step={on_step!r}): accepted: None or a function of (sim, dt)")
         bound = _step_bound(max_steps)
         if self.t < t_target and bound < math.inf and (t_target - self.t) / (dt := self.time_step()) > bound:
             raise InputError(

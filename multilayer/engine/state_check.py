@@ -192,14 +192,24 @@ def _finite(bits: np.ndarray, lo: int, hi: int) -> bool:
 
 _COUNTS = ("t", "steps", "newton_iterations", "force_elapsed", "seed_dt")
 """Entries of a state that are never negative."""
+_NEEDED = (("t", "steps", "h", "u"), ("seed_dt", "seed_last", "seed_window"))
+"""Entries a state to restore holds: the first group always, the second all or none (a
+state without the Newton seed restarts its extrapolation)."""
 
 
 def check_restored(saved: Mapping[str, Any], fresh: Mapping[str, Any]) -> None:
     """A state to restore (a checkpoint) holds entries of ``fresh``, the state of the same
     simulation at its start, each of its shape, real numbers (integers where it holds
-    integers); the times and counts are not negative and the seed's columns lie in the
-    mesh.  :class:`InputError` naming the entry otherwise (a checkpoint of another version
-    or layout, or edited); the state guard then checks ``h`` and ``u``."""
+    integers), finite; the times and counts are not negative and the seed's columns lie in
+    the mesh; the entries of :data:`_NEEDED` are there.  :class:`InputError` naming the entry
+    otherwise (a checkpoint of another version or layout, or edited, or a mapping given to
+    ``load_state`` by hand: a missing entry was a ``KeyError``, a NaN vertical velocity or
+    force impulse was kept); the state guard then checks ``h`` and ``u``."""
+    always, together = _NEEDED
+    for missing in [k for k in always if k not in saved] or (
+        [k for k in together if k not in saved] if any(k in saved for k in together) else []
+    ):
+        raise InputError(f"{missing}: missing; accepted: what state_dict() gives ({', '.join(fresh)})")
     for key, value in saved.items():
         if key not in fresh:
             raise InputError(f"{key}: an entry this version of multilayer does not write")
@@ -208,6 +218,8 @@ def check_restored(saved: Mapping[str, Any], fresh: Mapping[str, Any]) -> None:
             raise InputError(
                 f"{key}: {a.dtype} values of shape {a.shape}, where {ref.dtype} of shape {ref.shape}"
             )
+        if not np.isfinite(a).all():
+            raise InputError(f"{key} holds values that are not finite, where finite numbers")
         if key in _COUNTS and not a >= 0:
             raise InputError(f"{key} = {a}, where a number >= 0")
     first, stop = np.asarray(saved.get("seed_window", (0, 0)))

@@ -25,19 +25,34 @@ _STAGE_COLOURS = {"search": "C0", "refine": "C1", "uncertainty": "C2"}
 _SI = {"runout": "m", "front_final": "m", "duration": "s", "mass_final": "m2", "front": "m", "h": "m"}
 
 
-REQUIRED = {
+REQUIRED: dict[str, tuple[dict[str, tuple[str, ...]], tuple[str, ...], tuple[str, ...]]] = {
     "calibration": (
-        ("best", "coordinate", "covariance", "fitted", "misfit", "observation", "observed", "observed_sd"),
-        ("parameter", "quantity", "stage", "values"),
+        {
+            "best": ("parameter",),
+            "coordinate": ("point",),
+            "covariance": ("parameter", "parameter2"),
+            "fitted": ("point",),
+            "misfit": ("candidate",),
+            "observation": ("point",),
+            "observed": ("point",),
+            "observed_sd": ("point",),
+            "stage": ("candidate",),
+            "values": ("candidate", "parameter"),
+        },
+        ("parameter", "quantity"),
         (),
     ),
     "sensitivity": (
-        ("S1", "S1_conf", "ST", "ST_conf"),
+        {name: ("output", "parameter") for name in ("S1", "S1_conf", "ST", "ST_conf")},
         ("output", "parameter"),
         ("confidence_level", "base_samples"),
     ),
 }
-"""What the figures of each kind of study file read: variables, coordinates, attributes."""
+"""What the figures of each kind of study file read: variables (with the dimensions the
+study writes them over), coordinates, attributes."""
+SOBOL_INDICES = ("S1", "S1_conf", "ST", "ST_conf")
+"""Never infinite: Sobol' indices and their confidence half-widths are ratios of sample
+variances (NaN where an output does not vary or runs failed)."""
 
 
 def plot_study(directory: str | os.PathLike, filename: str) -> list[Path]:
@@ -46,19 +61,12 @@ def plot_study(directory: str | os.PathLike, filename: str) -> list[Path]:
     path = Path(directory) / filename
     try:
         ds = xr.load_dataset(path)
-    except (OSError, ValueError, RuntimeError) as exc:
+    except (OSError, ValueError, RuntimeError) as exc:  # xarray's own text runs on for lines, with links
         raise InputError(
-            f"{path}: not a readable netCDF file ({reason(exc)}); accepted: a file written by multilayer"
+            f"{path}: not a readable netCDF file ({reason(exc).split('. ')[0].splitlines()[0]}); "
+            "accepted: a file written by multilayer"
         ) from None
-    kind = "calibration" if "misfit" in ds else "sensitivity"
-    variables, coordinates, attributes = REQUIRED[kind]
-    missing = [name for name in (*variables, *coordinates) if name not in ds.variables]
-    missing += [f"attribute {name}" for name in attributes if name not in ds.attrs]
-    if missing:
-        raise InputError(
-            f"{path}: not a {kind} file: no {', '.join(missing)}; accepted: the file that multilayer "
-            f"{'calibrate' if kind == 'calibration' else kind} writes"
-        )
+    check_study(ds, path)
     out = Path(directory) / PLOTS_DIR
     out.mkdir(exist_ok=True)
     if "misfit" in ds:
@@ -70,6 +78,27 @@ def plot_study(directory: str | os.PathLike, filename: str) -> list[Path]:
         fig.savefig(writable(out / name), dpi=120)
         paths.append(out / name)
     return paths
+
+
+def check_study(ds: xr.Dataset, path: Path) -> None:
+    """:class:`InputError` naming ``path`` unless ``ds`` holds what the figures read, over
+    the dimensions the study writes (a variable over others was drawn, exit 0), and Sobol'
+    indices that are not infinite (drawn, with numpy's warning)."""
+    kind = "calibration" if "misfit" in ds else "sensitivity"
+    variables, coordinates, attributes = REQUIRED[kind]
+    accepted = f"accepted: the file that multilayer {'calibrate' if kind == 'calibration' else kind} writes"
+    missing = [name for name in (*variables, *coordinates) if name not in ds.variables]
+    missing += [f"attribute {name}" for name in attributes if name not in ds.attrs]
+    if missing:
+        raise InputError(f"{path}: not a {kind} file: no {', '.join(missing)}; {accepted}")
+    for name, dims in variables.items():
+        if ds[name].dims != dims:
+            raise InputError(f"{path}: {name} over {ds[name].dims}, where over {dims}; {accepted}")
+    for name in SOBOL_INDICES if kind == "sensitivity" else ():
+        values = np.asarray(ds[name].values)
+        if values.dtype.kind != "f" or np.isinf(values).any():
+            what = "infinite values" if values.dtype.kind == "f" else f"values of type {values.dtype}"
+            raise InputError(f"{path}: {name} holds {what}, where numbers or nan; {accepted}")
 
 
 def misfit_figure(ds: xr.Dataset) -> Figure:

@@ -10,9 +10,18 @@
   DEM profiles a scenario names, and reading a user's input file.
 """
 
-from multilayer.scenario.loading import from_dict, load
+from multilayer.scenario.loading import from_dict, load, validated_again
 from multilayer.scenario.overrides import apply_overrides, as_overrides
 from multilayer.scenario.schema import Scenario
 from multilayer.scenario.source import format_value, read_yaml
 
-__all__ = ["Scenario", "apply_overrides", "as_overrides", "format_value", "from_dict", "load", "read_yaml"]
+__all__ = [
+    "Scenario",
+    "apply_overrides",
+    "as_overrides",
+    "format_value",
+    "from_dict",
+    "load",
+    "read_yaml",
+    "validated_again",
+]

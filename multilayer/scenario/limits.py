@@ -46,6 +46,15 @@ apart, so every step stays far above the shortest the engine takes (``MIN_STEP``
 engine/simulation.py, 4.45e-308 s; half of a denormal step is zero)."""
 MAX_DEM_PIXELS = 400_000_000
 """Largest DEM read (pixels; its band is read whole, 8 bytes a pixel)."""
+MAX_ITERATIONS = 10**5
+"""Most Newton iterations per column and vertical step (``numerics.max_iterations``): a
+column that does not converge takes that many before the run stops (1e29 was numba's
+typing error mid-run, 1e18 an iteration without end)."""
+MIN_TOLERANCE = 1e-14
+"""Smallest ``numerics.tolerance``, relative to the velocity scale: velocities of that
+scale are resolved to 2.2e-16 and a Newton solve's round-off is some of those (the tiny
+scenario of the fault battery with Jop's mu(I) failed at step 37 with 2.3e-16, at step 3
+with 1e-16, at step 0 below), so that convergence below it is decided by round-off."""
 
 
 def check_yaml(text: str, where: str, loader: type) -> None:

@@ -8,6 +8,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import yaml
 from pydantic import ValidationError
 
 from multilayer.errors import InputError
@@ -49,7 +50,15 @@ def from_dict(
             messages.append(f"{where}: {dotted(loc)}{place}: {what}{tail}")
         raise InputError("\n".join(messages)) from None
     scenario._source = Path(source) if source is not None else None
+    scenario.validated()
     return scenario
+
+
+def validated_again(scenario: Scenario, overrides: Sequence[str] = ()) -> Scenario:
+    """``scenario`` validated again, from its keys as they are now (assigned since its
+    validation or not), with ``overrides`` applied: a new :class:`Scenario`."""
+    data = yaml.safe_load(scenario.resolved_yaml())
+    return from_dict(data, source=scenario.source, overrides=overrides)
 
 
 def load(path: str | Path, overrides: Sequence[str] = ()) -> Scenario:

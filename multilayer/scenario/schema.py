@@ -567,17 +567,33 @@ class Expect(StrictModel):
         return self
 
 
+_ORDER = "1 or 2 (order of the transport step in x and t)"
+
+
 class Numerics(StrictModel):
     """Solver settings; the defaults suit every shipped scenario."""
 
     vertical_solver: Literal["kernel", "fipy"] = field("kernel", "kernel or fipy")
     transport_solver: Literal["kernel", "numpy"] = field("kernel", "kernel or numpy")
     threads: Any = field("auto", THREADS_ACCEPTED)
-    order: Literal[1, 2] = field(2, "1 or 2 (order of the transport step in x and t)")
-    tolerance: float = field(1e-10, "a number > 0", gt=0)
-    max_iterations: int = field(200, "an integer >= 1", ge=1)
+    order: Literal[1, 2] = field(2, _ORDER)
+    tolerance: float = field(
+        1e-10,
+        f"a number >= {limits.MIN_TOLERANCE:g} (relative to the velocity scale; below, round-off decides)",
+        ge=limits.MIN_TOLERANCE,
+    )
+    max_iterations: int = field(
+        200, f"an integer from 1 to {limits.MAX_ITERATIONS}", ge=1, le=limits.MAX_ITERATIONS
+    )
     dry_threshold: float = field(1e-6, "a number > 0 (m)", gt=0)
     front_threshold: float = field(1e-3, "a number > 0 (m)", gt=0)
+
+    @field_validator("order", mode="before")
+    @classmethod
+    def _order(cls, value: Any) -> Any:
+        if type(value) is not int:  # a Literal matches by equality: true and 2.0 were taken
+            raise invalid(f"got {shown(value)}", _ORDER)
+        return value
 
     @field_validator("threads")
     @classmethod
@@ -678,6 +694,7 @@ class Scenario(StrictModel):
     mixture: Mixture | None = field(None, "{phi_critical, dilatancy, critical_shift, kozeny}, with fluid")
 
     _source: Path | None = PrivateAttr(None)
+    _validated: dict[str, Any] | None = PrivateAttr(None)
 
     @field_validator("rheology")
     @classmethod
@@ -812,5 +829,17 @@ class Scenario(StrictModel):
 
     def resolved_yaml(self) -> str:
         """The scenario with every default filled in, as YAML that loads back to it
-        (libyaml's emitter where PyYAML has it: four times faster than PyYAML's own)."""
-        return dump(self.model_dump(mode="json", exclude_none=True))
+        (libyaml's emitter where PyYAML has it: four times faster than PyYAML's own).  A
+        value of another type assigned since the validation is written as it is, without
+        pydantic's warning: validating the text again names it."""
+        return dump(self.model_dump(mode="json", exclude_none=True, warnings=False))
+
+    def validated(self) -> None:
+        """Record the keys as validated (:func:`~multilayer.scenario.loading.from_dict`)."""
+        self._validated = self.model_dump(warnings=False)
+
+    def changed_since_validation(self) -> bool:
+        """Whether a key was assigned since the scenario was validated, or it never was
+        (pydantic checks no assignment: ``scenario.domain.layers = 0`` was built into a
+        simulation whose kernels wrote outside their arrays)."""
+        return self._validated is None or self._validated != self.model_dump(warnings=False)
