@@ -278,16 +278,21 @@ def _tile(stage, t0, t1, window, scheme, edges, arrays, work):
             hx[k] = H1[c] if from_q else H[c]
     first = col[0]
     inside = t0 >= 2 and t1 + 2 <= n  # no ghost: the columns first .. first+m+3
+    # rows from column ``first`` on, indexed by k >= 0 (``first + k`` could be negative to
+    # the compiler: each index would wrap around, element by element, and not vectorise)
+    h_in = H1[first : first + m + 4]
     for a in range(L):
         row = ux[a]
         if inside and from_q:
+            q_in = Q1[a, first : first + m + 4]
             for k in range(m + 4):
-                h = H1[first + k]
-                v = Q1[a, first + k] / (l[a] * h)
+                h = h_in[k]
+                v = q_in[k] / (l[a] * h)
                 row[k] = v if h > dry else 0.0
         elif inside:
+            u_in = U[a, first : first + m + 4]
             for k in range(m + 4):
-                row[k] = U[a, first + k]
+                row[k] = u_in[k]
         else:
             for k in range(m + 4):
                 c = col[k]
@@ -422,6 +427,7 @@ def _tile(stage, t0, t1, window, scheme, edges, arrays, work):
         terms[3, i] = b_e[k] - b_w[k]  # bed slope
         terms[4, i] = hx[k]  # gravity along the slope
     c0 = col[2]
+    h_old, h_out = H[c0 : c0 + m], H_out[c0 : c0 + m]
     for a in range(L):
         la = l[a]
         row, rate, momentum = ux[a], div_h[a], fq[a]
@@ -460,24 +466,23 @@ def _tile(stage, t0, t1, window, scheme, edges, arrays, work):
             dq[gate] = _momentum_rate(
                 gate, gate_q[a], momentum, terms, exchange, pressure, slope, gravity, dx
             )
+        # rows from column c0 on, indexed by i >= 0 (as the loads above)
+        u_old, q_mid, u_new = U[a, c0 : c0 + m], Q1[a, c0 : c0 + m], U_out[a, c0 : c0 + m]
         if not final:
             for i in range(m):
-                c = c0 + i
-                Q1[a, c] = la * H[c] * U[a, c] + dt * dq[i]
+                q_mid[i] = la * h_old[i] * u_old[i] + dt * dq[i]
         elif stage == 0:
             for i in range(m):
-                c = c0 + i
-                q_new = la * H[c] * U[a, c] + dt * dq[i]
-                h_new = H_out[c]
+                q_new = la * h_old[i] * u_old[i] + dt * dq[i]
+                h_new = h_out[i]
                 velocity = q_new / (la * h_new)
-                U_out[a, c] = velocity if h_new > dry else 0.0
+                u_new[i] = velocity if h_new > dry else 0.0
         else:
             for i in range(m):
-                c = c0 + i
-                q_new = 0.5 * (la * H[c] * U[a, c] + Q1[a, c] + dt * dq[i])
-                h_new = H_out[c]
+                q_new = 0.5 * (la * h_old[i] * u_old[i] + q_mid[i] + dt * dq[i])
+                h_new = h_out[i]
                 velocity = q_new / (la * h_new)
-                U_out[a, c] = velocity if h_new > dry else 0.0
+                u_new[i] = velocity if h_new > dry else 0.0
 
 
 def _stages(first, last, chunks, window, scheme, edges, arrays):
