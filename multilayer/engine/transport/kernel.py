@@ -276,33 +276,38 @@ def _tile(stage, t0, t1, window, scheme, edges, arrays, work):
             hx[k] = inflow_h
         else:
             hx[k] = H1[c] if from_q else H[c]
-    first = col[0]
-    inside = t0 >= 2 and t1 + 2 <= n  # no ghost: the columns first .. first+m+3
-    # rows from column ``first`` on, indexed by k >= 0 (``first + k`` could be negative to
-    # the compiler: each index would wrap around, element by element, and not vectorise)
-    h_in = H1[first : first + m + 4]
+    # the columns k_lo .. k_hi-1 are in the window: the mesh columns first .. first+count-1
+    # in order, read as row slices indexed from 0 (an index such as first + k could be
+    # negative to the compiler: each would wrap around, element by element, and the loop
+    # would not vectorise); the others (at most two per side) are ghosts
+    k_lo, k_hi = max(0, 2 - t0), min(m + 4, n + 2 - t0)
+    count = k_hi - k_lo
+    first = lo + t0 - 2 + k_lo
+    h_in = H1[first : first + count]
     for a in range(L):
-        row = ux[a]
-        if inside and from_q:
-            q_in = Q1[a, first : first + m + 4]
-            for k in range(m + 4):
+        row = ux[a][k_lo:k_hi]
+        if from_q:
+            q_in = Q1[a, first : first + count]
+            for k in range(count):
                 h = h_in[k]
                 v = q_in[k] / (l[a] * h)
                 row[k] = v if h > dry else 0.0
-        elif inside:
-            u_in = U[a, first : first + m + 4]
-            for k in range(m + 4):
-                row[k] = u_in[k]
         else:
-            for k in range(m + 4):
-                c = col[k]
-                if kind[k] == 2:
-                    v = inflow_u[a]
-                elif from_q:
-                    v = Q1[a, c] / (l[a] * H1[c]) if H1[c] > dry else 0.0
-                else:
-                    v = U[a, c]
-                row[k] = -v if kind[k] == 1 else v
+            u_in = U[a, first : first + count]
+            for k in range(count):
+                row[k] = u_in[k]
+    for a in range(L):
+        row = ux[a]
+        for g in range(m + 4 - count):
+            k = g if g < k_lo else g + count  # the ghosts
+            c = col[k]
+            if kind[k] == 2:
+                v = inflow_u[a]
+            elif from_q:
+                v = Q1[a, c] / (l[a] * H1[c]) if H1[c] > dry else 0.0
+            else:
+                v = U[a, c]
+            row[k] = -v if kind[k] == 1 else v
     # reconstruction: west/east values of the cells k = 1 .. m+2
     for k in range(1, m + 3):
         hc = hx[k]
