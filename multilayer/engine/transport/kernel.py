@@ -37,8 +37,9 @@ from multilayer.engine.transport.reference import (
     step_mass_time,
 )
 
-TILE = 8192
-"""Cells (columns x layers) of one tile of the sweep: its work arrays stay in the L2 cache."""
+TILE = 16384
+"""Cells (columns x layers) of one tile of the sweep: its work arrays (about 0.9 MB at 64
+layers) stay in a 2 MB L2 cache, and each loop's set-up per layer is shared by 256 columns."""
 
 
 @jit
