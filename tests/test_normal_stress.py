@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from engine import collapse_deposit
+from engine import collapse_deposit, deposit_beside_a_collapse
 from scipy.integrate import quad
 
 import multilayer
@@ -24,6 +24,7 @@ from multilayer.engine.normal_stress import (
     joint_rest,
     not_converged,
     plastic_chain_step,
+    runs,
 )
 from multilayer.errors import InputError, RunError
 from multilayer.validation.runs import SCENARIOS
@@ -493,6 +494,26 @@ def test_a_collapse_deposit_comes_exactly_to_rest_and_a_resumed_run_stays_there(
     alone.normal_stress = None  # the vertical step alone, at the full pressure
     alone.step()
     assert np.any(alone.u != 0.0)
+
+
+def test_a_deposit_stays_exactly_at_rest_beside_a_chain_that_flows():
+    """The collapse deposit at rest (u == 0.0, held by friction and the normal stress
+    together) with a second column collapsing beyond its dry front: the two chains are
+    independent (the normal stress couples the columns of a chain only, the vertical step
+    none), so rest stays the answer of the deposit's two steps together, and the search,
+    chain by chain, finds it: u == 0.0 in the deposit at every step while the new column
+    flows at 0.02-0.14 m/s, and nothing of the deposit moves.  A search over the whole
+    domain left the deposit creeping at 1.1e-4 to 1.5e-4 m/s while the other flowed."""
+    sim, deposit = deposit_beside_a_collapse()
+    h = sim.h[deposit].copy()
+    speeds = []
+    while sim.t < 0.41:
+        sim.step()
+        assert len(runs(sim.h > sim.dry)) == 2  # two chains throughout
+        assert np.all(sim.u[:, deposit] == 0.0)
+        speeds.append(np.abs(sim.u).max())
+    assert len(speeds) >= 25 and min(speeds) > 0.02
+    assert np.array_equal(sim.h[deposit], h) and np.any(sim.normal_stress.relief[:, deposit] != 0.0)
 
 
 def test_the_relief_is_bounded_by_the_plastic_limits_at_a_front():
