@@ -286,7 +286,9 @@ def joint_rest(
     ``x + p`` to a velocity ``V_m`` holds on the boundary of its set, inside ``V``'s, which
     ``V`` then holds exactly after finitely many rounds.  Abandoned where a round does not
     shrink the norm of ``x`` to :data:`CONTRACTION` of the last (the answer is not rest, or
-    the round-off is reached)."""
+    the round-off is reached), or after ``rounds``, unless ``V`` already holds ``x + p =
+    ustar - q`` exactly: that is the certificate, which needs no margin (near the round-off
+    the margin's iterates lag those ``V`` holds)."""
 
     def norm(v: np.ndarray) -> float:
         return float(np.sqrt(np.sum(mass * v * v)))
@@ -296,6 +298,10 @@ def joint_rest(
     size = norm(ustar)
     shrink = 1.0 - MARGIN
     x, p, q = ustar, np.zeros(ustar.shape), np.zeros(ustar.shape)
+
+    def certified() -> np.ndarray | None:
+        return None if np.any(vertical(x + p)) else q
+
     try:
         for _ in range(rounds):
             y = shrink * vertical((x + p) / shrink)
@@ -305,11 +311,11 @@ def joint_rest(
             x = normal(y + q)
             q = y + q - x
             if not (shrunk := norm(x)) <= CONTRACTION * size:
-                return None
+                return certified()
             size = shrunk
+        return certified()
     except NotConverged:
         return None
-    return None
 
 
 def not_converged(max_iterations: int) -> NotConverged:
