@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import copy
+import functools
 from typing import Any
+
+import numpy as np
 
 import multilayer
 from multilayer.app.simulation import Simulation
@@ -60,3 +63,25 @@ def collapse_deposit() -> Simulation:
             },
         )
     )
+
+
+@functools.cache
+def _deposit_state() -> dict[str, Any]:
+    """The state of :func:`collapse_deposit` at rest at t = 0.3 s (computed once)."""
+    sim = collapse_deposit()
+    sim.advance(0.3)
+    return sim.state_dict()
+
+
+def deposit_beside_a_collapse() -> tuple[Simulation, slice]:
+    """:func:`collapse_deposit` at rest at t = 0.3 s (its deposit over x < 0.096 m) with a
+    second column, 12 mm high and 16 mm wide, added at x = 0.168-0.184 m, beyond its dry
+    front: the new column collapses and flows for about 0.13 s, a chain of its own, while
+    the deposit's chain stays the same: the simulation and the deposit's columns."""
+    saved = _deposit_state()
+    both = collapse_deposit()
+    deposit = slice(0, int(np.flatnonzero(saved["h"] > both.dry)[-1]) + 1)
+    h = saved["h"].copy()
+    h[42:46] = 0.012
+    both.load_state({**saved, "h": h})
+    return both, deposit

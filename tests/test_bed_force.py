@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 import pytest
-from engine import collapse_deposit, simulation
+from engine import collapse_deposit, deposit_beside_a_collapse, simulation
 
 from multilayer.engine.bed_force import FORCES
 from multilayer.engine.transport import reference as transport
@@ -195,6 +195,18 @@ def test_a_collapse_held_at_rest_by_the_normal_stress_balances_its_momentum():
     f = records[-1][0]
     assert f["bed_force_x"] + f["wall_force_x"] + f["end_force_x"] == pytest.approx(0.0, abs=1e-12)
     assert f["end_force_x"] < 0.0 < f["bed_force_x"]
+
+
+def test_a_deposit_at_rest_beside_a_flowing_chain_balances_its_momentum():
+    """A collapse deposit held at rest by its friction and normal stress, chain by chain,
+    beside a column that collapses and flows (tests/test_normal_stress.py): the balance to
+    round-off while the one flows and the other rests."""
+    sim, deposit = deposit_beside_a_collapse()
+    sim.forces.take()  # the impulses saved with the deposit's state, before the new column
+    records = balance(sim, (0.35, 0.4))
+    assert np.all(sim.u[:, deposit] == 0.0) and np.any(sim.u != 0.0)
+    for _, left_over, normal in records:
+        assert abs(left_over) < 1e-13 and abs(normal) < 1e-13
 
 
 def test_the_transport_conserves_momentum_on_a_flat_bed():

@@ -40,7 +40,9 @@ step's friction alone cannot hold, but the friction and the normal stress togeth
 creep, the vertical step letting it move by ``O(dt)`` and this step taking back most of it,
 never all.  :func:`joint_rest` finds where rest is the answer of the two steps together,
 with the normal stress of material at rest (rate zero: any ``tau_xx`` between the plastic
-limits, the tensor law's stress at ``D = 0``), and the engine then ends the step at rest.
+limits, the tensor law's stress at ``D = 0``), and the engine then ends the step at rest,
+chain by chain (:func:`runs`: the step couples the columns of a chain only and the vertical
+step none, so rest of a chain is the answer of its own two steps, whatever the others do).
 
 It is solved in the dual: minimise ``sum_i M_i u_i^2 / 2 + sum_f psi_f*(Z_f)`` over the
 bounds with ``u_i = u*_i + (Z_(i+1/2) - Z_(i-1/2)) / M_i`` (Fenchel duality; the Hessian is
@@ -125,6 +127,14 @@ def chains(wet: np.ndarray, layers: int) -> Chains:
     linked = np.zeros(left.size, dtype=bool)
     linked[:-1] = left[1:] == left[:-1] + 1
     return Chains(left, left + 1, linked)
+
+
+def runs(wet: np.ndarray) -> list[slice]:
+    """The runs of two or more ``wet`` (N,) columns, each a chain of every layer (the columns
+    between two dry ones or an end), as slices of the columns."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[False], wet, [False]]).astype(np.int8)))
+    pairs = zip(edges[::2], edges[1::2], strict=True)
+    return [slice(int(start), int(stop)) for start, stop in pairs if stop - start > 1]
 
 
 def plastic_chain_step(
@@ -276,7 +286,9 @@ def joint_rest(
     ``x + p`` to a velocity ``V_m`` holds on the boundary of its set, inside ``V``'s, which
     ``V`` then holds exactly after finitely many rounds.  Abandoned where a round does not
     shrink the norm of ``x`` to :data:`CONTRACTION` of the last (the answer is not rest, or
-    the round-off is reached)."""
+    the round-off is reached), or after ``rounds``, unless ``V`` already holds ``x + p =
+    ustar - q`` exactly: that is the certificate, which needs no margin (near the round-off
+    the margin's iterates lag those ``V`` holds)."""
 
     def norm(v: np.ndarray) -> float:
         return float(np.sqrt(np.sum(mass * v * v)))
@@ -286,6 +298,10 @@ def joint_rest(
     size = norm(ustar)
     shrink = 1.0 - MARGIN
     x, p, q = ustar, np.zeros(ustar.shape), np.zeros(ustar.shape)
+
+    def certified() -> np.ndarray | None:
+        return None if np.any(vertical(x + p)) else q
+
     try:
         for _ in range(rounds):
             y = shrink * vertical((x + p) / shrink)
@@ -295,11 +311,11 @@ def joint_rest(
             x = normal(y + q)
             q = y + q - x
             if not (shrunk := norm(x)) <= CONTRACTION * size:
-                return None
+                return certified()
             size = shrunk
+        return certified()
     except NotConverged:
         return None
-    return None
 
 
 def not_converged(max_iterations: int) -> NotConverged:

@@ -50,7 +50,7 @@ from multilayer.engine.config import MAX_STEPS, SimulationConfig
 from multilayer.engine.gate import Gate
 from multilayer.engine.mesh import LayeredMesh
 from multilayer.engine.mixture.flow import MixtureFlow
-from multilayer.engine.normal_stress import NormalStress, joint_rest
+from multilayer.engine.normal_stress import NormalStress, joint_rest, runs
 from multilayer.engine.pressure.model import PressureModel, PressureSetup, models, options
 from multilayer.engine.state import FlowState, max_wave_speed, span, start_moving
 from multilayer.engine.state_check import StateGuard, check_restored
@@ -382,37 +382,53 @@ class Simulation:
         """The vertical step over ``dt`` of the velocities ``ustar`` on ``h`` (``first``: see
         :meth:`_vertical_step`), then the normal stress's: the vertical step's impulse (of
         ``weight``), the velocities at the end and the Newton iterations.  Where the two
-        leave the material moving, rest when it is the answer of the two steps together
-        (:func:`multilayer.engine.normal_stress.joint_rest`, the normal stress of material
-        at rest: docs/model.md, "Longitudinal normal stress"): its vertical step's impulse
-        from ``ustar - q``, ``q`` the normal stress's (the same momentum)."""
+        leave the material of a chain moving, rest of that chain when it is the answer of
+        the two steps together (:func:`multilayer.engine.normal_stress.joint_rest`, the
+        normal stress of material at rest: docs/model.md, "Longitudinal normal stress"):
+        its vertical step's impulse from ``ustar - q``, ``q`` the normal stress's (the same
+        momentum).  The chains (:func:`multilayer.engine.normal_stress.runs`) are searched
+        one by one: the normal stress couples the columns of a chain only and the vertical
+        step none, so the two steps together, and rest as their answer, are a chain's
+        own, whatever the others do."""
         u_vertical, iterations = self._vertical_step(h, ustar, dt, threads, first)
         u = self._normal_stress(h, u_vertical, dt, self.u)
         normal = self.normal_stress
         if normal is None or not np.any(u):
             return VerticalImpulse(weight, h, ustar, u_vertical, dt), u, iterations
-        plain = normal.tau_xx, normal.relief  # the step's stresses (each call makes new arrays)
+        tau_xx, relief = normal.tau_xx, normal.relief  # the split step's (each call makes new arrays)
         count = [iterations]
+        held, q = u_vertical.copy(), np.zeros(u.shape)  # the vertical step's answer and its input's change
+        mass = self.fractions[:, None] * h
+        for columns in runs(h > normal.dry):
+            if not np.any(u[:, columns]):
+                continue
 
-        def vertical(w: np.ndarray) -> np.ndarray:
-            held, more = self._vertical_step(h, w, dt, threads, first)
-            count[0] += more
-            return held
+            def vertical(w: np.ndarray, columns: slice = columns) -> np.ndarray:
+                whole = np.zeros(u.shape)  # the other columns at rest: the vertical step is per column
+                whole[:, columns] = w
+                answer, more = self._vertical_step(h, whole, dt, threads, first)
+                count[0] += more
+                return answer[:, columns]
 
-        at_rest = np.zeros(u.shape)  # the lagged velocities of the normal stress at rest: rate zero
-        q = joint_rest(
-            vertical,
-            lambda w: self._normal_stress(h, w, dt, at_rest),
-            ustar,
-            u,
-            self.u,
-            self.fractions[:, None] * h,
-            self.numerics.max_iterations,
-        )
-        if q is None:
-            normal.tau_xx, normal.relief = plain
-            return VerticalImpulse(weight, h, ustar, u_vertical, dt), u, count[0]
-        return VerticalImpulse(weight, h, ustar - q, np.zeros(u.shape), dt), np.zeros(u.shape), count[0]
+            def at_rest(w: np.ndarray, columns: slice = columns) -> np.ndarray:
+                whole = np.zeros(u.shape)  # the other chains at rest: no stress there
+                whole[:, columns] = w
+                return self._normal_stress(h, whole, dt, np.zeros(u.shape))[:, columns]  # rate zero
+
+            found = joint_rest(
+                vertical,
+                at_rest,
+                ustar[:, columns],
+                u[:, columns],
+                self.u[:, columns],
+                mass[:, columns],
+                self.numerics.max_iterations,
+            )
+            if found is not None:  # the chain at rest, held by the stresses of the last step at rest
+                q[:, columns], held[:, columns], u[:, columns] = found, 0.0, 0.0
+                tau_xx[:, columns], relief[:, columns] = normal.tau_xx[:, columns], normal.relief[:, columns]
+        normal.tau_xx, normal.relief = tau_xx, relief
+        return VerticalImpulse(weight, h, ustar - q, held, dt), u, count[0]
 
     def _normal_stress(self, h: np.ndarray, u: np.ndarray, dt: float, lagged: np.ndarray) -> np.ndarray:
         """The longitudinal normal stress's step of ``dt`` (normal_stress.py) on the
