@@ -22,6 +22,7 @@ import socket
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -32,6 +33,10 @@ from typing import Any
 
 import numpy as np
 import yaml
+
+NETCDF = threading.Lock()
+"""Held by every netCDF call of this script: the cases run in threads, and neither HDF5 nor
+xarray's writer (two files written at once crashed this process) is thread-safe."""
 
 TINY = {
     "name": "tiny",
@@ -374,7 +379,7 @@ def _result_damage(how: str) -> Callable[[Path], None]:
         if how == "truncated":
             path.write_bytes(path.read_bytes()[:500])
             return
-        with netCDF4.Dataset(path, "a") as ds:
+        with NETCDF, netCDF4.Dataset(path, "a") as ds:
             if how in ("nan", "failed"):
                 h = ds["h"][:]
                 h[3, 2:9] = np.nan
@@ -490,7 +495,7 @@ def _damaged_result(how: str) -> Callable[[Path], None]:
         elif how == "empty":
             path.write_bytes(b"")
         else:
-            with netCDF4.Dataset(path, "a") as ds:
+            with NETCDF, netCDF4.Dataset(path, "a") as ds:
                 if how == "running":
                     ds.run_status = "running"
                 elif how == "nan":
@@ -1519,9 +1524,10 @@ def _sensitivity_file(directory: Path, s1: np.ndarray, dims: tuple[str, ...]) ->
     both, good = ("output", "parameter"), np.array([[0.5, 0.3]])
     indices = {"S1": (dims, s1), **{name: (both, good) for name in ("S1_conf", "ST", "ST_conf")}}
     coords = {"output": ["runout"], "parameter": ["mu_s", "nu"]}
-    xr.Dataset(indices, coords=coords, attrs={"confidence_level": 0.95, "base_samples": 64}).to_netcdf(
-        directory / "sensitivity.nc"
-    )
+    with NETCDF:
+        xr.Dataset(indices, coords=coords, attrs={"confidence_level": 0.95, "base_samples": 64}).to_netcdf(
+            directory / "sensitivity.nc"
+        )
 
 
 def round_nine() -> list[Case]:
@@ -1763,7 +1769,7 @@ def _records(path: Path) -> int:
     try:
         import netCDF4
 
-        with netCDF4.Dataset(path) as ds:
+        with NETCDF, netCDF4.Dataset(path) as ds:
             return int(np.isfinite(ds["time"][:].filled(np.nan)).sum())
     except (OSError, KeyError, IndexError):
         return 0
