@@ -916,6 +916,7 @@ def test_a_transport_order_that_is_no_integer_is_refused(value):
     ("changes", "phrase"),
     [
         ({"fractions": ()}, "fractions = (); accepted: one number in (0, 1] per layer"),
+        ({"fractions": (0.5, 0.3)}, "fractions = (0.5, 0.3); accepted: one number in (0, 1] per layer"),
         ({"cells": 0}, "cells = 0; accepted: integers > 0"),
         ({"x_max": float("nan")}, "accepted: finite numbers, x_max > x_min"),
     ],
@@ -923,7 +924,8 @@ def test_a_transport_order_that_is_no_integer_is_refused(value):
 def test_the_engines_configuration_refuses_a_mesh_its_kernels_cannot_index(changes, phrase):
     """The engine built by a script (docs/architecture.md) with no layer aborted the Python
     process ("double free or corruption": its kernels wrote outside their arrays); no cell
-    was a ZeroDivisionError.  Its configuration refuses them, naming the field."""
+    was a ZeroDivisionError; layer fractions summing to 0.8 would make the layers' thicknesses
+    ``l_a h`` add up to 0.8 h.  Its configuration refuses them, naming the field."""
     from multilayer.engine.config import SimulationConfig
     from multilayer.plugins.contract import Material
 

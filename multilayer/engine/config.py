@@ -27,6 +27,11 @@ Points = tuple[tuple[float, float], ...]
 """A piecewise-linear profile ``((x, value), ...)`` with increasing x (m)."""
 
 
+FRACTIONS_SUM = 1e-12
+"""How far the layer fractions may sum from 1: the round-off of ``mesh.layer_fractions``
+(the layers' thicknesses ``l_a h`` add up to the column's ``h``)."""
+
+
 @dataclass(frozen=True)
 class Velocity:
     """A velocity profile over the depth (``zeta`` above the bottom of its entry):
@@ -171,8 +176,10 @@ class SimulationConfig:
         if isinstance(self.cells, bool) or not isinstance(self.cells, numbers.Integral) or self.cells < 1:
             raise InputError(f"{self.name}: SimulationConfig cells = {self.cells!r}; accepted: integers > 0")
         fractions = tuple(self.fractions)
-        if not fractions or not all(
-            isinstance(f, numbers.Real) and not isinstance(f, bool) and 0 < f <= 1 for f in fractions
+        if not (
+            fractions
+            and all(isinstance(f, numbers.Real) and not isinstance(f, bool) and 0 < f <= 1 for f in fractions)
+            and abs(math.fsum(fractions) - 1.0) <= FRACTIONS_SUM
         ):
             raise InputError(
                 f"{self.name}: SimulationConfig fractions = {fractions!r:.60}; accepted: one number in "

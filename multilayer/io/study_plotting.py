@@ -25,6 +25,9 @@ _STAGE_COLOURS = {"search": "C0", "refine": "C1", "uncertainty": "C2"}
 _SI = {"runout": "m", "front_final": "m", "duration": "s", "mass_final": "m2", "front": "m", "h": "m"}
 
 
+SOBOL_INDICES = ("S1", "S1_conf", "ST", "ST_conf")
+"""Never infinite: Sobol' indices and their confidence half-widths are ratios of sample
+variances (NaN where an output does not vary or runs failed)."""
 REQUIRED: dict[str, tuple[dict[str, tuple[str, ...]], tuple[str, ...], tuple[str, ...]]] = {
     "calibration": (
         {
@@ -43,16 +46,13 @@ REQUIRED: dict[str, tuple[dict[str, tuple[str, ...]], tuple[str, ...], tuple[str
         (),
     ),
     "sensitivity": (
-        {name: ("output", "parameter") for name in ("S1", "S1_conf", "ST", "ST_conf")},
+        {name: ("output", "parameter") for name in SOBOL_INDICES},
         ("output", "parameter"),
         ("confidence_level", "base_samples"),
     ),
 }
 """What the figures of each kind of study file read: variables (with the dimensions the
 study writes them over), coordinates, attributes."""
-SOBOL_INDICES = ("S1", "S1_conf", "ST", "ST_conf")
-"""Never infinite: Sobol' indices and their confidence half-widths are ratios of sample
-variances (NaN where an output does not vary or runs failed)."""
 
 
 def plot_study(directory: str | os.PathLike, filename: str) -> list[Path]:
