@@ -1600,6 +1600,60 @@ def round_nine() -> list[Case]:
     return out
 
 
+RESUMED = """
+import os, signal
+from multilayer.io.results import open_result
+args = sys.argv[1:]
+{trigger}
+if (code := main(args)) != 130:
+    sys.exit(f'the interrupted run exited with {{code}}, not 130')
+{untrigger}
+if main([*args, '--resume']) != 0:
+    sys.exit('the resume failed')
+out = args[args.index('-o') + 1]
+if main([*args[:args.index('-o')], '-o', out + '_direct', *args[args.index('-o') + 2:]]) != 0:
+    sys.exit('the uninterrupted run failed')
+a, b = open_result(out, use='answer'), open_result(out + '_direct', use='answer')
+same = a.sizes == b.sizes and all(np.array_equal(a[k].values, b[k].values) for k in ('time', 'h', 'u'))
+print(f"multilayer: resumed: {{a.sizes['time']}} of {{b.sizes['time']}} output times, "
+      + ("equal to" if same else "NOT equal to") + " the uninterrupted run", file=sys.stderr)
+sys.exit(0 if same else 1)
+"""
+"""``multilayer run`` given SIGINT where ``trigger`` sends it, then ``--resume``d: exit 0 when
+the records equal the uninterrupted run's, to the bit."""
+
+STOPPED_AT_AN_OUTPUT_TIME = RESUMED.format(
+    trigger="from multilayer.app.simulation import Simulation\nstep = Simulation.step\n"
+    "def landing(self, t_max=float('inf')):\n    dt = step(self, t_max)\n"
+    "    if self.t == t_max and abs(t_max - 0.06) < 1e-12:\n        os.kill(os.getpid(), signal.SIGINT)\n"
+    "    return dt\nSimulation.step = landing",
+    untrigger="Simulation.step = step",
+)
+"""SIGINT during the step that lands on the output time 0.06 s."""
+
+STOPPED_AFTER_THE_NORMAL_STRESS = RESUMED.format(
+    trigger="from multilayer.engine.normal_stress import NormalStress\nstress = NormalStress.__call__\n"
+    "def stressing(self, *args, **kwargs):\n    stress(self, *args, **kwargs)\n    calls[0] += 1\n"
+    "    if calls[0] == 17:\n        os.kill(os.getpid(), signal.SIGINT)\nNormalStress.__call__ = stressing",
+    untrigger="NormalStress.__call__ = stress",
+)
+"""SIGINT after the normal stress's step of a Heun stage, before the step's end."""
+
+
+def round_ten() -> list[Case]:
+    """The hostile cases of the tenth round (docs/reliability.md): runs stopped and resumed
+    where the state checkpointed was not that of a record or of a step kept."""
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    phrase = "output times, equal to the uninterrupted run"
+    return [
+        Case("resume: SIGINT as the run reaches an output time", run, 0, phrase,
+             patch=STOPPED_AT_AN_OUTPUT_TIME, setup=_scenario),
+        Case("resume: SIGINT after a normal-stress step inside a time step", run, 0, phrase,
+             patch=STOPPED_AFTER_THE_NORMAL_STRESS,
+             setup=partial(_scenario, changes={"model": {"normal_stress": True}})),
+    ]  # fmt: skip
+
+
 def cases() -> list[Case]:
     out: list[Case] = []
     budget = ["--max-memory", "8G", "--max-output", "1G"]
@@ -1762,6 +1816,7 @@ def cases() -> list[Case]:
         + round_seven()
         + round_eight()
         + round_nine()
+        + round_ten()
     )
 
 

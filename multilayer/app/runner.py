@@ -254,7 +254,9 @@ def _run(
     sim.poll = stop.poll  # also between the kernel calls of a step
     status = "failed"
     try:
-        for t_out in times[times > sim.t + 1e-9 * scenario.time.end]:
+        # the output times after the last record kept: a run stopped (a signal, its step bound)
+        # just as it reached an output time has checkpointed that state before its record
+        for t_out in times[times > writer.last_time + 1e-9 * scenario.time.end]:
             sim.advance(t_out, on_step=on_step, max_steps=None)  # bounded by on_step, over the run
             sim.check_state()
             diag = writer.write(sim)

@@ -558,6 +558,16 @@ class NormalStress:
         relief = np.vstack([self.relief[:1], 0.5 * (self.relief[1:] + self.relief[:-1])])
         return g * np.maximum(1.0 - relief, 0.0)
 
+    def kept(self) -> tuple[np.ndarray, np.ndarray]:
+        """``tau_xx`` and ``relief`` now, for :meth:`restore` (every call replaces both
+        arrays, never writes into them: no copy is needed)."""
+        return self.tau_xx, self.relief
+
+    def restore(self, kept: tuple[np.ndarray, np.ndarray]) -> None:
+        """Take back :meth:`kept`: the stresses of the last step kept, where the calls of
+        a step that was abandoned (a failure, a stop, Ctrl-C) replaced them."""
+        self.tau_xx, self.relief = kept
+
     def state_dict(self) -> dict[str, np.ndarray]:
         """The relief of the last step (:attr:`relief`): the next vertical step's mean
         pressures, so that a resumed run equals the uninterrupted one bit for bit."""

@@ -274,16 +274,23 @@ class Simulation:
         speed = self._with_inflow(self.state.survey(self.dry, self.g_n))  # the fastest wave at the start
         dt = min(courant_step(speed, self.dx, self.config.cfl), t_max - self.t)
         threads = self.thread_policy.threads(self.fractions.size * int(np.count_nonzero(self.h)))
-        while True:  # redone shorter while Heun's second stage breaks the Courant condition
-            self._check_advances(dt)
-            vertical, u, iterations = self._transport_and_stresses(dt, threads)
-            h = vertical[-1].h
-            u, fields = self._project(h, u, dt)
-            if (shorter := self._courant_check(dt, speed)) is None:
-                break
-            dt = shorter
-        columns = span(h)  # every non-zero velocity and field of the step's end lies within
-        self._guard(h, u, fields, dt, columns)
+        normal = self.normal_stress  # its stresses are replaced by the step before it is kept
+        kept = normal.kept() if normal is not None else None
+        try:
+            while True:  # redone shorter while Heun's second stage breaks the Courant condition
+                self._check_advances(dt)
+                vertical, u, iterations = self._transport_and_stresses(dt, threads)
+                h = vertical[-1].h
+                u, fields = self._project(h, u, dt)
+                if (shorter := self._courant_check(dt, speed)) is None:
+                    break
+                dt = shorter
+            columns = span(h)  # every non-zero velocity and field of the step's end lies within
+            self._guard(h, u, fields, dt, columns)
+        except BaseException:  # a step abandoned (a failure, a stop) leaves the state of its start, whole
+            if normal is not None and kept is not None:
+                normal.restore(kept)
+            raise
         if self.mixture is None:  # the forces of a mixture are not computed (docs/mixture.md)
             self.forces.record(self.state, vertical, (u, fields), dt)  # diagnostics
         self.seeds.accept(dt)

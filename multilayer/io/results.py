@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import hashlib
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -65,6 +66,7 @@ class ResultWriter:
     A new file is created unless ``records`` is given: then the existing file is opened
     for appending and the next output time is written as record number ``records``
     (records beyond it, written after the checkpoint being resumed, are overwritten).
+    ``last_time`` is the time of the last record kept (NaN before the first).
     """
 
     def __init__(self, path: str | os.PathLike, scenario: Any, sim: Any, records: int | None = None) -> None:
@@ -82,10 +84,12 @@ class ResultWriter:
                 self._ds = netCDF4.Dataset(self.path, "w", format=FORMAT)
                 self._define(scenario, sim)
                 self.records = 0
+                self.last_time = math.nan
             else:
                 self._ds = netCDF4.Dataset(self.path, "a")
                 self._ds.history += f"\n{_now()} multilayer run --resume"
                 self.records = records
+                self.last_time = float(self._ds["time"][records - 1])
             self._ds.run_status = "running"
             self._ds.header_space = " " * HEADER_SPACE
             self._ds.sync()
@@ -176,6 +180,7 @@ class ResultWriter:
                 raise RunError(f"{self.path}: writing output time {i} failed ({exc})") from None
             raise DiskFull(f"{reason}: writing output time {i} into {self.path} failed ({exc})") from None
         self.records = i + 1
+        self.last_time = float(sim.t)
         return diag
 
     def _ensure_room(self) -> None:
