@@ -40,6 +40,7 @@ from __future__ import annotations
 import math
 import numbers
 from collections.abc import Callable
+from contextlib import AbstractContextManager, nullcontext
 from typing import Any
 
 import numpy as np
@@ -274,9 +275,7 @@ class Simulation:
         speed = self._with_inflow(self.state.survey(self.dry, self.g_n))  # the fastest wave at the start
         dt = min(courant_step(speed, self.dx, self.config.cfl), t_max - self.t)
         threads = self.thread_policy.threads(self.fractions.size * int(np.count_nonzero(self.h)))
-        normal = self.normal_stress  # its stresses are replaced by the step before it is kept
-        kept = normal.kept() if normal is not None else None
-        try:
+        with self._abandonable():  # a step abandoned (a failure, a stop) leaves the state of its start
             while True:  # redone shorter while Heun's second stage breaks the Courant condition
                 self._check_advances(dt)
                 vertical, u, iterations = self._transport_and_stresses(dt, threads)
@@ -287,10 +286,6 @@ class Simulation:
                 dt = shorter
             columns = span(h)  # every non-zero velocity and field of the step's end lies within
             self._guard(h, u, fields, dt, columns)
-        except BaseException:  # a step abandoned (a failure, a stop) leaves the state of its start, whole
-            if normal is not None and kept is not None:
-                normal.restore(kept)
-            raise
         if self.mixture is None:  # the forces of a mixture are not computed (docs/mixture.md)
             self.forces.record(self.state, vertical, (u, fields), dt)  # diagnostics
         self.seeds.accept(dt)
@@ -299,6 +294,13 @@ class Simulation:
         self.steps += 1
         self.t = t_max if dt == t_max - self.t else self.t + dt  # lands on t_max when cut to reach it
         return dt
+
+    def _abandonable(self) -> AbstractContextManager[None]:
+        """Where a step replaces state before it is kept: the normal stress's, which
+        :meth:`NormalStress.kept_if_abandoned` takes back if the step raises.  Its
+        checkpoint (a stop between kernel calls) held the stresses of a step that never
+        happened, and the resumed run differed from the uninterrupted one."""
+        return nullcontext() if self.normal_stress is None else self.normal_stress.kept_if_abandoned()
 
     def _transport_and_stresses(
         self, dt: float, threads: int
