@@ -956,3 +956,67 @@ def test_newton_settings_no_run_can_use_are_refused(numerics, phrase):
     with pytest.raises(InputError) as caught:
         multilayer.load(data)
     assert phrase in str(caught.value)
+
+
+def test_a_bed_whose_elevations_the_thickness_cannot_be_resolved_against_is_refused():
+    """The engine computes the free surface ``h + b``, whose round-off is the spacing of the
+    floats at ``b``: a column on a flat bed shifted to 1e15 m ran its front to 0.094 m
+    instead of 0.131 m, silently, and a bed of 1e308 m validated and failed at the first
+    step blaming the transport (``u = nan``).  Elevations whose floats are farther apart
+    than ``numerics.dry_threshold`` are refused, naming the bound; below it the run is the
+    flat bed's to within that threshold."""
+    data = copy.deepcopy(TINY_SCENARIO)
+    for points in ([[0.0, 1e15], [0.5, 1e15]], [[0.0, 0.0], [0.5, 1e308]], [[-1.0, 2**35], [1.0, 0.0]]):
+        data["bed"] = {"points": points}
+        with pytest.raises(InputError, match=r"bed\.points: an elevation of .* coarser than numerics\.dry"):
+            multilayer.load(data)
+    data["bed"] = {"points": [[-1.0, 1e300], [0.0, 0.0], [0.5, 0.0]]}  # outside the domain: not used
+    multilayer.load(data)
+    data["numerics"] = {"dry_threshold": 1e-12}
+    data["bed"] = {"points": [[0.0, 1e4], [0.5, 1e4]]}
+    with pytest.raises(InputError, match=r"accepted: elevations of magnitude below 8192 m in the domain"):
+        multilayer.load(data)
+    del data["numerics"]
+    flat = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
+    flat.advance(0.05)
+    data["bed"] = {"points": [[0.0, 2**33 - 1], [0.5, 2**33 - 1]]}  # the highest accepted, 1e-6 m default
+    shifted = multilayer.Simulation(multilayer.load(data))
+    shifted.advance(0.05)
+    assert shifted.steps == flat.steps and np.abs(shifted.h - flat.h).max() < 1e-6
+
+
+@pytest.mark.parametrize(("ratio", "layers"), [(1e308, 3), (1e-308, 3), (1.01, 100_000)])
+def test_geometric_layers_whose_fractions_are_not_all_positive_are_refused(ratio, layers):
+    """``{geometric: 1e308}`` over 3 layers validated and the run stopped with the
+    engine's "SimulationConfig fractions = (0.0, 0.0, nan)" after numpy's overflow
+    warning; 1e-308 gave a layer of fraction 0.  Every fraction must be a number > 0."""
+    data = copy.deepcopy(TINY_SCENARIO)
+    data["domain"] = {**data["domain"], "layers": layers, "layer_fractions": {"geometric": ratio}}
+    with pytest.raises(InputError, match=r"domain\.layer_fractions: .* over \d+ layers gives the fractions"):
+        multilayer.load(data)
+
+
+def test_a_text_that_is_no_unicode_is_named_not_a_traceback(tmp_path):
+    """A byte that is not UTF-8 in a command-line argument (Python keeps it as a lone
+    surrogate) or such a text given from Python: ``--set name=$'\\xff'`` was libyaml's
+    ``UnicodeEncodeError`` with a traceback (exit 1), and a ``description`` of a mapping
+    validated and failed at the end of ``multilayer.run``."""
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump(TINY_SCENARIO))
+    for option in ("name=\udcff", "description=a\udcffb", "na\udcffme=1"):
+        done = subprocess.run(
+            [sys.executable, "-m", "multilayer", "validate", str(path), "--set", option],
+            capture_output=True,
+            text=True,
+        )
+        assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
+        assert "which is not UTF-8 (character" in done.stderr
+    data = {**copy.deepcopy(TINY_SCENARIO), "description": "a\ud800b"}
+    with pytest.raises(InputError, match=r"description: 'a\\ud800b' holds U\+D800, half of a UTF-16 pair"):
+        multilayer.run(data)
+    with pytest.raises(InputError, match=r"a key: '\\udcff' holds the byte 0xFF"):
+        multilayer.load({**TINY_SCENARIO, "\udcff": 1})
+    scenario = multilayer.load(TINY_SCENARIO)
+    scenario.description = "\udcff"
+    with pytest.raises(InputError, match=r"<scenario>: description: '\\udcff' holds the byte 0xFF"):
+        multilayer.Simulation(scenario)
