@@ -292,6 +292,13 @@ def run_failure(path: str | os.PathLike) -> str | None:
     return None
 
 
+def recorded_scenario(path: str | os.PathLike) -> str:
+    """The resolved scenario a result file (or the ``result.nc`` in a directory) records as
+    its ``scenario`` attribute: the run it holds."""
+    with NETCDF_LOCK, netCDF4.Dataset(result_path(path)) as nc:
+        return str(nc.getncattr("scenario"))
+
+
 SUMMARY_KEYS = (
     "t_final",
     "front_final",
