@@ -1640,18 +1640,69 @@ STOPPED_AFTER_THE_NORMAL_STRESS = RESUMED.format(
 """SIGINT after the normal stress's step of a Heun stage, before the step's end."""
 
 
+REPLACED_MEMBER = """
+import csv
+from pathlib import Path
+from multilayer.io.results import summary
+args = sys.argv[1:]
+out = Path(args[args.index('-o') + 1])
+if main(args) != 0:
+    sys.exit('the sweep failed')
+member = sorted(out.glob('m000-*'))[0]
+base = Path(args[1]).parent / 'base.yaml'
+if main(['run', str(base), '-o', str(member), '-q', '--set', 'rheology.mu_s=0.1']) != 0:
+    sys.exit('the run into the member failed')
+if main(args) != 0:
+    sys.exit('the sweep run again failed')
+row = next(csv.DictReader(open(out / 'summary.csv')))
+same = float(row['max_speed_final']) == summary(member)['max_speed_final']
+print('multilayer: the summary of m000 is ' + ('that of' if same else 'NOT that of') + ' its result.nc',
+      file=sys.stderr)
+sys.exit(0 if same else 1)
+"""
+"""A sweep, another scenario run into its first member's directory, the sweep again: its
+summary must be that of the member's result."""
+
+
 def round_ten() -> list[Case]:
     """The hostile cases of the tenth round (docs/reliability.md): runs stopped and resumed
-    where the state checkpointed was not that of a record or of a step kept."""
-    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    where the state checkpointed was not that of a record or of a step kept, a bed whose
+    elevations the thickness cannot be resolved against, geometric layers of fraction 0 or
+    NaN, text that is no Unicode (a byte of an argument that is not UTF-8, a lone
+    surrogate given from Python)."""
+    validate, run = ["validate", "{scenario}"], ["run", "{scenario}", "-o", "{dir}/out", "-q"]
     phrase = "output times, equal to the uninterrupted run"
-    return [
+    out = [
         Case("resume: SIGINT as the run reaches an output time", run, 0, phrase,
              patch=STOPPED_AT_AN_OUTPUT_TIME, setup=_scenario),
         Case("resume: SIGINT after a normal-stress step inside a time step", run, 0, phrase,
              patch=STOPPED_AFTER_THE_NORMAL_STRESS,
              setup=partial(_scenario, changes={"model": {"normal_stress": True}})),
+        Case("validate: --set with a byte that is not UTF-8", [*validate, "--set", "name=\udcff"], 2,
+             "holds the byte 0xFF, which is not UTF-8", setup=_scenario),
+        Case("API: a description holding a lone surrogate", validate, 2, "holds U+D800, half of a UTF-16",
+             patch=_api("import yaml\ndata = yaml.safe_load(open(sys.argv[2]))\n"
+                        "data['description'] = 'a\\ud800b'\nmultilayer.run(data)"), setup=_scenario),
     ]  # fmt: skip
+    out.append(
+        Case(
+            "sweep: a member's directory run into by another scenario, then the sweep again",
+            ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/out", "--workers", "1", "-q"],
+            0,
+            "the summary of m000 is that of its result.nc",
+            patch=REPLACED_MEMBER,
+            setup=_sweep({"slope_deg": [20.0, 25.0]}),
+        )
+    )
+    for name, changes, said in (
+        ("a flat bed at 1e15 m", {"bed": {"points": [[0.0, 1e15], [0.5, 1e15]]}}, "than numerics.dry"),
+        ("geometric layers of ratio 1e308", {"domain.layer_fractions": {"geometric": 1e308}}, "gives the fr"),
+    ):
+        out.extend(
+            Case(f"{command[0]}: {name}", command, 2, said, setup=partial(_scenario, changes=changes))
+            for command in (validate, run)
+        )
+    return out
 
 
 def cases() -> list[Case]:
