@@ -1664,6 +1664,15 @@ sys.exit(0 if same else 1)
 summary must be that of the member's result."""
 
 
+def _uncertainty_in_cm(directory: Path) -> None:
+    """A calibration whose front uncertainty, 1e-322 cm, is 0 m."""
+    _calibration("0.1,12,1e-322\n")(directory)
+    path = directory / "calibration.yaml"
+    config = yaml.safe_load(path.read_text())
+    config["observations"][0]["units"] = "cm"
+    path.write_text(yaml.safe_dump(config))
+
+
 def round_ten() -> list[Case]:
     """The hostile cases of the tenth round (docs/reliability.md): runs stopped and resumed
     where the state checkpointed was not that of a record or of a step kept, a bed whose
@@ -1684,6 +1693,20 @@ def round_ten() -> list[Case]:
              patch=_api("import yaml\ndata = yaml.safe_load(open(sys.argv[2]))\n"
                         "data['description'] = 'a\\ud800b'\nmultilayer.run(data)"), setup=_scenario),
     ]  # fmt: skip
+    calibrate = ["calibrate", "{dir}/calibration.yaml", "-o", "{dir}/cal", "--workers", "1", "-q"]
+    out.append(
+        Case(
+            "calibrate: uncertainties of 1e-200 m (the misfit overflows)",
+            calibrate,
+            2,
+            "the squares of (model - observed) / sigma overflow",
+            setup=_calibration("0.1,0.12,1e-200\n0.2,0.15,1e-200\n"),
+        )
+    )
+    out.append(
+        Case("validate: an uncertainty of 1e-322 cm", ["validate", "{dir}/calibration.yaml"], 2,
+             "is 0 in SI (times 0.01)", setup=_uncertainty_in_cm)
+    )  # fmt: skip
     out.append(
         Case(
             "sweep: a member's directory run into by another scenario, then the sweep again",

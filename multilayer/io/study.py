@@ -409,8 +409,8 @@ def _read(path: Path, lines: dict, index: int, obs: Observation, experiment: str
             observation=obs,
             experiment=experiment,
             coordinate=[],
-            value=[obs.value * scale],
-            sigma=[obs.sigma * scale],
+            value=_in_si([obs.value], scale, _at(path, lines, "observations", index, "value"), "value"),
+            sigma=_in_si([obs.sigma], scale, _at(path, lines, "observations", index, "sigma"), "sigma"),
         )
     where = _at(path, lines, "observations", index, "file")
     if obs.file is None:
@@ -446,10 +446,25 @@ def _read(path: Path, lines: dict, index: int, obs: Observation, experiment: str
     return ObservedData(
         observation=obs,
         experiment=experiment,
-        coordinate=list(coordinate * UNITS[coordinate_unit]),
-        value=list(value * scale),
-        sigma=list(sigma * scale),
+        coordinate=_in_si(coordinate, UNITS[coordinate_unit], where, "coordinate"),
+        value=_in_si(value, scale, where, "value"),
+        sigma=_in_si(sigma, scale, where, "sigma"),
     )
+
+
+def _in_si(values: Any, scale: float, where: str, what: str) -> list[float]:
+    """``values`` times the unit's ``scale``: finite numbers, and uncertainties (``sigma``)
+    > 0, also after the conversion (1e-322 cm of uncertainty is 0 m, 1e308 km infinite)."""
+    converted = np.asarray(values, dtype=float) * scale
+    bad = ~np.isfinite(converted) | ((converted <= 0) if what == "sigma" else False)
+    if np.any(bad):
+        first = int(np.flatnonzero(bad)[0])
+        raise InputError(
+            f"{where}: the {what} {np.asarray(values, dtype=float)[first]:g} is {converted[first]:g} in SI "
+            f"(times {scale:g}); accepted: {'numbers > 0' if what == 'sigma' else 'numbers'} that are "
+            "finite in SI units"
+        )
+    return list(converted)
 
 
 def _unvalidated(obs: Observation, keys: str) -> RuntimeError:
