@@ -1693,6 +1693,11 @@ def round_ten() -> list[Case]:
              patch=_api("import yaml\ndata = yaml.safe_load(open(sys.argv[2]))\n"
                         "data['description'] = 'a\\ud800b'\nmultilayer.run(data)"), setup=_scenario),
     ]  # fmt: skip
+    resume = ["run", "{scenario}", "-o", "{dir}/out", "--resume", "--set", "time.end=0.3", "-q"]
+    out.append(
+        Case("checkpoint: a scenario of malformed YAML", resume, 2, "meta.scenario is not the YAML mapping",
+             setup=_checkpoint_entry("meta.scenario", np.array("[1")))
+    )  # fmt: skip
     calibrate = ["calibrate", "{dir}/calibration.yaml", "-o", "{dir}/cal", "--workers", "1", "-q"]
     out.append(
         Case(

@@ -231,6 +231,8 @@ def finished(tmp_path_factory):
         ),
         ("state.t", lambda a: np.array("abc"), "corrupt checkpoint (state.t holds <U3)"),
         ("meta.scenario", lambda a: np.array(5), "corrupt checkpoint (meta.scenario is not text"),
+        ("meta.scenario", lambda a: np.array("[1"), "meta.scenario is not the YAML mapping of a scenario"),
+        ("meta.scenario", lambda a: np.array("&a [*a]"), "meta.scenario is not the YAML mapping of a scen"),
     ],
 )
 def test_a_checkpoint_of_another_layout_is_refused_naming_the_entry(
@@ -239,7 +241,8 @@ def test_a_checkpoint_of_another_layout_is_refused_naming_the_entry(
     """A checkpoint whose checksum holds but whose entries this version does not write as
     they are (another version, or edited): a transposed or shorter array, a step count of
     another type were tracebacks (ValueError from deep inside), a seed window outside the
-    mesh was read into a compiled loop, a NaN time resumed as "completed"."""
+    mesh was read into a compiled loop, a NaN time resumed as "completed", a scenario that is
+    malformed YAML was yaml's traceback."""
     path, source = finished
     outdir = tmp_path / "out"
     shutil.copytree(source, outdir)

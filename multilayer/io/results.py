@@ -36,6 +36,7 @@ from typing import Any, Literal
 import netCDF4
 import numpy as np
 import xarray as xr
+import yaml
 
 from multilayer.errors import InputError, RunError, reason
 from multilayer.io import disk
@@ -486,4 +487,10 @@ def load_checkpoint(path: str | os.PathLike) -> Checkpoint:
         or meta["records"] < 1
     ):
         raise corrupt("meta.scenario is not text or meta.records no count of records")
+    try:  # the scenario it computed, compared key by key with the one resuming it
+        scenario = yaml.safe_load(meta["scenario"])
+    except yaml.YAMLError:  # was a traceback (exit 1)
+        scenario = None
+    if not isinstance(scenario, dict):
+        raise corrupt("meta.scenario is not the YAML mapping of a scenario")
     return Checkpoint(state=state, **meta)
