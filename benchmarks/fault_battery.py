@@ -1664,6 +1664,28 @@ sys.exit(0 if same else 1)
 summary must be that of the member's result."""
 
 
+SIDE_BY_SIDE = """
+import threading
+import multilayer
+scenario = multilayer.load(sys.argv[2], {'numerics.threads': 2})
+alone = multilayer.Simulation(scenario)
+alone.advance(0.05)
+same = []
+def advance():
+    sim = multilayer.Simulation(scenario)
+    sim.advance(0.05)
+    same.append(np.array_equal(sim.h, alone.h) and np.array_equal(sim.u, alone.u))
+stepping = [threading.Thread(target=advance) for _ in range(3)]
+[thread.start() for thread in stepping]
+[thread.join() for thread in stepping]
+fine = same == [True] * 3
+print('multilayer: three simulations stepped side by side: ' + ('each' if fine else 'NOT each')
+      + ' the state of one alone', file=sys.stderr)
+sys.exit(0 if fine else 1)
+"""
+"""Three simulations on two kernel threads each, stepped in three threads of one process."""
+
+
 def _uncertainty_in_cm(directory: Path) -> None:
     """A calibration whose front uncertainty, 1e-322 cm, is 0 m."""
     _calibration("0.1,12,1e-322\n")(directory)
@@ -1693,6 +1715,11 @@ def round_ten() -> list[Case]:
              patch=_api("import yaml\ndata = yaml.safe_load(open(sys.argv[2]))\n"
                         "data['description'] = 'a\\ud800b'\nmultilayer.run(data)"), setup=_scenario),
     ]  # fmt: skip
+    out.append(
+        Case("API: simulations in threads on numba's workqueue layer", validate, 0,
+             "each the state of one alone", patch=SIDE_BY_SIDE, setup=_scenario,
+             env={"NUMBA_THREADING_LAYER": "workqueue"})
+    )  # fmt: skip
     resume = ["run", "{scenario}", "-o", "{dir}/out", "--resume", "--set", "time.end=0.3", "-q"]
     out.append(
         Case("checkpoint: a scenario of malformed YAML", resume, 2, "meta.scenario is not the YAML mapping",
