@@ -1686,6 +1686,29 @@ sys.exit(0 if fine else 1)
 """Three simulations on two kernel threads each, stepped in three threads of one process."""
 
 
+KEPT_WITHOUT_OUTDIR = """
+import os, re, shutil
+import multilayer
+from multilayer.errors import RunError
+step = simulation.Simulation.step
+def failing(self, t_max=float('inf')):
+    if self.t >= 0.05:
+        raise FloatingPointError('a fault')
+    return step(self, t_max)
+simulation.Simulation.step = failing
+try:
+    multilayer.run(sys.argv[2])
+except RunError as exc:
+    directory = re.search(r'; (\\S+)/result.nc holds', str(exc)).group(1)
+    kept = os.path.isfile(os.path.join(directory, 'result.nc'))
+    shutil.rmtree(directory, ignore_errors=True)
+    print('multilayer: a failed run without outdir: ' + ('kept' if kept else 'NOT kept'), file=sys.stderr)
+    sys.exit(0 if kept else 1)
+sys.exit('the run did not fail')
+"""
+"""``multilayer.run`` without ``outdir``, failing at t = 0.05 s: its temporary directory must stay."""
+
+
 def _uncertainty_in_cm(directory: Path) -> None:
     """A calibration whose front uncertainty, 1e-322 cm, is 0 m."""
     _calibration("0.1,12,1e-322\n")(directory)
@@ -1719,6 +1742,10 @@ def round_ten() -> list[Case]:
         Case("API: simulations in threads on numba's workqueue layer", validate, 0,
              "each the state of one alone", patch=SIDE_BY_SIDE, setup=_scenario,
              env={"NUMBA_THREADING_LAYER": "workqueue"})
+    )  # fmt: skip
+    out.append(
+        Case("API: a failed run without outdir keeps its directory", validate, 0,
+             "a failed run without outdir: kept", patch=KEPT_WITHOUT_OUTDIR, setup=_scenario)
     )  # fmt: skip
     resume = ["run", "{scenario}", "-o", "{dir}/out", "--resume", "--set", "time.end=0.3", "-q"]
     out.append(
