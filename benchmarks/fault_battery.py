@@ -1709,6 +1709,17 @@ sys.exit('the run did not fail')
 """``multilayer.run`` without ``outdir``, failing at t = 0.05 s: its temporary directory must stay."""
 
 
+def _sweep_into(output: str) -> Callable[[Path], None]:
+    """A sweep of two slopes whose ``output.directory`` is ``output``."""
+
+    def setup(directory: Path) -> None:
+        _sweep({"slope_deg": [20.0, 25.0]})(directory)
+        path = directory / "sweep.yaml"
+        path.write_text(yaml.safe_dump({**yaml.safe_load(path.read_text()), "output": {"directory": output}}))
+
+    return setup
+
+
 def _uncertainty_in_cm(directory: Path) -> None:
     """A calibration whose front uncertainty, 1e-322 cm, is 0 m."""
     _calibration("0.1,12,1e-322\n")(directory)
@@ -1776,6 +1787,14 @@ def round_ten() -> list[Case]:
             setup=_sweep({"slope_deg": [20.0, 25.0]}),
         )
     )
+    out.append(
+        Case("run: output.directory holding the NUL character", ["run", "{scenario}", "-q"], 2,
+             "holds the NUL character", setup=partial(_scenario, changes={"output": {"directory": "a\0b"}}))
+    )  # fmt: skip
+    out.append(
+        Case("sweep: output.directory holding the NUL character", ["sweep", "{dir}/sweep.yaml", "-q"], 2,
+             "no NUL character", setup=_sweep_into("a\0b"))
+    )  # fmt: skip
     for name, changes, said in (
         ("a flat bed at 1e15 m", {"bed": {"points": [[0.0, 1e15], [0.5, 1e15]]}}, "than numerics.dry"),
         ("geometric layers of ratio 1e308", {"domain.layer_fractions": {"geometric": 1e308}}, "gives the fr"),

@@ -1023,3 +1023,21 @@ def test_a_text_that_is_no_unicode_is_named_not_a_traceback(tmp_path):
     scenario.description = "\udcff"
     with pytest.raises(InputError, match=r"<scenario>: description: '\\udcff' holds the byte 0xFF"):
         multilayer.Simulation(scenario)
+
+
+def test_an_output_directory_holding_the_nul_character_is_named(tmp_path):
+    """A YAML ``"\\0"`` in ``output.directory`` (of a scenario, a sweep or a study) or a NUL
+    in ``multilayer.run(outdir=...)``: no system call takes it, and the run or the sweep
+    stopped with Python's ``ValueError: embedded null byte`` and a traceback (exit 1)."""
+    data = {**copy.deepcopy(TINY_SCENARIO), "output": {"directory": "a\0b"}}
+    with pytest.raises(InputError, match=r"output\.directory: 'a\\x00b' holds the NUL character"):
+        multilayer.load(data)
+    with pytest.raises(InputError, match=r"'x\\x00y': a name holding the NUL character; accepted: an output"):
+        multilayer.run(TINY_SCENARIO, "x\0y")
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(TINY_SCENARIO))
+    sweep = {"base": "base.yaml", "parameters": {"slope_deg": [20.0]}, "output": {"directory": "a\0b"}}
+    (tmp_path / "sweep.yaml").write_text(yaml.safe_dump(sweep))
+    command = [sys.executable, "-m", "multilayer", "validate", str(tmp_path / "sweep.yaml")]
+    done = subprocess.run(command, capture_output=True, text=True)
+    assert done.returncode == 2 and "output.directory (line " in done.stderr
+    assert "accepted: a directory path (no NUL character)" in done.stderr

@@ -159,6 +159,8 @@ def _output_directory(outdir: Path) -> list[Path]:
         raise InputError(
             f"{outdir}: not a UTF-8 name (netCDF files cannot be named by other bytes); {accepted}"
         ) from None
+    if "\0" in str(outdir):  # no system call takes it: Python's ValueError, with a traceback
+        raise InputError(f"{str(outdir)!r}: a name holding the NUL character; {accepted}")
     missing = [path for path in (outdir, *outdir.parents) if not path.exists()]
     if outdir.exists() and not outdir.is_dir():  # mkdir says only "File exists"
         raise InputError(f"{outdir}: a file, not a directory; {accepted}")

@@ -258,8 +258,8 @@ def load(path: str | Path) -> Sweep:
         if key != "directory":
             raise bad(("output", str(key)), "unknown key", "directory")
     directory = output.get("directory")
-    if directory is not None and (not isinstance(directory, str) or not directory):
-        raise bad(("output", "directory"), f"got {shown(directory)}", "a directory path")
+    if directory is not None and (not isinstance(directory, str) or not directory or "\0" in directory):
+        raise bad(("output", "directory"), f"got {shown(directory)}", "a directory path (no NUL character)")
 
     return Sweep(
         path=path,

@@ -36,7 +36,7 @@ from multilayer import scenario
 from multilayer.errors import InputError, reason
 from multilayer.scenario.files import read_text
 from multilayer.scenario.limits import MAX_PROFILE_POINTS
-from multilayer.scenario.messages import StrictModel, describe, dotted, field, invalid
+from multilayer.scenario.messages import StrictModel, describe, directory_path, dotted, field, invalid
 from multilayer.scenario.overrides import as_overrides
 from multilayer.scenario.profiles import csv_number
 
@@ -191,6 +191,8 @@ class StudyOutput(StrictModel):
     """Where results go."""
 
     directory: str | None = field(None, "a directory path")
+
+    _directory = field_validator("directory")(directory_path)
 
 
 class _Study(StrictModel):

@@ -38,6 +38,7 @@ from multilayer.scenario import limits, messages, profiles
 from multilayer.scenario.messages import (
     StrictModel,
     check_kind,
+    directory_path,
     dotted,
     field,
     increasing,
@@ -535,6 +536,8 @@ class Output(StrictModel):
     """Where results go."""
 
     directory: Annotated[Path, Strict(False)] | None = field(None, "a directory path; default results/<name>")
+
+    _directory = field_validator("directory")(directory_path)
 
 
 ExpectKind = Literal["regression", "reference"]
