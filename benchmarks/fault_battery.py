@@ -1666,24 +1666,22 @@ summary must be that of the member's result."""
 
 SIDE_BY_SIDE = """
 import threading
-import multilayer
-scenario = multilayer.load(sys.argv[2], {'numerics.threads': 2})
-alone = multilayer.Simulation(scenario)
-alone.advance(0.05)
-same = []
-def advance():
-    sim = multilayer.Simulation(scenario)
-    sim.advance(0.05)
-    same.append(np.array_equal(sim.h, alone.h) and np.array_equal(sim.u, alone.u))
-stepping = [threading.Thread(target=advance) for _ in range(3)]
-[thread.start() for thread in stepping]
-[thread.join() for thread in stepping]
-fine = same == [True] * 3
-print('multilayer: three simulations stepped side by side: ' + ('each' if fine else 'NOT each')
-      + ' the state of one alone', file=sys.stderr)
+from pathlib import Path
+from multilayer.io.results import open_result
+where = Path(sys.argv[2]).parent
+codes = []
+def run(i):
+    options = ['-q', '--set', 'numerics.threads=2', '--set', 'time.end=0.05']
+    codes.append(main(['run', sys.argv[2], '-o', str(where / f'out{i}'), *options]))
+running = [threading.Thread(target=run, args=(i,)) for i in range(3)]
+[thread.start() for thread in running]
+[thread.join() for thread in running]
+h = [open_result(where / f'out{i}', use='answer')['h'].values for i in range(3)]
+fine = codes == [0] * 3 and all(np.array_equal(h[0], other) for other in h[1:])
+print('multilayer: three runs side by side: ' + ('the same' if fine else 'NOT the same'), file=sys.stderr)
 sys.exit(0 if fine else 1)
 """
-"""Three simulations on two kernel threads each, stepped in three threads of one process."""
+"""Three runs on two kernel threads each, by ``multilayer run`` in three threads of one process."""
 
 
 KEPT_WITHOUT_OUTDIR = """
@@ -1750,8 +1748,8 @@ def round_ten() -> list[Case]:
                         "data['description'] = 'a\\ud800b'\nmultilayer.run(data)"), setup=_scenario),
     ]  # fmt: skip
     out.append(
-        Case("API: simulations in threads on numba's workqueue layer", validate, 0,
-             "each the state of one alone", patch=SIDE_BY_SIDE, setup=_scenario,
+        Case("API: runs in threads on numba's workqueue layer", validate, 0,
+             "three runs side by side: the same", patch=SIDE_BY_SIDE, setup=_scenario,
              env={"NUMBA_THREADING_LAYER": "workqueue"})
     )  # fmt: skip
     out.append(
