@@ -1718,6 +1718,37 @@ def _sweep_into(output: str) -> Callable[[Path], None]:
     return setup
 
 
+CTRL_C_WHILE_KEPT = """
+import os, signal
+import multilayer
+from multilayer.engine.bed_force import BedForce
+scenario = multilayer.load(sys.argv[2], {'time.end': 0.1})
+alone = multilayer.Simulation(scenario)
+alone.advance(0.1)
+forces = alone.forces.take()
+record = BedForce.record
+def interrupted(self, *args):
+    record(self, *args)
+    calls[0] += 1
+    if calls[0] == 3:
+        os.kill(os.getpid(), signal.SIGINT)
+BedForce.record = interrupted
+sim = multilayer.Simulation(scenario)
+try:
+    sim.advance(0.1)
+except KeyboardInterrupt:
+    pass
+BedForce.record = record
+sim.advance(0.1)
+same = np.array_equal(sim.h, alone.h) and sim.steps == alone.steps and sim.forces.take() == forces
+print('multilayer: Ctrl-C after the forces of a step, then advance: ' + ('the run' if same else 'NOT the run'),
+      file=sys.stderr)
+sys.exit(0 if same else 1)
+"""
+"""``Simulation.advance`` under Python's own SIGINT handler, a Ctrl-C once the third step's
+forces are recorded, then advanced again: the uninterrupted run, forces included."""
+
+
 def _uncertainty_in_cm(directory: Path) -> None:
     """A calibration whose front uncertainty, 1e-322 cm, is 0 m."""
     _calibration("0.1,12,1e-322\n")(directory)
@@ -1751,6 +1782,10 @@ def round_ten() -> list[Case]:
         Case("API: runs in threads on numba's workqueue layer", validate, 0,
              "three runs side by side: the same", patch=SIDE_BY_SIDE, setup=_scenario,
              env={"NUMBA_THREADING_LAYER": "workqueue"})
+    )  # fmt: skip
+    out.append(
+        Case("API: Ctrl-C while a step is kept", validate, 0, "then advance: the run",
+             patch=CTRL_C_WHILE_KEPT, setup=_scenario)
     )  # fmt: skip
     out.append(
         Case("API: a failed run without outdir keeps its directory", validate, 0,

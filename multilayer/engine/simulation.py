@@ -39,8 +39,11 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Callable
-from contextlib import AbstractContextManager, nullcontext
+import signal
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager, contextmanager, nullcontext
+from types import FrameType
 from typing import Any
 
 import numpy as np
@@ -286,13 +289,14 @@ class Simulation:
                 dt = shorter
             columns = span(h)  # every non-zero velocity and field of the step's end lies within
             self._guard(h, u, fields, dt, columns)
-        if self.mixture is None:  # the forces of a mixture are not computed (docs/mixture.md)
-            self.forces.record(self.state, vertical, (u, fields), dt)  # diagnostics
-        self.seeds.accept(dt)
-        self.state.commit(h, u, fields, columns)
-        self.newton_iterations += iterations
-        self.steps += 1
-        self.t = t_max if dt == t_max - self.t else self.t + dt  # lands on t_max when cut to reach it
+        with whole():  # the step kept: forces, seeds, state, counts and time, or none of them
+            if self.mixture is None:  # the forces of a mixture are not computed (docs/mixture.md)
+                self.forces.record(self.state, vertical, (u, fields), dt)  # diagnostics
+            self.seeds.accept(dt)
+            self.state.commit(h, u, fields, columns)
+            self.newton_iterations += iterations
+            self.steps += 1
+            self.t = t_max if dt == t_max - self.t else self.t + dt  # lands on t_max when cut to reach it
         return dt
 
     def _abandonable(self) -> AbstractContextManager[None]:
@@ -606,18 +610,44 @@ class Simulation:
         """Restore a state saved by ``state_dict`` (:class:`InputError` naming an entry
         this simulation does not hold, or holds with another shape)."""
         check_restored(saved, self.state_dict())
-        self.t = float(saved["t"])
-        self.steps = int(saved["steps"])
-        self.newton_iterations = int(saved.get("newton_iterations", 0))
-        self.state.load_state(saved)
-        self.forces.load_state(saved)
-        self.seeds.load_state(saved)
-        if self.normal_stress is not None:
-            self.normal_stress.load_state(saved)
+        with whole():
+            self.t = float(saved["t"])
+            self.steps = int(saved["steps"])
+            self.newton_iterations = int(saved.get("newton_iterations", 0))
+            self.state.load_state(saved)
+            self.forces.load_state(saved)
+            self.seeds.load_state(saved)
+            if self.normal_stress is not None:
+                self.normal_stress.load_state(saved)
         self.guard.check_state(self.h, self.u, f"in the restored state at t = {self.t:.6g} s")
         self.guard.reset(self.h, self.steps)
         if self.mixture is not None:
             self.mixture.reset(self.steps)
+
+
+@contextmanager
+def whole() -> Iterator[None]:
+    """The block runs whole: a Ctrl-C (SIGINT) that arrives during it is handed to the
+    process's handler after it.  Under Python's own handler (``Simulation.step`` in a
+    notebook, no runner) its ``KeyboardInterrupt`` was raised between two statements of a
+    step being kept: after its forces were recorded (recorded again by the step redone:
+    40.25 N/m where the run gives 40.32) or after its state (the time and step count of the
+    step before: the run went on one step ahead of its time), silently.  For the block (a
+    few array copies) the main thread's SIGINT handler is one that notes the signal; the
+    process's own is put back after it and called for each signal noted.  (Blocking the
+    signal in the main thread is not enough: the kernels' threads would take it.)"""
+    handler = signal.getsignal(signal.SIGINT)
+    if threading.current_thread() is not threading.main_thread() or not callable(handler):
+        yield  # signals reach the main thread only; SIG_DFL and SIG_IGN call nothing here
+        return
+    came: list[FrameType | None] = []
+    signal.signal(signal.SIGINT, lambda signum, frame: came.append(frame))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, handler)
+        for frame in came:
+            handler(signal.SIGINT, frame)
 
 
 def _step_bound(max_steps: object) -> float:
