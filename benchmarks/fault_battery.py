@@ -1741,7 +1741,7 @@ except KeyboardInterrupt:
 BedForce.record = record
 sim.advance(0.1)
 same = np.array_equal(sim.h, alone.h) and sim.steps == alone.steps and sim.forces.take() == forces
-print('multilayer: Ctrl-C after the forces of a step, then advance: ' + ('the run' if same else 'NOT the run'),
+print('multilayer: Ctrl-C after the forces of a step, then advance: ' + ('the run' if same else 'NOT'),
       file=sys.stderr)
 sys.exit(0 if same else 1)
 """
