@@ -1749,6 +1749,15 @@ sys.exit(0 if same else 1)
 forces are recorded, then advanced again: the uninterrupted run, forces included."""
 
 
+def _finished_by_another_version(directory: Path) -> None:
+    """A finished run whose result records another commit of multilayer."""
+    import netCDF4
+
+    _finished_run(directory)
+    with NETCDF, netCDF4.Dataset(directory / "out" / "result.nc", "a") as ds:
+        ds.multilayer_commit = "0123abc"
+
+
 def _uncertainty_in_cm(directory: Path) -> None:
     """A calibration whose front uncertainty, 1e-322 cm, is 0 m."""
     _calibration("0.1,12,1e-322\n")(directory)
@@ -1792,6 +1801,10 @@ def round_ten() -> list[Case]:
              "a failed run without outdir: kept", patch=KEPT_WITHOUT_OUTDIR, setup=_scenario)
     )  # fmt: skip
     resume = ["run", "{scenario}", "-o", "{dir}/out", "--resume", "--set", "time.end=0.3", "-q"]
+    out.append(
+        Case("resume: a run of another version", resume, 0, "its output times so far were computed by",
+             setup=_finished_by_another_version)
+    )  # fmt: skip
     out.append(
         Case("checkpoint: a scenario of malformed YAML", resume, 2, "meta.scenario is not the YAML mapping",
              setup=_checkpoint_entry("meta.scenario", np.array("[1")))

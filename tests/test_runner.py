@@ -117,6 +117,23 @@ def test_resume_extends_a_finished_run_to_a_later_end(tmp_path: Path) -> None:
     _assert_same_result(tmp_path / "extended", tmp_path / "direct")
 
 
+def test_a_run_resumed_by_another_version_says_so(tmp_path: Path, capsys) -> None:
+    """A checkpoint records no version: a run resumed after an upgrade of multilayer put the
+    new version's records after the old one's, under the attributes naming the old one,
+    and its history said only "--resume".  Now the resume says which versions computed
+    what (stderr and run.log), and the history names the version of each resume."""
+    runner.run(scenarios.from_dict(SLUMP, overrides=["time.end=0.04"]), tmp_path, quiet=True)
+    with netCDF4.Dataset(tmp_path / "result.nc", "a") as ds:
+        ds.multilayer_commit = "0123abc"  # as an earlier version wrote it
+    capsys.readouterr()
+    runner.run(scenarios.from_dict(SLUMP, overrides=["time.end=0.08"]), tmp_path, resume=True, quiet=True)
+    said = "result.nc: its output times so far were computed by multilayer "
+    assert said in capsys.readouterr().err and said in (tmp_path / "run.log").read_text()
+    assert "(commit 0123abc), the ones to come by multilayer " in (tmp_path / "run.log").read_text()
+    with netCDF4.Dataset(tmp_path / "result.nc") as ds:
+        assert ds.history.splitlines()[-1].split(" multilayer run --resume, by multilayer ")[1]
+
+
 def test_resume_needs_a_checkpoint_of_the_same_scenario(tmp_path: Path, cli, write_scenario) -> None:
     path = write_scenario(dict(SLUMP, time={"end": 0.02, "output_interval": 0.02}))
     result = cli("run", path, "-o", tmp_path / "none", "--resume")

@@ -59,9 +59,12 @@ from multilayer.io.results import (
     DiskFull,
     ResultWriter,
     load_checkpoint,
+    made_by,
+    recorded,
     save_checkpoint,
     summary,
 )
+from multilayer.provenance import provenance
 
 LOG_FILE = "run.log"
 
@@ -355,6 +358,12 @@ def _checkpoint_to_resume(scenario: Any, outdir: Path, notice: Callable[[str], N
             f"{ckpt_path}: the checkpoint belongs to a different scenario (changed: "
             f"{', '.join(changed)}); resume with the same scenario file and --set "
             f"options (only {', '.join(sorted(_FREE_KEYS))} may change), or run without --resume"
+        )
+    origin, before = provenance(), recorded(outdir, "made_by")
+    if before != made_by(origin.version, origin.commit):  # the file's attributes name the first only
+        notice(
+            f"{outdir / RESULT_FILE}: its output times so far were computed by {before}, the ones to come "
+            f"by {made_by(origin.version, origin.commit)} (its history says which run wrote which)"
         )
     relabelled = [key for key in _changed_keys(saved, resolved, free=frozenset()) if key != "time.end"]
     if relabelled:

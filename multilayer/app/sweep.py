@@ -43,7 +43,7 @@ from multilayer.io.results import (
     MIXTURE_SUMMARY_KEYS,
     RESULT_FILE,
     SUMMARY_KEYS,
-    recorded_scenario,
+    recorded,
     run_failure,
 )
 from multilayer.scenario import as_overrides, format_value
@@ -306,7 +306,7 @@ def completed(member_dir: Path, fingerprint: str) -> dict[str, float] | None:
         return None  # not a marker this module wrote: the member runs again
     if marker.get("fingerprint") != fingerprint or not (member_dir / RESULT_FILE).is_file():
         return None
-    if run_failure(member_dir) is not None or _fingerprint(recorded_scenario(member_dir)) != fingerprint:
+    if run_failure(member_dir) is not None or _fingerprint(recorded(member_dir, "scenario")) != fingerprint:
         return None
     return summary
 

@@ -88,7 +88,9 @@ class ResultWriter:
                 self.last_time = math.nan
             else:
                 self._ds = netCDF4.Dataset(self.path, "a")
-                self._ds.history += f"\n{_now()} multilayer run --resume"
+                origin = provenance()
+                by = made_by(origin.version, origin.commit)
+                self._ds.history += f"\n{_now()} multilayer run --resume, by {by}"
                 self.records = records
                 self.last_time = float(self._ds["time"][records - 1])
             self._ds.run_status = "running"
@@ -293,11 +295,19 @@ def run_failure(path: str | os.PathLike) -> str | None:
     return None
 
 
-def recorded_scenario(path: str | os.PathLike) -> str:
-    """The resolved scenario a result file (or the ``result.nc`` in a directory) records as
-    its ``scenario`` attribute: the run it holds."""
+def recorded(path: str | os.PathLike, name: str) -> str:
+    """The attribute ``name`` of a result file (or of the ``result.nc`` in a directory) as
+    text: ``scenario``, the resolved scenario of the run it holds; ``made_by``, the
+    multilayer (version and commit) that wrote its first records."""
     with NETCDF_LOCK, netCDF4.Dataset(result_path(path)) as nc:
-        return str(nc.getncattr("scenario"))
+        if name == "made_by":
+            return made_by(str(nc.getncattr("multilayer_version")), str(nc.getncattr("multilayer_commit")))
+        return str(nc.getncattr(name))
+
+
+def made_by(version: str, commit: str) -> str:
+    """How messages and the history name a version of multilayer."""
+    return f"multilayer {version} (commit {commit})"
 
 
 SUMMARY_KEYS = (
