@@ -1749,6 +1749,25 @@ sys.exit(0 if same else 1)
 forces are recorded, then advanced again: the uninterrupted run, forces included."""
 
 
+AXIS_CENTRED = """
+import multilayer
+scenario = multilayer.load(sys.argv[2])
+sim = multilayer.Simulation(scenario)
+sim.advance(0.02)
+x = sim.x
+try:
+    x -= 0.25  # centring the axis of a plot
+except ValueError as exc:
+    print(f'multilayer: sim.x -= 0.25: {exc}', file=sys.stderr)
+sim.advance(0.05)
+alone = multilayer.Simulation(scenario)
+alone.advance(0.02)
+alone.advance(0.05)
+sys.exit(0 if np.array_equal(sim.h, alone.h) else 1)
+"""
+"""``x = sim.x; x -= 0.25`` mid-run: refused by numpy, the run unchanged."""
+
+
 def _finished_by_another_version(directory: Path) -> None:
     """A finished run whose result records another commit of multilayer."""
     import netCDF4
@@ -1801,6 +1820,10 @@ def round_ten() -> list[Case]:
              "a failed run without outdir: kept", patch=KEPT_WITHOUT_OUTDIR, setup=_scenario)
     )  # fmt: skip
     resume = ["run", "{scenario}", "-o", "{dir}/out", "--resume", "--set", "time.end=0.3", "-q"]
+    out.append(
+        Case("API: sim.x -= 0.25 mid-run", validate, 0, "sim.x -= 0.25: output array is read-only",
+             patch=AXIS_CENTRED, setup=_scenario)
+    )  # fmt: skip
     out.append(
         Case("resume: a run of another version", resume, 0, "its output times so far were computed by",
              setup=_finished_by_another_version)

@@ -1081,3 +1081,22 @@ def test_a_ctrl_c_while_a_step_is_kept_is_raised_after_it(monkeypatch, where):
         signal.signal(signal.SIGINT, previous)
     assert np.array_equal(sim.h, alone.h) and np.array_equal(sim.u, alone.u) and sim.steps == alone.steps
     assert sim.forces.take() == expected
+
+
+def test_the_mesh_and_bed_of_a_simulation_cannot_be_changed_through_its_attributes():
+    """``x = sim.x; x -= 0.25`` (centring the axis of a plot) changed the run silently: the
+    front was -0.119 m where the run gives 0.131 m, and ``h`` differed.  ``x``, ``sigma``,
+    ``fractions`` and ``bed`` are read-only views: numpy refuses the write at the user's line,
+    and the run is the same as one never touched."""
+    scenario = multilayer.load(TINY_SCENARIO)
+    alone = multilayer.Simulation(scenario)
+    alone.advance(0.02)
+    alone.advance(0.05)
+    sim = multilayer.Simulation(scenario)
+    sim.advance(0.02)
+    for name in ("x", "sigma", "fractions", "bed"):
+        array = getattr(sim, name)
+        with pytest.raises(ValueError, match="read-only"):
+            array -= 0.25
+    sim.advance(0.05)
+    assert np.array_equal(sim.h, alone.h) and np.array_equal(sim.u, alone.u)

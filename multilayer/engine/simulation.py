@@ -177,6 +177,12 @@ class Simulation:
         self._stage_speed = np.zeros(1)
         #: called between kernel calls within a step; may raise to abandon the step (Ctrl-C)
         self.poll: Callable[[], None] | None = None
+        # the mesh and the bed, which the parts above hold, public as read-only views:
+        # ``x = sim.x; x -= 0.25`` (centring the axis of a plot) changed the run, silently;
+        # the transport is given the arrays themselves (numba compiles read-only ones apart)
+        self._bed, self._fractions = self.bed, self.fractions
+        self.x, self.sigma = _read_only(self.x), _read_only(self.sigma)
+        self.fractions, self.bed = _read_only(self.fractions), _read_only(self.bed)
 
     def _pressure_model(self) -> PressureModel:
         """The pressure model of the configuration, the defaults of its options filled in."""
@@ -371,7 +377,7 @@ class Simulation:
         if self.transport is transport_kernel.transport:  # the arrays it reuses, its threads
             options.update(workspace=self.workspace, threads=threads)
         h, ustar = self.transport(
-            self.h, self.u, self.bed, self.fractions, dx=self.dx, dt=dt, g_n=self.g_n, g_t=self.g_t,
+            self.h, self.u, self._bed, self._fractions, dx=self.dx, dt=dt, g_n=self.g_n, g_t=self.g_t,
             left=self.left, right=self.right, inflow=self.inflow, dry=self.dry, order=self.numerics.order,
             moving=self._stepping, boundary_mass=self.boundary_mass, stage_speed=self._stage_speed,
             boundary_momentum=self.forces.transport_terms, stage=stage, first=first, **options,
@@ -623,6 +629,12 @@ class Simulation:
         self.guard.reset(self.h, self.steps)
         if self.mixture is not None:
             self.mixture.reset(self.steps)
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    view = array.view()
+    view.flags.writeable = False
+    return view
 
 
 @contextmanager
