@@ -32,6 +32,15 @@ def invalid(message: str, accepted: str, key: str = "") -> PydanticCustomError:
     )
 
 
+def directory_path(value: Any) -> Any:
+    """``output.directory`` of a scenario or a study as given, unless it holds the NUL
+    character (a YAML ``"\\0"``), which no system call takes: the run or the study
+    stopped with Python's ``ValueError`` and a traceback."""
+    if value is not None and "\0" in str(value):
+        raise invalid(f"{str(value)!r} holds the NUL character", "a directory path without it")
+    return value
+
+
 def check_kind(model: BaseModel, kind: str, table: dict[str, tuple[tuple[str, ...], ...]]) -> None:
     """Per-kind keys: ``table[value] = (required, optional)`` for ``model.<kind> == value``."""
     value = getattr(model, kind)
