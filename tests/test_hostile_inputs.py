@@ -1025,6 +1025,16 @@ def test_a_text_that_is_no_unicode_is_named_not_a_traceback(tmp_path):
         multilayer.Simulation(scenario)
 
 
+def test_an_output_directory_under_the_home_directory_is_read_as_a_shell_reads_it(tmp_path, monkeypatch):
+    """``output.directory: ~/runs`` (of a scenario or a sweep) is the home directory's
+    ``runs``: it made a directory named ``~`` in the working directory."""
+    monkeypatch.setenv("HOME", str(tmp_path))
+    data = {**copy.deepcopy(TINY_SCENARIO), "output": {"directory": "~/runs/tiny"}}
+    assert multilayer.load(data).output.directory == tmp_path / "runs" / "tiny"
+    data["output"]["directory"] = "runs/~tiny"  # a ~ inside a name is a character of the name
+    assert str(multilayer.load(data).output.directory) == "runs/~tiny"
+
+
 def test_an_output_directory_holding_the_nul_character_is_named(tmp_path):
     """A YAML ``"\\0"`` in ``output.directory`` (of a scenario, a sweep or a study) or a NUL
     in ``multilayer.run(outdir=...)``: no system call takes it, and the run or the sweep

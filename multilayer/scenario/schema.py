@@ -535,7 +535,9 @@ class Time(StrictModel):
 class Output(StrictModel):
     """Where results go."""
 
-    directory: Annotated[Path, Strict(False)] | None = field(None, "a directory path; default results/<name>")
+    directory: Annotated[Path, Strict(False)] | None = field(
+        None, "a directory path (a leading ~ is the home directory); default results/<name>"
+    )
 
     _directory = field_validator("directory")(directory_path)
 
