@@ -20,6 +20,7 @@ import yaml
 from conftest import TINY_SCENARIO
 
 import multilayer
+from multilayer.app import sweep as sweeps
 from multilayer.errors import InputError, RunError
 from multilayer.io import results
 from multilayer.io.results import CHECKPOINT_FILE, RESULT_FILE
@@ -1033,6 +1034,10 @@ def test_an_output_directory_under_the_home_directory_is_read_as_a_shell_reads_i
     assert multilayer.load(data).output.directory == tmp_path / "runs" / "tiny"
     data["output"]["directory"] = "runs/~tiny"  # a ~ inside a name is a character of the name
     assert str(multilayer.load(data).output.directory) == "runs/~tiny"
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(TINY_SCENARIO))
+    sweep = {"base": "base.yaml", "parameters": {"slope_deg": [20.0]}, "output": {"directory": "~/sweeps/s"}}
+    (tmp_path / "sweep.yaml").write_text(yaml.safe_dump(sweep))
+    assert sweeps.load(tmp_path / "sweep.yaml").output == tmp_path / "sweeps" / "s"
 
 
 def test_an_output_directory_holding_the_nul_character_is_named(tmp_path):

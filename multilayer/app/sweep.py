@@ -266,7 +266,7 @@ def load(path: str | Path) -> Sweep:
         base=base,
         parameters=parameters,
         paired=paired,
-        output=Path(directory) if directory else None,
+        output=Path(directory).expanduser() if directory else None,  # ~ as a shell reads it
     )
 
 
