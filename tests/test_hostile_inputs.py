@@ -1101,16 +1101,18 @@ def test_a_ctrl_c_while_a_step_is_kept_is_raised_after_it(monkeypatch, where):
 def test_the_mesh_and_bed_of_a_simulation_cannot_be_changed_through_its_attributes():
     """``x = sim.x; x -= 0.25`` (centring the axis of a plot) changed the run silently: the
     front was -0.119 m where the run gives 0.131 m, and ``h`` differed.  ``x``, ``sigma``,
-    ``fractions`` and ``bed`` are read-only views: numpy refuses the write at the user's line,
-    and the run is the same as one never touched."""
+    ``fractions`` and ``bed`` are read-only views, and so are the arrays of ``sim.mesh``
+    (``mesh.fractions`` was the very array the transport read): numpy refuses the write at
+    the user's line, and the run is the same as one never touched."""
     scenario = multilayer.load(TINY_SCENARIO)
     alone = multilayer.Simulation(scenario)
     alone.advance(0.02)
     alone.advance(0.05)
     sim = multilayer.Simulation(scenario)
     sim.advance(0.02)
-    for name in ("x", "sigma", "fractions", "bed"):
-        array = getattr(sim, name)
+    arrays = [getattr(sim, name) for name in ("x", "sigma", "fractions", "bed")]
+    arrays += [getattr(sim.mesh, name) for name in ("x", "sigma", "fractions", "interfaces")]
+    for array in arrays:
         with pytest.raises(ValueError, match="read-only"):
             array -= 0.25
     sim.advance(0.05)

@@ -45,10 +45,14 @@ def layer_fractions(layers: int, rule: str | Sequence[float] | Mapping[str, floa
 
 
 class LayeredMesh:
-    """Geometry of the multilayer model in (x, sigma); FiPy meshes on demand."""
+    """Geometry of the multilayer model in (x, sigma); FiPy meshes on demand.
+
+    Its arrays are read-only: a mesh is fixed once made, and a caller who shifts
+    ``mesh.x`` for a plot must not move the cells of a run.
+    """
 
     def __init__(self, x_min: float, x_max: float, cells: int, fractions: np.ndarray):
-        fractions = np.asarray(fractions, dtype=float)
+        fractions = np.array(fractions, dtype=float)
         self.cells = int(cells)
         self.layers = fractions.size
         self.x_min = float(x_min)
@@ -62,6 +66,8 @@ class LayeredMesh:
         self.interfaces[-1] = 1.0
         #: layer centres as a fraction of h (L,)
         self.sigma = 0.5 * (self.interfaces[:-1] + self.interfaces[1:])
+        for array in (self.x, self.fractions, self.interfaces, self.sigma):
+            array.flags.writeable = False
 
     @cached_property
     def grid(self) -> fipy.Grid2D:

@@ -101,8 +101,9 @@ class Simulation:
         c = self.config = config
         self.numerics = c.numerics
         self.mesh = LayeredMesh(c.x_min, c.x_max, c.cells, np.asarray(c.fractions, dtype=float))
-        self.x, self.dx = self.mesh.x, self.mesh.dx
-        self.fractions, self.sigma = self.mesh.fractions, self.mesh.sigma
+        # the simulation's own writeable copies: numba compiles read-only arrays apart
+        self.x, self.dx = self.mesh.x.copy(), self.mesh.dx
+        self.fractions, self.sigma = self.mesh.fractions.copy(), self.mesh.sigma.copy()
         self.theta = math.radians(c.slope_deg)
         self.g_n = c.gravity * math.cos(self.theta)
         self.g_t = c.gravity * math.sin(self.theta)
