@@ -12,7 +12,7 @@ from multilayer.validation.cases import (
     column_collapse,
     dam_break,
     erodible_bed,
-    erodible_pressure,
+    erodible_options,
     erodible_study,
     static_interface,
     stopping,
@@ -34,7 +34,7 @@ SECTIONS: dict[str, Callable[[Context], str]] = {
         collapse_channel,
         erodible_bed,
         erodible_study,
-        erodible_pressure,
+        erodible_options,
         submarine_collapse,
     )
 }
