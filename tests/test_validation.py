@@ -19,6 +19,7 @@ from multilayer.validation.cases import (
     dam_break,
     erodible_bed,
     erodible_study,
+    immersed_layer,
     static_interface,
     stopping,
     submarine_collapse,
@@ -289,3 +290,24 @@ def test_loose_column_runs_further_than_dense_with_the_published_pore_pressure_s
         assert runout >= submarine_collapse.RUNOUT_RATIO
         assert min(stop, t95) >= submarine_collapse.DURATION_RATIO
         assert submarine_collapse.signs_met(m, n)
+
+
+# --------------------------------------------------------------------------- immersed layer
+
+
+def test_immersed_layer_files_have_the_published_signs_at_every_step(ctx):
+    """Pailha et al. (2008) as the abstracts describe them: positive basal excess pore
+    pressure in the loose file, negative in the dense one, at every output time of every
+    step of the study; the values at 5 s independent of the step."""
+    m = immersed_layer.scenario_measures(ctx)
+    assert len(m) == len(immersed_layer.PACKINGS) * len(immersed_layer.CFLS)
+    assert immersed_layer.signs_met(m)
+    assert all(immersed_layer.step_independent(m, p) for p in immersed_layer.PACKINGS)
+
+
+@pytest.mark.parametrize("phi0", immersed_layer.PHI0S)
+def test_uniform_layers_start_and_press_as_published(phi0):
+    """Loose layers start within one 1/gamma, dense ones after ten and then flow; the early
+    pore pressure has the published sign (Radau IIA at rtol 1e-10)."""
+    u = immersed_layer.uniform(phi0)
+    assert immersed_layer.start_met(u) and immersed_layer.sign_met(u), (u.packing, u.onset, u.pressure)

@@ -14,6 +14,7 @@ from multilayer.validation.cases import (
     erodible_bed,
     erodible_options,
     erodible_study,
+    immersed_layer,
     static_interface,
     stopping,
     submarine_collapse,
@@ -36,6 +37,7 @@ SECTIONS: dict[str, Callable[[Context], str]] = {
         erodible_study,
         erodible_options,
         submarine_collapse,
+        immersed_layer,
     )
 }
 """Section name -> the case's section, in report order."""
