@@ -197,26 +197,16 @@ class LocalStep:
         rates and the excess pore pressures (all (L, n)).
 
         The pore pressures are linear in the dilation rates, ``p_e = -M Phi`` (``M >= 0``,
-        the integral from the top down), and ``Phi_b = gamma_b K (phi_b - phi_c) + C_b /
+        the integral from the top down: :meth:`darcy`), and ``Phi_b = gamma_b K (phi_b - phi_c) + C_b /
         p_s,b`` with ``C_b = K K2 eta_f gamma_b^2``: the effective pressures solve
         ``p_s = P + M Phi(p_s)``, for one layer the quadratic of the uniform layer (whose
         non-negative root starts the iteration), for several a Newton iteration that keeps
         ``p_s > 0`` where ``C > 0`` (the system's map is decreasing in ``p_s``: one root)."""
-        cfg, l = self.config, self.l
-        thickness = l * h
-        phi = solid / thickness
+        cfg, L = self.config, self.l.shape[0]
+        phi = solid / (self.l * h)
         gamma = np.abs(np.diff(v, axis=0, prepend=0.0)) / (self.spacing * h)
         weight = self.buoyant_g_n * np.cumsum(solid[::-1], axis=0)[::-1]
-        D = self.drag(phi) / (1.0 - phi) ** 2
-        L = l.shape[0]
-        # M[a, b]: minus the pore pressure at the bottom of layer a per unit dilation rate of
-        # layer b (b lifts the layers above it, and the fluid its own rise draws crosses
-        # half of b on average)
-        Dh = D * thickness
-        M = np.empty((L, L, h.size))
-        for a in range(L):
-            for b in range(L):
-                M[a, b] = thickness[b] * (Dh[max(a, b + 1) :].sum(axis=0) + (0.5 * Dh[b] if b >= a else 0.0))
+        M = self.darcy(solid, h)
         linear = gamma * cfg.dilatancy * (phi - cfg.phi_critical)
         C = cfg.dilatancy * cfg.critical_shift * cfg.fluid_viscosity * gamma * gamma
         A = weight + np.einsum("abn,bn->an", M, linear)
@@ -233,6 +223,22 @@ class LocalStep:
         dilation = linear + np.where(contact, C / np.where(contact, p_s, 1.0), 0.0)
         pore_pressure = weight - p_s
         return gamma, p_s, dilation, pore_pressure
+
+    def darcy(self, solid: np.ndarray, h: np.ndarray) -> np.ndarray:
+        """``M`` (L, L, n) of the columns holding ``solid`` (L, n) at thickness ``h`` (n,):
+        ``M[a, b]`` is minus the excess pore pressure at the bottom of layer ``a`` per unit
+        dilation rate of layer ``b`` (Pa s), Darcy's law integrated from the top down with
+        ``D_c = beta(phi_c) / (1 - phi_c)^2``: ``b`` lifts the layers above it, and the fluid
+        its own rise draws crosses half of ``b`` on average."""
+        thickness = self.l * h
+        phi = solid / thickness
+        Dh = self.drag(phi) / (1.0 - phi) ** 2 * thickness
+        L = thickness.shape[0]
+        M = np.empty((L, L, h.size))
+        for a in range(L):
+            for b in range(L):
+                M[a, b] = thickness[b] * (Dh[max(a, b + 1) :].sum(axis=0) + (0.5 * Dh[b] if b >= a else 0.0))
+        return M
 
     def _coupled(
         self, p_s: np.ndarray, weight: np.ndarray, M: np.ndarray, linear: np.ndarray, C: np.ndarray
