@@ -94,13 +94,55 @@ bed of a column of one packing ``lambda_0 P_bar = P_0`` too.  An interface high 
 ``p_s,a`` is well below ``P_bar``, that shears and dilates alone breaks it: the energy of
 the scheme then grows (tests/test_mixture_flow.py, docs/mixture.md).
 
-This is the step's kinematics, not the closure's: in the continuous model (``div v = gamma
-tan(psi)``, shear stress ``(tan(delta) + tan(psi)) p_s``; Bouchut et al. 2016) the work of
-``p_s`` on the dilation is paid at the same point by the dilatancy friction, and the grains
-rise only above the place that dilates, as the Darcy integral of :meth:`LocalStep.closure`
-has it: the dilation of layer ``a`` then costs ``P_{a+1} + w_a / 2`` per unit rise instead of
-``P_bar``.  With one packing per layer that lift is not paid unconditionally either: at the
-bed of several layers ``lambda_0 (P_1 + w_0 / 2) = P_0 + P_1 > P_0``.
+No rule for the thickness does better while the layers keep their solid and their
+fractions: the fractions ``l_a`` are the x-sigma mesh's, common to all columns
+(engine/mesh.py), and the solid ``s_a`` of each layer is what the conservation above rests
+on.  Then ``P_bar`` is fixed, the potential energy ``h P_bar`` changes by ``(h' - h) P_bar``
+whatever sets ``h'``, and for every rule::
+
+    E' - E = -dt sum_a |v'_a - v'_(a-1)| tau_a + (h' - h) P_bar - sum_a m_a (v'_a - v_a)^2 / 2
+
+(``tau_a`` the stress of interface ``a``): where the step changes the velocities little
+(a creeping column, whose kinetic term is of second order in ``dt``), ``E' <= E`` needs
+``(h' - h) P_bar <= dt sum_a |v'_a - v'_(a-1)| tau_a``.  In the model a column
+sheared at interface ``a`` alone grows by ``integral div v dz = |v_a - v_(a-1)| tan(psi_a)``
+per unit time, whatever the width of the sheared zone (``div v = gamma tan(psi)``,
+Bouchut et al. 2016), so a rule consistent with it adds ``c dt |v_a - v_(a-1)| tan(psi_a)``
+with ``c -> 1`` (this step: ``c = lambda_a``, 1 between equal layers), and ``E' <= E``
+needs ``c <= c_max = tau_a / (tan(psi_a) P_bar)``.  At the top interface of ``L`` equal
+layers ``tau_a`` is about ``(tan(delta) + tan(psi_a)) w_(L-1)`` and ``P_bar`` about
+``L w / 2``: ``c_max`` falls like ``1 / L``.  Measured (Pailha et al. (2008)'s first
+fluid, 4.9 mm, 32 degrees, the top layer 0.57 over dense ones 0.64, so that only the top
+interface yields; one step of 5 ms from 1 mm/s): ``c_max`` = 0.70, 0.28 and 0.13 at 20, 40
+and 80 layers (tests/test_mixture_flow.py).  No rule of this kind is consistent with the
+model and dissipative in every state for every number of layers; the one that credits each
+interface only what its stress pays (``c = c_max``) drops 87 % of the top interface's
+dilation at 80 layers.
+
+What it would take (not built).  In the continuous model (``div v = gamma tan(psi)``,
+shear stress ``(tan(delta) + tan(psi)) p_s``) the work of ``p_s`` on the dilation is paid
+at the same point by the dilatancy friction, and the grains rise only above the place that
+dilates.  Discretely: (i) the dilation ``tan(psi_a) |v_a - v_(a-1)|`` of interface ``a``
+charged ``P_a`` per unit rise, the weight above the interface, so that the dilatancy
+friction at ``p_s,a = P_a - p_e,a`` pays it up to ``-p_e,a``; with the fractions fixed this
+means moving solid between the layers of a column in the local step (the potential energy
+``h P_bar`` otherwise charges ``P_bar``), or fractions per column, which the mesh does not
+have; a layer that dilates uniformly (one packing per layer) and thickens by
+``lambda_a tan(psi_a) |v_a - v_(a-1)|`` charges ``lambda_a (P_(a+1) + w_a / 2)`` per unit of
+``tan(psi_a) |v_a - v_(a-1)|`` instead, ``P_0 + P_1`` at the bed;
+(ii) the pore pressures integrated with the same placement,
+``p_e,a = -sum_(c >= a) D_c h_c W_c`` with ``W_c = sum_(b <= c) tan(psi_b) |v_b - v_(b-1)|``
+the grains' rise through layer ``c``: then ``-sum_a p_e,a tan(psi_a) |v_a - v_(a-1)| =
+sum_c D_c h_c W_c^2 >= 0`` (the Darcy term of the model), and ``D`` is
+``sum_a (tan(delta) p_s,a + K1 eta_f gamma_a) |v_a - v_(a-1)| + sum_c D_c h_c W_c^2`` or
+more (where the law cuts its yield stress at zero), term by term.  For one layer (ii) is
+the closure above (``W_0 = h Phi / 2``) and (i) is the step's lift; in layers the closure
+above integrates the dilation of each layer over the layer, and with the lift of (i) its
+Darcy term ``sum_ab h spacing_a Phi_a M_ab Phi_b`` (:meth:`LocalStep.darcy`) is not
+positive: two equal layers of one drag ``D``, the bed dilating at ``Phi`` and the upper
+layer contracting at ``-1.25 Phi`` under the suction ``p_e,1 = -0.094 D h^2 Phi`` the bed
+draws through it, give ``-0.0039 D h^3 Phi^2``.  How solid should cross the fractions so
+that (i) holds in every state, with the packings kept in ``[0, 1)``, is the open part.
 """
 
 from __future__ import annotations
@@ -197,26 +239,16 @@ class LocalStep:
         rates and the excess pore pressures (all (L, n)).
 
         The pore pressures are linear in the dilation rates, ``p_e = -M Phi`` (``M >= 0``,
-        the integral from the top down), and ``Phi_b = gamma_b K (phi_b - phi_c) + C_b /
+        the integral from the top down: :meth:`darcy`), and ``Phi_b = gamma_b K (phi_b - phi_c) + C_b /
         p_s,b`` with ``C_b = K K2 eta_f gamma_b^2``: the effective pressures solve
         ``p_s = P + M Phi(p_s)``, for one layer the quadratic of the uniform layer (whose
         non-negative root starts the iteration), for several a Newton iteration that keeps
         ``p_s > 0`` where ``C > 0`` (the system's map is decreasing in ``p_s``: one root)."""
-        cfg, l = self.config, self.l
-        thickness = l * h
-        phi = solid / thickness
+        cfg, L = self.config, self.l.shape[0]
+        phi = solid / (self.l * h)
         gamma = np.abs(np.diff(v, axis=0, prepend=0.0)) / (self.spacing * h)
         weight = self.buoyant_g_n * np.cumsum(solid[::-1], axis=0)[::-1]
-        D = self.drag(phi) / (1.0 - phi) ** 2
-        L = l.shape[0]
-        # M[a, b]: minus the pore pressure at the bottom of layer a per unit dilation rate of
-        # layer b (b lifts the layers above it, and the fluid its own rise draws crosses
-        # half of b on average)
-        Dh = D * thickness
-        M = np.empty((L, L, h.size))
-        for a in range(L):
-            for b in range(L):
-                M[a, b] = thickness[b] * (Dh[max(a, b + 1) :].sum(axis=0) + (0.5 * Dh[b] if b >= a else 0.0))
+        M = self.darcy(solid, h)
         linear = gamma * cfg.dilatancy * (phi - cfg.phi_critical)
         C = cfg.dilatancy * cfg.critical_shift * cfg.fluid_viscosity * gamma * gamma
         A = weight + np.einsum("abn,bn->an", M, linear)
@@ -233,6 +265,22 @@ class LocalStep:
         dilation = linear + np.where(contact, C / np.where(contact, p_s, 1.0), 0.0)
         pore_pressure = weight - p_s
         return gamma, p_s, dilation, pore_pressure
+
+    def darcy(self, solid: np.ndarray, h: np.ndarray) -> np.ndarray:
+        """``M`` (L, L, n) of the columns holding ``solid`` (L, n) at thickness ``h`` (n,):
+        ``M[a, b]`` is minus the excess pore pressure at the bottom of layer ``a`` per unit
+        dilation rate of layer ``b`` (Pa s), Darcy's law integrated from the top down with
+        ``D_c = beta(phi_c) / (1 - phi_c)^2``: ``b`` lifts the layers above it, and the fluid
+        its own rise draws crosses half of ``b`` on average."""
+        thickness = self.l * h
+        phi = solid / thickness
+        Dh = self.drag(phi) / (1.0 - phi) ** 2 * thickness
+        L = thickness.shape[0]
+        M = np.empty((L, L, h.size))
+        for a in range(L):
+            for b in range(L):
+                M[a, b] = thickness[b] * (Dh[max(a, b + 1) :].sum(axis=0) + (0.5 * Dh[b] if b >= a else 0.0))
+        return M
 
     def _coupled(
         self, p_s: np.ndarray, weight: np.ndarray, M: np.ndarray, linear: np.ndarray, C: np.ndarray
