@@ -176,17 +176,18 @@ def test_random_piecewise_linear_heaps_below_the_friction_are_kept_to_the_bit(se
     assert kept(heap(random_heap(seed), order=order))
 
 
-@pytest.mark.parametrize("model", [{"normal_stress": True}, {"pressure": "non_hydrostatic"}])
-def test_heaps_are_kept_with_the_normal_stress_and_the_non_hydrostatic_pressure(model):
-    """The normal stress stresses only moving material and the pressure projection of a
-    velocity field at rest is zero: the heaps stay as exact with either (4 layers)."""
+@pytest.mark.parametrize("model", [{}, {"normal_stress": True}, {"pressure": "non_hydrostatic"}])
+def test_heaps_are_kept_in_layers_with_the_normal_stress_and_the_non_hydrostatic_pressure(model):
+    """In 4 layers (each interface's yield stress is its share of the column's), and with
+    the normal stress, which stresses only moving material, or the non-hydrostatic
+    pressure, whose projection of a velocity field at rest is zero: the heaps stay as exact."""
     for points in (triangle(0.95), random_heap(0)):
         assert kept(heap(points, layers=4, model=model), steps=10)
 
 
 def test_a_heap_on_a_slope_is_kept_where_its_driving_slopes_are_below_the_friction():
     """On a 10 degree plane the driving slope of a piece is ``tan(10) - dh/dx``: flanks of
-    0.15 and -0.2 keep it within 0.33 of zero, below mu_s = 0.5."""
+    0.15 and -0.2 keep it between 0.03 and 0.38, below mu_s = 0.5."""
     points = [(0.1, 0.0), (0.2, 0.015), (0.275, 0.0)]
     assert kept(heap(points, slope_deg=10.0))
 
