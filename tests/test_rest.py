@@ -176,11 +176,14 @@ def test_random_piecewise_linear_heaps_below_the_friction_are_kept_to_the_bit(se
     assert kept(heap(random_heap(seed), order=order))
 
 
-@pytest.mark.parametrize("model", [{}, {"normal_stress": True}, {"pressure": "non_hydrostatic"}])
-def test_heaps_are_kept_in_layers_with_the_normal_stress_and_the_non_hydrostatic_pressure(model):
+@pytest.mark.parametrize(
+    "model", [{}, {"normal_stress": True}, {"pressure": "non_hydrostatic"}, {"pressure": "bim2016"}]
+)
+def test_heaps_are_kept_in_layers_with_the_normal_stress_and_every_pressure(model):
     """In 4 layers (each interface's yield stress is its share of the column's), and with
-    the normal stress, which stresses only moving material, or the non-hydrostatic
-    pressure, whose projection of a velocity field at rest is zero: the heaps stay as exact."""
+    the normal stress, which stresses only moving material, the non-hydrostatic pressure,
+    whose projection of a velocity field at rest is zero, or the bim2016 pressure, whose
+    yield gravity at rest on a horizontal bed is g: the heaps stay as exact."""
     for points in (triangle(0.95), random_heap(0)):
         assert kept(heap(points, layers=4, model=model), steps=10)
 
