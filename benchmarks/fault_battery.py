@@ -1600,6 +1600,281 @@ def round_nine() -> list[Case]:
     return out
 
 
+RESUMED = """
+import os, signal
+from multilayer.io.results import open_result
+args = sys.argv[1:]
+{trigger}
+if (code := main(args)) != 130:
+    sys.exit(f'the interrupted run exited with {{code}}, not 130')
+{untrigger}
+if main([*args, '--resume']) != 0:
+    sys.exit('the resume failed')
+out = args[args.index('-o') + 1]
+if main([*args[:args.index('-o')], '-o', out + '_direct', *args[args.index('-o') + 2:]]) != 0:
+    sys.exit('the uninterrupted run failed')
+a, b = open_result(out, use='answer'), open_result(out + '_direct', use='answer')
+same = a.sizes == b.sizes and all(np.array_equal(a[k].values, b[k].values) for k in ('time', 'h', 'u'))
+print(f"multilayer: resumed: {{a.sizes['time']}} of {{b.sizes['time']}} output times, "
+      + ("equal to" if same else "NOT equal to") + " the uninterrupted run", file=sys.stderr)
+sys.exit(0 if same else 1)
+"""
+"""``multilayer run`` given SIGINT where ``trigger`` sends it, then ``--resume``d: exit 0 when
+the records equal the uninterrupted run's, to the bit."""
+
+STOPPED_AT_AN_OUTPUT_TIME = RESUMED.format(
+    trigger="from multilayer.app.simulation import Simulation\nstep = Simulation.step\n"
+    "def landing(self, t_max=float('inf')):\n    dt = step(self, t_max)\n"
+    "    if self.t == t_max and abs(t_max - 0.06) < 1e-12:\n        os.kill(os.getpid(), signal.SIGINT)\n"
+    "    return dt\nSimulation.step = landing",
+    untrigger="Simulation.step = step",
+)
+"""SIGINT during the step that lands on the output time 0.06 s."""
+
+STOPPED_AFTER_THE_NORMAL_STRESS = RESUMED.format(
+    trigger="from multilayer.engine.normal_stress import NormalStress\nstress = NormalStress.__call__\n"
+    "def stressing(self, *args, **kwargs):\n    stress(self, *args, **kwargs)\n    calls[0] += 1\n"
+    "    if calls[0] == 17:\n        os.kill(os.getpid(), signal.SIGINT)\nNormalStress.__call__ = stressing",
+    untrigger="NormalStress.__call__ = stress",
+)
+"""SIGINT after the normal stress's step of a Heun stage, before the step's end."""
+
+
+REPLACED_MEMBER = """
+import csv
+from pathlib import Path
+from multilayer.io.results import summary
+args = sys.argv[1:]
+out = Path(args[args.index('-o') + 1])
+if main(args) != 0:
+    sys.exit('the sweep failed')
+member = sorted(out.glob('m000-*'))[0]
+base = Path(args[1]).parent / 'base.yaml'
+if main(['run', str(base), '-o', str(member), '-q', '--set', 'rheology.mu_s=0.1']) != 0:
+    sys.exit('the run into the member failed')
+if main(args) != 0:
+    sys.exit('the sweep run again failed')
+row = next(csv.DictReader(open(out / 'summary.csv')))
+same = float(row['max_speed_final']) == summary(member)['max_speed_final']
+print('multilayer: the summary of m000 is ' + ('that of' if same else 'NOT that of') + ' its result.nc',
+      file=sys.stderr)
+sys.exit(0 if same else 1)
+"""
+"""A sweep, another scenario run into its first member's directory, the sweep again: its
+summary must be that of the member's result."""
+
+
+SIDE_BY_SIDE = """
+import threading
+from pathlib import Path
+from multilayer.io.results import open_result
+where = Path(sys.argv[2]).parent
+codes = []
+def run(i):
+    options = ['-q', '--set', 'numerics.threads=2', '--set', 'time.end=0.05']
+    codes.append(main(['run', sys.argv[2], '-o', str(where / f'out{i}'), *options]))
+running = [threading.Thread(target=run, args=(i,)) for i in range(3)]
+[thread.start() for thread in running]
+[thread.join() for thread in running]
+h = [open_result(where / f'out{i}', use='answer')['h'].values for i in range(3)]
+fine = codes == [0] * 3 and all(np.array_equal(h[0], other) for other in h[1:])
+print('multilayer: three runs side by side: ' + ('the same' if fine else 'NOT the same'), file=sys.stderr)
+sys.exit(0 if fine else 1)
+"""
+"""Three runs on two kernel threads each, by ``multilayer run`` in three threads of one process."""
+
+
+KEPT_WITHOUT_OUTDIR = """
+import os, re, shutil
+import multilayer
+from multilayer.errors import RunError
+step = simulation.Simulation.step
+def failing(self, t_max=float('inf')):
+    if self.t >= 0.05:
+        raise FloatingPointError('a fault')
+    return step(self, t_max)
+simulation.Simulation.step = failing
+try:
+    multilayer.run(sys.argv[2])
+except RunError as exc:
+    directory = re.search(r'; (\\S+)/result.nc holds', str(exc)).group(1)
+    kept = os.path.isfile(os.path.join(directory, 'result.nc'))
+    shutil.rmtree(directory, ignore_errors=True)
+    print('multilayer: a failed run without outdir: ' + ('kept' if kept else 'NOT kept'), file=sys.stderr)
+    sys.exit(0 if kept else 1)
+sys.exit('the run did not fail')
+"""
+"""``multilayer.run`` without ``outdir``, failing at t = 0.05 s: its temporary directory must stay."""
+
+
+def _sweep_into(output: str) -> Callable[[Path], None]:
+    """A sweep of two slopes whose ``output.directory`` is ``output``."""
+
+    def setup(directory: Path) -> None:
+        _sweep({"slope_deg": [20.0, 25.0]})(directory)
+        path = directory / "sweep.yaml"
+        path.write_text(yaml.safe_dump({**yaml.safe_load(path.read_text()), "output": {"directory": output}}))
+
+    return setup
+
+
+CTRL_C_WHILE_KEPT = """
+import os, signal
+import multilayer
+from multilayer.engine.bed_force import BedForce
+scenario = multilayer.load(sys.argv[2], {'time.end': 0.1})
+alone = multilayer.Simulation(scenario)
+alone.advance(0.1)
+forces = alone.forces.take()
+record = BedForce.record
+def interrupted(self, *args):
+    record(self, *args)
+    calls[0] += 1
+    if calls[0] == 3:
+        os.kill(os.getpid(), signal.SIGINT)
+BedForce.record = interrupted
+sim = multilayer.Simulation(scenario)
+try:
+    sim.advance(0.1)
+except KeyboardInterrupt:
+    pass
+BedForce.record = record
+sim.advance(0.1)
+same = np.array_equal(sim.h, alone.h) and sim.steps == alone.steps and sim.forces.take() == forces
+print('multilayer: Ctrl-C after the forces of a step, then advance: ' + ('the run' if same else 'NOT'),
+      file=sys.stderr)
+sys.exit(0 if same else 1)
+"""
+"""``Simulation.advance`` under Python's own SIGINT handler, a Ctrl-C once the third step's
+forces are recorded, then advanced again: the uninterrupted run, forces included."""
+
+
+AXIS_CENTRED = """
+import multilayer
+scenario = multilayer.load(sys.argv[2])
+sim = multilayer.Simulation(scenario)
+sim.advance(0.02)
+x = sim.x
+try:
+    x -= 0.25  # centring the axis of a plot
+except ValueError as exc:
+    print(f'multilayer: sim.x -= 0.25: {exc}', file=sys.stderr)
+sim.advance(0.05)
+alone = multilayer.Simulation(scenario)
+alone.advance(0.02)
+alone.advance(0.05)
+sys.exit(0 if np.array_equal(sim.h, alone.h) else 1)
+"""
+"""``x = sim.x; x -= 0.25`` mid-run: refused by numpy, the run unchanged."""
+
+
+def _finished_by_another_version(directory: Path) -> None:
+    """A finished run whose result records another commit of multilayer."""
+    import netCDF4
+
+    _finished_run(directory)
+    with NETCDF, netCDF4.Dataset(directory / "out" / "result.nc", "a") as ds:
+        ds.multilayer_commit = "0123abc"
+
+
+def _uncertainty_in_cm(directory: Path) -> None:
+    """A calibration whose front uncertainty, 1e-322 cm, is 0 m."""
+    _calibration("0.1,12,1e-322\n")(directory)
+    path = directory / "calibration.yaml"
+    config = yaml.safe_load(path.read_text())
+    config["observations"][0]["units"] = "cm"
+    path.write_text(yaml.safe_dump(config))
+
+
+def round_ten() -> list[Case]:
+    """The hostile cases of the tenth round (docs/reliability.md): runs stopped and resumed
+    where the state checkpointed was not that of a record or of a step kept, a bed whose
+    elevations the thickness cannot be resolved against, geometric layers of fraction 0 or
+    NaN, text that is no Unicode (a byte of an argument that is not UTF-8, a lone
+    surrogate given from Python)."""
+    validate, run = ["validate", "{scenario}"], ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    phrase = "output times, equal to the uninterrupted run"
+    out = [
+        Case("resume: SIGINT as the run reaches an output time", run, 0, phrase,
+             patch=STOPPED_AT_AN_OUTPUT_TIME, setup=_scenario),
+        Case("resume: SIGINT after a normal-stress step inside a time step", run, 0, phrase,
+             patch=STOPPED_AFTER_THE_NORMAL_STRESS,
+             setup=partial(_scenario, changes={"model": {"normal_stress": True}})),
+        Case("validate: --set with a byte that is not UTF-8", [*validate, "--set", "name=\udcff"], 2,
+             "holds the byte 0xFF, which is not UTF-8", setup=_scenario),
+        Case("API: a description holding a lone surrogate", validate, 2, "holds U+D800, half of a UTF-16",
+             patch=_api("import yaml\ndata = yaml.safe_load(open(sys.argv[2]))\n"
+                        "data['description'] = 'a\\ud800b'\nmultilayer.run(data)"), setup=_scenario),
+    ]  # fmt: skip
+    out.append(
+        Case("API: runs in threads on numba's workqueue layer", validate, 0,
+             "three runs side by side: the same", patch=SIDE_BY_SIDE, setup=_scenario,
+             env={"NUMBA_THREADING_LAYER": "workqueue"})
+    )  # fmt: skip
+    out.append(
+        Case("API: Ctrl-C while a step is kept", validate, 0, "then advance: the run",
+             patch=CTRL_C_WHILE_KEPT, setup=_scenario)
+    )  # fmt: skip
+    out.append(
+        Case("API: a failed run without outdir keeps its directory", validate, 0,
+             "a failed run without outdir: kept", patch=KEPT_WITHOUT_OUTDIR, setup=_scenario)
+    )  # fmt: skip
+    resume = ["run", "{scenario}", "-o", "{dir}/out", "--resume", "--set", "time.end=0.3", "-q"]
+    out.append(
+        Case("API: sim.x -= 0.25 mid-run", validate, 0, "sim.x -= 0.25: output array is read-only",
+             patch=AXIS_CENTRED, setup=_scenario)
+    )  # fmt: skip
+    out.append(
+        Case("resume: a run of another version", resume, 0, "its output times so far were computed by",
+             setup=_finished_by_another_version)
+    )  # fmt: skip
+    out.append(
+        Case("checkpoint: a scenario of malformed YAML", resume, 2, "meta.scenario is not the YAML mapping",
+             setup=_checkpoint_entry("meta.scenario", np.array("[1")))
+    )  # fmt: skip
+    calibrate = ["calibrate", "{dir}/calibration.yaml", "-o", "{dir}/cal", "--workers", "1", "-q"]
+    out.append(
+        Case(
+            "calibrate: uncertainties of 1e-200 m (the misfit overflows)",
+            calibrate,
+            2,
+            "the squares of (model - observed) / sigma overflow",
+            setup=_calibration("0.1,0.12,1e-200\n0.2,0.15,1e-200\n"),
+        )
+    )
+    out.append(
+        Case("validate: an uncertainty of 1e-322 cm", ["validate", "{dir}/calibration.yaml"], 2,
+             "is 0 in SI (times 0.01)", setup=_uncertainty_in_cm)
+    )  # fmt: skip
+    out.append(
+        Case(
+            "sweep: a member's directory run into by another scenario, then the sweep again",
+            ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/out", "--workers", "1", "-q"],
+            0,
+            "the summary of m000 is that of its result.nc",
+            patch=REPLACED_MEMBER,
+            setup=_sweep({"slope_deg": [20.0, 25.0]}),
+        )
+    )
+    out.append(
+        Case("run: output.directory holding the NUL character", ["run", "{scenario}", "-q"], 2,
+             "holds the NUL character", setup=partial(_scenario, changes={"output": {"directory": "a\0b"}}))
+    )  # fmt: skip
+    out.append(
+        Case("sweep: output.directory holding the NUL character", ["sweep", "{dir}/sweep.yaml", "-q"], 2,
+             "no NUL character", setup=_sweep_into("a\0b"))
+    )  # fmt: skip
+    for name, changes, said in (
+        ("a flat bed at 1e15 m", {"bed": {"points": [[0.0, 1e15], [0.5, 1e15]]}}, "than numerics.dry"),
+        ("geometric layers of ratio 1e308", {"domain.layer_fractions": {"geometric": 1e308}}, "gives the fr"),
+    ):
+        out.extend(
+            Case(f"{command[0]}: {name}", command, 2, said, setup=partial(_scenario, changes=changes))
+            for command in (validate, run)
+        )
+    return out
+
+
 def cases() -> list[Case]:
     out: list[Case] = []
     budget = ["--max-memory", "8G", "--max-output", "1G"]
@@ -1762,6 +2037,7 @@ def cases() -> list[Case]:
         + round_seven()
         + round_eight()
         + round_nine()
+        + round_ten()
     )
 
 

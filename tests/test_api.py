@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -11,6 +12,7 @@ import numpy as np
 import pytest
 import xarray as xr
 import yaml
+from conftest import TINY_SCENARIO
 
 import multilayer
 from multilayer.app import cli
@@ -152,3 +154,45 @@ def test_the_engine_built_from_a_configuration_is_the_scenarios_to_the_bit():
     assert alone.steps == made.steps > 10 and alone.pressure.layers == 4
     for name in ("h", "u", "w", "q"):
         np.testing.assert_array_equal(getattr(alone, name), getattr(made, name))
+
+
+def test_a_run_without_outdir_that_fails_or_is_stopped_keeps_what_it_computed(monkeypatch):
+    """``multilayer.run(scenario)`` runs in a temporary directory.  A run that failed said
+    that ``<tmp>/result.nc`` held the output times before the failure, and one stopped by
+    Ctrl-C gave the command resuming it from ``<tmp>``: both after the directory was
+    removed.  Now it stays, and the error names it."""
+    from multilayer.app import runner
+    from multilayer.app.simulation import Simulation
+    from multilayer.errors import Interrupted, RunError
+
+    scenario = multilayer.load(TINY_SCENARIO, {"time.end": 0.1, "time.output_interval": 0.02})
+    step = Simulation.step
+
+    def failing(self: Simulation, t_max: float = np.inf) -> float:
+        if self.t >= 0.05:
+            raise FloatingPointError("a fault")
+        return step(self, t_max)
+
+    monkeypatch.setattr(Simulation, "step", failing)
+    with pytest.raises(RunError, match=r"a fault; \S+/result.nc holds the output times up to") as failed:
+        multilayer.run(scenario)
+    directory = re.search(r"; (\S+)/result.nc holds", str(failed.value)).group(1)
+    kept = open_result(directory)
+    assert kept.attrs["run_status"] == "failed" and kept["time"].values[:3].tolist() == [0.0, 0.02, 0.04]
+    shutil.rmtree(directory)
+    monkeypatch.undo()
+    poll = runner._StopRequest.poll
+
+    def stopping(self: runner._StopRequest) -> None:  # Ctrl-C after 40 polls (at t = 0.06 s)
+        calls.append(1)
+        self.requested = self.requested or len(calls) > 40
+        poll(self)
+
+    calls: list[int] = []
+    monkeypatch.setattr(runner._StopRequest, "poll", stopping)
+    with pytest.raises(Interrupted, match=r"resume with: multilayer run SCENARIO.yaml -o \S+ --res") as stop:
+        multilayer.run(scenario)
+    directory = re.search(r"-o (\S+) --resume", str(stop.value)).group(1)
+    kept = open_result(directory)
+    assert kept.attrs["run_status"] == "interrupted" and kept.sizes["time"] >= 2
+    shutil.rmtree(directory)

@@ -23,7 +23,7 @@ import xarray as xr
 
 from multilayer.app import calibration, cli, runner
 from multilayer.app.sensitivity import indices
-from multilayer.errors import RunError
+from multilayer.errors import InputError, RunError
 from multilayer.io import observables, study
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -398,3 +398,40 @@ def test_worked_example_of_the_docs(tmp_path, capsys):
     ds = xr.load_dataset(outdir / calibration.CALIBRATION_FILE)
     assert np.all(np.abs(ds["best"].values - TRUE) < 3 * ds["sd"].values)
     assert cli.main(["plot", str(outdir)]) == 0
+
+
+class _Measured:
+    """An ensemble whose every member completes and measures ``values`` (no run)."""
+
+    ran = reused = 0
+
+    def __init__(self, values: list[float]) -> None:
+        self.values = np.array(values)
+
+    def evaluate(self, points, measures):
+        from multilayer.app.ensemble import Evaluation
+
+        return [Evaluation(f"m{i}", point, "ok", self.values) for i, point in enumerate(points)]
+
+
+def test_uncertainties_whose_misfit_cannot_be_a_number_are_named(tmp_path):
+    """An uncertainty of 1e-200 m: every run completed and the squared whitened residuals
+    overflowed; the calibration said "every one of the 15 parameter sets failed; first
+    errors: " (exit 1, no error).  It now names the uncertainties (exit 2).  1e-322 cm of
+    uncertainty, 0 m in SI, validated; it is now refused with the file."""
+    shutil.copy(TWIN / "collapse.yaml", tmp_path)
+    (tmp_path / "front.csv").write_text("t,x_f,sigma\n0.1,0.12,1e-200\n0.2,0.15,1e-200\n")
+    text = (
+        "base: collapse.yaml\nparameters: {rheology.mu_s: {bounds: [0.4, 0.5]}}\n"
+        "observations:\n  - {name: f, quantity: front, file: front.csv, columns: [t, x_f, sigma]}\n"
+        "search: {population: 4, generations: 1}\nrefine: {evaluations: 0}\n"
+    )
+    (tmp_path / "c.yaml").write_text(text)
+    loaded = study.load_calibration(tmp_path / "c.yaml")
+    calibrator = calibration.Calibrator(loaded, _Measured([0.5, 0.6]), print)
+    with pytest.raises(InputError, match=r"c\.yaml: observations: the misfit of every parameter set whose"):
+        calibrator.run()
+    (tmp_path / "front.csv").write_text("t,x_f,sigma\n0.1,12,1e-322\n0.2,15,1\n")
+    (tmp_path / "c.yaml").write_text(text.replace("sigma]}", "sigma], units: cm}"))
+    with pytest.raises(InputError, match=r"file \(line 4\): the sigma 9.88131e-323 is 0 in SI \(times 0"):
+        study.load_calibration(tmp_path / "c.yaml")

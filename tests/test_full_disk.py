@@ -122,7 +122,8 @@ def test_a_full_disk_stops_the_run_naming_it_and_the_run_resumes_once_there_is_r
 
 def test_a_checkpoint_that_does_not_fit_leaves_the_previous_one(tmp_path, monkeypatch):
     path = tmp_path / "checkpoint.npz"
-    ckpt = results.Checkpoint({"t": 0.0, "steps": 0, "h": np.zeros(3), "u": np.zeros((1, 3))}, 1, 0.0, "x")
+    state = {"t": 0.0, "steps": 0, "h": np.zeros(3), "u": np.zeros((1, 3))}
+    ckpt = results.Checkpoint(state, 1, 0.0, "name: x")
     results.save_checkpoint(path, ckpt)
 
     def full(*args, **kwargs):

@@ -20,6 +20,7 @@ import yaml
 from conftest import TINY_SCENARIO
 
 import multilayer
+from multilayer.app import sweep as sweeps
 from multilayer.errors import InputError, RunError
 from multilayer.io import results
 from multilayer.io.results import CHECKPOINT_FILE, RESULT_FILE
@@ -231,6 +232,8 @@ def finished(tmp_path_factory):
         ),
         ("state.t", lambda a: np.array("abc"), "corrupt checkpoint (state.t holds <U3)"),
         ("meta.scenario", lambda a: np.array(5), "corrupt checkpoint (meta.scenario is not text"),
+        ("meta.scenario", lambda a: np.array("[1"), "meta.scenario is not the YAML mapping of a scenario"),
+        ("meta.scenario", lambda a: np.array("&a [*a]"), "meta.scenario is not the YAML mapping of a scen"),
     ],
 )
 def test_a_checkpoint_of_another_layout_is_refused_naming_the_entry(
@@ -239,7 +242,8 @@ def test_a_checkpoint_of_another_layout_is_refused_naming_the_entry(
     """A checkpoint whose checksum holds but whose entries this version does not write as
     they are (another version, or edited): a transposed or shorter array, a step count of
     another type were tracebacks (ValueError from deep inside), a seed window outside the
-    mesh was read into a compiled loop, a NaN time resumed as "completed"."""
+    mesh was read into a compiled loop, a NaN time resumed as "completed", a scenario that is
+    malformed YAML was yaml's traceback."""
     path, source = finished
     outdir = tmp_path / "out"
     shutil.copytree(source, outdir)
@@ -956,3 +960,158 @@ def test_newton_settings_no_run_can_use_are_refused(numerics, phrase):
     with pytest.raises(InputError) as caught:
         multilayer.load(data)
     assert phrase in str(caught.value)
+
+
+def test_a_bed_whose_elevations_the_thickness_cannot_be_resolved_against_is_refused():
+    """The engine computes the free surface ``h + b``, whose round-off is the spacing of the
+    floats at ``b``: a column on a flat bed shifted to 1e15 m ran its front to 0.094 m
+    instead of 0.131 m, silently, and a bed of 1e308 m validated and failed at the first
+    step blaming the transport (``u = nan``).  Elevations whose floats are farther apart
+    than ``numerics.dry_threshold`` are refused, naming the bound; below it the run is the
+    flat bed's to within that threshold."""
+    data = copy.deepcopy(TINY_SCENARIO)
+    for points in ([[0.0, 1e15], [0.5, 1e15]], [[0.0, 0.0], [0.5, 1e308]], [[-1.0, 2**35], [1.0, 0.0]]):
+        data["bed"] = {"points": points}
+        with pytest.raises(InputError, match=r"bed\.points: an elevation of .* coarser than numerics\.dry"):
+            multilayer.load(data)
+    data["bed"] = {"points": [[-1.0, 1e300], [0.0, 0.0], [0.5, 0.0]]}  # outside the domain: not used
+    multilayer.load(data)
+    data["numerics"] = {"dry_threshold": 1e-12}
+    data["bed"] = {"points": [[0.0, 1e4], [0.5, 1e4]]}
+    with pytest.raises(InputError, match=r"accepted: elevations of magnitude below 8192 m in the domain"):
+        multilayer.load(data)
+    del data["numerics"]
+    flat = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
+    flat.advance(0.05)
+    data["bed"] = {"points": [[0.0, 2**33 - 1], [0.5, 2**33 - 1]]}  # the highest accepted, 1e-6 m default
+    shifted = multilayer.Simulation(multilayer.load(data))
+    shifted.advance(0.05)
+    assert shifted.steps == flat.steps and np.abs(shifted.h - flat.h).max() < 1e-6
+
+
+@pytest.mark.parametrize(("ratio", "layers"), [(1e308, 3), (1e-308, 3), (1.01, 100_000)])
+def test_geometric_layers_whose_fractions_are_not_all_positive_are_refused(ratio, layers):
+    """``{geometric: 1e308}`` over 3 layers validated and the run stopped with the
+    engine's "SimulationConfig fractions = (0.0, 0.0, nan)" after numpy's overflow
+    warning; 1e-308 gave a layer of fraction 0.  Every fraction must be a number > 0."""
+    data = copy.deepcopy(TINY_SCENARIO)
+    data["domain"] = {**data["domain"], "layers": layers, "layer_fractions": {"geometric": ratio}}
+    with pytest.raises(InputError, match=r"domain\.layer_fractions: .* over \d+ layers gives the fractions"):
+        multilayer.load(data)
+
+
+def test_a_text_that_is_no_unicode_is_named_not_a_traceback(tmp_path):
+    """A byte that is not UTF-8 in a command-line argument (Python keeps it as a lone
+    surrogate) or such a text given from Python: ``--set name=$'\\xff'`` was libyaml's
+    ``UnicodeEncodeError`` with a traceback (exit 1), and a ``description`` of a mapping
+    validated and failed at the end of ``multilayer.run``."""
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump(TINY_SCENARIO))
+    for option in ("name=\udcff", "description=a\udcffb", "na\udcffme=1"):
+        done = subprocess.run(
+            [sys.executable, "-m", "multilayer", "validate", str(path), "--set", option],
+            capture_output=True,
+            text=True,
+        )
+        assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
+        assert "which is not UTF-8 (character" in done.stderr
+    data = {**copy.deepcopy(TINY_SCENARIO), "description": "a\ud800b"}
+    with pytest.raises(InputError, match=r"description: 'a\\ud800b' holds U\+D800, half of a UTF-16 pair"):
+        multilayer.run(data)
+    with pytest.raises(InputError, match=r"a key: '\\udcff' holds the byte 0xFF"):
+        multilayer.load({**TINY_SCENARIO, "\udcff": 1})
+    scenario = multilayer.load(TINY_SCENARIO)
+    scenario.description = "\udcff"
+    with pytest.raises(InputError, match=r"<scenario>: description: '\\udcff' holds the byte 0xFF"):
+        multilayer.Simulation(scenario)
+
+
+def test_an_output_directory_under_the_home_directory_is_read_as_a_shell_reads_it(tmp_path, monkeypatch):
+    """``output.directory: ~/runs`` (of a scenario or a sweep) is the home directory's
+    ``runs``: it made a directory named ``~`` in the working directory."""
+    monkeypatch.setenv("HOME", str(tmp_path))
+    data = {**copy.deepcopy(TINY_SCENARIO), "output": {"directory": "~/runs/tiny"}}
+    assert multilayer.load(data).output.directory == tmp_path / "runs" / "tiny"
+    data["output"]["directory"] = "runs/~tiny"  # a ~ inside a name is a character of the name
+    assert str(multilayer.load(data).output.directory) == "runs/~tiny"
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(TINY_SCENARIO))
+    sweep = {"base": "base.yaml", "parameters": {"slope_deg": [20.0]}, "output": {"directory": "~/sweeps/s"}}
+    (tmp_path / "sweep.yaml").write_text(yaml.safe_dump(sweep))
+    assert sweeps.load(tmp_path / "sweep.yaml").output == tmp_path / "sweeps" / "s"
+
+
+def test_an_output_directory_holding_the_nul_character_is_named(tmp_path):
+    """A YAML ``"\\0"`` in ``output.directory`` (of a scenario, a sweep or a study) or a NUL
+    in ``multilayer.run(outdir=...)``: no system call takes it, and the run or the sweep
+    stopped with Python's ``ValueError: embedded null byte`` and a traceback (exit 1)."""
+    data = {**copy.deepcopy(TINY_SCENARIO), "output": {"directory": "a\0b"}}
+    with pytest.raises(InputError, match=r"output\.directory: 'a\\x00b' holds the NUL character"):
+        multilayer.load(data)
+    with pytest.raises(InputError, match=r"'x\\x00y': a name holding the NUL character; accepted: an output"):
+        multilayer.run(TINY_SCENARIO, "x\0y")
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(TINY_SCENARIO))
+    sweep = {"base": "base.yaml", "parameters": {"slope_deg": [20.0]}, "output": {"directory": "a\0b"}}
+    (tmp_path / "sweep.yaml").write_text(yaml.safe_dump(sweep))
+    command = [sys.executable, "-m", "multilayer", "validate", str(tmp_path / "sweep.yaml")]
+    done = subprocess.run(command, capture_output=True, text=True)
+    assert done.returncode == 2 and "output.directory (line " in done.stderr
+    assert "accepted: a directory path (no NUL character)" in done.stderr
+
+
+@pytest.mark.parametrize("where", ["forces", "state"])
+def test_a_ctrl_c_while_a_step_is_kept_is_raised_after_it(monkeypatch, where):
+    """Stepping by hand under Python's own SIGINT handler (a notebook), a Ctrl-C raised its
+    ``KeyboardInterrupt`` between two statements of the step being kept: after its forces
+    were recorded (the step redone recorded them again: 40.25 N/m of bed force where the run
+    gives 40.32) or after its state (the time and count of the step before: one step ahead
+    of its time).  It is now raised once the step is kept whole; advancing again gives the
+    uninterrupted run, forces included, to the bit."""
+    import signal
+
+    from multilayer.engine import bed_force, state
+
+    scenario = multilayer.load(TINY_SCENARIO, {"time.end": 0.1})
+    alone = multilayer.Simulation(scenario)
+    alone.advance(0.1)
+    expected = alone.forces.take()
+    cls, name = (bed_force.BedForce, "record") if where == "forces" else (state.FlowState, "commit")
+    kept, calls = getattr(cls, name), []
+
+    def interrupted(self, *args, **kwargs):
+        kept(self, *args, **kwargs)
+        calls.append(1)
+        if len(calls) == 3:
+            os.kill(os.getpid(), signal.SIGINT)  # the user's Ctrl-C, now
+
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        sim = multilayer.Simulation(scenario)
+        monkeypatch.setattr(cls, name, interrupted)
+        with pytest.raises(KeyboardInterrupt):
+            sim.advance(0.1)
+        assert sim.steps == 3 and len(calls) == 3
+        monkeypatch.undo()
+        sim.advance(0.1)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert np.array_equal(sim.h, alone.h) and np.array_equal(sim.u, alone.u) and sim.steps == alone.steps
+    assert sim.forces.take() == expected
+
+
+def test_the_mesh_and_bed_of_a_simulation_cannot_be_changed_through_its_attributes():
+    """``x = sim.x; x -= 0.25`` (centring the axis of a plot) changed the run silently: the
+    front was -0.119 m where the run gives 0.131 m, and ``h`` differed.  ``x``, ``sigma``,
+    ``fractions`` and ``bed`` are read-only views: numpy refuses the write at the user's line,
+    and the run is the same as one never touched."""
+    scenario = multilayer.load(TINY_SCENARIO)
+    alone = multilayer.Simulation(scenario)
+    alone.advance(0.02)
+    alone.advance(0.05)
+    sim = multilayer.Simulation(scenario)
+    sim.advance(0.02)
+    for name in ("x", "sigma", "fractions", "bed"):
+        array = getattr(sim, name)
+        with pytest.raises(ValueError, match="read-only"):
+            array -= 0.25
+    sim.advance(0.05)
+    assert np.array_equal(sim.h, alone.h) and np.array_equal(sim.u, alone.u)

@@ -20,11 +20,11 @@ from conftest import TINY_SCENARIO
 from numba.core import event as numba_event
 
 from multilayer import scenario as scenarios
-from multilayer.app import compilation, runner
+from multilayer.app import compilation, resources, runner
 from multilayer.app.progress import Progress
 from multilayer.app.simulation import Simulation
 from multilayer.engine.bed_force import FORCES
-from multilayer.errors import RunError
+from multilayer.errors import Interrupted, RunError
 from multilayer.io.results import open_result
 
 # A column slumping down a 25 degree slope, 40 cells x 3 layers, 26 output times.
@@ -117,6 +117,23 @@ def test_resume_extends_a_finished_run_to_a_later_end(tmp_path: Path) -> None:
     _assert_same_result(tmp_path / "extended", tmp_path / "direct")
 
 
+def test_a_run_resumed_by_another_version_says_so(tmp_path: Path, capsys) -> None:
+    """A checkpoint records no version: a run resumed after an upgrade of multilayer put the
+    new version's records after the old one's, under the attributes naming the old one,
+    and its history said only "--resume".  Now the resume says which versions computed
+    what (stderr and run.log), and the history names the version of each resume."""
+    runner.run(scenarios.from_dict(SLUMP, overrides=["time.end=0.04"]), tmp_path, quiet=True)
+    with netCDF4.Dataset(tmp_path / "result.nc", "a") as ds:
+        ds.multilayer_commit = "0123abc"  # as an earlier version wrote it
+    capsys.readouterr()
+    runner.run(scenarios.from_dict(SLUMP, overrides=["time.end=0.08"]), tmp_path, resume=True, quiet=True)
+    said = "result.nc: its output times so far were computed by multilayer "
+    assert said in capsys.readouterr().err and said in (tmp_path / "run.log").read_text()
+    assert "(commit 0123abc), the ones to come by multilayer " in (tmp_path / "run.log").read_text()
+    with netCDF4.Dataset(tmp_path / "result.nc") as ds:
+        assert ds.history.splitlines()[-1].split(" multilayer run --resume, by multilayer ")[1]
+
+
 def test_resume_needs_a_checkpoint_of_the_same_scenario(tmp_path: Path, cli, write_scenario) -> None:
     path = write_scenario(dict(SLUMP, time={"end": 0.02, "output_interval": 0.02}))
     result = cli("run", path, "-o", tmp_path / "none", "--resume")
@@ -164,6 +181,78 @@ def test_a_checkpoint_resumes_only_the_physics_and_numerics_it_computed(
     assert cli("run", path, "-o", tmp_path / "direct", "-q", *options).code == 0
     _assert_same_result(tmp_path / "run", tmp_path / "direct")
     assert yaml.safe_load(open_result(tmp_path / "run").attrs["scenario"])["name"] == "renamed"
+
+
+def _steps_at(outdir: Path, t: str) -> int:
+    """The step count at output time ``t`` (as the log prints it) of the run in ``outdir``."""
+    lines = (outdir / "run.log").read_text().splitlines()
+    line = next(line for line in lines if f"output t = {t} s:" in line)
+    return int(line.split("step ")[1].split(",")[0])
+
+
+def _assert_equal_results(a: Path, b: Path) -> None:
+    """The two runs' records equal to the bit, forces included, both completed."""
+    ra, rb = open_result(a, use="answer"), open_result(b, use="answer")
+    for name in ("time", "h", "u", "static_interface", "mass", "front", *FORCES):
+        np.testing.assert_array_equal(ra[name], rb[name], err_msg=name)
+    assert ra.attrs["steps"] == rb.attrs["steps"]
+
+
+@pytest.mark.parametrize("how", ["a stop", "its step bound"])
+def test_a_run_stopped_as_it_reaches_an_output_time_resumes_with_that_record(
+    tmp_path: Path, monkeypatch, how: str
+) -> None:
+    """A stop (a signal, its study) or the step bound taken by the very step that lands on an
+    output time checkpoints that state before its record is written.  The resumed run
+    went on to the output times after the state, so that record was never written: 10 of
+    the 11 output times, ``run_status: completed``.  It now writes the output times after
+    the last record kept: the uninterrupted run's records, to the bit."""
+    scenario = scenarios.from_dict(SLUMP, overrides=["time.end=0.1"])
+    runner.run(scenario, tmp_path / "direct", quiet=True)
+    landing = _steps_at(tmp_path / "direct", "0.06")
+    out = tmp_path / "stopped"
+    if how == "a stop":
+        step, stop = Simulation.step, [False]
+
+        def step_then_stop(self: Simulation, t_max: float = math.inf) -> float:
+            dt = step(self, t_max)
+            stop[0] = self.steps == landing
+            return dt
+
+        monkeypatch.setattr(Simulation, "step", step_then_stop)
+        with pytest.raises(Interrupted, match="at t=0.06 s"):
+            runner.run(scenario, out, quiet=True, stop_when=lambda: stop[0])
+        monkeypatch.undo()
+    else:  # the estimate of the steps (twice those taken here) would refuse the bound first
+        monkeypatch.setattr(resources, "check_steps", lambda scenario, budget: None)
+        with pytest.raises(RunError, match=f"has taken {landing} time steps"):
+            runner.run(scenario, out, quiet=True, budget=resources.Budget(steps=landing))
+        monkeypatch.undo()
+    runner.run(scenario, out, quiet=True, resume=True)
+    _assert_equal_results(out, tmp_path / "direct")
+
+
+def test_a_step_abandoned_leaves_the_normal_stress_of_the_last_step_kept(tmp_path: Path) -> None:
+    """With ``model.normal_stress`` the step replaces the stresses it keeps for the next step
+    (the relief of the mean pressures) before its state is kept.  A step abandoned midway
+    (a stop between two kernel calls: a signal, its study) left them: the checkpoint held
+    the stresses of a step that never happened, and the resumed run differed from the
+    uninterrupted one by up to 4.6e-6 m of thickness.  Now the abandoned step restores
+    them: the same records to the bit, wherever the stop falls."""
+    scenario = scenarios.from_dict(SLUMP, overrides=["time.end=0.1", "model.normal_stress=true"])
+    runner.run(scenario, tmp_path / "direct", quiet=True)
+    for stop_at in (37, 61):  # polls: between the kernel calls of a step, not at its end
+        polls = [0]
+
+        def stop_when(polls: list[int] = polls, stop_at: int = stop_at) -> bool:
+            polls[0] += 1
+            return polls[0] >= stop_at
+
+        out = tmp_path / f"stopped_{stop_at}"
+        with pytest.raises(Interrupted):
+            runner.run(scenario, out, quiet=True, stop_when=stop_when)
+        runner.run(scenario, out, quiet=True, resume=True)
+        _assert_equal_results(out, tmp_path / "direct")
 
 
 def test_engine_failure_keeps_the_output_times_done(tmp_path: Path, monkeypatch) -> None:

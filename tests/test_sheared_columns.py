@@ -14,7 +14,7 @@ from engine import simulation
 from multilayer.engine.plugin_output import PluginOutputError
 from multilayer.engine.threads import CHUNKS_PER_THREAD
 from multilayer.engine.vertical.newton_kernel import CompiledStep
-from multilayer.engine.vertical.sheared_columns import BLOCK, stride
+from multilayer.engine.vertical.sheared_columns import BLOCK, cell
 from multilayer.plugins.builtins import JopMuI
 
 MATERIAL = {"density": 1550.0, "grain_diameter": 0.7e-3, "particle_density": 2500.0}
@@ -92,10 +92,11 @@ def test_a_partly_stopped_collapse_mixes_blocks_and_single_columns_to_the_same_b
     assert (u == 0.0).any() and (u != 0.0).any()
 
 
-def test_lanes_padded_apart_in_the_tile_are_solved_to_the_same_bits():
-    """From 32 layers on, the tile's lanes lie an odd number of cache lines apart (the
-    cells between them padding, which the block's pass sweeps and never counts)."""
-    assert [stride(L) for L in (8, 31, 32, 40, 64, 128)] == [9, 32, 40, 56, 72, 136]
+def test_lanes_one_after_the_other_in_the_tile_are_solved_to_the_same_bits():
+    """The tile's lanes follow one another without padding (the bottom cell of each right
+    after the top cell of the one before, the bed below it from the slot BED): at 40
+    layers, as at the other sizes, the same bits as column by column."""
+    assert [cell(i, 40) for i in (0, 1, BLOCK)] == [1, 41, 1 + 40 * BLOCK]
     results = _both(simulation(**{**CHUTE, "domain": {**CHUTE["domain"], "layers": 40}}))
     _assert_same(results)
     assert results[0][2].columns_side_by_side == 24

@@ -225,18 +225,37 @@ def test_member_continues_its_own_checkpoint_and_restarts_on_another(tmp_path):
     first = runner.run(scenario.load(base, ["rheology.mu_s=0.3"]), member_dir, quiet=True)
 
     same = scenario.load(base, ["rheology.mu_s=0.3"])
-    resumed = sweep.run_member(same, str(member_dir), "fp-same", ["rheology.mu_s=0.3"])
+    fp_same = sweep.scenario_fingerprint(same)
+    resumed = sweep.run_member(same, str(member_dir), fp_same, ["rheology.mu_s=0.3"])
     assert "resumed run" in (member_dir / runner.LOG_FILE).read_text()
     del resumed["wall_time_s"], first["wall_time_s"]
     assert resumed == first  # nothing left to compute: the same steps and diagnostics
-    assert sweep.completed(member_dir, "fp-same")["steps"] == first["steps"]
+    assert sweep.completed(member_dir, fp_same)["steps"] == first["steps"]
 
     other = scenario.load(base, ["rheology.mu_s=0.4"])
-    summary = sweep.run_member(other, str(member_dir), "fp-other", ["rheology.mu_s=0.4"])
+    fp_other = sweep.scenario_fingerprint(other)
+    summary = sweep.run_member(other, str(member_dir), fp_other, ["rheology.mu_s=0.4"])
     assert "new run" in (member_dir / runner.LOG_FILE).read_text()
     assert summary["max_speed_final"] < first["max_speed_final"]  # more friction, slower
-    assert sweep.completed(member_dir, "fp-same") is None
-    assert sweep.completed(member_dir, "fp-other") == summary
+    assert sweep.completed(member_dir, fp_same) is None
+    assert sweep.completed(member_dir, fp_other) == summary
+
+
+def test_a_member_whose_result_another_run_replaced_is_not_reused(tmp_path):
+    """A run of another scenario into a completed member's directory (``multilayer run -o
+    sweep/m000``, to look at a member more closely) left the member's marker: the sweep run
+    again reported the marker's summary for it and a calibration measured the other run as
+    the member.  The member is reused only if ``result.nc`` records its scenario."""
+    base = tmp_path / "tiny.yaml"
+    base.write_text(TINY)
+    member_dir = tmp_path / "m000"
+    member = scenario.load(base, ["rheology.mu_s=0.3"])
+    fingerprint = sweep.scenario_fingerprint(member)
+    summary = sweep.run_member(member, str(member_dir), fingerprint, ["rheology.mu_s=0.3"])
+    assert sweep.completed(member_dir, fingerprint) == summary
+    runner.run(scenario.load(base, ["rheology.mu_s=0.4"]), member_dir, quiet=True)
+    assert (member_dir / sweep.MARKER).is_file() and results.run_failure(member_dir) is None
+    assert sweep.completed(member_dir, fingerprint) is None
 
 
 # --------------------------------------------------------------------- on a real cluster

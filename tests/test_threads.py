@@ -149,3 +149,37 @@ def test_each_parallel_kernel_is_cached_apart_from_its_serial_compilation():
         assert parallel.py_func.__code__.co_code == serial.py_func.__code__.co_code  # the same kernel
         names = {d._cache._cache_file._index_name for d in (serial, parallel)}  # the cache files
         assert len(names) == 2, names
+
+
+_SIDE_BY_SIDE = """
+import sys, threading
+import numpy as np, multilayer
+scenario = multilayer.load(sys.argv[1], {"numerics.threads": 2})
+alone = multilayer.Simulation(scenario)
+alone.advance(0.05)
+same = []
+def advance():
+    sim = multilayer.Simulation(scenario)
+    sim.advance(0.05)
+    same.append(np.array_equal(sim.h, alone.h) and np.array_equal(sim.u, alone.u))
+stepping = [threading.Thread(target=advance) for _ in range(3)]
+[thread.start() for thread in stepping]
+[thread.join() for thread in stepping]
+print(same)
+"""
+
+
+def test_simulations_in_threads_run_their_parallel_kernels_on_numbas_workqueue_layer(tmp_path, tiny_scenario):
+    """numba's workqueue threading layer, where neither TBB nor OpenMP is found, is not
+    thread-safe: three simulations on two kernel threads each, stepped side by side in three
+    threads as docs/api.md allows, terminated the process (SIGABRT, "Concurrent access has
+    been detected").  The parallel kernels' launches now take turns: each simulation ends
+    with the state of one alone, to the bit."""
+    import yaml
+
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump(tiny_scenario))
+    env = {**os.environ, "NUMBA_THREADING_LAYER": "workqueue"}
+    command = [sys.executable, "-c", _SIDE_BY_SIDE, str(path)]
+    done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=300)
+    assert done.returncode == 0 and done.stdout.strip() == "[True, True, True]", done.stderr

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -17,7 +18,7 @@ from typing import Any
 import xarray as xr
 
 from multilayer import scenario as scenarios
-from multilayer.errors import InputError
+from multilayer.errors import InputError, Interrupted, RunError
 from multilayer.io.results import open_result
 from multilayer.scenario import Scenario, limits
 from multilayer.scenario.messages import shown
@@ -89,7 +90,9 @@ def run(
 
     With ``outdir`` the run writes ``outdir/result.nc`` (plus ``run.log`` and a checkpoint)
     exactly as ``multilayer run -o outdir`` does.  Without it the run goes through a
-    temporary directory that is removed afterwards.  The Dataset has the layout of
+    temporary directory that is removed afterwards, unless the run fails or is interrupted:
+    then it stays, with the output times computed and the checkpoint, and the error names
+    it (and the command that resumes the run).  The Dataset has the layout of
     docs/results.md.  ``scenario`` is anything :func:`load` takes; ``quiet=False`` shows
     the progress line (and says so when numba compiles the kernels, once after installing;
     the Newton kernel in a child process where a second core is free).  Raises
@@ -105,6 +108,14 @@ def run(
         outdir = _path(outdir, "outdir", "None or the path of a directory")
         runner.run(loaded, outdir, quiet=quiet)
         return open_result(outdir)
-    with tempfile.TemporaryDirectory(prefix="multilayer-") as tmp:
+    tmp = tempfile.mkdtemp(prefix="multilayer-")
+    kept = False
+    try:
         runner.run(loaded, tmp, quiet=quiet)
         return open_result(tmp)
+    except (RunError, Interrupted):  # what was computed is kept where the message says (it was removed)
+        kept = True
+        raise
+    finally:
+        if not kept:
+            shutil.rmtree(tmp, ignore_errors=True)

@@ -277,7 +277,7 @@ class Calibrator:
             )
         best = self._best()
         if not math.isfinite(best.misfit):
-            raise _no_fit(self.candidates)
+            raise _no_fit(self.candidates, self.calibration, problem)
         self.search_theta = best.theta.copy()
         notes.append(f"global search: {result.nit} generation(s), {result.message}")
 
@@ -359,9 +359,23 @@ class Calibrator:
         return next((e.error for e in candidate.evaluations if e.status != "ok"), "")
 
 
-def _no_fit(candidates: list[Candidate]) -> Exception:
-    from multilayer.errors import RunError
+def _no_fit(candidates: list[Candidate], calibration: Calibration, problem: Problem) -> Exception:
+    """Why no parameter set has a finite misfit: its runs failed, or, where every run of a set
+    completed, the sum of squared whitened residuals overflowed (uncertainties of 1e-200 m
+    made it infinite, and the message said that every set had failed, with no error)."""
+    from multilayer.errors import InputError, RunError
 
+    scored = [c for c in candidates if c.predicted is not None]
+    if scored:
+        smallest = int(np.argmin(problem.sigma))
+        priors = [f"{problem.names[j]}: sd {sd:g}" for j, _, sd in problem.prior]
+        return InputError(
+            f"{calibration.path}: observations: the misfit of every parameter set whose runs completed "
+            f"({len(scored)} of {len(candidates)}) is {scored[0].misfit}: the squares of (model - observed) "
+            f"/ sigma overflow, the smallest sigma being {problem.sigma[smallest]:.3g} (SI)"
+            + (f" and the priors' {', '.join(priors)}" if priors else "")
+            + "; accepted: uncertainties (sigma, a prior's sd) for which those squares are finite numbers"
+        )
     errors = {Calibrator._error(c) for c in candidates}
     return RunError(
         f"every one of the {len(candidates)} parameter sets failed; first errors: "

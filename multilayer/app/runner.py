@@ -59,9 +59,12 @@ from multilayer.io.results import (
     DiskFull,
     ResultWriter,
     load_checkpoint,
+    made_by,
+    recorded,
     save_checkpoint,
     summary,
 )
+from multilayer.provenance import provenance
 
 LOG_FILE = "run.log"
 
@@ -159,6 +162,8 @@ def _output_directory(outdir: Path) -> list[Path]:
         raise InputError(
             f"{outdir}: not a UTF-8 name (netCDF files cannot be named by other bytes); {accepted}"
         ) from None
+    if "\0" in str(outdir):  # no system call takes it: Python's ValueError, with a traceback
+        raise InputError(f"{str(outdir)!r}: a name holding the NUL character; {accepted}")
     missing = [path for path in (outdir, *outdir.parents) if not path.exists()]
     if outdir.exists() and not outdir.is_dir():  # mkdir says only "File exists"
         raise InputError(f"{outdir}: a file, not a directory; {accepted}")
@@ -254,7 +259,9 @@ def _run(
     sim.poll = stop.poll  # also between the kernel calls of a step
     status = "failed"
     try:
-        for t_out in times[times > sim.t + 1e-9 * scenario.time.end]:
+        # the output times after the last record kept: a run stopped (a signal, its step bound)
+        # just as it reached an output time has checkpointed that state before its record
+        for t_out in times[times > writer.last_time + 1e-9 * scenario.time.end]:
             sim.advance(t_out, on_step=on_step, max_steps=None)  # bounded by on_step, over the run
             sim.check_state()
             diag = writer.write(sim)
@@ -351,6 +358,12 @@ def _checkpoint_to_resume(scenario: Any, outdir: Path, notice: Callable[[str], N
             f"{ckpt_path}: the checkpoint belongs to a different scenario (changed: "
             f"{', '.join(changed)}); resume with the same scenario file and --set "
             f"options (only {', '.join(sorted(_FREE_KEYS))} may change), or run without --resume"
+        )
+    origin, before = provenance(), recorded(outdir, "made_by")
+    if before != made_by(origin.version, origin.commit):  # the file's attributes name the first only
+        notice(
+            f"{outdir / RESULT_FILE}: its output times so far were computed by {before}, the ones to come "
+            f"by {made_by(origin.version, origin.commit)} (its history says which run wrote which)"
         )
     relabelled = [key for key in _changed_keys(saved, resolved, free=frozenset()) if key != "time.end"]
     if relabelled:

@@ -43,6 +43,7 @@ from multilayer.io.results import (
     MIXTURE_SUMMARY_KEYS,
     RESULT_FILE,
     SUMMARY_KEYS,
+    recorded,
     run_failure,
 )
 from multilayer.scenario import as_overrides, format_value
@@ -257,15 +258,15 @@ def load(path: str | Path) -> Sweep:
         if key != "directory":
             raise bad(("output", str(key)), "unknown key", "directory")
     directory = output.get("directory")
-    if directory is not None and (not isinstance(directory, str) or not directory):
-        raise bad(("output", "directory"), f"got {shown(directory)}", "a directory path")
+    if directory is not None and (not isinstance(directory, str) or not directory or "\0" in directory):
+        raise bad(("output", "directory"), f"got {shown(directory)}", "a directory path (no NUL character)")
 
     return Sweep(
         path=path,
         base=base,
         parameters=parameters,
         paired=paired,
-        output=Path(directory) if directory else None,
+        output=Path(directory).expanduser() if directory else None,  # ~ as a shell reads it
     )
 
 
@@ -284,11 +285,18 @@ class Outcome:
 def scenario_fingerprint(member_scenario: scenario.Scenario) -> str:
     """Hash of the fully resolved member scenario: a completed member is reused only if
     neither the base scenario nor the member's values changed since it ran."""
-    return hashlib.sha256(member_scenario.resolved_yaml().encode()).hexdigest()
+    return _fingerprint(member_scenario.resolved_yaml())
+
+
+def _fingerprint(resolved: str) -> str:
+    return hashlib.sha256(resolved.encode()).hexdigest()
 
 
 def completed(member_dir: Path, fingerprint: str) -> dict[str, float] | None:
-    """The stored summary if ``member_dir`` holds a completed, finite run of this exact scenario."""
+    """The stored summary if ``member_dir`` holds a completed, finite run of this exact
+    scenario: the marker's fingerprint and the scenario ``result.nc`` records both this
+    one's (a run of another scenario into the member's directory, ``multilayer run -o``,
+    leaves the marker: its summary was reported and its result measured as the member's)."""
     try:
         marker = json.loads((member_dir / MARKER).read_text())
     except (OSError, ValueError, RecursionError):
@@ -298,7 +306,7 @@ def completed(member_dir: Path, fingerprint: str) -> dict[str, float] | None:
         return None  # not a marker this module wrote: the member runs again
     if marker.get("fingerprint") != fingerprint or not (member_dir / RESULT_FILE).is_file():
         return None
-    if run_failure(member_dir) is not None:
+    if run_failure(member_dir) is not None or _fingerprint(recorded(member_dir, "scenario")) != fingerprint:
         return None
     return summary
 

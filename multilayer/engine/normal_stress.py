@@ -68,7 +68,8 @@ numpy reference of the method; the engine runs its compiled kernel
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import NamedTuple
 
 import numpy as np
@@ -557,6 +558,18 @@ class NormalStress:
         g = np.broadcast_to(given, (self.l.size, h.size))
         relief = np.vstack([self.relief[:1], 0.5 * (self.relief[1:] + self.relief[:-1])])
         return g * np.maximum(1.0 - relief, 0.0)
+
+    @contextmanager
+    def kept_if_abandoned(self) -> Iterator[None]:
+        """The stresses of the last step kept (``tau_xx``, ``relief``) taken back if the
+        block raises: the calls of a step that is abandoned (a failure, a stop, Ctrl-C)
+        replaced them (every call replaces both arrays, never writes into them)."""
+        kept = self.tau_xx, self.relief
+        try:
+            yield
+        except BaseException:
+            self.tau_xx, self.relief = kept
+            raise
 
     def state_dict(self) -> dict[str, np.ndarray]:
         """The relief of the last step (:attr:`relief`): the next vertical step's mean

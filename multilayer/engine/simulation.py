@@ -39,7 +39,11 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Callable
+import signal
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager, contextmanager, nullcontext
+from types import FrameType
 from typing import Any
 
 import numpy as np
@@ -173,6 +177,12 @@ class Simulation:
         self._stage_speed = np.zeros(1)
         #: called between kernel calls within a step; may raise to abandon the step (Ctrl-C)
         self.poll: Callable[[], None] | None = None
+        # the mesh and the bed, which the parts above hold, public as read-only views:
+        # ``x = sim.x; x -= 0.25`` (centring the axis of a plot) changed the run, silently;
+        # the transport is given the arrays themselves (numba compiles read-only ones apart)
+        self._bed, self._fractions = self.bed, self.fractions
+        self.x, self.sigma = _read_only(self.x), _read_only(self.sigma)
+        self.fractions, self.bed = _read_only(self.fractions), _read_only(self.bed)
 
     def _pressure_model(self) -> PressureModel:
         """The pressure model of the configuration, the defaults of its options filled in."""
@@ -274,24 +284,33 @@ class Simulation:
         speed = self._with_inflow(self.state.survey(self.dry, self.g_n))  # the fastest wave at the start
         dt = min(courant_step(speed, self.dx, self.config.cfl), t_max - self.t)
         threads = self.thread_policy.threads(self.fractions.size * int(np.count_nonzero(self.h)))
-        while True:  # redone shorter while Heun's second stage breaks the Courant condition
-            self._check_advances(dt)
-            vertical, u, iterations = self._transport_and_stresses(dt, threads)
-            h = vertical[-1].h
-            u, fields = self._project(h, u, dt)
-            if (shorter := self._courant_check(dt, speed)) is None:
-                break
-            dt = shorter
-        columns = span(h)  # every non-zero velocity and field of the step's end lies within
-        self._guard(h, u, fields, dt, columns)
-        if self.mixture is None:  # the forces of a mixture are not computed (docs/mixture.md)
-            self.forces.record(self.state, vertical, (u, fields), dt)  # diagnostics
-        self.seeds.accept(dt)
-        self.state.commit(h, u, fields, columns)
-        self.newton_iterations += iterations
-        self.steps += 1
-        self.t = t_max if dt == t_max - self.t else self.t + dt  # lands on t_max when cut to reach it
+        with self._abandonable():  # a step abandoned (a failure, a stop) leaves the state of its start
+            while True:  # redone shorter while Heun's second stage breaks the Courant condition
+                self._check_advances(dt)
+                vertical, u, iterations = self._transport_and_stresses(dt, threads)
+                h = vertical[-1].h
+                u, fields = self._project(h, u, dt)
+                if (shorter := self._courant_check(dt, speed)) is None:
+                    break
+                dt = shorter
+            columns = span(h)  # every non-zero velocity and field of the step's end lies within
+            self._guard(h, u, fields, dt, columns)
+        with whole():  # the step kept: forces, seeds, state, counts and time, or none of them
+            if self.mixture is None:  # the forces of a mixture are not computed (docs/mixture.md)
+                self.forces.record(self.state, vertical, (u, fields), dt)  # diagnostics
+            self.seeds.accept(dt)
+            self.state.commit(h, u, fields, columns)
+            self.newton_iterations += iterations
+            self.steps += 1
+            self.t = t_max if dt == t_max - self.t else self.t + dt  # lands on t_max when cut to reach it
         return dt
+
+    def _abandonable(self) -> AbstractContextManager[None]:
+        """Where a step replaces state before it is kept: the normal stress's, which
+        :meth:`NormalStress.kept_if_abandoned` takes back if the step raises.  Its
+        checkpoint (a stop between kernel calls) held the stresses of a step that never
+        happened, and the resumed run differed from the uninterrupted one."""
+        return nullcontext() if self.normal_stress is None else self.normal_stress.kept_if_abandoned()
 
     def _transport_and_stresses(
         self, dt: float, threads: int
@@ -358,7 +377,7 @@ class Simulation:
         if self.transport is transport_kernel.transport:  # the arrays it reuses, its threads
             options.update(workspace=self.workspace, threads=threads)
         h, ustar = self.transport(
-            self.h, self.u, self.bed, self.fractions, dx=self.dx, dt=dt, g_n=self.g_n, g_t=self.g_t,
+            self.h, self.u, self._bed, self._fractions, dx=self.dx, dt=dt, g_n=self.g_n, g_t=self.g_t,
             left=self.left, right=self.right, inflow=self.inflow, dry=self.dry, order=self.numerics.order,
             moving=self._stepping, boundary_mass=self.boundary_mass, stage_speed=self._stage_speed,
             boundary_momentum=self.forces.transport_terms, stage=stage, first=first, **options,
@@ -597,18 +616,50 @@ class Simulation:
         """Restore a state saved by ``state_dict`` (:class:`InputError` naming an entry
         this simulation does not hold, or holds with another shape)."""
         check_restored(saved, self.state_dict())
-        self.t = float(saved["t"])
-        self.steps = int(saved["steps"])
-        self.newton_iterations = int(saved.get("newton_iterations", 0))
-        self.state.load_state(saved)
-        self.forces.load_state(saved)
-        self.seeds.load_state(saved)
-        if self.normal_stress is not None:
-            self.normal_stress.load_state(saved)
+        with whole():
+            self.t = float(saved["t"])
+            self.steps = int(saved["steps"])
+            self.newton_iterations = int(saved.get("newton_iterations", 0))
+            self.state.load_state(saved)
+            self.forces.load_state(saved)
+            self.seeds.load_state(saved)
+            if self.normal_stress is not None:
+                self.normal_stress.load_state(saved)
         self.guard.check_state(self.h, self.u, f"in the restored state at t = {self.t:.6g} s")
         self.guard.reset(self.h, self.steps)
         if self.mixture is not None:
             self.mixture.reset(self.steps)
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    view = array.view()
+    view.flags.writeable = False
+    return view
+
+
+@contextmanager
+def whole() -> Iterator[None]:
+    """The block runs whole: a Ctrl-C (SIGINT) that arrives during it is handed to the
+    process's handler after it.  Under Python's own handler (``Simulation.step`` in a
+    notebook, no runner) its ``KeyboardInterrupt`` was raised between two statements of a
+    step being kept: after its forces were recorded (recorded again by the step redone:
+    40.25 N/m where the run gives 40.32) or after its state (the time and step count of the
+    step before: the run went on one step ahead of its time), silently.  For the block (a
+    few array copies) the main thread's SIGINT handler is one that notes the signal; the
+    process's own is put back after it and called for each signal noted.  (Blocking the
+    signal in the main thread is not enough: the kernels' threads would take it.)"""
+    handler = signal.getsignal(signal.SIGINT)
+    if threading.current_thread() is not threading.main_thread() or not callable(handler):
+        yield  # signals reach the main thread only; SIG_DFL and SIG_IGN call nothing here
+        return
+    came: list[FrameType | None] = []
+    signal.signal(signal.SIGINT, lambda signum, frame: came.append(frame))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, handler)
+        for frame in came:
+            handler(signal.SIGINT, frame)
 
 
 def _step_bound(max_steps: object) -> float:

@@ -25,6 +25,7 @@ import ctypes
 import functools
 import importlib.metadata
 import os
+import threading
 from collections import Counter
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -65,26 +66,36 @@ def parallel_chunks(threads: int, items: int, smallest: int = 1) -> int:
     return max(1, min(CHUNKS_PER_THREAD * threads, items // smallest))
 
 
+_LAUNCHES = threading.RLock()
+"""Held by :func:`numba_threads`: one thread of the process at a time runs parallel kernels.
+numba's workqueue threading layer (the one it falls back to where neither TBB nor OpenMP
+is found, or ``NUMBA_THREADING_LAYER=workqueue``) is not thread-safe: two simulations
+stepped in two threads, as docs/api.md allows, terminated the whole process ("Concurrent
+access has been detected").  The other layers would run both on the same cores."""
+
+
 @contextmanager
 def numba_threads(count: int) -> Iterator[None]:
     """numba's thread count (and a chunk of one iteration per task, so that the chunks of
     :func:`parallel_chunks` are handed out one at a time) set to ``count`` for the calls of
-    the block, at most numba's ``NUMBA_NUM_THREADS``; the caller's settings are given back
-    after it.  Nothing for ``count <= 1`` (the serial kernels)."""
+    the block, at most numba's ``NUMBA_NUM_THREADS``, one thread of the process at a time
+    (:data:`_LAUNCHES`); the caller's settings are given back after it.  Nothing for
+    ``count <= 1`` (the serial kernels)."""
     if count <= 1:
         yield
         return
     import numba
 
     load_tbb()  # before numba starts its threading layer
-    previous = numba.get_num_threads(), numba.get_parallel_chunksize()
-    numba.set_num_threads(min(count, numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]
-    numba.set_parallel_chunksize(1)
-    try:
-        yield
-    finally:
-        numba.set_num_threads(previous[0])
-        numba.set_parallel_chunksize(previous[1])
+    with _LAUNCHES:
+        previous = numba.get_num_threads(), numba.get_parallel_chunksize()
+        numba.set_num_threads(min(count, numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]
+        numba.set_parallel_chunksize(1)
+        try:
+            yield
+        finally:
+            numba.set_num_threads(previous[0])
+            numba.set_parallel_chunksize(previous[1])
 
 
 def available_cores() -> int:

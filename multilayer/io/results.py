@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import hashlib
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,6 +36,7 @@ from typing import Any, Literal
 import netCDF4
 import numpy as np
 import xarray as xr
+import yaml
 
 from multilayer.errors import InputError, RunError, reason
 from multilayer.io import disk
@@ -65,6 +67,7 @@ class ResultWriter:
     A new file is created unless ``records`` is given: then the existing file is opened
     for appending and the next output time is written as record number ``records``
     (records beyond it, written after the checkpoint being resumed, are overwritten).
+    ``last_time`` is the time of the last record kept (NaN before the first).
     """
 
     def __init__(self, path: str | os.PathLike, scenario: Any, sim: Any, records: int | None = None) -> None:
@@ -82,10 +85,14 @@ class ResultWriter:
                 self._ds = netCDF4.Dataset(self.path, "w", format=FORMAT)
                 self._define(scenario, sim)
                 self.records = 0
+                self.last_time = math.nan
             else:
                 self._ds = netCDF4.Dataset(self.path, "a")
-                self._ds.history += f"\n{_now()} multilayer run --resume"
+                origin = provenance()
+                by = made_by(origin.version, origin.commit)
+                self._ds.history += f"\n{_now()} multilayer run --resume, by {by}"
                 self.records = records
+                self.last_time = float(self._ds["time"][records - 1])
             self._ds.run_status = "running"
             self._ds.header_space = " " * HEADER_SPACE
             self._ds.sync()
@@ -176,6 +183,7 @@ class ResultWriter:
                 raise RunError(f"{self.path}: writing output time {i} failed ({exc})") from None
             raise DiskFull(f"{reason}: writing output time {i} into {self.path} failed ({exc})") from None
         self.records = i + 1
+        self.last_time = float(sim.t)
         return diag
 
     def _ensure_room(self) -> None:
@@ -285,6 +293,21 @@ def run_failure(path: str | os.PathLike) -> str | None:
     except InputError as exc:
         return str(exc)
     return None
+
+
+def recorded(path: str | os.PathLike, name: str) -> str:
+    """The attribute ``name`` of a result file (or of the ``result.nc`` in a directory) as
+    text: ``scenario``, the resolved scenario of the run it holds; ``made_by``, the
+    multilayer (version and commit) that wrote its first records."""
+    with NETCDF_LOCK, netCDF4.Dataset(result_path(path)) as nc:
+        if name == "made_by":
+            return made_by(str(nc.getncattr("multilayer_version")), str(nc.getncattr("multilayer_commit")))
+        return str(nc.getncattr(name))
+
+
+def made_by(version: str, commit: str) -> str:
+    """How messages and the history name a version of multilayer."""
+    return f"multilayer {version} (commit {commit})"
 
 
 SUMMARY_KEYS = (
@@ -474,4 +497,10 @@ def load_checkpoint(path: str | os.PathLike) -> Checkpoint:
         or meta["records"] < 1
     ):
         raise corrupt("meta.scenario is not text or meta.records no count of records")
+    try:  # the scenario it computed, compared key by key with the one resuming it
+        scenario = yaml.safe_load(meta["scenario"])
+    except yaml.YAMLError:  # was a traceback (exit 1)
+        scenario = None
+    if not isinstance(scenario, dict):
+        raise corrupt("meta.scenario is not the YAML mapping of a scenario")
     return Checkpoint(state=state, **meta)

@@ -36,7 +36,7 @@ from multilayer import scenario
 from multilayer.errors import InputError, reason
 from multilayer.scenario.files import read_text
 from multilayer.scenario.limits import MAX_PROFILE_POINTS
-from multilayer.scenario.messages import StrictModel, describe, dotted, field, invalid
+from multilayer.scenario.messages import StrictModel, describe, directory_path, dotted, field, invalid
 from multilayer.scenario.overrides import as_overrides
 from multilayer.scenario.profiles import csv_number
 
@@ -191,6 +191,8 @@ class StudyOutput(StrictModel):
     """Where results go."""
 
     directory: str | None = field(None, "a directory path")
+
+    _directory = field_validator("directory")(directory_path)
 
 
 class _Study(StrictModel):
@@ -409,8 +411,8 @@ def _read(path: Path, lines: dict, index: int, obs: Observation, experiment: str
             observation=obs,
             experiment=experiment,
             coordinate=[],
-            value=[obs.value * scale],
-            sigma=[obs.sigma * scale],
+            value=_in_si([obs.value], scale, _at(path, lines, "observations", index, "value"), "value"),
+            sigma=_in_si([obs.sigma], scale, _at(path, lines, "observations", index, "sigma"), "sigma"),
         )
     where = _at(path, lines, "observations", index, "file")
     if obs.file is None:
@@ -446,10 +448,25 @@ def _read(path: Path, lines: dict, index: int, obs: Observation, experiment: str
     return ObservedData(
         observation=obs,
         experiment=experiment,
-        coordinate=list(coordinate * UNITS[coordinate_unit]),
-        value=list(value * scale),
-        sigma=list(sigma * scale),
+        coordinate=_in_si(coordinate, UNITS[coordinate_unit], where, "coordinate"),
+        value=_in_si(value, scale, where, "value"),
+        sigma=_in_si(sigma, scale, where, "sigma"),
     )
+
+
+def _in_si(values: Any, scale: float, where: str, what: str) -> list[float]:
+    """``values`` times the unit's ``scale``: finite numbers, and uncertainties (``sigma``)
+    > 0, also after the conversion (1e-322 cm of uncertainty is 0 m, 1e308 km infinite)."""
+    converted = np.asarray(values, dtype=float) * scale
+    bad = ~np.isfinite(converted) | ((converted <= 0) if what == "sigma" else False)
+    if np.any(bad):
+        first = int(np.flatnonzero(bad)[0])
+        raise InputError(
+            f"{where}: the {what} {np.asarray(values, dtype=float)[first]:g} is {converted[first]:g} in SI "
+            f"(times {scale:g}); accepted: {'numbers > 0' if what == 'sigma' else 'numbers'} that are "
+            "finite in SI units"
+        )
+    return list(converted)
 
 
 def _unvalidated(obs: Observation, keys: str) -> RuntimeError:

@@ -23,6 +23,7 @@ import numpy as np
 import yaml
 
 from multilayer.errors import InputError
+from multilayer.scenario.messages import shown
 
 MAX_FILE_BYTES = 64 * 2**20
 """Largest input file read (bytes): scenario, sweep and study YAML files, CSV profiles."""
@@ -96,24 +97,53 @@ def check_yaml(text: str, where: str, loader: type) -> None:
         return  # the loader names the problem and its line
 
 
+def check_text(text: str, where: str) -> None:
+    """:class:`InputError` naming ``where`` for a text that is no Unicode text: a lone
+    surrogate, how Python keeps a byte of a command-line argument that is not UTF-8
+    (``--set name=$'\\xff'``, U+DC80 to U+DCFF), or half of a UTF-16 pair given from
+    Python.  libyaml's parser and the result file's attributes encode every text in UTF-8:
+    such a text was a ``UnicodeEncodeError`` with a traceback (a ``--set`` value, a
+    ``description`` of a mapping at the end of a run)."""
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError as exc:
+        code = ord(text[exc.start])
+        what = (
+            f"the byte 0x{code - 0xDC00:02X}, which is not UTF-8"
+            if 0xDC80 <= code <= 0xDCFF
+            else (f"U+{code:04X}, half of a UTF-16 pair")
+        )
+        raise InputError(
+            f"{where}: {shown(text)} holds {what} (character {exc.start + 1}); accepted: text in UTF-8"
+        ) from None
+
+
 def plain_data(value: Any, where: str) -> Any:
     """A copy of ``value``, a scenario or a value given as Python data (``multilayer.load``
     of a mapping), in the types YAML gives: numpy scalars and arrays as numbers and lists,
     tuples as lists.  :class:`InputError` naming ``where`` and the key beyond the bounds of
-    a YAML text (nesting, number of values); a structure that holds itself nests without end."""
+    a YAML text (nesting, number of values), or holding a text that is not Unicode
+    (:func:`check_text`); a structure that holds itself nests without end."""
     count = 0
+
+    def place(path: tuple[Any, ...]) -> str:
+        return ".".join(str(k) for k in path[:4]) + (".(...)" if len(path) > 4 else "") or "(top level)"
 
     def plain(item: Any, path: tuple[Any, ...]) -> Any:
         nonlocal count
         count += 1 + (item.size if isinstance(item, np.ndarray) else 0)
         if len(path) > MAX_DEPTH or count > MAX_NODES:
-            key = ".".join(str(k) for k in path[:4]) + (".(...)" if len(path) > 4 else "")
             raise InputError(
-                f"{where}: {key or '(top level)'}: more than {MAX_DEPTH} nested collections or {MAX_NODES} "
+                f"{where}: {place(path)}: more than {MAX_DEPTH} nested collections or {MAX_NODES} "
                 f"values; accepted: mappings and lists nested at most {MAX_DEPTH} deep, not holding "
                 f"themselves, of at most {MAX_NODES} values"
             )
+        if isinstance(item, str):
+            check_text(item, f"{where}: {place(path)}" if path else where)
         if isinstance(item, Mapping):
+            for name in item:
+                if isinstance(name, str):
+                    check_text(name, f"{where}: {place(path)}: a key")
             return {
                 (key.item() if isinstance(key, np.generic) else key): plain(entry, (*path, key))
                 for key, entry in item.items()

@@ -12,6 +12,7 @@ import yaml
 from pydantic import ValidationError
 
 from multilayer.errors import InputError
+from multilayer.scenario import limits
 from multilayer.scenario.messages import KeyPath, describe, dotted
 from multilayer.scenario.overrides import apply_overrides
 from multilayer.scenario.schema import Scenario
@@ -56,7 +57,10 @@ def from_dict(
 
 def validated_again(scenario: Scenario, overrides: Sequence[str] = ()) -> Scenario:
     """``scenario`` validated again, from its keys as they are now (assigned since its
-    validation or not), with ``overrides`` applied: a new :class:`Scenario`."""
+    validation or not), with ``overrides`` applied: a new :class:`Scenario`.  A text
+    assigned that is no Unicode (:func:`~multilayer.scenario.limits.check_text`) is named
+    first: YAML cannot write it."""
+    limits.plain_data(scenario.model_dump(warnings=False), str(scenario.source or "<scenario>"))
     data = yaml.safe_load(scenario.resolved_yaml())
     return from_dict(data, source=scenario.source, overrides=overrides)
 

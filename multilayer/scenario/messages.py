@@ -9,6 +9,7 @@ accepted, which the loader prefixes with the file and the line.
 
 from __future__ import annotations
 
+import os
 import typing
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -30,6 +31,19 @@ def invalid(message: str, accepted: str, key: str = "") -> PydanticCustomError:
     return PydanticCustomError(
         "scenario", "{message}", {"message": message, "accepted": accepted, "key": key}
     )
+
+
+def directory_path(value: Any) -> Any:
+    """``output.directory`` of a scenario or a study as given, with a leading ``~`` or
+    ``~user`` read as that home directory, as a shell reads it (``~/runs`` made a directory
+    named ``~`` in the working directory), unless it holds the NUL character (a YAML
+    ``"\\0"``), which no system call takes: the run or the study stopped with Python's
+    ``ValueError`` and a traceback."""
+    if value is not None and "\0" in str(value):
+        raise invalid(f"{str(value)!r} holds the NUL character", "a directory path without it")
+    if value is not None and str(value).startswith("~"):
+        return type(value)(os.path.expanduser(str(value)))  # a Path stays a Path
+    return value
 
 
 def check_kind(model: BaseModel, kind: str, table: dict[str, tuple[tuple[str, ...], ...]]) -> None:

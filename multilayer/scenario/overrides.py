@@ -32,6 +32,7 @@ def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> tuple[dic
     data = copy.deepcopy(data)
     paths: list[KeyPath] = []
     for item in overrides:
+        limits.check_text(item, "--set")  # libyaml's parser encodes it: a byte not UTF-8 was a traceback
         key, sep, text = item.partition("=")
         key = key.strip()  # "domain.cells = 200" names domain.cells
         append = key.endswith("+")

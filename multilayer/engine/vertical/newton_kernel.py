@@ -327,9 +327,7 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
     conductance, factor, offset = tile[sc.CONDUCTANCE, alone], tile[sc.FACTOR, alone], tile[sc.OFFSET, alone]
     wall_factor, wall_offset, per_area, wall_true = walls_of[1], walls_of[2], walls_of[3], walls_of[4]
     factors, offsets = tile[sc.FACTOR], tile[sc.OFFSET]  # the rows of every lane
-    column = ColumnArrays(
-        m, kappa, w0, pressure, spacing, viscous, wall_pressure
-    )  # into the tile's lane ALONE
+    column = ColumnArrays(m, kappa, w0, pressure, spacing, viscous, wall_pressure)  # into the lane ALONE
     g_m, g_kappa, g_w, g_pressure = given.m, given.kappa, given.w, given.pressure  # read once per chunk
     g_spacing, g_viscous, g_wall = given.spacing, given.viscous, given.wall_pressure
     start, stop = k * n // chunks, (k + 1) * n // chunks
@@ -353,6 +351,8 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
             if (j - start) % BLOCK == 0:
                 j0 = j
                 block = blocks and not walls and j + BLOCK <= stop and wet[j + BLOCK - 1] - col == BLOCK - 1
+                if block:  # the block's u* and guesses, row by row
+                    sc.load(tile, L, ustar, guess, col)
             # the coefficients of StressModel.columns: from the compiled yield forms, or given
             if fused:
                 fine = column_coefficients(col, h[col], inputs, column) == 0
@@ -365,11 +365,13 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
             o = cell(lane, L)  # the lane's layer 0 in the tile's rows
             # what stays fixed during the iteration, a few rows per loop over the layers (a loop
             # over all reloads its rows' pointers), the laws' switch outside them
-            for a in range(L):  # contiguous: as vectors
-                tile[sc.INERTIA, np.uint64(o + a)] = m[a] / dt  # unsigned: no test for negative indices
-            for a in range(L):  # a column of the (L, N) arrays
-                tile[sc.MOMENTUM, np.uint64(o + a)] = m[a] * ustar[a, col] / dt
-                current[a] = guess[a, col]
+            if not block:  # a column of the (L, N) arrays (a block's are in its lanes: load)
+                for a in range(L):
+                    tile[sc.MOMENTUM, np.uint64(o + a)] = ustar[a, col]
+                    current[a] = guess[a, col]
+            for a in range(L):  # contiguous: as vectors (unsigned: no test for negative indices)
+                tile[sc.INERTIA, np.uint64(o + a)] = m[a] / dt
+                tile[sc.MOMENTUM, np.uint64(o + a)] = m[a] * tile[sc.MOMENTUM, np.uint64(o + a)] / dt
             for a in range(L):
                 x = np.uint64(o + a)
                 s = spacing[a]
@@ -382,8 +384,6 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
                     x = np.uint64(o + a)
                     tile[sc.KAPPA, x] = kappa[a]
                     tile[sc.VISCOUS, x] = 1.0 if viscous[a] else 0.0
-                    tile[sc.GUESS, x] = current[a]
-                    tile[sc.U0, x] = current[a]
                     tile[sc.WALL, x] = w0[a]
             elif walls:
                 start_of_walls = np.int64(0)  # not the literal 0: one compilation for both laws

@@ -43,20 +43,21 @@ BLOCK = 8
 stresses and the Newton model one loop over the 8 L cells of the block, long enough to
 run as vectors at L = 8 (compiled, the loop runs as vectors of 8 values from about 40
 cells on, and one cell at a time below: 22-29 against 51-53 ns per column and pass at
-L = 8).  The tile holds 20 values per layer for each of the BLOCK + 1 lanes, 196 KB at
+L = 8).  The tile holds 21 values per layer for each of the BLOCK + 1 lanes, 194 KB at
 L = 128, and the sweeps of the solve 7 per layer and lane, 57 KB."""
 
-# The tile (SLOTS, 1 + (BLOCK + 1) P) holds, in each slot (a row), one value per column
-# (lane) and layer: layer a of lane i in cell 1 + i P + a, P = stride(L) (the cells
-# between the lanes and cell 0 are padding, never read as values).  The slots: per step,
+# The tile (SLOTS, 1 + (BLOCK + 1) L) holds, in each slot (a row), one value per column
+# (lane) and layer: layer a of lane i in cell 1 + i L + a, the lanes one after the other
+# without padding, so that the pass over the block's cells sweeps none but its own (cell
+# 0 is never read as a value: below the bottom cell of each lane is the bed, from the
+# slot BED, and a loop may load the cell below it unconditionally).  The slots: per step,
 # m/dt, m u*/dt, the true yield stress, the wall threshold, 1/spacing, the conductance
 # per unit slope (0 where not viscous), whether viscous, the pressure parts of the law
 # and the guess; per iteration, the Newton model (yield stress, conductance, sign of the
 # jump), the two iterates and, at each,
 # the true viscous stresses and their derivatives (``TAU0 + k``, ``STIFF0 + k`` at the
 # iterate ``U0 + k``: the rise bound of ``newton_control`` needs both iterates'); fixed,
-# 1.0 in the bottom cell of each lane (the bed below it), 2.0 in the padding and 0.0
-# elsewhere.
+# 1.0 in the bottom cell of each lane (the bed below it) and 0.0 elsewhere.
 INERTIA, MOMENTUM, KAPPA, WALL, INV_SPACING, CONDUCTANCE, VISCOUS, FACTOR, OFFSET = range(9)
 GUESS, KC, CC, SIGN, U0, U1, TAU0, TAU1, STIFF0, STIFF1, BED, GAP = range(9, 21)
 SLOTS = 21
@@ -75,34 +76,35 @@ ACTIVE, SHEARED, DONE, FINE = range(4)  # of the boolean lanes
 
 
 @jit
-def stride(L):
-    """Cells from one lane to the next in the tile's rows, for columns of ``L`` layers:
-    ``L + 1`` (a cell of padding) below 32 layers; above, an odd number of cache lines (of
-    8 values), so that the lanes and slots of a pass fall in different sets of the L1
-    cache (at L = 128 without it, the streams of the Thomas sweep shared four sets: 800 to
-    1130 against 460 ns per column)."""
-    if L < 32:
-        return L + 1
-    lines = (L + 1 + 7) // 8
-    return 8 * (lines + 1 - lines % 2)
-
-
-@jit
 def new_tile(L):
     """The tile of columns of ``L`` layers, zero but for the ``BED`` slot."""
-    t = np.zeros((SLOTS, 1 + (BLOCK + 1) * stride(L)))
-    t[BED, :] = 2.0
+    t = np.zeros((SLOTS, 1 + (BLOCK + 1) * L))
     for i in range(BLOCK + 1):
-        x = cell(i, L)
-        t[BED, x] = 1.0
-        t[BED, x + 1 : x + L] = 0.0
+        t[BED, cell(i, L)] = 1.0
     return t
 
 
 @jit
 def cell(i, L):
     """The cell of layer 0 of lane ``i`` in the tile's rows (columns of ``L`` layers)."""
-    return 1 + i * stride(L)
+    return 1 + i * L
+
+
+@jit(borrowing=True)
+def load(t, L, ustar, guess, c0):
+    """The velocities after transport and the guesses of the block's columns ``c0 ... c0 +
+    BLOCK - 1`` of the (L, N) arrays ``ustar`` and ``guess`` (adjacent columns) into the
+    slots ``MOMENTUM`` (u* itself, which the set-up of each column then multiplies by its
+    m/dt) and ``GUESS`` of the lanes, row by row: each row's BLOCK values are one or two
+    cache lines, read once for the whole block.  Column by column, each column would
+    read its L values a row of the mesh apart, one value from each of L cache lines (at
+    N = 20 000 the rows are 160 000 B apart: the lines of a column fall in a few sets of
+    the L1 cache, and are gone before the next column would use them)."""
+    for a in range(np.uint64(L)):  # unsigned: no test for negative indices
+        for i in range(BLOCK):
+            x, column = np.uint64(cell(i, L)) + a, np.uint64(c0 + i)
+            t[MOMENTUM, x] = ustar[a, column]
+            t[GUESS, x] = guess[a, column]
 
 
 @jit(borrowing=True)
@@ -171,7 +173,7 @@ def _stresses_and_model(t, L, u, form, params, flags):
 def _sweep(t, u, form, params, start, stop):
     """Cells ``start ... stop - 1`` of the tile's rows of :func:`_stresses_and_model` (the
     velocities in slot ``u``); returns how many viscosities are outside the plugin contract
-    and how many jumps are zero, padding aside."""
+    and how many jumps are zero."""
     faults = unsheared = 0
     tau, stiffness = TAU0 + (u - U0), STIFF0 + (u - U0)
     for x in range(np.uint64(start), np.uint64(stop)):  # unsigned: no test for negative indices
@@ -181,9 +183,8 @@ def _sweep(t, u, form, params, start, stop):
         rate = abs(jump) * t[INV_SPACING, x]
         eta, slope = _viscosity_and_slope(form, params, rate, t[FACTOR, x], t[OFFSET, x])
         within = _within_contract(eta)  # the plugin contract
-        layer = t[BED, x] < 2.0  # not padding
-        faults += layer and not within
-        unsheared += layer and g == below
+        faults += not within
+        unsheared += g == below
         t[tau, x] = eta * rate if t[CONDUCTANCE, x] > 0.0 else 0.0
         t[stiffness, x] = max(slope, 0.0) * t[CONDUCTANCE, x]
         kappa, conductance = _newton_model(t[KAPPA, x], rate, eta, slope)
@@ -367,6 +368,8 @@ def sheared_block(
     for i in range(BLOCK):
         finished[i] = False
     current, new = np.int64(U0), np.int64(U1)  # typed int64, not as literals: one compilation
+    for x in range(np.uint64(cell(0, L)), np.uint64(cell(BLOCK, L))):  # the first iterate: the guess
+        t[U0, x] = t[GUESS, x]  # (contiguous, as vectors; load writes the rows of two slots, not three)
     concave_stress = concave(form, params)
     _stresses_and_model(t, L, current, form, params, flags)
     for i in range(BLOCK):
