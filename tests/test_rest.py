@@ -99,6 +99,34 @@ def test_a_column_at_rest_feels_the_mean_of_its_two_discrete_free_surface_slopes
     np.testing.assert_allclose(u_new, np.broadcast_to(expected, u.shape), rtol=1e-12, atol=1e-15)
 
 
+@pytest.mark.parametrize("order", [1, 2])
+@pytest.mark.parametrize("step", [0.3, 1.5, -0.3])
+def test_a_closed_gate_is_a_wall_to_each_column_at_rest_beside_it(step, order):
+    """A closed gate (engine/gate.py) between two columns at rest over a bed step: each
+    side feels its own hydrostatic pressure ``g_n h_j^2 / 2`` at the gate, so every column
+    still feels the mean of its two discrete slopes with the gate's face counted level
+    (J = 0, as a wall's mirror ghost), whatever the level beyond the gate: below the high
+    side's bed (step 1.5), above it, or the gate on the high side's west (-0.3).  Before,
+    the face at rest's well-balancing term ``(h_j - hL)(h_j + hR)`` let the far side's
+    level in: ``g_n (h_j - hL)(hR - hL) / 2`` more on the low side."""
+    rng = np.random.default_rng(5)
+    cells, face, dx, dt, g_n, g_t = 40, 20, 0.01, 1e-3, 9.0, 1.2
+    h = rng.uniform(0.5, 1.0, cells)
+    b = rng.uniform(0.0, 0.05, cells) + np.where(np.arange(cells) >= face, step, 0.0)
+    fractions = np.array([0.2, 0.3, 0.5])
+    u = np.zeros((3, cells))
+    h_new, u_new = transport.transport(
+        h, u, b, fractions, dx=dx, dt=dt, g_n=g_n, g_t=g_t, left="wall", right="wall", dry=1e-6,
+        order=order, stage=0, gate_face=face, opening=np.zeros(3),
+    )  # fmt: skip
+    slopes = np.diff(h + b)
+    slopes[face - 1] = 0.0  # the gate's face
+    J = np.concatenate([[0.0], slopes, [0.0]])  # the walls at both ends
+    expected = dt * (g_t - g_n * (J[:-1] + J[1:]) / (2.0 * dx))
+    assert np.array_equal(h_new, h)
+    np.testing.assert_allclose(u_new, np.broadcast_to(expected, u.shape), rtol=1e-12, atol=1e-15)
+
+
 MU_S = 0.5
 
 

@@ -140,6 +140,23 @@ def _gated(flux_h, flux_q, hL, uL, hR, uR, l, g_n, gate):
     return h_west, h_east, q_west, q_east
 
 
+def _gate_walls(gate, east_wb, west_wb, he, hw, hL, hR):
+    """The well-balancing terms (L, N) beside a gate face at rest: the part ``1 - o_a`` of
+    each layer that meets the gate's wall takes ``h_j^2 - hL^2`` (west of it;
+    ``h_j^2 - hR^2`` east), so that with the wall's ``g_n hL^2 / 2`` each side feels its
+    own hydrostatic pressure ``g_n h_j^2 / 2`` whatever the level beyond the gate; the
+    open part ``o_a`` keeps the terms of a face at rest."""
+    face, o = gate
+    east_wb = np.broadcast_to(east_wb, (o.size, east_wb.size)).copy()
+    west_wb = np.broadcast_to(west_wb, (o.size, west_wb.size)).copy()
+    if face >= 1:  # the cell west of the gate
+        j = face - 1
+        east_wb[:, j] = o * east_wb[:, j] + (1.0 - o) * (he[j] ** 2 - hL[face] ** 2)
+    if face < west_wb.shape[1]:  # the cell east of it
+        west_wb[:, face] = o * west_wb[:, face] + (1.0 - o) * (hw[face] ** 2 - hR[face] ** 2)
+    return east_wb, west_wb
+
+
 def _rates(h, u, b, l, *, dx, g_n, g_t, left, right, inflow, order, at_rest, start, dry, gate=None):
     """Time derivatives of h (N,) and of the layer momenta h_a u_a (L, N), the mass and
     the momentum fluxes through the two end faces (left, right, left, right) and the
@@ -201,6 +218,8 @@ def _rates(h, u, b, l, *, dx, g_n, g_t, left, right, inflow, order, at_rest, sta
     hw, he, bw, be = h_w[1:-1], h_e[1:-1], b_w[1:-1], b_e[1:-1]
     east_wb = np.where(resting[1:], (he - hL[1:]) * (he + hR[1:]), he**2 - hL[1:] ** 2)
     west_wb = np.where(resting[:-1], (hw - hR[:-1]) * (hw + hL[:-1]), hw**2 - hR[:-1] ** 2)
+    if gate is not None and resting[gate[0]]:
+        east_wb, west_wb = _gate_walls(gate, east_wb, west_wb, he, hw, hL, hR)
     east = flux_q_west[:, 1:] + l * 0.5 * g_n * east_wb
     west = flux_q_east[:, :-1] + l * 0.5 * g_n * west_wb
     bed_slope = l * g_n * 0.5 * (hw + he) * (be - bw)
