@@ -32,7 +32,9 @@ between two such faces then feels the mean of its two discrete free-surface slop
 
 so that every column of a state at rest whose discrete slopes all lie within ``mu_s`` of
 ``tan(theta)`` feels a driving stress below its friction (docs/model.md, "Rest"), summits,
-changes of slope and toes (a dry neighbour: eta = b) included.  The mean pressure
+changes of slope and toes (a dry neighbour: eta = b) included.  The closed part of a gate
+(engine/gate.py) at rest is a wall, J = 0: each side feels its own hydrostatic pressure
+``g_n h_j^2 / 2`` there, whatever the level beyond it (``_gate_walls``).  The mean pressure
 ``g_n (hL^2 + hR^2) / 4`` of the flux would give a toe ``h_{j+1}^2 / (4 h_j dx)`` (9/8 of
 a linear flank's slope), and a summit flattened by the limiter 1.25 times it.
 
