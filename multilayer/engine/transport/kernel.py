@@ -160,14 +160,13 @@ def _gated(f, hl, hr, uL, uR, l, g_n, opening, fh, fq, gate_h, gate_q):
 
 
 @jit(error_model="numpy")
-def _momentum_rate(i, west_flux, east_wb, west_wb, cell):
-    """d_t(h_a u_a) of cell ``i`` of a tile: the momentum fluxes with the well-balanced
-    pressure at its faces (``west_flux`` at its west face, the well-balancing factors
-    ``east_wb``, ``west_wb``), the bed slope, the mass exchange and gravity along the
-    slope; ``cell`` holds the layer's momentum fluxes, the factors of the cells that no
-    layer changes (``terms``), the exchange, the layer's pressure, slope and gravity
+def _momentum_rate(i, west_flux, east_wb, west_wb, momentum, terms, exchange, rates):
+    """d_t(h_a u_a) of cell ``i`` of a tile: the momentum fluxes (``west_flux`` at its west
+    face) with the well-balancing factors ``east_wb``, ``west_wb`` of its faces, the bed
+    slope, the mass exchange and gravity along the slope; ``terms`` holds the factors of
+    the cell that no layer changes, ``rates`` the layer's pressure, slope and gravity
     factors and dx."""
-    momentum, terms, exchange, pressure, slope, gravity, dx = cell
+    pressure, slope, gravity, dx = rates
     east = momentum[i + 1] + pressure * east_wb
     west = west_flux + pressure * west_wb
     return -(east - west + slope * terms[2, i] * terms[3, i]) / dx + exchange[i] + gravity * terms[4, i]
@@ -489,20 +488,22 @@ def _tile(stage, t0, t1, window, scheme, edges, arrays, work):
                 exchange[i] = 0.0 - u_B * below
         else:
             exchange[:m] = 0.0
-        cell = (momentum, terms, exchange, la * 0.5 * g_n, la * g_n * 0.5, g_t * la, dx)
+        rates = (la * 0.5 * g_n, la * g_n * 0.5, g_t * la, dx)
         for i in range(m):
-            dq[i] = _momentum_rate(i, momentum[i], terms[0, i], terms[1, i], cell)
+            dq[i] = _momentum_rate(i, momentum[i], terms[0, i], terms[1, i], momentum, terms, exchange, rates)
         if 0 <= gate <= m:  # the cells beside the gate
             o, walled = opening[a], resting[gate] != 0.0
             if 1 <= gate and walled:  # a gate at rest: its wall part (reference._gate_walls)
                 i, he = gate - 1, h_e[gate + 1]
                 wall = o * terms[0, i] + (1.0 - o) * (he * he - hL[gate] * hL[gate])
-                dq[i] = _momentum_rate(i, momentum[i], wall, terms[1, i], cell)
+                dq[i] = _momentum_rate(i, momentum[i], wall, terms[1, i], momentum, terms, exchange, rates)
             if gate < m:  # the cell east of the gate sees the gate's flux from its side
                 hw, wall = h_w[gate + 2], terms[1, gate]
                 if walled:
                     wall = o * wall + (1.0 - o) * (hw * hw - hR[gate] * hR[gate])
-                dq[gate] = _momentum_rate(gate, gate_q[a], terms[0, gate], wall, cell)
+                dq[gate] = _momentum_rate(
+                    gate, gate_q[a], terms[0, gate], wall, momentum, terms, exchange, rates
+                )
         # rows from column c0 on, indexed by i >= 0 (as the loads above)
         u_old, q_mid, u_new = U[a, c0 : c0 + m], Q1[a, c0 : c0 + m], U_out[a, c0 : c0 + m]
         if not final:
