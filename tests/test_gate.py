@@ -5,6 +5,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from engine import simulation
 
 from multilayer import scenario as scenarios
 from multilayer.app.simulation import Simulation
@@ -49,6 +50,31 @@ def test_a_gate_that_does_not_lift_holds_the_column_exactly_at_rest():
     assert sim.steps > 10
     np.testing.assert_array_equal(sim.h, h0)
     assert np.all(sim.u == 0.0)
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_a_closed_gate_over_a_bed_step_holds_a_lake_at_rest_on_each_side(order):
+    """Two lakes of different levels, 0.1 m on the bed and 0.2 m on a 0.05 m step up at
+    the gate (free surfaces 0.1 and 0.25 m), frictionless: each side feels its own
+    hydrostatic pressure at the gate (transport/reference.py, ``_gate_walls``), u == 0.0
+    and h kept to the bit for 300 steps.  Before, the low side felt
+    ``g_n (h_j - hL)(hR - hL) / 2`` = 0.0075 g_n more at the gate at both orders
+    (tests/test_rest.py), and the run at order 2 left it."""
+    sim = simulation(
+        domain={"x_min": 0.0, "x_max": 0.4, "cells": 80, "layers": 4},
+        bed={"points": [[0.0, 0.0], [0.2 - 1e-4, 0.0], [0.2 + 1e-4, 0.05], [0.4, 0.05]]},
+        initial=[
+            {"shape": "rectangle", "x_min": 0.0, "x_max": 0.2, "height": 0.1},
+            {"shape": "rectangle", "x_min": 0.2, "x_max": 0.4, "height": 0.2},
+        ],
+        gate={"x": 0.2, "lift_speed": 0.0},
+        numerics={"order": order},
+    )
+    h0 = sim.h.copy()
+    assert np.array_equal(sim.bed[39:41], [0.0, 0.05]) and np.array_equal(h0[39:41], [0.1, 0.2])
+    for _ in range(300):
+        sim.step()
+    assert not np.any(sim.u) and np.array_equal(sim.h, h0)
 
 
 @pytest.mark.parametrize("speed", [0.5, 2.0])

@@ -113,9 +113,18 @@ def test_a_moving_front_dilates_where_its_critical_state_says():
     and ``p_s = P + B Phi(p_s)``, ``p_e`` has exactly the sign of ``phi_eq(P) - phi`` in
     every moving column, and a loose packing's suction is bounded by the thin-layer limit
     of the quadratic, ``p_e >= -sqrt(c) = -2 |u| sqrt(K K2 eta_f beta / 2) / (1 - phi)``
-    (measured after 15 steps: +12.1 Pa under the body, -22.7 Pa at the front, bound
-    -211 Pa; -22.6 Pa with half the step; -52, -80, -128 and -174 Pa at 40, 80, 160 and
-    320 cells, where the resolved front is steeper and sheared faster)."""
+    (measured after 15 steps: -22.6 Pa at the front, the largest suction, where the column
+    is less than half as thick as its body, bound -211 Pa; -52, -80, -128 and -174 Pa at
+    40, 80, 160 and 320 cells, where the resolved front is steeper and sheared faster).
+    The body contracts, and the front's suction need not exceed every contraction: that is
+    not a property of the model.  The excess pressure at the bed of a column is
+    ``-D h^2 d / 2`` (``D`` the Darcy drag, ``d`` the dilation rate:
+    test_the_closure_of_several_layers_is_solved), drained over the column's thickness, so
+    that which is larger depends on the squared ratio of the two columns' thicknesses and
+    on their shear, the state of the step, not on the closure: here +28.1 Pa at the back
+    of the column (9.3 mm thick, ``phi_eq - phi`` = +0.0085, gamma = 0.42 /s) against
+    -22.6 Pa at the front (4.0 mm, -0.0168, 0.52 /s); +12.1 against -22.7 Pa with the
+    mean pressure at faces at rest, which set the back column moving at another step."""
     sim = small_collapse(1, 0.56)[0]
     u = np.abs(sim.u[0])
     moving = u > 0.0
@@ -129,7 +138,7 @@ def test_a_moving_front_dilates_where_its_critical_state_says():
     suction = 2.0 * u * np.sqrt(FLUID.dilatancy * FLUID.critical_shift * FLUID.fluid_viscosity * beta / 2.0)
     assert np.all(p_e >= -suction / (1.0 - phi))
     front = np.argmin(p_e)
-    assert h[front] < 0.5 * h.max() and -p_e[front] > p_e.max()  # the thin front sucks hardest
+    assert h[front] < 0.5 * h.max()  # the thin front sucks hardest
 
 
 @pytest.mark.parametrize("layers", [1, 3])
@@ -675,18 +684,25 @@ def test_layered_result_holds_phi_per_layer_and_is_plotted(tmp_path):
 
 def dense_wedge_stop(cfl: float, order: int) -> tuple[float, float, float]:
     """The time the dense submarine column (the shipped file at 15 cells) stops (the last
-    step after which some velocity is non-zero), the mean step until then and the centre
-    of mass of its deposit."""
+    step after which some velocity is non-zero), the mean step until then and, in a run
+    whose step is cut to land on ``FLOWING``, its centre of mass then."""
     path = Path(__file__).resolve().parents[1] / "scenarios" / "submarine_collapse_dense.yaml"
     scenario = multilayer.load(path, {"domain.cells": 15, "time.cfl": cfl, "numerics.order": order})
-    sim = multilayer.Simulation(scenario)
+    sim, flowing = multilayer.Simulation(scenario), multilayer.Simulation(scenario)
+    while flowing.t < FLOWING:
+        flowing.step(FLOWING)
     stop, steps = 0.0, 0
     while sim.t < 2.0 and not (sim.t > stop + 0.2):
         sim.step(2.0)
         if np.any(sim.u != 0.0):
             stop, steps = sim.t, sim.steps
     assert sim.t < 2.0, "the column did not stop"
-    return stop, stop / steps, float(np.sum(sim.x * sim.h) / np.sum(sim.h))
+    return stop, stop / steps, float(np.sum(flowing.x * flowing.h) / np.sum(flowing.h))
+
+
+#: a time (s) at which the dense wedge flows and none of its columns has stopped yet (the
+#: first stops at 0.078 s at order 1, Courant 0.4, and after 0.10 s at order 2)
+FLOWING = 0.06
 
 
 @pytest.mark.slow
@@ -695,12 +711,28 @@ def test_dense_collapse_stop_time_converges_at_first_order_in_dt(order):
     """The stop time converges at first order in the step (Courant numbers 0.4, 0.2, 0.1,
     0.05): read at the step, it differs from one level to the next by a number of the
     coarser level's steps that does not grow, at most that of the coarsest pair or one
-    step, the resolution of a stop read at the step (measured at order 1: 9.1, 4.5,
-    2.3 ms, half a step each; at order 2, with the friction felt within each stage: 46,
-    4.7, 6.9 ms, 2.5, 0.5 and 1.4 steps; with the friction after both stages only: 63, 54,
-    39 ms, 3.5, 6.0 and 8.5 steps), and the deposit's centre of mass converges too."""
+    step, the resolution of a stop read at the step (measured at order 1: 18.2, 9.1 and
+    2.3 ms, 1, 1 and 0.5 steps; at order 2, with the friction felt within each stage: 0,
+    4.5 and 4.5 ms, 0, 0.5 and 1 steps; with the friction after both stages only: 63, 54,
+    39 ms, 3.5, 6.0 and 8.5 steps).
+
+    The flow converges at first order: the centre of mass at ``FLOWING``, while every
+    released column moves, moves from one level to the next by 0.113, 0.047 and 0.022 mm
+    at order 1 (0.041, 0.0094, 0.0029 mm at order 2), the last move less than a third of
+    the first (a quarter at first order).  The deposit's centre is no such measure on this
+    mesh: its 4 moving columns of 2 cm stop one by one, each stop read at a step, and a
+    column at rest beside one that stops feels its face's pressure drop from the HLL mean
+    ``g_n (hL^2 + hR^2) / 4`` to ``g_n hL hR / 2`` (docs/model.md, "Rest"), by
+    ``g_n (hL - hR)^2 / 4``: columns stop and start again (1 to 3 times a run), in a
+    sequence that changes with the step.  The deposit's centre at Courant 0.4, 0.2, 0.1,
+    0.05, 0.025, 0.0125 (order 1): 37.05, 37.01, 36.55, 36.27, 36.31, 36.26 mm; it
+    converges, by moves that do not shrink by a fixed ratio (0.04, 0.46, 0.28, 0.03,
+    0.05 mm).  With the product pressure at every face (no drop when a column stops; not
+    the scheme: the HLL flux's own pressure is the mean) no column starts again and the
+    deposit's moves are 0.58, 0.34, 0.17, 0.07 and 0.05 mm."""
     stops, steps, centres = np.array([dense_wedge_stop(cfl, order) for cfl in (0.4, 0.2, 0.1, 0.05)]).T
-    in_steps = np.abs(np.diff(stops)) / steps[:-1]
+    # numbers of steps, to the round-off of the mean step (a whole step reads 1 + 2e-16)
+    in_steps = np.round(np.abs(np.diff(stops)) / steps[:-1], 9)
     assert np.all(in_steps[1:] <= max(in_steps[0], 1.0)), (stops, steps)
     moves = np.abs(np.diff(centres))
     assert moves[-1] < moves[0] / 3.0, centres

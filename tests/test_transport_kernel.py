@@ -117,8 +117,9 @@ def test_heun_stages_alone_equal_the_reference_and_compose_to_heun(left, right):
 @pytest.mark.parametrize("layers", [3, 40, 150])
 def test_compiled_gate_equals_the_numpy_reference(order, layers):
     """A partly open gate (engine/gate.py) inside the window, at a chunk or tile edge and
-    at the window's end, with flow either way; 40 and 150 layers make many tiles and the
-    layer sums of the gate flux pairwise (numpy's order)."""
+    at the window's end, with flow either way or at rest (partly open or closed); 40 and
+    150 layers make many tiles and the layer sums of the gate flux pairwise (numpy's
+    order)."""
     h, u, b, fractions = random_state(seed=layers, cells=600, layers=layers)
     opening = np.clip(np.linspace(1.4, -0.4, layers), 0.0, 1.0)
     kw = dict(dx=0.1, dt=0.004, g_n=9.0, g_t=1.5, left="wall", right="outflow", dry=1e-6, order=order)
@@ -126,6 +127,8 @@ def test_compiled_gate_equals_the_numpy_reference(order, layers):
     for face in (lo + 37, lo + 38, lo + 64, 300, hi - 2, hi + 1 + transport.MARGIN):
         for sign in (1.0, -1.0):
             both(h, sign * u, b, fractions, gate_face=int(face), opening=opening, **kw)
+        for gate in (opening, np.zeros(layers)):  # at rest, the gate partly open or closed
+            both(h, 0.0 * u, b, fractions, gate_face=int(face), opening=gate, **kw)
 
 
 @pytest.mark.parametrize("order", [1, 2])

@@ -428,6 +428,7 @@ class NormalStress:
         self.relief: np.ndarray = np.zeros(self.tau_xx.shape)
         """``r = tau_xx / P`` (L, N) of the layers in the last step, the mean of their faces':
         their mean pressure is ``P (1 - r)``."""
+        self._kept = self.tau_xx, self.relief  # the last step's, while a step is taken
 
     def __call__(
         self,
@@ -563,13 +564,21 @@ class NormalStress:
     def kept_if_abandoned(self) -> Iterator[None]:
         """The stresses of the last step kept (``tau_xx``, ``relief``) taken back if the
         block raises: the calls of a step that is abandoned (a failure, a stop, Ctrl-C)
-        replaced them (every call replaces both arrays, never writes into them)."""
-        kept = self.tau_xx, self.relief
+        replaced them (every call replaces both arrays, never writes into them).  Within
+        the block, :meth:`restart` takes them back for an attempt of the step redone."""
+        self._kept = self.tau_xx, self.relief
         try:
             yield
         except BaseException:
-            self.tau_xx, self.relief = kept
+            self.restart()
             raise
+
+    def restart(self) -> None:
+        """The stresses of the last step kept back (within :meth:`kept_if_abandoned`): an
+        attempt of a step redone (shorter, or with more material moving) starts from them,
+        as the step taken directly would, not from those of the attempt discarded, whose
+        relief the first vertical step's mean pressures read."""
+        self.tau_xx, self.relief = self._kept
 
     def state_dict(self) -> dict[str, np.ndarray]:
         """The relief of the last step (:attr:`relief`): the next vertical step's mean

@@ -324,6 +324,8 @@ class Simulation:
         iterations = 0
         with self.vertical.stresses.forms_held():  # the laws read once in the time step
             while True:
+                if self.normal_stress is not None:  # each attempt from the stresses of the step's start
+                    self.normal_stress.restart()
                 if self.numerics.order == 1:
                     h, ustar = self._transport(dt, threads)
                     step, u, more = self._stress_steps(1.0, h, ustar, dt, threads)

@@ -62,7 +62,7 @@ def _work(L, T):
     columns = (np.empty(T + 4, np.int64), np.empty(T + 4, np.int64))  # mesh column, how loaded
     scalars = np.empty((6, T + 4))  # h, b, h_w, h_e, b_w, b_e
     layers = np.empty((3, L, T + 4))  # u, u_w, u_e
-    faces = np.empty((8, T + 1))  # hL, hR, the weights of the HLL flux, the pressures
+    faces = np.empty((9, T + 1))  # hL, hR, the weights of the HLL flux, the pressures, resting
     fluxes = np.empty((2, L, T + 1))  # mass and momentum
     cells = np.empty((L + 9, T))  # d_x(h_a u_a) per layer, d_x Q, G, exchange, d_t(h_a u_a), terms
     gate = np.empty((2, L))  # mass and momentum fluxes seen from east of the gate
@@ -160,13 +160,15 @@ def _gated(f, hl, hr, uL, uR, l, g_n, opening, fh, fq, gate_h, gate_q):
 
 
 @jit(error_model="numpy")
-def _momentum_rate(i, west_flux, momentum, terms, exchange, pressure, slope, gravity, dx):
-    """d_t(h_a u_a) of cell ``i`` of a tile: the momentum fluxes with the well-balanced
-    pressure at its faces (``west_flux`` at its west face), the bed slope, the mass
-    exchange and gravity along the slope; ``terms`` holds the layer-independent factors
-    of the cell (``_cell_terms``)."""
-    east = momentum[i + 1] + pressure * terms[0, i]
-    west = west_flux + pressure * terms[1, i]
+def _momentum_rate(i, west_flux, east_wb, west_wb, momentum, terms, exchange, rates):
+    """d_t(h_a u_a) of cell ``i`` of a tile: the momentum fluxes (``west_flux`` at its west
+    face) with the well-balancing factors ``east_wb``, ``west_wb`` of its faces, the bed
+    slope, the mass exchange and gravity along the slope; ``terms`` holds the factors of
+    the cell that no layer changes, ``rates`` the layer's pressure, slope and gravity
+    factors and dx."""
+    pressure, slope, gravity, dx = rates
+    east = momentum[i + 1] + pressure * east_wb
+    west = west_flux + pressure * west_wb
     return -(east - west + slope * terms[2, i] * terms[3, i]) / dx + exchange[i] + gravity * terms[4, i]
 
 
@@ -260,7 +262,7 @@ def _tile(stage, t0, t1, window, scheme, edges, arrays, work):
     hx, bx, h_w, h_e, b_w, b_e = scalars[0], scalars[1], scalars[2], scalars[3], scalars[4], scalars[5]
     ux, u_w, u_e = layers[0], layers[1], layers[2]
     hL, hR, wl, wr = faces[0], faces[1], faces[2], faces[3]
-    jump, moving, pL, pR = faces[4], faces[5], faces[6], faces[7]
+    jump, moving, pL, pR, resting = faces[4], faces[5], faces[6], faces[7], faces[8]
     fh, fq = fluxes[0], fluxes[1]
     div_h, div_Q, G, exchange, dq = cells[:L], cells[L], cells[L + 1], cells[L + 2], cells[L + 3]
     terms = cells[L + 4 :]
@@ -322,6 +324,19 @@ def _tile(stage, t0, t1, window, scheme, edges, arrays, work):
         h_e[k] = hc + 0.5 * dh
         b_w[k] = etac - 0.5 * deta - h_w[k]
         b_e[k] = etac + 0.5 * deta - h_e[k]
+    # the faces at rest beside material at rest (reference._rates) see the cell-centred
+    # values on both sides
+    for f in range(m + 1):
+        wet_l = H[col[f + 1]] > dry
+        wet_r = H[col[f + 2]] > dry
+        kept = (wet_l or hx[f + 1] <= dry) and (wet_r or hx[f + 2] <= dry)
+        resting[f] = 1.0 if at_rest[t0 + f] and (wet_l or wet_r) and kept else 0.0
+    for f in range(m + 1):
+        if resting[f] != 0.0:
+            h_e[f + 1] = hx[f + 1]
+            b_e[f + 1] = bx[f + 1]
+            h_w[f + 2] = hx[f + 2]
+            b_w[f + 2] = bx[f + 2]
     for a in range(L):
         row, west, east = ux[a], u_w[a], u_e[a]
         for k in range(1, m + 3):
@@ -362,8 +377,11 @@ def _tile(stage, t0, t1, window, scheme, edges, arrays, work):
         moving[f] = 0.0 if rest else 1.0
         speeds[t0 + f] = 0.0 if rest else max(-lowest, highest)
         jump[f] = s_left * s_right / width * moving[f]
-        pL[f] = 0.5 * g_n * (hl * hl)
-        pR[f] = 0.5 * g_n * (hr * hr)
+        if resting[f] != 0.0:  # the pressure between two columns at rest (reference._rates)
+            pL[f] = pR[f] = 0.5 * g_n * (hl * hr)
+        else:
+            pL[f] = 0.5 * g_n * (hl * hl)
+            pR[f] = 0.5 * g_n * (hr * hr)
     for a in range(L):
         la = l[a]
         east, west, mass, momentum = u_e[a], u_w[a], fh[a], fq[a]
@@ -427,8 +445,15 @@ def _tile(stage, t0, t1, window, scheme, edges, arrays, work):
         k = i + 2
         hw = h_w[k]
         he = h_e[k]
-        terms[0, i] = he * he - hL[i + 1] * hL[i + 1]  # pressure at the east face
-        terms[1, i] = hw * hw - hR[i] * hR[i]  # pressure at the west face
+        # the pressure at the east and the west face
+        if resting[i + 1] != 0.0:
+            terms[0, i] = (he - hL[i + 1]) * (he + hR[i + 1])
+        else:
+            terms[0, i] = he * he - hL[i + 1] * hL[i + 1]
+        if resting[i] != 0.0:
+            terms[1, i] = (hw - hR[i]) * (hw + hL[i])
+        else:
+            terms[1, i] = hw * hw - hR[i] * hR[i]
         terms[2, i] = hw + he
         terms[3, i] = b_e[k] - b_w[k]  # bed slope
         terms[4, i] = hx[k]  # gravity along the slope
@@ -463,15 +488,22 @@ def _tile(stage, t0, t1, window, scheme, edges, arrays, work):
                 exchange[i] = 0.0 - u_B * below
         else:
             exchange[:m] = 0.0
-        pressure = la * 0.5 * g_n
-        slope = la * g_n * 0.5
-        gravity = g_t * la
+        rates = (la * 0.5 * g_n, la * g_n * 0.5, g_t * la, dx)
         for i in range(m):
-            dq[i] = _momentum_rate(i, momentum[i], momentum, terms, exchange, pressure, slope, gravity, dx)
-        if 0 <= gate < m:  # the cell east of the gate sees the gate's flux from its side
-            dq[gate] = _momentum_rate(
-                gate, gate_q[a], momentum, terms, exchange, pressure, slope, gravity, dx
-            )
+            dq[i] = _momentum_rate(i, momentum[i], terms[0, i], terms[1, i], momentum, terms, exchange, rates)
+        if 0 <= gate <= m:  # the cells beside the gate
+            o, walled = opening[a], resting[gate] != 0.0
+            if 1 <= gate and walled:  # a gate at rest: its wall part (reference._gate_walls)
+                i, he = gate - 1, h_e[gate + 1]
+                wall = o * terms[0, i] + (1.0 - o) * (he * he - hL[gate] * hL[gate])
+                dq[i] = _momentum_rate(i, momentum[i], wall, terms[1, i], momentum, terms, exchange, rates)
+            if gate < m:  # the cell east of the gate sees the gate's flux from its side
+                hw, wall = h_w[gate + 2], terms[1, gate]
+                if walled:
+                    wall = o * wall + (1.0 - o) * (hw * hw - hR[gate] * hR[gate])
+                dq[gate] = _momentum_rate(
+                    gate, gate_q[a], terms[0, gate], wall, momentum, terms, exchange, rates
+                )
         # rows from column c0 on, indexed by i >= 0 (as the loads above)
         u_old, q_mid, u_new = U[a, c0 : c0 + m], Q1[a, c0 : c0 + m], U_out[a, c0 : c0 + m]
         if not final:

@@ -17,9 +17,26 @@ it comes from (upwinding: from above when ``G > 0``).  Stresses are left to the 
 vertical step (``engine/vertical``).
 
 Material at rest does not carry waves: a face between two columns that are entirely at
-rest carries no mass during the step (and the centred pressure flux), so a heap held by
-friction keeps its shape to the last bit; whether it is held is decided by the vertical
-step (and ``Simulation.step`` redoes a step in which a column at rest starts moving).
+rest carries no mass during the step, so a heap held by friction keeps its shape to the
+last bit; whether it is held is decided by the vertical step (and ``Simulation.step``
+redoes a step in which a column at rest starts moving).  Beside material at rest, such a
+face sees the cell-centred values of both columns at both orders (the hydrostatic
+reconstruction hL, hR of them), the face pressure ``g_n hL hR / 2`` and the
+well-balancing terms ``g_n (h_j - hL)(h_j + hR) / 2`` in the cell ``j`` on its west and
+``g_n (h_{j+1} - hR)(h_{j+1} + hL) / 2`` in the cell on its east.  A column ``j`` at rest
+between two such faces then feels the mean of its two discrete free-surface slopes::
+
+    d_t(h_a u_a)_j = l_a g_n h_j [ tan(theta) - (J_{j-1/2} + J_{j+1/2}) / (2 dx) ],
+    J = hR - hL = eta_{j+1} - eta_j    (eta = h + b; |J| <= |eta_{j+1} - eta_j| where the
+                                        bed of the face cuts a free surface)
+
+so that every column of a state at rest whose discrete slopes all lie within ``mu_s`` of
+``tan(theta)`` feels a driving stress below its friction (docs/model.md, "Rest"), summits,
+changes of slope and toes (a dry neighbour: eta = b) included.  The closed part of a gate
+(engine/gate.py) at rest is a wall, J = 0: each side feels its own hydrostatic pressure
+``g_n h_j^2 / 2`` there, whatever the level beyond it (``_gate_walls``).  The mean pressure
+``g_n (hL^2 + hR^2) / 4`` of the flux would give a toe ``h_{j+1}^2 / (4 h_j dx)`` (9/8 of
+a linear flank's slope), and a summit flattened by the limiter 1.25 times it.
 
 This numpy formulation is the reference the compiled transport (``kernel.py``) is tested
 against bit for bit, written array by array as the equations read; it runs with
@@ -125,7 +142,24 @@ def _gated(flux_h, flux_q, hL, uL, hR, uR, l, g_n, gate):
     return h_west, h_east, q_west, q_east
 
 
-def _rates(h, u, b, l, *, dx, g_n, g_t, left, right, inflow, order, at_rest, gate=None):
+def _gate_walls(gate, east_wb, west_wb, he, hw, hL, hR):
+    """The well-balancing terms (L, N) beside a gate face at rest: the part ``1 - o_a`` of
+    each layer that meets the gate's wall takes ``h_j^2 - hL^2`` (west of it;
+    ``h_j^2 - hR^2`` east), so that with the wall's ``g_n hL^2 / 2`` each side feels its
+    own hydrostatic pressure ``g_n h_j^2 / 2`` whatever the level beyond the gate; the
+    open part ``o_a`` keeps the terms of a face at rest."""
+    face, o = gate
+    east_wb = np.broadcast_to(east_wb, (o.size, east_wb.size)).copy()
+    west_wb = np.broadcast_to(west_wb, (o.size, west_wb.size)).copy()
+    if face >= 1:  # the cell west of the gate
+        j = face - 1
+        east_wb[:, j] = o * east_wb[:, j] + (1.0 - o) * (he[j] ** 2 - hL[face] ** 2)
+    if face < west_wb.shape[1]:  # the cell east of it
+        west_wb[:, face] = o * west_wb[:, face] + (1.0 - o) * (hw[face] ** 2 - hR[face] ** 2)
+    return east_wb, west_wb
+
+
+def _rates(h, u, b, l, *, dx, g_n, g_t, left, right, inflow, order, at_rest, start, dry, gate=None):
     """Time derivatives of h (N,) and of the layer momenta h_a u_a (L, N), the mass and
     the momentum fluxes through the two end faces (left, right, left, right) and the
     fastest wave across a face that carries mass (``max(-s_left, s_right)``); ``gate`` is
@@ -138,10 +172,20 @@ def _rates(h, u, b, l, *, dx, g_n, g_t, left, right, inflow, order, at_rest, gat
         du = _minmod_slope(u_ext)
     else:
         dh = deta = du = 0.0
-    hc, uc, etac = h_ext[1:-1], u_ext[:, 1:-1], h_ext[1:-1] + b_ext[1:-1]
+    hc, uc, bc = h_ext[1:-1], u_ext[:, 1:-1], b_ext[1:-1]
+    etac = hc + bc
     h_w, h_e = hc - 0.5 * dh, hc + 0.5 * dh  # west / east face values of each cell
     b_w, b_e = etac - 0.5 * deta - h_w, etac + 0.5 * deta - h_e
     u_w, u_e = uc - 0.5 * du, uc + 0.5 * du
+    # faces beside material at rest (module docstring): at rest, holding material at the
+    # start of the step on one side at least, and no column filled during the step (a
+    # dry column that Heun's second stage finds wet belongs to a moving front).  They see
+    # the cell-centred values on both sides, first order, not the limiter's slopes
+    wet = _ghosts(start, u, b, left, right, inflow)[0][1:-1] > dry
+    kept = wet | (hc <= dry)
+    resting = at_rest & (wet[:-1] | wet[1:]) & kept[:-1] & kept[1:]  # the N+1 faces of hc
+    h_e[:-1], b_e[:-1] = np.where(resting, hc[:-1], h_e[:-1]), np.where(resting, bc[:-1], b_e[:-1])
+    h_w[1:], b_w[1:] = np.where(resting, hc[1:], h_w[1:]), np.where(resting, bc[1:], b_w[1:])
 
     # hydrostatic reconstruction at the N+1 faces: east face of cell j, west face of j+1
     b_face = np.maximum(b_e[:-1], b_w[1:])
@@ -164,15 +208,22 @@ def _rates(h, u, b, l, *, dx, g_n, g_t, left, right, inflow, order, at_rest, gat
     # face at rest, even when Heun's second stage sees the velocities of the first
     qL, qR = hL * uL, hR * uR
     flux_h = l * (wl * qL + wr * qR + jump * (hR - hL)) * ~at_rest
-    pL, pR = 0.5 * g_n * hL**2, 0.5 * g_n * hR**2
+    # the pressure g_n h^2 / 2, g_n hL hR / 2 between two columns at rest
+    pL = np.where(resting, 0.5 * g_n * (hL * hR), 0.5 * g_n * hL**2)
+    pR = np.where(resting, pL, 0.5 * g_n * hR**2)
     flux_q = l * (wl * (qL * uL + pL) + wr * (qR * uR + pR) + jump * (qR - qL))
     flux_h_west, flux_h_east, flux_q_west, flux_q_east = _gated(flux_h, flux_q, hL, uL, hR, uR, l, g_n, gate)
 
-    # well-balancing: the pressure at each cell's own face values, and the bed slope
-    # term between them (zero at first order)
+    # well-balancing: the pressure at each cell's own face values, g_n (h_e^2 - hL^2) / 2,
+    # or g_n (h_j - hL)(h_j + hR) / 2 at a face at rest (zero unless the face's bed is above
+    # the cell's), and the bed slope term between them (zero at first order)
     hw, he, bw, be = h_w[1:-1], h_e[1:-1], b_w[1:-1], b_e[1:-1]
-    east = flux_q_west[:, 1:] + l * 0.5 * g_n * (he**2 - hL[1:] ** 2)
-    west = flux_q_east[:, :-1] + l * 0.5 * g_n * (hw**2 - hR[:-1] ** 2)
+    east_wb = np.where(resting[1:], (he - hL[1:]) * (he + hR[1:]), he**2 - hL[1:] ** 2)
+    west_wb = np.where(resting[:-1], (hw - hR[:-1]) * (hw + hL[:-1]), hw**2 - hR[:-1] ** 2)
+    if gate is not None and resting[gate[0]]:
+        east_wb, west_wb = _gate_walls(gate, east_wb, west_wb, he, hw, hL, hR)
+    east = flux_q_west[:, 1:] + l * 0.5 * g_n * east_wb
+    west = flux_q_east[:, :-1] + l * 0.5 * g_n * west_wb
     bed_slope = l * g_n * 0.5 * (hw + he) * (be - bw)
 
     div_h = (flux_h_west[:, 1:] - flux_h_east[:, :-1]) / dx  # d_x(h_a u_a) per layer
@@ -258,7 +309,7 @@ def _step(h, u, b, l, *, dt, dry, stage, first, **kw):
 
     begin, end = stages(kw["order"], stage)
     q = l * h * u
-    dh, dq, ends, _ = _rates(h, u, b, l, **kw)
+    dh, dq, ends, _ = _rates(h, u, b, l, start=h, dry=dry, **kw)
     stage_fluxes = [ends]
     # >= 0 exactly when the stage meets the Courant condition of its own state (up to
     # POSITIVITY_LIMIT): the clip then removes round-off only
@@ -269,7 +320,7 @@ def _step(h, u, b, l, *, dt, dry, stage, first, **kw):
         q1 = l * h1 * u1
     stage_speed = 0.0
     if end == 2:  # Heun: the average of the state and two Euler steps
-        dh, dq, ends, stage_speed = _rates(h1, velocity(h1, q1), b, l, **kw)
+        dh, dq, ends, stage_speed = _rates(h1, velocity(h1, q1), b, l, start=h, dry=dry, **kw)
         stage_fluxes.append(ends)
         h1 = np.maximum(0.5 * (h + h1 + dt * dh), 0.0)
         q1 = 0.5 * (q + q1 + dt * dq)
