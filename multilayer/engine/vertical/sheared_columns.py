@@ -137,12 +137,13 @@ def unload(t, L, flags, i, viscous, wall_true, guess):
 
 
 @jit(borrowing=True, error_model="numpy")
-def _stresses_and_model(t, L, u, form, params, flags):
-    """At the velocities of slot ``u``: the true viscous stresses and their derivatives
-    (slots ``TAU0``, ``STIFF0`` + ``u - U0``; a
-    viscosity outside the plugin contract ends the column's block iteration) and the
-    Newton model there (``KC``, ``CC``, ``SIGN``), as ``newton_kernel._true_stresses``
-    and the model of the next iteration; ``SHEARED`` tells whether every jump is nonzero.
+def _stresses_and_model(t, L, u, form, params, flags, model):
+    """At the velocities of slot ``u``: the true viscous stresses (slot ``TAU0 + u - U0``; a
+    viscosity outside the plugin contract ends the column's block iteration), as
+    ``newton_kernel._true_stresses``, and with ``model`` their derivatives (``STIFF0 + u -
+    U0``) and the Newton model there (``KC``, ``CC``, ``SIGN``), for the next iteration
+    (a column done at ``u`` reads neither: the model is formed once the test has left a
+    column to iterate); ``SHEARED`` tells whether every jump is nonzero.
     The block's lanes are swept as one loop over their cells (the bed below the bottom
     cell of each lane); where some column is unsheared or outside the contract, its lanes
     are swept again one by one to tell which (the same values again).  The pass is
@@ -151,29 +152,30 @@ def _stresses_and_model(t, L, u, form, params, flags):
     ``forms.FORMS`` runs the pass compiled for every form (the same values)."""
     start, stop = cell(0, L), cell(BLOCK, L)
     if form == 1:
-        faults, unsheared = _sweep(t, u, 1, params, start, stop)
+        faults, unsheared = _sweep(t, u, 1, params, start, stop, model)
     elif form == 0:
-        faults, unsheared = _sweep(t, u, 0, params, start, stop)
+        faults, unsheared = _sweep(t, u, 0, params, start, stop, model)
     elif form == 2:
-        faults, unsheared = _sweep(t, u, 2, params, start, stop)
+        faults, unsheared = _sweep(t, u, 2, params, start, stop, model)
     else:
-        faults, unsheared = _sweep(t, u, form, params, start, stop)
+        faults, unsheared = _sweep(t, u, form, params, start, stop, model)
     if faults == 0 and unsheared == 0:  # every column within the contract and fully sheared
         for i in range(BLOCK):
             flags[SHEARED, i] = True
         return
     for i in range(BLOCK):
         x = cell(i, L)
-        lane_faults, lane_unsheared = _sweep(t, u, form, params, x, x + L)
+        lane_faults, lane_unsheared = _sweep(t, u, form, params, x, x + L, model)
         flags[ACTIVE, i] = flags[ACTIVE, i] and lane_faults == 0
         flags[SHEARED, i] = lane_unsheared == 0
 
 
 @jit(borrowing=True, error_model="numpy")
-def _sweep(t, u, form, params, start, stop):
+def _sweep(t, u, form, params, start, stop, model):
     """Cells ``start ... stop - 1`` of the tile's rows of :func:`_stresses_and_model` (the
-    velocities in slot ``u``); returns how many viscosities are outside the plugin contract
-    and how many jumps are zero."""
+    velocities in slot ``u``; the stores of the model with ``model`` only, a condition the
+    compiler takes out of the loop); returns how many viscosities are outside the plugin
+    contract and how many jumps are zero."""
     faults = unsheared = 0
     tau, stiffness = TAU0 + (u - U0), STIFF0 + (u - U0)
     for x in range(np.uint64(start), np.uint64(stop)):  # unsigned: no test for negative indices
@@ -186,11 +188,12 @@ def _sweep(t, u, form, params, start, stop):
         faults += not within
         unsheared += g == below
         t[tau, x] = eta * rate if t[CONDUCTANCE, x] > 0.0 else 0.0
-        t[stiffness, x] = max(slope, 0.0) * t[CONDUCTANCE, x]
-        kappa, conductance = _newton_model(t[KAPPA, x], rate, eta, slope)
-        t[KC, x] = kappa if t[VISCOUS, x] > 0.0 else t[KAPPA, x]
-        t[CC, x] = conductance * t[CONDUCTANCE, x]
-        t[SIGN, x] = _sign(jump)
+        if model:
+            t[stiffness, x] = max(slope, 0.0) * t[CONDUCTANCE, x]
+            kappa, conductance = _newton_model(t[KAPPA, x], rate, eta, slope)
+            t[KC, x] = kappa if t[VISCOUS, x] > 0.0 else t[KAPPA, x]
+            t[CC, x] = conductance * t[CONDUCTANCE, x]
+            t[SIGN, x] = _sign(jump)
     return faults, unsheared
 
 
@@ -371,12 +374,13 @@ def sheared_block(
     for x in range(np.uint64(cell(0, L)), np.uint64(cell(BLOCK, L))):  # the first iterate: the guess
         t[U0, x] = t[GUESS, x]  # (contiguous, as vectors; load writes the rows of two slots, not three)
     concave_stress = concave(form, params)
-    _stresses_and_model(t, L, current, form, params, flags)
+    model, stresses = np.bool_(True), np.bool_(False)  # not literals: one compilation
+    _stresses_and_model(t, L, current, form, params, flags, model)
     for i in range(BLOCK):
         flags[ACTIVE, i] = flags[ACTIVE, i] and flags[SHEARED, i]
     for iteration in range(1, max_iterations + 1):
         _solve(t, sweeps, L, new, flags)
-        _stresses_and_model(t, L, new, form, params, flags)  # the bound's stresses, the next model
+        _stresses_and_model(t, L, new, form, params, flags, stresses)  # the bound's stresses
         _converged(t, L, new, current, threshold, concave_stress, flags)
         remaining = 0
         for i in range(BLOCK):
@@ -410,4 +414,5 @@ def sheared_block(
                 remaining += 1
         if remaining == 0:
             break
+        _stresses_and_model(t, L, new, form, params, flags, model)  # the next model (the same flags)
         current, new = new, current
