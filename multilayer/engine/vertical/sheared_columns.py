@@ -331,8 +331,9 @@ def _within_bound(t, x, L, new, limit):
     and the stress above alone: the gaps of all layers are computed in one pass as vectors
     (into slot ``GAP``; each operation that of ``error_bound``), then added up from the
     surface down as there.  The answer is ``error_bound``'s: where the sum exceeds ``4
-    limit^2`` times the smallest ``m/dt`` so far, the bound exceeds ``2 limit`` (the sum
-    only grows and the smallest only shrinks), so the test may be made at every layer."""
+    limit^2`` times the smallest ``m/dt`` so far, the bound exceeds ``2 limit``, and as the
+    sum only grows and the smallest only shrinks, that holds at some layer exactly when it
+    holds at the last: the test is made once, after the sum (a loop without exits)."""
     one, tau = np.uint64(1), TAU0 + (new - U0)
     start, top = np.uint64(x), np.uint64(x + L - 1)
     for y in range(start, top + one):  # unsigned: no test for negative indices
@@ -352,9 +353,7 @@ def _within_bound(t, x, L, new, limit):
         y = top - b
         smallest = min(smallest, t[INERTIA, y])
         residual += t[GAP, y]
-        if residual > cap * smallest:
-            return False
-    return np.sqrt(residual / smallest) <= limit
+    return not residual > cap * smallest and np.sqrt(residual / smallest) <= limit
 
 
 @jit(borrowing=True, error_model="numpy")
