@@ -36,15 +36,22 @@ import numpy as np
 from multilayer.engine.compiled import jit
 from multilayer.engine.vertical.coefficients import _within_contract
 from multilayer.engine.vertical.forms import _newton_model, _viscosity_and_slope, concave
-from multilayer.engine.vertical.newton_control import _sign, error_bound, rise_bound, slope_along, zeroing
+from multilayer.engine.vertical.newton_control import (
+    _potential_rise,
+    _sign,
+    error_bound,
+    slope_along,
+    zeroing,
+)
 
 BLOCK = 8
 """Columns solved side by side: eight chains of divisions in flight, and the pass of the
 stresses and the Newton model one loop over the 8 L cells of the block, long enough to
 run as vectors at L = 8 (compiled, the loop runs as vectors of 8 values from about 40
 cells on, and one cell at a time below: 22-29 against 51-53 ns per column and pass at
-L = 8).  The tile holds 21 values per layer for each of the BLOCK + 1 lanes, 194 KB at
-L = 128, and the sweeps of the solve 7 per layer and lane, 57 KB."""
+L = 8).  The tile holds 25 values per layer for each of the BLOCK + 1 lanes, 230 KB at
+L = 128 (the 5 of the bounds' terms touched only where a column is tested by them), and the
+sweeps of the solve 7 per layer and lane, 57 KB."""
 
 # The tile (SLOTS, 1 + (BLOCK + 1) L) holds, in each slot (a row), one value per column
 # (lane) and layer: layer a of lane i in cell 1 + i L + a, the lanes one after the other
@@ -57,10 +64,12 @@ L = 128, and the sweeps of the solve 7 per layer and lane, 57 KB."""
 # jump), the two iterates and, at each,
 # the true viscous stresses and their derivatives (``TAU0 + k``, ``STIFF0 + k`` at the
 # iterate ``U0 + k``: the rise bound of ``newton_control`` needs both iterates'); fixed,
-# 1.0 in the bottom cell of each lane (the bed below it) and 0.0 elsewhere.
+# 1.0 in the bottom cell of each lane (the bed below it) and 0.0 elsewhere; per test of a
+# column, each layer's term of the error bound (``GAP``) and its four terms of the rise
+# bound (``RISE ... RISE + 3``).
 INERTIA, MOMENTUM, KAPPA, WALL, INV_SPACING, CONDUCTANCE, VISCOUS, FACTOR, OFFSET = range(9)
-GUESS, KC, CC, SIGN, U0, U1, TAU0, TAU1, STIFF0, STIFF1, BED, GAP = range(9, 21)
-SLOTS = 21
+GUESS, KC, CC, SIGN, U0, U1, TAU0, TAU1, STIFF0, STIFF1, BED, GAP, RISE = range(9, 22)
+SLOTS = 25
 # The values of each layer in the sweeps of :func:`_solve`: its pivot (then the inverse
 # pivot), right-hand side, conductance below, sign of the jump above where that interface
 # has a yield stress (else 0), the pivots not positive up to it, the velocity, and those
@@ -284,7 +293,12 @@ def _converged(t, L, new, current, threshold, concave_stress, flags):
     cheaper half first (a few instructions per layer against some 55 for the bound; in a
     steady chute most columns are done by the change).  A column not done whose rise bound
     (``newton_control.energy_rise``) is positive leaves the block (``ACTIVE`` False):
-    ``_chunk`` damps its step."""
+    ``_chunk`` damps its step.  The rise bound's sum (``newton_control.rise_bound``) is
+    formed as its error bound is in :func:`_within_bound`: the four terms of each layer
+    in passes over the lane as vectors (slots ``RISE ... RISE + 3``; each operation that
+    of ``rise_bound``, the layer below read from the cell below, the bed's 0 from ``BED``),
+    then added up in ``rise_bound``'s order (from the column by column, 60 instructions
+    per layer, to some 45)."""
     for i in range(BLOCK):
         x = cell(i, L)
         lane = slice(x, x + L)
@@ -305,11 +319,27 @@ def _converged(t, L, new, current, threshold, concave_stress, flags):
             converged = bound <= threshold
         flags[DONE, i] = converged
         if not converged:
-            at = current - U0
-            rise = rise_bound(
-                t[INERTIA, lane], t[MOMENTUM, lane], t[KAPPA, lane], tau, wall, wall, u_current, u_new,
-                t[TAU0 + at, lane], t[STIFF0 + at, lane], wall, wall, concave_stress,
-            )  # fmt: skip
+            at, tau_new, one = current - U0, TAU0 + (new - U0), np.uint64(1)
+            first, last = np.uint64(x), np.uint64(x + L)  # unsigned: no test for negative indices
+            for y in range(first, last):
+                u, start = t[new, y], t[current, y]
+                bed = t[BED, y] > 0.0
+                jump = abs(u - (0.0 if bed else t[new, y - one]))  # magnitudes of the jumps
+                jump_start = abs(start - (0.0 if bed else t[current, y - one]))
+                t[RISE, y] = (u - start) * (0.5 * t[INERTIA, y] * (u + start) - t[MOMENTUM, y])
+                t[RISE + 1, y] = t[WALL, y] * (abs(u) - abs(start)) + t[KAPPA, y] * (jump - jump_start)
+                t[RISE + 3, y] = _potential_rise(
+                    jump_start, jump, t[TAU0 + at, y], t[STIFF0 + at, y], t[tau_new, y], concave_stress
+                )
+            for y in range(first, last):  # the wall's terms apart (with the rest: no vectors)
+                w = t[WALL, y]  # 0: no wall threshold, force or stiffness
+                t[RISE + 2, y] = _potential_rise(abs(t[current, y]), abs(t[new, y]), w, w, w, concave_stress)
+            rise = 0.0
+            for y in range(first, last):
+                rise += t[RISE, y]
+                rise += t[RISE + 1, y]
+                rise += t[RISE + 2, y]
+                rise += t[RISE + 3, y]
             if not rise <= 0.0:  # newton_control.energy_rise, the smaller of it and phi'(1-)
                 rise = min(
                     slope_along(
