@@ -57,7 +57,9 @@ sweeps of the solve 7 per layer and lane, 57 KB."""
 # (lane) and layer: layer a of lane i in cell 1 + i L + a, the lanes one after the other
 # without padding, so that the pass over the block's cells sweeps none but its own (cell
 # 0 is never read as a value: below the bottom cell of each lane is the bed, from the
-# slot BED, and a loop may load the cell below it unconditionally).  The slots: per step,
+# slot BED, and a loop may load the cell below it unconditionally, as the cell above the
+# top cell of a block's lane, the first of the next lane: a select, not a masked load).
+# The slots: per step,
 # m/dt, m u*/dt, the true yield stress, the wall threshold, 1/spacing, the conductance
 # per unit slope (0 where not viscous), whether viscous, the pressure parts of the law
 # and the guess; per iteration, the Newton model (yield stress, conductance, sign of the
@@ -188,8 +190,8 @@ def _sweep(t, u, form, params, start, stop, model):
     faults = unsheared = 0
     tau, stiffness = TAU0 + (u - U0), STIFF0 + (u - U0)
     for x in range(np.uint64(start), np.uint64(stop)):  # unsigned: no test for negative indices
-        g = t[u, x]
-        below = 0.0 if t[BED, x] > 0.0 else t[u, x - np.uint64(1)]
+        g, previous = t[u, x], t[u, x - np.uint64(1)]  # loaded unconditionally: no masked loads
+        below = 0.0 if t[BED, x] > 0.0 else previous
         jump = g - below
         rate = abs(jump) * t[INV_SPACING, x]
         eta, slope = _viscosity_and_slope(form, params, rate, t[FACTOR, x], t[OFFSET, x])
@@ -322,10 +324,10 @@ def _converged(t, L, new, current, threshold, concave_stress, flags):
             at, tau_new, one = current - U0, TAU0 + (new - U0), np.uint64(1)
             first, last = np.uint64(x), np.uint64(x + L)  # unsigned: no test for negative indices
             for y in range(first, last):
-                u, start = t[new, y], t[current, y]
+                u, start, below, below_start = t[new, y], t[current, y], t[new, y - one], t[current, y - one]
                 bed = t[BED, y] > 0.0
-                jump = abs(u - (0.0 if bed else t[new, y - one]))  # magnitudes of the jumps
-                jump_start = abs(start - (0.0 if bed else t[current, y - one]))
+                jump = abs(u - (0.0 if bed else below))  # magnitudes of the jumps
+                jump_start = abs(start - (0.0 if bed else below_start))
                 t[RISE, y] = (u - start) * (0.5 * t[INERTIA, y] * (u + start) - t[MOMENTUM, y])
                 t[RISE + 1, y] = t[WALL, y] * (abs(u) - abs(start)) + t[KAPPA, y] * (jump - jump_start)
                 t[RISE + 3, y] = _potential_rise(
@@ -367,11 +369,10 @@ def _within_bound(t, x, L, new, limit):
     one, tau = np.uint64(1), TAU0 + (new - U0)
     start, top = np.uint64(x), np.uint64(x + L - 1)
     for y in range(start, top + one):  # unsigned: no test for negative indices
-        u = t[new, y]
-        below = 0.0 if t[BED, y] > 0.0 else t[new, y - one]
-        above = 0.0  # the stress of the interface above: 0 at the free surface
-        if y < top:
-            above = _sign(t[new, y + one] - u) * (t[KAPPA, y + one] + t[tau, y + one])
+        u, previous = t[new, y], t[new, y - one]  # the cells below and above loaded unconditionally
+        below = 0.0 if t[BED, y] > 0.0 else previous
+        stress = _sign(t[new, y + one] - u) * (t[KAPPA, y + one] + t[tau, y + one])
+        above = stress if y < top else 0.0  # the stress of the interface above: 0 at the free surface
         lo, hi = zeroing(above, above, t[MOMENTUM, y], t[INERTIA, y], u, t[WALL, y], t[WALL, y])
         sigma = _sign(u - below) * (t[KAPPA, y] + t[tau, y])
         gap = max(lo - sigma, sigma - hi, 0.0)
