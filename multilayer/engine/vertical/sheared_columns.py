@@ -36,31 +36,42 @@ import numpy as np
 from multilayer.engine.compiled import jit
 from multilayer.engine.vertical.coefficients import _within_contract
 from multilayer.engine.vertical.forms import _newton_model, _viscosity_and_slope, concave
-from multilayer.engine.vertical.newton_control import _sign, error_bound, rise_bound, slope_along, zeroing
+from multilayer.engine.vertical.newton_control import (
+    _potential_rise,
+    _sign,
+    error_bound,
+    slope_along,
+    zeroing,
+)
 
 BLOCK = 8
 """Columns solved side by side: eight chains of divisions in flight, and the pass of the
 stresses and the Newton model one loop over the 8 L cells of the block, long enough to
 run as vectors at L = 8 (compiled, the loop runs as vectors of 8 values from about 40
 cells on, and one cell at a time below: 22-29 against 51-53 ns per column and pass at
-L = 8).  The tile holds 21 values per layer for each of the BLOCK + 1 lanes, 194 KB at
-L = 128, and the sweeps of the solve 7 per layer and lane, 57 KB."""
+L = 8).  The tile holds 25 values per layer for each of the BLOCK + 1 lanes, 230 KB at
+L = 128 (the 5 of the bounds' terms touched only where a column is tested by them), and the
+sweeps of the solve 7 per layer and lane, 57 KB."""
 
 # The tile (SLOTS, 1 + (BLOCK + 1) L) holds, in each slot (a row), one value per column
 # (lane) and layer: layer a of lane i in cell 1 + i L + a, the lanes one after the other
 # without padding, so that the pass over the block's cells sweeps none but its own (cell
 # 0 is never read as a value: below the bottom cell of each lane is the bed, from the
-# slot BED, and a loop may load the cell below it unconditionally).  The slots: per step,
+# slot BED, and a loop may load the cell below it unconditionally, as the cell above the
+# top cell of a block's lane, the first of the next lane: a select, not a masked load).
+# The slots: per step,
 # m/dt, m u*/dt, the true yield stress, the wall threshold, 1/spacing, the conductance
 # per unit slope (0 where not viscous), whether viscous, the pressure parts of the law
 # and the guess; per iteration, the Newton model (yield stress, conductance, sign of the
 # jump), the two iterates and, at each,
 # the true viscous stresses and their derivatives (``TAU0 + k``, ``STIFF0 + k`` at the
 # iterate ``U0 + k``: the rise bound of ``newton_control`` needs both iterates'); fixed,
-# 1.0 in the bottom cell of each lane (the bed below it) and 0.0 elsewhere.
+# 1.0 in the bottom cell of each lane (the bed below it) and 0.0 elsewhere; per test of a
+# column, each layer's term of the error bound (``GAP``) and its four terms of the rise
+# bound (``RISE ... RISE + 3``).
 INERTIA, MOMENTUM, KAPPA, WALL, INV_SPACING, CONDUCTANCE, VISCOUS, FACTOR, OFFSET = range(9)
-GUESS, KC, CC, SIGN, U0, U1, TAU0, TAU1, STIFF0, STIFF1, BED, GAP = range(9, 21)
-SLOTS = 21
+GUESS, KC, CC, SIGN, U0, U1, TAU0, TAU1, STIFF0, STIFF1, BED, GAP, RISE = range(9, 22)
+SLOTS = 25
 # The values of each layer in the sweeps of :func:`_solve`: its pivot (then the inverse
 # pivot), right-hand side, conductance below, sign of the jump above where that interface
 # has a yield stress (else 0), the pivots not positive up to it, the velocity, and those
@@ -137,12 +148,13 @@ def unload(t, L, flags, i, viscous, wall_true, guess):
 
 
 @jit(borrowing=True, error_model="numpy")
-def _stresses_and_model(t, L, u, form, params, flags):
-    """At the velocities of slot ``u``: the true viscous stresses and their derivatives
-    (slots ``TAU0``, ``STIFF0`` + ``u - U0``; a
-    viscosity outside the plugin contract ends the column's block iteration) and the
-    Newton model there (``KC``, ``CC``, ``SIGN``), as ``newton_kernel._true_stresses``
-    and the model of the next iteration; ``SHEARED`` tells whether every jump is nonzero.
+def _stresses_and_model(t, L, u, form, params, flags, model):
+    """At the velocities of slot ``u``: the true viscous stresses (slot ``TAU0 + u - U0``; a
+    viscosity outside the plugin contract ends the column's block iteration), as
+    ``newton_kernel._true_stresses``, and with ``model`` their derivatives (``STIFF0 + u -
+    U0``) and the Newton model there (``KC``, ``CC``, ``SIGN``), for the next iteration
+    (a column done at ``u`` reads neither: the model is formed once the test has left a
+    column to iterate); ``SHEARED`` tells whether every jump is nonzero.
     The block's lanes are swept as one loop over their cells (the bed below the bottom
     cell of each lane); where some column is unsheared or outside the contract, its lanes
     are swept again one by one to tell which (the same values again).  The pass is
@@ -151,34 +163,35 @@ def _stresses_and_model(t, L, u, form, params, flags):
     ``forms.FORMS`` runs the pass compiled for every form (the same values)."""
     start, stop = cell(0, L), cell(BLOCK, L)
     if form == 1:
-        faults, unsheared = _sweep(t, u, 1, params, start, stop)
+        faults, unsheared = _sweep(t, u, 1, params, start, stop, model)
     elif form == 0:
-        faults, unsheared = _sweep(t, u, 0, params, start, stop)
+        faults, unsheared = _sweep(t, u, 0, params, start, stop, model)
     elif form == 2:
-        faults, unsheared = _sweep(t, u, 2, params, start, stop)
+        faults, unsheared = _sweep(t, u, 2, params, start, stop, model)
     else:
-        faults, unsheared = _sweep(t, u, form, params, start, stop)
+        faults, unsheared = _sweep(t, u, form, params, start, stop, model)
     if faults == 0 and unsheared == 0:  # every column within the contract and fully sheared
         for i in range(BLOCK):
             flags[SHEARED, i] = True
         return
     for i in range(BLOCK):
         x = cell(i, L)
-        lane_faults, lane_unsheared = _sweep(t, u, form, params, x, x + L)
+        lane_faults, lane_unsheared = _sweep(t, u, form, params, x, x + L, model)
         flags[ACTIVE, i] = flags[ACTIVE, i] and lane_faults == 0
         flags[SHEARED, i] = lane_unsheared == 0
 
 
 @jit(borrowing=True, error_model="numpy")
-def _sweep(t, u, form, params, start, stop):
+def _sweep(t, u, form, params, start, stop, model):
     """Cells ``start ... stop - 1`` of the tile's rows of :func:`_stresses_and_model` (the
-    velocities in slot ``u``); returns how many viscosities are outside the plugin contract
-    and how many jumps are zero."""
+    velocities in slot ``u``; the stores of the model with ``model`` only, a condition the
+    compiler takes out of the loop); returns how many viscosities are outside the plugin
+    contract and how many jumps are zero."""
     faults = unsheared = 0
     tau, stiffness = TAU0 + (u - U0), STIFF0 + (u - U0)
     for x in range(np.uint64(start), np.uint64(stop)):  # unsigned: no test for negative indices
-        g = t[u, x]
-        below = 0.0 if t[BED, x] > 0.0 else t[u, x - np.uint64(1)]
+        g, previous = t[u, x], t[u, x - np.uint64(1)]  # loaded unconditionally: no masked loads
+        below = 0.0 if t[BED, x] > 0.0 else previous
         jump = g - below
         rate = abs(jump) * t[INV_SPACING, x]
         eta, slope = _viscosity_and_slope(form, params, rate, t[FACTOR, x], t[OFFSET, x])
@@ -186,11 +199,12 @@ def _sweep(t, u, form, params, start, stop):
         faults += not within
         unsheared += g == below
         t[tau, x] = eta * rate if t[CONDUCTANCE, x] > 0.0 else 0.0
-        t[stiffness, x] = max(slope, 0.0) * t[CONDUCTANCE, x]
-        kappa, conductance = _newton_model(t[KAPPA, x], rate, eta, slope)
-        t[KC, x] = kappa if t[VISCOUS, x] > 0.0 else t[KAPPA, x]
-        t[CC, x] = conductance * t[CONDUCTANCE, x]
-        t[SIGN, x] = _sign(jump)
+        if model:
+            t[stiffness, x] = max(slope, 0.0) * t[CONDUCTANCE, x]
+            kappa, conductance = _newton_model(t[KAPPA, x], rate, eta, slope)
+            t[KC, x] = kappa if t[VISCOUS, x] > 0.0 else t[KAPPA, x]
+            t[CC, x] = conductance * t[CONDUCTANCE, x]
+            t[SIGN, x] = _sign(jump)
     return faults, unsheared
 
 
@@ -281,7 +295,12 @@ def _converged(t, L, new, current, threshold, concave_stress, flags):
     cheaper half first (a few instructions per layer against some 55 for the bound; in a
     steady chute most columns are done by the change).  A column not done whose rise bound
     (``newton_control.energy_rise``) is positive leaves the block (``ACTIVE`` False):
-    ``_chunk`` damps its step."""
+    ``_chunk`` damps its step.  The rise bound's sum (``newton_control.rise_bound``) is
+    formed as its error bound is in :func:`_within_bound`: the four terms of each layer
+    in passes over the lane as vectors (slots ``RISE ... RISE + 3``; each operation that
+    of ``rise_bound``, the layer below read from the cell below, the bed's 0 from ``BED``),
+    then added up in ``rise_bound``'s order (from the column by column, 60 instructions
+    per layer, to some 45)."""
     for i in range(BLOCK):
         x = cell(i, L)
         lane = slice(x, x + L)
@@ -302,11 +321,27 @@ def _converged(t, L, new, current, threshold, concave_stress, flags):
             converged = bound <= threshold
         flags[DONE, i] = converged
         if not converged:
-            at = current - U0
-            rise = rise_bound(
-                t[INERTIA, lane], t[MOMENTUM, lane], t[KAPPA, lane], tau, wall, wall, u_current, u_new,
-                t[TAU0 + at, lane], t[STIFF0 + at, lane], wall, wall, concave_stress,
-            )  # fmt: skip
+            at, tau_new, one = current - U0, TAU0 + (new - U0), np.uint64(1)
+            first, last = np.uint64(x), np.uint64(x + L)  # unsigned: no test for negative indices
+            for y in range(first, last):
+                u, start, below, below_start = t[new, y], t[current, y], t[new, y - one], t[current, y - one]
+                bed = t[BED, y] > 0.0
+                jump = abs(u - (0.0 if bed else below))  # magnitudes of the jumps
+                jump_start = abs(start - (0.0 if bed else below_start))
+                t[RISE, y] = (u - start) * (0.5 * t[INERTIA, y] * (u + start) - t[MOMENTUM, y])
+                t[RISE + 1, y] = t[WALL, y] * (abs(u) - abs(start)) + t[KAPPA, y] * (jump - jump_start)
+                t[RISE + 3, y] = _potential_rise(
+                    jump_start, jump, t[TAU0 + at, y], t[STIFF0 + at, y], t[tau_new, y], concave_stress
+                )
+            for y in range(first, last):  # the wall's terms apart (with the rest: no vectors)
+                w = t[WALL, y]  # 0: no wall threshold, force or stiffness
+                t[RISE + 2, y] = _potential_rise(abs(t[current, y]), abs(t[new, y]), w, w, w, concave_stress)
+            rise = 0.0
+            for y in range(first, last):
+                rise += t[RISE, y]
+                rise += t[RISE + 1, y]
+                rise += t[RISE + 2, y]
+                rise += t[RISE + 3, y]
             if not rise <= 0.0:  # newton_control.energy_rise, the smaller of it and phi'(1-)
                 rise = min(
                     slope_along(
@@ -328,16 +363,16 @@ def _within_bound(t, x, L, new, limit):
     and the stress above alone: the gaps of all layers are computed in one pass as vectors
     (into slot ``GAP``; each operation that of ``error_bound``), then added up from the
     surface down as there.  The answer is ``error_bound``'s: where the sum exceeds ``4
-    limit^2`` times the smallest ``m/dt`` so far, the bound exceeds ``2 limit`` (the sum
-    only grows and the smallest only shrinks), so the test may be made at every layer."""
+    limit^2`` times the smallest ``m/dt`` so far, the bound exceeds ``2 limit``, and as the
+    sum only grows and the smallest only shrinks, that holds at some layer exactly when it
+    holds at the last: the test is made once, after the sum (a loop without exits)."""
     one, tau = np.uint64(1), TAU0 + (new - U0)
     start, top = np.uint64(x), np.uint64(x + L - 1)
     for y in range(start, top + one):  # unsigned: no test for negative indices
-        u = t[new, y]
-        below = 0.0 if t[BED, y] > 0.0 else t[new, y - one]
-        above = 0.0  # the stress of the interface above: 0 at the free surface
-        if y < top:
-            above = _sign(t[new, y + one] - u) * (t[KAPPA, y + one] + t[tau, y + one])
+        u, previous = t[new, y], t[new, y - one]  # the cells below and above loaded unconditionally
+        below = 0.0 if t[BED, y] > 0.0 else previous
+        stress = _sign(t[new, y + one] - u) * (t[KAPPA, y + one] + t[tau, y + one])
+        above = stress if y < top else 0.0  # the stress of the interface above: 0 at the free surface
         lo, hi = zeroing(above, above, t[MOMENTUM, y], t[INERTIA, y], u, t[WALL, y], t[WALL, y])
         sigma = _sign(u - below) * (t[KAPPA, y] + t[tau, y])
         gap = max(lo - sigma, sigma - hi, 0.0)
@@ -349,9 +384,7 @@ def _within_bound(t, x, L, new, limit):
         y = top - b
         smallest = min(smallest, t[INERTIA, y])
         residual += t[GAP, y]
-        if residual > cap * smallest:
-            return False
-    return np.sqrt(residual / smallest) <= limit
+    return not residual > cap * smallest and np.sqrt(residual / smallest) <= limit
 
 
 @jit(borrowing=True, error_model="numpy")
@@ -371,12 +404,13 @@ def sheared_block(
     for x in range(np.uint64(cell(0, L)), np.uint64(cell(BLOCK, L))):  # the first iterate: the guess
         t[U0, x] = t[GUESS, x]  # (contiguous, as vectors; load writes the rows of two slots, not three)
     concave_stress = concave(form, params)
-    _stresses_and_model(t, L, current, form, params, flags)
+    model, stresses = np.bool_(True), np.bool_(False)  # not literals: one compilation
+    _stresses_and_model(t, L, current, form, params, flags, model)
     for i in range(BLOCK):
         flags[ACTIVE, i] = flags[ACTIVE, i] and flags[SHEARED, i]
     for iteration in range(1, max_iterations + 1):
         _solve(t, sweeps, L, new, flags)
-        _stresses_and_model(t, L, new, form, params, flags)  # the bound's stresses, the next model
+        _stresses_and_model(t, L, new, form, params, flags, stresses)  # the bound's stresses
         _converged(t, L, new, current, threshold, concave_stress, flags)
         remaining = 0
         for i in range(BLOCK):
@@ -410,4 +444,5 @@ def sheared_block(
                 remaining += 1
         if remaining == 0:
             break
+        _stresses_and_model(t, L, new, form, params, flags, model)  # the next model (the same flags)
         current, new = new, current
