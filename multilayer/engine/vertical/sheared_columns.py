@@ -337,7 +337,8 @@ def _converged(t, L, new, current, threshold, concave_stress, flags):
                 w = t[WALL, y]  # 0: no wall threshold, force or stiffness
                 t[RISE + 2, y] = _potential_rise(abs(t[current, y]), abs(t[new, y]), w, w, w, concave_stress)
             rise = 0.0
-            for y in range(first, last):
+            for a in range(np.uint64(L)):  # counted from 0: unrolled by 4 (the same order of sums)
+                y = first + a
                 rise += t[RISE, y]
                 rise += t[RISE + 1, y]
                 rise += t[RISE + 2, y]
