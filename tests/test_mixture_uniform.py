@@ -22,6 +22,7 @@ from multilayer.reference.immersed_layer import (
     time_scales,
 )
 from multilayer.validation.cases import immersed_layer
+from multilayer.validation.mesh_study import MeshStudy
 
 EPS = np.finfo(float).eps
 
@@ -216,5 +217,5 @@ def test_the_water_case_converges_at_order_one(phi0, t_end, steps):
     step leaves an error of about 1e-5 of the speed from that initial layer (docs/mixture.md),
     and the order one shows once the steps resolve it (1.2 to 0.3 t_rel here)."""
     errors = immersed_layer.step_errors(pailha_2008_layer(phi0, "water"), t_end, steps, fields=("v",))
-    rates = immersed_layer.orders(errors)
+    rates = MeshStudy(steps, tuple(errors)).orders()
     assert immersed_layer.ode_met(rates), (errors, rates)

@@ -38,6 +38,7 @@ from multilayer.reference.immersed_layer import (
 )
 from multilayer.validation import published
 from multilayer.validation.markdown import met, order_column, table
+from multilayer.validation.mesh_study import MeshStudy
 from multilayer.validation.runs import Context, Run
 
 NAME = "immersed_layer"
@@ -65,6 +66,8 @@ SPEED_TIMES = (10.0, 100.0, 300.0, 600.0)
 """s: the times of the velocity in the table."""
 DTS = (0.5, 0.25, 0.125)
 """s: the backward-Euler steps of the uniform layers."""
+EULER_STEPS = tuple(round(T_END / dt) for dt in DTS)
+"""The backward-Euler runs' numbers of steps to :data:`T_END` (the resolutions of their study)."""
 IMMEDIATE = 1.0
 """A loose layer starts "almost instantaneously": within this many times ``1 / gamma`` of its
 steady flow (the time its steady flow takes to shear by one)."""
@@ -186,16 +189,11 @@ def step_errors(
     return errors
 
 
-def orders(errors: Sequence[float]) -> list[float]:
-    """Observed orders of errors at steps halving one after the other."""
-    return [math.log2(errors[k - 1] / errors[k]) for k in range(1, len(errors))]
-
-
 def ode_study(phi0: float) -> tuple[list[float], list[float]]:
     """The errors of the viscous-fluid layer ``phi0`` at :data:`ODE_STEPS` over
     :data:`ODE_CASES` and their observed orders."""
     errors = step_errors(pailha_2008_layer(phi0), ODE_CASES[phi0], ODE_STEPS)
-    return errors, orders(errors)
+    return errors, MeshStudy(ODE_STEPS, tuple(errors)).orders()
 
 
 def ode_met(rates: Sequence[float]) -> bool:
@@ -365,7 +363,8 @@ def section(ctx: Context) -> str:
         for key, unit in (("onset", "s"), ("pressure", "Pa"), ("speed", "m/s")):
             errors = euler_errors(u, key)
             row.append(" / ".join(f"{e:.2e}" for e in errors) + f" {unit}")
-            row.append(", ".join(f"{o:.2f}" if math.isfinite(o) else "-" for o in orders(errors)))
+            orders = MeshStudy(EULER_STEPS, tuple(errors)).orders()
+            row.append(", ".join(f"{o:.2f}" if math.isfinite(o) else "-" for o in orders))
         euler_rows.append(row)
     euler_header = [
         "phi0",
