@@ -1058,6 +1058,26 @@ def test_an_output_directory_holding_the_nul_character_is_named(tmp_path):
     assert "accepted: a directory path (no NUL character)" in done.stderr
 
 
+def test_an_empty_output_directory_is_named_not_the_working_directory(tmp_path, monkeypatch, capsys):
+    """``-o ""`` (``-o "$OUT"`` with ``OUT`` unset), ``output.directory: ""`` of a scenario or
+    a study and ``multilayer.run(outdir="")``: ``Path("")`` is ``.``, and the run (or the
+    calibration) wrote its files into the working directory, exit 0."""
+    from multilayer.app.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(InputError, match=r"output\.directory: an empty path; accepted: a directory path"):
+        multilayer.load({**copy.deepcopy(TINY_SCENARIO), "output": {"directory": ""}})
+    with pytest.raises(InputError, match=r"outdir: an empty path; accepted: None or the path of a directory"):
+        multilayer.run(TINY_SCENARIO, "")
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(TINY_SCENARIO))
+    for command in ("run", "sweep", "calibrate", "sensitivity"):
+        with pytest.raises(SystemExit) as stopped:
+            main([command, "base.yaml", "-o", ""])
+        assert stopped.value.code == 2
+        assert "argument -o/--output: an empty path; accepted: a directory path" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["base.yaml"]
+
+
 @pytest.mark.parametrize("where", ["forces", "state"])
 def test_a_ctrl_c_while_a_step_is_kept_is_raised_after_it(monkeypatch, where):
     """Stepping by hand under Python's own SIGINT handler (a notebook), a Ctrl-C raised its

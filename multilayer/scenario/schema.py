@@ -539,7 +539,7 @@ class Output(StrictModel):
         None, "a directory path (a leading ~ is the home directory); default results/<name>"
     )
 
-    _directory = field_validator("directory")(directory_path)
+    _directory = field_validator("directory", mode="before")(directory_path)
 
 
 ExpectKind = Literal["regression", "reference"]
