@@ -81,6 +81,7 @@ class Case:
     signal_when: tuple[str, int] | None = None  # (file in the case's directory, signal) sent once it exists
     prefix: list[str] = field(default_factory=list)  # a command the child runs under (setpriv)
     plain: bool = False  # the command line itself, nothing imported before (numba's environment)
+    here: bool = False  # run in the case's directory (a case that could write into the working one)
     result: dict = field(default_factory=dict)
 
 
@@ -1875,6 +1876,66 @@ def round_ten() -> list[Case]:
     return out
 
 
+EXPORTED_AGAIN = """
+import os
+from multilayer.io import export
+out = sys.argv[2]
+if main(['export', out, '--vtk']) != 0:
+    sys.exit('the first export failed')
+if main(['run', sys.argv[3], '-o', out, '-q', '--set', 'slope_deg=30']) != 0:
+    sys.exit('the second run failed')
+whole = export.structured_grid
+def stopped(snap):
+    calls[0] += 1
+    if calls[0] == 3:
+        raise KeyboardInterrupt
+    return whole(snap)
+export.structured_grid = stopped
+if main(['export', out, '--vtk']) != 130:
+    sys.exit('the export was not stopped')
+left = os.path.exists(os.path.join(out, 'vtk', 'result.pvd'))
+print('multilayer: an export stopped half-way: ' + ('a series left' if left else 'no series'),
+      file=sys.stderr)
+sys.exit(1 if left else 0)
+"""
+"""A run exported, run again with another slope, exported again and stopped at its third
+file: no ``result.pvd`` may list the second run's first files with the first run's others."""
+
+
+def _result_of_another_scenario(directory: Path) -> None:
+    """A finished run in ``directory/out`` whose ``result.nc`` is that of a run at 30 degrees."""
+    _finished_run(directory)
+    command = [sys.executable, "-m", "multilayer", "run", str(directory / "scenario.yaml"), "-q"]
+    other = ["-o", str(directory / "other"), "--set", "slope_deg=30"]
+    subprocess.run([*command, *other], check=True, capture_output=True)
+    (directory / "other" / "result.nc").replace(directory / "out" / "result.nc")
+
+
+def round_eleven() -> list[Case]:
+    """The hostile cases of the eleventh round (docs/reliability.md): an empty output path,
+    an export stopped half-way over an earlier one, a resume beside another run's result."""
+    empty = "an empty path; accepted: a directory path"
+    out = [
+        Case("run: -o an empty path", ["run", "{scenario}", "-o", "", "-q"], 2, empty, setup=_scenario,
+             here=True),
+        Case("run: output.directory an empty path", ["run", "{scenario}", "-q"], 2, empty,
+             setup=partial(_scenario, changes={"output": {"directory": ""}}), here=True),
+        Case("calibrate: -o an empty path", ["calibrate", "{dir}/calibration.yaml", "-o", "", "-q"], 2, empty,
+             setup=_calibration("0.1,0.12,0.01\n"), here=True),
+        Case("API: multilayer.run(outdir='')", ["validate", "{scenario}"], 2, "outdir: an empty path",
+             patch=_api("multilayer.run(sys.argv[2], '')"), setup=_scenario, here=True),
+        Case("export: stopped half-way over an earlier export", ["export", "{dir}/out", "{scenario}"], 0,
+             "an export stopped half-way: no series", patch=EXPORTED_AGAIN, setup=_finished_run),
+    ]  # fmt: skip
+    resume = ["run", "{scenario}", "-o", "{dir}/out", "--resume", "--set", "time.end=0.3", "-q"]
+    out.append(
+        Case("resume: a result.nc of another scenario beside the checkpoint", resume, 2,
+             "holds the output times of another scenario than its checkpoint (changed: slope_deg)",
+             setup=_result_of_another_scenario)
+    )  # fmt: skip
+    return out
+
+
 def cases() -> list[Case]:
     out: list[Case] = []
     budget = ["--max-memory", "8G", "--max-output", "1G"]
@@ -2038,6 +2099,7 @@ def cases() -> list[Case]:
         + round_eight()
         + round_nine()
         + round_ten()
+        + round_eleven()
     )
 
 
@@ -2073,6 +2135,7 @@ def attempt(case: Case) -> Case:
             text=True,
             env={**os.environ, **case.env},
             preexec_fn=limited,
+            cwd=directory if case.here else None,
         )
         if case.signal_after_output is not None:
             while _records(directory / "out" / "result.nc") < 2 and proc.poll() is None:
