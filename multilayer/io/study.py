@@ -483,7 +483,16 @@ def _read_csv(file: Path, columns: list[str], where: str) -> tuple[np.ndarray, n
     except InputError as exc:
         raise InputError(f"{where}: {exc}") from None
     try:
-        rows = list(itertools.islice(csv.DictReader(io.StringIO(text, newline="")), MAX_PROFILE_POINTS + 1))
+        reader = csv.DictReader(io.StringIO(text, newline=""))
+        rows = list(itertools.islice(reader, MAX_PROFILE_POINTS + 1))
+        for row in rows:  # more fields than the header: DictReader dropped the others, silently
+            if None in row or None in row.values():
+                fields = _row_text(row)
+                raise InputError(
+                    f"{where}: {file}: a row of {len(fields)} fields ({', '.join(fields)}), "
+                    f"{len(row) - (None in row)} in the header; accepted: a CSV file of numbers with as "
+                    "many fields in every row as in its header (a decimal comma splits a number in two)"
+                )
         if len(rows) > MAX_PROFILE_POINTS:
             raise InputError(
                 f"{where}: {file} has more than {MAX_PROFILE_POINTS} rows; accepted: at most that"
@@ -501,6 +510,11 @@ def _read_csv(file: Path, columns: list[str], where: str) -> tuple[np.ndarray, n
         raise InputError(f"{where}: {file} has no rows; accepted: a CSV file with data")
     arrays = [np.asarray(t, dtype=float) for t in table]
     return arrays[0], arrays[1], arrays[2] if len(arrays) > 2 else None
+
+
+def _row_text(row: dict) -> list[str]:
+    """The fields of a row of ``csv.DictReader`` as written."""
+    return [v for k, v in row.items() if k is not None and v is not None] + list(row.get(None, []))
 
 
 def _read_netcdf(
