@@ -1913,7 +1913,8 @@ def _result_of_another_scenario(directory: Path) -> None:
 
 def round_eleven() -> list[Case]:
     """The hostile cases of the eleventh round (docs/reliability.md): an empty output path,
-    an export stopped half-way over an earlier one, a resume beside another run's result."""
+    an export stopped half-way over an earlier one, a resume beside another run's result,
+    observation rows of more or fewer fields than their header."""
     empty = "an empty path; accepted: a directory path"
     out = [
         Case("run: -o an empty path", ["run", "{scenario}", "-o", "", "-q"], 2, empty, setup=_scenario,
@@ -1933,6 +1934,14 @@ def round_eleven() -> list[Case]:
              "holds the output times of another scenario than its checkpoint (changed: slope_deg)",
              setup=_result_of_another_scenario)
     )  # fmt: skip
+    for name, row, said in (
+        ("a decimal comma", "0.1,0,12,0.01", "a row of 4 fields (0.1, 0, 12, 0.01), 3 in the header"),
+        ("a field missing", "0.1,0.12", "a row of 2 fields (0.1, 0.12), 3 in the header"),
+    ):
+        out.append(
+            Case(f"validate: an observation row with {name}", ["validate", "{dir}/calibration.yaml"], 2, said,
+                 setup=_calibration(f"0.2,0.15,0.01\n{row}\n"))
+        )  # fmt: skip
     return out
 
 
