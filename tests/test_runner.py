@@ -358,6 +358,23 @@ def test_progress_is_silent_off_a_terminal_or_when_quiet() -> None:
     assert stream.getvalue() == ""
 
 
+class _GoneReader(io.StringIO):
+    """stderr piped to a reader that went away (``... 2>&1 | head -1``)."""
+
+    def write(self, text: str) -> int:
+        raise BrokenPipeError(32, "Broken pipe")
+
+
+@pytest.mark.parametrize("stderr", [None, _GoneReader()], ids=["none", "broken pipe"])
+def test_a_progress_line_with_nowhere_to_go_does_not_stop_the_run(tmp_path, monkeypatch, stderr) -> None:
+    """``quiet=False`` where ``sys.stderr`` is None (pythonw) or a pipe whose reader is
+    gone: the progress line's write failed the run at its first step ('the simulation
+    failed at t=0.00844 s (step 1): 'NoneType' object has no attribute 'write'')."""
+    monkeypatch.setattr(sys, "stderr", stderr)
+    runner.run(scenarios.from_dict(TINY_SCENARIO), tmp_path, quiet=False)
+    assert open_result(tmp_path).attrs["run_status"] == "completed"
+
+
 def test_a_run_that_compiles_kernels_says_so_once_and_logs_the_time(tmp_path, monkeypatch, capsys):
     """The first run after installing spends its first step compiling (about 45 s): the
     terminal and run.log say so when the first compilation starts, run.log how long it
