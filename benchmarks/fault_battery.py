@@ -1902,6 +1902,28 @@ sys.exit(1 if left else 0)
 file: no ``result.pvd`` may list the second run's first files with the first run's others."""
 
 
+NOWHERE_TO_SHOW = """
+import os
+import multilayer
+err = sys.stderr
+if sys.argv[3] == 'none':
+    sys.stderr = None
+else:  # a pipe whose reader is gone
+    reader, writer = os.pipe()
+    os.close(reader)
+    sys.stderr = os.fdopen(writer, 'w')
+try:
+    multilayer.run(sys.argv[2], quiet=False)
+    said = 'completed'
+except Exception as exc:
+    said = f'failed: {exc}'
+sys.stderr = err
+print(f'multilayer: a run showing its progress on {sys.argv[3]}: {said}', file=sys.stderr)
+sys.exit(0 if said == 'completed' else 1)
+"""
+"""``multilayer.run(quiet=False)`` with ``sys.stderr`` None (pythonw) or a pipe without a reader."""
+
+
 def _result_of_another_scenario(directory: Path) -> None:
     """A finished run in ``directory/out`` whose ``result.nc`` is that of a run at 30 degrees."""
     _finished_run(directory)
@@ -1914,7 +1936,8 @@ def _result_of_another_scenario(directory: Path) -> None:
 def round_eleven() -> list[Case]:
     """The hostile cases of the eleventh round (docs/reliability.md): an empty output path,
     an export stopped half-way over an earlier one, a resume beside another run's result,
-    observation rows of more or fewer fields than their header."""
+    observation rows of more or fewer fields than their header, a progress line with nowhere
+    to go."""
     empty = "an empty path; accepted: a directory path"
     out = [
         Case("run: -o an empty path", ["run", "{scenario}", "-o", "", "-q"], 2, empty, setup=_scenario,
@@ -1934,6 +1957,11 @@ def round_eleven() -> list[Case]:
              "holds the output times of another scenario than its checkpoint (changed: slope_deg)",
              setup=_result_of_another_scenario)
     )  # fmt: skip
+    for where in ("none", "a closed pipe"):
+        out.append(
+            Case(f"API: the progress line on {where}", ["validate", "{scenario}", where], 0,
+                 f"a run showing its progress on {where}: completed", patch=NOWHERE_TO_SHOW, setup=_scenario)
+        )  # fmt: skip
     for name, row, said in (
         ("a decimal comma", "0.1,0,12,0.01", "a row of 4 fields (0.1, 0, 12, 0.01), 3 in the header"),
         ("a field missing", "0.1,0.12", "a row of 2 fields (0.1, 0.12), 3 in the header"),
