@@ -158,6 +158,13 @@ class Observation(StrictModel):
         return self
 
 
+def _seed() -> Any:
+    """The ``seed`` field: a seed of numpy's legacy generator, which scipy's differential
+    evolution seeds with it (-1 or 2^32 validated, and the study stopped with numpy's
+    ``ValueError`` and a traceback)."""
+    return field(1, "an integer from 0 to 4294967295 (2^32 - 1)", ge=0, le=2**32 - 1)
+
+
 class Search(StrictModel):
     """Global search: differential evolution (Storn & Price 1997)."""
 
@@ -168,7 +175,7 @@ class Search(StrictModel):
         15, "an integer from 0 to 10000 (0: the initial population only)", ge=0, le=10_000
     )
     tolerance: float = field(0.01, "a number >= 0 (relative spread of the misfits to stop at)", ge=0)
-    seed: int = field(1, "an integer")
+    seed: int = _seed()
 
 
 class Refine(StrictModel):
@@ -239,7 +246,7 @@ class SensitivityModel(_Study):
     samples: int = field(
         16, "a power of 2 from 2 to 65536 (base samples N; runs: N x (parameters + 2))", ge=2, le=65_536
     )
-    seed: int = field(1, "an integer")
+    seed: int = _seed()
     confidence: float = field(0.95, "a number in (0, 1)", gt=0, lt=1)
 
     @field_validator("samples")
