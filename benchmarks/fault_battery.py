@@ -1937,7 +1937,7 @@ def round_eleven() -> list[Case]:
     """The hostile cases of the eleventh round (docs/reliability.md): an empty output path,
     an export stopped half-way over an earlier one, a resume beside another run's result,
     observation rows of more or fewer fields than their header, a progress line with nowhere
-    to go, a seed numpy cannot take."""
+    to go, a seed numpy cannot take, Sobol' indices that are not numbers."""
     empty = "an empty path; accepted: a directory path"
     out = [
         Case("run: -o an empty path", ["run", "{scenario}", "-o", "", "-q"], 2, empty, setup=_scenario,
@@ -1960,6 +1960,10 @@ def round_eleven() -> list[Case]:
     out.append(
         Case("calibrate: search.seed -1", ["calibrate", "{dir}/calibration.yaml", "-o", "{dir}/cal", "-q",
              "--workers", "1"], 2, "search.seed (line", setup=_calibration("0.1,0.12,0.01\n", seed=-1))
+    )  # fmt: skip
+    out.append(
+        Case("plot: a sensitivity.nc whose S1 is NaN", ["plot", "{dir}"], 0, "no Sobol' indices of runout",
+             setup=partial(_sensitivity_file, s1=np.array([[NAN, 0.3]]), dims=("output", "parameter")))
     )  # fmt: skip
     for where in ("none", "a closed pipe"):
         out.append(
