@@ -1058,6 +1058,25 @@ def test_an_output_directory_holding_the_nul_character_is_named(tmp_path):
     assert "accepted: a directory path (no NUL character)" in done.stderr
 
 
+@pytest.mark.parametrize("key", ["density", "particle_density"])
+def test_a_density_so_small_that_the_stresses_underflow_is_refused(key):
+    """A dry flow does not depend on its density: at 1e-100 kg/m^3 the tiny run is that of
+    1500 kg/m^3 to round-off.  At 5e-324 the weight underflowed and the material stayed at
+    rest (exit 0); at 1e-200 the run wrote forces its own result check refused."""
+    with pytest.raises(
+        InputError, match=rf"material\.{key} \(from --set\): 5e-324 kg/m\^3, so light that the stresses"
+    ):
+        multilayer.load(TINY_SCENARIO, {f"material.{key}": 5e-324})
+    runs = []
+    for density in (1500.0, 1e-100):
+        sim = multilayer.Simulation(
+            multilayer.load(TINY_SCENARIO, {f"material.{key}": density, "material.density": density})
+        )
+        sim.advance(0.05)
+        runs.append(sim.h.copy())
+    np.testing.assert_allclose(runs[1], runs[0], rtol=1e-12, atol=1e-15)
+
+
 def test_an_empty_output_directory_is_named_not_the_working_directory(tmp_path, monkeypatch, capsys):
     """``-o ""`` (``-o "$OUT"`` with ``OUT`` unset), ``output.directory: ""`` of a scenario or
     a study and ``multilayer.run(outdir="")``: ``Path("")`` is ``.``, and the run (or the

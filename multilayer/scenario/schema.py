@@ -128,12 +128,21 @@ class Domain(StrictModel):
 class MaterialSpec(StrictModel):
     """Material constants (SI)."""
 
-    density: float = field(..., "a number > 0 (kg/m^3)", gt=0)
+    density: float = field(..., f"a number >= {limits.MIN_DENSITY:g} (kg/m^3)", gt=0)
     grain_diameter: float = field(..., "a number > 0 (m)", gt=0)
-    particle_density: float | None = field(None, "a number > 0 (kg/m^3); default: density", gt=0)
+    particle_density: float | None = field(
+        None, f"a number >= {limits.MIN_DENSITY:g} (kg/m^3); default: density", gt=0
+    )
 
     @model_validator(mode="after")
     def _default_particle_density(self) -> MaterialSpec:
+        for key in ("density", "particle_density"):
+            if (value := getattr(self, key)) is not None and value < limits.MIN_DENSITY:
+                raise invalid(
+                    f"{value!r} kg/m^3, so light that the stresses underflow",
+                    f"a number >= {limits.MIN_DENSITY:g} (kg/m^3)",
+                    key,
+                )
         if self.particle_density is None:
             self.particle_density = self.density
         if not self.density <= self.particle_density:
