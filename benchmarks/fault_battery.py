@@ -1937,7 +1937,8 @@ def round_eleven() -> list[Case]:
     """The hostile cases of the eleventh round (docs/reliability.md): an empty output path,
     an export stopped half-way over an earlier one, a resume beside another run's result,
     observation rows of more or fewer fields than their header, a progress line with nowhere
-    to go, a seed numpy cannot take, Sobol' indices that are not numbers."""
+    to go, a seed numpy cannot take, Sobol' indices that are not numbers, densities so small
+    that the stresses underflow."""
     empty = "an empty path; accepted: a directory path"
     out = [
         Case("run: -o an empty path", ["run", "{scenario}", "-o", "", "-q"], 2, empty, setup=_scenario,
@@ -1965,6 +1966,13 @@ def round_eleven() -> list[Case]:
         Case("plot: a sensitivity.nc whose S1 is NaN", ["plot", "{dir}"], 0, "no Sobol' indices of runout",
              setup=partial(_sensitivity_file, s1=np.array([[NAN, 0.3]]), dims=("output", "parameter")))
     )  # fmt: skip
+    validate, run = ["validate", "{scenario}"], ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    for density in (5e-324, 1e-200):
+        out.extend(
+            Case(f"{command[0]}: a density of {density!r}", command, 2, "so light that the stresses underf",
+                 setup=partial(_scenario, changes={"material.density": density}))
+            for command in (validate, run)
+        )  # fmt: skip
     for where in ("none", "a closed pipe"):
         out.append(
             Case(f"API: the progress line on {where}", ["validate", "{scenario}", where], 0,
