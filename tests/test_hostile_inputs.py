@@ -1077,6 +1077,17 @@ def test_a_density_so_small_that_the_stresses_underflow_is_refused(key):
     np.testing.assert_allclose(runs[1], runs[0], rtol=1e-12, atol=1e-15)
 
 
+@pytest.mark.parametrize(
+    "numerics", [{"dry_threshold": 1.0}, {"dry_threshold": 1e-3}, {"front_threshold": 1e-7}]
+)
+def test_a_dry_threshold_not_below_the_front_threshold_is_refused(numerics):
+    """A dry threshold of 1 m: the 5 cm column on a 25 degree slope stayed at rest, front
+    and speed those of material that cannot move, exit 0.  Below the front threshold, the
+    material that makes the front moves."""
+    with pytest.raises(InputError, match=r"numerics\.dry_threshold.*m, not below front_threshold = "):
+        multilayer.load(TINY_SCENARIO, {f"numerics.{key}": value for key, value in numerics.items()})
+
+
 def test_an_empty_output_directory_is_named_not_the_working_directory(tmp_path, monkeypatch, capsys):
     """``-o ""`` (``-o "$OUT"`` with ``OUT`` unset), ``output.directory: ""`` of a scenario or
     a study and ``multilayer.run(outdir="")``: ``Path("")`` is ``.``, and the run (or the

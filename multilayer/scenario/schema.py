@@ -635,8 +635,20 @@ class Numerics(StrictModel):
     max_iterations: int = field(
         200, f"an integer from 1 to {limits.MAX_ITERATIONS}", ge=1, le=limits.MAX_ITERATIONS
     )
-    dry_threshold: float = field(1e-6, "a number > 0 (m)", gt=0)
+    dry_threshold: float = field(1e-6, "a number > 0 (m), below numerics.front_threshold", gt=0)
     front_threshold: float = field(1e-3, "a number > 0 (m)", gt=0)
+
+    @model_validator(mode="after")
+    def _dry_below_front(self) -> Numerics:
+        # a 5 cm column on a 25 degree slope with a dry threshold of 1 m stayed at rest, exit 0
+        if not self.dry_threshold < self.front_threshold:
+            raise invalid(
+                f"{self.dry_threshold!r} m, not below front_threshold = {self.front_threshold!r} m: the "
+                "material thick enough to make the front would be dry, held at rest",
+                "a number > 0 below numerics.front_threshold (m)",
+                "dry_threshold",
+            )
+        return self
 
     @field_validator("order", mode="before")
     @classmethod
