@@ -1938,7 +1938,7 @@ def round_eleven() -> list[Case]:
     an export stopped half-way over an earlier one, a resume beside another run's result,
     observation rows of more or fewer fields than their header, a progress line with nowhere
     to go, a seed numpy cannot take, Sobol' indices that are not numbers, densities so small
-    that the stresses underflow."""
+    that the stresses underflow, a dry threshold above the front threshold."""
     empty = "an empty path; accepted: a directory path"
     out = [
         Case("run: -o an empty path", ["run", "{scenario}", "-o", "", "-q"], 2, empty, setup=_scenario,
@@ -1973,6 +1973,11 @@ def round_eleven() -> list[Case]:
                  setup=partial(_scenario, changes={"material.density": density}))
             for command in (validate, run)
         )  # fmt: skip
+    out.extend(
+        Case(f"{command[0]}: numerics.dry_threshold 1 m", command, 2, "not below front_threshold = 0.001 m",
+             setup=partial(_scenario, changes={"numerics": {"dry_threshold": 1.0}}))
+        for command in (validate, run)
+    )  # fmt: skip
     for where in ("none", "a closed pipe"):
         out.append(
             Case(f"API: the progress line on {where}", ["validate", "{scenario}", where], 0,
