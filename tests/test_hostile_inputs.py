@@ -1088,6 +1088,25 @@ def test_a_dry_threshold_not_below_the_front_threshold_is_refused(numerics):
         multilayer.load(TINY_SCENARIO, {f"numerics.{key}": value for key, value in numerics.items()})
 
 
+def test_more_local_workers_than_fit_in_memory_are_refused_before_any_starts(tmp_path, cli, write_scenario):
+    """``--workers 100000``: the local cluster started worker after worker, its process at
+    5.6 GB after ten minutes, deaf to SIGTERM."""
+    (tmp_path / "sweep.yaml").write_text(
+        yaml.safe_dump({"base": str(write_scenario(TINY_SCENARIO)), "parameters": {"slope_deg": [20.0]}})
+    )
+    result = cli("sweep", tmp_path / "sweep.yaml", "-o", tmp_path / "out", "--workers", 10**7)
+    assert result.code == 2 and "Traceback" not in result.err
+    assert (
+        "--workers 10000000: 10000000 worker processes of about 200 MB each need 1.86 PB, more than"
+        in result.err
+    )
+    with pytest.raises(
+        InputError, match=r"accepted: at most \d+ workers here \(the default is one per core\)"
+    ):
+        with sweeps.dask_client(None, 10**7):
+            pass
+
+
 def test_an_empty_output_directory_is_named_not_the_working_directory(tmp_path, monkeypatch, capsys):
     """``-o ""`` (``-o "$OUT"`` with ``OUT`` unset), ``output.directory: ""`` of a scenario or
     a study and ``multilayer.run(outdir="")``: ``Path("")`` is ``.``, and the run (or the

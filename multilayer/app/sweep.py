@@ -36,7 +36,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from multilayer import scenario
-from multilayer.app import runner, stopping
+from multilayer.app import resources, runner, stopping
 from multilayer.errors import InputError, Interrupted, RunError
 from multilayer.io.results import (
     CHECKPOINT_FILE,
@@ -421,6 +421,7 @@ def dask_client(
         with client:
             yield client
         return
+    resources.check_workers(workers or CPU_COUNT)
     if warm_up is not None:
         compile_kernels(warm_up)
     # the workers' scratch space in a directory of its own, removed after: Dask left its
