@@ -1938,7 +1938,8 @@ def round_eleven() -> list[Case]:
     an export stopped half-way over an earlier one, a resume beside another run's result,
     observation rows of more or fewer fields than their header, a progress line with nowhere
     to go, a seed numpy cannot take, Sobol' indices that are not numbers, densities so small
-    that the stresses underflow, a dry threshold above the front threshold."""
+    that the stresses underflow, a dry threshold above the front threshold, a local cluster
+    of 10^7 workers."""
     empty = "an empty path; accepted: a directory path"
     out = [
         Case("run: -o an empty path", ["run", "{scenario}", "-o", "", "-q"], 2, empty, setup=_scenario,
@@ -1977,6 +1978,11 @@ def round_eleven() -> list[Case]:
         Case(f"{command[0]}: numerics.dry_threshold 1 m", command, 2, "not below front_threshold = 0.001 m",
              setup=partial(_scenario, changes={"numerics": {"dry_threshold": 1.0}}))
         for command in (validate, run)
+    )  # fmt: skip
+    swarm = ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/out", "--workers", "10000000"]
+    out.append(
+        Case("sweep: --workers 10^7", swarm, 2, "10000000 worker processes of about 200 MB each need",
+             setup=_sweep({"slope_deg": [20.0]}))
     )  # fmt: skip
     for where in ("none", "a closed pipe"):
         out.append(
