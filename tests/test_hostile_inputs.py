@@ -1107,6 +1107,28 @@ def test_more_local_workers_than_fit_in_memory_are_refused_before_any_starts(tmp
             pass
 
 
+def test_a_scheduler_address_answered_by_no_dask_scheduler_is_named(tmp_path):
+    """A server that answers a Dask client with other bytes (an HTTP server's error page):
+    Dask read them as a frame length and numpy's ``MemoryError`` ('Unable to allocate 3.07
+    EiB') ended ``multilayer sweep --scheduler`` with a traceback."""
+    import socket
+
+    server = socket.create_server(("127.0.0.1", 0))
+    answer = b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n" * 4
+
+    def serve() -> None:
+        connection, _ = server.accept()
+        with connection:
+            connection.sendall(answer)
+            connection.recv(1)  # until the client goes
+
+    threading.Thread(target=serve, daemon=True).start()
+    address = f"tcp://127.0.0.1:{server.getsockname()[1]}"
+    with server, pytest.raises(InputError, match=rf"--scheduler {address}: cannot connect \(MemoryError: "):
+        with sweeps.dask_client(address, None):
+            pass
+
+
 def test_an_empty_output_directory_is_named_not_the_working_directory(tmp_path, monkeypatch, capsys):
     """``-o ""`` (``-o "$OUT"`` with ``OUT`` unset), ``output.directory: ""`` of a scenario or
     a study and ``multilayer.run(outdir="")``: ``Path("")`` is ``.``, and the run (or the

@@ -37,7 +37,7 @@ from typing import Any, Literal
 
 from multilayer import scenario
 from multilayer.app import resources, runner, stopping
-from multilayer.errors import InputError, Interrupted, RunError
+from multilayer.errors import InputError, Interrupted, RunError, reason
 from multilayer.io.results import (
     CHECKPOINT_FILE,
     MIXTURE_SUMMARY_KEYS,
@@ -413,10 +413,10 @@ def dask_client(
     if scheduler is not None:
         try:
             client = Client(scheduler)
-        except (OSError, ValueError, TimeoutError) as exc:
+        except Exception as exc:  # noqa: BLE001 - a server that is no scheduler: numpy's MemoryError too
             raise InputError(
-                f"--scheduler {scheduler}: cannot connect ({exc}); accepted: the address of "
-                "a running scheduler, as printed by `dask scheduler`, e.g. tcp://10.0.0.5:8786"
+                f"--scheduler {scheduler}: cannot connect ({type(exc).__name__}: {reason(exc)}); accepted: "
+                "the address of a running scheduler, as printed by `dask scheduler`, e.g. tcp://10.0.0.5:8786"
             ) from None
         with client:
             yield client
