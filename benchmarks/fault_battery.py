@@ -1924,6 +1924,19 @@ sys.exit(0 if said == 'completed' else 1)
 """``multilayer.run(quiet=False)`` with ``sys.stderr`` None (pythonw) or a pipe without a reader."""
 
 
+NO_SCHEDULER = """
+import socket, threading
+server = socket.create_server(('127.0.0.1', 0))
+def serve():
+    connection, _ = server.accept()
+    connection.sendall(b'HTTP/1.1 400 Bad Request\\r\\nContent-Length: 0\\r\\n\\r\\n' * 4)
+    connection.recv(1)
+threading.Thread(target=serve, daemon=True).start()
+sys.argv = [a.replace('ADDRESS', f'tcp://127.0.0.1:{server.getsockname()[1]}') for a in sys.argv]
+"""
+"""``--scheduler ADDRESS`` answered by a server that is no Dask scheduler (an HTTP error page)."""
+
+
 def _result_of_another_scenario(directory: Path) -> None:
     """A finished run in ``directory/out`` whose ``result.nc`` is that of a run at 30 degrees."""
     _finished_run(directory)
@@ -1939,7 +1952,7 @@ def round_eleven() -> list[Case]:
     observation rows of more or fewer fields than their header, a progress line with nowhere
     to go, a seed numpy cannot take, Sobol' indices that are not numbers, densities so small
     that the stresses underflow, a dry threshold above the front threshold, a local cluster
-    of 10^7 workers."""
+    of 10^7 workers, a scheduler address answered by no scheduler."""
     empty = "an empty path; accepted: a directory path"
     out = [
         Case("run: -o an empty path", ["run", "{scenario}", "-o", "", "-q"], 2, empty, setup=_scenario,
@@ -1978,6 +1991,11 @@ def round_eleven() -> list[Case]:
         Case(f"{command[0]}: numerics.dry_threshold 1 m", command, 2, "not below front_threshold = 0.001 m",
              setup=partial(_scenario, changes={"numerics": {"dry_threshold": 1.0}}))
         for command in (validate, run)
+    )  # fmt: skip
+    elsewhere = ["sweep", "{dir}/sweep.yaml", "--scheduler", "ADDRESS"]
+    out.append(
+        Case("sweep: --scheduler answered by an HTTP server", elsewhere, 2, "cannot connect (MemoryError",
+             patch=NO_SCHEDULER, setup=_sweep({"slope_deg": [20.0]}))
     )  # fmt: skip
     swarm = ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/out", "--workers", "10000000"]
     out.append(
