@@ -1107,26 +1107,38 @@ def test_more_local_workers_than_fit_in_memory_are_refused_before_any_starts(tmp
             pass
 
 
-def test_a_scheduler_address_answered_by_no_dask_scheduler_is_named(tmp_path):
+@pytest.mark.parametrize(
+    ("answer", "said"),
+    [
+        (b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n" * 4, "MemoryError: Unable to allocate"),
+        (b"", "TimeoutError: no answer to the handshake within 2 s"),
+    ],
+    ids=["other bytes", "silence"],
+)
+def test_a_scheduler_address_answered_by_no_dask_scheduler_is_named(answer, said):
     """A server that answers a Dask client with other bytes (an HTTP server's error page):
     Dask read them as a frame length and numpy's ``MemoryError`` ('Unable to allocate 3.07
-    EiB') ended ``multilayer sweep --scheduler`` with a traceback."""
+    EiB') ended ``multilayer sweep --scheduler`` with a traceback.  One that accepts and
+    says nothing (an HTTP server awaiting its request line) held it for ever."""
     import socket
 
-    server = socket.create_server(("127.0.0.1", 0))
-    answer = b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n" * 4
+    import dask
+
+    server, done = socket.create_server(("127.0.0.1", 0)), threading.Event()
 
     def serve() -> None:
         connection, _ = server.accept()
         with connection:
             connection.sendall(answer)
-            connection.recv(1)  # until the client goes
+            done.wait(30)
 
     threading.Thread(target=serve, daemon=True).start()
     address = f"tcp://127.0.0.1:{server.getsockname()[1]}"
-    with server, pytest.raises(InputError, match=rf"--scheduler {address}: cannot connect \(MemoryError: "):
-        with sweeps.dask_client(address, None):
-            pass
+    with server, dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+        with pytest.raises(InputError, match=rf"--scheduler {address}: cannot connect \({said}"):
+            with sweeps.dask_client(address, None):
+                pass
+    done.set()
 
 
 def test_an_empty_output_directory_is_named_not_the_working_directory(tmp_path, monkeypatch, capsys):

@@ -412,6 +412,7 @@ def dask_client(
 
     if scheduler is not None:
         try:
+            _answers(scheduler)
             client = Client(scheduler)
         except Exception as exc:  # noqa: BLE001 - a server that is no scheduler: numpy's MemoryError too
             raise InputError(
@@ -446,6 +447,32 @@ def dask_client(
         cluster.close()
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
+
+
+def _answers(address: str) -> None:
+    """Connect to ``address`` as Dask's client does, its answer to the handshake awaited no
+    longer than Dask's connection timeout: ``Client(address)`` awaits it without a bound
+    (distributed 2026.8), and a server that accepts and says nothing (an HTTP server
+    awaiting its request line) held the command for ever.  In a thread of its own: the
+    caller's may run an event loop (a notebook)."""
+    import asyncio
+    from concurrent.futures import ThreadPoolExecutor
+
+    import dask
+    from dask.utils import parse_timedelta
+    from distributed.comm import connect
+
+    timeout = parse_timedelta(dask.config.get("distributed.comm.timeouts.connect"), default="seconds")
+
+    async def handshake() -> None:
+        comm = await asyncio.wait_for(connect(address, timeout=timeout), 2 * timeout)
+        await comm.close()
+
+    with ThreadPoolExecutor(1) as thread:
+        try:
+            thread.submit(asyncio.run, handshake()).result()
+        except TimeoutError:  # asyncio's
+            raise TimeoutError(f"no answer to the handshake within {2 * timeout:g} s") from None
 
 
 def run(
