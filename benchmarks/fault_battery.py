@@ -1929,12 +1929,13 @@ import socket, threading
 server = socket.create_server(('127.0.0.1', 0))
 def serve():
     connection, _ = server.accept()
-    connection.sendall(b'HTTP/1.1 400 Bad Request\\r\\nContent-Length: 0\\r\\n\\r\\n' * 4)
-    connection.recv(1)
+    connection.sendall({answer})
+    time.sleep(100)
 threading.Thread(target=serve, daemon=True).start()
-sys.argv = [a.replace('ADDRESS', f'tcp://127.0.0.1:{server.getsockname()[1]}') for a in sys.argv]
+sys.argv = [a.replace('ADDRESS', f'tcp://127.0.0.1:{{server.getsockname()[1]}}') for a in sys.argv]
 """
-"""``--scheduler ADDRESS`` answered by a server that is no Dask scheduler (an HTTP error page)."""
+"""``--scheduler ADDRESS`` answered by a server that is no Dask scheduler: ``answer`` is what
+it sends (an HTTP error page, or nothing)."""
 
 
 def _result_of_another_scenario(directory: Path) -> None:
@@ -1952,7 +1953,7 @@ def round_eleven() -> list[Case]:
     observation rows of more or fewer fields than their header, a progress line with nowhere
     to go, a seed numpy cannot take, Sobol' indices that are not numbers, densities so small
     that the stresses underflow, a dry threshold above the front threshold, a local cluster
-    of 10^7 workers, a scheduler address answered by no scheduler."""
+    of 10^7 workers, a scheduler address answered by no scheduler or by silence."""
     empty = "an empty path; accepted: a directory path"
     out = [
         Case("run: -o an empty path", ["run", "{scenario}", "-o", "", "-q"], 2, empty, setup=_scenario,
@@ -1993,9 +1994,16 @@ def round_eleven() -> list[Case]:
         for command in (validate, run)
     )  # fmt: skip
     elsewhere = ["sweep", "{dir}/sweep.yaml", "--scheduler", "ADDRESS"]
+    page = repr(b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n" * 4)
     out.append(
         Case("sweep: --scheduler answered by an HTTP server", elsewhere, 2, "cannot connect (MemoryError",
-             patch=NO_SCHEDULER, setup=_sweep({"slope_deg": [20.0]}))
+             patch=NO_SCHEDULER.format(answer=page), setup=_sweep({"slope_deg": [20.0]}))
+    )  # fmt: skip
+    out.append(
+        Case("sweep: --scheduler that accepts and says nothing", elsewhere, 2,
+             "cannot connect (TimeoutError: no answer to the handshake within 2 s",
+             patch=NO_SCHEDULER.format(answer="b''"), setup=_sweep({"slope_deg": [20.0]}),
+             env={"DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT": "1s"})
     )  # fmt: skip
     swarm = ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/out", "--workers", "10000000"]
     out.append(
