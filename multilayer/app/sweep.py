@@ -459,8 +459,8 @@ def _answers(address: str) -> None:
     from concurrent.futures import ThreadPoolExecutor
 
     import dask
+    from dask.distributed import connect
     from dask.utils import parse_timedelta
-    from distributed.comm import connect
 
     timeout = parse_timedelta(dask.config.get("distributed.comm.timeouts.connect"), default="seconds")
 
