@@ -81,6 +81,7 @@ class Case:
     signal_when: tuple[str, int] | None = None  # (file in the case's directory, signal) sent once it exists
     prefix: list[str] = field(default_factory=list)  # a command the child runs under (setpriv)
     plain: bool = False  # the command line itself, nothing imported before (numba's environment)
+    here: bool = False  # run in the case's directory (a case that could write into the working one)
     result: dict = field(default_factory=dict)
 
 
@@ -1875,6 +1876,156 @@ def round_ten() -> list[Case]:
     return out
 
 
+EXPORTED_AGAIN = """
+import os
+from multilayer.io import export
+out = sys.argv[2]
+if main(['export', out, '--vtk']) != 0:
+    sys.exit('the first export failed')
+if main(['run', sys.argv[3], '-o', out, '-q', '--set', 'slope_deg=30']) != 0:
+    sys.exit('the second run failed')
+whole = export.structured_grid
+def stopped(snap):
+    calls[0] += 1
+    if calls[0] == 3:
+        raise KeyboardInterrupt
+    return whole(snap)
+export.structured_grid = stopped
+if main(['export', out, '--vtk']) != 130:
+    sys.exit('the export was not stopped')
+left = os.path.exists(os.path.join(out, 'vtk', 'result.pvd'))
+print('multilayer: an export stopped half-way: ' + ('a series left' if left else 'no series'),
+      file=sys.stderr)
+sys.exit(1 if left else 0)
+"""
+"""A run exported, run again with another slope, exported again and stopped at its third
+file: no ``result.pvd`` may list the second run's first files with the first run's others."""
+
+
+NOWHERE_TO_SHOW = """
+import os
+import multilayer
+err = sys.stderr
+if sys.argv[3] == 'none':
+    sys.stderr = None
+else:  # a pipe whose reader is gone
+    reader, writer = os.pipe()
+    os.close(reader)
+    sys.stderr = os.fdopen(writer, 'w')
+try:
+    multilayer.run(sys.argv[2], quiet=False)
+    said = 'completed'
+except Exception as exc:
+    said = f'failed: {exc}'
+sys.stderr = err
+print(f'multilayer: a run showing its progress on {sys.argv[3]}: {said}', file=sys.stderr)
+sys.exit(0 if said == 'completed' else 1)
+"""
+"""``multilayer.run(quiet=False)`` with ``sys.stderr`` None (pythonw) or a pipe without a reader."""
+
+
+NO_SCHEDULER = """
+import socket, threading
+server = socket.create_server(('127.0.0.1', 0))
+def serve():
+    connection, _ = server.accept()
+    connection.sendall({answer})
+    time.sleep(100)
+threading.Thread(target=serve, daemon=True).start()
+sys.argv = [a.replace('ADDRESS', f'tcp://127.0.0.1:{{server.getsockname()[1]}}') for a in sys.argv]
+"""
+"""``--scheduler ADDRESS`` answered by a server that is no Dask scheduler: ``answer`` is what
+it sends (an HTTP error page, or nothing)."""
+
+
+def _result_of_another_scenario(directory: Path) -> None:
+    """A finished run in ``directory/out`` whose ``result.nc`` is that of a run at 30 degrees."""
+    _finished_run(directory)
+    command = [sys.executable, "-m", "multilayer", "run", str(directory / "scenario.yaml"), "-q"]
+    other = ["-o", str(directory / "other"), "--set", "slope_deg=30"]
+    subprocess.run([*command, *other], check=True, capture_output=True)
+    (directory / "other" / "result.nc").replace(directory / "out" / "result.nc")
+
+
+def round_eleven() -> list[Case]:
+    """The hostile cases of the eleventh round (docs/reliability.md): an empty output path,
+    an export stopped half-way over an earlier one, a resume beside another run's result,
+    observation rows of more or fewer fields than their header, a progress line with nowhere
+    to go, a seed numpy cannot take, Sobol' indices that are not numbers, densities so small
+    that the stresses underflow, a dry threshold above the front threshold, a local cluster
+    of 10^7 workers, a scheduler address answered by no scheduler or by silence."""
+    empty = "an empty path; accepted: a directory path"
+    out = [
+        Case("run: -o an empty path", ["run", "{scenario}", "-o", "", "-q"], 2, empty, setup=_scenario,
+             here=True),
+        Case("run: output.directory an empty path", ["run", "{scenario}", "-q"], 2, empty,
+             setup=partial(_scenario, changes={"output": {"directory": ""}}), here=True),
+        Case("calibrate: -o an empty path", ["calibrate", "{dir}/calibration.yaml", "-o", "", "-q"], 2, empty,
+             setup=_calibration("0.1,0.12,0.01\n"), here=True),
+        Case("API: multilayer.run(outdir='')", ["validate", "{scenario}"], 2, "outdir: an empty path",
+             patch=_api("multilayer.run(sys.argv[2], '')"), setup=_scenario, here=True),
+        Case("export: stopped half-way over an earlier export", ["export", "{dir}/out", "{scenario}"], 0,
+             "an export stopped half-way: no series", patch=EXPORTED_AGAIN, setup=_finished_run),
+    ]  # fmt: skip
+    resume = ["run", "{scenario}", "-o", "{dir}/out", "--resume", "--set", "time.end=0.3", "-q"]
+    out.append(
+        Case("resume: a result.nc of another scenario beside the checkpoint", resume, 2,
+             "holds the output times of another scenario than its checkpoint (changed: slope_deg)",
+             setup=_result_of_another_scenario)
+    )  # fmt: skip
+    out.append(
+        Case("calibrate: search.seed -1", ["calibrate", "{dir}/calibration.yaml", "-o", "{dir}/cal", "-q",
+             "--workers", "1"], 2, "search.seed (line", setup=_calibration("0.1,0.12,0.01\n", seed=-1))
+    )  # fmt: skip
+    out.append(
+        Case("plot: a sensitivity.nc whose S1 is NaN", ["plot", "{dir}"], 0, "no Sobol' indices of runout",
+             setup=partial(_sensitivity_file, s1=np.array([[NAN, 0.3]]), dims=("output", "parameter")))
+    )  # fmt: skip
+    validate, run = ["validate", "{scenario}"], ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    for density in (5e-324, 1e-200):
+        out.extend(
+            Case(f"{command[0]}: a density of {density!r}", command, 2, "so light that the stresses underf",
+                 setup=partial(_scenario, changes={"material.density": density}))
+            for command in (validate, run)
+        )  # fmt: skip
+    out.extend(
+        Case(f"{command[0]}: numerics.dry_threshold 1 m", command, 2, "not below front_threshold = 0.001 m",
+             setup=partial(_scenario, changes={"numerics": {"dry_threshold": 1.0}}))
+        for command in (validate, run)
+    )  # fmt: skip
+    elsewhere = ["sweep", "{dir}/sweep.yaml", "--scheduler", "ADDRESS"]
+    page = repr(b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n" * 4)
+    out.append(
+        Case("sweep: --scheduler answered by an HTTP server", elsewhere, 2, "cannot connect (MemoryError",
+             patch=NO_SCHEDULER.format(answer=page), setup=_sweep({"slope_deg": [20.0]}))
+    )  # fmt: skip
+    out.append(
+        Case("sweep: --scheduler that accepts and says nothing", elsewhere, 2,
+             "cannot connect (TimeoutError: no answer to the handshake within 2 s",
+             patch=NO_SCHEDULER.format(answer="b''"), setup=_sweep({"slope_deg": [20.0]}),
+             env={"DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT": "1s"})
+    )  # fmt: skip
+    swarm = ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/out", "--workers", "10000000"]
+    out.append(
+        Case("sweep: --workers 10^7", swarm, 2, "10000000 worker processes of about 200 MB each need",
+             setup=_sweep({"slope_deg": [20.0]}))
+    )  # fmt: skip
+    for where in ("none", "a closed pipe"):
+        out.append(
+            Case(f"API: the progress line on {where}", ["validate", "{scenario}", where], 0,
+                 f"a run showing its progress on {where}: completed", patch=NOWHERE_TO_SHOW, setup=_scenario)
+        )  # fmt: skip
+    for name, row, said in (
+        ("a decimal comma", "0.1,0,12,0.01", "a row of 4 fields (0.1, 0, 12, 0.01), 3 in the header"),
+        ("a field missing", "0.1,0.12", "a row of 2 fields (0.1, 0.12), 3 in the header"),
+    ):
+        out.append(
+            Case(f"validate: an observation row with {name}", ["validate", "{dir}/calibration.yaml"], 2, said,
+                 setup=_calibration(f"0.2,0.15,0.01\n{row}\n"))
+        )  # fmt: skip
+    return out
+
+
 def cases() -> list[Case]:
     out: list[Case] = []
     budget = ["--max-memory", "8G", "--max-output", "1G"]
@@ -2038,6 +2189,7 @@ def cases() -> list[Case]:
         + round_eight()
         + round_nine()
         + round_ten()
+        + round_eleven()
     )
 
 
@@ -2073,6 +2225,7 @@ def attempt(case: Case) -> Case:
             text=True,
             env={**os.environ, **case.env},
             preexec_fn=limited,
+            cwd=directory if case.here else None,
         )
         if case.signal_after_output is not None:
             while _records(directory / "out" / "result.nc") < 2 and proc.poll() is None:

@@ -353,6 +353,18 @@ def test_a_study_file_whose_indices_are_not_as_written_is_exit_2(tmp_path, cli, 
     assert result.code == 2 and len(result.err.strip().splitlines()) == 1, result.err
 
 
+def test_sobol_indices_that_are_not_numbers_are_said_when_plotted(tmp_path, cli):
+    """S1 NaN (runs that failed, an output that does not vary): an empty panel, exit 0,
+    nothing said, as if the figure showed indices of 0."""
+    _sensitivity_file(tmp_path / "sensitivity.nc", np.array([[np.nan, 0.3]]))
+    result = cli("plot", tmp_path)
+    assert result.code == 0 and (tmp_path / "plots" / "sobol.png").is_file()
+    assert (
+        f"warning: {tmp_path / 'sensitivity.nc'}: no Sobol' indices of runout (the output does not vary over "
+        "the samples): the figure shows none"
+    ) in result.err
+
+
 def test_a_member_marker_that_is_no_marker_means_run_again(tmp_path):
     from multilayer.app import sweep
 

@@ -217,6 +217,41 @@ def test_scalar_observation_needs_an_uncertainty_and_experiment_names_are_checke
     )
 
 
+@pytest.mark.parametrize(
+    ("row", "fields"), [("0.1,0,12,0.5", "4 fields (0.1, 0, 12, 0.5)"), ("0.1,9", "2 fields")]
+)
+def test_an_observation_row_of_another_number_of_fields_than_its_header_is_named(tmp_path, row, fields):
+    """``0.1,0,12,0.5`` under ``t,x_f,sigma`` (a decimal comma): ``csv.DictReader`` read t =
+    0.1, x_f = 0 and sigma = 12 and dropped the fourth field, and the calibration fitted
+    that front, silently."""
+    shutil.copy(TWIN / "collapse.yaml", tmp_path)
+    (tmp_path / "front.csv").write_text(f"t,x_f,sigma\n0.2,9,0.5\n{row}\n")
+    (tmp_path / "c.yaml").write_text(
+        "base: collapse.yaml\nparameters: {rheology.mu_s: {bounds: [0.4, 0.5]}}\nobservations:\n"
+        "  - {name: f, quantity: front, file: front.csv, columns: [t, x_f, sigma], units: cm}\n"
+    )
+    with pytest.raises(InputError, match=f"front.csv: a row of {re.escape(fields)}.*, 3 in the header; acc"):
+        study.load_calibration(tmp_path / "c.yaml")
+
+
+@pytest.mark.parametrize("seed", [-1, 2**32])
+def test_a_seed_numpy_cannot_take_is_refused(tmp_path, capsys, seed):
+    """``seed: -1`` validated: the calibration stopped in scipy's differential evolution
+    and the sensitivity's ``validate`` in its design, with numpy's ``ValueError`` and a
+    traceback."""
+    shutil.copy(TWIN / "collapse.yaml", tmp_path)
+    parameters = "parameters: {rheology.mu_s: {bounds: [0.4, 0.5]}}\n"
+    (tmp_path / "c.yaml").write_text(
+        f"base: collapse.yaml\n{parameters}search: {{seed: {seed}}}\n"
+        "observations:\n  - {name: r, quantity: runout, value: 9.0, units: cm, sigma: 1}\n"
+    )
+    (tmp_path / "s.yaml").write_text(f"base: collapse.yaml\n{parameters}outputs: [runout]\nseed: {seed}\n")
+    for name, key in (("c.yaml", "search.seed"), ("s.yaml", "seed")):
+        assert cli.main(["validate", str(tmp_path / name)]) == 2
+        assert f"{key} (line " in (err := capsys.readouterr().err) and "Traceback" not in err
+        assert "accepted: an integer from 0 to 4294967295 (2^32 - 1)" in err
+
+
 def test_observations_from_netcdf_take_the_units_attributes(tmp_path):
     """A front curve in a netCDF file, in cm against ms, reads back in m against s."""
     ds = xr.Dataset(

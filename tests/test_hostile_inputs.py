@@ -1058,6 +1058,109 @@ def test_an_output_directory_holding_the_nul_character_is_named(tmp_path):
     assert "accepted: a directory path (no NUL character)" in done.stderr
 
 
+@pytest.mark.parametrize("key", ["density", "particle_density"])
+def test_a_density_so_small_that_the_stresses_underflow_is_refused(key):
+    """A dry flow does not depend on its density: at 1e-100 kg/m^3 the tiny run is that of
+    1500 kg/m^3 to round-off.  At 5e-324 the weight underflowed and the material stayed at
+    rest (exit 0); at 1e-200 the run wrote forces its own result check refused."""
+    with pytest.raises(
+        InputError, match=rf"material\.{key} \(from --set\): 5e-324 kg/m\^3, so light that the stresses"
+    ):
+        multilayer.load(TINY_SCENARIO, {f"material.{key}": 5e-324})
+    runs = []
+    for density in (1500.0, 1e-100):
+        sim = multilayer.Simulation(
+            multilayer.load(TINY_SCENARIO, {f"material.{key}": density, "material.density": density})
+        )
+        sim.advance(0.05)
+        runs.append(sim.h.copy())
+    np.testing.assert_allclose(runs[1], runs[0], rtol=1e-12, atol=1e-15)
+
+
+@pytest.mark.parametrize(
+    "numerics", [{"dry_threshold": 1.0}, {"dry_threshold": 1e-3}, {"front_threshold": 1e-7}]
+)
+def test_a_dry_threshold_not_below_the_front_threshold_is_refused(numerics):
+    """A dry threshold of 1 m: the 5 cm column on a 25 degree slope stayed at rest, front
+    and speed those of material that cannot move, exit 0.  Below the front threshold, the
+    material that makes the front moves."""
+    with pytest.raises(InputError, match=r"numerics\.dry_threshold.*m, not below front_threshold = "):
+        multilayer.load(TINY_SCENARIO, {f"numerics.{key}": value for key, value in numerics.items()})
+
+
+def test_more_local_workers_than_fit_in_memory_are_refused_before_any_starts(tmp_path, cli, write_scenario):
+    """``--workers 100000``: the local cluster started worker after worker, its process at
+    5.6 GB after ten minutes, deaf to SIGTERM."""
+    (tmp_path / "sweep.yaml").write_text(
+        yaml.safe_dump({"base": str(write_scenario(TINY_SCENARIO)), "parameters": {"slope_deg": [20.0]}})
+    )
+    result = cli("sweep", tmp_path / "sweep.yaml", "-o", tmp_path / "out", "--workers", 10**7)
+    assert result.code == 2 and "Traceback" not in result.err
+    assert (
+        "--workers 10000000: 10000000 worker processes of about 200 MB each need 1.86 PB, more than"
+        in result.err
+    )
+    with pytest.raises(
+        InputError, match=r"accepted: at most \d+ workers here \(the default is one per core\)"
+    ):
+        with sweeps.dask_client(None, 10**7):
+            pass
+
+
+@pytest.mark.parametrize(
+    ("answer", "said"),
+    [
+        (b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n" * 4, "MemoryError: Unable to allocate"),
+        (b"", "TimeoutError: no answer to the handshake within 2 s"),
+    ],
+    ids=["other bytes", "silence"],
+)
+def test_a_scheduler_address_answered_by_no_dask_scheduler_is_named(answer, said):
+    """A server that answers a Dask client with other bytes (an HTTP server's error page):
+    Dask read them as a frame length and numpy's ``MemoryError`` ('Unable to allocate 3.07
+    EiB') ended ``multilayer sweep --scheduler`` with a traceback.  One that accepts and
+    says nothing (an HTTP server awaiting its request line) held it for ever."""
+    import socket
+
+    import dask
+
+    server, done = socket.create_server(("127.0.0.1", 0)), threading.Event()
+
+    def serve() -> None:
+        connection, _ = server.accept()
+        with connection:
+            connection.sendall(answer)
+            done.wait(30)
+
+    threading.Thread(target=serve, daemon=True).start()
+    address = f"tcp://127.0.0.1:{server.getsockname()[1]}"
+    with server, dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+        with pytest.raises(InputError, match=rf"--scheduler {address}: cannot connect \({said}"):
+            with sweeps.dask_client(address, None):
+                pass
+    done.set()
+
+
+def test_an_empty_output_directory_is_named_not_the_working_directory(tmp_path, monkeypatch, capsys):
+    """``-o ""`` (``-o "$OUT"`` with ``OUT`` unset), ``output.directory: ""`` of a scenario or
+    a study and ``multilayer.run(outdir="")``: ``Path("")`` is ``.``, and the run (or the
+    calibration) wrote its files into the working directory, exit 0."""
+    from multilayer.app.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(InputError, match=r"output\.directory: an empty path; accepted: a directory path"):
+        multilayer.load({**copy.deepcopy(TINY_SCENARIO), "output": {"directory": ""}})
+    with pytest.raises(InputError, match=r"outdir: an empty path; accepted: None or the path of a directory"):
+        multilayer.run(TINY_SCENARIO, "")
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(TINY_SCENARIO))
+    for command in ("run", "sweep", "calibrate", "sensitivity"):
+        with pytest.raises(SystemExit) as stopped:
+            main([command, "base.yaml", "-o", ""])
+        assert stopped.value.code == 2
+        assert "argument -o/--output: an empty path; accepted: a directory path" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["base.yaml"]
+
+
 @pytest.mark.parametrize("where", ["forces", "state"])
 def test_a_ctrl_c_while_a_step_is_kept_is_raised_after_it(monkeypatch, where):
     """Stepping by hand under Python's own SIGINT handler (a notebook), a Ctrl-C raised its

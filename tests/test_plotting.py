@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 import subprocess
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -16,7 +17,7 @@ from PIL import Image
 
 from multilayer import scenario as scenarios
 from multilayer.app import runner
-from multilayer.io import plotting
+from multilayer.io import export, plotting
 from multilayer.io.results import open_result
 
 MATERIAL = {"density": 1500.0, "grain_diameter": 1.0e-3}
@@ -287,6 +288,28 @@ def test_vtk_export_puts_the_layers_at_their_physical_heights(slump_dir: Path, c
     np.testing.assert_array_equal(cells["h"], np.tile(h, 3))
     assert set(np.unique(cells["static"])) <= {0.0, 1.0}
     assert np.all(cells["static"][cells["u"] != 0.0] == 0.0)  # moving cells are not static
+
+
+def test_an_export_stopped_half_way_leaves_no_series_of_two_runs(
+    slump_dir: Path, tmp_path: Path, cli, monkeypatch
+):
+    """Exported again after another run into the directory, the export stopped half-way (a
+    Ctrl-C, a full disk): the earlier ``result.pvd`` listed this run's first files and the
+    earlier run's others, one time series in ParaView.  It goes before the first file; the
+    series is written once every file it lists is."""
+    shutil.copy(slump_dir / "result.nc", tmp_path / "result.nc")
+    assert cli("export", tmp_path, "--vtk").code == 0
+    whole, written = export.structured_grid, []
+
+    def stopped(snap):
+        if len(written) == 2:
+            raise KeyboardInterrupt
+        written.append(1)
+        return whole(snap)
+
+    monkeypatch.setattr(export, "structured_grid", stopped)
+    assert cli("export", tmp_path, "--vtk").code == 130
+    assert not (tmp_path / "vtk" / "result.pvd").exists()
 
 
 @pytest.mark.parametrize("figure", ["profiles", "static_interface"])

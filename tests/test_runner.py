@@ -183,6 +183,24 @@ def test_a_checkpoint_resumes_only_the_physics_and_numerics_it_computed(
     assert yaml.safe_load(open_result(tmp_path / "run").attrs["scenario"])["name"] == "renamed"
 
 
+def test_a_result_of_another_scenario_beside_the_checkpoint_is_not_resumed(
+    tmp_path: Path, cli, write_scenario
+):
+    """Another scenario's ``result.nc`` beside a checkpoint (copied there, or another run
+    into the directory stopped after its first records): ``--resume`` continued it and
+    relabelled its records with the checkpoint's scenario, ``run_status: completed``."""
+    path = write_scenario(dict(SLUMP, time={"end": 0.02, "output_interval": 0.02}))
+    for name, slope in (("run", "25"), ("other", "30")):
+        assert cli("run", path, "-o", tmp_path / name, "-q", "--set", f"slope_deg={slope}").code == 0
+    (tmp_path / "other" / "result.nc").replace(tmp_path / "run" / "result.nc")
+    result = cli("run", path, "-o", tmp_path / "run", "--resume", "-q", "--set", "time.end=0.04")
+    assert result.code == 2 and "Traceback" not in result.err
+    assert (
+        "result.nc: holds the output times of another scenario than its checkpoint (changed: slope_deg)"
+        in (result.err)
+    )
+
+
 def _steps_at(outdir: Path, t: str) -> int:
     """The step count at output time ``t`` (as the log prints it) of the run in ``outdir``."""
     lines = (outdir / "run.log").read_text().splitlines()
@@ -338,6 +356,23 @@ def test_progress_is_silent_off_a_terminal_or_when_quiet() -> None:
         progress(_Sim(), 0.1)
         progress.finish()
     assert stream.getvalue() == ""
+
+
+class _GoneReader(io.StringIO):
+    """stderr piped to a reader that went away (``... 2>&1 | head -1``)."""
+
+    def write(self, text: str) -> int:
+        raise BrokenPipeError(32, "Broken pipe")
+
+
+@pytest.mark.parametrize("stderr", [None, _GoneReader()], ids=["none", "broken pipe"])
+def test_a_progress_line_with_nowhere_to_go_does_not_stop_the_run(tmp_path, monkeypatch, stderr) -> None:
+    """``quiet=False`` where ``sys.stderr`` is None (pythonw) or a pipe whose reader is
+    gone: the progress line's write failed the run at its first step ('the simulation
+    failed at t=0.00844 s (step 1): 'NoneType' object has no attribute 'write'')."""
+    monkeypatch.setattr(sys, "stderr", stderr)
+    runner.run(scenarios.from_dict(TINY_SCENARIO), tmp_path, quiet=False)
+    assert open_result(tmp_path).attrs["run_status"] == "completed"
 
 
 def test_a_run_that_compiles_kernels_says_so_once_and_logs_the_time(tmp_path, monkeypatch, capsys):

@@ -76,6 +76,8 @@ def _path(value: object, what: str, accepted: str) -> Path:
     """``value`` as a path (:class:`InputError` naming ``what`` if it is none)."""
     if not isinstance(value, (str, os.PathLike)) or isinstance(os.fspath(value), bytes):
         raise InputError(f"{what}: got {shown(value)}; accepted: {accepted}")
+    if not os.fspath(value):  # Path('') is '.': a run went into the working directory
+        raise InputError(f"{what}: an empty path; accepted: {accepted} ('.' for the working directory)")
     return Path(value)
 
 

@@ -56,22 +56,31 @@ class Progress:
         return text
 
     def _draw(self, text: str) -> None:
-        self.stream.write("\r" + text.ljust(self._width))
-        self.stream.flush()
+        self._write("\r" + text.ljust(self._width))
         self._width = len(text)
 
     def finish(self) -> None:
         """End the progress line (call once the run stops, however it stops)."""
         if self.enabled and self._width:
-            self.stream.write("\n")
-            self.stream.flush()
+            self._write("\n")
             self._width = 0
+
+    def _write(self, text: str) -> None:
+        """``text`` on the stream; a stream that went away (its pipe's reader gone, closed)
+        ends the line, not the run, which it stopped as a failure of the simulation."""
+        try:
+            self.stream.write(text)
+            self.stream.flush()
+        except (OSError, ValueError):
+            self.enabled = False
 
 
 def shown(quiet: bool | None, stream: TextIO | None = None) -> bool:
     """Whether a run shows what it does on ``stream`` (stderr by default): unless
-    ``quiet``; with ``quiet=None``, only on a terminal."""
-    return not quiet if quiet is not None else (sys.stderr if stream is None else stream).isatty()
+    ``quiet``; with ``quiet=None``, only on a terminal; never where there is no stream
+    (``sys.stderr`` is None under pythonw: the run failed, blaming the simulation)."""
+    stream = sys.stderr if stream is None else stream
+    return stream is not None and (not quiet if quiet is not None else stream.isatty())
 
 
 def _duration(seconds: float) -> str:

@@ -161,6 +161,21 @@ def available_memory() -> float:
     return float(psutil.virtual_memory().available)
 
 
+def check_workers(workers: int) -> None:
+    """:class:`InputError` naming ``--workers`` when that many worker processes of a local
+    cluster, each an interpreter with the engine (:data:`BASE_BYTES`), do not fit in the
+    memory available now: ``--workers 100000`` grew its process to 5.6 GB in ten minutes of
+    starting them, deaf to SIGTERM."""
+    have = available_memory()
+    if workers * BASE_BYTES > have:
+        raise InputError(
+            f"--workers {workers}: {workers} worker processes of about {size_text(BASE_BYTES)} each need "
+            f"{size_text(workers * BASE_BYTES)}, more than the memory available on this machine "
+            f"({size_text(have)}); accepted: at most {int(have // BASE_BYTES)} workers here (the default "
+            "is one per core)"
+        )
+
+
 def check(scenario: Any, outdir: Path | None, budget: Budget) -> Estimate:
     """The estimate of ``scenario``; :class:`InputError` (estimate and limit) if it exceeds
     ``budget``, unless ``budget.force``."""

@@ -352,6 +352,14 @@ def _checkpoint_to_resume(scenario: Any, outdir: Path, notice: Callable[[str], N
     except InputError as exc:
         raise InputError(f"{exc}, or run without --resume to start afresh") from None
     saved, resolved = yaml.safe_load(ckpt.scenario), yaml.safe_load(scenario.resolved_yaml())
+    # the records go on after the checkpoint's: another run's result.nc put there (copied, or
+    # another scenario run into the directory and stopped) was continued and relabelled
+    other = _changed_keys(yaml.safe_load(recorded(outdir, "scenario")), saved)
+    if other:
+        raise InputError(
+            f"{outdir / RESULT_FILE}: holds the output times of another scenario than its checkpoint "
+            f"(changed: {', '.join(other)}); run without --resume to start afresh"
+        )
     changed = _changed_keys(saved, resolved)
     if changed:
         raise InputError(

@@ -36,8 +36,8 @@ from pathlib import Path
 from typing import Any, Literal
 
 from multilayer import scenario
-from multilayer.app import runner, stopping
-from multilayer.errors import InputError, Interrupted, RunError
+from multilayer.app import resources, runner, stopping
+from multilayer.errors import InputError, Interrupted, RunError, reason
 from multilayer.io.results import (
     CHECKPOINT_FILE,
     MIXTURE_SUMMARY_KEYS,
@@ -412,15 +412,17 @@ def dask_client(
 
     if scheduler is not None:
         try:
+            _answers(scheduler)
             client = Client(scheduler)
-        except (OSError, ValueError, TimeoutError) as exc:
+        except Exception as exc:  # noqa: BLE001 - a server that is no scheduler: numpy's MemoryError too
             raise InputError(
-                f"--scheduler {scheduler}: cannot connect ({exc}); accepted: the address of "
-                "a running scheduler, as printed by `dask scheduler`, e.g. tcp://10.0.0.5:8786"
+                f"--scheduler {scheduler}: cannot connect ({type(exc).__name__}: {reason(exc)}); accepted: "
+                "the address of a running scheduler, as printed by `dask scheduler`, e.g. tcp://10.0.0.5:8786"
             ) from None
         with client:
             yield client
         return
+    resources.check_workers(workers or CPU_COUNT)
     if warm_up is not None:
         compile_kernels(warm_up)
     # the workers' scratch space in a directory of its own, removed after: Dask left its
@@ -445,6 +447,32 @@ def dask_client(
         cluster.close()
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
+
+
+def _answers(address: str) -> None:
+    """Connect to ``address`` as Dask's client does, its answer to the handshake awaited no
+    longer than Dask's connection timeout: ``Client(address)`` awaits it without a bound
+    (distributed 2026.8), and a server that accepts and says nothing (an HTTP server
+    awaiting its request line) held the command for ever.  In a thread of its own: the
+    caller's may run an event loop (a notebook)."""
+    import asyncio
+    from concurrent.futures import ThreadPoolExecutor
+
+    import dask
+    from dask.distributed import connect
+    from dask.utils import parse_timedelta
+
+    timeout = parse_timedelta(dask.config.get("distributed.comm.timeouts.connect"), default="seconds")
+
+    async def handshake() -> None:
+        comm = await asyncio.wait_for(connect(address, timeout=timeout), 2 * timeout)
+        await comm.close()
+
+    with ThreadPoolExecutor(1) as thread:
+        try:
+            thread.submit(asyncio.run, handshake()).result()
+        except TimeoutError:  # asyncio's
+            raise TimeoutError(f"no answer to the handshake within {2 * timeout:g} s") from None
 
 
 def run(

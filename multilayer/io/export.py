@@ -30,14 +30,17 @@ def export_vtk(directory: str | os.PathLike) -> tuple[list[Path], str | None]:
     ds = open_result(directory)
     out = Path(directory) / VTK_DIR
     out.mkdir(exist_ok=True)
+    pvd = writable(out / "result.pvd")
+    # the series of an earlier export goes first: one stopped half-way (Ctrl-C, a full disk)
+    # left it listing this run's first files and the earlier run's others, read as one run
+    pvd.unlink(missing_ok=True)
     entries, paths = [], []
     for k in range(ds.sizes["time"]):
         path = out / f"result_{k:04d}.vts"
         writable(path).write_text(structured_grid(ds.isel(time=k)))
         paths.append(path)
         entries.append(f'    <DataSet timestep="{float(ds["time"][k])!r}" file="{path.name}"/>')
-    pvd = out / "result.pvd"
-    writable(pvd).write_text(
+    pvd.write_text(
         '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n'
         "  <Collection>\n" + "\n".join(entries) + "\n  </Collection>\n"
         "</VTKFile>\n"

@@ -158,6 +158,13 @@ class Observation(StrictModel):
         return self
 
 
+def _seed() -> Any:
+    """The ``seed`` field: a seed of numpy's legacy generator, which scipy's differential
+    evolution seeds with it (-1 or 2^32 validated, and the study stopped with numpy's
+    ``ValueError`` and a traceback)."""
+    return field(1, "an integer from 0 to 4294967295 (2^32 - 1)", ge=0, le=2**32 - 1)
+
+
 class Search(StrictModel):
     """Global search: differential evolution (Storn & Price 1997)."""
 
@@ -168,7 +175,7 @@ class Search(StrictModel):
         15, "an integer from 0 to 10000 (0: the initial population only)", ge=0, le=10_000
     )
     tolerance: float = field(0.01, "a number >= 0 (relative spread of the misfits to stop at)", ge=0)
-    seed: int = field(1, "an integer")
+    seed: int = _seed()
 
 
 class Refine(StrictModel):
@@ -239,7 +246,7 @@ class SensitivityModel(_Study):
     samples: int = field(
         16, "a power of 2 from 2 to 65536 (base samples N; runs: N x (parameters + 2))", ge=2, le=65_536
     )
-    seed: int = field(1, "an integer")
+    seed: int = _seed()
     confidence: float = field(0.95, "a number in (0, 1)", gt=0, lt=1)
 
     @field_validator("samples")
@@ -483,7 +490,16 @@ def _read_csv(file: Path, columns: list[str], where: str) -> tuple[np.ndarray, n
     except InputError as exc:
         raise InputError(f"{where}: {exc}") from None
     try:
-        rows = list(itertools.islice(csv.DictReader(io.StringIO(text, newline="")), MAX_PROFILE_POINTS + 1))
+        reader = csv.DictReader(io.StringIO(text, newline=""))
+        rows = list(itertools.islice(reader, MAX_PROFILE_POINTS + 1))
+        for row in rows:  # more fields than the header: DictReader dropped the others, silently
+            if None in row or None in row.values():
+                fields = _row_text(row)
+                raise InputError(
+                    f"{where}: {file}: a row of {len(fields)} fields ({', '.join(fields)}), "
+                    f"{len(row) - (None in row)} in the header; accepted: a CSV file of numbers with as "
+                    "many fields in every row as in its header (a decimal comma splits a number in two)"
+                )
         if len(rows) > MAX_PROFILE_POINTS:
             raise InputError(
                 f"{where}: {file} has more than {MAX_PROFILE_POINTS} rows; accepted: at most that"
@@ -501,6 +517,11 @@ def _read_csv(file: Path, columns: list[str], where: str) -> tuple[np.ndarray, n
         raise InputError(f"{where}: {file} has no rows; accepted: a CSV file with data")
     arrays = [np.asarray(t, dtype=float) for t in table]
     return arrays[0], arrays[1], arrays[2] if len(arrays) > 2 else None
+
+
+def _row_text(row: dict) -> list[str]:
+    """The fields of a row of ``csv.DictReader`` as written."""
+    return [v for k, v in row.items() if k is not None and v is not None] + list(row.get(None, []))
 
 
 def _read_netcdf(

@@ -55,7 +55,7 @@ REQUIRED: dict[str, tuple[dict[str, tuple[str, ...]], tuple[str, ...], tuple[str
 study writes them over), coordinates, attributes."""
 
 
-def plot_study(directory: str | os.PathLike, filename: str) -> list[Path]:
+def plot_study(directory: str | os.PathLike, filename: str) -> tuple[list[Path], list[str]]:
     """Write the figures of ``directory/filename`` into ``directory/plots/``; an
     :class:`InputError` naming the file if it is not a study file multilayer wrote."""
     path = Path(directory) / filename
@@ -69,15 +69,35 @@ def plot_study(directory: str | os.PathLike, filename: str) -> list[Path]:
     check_study(ds, path)
     out = Path(directory) / PLOTS_DIR
     out.mkdir(exist_ok=True)
+    notes = []
     if "misfit" in ds:
         figures = {"misfit.png": misfit_figure(ds), "pairs.png": pairs_figure(ds), "fit.png": fit_figure(ds)}
     else:
         figures = {"sobol.png": sobol_figure(ds)}
+        if missing := _without_indices(ds):  # an empty panel, exit 0, said nothing
+            notes.append(
+                f"{path}: no Sobol' indices of {', '.join(missing)} ({_why_no_indices(ds)}): the figure "
+                "shows none"
+            )
     paths = []
     for name, fig in figures.items():
         fig.savefig(writable(out / name), dpi=120)
         paths.append(out / name)
-    return paths
+    return paths, notes
+
+
+def _without_indices(ds: xr.Dataset) -> list[str]:
+    """The outputs of a sensitivity file with an index that is NaN."""
+    return [str(o) for o, s1, st in zip(ds["output"].values, ds["S1"].values, ds["ST"].values) if
+            np.isnan(s1).any() or np.isnan(st).any()]  # fmt: skip
+
+
+def _why_no_indices(ds: xr.Dataset) -> str:
+    """Why an index is NaN: runs that failed or were not done, or an output that does not vary."""
+    failed, not_done = int(ds.attrs.get("failed_runs", 0)), int(ds.attrs.get("runs_not_done", 0))
+    if failed or not_done:
+        return f"{failed} runs failed, {not_done} not done; the estimators need every run"
+    return "the output does not vary over the samples"
 
 
 def check_study(ds: xr.Dataset, path: Path) -> None:
@@ -220,6 +240,15 @@ def sobol_figure(ds: xr.Dataset) -> Figure:
                 pos + offset, ds[key].values[k], 0.4, yerr=ds[f"{key}_conf"].values[k], capsize=3, label=label
             )
         ax.axhline(0, color="k", lw=0.5)
+        if output in _without_indices(ds):
+            ax.text(
+                0.5,
+                0.5,
+                f"no indices:\n{_why_no_indices(ds)}",
+                transform=ax.transAxes,
+                ha="center",
+                wrap=True,
+            )
         ax.set_xticks(pos, names, rotation=20, fontsize=8)
         ax.set_title(f"{output} ({ds.attrs['base_samples']} base samples, {level}% intervals)")
         ax.legend()

@@ -45,6 +45,14 @@ MIN_END = 1e-290
 """Shortest ``time.end`` (s): the output times of a run are at least ``1e-9 time.end``
 apart, so every step stays far above the shortest the engine takes (``MIN_STEP`` of
 engine/simulation.py, 4.45e-308 s; half of a denormal step is zero)."""
+MIN_DENSITY = 1e-100
+"""Smallest ``material.density`` and ``material.particle_density`` (kg/m^3).  A dry flow
+does not depend on its density (every stress of the built-in laws is the density times a
+kinematic quantity), and the tiny scenario of the fault battery gives the run of 1500 kg/m^3
+to round-off down to 1e-150 with Drucker-Prager and Jop's mu(I); at 1e-200 the run wrote
+forces and momenta that its result's own check refused (the file unreadable by ``plot``),
+and at 5e-324 the weight underflowed to zero: the material stayed at rest, exit 0.  Real
+densities (gases included) lie 100 decades above it."""
 MAX_DEM_PIXELS = 400_000_000
 """Largest DEM read (pixels; its band is read whole, 8 bytes a pixel)."""
 MAX_ITERATIONS = 10**5

@@ -41,6 +41,8 @@ def directory_path(value: Any) -> Any:
     ``ValueError`` and a traceback."""
     if value is not None and "\0" in str(value):
         raise invalid(f"{str(value)!r} holds the NUL character", "a directory path without it")
+    if value == "":  # Path('') is '.': the run wrote into the working directory
+        raise invalid("an empty path", "a directory path ('.' for the working directory)")
     if value is not None and str(value).startswith("~"):
         return type(value)(os.path.expanduser(str(value)))  # a Path stays a Path
     return value

@@ -128,12 +128,21 @@ class Domain(StrictModel):
 class MaterialSpec(StrictModel):
     """Material constants (SI)."""
 
-    density: float = field(..., "a number > 0 (kg/m^3)", gt=0)
+    density: float = field(..., f"a number >= {limits.MIN_DENSITY:g} (kg/m^3)", gt=0)
     grain_diameter: float = field(..., "a number > 0 (m)", gt=0)
-    particle_density: float | None = field(None, "a number > 0 (kg/m^3); default: density", gt=0)
+    particle_density: float | None = field(
+        None, f"a number >= {limits.MIN_DENSITY:g} (kg/m^3); default: density", gt=0
+    )
 
     @model_validator(mode="after")
     def _default_particle_density(self) -> MaterialSpec:
+        for key in ("density", "particle_density"):
+            if (value := getattr(self, key)) is not None and value < limits.MIN_DENSITY:
+                raise invalid(
+                    f"{value!r} kg/m^3, so light that the stresses underflow",
+                    f"a number >= {limits.MIN_DENSITY:g} (kg/m^3)",
+                    key,
+                )
         if self.particle_density is None:
             self.particle_density = self.density
         if not self.density <= self.particle_density:
@@ -539,7 +548,7 @@ class Output(StrictModel):
         None, "a directory path (a leading ~ is the home directory); default results/<name>"
     )
 
-    _directory = field_validator("directory")(directory_path)
+    _directory = field_validator("directory", mode="before")(directory_path)
 
 
 ExpectKind = Literal["regression", "reference"]
@@ -626,8 +635,20 @@ class Numerics(StrictModel):
     max_iterations: int = field(
         200, f"an integer from 1 to {limits.MAX_ITERATIONS}", ge=1, le=limits.MAX_ITERATIONS
     )
-    dry_threshold: float = field(1e-6, "a number > 0 (m)", gt=0)
+    dry_threshold: float = field(1e-6, "a number > 0 (m), below numerics.front_threshold", gt=0)
     front_threshold: float = field(1e-3, "a number > 0 (m)", gt=0)
+
+    @model_validator(mode="after")
+    def _dry_below_front(self) -> Numerics:
+        # a 5 cm column on a 25 degree slope with a dry threshold of 1 m stayed at rest, exit 0
+        if not self.dry_threshold < self.front_threshold:
+            raise invalid(
+                f"{self.dry_threshold!r} m, not below front_threshold = {self.front_threshold!r} m: the "
+                "material thick enough to make the front would be dry, held at rest",
+                "a number > 0 below numerics.front_threshold (m)",
+                "dry_threshold",
+            )
+        return self
 
     @field_validator("order", mode="before")
     @classmethod

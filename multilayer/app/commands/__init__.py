@@ -141,6 +141,10 @@ def directory(text: str) -> Path:
             f"{text.encode('utf-8', 'surrogateescape')!r} is not a UTF-8 name (netCDF files cannot be "
             "named by other bytes); accepted: a directory name in UTF-8"
         ) from None
+    if not text:  # Path('') is '.': -o "$UNSET" wrote into the working directory
+        raise argparse.ArgumentTypeError(
+            "an empty path; accepted: a directory path ('.' for the working directory)"
+        )
     return Path(text)
 
 

@@ -80,7 +80,8 @@ def main(args: argparse.Namespace) -> int:
     if studies:
         from multilayer.io.study_plotting import plot_study
 
-        paths = [path for name in studies for path in plot_study(args.directory, name)]
+        drawn = [plot_study(args.directory, name) for name in studies]
+        paths, notes = [p for d in drawn for p in d[0]], [n for d in drawn for n in d[1]]
     else:
         from multilayer.io.plotting import plot_run
 
