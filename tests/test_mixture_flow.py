@@ -756,3 +756,93 @@ def test_the_shipped_submarine_collapses_as_shipped_meet_the_loose_dense_contras
     loose_stop = float(loose["time"][moving.values][-1])  # the last output time with motion
     assert np.abs(dense["u"].isel(time=-1)).max() > 0.0
     assert float(dense["time"][-1]) >= 2.0 * loose_stop, (loose_stop, float(dense["time"][-1]))
+
+
+def test_a_watched_column_set_moving_stops_the_local_step_at_its_first_evaluation():
+    """The local step's ``watch`` (engine/mixture/local_step.py): a watched column that the
+    first evaluation, at the rest state (``p_e = 0``, ``h = h*``), leaves at rest has
+    converged there, and the step is that of no watch, bit for bit; one that it sets moving
+    stops the step there, after one iteration, with that evaluation's velocities, pore
+    pressures (the closure's at them) and thickness."""
+    sim = mixture_run(
+        [InitialEntry("layer", thickness=5e-3, phi=0.56)], cells=2, sides=("periodic", "periodic")
+    )
+    local, solid, h = sim.mixture.local, sim.mixture.solid.copy(), sim.h.copy()
+    ustar, dt = np.array([[0.0, 0.05]]), 1e-3  # column 0 has nothing to move it, column 1 slides
+    full = local(solid, h, ustar, dt)
+    assert full.u[0, 0] == 0.0 and full.u[0, 1] > 0.0 and full.iterations > 1
+    held = local(solid, h, ustar, dt, watch=np.array([True, False]))
+    for got, expected in zip(
+        (held.u, held.h, held.pore_pressure, held.iterations),
+        (full.u, full.h, full.pore_pressure, full.iterations),
+        strict=True,
+    ):
+        assert np.array_equal(got, expected)
+    stopped = local(solid, h, ustar, dt, watch=np.array([False, True]))
+    assert stopped.iterations == 1 and stopped.u[0, 0] == 0.0 and stopped.u[0, 1] > 0.0
+    _, _, dilation, pressure = local.closure(solid, h, stopped.u)
+    np.testing.assert_array_equal(stopped.pore_pressure, pressure)
+    np.testing.assert_array_equal(stopped.h, h / (1.0 - dt * np.sum(local.l * dilation, axis=0)))
+    assert stopped.pore_pressure[0, 1] != full.pore_pressure[0, 1]  # not the converged step
+
+
+def _finished(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every local step finished: the last one of a time step stops at no start."""
+    original = Simulation._vertical_step
+    monkeypatch.setattr(Simulation, "_vertical_step", lambda self, *args, last=False: original(self, *args))
+
+
+def _same_run(a: Simulation, b: Simulation) -> None:
+    assert (a.t, a.steps) == (b.t, b.steps)
+    for name in ("h", "u"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    for name in ("solid", "pore_pressure"):
+        np.testing.assert_array_equal(getattr(a.mixture, name), getattr(b.mixture, name))
+    assert a.mixture.ambient_exchange == b.mixture.ambient_exchange
+
+
+@pytest.mark.parametrize(("layers", "order"), [(1, 2), (1, 1), pytest.param(3, 2, marks=pytest.mark.slow)])
+def test_a_start_in_the_last_local_step_redoes_the_step_as_the_finished_local_step_does(
+    layers, order, monkeypatch
+):
+    """A column at rest that the first evaluation of the time step's last local step sets
+    moving stops that local step, and the step is redone with the column moving
+    (docs/mixture.md, "Columns set moving"): in a collapse released from rest, loose and
+    dense, whose front sets columns moving, the run is that of finished local steps bit
+    for bit (every column so started is one the finished step sets moving too), in fewer
+    Newton iterations, the solid conserved and the fluid balanced (the state guard, at
+    every step); at order 2 the last local step is the second stage's, at order 1 the
+    only one."""
+    runs = {}
+    for phi in (0.56, 0.6):
+        for finish in (False, True):
+            with monkeypatch.context() as patch:
+                if finish:
+                    _finished(patch)
+                entry = InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01, phi=phi)
+                sim = mixture_run([entry], slope=10.0, layers=layers, numerics=Numerics(order=order))
+                for _ in range(15):
+                    sim.step()
+                    sim.check_state()
+            runs[phi, finish] = sim
+        _same_run(runs[phi, False], runs[phi, True])
+        assert runs[phi, False].newton_iterations < runs[phi, True].newton_iterations
+        sim = runs[phi, False]
+        assert np.count_nonzero(sim.h > sim.dry) > 6  # the front advanced beyond the 6 columns released
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["submarine_collapse_loose", "submarine_collapse_dense"])
+def test_the_shipped_collapses_with_the_stop_at_a_start_are_those_of_finished_local_steps(name, monkeypatch):
+    """The shipped submarine collapses to 1.5 s: the stop of the last local step at a start
+    changes nothing but the Newton iterations (measured over the whole files on 60 cells:
+    the same states bit for bit at every output time, benchmarks/history/mixture_starts.json)."""
+    path = Path(__file__).resolve().parents[1] / "scenarios" / f"{name}.yaml"
+    scenario = multilayer.load(path, {"time.end": 1.5})
+    stopped = multilayer.Simulation(scenario)
+    stopped.advance(1.5)
+    _finished(monkeypatch)
+    finished = multilayer.Simulation(scenario)
+    finished.advance(1.5)
+    _same_run(stopped, finished)
+    assert stopped.newton_iterations < finished.newton_iterations

@@ -32,7 +32,9 @@ both V would keep half its velocity, never exactly zero (docs/numerics.md).
 Then the Courant check of the step's end (redo shorter if the waves grew faster), the
 state guard (an impossible state is never kept) and the windowed commit of the new state
 (state.py).  Material at rest that either stress step sets moving carries waves from
-the start of the step: the stages are redone until that set is complete.
+the start of the step: the stages are redone until that set is complete (a mixture's
+last local step stops at its first evaluation when that sets a column moving:
+:meth:`Simulation._vertical_step`).
 """
 
 from __future__ import annotations
@@ -319,7 +321,7 @@ class Simulation:
         """The transport stages, each followed by a vertical step and the normal stress's
         (module docstring), redone while the step sets material at rest moving: the
         vertical steps, the velocities after the last stress step and the Newton
-        iterations."""
+        iterations (of every attempt, those redone included)."""
         np.copyto(self._stepping, self.state.moving)
         iterations = 0
         with self.vertical.stresses.forms_held():  # the laws read once in the time step
@@ -328,7 +330,7 @@ class Simulation:
                     self.normal_stress.restart()
                 if self.numerics.order == 1:
                     h, ustar = self._transport(dt, threads)
-                    step, u, more = self._stress_steps(1.0, h, ustar, dt, threads)
+                    step, u, more = self._stress_steps(1.0, h, ustar, dt, threads, last=True)
                     vertical, ends = [step], [u]
                 else:
                     h1, u1_star = self._transport(dt, threads, stage=0)
@@ -336,7 +338,9 @@ class Simulation:
                         h1, u1_star = self.workspace.keep()
                     first, u1, counted = self._stress_steps(0.5, h1, u1_star, dt, threads)
                     h, ustar = self._transport(dt, threads, stage=1, first=(h1, u1))
-                    second, u, more = self._stress_steps(1.0, h, ustar, 0.5 * dt, threads, first=(h1, u1))
+                    second, u, more = self._stress_steps(
+                        1.0, h, ustar, 0.5 * dt, threads, first=(h1, u1), last=True
+                    )
                     more += counted
                     vertical, ends = [first, second], [u1, u]
                 iterations += more
@@ -400,19 +404,22 @@ class Simulation:
         dt: float,
         threads: int,
         first: tuple[np.ndarray, np.ndarray] | None = None,
+        *,
+        last: bool = False,
     ) -> tuple[VerticalImpulse, np.ndarray, int]:
-        """The vertical step over ``dt`` of the velocities ``ustar`` on ``h`` (``first``: see
-        :meth:`_vertical_step`), then the normal stress's: the vertical step's impulse (of
-        ``weight``), the velocities at the end and the Newton iterations.  Where the two
-        leave the material of a chain moving, rest of that chain when it is the answer of
-        the two steps together (:func:`multilayer.engine.normal_stress.joint_rest`, the
-        normal stress of material at rest: docs/model.md, "Longitudinal normal stress"):
-        its vertical step's impulse from ``ustar - q``, ``q`` the normal stress's (the same
-        momentum).  The chains (:func:`multilayer.engine.normal_stress.runs`) are searched
-        one by one: the normal stress couples the columns of a chain only and the vertical
-        step none, so the two steps together, and rest as their answer, are a chain's
-        own, whatever the others do."""
-        u_vertical, iterations = self._vertical_step(h, ustar, dt, threads, first)
+        """The vertical step over ``dt`` of the velocities ``ustar`` on ``h`` (``first``,
+        ``last``: see :meth:`_vertical_step`), then the normal stress's: the vertical
+        step's impulse (of ``weight``), the velocities at the end and the Newton
+        iterations.  Where the two leave the material of a chain moving, rest of that
+        chain when it is the answer of the two steps together
+        (:func:`multilayer.engine.normal_stress.joint_rest`, the normal stress of material
+        at rest: docs/model.md, "Longitudinal normal stress"): its vertical step's impulse
+        from ``ustar - q``, ``q`` the normal stress's (the same momentum).  The chains
+        (:func:`multilayer.engine.normal_stress.runs`) are searched one by one: the normal
+        stress couples the columns of a chain only and the vertical step none, so the two
+        steps together, and rest as their answer, are a chain's own, whatever the others
+        do."""
+        u_vertical, iterations = self._vertical_step(h, ustar, dt, threads, first, last=last)
         u = self._normal_stress(h, u_vertical, dt, self.u)
         normal = self.normal_stress
         if normal is None or not np.any(u):
@@ -472,6 +479,8 @@ class Simulation:
         dt: float,
         threads: int,
         first: tuple[np.ndarray, np.ndarray] | None = None,
+        *,
+        last: bool = False,
     ) -> tuple[np.ndarray, int]:
         """The implicit vertical step over ``dt`` (the yield pressures and Newton seeds of
         the pressure model), or the mixture's local step (which dilates ``h`` in place;
@@ -480,13 +489,22 @@ class Simulation:
         within O(dt^2) of the answer in a smooth flow (the state's velocities are O(dt)
         away; a seed changes the work, not the answer): the pressure model's seed
         extrapolated from the last step (``extrapolation.py``), or after Heun's average the
-        first stage's velocities."""
+        first stage's velocities.
+
+        ``last``: the step's last stress step.  There the mixture's local step stops at its
+        first evaluation if that sets moving a column that holds material and is outside
+        the columns taking part in the step (those :func:`start_moving` would add): the
+        step is redone with that column moving whatever the rest of the local step gives,
+        so the rest is not solved (docs/mixture.md, "Columns set moving")."""
         if self.mixture is not None:
+            watch = ~self._stepping & (self.h > self.dry) if last else None
             if first is not None:
                 return self.mixture.average_step(
-                    self.h, first, h, ustar=ustar, dt=dt, crossed=self.boundary_mass, dry=self.dry, t=self.t
-                )
-            return self.mixture.step(self.h, h, self.u, ustar, dt, self.boundary_mass, self.dry, self.t)
+                    self.h, first, h, ustar=ustar, dt=dt, crossed=self.boundary_mass, dry=self.dry, t=self.t,
+                    watch=watch,
+                )  # fmt: skip
+            step = self.mixture.step
+            return step(self.h, h, self.u, ustar, dt, self.boundary_mass, self.dry, self.t, watch)
         seeds = self.pressure.seeds(self.state)
         guess = first[1] if first is not None else self.seeds(seeds[0], dt, span(h))
         return self.vertical(

@@ -108,18 +108,20 @@ class MixtureFlow:
         crossed: np.ndarray,
         dry: float,
         t: float,
+        watch: np.ndarray | None = None,
     ) -> tuple[np.ndarray, int]:
         """The solid transported with the step (or Heun's first stage) from ``h_old`` to
         ``h`` (velocities ``u_old`` at its start, ``crossed`` the volume through the end
         faces), then the local step of the columns thicker than ``dry`` from the velocities
-        ``ustar`` (the step from time ``t``): returns the velocities and the iterations;
-        ``h`` is dilated in place, the new fields wait in :attr:`pending` for the commit."""
+        ``ustar`` (the step from time ``t``; ``watch`` (N,): the columns whose start stops
+        it, :meth:`LocalStep.__call__`): returns the velocities and the iterations; ``h``
+        is dilated in place, the new fields wait in :attr:`pending` for the commit."""
         solid, self._crossed = solid_transport.transport(
             self.solid, h_old, h, u_old, self.fractions, crossed, self.dx, self.periodic
         )
         self._volumes = crossed.copy()
         self.drawn = np.zeros_like(h)
-        return self._local(solid, h, ustar, dt, u_old, self.pore_pressure, dry, t)
+        return self._local(solid, h, ustar, dt, u_old, self.pore_pressure, dry, t, watch)
 
     def average_step(
         self,
@@ -132,14 +134,15 @@ class MixtureFlow:
         dt: float,
         dry: float,
         t: float,
+        watch: np.ndarray | None = None,
     ) -> tuple[np.ndarray, int]:
         """After Heun's second transport stage from ``first`` = (h_1, u_1) (the result of
         :meth:`step` over the whole step) and its average ``h`` with ``h_old``: the solid
         of that stage (from ``h_1`` to ``2 h - h_old``, ``2 crossed`` minus the first
         stage's volume through the end faces) averaged with the solid at the start as the
         transport averages ``h``, then the local step of ``dt`` (half the time step) from
-        ``ustar``.  The fluid the first stage drew in enters ``h`` with the weight 1/2
-        (:attr:`drawn`)."""
+        ``ustar`` (``watch``: as in :meth:`step`).  The fluid the first stage drew in
+        enters ``h`` with the weight 1/2 (:attr:`drawn`)."""
         h1, u1 = first
         drawn = 0.5 * (h1 - self.transported)
         solid1, crossed1 = self.pending["solid"], self._crossed
@@ -151,7 +154,8 @@ class MixtureFlow:
         # a column the average leaves empty holds no solid (round-off of the second stage's
         # volumes, recovered from ``2 h - h_old``)
         solid = np.where(h > 0.0, 0.5 * (self.solid + solid2), 0.0)
-        velocities, iterations = self._local(solid, h, ustar, dt, u1, self.pending["pore_pressure"], dry, t)
+        pressures = self.pending["pore_pressure"]
+        velocities, iterations = self._local(solid, h, ustar, dt, u1, pressures, dry, t, watch)
         self.drawn = drawn
         return velocities, iterations
 
@@ -165,10 +169,12 @@ class MixtureFlow:
         pressure_guess: np.ndarray,
         dry: float,
         t: float,
+        watch: np.ndarray | None,
     ) -> tuple[np.ndarray, int]:
         """The local step of ``dt`` of the columns thicker than ``dry`` holding ``solid`` at
         the thickness ``h`` (dilated in place) from the velocities ``ustar``, the Newton
-        iteration started from ``guess`` and ``pressure_guess``."""
+        iteration started from ``guess`` and ``pressure_guess``, stopped by a start of the
+        columns ``watch`` (:meth:`LocalStep.__call__`)."""
         self._before = self.solid
         self.transported = h.copy()
         u = np.zeros_like(ustar)
@@ -191,6 +197,7 @@ class MixtureFlow:
                     pressure_guess[:, wet],
                     x=self.x[wet],
                     t=t,
+                    watch=None if watch is None else watch[wet],
                 )
             u[:, wet], h[wet], pressure[:, wet] = result.u, result.h, result.pore_pressure
             iterations = result.iterations

@@ -329,6 +329,7 @@ class LocalStep:
         x: np.ndarray | None = None,
         t: float = 0.0,
         substeps: int = 1,
+        watch: np.ndarray | None = None,
     ) -> LocalResult:
         """The step of columns holding ``solid`` (L, n) after transport to ``h_star`` (n,),
         velocities ``ustar`` (L, n) (the buoyant weight along the slope included), the
@@ -342,7 +343,16 @@ class LocalStep:
         A column whose iteration does not converge or diverges in one of them is done again
         from the start in twice as many (continuation in ``dt``: over a shorter step the
         root lies nearer its start), up to :data:`MAX_SUBSTEPS`; the other columns keep
-        their result, so a column that converges in one step is never sub-stepped."""
+        their result, so a column that converges in one step is never sub-stepped.
+
+        ``watch`` (n,) marks columns at rest whose start ends the caller's use of the step
+        (the simulation redoes its time step with them moving: docs/mixture.md, "Columns
+        set moving").  If the first evaluation, at the guess, gives one of them a non-zero
+        velocity, the step stops there: its result is that evaluation's (velocities,
+        thickness, pore pressures; one iteration) in every column, and nothing else is
+        solved.  Otherwise the watch changes nothing: a watched column whose velocities
+        are zero at a pore-pressure guess of zero has converged at rest (its residual is
+        zero, bit for bit)."""
         where = np.zeros(h_star.size) if x is None else x
         n = h_star.size
         u, h = ustar.copy(), h_star.copy()
@@ -356,7 +366,7 @@ class LocalStep:
                 break
             result, converged, burst, error = self._newton(
                 solid[:, going], h[going], u[:, going], dt / substeps, velocities[:, going],
-                pressure[:, going], where[going], t + j * (dt / substeps),
+                pressure[:, going], where[going], t + j * (dt / substeps), watch if j == 0 else None,
             )  # fmt: skip
             iterations += result.iterations
             done = going[converged]
@@ -405,14 +415,15 @@ class LocalStep:
         pressure_guess: np.ndarray,
         where: np.ndarray,
         t: float,
+        watch: np.ndarray | None = None,
     ) -> tuple[LocalResult, np.ndarray, np.ndarray, RunError | None]:
         """One backward-Euler step of ``dt`` of the columns (the arguments of
-        :meth:`__call__`): its result, where it converged, where it diverged (n,) (a trial
-        excess pore pressure not finite, or a trial state whose closure failed) and the
-        closure's error if one did.  A column that diverges leaves the iteration,
-        unconverged, as does one whose iterate comes back to where it started, bit for bit
-        (the iteration would repeat itself), or whose least residual norm has not fallen for
-        :data:`WINDOW` iterations (it wanders; module notes).
+        :meth:`__call__`; ``watch``: see there): its result, where it converged, where it
+        diverged (n,) (a trial excess pore pressure not finite, or a trial state whose
+        closure failed) and the closure's error if one did.  A column that diverges leaves
+        the iteration, unconverged, as does one whose iterate comes back to where it
+        started, bit for bit (the iteration would repeat itself), or whose least residual
+        norm has not fallen for :data:`WINDOW` iterations (it wanders; module notes).
 
         A Newton iteration on the unknowns of the whole column at once, ``X = (p_e, h)``
         (its ``L`` excess pore pressures and its thickness): at trial values the rheology
@@ -481,6 +492,8 @@ class LocalStep:
 
         X = np.concatenate([pressure_guess, h_star[None, :]])
         now = evaluate(X, np.arange(n))
+        if watch is not None and np.any(now.v[:, watch]):  # a watched column starts: the step stops
+            return LocalResult(now.v, now.h, now.pressure, 1), np.ones(n, dtype=bool), diverged, None
         best, since = now.norm.copy(), np.zeros(n, dtype=int)  # least norm, iterations since it fell
         iteration = 1
         while (k := np.flatnonzero(~(now.norm <= self.tolerance) & ~diverged & ~stalled & ~wandering)).size:
