@@ -41,7 +41,6 @@ from multilayer.engine.vertical.newton_control import (
     _sign,
     error_bound,
     slope_along,
-    zeroing,
 )
 
 BLOCK = 8
@@ -380,8 +379,11 @@ def _within_bound(t, x, L, new, limit):
     every jump is nonzero (``SHEARED``).  Then the stress of each interface is single-valued
     (``sign(jump) (kappa + tau_v)``), so that the gap of each layer depends on its values
     and the stress above alone: the gaps of all layers are computed in one pass as vectors
-    (into slot ``GAP``; each operation that of ``error_bound``), then added up from the
-    surface down as there.  The answer is ``error_bound``'s: where the sum exceeds ``4
+    (into slot ``GAP``; each operation that of ``error_bound``, but the wall terms of
+    ``newton_control.zeroing``: a column of the block has no wall threshold or force
+    (``join``), and the zero they subtract could only change the sign of a zero end of the
+    interval, which no positive gap depends on), then added up from the surface down as
+    there.  The answer is ``error_bound``'s: where the sum exceeds ``4
     limit^2`` times the smallest ``m/dt`` so far, the bound exceeds ``2 limit``, and as the
     sum only grows and the smallest only shrinks, that holds at some layer exactly when it
     holds at the last: the test is made once, after the sum (a loop without exits)."""
@@ -392,9 +394,9 @@ def _within_bound(t, x, L, new, limit):
         below = 0.0 if t[BED, y] > 0.0 else previous
         stress = _sign(t[new, y + one] - u) * (t[KAPPA, y + one] + t[tau, y + one])
         above = stress if y < top else 0.0  # the stress of the interface above: 0 at the free surface
-        lo, hi = zeroing(above, above, t[MOMENTUM, y], t[INERTIA, y], u, t[WALL, y], t[WALL, y])
+        zero = above + (t[MOMENTUM, y] - t[INERTIA, y] * u)  # newton_control.zeroing, without walls
         sigma = _sign(u - below) * (t[KAPPA, y] + t[tau, y])
-        gap = max(lo - sigma, sigma - hi, 0.0)
+        gap = max(zero - sigma, sigma - zero, 0.0)
         t[GAP, y] = gap * gap / t[INERTIA, y] if gap > 0.0 else 0.0
     cap = 4.0 * limit * limit
     residual = 0.0
