@@ -73,7 +73,7 @@ whose bound on the steps reads the Courant step), the ones it loads from numba's
 (their callees are compiled into them): no parallel kernel, nothing of the non-hydrostatic
 projection."""
 
-COMPILATIONS = 61
+COMPILATIONS = 62
 """At most this many compilations of the engine's functions (each kernel and each of its
 callees, once per signature) for that run with numba's cache empty (52 when this bound
 was set; two more since the column solve's active set and the Newton control's error
@@ -82,7 +82,8 @@ for the extrapolated Newton seed, one more for the wave speed that ``advance`` r
 bound its steps, one more for the Newton kernel's iteration of a chunk, compiled without
 reference counting apart from the chunk that allocates its work arrays; three more for
 the fully sheared columns' error bound formed as vectors, the rise bound tested apart
-from the slope, and the interval of a layer's stress that error_bound shares with it)."""
+from the slope, and the interval of a layer's stress that error_bound shares with it;
+one more for their test of the signs of the yielded jumps, made after the sweeps)."""
 
 
 def run(cache: str, **overrides: object) -> dict:

@@ -41,7 +41,6 @@ from multilayer.engine.vertical.newton_control import (
     _sign,
     error_bound,
     slope_along,
-    zeroing,
 )
 
 BLOCK = 8
@@ -51,7 +50,7 @@ run as vectors at L = 8 (compiled, the loop runs as vectors of 8 values from abo
 cells on, and one cell at a time below: 22-29 against 51-53 ns per column and pass at
 L = 8).  The tile holds 25 values per layer for each of the BLOCK + 1 lanes, 230 KB at
 L = 128 (the 5 of the bounds' terms touched only where a column is tested by them), and the
-sweeps of the solve 7 per layer and lane, 57 KB."""
+sweeps of the solve 5 per layer and lane, 41 KB."""
 
 # The tile (SLOTS, 1 + (BLOCK + 1) L) holds, in each slot (a row), one value per column
 # (lane) and layer: layer a of lane i in cell 1 + i L + a, the lanes one after the other
@@ -73,11 +72,10 @@ INERTIA, MOMENTUM, KAPPA, WALL, INV_SPACING, CONDUCTANCE, VISCOUS, FACTOR, OFFSE
 GUESS, KC, CC, SIGN, U0, U1, TAU0, TAU1, STIFF0, STIFF1, BED, GAP, RISE = range(9, 22)
 SLOTS = 25
 # The values of each layer in the sweeps of :func:`_solve`: its pivot (then the inverse
-# pivot), right-hand side, conductance below, sign of the jump above where that interface
-# has a yield stress (else 0), the pivots not positive up to it, the velocity, and those
-# pivots and the yielded jumps above it whose sign changed.
-PIVOT, RIGHT, COUPLING, CHECK, TRIED, SOLVED, VIOLATION = range(7)
-SWEEPS = 7
+# pivot), right-hand side, conductance below, the pivots not positive up to it, and the
+# velocity.
+PIVOT, RIGHT, COUPLING, TRIED, SOLVED = range(5)
+SWEEPS = 5
 ALONE = BLOCK
 """The lane of the tile that holds the per-step slots of a column solved on its own
 (``newton_kernel._chunk``); the block's lanes are 0 ... BLOCK - 1."""
@@ -223,13 +221,15 @@ def _solve(t, w, L, new, flags):
     unroll but vectorises).  The equations of each layer (``_active_set``'s sums, in its
     order) are formed lane by lane from the tile, swept and substituted back layer by
     layer (each operation that of ``_active_set``: the same bits), counting the failures
-    of the test up the column and back down (so that layer 0 holds each lane's), and the
-    velocities go back to slot ``new`` of the tile, lane by lane.  Indices are unsigned
-    (as in :func:`_sweep`): no test for negative indices."""
+    of the pivots up the column (so that the top layer holds each lane's), and the
+    velocities go back to slot ``new`` of the tile, lane by lane; there the signs of the
+    yielded jumps are tested (:func:`_sign_changes`), in one pass over the block's cells
+    and, where some jump changed sign, over each lane's.  Indices are unsigned (as in
+    :func:`_sweep`): no test for negative indices."""
     one, lanes, layers = np.uint64(1), np.uint64(BLOCK), np.uint64(L)
     step = np.uint64(SWEEPS * BLOCK)  # from one layer to the next in w
-    pivot, right, coupling, check = np.uint64(PIVOT), np.uint64(RIGHT), np.uint64(COUPLING), np.uint64(CHECK)
-    tried, solved, sign = np.uint64(TRIED), np.uint64(SOLVED), np.uint64(VIOLATION)
+    pivot, right, coupling = np.uint64(PIVOT), np.uint64(RIGHT), np.uint64(COUPLING)
+    tried, solved = np.uint64(TRIED), np.uint64(SOLVED)
     count = np.uint64(flags.shape[1])  # BLOCK, as a bound the compiler does not unroll but vectorises
     for lane in range(BLOCK):  # the equations, from the lanes of the tile
         x0, i = np.uint64(cell(lane, L)), np.uint64(lane)
@@ -245,7 +245,6 @@ def _solve(t, w, L, new, flags):
             w[s + coupling * lanes] = c
             w[s + pivot * lanes] = d
             w[s + right * lanes] = r
-            w[s + check * lanes] = s_above if k_above > 0.0 else 0.0  # a yielded interface above
         x, s = x0 + layers - one, (layers - one) * step + i  # the top layer
         c = t[CC, x]
         w[s + coupling * lanes] = c
@@ -270,21 +269,39 @@ def _solve(t, w, L, new, flags):
     for i in range(lanes):  # the back substitution
         s = top + i
         w[s + solved * lanes] = w[s + right * lanes] * w[s + pivot * lanes]
-        w[s + sign * lanes] = w[s + tried * lanes]
     for b in range(one, layers):
         for i in range(count):
             s = (layers - one - b) * step + i
             above = w[s + step + solved * lanes]
             u = (w[s + right * lanes] + w[s + step + coupling * lanes] * above) * w[s + pivot * lanes]
-            violated = w[s + check * lanes] * (above - u) < 0.0
-            w[s + sign * lanes] = w[s + step + sign * lanes] + (1.0 if violated else 0.0)
             w[s + solved * lanes] = u
-    for lane in range(BLOCK):  # into slot new, and the test
+    for lane in range(BLOCK):  # into slot new, and the test of the pivots
         x0, i = np.uint64(cell(lane, L)), np.uint64(lane)
         for a in range(layers):
             t[new, x0 + a] = w[a * step + solved * lanes + i]
-        if w[sign * lanes + i] > 0.0 or (t[KC, x0] > 0.0 and t[SIGN, x0] * t[new, x0] < 0.0):  # the bed
+        if w[top + tried * lanes + i] > 0.0:
             flags[ACTIVE, lane] = False
+    if _sign_changes(t, new, cell(0, L), cell(BLOCK, L)) > 0:  # and of the signs: which columns (rare)
+        for lane in range(BLOCK):
+            x = cell(lane, L)
+            if _sign_changes(t, new, x, x + L) > 0:
+                flags[ACTIVE, lane] = False
+
+
+@jit(borrowing=True)
+def _sign_changes(t, new, start, stop):
+    """How many of the cells ``start ... stop - 1`` of the tile have a yielded interface
+    below (``KC`` > 0) across which the jump of the velocities of slot ``new`` has not
+    the sign ``SIGN`` of the Newton model: the test of ``column_solve._active_set`` (a
+    jump against the sign of its yield stress), the interface with the bed included (the
+    bed's velocity 0 from ``BED``), as one loop over the cells, without branches: as
+    vectors (the cell below loaded unconditionally, as in :func:`_sweep`)."""
+    changes = 0
+    for y in range(np.uint64(start), np.uint64(stop)):  # unsigned: no test for negative indices
+        g, previous = t[new, y], t[new, y - np.uint64(1)]
+        below = 0.0 if t[BED, y] > 0.0 else previous
+        changes += (t[KC, y] > 0.0) & (t[SIGN, y] * (g - below) < 0.0)
+    return changes
 
 
 @jit(borrowing=True, error_model="numpy")
@@ -362,8 +379,11 @@ def _within_bound(t, x, L, new, limit):
     every jump is nonzero (``SHEARED``).  Then the stress of each interface is single-valued
     (``sign(jump) (kappa + tau_v)``), so that the gap of each layer depends on its values
     and the stress above alone: the gaps of all layers are computed in one pass as vectors
-    (into slot ``GAP``; each operation that of ``error_bound``), then added up from the
-    surface down as there.  The answer is ``error_bound``'s: where the sum exceeds ``4
+    (into slot ``GAP``; each operation that of ``error_bound``, but the wall terms of
+    ``newton_control.zeroing``: a column of the block has no wall threshold or force
+    (``join``), and the zero they subtract could only change the sign of a zero end of the
+    interval, which no positive gap depends on), then added up from the surface down as
+    there.  The answer is ``error_bound``'s: where the sum exceeds ``4
     limit^2`` times the smallest ``m/dt`` so far, the bound exceeds ``2 limit``, and as the
     sum only grows and the smallest only shrinks, that holds at some layer exactly when it
     holds at the last: the test is made once, after the sum (a loop without exits)."""
@@ -374,9 +394,9 @@ def _within_bound(t, x, L, new, limit):
         below = 0.0 if t[BED, y] > 0.0 else previous
         stress = _sign(t[new, y + one] - u) * (t[KAPPA, y + one] + t[tau, y + one])
         above = stress if y < top else 0.0  # the stress of the interface above: 0 at the free surface
-        lo, hi = zeroing(above, above, t[MOMENTUM, y], t[INERTIA, y], u, t[WALL, y], t[WALL, y])
+        zero = above + (t[MOMENTUM, y] - t[INERTIA, y] * u)  # newton_control.zeroing, without walls
         sigma = _sign(u - below) * (t[KAPPA, y] + t[tau, y])
-        gap = max(lo - sigma, sigma - hi, 0.0)
+        gap = max(zero - sigma, sigma - zero, 0.0)
         t[GAP, y] = gap * gap / t[INERTIA, y] if gap > 0.0 else 0.0
     cap = 4.0 * limit * limit
     residual = 0.0
