@@ -4,8 +4,10 @@ and the round trip scenario -> result.nc."""
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 import sys
+import warnings
 
 import fipy
 import numpy as np
@@ -358,3 +360,13 @@ def test_the_run_summary_gives_units_and_says_why_a_quantity_has_no_value(
     assert any(line.startswith("  max_speed_final = ") and line.endswith(" m/s") for line in lines)
     assert "  front_final = nan m (no cell thicker than the front threshold (0.01 m) at the end)" in lines
     assert any(line.startswith("  steps = ") and line[len("  steps = ") :].isdigit() for line in lines)
+
+
+def test_the_command_leaves_its_host_process_as_it_found_it(cli, tiny_scenario, write_scenario):
+    """``main`` called in a process (a notebook, a test runner) puts back the warning printer
+    and the signal handlers it replaced while the command ran."""
+    shown = warnings.showwarning
+    handlers = {n: signal.getsignal(n) for n in (signal.SIGTERM, signal.SIGHUP)}
+    assert cli("validate", write_scenario(tiny_scenario)).code == 0
+    assert warnings.showwarning is shown
+    assert {n: signal.getsignal(n) for n in handlers} == handlers

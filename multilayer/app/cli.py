@@ -114,9 +114,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Parse ``argv`` (default ``sys.argv[1:]``), run the subcommand, return the exit code."""
     argv = sys.argv[1:] if argv is None else list(argv)
     args = build_parser(_command(argv)).parse_args(argv)
+    shown = warnings.showwarning  # restored: a caller in the same process keeps its own
     warnings.showwarning = _warning
-    with _signals_stop():
-        return _dispatch(args)
+    try:
+        with _signals_stop():
+            return _dispatch(args)
+    finally:
+        warnings.showwarning = shown
 
 
 def _dispatch(args: argparse.Namespace) -> int:
