@@ -1161,6 +1161,14 @@ def test_an_empty_output_directory_is_named_not_the_working_directory(tmp_path, 
     assert sorted(p.name for p in tmp_path.iterdir()) == ["base.yaml"]
 
 
+@pytest.mark.parametrize("quiet", ["no", 0, None, 1.0])
+def test_quiet_of_the_api_run_is_a_bool(quiet):
+    """``multilayer.run(quiet="no")`` was truthy: the run went silent where its caller asked
+    for the progress line."""
+    with pytest.raises(InputError, match=r"^quiet: got .*; accepted: True or False$"):
+        multilayer.run(TINY_SCENARIO, quiet=quiet)
+
+
 @pytest.mark.parametrize("where", ["forces", "state"])
 def test_a_ctrl_c_while_a_step_is_kept_is_raised_after_it(monkeypatch, where):
     """Stepping by hand under Python's own SIGINT handler (a notebook), a Ctrl-C raised its

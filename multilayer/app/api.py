@@ -105,6 +105,8 @@ def run(
     with named():
         from multilayer.app import runner  # the engine is imported only to run
 
+    if not isinstance(quiet, bool):  # "no" or 0.0 read as true would silence the progress line
+        raise InputError(f"quiet: got {shown(quiet)}; accepted: True or False")
     loaded = load(scenario, overrides)
     if outdir is not None:
         outdir = _path(outdir, "outdir", "None or the path of a directory")
