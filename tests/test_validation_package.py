@@ -94,11 +94,12 @@ def test_time_step_study_changes_orders_and_signs():
     """The helpers of the immersed-layer section on made-up levels: relative changes, the
     observed order of three levels halving the step, the published signs over a run."""
     from multilayer.validation.cases import immersed_layer as case
+    from multilayer.validation.mesh_study import difference_orders
 
     values = [1.0 + 0.08, 1.0 + 0.04, 1.0 + 0.02, 1.0 + 0.01]  # first-order error 0.08 dt
     assert case.changes(values) == pytest.approx([0.04 / 1.08, 0.02 / 1.04, 0.01 / 1.02])
-    assert case.step_orders(values) == pytest.approx([1.0, 1.0])
-    assert math.isnan(case.step_orders([1.0, 1.0, 2.0])[0])
+    assert difference_orders(values) == pytest.approx([1.0, 1.0])
+    assert math.isnan(difference_orders([1.0, 1.0, 2.0])[0])
     loose = {"pressure_range": (0.5, 2.0)}
     dense = {"pressure_range": (-2.0, -0.5)}
     assert case.signs_met({("loose", 0.45): loose, ("dense", 0.45): dense})

@@ -4,6 +4,7 @@ rule that justifies the tolerance of a scenario file's comparison with an exact 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import xarray as xr
@@ -37,6 +38,16 @@ class MeshStudy:
         worth a halving of the resolution (a lost order, a broken boundary) does not.  The
         study must contain both resolutions."""
         return self.error(size) < tolerance <= self.error(size // 2)
+
+
+def difference_orders(values: Sequence[float]) -> list[float]:
+    """Observed orders from a quantity at three or more levels, each halving the step or
+    the cell of the one before, without an exact answer: ``log2(|q_{k-1} - q_k| / |q_k -
+    q_{k+1}|)`` (nan where a difference vanishes)."""
+    d = [abs(values[k] - values[k - 1]) for k in range(1, len(values))]
+    return [
+        math.log2(d[k - 1] / d[k]) if d[k] > 0.0 and d[k - 1] > 0.0 else math.nan for k in range(1, len(d))
+    ]
 
 
 @dataclass(frozen=True)

@@ -26,6 +26,7 @@ from multilayer.io import observables
 from multilayer.validation import published
 from multilayer.validation.cases.column_collapse import L0, STOP_TIME, STOP_TOLERANCE
 from multilayer.validation.markdown import met, table
+from multilayer.validation.mesh_study import difference_orders
 from multilayer.validation.runs import Context, Results, Run
 
 NAME = "collapse_channel"
@@ -200,7 +201,7 @@ def order(values: dict[float, float], cells: tuple[float, ...] = CELLS) -> float
     d1, d2 = v[1] - v[0], v[2] - v[1]
     if d1 == 0 or d2 == 0 or d1 * d2 < 0 or abs(d2) >= abs(d1):
         return math.nan
-    return math.log2(d1 / d2)
+    return difference_orders(v)[0]
 
 
 def deposits(

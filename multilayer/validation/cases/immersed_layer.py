@@ -38,7 +38,7 @@ from multilayer.reference.immersed_layer import (
 )
 from multilayer.validation import published
 from multilayer.validation.markdown import met, order_column, table
-from multilayer.validation.mesh_study import MeshStudy
+from multilayer.validation.mesh_study import MeshStudy, difference_orders
 from multilayer.validation.runs import Context, Run
 
 NAME = "immersed_layer"
@@ -132,15 +132,6 @@ def scenario_measures(ctx: Context) -> dict[tuple[str, float], dict[str, Any]]:
 def changes(values: Sequence[float]) -> list[float]:
     """Relative changes between successive levels of a time-step study."""
     return [abs(values[k] / values[k - 1] - 1.0) for k in range(1, len(values))]
-
-
-def step_orders(values: Sequence[float]) -> list[float]:
-    """Observed orders from three or more levels halving the step:
-    ``log2(|q_{k-1} - q_k| / |q_k - q_{k+1}|)`` (nan where a difference vanishes)."""
-    d = [abs(values[k] - values[k - 1]) for k in range(1, len(values))]
-    return [
-        math.log2(d[k - 1] / d[k]) if d[k] > 0.0 and d[k - 1] > 0.0 else math.nan for k in range(1, len(d))
-    ]
 
 
 def signs_met(m: dict[tuple[str, float], dict[str, Any]]) -> bool:
@@ -329,7 +320,7 @@ def section(ctx: Context) -> str:
             for key, label in (("speed", "speed"), ("pressure", "pore pressure")):
                 values = [m[(p, c)][key] for c in CFLS]
                 change = ", ".join(f"{d:.1e}" for d in changes(values))
-                order = ", ".join(f"{o:.2f}" for o in step_orders(values))
+                order = ", ".join(f"{o:.2f}" for o in difference_orders(values))
                 rows.append([p, f"{label}: relative changes", change, "observed order", order])
     header = ["file", "Courant number", "steps", "speed at 5 s (mm/s)", "p_e at 5 s (Pa)"]
 
@@ -399,7 +390,7 @@ def section(ctx: Context) -> str:
 
     files_met = all(step_independent(m, p) for p in PACKINGS)
     last = [
-        step_orders([m[(p, c)][key] for c in CFLS])[-1]
+        difference_orders([m[(p, c)][key] for c in CFLS])[-1]
         for p in PACKINGS
         for key in ("speed", "pressure")
         if all((p, c) in m for c in CFLS)
