@@ -22,10 +22,9 @@ import argparse
 import math
 
 import numpy as np
-from scipy.optimize import brentq
 
 from multilayer.app.simulation import Simulation
-from multilayer.reference.exact import ritter
+from multilayer.reference.exact import StokerDamBreak, ritter
 from multilayer.scenario import from_dict
 
 G = 9.81
@@ -52,29 +51,6 @@ def simulation(cells: int, order: int, initial: list, bed: dict | None = None) -
     if bed is not None:
         data["bed"] = bed
     return Simulation(from_dict(data))
-
-
-def stoker(
-    x: np.ndarray, t: float, hl: float, hr: float
-) -> tuple[np.ndarray, np.ndarray, float, float, float]:
-    """Stoker's wet dam break: h and u at ``x``, the middle state (h_m, u_m) and the shock
-    speed.  ``u_m = 2 (c_l - c_m)`` (the rarefaction) equals the velocity behind a shock
-    into still water of depth ``hr``, ``(h_m - h_r) sqrt(g (h_m + h_r) / (2 h_m h_r))``."""
-    cl = math.sqrt(G * hl)
-
-    def mismatch(hm: float) -> float:
-        return 2.0 * (cl - math.sqrt(G * hm)) - (hm - hr) * math.sqrt(G * (hm + hr) / (2.0 * hm * hr))
-
-    hm = brentq(mismatch, hr, hl)
-    um = 2.0 * (cl - math.sqrt(G * hm))
-    shock = hm * um / (hm - hr)
-    xi = (x - DAM) / t
-    fan_h = (2.0 * cl - xi) ** 2 / (9.0 * G)
-    fan_u = 2.0 / 3.0 * (xi + cl)
-    tail = um - math.sqrt(G * hm)
-    h = np.where(xi < -cl, hl, np.where(xi < tail, fan_h, np.where(xi < shock, hm, hr)))
-    u = np.where(xi < -cl, 0.0, np.where(xi < tail, fan_u, np.where(xi < shock, um, 0.0)))
-    return h, u, hm, um, shock
 
 
 def orders(errors: list[float]) -> list[float]:
@@ -104,7 +80,9 @@ def main() -> None:
             dam = [{"shape": "layer", "thickness": hr}, {**RECTANGLE, "height": 1.0 - hr}]
             sim = simulation(cells, order, dam)
             sim.advance(T)
-            h_exact, _, hm, um, shock = stoker(sim.x, T, 1.0, hr)
+            exact = StokerDamBreak(1.0, hr, x0=DAM)
+            h_exact, _ = exact.solution(sim.x, T)
+            (hm, um), shock = exact.middle, exact.shock_speed
             errors.append(float(np.sum(np.abs(sim.h - h_exact)) * sim.dx))
             tail = um - math.sqrt(G * hm)
             plateau = (sim.x > DAM + 0.5 * (tail + shock) * T) & (sim.x < DAM + shock * T)

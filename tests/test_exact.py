@@ -13,6 +13,7 @@ from multilayer.plugins.contract import Material
 from multilayer.reference.exact import (
     BagnoldFlow,
     InviscidSimpleShear,
+    StokerDamBreak,
     bagnold_depth,
     coulomb_dam_break,
     friction_coefficient,
@@ -71,6 +72,43 @@ def test_coulomb_dam_break_conserves_mass_in_the_accelerated_frame():
 SHEAR = InviscidSimpleShear(
     theta_deg=22.0, mu_s=math.tan(math.radians(26.0)), depth=0.02, b0=0.005, shear=70.0
 )
+
+
+def test_stoker_satisfies_the_shock_conditions_and_the_fan_invariant():
+    """Mass and momentum are conserved across the shock (Rankine-Hugoniot:
+    ``s [h] = [h u]``, ``s [h u] = [h u^2 + g h^2 / 2]``), the fan's Riemann invariant
+    ``u + 2 c`` keeps its value ``2 c_l`` up to the middle state, and the solution is
+    continuous at both edges of the fan."""
+    dam = StokerDamBreak(1.0, 0.1, x0=5.0)
+    hm, um = dam.middle
+    s, hr = dam.shock_speed, 0.1
+    assert s * (hm - hr) == pytest.approx(hm * um, rel=1e-12)
+    assert s * hm * um == pytest.approx(hm * um**2 + G * (hm**2 - hr**2) / 2, rel=1e-12)
+    assert um + 2 * math.sqrt(G * hm) == pytest.approx(2 * math.sqrt(G), rel=1e-12)
+    t = 0.6
+    tail = um - math.sqrt(G * hm)
+    edges = 5.0 + t * np.array([-math.sqrt(G), tail])
+    for edge, (h_out, u_out) in zip(edges, ((1.0, 0.0), (hm, um)), strict=True):
+        h, u = dam.solution(np.array([edge - 1e-9, edge + 1e-9]), t)
+        assert h == pytest.approx([h_out, h_out], rel=1e-7) and u == pytest.approx([u_out, u_out], abs=1e-7)
+
+
+def test_stoker_tends_to_ritter_on_a_drying_bed():
+    """As the depth ahead vanishes the shock weakens into Ritter's dry front: the middle
+    state thins and speeds towards ``2 c_l``, and h approaches Ritter's in L1."""
+    x = np.linspace(0.0, 10.0, 2001)
+    errors = []
+    for hr in (1e-2, 1e-4, 1e-6):
+        h, _ = StokerDamBreak(1.0, hr, x0=5.0).solution(x, 0.6)
+        errors.append(np.abs(h - ritter(x, 0.6, 1.0, 5.0)).sum() * (x[1] - x[0]))
+    assert errors[0] > errors[1] > errors[2] and errors[2] < 2e-3, errors
+
+
+def test_stoker_refuses_a_dry_or_reversed_dam():
+    with pytest.raises(ValueError, match="0 < h_right < h_left"):
+        StokerDamBreak(1.0, 0.0)
+    with pytest.raises(ValueError, match="0 < h_right < h_left"):
+        StokerDamBreak(0.1, 1.0)
 
 
 def test_inviscid_simple_shear_by_hand():

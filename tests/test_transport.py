@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 import pytest
 from engine import simulation
 
-from multilayer.reference.exact import coulomb_dam_break, ritter
+from multilayer.reference.exact import StokerDamBreak, coulomb_dam_break, ritter
 
 
 def ritter_error(cells: int, order: int, t: float = 0.6) -> float:
@@ -30,6 +31,47 @@ def test_ritter_dam_break_converges_at_order_one():
     errors = np.array([ritter_error(n, order=2) for n in (100, 200, 400)])
     orders = np.log2(errors[:-1] / errors[1:])
     assert np.all(orders >= 0.8), orders
+
+
+@functools.cache
+def stoker_error(cells: int, order: int, t: float = 0.6) -> tuple[float, float]:
+    """L1 error of h against Stoker's wet dam break (1 m behind x = 5 m, 0.1 m ahead), and
+    the largest h on the half of the uniform state next to the shock relative to ``h_m``."""
+    sim = simulation(
+        domain={"cells": cells},
+        initial=[
+            {"shape": "layer", "thickness": 0.1},
+            {"shape": "rectangle", "x_min": 0.0, "x_max": 5.0, "height": 0.9},
+        ],
+        boundaries={"right": "outflow"},
+        numerics={"order": order},
+    )
+    sim.advance(t)
+    dam = StokerDamBreak(1.0, 0.1, x0=5.0)
+    exact, _ = dam.solution(sim.x, t)
+    hm, um = dam.middle
+    tail = um - math.sqrt(9.81 * hm)
+    plateau = (sim.x > 5.0 + 0.5 * (tail + dam.shock_speed) * t) & (sim.x < 5.0 + dam.shock_speed * t)
+    return float(np.sum(np.abs(sim.h - exact)) * sim.dx), float(sim.h[plateau].max() / hm - 1.0)
+
+
+def test_stoker_wet_dam_break_converges_at_order_one():
+    """The default (second-order) scheme on a shock, a fan and a uniform state between them:
+    the L1 error falls at first order, the shock being a discontinuity (observed 0.98 and
+    0.99 here)."""
+    errors = np.array([stoker_error(n, order=2)[0] for n in (100, 200, 400)])
+    orders = np.log2(errors[:-1] / errors[1:])
+    assert np.all(orders >= 0.8), orders
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_stoker_wet_dam_break_does_not_oscillate_behind_the_shock(order):
+    """Behind the captured shock h stays within 0.1 % of the exact middle state ``h_m`` at
+    both orders (measured at most 0.06 %).  The product pressure ``g hL hR / 2`` at every
+    face, tried and not adopted, overshoots there at first order by 0.5 % on 400 cells and
+    0.8-0.95 % on 800-3200 (``benchmarks/face_pressure.py``)."""
+    overshoots = [stoker_error(n, order)[1] for n in (100, 200, 400)]
+    assert max(overshoots) < 1e-3, overshoots
 
 
 def coulomb_error(cells: int, layers: int, internal_friction: float) -> float:

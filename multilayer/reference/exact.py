@@ -2,7 +2,8 @@
 
 * Dam breaks (shallow water, one layer): Ritter's solution on a dry frictionless bed and
   its extension to a slope with Coulomb basal friction (Mangeney, Heinrich & Roche 2000,
-  eq. 18-20 with a constant acceleration).
+  eq. 18-20 with a constant acceleration); Stoker's solution on a wet bed (Stoker 1957,
+  "Water Waves", sec. 10.8: a rarefaction, a uniform state and a shock).
 * Inviscid simple shear of one column (Bouchut, Ionescu & Mangeney 2016, Prop. 2.2):
   above a Drucker-Prager static layer the velocity decreases uniformly,
   ``U(t, z) = max(U0(z) - S t, 0)``, and the static/flowing interface rises to where
@@ -68,6 +69,64 @@ def ritter(x: np.ndarray, t: float, h0: float, x0: float = 0.0, gravity: float =
     ``c0 = sqrt(g h0)``: :func:`coulomb_dam_break` with ``theta = delta = 0``.
     """
     return coulomb_dam_break(x, t, h0, 0.0, 0.0, x0, gravity)
+
+
+@dataclass(frozen=True)
+class StokerDamBreak:
+    """Stoker's dam break on a wet horizontal frictionless bed (Stoker 1957, "Water Waves",
+    sec. 10.8): depth ``h_left`` behind ``x0``, ``h_right`` ahead, both at rest.
+
+    A rarefaction ``-c_l t <= x - x0 <= (u_m - c_m) t`` (``c = sqrt(g h)``) leads to a
+    uniform state ``(h_m, u_m)`` that ends at a shock moving at ``s``.  The middle state
+    closes the Riemann invariant of the fan, ``u_m = 2 (c_l - c_m)``, with the
+    Rankine-Hugoniot conditions of the shock into still water,
+    ``u_m = (h_m - h_r) sqrt(g (h_m + h_r) / (2 h_m h_r))`` and ``s = h_m u_m / (h_m - h_r)``.
+    """
+
+    h_left: float
+    h_right: float
+    x0: float = 0.0
+    gravity: float = GRAVITY
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.h_right < self.h_left:
+            raise ValueError(
+                f"Stoker's dam break needs 0 < h_right < h_left, got {self.h_right}, {self.h_left}"
+            )
+
+    @property
+    def middle(self) -> tuple[float, float]:
+        """``(h_m, u_m)``: the root in ``(h_r, h_l)`` of the fan's invariant minus the shock's
+        velocity jump, which rises strictly from negative at ``h_r`` to positive at ``h_l``."""
+        from scipy.optimize import brentq
+
+        g, hl, hr = self.gravity, self.h_left, self.h_right
+        c_left = math.sqrt(g * hl)
+
+        def mismatch(hm: float) -> float:
+            return 2.0 * (c_left - math.sqrt(g * hm)) - (hm - hr) * math.sqrt(g * (hm + hr) / (2.0 * hm * hr))
+
+        hm = float(brentq(mismatch, hr, hl, xtol=1e-15, rtol=4 * np.finfo(float).eps))
+        return hm, 2.0 * (c_left - math.sqrt(g * hm))
+
+    @property
+    def shock_speed(self) -> float:
+        """``s = h_m u_m / (h_m - h_r)`` (mass conserved across the shock)."""
+        hm, um = self.middle
+        return hm * um / (hm - self.h_right)
+
+    def solution(self, x: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(h, u)`` at positions ``x`` and time ``t > 0``; in the fan
+        ``h = (2 c_l - xi)^2 / (9 g)`` and ``u = 2 (xi + c_l) / 3`` with ``xi = (x - x0) / t``."""
+        g = self.gravity
+        hm, um = self.middle
+        c_left = math.sqrt(g * self.h_left)
+        xi = (np.asarray(x, dtype=float) - self.x0) / t
+        tail, shock = um - math.sqrt(g * hm), self.shock_speed
+        zones = [xi < -c_left, xi < tail, xi < shock]
+        h = np.select(zones, [self.h_left, (2 * c_left - xi) ** 2 / (9 * g), hm], self.h_right)
+        u = np.select(zones, [0.0, 2.0 * (xi + c_left) / 3.0, um], 0.0)
+        return h, u
 
 
 # --------------------------------------------------------------------------- simple shear
