@@ -246,3 +246,22 @@ def test_a_reused_workspace_leaves_nothing_outside_a_narrower_window():
         got = transport_kernel.transport(hk, uk, b, fractions, workspace=workspace, **kw)
         for e, g in zip(expected, got):
             np.testing.assert_array_equal(g, e)
+
+
+def test_kept_first_stages_stay_whole_and_zero_outside_their_window():
+    """Heun's first stage kept (``Workspace.keep``, the pair of results swapped) through
+    the second, step after step on windows that widen and narrow: the kept stage and the
+    second's result are the reference's, zeros outside their windows included."""
+    h, u, b, fractions = random_state(seed=6)
+    kw = dict(dx=0.1, dt=0.004, g_n=9.0, g_t=1.5, left="wall", right="outflow", dry=1e-6, order=2)
+    workspace = transport_kernel.Workspace(*u.shape)
+    for keep in (slice(40, 200), slice(90, 120), slice(10, 230), slice(150, 160), slice(0, 0)):
+        hk, uk = np.zeros_like(h), np.zeros_like(u)
+        hk[keep], uk[:, keep] = h[keep], u[:, keep]
+        first = transport.transport(hk, uk, b, fractions, stage=0, **kw)
+        transport_kernel.transport(hk, uk, b, fractions, stage=0, workspace=workspace, **kw)
+        kept = workspace.keep()
+        second = transport.transport(hk, uk, b, fractions, stage=1, first=first, **kw)
+        got = transport_kernel.transport(hk, uk, b, fractions, stage=1, first=kept, workspace=workspace, **kw)
+        for e, g in zip((*first, *second), (*kept, *got), strict=True):
+            np.testing.assert_array_equal(g, e)

@@ -573,8 +573,8 @@ def _window(h, u, moving, left, right):
 
 class Workspace:
     """Arrays of one mesh size reused by every step: the Heun stage and the result, and
-    the columns ``written`` (lo, hi) of the result that may be non-zero; a copy of the
-    result (:meth:`keep`) and its columns ``kept`` that may be non-zero."""
+    the columns ``written`` (lo, hi) of the result that may be non-zero; a result kept
+    (:meth:`keep`) and its columns ``kept`` that may be non-zero."""
 
     def __init__(self, layers: int, cells: int):
         self.h1 = np.zeros(cells)
@@ -591,27 +591,32 @@ class Workspace:
     def clear_outside(self, lo: int, hi: int) -> None:
         """Zero the result outside the columns ``lo .. hi-1`` (only what an earlier step
         wrote there: the window of a dam break is a tenth of the mesh)."""
-        _zero_outside(self.h, self.u, self.written, lo, hi)
+        before, after = self.written
+        for start, stop in ((before, min(lo, after)), (max(hi, before), after)):
+            if stop > start:
+                self.h[start:stop] = 0.0
+                self.u[:, start:stop] = 0.0
         self.written = (lo, hi)
 
     def keep(self) -> tuple[np.ndarray, np.ndarray]:
-        """A copy of the result (h, u) that the next use does not overwrite (Heun's first
-        stage, kept through the second): its columns ``written`` copied, zero outside."""
-        lo, hi = self.written
-        _zero_outside(self.h_kept, self.u_kept, self.kept, lo, hi)
-        self.kept = (lo, hi)
-        self.h_kept[lo:hi] = self.h[lo:hi]
-        self.u_kept[:, lo:hi] = self.u[:, lo:hi]
+        """The result (h, u) kept from the next use (Heun's first stage, through the second),
+        swapped with the pair kept before: a copy streamed the (L, N) velocities once more."""
+        self.h, self.h_kept = self.h_kept, self.h
+        self.u, self.u_kept = self.u_kept, self.u
+        self.written, self.kept = self.kept, self.written
         return self.h_kept, self.u_kept
 
 
-def _zero_outside(h: np.ndarray, u: np.ndarray, written: tuple[int, int], lo: int, hi: int) -> None:
-    """Zero ``h`` (N,) and ``u`` (L, N) in the columns ``written`` (lo, hi) outside ``lo .. hi-1``."""
-    before, after = written
-    for start, stop in ((before, min(lo, after)), (max(hi, before), after)):
-        if stop > start:
-            h[start:stop] = 0.0
-            u[:, start:stop] = 0.0
+@jit
+def _second_stage_start(l, h1, u1, H1, Q1, lo, hi):
+    """Heun's second stage's start in the columns ``lo .. hi-1``: ``H1 = h1``, ``Q1 = l h1 u1``
+    (``reference._step``'s products, in its order), with no temporaries the size of the mesh."""
+    H1[lo:hi] = h1[lo:hi]
+    h = h1[lo:hi]
+    for a in range(l.size):  # rows from column lo, indexed from 0: the loop vectorises
+        la, row, out = l[a], u1[a, lo:hi], Q1[a, lo:hi]
+        for c in range(h.size):
+            out[c] = la * h[c] * row[c]
 
 
 def transport(
@@ -675,17 +680,12 @@ def transport(
     if begin == 1:  # Heun's second stage starts from the given state
         if workspace is None:
             raise ValueError("transport: Heun's second stage alone needs the workspace of its first")
-        h1, u1 = second_stage_start(first)
-        ws.h1[lo:hi] = h1[lo:hi]
-        ws.q1[:, lo:hi] = l[:, None] * h1[lo:hi] * u1[:, lo:hi]
+        _second_stage_start(l, *second_stage_start(first), ws.h1, ws.q1, lo, hi)
     chunks = parallel_chunks(threads, n, 64) if threads > 1 else 1
     sweep = _stages_parallel if chunks > 1 else _stages_serial
     with numba_threads(threads if chunks > 1 else 1):
         sweep(
-            begin,
-            end,
-            chunks,
-            Window(n, lo, left_kind, right_kind, at_rest),
+            begin, end, chunks, Window(n, lo, left_kind, right_kind, at_rest),
             Scheme(l, float(dx), float(dt), float(g_n), float(g_t), float(dry), int(order), stage == 0),
             Edges(inflow_h, inflow_u, gate, opening),
             Arrays(h, u, b, ws.h1, ws.q1, ws.h, ws.u, ws.ends, ws.speeds),
