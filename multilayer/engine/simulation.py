@@ -59,7 +59,7 @@ from multilayer.engine.mixture.flow import MixtureFlow
 from multilayer.engine.normal_stress import NormalStress, joint_rest, runs
 from multilayer.engine.pressure.model import PressureModel, PressureSetup, models, options
 from multilayer.engine.state import FlowState, max_wave_speed, span, start_moving
-from multilayer.engine.state_check import StateGuard, check_restored
+from multilayer.engine.state_check import StateError, StateGuard, check_restored
 from multilayer.engine.threads import ThreadPolicy
 from multilayer.engine.transport import boundaries
 from multilayer.engine.transport import kernel as transport_kernel
@@ -282,10 +282,40 @@ class Simulation:
 
     def step(self, t_max: float = np.inf) -> float:
         """Advance one time step of the splitting (module docstring), never beyond ``t_max``;
-        returns the step taken."""
+        returns the step taken.  A step that fails from a state that is not finite or
+        has a negative thickness (``sim.h``, ``sim.u`` written between steps: the steps
+        never keep one) raises :class:`StateError` naming that entry state, not what the
+        step made of it."""
         self._check_target(t_max)
+        try:
+            return self._step(t_max)
+        except RunError as failure:
+            self._check_entry(failure)
+            raise
+
+    def _check_entry(self, failure: RunError | None = None) -> None:
+        """Raise :class:`StateError` (from ``failure``) if the state the step starts from
+        is not finite or has a negative thickness."""
+        when = (
+            f"on entry to the step from t = {self.t:.6g} s (step {self.steps + 1}): not as the steps leave "
+            "it, so written into the simulation's arrays (sim.h, sim.u) since the last step"
+        )
+        try:
+            self.guard.check_state(self.h, self.u, when)
+        except StateError as entry:
+            raise entry from failure
+
+    def _step(self, t_max: float) -> float:
         speed = self._with_inflow(self.state.survey(self.dry, self.g_n))  # the fastest wave at the start
+        if not math.isfinite(speed):  # not computed from: numpy's warnings on the way to the guard
+            self._check_entry()
         dt = min(courant_step(speed, self.dx, self.config.cfl), t_max - self.t)
+        if dt == math.inf:  # no wave: no material (or none read as such) and no inflow
+            self._check_entry()
+            raise InputError(
+                f"step(t_max={t_max!r}): no material and no inflow, so no wave bounds the time step; "
+                "accepted: a finite t_max (the time to step to)"
+            )
         threads = self.thread_policy.threads(self.fractions.size * int(np.count_nonzero(self.h)))
         with self._abandonable():  # a step abandoned (a failure, a stop) leaves the state of its start
             while True:  # redone shorter while Heun's second stage breaks the Courant condition
