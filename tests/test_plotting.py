@@ -312,6 +312,32 @@ def test_an_export_stopped_half_way_leaves_no_series_of_two_runs(
     assert not (tmp_path / "vtk" / "result.pvd").exists()
 
 
+def test_a_plot_stopped_half_way_leaves_no_figures_of_two_runs(
+    slump_dir: Path, tmp_path: Path, cli, monkeypatch
+):
+    """Plotted again after another run into the directory, the plot stopped in its third
+    figure (a Ctrl-C, a full disk): plots/ held this run's first two figures beside the
+    earlier run's others (each whole and titled: read as one run), and the third written
+    half-way.  The figures of the set go first; each is written whole."""
+    from matplotlib.figure import Figure
+
+    shutil.copy(slump_dir / "result.nc", tmp_path / "result.nc")
+    assert cli("plot", tmp_path).code == 0
+    whole, written = Figure.savefig, []
+
+    def stopped(fig, path, **options):
+        if len(written) == 2:
+            Path(path).write_bytes(b"\x89PNG half")
+            raise KeyboardInterrupt
+        written.append(Path(path).name)
+        return whole(fig, path, **options)
+
+    monkeypatch.setattr(Figure, "savefig", stopped)
+    assert cli("plot", tmp_path).code == 130
+    assert sorted(p.name for p in (tmp_path / "plots").iterdir()) == ["section.png", "thickness.png"]
+    assert written == [".section.partial.png", ".thickness.partial.png"]
+
+
 @pytest.mark.parametrize("figure", ["profiles", "static_interface"])
 def test_a_long_title_is_wrapped_within_the_figure(slump_dir: Path, figure: str) -> None:
     """One column: the figure is 4.8 inches wide and a long scenario name with the figure's
