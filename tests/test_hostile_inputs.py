@@ -888,6 +888,10 @@ def test_load_state_names_a_missing_or_non_finite_entry_and_restores_nothing():
         damaged[key] = np.full_like(np.asarray(saved[key], dtype=float), np.nan)
         with pytest.raises(InputError, match=rf"^{key} holds values that are not finite"):
             sim.load_state(damaged)
+    # a negative thickness was restored, then named (a StateError): the simulation kept it, at
+    # its time, and the next step blamed a write between steps
+    with pytest.raises(InputError, match=r"^h holds negative thicknesses \(down to -0.05"):
+        sim.load_state({**saved, "h": -saved["h"], "t": 5.0})
     assert sim.t == saved["t"] and np.array_equal(sim.h, saved["h"])
     sim.load_state({k: v for k, v in saved.items() if not k.startswith("seed_")})  # restarts the seed
 
