@@ -2082,8 +2082,8 @@ def round_twelve() -> list[Case]:
     """The hostile cases of the twelfth round (docs/reliability.md): the simulation's arrays
     written between steps, a step with no bound on an empty domain, a restored state of
     negative thickness, the output directory removed or made read-only or its result file
-    removed during a run, a plot stopped half-way over an earlier one, negative numbers in
-    exponent notation after an option."""
+    removed during a run, a plot stopped half-way over an earlier one, an MPLBACKEND
+    Matplotlib refuses, negative numbers in exponent notation after an option."""
     validate = ["validate", "{scenario}"]
     entry = "on entry to the step from t = 0.00843656 s (step 2): not as the steps leave it"
     out = [
@@ -2128,6 +2128,11 @@ def round_twelve() -> list[Case]:
         Case("plot: stopped half-way over an earlier plot", ["plot", "{dir}/out", "{scenario}"], 0,
              "a plot stopped half-way left ['section.png', 'thickness.png']", patch=PLOTTED_AGAIN,
              setup=_finished_run)
+    )  # fmt: skip
+    out.append(
+        Case("plot: MPLBACKEND=nonsense", ["plot", "{dir}/out"], 2,
+             "environment variable MPLBACKEND='nonsense': Matplotlib refuses it", setup=_finished_run,
+             env={"MPLBACKEND": "nonsense"}, plain=True)
     )  # fmt: skip
     for words, phrase in (
         (["--at", "-1e308"], "--at -1e+308: outside the domain"),

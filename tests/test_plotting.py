@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import shutil
 import subprocess
+import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -365,3 +366,20 @@ def test_plot_prints_no_warning_of_the_colour_mapping(slump_dir: Path, cli) -> N
             assert np.isfinite(np.ma.getdata(values)).all()
     result = cli("plot", slump_dir, "--at", "0.05")
     assert result.code == 0 and result.err == "", result.err
+
+
+def test_an_mplbackend_matplotlib_refuses_is_named_not_a_traceback(slump_dir: Path, tmp_path: Path) -> None:
+    """``MPLBACKEND=nonsense``: Matplotlib's import raised ValueError (a traceback, exit 1),
+    though the figures are drawn on the Agg canvas whatever backend it names."""
+    import os
+
+    shutil.copy(slump_dir / "result.nc", tmp_path / "result.nc")
+    command = [sys.executable, "-m", "multilayer", "plot", str(tmp_path)]
+    done = subprocess.run(
+        command, capture_output=True, text=True, env={**os.environ, "MPLBACKEND": "nonsense"}
+    )
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    assert done.stderr.startswith(
+        "multilayer: error: environment variable MPLBACKEND='nonsense': Matplotlib "
+    )
+    assert not (tmp_path / "plots").exists()
