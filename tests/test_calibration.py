@@ -252,6 +252,35 @@ def test_a_seed_numpy_cannot_take_is_refused(tmp_path, capsys, seed):
         assert "accepted: an integer from 0 to 4294967295 (2^32 - 1)" in err
 
 
+def test_one_scenario_value_under_two_keys_or_one_output_twice_is_refused(tmp_path, capsys):
+    """``initial.0.height`` and ``initial.00.height``, two parameters of a sensitivity, a
+    calibration or a sweep, validated: both set the one height, the later over the earlier,
+    which was never varied (its Sobol' indices read as an insensitive parameter; the sweep's
+    members labelled with values they did not run).  ``outputs: [runout, runout]`` too."""
+    shutil.copy(TWIN / "collapse.yaml", tmp_path)
+    both = "{initial.0.height: {bounds: [0.04, 0.05]}, initial.00.height: {bounds: [0.04, 0.05]}}"
+    (tmp_path / "c.yaml").write_text(
+        f"base: collapse.yaml\nparameters: {both}\n"
+        "observations:\n  - {name: r, quantity: runout, value: 9.0, units: cm, sigma: 1}\n"
+    )
+    (tmp_path / "s.yaml").write_text(f"base: collapse.yaml\nparameters: {both}\noutputs: [runout]\n")
+    (tmp_path / "w.yaml").write_text(
+        "base: collapse.yaml\nparameters: {initial.0.height: [0.04], initial.00.height: [0.05]}\n"
+    )
+    (tmp_path / "o.yaml").write_text(
+        "base: collapse.yaml\nparameters: {rheology.mu_s: {bounds: [0.4, 0.5]}}\noutputs: [runout, runout]\n"
+    )
+    for name in ("c.yaml", "s.yaml", "w.yaml"):
+        assert cli.main(["validate", str(tmp_path / name)]) == 2
+        err = capsys.readouterr().err
+        assert (
+            "--set initial.00.height: initial has 1 entries; accepted indices: 0..0 (without leading zeros)"
+            in err
+        )
+    assert cli.main(["validate", str(tmp_path / "o.yaml")]) == 2
+    assert "outputs (line 3): runout twice; accepted: each output once" in capsys.readouterr().err
+
+
 def test_observations_from_netcdf_take_the_units_attributes(tmp_path):
     """A front curve in a netCDF file, in cm against ms, reads back in m against s."""
     ds = xr.Dataset(

@@ -223,7 +223,9 @@ def check_restored(saved: Mapping[str, Any], fresh: Mapping[str, Any]) -> None:
         if key in _COUNTS and not a >= 0:
             raise InputError(f"{key} = {a}, where a number >= 0")
         if key == "h" and a.size and a.min() < 0.0:  # before it replaces the state, as every other entry
-            raise InputError(f"h holds negative thicknesses (down to {float(a.min())!r} m), where thicknesses >= 0")
+            raise InputError(
+                f"h holds negative thicknesses (down to {float(a.min())!r} m), where thicknesses >= 0"
+            )
     first, stop = np.asarray(saved.get("seed_window", (0, 0)))
     if not 0 <= first <= stop <= np.asarray(fresh["h"]).size:
         raise InputError(f"seed_window = [{first}, {stop}], outside the columns of the mesh")
