@@ -2078,12 +2078,20 @@ sys.exit(0 if left == ['section.png', 'thickness.png'] else 1)
 figure: plots/ may hold only the second run's first two figures."""
 
 
+def _sensitivity_twice(directory: Path) -> None:
+    _scenario(directory)
+    (directory / "s.yaml").write_text(
+        "base: scenario.yaml\nparameters: {rheology.mu_s: {bounds: [0.3, 0.4]}}\noutputs: [runout, runout]\n"
+    )
+
+
 def round_twelve() -> list[Case]:
     """The hostile cases of the twelfth round (docs/reliability.md): the simulation's arrays
     written between steps, a step with no bound on an empty domain, a restored state of
     negative thickness, the output directory removed or made read-only or its result file
     removed during a run, a plot stopped half-way over an earlier one, an MPLBACKEND
-    Matplotlib refuses, negative numbers in exponent notation after an option."""
+    Matplotlib refuses, negative numbers in exponent notation after an option, one scenario
+    value under two keys of a study, a sensitivity output asked twice."""
     validate = ["validate", "{scenario}"]
     entry = "on entry to the step from t = 0.00843656 s (step 2): not as the steps leave it"
     out = [
@@ -2128,6 +2136,16 @@ def round_twelve() -> list[Case]:
         Case("plot: stopped half-way over an earlier plot", ["plot", "{dir}/out", "{scenario}"], 0,
              "a plot stopped half-way left ['section.png', 'thickness.png']", patch=PLOTTED_AGAIN,
              setup=_finished_run)
+    )  # fmt: skip
+    aliases = {"initial.0.height": [0.04], "initial.00.height": [0.05]}
+    out.append(
+        Case("validate: a sweep of initial.0.height and initial.00.height", ["validate", "{dir}/sweep.yaml"],
+             2,
+             "initial has 1 entries; accepted indices: 0..0 (without leading zeros)", setup=_sweep(aliases))
+    )  # fmt: skip
+    out.append(
+        Case("validate: a sensitivity of outputs [runout, runout]", ["validate", "{dir}/s.yaml"], 2,
+             "outputs (line 3): runout twice; accepted: each output once", setup=_sensitivity_twice)
     )  # fmt: skip
     out.append(
         Case("plot: MPLBACKEND=nonsense", ["plot", "{dir}/out"], 2,
