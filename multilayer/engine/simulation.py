@@ -46,7 +46,7 @@ import threading
 from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager, contextmanager, nullcontext
 from types import FrameType
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 
@@ -650,6 +650,24 @@ class Simulation:
             "front": diagnostics.front(self.x, self.h, self.front_threshold),
             "mass": diagnostics.mass(self.h, self.dx),
         }
+
+    def __copy__(self) -> NoReturn:
+        """Refused (:meth:`_not_copied`): a shallow copy shared the state's arrays, so
+        stepping the copy changed the original's thickness and velocities, not its time."""
+        self._not_copied()
+
+    def __deepcopy__(self, memo: dict) -> NoReturn:
+        self._not_copied()
+
+    def __reduce_ex__(self, protocol: Any) -> NoReturn:
+        self._not_copied()
+
+    def _not_copied(self) -> NoReturn:
+        raise InputError(
+            "a Simulation cannot be copied or pickled (it holds the engine's workspaces, threads and locks); "
+            "accepted: state_dict() to keep a state, and load_state(saved) of a Simulation of the same "
+            "scenario to continue from it"
+        )
 
     def state_dict(self) -> dict:
         """Everything needed to continue the run exactly (see ``load_state``)."""
