@@ -2088,7 +2088,7 @@ def _sensitivity_twice(directory: Path) -> None:
 def round_twelve() -> list[Case]:
     """The hostile cases of the twelfth round (docs/reliability.md): the simulation's arrays
     written between steps, a step with no bound on an empty domain, a restored state of
-    negative thickness, the output directory removed or made read-only or its result file
+    negative thickness, a simulation copied, the output directory removed or made read-only or its result file
     removed during a run, a plot stopped half-way over an earlier one, an MPLBACKEND
     Matplotlib refuses, negative numbers in exponent notation after an option, one scenario
     value under two keys of a study, a sensitivity output asked twice."""
@@ -2115,6 +2115,11 @@ def round_twelve() -> list[Case]:
              "h holds negative thicknesses (down to -0.05",
              patch=_api("sim = multilayer.Simulation(multilayer.load(sys.argv[2]))\n"
                         "sim.load_state({**sim.state_dict(), 'h': -sim.h})"), setup=_scenario)
+    )  # fmt: skip
+    out.append(
+        Case("API: copy.copy of a Simulation", validate, 2, "a Simulation cannot be copied or pickled",
+             patch=_api("import copy\ncopy.copy(multilayer.Simulation(multilayer.load(sys.argv[2])))"),
+             setup=_scenario)
     )  # fmt: skip
     run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
     for what, lose, phrase in (
