@@ -146,6 +146,23 @@ class StateGuard:
             raise StateError(f"negative thickness h = {h[j]:.6g} m at x = {self.x[j]:.6g} m {when}")
         self._check_layers(u, "velocity u", when)
 
+    def check_entry(
+        self, h: np.ndarray, u: np.ndarray, t: float, steps: int, failure: BaseException | None = None
+    ) -> None:
+        """Raise :class:`StateError` (from ``failure``, the step's own error) if the state
+        ``h``, ``u`` a step starts from at ``t`` after ``steps`` steps is not finite or has a
+        negative thickness: the steps never keep one, so it was written into the
+        simulation's arrays (``sim.h``, ``sim.u``) since; the step's error blamed the
+        transport ("the transport made an error of 0.0123 m2") or the time step."""
+        when = (
+            f"on entry to the step from t = {t:.6g} s (step {steps + 1}): not as the steps leave it, so "
+            "written into the simulation's arrays (sim.h, sim.u) since the last step"
+        )
+        try:
+            self.check_state(h, u, when)
+        except StateError as entry:
+            raise entry from failure
+
     def check_finite(
         self,
         values: np.ndarray,
