@@ -2026,6 +2026,148 @@ def round_eleven() -> list[Case]:
     return out
 
 
+WRITTEN_BETWEEN_STEPS = """
+import multilayer
+from multilayer.errors import RunError
+sim = multilayer.Simulation(multilayer.load(sys.argv[2]))
+sim.step()
+{write}
+try:
+    sim.step()
+except RunError as exc:
+    print(f'multilayer: error: {{exc}}', file=sys.stderr)
+    sys.exit(1)
+"""
+"""An API user writes into the simulation's arrays between two steps."""
+
+LOST_MID_RUN = """
+import os, shutil
+from multilayer.io import results
+write = results.ResultWriter.write
+def lost(self, sim):
+    diag = write(self, sim)
+    if self.records == 3:
+        {lose}
+    return diag
+results.ResultWriter.write = lost
+"""
+"""The output directory (or its result file) lost after the third output time."""
+
+PLOTTED_AGAIN = """
+import os
+from matplotlib.figure import Figure
+out = sys.argv[2]
+if main(['plot', out]) != 0:
+    sys.exit('the first plot failed')
+if main(['run', sys.argv[3], '-o', out, '-q', '--set', 'slope_deg=30']) != 0:
+    sys.exit('the second run failed')
+whole = Figure.savefig
+def stopped(fig, path, **options):
+    calls[0] += 1
+    if calls[0] == 3:
+        raise KeyboardInterrupt
+    return whole(fig, path, **options)
+Figure.savefig = stopped
+if main(['plot', out]) != 130:
+    sys.exit('the plot was not stopped')
+left = sorted(os.listdir(os.path.join(out, 'plots')))
+print(f'multilayer: a plot stopped half-way left {left}', file=sys.stderr)
+sys.exit(0 if left == ['section.png', 'thickness.png'] else 1)
+"""
+"""A run plotted, run again with another slope, plotted again and stopped in its third
+figure: plots/ may hold only the second run's first two figures."""
+
+
+def _sensitivity_twice(directory: Path) -> None:
+    _scenario(directory)
+    (directory / "s.yaml").write_text(
+        "base: scenario.yaml\nparameters: {rheology.mu_s: {bounds: [0.3, 0.4]}}\noutputs: [runout, runout]\n"
+    )
+
+
+def round_twelve() -> list[Case]:
+    """The hostile cases of the twelfth round (docs/reliability.md): the simulation's arrays
+    written between steps, a step with no bound on an empty domain, a restored state of
+    negative thickness, a simulation copied, the output directory removed or made read-only or its result file
+    removed during a run, a plot stopped half-way over an earlier one, an MPLBACKEND
+    Matplotlib refuses, negative numbers in exponent notation after an option, one scenario
+    value under two keys of a study, a sensitivity output asked twice."""
+    validate = ["validate", "{scenario}"]
+    entry = "on entry to the step from t = 0.00843656 s (step 2): not as the steps leave it"
+    out = [
+        Case(f"API: {what} written between steps", validate, 1, f"{said} {entry}", setup=_scenario,
+             patch=WRITTEN_BETWEEN_STEPS.format(write=write))
+        for what, write, said in (
+            ("sim.h[3] = nan", "sim.h[3] = np.nan", "thickness h = nan at x = 0.04375 m"),
+            ("sim.h[3] = -1", "sim.h[3] = -1.0", "negative thickness h = -1 m at x = 0.04375 m"),
+            ("sim.u[1, 3] = inf", "sim.u[1, 3] = np.inf",
+             "velocity u = inf at x = 0.04375 m, layer 2 (1 is at the bed)"),
+        )
+    ]  # fmt: skip
+    out.append(
+        Case("API: step() with no bound on an empty domain", validate, 2,
+             "step(t_max=inf): no material and no inflow, so no wave bounds the time step",
+             patch=_api("multilayer.Simulation(multilayer.load(sys.argv[2], {'initial': []})).step()"),
+             setup=_scenario)
+    )  # fmt: skip
+    out.append(
+        Case("API: load_state of a negative thickness", validate, 2,
+             "h holds negative thicknesses (down to -0.05",
+             patch=_api("sim = multilayer.Simulation(multilayer.load(sys.argv[2]))\n"
+                        "sim.load_state({**sim.state_dict(), 'h': -sim.h})"), setup=_scenario)
+    )  # fmt: skip
+    out.append(
+        Case("API: copy.copy of a Simulation", validate, 2, "a Simulation cannot be copied or pickled",
+             patch=_api("import copy\ncopy.copy(multilayer.Simulation(multilayer.load(sys.argv[2])))"),
+             setup=_scenario)
+    )  # fmt: skip
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    for what, lose, phrase in (
+        ("the output directory removed", "shutil.rmtree(self.path.parent)",
+         "/out is gone (removed or moved during the run), and the files written there with it"),
+        ("result.nc removed", "os.unlink(self.path)",
+         "/out/result.nc was removed, moved or replaced during the run, with the output times"),
+    ):  # fmt: skip
+        out.append(Case(f"run: {what} during the run", run, 1, phrase, setup=_scenario,
+                        patch=LOST_MID_RUN.format(lose=lose)))  # fmt: skip
+    if os.geteuid() == 0 and shutil.which("setpriv"):
+        out.append(
+            Case("as a user: run whose output directory is made read-only during the run", run, 1,
+                 "checkpoint.npz failed (Permission denied); the run stopped at t=0.04 s (step 6); ",
+                 setup=_scenario, patch=LOST_MID_RUN.format(lose="os.chmod(self.path.parent, 0o555)"),
+                 prefix=NOT_ROOT, keeps_output=True)
+        )  # fmt: skip
+    out.append(
+        Case("plot: stopped half-way over an earlier plot", ["plot", "{dir}/out", "{scenario}"], 0,
+             "a plot stopped half-way left ['section.png', 'thickness.png']", patch=PLOTTED_AGAIN,
+             setup=_finished_run)
+    )  # fmt: skip
+    aliases = {"initial.0.height": [0.04], "initial.00.height": [0.05]}
+    out.append(
+        Case("validate: a sweep of initial.0.height and initial.00.height", ["validate", "{dir}/sweep.yaml"],
+             2,
+             "initial has 1 entries; accepted indices: 0..0 (without leading zeros)", setup=_sweep(aliases))
+    )  # fmt: skip
+    out.append(
+        Case("validate: a sensitivity of outputs [runout, runout]", ["validate", "{dir}/s.yaml"], 2,
+             "outputs (line 3): runout twice; accepted: each output once", setup=_sensitivity_twice)
+    )  # fmt: skip
+    out.append(
+        Case("plot: MPLBACKEND=nonsense", ["plot", "{dir}/out"], 2,
+             "environment variable MPLBACKEND='nonsense': Matplotlib refuses it", setup=_finished_run,
+             env={"MPLBACKEND": "nonsense"}, plain=True)
+    )  # fmt: skip
+    for words, phrase in (
+        (["--at", "-1e308"], "--at -1e+308: outside the domain"),
+        (["--at", "-inf"], "--at -inf: outside the domain"),
+        (["--xlim", "-1e-2", "-2e-3"], "--xlim -0.01 -0.002: accepted: X0 < X1"),
+    ):
+        out.append(
+            Case(f"plot: {' '.join(words)}", ["plot", "{dir}/out", *words], 2, phrase, setup=_finished_run)
+        )  # fmt: skip
+    return out
+
+
 def cases() -> list[Case]:
     out: list[Case] = []
     budget = ["--max-memory", "8G", "--max-output", "1G"]
@@ -2190,6 +2332,7 @@ def cases() -> list[Case]:
         + round_nine()
         + round_ten()
         + round_eleven()
+        + round_twelve()
     )
 
 

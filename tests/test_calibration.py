@@ -234,22 +234,57 @@ def test_an_observation_row_of_another_number_of_fields_than_its_header_is_named
         study.load_calibration(tmp_path / "c.yaml")
 
 
+def _calibration_and_sensitivity(
+    directory: Path, parameters: str, calibration: str = "", sensitivity: str = ""
+):
+    """``c.yaml`` and ``s.yaml`` in ``directory``: a calibration and a sensitivity of the twin
+    collapse varying ``parameters`` (a YAML mapping), each with its extra lines."""
+    shutil.copy(TWIN / "collapse.yaml", directory)
+    (directory / "c.yaml").write_text(
+        f"base: collapse.yaml\nparameters: {parameters}\n{calibration}"
+        "observations:\n  - {name: r, quantity: runout, value: 9.0, units: cm, sigma: 1}\n"
+    )
+    (directory / "s.yaml").write_text(
+        f"base: collapse.yaml\nparameters: {parameters}\noutputs: [runout]\n{sensitivity}"
+    )
+
+
 @pytest.mark.parametrize("seed", [-1, 2**32])
 def test_a_seed_numpy_cannot_take_is_refused(tmp_path, capsys, seed):
     """``seed: -1`` validated: the calibration stopped in scipy's differential evolution
     and the sensitivity's ``validate`` in its design, with numpy's ``ValueError`` and a
     traceback."""
-    shutil.copy(TWIN / "collapse.yaml", tmp_path)
-    parameters = "parameters: {rheology.mu_s: {bounds: [0.4, 0.5]}}\n"
-    (tmp_path / "c.yaml").write_text(
-        f"base: collapse.yaml\n{parameters}search: {{seed: {seed}}}\n"
-        "observations:\n  - {name: r, quantity: runout, value: 9.0, units: cm, sigma: 1}\n"
+    _calibration_and_sensitivity(
+        tmp_path, "{rheology.mu_s: {bounds: [0.4, 0.5]}}", f"search: {{seed: {seed}}}\n", f"seed: {seed}\n"
     )
-    (tmp_path / "s.yaml").write_text(f"base: collapse.yaml\n{parameters}outputs: [runout]\nseed: {seed}\n")
     for name, key in (("c.yaml", "search.seed"), ("s.yaml", "seed")):
         assert cli.main(["validate", str(tmp_path / name)]) == 2
         assert f"{key} (line " in (err := capsys.readouterr().err) and "Traceback" not in err
         assert "accepted: an integer from 0 to 4294967295 (2^32 - 1)" in err
+
+
+def test_one_scenario_value_under_two_keys_or_one_output_twice_is_refused(tmp_path, capsys):
+    """``initial.0.height`` and ``initial.00.height``, two parameters of a sensitivity, a
+    calibration or a sweep, validated: both set the one height, the later over the earlier,
+    which was never varied (its Sobol' indices read as an insensitive parameter; the sweep's
+    members labelled with values they did not run).  ``outputs: [runout, runout]`` too."""
+    both = "{initial.0.height: {bounds: [0.04, 0.05]}, initial.00.height: {bounds: [0.04, 0.05]}}"
+    _calibration_and_sensitivity(tmp_path, both)
+    (tmp_path / "w.yaml").write_text(
+        "base: collapse.yaml\nparameters: {initial.0.height: [0.04], initial.00.height: [0.05]}\n"
+    )
+    (tmp_path / "o.yaml").write_text(
+        "base: collapse.yaml\nparameters: {rheology.mu_s: {bounds: [0.4, 0.5]}}\noutputs: [runout, runout]\n"
+    )
+    for name in ("c.yaml", "s.yaml", "w.yaml"):
+        assert cli.main(["validate", str(tmp_path / name)]) == 2
+        err = capsys.readouterr().err
+        assert (
+            "--set initial.00.height: initial has 1 entries; accepted indices: 0..0 (without leading zeros)"
+            in err
+        )
+    assert cli.main(["validate", str(tmp_path / "o.yaml")]) == 2
+    assert "outputs (line 3): runout twice; accepted: each output once" in capsys.readouterr().err
 
 
 def test_observations_from_netcdf_take_the_units_attributes(tmp_path):

@@ -4,6 +4,7 @@ and the round trip scenario -> result.nc."""
 from __future__ import annotations
 
 import json
+import math
 import signal
 import subprocess
 import sys
@@ -281,6 +282,23 @@ def test_the_command_is_the_first_word_that_is_not_an_option(argv, command):
     from multilayer.app.cli import _command
 
     assert _command(argv) == command
+
+
+@pytest.mark.parametrize(
+    "words, value",
+    [
+        (["--at", "-1e308"], {"at": [-1e308]}),
+        (["--at", "-inf", "--at", "-.5"], {"at": [-math.inf, -0.5]}),
+        (["--xlim", "-1e-2", "-2E-3"], {"xlim": [-1e-2, -2e-3]}),
+    ],
+)
+def test_a_negative_number_in_any_notation_is_read_as_the_value_of_its_option(words, value):
+    """argparse read ``-1e308``, ``-inf``, ``-.5`` as options ("expected one argument"), where
+    ``--at=-1e308`` worked: the value is then checked as any other (a position in the domain)."""
+    from multilayer.app.cli import build_parser
+
+    args = build_parser("plot").parse_args(["plot", ".", *words])
+    assert {key: getattr(args, key) for key in value} == value
 
 
 @pytest.mark.parametrize("error, code", [(RunError("solver diverged"), 1), (KeyboardInterrupt(), 130)])

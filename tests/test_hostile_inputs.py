@@ -888,8 +888,30 @@ def test_load_state_names_a_missing_or_non_finite_entry_and_restores_nothing():
         damaged[key] = np.full_like(np.asarray(saved[key], dtype=float), np.nan)
         with pytest.raises(InputError, match=rf"^{key} holds values that are not finite"):
             sim.load_state(damaged)
+    # a negative thickness was restored, then named (a StateError): the simulation kept it, at
+    # its time, and the next step blamed a write between steps
+    with pytest.raises(InputError, match=r"^h holds negative thicknesses \(down to -0.05"):
+        sim.load_state({**saved, "h": -saved["h"], "t": 5.0})
     assert sim.t == saved["t"] and np.array_equal(sim.h, saved["h"])
     sim.load_state({k: v for k, v in saved.items() if not k.startswith("seed_")})  # restarts the seed
+
+
+def test_a_simulation_copied_or_pickled_is_refused_naming_state_dict():
+    """``copy.copy(sim)`` shared the state's arrays: stepping the copy changed the
+    original's thickness but not its time (h of t = 0.0273 s held at t = 0.02 s), silently;
+    ``deepcopy`` and ``pickle`` were ``TypeError: cannot pickle '_thread.RLock' object``."""
+    import copy
+    import pickle
+
+    sim = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
+    sim.step()
+    kept = sim.state_dict()
+    for attempt in (copy.copy, copy.deepcopy, pickle.dumps):
+        with pytest.raises(
+            InputError, match=r"^a Simulation cannot be copied or pickled .*accepted: state_dict"
+        ):
+            attempt(sim)
+    assert np.array_equal(sim.h, kept["h"]) and sim.t == kept["t"]
 
 
 def test_advance_refuses_a_time_before_now_and_an_on_step_that_is_no_function():

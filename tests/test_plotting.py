@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import shutil
 import subprocess
+import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -312,6 +313,32 @@ def test_an_export_stopped_half_way_leaves_no_series_of_two_runs(
     assert not (tmp_path / "vtk" / "result.pvd").exists()
 
 
+def test_a_plot_stopped_half_way_leaves_no_figures_of_two_runs(
+    slump_dir: Path, tmp_path: Path, cli, monkeypatch
+):
+    """Plotted again after another run into the directory, the plot stopped in its third
+    figure (a Ctrl-C, a full disk): plots/ held this run's first two figures beside the
+    earlier run's others (each whole and titled: read as one run), and the third written
+    half-way.  The figures of the set go first; each is written whole."""
+    from matplotlib.figure import Figure
+
+    shutil.copy(slump_dir / "result.nc", tmp_path / "result.nc")
+    assert cli("plot", tmp_path).code == 0
+    whole, written = Figure.savefig, []
+
+    def stopped(fig, path, **options):
+        if len(written) == 2:
+            Path(path).write_bytes(b"\x89PNG half")
+            raise KeyboardInterrupt
+        written.append(Path(path).name)
+        return whole(fig, path, **options)
+
+    monkeypatch.setattr(Figure, "savefig", stopped)
+    assert cli("plot", tmp_path).code == 130
+    assert sorted(p.name for p in (tmp_path / "plots").iterdir()) == ["section.png", "thickness.png"]
+    assert written == [".section.partial.png", ".thickness.partial.png"]
+
+
 @pytest.mark.parametrize("figure", ["profiles", "static_interface"])
 def test_a_long_title_is_wrapped_within_the_figure(slump_dir: Path, figure: str) -> None:
     """One column: the figure is 4.8 inches wide and a long scenario name with the figure's
@@ -339,3 +366,20 @@ def test_plot_prints_no_warning_of_the_colour_mapping(slump_dir: Path, cli) -> N
             assert np.isfinite(np.ma.getdata(values)).all()
     result = cli("plot", slump_dir, "--at", "0.05")
     assert result.code == 0 and result.err == "", result.err
+
+
+def test_an_mplbackend_matplotlib_refuses_is_named_not_a_traceback(slump_dir: Path, tmp_path: Path) -> None:
+    """``MPLBACKEND=nonsense``: Matplotlib's import raised ValueError (a traceback, exit 1),
+    though the figures are drawn on the Agg canvas whatever backend it names."""
+    import os
+
+    shutil.copy(slump_dir / "result.nc", tmp_path / "result.nc")
+    command = [sys.executable, "-m", "multilayer", "plot", str(tmp_path)]
+    done = subprocess.run(
+        command, capture_output=True, text=True, env={**os.environ, "MPLBACKEND": "nonsense"}
+    )
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    assert done.stderr.startswith(
+        "multilayer: error: environment variable MPLBACKEND='nonsense': Matplotlib "
+    )
+    assert not (tmp_path / "plots").exists()

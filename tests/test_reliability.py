@@ -643,6 +643,62 @@ def test_stepping_past_the_end_or_without_progress_is_a_named_error_never_a_hang
     assert sim.t == 1e17 and sim.steps == 1
 
 
+@pytest.mark.parametrize(
+    ("write", "said"),
+    [
+        (lambda sim: sim.h.__setitem__(3, np.nan), "thickness h = nan at x = 0.04375 m"),
+        (lambda sim: sim.h.__setitem__(slice(None), np.nan), "thickness h = nan at x = 0.00625 m"),
+        (lambda sim: sim.h.__setitem__(30, np.nan), "thickness h = nan at x = 0.38125 m"),  # a dry column
+        (lambda sim: sim.h.__setitem__(3, -1.0), "negative thickness h = -1 m at x = 0.04375 m"),
+        (lambda sim: sim.h.__setitem__(3, np.inf), "thickness h = inf at x = 0.04375 m"),
+        (
+            lambda sim: sim.u.__setitem__((0, 3), np.nan),
+            "velocity u = nan at x = 0.04375 m, layer 1 (1 is at the bed)",
+        ),
+        (
+            lambda sim: sim.u.__setitem__((1, 3), -np.inf),
+            "velocity u = -inf at x = 0.04375 m, layer 2 (1 is at the bed)",
+        ),
+    ],
+)
+def test_a_state_written_between_steps_is_named_as_the_entry_state_not_the_steps_error(write, said):
+    """An API user writes into ``sim.h`` / ``sim.u`` (numpy arrays updated in place) a value no
+    step keeps: the next step names that state on entry (it blamed the transport: "the transport
+    made an error of 0.0123 m2", "h = nan after transport", "dt = 0.0 s does not advance the
+    time"), prints no numpy warning, and keeps the state of the last step."""
+    import warnings
+
+    from engine import simulation
+
+    sim = simulation(**TINY_SCENARIO)
+    sim.step()
+    sim.step()
+    write(sim)
+    kept = sim.state_dict()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(StateError) as failure:
+            sim.step()
+    assert str(failure.value) == (
+        f"{said} on entry to the step from t = {kept['t']:.6g} s (step 3): not as the steps leave it, "
+        "so written into the simulation's arrays (sim.h, sim.u) since the last step"
+    )
+    assert sim.steps == 2 and np.array_equal(sim.h, kept["h"], equal_nan=True)
+
+
+def test_stepping_without_a_bound_where_no_wave_bounds_the_step_is_named():
+    """``sim.step()`` (no ``t_max``) on a domain with no material and no inflow: the Courant
+    step is infinite; it was taken (h = nan after transport over dt = inf, a numpy warning)."""
+    from engine import simulation
+
+    from multilayer.errors import InputError
+
+    sim = simulation(**{**TINY_SCENARIO, "initial": []})
+    with pytest.raises(InputError, match=r"step\(t_max=inf\): no material and no inflow, so no wave bounds"):
+        sim.step()
+    assert sim.step(0.1) == 0.1 and sim.t == 0.1 and not sim.h.any()
+
+
 def test_a_singular_non_hydrostatic_system_and_a_non_finite_measure_are_run_errors(tmp_path):
     from multilayer.app import ensemble
     from multilayer.engine.pressure.non_hydrostatic.banded import factor

@@ -427,3 +427,51 @@ def test_the_compilation_time_counts_the_outermost_compilations_only(monkeypatch
     other.start()
     other.join()
     assert compilations.depth == 0 and compilations.seconds == 5.0
+
+
+@pytest.mark.parametrize("what", ["the directory removed", "the directory read-only", "result.nc removed"])
+def test_an_output_directory_lost_during_the_run_is_a_write_error_naming_the_path(
+    tmp_path, write_scenario, cli, monkeypatch, what
+):
+    """The output directory removed (or made read-only, or its result.nc removed) after the
+    third output time: the run stops naming the file it could not write and what is kept. It
+    said "the simulation failed at t=0.04 s: [Errno 2] ..." (blaming the simulation), exit 2
+    "dd/run.lock: Permission denied" (the lock's removal hid how the run ended), or exit 2
+    "dd/result.nc: No such file or directory" after a run written into a file gone."""
+    import shutil
+
+    from multilayer.io import results
+
+    out = tmp_path / "out"
+    write = results.ResultWriter.write
+
+    def write_then_lose(self, sim):
+        diag = write(self, sim)
+        if self.records == 3:
+            if what == "the directory removed":
+                shutil.rmtree(out)
+            elif what == "result.nc removed":
+                self.path.unlink()
+            else:  # a read-only directory refuses the checkpoint and the lock's removal (root ignores modes)
+                monkeypatch.setattr(results.os, "replace", refused)
+                monkeypatch.setattr(Path, "unlink", lambda path, missing_ok=False: refused())
+        return diag
+
+    def refused(*args):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(results.ResultWriter, "write", write_then_lose)
+    scenario = write_scenario({**TINY_SCENARIO, "time": {"end": 0.1, "output_interval": 0.02}})
+    result = cli("run", scenario, "-o", out, "-q")
+    assert result.code == 1, result.err
+    said = {
+        "the directory removed": f"writing the checkpoint {out}/checkpoint.npz failed (No such file or "
+        f"directory); the run stopped at t=0.04 s (step 6); the output directory {out} is gone (removed or "
+        "moved during the run), and the files written there with it",
+        "the directory read-only": f"writing the checkpoint {out}/checkpoint.npz failed (Permission denied); "
+        f"the run stopped at t=0.04 s (step 6); {out}/result.nc keeps the 3 output times written before and "
+        f"checkpoint.npz the state at t=0.02 s; once {out} can be written again, continue with:",
+        "result.nc removed": f"{out}/result.nc was removed, moved or replaced during the run, with the "
+        "output times written into it; the run stopped at t=0.06 s (step 9); run again (the state at t=0.04",
+    }[what]
+    assert said in result.err and "Traceback" not in result.err

@@ -95,6 +95,7 @@ def test_set_appends_to_a_list(write_scenario, tiny_scenario):
         ("domain", "expected KEY=VALUE"),
         ("domain.cells+=3", "--set domain.cells+=...: domain.cells is not a list; accepted: += on a list"),
         ("initial.3.height=1", "--set initial.3.height: initial has 1 entries; accepted indices: 0..0"),
+        ("initial.00.height=1", "initial has 1 entries; accepted indices: 0..0 (without leading zeros)"),
         ("name.first=x", "--set name.first: name is a value, not a mapping"),
         ("domain.cells=[1", "--set domain.cells: malformed YAML value"),
     ],

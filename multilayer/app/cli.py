@@ -12,11 +12,13 @@ import argparse
 import contextlib
 import importlib
 import os
+import re
 import signal
 import sys
 import threading
 import warnings
 from collections.abc import Iterator, Sequence
+from typing import Any
 
 from multilayer.app import numba_environment
 from multilayer.errors import InputError, Interrupted, RunError
@@ -41,11 +43,22 @@ class _Version(argparse.Action):
         parser.exit()
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser, reading a word such as ``-1e308``, ``-.5``, ``-2G`` or ``-inf``
+    after an option as that option's value, as it reads ``-1`` and ``-0.5``: it took them
+    for options (``--at -1e308``: "expected one argument", where ``--at=-1e308`` worked).
+    No option of multilayer looks like a negative number (argparse's condition for it)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-(\.?\d|inf(inity)?$|nan$)", re.IGNORECASE)
+
+
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     """The argument parser with every subcommand of :data:`SUBCOMMANDS`; given the
     ``command`` to run, only its module is imported (the others are bare names, which is
     all parsing needs: a run does not import the modules of ``validate`` or ``plot``)."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="multilayer",
         description="Multilayer shallow-flow simulator of dense granular flows. "
         "Run 'multilayer COMMAND --help' for the options of a command.",

@@ -11,6 +11,7 @@ and is honoured; the message says how to remove it.
 
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import json
 import os
@@ -96,5 +97,8 @@ def locked(directory: Path, notice: Callable[[str], None] = lambda message: None
     try:
         yield
     finally:
+        # a directory made read-only during the run keeps its lock, stale once this
+        # process ends (the next run takes it over): how the run ended is the message
         if _holder(path) == me:
-            path.unlink(missing_ok=True)
+            with contextlib.suppress(OSError):
+                path.unlink(missing_ok=True)

@@ -58,6 +58,7 @@ from multilayer.io.results import (
     Checkpoint,
     DiskFull,
     ResultWriter,
+    WriteFailed,
     load_checkpoint,
     made_by,
     recorded,
@@ -274,6 +275,7 @@ def _run(
                 diag["mass"],
                 wall_time(),
             )
+        writer.check_file()  # the last record is in the file the run leaves
         status = "completed"
     except (_Stop, KeyboardInterrupt) as exc:
         status = "interrupted"
@@ -284,14 +286,12 @@ def _run(
             f"{_resume_command(scenario, outdir)}"
         )
         log.warning(message)
-    except DiskFull as exc:  # nothing more can be written: the last checkpoint stands
+    except WriteFailed as exc:  # nothing more can be written: the last checkpoint stands
         log.error("the run stopped at t = %.6g s (step %d): %s", sim.t, sim.steps, exc)
         writer.failure = str(exc)
         raise RunError(
             f"scenario {scenario.name!r}: {exc}; the run stopped at t={sim.t:.6g} s (step {sim.steps}); "
-            f"{outdir / RESULT_FILE} keeps the {writer.records} output times written before and "
-            f"{CHECKPOINT_FILE} the state at t={saved_t:.6g} s; once there is room, continue with: "
-            f"{_resume_command(scenario, outdir)}"
+            + _what_is_kept(exc, outdir, writer.records, saved_t, _resume_command(scenario, outdir))
         ) from exc
     except Exception as exc:
         log.exception("the simulation failed at t = %.6g s (step %d)", sim.t, sim.steps)
@@ -311,6 +311,23 @@ def _run(
             print(message, file=sys.stderr)
         raise Interrupted(message, stop.signum)
     log.info("completed: %d steps, wall time %.1f s", sim.steps, wall_time())
+
+
+def _what_is_kept(exc: WriteFailed, outdir: Path, records: int, saved_t: float, resume: str) -> str:
+    """The end of the message of a run stopped by a write that failed: what its files keep
+    and how to continue (an output directory gone during the run took them with it)."""
+    if not outdir.is_dir():
+        return (
+            f"the output directory {outdir} is gone (removed or moved during the run), and the files "
+            "written there with it; run again into a directory left in place"
+        )
+    if not (outdir / RESULT_FILE).is_file():
+        return f"run again (the state at t={saved_t:.6g} s in {CHECKPOINT_FILE} continues no result file)"
+    condition = "there is room" if isinstance(exc, DiskFull) else f"{outdir} can be written again"
+    return (
+        f"{outdir / RESULT_FILE} keeps the {records} output times written before and {CHECKPOINT_FILE} the "
+        f"state at t={saved_t:.6g} s; once {condition}, continue with: {resume}"
+    )
 
 
 class _LogFile(logging.FileHandler):

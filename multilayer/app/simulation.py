@@ -5,7 +5,7 @@ from __future__ import annotations
 import numbers
 import threading
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 
@@ -68,6 +68,24 @@ class Simulation(simulation.Simulation):
         bound = _time(t_max, "step(t_max")
         with self._one_at_a_time:
             return super().step(bound)
+
+    def __copy__(self) -> NoReturn:
+        """Refused (:meth:`_not_copied`): a shallow copy shared the state's arrays, so
+        stepping the copy changed the original's thickness and velocities, not its time."""
+        self._not_copied()
+
+    def __deepcopy__(self, memo: dict) -> NoReturn:
+        self._not_copied()
+
+    def __reduce_ex__(self, protocol: Any) -> NoReturn:
+        self._not_copied()
+
+    def _not_copied(self) -> NoReturn:
+        raise InputError(
+            "a Simulation cannot be copied or pickled (it holds the engine's workspaces, threads and locks); "
+            "accepted: state_dict() to keep a state, and load_state(saved) of a Simulation of the same "
+            "scenario to continue from it"
+        )
 
     def load_state(self, saved: dict) -> None:
         """The engine's :meth:`~multilayer.engine.simulation.Simulation.load_state`, not

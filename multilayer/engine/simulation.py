@@ -41,11 +41,8 @@ from __future__ import annotations
 
 import math
 import numbers
-import signal
-import threading
-from collections.abc import Callable, Iterator
-from contextlib import AbstractContextManager, contextmanager, nullcontext
-from types import FrameType
+from collections.abc import Callable
+from contextlib import AbstractContextManager, nullcontext
 from typing import Any
 
 import numpy as np
@@ -58,7 +55,7 @@ from multilayer.engine.mesh import LayeredMesh
 from multilayer.engine.mixture.flow import MixtureFlow
 from multilayer.engine.normal_stress import NormalStress, joint_rest, runs
 from multilayer.engine.pressure.model import PressureModel, PressureSetup, models, options
-from multilayer.engine.state import FlowState, max_wave_speed, span, start_moving
+from multilayer.engine.state import FlowState, max_wave_speed, span, start_moving, whole
 from multilayer.engine.state_check import StateGuard, check_restored
 from multilayer.engine.threads import ThreadPolicy
 from multilayer.engine.transport import boundaries
@@ -282,10 +279,26 @@ class Simulation:
 
     def step(self, t_max: float = np.inf) -> float:
         """Advance one time step of the splitting (module docstring), never beyond ``t_max``;
-        returns the step taken."""
+        returns the step taken.  A failure from a state written between steps is named as
+        that state (:meth:`StateGuard.check_entry`)."""
         self._check_target(t_max)
+        try:
+            return self._step(t_max)
+        except RunError as failure:
+            self.guard.check_entry(self.h, self.u, self.t, self.steps, failure)
+            raise
+
+    def _step(self, t_max: float) -> float:
         speed = self._with_inflow(self.state.survey(self.dry, self.g_n))  # the fastest wave at the start
+        if not math.isfinite(speed):  # not computed from: numpy's warnings on the way to the guard
+            self.guard.check_entry(self.h, self.u, self.t, self.steps)
         dt = min(courant_step(speed, self.dx, self.config.cfl), t_max - self.t)
+        if dt == math.inf:  # no wave: no material (or none read as such) and no inflow
+            self.guard.check_entry(self.h, self.u, self.t, self.steps)
+            raise InputError(
+                f"step(t_max={t_max!r}): no material and no inflow, so no wave bounds the time step; "
+                "accepted: a finite t_max (the time to step to)"
+            )
         threads = self.thread_policy.threads(self.fractions.size * int(np.count_nonzero(self.h)))
         with self._abandonable():  # a step abandoned (a failure, a stop) leaves the state of its start
             while True:  # redone shorter while Heun's second stage breaks the Courant condition
@@ -656,31 +669,6 @@ def _read_only(array: np.ndarray) -> np.ndarray:
     view = array.view()
     view.flags.writeable = False
     return view
-
-
-@contextmanager
-def whole() -> Iterator[None]:
-    """The block runs whole: a Ctrl-C (SIGINT) that arrives during it is handed to the
-    process's handler after it.  Under Python's own handler (``Simulation.step`` in a
-    notebook, no runner) its ``KeyboardInterrupt`` was raised between two statements of a
-    step being kept: after its forces were recorded (recorded again by the step redone:
-    40.25 N/m where the run gives 40.32) or after its state (the time and step count of the
-    step before: the run went on one step ahead of its time), silently.  For the block (a
-    few array copies) the main thread's SIGINT handler is one that notes the signal; the
-    process's own is put back after it and called for each signal noted.  (Blocking the
-    signal in the main thread is not enough: the kernels' threads would take it.)"""
-    handler = signal.getsignal(signal.SIGINT)
-    if threading.current_thread() is not threading.main_thread() or not callable(handler):
-        yield  # signals reach the main thread only; SIG_DFL and SIG_IGN call nothing here
-        return
-    came: list[FrameType | None] = []
-    signal.signal(signal.SIGINT, lambda signum, frame: came.append(frame))
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, handler)
-        for frame in came:
-            handler(signal.SIGINT, frame)
 
 
 def _step_bound(max_steps: object) -> float:

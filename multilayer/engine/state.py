@@ -19,7 +19,11 @@ without material later is not seen).  The compiled scans of the state are here t
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import signal
+import threading
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from types import FrameType
 
 import numpy as np
 
@@ -191,3 +195,28 @@ def start_moving(u, h, dry, moving):
                 started = True
                 break
     return started
+
+
+@contextmanager
+def whole() -> Iterator[None]:
+    """The block runs whole: a Ctrl-C (SIGINT) that arrives during it is handed to the
+    process's handler after it.  Under Python's own handler (``Simulation.step`` in a
+    notebook, no runner) its ``KeyboardInterrupt`` was raised between two statements of a
+    step being kept: after its forces were recorded (recorded again by the step redone:
+    40.25 N/m where the run gives 40.32) or after its state (the time and step count of the
+    step before: the run went on one step ahead of its time), silently.  For the block (a
+    few array copies) the main thread's SIGINT handler is one that notes the signal; the
+    process's own is put back after it and called for each signal noted.  (Blocking the
+    signal in the main thread is not enough: the kernels' threads would take it.)"""
+    handler = signal.getsignal(signal.SIGINT)
+    if threading.current_thread() is not threading.main_thread() or not callable(handler):
+        yield  # signals reach the main thread only; SIG_DFL and SIG_IGN call nothing here
+        return
+    came: list[FrameType | None] = []
+    signal.signal(signal.SIGINT, lambda signum, frame: came.append(frame))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, handler)
+        for frame in came:
+            handler(signal.SIGINT, frame)

@@ -146,6 +146,23 @@ class StateGuard:
             raise StateError(f"negative thickness h = {h[j]:.6g} m at x = {self.x[j]:.6g} m {when}")
         self._check_layers(u, "velocity u", when)
 
+    def check_entry(
+        self, h: np.ndarray, u: np.ndarray, t: float, steps: int, failure: BaseException | None = None
+    ) -> None:
+        """Raise :class:`StateError` (from ``failure``, the step's own error) if the state
+        ``h``, ``u`` a step starts from at ``t`` after ``steps`` steps is not finite or has a
+        negative thickness: the steps never keep one, so it was written into the
+        simulation's arrays (``sim.h``, ``sim.u``) since; the step's error blamed the
+        transport ("the transport made an error of 0.0123 m2") or the time step."""
+        when = (
+            f"on entry to the step from t = {t:.6g} s (step {steps + 1}): not as the steps leave it, so "
+            "written into the simulation's arrays (sim.h, sim.u) since the last step"
+        )
+        try:
+            self.check_state(h, u, when)
+        except StateError as entry:
+            raise entry from failure
+
     def check_finite(
         self,
         values: np.ndarray,
@@ -200,8 +217,8 @@ state without the Newton seed restarts its extrapolation)."""
 def check_restored(saved: Mapping[str, Any], fresh: Mapping[str, Any]) -> None:
     """A state to restore (a checkpoint) holds entries of ``fresh``, the state of the same
     simulation at its start, each of its shape, real numbers (integers where it holds
-    integers), finite; the times and counts are not negative and the seed's columns lie in
-    the mesh; the entries of :data:`_NEEDED` are there.  :class:`InputError` naming the entry
+    integers), finite; the times, counts and thicknesses are not negative and the seed's
+    columns lie in the mesh; the entries of :data:`_NEEDED` are there.  :class:`InputError` naming the entry
     otherwise (a checkpoint of another version or layout, or edited, or a mapping given to
     ``load_state`` by hand: a missing entry was a ``KeyError``, a NaN vertical velocity or
     force impulse was kept); the state guard then checks ``h`` and ``u``."""
@@ -222,6 +239,10 @@ def check_restored(saved: Mapping[str, Any], fresh: Mapping[str, Any]) -> None:
             raise InputError(f"{key} holds values that are not finite, where finite numbers")
         if key in _COUNTS and not a >= 0:
             raise InputError(f"{key} = {a}, where a number >= 0")
+        if key == "h" and a.size and a.min() < 0.0:  # before it replaces the state, as every other entry
+            raise InputError(
+                f"h holds negative thicknesses (down to {float(a.min())!r} m), where thicknesses >= 0"
+            )
     first, stop = np.asarray(saved.get("seed_window", (0, 0)))
     if not 0 <= first <= stop <= np.asarray(fresh["h"]).size:
         raise InputError(f"seed_window = [{first}, {stop}], outside the columns of the mesh")

@@ -15,7 +15,8 @@ from __future__ import annotations
 import math
 import os
 import textwrap
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -90,14 +91,42 @@ def plot_run(
         figures["force"] = force_figure(ds, name)
     if "phi" in ds:
         figures["mixture"] = mixture_figure(ds, name, times + 2)
-    paths = []
-    for stem, fig in figures.items():
-        path = out / f"{stem}.{fmt}"
-        fig.savefig(writable(path), dpi=120, format=fmt)
-        paths.append(path)
+    paths = save_figures(out, figures, fmt, RUN_FIGURES)
     if animate:
         paths.append(animate_section(ds, name, out / "section", xlim=xlim))
     return paths, notes
+
+
+RUN_FIGURES = ("section", "thickness", "front", "mass", "profiles", "static_interface", "force", "mixture")
+"""The stems of the figures :func:`plot_run` may write (``force`` and ``mixture`` where the
+result holds them)."""
+
+
+def save_figures(out: Path, figures: dict[str, Figure], fmt: str, family: Sequence[str]) -> list[Path]:
+    """Write ``figures`` (stem: figure) as ``out/STEM.fmt``, after removing the figures of
+    ``family`` (every stem the command may write) in that format; returns the paths.  A plot
+    stopped half-way (a Ctrl-C, a full disk) over an earlier one left figures of two results
+    side by side, each whole and titled, read as one; a figure the earlier result had and
+    this one has not (``force`` beside a mixture's) stayed.  Each is written whole (a
+    temporary file renamed over its path)."""
+    for stem in family:
+        writable(out / f"{stem}.{fmt}").unlink(missing_ok=True)
+    return [
+        _whole(out / f"{stem}.{fmt}", partial(fig.savefig, dpi=120, format=fmt))
+        for stem, fig in figures.items()
+    ]
+
+
+def _whole(path: Path, write: Callable[[Path], object]) -> Path:
+    """``path`` written by ``write`` into a temporary file beside it (of the same suffix: the
+    writers read the format from it) renamed over it: never a file written half-way."""
+    part = writable(path.with_name(f".{path.stem}.partial{path.suffix}"))
+    try:
+        write(part)
+        os.replace(part, writable(path))
+    finally:
+        part.unlink(missing_ok=True)
+    return path
 
 
 def column_indices(ds: xr.Dataset, at: Sequence[float]) -> list[int]:
@@ -345,8 +374,7 @@ def animate_section(
         path, writer = stem.with_suffix(".mp4"), animation.FFMpegWriter(fps=fps)
     else:
         path, writer = stem.with_suffix(".gif"), animation.PillowWriter(fps=fps)
-    movie.save(writable(path), writer=writer, dpi=100)
-    return path
+    return _whole(path, lambda part: movie.save(part, writer=writer, dpi=100))
 
 
 def thickness_figure(

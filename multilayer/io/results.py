@@ -25,6 +25,7 @@ corrupted or foreign file is an :class:`InputError` naming it.
 
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import hashlib
 import math
@@ -57,7 +58,12 @@ FAILURE_LENGTH = 8000
 """Characters of the failure message kept in the ``failure`` attribute (run.log has it all)."""
 
 
-class DiskFull(RunError):
+class WriteFailed(RunError):
+    """A file of the run could not be written (exit code 1): its directory removed, moved or
+    made read-only during the run, an I/O error, or no room (:class:`DiskFull`)."""
+
+
+class DiskFull(WriteFailed):
     """A write found no room: the disk is full or the file size limit is reached (exit code 1)."""
 
 
@@ -96,6 +102,7 @@ class ResultWriter:
             self._ds.run_status = "running"
             self._ds.header_space = " " * HEADER_SPACE
             self._ds.sync()
+        self._file = _identity(self.path)  # the file written: the path may come to name another
 
     def _define(self, scenario: Any, sim: Any) -> None:
         ds = self._ds
@@ -156,6 +163,7 @@ class ResultWriter:
         forces = {} if self._mixture else sim.forces.take()  # the means over the interval this record closes
         if self._broken:
             raise DiskFull(f"{self.path}: an earlier write failed; no more records are written")
+        self.check_file()
         self._ensure_room()
         try:
             with NETCDF_LOCK:
@@ -180,11 +188,20 @@ class ResultWriter:
             free, limit = disk.room(self.path)
             reason = disk.full_disk_reason(exc) or (limit.split(":")[0] if free < disk.SLACK else None)
             if reason is None:
-                raise RunError(f"{self.path}: writing output time {i} failed ({exc})") from None
+                raise WriteFailed(f"writing output time {i} into {self.path} failed ({exc})") from None
             raise DiskFull(f"{reason}: writing output time {i} into {self.path} failed ({exc})") from None
         self.records = i + 1
         self.last_time = float(sim.t)
         return diag
+
+    def check_file(self) -> None:
+        """Raise :class:`WriteFailed` unless ``path`` still names the file written (records
+        written on into a file removed or replaced would be lost with it)."""
+        if _identity(self.path) != self._file:
+            raise WriteFailed(
+                f"{self.path} was removed, moved or replaced during the run, with the output times written "
+                "into it"
+            )
 
     def _ensure_room(self) -> None:
         """Raise :class:`DiskFull` unless the next record fits on the disk and under the
@@ -437,6 +454,15 @@ def _checksum(arrays: dict[str, np.ndarray]) -> str:
     return digest.hexdigest()
 
 
+def _identity(path: Path) -> tuple[int, int] | None:
+    """The device and inode of the file ``path`` names (None if none)."""
+    try:
+        status = path.stat()
+    except OSError:
+        return None
+    return status.st_dev, status.st_ino
+
+
 def save_checkpoint(path: str | os.PathLike, ckpt: Checkpoint) -> None:
     """Write ``ckpt`` to ``path`` atomically (temporary file, fsync, rename), with its checksum."""
     path = Path(path)
@@ -449,13 +475,14 @@ def save_checkpoint(path: str | os.PathLike, ckpt: Checkpoint) -> None:
             np.savez(f, **arrays)
             f.flush()
             os.fsync(f.fileno())
+        os.replace(tmp, path)
     except OSError as exc:
-        tmp.unlink(missing_ok=True)  # the space it took back; the previous checkpoint stands
-        reason = disk.full_disk_reason(exc)
-        if reason is None:
-            raise
-        raise DiskFull(f"{reason}: writing the checkpoint {path} failed ({exc})") from None
-    os.replace(tmp, path)
+        with contextlib.suppress(OSError):  # the space it took back; the previous checkpoint stands
+            tmp.unlink(missing_ok=True)
+        full = disk.full_disk_reason(exc)
+        if full is None:
+            raise WriteFailed(f"writing the checkpoint {path} failed ({reason(exc)})") from None
+        raise DiskFull(f"{full}: writing the checkpoint {path} failed ({exc})") from None
 
 
 def load_checkpoint(path: str | os.PathLike) -> Checkpoint:

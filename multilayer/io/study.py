@@ -249,6 +249,14 @@ class SensitivityModel(_Study):
     seed: int = _seed()
     confidence: float = field(0.95, "a number in (0, 1)", gt=0, lt=1)
 
+    @field_validator("outputs")
+    @classmethod
+    def _once(cls, outputs: list[str]) -> list[str]:
+        if len(set(outputs)) < len(outputs):
+            twice = next(name for name in outputs if outputs.count(name) > 1)
+            raise invalid(f"{twice} twice", "each output once")
+        return outputs
+
     @field_validator("samples")
     @classmethod
     def _power_of_two(cls, n: int) -> int:

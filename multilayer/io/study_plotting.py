@@ -18,8 +18,7 @@ import xarray as xr
 from matplotlib.figure import Figure
 
 from multilayer.errors import InputError, reason
-from multilayer.io.disk import writable
-from multilayer.io.plotting import PLOTS_DIR
+from multilayer.io.plotting import PLOTS_DIR, save_figures
 
 _STAGE_COLOURS = {"search": "C0", "refine": "C1", "uncertainty": "C2"}
 _SI = {"runout": "m", "front_final": "m", "duration": "s", "mass_final": "m2", "front": "m", "h": "m"}
@@ -71,19 +70,15 @@ def plot_study(directory: str | os.PathLike, filename: str) -> tuple[list[Path],
     out.mkdir(exist_ok=True)
     notes = []
     if "misfit" in ds:
-        figures = {"misfit.png": misfit_figure(ds), "pairs.png": pairs_figure(ds), "fit.png": fit_figure(ds)}
+        figures = {"misfit": misfit_figure(ds), "pairs": pairs_figure(ds), "fit": fit_figure(ds)}
     else:
-        figures = {"sobol.png": sobol_figure(ds)}
+        figures = {"sobol": sobol_figure(ds)}
         if missing := _without_indices(ds):  # an empty panel, exit 0, said nothing
             notes.append(
                 f"{path}: no Sobol' indices of {', '.join(missing)} ({_why_no_indices(ds)}): the figure "
                 "shows none"
             )
-    paths = []
-    for name, fig in figures.items():
-        fig.savefig(writable(out / name), dpi=120)
-        paths.append(out / name)
-    return paths, notes
+    return save_figures(out, figures, "png", tuple(figures)), notes
 
 
 def _without_indices(ds: xr.Dataset) -> list[str]:

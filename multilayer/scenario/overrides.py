@@ -57,10 +57,14 @@ def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> tuple[dic
         part: str | int
         for depth, part in enumerate(parts):
             if isinstance(node, list):
-                if not (part.isascii() and part.isdigit() and int(part) < len(node)):
+                # one way to write an index: two keys of a study (initial.0.height and
+                # initial.00.height) set one value, the later silently, the earlier not varied
+                if not (
+                    part.isascii() and part.isdigit() and part == str(int(part)) and int(part) < len(node)
+                ):
                     raise InputError(
                         f"--set {key}: {dotted(path)} has {len(node)} entries; "
-                        f"accepted indices: 0..{len(node) - 1}"
+                        f"accepted indices: 0..{len(node) - 1} (without leading zeros)"
                     )
                 part = int(part)
             elif not isinstance(node, dict):

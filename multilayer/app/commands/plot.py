@@ -13,9 +13,11 @@ Examples:
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from multilayer.app.commands import directory, positive_int
+from multilayer.errors import InputError
 
 HELP = (
     "draw figures (and an animation) of DIR/result.nc, or of calibration.nc / sensitivity.nc, into DIR/plots/"
@@ -70,8 +72,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _matplotlib() -> None:
+    """Import Matplotlib, naming the environment variable it refuses: ``MPLBACKEND`` naming
+    no backend made its import raise (a traceback, exit 1), though the figures are drawn on
+    the Agg canvas whatever backend it names."""
+    try:
+        import matplotlib  # noqa: F401
+    except ValueError as exc:
+        if "MPLBACKEND" not in os.environ:
+            raise
+        raise InputError(
+            f"environment variable MPLBACKEND={os.environ['MPLBACKEND']!r}: Matplotlib refuses it ({exc}); "
+            "accepted: one of those backends, or unset (multilayer draws its figures with Agg)"
+        ) from None
+
+
 def main(args: argparse.Namespace) -> int:
     """Write the figures and list them; say on stderr what could not be drawn."""
+    _matplotlib()
     from multilayer.app.calibration import CALIBRATION_FILE
     from multilayer.app.sensitivity import SENSITIVITY_FILE
 
