@@ -11,7 +11,8 @@ callgrind counts the instructions executed inside one region of the step:
 - ``transport``: the transport with its checks (``Simulation._transport``);
 - ``transport_kernel``: the compiled transport sweep alone;
 - ``vertical``: the implicit vertical step (``Simulation._vertical_step``);
-- ``projection``: the pressure model's projection (``Simulation._project``).
+- ``projection``: the pressure model's projection (``Simulation._project``);
+- ``forces``: the impulses on the bed and walls (``BedForce.record``).
 
 Each region is one run under valgrind (``--instr-atstart=no``: the import runs outside
 the instrumentation), divided by the cell-steps on cells holding material.  numba
@@ -53,7 +54,7 @@ CPU = "haswell"
 """The instruction set counted, the same for numba and the C kernel (valgrind runs neither
 AVX-512 nor the host's own CPU model: numba's cache is keyed by the CPU it compiled for)."""
 FEATURES = "+avx,+avx2,+fma,+bmi,+bmi2,+f16c,+lzcnt,+movbe,+popcnt,+sse4.2"
-REGIONS = ("step", "transport", "transport_kernel", "vertical", "projection")
+REGIONS = ("step", "transport", "transport_kernel", "vertical", "projection", "forces")
 CACHES = ["--cache-sim=yes", "--D1=49152,12,64", "--LL=2097152,16,64"]
 """The simulated data caches of ``--cache-sim`` (size, ways, line): the L1 and the L2 of a
 core of the machine the project is measured on, the L2 as the last level."""
@@ -111,6 +112,8 @@ def run_region(args: argparse.Namespace) -> None:
         sim.step()
     if args.region == "transport_kernel":
         wrap(kernel, "_stages_serial", lib.toggle)
+    elif args.region == "forces":
+        wrap(sim.forces, "record", lib.toggle)
     elif args.region != "step":
         method = {"transport": "_transport", "vertical": "_vertical_step", "projection": "_project"}
         wrap(sim, method[args.region], lib.toggle)

@@ -126,15 +126,24 @@ class BedForce:
         u, fields = end
         left, right, mass_time = self.transport_terms
         rho = self.rho
-        w = fields.get("w", start.w)  # the normal velocities (zero but with the non-hydrostatic pressure)
         # every column holding material before, during or after the step
         first, stop = span(start.h + sum(step.h for step in vertical))
-        sums = [self._sums(start, step, u, w, first, stop) for step in vertical]
-        before, transported_, vertical_, after, normal_before, normal_after, basal, walls = sums[-1]
+        momentum = self._momentum_sum
+        before, after = momentum(start.h, start.u, first, stop), momentum(last.h, u, first, stop)
+        # the normal momenta: those of the non-hydrostatic pressure's velocities ``w`` (no
+        # other model has them: its ``w`` stays zero, and its normal momentum with it)
+        normal_before = normal_after = 0.0
+        if "w" in fields:
+            normal_before, normal_after = (
+                momentum(start.h, start.w, first, stop),
+                momentum(last.h, fields["w"], first, stop),
+            )
+        sums = [self._impulses(step, first, stop) for step in vertical]
+        transported_, vertical_ = sums[-1][:2]
         # the earlier vertical steps' change of momentum, carried into the transport's result
-        held = sum(step.weight * (s[1] - s[2]) for step, s in zip(earlier, sums, strict=False))
-        basal = sum(step.weight * s[6] for step, s in zip(vertical, sums, strict=True))
-        walls = sum(step.weight * s[7] for step, s in zip(vertical, sums, strict=True))
+        held = sum(step.weight * (s[0] - s[1]) for step, s in zip(earlier, sums, strict=False))
+        basal = sum(step.weight * s[2] for step, s in zip(vertical, sums, strict=True))
+        walls = sum(step.weight * s[3] for step, s in zip(vertical, sums, strict=True))
         gravity = rho * self.g_t * mass_time
         end_walls = rho * ((-left if self.walls[0] else 0.0) + (right if self.walls[1] else 0.0))
         outflow = rho * ((0.0 if self.walls[1] else right) - (0.0 if self.walls[0] else left))
@@ -155,16 +164,19 @@ class BedForce:
         )
         self.elapsed += dt
 
-    def _sums(
-        self, start: FlowState, step: VerticalImpulse, u: np.ndarray, w: np.ndarray, first: int, stop: int
-    ) -> np.ndarray:
-        """``_sums`` of a vertical step (times ``rho dx``), ``u``, ``w`` the step's end."""
+    def _momentum_sum(self, h: np.ndarray, v: np.ndarray, first: int, stop: int) -> float:
+        """``rho dx sum_a l_a h v_a`` over the columns ``first .. stop-1`` (compiled, the
+        order of the sum fixed: :meth:`momentum` sums all columns in numpy's order)."""
+        return self.rho * self.dx * _momentum(self.l[:, 0], h, v, first, stop)
+
+    def _impulses(self, step: VerticalImpulse, first: int, stop: int) -> np.ndarray:
+        """``_impulses`` of a vertical step (times ``rho dx``)."""
         walled = self.stresses.walls is not None
         # the side walls' thresholds and viscous forces (not read without walls)
         threshold, viscous = self.stresses.wall_forces(step.h, step.u) if walled else (step.ustar, step.ustar)
-        sums = _sums(
-            self.l[:, 0], start.h, start.u, start.w, step.h, step.ustar, step.u, u, w, walled, threshold,
-            viscous, self.rho, step.dt, first, stop,
+        sums = _impulses(
+            self.l[:, 0], step.h, step.ustar, step.u, walled, threshold, viscous, self.rho, step.dt, first,
+            stop,
         )  # fmt: skip
         return self.rho * self.dx * sums
 
@@ -187,28 +199,35 @@ class BedForce:
 
 
 @jit
-def _sums(l, h0, u0, w0, h, ustar, u_vertical, u, w, walled, threshold, viscous, rho, dt, first, last):
+def _momentum(l, h, v, first, last):
+    """``sum_a l_a h v_a`` over the columns ``first .. last-1``, layer by layer from the
+    surface down (the order of :func:`_impulses`)."""
+    total = 0.0
+    for a in range(l.size - 1, -1, -1):
+        for i in range(first, last):
+            total += l[a] * h[i] * v[a, i]
+    return total
+
+
+@jit
+def _impulses(l, h, ustar, u_vertical, walled, threshold, viscous, rho, dt, first, last):
     """Over the columns ``first .. last-1``, per unit density and cell width: the downslope
-    momenta ``sum_a l_a h u`` at the start, after the transport, after the vertical step
-    and at the end of a step, the normal momenta at its start and end, and the impulses per
-    unit area on the bed and on the side walls in the vertical step times ``rho``, from
-    the surface down (module docstring): ``passed`` is ``dt sigma`` above the layer, a
-    moving layer's wall force is ``sgn(u_a) dt (threshold + viscous)``, a resting layer's
-    the load up to ``dt threshold`` (none unless ``walled``)."""
+    momenta ``sum_a l_a h u`` before and after a vertical step (after the transport, with
+    its velocities ``ustar``, and with its velocities ``u_vertical``), and its impulses per
+    unit area on the bed and on the side walls times ``rho``, from the surface down (module
+    docstring): ``passed`` is ``dt sigma`` above the layer, a moving layer's wall force is
+    ``sgn(u_a) dt (threshold + viscous)``, a resting layer's the load up to ``dt
+    threshold`` (none unless ``walled``)."""
     # layer by layer from the surface down, the columns contiguous in memory (u is (L, N));
     # ``passed`` carries each column's load to the next layer down
     passed = np.zeros(last - first)
-    s0 = s1 = s2 = s3 = s4 = s5 = s7 = 0.0
+    transported = vertical = walls = 0.0
     for a in range(l.size - 1, -1, -1):
         for j in range(last - first):
             i = first + j
-            m0, m = l[a] * h0[i], l[a] * h[i]
-            s0 += m0 * u0[a, i]
-            s1 += m * ustar[a, i]
-            s2 += m * u_vertical[a, i]
-            s3 += m * u[a, i]
-            s4 += m0 * w0[a, i]
-            s5 += m * w[a, i]
+            m = l[a] * h[i]
+            transported += m * ustar[a, i]
+            vertical += m * u_vertical[a, i]
             load = passed[j] + rho * m * (ustar[a, i] - u_vertical[a, i])
             held = 0.0
             if walled:
@@ -219,9 +238,9 @@ def _sums(l, h0, u0, w0, h, ustar, u_vertical, u, w, walled, threshold, viscous,
                     held = -(limit + dt * viscous[a, i])
                 else:
                     held = min(max(load, -limit), limit)
-            s7 += held
+            walls += held
             passed[j] = load - held
-    out = np.empty(8)
-    out[0], out[1], out[2], out[3], out[4], out[5], out[7] = s0, s1, s2, s3, s4, s5, s7
-    out[6] = passed.sum()
+    out = np.empty(4)
+    out[0], out[1], out[3] = transported, vertical, walls
+    out[2] = passed.sum()
     return out
