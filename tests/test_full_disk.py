@@ -134,3 +134,20 @@ def test_a_checkpoint_that_does_not_fit_leaves_the_previous_one(tmp_path, monkey
         results.save_checkpoint(path, ckpt)
     assert not path.with_name(path.name + ".tmp").exists()
     assert load_checkpoint(path).records == 1
+
+
+def test_a_file_written_whole_keeps_the_old_one_when_the_write_fails(tmp_path):
+    """``disk.write_whole`` (study files, sweep markers, figures): a write that fails half-way
+    leaves the file as it was and no temporary file; one that completes replaces it."""
+    path = tmp_path / "calibration.nc"
+    path.write_text("old")
+
+    def half(part: Path) -> None:
+        part.write_text("ne")
+        raise OSError(28, "No space left on device")
+
+    with pytest.raises(OSError):
+        disk.write_whole(path, half)
+    assert path.read_text() == "old" and sorted(p.name for p in tmp_path.iterdir()) == ["calibration.nc"]
+    disk.write_whole(path, lambda part: part.write_text("new"))
+    assert path.read_text() == "new" and sorted(p.name for p in tmp_path.iterdir()) == ["calibration.nc"]

@@ -35,6 +35,7 @@ import numpy as np
 
 from multilayer.app.ensemble import Ensemble, Evaluation
 from multilayer.errors import Interrupted
+from multilayer.io.disk import write_whole
 from multilayer.io.observables import Measure
 from multilayer.io.study import Calibration
 
@@ -481,6 +482,4 @@ def write(fit: Fit, calibrator: Calibrator, path: Path, progress: str = "complet
             "calibration": calibration.path.read_text(encoding="utf-8"),
         },
     )
-    partial = path.with_name(path.name + ".partial")
-    ds.to_netcdf(partial)
-    partial.replace(path)
+    write_whole(path, ds.to_netcdf)

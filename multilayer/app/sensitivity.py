@@ -20,6 +20,7 @@ import numpy as np
 
 from multilayer.app.ensemble import NOT_RUN, Ensemble, Evaluation
 from multilayer.errors import InputError
+from multilayer.io.disk import write_whole
 from multilayer.io.observables import Measure
 from multilayer.io.study import Sensitivity
 
@@ -157,6 +158,4 @@ def write(
             "sensitivity": study.path.read_text(encoding="utf-8"),
         },
     )
-    partial = path.with_name(path.name + ".partial")
-    ds.to_netcdf(partial)
-    partial.replace(path)
+    write_whole(path, ds.to_netcdf)

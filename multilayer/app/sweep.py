@@ -38,6 +38,7 @@ from typing import Any, Literal
 from multilayer import scenario
 from multilayer.app import resources, runner, stopping
 from multilayer.errors import InputError, Interrupted, RunError, reason
+from multilayer.io.disk import write_whole
 from multilayer.io.results import (
     CHECKPOINT_FILE,
     MIXTURE_SUMMARY_KEYS,
@@ -340,9 +341,7 @@ def run_member(
     if failure is not None:  # never label a run "ok" that is not complete and finite
         raise RunError(f"{directory / RESULT_FILE}: {failure}")
     marker = {"fingerprint": fingerprint, "overrides": overrides, "summary": summary}
-    partial = directory / (MARKER + ".partial")
-    partial.write_text(json.dumps(marker, indent=2) + "\n")
-    os.replace(partial, directory / MARKER)
+    write_whole(directory / MARKER, lambda part: part.write_text(json.dumps(marker, indent=2) + "\n"))
     return summary
 
 

@@ -14,6 +14,7 @@ import errno
 import math
 import os
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 
 from multilayer.errors import InputError
@@ -79,4 +80,17 @@ def writable(path: Path) -> Path:
             f"{path}: exists and is not a regular file (a directory, a pipe or a device); accepted: "
             "no file there, or a regular file to replace"
         )
+    return path
+
+
+def write_whole(path: Path, write: Callable[[Path], object]) -> Path:
+    """``path`` written by ``write`` into a temporary file beside it (of the same suffix: the
+    writers read the format from it, :func:`writable`) renamed over it: never a file
+    written half-way, and no temporary file left when ``write`` fails."""
+    part = writable(path.with_name(f".{path.stem}.partial{path.suffix}"))
+    try:
+        write(part)
+        os.replace(part, path)
+    finally:
+        part.unlink(missing_ok=True)
     return path

@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 import os
 import textwrap
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from functools import partial
 from pathlib import Path
 
@@ -30,7 +30,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
 from multilayer.errors import InputError
-from multilayer.io.disk import writable
+from multilayer.io.disk import writable, write_whole
 from multilayer.io.result_check import ending
 from multilayer.io.results import open_result, seismic_force
 
@@ -112,21 +112,9 @@ def save_figures(out: Path, figures: dict[str, Figure], fmt: str, family: Sequen
     for stem in family:
         writable(out / f"{stem}.{fmt}").unlink(missing_ok=True)
     return [
-        _whole(out / f"{stem}.{fmt}", partial(fig.savefig, dpi=120, format=fmt))
+        write_whole(writable(out / f"{stem}.{fmt}"), partial(fig.savefig, dpi=120, format=fmt))
         for stem, fig in figures.items()
     ]
-
-
-def _whole(path: Path, write: Callable[[Path], object]) -> Path:
-    """``path`` written by ``write`` into a temporary file beside it (of the same suffix: the
-    writers read the format from it) renamed over it: never a file written half-way."""
-    part = writable(path.with_name(f".{path.stem}.partial{path.suffix}"))
-    try:
-        write(part)
-        os.replace(part, writable(path))
-    finally:
-        part.unlink(missing_ok=True)
-    return path
 
 
 def column_indices(ds: xr.Dataset, at: Sequence[float]) -> list[int]:
@@ -374,7 +362,7 @@ def animate_section(
         path, writer = stem.with_suffix(".mp4"), animation.FFMpegWriter(fps=fps)
     else:
         path, writer = stem.with_suffix(".gif"), animation.PillowWriter(fps=fps)
-    return _whole(path, lambda part: movie.save(part, writer=writer, dpi=100))
+    return write_whole(writable(path), lambda part: movie.save(part, writer=writer, dpi=100))
 
 
 def thickness_figure(
