@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from multilayer.app.simulation import Simulation
+from multilayer.engine.vertical.stresses import ColumnStresses
 from multilayer.validation.cases import collapse_channel
 from multilayer.validation.runs import Run
 
@@ -61,6 +62,53 @@ class Sample:
     """The dissipation ``2 mu(I) p |D|`` of the tensor law on those faces (``I`` from ``2|D|``)."""
 
 
+@dataclass
+class Faces:
+    """The faces between two columns holding material (thicker than the dry threshold)."""
+
+    left: np.ndarray
+    """(F,) the column left of each face."""
+    h: np.ndarray
+    """(F,) the mean thickness of its two columns."""
+    x: np.ndarray
+    """(F,) its position."""
+    pressure: np.ndarray
+    """(L, F) the mean layer pressures of its two columns (the layers' mean of their interfaces)."""
+    dudz: np.ndarray
+    """(L, F) du/dz at the layer centres, the mean of its two columns."""
+    along: np.ndarray
+    """(L, F) ``du/dx`` along each layer (at fixed sigma)."""
+    slope: np.ndarray
+    """(L, F) ``dz/dx`` of the layer centres."""
+    centre_pressure: np.ndarray
+    """(L, W) the mean layer pressures of the wet columns (W of them)."""
+
+
+def faces(sim: Simulation, cs: ColumnStresses, uw: np.ndarray) -> Faces:
+    """The faces of the state of ``sim`` with the column stresses ``cs`` and velocities ``uw``
+    (L, W) of its wet columns."""
+    h, wet = sim.h, sim.h > sim.dry
+    hw, bw = h[wet], sim.bed[wet]
+    pairs = wet[:-1] & wet[1:]
+    left = np.flatnonzero(pairs)
+    p_centre = 0.5 * (cs.pressure + np.vstack([cs.pressure[1:], np.zeros((1, hw.size))]))
+    spacing = np.where(cs.spacing > 0, cs.spacing, 1.0)
+    gradient = np.diff(uw, axis=0, prepend=0.0) / spacing  # du/dz at the interfaces
+    dudz = 0.5 * (gradient + np.vstack([gradient[1:], np.zeros((1, hw.size))]))  # layer centres
+    index = np.cumsum(wet) - 1  # column -> its position among the wet ones
+    i, j = index[left], index[left + 1]
+    return Faces(
+        left=left,
+        h=0.5 * (hw[i] + hw[j]),
+        x=0.5 * (sim.vertical.stresses.x[wet][i] + sim.vertical.stresses.x[wet][j]),
+        pressure=0.5 * (p_centre[:, i] + p_centre[:, j]),
+        dudz=0.5 * (dudz[:, i] + dudz[:, j]),
+        along=(uw[:, j] - uw[:, i]) / sim.dx,
+        slope=(bw[j] - bw[i] + sim.sigma[:, None] * (hw[j] - hw[i])) / sim.dx,
+        centre_pressure=p_centre,
+    )
+
+
 def sample(sim: Simulation) -> Sample:
     """The budget of the state of ``sim`` now (module docstring)."""
     stresses, rho = sim.vertical.stresses, sim.vertical.stresses.material.density
@@ -73,22 +121,8 @@ def sample(sim: Simulation) -> Sample:
     shear = tau * jump * dx
     threshold, viscous = stresses.wall_forces(h, held)
     uw = u[:, wet]
-    # the normal stress on the faces between two wet columns
-    hw, bw = h[wet], sim.bed[wet]
-    pairs = wet[:-1] & wet[1:]
-    left = np.flatnonzero(pairs)
-    p_centre = 0.5 * (cs.pressure + np.vstack([cs.pressure[1:], np.zeros((1, hw.size))]))
-    spacing = np.where(cs.spacing > 0, cs.spacing, 1.0)
-    gradient = np.diff(uw, axis=0, prepend=0.0) / spacing  # du/dz at the interfaces
-    dudz = 0.5 * (gradient + np.vstack([gradient[1:], np.zeros((1, hw.size))]))  # layer centres
-    index = np.cumsum(wet) - 1  # column -> its position among the wet ones
-    i, j = index[left], index[left + 1]
-    hf = 0.5 * (hw[i] + hw[j])
-    xf = 0.5 * (stresses.x[wet][i] + stresses.x[wet][j])
-    dzdx = (bw[j] - bw[i] + sim.sigma[:, None] * (hw[j] - hw[i])) / dx
-    dudz_f = 0.5 * (dudz[:, i] + dudz[:, j])
-    p_f = 0.5 * (p_centre[:, i] + p_centre[:, j])
-    along = (uw[:, j] - uw[:, i]) / dx
+    f = faces(sim, cs, uw)
+    hf, xf, p_f, dudz_f, along = f.h, f.x, f.pressure, f.dudz, f.along
 
     def power(d_xx: np.ndarray) -> float:
         norm = np.sqrt(d_xx**2 + (0.5 * dudz_f) ** 2)
@@ -98,7 +132,7 @@ def sample(sim: Simulation) -> Sample:
             * dx
         )
 
-    d_xx = along - dzdx * dudz_f
+    d_xx = along - f.slope * dudz_f
     norm = np.sqrt(d_xx**2 + (0.5 * dudz_f) ** 2)
     rate = np.abs(dudz_f)
     return Sample(
