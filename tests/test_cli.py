@@ -18,6 +18,7 @@ import yaml
 
 import multilayer
 from multilayer.app import runner
+from multilayer.app.commands.run import summary_lines
 from multilayer.errors import RunError
 
 DELETE = object()
@@ -378,6 +379,16 @@ def test_the_run_summary_gives_units_and_says_why_a_quantity_has_no_value(
     assert any(line.startswith("  max_speed_final = ") and line.endswith(" m/s") for line in lines)
     assert "  front_final = nan m (no cell thicker than the front threshold (0.01 m) at the end)" in lines
     assert any(line.startswith("  steps = ") and line[len("  steps = ") :].isdigit() for line in lines)
+
+
+def test_the_run_summary_says_why_a_force_has_no_value() -> None:
+    """No force without an interval to average it over; none at all for a mixture, whose
+    result holds no force variables (docs/mixture.md): the line says which."""
+    nan = float("nan")
+    dry = summary_lines({"peak_seismic_force_x": nan}, 1e-3)
+    wet = summary_lines({"peak_seismic_force_x": nan, "pore_pressure_bed_mean_final": 1.4}, 1e-3)
+    assert dry[0].endswith("(a single output time: no interval to average the force over)")
+    assert wet[0] == "peak_seismic_force_x = nan N/m (not computed for a grain-fluid mixture)"
 
 
 def test_the_command_leaves_its_host_process_as_it_found_it(cli, tiny_scenario, write_scenario):

@@ -367,7 +367,8 @@ def summary(path: str | os.PathLike, *, checked: bool = True) -> dict[str, float
     height over the cells wetter than the front threshold (NaN if none);
     ``peak_seismic_force_x`` and ``_z`` the largest magnitude of the seismic single force
     per unit width, the force on the bed and the walls less the weight, over the output
-    intervals (:func:`seismic_force`; NaN for a single record); with a fluid,
+    intervals (:func:`seismic_force`; NaN for a single record and for a mixture, whose
+    result holds no forces); with a fluid,
     ``pore_pressure_bed_mean_final`` and ``phi_mean_final`` are the means of the basal
     excess pore pressure and of the solid fraction over the wet cells.  The file is
     checked first as the answer of a run (``checked=False``: by the run that has just

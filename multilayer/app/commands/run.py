@@ -50,11 +50,15 @@ def main(args: argparse.Namespace) -> int:
 
 def summary_lines(summary: dict[str, float], threshold: float) -> list[str]:
     """The run summary, one ``key = value unit`` line each; a quantity that has no value
-    (no material above the front threshold at the end) says why."""
-    from multilayer.io.results import SUMMARY_UNITS
+    (no material above the front threshold at the end, a single output time, a mixture's
+    force) says why."""
+    from multilayer.io.results import MIXTURE_SUMMARY_KEYS, SUMMARY_UNITS
 
     none = f"no cell thicker than the front threshold ({threshold:g} m) at the end"
-    single = "a single output time: no interval to average the force over"
+    if MIXTURE_SUMMARY_KEYS[0] in summary:  # a mixture's result holds no forces (docs/mixture.md)
+        single = "not computed for a grain-fluid mixture"
+    else:
+        single = "a single output time: no interval to average the force over"
     why = {
         "front_final": none,
         "runout": none,
