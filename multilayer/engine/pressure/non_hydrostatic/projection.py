@@ -271,24 +271,27 @@ def _finish(dV, u, w, h, fractions, moving, left, right, dt, lo, storage, u_out,
     F = left.size
     du = storage[: L * N].reshape((L, N))
     du[:] = 0.0
+    # unsigned indices (np.uint64): numba leaves out the wrap-around of negative ones
     for c in range(L):
         for f in range(F):
-            half = 0.5 * dV[c * F + f]
-            du[c, left[f]] += half  # each column is the left of one face at most, and the right of one
-            du[c, right[f]] += half
+            half = 0.5 * dV[c * F + f]  # each column is the left of one face at most, and the right of one
+            du[c, np.uint64(left[f])] += half
+            du[c, np.uint64(right[f])] += half
     for a in range(L):
         for i in range(N):
+            at = np.uint64(lo + i)
             if moving[a, i]:
-                u_out[a, lo + i] = u[a, lo + i] + du[a, i]
-                w_out[a, lo + i] = w[a, lo + i] + dV[L * F + a * N + i]
+                u_out[a, at] = u[a, at] + du[a, i]
+                w_out[a, at] = w[a, at] + dV[L * F + a * N + i]
             else:
-                u_out[a, lo + i] = u[a, lo + i]
-                w_out[a, lo + i] = 0.0
+                u_out[a, at] = u[a, at]
+                w_out[a, at] = 0.0
     for i in range(N):
-        total = 0.0
+        total, at, depth = 0.0, np.uint64(lo + i), h[np.uint64(lo + i)]
         for a in range(L - 1, -1, -1):
-            total += fractions[a] * h[lo + i] * dV[L * F + a * N + i]
-            q_out[a, lo + i] = total / dt
+            layer = np.uint64(a)
+            total += fractions[layer] * depth * dV[L * F + a * N + i]
+            q_out[layer, at] = total / dt
 
 
 @jit
