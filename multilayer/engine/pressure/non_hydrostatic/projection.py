@@ -398,8 +398,10 @@ class Projection:
         self._w_star = np.zeros(shape)  # read at the moving cells only
         self._buffers = _Buffers(*shape, layering(tuple(fractions), pressure_layers or shape[0])[0].size)
         self._gravity = np.full(shape, max(g_n, 0.0))
+        self._factors = depth_factors(fractions)
+        self._tension_free = np.zeros(shape, np.bool_)  # the guess of the active set (tension_free)
         self._written = (0, 0)  # the columns of u, w, q written by the last call
-        self._gravity_written = (0, 0)
+        self._gravity_written = self._tension_written = (0, 0)
 
     def __call__(
         self,
@@ -423,10 +425,13 @@ class Projection:
         self.u[:, lo:hi] = u[:, lo:hi]
         # only the moving cells take part, in the columns holding material
         _advect(w, u, self.dx, dt, self.periodic, lo, hi, self._w_star)
+        start, stop = self._tension_written  # tension_free(q, h_before, ...) in an array reused
+        self._tension_free[:, start:stop] = False
+        _tension_free(q, h_before, self._factors, self.g_n, *columns, self._tension_free)
+        self._tension_written = columns
         first, last = project_columns(
             h, u, self._w_star, self.bed, self.fractions, (self.u, self.w, self.q), dx=self.dx, dt=dt,
-            periodic=self.periodic, dry=self.dry, g_n=self.g_n,
-            tension_free=tension_free(q, h_before, self.fractions, self.g_n, columns),
+            periodic=self.periodic, dry=self.dry, g_n=self.g_n, tension_free=self._tension_free,
             pressure_layers=self.pressure_layers, buffers=self._buffers,
         )  # fmt: skip
         self._written = (min(lo, first), max(hi, last)) if last > first else (lo, hi)
@@ -440,6 +445,6 @@ class Projection:
         start, stop = self._gravity_written
         self._gravity[:, start:stop] = max(self.g_n, 0.0)
         lo, hi = columns
-        _yield_gravity(q, h, depth_factors(self.fractions), self.g_n, lo, hi, self._gravity)
+        _yield_gravity(q, h, self._factors, self.g_n, lo, hi, self._gravity)
         self._gravity_written = columns
         return self._gravity
