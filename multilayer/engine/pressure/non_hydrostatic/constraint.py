@@ -342,13 +342,14 @@ def unknowns(mass, left, right, moving, u, w, offset, nodes, free, V_star, row_o
     for c in range(L):
         for f in range(F):
             k = c * F + f
-            free[k] = (moving[c, left[f]] or moving[c, right[f]]) and mass[k] > 0.0
-            V_star[k] = 0.5 * (u[c, offset + left[f]] + u[c, offset + right[f]])
+            i, e = np.uint64(left[f]), np.uint64(right[f])  # unsigned: no wrap-around (see entries)
+            free[k] = (moving[c, i] or moving[c, e]) and mass[k] > 0.0
+            V_star[k] = 0.5 * (u[c, np.uint64(offset) + i] + u[c, np.uint64(offset) + e])
     for a in range(L):
         for i in range(N):
             k = L * F + a * N + i
             free[k] = moving[a, i]
-            V_star[k] = w[a, offset + i] if moving[a, i] else 0.0
+            V_star[k] = w[a, np.uint64(offset + i)] if moving[a, i] else 0.0
     n = 0
     for i in range(N):
         for g in range(Lp):

@@ -256,8 +256,9 @@ def _moving(u, h, dry, lo, hi):
     ``h > dry``."""
     moving = np.empty((u.shape[0], hi - lo), np.bool_)
     for a in range(u.shape[0]):
-        for i in range(lo, hi):
-            moving[a, i - lo] = u[a, i] != 0.0 and h[i] > dry
+        for i in range(hi - lo):
+            at = np.uint64(lo + i)  # unsigned: numba leaves out the wrap-around of negative indices
+            moving[a, i] = u[a, at] != 0.0 and h[at] > dry
     return moving
 
 
@@ -318,7 +319,8 @@ def _advect(w, u, dx, dt, periodic, lo, hi, out):
     L, N = w.shape
     ratio = dt / dx
     for a in range(L):
-        for i in range(lo, hi):
+        for column in range(lo, hi):
+            i = np.uint64(column)  # unsigned: numba leaves out the wrap-around of negative indices
             here, speed = w[a, i], u[a, i]
             if speed > 0.0:
                 west = w[a, i - 1] if i > 0 else (w[a, N - 1] if periodic else here)
