@@ -358,7 +358,8 @@ def tension_free(
 @jit
 def _tension_free(q, h, factors, g_n, lo, hi, out):
     for a in range(q.shape[0]):
-        for i in range(lo, hi):
+        for column in range(lo, hi):
+            i = np.uint64(column)  # unsigned: numba leaves out the wrap-around of negative indices
             depth = factors[a] * h[i]
             out[a, i] = depth > 0.0 and g_n * depth + q[a, i] <= 1e-9 * g_n * depth
 
@@ -369,7 +370,8 @@ def _yield_gravity(q, h, factors, g_n, lo, hi, out):
     ``rho G_k (h - z_k) = rho g cos(theta) (h - z_k) + rho q_k``, never negative, into the
     columns ``lo .. hi-1`` of ``out`` (``factors``: :func:`depth_factors`)."""
     for a in range(q.shape[0]):
-        for i in range(lo, hi):
+        for column in range(lo, hi):
+            i = np.uint64(column)  # unsigned: numba leaves out the wrap-around of negative indices
             depth = factors[a] * h[i]
             out[a, i] = max(g_n + (q[a, i] / depth if depth > 0.0 else 0.0), 0.0)
 
