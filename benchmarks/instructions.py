@@ -12,7 +12,11 @@ callgrind counts the instructions executed inside one region of the step:
 - ``transport_kernel``: the compiled transport sweep alone;
 - ``vertical``: the implicit vertical step (``Simulation._vertical_step``);
 - ``projection``: the pressure model's projection (``Simulation._project``);
-- ``forces``: the impulses on the bed and walls (``BedForce.record``).
+- ``forces``: the impulses on the bed and walls (``BedForce.record``);
+- with ``--pressure non_hydrostatic``, the parts of the projection: ``assembly`` (the
+  constraint and its normal equations, ``normal_equations``), ``solve`` (the banded
+  Cholesky factorisation with active sets, ``multipliers``), ``correction`` (``correct``)
+  and ``finish`` (the new velocities and pressures, ``_finish``).
 
 Each region is one run under valgrind (``--instr-atstart=no``: the import runs outside
 the instrumentation), divided by the cell-steps on cells holding material.  numba
@@ -55,6 +59,9 @@ CPU = "haswell"
 AVX-512 nor the host's own CPU model: numba's cache is keyed by the CPU it compiled for)."""
 FEATURES = "+avx,+avx2,+fma,+bmi,+bmi2,+f16c,+lzcnt,+movbe,+popcnt,+sse4.2"
 REGIONS = ("step", "transport", "transport_kernel", "vertical", "projection", "forces")
+PROJECTION_PARTS = {"assembly": "normal_equations", "solve": "multipliers", "correction": "correct",
+                    "finish": "_finish"}  # fmt: skip
+"""The regions inside the non-hydrostatic projection: the functions of its module counted."""
 CACHES = ["--cache-sim=yes", "--D1=49152,12,64", "--LL=2097152,16,64"]
 """The simulated data caches of ``--cache-sim`` (size, ways, line): the L1 and the L2 of a
 core of the machine the project is measured on, the L2 as the last level."""
@@ -114,6 +121,10 @@ def run_region(args: argparse.Namespace) -> None:
         wrap(kernel, "_stages_serial", lib.toggle)
     elif args.region == "forces":
         wrap(sim.forces, "record", lib.toggle)
+    elif args.region in PROJECTION_PARTS:
+        from multilayer.engine.pressure.non_hydrostatic import projection
+
+        wrap(projection, PROJECTION_PARTS[args.region], lib.toggle)
     elif args.region != "step":
         method = {"transport": "_transport", "vertical": "_vertical_step", "projection": "_project"}
         wrap(sim, method[args.region], lib.toggle)

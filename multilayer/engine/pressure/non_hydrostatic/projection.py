@@ -256,8 +256,9 @@ def _moving(u, h, dry, lo, hi):
     ``h > dry``."""
     moving = np.empty((u.shape[0], hi - lo), np.bool_)
     for a in range(u.shape[0]):
-        for i in range(lo, hi):
-            moving[a, i - lo] = u[a, i] != 0.0 and h[i] > dry
+        for i in range(hi - lo):
+            at = np.uint64(lo + i)  # unsigned: numba leaves out the wrap-around of negative indices
+            moving[a, i] = u[a, at] != 0.0 and h[at] > dry
     return moving
 
 
@@ -271,24 +272,27 @@ def _finish(dV, u, w, h, fractions, moving, left, right, dt, lo, storage, u_out,
     F = left.size
     du = storage[: L * N].reshape((L, N))
     du[:] = 0.0
+    # unsigned indices (np.uint64): numba leaves out the wrap-around of negative ones
     for c in range(L):
         for f in range(F):
-            half = 0.5 * dV[c * F + f]
-            du[c, left[f]] += half  # each column is the left of one face at most, and the right of one
-            du[c, right[f]] += half
+            half = 0.5 * dV[c * F + f]  # each column is the left of one face at most, and the right of one
+            du[c, np.uint64(left[f])] += half
+            du[c, np.uint64(right[f])] += half
     for a in range(L):
         for i in range(N):
+            at = np.uint64(lo + i)
             if moving[a, i]:
-                u_out[a, lo + i] = u[a, lo + i] + du[a, i]
-                w_out[a, lo + i] = w[a, lo + i] + dV[L * F + a * N + i]
+                u_out[a, at] = u[a, at] + du[a, i]
+                w_out[a, at] = w[a, at] + dV[L * F + a * N + i]
             else:
-                u_out[a, lo + i] = u[a, lo + i]
-                w_out[a, lo + i] = 0.0
+                u_out[a, at] = u[a, at]
+                w_out[a, at] = 0.0
     for i in range(N):
-        total = 0.0
+        total, at, depth = 0.0, np.uint64(lo + i), h[np.uint64(lo + i)]
         for a in range(L - 1, -1, -1):
-            total += fractions[a] * h[lo + i] * dV[L * F + a * N + i]
-            q_out[a, lo + i] = total / dt
+            layer = np.uint64(a)
+            total += fractions[layer] * depth * dV[L * F + a * N + i]
+            q_out[layer, at] = total / dt
 
 
 @jit
@@ -315,7 +319,8 @@ def _advect(w, u, dx, dt, periodic, lo, hi, out):
     L, N = w.shape
     ratio = dt / dx
     for a in range(L):
-        for i in range(lo, hi):
+        for column in range(lo, hi):
+            i = np.uint64(column)  # unsigned: numba leaves out the wrap-around of negative indices
             here, speed = w[a, i], u[a, i]
             if speed > 0.0:
                 west = w[a, i - 1] if i > 0 else (w[a, N - 1] if periodic else here)
@@ -353,7 +358,8 @@ def tension_free(
 @jit
 def _tension_free(q, h, factors, g_n, lo, hi, out):
     for a in range(q.shape[0]):
-        for i in range(lo, hi):
+        for column in range(lo, hi):
+            i = np.uint64(column)  # unsigned: numba leaves out the wrap-around of negative indices
             depth = factors[a] * h[i]
             out[a, i] = depth > 0.0 and g_n * depth + q[a, i] <= 1e-9 * g_n * depth
 
@@ -364,7 +370,8 @@ def _yield_gravity(q, h, factors, g_n, lo, hi, out):
     ``rho G_k (h - z_k) = rho g cos(theta) (h - z_k) + rho q_k``, never negative, into the
     columns ``lo .. hi-1`` of ``out`` (``factors``: :func:`depth_factors`)."""
     for a in range(q.shape[0]):
-        for i in range(lo, hi):
+        for column in range(lo, hi):
+            i = np.uint64(column)  # unsigned: numba leaves out the wrap-around of negative indices
             depth = factors[a] * h[i]
             out[a, i] = max(g_n + (q[a, i] / depth if depth > 0.0 else 0.0), 0.0)
 
@@ -395,8 +402,10 @@ class Projection:
         self._w_star = np.zeros(shape)  # read at the moving cells only
         self._buffers = _Buffers(*shape, layering(tuple(fractions), pressure_layers or shape[0])[0].size)
         self._gravity = np.full(shape, max(g_n, 0.0))
+        self._factors = depth_factors(fractions)
+        self._tension_free = np.zeros(shape, np.bool_)  # the guess of the active set (tension_free)
         self._written = (0, 0)  # the columns of u, w, q written by the last call
-        self._gravity_written = (0, 0)
+        self._gravity_written = self._tension_written = (0, 0)
 
     def __call__(
         self,
@@ -420,10 +429,13 @@ class Projection:
         self.u[:, lo:hi] = u[:, lo:hi]
         # only the moving cells take part, in the columns holding material
         _advect(w, u, self.dx, dt, self.periodic, lo, hi, self._w_star)
+        start, stop = self._tension_written  # tension_free(q, h_before, ...) in an array reused
+        self._tension_free[:, start:stop] = False
+        _tension_free(q, h_before, self._factors, self.g_n, *columns, self._tension_free)
+        self._tension_written = columns
         first, last = project_columns(
             h, u, self._w_star, self.bed, self.fractions, (self.u, self.w, self.q), dx=self.dx, dt=dt,
-            periodic=self.periodic, dry=self.dry, g_n=self.g_n,
-            tension_free=tension_free(q, h_before, self.fractions, self.g_n, columns),
+            periodic=self.periodic, dry=self.dry, g_n=self.g_n, tension_free=self._tension_free,
             pressure_layers=self.pressure_layers, buffers=self._buffers,
         )  # fmt: skip
         self._written = (min(lo, first), max(hi, last)) if last > first else (lo, hi)
@@ -437,6 +449,6 @@ class Projection:
         start, stop = self._gravity_written
         self._gravity[:, start:stop] = max(self.g_n, 0.0)
         lo, hi = columns
-        _yield_gravity(q, h, depth_factors(self.fractions), self.g_n, lo, hi, self._gravity)
+        _yield_gravity(q, h, self._factors, self.g_n, lo, hi, self._gravity)
         self._gravity_written = columns
         return self._gravity
