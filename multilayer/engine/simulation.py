@@ -279,22 +279,22 @@ class Simulation:
 
     def step(self, t_max: float = np.inf) -> float:
         """Advance one time step of the splitting (module docstring), never beyond ``t_max``;
-        returns the step taken.  A failure from a state written between steps is named as
-        that state (:meth:`StateGuard.check_entry`)."""
+        returns the step taken.  A state written between steps that no step leaves is named
+        as that state, with the array it was written into (:meth:`StateGuard.check_entry`)."""
         self._check_target(t_max)
-        try:
-            return self._step(t_max)
-        except RunError as failure:
-            self.guard.check_entry(self.h, self.u, self.t, self.steps, failure)
-            raise
+        self._check_entry()
+        return self._step(t_max)
+
+    def _check_entry(self) -> None:
+        """The state a step starts from is as the steps leave it (:meth:`StateGuard.check_entry`)."""
+        self.guard.check_entry(self.h, self.u, self.state.fields, self.t, self.steps)
+        if self.mixture is not None:
+            self.mixture.check_entry(self.h, self.t, self.steps)
 
     def _step(self, t_max: float) -> float:
         speed = self._with_inflow(self.state.survey(self.dry, self.g_n))  # the fastest wave at the start
-        if not math.isfinite(speed):  # not computed from: numpy's warnings on the way to the guard
-            self.guard.check_entry(self.h, self.u, self.t, self.steps)
         dt = min(courant_step(speed, self.dx, self.config.cfl), t_max - self.t)
-        if dt == math.inf:  # no wave: no material (or none read as such) and no inflow
-            self.guard.check_entry(self.h, self.u, self.t, self.steps)
+        if dt == math.inf:  # no wave: no material and no inflow
             raise InputError(
                 f"step(t_max={t_max!r}): no material and no inflow, so no wave bounds the time step; "
                 "accepted: a finite t_max (the time to step to)"
