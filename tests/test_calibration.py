@@ -263,6 +263,23 @@ def test_a_seed_numpy_cannot_take_is_refused(tmp_path, capsys, seed):
         assert "accepted: an integer from 0 to 4294967295 (2^32 - 1)" in err
 
 
+@pytest.mark.parametrize("mean", [0.6, 0.3999, -1e308])
+def test_a_prior_whose_mean_lies_outside_the_bounds_is_refused(tmp_path, capsys, mean):
+    """A Gaussian prior centred outside the bounds validated: the search, which never
+    leaves the bounds, was held at a bound by the prior, and the fit's uncertainty was the
+    prior's.  Its mean within them (a bound included) validates."""
+    parameters = f"{{rheology.mu_s: {{bounds: [0.4, 0.5], prior: {{mean: {mean}, sd: 0.05}}}}}}"
+    _calibration_and_sensitivity(tmp_path, parameters)
+    assert cli.main(["validate", str(tmp_path / "c.yaml")]) == 2
+    err = capsys.readouterr().err
+    assert err == (
+        f"multilayer: error: {tmp_path / 'c.yaml'}: parameters.rheology.mu_s.prior.mean (line 2): {mean!r} "
+        "outside the bounds [0.4, 0.5]; accepted: a mean within the bounds\n"
+    )
+    _calibration_and_sensitivity(tmp_path, parameters.replace(str(mean), "0.5"))
+    assert cli.main(["validate", str(tmp_path / "c.yaml")]) == 0
+
+
 def test_one_scenario_value_under_two_keys_or_one_output_twice_is_refused(tmp_path, capsys):
     """``initial.0.height`` and ``initial.00.height``, two parameters of a sensitivity, a
     calibration or a sweep, validated: both set the one height, the later over the earlier,

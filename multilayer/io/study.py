@@ -88,6 +88,15 @@ class Parameter(StrictModel):
     def _check(self) -> Parameter:
         if not self.bounds[0] < self.bounds[1]:
             raise invalid(f"got {self.bounds}", "[lower, upper] with lower < upper", "bounds")
+        lower, upper = self.bounds
+        if self.prior is not None and not lower <= self.prior.mean <= upper:
+            # the search never leaves the bounds: the prior held the fit at a bound, as a
+            # measurement would, and its uncertainty was the prior's, not the data's
+            raise invalid(
+                f"{self.prior.mean!r} outside the bounds [{lower!r}, {upper!r}]",
+                "a mean within the bounds",
+                "prior.mean",
+            )
         return self
 
 
