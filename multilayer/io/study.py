@@ -26,6 +26,8 @@ from __future__ import annotations
 import csv
 import io
 import itertools
+import math
+import sys
 from pathlib import Path
 from typing import Annotated, Any, Literal, get_args
 
@@ -96,6 +98,16 @@ class Parameter(StrictModel):
                 f"{self.prior.mean!r} outside the bounds [{lower!r}, {upper!r}]",
                 "a mean within the bounds",
                 "prior.mean",
+            )
+        spread = (upper - lower) / self.prior.sd if self.prior is not None else 0.0
+        if not spread * spread < math.inf:
+            # the misfit of almost every parameter set was infinite: found after the search's runs
+            smallest = (upper - lower) / math.sqrt(sys.float_info.max)
+            raise invalid(
+                f"{self.prior.sd!r}: the prior's square ((theta - mean) / sd)^2 overflows within the bounds "
+                f"[{lower!r}, {upper!r}]",
+                f"an sd above {smallest:.3g} (the width of the bounds / 1.34e154)",
+                "prior.sd",
             )
         return self
 
