@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 import sys
@@ -336,7 +337,7 @@ def test_a_plot_stopped_half_way_leaves_no_figures_of_two_runs(
     monkeypatch.setattr(Figure, "savefig", stopped)
     assert cli("plot", tmp_path).code == 130
     assert sorted(p.name for p in (tmp_path / "plots").iterdir()) == ["section.png", "thickness.png"]
-    assert written == [".section.partial.png", ".thickness.partial.png"]
+    assert written == [f".section.partial.{os.getpid()}.png", f".thickness.partial.{os.getpid()}.png"]
 
 
 def test_figures_and_an_animation_drawn_from_an_earlier_result_are_removed_by_the_next_plot(
@@ -347,8 +348,6 @@ def test_figures_and_an_animation_drawn_from_an_earlier_result_are_removed_by_th
     the new figures, read as drawn from the result there now.  The next plot removes the
     figures older than ``result.nc`` (in any format) and says so; those drawn from it since
     stay, whatever their format, and so does a file of another name."""
-    import os
-
     shutil.copy(slump_dir / "result.nc", tmp_path / "result.nc")
     plots = tmp_path / "plots"
     plots.mkdir()
