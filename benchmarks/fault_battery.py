@@ -605,7 +605,12 @@ def round_two() -> list[Case]:
     """The hostile cases of the second round (docs/reliability.md): damaged results,
     contained plugins, full disks, bounds on sizes and degenerate values, inputs that
     reached a traceback."""
-    out: list[Case] = []
+    out = [
+        Case("API: sim.h[3] = 1e308 written between steps", ["validate", "{scenario}"], 1,
+             "the wave speed sqrt(g cos(theta) h) + |u| of the state at t = 0.00843656 s (step 2) overflows "
+             "(thickness up to 1e+308 m", setup=_scenario,
+             patch=WRITTEN_BETWEEN_STEPS.format(write="sim.h[3] = 1e308"))
+    ]  # fmt: skip
     run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
     for how in RESULT_DAMAGES:
         for command in (["plot", "{dir}/out"], ["export", "{dir}/out", "--vtk"]):
@@ -2246,7 +2251,7 @@ def round_thirteen() -> list[Case]:
     a prior centred outside
     its bounds or so narrow that its square overflows, one Ctrl-C while a plugin never
     returns, three plots of one directory at once, 1001 initial entries, a sweep whose base
-    is a list."""
+    is a list, a thickness of 1e308 m written between steps."""
     out: list[Case] = []
     out.append(
         Case("plot: over an earlier run's animation and svg figures", ["plot", "{dir}/out", "{scenario}"], 0,

@@ -744,6 +744,24 @@ def test_a_mixtures_solid_written_between_steps_and_a_velocity_without_material_
     assert not sim.u.any()
 
 
+def test_a_finite_state_whose_wave_speed_overflows_is_named_not_the_length_of_the_run():
+    """``sim.h[3] = 1e308`` between steps (finite, >= 0: the entry check passes): g h
+    overflows, the Courant step was 0 and the message blamed the length of the run ("dt
+    below the resolution of t when the run is too long for its step")."""
+    from engine import simulation
+
+    sim = simulation(**TINY_SCENARIO)
+    sim.step()
+    sim.h[3] = 1e308
+    with pytest.raises(
+        StateError,
+        match=r"the wave speed sqrt\(g cos\(theta\) h\) \+ \|u\| of the state at "
+        r"t = 0.00843656 s \(step 2\) overflows \(thickness up to 1e\+308 m, velocity up to",
+    ):
+        sim.step()
+    assert sim.steps == 1
+
+
 def test_stepping_without_a_bound_where_no_wave_bounds_the_step_is_named():
     """``sim.step()`` (no ``t_max``) on a domain with no material and no inflow: the Courant
     step is infinite; it was taken (h = nan after transport over dt = inf, a numpy warning)."""

@@ -56,7 +56,7 @@ from multilayer.engine.mixture.flow import MixtureFlow
 from multilayer.engine.normal_stress import NormalStress, joint_rest, runs
 from multilayer.engine.pressure.model import PressureModel, PressureSetup, models, options
 from multilayer.engine.state import FlowState, max_wave_speed, span, start_moving, whole
-from multilayer.engine.state_check import StateGuard, check_restored
+from multilayer.engine.state_check import StateError, StateGuard, check_restored
 from multilayer.engine.threads import ThreadPolicy
 from multilayer.engine.transport import boundaries
 from multilayer.engine.transport import kernel as transport_kernel
@@ -293,6 +293,12 @@ class Simulation:
 
     def _step(self, t_max: float) -> float:
         speed = self._with_inflow(self.state.survey(self.dry, self.g_n))  # the fastest wave at the start
+        if speed == math.inf:  # of a finite state (check_entry): g h or |u| + sqrt(g h) overflows
+            raise StateError(
+                f"the wave speed sqrt(g cos(theta) h) + |u| of the state at t = {self.t:.6g} s (step "
+                f"{self.steps + 1}) overflows (thickness up to {float(self.h.max())!r} m, velocity up to "
+                f"{float(np.abs(self.u).max())!r} m/s): no time step bounds it"
+            )
         dt = min(courant_step(speed, self.dx, self.config.cfl), t_max - self.t)
         if dt == math.inf:  # no wave: no material and no inflow
             raise InputError(
