@@ -605,7 +605,12 @@ def round_two() -> list[Case]:
     """The hostile cases of the second round (docs/reliability.md): damaged results,
     contained plugins, full disks, bounds on sizes and degenerate values, inputs that
     reached a traceback."""
-    out: list[Case] = []
+    out = [
+        Case("API: sim.h[3] = 1e308 written between steps", ["validate", "{scenario}"], 1,
+             "the wave speed sqrt(g cos(theta) h) + |u| of the state at t = 0.00843656 s (step 2) overflows "
+             "(thickness up to 1e+308 m", setup=_scenario,
+             patch=WRITTEN_BETWEEN_STEPS.format(write="sim.h[3] = 1e308"))
+    ]  # fmt: skip
     run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
     for how in RESULT_DAMAGES:
         for command in (["plot", "{dir}/out"], ["export", "{dir}/out", "--vtk"]):
@@ -2093,15 +2098,22 @@ def round_twelve() -> list[Case]:
     Matplotlib refuses, negative numbers in exponent notation after an option, one scenario
     value under two keys of a study, a sensitivity output asked twice."""
     validate = ["validate", "{scenario}"]
-    entry = "on entry to the step from t = 0.00843656 s (step 2): not as the steps leave it"
+    entry = "on entry to the step from t = 0.00843656 s (step 2): not as the steps leave it, so written into"
     out = [
-        Case(f"API: {what} written between steps", validate, 1, f"{said} {entry}", setup=_scenario,
-             patch=WRITTEN_BETWEEN_STEPS.format(write=write))
-        for what, write, said in (
-            ("sim.h[3] = nan", "sim.h[3] = np.nan", "thickness h = nan at x = 0.04375 m"),
-            ("sim.h[3] = -1", "sim.h[3] = -1.0", "negative thickness h = -1 m at x = 0.04375 m"),
-            ("sim.u[1, 3] = inf", "sim.u[1, 3] = np.inf",
-             "velocity u = inf at x = 0.04375 m, layer 2 (1 is at the bed)"),
+        Case(f"API: {write} written between steps", validate, 1, f"{said} {entry} {write[:5]}",
+             setup=_scenario, patch=WRITTEN_BETWEEN_STEPS.format(write=write))
+        for write, said in (
+            ("sim.h[3] = np.nan", "thickness h = nan at x = 0.04375 m"),
+            ("sim.h[3] = -1.0", "negative thickness h = -1 m at x = 0.04375 m"),
+            ("sim.u[1, 3] = np.inf", "velocity u = inf at x = 0.04375 m, layer 2 (1 is at the bed)"),
+            # a column without material, the non-hydrostatic fields
+            ("sim.u[1, 30] = np.nan", "velocity u = nan at x = 0.38125 m, layer 2 (1 is at the bed)"),
+            ("sim.u[2, 30] = 5.0", "velocity u = 5.0 at x = 0.38125 m, layer 3 (1 is at the bed), where "
+             "there is no material (h = 0)"),
+            ("sim.w[0, 30] = np.nan", "vertical velocity w = nan at x = 0.38125 m, layer 1 (1 is at the "
+             "bed)"),
+            ("sim.q[0, 3] = np.inf", "non-hydrostatic pressure q = inf at x = 0.04375 m, layer 1 (1 is at "
+             "the bed)"),
         )
     ]  # fmt: skip
     out.append(
@@ -2165,6 +2177,120 @@ def round_twelve() -> list[Case]:
         out.append(
             Case(f"plot: {' '.join(words)}", ["plot", "{dir}/out", *words], 2, phrase, setup=_finished_run)
         )  # fmt: skip
+    return out
+
+
+ANIMATED_THEN_RUN_AGAIN = """
+import os
+out = sys.argv[2]
+if main(['plot', out, '--animate', '--format', 'svg']) != 0:
+    sys.exit('the first plot failed')
+if main(['run', sys.argv[3], '-o', out, '-q', '--set', 'slope_deg=30']) != 0:
+    sys.exit('the second run failed')
+if main(['plot', out]) != 0:
+    sys.exit('the second plot failed')
+left = sorted(os.listdir(os.path.join(out, 'plots')))
+print(f'multilayer: the second plot left {left}', file=sys.stderr)
+sys.exit(0 if all(name.endswith('.png') for name in left) else 1)
+"""
+"""A run plotted with an animation and as svg, run again, plotted again as png: plots/ may
+hold only figures of the second run."""
+
+HANGING_PLUGIN = """
+import os
+real = DruckerPrager.yield_stress
+def hangs(self, p, m):
+    calls[0] += 1
+    if calls[0] == 30:
+        open(os.path.join(os.path.dirname(sys.argv[2]), 'hanging'), 'w').close()
+        while True:
+            pass
+    return real(self, p, m)
+DruckerPrager.yield_stress = hangs
+DruckerPrager.yield_stress_kernel = lambda self, material: None
+"""
+"""A rheology plugin whose method loops for ever at its 30th call (then the case's SIGINT)."""
+
+
+PLOTS_AT_ONCE = """
+import subprocess
+command = [sys.executable, '-m', 'multilayer', 'plot', sys.argv[2]]
+quiet, caught = subprocess.DEVNULL, subprocess.PIPE
+plots = [subprocess.Popen(command, stdout=quiet, stderr=caught, text=True) for _ in range(3)]
+errors = [p.communicate()[1] for p in plots]
+codes = [p.returncode for p in plots]
+print(''.join(errors) + f'multilayer: three plots at once exited {codes}', file=sys.stderr)
+sys.exit(0 if codes == [0, 0, 0] else 1)
+"""
+"""Three ``multilayer plot`` of one directory started together."""
+
+
+def _prior(**prior: float) -> Callable[[Path], None]:
+    def setup(directory: Path) -> None:
+        _calibration("0.1,0.3,0.01\n")(directory)
+        config = yaml.safe_load((directory / "calibration.yaml").read_text())
+        config["parameters"]["rheology.mu_s"]["prior"] = prior
+        (directory / "calibration.yaml").write_text(yaml.safe_dump(config))
+
+    return setup
+
+
+def _sweep_of_base(base: Any) -> Callable[[Path], None]:
+    def setup(directory: Path) -> None:
+        _scenario(directory)
+        sweep = {"base": base, "parameters": {"slope_deg": [20]}}
+        (directory / "sweep.yaml").write_text(yaml.safe_dump(sweep))
+
+    return setup
+
+
+def round_thirteen() -> list[Case]:
+    """The hostile cases of the thirteenth round (docs/reliability.md; the values written
+    between steps into a column without material and into the non-hydrostatic fields are
+    with round twelve's): a plot over an earlier animation and figures in another format,
+    a prior centred outside
+    its bounds or so narrow that its square overflows, one Ctrl-C while a plugin never
+    returns, three plots of one directory at once, 1001 initial entries, a sweep whose base
+    is a list, a thickness of 1e308 m written between steps."""
+    out: list[Case] = []
+    out.append(
+        Case("plot: over an earlier run's animation and svg figures", ["plot", "{dir}/out", "{scenario}"], 0,
+             "drawn from an earlier result.nc", patch=ANIMATED_THEN_RUN_AGAIN, setup=_finished_run)
+    )  # fmt: skip
+    out.append(
+        Case("validate: a calibration whose prior's mean lies outside its bounds",
+             ["validate", "{dir}/calibration.yaml"], 2,
+             "calibration.yaml: parameters.rheology.mu_s.prior.mean (line 16): 0.5 outside the bounds "
+             "[0.2, 0.4]",
+             setup=_prior(mean=0.5, sd=0.05))
+    )  # fmt: skip
+    out.append(
+        Case("validate: a calibration whose prior's sd is 1e-320", ["validate", "{dir}/calibration.yaml"], 2,
+             "parameters.rheology.mu_s.prior.sd (line 17): 1e-320: the prior's square",
+             setup=_prior(mean=0.3, sd=1e-320))
+    )  # fmt: skip
+    out.append(
+        Case("plot: three plots of one directory at once", ["plot", "{dir}/out"], 0,
+             "three plots at once exited [0, 0, 0]", patch=PLOTS_AT_ONCE, setup=_finished_run)
+    )  # fmt: skip
+    rectangle = {"shape": "rectangle", "x_min": 0.0, "x_max": 0.1, "height": 1e-4}
+    for command in ("validate", "run"):
+        out.append(
+            Case(f"{command}: 1001 initial entries",
+                 [command, "{scenario}"] + (["-o", "{dir}/out", "-q"] if command == "run" else []), 2,
+                 "initial (line 9): List should have at most 1000 items after validation, not 1001",
+                 setup=partial(_scenario, changes={"initial": [rectangle] * 1001}))
+        )  # fmt: skip
+    out.append(
+        Case("validate: a sweep whose base is a list", ["validate", "{dir}/sweep.yaml"], 2,
+             "base (line 1): got ['scenario.yaml']; accepted: the path of a scenario file",
+             setup=_sweep_of_base(["scenario.yaml"]))
+    )  # fmt: skip
+    out.append(
+        Case("signal: one SIGINT while a plugin never returns",
+             ["run", "{scenario}", "-o", "{dir}/out", "-q"], 130, "interrupted by Ctrl-C (SIGINT) at t=",
+             patch=HANGING_PLUGIN, setup=_scenario, signal_when=("hanging", signal.SIGINT), keeps_output=True)
+    )  # fmt: skip
     return out
 
 
@@ -2333,6 +2459,7 @@ def cases() -> list[Case]:
         + round_ten()
         + round_eleven()
         + round_twelve()
+        + round_thirteen()
     )
 
 

@@ -19,6 +19,13 @@ class Interrupted(KeyboardInterrupt):
         self.exit_code = 128 + int(signum)
 
 
+class Stop(BaseException):
+    """A stop the user requested (the first Ctrl-C, SIGTERM or SIGHUP of a run), raised
+    where the run may stop with its state whole: between kernel calls, and in a rheology
+    plugin's Python code (the step is abandoned: a plugin that never returns stopped the
+    run only at a second signal).  No failure of the code it passes through."""
+
+
 def reason(exc: BaseException) -> str:
     """What ``exc`` says went wrong, without the path an ``OSError`` quotes: the message it
     goes into names the file once (a path of thousands of characters was quoted twice)."""

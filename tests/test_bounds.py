@@ -147,6 +147,36 @@ def test_memory_quadratic_in_the_layers_is_counted(cli, write_scenario):
     assert __import__("re").search(r"2 cells x 20000 layers need about \d+(\.\d)? GB of memory", result.err)
 
 
+def test_initial_entries_beyond_their_bound_are_refused_and_built_in_the_memory_of_the_mesh(
+    cli, write_scenario, monkeypatch
+):
+    """30 000 ``initial`` entries on 10^5 cells validated (about 944 MB) and the process was
+    killed for lack of memory building them (every entry's thickness kept at once: 24 GB).
+    More than ``limits.MAX_INITIAL_ENTRIES`` are refused; the thicknesses are summed one
+    entry at a time (the peak is that of the mesh: ten entries hold no more than one)."""
+    import tracemalloc
+
+    from multilayer.engine import initial_state
+
+    entry = {"shape": "rectangle", "x_min": 0.0, "x_max": 0.1, "height": 1e-4}
+    result = cli("validate", write_scenario({**TINY_SCENARIO, "initial": [entry] * 1001}))
+    assert result.code == 2
+    assert "initial (line 15): List should have at most 1000 items after validation, not 1001" in result.err
+    assert "accepted: a list of at most 1000 {shape, ...}" in result.err
+    peaks = []
+    for count in (1, 10):
+        domain = {"x_min": 0.0, "x_max": 0.5, "cells": 20000}
+        scenario = multilayer.load({**TINY_SCENARIO, "domain": domain, "initial": [entry] * count})
+        edges = np.linspace(0.0, 0.5, 20001)
+        x, sigma = 0.5 * (edges[1:] + edges[:-1]), np.array([0.5])
+        tracemalloc.start()
+        h, _ = initial_state.initial_state(scenario.initial, x, sigma, edges)
+        peaks.append(tracemalloc.get_traced_memory()[1])
+        tracemalloc.stop()
+        assert h.max() == pytest.approx(count * 1e-4)
+    assert peaks[1] < 1.2 * peaks[0]
+
+
 def _sweep(tmp_path: Path, parameters: dict, paired: bool = False) -> Path:
     (tmp_path / "base.yaml").write_text(yaml.safe_dump(TINY_SCENARIO))
     path = tmp_path / "sweep.yaml"

@@ -263,6 +263,39 @@ def test_a_seed_numpy_cannot_take_is_refused(tmp_path, capsys, seed):
         assert "accepted: an integer from 0 to 4294967295 (2^32 - 1)" in err
 
 
+@pytest.mark.parametrize("mean", [0.6, 0.3999, -1e308])
+def test_a_prior_whose_mean_lies_outside_the_bounds_is_refused(tmp_path, capsys, mean):
+    """A Gaussian prior centred outside the bounds validated: the search, which never
+    leaves the bounds, was held at a bound by the prior, and the fit's uncertainty was the
+    prior's.  Its mean within them (a bound included) validates."""
+    parameters = f"{{rheology.mu_s: {{bounds: [0.4, 0.5], prior: {{mean: {mean}, sd: 0.05}}}}}}"
+    _calibration_and_sensitivity(tmp_path, parameters)
+    assert cli.main(["validate", str(tmp_path / "c.yaml")]) == 2
+    err = capsys.readouterr().err
+    assert err == (
+        f"multilayer: error: {tmp_path / 'c.yaml'}: parameters.rheology.mu_s.prior.mean (line 2): {mean!r} "
+        "outside the bounds [0.4, 0.5]; accepted: a mean within the bounds\n"
+    )
+    _calibration_and_sensitivity(tmp_path, parameters.replace(str(mean), "0.5"))
+    assert cli.main(["validate", str(tmp_path / "c.yaml")]) == 0
+
+
+def test_a_prior_so_narrow_that_its_square_overflows_is_refused_before_any_run(tmp_path, capsys):
+    """A prior's sd of 1e-320 against bounds 0.1 wide validated; the calibration ran its
+    whole global search (248 runs of the tiny column) to find every misfit infinite.  It is
+    refused by ``validate``; 1e-150 validates."""
+    parameters = "{rheology.mu_s: {bounds: [0.4, 0.5], prior: {mean: 0.45, sd: 1e-320}}}"
+    _calibration_and_sensitivity(tmp_path, parameters)
+    assert cli.main(["validate", str(tmp_path / "c.yaml")]) == 2
+    assert capsys.readouterr().err == (
+        f"multilayer: error: {tmp_path / 'c.yaml'}: parameters.rheology.mu_s.prior.sd (line 2): 1e-320: the "
+        "prior's square ((theta - mean) / sd)^2 overflows within the bounds [0.4, 0.5]; accepted: an sd "
+        "above 7.46e-156 (the width of the bounds / 1.34e154)\n"
+    )
+    _calibration_and_sensitivity(tmp_path, parameters.replace("1e-320", "1e-150"))
+    assert cli.main(["validate", str(tmp_path / "c.yaml")]) == 0
+
+
 def test_one_scenario_value_under_two_keys_or_one_output_twice_is_refused(tmp_path, capsys):
     """``initial.0.height`` and ``initial.00.height``, two parameters of a sensitivity, a
     calibration or a sweep, validated: both set the one height, the later over the earlier,

@@ -4,6 +4,7 @@ no traceback, no crash; a run that cannot fit is refused before it starts (exit 
 
 from __future__ import annotations
 
+import os
 import resource
 import subprocess
 import sys
@@ -151,3 +152,17 @@ def test_a_file_written_whole_keeps_the_old_one_when_the_write_fails(tmp_path):
     assert path.read_text() == "old" and sorted(p.name for p in tmp_path.iterdir()) == ["calibration.nc"]
     disk.write_whole(path, lambda part: part.write_text("new"))
     assert path.read_text() == "new" and sorted(p.name for p in tmp_path.iterdir()) == ["calibration.nc"]
+
+
+def test_a_file_written_whole_by_two_processes_at_once_uses_a_temporary_file_each(tmp_path):
+    """Two ``multilayer plot`` of one directory at once wrote into one temporary file: the
+    one that renamed it first left the other's rename without a file (exit 2 naming
+    ``.section.partial.png`` as missing).  Each process writes into its own; another's, under
+    way beside it, is left alone."""
+    path = tmp_path / "section.png"
+    theirs = tmp_path / f".section.partial.{os.getpid() + 1}.png"
+    theirs.write_text("under way")
+    written = []
+    disk.write_whole(path, lambda part: (written.append(part.name), part.write_text("mine")))
+    assert written == [f".section.partial.{os.getpid()}.png"] and path.read_text() == "mine"
+    assert theirs.read_text() == "under way"

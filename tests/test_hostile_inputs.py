@@ -202,6 +202,13 @@ def test_validate_checks_sweep_and_study_files_with_every_member(tmp_path, cli, 
     }
     result = cli("validate", write_scenario(sensitivity, "sobol.yaml"))
     assert result.code == 0 and "ok (sensitivity of runout to rheology.mu_s)" in result.out, result.err
+    # a base that is no path: read as a scenario, it was seven messages (time missing,
+    # parameters unknown, ...) none naming the base; now the study's own, one
+    for base, given in ((["base.yaml"], "['base.yaml']"), (3, "3")):
+        accepted = f"got {given}; accepted: the path of a scenario file, relative to the sweep file"
+        listed = write_scenario({"base": base, "parameters": {"rheology.mu_s": [0.3]}}, "listed.yaml")
+        result = cli("validate", listed)
+        assert result.code == 2 and result.err == f"multilayer: error: {listed}: base (line 1): {accepted}\n"
 
 
 @pytest.fixture(scope="module")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 import sys
@@ -336,7 +337,31 @@ def test_a_plot_stopped_half_way_leaves_no_figures_of_two_runs(
     monkeypatch.setattr(Figure, "savefig", stopped)
     assert cli("plot", tmp_path).code == 130
     assert sorted(p.name for p in (tmp_path / "plots").iterdir()) == ["section.png", "thickness.png"]
-    assert written == [".section.partial.png", ".thickness.partial.png"]
+    assert written == [f".section.partial.{os.getpid()}.png", f".thickness.partial.{os.getpid()}.png"]
+
+
+def test_figures_and_an_animation_drawn_from_an_earlier_result_are_removed_by_the_next_plot(
+    slump_dir: Path, tmp_path: Path, cli
+):
+    """Plotted with ``--animate`` and as svg, then run again into the directory (or resumed)
+    and plotted as png: the animation and the svg figures of the earlier result stayed beside
+    the new figures, read as drawn from the result there now.  The next plot removes the
+    figures older than ``result.nc`` (in any format) and says so; those drawn from it since
+    stay, whatever their format, and so does a file of another name."""
+    shutil.copy(slump_dir / "result.nc", tmp_path / "result.nc")
+    plots = tmp_path / "plots"
+    plots.mkdir()
+    written = (tmp_path / "result.nc").stat().st_mtime
+    for name, age in (("section.gif", 10.0), ("mass.svg", 10.0), ("front.pdf", -10.0), ("notes.txt", 10.0)):
+        (plots / name).write_bytes(b"drawn before")
+        os.utime(plots / name, (written - age, written - age))
+    again = cli("plot", tmp_path)
+    assert again.code == 0
+    figures = sorted(p.name for p in plots.iterdir())
+    assert "section.gif" not in figures and "mass.svg" not in figures
+    assert {"front.pdf", "notes.txt", "section.png", "mass.png"} <= set(figures)
+    removed = f"removed mass.svg, section.gif from {plots}: drawn from an earlier result.nc"
+    assert f"multilayer: warning: {removed}" in again.err
 
 
 @pytest.mark.parametrize("figure", ["profiles", "static_interface"])

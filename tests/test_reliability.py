@@ -644,28 +644,54 @@ def test_stepping_past_the_end_or_without_progress_is_a_named_error_never_a_hang
 
 
 @pytest.mark.parametrize(
-    ("write", "said"),
+    ("write", "said", "array"),
     [
-        (lambda sim: sim.h.__setitem__(3, np.nan), "thickness h = nan at x = 0.04375 m"),
-        (lambda sim: sim.h.__setitem__(slice(None), np.nan), "thickness h = nan at x = 0.00625 m"),
-        (lambda sim: sim.h.__setitem__(30, np.nan), "thickness h = nan at x = 0.38125 m"),  # a dry column
-        (lambda sim: sim.h.__setitem__(3, -1.0), "negative thickness h = -1 m at x = 0.04375 m"),
-        (lambda sim: sim.h.__setitem__(3, np.inf), "thickness h = inf at x = 0.04375 m"),
+        (lambda sim: sim.h.__setitem__(3, np.nan), "thickness h = nan at x = 0.04375 m", "sim.h"),
+        (lambda sim: sim.h.__setitem__(slice(None), np.nan), "thickness h = nan at x = 0.00625 m", "sim.h"),
+        (lambda sim: sim.h.__setitem__(30, np.nan), "thickness h = nan at x = 0.38125 m", "sim.h"),  # dry
+        (lambda sim: sim.h.__setitem__(3, -1.0), "negative thickness h = -1 m at x = 0.04375 m", "sim.h"),
+        (lambda sim: sim.h.__setitem__(3, np.inf), "thickness h = inf at x = 0.04375 m", "sim.h"),
         (
             lambda sim: sim.u.__setitem__((0, 3), np.nan),
             "velocity u = nan at x = 0.04375 m, layer 1 (1 is at the bed)",
+            "sim.u",
         ),
         (
             lambda sim: sim.u.__setitem__((1, 3), -np.inf),
             "velocity u = -inf at x = 0.04375 m, layer 2 (1 is at the bed)",
+            "sim.u",
+        ),
+        # a column without material: the steps never read it, the NaN was carried into the results
+        (
+            lambda sim: sim.u.__setitem__((1, 30), np.nan),
+            "velocity u = nan at x = 0.38125 m, layer 2 (1 is at the bed)",
+            "sim.u",
+        ),
+        (
+            lambda sim: sim.u.__setitem__((2, 30), 5.0),
+            "velocity u = 5.0 at x = 0.38125 m, layer 3 (1 is at the bed), where there is no material "
+            "(h = 0)",
+            "sim.u",
+        ),
+        (
+            lambda sim: sim.w.__setitem__((0, 30), np.nan),
+            "vertical velocity w = nan at x = 0.38125 m, layer 1 (1 is at the bed)",
+            "sim.w",
+        ),
+        (
+            lambda sim: sim.q.__setitem__((0, 3), np.inf),
+            "non-hydrostatic pressure q = inf at x = 0.04375 m, layer 1 (1 is at the bed)",
+            "sim.q",
         ),
     ],
 )
-def test_a_state_written_between_steps_is_named_as_the_entry_state_not_the_steps_error(write, said):
-    """An API user writes into ``sim.h`` / ``sim.u`` (numpy arrays updated in place) a value no
-    step keeps: the next step names that state on entry (it blamed the transport: "the transport
-    made an error of 0.0123 m2", "h = nan after transport", "dt = 0.0 s does not advance the
-    time"), prints no numpy warning, and keeps the state of the last step."""
+def test_a_state_written_between_steps_is_named_as_the_entry_state_not_the_steps_error(write, said, array):
+    """An API user writes into ``sim.h`` / ``sim.u`` / ``sim.w`` / ``sim.q`` (numpy arrays
+    updated in place) a value no step keeps: the next step names that state on entry and the
+    array written (it blamed the transport: "the transport made an error of 0.0123 m2", "h =
+    nan after transport", "dt = 0.0 s does not advance the time"; a NaN or a velocity
+    written into a column without material was carried into the results, exit 0), prints no
+    numpy warning, and keeps the state of the last step."""
     import warnings
 
     from engine import simulation
@@ -681,9 +707,59 @@ def test_a_state_written_between_steps_is_named_as_the_entry_state_not_the_steps
             sim.step()
     assert str(failure.value) == (
         f"{said} on entry to the step from t = {kept['t']:.6g} s (step 3): not as the steps leave it, "
-        "so written into the simulation's arrays (sim.h, sim.u) since the last step"
+        f"so written into {array} since the last step"
     )
     assert sim.steps == 2 and np.array_equal(sim.h, kept["h"], equal_nan=True)
+
+
+def test_a_mixtures_solid_written_between_steps_and_a_velocity_without_material_restored_are_named():
+    """The solid of a mixture written outside ``[0, h]`` between steps is named on entry to
+    the next step; ``load_state`` of a velocity in a column without material is refused
+    before it replaces anything (the next step blamed ``sim.u``)."""
+    from engine import simulation
+
+    from multilayer.errors import InputError
+
+    mixture = simulation(
+        **{
+            **TINY_SCENARIO,
+            "rheology": {"name": "dilatant_coulomb", "delta_deg": 22.5, "K1": 90.5},
+            "material": {"density": 1500.0, "grain_diameter": 160e-6, "particle_density": 2500.0},
+            "fluid": {"density": 1041.0, "viscosity": 0.096},
+            "mixture": {"phi_critical": 0.58, "dilatancy": 4.0, "critical_shift": 25.0},
+            "base": [{"condition": "no_slip"}],
+            "initial": [{"shape": "rectangle", "x_min": 0.0, "x_max": 0.1, "height": 0.05, "phi": 0.55}],
+        }
+    )
+    mixture.step()
+    mixture.state.fields["solid"][0, 3] = -1e-3
+    entry = r"on entry to the step from t = .* so written into sim.state.fields\['solid'\] or sim.h since"
+    with pytest.raises(RunError, match=r"solid volume s = -0.001 m outside .* " + entry):
+        mixture.step()
+    sim = simulation(**TINY_SCENARIO)
+    saved = sim.state_dict()
+    saved["u"][1, 30] = 2.0
+    with pytest.raises(InputError, match=r"u holds a velocity where h = 0 \(layer 2, column 30: 2.0 m/s\)"):
+        sim.load_state(saved)
+    assert not sim.u.any()
+
+
+def test_a_finite_state_whose_wave_speed_overflows_is_named_not_the_length_of_the_run():
+    """``sim.h[3] = 1e308`` between steps (finite, >= 0: the entry check passes): g h
+    overflows, the Courant step was 0 and the message blamed the length of the run ("dt
+    below the resolution of t when the run is too long for its step")."""
+    from engine import simulation
+
+    sim = simulation(**TINY_SCENARIO)
+    sim.step()
+    sim.h[3] = 1e308
+    with pytest.raises(
+        StateError,
+        match=r"the wave speed sqrt\(g cos\(theta\) h\) \+ \|u\| of the state at "
+        r"t = 0.00843656 s \(step 2\) overflows \(thickness up to 1e\+308 m, velocity up to",
+    ):
+        sim.step()
+    assert sim.steps == 1
 
 
 def test_stepping_without_a_bound_where_no_wave_bounds_the_step_is_named():

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import math
+import os
 import shlex
 import signal
 import subprocess
@@ -271,6 +272,42 @@ def test_a_step_abandoned_leaves_the_normal_stress_of_the_last_step_kept(tmp_pat
             runner.run(scenario, out, quiet=True, stop_when=stop_when)
         runner.run(scenario, out, quiet=True, resume=True)
         _assert_equal_results(out, tmp_path / "direct")
+
+
+def test_one_ctrl_c_stops_a_run_in_a_plugin_that_never_returns_and_it_resumes_to_the_bit(
+    tmp_path: Path, monkeypatch
+) -> None:
+    """A rheology plugin whose method loops for ever (in Python) at its 12th call, and the
+    user's Ctrl-C there: the run's handler only noted the first signal (the stop was
+    honoured between kernel calls, which never came) and a second Ctrl-C stopped it at once,
+    without a checkpoint.  The first now stops it in the plugin: the step is abandoned, the
+    state before it checkpointed, exit 130; resumed with the plugin mended, the records are
+    the uninterrupted run's, to the bit."""
+    from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+
+    monkeypatch.setattr(DruckerPrager, "yield_stress_kernel", lambda self, material: None)
+    scenario = scenarios.from_dict(SLUMP, overrides=["time.end=0.06"])
+    runner.run(scenario, tmp_path / "direct", quiet=True)
+    real, calls = DruckerPrager.yield_stress, [0]
+
+    def hangs(self, pressure, material):
+        calls[0] += 1
+        if calls[0] == 12:
+            os.kill(os.getpid(), signal.SIGINT)
+            deadline = time.monotonic() + 20.0  # the test fails, never hangs
+            while time.monotonic() < deadline:
+                pass
+            raise AssertionError("the first Ctrl-C did not stop the plugin")
+        return real(self, pressure, material)
+
+    monkeypatch.setattr(DruckerPrager, "yield_stress", hangs)
+    out = tmp_path / "stopped"
+    with pytest.raises(Interrupted, match=r"interrupted by Ctrl-C \(SIGINT\) at t=0.0\d+ s; resume with"):
+        runner.run(scenario, out, quiet=True)
+    assert calls[0] == 12 and open_result(out).attrs["run_status"] == "interrupted"
+    monkeypatch.setattr(DruckerPrager, "yield_stress", real)
+    runner.run(scenario, out, quiet=True, resume=True)
+    _assert_equal_results(out, tmp_path / "direct")
 
 
 def test_engine_failure_keeps_the_output_times_done(tmp_path: Path, monkeypatch) -> None:

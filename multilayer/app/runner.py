@@ -49,7 +49,8 @@ from multilayer.app.compilation import compile_ahead, compile_notice
 from multilayer.app.lock import locked
 from multilayer.app.progress import Progress
 from multilayer.app.simulation import Simulation
-from multilayer.errors import InputError, Interrupted, RunError, reason
+from multilayer.engine.plugin_output import in_plugin_call
+from multilayer.errors import InputError, Interrupted, RunError, Stop, reason
 from multilayer.io.disk import writable
 from multilayer.io.result_check import check_result
 from multilayer.io.results import (
@@ -277,9 +278,9 @@ def _run(
             )
         writer.check_file()  # the last record is in the file the run leaves
         status = "completed"
-    except (_Stop, KeyboardInterrupt) as exc:
+    except (Stop, KeyboardInterrupt) as exc:
         status = "interrupted"
-        if isinstance(exc, _Stop):  # stopped between two kernel calls: the state is whole
+        if isinstance(exc, Stop):  # stopped between two kernel calls or in a plugin: the state is whole
             saved_t = checkpoint()
         message = (
             f"interrupted by {stop.name} at t={saved_t:.6g} s; resume with: "
@@ -471,10 +472,6 @@ def _at_path(data: Any, parts: list[str]) -> Any:
     return data
 
 
-class _Stop(BaseException):
-    """Raised between two kernel calls or steps to stop the run after a signal."""
-
-
 #: Signals handled like Ctrl-C (those that exist on this platform).
 STOP_SIGNALS = tuple(
     getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
@@ -500,9 +497,9 @@ class _StopRequest:
         return "Ctrl-C (SIGINT)" if self.signum == signal.SIGINT else signal.Signals(self.signum).name
 
     def poll(self) -> None:
-        """Raise :class:`_Stop` if a stop was requested (called between kernel calls)."""
+        """Raise :class:`Stop` if a stop was requested (called between kernel calls)."""
         if self.requested or (self.stop_when is not None and self.stop_when()):
-            raise _Stop
+            raise Stop
 
     @contextmanager
     def installed(self) -> Iterator[None]:
@@ -528,3 +525,5 @@ class _StopRequest:
             raise Interrupted(f"stopped at once by a second signal ({signal.Signals(signum).name})", signum)
         self.signum = signum
         self.requested = True
+        if in_plugin_call():  # its own Python code, which may never return: the step is abandoned
+            raise Stop

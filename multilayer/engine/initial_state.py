@@ -176,12 +176,14 @@ def initial_state(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Cell-averaged thickness h (N,) and layer velocities u (L, N) at the cell centres
     ``x`` of the stacked ``initial`` entries (cells between ``edges``, (N+1,))."""
-    thicknesses = [entry_thickness(e, edges) for e in entries]
-    h = np.sum(thicknesses, axis=0) if thicknesses else np.zeros_like(x)
+    h = np.zeros_like(x)
+    for entry in entries:  # one thickness at a time: the memory of the mesh, whatever the entries
+        h += entry_thickness(entry, edges)
     z = sigma[:, None] * h[None, :]  # layer centres above the bed
     u = np.zeros((sigma.size, x.size))
     base = np.zeros_like(x)
-    for entry, thick in zip(entries, thicknesses):
+    for entry in entries:
+        thick = entry_thickness(entry, edges)
         inside = (z >= base) & (z < base + thick) & (thick > 0)
         profile = velocity_profile(entry.velocity, z - base, np.broadcast_to(thick, z.shape))
         u = np.where(inside, profile, u)

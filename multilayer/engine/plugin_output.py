@@ -10,9 +10,11 @@ never reaches the column kernel, where it could spin or write outside its worksp
 
 A plugin is given read-only copies of the engine's arrays and its results are copied:
 it can change neither the state nor what it returned once returned.  The one exception
-it does not own is the user's Ctrl-C: :class:`~multilayer.errors.Interrupted` (a run's
-second signal), and a ``KeyboardInterrupt`` while SIGINT has Python's default handler
-(outside ``multilayer run``, which handles the signal itself), pass through.
+it does not own is the user's Ctrl-C: :class:`~multilayer.errors.Stop` (a run's first
+signal, which its handler raises in the plugin's code: :func:`in_plugin_call`),
+:class:`~multilayer.errors.Interrupted` (a run's second signal), and a
+``KeyboardInterrupt`` while SIGINT has Python's default handler (outside ``multilayer
+run``, which handles the signal itself), pass through.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from multilayer.errors import Interrupted, RunError
+from multilayer.errors import Interrupted, RunError, Stop
 
 
 class PluginOutputError(RunError):
@@ -43,10 +45,22 @@ def plugin_label(plugin: Any) -> str:
     return f"rheology plugin {name!r} ({cls.__module__}.{cls.__qualname__})"
 
 
+_calls = threading.local()
+"""``depth``: the plugin calls the thread is in (:func:`contained`)."""
+
+
+def in_plugin_call() -> bool:
+    """True while the calling thread runs a rheology plugin's code: where a run's signal
+    handler raises :class:`~multilayer.errors.Stop` on the first signal (a plugin's own
+    Python code may loop for ever; no state is replaced during its calls, the step that
+    made them is abandoned).  The engine only counts its calls: it installs no handler."""
+    return getattr(_calls, "depth", 0) > 0
+
+
 def user_interrupt(exc: BaseException) -> bool:
     """True if ``exc``, raised during a plugin call, may be the user's Ctrl-C (module
     docstring) rather than the plugin's own failure."""
-    if isinstance(exc, Interrupted):
+    if isinstance(exc, (Interrupted, Stop)):
         return True
     main = threading.current_thread() is threading.main_thread()
     default = signal.getsignal(signal.SIGINT) is signal.default_int_handler
@@ -57,7 +71,9 @@ def user_interrupt(exc: BaseException) -> bool:
 def contained(plugin: Any, method: str, t: float | None = None) -> Iterator[None]:
     """Turn whatever the block (a call of ``plugin``'s ``method``) raises into a
     :class:`PluginOutputError` naming them, except the user's Ctrl-C."""
-    try:
+    depth = getattr(_calls, "depth", 0)
+    try:  # the count set back whatever is raised, a signal's Stop between two statements too
+        _calls.depth = depth + 1
         yield
     except PluginOutputError:
         raise
@@ -68,6 +84,8 @@ def contained(plugin: Any, method: str, t: float | None = None) -> Iterator[None
         raise PluginOutputError(
             f"{plugin_label(plugin)}: {method} raised {type(exc).__name__}: {exc}{when}"
         ) from None
+    finally:
+        _calls.depth = depth
 
 
 def read_only(value: Any) -> Any:

@@ -56,7 +56,7 @@ from multilayer.engine.mixture.flow import MixtureFlow
 from multilayer.engine.normal_stress import NormalStress, joint_rest, runs
 from multilayer.engine.pressure.model import PressureModel, PressureSetup, models, options
 from multilayer.engine.state import FlowState, max_wave_speed, span, start_moving, whole
-from multilayer.engine.state_check import StateGuard, check_restored
+from multilayer.engine.state_check import StateError, StateGuard, check_restored
 from multilayer.engine.threads import ThreadPolicy
 from multilayer.engine.transport import boundaries
 from multilayer.engine.transport import kernel as transport_kernel
@@ -279,22 +279,28 @@ class Simulation:
 
     def step(self, t_max: float = np.inf) -> float:
         """Advance one time step of the splitting (module docstring), never beyond ``t_max``;
-        returns the step taken.  A failure from a state written between steps is named as
-        that state (:meth:`StateGuard.check_entry`)."""
+        returns the step taken.  A state written between steps that no step leaves is named
+        as that state, with the array it was written into (:meth:`StateGuard.check_entry`)."""
         self._check_target(t_max)
-        try:
-            return self._step(t_max)
-        except RunError as failure:
-            self.guard.check_entry(self.h, self.u, self.t, self.steps, failure)
-            raise
+        self._check_entry()
+        return self._step(t_max)
+
+    def _check_entry(self) -> None:
+        """The state a step starts from is as the steps leave it (:meth:`StateGuard.check_entry`)."""
+        self.guard.check_entry(self.h, self.u, self.state.fields, self.t, self.steps)
+        if self.mixture is not None:
+            self.mixture.check_entry(self.h, self.t, self.steps)
 
     def _step(self, t_max: float) -> float:
         speed = self._with_inflow(self.state.survey(self.dry, self.g_n))  # the fastest wave at the start
-        if not math.isfinite(speed):  # not computed from: numpy's warnings on the way to the guard
-            self.guard.check_entry(self.h, self.u, self.t, self.steps)
+        if speed == math.inf:  # of a finite state (check_entry): g h or |u| + sqrt(g h) overflows
+            raise StateError(
+                f"the wave speed sqrt(g cos(theta) h) + |u| of the state at t = {self.t:.6g} s (step "
+                f"{self.steps + 1}) overflows (thickness up to {float(self.h.max())!r} m, velocity up to "
+                f"{float(np.abs(self.u).max())!r} m/s): no time step bounds it"
+            )
         dt = min(courant_step(speed, self.dx, self.config.cfl), t_max - self.t)
-        if dt == math.inf:  # no wave: no material (or none read as such) and no inflow
-            self.guard.check_entry(self.h, self.u, self.t, self.steps)
+        if dt == math.inf:  # no wave: no material and no inflow
             raise InputError(
                 f"step(t_max={t_max!r}): no material and no inflow, so no wave bounds the time step; "
                 "accepted: a finite t_max (the time to step to)"

@@ -13,8 +13,9 @@ other fields in those that held material in this step or the last one (the colum
 outside are zero by construction and stay so).  :meth:`FlowState.survey` reads the
 state once at the start of a step: the moving columns, the layers at rest and the
 fastest wave, in the columns that hold material or may hold velocities (those a step
-wrote; every column after the state is set from outside: a velocity set in a column
-without material later is not seen).  The compiled scans of the state are here too.
+wrote; every column after the state is restored: a velocity written into a column
+without material is refused before, ``StateGuard.check_entry``).  The compiled scans of
+the state are here too.
 """
 
 from __future__ import annotations

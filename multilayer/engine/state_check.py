@@ -147,21 +147,45 @@ class StateGuard:
         self._check_layers(u, "velocity u", when)
 
     def check_entry(
-        self, h: np.ndarray, u: np.ndarray, t: float, steps: int, failure: BaseException | None = None
+        self, h: np.ndarray, u: np.ndarray, fields: Mapping[str, np.ndarray], t: float, steps: int
     ) -> None:
-        """Raise :class:`StateError` (from ``failure``, the step's own error) if the state
-        ``h``, ``u`` a step starts from at ``t`` after ``steps`` steps is not finite or has a
-        negative thickness: the steps never keep one, so it was written into the
-        simulation's arrays (``sim.h``, ``sim.u``) since; the step's error blamed the
-        transport ("the transport made an error of 0.0123 m2") or the time step."""
-        when = (
-            f"on entry to the step from t = {t:.6g} s (step {steps + 1}): not as the steps leave it, so "
-            "written into the simulation's arrays (sim.h, sim.u) since the last step"
-        )
-        try:
-            self.check_state(h, u, when)
-        except StateError as entry:
-            raise entry from failure
+        """Raise :class:`StateError` if the state a step starts from at ``t`` after ``steps``
+        steps is not as the steps leave it: ``h`` not finite or negative, a value of ``u`` or
+        of a layer field (``fields``: ``w``, ``q``, a model's own) not finite, or a velocity
+        in a column without material (``h == 0``, where every step leaves ``u = 0``).  The
+        steps never keep one, so it was written into the simulation's arrays (``sim.h``,
+        ``sim.u``, ...) since: the message names the array, the cell and the layer.  One
+        compiled pass over each array (a NaN written into a dry column was carried, never
+        read, into the results; one in a column with material was blamed on the
+        transport)."""
+        arrays = {"h": h, "u": u, **fields}
+        if (
+            h.min(initial=0.0) >= 0.0
+            and math.isfinite(h.sum())
+            and _finite(_bits(u), 0, h.size)
+            and _still_where_empty(_bits(u), h)
+            and all(_finite(_bits(values), 0, h.size) for values in fields.values())
+        ):
+            return
+        for name, values in arrays.items():
+            where = "sim." + name if name in ("h", "u", "w", "q") else f"sim.state.fields[{name!r}]"
+            when = (
+                f"on entry to the step from t = {t:.6g} s (step {steps + 1}): not as the steps leave it, so "
+                f"written into {where} since the last step"
+            )
+            if name == "h":
+                self.check_state(h, np.zeros((0, h.size)), when)
+            elif name == "u":
+                self._check_layers(u, "velocity u", when)
+                empty = (u != 0.0) & (h == 0.0)
+                if empty.any():
+                    a, k = (int(i) for i in np.unravel_index(np.argmax(empty), empty.shape))
+                    raise StateError(
+                        f"velocity u = {float(u[a, k])!r} at x = {self.x[k]:.6g} m, layer {a + 1} (1 is at "
+                        f"the bed), where there is no material (h = 0) {when}"
+                    )
+            else:
+                self._check_layers(values, _FIELDS.get(name, name), when)
 
     def check_finite(
         self,
@@ -194,6 +218,19 @@ def _bits(u: np.ndarray) -> np.ndarray:
 
 
 @jit
+def _still_where_empty(bits: np.ndarray, h: np.ndarray) -> bool:
+    """True if every value of ``bits`` (L, N: the floats of ``_bits``) is zero (of either
+    sign) in the columns where ``h == 0``."""
+    magnitude = np.uint64(0x7FFFFFFFFFFFFFFF)
+    found = np.uint64(0)
+    for a in range(bits.shape[0]):
+        row = bits[a]
+        for i in range(row.size):
+            found |= np.uint64((h[i] == 0.0) & ((row[i] & magnitude) != 0))
+    return found == 0
+
+
+@jit
 def _finite(bits: np.ndarray, lo: int, hi: int) -> bool:
     """True if every value of the columns ``lo .. hi-1`` of ``bits`` (L, N: the floats of
     ``_bits``) is finite: one pass testing the exponent (all ones for an infinity or a
@@ -207,6 +244,9 @@ def _finite(bits: np.ndarray, lo: int, hi: int) -> bool:
     return found == 0
 
 
+_FIELDS = {"w": "vertical velocity w", "q": "non-hydrostatic pressure q"}
+"""What the layer fields of every state are, for the messages."""
+
 _COUNTS = ("t", "steps", "newton_iterations", "force_elapsed", "seed_dt")
 """Entries of a state that are never negative."""
 _NEEDED = (("t", "steps", "h", "u"), ("seed_dt", "seed_last", "seed_window"))
@@ -217,11 +257,12 @@ state without the Newton seed restarts its extrapolation)."""
 def check_restored(saved: Mapping[str, Any], fresh: Mapping[str, Any]) -> None:
     """A state to restore (a checkpoint) holds entries of ``fresh``, the state of the same
     simulation at its start, each of its shape, real numbers (integers where it holds
-    integers), finite; the times, counts and thicknesses are not negative and the seed's
-    columns lie in the mesh; the entries of :data:`_NEEDED` are there.  :class:`InputError` naming the entry
-    otherwise (a checkpoint of another version or layout, or edited, or a mapping given to
-    ``load_state`` by hand: a missing entry was a ``KeyError``, a NaN vertical velocity or
-    force impulse was kept); the state guard then checks ``h`` and ``u``."""
+    integers), finite; the times, counts and thicknesses are not negative, the velocities
+    zero where the thickness is and the seed's columns lie in the mesh; the entries of
+    :data:`_NEEDED` are there.  :class:`InputError` naming the entry otherwise (a checkpoint
+    of another version or layout, or edited, or a mapping given to ``load_state`` by hand: a
+    missing entry was a ``KeyError``, a NaN vertical velocity or force impulse was kept); the
+    state guard then checks ``h`` and ``u``."""
     always, together = _NEEDED
     for missing in [k for k in always if k not in saved] or (
         [k for k in together if k not in saved] if any(k in saved for k in together) else []
@@ -243,6 +284,14 @@ def check_restored(saved: Mapping[str, Any], fresh: Mapping[str, Any]) -> None:
             raise InputError(
                 f"h holds negative thicknesses (down to {float(a.min())!r} m), where thicknesses >= 0"
             )
+    empty = (np.asarray(saved["u"]) != 0.0) & (np.asarray(saved["h"]) == 0.0)
+    if empty.any():  # every step leaves u = 0 there; the next step would blame sim.u
+        layer, k = (int(i) for i in np.unravel_index(np.argmax(empty), empty.shape))
+        raise InputError(
+            f"u holds a velocity where h = 0 (layer {layer + 1}, column {k}: "
+            f"{float(saved['u'][layer, k])!r} m/s), "
+            "where 0 (no material moves there)"
+        )
     first, stop = np.asarray(saved.get("seed_window", (0, 0)))
     if not 0 <= first <= stop <= np.asarray(fresh["h"]).size:
         raise InputError(f"seed_window = [{first}, {stop}], outside the columns of the mesh")

@@ -86,8 +86,10 @@ def writable(path: Path) -> Path:
 def write_whole(path: Path, write: Callable[[Path], object]) -> Path:
     """``path`` written by ``write`` into a temporary file beside it (of the same suffix: the
     writers read the format from it, :func:`writable`) renamed over it: never a file
-    written half-way, and no temporary file left when ``write`` fails."""
-    part = writable(path.with_name(f".{path.stem}.partial{path.suffix}"))
+    written half-way, and no temporary file left when ``write`` fails.  The temporary file
+    is the process's own (its pid in the name): two ``multilayer plot`` of one directory at
+    once took each other's, and one stopped naming it as missing."""
+    part = writable(path.with_name(f".{path.stem}.partial.{os.getpid()}{path.suffix}"))
     try:
         write(part)
         os.replace(part, path)

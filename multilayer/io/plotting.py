@@ -12,6 +12,7 @@ interrupted run are drawn, and :func:`plot_run` returns a note saying how the ru
 
 from __future__ import annotations
 
+import glob
 import math
 import os
 import textwrap
@@ -32,7 +33,7 @@ from matplotlib.patches import Patch
 from multilayer.errors import InputError
 from multilayer.io.disk import writable, write_whole
 from multilayer.io.result_check import ending
-from multilayer.io.results import open_result, seismic_force
+from multilayer.io.results import RESULT_FILE, open_result, seismic_force
 
 PLOTS_DIR = "plots"
 _AT_REST = "0.82"
@@ -77,6 +78,8 @@ def plot_run(
     notes = [f"{end}; drawn up to t = {float(ds['time'][-1]):.6g} s"] if end else []
     out = Path(directory) / PLOTS_DIR
     out.mkdir(exist_ok=True)
+    if stale := remove_stale(out, RUN_FIGURES, Path(directory) / RESULT_FILE):
+        notes.append(f"removed {', '.join(stale)} from {out}: drawn from an earlier {RESULT_FILE}")
     name = yaml.safe_load(ds.attrs["scenario"])["name"]
     columns = column_indices(ds, at) if at else representative_columns(ds)
     figures = {
@@ -100,6 +103,24 @@ def plot_run(
 RUN_FIGURES = ("section", "thickness", "front", "mass", "profiles", "static_interface", "force", "mixture")
 """The stems of the figures :func:`plot_run` may write (``force`` and ``mixture`` where the
 result holds them)."""
+
+
+def remove_stale(out: Path, family: Sequence[str], source: Path) -> list[str]:
+    """Remove the files of ``out`` named as the figures of ``family`` (every stem the
+    command may write, in any format, an animation of the section included) that are older
+    than ``source``, the file they are drawn from; returns their names.  Those were drawn
+    from an earlier state of it (before the run was run again or resumed): an animation or
+    figures in another format beside the new figures were read as drawn from it."""
+    written = source.stat().st_mtime_ns
+    stale = sorted(
+        path
+        for stem in family
+        for path in out.glob(f"{glob.escape(stem)}.*")
+        if path.is_file() and path.stat().st_mtime_ns < written
+    )
+    for path in stale:
+        path.unlink(missing_ok=True)
+    return [path.name for path in stale]
 
 
 def save_figures(out: Path, figures: dict[str, Figure], fmt: str, family: Sequence[str]) -> list[Path]:

@@ -26,6 +26,8 @@ from __future__ import annotations
 import csv
 import io
 import itertools
+import math
+import sys
 from pathlib import Path
 from typing import Annotated, Any, Literal, get_args
 
@@ -88,6 +90,28 @@ class Parameter(StrictModel):
     def _check(self) -> Parameter:
         if not self.bounds[0] < self.bounds[1]:
             raise invalid(f"got {self.bounds}", "[lower, upper] with lower < upper", "bounds")
+        lower, upper = self.bounds
+        prior = self.prior
+        if prior is None:
+            return self
+        if not lower <= prior.mean <= upper:
+            # the search never leaves the bounds: the prior held the fit at a bound, as a
+            # measurement would, and its uncertainty was the prior's, not the data's
+            raise invalid(
+                f"{prior.mean!r} outside the bounds [{lower!r}, {upper!r}]",
+                "a mean within the bounds",
+                "prior.mean",
+            )
+        spread = (upper - lower) / prior.sd
+        if not spread * spread < math.inf:
+            # the misfit of almost every parameter set was infinite: found after the search's runs
+            smallest = (upper - lower) / math.sqrt(sys.float_info.max)
+            raise invalid(
+                f"{prior.sd!r}: the prior's square ((theta - mean) / sd)^2 overflows within the bounds "
+                f"[{lower!r}, {upper!r}]",
+                f"an sd above {smallest:.3g} (the width of the bounds / 1.34e154)",
+                "prior.sd",
+            )
         return self
 
 

@@ -39,6 +39,10 @@ MAX_CELLS = 10**9
 """Most cells of a domain (the memory budget refuses far fewer on any machine)."""
 MAX_LAYERS = 10**5
 """Most layers (the exact column solve keeps 128 L^2 bytes per thread: 1.3 TB here)."""
+MAX_INITIAL_ENTRIES = 1000
+"""Most entries of ``initial`` (a shipped scenario holds one to three): building the initial
+state takes each entry over every cell and layer (200 000 entries of 1800 kB of YAML
+validated, 30 000 on 10^5 cells were killed for lack of memory building it)."""
 MAX_OUTPUT_TIMES = 10**7
 """Most output times of a run (``time.end / time.output_interval``), also under --force."""
 MIN_END = 1e-290

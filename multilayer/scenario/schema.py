@@ -744,7 +744,11 @@ class Scenario(StrictModel):
         [BaseZone(condition="no_slip")], "a non-empty list of {condition, ...}", min_length=1
     )
     bed: Bed = field(Bed(), "{profile: flat} or {points: [[x, b], ...]}")
-    initial: list[InitialShape] = field([], "a list of {shape, ...}")
+    initial: list[InitialShape] = field(
+        [],
+        f"a list of at most {limits.MAX_INITIAL_ENTRIES} {{shape, ...}}",
+        max_length=limits.MAX_INITIAL_ENTRIES,
+    )
     boundaries: Boundaries = field(Boundaries(), "a mapping with left, right")
     gate: GateSpec | None = field(None, "{x, lift_speed}; default: no gate")
     time: Time = field(..., "a mapping with end, output_interval")

@@ -49,12 +49,14 @@ def main(args: argparse.Namespace) -> int:
 
 def _check_file(path: str, args: argparse.Namespace) -> str:
     """The summary of a valid file of any kind (:class:`InputError` otherwise): a file whose
-    ``base`` is a path (a scenario's is a list of basal conditions) is a calibration with
-    ``observations``, a sensitivity study with ``outputs``, else a sweep."""
+    ``base`` is a path (a scenario's is a list of basal conditions) or that has
+    ``parameters`` (no scenario has) is a calibration with ``observations``, a sensitivity
+    study with ``outputs``, else a sweep.  (A sweep whose ``base`` was a list was
+    validated as a scenario: ``time`` missing, ``parameters`` unknown.)"""
     from multilayer.io import study
 
     data, _ = scenarios.read_yaml(path)
-    study_base = isinstance(data, dict) and isinstance(data.get("base"), str)
+    study_base = isinstance(data, dict) and (isinstance(data.get("base"), str) or "parameters" in data)
     if study_base and "observations" in data:
         calibration = study.load_calibration(path)
         searched = ", ".join(calibration.config.parameters)

@@ -210,6 +210,16 @@ class MixtureFlow:
         weight), and the transport's result before the last local step."""
         return h_old + self.drawn, self.transported
 
+    def check_entry(self, h: np.ndarray, t: float, steps: int) -> None:
+        """The solid's bounds in the state a step starts from at ``t`` after ``steps``
+        steps (the steps never leave one outside them: it was written into
+        ``sim.state.fields['solid']`` or ``sim.h`` since)."""
+        when = (
+            f"on entry to the step from t = {t:.6g} s (step {steps + 1}): not as the steps leave it, so "
+            "written into sim.state.fields['solid'] or sim.h since the last step"
+        )
+        solid_transport.check(self.solid, h, self.fractions, when, self.x)
+
     def check_step(self, h: np.ndarray, t: float, dt: float, guard: StateGuard) -> None:
         """The solid's balance and bounds after the step from ``t`` over ``dt`` (a
         :class:`~multilayer.engine.state_check.StateError` otherwise), and the fluid drawn
