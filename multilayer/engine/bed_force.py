@@ -204,7 +204,7 @@ def _momentum(l, h, v, first, last):
     surface down (the order of :func:`_impulses`)."""
     total = 0.0
     for a in range(l.size - 1, -1, -1):
-        for i in range(first, last):
+        for i in range(np.uint64(first), np.uint64(last)):  # unsigned: no test for negative indices
             total += l[a] * h[i] * v[a, i]
     return total
 
@@ -224,7 +224,7 @@ def _impulses(l, h, ustar, u_vertical, walled, threshold, viscous, rho, dt, firs
     transported = vertical = walls = 0.0
     for a in range(l.size - 1, -1, -1):
         for j in range(last - first):
-            i = first + j
+            i = np.uint64(first + j)  # unsigned: no test for negative indices
             m = l[a] * h[i]
             transported += m * ustar[a, i]
             vertical += m * u_vertical[a, i]
