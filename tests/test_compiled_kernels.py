@@ -64,7 +64,7 @@ ENTRIES = [
     "multilayer.engine.state.start_moving",
     "multilayer.engine.state.survey",
     "multilayer.engine.state_check._finite",
-    "multilayer.engine.state_check._still_where_empty",
+    "multilayer.engine.state_check._finite_and_still_where_empty",
     "multilayer.engine.transport.kernel._second_stage_start",
     "multilayer.engine.transport.kernel._stages",
     "multilayer.engine.transport.kernel._window",

@@ -162,8 +162,7 @@ class StateGuard:
         if (
             h.min(initial=0.0) >= 0.0
             and math.isfinite(h.sum())
-            and _finite(_bits(u), 0, h.size)
-            and _still_where_empty(_bits(u), h)
+            and _finite_and_still_where_empty(_bits(u), h)
             and all(_finite(_bits(values), 0, h.size) for values in fields.values())
         ):
             return
@@ -177,9 +176,8 @@ class StateGuard:
                 self.check_state(h, np.zeros((0, h.size)), when)
             elif name == "u":
                 self._check_layers(u, "velocity u", when)
-                empty = (u != 0.0) & (h == 0.0)
-                if empty.any():
-                    a, k = (int(i) for i in np.unravel_index(np.argmax(empty), empty.shape))
+                if (moved := moving_where_empty(h, u)) is not None:
+                    a, k = moved
                     raise StateError(
                         f"velocity u = {float(u[a, k])!r} at x = {self.x[k]:.6g} m, layer {a + 1} (1 is at "
                         f"the bed), where there is no material (h = 0) {when}"
@@ -217,16 +215,35 @@ def _bits(u: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(u, dtype=float).view(np.uint64)
 
 
+def moving_where_empty(h: np.ndarray, u: np.ndarray) -> tuple[int, int] | None:
+    """The first (layer, column) where ``u`` (L, N) is not zero and ``h`` (N,) is: a
+    velocity no step leaves (every step leaves ``u = 0`` where there is no material);
+    None if there is none."""
+    empty = (np.asarray(u) != 0.0) & (np.asarray(h) == 0.0)
+    if not empty.any():
+        return None
+    a, k = np.unravel_index(np.argmax(empty), empty.shape)
+    return int(a), int(k)
+
+
 @jit
-def _still_where_empty(bits: np.ndarray, h: np.ndarray) -> bool:
-    """True if every value of ``bits`` (L, N: the floats of ``_bits``) is zero (of either
-    sign) in the columns where ``h == 0``."""
+def _finite_and_still_where_empty(bits: np.ndarray, h: np.ndarray) -> bool:
+    """True if every value of ``bits`` (L, N: the floats of ``_bits``) is finite (its
+    exponent not all ones, as :func:`_finite`) and zero (of either sign) in the columns
+    where ``h == 0``: both tests in one pass over the values, with the columns' mask of
+    the magnitude bits (all ones where ``h == 0``, else none) formed once, so that the
+    pass is bitwise only and vectorises."""
+    exponent = np.uint64(0x7FF0000000000000)
     magnitude = np.uint64(0x7FFFFFFFFFFFFFFF)
+    empty = np.empty(h.size, dtype=np.uint64)
+    for i in range(h.size):
+        empty[i] = magnitude if h[i] == 0.0 else np.uint64(0)
     found = np.uint64(0)
     for a in range(bits.shape[0]):
         row = bits[a]
         for i in range(row.size):
-            found |= np.uint64((h[i] == 0.0) & ((row[i] & magnitude) != 0))
+            value = row[i]
+            found |= np.uint64((value & exponent) == exponent) | (value & empty[i])
     return found == 0
 
 
@@ -284,9 +301,8 @@ def check_restored(saved: Mapping[str, Any], fresh: Mapping[str, Any]) -> None:
             raise InputError(
                 f"h holds negative thicknesses (down to {float(a.min())!r} m), where thicknesses >= 0"
             )
-    empty = (np.asarray(saved["u"]) != 0.0) & (np.asarray(saved["h"]) == 0.0)
-    if empty.any():  # every step leaves u = 0 there; the next step would blame sim.u
-        layer, k = (int(i) for i in np.unravel_index(np.argmax(empty), empty.shape))
+    if (moved := moving_where_empty(saved["h"], saved["u"])) is not None:  # the next step would blame sim.u
+        layer, k = moved
         raise InputError(
             f"u holds a velocity where h = 0 (layer {layer + 1}, column {k}: "
             f"{float(saved['u'][layer, k])!r} m/s), "
