@@ -1,21 +1,27 @@
-"""MkDocs hooks: the reference pages generated at build time (mkdocs.yml).
+"""MkDocs hooks and the generated reference pages (mkdocs.yml).
+
+Two reference pages are generated from the code and committed, so that they read on
+GitHub as on the site; ``python docs/hooks.py`` rewrites them, and both
+``tests/test_docs.py`` and ``mkdocs build --strict`` fail while they differ from the code:
 
 - ``reference/scenario-keys.md`` from the schema of scenario files
-  (:mod:`multilayer.scenario.schema`), the registered rheologies and the pressure models;
+  (:mod:`multilayer.scenario.schema`), the built-in rheologies and the pressure models;
 - ``reference/cli-options.md`` from the argument parser of the ``multilayer`` command
-  (:func:`multilayer.app.cli.build_parser`);
-- ``reference/changelog.md`` from ``CHANGELOG.md``.
+  (:func:`multilayer.app.cli.build_parser`).
 
-Generated, they cannot drift from the code; ``mkdocs build --strict`` fails on a broken
-link in them as in any page.
+``reference/changelog.md`` is, in the repository, a pointer to ``CHANGELOG.md``; on the
+site it is ``CHANGELOG.md`` itself, its links made relative to the page.
 """
 
 from __future__ import annotations
 
 import argparse
+import logging
 import re
+import sys
 import types
 import typing
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -25,19 +31,39 @@ from pydantic_core import PydanticUndefined
 from multilayer.scenario.messages import model_in
 
 ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+REGENERATE = "python docs/hooks.py"
+"""The command that rewrites the generated pages."""
+
+
+def generated_pages() -> dict[str, Callable[[], str]]:
+    """The committed pages generated from the code: their paths under docs/ and makers."""
+    return {"reference/scenario-keys.md": scenario_keys_page, "reference/cli-options.md": cli_page}
+
+
+def stale_pages() -> list[str]:
+    """The generated pages whose committed text differs from what the code generates."""
+    return [uri for uri, make in generated_pages().items() if _read(DOCS / uri) != make()]
+
+
+def _read(path: Path) -> str | None:
+    return path.read_text(encoding="utf-8") if path.is_file() else None
 
 
 def on_files(files: Any, config: Any) -> Any:
-    """Add the generated pages to the site's files."""
+    """Check the generated pages against the code (a warning, an error under ``--strict``)
+    and put CHANGELOG.md in place of its pointer."""
     from mkdocs.structure.files import File
 
-    pages = {
-        "reference/scenario-keys.md": scenario_keys_page(),
-        "reference/cli-options.md": cli_page(),
-        "reference/changelog.md": changelog_page(),
-    }
-    for uri, text in pages.items():
-        files.append(File.generated(config, uri, content=text))
+    for uri in stale_pages():
+        logging.getLogger("mkdocs.hooks").warning(
+            "docs/%s differs from what the code generates: run `%s`", uri, REGENERATE
+        )
+    uri = "reference/changelog.md"
+    pointer = files.get_file_from_path(uri)
+    if pointer is not None:
+        files.remove(pointer)
+    files.append(File.generated(config, uri, content=changelog_page()))
     return files
 
 
@@ -136,17 +162,18 @@ def scenario_keys_page() -> str:
     lines = [
         "# Scenario keys",
         "",
-        "Generated from the schema that validates scenario files, so it lists exactly what "
-        "`multilayer validate` accepts. `key[]` is a list of mappings; the *accepted* column is the "
-        "text an error message gives. [Scenario files](../scenarios.md) explains how the keys are used.",
+        "Generated from the schema that validates scenario files (`python docs/hooks.py`; the tests "
+        "check it is up to date), so it lists exactly what `multilayer validate` accepts. `key[]` is "
+        "a list of mappings; the *accepted* column is the text an error message gives. "
+        "[Scenario files](../scenarios.md) explains how the keys are used.",
         "",
     ]
     lines += _model_sections(Scenario, "")
     lines += [
         "## Rheologies (`rheology`, `walls`)",
         "",
-        "`{name: NAME, PARAMETER: VALUE, ...}`; every registered rheology, as `multilayer plugins` lists "
-        "them (a third-party plugin adds its own).",
+        "`{name: NAME, PARAMETER: VALUE, ...}`; the built-in rheologies (`multilayer plugins` lists "
+        "them and those of the plugins installed).",
         "",
         "| name | applies to | parameters | description |",
         "| --- | --- | --- | --- |",
@@ -155,6 +182,8 @@ def scenario_keys_page() -> str:
         warnings.simplefilter("ignore", plugins.PluginWarning)
         catalogue = plugins.catalogue()
     for name, item in sorted(catalogue.rheologies.items()):
+        if not item.cls.__module__.startswith("multilayer."):  # an installed third-party plugin
+            continue
         cells = [f"`{name}`", item.cls.applies_to, f"`{plugins.signature_text(item.cls)}`"]
         cells.append(plugins.description(item.cls))
         lines.append("| " + " | ".join(_cell(c) for c in cells) + " |")
@@ -215,9 +244,9 @@ def cli_page() -> str:
     lines = [
         "# Command-line options",
         "",
-        "Generated from the parser of the `multilayer` command, so it is what `multilayer COMMAND "
-        "--help` prints. [Command line](../cli.md) explains the commands, their outputs and "
-        "their exit codes.",
+        "Generated from the parser of the `multilayer` command (`python docs/hooks.py`; the tests "
+        "check it is up to date), so it is what `multilayer COMMAND --help` prints. "
+        "[Command line](../cli.md) explains the commands, their outputs and their exit codes.",
         "",
         "```text",
         _usage(parser),
@@ -243,3 +272,15 @@ def changelog_page() -> str:
     """CHANGELOG.md, its links made relative to this page."""
     text = (ROOT / "CHANGELOG.md").read_text(encoding="utf-8")
     return re.sub(r"\]\(docs/", "](../", text)
+
+
+def main() -> int:
+    """Rewrite the generated pages that differ from the code; print which."""
+    for uri in stale_pages():
+        (DOCS / uri).write_text(generated_pages()[uri](), encoding="utf-8")
+        print(f"wrote docs/{uri}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

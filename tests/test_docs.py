@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import contextlib
 import glob
+import importlib.util
 import io
 import os
 import re
@@ -320,3 +321,14 @@ def test_page_runs_with_its_slow_blocks(page: Path, tmp_path: Path) -> None:
 @pytest.mark.parametrize("page", _pages_with("validation"), ids=lambda p: str(p.relative_to(ROOT)))
 def test_page_runs_with_its_validation_blocks(page: Path, tmp_path: Path) -> None:
     _run_page(page, "validation", tmp_path)
+
+
+def test_generated_reference_pages_are_up_to_date() -> None:
+    """The committed reference pages generated from the schema and the parser (docs/hooks.py)
+    are what the code generates now."""
+    spec = importlib.util.spec_from_file_location("docs_hooks", ROOT / "docs" / "hooks.py")
+    assert spec is not None and spec.loader is not None
+    hooks = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(hooks)
+    stale = hooks.stale_pages()
+    assert not stale, f"{stale} differ from the code: run `{hooks.REGENERATE}` and commit them"
