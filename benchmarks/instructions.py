@@ -131,7 +131,8 @@ def run_region(args: argparse.Namespace) -> None:
     lib.start()
     newton, cells, steps = sim.newton_iterations, 0, sim.steps
     while sim.t < args.until if args.until is not None else sim.steps - steps < args.steps:
-        cells += sim.fractions.size * int((sim.h > 0.0).sum())
+        # a read-only view: sim.h would be checked at the next step
+        cells += sim.fractions.size * int((sim.read_only("h") > 0.0).sum())
         if args.region == "step":
             lib.toggle()
         sim.step(np.inf if args.until is None else args.until)

@@ -243,7 +243,7 @@ def _run(
         return sim.t
 
     saved_t = checkpoint() if ckpt is None else sim.t
-    n_layers, n_cells = np.shape(sim.u)
+    n_layers, n_cells = sim.read_only("u").shape
     log.info("%d cells x %d layers; output times up to %g s", n_cells, n_layers, scenario.time.end)
     times = output_times(scenario.time.end, scenario.time.output_interval)
     progress = Progress(scenario.time.end, n_cells * n_layers, quiet=quiet)

@@ -23,6 +23,17 @@ MAX_STEPS = 10_000_000
 """Default bound on the time steps of one ``Simulation.advance`` and of a run
 (``multilayer run --max-steps``): a loop that depends on input never runs without one."""
 
+
+def step_bound(max_steps: object) -> float:
+    """``max_steps`` of ``Simulation.advance`` as a bound (inf for None);
+    :class:`InputError` unless an integer >= 1 or None."""
+    if max_steps is None:
+        return math.inf
+    if isinstance(max_steps, bool) or not isinstance(max_steps, numbers.Integral) or max_steps < 1:
+        raise InputError(f"advance(max_steps={max_steps!r}): accepted: an integer >= 1, or None for no bound")
+    return float(max_steps)
+
+
 Points = tuple[tuple[float, float], ...]
 """A piecewise-linear profile ``((x, value), ...)`` with increasing x (m)."""
 

@@ -49,13 +49,13 @@ import numpy as np
 
 from multilayer.engine import basal, diagnostics, initial_state
 from multilayer.engine.bed_force import BedForce, VerticalImpulse
-from multilayer.engine.config import MAX_STEPS, SimulationConfig
+from multilayer.engine.config import MAX_STEPS, SimulationConfig, step_bound
 from multilayer.engine.gate import Gate
 from multilayer.engine.mesh import LayeredMesh
 from multilayer.engine.mixture.flow import MixtureFlow
 from multilayer.engine.normal_stress import NormalStress, joint_rest, runs
 from multilayer.engine.pressure.model import PressureModel, PressureSetup, models, options
-from multilayer.engine.state import FlowState, max_wave_speed, span, start_moving, whole
+from multilayer.engine.state import FlowState, max_wave_speed, read_only, span, start_moving, whole
 from multilayer.engine.state_check import StateError, StateGuard, check_restored
 from multilayer.engine.threads import ThreadPolicy
 from multilayer.engine.transport import boundaries
@@ -131,7 +131,7 @@ class Simulation:
         edges = initial_state.cell_edges(c.x_min, c.x_max, c.cells)
         initial_state.check_entries(c.initial, c.x_min, c.x_max, self.dx, c.name)
         h0, u0 = initial_state.initial_state(c.initial, self.x, self.sigma, edges)
-        self.state = FlowState(
+        self._state = FlowState(
             np.ascontiguousarray(h0, dtype=float),
             np.ascontiguousarray(u0, dtype=float).reshape(self.fractions.size, c.cells),
         )
@@ -157,7 +157,7 @@ class Simulation:
             else None
         )
         #: the Newton seed of the step's first vertical step, extrapolated from the last steps
-        self.seeds = SeedExtrapolation(self.u.shape)
+        self.seeds = SeedExtrapolation(self._state.u.shape)
         #: the force on the bed, side walls and end walls (bed_force.py)
         self.forces = BedForce(
             self.vertical.stresses, self.fractions, self.dx, self.g_n, self.g_t, c.left, c.right
@@ -169,8 +169,8 @@ class Simulation:
         self.steps = 0
         self.newton_iterations = 0
         self.guard = StateGuard(self.x, self.dx, periodic=boundaries.BOUNDARIES[self.left].wraps)
-        self.guard.check_state(self.h, self.u, "in the initial state")
-        self.guard.reset(self.h, self.steps)
+        self.guard.check_state(self._state.h, self._state.u, "in the initial state")
+        self.guard.reset(self._state.h, self.steps)
         #: mass (m2) through the left and right boundary in the last step, positive in +x
         self.boundary_mass = np.zeros(2)
         # the fastest wave across a face that carried mass in the last transport's second stage
@@ -181,8 +181,8 @@ class Simulation:
         # ``x = sim.x; x -= 0.25`` (centring the axis of a plot) changed the run, silently;
         # the transport is given the arrays themselves (numba compiles read-only ones apart)
         self._bed, self._fractions = self.bed, self.fractions
-        self.x, self.sigma = _read_only(self.x), _read_only(self.sigma)
-        self.fractions, self.bed = _read_only(self.fractions), _read_only(self.bed)
+        self.x, self.sigma = read_only(self.x), read_only(self.sigma)
+        self.fractions, self.bed = read_only(self.fractions), read_only(self.bed)
 
     def _pressure_model(self) -> PressureModel:
         """The pressure model of the configuration, the defaults of its options filled in."""
@@ -200,7 +200,7 @@ class Simulation:
             base_bulk=self.base.bulk,
             options=options(model, c.pressure.options, self.fractions.size),
         )
-        return model(setup, self.state)
+        return model(setup, self._state)
 
     def _mixture(self, bulk: Rheology) -> MixtureFlow | None:
         """The mixture of the configuration; the transport's gravity reduced by its
@@ -213,9 +213,10 @@ class Simulation:
         for entry in c.initial:
             h_entry, _ = initial_state.initial_state((entry,), self.x, self.sigma, edges)
             solid += (entry.phi or 0.0) * h_entry
-        phi0 = np.where(self.h > 0.0, solid / np.where(self.h > 0.0, self.h, 1.0), 0.0)
+        h = self._state.h
+        phi0 = np.where(h > 0.0, solid / np.where(h > 0.0, h, 1.0), 0.0)
         mixture = MixtureFlow(
-            c.mixture, self.state, phi0, bulk, c.material, fractions=self.fractions, x=self.x, dx=self.dx,
+            c.mixture, self._state, phi0, bulk, c.material, fractions=self.fractions, x=self.x, dx=self.dx,
             g_n=self.g_n, g_t=self.g_t, periodic=boundaries.BOUNDARIES[self.left].wraps,
             tolerance=c.numerics.tolerance, max_iterations=c.numerics.max_iterations,
         )  # fmt: skip
@@ -228,31 +229,44 @@ class Simulation:
         inflowing material, or the fastest initial or inflow velocity."""
         h_in, u_in = (self.inflow.thickness, self.inflow.velocity) if self.inflow else (0.0, np.zeros(1))
         return max(
-            math.sqrt(self.config.gravity * max(float(self.h.max(initial=0.0)), h_in)),
-            float(np.abs(self.u).max(initial=0.0)),
+            math.sqrt(self.config.gravity * max(float(self._state.h.max(initial=0.0)), h_in)),
+            float(np.abs(self._state.u).max(initial=0.0)),
             float(np.abs(u_in).max()),
             1e-12,
         )
 
     @property
+    def state(self) -> FlowState:
+        """The engine's state (engine/state.py).  It holds every array of the state: from
+        now on each is checked at every step's entry (:meth:`step`)."""
+        self._state.expose(for_good=True)
+        return self._state
+
+    @property
     def h(self) -> np.ndarray:
         """Thickness (N,), m."""
-        return self.state.h
+        return self._state.hand_out("h")
 
     @property
     def u(self) -> np.ndarray:
         """Layer velocities (L, N), m/s."""
-        return self.state.u
+        return self._state.hand_out("u")
 
     @property
     def w(self) -> np.ndarray:
         """Layer-mean vertical velocities (L, N), m/s (zero but with the non-hydrostatic pressure)."""
-        return self.state.w
+        return self._state.hand_out("w")
 
     @property
     def q(self) -> np.ndarray:
         """Non-hydrostatic kinematic pressures (L, N), m^2/s^2 (zero but with it)."""
-        return self.state.q
+        return self._state.hand_out("q")
+
+    def read_only(self, name: str) -> np.ndarray:
+        """The state's array ``name`` (``h``, ``u``, ``w``, ``q`` or a model's field, as
+        ``solid``) as a read-only view, for code that only reads it (the result writer):
+        unlike ``sim.h`` it adds nothing to the next step's entry check (:meth:`step`)."""
+        return self._state.hand_out(name, writeable=False)
 
     @property
     def net_inflow(self) -> float:
@@ -263,11 +277,11 @@ class Simulation:
     @property
     def cells(self) -> int:
         """Number of cells of the X-sigma mesh (columns x layers)."""
-        return self.h.size * self.fractions.size
+        return self._state.h.size * self.fractions.size
 
     def time_step(self) -> float:
         """Largest stable step of the transport (Courant condition), inflow state included."""
-        speed = self._with_inflow(max_wave_speed(self.h, self.u, self.g_n))
+        speed = self._with_inflow(max_wave_speed(self._state.h, self._state.u, self.g_n))
         return courant_step(speed, self.dx, self.config.cfl)
 
     def _with_inflow(self, speed: float) -> float:
@@ -286,18 +300,22 @@ class Simulation:
         return self._step(t_max)
 
     def _check_entry(self) -> None:
-        """The state a step starts from is as the steps leave it (:meth:`StateGuard.check_entry`)."""
-        self.guard.check_entry(self.h, self.u, self.state.fields, self.t, self.steps)
-        if self.mixture is not None:
-            self.mixture.check_entry(self.h, self.t, self.steps)
+        """The state a step starts from is as the steps leave it (:meth:`StateGuard.check_entry`)
+        in the arrays code outside the engine may have written since the last step
+        (:meth:`FlowState.exposed`); the others are as the last step left them."""
+        arrays, columns = self._state.exposed()
+        if arrays:
+            self.guard.check_entry(self._state.h, arrays, self.t, self.steps, columns)
+        if self.mixture is not None and not arrays.keys().isdisjoint(("h", "solid")):
+            self.mixture.check_entry(self._state.h, self.t, self.steps)
 
     def _step(self, t_max: float) -> float:
-        speed = self._with_inflow(self.state.survey(self.dry, self.g_n))  # the fastest wave at the start
+        speed = self._with_inflow(self._state.survey(self.dry, self.g_n))  # the fastest wave at the start
         if speed == math.inf:  # of a finite state (check_entry): g h or |u| + sqrt(g h) overflows
             raise StateError(
                 f"the wave speed sqrt(g cos(theta) h) + |u| of the state at t = {self.t:.6g} s (step "
-                f"{self.steps + 1}) overflows (thickness up to {float(self.h.max())!r} m, velocity up to "
-                f"{float(np.abs(self.u).max())!r} m/s): no time step bounds it"
+                f"{self.steps + 1}) overflows (thickness up to {float(self._state.h.max())!r} m, velocity up "
+                f"to {float(np.abs(self._state.u).max())!r} m/s): no time step bounds it"
             )
         dt = min(courant_step(speed, self.dx, self.config.cfl), t_max - self.t)
         if dt == math.inf:  # no wave: no material and no inflow
@@ -305,7 +323,7 @@ class Simulation:
                 f"step(t_max={t_max!r}): no material and no inflow, so no wave bounds the time step; "
                 "accepted: a finite t_max (the time to step to)"
             )
-        threads = self.thread_policy.threads(self.fractions.size * int(np.count_nonzero(self.h)))
+        threads = self.thread_policy.threads(self.fractions.size * int(np.count_nonzero(self._state.h)))
         with self._abandonable():  # a step abandoned (a failure, a stop) leaves the state of its start
             while True:  # redone shorter while Heun's second stage breaks the Courant condition
                 self._check_advances(dt)
@@ -319,9 +337,9 @@ class Simulation:
             self._guard(h, u, fields, dt, columns)
         with whole():  # the step kept: forces, seeds, state, counts and time, or none of them
             if self.mixture is None:  # the forces of a mixture are not computed (docs/mixture.md)
-                self.forces.record(self.state, vertical, (u, fields), dt)  # diagnostics
+                self.forces.record(self._state, vertical, (u, fields), dt)  # diagnostics
             self.seeds.accept(dt)
-            self.state.commit(h, u, fields, columns)
+            self._state.commit(h, u, fields, columns)
             self.newton_iterations += iterations
             self.steps += 1
             self.t = t_max if dt == t_max - self.t else self.t + dt  # lands on t_max when cut to reach it
@@ -341,7 +359,7 @@ class Simulation:
         (module docstring), redone while the step sets material at rest moving: the
         vertical steps, the velocities after the last stress step and the Newton
         iterations (of every attempt, those redone included)."""
-        np.copyto(self._stepping, self.state.moving)
+        np.copyto(self._stepping, self._state.moving)
         iterations = 0
         with self.vertical.stresses.forms_held():  # the laws read once in the time step
             while True:
@@ -364,7 +382,7 @@ class Simulation:
                     vertical, ends = [first, second], [u1, u]
                 iterations += more
                 # material at rest set moving by any stress step (all: every one is marked)
-                started = [start_moving(end, self.h, self.dry, self._stepping) for end in ends]
+                started = [start_moving(end, self._state.h, self.dry, self._stepping) for end in ends]
                 if not any(started):
                     return vertical, u, iterations
 
@@ -381,7 +399,7 @@ class Simulation:
         if not (dt >= MIN_STEP and self.t + dt > self.t):
             raise RunError(
                 f"the time step dt = {dt!r} s at t = {self.t!r} s does not advance the time (the fastest "
-                f"wave speed is {max_wave_speed(self.h, self.u, self.g_n)!r} m/s; dt "
+                f"wave speed is {max_wave_speed(self._state.h, self._state.u, self.g_n)!r} m/s; dt "
                 f"below the resolution of t when the run is too long for its step)"
             )
 
@@ -397,13 +415,14 @@ class Simulation:
         in the step (docs/model.md), or one of Heun's stages (``stage``, the second from
         ``first``), checked by the state guard."""
         self.vertical.stresses.t = self.t  # the time of the step, for the messages of the plugin calls
+        state = self._state
         options: dict[str, Any] = {}
         if self.gate is not None:
-            options = {"gate_face": self.gate.face, "opening": self.gate.opening(self.h, self.t + 0.5 * dt)}
+            options = {"gate_face": self.gate.face, "opening": self.gate.opening(state.h, self.t + 0.5 * dt)}
         if self.transport is transport_kernel.transport:  # the arrays it reuses, its threads
             options.update(workspace=self.workspace, threads=threads)
         h, ustar = self.transport(
-            self.h, self.u, self._bed, self._fractions, dx=self.dx, dt=dt, g_n=self.g_n, g_t=self.g_t,
+            state.h, state.u, self._bed, self._fractions, dx=self.dx, dt=dt, g_n=self.g_n, g_t=self.g_t,
             left=self.left, right=self.right, inflow=self.inflow, dry=self.dry, order=self.numerics.order,
             moving=self._stepping, boundary_mass=self.boundary_mass, stage_speed=self._stage_speed,
             boundary_momentum=self.forces.transport_terms, stage=stage, first=first, **options,
@@ -439,7 +458,7 @@ class Simulation:
         steps together, and rest as their answer, are a chain's own, whatever the others
         do."""
         u_vertical, iterations = self._vertical_step(h, ustar, dt, threads, first, last=last)
-        u = self._normal_stress(h, u_vertical, dt, self.u)
+        u = self._normal_stress(h, u_vertical, dt, self._state.u)
         normal = self.normal_stress
         if normal is None or not np.any(u):
             return VerticalImpulse(weight, h, ustar, u_vertical, dt), u, iterations
@@ -468,7 +487,7 @@ class Simulation:
                 at_rest,
                 ustar[:, columns],
                 u[:, columns],
-                self.u[:, columns],
+                self._state.u[:, columns],
                 mass[:, columns],
                 self.numerics.max_iterations,
             )
@@ -486,7 +505,7 @@ class Simulation:
             return u
         u = u.copy()
         self.normal_stress(
-            h, u, lagged, self.pressure.yield_gravity(self.state, h), dt,
+            h, u, lagged, self.pressure.yield_gravity(self._state, h), dt,
             velocity_scale=self.vertical.velocity_scale, max_iterations=self.numerics.max_iterations,
         )  # fmt: skip
         return u
@@ -515,23 +534,24 @@ class Simulation:
         the columns taking part in the step (those :func:`start_moving` would add): the
         step is redone with that column moving whatever the rest of the local step gives,
         so the rest is not solved (docs/mixture.md, "Columns set moving")."""
+        state = self._state
         if self.mixture is not None:
-            watch = ~self._stepping & (self.h > self.dry) if last else None
+            watch = ~self._stepping & (state.h > self.dry) if last else None
             if first is not None:
                 return self.mixture.average_step(
-                    self.h, first, h, ustar=ustar, dt=dt, crossed=self.boundary_mass, dry=self.dry, t=self.t,
+                    state.h, first, h, ustar=ustar, dt=dt, crossed=self.boundary_mass, dry=self.dry, t=self.t,
                     watch=watch,
                 )  # fmt: skip
             step = self.mixture.step
-            return step(self.h, h, self.u, ustar, dt, self.boundary_mass, self.dry, self.t, watch)
-        seeds = self.pressure.seeds(self.state)
+            return step(state.h, h, state.u, ustar, dt, self.boundary_mass, self.dry, self.t, watch)
+        seeds = self.pressure.seeds(state)
         guess = first[1] if first is not None else self.seeds(seeds[0], dt, span(h))
         return self.vertical(
             h,
             ustar,
             dt,
             seeds if guess is None else (guess, *seeds),
-            rest=self.state.rest,
+            rest=state.rest,
             yield_gravity=self._yield_gravity(h),
             threads=threads,
             poll=self.poll,
@@ -541,12 +561,12 @@ class Simulation:
         """The normal gravity of the vertical step's yield pressures: the pressure model's
         (None: ``g cos(theta)``), with ``model.normal_stress`` the mean pressures
         ``P - tau_xx`` of the last normal-stress step (engine/normal_stress.py)."""
-        gravity = self.pressure.yield_gravity(self.state, h)
+        gravity = self.pressure.yield_gravity(self._state, h)
         return gravity if self.normal_stress is None else self.normal_stress.yield_gravity(gravity, h)
 
     def _project(self, h: np.ndarray, u: np.ndarray, dt: float) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """The pressure model's projection; the layer fields of the step (the mixture's too)."""
-        u, fields = self.pressure.project(self.state, h, u, dt)
+        u, fields = self.pressure.project(self._state, h, u, dt)
         return u, fields if self.mixture is None else {**fields, **self.mixture.pending}
 
     def _courant_check(self, dt: float, speed: float) -> float | None:
@@ -568,7 +588,8 @@ class Simulation:
         self, h: np.ndarray, u: np.ndarray, fields: dict[str, np.ndarray], dt: float, columns: tuple[int, int]
     ) -> None:
         """The state guard: an impossible state is never kept (the last good one stays)."""
-        start, transported = (self.h, h) if self.mixture is None else self.mixture.balanced(self.h)
+        h_old = self._state.h
+        start, transported = (h_old, h) if self.mixture is None else self.mixture.balanced(h_old)
         self.guard.check_step(start, transported, u, self.t, dt, self.boundary_mass, columns)
         if self.mixture is not None:
             self.mixture.check_step(h, self.t, dt, self.guard)
@@ -605,7 +626,7 @@ class Simulation:
             )
         if on_step is not None and not callable(on_step):
             raise InputError(f"advance(on_step={on_step!r}): accepted: None or a function of (sim, dt)")
-        bound = _step_bound(max_steps)
+        bound = step_bound(max_steps)
         if self.t < t_target and bound < math.inf and (t_target - self.t) / (dt := self.time_step()) > bound:
             raise InputError(
                 f"advance(t_target={t_target!r}): {t_target - self.t:.3g} s from t = {self.t:.6g} s in steps "
@@ -629,15 +650,16 @@ class Simulation:
         equal to its value at the start (or at the restored checkpoint) plus the net
         inflow through the boundaries, within round-off.  Raises :class:`StateError`."""
         when = f"at t = {self.t:.6g} s (step {self.steps})"
-        self.guard.check_state(self.h, self.u, when)
-        self.guard.check_balance(self.h, when)
+        self.guard.check_state(self._state.h, self._state.u, when)
+        self.guard.check_balance(self._state.h, when)
 
     def diagnostics(self) -> dict:
         """Static interface height (N,), front position (m) and mass (m^2) now."""
+        h, u = self._state.h, self._state.u
         return {
-            "static_interface": diagnostics.static_interface(self.h, self.u, self.mesh.interfaces),
-            "front": diagnostics.front(self.x, self.h, self.front_threshold),
-            "mass": diagnostics.mass(self.h, self.dx),
+            "static_interface": diagnostics.static_interface(h, u, self.mesh.interfaces),
+            "front": diagnostics.front(self.x, h, self.front_threshold),
+            "mass": diagnostics.mass(h, self.dx),
         }
 
     def state_dict(self) -> dict:
@@ -646,7 +668,7 @@ class Simulation:
             "t": self.t,
             "steps": self.steps,
             "newton_iterations": self.newton_iterations,
-            **self.state.state_dict(),
+            **self._state.state_dict(),
             **self.forces.state_dict(),
             **self.seeds.state_dict(),
             **(self.normal_stress.state_dict() if self.normal_stress is not None else {}),
@@ -660,31 +682,15 @@ class Simulation:
             self.t = float(saved["t"])
             self.steps = int(saved["steps"])
             self.newton_iterations = int(saved.get("newton_iterations", 0))
-            self.state.load_state(saved)
+            self._state.load_state(saved)
             self.forces.load_state(saved)
             self.seeds.load_state(saved)
             if self.normal_stress is not None:
                 self.normal_stress.load_state(saved)
-        self.guard.check_state(self.h, self.u, f"in the restored state at t = {self.t:.6g} s")
-        self.guard.reset(self.h, self.steps)
+        self.guard.check_state(self._state.h, self._state.u, f"in the restored state at t = {self.t:.6g} s")
+        self.guard.reset(self._state.h, self.steps)
         if self.mixture is not None:
             self.mixture.reset(self.steps)
-
-
-def _read_only(array: np.ndarray) -> np.ndarray:
-    view = array.view()
-    view.flags.writeable = False
-    return view
-
-
-def _step_bound(max_steps: object) -> float:
-    """``max_steps`` of :meth:`Simulation.advance` as a bound (inf for None);
-    :class:`InputError` unless an integer >= 1 or None."""
-    if max_steps is None:
-        return math.inf
-    if isinstance(max_steps, bool) or not isinstance(max_steps, numbers.Integral) or max_steps < 1:
-        raise InputError(f"advance(max_steps={max_steps!r}): accepted: an integer >= 1, or None for no bound")
-    return float(max_steps)
 
 
 def _time(value: object) -> float:

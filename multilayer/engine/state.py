@@ -16,12 +16,18 @@ fastest wave, in the columns that hold material or may hold velocities (those a 
 wrote; every column after the state is restored: a velocity written into a column
 without material is refused before, ``StateGuard.check_entry``).  The compiled scans of
 the state are here too.
+
+Code outside the engine (a user of the Python API, ``on_step``) is given the state's
+arrays by :meth:`FlowState.hand_out`, which records which of them it may write into:
+:meth:`FlowState.exposed` names those the check of the state the next step starts from
+reads (the engine reads the arrays themselves and exposes none).
 """
 
 from __future__ import annotations
 
 import signal
 import threading
+import weakref
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from types import FrameType
@@ -29,6 +35,7 @@ from types import FrameType
 import numpy as np
 
 from multilayer.engine.compiled import jit
+from multilayer.errors import InputError
 
 
 class FlowState:
@@ -40,6 +47,10 @@ class FlowState:
         self.u = u
         self.fields: dict[str, np.ndarray] = {}
         self._defaults: dict[str, str | float] = {}
+        self._exposed = {"h", "u"}  # arrays to check at the next step's entry: all at the start
+        self._for_good = False  # the state object itself was handed out: every array, every step
+        self._handed_out: list[tuple[str, weakref.ref]] = []  # writeable arrays given out, while alive
+        self._exposing = threading.Lock()
         self.w = self.add_field("w")
         """Layer-mean vertical velocities (L, N), m/s (the non-hydrostatic pressure)."""
         self.q = self.add_field("q")
@@ -62,7 +73,60 @@ class FlowState:
         )
         self.fields[name] = values
         self._defaults[name] = default
+        self._exposed.add(name)
         return values
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The names of the state's arrays: ``h``, ``u`` and the fields."""
+        return ("h", "u", *self.fields)
+
+    def array(self, name: str) -> np.ndarray:
+        """The state's array ``name`` (:attr:`names`) itself."""
+        return self.h if name == "h" else self.u if name == "u" else self.fields[name]
+
+    def hand_out(self, name: str, writeable: bool = True) -> np.ndarray:
+        """The array ``name`` (:attr:`names`; :class:`InputError` otherwise) for code
+        outside the engine: a numpy array on the state's memory, writeable and recorded
+        as exposed (:meth:`exposed`) while it, or any array or buffer made from it, is
+        alive; or read-only (``writeable=False``: numpy refuses to make it or a view of
+        it writeable) and not recorded."""
+        if not isinstance(name, str) or name not in self.names:
+            raise InputError(f"{name!r}: no array of the state; accepted: {', '.join(self.names)}")
+        if not writeable:
+            return read_only(self.array(name))
+        holder = _Holder(self.array(name), writeable)
+        with self._exposing:
+            self._exposed.add(name)
+            self._handed_out.append((name, weakref.ref(holder)))
+        return np.asarray(holder)
+
+    def expose(self, for_good: bool = False) -> None:
+        """Every array may have been written before the next step (a restored state); with
+        ``for_good`` at every step from now on (the state object itself given out: it
+        holds the arrays)."""
+        with self._exposing:
+            self._exposed.update(self.names)
+            self._for_good = self._for_good or for_good
+
+    def exposed(self) -> tuple[dict[str, np.ndarray], tuple[int, int] | None]:
+        """The arrays code outside the engine may have written into since the last call,
+        by name, and the columns of ``u`` to read (None: all).  Those handed out writeable
+        since, and those handed out before that are still alive (a reference kept, a view
+        of it, a buffer); every array at the start, after :meth:`expose` and for good
+        after ``expose(for_good=True)``: a write needs an array made by :meth:`hand_out`
+        alive, so one not named cannot have been written (but through the memory's
+        address itself).  ``u`` comes with ``h`` (a thickness written to zero under a
+        velocity), in the columns where the steps left it non-zero unless exposed itself."""
+        if not (self._exposed or self._for_good):  # none handed out since, none alive then
+            return {}, None
+        with self._exposing:
+            names = set(self.names) if self._for_good else self._exposed
+            self._handed_out = [(name, ref) for name, ref in self._handed_out if ref() is not None]
+            self._exposed = {name for name, _ in self._handed_out}
+        columns = None if "u" in names else self._velocities
+        names |= {"u"} if "h" in names else set()
+        return {name: self.array(name) for name in self.names if name in names}, columns
 
     def survey(self, dry: float, g_n: float) -> float:
         """Fill :attr:`moving` and :attr:`rest` from the state (columns thicker than ``dry``)
@@ -105,6 +169,30 @@ class FlowState:
             )
             values[...] = saved.get(name, fallback)
         self.window = self._velocities = (0, self.h.size)
+        self.expose()
+
+
+def read_only(array: np.ndarray) -> np.ndarray:
+    """A read-only view of ``array`` that numpy refuses to make writeable, as every view of
+    it (``view.flags.writeable = True`` makes a plain read-only view writeable again)."""
+    return np.asarray(_Holder(array, writeable=False))
+
+
+class _Holder:
+    """The memory of an array handed out (:meth:`FlowState.hand_out`, :func:`read_only`),
+    writeable or not: the base of the numpy array made from it.  numpy makes the base of
+    a view the first array up its chain that owns its memory or whose base is no array:
+    that array, which keeps the holder.  So the holder lives while the array, a view of
+    it (of a view of it, ...) or a buffer of one does, as a weak reference to it tells;
+    and numpy refuses to make any of them writeable when the holder is not."""
+
+    __slots__ = ("__array_interface__", "__weakref__", "array")
+
+    def __init__(self, array: np.ndarray, writeable: bool):
+        interface = dict(array.__array_interface__)
+        interface["data"] = (interface["data"][0], not writeable)
+        self.__array_interface__ = interface
+        self.array = array  # the memory's owner, kept alive with it
 
 
 @jit

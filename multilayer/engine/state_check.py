@@ -147,24 +147,27 @@ class StateGuard:
         self._check_layers(u, "velocity u", when)
 
     def check_entry(
-        self, h: np.ndarray, u: np.ndarray, fields: Mapping[str, np.ndarray], t: float, steps: int
+        self,
+        h: np.ndarray,
+        arrays: Mapping[str, np.ndarray],
+        t: float,
+        steps: int,
+        columns: tuple[int, int] | None = None,
     ) -> None:
         """Raise :class:`StateError` if the state a step starts from at ``t`` after ``steps``
-        steps is not as the steps leave it: ``h`` not finite or negative, a value of ``u`` or
-        of a layer field (``fields``: ``w``, ``q``, a model's own) not finite, or a velocity
-        in a column without material (``h == 0``, where every step leaves ``u = 0``).  The
-        steps never keep one, so it was written into the simulation's arrays (``sim.h``,
+        steps, of thickness ``h``, is not as the steps leave it in ``arrays`` (by name:
+        ``h``, ``u``, ``w``, ``q``, a model's field; those that may have been written since
+        the last step): ``h`` not finite or negative, a value of ``u`` or of a layer field
+        not finite, or a velocity in a column without material (``h == 0``, where every
+        step leaves ``u = 0``).  ``columns`` (lo, hi): ``u`` is as the steps leave it (zero)
+        outside the columns ``lo .. hi-1``, and is read in them only.  The steps never
+        keep such a state, so it was written into the simulation's arrays (``sim.h``,
         ``sim.u``, ...) since: the message names the array, the cell and the layer.  One
         compiled pass over each array (a NaN written into a dry column was carried, never
         read, into the results; one in a column with material was blamed on the
         transport)."""
-        arrays = {"h": h, "u": u, **fields}
-        if (
-            h.min(initial=0.0) >= 0.0
-            and math.isfinite(h.sum())
-            and _finite_and_still_where_empty(_bits(u), h)
-            and all(_finite(_bits(values), 0, h.size) for values in fields.values())
-        ):
+        lo, hi = (0, h.size) if columns is None else columns
+        if all(_as_left(name, values, h, lo, hi) for name, values in arrays.items()):
             return
         for name, values in arrays.items():
             where = "sim." + name if name in ("h", "u", "w", "q") else f"sim.state.fields[{name!r}]"
@@ -175,12 +178,12 @@ class StateGuard:
             if name == "h":
                 self.check_state(h, np.zeros((0, h.size)), when)
             elif name == "u":
-                self._check_layers(u, "velocity u", when)
-                if (moved := moving_where_empty(h, u)) is not None:
+                self._check_layers(values, "velocity u", when)
+                if (moved := moving_where_empty(h, values)) is not None:
                     a, k = moved
                     raise StateError(
-                        f"velocity u = {float(u[a, k])!r} at x = {self.x[k]:.6g} m, layer {a + 1} (1 is at "
-                        f"the bed), where there is no material (h = 0) {when}"
+                        f"velocity u = {float(values[a, k])!r} at x = {self.x[k]:.6g} m, layer {a + 1} (1 is "
+                        f"at the bed), where there is no material (h = 0) {when}"
                     )
             else:
                 self._check_layers(values, _FIELDS.get(name, name), when)
@@ -210,6 +213,17 @@ class StateGuard:
             )
 
 
+def _as_left(name: str, values: np.ndarray, h: np.ndarray, lo: int, hi: int) -> bool:
+    """The test of :meth:`StateGuard.check_entry` of the array ``name`` (``values``): one
+    reduction of ``h``, one compiled pass over the columns ``lo .. hi-1`` of ``u`` or over
+    a layer field."""
+    if name == "h":
+        return h.min(initial=0.0) >= 0.0 and math.isfinite(h.sum())
+    if name == "u":
+        return _finite_and_still_where_empty(_bits(values), h, lo, hi)
+    return _finite(_bits(values), 0, h.size)
+
+
 def _bits(u: np.ndarray) -> np.ndarray:
     """The bits of the floats of ``u`` (L, N) as unsigned integers (a view when contiguous)."""
     return np.ascontiguousarray(u, dtype=float).view(np.uint64)
@@ -227,20 +241,20 @@ def moving_where_empty(h: np.ndarray, u: np.ndarray) -> tuple[int, int] | None:
 
 
 @jit
-def _finite_and_still_where_empty(bits: np.ndarray, h: np.ndarray) -> bool:
-    """True if every value of ``bits`` (L, N: the floats of ``_bits``) is finite (its
-    exponent not all ones, as :func:`_finite`) and zero (of either sign) in the columns
-    where ``h == 0``: both tests in one pass over the values, with the columns' mask of
-    the magnitude bits (all ones where ``h == 0``, else none) formed once, so that the
-    pass is bitwise only and vectorises."""
+def _finite_and_still_where_empty(bits: np.ndarray, h: np.ndarray, lo: int, hi: int) -> bool:
+    """True if every value of the columns ``lo .. hi-1`` of ``bits`` (L, N: the floats of
+    ``_bits``) is finite (its exponent not all ones, as :func:`_finite`) and zero (of
+    either sign) in the columns where ``h == 0``: both tests in one pass over the values,
+    with the columns' mask of the magnitude bits (all ones where ``h == 0``, else none)
+    formed once, so that the pass is bitwise only and vectorises."""
     exponent = np.uint64(0x7FF0000000000000)
     magnitude = np.uint64(0x7FFFFFFFFFFFFFFF)
-    empty = np.empty(h.size, dtype=np.uint64)
-    for i in range(h.size):
-        empty[i] = magnitude if h[i] == 0.0 else np.uint64(0)
+    empty = np.empty(hi - lo, dtype=np.uint64)
+    for i in range(empty.size):
+        empty[i] = magnitude if h[lo + i] == 0.0 else np.uint64(0)
     found = np.uint64(0)
     for a in range(bits.shape[0]):
-        row = bits[a]
+        row = bits[a, lo:hi]
         for i in range(row.size):
             value = row[i]
             found |= np.uint64((value & exponent) == exponent) | (value & empty[i])

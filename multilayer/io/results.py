@@ -81,7 +81,7 @@ class ResultWriter:
         self.failure = ""
         """Why the run failed; written as the ``failure`` attribute on close when not empty."""
         self._broken = False  # a write failed: the netCDF handle cannot be trusted
-        n_layers, n_cells = np.shape(sim.u)
+        n_layers, n_cells = sim.read_only("u").shape
         self._mixture = getattr(sim, "mixture", None) is not None
         # a mixture's records hold phi and p_e, not the forces (docs/mixture.md)
         extra = (n_layers + 2) * n_cells if self._mixture else len(FORCES)
@@ -106,7 +106,7 @@ class ResultWriter:
 
     def _define(self, scenario: Any, sim: Any) -> None:
         ds = self._ds
-        n_layers, n_cells = np.shape(sim.u)
+        n_layers, n_cells = sim.read_only("u").shape
         ds.createDimension("time", None)
         ds.createDimension("x", n_cells)
         ds.createDimension("layer", n_layers)
@@ -167,13 +167,14 @@ class ResultWriter:
         self._ensure_room()
         try:
             with NETCDF_LOCK:
-                ds["h"][i, :] = sim.h
-                ds["u"][i, :, :] = sim.u
+                h = sim.read_only("h")  # read-only views: sim.h would be checked at the next step
+                ds["h"][i, :] = h
+                ds["u"][i, :, :] = sim.read_only("u")
                 ds["static_interface"][i, :] = diag["static_interface"]
                 if self._mixture:
-                    ds["phi"][i, :] = sim.mixture.phi(sim.h)
-                    ds["phi_layer"][i, :, :] = sim.mixture.phi_layers(sim.h)
-                    ds["pore_pressure_excess"][i, :] = sim.mixture.pore_pressure[0]
+                    ds["phi"][i, :] = sim.mixture.phi(h)
+                    ds["phi_layer"][i, :, :] = sim.mixture.phi_layers(h)
+                    ds["pore_pressure_excess"][i, :] = sim.read_only("pore_pressure")[0]
                 ds["front"][i] = diag["front"]
                 ds["mass"][i] = diag["mass"]
                 for name, value in forces.items():

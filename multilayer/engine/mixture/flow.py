@@ -61,13 +61,12 @@ class MixtureFlow:
         self.fractions, self.dx, self.x, self.periodic = fractions, dx, x, periodic
         self.g_t = g_t
         self.rho_s, self.rho_f = material.particle_density, config.fluid_density
-        self.solid = state.add_field("solid")
-        """Solid volume per layer ``s_a`` (L, N), m."""
-        self.solid[...] = phi0 * fractions[:, None] * state.h
-        self.pore_pressure = state.add_field("pore_pressure")
-        """Excess pore pressure at the bottom of each layer (L, N), Pa (``[0]``: at the bed)."""
+        self._state = state
+        self._solid = state.add_field("solid")
+        self._solid[...] = phi0 * fractions[:, None] * state.h
+        self._pore_pressure = state.add_field("pore_pressure")
         volume = float(state.h.sum())
-        mean = float(self.solid.sum()) / volume if volume > 0.0 else float(np.mean(phi0))
+        mean = float(self._solid.sum()) / volume if volume > 0.0 else float(np.mean(phi0))
         self.reduction = float(buoyant_fraction(mean, self.rho_s, self.rho_f))
         """``r`` of the initial mean packing: the transport's gravity is reduced by it."""
         self.local = LocalStep(config, law, material, fractions, g_n, tolerance, max_iterations)
@@ -76,27 +75,39 @@ class MixtureFlow:
         self.ambient_exchange = 0.0
         """Fluid volume (m^2 per unit width) the mixture drew from the ambient fluid since the start."""
         self.pending: dict[str, np.ndarray] = {}
-        self.transported = state.h
+        self._transported = state.h
         self.drawn = np.zeros_like(state.h)
         """Fluid volume (N,) the local steps before the last one of a step drew in, with
         the weight of their stage (1/2 for Heun's first: :meth:`average_step`)."""
         self._crossed = np.zeros(2)
         self._volumes = np.zeros(2)
-        self._before = self.solid
+        self._before = self._solid
+
+    @property
+    def solid(self) -> np.ndarray:
+        """Solid volume per layer ``s_a`` (L, N), m (the state's field, handed out:
+        :meth:`~multilayer.engine.state.FlowState.hand_out`)."""
+        return self._state.hand_out("solid")
+
+    @property
+    def pore_pressure(self) -> np.ndarray:
+        """Excess pore pressure at the bottom of each layer (L, N), Pa (``[0]``: at the
+        bed; the state's field, handed out)."""
+        return self._state.hand_out("pore_pressure")
 
     def reset(self, steps: int) -> None:
         """Take the present solid as the reference of its balance (the start, or a restored state)."""
-        self.guard.reset(self.solid.sum(axis=0), steps)
+        self.guard.reset(self._solid.sum(axis=0), steps)
 
     def phi(self, h: np.ndarray) -> np.ndarray:
         """Depth-averaged solid fraction (N,) at thickness ``h`` (0 where dry)."""
         wet = h > 0.0
-        return np.where(wet, self.solid.sum(axis=0) / np.where(wet, h, 1.0), 0.0)
+        return np.where(wet, self._solid.sum(axis=0) / np.where(wet, h, 1.0), 0.0)
 
     def phi_layers(self, h: np.ndarray) -> np.ndarray:
         """Solid fraction of each layer (L, N) (0 where dry)."""
         room = self.fractions[:, None] * h
-        return np.where(room > 0.0, self.solid / np.where(room > 0.0, room, 1.0), 0.0)
+        return np.where(room > 0.0, self._solid / np.where(room > 0.0, room, 1.0), 0.0)
 
     def step(
         self,
@@ -117,11 +128,11 @@ class MixtureFlow:
         it, :meth:`LocalStep.__call__`): returns the velocities and the iterations; ``h``
         is dilated in place, the new fields wait in :attr:`pending` for the commit."""
         solid, self._crossed = solid_transport.transport(
-            self.solid, h_old, h, u_old, self.fractions, crossed, self.dx, self.periodic
+            self._solid, h_old, h, u_old, self.fractions, crossed, self.dx, self.periodic
         )
         self._volumes = crossed.copy()
         self.drawn = np.zeros_like(h)
-        return self._local(solid, h, ustar, dt, u_old, self.pore_pressure, dry, t, watch)
+        return self._local(solid, h, ustar, dt, u_old, self._pore_pressure, dry, t, watch)
 
     def average_step(
         self,
@@ -144,7 +155,7 @@ class MixtureFlow:
         ``ustar`` (``watch``: as in :meth:`step`).  The fluid the first stage drew in
         enters ``h`` with the weight 1/2 (:attr:`drawn`)."""
         h1, u1 = first
-        drawn = 0.5 * (h1 - self.transported)
+        drawn = 0.5 * (h1 - self._transported)
         solid1, crossed1 = self.pending["solid"], self._crossed
         solid2, crossed2 = solid_transport.transport(
             solid1, h1, np.maximum(2.0 * h - h_old, 0.0), u1, self.fractions, 2.0 * crossed - self._volumes,
@@ -153,7 +164,7 @@ class MixtureFlow:
         self._crossed = 0.5 * (crossed1 + crossed2)
         # a column the average leaves empty holds no solid (round-off of the second stage's
         # volumes, recovered from ``2 h - h_old``)
-        solid = np.where(h > 0.0, 0.5 * (self.solid + solid2), 0.0)
+        solid = np.where(h > 0.0, 0.5 * (self._solid + solid2), 0.0)
         pressures = self.pending["pore_pressure"]
         velocities, iterations = self._local(solid, h, ustar, dt, u1, pressures, dry, t, watch)
         self.drawn = drawn
@@ -175,8 +186,8 @@ class MixtureFlow:
         the thickness ``h`` (dilated in place) from the velocities ``ustar``, the Newton
         iteration started from ``guess`` and ``pressure_guess``, stopped by a start of the
         columns ``watch`` (:meth:`LocalStep.__call__`)."""
-        self._before = self.solid
-        self.transported = h.copy()
+        self._before = self._solid
+        self._transported = h.copy()
         u = np.zeros_like(ustar)
         pressure = np.zeros_like(ustar)
         wet = h > dry
@@ -208,7 +219,7 @@ class MixtureFlow:
         """The mixture volume whose change the transport's boundary fluxes balance over the
         step from ``h_old``: ``h_old`` plus the fluid the earlier stages drew in (with their
         weight), and the transport's result before the last local step."""
-        return h_old + self.drawn, self.transported
+        return h_old + self.drawn, self._transported
 
     def check_entry(self, h: np.ndarray, t: float, steps: int) -> None:
         """The solid's bounds in the state a step starts from at ``t`` after ``steps``
@@ -218,7 +229,7 @@ class MixtureFlow:
             f"on entry to the step from t = {t:.6g} s (step {steps + 1}): not as the steps leave it, so "
             "written into sim.state.fields['solid'] or sim.h since the last step"
         )
-        solid_transport.check(self.solid, h, self.fractions, when, self.x)
+        solid_transport.check(self._solid, h, self.fractions, when, self.x)
 
     def check_step(self, h: np.ndarray, t: float, dt: float, guard: StateGuard) -> None:
         """The solid's balance and bounds after the step from ``t`` over ``dt`` (a
@@ -231,6 +242,6 @@ class MixtureFlow:
         self.guard.check_step(
             self._before.sum(axis=0), columns, np.zeros((1, columns.size)), t, dt, self._crossed
         )
-        exchange = (float(h.sum()) - float(self.transported.sum()) + float(self.drawn.sum())) * self.dx
+        exchange = (float(h.sum()) - float(self._transported.sum()) + float(self.drawn.sum())) * self.dx
         guard.net_inflow += exchange
         self.ambient_exchange += exchange

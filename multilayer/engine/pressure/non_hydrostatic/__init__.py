@@ -53,13 +53,13 @@ class NonHydrostatic(PressureModel):
             g_n=setup.g_n,
             pressure_layers=self.layers,
         )
-        self.seed = state.add_field("newton_seed", default="u")
+        self._seed = state.add_field("newton_seed", default="u")
 
     def yield_gravity(self, state: FlowState, h: np.ndarray) -> np.ndarray:
         return self.projection.yield_gravity(state.q, h, state.window)
 
     def seeds(self, state: FlowState) -> tuple[np.ndarray, ...]:
-        return (self.seed, state.u)
+        return (self._seed, state.u)
 
     def project(
         self, state: FlowState, h: np.ndarray, u: np.ndarray, dt: float
