@@ -9,7 +9,7 @@ the first-order C code with regularised yield that docs/performance.md times bes
 
     python benchmarks/dam_break.py [--cells 2500] [--layers 32] [--order 2] [--threads auto] [--profile]
         [--pressure hydrostatic | bim2016 | non_hydrostatic] [--pressure-layers N] [--compare]
-        [--peer COMMAND [--pairs N]]
+        [--peer COMMAND [--pairs N]] [--overhead]
 
 ``--compare`` runs the hydrostatic model and then the ``--pressure`` option in the same
 invocation and prints the ratio of their times to solution (the cost of the pressure).
@@ -18,21 +18,27 @@ invocation and prints the ratio of their times to solution (the cost of the pres
 (a shell command, run in a temporary directory, its output discarded) right before each
 of ``--pairs`` runs of the dam break, and prints the ratio of each pair and their median:
 the machine's speed drifts within minutes, so only runs close in time compare.
+``--overhead`` runs the problem once more and prints its CPU time per step and the part of
+it inside the compiled kernels called from Python: the rest is the fixed cost of a step
+outside them, most of a step on a small mesh (``--cells 250``).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import statistics
 import subprocess
+import sys
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from functools import partial
 from typing import Any
 
 import numpy as np
 from common import timed
+from numba.core.registry import CPUDispatcher
 
 from multilayer.app.simulation import Simulation
 from multilayer.scenario import Scenario, from_dict
@@ -97,6 +103,7 @@ def main() -> None:
     parser.add_argument("--profile", action="store_true", help="print the 15 costliest functions")
     parser.add_argument("--peer", metavar="COMMAND", help="a peer code to time before each run")
     parser.add_argument("--pairs", type=int, default=1, help="runs of the peer and the dam break (default 1)")
+    parser.add_argument("--overhead", action="store_true", help="the CPU time per step outside the kernels")
     args = parser.parse_args()
     if args.pairs < 1 or (args.pairs > 1 and args.peer is None):
         parser.error("--pairs takes an integer >= 1, and more than 1 only with --peer")
@@ -136,6 +143,8 @@ def main() -> None:
             f"check: front x = {d['front']:.3f} (threshold {sim.front_threshold:g}), mass {d['mass']:.12f} "
             f"(initially 2), max |u| {np.abs(sim.u).max():.3f}"
         )
+        if args.overhead:
+            print(overhead(partial(simulation, problem), args.end))
         if args.peer is not None:
             ratios.append(peer / timing.seconds)
             print(f"pair {len(ratios)}: the peer took {ratios[-1]:.2f} times the time to solution")
@@ -146,6 +155,56 @@ def main() -> None:
         listed = ", ".join(f"{r:.2f}" for r in ratios)
         median = statistics.median(ratios)
         print(f"peer / multilayer over {len(ratios)} pairs: median {median:.2f} ({listed})")
+
+
+def overhead(make: Callable[[], Simulation], end: float) -> str:
+    """The CPU time per step of ``make()`` run to ``end`` (its kernels compiled by a run
+    before), and its part inside the compiled kernels called from Python."""
+    spent = [0.0]
+    sim = make()
+    with kernels_timed(spent):
+        start = time.process_time()
+        sim.advance(end)
+        total = time.process_time() - start
+    per_step = 1e6 / sim.steps
+    return (
+        f"per step: CPU {total * per_step:.0f} us, of which {spent[0] * per_step:.0f} us in the compiled "
+        f"kernels called from Python and {(total - spent[0]) * per_step:.0f} us outside them"
+    )
+
+
+@contextlib.contextmanager
+def kernels_timed(spent: list[float]) -> Iterator[None]:
+    """Within, each numba dispatcher of the engine's modules (and each partial of one) is
+    wrapped in a timer that adds its calls' CPU time to ``spent[0]`` (the timer's own cost,
+    about a microsecond a call, counted inside); the modules are given back after."""
+    wrapped: dict[int, Callable[..., Any]] = {}
+
+    def timer(kernel: Any) -> Callable[..., Any]:
+        def call(*args: Any) -> Any:
+            start = time.process_time()
+            try:
+                return kernel(*args)
+            finally:
+                spent[0] += time.process_time() - start
+
+        return wrapped.setdefault(id(kernel), call)
+
+    replaced: list[tuple[Any, str, Any]] = []
+    for name, module in list(sys.modules.items()):
+        if name.startswith("multilayer.engine") and module is not None:
+            for attribute, value in list(vars(module).items()):
+                if isinstance(value, CPUDispatcher):
+                    replaced.append((module, attribute, value))
+                    setattr(module, attribute, timer(value))
+                elif isinstance(value, partial) and isinstance(value.func, CPUDispatcher):
+                    replaced.append((module, attribute, value))
+                    setattr(module, attribute, partial(timer(value.func), *value.args))
+    try:
+        yield
+    finally:
+        for module, attribute, value in replaced:
+            setattr(module, attribute, value)
 
 
 def time_peer(command: str) -> float:

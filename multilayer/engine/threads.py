@@ -28,7 +28,7 @@ import os
 import threading
 from collections import Counter
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager, nullcontext
 
 from multilayer.errors import InputError
 
@@ -74,16 +74,23 @@ stepped in two threads, as docs/api.md allows, terminated the whole process ("Co
 access has been detected").  The other layers would run both on the same cores."""
 
 
-@contextmanager
-def numba_threads(count: int) -> Iterator[None]:
+_SERIAL = nullcontext()
+"""What :func:`numba_threads` gives for one thread: made once (a generator-based context
+costs a microsecond a call, several calls a step)."""
+
+
+def numba_threads(count: int) -> AbstractContextManager[None]:
     """numba's thread count (and a chunk of one iteration per task, so that the chunks of
     :func:`parallel_chunks` are handed out one at a time) set to ``count`` for the calls of
     the block, at most numba's ``NUMBA_NUM_THREADS``, one thread of the process at a time
     (:data:`_LAUNCHES`); the caller's settings are given back after it.  Nothing for
     ``count <= 1`` (the serial kernels)."""
-    if count <= 1:
-        yield
-        return
+    return _SERIAL if count <= 1 else _parallel_launch(count)
+
+
+@contextmanager
+def _parallel_launch(count: int) -> Iterator[None]:
+    """:func:`numba_threads` for ``count >= 2`` threads."""
     import numba
 
     load_tbb()  # before numba starts its threading layer

@@ -76,7 +76,7 @@ def implicit_step(
     if compiled is not None and compiled.laws() is not None:
         if poll is not None:
             poll()
-        u, iterations = compiled(
+        u, _ = compiled(
             h,
             ustar,
             u_guess,
@@ -87,10 +87,9 @@ def implicit_step(
             rest=rest,
             yield_gravity=yield_gravity,
         )
-        failed = int(np.count_nonzero(iterations < 0))
-        if failed:
-            raise _not_converged(tolerance, max_iterations, failed)
-        return u, int(iterations.max(initial=1))
+        if compiled.not_converged:
+            raise _not_converged(tolerance, max_iterations, compiled.not_converged)
+        return u, compiled.most_iterations
     u = np.zeros_like(ustar)
     wet = np.flatnonzero(h > 0)
     cs = (

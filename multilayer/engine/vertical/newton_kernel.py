@@ -48,6 +48,7 @@ from multilayer.engine.vertical.forms import (
     law_of,
 )
 from multilayer.engine.vertical.newton_control import HALVINGS, energy_rise, error_bound, slope_along
+from multilayer.engine.vertical.results import Results, clear_dry, tally
 from multilayer.engine.vertical.sheared_columns import (
     ALONE,
     BLOCK,
@@ -95,19 +96,6 @@ class Control(NamedTuple):
     threshold: float
     max_iterations: int
     blocks: bool
-
-
-class Results(NamedTuple):
-    """What ``_columns`` writes: the velocities (L, N), and per wet column the Newton
-    iterations (-1: not converged), the solves by the dynamic programme, the fault code
-    and values, and whether it was solved side by side."""
-
-    u: np.ndarray
-    iterations: np.ndarray
-    fallbacks: np.ndarray
-    faults: np.ndarray
-    fault_values: np.ndarray
-    side_by_side: np.ndarray
 
 
 @jit(borrowing=True)
@@ -593,6 +581,8 @@ class CompiledStep:
         self.columns_side_by_side = 0  # of which solved side by side
         self.solves = 0  # column solves so far
         self.fallbacks = 0  # of which by the O(L^2) dynamic programme (the active set failed)
+        self.not_converged = 0  # columns of the last call not converged within max_iterations
+        self.most_iterations = 1  # the most Newton iterations of a column in the last call (at least 1)
         # the results, two reused in turn from call to call, and their columns that may be non-zero
         self._out: list[np.ndarray] = []
         self._written = [(0, 0), (0, 0)]
@@ -623,7 +613,8 @@ class CompiledStep:
         yield_gravity: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """New velocities (L, N) and the Newton iterations of each wet column (-1: not
-        converged within ``max_iterations``).  The velocities are overwritten by the call
+        converged within ``max_iterations``; counted in :attr:`not_converged` and
+        :attr:`most_iterations`).  The velocities are overwritten by the call
         after the next (a time step of order 2 keeps its first vertical step's while it
         makes the second).  ``rest`` and ``yield_gravity`` go to ``StressModel.columns`` (compiled:
         ``coefficients.CompiledCoefficients``)."""
@@ -639,20 +630,16 @@ class CompiledStep:
         self._out.reverse()  # the other one: the result of the last call stays
         self._written.reverse()
         (lo, hi), u = self._written[0], self._out[0]
-        u[:, lo:hi][:, ~(h[lo:hi] > 0.0)] = 0.0  # zero outside them already; the kernel writes the wet ones
+        thickness = np.ascontiguousarray(h, dtype=float)
+        clear_dry(u, thickness, lo, hi)  # zero outside them already; the kernel writes the wet ones
         self._written[0] = (int(wet[0]), int(wet[-1]) + 1) if wet.size else (0, 0)
         out = Results(
             u, np.empty(wet.size, np.int64), np.empty(wet.size, np.int64), np.empty(wet.size, np.int64),
             np.empty((wet.size, 2)), np.zeros(wet.size, np.bool_),
         )  # fmt: skip
-        iterations, fallbacks, faults = out.iterations, out.fallbacks, out.faults
+        iterations, faults = out.iterations, out.faults
         wall_form, wall_params = walls if walls is not None else (0, NO_PARAMETERS)
-        columns = Columns(
-            wet,
-            np.ascontiguousarray(h, dtype=float),
-            np.ascontiguousarray(ustar),
-            np.ascontiguousarray(u_guess),
-        )
+        columns = Columns(wet, thickness, np.ascontiguousarray(ustar), np.ascontiguousarray(u_guess))
         compiled_laws = Laws(
             bulk_form, bulk_params, wall_form, wall_params,
             float(self.stresses.width) if walls is not None else 0.0, float(self.stresses.material.density),
@@ -662,7 +649,8 @@ class CompiledStep:
         kernel = functools.partial(_parallel, parallel_chunks(threads, wet.size)) if threads > 1 else _serial
         with numba_threads(threads):
             kernel(columns, inputs, fused, given, compiled_laws, control, out)
-        if faults.any():
+        counts = tally(out, max_iterations)
+        if counts[0]:  # a fault
             if (bad := np.flatnonzero(faults == NOT_FINITE)).size:  # never taken as converged
                 x = float(self.stresses.x[wet[bad[0]]])
                 raise not_finite(out.fault_values[bad[0]], x, self.stresses.t)
@@ -674,10 +662,12 @@ class CompiledStep:
                     kernel(columns, inputs, False, self._given(cs), compiled_laws, control, out)
             if faults.any():
                 raise self._fault(cs, faults, out.fault_values)
+            counts = tally(out, max_iterations)  # of the call with the plugins' yield values
+        _, self.not_converged, self.most_iterations, solves, fallbacks, side_by_side = counts
         self.columns += wet.size
-        self.columns_side_by_side += int(np.count_nonzero(out.side_by_side))
-        self.solves += int(np.where(iterations < 0, max_iterations, iterations).sum())
-        self.fallbacks += int(fallbacks.sum())
+        self.columns_side_by_side += side_by_side
+        self.solves += solves
+        self.fallbacks += fallbacks
         return u, iterations
 
     @staticmethod
