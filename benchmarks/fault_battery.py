@@ -2255,7 +2255,7 @@ def round_thirteen() -> list[Case]:
     out: list[Case] = []
     out.append(
         Case("plot: over an earlier run's animation and svg figures", ["plot", "{dir}/out", "{scenario}"], 0,
-             "drawn from an earlier result.nc", patch=ANIMATED_THEN_RUN_AGAIN, setup=_finished_run)
+             "not drawn from the result.nc there now", patch=ANIMATED_THEN_RUN_AGAIN, setup=_finished_run)
     )  # fmt: skip
     out.append(
         Case("validate: a calibration whose prior's mean lies outside its bounds",
