@@ -212,7 +212,8 @@ def test_validate_checks_sweep_and_study_files_with_every_member(tmp_path, cli, 
     # a base that is the sweep or study file itself, or another one: seven lines, none
     # saying that the base is no scenario; now one
     accepted = "not a scenario; accepted: the path of a scenario file, relative to this file"
-    for name, config in (("itself.yaml", {"parameters": {"rheology.mu_s": [0.3]}}), ("study.yaml", sensitivity)):
+    studies = (("itself.yaml", {"parameters": {"rheology.mu_s": [0.3]}}), ("study.yaml", sensitivity))
+    for name, config in studies:
         path = write_scenario({"base": name, **{k: v for k, v in config.items() if k != "base"}}, name)
         result = cli("validate", path)
         itself = f"multilayer: error: {path}: base (line 1): {path} is this file itself, {accepted}\n"
