@@ -358,6 +358,7 @@ def test_figures_and_an_animation_drawn_from_an_earlier_result_are_removed_by_th
     plots = run / "plots"
     assert cli("plot", run, "--format", "pdf").code == 0
     (plots / "notes.txt").write_bytes(b"kept")
+    (plots / "front.csv").write_bytes(b"kept: no figure of plot's")
     future = time.time() + 10**6  # a result of a time in the future: the figures stay
     os.utime(run / "result.nc", (future, future))
     copy = tmp_path / "copy"
@@ -380,7 +381,7 @@ def test_figures_and_an_animation_drawn_from_an_earlier_result_are_removed_by_th
     assert again.code == 0, again.err
     figures = sorted(p.name for p in plots.iterdir())
     assert not {"section.gif", "mass.svg", "front.pdf"} & set(figures)
-    assert {"notes.txt", "section.png", "mass.png"} <= set(figures)
+    assert {"notes.txt", "front.csv", "section.png", "mass.png"} <= set(figures)
     removed = [f"{stem}.{fmt}" for stem in FIGURES for fmt in ("pdf", "svg")] + ["section.gif"]
     note = f"removed {', '.join(sorted(removed))} from {plots}: not drawn from the result.nc there now"
     assert f"multilayer: warning: {note}" in again.err

@@ -12,7 +12,6 @@ interrupted run are drawn, and :func:`plot_run` returns a note saying how the ru
 
 from __future__ import annotations
 
-import glob
 import hashlib
 import math
 import mmap
@@ -124,6 +123,10 @@ METADATA_KEYS = {"png": "Comment", "pdf": "Subject", "svg": "Description"}
 chunk, the PDF's subject, the SVG's Dublin Core description), as Matplotlib writes them."""
 
 
+ANIMATIONS = ("mp4", "gif")
+"""The formats of :func:`animate_section`."""
+
+
 def records(path: Path, source: str) -> bool:
     """Whether the file ``path`` records ``source`` (:func:`drawn_from`) in its bytes,
     where each format keeps it as written (read without loading the file)."""
@@ -135,7 +138,8 @@ def records(path: Path, source: str) -> bool:
 
 def remove_stale(out: Path, family: Sequence[str], source: str) -> list[str]:
     """Remove the files of ``out`` named as the figures of ``family`` (every stem the
-    command may write, in any format, an animation of the section included) that do not
+    command may write, in any format it writes, an animation of the section included; a
+    file of another suffix is none of them: ``front.csv`` was removed) that do not
     record ``source`` (:func:`drawn_from`), the file they are drawn from as it is now;
     returns their names.  Those were drawn from an earlier state of it (before the run was
     run again or resumed), from another file, or by a version that recorded none: an
@@ -144,8 +148,8 @@ def remove_stale(out: Path, family: Sequence[str], source: str) -> list[str]:
     stale = sorted(
         path
         for stem in family
-        for path in out.glob(f"{glob.escape(stem)}.*")
-        if path.is_file() and not records(path, source)
+        for suffix in (*METADATA_KEYS, *ANIMATIONS)
+        if (path := out / f"{stem}.{suffix}").is_file() and not records(path, source)
     )
     for path in stale:
         path.unlink(missing_ok=True)
