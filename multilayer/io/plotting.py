@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import hashlib
 import math
-import mmap
 import os
 import textwrap
 from collections.abc import Sequence
@@ -129,11 +128,15 @@ ANIMATIONS = ("mp4", "gif")
 
 def records(path: Path, source: str) -> bool:
     """Whether the file ``path`` records ``source`` (:func:`drawn_from`) in its bytes,
-    where each format keeps it as written (read without loading the file)."""
-    if path.stat().st_size == 0:
-        return False
-    with path.open("rb") as stream, mmap.mmap(stream.fileno(), 0, access=mmap.ACCESS_READ) as data:
-        return data.find(source.encode()) >= 0
+    where each format keeps it as written (read a megabyte at a time; a file mapped in
+    memory would end the process if another truncated it meanwhile)."""
+    marker, before = source.encode(), b""
+    with path.open("rb") as stream:
+        while chunk := stream.read(2**20):
+            if marker in before + chunk:
+                return True
+            before = chunk[-len(marker) :]
+    return False
 
 
 def remove_stale(out: Path, family: Sequence[str], source: str) -> list[str]:
