@@ -2255,7 +2255,7 @@ def round_thirteen() -> list[Case]:
     out: list[Case] = []
     out.append(
         Case("plot: over an earlier run's animation and svg figures", ["plot", "{dir}/out", "{scenario}"], 0,
-             "drawn from an earlier result.nc", patch=ANIMATED_THEN_RUN_AGAIN, setup=_finished_run)
+             "not drawn from the result.nc there now", patch=ANIMATED_THEN_RUN_AGAIN, setup=_finished_run)
     )  # fmt: skip
     out.append(
         Case("validate: a calibration whose prior's mean lies outside its bounds",
@@ -2290,6 +2290,171 @@ def round_thirteen() -> list[Case]:
         Case("signal: one SIGINT while a plugin never returns",
              ["run", "{scenario}", "-o", "{dir}/out", "-q"], 130, "interrupted by Ctrl-C (SIGINT) at t=",
              patch=HANGING_PLUGIN, setup=_scenario, signal_when=("hanging", signal.SIGINT), keeps_output=True)
+    )  # fmt: skip
+    return out
+
+
+HANGING_PLUGIN_PACKAGE = """
+import os
+import numpy as np
+import multilayer
+
+
+class Hanging(multilayer.Rheology):
+    \"\"\"Drucker-Prager's yield stress, which never returns from its call number hang_after.\"\"\"
+
+    name = "hanging"
+    applies_to = "bulk"
+
+    def __init__(self, mu_s: float, nu: float, hang_after: float):
+        self.mu_s, self.nu, self.hang_after, self.calls = mu_s, nu, hang_after, 0
+
+    def yield_stress(self, pressure, material):
+        self.calls += 1
+        if self.calls >= self.hang_after:
+            open(os.environ["HANGING_MARK"], "w").close()
+            while True:
+                pass
+        return self.mu_s * np.asarray(pressure)
+
+    def viscosity(self, shear_rate, pressure, material):
+        return np.full(np.broadcast_shapes(np.shape(shear_rate), np.shape(pressure)), self.nu)
+
+
+@multilayer.hookimpl
+def multilayer_register_rheologies(register):
+    register(Hanging)
+"""
+"""A rheology plugin, installed through its entry point (a distribution's metadata on
+PYTHONPATH, which the Dask workers inherit), whose yield stress never returns."""
+
+
+def _hanging_sweep(directory: Path) -> None:
+    """A sweep of two members on the hanging plugin: the first completes, the second hangs."""
+    plugin = directory / "plugin"
+    (plugin / "hanging-0.1.dist-info").mkdir(parents=True)
+    (plugin / "hanging.py").write_text(HANGING_PLUGIN_PACKAGE)
+    (plugin / "hanging-0.1.dist-info" / "METADATA").write_text(
+        "Metadata-Version: 2.1\nName: hanging\nVersion: 0.1\n"
+    )
+    (plugin / "hanging-0.1.dist-info" / "entry_points.txt").write_text("[multilayer]\nhanging = hanging\n")
+    _scenario(directory, {"rheology": {"name": "hanging", "mu_s": 0.3, "nu": 0.01, "hang_after": 1e9}})
+    sweep = {"base": "scenario.yaml", "parameters": {"rheology.hang_after": [1e9, 40]}}
+    (directory / "sweep.yaml").write_text(yaml.safe_dump(sweep))
+
+
+FIGURES_OF_A_COPY = """
+import os, shutil, time
+out = sys.argv[2]
+if main(['plot', out, '--format', 'svg']) != 0:
+    sys.exit('the first plot failed')
+future = time.time() + 10**6
+os.utime(os.path.join(out, 'result.nc'), (future, future))
+copy = out + '-copy'
+shutil.copytree(out, copy)
+if main(['plot', copy]) != 0:
+    sys.exit('the plot of the copy failed')
+left = sorted(os.listdir(os.path.join(copy, 'plots')))
+print(f'multilayer: the plot of the copy left {left}', file=sys.stderr)
+sys.exit(0 if len(left) == 14 else 1)
+"""
+"""A run plotted as svg, its result given a time in the future, the directory copied (new
+times) and plotted as png: the svg figures, drawn from that very result, must stay."""
+
+
+def _cut_result(directory: Path) -> None:
+    """A completed run whose result keeps its first 3 records, the header saying so."""
+    from multilayer.io.netcdf_layout import NUMRECS_OFFSET, read_layout
+
+    _finished_run(directory)
+    path = directory / "out" / "result.nc"
+    layout, size = read_layout(path), path.stat().st_size
+    while layout.complete_records(size - 1) >= 3:
+        size -= 1
+    data = bytearray(path.read_bytes()[:size])
+    data[NUMRECS_OFFSET : NUMRECS_OFFSET + 4] = (3).to_bytes(4, "big")
+    path.write_bytes(bytes(data))
+
+
+def _sweep_of_a_sweep(directory: Path) -> None:
+    _sweep_of_base("scenario.yaml")(directory)
+    (directory / "outer.yaml").write_text("base: sweep.yaml\nparameters: {slope_deg: [20]}\n")
+
+
+def _meddling_plugin(change: str) -> str:
+    """Drucker-Prager's yield stress doing ``change`` (a statement) at its 20th call."""
+    return (
+        "import os, signal\n"
+        "real = DruckerPrager.yield_stress\n"
+        "def meddling(self, p, m):\n"
+        "    calls[0] += 1\n"
+        "    if calls[0] == 20:\n"
+        f"        {change}\n"
+        "    return real(self, p, m)\n"
+        "DruckerPrager.yield_stress = meddling\n"
+        "DruckerPrager.yield_stress_kernel = lambda self, material: None\n"
+    )
+
+
+def round_fourteen() -> list[Case]:
+    """The hostile cases of the fourteenth round (docs/reliability.md): a sweep whose base
+    is itself or another sweep, figures of a result from the future in a copied directory, a
+    completed result cut to its first records, one SIGINT while a sweep's member is in a
+    plugin that never returns, plugins changing the working directory, the stop signals'
+    handlers or numpy's error handling, a study into a directory another holds or into a
+    file."""
+    out: list[Case] = []
+    out.append(
+        Case("validate: a sweep whose base is itself", ["validate", "{dir}/sweep.yaml"], 2,
+             "sweep.yaml is this file itself, not a scenario; accepted: the path of a scenario file",
+             setup=_sweep_of_base("sweep.yaml"))
+    )  # fmt: skip
+    out.append(
+        Case("validate: a sweep whose base is another sweep", ["validate", "{dir}/outer.yaml"], 2,
+             "sweep.yaml is a sweep or study file (it has the key parameters), not a scenario",
+             setup=_sweep_of_a_sweep)
+    )  # fmt: skip
+    out.append(
+        Case("plot: figures of a result from the future, in a copied directory", ["plot", "{dir}/out"], 0,
+             "the plot of the copy left", patch=FIGURES_OF_A_COPY, setup=_finished_run)
+    )  # fmt: skip
+    out.append(
+        Case("plot: a completed result cut to its first records", ["plot", "{dir}/out"], 2,
+             "its 3 output times run from t = 0 s to 0.04 s, not from 0 to its time.end (0.2 s)",
+             setup=_cut_result)
+    )  # fmt: skip
+    out.append(
+        Case("signal: one SIGINT while a sweep's member is in a plugin that never returns",
+             ["sweep", "sweep.yaml", "-o", "out", "--workers", "1"], 130,
+             "of 2 members complete, the others cancelled", setup=_hanging_sweep, here=True,
+             env={"PYTHONPATH": "{dir}/plugin", "HANGING_MARK": "{dir}/hanging"},
+             signal_when=("hanging", signal.SIGINT))
+    )  # fmt: skip
+    run = ["run", "{scenario}", "-o", "out", "-q"]
+    for name, change, phrase in (
+        ("changes the working directory", "os.chdir('/')", "changed the working directory from"),
+        ("ignores SIGINT", "signal.signal(signal.SIGINT, signal.SIG_IGN)", "changed the handler of SIGINT"),
+    ):
+        out.append(
+            Case(f"plugin: {name} mid-run", run, 1, phrase, patch=_meddling_plugin(change), setup=_scenario,
+                 here=True, keeps_output=True)
+        )  # fmt: skip
+    out.append(
+        Case("validate: a plugin's constructor sets numpy's errors to raise", ["validate", "{scenario}"], 2,
+             "DruckerPrager(mu_s=0.3, nu=0.01) changed the numpy error handling",
+             patch="import functools\ninit = DruckerPrager.__init__\n@functools.wraps(init)\n"
+                   "def meddling(self, **params):\n    init(self, **params)\n    np.seterr(all='raise')\n"
+                   "DruckerPrager.__init__ = meddling\n",
+             setup=_scenario)
+    )  # fmt: skip
+    out.append(
+        Case("sweep: into a directory another run holds", ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/out"], 2,
+             "another run is writing into this directory (pid",
+             setup=lambda d: (_sweep_of_base("scenario.yaml")(d), _lock_holding(os.getpid())(d)))
+    )  # fmt: skip
+    out.append(
+        Case("calibrate: -o a file", ["calibrate", "{dir}/calibration.yaml", "-o", "{dir}/front.csv"], 2,
+             "front.csv: a file, not a directory", setup=_calibration("0.1,0.3,0.01\n"))
     )  # fmt: skip
     return out
 
@@ -2460,6 +2625,7 @@ def cases() -> list[Case]:
         + round_eleven()
         + round_twelve()
         + round_thirteen()
+        + round_fourteen()
     )
 
 
@@ -2493,7 +2659,7 @@ def attempt(case: Case) -> Case:
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,
-            env={**os.environ, **case.env},
+            env={**os.environ, **{key: value.format(dir=directory) for key, value in case.env.items()}},
             preexec_fn=limited,
             cwd=directory if case.here else None,
         )

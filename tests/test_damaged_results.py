@@ -20,6 +20,7 @@ from conftest import TINY_SCENARIO
 from multilayer import scenario as scenarios
 from multilayer.app import runner, sweep
 from multilayer.errors import InputError
+from multilayer.io.netcdf_layout import NUMRECS_OFFSET, read_layout
 from multilayer.io.results import SUMMARY_KEYS, open_result, run_failure, summary
 
 SHORT = {**TINY_SCENARIO, "name": "short", "time": {"end": 0.08, "output_interval": 0.02}}
@@ -78,7 +79,23 @@ def _header(path: Path) -> None:
     path.write_bytes(bytes(data))
 
 
+def _cut(path: Path) -> None:
+    """The first 3 records kept, the header saying so, its attributes (completed) kept."""
+    with open(path, "r+b") as stream:
+        stream.seek(NUMRECS_OFFSET)
+        stream.write((3).to_bytes(4, "big"))
+    layout = read_layout(path)
+    size = path.stat().st_size
+    while layout.complete_records(size - 1) >= 3:
+        size -= 1
+    os.truncate(path, size)
+
+
 DAMAGES = {
+    "records removed": (
+        _cut,
+        r"its 3 output times run from t = 0 s to 0.04 s, not from 0 to its time.end \(0.08 s\)",
+    ),
     "truncated": (_truncate, r"truncated: \d+ bytes, \d of its 5 output times whole"),
     "running": (_status("running"), "run_status is 'running': a run is still writing it"),
     "nan in h": (_set("h", (3, 7), np.nan), r"output time 3 \(t = 0.06 s\) fails its checks: h = nan at x"),

@@ -205,10 +205,23 @@ def test_validate_checks_sweep_and_study_files_with_every_member(tmp_path, cli, 
     # a base that is no path: read as a scenario, it was seven messages (time missing,
     # parameters unknown, ...) none naming the base; now the study's own, one
     for base, given in ((["base.yaml"], "['base.yaml']"), (3, "3")):
-        accepted = f"got {given}; accepted: the path of a scenario file, relative to the sweep file"
+        accepted = f"got {given}; accepted: the path of a scenario file, relative to this file"
         listed = write_scenario({"base": base, "parameters": {"rheology.mu_s": [0.3]}}, "listed.yaml")
         result = cli("validate", listed)
         assert result.code == 2 and result.err == f"multilayer: error: {listed}: base (line 1): {accepted}\n"
+    # a base that is the sweep or study file itself, or another one: seven lines, none
+    # saying that the base is no scenario; now one
+    accepted = "not a scenario; accepted: the path of a scenario file, relative to this file"
+    studies = (("itself.yaml", {"parameters": {"rheology.mu_s": [0.3]}}), ("study.yaml", sensitivity))
+    for name, config in studies:
+        path = write_scenario({"base": name, **{k: v for k, v in config.items() if k != "base"}}, name)
+        result = cli("validate", path)
+        itself = f"multilayer: error: {path}: base (line 1): {path} is this file itself, {accepted}\n"
+        assert result.code == 2 and result.err == itself, result.err
+        other = write_scenario({"base": name, "parameters": {"rheology.mu_s": [0.3]}}, "of_another.yaml")
+        result = cli("validate", other)
+        study = f"{path} is a sweep or study file (it has the key parameters), {accepted}\n"
+        assert result.code == 2 and result.err == f"multilayer: error: {other}: base (line 1): {study}"
 
 
 @pytest.fixture(scope="module")

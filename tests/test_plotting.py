@@ -6,6 +6,7 @@ import os
 import shutil
 import subprocess
 import sys
+import time
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -341,27 +342,49 @@ def test_a_plot_stopped_half_way_leaves_no_figures_of_two_runs(
 
 
 def test_figures_and_an_animation_drawn_from_an_earlier_result_are_removed_by_the_next_plot(
-    slump_dir: Path, tmp_path: Path, cli
+    slump_dir: Path, tmp_path: Path, cli, monkeypatch
 ):
     """Plotted with ``--animate`` and as svg, then run again into the directory (or resumed)
     and plotted as png: the animation and the svg figures of the earlier result stayed beside
-    the new figures, read as drawn from the result there now.  The next plot removes the
-    figures older than ``result.nc`` (in any format) and says so; those drawn from it since
-    stay, whatever their format, and so does a file of another name."""
-    shutil.copy(slump_dir / "result.nc", tmp_path / "result.nc")
-    plots = tmp_path / "plots"
-    plots.mkdir()
-    written = (tmp_path / "result.nc").stat().st_mtime
-    for name, age in (("section.gif", 10.0), ("mass.svg", 10.0), ("front.pdf", -10.0), ("notes.txt", 10.0)):
-        (plots / name).write_bytes(b"drawn before")
-        os.utime(plots / name, (written - age, written - age))
-    again = cli("plot", tmp_path)
-    assert again.code == 0
+    the new figures, read as drawn from the result there now.  Each figure records the
+    SHA-256 of the result it is drawn from; the next plot removes those that do not record
+    the result there now (in any format) and says so; those drawn from it stay, whatever
+    their format and their times (a copy of the directory, a result of a time in the
+    future: times of modification decided), and so does a file of another name."""
+    monkeypatch.setattr(animation.writers, "is_available", lambda name: False)  # GIF, always available
+    run = tmp_path / "run"
+    run.mkdir()
+    shutil.copy(slump_dir / "result.nc", run / "result.nc")
+    plots = run / "plots"
+    assert cli("plot", run, "--format", "pdf").code == 0
+    (plots / "notes.txt").write_bytes(b"kept")
+    (plots / "front.csv").write_bytes(b"kept: no figure of plot's")
+    future = time.time() + 10**6  # a result of a time in the future: the figures stay
+    os.utime(run / "result.nc", (future, future))
+    copy = tmp_path / "copy"
+    shutil.copytree(run, copy)  # times not kept
+    again = cli("plot", copy)
+    assert again.code == 0 and again.err == "", again.err
+    assert {"front.pdf", "front.png", "notes.txt"} <= {p.name for p in (copy / "plots").iterdir()}
+    # an animation and svg figures, then the result changed (run again, resumed, damaged)
+    assert cli("plot", run, "--format", "svg", "--animate").code == 0
+    assert (plots / "section.gif").is_file() and plotting.records(
+        plots / "section.gif", plotting.drawn_from(run / "result.nc")
+    )
+    with open(run / "result.nc", "r+b") as stream:  # one more byte of header space: another file
+        stream.seek(0, os.SEEK_END)
+        stream.write(b"\0")
+    stale = (run / "result.nc").stat().st_mtime - 100.0  # figures newer than the result: removed anyway
+    for figure in plots.iterdir():
+        os.utime(figure, (stale + 200.0, stale + 200.0))
+    again = cli("plot", run)
+    assert again.code == 0, again.err
     figures = sorted(p.name for p in plots.iterdir())
-    assert "section.gif" not in figures and "mass.svg" not in figures
-    assert {"front.pdf", "notes.txt", "section.png", "mass.png"} <= set(figures)
-    removed = f"removed mass.svg, section.gif from {plots}: drawn from an earlier result.nc"
-    assert f"multilayer: warning: {removed}" in again.err
+    assert not {"section.gif", "mass.svg", "front.pdf"} & set(figures)
+    assert {"notes.txt", "front.csv", "section.png", "mass.png"} <= set(figures)
+    removed = [f"{stem}.{fmt}" for stem in FIGURES for fmt in ("pdf", "svg")] + ["section.gif"]
+    note = f"removed {', '.join(sorted(removed))} from {plots}: not drawn from the result.nc there now"
+    assert f"multilayer: warning: {note}" in again.err
 
 
 @pytest.mark.parametrize("figure", ["profiles", "static_interface"])

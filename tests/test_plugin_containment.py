@@ -5,6 +5,7 @@ the user's own Ctrl-C still stops a run cleanly."""
 
 from __future__ import annotations
 
+import os
 import signal
 import subprocess
 import sys
@@ -211,3 +212,56 @@ def test_the_users_ctrl_c_inside_a_plugin_still_stops_the_run_cleanly(tmp_path):
     assert proc.returncode == 130, err
     assert "interrupted by Ctrl-C (SIGINT)" in err and "Traceback" not in err
     assert open_result(tmp_path / "out").attrs["run_status"] == "interrupted"
+
+
+@pytest.mark.parametrize(
+    ("change", "expected"),
+    [
+        (lambda: os.chdir("/"), "changed the working directory from {cwd} to /"),
+        (
+            lambda: signal.signal(signal.SIGINT, signal.SIG_IGN),
+            "changed the handler of SIGINT from {handler}",
+        ),
+        (lambda: np.seterr(all="raise"), "changed the numpy error handling from"),
+    ],
+)
+def test_a_plugin_that_changes_the_process_it_runs_in_is_named_and_the_change_set_back(
+    tmp_path, cli, write_scenario, monkeypatch, change, expected
+):
+    """A plugin's ``os.chdir`` stopped the run blaming a removed output directory (a relative
+    one); one ignoring SIGINT made the run, and the process after it, deaf to Ctrl-C; numpy's
+    error handling set to raise by a constructor stayed so in the host.  A step or a
+    constructor that changes them is named, exit 1 (2 for a constructor: bad parameters),
+    and the change set back (numpy's error handling during a call is the engine's own,
+    set back after every call: no change)."""
+    monkeypatch.chdir(tmp_path)
+    _numpy_path(monkeypatch)
+
+    def meddling(pressure):
+        change()
+        return np.zeros_like(pressure)
+
+    monkeypatch.setattr(DruckerPrager, "yield_stress", _after(8, meddling))
+    before = (os.getcwd(), signal.getsignal(signal.SIGINT), np.geterr())
+    run = cli("run", write_scenario(SLUMP), "-o", "out", "-q")
+    assert (os.getcwd(), signal.getsignal(signal.SIGINT), np.geterr()) == before
+    assert "Traceback" not in run.err
+    if "numpy" in expected:
+        assert run.code == 0, run.err
+    else:
+        phrase = expected.format(cwd=tmp_path, handler="_StopRequest._handle")
+        assert run.code == 1 and phrase in run.err and PLUGIN in run.err and "(set back)" in run.err, run.err
+        assert open_result(tmp_path / "out").attrs["run_status"] == "failed"
+    init = DruckerPrager.__init__
+
+    def meddling_init(self, **params):
+        init(self, **params)
+        change()
+
+    monkeypatch.setattr(DruckerPrager, "__init__", meddling_init)
+    run = cli("validate", write_scenario(SLUMP))
+    assert (os.getcwd(), signal.getsignal(signal.SIGINT), np.geterr()) == before
+    phrase = expected.format(cwd=tmp_path, handler="default_int_handler")
+    assert run.code == 2 and "DruckerPrager(mu_s=0.3, nu=0.01) changed" in run.err and phrase in run.err, (
+        run.err
+    )

@@ -128,7 +128,7 @@ def test_records_are_whole_while_writing_a_reader_waits_for_the_end(tmp_path: Pa
     check_result(tmp_path, "resume", records=2)
     with pytest.raises(InputError, match=r"output time 2 \(t = nan s\) fails its checks: time nan"):
         check_result(tmp_path, "resume", records=3)
-    writer.close(sim.steps, 0.5)
+    writer.close(sim.steps, 0.5, "interrupted")  # short of time.end: not a completed run
     assert open_result(tmp_path).sizes["time"] == 2  # the writer's header counts its own records
 
 
@@ -146,7 +146,7 @@ def test_a_long_mesh_of_small_cells_passes_the_mass_check(tmp_path: Path) -> Non
     sim = Simulation(sc)
     writer = ResultWriter(tmp_path / "result.nc", sc, sim)
     writer.write(sim)
-    writer.close(sim.steps, 0.0)
+    writer.close(sim.steps, 0.0, "interrupted")  # at t = 0: not a completed run
     assert open_result(tmp_path).sizes["time"] == 1
 
 

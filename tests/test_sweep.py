@@ -496,3 +496,45 @@ output: {directory: zipped}
     for row in rows:
         assert float(row["mass_final"]) == pytest.approx(INITIAL_MASS, rel=1e-12)
         assert (tmp_path / "zipped" / row["member"] / "result.nc").is_file()
+
+
+def test_a_study_holds_its_directory_and_names_one_that_is_a_file(tmp_path, cli, write_scenario):
+    """Two sweeps (or calibrations, sensitivity studies) into one directory both ran every
+    member, each member's second run refused as another run's, and a stop of one stopped the
+    other's members (the directory's stop file); ``-o`` a file was "File exists" (and the
+    sweep's, "stop-requested: Not a directory").  A study holds ``DIR/run.lock`` as a run
+    does, and its directory is made as a run's is."""
+    import socket
+
+    write_scenario(TINY, "base.yaml")
+    (tmp_path / "front.csv").write_text("t,x_f,sigma\n0.1,0.3,0.01\n")
+    bounds = {"rheology.mu_s": {"bounds": [0.2, 0.4]}}
+    observation = {
+        "name": "front",
+        "quantity": "front",
+        "file": "front.csv",
+        "columns": ["t", "x_f", "sigma"],
+    }
+    files = {
+        "sweep": write_scenario({"base": "base.yaml", "parameters": {"rheology.mu_s": [0.3]}}, "sweep.yaml"),
+        "calibrate": write_scenario(
+            {"base": "base.yaml", "parameters": bounds, "observations": [observation]}, "calibration.yaml"
+        ),
+        "sensitivity": write_scenario(
+            {"base": "base.yaml", "parameters": bounds, "outputs": ["runout"], "samples": 4}, "sobol.yaml"
+        ),
+    }
+    held = tmp_path / "held"
+    held.mkdir()
+    holder = {"pid": os.getppid(), "host": socket.gethostname(), "started": "2026-01-01T00:00:00+00:00"}
+    (held / "run.lock").write_text(json.dumps(holder))
+    (tmp_path / "a_file").write_text("")
+    for command, path in files.items():
+        result = cli(command, path, "-o", held)
+        assert result.code == 2 and "Traceback" not in result.err, result.err
+        assert f"{held}: another run is writing into this directory (pid {os.getppid()}" in result.err
+        assert sorted(p.name for p in held.iterdir()) == ["run.lock"]
+        result = cli(command, path, "-o", tmp_path / "a_file")
+        assert result.code == 2 and f"{tmp_path / 'a_file'}: a file, not a directory" in result.err, (
+            result.err
+        )

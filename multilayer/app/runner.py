@@ -111,7 +111,7 @@ def run(
             f"{outdir}: nothing to resume (no such directory); run without --resume to start afresh"
         )
     budget = budget or resources.Budget()
-    created = _output_directory(outdir)
+    created = output_directory(outdir)
     try:
         resources.check(scenario, outdir, budget)
         resources.check_steps(scenario, budget)
@@ -153,7 +153,7 @@ def run(
         return summary(outdir / RESULT_FILE, checked=False)  # every state passed the state guard
 
 
-def _output_directory(outdir: Path) -> list[Path]:
+def output_directory(outdir: Path) -> list[Path]:
     """Make ``outdir`` and check that files can be written there; the directories made,
     deepest first.  :class:`InputError` naming it (``-o DIR`` or ``output.directory``)
     otherwise."""

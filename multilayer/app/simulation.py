@@ -11,7 +11,9 @@ import numpy as np
 
 from multilayer.app import factory, numba_environment
 from multilayer.engine import simulation
+from multilayer.engine.plugin_output import PluginOutputError, plugin_label
 from multilayer.errors import InputError
+from multilayer.plugins.host import HOST_CHANGED, host_state, set_back
 from multilayer.scenario import Scenario, validated_again
 from multilayer.scenario.messages import shown
 
@@ -38,6 +40,7 @@ class Simulation(simulation.Simulation):
         self._one_at_a_time = threading.RLock()
         self.scenario = scenario
         bulk, walls = factory.laws(scenario)
+        self._laws = [law for law in (bulk, walls) if law is not None]
         super().__init__(
             factory.engine_config(scenario),
             bulk,
@@ -64,10 +67,24 @@ class Simulation(simulation.Simulation):
         as :func:`_time` reads it.  Calls from several threads on one simulation take turns
         (with ``advance`` and ``load_state``): two threads stepping it at once interleaved
         the stages of their steps, and ``advance(0.2)`` from two threads ended past 0.2 s
-        with another state than one call, silently."""
+        with another state than one call, silently.  What a step changed of
+        :func:`~multilayer.plugins.host.host_state` (a plugin's doing) is set back and
+        named, a :class:`~multilayer.engine.plugin_output.PluginOutputError` after the
+        step is kept."""
         bound = _time(t_max, "step(t_max")
         with self._one_at_a_time:
-            return super().step(bound)
+            host = host_state()
+            try:
+                dt = super().step(bound)
+            finally:
+                changed = set_back(host)
+            if changed:
+                laws = " or ".join(map(plugin_label, self._laws))
+                raise PluginOutputError(
+                    f"step {self.steps} (to t = {self.t:.6g} s) changed {changed}, which no code of "
+                    f"multilayer changes: {laws}, or another thread; {HOST_CHANGED}"
+                )
+            return dt
 
     def __copy__(self) -> NoReturn:
         """Refused (:meth:`_not_copied`): a shallow copy shared the state's arrays, so

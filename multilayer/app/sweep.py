@@ -48,6 +48,7 @@ from multilayer.io.results import (
     run_failure,
 )
 from multilayer.scenario import as_overrides, format_value
+from multilayer.scenario.loading import BASE_ACCEPTED, load_base
 from multilayer.scenario.messages import shown
 
 SWEEP_KEYS = ("base", "parameters", "zip", "output", "description")
@@ -166,22 +167,11 @@ def load(path: str | Path) -> Sweep:
         if key not in SWEEP_KEYS:
             raise bad((str(key),), "unknown key", ", ".join(SWEEP_KEYS))
 
-    base_accepted = "the path of a scenario file, relative to the sweep file"
     if "base" not in data:
-        raise bad(("base",), "required key is missing", base_accepted)
+        raise bad(("base",), "required key is missing", BASE_ACCEPTED)
     if not isinstance(data["base"], str) or not data["base"]:
-        raise bad(("base",), f"got {shown(data['base'])}", base_accepted)
-    base = path.parent / data["base"]
-    if not base.is_file():  # a directory or a pipe is no scenario file either
-        raise bad(
-            ("base",),
-            f"scenario file {base} {'is not a regular file' if base.exists() else 'not found'}",
-            base_accepted,
-        )
-    try:
-        scenario.load(base)
-    except InputError as exc:
-        raise InputError(f"{at(('base',))}: the base scenario is invalid:\n{exc}") from None
+        raise bad(("base",), f"got {shown(data['base'])}", BASE_ACCEPTED)
+    base = load_base(path, data["base"], at(("base",)), "the base scenario")
 
     parameters = data.get("parameters")
     if not isinstance(parameters, dict) or not parameters:

@@ -12,7 +12,7 @@ interrupted run are drawn, and :func:`plot_run` returns a note saying how the ru
 
 from __future__ import annotations
 
-import glob
+import hashlib
 import math
 import os
 import textwrap
@@ -29,6 +29,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import QuadMesh
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
+from PIL import Image
 
 from multilayer.errors import InputError
 from multilayer.io.disk import writable, write_whole
@@ -78,8 +79,9 @@ def plot_run(
     notes = [f"{end}; drawn up to t = {float(ds['time'][-1]):.6g} s"] if end else []
     out = Path(directory) / PLOTS_DIR
     out.mkdir(exist_ok=True)
-    if stale := remove_stale(out, RUN_FIGURES, Path(directory) / RESULT_FILE):
-        notes.append(f"removed {', '.join(stale)} from {out}: drawn from an earlier {RESULT_FILE}")
+    source = drawn_from(Path(directory) / RESULT_FILE)
+    if stale := remove_stale(out, RUN_FIGURES, source):
+        notes.append(f"removed {', '.join(stale)} from {out}: not drawn from the {RESULT_FILE} there now")
     name = yaml.safe_load(ds.attrs["scenario"])["name"]
     columns = column_indices(ds, at) if at else representative_columns(ds)
     figures = {
@@ -94,9 +96,9 @@ def plot_run(
         figures["force"] = force_figure(ds, name)
     if "phi" in ds:
         figures["mixture"] = mixture_figure(ds, name, times + 2)
-    paths = save_figures(out, figures, fmt, RUN_FIGURES)
+    paths = save_figures(out, figures, fmt, RUN_FIGURES, source)
     if animate:
-        paths.append(animate_section(ds, name, out / "section", xlim=xlim))
+        paths.append(animate_section(ds, name, out / "section", xlim=xlim, source=source))
     return paths, notes
 
 
@@ -105,35 +107,75 @@ RUN_FIGURES = ("section", "thickness", "front", "mass", "profiles", "static_inte
 result holds them)."""
 
 
-def remove_stale(out: Path, family: Sequence[str], source: Path) -> list[str]:
+def drawn_from(path: Path) -> str:
+    """What a figure drawn from the file ``path`` records of it, in its metadata
+    (:data:`METADATA_KEYS`; an animation's comment): its name and the SHA-256 of its bytes.
+    A run again or resumed into the directory, a copy of the file or a damaged one changes
+    it; times of modification did not tell (a file from the future, a copy that kept them or
+    not)."""
+    with path.open("rb") as stream:
+        return f"drawn from {path.name} of SHA-256 {hashlib.file_digest(stream, 'sha256').hexdigest()}"
+
+
+METADATA_KEYS = {"png": "Comment", "pdf": "Subject", "svg": "Description"}
+"""The metadata entry of each figure format that holds :func:`drawn_from` (a PNG text
+chunk, the PDF's subject, the SVG's Dublin Core description), as Matplotlib writes them."""
+
+
+ANIMATIONS = ("mp4", "gif")
+"""The formats of :func:`animate_section`."""
+
+
+def records(path: Path, source: str) -> bool:
+    """Whether the file ``path`` records ``source`` (:func:`drawn_from`) in its bytes,
+    where each format keeps it as written (read a megabyte at a time; a file mapped in
+    memory would end the process if another truncated it meanwhile)."""
+    marker, before = source.encode(), b""
+    with path.open("rb") as stream:
+        while chunk := stream.read(2**20):
+            if marker in before + chunk:
+                return True
+            before = chunk[-len(marker) :]
+    return False
+
+
+def remove_stale(out: Path, family: Sequence[str], source: str) -> list[str]:
     """Remove the files of ``out`` named as the figures of ``family`` (every stem the
-    command may write, in any format, an animation of the section included) that are older
-    than ``source``, the file they are drawn from; returns their names.  Those were drawn
-    from an earlier state of it (before the run was run again or resumed): an animation or
-    figures in another format beside the new figures were read as drawn from it."""
-    written = source.stat().st_mtime_ns
+    command may write, in any format it writes, an animation of the section included; a
+    file of another suffix is none of them: ``front.csv`` was removed) that do not
+    record ``source`` (:func:`drawn_from`), the file they are drawn from as it is now;
+    returns their names.  Those were drawn from an earlier state of it (before the run was
+    run again or resumed), from another file, or by a version that recorded none: an
+    animation or figures in another format beside the new figures were read as drawn from
+    it."""
     stale = sorted(
         path
         for stem in family
-        for path in out.glob(f"{glob.escape(stem)}.*")
-        if path.is_file() and path.stat().st_mtime_ns < written
+        for suffix in (*METADATA_KEYS, *ANIMATIONS)
+        if (path := out / f"{stem}.{suffix}").is_file() and not records(path, source)
     )
     for path in stale:
         path.unlink(missing_ok=True)
     return [path.name for path in stale]
 
 
-def save_figures(out: Path, figures: dict[str, Figure], fmt: str, family: Sequence[str]) -> list[Path]:
-    """Write ``figures`` (stem: figure) as ``out/STEM.fmt``, after removing the figures of
-    ``family`` (every stem the command may write) in that format; returns the paths.  A plot
+def save_figures(
+    out: Path, figures: dict[str, Figure], fmt: str, family: Sequence[str], source: str
+) -> list[Path]:
+    """Write ``figures`` (stem: figure) as ``out/STEM.fmt``, recording ``source``
+    (:func:`drawn_from`) in each, after removing the figures of ``family`` (every stem
+    the command may write) in that format; returns the paths.  A plot
     stopped half-way (a Ctrl-C, a full disk) over an earlier one left figures of two results
     side by side, each whole and titled, read as one; a figure the earlier result had and
     this one has not (``force`` beside a mixture's) stayed.  Each is written whole (a
     temporary file renamed over its path)."""
     for stem in family:
         writable(out / f"{stem}.{fmt}").unlink(missing_ok=True)
+    metadata = {METADATA_KEYS[fmt]: source}
     return [
-        write_whole(writable(out / f"{stem}.{fmt}"), partial(fig.savefig, dpi=120, format=fmt))
+        write_whole(
+            writable(out / f"{stem}.{fmt}"), partial(fig.savefig, dpi=120, format=fmt, metadata=metadata)
+        )
         for stem, fig in figures.items()
     ]
 
@@ -344,13 +386,19 @@ def section_figure(ds: xr.Dataset, name: str, times: int = 4, xlim: Sequence[flo
 
 
 def animate_section(
-    ds: xr.Dataset, name: str, stem: Path, fps: int = 10, xlim: Sequence[float] | None = None
+    ds: xr.Dataset,
+    name: str,
+    stem: Path,
+    fps: int = 10,
+    xlim: Sequence[float] | None = None,
+    source: str = "",
 ) -> Path:
     """The X-Z section over ``xlim`` (as :func:`section_figure`) at every output time (at
     most :data:`MAX_FRAMES`), one frame each, with the time as a label.
 
     Written as ``stem.mp4`` when Matplotlib finds ffmpeg, else as ``stem.gif`` (Pillow,
-    installed with Matplotlib).  Returns the path written.
+    installed with Matplotlib), ``source`` (:func:`drawn_from`) as its comment.  Returns
+    the path written.
     """
     (x0, x1), (z0, z1) = _section_limits(ds, xlim)
     exaggeration = vertical_exaggeration(x1 - x0, z1 - z0)
@@ -380,10 +428,27 @@ def animate_section(
     movie = animation.FuncAnimation(fig, frame, frames=_time_indices(ds, MAX_FRAMES), repeat=False)
     writer: animation.AbstractMovieWriter
     if animation.writers.is_available("ffmpeg"):
-        path, writer = stem.with_suffix(".mp4"), animation.FFMpegWriter(fps=fps)
+        path, writer = stem.with_suffix(".mp4"), animation.FFMpegWriter(fps=fps, metadata={"comment": source})
     else:
-        path, writer = stem.with_suffix(".gif"), animation.PillowWriter(fps=fps)
+        path, writer = stem.with_suffix(".gif"), _CommentedGif(fps=fps, metadata={"comment": source})
     return write_whole(writable(path), lambda part: movie.save(part, writer=writer, dpi=100))
+
+
+class _CommentedGif(animation.PillowWriter):
+    """Matplotlib's GIF writer, its ``metadata["comment"]`` kept as the GIF's comment
+    (Matplotlib's writes no metadata)."""
+
+    _frames: list[Image.Image]  # the frames Matplotlib's writer gathers
+
+    def finish(self) -> None:
+        self._frames[0].save(
+            self.outfile,
+            save_all=True,
+            append_images=self._frames[1:],
+            duration=int(1000 / self.fps),
+            loop=0,
+            comment=self.metadata["comment"],
+        )
 
 
 def thickness_figure(

@@ -18,6 +18,10 @@ is wrong) when
   to round-off (``result_format.FORCES``; files written before these variables existed
   lack all of them); a mixture's solid volume fractions in ``[0, 1)`` and its excess pore
   pressure finite;
+- its ``run_status`` is ``completed`` and its records do not run from ``t = 0`` to its
+  scenario's ``time.end`` (the first and last output times of every completed run,
+  exactly): a file cut to its first records, its attributes kept (``ncks -d time,0,4``,
+  or a header edited), was read as the run's answer at an earlier time;
 - for a reader that takes the file as a run's answer (``use="answer"``), the run did
   not complete (failed, interrupted).
 
@@ -93,6 +97,8 @@ def check_result(path: str | os.PathLike, use: Use = "answer", records: int | No
                     "(the file is shorter than its header declares)"
                 )
             _check_records(ds, needed, bad)
+            if use != "resume" and status == "completed":
+                _check_span(ds, count, bad)
     except (OSError, RuntimeError, KeyError, IndexError, ValueError, TypeError) as exc:
         raise bad(f"not a readable multilayer result ({type(exc).__name__}: {reason(exc)})") from None
     return file
@@ -128,6 +134,20 @@ def _status(ds: netCDF4.Dataset, file: Path, bad) -> str:
     if status not in STATUSES:
         raise bad(f"run_status {status!r} is not one of {', '.join(STATUSES)}")
     return status
+
+
+def _check_span(ds: netCDF4.Dataset, count: int, bad) -> None:
+    """Raise ``bad(...)`` unless the records of the completed run ``ds`` (``count`` of them)
+    start at ``t = 0`` and end at its scenario's ``time.end``, exactly."""
+    time = yaml.safe_load(str(ds.getncattr("scenario"))).get("time")  # a mapping, by _status
+    end = time.get("end") if isinstance(time, dict) else None
+    times = np.asarray(ds["time"][:count], dtype=float) if count else np.array([np.nan])
+    if not (times[0] == 0.0 and times[-1] == end):
+        raise bad(
+            f"its {count} output times run from t = {times[0]:.6g} s to {times[-1]:.6g} s, not from 0 to its "
+            f"time.end ({end!r} s) as a completed run's do: records were removed",
+            "a completed run's records, all of them",
+        )
 
 
 CHUNK_VALUES = 2**23

@@ -379,8 +379,10 @@ def summary(path: str | os.PathLike, *, checked: bool = True) -> dict[str, float
         from multilayer.io.result_check import check_result
 
         check_result(path, "answer")
-    # read with netCDF4 itself: the last record, the first front, the forces of every record
-    with netCDF4.Dataset(result_path(path)) as nc:
+    # read with netCDF4 itself: the last record, the first front, the forces of every record;
+    # under the lock of netCDF-C, which is not thread-safe: a run ending in one thread while
+    # another created its result file crashed the process (a study's members on threads)
+    with NETCDF_LOCK, netCDF4.Dataset(result_path(path)) as nc:
         nc.set_auto_mask(False)  # NaN fills stay NaN, as xarray reads them
         records = {name: var for name, var in nc.variables.items() if var.dimensions[:1] == ("time",)}
         final = {name: var[-1] for name, var in records.items()}

@@ -38,6 +38,7 @@ from multilayer import scenario
 from multilayer.errors import InputError, reason
 from multilayer.scenario.files import read_text
 from multilayer.scenario.limits import MAX_PROFILE_POINTS
+from multilayer.scenario.loading import load_base
 from multilayer.scenario.messages import StrictModel, describe, directory_path, dotted, field, invalid
 from multilayer.scenario.overrides import as_overrides
 from multilayer.scenario.profiles import csv_number
@@ -351,19 +352,9 @@ def _at(path: Path, lines: dict, *key: str | int) -> str:
 def _check_base(path: Path, lines: dict, config: _Study, experiments: dict[str, dict[str, Any]]) -> Path:
     """The base scenario path; every experiment with the parameters at their lower, middle
     and upper bounds must be a valid scenario (the key named otherwise)."""
-    base = path.parent / config.base
-    if not base.is_file():
-        missing = "is not a regular file" if base.exists() else "not found"
-        raise InputError(
-            f"{_at(path, lines, 'base')}: scenario file {base} {missing}; "
-            "accepted: the path of a scenario file, relative to this file"
-        )
-    try:
-        scenario.load(base, as_overrides(config.set))
-    except InputError as exc:
-        raise InputError(
-            f"{_at(path, lines, 'base')}: the base scenario with set is invalid:\n{exc}"
-        ) from None
+    base = load_base(
+        path, config.base, _at(path, lines, "base"), "the base scenario with set", as_overrides(config.set)
+    )
     for name, extra in experiments.items():
         for where in (0.0, 0.5, 1.0):
             values = {

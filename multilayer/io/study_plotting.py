@@ -18,7 +18,7 @@ import xarray as xr
 from matplotlib.figure import Figure
 
 from multilayer.errors import InputError, reason
-from multilayer.io.plotting import PLOTS_DIR, save_figures
+from multilayer.io.plotting import PLOTS_DIR, drawn_from, save_figures
 
 _STAGE_COLOURS = {"search": "C0", "refine": "C1", "uncertainty": "C2"}
 _SI = {"runout": "m", "front_final": "m", "duration": "s", "mass_final": "m2", "front": "m", "h": "m"}
@@ -78,7 +78,7 @@ def plot_study(directory: str | os.PathLike, filename: str) -> tuple[list[Path],
                 f"{path}: no Sobol' indices of {', '.join(missing)} ({_why_no_indices(ds)}): the figure "
                 "shows none"
             )
-    return save_figures(out, figures, "png", tuple(figures)), notes
+    return save_figures(out, figures, "png", tuple(figures), drawn_from(path)), notes
 
 
 def _without_indices(ds: xr.Dataset) -> list[str]:

@@ -10,15 +10,20 @@ arguments of its constructor; their annotations are the parameter types.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import importlib.metadata
 import inspect
+import os
 import re
+import signal
+import threading
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+import numpy as np
 import pluggy
 from pydantic import BaseModel, ConfigDict, create_model
 
@@ -246,6 +251,54 @@ def description(cls: type[Rheology]) -> str:
     return doc.strip().splitlines()[0] if doc.strip() else ""
 
 
+_STOP_SIGNALS = tuple(
+    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
+)
+
+
+def host_state() -> dict[str, Any]:
+    """What a plugin may not change of the process it runs in (docs/plugins.md): the
+    working directory (against which the run's relative paths are read: a plugin's
+    ``os.chdir`` stopped the run blaming a removed output directory), the handlers of the
+    stop signals (a plugin ignoring SIGINT made the run deaf to Ctrl-C, and the process
+    after it) and numpy's floating-point error handling.  Taken in the main thread only:
+    another thread may change the first two meanwhile, and a plugin in it cannot set a
+    signal handler."""
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    try:
+        directory: str | None = os.getcwd()
+    except OSError:  # removed: nothing to compare with
+        directory = None
+    handlers = {f"handler of {signal.Signals(s).name}": signal.getsignal(s) for s in _STOP_SIGNALS}
+    return {"working directory": directory, **handlers, "numpy error handling": np.geterr()}
+
+
+def _shown(value: Any) -> str:
+    if isinstance(value, signal.Handlers):
+        return value.name
+    return str(getattr(value, "__qualname__", None) or value)
+
+
+HOST_CHANGED = "a plugin may not change the process it runs in (set back)"
+
+
+def set_back(before: dict[str, Any]) -> str:
+    """Set back what changed of :func:`host_state` since ``before``; what changed, in words
+    ("" if nothing)."""
+    after = host_state()
+    changed = [key for key, value in before.items() if after[key] != value]
+    for key in changed:
+        if key == "working directory":
+            with contextlib.suppress(OSError):  # removed since
+                os.chdir(before[key])
+        elif key == "numpy error handling":
+            np.seterr(**before[key])
+        elif before[key] is not None:  # a handler not set from Python cannot be set back
+            signal.signal(getattr(signal, key.split()[-1]), before[key])
+    return "; ".join(f"the {key} from {_shown(before[key])} to {_shown(after[key])}" for key in changed)
+
+
 class ConstructorError(ValueError):
     """A rheology's constructor raised (anything but the user's Ctrl-C) or returned nothing usable."""
 
@@ -253,16 +306,23 @@ class ConstructorError(ValueError):
 def construct(cls: type[Rheology], params: dict[str, Any]) -> Rheology:
     """``cls(**params)``; a :class:`ConstructorError` (a ValueError: bad parameters) if the
     constructor raises anything, ``sys.exit`` included (a ``TypeError`` or ``ValueError``
-    keeps its message, which says what is wrong with the parameters)."""
+    keeps its message, which says what is wrong with the parameters), or changes the
+    process it runs in (:func:`host_state`, set back)."""
+    call = f"{cls.__qualname__}({_arguments(params)})"
+    host = host_state()
     try:
-        return cls(**params)
+        plugin = cls(**params)
     except (TypeError, ValueError) as exc:
         raise ConstructorError(str(exc)) from None
     except KeyboardInterrupt:  # the user's Ctrl-C while the constructor ran
         raise
     except BaseException as exc:  # noqa: BLE001 - a third-party constructor's failure is bad parameters
-        call = f"{cls.__qualname__}({_arguments(params)})"
         raise ConstructorError(f"{call} raised {type(exc).__name__}: {exc}") from None
+    finally:
+        changed = set_back(host)
+    if changed:
+        raise ConstructorError(f"{call} changed {changed}; {HOST_CHANGED}")
+    return plugin
 
 
 def _arguments(params: dict[str, Any]) -> str:

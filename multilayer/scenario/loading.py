@@ -69,3 +69,31 @@ def load(path: str | Path, overrides: Sequence[str] = ()) -> Scenario:
     """Read, override and validate a scenario file."""
     data, lines = read_yaml(path)
     return from_dict(data, source=Path(path), overrides=overrides, lines=lines)
+
+
+BASE_ACCEPTED = "the path of a scenario file, relative to this file"
+"""What the ``base`` of a sweep or study file accepts."""
+
+
+def load_base(study: Path, base: str, where: str, what: str, overrides: Sequence[str] = ()) -> Path:
+    """The scenario file ``base`` of the sweep or study file ``study`` (relative to it),
+    loaded with ``overrides``; one :class:`InputError` beginning with ``where`` (the file
+    and the key) otherwise.  A ``base`` naming the study file itself, or another sweep or
+    study file, is said so in one line: loaded as a scenario, it gave one line per key."""
+    path = study.parent / base
+    if not path.is_file():  # a directory or a pipe is no scenario file either
+        missing = "is not a regular file" if path.exists() else "not found"
+        raise InputError(f"{where}: scenario file {path} {missing}; accepted: {BASE_ACCEPTED}")
+    if path.samefile(study):
+        raise InputError(f"{where}: {path} is this file itself, not a scenario; accepted: {BASE_ACCEPTED}")
+    try:
+        load(path, overrides)
+    except InputError as exc:
+        data, _ = read_yaml(path)
+        if isinstance(data, dict) and "parameters" in data:  # a key of sweeps and studies, no scenario's
+            raise InputError(
+                f"{where}: {path} is a sweep or study file (it has the key parameters), not a scenario; "
+                f"accepted: {BASE_ACCEPTED}"
+            ) from None
+        raise InputError(f"{where}: {what} is invalid:\n{exc}") from None
+    return path

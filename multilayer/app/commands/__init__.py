@@ -1,6 +1,7 @@
 """CLI subcommands: each module defines ``HELP``, ``add_arguments(parser)`` and ``main(args)``."""
 
 import argparse
+import contextlib
 import importlib
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -86,6 +87,31 @@ def study_ensemble(
         dask_client(args.scheduler, args.workers, warm_up=base_member(study.base, fixed)) as client,
     ):
         yield Ensemble(study.base, outdir, client, fixed=fixed, on_progress=on_progress)
+
+
+@contextmanager
+def study_directory(outdir: Path) -> Iterator[None]:
+    """Make the output directory of a sweep, calibration or sensitivity study as `multilayer
+    run` makes its own (named if it cannot be: ``-o`` a file was "File exists"), and hold its
+    lock (:mod:`multilayer.app.lock`) while the study runs: two studies into one directory
+    both ran every member, each member's second run refused as another run's, and a stop of
+    one stopped the other's members (the directory's stop file).  The directories it made
+    go again, if empty, when the study is refused (an :class:`InputError`)."""
+    import sys
+
+    from multilayer.app.lock import locked
+    from multilayer.app.runner import output_directory
+    from multilayer.errors import InputError
+
+    created = output_directory(outdir)
+    try:
+        with locked(outdir, lambda message: print(f"multilayer: warning: {message}", file=sys.stderr)):
+            yield
+    except InputError:
+        for made in created:
+            with contextlib.suppress(OSError):  # not empty: the study wrote there
+                made.rmdir()
+        raise
 
 
 def size(text: str) -> float:

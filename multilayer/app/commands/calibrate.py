@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 from multilayer.app.commands import (
     add_study_arguments,
@@ -22,6 +23,7 @@ from multilayer.app.commands import (
     cluster_description,
     require,
     resume_command,
+    study_directory,
     study_ensemble,
 )
 
@@ -36,14 +38,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     """Validate the file, calibrate, write calibration.nc, print the fit."""
     require("calibrate", "dask.distributed")
-    from multilayer.app import calibration as calibrations
-    from multilayer.errors import Interrupted
     from multilayer.io.study import load_calibration
 
     plan = load_calibration(args.config)
     outdir = args.output or plan.config.output.directory or Path("results") / plan.path.stem
     outdir = Path(outdir)
-    outdir.mkdir(parents=True, exist_ok=True)
+    with study_directory(outdir):
+        return _calibrate(args, plan, outdir)
+
+
+def _calibrate(args: argparse.Namespace, plan: Any, outdir: Path) -> int:
+    """:func:`main` once the directory is held."""
+    from multilayer.app import calibration as calibrations
+    from multilayer.errors import Interrupted
 
     live = not args.quiet and sys.stderr.isatty()
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 from multilayer.app.commands import (
     add_study_arguments,
@@ -21,6 +22,7 @@ from multilayer.app.commands import (
     cluster_description,
     require,
     resume_command,
+    study_directory,
     study_ensemble,
 )
 
@@ -34,14 +36,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Validate the file, run the sample, write sensitivity.nc, print the indices."""
-    from multilayer.app import sensitivity
-    from multilayer.errors import Interrupted
     from multilayer.io.study import load_sensitivity
 
     require("sensitivity", "dask.distributed", "SALib")
     study = load_sensitivity(args.config)
     outdir = Path(args.output or study.config.output.directory or Path("results") / study.path.stem)
-    outdir.mkdir(parents=True, exist_ok=True)
+    with study_directory(outdir):
+        return _sensitivity(args, study, outdir)
+
+
+def _sensitivity(args: argparse.Namespace, study: Any, outdir: Path) -> int:
+    """:func:`main` once the directory is held."""
+    from multilayer.app import sensitivity
+    from multilayer.errors import Interrupted
 
     path = outdir / sensitivity.SENSITIVITY_FILE
     check_resume(args, outdir, path.name)

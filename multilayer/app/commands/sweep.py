@@ -14,7 +14,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO
 
 from multilayer.app.commands import (
     add_cluster_arguments,
@@ -24,6 +24,7 @@ from multilayer.app.commands import (
     cluster_description,
     require,
     resume_command,
+    study_directory,
 )
 
 HELP = "run a parameter sweep of a scenario on Dask (local or existing cluster)"
@@ -74,14 +75,22 @@ class _Report:
 def main(args: argparse.Namespace) -> int:
     """Validate the sweep and its members, run them, write summary.csv, report."""
     require("sweep", "dask.distributed")
-    from multilayer.app import stopping
     from multilayer.app import sweep as sweeps  # Dask and the engine are imported only to run
-    from multilayer.errors import Interrupted
 
     plan = sweeps.load(args.sweep)
     outdir = Path(args.output or plan.output or Path("results") / plan.path.stem)
     summary = outdir / "summary.csv"
     check_resume(args, outdir, summary.name)
+    with study_directory(outdir):
+        return _sweep(args, plan, outdir, summary)
+
+
+def _sweep(args: argparse.Namespace, plan: Any, outdir: Path, summary: Path) -> int:
+    """:func:`main` once the directory is held."""
+    from multilayer.app import stopping
+    from multilayer.app import sweep as sweeps
+    from multilayer.errors import Interrupted
+
     where = cluster_description(args)
     report = _Report(where, args.quiet)
     try:
