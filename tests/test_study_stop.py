@@ -198,3 +198,36 @@ def test_one_signal_stops_a_study_on_a_local_process_cluster(tmp_path, command, 
     else:
         ds = xr.load_dataset(tmp_path / "out" / "sensitivity.nc")
         assert (ds["status"].values == "ok").all() and np.isfinite(ds["ST"].values).all()
+
+
+def test_a_local_workers_heartbeat_to_a_closed_scheduler_is_one_line_not_a_traceback():
+    """A stopped study closes its local cluster's scheduler (in the study's process) while
+    the workers may still beat: the worker logged the connection's traceback on the
+    terminal.  The preload of the local cluster's workers (``stopping.dask_setup``) keeps
+    the line and drops the traceback; other records keep theirs."""
+    import io
+    import logging
+
+    from multilayer.app import stopping
+
+    logger = logging.getLogger("distributed.worker")
+    stream = io.StringIO()
+    handler = logging.StreamHandler(stream)
+    logger.addHandler(handler)
+    filters = list(logger.filters)
+    handlers = {signum: signal.getsignal(signum) for signum in (signal.SIGINT, signal.SIGHUP)}
+    try:
+        stopping.dask_setup(None)  # as in a worker process: it ignores SIGINT and SIGHUP too
+        for message in ("Failed to communicate with scheduler during heartbeat.", "another failure"):
+            try:
+                raise OSError("Timed out trying to connect")
+            except OSError:
+                logger.exception(message)
+    finally:
+        logger.removeHandler(handler)
+        logger.filters[:] = filters
+        for signum, previous in handlers.items():
+            signal.signal(signum, previous)
+    lines = stream.getvalue().splitlines()
+    assert lines[0] == "Failed to communicate with scheduler during heartbeat."
+    assert lines[1] == "another failure" and "Traceback (most recent call last):" in lines[2:]

@@ -20,6 +20,7 @@ its checkpoint when the study is resumed.
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 import signal
 import threading
@@ -81,6 +82,16 @@ def dask_setup(worker: Any) -> None:
         for signum in (signal.SIGINT, getattr(signal, "SIGHUP", None)):
             if signum is not None:
                 signal.signal(signum, signal.SIG_IGN)
+    logging.getLogger("distributed.worker").addFilter(_heartbeat_without_traceback)
+
+
+def _heartbeat_without_traceback(record: logging.LogRecord) -> bool:
+    """A local cluster's scheduler lives in the study's process: a worker that cannot reach
+    it for its heartbeat logs that in one line, not with the connection's traceback, which
+    a stopped study's workers printed on the terminal while the scheduler closed first."""
+    if record.getMessage().startswith("Failed to communicate with scheduler during heartbeat"):
+        record.exc_info = record.exc_text = None
+    return True
 
 
 CLOSE_GRACE = 1.0
@@ -95,8 +106,6 @@ def close_quickly(cluster: Any) -> None:
     checkpointed, so the workers are soon idle and close; a worker still busy then (say,
     importing the engine, with no run under way) would hold the close for seconds.
     """
-    import logging
-
     logging.getLogger("distributed").setLevel(logging.ERROR)  # the workers' goodbyes are not news
     pids = [
         nanny.process.process.pid
