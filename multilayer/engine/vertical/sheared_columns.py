@@ -61,8 +61,9 @@ sweeps of the solve 5 per layer and lane, 41 KB."""
 # The slots: per step,
 # m/dt, m u*/dt, the true yield stress, the wall threshold, 1/spacing, the conductance
 # per unit slope (0 where not viscous), whether viscous, the pressure parts of the law
-# and the guess; per iteration, the Newton model (yield stress, conductance, sign of the
-# jump), the two iterates and, at each,
+# and the guess (then, once the block has finished the column, its velocities); per
+# iteration, the Newton model (yield stress, conductance, sign of the jump), the two
+# iterates and, at each,
 # the true viscous stresses and their derivatives (``TAU0 + k``, ``STIFF0 + k`` at the
 # iterate ``U0 + k``: the rise bound of ``newton_control`` needs both iterates'); fixed,
 # 1.0 in the bottom cell of each lane (the bed below it) and 0.0 elsewhere; per test of a
@@ -134,11 +135,11 @@ def unload(t, L, flags, i, viscous, wall_true, guess):
     """Column ``i`` of the block, one it did not finish, into lane ``ALONE`` (the
     column solved on its own by ``newton_kernel._chunk``), with the arrays of one column
     that lane has no slot for (no side walls); returns ``fine``."""
-    x, alone = cell(i, L), cell(ALONE, L)
+    x, alone = np.uint64(cell(i, L)), np.uint64(cell(ALONE, L))
     for slot in range(GUESS + 1):
-        for a in range(L):
+        for a in range(np.uint64(L)):  # unsigned: no test for negative indices (as vectors)
             t[slot, alone + a] = t[slot, x + a]
-    for a in range(L):
+    for a in range(np.uint64(L)):
         viscous[a] = t[VISCOUS, x + a] > 0.0
         wall_true[a] = t[WALL, x + a]  # no walls
         guess[a] = t[GUESS, x + a]
@@ -417,7 +418,8 @@ def sheared_block(
     in the tile ``t`` (:func:`join`): wet columns ``j0 ...`` of ``_chunk``, mesh columns
     ``c0 ...``, adjacent, without side walls; side by side while each stays fully sheared.
     ``finished[i]`` tells which columns it solved, and wrote into ``_chunk``'s outputs
-    (``side_by_side`` True); ``flags`` holds its boolean lanes."""
+    (``side_by_side`` True): their velocities at the end, row by row when it finished every
+    column; ``flags`` holds its boolean lanes."""
     L = u_out.shape[0]
     for i in range(BLOCK):
         finished[i] = False
@@ -448,9 +450,8 @@ def sheared_block(
                 if infinite > 0:
                     flags[ACTIVE, i] = False
                     continue
-                column = np.uint64(c0 + i)
-                for a in range(np.uint64(L)):
-                    u_out[a, column] = t[new, np.uint64(x) + a]
+                for y in range(np.uint64(x), np.uint64(x + L)):  # its velocities, kept for the output
+                    t[GUESS, y] = t[new, y]
                 iterations[j] = iteration
                 fallbacks[j] = 0
                 faults[j] = 0
@@ -467,3 +468,16 @@ def sheared_block(
             break
         _stresses_and_model(t, L, new, form, params, flags, model)  # the next model (the same flags)
         current, new = new, current
+    # the velocities of the columns it finished (kept in GUESS): of all of them row by row, as
+    # load reads them (column by column, each column's L stores fall a row of the mesh apart)
+    every = True
+    for i in range(BLOCK):
+        every = every and finished[i]
+    for a in range(np.uint64(L if every else 0)):  # unsigned: no test for negative indices
+        for i in range(BLOCK):
+            x, column = np.uint64(cell(i, L)) + a, np.uint64(c0 + i)
+            u_out[a, column] = t[GUESS, x]
+    for i in range(0 if every else BLOCK):
+        for a in range(np.uint64(L if finished[i] else 0)):
+            x, column = np.uint64(cell(i, L)) + a, np.uint64(c0 + i)
+            u_out[a, column] = t[GUESS, x]
