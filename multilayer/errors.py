@@ -12,11 +12,13 @@ class RunError(Exception):
 
 class Interrupted(KeyboardInterrupt):
     """A run stopped cleanly by a signal; the CLI exits with ``128 + signum`` (130 for
-    Ctrl-C, 143 for SIGTERM, 129 for SIGHUP)."""
+    Ctrl-C, 143 for SIGTERM, 129 for SIGHUP) and prints the message unless ``said`` (the
+    command printed it, with what it kept)."""
 
-    def __init__(self, message: str, signum: int = 2):
+    def __init__(self, message: str, signum: int = 2, *, said: bool = False):
         super().__init__(message)
         self.exit_code = 128 + int(signum)
+        self.said = said
 
 
 class Stop(BaseException):

@@ -224,6 +224,21 @@ def test_validate_checks_sweep_and_study_files_with_every_member(tmp_path, cli, 
         assert result.code == 2 and result.err == f"multilayer: error: {other}: base (line 1): {study}"
 
 
+def test_a_base_that_is_no_valid_scenario_is_read_once(write_scenario, monkeypatch):
+    """Its error path read the file again to look for ``parameters``: twice the time for a
+    large file, and a file changed between the two reads was judged by another text."""
+    from multilayer.scenario import loading
+
+    reads = []
+    read = loading.read_yaml
+    monkeypatch.setattr(loading, "read_yaml", lambda path: reads.append(path) or read(path))
+    base = write_scenario({**TINY_SCENARIO, "gravity": -1.0}, "base.yaml")
+    study = write_scenario({"base": "base.yaml", "parameters": {"rheology.mu_s": [0.3]}}, "sweep.yaml")
+    with pytest.raises(InputError, match=r"sweep.yaml: base: the base scenario is invalid:\n.*gravity"):
+        loading.load_base(study, "base.yaml", f"{study}: base", "the base scenario")
+    assert reads == [base]
+
+
 @pytest.fixture(scope="module")
 def finished(tmp_path_factory):
     """A finished run of the tiny scenario (its checkpoint and result), copied per test."""

@@ -159,7 +159,8 @@ def _dispatch(args: argparse.Namespace) -> int:
         )
         return 2
     except KeyboardInterrupt as exc:
-        print("multilayer: interrupted", file=sys.stderr)
+        if not getattr(exc, "said", False):  # a run or study says itself how it stopped and what it kept
+            print(f"multilayer: {str(exc) or 'interrupted'}", file=sys.stderr)
         return getattr(exc, "exit_code", 130)
 
 

@@ -147,6 +147,7 @@ def run(
             if stop.starting:  # before anything was computed: nothing to keep, the lock goes
                 log.warning("%s", exc)
                 print(f"multilayer: {exc}", file=sys.stderr)
+                exc.said = True
             raise
         finally:
             handler.close()
@@ -309,8 +310,8 @@ def _run(
         writer.close(sim.steps, wall_time(), status, scenario)
     if status == "interrupted":
         if stop.requested:  # a member stopped by its study leaves the resume command to the study
-            print(message, file=sys.stderr)
-        raise Interrupted(message, stop.signum)
+            print(f"multilayer: {message}", file=sys.stderr)
+        raise Interrupted(message, stop.signum, said=stop.requested)
     log.info("completed: %d steps, wall time %.1f s", sim.steps, wall_time())
 
 

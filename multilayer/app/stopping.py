@@ -104,22 +104,28 @@ def close_quickly(cluster: Any) -> None:
 
     The members were asked to stop (:class:`StopFile`) and do within a fraction of a second,
     checkpointed, so the workers are soon idle and close; a worker still busy then (say,
-    importing the engine, with no run under way) would hold the close for seconds.
+    importing the engine, with no run under way) would hold the close for seconds.  The
+    ``distributed`` logger is quiet (errors only) while it closes, then as it was.
     """
-    logging.getLogger("distributed").setLevel(logging.ERROR)  # the workers' goodbyes are not news
     pids = [
         nanny.process.process.pid
         for nanny in cluster.workers.values()
         if getattr(getattr(nanny, "process", None), "process", None) is not None
     ]
-    closing = threading.Thread(target=cluster.close, daemon=True)
-    closing.start()
-    closing.join(CLOSE_GRACE)
-    if closing.is_alive():
-        for pid in pids:
-            with contextlib.suppress(OSError):
-                os.kill(pid, signal.SIGKILL)
+    logger = logging.getLogger("distributed")  # the host process's: its level is set back
+    level = logger.level
+    logger.setLevel(logging.ERROR)  # the workers' goodbyes are not news
+    try:
+        closing = threading.Thread(target=cluster.close, daemon=True)
+        closing.start()
         closing.join(CLOSE_GRACE)
+        if closing.is_alive():
+            for pid in pids:
+                with contextlib.suppress(OSError):
+                    os.kill(pid, signal.SIGKILL)
+            closing.join(CLOSE_GRACE)
+    finally:
+        logger.setLevel(level)
 
 
 def check() -> None:

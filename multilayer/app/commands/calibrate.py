@@ -96,10 +96,13 @@ def _calibrate(args: argparse.Namespace, plan: Any, outdir: Path) -> int:
                 f"parameter set(s) evaluated, best misfit {best.misfit:.6g}; wrote {path}",
                 file=sys.stderr,
             )
+        else:
+            print(f"multilayer: {exc}", file=sys.stderr)
         print(
             f"multilayer: resume with: {resume_command('calibrate', args.config, outdir, args)}",
             file=sys.stderr,
         )
+        exc.said = True
         raise
     calibrations.write(fit, calibrator, path)
     print(f"calibrate: misfit {fit.misfit:.6g} for {fit.predicted.size} observed point(s); wrote {path}")

@@ -76,10 +76,13 @@ def _sensitivity(args: argparse.Namespace, study: Any, outdir: Path) -> int:
                 f"(those stopped mid-run continue from their checkpoints); wrote {path} (no indices)",
                 file=sys.stderr,
             )
+        else:
+            print(f"multilayer: {exc}", file=sys.stderr)
         print(
             f"multilayer: resume with: {resume_command('sensitivity', args.config, outdir, args)}",
             file=sys.stderr,
         )
+        exc.said = True
         raise
     failed = [e for e in evaluations if e.status != "ok"]
     result = None  # the Sobol' estimators need every run

@@ -115,9 +115,12 @@ def _sweep(args: argparse.Namespace, plan: Any, outdir: Path, summary: Path) -> 
                 f"cancelled (those stopped mid-run continue from their checkpoints); wrote {summary}",
                 file=sys.stderr,
             )
+        else:
+            print(f"multilayer: {exc}", file=sys.stderr)
         print(
             f"multilayer: resume with: {resume_command('sweep', args.sweep, outdir, args)}", file=sys.stderr
         )
+        exc.said = True
         raise
     sweeps.write_summary(plan, outcomes, summary)
 
