@@ -2459,6 +2459,29 @@ def round_fourteen() -> list[Case]:
     return out
 
 
+THREADS_CLUSTER = """
+from dask.distributed import LocalCluster
+cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=':0')
+sys.argv += ['--scheduler', cluster.scheduler_address]
+"""
+"""A cluster of one worker thread in the command's process, given as its ``--scheduler``."""
+
+
+def round_fifteen() -> list[Case]:
+    """The hostile cases of the fifteenth round (docs/reliability.md): one SIGINT while a
+    sweep's member on a worker thread is in a plugin that never returns."""
+    out: list[Case] = []
+    out.append(
+        Case("signal: one SIGINT while a sweep's member on a worker thread is in a plugin that never returns",
+             ["sweep", "sweep.yaml", "-o", "out"], 130,
+             "did not stop (in a plugin's code that never returns?): the worker threads of inproc://",
+             patch=THREADS_CLUSTER, setup=_hanging_sweep, here=True,
+             env={"PYTHONPATH": "{dir}/plugin", "HANGING_MARK": "{dir}/hanging"},
+             signal_when=("hanging", signal.SIGINT))
+    )  # fmt: skip
+    return out
+
+
 def cases() -> list[Case]:
     out: list[Case] = []
     budget = ["--max-memory", "8G", "--max-output", "1G"]
@@ -2626,6 +2649,7 @@ def cases() -> list[Case]:
         + round_twelve()
         + round_thirteen()
         + round_fourteen()
+        + round_fifteen()
     )
 
 

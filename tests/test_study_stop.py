@@ -280,3 +280,23 @@ def test_closing_a_stopped_local_cluster_sets_the_distributed_loggers_level_back
         assert Cluster.level == logging.ERROR and logger.level == logging.DEBUG
     finally:
         logger.setLevel(before)
+
+
+def test_members_whose_lock_outlives_the_stop_are_named(tmp_path, monkeypatch):
+    """A member on a worker thread in a plugin's code that never returns is not stopped
+    (Dask cannot stop a thread): the study named none and said that those stopped mid-run
+    continue from their checkpoints.  It names the members whose lock, taken since the
+    study began, is still held after the grace; a lock released meanwhile or older than
+    the study (stale, of an earlier run) is not named."""
+    from multilayer.app import stopping
+
+    monkeypatch.setattr(stopping, "STOP_GRACE", 0.3)
+    since = time.time() - 1.0
+    for name in ("m000", "m001", "m002"):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "run.lock").write_text("{}")
+    os.utime(tmp_path / "m002" / "run.lock", (since - 60, since - 60))
+    releasing = threading.Timer(0.1, (tmp_path / "m001" / "run.lock").unlink)
+    releasing.start()
+    assert stopping.still_running(tmp_path, since) == ["m000"]
+    releasing.join()

@@ -22,8 +22,8 @@ from multilayer.app.commands import (
     add_resume_argument,
     check_resume,
     cluster_description,
+    report_stop,
     require,
-    resume_command,
     study_directory,
 )
 
@@ -107,20 +107,15 @@ def _sweep(args: argparse.Namespace, plan: Any, outdir: Path, summary: Path) -> 
         if report.live:
             sys.stderr.write("\n")
         done = getattr(exc, "outcomes", None)
+        kept = None
         if done is not None:
             sweeps.write_summary(plan, done, summary)
             finished = sum(o.status in ("ok", "failed") for o in done)
-            print(
-                f"multilayer: {exc}: {finished} of {len(done)} members complete, the others "
-                f"cancelled (those stopped mid-run continue from their checkpoints); wrote {summary}",
-                file=sys.stderr,
+            kept = (
+                f": {finished} of {len(done)} members complete, the others cancelled "
+                f"(those stopped mid-run continue from their checkpoints); wrote {summary}"
             )
-        else:
-            print(f"multilayer: {exc}", file=sys.stderr)
-        print(
-            f"multilayer: resume with: {resume_command('sweep', args.sweep, outdir, args)}", file=sys.stderr
-        )
-        exc.said = True
+        report_stop(exc, kept, "sweep", args.sweep, outdir, args)
         raise
     sweeps.write_summary(plan, outcomes, summary)
 
