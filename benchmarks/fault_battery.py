@@ -520,15 +520,17 @@ def _sweep(parameters: dict, paired: bool = False, base: dict = TINY) -> Callabl
     return setup
 
 
-def _calibration(times: str, **search: int) -> Callable[[Path], None]:
+def _calibration(
+    times: str, header: str = "t,x_f,sigma", columns: tuple[str, ...] = ("t", "x_f", "sigma"), **search: int
+) -> Callable[[Path], None]:
     def setup(directory: Path) -> None:
         (directory / "base.yaml").write_text(yaml.safe_dump(TINY))
-        (directory / "front.csv").write_text("t,x_f,sigma\n" + times)
+        (directory / "front.csv").write_text(f"{header}\n" + times)
         observation = {
             "name": "front",
             "quantity": "front",
             "file": "front.csv",
-            "columns": ["t", "x_f", "sigma"],
+            "columns": list(columns),
         }
         config = {
             "base": "base.yaml",
@@ -2469,8 +2471,20 @@ sys.argv += ['--scheduler', cluster.scheduler_address]
 
 def round_fifteen() -> list[Case]:
     """The hostile cases of the fifteenth round (docs/reliability.md): one SIGINT while a
-    sweep's member on a worker thread is in a plugin that never returns."""
+    sweep's member on a worker thread is in a plugin that never returns, observations
+    whose columns or header name a column twice."""
     out: list[Case] = []
+    out.append(
+        Case("validate: observation columns [t, t, sigma]", ["validate", "{dir}/calibration.yaml"], 2,
+             "observations.0.columns (line 3): a column named twice",
+             setup=_calibration("0.1,0.2,0.01\n", columns=("t", "t", "sigma")))
+    )  # fmt: skip
+    out.append(
+        Case("validate: an observation file whose header names x_f twice",
+             ["validate", "{dir}/calibration.yaml"],
+             2, "front.csv: its header names the column 'x_f' twice",
+             setup=_calibration("0.1,0.2,0.01,0.3\n", header="t,x_f,sigma,x_f"))
+    )  # fmt: skip
     out.append(
         Case("signal: one SIGINT while a sweep's member on a worker thread is in a plugin that never returns",
              ["sweep", "sweep.yaml", "-o", "out"], 130,
