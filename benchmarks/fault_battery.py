@@ -2472,8 +2472,14 @@ sys.argv += ['--scheduler', cluster.scheduler_address]
 def round_fifteen() -> list[Case]:
     """The hostile cases of the fifteenth round (docs/reliability.md): one SIGINT while a
     sweep's member on a worker thread is in a plugin that never returns, observations
-    whose columns or header name a column twice."""
+    whose columns or header name a column twice, a plugin returning a masked array."""
     out: list[Case] = []
+    out.append(
+        Case("plugin: a masked array", ["run", "{scenario}", "-o", "{dir}/out", "-q"], 1,
+             "yield_stress() returned a masked array of ",
+             patch=_plugin_patch("yield_stress", "return np.ma.masked_less(0.3 * np.asarray(p), 1e300)"),
+             setup=_scenario)
+    )  # fmt: skip
     out.append(
         Case("validate: observation columns [t, t, sigma]", ["validate", "{dir}/calibration.yaml"], 2,
              "observations.0.columns (line 3): a column named twice",
