@@ -2472,8 +2472,25 @@ sys.argv += ['--scheduler', cluster.scheduler_address]
 def round_fifteen() -> list[Case]:
     """The hostile cases of the fifteenth round (docs/reliability.md): one SIGINT while a
     sweep's member on a worker thread is in a plugin that never returns, observations
-    whose columns or header name a column twice, a plugin returning a masked array."""
+    whose columns or header name a column twice, a plugin returning a masked array, the
+    state's arrays replaced through the Python API, a masked state restored."""
     out: list[Case] = []
+    validate = ["validate", "{scenario}"]
+    for name, body, phrase in (
+        ("sim.state.h replaced by a float32 array",
+         "import numpy as np\nsim = multilayer.Simulation(multilayer.load(sys.argv[2]))\nsim.step()\n"
+         "sim.state.h = sim.state.h.astype(np.float32)\nsim.step()",
+         "state.h: the state's arrays are not replaced"),
+        ("sim.state.u replaced by a list",
+         "sim = multilayer.Simulation(multilayer.load(sys.argv[2]))\nsim.step()\n"
+         "sim.state.u = sim.state.u.tolist()\nsim.step()",
+         "state.u: the state's arrays are not replaced"),
+        ("load_state of h read by netCDF4, masked",
+         "import numpy as np\nsim = multilayer.Simulation(multilayer.load(sys.argv[2]))\n"
+         "saved = sim.state_dict()\nsaved['h'] = np.ma.masked_equal(saved['h'], 0.0)\nsim.load_state(saved)",
+         "h: a masked array of 32 masked value(s)"),
+    ):  # fmt: skip
+        out.append(Case(f"API: {name}", validate, 2, phrase, patch=_api(body), setup=_scenario))
     out.append(
         Case("plugin: a masked array", ["run", "{scenario}", "-o", "{dir}/out", "-q"], 1,
              "yield_stress() returned a masked array of ",
