@@ -2461,6 +2461,30 @@ def round_fourteen() -> list[Case]:
     return out
 
 
+EDITED_MARKER = """
+import csv, json
+from pathlib import Path
+from multilayer.io.results import summary
+args = sys.argv[1:]
+out = Path(args[args.index('-o') + 1])
+if main(args) != 0:
+    sys.exit('the sweep failed')
+member = sorted(out.glob('m000-*'))[0]
+marker = json.loads((member / 'member.json').read_text())
+marker['summary'].update(runout=99.0, front_final=float('nan'), steps='many')
+(member / 'member.json').write_text(json.dumps(marker))
+if main(args) != 0:
+    sys.exit('the sweep run again failed')
+row = next(csv.DictReader(open(out / 'summary.csv')))
+same = float(row['runout']) == summary(member)['runout'] and row['steps'] == str(summary(member)['steps'])
+print('multilayer: the summary of m000 is ' + ('that of' if same else 'NOT that of') + ' its result.nc',
+      file=sys.stderr)
+sys.exit(0 if same else 1)
+"""
+"""A sweep, its first member's marker edited (a runout of 99, NaN, text), the sweep again:
+its summary must be that of the member's result."""
+
+
 THREADS_CLUSTER = """
 from dask.distributed import LocalCluster
 cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=':0')
@@ -2473,8 +2497,15 @@ def round_fifteen() -> list[Case]:
     """The hostile cases of the fifteenth round (docs/reliability.md): one SIGINT while a
     sweep's member on a worker thread is in a plugin that never returns, observations
     whose columns or header name a column twice, a plugin returning a masked array, the
-    state's arrays replaced through the Python API, a masked state restored."""
+    state's arrays replaced through the Python API, a masked state restored, a sweep
+    member's marker edited."""
     out: list[Case] = []
+    out.append(
+        Case("sweep: a member's member.json edited, then the sweep again",
+             ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/out", "--workers", "1", "-q"], 0,
+             "the summary of m000 is that of its result.nc", patch=EDITED_MARKER,
+             setup=_sweep({"slope_deg": [20.0, 25.0]}))
+    )  # fmt: skip
     validate = ["validate", "{scenario}"]
     for name, body, phrase in (
         ("sim.state.h replaced by a float32 array",

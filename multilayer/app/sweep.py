@@ -47,6 +47,7 @@ from multilayer.io.results import (
     recorded,
     run_failure,
 )
+from multilayer.io.results import summary as result_summary
 from multilayer.scenario import as_overrides, format_value
 from multilayer.scenario.loading import BASE_ACCEPTED, load_base
 from multilayer.scenario.messages import shown
@@ -284,10 +285,13 @@ def _fingerprint(resolved: str) -> str:
 
 
 def completed(member_dir: Path, fingerprint: str) -> dict[str, float] | None:
-    """The stored summary if ``member_dir`` holds a completed, finite run of this exact
-    scenario: the marker's fingerprint and the scenario ``result.nc`` records both this
-    one's (a run of another scenario into the member's directory, ``multilayer run -o``,
-    leaves the marker: its summary was reported and its result measured as the member's)."""
+    """The summary of the member's ``result.nc`` if ``member_dir`` holds a completed, finite
+    run of this exact scenario: the marker's fingerprint and the scenario ``result.nc``
+    records both this one's (a run of another scenario into the member's directory,
+    ``multilayer run -o``, leaves the marker: its summary was reported and its result
+    measured as the member's).  The summary is read from the result, which passed its
+    checks, not from the marker: a marker edited or damaged (a runout of 99, NaN, text)
+    was reported as the member's."""
     try:
         marker = json.loads((member_dir / MARKER).read_text())
     except (OSError, ValueError, RecursionError):
@@ -299,7 +303,7 @@ def completed(member_dir: Path, fingerprint: str) -> dict[str, float] | None:
         return None
     if run_failure(member_dir) is not None or _fingerprint(recorded(member_dir, "scenario")) != fingerprint:
         return None
-    return summary
+    return result_summary(member_dir / RESULT_FILE, checked=False)  # checked by run_failure
 
 
 def run_member(
