@@ -2498,8 +2498,15 @@ def round_fifteen() -> list[Case]:
     sweep's member on a worker thread is in a plugin that never returns, observations
     whose columns or header name a column twice, a plugin returning a masked array, the
     state's arrays replaced through the Python API, a masked state restored, a sweep
-    member's marker edited."""
+    member's marker edited, a column thinner than the dry threshold."""
     out: list[Case] = []
+    for command in ("validate", "run"):
+        argv = [command, "{scenario}"] + (["-o", "{dir}/out", "-q"] if command == "run" else [])
+        out.append(
+            Case(f"{command}: a column of 1e-7 m, below the dry threshold", argv, 2,
+                 "initial: at most 1e-07 m thick on the mesh, not above numerics.dry_threshold",
+                 setup=partial(_scenario, changes={"initial.0.height": 1e-7}))
+        )  # fmt: skip
     out.append(
         Case("sweep: a member's member.json edited, then the sweep again",
              ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/out", "--workers", "1", "-q"], 0,
