@@ -2498,8 +2498,19 @@ def round_fifteen() -> list[Case]:
     sweep's member on a worker thread is in a plugin that never returns, observations
     whose columns or header name a column twice, a plugin returning a masked array, the
     state's arrays replaced through the Python API, a masked state restored, a sweep
-    member's marker edited, a column thinner than the dry threshold."""
+    member's marker edited, a column thinner than the dry threshold, keys holding a
+    terminal escape sequence."""
     out: list[Case] = []
+    escape = "\x1b[2J"
+    out.append(
+        Case("validate: a key holding a terminal escape sequence", ["validate", "{scenario}"], 2,
+             "'a\\x1b[2J' (line", setup=partial(_scenario, changes={f"a{escape}": 1}))
+    )  # fmt: skip
+    out.append(
+        Case("validate: --set a key holding a terminal escape sequence",
+             ["validate", "{scenario}", "--set", f"rheology.{escape}=1"], 2,
+             "--set 'rheology.\\x1b[2J=1': expected KEY=VALUE", setup=_scenario)
+    )  # fmt: skip
     for command in ("validate", "run"):
         argv = [command, "{scenario}"] + (["-o", "{dir}/out", "-q"] if command == "run" else [])
         out.append(

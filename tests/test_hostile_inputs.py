@@ -152,9 +152,29 @@ def test_a_key_path_with_an_empty_part_is_malformed(tmp_path, cli, write_scenari
     result = cli("validate", write_scenario(TINY_SCENARIO), "--set", item)
     assert result.code == 2 and "Traceback" not in result.err
     assert (
-        f"--set '{item}': expected KEY=VALUE or KEY+=VALUE; accepted: a dotted key path (no part empty)"
+        f"--set '{item}': expected KEY=VALUE or KEY+=VALUE; accepted: a dotted key path (no part empty"
         in result.err
     )
+
+
+def test_a_key_holding_a_terminal_escape_sequence_is_quoted_not_sent_to_the_terminal(cli, write_scenario):
+    """A key of a scenario or sweep file, or of ``--set``, holding ``ESC [2J`` was printed as
+    written: the message cleared the terminal (a title set, colours changed, by others).
+    Keys that are not printable text are quoted as Python writes them."""
+    escape = "\x1b[2J"
+    scenario = write_scenario(
+        {**TINY_SCENARIO, f"a{escape}": 1, "rheology": {**TINY_SCENARIO["rheology"], "\u202e": 1}}
+    )
+    sweep = write_scenario({"base": "tiny.yaml", "parameters": {f"rheology.{escape}": [1]}}, "sweep.yaml")
+    write_scenario(TINY_SCENARIO, "tiny.yaml")
+    for argv, said in (
+        ((scenario,), ("'a\\x1b[2J' (line ", "rheology.'\\u202e' (line ")),
+        ((sweep,), ("parameters.'rheology.\\x1b[2J' (line 3): not a scenario key",)),
+        ((scenario, "--set", f"rheology.{escape}=1"), ("--set 'rheology.\\x1b[2J=1': expected KEY=VALUE",)),
+    ):
+        result = cli("validate", *argv)
+        assert result.code == 2 and "\x1b" not in result.err and "\u202e" not in result.err, result.err
+        assert all(text in result.err for text in said), result.err
 
 
 def test_spaces_around_a_key_are_not_part_of_it(write_scenario):

@@ -50,7 +50,7 @@ from multilayer.io.results import (
 from multilayer.io.results import summary as result_summary
 from multilayer.scenario import as_overrides, format_value
 from multilayer.scenario.loading import BASE_ACCEPTED, load_base
-from multilayer.scenario.messages import shown
+from multilayer.scenario.messages import dotted, shown
 
 SWEEP_KEYS = ("base", "parameters", "zip", "output", "description")
 """Top-level keys accepted in a sweep file."""
@@ -154,7 +154,7 @@ def load(path: str | Path) -> Sweep:
 
     def at(key: tuple[str, ...]) -> str:
         line = f" (line {lines[key]})" if key in lines else ""
-        return f"{path}: {'.'.join(key)}{line}"
+        return f"{path}: {dotted(key)}{line}"
 
     def bad(key: tuple[str, ...], what: str, accepted: str) -> InputError:
         return InputError(f"{at(key)}: {what}; accepted: {accepted}")
@@ -183,7 +183,7 @@ def load(path: str | Path) -> Sweep:
             "e.g. {rheology.mu_s: [0.4, 0.5]}",
         )
     for key, values in parameters.items():
-        if not isinstance(key, str) or not key or any(c.isspace() or c == "=" for c in key):
+        if not isinstance(key, str) or not key.isprintable() or any(c.isspace() or c == "=" for c in key):
             raise bad(
                 ("parameters", str(key)),
                 "not a scenario key",
