@@ -2507,6 +2507,10 @@ def round_fifteen() -> list[Case]:
              "'a\\x1b[2J' (line", setup=partial(_scenario, changes={f"a{escape}": 1}))
     )  # fmt: skip
     out.append(
+        Case("validate: a rheology named with a terminal escape sequence", ["validate", "{scenario}"], 2,
+             "unknown rheology 'dp\\x1b[2J'", setup=partial(_scenario, changes={"rheology.name": f"dp{escape}"}))
+    )  # fmt: skip
+    out.append(
         Case("validate: --set a key holding a terminal escape sequence",
              ["validate", "{scenario}", "--set", f"rheology.{escape}=1"], 2,
              "--set 'rheology.\\x1b[2J=1': expected KEY=VALUE", setup=_scenario)

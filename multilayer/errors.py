@@ -34,3 +34,12 @@ def reason(exc: BaseException) -> str:
     if isinstance(exc, OSError) and exc.strerror:
         return exc.strerror
     return str(exc)
+
+
+def printable(text: str) -> str:
+    """``text`` with each character that is not printable but a newline or a tab written as
+    Python writes it in a string (``\\x1b``, ``\\u202e``): a message quotes names from the
+    input (a rheology, a file), and an escape sequence of the terminal there acted on it."""
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() or c in "\n\t" else repr(c)[1:-1] for c in text)

@@ -160,7 +160,8 @@ def test_a_key_path_with_an_empty_part_is_malformed(tmp_path, cli, write_scenari
 def test_a_key_holding_a_terminal_escape_sequence_is_quoted_not_sent_to_the_terminal(cli, write_scenario):
     """A key of a scenario or sweep file, or of ``--set``, holding ``ESC [2J`` was printed as
     written: the message cleared the terminal (a title set, colours changed, by others).
-    Keys that are not printable text are quoted as Python writes them."""
+    Keys that are not printable text are quoted as Python writes them, and the command line
+    writes every character of a message that is not printable (but newlines and tabs) so."""
     escape = "\x1b[2J"
     scenario = write_scenario(
         {**TINY_SCENARIO, f"a{escape}": 1, "rheology": {**TINY_SCENARIO["rheology"], "\u202e": 1}}
@@ -175,6 +176,10 @@ def test_a_key_holding_a_terminal_escape_sequence_is_quoted_not_sent_to_the_term
         result = cli("validate", *argv)
         assert result.code == 2 and "\x1b" not in result.err and "\u202e" not in result.err, result.err
         assert all(text in result.err for text in said), result.err
+    # a value quoted by a message (a rheology's name, a file's): what the command line prints
+    named = write_scenario({**TINY_SCENARIO, "rheology": {"name": f"dp{escape}"}}, "named.yaml")
+    result = cli("validate", named)
+    assert result.code == 2 and "unknown rheology 'dp\\x1b[2J'; accepted" in result.err, result.err
 
 
 def test_spaces_around_a_key_are_not_part_of_it(write_scenario):

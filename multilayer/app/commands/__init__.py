@@ -239,7 +239,9 @@ def report_stop(exc: Any, done: str | None, command: str, config: str, outdir: P
     threads) and how to resume; the command line then says no more (``exc.said``)."""
     import sys
 
-    print(f"multilayer: {exc}{done or ''}", file=sys.stderr)
+    from multilayer.errors import printable
+
+    print(f"multilayer: {printable(str(exc))}{done or ''}", file=sys.stderr)
     running = getattr(exc, "running", [])
     if running:
         print(

@@ -89,7 +89,7 @@ def _sweep(args: argparse.Namespace, plan: Any, outdir: Path, summary: Path) -> 
     """:func:`main` once the directory is held."""
     from multilayer.app import stopping
     from multilayer.app import sweep as sweeps
-    from multilayer.errors import Interrupted
+    from multilayer.errors import Interrupted, printable
 
     where = cluster_description(args)
     report = _Report(where, args.quiet)
@@ -123,7 +123,9 @@ def _sweep(args: argparse.Namespace, plan: Any, outdir: Path, summary: Path) -> 
         if outcome.status != "ok":
             values = ", ".join(outcome.member.overrides)
             print(
-                f"multilayer: member {outcome.member.id} ({values}) {outcome.status}: {outcome.error}",
+                printable(
+                    f"multilayer: member {outcome.member.id} ({values}) {outcome.status}: {outcome.error}"
+                ),
                 file=sys.stderr,
             )
     counts = {status: sum(o.status == status for o in outcomes) for status in ("ok", "invalid", "failed")}

@@ -20,7 +20,7 @@ from multilayer import scenario as scenarios
 from multilayer.app import expectations, factory, resources
 from multilayer.app.commands import add_budget_arguments, add_set_argument, budget
 from multilayer.engine import initial_state
-from multilayer.errors import InputError
+from multilayer.errors import InputError, printable
 from multilayer.scenario import Scenario
 
 HELP = "check scenario, sweep and study files without running them"
@@ -40,7 +40,7 @@ def main(args: argparse.Namespace) -> int:
         try:
             line = _check_file(path, args)
         except InputError as exc:
-            print(f"multilayer: error: {exc}", file=sys.stderr)
+            print(f"multilayer: error: {printable(str(exc))}", file=sys.stderr)
             invalid += 1
             continue
         print(f"{path}: ok ({line})")
