@@ -2508,7 +2508,8 @@ def round_fifteen() -> list[Case]:
     )  # fmt: skip
     out.append(
         Case("validate: a rheology named with a terminal escape sequence", ["validate", "{scenario}"], 2,
-             "unknown rheology 'dp\\x1b[2J'", setup=partial(_scenario, changes={"rheology.name": f"dp{escape}"}))
+             "unknown rheology 'dp\\x1b[2J'",
+             setup=partial(_scenario, changes={"rheology.name": f"dp{escape}"}))
     )  # fmt: skip
     out.append(
         Case("validate: --set a key holding a terminal escape sequence",
