@@ -1648,8 +1648,8 @@ STOPPED_AFTER_THE_NORMAL_STRESS = RESUMED.format(
 """SIGINT after the normal stress's step of a Heun stage, before the step's end."""
 
 
-REPLACED_MEMBER = """
-import csv
+MEMBER_MEDDLED = """
+import csv, json
 from pathlib import Path
 from multilayer.io.results import summary
 args = sys.argv[1:]
@@ -1657,19 +1657,25 @@ out = Path(args[args.index('-o') + 1])
 if main(args) != 0:
     sys.exit('the sweep failed')
 member = sorted(out.glob('m000-*'))[0]
-base = Path(args[1]).parent / 'base.yaml'
-if main(['run', str(base), '-o', str(member), '-q', '--set', 'rheology.mu_s=0.1']) != 0:
-    sys.exit('the run into the member failed')
+MEDDLING
 if main(args) != 0:
     sys.exit('the sweep run again failed')
 row = next(csv.DictReader(open(out / 'summary.csv')))
-same = float(row['max_speed_final']) == summary(member)['max_speed_final']
+same = all(row[key] == repr(value) for key, value in summary(member).items() if key in row)
 print('multilayer: the summary of m000 is ' + ('that of' if same else 'NOT that of') + ' its result.nc',
       file=sys.stderr)
 sys.exit(0 if same else 1)
 """
-"""A sweep, another scenario run into its first member's directory, the sweep again: its
-summary must be that of the member's result."""
+"""A sweep, its first member's directory meddled with (``MEDDLING``: statements, ``member``
+the directory), the sweep again: its summary must be that of the member's result."""
+
+REPLACED_MEMBER = MEMBER_MEDDLED.replace(
+    "MEDDLING",
+    "base = Path(args[1]).parent / 'base.yaml'\n"
+    "if main(['run', str(base), '-o', str(member), '-q', '--set', 'rheology.mu_s=0.1']) != 0:\n"
+    "    sys.exit('the run into the member failed')",
+)
+"""Another scenario run into the first member's directory."""
 
 
 SIDE_BY_SIDE = """
@@ -2461,28 +2467,13 @@ def round_fourteen() -> list[Case]:
     return out
 
 
-EDITED_MARKER = """
-import csv, json
-from pathlib import Path
-from multilayer.io.results import summary
-args = sys.argv[1:]
-out = Path(args[args.index('-o') + 1])
-if main(args) != 0:
-    sys.exit('the sweep failed')
-member = sorted(out.glob('m000-*'))[0]
-marker = json.loads((member / 'member.json').read_text())
-marker['summary'].update(runout=99.0, front_final=float('nan'), steps='many')
-(member / 'member.json').write_text(json.dumps(marker))
-if main(args) != 0:
-    sys.exit('the sweep run again failed')
-row = next(csv.DictReader(open(out / 'summary.csv')))
-same = float(row['runout']) == summary(member)['runout'] and row['steps'] == str(summary(member)['steps'])
-print('multilayer: the summary of m000 is ' + ('that of' if same else 'NOT that of') + ' its result.nc',
-      file=sys.stderr)
-sys.exit(0 if same else 1)
-"""
-"""A sweep, its first member's marker edited (a runout of 99, NaN, text), the sweep again:
-its summary must be that of the member's result."""
+EDITED_MARKER = MEMBER_MEDDLED.replace(
+    "MEDDLING",
+    "marker = json.loads((member / 'member.json').read_text())\n"
+    "marker['summary'].update(runout=99.0, front_final=float('nan'), steps='many')\n"
+    "(member / 'member.json').write_text(json.dumps(marker))",
+)
+"""The first member's marker edited (a runout of 99, NaN, text)."""
 
 
 THREADS_CLUSTER = """
