@@ -2476,6 +2476,12 @@ EDITED_MARKER = MEMBER_MEDDLED.replace(
 """The first member's marker edited (a runout of 99, NaN, text)."""
 
 
+def _scenario_as_its_log(directory: Path) -> None:
+    """``out/run.log`` a scenario file, to be run into ``out``."""
+    (directory / "out").mkdir()
+    (directory / "out" / "run.log").write_text(yaml.safe_dump(TINY))
+
+
 THREADS_CLUSTER = """
 from dask.distributed import LocalCluster
 cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=':0')
@@ -2490,8 +2496,14 @@ def round_fifteen() -> list[Case]:
     whose columns or header name a column twice, a plugin returning a masked array, the
     state's arrays replaced through the Python API, a masked state restored, a sweep
     member's marker edited, a column thinner than the dry threshold, keys holding a
-    terminal escape sequence."""
+    terminal escape sequence, a scenario named as a file of its run in its output directory."""
     out: list[Case] = []
+    out.append(
+        Case("run: a scenario out/run.log run into out",
+             ["run", "{dir}/out/run.log", "-o", "{dir}/out", "-q"], 2,
+             "run.log: the scenario file itself, which the run would write over",
+             setup=_scenario_as_its_log)
+    )  # fmt: skip
     escape = "\x1b[2J"
     out.append(
         Case("validate: a key holding a terminal escape sequence", ["validate", "{scenario}"], 2,

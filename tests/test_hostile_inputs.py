@@ -649,6 +649,19 @@ def test_an_output_directory_that_is_a_file_is_named_so(tmp_path, cli, write_sce
     assert result.code == 2 and f"{tmp_path / 'out'}: a file, not a directory; accepted" in result.err
 
 
+@pytest.mark.parametrize("name", [RESULT_FILE, CHECKPOINT_FILE, "run.log"])
+def test_a_scenario_file_that_is_a_file_of_its_run_is_not_written_over(tmp_path, cli, name):
+    """``multilayer run out/run.log -o out`` read the scenario, then wrote its log over it."""
+    (tmp_path / "out").mkdir()
+    scenario = tmp_path / "out" / name
+    scenario.write_text(yaml.safe_dump(TINY_SCENARIO))
+    result = cli("run", scenario, "-o", tmp_path / "out", "-q")
+    assert (
+        result.code == 2 and f"{scenario}: the scenario file itself, which the run would write" in result.err
+    )
+    assert yaml.safe_load(scenario.read_text()) == TINY_SCENARIO
+
+
 @pytest.mark.parametrize("target", ["missing/out", "out"])
 def test_an_output_directory_that_is_a_link_to_nothing_is_named_so(tmp_path, cli, write_scenario, target):
     """``-o`` a link whose target does not exist, or to itself: "cannot be created or
