@@ -520,15 +520,17 @@ def _sweep(parameters: dict, paired: bool = False, base: dict = TINY) -> Callabl
     return setup
 
 
-def _calibration(times: str, **search: int) -> Callable[[Path], None]:
+def _calibration(
+    times: str, header: str = "t,x_f,sigma", columns: tuple[str, ...] = ("t", "x_f", "sigma"), **search: int
+) -> Callable[[Path], None]:
     def setup(directory: Path) -> None:
         (directory / "base.yaml").write_text(yaml.safe_dump(TINY))
-        (directory / "front.csv").write_text("t,x_f,sigma\n" + times)
+        (directory / "front.csv").write_text(f"{header}\n" + times)
         observation = {
             "name": "front",
             "quantity": "front",
             "file": "front.csv",
-            "columns": ["t", "x_f", "sigma"],
+            "columns": list(columns),
         }
         config = {
             "base": "base.yaml",
@@ -1646,8 +1648,8 @@ STOPPED_AFTER_THE_NORMAL_STRESS = RESUMED.format(
 """SIGINT after the normal stress's step of a Heun stage, before the step's end."""
 
 
-REPLACED_MEMBER = """
-import csv
+MEMBER_MEDDLED = """
+import csv, json
 from pathlib import Path
 from multilayer.io.results import summary
 args = sys.argv[1:]
@@ -1655,19 +1657,25 @@ out = Path(args[args.index('-o') + 1])
 if main(args) != 0:
     sys.exit('the sweep failed')
 member = sorted(out.glob('m000-*'))[0]
-base = Path(args[1]).parent / 'base.yaml'
-if main(['run', str(base), '-o', str(member), '-q', '--set', 'rheology.mu_s=0.1']) != 0:
-    sys.exit('the run into the member failed')
+MEDDLING
 if main(args) != 0:
     sys.exit('the sweep run again failed')
 row = next(csv.DictReader(open(out / 'summary.csv')))
-same = float(row['max_speed_final']) == summary(member)['max_speed_final']
+same = all(row[key] == repr(value) for key, value in summary(member).items() if key in row)
 print('multilayer: the summary of m000 is ' + ('that of' if same else 'NOT that of') + ' its result.nc',
       file=sys.stderr)
 sys.exit(0 if same else 1)
 """
-"""A sweep, another scenario run into its first member's directory, the sweep again: its
-summary must be that of the member's result."""
+"""A sweep, its first member's directory meddled with (``MEDDLING``: statements, ``member``
+the directory), the sweep again: its summary must be that of the member's result."""
+
+REPLACED_MEMBER = MEMBER_MEDDLED.replace(
+    "MEDDLING",
+    "base = Path(args[1]).parent / 'base.yaml'\n"
+    "if main(['run', str(base), '-o', str(member), '-q', '--set', 'rheology.mu_s=0.1']) != 0:\n"
+    "    sys.exit('the run into the member failed')",
+)
+"""Another scenario run into the first member's directory."""
 
 
 SIDE_BY_SIDE = """
@@ -2459,6 +2467,115 @@ def round_fourteen() -> list[Case]:
     return out
 
 
+EDITED_MARKER = MEMBER_MEDDLED.replace(
+    "MEDDLING",
+    "marker = json.loads((member / 'member.json').read_text())\n"
+    "marker['summary'].update(runout=99.0, front_final=float('nan'), steps='many')\n"
+    "(member / 'member.json').write_text(json.dumps(marker))",
+)
+"""The first member's marker edited (a runout of 99, NaN, text)."""
+
+
+def _scenario_as_its_log(directory: Path) -> None:
+    """``out/run.log`` a scenario file, to be run into ``out``."""
+    (directory / "out").mkdir()
+    (directory / "out" / "run.log").write_text(yaml.safe_dump(TINY))
+
+
+THREADS_CLUSTER = """
+from dask.distributed import LocalCluster
+cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=':0')
+sys.argv += ['--scheduler', cluster.scheduler_address]
+"""
+"""A cluster of one worker thread in the command's process, given as its ``--scheduler``."""
+
+
+def round_fifteen() -> list[Case]:
+    """The hostile cases of the fifteenth round (docs/reliability.md): one SIGINT while a
+    sweep's member on a worker thread is in a plugin that never returns, observations
+    whose columns or header name a column twice, a plugin returning a masked array, the
+    state's arrays replaced through the Python API, a masked state restored, a sweep
+    member's marker edited, a column thinner than the dry threshold, keys holding a
+    terminal escape sequence, a scenario named as a file of its run in its output directory."""
+    out: list[Case] = []
+    out.append(
+        Case("run: a scenario out/run.log run into out",
+             ["run", "{dir}/out/run.log", "-o", "{dir}/out", "-q"], 2,
+             "run.log: the scenario file itself, which the run would write over",
+             setup=_scenario_as_its_log)
+    )  # fmt: skip
+    escape = "\x1b[2J"
+    out.append(
+        Case("validate: a key holding a terminal escape sequence", ["validate", "{scenario}"], 2,
+             "'a\\x1b[2J' (line", setup=partial(_scenario, changes={f"a{escape}": 1}))
+    )  # fmt: skip
+    out.append(
+        Case("validate: a rheology named with a terminal escape sequence", ["validate", "{scenario}"], 2,
+             "unknown rheology 'dp\\x1b[2J'",
+             setup=partial(_scenario, changes={"rheology.name": f"dp{escape}"}))
+    )  # fmt: skip
+    out.append(
+        Case("validate: --set a key holding a terminal escape sequence",
+             ["validate", "{scenario}", "--set", f"rheology.{escape}=1"], 2,
+             "--set 'rheology.\\x1b[2J=1': expected KEY=VALUE", setup=_scenario)
+    )  # fmt: skip
+    for command in ("validate", "run"):
+        argv = [command, "{scenario}"] + (["-o", "{dir}/out", "-q"] if command == "run" else [])
+        out.append(
+            Case(f"{command}: a column of 1e-7 m, below the dry threshold", argv, 2,
+                 "initial: at most 1e-07 m thick on the mesh, not above numerics.dry_threshold",
+                 setup=partial(_scenario, changes={"initial.0.height": 1e-7}))
+        )  # fmt: skip
+    out.append(
+        Case("sweep: a member's member.json edited, then the sweep again",
+             ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/out", "--workers", "1", "-q"], 0,
+             "the summary of m000 is that of its result.nc", patch=EDITED_MARKER,
+             setup=_sweep({"slope_deg": [20.0, 25.0]}))
+    )  # fmt: skip
+    validate = ["validate", "{scenario}"]
+    for name, body, phrase in (
+        ("sim.state.h replaced by a float32 array",
+         "import numpy as np\nsim = multilayer.Simulation(multilayer.load(sys.argv[2]))\nsim.step()\n"
+         "sim.state.h = sim.state.h.astype(np.float32)\nsim.step()",
+         "state.h: the state's arrays are not replaced"),
+        ("sim.state.u replaced by a list",
+         "sim = multilayer.Simulation(multilayer.load(sys.argv[2]))\nsim.step()\n"
+         "sim.state.u = sim.state.u.tolist()\nsim.step()",
+         "state.u: the state's arrays are not replaced"),
+        ("load_state of h read by netCDF4, masked",
+         "import numpy as np\nsim = multilayer.Simulation(multilayer.load(sys.argv[2]))\n"
+         "saved = sim.state_dict()\nsaved['h'] = np.ma.masked_equal(saved['h'], 0.0)\nsim.load_state(saved)",
+         "h: a masked array of 32 masked value(s)"),
+    ):  # fmt: skip
+        out.append(Case(f"API: {name}", validate, 2, phrase, patch=_api(body), setup=_scenario))
+    out.append(
+        Case("plugin: a masked array", ["run", "{scenario}", "-o", "{dir}/out", "-q"], 1,
+             "yield_stress() returned a masked array of ",
+             patch=_plugin_patch("yield_stress", "return np.ma.masked_less(0.3 * np.asarray(p), 1e300)"),
+             setup=_scenario)
+    )  # fmt: skip
+    out.append(
+        Case("validate: observation columns [t, t, sigma]", ["validate", "{dir}/calibration.yaml"], 2,
+             "observations.0.columns (line 3): a column named twice",
+             setup=_calibration("0.1,0.2,0.01\n", columns=("t", "t", "sigma")))
+    )  # fmt: skip
+    out.append(
+        Case("validate: an observation file whose header names x_f twice",
+             ["validate", "{dir}/calibration.yaml"],
+             2, "front.csv: its header names the column 'x_f' twice",
+             setup=_calibration("0.1,0.2,0.01,0.3\n", header="t,x_f,sigma,x_f"))
+    )  # fmt: skip
+    out.append(
+        Case("signal: one SIGINT while a sweep's member on a worker thread is in a plugin that never returns",
+             ["sweep", "sweep.yaml", "-o", "out"], 130,
+             "did not stop (in a plugin's code that never returns?): the worker threads of inproc://",
+             patch=THREADS_CLUSTER, setup=_hanging_sweep, here=True,
+             env={"PYTHONPATH": "{dir}/plugin", "HANGING_MARK": "{dir}/hanging"},
+             signal_when=("hanging", signal.SIGINT))
+    )  # fmt: skip
+    return out
+
+
 def cases() -> list[Case]:
     out: list[Case] = []
     budget = ["--max-memory", "8G", "--max-output", "1G"]
@@ -2626,6 +2743,7 @@ def cases() -> list[Case]:
         + round_twelve()
         + round_thirteen()
         + round_fourteen()
+        + round_fifteen()
     )
 
 

@@ -12,11 +12,13 @@ class RunError(Exception):
 
 class Interrupted(KeyboardInterrupt):
     """A run stopped cleanly by a signal; the CLI exits with ``128 + signum`` (130 for
-    Ctrl-C, 143 for SIGTERM, 129 for SIGHUP)."""
+    Ctrl-C, 143 for SIGTERM, 129 for SIGHUP) and prints the message unless ``said`` (the
+    command printed it, with what it kept)."""
 
-    def __init__(self, message: str, signum: int = 2):
+    def __init__(self, message: str, signum: int = 2, *, said: bool = False):
         super().__init__(message)
         self.exit_code = 128 + int(signum)
+        self.said = said
 
 
 class Stop(BaseException):
@@ -32,3 +34,12 @@ def reason(exc: BaseException) -> str:
     if isinstance(exc, OSError) and exc.strerror:
         return exc.strerror
     return str(exc)
+
+
+def printable(text: str) -> str:
+    """``text`` with each character that is not printable but a newline or a tab written as
+    Python writes it in a string (``\\x1b``, ``\\u202e``): a message quotes names from the
+    input (a rheology, a file), and an escape sequence of the terminal there acted on it."""
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() or c in "\n\t" else repr(c)[1:-1] for c in text)

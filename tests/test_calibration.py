@@ -234,6 +234,34 @@ def test_an_observation_row_of_another_number_of_fields_than_its_header_is_named
         study.load_calibration(tmp_path / "c.yaml")
 
 
+@pytest.mark.parametrize(
+    ("table", "columns", "phrase"),
+    [
+        (
+            "t,x_f,sigma\n0.2,9,0.5\n",
+            "[t, t, sigma]",
+            r"observations.0.columns \(line 4\): a column named twice",
+        ),
+        (
+            "t,x_f,sigma,x_f\n0.2,9,0.5,12\n",
+            "[t, x_f, sigma]",
+            "front.csv: its header names the column 'x_f' twice",
+        ),
+    ],
+)
+def test_an_observation_column_named_twice_is_refused(tmp_path, table, columns, phrase):
+    """``columns: [t, t, sigma]`` fitted the front to the times, and a header ``t,x_f,sigma,x_f``
+    (a column pasted twice) read the last ``x_f`` (``csv.DictReader`` keeps it), silently."""
+    shutil.copy(TWIN / "collapse.yaml", tmp_path)
+    (tmp_path / "front.csv").write_text(table)
+    (tmp_path / "c.yaml").write_text(
+        "base: collapse.yaml\nparameters: {rheology.mu_s: {bounds: [0.4, 0.5]}}\nobservations:\n"
+        f"  - {{name: f, quantity: front, file: front.csv, columns: {columns}, units: cm}}\n"
+    )
+    with pytest.raises(InputError, match=phrase):
+        study.load_calibration(tmp_path / "c.yaml")
+
+
 def _calibration_and_sensitivity(
     directory: Path, parameters: str, calibration: str = "", sensitivity: str = ""
 ):

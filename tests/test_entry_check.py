@@ -20,7 +20,7 @@ from test_damaged_results import IMMERSED
 
 from multilayer.engine.state import _Holder
 from multilayer.engine.state_check import StateError
-from multilayer.errors import RunError
+from multilayer.errors import InputError, RunError
 
 NON_HYDROSTATIC = {**TINY_SCENARIO, "model": {"pressure": "non_hydrostatic"}}
 MIXTURE = {**IMMERSED, "base": [{"condition": "no_slip"}]}
@@ -242,3 +242,25 @@ def test_no_public_path_to_the_state_escapes_the_hand_out(scenario):
             while isinstance(base, np.ndarray):
                 base = base.base
             assert isinstance(base, _Holder), path
+
+
+@pytest.mark.parametrize(
+    "replacement",
+    [
+        lambda a: a.astype(np.float32),  # the transport was blamed for the mass its rounding lost
+        np.asfortranarray,  # compiled for anew (10 s)
+        lambda a: a.tolist(),  # numba's TypingError
+        lambda a: a[:1].copy(),  # a broadcast's ValueError
+    ],
+)
+@pytest.mark.parametrize("name", ["h", "u", "w", "q"])
+def test_the_states_arrays_are_written_in_place_not_replaced(name, replacement):
+    """``sim.state.u = ...`` rebound the array the kernels take: each replacement failed
+    its own way, or ran on.  The state's arrays are refused as replaced, naming them."""
+    sim = simulation(**TINY_SCENARIO)
+    sim.step()
+    with pytest.raises(InputError, match=rf"^state\.{name}: the state's arrays are not replaced; accepted"):
+        setattr(sim.state, name, replacement(np.atleast_2d(getattr(sim.state, name))))
+    assert sim.state.array(name) is getattr(sim.state, name)
+    sim.state.h[...] = sim.state.h  # in place: as before
+    sim.step()

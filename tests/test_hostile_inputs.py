@@ -152,9 +152,34 @@ def test_a_key_path_with_an_empty_part_is_malformed(tmp_path, cli, write_scenari
     result = cli("validate", write_scenario(TINY_SCENARIO), "--set", item)
     assert result.code == 2 and "Traceback" not in result.err
     assert (
-        f"--set '{item}': expected KEY=VALUE or KEY+=VALUE; accepted: a dotted key path (no part empty)"
+        f"--set '{item}': expected KEY=VALUE or KEY+=VALUE; accepted: a dotted key path (no part empty"
         in result.err
     )
+
+
+def test_a_key_holding_a_terminal_escape_sequence_is_quoted_not_sent_to_the_terminal(cli, write_scenario):
+    """A key of a scenario or sweep file, or of ``--set``, holding ``ESC [2J`` was printed as
+    written: the message cleared the terminal (a title set, colours changed, by others).
+    Keys that are not printable text are quoted as Python writes them, and the command line
+    writes every character of a message that is not printable (but newlines and tabs) so."""
+    escape = "\x1b[2J"
+    scenario = write_scenario(
+        {**TINY_SCENARIO, f"a{escape}": 1, "rheology": {**TINY_SCENARIO["rheology"], "\u202e": 1}}
+    )
+    sweep = write_scenario({"base": "tiny.yaml", "parameters": {f"rheology.{escape}": [1]}}, "sweep.yaml")
+    write_scenario(TINY_SCENARIO, "tiny.yaml")
+    for argv, said in (
+        ((scenario,), ("'a\\x1b[2J' (line ", "rheology.'\\u202e' (line ")),
+        ((sweep,), ("parameters.'rheology.\\x1b[2J' (line 3): not a scenario key",)),
+        ((scenario, "--set", f"rheology.{escape}=1"), ("--set 'rheology.\\x1b[2J=1': expected KEY=VALUE",)),
+    ):
+        result = cli("validate", *argv)
+        assert result.code == 2 and "\x1b" not in result.err and "\u202e" not in result.err, result.err
+        assert all(text in result.err for text in said), result.err
+    # a value quoted by a message (a rheology's name, a file's): what the command line prints
+    named = write_scenario({**TINY_SCENARIO, "rheology": {"name": f"dp{escape}"}}, "named.yaml")
+    result = cli("validate", named)
+    assert result.code == 2 and "unknown rheology 'dp\\x1b[2J'; accepted" in result.err, result.err
 
 
 def test_spaces_around_a_key_are_not_part_of_it(write_scenario):
@@ -222,6 +247,21 @@ def test_validate_checks_sweep_and_study_files_with_every_member(tmp_path, cli, 
         result = cli("validate", other)
         study = f"{path} is a sweep or study file (it has the key parameters), {accepted}\n"
         assert result.code == 2 and result.err == f"multilayer: error: {other}: base (line 1): {study}"
+
+
+def test_a_base_that_is_no_valid_scenario_is_read_once(write_scenario, monkeypatch):
+    """Its error path read the file again to look for ``parameters``: twice the time for a
+    large file, and a file changed between the two reads was judged by another text."""
+    from multilayer.scenario import loading
+
+    reads = []
+    read = loading.read_yaml
+    monkeypatch.setattr(loading, "read_yaml", lambda path: reads.append(path) or read(path))
+    base = write_scenario({**TINY_SCENARIO, "gravity": -1.0}, "base.yaml")
+    study = write_scenario({"base": "base.yaml", "parameters": {"rheology.mu_s": [0.3]}}, "sweep.yaml")
+    with pytest.raises(InputError, match=r"sweep.yaml: base: the base scenario is invalid:\n.*gravity"):
+        loading.load_base(study, "base.yaml", f"{study}: base", "the base scenario")
+    assert reads == [base]
 
 
 @pytest.fixture(scope="module")
@@ -609,6 +649,19 @@ def test_an_output_directory_that_is_a_file_is_named_so(tmp_path, cli, write_sce
     assert result.code == 2 and f"{tmp_path / 'out'}: a file, not a directory; accepted" in result.err
 
 
+@pytest.mark.parametrize("name", [RESULT_FILE, CHECKPOINT_FILE, "run.log"])
+def test_a_scenario_file_that_is_a_file_of_its_run_is_not_written_over(tmp_path, cli, name):
+    """``multilayer run out/run.log -o out`` read the scenario, then wrote its log over it."""
+    (tmp_path / "out").mkdir()
+    scenario = tmp_path / "out" / name
+    scenario.write_text(yaml.safe_dump(TINY_SCENARIO))
+    result = cli("run", scenario, "-o", tmp_path / "out", "-q")
+    assert (
+        result.code == 2 and f"{scenario}: the scenario file itself, which the run would write" in result.err
+    )
+    assert yaml.safe_load(scenario.read_text()) == TINY_SCENARIO
+
+
 @pytest.mark.parametrize("target", ["missing/out", "out"])
 def test_an_output_directory_that_is_a_link_to_nothing_is_named_so(tmp_path, cli, write_scenario, target):
     """``-o`` a link whose target does not exist, or to itself: "cannot be created or
@@ -913,6 +966,12 @@ def test_load_state_names_a_missing_or_non_finite_entry_and_restores_nothing():
     with pytest.raises(InputError, match=r"^h holds negative thicknesses \(down to -0.05"):
         sim.load_state({**saved, "h": -saved["h"], "t": 5.0})
     assert sim.t == saved["t"] and np.array_equal(sim.h, saved["h"])
+    # netCDF4 reads a variable as a masked array, its fill values (9.97e36) under the mask:
+    # restored, a thickness of 1e37 m stopped the run saying only that the step was too short
+    filled = np.ma.masked_array(np.where(saved["h"] > 0, saved["h"], 9.969e36), mask=saved["h"] == 0)
+    with pytest.raises(InputError, match=r"^h: a masked array of 30 masked value\(s\)"):
+        sim.load_state({**saved, "h": filled})
+    sim.load_state({**saved, "h": np.ma.masked_array(saved["h"])})  # none masked: the numbers
     sim.load_state({k: v for k, v in saved.items() if not k.startswith("seed_")})  # restarts the seed
 
 

@@ -124,6 +124,31 @@ def test_material_outside_the_domain_names_the_entry():
         )
 
 
+@pytest.mark.parametrize("height", [1e-7, 1e-320])
+def test_material_nowhere_thicker_than_the_dry_threshold_is_refused(height, tmp_path):
+    """A column of 1e-7 m (below ``numerics.dry_threshold``, 1e-6 m) on a slope steeper than
+    its friction stayed at rest, and the run completed, its front NaN: the engine holds a
+    dry column at rest.  Refused by the simulation and by ``validate``; with an inflow,
+    which brings material over it, and without material, it is no error."""
+    import yaml
+    from conftest import TINY_SCENARIO
+
+    from multilayer.app import cli
+
+    thin = {**TINY_SCENARIO, "initial": [{**TINY_SCENARIO["initial"][0], "height": height}]}
+    with pytest.raises(InputError, match=r"initial: at most .* m thick on the mesh, not above numerics.dry_"):
+        simulation(initial=[{"shape": "layer", "thickness": height}])
+    (tmp_path / "thin.yaml").write_text(yaml.safe_dump(thin))
+    assert cli.main(["validate", str(tmp_path / "thin.yaml")]) == 2
+    simulation(initial=[{"shape": "layer", "thickness": 0.0}])
+    inflow = {
+        "left": "inflow",
+        "right": "outflow",
+        "inflow": {"thickness": 0.01, "velocity": {"profile": "plug", "speed": 1.0}},
+    }
+    simulation(initial=[{"shape": "layer", "thickness": height}], boundaries=inflow)
+
+
 def test_material_narrower_than_a_cell_names_the_entry():
     with pytest.raises(InputError, match=r"initial\.0 \(rectangle.*narrower than one cell.*at least 250"):
         simulation(

@@ -295,7 +295,8 @@ def test_ctrl_c_is_honoured_between_two_kernel_calls_inside_a_long_step(tmp_path
     begun = len((outdir / "kernel-calls").read_text()) - before
     assert begun <= 1, f"{begun} kernel calls began after Ctrl-C"
     assert waited < 10.0, f"stopped {waited:.2f} s after Ctrl-C, inside a step of 40 s"
-    assert "interrupted by Ctrl-C (SIGINT) at t=0 s; resume with:" in err
+    stop = "multilayer: interrupted by Ctrl-C (SIGINT) at t=0 s; resume with:"
+    assert err.splitlines()[-1].startswith(stop), err  # said once: no "multilayer: interrupted" after
     assert "interrupted by Ctrl-C" in (outdir / "run.log").read_text()
     assert open_result(outdir).attrs["run_status"] == "interrupted"
 

@@ -26,6 +26,7 @@ import pytest
 import xarray as xr
 
 from multilayer.app import calibration, cli
+from multilayer.errors import Interrupted
 
 ROOT = Path(__file__).resolve().parents[1]
 TWIN = ROOT / "studies" / "twin"
@@ -77,6 +78,7 @@ def test_ctrl_c_stops_a_calibration_which_keeps_its_results_and_resumes(tmp_path
     err = capsys.readouterr().err
     assert code == 130, err
     assert "interrupted by Ctrl-C (SIGINT) in search 1" in err, err
+    assert err.splitlines()[-1].startswith("multilayer: resume with: "), err  # said once
     resume = err.split("resume with: ", 1)[1].splitlines()[0]
     assert shlex.split(resume) == ["multilayer", *argv[:4], "--resume", *argv[4:]], resume
     partial = xr.load_dataset(result)
@@ -168,6 +170,7 @@ def test_one_signal_stops_a_study_on_a_local_process_cluster(tmp_path, command, 
     assert rc == code, err
     assert seconds < STOP_WITHIN, (seconds, err)
     assert "Traceback" not in err, err
+    assert err.splitlines()[-1].startswith("multilayer: resume with: "), err  # said once
     resume = err.split("resume with: ", 1)[1].splitlines()[0]
     assert resume == f"multilayer {command} {config} -o out --resume --workers 2"
     if command == "sweep":
@@ -231,3 +234,69 @@ def test_a_local_workers_heartbeat_to_a_closed_scheduler_is_one_line_not_a_trace
     lines = stream.getvalue().splitlines()
     assert lines[0] == "Failed to communicate with scheduler during heartbeat."
     assert lines[1] == "another failure" and "Traceback (most recent call last):" in lines[2:]
+
+
+@pytest.mark.parametrize(
+    ("stop", "said"),
+    [
+        (Interrupted("interrupted by Ctrl-C (SIGINT)", said=True), ""),
+        (Interrupted("stopped by SIGTERM", 15), "multilayer: stopped by SIGTERM\n"),
+        (KeyboardInterrupt(), "multilayer: interrupted\n"),
+    ],
+)
+def test_a_stop_is_said_once(stop, said, capsys):
+    """A stopped run or study prints how it stopped, what it kept and how to resume; the
+    command line then printed ``multilayer: interrupted`` after it.  It prints a stop only
+    where nothing said it, with its cause."""
+    import argparse
+
+    def handler(args):
+        raise stop
+
+    code = cli._dispatch(argparse.Namespace(handler=handler))
+    assert code == getattr(stop, "exit_code", 130) and capsys.readouterr().err == said
+
+
+def test_closing_a_stopped_local_cluster_sets_the_distributed_loggers_level_back():
+    """``close_quickly`` quietens the ``distributed`` logger while the workers say goodbye:
+    a library must not leave its host's logging changed (a notebook's study stopped, then
+    its own cluster's warnings were hidden)."""
+    import logging
+
+    from multilayer.app import stopping
+
+    class Cluster:
+        workers: dict = {}
+        level = None
+
+        def close(self):
+            Cluster.level = logging.getLogger("distributed").level
+
+    logger = logging.getLogger("distributed")
+    before = logger.level
+    logger.setLevel(logging.DEBUG)
+    try:
+        stopping.close_quickly(Cluster())
+        assert Cluster.level == logging.ERROR and logger.level == logging.DEBUG
+    finally:
+        logger.setLevel(before)
+
+
+def test_members_whose_lock_outlives_the_stop_are_named(tmp_path, monkeypatch):
+    """A member on a worker thread in a plugin's code that never returns is not stopped
+    (Dask cannot stop a thread): the study named none and said that those stopped mid-run
+    continue from their checkpoints.  It names the members whose lock, taken since the
+    study began, is still held after the grace; a lock released meanwhile or older than
+    the study (stale, of an earlier run) is not named."""
+    from multilayer.app import stopping
+
+    monkeypatch.setattr(stopping, "STOP_GRACE", 0.3)
+    since = time.time() - 1.0
+    for name in ("m000", "m001", "m002"):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "run.lock").write_text("{}")
+    os.utime(tmp_path / "m002" / "run.lock", (since - 60, since - 60))
+    releasing = threading.Timer(0.1, (tmp_path / "m001" / "run.lock").unlink)
+    releasing.start()
+    assert stopping.still_running(tmp_path, since) == ["m000"]
+    releasing.join()

@@ -253,6 +253,12 @@ def test_a_member_whose_result_another_run_replaced_is_not_reused(tmp_path):
     fingerprint = sweep.scenario_fingerprint(member)
     summary = sweep.run_member(member, str(member_dir), fingerprint, ["rheology.mu_s=0.3"])
     assert sweep.completed(member_dir, fingerprint) == summary
+    # a marker edited or damaged: its summary was reported as the member's (a runout of 99,
+    # NaN, text, all "ok"); the summary is the result's
+    marker = json.loads((member_dir / sweep.MARKER).read_text())
+    marker["summary"].update(runout=99.0, front_final=float("nan"), steps="many")
+    (member_dir / sweep.MARKER).write_text(json.dumps(marker))
+    assert sweep.completed(member_dir, fingerprint) == summary
     runner.run(scenario.load(base, ["rheology.mu_s=0.4"]), member_dir, quiet=True)
     assert (member_dir / sweep.MARKER).is_file() and results.run_failure(member_dir) is None
     assert sweep.completed(member_dir, fingerprint) is None

@@ -21,7 +21,7 @@ from collections.abc import Iterator, Sequence
 from typing import Any
 
 from multilayer.app import numba_environment
-from multilayer.errors import InputError, Interrupted, RunError
+from multilayer.errors import InputError, Interrupted, RunError, printable
 
 SUBCOMMANDS = (
     "run", "validate", "compile", "plugins", "sweep", "calibrate", "sensitivity", "check", "plot", "export",
@@ -95,7 +95,7 @@ def _warning(message, category, filename, lineno, file=None, line=None) -> None:
     if "Traceback (most recent call last):" in text:  # numba quotes one for a variable it cannot read
         lines = text.splitlines()
         text = f"{lines[0]} ({lines[-1]})"
-    print(f"multilayer: warning: {text}", file=sys.stderr if file is None else file)
+    print(f"multilayer: warning: {printable(text)}", file=sys.stderr if file is None else file)
 
 
 @contextlib.contextmanager
@@ -142,10 +142,10 @@ def _dispatch(args: argparse.Namespace) -> int:
         numba_environment.check()
         return args.handler(args)
     except InputError as exc:
-        print(f"multilayer: error: {exc}", file=sys.stderr)
+        print(f"multilayer: error: {printable(str(exc))}", file=sys.stderr)
         return 2
     except RunError as exc:
-        print(f"multilayer: run failed: {exc}", file=sys.stderr)
+        print(f"multilayer: run failed: {printable(str(exc))}", file=sys.stderr)
         return 1
     except BrokenPipeError:  # the reader of stdout went away (multilayer plugins | head -1)
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # nothing more to flush at exit
@@ -159,7 +159,8 @@ def _dispatch(args: argparse.Namespace) -> int:
         )
         return 2
     except KeyboardInterrupt as exc:
-        print("multilayer: interrupted", file=sys.stderr)
+        if not getattr(exc, "said", False):  # a run or study says itself how it stopped and what it kept
+            print(f"multilayer: {printable(str(exc)) or 'interrupted'}", file=sys.stderr)
         return getattr(exc, "exit_code", 130)
 
 

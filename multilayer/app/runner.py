@@ -111,7 +111,7 @@ def run(
             f"{outdir}: nothing to resume (no such directory); run without --resume to start afresh"
         )
     budget = budget or resources.Budget()
-    created = output_directory(outdir)
+    created = output_directory(outdir, scenario.source)
     try:
         resources.check(scenario, outdir, budget)
         resources.check_steps(scenario, budget)
@@ -147,16 +147,18 @@ def run(
             if stop.starting:  # before anything was computed: nothing to keep, the lock goes
                 log.warning("%s", exc)
                 print(f"multilayer: {exc}", file=sys.stderr)
+                exc.said = True
             raise
         finally:
             handler.close()
         return summary(outdir / RESULT_FILE, checked=False)  # every state passed the state guard
 
 
-def output_directory(outdir: Path) -> list[Path]:
-    """Make ``outdir`` and check that files can be written there; the directories made,
-    deepest first.  :class:`InputError` naming it (``-o DIR`` or ``output.directory``)
-    otherwise."""
+def output_directory(outdir: Path, source: Path | None = None) -> list[Path]:
+    """Make ``outdir`` and check that files can be written there, none of the run's the
+    scenario file ``source`` (``multilayer run DIR/run.log -o DIR`` wrote the log over
+    it); the directories made, deepest first.  :class:`InputError` naming it (``-o DIR``
+    or ``output.directory``) otherwise."""
     accepted = "accepted: an output directory (-o DIR or output.directory) that can be created and written"
     try:
         str(outdir).encode("utf-8")
@@ -181,7 +183,13 @@ def output_directory(outdir: Path) -> list[Path]:
     except OSError as exc:
         raise InputError(f"{outdir}: cannot be created or written ({reason(exc)}); {accepted}") from None
     for name in (RESULT_FILE, CHECKPOINT_FILE, LOG_FILE):
-        writable(outdir / name)
+        path = writable(outdir / name)
+        if source is not None and path.exists() and path.samefile(source):
+            raise InputError(
+                f"{path}: the scenario file itself, which the run would write over; accepted: a scenario "
+                f"file not named {', '.join((RESULT_FILE, CHECKPOINT_FILE, LOG_FILE))} in the output "
+                "directory"
+            )
     return missing
 
 
@@ -309,8 +317,8 @@ def _run(
         writer.close(sim.steps, wall_time(), status, scenario)
     if status == "interrupted":
         if stop.requested:  # a member stopped by its study leaves the resume command to the study
-            print(message, file=sys.stderr)
-        raise Interrupted(message, stop.signum)
+            print(f"multilayer: {message}", file=sys.stderr)
+        raise Interrupted(message, stop.signum, said=stop.requested)
     log.info("completed: %d steps, wall time %.1f s", sim.steps, wall_time())
 
 

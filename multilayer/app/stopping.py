@@ -104,22 +104,28 @@ def close_quickly(cluster: Any) -> None:
 
     The members were asked to stop (:class:`StopFile`) and do within a fraction of a second,
     checkpointed, so the workers are soon idle and close; a worker still busy then (say,
-    importing the engine, with no run under way) would hold the close for seconds.
+    importing the engine, with no run under way) would hold the close for seconds.  The
+    ``distributed`` logger is quiet (errors only) while it closes, then as it was.
     """
-    logging.getLogger("distributed").setLevel(logging.ERROR)  # the workers' goodbyes are not news
     pids = [
         nanny.process.process.pid
         for nanny in cluster.workers.values()
         if getattr(getattr(nanny, "process", None), "process", None) is not None
     ]
-    closing = threading.Thread(target=cluster.close, daemon=True)
-    closing.start()
-    closing.join(CLOSE_GRACE)
-    if closing.is_alive():
-        for pid in pids:
-            with contextlib.suppress(OSError):
-                os.kill(pid, signal.SIGKILL)
+    logger = logging.getLogger("distributed")  # the host process's: its level is set back
+    level = logger.level
+    logger.setLevel(logging.ERROR)  # the workers' goodbyes are not news
+    try:
+        closing = threading.Thread(target=cluster.close, daemon=True)
+        closing.start()
         closing.join(CLOSE_GRACE)
+        if closing.is_alive():
+            for pid in pids:
+                with contextlib.suppress(OSError):
+                    os.kill(pid, signal.SIGKILL)
+            closing.join(CLOSE_GRACE)
+    finally:
+        logger.setLevel(level)
 
 
 def check() -> None:
@@ -162,6 +168,7 @@ def as_completed(client: Any, futures: list[Any], members: str | Path) -> Iterat
     futures cancelled before the exception goes on."""
     from dask.distributed import as_completed as completed
 
+    since = time.time() - 1.0  # a second before the futures were submitted, just before
     waiting = completed(futures)
     try:
         while not waiting.is_empty():
@@ -170,9 +177,39 @@ def as_completed(client: Any, futures: list[Any], members: str | Path) -> Iterat
             if not ready:
                 time.sleep(POLL)
             yield from ready
-    except BaseException:
+    except BaseException as exc:
         unfinished = [f for f in futures if not f.done()]
         if unfinished:
             StopFile(members).request()
             client.cancel(unfinished)
+            if isinstance(exc, Interrupted) and getattr(client, "cluster", None) is None:
+                exc.running = still_running(Path(members), since)  # type: ignore[attr-defined]
         raise
+
+
+STOP_GRACE = 2.0
+"""Seconds a member of a cluster of ``--scheduler`` is given to stop (it looks for the
+:class:`StopFile` every :data:`STOP_FILE_POLL` seconds between its kernel calls)."""
+
+
+def still_running(members: Path, since: float) -> list[str]:
+    """The members (subdirectories of ``members``) whose run, begun after ``since`` (a
+    time of ``time.time()``), still holds its lock :data:`STOP_GRACE` seconds from now.
+
+    A cluster of ``--scheduler`` may run members in threads, which Dask cannot stop: one in
+    a plugin's code that never returns does not see the :class:`StopFile` and runs on (the
+    local cluster's worker processes are killed instead, :func:`close_quickly`)."""
+    from multilayer.app.lock import LOCK_FILE
+
+    def held() -> list[str]:
+        names = []
+        for path in members.glob(f"*/{LOCK_FILE}"):
+            with contextlib.suppress(OSError):  # removed meanwhile: that member stopped
+                if path.stat().st_mtime >= since:
+                    names.append(path.parent.name)
+        return sorted(names)
+
+    end = time.monotonic() + STOP_GRACE
+    while (running := held()) and time.monotonic() < end:
+        time.sleep(POLL)
+    return running

@@ -47,9 +47,10 @@ from multilayer.io.results import (
     recorded,
     run_failure,
 )
+from multilayer.io.results import summary as result_summary
 from multilayer.scenario import as_overrides, format_value
 from multilayer.scenario.loading import BASE_ACCEPTED, load_base
-from multilayer.scenario.messages import shown
+from multilayer.scenario.messages import dotted, shown
 
 SWEEP_KEYS = ("base", "parameters", "zip", "output", "description")
 """Top-level keys accepted in a sweep file."""
@@ -153,7 +154,7 @@ def load(path: str | Path) -> Sweep:
 
     def at(key: tuple[str, ...]) -> str:
         line = f" (line {lines[key]})" if key in lines else ""
-        return f"{path}: {'.'.join(key)}{line}"
+        return f"{path}: {dotted(key)}{line}"
 
     def bad(key: tuple[str, ...], what: str, accepted: str) -> InputError:
         return InputError(f"{at(key)}: {what}; accepted: {accepted}")
@@ -182,7 +183,7 @@ def load(path: str | Path) -> Sweep:
             "e.g. {rheology.mu_s: [0.4, 0.5]}",
         )
     for key, values in parameters.items():
-        if not isinstance(key, str) or not key or any(c.isspace() or c == "=" for c in key):
+        if not isinstance(key, str) or not key.isprintable() or any(c.isspace() or c == "=" for c in key):
             raise bad(
                 ("parameters", str(key)),
                 "not a scenario key",
@@ -284,10 +285,13 @@ def _fingerprint(resolved: str) -> str:
 
 
 def completed(member_dir: Path, fingerprint: str) -> dict[str, float] | None:
-    """The stored summary if ``member_dir`` holds a completed, finite run of this exact
-    scenario: the marker's fingerprint and the scenario ``result.nc`` records both this
-    one's (a run of another scenario into the member's directory, ``multilayer run -o``,
-    leaves the marker: its summary was reported and its result measured as the member's)."""
+    """The summary of the member's ``result.nc`` if ``member_dir`` holds a completed, finite
+    run of this exact scenario: the marker's fingerprint and the scenario ``result.nc``
+    records both this one's (a run of another scenario into the member's directory,
+    ``multilayer run -o``, leaves the marker: its summary was reported and its result
+    measured as the member's).  The summary is read from the result, which passed its
+    checks, not from the marker: a marker edited or damaged (a runout of 99, NaN, text)
+    was reported as the member's."""
     try:
         marker = json.loads((member_dir / MARKER).read_text())
     except (OSError, ValueError, RecursionError):
@@ -299,7 +303,7 @@ def completed(member_dir: Path, fingerprint: str) -> dict[str, float] | None:
         return None
     if run_failure(member_dir) is not None or _fingerprint(recorded(member_dir, "scenario")) != fingerprint:
         return None
-    return summary
+    return result_summary(member_dir / RESULT_FILE, checked=False)  # checked by run_failure
 
 
 def run_member(

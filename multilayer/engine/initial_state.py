@@ -171,14 +171,34 @@ def velocity_profile(velocity: Velocity | None, zeta: np.ndarray, thickness: np.
     return velocity.surface_speed * bagnold_shape(zeta / np.where(thickness > 0, thickness, 1.0))
 
 
+def initial_thickness(entries: Sequence[InitialEntry], edges: np.ndarray) -> np.ndarray:
+    """Cell-averaged thickness (N,) of the stacked ``initial`` entries on the cells between
+    ``edges`` (N+1,), one entry at a time: the memory of the mesh, whatever the entries."""
+    h = np.zeros(edges.size - 1)
+    for entry in entries:
+        h += entry_thickness(entry, edges)
+    return h
+
+
+def check_not_dry(h: np.ndarray, dry: float, fed: bool, where: str) -> None:
+    """:class:`InputError` if the initial thickness ``h`` on the mesh holds material but
+    nowhere more than the dry threshold ``dry``, and no inflow (``fed``) comes to it: the
+    engine holds a dry column at rest (a film of 1e-7 m on a slope steeper than its
+    friction stayed put, and the run completed); ``where`` names the scenario."""
+    if not fed and 0.0 < h.max(initial=0.0) <= dry:
+        raise InputError(
+            f"{where}: initial: at most {h.max(initial=0.0):.3g} m thick on the mesh, not above "
+            f"numerics.dry_threshold = {dry:g} m, below which a column is dry (held at rest); accepted: "
+            "material thicker than numerics.dry_threshold in some cell, or a smaller numerics.dry_threshold"
+        )
+
+
 def initial_state(
     entries: Sequence[InitialEntry], x: np.ndarray, sigma: np.ndarray, edges: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Cell-averaged thickness h (N,) and layer velocities u (L, N) at the cell centres
     ``x`` of the stacked ``initial`` entries (cells between ``edges``, (N+1,))."""
-    h = np.zeros_like(x)
-    for entry in entries:  # one thickness at a time: the memory of the mesh, whatever the entries
-        h += entry_thickness(entry, edges)
+    h = initial_thickness(entries, edges)
     z = sigma[:, None] * h[None, :]  # layer centres above the bed
     u = np.zeros((sigma.size, x.size))
     base = np.zeros_like(x)

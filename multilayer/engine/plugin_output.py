@@ -99,14 +99,17 @@ def read_only(value: Any) -> Any:
 
 def real_array(plugin: Any, method: str, value: Any, t: float | None = None) -> np.ndarray:
     """``value`` returned by ``plugin.method`` as a new float array; :class:`PluginOutputError`
-    unless it holds real numbers (not complex, text, objects or booleans)."""
+    unless it holds real numbers (not complex, text, objects or booleans, nor values under
+    the mask of a masked array, which ``np.asarray`` would read as numbers)."""
     with contained(plugin, method, t):
         raw = np.asarray(value)
-    if raw.dtype.kind not in "fiu":
+        masked = np.ma.count_masked(value) if np.ma.isMaskedArray(value) else 0
+    if raw.dtype.kind not in "fiu" or masked:
         when = "" if t is None else f" (at t = {t:.6g} s)"
+        what = f"a masked array of {masked} masked value(s)" if masked else f"values of type {raw.dtype}"
         raise PluginOutputError(
-            f"{plugin_label(plugin)}: {method} returned values of type {raw.dtype} "
-            f"({type(value).__name__}); must be real numbers{when}"
+            f"{plugin_label(plugin)}: {method} returned {what} ({type(value).__name__}); must be real "
+            f"numbers{when}"
         )
     return np.array(raw, dtype=float)
 

@@ -131,6 +131,7 @@ class Simulation:
         edges = initial_state.cell_edges(c.x_min, c.x_max, c.cells)
         initial_state.check_entries(c.initial, c.x_min, c.x_max, self.dx, c.name)
         h0, u0 = initial_state.initial_state(c.initial, self.x, self.sigma, edges)
+        initial_state.check_not_dry(h0, self.dry, self.inflow is not None, c.name)
         self._state = FlowState(
             np.ascontiguousarray(h0, dtype=float),
             np.ascontiguousarray(u0, dtype=float).reshape(self.fractions.size, c.cells),

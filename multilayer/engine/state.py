@@ -65,6 +65,19 @@ class FlowState:
         self._velocities = (0, N)  # columns outside which u is zero
         self._surveyed = (0, N)  # columns outside which moving and rest are False
 
+    def __setattr__(self, name: str, value: object) -> None:
+        """The arrays ``h``, ``u``, ``w`` and ``q`` are written in place, never replaced: the
+        kernels take them as C-ordered float64 arrays of their shape, and one replaced (by
+        ``sim.state.u = u.T.copy()``, a float32 or Fortran-ordered array or a list) was
+        compiled for anew, or failed in numba's typing or a broadcast, or blamed the
+        transport for the mass its float32 rounding lost.  :class:`InputError` naming it."""
+        if name in ("h", "u", "w", "q") and name in self.__dict__:
+            raise InputError(
+                f"state.{name}: the state's arrays are not replaced; accepted: writing into it in place, "
+                f"state.{name}[...] = values (or sim.{name}[...] = values), or sim.load_state(saved)"
+            )
+        super().__setattr__(name, value)
+
     def add_field(self, name: str, default: str | float = 0.0) -> np.ndarray:
         """A new layer field (L, N), initially ``default``: a number, or the name of a field
         (or ``"u"``) whose values it starts from (and takes when a saved state lacks it)."""

@@ -302,6 +302,11 @@ def check_restored(saved: Mapping[str, Any], fresh: Mapping[str, Any]) -> None:
     for key, value in saved.items():
         if key not in fresh:
             raise InputError(f"{key}: an entry this version of multilayer does not write")
+        if masked := np.ma.count_masked(value) if np.ma.isMaskedArray(value) else 0:  # asarray unmasks
+            raise InputError(
+                f"{key}: a masked array of {masked} masked value(s) (a netCDF file's fill values, read by "
+                "netCDF4), where numbers: the values under a mask would be restored"
+            )
         a, ref = np.asarray(value), np.asarray(fresh[key])
         if a.shape != ref.shape or a.dtype.kind not in ("iu" if ref.dtype.kind in "iu" else "iuf"):
             raise InputError(

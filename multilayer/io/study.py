@@ -140,6 +140,14 @@ class Observation(StrictModel):
             raise invalid(f"unknown unit {value!r}", ", ".join(UNITS))
         return value
 
+    @field_validator("columns")
+    @classmethod
+    def _distinct(cls, value: list[str] | None) -> list[str] | None:
+        """``[t, t, sigma]`` read the times as the observed values: a fit to them."""
+        if value is not None and len(set(value)) < len(value):
+            raise invalid(f"a column named twice ({value})", "distinct names: [coordinate, value, sigma]")
+        return value
+
     @model_validator(mode="after")
     def _check(self) -> Observation:
         scalar = self.quantity in SCALARS
@@ -514,6 +522,12 @@ def _read_csv(file: Path, columns: list[str], where: str) -> tuple[np.ndarray, n
         raise InputError(f"{where}: {exc}") from None
     try:
         reader = csv.DictReader(io.StringIO(text, newline=""))
+        twice = [c for c in columns if (reader.fieldnames or []).count(c) > 1]
+        if twice:  # a dict of the row keeps the last of them, silently
+            raise InputError(
+                f"{where}: {file}: its header names the column {twice[0]!r} twice; accepted: a CSV file "
+                "whose header names each column it reads once"
+            )
         rows = list(itertools.islice(reader, MAX_PROFILE_POINTS + 1))
         for row in rows:  # more fields than the header: DictReader dropped the others, silently
             if None in row or None in row.values():

@@ -86,14 +86,14 @@ def load_base(study: Path, base: str, where: str, what: str, overrides: Sequence
         raise InputError(f"{where}: scenario file {path} {missing}; accepted: {BASE_ACCEPTED}")
     if path.samefile(study):
         raise InputError(f"{where}: {path} is this file itself, not a scenario; accepted: {BASE_ACCEPTED}")
-    try:
-        load(path, overrides)
+    try:  # read once: the file may change between two reads
+        data, lines = read_yaml(path)
+        if not (isinstance(data, dict) and "parameters" in data):  # a key of sweeps and studies only
+            from_dict(data, source=path, overrides=overrides, lines=lines)
+            return path
     except InputError as exc:
-        data, _ = read_yaml(path)
-        if isinstance(data, dict) and "parameters" in data:  # a key of sweeps and studies, no scenario's
-            raise InputError(
-                f"{where}: {path} is a sweep or study file (it has the key parameters), not a scenario; "
-                f"accepted: {BASE_ACCEPTED}"
-            ) from None
         raise InputError(f"{where}: {what} is invalid:\n{exc}") from None
-    return path
+    raise InputError(
+        f"{where}: {path} is a sweep or study file (it has the key parameters), not a scenario; "
+        f"accepted: {BASE_ACCEPTED}"
+    )

@@ -22,8 +22,10 @@ KeyPath = tuple[str | int, ...]
 
 
 def dotted(path: Sequence[str | int]) -> str:
-    """``domain.cells``: a key path as messages write it."""
-    return ".".join(str(p) for p in path) or "(top level)"
+    """``domain.cells``: a key path as messages write it; a key that is not printable text
+    quoted (``'\\x1b[2J'``): a key of the file is printed as the file wrote it, and an
+    escape sequence of the terminal in it acted on the terminal (cleared it, set its title)."""
+    return ".".join(str(p) if str(p).isprintable() else repr(p) for p in path) or "(top level)"
 
 
 def invalid(message: str, accepted: str, key: str = "") -> PydanticCustomError:

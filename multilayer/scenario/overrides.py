@@ -37,11 +37,11 @@ def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> tuple[dic
         key = key.strip()  # "domain.cells = 200" names domain.cells
         append = key.endswith("+")
         key = key.removesuffix("+").rstrip()
-        if not sep or "" in key.split("."):
+        if not sep or "" in key.split(".") or not key.isprintable():  # an escape sequence: to the terminal
             raise InputError(
-                f"--set {shown(item)}: expected KEY=VALUE or KEY+=VALUE; accepted: a dotted key path "
-                "(no part empty) and a YAML value, e.g. domain.cells=200 or initial+={shape: layer, "
-                "thickness: 0.002}"
+                f"--set {shown(item)}: expected KEY=VALUE or KEY+=VALUE; accepted: a dotted key path (no "
+                "part empty, printable text) and a YAML value, e.g. domain.cells=200 or initial+={shape: "
+                "layer, thickness: 0.002}"
             )
         limits.check_yaml(text, f"--set {key}", Loader)
         try:

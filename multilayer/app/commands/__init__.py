@@ -230,3 +230,25 @@ def resume_command(command: str, config: str, outdir: Path, args: argparse.Names
     elif args.workers is not None:
         words += ["--workers", str(args.workers)]
     return shlex.join(words)
+
+
+def report_stop(exc: Any, done: str | None, command: str, config: str, outdir: Path, args: Any) -> None:
+    """Say on stderr how the study stopped (``exc``, a :class:`~multilayer.errors.Interrupted`),
+    what it kept (``done``, the rest of that line; None if nothing), the members that
+    did not stop (``exc.running``: in a plugin's code that never returns, on worker
+    threads) and how to resume; the command line then says no more (``exc.said``)."""
+    import sys
+
+    from multilayer.errors import printable
+
+    print(f"multilayer: {printable(str(exc))}{done or ''}", file=sys.stderr)
+    running = getattr(exc, "running", [])
+    if running:
+        print(
+            f"multilayer: warning: member(s) {', '.join(running)} did not stop (in a plugin's code that "
+            f"never returns?): the worker threads of {args.scheduler} run them on until the workers are "
+            "restarted (Dask cannot stop a thread), their directories locked until then",
+            file=sys.stderr,
+        )
+    print(f"multilayer: resume with: {resume_command(command, config, outdir, args)}", file=sys.stderr)
+    exc.said = True

@@ -21,8 +21,8 @@ from multilayer.app.commands import (
     add_study_arguments,
     check_resume,
     cluster_description,
+    report_stop,
     require,
-    resume_command,
     study_directory,
     study_ensemble,
 )
@@ -88,18 +88,15 @@ def _calibrate(args: argparse.Namespace, plan: Any, outdir: Path) -> int:
     except Interrupted as exc:
         if live:
             sys.stderr.write("\n")
+        kept = None
         if calibrator is not None:
             save(f"interrupted in {calibrator.stage} {calibrator.step}")
             best = calibrator.snapshot()
-            print(
-                f"multilayer: {exc} in {calibrator.stage} {calibrator.step}: {len(best.candidates)} "
-                f"parameter set(s) evaluated, best misfit {best.misfit:.6g}; wrote {path}",
-                file=sys.stderr,
+            kept = (
+                f" in {calibrator.stage} {calibrator.step}: {len(best.candidates)} "
+                f"parameter set(s) evaluated, best misfit {best.misfit:.6g}; wrote {path}"
             )
-        print(
-            f"multilayer: resume with: {resume_command('calibrate', args.config, outdir, args)}",
-            file=sys.stderr,
-        )
+        report_stop(exc, kept, "calibrate", args.config, outdir, args)
         raise
     calibrations.write(fit, calibrator, path)
     print(f"calibrate: misfit {fit.misfit:.6g} for {fit.predicted.size} observed point(s); wrote {path}")

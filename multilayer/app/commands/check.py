@@ -17,7 +17,7 @@ import sys
 from multilayer import scenario as scenarios
 from multilayer.app import expectations as expect
 from multilayer.app.commands import directory
-from multilayer.errors import InputError, RunError
+from multilayer.errors import InputError, RunError, printable
 
 HELP = "run scenario files and check their expect: lists (regression pins and reference values)"
 
@@ -60,7 +60,7 @@ def main(args: argparse.Namespace) -> int:
         try:
             outcomes = expect.check(scenario, outdir)
         except RunError as exc:
-            print(f"{scenario.source}: run failed: {exc}")
+            print(printable(f"{scenario.source}: run failed: {exc}"))
             failed += 1
             continue
         print(f"{scenario.source}: " + expect.report(scenario.name, outcomes), flush=True)

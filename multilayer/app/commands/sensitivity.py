@@ -20,8 +20,8 @@ from multilayer.app.commands import (
     add_study_arguments,
     check_resume,
     cluster_description,
+    report_stop,
     require,
-    resume_command,
     study_directory,
     study_ensemble,
 )
@@ -68,18 +68,15 @@ def _sensitivity(args: argparse.Namespace, study: Any, outdir: Path) -> int:
             evaluations = sensitivity.run(study, ensemble, report, points)
     except Interrupted as exc:
         done = getattr(exc, "evaluations", None)
+        kept = None
         if done is not None:
             sensitivity.write(study, points, done, None, path)
             finished = sum(e is not None for e in done)
-            print(
-                f"multilayer: {exc}: {finished} of {len(done)} runs done, the others cancelled "
-                f"(those stopped mid-run continue from their checkpoints); wrote {path} (no indices)",
-                file=sys.stderr,
+            kept = (
+                f": {finished} of {len(done)} runs done, the others cancelled "
+                f"(those stopped mid-run continue from their checkpoints); wrote {path} (no indices)"
             )
-        print(
-            f"multilayer: resume with: {resume_command('sensitivity', args.config, outdir, args)}",
-            file=sys.stderr,
-        )
+        report_stop(exc, kept, "sensitivity", args.config, outdir, args)
         raise
     failed = [e for e in evaluations if e.status != "ok"]
     result = None  # the Sobol' estimators need every run

@@ -22,8 +22,8 @@ from multilayer.app.commands import (
     add_resume_argument,
     check_resume,
     cluster_description,
+    report_stop,
     require,
-    resume_command,
     study_directory,
 )
 
@@ -89,7 +89,7 @@ def _sweep(args: argparse.Namespace, plan: Any, outdir: Path, summary: Path) -> 
     """:func:`main` once the directory is held."""
     from multilayer.app import stopping
     from multilayer.app import sweep as sweeps
-    from multilayer.errors import Interrupted
+    from multilayer.errors import Interrupted, printable
 
     where = cluster_description(args)
     report = _Report(where, args.quiet)
@@ -107,17 +107,15 @@ def _sweep(args: argparse.Namespace, plan: Any, outdir: Path, summary: Path) -> 
         if report.live:
             sys.stderr.write("\n")
         done = getattr(exc, "outcomes", None)
+        kept = None
         if done is not None:
             sweeps.write_summary(plan, done, summary)
             finished = sum(o.status in ("ok", "failed") for o in done)
-            print(
-                f"multilayer: {exc}: {finished} of {len(done)} members complete, the others "
-                f"cancelled (those stopped mid-run continue from their checkpoints); wrote {summary}",
-                file=sys.stderr,
+            kept = (
+                f": {finished} of {len(done)} members complete, the others cancelled "
+                f"(those stopped mid-run continue from their checkpoints); wrote {summary}"
             )
-        print(
-            f"multilayer: resume with: {resume_command('sweep', args.sweep, outdir, args)}", file=sys.stderr
-        )
+        report_stop(exc, kept, "sweep", args.sweep, outdir, args)
         raise
     sweeps.write_summary(plan, outcomes, summary)
 
@@ -125,7 +123,9 @@ def _sweep(args: argparse.Namespace, plan: Any, outdir: Path, summary: Path) -> 
         if outcome.status != "ok":
             values = ", ".join(outcome.member.overrides)
             print(
-                f"multilayer: member {outcome.member.id} ({values}) {outcome.status}: {outcome.error}",
+                printable(
+                    f"multilayer: member {outcome.member.id} ({values}) {outcome.status}: {outcome.error}"
+                ),
                 file=sys.stderr,
             )
     counts = {status: sum(o.status == status for o in outcomes) for status in ("ok", "invalid", "failed")}

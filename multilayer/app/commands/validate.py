@@ -20,7 +20,7 @@ from multilayer import scenario as scenarios
 from multilayer.app import expectations, factory, resources
 from multilayer.app.commands import add_budget_arguments, add_set_argument, budget
 from multilayer.engine import initial_state
-from multilayer.errors import InputError
+from multilayer.errors import InputError, printable
 from multilayer.scenario import Scenario
 
 HELP = "check scenario, sweep and study files without running them"
@@ -40,7 +40,7 @@ def main(args: argparse.Namespace) -> int:
         try:
             line = _check_file(path, args)
         except InputError as exc:
-            print(f"multilayer: error: {exc}", file=sys.stderr)
+            print(f"multilayer: error: {printable(str(exc))}", file=sys.stderr)
             invalid += 1
             continue
         print(f"{path}: ok ({line})")
@@ -93,6 +93,10 @@ def _check(scenario: Scenario, path: str | Path, args: argparse.Namespace) -> st
     dx = (dom.x_max - dom.x_min) / dom.cells
     entries = factory.initial_entries(scenario)
     initial_state.check_entries(entries, dom.x_min, dom.x_max, dx, str(path))
+    edges = initial_state.cell_edges(dom.x_min, dom.x_max, dom.cells)
+    h0 = initial_state.initial_thickness(entries, edges)
+    fed = scenario.boundaries.inflow is not None
+    initial_state.check_not_dry(h0, scenario.numerics.dry_threshold, fed, str(path))
     steps = resources.check_steps(scenario, limits)
     factory.check_pressure(scenario)  # as the run: after the estimate of its steps
     expectations.validate(scenario)
