@@ -571,12 +571,14 @@ What the runs show about why:
   only a model with it can tell.  Measured by
   `python benchmarks/collapse_budget.py --ratios 2 7 10 --dx 2e-3 1e-3 5e-4`.
 - **The output times.**  The run cuts its steps at the output times (every 0.01 s here); a
-  step cut to 3e-8 s leaves a non-hydrostatic pressure of 2.4e4 m^2/s^2 (1-4 m^2/s^2 before),
-  which the next vertical step takes as yield pressure.  The tip run-out depends on the output
-  interval: at a = 10 with 0.5 mm cells it is 16.64, 14.68, 16.87 with outputs every 0.005,
-  0.01, 0.02 s (1 mm: 14.55, 16.04, 15.31; a = 7, 1 mm: 12.90, 12.69, 12.40), and with steps
-  cut every 0.2 ms it falls to 11.79 (a = 10, 1 mm) and 8.02 (a = 7, 1 mm).  The fall of the
-  a = 10 run-out from the 1 mm to the 0.5 mm mesh above is within this spread.
+  step cut short leaves a large non-hydrostatic pressure, which the next vertical step takes
+  as yield pressure: at a = 10 with 0.5 mm cells, steps of 2.7e-6 to 2.3e-5 s leave up to
+  73 m^2/s^2 (0.2-0.5 m^2/s^2 the step before), a step of 3e-8 s 2.4e4 m^2/s^2.  The tip
+  run-out depends on the output interval: at a = 10 with 0.5 mm cells it is 16.64, 14.68,
+  16.87 with outputs every 0.005, 0.01, 0.02 s (1 mm: 14.55, 16.04, 15.31; a = 7, 1 mm:
+  12.90, 12.69, 12.40), and with steps cut every 0.2 ms it falls to 11.79 (a = 10, 1 mm) and
+  8.02 (a = 7, 1 mm).  The fall of the a = 10 run-out from the 1 mm to the 0.5 mm mesh above
+  is within this spread.
 {release_text}{gate_text}- **The coarsest mesh can mislead.**  With {CELLS[0] * 1e3:g} mm cells (the column
   {L0 / CELLS[0]:g} cells wide) the tip differs by more than 10 % from the next mesh's at
   a = {", ".join(f"{a:g}" for a in coarse_off) or "none"}.
