@@ -113,7 +113,7 @@ def sample(sim: Simulation) -> Sample:
     h, u, l = sim.h, sim.u, sim.fractions[:, None]
     wet = h > sim.dry
     cs = stresses.columns(h, wet, rest=sim.state.rest, yield_gravity=sim.pressure.yield_gravity(sim.state, h))
-    f = faces(sim, cs, u[:, wet])
+    f = faces(sim, cs, u[:, wet], sim.w[:, wet])
     norm = np.sqrt(f.along**2 + (0.5 * f.dudz) ** 2)
     mu_p = stresses.bulk_stress(2.0 * norm, f.pressure, f.h, f.x)
     tau_xx = mu_p * np.divide(f.along, norm, out=np.zeros_like(norm), where=norm > 0)
