@@ -192,8 +192,8 @@ def project(
     kinematic pressures ``q`` (L, N) at the bottom interface of each layer (``q`` per unit
     density, m^2/s^2; zero at the free surface): those of the projection of the update
     from ``start``, the thickness, velocities and ``w`` (L, N) of the step's start (module
-    Notes; None: a start that satisfies the constraint).  Cells at rest (``u == 0.0``) or dry keep
-    ``u = w = 0``.  With ``g_n = g cos(theta)`` the total pressure
+    Notes; None: a start that satisfies the constraint).  Cells at rest (``u == 0.0``) or
+    dry keep ``u = w = 0``.  With ``g_n = g cos(theta)`` the total pressure
     ``g_n (h - z) + q`` is kept non-negative (granular matter takes no tension); the cells
     ``tension_free`` (L, N) where it was zero the step before (:func:`tension_free`) start
     the active-set iteration (speed only: the answer does not depend on them).
