@@ -570,11 +570,11 @@ def test_bounded_solve_equals_the_dense_solution_of_its_active_set():
     r = rng.normal(size=n) * 10.0
     bound = np.abs(rng.normal(size=n))
     settled = np.zeros(n, dtype=bool)
-    banded.bounded(band, r, bound, settled, 100)
+    banded.bounded(band, r, bound, settled, 100, np.empty(band.shape), False)
     # a guess wrong from row 60 on: the solves after the first restart there
     active = settled.copy()
     active[60:] = rng.random(n - 60) < 0.5
-    x, iterations = banded.bounded(band, r, bound, active, 100)
+    x, iterations = banded.bounded(band, r, bound, active, 100, np.empty(band.shape), False)
     assert iterations >= 2 and 0 < active.sum() < n and np.array_equal(active, settled)
     free = ~active
     expected = bound.copy()

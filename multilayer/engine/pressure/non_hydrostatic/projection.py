@@ -140,7 +140,7 @@ def correction(
         np.empty(K),
     )
     band, r = normal_equations(*cons.geometry, free, row_of, n, V_star, np.empty(0), arrays)
-    lam = multipliers(band, r, rows[:n], lam_max, active)
+    lam = multipliers(band, r, rows[:n], lam_max, active)[0]
     dV = np.empty(K)
     correct(*arrays, free, lam, dV)
     return V_star, dV, free
@@ -266,13 +266,15 @@ def project_columns(
         carried = _product(*arrays[:3], free, V0, n)
     geometry = (thickness, bed[window], fractions, dx, left, right, P)
     band, r = normal_equations(*geometry, free, row_of, n, V_star, buffers.band, arrays)
-    lam = multipliers(band, r, buffers.rows[:n], lam_max, active)
+    lam, factored = multipliers(band, r, buffers.rows[:n], lam_max, active)
     correct(*arrays, free, lam, dV)
     dQ = dV
     if carried is not None and carried.any():
-        # the pressure: the projection of the update (the violation the step made), not of V*
+        # the pressure: the projection of the update (the violation the step made), not of V*,
+        # from the final active set of the first and its factor
         dQ = buffers.dQ[:K]
-        correct(*arrays, free, multipliers(band, r - carried, buffers.rows[:n], lam_max, active), dQ)
+        lam = multipliers(band, r - carried, buffers.rows[:n], lam_max, active, factored)[0]
+        correct(*arrays, free, lam, dQ)
     _finish(dV, dQ, u, w, h, fractions, moving, left, right, dt, lo, buffers.du, *out)
     return lo, hi
 
