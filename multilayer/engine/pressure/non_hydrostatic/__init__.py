@@ -23,11 +23,12 @@ DEFAULT_PRESSURE_LAYERS = 4
 
 
 class NonHydrostatic(PressureModel):
-    """The pressure of the last projection in the yield stresses; the velocities of the
-    vertical step projected on the constraint; ``w`` and ``q`` kept in the state, and the
-    velocities before the projection as the seed of the next Newton iteration (they keep
-    the plugs, layers locked together, that the per-layer corrections would break; where
-    that seed does not converge the iteration starts again from the state's velocities)."""
+    """The pressure of the last projection (of its update) in the yield stresses; the
+    velocities of the vertical step projected on the constraint; ``w`` and ``q`` kept in
+    the state, and the velocities before the projection as the seed of the next Newton
+    iteration (they keep the plugs, layers locked together, that the per-layer corrections
+    would break; where that seed does not converge the iteration starts again from the
+    state's velocities)."""
 
     name = "non_hydrostatic"
     options = {
@@ -64,5 +65,5 @@ class NonHydrostatic(PressureModel):
     def project(
         self, state: FlowState, h: np.ndarray, u: np.ndarray, dt: float
     ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        projected, w, q = self.projection(h, u, state.w, state.q, state.h, dt, state.window)
+        projected, w, q = self.projection(h, u, (state.h, state.u, state.w, state.q), dt, state.window)
         return projected, {"w": w, "q": q, "newton_seed": u}

@@ -140,18 +140,19 @@ def _backward(U, y):
 
 
 @jit
-def bounded(band, r, lam_max, active, max_iterations):
+def bounded(band, r, lam_max, active, max_iterations, U, factored):
     """Minimiser of ``1/2 lam^T A lam - r^T lam`` subject to ``lam <= lam_max`` by primal-dual
     active sets (Hintermueller, Ito & Kunisch 2002) from the guess ``active`` (updated in
     place): on the active set ``lam = lam_max``, elsewhere ``(A lam)_i = r_i``; it stops
     when the set reproduces itself, i.e. the bound multiplier ``mu = r - A lam >= 0`` on
     it and ``lam <= lam_max`` off it.  The guess only changes the work, never the answer.
-    Each iteration refactors the Cholesky factor from the first row whose status changed.
-    Returns ``lam`` and the iterations (-1: not settled)."""
+    Each iteration refactors the Cholesky factor ``U`` (band's shape) from the first row
+    whose status changed; ``factored``: ``U`` holds the factor of ``active`` on entry (a
+    solve's on the same ``A``), not computed again.  Returns ``lam`` and the iterations
+    (-1: not settled); ``U`` holds the factor of the final set."""
     n, w = band.shape[0], band.shape[1] - 1
-    U = np.empty(band.shape)  # the first factorisation (start 0) writes all of it
     rhs, y = np.empty(n), np.empty(n)
-    start = np.int64(0)  # not a literal 0: numba would also compile factor for it
+    start = np.int64(n) if factored else np.int64(0)  # the first factorisation (start 0) writes all of U
     for iteration in range(1, max_iterations + 1):
         factor(band, active, U, start)
         # the bounded unknowns move to the right-hand side of the free rows
@@ -166,7 +167,7 @@ def bounded(band, r, lam_max, active, max_iterations):
                     if j - d >= 0 and not active[j - d]:
                         rhs[j - d] -= band[j - d, d] * lam_max[j]
         # rows from start - w on changed (in U and in rhs): the forward solve restarts there
-        _forward(U, rhs, y, max(0, start - w))
+        _forward(U, rhs, y, 0 if iteration == 1 else max(0, start - w))
         lam = _backward(U, y)
         start = n
         for i in range(n):
@@ -189,16 +190,28 @@ def bounded(band, r, lam_max, active, max_iterations):
 
 
 def multipliers(
-    band: np.ndarray, r: np.ndarray, rows: np.ndarray, lam_max: np.ndarray | None, active: np.ndarray | None
-) -> np.ndarray:
+    band: np.ndarray,
+    r: np.ndarray,
+    rows: np.ndarray,
+    lam_max: np.ndarray | None,
+    active: np.ndarray | None,
+    factored: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """``lam`` of :func:`correction` from ``A`` (band storage) and ``r = E V*`` on the rows
-    of the cells ``rows`` (``active`` updated in place)."""
+    of the cells ``rows`` (``active`` updated in place), and the Cholesky factor of ``A``
+    with the rows of the final active set fixed; ``factored``: that factor for the set
+    ``active`` holds (a call's on the same ``A``), not computed again."""
     if lam_max is None:
-        U = np.zeros(band.shape)
-        factor(band, np.zeros(r.size, dtype=np.bool_), U, 0)
-        return substitute(U, r)
+        U = factored
+        if U is None:
+            U = np.zeros(band.shape)
+            factor(band, np.zeros(r.size, dtype=np.bool_), U, 0)
+        return substitute(U, r), U
     guess = np.zeros(rows.size, dtype=np.bool_) if active is None else active.ravel()[rows]
-    lam, iterations = bounded(band, r, lam_max.ravel()[rows], guess, MAX_ACTIVE_SET_ITERATIONS)
+    U = np.empty(band.shape) if factored is None else factored
+    lam, iterations = bounded(
+        band, r, lam_max.ravel()[rows], guess, MAX_ACTIVE_SET_ITERATIONS, U, factored is not None
+    )
     if iterations < 0:
         raise RunError(
             "the non-hydrostatic pressure bound p >= 0 was not settled in "
@@ -206,4 +219,4 @@ def multipliers(
         )
     if active is not None:
         active.ravel()[rows] = guess
-    return lam
+    return lam, U

@@ -55,6 +55,14 @@ mean of the corrections of their two faces (an approximate projection, Almgren, 
 Szymczak 1996).  Faces on a wall, outflow or inflow boundary carry no correction (zero
 normal pressure gradient); periodic domains connect their ends.
 
+The pressure is the projection of the update (Almgren, Bell & Crutchfield 2000): the
+velocities a step starts from violate the constraint a little (the cell means of the face
+corrections, rows joining as their cells start moving, dilation under the bound), and the
+projection of ``V*`` repairs that with an impulse, which divided by a short step is no
+pressure.  So ``q = -lam_q / dt`` with ``lam_q`` the multiplier of the same bounded problem
+for ``E V* - E^n V^n`` (``E^n V^n`` the constraint of the step's start on this step's rows
+and unknowns), the violation the step itself makes: linear in ``dt``, as is the bound.
+
 Material at rest takes no part: only cells whose velocity after the vertical step is
 non-zero are constrained and corrected, so material held by the yield stress stays at
 ``u == 0.0`` exactly, and a field that already satisfies the constraint (uniform flow) has
@@ -84,6 +92,7 @@ from multilayer.engine.pressure.non_hydrostatic.constraint import (
     Constraint,
     capacity,
     correct,
+    entries,
     faces,
     layering,
     normal_equations,
@@ -131,7 +140,7 @@ def correction(
         np.empty(K),
     )
     band, r = normal_equations(*cons.geometry, free, row_of, n, V_star, np.empty(0), arrays)
-    lam = multipliers(band, r, rows[:n], lam_max, active)
+    lam = multipliers(band, r, rows[:n], lam_max, active)[0]
     dV = np.empty(K)
     correct(*arrays, free, lam, dV)
     return V_star, dV, free
@@ -155,6 +164,7 @@ class _Buffers:
         # a band of half-width below 2 Lp (the rows of two columns; wider: periodic ends, a new one)
         self.band = np.empty(Lp * N * 2 * Lp)
         self.du = np.empty(L * N)
+        self.V_start, self.dQ = np.empty(K), np.empty(K)
 
 
 def project(
@@ -171,6 +181,7 @@ def project(
     g_n: float | None = None,
     tension_free: np.ndarray | None = None,
     pressure_layers: int | None = None,
+    start: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Project the moving cells on the non-hydrostatic constraint (module Notes), with the
     pressure on ``pressure_layers`` groups of layers (default: every layer; module Notes,
@@ -179,8 +190,10 @@ def project(
     ``u`` (L, N) are the velocities after the vertical step, ``w`` (L, N) the layer-mean
     vertical velocities before the projection.  Returns the new ``u`` and ``w`` and the
     kinematic pressures ``q`` (L, N) at the bottom interface of each layer (``q`` per unit
-    density, m^2/s^2; zero at the free surface).  Cells at rest (``u == 0.0``) or dry keep
-    ``u = w = 0``.  With ``g_n = g cos(theta)`` the total pressure
+    density, m^2/s^2; zero at the free surface): those of the projection of the update
+    from ``start``, the thickness, velocities and ``w`` (L, N) of the step's start (module
+    Notes; None: a start that satisfies the constraint).  Cells at rest (``u == 0.0``) or
+    dry keep ``u = w = 0``.  With ``g_n = g cos(theta)`` the total pressure
     ``g_n (h - z) + q`` is kept non-negative (granular matter takes no tension); the cells
     ``tension_free`` (L, N) where it was zero the step before (:func:`tension_free`) start
     the active-set iteration (speed only: the answer does not depend on them).
@@ -188,7 +201,7 @@ def project(
     u_new, w_new, q = u.copy(), np.zeros(w.shape), np.zeros(u.shape)
     project_columns(
         h, u, w, bed, fractions, (u_new, w_new, q), dx=dx, dt=dt, periodic=periodic, dry=dry, g_n=g_n,
-        tension_free=tension_free, pressure_layers=pressure_layers,
+        tension_free=tension_free, pressure_layers=pressure_layers, start=start,
     )  # fmt: skip
     return u_new, w_new, q
 
@@ -208,6 +221,7 @@ def project_columns(
     g_n: float | None = None,
     tension_free: np.ndarray | None = None,
     pressure_layers: int | None = None,
+    start: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
     buffers: _Buffers | None = None,
 ) -> tuple[int, int]:
     """:func:`project` into ``out`` (u, w, q; L, N), written in the columns ``lo .. hi-1``
@@ -242,12 +256,42 @@ def project_columns(
     row_of = buffers.row_of[: nodes.size * (hi - lo)]
     n = unknowns(face_mass, left, right, moving, u, w, lo, nodes, free, V_star, row_of, buffers.rows)
     arrays = (buffers.pointer[: K + 1], buffers.cells, buffers.values, mass)
+    carried = None
+    if start is not None:  # E V of the step's start, on the rows of this step (before arrays hold E V*)
+        h0, u0, w0 = start
+        V0 = buffers.V_start[:K]  # the same free unknowns and rows, the start's values
+        unknowns(face_mass, left, right, moving, u0, w0, lo, nodes, free, V0, row_of, buffers.rows)
+        before = np.where(h0[window] > dry, h0[window], 0.0)
+        entries(before, bed[window], fractions, dx, left, right, P, free, row_of, *arrays, *_NO_BAND)
+        carried = _product(*arrays[:3], free, V0, n)
     geometry = (thickness, bed[window], fractions, dx, left, right, P)
     band, r = normal_equations(*geometry, free, row_of, n, V_star, buffers.band, arrays)
-    lam = multipliers(band, r, buffers.rows[:n], lam_max, active)
+    lam, factored = multipliers(band, r, buffers.rows[:n], lam_max, active)
     correct(*arrays, free, lam, dV)
-    _finish(dV, u, w, h, fractions, moving, left, right, dt, lo, buffers.du, *out)
+    dQ = dV
+    if carried is not None and carried.any():
+        # the pressure: the projection of the update (the violation the step made), not of V*,
+        # from the final active set of the first and its factor
+        dQ = buffers.dQ[:K]
+        lam = multipliers(band, r - carried, buffers.rows[:n], lam_max, active, factored)[0]
+        correct(*arrays, free, lam, dQ)
+    _finish(dV, dQ, u, w, h, fractions, moving, left, right, dt, lo, buffers.du, *out)
     return lo, hi
+
+
+_NO_BAND = (np.empty(0), np.empty((0, 1)), np.empty(0))
+"""The ``v_star``, ``band`` and ``r`` of :func:`entries` storing ``E`` only."""
+
+
+@jit
+def _product(pointer, cells, values, free, V, n):
+    """``E V`` (``n`` rows) from the constraint stored by :func:`entries` (``cells``: rows)."""
+    out = np.zeros(n)
+    for k in range(free.size):
+        if free[k]:
+            for e in range(np.uint64(pointer[k]), np.uint64(pointer[k + 1])):
+                out[np.uint64(cells[e])] += values[e] * V[k]
+    return out
 
 
 @jit
@@ -263,11 +307,12 @@ def _moving(u, h, dry, lo, hi):
 
 
 @jit
-def _finish(dV, u, w, h, fractions, moving, left, right, dt, lo, storage, u_out, w_out, q_out):
-    """The projected ``u`` (each column the mean of the corrections of its two faces), ``w``
-    and the pressures ``q_a = sum_{b >= a} h_b dw_b / dt`` of the columns ``lo ..`` (as many
-    as ``moving`` has) into ``u_out``, ``w_out`` and ``q_out`` (module Notes); ``storage``
-    holds the changes of ``u`` (at least L N long)."""
+def _finish(dV, dQ, u, w, h, fractions, moving, left, right, dt, lo, storage, u_out, w_out, q_out):
+    """The projected ``u`` (each column the mean of the corrections ``dV`` of its two faces),
+    ``w`` and the pressures ``q_a = sum_{b >= a} h_b dw_b / dt`` (``dw`` the ``wbar`` part of
+    the pressure's correction ``dQ``) of the columns ``lo ..`` (as many as ``moving`` has)
+    into ``u_out``, ``w_out`` and ``q_out`` (module Notes); ``storage`` holds the changes of
+    ``u`` (at least L N long)."""
     L, N = moving.shape
     F = left.size
     du = storage[: L * N].reshape((L, N))
@@ -291,7 +336,7 @@ def _finish(dV, u, w, h, fractions, moving, left, right, dt, lo, storage, u_out,
         total, at, depth = 0.0, np.uint64(lo + i), h[np.uint64(lo + i)]
         for a in range(L - 1, -1, -1):
             layer = np.uint64(a)
-            total += fractions[layer] * depth * dV[L * F + a * N + i]
+            total += fractions[layer] * depth * dQ[L * F + a * N + i]
             q_out[layer, at] = total / dt
 
 
@@ -411,32 +456,32 @@ class Projection:
         self,
         h: np.ndarray,
         u: np.ndarray,
-        w: np.ndarray,
-        q: np.ndarray,
-        h_before: np.ndarray,
+        start: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
         dt: float,
         columns: tuple[int, int],
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The projected ``u``, ``w`` and the pressures ``q`` (overwritten by the next call)
-        of the vertical step's velocities ``u`` on the thickness ``h``, from the state's
-        ``w`` and ``q`` (on ``h_before``; both zero outside the columns ``columns``).  ``u``
-        is zero outside the columns holding material (the vertical step zeroes them)."""
+        of the vertical step's velocities ``u`` on the thickness ``h``, from the state at the
+        step's start, ``start = (h, u, w, q)`` (``w`` and ``q`` zero outside the columns
+        ``columns``).  ``u`` is zero outside the columns holding material (the vertical step
+        zeroes them)."""
+        h_before, u_before, w, q = start
         lo, hi = span(h)
-        start, stop = self._written
-        self.u[:, start:stop] = 0.0
-        self.w[:, start:stop] = 0.0
-        self.q[:, start:stop] = 0.0
+        begin, stop = self._written
+        self.u[:, begin:stop] = 0.0
+        self.w[:, begin:stop] = 0.0
+        self.q[:, begin:stop] = 0.0
         self.u[:, lo:hi] = u[:, lo:hi]
         # only the moving cells take part, in the columns holding material
         _advect(w, u, self.dx, dt, self.periodic, lo, hi, self._w_star)
-        start, stop = self._tension_written  # tension_free(q, h_before, ...) in an array reused
-        self._tension_free[:, start:stop] = False
+        begin, stop = self._tension_written  # tension_free(q, h_before, ...) in an array reused
+        self._tension_free[:, begin:stop] = False
         _tension_free(q, h_before, self._factors, self.g_n, *columns, self._tension_free)
         self._tension_written = columns
         first, last = project_columns(
             h, u, self._w_star, self.bed, self.fractions, (self.u, self.w, self.q), dx=self.dx, dt=dt,
             periodic=self.periodic, dry=self.dry, g_n=self.g_n, tension_free=self._tension_free,
-            pressure_layers=self.pressure_layers, buffers=self._buffers,
+            pressure_layers=self.pressure_layers, start=(h_before, u_before, w), buffers=self._buffers,
         )  # fmt: skip
         self._written = (min(lo, first), max(hi, last)) if last > first else (lo, hi)
         return self.u, self.w, self.q
