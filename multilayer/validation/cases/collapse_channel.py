@@ -543,7 +543,8 @@ What the runs show about why:
   whose h_stop law is validated here, and no friction is fitted to the collapses.
 - **The pressure.**  The hydrostatic pressure lengthens the tip run-out by
   {", ".join(f"{100 * c:+.0f}" for c in change("hydrostatic"))} % (the same a): the
-  non-hydrostatic one is needed.
+  non-hydrostatic one is needed, though part of what it takes off is numerical (the time
+  step, below).
 - **The normal stress.**  The layers carry the shear stress only; the deviatoric normal
   stress of the mu(I) tensor law, which a stretching or compressed column also feels, is an
   option (`model.normal_stress`, the next table): with it the tip run-out changes by
@@ -554,31 +555,19 @@ What the runs show about why:
   columns, and its stress `tau_zx` on vertical planes would resist the fall of the column's
   outer part past its core, which the model resists by pressure only (the full 2D mu(I)
   computations of Lagree, Staron & Popinet 2011, J. Fluid Mech. 686, 378, have it).
-  Evaluated on the model's own states, the tensor law's dissipation `2 mu(I) p |D|` with
-  `dw/dx` in `D_xz` (at fixed z, on the faces between wet columns) exceeds the layers' shear
-  power there during the fall (up to the largest kinetic energy) by 7.1, 10.3, 12.5 % of the
-  initial potential energy at a = 2, 16.9, 25.1, 32.5 % at a = 7 and 19.3, 29.5, 49.2 % at
-  a = 10 (cells of 2, 1, 0.5 mm), 61-76 % of what it adds over the whole run; with `D_xx` as
-  well, by 26-33, 37-55 and 39-75 %.  During the fall the bed, layers and walls dissipate
-  17-27 % and the numerics 4.5-9 % (a = 2) and 15-27 % (a = 7, 10).  The tip's run-out beyond
-  law B, at the spreading's loss per L0 of the tip's advance (15, 5.6-5.7, 4.3-4.8 % of the
-  initial potential energy at a = 2, 7, 10), is worth 14-18, 20-28 and 18-23 %.  The omitted
-  friction is large enough and largest where the run-out is too long, but the measure does not
-  converge (it grows 1.3-1.7 times per halving of the cells at a = 7 and 10: nothing in the
-  model sets the width over which w changes across columns), and the same measure gives the
-  normal stress 24-34 % during the fall of the tall columns, which `model.normal_stress` does
-  not turn into shorter run-outs: whether the friction on vertical planes would shorten them,
-  only a model with it can tell.  Measured by
-  `python benchmarks/collapse_budget.py --ratios 2 7 10 --dx 2e-3 1e-3 5e-4`.
-- **The output times.**  The run cuts its steps at the output times (every 0.01 s here); a
-  step cut short leaves a large non-hydrostatic pressure, which the next vertical step takes
-  as yield pressure: at a = 10 with 0.5 mm cells, steps of 2.7e-6 to 2.3e-5 s leave up to
-  73 m^2/s^2 (0.2-0.5 m^2/s^2 the step before), a step of 3e-8 s 2.4e4 m^2/s^2.  The tip
-  run-out depends on the output interval: at a = 10 with 0.5 mm cells it is 16.64, 14.68,
-  16.87 with outputs every 0.005, 0.01, 0.02 s (1 mm: 14.55, 16.04, 15.31; a = 7, 1 mm:
-  12.90, 12.69, 12.40), and with steps cut every 0.2 ms it falls to 11.79 (a = 10, 1 mm) and
-  8.02 (a = 7, 1 mm).  The fall of the a = 10 run-out from the 1 mm to the 0.5 mm mesh above
-  is within this spread.
+  Evaluated on the model's own states (`python benchmarks/collapse_budget.py --ratios 2 7 10
+  --dx 2e-3 1e-3 5e-4`), the dissipation it would add during the fall is of the size of the
+  energy the tall columns' excess run-out stands for and grows with a, but it also grows with
+  every halving of the cells (nothing in the model sets the width over which w changes across
+  columns), and the same measure gives the normal stress a share as large, which
+  `model.normal_stress` does not turn into shorter run-outs: whether the friction on vertical
+  planes would shorten them, only a model with it can tell.
+- **The time step.**  These run-outs are at the shipped `time.cfl` and are not converged in
+  the time step: the approximate projection of the cell velocities on the non-hydrostatic
+  constraint loses a little kinetic energy at every step, not per unit time, so the tall
+  columns' tip moves with the Courant number ([Non-hydrostatic pressure](nonhydrostatic.md),
+  "The pressure: the projection of the update"), and part of the shortening the
+  non-hydrostatic pressure brings over the hydrostatic one is that loss.
 {release_text}{gate_text}- **The coarsest mesh can mislead.**  With {CELLS[0] * 1e3:g} mm cells (the column
   {L0 / CELLS[0]:g} cells wide) the tip differs by more than 10 % from the next mesh's at
   a = {", ".join(f"{a:g}" for a in coarse_off) or "none"}.
