@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from multilayer.engine.state_check import masked_values
 from multilayer.errors import Interrupted, RunError, Stop
 
 
@@ -103,7 +104,7 @@ def real_array(plugin: Any, method: str, value: Any, t: float | None = None) -> 
     the mask of a masked array, which ``np.asarray`` would read as numbers)."""
     with contained(plugin, method, t):
         raw = np.asarray(value)
-        masked = np.ma.count_masked(value) if np.ma.isMaskedArray(value) else 0
+        masked = masked_values(value)
     if raw.dtype.kind not in "fiu" or masked:
         when = "" if t is None else f" (at t = {t:.6g} s)"
         what = f"a masked array of {masked} masked value(s)" if masked else f"values of type {raw.dtype}"

@@ -285,6 +285,12 @@ _NEEDED = (("t", "steps", "h", "u"), ("seed_dt", "seed_last", "seed_window"))
 state without the Newton seed restarts its extrapolation)."""
 
 
+def masked_values(value: Any) -> int:
+    """The values under the mask of ``value`` if it is a masked array (0 otherwise), which
+    ``np.asarray`` would read as numbers (a netCDF file's fill values, as netCDF4 reads them)."""
+    return int(np.ma.count_masked(value)) if np.ma.isMaskedArray(value) else 0
+
+
 def check_restored(saved: Mapping[str, Any], fresh: Mapping[str, Any]) -> None:
     """A state to restore (a checkpoint) holds entries of ``fresh``, the state of the same
     simulation at its start, each of its shape, real numbers (integers where it holds
@@ -302,7 +308,7 @@ def check_restored(saved: Mapping[str, Any], fresh: Mapping[str, Any]) -> None:
     for key, value in saved.items():
         if key not in fresh:
             raise InputError(f"{key}: an entry this version of multilayer does not write")
-        if masked := np.ma.count_masked(value) if np.ma.isMaskedArray(value) else 0:  # asarray unmasks
+        if masked := masked_values(value):
             raise InputError(
                 f"{key}: a masked array of {masked} masked value(s) (a netCDF file's fill values, read by "
                 "netCDF4), where numbers: the values under a mask would be restored"
