@@ -682,6 +682,26 @@ def test_layered_result_holds_phi_per_layer_and_is_plotted(tmp_path):
     assert len(figure.axes[3].lines) == 3
 
 
+@pytest.mark.slow
+def test_a_failure_front_sets_the_loose_deposit_moving_at_the_long_wave_speed():
+    """docs/mixture.md, "Why the loose deposit does not stay at rest": on 480 cells the
+    upstream edge of the loose deposit's moving zone runs up the resting deposit to the wall
+    at the speed of the long waves ``sqrt(g' h)`` (measured: 0.288 m/s against 0.283 m/s,
+    1.15 to 1.65 s); on 120 cells, where the force that sets the next column moving (it
+    grows as 1/dx) is four times weaker, the front is arrested: none runs."""
+    from multilayer.validation.cases.submarine_collapse import failure_fronts
+
+    path = Path(__file__).resolve().parents[1] / "scenarios" / "submarine_collapse_loose.yaml"
+    fronts = {
+        n: failure_fronts(multilayer.run(multilayer.load(path, {"domain.cells": n, "time.end": 1.8})))
+        for n in (120, 480)
+    }
+    assert fronts[120] == []
+    ((begin, end, speed, wave, edge),) = fronts[480]
+    assert edge < 0.01 and end - begin > 0.1, (begin, end, edge)  # to the wall (at x = 0)
+    assert abs(speed / wave - 1.0) < 0.05, (speed, wave)
+
+
 def dense_wedge_stop(cfl: float, order: int) -> tuple[float, float, float]:
     """The time the dense submarine column (the shipped file at 15 cells) stops (the last
     step after which some velocity is non-zero), the mean step until then and, in a run

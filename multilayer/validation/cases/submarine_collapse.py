@@ -20,6 +20,7 @@ import numpy as np
 import xarray as xr
 import yaml
 
+from multilayer.engine.mixture.flow import buoyant_fraction
 from multilayer.validation import published
 from multilayer.validation.markdown import met, resolution, table
 from multilayer.validation.runs import Context, Run
@@ -47,6 +48,9 @@ MESH_CHANGE = 0.05
 """The largest change of a duration between the two finest meshes called converged."""
 RUNOUT_SHARE = 0.95
 """The second duration: the time the front reaches this share of its final run-out."""
+FRONT_OUTPUTS = 3
+"""Output intervals over which the upstream edge of the loose deposit's moving zone must
+advance upstream at every output time to count as a failure front."""
 CFLS = (0.45, 0.225, 0.1125, 0.05625)
 """Courant numbers of the time-step study at the files' 60 cells (0.45: the files')."""
 PUBLISHED = published.values("rondon2011_collapse.yaml")
@@ -101,9 +105,43 @@ def measure(ds: xr.Dataset) -> Measures:
         "t95": float(t[np.argmax(run >= RUNOUT_SHARE * final)]),
         "t95_mass": float(t[np.argmax(shift >= RUNOUT_SHARE * shift[-1])]),
         "restarts": restarts,
+        "fronts": failure_fronts(ds),
         "pressure": extreme,
         "resolution": resolution(ds),
     }
+
+
+def failure_fronts(ds: xr.Dataset) -> list[tuple[float, float, float, float, float]]:
+    """The failure fronts of a run: the spans of at least :data:`FRONT_OUTPUTS` output
+    intervals over which the upstream edge of the moving zone (its first column with
+    ``u != 0``) moves upstream at every output time, the resting deposit set moving column
+    after column.  Each as (start, end (s), its speed, the long-wave speed ``sqrt(g' h)``
+    over the columns it crossed (m/s), where it ended (m)), ``g'`` the transport's buoyant
+    gravity (of the initial mean packing: docs/mixture.md, "Transport"), ``h`` their mean
+    thickness over the span."""
+    data = yaml.safe_load(ds.attrs["scenario"])
+    rho_s, rho_f = data["material"]["particle_density"], data["fluid"]["density"]
+    g_reduced = data["gravity"] * math.cos(math.radians(data["slope_deg"]))
+    t, x, h = ds["time"].values, ds["x"].values, ds["h"].values
+    packing = float((ds["phi"].values[0] * h[0]).sum() / h[0].sum())  # the initial mean
+    g_reduced *= float(buoyant_fraction(packing, rho_s, rho_f))
+    moving = np.abs(ds["u"].values).max(axis=1) > 0.0  # (time, x)
+    edge = np.where(moving.any(axis=1), x[np.argmax(moving, axis=1)], np.nan)
+    fronts = []
+    i = 1
+    while i < t.size:
+        j = i
+        while j < t.size and edge[j] < edge[j - 1]:
+            j += 1
+        if j - i >= FRONT_OUTPUTS:
+            crossed = (x >= edge[j - 1]) & (x <= edge[i - 1])
+            depth = float(h[i - 1 : j, crossed].mean())
+            speed = float((edge[i - 1] - edge[j - 1]) / (t[j - 1] - t[i - 1]))
+            fronts.append(
+                (float(t[i - 1]), float(t[j - 1]), speed, math.sqrt(g_reduced * depth), float(edge[j - 1]))
+            )
+        i = j + 1
+    return fronts
 
 
 def liquefaction(ds: xr.Dataset) -> tuple[float, float]:
@@ -231,10 +269,19 @@ def section(ctx: Context) -> str:
             moving = f"n/a (the loose column still moves at {END_TIME:g} s)"
             return f"{ratio:.2f}" if math.isfinite(ratio) else moving
 
+        def first_front(key: tuple[str, int]) -> str:
+            if key not in m:
+                return "n/a"
+            if not m[key]["fronts"]:
+                return "none"
+            _, _, speed, wave, _ = m[key]["fronts"][0]
+            return f"the first at {speed:.3f} m/s where `sqrt(g' h)` is {wave:.3f} m/s"
+
         def change(key: str) -> str:
             return f"{loose_runs[-1][key] / loose_runs[-2][key] - 1:+.1%}"
 
         loose_runs = [m[("loose", n)] for n in CELLS if ("loose", n) in m]
+        front_counts = ", ".join(str(len(q["fronts"])) for q in loose_runs)
         shipped = ratios(m, CELLS[0]) if all((p, CELLS[0]) in m for p in PACKINGS) else nan3
         low, high = m[("loose", finest)]["liquefaction"]
         settled = all(math.isfinite(q["stop"]) for q in loose_runs[-2:])
@@ -266,8 +313,19 @@ cell between output times over the meshes).  While it moves, the basal excess po
 under the moving body (thicker than {BODY * 1e3:g} mm, from {SETTLED:g} s on) carries {low:.2f} to
 {high:.2f} of the buoyant weight of its grains (5th to 95th percentile, {finest} cells), and
 takes that share of its friction away; at rest (no shear, no excess pore pressure) the same
-packing holds slopes up to its static friction, 0.283.  Which columns are set moving again,
-and when the deposit stops, depends on the mesh.  By the criterion that the two finest
+packing holds slopes up to its static friction, 0.283.  What sets it moving again is a
+failure front: the upstream edge of the moving zone runs up the resting deposit, column
+after column, to the wall, at about the speed of the long waves `sqrt(g' h)` ({front_counts}
+such fronts over the meshes; at {CELLS[-2]} cells {first_front(("loose", CELLS[-2]))}, at
+{finest} cells {first_front(("loose", finest))}), and the liquefied deposit sloshes
+between the wall and its front until it has flattened.  The front is the model's: a loose
+packing at rest has no excess pore pressure and keeps its static friction, while moving at
+a fraction of a millimetre per second it is liquefied and keeps a few per cent of it, so a
+deposit left at 0.7 to 0.8 of its static friction is metastable.  What sets its next column
+moving is the drop of pressure of the rarefaction at their common face, a force that grows
+as 1/dx: the coarse meshes arrest the front, the fine ones carry it ([mixture.md](mixture.md),
+"Why the loose deposit does not stay at rest").  Which columns are set moving again, and
+when the deposit stops, therefore depends on the mesh.  By the criterion that the two finest
 meshes give known stop times and times to {RUNOUT_SHARE:.0%} of the run-out within
 {MESH_CHANGE:.0%} of each other, the duration ratios are {"" if settled else "not "}converged;
 at {finest} cells the dense collapse is {twice}twice as long as the loose one.
