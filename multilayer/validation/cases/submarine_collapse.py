@@ -308,14 +308,14 @@ The loose collapse depends on the mesh.  Over the meshes its run-out is
 and its stop time {", ".join(f"{stop_bound(q)[1]}{stop_bound(q)[0]:.2f}" for q in loose_runs)} s:
 between the two finest meshes the run-out changes by {change("runout")} and the time to
 {RUNOUT_SHARE:.0%} of it by {change("t95")}.  After the fall the body of its deposit is set
-moving again and creeps (up to {", ".join(str(q["restarts"]) for q in loose_runs)} restarts of one
+moving again, and again (up to {", ".join(str(q["restarts"]) for q in loose_runs)} restarts of one
 cell between output times over the meshes).  While it moves, the basal excess pore pressure
 under the moving body (thicker than {BODY * 1e3:g} mm, from {SETTLED:g} s on) carries {low:.2f} to
 {high:.2f} of the buoyant weight of its grains (5th to 95th percentile, {finest} cells), and
 takes that share of its friction away; at rest (no shear, no excess pore pressure) the same
 packing holds slopes up to its static friction, 0.283.  What sets it moving again is a
 failure front: the upstream edge of the moving zone runs up the resting deposit, column
-after column, to the wall, at about the speed of the long waves `sqrt(g' h)` ({front_counts}
+after column, most often to the wall, at about the speed of the long waves `sqrt(g' h)` ({front_counts}
 such fronts over the meshes; at {CELLS[-2]} cells {first_front(("loose", CELLS[-2]))}, at
 {finest} cells {first_front(("loose", finest))}), and the liquefied deposit sloshes
 between the wall and its front until it has flattened.  The front is the model's: a loose
