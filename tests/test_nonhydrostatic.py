@@ -221,94 +221,39 @@ def random_state(seed: int, layers: int = 4, cells: int = 12):
     return h, u, w, bed, fractions
 
 
-def cell_constraint(cons: assembly.Constraint, rows: np.ndarray, free: np.ndarray) -> np.ndarray:
-    """``E_c = E P_c`` of the cell unknowns on ``rows`` and the ``free`` cell unknowns."""
-    return (cons.E @ cons.averaging)[rows][:, np.flatnonzero(free)].toarray()
-
-
-def reduced(fractions: np.ndarray, pressure_layers: int) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """The pressure interfaces and their interpolation ``P`` (None, None: every layer)."""
-    if pressure_layers == fractions.size:
-        return None, None
-    nodes = assembly.pressure_nodes(fractions, pressure_layers)
-    return nodes, assembly.pressure_interpolation(fractions, nodes)
-
-
 @pytest.mark.parametrize("pressure_layers", [4, 2])
 @pytest.mark.parametrize("periodic", [False, True])
 def test_projection_satisfies_the_constraint_and_never_adds_energy(periodic, pressure_layers):
-    """On sloping interfaces, uneven layers and partly static columns: the projected cell
-    velocities satisfy E_c V = 0 (E_c = E P_c, the face velocities the means of the cells';
-    with fewer pressure layers the reduced P^T E_c V = 0) on the moving cells to round-off,
-    the kinetic energy 1/2 V^T M_c V does not grow, and A_c = E_c M_c^-1 E_c^T is symmetric
-    and well conditioned (the wbar rows hold its checkerboard modes)."""
+    """On sloping interfaces, uneven layers and partly static columns: the projected face
+    velocities satisfy E V = 0 (with fewer pressure layers the reduced P^T E V = 0) on the
+    moving cells to round-off, the kinetic energy 1/2 V^T M V does not grow, and
+    A = E M^-1 E^T is symmetric."""
     h, u, w, bed, fractions = random_state(1)
     moving = u != 0.0
-    nodes, interpolation = reduced(fractions, pressure_layers)
+    nodes = interpolation = None
+    if pressure_layers < u.shape[0]:
+        nodes = assembly.pressure_nodes(fractions, pressure_layers)
+        interpolation = assembly.pressure_interpolation(fractions, nodes)
     cons = assembly.constraint(h, bed, fractions, 0.1, periodic, interpolation)
     V_star, dV, free = nonhydrostatic.correction(cons, moving, u, w, nodes=nodes)
     V = V_star + dV
     rows = np.flatnonzero((moving if nodes is None else moving[nodes]).ravel())
-    E = cell_constraint(cons, rows, free)
-    assert np.abs(E @ V[free]).max() < 1e-14 * np.abs(E @ V_star[free]).max()
-    mass = np.tile((fractions[:, None] * h).ravel(), 2)
-    energy = lambda v: 0.5 * np.sum(mass[free] * v[free] ** 2)  # noqa: E731
+    E = cons.E[rows][:, np.flatnonzero(free)]
+    assert np.abs(E @ V[free]).max() < 1e-12 * np.abs(E @ V_star[free]).max()
+    energy = lambda v: 0.5 * np.sum(cons.mass[free] * v[free] ** 2)  # noqa: E731
     assert energy(V) <= energy(V_star)
-    A = E @ np.diag(1.0 / mass[free]) @ E.T
+    A = (E @ np.diag(1.0 / cons.mass[free]) @ E.T.toarray()).astype(float)
     assert np.abs(A - A.T).max() < 1e-12 * np.abs(A).max()
-    assert np.linalg.cond(A) < 1e3
     assert np.all(dV[~free] == 0.0)
-
-
-@pytest.mark.parametrize("pressure_layers", [4, 2])
-@pytest.mark.parametrize("periodic", [False, True])
-def test_projecting_twice_is_projecting_once(periodic, pressure_layers):
-    """The projection of the cell velocities is exact: projecting its answer again changes
-    nothing (to round-off), on sloping interfaces, uneven layers and partly static columns."""
-    h, u, w, bed, fractions = random_state(7)
-    options = {"dx": 0.1, "dt": 0.01, "periodic": periodic, "pressure_layers": pressure_layers}
-    once = nonhydrostatic.project(h, u, w, bed, fractions, **options)
-    twice = nonhydrostatic.project(h, once[0], once[1], bed, fractions, **options)
-    scale = max(np.abs(once[0]).max(), np.abs(once[1]).max())
-    assert np.abs(twice[0] - once[0]).max() <= 1e-14 * scale
-    assert np.abs(twice[1] - once[1]).max() <= 1e-14 * scale
-    assert np.abs(twice[2]).max() <= 1e-14 * scale * h.max() / options["dt"]
-    assert np.abs(once[0] - u).max() > 1e-2 * scale  # the first one did change the velocities
-
-
-@pytest.mark.parametrize("pressure_layers", [4, 2])
-def test_bounded_projection_meets_the_constraint_where_the_bound_is_not_reached(pressure_layers):
-    """With the bound p >= 0 active on some rows, the cell velocities satisfy E_c V = 0 on
-    every other row, dilate (E_c V > 0) on the bounded ones, and the kinetic energy does not
-    grow."""
-    h, u, w, bed, fractions = random_state(4)
-    w *= 20.0  # strong vertical motion: the unbounded pressure goes negative
-    moving = u != 0.0
-    nodes, interpolation = reduced(fractions, pressure_layers)
-    layers = np.arange(u.shape[0]) if nodes is None else nodes
-    cons = assembly.constraint(h, bed, fractions, 0.1, False, interpolation)
-    lam_max = 0.01 * G * nonhydrostatic.depth_below(h, fractions)[layers]
-    active = np.zeros(lam_max.shape, np.bool_)
-    V_star, dV, free = nonhydrostatic.correction(cons, moving, u, w, lam_max, active, nodes)
-    V = V_star + dV
-    rows = np.flatnonzero(moving[layers].ravel())
-    bounded = active.ravel()[rows]
-    assert bounded.any() and not bounded.all()
-    residual = cell_constraint(cons, rows, free) @ V[free]
-    assert np.abs(residual[~bounded]).max() < 1e-13 * np.abs(residual).max()
-    assert residual[bounded].min() > 0.0
-    mass = np.tile((fractions[:, None] * h).ravel(), 2)
-    assert np.sum(mass * V**2) <= np.sum(mass * V_star**2)
 
 
 @pytest.mark.parametrize("pressure_layers", [6, 3])
 @pytest.mark.parametrize("periodic", [False, True])
 def test_normal_equations_added_up_as_stored_equal_the_sparse_product(periodic, pressure_layers):
-    """The band of A_c and r, added up cell unknown by cell unknown from the stored
-    constraint, equal E_c M_c^-1 E_c^T and E_c V* of the constraint as a sparse matrix
-    (E_c = E P_c; moving rows and cells only) to round-off, on sloping interfaces, uneven
-    layers and partly static columns; the band is as narrow as A (its last diagonal not all
-    zero)."""
+    """The band of A and r, added up unknown by unknown as the constraint is stored, equal
+    E M^-1 E^T and E V* of the stored constraint as a sparse matrix (moving rows and free
+    unknowns only) to round-off, on sloping interfaces, uneven layers and partly static
+    columns; the band is as narrow as A (its last diagonal not all zero)."""
     h, u, w, bed, fractions = random_state(11, layers=6)
     nodes, P = assembly.layering(tuple(fractions), pressure_layers)
     cons = assembly.constraint(h, bed, fractions, 0.1, periodic, P)
@@ -325,15 +270,14 @@ def test_normal_equations_added_up_as_stored_equal_the_sparse_product(periodic, 
         np.empty(cons.cells.size),
         np.empty(K),
     )
-    band, r = assembly.normal_equations(*cons.geometry, free, row_of, moving, n, V_star, np.empty(0), arrays)
-    cells = np.concatenate([moving.ravel()] * 2)
-    E = cell_constraint(cons, rows[:n], cells)
-    A = E @ np.diag(1.0 / np.tile((fractions[:, None] * h).ravel(), 2)[cells]) @ E.T
+    band, r = assembly.normal_equations(*cons.geometry, free, row_of, n, V_star, np.empty(0), arrays)
+    E = cons.E[rows[:n]][:, np.flatnonzero(free)].toarray()
+    A = E @ np.diag(1.0 / cons.mass[free]) @ E.T
     dense = np.zeros((n, n))
     for d in range(band.shape[1]):
         dense[np.arange(n - d), np.arange(d, n)] = dense[np.arange(d, n), np.arange(n - d)] = band[: n - d, d]
     assert np.abs(dense - A).max() <= 1e-13 * np.abs(A).max()
-    assert np.abs(r - E @ np.concatenate([u.ravel(), w.ravel()])[cells]).max() <= 1e-13 * np.abs(r).max()
+    assert np.abs(r - E @ V_star[free]).max() <= 1e-13 * np.abs(r).max()
     assert np.any(band[:, -1] != 0.0)
 
 
@@ -518,10 +462,14 @@ def test_the_window_of_moving_columns_gives_the_whole_domain_answer():
     u[:, :3] = u[:, -4:] = 0.0
     fast = nonhydrostatic.project(h, u, w, bed, fractions, dx=0.1, dt=0.01)
     cons = assembly.constraint(h, bed, fractions, 0.1, False)
-    V_star, dV, _ = nonhydrostatic.correction(cons, u != 0.0, u, w)
-    u_new, w_new = (V_star + dV).reshape((2, *u.shape))
-    assert np.allclose(fast[0], u_new, rtol=0, atol=1e-13)
-    assert np.allclose(fast[1], w_new, rtol=0, atol=1e-13)
+    _, dV, _ = nonhydrostatic.correction(cons, u != 0.0, u, w)
+    L, F = u.shape[0], cons.left.size
+    dv = dV[: L * F].reshape(L, F)
+    du = np.zeros_like(u)
+    np.add.at(du, (slice(None), cons.left), 0.5 * dv)
+    np.add.at(du, (slice(None), cons.right), 0.5 * dv)
+    assert np.allclose(fast[0], np.where(u != 0.0, u + du, 0.0), rtol=0, atol=1e-13)
+    assert np.allclose(fast[1][u != 0.0], (w + dV[L * F :].reshape(u.shape))[u != 0.0], rtol=0, atol=1e-13)
 
 
 def test_the_simulation_projection_reuses_its_arrays_without_carrying_anything_over():

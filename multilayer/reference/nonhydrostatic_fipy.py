@@ -70,34 +70,26 @@ def project(
     vertical = fp.FaceVariable(mesh=mesh, value=above * dist / area)
     A_v = _diffusion_matrix(lam_var, vertical)
 
+    big_var = fp.CellVariable(mesh=mesh, value=0.0)
+    across = np.zeros(mesh.numberOfFaces)
     centres_y = np.asarray(mesh.faceCenters[1])[horizontal:]
     edges = np.concatenate([[0.0], np.cumsum(dy)])
     layer = np.searchsorted(edges, centres_y) - 1  # the layer of each face between columns
-    walls = (
-        np.asarray(mesh.facesLeft | mesh.facesRight) if not periodic else np.zeros(mesh.numberOfFaces, bool)
-    )
-
-    def divergence(cell_u: np.ndarray) -> np.ndarray:
-        """``F = div_x(h_a v)`` of the face means ``v`` of the cell velocities (none through a wall)."""
-        face_u = fp.CellVariable(mesh=mesh, value=cell_u).arithmeticFaceValue
-        values = np.zeros((2, mesh.numberOfFaces))
-        values[0, horizontal:] = np.asarray(face_u)[horizontal:] * m[layer]
-        values[:, walls] = 0.0
-        return np.asarray(fp.FaceVariable(mesh=mesh, rank=1, value=values).divergence)
-
-    # the horizontal part on Lam = B lam: the cell velocities' change 1/2 grad_x Lam (FiPy's
-    # cell gradient, the mean of the face gradients), then -1/2 div_x(h_a v) of its face means
-    big_var = fp.CellVariable(mesh=mesh, value=0.0)
-    A_x = np.empty((L * N, L * N))
-    for k in range(L * N):
-        big_var.setValue(np.eye(L * N)[k])
-        A_x[:, k] = -0.5 * divergence(0.5 * np.asarray(big_var.grad[0]))
+    across[horizontal:] = m[layer] / (4 * dx * dx)
+    A_x = _diffusion_matrix(big_var, fp.FaceVariable(mesh=mesh, value=across * dist / area))
 
     B = sp.eye(L * N, format="csr") + sp.eye(L * N, k=N, format="csr")  # cell a*N+i: lam_a + lam_{a+1}
-    A = (A_v + B.T @ sp.csr_matrix(A_x) @ B).tocsc()
+    A = (A_v + B.T @ A_x @ B).tocsc()
 
     # right-hand side E V*: w_a - w_{a-1} + (F_{a-1} + F_a) / 2 with F = div_x(h_a v*)
-    F = divergence(u.ravel()).reshape(L, N)
+    flux = fp.FaceVariable(mesh=mesh, rank=1, value=0.0)
+    face_u = fp.CellVariable(mesh=mesh, value=u.ravel()).arithmeticFaceValue
+    values = np.zeros((2, mesh.numberOfFaces))
+    values[0, horizontal:] = np.asarray(face_u)[horizontal:] * m[layer]
+    walls = np.asarray(mesh.facesLeft | mesh.facesRight) if not periodic else np.zeros(values.shape[1], bool)
+    values[:, walls] = 0.0  # no flux through a wall
+    flux.setValue(values)
+    F = np.asarray(flux.divergence).reshape(L, N)
     rhs = w.copy()
     rhs[1:] -= w[:-1]
     rhs += 0.5 * F
@@ -111,7 +103,13 @@ def project(
         P_cells = sp.kron(sp.csr_matrix(P), sp.eye(N)).tocsc()  # cell a*N+i from g*N+i
         lam = P_cells @ spla.spsolve((P_cells.T @ A @ P_cells).tocsc(), P_cells.T @ rhs.ravel())
 
-    du = 0.5 * np.asarray(fp.CellVariable(mesh=mesh, value=B @ lam).grad[0])
+    big = fp.CellVariable(mesh=mesh, value=B @ lam)
+    dv_faces = 0.5 * np.asarray(big.faceGrad[0])  # dv_f = (Lam_R - Lam_L) / (2 dx)
+    dv_faces = np.where(np.arange(mesh.numberOfFaces) >= horizontal, dv_faces, 0.0)
+    dv_faces[walls] = 0.0  # walls carry no correction
+    # cell centres take the mean of the corrections of their two faces
+    cell_faces = np.asarray(mesh.cellFaceIDs)  # (4, cells): bottom, right, top, left
+    du = 0.5 * (dv_faces[cell_faces[1]] + dv_faces[cell_faces[3]])
     lam2 = lam.reshape(L, N)
     up = np.vstack([lam2[1:], np.zeros((1, N))])
     dw = -(lam2 - up) / m[:, None]

@@ -47,20 +47,6 @@ class Constraint:
         unknowns = np.repeat(np.arange(counts.size), counts)
         return sp.csr_matrix((self.values, (self.cells, unknowns)), shape=self.shape)
 
-    @property
-    def averaging(self) -> sp.csr_matrix:
-        """``P_c``: the unknowns of ``E`` from those of the cells (``u_a,i`` at ``a * N + i``,
-        then ``wbar_a,i`` at ``L N + a * N + i``), the face velocity ``v_a,f`` the mean of
-        its two cells', ``E_c = E P_c`` (module Notes)."""
-        L, N, F = self.geometry[2].size, self.geometry[0].size, self.left.size
-        layer = np.repeat(np.arange(L), F)
-        rows = np.concatenate([np.arange(L * F)] * 2 + [L * F + np.arange(L * N)])
-        columns = np.concatenate([layer * N + np.tile(self.left, L), layer * N + np.tile(self.right, L)])
-        values = np.concatenate([np.full(2 * L * F, 0.5), np.ones(L * N)])
-        return sp.csr_matrix(
-            (values, (rows, np.append(columns, L * N + np.arange(L * N)))), shape=(L * F + L * N, 2 * L * N)
-        )
-
 
 def faces(N: int, periodic: bool) -> tuple[np.ndarray, np.ndarray]:
     """Columns on the left and right of each face carrying a pressure correction."""
@@ -94,7 +80,8 @@ def constraint(
         np.asarray(h, dtype=float), np.asarray(bed, dtype=float), np.asarray(fractions, dtype=float),
         float(dx), left, right, P,
     )  # fmt: skip
-    n = entries(*geometry, np.ones(K, np.bool_), np.arange(Lp * N), pointer, cells, values, mass)
+    no_band = (np.empty(0), np.empty((0, 1)), np.empty(0))
+    n = entries(*geometry, np.ones(K, np.bool_), np.arange(Lp * N), pointer, cells, values, mass, *no_band)[0]
     cells, values = cells[:n], values[:n]
     shape = (P.shape[1] * N, L * left.size + L * N)
     return Constraint(pointer, cells, values, mass, left, right, shape, geometry)
@@ -142,7 +129,9 @@ def pressure_interpolation(fractions: np.ndarray, nodes: np.ndarray) -> np.ndarr
 
 
 @jit
-def entries(h, bed, fractions, dx, left, right, P, free, row_of, pointer, cells, values, mass):
+def entries(
+    h, bed, fractions, dx, left, right, P, free, row_of, pointer, cells, values, mass, v_star, band, r
+):
     """``P^T E`` column by column (see :class:`Constraint`) for the unknowns ``free`` (the
     others have no entries) in the rows ``row_of[cell] >= 0`` (the entries in the others
     are left out): each entry is stored with its row ``row_of[cell]``.  In ``E``, ``F_c``
@@ -152,8 +141,11 @@ def entries(h, bed, fractions, dx, left, right, P, free, row_of, pointer, cells,
     +1/2; ``wbar_a`` enters row ``a`` with +1 and row ``a + 1`` with -1.  Each entry of row
     ``a`` goes to the pressure rows ``g`` with ``P_a,g != 0``, times ``P_a,g`` (the
     identity: ``E`` itself).  Written into ``pointer``, ``cells`` (the rows), ``values``
-    (at least :func:`capacity` long) and ``mass`` (``M``, of every unknown).  Returns the
-    number of entries."""
+    (at least :func:`capacity` long) and ``mass`` (``M``, of every unknown).  With a
+    ``band`` of rows (not empty), the terms of each free unknown are added, as it is
+    stored, to ``A = E M^-1 E^T`` (band storage ``band[i, d] = A_i,i+d``, of a half-width
+    large enough) and to ``r = E V*`` (module Notes).  Returns the number of entries and
+    the half-width of ``A`` (the largest spread of the rows of an unknown)."""
     L, N, F = fractions.size, h.size, left.size
     Lp = P.shape[1]
     targets = np.zeros(L, np.int64)  # the pressure rows of each row of E: first, count
@@ -176,13 +168,14 @@ def entries(h, bed, fractions, dx, left, right, P, free, row_of, pointer, cells,
         beta[j, j - 1], beta[j, j] = fractions[j] / total, fractions[j - 1] / total
     rows, weights = np.empty(3, np.int64), np.empty(3)
     seen, at_left, at_right = np.empty(L, np.int64), np.empty(L), np.empty(L)
-    n = np.int64(0)  # not a literal 0: numba would also compile the callees for it
+    n = width = np.int64(0)  # not literal 0s: numba would also compile the callees for them
     if Lp < L:
         # fewer pressure rows: the entries of a face unknown of layer c are, per pressure row
         # g, h_face / dx times those of its F rows plus the slopes times those of its S rows
         flux, slopes, lowest, highest = _face_coefficients(P, beta, L)
     # the hot indices are unsigned integers (np.uint64): numba then leaves out the wrap-around
     # of negative indices, a third of the instructions of these loops
+    flat, stride = band.reshape(band.size), np.uint64(band.shape[1])  # band[i, d] = flat[i * stride + d]
     unsigned_N = np.uint64(N)
     c = f = a = column = 0  # the unknown k: the face f of layer c (k < L F), else wbar_a of a column
     for k in range(L * F + L * N):
@@ -241,8 +234,26 @@ def entries(h, bed, fractions, dx, left, right, P, free, row_of, pointer, cells,
             column += 1
             if column == N:
                 a, column = a + 1, 0
+        if band.shape[0] > 0 and free[k]:
+            # the terms of unknown k, each pair of its (distinct) rows once
+            inverse, lo, hi = 1.0 / mass[k], band.shape[0], -1
+            v = v_star[k]
+            for p in range(np.uint64(pointer[k]), np.uint64(n)):
+                row, value = np.uint64(cells[p]), values[p]
+                lo, hi = min(lo, np.int64(row)), max(hi, np.int64(row))
+                r[row] += value * v
+                scaled = value * inverse
+                at = row * stride
+                flat[at] += scaled * value
+                for q in range(p + np.uint64(1), np.uint64(n)):
+                    other = np.uint64(cells[q])
+                    if other > row:
+                        flat[at + (other - row)] += scaled * values[q]
+                    else:
+                        flat[other * stride + (row - other)] += (values[q] * inverse) * value
+            width = max(width, hi - lo)
     pointer[L * F + L * N] = n
-    return n
+    return n, width
 
 
 def capacity(L: int, N: int, F: int, Lp: int) -> int:
@@ -360,141 +371,44 @@ def normal_equations(
     P: np.ndarray,
     free: np.ndarray,
     row_of: np.ndarray,
-    moving: np.ndarray,
     n: int,
     v_star: np.ndarray,
     storage: np.ndarray,
     arrays: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``A_c = E_c M_c^-1 E_c^T`` of the cell unknowns (``E_c = E P_c``, module Notes) in
-    band storage ``band[i, d] = A_i,i+d`` (``n`` rows, the band of row ``i`` contiguous; in
-    ``storage`` if it is large enough) and ``r = E V*`` (``= E_c V*_c``), over the free
-    unknowns, the ``moving`` cells (L, N) and the rows ``row_of[cell] >= 0``, from the
-    constraint :func:`entries` (its arguments up to ``row_of``) stores in ``arrays``
-    (``pointer``, ``cells``, ``values``, ``mass``; the cells are the rows)."""
-    entries(h, bed, fractions, dx, left, right, P, free, row_of, *arrays)
-    r = product(*arrays[:3], free, v_star, n)
+    """``A = E M^-1 E^T`` in band storage ``band[i, d] = A_i,i+d`` (``n`` rows, the band of
+    row ``i`` contiguous; in ``storage`` if it is large enough) and ``r = E V*``, over the
+    free unknowns and the rows ``row_of[cell] >= 0`` (module Notes), added up by
+    :func:`entries` (its arguments up to ``row_of``) as it stores the constraint in
+    ``arrays`` (``pointer``, ``cells``, ``values``, ``mass``; the cells are the rows)."""
     bound = _band_bound(row_of, left, right, h.size, P.shape[1])
     if storage.size < n * (bound + 1):
         storage = np.empty(n * (bound + 1))
     wide = storage[: n * (bound + 1)].reshape((n, bound + 1))
     wide[:] = 0.0
-    width = _cell_band(*arrays, moving, left, right, wide)
+    r = np.zeros(n)
+    _, width = entries(h, bed, fractions, dx, left, right, P, free, row_of, *arrays, v_star, wide, r)
     return _narrow(storage, n, bound, width), r
 
 
 @jit
-def product(pointer, cells, values, free, V, n):
-    """``E V`` (``n`` rows) from the constraint stored by :func:`entries` (``cells``: rows)."""
-    out = np.zeros(n)
-    for k in range(free.size):
-        if free[k]:
-            for e in range(np.uint64(pointer[k]), np.uint64(pointer[k + 1])):
-                out[np.uint64(cells[e])] += values[e] * V[k]
-    return out
-
-
-@jit
-def _sides(left, right, N):
-    """The face on the left (-1: none) and on the right of each of the ``N`` columns."""
-    before, after = np.full(N, -1, np.int64), np.full(N, -1, np.int64)
-    for f in range(left.size):
-        after[left[f]] = f
-        before[right[f]] = f
-    return before, after
-
-
-@jit
-def _cell_band(pointer, cells, values, mass, moving, left, right, band):
-    """Add up ``A_c = E_c M_c^-1 E_c^T`` in ``band`` (zero on entry) column of ``E_c`` by
-    column: the velocity ``u_c,i`` of a moving cell enters the rows of the faces ``f`` on its
-    sides with half their entries (``v_f`` is the mean of its two cells), ``wbar`` its own
-    rows, each with the cell's mass ``m_c,i``.  Returns the half-width of ``A_c`` (the
-    largest spread of the rows of an unknown)."""
-    L, N = moving.shape
-    F = left.size
-    before, after = _sides(left, right, N)
-    most = 0
-    for k in range(L * F + L * N):
-        most = max(most, pointer[k + 1] - pointer[k])
-    rows, weights = np.empty(2 * most, np.int64), np.empty(2 * most)
-    flat, stride = band.reshape(band.size), np.uint64(band.shape[1])  # band[i, d] = flat[i * stride + d]
-    width = np.int64(0)
-    for c in range(L):
-        for i in range(N):
-            if not moving[c, i]:
-                continue
-            count = np.int64(0)
-            for f in (before[i], after[i]):
-                if f < 0:
-                    continue
-                k = c * F + f
-                for p in range(pointer[k], pointer[k + 1]):
-                    count = _merge(rows, weights, count, cells[p], 0.5 * values[p])
-            width = max(width, _add_outer(flat, stride, rows, weights, count, 1.0 / mass[L * F + c * N + i]))
-    for k in range(L * F, L * F + L * N):
-        count = np.int64(0)
-        for p in range(pointer[k], pointer[k + 1]):
-            count = _merge(rows, weights, count, cells[p], values[p])
-        if count > 0:  # a free wbar (an unknown not free has no entries, and may have no mass)
-            width = max(width, _add_outer(flat, stride, rows, weights, count, 1.0 / mass[k]))
-    return width
-
-
-@jit
-def _merge(rows, weights, count, row, value):
-    """Add ``value`` to the entry of ``row`` (a new entry at ``count`` if it has none yet);
-    returns the new count."""
-    for t in range(count):
-        if rows[t] == row:
-            weights[t] += value
-            return count
-    rows[count], weights[count] = row, value
-    return count + 1
-
-
-@jit
-def _add_outer(flat, stride, rows, weights, count, inverse):
-    """Add ``e e^T inverse`` of the column ``e`` (its ``count`` entries ``weights`` in the
-    ``rows``) to the band ``flat`` (rows ``stride`` long), each pair of its rows once;
-    returns the spread of its rows."""
-    lo, hi = np.int64(flat.size), np.int64(-1)
-    # unsigned indices (np.uint64): numba leaves out the wrap-around of negative ones
-    for p in range(np.uint64(count)):
-        row, value = np.uint64(rows[p]), weights[p]
-        lo, hi = min(lo, np.int64(row)), max(hi, np.int64(row))
-        scaled = value * inverse
-        at = row * stride
-        flat[at] += scaled * value
-        for q in range(p + np.uint64(1), np.uint64(count)):
-            other = np.uint64(rows[q])
-            if other > row:
-                flat[at + (other - row)] += scaled * weights[q]
-            else:
-                flat[other * stride + (row - other)] += (weights[q] * inverse) * value
-    return max(hi - lo, np.int64(0))
-
-
-@jit
 def _band_bound(row_of, left, right, N, Lp):
-    """The half-width of the band at most: the spread of the rows of a column and of the
-    columns on its two sides (through its faces)."""
+    """The half-width of the band at most: the spread of the rows of a column, or of the
+    two columns of a face."""
     lowest, highest = np.full(N, Lp * N, np.int64), np.full(N, -1, np.int64)
     for g in range(Lp):
         for i in range(N):
             row = row_of[g * N + i]
             if row >= 0:
                 lowest[i], highest[i] = min(lowest[i], row), max(highest[i], row)
-    before, after = _sides(left, right, N)
     bound = 0
     for i in range(N):
-        lo, hi = lowest[i], highest[i]
-        if before[i] >= 0:
-            lo, hi = min(lo, lowest[left[before[i]]]), max(hi, highest[left[before[i]]])
-        if after[i] >= 0:
-            lo, hi = min(lo, lowest[right[after[i]]]), max(hi, highest[right[after[i]]])
-        if hi >= 0:
-            bound = max(bound, hi - lo)
+        if highest[i] >= 0:
+            bound = max(bound, highest[i] - lowest[i])
+    for f in range(left.size):
+        i, e = left[f], right[f]
+        if highest[i] >= 0 and highest[e] >= 0:
+            bound = max(bound, max(highest[i], highest[e]) - min(lowest[i], lowest[e]))
     return bound
 
 
@@ -520,25 +434,3 @@ def correct(pointer, cells, values, mass, free, lam, dV):
                 s += values[e] * lam[np.uint64(cells[e])]
             dV[k] = -s / mass[k]
     return dV
-
-
-@jit
-def cell_changes(dV, mass, left, right, moving, du):
-    """The changes ``du`` (L, N) of the cell velocities, ``-M_c^-1 P_c^T E^T lam`` (module
-    Notes), from the correction ``dV = -M^-1 E^T lam`` of the face unknowns: ``du_c,i =
-    sum_f dV_c,f M_c,f / (2 m_c,i)`` over the faces ``f`` of the column ``i``, at the
-    ``moving`` cells (zero elsewhere; ``mass`` holds ``M`` then the cell masses ``m``)."""
-    L, N = moving.shape
-    F = left.size
-    du[:] = 0.0
-    # unsigned indices (np.uint64): numba leaves out the wrap-around of negative ones
-    for c in range(L):
-        for f in range(F):
-            k = np.uint64(c * F + f)
-            half = 0.5 * dV[k] * mass[k]  # each column is the left of one face at most, and the right of one
-            du[c, np.uint64(left[f])] += half
-            du[c, np.uint64(right[f])] += half
-    for a in range(L):
-        for i in range(N):
-            du[a, i] = du[a, i] / mass[L * F + a * N + i] if moving[a, i] else 0.0
-    return du

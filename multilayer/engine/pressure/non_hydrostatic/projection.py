@@ -91,13 +91,11 @@ from multilayer.engine.pressure.non_hydrostatic.banded import multipliers
 from multilayer.engine.pressure.non_hydrostatic.constraint import (
     Constraint,
     capacity,
-    cell_changes,
     correct,
     entries,
     faces,
     layering,
     normal_equations,
-    product,
     unknowns,
 )
 from multilayer.engine.state import span
@@ -141,14 +139,11 @@ def correction(
         np.empty(cons.cells.size),
         np.empty(K),
     )
-    band, r = normal_equations(*cons.geometry, free, row_of, moving, n, V_star, np.empty(0), arrays)
+    band, r = normal_equations(*cons.geometry, free, row_of, n, V_star, np.empty(0), arrays)
     lam = multipliers(band, r, rows[:n], lam_max, active)[0]
-    dV = correct(*arrays, free, lam, np.empty(K))
-    du = cell_changes(dV, arrays[3], cons.left, cons.right, moving, np.empty(moving.shape))
-    dw = np.where(moving, dV[K - moving.size :].reshape(moving.shape), 0.0)
-    cells = np.concatenate([moving.ravel()] * 2)
-    V_cells = np.concatenate([u[:, offset : offset + N].ravel(), w[:, offset : offset + N].ravel()])
-    return np.where(cells, V_cells, 0.0), np.concatenate([du.ravel(), dw.ravel()]), cells
+    dV = np.empty(K)
+    correct(*arrays, free, lam, dV)
+    return V_star, dV, free
 
 
 class _Buffers:
@@ -166,8 +161,8 @@ class _Buffers:
         self.pointer = np.empty(K + 1, np.int64)
         self.cells, self.values = np.empty(capacity(L, N, N, Lp), np.int64), np.empty(capacity(L, N, N, Lp))
         self.row_of, self.rows = np.empty(Lp * N, np.int64), np.empty(Lp * N, np.int64)
-        # a band of half-width below 3 Lp (the rows of three columns; wider: periodic ends, a new one)
-        self.band = np.empty(Lp * N * 3 * Lp)
+        # a band of half-width below 2 Lp (the rows of two columns; wider: periodic ends, a new one)
+        self.band = np.empty(Lp * N * 2 * Lp)
         self.du = np.empty(L * N)
         self.V_start, self.dQ = np.empty(K), np.empty(K)
 
@@ -267,10 +262,10 @@ def project_columns(
         V0 = buffers.V_start[:K]  # the same free unknowns and rows, the start's values
         unknowns(face_mass, left, right, moving, u0, w0, lo, nodes, free, V0, row_of, buffers.rows)
         before = np.where(h0[window] > dry, h0[window], 0.0)
-        entries(before, bed[window], fractions, dx, left, right, P, free, row_of, *arrays)
-        carried = product(*arrays[:3], free, V0, n)
+        entries(before, bed[window], fractions, dx, left, right, P, free, row_of, *arrays, *_NO_BAND)
+        carried = _product(*arrays[:3], free, V0, n)
     geometry = (thickness, bed[window], fractions, dx, left, right, P)
-    band, r = normal_equations(*geometry, free, row_of, moving, n, V_star, buffers.band, arrays)
+    band, r = normal_equations(*geometry, free, row_of, n, V_star, buffers.band, arrays)
     lam, factored = multipliers(band, r, buffers.rows[:n], lam_max, active)
     correct(*arrays, free, lam, dV)
     dQ = dV
@@ -280,8 +275,23 @@ def project_columns(
         dQ = buffers.dQ[:K]
         lam = multipliers(band, r - carried, buffers.rows[:n], lam_max, active, factored)[0]
         correct(*arrays, free, lam, dQ)
-    _finish(dV, dQ, mass, u, w, h, fractions, moving, left, right, dt, lo, buffers.du, *out)
+    _finish(dV, dQ, u, w, h, fractions, moving, left, right, dt, lo, buffers.du, *out)
     return lo, hi
+
+
+_NO_BAND = (np.empty(0), np.empty((0, 1)), np.empty(0))
+"""The ``v_star``, ``band`` and ``r`` of :func:`entries` storing ``E`` only."""
+
+
+@jit
+def _product(pointer, cells, values, free, V, n):
+    """``E V`` (``n`` rows) from the constraint stored by :func:`entries` (``cells``: rows)."""
+    out = np.zeros(n)
+    for k in range(free.size):
+        if free[k]:
+            for e in range(np.uint64(pointer[k]), np.uint64(pointer[k + 1])):
+                out[np.uint64(cells[e])] += values[e] * V[k]
+    return out
 
 
 @jit
@@ -297,16 +307,22 @@ def _moving(u, h, dry, lo, hi):
 
 
 @jit
-def _finish(dV, dQ, mass, u, w, h, fractions, moving, left, right, dt, lo, storage, u_out, w_out, q_out):
-    """The projected ``u`` (:func:`cell_changes` of the correction ``dV`` of the face
-    unknowns, masses ``mass``), ``w`` and the pressures ``q_a = sum_{b >= a} h_b dw_b / dt``
-    (``dw`` the ``wbar`` part of the pressure's correction ``dQ``) of the columns ``lo ..``
-    (as many as ``moving`` has) into ``u_out``, ``w_out`` and ``q_out`` (module Notes);
-    ``storage`` holds the changes of ``u`` (at least L N long)."""
+def _finish(dV, dQ, u, w, h, fractions, moving, left, right, dt, lo, storage, u_out, w_out, q_out):
+    """The projected ``u`` (each column the mean of the corrections ``dV`` of its two faces),
+    ``w`` and the pressures ``q_a = sum_{b >= a} h_b dw_b / dt`` (``dw`` the ``wbar`` part of
+    the pressure's correction ``dQ``) of the columns ``lo ..`` (as many as ``moving`` has)
+    into ``u_out``, ``w_out`` and ``q_out`` (module Notes); ``storage`` holds the changes of
+    ``u`` (at least L N long)."""
     L, N = moving.shape
     F = left.size
-    du = cell_changes(dV, mass, left, right, moving, storage[: L * N].reshape((L, N)))
+    du = storage[: L * N].reshape((L, N))
+    du[:] = 0.0
     # unsigned indices (np.uint64): numba leaves out the wrap-around of negative ones
+    for c in range(L):
+        for f in range(F):
+            half = 0.5 * dV[c * F + f]  # each column is the left of one face at most, and the right of one
+            du[c, np.uint64(left[f])] += half
+            du[c, np.uint64(right[f])] += half
     for a in range(L):
         for i in range(N):
             at = np.uint64(lo + i)
