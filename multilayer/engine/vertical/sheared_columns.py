@@ -409,6 +409,16 @@ def _within_bound(t, x, L, new, limit):
     return not residual > cap * smallest and np.sqrt(residual / smallest) <= limit
 
 
+@jit(borrowing=True)
+def _keep(t, L, new, lanes):
+    """The velocities of slot ``new`` of the lanes in the bit mask ``lanes`` into slot ``GUESS``,
+    kept for the output (a later solve writes over slot ``new``)."""
+    for i in range(BLOCK):
+        x = cell(i, L)
+        for y in range(np.uint64(x), np.uint64(x + L if lanes >> i & 1 else x)):  # as vectors
+            t[GUESS, y] = t[new, y]
+
+
 @jit(borrowing=True, error_model="numpy")
 def sheared_block(
     t, sweeps, flags, finished, form, params, threshold, max_iterations, j0, c0,
@@ -431,11 +441,12 @@ def sheared_block(
     _stresses_and_model(t, L, current, form, params, flags, model)
     for i in range(BLOCK):
         flags[ACTIVE, i] = flags[ACTIVE, i] and flags[SHEARED, i]
+    last = 0  # the columns finished by the last iteration (a bit each), when it finished the block
     for iteration in range(1, max_iterations + 1):
         _solve(t, sweeps, L, new, flags)
         _stresses_and_model(t, L, new, form, params, flags, stresses)  # the bound's stresses
         _converged(t, L, new, current, threshold, concave_stress, flags)
-        remaining = 0
+        remaining = now = 0
         for i in range(BLOCK):
             if not flags[ACTIVE, i]:
                 continue
@@ -450,8 +461,7 @@ def sheared_block(
                 if infinite > 0:
                     flags[ACTIVE, i] = False
                     continue
-                for y in range(np.uint64(x), np.uint64(x + L)):  # its velocities, kept for the output
-                    t[GUESS, y] = t[new, y]
+                now |= 1 << i
                 iterations[j] = iteration
                 fallbacks[j] = 0
                 faults[j] = 0
@@ -465,19 +475,29 @@ def sheared_block(
             else:
                 remaining += 1
         if remaining == 0:
+            last = now
             break
+        _keep(t, L, new, now)  # before the next solve writes over slot new
         _stresses_and_model(t, L, new, form, params, flags, model)  # the next model (the same flags)
         current, new = new, current
-    # the velocities of the columns it finished (kept in GUESS): of all of them row by row, as
-    # load reads them (column by column, each column's L stores fall a row of the mesh apart)
-    every = True
+    # the velocities of the columns it finished: of all of them row by row, as load reads them
+    # (column by column, each column's L stores fall a row of the mesh apart); where the last
+    # iteration finished every column, from the last solve's sweeps, which hold them row by row
+    together = last == (1 << BLOCK) - 1
+    if not together:
+        _keep(t, L, new, last)
+    step, solved = np.uint64(SWEEPS * BLOCK), np.uint64(SOLVED * BLOCK)
+    for a in range(np.uint64(L if together else 0)):  # unsigned: no test for negative indices
+        for i in range(BLOCK):
+            u_out[a, np.uint64(c0 + i)] = sweeps[a * step + solved + np.uint64(i)]
+    every = not together
     for i in range(BLOCK):
         every = every and finished[i]
-    for a in range(np.uint64(L if every else 0)):  # unsigned: no test for negative indices
+    for a in range(np.uint64(L if every else 0)):
         for i in range(BLOCK):
             x, column = np.uint64(cell(i, L)) + a, np.uint64(c0 + i)
             u_out[a, column] = t[GUESS, x]
-    for i in range(0 if every else BLOCK):
+    for i in range(0 if every or together else BLOCK):
         for a in range(np.uint64(L if finished[i] else 0)):
             x, column = np.uint64(cell(i, L)) + a, np.uint64(c0 + i)
             u_out[a, column] = t[GUESS, x]
