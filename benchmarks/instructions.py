@@ -28,18 +28,26 @@ steps, per cell-step (its transport and vertical step together).  ``--cache-sim`
 simulates the data caches (callgrind's ``--cache-sim``, no prefetching: a count of the
 lines moved, not of their cost) as ``CACHES``, an L1 of 48 KiB and an L2 of 2 MiB per core
 as the last level, and gives their misses per cell-step beside the instructions.
+``--functions N`` also lists the N compiled functions in which each region executes the
+most instructions per cell-step (callgrind's ``--dump-instr``; numba's code has no symbols
+valgrind can see, so each region's run records the object code numba loads or compiles and
+locates its functions, ``nm``, at their addresses in the process; code a function inlined
+counts as its caller's).
 
     python benchmarks/instructions.py [--case chute|dam_break] [--cells 2000] [--layers 64]
         [--steps 4 | --until T] [--warm 3] [--warm-time 0] [--start bagnold|rest]
         [--pressure hydrostatic|non_hydrostatic] [--regions step,transport,...]
-        [--peer kernel.c] [--cache-sim] [--json FILE]
+        [--peer kernel.c] [--cache-sim] [--functions N] [--json FILE]
 
-Needs valgrind, its headers (valgrind/callgrind.h) and a C compiler.
+Needs valgrind, its headers (valgrind/callgrind.h) and a C compiler (and ``nm`` for
+``--functions``).
 """
 
 from __future__ import annotations
 
 import argparse
+import bisect
+import collections
 import ctypes
 import json
 import os
@@ -48,6 +56,7 @@ import subprocess
 import sys
 import tempfile
 from pathlib import Path
+from typing import Any
 
 HELPER = r"""
 #include <valgrind/callgrind.h>
@@ -107,8 +116,106 @@ def simulation(args: argparse.Namespace):
     return Simulation(dam_break(args.cells, args.layers, 2, 5.0, 1, args.pressure, args.pressure_layers))
 
 
+def objects() -> list:
+    """numba's object code, as its JIT loads it from the cache or compiles it: (code library,
+    object) pairs, recorded from here on (before numba's first compilation)."""
+    from numba.core import codegen
+
+    recorded: list = []
+    owner: Any = codegen.CPUCodeLibrary
+    compiled, cached = owner._object_compiled_hook.__func__, owner._object_getbuffer_hook.__func__
+
+    def on_compiled(cls, module, buffer):
+        recorded.append((getattr(module, "_CPUCodeLibrary__library", None), bytes(buffer)))
+        return compiled(cls, module, buffer)
+
+    def on_cached(cls, module):
+        buffer = cached(cls, module)
+        if buffer is not None:
+            recorded.append((getattr(module, "_CPUCodeLibrary__library", None), bytes(buffer)))
+        return buffer
+
+    owner._object_compiled_hook = classmethod(on_compiled)
+    owner._object_getbuffer_hook = classmethod(on_cached)
+    return recorded
+
+
+def symbols(recorded: list, workdir: Path) -> list[tuple[int, int, str]]:
+    """The functions of the objects of :func:`objects` (``nm``) at their addresses in this
+    process: (address, size, name).  Each object is placed by a function it alone defines
+    (weak copies of a function stand in several objects)."""
+    found = []
+    for library, code in recorded:
+        path = workdir / "object.o"
+        path.write_bytes(code)
+        listed = subprocess.run(
+            ["nm", "-S", "--defined-only", str(path)], capture_output=True, text=True
+        ).stdout
+        rows = [row.split() for row in listed.splitlines()]
+        functions = [
+            (int(r[0], 16), int(r[1], 16), r[3], r[2]) for r in rows if len(r) == 4 and r[2] in "tTwW"
+        ]
+        names = collections.Counter(name for _, _, name, _ in functions)
+        base = None
+        for value, _, name, kind in functions:
+            if library is not None and kind in "tT" and names[name] == 1 and not name.startswith("NRT"):
+                address = library._codegen._engine.get_function_address(name)
+                if address:
+                    base = address - value
+                    break
+        if base is not None:
+            found += [(base + value, size, name) for value, size, name, _ in functions]
+    return sorted(found)
+
+
+def by_function(
+    out: Path, found: list[tuple[int, int, str]], cell_steps: int, most: int
+) -> list[tuple[str, float]]:
+    """The ``most`` functions of ``found`` in which the callgrind output ``out`` (with
+    ``--dump-instr``) counts the most instructions, per cell-step (a call's line, the cost
+    of its callee, not counted)."""
+    starts = [address for address, _, _ in found]
+    costs: collections.Counter = collections.Counter()
+    columns, last, call = 1, 0, False
+    for line in out.read_text().splitlines():
+        if line.startswith("positions:"):
+            columns = len(line.split()) - 1
+        elif line.startswith("calls="):
+            call = True
+        elif line and line[0] in "0123456789+-*":
+            fields = line.split()
+            position = fields[0]
+            if position.startswith("0x"):
+                last = int(position, 16)
+            elif position[0] in "+-":
+                last += int(position)
+            elif position != "*":
+                last = int(position)
+            if call or len(fields) <= columns:
+                call = False
+                continue
+            i = bisect.bisect_right(starts, last) - 1
+            inside = i >= 0 and last < found[i][0] + max(found[i][1], 1)
+            costs[short(found[i][2]) if inside else "(elsewhere)"] += int(fields[columns])
+    return [(name, count / cell_steps) for name, count in costs.most_common(most)]
+
+
+def short(name: str) -> str:
+    """A mangled numba name (``_ZN``, then each word after its length) as its last two
+    words: module.function."""
+    if not name.startswith("_ZN"):
+        return name
+    words, text = [], name[3:]
+    while (digits := re.match(r"\d+", text)) is not None:
+        size, text = int(digits.group()), text[digits.end() :]
+        words.append(text[:size])
+        text = text[size:]
+    return ".".join(words[-2:]) if words else name
+
+
 def run_region(args: argparse.Namespace) -> None:
     """Inside valgrind: the problem, counting the instructions of ``args.region``."""
+    recorded = objects() if args.functions else []
     import numpy as np
 
     from multilayer.engine.transport import kernel
@@ -139,6 +246,9 @@ def run_region(args: argparse.Namespace) -> None:
         if args.region == "step":
             lib.toggle()
     result = {"cell_steps": cells, "newton": sim.newton_iterations - newton, "steps": sim.steps - steps}
+    if args.functions:
+        path = Path(args.workdir) / f"{args.region}.symbols.json"
+        path.write_text(json.dumps(symbols(recorded, Path(args.workdir))))
     print("RESULT " + json.dumps(result))
 
 
@@ -149,11 +259,17 @@ def environment(cache: Path) -> dict[str, str]:
 
 
 def callgrind(
-    command: list[str], out: Path, env: dict[str, str] | None = None, caches: bool = False
+    command: list[str],
+    out: Path,
+    env: dict[str, str] | None = None,
+    caches: bool = False,
+    instr: bool = False,
 ) -> tuple[dict[str, int], str]:
     """Run ``command`` under callgrind: the events it counted (``Ir`` the instructions; with
-    ``caches`` also the misses of the simulated caches, ``CACHES``), its output."""
+    ``caches`` also the misses of the simulated caches, ``CACHES``), its output; with
+    ``instr`` the counts per instruction in ``out``."""
     options = ["--instr-atstart=no", "--collect-atstart=no"] if command[0] == sys.executable else []
+    options += ["--dump-instr=yes"] if instr else []
     run = subprocess.run(
         ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", *options, *(CACHES if caches else []),
          *command],
@@ -214,6 +330,7 @@ def main() -> None:
     parser.add_argument("--regions", default=",".join(REGIONS))
     parser.add_argument("--peer", type=Path, help="the C kernel's source, counted on the same sizes")
     parser.add_argument("--cache-sim", action="store_true", help="also count simulated cache misses")
+    parser.add_argument("--functions", type=int, default=0, help="list the N costliest compiled functions")
     parser.add_argument("--json", type=Path, help="write the counts to this file")
     cache = Path(tempfile.gettempdir()) / "instructions-numba-cache"
     parser.add_argument(
@@ -233,18 +350,25 @@ def main() -> None:
         f"--warm={args.warm}", f"--warm-time={args.warm_time}", f"--start={args.start}",
         f"--pressure={args.pressure}",
         *([f"--pressure-layers={args.pressure_layers}"] if args.pressure_layers else []),
+        f"--functions={args.functions}",
     ]  # fmt: skip
     env = environment(args.cache)
     command = [sys.executable, __file__, *forwarded, "--workdir", str(workdir), "--region"]
     subprocess.run([*command, "step"], check=True, stdout=subprocess.DEVNULL, env=env)  # numba's cache
     counts: dict = {}
     for region in args.regions.split(","):
-        events, output = callgrind([*command, region], workdir / f"{region}.out", env, args.cache_sim)
+        out = workdir / f"{region}.out"
+        events, output = callgrind([*command, region], out, env, args.cache_sim, args.functions > 0)
         result = json.loads(output.split("RESULT ", 1)[1])
         total, simulated = events["Ir"], misses(events, result["cell_steps"])
         per_cell_step = total / result["cell_steps"]
         counts[region] = {"instructions": total, **result, "per_cell_step": per_cell_step, **simulated}
         print(f"{region}: {per_cell_step:.1f} instructions per cell-step{described(simulated)} ({result})")
+        if args.functions:
+            found = json.loads((workdir / f"{region}.symbols.json").read_text())
+            costliest = by_function(out, found, result["cell_steps"], args.functions)
+            counts[region]["functions"] = dict(costliest)
+            print("\n".join(f"  {count:7.2f}  {name}" for name, count in costliest))
     if args.peer:
         counts["C kernel"] = peer(args.peer, args.cells, args.layers, args.steps, workdir, args.cache_sim)
         print(f"C kernel: {counts['C kernel']['per_cell_step']:.1f} instructions per cell-step"

@@ -153,9 +153,12 @@ def _stresses_and_model(t, L, u, form, params, flags, model):
     ``newton_kernel._true_stresses``, and with ``model`` their derivatives (``STIFF0 + u -
     U0``) and the Newton model there (``KC``, ``CC``, ``SIGN``), for the next iteration
     (a column done at ``u`` reads neither: the model is formed once the test has left a
-    column to iterate); ``SHEARED`` tells whether every jump is nonzero.
+    column to iterate); ``SHEARED`` tells whether every jump is nonzero.  Without ``model``,
+    ``u`` is the answer of :func:`_solve` to the model in place, and the pass also makes the
+    rest of its optimality test (a column with a yielded jump against its model's sign
+    leaves the block).
     The block's lanes are swept as one loop over their cells (the bed below the bottom
-    cell of each lane); where some column is unsheared or outside the contract, its lanes
+    cell of each lane); where some column is unsheared, outside the contract or rejected, its lanes
     are swept again one by one to tell which (the same values again).  The pass is
     compiled once per built-in form, the form a literal constant in it (its loop then has
     no branches; ``forms.INERTIAL``, ``CONSTANT``, ``POWER``); any other form of
@@ -185,7 +188,9 @@ def _sweep(t, u, form, params, start, stop, model):
     """Cells ``start ... stop - 1`` of the tile's rows of :func:`_stresses_and_model` (the
     velocities in slot ``u``; the stores of the model with ``model`` only, a condition the
     compiler takes out of the loop); returns how many viscosities are outside the plugin
-    contract and how many jumps are zero."""
+    contract, with, without ``model``, how many yielded interfaces (``KC`` > 0, the bed's
+    included) the jump crosses against the sign ``SIGN`` of the model (the test of
+    ``column_solve._active_set``), and how many jumps are zero."""
     faults = unsheared = 0
     tau, stiffness = TAU0 + (u - U0), STIFF0 + (u - U0)
     for x in range(np.uint64(start), np.uint64(stop)):  # unsigned: no test for negative indices
@@ -204,6 +209,8 @@ def _sweep(t, u, form, params, start, stop, model):
             t[KC, x] = kappa if t[VISCOUS, x] > 0.0 else t[KAPPA, x]
             t[CC, x] = conductance * t[CONDUCTANCE, x]
             t[SIGN, x] = _sign(jump)
+        else:
+            faults += (t[KC, x] > 0.0) & (t[SIGN, x] * jump < 0.0)
     return faults, unsheared
 
 
@@ -211,8 +218,8 @@ def _sweep(t, u, form, params, start, stop, model):
 def _solve(t, w, L, new, flags):
     """The exact solve with one group per layer into slot ``new``: the forward sweep and
     the back substitution of ``column_solve._active_set``, and its optimality test: each
-    pivot is positive and each yielded jump keeps its sign (a column whose structure is
-    rejected leaves the block).
+    pivot is positive (a column whose structure is rejected leaves the block; the pass of the
+    stresses at slot ``new`` tests that each yielded jump keeps its sign, :func:`_sweep`).
 
     The sweeps run in ``w`` (``SWEEPS BLOCK L`` values), which holds each layer's ``SWEEPS``
     values of the ``BLOCK`` lanes side by side (value k of layer a of lane i in ``(a
@@ -223,10 +230,8 @@ def _solve(t, w, L, new, flags):
     order) are formed lane by lane from the tile, swept and substituted back layer by
     layer (each operation that of ``_active_set``: the same bits), counting the failures
     of the pivots up the column (so that the top layer holds each lane's), and the
-    velocities go back to slot ``new`` of the tile, lane by lane; there the signs of the
-    yielded jumps are tested (:func:`_sign_changes`), in one pass over the block's cells
-    and, where some jump changed sign, over each lane's.  Indices are unsigned (as in
-    :func:`_sweep`): no test for negative indices."""
+    velocities go back to slot ``new`` of the tile, lane by lane.  Indices are unsigned (as
+    in :func:`_sweep`): no test for negative indices."""
     one, lanes, layers = np.uint64(1), np.uint64(BLOCK), np.uint64(L)
     step = np.uint64(SWEEPS * BLOCK)  # from one layer to the next in w
     pivot, right, coupling = np.uint64(PIVOT), np.uint64(RIGHT), np.uint64(COUPLING)
@@ -282,27 +287,6 @@ def _solve(t, w, L, new, flags):
             t[new, x0 + a] = w[a * step + solved * lanes + i]
         if w[top + tried * lanes + i] > 0.0:
             flags[ACTIVE, lane] = False
-    if _sign_changes(t, new, cell(0, L), cell(BLOCK, L)) > 0:  # and of the signs: which columns (rare)
-        for lane in range(BLOCK):
-            x = cell(lane, L)
-            if _sign_changes(t, new, x, x + L) > 0:
-                flags[ACTIVE, lane] = False
-
-
-@jit(borrowing=True)
-def _sign_changes(t, new, start, stop):
-    """How many of the cells ``start ... stop - 1`` of the tile have a yielded interface
-    below (``KC`` > 0) across which the jump of the velocities of slot ``new`` has not
-    the sign ``SIGN`` of the Newton model: the test of ``column_solve._active_set`` (a
-    jump against the sign of its yield stress), the interface with the bed included (the
-    bed's velocity 0 from ``BED``), as one loop over the cells, without branches: as
-    vectors (the cell below loaded unconditionally, as in :func:`_sweep`)."""
-    changes = 0
-    for y in range(np.uint64(start), np.uint64(stop)):  # unsigned: no test for negative indices
-        g, previous = t[new, y], t[new, y - np.uint64(1)]
-        below = 0.0 if t[BED, y] > 0.0 else previous
-        changes += (t[KC, y] > 0.0) & (t[SIGN, y] * (g - below) < 0.0)
-    return changes
 
 
 @jit(borrowing=True, error_model="numpy")
@@ -409,6 +393,16 @@ def _within_bound(t, x, L, new, limit):
     return not residual > cap * smallest and np.sqrt(residual / smallest) <= limit
 
 
+@jit(borrowing=True)
+def _keep(t, L, new, lanes):
+    """The velocities of slot ``new`` of the lanes in the bit mask ``lanes`` into slot ``GUESS``,
+    kept for the output (a later solve writes over slot ``new``)."""
+    for i in range(BLOCK):
+        x = cell(i, L)
+        for y in range(np.uint64(x), np.uint64(x + L if lanes >> i & 1 else x)):  # as vectors
+            t[GUESS, y] = t[new, y]
+
+
 @jit(borrowing=True, error_model="numpy")
 def sheared_block(
     t, sweeps, flags, finished, form, params, threshold, max_iterations, j0, c0,
@@ -431,11 +425,12 @@ def sheared_block(
     _stresses_and_model(t, L, current, form, params, flags, model)
     for i in range(BLOCK):
         flags[ACTIVE, i] = flags[ACTIVE, i] and flags[SHEARED, i]
+    last = 0  # the columns finished by the last iteration (a bit each), when it finished the block
     for iteration in range(1, max_iterations + 1):
         _solve(t, sweeps, L, new, flags)
         _stresses_and_model(t, L, new, form, params, flags, stresses)  # the bound's stresses
         _converged(t, L, new, current, threshold, concave_stress, flags)
-        remaining = 0
+        remaining = now = 0
         for i in range(BLOCK):
             if not flags[ACTIVE, i]:
                 continue
@@ -450,8 +445,7 @@ def sheared_block(
                 if infinite > 0:
                     flags[ACTIVE, i] = False
                     continue
-                for y in range(np.uint64(x), np.uint64(x + L)):  # its velocities, kept for the output
-                    t[GUESS, y] = t[new, y]
+                now |= 1 << i
                 iterations[j] = iteration
                 fallbacks[j] = 0
                 faults[j] = 0
@@ -465,19 +459,29 @@ def sheared_block(
             else:
                 remaining += 1
         if remaining == 0:
+            last = now
             break
+        _keep(t, L, new, now)  # before the next solve writes over slot new
         _stresses_and_model(t, L, new, form, params, flags, model)  # the next model (the same flags)
         current, new = new, current
-    # the velocities of the columns it finished (kept in GUESS): of all of them row by row, as
-    # load reads them (column by column, each column's L stores fall a row of the mesh apart)
-    every = True
+    # the velocities of the columns it finished: of all of them row by row, as load reads them
+    # (column by column, each column's L stores fall a row of the mesh apart); where the last
+    # iteration finished every column, from the last solve's sweeps, which hold them row by row
+    together = last == (1 << BLOCK) - 1
+    if not together:
+        _keep(t, L, new, last)
+    step, solved = np.uint64(SWEEPS * BLOCK), np.uint64(SOLVED * BLOCK)
+    for a in range(np.uint64(L if together else 0)):  # unsigned: no test for negative indices
+        for i in range(BLOCK):
+            u_out[a, np.uint64(c0 + i)] = sweeps[a * step + solved + np.uint64(i)]
+    every = not together
     for i in range(BLOCK):
         every = every and finished[i]
-    for a in range(np.uint64(L if every else 0)):  # unsigned: no test for negative indices
+    for a in range(np.uint64(L if every else 0)):
         for i in range(BLOCK):
             x, column = np.uint64(cell(i, L)) + a, np.uint64(c0 + i)
             u_out[a, column] = t[GUESS, x]
-    for i in range(0 if every else BLOCK):
+    for i in range(0 if every or together else BLOCK):
         for a in range(np.uint64(L if finished[i] else 0)):
             x, column = np.uint64(cell(i, L)) + a, np.uint64(c0 + i)
             u_out[a, column] = t[GUESS, x]
