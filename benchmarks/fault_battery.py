@@ -2576,6 +2576,24 @@ def round_fifteen() -> list[Case]:
     return out
 
 
+def round_sixteen() -> list[Case]:
+    """The hostile cases of the sixteenth round (docs/reliability.md): the time, the step
+    count and the layer fields of a simulation replaced through the Python API."""
+    out: list[Case] = []
+    validate = ["validate", "{scenario}"]
+    for name, body, phrase in (
+        ("sim.t set to a string",
+         "sim = multilayer.Simulation(multilayer.load(sys.argv[2]))\nsim.t = 'a'\nsim.step()",
+         "sim.t = 'a': t is read-only"),
+        ("sim.state.fields['w'] replaced",
+         "sim = multilayer.Simulation(multilayer.load(sys.argv[2]))\n"
+         "sim.state.fields['w'] = sim.state.fields['w'].T.copy()\nsim.step()",
+         "state.fields['w']: the state's fields are not replaced"),
+    ):  # fmt: skip
+        out.append(Case(f"API: {name}", validate, 2, phrase, patch=_api(body), setup=_scenario))
+    return out
+
+
 def cases() -> list[Case]:
     out: list[Case] = []
     budget = ["--max-memory", "8G", "--max-output", "1G"]
@@ -2744,6 +2762,7 @@ def cases() -> list[Case]:
         + round_thirteen()
         + round_fourteen()
         + round_fifteen()
+        + round_sixteen()
     )
 
 

@@ -41,9 +41,10 @@ from __future__ import annotations
 
 import math
 import numbers
+import reprlib
 from collections.abc import Callable
 from contextlib import AbstractContextManager, nullcontext
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 
@@ -166,8 +167,8 @@ class Simulation:
         # columns that take part in the step: those moving at its start, and material at
         # rest that it sets moving (allocated once)
         self._stepping = np.zeros(c.cells, dtype=bool)
-        self.t = 0.0
-        self.steps = 0
+        self._t = 0.0
+        self._steps = 0
         self.newton_iterations = 0
         self.guard = StateGuard(self.x, self.dx, periodic=boundaries.BOUNDARIES[self.left].wraps)
         self.guard.check_state(self._state.h, self._state.u, "in the initial state")
@@ -242,6 +243,24 @@ class Simulation:
         now on each is checked at every step's entry (:meth:`step`)."""
         self._state.expose(for_good=True)
         return self._state
+
+    @property
+    def t(self) -> float:
+        """Time (s) of the state: set by the steps and by :meth:`load_state` only."""
+        return self._t
+
+    @t.setter
+    def t(self, value: object) -> None:
+        _read_only("t", value)
+
+    @property
+    def steps(self) -> int:
+        """Number of steps taken to reach the state: set as :attr:`t` is."""
+        return self._steps
+
+    @steps.setter
+    def steps(self, value: object) -> None:
+        _read_only("steps", value)
 
     @property
     def h(self) -> np.ndarray:
@@ -342,8 +361,8 @@ class Simulation:
             self.seeds.accept(dt)
             self._state.commit(h, u, fields, columns)
             self.newton_iterations += iterations
-            self.steps += 1
-            self.t = t_max if dt == t_max - self.t else self.t + dt  # lands on t_max when cut to reach it
+            self._steps += 1
+            self._t = t_max if dt == t_max - self._t else self._t + dt  # lands on t_max when cut to reach it
         return dt
 
     def _abandonable(self) -> AbstractContextManager[None]:
@@ -680,8 +699,8 @@ class Simulation:
         this simulation does not hold, or holds with another shape)."""
         check_restored(saved, self.state_dict())
         with whole():
-            self.t = float(saved["t"])
-            self.steps = int(saved["steps"])
+            self._t = float(saved["t"])
+            self._steps = int(saved["steps"])
             self.newton_iterations = int(saved.get("newton_iterations", 0))
             self._state.load_state(saved)
             self.forces.load_state(saved)
@@ -692,6 +711,16 @@ class Simulation:
         self.guard.reset(self._state.h, self.steps)
         if self.mixture is not None:
             self.mixture.reset(self.steps)
+
+
+def _read_only(name: str, value: object) -> NoReturn:
+    """Refuse ``sim.<name> = value``: the time and the step count follow the state (``sim.t =
+    'a'`` was kept, and a ``TypeError`` in the next step's arithmetic; ``sim.t = 5.0`` moved the
+    time of a state that was not at it).  :class:`InputError` naming what sets them."""
+    raise InputError(
+        f"sim.{name} = {reprlib.repr(value)}: {name} is read-only (it follows the state); accepted: "
+        "step() or advance(t_target) to move forward, load_state(saved) to restore a state and its t, steps"
+    )
 
 
 def _time(value: object) -> float:

@@ -32,6 +32,7 @@ import weakref
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from types import FrameType
+from typing import NoReturn
 
 import numpy as np
 
@@ -46,7 +47,7 @@ class FlowState:
         L, N = u.shape
         self.h = h
         self.u = u
-        self.fields: dict[str, np.ndarray] = {}
+        self.fields = Fields()
         self._defaults: dict[str, str | float] = {}
         self._exposed = {"h", "u"}  # arrays to check at the next step's entry: all at the start
         self._for_good = False  # the state object itself was handed out: every array, every step
@@ -85,7 +86,7 @@ class FlowState:
         values[...] = (
             self.u if default == "u" else self.fields[default] if isinstance(default, str) else default
         )
-        self.fields[name] = values
+        self.fields.add(name, values)
         self._defaults[name] = default
         self._exposed.add(name)
         return values
@@ -184,6 +185,42 @@ class FlowState:
             values[...] = saved.get(name, fallback)
         self.window = self._velocities = (0, self.h.size)
         self.expose()
+
+
+class Fields(Mapping[str, np.ndarray]):
+    """The layer fields of a :class:`FlowState` by name, a mapping whose arrays are written
+    in place and never replaced nor removed (as :meth:`FlowState.__setattr__` keeps ``h``
+    and ``u``): ``sim.state.fields['w'] = w.T`` went into the dict, and the kernels were
+    given an array of another shape or type, or the state kept one the engine no longer
+    wrote.  :class:`InputError` naming it."""
+
+    def __init__(self) -> None:
+        self._arrays: dict[str, np.ndarray] = {}
+
+    def add(self, name: str, values: np.ndarray) -> None:
+        """The new field ``name`` (:meth:`FlowState.add_field`)."""
+        self._arrays[name] = values
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self._arrays[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._arrays)
+
+    def __len__(self) -> int:
+        return len(self._arrays)
+
+    def __setitem__(self, name: str, value: object) -> None:
+        self._refuse(name)
+
+    def __delitem__(self, name: str) -> None:
+        self._refuse(name)
+
+    def _refuse(self, name: str) -> NoReturn:
+        raise InputError(
+            f"state.fields[{name!r}]: the state's fields are not replaced nor removed; accepted: writing "
+            f"into one in place, state.fields[{name!r}][...] = values, or sim.load_state(saved)"
+        )
 
 
 def read_only(array: np.ndarray) -> np.ndarray:
