@@ -2578,7 +2578,8 @@ def round_fifteen() -> list[Case]:
 
 def round_sixteen() -> list[Case]:
     """The hostile cases of the sixteenth round (docs/reliability.md): the time, the step
-    count and the layer fields of a simulation replaced through the Python API."""
+    count and the layer fields of a simulation replaced through the Python API, a force
+    impulse no run accumulates restored."""
     out: list[Case] = []
     validate = ["validate", "{scenario}"]
     for name, body, phrase in (
@@ -2589,6 +2590,10 @@ def round_sixteen() -> list[Case]:
          "sim = multilayer.Simulation(multilayer.load(sys.argv[2]))\n"
          "sim.state.fields['w'] = sim.state.fields['w'].T.copy()\nsim.step()",
          "state.fields['w']: the state's fields are not replaced"),
+        ("load_state of a force impulse of 1e308",
+         "import numpy as np\nsim = multilayer.Simulation(multilayer.load(sys.argv[2]))\nsim.step()\n"
+         "saved = sim.state_dict()\nsaved['force_impulse'] = np.full(8, 1e308)\nsim.load_state(saved)",
+         "accepted: impulses whose means are finite"),
     ):  # fmt: skip
         out.append(Case(f"API: {name}", validate, 2, phrase, patch=_api(body), setup=_scenario))
     return out

@@ -698,6 +698,7 @@ class Simulation:
         """Restore a state saved by ``state_dict`` (:class:`InputError` naming an entry
         this simulation does not hold, or holds with another shape)."""
         check_restored(saved, self.state_dict())
+        self.forces.check_restored(saved)
         with whole():
             self._t = float(saved["t"])
             self._steps = int(saved["steps"])
