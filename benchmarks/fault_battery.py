@@ -2579,7 +2579,7 @@ def round_fifteen() -> list[Case]:
 def round_sixteen() -> list[Case]:
     """The hostile cases of the sixteenth round (docs/reliability.md): the time, the step
     count and the layer fields of a simulation replaced through the Python API, a force
-    impulse no run accumulates restored."""
+    impulse no run accumulates restored, a bed profile short of the domain."""
     out: list[Case] = []
     validate = ["validate", "{scenario}"]
     for name, body, phrase in (
@@ -2596,6 +2596,13 @@ def round_sixteen() -> list[Case]:
          "accepted: impulses whose means are finite"),
     ):  # fmt: skip
         out.append(Case(f"API: {name}", validate, 2, phrase, patch=_api(body), setup=_scenario))
+    for command in ("validate", "run"):
+        argv = [command, "{scenario}"] + (["-o", "{dir}/out", "-q"] if command == "run" else [])
+        out.append(
+            Case(f"{command}: a bed file ending at 0.2 m on a domain to 0.5 m", argv, 2,
+                 "the profile bed.csv spans x = [0, 0.2] m (along the slope), short of the domain [0, 0.5] m",
+                 setup=_bed_file("bed.csv", "x (m), z (m)\n0.0, 0.0\n0.2, 0.0\n"))
+        )  # fmt: skip
     return out
 
 
