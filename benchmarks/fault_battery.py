@@ -2576,10 +2576,19 @@ def round_fifteen() -> list[Case]:
     return out
 
 
+def _linked_result(directory: Path) -> None:
+    """A scenario, and ``out/result.nc`` a symbolic link to a file beside ``out``."""
+    _scenario(directory)
+    (directory / "out").mkdir()
+    (directory / "precious.txt").write_text("precious")
+    (directory / "out" / "result.nc").symlink_to(directory / "precious.txt")
+
+
 def round_sixteen() -> list[Case]:
     """The hostile cases of the sixteenth round (docs/reliability.md): the time, the step
     count and the layer fields of a simulation replaced through the Python API, a force
-    impulse no run accumulates restored, a bed profile short of the domain."""
+    impulse no run accumulates restored, a bed profile short of the domain, an output file
+    linked to a file elsewhere."""
     out: list[Case] = []
     validate = ["validate", "{scenario}"]
     for name, body, phrase in (
@@ -2596,6 +2605,11 @@ def round_sixteen() -> list[Case]:
          "accepted: impulses whose means are finite"),
     ):  # fmt: skip
         out.append(Case(f"API: {name}", validate, 2, phrase, patch=_api(body), setup=_scenario))
+    out.append(
+        Case("run: out/result.nc a symbolic link to a file elsewhere",
+             ["run", "{scenario}", "-o", "{dir}/out", "-q"], 2, "result.nc: a symbolic link (to ",
+             setup=_linked_result)
+    )  # fmt: skip
     for command in ("validate", "run"):
         argv = [command, "{scenario}"] + (["-o", "{dir}/out", "-q"] if command == "run" else [])
         out.append(

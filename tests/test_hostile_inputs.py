@@ -208,6 +208,27 @@ def test_an_output_file_that_is_no_regular_file_is_refused_before_the_run(
     assert f"{path}: exists and is not a regular file" in result.err
 
 
+@pytest.mark.parametrize("name", [RESULT_FILE, "run.log"])
+def test_an_output_file_linked_to_a_file_elsewhere_is_refused_and_the_file_kept(
+    tmp_path, cli, write_scenario, name
+):
+    """``out/result.nc`` (or ``run.log``) a symbolic link to a file outside the directory:
+    the run wrote its result (its log) over that file.  Refused naming the link; the file
+    is as it was."""
+    outdir = tmp_path / "out"
+    outdir.mkdir()
+    elsewhere = tmp_path / "precious.txt"
+    elsewhere.write_text("precious")
+    (outdir / name).symlink_to(elsewhere)
+    result = cli("run", write_scenario(TINY_SCENARIO), "-o", outdir, "-q")
+    assert result.code == 2 and "Traceback" not in result.err
+    assert (
+        f"{outdir / name}: a symbolic link (to {elsewhere}), whose target the write would replace"
+        in result.err
+    )
+    assert elsewhere.read_text() == "precious"
+
+
 def test_validate_checks_sweep_and_study_files_with_every_member(tmp_path, cli, write_scenario):
     """``validate`` refused every sweep file as a scenario missing name, domain, ...; it
     checks a sweep with each of its members, and calibration and sensitivity files as
