@@ -2588,7 +2588,7 @@ def round_sixteen() -> list[Case]:
     """The hostile cases of the sixteenth round (docs/reliability.md): the time, the step
     count and the layer fields of a simulation replaced through the Python API, a force
     impulse no run accumulates restored, a bed profile short of the domain, an output file
-    linked to a file elsewhere."""
+    linked to a file elsewhere, a channel narrower than a grain."""
     out: list[Case] = []
     validate = ["validate", "{scenario}"]
     for name, body, phrase in (
@@ -2605,6 +2605,12 @@ def round_sixteen() -> list[Case]:
          "accepted: impulses whose means are finite"),
     ):  # fmt: skip
         out.append(Case(f"API: {name}", validate, 2, phrase, patch=_api(body), setup=_scenario))
+    walled = {"walls": {"name": "wall_friction", "mu_w": 0.2}, "domain.width": 5e-324}
+    out.append(
+        Case("run: a channel 5e-324 m wide", ["run", "{scenario}", "-o", "{dir}/out", "-q"], 2,
+             "domain.width (line 7): a channel 4.94066e-324 m wide, narrower than one grain",
+             setup=partial(_scenario, changes=walled))
+    )  # fmt: skip
     out.append(
         Case("run: out/result.nc a symbolic link to a file elsewhere",
              ["run", "{scenario}", "-o", "{dir}/out", "-q"], 2, "result.nc: a symbolic link (to ",

@@ -807,6 +807,15 @@ class Scenario(StrictModel):
                 "domain.width > 0 (m) together with walls",
                 "walls",
             )
+        width, grain = self.domain.width, self.material.grain_diameter
+        if width is not None and width < grain:  # 5e-324 m: 2 / W infinite, NaN wall forces
+            raise invalid(
+                f"a channel {width:g} m wide, narrower than one grain (material.grain_diameter = "
+                f"{grain:g} m): the side walls' friction on the continuum between them (2 / W) h tau_w "
+                "has no meaning",
+                f"a width >= material.grain_diameter = {grain:g} m",
+                "domain.width",
+            )
         if self.gate is not None:
             self._check_gate()
         covered, gap = self.domain.x_min, None
