@@ -2588,7 +2588,7 @@ def round_sixteen() -> list[Case]:
     """The hostile cases of the sixteenth round (docs/reliability.md): the time, the step
     count and the layer fields of a simulation replaced through the Python API, a force
     impulse no run accumulates restored, a bed profile short of the domain, an output file
-    linked to a file elsewhere, a channel narrower than a grain."""
+    linked to a file elsewhere, a channel narrower than a grain, grains longer than the domain."""
     out: list[Case] = []
     validate = ["validate", "{scenario}"]
     for name, body, phrase in (
@@ -2605,6 +2605,13 @@ def round_sixteen() -> list[Case]:
          "accepted: impulses whose means are finite"),
     ):  # fmt: skip
         out.append(Case(f"API: {name}", validate, 2, phrase, patch=_api(body), setup=_scenario))
+    huge_grains = {"rheology": {"name": "jop_mu_i", "mu_s": 0.38, "mu_2": 0.64, "I_0": 0.28},
+                   "material.grain_diameter": 1e308}  # fmt: skip
+    out.append(
+        Case("run: mu(I) grains 1e308 m across", ["run", "{scenario}", "-o", "{dir}/out", "-q"], 2,
+             "material.grain_diameter (line 16): grains 1e+308 m across, longer than the domain",
+             setup=partial(_scenario, changes=huge_grains))
+    )  # fmt: skip
     walled = {"walls": {"name": "wall_friction", "mu_w": 0.2}, "domain.width": 5e-324}
     out.append(
         Case("run: a channel 5e-324 m wide", ["run", "{scenario}", "-o", "{dir}/out", "-q"], 2,

@@ -214,3 +214,14 @@ def test_a_channel_narrower_than_a_grain_is_refused(tiny_scenario, width):
         from_dict(tiny_scenario)
     tiny_scenario["domain"]["width"] = tiny_scenario["material"]["grain_diameter"]
     from_dict(tiny_scenario)
+
+
+def test_grains_longer_than_the_domain_are_refused(tiny_scenario):
+    """``material.grain_diameter: 1e308`` with the mu(I) law printed numpy's overflow warning
+    and stopped the run at its first step blaming the law (its viscosity NaN).  A grain
+    longer than the domain is refused, naming the diameter and the domain's length."""
+    tiny_scenario["material"]["grain_diameter"] = 1e308
+    with pytest.raises(InputError, match=r"material\.grain_diameter: grains 1e\+308 m across, longer than"):
+        from_dict(tiny_scenario)
+    tiny_scenario["material"]["grain_diameter"] = 0.5  # the domain's length
+    from_dict(tiny_scenario)

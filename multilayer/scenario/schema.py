@@ -808,6 +808,13 @@ class Scenario(StrictModel):
                 "walls",
             )
         width, grain = self.domain.width, self.material.grain_diameter
+        length = self.domain.x_max - self.domain.x_min
+        if grain > length:  # 1e308 m: a mu(I) law's d sqrt(rho_p) overflowed, its viscosity NaN
+            raise invalid(
+                f"grains {grain:g} m across, longer than the domain ({length:g} m): no continuum of grains",
+                f"a diameter <= domain.x_max - domain.x_min = {length:g} m",
+                "material.grain_diameter",
+            )
         if width is not None and width < grain:  # 5e-324 m: 2 / W infinite, NaN wall forces
             raise invalid(
                 f"a channel {width:g} m wide, narrower than one grain (material.grain_diameter = "
