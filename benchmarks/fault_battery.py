@@ -765,7 +765,8 @@ def round_two() -> list[Case]:
                     [*command, "--set", f"{key}={value!r}"],
                     2,
                     "time steps",
-                    setup=partial(_scenario, changes=layer),
+                    # grains within the domain (no continuum of grains longer than it)
+                    setup=partial(_scenario, changes={**layer, "material.grain_diameter": 1e-301}),
                 )
             )
     out.append(
