@@ -40,23 +40,21 @@ last local step stops at its first evaluation when that sets a column moving:
 from __future__ import annotations
 
 import math
-import numbers
-import reprlib
 from collections.abc import Callable
 from contextlib import AbstractContextManager, nullcontext
-from typing import Any, NoReturn
+from typing import Any
 
 import numpy as np
 
 from multilayer.engine import basal, diagnostics, initial_state
 from multilayer.engine.bed_force import BedForce, VerticalImpulse
-from multilayer.engine.config import MAX_STEPS, SimulationConfig, step_bound
+from multilayer.engine.config import MAX_STEPS, SimulationConfig, step_bound, time_value
 from multilayer.engine.gate import Gate
 from multilayer.engine.mesh import LayeredMesh
 from multilayer.engine.mixture.flow import MixtureFlow
 from multilayer.engine.normal_stress import NormalStress, joint_rest, runs
 from multilayer.engine.pressure.model import PressureModel, PressureSetup, models, options
-from multilayer.engine.state import FlowState, max_wave_speed, read_only, span, start_moving, whole
+from multilayer.engine.state import FlowState, Followed, max_wave_speed, read_only, span, start_moving, whole
 from multilayer.engine.state_check import StateError, StateGuard, check_restored
 from multilayer.engine.threads import ThreadPolicy
 from multilayer.engine.transport import boundaries
@@ -89,6 +87,8 @@ class Simulation:
     updated in place: copy them to keep a snapshot (``mesh.cell_variable`` makes FiPy
     variables of them on the FiPy mesh).
     """
+
+    t, steps = Followed(), Followed()  # time (s) and steps taken of the state: set by the steps, load_state
 
     def __init__(
         self,
@@ -167,8 +167,7 @@ class Simulation:
         # columns that take part in the step: those moving at its start, and material at
         # rest that it sets moving (allocated once)
         self._stepping = np.zeros(c.cells, dtype=bool)
-        self._t = 0.0
-        self._steps = 0
+        self._t, self._steps = 0.0, 0
         self.newton_iterations = 0
         self.guard = StateGuard(self.x, self.dx, periodic=boundaries.BOUNDARIES[self.left].wraps)
         self.guard.check_state(self._state.h, self._state.u, "in the initial state")
@@ -243,24 +242,6 @@ class Simulation:
         now on each is checked at every step's entry (:meth:`step`)."""
         self._state.expose(for_good=True)
         return self._state
-
-    @property
-    def t(self) -> float:
-        """Time (s) of the state: set by the steps and by :meth:`load_state` only."""
-        return self._t
-
-    @t.setter
-    def t(self, value: object) -> None:
-        _read_only("t", value)
-
-    @property
-    def steps(self) -> int:
-        """Number of steps taken to reach the state: set as :attr:`t` is."""
-        return self._steps
-
-    @steps.setter
-    def steps(self, value: object) -> None:
-        _read_only("steps", value)
 
     @property
     def h(self) -> np.ndarray:
@@ -407,7 +388,7 @@ class Simulation:
                     return vertical, u, iterations
 
     def _check_target(self, t_max: float) -> None:
-        if not _time(t_max) - self.t >= MIN_STEP:
+        if not time_value(t_max) - self.t >= MIN_STEP:
             raise InputError(
                 f"step(t_max={t_max!r}): t_max must be a number at least {MIN_STEP:.3g} s later than the "
                 f"current time t = {self.t!r} s"
@@ -637,7 +618,7 @@ class Simulation:
         (``(t_target - t) / time_step()``, a lower bound: the waves may grow), and
         :class:`RunError` once that many are taken short of ``t_target`` (the state is
         that of the last step: ``advance`` again continues)."""
-        if not math.isfinite(_time(t_target)):
+        if not math.isfinite(time_value(t_target)):
             raise InputError(f"advance(t_target={t_target!r}): accepted: a finite number (s)")
         if t_target < self.t:
             raise InputError(
@@ -700,8 +681,7 @@ class Simulation:
         check_restored(saved, self.state_dict())
         self.forces.check_restored(saved)
         with whole():
-            self._t = float(saved["t"])
-            self._steps = int(saved["steps"])
+            self._t, self._steps = float(saved["t"]), int(saved["steps"])
             self.newton_iterations = int(saved.get("newton_iterations", 0))
             self._state.load_state(saved)
             self.forces.load_state(saved)
@@ -712,19 +692,3 @@ class Simulation:
         self.guard.reset(self._state.h, self.steps)
         if self.mixture is not None:
             self.mixture.reset(self.steps)
-
-
-def _read_only(name: str, value: object) -> NoReturn:
-    """Refuse ``sim.<name> = value``: the time and the step count follow the state (``sim.t =
-    'a'`` was kept, and a ``TypeError`` in the next step's arithmetic; ``sim.t = 5.0`` moved the
-    time of a state that was not at it).  :class:`InputError` naming what sets them."""
-    raise InputError(
-        f"sim.{name} = {reprlib.repr(value)}: {name} is read-only (it follows the state); accepted: "
-        "step() or advance(t_target) to move forward, load_state(saved) to restore a state and its t, steps"
-    )
-
-
-def _time(value: object) -> float:
-    """``value`` as a time (s): a real number or a 0-d array of one; NaN for anything else."""
-    item = value.item() if isinstance(value, np.ndarray) and value.ndim == 0 else value
-    return float(item) if isinstance(item, numbers.Real) else math.nan

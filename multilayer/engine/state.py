@@ -26,13 +26,14 @@ reads (the engine reads the arrays themselves and exposes none).
 from __future__ import annotations
 
 import _signal  # whole(): signal's functions without its enum wrappers
+import reprlib
 import signal
 import threading
 import weakref
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from types import FrameType
-from typing import NoReturn
+from typing import Any, NoReturn
 
 import numpy as np
 
@@ -220,6 +221,26 @@ class Fields(Mapping[str, np.ndarray]):
         raise InputError(
             f"state.fields[{name!r}]: the state's fields are not replaced nor removed; accepted: writing "
             f"into one in place, state.fields[{name!r}][...] = values, or sim.load_state(saved)"
+        )
+
+
+class Followed:
+    """An attribute of a simulation that follows its state (``sim.t``, ``sim.steps``): read
+    from ``_<name>``, which the steps and ``load_state`` set; assigned, :class:`InputError`
+    (``sim.t = 'a'`` was kept, and a ``TypeError`` in the next step's arithmetic; ``sim.t =
+    5.0`` moved the time of a state that was not at it)."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def __get__(self, simulation: object, owner: type | None = None) -> Any:
+        return self if simulation is None else simulation.__dict__["_" + self.name]
+
+    def __set__(self, simulation: object, value: object) -> None:
+        raise InputError(
+            f"sim.{self.name} = {reprlib.repr(value)}: {self.name} is read-only (it follows the state); "
+            "accepted: step() or advance(t_target) to move forward, load_state(saved) to restore a state "
+            f"and its t, steps"
         )
 
 
