@@ -48,9 +48,10 @@ from __future__ import annotations
 import argparse
 import json
 import subprocess
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol, TypeVar
 
 import numpy as np
 
@@ -61,6 +62,16 @@ from multilayer.io import observables
 from multilayer.validation.cases import collapse_channel
 from multilayer.validation.cases.column_collapse import L0
 from multilayer.validation.runs import Run
+
+
+class Timed(Protocol):
+    """A sample at its time ``t`` (s)."""
+
+    @property
+    def t(self) -> float: ...
+
+
+S = TypeVar("S", bound=Timed)
 
 
 @dataclass
@@ -206,22 +217,31 @@ def budget(
     r = collapse_channel.run(a, dx)
     scenario = Run(r.name, r.scenario, (*r.overrides, *sets)).load()
     sim = Simulation(scenario)
-    samples = [sample(sim)]
-
-    def record(sim: Simulation, dt: float) -> None:
-        if sim.t >= samples[-1].t + interval:
-            samples.append(sample(sim))
-
     end = collapse_channel.end_time(a)
     if clip:
+        samples = [sample(sim)]
         for t in np.arange(1, round(end / interval) + 1) * interval:
             sim.advance(float(t))
             samples.append(sample(sim))
         return samples
-    for t in output_times(end, scenario.time.output_interval):
+    return on_own_steps(sim, end, interval, sample)
+
+
+def on_own_steps(sim: Simulation, end: float, interval: float, measure: Callable[[Simulation], S]) -> list[S]:
+    """``measure`` of ``sim`` now, after the first step past every ``interval`` and at
+    ``end``, ``sim`` stepped as the validation run steps it (to its output times,
+    runner.output_times): sampling changes nothing of the run, where a step cut short at a
+    sample time would."""
+    samples = [measure(sim)]
+
+    def record(sim: Simulation, dt: float) -> None:
+        if sim.t >= samples[-1].t + interval:
+            samples.append(measure(sim))
+
+    for t in output_times(end, sim.scenario.time.output_interval):
         sim.advance(float(t), on_step=record)
     if samples[-1].t < sim.t:
-        samples.append(sample(sim))
+        samples.append(measure(sim))
     return samples
 
 

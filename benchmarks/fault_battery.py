@@ -765,7 +765,8 @@ def round_two() -> list[Case]:
                     [*command, "--set", f"{key}={value!r}"],
                     2,
                     "time steps",
-                    setup=partial(_scenario, changes=layer),
+                    # grains within the domain (no continuum of grains longer than it)
+                    setup=partial(_scenario, changes={**layer, "material.grain_diameter": 1e-301}),
                 )
             )
     out.append(
@@ -2576,6 +2577,63 @@ def round_fifteen() -> list[Case]:
     return out
 
 
+def _linked_result(directory: Path) -> None:
+    """A scenario, and ``out/result.nc`` a symbolic link to a file beside ``out``."""
+    _scenario(directory)
+    (directory / "out").mkdir()
+    (directory / "precious.txt").write_text("precious")
+    (directory / "out" / "result.nc").symlink_to(directory / "precious.txt")
+
+
+def round_sixteen() -> list[Case]:
+    """The hostile cases of the sixteenth round (docs/reliability.md): the time, the step
+    count and the layer fields of a simulation replaced through the Python API, a force
+    impulse no run accumulates restored, a bed profile short of the domain, an output file
+    linked to a file elsewhere, a channel narrower than a grain, grains longer than the domain."""
+    out: list[Case] = []
+    validate = ["validate", "{scenario}"]
+    for name, body, phrase in (
+        ("sim.t set to a string",
+         "sim = multilayer.Simulation(multilayer.load(sys.argv[2]))\nsim.t = 'a'\nsim.step()",
+         "sim.t = 'a': t is read-only"),
+        ("sim.state.fields['w'] replaced",
+         "sim = multilayer.Simulation(multilayer.load(sys.argv[2]))\n"
+         "sim.state.fields['w'] = sim.state.fields['w'].T.copy()\nsim.step()",
+         "state.fields['w']: the state's fields are not replaced"),
+        ("load_state of a force impulse of 1e308",
+         "import numpy as np\nsim = multilayer.Simulation(multilayer.load(sys.argv[2]))\nsim.step()\n"
+         "saved = sim.state_dict()\nsaved['force_impulse'] = np.full(8, 1e308)\nsim.load_state(saved)",
+         "accepted: impulses whose means are finite"),
+    ):  # fmt: skip
+        out.append(Case(f"API: {name}", validate, 2, phrase, patch=_api(body), setup=_scenario))
+    huge_grains = {"rheology": {"name": "jop_mu_i", "mu_s": 0.38, "mu_2": 0.64, "I_0": 0.28},
+                   "material.grain_diameter": 1e308}  # fmt: skip
+    out.append(
+        Case("run: mu(I) grains 1e308 m across", ["run", "{scenario}", "-o", "{dir}/out", "-q"], 2,
+             "material.grain_diameter (line 16): grains 1e+308 m across, longer than the domain",
+             setup=partial(_scenario, changes=huge_grains))
+    )  # fmt: skip
+    walled = {"walls": {"name": "wall_friction", "mu_w": 0.2}, "domain.width": 5e-324}
+    out.append(
+        Case("run: a channel 5e-324 m wide", ["run", "{scenario}", "-o", "{dir}/out", "-q"], 2,
+             "domain.width (line 7): a channel 4.94066e-324 m wide, narrower than one grain",
+             setup=partial(_scenario, changes=walled))
+    )  # fmt: skip
+    out.append(
+        Case("run: out/result.nc a symbolic link to a file elsewhere",
+             ["run", "{scenario}", "-o", "{dir}/out", "-q"], 2, "result.nc: a symbolic link (to ",
+             setup=_linked_result)
+    )  # fmt: skip
+    for command in ("validate", "run"):
+        argv = [command, "{scenario}"] + (["-o", "{dir}/out", "-q"] if command == "run" else [])
+        out.append(
+            Case(f"{command}: a bed file ending at 0.2 m on a domain to 0.5 m", argv, 2,
+                 "the profile bed.csv spans x = [0, 0.2] m (along the slope), short of the domain [0, 0.5] m",
+                 setup=_bed_file("bed.csv", "x (m), z (m)\n0.0, 0.0\n0.2, 0.0\n"))
+        )  # fmt: skip
+    return out
+
+
 def cases() -> list[Case]:
     out: list[Case] = []
     budget = ["--max-memory", "8G", "--max-output", "1G"]
@@ -2744,6 +2802,7 @@ def cases() -> list[Case]:
         + round_thirteen()
         + round_fourteen()
         + round_fifteen()
+        + round_sixteen()
     )
 
 

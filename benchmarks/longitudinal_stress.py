@@ -3,8 +3,9 @@ against the pressure that spreads the channel collapse, and where it acts; and t
 with and without it (``model.normal_stress``).
 
 Diagnosis, a posteriori: runs the recommended collapse (``scenarios/column_collapse_channel.yaml``
-as the validation case ``collapse_channel`` sets it up at aspect ratio ``a`` with cells ``dx``)
-and, every ``--interval`` seconds, evaluates on the state the engine holds, per layer ``l`` on
+as the validation case ``collapse_channel`` sets it up at aspect ratio ``a`` with cells ``dx``,
+stepped as the validation runs it) and, after the first step past every ``--interval`` seconds,
+evaluates on the state the engine holds, per layer ``l`` on
 each face between two columns holding material (``collapse_budget.faces``)::
 
     tau_xx,l = mu(I_l) p_l D_xx,l / |D_l|,   D_xx = d_x u_l (along the layer),
@@ -44,7 +45,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from collapse_budget import faces
+from collapse_budget import faces, on_own_steps
 
 from multilayer.app.simulation import Simulation
 from multilayer.io import observables
@@ -160,15 +161,10 @@ def sample(sim: Simulation) -> Sample:
 
 def diagnose(a: float, dx: float, interval: float, stressed: bool) -> list[Sample]:
     """The samples of the run at aspect ratio ``a`` with cells ``dx`` (collapse_channel.run),
-    with the option if ``stressed``."""
+    with the option if ``stressed``, after the first of its own steps past every ``interval``."""
     other = collapse_channel.STRESSED if stressed else None
     sim = Simulation(collapse_channel.run(a, dx, other).load())
-    end = collapse_channel.end_time(a, other)
-    samples = [sample(sim)]
-    for t in np.arange(1, round(end / interval) + 1) * interval:
-        sim.advance(float(t))
-        samples.append(sample(sim))
-    return samples
+    return on_own_steps(sim, collapse_channel.end_time(a, other), interval, sample)
 
 
 def integral(samples: list[Sample], name: str) -> float:

@@ -264,3 +264,24 @@ def test_the_states_arrays_are_written_in_place_not_replaced(name, replacement):
     assert sim.state.array(name) is getattr(sim.state, name)
     sim.state.h[...] = sim.state.h  # in place: as before
     sim.step()
+
+
+def test_the_states_fields_time_and_step_count_are_not_replaced():
+    """``sim.state.fields['w'] = ...`` replaced the array in the state's dict (the kernels
+    were given another shape or type); ``sim.t = 'a'`` was kept and a ``TypeError`` in the
+    next step, ``sim.t = 5.0`` moved the time of a state that was not at it.  Each is an
+    InputError naming what sets them; nothing changes."""
+    sim = simulation(**TINY_SCENARIO)
+    sim.step()
+    before = sim.state_dict()
+    with pytest.raises(InputError, match=r"^state\.fields\['w'\]: the state's fields are not replaced"):
+        sim.state.fields["w"] = sim.state.fields["w"].T.copy()
+    with pytest.raises(InputError, match=r"^state\.fields\['q'\]: the state's fields are not replaced"):
+        del sim.state.fields["q"]
+    for name, value in (("t", "a"), ("t", 5.0), ("steps", 7)):
+        with pytest.raises(InputError, match=rf"^sim\.{name} = .*: {name} is read-only"):
+            setattr(sim, name, value)
+    assert (sim.t, sim.steps) == (before["t"], before["steps"]) and list(sim.state.fields) == ["w", "q"]
+    sim.load_state({**before, "t": 0.5, "steps": 3})  # what sets them
+    assert (sim.t, sim.steps) == (0.5, 3)
+    sim.step()

@@ -21,6 +21,7 @@ from conftest import TINY_SCENARIO
 
 import multilayer
 from multilayer.app import sweep as sweeps
+from multilayer.engine.bed_force import FORCES
 from multilayer.errors import InputError, RunError
 from multilayer.io import results
 from multilayer.io.results import CHECKPOINT_FILE, RESULT_FILE
@@ -205,6 +206,27 @@ def test_an_output_file_that_is_no_regular_file_is_refused_before_the_run(
     result = cli("run", write_scenario(TINY_SCENARIO), "-o", outdir, "-q")
     assert result.code == 2 and "Traceback" not in result.err
     assert f"{path}: exists and is not a regular file" in result.err
+
+
+@pytest.mark.parametrize("name", [RESULT_FILE, "run.log"])
+def test_an_output_file_linked_to_a_file_elsewhere_is_refused_and_the_file_kept(
+    tmp_path, cli, write_scenario, name
+):
+    """``out/result.nc`` (or ``run.log``) a symbolic link to a file outside the directory:
+    the run wrote its result (its log) over that file.  Refused naming the link; the file
+    is as it was."""
+    outdir = tmp_path / "out"
+    outdir.mkdir()
+    elsewhere = tmp_path / "precious.txt"
+    elsewhere.write_text("precious")
+    (outdir / name).symlink_to(elsewhere)
+    result = cli("run", write_scenario(TINY_SCENARIO), "-o", outdir, "-q")
+    assert result.code == 2 and "Traceback" not in result.err
+    assert (
+        f"{outdir / name}: a symbolic link (to {elsewhere}), whose target the write would replace"
+        in result.err
+    )
+    assert elsewhere.read_text() == "precious"
 
 
 def test_validate_checks_sweep_and_study_files_with_every_member(tmp_path, cli, write_scenario):
@@ -973,6 +995,36 @@ def test_load_state_names_a_missing_or_non_finite_entry_and_restores_nothing():
         sim.load_state({**saved, "h": filled})
     sim.load_state({**saved, "h": np.ma.masked_array(saved["h"])})  # none masked: the numbers
     sim.load_state({k: v for k, v in saved.items() if not k.startswith("seed_")})  # restarts the seed
+
+
+def test_load_state_refuses_force_impulses_no_run_accumulates_and_an_absurd_seed_changes_nothing():
+    """A finite force impulse of 1e308 was restored and written as an infinite mean force at
+    the next output (-1e300 as a force of -5e301 N/m). Impulses no run accumulates are an
+    InputError naming force_impulse and what is accepted.  A Newton seed of +-1.7e308 is no
+    such state: it changes the work, not the answer (the uninterrupted run's within the
+    Newton tolerance: found 3.5e-18 m/s apart)."""
+    sim = multilayer.Simulation(multilayer.load(TINY_SCENARIO))  # wall on the left, outflow on the right
+    sim.advance(0.01)
+    saved = sim.state_dict()
+    impulse = saved["force_impulse"]
+    index = {name: k for k, name in enumerate(FORCES)}
+    for changes, accepted in (
+        ({"force_impulse": np.full(8, 1e308)}, "impulses whose means are finite"),
+        ({"force_elapsed": np.asarray(0.0)}, "zeros when force_elapsed = 0"),
+        ({"force_impulse": np.where(np.arange(8) == index["gravity_force_z"], -1.0, impulse)}, "of the sign"),
+        ({"force_impulse": np.where(np.arange(8) == index["gravity_force_x"], 1e300, impulse)}, "tan(theta)"),
+    ):
+        with pytest.raises(InputError, match=rf"^force_impulse = .*; accepted: .*{re.escape(accepted)}"):
+            sim.load_state({**saved, **changes})
+    assert np.array_equal(sim.forces.impulse, impulse)
+    sim.advance(0.02)
+    expected = sim.state_dict()
+    for value in (1.7e308, -1.7e308):
+        seed = np.full_like(saved["seed_last"], value)
+        sim.load_state({**saved, "seed_last": seed, "seed_window": np.array([0, 40])})
+        sim.advance(0.02)
+        tolerance = sim.scenario.numerics.tolerance * np.abs(expected["u"]).max()
+        assert np.abs(sim.u - expected["u"]).max() <= tolerance and np.array_equal(sim.h, expected["h"])
 
 
 def test_a_simulation_copied_or_pickled_is_refused_naming_state_dict():

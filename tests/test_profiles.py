@@ -179,3 +179,26 @@ def test_bad_initial_profile_file_is_exit_2(tmp_path, write_scenario, tiny_scena
         "validate", _scenario(write_scenario, tiny_scenario, initial=[{"shape": "profile", "file": "no.csv"}])
     )
     assert result.code == 2 and "no.csv: file not found" in result.err
+
+
+def test_a_bed_profile_short_of_the_domain_is_refused_unless_extended(
+    tmp_path, write_scenario, tiny_scenario
+):
+    """A bed of a file ending at 0.2 m on a domain to 0.3 m was continued level beyond it
+    silently (numpy's interpolation), a terrain the scenario never gave.  Refused, naming
+    the key, the file, the profile's extent and the domain's; ``extend: flat`` continues it."""
+    (tmp_path / "short.csv").write_text("x (m), z (m)\n0.0, 0.01\n0.2, 0.0\n")
+    for bed, spans in (
+        ({"file": "short.csv"}, "file (line 27): the profile short.csv spans x = [0, 0.2] m"),
+        ({"points": [[0.05, 0.0], [0.3, 0.0]]}, "points (line 27): the profile spans x = [0.05, 0.3] m"),
+    ):
+        with pytest.raises(InputError) as caught:
+            load(_scenario(write_scenario, tiny_scenario, bed=bed))
+        message = str(caught.value)
+        assert f"bed.{spans} (along the slope), short of the domain [0, 0.3] m" in message
+        assert "accepted: a profile reaching both ends of the domain, or extend: flat" in message
+    extended = load(_scenario(write_scenario, tiny_scenario, bed={"file": "short.csv", "extend": "flat"}))
+    assert extended.bed.points == [[0.0, 0.01], [0.2, 0.0]]
+    recorded = yaml.safe_load(extended.resolved_yaml())
+    assert recorded["bed"] == {"profile": "points", "points": [[0.0, 0.01], [0.2, 0.0]], "extend": "flat"}
+    assert from_dict(recorded).bed.extend == "flat"

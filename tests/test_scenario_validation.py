@@ -200,3 +200,28 @@ def test_pressure_layers_are_an_integer_up_to_the_layers(write_scenario, tiny_sc
     assert sc.model.options == {"pressure_layers": 2} and "pressure_layers: 2" in sc.resolved_yaml()
     with pytest.raises(InputError, match=r"model\.pressure_layers \(from --set\): .*accepted: an integer"):
         load(path, overrides)
+
+
+@pytest.mark.parametrize("width", [5e-324, 1e-6])
+def test_a_channel_narrower_than_a_grain_is_refused(tiny_scenario, width):
+    """``domain.width: 5e-324`` with walls ran to its end, exit 0, with numpy's "invalid
+    value" warning: the walls' ``2 / W`` was infinite and their forces NaN.  A channel
+    narrower than one grain is refused, naming the width and the grain diameter."""
+    tiny_scenario.update(
+        walls={"name": "wall_friction", "mu_w": 0.2}, domain={**tiny_scenario["domain"], "width": width}
+    )
+    with pytest.raises(InputError, match=r"domain\.width: a channel .* m wide, narrower than one grain"):
+        from_dict(tiny_scenario)
+    tiny_scenario["domain"]["width"] = tiny_scenario["material"]["grain_diameter"]
+    from_dict(tiny_scenario)
+
+
+def test_grains_longer_than_the_domain_are_refused(tiny_scenario):
+    """``material.grain_diameter: 1e308`` with the mu(I) law printed numpy's overflow warning
+    and stopped the run at its first step blaming the law (its viscosity NaN).  A grain
+    longer than the domain is refused, naming the diameter and the domain's length."""
+    tiny_scenario["material"]["grain_diameter"] = 1e308
+    with pytest.raises(InputError, match=r"material\.grain_diameter: grains 1e\+308 m across, longer than"):
+        from_dict(tiny_scenario)
+    tiny_scenario["material"]["grain_diameter"] = 0.5  # the domain's length
+    from_dict(tiny_scenario)

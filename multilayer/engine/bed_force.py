@@ -46,8 +46,10 @@ outflow)`` to round-off (docs/results.md).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from typing import NamedTuple
+import math
+import sys
+from collections.abc import Mapping, Sequence
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -55,6 +57,7 @@ from multilayer.engine.compiled import jit
 from multilayer.engine.state import FlowState, span
 from multilayer.engine.transport import boundaries
 from multilayer.engine.vertical.stresses import StressModel
+from multilayer.errors import InputError
 
 FORCES = (
     "bed_force_x",
@@ -191,6 +194,36 @@ class BedForce:
     def state_dict(self) -> dict[str, np.ndarray]:
         """The impulses and the time since the last :meth:`take` (a checkpoint between outputs)."""
         return {"force_impulse": self.impulse.copy(), "force_elapsed": np.asarray(self.elapsed)}
+
+    def check_restored(self, saved: Mapping[str, Any]) -> None:
+        """:class:`InputError` naming ``force_impulse`` where a state to restore holds
+        impulses no run accumulates (finite ones, ``check_restored`` of state_check.py
+        having read them): any without time elapsed, a mean force beyond the floats, a
+        negative weight (``rho g cos(theta) int mass dt``), a downslope gravity out of
+        the slope's ratio ``tan(theta)`` to the weight (both integrate the same mass),
+        an end-wall force without an end wall, outflow without an open end."""
+        impulse = np.asarray(saved.get("force_impulse", np.zeros(len(FORCES))), dtype=float)
+        elapsed = float(saved.get("force_elapsed", 0.0))
+        terms = dict(zip(FORCES, impulse.tolist(), strict=True))
+        gravity, weight = terms["gravity_force_x"], terms["gravity_force_z"]
+        # both sums of up to MAX_STEPS terms of one sign: 1e-6 bounds their rounding apart
+        round_off = 1e-6 * (abs(gravity) + abs(weight)) * math.hypot(self.g_t, self.g_n)
+        for wrong, accepted in (
+            (elapsed == 0.0 and bool(impulse.any()), "zeros when force_elapsed = 0 (no time, no impulse)"),
+            (bool((np.abs(impulse) > sys.float_info.max * elapsed).any()), "impulses whose means are finite"),
+            (weight * self.g_n < 0.0, "a gravity_force_z (the weight's impulse) of the sign of cos(theta)"),
+            (
+                abs(gravity * self.g_n - weight * self.g_t) > round_off,
+                "gravity_force_x = gravity_force_z tan(theta) (the slope's), to round-off",
+            ),
+            (terms["end_force_x"] != 0.0 and not any(self.walls), "end_force_x = 0 without an end wall"),
+            (terms["outflow_momentum_x"] != 0.0 and all(self.walls), "outflow_momentum_x = 0 between walls"),
+        ):
+            if wrong:
+                raise InputError(
+                    f"force_impulse = {impulse.tolist()} (force_elapsed = {elapsed!r} s): impulses no run "
+                    f"accumulates, in the order {', '.join(FORCES)}; accepted: {accepted}"
+                )
 
     def load_state(self, saved: dict) -> None:
         """Restore :meth:`state_dict` (none saved: a fresh start)."""

@@ -16,6 +16,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 
+import numpy as np
+
 from multilayer.errors import InputError
 from multilayer.plugins.contract import Material
 
@@ -32,6 +34,13 @@ def step_bound(max_steps: object) -> float:
     if isinstance(max_steps, bool) or not isinstance(max_steps, numbers.Integral) or max_steps < 1:
         raise InputError(f"advance(max_steps={max_steps!r}): accepted: an integer >= 1, or None for no bound")
     return float(max_steps)
+
+
+def time_value(value: object) -> float:
+    """``value`` (``t_max`` of ``Simulation.step``, ``t_target`` of ``advance``) as a time
+    (s): a real number or a 0-d array of one; NaN for anything else."""
+    item = value.item() if isinstance(value, np.ndarray) and value.ndim == 0 else value
+    return float(item) if isinstance(item, numbers.Real) else math.nan
 
 
 Points = tuple[tuple[float, float], ...]

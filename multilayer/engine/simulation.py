@@ -40,7 +40,6 @@ last local step stops at its first evaluation when that sets a column moving:
 from __future__ import annotations
 
 import math
-import numbers
 from collections.abc import Callable
 from contextlib import AbstractContextManager, nullcontext
 from typing import Any
@@ -49,13 +48,13 @@ import numpy as np
 
 from multilayer.engine import basal, diagnostics, initial_state
 from multilayer.engine.bed_force import BedForce, VerticalImpulse
-from multilayer.engine.config import MAX_STEPS, SimulationConfig, step_bound
+from multilayer.engine.config import MAX_STEPS, SimulationConfig, step_bound, time_value
 from multilayer.engine.gate import Gate
 from multilayer.engine.mesh import LayeredMesh
 from multilayer.engine.mixture.flow import MixtureFlow
 from multilayer.engine.normal_stress import NormalStress, joint_rest, runs
 from multilayer.engine.pressure.model import PressureModel, PressureSetup, models, options
-from multilayer.engine.state import FlowState, max_wave_speed, read_only, span, start_moving, whole
+from multilayer.engine.state import FlowState, Followed, max_wave_speed, read_only, span, start_moving, whole
 from multilayer.engine.state_check import StateError, StateGuard, check_restored
 from multilayer.engine.threads import ThreadPolicy
 from multilayer.engine.transport import boundaries
@@ -88,6 +87,8 @@ class Simulation:
     updated in place: copy them to keep a snapshot (``mesh.cell_variable`` makes FiPy
     variables of them on the FiPy mesh).
     """
+
+    t, steps = Followed(), Followed()  # time (s) and steps taken of the state: set by the steps, load_state
 
     def __init__(
         self,
@@ -166,8 +167,7 @@ class Simulation:
         # columns that take part in the step: those moving at its start, and material at
         # rest that it sets moving (allocated once)
         self._stepping = np.zeros(c.cells, dtype=bool)
-        self.t = 0.0
-        self.steps = 0
+        self._t, self._steps = 0.0, 0
         self.newton_iterations = 0
         self.guard = StateGuard(self.x, self.dx, periodic=boundaries.BOUNDARIES[self.left].wraps)
         self.guard.check_state(self._state.h, self._state.u, "in the initial state")
@@ -342,8 +342,8 @@ class Simulation:
             self.seeds.accept(dt)
             self._state.commit(h, u, fields, columns)
             self.newton_iterations += iterations
-            self.steps += 1
-            self.t = t_max if dt == t_max - self.t else self.t + dt  # lands on t_max when cut to reach it
+            self._steps += 1
+            self._t = t_max if dt == t_max - self._t else self._t + dt  # lands on t_max when cut to reach it
         return dt
 
     def _abandonable(self) -> AbstractContextManager[None]:
@@ -388,7 +388,7 @@ class Simulation:
                     return vertical, u, iterations
 
     def _check_target(self, t_max: float) -> None:
-        if not _time(t_max) - self.t >= MIN_STEP:
+        if not time_value(t_max) - self.t >= MIN_STEP:
             raise InputError(
                 f"step(t_max={t_max!r}): t_max must be a number at least {MIN_STEP:.3g} s later than the "
                 f"current time t = {self.t!r} s"
@@ -618,7 +618,7 @@ class Simulation:
         (``(t_target - t) / time_step()``, a lower bound: the waves may grow), and
         :class:`RunError` once that many are taken short of ``t_target`` (the state is
         that of the last step: ``advance`` again continues)."""
-        if not math.isfinite(_time(t_target)):
+        if not math.isfinite(time_value(t_target)):
             raise InputError(f"advance(t_target={t_target!r}): accepted: a finite number (s)")
         if t_target < self.t:
             raise InputError(
@@ -679,9 +679,9 @@ class Simulation:
         """Restore a state saved by ``state_dict`` (:class:`InputError` naming an entry
         this simulation does not hold, or holds with another shape)."""
         check_restored(saved, self.state_dict())
+        self.forces.check_restored(saved)
         with whole():
-            self.t = float(saved["t"])
-            self.steps = int(saved["steps"])
+            self._t, self._steps = float(saved["t"]), int(saved["steps"])
             self.newton_iterations = int(saved.get("newton_iterations", 0))
             self._state.load_state(saved)
             self.forces.load_state(saved)
@@ -692,9 +692,3 @@ class Simulation:
         self.guard.reset(self._state.h, self.steps)
         if self.mixture is not None:
             self.mixture.reset(self.steps)
-
-
-def _time(value: object) -> float:
-    """``value`` as a time (s): a real number or a 0-d array of one; NaN for anything else."""
-    item = value.item() if isinstance(value, np.ndarray) and value.ndim == 0 else value
-    return float(item) if isinstance(item, numbers.Real) else math.nan

@@ -26,12 +26,14 @@ reads (the engine reads the arrays themselves and exposes none).
 from __future__ import annotations
 
 import _signal  # whole(): signal's functions without its enum wrappers
+import reprlib
 import signal
 import threading
 import weakref
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from types import FrameType
+from typing import Any, NoReturn
 
 import numpy as np
 
@@ -46,7 +48,7 @@ class FlowState:
         L, N = u.shape
         self.h = h
         self.u = u
-        self.fields: dict[str, np.ndarray] = {}
+        self.fields = Fields()
         self._defaults: dict[str, str | float] = {}
         self._exposed = {"h", "u"}  # arrays to check at the next step's entry: all at the start
         self._for_good = False  # the state object itself was handed out: every array, every step
@@ -85,7 +87,7 @@ class FlowState:
         values[...] = (
             self.u if default == "u" else self.fields[default] if isinstance(default, str) else default
         )
-        self.fields[name] = values
+        self.fields.add(name, values)
         self._defaults[name] = default
         self._exposed.add(name)
         return values
@@ -184,6 +186,62 @@ class FlowState:
             values[...] = saved.get(name, fallback)
         self.window = self._velocities = (0, self.h.size)
         self.expose()
+
+
+class Fields(Mapping[str, np.ndarray]):
+    """The layer fields of a :class:`FlowState` by name, a mapping whose arrays are written
+    in place and never replaced nor removed (as :meth:`FlowState.__setattr__` keeps ``h``
+    and ``u``): ``sim.state.fields['w'] = w.T`` went into the dict, and the kernels were
+    given an array of another shape or type, or the state kept one the engine no longer
+    wrote.  :class:`InputError` naming it."""
+
+    def __init__(self) -> None:
+        self._arrays: dict[str, np.ndarray] = {}
+
+    def add(self, name: str, values: np.ndarray) -> None:
+        """The new field ``name`` (:meth:`FlowState.add_field`)."""
+        self._arrays[name] = values
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self._arrays[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._arrays)
+
+    def __len__(self) -> int:
+        return len(self._arrays)
+
+    def __setitem__(self, name: str, value: object) -> None:
+        self._refuse(name)
+
+    def __delitem__(self, name: str) -> None:
+        self._refuse(name)
+
+    def _refuse(self, name: str) -> NoReturn:
+        raise InputError(
+            f"state.fields[{name!r}]: the state's fields are not replaced nor removed; accepted: writing "
+            f"into one in place, state.fields[{name!r}][...] = values, or sim.load_state(saved)"
+        )
+
+
+class Followed:
+    """An attribute of a simulation that follows its state (``sim.t``, ``sim.steps``): read
+    from ``_<name>``, which the steps and ``load_state`` set; assigned, :class:`InputError`
+    (``sim.t = 'a'`` was kept, and a ``TypeError`` in the next step's arithmetic; ``sim.t =
+    5.0`` moved the time of a state that was not at it)."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def __get__(self, simulation: object, owner: type | None = None) -> Any:
+        return self if simulation is None else simulation.__dict__["_" + self.name]
+
+    def __set__(self, simulation: object, value: object) -> None:
+        raise InputError(
+            f"sim.{self.name} = {reprlib.repr(value)}: {self.name} is read-only (it follows the state); "
+            "accepted: step() or advance(t_target) to move forward, load_state(saved) to restore a state "
+            f"and its t, steps"
+        )
 
 
 def read_only(array: np.ndarray) -> np.ndarray:

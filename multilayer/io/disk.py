@@ -73,12 +73,19 @@ def full_disk_reason(exc: BaseException) -> str | None:
 
 def writable(path: Path) -> Path:
     """``path``, where a file is about to be written: absent or a regular file.  A pipe
-    there would take the write for ever and a device swallow it, a directory refuse it:
+    there would take the write for ever and a device swallow it, a directory refuse it,
+    and a symbolic link have its target written over (``out/result.nc`` linking to a file
+    elsewhere: the run replaced that file with its result, and ``run.log`` with its log):
     :class:`InputError` naming it otherwise."""
     if path.exists() and not path.is_file():
         raise InputError(
             f"{path}: exists and is not a regular file (a directory, a pipe or a device); accepted: "
             "no file there, or a regular file to replace"
+        )
+    if path.is_symlink():
+        raise InputError(
+            f"{path}: a symbolic link (to {os.readlink(path)}), whose target the write would replace; "
+            "accepted: no file there, or a regular file to replace"
         )
     return path
 

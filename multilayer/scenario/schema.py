@@ -283,6 +283,9 @@ class Bed(StrictModel):
         None, "a list of at least 2 map points [[X, Y], ...] in the DEM's coordinates (m)"
     )
     spacing: float | None = field(None, "a number > 0 (m); default: the DEM's pixel size", gt=0)
+    extend: Literal["flat"] | None = field(
+        None, "flat: the profile continued level beyond its ends where it does not span the domain"
+    )
 
     _map_points: np.ndarray | None = PrivateAttr(None)
     """A map-frame profile [[s, Z], ...], turned into ``points`` with the scenario's slope."""
@@ -304,9 +307,9 @@ class Bed(StrictModel):
             "profile",
             {
                 "flat": ((), ()),
-                "points": (("points",), ()),
-                "file": (("file",), ("frame",)),
-                "dem": (("dem", "polyline"), ("spacing",)),
+                "points": (("points",), ("extend",)),
+                "file": (("file",), ("frame", "extend")),
+                "dem": (("dem", "polyline"), ("spacing", "extend")),
             },
         )
         if self.profile == "file":
@@ -341,6 +344,24 @@ class Bed(StrictModel):
                 f"bed.{'dem' if self.dem else 'file'}",
             )
             self._map_points = None
+
+    def check_extent(self, domain: Domain) -> None:
+        """A profile spans the domain ``[x_min, x_max]`` unless ``extend: flat`` asks to
+        continue it level beyond its ends: a profile of a file or a DEM ending short of the
+        domain was continued level silently (the engine interpolates), a terrain the
+        scenario never gave."""
+        if not self.points or self.extend == "flat":
+            return
+        px = [x for x, _ in self.points]
+        if px[0] <= domain.x_min and px[-1] >= domain.x_max:
+            return
+        source = f"{self.dem or self.file} " if self.dem or self.file else ""
+        raise invalid(
+            f"the profile {source}spans x = [{px[0]:g}, {px[-1]:g}] m (along the slope), short of the domain "
+            f"[{domain.x_min:g}, {domain.x_max:g}] m",
+            "a profile reaching both ends of the domain, or extend: flat to continue it level past its ends",
+            "bed.dem" if self.dem else "bed.file" if self.file else "bed.points",
+        )
 
     def resample(self, domain: Domain) -> None:
         """A profile read from a file with more points than ``domain`` has cells, sampled
@@ -386,7 +407,8 @@ class Bed(StrictModel):
         """A bed read from a file is recorded as its points, so the record stands alone."""
         data = handler(self)
         if self.profile in ("file", "dem"):
-            return {"profile": "points", "points": data["points"]}
+            extend = {"extend": self.extend} if self.extend else {}
+            return {"profile": "points", "points": data["points"], **extend}
         return data
 
 
@@ -775,6 +797,7 @@ class Scenario(StrictModel):
     @model_validator(mode="after")
     def _check(self) -> Scenario:
         self.bed.in_slope_frame(self.slope_deg)
+        self.bed.check_extent(self.domain)
         self.bed.resample(self.domain)
         self.bed.check_resolution(self.domain, self.numerics.dry_threshold)
         self.model.check_options(self.domain.layers)
@@ -783,6 +806,22 @@ class Scenario(StrictModel):
                 "walls need the channel width domain.width",
                 "domain.width > 0 (m) together with walls",
                 "walls",
+            )
+        width, grain = self.domain.width, self.material.grain_diameter
+        length = self.domain.x_max - self.domain.x_min
+        if grain > length:  # 1e308 m: a mu(I) law's d sqrt(rho_p) overflowed, its viscosity NaN
+            raise invalid(
+                f"grains {grain:g} m across, longer than the domain ({length:g} m): no continuum of grains",
+                f"a diameter <= domain.x_max - domain.x_min = {length:g} m",
+                "material.grain_diameter",
+            )
+        if width is not None and width < grain:  # 5e-324 m: 2 / W infinite, NaN wall forces
+            raise invalid(
+                f"a channel {width:g} m wide, narrower than one grain (material.grain_diameter = "
+                f"{grain:g} m): the side walls' friction on the continuum between them (2 / W) h tau_w "
+                "has no meaning",
+                f"a width >= material.grain_diameter = {grain:g} m",
+                "domain.width",
             )
         if self.gate is not None:
             self._check_gate()
