@@ -144,7 +144,8 @@ def entries(
     (at least :func:`capacity` long) and ``mass`` (``M``, of every unknown).  With a
     ``band`` of rows (not empty), the terms of each free unknown are added, as it is
     stored, to ``A = E M^-1 E^T`` (band storage ``band[i, d] = A_i,i+d``, of a half-width
-    large enough) and to ``r = E V*`` (module Notes).  Returns the number of entries and
+    large enough) and to ``r = E V*`` (module Notes); with an empty band and an ``r`` of
+    the rows, to ``r`` only.  Returns the number of entries and
     the half-width of ``A`` (the largest spread of the rows of an unknown)."""
     L, N, F = fractions.size, h.size, left.size
     Lp = P.shape[1]
@@ -252,6 +253,10 @@ def entries(
                     else:
                         flat[other * stride + (row - other)] += (values[q] * inverse) * value
             width = max(width, hi - lo)
+        elif r.size > 0 and free[k]:  # r = E V* only
+            v = v_star[k]
+            for p in range(np.uint64(pointer[k]), np.uint64(n)):
+                r[np.uint64(cells[p])] += values[p] * v
     pointer[L * F + L * N] = n
     return n, width
 

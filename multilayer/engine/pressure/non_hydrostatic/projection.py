@@ -262,8 +262,10 @@ def project_columns(
         V0 = buffers.V_start[:K]  # the same free unknowns and rows, the start's values
         unknowns(face_mass, left, right, moving, u0, w0, lo, nodes, free, V0, row_of, buffers.rows)
         before = np.where(h0[window] > dry, h0[window], 0.0)
-        entries(before, bed[window], fractions, dx, left, right, P, free, row_of, *arrays, *_NO_BAND)
-        carried = _product(*arrays[:3], free, V0, n)
+        carried = np.zeros(n)
+        entries(
+            before, bed[window], fractions, dx, left, right, P, free, row_of, *arrays, V0, _NO_BAND, carried
+        )
     geometry = (thickness, bed[window], fractions, dx, left, right, P)
     band, r = normal_equations(*geometry, free, row_of, n, V_star, buffers.band, arrays)
     lam, factored = multipliers(band, r, buffers.rows[:n], lam_max, active)
@@ -271,27 +273,16 @@ def project_columns(
     dQ = dV
     if carried is not None and carried.any():
         # the pressure: the projection of the update (the violation the step made), not of V*,
-        # from the final active set of the first and its factor
-        dQ = buffers.dQ[:K]
+        # from the final active set of the first and its factor; only its wbar part is read
+        dQ, W = buffers.dQ[:K], L * left.size
         lam = multipliers(band, r - carried, buffers.rows[:n], lam_max, active, factored)[0]
-        correct(*arrays, free, lam, dQ)
+        correct(arrays[0][W:], *arrays[1:3], mass[W:], free[W:], lam, dQ[W:])
     _finish(dV, dQ, u, w, h, fractions, moving, left, right, dt, lo, buffers.du, *out)
     return lo, hi
 
 
-_NO_BAND = (np.empty(0), np.empty((0, 1)), np.empty(0))
-"""The ``v_star``, ``band`` and ``r`` of :func:`entries` storing ``E`` only."""
-
-
-@jit
-def _product(pointer, cells, values, free, V, n):
-    """``E V`` (``n`` rows) from the constraint stored by :func:`entries` (``cells``: rows)."""
-    out = np.zeros(n)
-    for k in range(free.size):
-        if free[k]:
-            for e in range(np.uint64(pointer[k]), np.uint64(pointer[k + 1])):
-                out[np.uint64(cells[e])] += values[e] * V[k]
-    return out
+_NO_BAND = np.empty((0, 1))
+"""The ``band`` of :func:`entries` adding up ``r = E V`` only."""
 
 
 @jit
