@@ -194,6 +194,11 @@ def phases(samples: list[Sample]) -> dict[str, dict[str, float]]:
     return out
 
 
+def share(part: float, whole: float) -> str:
+    """``part / whole`` as a signed percentage, ``n/a`` where ``whole`` is zero (a front at rest)."""
+    return f"{part / whole:+6.1%}" if whole else "   n/a"
+
+
 def report(a: float, dx: float, stressed: bool, samples: list[Sample]) -> dict[str, dict[str, float]]:
     found = phases(samples)
     print(f"a = {a:g}, dx = {dx * 1e3:g} mm, {'with' if stressed else 'without'} model.normal_stress:")
@@ -211,9 +216,8 @@ def report(a: float, dx: float, stressed: bool, samples: list[Sample]) -> dict[s
     for s in samples[step::step]:
         print(
             f"    t = {s.t:.3f} s: |T|/|G| {s.term / max(s.pressure, 1e-300):6.1%}, front force "
-            f"{s.term_front / s.pressure_front if s.pressure_front else float('nan'):+6.1%}, front power "
-            f"{s.term_power / s.pressure_power if s.pressure_power else float('nan'):+6.1%}, head "
-            f"{s.head / s.head_pressure if s.head_pressure else float('nan'):+6.1%}"
+            f"{share(s.term_front, s.pressure_front)}, front power {share(s.term_power, s.pressure_power)}, "
+            f"head {share(s.head, s.head_pressure)}"
         )
     return found
 
