@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 import os
 import shutil
+import signal
 import tempfile
 import time
 from collections.abc import Callable
@@ -24,6 +25,27 @@ kernels first (``multilayer compile``, in parallel processes) in the first worke
 the others wait, so that no two workers compile the same kernel."""
 WARM_UP_WAIT = 900.0
 """Seconds a worker waits for the first one's compilation before going on without it."""
+
+
+STOP_SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n))
+"""The signals whose handlers no test may leave changed (:func:`_signal_handlers_kept`)."""
+
+
+@pytest.fixture(autouse=True)
+def _signal_handlers_kept() -> Any:
+    """A library does not change its host process: a test after which a stop signal's
+    handler is not the one it started with fails at its teardown, naming the signal, and
+    the handler is set back so that the tests after it start from the process's own (a
+    test that relies on the default SIGINT handler once found it ignored, on one fresh
+    clone in many)."""
+    before = {signum: signal.getsignal(signum) for signum in STOP_SIGNALS}
+    yield
+    changed = {signum: handler for signum, handler in before.items() if signal.getsignal(signum) != handler}
+    for signum, handler in changed.items():
+        if handler is not None:  # a handler not set from Python cannot be set back
+            signal.signal(signum, handler)
+    names = ", ".join(signal.Signals(signum).name for signum in changed)
+    assert not changed, f"the test left the handler of {names} changed"
 
 
 def _warm_up_done(worker: dict[str, Any]) -> Path:
