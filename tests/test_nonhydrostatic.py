@@ -506,6 +506,73 @@ def test_the_simulation_projection_reuses_its_arrays_without_carrying_anything_o
         q_before, h_before, u_before = expected[2], h_now, expected[0]
 
 
+@pytest.mark.parametrize("pressure_layers", [3, 6])
+def test_the_start_constraint_reused_from_the_last_projection_is_the_assembled_one(
+    pressure_layers, monkeypatch
+):
+    """``E^n V^n`` of a step's start added up from the constraint the last projection
+    stored (it ended on the thickness the step starts from, on the same window and free
+    unknowns) equals the one assembled afresh, bit for bit; a start on another thickness or
+    a changed window assembles it afresh.  ``Projection`` answers as ``project`` (new arrays)
+    bit for bit either way."""
+    h, u, w, bed, fractions = random_state(12, layers=6, cells=16)
+    nodes, P = assembly.layering(tuple(fractions), pressure_layers)
+    # the product of stored entries against the r-only assembly, on a window of moving cells
+    left, right = assembly.faces(16, False)
+    face_mass = (fractions[:, None] * 0.5 * (h[left] + h[right])).ravel()
+    K = face_mass.size + u.size
+    free, V0, row_of, rows = (
+        np.empty(K, np.bool_),
+        np.empty(K),
+        np.empty(6 * 16, np.int64),
+        np.empty(6 * 16, np.int64),
+    )
+    n = assembly.unknowns(face_mass, left, right, u != 0.0, u, w, 0, nodes, free, V0, row_of, rows)
+    stored = (np.empty(K + 1, np.int64), np.empty(4000, np.int64), np.empty(4000), np.empty(K))
+    geometry = (h, bed, fractions, 0.1, left, right, P)
+    fresh, reused = np.zeros(n), np.zeros(n)
+    assembly.entries(*geometry, free, row_of, *stored, V0, nonhydrostatic._NO_BAND, fresh)
+    assembly.product(*stored[:3], free, V0, reused)
+    assert np.any(fresh != 0.0)
+    np.testing.assert_array_equal(fresh, reused)
+    # the simulation's projection: reused where it applies only
+    g_n, dt, dx = 9.81, 0.01, 0.1
+    projection = nonhydrostatic.Projection(
+        fractions, bed, dx=dx, periodic=False, dry=0.0, g_n=g_n, pressure_layers=pressure_layers
+    )
+    taken = []  # whether the projection's arrays held the start's constraint, call by call
+    assembled_on = nonhydrostatic._Buffers.assembled_on
+
+    def spied(buffers, *args):
+        held = assembled_on(buffers, *args)
+        if buffers is projection._buffers:
+            taken.append(held)
+        return held
+
+    monkeypatch.setattr(nonhydrostatic._Buffers, "assembled_on", spied)
+    q_before, h_before, u_before, w_before = np.zeros_like(u), 1.1 * h, 0.9 * u, w
+    for lo, hi, change in ((0, 16, 1.0), (0, 16, 1.01), (0, 16, 0.99), (2, 16, 1.0), (2, 16, 1.02)):
+        h_now, u_now = change * h, change * u
+        h_now[:lo] = h_now[hi:] = 0.0  # material in lo .. hi-1 only
+        u_now[:, :lo] = u_now[:, hi:] = 0.0
+        got = [
+            a.copy() for a in projection(h_now, u_now, (h_before, u_before, w_before, q_before), dt, (0, 16))
+        ]
+        w_star = np.zeros_like(w)
+        nonhydrostatic._advect(w_before, u_now, dx, dt, False, 0, 16, w_star)
+        guess = nonhydrostatic.tension_free(q_before, h_before, fractions, g_n)
+        expected = nonhydrostatic.project(
+            h_now, u_now, w_star, bed, fractions, dx=dx, dt=dt, g_n=g_n, tension_free=guess,
+            pressure_layers=pressure_layers, start=(h_before, u_before, w_before),
+        )  # fmt: skip
+        for a, b in zip(got, expected):
+            np.testing.assert_array_equal(a, b)
+        assert np.any(expected[2] != 0.0)
+        h_before, (u_before, w_before, q_before) = h_now, expected
+    # the first start is on another thickness; then reused, reused, a new window, reused
+    assert taken == [False, True, True, False, True]
+
+
 def test_cholesky_refactored_from_a_row_equals_the_whole_factorisation():
     """The active-set iteration refactors only from the first row whose bound status
     changed: the factor equals a fresh one, and solves A' x = b (A' = A with the fixed rows

@@ -64,7 +64,8 @@ def _projection() -> None:
 
     sim = _simulation("non_hydrostatic")
     u = np.where(sim.h > 0, np.linspace(0.1, 1.0, sim.u.shape[0])[:, None], 0.0)
-    sim.pressure.project(sim.state, sim.h, u, 1e-3)
+    for _ in range(2):  # the second from the first's constraint (its start is on the same thickness)
+        sim.pressure.project(sim.state, sim.h, u, 1e-3)
     sim.pressure.yield_gravity(sim.state, sim.h)
 
 

@@ -254,11 +254,26 @@ def entries(
                         flat[other * stride + (row - other)] += (values[q] * inverse) * value
             width = max(width, hi - lo)
         elif r.size > 0 and free[k]:  # r = E V* only
-            v = v_star[k]
-            for p in range(np.uint64(pointer[k]), np.uint64(n)):
-                r[np.uint64(cells[p])] += values[p] * v
+            _add_column(cells, values, pointer[k], n, v_star[k], r)
     pointer[L * F + L * N] = n
     return n, width
+
+
+@jit
+def product(pointer, cells, values, free, v, r):
+    """``r += E v`` of the constraint stored by :func:`entries` (``cells``: rows), over the
+    free unknowns, added in the order of the r-only mode of :func:`entries` (so to the
+    same bits)."""
+    for k in range(free.size):
+        if free[k]:
+            _add_column(cells, values, pointer[k], pointer[k + 1], v[k], r)
+
+
+@jit
+def _add_column(cells, values, begin, end, v, r):
+    """``r += v`` times the entries ``begin .. end-1`` (in their rows ``cells``)."""
+    for p in range(np.uint64(begin), np.uint64(end)):
+        r[np.uint64(cells[p])] += values[p] * v
 
 
 def capacity(L: int, N: int, F: int, Lp: int) -> int:

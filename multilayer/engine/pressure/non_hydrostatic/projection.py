@@ -96,6 +96,7 @@ from multilayer.engine.pressure.non_hydrostatic.constraint import (
     faces,
     layering,
     normal_equations,
+    product,
     unknowns,
 )
 from multilayer.engine.state import span
@@ -165,6 +166,45 @@ class _Buffers:
         self.band = np.empty(Lp * N * 2 * Lp)
         self.du = np.empty(L * N)
         self.V_start, self.dQ = np.empty(K), np.empty(K)
+        # what the constraint in pointer .. mass was assembled on (:meth:`assembled_on`)
+        self.built: tuple | None = None
+        self.built_free, self.built_thickness = np.empty(K, np.bool_), np.empty(N)
+        self.built_bed = np.empty(N)
+
+    def keep(self, key: tuple, free: np.ndarray, thickness: np.ndarray, bed: np.ndarray) -> None:
+        """Record that the constraint in the arrays was assembled for ``key`` (the window,
+        ``dx``, ``periodic``, ``P``) on the free unknowns ``free`` and the thickness and bed
+        of the window."""
+        _copy(free, thickness, bed, self.built_free, self.built_thickness, self.built_bed)
+        self.built = key
+
+    def assembled_on(self, key: tuple, free: np.ndarray, thickness: np.ndarray, bed: np.ndarray) -> bool:
+        """Whether the constraint in the arrays is the one of ``key``, ``free``, ``thickness``
+        and ``bed`` (bit for bit: its entries are a function of these only)."""
+        if self.built is None or self.built[:4] != key[:4] or self.built[4] is not key[4]:
+            return False
+        return _same(free, thickness, bed, self.built_free, self.built_thickness, self.built_bed)
+
+
+@jit
+def _copy(free, thickness, bed, free_to, thickness_to, bed_to):
+    """``free``, ``thickness`` and ``bed`` into the start of the others."""
+    free_to[: free.size] = free
+    thickness_to[: thickness.size] = thickness
+    bed_to[: bed.size] = bed
+
+
+@jit
+def _same(free, thickness, bed, built_free, built_thickness, built_bed):
+    """Whether ``free``, ``thickness`` and ``bed`` equal the start of the others bit for bit
+    (a signed zero and a NaN too)."""
+    for k in range(free.size):
+        if free[k] != built_free[k]:
+            return False
+    W = thickness.size
+    return np.array_equal(thickness.view(np.int64), built_thickness[:W].view(np.int64)) and np.array_equal(
+        bed.view(np.int64), built_bed[:W].view(np.int64)
+    )
 
 
 def project(
@@ -230,7 +270,9 @@ def project_columns(
     ``out`` must hold ``u`` and zeros elsewhere (the answer there).  ``(0, 0)``: nothing
     moves.
     ``buffers``: the work arrays of the shape of ``u`` and these pressure layers (reused
-    from call to call: a new array touched afresh costs a page fault per 4 KiB)."""
+    from call to call: a new array touched afresh costs a page fault per 4 KiB); they keep
+    the constraint of the call, which gives ``E^n V^n`` in the next call where the start is
+    on the same thickness, window and free unknowns (:meth:`_Buffers.assembled_on`)."""
     L, N = u.shape
     first, last = _moving_columns(u, h, dry)
     if last < 0:
@@ -256,6 +298,7 @@ def project_columns(
     row_of = buffers.row_of[: nodes.size * (hi - lo)]
     n = unknowns(face_mass, left, right, moving, u, w, lo, nodes, free, V_star, row_of, buffers.rows)
     arrays = (buffers.pointer[: K + 1], buffers.cells, buffers.values, mass)
+    key, geometry = (lo, hi, periodic, dx, P), (thickness, bed[window], fractions, dx, left, right, P)
     carried = None
     if start is not None:  # E V of the step's start, on the rows of this step (before arrays hold E V*)
         h0, u0, w0 = start
@@ -263,11 +306,16 @@ def project_columns(
         unknowns(face_mass, left, right, moving, u0, w0, lo, nodes, free, V0, row_of, buffers.rows)
         before = np.where(h0[window] > dry, h0[window], 0.0)
         carried = np.zeros(n)
-        entries(
-            before, bed[window], fractions, dx, left, right, P, free, row_of, *arrays, V0, _NO_BAND, carried
-        )
-    geometry = (thickness, bed[window], fractions, dx, left, right, P)
+        if buffers.assembled_on(key, free, before, geometry[1]):
+            # the last projection's constraint is the start's (it ended on the thickness this
+            # step starts from): its stored entries, added up in the order entries adds them
+            product(*arrays[:3], free, V0, carried)
+        else:
+            buffers.built = None  # the arrays are written over
+            entries(before, *geometry[1:], free, row_of, *arrays, V0, _NO_BAND, carried)
+    buffers.built = None
     band, r = normal_equations(*geometry, free, row_of, n, V_star, buffers.band, arrays)
+    buffers.keep(key, free, thickness, geometry[1])
     lam, factored = multipliers(band, r, buffers.rows[:n], lam_max, active)
     correct(*arrays, free, lam, dV)
     dQ = dV
