@@ -88,7 +88,9 @@ bound its steps, one more for the Newton kernel's iteration of a chunk, compiled
 reference counting apart from the chunk that allocates its work arrays; three more for
 the fully sheared columns' error bound formed as vectors, the rise bound tested apart
 from the slope, and the interval of a layer's stress that error_bound shares with it;
-one more for their test of the signs of the yielded jumps, made after the sweeps; one
+one more for their keeping of the velocities of the columns they finished (the test of
+the signs of the yielded jumps, a function of its own before, is made in the stresses'
+pass); one
 more for the start of Heun's second stage in one compiled pass, one more for the bed
 force's momenta summed apart from the impulses of the vertical steps, one more for the
 check, before every step, that no velocity was written into a column without

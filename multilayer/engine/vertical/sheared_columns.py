@@ -430,7 +430,7 @@ def sheared_block(
         _solve(t, sweeps, L, new, flags)
         _stresses_and_model(t, L, new, form, params, flags, stresses)  # the bound's stresses
         _converged(t, L, new, current, threshold, concave_stress, flags)
-        remaining = now = 0
+        remaining, now = 0, np.int64(0)  # now typed: one compilation of _keep
         for i in range(BLOCK):
             if not flags[ACTIVE, i]:
                 continue
