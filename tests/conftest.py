@@ -35,9 +35,7 @@ STOP_SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP")
 def _signal_handlers_kept() -> Any:
     """A library does not change its host process: a test after which a stop signal's
     handler is not the one it started with fails at its teardown, naming the signal, and
-    the handler is set back so that the tests after it start from the process's own (a
-    test that relies on the default SIGINT handler once found it ignored, on one fresh
-    clone in many)."""
+    the handler is set back so that the tests after it start from the process's own."""
     before = {signum: signal.getsignal(signum) for signum in STOP_SIGNALS}
     yield
     changed = {signum: handler for signum, handler in before.items() if signal.getsignal(signum) != handler}
@@ -46,6 +44,17 @@ def _signal_handlers_kept() -> Any:
             signal.signal(signum, handler)
     names = ", ".join(signal.Signals(signum).name for signum in changed)
     assert not changed, f"the test left the handler of {names} changed"
+
+
+@pytest.fixture
+def python_sigint() -> Any:
+    """SIGINT has Python's own handler (``KeyboardInterrupt``) during the test, set back
+    after it.  A process started with SIGINT ignored keeps it ignored (Python then installs
+    no handler of its own), as pytest and its xdist workers do when started as a background
+    job of a non-interactive shell (``bash .ci/run > log &``)."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
 
 
 def _warm_up_done(worker: dict[str, Any]) -> Path:

@@ -1323,7 +1323,7 @@ def test_quiet_of_the_api_run_is_a_bool(quiet):
 
 
 @pytest.mark.parametrize("where", ["forces", "state"])
-def test_a_ctrl_c_while_a_step_is_kept_is_raised_after_it(monkeypatch, where):
+def test_a_ctrl_c_while_a_step_is_kept_is_raised_after_it(monkeypatch, python_sigint, where):
     """Stepping by hand under Python's own SIGINT handler (a notebook), a Ctrl-C raised its
     ``KeyboardInterrupt`` between two statements of the step being kept: after its forces
     were recorded (the step redone recorded them again: 40.25 N/m of bed force where the run
@@ -1347,17 +1347,13 @@ def test_a_ctrl_c_while_a_step_is_kept_is_raised_after_it(monkeypatch, where):
         if len(calls) == 3:
             os.kill(os.getpid(), signal.SIGINT)  # the user's Ctrl-C, now
 
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        sim = multilayer.Simulation(scenario)
-        monkeypatch.setattr(cls, name, interrupted)
-        with pytest.raises(KeyboardInterrupt):
-            sim.advance(0.1)
-        assert sim.steps == 3 and len(calls) == 3
-        monkeypatch.undo()
+    sim = multilayer.Simulation(scenario)
+    monkeypatch.setattr(cls, name, interrupted)
+    with pytest.raises(KeyboardInterrupt):
         sim.advance(0.1)
-    finally:
-        signal.signal(signal.SIGINT, previous)
+    assert sim.steps == 3 and len(calls) == 3
+    monkeypatch.undo()
+    sim.advance(0.1)
     assert np.array_equal(sim.h, alone.h) and np.array_equal(sim.u, alone.u) and sim.steps == alone.steps
     assert sim.forces.take() == expected
 

@@ -230,14 +230,16 @@ def test_the_users_ctrl_c_inside_a_plugin_still_stops_the_run_cleanly(tmp_path):
     ],
 )
 def test_a_plugin_that_changes_the_process_it_runs_in_is_named_and_the_change_set_back(
-    tmp_path, cli, write_scenario, monkeypatch, change, expected
+    tmp_path, cli, write_scenario, monkeypatch, python_sigint, change, expected
 ):
     """A plugin's ``os.chdir`` stopped the run blaming a removed output directory (a relative
     one); one ignoring SIGINT made the run, and the process after it, deaf to Ctrl-C; numpy's
     error handling set to raise by a constructor stayed so in the host.  A step or a
     constructor that changes them is named, exit 1 (2 for a constructor: bad parameters),
     and the change set back (numpy's error handling during a call is the engine's own,
-    set back after every call: no change)."""
+    set back after every call: no change).  SIGINT has Python's own handler to begin with
+    (``python_sigint``): in a process started with it ignored, a constructor ignoring it
+    changes nothing."""
     monkeypatch.chdir(tmp_path)
     _numpy_path(monkeypatch)
 
