@@ -187,8 +187,8 @@ def _stresses_and_model(t, L, u, form, params, flags, model):
 def _sweep(t, u, form, params, start, stop, model):
     """Cells ``start ... stop - 1`` of the tile's rows of :func:`_stresses_and_model` (the
     velocities in slot ``u``; the stores of the model with ``model`` only, a condition the
-    compiler takes out of the loop); returns how many viscosities are outside the plugin
-    contract, with, without ``model``, how many yielded interfaces (``KC`` > 0, the bed's
+    compiler takes out of the loop); returns the faults, the viscosities outside the plugin
+    contract and, without ``model``, the yielded interfaces (``KC`` > 0, the bed's
     included) the jump crosses against the sign ``SIGN`` of the model (the test of
     ``column_solve._active_set``), and how many jumps are zero."""
     faults = unsheared = 0
