@@ -267,6 +267,7 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
         np.empty((4, BLOCK), np.bool_),  # flags, finished of sheared_block
         np.zeros(BLOCK, np.bool_),
         np.empty(sc.SWEEPS * BLOCK * L),  # the sweeps of sheared_block
+        np.empty((2, L * BLOCK)),  # the rows of a block's u* and guesses (sheared_columns.load)
     )
     _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
 
@@ -303,6 +304,7 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
     # viscosities, stress slopes and viscous stresses at current and new (interfaces, walls)
     laws_c, laws_n, state_c, state_n, tile, coefficients, viscous, walls_of = work[16:24]
     flags, finished, sweeps = work[24], work[25], work[26]
+    u_rows, guess_rows = work[27][0], work[27][1]
     eta_c, slope_c, weta_c, wslope_c = laws_c[0], laws_c[1], laws_c[2], laws_c[3]
     eta_n, slope_n, weta_n, wslope_n = laws_n[0], laws_n[1], laws_n[2], laws_n[3]
     # the coefficients of StressModel.columns of the column (coefficients.column_coefficients)
@@ -334,7 +336,7 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
             if finished[j - j0]:
                 continue
             col = wet[j]
-            fine = unload(tile, L, flags, j - j0, viscous, wall_true, current)
+            fine = unload(tile, L, flags, j - j0, guess_rows, viscous, wall_true, current)
         else:
             if following == stop:
                 break
@@ -344,7 +346,7 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
                 j0 = j
                 block = blocks and not walls and j + BLOCK <= stop and wet[j + BLOCK - 1] - col == BLOCK - 1
                 if block:  # the block's u* and guesses, row by row
-                    sc.load(tile, L, ustar, guess, col)
+                    sc.load(u_rows, guess_rows, ustar, guess, col)
             # the coefficients of StressModel.columns: from the compiled yield forms, or given
             if fused:
                 fine = column_coefficients(col, h[col], inputs, column) == 0
@@ -357,13 +359,20 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
             o = cell(lane, L)  # the lane's layer 0 in the tile's rows
             # what stays fixed during the iteration, a few rows per loop over the layers (a loop
             # over all reloads its rows' pointers), the laws' switch outside them
-            if not block:  # a column of the (L, N) arrays (a block's are in its lanes: load)
+            if block:  # u* and the guess from the block's rows (sheared_columns.load)
+                y, i = np.uint64(o), np.uint64(lane)  # unsigned: no test for negative indices
+                for a in range(np.uint64(L)):  # as vectors (the rows' values BLOCK apart)
+                    x, z = y + a, a * np.uint64(BLOCK) + i
+                    tile[sc.INERTIA, x] = m[a] / dt
+                    tile[sc.MOMENTUM, x] = m[a] * u_rows[z] / dt
+                    tile[sc.U0, x] = guess_rows[z]  # the first iterate of sheared_block
+            else:  # a column of the (L, N) arrays
                 for a in range(L):
                     tile[sc.MOMENTUM, np.uint64(o + a)] = ustar[a, col]
                     current[a] = guess[a, col]
-            for a in range(L):  # contiguous: as vectors (unsigned: no test for negative indices)
-                tile[sc.INERTIA, np.uint64(o + a)] = m[a] / dt
-                tile[sc.MOMENTUM, np.uint64(o + a)] = m[a] * tile[sc.MOMENTUM, np.uint64(o + a)] / dt
+                for a in range(L):  # contiguous: as vectors (unsigned: no test for negative indices)
+                    tile[sc.INERTIA, np.uint64(o + a)] = m[a] / dt
+                    tile[sc.MOMENTUM, np.uint64(o + a)] = m[a] * tile[sc.MOMENTUM, np.uint64(o + a)] / dt
             for a in range(L):
                 x = np.uint64(o + a)
                 s = spacing[a]

@@ -61,7 +61,7 @@ sweeps of the solve 5 per layer and lane, 41 KB."""
 # The slots: per step,
 # m/dt, m u*/dt, the true yield stress, the wall threshold, 1/spacing, the conductance
 # per unit slope (0 where not viscous), whether viscous, the pressure parts of the law
-# and the guess (then, once the block has finished the column, its velocities); per
+# and, once the block has finished the column, its velocities (``KEPT``); per
 # iteration, the Newton model (yield stress, conductance, sign of the jump), the two
 # iterates and, at each,
 # the true viscous stresses and their derivatives (``TAU0 + k``, ``STIFF0 + k`` at the
@@ -70,7 +70,7 @@ sweeps of the solve 5 per layer and lane, 41 KB."""
 # column, each layer's term of the error bound (``GAP``) and its four terms of the rise
 # bound (``RISE ... RISE + 3``).
 INERTIA, MOMENTUM, KAPPA, WALL, INV_SPACING, CONDUCTANCE, VISCOUS, FACTOR, OFFSET = range(9)
-GUESS, KC, CC, SIGN, U0, U1, TAU0, TAU1, STIFF0, STIFF1, BED, GAP, RISE = range(9, 22)
+KEPT, KC, CC, SIGN, U0, U1, TAU0, TAU1, STIFF0, STIFF1, BED, GAP, RISE = range(9, 22)
 SLOTS = 25
 # The values of each layer in the sweeps of :func:`_solve`: its pivot (then the inverse
 # pivot), right-hand side, conductance below, the pivots not positive up to it, and the
@@ -100,21 +100,38 @@ def cell(i, L):
     return 1 + i * L
 
 
+@jit(inline="always")
+def _layer(source, s):
+    """The ``BLOCK`` (8) values ``source[s] ... source[s + 7]``, one layer of the block's lanes
+    side by side, all read before any is written: a copy of them then runs as vectors (LLVM
+    cannot tell that two arrays do not overlap, and keeps each read after the write before
+    it: a load and a store per value)."""
+    o, one = np.uint64(s), np.uint64(1)  # unsigned: no test for negative indices
+    a, b, c, d = o + one, o + np.uint64(2), o + np.uint64(3), o + np.uint64(4)
+    e, f, g = o + np.uint64(5), o + np.uint64(6), o + np.uint64(7)
+    return source[o], source[a], source[b], source[c], source[d], source[e], source[f], source[g]
+
+
 @jit(borrowing=True)
-def load(t, L, ustar, guess, c0):
+def load(u_rows, guess_rows, ustar, guess, c0):
     """The velocities after transport and the guesses of the block's columns ``c0 ... c0 +
-    BLOCK - 1`` of the (L, N) arrays ``ustar`` and ``guess`` (adjacent columns) into the
-    slots ``MOMENTUM`` (u* itself, which the set-up of each column then multiplies by its
-    m/dt) and ``GUESS`` of the lanes, row by row: each row's BLOCK values are one or two
-    cache lines, read once for the whole block.  Column by column, each column would
-    read its L values a row of the mesh apart, one value from each of L cache lines (at
-    N = 20 000 the rows are 160 000 B apart: the lines of a column fall in a few sets of
-    the L1 cache, and are gone before the next column would use them)."""
-    for a in range(np.uint64(L)):  # unsigned: no test for negative indices
+    BLOCK - 1`` of the (L, N) arrays ``ustar`` and ``guess`` (adjacent columns) into
+    ``u_rows`` and ``guess_rows`` (L BLOCK), laid out as the mesh: row by row, each row's BLOCK values one
+    or two cache lines, read once for the whole block and copied as vectors.  Column by
+    column, each column would read its L values a row of the mesh apart, one value from
+    each of L cache lines (at N = 20 000 the rows are 160 000 B apart: the lines of a
+    column fall in a few sets of the L1 cache, and are gone before the next column would
+    use them).  The set-up of each column (``newton_kernel._iterate``) reads its lane's
+    values from them BLOCK values apart, straight into the slots ``MOMENTUM`` (times m/dt)
+    and ``U0`` (the first iterate) of its lane: the copy into the lanes' layout is that
+    read, as vectors (a transposition in a pass of its own cost three instructions per
+    value, a spill of the lanes' pointers included)."""
+    for a in range(np.uint64(ustar.shape[0])):  # unsigned: no test for negative indices
+        u, g = _layer(ustar[a], c0), _layer(guess[a], c0)
         for i in range(BLOCK):
-            x, column = np.uint64(cell(i, L)) + a, np.uint64(c0 + i)
-            t[MOMENTUM, x] = ustar[a, column]
-            t[GUESS, x] = guess[a, column]
+            u_rows[a * np.uint64(BLOCK) + np.uint64(i)] = u[i]
+        for i in range(BLOCK):
+            guess_rows[a * np.uint64(BLOCK) + np.uint64(i)] = g[i]
 
 
 @jit(borrowing=True)
@@ -131,18 +148,19 @@ def join(t, L, flags, i, fine):
 
 
 @jit(borrowing=True)
-def unload(t, L, flags, i, viscous, wall_true, guess):
+def unload(t, L, flags, i, guess_rows, viscous, wall_true, guess):
     """Column ``i`` of the block, one it did not finish, into lane ``ALONE`` (the
     column solved on its own by ``newton_kernel._chunk``), with the arrays of one column
-    that lane has no slot for (no side walls); returns ``fine``."""
+    that lane has no slot for (no side walls) and its guess (from ``guess_rows`` of
+    :func:`load`); returns ``fine``."""
     x, alone = np.uint64(cell(i, L)), np.uint64(cell(ALONE, L))
-    for slot in range(GUESS + 1):
+    for slot in range(OFFSET + 1):  # the per-step slots
         for a in range(np.uint64(L)):  # unsigned: no test for negative indices (as vectors)
             t[slot, alone + a] = t[slot, x + a]
     for a in range(np.uint64(L)):
         viscous[a] = t[VISCOUS, x + a] > 0.0
         wall_true[a] = t[WALL, x + a]  # no walls
-        guess[a] = t[GUESS, x + a]
+        guess[a] = guess_rows[a * np.uint64(BLOCK) + np.uint64(i)]
     return flags[FINE, i]
 
 
@@ -395,12 +413,12 @@ def _within_bound(t, x, L, new, limit):
 
 @jit(borrowing=True)
 def _keep(t, L, new, lanes):
-    """The velocities of slot ``new`` of the lanes in the bit mask ``lanes`` into slot ``GUESS``,
+    """The velocities of slot ``new`` of the lanes in the bit mask ``lanes`` into slot ``KEPT``,
     kept for the output (a later solve writes over slot ``new``)."""
     for i in range(BLOCK):
         x = cell(i, L)
         for y in range(np.uint64(x), np.uint64(x + L if lanes >> i & 1 else x)):  # as vectors
-            t[GUESS, y] = t[new, y]
+            t[KEPT, y] = t[new, y]
 
 
 @jit(borrowing=True, error_model="numpy")
@@ -409,17 +427,15 @@ def sheared_block(
     u_out, iterations, fallbacks, faults, fault_values, side_by_side,
 ):  # fmt: skip
     """The Newton iteration of ``newton_kernel._chunk`` for the ``BLOCK`` columns set up
-    in the tile ``t`` (:func:`join`): wet columns ``j0 ...`` of ``_chunk``, mesh columns
-    ``c0 ...``, adjacent, without side walls; side by side while each stays fully sheared.
-    ``finished[i]`` tells which columns it solved, and wrote into ``_chunk``'s outputs
-    (``side_by_side`` True): their velocities at the end, row by row when it finished every
-    column; ``flags`` holds its boolean lanes."""
+    in the tile ``t`` (:func:`join`; their guesses in slot ``U0``): wet columns ``j0 ...`` of
+    ``_chunk``, mesh columns ``c0 ...``, adjacent, without side walls; side by side while
+    each stays fully sheared.  ``finished[i]`` tells which columns it solved, and wrote into
+    ``_chunk``'s outputs (``side_by_side`` True): their velocities at the end, row by row
+    when it finished every column; ``flags`` holds its boolean lanes."""
     L = u_out.shape[0]
     for i in range(BLOCK):
         finished[i] = False
     current, new = np.int64(U0), np.int64(U1)  # typed int64, not as literals: one compilation
-    for x in range(np.uint64(cell(0, L)), np.uint64(cell(BLOCK, L))):  # the first iterate: the guess
-        t[U0, x] = t[GUESS, x]  # (contiguous, as vectors; load writes the rows of two slots, not three)
     concave_stress = concave(form, params)
     model, stresses = np.bool_(True), np.bool_(False)  # not literals: one compilation
     _stresses_and_model(t, L, current, form, params, flags, model)
@@ -472,16 +488,17 @@ def sheared_block(
         _keep(t, L, new, last)
     step, solved = np.uint64(SWEEPS * BLOCK), np.uint64(SOLVED * BLOCK)
     for a in range(np.uint64(L if together else 0)):  # unsigned: no test for negative indices
+        row = _layer(sweeps, a * step + solved)
         for i in range(BLOCK):
-            u_out[a, np.uint64(c0 + i)] = sweeps[a * step + solved + np.uint64(i)]
+            u_out[a, np.uint64(c0 + i)] = row[i]
     every = not together
     for i in range(BLOCK):
         every = every and finished[i]
     for a in range(np.uint64(L if every else 0)):
         for i in range(BLOCK):
             x, column = np.uint64(cell(i, L)) + a, np.uint64(c0 + i)
-            u_out[a, column] = t[GUESS, x]
+            u_out[a, column] = t[KEPT, x]
     for i in range(0 if every or together else BLOCK):
         for a in range(np.uint64(L if finished[i] else 0)):
             x, column = np.uint64(cell(i, L)) + a, np.uint64(c0 + i)
-            u_out[a, column] = t[GUESS, x]
+            u_out[a, column] = t[KEPT, x]
