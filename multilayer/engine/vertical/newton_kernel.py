@@ -359,20 +359,7 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
             o = cell(lane, L)  # the lane's layer 0 in the tile's rows
             # what stays fixed during the iteration, a few rows per loop over the layers (a loop
             # over all reloads its rows' pointers), the laws' switch outside them
-            if block:  # u* and the guess from the block's rows (sheared_columns.load)
-                y, i = np.uint64(o), np.uint64(lane)  # unsigned: no test for negative indices
-                for a in range(np.uint64(L)):  # as vectors (the rows' values BLOCK apart)
-                    x, z = y + a, a * np.uint64(BLOCK) + i
-                    tile[sc.INERTIA, x] = m[a] / dt
-                    tile[sc.MOMENTUM, x] = m[a] * u_rows[z] / dt
-                    tile[sc.U0, x] = guess_rows[z]  # the first iterate of sheared_block
-            else:  # a column of the (L, N) arrays
-                for a in range(L):
-                    tile[sc.MOMENTUM, np.uint64(o + a)] = ustar[a, col]
-                    current[a] = guess[a, col]
-                for a in range(L):  # contiguous: as vectors (unsigned: no test for negative indices)
-                    tile[sc.INERTIA, np.uint64(o + a)] = m[a] / dt
-                    tile[sc.MOMENTUM, np.uint64(o + a)] = m[a] * tile[sc.MOMENTUM, np.uint64(o + a)] / dt
+            sc.set_up(tile, L, lane, m, dt, u_rows, guess_rows, ustar, guess, col, current)  # m/dt, m u*/dt
             for a in range(L):
                 x = np.uint64(o + a)
                 s = spacing[a]

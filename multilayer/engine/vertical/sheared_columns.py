@@ -134,6 +134,29 @@ def load(u_rows, guess_rows, ustar, guess, c0):
             guess_rows[a * np.uint64(BLOCK) + np.uint64(i)] = g[i]
 
 
+@jit(inline="always")  # inlined: its loops run as vectors in the caller, without a call
+def set_up(t, L, lane, m, dt, u_rows, guess_rows, ustar, guess, col, current):
+    """The slots ``INERTIA`` and ``MOMENTUM`` (``m/dt``, ``m u*/dt``) of lane ``lane`` and
+    its guess, of the masses ``m``: a block's lane (``lane < BLOCK``) takes its u* and guess
+    from the rows of :func:`load`, BLOCK values apart (as vectors), the guess into ``U0``
+    (the first iterate of :func:`sheared_block`); lane ``ALONE`` those of column ``col`` of
+    the (L, N) arrays ``ustar`` and ``guess``, the guess into ``current``."""
+    o = np.uint64(cell(lane, L))  # unsigned: no test for negative indices
+    if lane < BLOCK:
+        for a in range(np.uint64(L)):
+            x, z = o + a, a * np.uint64(BLOCK) + np.uint64(lane)
+            t[INERTIA, x] = m[a] / dt
+            t[MOMENTUM, x] = m[a] * u_rows[z] / dt
+            t[U0, x] = guess_rows[z]
+        return
+    for a in range(L):
+        t[MOMENTUM, o + np.uint64(a)] = ustar[a, col]
+        current[a] = guess[a, col]
+    for a in range(np.uint64(L)):  # contiguous: as vectors
+        t[INERTIA, o + a] = m[a] / dt
+        t[MOMENTUM, o + a] = m[a] * t[MOMENTUM, o + a] / dt
+
+
 @jit(borrowing=True)
 def join(t, L, flags, i, fine):
     """Lane ``i`` of the block, whose per-step slots ``newton_kernel._chunk`` has set up
