@@ -49,8 +49,8 @@ stresses and the Newton model one loop over the 8 L cells of the block, long eno
 run as vectors at L = 8 (compiled, the loop runs as vectors of 8 values from about 40
 cells on, and one cell at a time below: 22-29 against 51-53 ns per column and pass at
 L = 8).  The tile holds 25 values per layer for each of the BLOCK + 1 lanes, 230 KB at
-L = 128 (the 5 of the bounds' terms touched only where a column is tested by them), and the
-sweeps of the solve 5 per layer and lane, 41 KB."""
+L = 128 (the 5 of the bounds' terms touched only where a column is tested by them), the
+sweeps of the solve 5 per layer and lane, 41 KB, and the rows of :func:`load` 2, 16 KB."""
 
 # The tile (SLOTS, 1 + (BLOCK + 1) L) holds, in each slot (a row), one value per column
 # (lane) and layer: layer a of lane i in cell 1 + i L + a, the lanes one after the other
@@ -116,16 +116,15 @@ def _layer(source, s):
 def load(u_rows, guess_rows, ustar, guess, c0):
     """The velocities after transport and the guesses of the block's columns ``c0 ... c0 +
     BLOCK - 1`` of the (L, N) arrays ``ustar`` and ``guess`` (adjacent columns) into
-    ``u_rows`` and ``guess_rows`` (L BLOCK), laid out as the mesh: row by row, each row's BLOCK values one
-    or two cache lines, read once for the whole block and copied as vectors.  Column by
-    column, each column would read its L values a row of the mesh apart, one value from
-    each of L cache lines (at N = 20 000 the rows are 160 000 B apart: the lines of a
-    column fall in a few sets of the L1 cache, and are gone before the next column would
-    use them).  The set-up of each column (``newton_kernel._iterate``) reads its lane's
-    values from them BLOCK values apart, straight into the slots ``MOMENTUM`` (times m/dt)
-    and ``U0`` (the first iterate) of its lane: the copy into the lanes' layout is that
-    read, as vectors (a transposition in a pass of its own cost three instructions per
-    value, a spill of the lanes' pointers included)."""
+    ``u_rows`` and ``guess_rows`` (L BLOCK), laid out as the mesh: row by row, each row's
+    BLOCK values one or two cache lines, read once for the whole block and copied as
+    vectors.  Column by column, each column would read its L values a row of the mesh
+    apart, one value from each of L cache lines (at N = 20 000 the rows are 160 000 B
+    apart: the lines of a column fall in a few sets of the L1 cache, and are gone before
+    the next column would use them).  Each lane reads its own from them BLOCK values
+    apart (:func:`set_up`), straight into its slots ``MOMENTUM`` (times m/dt) and ``U0``:
+    the copy into the lanes' layout is that read, as vectors (a transposition in a pass of
+    its own cost three instructions per value, a spill of the lanes' pointers included)."""
     for a in range(np.uint64(ustar.shape[0])):  # unsigned: no test for negative indices
         u, g = _layer(ustar[a], c0), _layer(guess[a], c0)
         for i in range(BLOCK):
