@@ -5,12 +5,9 @@ along x unchanged to the bit."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
-from engine import simulation
-from test_nonhydrostatic import non_hydrostatic
+from test_nonhydrostatic import heap_below_repose, non_hydrostatic
 from test_rest import held
 from test_vertical import simple_shear
 
@@ -137,15 +134,7 @@ def test_the_collapse_deposit_comes_exactly_to_rest():
 
 
 def test_a_heap_below_repose_stays_exactly_at_rest():
-    sim = simulation(
-        slope_deg=10.0,
-        domain={"x_min": -0.5, "x_max": 2.5, "cells": 60, "layers": 4},
-        material={"density": 1550.0, "grain_diameter": 0.7e-3},
-        rheology={"name": "drucker_prager", "mu_s": math.tan(math.radians(26.0)), "nu": 0.0},
-        base=[{"condition": "no_slip"}],
-        initial=[{"shape": "profile", "points": [[0.0, 0.0], [1.0, 0.1], [2.0, 0.0]]}],
-        model=SHEARED,
-    )
+    sim = heap_below_repose(SHEARED)
     max_u, max_dh = held(sim, 300)
     assert max_u == 0.0 and max_dh == 0.0
     assert np.all(sim.w == 0.0) and np.all(sim.q == 0.0)

@@ -560,8 +560,18 @@ What the runs show about why:
   energy the tall columns' excess run-out stands for and grows with a, but it also grows with
   every halving of the cells (nothing in the model sets the width over which w changes across
   columns), and the same measure gives the normal stress a share as large, which
-  `model.normal_stress` does not turn into shorter run-outs: whether the friction on vertical
-  planes would shorten them, only a model with it can tell.
+  `model.normal_stress` does not turn into shorter run-outs.  A model with it,
+  `model.vertical_shear` (an upper estimate of that stress: [The model](model.md), "Shear
+  stress on vertical planes"), does not shorten them either (`python
+  benchmarks/vertical_shear.py`, 2, 1, 0.5 mm cells, its own runs with and without the
+  option): the tip run-out changes by -3, -5, -6 % at a = 2, -3, +0, -2 % at a = 7 and +4,
+  -6, +14 % at a = 10, the 95 %-mass front by -4 to -12 % (-0.5 % at a = 10 on 0.5 mm), and on
+  the finest mesh the tip is 1.27, 1.52, 1.55 times law B with it against 1.35, 1.55, 1.35
+  without.  The stress takes 7-17 % of the initial potential energy from the vertical
+  velocities, more with every halving of the cells (a = 7: 12, 15, 17 %), yet the tall
+  columns' tip stays where it was.  At a = 2 and 7 the runs with it converge as those
+  without do (the tip changes by +1.6 % and +0.3 % between the two finest meshes); at a = 10
+  neither does (the tip moves by -3 and +6 % between meshes with it, +9 and -13 % without).
 - **The time step.**  These run-outs are at the shipped `time.cfl` and are not converged in
   the time step: the approximate projection of the cell velocities on the non-hydrostatic
   constraint loses a little kinetic energy at every step, not per unit time, so the tall
