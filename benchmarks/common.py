@@ -63,15 +63,6 @@ def threading_layer() -> str:
         return "not started"
 
 
-def run_to(sim: Simulation, t_end: float) -> float:
-    """The CPU time (s, ``time.process_time``, which a busy machine inflates less than wall
-    time) of ``sim`` advanced to ``t_end`` after one step that compiles or loads the kernels."""
-    sim.step()
-    start = time.process_time()
-    sim.advance(t_end)
-    return time.process_time() - start
-
-
 def peak_memory() -> int:
     """Peak resident memory of this process so far, bytes (Linux reports KiB)."""
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
