@@ -194,11 +194,33 @@ def test_pressure_layers_are_an_integer_up_to_the_layers(write_scenario, tiny_sc
     tiny_scenario["domain"]["layers"] = 4
     path = write_scenario(tiny_scenario)
     assert factory.engine_config(load(path, ["model.pressure=non_hydrostatic"])).pressure.options == {
-        "pressure_layers": 4  # the default: min(4, layers)
+        "pressure_layers": 4,  # the default: min(4, layers)
+        "vertical_shear": False,
     }
     sc = load(path, ["model.pressure=non_hydrostatic", "model.pressure_layers=2"])
     assert sc.model.options == {"pressure_layers": 2} and "pressure_layers: 2" in sc.resolved_yaml()
     with pytest.raises(InputError, match=r"model\.pressure_layers \(from --set\): .*accepted: an integer"):
+        load(path, overrides)
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        ["model.pressure=non_hydrostatic", "model.vertical_shear=1"],
+        ["model.pressure=non_hydrostatic", "model.vertical_shear=yes please"],
+        ["model.vertical_shear=true"],  # without the non-hydrostatic pressure
+    ],
+)
+def test_vertical_shear_is_true_or_false_with_the_non_hydrostatic_pressure(
+    write_scenario, tiny_scenario, overrides
+):
+    path = write_scenario(tiny_scenario)
+    sc = load(path, ["model.pressure=non_hydrostatic", "model.vertical_shear=true"])
+    assert factory.engine_config(sc).pressure.options["vertical_shear"] is True
+    with pytest.raises(
+        InputError,
+        match=r"model\.vertical_shear \(from --set\): .*accepted: true or false, with pressure: non_hydr",
+    ):
         load(path, overrides)
 
 

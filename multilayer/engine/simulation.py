@@ -140,11 +140,12 @@ class Simulation:
         self.bed = initial_state.bed_profile(c.bed, self.x)
         self.mixture = self._mixture(bulk)
         """The grain–fluid mixture (engine/mixture), None for dry grains."""
-        self.pressure = self._pressure_model()
+        stresses = StressModel(
+            bulk, c.material, self.fractions, self.g_n, self.base, walls=walls, width=c.width, x=self.x
+        )
+        self.pressure = self._pressure_model(stresses)
         self.vertical = VerticalStep(
-            StressModel(
-                bulk, c.material, self.fractions, self.g_n, self.base, walls=walls, width=c.width, x=self.x
-            ),
+            stresses,
             solver=column_solver,
             tolerance=c.numerics.tolerance,
             max_iterations=c.numerics.max_iterations,
@@ -185,7 +186,7 @@ class Simulation:
         self.x, self.sigma = read_only(self.x), read_only(self.sigma)
         self.fractions, self.bed = read_only(self.fractions), read_only(self.bed)
 
-    def _pressure_model(self) -> PressureModel:
+    def _pressure_model(self, stresses: StressModel) -> PressureModel:
         """The pressure model of the configuration, the defaults of its options filled in."""
         c = self.config
         model = models()[c.pressure.model]
@@ -200,6 +201,7 @@ class Simulation:
             wraps=boundaries.BOUNDARIES[self.left].wraps,
             base_bulk=self.base.bulk,
             options=options(model, c.pressure.options, self.fractions.size),
+            stresses=stresses,
         )
         return model(setup, self._state)
 

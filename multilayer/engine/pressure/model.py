@@ -32,6 +32,7 @@ from multilayer.engine import registry
 
 if TYPE_CHECKING:
     from multilayer.engine.state import FlowState
+    from multilayer.engine.vertical.stresses import StressModel
 
 
 @dataclass(frozen=True)
@@ -68,6 +69,8 @@ class PressureSetup:
     """Columns (N,) whose bed is held by the bulk law (no slip; the others slip)."""
     options: Mapping[str, Any]
     """The model's options, defaults filled in (:func:`options`)."""
+    stresses: StressModel | None = None
+    """The laws of the vertical step (for a model that stresses the layers itself)."""
 
 
 class PressureModel:

@@ -288,10 +288,18 @@ class StressModel:
     ) -> tuple[np.ndarray, np.ndarray]:
         """The two parts of :meth:`bulk_stress`: the yield stress ``kappa(p)`` and the viscous
         stress ``eta(rate, p) rate``."""
-        inputs = {"shear rate": rate, "pressure": pressure}
-        kappa = self._call(self.bulk, "yield_stress", (pressure, self.material), inputs, x, NORMAL, h)
-        eta = self._call(self.bulk, "viscosity", (rate, pressure, self.material), inputs, x, NORMAL, h)
+        kappa, eta = self.bulk_law(rate, pressure, h, x, NORMAL)
         return kappa, eta * rate
+
+    def bulk_law(
+        self, rate: np.ndarray, pressure: np.ndarray, h: np.ndarray, x: np.ndarray, position: str
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The yield stress ``kappa(p)`` and the viscosity ``eta(rate, p)`` of the bulk law (flat
+        arrays of one shape, as :meth:`bulk_stress`), ``position`` naming where in messages."""
+        inputs = {"shear rate": rate, "pressure": pressure}
+        kappa = self._call(self.bulk, "yield_stress", (pressure, self.material), inputs, x, position, h)
+        eta = self._call(self.bulk, "viscosity", (rate, pressure, self.material), inputs, x, position, h)
+        return kappa, eta
 
     def _viscosity(self, law, rate, pressure, cs, position) -> np.ndarray:
         inputs = {"shear rate": rate, "pressure": pressure}

@@ -560,8 +560,24 @@ What the runs show about why:
   energy the tall columns' excess run-out stands for and grows with a, but it also grows with
   every halving of the cells (nothing in the model sets the width over which w changes across
   columns), and the same measure gives the normal stress a share as large, which
-  `model.normal_stress` does not turn into shorter run-outs: whether the friction on vertical
-  planes would shorten them, only a model with it can tell.
+  `model.normal_stress` does not turn into shorter run-outs.  A model with it,
+  `model.vertical_shear` (an upper estimate of that stress: [The model](model.md), "Shear
+  stress on vertical planes"), does not shorten them either (`python
+  benchmarks/vertical_shear.py --history`, the runs of this section on 2, 1, 0.5 mm cells with
+  and without the option): the tip run-out changes by -4, -6, -5 % at a = 2, -2, -2, -5 % at
+  a = 7 and +6, +8 % at a = 10 (2 and 1 mm; the 0.5 mm run stopped: the pressure bound was not
+  settled in 100 active-set iterations), the 95 %-mass front by -4 to -13 % at a = 2 and 7,
+  and on the finest mesh the tip is 1.28 and 1.51 times law B at a = 2 and 7 with it against
+  1.35 and 1.60 without.  The stress takes 8-17 % of the initial potential energy from the
+  vertical velocities, more with every halving of the cells (a = 7: 12, 15, 17 %): it slows the
+  fall (at a = 7 on 1 mm cells the tip is 9-35 % behind at 0.1-0.2 s) but the spreading
+  catches up, and the tall columns' tip ends near where it did.  Between the two finest
+  meshes the tip changes by +2.2 % and +1.5 % with it at a = 2 and 7 (+1.9 % and +5.3 %
+  without); at a = 10 the tip depends on how the steps fall even on one mesh: stopped at 0.05,
+  0.1, 0.15, 0.2, 0.3 s and the end only (`--no-stops`) instead of every 0.01 s, the same runs
+  end at 14.97 (0.5 mm, without the option), 16.78 and 18.28 (1 mm, without and with it)
+  instead of 16.99, 16.50 and 17.83, and the 0.5 mm run with the option ends at 16.53 (+10 %
+  over 14.97).
 - **The time step.**  These run-outs are at the shipped `time.cfl` and are not converged in
   the time step: the approximate projection of the cell velocities on the non-hydrostatic
   constraint loses a little kinetic energy at every step, not per unit time, so the tall

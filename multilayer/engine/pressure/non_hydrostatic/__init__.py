@@ -36,15 +36,28 @@ class NonHydrostatic(PressureModel):
             accepted="an integer from 1 to domain.layers = {layers}",
             valid=lambda value, layers: type(value) is int and 1 <= value <= layers,
             default=lambda layers: min(DEFAULT_PRESSURE_LAYERS, layers),
-        )
+        ),
+        "vertical_shear": Option(
+            accepted="true or false",
+            valid=lambda value, layers: type(value) is bool,
+            default=lambda layers: False,
+        ),
     }
     checked = {"w": "vertical velocity w", "q": "non-hydrostatic pressure q"}
 
     def __init__(self, setup: PressureSetup, state: FlowState):
         from multilayer.engine.pressure.non_hydrostatic.projection import Projection
+        from multilayer.engine.vertical_shear import VerticalShear
 
         super().__init__(setup, state)
         self.layers: int = setup.options["pressure_layers"]
+        shear = None
+        if setup.options["vertical_shear"]:
+            if setup.stresses is None:
+                raise ValueError(
+                    "model.vertical_shear needs the vertical step's laws (PressureSetup.stresses)"
+                )
+            shear = VerticalShear(setup.stresses, setup.fractions, dx=setup.dx, dry=setup.dry, g_n=setup.g_n)
         self.projection = Projection(
             setup.fractions,
             setup.bed,
@@ -53,6 +66,7 @@ class NonHydrostatic(PressureModel):
             dry=setup.dry,
             g_n=setup.g_n,
             pressure_layers=self.layers,
+            shear=shear,
         )
         self._seed = state.add_field("newton_seed", default="u")
 

@@ -84,6 +84,8 @@ about ``L_p + 3``: the factorisation costs O(L_p^3) per column instead of O(L^3)
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from multilayer.engine.compiled import jit
@@ -100,6 +102,9 @@ from multilayer.engine.pressure.non_hydrostatic.constraint import (
     unknowns,
 )
 from multilayer.engine.state import span
+
+if TYPE_CHECKING:
+    from multilayer.engine.vertical_shear import VerticalShear
 
 
 def correction(
@@ -477,8 +482,10 @@ class Projection:
         dry: float,
         g_n: float,
         pressure_layers: int | None,
+        shear: VerticalShear | None = None,
     ):
         self.fractions, self.bed = fractions, bed
+        self.shear = shear  # model.vertical_shear: its step on the advected w (None: off)
         self.dx, self.periodic, self.dry, self.g_n = dx, periodic, dry, g_n
         self.pressure_layers = pressure_layers
         shape = (fractions.size, bed.size)
@@ -513,6 +520,8 @@ class Projection:
         self.u[:, lo:hi] = u[:, lo:hi]
         # only the moving cells take part, in the columns holding material
         _advect(w, u, self.dx, dt, self.periodic, lo, hi, self._w_star)
+        if self.shear is not None:
+            self.shear(h, u, (w, q), dt, (lo, hi), self._w_star)
         begin, stop = self._tension_written  # tension_free(q, h_before, ...) in an array reused
         self._tension_free[:, begin:stop] = False
         _tension_free(q, h_before, self._factors, self.g_n, *columns, self._tension_free)
