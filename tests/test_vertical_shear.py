@@ -72,7 +72,8 @@ def test_the_step_is_the_fipy_reference():
     h, u, start, dt, columns, w_in = calls[-1]
     compiled, reference = w_in.copy(), w_in.copy()
     shear(h, u, start, dt, columns, compiled)
-    shear(h, u, start, dt, columns, reference, lambda p: vertical_fipy.solve(p, tol=1e-13))
+    shear.solver = lambda p: vertical_fipy.solve(p, tol=1e-13)
+    shear(h, u, start, dt, columns, reference)
     scale = np.abs(w_in).max()
     assert scale > 0.0 and not np.array_equal(compiled, w_in)
     np.testing.assert_allclose(compiled, reference, rtol=0, atol=1e-9 * scale)
@@ -170,3 +171,14 @@ def test_a_uniform_chain_is_kept_to_the_bit_and_a_sheared_one_is_not():
     held_back = w_star.copy()
     shear(h, u, start, 1e-3, (0, 21), held_back)
     assert np.all(held_back[:, 5] > w_star[:, 5]) and np.array_equal(held_back[:, :5], w_star[:, :5])
+
+
+def test_the_step_solves_with_the_runs_vertical_solver():
+    """``numerics.vertical_solver: fipy`` reaches the step's chains as it reaches the vertical
+    step's columns; the default is the compiled solver."""
+    path = SCENARIOS / "column_collapse_channel.yaml"
+    overrides = {"domain.cells": 100, **ON}
+    fipy = multilayer.Simulation(multilayer.load(path, {**overrides, "numerics.vertical_solver": "fipy"}))
+    kernel = multilayer.Simulation(multilayer.load(path, overrides))
+    assert fipy.pressure.projection.shear.solver is fipy.vertical.solver is not None
+    assert kernel.pressure.projection.shear.solver is None

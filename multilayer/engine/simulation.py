@@ -143,7 +143,7 @@ class Simulation:
         stresses = StressModel(
             bulk, c.material, self.fractions, self.g_n, self.base, walls=walls, width=c.width, x=self.x
         )
-        self.pressure = self._pressure_model(stresses)
+        self.pressure = self._pressure_model(stresses, column_solver)
         self.vertical = VerticalStep(
             stresses,
             solver=column_solver,
@@ -186,7 +186,7 @@ class Simulation:
         self.x, self.sigma = read_only(self.x), read_only(self.sigma)
         self.fractions, self.bed = read_only(self.fractions), read_only(self.bed)
 
-    def _pressure_model(self, stresses: StressModel) -> PressureModel:
+    def _pressure_model(self, stresses: StressModel, solver: VerticalSolver | None) -> PressureModel:
         """The pressure model of the configuration, the defaults of its options filled in."""
         c = self.config
         model = models()[c.pressure.model]
@@ -202,6 +202,7 @@ class Simulation:
             base_bulk=self.base.bulk,
             options=options(model, c.pressure.options, self.fractions.size),
             stresses=stresses,
+            solver=solver,
         )
         return model(setup, self._state)
 

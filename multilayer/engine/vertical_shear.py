@@ -86,8 +86,20 @@ def runs(moving: np.ndarray) -> Iterator[tuple[int, int]]:
 class VerticalShear:
     """The implicit step of the shear stress on vertical planes (module Notes)."""
 
-    def __init__(self, stresses: StressModel, fractions: np.ndarray, *, dx: float, dry: float, g_n: float):
+    def __init__(
+        self,
+        stresses: StressModel,
+        fractions: np.ndarray,
+        *,
+        dx: float,
+        dry: float,
+        g_n: float,
+        solver: Solver | None = None,
+    ):
+        """``solver`` solves each chain's :class:`ColumnProblem` (None: the compiled one, as
+        for the vertical step; ``numerics.vertical_solver``)."""
         self.stresses, self.dx, self.dry, self.g_n = stresses, dx, dry, g_n
+        self.solver = solver
         self.fractions = fractions
         below = np.concatenate([[0.0], np.cumsum(fractions)[:-1]])
         self._centre = (1.0 - below - 0.5 * fractions)[:, None]  # (h - z_mid) / h
@@ -124,12 +136,11 @@ class VerticalShear:
         dt: float,
         columns: tuple[int, int],
         w_star: np.ndarray,
-        solver: Solver | None = None,
     ) -> None:
         """The step over ``dt`` of ``w_star`` (L, N), in place at the moving cells of the
         columns ``columns`` (``u`` the vertical step's velocities on the thickness ``h``;
-        ``start = (w, q)`` of the step's start); ``solver`` (default: the compiled one)
-        solves each chain's :class:`ColumnProblem`."""
+        ``start = (w, q)`` of the step's start)."""
+        solver = self.solver
         if solver is None:
             from multilayer.engine.vertical.column_solve import solve as solver
         lo, hi = columns

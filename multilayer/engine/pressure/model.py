@@ -32,6 +32,7 @@ from multilayer.engine import registry
 
 if TYPE_CHECKING:
     from multilayer.engine.state import FlowState
+    from multilayer.engine.vertical.problem import VerticalSolver
     from multilayer.engine.vertical.stresses import StressModel
 
 
@@ -71,6 +72,9 @@ class PressureSetup:
     """The model's options, defaults filled in (:func:`options`)."""
     stresses: StressModel | None = None
     """The laws of the vertical step (for a model that stresses the layers itself)."""
+    solver: VerticalSolver | None = None
+    """The exact solver of the column problem (None: the compiled one;
+    ``numerics.vertical_solver``), for a model that solves such problems itself."""
 
 
 class PressureModel:

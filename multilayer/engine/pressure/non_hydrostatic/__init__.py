@@ -57,7 +57,14 @@ class NonHydrostatic(PressureModel):
                 raise ValueError(
                     "model.vertical_shear needs the vertical step's laws (PressureSetup.stresses)"
                 )
-            shear = VerticalShear(setup.stresses, setup.fractions, dx=setup.dx, dry=setup.dry, g_n=setup.g_n)
+            shear = VerticalShear(
+                setup.stresses,
+                setup.fractions,
+                dx=setup.dx,
+                dry=setup.dry,
+                g_n=setup.g_n,
+                solver=setup.solver,
+            )
         self.projection = Projection(
             setup.fractions,
             setup.bed,
