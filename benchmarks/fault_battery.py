@@ -34,6 +34,9 @@ from typing import Any
 import numpy as np
 import yaml
 
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+"""The signals a run stops on: the cases' children start with them at their default."""
+
 NETCDF = threading.Lock()
 """Held by every netCDF call of this script: the cases run in threads, and neither HDF5 nor
 xarray's writer (two files written at once crashed this process) is thread-safe."""
@@ -82,6 +85,7 @@ class Case:
     prefix: list[str] = field(default_factory=list)  # a command the child runs under (setpriv)
     plain: bool = False  # the command line itself, nothing imported before (numba's environment)
     here: bool = False  # run in the case's directory (a case that could write into the working one)
+    ignored: tuple[int, ...] = ()  # stop signals the child starts with ignored (``nohup cmd &``)
     result: dict = field(default_factory=dict)
 
 
@@ -2634,6 +2638,69 @@ def round_sixteen() -> list[Case]:
     return out
 
 
+def _linked_directory(name: str) -> Callable[[Path], None]:
+    """A completed run in ``out`` whose ``out/NAME`` is a symbolic link to ``elsewhere``."""
+
+    def setup(directory: Path) -> None:
+        _finished_run(directory)
+        (directory / "elsewhere").mkdir()
+        (directory / "out" / name).symlink_to(directory / "elsewhere")
+
+    return setup
+
+
+def _linked_member(directory: Path) -> None:
+    """A sweep of two members whose second member's directory links to ``elsewhere``."""
+    from multilayer.app import sweep
+
+    _sweep({"rheology.mu_s": [0.3, 0.4]})(directory)
+    (directory / "elsewhere").mkdir()
+    (directory / "sweep-out").mkdir()
+    member = sweep.load(directory / "sweep.yaml").members()[1].id
+    (directory / "sweep-out" / member).symlink_to(directory / "elsewhere")
+
+
+def _linked_members(directory: Path) -> None:
+    """A sensitivity study whose ``members/`` directory links to ``elsewhere``."""
+    (directory / "base.yaml").write_text(yaml.safe_dump(TINY))
+    config = {"base": "base.yaml", "parameters": {"rheology.mu_s": {"bounds": [0.3, 0.4]}},
+              "outputs": ["runout"], "samples": 8}  # fmt: skip
+    (directory / "sobol.yaml").write_text(yaml.safe_dump(config))
+    (directory / "elsewhere").mkdir()
+    (directory / "sens-out").mkdir()
+    (directory / "sens-out" / "members").symlink_to(directory / "elsewhere")
+
+
+def round_seventeen() -> list[Case]:
+    """The hostile cases of the seventeenth round (docs/reliability.md): a stop signal the
+    run was started with ignored (``nohup cmd &``), the directories a command writes into
+    (``plots/``, ``vtk/``, a study's members) symbolic links to a directory elsewhere."""
+    out: list[Case] = []
+    for signum in (signal.SIGINT, signal.SIGHUP):
+        name = signal.Signals(signum).name
+        out.append(
+            Case(f"signal: {name} to a run started with {name} ignored", ["run", "{scenario}", "-o",
+                 "{dir}/out"], 0, "", patch=PACED, setup=lambda d: _scenario(d), signal_after_output=signum,
+                 ignored=(signum,), keeps_output=True)
+        )  # fmt: skip
+    linked = "into whose target the files would be written"
+    for command, name in ((["plot", "{dir}/out"], "plots"), (["export", "{dir}/out", "--vtk"], "vtk")):
+        out.append(
+            Case(f"{command[0]}: out/{name} a symbolic link to a directory elsewhere", command, 2,
+                 f"out/{name}: a symbolic link (to ", setup=_linked_directory(name))
+        )  # fmt: skip
+    out.append(
+        Case("sweep: a member's directory a symbolic link to a directory elsewhere",
+             ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/sweep-out"], 2, linked, setup=_linked_member)
+    )  # fmt: skip
+    out.append(
+        Case("sensitivity: members/ a symbolic link to a directory elsewhere",
+             ["sensitivity", "{dir}/sobol.yaml", "-o", "{dir}/sens-out", "--workers", "1"], 2,
+             "sens-out/members: a symbolic link (to ", setup=_linked_members)
+    )  # fmt: skip
+    return out
+
+
 def cases() -> list[Case]:
     out: list[Case] = []
     budget = ["--max-memory", "8G", "--max-output", "1G"]
@@ -2803,6 +2870,7 @@ def cases() -> list[Case]:
         + round_fourteen()
         + round_fifteen()
         + round_sixteen()
+        + round_seventeen()
     )
 
 
@@ -2824,11 +2892,13 @@ def attempt(case: Case) -> Case:
         argv = [a.format(scenario=directory / "scenario.yaml", dir=directory) for a in case.argv]
         child = ["-m", "multilayer"] if case.plain else ["-c", CHILD.format(patch=case.patch)]
         command = [*case.prefix, sys.executable, *child, *argv]
-        limit = case.file_limit
+        limit, ignored = case.file_limit, case.ignored
 
         def limited() -> None:
             if limit is not None:
                 resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+            for signum in STOP_SIGNALS:  # as from a terminal, whatever the battery was started with
+                signal.signal(signum, signal.SIG_IGN if signum in ignored else signal.SIG_DFL)
 
         start = time.monotonic()
         proc = subprocess.Popen(

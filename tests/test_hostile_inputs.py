@@ -229,6 +229,48 @@ def test_an_output_file_linked_to_a_file_elsewhere_is_refused_and_the_file_kept(
     assert elsewhere.read_text() == "precious"
 
 
+@pytest.mark.parametrize(("command", "directory"), [("plot", "plots"), ("export", "vtk")])
+def test_an_output_directory_linked_elsewhere_is_refused_and_its_target_kept(
+    tmp_path, cli, write_scenario, command, directory
+):
+    """``out/plots`` (``out/vtk``) a symbolic link to a directory elsewhere: the figures
+    (the VTK files) were written into it, replacing its files of the same names.  Refused
+    naming the link, as a linked output file is; the directory is as it was."""
+    outdir, short = tmp_path / "out", {**TINY_SCENARIO, "time": {"end": 0.02, "output_interval": 0.01}}
+    assert cli("run", write_scenario(short), "-o", outdir, "-q").code == 0
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "section.png").write_text("precious")
+    (outdir / directory).symlink_to(elsewhere)
+    result = cli(command, outdir, *(["--vtk"] if command == "export" else []))
+    assert result.code == 2 and "Traceback" not in result.err, result.err
+    assert result.err.count("\n") == 1
+    linked = f"{outdir / directory}: a symbolic link (to {elsewhere}), into whose target the files would be"
+    assert linked in result.err
+    assert [p.name for p in elsewhere.iterdir()] == ["section.png"]
+    assert (elsewhere / "section.png").read_text() == "precious"
+
+
+def test_a_sweep_member_directory_linked_elsewhere_is_refused_before_anything_runs(
+    tmp_path, cli, write_scenario
+):
+    """A member's directory of a sweep a symbolic link to a directory elsewhere: its run
+    wrote there.  The sweep is refused (exit 2) naming the link, before any member runs."""
+    from multilayer.app import sweep
+
+    write_scenario({**TINY_SCENARIO, "time": {"end": 0.02, "output_interval": 0.01}}, "base.yaml")
+    path = write_scenario({"base": "base.yaml", "parameters": {"rheology.mu_s": [0.3, 0.4]}}, "sweep.yaml")
+    outdir, elsewhere = tmp_path / "out", tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    member = sweep.load(path).members()[1].id
+    outdir.mkdir()
+    (outdir / member).symlink_to(elsewhere)
+    result = cli("sweep", path, "-o", outdir)
+    assert result.code == 2 and "Traceback" not in result.err, result.err
+    assert f"{outdir / member}: a symbolic link (to {elsewhere}), into whose target" in result.err
+    assert not list(elsewhere.iterdir()) and not list(outdir.glob("*/result.nc"))
+
+
 def test_validate_checks_sweep_and_study_files_with_every_member(tmp_path, cli, write_scenario):
     """``validate`` refused every sweep file as a scenario missing name, domain, ...; it
     checks a sweep with each of its members, and calibration and sensitivity files as

@@ -89,7 +89,7 @@ sys.exit(main(sys.argv[1:]))
 
 
 @pytest.mark.slow  # a child process; the fault battery tries it too
-def test_a_run_stopped_during_start_up_says_so_and_leaves_no_lock(tmp_path):
+def test_a_run_stopped_during_start_up_says_so_and_leaves_no_lock(tmp_path, default_stop_signals):
     path = tmp_path / "tiny.yaml"
     path.write_text(yaml.safe_dump(TINY_SCENARIO))
     outdir = tmp_path / "out"

@@ -9,7 +9,8 @@ request honoured between two kernel calls (well within a second): the step under
 abandoned, the state at the start of it is checkpointed, ``run_status`` set to
 ``interrupted``, the resume command written to stderr and ``run.log``, and
 :class:`~multilayer.errors.Interrupted` raised (the CLI exits with 128 + the signal number:
-130, 143, 129).  A second signal stops at once; the last checkpoint then stands.
+130, 143, 129).  A second signal stops at once; the last checkpoint then stands.  A
+signal the process was started with ignored stays ignored (:func:`handled_by`).
 ``resume=True`` restores the checkpoint and continues; the output times are the same as
 without the interruption, so the result is identical.
 
@@ -25,6 +26,7 @@ output size are estimated and checked against the budget (:mod:`multilayer.app.r
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import os
@@ -486,6 +488,29 @@ STOP_SIGNALS = tuple(
 )
 
 
+@contextmanager
+def handled_by(handler: Callable[[int, FrameType | None], None]) -> Iterator[None]:
+    """:data:`STOP_SIGNALS` handled by ``handler`` while active (in the main thread, which
+    alone receives signals), their handlers set back after.  A signal the process ignores
+    stays ignored: a job started with ``&`` by a non-interactive shell inherits SIGINT
+    ignored, one under ``nohup`` SIGHUP, and Python itself then leaves SIGINT alone (no
+    ``KeyboardInterrupt``); a run that took it had stopped on a Ctrl-C meant for the shell's
+    foreground job."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {
+        signum: signal.signal(signum, handler)
+        for signum in STOP_SIGNALS
+        if signal.getsignal(signum) != signal.SIG_IGN
+    }
+    try:
+        yield
+    finally:
+        for signum, before in previous.items():
+            signal.signal(signum, before)
+
+
 class _StopRequest:
     """Handler of :data:`STOP_SIGNALS` turning the first signal into a stop request."""
 
@@ -509,17 +534,8 @@ class _StopRequest:
         if self.requested or (self.stop_when is not None and self.stop_when()):
             raise Stop
 
-    @contextmanager
-    def installed(self) -> Iterator[None]:
-        if threading.current_thread() is not threading.main_thread():
-            yield  # signals only reach the main thread
-            return
-        previous = {signum: signal.signal(signum, self._handle) for signum in STOP_SIGNALS}
-        try:
-            yield
-        finally:
-            for signum, handler in previous.items():
-                signal.signal(signum, handler)
+    def installed(self) -> contextlib.AbstractContextManager[None]:
+        return handled_by(self._handle)
 
     def _handle(self, signum: int, frame: FrameType | None) -> None:
         if self.starting:

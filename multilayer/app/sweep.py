@@ -38,7 +38,7 @@ from typing import Any, Literal
 from multilayer import scenario
 from multilayer.app import resources, runner, stopping
 from multilayer.errors import InputError, Interrupted, RunError, reason
-from multilayer.io.disk import write_whole
+from multilayer.io.disk import writable_directory, write_whole
 from multilayer.io.results import (
     CHECKPOINT_FILE,
     MIXTURE_SUMMARY_KEYS,
@@ -509,7 +509,7 @@ def _run(
     outcomes: dict[int, Outcome],
 ) -> None:
     """:func:`run`, filling ``outcomes`` (member index -> outcome) as members finish."""
-    stopping.StopFile(outdir).clear()
+    stopping.StopFile(writable_directory(outdir)).clear()
     pending: list[tuple[Member, scenario.Scenario, str]] = []
     for member in members:
         stopping.check()
@@ -519,7 +519,7 @@ def _run(
             outcomes[member.index] = Outcome(member, "invalid", str(exc))
             continue
         fingerprint = scenario_fingerprint(member_scenario)
-        summary = completed(outdir / member.id, fingerprint)
+        summary = completed(writable_directory(outdir / member.id), fingerprint)
         if summary is not None:
             outcomes[member.index] = Outcome(member, "ok", summary=summary, skipped=True)
         else:

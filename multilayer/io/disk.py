@@ -17,7 +17,7 @@ import shutil
 from collections.abc import Callable
 from pathlib import Path
 
-from multilayer.errors import InputError
+from multilayer.errors import InputError, reason
 
 FULL_ERRNOS = frozenset({errno.ENOSPC, errno.EFBIG, errno.EDQUOT})
 """The errors of a write that found no room: disk full, file too large, quota exceeded."""
@@ -87,6 +87,27 @@ def writable(path: Path) -> Path:
             f"{path}: a symbolic link (to {os.readlink(path)}), whose target the write would replace; "
             "accepted: no file there, or a regular file to replace"
         )
+    return path
+
+
+def writable_directory(path: Path) -> Path:
+    """``path``, a directory a command writes its files into (``plots/``, ``vtk/``, a
+    study's ``members/`` and member directories), made if absent.  A symbolic link there
+    had every file written into its target, wherever it points, as :func:`writable` says of
+    a file; a file there, or a directory that cannot be made, is named too
+    (:class:`InputError`)."""
+    accepted = "accepted: no file there (the directory is made), or a directory"
+    if path.is_symlink():
+        raise InputError(
+            f"{path}: a symbolic link (to {os.readlink(path)}), into whose target the files would be "
+            f"written; {accepted}"
+        )
+    if path.exists() and not path.is_dir():
+        raise InputError(f"{path}: exists and is not a directory; {accepted}")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot be created ({reason(exc)}); {accepted}") from None
     return path
 
 

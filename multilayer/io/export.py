@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from multilayer.io.disk import writable
+from multilayer.io.disk import writable, writable_directory
 from multilayer.io.result_check import ending
 from multilayer.io.results import open_result
 
@@ -28,8 +28,7 @@ def export_vtk(directory: str | os.PathLike) -> tuple[list[Path], str | None]:
     """Write ``directory/vtk/result_NNNN.vts`` per output time and ``result.pvd``; returns
     the paths (``result.pvd`` first) and how the run ended if it did not complete."""
     ds = open_result(directory)
-    out = Path(directory) / VTK_DIR
-    out.mkdir(exist_ok=True)
+    out = writable_directory(Path(directory) / VTK_DIR)
     pvd = writable(out / "result.pvd")
     # the series of an earlier export goes first: one stopped half-way (Ctrl-C, a full disk)
     # left it listing this run's first files and the earlier run's others, read as one run

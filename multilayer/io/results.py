@@ -30,6 +30,8 @@ import datetime as _dt
 import hashlib
 import math
 import os
+import threading
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -294,9 +296,24 @@ def open_result(
 
     file = check_result(path, use)
     try:
-        return xr.load_dataset(file) if load else xr.open_dataset(file)
+        return decoded(file, load=load)
     except (OSError, ValueError) as exc:
         raise InputError(f"{file}: not a readable netCDF result file ({reason(exc)})") from None
+
+
+_DECODING = threading.Lock()
+"""Held by :func:`decoded`: two threads of a study scoping the warning filters at once
+would each put back what the other saw."""
+
+
+def decoded(file: str | os.PathLike, *, load: bool = True) -> xr.Dataset:
+    """``file`` read by xarray (loaded into memory, or with ``load=False`` opened lazily),
+    the host process's warning filters left as they were: xarray's decoding of every file
+    (``xarray.conventions.decode_cf_variables``) puts a filter of its own ("once" for its
+    ``decode_timedelta`` FutureWarning) in front of the process's, where it overrode a
+    filter the host added after the first read."""
+    with _DECODING, warnings.catch_warnings():
+        return xr.load_dataset(file) if load else xr.open_dataset(file)
 
 
 def run_failure(path: str | os.PathLike) -> str | None:

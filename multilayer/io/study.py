@@ -565,10 +565,10 @@ def _read_netcdf(
     file: Path, variable: str, where: str
 ) -> tuple[np.ndarray, np.ndarray, str | None, str | None]:
     """A one-dimensional netCDF variable, its coordinate and both units attributes."""
-    import xarray as xr
+    from multilayer.io.results import decoded
 
     try:
-        with xr.open_dataset(file) as ds:
+        with decoded(file, load=False) as ds:
             if variable not in ds:
                 raise InputError(
                     f"{where}: {file} has no variable {variable!r}; accepted: "
