@@ -2671,10 +2671,27 @@ def _linked_members(directory: Path) -> None:
     (directory / "sens-out" / "members").symlink_to(directory / "elsewhere")
 
 
+def _study_file(kind: str) -> Callable[[Path], None]:
+    """A sweep of one member whose ``sweep-out/summary.csv`` is ``kind``: a named pipe, or
+    a symbolic link to ``precious.txt`` beside it."""
+
+    def setup(directory: Path) -> None:
+        _sweep({"rheology.mu_s": [0.3]})(directory)
+        (directory / "sweep-out").mkdir()
+        if kind == "pipe":
+            os.mkfifo(directory / "sweep-out" / "summary.csv")
+        else:
+            (directory / "precious.txt").write_text("precious")
+            (directory / "sweep-out" / "summary.csv").symlink_to(directory / "precious.txt")
+
+    return setup
+
+
 def round_seventeen() -> list[Case]:
     """The hostile cases of the seventeenth round (docs/reliability.md): a stop signal the
     run was started with ignored (``nohup cmd &``), the directories a command writes into
-    (``plots/``, ``vtk/``, a study's members) symbolic links to a directory elsewhere."""
+    (``plots/``, ``vtk/``, a study's members) symbolic links to a directory elsewhere, a
+    sweep's ``summary.csv`` a named pipe or a symbolic link."""
     out: list[Case] = []
     for signum in (signal.SIGINT, signal.SIGHUP):
         name = signal.Signals(signum).name
@@ -2693,6 +2710,15 @@ def round_seventeen() -> list[Case]:
         Case("sweep: a member's directory a symbolic link to a directory elsewhere",
              ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/sweep-out"], 2, linked, setup=_linked_member)
     )  # fmt: skip
+    for kind, what, phrase in (
+        ("pipe", "named pipe", "exists and is not a regular file"),
+        ("link", "symbolic link to a file elsewhere", "a symbolic link (to "),
+    ):
+        out.append(
+            Case(f"sweep: summary.csv a {what}",
+                 ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/sweep-out", "--workers", "1"], 2,
+                 f"sweep-out/summary.csv: {phrase}", setup=_study_file(kind))
+        )  # fmt: skip
     out.append(
         Case("sensitivity: members/ a symbolic link to a directory elsewhere",
              ["sensitivity", "{dir}/sobol.yaml", "-o", "{dir}/sens-out", "--workers", "1"], 2,

@@ -271,6 +271,41 @@ def test_a_sweep_member_directory_linked_elsewhere_is_refused_before_anything_ru
     assert not list(elsewhere.iterdir()) and not list(outdir.glob("*/result.nc"))
 
 
+@pytest.mark.parametrize(
+    ("command", "results"),
+    [("sweep", "summary.csv"), ("calibrate", "calibration.nc"), ("sensitivity", "sensitivity.nc")],
+)
+@pytest.mark.parametrize("kind", ["a pipe", "a link"])
+def test_a_study_file_that_is_a_pipe_or_a_link_is_refused_before_anything_runs(
+    tmp_path, cli, write_scenario, command, results, kind
+):
+    """A sweep's ``summary.csv`` a named pipe held the sweep for ever once its members had
+    run (nothing reads it), a symbolic link had its target written over by the summary.
+    Every study's file is refused as a run's are, before anything runs."""
+    write_scenario({**TINY_SCENARIO, "time": {"end": 0.02, "output_interval": 0.01}}, "base.yaml")
+    (tmp_path / "front.csv").write_text("t,x_f,sigma\n0.01,0.12,0.01\n")
+    bounds = {"rheology.mu_s": {"bounds": [0.2, 0.4]}}
+    columns = ["t", "x_f", "sigma"]
+    observation = {"name": "front", "quantity": "front", "file": "front.csv", "columns": columns}
+    config = {
+        "sweep": {"base": "base.yaml", "parameters": {"rheology.mu_s": [0.3]}},
+        "calibrate": {"base": "base.yaml", "parameters": bounds, "observations": [observation]},
+        "sensitivity": {"base": "base.yaml", "parameters": bounds, "outputs": ["runout"], "samples": 8},
+    }[command]
+    outdir, elsewhere = tmp_path / "out", tmp_path / "precious.txt"
+    outdir.mkdir()
+    elsewhere.write_text("precious")
+    if kind == "a pipe":
+        os.mkfifo(outdir / results)
+    else:
+        (outdir / results).symlink_to(elsewhere)
+    result = cli(command, write_scenario(config, "study.yaml"), "-o", outdir, "--workers", "1")
+    assert result.code == 2 and "Traceback" not in result.err, result.err
+    said = "exists and is not a regular file" if kind == "a pipe" else "a symbolic link (to"
+    assert f"{outdir / results}: {said}" in result.err
+    assert elsewhere.read_text() == "precious" and not (outdir / "members").exists()
+
+
 def test_validate_checks_sweep_and_study_files_with_every_member(tmp_path, cli, write_scenario):
     """``validate`` refused every sweep file as a scenario missing name, domain, ...; it
     checks a sweep with each of its members, and calibration and sensitivity files as

@@ -453,6 +453,24 @@ parameters:
         assert "3 members: 2 already complete (skipped), 0 invalid, 1 to run" in capsys.readouterr().out
 
 
+def test_a_local_cluster_whose_workers_cannot_start_is_a_failure_in_one_line(tmp_path, monkeypatch, capsys):
+    """A local cluster whose worker processes fail to start (a script read from standard
+    input: a new process cannot import its ``__main__`` again) ended the command with
+    distributed's traceback ("Nanny failed to start."); it is a failure saying so, exit 1."""
+    import dask.distributed
+
+    def fails(*args, **kwargs):
+        raise RuntimeError("Nanny failed to start.")
+
+    monkeypatch.setattr(dask.distributed, "LocalCluster", fails)
+    path = write_sweep(tmp_path, "base: tiny.yaml\nparameters:\n  rheology.mu_s: [0.3]\n")
+    assert cli.main(["sweep", str(path), "-o", str(tmp_path / "out"), "--workers", "1", "-q"]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert "the local Dask cluster could not start its 1 worker process(es) (Nanny failed to start;" in err
+    assert not list(tmp_path.glob("out/*/result.nc"))
+
+
 def test_compiling_the_kernels_takes_one_single_threaded_step(tmp_path, monkeypatch):
     """``compile_kernels`` (run before local worker processes start) steps the member
     once on one thread, and leaves a member that fails to its own run."""

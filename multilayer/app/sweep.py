@@ -38,7 +38,7 @@ from typing import Any, Literal
 from multilayer import scenario
 from multilayer.app import resources, runner, stopping
 from multilayer.errors import InputError, Interrupted, RunError, reason
-from multilayer.io.disk import writable_directory, write_whole
+from multilayer.io.disk import writable, writable_directory, write_whole
 from multilayer.io.results import (
     CHECKPOINT_FILE,
     MIXTURE_SUMMARY_KEYS,
@@ -423,14 +423,22 @@ def dask_client(
     scratch = tempfile.mkdtemp(prefix="multilayer-dask-", dir=dask.config.get("temporary-directory", None))
     try:
         with dask.config.set({"temporary-directory": scratch}):  # the nannies' too
-            cluster = LocalCluster(
-                n_workers=workers or CPU_COUNT,
-                threads_per_worker=1,
-                processes=True,
-                dashboard_address=":0",
-                local_directory=scratch,
-                preload=[stopping.__name__],  # the workers ignore Ctrl-C: this process stops them
-            )
+            try:
+                cluster = LocalCluster(
+                    n_workers=workers or CPU_COUNT,
+                    threads_per_worker=1,
+                    processes=True,
+                    dashboard_address=":0",
+                    local_directory=scratch,
+                    preload=[stopping.__name__],  # the workers ignore Ctrl-C: this process stops them
+                )
+            except RuntimeError as exc:  # "Nanny failed to start.": the worker's own error is on stderr
+                raise RunError(
+                    f"the local Dask cluster could not start its {workers or CPU_COUNT} worker process(es) "
+                    f"({reason(exc).rstrip('.')}; the worker's own error is above), so nothing was run; a "
+                    "script read from standard input gives this (a new process cannot import its __main__ "
+                    "again): run it from a file or as `multilayer`, or give --scheduler a running cluster"
+                ) from None
         try:
             with Client(cluster) as client:
                 yield client
@@ -556,15 +564,21 @@ def _run(
 
 def write_summary(sweep: Sweep, outcomes: list[Outcome], path: str | Path) -> None:
     """Write ``summary.csv``: one row per member with its values, status, error and the
-    scalar diagnostics of its result."""
+    scalar diagnostics of its result; whole (a temporary file renamed over it: a stop or a
+    full disk never leaves half of one)."""
     columns = ["member", *sweep.parameters, "status", "error", *SUMMARY_KEYS]
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="") as stream:
-        writer = csv.DictWriter(stream, fieldnames=columns)
-        writer.writeheader()
-        for outcome in outcomes:
-            row = {"member": outcome.member.id, "status": outcome.status, "error": outcome.error}
-            row.update({key: format_value(value) for key, value in outcome.member.values.items()})
-            row.update({key: repr(outcome.summary[key]) for key in SUMMARY_KEYS if key in outcome.summary})
-            writer.writerow(row)
+
+    def write(part: Path) -> None:
+        with part.open("w", newline="") as stream:
+            writer = csv.DictWriter(stream, fieldnames=columns)
+            writer.writeheader()
+            for outcome in outcomes:
+                member, summary = outcome.member, outcome.summary
+                row = {"member": member.id, "status": outcome.status, "error": outcome.error}
+                row.update({key: format_value(value) for key, value in member.values.items()})
+                row.update({key: repr(summary[key]) for key in SUMMARY_KEYS if key in summary})
+                writer.writerow(row)
+
+    write_whole(writable(path), write)

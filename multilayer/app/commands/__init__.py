@@ -209,10 +209,15 @@ def add_resume_argument(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def check_resume(args: argparse.Namespace, outdir: Path, results: str) -> None:
-    """With ``--resume``, ``outdir/results`` (written at every stop) must exist: exit 2 otherwise."""
+def check_results(args: argparse.Namespace, outdir: Path, results: str) -> None:
+    """``outdir/results``, the file a study writes at every stop and at its end, must be
+    absent or a regular file (a pipe there held the study for ever once its members had run,
+    a symbolic link had its target written over, :func:`multilayer.io.disk.writable`), and
+    with ``--resume`` it must exist: exit 2 otherwise, before anything runs."""
     from multilayer.errors import InputError
+    from multilayer.io.disk import writable
 
+    writable(outdir / results)
     if args.resume and not (outdir / results).is_file():
         raise InputError(
             f"{outdir}: nothing to resume ({results} missing); accepted: the output directory "

@@ -19,7 +19,7 @@ from typing import Any
 
 from multilayer.app.commands import (
     add_study_arguments,
-    check_resume,
+    check_results,
     cluster_description,
     report_stop,
     require,
@@ -66,7 +66,7 @@ def _calibrate(args: argparse.Namespace, plan: Any, outdir: Path) -> int:
             sys.stderr.flush()
 
     path = outdir / calibrations.CALIBRATION_FILE
-    check_resume(args, outdir, path.name)
+    check_results(args, outdir, path.name)
     report(
         f"calibrate: {len(plan.config.parameters)} parameter(s), {len(plan.experiments)} experiment(s), "
         f"on {cluster_description(args)}"

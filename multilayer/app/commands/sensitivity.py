@@ -18,7 +18,7 @@ from typing import Any
 
 from multilayer.app.commands import (
     add_study_arguments,
-    check_resume,
+    check_results,
     cluster_description,
     report_stop,
     require,
@@ -51,7 +51,7 @@ def _sensitivity(args: argparse.Namespace, study: Any, outdir: Path) -> int:
     from multilayer.errors import Interrupted
 
     path = outdir / sensitivity.SENSITIVITY_FILE
-    check_resume(args, outdir, path.name)
+    check_results(args, outdir, path.name)
 
     def report(line: str) -> None:
         if not args.quiet:

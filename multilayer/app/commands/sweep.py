@@ -20,7 +20,7 @@ from multilayer.app.commands import (
     add_cluster_arguments,
     add_output_argument,
     add_resume_argument,
-    check_resume,
+    check_results,
     cluster_description,
     report_stop,
     require,
@@ -80,7 +80,7 @@ def main(args: argparse.Namespace) -> int:
     plan = sweeps.load(args.sweep)
     outdir = Path(args.output or plan.output or Path("results") / plan.path.stem)
     summary = outdir / "summary.csv"
-    check_resume(args, outdir, summary.name)
+    check_results(args, outdir, summary.name)
     with study_directory(outdir):
         return _sweep(args, plan, outdir, summary)
 
