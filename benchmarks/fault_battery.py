@@ -2691,7 +2691,8 @@ def round_seventeen() -> list[Case]:
     """The hostile cases of the seventeenth round (docs/reliability.md): a stop signal the
     run was started with ignored (``nohup cmd &``), the directories a command writes into
     (``plots/``, ``vtk/``, a study's members) symbolic links to a directory elsewhere, a
-    sweep's ``summary.csv`` a named pipe or a symbolic link."""
+    sweep's ``summary.csv`` a named pipe or a symbolic link, a figure or VTK file beyond
+    ``ulimit -f``."""
     out: list[Case] = []
     for signum in (signal.SIGINT, signal.SIGHUP):
         name = signal.Signals(signum).name
@@ -2718,6 +2719,15 @@ def round_seventeen() -> list[Case]:
             Case(f"sweep: summary.csv a {what}",
                  ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/sweep-out", "--workers", "1"], 2,
                  f"sweep-out/summary.csv: {phrase}", setup=_study_file(kind))
+        )  # fmt: skip
+    for command, written in (
+        (["plot", "{dir}/out"], "plots/section.png"),
+        (["export", "{dir}/out", "--vtk"], "vtk/result_0000.vts"),
+    ):
+        out.append(
+            Case(f"{command[0]}: ulimit -f below the first file", command, 2,
+                 f"out/{written}: not written (file too large: the file size limit (ulimit -f) is 2000",
+                 setup=_finished_run, file_limit=2000)
         )  # fmt: skip
     out.append(
         Case("sensitivity: members/ a symbolic link to a directory elsewhere",

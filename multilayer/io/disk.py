@@ -116,11 +116,20 @@ def write_whole(path: Path, write: Callable[[Path], object]) -> Path:
     writers read the format from it, :func:`writable`) renamed over it: never a file
     written half-way, and no temporary file left when ``write`` fails.  The temporary file
     is the process's own (its pid in the name): two ``multilayer plot`` of one directory at
-    once took each other's, and one stopped naming it as missing."""
+    once took each other's, and one stopped naming it as missing.  A write that finds no
+    room (a full disk, ``ulimit -f``) is an :class:`InputError` naming ``path`` and the
+    limit: the C library's words alone ("File too large") named neither."""
     part = writable(path.with_name(f".{path.stem}.partial.{os.getpid()}{path.suffix}"))
     try:
         write(part)
         os.replace(part, path)
+    except OSError as exc:
+        if full_disk_reason(exc) is None:
+            raise
+        raise InputError(
+            f"{path}: not written ({room(part)[1]}); accepted: room for it on the disk and under the file "
+            "size limit"
+        ) from None
     finally:
         part.unlink(missing_ok=True)
     return path

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from multilayer.io.disk import writable, writable_directory
+from multilayer.io.disk import writable, writable_directory, write_whole
 from multilayer.io.result_check import ending
 from multilayer.io.results import open_result
 
@@ -35,16 +35,22 @@ def export_vtk(directory: str | os.PathLike) -> tuple[list[Path], str | None]:
     pvd.unlink(missing_ok=True)
     entries, paths = [], []
     for k in range(ds.sizes["time"]):
-        path = out / f"result_{k:04d}.vts"
-        writable(path).write_text(structured_grid(ds.isel(time=k)))
+        path = _text_file(out / f"result_{k:04d}.vts", structured_grid(ds.isel(time=k)))
         paths.append(path)
         entries.append(f'    <DataSet timestep="{float(ds["time"][k])!r}" file="{path.name}"/>')
-    pvd.write_text(
+    text = (
         '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n'
         "  <Collection>\n" + "\n".join(entries) + "\n  </Collection>\n"
         "</VTKFile>\n"
     )
+    _text_file(pvd, text)
     return [pvd, *paths], ending(ds.attrs)
+
+
+def _text_file(path: Path, text: str) -> Path:
+    """``path`` holding ``text``, written whole (:func:`multilayer.io.disk.write_whole`): an
+    export stopped half-way (a Ctrl-C, a full disk) leaves no file cut short."""
+    return write_whole(writable(path), lambda part: part.write_text(text))
 
 
 def _to_edges(values: np.ndarray) -> np.ndarray:
