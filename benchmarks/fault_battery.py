@@ -2692,7 +2692,7 @@ def round_seventeen() -> list[Case]:
     run was started with ignored (``nohup cmd &``), the directories a command writes into
     (``plots/``, ``vtk/``, a study's members) symbolic links to a directory elsewhere, a
     sweep's ``summary.csv`` a named pipe or a symbolic link, a figure or VTK file beyond
-    ``ulimit -f``."""
+    ``ulimit -f``, a forced run whose lock or result header does not fit."""
     out: list[Case] = []
     for signum in (signal.SIGINT, signal.SIGHUP):
         name = signal.Signals(signum).name
@@ -2728,6 +2728,15 @@ def round_seventeen() -> list[Case]:
             Case(f"{command[0]}: ulimit -f below the first file", command, 2,
                  f"out/{written}: not written (file too large: the file size limit (ulimit -f) is 2000",
                  setup=_finished_run, file_limit=2000)
+        )  # fmt: skip
+    forced = ["run", "{scenario}", "-o", "{dir}/out", "-q", "--force"]
+    for limit, code, phrase in (
+        (0, 2, "run.lock: the lock cannot be written (file too large"),
+        (5000, 1, "run failed: file too large: creating "),
+    ):
+        out.append(
+            Case(f"disk: ulimit -f {limit}, forced (below the {'lock' if code == 2 else 'header'})", forced,
+                 code, phrase, setup=lambda d: _scenario(d), file_limit=limit)
         )  # fmt: skip
     out.append(
         Case("sensitivity: members/ a symbolic link to a directory elsewhere",

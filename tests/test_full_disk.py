@@ -156,6 +156,39 @@ def test_a_file_written_whole_keeps_the_old_one_when_the_write_fails(tmp_path):
 
 
 @pytest.mark.parametrize(
+    ("limit", "code", "said"),
+    [
+        (0, 2, "run.lock: the lock cannot be written (file too large: the file size limit (ulimit -f) is 0"),
+        (5000, 1, "run failed: file too large: creating "),
+    ],
+)
+def test_a_forced_run_whose_lock_or_header_does_not_fit_says_so_and_leaves_neither(
+    tmp_path, write_scenario, limit, code, said
+):
+    """``run --force`` under ``ulimit -f`` below the lock or the result file's header: an
+    empty ``run.lock`` was left (the lock's write failed after its creation) with "[Errno
+    27] File too large" naming no file, and the header's failure was netCDF's traceback
+    ("Operation not allowed in define mode"), or ``run.log``'s flush error in its place.
+    Each names its file and the limit; neither file is left, half-written."""
+    outdir = tmp_path / "out"
+
+    def limited() -> None:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    path = write_scenario(TINY_SCENARIO)
+    done = subprocess.run(
+        [sys.executable, "-m", "multilayer", "run", str(path), "-o", str(outdir), "-q", "--force"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        preexec_fn=limited,
+    )
+    assert done.returncode == code and "Traceback" not in done.stderr, done.stderr
+    assert said in done.stderr.splitlines()[-1]
+    assert not (outdir / "run.lock").exists() and not (outdir / "result.nc").exists()
+
+
+@pytest.mark.parametrize(
     ("command", "written"), [(("plot",), "plots/section.png"), (("export", "--vtk"), "vtk/result_0000.vts")]
 )
 def test_a_figure_or_vtk_file_beyond_the_file_size_limit_is_named(

@@ -348,6 +348,13 @@ class _LogFile(logging.FileHandler):
     def handleError(self, record: logging.LogRecord) -> None:
         """Drop the line (the messages on stderr say what the log would have)."""
 
+    def close(self) -> None:
+        """Close the file, the lines still buffered dropped if they cannot be written: the
+        error of the flush had replaced the run's own (a full disk: ``[Errno 27] File too
+        large``, naming no file, for the result file that did not fit)."""
+        with contextlib.suppress(OSError):
+            super().close()
+
 
 def _keep_last_good_state(sim: Any, writer: ResultWriter, checkpoint: Any, saved_t: float, log: Any) -> str:
     """Checkpoint the state ``sim`` holds after a failure and append it to the result file

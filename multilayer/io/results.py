@@ -89,22 +89,47 @@ class ResultWriter:
         extra = (n_layers + 2) * n_cells if self._mixture else len(FORCES)
         self._record_bytes = 8 * ((n_layers + 2) * n_cells + 3 + extra)
         with NETCDF_LOCK:
-            if records is None:
-                self._ds = netCDF4.Dataset(self.path, "w", format=FORMAT)
-                self._define(scenario, sim)
-                self.records = 0
-                self.last_time = math.nan
-            else:
-                self._ds = netCDF4.Dataset(self.path, "a")
-                origin = provenance()
-                by = made_by(origin.version, origin.commit)
-                self._ds.history += f"\n{_now()} multilayer run --resume, by {by}"
-                self.records = records
-                self.last_time = float(self._ds["time"][records - 1])
-            self._ds.run_status = "running"
-            self._ds.header_space = " " * HEADER_SPACE
-            self._ds.sync()
+            try:
+                self._open(scenario, sim, records)
+            except (OSError, RuntimeError) as exc:  # no room for the header (a forced run, a full disk)
+                failure = self._failure(exc, f"{'creating' if records is None else 'reopening'} {self.path}")
+                if "_ds" in self.__dict__:
+                    with contextlib.suppress(OSError, RuntimeError):
+                        self._ds.close()
+                    _abandon(self._ds)
+                if records is None:  # a header written in part: no result file, not a damaged one
+                    self.path.unlink(missing_ok=True)
+                raise failure from None
         self._file = _identity(self.path)  # the file written: the path may come to name another
+
+    def _open(self, scenario: Any, sim: Any, records: int | None) -> None:
+        """Create the file (``records`` None) or reopen it to append after ``records``."""
+        if records is None:
+            self._ds = netCDF4.Dataset(self.path, "w", format=FORMAT)
+            self._define(scenario, sim)
+            self.records = 0
+            self.last_time = math.nan
+        else:
+            self._ds = netCDF4.Dataset(self.path, "a")
+            origin = provenance()
+            by = made_by(origin.version, origin.commit)
+            self._ds.history += f"\n{_now()} multilayer run --resume, by {by}"
+            self.records = records
+            self.last_time = float(self._ds["time"][records - 1])
+        self._ds.run_status = "running"
+        self._ds.header_space = " " * HEADER_SPACE
+        self._ds.sync()
+
+    def _failure(self, exc: BaseException, what: str) -> WriteFailed:
+        """The error of a write into the file that failed with ``exc`` (``what``: the
+        write, in words): :class:`DiskFull` naming the limit where no room is left.
+        netCDF-C may report a later consequence of the failed write (still in define mode
+        after its header update failed): the room left tells a full disk apart."""
+        free, limit = disk.room(self.path)
+        reason = disk.full_disk_reason(exc) or (limit.split(":")[0] if free < disk.SLACK else None)
+        if reason is None:
+            return WriteFailed(f"{what} failed ({exc})")
+        return DiskFull(f"{reason}: {what} failed ({exc})")
 
     def _define(self, scenario: Any, sim: Any) -> None:
         ds = self._ds
@@ -186,13 +211,7 @@ class ResultWriter:
                 ds.sync()
         except (OSError, RuntimeError) as exc:
             self._broken = True
-            # netCDF-C may report a later consequence of the failed write (still in define
-            # mode after its header update failed): the room left tells a full disk apart
-            free, limit = disk.room(self.path)
-            reason = disk.full_disk_reason(exc) or (limit.split(":")[0] if free < disk.SLACK else None)
-            if reason is None:
-                raise WriteFailed(f"writing output time {i} into {self.path} failed ({exc})") from None
-            raise DiskFull(f"{reason}: writing output time {i} into {self.path} failed ({exc})") from None
+            raise self._failure(exc, f"writing output time {i} into {self.path}") from None
         self.records = i + 1
         self.last_time = float(sim.t)
         return diag
