@@ -517,7 +517,7 @@ def _run(
     outcomes: dict[int, Outcome],
 ) -> None:
     """:func:`run`, filling ``outcomes`` (member index -> outcome) as members finish."""
-    stopping.StopFile(writable_directory(outdir)).clear()
+    stopping.StopFile(outdir).clear()
     pending: list[tuple[Member, scenario.Scenario, str]] = []
     for member in members:
         stopping.check()
@@ -527,7 +527,8 @@ def _run(
             outcomes[member.index] = Outcome(member, "invalid", str(exc))
             continue
         fingerprint = scenario_fingerprint(member_scenario)
-        summary = completed(writable_directory(outdir / member.id), fingerprint)
+        # refused before anything runs; its run makes it (a study refused later leaves none)
+        summary = completed(writable_directory(outdir / member.id, make=False), fingerprint)
         if summary is not None:
             outcomes[member.index] = Outcome(member, "ok", summary=summary, skipped=True)
         else:

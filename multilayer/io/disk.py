@@ -90,12 +90,12 @@ def writable(path: Path) -> Path:
     return path
 
 
-def writable_directory(path: Path) -> Path:
+def writable_directory(path: Path, make: bool = True) -> Path:
     """``path``, a directory a command writes its files into (``plots/``, ``vtk/``, a
-    study's ``members/`` and member directories), made if absent.  A symbolic link there
-    had every file written into its target, wherever it points, as :func:`writable` says of
-    a file; a file there, or a directory that cannot be made, is named too
-    (:class:`InputError`)."""
+    study's ``members/`` and member directories), made if absent and ``make``.  A symbolic
+    link there had every file written into its target, wherever it points, as
+    :func:`writable` says of a file; a file there, or a directory that cannot be made, is
+    named too (:class:`InputError`)."""
     accepted = "accepted: no file there (the directory is made), or a directory"
     if path.is_symlink():
         raise InputError(
@@ -105,7 +105,8 @@ def writable_directory(path: Path) -> Path:
     if path.exists() and not path.is_dir():
         raise InputError(f"{path}: exists and is not a directory; {accepted}")
     try:
-        path.mkdir(parents=True, exist_ok=True)
+        if make:
+            path.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"{path}: cannot be created ({reason(exc)}); {accepted}") from None
     return path
