@@ -158,6 +158,28 @@ def test_a_key_path_with_an_empty_part_is_malformed(tmp_path, cli, write_scenari
     )
 
 
+def test_file_names_holding_a_terminal_escape_sequence_are_quoted_in_what_commands_print(
+    tmp_path, cli, write_scenario
+):
+    """A scenario file or output directory named with ``ESC [2J`` was printed as named by
+    ``validate``, ``run``, ``plot`` and ``export`` on success (the paths they wrote): the line
+    cleared the terminal.  Every line a command prints writes such characters as Python
+    writes them in a string, as its error messages do."""
+    escape = "\x1b[2J"
+    short = {**TINY_SCENARIO, "time": {"end": 0.02, "output_interval": 0.01}}
+    path = write_scenario(short, f"s{escape}.yaml")
+    outdir = tmp_path / f"out{escape}"
+    for argv in (
+        ("validate", path),
+        ("run", path, "-o", outdir),
+        ("plot", outdir),
+        ("export", outdir, "--vtk"),
+    ):
+        result = cli(*argv)
+        assert result.code == 0, result.err
+        assert "\x1b" not in result.out + result.err and "\\x1b[2J" in result.out, result.out
+
+
 def test_a_key_holding_a_terminal_escape_sequence_is_quoted_not_sent_to_the_terminal(cli, write_scenario):
     """A key of a scenario or sweep file, or of ``--set``, holding ``ESC [2J`` was printed as
     written: the message cleared the terminal (a title set, colours changed, by others).

@@ -52,7 +52,7 @@ from multilayer.app.lock import locked
 from multilayer.app.progress import Progress
 from multilayer.app.simulation import Simulation
 from multilayer.engine.plugin_output import in_plugin_call
-from multilayer.errors import InputError, Interrupted, RunError, Stop, reason
+from multilayer.errors import InputError, Interrupted, RunError, Stop, printable, reason
 from multilayer.io.disk import writable
 from multilayer.io.result_check import check_result
 from multilayer.io.results import (
@@ -125,7 +125,7 @@ def run(
 
     def notice(message: str) -> None:
         notices.append(message)
-        print(f"multilayer: warning: {message}", file=sys.stderr)
+        print(printable(f"multilayer: warning: {message}"), file=sys.stderr)
 
     stop = _StopRequest(stop_when)
     with locked(outdir, notice), stop.installed():
@@ -148,7 +148,7 @@ def run(
         except Interrupted as exc:
             if stop.starting:  # before anything was computed: nothing to keep, the lock goes
                 log.warning("%s", exc)
-                print(f"multilayer: {exc}", file=sys.stderr)
+                print(printable(f"multilayer: {exc}"), file=sys.stderr)
                 exc.said = True
             raise
         finally:
@@ -319,7 +319,7 @@ def _run(
         writer.close(sim.steps, wall_time(), status, scenario)
     if status == "interrupted":
         if stop.requested:  # a member stopped by its study leaves the resume command to the study
-            print(f"multilayer: {message}", file=sys.stderr)
+            print(printable(f"multilayer: {message}"), file=sys.stderr)
         raise Interrupted(message, stop.signum, said=stop.requested)
     log.info("completed: %d steps, wall time %.1f s", sim.steps, wall_time())
 

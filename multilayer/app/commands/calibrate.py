@@ -50,7 +50,7 @@ def main(args: argparse.Namespace) -> int:
 def _calibrate(args: argparse.Namespace, plan: Any, outdir: Path) -> int:
     """:func:`main` once the directory is held."""
     from multilayer.app import calibration as calibrations
-    from multilayer.errors import Interrupted
+    from multilayer.errors import Interrupted, printable
 
     live = not args.quiet and sys.stderr.isatty()
 
@@ -99,7 +99,8 @@ def _calibrate(args: argparse.Namespace, plan: Any, outdir: Path) -> int:
         report_stop(exc, kept, "calibrate", args.config, outdir, args)
         raise
     calibrations.write(fit, calibrator, path)
-    print(f"calibrate: misfit {fit.misfit:.6g} for {fit.predicted.size} observed point(s); wrote {path}")
+    points = f"{fit.predicted.size} observed point(s)"
+    print(printable(f"calibrate: misfit {fit.misfit:.6g} for {points}; wrote {path}"))
     for name, value, sd in zip(fit.names, fit.theta, fit.sigma):
         print(f"  {name} = {value:.6g} +/- {sd:.3g}")
     for note in fit.notes:

@@ -63,6 +63,6 @@ def main(args: argparse.Namespace) -> int:
             print(printable(f"{scenario.source}: run failed: {exc}"))
             failed += 1
             continue
-        print(f"{scenario.source}: " + expect.report(scenario.name, outcomes), flush=True)
+        print(printable(f"{scenario.source}: " + expect.report(scenario.name, outcomes)), flush=True)
         failed += not all(o.passed for o in outcomes)
     return 1 if failed else 0

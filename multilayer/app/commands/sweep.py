@@ -131,7 +131,9 @@ def _sweep(args: argparse.Namespace, plan: Any, outdir: Path, summary: Path) -> 
     counts = {status: sum(o.status == status for o in outcomes) for status in ("ok", "invalid", "failed")}
     if not args.quiet:
         print(
-            f"sweep: {counts['ok']} ok, {counts['invalid']} invalid, {counts['failed']} "
-            f"failed; wrote {summary}"
+            printable(
+                f"sweep: {counts['ok']} ok, {counts['invalid']} invalid, {counts['failed']} "
+                f"failed; wrote {summary}"
+            )
         )
     return 1 if counts["invalid"] or counts["failed"] else 0
