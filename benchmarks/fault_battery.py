@@ -2687,12 +2687,41 @@ def _study_file(kind: str) -> Callable[[Path], None]:
     return setup
 
 
+def _planted_checkpoint_part(kind: str) -> Callable[[Path], None]:
+    """A scenario and ``out/checkpoint.npz.tmp`` a named pipe, or a symbolic link to
+    ``precious.txt`` beside ``out``."""
+
+    def setup(directory: Path) -> None:
+        _scenario(directory)
+        (directory / "out").mkdir()
+        part = directory / "out" / "checkpoint.npz.tmp"
+        if kind == "pipe":
+            os.mkfifo(part)
+        else:
+            (directory / "precious.txt").write_text("precious")
+            part.symlink_to(directory / "precious.txt")
+
+    return setup
+
+
+def _piped_marker(directory: Path) -> None:
+    """A sweep of one member whose directory holds ``member.json``, a named pipe."""
+    from multilayer.app import sweep
+
+    _sweep({"rheology.mu_s": [0.3]})(directory)
+    member = directory / "sweep-out" / sweep.load(directory / "sweep.yaml").members()[0].id
+    member.mkdir(parents=True)
+    os.mkfifo(member / sweep.MARKER)
+
+
 def round_seventeen() -> list[Case]:
     """The hostile cases of the seventeenth round (docs/reliability.md): a stop signal the
     run was started with ignored (``nohup cmd &``), the directories a command writes into
     (``plots/``, ``vtk/``, a study's members) symbolic links to a directory elsewhere, a
     sweep's ``summary.csv`` a named pipe or a symbolic link, a figure or VTK file beyond
-    ``ulimit -f``, a forced run whose lock or result header does not fit."""
+    ``ulimit -f``, a forced run whose lock or result header does not fit, a named pipe or a
+    symbolic link at the checkpoint's temporary name, a lock and a sweep member's marker
+    that are named pipes."""
     out: list[Case] = []
     for signum in (signal.SIGINT, signal.SIGHUP):
         name = signal.Signals(signum).name
@@ -2729,6 +2758,21 @@ def round_seventeen() -> list[Case]:
                  f"out/{written}: not written (file too large: the file size limit (ulimit -f) is 2000",
                  setup=_finished_run, file_limit=2000)
         )  # fmt: skip
+    for kind, what in (("pipe", "a named pipe"), ("link", "a symbolic link to a file elsewhere")):
+        out.append(
+            Case(f"run: out/checkpoint.npz.tmp {what}", ["run", "{scenario}", "-o", "{dir}/out", "-q"], 0, "",
+                 setup=_planted_checkpoint_part(kind), keeps_output=True)
+        )  # fmt: skip
+    out.append(
+        Case("lock: a named pipe", ["run", "{scenario}", "-o", "{dir}/out", "-q"], 0,
+             "taking over a stale lock", setup=lambda d: (_scenario(d), (d / "out").mkdir(),
+                                                           os.mkfifo(d / "out" / "run.lock")))
+    )  # fmt: skip
+    out.append(
+        Case("sweep: a member's member.json a named pipe",
+             ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/sweep-out", "--workers", "1"], 0, "",
+             setup=_piped_marker)
+    )  # fmt: skip
     forced = ["run", "{scenario}", "-o", "{dir}/out", "-q", "--force"]
     for limit, code, phrase in (
         (0, 2, "run.lock: the lock cannot be written (file too large"),

@@ -155,6 +155,7 @@ def test_a_file_written_whole_keeps_the_old_one_when_the_write_fails(tmp_path):
     assert path.read_text() == "new" and sorted(p.name for p in tmp_path.iterdir()) == ["calibration.nc"]
 
 
+@pytest.mark.slow  # a child process; the fault battery tries it too
 @pytest.mark.parametrize(
     ("limit", "code", "said"),
     [
@@ -188,6 +189,7 @@ def test_a_forced_run_whose_lock_or_header_does_not_fit_says_so_and_leaves_neith
     assert not (outdir / "run.lock").exists() and not (outdir / "result.nc").exists()
 
 
+@pytest.mark.slow  # a child process; the fault battery tries it too
 @pytest.mark.parametrize(
     ("command", "written"), [(("plot",), "plots/section.png"), (("export", "--vtk"), "vtk/result_0000.vts")]
 )

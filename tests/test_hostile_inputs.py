@@ -251,6 +251,33 @@ def test_an_output_file_linked_to_a_file_elsewhere_is_refused_and_the_file_kept(
     assert elsewhere.read_text() == "precious"
 
 
+@pytest.mark.slow  # a child process; the fault battery tries it too
+@pytest.mark.parametrize("kind", ["a pipe", "a link"])
+def test_a_file_at_the_checkpoints_temporary_name_is_replaced_not_written_through(
+    tmp_path, write_scenario, kind
+):
+    """``out/checkpoint.npz.tmp`` a named pipe held the run for ever at its first checkpoint
+    (nothing reads the pipe); a symbolic link had its target written over by the checkpoint.
+    The temporary file is made afresh: the run completes and the target is as it was."""
+    outdir, elsewhere = tmp_path / "out", tmp_path / "precious.txt"
+    outdir.mkdir()
+    elsewhere.write_text("precious")
+    if kind == "a pipe":
+        os.mkfifo(outdir / "checkpoint.npz.tmp")
+    else:
+        (outdir / "checkpoint.npz.tmp").symlink_to(elsewhere)
+    path = write_scenario({**TINY_SCENARIO, "time": {"end": 0.02, "output_interval": 0.01}})
+    done = subprocess.run(  # a child: a hang fails the test rather than holding the suite
+        [sys.executable, "-m", "multilayer", "run", str(path), "-o", str(outdir), "-q"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr
+    assert elsewhere.read_text() == "precious" and not (outdir / "checkpoint.npz.tmp").exists()
+    assert results.open_result(outdir).attrs["run_status"] == "completed"
+
+
 @pytest.mark.parametrize(("command", "directory"), [("plot", "plots"), ("export", "vtk")])
 def test_an_output_directory_linked_elsewhere_is_refused_and_its_target_kept(
     tmp_path, cli, write_scenario, command, directory

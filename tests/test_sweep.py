@@ -453,6 +453,27 @@ parameters:
         assert "3 members: 2 already complete (skipped), 0 invalid, 1 to run" in capsys.readouterr().out
 
 
+@pytest.mark.parametrize("kind", ["a named pipe", "a link to /dev/zero", "2 MB"])
+def test_a_marker_that_is_no_small_regular_file_is_not_read_through(tmp_path, kind):
+    """A member's ``member.json`` a named pipe held the study for ever (reading it waits for
+    a writer), a link to ``/dev/zero`` filled the memory: only a regular file's first
+    :data:`sweep.MARKER_BYTES` are read, and such a member is not complete (it runs again)."""
+    import threading
+
+    marker = tmp_path / sweep.MARKER
+    if kind == "a named pipe":
+        os.mkfifo(marker)
+    elif kind == "a link to /dev/zero":
+        marker.symlink_to("/dev/zero")
+    else:
+        marker.write_text("[" * (2 << 20))
+    found: list[object] = []
+    reader = threading.Thread(target=lambda: found.append(sweep.completed(tmp_path, "f")), daemon=True)
+    reader.start()
+    reader.join(10)
+    assert found == [None], f"reading {kind} as a marker did not end"
+
+
 def test_a_local_cluster_whose_workers_cannot_start_is_a_failure_in_one_line(tmp_path, monkeypatch, capsys):
     """A local cluster whose worker processes fail to start (a script read from standard
     input: a new process cannot import its ``__main__`` again) ended the command with

@@ -40,7 +40,11 @@ def _alive(pid: int) -> bool:
 def _holder(path: Path) -> dict | None:
     """The holder written in the lock ``path``; None if it cannot be read or is not a
     lock (a mapping whose ``pid`` is a process id: an integer from 1 to 2^31 - 1, as
-    ``os.kill`` would read 0, -1 or a larger number as another process group or fail)."""
+    ``os.kill`` would read 0, -1 or a larger number as another process group or fail).
+    Only a regular file is read: a named pipe there held the command for ever, waiting
+    for a writer."""
+    if not path.is_file():
+        return None
     try:
         with open(path, "rb") as stream:
             data = json.loads(stream.read(4096).decode("utf-8"))

@@ -60,6 +60,8 @@ MAX_MEMBERS = 10_000
 
 MARKER = "member.json"
 """Written into a member's directory once its run has completed."""
+MARKER_BYTES = 1 << 20
+"""The most of a marker read (one is a few hundred bytes): a larger file is no marker."""
 
 Status = Literal["ok", "invalid", "failed", "interrupted"]
 
@@ -291,9 +293,14 @@ def completed(member_dir: Path, fingerprint: str) -> dict[str, float] | None:
     ``multilayer run -o``, leaves the marker: its summary was reported and its result
     measured as the member's).  The summary is read from the result, which passed its
     checks, not from the marker: a marker edited or damaged (a runout of 99, NaN, text)
-    was reported as the member's."""
+    was reported as the member's.  Only a regular file's first :data:`MARKER_BYTES` are
+    read: a named pipe there held the study for ever, waiting for a writer."""
+    path = member_dir / MARKER
+    if not path.is_file():
+        return None
     try:
-        marker = json.loads((member_dir / MARKER).read_text())
+        with path.open("rb") as stream:
+            marker = json.loads(stream.read(MARKER_BYTES).decode("utf-8"))
     except (OSError, ValueError, RecursionError):
         return None
     summary = marker.get("summary") if isinstance(marker, dict) else None

@@ -504,14 +504,19 @@ def _identity(path: Path) -> tuple[int, int] | None:
 
 
 def save_checkpoint(path: str | os.PathLike, ckpt: Checkpoint) -> None:
-    """Write ``ckpt`` to ``path`` atomically (temporary file, fsync, rename), with its checksum."""
+    """Write ``ckpt`` to ``path`` atomically (temporary file, fsync, rename), with its checksum.
+
+    The temporary file is made afresh, whatever had its name (one left by a process killed
+    mid-write is this file's own; a named pipe put there held the run for ever at its first
+    checkpoint, a symbolic link had its target written over)."""
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
     arrays: dict[str, Any] = {f"state.{key}": np.asarray(value) for key, value in ckpt.state.items()}
     arrays.update({f"meta.{key}": np.asarray(getattr(ckpt, key)) for key in _META})
     arrays["checksum"] = np.asarray(_checksum(arrays))
     try:
-        with open(tmp, "wb") as f:
+        tmp.unlink(missing_ok=True)  # the entry, not a link's target; a directory there: OSError
+        with open(tmp, "xb") as f:
             np.savez(f, **arrays)
             f.flush()
             os.fsync(f.fileno())
