@@ -2704,6 +2704,13 @@ def _planted_checkpoint_part(kind: str) -> Callable[[Path], None]:
     return setup
 
 
+def _piped_lock(directory: Path) -> None:
+    """A scenario and ``out/run.lock``, a named pipe."""
+    _scenario(directory)
+    (directory / "out").mkdir()
+    os.mkfifo(directory / "out" / "run.lock")
+
+
 def _piped_marker(directory: Path) -> None:
     """A sweep of one member whose directory holds ``member.json``, a named pipe."""
     from multilayer.app import sweep
@@ -2765,8 +2772,7 @@ def round_seventeen() -> list[Case]:
         )  # fmt: skip
     out.append(
         Case("lock: a named pipe", ["run", "{scenario}", "-o", "{dir}/out", "-q"], 0,
-             "taking over a stale lock", setup=lambda d: (_scenario(d), (d / "out").mkdir(),
-                                                           os.mkfifo(d / "out" / "run.lock")))
+             "taking over a stale lock", setup=_piped_lock)
     )  # fmt: skip
     out.append(
         Case("sweep: a member's member.json a named pipe",
