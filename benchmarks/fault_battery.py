@@ -2704,6 +2704,15 @@ def _planted_checkpoint_part(kind: str) -> Callable[[Path], None]:
     return setup
 
 
+def _linked_check(directory: Path) -> None:
+    """A scenario with an expectation whose ``out/<name>`` links to ``elsewhere``."""
+    _scenario(directory, changes={"expect": [{"kind": "regression", "quantity": "runout", "value": 0.1,
+                                              "rtol": 0.5}]})  # fmt: skip
+    (directory / "out").mkdir()
+    (directory / "elsewhere").mkdir()
+    (directory / "out" / TINY["name"]).symlink_to(directory / "elsewhere")
+
+
 def _piped_lock(directory: Path) -> None:
     """A scenario and ``out/run.lock``, a named pipe."""
     _scenario(directory)
@@ -2778,6 +2787,11 @@ def round_seventeen() -> list[Case]:
         Case("sweep: a member's member.json a named pipe",
              ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/sweep-out", "--workers", "1"], 0, "",
              setup=_piped_marker)
+    )  # fmt: skip
+    out.append(
+        Case("check: DIR/<name> a symbolic link to a directory elsewhere",
+             ["check", "{scenario}", "-o", "{dir}/out"], 2, "into whose target the files would be written",
+             setup=_linked_check)
     )  # fmt: skip
     forced = ["run", "{scenario}", "-o", "{dir}/out", "-q", "--force"]
     for limit, code, phrase in (

@@ -300,6 +300,24 @@ def test_an_output_directory_linked_elsewhere_is_refused_and_its_target_kept(
     assert (elsewhere / "section.png").read_text() == "precious"
 
 
+def test_a_checks_result_directory_linked_elsewhere_is_refused_before_anything_runs(
+    tmp_path, cli, write_scenario
+):
+    """``multilayer check FILE -o DIR`` whose ``DIR/<scenario name>`` is a symbolic link to
+    a directory elsewhere: the run wrote into it.  Refused (exit 2) naming the link."""
+    expect = [{"kind": "regression", "quantity": "runout", "value": 0.1, "rtol": 0.5}]
+    path = write_scenario({**TINY_SCENARIO, "expect": expect})
+    outdir, elsewhere = tmp_path / "out", tmp_path / "elsewhere"
+    outdir.mkdir()
+    elsewhere.mkdir()
+    (outdir / TINY_SCENARIO["name"]).symlink_to(elsewhere)
+    result = cli("check", path, "-o", outdir)
+    assert result.code == 2 and "Traceback" not in result.err, result.err
+    linked = outdir / TINY_SCENARIO["name"]
+    assert f"{linked}: a symbolic link (to {elsewhere}), into whose target" in result.err
+    assert not list(elsewhere.iterdir())
+
+
 def test_a_sweep_member_directory_linked_elsewhere_is_refused_before_anything_runs(
     tmp_path, cli, write_scenario
 ):
