@@ -2713,6 +2713,14 @@ def _linked_check(directory: Path) -> None:
     (directory / "out" / TINY["name"]).symlink_to(directory / "elsewhere")
 
 
+def _hard_linked_result(directory: Path) -> None:
+    """A scenario, and ``out/result.nc`` a second name of ``precious.txt`` beside ``out``."""
+    _scenario(directory)
+    (directory / "out").mkdir()
+    (directory / "precious.txt").write_text("precious")
+    os.link(directory / "precious.txt", directory / "out" / "result.nc")
+
+
 def _piped_lock(directory: Path) -> None:
     """A scenario and ``out/run.lock``, a named pipe."""
     _scenario(directory)
@@ -2737,7 +2745,8 @@ def round_seventeen() -> list[Case]:
     sweep's ``summary.csv`` a named pipe or a symbolic link, a figure or VTK file beyond
     ``ulimit -f``, a forced run whose lock or result header does not fit, a named pipe or a
     symbolic link at the checkpoint's temporary name, a lock and a sweep member's marker
-    that are named pipes."""
+    that are named pipes, ``check -o``'s result directory a symbolic link, ``result.nc`` a
+    hard link."""
     out: list[Case] = []
     for signum in (signal.SIGINT, signal.SIGHUP):
         name = signal.Signals(signum).name
@@ -2792,6 +2801,11 @@ def round_seventeen() -> list[Case]:
         Case("check: DIR/<name> a symbolic link to a directory elsewhere",
              ["check", "{scenario}", "-o", "{dir}/out"], 2, "into whose target the files would be written",
              setup=_linked_check)
+    )  # fmt: skip
+    out.append(
+        Case("run: out/result.nc a hard link to a file elsewhere",
+             ["run", "{scenario}", "-o", "{dir}/out", "-q"], 2, "result.nc: a file of 2 names (hard links)",
+             setup=_hard_linked_result)
     )  # fmt: skip
     forced = ["run", "{scenario}", "-o", "{dir}/out", "-q", "--force"]
     for limit, code, phrase in (

@@ -300,6 +300,23 @@ def test_an_output_directory_linked_elsewhere_is_refused_and_its_target_kept(
     assert (elsewhere / "section.png").read_text() == "precious"
 
 
+@pytest.mark.parametrize("name", [RESULT_FILE, "run.log"])
+def test_an_output_file_with_another_name_elsewhere_is_refused_and_the_file_kept(
+    tmp_path, cli, write_scenario, name
+):
+    """``out/result.nc`` (or ``run.log``) a hard link to a file elsewhere: netCDF and the log
+    write the file in place, so the result (the log) replaced that file's content under its
+    other name too.  Refused naming it; the file is as it was."""
+    outdir, elsewhere = tmp_path / "out", tmp_path / "precious.txt"
+    outdir.mkdir()
+    elsewhere.write_text("precious")
+    os.link(elsewhere, outdir / name)
+    result = cli("run", write_scenario(TINY_SCENARIO), "-o", outdir, "-q")
+    assert result.code == 2 and "Traceback" not in result.err, result.err
+    assert f"{outdir / name}: a file of 2 names (hard links), which the write would change" in result.err
+    assert elsewhere.read_text() == "precious"
+
+
 def test_a_checks_result_directory_linked_elsewhere_is_refused_before_anything_runs(
     tmp_path, cli, write_scenario
 ):

@@ -185,7 +185,7 @@ def output_directory(outdir: Path, source: Path | None = None) -> list[Path]:
     except OSError as exc:
         raise InputError(f"{outdir}: cannot be created or written ({reason(exc)}); {accepted}") from None
     for name in (RESULT_FILE, CHECKPOINT_FILE, LOG_FILE):
-        path = writable(outdir / name)
+        path = writable(outdir / name, in_place=name != CHECKPOINT_FILE)  # the checkpoint is replaced
         if source is not None and path.exists() and path.samefile(source):
             raise InputError(
                 f"{path}: the scenario file itself, which the run would write over; accepted: a scenario "

@@ -71,12 +71,14 @@ def full_disk_reason(exc: BaseException) -> str | None:
     return None
 
 
-def writable(path: Path) -> Path:
+def writable(path: Path, in_place: bool = False) -> Path:
     """``path``, where a file is about to be written: absent or a regular file.  A pipe
     there would take the write for ever and a device swallow it, a directory refuse it,
     and a symbolic link have its target written over (``out/result.nc`` linking to a file
-    elsewhere: the run replaced that file with its result, and ``run.log`` with its log):
-    :class:`InputError` naming it otherwise."""
+    elsewhere: the run replaced that file with its result, and ``run.log`` with its log);
+    a file written ``in_place`` (not replaced by a rename) must have one name: a hard link
+    had the file under its other names written over too.  :class:`InputError` naming it
+    otherwise."""
     if path.exists() and not path.is_file():
         raise InputError(
             f"{path}: exists and is not a regular file (a directory, a pipe or a device); accepted: "
@@ -86,6 +88,11 @@ def writable(path: Path) -> Path:
         raise InputError(
             f"{path}: a symbolic link (to {os.readlink(path)}), whose target the write would replace; "
             "accepted: no file there, or a regular file to replace"
+        )
+    if in_place and path.exists() and (names := path.stat().st_nlink) > 1:
+        raise InputError(
+            f"{path}: a file of {names} names (hard links), which the write would change under the others "
+            "too; accepted: no file there, or a regular file of one name (a copy: cp without -l)"
         )
     return path
 
