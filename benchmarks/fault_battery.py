@@ -525,7 +525,11 @@ def _sweep(parameters: dict, paired: bool = False, base: dict = TINY) -> Callabl
 
 
 def _calibration(
-    times: str, header: str = "t,x_f,sigma", columns: tuple[str, ...] = ("t", "x_f", "sigma"), **search: int
+    times: str,
+    header: str = "t,x_f,sigma",
+    columns: tuple[str, ...] = ("t", "x_f", "sigma"),
+    bounds: tuple[float, float] | list[float] = (0.2, 0.4),
+    **search: int,
 ) -> Callable[[Path], None]:
     def setup(directory: Path) -> None:
         (directory / "base.yaml").write_text(yaml.safe_dump(TINY))
@@ -538,7 +542,7 @@ def _calibration(
         }
         config = {
             "base": "base.yaml",
-            "parameters": {"rheology.mu_s": {"bounds": [0.2, 0.4]}},
+            "parameters": {"rheology.mu_s": {"bounds": list(bounds)}},
             "observations": [observation],
             "search": {"population": 4, "generations": 1, **search},
         }
@@ -2806,6 +2810,11 @@ def round_seventeen() -> list[Case]:
         Case("run: out/result.nc a hard link to a file elsewhere",
              ["run", "{scenario}", "-o", "{dir}/out", "-q"], 2, "result.nc: a file of 2 names (hard links)",
              setup=_hard_linked_result)
+    )  # fmt: skip
+    out.append(
+        Case("validate: a calibration's bounds [-1e308, 1e308]", ["validate", "{dir}/calibration.yaml"], 2,
+             "bounds (line 12): got [-1e+308, 1e+308]: the width upper - lower overflows",
+             setup=_calibration("0.1,0.12,0.01\n", bounds=[-1e308, 1e308]))
     )  # fmt: skip
     forced = ["run", "{scenario}", "-o", "{dir}/out", "-q", "--force"]
     for limit, code, phrase in (

@@ -92,6 +92,12 @@ class Parameter(StrictModel):
         if not self.bounds[0] < self.bounds[1]:
             raise invalid(f"got {self.bounds}", "[lower, upper] with lower < upper", "bounds")
         lower, upper = self.bounds
+        if not math.isfinite(upper - lower):  # every point is lower + fraction * width: inf, or 0 * inf = nan
+            raise invalid(
+                f"got {self.bounds}: the width upper - lower overflows",
+                "[lower, upper] with lower < upper less than 1.8e308 apart",
+                "bounds",
+            )
         prior = self.prior
         if prior is None:
             return self
