@@ -2714,7 +2714,7 @@ def _linked_check(directory: Path) -> None:
                                               "rtol": 0.5}]})  # fmt: skip
     (directory / "out").mkdir()
     (directory / "elsewhere").mkdir()
-    (directory / "out" / TINY["name"]).symlink_to(directory / "elsewhere")
+    (directory / "out" / str(TINY["name"])).symlink_to(directory / "elsewhere")
 
 
 def _hard_linked_result(directory: Path) -> None:
@@ -2759,25 +2759,35 @@ def round_seventeen() -> list[Case]:
                  "{dir}/out"], 0, "", patch=PACED, setup=lambda d: _scenario(d), signal_after_output=signum,
                  ignored=(signum,), keeps_output=True)
         )  # fmt: skip
-    linked = "into whose target the files would be written"
     for command, name in ((["plot", "{dir}/out"], "plots"), (["export", "{dir}/out", "--vtk"], "vtk")):
         out.append(
             Case(f"{command[0]}: out/{name} a symbolic link to a directory elsewhere", command, 2,
                  f"out/{name}: a symbolic link (to ", setup=_linked_directory(name))
         )  # fmt: skip
-    out.append(
-        Case("sweep: a member's directory a symbolic link to a directory elsewhere",
-             ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/sweep-out"], 2, linked, setup=_linked_member)
-    )  # fmt: skip
-    for kind, what, phrase in (
-        ("pipe", "named pipe", "exists and is not a regular file"),
-        ("link", "symbolic link to a file elsewhere", "a symbolic link (to "),
-    ):
-        out.append(
-            Case(f"sweep: summary.csv a {what}",
-                 ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/sweep-out", "--workers", "1"], 2,
-                 f"sweep-out/summary.csv: {phrase}", setup=_study_file(kind))
-        )  # fmt: skip
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    sweep = ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/sweep-out", "--workers", "1"]
+    sensitivity = ["sensitivity", "{dir}/sobol.yaml", "-o", "{dir}/sens-out", "--workers", "1"]
+    single: list[tuple[str, list[str], int, str, Callable[[Path], object]]] = [
+        ("sweep: a member's directory a symbolic link to a directory elsewhere", sweep, 2,
+         "into whose target the files would be written", _linked_member),
+        ("sweep: summary.csv a named pipe", sweep, 2,
+         "sweep-out/summary.csv: exists and is not a regular file", _study_file("pipe")),
+        ("sweep: summary.csv a symbolic link to a file elsewhere", sweep, 2,
+         "sweep-out/summary.csv: a symbolic link (to ", _study_file("link")),
+        ("sweep: a member's member.json a named pipe", sweep, 0, "", _piped_marker),
+        ("sensitivity: members/ a symbolic link to a directory elsewhere", sensitivity, 2,
+         "sens-out/members: a symbolic link (to ", _linked_members),
+        ("lock: a named pipe", run, 0, "taking over a stale lock", _piped_lock),
+        ("check: DIR/<name> a symbolic link to a directory elsewhere",
+         ["check", "{scenario}", "-o", "{dir}/out"], 2, "into whose target the files would be written",
+         _linked_check),
+        ("run: out/result.nc a hard link to a file elsewhere", run, 2,
+         "result.nc: a file of 2 names (hard links)", _hard_linked_result),
+        ("validate: a calibration's bounds [-1e308, 1e308]", ["validate", "{dir}/calibration.yaml"], 2,
+         "bounds (line 12): got [-1e+308, 1e+308]: the width upper - lower overflows",
+         _calibration("0.1,0.12,0.01\n", bounds=[-1e308, 1e308])),
+    ]  # fmt: skip
+    out += [Case(name, argv, code, phrase, setup=setup) for name, argv, code, phrase, setup in single]
     for command, written in (
         (["plot", "{dir}/out"], "plots/section.png"),
         (["export", "{dir}/out", "--vtk"], "vtk/result_0000.vts"),
@@ -2789,47 +2799,17 @@ def round_seventeen() -> list[Case]:
         )  # fmt: skip
     for kind, what in (("pipe", "a named pipe"), ("link", "a symbolic link to a file elsewhere")):
         out.append(
-            Case(f"run: out/checkpoint.npz.tmp {what}", ["run", "{scenario}", "-o", "{dir}/out", "-q"], 0, "",
-                 setup=_planted_checkpoint_part(kind), keeps_output=True)
+            Case(f"run: out/checkpoint.npz.tmp {what}", run, 0, "", setup=_planted_checkpoint_part(kind),
+                 keeps_output=True)
         )  # fmt: skip
-    out.append(
-        Case("lock: a named pipe", ["run", "{scenario}", "-o", "{dir}/out", "-q"], 0,
-             "taking over a stale lock", setup=_piped_lock)
-    )  # fmt: skip
-    out.append(
-        Case("sweep: a member's member.json a named pipe",
-             ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/sweep-out", "--workers", "1"], 0, "",
-             setup=_piped_marker)
-    )  # fmt: skip
-    out.append(
-        Case("check: DIR/<name> a symbolic link to a directory elsewhere",
-             ["check", "{scenario}", "-o", "{dir}/out"], 2, "into whose target the files would be written",
-             setup=_linked_check)
-    )  # fmt: skip
-    out.append(
-        Case("run: out/result.nc a hard link to a file elsewhere",
-             ["run", "{scenario}", "-o", "{dir}/out", "-q"], 2, "result.nc: a file of 2 names (hard links)",
-             setup=_hard_linked_result)
-    )  # fmt: skip
-    out.append(
-        Case("validate: a calibration's bounds [-1e308, 1e308]", ["validate", "{dir}/calibration.yaml"], 2,
-             "bounds (line 12): got [-1e+308, 1e+308]: the width upper - lower overflows",
-             setup=_calibration("0.1,0.12,0.01\n", bounds=[-1e308, 1e308]))
-    )  # fmt: skip
-    forced = ["run", "{scenario}", "-o", "{dir}/out", "-q", "--force"]
     for limit, code, phrase in (
         (0, 2, "run.lock: the lock cannot be written (file too large"),
         (5000, 1, "run failed: file too large: creating "),
     ):
         out.append(
-            Case(f"disk: ulimit -f {limit}, forced (below the {'lock' if code == 2 else 'header'})", forced,
-                 code, phrase, setup=lambda d: _scenario(d), file_limit=limit)
+            Case(f"disk: ulimit -f {limit}, forced (below the {'lock' if code == 2 else 'header'})",
+                 [*run, "--force"], code, phrase, setup=lambda d: _scenario(d), file_limit=limit)
         )  # fmt: skip
-    out.append(
-        Case("sensitivity: members/ a symbolic link to a directory elsewhere",
-             ["sensitivity", "{dir}/sobol.yaml", "-o", "{dir}/sens-out", "--workers", "1"], 2,
-             "sens-out/members: a symbolic link (to ", setup=_linked_members)
-    )  # fmt: skip
     return out
 
 
