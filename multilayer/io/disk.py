@@ -17,7 +17,7 @@ import shutil
 from collections.abc import Callable
 from pathlib import Path
 
-from multilayer.errors import InputError, reason
+from multilayer.errors import InputError
 
 FULL_ERRNOS = frozenset({errno.ENOSPC, errno.EFBIG, errno.EDQUOT})
 """The errors of a write that found no room: disk full, file too large, quota exceeded."""
@@ -101,8 +101,8 @@ def writable_directory(path: Path, make: bool = True) -> Path:
     """``path``, a directory a command writes its files into (``plots/``, ``vtk/``, a
     study's ``members/`` and member directories), made if absent and ``make``.  A symbolic
     link there had every file written into its target, wherever it points, as
-    :func:`writable` says of a file; a file there, or a directory that cannot be made, is
-    named too (:class:`InputError`)."""
+    :func:`writable` says of a file; a file there is named too (:class:`InputError`; a
+    directory that cannot be made raises the ``OSError`` naming it)."""
     accepted = "accepted: no file there (the directory is made), or a directory"
     if path.is_symlink():
         raise InputError(
@@ -111,11 +111,8 @@ def writable_directory(path: Path, make: bool = True) -> Path:
         )
     if path.exists() and not path.is_dir():
         raise InputError(f"{path}: exists and is not a directory; {accepted}")
-    try:
-        if make:
-            path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"{path}: cannot be created ({reason(exc)}); {accepted}") from None
+    if make:
+        path.mkdir(parents=True, exist_ok=True)
     return path
 
 

@@ -93,6 +93,8 @@ class ResultWriter:
                 self._open(scenario, sim, records)
             except (OSError, RuntimeError) as exc:  # no room for the header (a forced run, a full disk)
                 failure = self._failure(exc, f"{'creating' if records is None else 'reopening'} {self.path}")
+                if "_ds" not in self.__dict__ and not isinstance(failure, DiskFull):
+                    raise  # not opened (a read-only file): the OSError names it, the file is kept
                 if "_ds" in self.__dict__:
                     with contextlib.suppress(OSError, RuntimeError):
                         self._ds.close()
