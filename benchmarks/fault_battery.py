@@ -34,6 +34,9 @@ from typing import Any
 import numpy as np
 import yaml
 
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+"""The signals a run stops on: the cases' children start with them at their default."""
+
 NETCDF = threading.Lock()
 """Held by every netCDF call of this script: the cases run in threads, and neither HDF5 nor
 xarray's writer (two files written at once crashed this process) is thread-safe."""
@@ -82,6 +85,7 @@ class Case:
     prefix: list[str] = field(default_factory=list)  # a command the child runs under (setpriv)
     plain: bool = False  # the command line itself, nothing imported before (numba's environment)
     here: bool = False  # run in the case's directory (a case that could write into the working one)
+    ignored: tuple[int, ...] = ()  # stop signals the child starts with ignored (``nohup cmd &``)
     result: dict = field(default_factory=dict)
 
 
@@ -521,7 +525,11 @@ def _sweep(parameters: dict, paired: bool = False, base: dict = TINY) -> Callabl
 
 
 def _calibration(
-    times: str, header: str = "t,x_f,sigma", columns: tuple[str, ...] = ("t", "x_f", "sigma"), **search: int
+    times: str,
+    header: str = "t,x_f,sigma",
+    columns: tuple[str, ...] = ("t", "x_f", "sigma"),
+    bounds: tuple[float, float] | list[float] = (0.2, 0.4),
+    **search: int,
 ) -> Callable[[Path], None]:
     def setup(directory: Path) -> None:
         (directory / "base.yaml").write_text(yaml.safe_dump(TINY))
@@ -534,7 +542,7 @@ def _calibration(
         }
         config = {
             "base": "base.yaml",
-            "parameters": {"rheology.mu_s": {"bounds": [0.2, 0.4]}},
+            "parameters": {"rheology.mu_s": {"bounds": list(bounds)}},
             "observations": [observation],
             "search": {"population": 4, "generations": 1, **search},
         }
@@ -2634,6 +2642,177 @@ def round_sixteen() -> list[Case]:
     return out
 
 
+def _linked_directory(name: str) -> Callable[[Path], None]:
+    """A completed run in ``out`` whose ``out/NAME`` is a symbolic link to ``elsewhere``."""
+
+    def setup(directory: Path) -> None:
+        _finished_run(directory)
+        (directory / "elsewhere").mkdir()
+        (directory / "out" / name).symlink_to(directory / "elsewhere")
+
+    return setup
+
+
+def _linked_member(directory: Path) -> None:
+    """A sweep of two members whose second member's directory links to ``elsewhere``."""
+    from multilayer.app import sweep
+
+    _sweep({"rheology.mu_s": [0.3, 0.4]})(directory)
+    (directory / "elsewhere").mkdir()
+    (directory / "sweep-out").mkdir()
+    member = sweep.load(directory / "sweep.yaml").members()[1].id
+    (directory / "sweep-out" / member).symlink_to(directory / "elsewhere")
+
+
+def _linked_members(directory: Path) -> None:
+    """A sensitivity study whose ``members/`` directory links to ``elsewhere``."""
+    (directory / "base.yaml").write_text(yaml.safe_dump(TINY))
+    config = {"base": "base.yaml", "parameters": {"rheology.mu_s": {"bounds": [0.3, 0.4]}},
+              "outputs": ["runout"], "samples": 8}  # fmt: skip
+    (directory / "sobol.yaml").write_text(yaml.safe_dump(config))
+    (directory / "elsewhere").mkdir()
+    (directory / "sens-out").mkdir()
+    (directory / "sens-out" / "members").symlink_to(directory / "elsewhere")
+
+
+def _study_file(kind: str) -> Callable[[Path], None]:
+    """A sweep of one member whose ``sweep-out/summary.csv`` is ``kind``: a named pipe, or
+    a symbolic link to ``precious.txt`` beside it."""
+
+    def setup(directory: Path) -> None:
+        _sweep({"rheology.mu_s": [0.3]})(directory)
+        (directory / "sweep-out").mkdir()
+        if kind == "pipe":
+            os.mkfifo(directory / "sweep-out" / "summary.csv")
+        else:
+            (directory / "precious.txt").write_text("precious")
+            (directory / "sweep-out" / "summary.csv").symlink_to(directory / "precious.txt")
+
+    return setup
+
+
+def _planted_checkpoint_part(kind: str) -> Callable[[Path], None]:
+    """A scenario and ``out/checkpoint.npz.tmp`` a named pipe, or a symbolic link to
+    ``precious.txt`` beside ``out``."""
+
+    def setup(directory: Path) -> None:
+        _scenario(directory)
+        (directory / "out").mkdir()
+        part = directory / "out" / "checkpoint.npz.tmp"
+        if kind == "pipe":
+            os.mkfifo(part)
+        else:
+            (directory / "precious.txt").write_text("precious")
+            part.symlink_to(directory / "precious.txt")
+
+    return setup
+
+
+def _linked_check(directory: Path) -> None:
+    """A scenario with an expectation whose ``out/<name>`` links to ``elsewhere``."""
+    _scenario(directory, changes={"expect": [{"kind": "regression", "quantity": "runout", "value": 0.1,
+                                              "rtol": 0.5}]})  # fmt: skip
+    (directory / "out").mkdir()
+    (directory / "elsewhere").mkdir()
+    (directory / "out" / str(TINY["name"])).symlink_to(directory / "elsewhere")
+
+
+def _hard_linked_result(directory: Path) -> None:
+    """A scenario, and ``out/result.nc`` a second name of ``precious.txt`` beside ``out``."""
+    _scenario(directory)
+    (directory / "out").mkdir()
+    (directory / "precious.txt").write_text("precious")
+    os.link(directory / "precious.txt", directory / "out" / "result.nc")
+
+
+def _piped_lock(directory: Path) -> None:
+    """A scenario and ``out/run.lock``, a named pipe."""
+    _scenario(directory)
+    (directory / "out").mkdir()
+    os.mkfifo(directory / "out" / "run.lock")
+
+
+def _piped_marker(directory: Path) -> None:
+    """A sweep of one member whose directory holds ``member.json``, a named pipe."""
+    from multilayer.app import sweep
+
+    _sweep({"rheology.mu_s": [0.3]})(directory)
+    member = directory / "sweep-out" / sweep.load(directory / "sweep.yaml").members()[0].id
+    member.mkdir(parents=True)
+    os.mkfifo(member / sweep.MARKER)
+
+
+def round_seventeen() -> list[Case]:
+    """The hostile cases of the seventeenth round (docs/reliability.md): a stop signal the
+    run was started with ignored (``nohup cmd &``), the directories a command writes into
+    (``plots/``, ``vtk/``, a study's members) symbolic links to a directory elsewhere, a
+    sweep's ``summary.csv`` a named pipe or a symbolic link, a figure or VTK file beyond
+    ``ulimit -f``, a forced run whose lock or result header does not fit, a named pipe or a
+    symbolic link at the checkpoint's temporary name, a lock and a sweep member's marker
+    that are named pipes, ``check -o``'s result directory a symbolic link, ``result.nc`` a
+    hard link."""
+    out: list[Case] = []
+    for signum in (signal.SIGINT, signal.SIGHUP):
+        name = signal.Signals(signum).name
+        out.append(
+            Case(f"signal: {name} to a run started with {name} ignored", ["run", "{scenario}", "-o",
+                 "{dir}/out"], 0, "", patch=PACED, setup=lambda d: _scenario(d), signal_after_output=signum,
+                 ignored=(signum,), keeps_output=True)
+        )  # fmt: skip
+    for command, name in ((["plot", "{dir}/out"], "plots"), (["export", "{dir}/out", "--vtk"], "vtk")):
+        out.append(
+            Case(f"{command[0]}: out/{name} a symbolic link to a directory elsewhere", command, 2,
+                 f"out/{name}: a symbolic link (to ", setup=_linked_directory(name))
+        )  # fmt: skip
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    sweep = ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/sweep-out", "--workers", "1"]
+    sensitivity = ["sensitivity", "{dir}/sobol.yaml", "-o", "{dir}/sens-out", "--workers", "1"]
+    single: list[tuple[str, list[str], int, str, Callable[[Path], object]]] = [
+        ("sweep: a member's directory a symbolic link to a directory elsewhere", sweep, 2,
+         "into whose target the files would be written", _linked_member),
+        ("sweep: summary.csv a named pipe", sweep, 2,
+         "sweep-out/summary.csv: exists and is not a regular file", _study_file("pipe")),
+        ("sweep: summary.csv a symbolic link to a file elsewhere", sweep, 2,
+         "sweep-out/summary.csv: a symbolic link (to ", _study_file("link")),
+        ("sweep: a member's member.json a named pipe", sweep, 0, "", _piped_marker),
+        ("sensitivity: members/ a symbolic link to a directory elsewhere", sensitivity, 2,
+         "sens-out/members: a symbolic link (to ", _linked_members),
+        ("lock: a named pipe", run, 0, "taking over a stale lock", _piped_lock),
+        ("check: DIR/<name> a symbolic link to a directory elsewhere",
+         ["check", "{scenario}", "-o", "{dir}/out"], 2, "into whose target the files would be written",
+         _linked_check),
+        ("run: out/result.nc a hard link to a file elsewhere", run, 2,
+         "result.nc: a file of 2 names (hard links)", _hard_linked_result),
+        ("validate: a calibration's bounds [-1e308, 1e308]", ["validate", "{dir}/calibration.yaml"], 2,
+         "bounds (line 12): got [-1e+308, 1e+308]: the width upper - lower overflows",
+         _calibration("0.1,0.12,0.01\n", bounds=[-1e308, 1e308])),
+    ]  # fmt: skip
+    out += [Case(name, argv, code, phrase, setup=setup) for name, argv, code, phrase, setup in single]
+    for command, written in (
+        (["plot", "{dir}/out"], "plots/section.png"),
+        (["export", "{dir}/out", "--vtk"], "vtk/result_0000.vts"),
+    ):
+        out.append(
+            Case(f"{command[0]}: ulimit -f below the first file", command, 2,
+                 f"out/{written}: not written (file too large: the file size limit (ulimit -f) is 2000",
+                 setup=_finished_run, file_limit=2000)
+        )  # fmt: skip
+    for kind, what in (("pipe", "a named pipe"), ("link", "a symbolic link to a file elsewhere")):
+        out.append(
+            Case(f"run: out/checkpoint.npz.tmp {what}", run, 0, "", setup=_planted_checkpoint_part(kind),
+                 keeps_output=True)
+        )  # fmt: skip
+    for limit, code, phrase in (
+        (0, 2, "run.lock: the lock cannot be written (file too large"),
+        (5000, 1, "run failed: file too large: creating "),
+    ):
+        out.append(
+            Case(f"disk: ulimit -f {limit}, forced (below the {'lock' if code == 2 else 'header'})",
+                 [*run, "--force"], code, phrase, setup=lambda d: _scenario(d), file_limit=limit)
+        )  # fmt: skip
+    return out
+
+
 def cases() -> list[Case]:
     out: list[Case] = []
     budget = ["--max-memory", "8G", "--max-output", "1G"]
@@ -2803,6 +2982,7 @@ def cases() -> list[Case]:
         + round_fourteen()
         + round_fifteen()
         + round_sixteen()
+        + round_seventeen()
     )
 
 
@@ -2824,11 +3004,13 @@ def attempt(case: Case) -> Case:
         argv = [a.format(scenario=directory / "scenario.yaml", dir=directory) for a in case.argv]
         child = ["-m", "multilayer"] if case.plain else ["-c", CHILD.format(patch=case.patch)]
         command = [*case.prefix, sys.executable, *child, *argv]
-        limit = case.file_limit
+        limit, ignored = case.file_limit, case.ignored
 
         def limited() -> None:
             if limit is not None:
                 resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+            for signum in STOP_SIGNALS:  # as from a terminal, whatever the battery was started with
+                signal.signal(signum, signal.SIG_IGN if signum in ignored else signal.SIG_DFL)
 
         start = time.monotonic()
         proc = subprocess.Popen(

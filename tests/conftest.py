@@ -57,6 +57,19 @@ def python_sigint() -> Any:
     signal.signal(signal.SIGINT, previous)
 
 
+@pytest.fixture
+def default_stop_signals(python_sigint: None) -> Any:
+    """The stop signals have their default handling during the test (SIGINT Python's own),
+    set back after it: the child processes it starts receive them at their default (a run
+    leaves a signal it inherits ignored as it is, :func:`multilayer.app.runner.handled_by`),
+    also where the test run itself was started with them ignored (``&``, ``nohup``)."""
+    others = [signum for signum in STOP_SIGNALS if signum != signal.SIGINT]
+    previous = {signum: signal.signal(signum, signal.SIG_DFL) for signum in others}
+    yield
+    for signum, handler in previous.items():
+        signal.signal(signum, handler)
+
+
 def _warm_up_done(worker: dict[str, Any]) -> Path:
     return Path(tempfile.gettempdir()) / f"multilayer-kernels-{worker['testrunuid']}.done"
 

@@ -174,6 +174,11 @@ def test_calibration_on_a_local_cluster_of_worker_processes(tmp_path, monkeypatc
     [
         (("search: {population", "serch: {population"), "serch (line 11)", "unknown key"),
         (("bounds: [0.35, 0.60]", "bounds: [0.60, 0.35]"), "parameters.rheology.mu_s.bounds (line 6)", "got"),
+        (  # every point lower + fraction * width: the width overflowed, the corners were NaN
+            ("bounds: [0.35, 0.60]", "bounds: [-1e308, 1e308]"),
+            "parameters.rheology.mu_s.bounds (line 6)",
+            "got [-1e+308, 1e+308]: the width upper - lower overflows",
+        ),
         (("rheology.mu_2: {", "rheology.mu_3: {"), "parameters.rheology.mu_3 (line 7)", "invalid"),
         (
             ("units: mm}\n  - {name: deposit", "units: inch}\n  - {name: deposit"),

@@ -15,6 +15,7 @@ import pytest
 import yaml
 from conftest import TINY_SCENARIO
 
+from multilayer.errors import InputError
 from multilayer.io import disk, results
 from multilayer.io.results import load_checkpoint, open_result
 
@@ -147,11 +148,74 @@ def test_a_file_written_whole_keeps_the_old_one_when_the_write_fails(tmp_path):
         part.write_text("ne")
         raise OSError(28, "No space left on device")
 
-    with pytest.raises(OSError):
+    with pytest.raises(InputError, match=r"calibration.nc: not written \(disk full: "):
         disk.write_whole(path, half)
     assert path.read_text() == "old" and sorted(p.name for p in tmp_path.iterdir()) == ["calibration.nc"]
     disk.write_whole(path, lambda part: part.write_text("new"))
     assert path.read_text() == "new" and sorted(p.name for p in tmp_path.iterdir()) == ["calibration.nc"]
+
+
+@pytest.mark.slow  # a child process; the fault battery tries it too
+@pytest.mark.parametrize(
+    ("limit", "code", "said"),
+    [
+        (0, 2, "run.lock: the lock cannot be written (file too large: the file size limit (ulimit -f) is 0"),
+        (5000, 1, "run failed: file too large: creating "),
+    ],
+)
+def test_a_forced_run_whose_lock_or_header_does_not_fit_says_so_and_leaves_neither(
+    tmp_path, write_scenario, limit, code, said
+):
+    """``run --force`` under ``ulimit -f`` below the lock or the result file's header: an
+    empty ``run.lock`` was left (the lock's write failed after its creation) with "[Errno
+    27] File too large" naming no file, and the header's failure was netCDF's traceback
+    ("Operation not allowed in define mode"), or ``run.log``'s flush error in its place.
+    Each names its file and the limit; neither file is left, half-written."""
+    outdir = tmp_path / "out"
+
+    def limited() -> None:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    path = write_scenario(TINY_SCENARIO)
+    done = subprocess.run(
+        [sys.executable, "-m", "multilayer", "run", str(path), "-o", str(outdir), "-q", "--force"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        preexec_fn=limited,
+    )
+    assert done.returncode == code and "Traceback" not in done.stderr, done.stderr
+    assert said in done.stderr.splitlines()[-1]
+    assert not (outdir / "run.lock").exists() and not (outdir / "result.nc").exists()
+
+
+@pytest.mark.slow  # a child process; the fault battery tries it too
+@pytest.mark.parametrize(
+    ("command", "written"), [(("plot",), "plots/section.png"), (("export", "--vtk"), "vtk/result_0000.vts")]
+)
+def test_a_figure_or_vtk_file_beyond_the_file_size_limit_is_named(
+    tmp_path, cli, write_scenario, command, written
+):
+    """``plot`` and ``export`` under ``ulimit -f``: "error: [Errno 27] File too large;
+    accepted: a directory this user can write", naming neither the file nor the limit.  The
+    file and the limit are named; nothing is left written half-way."""
+    outdir = tmp_path / "out"
+    assert cli("run", write_scenario(TINY_SCENARIO), "-o", outdir, "-q").code == 0
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (2000, 2000))
+
+    done = subprocess.run(
+        [sys.executable, "-m", "multilayer", command[0], str(outdir), *command[1:]],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        preexec_fn=limit,
+    )
+    assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
+    assert f"error: {outdir / written}" in done.stderr
+    assert "not written (file too large: the file size limit (ulimit -f) is 2000 bytes)" in done.stderr
+    assert not [p for p in outdir.rglob("*") if p.is_file() and p.parent != outdir]
 
 
 def test_a_file_written_whole_by_two_processes_at_once_uses_a_temporary_file_each(tmp_path):

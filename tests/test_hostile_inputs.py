@@ -158,6 +158,28 @@ def test_a_key_path_with_an_empty_part_is_malformed(tmp_path, cli, write_scenari
     )
 
 
+def test_file_names_holding_a_terminal_escape_sequence_are_quoted_in_what_commands_print(
+    tmp_path, cli, write_scenario
+):
+    """A scenario file or output directory named with ``ESC [2J`` was printed as named by
+    ``validate``, ``run``, ``plot`` and ``export`` on success (the paths they wrote): the line
+    cleared the terminal.  Every line a command prints writes such characters as Python
+    writes them in a string, as its error messages do."""
+    escape = "\x1b[2J"
+    short = {**TINY_SCENARIO, "time": {"end": 0.02, "output_interval": 0.01}}
+    path = write_scenario(short, f"s{escape}.yaml")
+    outdir = tmp_path / f"out{escape}"
+    for argv in (
+        ("validate", path),
+        ("run", path, "-o", outdir),
+        ("plot", outdir),
+        ("export", outdir, "--vtk"),
+    ):
+        result = cli(*argv)
+        assert result.code == 0, result.err
+        assert "\x1b" not in result.out + result.err and "\\x1b[2J" in result.out, result.out
+
+
 def test_a_key_holding_a_terminal_escape_sequence_is_quoted_not_sent_to_the_terminal(cli, write_scenario):
     """A key of a scenario or sweep file, or of ``--set``, holding ``ESC [2J`` was printed as
     written: the message cleared the terminal (a title set, colours changed, by others).
@@ -227,6 +249,145 @@ def test_an_output_file_linked_to_a_file_elsewhere_is_refused_and_the_file_kept(
         in result.err
     )
     assert elsewhere.read_text() == "precious"
+
+
+@pytest.mark.slow  # a child process; the fault battery tries it too
+@pytest.mark.parametrize("kind", ["a pipe", "a link"])
+def test_a_file_at_the_checkpoints_temporary_name_is_replaced_not_written_through(
+    tmp_path, write_scenario, kind
+):
+    """``out/checkpoint.npz.tmp`` a named pipe held the run for ever at its first checkpoint
+    (nothing reads the pipe); a symbolic link had its target written over by the checkpoint.
+    The temporary file is made afresh: the run completes and the target is as it was."""
+    outdir, elsewhere = tmp_path / "out", tmp_path / "precious.txt"
+    outdir.mkdir()
+    elsewhere.write_text("precious")
+    if kind == "a pipe":
+        os.mkfifo(outdir / "checkpoint.npz.tmp")
+    else:
+        (outdir / "checkpoint.npz.tmp").symlink_to(elsewhere)
+    path = write_scenario({**TINY_SCENARIO, "time": {"end": 0.02, "output_interval": 0.01}})
+    done = subprocess.run(  # a child: a hang fails the test rather than holding the suite
+        [sys.executable, "-m", "multilayer", "run", str(path), "-o", str(outdir), "-q"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr
+    assert elsewhere.read_text() == "precious" and not (outdir / "checkpoint.npz.tmp").exists()
+    assert results.open_result(outdir).attrs["run_status"] == "completed"
+
+
+@pytest.mark.parametrize(("command", "directory"), [("plot", "plots"), ("export", "vtk")])
+def test_an_output_directory_linked_elsewhere_is_refused_and_its_target_kept(
+    tmp_path, cli, write_scenario, command, directory
+):
+    """``out/plots`` (``out/vtk``) a symbolic link to a directory elsewhere: the figures
+    (the VTK files) were written into it, replacing its files of the same names.  Refused
+    naming the link, as a linked output file is; the directory is as it was."""
+    outdir, short = tmp_path / "out", {**TINY_SCENARIO, "time": {"end": 0.02, "output_interval": 0.01}}
+    assert cli("run", write_scenario(short), "-o", outdir, "-q").code == 0
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "section.png").write_text("precious")
+    (outdir / directory).symlink_to(elsewhere)
+    result = cli(command, outdir, *(["--vtk"] if command == "export" else []))
+    assert result.code == 2 and "Traceback" not in result.err, result.err
+    assert result.err.count("\n") == 1
+    linked = f"{outdir / directory}: a symbolic link (to {elsewhere}), into whose target the files would be"
+    assert linked in result.err
+    assert [p.name for p in elsewhere.iterdir()] == ["section.png"]
+    assert (elsewhere / "section.png").read_text() == "precious"
+
+
+@pytest.mark.parametrize("name", [RESULT_FILE, "run.log"])
+def test_an_output_file_with_another_name_elsewhere_is_refused_and_the_file_kept(
+    tmp_path, cli, write_scenario, name
+):
+    """``out/result.nc`` (or ``run.log``) a hard link to a file elsewhere: netCDF and the log
+    write the file in place, so the result (the log) replaced that file's content under its
+    other name too.  Refused naming it; the file is as it was."""
+    outdir, elsewhere = tmp_path / "out", tmp_path / "precious.txt"
+    outdir.mkdir()
+    elsewhere.write_text("precious")
+    os.link(elsewhere, outdir / name)
+    result = cli("run", write_scenario(TINY_SCENARIO), "-o", outdir, "-q")
+    assert result.code == 2 and "Traceback" not in result.err, result.err
+    assert f"{outdir / name}: a file of 2 names (hard links), which the write would change" in result.err
+    assert elsewhere.read_text() == "precious"
+
+
+def test_a_checks_result_directory_linked_elsewhere_is_refused_before_anything_runs(
+    tmp_path, cli, write_scenario
+):
+    """``multilayer check FILE -o DIR`` whose ``DIR/<scenario name>`` is a symbolic link to
+    a directory elsewhere: the run wrote into it.  Refused (exit 2) naming the link."""
+    expect = [{"kind": "regression", "quantity": "runout", "value": 0.1, "rtol": 0.5}]
+    path = write_scenario({**TINY_SCENARIO, "expect": expect})
+    outdir, elsewhere = tmp_path / "out", tmp_path / "elsewhere"
+    outdir.mkdir()
+    elsewhere.mkdir()
+    (outdir / TINY_SCENARIO["name"]).symlink_to(elsewhere)
+    result = cli("check", path, "-o", outdir)
+    assert result.code == 2 and "Traceback" not in result.err, result.err
+    linked = outdir / TINY_SCENARIO["name"]
+    assert f"{linked}: a symbolic link (to {elsewhere}), into whose target" in result.err
+    assert not list(elsewhere.iterdir())
+
+
+def test_a_sweep_member_directory_linked_elsewhere_is_refused_before_anything_runs(
+    tmp_path, cli, write_scenario
+):
+    """A member's directory of a sweep a symbolic link to a directory elsewhere: its run
+    wrote there.  The sweep is refused (exit 2) naming the link, before any member runs."""
+    from multilayer.app import sweep
+
+    write_scenario({**TINY_SCENARIO, "time": {"end": 0.02, "output_interval": 0.01}}, "base.yaml")
+    path = write_scenario({"base": "base.yaml", "parameters": {"rheology.mu_s": [0.3, 0.4]}}, "sweep.yaml")
+    outdir, elsewhere = tmp_path / "out", tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    member = sweep.load(path).members()[1].id
+    outdir.mkdir()
+    (outdir / member).symlink_to(elsewhere)
+    result = cli("sweep", path, "-o", outdir)
+    assert result.code == 2 and "Traceback" not in result.err, result.err
+    assert f"{outdir / member}: a symbolic link (to {elsewhere}), into whose target" in result.err
+    assert not list(elsewhere.iterdir()) and not list(outdir.glob("*/result.nc"))
+
+
+@pytest.mark.parametrize(
+    ("command", "results"),
+    [("sweep", "summary.csv"), ("calibrate", "calibration.nc"), ("sensitivity", "sensitivity.nc")],
+)
+@pytest.mark.parametrize("kind", ["a pipe", "a link"])
+def test_a_study_file_that_is_a_pipe_or_a_link_is_refused_before_anything_runs(
+    tmp_path, cli, write_scenario, command, results, kind
+):
+    """A sweep's ``summary.csv`` a named pipe held the sweep for ever once its members had
+    run (nothing reads it), a symbolic link had its target written over by the summary.
+    Every study's file is refused as a run's are, before anything runs."""
+    write_scenario({**TINY_SCENARIO, "time": {"end": 0.02, "output_interval": 0.01}}, "base.yaml")
+    (tmp_path / "front.csv").write_text("t,x_f,sigma\n0.01,0.12,0.01\n")
+    bounds = {"rheology.mu_s": {"bounds": [0.2, 0.4]}}
+    columns = ["t", "x_f", "sigma"]
+    observation = {"name": "front", "quantity": "front", "file": "front.csv", "columns": columns}
+    config = {
+        "sweep": {"base": "base.yaml", "parameters": {"rheology.mu_s": [0.3]}},
+        "calibrate": {"base": "base.yaml", "parameters": bounds, "observations": [observation]},
+        "sensitivity": {"base": "base.yaml", "parameters": bounds, "outputs": ["runout"], "samples": 8},
+    }[command]
+    outdir, elsewhere = tmp_path / "out", tmp_path / "precious.txt"
+    outdir.mkdir()
+    elsewhere.write_text("precious")
+    if kind == "a pipe":
+        os.mkfifo(outdir / results)
+    else:
+        (outdir / results).symlink_to(elsewhere)
+    result = cli(command, write_scenario(config, "study.yaml"), "-o", outdir, "--workers", "1")
+    assert result.code == 2 and "Traceback" not in result.err, result.err
+    said = "exists and is not a regular file" if kind == "a pipe" else "a symbolic link (to"
+    assert f"{outdir / results}: {said}" in result.err
+    assert elsewhere.read_text() == "precious" and not (outdir / "members").exists()
 
 
 def test_validate_checks_sweep_and_study_files_with_every_member(tmp_path, cli, write_scenario):

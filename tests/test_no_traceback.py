@@ -9,6 +9,7 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 
 import netCDF4
@@ -26,6 +27,22 @@ def test_a_malformed_lock_is_taken_over_as_unreadable(tmp_path, cli, write_scena
     outdir.mkdir()
     holder = {"pid": pid, "host": socket.gethostname(), "started": "2026-01-01T00:00:00+00:00"}
     (outdir / lock.LOCK_FILE).write_text(json.dumps(holder))
+    run = cli("run", write_scenario(TINY_SCENARIO), "-o", outdir, "-q")
+    assert run.code == 0, run.err
+    assert "taking over a stale lock (an unreadable lock: no such process)" in run.err
+    assert not (outdir / lock.LOCK_FILE).exists()
+
+
+def test_a_lock_that_is_a_named_pipe_is_taken_over_not_waited_on(tmp_path, cli, write_scenario):
+    """``out/run.lock`` a named pipe: reading its holder waited for ever for a writer."""
+    outdir = tmp_path / "out"
+    outdir.mkdir()
+    os.mkfifo(outdir / lock.LOCK_FILE)
+    read: list[object] = []
+    reader = threading.Thread(target=lambda: read.append(lock._holder(outdir / lock.LOCK_FILE)), daemon=True)
+    reader.start()
+    reader.join(10)
+    assert read == [None], "reading a lock that is a named pipe waited for a writer"
     run = cli("run", write_scenario(TINY_SCENARIO), "-o", outdir, "-q")
     assert run.code == 0, run.err
     assert "taking over a stale lock (an unreadable lock: no such process)" in run.err
@@ -89,7 +106,7 @@ sys.exit(main(sys.argv[1:]))
 
 
 @pytest.mark.slow  # a child process; the fault battery tries it too
-def test_a_run_stopped_during_start_up_says_so_and_leaves_no_lock(tmp_path):
+def test_a_run_stopped_during_start_up_says_so_and_leaves_no_lock(tmp_path, default_stop_signals):
     path = tmp_path / "tiny.yaml"
     path.write_text(yaml.safe_dump(TINY_SCENARIO))
     outdir = tmp_path / "out"

@@ -198,7 +198,7 @@ sys.exit(main(sys.argv[1:]))
 
 
 @pytest.mark.slow  # a child process; the fault battery tries it too
-def test_the_users_ctrl_c_inside_a_plugin_still_stops_the_run_cleanly(tmp_path):
+def test_the_users_ctrl_c_inside_a_plugin_still_stops_the_run_cleanly(tmp_path, default_stop_signals):
     path = tmp_path / "slump.yaml"
     path.write_text(yaml.safe_dump({**SLUMP, "time": {"end": 50.0, "output_interval": 0.02}}))
     proc = subprocess.Popen(

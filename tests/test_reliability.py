@@ -15,6 +15,7 @@ import socket
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import netCDF4
@@ -270,7 +271,7 @@ def test_the_column_kernel_refuses_non_finite_input_and_never_spins_on_it():
     assert column_kernel._add(X1, Y1, 2, 1.0, 1.0, X2, Y2, 2, 1.0, 1.0, *out)[0] == -1
 
 
-def test_ctrl_c_is_honoured_between_two_kernel_calls_inside_a_long_step(tmp_path):
+def test_ctrl_c_is_honoured_between_two_kernel_calls_inside_a_long_step(tmp_path, default_stop_signals):
     """The first step would take 200 kernel calls of 0.2 s (40 s).  The verdict rests on
     counts, not on the wall clock, so that it holds on a loaded machine (a bound of 1 s
     from the signal to the log line failed once at a load of 5: the checkpoint and the
@@ -577,7 +578,7 @@ def test_a_directory_in_use_is_refused_naming_the_holder_and_a_stale_lock_taken_
     [(signal.SIGTERM, 143), (signal.SIGHUP, 129)],
 )
 @pytest.mark.slow  # the same path as Ctrl-C, which runs by default (test_ctrl_c_is_honoured_between_...)
-def test_sigterm_and_sighup_stop_like_ctrl_c(tmp_path, signum, code):
+def test_sigterm_and_sighup_stop_like_ctrl_c(tmp_path, signum, code, default_stop_signals):
     path, outdir = _write(tmp_path, SLUMP), tmp_path / "out"
     proc = _start(PACED, "run", path, "-o", outdir)
     deadline = time.monotonic() + 60
@@ -594,6 +595,86 @@ def test_sigterm_and_sighup_stop_like_ctrl_c(tmp_path, signum, code):
     kept = open_result(outdir)
     assert kept.attrs["run_status"] == "interrupted" and kept.sizes["time"] >= 2
     assert not (outdir / lock.LOCK_FILE).exists()
+
+
+def _ignoring_ctrl_c_and_hangup() -> None:
+    """As a job started with ``&`` by a non-interactive shell under ``nohup`` starts."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGHUP, signal.SIG_IGN)
+
+
+@pytest.mark.slow  # a child run; handled_by's own test runs by default, the fault battery tries it too
+def test_a_run_started_with_ctrl_c_and_hangup_ignored_keeps_them_ignored(tmp_path):
+    """A run started with SIGINT and SIGHUP ignored (``nohup cmd &`` in a script) took them
+    anyway: a Ctrl-C meant for the shell's foreground job, or the terminal closing, stopped
+    it.  It now keeps them ignored, as Python itself does SIGINT, and runs to its end."""
+    path, outdir = _write(tmp_path, SLUMP), tmp_path / "out"
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _CHILD.format(patch=PACED), "run", str(path), "-o", str(outdir), "-q"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=_ignoring_ctrl_c_and_hangup,
+    )
+    deadline = time.monotonic() + 120
+    while not (outdir / "run.log").exists() or "output t =" not in (outdir / "run.log").read_text():
+        assert time.monotonic() < deadline and proc.poll() is None, proc.communicate()
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGINT)
+    proc.send_signal(signal.SIGHUP)
+    _out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0, err
+    assert open_result(outdir).attrs["run_status"] == "completed"
+
+
+def test_a_signal_the_process_ignores_stays_ignored_while_a_run_or_study_handles_the_others():
+    """:func:`runner.handled_by` (a run's and a study's stop handler) leaves a stop signal
+    the process ignores as it is and sets the others back after."""
+    from multilayer.app import runner
+
+    def handler(signum, frame):
+        """The run's handler, never called here."""
+
+    before = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        term = signal.getsignal(signal.SIGTERM)
+        with runner.handled_by(handler):
+            assert signal.getsignal(signal.SIGINT) == signal.SIG_IGN
+            assert signal.getsignal(signal.SIGTERM) is handler
+        assert signal.getsignal(signal.SIGINT) == signal.SIG_IGN and signal.getsignal(signal.SIGTERM) is term
+    finally:
+        signal.signal(signal.SIGINT, before)
+
+
+def test_reading_plotting_exporting_and_resuming_a_result_leave_the_warning_filters_alone(
+    tmp_path, cli, tiny_scenario, write_scenario
+):
+    """xarray puts a filter of its own in front of the process's at every file it decodes:
+    one the host added after a first read was overridden by it at the next.  The result is
+    read through :func:`multilayer.io.results.decoded`, which leaves the filters alone.
+    (The filters that numpy, scipy and matplotlib add once, when first imported, are
+    theirs: each path is taken once before the filters are compared.)"""
+    import multilayer
+
+    tiny_scenario["time"] = {"end": 0.02, "output_interval": 0.01}
+    path, out = write_scenario(tiny_scenario), tmp_path / "out"
+    paths = {
+        "open_result": lambda: open_result(out),
+        "multilayer.run": lambda: multilayer.run(path, tmp_path / "api"),
+        "plot": lambda: cli("plot", out),
+        "export": lambda: cli("export", out, "--vtk"),
+        "resume": lambda: cli("run", path, "-o", out, "--resume", "--set", "time.end=0.03", "-q"),
+    }
+    assert cli("run", path, "-o", out, "-q").code == 0
+    for take in paths.values():
+        take()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", FutureWarning)  # the host's own, after the first read
+        before = list(warnings.filters)
+        for name, take in paths.items():
+            result = take()
+            assert getattr(result, "code", 0) == 0, result.err
+            assert warnings.filters == before, name
 
 
 # ----------------------------------------------------------------------------- plot

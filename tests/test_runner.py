@@ -72,7 +72,9 @@ def _assert_same_result(a: Path, b: Path) -> None:
 
 
 @pytest.mark.slow  # Ctrl-C and resume run by default: tests/test_study_stop.py, test_reliability.py
-def test_sigint_stops_cleanly_and_resume_gives_the_uninterrupted_answer(tmp_path: Path) -> None:
+def test_sigint_stops_cleanly_and_resume_gives_the_uninterrupted_answer(
+    tmp_path: Path, default_stop_signals: None
+) -> None:
     path = tmp_path / "slump.yaml"
     path.write_text(yaml.safe_dump(SLUMP))
     outdir = tmp_path / "interrupted"
@@ -275,7 +277,7 @@ def test_a_step_abandoned_leaves_the_normal_stress_of_the_last_step_kept(tmp_pat
 
 
 def test_one_ctrl_c_stops_a_run_in_a_plugin_that_never_returns_and_it_resumes_to_the_bit(
-    tmp_path: Path, monkeypatch
+    tmp_path: Path, monkeypatch, python_sigint
 ) -> None:
     """A rheology plugin whose method loops for ever (in Python) at its 12th call, and the
     user's Ctrl-C there: the run's handler only noted the first signal (the stop was

@@ -58,7 +58,9 @@ def threads_cluster():
 
 
 @pytest.mark.slow
-def test_ctrl_c_stops_a_calibration_which_keeps_its_results_and_resumes(tmp_path, threads_cluster, capsys):
+def test_ctrl_c_stops_a_calibration_which_keeps_its_results_and_resumes(
+    tmp_path, threads_cluster, capsys, default_stop_signals
+):
     """SIGINT during the second generation of the twin calibration, on a cluster of worker
     threads: exit 130 promptly, calibration.nc holds the first generation (written after it)
     and says where it stopped, the message gives the resume command, and that command
@@ -158,7 +160,9 @@ def _interrupt(argv: list[str], cwd: Path, signum: int, group: bool) -> tuple[in
     ("command", "signum", "group", "code"),
     [("sweep", signal.SIGINT, True, 130), ("sensitivity", signal.SIGTERM, False, 143)],
 )
-def test_one_signal_stops_a_study_on_a_local_process_cluster(tmp_path, command, signum, group, code):
+def test_one_signal_stops_a_study_on_a_local_process_cluster(
+    tmp_path, command, signum, group, code, default_stop_signals
+):
     """``multilayer sweep`` with Ctrl-C sent to its whole process group (as a terminal does:
     the workers receive it too) and ``multilayer sensitivity`` with SIGTERM sent to the
     main process, each on a local cluster of two worker processes: stopped within seconds,

@@ -453,6 +453,45 @@ parameters:
         assert "3 members: 2 already complete (skipped), 0 invalid, 1 to run" in capsys.readouterr().out
 
 
+@pytest.mark.parametrize("kind", ["a named pipe", "a link to /dev/zero", "2 MB"])
+def test_a_marker_that_is_no_small_regular_file_is_not_read_through(tmp_path, kind):
+    """A member's ``member.json`` a named pipe held the study for ever (reading it waits for
+    a writer), a link to ``/dev/zero`` filled the memory: only a regular file's first
+    :data:`sweep.MARKER_BYTES` are read, and such a member is not complete (it runs again)."""
+    import threading
+
+    marker = tmp_path / sweep.MARKER
+    if kind == "a named pipe":
+        os.mkfifo(marker)
+    elif kind == "a link to /dev/zero":
+        marker.symlink_to("/dev/zero")
+    else:
+        marker.write_text("[" * (2 << 20))
+    found: list[object] = []
+    reader = threading.Thread(target=lambda: found.append(sweep.completed(tmp_path, "f")), daemon=True)
+    reader.start()
+    reader.join(10)
+    assert found == [None], f"reading {kind} as a marker did not end"
+
+
+def test_a_local_cluster_whose_workers_cannot_start_is_a_failure_in_one_line(tmp_path, monkeypatch, capsys):
+    """A local cluster whose worker processes fail to start (a script read from standard
+    input: a new process cannot import its ``__main__`` again) ended the command with
+    distributed's traceback ("Nanny failed to start."); it is a failure saying so, exit 1."""
+    import dask.distributed
+
+    def fails(*args, **kwargs):
+        raise RuntimeError("Nanny failed to start.")
+
+    monkeypatch.setattr(dask.distributed, "LocalCluster", fails)
+    path = write_sweep(tmp_path, "base: tiny.yaml\nparameters:\n  rheology.mu_s: [0.3]\n")
+    assert cli.main(["sweep", str(path), "-o", str(tmp_path / "out"), "--workers", "1", "-q"]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert "the local Dask cluster could not start its 1 worker process(es) (Nanny failed to start;" in err
+    assert not list(tmp_path.glob("out/*/result.nc"))
+
+
 def test_compiling_the_kernels_takes_one_single_threaded_step(tmp_path, monkeypatch):
     """``compile_kernels`` (run before local worker processes start) steps the member
     once on one thread, and leaves a member that fails to its own run."""

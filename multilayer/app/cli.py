@@ -153,8 +153,10 @@ def _dispatch(args: argparse.Namespace) -> int:
     except OSError as exc:  # a path given on the command line cannot be created or written
         what = f"{exc.filename}: {exc.strerror}" if exc.filename is not None and exc.strerror else str(exc)
         print(
-            f"multilayer: error: {what}; accepted: a directory this user can write and files in it "
-            "that are not read-only",
+            printable(
+                f"multilayer: error: {what}; accepted: a directory this user can write and files in it "
+                "that are not read-only"
+            ),
             file=sys.stderr,
         )
         return 2

@@ -23,6 +23,7 @@ import numpy as np
 from multilayer import scenario
 from multilayer.app import stopping, sweep
 from multilayer.errors import InputError, Interrupted, RunError
+from multilayer.io.disk import writable_directory
 from multilayer.io.results import RESULT_FILE
 from multilayer.scenario import as_overrides
 
@@ -123,7 +124,7 @@ class Ensemble:
         results: list[Evaluation | None],
     ) -> None:
         """:meth:`evaluate`, filling ``results`` as the members finish."""
-        stopping.StopFile(self.outdir).clear()
+        stopping.StopFile(writable_directory(self.outdir, make=False)).clear()
         pending: dict[str, list[int]] = {}
         submit: list[tuple[str, scenario.Scenario, str, list[str], int]] = []
         for i, values in enumerate(points):
@@ -139,7 +140,7 @@ class Ensemble:
                 results[i] = Evaluation(ident, values, "invalid", error=str(exc))
                 continue
             fingerprint = sweep.scenario_fingerprint(member_scenario)
-            member_dir = self.outdir / ident
+            member_dir = writable_directory(self.outdir / ident, make=False)  # its run makes it
             if sweep.completed(member_dir, fingerprint) is not None:
                 try:
                     results[i] = Evaluation(

@@ -21,6 +21,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from multilayer.errors import InputError, reason
+from multilayer.io import disk
 
 LOCK_FILE = "run.lock"
 
@@ -39,7 +40,11 @@ def _alive(pid: int) -> bool:
 def _holder(path: Path) -> dict | None:
     """The holder written in the lock ``path``; None if it cannot be read or is not a
     lock (a mapping whose ``pid`` is a process id: an integer from 1 to 2^31 - 1, as
-    ``os.kill`` would read 0, -1 or a larger number as another process group or fail)."""
+    ``os.kill`` would read 0, -1 or a larger number as another process group or fail).
+    Only a regular file is read: a named pipe there held the command for ever, waiting
+    for a writer."""
+    if not path.is_file():
+        return None
     try:
         with open(path, "rb") as stream:
             data = json.loads(stream.read(4096).decode("utf-8"))
@@ -89,8 +94,13 @@ def locked(directory: Path, notice: Callable[[str], None] = lambda message: None
                 f"accepted: a different output directory (-o DIR), or wait for that run to end "
                 f"(if it no longer exists, delete {path})"
             ) from None
-        with os.fdopen(fd, "w", encoding="utf-8") as stream:
-            json.dump(me, stream)
+        try:
+            with os.fdopen(fd, "w", encoding="utf-8") as stream:
+                json.dump(me, stream)
+        except OSError as exc:  # no room for it: no lock left behind, empty, for the next run to blame
+            path.unlink(missing_ok=True)
+            why = disk.room(path)[1] if disk.full_disk_reason(exc) else reason(exc)
+            raise InputError(f"{path}: the lock cannot be written ({why}); accepted: room for it") from None
         break
     else:
         raise InputError(f"{path}: could not take the lock; accepted: a directory no other run is using")

@@ -9,7 +9,8 @@ request honoured between two kernel calls (well within a second): the step under
 abandoned, the state at the start of it is checkpointed, ``run_status`` set to
 ``interrupted``, the resume command written to stderr and ``run.log``, and
 :class:`~multilayer.errors.Interrupted` raised (the CLI exits with 128 + the signal number:
-130, 143, 129).  A second signal stops at once; the last checkpoint then stands.
+130, 143, 129).  A second signal stops at once; the last checkpoint then stands.  A
+signal the process was started with ignored stays ignored (:func:`handled_by`).
 ``resume=True`` restores the checkpoint and continues; the output times are the same as
 without the interruption, so the result is identical.
 
@@ -25,6 +26,7 @@ output size are estimated and checked against the budget (:mod:`multilayer.app.r
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import os
@@ -50,7 +52,7 @@ from multilayer.app.lock import locked
 from multilayer.app.progress import Progress
 from multilayer.app.simulation import Simulation
 from multilayer.engine.plugin_output import in_plugin_call
-from multilayer.errors import InputError, Interrupted, RunError, Stop, reason
+from multilayer.errors import InputError, Interrupted, RunError, Stop, printable, reason
 from multilayer.io.disk import writable
 from multilayer.io.result_check import check_result
 from multilayer.io.results import (
@@ -123,7 +125,7 @@ def run(
 
     def notice(message: str) -> None:
         notices.append(message)
-        print(f"multilayer: warning: {message}", file=sys.stderr)
+        print(printable(f"multilayer: warning: {message}"), file=sys.stderr)
 
     stop = _StopRequest(stop_when)
     with locked(outdir, notice), stop.installed():
@@ -146,7 +148,7 @@ def run(
         except Interrupted as exc:
             if stop.starting:  # before anything was computed: nothing to keep, the lock goes
                 log.warning("%s", exc)
-                print(f"multilayer: {exc}", file=sys.stderr)
+                print(printable(f"multilayer: {exc}"), file=sys.stderr)
                 exc.said = True
             raise
         finally:
@@ -183,7 +185,7 @@ def output_directory(outdir: Path, source: Path | None = None) -> list[Path]:
     except OSError as exc:
         raise InputError(f"{outdir}: cannot be created or written ({reason(exc)}); {accepted}") from None
     for name in (RESULT_FILE, CHECKPOINT_FILE, LOG_FILE):
-        path = writable(outdir / name)
+        path = writable(outdir / name, in_place=name != CHECKPOINT_FILE)  # the checkpoint is replaced
         if source is not None and path.exists() and path.samefile(source):
             raise InputError(
                 f"{path}: the scenario file itself, which the run would write over; accepted: a scenario "
@@ -317,7 +319,7 @@ def _run(
         writer.close(sim.steps, wall_time(), status, scenario)
     if status == "interrupted":
         if stop.requested:  # a member stopped by its study leaves the resume command to the study
-            print(f"multilayer: {message}", file=sys.stderr)
+            print(printable(f"multilayer: {message}"), file=sys.stderr)
         raise Interrupted(message, stop.signum, said=stop.requested)
     log.info("completed: %d steps, wall time %.1f s", sim.steps, wall_time())
 
@@ -345,6 +347,13 @@ class _LogFile(logging.FileHandler):
 
     def handleError(self, record: logging.LogRecord) -> None:
         """Drop the line (the messages on stderr say what the log would have)."""
+
+    def close(self) -> None:
+        """Close the file, the lines still buffered dropped if they cannot be written: the
+        error of the flush had replaced the run's own (a full disk: ``[Errno 27] File too
+        large``, naming no file, for the result file that did not fit)."""
+        with contextlib.suppress(OSError):
+            super().close()
 
 
 def _keep_last_good_state(sim: Any, writer: ResultWriter, checkpoint: Any, saved_t: float, log: Any) -> str:
@@ -486,6 +495,29 @@ STOP_SIGNALS = tuple(
 )
 
 
+@contextmanager
+def handled_by(handler: Callable[[int, FrameType | None], None]) -> Iterator[None]:
+    """:data:`STOP_SIGNALS` handled by ``handler`` while active (in the main thread, which
+    alone receives signals), their handlers set back after.  A signal the process ignores
+    stays ignored: a job started with ``&`` by a non-interactive shell inherits SIGINT
+    ignored, one under ``nohup`` SIGHUP, and Python itself then leaves SIGINT alone (no
+    ``KeyboardInterrupt``); a run that took it had stopped on a Ctrl-C meant for the shell's
+    foreground job."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {
+        signum: signal.signal(signum, handler)
+        for signum in STOP_SIGNALS
+        if signal.getsignal(signum) != signal.SIG_IGN
+    }
+    try:
+        yield
+    finally:
+        for signum, before in previous.items():
+            signal.signal(signum, before)
+
+
 class _StopRequest:
     """Handler of :data:`STOP_SIGNALS` turning the first signal into a stop request."""
 
@@ -509,17 +541,8 @@ class _StopRequest:
         if self.requested or (self.stop_when is not None and self.stop_when()):
             raise Stop
 
-    @contextmanager
-    def installed(self) -> Iterator[None]:
-        if threading.current_thread() is not threading.main_thread():
-            yield  # signals only reach the main thread
-            return
-        previous = {signum: signal.signal(signum, self._handle) for signum in STOP_SIGNALS}
-        try:
-            yield
-        finally:
-            for signum, handler in previous.items():
-                signal.signal(signum, handler)
+    def installed(self) -> contextlib.AbstractContextManager[None]:
+        return handled_by(self._handle)
 
     def _handle(self, signum: int, frame: FrameType | None) -> None:
         if self.starting:

@@ -57,17 +57,16 @@ def _handle(signum: int, frame: FrameType | None) -> None:
 @contextmanager
 def signals_stop() -> Iterator[None]:
     """Turn the stop signals of a run (:data:`~multilayer.app.runner.STOP_SIGNALS`) into a
-    stop request of the study while active (main thread only)."""
+    stop request of the study while active (main thread only; those the process ignores
+    stay ignored, :func:`~multilayer.app.runner.handled_by`)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     _requested.clear()
-    previous = {signum: signal.signal(signum, _handle) for signum in runner.STOP_SIGNALS}
     try:
-        yield
+        with runner.handled_by(_handle):  # a signal the process ignores stays ignored
+            yield
     finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
         _requested.clear()
 
 

@@ -38,7 +38,7 @@ from typing import Any, Literal
 from multilayer import scenario
 from multilayer.app import resources, runner, stopping
 from multilayer.errors import InputError, Interrupted, RunError, reason
-from multilayer.io.disk import write_whole
+from multilayer.io.disk import writable, writable_directory, write_whole
 from multilayer.io.results import (
     CHECKPOINT_FILE,
     MIXTURE_SUMMARY_KEYS,
@@ -60,6 +60,8 @@ MAX_MEMBERS = 10_000
 
 MARKER = "member.json"
 """Written into a member's directory once its run has completed."""
+MARKER_BYTES = 1 << 20
+"""The most of a marker read (one is a few hundred bytes): a larger file is no marker."""
 
 Status = Literal["ok", "invalid", "failed", "interrupted"]
 
@@ -291,9 +293,14 @@ def completed(member_dir: Path, fingerprint: str) -> dict[str, float] | None:
     ``multilayer run -o``, leaves the marker: its summary was reported and its result
     measured as the member's).  The summary is read from the result, which passed its
     checks, not from the marker: a marker edited or damaged (a runout of 99, NaN, text)
-    was reported as the member's."""
+    was reported as the member's.  Only a regular file's first :data:`MARKER_BYTES` are
+    read: a named pipe there held the study for ever, waiting for a writer."""
+    path = member_dir / MARKER
+    if not path.is_file():
+        return None
     try:
-        marker = json.loads((member_dir / MARKER).read_text())
+        with path.open("rb") as stream:
+            marker = json.loads(stream.read(MARKER_BYTES).decode("utf-8"))
     except (OSError, ValueError, RecursionError):
         return None
     summary = marker.get("summary") if isinstance(marker, dict) else None
@@ -423,14 +430,22 @@ def dask_client(
     scratch = tempfile.mkdtemp(prefix="multilayer-dask-", dir=dask.config.get("temporary-directory", None))
     try:
         with dask.config.set({"temporary-directory": scratch}):  # the nannies' too
-            cluster = LocalCluster(
-                n_workers=workers or CPU_COUNT,
-                threads_per_worker=1,
-                processes=True,
-                dashboard_address=":0",
-                local_directory=scratch,
-                preload=[stopping.__name__],  # the workers ignore Ctrl-C: this process stops them
-            )
+            try:
+                cluster = LocalCluster(
+                    n_workers=workers or CPU_COUNT,
+                    threads_per_worker=1,
+                    processes=True,
+                    dashboard_address=":0",
+                    local_directory=scratch,
+                    preload=[stopping.__name__],  # the workers ignore Ctrl-C: this process stops them
+                )
+            except RuntimeError as exc:  # "Nanny failed to start.": the worker's own error is on stderr
+                raise RunError(
+                    f"the local Dask cluster could not start its {workers or CPU_COUNT} worker process(es) "
+                    f"({reason(exc).rstrip('.')}; the worker's own error is above), so nothing was run; a "
+                    "script read from standard input gives this (a new process cannot import its __main__ "
+                    "again): run it from a file or as `multilayer`, or give --scheduler a running cluster"
+                ) from None
         try:
             with Client(cluster) as client:
                 yield client
@@ -519,7 +534,8 @@ def _run(
             outcomes[member.index] = Outcome(member, "invalid", str(exc))
             continue
         fingerprint = scenario_fingerprint(member_scenario)
-        summary = completed(outdir / member.id, fingerprint)
+        # refused before anything runs; its run makes it (a study refused later leaves none)
+        summary = completed(writable_directory(outdir / member.id, make=False), fingerprint)
         if summary is not None:
             outcomes[member.index] = Outcome(member, "ok", summary=summary, skipped=True)
         else:
@@ -556,15 +572,21 @@ def _run(
 
 def write_summary(sweep: Sweep, outcomes: list[Outcome], path: str | Path) -> None:
     """Write ``summary.csv``: one row per member with its values, status, error and the
-    scalar diagnostics of its result."""
+    scalar diagnostics of its result; whole (a temporary file renamed over it: a stop or a
+    full disk never leaves half of one)."""
     columns = ["member", *sweep.parameters, "status", "error", *SUMMARY_KEYS]
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="") as stream:
-        writer = csv.DictWriter(stream, fieldnames=columns)
-        writer.writeheader()
-        for outcome in outcomes:
-            row = {"member": outcome.member.id, "status": outcome.status, "error": outcome.error}
-            row.update({key: format_value(value) for key, value in outcome.member.values.items()})
-            row.update({key: repr(outcome.summary[key]) for key in SUMMARY_KEYS if key in outcome.summary})
-            writer.writerow(row)
+
+    def write(part: Path) -> None:
+        with part.open("w", newline="") as stream:
+            writer = csv.DictWriter(stream, fieldnames=columns)
+            writer.writeheader()
+            for outcome in outcomes:
+                member, summary = outcome.member, outcome.summary
+                row = {"member": member.id, "status": outcome.status, "error": outcome.error}
+                row.update({key: format_value(value) for key, value in member.values.items()})
+                row.update({key: repr(summary[key]) for key in SUMMARY_KEYS if key in summary})
+                writer.writerow(row)
+
+    write_whole(writable(path), write)

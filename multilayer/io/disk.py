@@ -71,12 +71,14 @@ def full_disk_reason(exc: BaseException) -> str | None:
     return None
 
 
-def writable(path: Path) -> Path:
+def writable(path: Path, in_place: bool = False) -> Path:
     """``path``, where a file is about to be written: absent or a regular file.  A pipe
     there would take the write for ever and a device swallow it, a directory refuse it,
     and a symbolic link have its target written over (``out/result.nc`` linking to a file
-    elsewhere: the run replaced that file with its result, and ``run.log`` with its log):
-    :class:`InputError` naming it otherwise."""
+    elsewhere: the run replaced that file with its result, and ``run.log`` with its log);
+    a file written ``in_place`` (not replaced by a rename) must have one name: a hard link
+    had the file under its other names written over too.  :class:`InputError` naming it
+    otherwise."""
     if path.exists() and not path.is_file():
         raise InputError(
             f"{path}: exists and is not a regular file (a directory, a pipe or a device); accepted: "
@@ -87,6 +89,30 @@ def writable(path: Path) -> Path:
             f"{path}: a symbolic link (to {os.readlink(path)}), whose target the write would replace; "
             "accepted: no file there, or a regular file to replace"
         )
+    if in_place and path.exists() and (names := path.stat().st_nlink) > 1:
+        raise InputError(
+            f"{path}: a file of {names} names (hard links), which the write would change under the others "
+            "too; accepted: no file there, or a regular file of one name (a copy: cp without -l)"
+        )
+    return path
+
+
+def writable_directory(path: Path, make: bool = True) -> Path:
+    """``path``, a directory a command writes its files into (``plots/``, ``vtk/``, a
+    study's ``members/`` and member directories), made if absent and ``make``.  A symbolic
+    link there had every file written into its target, wherever it points, as
+    :func:`writable` says of a file; a file there is named too (:class:`InputError`; a
+    directory that cannot be made raises the ``OSError`` naming it)."""
+    accepted = "accepted: no file there (the directory is made), or a directory"
+    if path.is_symlink():
+        raise InputError(
+            f"{path}: a symbolic link (to {os.readlink(path)}), into whose target the files would be "
+            f"written; {accepted}"
+        )
+    if path.exists() and not path.is_dir():
+        raise InputError(f"{path}: exists and is not a directory; {accepted}")
+    if make:
+        path.mkdir(parents=True, exist_ok=True)
     return path
 
 
@@ -95,11 +121,20 @@ def write_whole(path: Path, write: Callable[[Path], object]) -> Path:
     writers read the format from it, :func:`writable`) renamed over it: never a file
     written half-way, and no temporary file left when ``write`` fails.  The temporary file
     is the process's own (its pid in the name): two ``multilayer plot`` of one directory at
-    once took each other's, and one stopped naming it as missing."""
+    once took each other's, and one stopped naming it as missing.  A write that finds no
+    room (a full disk, ``ulimit -f``) is an :class:`InputError` naming ``path`` and the
+    limit: the C library's words alone ("File too large") named neither."""
     part = writable(path.with_name(f".{path.stem}.partial.{os.getpid()}{path.suffix}"))
     try:
         write(part)
         os.replace(part, path)
+    except OSError as exc:
+        if full_disk_reason(exc) is None:
+            raise
+        raise InputError(
+            f"{path}: not written ({room(part)[1]}); accepted: room for it on the disk and under the file "
+            "size limit"
+        ) from None
     finally:
         part.unlink(missing_ok=True)
     return path

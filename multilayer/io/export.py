@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from multilayer.io.disk import writable
+from multilayer.io.disk import writable, writable_directory, write_whole
 from multilayer.io.result_check import ending
 from multilayer.io.results import open_result
 
@@ -28,24 +28,29 @@ def export_vtk(directory: str | os.PathLike) -> tuple[list[Path], str | None]:
     """Write ``directory/vtk/result_NNNN.vts`` per output time and ``result.pvd``; returns
     the paths (``result.pvd`` first) and how the run ended if it did not complete."""
     ds = open_result(directory)
-    out = Path(directory) / VTK_DIR
-    out.mkdir(exist_ok=True)
+    out = writable_directory(Path(directory) / VTK_DIR)
     pvd = writable(out / "result.pvd")
     # the series of an earlier export goes first: one stopped half-way (Ctrl-C, a full disk)
     # left it listing this run's first files and the earlier run's others, read as one run
     pvd.unlink(missing_ok=True)
     entries, paths = [], []
     for k in range(ds.sizes["time"]):
-        path = out / f"result_{k:04d}.vts"
-        writable(path).write_text(structured_grid(ds.isel(time=k)))
+        path = _text_file(out / f"result_{k:04d}.vts", structured_grid(ds.isel(time=k)))
         paths.append(path)
         entries.append(f'    <DataSet timestep="{float(ds["time"][k])!r}" file="{path.name}"/>')
-    pvd.write_text(
+    text = (
         '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n'
         "  <Collection>\n" + "\n".join(entries) + "\n  </Collection>\n"
         "</VTKFile>\n"
     )
+    _text_file(pvd, text)
     return [pvd, *paths], ending(ds.attrs)
+
+
+def _text_file(path: Path, text: str) -> Path:
+    """``path`` holding ``text``, written whole (:func:`multilayer.io.disk.write_whole`): an
+    export stopped half-way (a Ctrl-C, a full disk) leaves no file cut short."""
+    return write_whole(writable(path), lambda part: part.write_text(text))
 
 
 def _to_edges(values: np.ndarray) -> np.ndarray:

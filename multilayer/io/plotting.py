@@ -32,7 +32,7 @@ from matplotlib.patches import Patch
 from PIL import Image
 
 from multilayer.errors import InputError
-from multilayer.io.disk import writable, write_whole
+from multilayer.io.disk import writable, writable_directory, write_whole
 from multilayer.io.result_check import ending
 from multilayer.io.results import RESULT_FILE, open_result, seismic_force
 
@@ -77,8 +77,7 @@ def plot_run(
     xlim = checked_xlim(ds, xlim)
     end = ending(ds.attrs)
     notes = [f"{end}; drawn up to t = {float(ds['time'][-1]):.6g} s"] if end else []
-    out = Path(directory) / PLOTS_DIR
-    out.mkdir(exist_ok=True)
+    out = writable_directory(Path(directory) / PLOTS_DIR)
     source = drawn_from(Path(directory) / RESULT_FILE)
     if stale := remove_stale(out, RUN_FIGURES, source):
         notes.append(f"removed {', '.join(stale)} from {out}: not drawn from the {RESULT_FILE} there now")

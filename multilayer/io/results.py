@@ -30,6 +30,8 @@ import datetime as _dt
 import hashlib
 import math
 import os
+import threading
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -87,22 +89,49 @@ class ResultWriter:
         extra = (n_layers + 2) * n_cells if self._mixture else len(FORCES)
         self._record_bytes = 8 * ((n_layers + 2) * n_cells + 3 + extra)
         with NETCDF_LOCK:
-            if records is None:
-                self._ds = netCDF4.Dataset(self.path, "w", format=FORMAT)
-                self._define(scenario, sim)
-                self.records = 0
-                self.last_time = math.nan
-            else:
-                self._ds = netCDF4.Dataset(self.path, "a")
-                origin = provenance()
-                by = made_by(origin.version, origin.commit)
-                self._ds.history += f"\n{_now()} multilayer run --resume, by {by}"
-                self.records = records
-                self.last_time = float(self._ds["time"][records - 1])
-            self._ds.run_status = "running"
-            self._ds.header_space = " " * HEADER_SPACE
-            self._ds.sync()
+            try:
+                self._open(scenario, sim, records)
+            except (OSError, RuntimeError) as exc:  # no room for the header (a forced run, a full disk)
+                failure = self._failure(exc, f"{'creating' if records is None else 'reopening'} {self.path}")
+                if "_ds" not in self.__dict__ and not isinstance(failure, DiskFull):
+                    raise  # not opened (a read-only file): the OSError names it, the file is kept
+                if "_ds" in self.__dict__:
+                    with contextlib.suppress(OSError, RuntimeError):
+                        self._ds.close()
+                    _abandon(self._ds)
+                if records is None:  # a header written in part: no result file, not a damaged one
+                    self.path.unlink(missing_ok=True)
+                raise failure from None
         self._file = _identity(self.path)  # the file written: the path may come to name another
+
+    def _open(self, scenario: Any, sim: Any, records: int | None) -> None:
+        """Create the file (``records`` None) or reopen it to append after ``records``."""
+        if records is None:
+            self._ds = netCDF4.Dataset(self.path, "w", format=FORMAT)
+            self._define(scenario, sim)
+            self.records = 0
+            self.last_time = math.nan
+        else:
+            self._ds = netCDF4.Dataset(self.path, "a")
+            origin = provenance()
+            by = made_by(origin.version, origin.commit)
+            self._ds.history += f"\n{_now()} multilayer run --resume, by {by}"
+            self.records = records
+            self.last_time = float(self._ds["time"][records - 1])
+        self._ds.run_status = "running"
+        self._ds.header_space = " " * HEADER_SPACE
+        self._ds.sync()
+
+    def _failure(self, exc: BaseException, what: str) -> WriteFailed:
+        """The error of a write into the file that failed with ``exc`` (``what``: the
+        write, in words): :class:`DiskFull` naming the limit where no room is left.
+        netCDF-C may report a later consequence of the failed write (still in define mode
+        after its header update failed): the room left tells a full disk apart."""
+        free, limit = disk.room(self.path)
+        reason = disk.full_disk_reason(exc) or (limit.split(":")[0] if free < disk.SLACK else None)
+        if reason is None:
+            return WriteFailed(f"{what} failed ({exc})")
+        return DiskFull(f"{reason}: {what} failed ({exc})")
 
     def _define(self, scenario: Any, sim: Any) -> None:
         ds = self._ds
@@ -184,13 +213,7 @@ class ResultWriter:
                 ds.sync()
         except (OSError, RuntimeError) as exc:
             self._broken = True
-            # netCDF-C may report a later consequence of the failed write (still in define
-            # mode after its header update failed): the room left tells a full disk apart
-            free, limit = disk.room(self.path)
-            reason = disk.full_disk_reason(exc) or (limit.split(":")[0] if free < disk.SLACK else None)
-            if reason is None:
-                raise WriteFailed(f"writing output time {i} into {self.path} failed ({exc})") from None
-            raise DiskFull(f"{reason}: writing output time {i} into {self.path} failed ({exc})") from None
+            raise self._failure(exc, f"writing output time {i} into {self.path}") from None
         self.records = i + 1
         self.last_time = float(sim.t)
         return diag
@@ -294,9 +317,24 @@ def open_result(
 
     file = check_result(path, use)
     try:
-        return xr.load_dataset(file) if load else xr.open_dataset(file)
+        return decoded(file, load=load)
     except (OSError, ValueError) as exc:
         raise InputError(f"{file}: not a readable netCDF result file ({reason(exc)})") from None
+
+
+_DECODING = threading.Lock()
+"""Held by :func:`decoded`: two threads of a study scoping the warning filters at once
+would each put back what the other saw."""
+
+
+def decoded(file: str | os.PathLike, *, load: bool = True) -> xr.Dataset:
+    """``file`` read by xarray (loaded into memory, or with ``load=False`` opened lazily),
+    the host process's warning filters left as they were: xarray's decoding of every file
+    (``xarray.conventions.decode_cf_variables``) puts a filter of its own ("once" for its
+    ``decode_timedelta`` FutureWarning) in front of the process's, where it overrode a
+    filter the host added after the first read."""
+    with _DECODING, warnings.catch_warnings():
+        return xr.load_dataset(file) if load else xr.open_dataset(file)
 
 
 def run_failure(path: str | os.PathLike) -> str | None:
@@ -468,14 +506,19 @@ def _identity(path: Path) -> tuple[int, int] | None:
 
 
 def save_checkpoint(path: str | os.PathLike, ckpt: Checkpoint) -> None:
-    """Write ``ckpt`` to ``path`` atomically (temporary file, fsync, rename), with its checksum."""
+    """Write ``ckpt`` to ``path`` atomically (temporary file, fsync, rename), with its checksum.
+
+    The temporary file is made afresh, whatever had its name (one left by a process killed
+    mid-write is this file's own; a named pipe put there held the run for ever at its first
+    checkpoint, a symbolic link had its target written over)."""
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
     arrays: dict[str, Any] = {f"state.{key}": np.asarray(value) for key, value in ckpt.state.items()}
     arrays.update({f"meta.{key}": np.asarray(getattr(ckpt, key)) for key in _META})
     arrays["checksum"] = np.asarray(_checksum(arrays))
     try:
-        with open(tmp, "wb") as f:
+        tmp.unlink(missing_ok=True)  # the entry, not a link's target; a directory there: OSError
+        with open(tmp, "xb") as f:
             np.savez(f, **arrays)
             f.flush()
             os.fsync(f.fileno())

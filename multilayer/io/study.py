@@ -92,6 +92,12 @@ class Parameter(StrictModel):
         if not self.bounds[0] < self.bounds[1]:
             raise invalid(f"got {self.bounds}", "[lower, upper] with lower < upper", "bounds")
         lower, upper = self.bounds
+        if not math.isfinite(upper - lower):  # every point is lower + fraction * width: inf, or 0 * inf = nan
+            raise invalid(
+                f"got {self.bounds}: the width upper - lower overflows",
+                "[lower, upper] with lower < upper less than 1.8e308 apart",
+                "bounds",
+            )
         prior = self.prior
         if prior is None:
             return self
@@ -565,10 +571,10 @@ def _read_netcdf(
     file: Path, variable: str, where: str
 ) -> tuple[np.ndarray, np.ndarray, str | None, str | None]:
     """A one-dimensional netCDF variable, its coordinate and both units attributes."""
-    import xarray as xr
+    from multilayer.io.results import decoded
 
     try:
-        with xr.open_dataset(file) as ds:
+        with decoded(file, load=False) as ds:
             if variable not in ds:
                 raise InputError(
                     f"{where}: {file} has no variable {variable!r}; accepted: "

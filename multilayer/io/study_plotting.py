@@ -18,7 +18,9 @@ import xarray as xr
 from matplotlib.figure import Figure
 
 from multilayer.errors import InputError, reason
+from multilayer.io.disk import writable_directory
 from multilayer.io.plotting import PLOTS_DIR, drawn_from, save_figures
+from multilayer.io.results import decoded
 
 _STAGE_COLOURS = {"search": "C0", "refine": "C1", "uncertainty": "C2"}
 _SI = {"runout": "m", "front_final": "m", "duration": "s", "mass_final": "m2", "front": "m", "h": "m"}
@@ -59,15 +61,14 @@ def plot_study(directory: str | os.PathLike, filename: str) -> tuple[list[Path],
     :class:`InputError` naming the file if it is not a study file multilayer wrote."""
     path = Path(directory) / filename
     try:
-        ds = xr.load_dataset(path)
+        ds = decoded(path)
     except (OSError, ValueError, RuntimeError) as exc:  # xarray's own text runs on for lines, with links
         raise InputError(
             f"{path}: not a readable netCDF file ({reason(exc).split('. ')[0].splitlines()[0]}); "
             "accepted: a file written by multilayer"
         ) from None
     check_study(ds, path)
-    out = Path(directory) / PLOTS_DIR
-    out.mkdir(exist_ok=True)
+    out = writable_directory(Path(directory) / PLOTS_DIR)
     notes = []
     if "misfit" in ds:
         figures = {"misfit": misfit_figure(ds), "pairs": pairs_figure(ds), "fit": fit_figure(ds)}

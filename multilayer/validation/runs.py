@@ -15,7 +15,7 @@ import yaml
 from matplotlib.figure import Figure
 
 from multilayer.errors import RunError
-from multilayer.io.results import RESULT_FILE, open_result, run_failure
+from multilayer.io.results import RESULT_FILE, decoded, open_result, run_failure
 from multilayer.scenario import Scenario
 from multilayer.scenario import load as load_scenario
 
@@ -56,7 +56,7 @@ def _execute(task: tuple[Run, Path, Path]) -> str | None:
     scenario = run.load(scenario_dir)
     path = outdir / RESULT_FILE
     if path.is_file() and run_failure(path) is None:
-        with xr.open_dataset(path) as ds:
+        with decoded(path, load=False) as ds:
             if _inputs(ds.attrs.get("scenario", "")) == _inputs(scenario.resolved_yaml()):
                 return None
     try:

@@ -97,21 +97,28 @@ def study_directory(outdir: Path) -> Iterator[None]:
     both ran every member, each member's second run refused as another run's, and a stop of
     one stopped the other's members (the directory's stop file).  The directories it made
     go again, if empty, when the study is refused (an :class:`InputError`)."""
-    import sys
-
     from multilayer.app.lock import locked
     from multilayer.app.runner import output_directory
     from multilayer.errors import InputError
 
     created = output_directory(outdir)
     try:
-        with locked(outdir, lambda message: print(f"multilayer: warning: {message}", file=sys.stderr)):
+        with locked(outdir, _warn):
             yield
     except InputError:
         for made in created:
             with contextlib.suppress(OSError):  # not empty: the study wrote there
                 made.rmdir()
         raise
+
+
+def _warn(message: str) -> None:
+    """Say ``message`` (a lock taken over: it names the directory) on stderr as a warning."""
+    import sys
+
+    from multilayer.errors import printable
+
+    print(printable(f"multilayer: warning: {message}"), file=sys.stderr)
 
 
 def size(text: str) -> float:
@@ -209,10 +216,15 @@ def add_resume_argument(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def check_resume(args: argparse.Namespace, outdir: Path, results: str) -> None:
-    """With ``--resume``, ``outdir/results`` (written at every stop) must exist: exit 2 otherwise."""
+def check_results(args: argparse.Namespace, outdir: Path, results: str) -> None:
+    """``outdir/results``, the file a study writes at every stop and at its end, must be
+    absent or a regular file (a pipe there held the study for ever once its members had run,
+    a symbolic link had its target written over, :func:`multilayer.io.disk.writable`), and
+    with ``--resume`` it must exist: exit 2 otherwise, before anything runs."""
     from multilayer.errors import InputError
+    from multilayer.io.disk import writable
 
+    writable(outdir / results)
     if args.resume and not (outdir / results).is_file():
         raise InputError(
             f"{outdir}: nothing to resume ({results} missing); accepted: the output directory "
@@ -250,5 +262,6 @@ def report_stop(exc: Any, done: str | None, command: str, config: str, outdir: P
             "restarted (Dask cannot stop a thread), their directories locked until then",
             file=sys.stderr,
         )
-    print(f"multilayer: resume with: {resume_command(command, config, outdir, args)}", file=sys.stderr)
+    resume = resume_command(command, config, outdir, args)
+    print(printable(f"multilayer: resume with: {resume}"), file=sys.stderr)
     exc.said = True

@@ -19,7 +19,7 @@ from typing import Any
 
 from multilayer.app.commands import (
     add_study_arguments,
-    check_resume,
+    check_results,
     cluster_description,
     report_stop,
     require,
@@ -50,7 +50,7 @@ def main(args: argparse.Namespace) -> int:
 def _calibrate(args: argparse.Namespace, plan: Any, outdir: Path) -> int:
     """:func:`main` once the directory is held."""
     from multilayer.app import calibration as calibrations
-    from multilayer.errors import Interrupted
+    from multilayer.errors import Interrupted, printable
 
     live = not args.quiet and sys.stderr.isatty()
 
@@ -66,7 +66,7 @@ def _calibrate(args: argparse.Namespace, plan: Any, outdir: Path) -> int:
             sys.stderr.flush()
 
     path = outdir / calibrations.CALIBRATION_FILE
-    check_resume(args, outdir, path.name)
+    check_results(args, outdir, path.name)
     report(
         f"calibrate: {len(plan.config.parameters)} parameter(s), {len(plan.experiments)} experiment(s), "
         f"on {cluster_description(args)}"
@@ -99,7 +99,8 @@ def _calibrate(args: argparse.Namespace, plan: Any, outdir: Path) -> int:
         report_stop(exc, kept, "calibrate", args.config, outdir, args)
         raise
     calibrations.write(fit, calibrator, path)
-    print(f"calibrate: misfit {fit.misfit:.6g} for {fit.predicted.size} observed point(s); wrote {path}")
+    points = f"{fit.predicted.size} observed point(s)"
+    print(printable(f"calibrate: misfit {fit.misfit:.6g} for {points}; wrote {path}"))
     for name, value, sd in zip(fit.names, fit.theta, fit.sigma):
         print(f"  {name} = {value:.6g} +/- {sd:.3g}")
     for note in fit.notes:

@@ -18,6 +18,7 @@ from multilayer import scenario as scenarios
 from multilayer.app import expectations as expect
 from multilayer.app.commands import directory
 from multilayer.errors import InputError, RunError, printable
+from multilayer.io.disk import writable_directory
 
 HELP = "run scenario files and check their expect: lists (regression pins and reference values)"
 
@@ -40,6 +41,8 @@ def main(args: argparse.Namespace) -> int:
     for path in args.files:
         try:
             scenario = scenarios.load(path)
+            if args.output is not None:  # a link there had the run written into its target
+                writable_directory(args.output / scenario.name, make=False)
         except InputError as exc:
             errors.append(str(exc))
             continue
@@ -63,6 +66,6 @@ def main(args: argparse.Namespace) -> int:
             print(printable(f"{scenario.source}: run failed: {exc}"))
             failed += 1
             continue
-        print(f"{scenario.source}: " + expect.report(scenario.name, outcomes), flush=True)
+        print(printable(f"{scenario.source}: " + expect.report(scenario.name, outcomes)), flush=True)
         failed += not all(o.passed for o in outcomes)
     return 1 if failed else 0

@@ -10,7 +10,7 @@ import argparse
 import sys
 
 from multilayer.app.commands import directory
-from multilayer.errors import InputError
+from multilayer.errors import InputError, printable
 
 HELP = "export DIR/result.nc to other formats (--vtk: ParaView)"
 
@@ -32,7 +32,7 @@ def main(args: argparse.Namespace) -> int:
     if not args.vtk:
         raise InputError("multilayer export: choose a format; accepted: --vtk")
     paths, end = export_vtk(args.directory)
-    print(f"{paths[0]} ({len(paths) - 1} output times)")
+    print(printable(f"{paths[0]} ({len(paths) - 1} output times)"))
     if end:
         print(f"multilayer: warning: {end}; exported up to its last output time", file=sys.stderr)
     return 0

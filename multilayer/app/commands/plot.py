@@ -17,7 +17,7 @@ import os
 import sys
 
 from multilayer.app.commands import directory, positive_int
-from multilayer.errors import InputError
+from multilayer.errors import InputError, printable
 
 HELP = (
     "draw figures (and an animation) of DIR/result.nc, or of calibration.nc / sensitivity.nc, into DIR/plots/"
@@ -107,7 +107,7 @@ def main(args: argparse.Namespace) -> int:
             args.directory, times=args.times, at=args.at, fmt=args.fmt, animate=args.animate, xlim=args.xlim
         )
     for path in paths:
-        print(path)
+        print(printable(str(path)))
     for note in notes:
-        print(f"multilayer: warning: {note}", file=sys.stderr)
+        print(printable(f"multilayer: warning: {note}"), file=sys.stderr)
     return 0

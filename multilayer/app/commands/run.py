@@ -12,6 +12,7 @@ from pathlib import Path
 
 from multilayer import scenario as scenarios
 from multilayer.app.commands import add_budget_arguments, add_output_argument, add_set_argument, budget
+from multilayer.errors import printable
 
 HELP = "run a scenario file and write DIR/result.nc"
 
@@ -42,7 +43,7 @@ def main(args: argparse.Namespace) -> int:
         scenario, outdir, resume=args.resume, quiet=True if args.quiet else None, budget=budget(args)
     )
     if not args.quiet:
-        print(f"{scenario.name}: wrote {Path(outdir) / 'result.nc'}")
+        print(printable(f"{scenario.name}: wrote {Path(outdir) / 'result.nc'}"))
         for line in summary_lines(summary, scenario.numerics.front_threshold):
             print(f"  {line}")
     return 0

@@ -18,7 +18,7 @@ from typing import Any
 
 from multilayer.app.commands import (
     add_study_arguments,
-    check_resume,
+    check_results,
     cluster_description,
     report_stop,
     require,
@@ -48,10 +48,10 @@ def main(args: argparse.Namespace) -> int:
 def _sensitivity(args: argparse.Namespace, study: Any, outdir: Path) -> int:
     """:func:`main` once the directory is held."""
     from multilayer.app import sensitivity
-    from multilayer.errors import Interrupted
+    from multilayer.errors import Interrupted, printable
 
     path = outdir / sensitivity.SENSITIVITY_FILE
-    check_resume(args, outdir, path.name)
+    check_results(args, outdir, path.name)
 
     def report(line: str) -> None:
         if not args.quiet:
@@ -85,7 +85,8 @@ def _sensitivity(args: argparse.Namespace, study: Any, outdir: Path) -> int:
 
         result = sensitivity.indices(study, np.array([e.measured for e in evaluations]))
     sensitivity.write(study, points, evaluations, result, path)
-    print(f"sensitivity: {ensemble.ran} run(s), {ensemble.reused} reused, {len(failed)} failed; wrote {path}")
+    runs = f"{ensemble.ran} run(s), {ensemble.reused} reused, {len(failed)} failed"
+    print(printable(f"sensitivity: {runs}; wrote {path}"))
     if result is None:
         for e in failed[:5]:
             print(f"multilayer: member {e.id} {e.status}: {e.error}", file=sys.stderr)

@@ -20,7 +20,7 @@ from multilayer.app.commands import (
     add_cluster_arguments,
     add_output_argument,
     add_resume_argument,
-    check_resume,
+    check_results,
     cluster_description,
     report_stop,
     require,
@@ -80,7 +80,7 @@ def main(args: argparse.Namespace) -> int:
     plan = sweeps.load(args.sweep)
     outdir = Path(args.output or plan.output or Path("results") / plan.path.stem)
     summary = outdir / "summary.csv"
-    check_resume(args, outdir, summary.name)
+    check_results(args, outdir, summary.name)
     with study_directory(outdir):
         return _sweep(args, plan, outdir, summary)
 
@@ -131,7 +131,9 @@ def _sweep(args: argparse.Namespace, plan: Any, outdir: Path, summary: Path) -> 
     counts = {status: sum(o.status == status for o in outcomes) for status in ("ok", "invalid", "failed")}
     if not args.quiet:
         print(
-            f"sweep: {counts['ok']} ok, {counts['invalid']} invalid, {counts['failed']} "
-            f"failed; wrote {summary}"
+            printable(
+                f"sweep: {counts['ok']} ok, {counts['invalid']} invalid, {counts['failed']} "
+                f"failed; wrote {summary}"
+            )
         )
     return 1 if counts["invalid"] or counts["failed"] else 0

@@ -43,7 +43,7 @@ def main(args: argparse.Namespace) -> int:
             print(f"multilayer: error: {printable(str(exc))}", file=sys.stderr)
             invalid += 1
             continue
-        print(f"{path}: ok ({line})")
+        print(printable(f"{path}: ok ({line})"))
     return 2 if invalid else 0
 
 
