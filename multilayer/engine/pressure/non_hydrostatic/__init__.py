@@ -51,29 +51,21 @@ class NonHydrostatic(PressureModel):
 
         super().__init__(setup, state)
         self.layers: int = setup.options["pressure_layers"]
+        sizes = {"dx": setup.dx, "dry": setup.dry, "g_n": setup.g_n}
         shear = None
         if setup.options["vertical_shear"]:
             if setup.stresses is None:
                 raise ValueError(
                     "model.vertical_shear needs the vertical step's laws (PressureSetup.stresses)"
                 )
-            shear = VerticalShear(
-                setup.stresses,
-                setup.fractions,
-                dx=setup.dx,
-                dry=setup.dry,
-                g_n=setup.g_n,
-                solver=setup.solver,
-            )
+            shear = VerticalShear(setup.stresses, setup.fractions, solver=setup.solver, **sizes)
         self.projection = Projection(
             setup.fractions,
             setup.bed,
-            dx=setup.dx,
             periodic=setup.wraps,
-            dry=setup.dry,
-            g_n=setup.g_n,
             pressure_layers=self.layers,
             shear=shear,
+            **sizes,
         )
         self._seed = state.add_field("newton_seed", default="u")
 
