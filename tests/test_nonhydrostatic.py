@@ -689,3 +689,34 @@ def test_the_step_whose_newton_iteration_did_not_converge_now_converges_from_its
     sim.step()
     assert sim.t > 0.03 and np.isfinite(sim.u).all()
     assert failures == []
+
+
+def test_the_pressure_bound_that_stopped_a_sheared_collapse_is_settled():
+    """The bounded solve that stopped the channel collapse at a = 10 on 0.5 mm cells with
+    ``model.vertical_shear`` (step 200, t = 0.019 s: the pressure of the update, 647 rows,
+    from the final set of the projection of ``V*``, 293 bound rows), saved: from that set
+    the iteration releases a line of bound interfaces one column per iteration and settles
+    in 101 iterations (14 bound rows), no set repeated; the cap of 100 stopped it.  Its
+    answer satisfies the KKT conditions: ``lam <= lam_max`` (p >= 0), the constraint
+    ``A lam = r`` on the free rows, the multiplier ``r - A lam >= 0`` on the bound ones
+    (complementarity: ``lam = lam_max`` exactly there)."""
+    from pathlib import Path
+
+    d = np.load(Path(__file__).parent / "data" / "pressure_bound_release.npz")
+    band, r, bound, start = d["band"], d["r"], d["lam_max"], d["active"]
+    n, w = band.shape[0], band.shape[1] - 1
+    assert banded.bounded(band, r, bound, start.copy(), 100, np.empty(band.shape), False)[1] == -1
+    active = start.copy()
+    cap = banded.iteration_cap(n)
+    iterations = banded.bounded(band, r, bound, active, cap, np.empty(band.shape), False)[1]
+    assert iterations == 101 and start.sum() == 293 and active.sum() == 14  # regression: this system's
+    active = start.copy()
+    lam = banded.multipliers(band, r, np.arange(n), bound, active)[0]
+    dense = np.zeros((n, n))
+    for d_ in range(w + 1):
+        dense += np.diag(band[: n - d_, d_], d_)
+    dense = dense + np.triu(dense, 1).T
+    mu, free = r - dense @ lam, ~active
+    assert np.all(lam <= bound)
+    assert np.array_equal(lam[active], bound[active]) and np.all(mu[active] >= 0.0)
+    assert np.abs(mu[free]).max() <= 1e-12 * np.abs(r).max()

@@ -12,6 +12,19 @@ from multilayer.engine.compiled import jit
 from multilayer.errors import RunError
 
 MAX_ACTIVE_SET_ITERATIONS = 100
+"""The least cap of the active-set iterations (:func:`iteration_cap`)."""
+
+
+def iteration_cap(rows: int) -> int:
+    """The iterations of :func:`bounded` allowed on ``rows`` unknowns: ``rows + 1``, at least
+    :data:`MAX_ACTIVE_SET_ITERATIONS`.  For an M-matrix the active sets after the first
+    iteration are nested, so the iteration ends in at most ``rows + 1`` (Hintermueller, Ito &
+    Kunisch 2002, section 3).  ``A`` is not one, but from a set far from the answer its
+    iteration behaves much so: from the set of the repair of the start's violation the
+    pressure's iteration released a line of bound interfaces one column per iteration, 101
+    iterations without a repeated set (docs/model.md, "Shear stress on vertical planes"),
+    which the cap of 100 cut short."""
+    return max(MAX_ACTIVE_SET_ITERATIONS, rows + 1)
 
 
 @jit
@@ -209,13 +222,11 @@ def multipliers(
         return substitute(U, r), U
     guess = np.zeros(rows.size, dtype=np.bool_) if active is None else active.ravel()[rows]
     U = np.empty(band.shape) if factored is None else factored
-    lam, iterations = bounded(
-        band, r, lam_max.ravel()[rows], guess, MAX_ACTIVE_SET_ITERATIONS, U, factored is not None
-    )
+    cap = iteration_cap(rows.size)
+    lam, iterations = bounded(band, r, lam_max.ravel()[rows], guess, cap, U, factored is not None)
     if iterations < 0:
         raise RunError(
-            "the non-hydrostatic pressure bound p >= 0 was not settled in "
-            f"{MAX_ACTIVE_SET_ITERATIONS} active-set iterations"
+            f"the non-hydrostatic pressure bound p >= 0 was not settled in {cap} active-set iterations"
         )
     if active is not None:
         active.ravel()[rows] = guess
