@@ -175,7 +175,7 @@ class _Buffers:
         self.thickness, self.before = np.empty(N), np.empty(N)
         self.face_mass, self.lam_max = np.empty(L * N), np.empty(Lp * N)
         self.active = np.empty(Lp * N, np.bool_)
-        self.carried = np.empty(Lp * N)
+        self.carried, self.violation = np.empty(Lp * N), np.empty(Lp * N)
         self.faces = (np.arange(N - 1), np.arange(1, N))  # a window's: their start (periodic: all)
         self.periodic_faces = faces(N, True)
         self.fractions: np.ndarray | None = None  # those of the depth factors
@@ -344,11 +344,11 @@ def project_columns(
     lam, factored = multipliers(band, r, buffers.rows[:n], lam_max, active)
     correct(*arrays, free, lam, dV)
     dQ = dV
-    if carried is not None and carried.any():
+    if carried is not None and _violation(r, carried, buffers.violation[:n]):
         # the pressure: the projection of the update (the violation the step made), not of V*,
         # from the final active set of the first and its factor; only its wbar part is read
         dQ, W = buffers.dQ[:K], L * left.size
-        lam = multipliers(band, r - carried, buffers.rows[:n], lam_max, active, factored)[0]
+        lam = multipliers(band, buffers.violation[:n], buffers.rows[:n], lam_max, active, factored)[0]
         correct(arrays[0][W:], *arrays[1:3], mass[W:], free[W:], lam, dQ[W:])
     _finish(dV, dQ, u, w, h, fractions, moving, left, right, dt, lo, buffers.du, *out)
     return lo, hi
@@ -384,6 +384,16 @@ def _window(
             at = np.uint64(lo + i)  # unsigned: numba leaves out the wrap-around of negative indices
             lam_max[g, i] = bound * (factors[layer] * h[at])
             active[g, i] = guess[layer, at] if guess.shape[0] > 0 else False
+
+
+@jit
+def _violation(r, carried, out):
+    """``r - carried`` into ``out``; returns whether ``carried`` has an entry other than 0."""
+    nonzero = False
+    for k in range(r.size):
+        out[k] = r[k] - carried[k]
+        nonzero = nonzero or carried[k] != 0.0
+    return nonzero
 
 
 @jit
