@@ -387,6 +387,18 @@ def _window(
 
 
 @jit
+def _restart(u, written, columns, u_out, w_out, q_out):
+    """Zero ``u_out``, ``w_out`` and ``q_out`` in the columns ``written`` (start, stop), then
+    copy ``u`` into ``u_out`` in the columns ``columns``."""
+    for a in range(u.shape[0]):
+        for i in range(written[0], written[1]):
+            at = np.uint64(i)  # unsigned: numba leaves out the wrap-around of negative indices
+            u_out[a, at] = w_out[a, at] = q_out[a, at] = 0.0
+        for i in range(columns[0], columns[1]):
+            u_out[a, np.uint64(i)] = u[a, np.uint64(i)]
+
+
+@jit
 def _violation(r, carried, out):
     """``r - carried`` into ``out``; returns whether ``carried`` has an entry other than 0."""
     nonzero = False
@@ -580,11 +592,7 @@ class Projection:
         zeroes them)."""
         h_before, u_before, w, q = start
         lo, hi = span(h)
-        begin, stop = self._written
-        self.u[:, begin:stop] = 0.0
-        self.w[:, begin:stop] = 0.0
-        self.q[:, begin:stop] = 0.0
-        self.u[:, lo:hi] = u[:, lo:hi]
+        _restart(u, self._written, (lo, hi), self.u, self.w, self.q)
         # only the moving cells take part, in the columns holding material
         _advect(w, u, self.dx, dt, self.periodic, lo, hi, self._w_star)
         if self.shear is not None:
