@@ -171,6 +171,15 @@ class _Buffers:
         self.band = np.empty(Lp * N * 2 * Lp)
         self.du = np.empty(L * N)
         self.V_start, self.dQ = np.empty(K), np.empty(K)
+        # the window's thickness now and at the step's start, face masses, bound and active set
+        self.thickness, self.before = np.empty(N), np.empty(N)
+        self.face_mass, self.lam_max = np.empty(L * N), np.empty(Lp * N)
+        self.active = np.empty(Lp * N, np.bool_)
+        self.carried, self.violation = np.empty(Lp * N), np.empty(Lp * N)
+        self.faces = (np.arange(N - 1), np.arange(1, N))  # a window's: their start (periodic: all)
+        self.periodic_faces = faces(N, True)
+        self.fractions: np.ndarray | None = None  # those of the depth factors
+        self.factors = np.empty(L)
         # what the constraint in pointer .. mass was assembled on (:meth:`assembled_on`)
         self.built: tuple | None = None
         self.built_free, self.built_thickness = np.empty(K, np.bool_), np.empty(N)
@@ -286,19 +295,28 @@ def project_columns(
     window = slice(lo, hi)
     moving = _moving(u, h, dry, lo, hi)
     nodes, P = layering(tuple(fractions), L if pressure_layers is None else pressure_layers)
+    # the constraint of the free unknowns in the rows taking part only (``correction`` on
+    # ``constraint``, without the rest), in arrays reused from call to call
+    buffers = _Buffers(L, N, nodes.size) if buffers is None else buffers
+    W = hi - lo
+    left, right = (
+        buffers.periodic_faces if periodic else (buffers.faces[0][: W - 1], buffers.faces[1][: W - 1])
+    )
+    if buffers.fractions is not fractions:
+        buffers.factors, buffers.fractions = depth_factors(fractions), fractions
+    thickness, face_mass = buffers.thickness[:W], buffers.face_mass[: L * left.size]
     lam_max = active = None
     if g_n is not None:
         # the bound at the pressure interfaces holds on every interface: both sides are
         # linear in sigma between them
-        lam_max = dt * g_n * (depth_factors(fractions)[nodes, None] * h[window])
-        active = np.zeros(lam_max.shape, np.bool_) if tension_free is None else tension_free[nodes, window]
-    # the constraint of the free unknowns in the rows taking part only (``correction`` on
-    # ``constraint``, without the rest), in arrays reused from call to call
-    buffers = _Buffers(L, N, nodes.size) if buffers is None else buffers
-    thickness = np.where(h[window] > dry, h[window], 0.0)
-    left, right = faces(hi - lo, periodic)
-    face_mass = (fractions[:, None] * 0.5 * (thickness[left] + thickness[right])).ravel()
-    K = L * left.size + L * (hi - lo)
+        lam_max = buffers.lam_max[: nodes.size * W].reshape((nodes.size, W))
+        active = buffers.active[: nodes.size * W].reshape((nodes.size, W))
+    _window(
+        h, fractions, buffers.factors, nodes, dry, lo, left, right, thickness, face_mass,
+        0.0 if g_n is None else dt * g_n, _NO_CELLS if tension_free is None else tension_free,
+        _NO_BOUND if lam_max is None else lam_max, _NO_CELLS if active is None else active,
+    )  # fmt: skip
+    K = L * left.size + L * W
     free, V_star, dV, mass = buffers.free[:K], buffers.V_star[:K], buffers.dV[:K], buffers.mass[:K]
     row_of = buffers.row_of[: nodes.size * (hi - lo)]
     n = unknowns(face_mass, left, right, moving, u, w, lo, nodes, free, V_star, row_of, buffers.rows)
@@ -309,8 +327,10 @@ def project_columns(
         h0, u0, w0 = start
         V0 = buffers.V_start[:K]  # the same free unknowns and rows, the start's values
         unknowns(face_mass, left, right, moving, u0, w0, lo, nodes, free, V0, row_of, buffers.rows)
-        before = np.where(h0[window] > dry, h0[window], 0.0)
-        carried = np.zeros(n)
+        before = buffers.before[:W]
+        _thickness(h0, dry, lo, before)
+        carried = buffers.carried[:n]
+        carried[:] = 0.0
         if buffers.assembled_on(key, free, before, geometry[1]):
             # the last projection's constraint is the start's (it ended on the thickness this
             # step starts from): its stored entries, added up in the order entries adds them
@@ -324,11 +344,11 @@ def project_columns(
     lam, factored = multipliers(band, r, buffers.rows[:n], lam_max, active)
     correct(*arrays, free, lam, dV)
     dQ = dV
-    if carried is not None and carried.any():
+    if carried is not None and _violation(r, carried, buffers.violation[:n]):
         # the pressure: the projection of the update (the violation the step made), not of V*,
         # from the final active set of the first and its factor; only its wbar part is read
         dQ, W = buffers.dQ[:K], L * left.size
-        lam = multipliers(band, r - carried, buffers.rows[:n], lam_max, active, factored)[0]
+        lam = multipliers(band, buffers.violation[:n], buffers.rows[:n], lam_max, active, factored)[0]
         correct(arrays[0][W:], *arrays[1:3], mass[W:], free[W:], lam, dQ[W:])
     _finish(dV, dQ, u, w, h, fractions, moving, left, right, dt, lo, buffers.du, *out)
     return lo, hi
@@ -336,6 +356,65 @@ def project_columns(
 
 _NO_BAND = np.empty((0, 1))
 """The ``band`` of :func:`entries` adding up ``r = E V`` only."""
+
+_NO_BOUND, _NO_CELLS = np.empty((0, 0)), np.empty((0, 0), np.bool_)
+"""No bound ``lam_max`` and no active set or guess of it, for :func:`_window`."""
+
+
+@jit
+def _window(
+    h, fractions, factors, nodes, dry, lo, left, right, thickness, face_mass, bound, guess, lam_max, active
+):
+    """The thickness (``h`` where above ``dry``, else 0) of the columns ``lo ..`` (as many
+    as ``thickness`` has), the masses ``fractions_a / 2 (h_left + h_right)`` of the faces
+    ``left``, ``right`` of each layer ``a`` (``face_mass[a * F + f]``), the bound
+    ``lam_max = bound * (h - z)`` at the pressure interfaces ``nodes`` (``factors``:
+    :func:`depth_factors`) and the guess ``active`` of the active set, ``guess`` at those
+    interfaces (all False if ``guess`` is empty), in one pass each (``lam_max`` and
+    ``active`` empty: none)."""
+    W, F = thickness.size, left.size
+    _thickness(h, dry, lo, thickness)
+    for a in range(fractions.size):
+        half = fractions[a] * 0.5
+        for f in range(F):
+            face_mass[a * F + f] = half * (thickness[np.uint64(left[f])] + thickness[np.uint64(right[f])])
+    for g in range(lam_max.shape[0]):
+        layer = np.uint64(nodes[g])
+        for i in range(W):
+            at = np.uint64(lo + i)  # unsigned: numba leaves out the wrap-around of negative indices
+            lam_max[g, i] = bound * (factors[layer] * h[at])
+            active[g, i] = guess[layer, at] if guess.shape[0] > 0 else False
+
+
+@jit
+def _restart(u, written, columns, u_out, w_out, q_out):
+    """Zero ``u_out``, ``w_out`` and ``q_out`` in the columns ``written`` (start, stop), then
+    copy ``u`` into ``u_out`` in the columns ``columns``."""
+    for a in range(u.shape[0]):
+        for i in range(written[0], written[1]):
+            at = np.uint64(i)  # unsigned: numba leaves out the wrap-around of negative indices
+            u_out[a, at] = w_out[a, at] = q_out[a, at] = 0.0
+        for i in range(columns[0], columns[1]):
+            u_out[a, np.uint64(i)] = u[a, np.uint64(i)]
+
+
+@jit
+def _violation(r, carried, out):
+    """``r - carried`` into ``out``; returns whether ``carried`` has an entry other than 0."""
+    nonzero = False
+    for k in range(r.size):
+        out[k] = r[k] - carried[k]
+        nonzero = nonzero or carried[k] != 0.0
+    return nonzero
+
+
+@jit
+def _thickness(h, dry, lo, out):
+    """``h`` where above ``dry``, else 0, of the columns ``lo ..`` (as many as ``out`` has)
+    into ``out``."""
+    for i in range(out.size):
+        depth = h[np.uint64(lo + i)]
+        out[i] = depth if depth > dry else 0.0
 
 
 @jit
@@ -513,11 +592,7 @@ class Projection:
         zeroes them)."""
         h_before, u_before, w, q = start
         lo, hi = span(h)
-        begin, stop = self._written
-        self.u[:, begin:stop] = 0.0
-        self.w[:, begin:stop] = 0.0
-        self.q[:, begin:stop] = 0.0
-        self.u[:, lo:hi] = u[:, lo:hi]
+        _restart(u, self._written, (lo, hi), self.u, self.w, self.q)
         # only the moving cells take part, in the columns holding material
         _advect(w, u, self.dx, dt, self.periodic, lo, hi, self._w_star)
         if self.shear is not None:
