@@ -130,12 +130,12 @@ def chains(wet: np.ndarray, layers: int) -> Chains:
     return Chains(left, left + 1, linked)
 
 
-def runs(wet: np.ndarray) -> list[slice]:
-    """The runs of two or more ``wet`` (N,) columns, each a chain of every layer (the columns
-    between two dry ones or an end), as slices of the columns."""
+def runs(wet: np.ndarray, shortest: int = 2) -> list[slice]:
+    """The runs of ``shortest`` or more ``wet`` (N,) columns, each a chain of every layer (the
+    columns between two dry ones or an end), as slices of the columns."""
     edges = np.flatnonzero(np.diff(np.concatenate([[False], wet, [False]]).astype(np.int8)))
     pairs = zip(edges[::2], edges[1::2], strict=True)
-    return [slice(int(start), int(stop)) for start, stop in pairs if stop - start > 1]
+    return [slice(int(start), int(stop)) for start, stop in pairs if stop - start >= shortest]
 
 
 def plastic_chain_step(

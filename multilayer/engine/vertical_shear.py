@@ -65,22 +65,14 @@ uniform along x is unchanged.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
-
 import numpy as np
 
-from multilayer.engine.vertical.problem import ColumnProblem
+from multilayer.engine.normal_stress import runs
+from multilayer.engine.vertical import column_solve
+from multilayer.engine.vertical.problem import ColumnProblem, VerticalSolver
 from multilayer.engine.vertical.stresses import StressModel
 
 VERTICAL = "a vertical plane between two columns of a layer (model.vertical_shear)"
-
-Solver = Callable[[ColumnProblem], np.ndarray]
-
-
-def runs(moving: np.ndarray) -> Iterator[tuple[int, int]]:
-    """The runs ``(first, last)`` (inclusive) of ``True`` in a flag vector."""
-    edges = np.diff(np.concatenate(([0], moving.astype(np.int8), [0])))
-    yield from zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1)
 
 
 class VerticalShear:
@@ -94,12 +86,12 @@ class VerticalShear:
         dx: float,
         dry: float,
         g_n: float,
-        solver: Solver | None = None,
+        solver: VerticalSolver | None = None,
     ):
         """``solver`` solves each chain's :class:`ColumnProblem` (None: the compiled one, as
         for the vertical step; ``numerics.vertical_solver``)."""
         self.stresses, self.dx, self.dry, self.g_n = stresses, dx, dry, g_n
-        self.solver = solver
+        self.solver: VerticalSolver = column_solve.solve if solver is None else solver
         self.fractions = fractions
         below = np.concatenate([[0.0], np.cumsum(fractions)[:-1]])
         self._centre = (1.0 - below - 0.5 * fractions)[:, None]  # (h - z_mid) / h
@@ -140,9 +132,6 @@ class VerticalShear:
         """The step over ``dt`` of ``w_star`` (L, N), in place at the moving cells of the
         columns ``columns`` (``u`` the vertical step's velocities on the thickness ``h``;
         ``start = (w, q)`` of the step's start)."""
-        solver = self.solver
-        if solver is None:
-            from multilayer.engine.vertical.column_solve import solve as solver
         lo, hi = columns
         if hi - lo < 2:
             return
@@ -153,8 +142,8 @@ class VerticalShear:
         wet = h[lo:hi] > self.dry
         mass = self.stresses.material.density * self.fractions[:, None] * h[lo:hi]
         for a in range(u.shape[0]):
-            for first, last in runs(moving[a]):
-                self._chain(a, first, last, lo, wet, K[a], C[a], mass[a], dt, w_star, solver)
+            for run in runs(moving[a], shortest=1):
+                self._chain(a, run.start, run.stop - 1, lo, wet, K[a], C[a], mass[a], dt, w_star, self.solver)
 
     @staticmethod
     def _chain(a, first, last, lo, wet, K, C, mass, dt, w_star, solver) -> None:
