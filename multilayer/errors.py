@@ -1,5 +1,8 @@
 """The failure classes of the command line (docs/cli.md, exit codes)."""
 
+import sys
+from typing import TextIO
+
 
 class InputError(Exception):
     """Invalid input: the message names the file, the key path (and YAML line) and what
@@ -43,3 +46,9 @@ def printable(text: str) -> str:
     if text.isprintable():
         return text
     return "".join(c if c.isprintable() or c in "\n\t" else repr(c)[1:-1] for c in text)
+
+
+def warn(message: str, file: TextIO | None = None) -> None:
+    """Say ``message`` as a warning of the command (``multilayer: warning: ...``) on
+    ``file`` (default stderr), its characters :func:`printable`."""
+    print(printable(f"multilayer: warning: {message}"), file=sys.stderr if file is None else file)

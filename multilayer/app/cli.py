@@ -21,7 +21,7 @@ from collections.abc import Iterator, Sequence
 from typing import Any
 
 from multilayer.app import numba_environment
-from multilayer.errors import InputError, Interrupted, RunError, printable
+from multilayer.errors import InputError, Interrupted, RunError, printable, warn
 
 SUBCOMMANDS = (
     "run", "validate", "compile", "plugins", "sweep", "calibrate", "sensitivity", "check", "plot", "export",
@@ -95,7 +95,7 @@ def _warning(message, category, filename, lineno, file=None, line=None) -> None:
     if "Traceback (most recent call last):" in text:  # numba quotes one for a variable it cannot read
         lines = text.splitlines()
         text = f"{lines[0]} ({lines[-1]})"
-    print(f"multilayer: warning: {printable(text)}", file=sys.stderr if file is None else file)
+    warn(text, file)
 
 
 @contextlib.contextmanager

@@ -52,7 +52,7 @@ from multilayer.app.lock import locked
 from multilayer.app.progress import Progress
 from multilayer.app.simulation import Simulation
 from multilayer.engine.plugin_output import in_plugin_call
-from multilayer.errors import InputError, Interrupted, RunError, Stop, printable, reason
+from multilayer.errors import InputError, Interrupted, RunError, Stop, printable, reason, warn
 from multilayer.io.disk import writable
 from multilayer.io.result_check import check_result
 from multilayer.io.results import (
@@ -125,7 +125,7 @@ def run(
 
     def notice(message: str) -> None:
         notices.append(message)
-        print(printable(f"multilayer: warning: {message}"), file=sys.stderr)
+        warn(message)
 
     stop = _StopRequest(stop_when)
     with locked(outdir, notice), stop.installed():

@@ -99,26 +99,17 @@ def study_directory(outdir: Path) -> Iterator[None]:
     go again, if empty, when the study is refused (an :class:`InputError`)."""
     from multilayer.app.lock import locked
     from multilayer.app.runner import output_directory
-    from multilayer.errors import InputError
+    from multilayer.errors import InputError, warn
 
     created = output_directory(outdir)
     try:
-        with locked(outdir, _warn):
+        with locked(outdir, warn):  # a lock taken over: the warning names the directory
             yield
     except InputError:
         for made in created:
             with contextlib.suppress(OSError):  # not empty: the study wrote there
                 made.rmdir()
         raise
-
-
-def _warn(message: str) -> None:
-    """Say ``message`` (a lock taken over: it names the directory) on stderr as a warning."""
-    import sys
-
-    from multilayer.errors import printable
-
-    print(printable(f"multilayer: warning: {message}"), file=sys.stderr)
 
 
 def size(text: str) -> float:
@@ -251,16 +242,15 @@ def report_stop(exc: Any, done: str | None, command: str, config: str, outdir: P
     threads) and how to resume; the command line then says no more (``exc.said``)."""
     import sys
 
-    from multilayer.errors import printable
+    from multilayer.errors import printable, warn
 
     print(f"multilayer: {printable(str(exc))}{done or ''}", file=sys.stderr)
     running = getattr(exc, "running", [])
     if running:
-        print(
-            f"multilayer: warning: member(s) {', '.join(running)} did not stop (in a plugin's code that "
-            f"never returns?): the worker threads of {args.scheduler} run them on until the workers are "
-            "restarted (Dask cannot stop a thread), their directories locked until then",
-            file=sys.stderr,
+        warn(
+            f"member(s) {', '.join(running)} did not stop (in a plugin's code that never returns?): the "
+            f"worker threads of {args.scheduler} run them on until the workers are restarted (Dask "
+            "cannot stop a thread), their directories locked until then"
         )
     resume = resume_command(command, config, outdir, args)
     print(printable(f"multilayer: resume with: {resume}"), file=sys.stderr)

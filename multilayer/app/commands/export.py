@@ -7,10 +7,9 @@ Example: multilayer export results/erodible-bed-collapse --vtk
 from __future__ import annotations
 
 import argparse
-import sys
 
 from multilayer.app.commands import directory
-from multilayer.errors import InputError, printable
+from multilayer.errors import InputError, printable, warn
 
 HELP = "export DIR/result.nc to other formats (--vtk: ParaView)"
 
@@ -34,5 +33,5 @@ def main(args: argparse.Namespace) -> int:
     paths, end = export_vtk(args.directory)
     print(printable(f"{paths[0]} ({len(paths) - 1} output times)"))
     if end:
-        print(f"multilayer: warning: {end}; exported up to its last output time", file=sys.stderr)
+        warn(f"{end}; exported up to its last output time")
     return 0

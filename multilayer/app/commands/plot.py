@@ -14,10 +14,9 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 
 from multilayer.app.commands import directory, positive_int
-from multilayer.errors import InputError, printable
+from multilayer.errors import InputError, printable, warn
 
 HELP = (
     "draw figures (and an animation) of DIR/result.nc, or of calibration.nc / sensitivity.nc, into DIR/plots/"
@@ -109,5 +108,5 @@ def main(args: argparse.Namespace) -> int:
     for path in paths:
         print(printable(str(path)))
     for note in notes:
-        print(printable(f"multilayer: warning: {note}"), file=sys.stderr)
+        warn(note)
     return 0
