@@ -194,7 +194,7 @@ def section(ctx: Context) -> str:
                     f"{bed * 1000:g}",
                     f"{m['runout']:.3f}",
                     " / ".join(f"{m['runouts'][lv]:.3f}" for lv in LEVELS),
-                    f"{m['stop']:.2f}",
+                    f"{m['stop']:.2f}" if np.isfinite(m["stop"]) else "not stopped",
                     f"{m['t95']:.2f}",
                     f"{m['speed_end']:.1e}",
                 ]

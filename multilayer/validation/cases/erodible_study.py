@@ -394,8 +394,8 @@ finest meshes): the shortfall is the model's, not the
 mesh's.  The published gain is an upper bound over the study's slopes and beds; a
 per-slope comparison needs the values in the papers' figures.  The time to 95 % of the
 run-out by the tip over the {BEDS[-1] * 1000:g} mm bed grows at {slopes(lambda c: c > 0.0)} deg and falls
-at {slopes(lambda c: c < 0.0)} deg; the rigid-bed front that has not stopped by the end
-(stop time nan) creeps at the speed given in the last column.
+at {slopes(lambda c: c < 0.0)} deg; a front still moving at the end creeps at the speed
+given in the last column.
 
 **The law of the column-collapse study.**  The configuration chosen for the column
 collapse (`column_collapse_channel.yaml`) uses `pouliquen_forterre` with the glass-bead
