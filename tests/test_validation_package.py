@@ -44,6 +44,25 @@ def test_a_source_is_cited_with_its_status_unless_primary():
     assert quoted.cite() == "C (2002), fig. 4; secondary: quoted by D (2010)"
 
 
+def test_the_digitised_collapse_figure_is_read_in_time_order_with_its_sources():
+    """The figure of Rondon et al. (2011) as digitised: each curve in time order and cited as
+    read off a figure; its loose column runs out further and faster than its dense one, with
+    the published signs of the pore pressure below them (rondon2011_collapse.yaml)."""
+    from multilayer.validation.cases import submarine_collapse as case
+
+    for files in case.FIGURE.values():
+        for name in files:
+            assert published.source(name).status == "digitised", name
+            assert "Kumar (2015)" in published.source(name).where, name
+            assert np.all(np.diff(published.table(name)["t (s)"]) > 0.0), name
+    loose, dense = (case.figure_measures(p) for p in case.PACKINGS)
+    assert loose["runout"] > case.RUNOUT_RATIO * dense["runout"]
+    assert dense["t95"] > case.DURATION_RATIO * loose["t95"]
+    signs = published.values("rondon2011_collapse.yaml")
+    assert math.copysign(1.0, loose["pressure"]) == signs["pore_pressure_sign_loose"]
+    assert math.copysign(1.0, dense["pressure"]) == signs["pore_pressure_sign_dense"]
+
+
 def test_the_tolerance_rule_passes_the_file_and_fails_a_twice_coarser_mesh():
     study = MeshStudy((100, 200, 400), (0.04, 0.02, 0.01))
     assert study.orders() == pytest.approx([1.0, 1.0])

@@ -551,9 +551,10 @@ What the runs show about why:
   their mu(I) (mu_s = tan 25.5 deg; within {BAND:.0%} at a = {within_band("jop_avalanche")}) and
   {span(coulomb)} times with a constant friction tan 25.5 deg (within {BAND:.0%} at
   a = {within_band("coulomb_avalanche")}), on the {OTHER_CELLS * 1e3:g} mm mesh only (one mesh: no
-  verdict).  The bead size and friction angles of the experiments behind the laws could not be
-  read from the papers (`data/sources.yaml`): the recommended configuration keeps the glass beads
-  whose h_stop law is validated here, and no friction is fitted to the collapses.
+  verdict).  The bead size of the experiments behind the laws could not be read from the papers,
+  and of their friction only a second-hand 22 deg (the angle of repose of glass beads, for law B;
+  `data/sources.yaml`): the recommended configuration keeps the glass beads whose h_stop law is
+  validated here, and no friction is fitted to the collapses.
 - **The pressure.**  The hydrostatic pressure lengthens the tip run-out by
   {", ".join(f"{100 * c:+.0f}" for c in change("hydrostatic"))} % (the same a): the
   non-hydrostatic one is needed, though part of what it takes off is numerical (the time

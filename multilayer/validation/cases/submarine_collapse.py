@@ -8,7 +8,9 @@ reaches :data:`RUNOUT_SHARE` of its run-out — and the basal excess pore pressu
 under the initial column at its largest magnitude during the collapse.  Criteria: the
 loose run-out at least :data:`RUNOUT_RATIO` times the dense one and the dense collapse at
 least :data:`DURATION_RATIO` times as long, by either duration; positive against negative
-pore pressure; compared with the abstract's "twice less".
+pore pressure; compared with the abstract's "twice less", and the run-outs, durations and
+pore pressures set beside those of the paper's figure as reproduced by Kumar (2015)
+(``data/rondon2011_front_*.csv``, ``data/rondon2011_pressure_*.csv``, digitised).
 """
 
 from __future__ import annotations
@@ -54,6 +56,8 @@ advance upstream at every output time to count as a failure front."""
 CFLS = (0.45, 0.225, 0.1125, 0.05625)
 """Courant numbers of the time-step study at the files' 60 cells (0.45: the files')."""
 PUBLISHED = published.values("rondon2011_collapse.yaml")
+FIGURE = {p: (f"rondon2011_front_{p}.csv", f"rondon2011_pressure_{p}.csv") for p in PACKINGS}
+"""Packing -> the digitised front and pore pressure of its column in the figure of Rondon et al."""
 Measures = dict[str, Any]
 
 
@@ -167,6 +171,56 @@ def measures(ctx: Context, planned: dict[Any, Run] | None = None) -> dict[Any, M
     planned = runs() if planned is None else planned
     results = ctx.execute(list(planned.values()))
     return {key: measure(ds) for key, run in planned.items() if not isinstance(ds := results[run.name], str)}
+
+
+def figure_measures(packing: str) -> Measures:
+    """The run-out (m, final minus initial front), the time the front reaches
+    :data:`RUNOUT_SHARE` of it (s, linear between the markers) and the pore pressure below the
+    column at its largest magnitude (Pa, signed) of one column of the digitised figure of
+    Rondon et al. (2011) (:data:`FIGURE`)."""
+    front_file, pressure_file = FIGURE[packing]
+    front, pressure = published.table(front_file), published.table(pressure_file)
+    t, run = front["t (s)"], front["front (m)"] - front["front (m)"][0]
+    target = RUNOUT_SHARE * float(run[-1])
+    i = int(np.argmax(run >= target))
+    p = pressure["pore pressure (Pa)"]
+    return {
+        "initial": float(front["front (m)"][0]),
+        "runout": float(run[-1]),
+        "t95": float(t[i - 1] + (t[i] - t[i - 1]) * (target - run[i - 1]) / (run[i] - run[i - 1])),
+        "pressure": float(p[np.argmax(np.abs(p))]),
+        "spacing": float(np.median(np.diff(t))),
+    }
+
+
+def figure_comparison(m: dict[tuple[str, int], Measures], cells: int) -> str:
+    """The model at ``cells`` beside the digitised figure of Rondon et al. (2011): run-outs,
+    times to :data:`RUNOUT_SHARE` of them and the largest basal pore pressures."""
+    fig = {p: figure_measures(p) for p in PACKINGS}
+    run = {p: m[(p, cells)] for p in PACKINGS}
+    where = published.source(FIGURE["loose"][0]).where
+
+    def pair(key: str, fmt: str) -> str:
+        return " and ".join(format(fig[p][key], fmt) for p in PACKINGS)
+
+    def model(key: str, fmt: str) -> str:
+        return " and ".join(format(run[p][key], fmt) for p in PACKINGS)
+
+    def ratio(q: dict[str, Measures], key: str, top: str) -> float:
+        other = "dense" if top == "loose" else "loose"
+        return float(q[top][key] / q[other][key])
+
+    departure = " and ".join(f"{run[p]['runout'] / fig[p]['runout'] - 1:+.0%}" for p in PACKINGS)
+    return f"""Beside the paper's figure (digitised: {where}; the packings and heights of
+its two columns are not given there, and their initial fronts are at {pair("initial", ".3f")} m
+where the files' columns are {COLUMN:g} m long): run-out {pair("runout", ".3f")} m, loose and
+dense (ratio {ratio(fig, "runout", "loose"):.2f}; the model at {cells} cells {model("runout", ".4f")} m,
+{departure}, ratio {ratio(run, "runout", "loose"):.2f}); time to {RUNOUT_SHARE:.0%} of the run-out
+{pair("t95", ".1f")} s (ratio {ratio(fig, "t95", "dense"):.1f}, the markers {fig["loose"]["spacing"]:.2f} s
+apart; the model {model("t95", ".2f")} s, ratio {ratio(run, "t95", "dense"):.2f}); pore pressure at
+the bed below the column at its largest magnitude {pair("pressure", "+.0f")} Pa, one sensor (the
+model, averaged under the initial column, {model("pressure", "+.0f")} Pa).  No criterion is set on
+these: the columns of the figure are not known to be those of the files."""
 
 
 def stop_bound(q: Measures) -> tuple[float, str]:
@@ -303,6 +357,8 @@ def section(ctx: Context) -> str:
 - positive excess pore pressure under the loose column, negative under the dense one:
   {met(signs_met(m, finest))}.
 
+{figure_comparison(m, finest)}
+
 The loose collapse depends on the mesh.  Over the meshes its run-out is
 {loose_listed("runout", 4)} m, its time to {RUNOUT_SHARE:.0%} of the run-out {loose_listed("t95")} s
 and its stop time {", ".join(f"{stop_bound(q)[1]}{stop_bound(q)[0]:.2f}" for q in loose_runs)} s:
@@ -379,9 +435,9 @@ the time the centre of mass reaches {RUNOUT_SHARE:.0%} of its final displacement
 and the basal excess pore pressure
 averaged under the initial column at its largest magnitude (Pa).  Published: the abstract
 of Rondon et al. (2011) ("the runout distance is twice less" for dense packings, "the flow
-is slow", negative pore pressure during the flow; positive below loose columns); its
-figures could not be read here, so the durations and pressures are compared in sign and
-ratio only.
+is slow", negative pore pressure during the flow; positive below loose columns), on which
+the criteria are set (signs and ratios), and one of its figures, the front and the pore
+pressure below the column against time, read off a reproduction (after the criteria).
 
 {table(header, rows)}
 
