@@ -184,6 +184,15 @@ BAD_VALUES: list[tuple[str, dict, str]] = [
     ("mixture phi 0.9", {**MIXTURE, "initial.0.phi": 0.9}, "initial.0.phi"),
     ("mixture phi_critical 0.75", {**MIXTURE, "mixture.phi_critical": 0.75}, "mixture.phi_critical"),
     ("mixture fluid viscosity 1e306", {**MIXTURE, "fluid.viscosity": 1e306}, "fluid.viscosity"),
+    ("mixture compressibility 0", {**MIXTURE, "fluid.compressibility": 0.0}, "fluid.compressibility"),
+    ("mixture compressibility nan", {**MIXTURE, "fluid.compressibility": NAN}, "fluid.compressibility"),
+    ("mixture compressibility inf", {**MIXTURE, "fluid.compressibility": INF}, "fluid.compressibility"),
+    ("mixture compressibility 2", {**MIXTURE, "fluid.compressibility": 2.0}, "fluid.compressibility"),
+    (
+        "mixture compressibility in 3 layers",
+        {**MIXTURE, "fluid.compressibility": 1e-6, "domain.layers": 3},
+        "fluid.compressibility",
+    ),
     (
         "mixture pouliquen_forterre",
         {

@@ -6,6 +6,7 @@ the discrete energy in layers, resume, the result file, and the scenario keys.""
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import warnings
@@ -276,6 +277,16 @@ SCENARIO = {
         (
             {"mixture": {"phi_critical": 0.582, "dilatancy": 4.09, "critical_shift": 25.0, "kozeny": 1e305}},
             "mixture.kozeny",
+        ),
+        # a relaxing pore pressure: alpha in (0, 1] 1/Pa, one layer only
+        ({"fluid": {"density": 1041, "viscosity": 0.096, "compressibility": 0.0}}, "fluid.compressibility"),
+        ({"fluid": {"density": 1041, "viscosity": 0.096, "compressibility": 2.0}}, "fluid.compressibility"),
+        (
+            {
+                "fluid": {"density": 1041, "viscosity": 0.096, "compressibility": 1e-6},
+                "domain": {"x_min": 0.0, "x_max": 0.1, "cells": 10, "layers": 3},
+            },
+            "fluid.compressibility",
         ),
     ],
 )
@@ -866,3 +877,89 @@ def test_the_shipped_collapses_with_the_stop_at_a_start_are_those_of_finished_lo
     finished.advance(1.5)
     _same_run(stopped, finished)
     assert stopped.newton_iterations < finished.newton_iterations
+
+
+# ---------------------------------------------------------------- a relaxing pore pressure
+
+RELAXING = dataclasses.replace(FLUID, compressibility=5e-5)
+"""Pailha et al. (2008)'s first fluid with a skeleton compressibility of 5e-5 1/Pa (docs/mixture.md,
+"A pore pressure with its own evolution")."""
+
+
+def test_a_relaxing_immersed_heap_at_rest_is_exact():
+    points = ((0.0, 0.0), (0.05, 0.004), (0.1, 0.0))
+    sim = mixture_run(
+        [InitialEntry("profile", points=points, phi=0.582)],
+        slope=0.0,
+        sides=("wall", "wall"),
+        mixture=RELAXING,
+    )
+    h0, solid0 = sim.h.copy(), sim.mixture.solid.copy()
+    for _ in range(30):
+        sim.step()
+    assert np.all(sim.u == 0.0)
+    assert np.array_equal(sim.h, h0) and np.array_equal(sim.mixture.solid, solid0)
+    assert np.all(sim.mixture.pore_pressure == 0.0)
+
+
+def test_the_local_step_relaxes_its_pore_pressure_by_backward_euler():
+    """One layer: ``alpha (p_e' - p_e) / dt = -p_e' / M - Phi(P - p_e')`` at any velocities."""
+    local = LocalStep(
+        RELAXING, DilatantCoulomb(delta_deg=22.5, K1=90.5), GRAINS, np.array([1.0]), 9.81, 1e-12, 50
+    )
+    solid, h = np.array([[2.8e-3, 5.6e-3, 2.8e-3]]), np.array([5e-3, 1e-2, 5e-3])
+    v, previous, dt = np.array([[1e-3, 2e-2, 0.0]]), np.array([[3.0, -20.0, 5.0]]), 0.01
+    _, _, dilation, p_e = local.closure(solid, h, v, previous, 5e-5 / dt)
+    M = local.darcy(solid, h)[0, 0]
+    terms = np.stack([5e-5 * p_e[0] / dt, -5e-5 * previous[0] / dt, p_e[0] / M, dilation[0]])
+    eps = np.finfo(float).eps
+    assert np.all(np.abs(terms.sum(axis=0)) <= 16 * eps * np.abs(terms).sum(axis=0))
+    assert p_e[0, 2] == pytest.approx(5.0 * 5e-5 * M[2] / (5e-5 * M[2] + dt), rel=4 * eps)  # at rest: decays
+
+
+def test_a_relaxing_collapse_conserves_the_solid_and_resumes_exactly():
+    """Loose and dense columns: solid to round-off, fluid balanced with the ambient exchange,
+    the pore pressure carried with the mixture, a resumed run the same bit for bit."""
+    for phi, slope in ((0.56, 10.0), (0.6, 25.0)):
+        entry = InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01, phi=phi)
+        first = mixture_run([entry], slope=slope, mixture=RELAXING)
+        solid0, volume0 = first.mixture.solid.sum() * first.dx, first.h.sum() * first.dx
+        for _ in range(10):
+            first.step()
+            first.check_state()
+        saved = first.state_dict()
+        for _ in range(10):
+            first.step()
+            first.check_state()
+        assert np.any(first.u != 0.0)
+        assert abs(first.mixture.solid.sum() * first.dx - solid0) <= 1e-14 * solid0
+        fluid = (first.h.sum() - first.mixture.solid.sum()) * first.dx
+        assert fluid - (volume0 - solid0) == pytest.approx(first.mixture.ambient_exchange, abs=1e-15)
+        assert np.all(first.mixture.pore_pressure[:, first.h == 0.0] == 0.0)
+        second = mixture_run([entry], slope=slope, mixture=RELAXING)
+        second.load_state(saved)
+        for _ in range(10):
+            second.step()
+        assert np.array_equal(first.u, second.u) and np.array_equal(first.h, second.h)
+        assert np.array_equal(first.mixture.solid, second.mixture.solid)
+        assert np.array_equal(first.mixture.pore_pressure, second.mixture.pore_pressure)
+
+
+def test_a_vanishing_compressibility_is_the_closure_in_the_time_loop():
+    """The loose collapse after 10 steps: the difference to the closure's run falls as alpha."""
+    entry = InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01, phi=0.56)
+
+    def run(mixture: MixtureConfig) -> Simulation:
+        sim = mixture_run([entry], slope=10.0, mixture=mixture)
+        for _ in range(10):
+            sim.step()
+        return sim
+
+    closure = run(FLUID)
+    errors = []
+    for alpha in (1e-9, 1e-10, 1e-11):
+        sim = run(dataclasses.replace(FLUID, compressibility=alpha))
+        assert sim.t == closure.t
+        errors.append(float(np.max(np.abs(sim.u - closure.u))) / float(np.max(np.abs(closure.u))))
+    rates = np.log10(np.array(errors[:-1]) / np.array(errors[1:]))
+    assert np.all(np.abs(rates - 1.0) < 0.1), (errors, rates)

@@ -99,6 +99,7 @@ def mixture(scenario: Scenario) -> cfg.MixtureConfig | None:
         dilatancy=closure.dilatancy,
         critical_shift=closure.critical_shift,
         kozeny=closure.kozeny,
+        compressibility=fluid.compressibility,
     )
 
 

@@ -150,6 +150,9 @@ class MixtureConfig:
     """K2 of ``phi_eq = phi_c - K2 eta_f gamma / p_s``."""
     kozeny: float = 150.0
     """Carman–Kozeny constant of the permeability ``k = d^2 (1 - phi)^3 / (kozeny phi^2)``."""
+    compressibility: float | None = None
+    """alpha (1/Pa) of a basal excess pore pressure relaxing to the closure's (one layer;
+    docs/mixture.md, "A pore pressure with its own evolution"); ``None``: the closure's at once."""
 
 
 @dataclass(frozen=True)

@@ -45,14 +45,19 @@ J. Fluid Mech. 633) calibration as recalled here, NOT checked against the paper
 (docs/mixture.md lists it as unverified)."""
 
 
-def pailha_2008_layer(phi0: float, fluid: str = "viscous", k_b: float = 0.0) -> UniformLayer:
+def pailha_2008_layer(
+    phi0: float, fluid: str = "viscous", k_b: float = 0.0, compressibility: float | None = None
+) -> UniformLayer:
     """The uniform layer of Pailha et al. (2008) with initial volume fraction ``phi0`` in the
-    ``"viscous"`` (96 mPa s, 25 deg, 4.9 mm) or ``"water"`` (9.8 mPa s, 28 deg, 6.1 mm) fluid."""
+    ``"viscous"`` (96 mPa s, 25 deg, 4.9 mm) or ``"water"`` (9.8 mPa s, 28 deg, 6.1 mm) fluid,
+    with the skeleton's ``compressibility`` (1/Pa) if given."""
     case = PAILHA_2008_FLUIDS[fluid]
     material = MixtureMaterial(
         rho_f=case["rho_f"], eta_f=case["eta_f"], K=PAILHA_POULIQUEN_2009_K, **PAILHA_2008_GRAINS
     )
-    return UniformLayer(material, case["slope_deg"], case["h0"], phi0, k_b=k_b)
+    return UniformLayer(
+        material, case["slope_deg"], case["h0"], phi0, k_b=k_b, compressibility=compressibility
+    )
 
 
 def time_scales(layer: UniformLayer) -> dict[str, float]:
@@ -133,22 +138,27 @@ def creeping_pore_pressure(layer: UniformLayer, phi: float) -> float:
 def reference_solution(
     layer: UniformLayer, times: np.ndarray, state: LayerState | None = None, rtol: float = 1e-10
 ) -> np.ndarray:
-    """``(h, v, u, x)`` at ``times`` (rows), integrated from ``state`` (default: at rest at
-    ``t = 0``) by Radau IIA with relative tolerance ``rtol`` and absolute tolerances
-    ``rtol`` times the scales ``h0``, the steady speed (or ``sqrt(g h0)``) and its distance."""
+    """``(h, v, u, x)`` (and ``p_e`` with a compressibility) at ``times`` (rows), integrated
+    from ``state`` (default: at rest at ``t = 0``) by Radau IIA with relative tolerance
+    ``rtol`` and absolute tolerances ``rtol`` times the scales ``h0``, the steady speed (or
+    ``sqrt(g h0)``), its distance and the buoyant weight ``P``."""
     s = layer.initial_state() if state is None else state
     times = np.asarray(times, dtype=float)
     steady = steady_flow(layer)
     speed = steady.v if steady is not None else math.sqrt(layer.gravity * layer.h0)
-    scale = np.array([layer.h0, speed, speed, speed * max(float(times[-1]), 1.0)])
+    scale = [layer.h0, speed, speed, speed * max(float(times[-1]), 1.0)]
+    start = [s.h, s.v, s.u, s.x]
+    if layer.compressibility is not None:
+        scale.append(layer.weight)
+        start.append(s.p_e)
     solution = solve_ivp(
         layer.rhs,
         (s.t, float(times[-1])),
-        [s.h, s.v, s.u, s.x],
+        start,
         method="Radau",
         t_eval=times,
         rtol=rtol,
-        atol=rtol * scale,
+        atol=rtol * np.array(scale),
     )
     if not solution.success:
         raise RuntimeError(f"reference solution of the uniform layer failed: {solution.message}")

@@ -111,21 +111,47 @@ class BasalClosure(NamedTuple):
     tau_b: float  # basal shear stress of the grains, >= 0 (Pa)
 
 
-def basal_closure(mat: MixtureMaterial, solid: float, weight: float, h: float, speed: float) -> BasalClosure:
+def basal_closure(
+    mat: MixtureMaterial,
+    solid: float,
+    weight: float,
+    h: float,
+    speed: float,
+    lag: float = 0.0,
+    previous: float = 0.0,
+) -> BasalClosure:
     """Evaluate the closure for a layer holding ``solid = phi h`` (m) of grains of buoyant
     weight ``weight = P`` (Pa), of thickness ``h > solid`` and moving at ``speed = |v|``.
 
     The depth-averaged shear rate of a linear velocity profile, ``gamma = 3 |v| / h``, is
     that of Bouchut et al. (2016) for the uniform layer.
+
+    With ``lag = alpha / dt > 0`` the excess pore pressure is not the closure's but one
+    backward-Euler step of length ``dt`` from ``previous`` of its relaxation towards it,
+    ``alpha d_t p_e = -p_e / B - Phi`` (the skeleton's compressibility ``alpha``, George &
+    Iverson 2014; relaxation time ``t_IG = alpha B``, Bouchut et al. 2016): with
+    ``r = alpha B / dt`` it is the same quadratic with ``B`` divided by ``1 + r`` and ``P``
+    lowered by ``r previous / (1 + r)``.  ``lag = 0`` is the closure, bit for bit.
     """
     phi = solid / h
     gamma = 3.0 * speed / h
     beta = mat.drag(phi)
     B = 0.5 * beta * h * h / ((1.0 - phi) * (1.0 - phi))
-    a = weight + B * gamma * mat.K * (phi - mat.phi_c)
+    ratio = lag * B
+    B /= 1.0 + ratio
+    a = weight - previous * ratio / (1.0 + ratio) + B * gamma * mat.K * (phi - mat.phi_c)
     c = B * mat.K * mat.K2 * mat.eta_f * gamma * gamma
     root = math.sqrt(a * a + 4.0 * c)
     p_s = 0.5 * (a + root) if a >= 0.0 else 2.0 * c / (root - a) if c > 0.0 else 0.0
+    return closure_at(mat, phi, gamma, beta, weight, p_s)
+
+
+def closure_at(
+    mat: MixtureMaterial, phi: float, gamma: float, beta: float, weight: float, p_s: float
+) -> BasalClosure:
+    """The closure at the effective pressure ``p_s > 0`` (Pa) given (or ``p_s = 0`` with
+    ``K2 eta_f gamma = 0``): dilatancy, dilation rate and basal stress of :func:`basal_closure`,
+    with the excess pore pressure ``weight - p_s``."""
     viscous_shift = mat.K2 * mat.eta_f * gamma
     if viscous_shift > 0.0:
         viscous_shift /= p_s  # p_s > 0 here: c > 0, or K = 0 and a = P > 0

@@ -132,7 +132,10 @@ class MixtureFlow:
         )
         self._volumes = crossed.copy()
         self.drawn = np.zeros_like(h)
-        return self._local(solid, h, ustar, dt, u_old, self._pore_pressure, dry, t, watch)
+        previous = None
+        if self.config.compressibility is not None:  # the pore pressure is carried with the mixture
+            previous = solid_transport.carried(self._pore_pressure, h_old, h, crossed, self.dx, self.periodic)
+        return self._local(solid, h, ustar, dt, u_old, self._pore_pressure, dry, t, watch, previous)
 
     def average_step(
         self,
@@ -153,7 +156,9 @@ class MixtureFlow:
         stage's volume through the end faces) averaged with the solid at the start as the
         transport averages ``h``, then the local step of ``dt`` (half the time step) from
         ``ustar`` (``watch``: as in :meth:`step`).  The fluid the first stage drew in
-        enters ``h`` with the weight 1/2 (:attr:`drawn`)."""
+        enters ``h`` with the weight 1/2 (:attr:`drawn`).  A relaxing pore pressure (with a
+        compressibility) is averaged as the solid, its content ``p_e h`` at the start with
+        that of the second stage, and relaxes from there."""
         h1, u1 = first
         drawn = 0.5 * (h1 - self._transported)
         solid1, crossed1 = self.pending["solid"], self._crossed
@@ -166,7 +171,15 @@ class MixtureFlow:
         # volumes, recovered from ``2 h - h_old``)
         solid = np.where(h > 0.0, 0.5 * (self._solid + solid2), 0.0)
         pressures = self.pending["pore_pressure"]
-        velocities, iterations = self._local(solid, h, ustar, dt, u1, pressures, dry, t, watch)
+        previous = None
+        if self.config.compressibility is not None:
+            h2 = np.maximum(2.0 * h - h_old, 0.0)
+            p2 = solid_transport.carried(
+                pressures, h1, h2, 2.0 * crossed - self._volumes, self.dx, self.periodic
+            )
+            content, volume = self._pore_pressure * h_old + p2 * h2, h_old + h2
+            previous = np.where(volume > 0.0, content / np.where(volume > 0.0, volume, 1.0), 0.0)
+        velocities, iterations = self._local(solid, h, ustar, dt, u1, pressures, dry, t, watch, previous)
         self.drawn = drawn
         return velocities, iterations
 
@@ -181,11 +194,12 @@ class MixtureFlow:
         dry: float,
         t: float,
         watch: np.ndarray | None,
+        previous: np.ndarray | None = None,
     ) -> tuple[np.ndarray, int]:
         """The local step of ``dt`` of the columns thicker than ``dry`` holding ``solid`` at
         the thickness ``h`` (dilated in place) from the velocities ``ustar``, the Newton
         iteration started from ``guess`` and ``pressure_guess``, stopped by a start of the
-        columns ``watch`` (:meth:`LocalStep.__call__`)."""
+        columns ``watch`` (:meth:`LocalStep.__call__`), a relaxing pore pressure from ``previous``."""
         self._before = self._solid
         self._transported = h.copy()
         u = np.zeros_like(ustar)
@@ -209,6 +223,7 @@ class MixtureFlow:
                     x=self.x[wet],
                     t=t,
                     watch=None if watch is None else watch[wet],
+                    previous=None if previous is None else previous[:, wet],
                 )
             u[:, wet], h[wet], pressure[:, wet] = result.u, result.h, result.pore_pressure
             iterations = result.iterations

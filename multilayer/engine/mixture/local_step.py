@@ -221,6 +221,7 @@ class LocalStep:
         self.rho_s, self.rho_f = material.particle_density, config.fluid_density
         self.buoyant_g_n = (self.rho_s - self.rho_f) * g_n
         self.tolerance, self.max_iterations = tolerance, max_iterations
+        self.compressibility = config.compressibility
 
     def masses(self, solid: np.ndarray, h: np.ndarray) -> np.ndarray:
         """``rho_s s_a + rho_f (l_a h - s_a)`` (kg/m^2): the layer masses at thickness ``h``."""
@@ -232,7 +233,12 @@ class LocalStep:
         return darcy_drag(self.config.kozeny, self.config.fluid_viscosity, self.material.grain_diameter, phi)
 
     def closure(
-        self, solid: np.ndarray, h: np.ndarray, v: np.ndarray
+        self,
+        solid: np.ndarray,
+        h: np.ndarray,
+        v: np.ndarray,
+        previous: np.ndarray | None = None,
+        lag: float = 0.0,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The closure of columns of thickness ``h`` (n,) moving with the layer velocities
         ``v`` (L, n), solved exactly: the shear rates, the effective pressures, the dilation
@@ -243,15 +249,26 @@ class LocalStep:
         p_s,b`` with ``C_b = K K2 eta_f gamma_b^2``: the effective pressures solve
         ``p_s = P + M Phi(p_s)``, for one layer the quadratic of the uniform layer (whose
         non-negative root starts the iteration), for several a Newton iteration that keeps
-        ``p_s > 0`` where ``C > 0`` (the system's map is decreasing in ``p_s``: one root)."""
+        ``p_s > 0`` where ``C > 0`` (the system's map is decreasing in ``p_s``: one root).
+
+        With ``previous`` (1, n) (one layer, a compressibility) the pore pressure is a
+        backward-Euler step of its relaxation from ``previous``, ``alpha (p_e - previous) / dt =
+        -p_e / M - Phi`` with ``lag = alpha / dt``: the quadratic with ``M`` divided by ``1 + r``
+        and ``P`` lowered by ``r previous / (1 + r)``, ``r = lag M`` (as
+        :func:`multilayer.engine.mixture.closure.basal_closure`)."""
         cfg, L = self.config, self.l.shape[0]
         phi = solid / (self.l * h)
         gamma = np.abs(np.diff(v, axis=0, prepend=0.0)) / (self.spacing * h)
         weight = self.buoyant_g_n * np.cumsum(solid[::-1], axis=0)[::-1]
         M = self.darcy(solid, h)
+        base = weight
+        if previous is not None:
+            ratio = lag * M[0, 0]
+            M = M / (1.0 + ratio)
+            base = weight - previous * ratio / (1.0 + ratio)
         linear = gamma * cfg.dilatancy * (phi - cfg.phi_critical)
         C = cfg.dilatancy * cfg.critical_shift * cfg.fluid_viscosity * gamma * gamma
-        A = weight + np.einsum("abn,bn->an", M, linear)
+        A = base + np.einsum("abn,bn->an", M, linear)
         diagonal = np.einsum("aan->an", M)
         root = np.sqrt(A * A + 4.0 * diagonal * C)
         positive = np.where(
@@ -330,12 +347,14 @@ class LocalStep:
         t: float = 0.0,
         substeps: int = 1,
         watch: np.ndarray | None = None,
+        previous: np.ndarray | None = None,
     ) -> LocalResult:
         """The step of columns holding ``solid`` (L, n) after transport to ``h_star`` (n,),
         velocities ``ustar`` (L, n) (the buoyant weight along the slope included), the
         iteration started from the velocities ``guess`` and the excess pore pressures
         ``pressure_guess`` (default: at rest); ``x`` (n,) and ``t`` place the columns in
-        the messages of the checked plugin calls.
+        the messages of the checked plugin calls.  With a compressibility, ``previous`` (1, n)
+        is the pore pressure the relaxation starts from (:meth:`closure`).
 
         The step is ``substeps`` successive backward-Euler steps of ``dt / substeps`` (one
         by default), each from the state the one before reached (its velocities, thickness
@@ -358,6 +377,7 @@ class LocalStep:
         u, h = ustar.copy(), h_star.copy()
         velocities = np.zeros_like(ustar) if guess is None else guess.copy()
         pressure = np.zeros_like(ustar) if pressure_guess is None else pressure_guess.copy()
+        start_pressure = None if previous is None else previous.copy()
         going, iterations = np.arange(n), 0
         failed, diverged = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
         closure_error: RunError | None = None
@@ -367,12 +387,15 @@ class LocalStep:
             result, converged, burst, error = self._newton(
                 solid[:, going], h[going], u[:, going], dt / substeps, velocities[:, going],
                 pressure[:, going], where[going], t + j * (dt / substeps), watch if j == 0 else None,
+                None if start_pressure is None else start_pressure[:, going],
             )  # fmt: skip
             iterations += result.iterations
             done = going[converged]
             u[:, done], h[done] = result.u[:, converged], result.h[converged]
             pressure[:, done] = result.pore_pressure[:, converged]
             velocities[:, done] = u[:, done]
+            if start_pressure is not None:
+                start_pressure[:, done] = pressure[:, done]
             failed[going[~converged]], diverged[going[burst]] = True, True
             closure_error = error or closure_error
             going = done
@@ -383,8 +406,9 @@ class LocalStep:
         if k.size:
             start = (None if given is None else given[:, k] for given in (guess, pressure_guess))
             again = self(
-                solid[:, k], h_star[k], ustar[:, k], dt, *start, x=where[k], t=t, substeps=2 * substeps
-            )
+                solid[:, k], h_star[k], ustar[:, k], dt, *start, x=where[k], t=t, substeps=2 * substeps,
+                previous=None if previous is None else previous[:, k],
+            )  # fmt: skip
             u[:, k], h[k], pressure[:, k] = again.u, again.h, again.pore_pressure
             iterations += again.iterations
         return LocalResult(u, h, pressure, iterations)
@@ -416,6 +440,7 @@ class LocalStep:
         where: np.ndarray,
         t: float,
         watch: np.ndarray | None = None,
+        previous: np.ndarray | None = None,
     ) -> tuple[LocalResult, np.ndarray, np.ndarray, RunError | None]:
         """One backward-Euler step of ``dt`` of the columns (the arguments of
         :meth:`__call__`; ``watch``: see there): its result, where it converged, where it
@@ -434,7 +459,11 @@ class LocalStep:
         next trial, with a backtracking line search per column.  Where the line search
         finds no descent (at the onset of a contracting packing ``R`` has a kink where the
         column starts moving; a flowing branch can end in a fold), the pore pressures are
-        bracketed one by one (:meth:`_bisect`) and the iteration goes on from there."""
+        bracketed one by one (:meth:`_bisect`) and the iteration goes on from there.
+
+        With ``previous`` (a relaxing pore pressure) a column whose velocity guess is zero
+        starts from its rest state, the pore pressure ``previous`` relaxes to at rest
+        (:meth:`closure` at zero velocity), where a column that holds has converged exactly."""
         L, n = ustar.shape
         m_before = self.masses(solid, h_star)
         momentum = m_before * ustar
@@ -477,7 +506,9 @@ class LocalStep:
             v = solve(problem, velocities[:, k])
             try:  # a trial state may overflow the closure: _finite and the residual check it
                 with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
-                    rates, _, dilation, pressure = self.closure(s, h, v)
+                    rates, _, dilation, pressure = self.closure(
+                        s, h, v, None if previous is None else previous[:, k], lag
+                    )
             except RunError as error:  # at a trial state: the run stopped here before sub-steps
                 if k.size > 1:
                     return Evaluation.join([evaluate(X[:, [c]], k[[c]]) for c in range(k.size)])
@@ -490,6 +521,11 @@ class LocalStep:
             residual = np.where(np.isfinite(residual), residual, np.inf)
             return Evaluation(v, rates, pressure, h_new, residual, np.abs(residual).max(axis=0))
 
+        lag = 0.0
+        if previous is not None:
+            lag = self.compressibility / dt if self.compressibility is not None else 0.0
+            rest = self.closure(solid, h_star, np.zeros_like(ustar), previous, lag)[3]
+            pressure_guess = np.where(np.any(guess != 0.0, axis=0), pressure_guess, rest)
         X = np.concatenate([pressure_guess, h_star[None, :]])
         now = evaluate(X, np.arange(n))
         if watch is not None and np.any(now.v[:, watch]):  # a watched column starts: the step stops

@@ -42,19 +42,13 @@ def transport(
     """The solid per layer ``s_a`` (L, N) after the transport step from ``h_old`` to
     ``h_new`` (velocities ``u`` (L, N) at its start, ``crossed`` (2,) the mixture volume
     through the end faces), and the solid through the two end faces (2,), positive in +x."""
-    L, N = solid.shape
     l = fractions[:, None]
-    volumes = face_volumes(h_old, h_new, float(crossed[0]), dx)
     wet = h_old > 0.0
     phi = np.where(wet, solid / np.where(wet, l * h_old, 1.0), 0.0)
     speed = l * np.abs(u)
     discharge = speed.sum(axis=0)
     share = np.where(discharge > 0.0, speed / np.where(discharge > 0.0, discharge, 1.0), l)
-    # upwind cell of each face (the boundary faces: the wrapped or the boundary cell)
-    west = np.arange(-1, N) % N if periodic else np.concatenate([[0], np.arange(N)])
-    east = np.arange(N + 1) % N if periodic else np.concatenate([np.arange(N), [N - 1]])
-    donor = np.where(volumes > 0.0, west, east)
-    phi = _filled(phi, wet, volumes)
+    volumes, donor, phi = _upwind(phi, h_old, h_new, crossed, dx, periodic)
     layer_volumes = share[:, donor] * volumes
     solid_fluxes = phi[:, donor] * layer_volumes
     new = solid - np.diff(solid_fluxes, axis=1) / dx
@@ -68,6 +62,33 @@ def transport(
     _share_excess(new, l * h_new)
     ends = np.array([solid_fluxes[:, 0].sum(), solid_fluxes[:, -1].sum()])
     return new, ends
+
+
+def carried(
+    values: np.ndarray, h_old: np.ndarray, h_new: np.ndarray, crossed: np.ndarray, dx: float, periodic: bool
+) -> np.ndarray:
+    """A quantity per column ``values`` (1, N) carried by the mixture volume over the
+    transport step from ``h_old`` to ``h_new``, as the solid fraction of one layer: the
+    content ``values h`` crosses each face with the value of its upwind cell (0 where
+    ``h_new`` is 0)."""
+    volumes, donor, filled = _upwind(values, h_old, h_new, crossed, dx, periodic)
+    content = values * h_old - np.diff(filled[:, donor] * volumes, axis=1) / dx
+    wet = h_new > 0.0
+    return np.where(wet, content / np.where(wet, h_new, 1.0), 0.0)
+
+
+def _upwind(
+    values: np.ndarray, h_old: np.ndarray, h_new: np.ndarray, crossed: np.ndarray, dx: float, periodic: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The mixture volume through each face (:func:`face_volumes`), the upwind cell of
+    each face (at the boundary faces the wrapped or the boundary cell) and ``values``
+    (L, N) with the columns dry at the start filled (:func:`_filled`)."""
+    N = h_old.size
+    volumes = face_volumes(h_old, h_new, float(crossed[0]), dx)
+    west = np.arange(-1, N) % N if periodic else np.concatenate([[0], np.arange(N)])
+    east = np.arange(N + 1) % N if periodic else np.concatenate([np.arange(N), [N - 1]])
+    donor = np.where(volumes > 0.0, west, east)
+    return volumes, donor, _filled(values, h_old > 0.0, volumes)
 
 
 def _share_excess(solid: np.ndarray, room: np.ndarray) -> None:

@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import brentq
 
-from multilayer.engine.mixture.closure import BasalClosure, MixtureMaterial, basal_closure
+from multilayer.engine.mixture.closure import BasalClosure, MixtureMaterial, basal_closure, closure_at
 from multilayer.errors import InputError, RunError
 
 GRAVITY = 9.81
@@ -55,13 +55,16 @@ FD_STEP = 1e-7
 @dataclass(frozen=True)
 class LayerState:
     """State of the uniform layer: time, thickness ``h`` (m), solid and fluid velocities
-    ``v``, ``u`` (m/s, downslope) and the distance ``x`` (m) the grains have travelled."""
+    ``v``, ``u`` (m/s, downslope), the distance ``x`` (m) the grains have travelled and,
+    with a compressibility, the basal excess pore pressure ``p_e`` (Pa; without one it is
+    the closure's and this field is not used)."""
 
     t: float
     h: float
     v: float
     u: float
     x: float = 0.0
+    p_e: float = 0.0  # excess pore pressure at the bed (Pa): a state with a compressibility
 
 
 @dataclass(frozen=True)
@@ -81,7 +84,13 @@ class Trajectory:
 @dataclass(frozen=True)
 class UniformLayer:
     """A layer of thickness ``h0`` and volume fraction ``phi0`` at rest on a plane tilted at
-    ``slope_deg``; ``k_b`` (Pa s/m) is the Navier friction of the pore fluid on the bed."""
+    ``slope_deg``; ``k_b`` (Pa s/m) is the Navier friction of the pore fluid on the bed.
+
+    ``compressibility`` ``alpha`` (1/Pa), if given, makes the basal excess pore pressure a
+    state that relaxes to the closure's value, ``alpha d_t p_e = -p_e / B - Phi`` with
+    ``B = beta h^2 / (2 (1 - phi)^2)``, over ``t_IG = alpha B`` (the pressure equation of
+    George & Iverson 2014, Proc. R. Soc. A 470, 20130819, as compared by Bouchut et al.
+    2016); ``None`` is the closure of Bouchut et al. (2016), ``p_e = -B Phi`` at once."""
 
     material: MixtureMaterial
     slope_deg: float
@@ -89,12 +98,20 @@ class UniformLayer:
     phi0: float
     k_b: float = 0.0
     gravity: float = GRAVITY
+    compressibility: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("slope_deg", "h0", "phi0", "k_b", "gravity"):
             value = getattr(self, name)
             if not isinstance(value, int | float) or not math.isfinite(value):
                 raise InputError(f"uniform layer: {name} = {value!r} is not a finite number")
+        alpha = self.compressibility
+        if alpha is not None and not (
+            isinstance(alpha, int | float) and math.isfinite(alpha) and alpha > 0.0
+        ):
+            raise InputError(
+                f"uniform layer: compressibility = {alpha!r}; accepted: a finite number > 0 (1/Pa)"
+            )
         checks = (
             (0.0 <= self.slope_deg < 90.0, "slope_deg", "in [0, 90) (degrees)"),
             (self.h0 > 0.0, "h0", "> 0 (m)"),
@@ -131,9 +148,27 @@ class UniformLayer:
         """The layer at rest, ``t = 0``."""
         return LayerState(0.0, self.h0, 0.0, 0.0, 0.0)
 
-    def closure(self, h: float, v: float) -> BasalClosure:
-        """The dilatancy closure of the layer at thickness ``h`` and solid velocity ``v``."""
-        return basal_closure(self.material, self.solid, self.weight, h, abs(v))
+    def closure(self, h: float, v: float, lag: float = 0.0, previous: float = 0.0) -> BasalClosure:
+        """The dilatancy closure of the layer at thickness ``h`` and solid velocity ``v``; with
+        ``lag = alpha / dt``, a backward-Euler step of its relaxation from ``previous``
+        (:func:`~multilayer.engine.mixture.closure.basal_closure`)."""
+        return basal_closure(self.material, self.solid, self.weight, h, abs(v), lag, previous)
+
+    def state_closure(self, s: LayerState) -> BasalClosure:
+        """The closure in the state ``s``: at its pore pressure ``s.p_e`` with a compressibility."""
+        if self.compressibility is None:
+            return self.closure(s.h, s.v)
+        mat, phi = self.material, self.solid / s.h
+        return closure_at(mat, phi, 3.0 * abs(s.v) / s.h, mat.drag(phi), self.weight, self.weight - s.p_e)
+
+    def relaxation_time(self, h: float) -> float:
+        """``t_IG = alpha beta h^2 / (2 (1 - phi)^2)`` (s) at thickness ``h`` (0 without a
+        compressibility): Bouchut et al. (2016)'s time of the pore pressure of George &
+        Iverson (2014)."""
+        if self.compressibility is None:
+            return 0.0
+        phi = self.solid / h
+        return self.compressibility * 0.5 * self.material.drag(phi) * h * h / (1.0 - phi) ** 2
 
     def held_at_rest(self, h: float | None = None) -> bool:
         """Whether the layer of thickness ``h`` (default ``h0``) at rest stays at rest:
@@ -144,11 +179,13 @@ class UniformLayer:
     # ------------------------------------------------------------------ the model
 
     def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
-        """``d/dt (h, v, u, x)``: the model as an ODE (for a reference solver).  At ``v = 0``
-        the Coulomb force is the multivalued one: zero acceleration while the force stays
-        within the threshold."""
+        """``d/dt (h, v, u, x)`` (and ``p_e`` with a compressibility): the model as an ODE
+        (for a reference solver).  At ``v = 0`` the Coulomb force is the multivalued one:
+        zero acceleration while the force stays within the threshold."""
         h, v, u = float(y[0]), float(y[1]), float(y[2])
-        mat, cl = self.material, self.closure(h, v)
+        mat = self.material
+        relaxed = self.compressibility is not None
+        cl = self.state_closure(LayerState(t, h, v, u, 0.0, float(y[4]))) if relaxed else self.closure(h, v)
         force = self.drive + cl.beta * h * (u - v)
         if v != 0.0:
             force -= math.copysign(cl.tau_b, v)
@@ -160,15 +197,23 @@ class UniformLayer:
         du = 0.0
         if fluid_mass > 0.0:
             du = (-(0.5 * mat.rho_f * h * cl.dilation + self.k_b) * u - cl.beta * h * (u - v)) / fluid_mass
-        return np.array([h * cl.dilation, force / (mat.rho_s * self.solid), du, v])
+        rates = [h * cl.dilation, force / (mat.rho_s * self.solid), du, v]
+        if relaxed:  # alpha d_t p_e = -p_e / B - Phi
+            B = 0.5 * cl.beta * h * h / (1.0 - cl.phi) ** 2
+            rates.append(-(cl.p_e + B * cl.dilation) / self.relaxation_time(h))
+        return np.array(rates)
 
     def energy(self, s: LayerState) -> float:
         """``E = rho_s M v^2/2 + rho_f (h - M) u^2/2 + P h/2 - F x`` (J/m2): kinetic energy of
         both phases, potential energy of the buoyant grains (centre at ``h/2``) and the work
-        of the downslope weight.  ``d_t E = -dissipation <= 0`` (docs/mixture.md)."""
+        of the downslope weight.  ``d_t E = -dissipation <= 0`` (docs/mixture.md).  With a
+        compressibility, plus the energy stored in the compressed pores, ``alpha h p_e^2 / 6``."""
         mat = self.material
         kinetic = 0.5 * mat.rho_s * self.solid * s.v**2 + 0.5 * mat.rho_f * (s.h - self.solid) * s.u**2
-        return kinetic + 0.5 * self.weight * s.h - self.drive * s.x
+        energy = kinetic + 0.5 * self.weight * s.h - self.drive * s.x
+        if self.compressibility is not None:
+            energy += self.compressibility * s.h * s.p_e**2 / 6.0
+        return energy
 
     def dissipation(self, s: LayerState) -> float:
         """``D = -d_t E`` (W/m2): Coulomb and viscous friction, drag, fluid friction on the bed,
@@ -178,9 +223,15 @@ class UniformLayer:
         ``D = tan(delta) p_s |v| + K1 eta_f gamma |v| + beta h (u - v)^2 + k_b u^2
         + 3 beta h v^2 tan(psi)^2 / (2 (1 - phi)^2) - P |v| tan(psi) / 2``,
 
-        non-negative whenever ``tan(delta) p_s >= P tan(psi) / 2``."""
-        mat, cl, speed = self.material, self.closure(s.h, s.v), abs(s.v)
-        darcy = 1.5 * cl.beta * s.h * s.v**2 * cl.tan_psi**2 / (1.0 - cl.phi) ** 2
+        non-negative whenever ``tan(delta) p_s >= P tan(psi) / 2``.  With a compressibility the
+        Darcy term is ``h p_e^2 / (3 B) - alpha h Phi p_e^2 / 6`` at the state's ``p_e`` (equal to the
+        one above at ``p_e = -B Phi``)."""
+        mat, cl, speed = self.material, self.state_closure(s), abs(s.v)
+        if self.compressibility is None:
+            darcy = 1.5 * cl.beta * s.h * s.v**2 * cl.tan_psi**2 / (1.0 - cl.phi) ** 2
+        else:
+            B = 0.5 * cl.beta * s.h**2 / (1.0 - cl.phi) ** 2
+            darcy = s.h * s.p_e**2 * (1.0 / (3.0 * B) - self.compressibility * cl.dilation / 6.0)
         return (
             mat.tan_delta * cl.p_s * speed
             + mat.K1 * mat.eta_f * cl.gamma * speed
@@ -198,8 +249,12 @@ class UniformLayer:
             raise RunError(f"uniform layer: the time step dt = {dt!r} is not a finite number > 0")
         # held (v == 0.0, no dilation, h kept) iff within the static threshold, which is
         # negative for a packing looser than phi_c - tan(delta)/K: such a layer cannot rest
-        threshold = self.material.static_friction(self.solid / s.h) * self.weight
+        # (with a compressibility, at the effective pressure the pore pressure relaxing at rest leaves)
         step = _Step(self, s, dt)
+        if step.lag > 0.0:
+            threshold = step.closure(s.h, 0.0).tau_b
+        else:
+            threshold = self.material.static_friction(self.solid / s.h) * self.weight
         rhs = step.at(s.h)[1]
         if abs(rhs) <= dt * threshold:
             h_new, v_new = s.h, 0.0
@@ -208,7 +263,8 @@ class UniformLayer:
             h_new, speed = step.solve_moving()
             v_new = step.sign * speed
         u_new = step.fluid_velocity(h_new, v_new)
-        new = LayerState(s.t + dt, h_new, v_new, u_new, s.x + dt * v_new)
+        p_e = step.closure(h_new, v_new).p_e if step.lag > 0.0 else 0.0
+        new = LayerState(s.t + dt, h_new, v_new, u_new, s.x + dt * v_new, p_e)
         if not all(math.isfinite(q) for q in (new.h, new.v, new.u, new.x)) or new.h <= self.solid:
             raise RunError(
                 f"uniform layer: impossible state at t = {new.t!r}: h = {new.h!r} (must exceed "
@@ -232,7 +288,7 @@ class UniformLayer:
             u=np.array([q.u for q in states]),
             x=np.array([q.x for q in states]),
             phi=self.solid / h,
-            p_e=np.array([self.closure(q.h, q.v).p_e for q in states]),
+            p_e=np.array([self.state_closure(q).p_e for q in states]),
             energy=np.array([self.energy(q) for q in states]),
         )
 
@@ -262,6 +318,7 @@ class _Step:
         mat = layer.material
         self.layer, self.s, self.dt = layer, s, dt
         self.sign = 1.0
+        self.lag = 0.0 if layer.compressibility is None else layer.compressibility / dt
         self.solid_mass = mat.rho_s * layer.solid
         self.fluid_mass = mat.rho_f * (s.h - layer.solid)
 
@@ -287,9 +344,14 @@ class _Step:
         denominator, coupling, _ = self._fluid(h)
         return (self.fluid_mass * self.s.u + coupling * v) / denominator if denominator > 0.0 else 0.0
 
+    def closure(self, h: float, w: float) -> BasalClosure:
+        """The closure at ``h' = h``, ``|v'| = w`` (with a compressibility, the pore pressure of
+        the step's relaxation from ``p_e``)."""
+        return self.layer.closure(h, w, self.lag, self.s.p_e)
+
     def residual(self, h: float, w: float) -> tuple[float, float, float]:
         """``(G1, G2, scale of G2)`` at ``h' = h``, ``|v'| = w``."""
-        cl = self.layer.closure(h, w)
+        cl = self.closure(h, w)
         mass, rhs = self.at(h)
         return (
             h - self.s.h - self.dt * h * cl.dilation,
@@ -303,7 +365,7 @@ class _Step:
         :meth:`solve_bracketed` if it fails."""
         h0, layer = self.s.h, self.layer
         mass, rhs = self.at(h0)
-        guess = (self.sign * rhs - self.dt * layer.closure(h0, 0.0).tau_b) / mass  # > 0: not held
+        guess = (self.sign * rhs - self.dt * self.closure(h0, 0.0).tau_b) / mass  # > 0: not held
         h, w = h0, (abs(self.s.v) if self.s.v * self.sign > 0.0 else guess)
 
         def norm(r: tuple[float, float, float], w: float) -> float:

@@ -163,10 +163,11 @@ def step_errors(
 ) -> list[float]:
     """For each number of steps, the largest error of the backward-Euler run against the
     Radau IIA solution (``rtol`` :data:`ODE_RTOL`) at :data:`ODE_SAMPLES` equal intervals:
-    of ``v`` relative to its largest value, of ``h`` relative to ``h0``."""
+    of ``v`` relative to its largest value, of ``h`` relative to ``h0``, of a relaxing ``p_e``
+    relative to the buoyant weight."""
     times = np.linspace(0.0, t_end, ODE_SAMPLES + 1)
     ref = reference_solution(layer, times, rtol=ODE_RTOL)
-    scale = {"h": (0, layer.h0), "v": (1, float(np.max(np.abs(ref[:, 1]))))}
+    scale = {"h": (0, layer.h0), "v": (1, float(np.max(np.abs(ref[:, 1])))), "p_e": (4, layer.weight)}
     errors = []
     for n in steps:
         run = layer.run(t_end, t_end / n)
