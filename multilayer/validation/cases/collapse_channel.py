@@ -4,12 +4,14 @@ run-out laws of the glass beads (``data/collapse_runout_2d_alternative.yaml``) a
 grains (``data/collapse_runout_2d.yaml``).
 
 Runs: ``column_collapse_channel.yaml`` at a = :data:`RATIOS` with cells of :data:`CELLS`
-(L0/12.5 to L0/100).  Measures (``multilayer.io.observables``): the deposit tip 3 grain
-diameters above the bed and the 95 %-mass front; the duration by the front speed falling
-below 1 cm/s for good and by the time to 95 % of the run-out, over sqrt(H0/g).  Criterion
-per a: the run-out on the finest mesh within :data:`BAND` of the glass beads' law, the mesh change to
-it from the next coarser mesh smaller than the distance to the band's edge (so that the
-verdict would not change with the mesh).
+(L0/12.5 to L0/100); the time-step study: ``time.cfl`` = :data:`STEP_CFLS` on
+:data:`OTHER_CELLS`, and the mesh study again at :data:`STEP_CFL` on :data:`STEP_CELLS`.
+Measures (``multilayer.io.observables``): the deposit tip 3 grain diameters above the bed
+and the 95 %-mass front; the duration by the front speed falling below 1 cm/s for good and
+by the time to 95 % of the run-out, over sqrt(H0/g).  Criterion per a: the run-out on the
+finest mesh within :data:`BAND` of the glass beads' law, the mesh change to it from the next
+coarser mesh smaller than the distance to the band's edge (so that the verdict would not
+change with the mesh).
 """
 
 from __future__ import annotations
@@ -62,7 +64,15 @@ other collapse scenarios, a constant friction at their avalanche angle (the fric
 reproduces collapse experiments, Rousseau et al. 2023, J. Fluid Mech., abstract), and the
 hydrostatic pressure."""
 OTHER_CELLS = 1e-3
-"""The cell size (m) of the other configurations."""
+"""The cell size (m) of the other configurations and of the time-step study."""
+STEP_CFLS = (0.45, 0.2, 0.1, 0.05)
+"""Courant numbers (``time.cfl``) of the time-step study on :data:`OTHER_CELLS`: the shipped
+0.45 down to 0.05 (the time step is proportional to it)."""
+STEP_CFL = STEP_CFLS[-2]
+"""The Courant number of the mesh study at a shorter step, the second smallest of
+:data:`STEP_CFLS` (the smallest tells how far it is from converged)."""
+STEP_CELLS = CELLS[1:]
+"""The mesh study (m) at :data:`STEP_CFL`: the three finest meshes."""
 STRESSED = "normal_stress"
 """The name of the recommended configuration with the longitudinal normal stress of the mu(I)
 tensor law at the mean pressure (``model.normal_stress``, docs/model.md)."""
@@ -128,11 +138,15 @@ def end_time(a: float, other: str | None = None) -> float:
     return max(least, math.ceil(600 * math.sqrt(a * L0 / 9.81)) / 100)
 
 
-def run(a: float, dx: float, other: str | None = None) -> Run:
-    """The run at aspect ratio ``a`` with cells ``dx``, with the changes of ``OTHERS[other]``."""
+def run(a: float, dx: float, other: str | None = None, cfl: float | None = None) -> Run:
+    """The run at aspect ratio ``a`` with cells ``dx``, with the changes of ``OTHERS[other]``,
+    at Courant number ``cfl`` (the scenario's if None)."""
     extra = () if other is None else ("model.normal_stress=true",) if other == STRESSED else OTHERS[other][1]
+    step = () if cfl is None else (f"time.cfl={cfl:g}",)
     return Run(
-        f"channel_a{a:g}_dx{dx * 1e3:g}mm" + ("" if other is None else f"_{other}"),
+        f"channel_a{a:g}_dx{dx * 1e3:g}mm"
+        + ("" if other is None else f"_{other}")
+        + ("" if cfl is None else f"_cfl{cfl:g}"),
         SCENARIO,
         (
             f"initial.0.height={a * L0:g}",
@@ -141,6 +155,7 @@ def run(a: float, dx: float, other: str | None = None) -> Run:
             f"time.end={end_time(a, other):g}",
             "time.output_interval=0.01",
             *extra,
+            *step,
         ),
     )
 
@@ -275,7 +290,12 @@ def section(ctx: Context) -> str:
     stressed_runs = {(a, dx): run(a, dx, STRESSED) for dx in STRESSED_CELLS[::-1] for a in RATIOS[::-1]}
     others = {(a, key): run(a, OTHER_CELLS, key) for key in OTHERS for a in RATIOS}
     gates = {(GATE_RATIO, dx, v): gate_run(dx, v) for dx in CELLS[1:] for v in GATE_SPEEDS}
-    results = ctx.execute([*stressed_runs.values(), *runs.values(), *others.values(), *gates.values()])
+    # the time-step study: shorter steps on the other configurations' mesh, and the three finest
+    # meshes at the shortest (the run on both is listed once)
+    stepped = {(a, cfl): run(a, OTHER_CELLS, cfl=cfl) for cfl in STEP_CFLS[1:] for a in RATIOS}
+    short_runs = {(a, dx): run(a, dx, cfl=STEP_CFL) for dx in STEP_CELLS[::-1] for a in RATIOS[::-1]}
+    every = [*short_runs.values(), *stressed_runs.values(), *runs.values(), *others.values(), *gates.values()]
+    results = ctx.execute(list({r.name: r for r in [*every, *stepped.values()]}.values()))
     failures: list[str] = []
     meshes = deposits(results, runs, grain, gravity, failures)
     measured: dict[float, dict[float, Deposit]] = {a: {} for a in RATIOS}
@@ -287,6 +307,12 @@ def section(ctx: Context) -> str:
     other: dict[str, dict[float, Deposit]] = {key: {} for key in OTHERS}
     for (a, key), d in deposits(results, others, grain, gravity, failures).items():
         other[key][a] = d
+    by_step: dict[float, dict[float, Deposit]] = {a: {} for a in RATIOS}
+    for (a, cfl), d in deposits(results, stepped, grain, gravity, failures).items():
+        by_step[a][cfl] = d
+    short: dict[float, dict[float, Deposit]] = {a: {} for a in RATIOS}
+    for (a, dx), d in deposits(results, short_runs, grain, gravity, failures).items():
+        short[a][dx] = d
     gated: dict[tuple[float, float], Deposit] = {
         (key[1], key[2]): d for key, d in deposits(results, gates, grain, gravity, failures).items()
     }
@@ -419,7 +445,80 @@ def section(ctx: Context) -> str:
     source = published.source("collapse_runout_2d.yaml")
     alternative = published.source("collapse_runout_2d_alternative.yaml")
     duration = published.source("collapse_duration_2d.yaml")
-    failed = ("  Failed runs: " + "; ".join(failures) + ".") if failures else ""
+    failed = ("  Failed runs: " + "; ".join(dict.fromkeys(failures)) + ".") if failures else ""
+    for a, d in alike.items():
+        by_step[a][STEP_CFLS[0]] = d
+    stepped_complete = [a for a in RATIOS if len(by_step[a]) == len(STEP_CFLS)]
+    step_rows = []
+    last_steps: dict[float, float] = {}
+    for a in stepped_complete:
+        tips = [by_step[a][cfl].tip for cfl in STEP_CFLS]
+        masses = [by_step[a][cfl].mass for cfl in STEP_CFLS]
+        last_steps[a] = tips[-1] / tips[-2] - 1.0
+        step_rows.append(
+            [
+                f"{a:g}",
+                f"{law(a, LAWS[REFERENCE]):.2f}",
+                ", ".join(f"{t:.2f}" for t in tips),
+                f"{tips[-1] / tips[0] - 1.0:+.1%}",
+                f"{last_steps[a]:+.1%}",
+                ", ".join(f"{m:.2f}" for m in masses),
+                f"{masses[-1] / masses[-2] - 1.0:+.1%}",
+            ]
+        )
+    step_header = [
+        "a",
+        "law B",
+        "tip run-out, time.cfl = " + ", ".join(f"{c:g}" for c in STEP_CFLS),
+        f"tip change {STEP_CFLS[0]:g} -> {STEP_CFLS[-1]:g}",
+        f"tip change {STEP_CFLS[-2]:g} -> {STEP_CFLS[-1]:g}",
+        "95 %-mass run-out",
+        f"95 % change {STEP_CFLS[-2]:g} -> {STEP_CFLS[-1]:g}",
+    ]
+    # the verdict does not depend on the step when the last halving moves the tip by less than
+    # the distance to the band's edge, as for the mesh (:func:`verdict`)
+    step_settled = [
+        a
+        for a in stepped_complete
+        if abs(by_step[a][STEP_CFLS[-1]].tip - by_step[a][STEP_CFL].tip) / law(a, LAWS[REFERENCE])
+        < abs(BAND - abs(by_step[a][STEP_CFL].tip / law(a, LAWS[REFERENCE]) - 1.0))
+    ]
+    whole_step = ", ".join(
+        f"{by_step[a][STEP_CFLS[-1]].tip / by_step[a][STEP_CFLS[0]].tip - 1:+.1%}" for a in stepped_complete
+    )
+    short_complete = [a for a in RATIOS if len(short[a]) == len(STEP_CELLS)]
+    short_rows, short_verdicts = study_rows(short, short_complete, STEP_CELLS)
+    n_short = sum(1 for within, _ in short_verdicts.values() if within)
+    short_finest = {a: short[a][STEP_CELLS[-1]] for a in short_complete}
+    short_ratios = [short_finest[a].tip / law(a, LAWS[REFERENCE]) for a in short_complete]
+    short_mass = [short_finest[a].mass / law(a, LAWS[REFERENCE]) for a in short_complete]
+    short_changes = [
+        short[a][STEP_CELLS[-1]].tip / short[a][STEP_CELLS[-2]].tip - 1.0 for a in short_complete
+    ]
+    short_speeds = [d.speed for a in short_complete for d in short[a].values()]
+    short_list = ", ".join(f"a = {a:g} {met(short_verdicts[a][0])}" for a in short_complete)
+    unsettled = [a for a in stepped_complete if a not in step_settled]
+    # where the tip still moves by more than 2 % at the last halving, set beside the mass front
+    restless = [a for a in stepped_complete if abs(last_steps[a]) > 0.02]
+    mass_steps = {a: by_step[a][STEP_CFLS[-1]].mass / by_step[a][STEP_CFL].mass - 1 for a in restless}
+    restless_text = (
+        "  Where the tip still moves by more than 2 % at the last halving (a = "
+        + ", ".join(f"{a:g}" for a in restless)
+        + ": "
+        + ", ".join(f"{100 * last_steps[a]:+.1f} %" for a in restless)
+        + "), the 95 %-mass front moves by "
+        + ", ".join(f"{100 * mass_steps[a]:+.1f} %" for a in restless)
+        + ": the tip, on the thin edge of the deposit, is the measure that depends on how the steps fall."
+        if restless
+        else ""
+    )
+    step_text = (
+        "on these cells no verdict would change with a shorter step (each change smaller than "
+        "the distance to the band's edge)"
+        if not unsettled
+        else "on these cells a verdict could still change with a shorter step at a = "
+        + ", ".join(f"{a:g}" for a in unsettled)
+    )
     growing = [a for a in complete if fine_changes[a] > 0.05]
     release_text = (
         f"""- **The release.**  Where the tip still moves by more than 5 % between the two finest meshes
@@ -593,13 +692,38 @@ What the runs show about why:
   end at 14.97 (0.5 mm, without the option), 16.78 and 18.28 (1 mm, without and with it)
   instead of 16.99, 16.50 and 17.83, and the 0.5 mm run with the option ends at 16.53 (+10 %
   over 14.97).
-- **The time step.**  These run-outs are at the shipped `time.cfl` and are not converged in
-  the time step: the approximate projection of the cell velocities on the non-hydrostatic
-  constraint loses a little kinetic energy at every step, not per unit time, so the tall
-  columns' tip moves with the Courant number ([Non-hydrostatic pressure](nonhydrostatic.md),
-  "The pressure: the projection of the update"), and part of the shortening the
-  non-hydrostatic pressure brings over the hydrostatic one is that loss.
+- **The time step.**  These run-outs are at the scenario's `time.cfl` ({STEP_CFLS[0]:g}), and at that
+  step they are not converged in it: the approximate projection of the cell velocities on the
+  non-hydrostatic constraint loses a little kinetic energy at every step, not per unit time,
+  so the tip moves with the Courant number ([Non-hydrostatic pressure](nonhydrostatic.md),
+  "The pressure: the projection of the update"): from `time.cfl` {STEP_CFLS[0]:g} to {STEP_CFLS[-1]:g}
+  on {OTHER_CELLS * 1e3:g} mm cells by {whole_step}
+  (a = {", ".join(f"{a:g}" for a in stepped_complete)}; subsection "The time step" below, with the
+  verdict at the shorter step).  Part of the shortening the non-hydrostatic pressure brings over
+  the hydrostatic one is that loss.
 {release_text}{gate_text}{coarse_text}
+
+### The time step
+
+The runs above take the scenario's Courant number, `time.cfl` = {STEP_CFLS[0]:g}.  The same
+configuration on {OTHER_CELLS * 1e3:g} mm cells with shorter steps (the step is proportional to
+`time.cfl`), the same measures:
+
+{table(step_header, step_rows)}
+
+From `time.cfl` {STEP_CFLS[-2]:g} to {STEP_CFLS[-1]:g} the tip changes by
+{", ".join(f"{last_steps[a]:+.1%}" for a in stepped_complete)}
+(a = {", ".join(f"{a:g}" for a in stepped_complete)}):
+{step_text}.{restless_text}  The mesh study at `time.cfl` = {STEP_CFL:g}, cells of
+{", ".join(f"{dx * 1e3:g}" for dx in STEP_CELLS)} mm:
+
+{table(study_header(STEP_CELLS), short_rows)}
+
+**Verdict at `time.cfl` = {STEP_CFL:g}: run-out within {BAND:.0%} of law B met at {n_short} of
+{len(short_complete)} aspect ratios** ({short_list}).  The tip run-out is {span(short_ratios)} times
+law B on the finest mesh, the 95 %-mass front {span(short_mass)} times; between the two finest
+meshes the tip changes by {", ".join(f"{c:+.1%}" for c in short_changes)}; the largest |u| at the
+end is {max(short_speeds, default=math.nan):.1e} m/s.
 
 ### With the longitudinal normal stress (`model.normal_stress`)
 
