@@ -106,6 +106,10 @@ def test_a_long_value_is_quoted_cut_in_the_message():
     with pytest.raises(InputError, match=r"domain\.layer_fractions: expected 3 numbers > 0") as caught:
         multilayer.load(data)
     assert len(str(caught.value)) < 400
+    data["domain"]["layer_fractions"] = [1, 10**400, 1]  # their sum was quoted whole, 400 digits
+    with pytest.raises(InputError, match=r"domain\.layer_fractions: fractions sum to 1000") as caught:
+        multilayer.load(data)
+    assert len(str(caught.value)) < 400
 
 
 @pytest.mark.parametrize("x", [0.0, 0.006, 0.5, 0.494])
@@ -993,7 +997,7 @@ def test_a_zero_pivot_of_the_normal_stress_step_is_a_run_error_naming_the_face()
 
 NORMAL_STRESS_AT_REST = {
     "walls": {"walls": {"name": "wall_friction", "mu_w": 0.3}, "domain.width": 0.1},
-    "periodic sides": {"boundaries": {"left": "periodic", "right": "periodic"}},
+    "periodic sides": {"boundaries.left": "periodic", "boundaries.right": "periodic"},
     "one layer": {"domain.layers": 1},
     "non-hydrostatic": {"model.pressure": "non_hydrostatic"},
     "coulomb base": {"base": [{"condition": "coulomb", "mu": 0.4}]},
@@ -1538,3 +1542,41 @@ def test_the_mesh_and_bed_of_a_simulation_cannot_be_changed_through_its_attribut
             array -= 0.25
     sim.advance(0.05)
     assert np.array_equal(sim.h, alone.h) and np.array_equal(sim.u, alone.u)
+
+
+def test_a_key_that_replaces_one_set_before_it_is_refused_naming_both(tmp_path, cli):
+    """``domain.cells=20`` then ``domain={...}`` dropped the 20 silently: a sweep of
+    ``domain.cells: [20, 30]`` and ``domain`` ran both members on 40 cells while its
+    ``summary.csv`` said 20 and 30.  A key within an earlier one still refines it."""
+    domain = json.dumps(TINY_SCENARIO["domain"])
+    with pytest.raises(InputError, match=r"--set domain: replaces domain\.cells, set before it"):
+        multilayer.load(TINY_SCENARIO, ["domain.cells=20", f"domain={domain}"])
+    with pytest.raises(InputError, match=r"--set slope_deg: replaces slope_deg, set before it"):
+        multilayer.load(TINY_SCENARIO, ["slope_deg=20", "slope_deg=30"])
+    assert multilayer.load(TINY_SCENARIO, [f"domain={domain}", "domain.cells=20"]).domain.cells == 20
+    (tmp_path / "tiny.yaml").write_text(yaml.safe_dump(TINY_SCENARIO))
+    (tmp_path / "sweep.yaml").write_text(
+        f"base: tiny.yaml\nparameters:\n  domain.cells: [20, 30]\n  domain: [{domain}]\n"
+    )
+    validated = cli("validate", tmp_path / "sweep.yaml")
+    assert validated.code == 2 and "replaces domain.cells, set before it" in validated.err
+
+
+def test_an_expectation_whose_tolerance_overflows_is_refused():
+    """``value: 1e308, rtol: 10``: a tolerance of inf, and 0.156 passed for 1e308."""
+    entry = {"kind": "regression", "quantity": "front_final", "value": 1e308, "rtol": 10.0}
+    with pytest.raises(InputError, match=r"expect\.0\.rtol: .* overflows: every result would pass"):
+        multilayer.load({**TINY_SCENARIO, "expect": [entry]})
+
+
+def test_a_path_stdout_cannot_encode_is_printed_escaped_not_a_traceback(tmp_path):
+    """Under ``PYTHONIOENCODING=ascii`` a completed ``validate`` of ``sc\\xe9nario.yaml``
+    ended with ``UnicodeEncodeError``, a traceback and exit 1."""
+    path = tmp_path / "sc\u00e9nario.yaml"
+    path.write_text(yaml.safe_dump(TINY_SCENARIO))
+    env = {**os.environ, "PYTHONIOENCODING": "ascii"}
+    done = subprocess.run(
+        [sys.executable, "-m", "multilayer", "validate", str(path)], capture_output=True, env=env, timeout=120
+    )
+    assert done.returncode == 0, done.stderr
+    assert b"sc\\xe9nario.yaml: ok" in done.stdout and not done.stderr
