@@ -2862,7 +2862,8 @@ def round_eighteen() -> list[Case]:
     key set before it (``--set`` and a sweep's parameters), and result files whose values a
     reader decodes otherwise than the checks read them (CF attributes multilayer does not
     write: ``missing_value``, ``scale_factor``, ``valid_max``, a time in dates) or whose grid
-    is damaged (``x_bnds``, ``sigma``, ``layer``, ``u`` over other dimensions)."""
+    is damaged (``x_bnds``, ``sigma``, ``layer``, ``u`` over other dimensions), and numba's
+    configuration file in the working directory holding what the engine cannot run with."""
     out = [
         Case("run: stdout in ASCII, the output directory's name beyond it", ["run", "{scenario}", "-o",
              "{dir}/out\u00e9"], 0, "", setup=lambda d: _scenario(d), env={"PYTHONIOENCODING": "ascii"}),
@@ -2903,6 +2904,17 @@ def round_eighteen() -> list[Case]:
     for name, edit, phrase in edits:
         for argv in (["plot", "{dir}/out"], ["export", "{dir}/out", "--vtk"]):
             out.append(Case(f"{argv[0]}: result.nc's {name}", argv, 2, phrase, setup=_edited_result(edit)))
+    for text, phrase in (
+        ("disable_jit: 1\n", "(numba's configuration file): disable_jit: '1'"),
+        ("num_threads: 0\n", "(numba's configuration file): num_threads: '0'"),
+        ("a: [\n", "(numba's configuration file, read by numba at its import): while parsing"),
+        ("- 1\n", "(numba's configuration file, read by numba at its import): got [1]"),
+    ):
+        out.append(
+            Case(f"run: .numba_config.yaml in the working directory holding {text.strip()!r}",
+                 ["run", "{scenario}", "-o", "{dir}/out", "-q"], 2, phrase, plain=True, here=True,
+                 setup=lambda d, text=text: (_scenario(d), (d / ".numba_config.yaml").write_text(text)))
+        )  # fmt: skip
     out.append(
         Case("plot: result.nc's u over (time, x, layer)", ["plot", "{dir}/out"], 2,
              "its variable u is over ('time', 'x', 'layer')", setup=_transposed_velocity)
