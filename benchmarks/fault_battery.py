@@ -2856,6 +2856,12 @@ def _transposed_velocity(directory: Path) -> None:
             new[:] = var[:].transpose(0, 2, 1) if name == "u" else var[:]
 
 
+def _numba_config(directory: Path, text: str) -> None:
+    """The scenario and numba's configuration file ``.numba_config.yaml`` holding ``text``."""
+    _scenario(directory)
+    (directory / ".numba_config.yaml").write_text(text)
+
+
 def round_eighteen() -> list[Case]:
     """The hostile cases of the eighteenth round (docs/reliability.md): a stdout that cannot
     encode a path it prints, an expectation whose tolerance overflows, a key that replaces a
@@ -2913,7 +2919,7 @@ def round_eighteen() -> list[Case]:
         out.append(
             Case(f"run: .numba_config.yaml in the working directory holding {text.strip()!r}",
                  ["run", "{scenario}", "-o", "{dir}/out", "-q"], 2, phrase, plain=True, here=True,
-                 setup=lambda d, text=text: (_scenario(d), (d / ".numba_config.yaml").write_text(text)))
+                 setup=partial(_numba_config, text=text))
         )  # fmt: skip
     out.append(
         Case("plot: result.nc's u over (time, x, layer)", ["plot", "{dir}/out"], 2,
