@@ -2862,14 +2862,22 @@ def _numba_config(directory: Path, text: str) -> None:
     (directory / ".numba_config.yaml").write_text(text)
 
 
+def _two_of_one_name(directory: Path) -> None:
+    """Two scenarios named ``tiny`` with an expectation each, on other slopes."""
+    expected = [{"kind": "regression", "quantity": "mass_final", "value": 0.005, "rtol": 0.01}]
+    _scenario(directory, {"expect": expected}).rename(directory / "again.yaml")
+    _scenario(directory, {"expect": expected, "slope_deg": 20.0})
+
+
 def round_eighteen() -> list[Case]:
     """The hostile cases of the eighteenth round (docs/reliability.md): a stdout that cannot
     encode a path it prints, an expectation whose tolerance overflows, a key that replaces a
     key set before it (``--set`` and a sweep's parameters), and result files whose values a
     reader decodes otherwise than the checks read them (CF attributes multilayer does not
     write: ``missing_value``, ``scale_factor``, ``valid_max``, a time in dates) or whose grid
-    is damaged (``x_bnds``, ``sigma``, ``layer``, ``u`` over other dimensions), and numba's
-    configuration file in the working directory holding what the engine cannot run with."""
+    is damaged (``x_bnds``, ``sigma``, ``layer``, ``u`` over other dimensions), numba's
+    configuration file in the working directory holding what the engine cannot run with, and
+    ``check -o`` of two files of one name."""
     out = [
         Case("run: stdout in ASCII, the output directory's name beyond it", ["run", "{scenario}", "-o",
              "{dir}/out\u00e9"], 0, "", setup=lambda d: _scenario(d), env={"PYTHONIOENCODING": "ascii"}),
@@ -2921,6 +2929,11 @@ def round_eighteen() -> list[Case]:
                  ["run", "{scenario}", "-o", "{dir}/out", "-q"], 2, phrase, plain=True, here=True,
                  setup=partial(_numba_config, text=text))
         )  # fmt: skip
+    out.append(
+        Case("check: two files of one name into one directory",
+             ["check", "{scenario}", "{dir}/again.yaml", "-o", "{dir}/out"], 2,
+             "again.yaml: name: 'tiny', the name of", setup=_two_of_one_name)
+    )  # fmt: skip
     out.append(
         Case("plot: result.nc's u over (time, x, layer)", ["plot", "{dir}/out"], 2,
              "its variable u is over ('time', 'x', 'layer')", setup=_transposed_velocity)

@@ -1580,3 +1580,16 @@ def test_a_path_stdout_cannot_encode_is_printed_escaped_not_a_traceback(tmp_path
     )
     assert done.returncode == 0, done.stderr
     assert b"sc\\xe9nario.yaml: ok" in done.stdout and not done.stderr
+
+
+def test_check_into_one_directory_refuses_two_files_of_one_name(tmp_path, cli):
+    """``check a.yaml b.yaml -o DIR`` of two scenarios named ``tiny``: the second run
+    replaced ``DIR/tiny``, the first's results, silently."""
+    expected = [{"kind": "regression", "quantity": "mass_final", "value": 0.005, "rtol": 0.01}]
+    for name, slope in (("a.yaml", 25.0), ("b.yaml", 20.0)):
+        (tmp_path / name).write_text(
+            yaml.safe_dump({**TINY_SCENARIO, "slope_deg": slope, "expect": expected})
+        )
+    checked = cli("check", tmp_path / "a.yaml", tmp_path / "b.yaml", "-o", tmp_path / "out")
+    assert checked.code == 2 and not (tmp_path / "out" / "tiny").exists()
+    assert f"b.yaml: name: 'tiny', the name of {tmp_path / 'a.yaml'} too: its results" in checked.err
