@@ -2876,8 +2876,8 @@ def round_eighteen() -> list[Case]:
     reader decodes otherwise than the checks read them (CF attributes multilayer does not
     write: ``missing_value``, ``scale_factor``, ``valid_max``, a time in dates) or whose grid
     is damaged (``x_bnds``, ``sigma``, ``layer``, ``u`` over other dimensions), numba's
-    configuration file in the working directory holding what the engine cannot run with, and
-    ``check -o`` of two files of one name."""
+    configuration file in the working directory holding what the engine cannot run with,
+    ``check -o`` of two files of one name and an exact comparison where the exact field is 0."""
     out = [
         Case("run: stdout in ASCII, the output directory's name beyond it", ["run", "{scenario}", "-o",
              "{dir}/out\u00e9"], 0, "", setup=lambda d: _scenario(d), env={"PYTHONIOENCODING": "ascii"}),
@@ -2929,6 +2929,20 @@ def round_eighteen() -> list[Case]:
                  ["run", "{scenario}", "-o", "{dir}/out", "-q"], 2, phrase, plain=True, here=True,
                  setup=partial(_numba_config, text=text))
         )  # fmt: skip
+    window = (
+        (
+            "expect=[{kind: reference, exact: {solution: coulomb_dam_break, field: h, norm: l1, x_min: 1.9}, "
+            "atol: 0.01, source: x}]"
+        )
+        .replace("{", "{{")
+        .replace("}", "}}")
+    )
+    out.append(
+        Case("validate: an exact comparison where the exact h is 0 in the window",
+             ["validate", str(Path(__file__).resolve().parents[1] / "scenarios" / "coulomb_dam_break.yaml"),
+              "--set", window],
+             2, "the exact h is 0 in the window at t = 0.5 s")
+    )  # fmt: skip
     out.append(
         Case("check: two files of one name into one directory",
              ["check", "{scenario}", "{dir}/again.yaml", "-o", "{dir}/out"], 2,
