@@ -2869,6 +2869,15 @@ def _two_of_one_name(directory: Path) -> None:
     _scenario(directory, {"expect": expected, "slope_deg": 20.0})
 
 
+def _parameter_of_an_experiment(directory: Path) -> None:
+    """A calibration of ``rheology.mu_s`` one of whose experiments sets ``rheology.mu_s``."""
+    _calibration("0.1,0.12,0.01\n")(directory)
+    config = yaml.safe_load((directory / "calibration.yaml").read_text())
+    config["experiments"] = {"rough": {"rheology.mu_s": 0.5}, "smooth": {"slope_deg": 20.0}}
+    config["observations"][0]["experiment"] = "rough"
+    (directory / "calibration.yaml").write_text(yaml.safe_dump(config))
+
+
 def round_eighteen() -> list[Case]:
     """The hostile cases of the eighteenth round (docs/reliability.md): a stdout that cannot
     encode a path it prints, an expectation whose tolerance overflows, a key that replaces a
@@ -2877,7 +2886,8 @@ def round_eighteen() -> list[Case]:
     write: ``missing_value``, ``scale_factor``, ``valid_max``, a time in dates) or whose grid
     is damaged (``x_bnds``, ``sigma``, ``layer``, ``u`` over other dimensions), numba's
     configuration file in the working directory holding what the engine cannot run with,
-    ``check -o`` of two files of one name and an exact comparison where the exact field is 0."""
+    ``check -o`` of two files of one name, an exact comparison where the exact field is 0 and
+    a calibration's parameter given a value in one of its experiments."""
     out = [
         Case("run: stdout in ASCII, the output directory's name beyond it", ["run", "{scenario}", "-o",
              "{dir}/out\u00e9"], 0, "", setup=lambda d: _scenario(d), env={"PYTHONIOENCODING": "ascii"}),
@@ -2942,6 +2952,12 @@ def round_eighteen() -> list[Case]:
              ["validate", str(Path(__file__).resolve().parents[1] / "scenarios" / "coulomb_dam_break.yaml"),
               "--set", window],
              2, "the exact h is 0 in the window at t = 0.5 s")
+    )  # fmt: skip
+    out.append(
+        Case("validate: a calibration's parameter given a value in an experiment",
+             ["validate", "{dir}/calibration.yaml"], 2,
+             "parameters.rheology.mu_s (line 17): also given a value in experiments.rough",
+             setup=_parameter_of_an_experiment)
     )  # fmt: skip
     out.append(
         Case("check: two files of one name into one directory",

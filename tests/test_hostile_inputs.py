@@ -1593,3 +1593,32 @@ def test_check_into_one_directory_refuses_two_files_of_one_name(tmp_path, cli):
     checked = cli("check", tmp_path / "a.yaml", tmp_path / "b.yaml", "-o", tmp_path / "out")
     assert checked.code == 2 and not (tmp_path / "out" / "tiny").exists()
     assert f"b.yaml: name: 'tiny', the name of {tmp_path / 'a.yaml'} too: its results" in checked.err
+
+
+def test_a_study_parameter_given_a_value_in_set_or_an_experiment_is_refused(tmp_path, cli):
+    """An experiment of its own ``rheology.mu_s`` (or ``set``'s) ran with the calibrated
+    value: the parameter's replaced it, silently."""
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(TINY_SCENARIO))
+    (tmp_path / "front.csv").write_text("t,x_f,sigma\n0.1,0.12,0.01\n")
+    observation = {
+        "name": "front",
+        "quantity": "front",
+        "file": "front.csv",
+        "columns": ["t", "x_f", "sigma"],
+    }
+    config = {
+        "base": "base.yaml",
+        "parameters": {"rheology.mu_s": {"bounds": [0.2, 0.4]}},
+        "experiments": {"rough": {"rheology.mu_s": 0.5}, "smooth": {"slope_deg": 20.0}},
+        "observations": [{**observation, "experiment": "rough"}],
+        "search": {"population": 4, "generations": 1},
+    }
+    for where, changed in (("experiments.rough", config), ("set", {**config, "set": {"rheology.mu_s": 0.3}})):
+        if where == "set":
+            changed["experiments"] = {"rough": {"slope_deg": 25.0}}
+        (tmp_path / "calibration.yaml").write_text(yaml.safe_dump(changed))
+        validated = cli("validate", tmp_path / "calibration.yaml")
+        assert validated.code == 2, validated.err
+        assert re.search(
+            rf"parameters\.rheology\.mu_s \(line \d+\): also given a value in {where},", validated.err
+        )
