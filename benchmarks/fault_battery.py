@@ -2822,6 +2822,164 @@ def round_seventeen() -> list[Case]:
     return out
 
 
+def _edited_result(edit: Callable[[Any], object]) -> Callable[[Path], None]:
+    """A finished run whose ``result.nc`` is then given ``edit(dataset)`` (netCDF4, in place)."""
+
+    def setup(directory: Path) -> None:
+        _finished_run(directory)
+        import netCDF4
+
+        with NETCDF, netCDF4.Dataset(directory / "out" / "result.nc", "a") as ds:
+            edit(ds)
+
+    return setup
+
+
+def _transposed_velocity(directory: Path) -> None:
+    """A finished run of 3 cells x 3 layers whose ``result.nc`` holds ``u`` over (time, x,
+    layer), each record the transpose of the one written (the momentum balance caught it, as
+    a damage of the records: its dimensions are now named)."""
+    _scenario(directory, {"domain.cells": 3, "domain.layers": 3, "initial.0.x_max": 0.2})
+    subprocess.run(
+        [sys.executable, "-m", "multilayer", "run", str(directory / "scenario.yaml"), "-o",
+         str(directory / "out"), "-q"], check=True, capture_output=True,
+    )  # fmt: skip
+    import netCDF4
+
+    path = directory / "out" / "result.nc"
+    path.rename(directory / "written.nc")
+    with (
+        NETCDF,
+        netCDF4.Dataset(directory / "written.nc") as src,
+        netCDF4.Dataset(path, "w", format=src.data_model) as ds,
+    ):
+        for name, dim in src.dimensions.items():
+            ds.createDimension(name, None if dim.isunlimited() else len(dim))
+        ds.setncatts({key: src.getncattr(key) for key in src.ncattrs()})
+        for name, var in src.variables.items():
+            attrs = {key: var.getncattr(key) for key in var.ncattrs()}
+            fill = attrs.pop("_FillValue", None)
+            dims = ("time", "x", "layer") if name == "u" else var.dimensions
+            new = ds.createVariable(name, var.dtype, dims, fill_value=fill)
+            new.setncatts(attrs)
+            new[:] = var[:].transpose(0, 2, 1) if name == "u" else var[:]
+
+
+def _numba_config(directory: Path, text: str) -> None:
+    """The scenario and numba's configuration file ``.numba_config.yaml`` holding ``text``."""
+    _scenario(directory)
+    (directory / ".numba_config.yaml").write_text(text)
+
+
+def _two_of_one_name(directory: Path) -> None:
+    """Two scenarios named ``tiny`` with an expectation each, on other slopes."""
+    expected = [{"kind": "regression", "quantity": "mass_final", "value": 0.005, "rtol": 0.01}]
+    _scenario(directory, {"expect": expected}).rename(directory / "again.yaml")
+    _scenario(directory, {"expect": expected, "slope_deg": 20.0})
+
+
+def _parameter_of_an_experiment(directory: Path) -> None:
+    """A calibration of ``rheology.mu_s`` one of whose experiments sets ``rheology.mu_s``."""
+    _calibration("0.1,0.12,0.01\n")(directory)
+    config = yaml.safe_load((directory / "calibration.yaml").read_text())
+    config["experiments"] = {"rough": {"rheology.mu_s": 0.5}, "smooth": {"slope_deg": 20.0}}
+    config["observations"][0]["experiment"] = "rough"
+    (directory / "calibration.yaml").write_text(yaml.safe_dump(config))
+
+
+def round_eighteen() -> list[Case]:
+    """The hostile cases of the eighteenth round (docs/reliability.md): a stdout that cannot
+    encode a path it prints, an expectation whose tolerance overflows, a key that replaces a
+    key set before it (``--set`` and a sweep's parameters), and result files whose values a
+    reader decodes otherwise than the checks read them (CF attributes multilayer does not
+    write: ``missing_value``, ``scale_factor``, ``valid_max``, a time in dates) or whose grid
+    is damaged (``x_bnds``, ``sigma``, ``layer``, ``u`` over other dimensions), numba's
+    configuration file in the working directory holding what the engine cannot run with,
+    ``check -o`` of two files of one name, an exact comparison where the exact field is 0 and
+    a calibration's parameter given a value in one of its experiments."""
+    out = [
+        Case("run: stdout in ASCII, the output directory's name beyond it", ["run", "{scenario}", "-o",
+             "{dir}/out\u00e9"], 0, "", setup=lambda d: _scenario(d), env={"PYTHONIOENCODING": "ascii"}),
+        Case("validate: stdout in ASCII, the scenario's name beyond it",
+             ["validate", "{dir}/sc\u00e9nario.yaml"], 0, "",
+             setup=lambda d: _scenario(d).rename(d / "sc\u00e9nario.yaml"),
+             env={"PYTHONIOENCODING": "ascii"}),
+    ]  # fmt: skip
+    for command in ("validate", "check"):
+        out.append(
+            Case(f"{command}: an expectation of 1e308 with rtol 10 (the tolerance overflows)", [command,
+                 "{scenario}"], 2, "expect.0.rtol (line", setup=lambda d: _scenario(d, {"expect": [{"kind":
+                 "regression", "quantity": "front_final", "value": 1e308, "rtol": 10.0}]}))
+        )  # fmt: skip
+    domain = json.dumps(TINY["domain"])
+    out += [
+        Case("run: --set domain.cells then --set domain", ["run", "{scenario}", "-o", "{dir}/out", "--set",
+             "domain.cells=20", "--set", f"domain={domain}".replace("{", "{{").replace("}", "}}")], 2,
+             "--set domain: replaces domain.cells, set before it", setup=lambda d: _scenario(d)),
+        Case("validate: a sweep of domain.cells then domain", ["validate", "{dir}/sweep.yaml"], 2,
+             "replaces domain.cells, set before it",
+             setup=lambda d: (_scenario(d), (d / "sweep.yaml").write_text(
+                 f"base: scenario.yaml\nparameters:\n  domain.cells: [20, 30]\n  domain: [{domain}]\n"))),
+    ]  # fmt: skip
+    edits: list[tuple[str, Callable[[Any], object], str]] = [
+        ("h given missing_value 0", lambda ds: ds["h"].setncattr("missing_value", 0.0),
+         "h has missing_value 0.0"),
+        ("u given scale_factor 2", lambda ds: ds["u"].setncattr("scale_factor", 2.0),
+         "u has scale_factor 2.0"),
+        ("u given valid_max 0.01", lambda ds: ds["u"].setncattr("valid_max", 0.01), "u has valid_max 0.01"),
+        ("time in seconds since 2000-01-01",
+         lambda ds: ds["time"].setncattr("units", "seconds since 2000-01-01"),
+         "time has units 'seconds since 2000-01-01'"),
+        ("an x_bnds NaN", lambda ds: ds["x_bnds"].__setitem__((3, 0), np.nan), "its cell edges x_bnds"),
+        ("a sigma NaN", lambda ds: ds["sigma"].__setitem__(1, np.nan), "its layer heights sigma"),
+        ("layer indices 5, 5, 5", lambda ds: ds["layer"].__setitem__(slice(None), 5), "its layer indices"),
+    ]  # fmt: skip
+    for name, edit, phrase in edits:
+        for argv in (["plot", "{dir}/out"], ["export", "{dir}/out", "--vtk"]):
+            out.append(Case(f"{argv[0]}: result.nc's {name}", argv, 2, phrase, setup=_edited_result(edit)))
+    for text, phrase in (
+        ("disable_jit: 1\n", "(numba's configuration file): disable_jit: '1'"),
+        ("num_threads: 0\n", "(numba's configuration file): num_threads: '0'"),
+        ("a: [\n", "(numba's configuration file, read by numba at its import): while parsing"),
+        ("- 1\n", "(numba's configuration file, read by numba at its import): got [1]"),
+    ):
+        out.append(
+            Case(f"run: .numba_config.yaml in the working directory holding {text.strip()!r}",
+                 ["run", "{scenario}", "-o", "{dir}/out", "-q"], 2, phrase, plain=True, here=True,
+                 setup=partial(_numba_config, text=text))
+        )  # fmt: skip
+    window = (
+        (
+            "expect=[{kind: reference, exact: {solution: coulomb_dam_break, field: h, norm: l1, x_min: 1.9}, "
+            "atol: 0.01, source: x}]"
+        )
+        .replace("{", "{{")
+        .replace("}", "}}")
+    )
+    out.append(
+        Case("validate: an exact comparison where the exact h is 0 in the window",
+             ["validate", str(Path(__file__).resolve().parents[1] / "scenarios" / "coulomb_dam_break.yaml"),
+              "--set", window],
+             2, "the exact h is 0 in the window at t = 0.5 s")
+    )  # fmt: skip
+    out.append(
+        Case("validate: a calibration's parameter given a value in an experiment",
+             ["validate", "{dir}/calibration.yaml"], 2,
+             "parameters.rheology.mu_s (line 17): also given a value in experiments.rough",
+             setup=_parameter_of_an_experiment)
+    )  # fmt: skip
+    out.append(
+        Case("check: two files of one name into one directory",
+             ["check", "{scenario}", "{dir}/again.yaml", "-o", "{dir}/out"], 2,
+             "again.yaml: name: 'tiny', the name of", setup=_two_of_one_name)
+    )  # fmt: skip
+    out.append(
+        Case("plot: result.nc's u over (time, x, layer)", ["plot", "{dir}/out"], 2,
+             "its variable u is over ('time', 'x', 'layer')", setup=_transposed_velocity)
+    )  # fmt: skip
+    return out
+
+
 def cases() -> list[Case]:
     out: list[Case] = []
     budget = ["--max-memory", "8G", "--max-output", "1G"]
@@ -2992,6 +3150,7 @@ def cases() -> list[Case]:
         + round_fifteen()
         + round_sixteen()
         + round_seventeen()
+        + round_eighteen()
     )
 
 

@@ -1,7 +1,8 @@
 """A damaged result is never read as a good one (docs/reliability.md): every reader of
 ``result.nc`` (plot, export, summary, run_failure, open_result, sweeps and calibrations,
-``--resume``) refuses a file that is truncated, still ``running`` or whose records fail
-their checks (a grain-fluid mixture's too), with exit code 2 naming the file and what is wrong."""
+``--resume``) refuses a file that is truncated, still ``running``, read decoded otherwise
+than written (CF attributes multilayer does not write) or whose records fail their checks
+(a grain-fluid mixture's too), with exit code 2 naming the file and what is wrong."""
 
 from __future__ import annotations
 
@@ -73,6 +74,14 @@ def _set(name: str, index: tuple, value: float) -> Callable[[Path], None]:
     return damage
 
 
+def _attribute(name: str, key: str, value: object) -> Callable[[Path], None]:
+    def damage(path: Path) -> None:
+        with netCDF4.Dataset(path, "a") as ds:
+            ds[name].setncattr(key, value)
+
+    return damage
+
+
 def _header(path: Path) -> None:
     data = bytearray(path.read_bytes())
     data[20:40] = b"\xff" * 20  # inside the dimension list
@@ -111,6 +120,15 @@ DAMAGES = {
     ),
     "force at t = 0": (_set("end_force_x", (0,), 0.0), r"output time 0 .* end_force_x is 0.0, not NaN"),
     "header": (_header, "not a (netCDF result file|readable multilayer result)"),
+    # read decoded, as xarray reads them: dry cells NaN, velocities scaled, times as dates
+    "missing_value": (_attribute("h", "missing_value", 0.0), "its variable h has missing_value 0.0"),
+    "scale_factor": (_attribute("u", "scale_factor", 2.0), "its variable u has scale_factor 2.0"),
+    "time in dates": (
+        _attribute("time", "units", "seconds since 2000-01-01"),
+        "its variable time has units 'seconds since 2000-01-01'",
+    ),
+    "x_bnds nan": (_set("x_bnds", (3, 0), np.nan), "its cell edges x_bnds are not finite"),
+    "sigma nan": (_set("sigma", (1,), np.nan), "its layer heights sigma and sigma_bnds are not finite"),
     "not netCDF": (lambda path: path.write_text("not netCDF"), r"not a netCDF result file \(not a classic"),
     "empty": (lambda path: path.write_bytes(b""), "not a netCDF result file"),
 }

@@ -348,3 +348,16 @@ def test_a_boundary_layer_comparison_starts_beyond_the_leading_edge(capsys):
     assert cli.main(["validate", path, "--set", entry]) == 2
     err = capsys.readouterr().err
     assert "expect.0.exact.x_min: granular_blasius holds for x > 0; accepted: a number > 0" in err
+
+
+def test_a_window_where_the_exact_field_is_0_is_refused_before_running(capsys):
+    """The error relative to an exact field that is 0 in the window, 0 / 0: NaN, FAILED after
+    the run, with numpy's warning."""
+    entry = (
+        "[{kind: reference, exact: {solution: coulomb_dam_break, field: h, norm: l1, x_min: 1.9}, "
+        "atol: 0.01, source: x}]"
+    )
+    path = Path(__file__).parents[1] / "scenarios" / "coulomb_dam_break.yaml"
+    assert cli.main(["validate", str(path), "--set", f"expect={entry}"]) == 2
+    err = capsys.readouterr().err
+    assert "expect.0.exact: the exact h is 0 in the window at t = 0.5 s: no error relative to it" in err

@@ -106,6 +106,10 @@ def test_a_long_value_is_quoted_cut_in_the_message():
     with pytest.raises(InputError, match=r"domain\.layer_fractions: expected 3 numbers > 0") as caught:
         multilayer.load(data)
     assert len(str(caught.value)) < 400
+    data["domain"]["layer_fractions"] = [1, 10**400, 1]  # their sum was quoted whole, 400 digits
+    with pytest.raises(InputError, match=r"domain\.layer_fractions: fractions sum to 1000") as caught:
+        multilayer.load(data)
+    assert len(str(caught.value)) < 400
 
 
 @pytest.mark.parametrize("x", [0.0, 0.006, 0.5, 0.494])
@@ -993,7 +997,7 @@ def test_a_zero_pivot_of_the_normal_stress_step_is_a_run_error_naming_the_face()
 
 NORMAL_STRESS_AT_REST = {
     "walls": {"walls": {"name": "wall_friction", "mu_w": 0.3}, "domain.width": 0.1},
-    "periodic sides": {"boundaries": {"left": "periodic", "right": "periodic"}},
+    "periodic sides": {"boundaries.left": "periodic", "boundaries.right": "periodic"},
     "one layer": {"domain.layers": 1},
     "non-hydrostatic": {"model.pressure": "non_hydrostatic"},
     "coulomb base": {"base": [{"condition": "coulomb", "mu": 0.4}]},
@@ -1538,3 +1542,83 @@ def test_the_mesh_and_bed_of_a_simulation_cannot_be_changed_through_its_attribut
             array -= 0.25
     sim.advance(0.05)
     assert np.array_equal(sim.h, alone.h) and np.array_equal(sim.u, alone.u)
+
+
+def test_a_key_that_replaces_one_set_before_it_is_refused_naming_both(tmp_path, cli):
+    """``domain.cells=20`` then ``domain={...}`` dropped the 20 silently: a sweep of
+    ``domain.cells: [20, 30]`` and ``domain`` ran both members on 40 cells while its
+    ``summary.csv`` said 20 and 30.  A key within an earlier one still refines it."""
+    domain = json.dumps(TINY_SCENARIO["domain"])
+    with pytest.raises(InputError, match=r"--set domain: replaces domain\.cells, set before it"):
+        multilayer.load(TINY_SCENARIO, ["domain.cells=20", f"domain={domain}"])
+    with pytest.raises(InputError, match=r"--set slope_deg: replaces slope_deg, set before it"):
+        multilayer.load(TINY_SCENARIO, ["slope_deg=20", "slope_deg=30"])
+    assert multilayer.load(TINY_SCENARIO, [f"domain={domain}", "domain.cells=20"]).domain.cells == 20
+    (tmp_path / "tiny.yaml").write_text(yaml.safe_dump(TINY_SCENARIO))
+    (tmp_path / "sweep.yaml").write_text(
+        f"base: tiny.yaml\nparameters:\n  domain.cells: [20, 30]\n  domain: [{domain}]\n"
+    )
+    validated = cli("validate", tmp_path / "sweep.yaml")
+    assert validated.code == 2 and "replaces domain.cells, set before it" in validated.err
+
+
+def test_an_expectation_whose_tolerance_overflows_is_refused():
+    """``value: 1e308, rtol: 10``: a tolerance of inf, and 0.156 passed for 1e308."""
+    entry = {"kind": "regression", "quantity": "front_final", "value": 1e308, "rtol": 10.0}
+    with pytest.raises(InputError, match=r"expect\.0\.rtol: .* overflows: every result would pass"):
+        multilayer.load({**TINY_SCENARIO, "expect": [entry]})
+
+
+def test_a_path_stdout_cannot_encode_is_printed_escaped_not_a_traceback(tmp_path):
+    """Under ``PYTHONIOENCODING=ascii`` a completed ``validate`` of ``sc\\xe9nario.yaml``
+    ended with ``UnicodeEncodeError``, a traceback and exit 1."""
+    path = tmp_path / "sc\u00e9nario.yaml"
+    path.write_text(yaml.safe_dump(TINY_SCENARIO))
+    env = {**os.environ, "PYTHONIOENCODING": "ascii"}
+    done = subprocess.run(
+        [sys.executable, "-m", "multilayer", "validate", str(path)], capture_output=True, env=env, timeout=120
+    )
+    assert done.returncode == 0, done.stderr
+    assert b"sc\\xe9nario.yaml: ok" in done.stdout and not done.stderr
+
+
+def test_check_into_one_directory_refuses_two_files_of_one_name(tmp_path, cli):
+    """``check a.yaml b.yaml -o DIR`` of two scenarios named ``tiny``: the second run
+    replaced ``DIR/tiny``, the first's results, silently."""
+    expected = [{"kind": "regression", "quantity": "mass_final", "value": 0.005, "rtol": 0.01}]
+    for name, slope in (("a.yaml", 25.0), ("b.yaml", 20.0)):
+        (tmp_path / name).write_text(
+            yaml.safe_dump({**TINY_SCENARIO, "slope_deg": slope, "expect": expected})
+        )
+    checked = cli("check", tmp_path / "a.yaml", tmp_path / "b.yaml", "-o", tmp_path / "out")
+    assert checked.code == 2 and not (tmp_path / "out" / "tiny").exists()
+    assert f"b.yaml: name: 'tiny', the name of {tmp_path / 'a.yaml'} too: its results" in checked.err
+
+
+def test_a_study_parameter_given_a_value_in_set_or_an_experiment_is_refused(tmp_path, cli):
+    """An experiment of its own ``rheology.mu_s`` (or ``set``'s) ran with the calibrated
+    value: the parameter's replaced it, silently."""
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(TINY_SCENARIO))
+    (tmp_path / "front.csv").write_text("t,x_f,sigma\n0.1,0.12,0.01\n")
+    observation = {
+        "name": "front",
+        "quantity": "front",
+        "file": "front.csv",
+        "columns": ["t", "x_f", "sigma"],
+    }
+    config = {
+        "base": "base.yaml",
+        "parameters": {"rheology.mu_s": {"bounds": [0.2, 0.4]}},
+        "experiments": {"rough": {"rheology.mu_s": 0.5}, "smooth": {"slope_deg": 20.0}},
+        "observations": [{**observation, "experiment": "rough"}],
+        "search": {"population": 4, "generations": 1},
+    }
+    for where, changed in (("experiments.rough", config), ("set", {**config, "set": {"rheology.mu_s": 0.3}})):
+        if where == "set":
+            changed["experiments"] = {"rough": {"slope_deg": 25.0}}
+        (tmp_path / "calibration.yaml").write_text(yaml.safe_dump(changed))
+        validated = cli("validate", tmp_path / "calibration.yaml")
+        assert validated.code == 2, validated.err
+        assert re.search(
+            rf"parameters\.rheology\.mu_s \(line \d+\): also given a value in {where},", validated.err
+        )

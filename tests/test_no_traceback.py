@@ -174,6 +174,34 @@ def test_numba_variables_the_engine_cannot_run_with_are_refused_first(
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize(
+    ("text", "phrase"),
+    [
+        ("disable_jit: 1\n", "(numba's configuration file): disable_jit: '1'; accepted: 0 or unset"),
+        ("num_threads: 0\n", "(numba's configuration file): num_threads: '0'; accepted: an integer >= 1"),
+        ("a: [\n", "(numba's configuration file, read by numba at its import): while parsing a flow node"),
+        (
+            "- 1\n",
+            "(numba's configuration file, read by numba at its import): got [1]; accepted: a YAML mapping",
+        ),
+    ],
+)
+def test_numbas_configuration_file_in_the_working_directory_is_checked_as_its_variables(
+    tmp_path, cli, write_scenario, monkeypatch, text, phrase
+):
+    """numba reads ``.numba_config.yaml`` in the working directory at its import, under its
+    environment: ``disable_jit: 1``, ``num_threads: 0``, malformed YAML or a list there were
+    tracebacks of numba's import (exit 1)."""
+    scenario = write_scenario(TINY_SCENARIO)
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / ".numba_config.yaml").write_text(text)
+    result = cli("validate", scenario)
+    assert result.code == 2 and "Traceback" not in result.err
+    assert f"multilayer: error: {tmp_path / '.numba_config.yaml'} {phrase}" in result.err, result.err
+    monkeypatch.setenv("NUMBA_DISABLE_JIT", "0")  # the environment wins over the file
+    assert cli("validate", scenario).code == (0 if text == "disable_jit: 1\n" else 2)
+
+
 LIBRARY_IMPORT = """
 import sys
 import multilayer

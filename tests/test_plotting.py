@@ -313,6 +313,21 @@ def test_an_export_stopped_half_way_leaves_no_series_of_two_runs(
     monkeypatch.setattr(export, "structured_grid", stopped)
     assert cli("export", tmp_path, "--vtk").code == 130
     assert not (tmp_path / "vtk" / "result.pvd").exists()
+    assert sorted(path.name for path in (tmp_path / "vtk").iterdir()) == [
+        "result_0000.vts",
+        "result_0001.vts",
+    ]
+
+
+def test_an_export_after_a_longer_run_leaves_none_of_its_files(slump_dir: Path, tmp_path: Path, cli):
+    """The files of an earlier export past this run's last output time were left beside
+    this run's: ParaView's group of ``result_..vts`` read them as one series of two runs."""
+    shutil.copy(slump_dir / "result.nc", tmp_path / "result.nc")
+    (tmp_path / "vtk").mkdir()
+    (tmp_path / "vtk" / "result_0999.vts").write_text("an earlier run's")
+    (tmp_path / "vtk" / "notes.txt").write_text("the user's")
+    assert cli("export", tmp_path, "--vtk").code == 0
+    assert not (tmp_path / "vtk" / "result_0999.vts").exists() and (tmp_path / "vtk" / "notes.txt").exists()
 
 
 def test_a_plot_stopped_half_way_leaves_no_figures_of_two_runs(

@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import importlib
+import io
 import os
 import re
 import signal
@@ -123,17 +124,38 @@ def _signals_stop() -> Iterator[None]:
             signal.signal(number, handler)
 
 
+@contextlib.contextmanager
+def _encodable_stdout() -> Iterator[None]:
+    """stdout writing a character its encoding lacks as Python escapes it (``\\xe9``), as
+    Python's stderr always does: a path beyond ASCII printed on success under
+    ``PYTHONIOENCODING=ascii`` (or ``PYTHONUTF8=0`` in the C locale) raised
+    ``UnicodeEncodeError`` after the work was done, a traceback and exit 1.  Set back after
+    the command, for a caller of :func:`main` in the same process."""
+    stream = sys.stdout
+    errors = getattr(stream, "errors", None)
+    if not isinstance(stream, io.TextIOWrapper) or errors != "strict":
+        yield
+        return
+    stream.reconfigure(errors="backslashreplace")
+    try:
+        yield
+    finally:
+        if not stream.closed:
+            stream.reconfigure(errors=errors)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse ``argv`` (default ``sys.argv[1:]``), run the subcommand, return the exit code."""
     argv = sys.argv[1:] if argv is None else list(argv)
-    args = build_parser(_command(argv)).parse_args(argv)
-    shown = warnings.showwarning  # restored: a caller in the same process keeps its own
-    warnings.showwarning = _warning
-    try:
-        with _signals_stop():
-            return _dispatch(args)
-    finally:
-        warnings.showwarning = shown
+    with _encodable_stdout():
+        args = build_parser(_command(argv)).parse_args(argv)
+        shown = warnings.showwarning  # restored: a caller in the same process keeps its own
+        warnings.showwarning = _warning
+        try:
+            with _signals_stop():
+                return _dispatch(args)
+        finally:
+            warnings.showwarning = shown
 
 
 def _dispatch(args: argparse.Namespace) -> int:

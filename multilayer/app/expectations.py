@@ -68,9 +68,10 @@ def evaluate(expectations: Sequence[Expect], measured: Mapping[str, float]) -> l
     outcomes = []
     for entry in expectations:
         value = 0.0 if entry.value is None else entry.value
-        tolerance = (entry.atol or 0.0) + (entry.rtol or 0.0) * abs(value)
         outcomes.append(
-            Outcome(label(entry), value, float(measured[label(entry)]), tolerance, entry.kind, entry.source)
+            Outcome(
+                label(entry), value, float(measured[label(entry)]), entry.tolerance, entry.kind, entry.source
+            )
         )
     return outcomes
 

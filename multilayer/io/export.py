@@ -12,6 +12,7 @@ no VTK library needed.
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +23,8 @@ from multilayer.io.result_check import ending
 from multilayer.io.results import open_result
 
 VTK_DIR = "vtk"
+SERIES_FILE = re.compile(r"result_[0-9]{4,}\.vts")
+"""The name of an output time's file, ``result_NNNN.vts``."""
 
 
 def export_vtk(directory: str | os.PathLike) -> tuple[list[Path], str | None]:
@@ -33,6 +36,9 @@ def export_vtk(directory: str | os.PathLike) -> tuple[list[Path], str | None]:
     # the series of an earlier export goes first: one stopped half-way (Ctrl-C, a full disk)
     # left it listing this run's first files and the earlier run's others, read as one run
     pvd.unlink(missing_ok=True)
+    for earlier in out.iterdir():  # and its files: those past this run's last were left beside them,
+        if SERIES_FILE.fullmatch(earlier.name) and (earlier.is_symlink() or earlier.is_file()):
+            earlier.unlink()  # one series of two runs to ParaView's group of result_..vts
     entries, paths = [], []
     for k in range(ds.sizes["time"]):
         path = _text_file(out / f"result_{k:04d}.vts", structured_grid(ds.isel(time=k)))

@@ -136,6 +136,52 @@ def _status(ds: netCDF4.Dataset, file: Path, bad) -> str:
     return status
 
 
+DECODING = (
+    "scale_factor", "add_offset", "missing_value", "valid_min", "valid_max", "valid_range", "calendar",
+    "_Unsigned",
+)  # fmt: skip
+"""Attributes that change the values a reader decodes (xarray's CF decoding): none is
+written by multilayer."""
+
+
+def _check_encoding(ds: netCDF4.Dataset, bad) -> None:
+    """Raise ``bad(...)`` unless every variable of the format in ``ds`` has its dimensions
+    and is decoded as written: its ``units`` (xarray decodes a time in ``seconds since
+    2000-01-01`` as dates), no attribute of :data:`DECODING` and a ``_FillValue`` of NaN, if
+    any (xarray masks the values equal to it: ``missing_value: 0`` made every dry cell NaN
+    for ``plot`` and ``export``, where the checks, which read the values as written,
+    passed them)."""
+    for name, (dims, attrs) in {**VARIABLES, **MIXTURE_VARIABLES}.items():
+        if name not in ds.variables:
+            continue
+        var = ds[name]
+        if var.dimensions != dims:
+            raise bad(f"its variable {name} is over {var.dimensions}, not {dims}")
+        found = set(var.ncattrs())
+        odd = [f"{key} {var.getncattr(key)}" for key in sorted(found.intersection(DECODING))]
+        units = var.getncattr("units") if "units" in found else None
+        if units != attrs.get("units"):
+            odd.append(f"units {units!r}")
+        fill = var.getncattr("_FillValue") if "_FillValue" in found else np.nan
+        if not (isinstance(fill, float) and np.isnan(fill)):
+            odd.append(f"_FillValue {fill}")
+        if odd:
+            raise bad(
+                f"its variable {name} has {', '.join(odd)}, which multilayer does not write: read with "
+                f"{'it' if len(odd) == 1 else 'them'}, its values are not those written"
+            )
+
+
+def _brackets(bounds: np.ndarray, centres: np.ndarray) -> bool:
+    """True when ``bounds`` (n, 2) are finite and in order, each row around its centre."""
+    return (
+        bounds.shape == (centres.size, 2)
+        and bool(np.all(np.isfinite(bounds)))
+        and bool(np.all((bounds[:, 0] <= centres) & (centres <= bounds[:, 1])))
+        and bool(np.all(np.diff(bounds[:, 0]) >= 0))
+    )
+
+
 def _check_span(ds: netCDF4.Dataset, count: int, bad) -> None:
     """Raise ``bad(...)`` unless the records of the completed run ``ds`` (``count`` of them)
     start at ``t = 0`` and end at its scenario's ``time.end``, exactly."""
@@ -159,6 +205,7 @@ def _check_records(ds: netCDF4.Dataset, count: int, bad) -> None:
     """Raise ``bad(...)`` at the first of the first ``count`` records that fails its checks;
     the records are read in chunks of about :data:`CHUNK_VALUES` values and screened at
     once, the first failing one examined on its own for the message."""
+    _check_encoding(ds, bad)
     ds.set_auto_mask(False)
     x = np.asarray(ds["x"][:], dtype=float)
     if x.size == 0 or not (np.all(np.isfinite(x)) and np.all(np.diff(x) > 0)):
@@ -166,6 +213,15 @@ def _check_records(ds: netCDF4.Dataset, count: int, bad) -> None:
     if not np.all(np.isfinite(np.asarray(ds["bed"][:], dtype=float))):
         raise bad("its bed is not finite")
     bounds = np.asarray(ds["x_bnds"][:], dtype=float)
+    if not _brackets(bounds, x):  # plot draws the section on these edges
+        raise bad("its cell edges x_bnds are not finite around their cell centres x")
+    sigma = np.asarray(ds["sigma"][:], dtype=float)
+    if not (
+        _brackets(np.asarray(ds["sigma_bnds"][:], dtype=float), sigma) and np.all((sigma >= 0) & (sigma <= 1))
+    ):
+        raise bad("its layer heights sigma and sigma_bnds are not finite, in order and within [0, 1]")
+    if not np.array_equal(np.asarray(ds["layer"][:]), np.arange(1, sigma.size + 1)):
+        raise bad(f"its layer indices are not 1 to {sigma.size}")
     # the domain over the cells, as the writer's (x_max - x_min) / cells: the mean of the cell
     # widths x + dx/2 - (x - dx/2) carries the round-off of x (6e-14 relative at 1200 cells
     # of 1 mm), ten times the round-off allowed to the mass

@@ -365,7 +365,19 @@ def _at(path: Path, lines: dict, *key: str | int) -> str:
 
 def _check_base(path: Path, lines: dict, config: _Study, experiments: dict[str, dict[str, Any]]) -> Path:
     """The base scenario path; every experiment with the parameters at their lower, middle
-    and upper bounds must be a valid scenario (the key named otherwise)."""
+    and upper bounds must be a valid scenario (the key named otherwise); no parameter is
+    given a value in ``set`` or an experiment, where the parameter's value replaced it
+    (an experiment of its own ``rheology.mu_2`` ran with the calibrated one, silently)."""
+    for key in config.parameters:
+        fixed = ["set"] * (key in config.set) + [
+            f"experiments.{n}" for n, extra in experiments.items() if key in extra
+        ]
+        if fixed:
+            raise InputError(
+                f"{_at(path, lines, 'parameters', key)}: also given a value in {', '.join(fixed)}, which "
+                "the parameter's values would replace; accepted: a parameter given no value in set or an "
+                "experiment"
+            )
     base = load_base(
         path, config.base, _at(path, lines, "base"), "the base scenario with set", as_overrides(config.set)
     )

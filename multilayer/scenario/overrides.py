@@ -88,5 +88,11 @@ def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> tuple[dic
                     )
                 target.append(value)
                 path = (*path, len(target) - 1)
+        for earlier in paths:  # domain.cells=20 then domain={...}: 20 was lost, the sweep's table said 20
+            if earlier[: len(path)] == path:
+                raise InputError(
+                    f"--set {key}: replaces {dotted(earlier)}, set before it, whose value would be lost; "
+                    "accepted: each key set once, a key before the keys within it (domain, then domain.cells)"
+                )
         paths.append(path)
     return data, paths

@@ -100,7 +100,7 @@ class Domain(StrictModel):
                     f"expected {self.layers} numbers > 0, got {shown(value)}", accepted, "layer_fractions"
                 )
             if abs(sum(value) - 1) > _FRACTION_SUM_TOLERANCE:
-                raise invalid(f"fractions sum to {sum(value)!r}, not 1", accepted, "layer_fractions")
+                raise invalid(f"fractions sum to {shown(sum(value))}, not 1", accepted, "layer_fractions")
         elif isinstance(value, dict):
             ratio = value.get("geometric")
             if (
@@ -636,7 +636,19 @@ class Expect(StrictModel):
             )
         if self.source is not None and not self.source.strip():
             raise invalid("source is empty", "text naming the exact solution or publication", "source")
+        if not math.isfinite(self.tolerance):  # value 1e308, rtol 10: inf, and 0.16 passed for 1e308
+            raise invalid(
+                f"atol + rtol |value| = {self.atol or 0.0!r} + {self.rtol or 0.0!r} x "
+                f"{abs(self.value or 0.0)!r} overflows: every result would pass",
+                "a tolerance atol + rtol |value| below 1.8e308",
+                "rtol" if self.rtol else "atol",
+            )
         return self
+
+    @property
+    def tolerance(self) -> float:
+        """The allowed absolute deviation, ``atol + rtol |value|`` (a missing one counts as 0)."""
+        return (self.atol or 0.0) + (self.rtol or 0.0) * abs(self.value or 0.0)
 
 
 _ORDER = "1 or 2 (order of the transport step in x and t)"

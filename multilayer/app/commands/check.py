@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from multilayer import scenario as scenarios
 from multilayer.app import expectations as expect
@@ -38,6 +39,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     """Validate all files, then run and check each one."""
     loaded, errors = [], []
+    named: dict[str, str] = {}  # with -o, the file of each name: DIR/<name> is its results
     for path in args.files:
         try:
             scenario = scenarios.load(path)
@@ -45,6 +47,14 @@ def main(args: argparse.Namespace) -> int:
                 writable_directory(args.output / scenario.name, make=False)
         except InputError as exc:
             errors.append(str(exc))
+            continue
+        first = named.setdefault(scenario.name, path)
+        if args.output is not None and Path(first).resolve() != Path(path).resolve():
+            errors.append(  # the second run replaced the first's results, silently
+                f"{path}: name: {scenario.name!r}, the name of {first} too: its results "
+                f"{args.output / scenario.name} would replace the other's; accepted: files of distinct "
+                "names with -o"
+            )
             continue
         if not scenario.expect:
             errors.append(
