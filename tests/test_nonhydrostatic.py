@@ -493,9 +493,6 @@ def test_the_simulation_projection_reuses_its_arrays_without_carrying_anything_o
         h_now, u_now = h.copy(), u.copy()
         h_now[:lo] = h_now[hi:] = 0.0  # material in lo .. hi-1 only
         u_now[:, :lo] = u_now[:, hi:] = 0.0
-        # the projection of V* from the guess, as project's (not from the last call's final
-        # set: a start that changes the answer by round-off only, tested on its own)
-        projection._buffers.projected = None
         got = [a.copy() for a in projection(h_now, u_now, (h_before, u_before, w, q_before), dt, (0, 16))]
         w_star = np.zeros_like(w)
         nonhydrostatic._advect(w, u_now, dx, dt, False, 0, 16, w_star)
@@ -522,7 +519,7 @@ def test_the_start_constraint_reused_from_the_last_projection_is_the_assembled_o
     stored (it ended on the thickness the step starts from, on the same window and free
     unknowns) equals the one assembled afresh, bit for bit; a start on another thickness or
     a changed window assembles it afresh.  ``Projection`` answers as ``project`` (new arrays)
-    bit for bit either way, from the same starting active sets."""
+    bit for bit either way."""
     h, u, w, bed, fractions = random_state(12, layers=6, cells=16)
     nodes, P = assembly.layering(tuple(fractions), pressure_layers)
     # the product of stored entries against the r-only assembly, on a window of moving cells
@@ -563,9 +560,6 @@ def test_the_start_constraint_reused_from_the_last_projection_is_the_assembled_o
         h_now, u_now = change * h, change * u
         h_now[:lo] = h_now[hi:] = 0.0  # material in lo .. hi-1 only
         u_now[:, :lo] = u_now[:, hi:] = 0.0
-        # the projection of V* from the guess, as project's (not from the last call's final
-        # set: a start that changes the answer by round-off only, tested on its own)
-        projection._buffers.projected = None
         got = [
             a.copy() for a in projection(h_now, u_now, (h_before, u_before, w_before, q_before), dt, (0, 16))
         ]
@@ -738,41 +732,34 @@ def _assert_kkt(band, r, bound, lam, active):
 
 
 def test_a_warm_started_bounded_solve_ends_on_the_answer_of_the_cold_one():
-    """Both bounded solves of one step of the channel collapse at a = 10 on 0.5 mm cells
-    with ``model.vertical_shear`` (step 192, t = 0.018 s, 638 rows), saved with their
-    starting sets.  The projection of ``V*`` starts from its own final set the step before
-    (warm) instead of the interfaces where the bound held (cold, as before); the pressure
-    of the update from those interfaces (warm) instead of the first solve's final set
-    (cold), with the first solve's factor kept before the first row where the sets differ.  The
-    minimiser is unique (``A`` positive definite): from either start each solve ends on
-    the same active set and the same ``lam`` to round-off, which satisfies the KKT
-    conditions, and the warm start takes fewer iterations (regression: this system's)."""
+    """The two bounded solves of one step of the channel collapse at a = 10 on 0.5 mm cells
+    with ``model.vertical_shear`` (step 116, t = 0.011 s, 560 rows), saved: the projection of
+    ``V*`` from the interfaces where the bound held the step before, then the pressure of
+    the update from those interfaces too (warm) instead of the projection's final set
+    (cold, as before), with the projection's factor kept before the first row where the two
+    sets differ.  The minimiser is unique (``A`` positive definite): from either start, and
+    from a factorisation of its own, the pressure's solve ends on the same active set and
+    the same ``lam`` to round-off, which satisfies the KKT conditions; the warm start takes
+    fewer iterations (regression: this system's)."""
     from pathlib import Path
 
     d = np.load(Path(__file__).parent / "data" / "pressure_warm_start.npz")
-    band, bound, held = d["band"], d["lam_max"], d["tension_free"]
-    n = band.shape[0]
-    rows, cap = np.arange(n), banded.iteration_cap(n)
-
-    def iterations(r, guess):
-        return banded.bounded(band, r, bound, guess.copy(), cap, np.empty(band.shape), 0)[1]
-
-    def same(one, other):
-        (lam, (_, active)), (lam_other, (_, active_other)) = one, other
-        assert np.array_equal(active, active_other)
-        assert np.abs(lam - lam_other).max() <= 1e-13 * np.abs(lam).max()
-
-    cold = banded.multipliers(band, d["r"], rows, bound, held.copy())
-    warm = banded.multipliers(band, d["r"], rows, bound, d["projected"].copy())
-    same(cold, warm)
-    _assert_kkt(band, d["r"], bound, warm[0], warm[1][1])
-    assert np.array_equal(warm[1][1], d["first_final"])
-    first = (iterations(d["r"], held), iterations(d["r"], d["projected"]))
-    # the pressure's solve from the first's factor (copied: a solve refactors it in place)
-    final = warm[1][1]
-    cold = banded.multipliers(band, d["violation"], rows, bound, final.copy(), (warm[1][0].copy(), final))
-    warm = banded.multipliers(band, d["violation"], rows, bound, held.copy(), (warm[1][0].copy(), final))
-    same(cold, warm)
-    _assert_kkt(band, d["violation"], bound, warm[0], warm[1][1])
-    second = (iterations(d["violation"], final), iterations(d["violation"], held))
-    assert (first, second) == ((30, 21), (28, 2))  # regression: this system's (cold, warm)
+    band, bound, held, r = d["band"], d["lam_max"], d["tension_free"], d["violation"]
+    rows = np.arange(band.shape[0])
+    lam, (U, final) = banded.multipliers(band, d["r"], rows, bound, held.copy())
+    _assert_kkt(band, d["r"], bound, lam, final)
+    assert np.array_equal(final, d["first_final"])
+    # from the first's factor (copied: a solve refactors it in place), then from none
+    cold = banded.multipliers(band, r, rows, bound, final.copy(), (U.copy(), final))
+    warm = banded.multipliers(band, r, rows, bound, held.copy(), (U.copy(), final))
+    alone = banded.multipliers(band, r, rows, bound, held.copy())
+    for other in (cold, alone):
+        assert np.array_equal(warm[1][1], other[1][1])
+        assert np.abs(warm[0] - other[0]).max() <= 1e-13 * np.abs(warm[0]).max()
+    _assert_kkt(band, r, bound, warm[0], warm[1][1])
+    cap = banded.iteration_cap(rows.size)
+    iterations = [
+        banded.bounded(band, r, bound, guess.copy(), cap, np.empty(band.shape), 0)[1]
+        for guess in (final, held)
+    ]
+    assert iterations == [36, 3]  # regression: this system's (cold, warm)

@@ -175,10 +175,6 @@ class _Buffers:
         self.thickness, self.before = np.empty(N), np.empty(N)
         self.face_mass, self.lam_max = np.empty(L * N), np.empty(Lp * N)
         self.active, self.guess = np.empty(Lp * N, np.bool_), np.empty(Lp * N, np.bool_)
-        # the final active set of the last projection of V* (Lp, N) in the columns ``projected``
-        # (None: no projection yet)
-        self.kept = np.zeros((Lp, N), np.bool_)
-        self.projected: tuple[int, int] | None = None
         self.carried, self.violation = np.empty(Lp * N), np.empty(Lp * N)
         self.faces = (np.arange(N - 1), np.arange(1, N))  # a window's: their start (periodic: all)
         self.periodic_faces = faces(N, True)
@@ -290,8 +286,7 @@ def project_columns(
     ``buffers``: the work arrays of the shape of ``u`` and these pressure layers (reused
     from call to call: a new array touched afresh costs a page fault per 4 KiB); they keep
     the constraint of the call, which gives ``E^n V^n`` in the next call where the start is
-    on the same thickness, window and free unknowns (:meth:`_Buffers.assembled_on`), and the
-    final active set of its projection of ``V*``, where the next call's starts."""
+    on the same thickness, window and free unknowns (:meth:`_Buffers.assembled_on`)."""
     L, N = u.shape
     first, last = _moving_columns(u, h, dry)
     if last < 0:
@@ -321,14 +316,10 @@ def project_columns(
         0.0 if g_n is None else dt * g_n, _NO_CELLS if tension_free is None else tension_free,
         _NO_BOUND if lam_max is None else lam_max, _NO_CELLS if active is None else active,
     )  # fmt: skip
-    # each solve starts from its own final set the step before: the pressure's from the
-    # interfaces where the bound held (``tension_free``), the projection's from its own (kept)
-    guess = active
+    guess = active  # the guess, kept for the pressure's solve (the first's updates ``active``)
     if active is not None and start is not None:
         guess = buffers.guess[: active.size].reshape(active.shape)
         guess[:] = active
-    if active is not None and buffers.projected is not None:
-        active[:] = buffers.kept[:, lo:hi]
     K = L * left.size + L * W
     free, V_star, dV, mass = buffers.free[:K], buffers.V_star[:K], buffers.dV[:K], buffers.mass[:K]
     row_of = buffers.row_of[: nodes.size * (hi - lo)]
@@ -355,14 +346,12 @@ def project_columns(
     band, r = normal_equations(*geometry, free, row_of, n, V_star, buffers.band, arrays)
     buffers.keep(key, free, thickness, geometry[1])
     lam, factored = multipliers(band, r, buffers.rows[:n], lam_max, active)
-    if active is not None:
-        _keep(factored[1], buffers.rows[:n], lo, W, buffers.projected or (0, 0), buffers.kept)
-        buffers.projected = (lo, hi)
     correct(*arrays, free, lam, dV)
     dQ = dV
     if carried is not None and _violation(r, carried, buffers.violation[:n]):
         # the pressure: the projection of the update (the violation the step made), not of V*,
-        # from its own set of the step before (``guess``) and the first's factor kept before
+        # from the interfaces where the bound held the step before (its own final set then,
+        # not the first's, which the start's repair moves) and the first's factor kept before
         # the first row where the two sets differ; only its wbar part is read
         dQ, W = buffers.dQ[:K], L * left.size
         lam = multipliers(band, buffers.violation[:n], buffers.rows[:n], lam_max, guess, factored)[0]
@@ -401,20 +390,6 @@ def _window(
             at = np.uint64(lo + i)  # unsigned: numba leaves out the wrap-around of negative indices
             lam_max[g, i] = bound * (factors[layer] * h[at])
             active[g, i] = guess[layer, at] if guess.shape[0] > 0 else False
-
-
-@jit
-def _keep(final, rows, lo, W, written, kept):
-    """The final active set ``final`` of the rows ``rows`` (cells ``g W + i`` of the window's
-    pressure interfaces ``g`` and columns ``lo + i``) into ``kept`` (Lp, N), cleared first in
-    the columns ``written`` (start, stop) and the window's."""
-    for g in range(kept.shape[0]):
-        for i in range(written[0], written[1]):
-            kept[g, np.uint64(i)] = False
-        for i in range(lo, lo + W):
-            kept[g, np.uint64(i)] = False
-    for k in range(rows.size):
-        kept[rows[k] // W, np.uint64(lo + rows[k] % W)] = final[k]
 
 
 @jit
