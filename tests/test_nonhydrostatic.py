@@ -642,11 +642,11 @@ def test_bounded_solve_equals_the_dense_solution_of_its_active_set():
     r = rng.normal(size=n) * 10.0
     bound = np.abs(rng.normal(size=n))
     settled = np.zeros(n, dtype=bool)
-    banded.bounded(band, r, bound, settled, 100, np.empty(band.shape), False)
+    banded.bounded(band, r, bound, settled, 100, np.empty(band.shape), 0)
     # a guess wrong from row 60 on: the solves after the first restart there
     active = settled.copy()
     active[60:] = rng.random(n - 60) < 0.5
-    x, iterations = banded.bounded(band, r, bound, active, 100, np.empty(band.shape), False)
+    x, iterations = banded.bounded(band, r, bound, active, 100, np.empty(band.shape), 0)
     assert iterations >= 2 and 0 < active.sum() < n and np.array_equal(active, settled)
     free = ~active
     expected = bound.copy()
@@ -704,19 +704,62 @@ def test_the_pressure_bound_that_stopped_a_sheared_collapse_is_settled():
 
     d = np.load(Path(__file__).parent / "data" / "pressure_bound_release.npz")
     band, r, bound, start = d["band"], d["r"], d["lam_max"], d["active"]
-    n, w = band.shape[0], band.shape[1] - 1
-    assert banded.bounded(band, r, bound, start.copy(), 100, np.empty(band.shape), False)[1] == -1
+    n = band.shape[0]
+    assert banded.bounded(band, r, bound, start.copy(), 100, np.empty(band.shape), 0)[1] == -1
     active = start.copy()
     cap = banded.iteration_cap(n)
-    iterations = banded.bounded(band, r, bound, active, cap, np.empty(band.shape), False)[1]
+    iterations = banded.bounded(band, r, bound, active, cap, np.empty(band.shape), 0)[1]
     assert iterations == 101 and start.sum() == 293 and active.sum() == 14  # regression: this system's
     active = start.copy()
     lam = banded.multipliers(band, r, np.arange(n), bound, active)[0]
+    _assert_kkt(band, r, bound, lam, active)
+
+
+def _assert_kkt(band, r, bound, lam, active):
+    """The KKT conditions of ``min 1/2 lam^T A lam - r^T lam`` subject to ``lam <= bound``
+    (``A`` in band storage) at ``lam`` with the active set ``active``: ``lam <= bound``,
+    ``A lam = r`` on the free rows to round-off, ``lam = bound`` exactly and the multiplier
+    ``r - A lam >= 0`` on the active ones."""
+    n, w = band.shape[0], band.shape[1] - 1
     dense = np.zeros((n, n))
-    for d_ in range(w + 1):
-        dense += np.diag(band[: n - d_, d_], d_)
+    for d in range(w + 1):
+        dense += np.diag(band[: n - d, d], d)
     dense = dense + np.triu(dense, 1).T
     mu, free = r - dense @ lam, ~active
     assert np.all(lam <= bound)
     assert np.array_equal(lam[active], bound[active]) and np.all(mu[active] >= 0.0)
     assert np.abs(mu[free]).max() <= 1e-12 * np.abs(r).max()
+
+
+def test_a_warm_started_bounded_solve_ends_on_the_answer_of_the_cold_one():
+    """The two bounded solves of one step of the channel collapse at a = 10 on 0.5 mm cells
+    with ``model.vertical_shear`` (step 116, t = 0.011 s, 560 rows), saved: the projection of
+    ``V*`` from the interfaces where the bound held the step before, then the pressure of
+    the update from those interfaces too (warm) instead of the projection's final set
+    (cold, as before), with the projection's factor kept before the first row where the two
+    sets differ.  The minimiser is unique (``A`` positive definite): from either start, and
+    from a factorisation of its own, the pressure's solve ends on the same active set and
+    the same ``lam`` to round-off, which satisfies the KKT conditions; the warm start takes
+    fewer iterations (regression: this system's)."""
+    from pathlib import Path
+
+    d = np.load(Path(__file__).parent / "data" / "pressure_warm_start.npz")
+    band, bound, held, r = d["band"], d["lam_max"], d["tension_free"], d["violation"]
+    rows = np.arange(band.shape[0])
+    lam, (U, final) = banded.multipliers(band, d["r"], rows, bound, held.copy())
+    _assert_kkt(band, d["r"], bound, lam, final)
+    assert np.array_equal(final, d["first_final"])
+    # from the first's factor (copied: a solve refactors it in place), then from none
+    cold = banded.multipliers(band, r, rows, bound, final.copy(), (U.copy(), final))
+    warm = banded.multipliers(band, r, rows, bound, held.copy(), (U.copy(), final))
+    alone = banded.multipliers(band, r, rows, bound, held.copy())
+    for other in (cold, alone):
+        assert np.array_equal(warm[1][1], other[1][1])
+        assert np.abs(warm[0] - other[0]).max() <= 1e-13 * np.abs(warm[0]).max()
+    _assert_kkt(band, r, bound, warm[0], warm[1][1])
+    cap = banded.iteration_cap(rows.size)
+    iterations = [
+        banded.bounded(band, r, bound, guess.copy(), cap, np.empty(band.shape), 0)[1]
+        for guess in (final, held)
+    ]
+    assert iterations == [36, 3]  # regression: this system's (cold, warm)

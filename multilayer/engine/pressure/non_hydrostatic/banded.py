@@ -153,19 +153,19 @@ def _backward(U, y):
 
 
 @jit
-def bounded(band, r, lam_max, active, max_iterations, U, factored):
+def bounded(band, r, lam_max, active, max_iterations, U, start):
     """Minimiser of ``1/2 lam^T A lam - r^T lam`` subject to ``lam <= lam_max`` by primal-dual
     active sets (Hintermueller, Ito & Kunisch 2002) from the guess ``active`` (updated in
     place): on the active set ``lam = lam_max``, elsewhere ``(A lam)_i = r_i``; it stops
     when the set reproduces itself, i.e. the bound multiplier ``mu = r - A lam >= 0`` on
     it and ``lam <= lam_max`` off it.  The guess only changes the work, never the answer.
     Each iteration refactors the Cholesky factor ``U`` (band's shape) from the first row
-    whose status changed; ``factored``: ``U`` holds the factor of ``active`` on entry (a
-    solve's on the same ``A``), not computed again.  Returns ``lam`` and the iterations
-    (-1: not settled); ``U`` holds the factor of the final set."""
+    whose status changed, the first from the row ``start``: ``U`` holds on entry the factor
+    (a solve's on the same ``A``) of a set equal to ``active`` before that row (0: all of
+    ``U`` is computed; ``n``: none).  Returns ``lam`` and the iterations (-1: not settled);
+    ``U`` holds the factor of the final set."""
     n, w = band.shape[0], band.shape[1] - 1
     rhs, y = np.empty(n), np.empty(n)
-    start = np.int64(n) if factored else np.int64(0)  # the first factorisation (start 0) writes all of U
     for iteration in range(1, max_iterations + 1):
         factor(band, active, U, start)
         # the bounded unknowns move to the right-hand side of the free rows
@@ -202,32 +202,39 @@ def bounded(band, r, lam_max, active, max_iterations, U, factored):
     return lam, -1
 
 
+Factor = tuple[np.ndarray, np.ndarray]
+"""The Cholesky factor of ``A`` (band storage) with the rows of a set fixed, and that set."""
+
+
 def multipliers(
     band: np.ndarray,
     r: np.ndarray,
     rows: np.ndarray,
     lam_max: np.ndarray | None,
     active: np.ndarray | None,
-    factored: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
+    factored: Factor | None = None,
+) -> tuple[np.ndarray, Factor]:
     """``lam`` of :func:`correction` from ``A`` (band storage) and ``r = E V*`` on the rows
-    of the cells ``rows`` (``active`` updated in place), and the Cholesky factor of ``A``
-    with the rows of the final active set fixed; ``factored``: that factor for the set
-    ``active`` holds (a call's on the same ``A``), not computed again."""
+    of the cells ``rows``, from the guess ``active`` of the active set (updated in place),
+    and the Cholesky factor of ``A`` with the rows of the final active set fixed;
+    ``factored``: such a factor of a call on the same ``A``, kept before the first row
+    where its set and the guess differ (all of it: the same set)."""
     if lam_max is None:
-        U = factored
-        if U is None:
-            U = np.zeros(band.shape)
-            factor(band, np.zeros(r.size, dtype=np.bool_), U, 0)
-        return substitute(U, r), U
+        if factored is None:
+            factored = (np.zeros(band.shape), np.zeros(r.size, np.bool_))
+            factor(band, factored[1], factored[0], 0)
+        return substitute(factored[0], r), factored
     guess = np.zeros(rows.size, dtype=np.bool_) if active is None else active.ravel()[rows]
-    U = np.empty(band.shape) if factored is None else factored
+    U, start = np.empty(band.shape), 0
+    if factored is not None:
+        U, differ = factored[0], np.flatnonzero(guess != factored[1])
+        start = differ[0] if differ.size else rows.size
     cap = iteration_cap(rows.size)
-    lam, iterations = bounded(band, r, lam_max.ravel()[rows], guess, cap, U, factored is not None)
+    lam, iterations = bounded(band, r, lam_max.ravel()[rows], guess, cap, U, np.int64(start))
     if iterations < 0:
         raise RunError(
             f"the non-hydrostatic pressure bound p >= 0 was not settled in {cap} active-set iterations"
         )
     if active is not None:
         active.ravel()[rows] = guess
-    return lam, U
+    return lam, (U, guess)

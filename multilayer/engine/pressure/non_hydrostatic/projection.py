@@ -174,7 +174,7 @@ class _Buffers:
         # the window's thickness now and at the step's start, face masses, bound and active set
         self.thickness, self.before = np.empty(N), np.empty(N)
         self.face_mass, self.lam_max = np.empty(L * N), np.empty(Lp * N)
-        self.active = np.empty(Lp * N, np.bool_)
+        self.active, self.guess = np.empty(Lp * N, np.bool_), np.empty(Lp * N, np.bool_)
         self.carried, self.violation = np.empty(Lp * N), np.empty(Lp * N)
         self.faces = (np.arange(N - 1), np.arange(1, N))  # a window's: their start (periodic: all)
         self.periodic_faces = faces(N, True)
@@ -250,7 +250,7 @@ def project(
     dry keep ``u = w = 0``.  With ``g_n = g cos(theta)`` the total pressure
     ``g_n (h - z) + q`` is kept non-negative (granular matter takes no tension); the cells
     ``tension_free`` (L, N) where it was zero the step before (:func:`tension_free`) start
-    the active-set iteration (speed only: the answer does not depend on them).
+    the active-set iterations (speed only: the answer does not depend on them).
     """
     u_new, w_new, q = u.copy(), np.zeros(w.shape), np.zeros(u.shape)
     project_columns(
@@ -316,6 +316,10 @@ def project_columns(
         0.0 if g_n is None else dt * g_n, _NO_CELLS if tension_free is None else tension_free,
         _NO_BOUND if lam_max is None else lam_max, _NO_CELLS if active is None else active,
     )  # fmt: skip
+    guess = active  # the guess, kept for the pressure's solve (the first's updates ``active``)
+    if active is not None and start is not None:
+        guess = buffers.guess[: active.size].reshape(active.shape)
+        guess[:] = active
     K = L * left.size + L * W
     free, V_star, dV, mass = buffers.free[:K], buffers.V_star[:K], buffers.dV[:K], buffers.mass[:K]
     row_of = buffers.row_of[: nodes.size * (hi - lo)]
@@ -346,9 +350,11 @@ def project_columns(
     dQ = dV
     if carried is not None and _violation(r, carried, buffers.violation[:n]):
         # the pressure: the projection of the update (the violation the step made), not of V*,
-        # from the final active set of the first and its factor; only its wbar part is read
+        # from the interfaces where the bound held the step before (its own final set then,
+        # not the first's, which the start's repair moves) and the first's factor kept before
+        # the first row where the two sets differ; only its wbar part is read
         dQ, W = buffers.dQ[:K], L * left.size
-        lam = multipliers(band, buffers.violation[:n], buffers.rows[:n], lam_max, active, factored)[0]
+        lam = multipliers(band, buffers.violation[:n], buffers.rows[:n], lam_max, guess, factored)[0]
         correct(arrays[0][W:], *arrays[1:3], mass[W:], free[W:], lam, dQ[W:])
     _finish(dV, dQ, u, w, h, fractions, moving, left, right, dt, lo, buffers.du, *out)
     return lo, hi
