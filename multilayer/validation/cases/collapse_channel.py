@@ -700,7 +700,9 @@ What the runs show about why:
   on {OTHER_CELLS * 1e3:g} mm cells by {whole_step}
   (a = {", ".join(f"{a:g}" for a in stepped_complete)}; subsection "The time step" below, with the
   verdict at the shorter step).  Part of the shortening the non-hydrostatic pressure brings over
-  the hydrostatic one is that loss.
+  the hydrostatic one is that loss, and the run-out the step converges to depends on how the
+  projection treats the mismatch between cell and face velocities on this collocated grid
+  ([Non-hydrostatic pressure](nonhydrostatic.md), "The pressure: the projection of the update").
 {release_text}{gate_text}{coarse_text}
 
 ### The time step
