@@ -234,6 +234,15 @@ def deposits(
     return out
 
 
+def per_ratio(found: dict[tuple[Any, ...], Deposit]) -> dict[float, dict[float, Deposit]]:
+    """The measures of :func:`deposits` keyed by ``(a, level)`` (a cell size or a Courant
+    number) as ``{a: {level: deposit}}``, every a of :data:`RATIOS` present."""
+    out: dict[float, dict[float, Deposit]] = {a: {} for a in RATIOS}
+    for (a, level), d in found.items():
+        out[a][level] = d
+    return out
+
+
 def study_rows(
     measured: dict[float, dict[float, Deposit]], complete: list[float], cells: tuple[float, ...]
 ) -> tuple[list[list[str]], dict[float, tuple[bool, bool]]]:
@@ -294,25 +303,16 @@ def section(ctx: Context) -> str:
     # meshes at the shortest (the run on both is listed once)
     stepped = {(a, cfl): run(a, OTHER_CELLS, cfl=cfl) for cfl in STEP_CFLS[1:] for a in RATIOS}
     short_runs = {(a, dx): run(a, dx, cfl=STEP_CFL) for dx in STEP_CELLS[::-1] for a in RATIOS[::-1]}
-    every = [*short_runs.values(), *stressed_runs.values(), *runs.values(), *others.values(), *gates.values()]
-    results = ctx.execute(list({r.name: r for r in [*every, *stepped.values()]}.values()))
+    every = [r for group in (short_runs, stressed_runs, runs, others, gates, stepped) for r in group.values()]
+    results = ctx.execute(list({r.name: r for r in every}.values()))
     failures: list[str] = []
-    meshes = deposits(results, runs, grain, gravity, failures)
-    measured: dict[float, dict[float, Deposit]] = {a: {} for a in RATIOS}
-    for (a, dx), d in meshes.items():
-        measured[a][dx] = d
-    stressed: dict[float, dict[float, Deposit]] = {a: {} for a in RATIOS}
-    for (a, dx), d in deposits(results, stressed_runs, grain, gravity, failures).items():
-        stressed[a][dx] = d
+    measured = per_ratio(deposits(results, runs, grain, gravity, failures))
+    stressed = per_ratio(deposits(results, stressed_runs, grain, gravity, failures))
     other: dict[str, dict[float, Deposit]] = {key: {} for key in OTHERS}
     for (a, key), d in deposits(results, others, grain, gravity, failures).items():
         other[key][a] = d
-    by_step: dict[float, dict[float, Deposit]] = {a: {} for a in RATIOS}
-    for (a, cfl), d in deposits(results, stepped, grain, gravity, failures).items():
-        by_step[a][cfl] = d
-    short: dict[float, dict[float, Deposit]] = {a: {} for a in RATIOS}
-    for (a, dx), d in deposits(results, short_runs, grain, gravity, failures).items():
-        short[a][dx] = d
+    by_step = per_ratio(deposits(results, stepped, grain, gravity, failures))
+    short = per_ratio(deposits(results, short_runs, grain, gravity, failures))
     gated: dict[tuple[float, float], Deposit] = {
         (key[1], key[2]): d for key, d in deposits(results, gates, grain, gravity, failures).items()
     }
