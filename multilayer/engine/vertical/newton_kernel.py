@@ -266,7 +266,14 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
         np.zeros((5, L)),  # wall_pressure, wall_factor, wall_offset, per_area, wall_true
         np.empty((4, BLOCK), np.bool_),  # flags, finished of sheared_block
         np.zeros(BLOCK, np.bool_),
-        np.empty(sc.SWEEPS * BLOCK * L),  # the sweeps of sheared_block
+        # the sweeps of sheared_block, an array each (the compiler tells their accesses apart)
+        (
+            np.empty(L * BLOCK),
+            np.empty(L * BLOCK),
+            np.empty(L * BLOCK),
+            np.empty(L * BLOCK),
+            np.empty(L * BLOCK),
+        ),
         np.empty((2, L * BLOCK)),  # the rows of a block's u* and guesses (sheared_columns.load)
     )
     _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
@@ -385,7 +392,7 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
                 for a in range(L):
                     wall_true[a] = wall[a]
             if block:
-                join(tile, L, flags, lane, fine)
+                join(tile, L, flags, lane, fine, not fused or inputs.walls)
                 if lane == BLOCK - 1:
                     sheared_block(
                         tile, sweeps, flags, finished, bulk_form, bulk_params, threshold, max_iterations, j0,
