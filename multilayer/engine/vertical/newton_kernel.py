@@ -239,6 +239,7 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
     columns, inputs, given = Columns(*columns), YieldInputs(*inputs), ColumnArrays(*given)
     laws, control, out = Laws(*laws), Control(*control), Results(*out)
     L = inputs.l.size
+    sweep = BLOCK * L
     work = (
         _workspace(L),
         np.empty(L + 1, np.int64),  # first, grounded, U, diag, low, rhs of the active set
@@ -266,14 +267,8 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
         np.zeros((5, L)),  # wall_pressure, wall_factor, wall_offset, per_area, wall_true
         np.empty((4, BLOCK), np.bool_),  # flags, finished of sheared_block
         np.zeros(BLOCK, np.bool_),
-        # the sweeps of sheared_block, an array each (the compiler tells their accesses apart)
-        (
-            np.empty(L * BLOCK),
-            np.empty(L * BLOCK),
-            np.empty(L * BLOCK),
-            np.empty(L * BLOCK),
-            np.empty(L * BLOCK),
-        ),
+        # the sweeps of sheared_block, an array each (the compiler tells apart two arrays, not two rows)
+        (np.empty(sweep), np.empty(sweep), np.empty(sweep), np.empty(sweep), np.empty(sweep)),
         np.empty((2, L * BLOCK)),  # the rows of a block's u* and guesses (sheared_columns.load)
     )
     _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
