@@ -114,11 +114,13 @@ def column_arrays(L: int) -> ColumnArrays:
 
 
 @jit(inline="always")  # inlined: a call per column costs about 50 ns at L = 8
-def column_coefficients(col, hj, inputs, out):
+def column_coefficients(col, hj, inputs, out, at):
     """Column ``col`` of thickness ``hj`` of ``StressModel.columns`` with the yield forms ``mu
     max(p, 0)``, ``mu_static max(p, 0)`` at rest (each plus ``D / (1 + hj / L)`` with
     ``thickness_law``) and ``mu_wall max(pbar, 0)`` on the walls (:class:`YieldInputs`
-    ``inputs``), into the (L,) arrays of ``out`` (:class:`ColumnArrays`). Returns how many
+    ``inputs``), into the (L,) arrays of ``out`` (:class:`ColumnArrays`), but for its yield
+    stresses ``kappa`` and wall thresholds ``w``, which go to cells ``at ... at + L - 1`` of
+    theirs (the Newton kernel writes them straight into a row of its tile). Returns how many
     yield values are outside the plugin contract (not finite and >= 0). (Inlined, the fields
     of both tuples are read as the arrays themselves: numba prunes the reference counts.)
 
@@ -148,29 +150,30 @@ def column_coefficients(col, hj, inputs, out):
     if inputs.thickness_law:  # the operations of pouliquen_forterre.mu_stop
         mu = mu + inputs.drop / (1.0 + hj / inputs.length)
         mu_static = mu_static + inputs.drop / (1.0 + hj / inputs.length)
+    first = np.uint64(at)  # unsigned: no test for negative indices
     for a in range(L):
         k = _frictional(mu, pressure[a])
-        kappa[a] = k
+        kappa[first + np.uint64(a)] = k
         good += _within_contract(k)
     # interface a is static where layer a and the one below (or the ground) rest
     if inputs.has_rest and inputs.resting[col]:
         for a in range(L):
             if rest[a, col] and (a == 0 or rest[a - 1, col]):
                 k = _frictional(mu_static, pressure[a])
-                kappa[a] = k
+                kappa[first + np.uint64(a)] = k
                 checked += 1
                 good += _within_contract(k)
     if inputs.walls:
         checked += L
         for a in range(L):
             tau = _frictional(inputs.mu_wall, wall_pressure[a])
-            w[a] = inputs.wall_scale * l[a] * hj * tau
+            w[first + np.uint64(a)] = inputs.wall_scale * l[a] * hj * tau
             good += _within_contract(tau)
     else:
         for a in range(L):
-            w[a] = 0.0
+            w[first + np.uint64(a)] = 0.0
     if not inputs.base_bulk[col]:  # the basal condition: the friction of the bed at interface 0
-        kappa[0] = inputs.base_friction[col] * pressure[0] + inputs.base_cohesion[col]
+        kappa[first] = inputs.base_friction[col] * pressure[0] + inputs.base_cohesion[col]
     viscous[0] = inputs.base_bulk[col]
     return checked - good
 
@@ -186,7 +189,7 @@ def _coefficients(hw, wet, inputs, m, kappa, w, pressure, spacing, viscous, wall
         np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L, np.bool_), np.empty(L)
     )
     for j in range(n):
-        bad += column_coefficients(wet[j], hw[j], inputs, column)
+        bad += column_coefficients(wet[j], hw[j], inputs, column, 0)
         for a in range(L):
             m[a, j], kappa[a, j], w[a, j] = column.m[a], column.kappa[a], column.w[a]
             pressure[a, j], spacing[a, j] = column.pressure[a], column.spacing[a]

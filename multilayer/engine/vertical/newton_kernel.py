@@ -239,6 +239,7 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
     columns, inputs, given = Columns(*columns), YieldInputs(*inputs), ColumnArrays(*given)
     laws, control, out = Laws(*laws), Control(*control), Results(*out)
     L = inputs.l.size
+    sweep = BLOCK * L
     work = (
         _workspace(L),
         np.empty(L + 1, np.int64),  # first, grounded, U, diag, low, rhs of the active set
@@ -261,12 +262,13 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
         np.empty((4, L)),  # state_c, state_n of newton_control.energy_rise
         np.empty((4, L)),
         new_tile(L),  # the work arrays of sheared_block, and lane ALONE
-        np.empty((4, L)),  # m, w0, pressure, spacing
+        np.empty((3, L)),  # m, pressure, spacing
         np.empty(L, np.bool_),  # viscous
         np.zeros((5, L)),  # wall_pressure, wall_factor, wall_offset, per_area, wall_true
         np.empty((4, BLOCK), np.bool_),  # flags, finished of sheared_block
         np.zeros(BLOCK, np.bool_),
-        np.empty(sc.SWEEPS * BLOCK * L),  # the sweeps of sheared_block
+        # the sweeps of sheared_block, an array each (the compiler tells apart two arrays, not two rows)
+        (np.empty(sweep), np.empty(sweep), np.empty(sweep), np.empty(sweep), np.empty(sweep)),
         np.empty((2, L * BLOCK)),  # the rows of a block's u* and guesses (sheared_columns.load)
     )
     _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
@@ -308,7 +310,7 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
     eta_c, slope_c, weta_c, wslope_c = laws_c[0], laws_c[1], laws_c[2], laws_c[3]
     eta_n, slope_n, weta_n, wslope_n = laws_n[0], laws_n[1], laws_n[2], laws_n[3]
     # the coefficients of StressModel.columns of the column (coefficients.column_coefficients)
-    m, w0, pressure, spacing = coefficients[0], coefficients[1], coefficients[2], coefficients[3]
+    m, pressure, spacing = coefficients[0], coefficients[1], coefficients[2]
     wall_pressure = walls_of[0]
     # and from them, per layer, in the tile (lane ALONE: the column solved on its own; the lanes of a
     # block are set up straight into their own): m_a / dt, m_a u*_a / dt, the yield stresses, inverse
@@ -321,7 +323,8 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
     conductance, factor, offset = tile[sc.CONDUCTANCE, alone], tile[sc.FACTOR, alone], tile[sc.OFFSET, alone]
     wall_factor, wall_offset, per_area, wall_true = walls_of[1], walls_of[2], walls_of[3], walls_of[4]
     factors, offsets = tile[sc.FACTOR], tile[sc.OFFSET]  # the rows of every lane
-    column = ColumnArrays(m, kappa, w0, pressure, spacing, viscous, wall_pressure)  # into the lane ALONE
+    # the yield stresses and wall thresholds straight into the rows of the tile (at a lane's cells)
+    column = ColumnArrays(m, tile[sc.KAPPA], tile[sc.WALL], pressure, spacing, viscous, wall_pressure)
     g_m, g_kappa, g_w, g_pressure = given.m, given.kappa, given.w, given.pressure  # read once per chunk
     g_spacing, g_viscous, g_wall = given.spacing, given.viscous, given.wall_pressure
     start, stop = k * n // chunks, (k + 1) * n // chunks
@@ -347,16 +350,19 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
                 block = blocks and not walls and j + BLOCK <= stop and wet[j + BLOCK - 1] - col == BLOCK - 1
                 if block:  # the block's u* and guesses, row by row
                     sc.load(u_rows, guess_rows, ustar, guess, col)
-            # the coefficients of StressModel.columns: from the compiled yield forms, or given
+            lane = j - j0 if block else ALONE
+            o = cell(lane, L)  # the lane's layer 0 in the tile's rows
+            # the coefficients of StressModel.columns: from the compiled yield forms, or given (the
+            # yield stresses and wall thresholds straight into the lane's slots)
             if fused:
-                fine = column_coefficients(col, h[col], inputs, column) == 0
+                fine = column_coefficients(col, h[col], inputs, column, o) == 0
             else:
                 fine = True
                 for a in range(L):
-                    m[a], kappa[a], w0[a], pressure[a] = g_m[a, j], g_kappa[a, j], g_w[a, j], g_pressure[a, j]
-                    spacing[a], viscous[a], wall_pressure[a] = g_spacing[a, j], g_viscous[a, j], g_wall[a, j]
-            lane = j - j0 if block else ALONE
-            o = cell(lane, L)  # the lane's layer 0 in the tile's rows
+                    x = np.uint64(o + a)
+                    m[a], tile[sc.KAPPA, x], tile[sc.WALL, x] = g_m[a, j], g_kappa[a, j], g_w[a, j]
+                    pressure[a], spacing[a], viscous[a] = g_pressure[a, j], g_spacing[a, j], g_viscous[a, j]
+                    wall_pressure[a] = g_wall[a, j]
             # what stays fixed during the iteration, a few rows per loop over the layers (a loop
             # over all reloads its rows' pointers), the laws' switch outside them
             sc.set_up(tile, L, lane, m, dt, u_rows, guess_rows, ustar, guess, col, current)  # m/dt, m u*/dt
@@ -366,28 +372,22 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
                 inverse = 1.0 / s if s > 0.0 else 1.0
                 tile[sc.INV_SPACING, x] = inverse
                 tile[sc.CONDUCTANCE, x] = inverse if (viscous[a] and s > 0.0) else 0.0
+                tile[sc.VISCOUS, x] = 1.0 if viscous[a] else 0.0
             _pressure_parts(bulk_form, bulk_params, pressure, h[col], factors, offsets, o)
-            if block:  # (kappa was written into lane ALONE, whose slot it is)
-                for a in range(L):
-                    x = np.uint64(o + a)
-                    tile[sc.KAPPA, x] = kappa[a]
-                    tile[sc.VISCOUS, x] = 1.0 if viscous[a] else 0.0
-                    tile[sc.WALL, x] = w0[a]
-            elif walls:
+            if walls and not block:
                 start_of_walls = np.int64(0)  # not the literal 0: one compilation for both laws
                 _pressure_parts(
                     wall_form, wall_params, wall_pressure, h[col], wall_factor, wall_offset, start_of_walls
                 )
                 for a in range(L):
                     per_area[a] = (2.0 / width) * m[a] / density
-                    wall[a] = w0[a] / max(per_area[a], 1e-300)
+                    wall[a] = wall[a] / max(per_area[a], 1e-300)  # the wall threshold, per unit area
                     wall_true[a] = per_area[a] * wall[a]
-            else:
+            elif not block:
                 for a in range(L):
-                    wall[a] = w0[a]
                     wall_true[a] = wall[a]
             if block:
-                join(tile, L, flags, lane, fine)
+                join(tile, L, flags, lane, fine, not fused or inputs.walls)
                 if lane == BLOCK - 1:
                     sheared_block(
                         tile, sweeps, flags, finished, bulk_form, bulk_params, threshold, max_iterations, j0,

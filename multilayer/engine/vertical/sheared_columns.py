@@ -72,9 +72,9 @@ sweeps of the solve 5 per layer and lane, 41 KB, and the rows of :func:`load` 2,
 INERTIA, MOMENTUM, KAPPA, WALL, INV_SPACING, CONDUCTANCE, VISCOUS, FACTOR, OFFSET = range(9)
 KEPT, KC, CC, SIGN, U0, U1, TAU0, TAU1, STIFF0, STIFF1, BED, GAP, RISE = range(9, 22)
 SLOTS = 25
-# The values of each layer in the sweeps of :func:`_solve`: its pivot (then the inverse
-# pivot), right-hand side, conductance below, the pivots not positive up to it, and the
-# velocity.
+# The arrays of the sweeps of :func:`_solve`, a value per layer and lane in each: the pivot
+# (then the inverse pivot), right-hand side, conductance below, the pivots not positive up
+# to the layer, and the velocity.
 PIVOT, RIGHT, COUPLING, TRIED, SOLVED = range(5)
 SWEEPS = 5
 ALONE = BLOCK
@@ -157,13 +157,15 @@ def set_up(t, L, lane, m, dt, u_rows, guess_rows, ustar, guess, col, current):
 
 
 @jit(borrowing=True)
-def join(t, L, flags, i, fine):
+def join(t, L, flags, i, fine, walled):
     """Lane ``i`` of the block, whose per-step slots ``newton_kernel._chunk`` has set up
     (``fine``: its yield values are within the plugin contract), takes part in the block
-    iteration if ``fine``, with mass and without a wall threshold."""
+    iteration if ``fine``, with mass and without a wall threshold (its thresholds are read
+    where they may be nonzero, ``walled``; the compiled yield forms without walls set them
+    to 0)."""
     x = cell(i, L)
     held = 0  # layers with a wall threshold (or NaN), counted without branches: as vectors
-    for a in range(np.uint64(x), np.uint64(x + L)):  # unsigned: no test for negative indices
+    for a in range(np.uint64(x), np.uint64(x + L if walled else x)):  # unsigned: no test for negative indices
         held += not t[WALL, a] == 0.0
     flags[FINE, i] = fine
     flags[ACTIVE, i] = fine and t[INERTIA, x] > 0.0 and held == 0
@@ -261,26 +263,25 @@ def _solve(t, w, L, new, flags):
     pivot is positive (a column whose structure is rejected leaves the block; the pass of the
     stresses at slot ``new`` tests that each yielded jump keeps its sign, :func:`_sweep`).
 
-    The sweeps run in ``w`` (``SWEEPS BLOCK L`` values), which holds each layer's ``SWEEPS``
-    values of the ``BLOCK`` lanes side by side (value k of layer a of lane i in ``(a
-    SWEEPS + k) BLOCK + i``), so that each step of the sweeps runs the block's layer as
-    vectors (its values a fixed distance apart: the compiler sees that they do not
-    overlap; the loop over the lanes bounded by ``flags.shape[1]``, a number it does not
-    unroll but vectorises).  The equations of each layer (``_active_set``'s sums, in its
-    order) are formed lane by lane from the tile, swept and substituted back layer by
-    layer (each operation that of ``_active_set``: the same bits), counting the failures
-    of the pivots up the column (so that the top layer holds each lane's), and the
-    velocities go back to slot ``new`` of the tile, lane by lane.  Indices are unsigned (as
-    in :func:`_sweep`): no test for negative indices."""
+    The sweeps run in ``w``, ``SWEEPS`` arrays of ``BLOCK L`` values, each the block's
+    layers one after the other and each layer its ``BLOCK`` lanes side by side (layer a
+    of lane i in ``a BLOCK + i``), so that each sweep is one loop over the values in which
+    a value depends on the one ``BLOCK`` places below (or above) it: the loop runs as
+    vectors of the lanes of a layer, with no loop over the lanes inside it (in separate
+    arrays, the compiler can tell that each value depends on none nearer than that).
+    The equations of each layer (``_active_set``'s sums, in its order) are formed lane
+    by lane from the tile, swept and substituted back (each operation that of
+    ``_active_set``: the same bits), counting the failures of the pivots up the column
+    (so that the top layer holds each lane's), and the velocities go back to slot ``new``
+    of the tile, lane by lane.  Indices are unsigned (as in :func:`_sweep`): no test for
+    negative indices."""
     one, lanes, layers = np.uint64(1), np.uint64(BLOCK), np.uint64(L)
-    step = np.uint64(SWEEPS * BLOCK)  # from one layer to the next in w
-    pivot, right, coupling = np.uint64(PIVOT), np.uint64(RIGHT), np.uint64(COUPLING)
-    tried, solved = np.uint64(TRIED), np.uint64(SOLVED)
-    count = np.uint64(flags.shape[1])  # BLOCK, as a bound the compiler does not unroll but vectorises
+    n = layers * lanes  # the values of an array
+    pivot, right, coupling, tried, solved = w[PIVOT], w[RIGHT], w[COUPLING], w[TRIED], w[SOLVED]
     for lane in range(BLOCK):  # the equations, from the lanes of the tile
         x0, i = np.uint64(cell(lane, L)), np.uint64(lane)
         for a in range(layers - one):  # below the top: with the interface above
-            x, s = x0 + a, a * step + i
+            x, s = x0 + a, a * lanes + i
             c, k_above, s_above = t[CC, x], t[KC, x + one], t[SIGN, x + one]
             d = 0.0 + (t[INERTIA, x] + 0.0)  # _active_set's sums, in its order (cw = w = 0)
             r = 0.0 + t[MOMENTUM, x]
@@ -288,44 +289,40 @@ def _solve(t, w, L, new, flags):
             r -= t[KC, x] * t[SIGN, x]
             d += t[CC, x + one]
             r += k_above * s_above
-            w[s + coupling * lanes] = c
-            w[s + pivot * lanes] = d
-            w[s + right * lanes] = r
-        x, s = x0 + layers - one, (layers - one) * step + i  # the top layer
+            coupling[s] = c
+            pivot[s] = d
+            right[s] = r
+        x, s = x0 + layers - one, (layers - one) * lanes + i  # the top layer
         c = t[CC, x]
-        w[s + coupling * lanes] = c
-        w[s + pivot * lanes] = 0.0 + (t[INERTIA, x] + 0.0) + c
-        w[s + right * lanes] = 0.0 + t[MOMENTUM, x] - t[KC, x] * t[SIGN, x]
+        coupling[s] = c
+        pivot[s] = 0.0 + (t[INERTIA, x] + 0.0) + c
+        right[s] = 0.0 + t[MOMENTUM, x] - t[KC, x] * t[SIGN, x]
     for i in range(lanes):  # layer 0: nothing below to eliminate
-        d = w[pivot * lanes + i]
-        w[tried * lanes + i] = 0.0 if d > 0.0 else 1.0
-        w[pivot * lanes + i] = 1.0 / d
-    for a in range(one, layers):  # the forward sweep
-        for i in range(count):
-            s, b = a * step + i, (a - one) * step + i
-            c, d, r = w[s + coupling * lanes], w[s + pivot * lanes], w[s + right * lanes]
-            f = -c * w[b + pivot * lanes]
-            eliminated_d = d - f * (-c)
-            eliminated_r = r - f * w[b + right * lanes]
-            d = eliminated_d if c != 0.0 else d
-            w[s + right * lanes] = eliminated_r if c != 0.0 else r
-            w[s + tried * lanes] = w[b + tried * lanes] + (0.0 if d > 0.0 else 1.0)
-            w[s + pivot * lanes] = 1.0 / d
-    top = (layers - one) * step
-    for i in range(lanes):  # the back substitution
-        s = top + i
-        w[s + solved * lanes] = w[s + right * lanes] * w[s + pivot * lanes]
-    for b in range(one, layers):
-        for i in range(count):
-            s = (layers - one - b) * step + i
-            above = w[s + step + solved * lanes]
-            u = (w[s + right * lanes] + w[s + step + coupling * lanes] * above) * w[s + pivot * lanes]
-            w[s + solved * lanes] = u
+        d = pivot[i]
+        tried[i] = 0.0 if d > 0.0 else 1.0
+        pivot[i] = 1.0 / d
+    for s in range(lanes, n):  # the forward sweep: the value below is BLOCK places before
+        b = s - lanes
+        c, d, r = coupling[s], pivot[s], right[s]
+        f = -c * pivot[b]
+        eliminated_d = d - f * (-c)
+        eliminated_r = r - f * right[b]
+        d = eliminated_d if c != 0.0 else d
+        right[s] = eliminated_r if c != 0.0 else r
+        tried[s] = tried[b] + (0.0 if d > 0.0 else 1.0)
+        pivot[s] = 1.0 / d
+    top = n - lanes
+    for s in range(top, n):  # the back substitution: the value above is BLOCK places after
+        solved[s] = right[s] * pivot[s]
+    for b in range(lanes, n):
+        s = n - one - b
+        above = solved[s + lanes]
+        solved[s] = (right[s] + coupling[s + lanes] * above) * pivot[s]
     for lane in range(BLOCK):  # into slot new, and the test of the pivots
         x0, i = np.uint64(cell(lane, L)), np.uint64(lane)
         for a in range(layers):
-            t[new, x0 + a] = w[a * step + solved * lanes + i]
-        if w[top + tried * lanes + i] > 0.0:
+            t[new, x0 + a] = solved[a * lanes + i]
+        if tried[top + i] > 0.0:
             flags[ACTIVE, lane] = False
 
 
@@ -508,9 +505,9 @@ def sheared_block(
     together = last == (1 << BLOCK) - 1
     if not together:
         _keep(t, L, new, last)
-    step, solved = np.uint64(SWEEPS * BLOCK), np.uint64(SOLVED * BLOCK)
+    lanes, solved = np.uint64(BLOCK), sweeps[SOLVED]
     for a in range(np.uint64(L if together else 0)):  # unsigned: no test for negative indices
-        row = _layer(sweeps, a * step + solved)
+        row = _layer(solved, a * lanes)
         for i in range(BLOCK):
             u_out[a, np.uint64(c0 + i)] = row[i]
     every = not together
