@@ -13,6 +13,8 @@ backward-Euler steps (:meth:`UniformLayer.step`) of 1 % of the time reached (at 
 
 from __future__ import annotations
 
+import argparse
+
 import numpy as np
 
 from multilayer.engine.mixture.uniform_layer import UniformLayer, onset_time
@@ -27,6 +29,7 @@ ONSET = 1e-4
 
 
 def main() -> None:
+    argparse.ArgumentParser(description=__doc__.split("\n\n")[0]).parse_args()
     print("| phi0 | alpha (1/Pa) | t_IG (s) | onset, 0.1 mm/s (s) | p_e, end (Pa) | extreme p_e (Pa) |")
     print("| --- | --- | --- | --- | --- | --- |")
     for phi0, t_end in CASES.items():
