@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import importlib.util
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -77,6 +79,42 @@ def test_the_dam_break_times_a_peer_before_each_run_and_reports_the_median_ratio
     assert median == pytest.approx(sorted(pairs)[1], abs=0.01)
     failed = subprocess.run([*command, "--peer", "exit 3"], capture_output=True, text=True)
     assert failed.returncode == 1 and "'exit 3' failed (exit 3)" in failed.stderr
+
+
+def _basilisk_collapse():
+    """benchmarks/basilisk_collapse.py as a module."""
+    spec = importlib.util.spec_from_file_location("basilisk_collapse", BENCHMARKS / "basilisk_collapse.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_basilisk_collapse_stops_with_status_2_without_basilisk():
+    """Without a Basilisk tree the comparison says what it needs and exits 2 (a benchmark,
+    not a test: nothing is run)."""
+    env = {key: value for key, value in os.environ.items() if key != "BASILISK"}
+    done = subprocess.run(
+        [sys.executable, BENCHMARKS / "basilisk_collapse.py"], capture_output=True, text=True, env=env
+    )
+    assert done.returncode == 2 and "--basilisk DIR" in done.stderr
+
+
+def test_the_basilisk_collapse_measures_a_deposit_as_the_record_does():
+    """The mound holds the rectangle's volume H0 L0; Basilisk's output is read back and
+    measured: a deposit falling linearly from 1 cm at the wall to 0 at 10 cm has its 1.5 mm
+    tip at 8.5 cm, (x - L0)/L0 = 0.7, and a tip that never moves stopped at the first output."""
+    bc = _basilisk_collapse()
+    points = np.array(bc.mound_points())
+    assert np.trapezoid(points[:, 1], points[:, 0]) == pytest.approx(bc.H_COLUMN * bc.L_COLUMN, rel=1e-5)
+    x = (np.arange(200) + 0.5) * 1e-3
+    h = np.maximum(0.01 * (1.0 - x / 0.1), 0.0)
+    block = "\n".join(f"{a:.9g} {b:.12g} 0" for a, b in zip(x, h, strict=True))
+    text = "".join(f"t {t:g}\n{block}\n" for t in (0.0, 0.01, 0.02)) + "\n# Multigrid, 3 steps\n"
+    measured = bc.measures(bc.parse_output(text))
+    assert measured["tip"] == pytest.approx(0.7, abs=1e-9)
+    assert measured["mass"] == pytest.approx(h.sum() * 1e-3) and measured["mass_change"] == 0.0
+    assert measured["t_stop"] == 0.0 and measured["umax_end"] == 0.0
 
 
 def test_the_scaling_sweep_refuses_no_repeats():
