@@ -252,14 +252,24 @@ def test_projection_satisfies_the_constraint_and_never_adds_energy(periodic, pre
     assert np.all(dV[~free] == 0.0)
 
 
-@pytest.mark.parametrize("pressure_layers", [6, 3])
+@pytest.mark.parametrize(
+    ("layers", "pressure_layers", "columns"), [(6, 6, 12), (6, 3, 12), (32, 4, 12), (6, 3, 1)]
+)
 @pytest.mark.parametrize("periodic", [False, True])
-def test_normal_equations_added_up_as_stored_equal_the_sparse_product(periodic, pressure_layers):
-    """The band of A and r, added up unknown by unknown as the constraint is stored, equal
+def test_normal_equations_added_up_as_stored_equal_the_sparse_product(
+    periodic, layers, pressure_layers, columns
+):
+    """The band of A and r, added up as the constraint is stored (unknown by unknown, or
+    summed over the layers of the faces and columns whose layers all move), equal
     E M^-1 E^T and E V* of the stored constraint as a sparse matrix (moving rows and free
-    unknowns only) to round-off, on sloping interfaces, uneven layers and partly static
-    columns; the band is as narrow as A (its last diagonal not all zero)."""
-    h, u, w, bed, fractions = random_state(11, layers=6)
+    unknowns only) to round-off, on sloping interfaces, uneven layers, partly static
+    columns and a dry edge, and in a single column (r the same bits as without the band);
+    the band is as narrow as A (its last diagonal not all zero)."""
+    h, u, w, bed, fractions = random_state(11, layers=layers)
+    if columns == 1:  # no faces: the wbar alone
+        h, u, w, bed = h[:1], u[:, :1], w[:, :1], bed[:1]
+    else:
+        h[-2:], u[:, -2:] = 0.0, 0.0  # dry cells at the edge (beside the first column if periodic)
     nodes, P = assembly.layering(tuple(fractions), pressure_layers)
     cons = assembly.constraint(h, bed, fractions, 0.1, periodic, P)
     moving = u != 0.0
@@ -284,6 +294,9 @@ def test_normal_equations_added_up_as_stored_equal_the_sparse_product(periodic, 
     assert np.abs(dense - A).max() <= 1e-13 * np.abs(A).max()
     assert np.abs(r - E @ V_star[free]).max() <= 1e-13 * np.abs(r).max()
     assert np.any(band[:, -1] != 0.0)
+    r_only = np.zeros(n)  # r alone (no band): the same bits
+    assembly.entries(*cons.geometry, free, row_of, *arrays, V_star, np.empty((0, 1)), r_only)
+    assert np.array_equal(r_only, r)
 
 
 def test_pressure_interfaces_group_whole_layers_and_interpolate_linearly():

@@ -8,6 +8,36 @@ layer and the layer means ``wbar``), their masses ``M``, and the normal equation
 :mod:`multilayer.engine.pressure.non_hydrostatic.projection` state the rows).  The
 pressure interfaces of ``pressure_layers < L`` groups and their interpolation ``P`` are
 here too.  Compiled by numba.
+
+Notes
+-----
+A face unknown ``v_c,f`` (layer ``c``, the columns ``i`` on the left and ``e`` on the right,
+the mass ``fr_c m`` with ``m = (h_i + h_e) / 2``) has in the pressure row ``g`` of its
+columns the entries::
+
+    (P^T E)_(i,g),(c,f) =  fr_c m / dx flux_c,g + D B_c,g + H C_c,g,
+    (P^T E)_(e,g),(c,f) = -fr_c m / dx flux_c,g + D B_c,g + H C_c,g,
+
+``D = (b_e - b_i) / dx`` and ``H = (h_e - h_i) / dx`` the slopes of the bed and of the
+thickness, ``flux``, ``B`` and ``C`` numbers of the layering alone
+(:func:`_face_coefficients`).  Its term of ``A = E M^-1 E^T`` between the rows ``(x, g)``
+and ``(y, g')`` (``x, y`` in ``{i, e}``, with the signs ``s_x, s_y`` above) is::
+
+    s_x s_y fr_c flux_c,g flux_c,g' m / dx^2
+      + (s_x flux_c,g B_c,g' + s_y flux_c,g' B_c,g) D / dx
+      + (s_x flux_c,g C_c,g' + s_y flux_c,g' C_c,g) H / dx
+      + (B_c,g B_c,g' D^2 + (B_c,g C_c,g' + C_c,g B_c,g') D H + C_c,g C_c,g' H^2) / (fr_c m),
+
+a quadratic form in ``(m / dx^2, D / dx, H / dx, D^2 / m, D H / m, H^2 / m)``.  With fewer
+pressure layers (``L_p < L``), where the L unknowns of a face are all free and each of its
+columns has all its pressure rows or none, the face's block of ``A`` is that form with its
+six coefficients summed over the layers once per assembly (:func:`_layer_sums`, O(L)
+operations): six products per pair of its ``2 L_p`` rows, against the products of the
+entries of its L unknowns.  Likewise ``wbar_a`` has the entries ``P_a,g - P_a+1,g`` and
+the mass ``fr_a h``, so a column whose L ``wbar`` are free adds ``1 / h`` times sums over
+the layers.  The same ``A`` to round-off; ``r = E V*`` is added entry by entry either way
+(the same bits).  With a pressure on every layer a face's unknowns have about as many
+products as its rows have pairs, and nothing is summed.
 """
 
 from __future__ import annotations
@@ -144,9 +174,12 @@ def entries(
     (at least :func:`capacity` long) and ``mass`` (``M``, of every unknown).  With a
     ``band`` of rows (not empty), the terms of each free unknown are added, as it is
     stored, to ``A = E M^-1 E^T`` (band storage ``band[i, d] = A_i,i+d``, of a half-width
-    large enough) and to ``r = E V*`` (module Notes); with an empty band and an ``r`` of
-    the rows, to ``r`` only.  Returns the number of entries and
-    the half-width of ``A`` (the largest spread of the rows of an unknown)."""
+    large enough) and to ``r = E V*`` (module Notes), except that the terms of the faces
+    and columns whose L unknowns are all free (:func:`_whole`), with ``L_p < L``, are
+    added from sums over the layers (module Notes; :func:`_layer_sums`, :func:`_add_sums`:
+    the same ``A`` to round-off); with an empty band and an ``r`` of the rows, to ``r``
+    only.  Returns the number of entries and the half-width of ``A`` (the largest spread
+    of the rows of an unknown)."""
     L, N, F = fractions.size, h.size, left.size
     Lp = P.shape[1]
     targets = np.zeros(L, np.int64)  # the pressure rows of each row of E: first, count
@@ -172,8 +205,14 @@ def entries(
     n = width = np.int64(0)  # not literal 0s: numba would also compile the callees for them
     if Lp < L:
         # fewer pressure rows: the entries of a face unknown of layer c are, per pressure row
-        # g, h_face / dx times those of its F rows plus the slopes times those of its S rows
+        # g, h_face / dx times those of its F rows plus the slopes times those of its S rows;
+        # those of the wbar of a column with all its rows (base >= 0 below), a template
         flux, slopes, lowest, highest = _face_coefficients(P, beta, L)
+        count, template, weight = _column_template(P, first, targets)
+    # with a band and fewer pressure rows: the faces and columns whose every unknown is free,
+    # with all rows or none in each of their columns; their terms of A, summed over the layers
+    # (module Notes), are added after the loop
+    whole_face, whole_column, base = _whole(free, row_of, left, right, L, Lp, band.shape[0] > 0)
     # the hot indices are unsigned integers (np.uint64): numba then leaves out the wrap-around
     # of negative indices, a third of the instructions of these loops
     flat, stride = band.reshape(band.size), np.uint64(band.shape[1])  # band[i, d] = flat[i * stride + d]
@@ -182,6 +221,7 @@ def entries(
     for k in range(L * F + L * N):
         pointer[k] = n
         if k < L * F:
+            summed = whole_face.size > 0 and whole_face[f]
             i, e = np.uint64(left[f]), np.uint64(right[f])
             h_face = fractions[c] * 0.5 * (h[i] + h[e])
             mass[k] = h_face
@@ -216,9 +256,14 @@ def entries(
             if f == F:
                 c, f = c + 1, 0
         else:
+            summed = whole_column.size > 0 and whole_column[column]
             i = np.uint64(column)
             mass[k] = fractions[a] * h[i]
-            if free[k]:
+            if free[k] and base[i] >= 0:  # all rows of the column: the entries of the template
+                for t in range(np.uint64(count[a])):
+                    cells[np.uint64(n)], values[np.uint64(n)] = base[i] + template[a, t], weight[a, t]
+                    n += 1
+            elif free[k]:
                 for g in range(first[a], first[a] + targets[a]):
                     n = _store(cells, values, n, row_of[np.uint64(g) * unsigned_N + i], P[a, g])
                 if a + 1 < L:
@@ -235,7 +280,7 @@ def entries(
             column += 1
             if column == N:
                 a, column = a + 1, 0
-        if band.shape[0] > 0 and free[k]:
+        if band.shape[0] > 0 and free[k] and not summed:
             # the terms of unknown k, each pair of its (distinct) rows once
             inverse, lo, hi = 1.0 / mass[k], band.shape[0], -1
             v = v_star[k]
@@ -253,10 +298,193 @@ def entries(
                     else:
                         flat[other * stride + (row - other)] += (values[q] * inverse) * value
             width = max(width, hi - lo)
-        elif r.size > 0 and free[k]:  # r = E V* only
+        elif r.size > 0 and free[k]:  # r = E V* only (or its terms of A are summed)
             _add_column(cells, values, pointer[k], n, v_star[k], r)
     pointer[L * F + L * N] = n
+    if whole_face.size + whole_column.size > 0:  # (no faces in a single column)
+        sums = _layer_sums(flux, slopes, lowest, highest, sigma, fractions, P, first, targets)
+        width = max(width, _add_sums(h, bed, dx, left, right, whole_face, whole_column, base, *sums, band))
     return n, width
+
+
+@jit
+def _whole(free, row_of, left, right, L, Lp, wanted):
+    """With fewer pressure rows than layers (``Lp < L``): the faces whose L unknowns are
+    all free, each of their columns with all its pressure rows or none (not both none), and
+    the columns whose L ``wbar`` are free with all their rows (empty arrays unless
+    ``wanted``); and the first row of each column whose rows are all there and consecutive,
+    -1 for the others (all -1 with ``Lp == L``)."""
+    N, F = row_of.size // Lp, left.size
+    if Lp == L:
+        return np.zeros(0, np.bool_), np.zeros(0, np.bool_), np.full(N, -1, np.int64)
+    base, present = np.empty(N, np.int64), np.zeros(N, np.int64)
+    for g in range(Lp):
+        for i in range(N):
+            if row_of[g * N + i] >= 0:
+                present[i] += 1
+    for i in range(N):
+        base[i] = row_of[i] if present[i] == Lp else -1
+        for g in range(1, Lp):  # rows numbered column by column (unknowns) are consecutive
+            if base[i] >= 0 and row_of[g * N + i] != base[i] + g:
+                base[i] = -1
+    if not wanted:
+        return np.zeros(0, np.bool_), np.zeros(0, np.bool_), base
+    whole_face, whole_column = np.empty(F, np.bool_), np.empty(N, np.bool_)
+    for f in range(F):
+        i, e = left[f], right[f]
+        whole = (base[i] >= 0 or present[i] == 0) and (base[e] >= 0 or present[e] == 0)
+        whole = whole and present[i] + present[e] > 0
+        for c in range(L):
+            whole = whole and free[c * F + f]
+        whole_face[f] = whole
+    for i in range(N):
+        whole = base[i] >= 0
+        for a in range(L):
+            whole = whole and free[L * F + a * N + i]
+        whole_column[i] = whole
+    return whole_face, whole_column, base
+
+
+@jit
+def _column_template(P, first, targets):
+    """The entries of ``wbar_a`` in a column with all its pressure rows, in the order and
+    with the values :func:`entries` gives them otherwise: ``count[a]`` entries, in the rows
+    ``template[a, t]`` past the column's first, of values ``weight[a, t]`` (``P_a,g``, then
+    ``-P_a+1,g`` added to the same row or a new one)."""
+    L, Lp = P.shape
+    count, template, weight = np.zeros(L, np.int64), np.zeros((L, 2 * Lp), np.int64), np.zeros((L, 2 * Lp))
+    for a in range(L):
+        for g in range(first[a], first[a] + targets[a]):
+            template[a, count[a]], weight[a, count[a]] = g, P[a, g]
+            count[a] += 1
+        if a + 1 < L:
+            for g in range(first[a + 1], first[a + 1] + targets[a + 1]):
+                for m in range(count[a]):
+                    if template[a, m] == g:
+                        weight[a, m] += -P[a + 1, g]
+                        break
+                else:
+                    template[a, count[a]], weight[a, count[a]] = g, -P[a + 1, g]
+                    count[a] += 1
+    return count, template, weight
+
+
+@jit
+def _layer_sums(flux, slopes, lowest, highest, sigma, fractions, P, first, targets):
+    """The six coefficients of the faces' terms of ``A = E M^-1 E^T`` and the column sums
+    of the ``wbar``, summed over the layers (module Notes; :func:`_add_sums` adds them).
+
+    ``face_pairs`` (g, g') and ``face_sums`` where the coefficients are not all zero, for
+    the blocks (left, left) and (right, right) (``g <= g'``) and (left, right): those of
+    block ``b`` at ``blocks[b] .. blocks[b + 1] - 1``; ``column_pairs`` (g, g' - g >= 0) and
+    ``column_sums``, per unit ``1 / h``; the spread of the rows of one column that a face
+    unknown and a ``wbar`` have at most.  Each layer adds only to the pairs of its rows
+    ``lowest .. highest`` (the others' terms are zero)."""
+    L, Lp = P.shape
+    dense = np.zeros((3, Lp, Lp, 6))
+    B, C = np.zeros(Lp), np.zeros(Lp)
+    reach = 0
+    for c in range(L):
+        low, high = lowest[c], highest[c] + 1
+        reach = max(reach, high - 1 - low)
+        weight = 1.0 / fractions[c]
+        for g in range(low, high):
+            B[g] = slopes[0, c, g] + slopes[1, c, g]
+            C[g] = sigma[c] * slopes[0, c, g] + sigma[c + 1] * slopes[1, c, g]
+        for block in range(3):
+            sign_x, sign_y = (1.0, 1.0) if block == 0 else ((-1.0, -1.0) if block == 1 else (1.0, -1.0))
+            for g in range(low, high):
+                for k in range(g if block < 2 else low, high):
+                    fg, fk = flux[c, g], flux[c, k]
+                    sums = dense[block, g, k]
+                    sums[0] += sign_x * sign_y * fractions[c] * fg * fk
+                    sums[1] += sign_x * fg * B[k] + sign_y * fk * B[g]
+                    sums[2] += sign_x * fg * C[k] + sign_y * fk * C[g]
+                    sums[3] += B[g] * B[k] * weight
+                    sums[4] += (B[g] * C[k] + C[g] * B[k]) * weight
+                    sums[5] += C[g] * C[k] * weight
+    face_pairs, face_sums = np.empty((3 * Lp * Lp, 2), np.int64), np.empty((3 * Lp * Lp, 6))
+    blocks = np.zeros(4, np.int64)
+    for block in range(3):
+        blocks[block + 1] = blocks[block]
+        for g in range(Lp):
+            for k in range(g if block < 2 else 0, Lp):
+                if _any(dense[block, g, k]):
+                    face_pairs[blocks[block + 1], 0], face_pairs[blocks[block + 1], 1] = g, k
+                    face_sums[blocks[block + 1]] = dense[block, g, k]
+                    blocks[block + 1] += 1
+    column = np.zeros((Lp, Lp))
+    drop = np.zeros(Lp)  # P_a,g - P_a+1,g where a's or a+1's entries are
+    column_reach = 0
+    for a in range(L):
+        low, high = first[a], first[a] + targets[a]
+        if a + 1 < L:
+            low, high = min(low, first[a + 1]), max(high, first[a + 1] + targets[a + 1])
+        column_reach = max(column_reach, high - 1 - low)
+        for g in range(low, high):
+            drop[g] = P[a, g] - (P[a + 1, g] if a + 1 < L else 0.0)
+        for g in range(low, high):
+            for k in range(g, high):
+                column[g, k] += drop[g] * drop[k] / fractions[a]
+    column_pairs, column_sums = np.empty((Lp * Lp, 2), np.int64), np.empty(Lp * Lp)
+    kept = 0
+    for g in range(Lp):
+        for k in range(g, Lp):
+            if column[g, k] != 0.0:
+                column_pairs[kept, 0], column_pairs[kept, 1], column_sums[kept] = g, k - g, column[g, k]
+                kept += 1
+    return face_pairs, face_sums, blocks, column_pairs[:kept], column_sums[:kept], reach, column_reach
+
+
+@jit
+def _add_sums(
+    h, bed, dx, left, right, whole_face, whole_column, base, face_pairs, face_sums, blocks, column_pairs,
+    column_sums, reach, column_reach, band,
+):  # fmt: skip
+    """Add the terms of ``A`` of the faces ``whole_face`` and the columns ``whole_column``
+    (:func:`_whole`) to ``band`` from the sums of :func:`_layer_sums`; returns the spread of
+    the rows of their unknowns (the half-width they need)."""
+    flat, stride = band.reshape(band.size), np.uint64(band.shape[1])
+    width = -1
+    for f in range(left.size):
+        if not whole_face[f]:
+            continue
+        i, e = left[f], right[f]
+        m = 0.5 * (h[i] + h[e])
+        slope, spread = (bed[e] - bed[i]) / dx, (h[e] - h[i]) / dx
+        t0, t1, t2 = m / (dx * dx), slope / dx, spread / dx
+        t3, t4, t5 = slope * slope / m, slope * spread / m, spread * spread / m
+        x, y = base[i], base[e]
+        width = max(width, reach + (abs(y - x) if x >= 0 and y >= 0 else 0))
+        for block in range(3):  # the first rows of the pairs' columns: (x, x), (y, y), (x, y)
+            one, two = (x, x) if block == 0 else ((y, y) if block == 1 else (x, y))
+            if one < 0 or two < 0:
+                continue
+            for p in range(np.uint64(blocks[block]), np.uint64(blocks[block + 1])):
+                value = face_sums[p, 0] * t0 + face_sums[p, 1] * t1 + face_sums[p, 2] * t2
+                value += face_sums[p, 3] * t3 + face_sums[p, 4] * t4 + face_sums[p, 5] * t5
+                row, other = one + face_pairs[p, 0], two + face_pairs[p, 1]
+                if other < row:  # band storage from the lower row
+                    row, other = other, row
+                flat[np.uint64(row) * stride + np.uint64(other - row)] += value
+    for i in range(whole_column.size):
+        if not whole_column[i]:
+            continue
+        inverse, x = 1.0 / h[i], base[i]
+        width = max(width, column_reach)
+        for p in range(np.uint64(column_pairs.shape[0])):
+            at = np.uint64(x + column_pairs[p, 0]) * stride + np.uint64(column_pairs[p, 1])
+            flat[at] += column_sums[p] * inverse
+    return width
+
+
+@jit
+def _any(values):
+    """Whether any of ``values`` is not zero (``np.any`` would allocate the comparison)."""
+    for value in values:
+        if value != 0.0:
+            return True
+    return False
 
 
 @jit
