@@ -355,7 +355,7 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
             # the coefficients of StressModel.columns: from the compiled yield forms, or given (the
             # yield stresses and wall thresholds straight into the lane's slots)
             if fused:
-                fine = column_coefficients(col, h[col], inputs, column, o) == 0
+                fine = column_coefficients(col, h[col], inputs, column, o, False) == 0
             else:
                 fine = True
                 for a in range(L):
