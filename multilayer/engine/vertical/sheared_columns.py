@@ -141,12 +141,13 @@ def set_up(t, L, lane, m, dt, u_rows, guess_rows, ustar, guess, col, current):
     (the first iterate of :func:`sheared_block`); lane ``ALONE`` those of column ``col`` of
     the (L, N) arrays ``ustar`` and ``guess``, the guess into ``current``."""
     o = np.uint64(cell(lane, L))  # unsigned: no test for negative indices
-    if lane < BLOCK:
+    if lane < BLOCK:  # two loops: fewer pairs of arrays for the run-time overlap checks of each
         for a in range(np.uint64(L)):
             x, z = o + a, a * np.uint64(BLOCK) + np.uint64(lane)
             t[INERTIA, x] = m[a] / dt
             t[MOMENTUM, x] = m[a] * u_rows[z] / dt
-            t[U0, x] = guess_rows[z]
+        for a in range(np.uint64(L)):
+            t[U0, o + a] = guess_rows[a * np.uint64(BLOCK) + np.uint64(lane)]
         return
     for a in range(L):
         t[MOMENTUM, o + np.uint64(a)] = ustar[a, col]
