@@ -114,14 +114,15 @@ def column_arrays(L: int) -> ColumnArrays:
 
 
 @jit(inline="always")  # inlined: a call per column costs about 50 ns at L = 8
-def column_coefficients(col, hj, inputs, out, at):
+def column_coefficients(col, hj, inputs, out, at, wall_parts):
     """Column ``col`` of thickness ``hj`` of ``StressModel.columns`` with the yield forms ``mu
     max(p, 0)``, ``mu_static max(p, 0)`` at rest (each plus ``D / (1 + hj / L)`` with
     ``thickness_law``) and ``mu_wall max(pbar, 0)`` on the walls (:class:`YieldInputs`
     ``inputs``), into the (L,) arrays of ``out`` (:class:`ColumnArrays`), but for its yield
     stresses ``kappa`` and wall thresholds ``w``, which go to cells ``at ... at + L - 1`` of
-    theirs (the Newton kernel writes them straight into a row of its tile). Returns how many
-    yield values are outside the plugin contract (not finite and >= 0). (Inlined, the fields
+    theirs (the Newton kernel writes them straight into a row of its tile), and the mean
+    wall pressures with ``wall_parts`` (or side walls) only. Returns how many yield values
+    are outside the plugin contract (not finite and >= 0). (Inlined, the fields
     of both tuples are read as the arrays themselves: numba prunes the reference counts.)
 
     The one source of these coefficients on the compiled paths: the arrays of
@@ -136,7 +137,9 @@ def column_coefficients(col, hj, inputs, out, at):
     for a in range(L):
         m[a] = rho * l[a] * hj
         spacing[a] = inputs.spacing_fraction[a] * hj
-        wall_pressure[a] = g_p * inputs.depth_centre[a] * hj
+    if wall_parts or inputs.walls:
+        for a in range(L):
+            wall_pressure[a] = g_p * inputs.depth_centre[a] * hj
     for a in range(L):
         viscous[a] = True
     if inputs.has_yield_gravity:
@@ -189,7 +192,7 @@ def _coefficients(hw, wet, inputs, m, kappa, w, pressure, spacing, viscous, wall
         np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L, np.bool_), np.empty(L)
     )
     for j in range(n):
-        bad += column_coefficients(wet[j], hw[j], inputs, column, 0)
+        bad += column_coefficients(wet[j], hw[j], inputs, column, 0, True)
         for a in range(L):
             m[a, j], kappa[a, j], w[a, j] = column.m[a], column.kappa[a], column.w[a]
             pressure[a, j], spacing[a, j] = column.pressure[a], column.spacing[a]

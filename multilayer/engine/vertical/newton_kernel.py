@@ -355,7 +355,7 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
             # the coefficients of StressModel.columns: from the compiled yield forms, or given (the
             # yield stresses and wall thresholds straight into the lane's slots)
             if fused:
-                fine = column_coefficients(col, h[col], inputs, column, o) == 0
+                fine = column_coefficients(col, h[col], inputs, column, o, False) == 0
             else:
                 fine = True
                 for a in range(L):
@@ -366,13 +366,17 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
             # what stays fixed during the iteration, a few rows per loop over the layers (a loop
             # over all reloads its rows' pointers), the laws' switch outside them
             sc.set_up(tile, L, lane, m, dt, u_rows, guess_rows, ustar, guess, col, current)  # m/dt, m u*/dt
-            for a in range(L):
+            for a in range(L):  # as if every layer were viscous: no mask of booleans in the loop
                 x = np.uint64(o + a)
                 s = spacing[a]
                 inverse = 1.0 / s if s > 0.0 else 1.0
                 tile[sc.INV_SPACING, x] = inverse
-                tile[sc.CONDUCTANCE, x] = inverse if (viscous[a] and s > 0.0) else 0.0
-                tile[sc.VISCOUS, x] = 1.0 if viscous[a] else 0.0
+                tile[sc.CONDUCTANCE, x] = inverse if s > 0.0 else 0.0
+                tile[sc.VISCOUS, x] = 1.0
+            for a in range(1 if fused else L):  # the compiled yield forms: only the bottom layer may not be
+                if not viscous[a]:
+                    tile[sc.CONDUCTANCE, np.uint64(o + a)] = 0.0
+                    tile[sc.VISCOUS, np.uint64(o + a)] = 0.0
             _pressure_parts(bulk_form, bulk_params, pressure, h[col], factors, offsets, o)
             if walls and not block:
                 start_of_walls = np.int64(0)  # not the literal 0: one compilation for both laws

@@ -48,8 +48,8 @@ BLOCK = 8
 stresses and the Newton model one loop over the 8 L cells of the block, long enough to
 run as vectors at L = 8 (compiled, the loop runs as vectors of 8 values from about 40
 cells on, and one cell at a time below: 22-29 against 51-53 ns per column and pass at
-L = 8).  The tile holds 25 values per layer for each of the BLOCK + 1 lanes, 230 KB at
-L = 128 (the 5 of the bounds' terms touched only where a column is tested by them), the
+L = 8).  The tile holds 24 values per layer for each of the BLOCK + 1 lanes, 221 KB at
+L = 128 (the 4 of the bounds' terms touched only where a column is tested by them), the
 sweeps of the solve 5 per layer and lane, 41 KB, and the rows of :func:`load` 2, 16 KB."""
 
 # The tile (SLOTS, 1 + (BLOCK + 1) L) holds, in each slot (a row), one value per column
@@ -67,11 +67,11 @@ sweeps of the solve 5 per layer and lane, 41 KB, and the rows of :func:`load` 2,
 # the true viscous stresses and their derivatives (``TAU0 + k``, ``STIFF0 + k`` at the
 # iterate ``U0 + k``: the rise bound of ``newton_control`` needs both iterates'); fixed,
 # 1.0 in the bottom cell of each lane (the bed below it) and 0.0 elsewhere; per test of a
-# column, each layer's term of the error bound (``GAP``) and its four terms of the rise
-# bound (``RISE ... RISE + 3``).
+# column, each layer's term of the error bound (``GAP``) and its three terms of the rise
+# bound (``RISE ... RISE + 2``: no wall term, see :func:`_converged`).
 INERTIA, MOMENTUM, KAPPA, WALL, INV_SPACING, CONDUCTANCE, VISCOUS, FACTOR, OFFSET = range(9)
 KEPT, KC, CC, SIGN, U0, U1, TAU0, TAU1, STIFF0, STIFF1, BED, GAP, RISE = range(9, 22)
-SLOTS = 25
+SLOTS = 24
 # The arrays of the sweeps of :func:`_solve`, a value per layer and lane in each: the pivot
 # (then the inverse pivot), right-hand side, conductance below, the pivots not positive up
 # to the layer, and the velocity.
@@ -141,12 +141,13 @@ def set_up(t, L, lane, m, dt, u_rows, guess_rows, ustar, guess, col, current):
     (the first iterate of :func:`sheared_block`); lane ``ALONE`` those of column ``col`` of
     the (L, N) arrays ``ustar`` and ``guess``, the guess into ``current``."""
     o = np.uint64(cell(lane, L))  # unsigned: no test for negative indices
-    if lane < BLOCK:
+    if lane < BLOCK:  # two loops: fewer pairs of arrays for the run-time overlap checks of each
         for a in range(np.uint64(L)):
             x, z = o + a, a * np.uint64(BLOCK) + np.uint64(lane)
             t[INERTIA, x] = m[a] / dt
             t[MOMENTUM, x] = m[a] * u_rows[z] / dt
-            t[U0, x] = guess_rows[z]
+        for a in range(np.uint64(L)):
+            t[U0, o + a] = guess_rows[a * np.uint64(BLOCK) + np.uint64(lane)]
         return
     for a in range(L):
         t[MOMENTUM, o + np.uint64(a)] = ustar[a, col]
@@ -335,33 +336,36 @@ def _converged(t, L, new, current, threshold, concave_stress, flags):
     steady chute most columns are done by the change).  A column not done whose rise bound
     (``newton_control.energy_rise``) is positive leaves the block (``ACTIVE`` False):
     ``_chunk`` damps its step.  The rise bound's sum (``newton_control.rise_bound``) is
-    formed as its error bound is in :func:`_within_bound`: the four terms of each layer
-    in passes over the lane as vectors (slots ``RISE ... RISE + 3``; each operation that
-    of ``rise_bound``, the layer below read from the cell below, the bed's 0 from ``BED``),
+    formed as its error bound is in :func:`_within_bound`: the terms of each layer in a
+    pass over the lane as vectors (slots ``RISE ... RISE + 2``; each operation that of
+    ``rise_bound``, the layer below read from the cell below, the bed's 0 from ``BED``),
     then added up in ``rise_bound``'s order (from the column by column, 60 instructions
-    per layer, to some 45)."""
+    per layer, to some 40).  Without its wall's potential term: a column of the block has
+    no wall threshold, force or stiffness (``join``), so that term is a zero (of either
+    sign), or NaN where a speed is not finite, and then so is the wall term of
+    ``RISE + 1`` (0 times it): leaving it out of the sum changes at most the sign of a
+    zero sum, which neither test of the sum tells apart."""
     for i in range(BLOCK):
         x = cell(i, L)
-        lane = slice(x, x + L)
-        wall = t[WALL, lane]  # 0 in every column that takes part (join): no wall threshold or force
-        tau = t[TAU0 + (new - U0), lane]
-        u_new, u_current = t[new, lane], t[current, lane]
+        first, last = np.uint64(x), np.uint64(x + L)  # unsigned: no test for negative indices
         # the largest change within threshold (max ignores a NaN change, as this count)
         beyond = 0
-        for a in range(L):
-            beyond += abs(u_new[a] - u_current[a]) > threshold
+        for y in range(first, last):
+            beyond += abs(t[new, y] - t[current, y]) > threshold
         converged = beyond == 0 and 0.0 <= threshold
         if not converged and flags[SHEARED, i]:
             converged = _within_bound(t, x, L, new, threshold)
-        elif not converged:
+        elif not converged:  # the lane's views made where read (not kept from lane to lane)
+            lane = slice(x, x + L)
+            wall = t[WALL, lane]  # 0 in every column that takes part (join): no wall threshold or force
             bound = error_bound(
-                t[INERTIA, lane], t[MOMENTUM, lane], t[KAPPA, lane], tau, wall, wall, u_new, threshold
+                t[INERTIA, lane], t[MOMENTUM, lane], t[KAPPA, lane], t[TAU0 + (new - U0), lane], wall, wall,
+                t[new, lane], threshold,
             )  # fmt: skip
             converged = bound <= threshold
         flags[DONE, i] = converged
         if not converged:
             at, tau_new, one = current - U0, TAU0 + (new - U0), np.uint64(1)
-            first, last = np.uint64(x), np.uint64(x + L)  # unsigned: no test for negative indices
             for y in range(first, last):
                 u, start, below, below_start = t[new, y], t[current, y], t[new, y - one], t[current, y - one]
                 bed = t[BED, y] > 0.0
@@ -369,24 +373,22 @@ def _converged(t, L, new, current, threshold, concave_stress, flags):
                 jump_start = abs(start - (0.0 if bed else below_start))
                 t[RISE, y] = (u - start) * (0.5 * t[INERTIA, y] * (u + start) - t[MOMENTUM, y])
                 t[RISE + 1, y] = t[WALL, y] * (abs(u) - abs(start)) + t[KAPPA, y] * (jump - jump_start)
-                t[RISE + 3, y] = _potential_rise(
+                t[RISE + 2, y] = _potential_rise(
                     jump_start, jump, t[TAU0 + at, y], t[STIFF0 + at, y], t[tau_new, y], concave_stress
                 )
-            for y in range(first, last):  # the wall's terms apart (with the rest: no vectors)
-                w = t[WALL, y]  # 0: no wall threshold, force or stiffness
-                t[RISE + 2, y] = _potential_rise(abs(t[current, y]), abs(t[new, y]), w, w, w, concave_stress)
             rise = 0.0
             for a in range(np.uint64(L)):  # counted from 0: unrolled by 4 (the same order of sums)
                 y = first + a
                 rise += t[RISE, y]
                 rise += t[RISE + 1, y]
-                rise += t[RISE + 2, y]
-                rise += t[RISE + 3, y]
+                rise += t[RISE + 2, y]  # rise_bound adds the wall's potential term (a zero) before it
             if not rise <= 0.0:  # newton_control.energy_rise, the smaller of it and phi'(1-)
+                lane = slice(x, x + L)
+                wall, u_new = t[WALL, lane], t[new, lane]
                 rise = min(
                     slope_along(
-                        t[INERTIA, lane], t[MOMENTUM, lane], t[KAPPA, lane], tau, wall, wall, u_current,
-                        u_new, u_new, -1.0,
+                        t[INERTIA, lane], t[MOMENTUM, lane], t[KAPPA, lane], t[tau_new, lane], wall, wall,
+                        t[current, lane], u_new, u_new, -1.0,
                     ),
                     rise,
                 )  # fmt: skip
