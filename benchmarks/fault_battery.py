@@ -2980,6 +2980,556 @@ def round_eighteen() -> list[Case]:
     return out
 
 
+def _tagged(old: str, new: str) -> Callable[[Path], None]:
+    """The scenario with the text ``old`` of its YAML replaced by ``new``."""
+
+    def setup(directory: Path) -> None:
+        _scenario(directory, text=yaml.safe_dump(TINY).replace(old, new))
+
+    return setup
+
+
+def _csv_bed(text: str | None = None, make: Callable[[Path], object] | None = None) -> Callable[[Path], None]:
+    """A scenario whose bed is ``bed.csv``, written as ``text`` (newlines kept) or made by ``make``."""
+
+    def setup(directory: Path) -> None:
+        _scenario(directory, {"bed": {"file": "bed.csv"}})
+        if text is not None:
+            (directory / "bed.csv").write_bytes(text.encode())
+        if make is not None:
+            make(directory / "bed.csv")
+
+    return setup
+
+
+def _entry_point_plugin(module: str) -> Callable[[Path], None]:
+    """The scenario and a distribution ``third`` on PYTHONPATH whose entry point names the
+    module ``third`` of the text ``module``."""
+
+    def setup(directory: Path) -> None:
+        _scenario(directory)
+        plugin = directory / "plugin"
+        (plugin / "third-0.1.dist-info").mkdir(parents=True)
+        (plugin / "third.py").write_text(module)
+        (plugin / "third-0.1.dist-info" / "METADATA").write_text(
+            "Metadata-Version: 2.1\nName: third\nVersion: 0.1\n"
+        )
+        (plugin / "third-0.1.dist-info" / "entry_points.txt").write_text("[multilayer]\nthird = third\n")
+
+    return setup
+
+
+SHADOWING_PLUGIN = """
+import multilayer
+from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+
+
+class Shadow(DruckerPrager):
+    name = "drucker_prager"
+
+    def yield_stress(self, pressure, material):
+        raise RuntimeError("the shadow ran")
+
+
+@multilayer.hookimpl
+def multilayer_register_rheologies(register):
+    register(Shadow)
+    register(Shadow)
+"""
+"""A third-party plugin registering the built-in's name, twice: both rejected, the built-in runs."""
+
+HOST_KEPT = """
+import os, signal, warnings, logging
+import numpy as np
+warnings.simplefilter('error')
+np.seterr(all='raise')
+def host():
+    handlers = [signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)]
+    return {'numpy errors': np.geterr(), 'warnings filters': list(warnings.filters), 'cwd': os.getcwd(),
+            'environment': dict(os.environ), 'logging': (logging.root.level, list(logging.root.handlers)),
+            'signal handlers': handlers}
+before = host()
+import multilayer, netCDF4
+before['environment'] = dict(os.environ)  # netCDF4's import sets HDF5_PLUGIN_PATH
+done = multilayer.run(sys.argv[2]).attrs['run_status']
+changed = [key for key, value in host().items() if value != before[key]]
+print(f'multilayer: run {done}, changed {changed}', file=sys.stderr)
+sys.exit(0 if done == 'completed' and not changed else 1)
+"""
+"""A host that turns warnings into errors and numpy's floating-point errors into exceptions
+runs a scenario through the Python API: it must complete and change nothing of the host."""
+
+
+FAILING_PLUGIN = """
+import multilayer
+from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+
+
+class Failing(DruckerPrager):
+    name = "failing"
+
+    def yield_stress_kernel(self, material):
+        return None
+
+    def yield_stress(self, pressure, material):
+        raise RuntimeError("always fails")
+
+
+@multilayer.hookimpl
+def multilayer_register_rheologies(register):
+    register(Failing)
+"""
+
+
+def _failing_sweep(directory: Path) -> None:
+    """A sweep of two members on a third-party law that always raises."""
+    _entry_point_plugin(FAILING_PLUGIN)(directory)
+    _scenario(directory, {"rheology": {"name": "failing", "mu_s": 0.3, "nu": 0.01}})
+    (directory / "sweep.yaml").write_text("base: scenario.yaml\nparameters:\n  rheology.mu_s: [0.3, 0.4]\n")
+
+
+def _relaxing(changes: dict) -> Callable[[Path], None]:
+    """The loose immersed layer with a relaxing pore pressure, to t = 0.5 s, with ``changes``
+    (top-level and dotted keys of its mappings)."""
+
+    def setup(directory: Path) -> None:
+        path = Path(__file__).resolve().parents[1] / "scenarios" / "immersed_layer_loose.yaml"
+        data = yaml.safe_load(path.read_text())
+        for key in ("expect", "output"):
+            data.pop(key)
+        data["time"] = {"end": 0.5, "output_interval": 0.1}
+        data["fluid"]["compressibility"] = 1e-6
+        for key, value in changes.items():
+            *parents, last = key.split(".")
+            node = data
+            for part in parents:
+                node = node.setdefault(part, {})
+            node[last] = value
+        (directory / "scenario.yaml").write_text(yaml.safe_dump(data))
+
+    return setup
+
+
+SIGNAL_IN_CHECKPOINT = """
+import os, signal
+real_savez = np.savez
+def savez(stream, **arrays):
+    calls[0] += 1
+    if calls[0] == 2:  # the second checkpoint, mid-run: the signal arrives while it is written
+        os.kill(os.getpid(), signal.{name})
+    real_savez(stream, **arrays)
+np.savez = savez
+first = main(sys.argv[1:])
+np.savez = real_savez
+if first != {code}:
+    sys.exit(f'the run signalled while writing its checkpoint exited {{first}}')
+sys.argv.append('--resume')
+"""
+"""A run sent a stop signal while it writes its second checkpoint, then resumed: the run
+must stop as on any signal (its exit code) and the checkpoint must resume."""
+
+
+LOADED = "import yaml\ndata = yaml.safe_load(open(sys.argv[2]))\n"
+"""The start of a patch: the case's scenario read as a mapping, ``data``."""
+SAVED = (
+    "import numpy as np\nsim = multilayer.Simulation(multilayer.load(sys.argv[2]))\n"
+    "saved = sim.state_dict()\n"
+)
+"""The start of a patch: a simulation of the case's scenario and its state, ``saved``."""
+
+
+def round_nineteen() -> list[Case]:
+    """The hostile cases of the nineteenth round (docs/reliability.md): YAML tags and values
+    PyYAML's constructors cannot read or read as other types (dates, bytes, sets), integers
+    beyond the floats, NaN and infinity spelt otherwise, keys that only look like ours; CSV
+    beds with other line ends, repeated or unordered x, a directory, a pipe, a loop of
+    links or a unit that overflows; the Python API given numbers of other types and a host
+    that raises on warnings; third-party plugins that fail to import or shadow a built-in,
+    plugin values of other dtypes; a relaxing pore pressure at extreme compressibilities."""
+    validate, run = ["validate", "{scenario}"], ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    big = "1" + "0" * 400
+    out = [
+        Case(
+            "validate: mu_s !!float abc",
+            validate,
+            2,
+            "(line 19, column 9): malformed YAML: tag:yaml.org,2002:float cannot read 'abc'",
+            setup=_tagged("mu_s: 0.3", "mu_s: !!float abc"),
+        ),
+        Case(
+            "validate: cells !!int 1e5",
+            validate,
+            2,
+            "tag:yaml.org,2002:int cannot read '1e5'",
+            setup=_tagged("cells: 40", "cells: !!int 1e5"),
+        ),
+        Case(
+            "validate: cells !!bool maybe",
+            validate,
+            2,
+            "tag:yaml.org,2002:bool cannot read 'maybe'",
+            setup=_tagged("cells: 40", "cells: !!bool maybe"),
+        ),
+        Case(
+            "validate: time.end !!timestamp 2001-13-45",
+            validate,
+            2,
+            "tag:yaml.org,2002:timestamp cannot read '2001-13-45'",
+            setup=_tagged("end: 0.2", "end: !!timestamp 2001-13-45"),
+        ),
+        Case(
+            "validate: time.end a date",
+            validate,
+            2,
+            "time.end (line 24): Input should be a valid number (got datetime.date(2001, 12, 14))",
+            setup=_tagged("end: 0.2", "end: 2001-12-14"),
+        ),
+        Case(
+            "validate: name !!binary",
+            validate,
+            2,
+            "name (line 17): Input should be a valid string (got b'hello')",
+            setup=_tagged("name: tiny", "name: !!binary aGVsbG8="),
+        ),
+        Case(
+            "validate: layer_fractions !!set",
+            validate,
+            2,
+            "domain.layer_fractions (line 7): got {",
+            setup=_tagged("layers: 3", "layers: 3\n  layer_fractions: !!set {1, 2, 3}"),
+        ),
+        Case(
+            "validate: mu_s !!str 0.3",
+            validate,
+            2,
+            "rheology.mu_s (line 19): drucker_prager: Input should be a valid number (got '0.3')",
+            setup=_tagged("mu_s: 0.3", "mu_s: !!str 0.3"),
+        ),
+        Case(
+            "validate: cells 10^400",
+            validate,
+            2,
+            "domain.cells (line 5): Input should be less than or equal to 1000000000",
+            setup=_tagged("cells: 40", f"cells: {big}"),
+        ),
+        Case(
+            "validate: mu_s 10^400",
+            validate,
+            2,
+            "rheology.mu_s (line 19): drucker_prager: Input should be a valid number",
+            setup=_tagged("mu_s: 0.3", f"mu_s: {big}"),
+        ),
+        Case(
+            "validate: x_max -10^400",
+            validate,
+            2,
+            "domain.x_max (line 7): Input should be a valid number",
+            setup=_tagged("x_max: 0.5", f"x_max: -{big}"),
+        ),
+        Case(
+            "validate: max_iterations 0x" + "f" * 8 + "...",
+            validate,
+            2,
+            "numerics.max_iterations (line 26): Input should be less than or equal to 100000",
+            setup=lambda d: _scenario(
+                d, text=yaml.safe_dump(TINY) + "numerics: {max_iterations: 0x" + "f" * 400 + "}\n"
+            ),
+        ),
+        Case(
+            "validate: mu_s .Nan",
+            validate,
+            2,
+            "rheology.mu_s (line 19): drucker_prager: Input should be a valid number (got '.Nan')",
+            setup=_tagged("mu_s: 0.3", "mu_s: .Nan"),
+        ),
+        Case("validate: mu_s .iNF", validate, 2, "(got '.iNF')", setup=_tagged("mu_s: 0.3", "mu_s: .iNF")),
+        Case(
+            "validate: a full-width key \uff44omain",
+            validate,
+            2,
+            "\uff44omain (line 4): unknown key",
+            setup=_tagged("domain:", "\uff44omain:"),
+        ),
+        Case(
+            "validate: a key mu_s and a zero-width space",
+            validate,
+            2,
+            "rheology.mu_s (line 18): missing parameter of drucker_prager",
+            setup=_tagged("mu_s: 0.3", "mu_s\u200b: 0.3"),
+        ),
+        Case(
+            "validate: a Cyrillic s in mu_s beside mu_s",
+            validate,
+            2,
+            "rheology.mu_\u0455 (line 20): unknown parameter",
+            setup=_tagged("mu_s: 0.3", "mu_s: 0.3\n  mu_\u0455: 0.4"),
+        ),
+        Case(
+            "run: --set rheology.mu_s='!!float abc'",
+            ["run", "{scenario}", "-o", "{dir}/out", "--set", "rheology.mu_s=!!float abc"],
+            2,
+            "--set rheology.mu_s: malformed YAML value",
+            setup=_scenario,
+        ),
+        Case(
+            "validate: a sweep value !!int x",
+            ["validate", "{dir}/sweep.yaml"],
+            2,
+            "sweep.yaml (line 3, column 19): malformed YAML: tag:yaml.org,2002:int cannot read 'x'",
+            setup=lambda d: (
+                _scenario(d),
+                (d / "sweep.yaml").write_text(
+                    "base: scenario.yaml\nparameters:\n  domain.cells: [!!int x]\n"
+                ),
+            ),
+        ),
+        Case(
+            "validate: a sweep of an empty list",
+            ["validate", "{dir}/sweep.yaml"],
+            2,
+            "parameters.rheology.mu_s (line 3): got []; accepted: a non-empty list",
+            setup=_sweep({"rheology.mu_s": []}),
+        ),
+        Case(
+            "validate: a sweep of {start, stop, num}",
+            ["validate", "{dir}/sweep.yaml"],
+            2,
+            "accepted: a non-empty list of values",
+            setup=_sweep({"rheology.mu_s": {"start": 0.1, "stop": 0.5, "num": 10**6}}),
+        ),
+        Case(
+            "run: .numba_config.yaml holding num_threads: !!int abc",
+            run,
+            2,
+            "(numba's configuration file, read by numba at its import): "
+            "tag:yaml.org,2002:int cannot read 'abc'",
+            plain=True,
+            here=True,
+            setup=partial(_numba_config, text="num_threads: !!int abc\n"),
+        ),
+        Case(
+            "plot: result.nc's scenario holding !!float abc",
+            ["plot", "{dir}/out"],
+            2,
+            "its scenario attribute is missing or damaged",
+            setup=_edited_result(
+                lambda ds: ds.setncattr(
+                    "scenario", ds.getncattr("scenario").replace("end: 0.2", "end: !!float abc")
+                )
+            ),
+        ),
+        Case(
+            "resume: a checkpoint's scenario holding !!float abc",
+            ["run", "{scenario}", "-o", "{dir}/out", "--resume", "-q"],
+            2,
+            "meta.scenario is not the YAML mapping of a scenario",
+            setup=_checkpoint_entry(
+                "meta.scenario", lambda a: np.asarray(str(a).replace("end: 0.2", "end: !!float abc"))
+            ),
+        ),
+    ]
+    header = "x (m), z (m)\n"
+    for name, setup, code, phrase in (
+        ("CRLF line ends", _csv_bed(header.replace("\n", "\r\n") + "0,0.01\r\n0.5,0\r\n"), 0, ""),
+        (
+            "a byte order mark and CR line ends",
+            _csv_bed(("\ufeff" + header + "0,0.01\n0.5,0\n").replace("\n", "\r")),
+            0,
+            "",
+        ),
+        (
+            "x given twice",
+            _csv_bed(header + "0,0.1\n0,0.2\n0.5,0\n"),
+            2,
+            "bed.csv: line 3: x = 0.0 does not increase",
+        ),
+        (
+            "x decreasing",
+            _csv_bed(header + "0.5,0\n0,0.1\n"),
+            2,
+            "bed.csv: line 3: x = 0.0 does not increase",
+        ),
+        ("a NaN", _csv_bed(header + "0,nan\n0.5,0\n"), 2, "bed.csv: line 2: expected two numbers"),
+        (
+            "x 1e306 km (beyond the floats in metres)",
+            _csv_bed("x (km), z (m)\n0,0\n1e306,0\n"),
+            2,
+            "bed.csv: line 3: '1e306,0' in metres is beyond the largest float",
+        ),
+        (
+            "z 1e306 km",
+            _csv_bed("x (m), z (km)\n0,0\n0.5,1e306\n"),
+            2,
+            "bed.csv: line 3: '0.5,1e306' in metres is beyond the largest float",
+        ),
+        ("a directory", _csv_bed(make=Path.mkdir), 2, "bed.csv: not a regular file"),
+        ("a named pipe", _csv_bed(make=os.mkfifo), 2, "bed.csv: not a regular file"),
+        (
+            "a link to itself",
+            _csv_bed(make=lambda p: p.symlink_to(p)),
+            2,
+            "bed.csv: cannot read the file (Too many levels of symbolic links)",
+        ),
+        (
+            "a link to /dev/zero",
+            _csv_bed(make=lambda p: p.symlink_to("/dev/zero")),
+            2,
+            "bed.csv: not a regular file",
+        ),
+    ):
+        out.append(Case(f"validate: a bed CSV with {name}", validate, code, phrase, setup=setup))
+    for name, body, phrase in (
+        (
+            "Decimal('NaN') as mu_s",
+            LOADED
+            + "from decimal import Decimal\ndata['rheology']['mu_s'] = Decimal('NaN')\nmultilayer.load(data)",
+            "rheology.mu_s: drucker_prager: Input should be a finite number (got Decimal('NaN'))",
+        ),
+        (
+            "np.bool_ as domain.cells",
+            "import numpy as np\nmultilayer.load(sys.argv[2], {'domain.cells': np.bool_(True)})",
+            "domain.cells",
+        ),
+        (
+            "np.longdouble 1e400 as mu_s",
+            LOADED
+            + "import numpy as np\ndata['rheology']['mu_s'] = np.longdouble('1e400')\nmultilayer.load(data)",
+            "Input should be a finite number (got np.longdouble('1e+400'))",
+        ),
+        (
+            "bytes as name",
+            LOADED + "data['name'] = b'tiny'\nmultilayer.load(data)",
+            "name: Input should be a valid string (got b'tiny')",
+        ),
+        (
+            "a path holding NUL",
+            "multilayer.load(sys.argv[2] + '\\0x')",
+            "cannot read the file (embedded null byte)",
+        ),
+        (
+            "load_state of a Decimal time",
+            SAVED + "from decimal import Decimal\nsaved['t'] = Decimal('0.01')\nsim.load_state(saved)",
+            "t: object values of shape ()",
+        ),
+        (
+            "load_state of a bool thickness",
+            SAVED + "saved['h'] = saved['h'] > 0\nsim.load_state(saved)",
+            "h: bool values of shape (40,)",
+        ),
+        (
+            "load_state, then its arrays written",
+            SAVED + "sim.load_state(saved)\nsaved['h'][:] = np.nan\nsim.advance(0.05)\n"
+            "sys.exit(0 if np.isfinite(sim.h).all() else 1)",
+            "",
+        ),
+    ):
+        out.append(
+            Case(f"API: {name}", validate, 0 if not phrase else 2, phrase, patch=_api(body), setup=_scenario)
+        )
+    out.append(
+        Case(
+            "API: a run in a host raising on warnings and numpy errors",
+            validate,
+            0,
+            "run completed, changed []",
+            patch=HOST_KEPT,
+            setup=_scenario,
+        )
+    )
+    for name, body in (
+        ("float32 viscosity", "return np.full(np.shape(p), 15.0, dtype=np.float32)"),
+        ("integer viscosity", "return np.full(np.shape(p), 15, dtype=np.int64)"),
+    ):
+        out.append(
+            Case(f"plugin: {name}", run, 0, "", patch=_plugin_patch("viscosity", body), setup=_scenario)
+        )
+    out.append(
+        Case(
+            "plugin: boolean yield stress",
+            run,
+            1,
+            "yield_stress() returned",
+            patch=_plugin_patch("yield_stress", "return np.ones(np.shape(p), dtype=bool)"),
+            setup=_scenario,
+            keeps_output=True,
+        )
+    )
+    plugin_env = {"PYTHONPATH": "{dir}/plugin"}
+    out += [
+        Case(
+            "plugin: an entry point whose module fails to import",
+            run,
+            0,
+            "rheology plugin third 0.1 (entry point third = third) skipped: ZeroDivisionError",
+            setup=_entry_point_plugin("1 / 0\n"),
+            env=plugin_env,
+        ),
+        Case(
+            "plugin: an entry point registering a built-in's name twice",
+            run,
+            0,
+            "rheology name 'drucker_prager' is already registered by multilayer",
+            setup=_entry_point_plugin(SHADOWING_PLUGIN),
+            env=plugin_env,
+        ),
+    ]
+    for signum, code in ((signal.SIGTERM, 143), (signal.SIGHUP, 129)):
+        name = signal.Signals(signum).name
+        out.append(
+            Case(
+                f"resume: {name} while the checkpoint is written",
+                run,
+                0,
+                f"interrupted by {name} at t=",
+                patch=SIGNAL_IN_CHECKPOINT.format(name=name, code=code),
+                setup=_scenario,
+            )
+        )
+    out += [
+        Case(
+            "sweep: every member failing",
+            ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/out"],
+            1,
+            "(rheology.mu_s=0.4) failed: RunError: scenario 'tiny': the simulation failed at t=0 s (step 0): "
+            "rheology plugin 'failing' (third.Failing): yield_stress() raised RuntimeError: always fails",
+            setup=_failing_sweep,
+            env={"PYTHONPATH": "{dir}/plugin"},
+        ),
+        Case(
+            "validate: an observation header 't, x_f, sigma' (spaces after the commas)",
+            ["validate", "{dir}/calibration.yaml"],
+            0,
+            "",
+            setup=_calibration("0.1,0.12,0.01\n", header="t, x_f, sigma"),
+        ),
+        Case(
+            "validate: an observation header naming xf",
+            ["validate", "{dir}/calibration.yaml"],
+            2,
+            "front.csv has no column 'x_f' (its header names 't', 'xf', 'sigma')",
+            setup=_calibration("0.1,0.12,0.01\n", header="t,xf,sigma"),
+        ),
+    ]
+    for name, changes in (
+        ("5e-324", {"fluid.compressibility": 5e-324}),
+        ("1 with order 1", {"fluid.compressibility": 1.0, "numerics.order": 1}),
+        (
+            "1e-6 in a channel between walls",
+            {"domain.width": 0.01, "boundaries": {"left": "wall", "right": "outflow"}},
+        ),
+    ):
+        out.append(
+            Case(
+                f"run: a relaxing pore pressure of compressibility {name}",
+                run,
+                0,
+                "",
+                setup=_relaxing(changes),
+            )
+        )
+    return out
+
+
 def cases() -> list[Case]:
     out: list[Case] = []
     budget = ["--max-memory", "8G", "--max-output", "1G"]
@@ -3151,6 +3701,7 @@ def cases() -> list[Case]:
         + round_sixteen()
         + round_seventeen()
         + round_eighteen()
+        + round_nineteen()
     )
 
 

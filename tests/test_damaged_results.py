@@ -82,6 +82,15 @@ def _attribute(name: str, key: str, value: object) -> Callable[[Path], None]:
     return damage
 
 
+def _scenario_text(old: str, new: str) -> Callable[[Path], None]:
+    def damage(path: Path) -> None:
+        with netCDF4.Dataset(path, "a") as ds:
+            assert old in ds.scenario
+            ds.scenario = ds.scenario.replace(old, new)
+
+    return damage
+
+
 def _header(path: Path) -> None:
     data = bytearray(path.read_bytes())
     data[20:40] = b"\xff" * 20  # inside the dimension list
@@ -129,6 +138,16 @@ DAMAGES = {
     ),
     "x_bnds nan": (_set("x_bnds", (3, 0), np.nan), "its cell edges x_bnds are not finite"),
     "sigma nan": (_set("sigma", (1,), np.nan), "its layer heights sigma and sigma_bnds are not finite"),
+    # the scenario attribute: a tag PyYAML's constructor cannot read (was a ValueError), a slope
+    # the figures compute with that is text (a traceback of plot)
+    "scenario tag": (
+        _scenario_text("end: 0.08", "end: !!float abc"),
+        "its scenario attribute is missing or damaged",
+    ),
+    "scenario slope": (
+        _scenario_text("slope_deg: 25.0", "slope_deg: steep"),
+        "its scenario attribute's slope_deg is 'steep', not a finite number",
+    ),
     "not netCDF": (lambda path: path.write_text("not netCDF"), r"not a netCDF result file \(not a classic"),
     "empty": (lambda path: path.write_bytes(b""), "not a netCDF result file"),
 }

@@ -184,6 +184,10 @@ def test_numba_variables_the_engine_cannot_run_with_are_refused_first(
             "- 1\n",
             "(numba's configuration file, read by numba at its import): got [1]; accepted: a YAML mapping",
         ),
+        (  # a ValueError of PyYAML's constructor: a traceback
+            "num_threads: !!int abc\n",
+            "(numba's configuration file, read by numba at its import): tag:yaml.org,2002:int cannot read",
+        ),
     ],
 )
 def test_numbas_configuration_file_in_the_working_directory_is_checked_as_its_variables(

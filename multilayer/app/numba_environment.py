@@ -32,6 +32,7 @@ from contextlib import contextmanager
 import yaml
 
 from multilayer.errors import InputError, reason
+from multilayer.scenario.source import safe_load
 
 THREADING_LAYERS = ("default", "safe", "forksafe", "threadsafe", "tbb", "omp", "workqueue")
 """The values of ``NUMBA_THREADING_LAYER`` numba knows."""
@@ -70,7 +71,7 @@ def _settings() -> dict[str, tuple[str, str]]:
         accepted = "a YAML mapping of numba's settings (num_threads: 4), or no such file"
         try:
             with open(CONFIG_FILE, encoding="utf-8") as stream:
-                data = yaml.safe_load(stream)
+                data = safe_load(stream.read())
         except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
             raise InputError(f"{where}: {' '.join(reason(exc).split())}; accepted: {accepted}") from None
         if data is not None and not (isinstance(data, dict) and all(isinstance(key, str) for key in data)):

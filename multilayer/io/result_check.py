@@ -34,6 +34,7 @@ one at a time (memory of one record).
 from __future__ import annotations
 
 import functools
+import math
 import os
 from pathlib import Path
 from typing import Literal
@@ -46,6 +47,8 @@ from multilayer.engine import diagnostics
 from multilayer.errors import InputError, reason
 from multilayer.io.netcdf_layout import LayoutError, read_layout
 from multilayer.io.result_format import FORCES, MIXTURE_VARIABLES, NETCDF_LOCK, VARIABLES, result_path
+from multilayer.scenario.messages import shown
+from multilayer.scenario.source import safe_load
 
 Use = Literal["answer", "records", "resume"]
 STATUSES = ("completed", "failed", "interrupted", "running")
@@ -117,6 +120,12 @@ def _whole_records(file: Path, bad) -> int:
     return layout.complete_records(file.stat().st_size)
 
 
+SCENARIO_NUMBERS = (("slope_deg", False), ("material.density", True), ("time.end", True))
+"""The entries of a result's scenario attribute its readers compute with (the figures'
+slope frame, 0 where it is absent as in a scenario; the momentum balance; the span of a
+completed run), and whether they must be there."""
+
+
 def _status(ds: netCDF4.Dataset, file: Path, bad) -> str:
     """The run status of ``ds``; the variables and the scenario are those of a result."""
     missing = [name for name in VARIABLES if name not in ds.variables]
@@ -125,11 +134,19 @@ def _status(ds: netCDF4.Dataset, file: Path, bad) -> str:
     if missing:
         raise bad(f"not a multilayer result: no variable {', '.join(missing)}")
     try:
-        scenario = yaml.safe_load(str(ds.getncattr("scenario")))
+        scenario = safe_load(str(ds.getncattr("scenario")))
     except (AttributeError, yaml.YAMLError):
         scenario = None
     if not isinstance(scenario, dict) or "name" not in scenario:
         raise bad("its scenario attribute is missing or damaged")
+    for key, required in SCENARIO_NUMBERS:
+        node: object = scenario
+        for part in key.split("."):
+            node = node.get(part) if isinstance(node, dict) else None
+        if (required or node is not None) and not (
+            isinstance(node, (int, float)) and not isinstance(node, bool) and math.isfinite(node)
+        ):
+            raise bad(f"its scenario attribute's {key} is {shown(node)}, not a finite number")
     status = str(ds.getncattr("run_status")) if "run_status" in ds.ncattrs() else ""
     if status not in STATUSES:
         raise bad(f"run_status {status!r} is not one of {', '.join(STATUSES)}")
@@ -185,7 +202,7 @@ def _brackets(bounds: np.ndarray, centres: np.ndarray) -> bool:
 def _check_span(ds: netCDF4.Dataset, count: int, bad) -> None:
     """Raise ``bad(...)`` unless the records of the completed run ``ds`` (``count`` of them)
     start at ``t = 0`` and end at its scenario's ``time.end``, exactly."""
-    time = yaml.safe_load(str(ds.getncattr("scenario"))).get("time")  # a mapping, by _status
+    time = safe_load(str(ds.getncattr("scenario"))).get("time")  # a mapping, by _status
     end = time.get("end") if isinstance(time, dict) else None
     times = np.asarray(ds["time"][:count], dtype=float) if count else np.array([np.nan])
     if not (times[0] == 0.0 and times[-1] == end):
@@ -299,7 +316,7 @@ def _check_forces(ds: netCDF4.Dataset, count: int, momentum: np.ndarray, bad) ->
         if broken.size:
             i = int(broken[0]) + 1
             raise _record_error(bad, i, float(t[i]), f"{name} = {float(values[i])!r} is not finite")
-    density = float(yaml.safe_load(str(ds.getncattr("scenario")))["material"]["density"])
+    density = float(safe_load(str(ds.getncattr("scenario")))["material"]["density"])
     terms = ("bed_force_x", "wall_force_x", "end_force_x", "pressure_force_x", "outflow_momentum_x")
     net = f["gravity_force_x"][1:] - sum(f[name][1:] for name in terms)
     change = density * np.diff(momentum)

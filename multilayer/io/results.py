@@ -55,6 +55,7 @@ from multilayer.io.result_format import (  # noqa: F401 (this module's names, as
     result_path,
 )
 from multilayer.provenance import fipy_version, provenance
+from multilayer.scenario.source import safe_load
 
 FAILURE_LENGTH = 8000
 """Characters of the failure message kept in the ``failure`` attribute (run.log has it all)."""
@@ -572,7 +573,7 @@ def load_checkpoint(path: str | os.PathLike) -> Checkpoint:
     ):
         raise corrupt("meta.scenario is not text or meta.records no count of records")
     try:  # the scenario it computed, compared key by key with the one resuming it
-        scenario = yaml.safe_load(meta["scenario"])
+        scenario = safe_load(meta["scenario"])
     except yaml.YAMLError:  # was a traceback (exit 1)
         scenario = None
     if not isinstance(scenario, dict):

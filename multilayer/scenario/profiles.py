@@ -85,6 +85,11 @@ def read_csv_profile(path: str | Path, columns: Sequence[str]) -> np.ndarray:
                 f"{path}: line {line_no}: expected two numbers separated by a comma, got {line.strip()!r}; "
                 "accepted: 'x, value' rows of finite numbers"
             )
+        if not (math.isfinite(x * factors[0]) and math.isfinite(value * factors[1])):  # 1e306 km
+            raise InputError(
+                f"{path}: line {line_no}: {line.strip()!r} in metres is beyond the largest float; "
+                "accepted: 'x, value' rows of finite numbers, below 1.8e308 m"
+            )
         if points and x * factors[0] <= points[-1][0]:
             raise InputError(
                 f"{path}: line {line_no}: x = {x} does not increase; "
