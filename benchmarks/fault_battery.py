@@ -3247,21 +3247,21 @@ def round_nineteen() -> list[Case]:
             "validate: a full-width key \uff44omain",
             validate,
             2,
-            "\uff44omain (line 4): unknown key",
+            "'\\uff44omain' (line 4): unknown key",
             setup=_tagged("domain:", "\uff44omain:"),
         ),
         Case(
             "validate: a key mu_s and a zero-width space",
             validate,
             2,
-            "rheology.mu_s (line 18): missing parameter of drucker_prager",
+            "rheology.'mu_s\\u200b' (line 19): unknown parameter of drucker_prager (mu_s missing)",
             setup=_tagged("mu_s: 0.3", "mu_s\u200b: 0.3"),
         ),
         Case(
             "validate: a Cyrillic s in mu_s beside mu_s",
             validate,
             2,
-            "rheology.mu_\u0455 (line 20): unknown parameter",
+            "rheology.'mu_\\u0455' (line 20): unknown parameter",
             setup=_tagged("mu_s: 0.3", "mu_s: 0.3\n  mu_\u0455: 0.4"),
         ),
         Case(
@@ -3275,7 +3275,7 @@ def round_nineteen() -> list[Case]:
             "validate: a sweep value !!int x",
             ["validate", "{dir}/sweep.yaml"],
             2,
-            "sweep.yaml (line 3, column 19): malformed YAML: tag:yaml.org,2002:int cannot read 'x'",
+            "sweep.yaml (line 3, column 18): malformed YAML: tag:yaml.org,2002:int cannot read 'x'",
             setup=lambda d: (
                 _scenario(d),
                 (d / "sweep.yaml").write_text(
@@ -3328,6 +3328,19 @@ def round_nineteen() -> list[Case]:
             ),
         ),
     ]
+    out += [
+        Case("validate: an integer of 5000 digits", validate, 2,
+             "(line 5, column 10): malformed YAML: tag:yaml.org,2002:int cannot read '444",
+             setup=_tagged("cells: 40", "cells: " + "4" * 5000)),
+        Case("validate: a key ''", validate, 2, "scenario.yaml: '' (line 26): unknown key",
+             setup=lambda d: _scenario(d, text=yaml.safe_dump(TINY) + '"": 1\n')),
+        Case("validate: two YAML documents", validate, 2,
+             "(line 26, column 1): malformed YAML: but found another document",
+             setup=lambda d: _scenario(d, text=yaml.safe_dump(TINY) + "---\nname: other\n")),
+        Case("validate: a %YAML 2.0 directive", validate, 2,
+             "malformed YAML: found incompatible YAML document",
+             setup=lambda d: _scenario(d, text="%YAML 2.0\n---\n" + yaml.safe_dump(TINY))),
+    ]  # fmt: skip
     header = "x (m), z (m)\n"
     for name, setup, code, phrase in (
         ("CRLF line ends", _csv_bed(header.replace("\n", "\r\n") + "0,0.01\r\n0.5,0\r\n"), 0, ""),

@@ -175,6 +175,7 @@ def test_a_csv_number_beyond_the_floats_in_metres_is_refused(tmp_path, bed, phra
         ("!!int 1e5", "tag:yaml.org,2002:int cannot read '1e5'"),
         ("!!bool maybe", "tag:yaml.org,2002:bool cannot read 'maybe'"),
         ("!!timestamp 2001-13-45", "tag:yaml.org,2002:timestamp cannot read '2001-13-45'"),
+        ("4" * 5000, "tag:yaml.org,2002:int cannot read '444"),  # beyond Python's 4300 digits
     ],
 )
 def test_a_value_its_tag_cannot_read_is_malformed_yaml_at_its_place(
@@ -252,6 +253,37 @@ def test_a_key_holding_a_terminal_escape_sequence_is_quoted_not_sent_to_the_term
     named = write_scenario({**TINY_SCENARIO, "rheology": {"name": f"dp{escape}"}}, "named.yaml")
     result = cli("validate", named)
     assert result.code == 2 and "unknown rheology 'dp\\x1b[2J'; accepted" in result.err, result.err
+
+
+@pytest.mark.parametrize(
+    ("key", "said"),
+    [
+        ("mu_\u0455", "rheology.'mu_\\u0455' (line 15): unknown parameter of drucker_prager; accepted"),
+        (
+            "mu_s\u200b",
+            "rheology.'mu_s\\u200b' (line 14): unknown parameter of drucker_prager (mu_s missing)",
+        ),
+        ("mu_z", "rheology.mu_z (line 14): unknown parameter of drucker_prager (mu_s missing)"),
+    ],
+)
+def test_a_key_that_only_looks_like_a_parameter_is_named_as_unknown(write_scenario, key, said):
+    """A Cyrillic s in ``mu_s`` was "unknown" printed as ``mu_s``, and a typo or an invisible
+    character in ``mu_s`` was said as "mu_s: missing parameter", naming no key of the file:
+    a key that is not printable ASCII is quoted with its escapes, and an unknown key is
+    named before the parameters it leaves missing."""
+    rheology = {"name": "drucker_prager", "nu": 0.01, key: 0.3}
+    if "\u0455" in key:
+        rheology = {"name": "drucker_prager", "mu_s": 0.3, "nu": 0.01, key: 0.3}
+    text = yaml.safe_dump({**TINY_SCENARIO, "rheology": rheology}, sort_keys=False, allow_unicode=True)
+    with pytest.raises(InputError) as caught:
+        multilayer.load(write_scenario(text))
+    assert said in str(caught.value)
+
+
+def test_an_empty_key_is_named_as_one(write_scenario):
+    """``"": 1`` at the top level was "(top level): unknown key"."""
+    with pytest.raises(InputError, match="scenario.yaml: '' \\(line \\d+\\): unknown key; accepted: name,"):
+        multilayer.load(write_scenario({**TINY_SCENARIO, "": 1}))
 
 
 def test_spaces_around_a_key_are_not_part_of_it(write_scenario):
