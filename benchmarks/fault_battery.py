@@ -2355,15 +2355,21 @@ def multilayer_register_rheologies(register):
 PYTHONPATH, which the Dask workers inherit), whose yield stress never returns."""
 
 
+def _plugin_package(directory: Path, name: str, module: str) -> None:
+    """A distribution ``name`` in ``directory/plugin`` (put on PYTHONPATH by the case) whose
+    entry point names its module ``name``, of the text ``module``."""
+    plugin = directory / "plugin"
+    (plugin / f"{name}-0.1.dist-info").mkdir(parents=True)
+    (plugin / f"{name}.py").write_text(module)
+    (plugin / f"{name}-0.1.dist-info" / "METADATA").write_text(
+        f"Metadata-Version: 2.1\nName: {name}\nVersion: 0.1\n"
+    )
+    (plugin / f"{name}-0.1.dist-info" / "entry_points.txt").write_text(f"[multilayer]\n{name} = {name}\n")
+
+
 def _hanging_sweep(directory: Path) -> None:
     """A sweep of two members on the hanging plugin: the first completes, the second hangs."""
-    plugin = directory / "plugin"
-    (plugin / "hanging-0.1.dist-info").mkdir(parents=True)
-    (plugin / "hanging.py").write_text(HANGING_PLUGIN_PACKAGE)
-    (plugin / "hanging-0.1.dist-info" / "METADATA").write_text(
-        "Metadata-Version: 2.1\nName: hanging\nVersion: 0.1\n"
-    )
-    (plugin / "hanging-0.1.dist-info" / "entry_points.txt").write_text("[multilayer]\nhanging = hanging\n")
+    _plugin_package(directory, "hanging", HANGING_PLUGIN_PACKAGE)
     _scenario(directory, {"rheology": {"name": "hanging", "mu_s": 0.3, "nu": 0.01, "hang_after": 1e9}})
     sweep = {"base": "scenario.yaml", "parameters": {"rheology.hang_after": [1e9, 40]}}
     (directory / "sweep.yaml").write_text(yaml.safe_dump(sweep))
@@ -3003,18 +3009,11 @@ def _csv_bed(text: str | None = None, make: Callable[[Path], object] | None = No
 
 
 def _entry_point_plugin(module: str) -> Callable[[Path], None]:
-    """The scenario and a distribution ``third`` on PYTHONPATH whose entry point names the
-    module ``third`` of the text ``module``."""
+    """The scenario and a distribution ``third`` whose module is the text ``module``."""
 
     def setup(directory: Path) -> None:
         _scenario(directory)
-        plugin = directory / "plugin"
-        (plugin / "third-0.1.dist-info").mkdir(parents=True)
-        (plugin / "third.py").write_text(module)
-        (plugin / "third-0.1.dist-info" / "METADATA").write_text(
-            "Metadata-Version: 2.1\nName: third\nVersion: 0.1\n"
-        )
-        (plugin / "third-0.1.dist-info" / "entry_points.txt").write_text("[multilayer]\nthird = third\n")
+        _plugin_package(directory, "third", module)
 
     return setup
 
