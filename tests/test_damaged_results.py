@@ -77,7 +77,17 @@ def _set(name: str, index: tuple, value: float) -> Callable[[Path], None]:
 def _attribute(name: str, key: str, value: object) -> Callable[[Path], None]:
     def damage(path: Path) -> None:
         with netCDF4.Dataset(path, "a") as ds:
-            ds[name].setncattr(key, value)
+            ds[name].delncattr(key) if value is None else ds[name].setncattr(key, value)
+
+    return damage
+
+
+def _global(key: str, value: object) -> Callable[[Path], None]:
+    """The global attribute ``key`` set to ``value``, or deleted for None."""
+
+    def damage(path: Path) -> None:
+        with netCDF4.Dataset(path, "a") as ds:
+            ds.delncattr(key) if value is None else ds.setncattr(key, value)
 
     return damage
 
@@ -147,6 +157,15 @@ DAMAGES = {
     "scenario slope": (
         _scenario_text("slope_deg: 25.0", "slope_deg: steep"),
         "its scenario attribute's slope_deg is 'steep', not a finite number",
+    ),
+    # the attributes a reader reads: a sweep run again read its members' summaries (steps
+    # 'many' was a ValueError), --resume the version (missing: an AttributeError, as the
+    # front's threshold was for every reader)
+    "steps text": (_global("steps", "many"), "its attribute steps is 'many', not an integer >= 0"),
+    "version missing": (_global("multilayer_version", None), "its attribute multilayer_version is missing"),
+    "threshold missing": (
+        _attribute("front", "threshold", None),
+        "its variable front's attribute threshold is missing",
     ),
     "not netCDF": (lambda path: path.write_text("not netCDF"), r"not a netCDF result file \(not a classic"),
     "empty": (lambda path: path.write_bytes(b""), "not a netCDF result file"),

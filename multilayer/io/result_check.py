@@ -126,6 +126,47 @@ slope frame, 0 where it is absent as in a scenario; the momentum balance; the sp
 completed run), and whether they must be there."""
 
 
+ATTRIBUTES = (
+    ("steps", "an integer >= 0"),
+    ("wall_time_s", "a finite number >= 0"),
+    ("multilayer_version", "text"),
+    ("multilayer_commit", "text"),
+)
+"""The global attributes of a result its readers read (a study's summary of a member, the
+version a resumed run compares with its own), with what they must be."""
+
+
+def _attribute(value: object, kind: str) -> bool:
+    """True when the attribute ``value`` (as netCDF4 reads it) is ``kind`` of :data:`ATTRIBUTES`
+    (or "a finite number > 0 (m)")."""
+    if kind == "text":
+        return isinstance(value, str)
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        return False
+    if kind == "an integer >= 0":
+        return isinstance(value, (int, np.integer)) and int(value) >= 0
+    number = float(value)
+    return math.isfinite(number) and (number >= 0 if ">= 0" in kind else number > 0)
+
+
+def _check_attributes(ds: netCDF4.Dataset, bad) -> None:
+    """Raise ``bad(...)`` unless the attributes of :data:`ATTRIBUTES` and the front's
+    ``threshold`` are there and what they must be: a sweep run again over its members read
+    a damaged ``steps`` as a traceback of its summary, and a missing ``multilayer_version``
+    was one of ``--resume``."""
+    front = ds["front"]
+    for owner, name, kind in [(ds, name, kind) for name, kind in ATTRIBUTES] + [
+        (front, "threshold", "a finite number > 0 (m)")
+    ]:
+        whose = "its variable front's" if owner is front else "its"
+        if name not in owner.ncattrs():
+            raise bad(f"{whose} attribute {name} is missing")
+        value = owner.getncattr(name)
+        if not _attribute(value, kind):
+            plain = value.item() if isinstance(value, np.generic) else value
+            raise bad(f"{whose} attribute {name} is {shown(plain)}, not {kind}")
+
+
 def _status(ds: netCDF4.Dataset, file: Path, bad) -> str:
     """The run status of ``ds``; the variables and the scenario are those of a result."""
     missing = [name for name in VARIABLES if name not in ds.variables]
@@ -147,6 +188,7 @@ def _status(ds: netCDF4.Dataset, file: Path, bad) -> str:
             isinstance(node, (int, float)) and not isinstance(node, bool) and math.isfinite(node)
         ):
             raise bad(f"its scenario attribute's {key} is {shown(node)}, not a finite number")
+    _check_attributes(ds, bad)
     status = str(ds.getncattr("run_status")) if "run_status" in ds.ncattrs() else ""
     if status not in STATUSES:
         raise bad(f"run_status {status!r} is not one of {', '.join(STATUSES)}")
