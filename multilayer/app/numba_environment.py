@@ -31,7 +31,7 @@ from contextlib import contextmanager
 
 import yaml
 
-from multilayer.errors import InputError, reason
+from multilayer.errors import MAX_COUNT_DIGITS, InputError, ascii_count, reason
 from multilayer.scenario.source import safe_load
 
 THREADING_LAYERS = ("default", "safe", "forksafe", "threadsafe", "tbb", "omp", "workqueue")
@@ -48,10 +48,8 @@ def check() -> None:
     environment or in numba's :data:`CONFIG_FILE`."""
     settings = _settings()
     threads = settings.get("NUMBA_NUM_THREADS")
-    if threads is not None and not (
-        threads[0].strip().isascii() and threads[0].strip().isdigit() and int(threads[0])
-    ):
-        _refuse(threads, "an integer >= 1 (ASCII digits), or unset")
+    if threads is not None and not ascii_count(threads[0]):  # int() of 5000 digits raised
+        _refuse(threads, f"an integer >= 1 (ASCII digits, at most {MAX_COUNT_DIGITS}), or unset")
     disabled = settings.get("NUMBA_DISABLE_JIT")
     if disabled is not None and disabled[0].strip() not in ("", "0"):
         _refuse(disabled, "0 or unset: the engine's kernels need numba's compiler")
