@@ -165,6 +165,38 @@ def test_checkpoint_round_trip_is_exact_and_atomic(tmp_path: Path) -> None:
     np.testing.assert_array_equal(fresh.u, sim.u)
 
 
+def test_a_checkpoint_unpacking_to_more_than_its_file_is_refused_before_it_is_read(tmp_path: Path) -> None:
+    """A member deflated 1000 to 1, or whose header declares more data than it holds, was
+    read as its declared size (a checkpoint of 1 MB took 2.3 GB before its checksum failed):
+    refused from the archive's directory and the ``.npy`` headers, nothing read."""
+    import io
+    import zipfile
+
+    sim = Simulation(scenarios.from_dict(COLUMN))
+    path = tmp_path / "checkpoint.npz"
+    save_checkpoint(path, Checkpoint(sim.state_dict(), 2, 1.25, "name: column\n"))
+    arrays = dict(np.load(path))
+
+    def rewrite(member: bytes, compress_type: int) -> None:
+        with zipfile.ZipFile(path, "w") as archive:
+            for name, a in arrays.items():
+                data = io.BytesIO()
+                np.save(data, a)
+                if name == "state.h":
+                    archive.writestr(f"{name}.npy", member, compress_type=compress_type)
+                else:
+                    archive.writestr(f"{name}.npy", data.getvalue())
+
+    header = io.BytesIO()
+    np.lib.format.write_array_header_1_0(header, {"descr": "<f8", "fortran_order": False, "shape": (2**20,)})
+    rewrite(header.getvalue() + bytes(2**23), zipfile.ZIP_DEFLATED)  # 8 MB of zeros in 8 kB
+    with pytest.raises(InputError, match=r"corrupt checkpoint \(its members unpack to \d+ bytes, more than"):
+        load_checkpoint(path)
+    rewrite(header.getvalue() + bytes(64), zipfile.ZIP_STORED)
+    with pytest.raises(InputError, match="state.h.npy declares 8388608 bytes of data in 192"):
+        load_checkpoint(path)
+
+
 def test_missing_or_broken_result_is_an_input_error(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="no result file"):
         open_result(tmp_path)
