@@ -240,3 +240,50 @@ def test_a_failed_or_interrupted_result_is_shown_with_a_note_and_is_not_an_answe
     assert "the run did not complete (run_status failed: viscosity() returned nan)" in run_failure(outdir)
     with pytest.raises(InputError, match="accepted: a completed run"):
         summary(outdir)
+
+
+def _as_netcdf4(path: Path, cells: int) -> None:
+    """``path`` rewritten in the netCDF-4 format (HDF5) with ``cells`` cells along x, the
+    variables over x left unwritten: compressed, a file of kilobytes whatever ``cells``."""
+    with netCDF4.Dataset(path) as src:
+        copy = path.with_name("copy.nc")
+        with netCDF4.Dataset(copy, "w", format="NETCDF4") as dst:
+            dst.setncatts({key: src.getncattr(key) for key in src.ncattrs()})
+            for name, dim in src.dimensions.items():
+                dst.createDimension(name, None if dim.isunlimited() else cells if name == "x" else len(dim))
+            for name, var in src.variables.items():
+                fill = var.getncattr("_FillValue") if "_FillValue" in var.ncattrs() else None
+                chunks = [min(cells, 2**20) if d == "x" else 1 for d in var.dimensions]
+                new = dst.createVariable(
+                    name, var.dtype, var.dimensions, zlib=True, fill_value=fill, chunksizes=chunks
+                )
+                new.setncatts({key: var.getncattr(key) for key in var.ncattrs() if key != "_FillValue"})
+                if "x" not in var.dimensions:
+                    new[:] = var[:]
+    os.replace(copy, path)
+
+
+def test_a_result_larger_than_its_scenario_or_the_memory_is_refused_before_it_is_read(
+    finished, tmp_path, cli, monkeypatch
+):
+    """A netCDF-4 result of 63 kB whose x held 4e9 unwritten cells was a MemoryError
+    traceback of ``plot`` (one of 5e8 took 4.6 GB): its dimensions are those of its
+    scenario, and a record is checked only in the memory there is."""
+    from multilayer.io import result_check
+
+    shutil.copytree(finished, tmp_path, dirs_exist_ok=True)
+    path = tmp_path / "out" / "result.nc"
+    _as_netcdf4(path, 10**7)
+    assert path.stat().st_size < 10**6
+    result = cli("plot", tmp_path / "out")
+    assert result.code == 2 and "Traceback" not in result.err
+    assert (
+        "its dimension x has 10000000 entries, not its scenario attribute's domain.cells (40)" in result.err
+    )
+    with netCDF4.Dataset(path, "a") as ds:
+        ds.scenario = ds.scenario.replace("cells: 40", "cells: 10000000")
+    monkeypatch.setattr(result_check.psutil, "virtual_memory", lambda: type("M", (), {"available": 2**30}))
+    with pytest.raises(
+        InputError, match=r"checking its 10000000 cells x 3 layers takes about 1.56 GiB of memory"
+    ):
+        result_check.check_result(path)

@@ -41,12 +41,14 @@ from typing import Literal
 
 import netCDF4
 import numpy as np
+import psutil
 import yaml
 
 from multilayer.engine import diagnostics
 from multilayer.errors import InputError, reason
 from multilayer.io.netcdf_layout import LayoutError, read_layout
 from multilayer.io.result_format import FORCES, MIXTURE_VARIABLES, NETCDF_LOCK, VARIABLES, result_path
+from multilayer.scenario.limits import MAX_OUTPUT_TIMES
 from multilayer.scenario.messages import shown
 from multilayer.scenario.source import safe_load
 
@@ -167,6 +169,35 @@ def _check_attributes(ds: netCDF4.Dataset, bad) -> None:
             raise bad(f"{whose} attribute {name} is {shown(plain)}, not {kind}")
 
 
+def _check_dimensions(ds: netCDF4.Dataset, scenario: dict, bad) -> None:
+    """Raise ``bad(...)`` unless the dimensions of ``ds`` are those of its ``scenario`` (cells
+    and layers; 2 bounds), it holds no more output times than a run writes and a record can
+    be checked in the memory available now.  Its variables are read whole along x: a
+    result in the netCDF-4 format (HDF5) whose x held 4e9 unwritten, compressed cells (a
+    file of 63 kB) was a MemoryError traceback of ``plot``, one of 5e8 took 4.6 GB before
+    it was refused, and one that fits in the memory exhausted it."""
+    domain = scenario.get("domain")
+    expected = {"x": "domain.cells", "layer": "domain.layers", "nv": ""}
+    for name, key in expected.items():
+        size = (domain.get(key.split(".")[1]) if isinstance(domain, dict) else None) if key else 2
+        found = len(ds.dimensions[name]) if name in ds.dimensions else None
+        if not (type(size) is int and found == size):
+            where = f"its scenario attribute's {key} ({shown(size)})" if key else "2 (the bounds of a cell)"
+            raise bad(f"its dimension {name} has {found} entries, not {where}")
+    count = len(ds.dimensions["time"]) if "time" in ds.dimensions else 0
+    if count > MAX_OUTPUT_TIMES + 2:  # every output time and the end
+        raise bad(f"it holds {count} output times; accepted: at most {MAX_OUTPUT_TIMES + 2}, as a run writes")
+    cells, layers = len(ds.dimensions["x"]), len(ds.dimensions["layer"])
+    needed = 8.0 * cells * (3 * layers + 12)  # a record, its momentum, the coordinates and the bed
+    available = float(psutil.virtual_memory().available)
+    if needed > available:
+        raise bad(
+            f"checking its {cells} cells x {layers} layers takes about {needed / 2**30:.3g} GiB of memory, "
+            f"more than is available now ({available / 2**30:.3g} GiB)",
+            "a result whose records fit in the memory of this machine",
+        )
+
+
 def _status(ds: netCDF4.Dataset, file: Path, bad) -> str:
     """The run status of ``ds``; the variables and the scenario are those of a result."""
     missing = [name for name in VARIABLES if name not in ds.variables]
@@ -189,6 +220,7 @@ def _status(ds: netCDF4.Dataset, file: Path, bad) -> str:
         ):
             raise bad(f"its scenario attribute's {key} is {shown(node)}, not a finite number")
     _check_attributes(ds, bad)
+    _check_dimensions(ds, scenario, bad)
     status = str(ds.getncattr("run_status")) if "run_status" in ds.ncattrs() else ""
     if status not in STATUSES:
         raise bad(f"run_status {status!r} is not one of {', '.join(STATUSES)}")
