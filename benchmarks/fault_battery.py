@@ -3714,7 +3714,202 @@ def cases() -> list[Case]:
         + round_seventeen()
         + round_eighteen()
         + round_nineteen()
+        + round_twenty()
     )
+
+
+def _result_attribute(variable: str | None, key: str, value: Any) -> Callable[[Path], None]:
+    """A finished run whose result.nc's attribute ``key`` (of ``variable``, None: global) is
+    set to ``value``, or deleted for None."""
+
+    def setup(directory: Path) -> None:
+        _finished_run(directory)
+        import netCDF4
+
+        with NETCDF, netCDF4.Dataset(directory / "out" / "result.nc", "a") as ds:
+            owner = ds if variable is None else ds[variable]
+            owner.delncattr(key) if value is None else owner.setncattr(key, value)
+
+    return setup
+
+
+def _checkpoint_bomb(declared_only: bool) -> Callable[[Path], None]:
+    """A finished run whose checkpoint's state.h is 256 MB of zeros deflated to 256 kB, or
+    (``declared_only``) a stored member whose header declares 8 TB in a few bytes."""
+
+    def setup(directory: Path) -> None:
+        import io
+        import zipfile
+
+        _finished_run(directory)
+        path = directory / "out" / "checkpoint.npz"
+        arrays = dict(np.load(path))
+        count = 2**40 if declared_only else 2**25
+        header = io.BytesIO()
+        np.lib.format.write_array_header_1_0(
+            header, {"descr": "<f8", "fortran_order": False, "shape": (count,)}
+        )
+        with zipfile.ZipFile(path, "w") as archive:
+            for name, a in arrays.items():
+                data = io.BytesIO()
+                np.save(data, a)
+                if name != "state.h":
+                    archive.writestr(f"{name}.npy", data.getvalue())
+                elif declared_only:
+                    archive.writestr(f"{name}.npy", header.getvalue() + bytes(64))
+                else:
+                    info = zipfile.ZipInfo(f"{name}.npy")
+                    info.compress_type = zipfile.ZIP_DEFLATED
+                    with archive.open(info, "w", force_zip64=True) as member:
+                        member.write(header.getvalue())
+                        for _ in range(count * 8 // 2**24):
+                            member.write(bytes(2**24))
+
+    return setup
+
+
+def _hdf5_result(cells: int, records: int = 0, forged: bool = False) -> Callable[[Path], None]:
+    """A finished run whose result.nc is rewritten in the netCDF-4 format (HDF5) with ``cells``
+    cells along x, the variables over x never written (a file of kilobytes), ``records``
+    output times if given (one value written at the last), the scenario saying ``cells``
+    if ``forged``."""
+
+    def setup(directory: Path) -> None:
+        _finished_run(directory)
+        import netCDF4
+
+        path = directory / "out" / "result.nc"
+        copy = path.with_name("copy.nc")
+        with NETCDF, netCDF4.Dataset(path) as src, netCDF4.Dataset(copy, "w", format="NETCDF4") as dst:
+            attrs = {key: src.getncattr(key) for key in src.ncattrs()}
+            if forged:
+                attrs["scenario"] = attrs["scenario"].replace("cells: 40", f"cells: {cells}")
+            dst.setncatts(attrs)
+            for name, dim in src.dimensions.items():
+                dst.createDimension(name, None if dim.isunlimited() else cells if name == "x" else len(dim))
+            for name, var in src.variables.items():
+                fill = var.getncattr("_FillValue") if "_FillValue" in var.ncattrs() else None
+                chunks = [min(cells, 2**20) if d == "x" else 1 for d in var.dimensions]
+                new = dst.createVariable(
+                    name, var.dtype, var.dimensions, zlib=True, fill_value=fill, chunksizes=chunks
+                )
+                new.setncatts({key: var.getncattr(key) for key in var.ncattrs() if key != "_FillValue"})
+                if "x" not in var.dimensions:
+                    new[:] = var[:]
+            if records:
+                dst["time"][records - 1] = 1.0
+        os.replace(copy, path)
+
+    return setup
+
+
+def _sensitivity(attrs: dict | None = None, outputs: int = 0) -> Callable[[Path], None]:
+    """A sensitivity.nc of one output and two parameters with ``attrs``, or (``outputs``) a
+    netCDF-4 one declaring that many outputs, never written."""
+
+    def setup(directory: Path) -> None:
+        import netCDF4
+
+        with NETCDF, netCDF4.Dataset(directory / "sensitivity.nc", "w", format="NETCDF4") as ds:
+            ds.createDimension("output", outputs or 1)
+            ds.createDimension("parameter", 2)
+            for name in ("output", "S1", "S1_conf", "ST", "ST_conf"):
+                dims = ("output",) if name == "output" else ("output", "parameter")
+                var = ds.createVariable(
+                    name,
+                    "f8",
+                    dims,
+                    zlib=True,
+                    chunksizes=(min(outputs or 1, 2**20),) + (1,) * (len(dims) - 1),
+                )
+                if not outputs:
+                    var[:] = np.full(var.shape, np.nan if name == "S1" else 0.3)
+            if not outputs:
+                ds.createVariable("parameter", str, ("parameter",))[:] = np.array(
+                    ["mu_s", "nu"], dtype=object
+                )
+            ds.setncatts({"confidence_level": 0.95, "base_samples": 8, **(attrs or {})})
+
+    return setup
+
+
+DAMAGED_MEMBER_STEPS = MEMBER_MEDDLED.replace(
+    "MEDDLING",
+    "import netCDF4\nwith netCDF4.Dataset(member / 'result.nc', 'a') as ds:\n    ds.steps = 'many'",
+)
+"""The first member's result.nc given ``steps: 'many'``, then the sweep again."""
+
+
+def round_twenty() -> list[Case]:
+    """The hostile cases of the twentieth round (docs/reliability.md): counts of 5000 digits
+    or in other notations (environment, options), result files missing or damaging the
+    attributes their readers read, files declaring more than they hold (a checkpoint
+    deflated 1000 to 1, a netCDF-4 result or study file of kilobytes declaring billions of
+    cells or outputs), a study file's attributes damaged."""
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    resume = [*run, "--resume"]
+    many = "1" * 5000
+    out = [
+        Case("env MULTILAYER_THREADS of 5000 digits", run, 2, "MULTILAYER_THREADS='1111",
+             setup=_scenario, env={"MULTILAYER_THREADS": many}),
+        Case("env NUMBA_NUM_THREADS of 5000 digits", run, 2, "NUMBA_NUM_THREADS='1111",
+             setup=_scenario, env={"NUMBA_NUM_THREADS": many}, plain=True),
+        Case("validate: --max-steps of 5000 digits", ["validate", "{scenario}", "--max-steps", many], 2,
+             "--max-steps: expected an integer >= 1 (ASCII digits", setup=_scenario),
+        Case("validate: --max-steps in Arabic-Indic digits",
+             ["validate", "{scenario}", "--max-steps", "\u0663"],
+             2, "--max-steps: expected an integer >= 1 (ASCII digits", setup=_scenario),
+        Case("plot: --times 1_0", ["plot", "{dir}/out", "--times", "1_0"], 2,
+             "--times: expected an integer >= 1", setup=_finished_run),
+        Case("plot: --at 0_1", ["plot", "{dir}/out", "--at", "0_1"], 2,
+             "--at: expected a number in ASCII decimal notation", setup=_finished_run),
+        Case("plot: --at in full-width digits", ["plot", "{dir}/out", "--at", "\uff10.\uff13"], 2,
+             "--at: expected a number in ASCII decimal notation", setup=_finished_run),
+        Case("plot: result.nc without the front's threshold", ["plot", "{dir}/out"], 2,
+             "its variable front's attribute threshold is missing",
+             setup=_result_attribute("front", "threshold", None)),
+        Case("export: result.nc whose steps are 'many'", ["export", "{dir}/out", "--vtk"], 2,
+             "its attribute steps is 'many', not an integer >= 0",
+             setup=_result_attribute(None, "steps", "many")),
+        Case("plot: result.nc whose wall_time_s is NaN", ["plot", "{dir}/out"], 2,
+             "its attribute wall_time_s is nan, not a finite number >= 0",
+             setup=_result_attribute(None, "wall_time_s", float("nan"))),
+        Case("resume: result.nc without multilayer_version", resume, 2,
+             "its attribute multilayer_version is missing",
+             setup=_result_attribute(None, "multilayer_version", None)),
+        Case("resume: result.nc without multilayer_commit", resume, 2,
+             "its attribute multilayer_commit is missing",
+             setup=_result_attribute(None, "multilayer_commit", None)),
+        Case("sweep: a member's result.nc whose steps are 'many', then the sweep again",
+             ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/out", "--workers", "1", "-q"], 0,
+             "the summary of m000 is that of its result.nc", patch=DAMAGED_MEMBER_STEPS,
+             setup=_sweep({"slope_deg": [20.0, 25.0]})),
+        Case("resume: a checkpoint of 256 kB unpacking to 256 MB", resume, 2,
+             "corrupt checkpoint (its members unpack to", setup=_checkpoint_bomb(False)),
+        Case("resume: a checkpoint whose state.h declares 8 TB", resume, 2,
+             "state.h.npy declares 8796093022208 bytes of data in 192", setup=_checkpoint_bomb(True)),
+        Case("plot: a netCDF-4 result.nc of 4e9 unwritten cells", ["plot", "{dir}/out"], 2,
+             "its dimension x has 4000000000 entries, not its scenario attribute's domain.cells (40)",
+             setup=_hdf5_result(4 * 10**9)),
+        Case("plot: a netCDF-4 result.nc of 4e9 unwritten cells, its scenario saying so",
+             ["plot", "{dir}/out"], 2,
+             "cells x 3 layers takes about 626 GiB of memory, more than is available now",
+             setup=_hdf5_result(4 * 10**9, forged=True)),
+        Case("export: a netCDF-4 result.nc of 2e7 output times", ["export", "{dir}/out", "--vtk"], 2,
+             "it holds 20000000 output times; accepted: at most 10000002, as a run writes them",
+             setup=_hdf5_result(40, 2 * 10**7)),
+        Case("plot: sensitivity.nc whose failed_runs is 'abc'", ["plot", "{dir}"], 2,
+             "its attribute failed_runs is 'abc', not a count", setup=_sensitivity({"failed_runs": "abc"})),
+        Case("plot: sensitivity.nc whose confidence_level is NaN", ["plot", "{dir}"], 2,
+             "its attribute confidence_level is nan, not in (0, 1)",
+             setup=_sensitivity({"confidence_level": float("nan")})),
+        Case("plot: sensitivity.nc whose base_samples is 1e300", ["plot", "{dir}"], 2,
+             "its attribute base_samples is 1e+300, not a count",
+             setup=_sensitivity({"base_samples": 1e300})),
+        Case("plot: a netCDF-4 sensitivity.nc of 8 kB declaring 4e9 outputs", ["plot", "{dir}"], 2,
+             "sensitivity.nc: its variables hold 288000000000 bytes", setup=_sensitivity(outputs=4 * 10**9)),
+    ]  # fmt: skip
+    return out
 
 
 def _records(path: Path) -> int:

@@ -186,7 +186,7 @@ def _check_dimensions(ds: netCDF4.Dataset, scenario: dict, bad) -> None:
             raise bad(f"its dimension {name} has {found} entries, not {where}")
     count = len(ds.dimensions["time"]) if "time" in ds.dimensions else 0
     if count > MAX_OUTPUT_TIMES + 2:  # every output time and the end
-        raise bad(f"it holds {count} output times; accepted: at most {MAX_OUTPUT_TIMES + 2}, as a run writes")
+        raise bad(f"it holds {count} output times", f"at most {MAX_OUTPUT_TIMES + 2}, as a run writes them")
     cells, layers = len(ds.dimensions["x"]), len(ds.dimensions["layer"])
     needed = 8.0 * cells * (3 * layers + 12)  # a record, its momentum, the coordinates and the bed
     available = float(psutil.virtual_memory().available)
