@@ -3768,37 +3768,43 @@ def _checkpoint_bomb(declared_only: bool) -> Callable[[Path], None]:
     return setup
 
 
+def netcdf4_copy(path: Path, cells: int, records: int = 0, forged: bool = False) -> None:
+    """The result file ``path`` rewritten in the netCDF-4 format (HDF5) with ``cells`` cells
+    along x, the variables over x never written (a file of kilobytes), ``records`` output
+    times if given (one value written at the last), the scenario saying ``cells`` if
+    ``forged`` (tests/test_damaged_results.py uses it too)."""
+    import netCDF4
+
+    copy = path.with_name("copy.nc")
+    with NETCDF, netCDF4.Dataset(path) as src, netCDF4.Dataset(copy, "w", format="NETCDF4") as dst:
+        attrs = {key: src.getncattr(key) for key in src.ncattrs()}
+        if forged:
+            attrs["scenario"] = attrs["scenario"].replace(
+                f"cells: {len(src.dimensions['x'])}", f"cells: {cells}"
+            )
+        dst.setncatts(attrs)
+        for name, dim in src.dimensions.items():
+            dst.createDimension(name, None if dim.isunlimited() else cells if name == "x" else len(dim))
+        for name, var in src.variables.items():
+            fill = var.getncattr("_FillValue") if "_FillValue" in var.ncattrs() else None
+            chunks = [min(cells, 2**20) if d == "x" else 1 for d in var.dimensions]
+            new = dst.createVariable(
+                name, var.dtype, var.dimensions, zlib=True, fill_value=fill, chunksizes=chunks
+            )
+            new.setncatts({key: var.getncattr(key) for key in var.ncattrs() if key != "_FillValue"})
+            if "x" not in var.dimensions:
+                new[:] = var[:]
+        if records:
+            dst["time"][records - 1] = 1.0
+    os.replace(copy, path)
+
+
 def _hdf5_result(cells: int, records: int = 0, forged: bool = False) -> Callable[[Path], None]:
-    """A finished run whose result.nc is rewritten in the netCDF-4 format (HDF5) with ``cells``
-    cells along x, the variables over x never written (a file of kilobytes), ``records``
-    output times if given (one value written at the last), the scenario saying ``cells``
-    if ``forged``."""
+    """A finished run whose result.nc is :func:`netcdf4_copy`'s."""
 
     def setup(directory: Path) -> None:
         _finished_run(directory)
-        import netCDF4
-
-        path = directory / "out" / "result.nc"
-        copy = path.with_name("copy.nc")
-        with NETCDF, netCDF4.Dataset(path) as src, netCDF4.Dataset(copy, "w", format="NETCDF4") as dst:
-            attrs = {key: src.getncattr(key) for key in src.ncattrs()}
-            if forged:
-                attrs["scenario"] = attrs["scenario"].replace("cells: 40", f"cells: {cells}")
-            dst.setncatts(attrs)
-            for name, dim in src.dimensions.items():
-                dst.createDimension(name, None if dim.isunlimited() else cells if name == "x" else len(dim))
-            for name, var in src.variables.items():
-                fill = var.getncattr("_FillValue") if "_FillValue" in var.ncattrs() else None
-                chunks = [min(cells, 2**20) if d == "x" else 1 for d in var.dimensions]
-                new = dst.createVariable(
-                    name, var.dtype, var.dimensions, zlib=True, fill_value=fill, chunksizes=chunks
-                )
-                new.setncatts({key: var.getncattr(key) for key in var.ncattrs() if key != "_FillValue"})
-                if "x" not in var.dimensions:
-                    new[:] = var[:]
-            if records:
-                dst["time"][records - 1] = 1.0
-        os.replace(copy, path)
+        netcdf4_copy(directory / "out" / "result.nc", cells, records, forged)
 
     return setup
 
