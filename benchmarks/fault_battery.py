@@ -3839,6 +3839,33 @@ def _sensitivity(attrs: dict | None = None, outputs: int = 0) -> Callable[[Path]
     return setup
 
 
+def _scenario_appended(extra: str, checkpoint: bool = True) -> Callable[[Path], None]:
+    """A run stopped after its first records whose result.nc's scenario (and its checkpoint's,
+    checksummed again, if ``checkpoint``) ends with the YAML ``extra``."""
+
+    def setup(directory: Path) -> None:
+        _finished_run(directory)
+        import netCDF4
+
+        from multilayer.io.results import Checkpoint, load_checkpoint, save_checkpoint
+
+        path = directory / "out" / "checkpoint.npz"
+        saved = load_checkpoint(path)
+        if checkpoint:
+            save_checkpoint(
+                path, Checkpoint(saved.state, saved.records, saved.wall_time_s, saved.scenario + extra)
+            )
+        with NETCDF, netCDF4.Dataset(directory / "out" / "result.nc", "a") as ds:
+            ds.scenario = saved.scenario + extra
+            ds.run_status = "interrupted"
+
+    return setup
+
+
+LAUGHS_BELOW = "extra:\n" + "".join(f"  {line}\n" for line in BILLION_LAUGHS.splitlines())
+"""The billion laughs, under a key ``extra`` of a scenario."""
+
+
 DAMAGED_MEMBER_STEPS = MEMBER_MEDDLED.replace(
     "MEDDLING",
     "import netCDF4\nwith netCDF4.Dataset(member / 'result.nc', 'a') as ds:\n    ds.steps = 'many'",
@@ -3914,6 +3941,14 @@ def round_twenty() -> list[Case]:
              setup=_sensitivity({"base_samples": 1e300})),
         Case("plot: a netCDF-4 sensitivity.nc of 8 kB declaring 4e9 outputs", ["plot", "{dir}"], 2,
              "sensitivity.nc: its variables hold 288000000000 bytes", setup=_sensitivity(outputs=4 * 10**9)),
+        Case("resume: a checkpoint and its result.nc whose scenario holds an alias inside its own anchor",
+             resume, 2, "corrupt checkpoint (meta.scenario is not the YAML mapping of a scenario)",
+             setup=_scenario_appended("extra: &a [*a]\n")),
+        Case("resume: a checkpoint and its result.nc whose scenario holds the billion laughs", resume, 2,
+             "corrupt checkpoint (meta.scenario is not the YAML mapping of a scenario)",
+             setup=_scenario_appended(LAUGHS_BELOW)),
+        Case("plot: result.nc whose scenario holds the billion laughs", ["plot", "{dir}/out"], 2,
+             "its scenario attribute is missing or damaged", setup=_scenario_appended(LAUGHS_BELOW, False)),
     ]  # fmt: skip
     return out
 

@@ -157,6 +157,11 @@ DAMAGES = {
         _scenario_text("end: 0.08", "end: !!float abc"),
         "its scenario attribute is missing or damaged",
     ),
+    # an alias inside its own anchor: --resume compared it with the checkpoint's, a RecursionError
+    "scenario recursive": (
+        _scenario_text("name: short", "name: short\nextra: &a [*a]"),
+        "its scenario attribute is missing or damaged",
+    ),
     "scenario slope": (
         _scenario_text("slope_deg: 25.0", "slope_deg: steep"),
         "its scenario attribute's slope_deg is 'steep', not a finite number",

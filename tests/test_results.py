@@ -26,6 +26,7 @@ from multilayer.io.results import (
     save_checkpoint,
     summary,
 )
+from multilayer.scenario.source import safe_load
 
 # A 0.1 m x 0.05 m column on a 25 degree slope, 40 cells x 3 layers, wall on the left.
 COLUMN = {**TINY_SCENARIO, "name": "column"}
@@ -195,6 +196,26 @@ def test_a_checkpoint_unpacking_to_more_than_its_file_is_refused_before_it_is_re
     rewrite(header.getvalue() + bytes(64), zipfile.ZIP_STORED)
     with pytest.raises(InputError, match="state.h.npy declares 8388608 bytes of data in 192"):
         load_checkpoint(path)
+
+
+def test_a_checkpoint_whose_scenario_is_beyond_the_yaml_bounds_is_corrupt(tmp_path: Path) -> None:
+    """An alias inside its own anchor (a RecursionError of ``--resume``, which compares the
+    checkpoint's scenario with its result's key by key) and the billion laughs (minutes
+    of that comparison) are bounded as in a scenario file."""
+    laughs = "a: &a [x, x, x, x, x, x, x, x, x, x]\n" + "".join(
+        f"{chr(98 + i)}: &{chr(98 + i)} [{', '.join([f'*{chr(97 + i)}'] * 10)}]\n" for i in range(9)
+    )
+    sim = Simulation(scenarios.from_dict(COLUMN))
+    path = tmp_path / "checkpoint.npz"
+    for text, phrase in (
+        ("extra: &a [*a]\n", "lies inside its own anchor"),
+        (laughs, "values once its aliases"),
+    ):
+        with pytest.raises(yaml.YAMLError, match=phrase):
+            safe_load(text)
+        save_checkpoint(path, Checkpoint(sim.state_dict(), 2, 1.25, "name: column\n" + text))
+        with pytest.raises(InputError, match="meta.scenario is not the YAML mapping of a scenario"):
+            load_checkpoint(path)
 
 
 def test_missing_or_broken_result_is_an_input_error(tmp_path: Path) -> None:

@@ -49,7 +49,15 @@ class SafeLoader(_SafeLoader):
 
 def safe_load(text: str) -> Any:
     """``yaml.safe_load(text)`` by :class:`SafeLoader`: a malformed text raises a
-    :class:`yaml.YAMLError`, whatever its tags."""
+    :class:`yaml.YAMLError`, whatever its tags, and so does a text beyond the bounds of
+    :func:`~multilayer.scenario.limits.check_yaml` (a result's or checkpoint's scenario, numba's
+    configuration file): an alias inside its own anchor in the scenarios of a checkpoint and
+    its result was a ``RecursionError`` of ``--resume``, which compares them key by key, and
+    the billion laughs there held it for minutes."""
+    try:
+        limits.check_yaml(text, "the YAML text", SafeLoader)
+    except InputError as exc:
+        raise yaml.YAMLError(str(exc).removeprefix("the YAML text").lstrip(": ")) from None
     return yaml.load(text, Loader=SafeLoader)
 
 
