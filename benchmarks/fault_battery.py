@@ -3866,6 +3866,14 @@ LAUGHS_BELOW = "extra:\n" + "".join(f"  {line}\n" for line in BILLION_LAUGHS.spl
 """The billion laughs, under a key ``extra`` of a scenario."""
 
 
+def _sweep_over_a_long_bed(directory: Path) -> None:
+    """A sweep of 20 members of TINY over a bed CSV of 10^6 rows (15 MB)."""
+    base = {**TINY, "bed": {"file": "bed.csv"}}
+    _sweep({"slope_deg": [20.0 + 0.25 * i for i in range(20)]}, base=base)(directory)
+    rows = np.linspace(0.0, 0.5, 10**6)
+    (directory / "bed.csv").write_text("x (m), z (m)\n" + "".join(f"{x:.9f}, 0\n" for x in rows))
+
+
 DAMAGED_MEMBER_STEPS = MEMBER_MEDDLED.replace(
     "MEDDLING",
     "import netCDF4\nwith netCDF4.Dataset(member / 'result.nc', 'a') as ds:\n    ds.steps = 'many'",
@@ -3947,6 +3955,8 @@ def round_twenty() -> list[Case]:
         Case("resume: a checkpoint and its result.nc whose scenario holds the billion laughs", resume, 2,
              "corrupt checkpoint (meta.scenario is not the YAML mapping of a scenario)",
              setup=_scenario_appended(LAUGHS_BELOW)),
+        Case("validate: a sweep of 20 members over a bed CSV of 10^6 rows (each read once)",
+             ["validate", "{dir}/sweep.yaml"], 0, "", setup=_sweep_over_a_long_bed),
         Case("plot: result.nc whose scenario holds the billion laughs", ["plot", "{dir}/out"], 2,
              "its scenario attribute is missing or damaged", setup=_scenario_appended(LAUGHS_BELOW, False)),
     ]  # fmt: skip
