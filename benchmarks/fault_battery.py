@@ -2355,15 +2355,21 @@ def multilayer_register_rheologies(register):
 PYTHONPATH, which the Dask workers inherit), whose yield stress never returns."""
 
 
+def _plugin_package(directory: Path, name: str, module: str) -> None:
+    """A distribution ``name`` in ``directory/plugin`` (put on PYTHONPATH by the case) whose
+    entry point names its module ``name``, of the text ``module``."""
+    plugin = directory / "plugin"
+    (plugin / f"{name}-0.1.dist-info").mkdir(parents=True)
+    (plugin / f"{name}.py").write_text(module)
+    (plugin / f"{name}-0.1.dist-info" / "METADATA").write_text(
+        f"Metadata-Version: 2.1\nName: {name}\nVersion: 0.1\n"
+    )
+    (plugin / f"{name}-0.1.dist-info" / "entry_points.txt").write_text(f"[multilayer]\n{name} = {name}\n")
+
+
 def _hanging_sweep(directory: Path) -> None:
     """A sweep of two members on the hanging plugin: the first completes, the second hangs."""
-    plugin = directory / "plugin"
-    (plugin / "hanging-0.1.dist-info").mkdir(parents=True)
-    (plugin / "hanging.py").write_text(HANGING_PLUGIN_PACKAGE)
-    (plugin / "hanging-0.1.dist-info" / "METADATA").write_text(
-        "Metadata-Version: 2.1\nName: hanging\nVersion: 0.1\n"
-    )
-    (plugin / "hanging-0.1.dist-info" / "entry_points.txt").write_text("[multilayer]\nhanging = hanging\n")
+    _plugin_package(directory, "hanging", HANGING_PLUGIN_PACKAGE)
     _scenario(directory, {"rheology": {"name": "hanging", "mu_s": 0.3, "nu": 0.01, "hang_after": 1e9}})
     sweep = {"base": "scenario.yaml", "parameters": {"rheology.hang_after": [1e9, 40]}}
     (directory / "sweep.yaml").write_text(yaml.safe_dump(sweep))
@@ -2980,6 +2986,562 @@ def round_eighteen() -> list[Case]:
     return out
 
 
+def _tagged(old: str, new: str) -> Callable[[Path], None]:
+    """The scenario with the text ``old`` of its YAML replaced by ``new``."""
+
+    def setup(directory: Path) -> None:
+        _scenario(directory, text=yaml.safe_dump(TINY).replace(old, new))
+
+    return setup
+
+
+def _csv_bed(text: str | None = None, make: Callable[[Path], object] | None = None) -> Callable[[Path], None]:
+    """A scenario whose bed is ``bed.csv``, written as ``text`` (newlines kept) or made by ``make``."""
+
+    def setup(directory: Path) -> None:
+        _scenario(directory, {"bed": {"file": "bed.csv"}})
+        if text is not None:
+            (directory / "bed.csv").write_bytes(text.encode())
+        if make is not None:
+            make(directory / "bed.csv")
+
+    return setup
+
+
+def _entry_point_plugin(module: str) -> Callable[[Path], None]:
+    """The scenario and a distribution ``third`` whose module is the text ``module``."""
+
+    def setup(directory: Path) -> None:
+        _scenario(directory)
+        _plugin_package(directory, "third", module)
+
+    return setup
+
+
+SHADOWING_PLUGIN = """
+import multilayer
+from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+
+
+class Shadow(DruckerPrager):
+    name = "drucker_prager"
+
+    def yield_stress(self, pressure, material):
+        raise RuntimeError("the shadow ran")
+
+
+@multilayer.hookimpl
+def multilayer_register_rheologies(register):
+    register(Shadow)
+    register(Shadow)
+"""
+"""A third-party plugin registering the built-in's name, twice: both rejected, the built-in runs."""
+
+HOST_KEPT = """
+import os, signal, warnings, logging
+import numpy as np
+warnings.simplefilter('error')
+np.seterr(all='raise')
+def host():
+    handlers = [signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)]
+    return {'numpy errors': np.geterr(), 'warnings filters': list(warnings.filters), 'cwd': os.getcwd(),
+            'environment': dict(os.environ), 'logging': (logging.root.level, list(logging.root.handlers)),
+            'signal handlers': handlers}
+before = host()
+import multilayer, netCDF4
+before['environment'] = dict(os.environ)  # netCDF4's import sets HDF5_PLUGIN_PATH
+done = multilayer.run(sys.argv[2]).attrs['run_status']
+changed = [key for key, value in host().items() if value != before[key]]
+print(f'multilayer: run {done}, changed {changed}', file=sys.stderr)
+sys.exit(0 if done == 'completed' and not changed else 1)
+"""
+"""A host that turns warnings into errors and numpy's floating-point errors into exceptions
+runs a scenario through the Python API: it must complete and change nothing of the host."""
+
+
+FAILING_PLUGIN = """
+import multilayer
+from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+
+
+class Failing(DruckerPrager):
+    name = "failing"
+
+    def yield_stress_kernel(self, material):
+        return None
+
+    def yield_stress(self, pressure, material):
+        raise RuntimeError("always fails")
+
+
+@multilayer.hookimpl
+def multilayer_register_rheologies(register):
+    register(Failing)
+"""
+
+
+def _failing_sweep(directory: Path) -> None:
+    """A sweep of two members on a third-party law that always raises."""
+    _entry_point_plugin(FAILING_PLUGIN)(directory)
+    _scenario(directory, {"rheology": {"name": "failing", "mu_s": 0.3, "nu": 0.01}})
+    (directory / "sweep.yaml").write_text("base: scenario.yaml\nparameters:\n  rheology.mu_s: [0.3, 0.4]\n")
+
+
+def _relaxing(changes: dict) -> Callable[[Path], None]:
+    """The loose immersed layer with a relaxing pore pressure, to t = 0.5 s, with ``changes``
+    (top-level and dotted keys of its mappings)."""
+
+    def setup(directory: Path) -> None:
+        path = Path(__file__).resolve().parents[1] / "scenarios" / "immersed_layer_loose.yaml"
+        data = yaml.safe_load(path.read_text())
+        for key in ("expect", "output"):
+            data.pop(key)
+        data["time"] = {"end": 0.5, "output_interval": 0.1}
+        data["fluid"]["compressibility"] = 1e-6
+        for key, value in changes.items():
+            *parents, last = key.split(".")
+            node = data
+            for part in parents:
+                node = node.setdefault(part, {})
+            node[last] = value
+        (directory / "scenario.yaml").write_text(yaml.safe_dump(data))
+
+    return setup
+
+
+SIGNAL_IN_CHECKPOINT = """
+import os, signal
+real_savez = np.savez
+def savez(stream, **arrays):
+    calls[0] += 1
+    if calls[0] == 2:  # the second checkpoint, mid-run: the signal arrives while it is written
+        os.kill(os.getpid(), signal.{name})
+    real_savez(stream, **arrays)
+np.savez = savez
+first = main(sys.argv[1:])
+np.savez = real_savez
+if first != {code}:
+    sys.exit(f'the run signalled while writing its checkpoint exited {{first}}')
+sys.argv.append('--resume')
+"""
+"""A run sent a stop signal while it writes its second checkpoint, then resumed: the run
+must stop as on any signal (its exit code) and the checkpoint must resume."""
+
+
+LOADED = "import yaml\ndata = yaml.safe_load(open(sys.argv[2]))\n"
+"""The start of a patch: the case's scenario read as a mapping, ``data``."""
+SAVED = (
+    "import numpy as np\nsim = multilayer.Simulation(multilayer.load(sys.argv[2]))\n"
+    "saved = sim.state_dict()\n"
+)
+"""The start of a patch: a simulation of the case's scenario and its state, ``saved``."""
+
+
+def round_nineteen() -> list[Case]:
+    """The hostile cases of the nineteenth round (docs/reliability.md): YAML tags and values
+    PyYAML's constructors cannot read or read as other types (dates, bytes, sets), integers
+    beyond the floats, NaN and infinity spelt otherwise, keys that only look like ours; CSV
+    beds with other line ends, repeated or unordered x, a directory, a pipe, a loop of
+    links or a unit that overflows; the Python API given numbers of other types and a host
+    that raises on warnings; third-party plugins that fail to import or shadow a built-in,
+    plugin values of other dtypes; a relaxing pore pressure at extreme compressibilities."""
+    validate, run = ["validate", "{scenario}"], ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    big = "1" + "0" * 400
+    out = [
+        Case(
+            "validate: mu_s !!float abc",
+            validate,
+            2,
+            "(line 19, column 9): malformed YAML: tag:yaml.org,2002:float cannot read 'abc'",
+            setup=_tagged("mu_s: 0.3", "mu_s: !!float abc"),
+        ),
+        Case(
+            "validate: cells !!int 1e5",
+            validate,
+            2,
+            "tag:yaml.org,2002:int cannot read '1e5'",
+            setup=_tagged("cells: 40", "cells: !!int 1e5"),
+        ),
+        Case(
+            "validate: cells !!bool maybe",
+            validate,
+            2,
+            "tag:yaml.org,2002:bool cannot read 'maybe'",
+            setup=_tagged("cells: 40", "cells: !!bool maybe"),
+        ),
+        Case(
+            "validate: time.end !!timestamp 2001-13-45",
+            validate,
+            2,
+            "tag:yaml.org,2002:timestamp cannot read '2001-13-45'",
+            setup=_tagged("end: 0.2", "end: !!timestamp 2001-13-45"),
+        ),
+        Case(
+            "validate: time.end a date",
+            validate,
+            2,
+            "time.end (line 24): Input should be a valid number (got datetime.date(2001, 12, 14))",
+            setup=_tagged("end: 0.2", "end: 2001-12-14"),
+        ),
+        Case(
+            "validate: name !!binary",
+            validate,
+            2,
+            "name (line 17): Input should be a valid string (got b'hello')",
+            setup=_tagged("name: tiny", "name: !!binary aGVsbG8="),
+        ),
+        Case(
+            "validate: layer_fractions !!set",
+            validate,
+            2,
+            "domain.layer_fractions (line 7): got {",
+            setup=_tagged("layers: 3", "layers: 3\n  layer_fractions: !!set {1, 2, 3}"),
+        ),
+        Case(
+            "validate: mu_s !!str 0.3",
+            validate,
+            2,
+            "rheology.mu_s (line 19): drucker_prager: Input should be a valid number (got '0.3')",
+            setup=_tagged("mu_s: 0.3", "mu_s: !!str 0.3"),
+        ),
+        Case(
+            "validate: cells 10^400",
+            validate,
+            2,
+            "domain.cells (line 5): Input should be less than or equal to 1000000000",
+            setup=_tagged("cells: 40", f"cells: {big}"),
+        ),
+        Case(
+            "validate: mu_s 10^400",
+            validate,
+            2,
+            "rheology.mu_s (line 19): drucker_prager: Input should be a valid number",
+            setup=_tagged("mu_s: 0.3", f"mu_s: {big}"),
+        ),
+        Case(
+            "validate: x_max -10^400",
+            validate,
+            2,
+            "domain.x_max (line 7): Input should be a valid number",
+            setup=_tagged("x_max: 0.5", f"x_max: -{big}"),
+        ),
+        Case(
+            "validate: max_iterations 0x" + "f" * 8 + "...",
+            validate,
+            2,
+            "numerics.max_iterations (line 26): Input should be less than or equal to 100000",
+            setup=lambda d: _scenario(
+                d, text=yaml.safe_dump(TINY) + "numerics: {max_iterations: 0x" + "f" * 400 + "}\n"
+            ),
+        ),
+        Case(
+            "validate: mu_s .Nan",
+            validate,
+            2,
+            "rheology.mu_s (line 19): drucker_prager: Input should be a valid number (got '.Nan')",
+            setup=_tagged("mu_s: 0.3", "mu_s: .Nan"),
+        ),
+        Case("validate: mu_s .iNF", validate, 2, "(got '.iNF')", setup=_tagged("mu_s: 0.3", "mu_s: .iNF")),
+        Case(
+            "validate: a full-width key \uff44omain",
+            validate,
+            2,
+            "'\\uff44omain' (line 4): unknown key",
+            setup=_tagged("domain:", "\uff44omain:"),
+        ),
+        Case(
+            "validate: a key mu_s and a zero-width space",
+            validate,
+            2,
+            "rheology.'mu_s\\u200b' (line 19): unknown parameter of drucker_prager (mu_s missing)",
+            setup=_tagged("mu_s: 0.3", "mu_s\u200b: 0.3"),
+        ),
+        Case(
+            "validate: a Cyrillic s in mu_s beside mu_s",
+            validate,
+            2,
+            "rheology.'mu_\\u0455' (line 20): unknown parameter",
+            setup=_tagged("mu_s: 0.3", "mu_s: 0.3\n  mu_\u0455: 0.4"),
+        ),
+        Case(
+            "run: --set rheology.mu_s='!!float abc'",
+            ["run", "{scenario}", "-o", "{dir}/out", "--set", "rheology.mu_s=!!float abc"],
+            2,
+            "--set rheology.mu_s: malformed YAML value",
+            setup=_scenario,
+        ),
+        Case(
+            "validate: a sweep value !!int x",
+            ["validate", "{dir}/sweep.yaml"],
+            2,
+            "sweep.yaml (line 3, column 18): malformed YAML: tag:yaml.org,2002:int cannot read 'x'",
+            setup=lambda d: (
+                _scenario(d),
+                (d / "sweep.yaml").write_text(
+                    "base: scenario.yaml\nparameters:\n  domain.cells: [!!int x]\n"
+                ),
+            ),
+        ),
+        Case(
+            "validate: a sweep of an empty list",
+            ["validate", "{dir}/sweep.yaml"],
+            2,
+            "parameters.rheology.mu_s (line 3): got []; accepted: a non-empty list",
+            setup=_sweep({"rheology.mu_s": []}),
+        ),
+        Case(
+            "validate: a sweep of {start, stop, num}",
+            ["validate", "{dir}/sweep.yaml"],
+            2,
+            "accepted: a non-empty list of values",
+            setup=_sweep({"rheology.mu_s": {"start": 0.1, "stop": 0.5, "num": 10**6}}),
+        ),
+        Case(
+            "run: .numba_config.yaml holding num_threads: !!int abc",
+            run,
+            2,
+            "(numba's configuration file, read by numba at its import): "
+            "tag:yaml.org,2002:int cannot read 'abc'",
+            plain=True,
+            here=True,
+            setup=partial(_numba_config, text="num_threads: !!int abc\n"),
+        ),
+        Case(
+            "plot: result.nc's scenario holding !!float abc",
+            ["plot", "{dir}/out"],
+            2,
+            "its scenario attribute is missing or damaged",
+            setup=_edited_result(
+                lambda ds: ds.setncattr(
+                    "scenario", ds.getncattr("scenario").replace("end: 0.2", "end: !!float abc")
+                )
+            ),
+        ),
+        Case(
+            "resume: a checkpoint's scenario holding !!float abc",
+            ["run", "{scenario}", "-o", "{dir}/out", "--resume", "-q"],
+            2,
+            "meta.scenario is not the YAML mapping of a scenario",
+            setup=_checkpoint_entry(
+                "meta.scenario", lambda a: np.asarray(str(a).replace("end: 0.2", "end: !!float abc"))
+            ),
+        ),
+    ]
+    out += [
+        Case("validate: an integer of 5000 digits", validate, 2,
+             "(line 5, column 10): malformed YAML: tag:yaml.org,2002:int cannot read '444",
+             setup=_tagged("cells: 40", "cells: " + "4" * 5000)),
+        Case("validate: a key ''", validate, 2, "scenario.yaml: '' (line 26): unknown key",
+             setup=lambda d: _scenario(d, text=yaml.safe_dump(TINY) + '"": 1\n')),
+        Case("validate: two YAML documents", validate, 2,
+             "(line 26, column 1): malformed YAML: but found another document",
+             setup=lambda d: _scenario(d, text=yaml.safe_dump(TINY) + "---\nname: other\n")),
+        Case("validate: a %YAML 2.0 directive", validate, 2,
+             "malformed YAML: found incompatible YAML document",
+             setup=lambda d: _scenario(d, text="%YAML 2.0\n---\n" + yaml.safe_dump(TINY))),
+    ]  # fmt: skip
+    header = "x (m), z (m)\n"
+    for name, setup, code, phrase in (
+        ("CRLF line ends", _csv_bed(header.replace("\n", "\r\n") + "0,0.01\r\n0.5,0\r\n"), 0, ""),
+        (
+            "a byte order mark and CR line ends",
+            _csv_bed(("\ufeff" + header + "0,0.01\n0.5,0\n").replace("\n", "\r")),
+            0,
+            "",
+        ),
+        (
+            "x given twice",
+            _csv_bed(header + "0,0.1\n0,0.2\n0.5,0\n"),
+            2,
+            "bed.csv: line 3: x = 0.0 does not increase",
+        ),
+        (
+            "x decreasing",
+            _csv_bed(header + "0.5,0\n0,0.1\n"),
+            2,
+            "bed.csv: line 3: x = 0.0 does not increase",
+        ),
+        ("a NaN", _csv_bed(header + "0,nan\n0.5,0\n"), 2, "bed.csv: line 2: expected two numbers"),
+        (
+            "x 1e306 km (beyond the floats in metres)",
+            _csv_bed("x (km), z (m)\n0,0\n1e306,0\n"),
+            2,
+            "bed.csv: line 3: '1e306,0' in metres is beyond the largest float",
+        ),
+        (
+            "z 1e306 km",
+            _csv_bed("x (m), z (km)\n0,0\n0.5,1e306\n"),
+            2,
+            "bed.csv: line 3: '0.5,1e306' in metres is beyond the largest float",
+        ),
+        ("a directory", _csv_bed(make=Path.mkdir), 2, "bed.csv: not a regular file"),
+        ("a named pipe", _csv_bed(make=os.mkfifo), 2, "bed.csv: not a regular file"),
+        (
+            "a link to itself",
+            _csv_bed(make=lambda p: p.symlink_to(p)),
+            2,
+            "bed.csv: cannot read the file (Too many levels of symbolic links)",
+        ),
+        (
+            "a link to /dev/zero",
+            _csv_bed(make=lambda p: p.symlink_to("/dev/zero")),
+            2,
+            "bed.csv: not a regular file",
+        ),
+    ):
+        out.append(Case(f"validate: a bed CSV with {name}", validate, code, phrase, setup=setup))
+    for name, body, phrase in (
+        (
+            "Decimal('NaN') as mu_s",
+            LOADED
+            + "from decimal import Decimal\ndata['rheology']['mu_s'] = Decimal('NaN')\nmultilayer.load(data)",
+            "rheology.mu_s: drucker_prager: Input should be a finite number (got Decimal('NaN'))",
+        ),
+        (
+            "np.bool_ as domain.cells",
+            "import numpy as np\nmultilayer.load(sys.argv[2], {'domain.cells': np.bool_(True)})",
+            "domain.cells",
+        ),
+        (
+            "np.longdouble 1e400 as mu_s",
+            LOADED
+            + "import numpy as np\ndata['rheology']['mu_s'] = np.longdouble('1e400')\nmultilayer.load(data)",
+            "Input should be a finite number (got np.longdouble('1e+400'))",
+        ),
+        (
+            "bytes as name",
+            LOADED + "data['name'] = b'tiny'\nmultilayer.load(data)",
+            "name: Input should be a valid string (got b'tiny')",
+        ),
+        (
+            "a path holding NUL",
+            "multilayer.load(sys.argv[2] + '\\0x')",
+            "cannot read the file (embedded null byte)",
+        ),
+        (
+            "load_state of a Decimal time",
+            SAVED + "from decimal import Decimal\nsaved['t'] = Decimal('0.01')\nsim.load_state(saved)",
+            "t: object values of shape ()",
+        ),
+        (
+            "load_state of a bool thickness",
+            SAVED + "saved['h'] = saved['h'] > 0\nsim.load_state(saved)",
+            "h: bool values of shape (40,)",
+        ),
+        (
+            "load_state, then its arrays written",
+            SAVED + "sim.load_state(saved)\nsaved['h'][:] = np.nan\nsim.advance(0.05)\n"
+            "sys.exit(0 if np.isfinite(sim.h).all() else 1)",
+            "",
+        ),
+    ):
+        out.append(
+            Case(f"API: {name}", validate, 0 if not phrase else 2, phrase, patch=_api(body), setup=_scenario)
+        )
+    out.append(
+        Case(
+            "API: a run in a host raising on warnings and numpy errors",
+            validate,
+            0,
+            "run completed, changed []",
+            patch=HOST_KEPT,
+            setup=_scenario,
+        )
+    )
+    for name, body in (
+        ("float32 viscosity", "return np.full(np.shape(p), 15.0, dtype=np.float32)"),
+        ("integer viscosity", "return np.full(np.shape(p), 15, dtype=np.int64)"),
+    ):
+        out.append(
+            Case(f"plugin: {name}", run, 0, "", patch=_plugin_patch("viscosity", body), setup=_scenario)
+        )
+    out.append(
+        Case(
+            "plugin: boolean yield stress",
+            run,
+            1,
+            "yield_stress() returned",
+            patch=_plugin_patch("yield_stress", "return np.ones(np.shape(p), dtype=bool)"),
+            setup=_scenario,
+            keeps_output=True,
+        )
+    )
+    plugin_env = {"PYTHONPATH": "{dir}/plugin"}
+    out += [
+        Case(
+            "plugin: an entry point whose module fails to import",
+            run,
+            0,
+            "rheology plugin third 0.1 (entry point third = third) skipped: ZeroDivisionError",
+            setup=_entry_point_plugin("1 / 0\n"),
+            env=plugin_env,
+        ),
+        Case(
+            "plugin: an entry point registering a built-in's name twice",
+            run,
+            0,
+            "rheology name 'drucker_prager' is already registered by multilayer",
+            setup=_entry_point_plugin(SHADOWING_PLUGIN),
+            env=plugin_env,
+        ),
+    ]
+    for signum, code in ((signal.SIGTERM, 143), (signal.SIGHUP, 129)):
+        name = signal.Signals(signum).name
+        out.append(
+            Case(
+                f"resume: {name} while the checkpoint is written",
+                run,
+                0,
+                f"interrupted by {name} at t=",
+                patch=SIGNAL_IN_CHECKPOINT.format(name=name, code=code),
+                setup=_scenario,
+            )
+        )
+    out += [
+        Case(
+            "sweep: every member failing",
+            ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/out"],
+            1,
+            "(rheology.mu_s=0.4) failed: RunError: scenario 'tiny': the simulation failed at t=0 s (step 0): "
+            "rheology plugin 'failing' (third.Failing): yield_stress() raised RuntimeError: always fails",
+            setup=_failing_sweep,
+            env={"PYTHONPATH": "{dir}/plugin"},
+        ),
+        Case(
+            "validate: an observation header 't, x_f, sigma' (spaces after the commas)",
+            ["validate", "{dir}/calibration.yaml"],
+            0,
+            "",
+            setup=_calibration("0.1,0.12,0.01\n", header="t, x_f, sigma"),
+        ),
+        Case(
+            "validate: an observation header naming xf",
+            ["validate", "{dir}/calibration.yaml"],
+            2,
+            "front.csv has no column 'x_f' (its header names 't', 'xf', 'sigma')",
+            setup=_calibration("0.1,0.12,0.01\n", header="t,xf,sigma"),
+        ),
+    ]
+    for name, changes in (
+        ("5e-324", {"fluid.compressibility": 5e-324}),
+        ("1 with order 1", {"fluid.compressibility": 1.0, "numerics.order": 1}),
+        (
+            "1e-6 in a channel between walls",
+            {"domain.width": 0.01, "boundaries": {"left": "wall", "right": "outflow"}},
+        ),
+    ):
+        out.append(
+            Case(
+                f"run: a relaxing pore pressure of compressibility {name}",
+                run,
+                0,
+                "",
+                setup=_relaxing(changes),
+            )
+        )
+    return out
+
+
 def cases() -> list[Case]:
     out: list[Case] = []
     budget = ["--max-memory", "8G", "--max-output", "1G"]
@@ -3151,7 +3713,254 @@ def cases() -> list[Case]:
         + round_sixteen()
         + round_seventeen()
         + round_eighteen()
+        + round_nineteen()
+        + round_twenty()
     )
+
+
+def _result_attribute(variable: str | None, key: str, value: Any) -> Callable[[Path], None]:
+    """A finished run whose result.nc's attribute ``key`` (of ``variable``, None: global) is
+    set to ``value``, or deleted for None."""
+
+    def setup(directory: Path) -> None:
+        _finished_run(directory)
+        import netCDF4
+
+        with NETCDF, netCDF4.Dataset(directory / "out" / "result.nc", "a") as ds:
+            owner = ds if variable is None else ds[variable]
+            owner.delncattr(key) if value is None else owner.setncattr(key, value)
+
+    return setup
+
+
+def _checkpoint_bomb(declared_only: bool) -> Callable[[Path], None]:
+    """A finished run whose checkpoint's state.h is 256 MB of zeros deflated to 256 kB, or
+    (``declared_only``) a stored member whose header declares 8 TB in a few bytes."""
+
+    def setup(directory: Path) -> None:
+        import io
+        import zipfile
+
+        _finished_run(directory)
+        path = directory / "out" / "checkpoint.npz"
+        arrays = dict(np.load(path))
+        count = 2**40 if declared_only else 2**25
+        header = io.BytesIO()
+        np.lib.format.write_array_header_1_0(
+            header, {"descr": "<f8", "fortran_order": False, "shape": (count,)}
+        )
+        with zipfile.ZipFile(path, "w") as archive:
+            for name, a in arrays.items():
+                data = io.BytesIO()
+                np.save(data, a)
+                if name != "state.h":
+                    archive.writestr(f"{name}.npy", data.getvalue())
+                elif declared_only:
+                    archive.writestr(f"{name}.npy", header.getvalue() + bytes(64))
+                else:
+                    info = zipfile.ZipInfo(f"{name}.npy")
+                    info.compress_type = zipfile.ZIP_DEFLATED
+                    with archive.open(info, "w", force_zip64=True) as member:
+                        member.write(header.getvalue())
+                        for _ in range(count * 8 // 2**24):
+                            member.write(bytes(2**24))
+
+    return setup
+
+
+def netcdf4_copy(path: Path, cells: int, records: int = 0, forged: bool = False) -> None:
+    """The result file ``path`` rewritten in the netCDF-4 format (HDF5) with ``cells`` cells
+    along x, the variables over x never written (a file of kilobytes), ``records`` output
+    times if given (one value written at the last), the scenario saying ``cells`` if
+    ``forged`` (tests/test_damaged_results.py uses it too)."""
+    import netCDF4
+
+    copy = path.with_name("copy.nc")
+    with NETCDF, netCDF4.Dataset(path) as src, netCDF4.Dataset(copy, "w", format="NETCDF4") as dst:
+        attrs = {key: src.getncattr(key) for key in src.ncattrs()}
+        if forged:
+            attrs["scenario"] = attrs["scenario"].replace(
+                f"cells: {len(src.dimensions['x'])}", f"cells: {cells}"
+            )
+        dst.setncatts(attrs)
+        for name, dim in src.dimensions.items():
+            dst.createDimension(name, None if dim.isunlimited() else cells if name == "x" else len(dim))
+        for name, var in src.variables.items():
+            fill = var.getncattr("_FillValue") if "_FillValue" in var.ncattrs() else None
+            chunks = [min(cells, 2**20) if d == "x" else 1 for d in var.dimensions]
+            new = dst.createVariable(
+                name, var.dtype, var.dimensions, zlib=True, fill_value=fill, chunksizes=chunks
+            )
+            new.setncatts({key: var.getncattr(key) for key in var.ncattrs() if key != "_FillValue"})
+            if "x" not in var.dimensions:
+                new[:] = var[:]
+        if records:
+            dst["time"][records - 1] = 1.0
+    os.replace(copy, path)
+
+
+def _hdf5_result(cells: int, records: int = 0, forged: bool = False) -> Callable[[Path], None]:
+    """A finished run whose result.nc is :func:`netcdf4_copy`'s."""
+
+    def setup(directory: Path) -> None:
+        _finished_run(directory)
+        netcdf4_copy(directory / "out" / "result.nc", cells, records, forged)
+
+    return setup
+
+
+def _sensitivity(attrs: dict | None = None, outputs: int = 0) -> Callable[[Path], None]:
+    """A sensitivity.nc of one output and two parameters with ``attrs``, or (``outputs``) a
+    netCDF-4 one declaring that many outputs, never written."""
+
+    def setup(directory: Path) -> None:
+        import netCDF4
+
+        with NETCDF, netCDF4.Dataset(directory / "sensitivity.nc", "w", format="NETCDF4") as ds:
+            ds.createDimension("output", outputs or 1)
+            ds.createDimension("parameter", 2)
+            for name in ("output", "S1", "S1_conf", "ST", "ST_conf"):
+                dims = ("output",) if name == "output" else ("output", "parameter")
+                var = ds.createVariable(
+                    name,
+                    "f8",
+                    dims,
+                    zlib=True,
+                    chunksizes=(min(outputs or 1, 2**20),) + (1,) * (len(dims) - 1),
+                )
+                if not outputs:
+                    var[:] = np.full(var.shape, np.nan if name == "S1" else 0.3)
+            if not outputs:
+                ds.createVariable("parameter", str, ("parameter",))[:] = np.array(
+                    ["mu_s", "nu"], dtype=object
+                )
+            ds.setncatts({"confidence_level": 0.95, "base_samples": 8, **(attrs or {})})
+
+    return setup
+
+
+def _scenario_appended(extra: str, checkpoint: bool = True) -> Callable[[Path], None]:
+    """A run stopped after its first records whose result.nc's scenario (and its checkpoint's,
+    checksummed again, if ``checkpoint``) ends with the YAML ``extra``."""
+
+    def setup(directory: Path) -> None:
+        _finished_run(directory)
+        import netCDF4
+
+        from multilayer.io.results import Checkpoint, load_checkpoint, save_checkpoint
+
+        path = directory / "out" / "checkpoint.npz"
+        saved = load_checkpoint(path)
+        if checkpoint:
+            save_checkpoint(
+                path, Checkpoint(saved.state, saved.records, saved.wall_time_s, saved.scenario + extra)
+            )
+        with NETCDF, netCDF4.Dataset(directory / "out" / "result.nc", "a") as ds:
+            ds.scenario = saved.scenario + extra
+            ds.run_status = "interrupted"
+
+    return setup
+
+
+LAUGHS_BELOW = "extra:\n" + "".join(f"  {line}\n" for line in BILLION_LAUGHS.splitlines())
+"""The billion laughs, under a key ``extra`` of a scenario."""
+
+
+def _sweep_over_a_long_bed(directory: Path) -> None:
+    """A sweep of 20 members of TINY over a bed CSV of 10^6 rows (15 MB)."""
+    base = {**TINY, "bed": {"file": "bed.csv"}}
+    _sweep({"slope_deg": [20.0 + 0.25 * i for i in range(20)]}, base=base)(directory)
+    rows = np.linspace(0.0, 0.5, 10**6)
+    (directory / "bed.csv").write_text("x (m), z (m)\n" + "".join(f"{x:.9f}, 0\n" for x in rows))
+
+
+DAMAGED_MEMBER_STEPS = MEMBER_MEDDLED.replace(
+    "MEDDLING",
+    "import netCDF4\nwith netCDF4.Dataset(member / 'result.nc', 'a') as ds:\n    ds.steps = 'many'",
+)
+"""The first member's result.nc given ``steps: 'many'``, then the sweep again."""
+
+
+def round_twenty() -> list[Case]:
+    """The hostile cases of the twentieth round (docs/reliability.md): counts of 5000 digits
+    or in other notations (environment, options), result files missing or damaging the
+    attributes their readers read, files declaring more than they hold (a checkpoint
+    deflated 1000 to 1, a netCDF-4 result or study file of kilobytes declaring billions of
+    cells or outputs), a study file's attributes damaged."""
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    resume = [*run, "--resume"]
+    many = "1" * 5000
+    out = [
+        Case("env MULTILAYER_THREADS of 5000 digits", run, 2, "MULTILAYER_THREADS='1111",
+             setup=_scenario, env={"MULTILAYER_THREADS": many}),
+        Case("env NUMBA_NUM_THREADS of 5000 digits", run, 2, "NUMBA_NUM_THREADS='1111",
+             setup=_scenario, env={"NUMBA_NUM_THREADS": many}, plain=True),
+        Case("validate: --max-steps of 5000 digits", ["validate", "{scenario}", "--max-steps", many], 2,
+             "--max-steps: expected an integer >= 1 (ASCII digits", setup=_scenario),
+        Case("validate: --max-steps in Arabic-Indic digits",
+             ["validate", "{scenario}", "--max-steps", "\u0663"],
+             2, "--max-steps: expected an integer >= 1 (ASCII digits", setup=_scenario),
+        Case("plot: --times 1_0", ["plot", "{dir}/out", "--times", "1_0"], 2,
+             "--times: expected an integer >= 1", setup=_finished_run),
+        Case("plot: --at 0_1", ["plot", "{dir}/out", "--at", "0_1"], 2,
+             "--at: expected a number in ASCII decimal notation", setup=_finished_run),
+        Case("plot: --at in full-width digits", ["plot", "{dir}/out", "--at", "\uff10.\uff13"], 2,
+             "--at: expected a number in ASCII decimal notation", setup=_finished_run),
+        Case("plot: result.nc without the front's threshold", ["plot", "{dir}/out"], 2,
+             "its variable front's attribute threshold is missing",
+             setup=_result_attribute("front", "threshold", None)),
+        Case("export: result.nc whose steps are 'many'", ["export", "{dir}/out", "--vtk"], 2,
+             "its attribute steps is 'many', not an integer >= 0",
+             setup=_result_attribute(None, "steps", "many")),
+        Case("plot: result.nc whose wall_time_s is NaN", ["plot", "{dir}/out"], 2,
+             "its attribute wall_time_s is nan, not a finite number >= 0",
+             setup=_result_attribute(None, "wall_time_s", float("nan"))),
+        Case("resume: result.nc without multilayer_version", resume, 2,
+             "its attribute multilayer_version is missing",
+             setup=_result_attribute(None, "multilayer_version", None)),
+        Case("resume: result.nc without multilayer_commit", resume, 2,
+             "its attribute multilayer_commit is missing",
+             setup=_result_attribute(None, "multilayer_commit", None)),
+        Case("sweep: a member's result.nc whose steps are 'many', then the sweep again",
+             ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/out", "--workers", "1", "-q"], 0,
+             "the summary of m000 is that of its result.nc", patch=DAMAGED_MEMBER_STEPS,
+             setup=_sweep({"slope_deg": [20.0, 25.0]})),
+        Case("resume: a checkpoint of 256 kB unpacking to 256 MB", resume, 2,
+             "corrupt checkpoint (its members unpack to", setup=_checkpoint_bomb(False)),
+        Case("resume: a checkpoint whose state.h declares 8 TB", resume, 2,
+             "state.h.npy declares 8796093022208 bytes of data in 192", setup=_checkpoint_bomb(True)),
+        Case("plot: a netCDF-4 result.nc of 4e9 unwritten cells", ["plot", "{dir}/out"], 2,
+             "its dimension x has 4000000000 entries, not its scenario attribute's domain.cells (40)",
+             setup=_hdf5_result(4 * 10**9)),
+        Case("plot: a netCDF-4 result.nc of 4e9 unwritten cells, its scenario saying so",
+             ["plot", "{dir}/out"], 2,
+             "cells x 3 layers takes about 626 GiB of memory, more than is available now",
+             setup=_hdf5_result(4 * 10**9, forged=True)),
+        Case("export: a netCDF-4 result.nc of 2e7 output times", ["export", "{dir}/out", "--vtk"], 2,
+             "it holds 20000000 output times; accepted: at most 10000002, as a run writes them",
+             setup=_hdf5_result(40, 2 * 10**7)),
+        Case("plot: sensitivity.nc whose failed_runs is 'abc'", ["plot", "{dir}"], 2,
+             "its attribute failed_runs is 'abc', not a count", setup=_sensitivity({"failed_runs": "abc"})),
+        Case("plot: sensitivity.nc whose confidence_level is NaN", ["plot", "{dir}"], 2,
+             "its attribute confidence_level is nan, not in (0, 1)",
+             setup=_sensitivity({"confidence_level": float("nan")})),
+        Case("plot: sensitivity.nc whose base_samples is 1e300", ["plot", "{dir}"], 2,
+             "its attribute base_samples is 1e+300, not a count",
+             setup=_sensitivity({"base_samples": 1e300})),
+        Case("plot: a netCDF-4 sensitivity.nc of 8 kB declaring 4e9 outputs", ["plot", "{dir}"], 2,
+             "sensitivity.nc: its variables hold 288000000000 bytes", setup=_sensitivity(outputs=4 * 10**9)),
+        Case("resume: a checkpoint and its result.nc whose scenario holds an alias inside its own anchor",
+             resume, 2, "corrupt checkpoint (meta.scenario is not the YAML mapping of a scenario)",
+             setup=_scenario_appended("extra: &a [*a]\n")),
+        Case("resume: a checkpoint and its result.nc whose scenario holds the billion laughs", resume, 2,
+             "corrupt checkpoint (meta.scenario is not the YAML mapping of a scenario)",
+             setup=_scenario_appended(LAUGHS_BELOW)),
+        Case("validate: a sweep of 20 members over a bed CSV of 10^6 rows (each read once)",
+             ["validate", "{dir}/sweep.yaml"], 0, "", setup=_sweep_over_a_long_bed),
+        Case("plot: result.nc whose scenario holds the billion laughs", ["plot", "{dir}/out"], 2,
+             "its scenario attribute is missing or damaged", setup=_scenario_appended(LAUGHS_BELOW, False)),
+    ]  # fmt: skip
+    return out
 
 
 def _records(path: Path) -> int:

@@ -39,6 +39,22 @@ def reason(exc: BaseException) -> str:
     return str(exc)
 
 
+MAX_COUNT_DIGITS = 18
+"""Digits of a count read from text (an option, an environment variable): past Python's
+4300 a conversion raised ``ValueError`` where the text was checked as digits."""
+
+
+def ascii_count(text: str) -> int | None:
+    """The integer ``text`` writes in ASCII digits (spaces around them allowed, at most
+    :data:`MAX_COUNT_DIGITS` of them after leading zeros), else None: ``int`` alone also
+    reads ``1_000`` and the digits of other scripts (``'\u0663'``, an Arabic-Indic 3), and
+    raised ``ValueError`` for a count of 5000 digits."""
+    digits = text.strip()
+    if not (digits.isascii() and digits.isdigit() and len(digits.lstrip("0")) <= MAX_COUNT_DIGITS):
+        return None
+    return int(digits)
+
+
 def printable(text: str) -> str:
     """``text`` with each character that is not printable but a newline or a tab written as
     Python writes it in a string (``\\x1b``, ``\\u202e``): a message quotes names from the

@@ -353,14 +353,55 @@ def test_a_damaged_study_file_is_exit_2_when_plotted(tmp_path, cli, content):
     assert f"{tmp_path / 'sensitivity.nc'}: not a" in result.err
 
 
-def _sensitivity_file(path, s1, dims=("output", "parameter")):
+def _sensitivity_file(path, s1, dims=("output", "parameter"), **attrs):
     """A sensitivity.nc of one output and two parameters whose S1 is ``s1`` over ``dims``."""
     import xarray as xr
 
     both, good = ("output", "parameter"), np.array([[0.5, 0.3]])
     indices = {"S1": (dims, s1), **{name: (both, good) for name in ("S1_conf", "ST", "ST_conf")}}
     coords = {"output": ["runout"], "parameter": ["mu_s", "nu"]}
-    xr.Dataset(indices, coords=coords, attrs={"confidence_level": 0.95, "base_samples": 64}).to_netcdf(path)
+    attrs = {"confidence_level": 0.95, "base_samples": 64, **attrs}
+    xr.Dataset(indices, coords=coords, attrs=attrs).to_netcdf(path)
+
+
+@pytest.mark.parametrize(
+    ("attrs", "phrase"),
+    [
+        ({"failed_runs": "abc"}, "its attribute failed_runs is 'abc', not a count"),
+        ({"runs_not_done": np.nan}, "its attribute runs_not_done is nan, not a count"),
+        ({"confidence_level": "abc"}, "its attribute confidence_level is 'abc', not in (0, 1)"),
+        ({"base_samples": 1e300}, "its attribute base_samples is 1e+300, not a count"),
+    ],
+)
+def test_a_study_file_whose_attributes_the_figure_computes_with_are_damaged_is_exit_2(
+    tmp_path, cli, attrs, phrase
+):
+    """``int()`` and ``float()`` of them were a ValueError traceback of plot (exit 1), and a
+    count of 1e300 was printed with its 301 digits in the figure's note."""
+    _sensitivity_file(tmp_path / "sensitivity.nc", np.array([[np.nan, 0.3]]), **attrs)
+    result = cli("plot", tmp_path)
+    assert result.code == 2 and "Traceback" not in result.err
+    assert (
+        f"{tmp_path / 'sensitivity.nc'}: {phrase}; accepted: the file that multilayer sensitivity"
+        in result.err
+    )
+
+
+def test_a_study_file_declaring_more_than_it_can_hold_is_refused_before_it_is_read(tmp_path, cli):
+    """A netCDF-4 sensitivity.nc of 8 kB declaring 4e9 outputs, never written, was a
+    MemoryError traceback of plot: xarray reads a dimension's coordinate at its opening."""
+    import netCDF4
+
+    with netCDF4.Dataset(tmp_path / "sensitivity.nc", "w", format="NETCDF4") as ds:
+        ds.createDimension("output", 4 * 10**9)
+        ds.createDimension("parameter", 2)
+        for name in ("output", "S1", "S1_conf", "ST", "ST_conf"):
+            dims = ("output",) if name == "output" else ("output", "parameter")
+            ds.createVariable(name, "f8", dims, zlib=True, chunksizes=(2**20,) + (1,) * (len(dims) - 1))
+        ds.confidence_level, ds.base_samples = 0.95, 8
+    result = cli("plot", tmp_path)
+    assert result.code == 2 and "Traceback" not in result.err
+    assert "sensitivity.nc: its variables hold 288000000000 bytes; accepted: a file written by" in result.err
 
 
 @pytest.mark.parametrize(

@@ -267,6 +267,24 @@ def test_an_observation_column_named_twice_is_refused(tmp_path, table, columns, 
         study.load_calibration(tmp_path / "c.yaml")
 
 
+def test_an_observation_header_with_spaces_after_its_commas_names_its_columns(tmp_path):
+    """``t, x_f, sigma``, as a profile's header is written, had "no column 'x_f'": the names
+    are read without the spaces around them, and a column missing is named with the header."""
+    shutil.copy(TWIN / "collapse.yaml", tmp_path)
+    (tmp_path / "c.yaml").write_text(
+        "base: collapse.yaml\nparameters: {rheology.mu_s: {bounds: [0.4, 0.5]}}\nobservations:\n"
+        "  - {name: f, quantity: front, file: front.csv, columns: [t, x_f, sigma], units: cm}\n"
+    )
+    (tmp_path / "front.csv").write_text("t, x_f , sigma\n0.1, 3.0, 0.5\n")
+    (observed,) = study.load_calibration(tmp_path / "c.yaml").data
+    assert (observed.coordinate, observed.value, observed.sigma) == ([0.1], [0.03], [0.005])
+    (tmp_path / "front.csv").write_text("t,xf,sigma\n0.1,3.0,0.5\n")
+    with pytest.raises(
+        InputError, match="front.csv has no column 'x_f' \\(its header names 't', 'xf', 'sigma'\\)"
+    ):
+        study.load_calibration(tmp_path / "c.yaml")
+
+
 def _calibration_and_sensitivity(
     directory: Path, parameters: str, calibration: str = "", sensitivity: str = ""
 ):

@@ -6,9 +6,11 @@ than written (CF attributes multilayer does not write) or whose records fail the
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import shutil
+import sys
 from collections.abc import Callable
 from pathlib import Path
 
@@ -24,6 +26,7 @@ from multilayer.errors import InputError
 from multilayer.io.netcdf_layout import NUMRECS_OFFSET, read_layout
 from multilayer.io.results import SUMMARY_KEYS, open_result, run_failure, summary
 
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 SHORT = {**TINY_SCENARIO, "name": "short", "time": {"end": 0.08, "output_interval": 0.02}}
 """5 output times of the tiny column."""
 IMMERSED = {
@@ -77,7 +80,26 @@ def _set(name: str, index: tuple, value: float) -> Callable[[Path], None]:
 def _attribute(name: str, key: str, value: object) -> Callable[[Path], None]:
     def damage(path: Path) -> None:
         with netCDF4.Dataset(path, "a") as ds:
-            ds[name].setncattr(key, value)
+            ds[name].delncattr(key) if value is None else ds[name].setncattr(key, value)
+
+    return damage
+
+
+def _global(key: str, value: object) -> Callable[[Path], None]:
+    """The global attribute ``key`` set to ``value``, or deleted for None."""
+
+    def damage(path: Path) -> None:
+        with netCDF4.Dataset(path, "a") as ds:
+            ds.delncattr(key) if value is None else ds.setncattr(key, value)
+
+    return damage
+
+
+def _scenario_text(old: str, new: str) -> Callable[[Path], None]:
+    def damage(path: Path) -> None:
+        with netCDF4.Dataset(path, "a") as ds:
+            assert old in ds.scenario
+            ds.scenario = ds.scenario.replace(old, new)
 
     return damage
 
@@ -129,6 +151,30 @@ DAMAGES = {
     ),
     "x_bnds nan": (_set("x_bnds", (3, 0), np.nan), "its cell edges x_bnds are not finite"),
     "sigma nan": (_set("sigma", (1,), np.nan), "its layer heights sigma and sigma_bnds are not finite"),
+    # the scenario attribute: a tag PyYAML's constructor cannot read (was a ValueError), a slope
+    # the figures compute with that is text (a traceback of plot)
+    "scenario tag": (
+        _scenario_text("end: 0.08", "end: !!float abc"),
+        "its scenario attribute is missing or damaged",
+    ),
+    # an alias inside its own anchor: --resume compared it with the checkpoint's, a RecursionError
+    "scenario recursive": (
+        _scenario_text("name: short", "name: short\nextra: &a [*a]"),
+        "its scenario attribute is missing or damaged",
+    ),
+    "scenario slope": (
+        _scenario_text("slope_deg: 25.0", "slope_deg: steep"),
+        "its scenario attribute's slope_deg is 'steep', not a finite number",
+    ),
+    # the attributes a reader reads: a sweep run again read its members' summaries (steps
+    # 'many' was a ValueError), --resume the version (missing: an AttributeError, as the
+    # front's threshold was for every reader)
+    "steps text": (_global("steps", "many"), "its attribute steps is 'many', not an integer >= 0"),
+    "version missing": (_global("multilayer_version", None), "its attribute multilayer_version is missing"),
+    "threshold missing": (
+        _attribute("front", "threshold", None),
+        "its variable front's attribute threshold is missing",
+    ),
     "not netCDF": (lambda path: path.write_text("not netCDF"), r"not a netCDF result file \(not a classic"),
     "empty": (lambda path: path.write_bytes(b""), "not a netCDF result file"),
 }
@@ -202,3 +248,39 @@ def test_a_failed_or_interrupted_result_is_shown_with_a_note_and_is_not_an_answe
     assert "the run did not complete (run_status failed: viscosity() returned nan)" in run_failure(outdir)
     with pytest.raises(InputError, match="accepted: a completed run"):
         summary(outdir)
+
+
+def _netcdf4_copy(path: Path, cells: int, forged: bool = False) -> None:
+    """The fault battery's netCDF-4 copy of a result: ``cells`` cells never written."""
+    if "fault_battery" not in sys.modules:  # registered before it runs: its dataclasses look it up
+        spec = importlib.util.spec_from_file_location("fault_battery", BENCHMARKS / "fault_battery.py")
+        assert spec is not None and spec.loader is not None
+        sys.modules["fault_battery"] = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(sys.modules["fault_battery"])
+    sys.modules["fault_battery"].netcdf4_copy(path, cells, forged=forged)
+
+
+def test_a_result_larger_than_its_scenario_or_the_memory_is_refused_before_it_is_read(
+    finished, tmp_path, cli, monkeypatch
+):
+    """A netCDF-4 result of 63 kB whose x held 4e9 unwritten cells was a MemoryError
+    traceback of ``plot`` (one of 5e8 took 4.6 GB): its dimensions are those of its
+    scenario, and a record is checked only in the memory there is."""
+    from multilayer.io import result_check
+
+    shutil.copytree(finished, tmp_path, dirs_exist_ok=True)
+    path = tmp_path / "out" / "result.nc"
+    _netcdf4_copy(path, 10**7)
+    assert path.stat().st_size < 10**6
+    result = cli("plot", tmp_path / "out")
+    assert result.code == 2 and "Traceback" not in result.err
+    assert (
+        "its dimension x has 10000000 entries, not its scenario attribute's domain.cells (40)" in result.err
+    )
+    shutil.copy(finished / "out" / "result.nc", path)
+    _netcdf4_copy(path, 10**7, forged=True)
+    monkeypatch.setattr(result_check.psutil, "virtual_memory", lambda: type("M", (), {"available": 2**30}))
+    with pytest.raises(
+        InputError, match=r"checking its 10000000 cells x 3 layers takes about 1.56 GiB of memory"
+    ):
+        result_check.check_result(path)

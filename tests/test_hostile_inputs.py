@@ -151,6 +151,52 @@ def test_csv_numbers_are_ascii_decimals_and_a_byte_order_mark_is_no_header(tmp_p
     assert phrase in str(caught.value)
 
 
+@pytest.mark.parametrize(
+    ("bed", "phrase"),
+    [
+        ("x (km), z (m)\n0, 0\n1e306, 0\n", "'1e306, 0'"),
+        ("x (m), z (km)\n0, 0\n0.5, 1e306\n", "'0.5, 1e306'"),
+    ],
+)
+def test_a_csv_number_beyond_the_floats_in_metres_is_refused(tmp_path, bed, phrase):
+    """``1e306`` km is inf m: an x of inf validated, a z of inf was refused as an elevation
+    "where floats are nan m apart"."""
+    (tmp_path / "bed.csv").write_text(bed)
+    data = {**copy.deepcopy(TINY_SCENARIO), "bed": {"file": "bed.csv"}}
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(data))
+    with pytest.raises(InputError, match=f"bed.csv: line 3: {phrase} in metres is beyond the largest float"):
+        multilayer.load(tmp_path / "s.yaml")
+
+
+@pytest.mark.parametrize(
+    ("text", "phrase"),
+    [
+        ("!!float abc", "tag:yaml.org,2002:float cannot read 'abc'"),
+        ("!!int 1e5", "tag:yaml.org,2002:int cannot read '1e5'"),
+        ("!!bool maybe", "tag:yaml.org,2002:bool cannot read 'maybe'"),
+        ("!!timestamp 2001-13-45", "tag:yaml.org,2002:timestamp cannot read '2001-13-45'"),
+        ("4" * 5000, "tag:yaml.org,2002:int cannot read '444"),  # beyond Python's 4300 digits
+    ],
+)
+def test_a_value_its_tag_cannot_read_is_malformed_yaml_at_its_place(
+    tmp_path, cli, write_scenario, text, phrase
+):
+    """PyYAML's constructors raised ``ValueError`` or ``KeyError`` for them: a traceback of
+    ``validate``, of ``--set``, of numba's configuration file and of a result's scenario."""
+    data = yaml.safe_dump(TINY_SCENARIO, sort_keys=False).replace("cells: 40", f"cells: {text}")
+    result = cli("validate", write_scenario(data))
+    assert result.code == 2 and "Traceback" not in result.err
+    assert re.search(
+        r"scenario.yaml \(line \d+, column 10\): malformed YAML: " + re.escape(phrase), result.err
+    )
+    result = cli("validate", write_scenario(TINY_SCENARIO), "--set", f"domain.cells={text}")
+    assert result.code == 2 and f"--set domain.cells: malformed YAML value {text[:10]!r}"[:-1] in result.err
+    from multilayer.scenario.source import safe_load
+
+    with pytest.raises(yaml.YAMLError, match=re.escape(phrase)):
+        safe_load(f"num_threads: {text}")
+
+
 @pytest.mark.parametrize("item", ["=", "a..b=1", ".domain=1", "domain.=1", "domain..cells=1"])
 def test_a_key_path_with_an_empty_part_is_malformed(tmp_path, cli, write_scenario, item):
     """``--set a..b=1`` was "a: unknown key" and ``.domain=1`` "(top level): unknown key"."""
@@ -207,6 +253,37 @@ def test_a_key_holding_a_terminal_escape_sequence_is_quoted_not_sent_to_the_term
     named = write_scenario({**TINY_SCENARIO, "rheology": {"name": f"dp{escape}"}}, "named.yaml")
     result = cli("validate", named)
     assert result.code == 2 and "unknown rheology 'dp\\x1b[2J'; accepted" in result.err, result.err
+
+
+@pytest.mark.parametrize(
+    ("key", "said"),
+    [
+        ("mu_\u0455", "rheology.'mu_\\u0455' (line 15): unknown parameter of drucker_prager; accepted"),
+        (
+            "mu_s\u200b",
+            "rheology.'mu_s\\u200b' (line 14): unknown parameter of drucker_prager (mu_s missing)",
+        ),
+        ("mu_z", "rheology.mu_z (line 14): unknown parameter of drucker_prager (mu_s missing)"),
+    ],
+)
+def test_a_key_that_only_looks_like_a_parameter_is_named_as_unknown(write_scenario, key, said):
+    """A Cyrillic s in ``mu_s`` was "unknown" printed as ``mu_s``, and a typo or an invisible
+    character in ``mu_s`` was said as "mu_s: missing parameter", naming no key of the file:
+    a key that is not printable ASCII is quoted with its escapes, and an unknown key is
+    named before the parameters it leaves missing."""
+    rheology = {"name": "drucker_prager", "nu": 0.01, key: 0.3}
+    if "\u0455" in key:
+        rheology = {"name": "drucker_prager", "mu_s": 0.3, "nu": 0.01, key: 0.3}
+    text = yaml.safe_dump({**TINY_SCENARIO, "rheology": rheology}, sort_keys=False, allow_unicode=True)
+    with pytest.raises(InputError) as caught:
+        multilayer.load(write_scenario(text))
+    assert said in str(caught.value)
+
+
+def test_an_empty_key_is_named_as_one(write_scenario):
+    """``"": 1`` at the top level was "(top level): unknown key"."""
+    with pytest.raises(InputError, match="scenario.yaml: '' \\(line \\d+\\): unknown key; accepted: name,"):
+        multilayer.load(write_scenario({**TINY_SCENARIO, "": 1}))
 
 
 def test_spaces_around_a_key_are_not_part_of_it(write_scenario):

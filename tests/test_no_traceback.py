@@ -68,6 +68,30 @@ def test_unicode_digits_are_not_indices_nor_thread_counts(tmp_path, cli, write_s
     assert run.code == 2 and "MULTILAYER_THREADS='²'; accepted: 'auto' or an integer >= 1" in run.err
 
 
+def test_counts_of_5000_digits_or_in_other_notations_are_refused_naming_the_variable_or_option(
+    tmp_path, cli, write_scenario, monkeypatch
+):
+    """``int`` of 5000 digits raises ``ValueError`` (Python's 4300-digit limit): a traceback
+    of ``run`` under ``MULTILAYER_THREADS`` or ``NUMBA_NUM_THREADS`` of them; ``--times 1_0``
+    was 10, an Arabic-Indic 3 was 3 and ``--at 0_1`` was 1 m."""
+    path, many = write_scenario(TINY_SCENARIO), "1" * 5000
+    for variable, accepted in (
+        ("MULTILAYER_THREADS", "'auto' or an integer >= 1 (ASCII digits, at most 18)"),
+        ("NUMBA_NUM_THREADS", "an integer >= 1 (ASCII digits, at most 18), or unset"),
+    ):
+        monkeypatch.setenv(variable, many)
+        run = cli("run", path, "-o", tmp_path / "out", "-q")
+        assert run.code == 2 and "Traceback" not in run.err
+        assert f"environment variable {variable}='{many[:60]}'; accepted: {accepted}" in run.err
+        monkeypatch.delenv(variable)
+    for option, value in (("--max-steps", many), ("--max-steps", "\u0663"), ("--max-steps", "1_0")):
+        result = cli("validate", path, option, value)
+        assert result.code == 2 and "expected an integer >= 1 (ASCII digits, at most 18), got" in result.err
+        assert len(result.err.splitlines()[-1]) < 200
+    result = cli("plot", tmp_path, "--at", "0_1")
+    assert result.code == 2 and "--at: expected a number in ASCII decimal notation" in result.err
+
+
 def test_undecodable_bytes_in_the_environment_and_in_names(tmp_path, cli, monkeypatch):
     """Bytes that are not UTF-8 (kept by Python as lone surrogates) in MULTILAYER_INSTITUTION
     and in the scenario's file name are written as U+FFFD; an output directory named by such
@@ -146,7 +170,11 @@ def test_a_closed_stdout_ends_the_command_quietly(tmp_path, write_scenario):
 @pytest.mark.parametrize(
     ("variable", "value", "accepted"),
     [
-        ("NUMBA_NUM_THREADS", "0", "an integer >= 1 (ASCII digits), or unset"),  # numba: ValueError at import
+        (
+            "NUMBA_NUM_THREADS",
+            "0",
+            "an integer >= 1 (ASCII digits, at most 18), or unset",
+        ),  # numba: ValueError at import
         ("NUMBA_NUM_THREADS", "two", "an integer >= 1"),  # numba: a warning quoting a traceback
         ("NUMBA_DISABLE_JIT", "1", "0 or unset: the engine's kernels need numba's compiler"),
         (
@@ -184,6 +212,10 @@ def test_numba_variables_the_engine_cannot_run_with_are_refused_first(
             "- 1\n",
             "(numba's configuration file, read by numba at its import): got [1]; accepted: a YAML mapping",
         ),
+        (  # a ValueError of PyYAML's constructor: a traceback
+            "num_threads: !!int abc\n",
+            "(numba's configuration file, read by numba at its import): tag:yaml.org,2002:int cannot read",
+        ),
     ],
 )
 def test_numbas_configuration_file_in_the_working_directory_is_checked_as_its_variables(
@@ -217,7 +249,7 @@ for what in ("multilayer.Simulation", "multilayer.run(sys.argv[1], quiet=True)",
 @pytest.mark.parametrize(
     ("variable", "value", "cause", "accepted"),
     [
-        ("NUMBA_NUM_THREADS", "0", "ValueError", "an integer >= 1 (ASCII digits), or unset"),
+        ("NUMBA_NUM_THREADS", "0", "ValueError", "an integer >= 1 (ASCII digits, at most 18), or unset"),
         pytest.param(
             "NUMBA_DISABLE_JIT",
             "1",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 import pytest
@@ -202,3 +203,25 @@ def test_a_bed_profile_short_of_the_domain_is_refused_unless_extended(
     recorded = yaml.safe_load(extended.resolved_yaml())
     assert recorded["bed"] == {"profile": "points", "points": [[0.0, 0.01], [0.2, 0.0]], "extend": "flat"}
     assert from_dict(recorded).bed.extend == "flat"
+
+
+def test_a_csv_profile_read_before_and_unchanged_is_not_parsed_again(tmp_path, monkeypatch):
+    """Every member of a study is validated: a bed of 10^6 rows was parsed again for each
+    (7 s a member); a file changed since is read again, and each reader gets its own copy."""
+    from multilayer.scenario import profiles
+
+    profiles._cached_csv_profile.cache_clear()
+    parsed = []
+    real = profiles._parsed_csv_profile
+    monkeypatch.setattr(
+        profiles, "_parsed_csv_profile", lambda path, columns: parsed.append(path) or real(path, columns)
+    )
+    path = tmp_path / "bed.csv"
+    path.write_text("x (m), z (m)\n0, 0\n1, 0.5\n")
+    first, second = (profiles.read_csv_profile(path, ("x", "z|b")) for _ in range(2))
+    assert len(parsed) == 1 and first.tolist() == second.tolist() == [[0.0, 0.0], [1.0, 0.5]]
+    first[1, 1] = 9.0
+    assert profiles.read_csv_profile(path, ("x", "z|b"))[1, 1] == 0.5
+    os.utime(path, ns=(0, 0))  # another modification time: read again
+    assert profiles.read_csv_profile(path, ("x", "z|b")).tolist() == [[0.0, 0.0], [1.0, 0.5]]
+    assert len(parsed) == 2

@@ -26,6 +26,7 @@ from multilayer.io.results import (
     save_checkpoint,
     summary,
 )
+from multilayer.scenario.source import safe_load
 
 # A 0.1 m x 0.05 m column on a 25 degree slope, 40 cells x 3 layers, wall on the left.
 COLUMN = {**TINY_SCENARIO, "name": "column"}
@@ -163,6 +164,58 @@ def test_checkpoint_round_trip_is_exact_and_atomic(tmp_path: Path) -> None:
     assert (fresh.t, fresh.steps) == (sim.t, sim.steps)
     np.testing.assert_array_equal(fresh.h, sim.h)
     np.testing.assert_array_equal(fresh.u, sim.u)
+
+
+def test_a_checkpoint_unpacking_to_more_than_its_file_is_refused_before_it_is_read(tmp_path: Path) -> None:
+    """A member deflated 1000 to 1, or whose header declares more data than it holds, was
+    read as its declared size (a checkpoint of 1 MB took 2.3 GB before its checksum failed):
+    refused from the archive's directory and the ``.npy`` headers, nothing read."""
+    import io
+    import zipfile
+
+    sim = Simulation(scenarios.from_dict(COLUMN))
+    path = tmp_path / "checkpoint.npz"
+    save_checkpoint(path, Checkpoint(sim.state_dict(), 2, 1.25, "name: column\n"))
+    arrays = dict(np.load(path))
+
+    def rewrite(member: bytes, compress_type: int) -> None:
+        with zipfile.ZipFile(path, "w") as archive:
+            for name, a in arrays.items():
+                data = io.BytesIO()
+                np.save(data, a)
+                if name == "state.h":
+                    archive.writestr(f"{name}.npy", member, compress_type=compress_type)
+                else:
+                    archive.writestr(f"{name}.npy", data.getvalue())
+
+    header = io.BytesIO()
+    np.lib.format.write_array_header_1_0(header, {"descr": "<f8", "fortran_order": False, "shape": (2**20,)})
+    rewrite(header.getvalue() + bytes(2**23), zipfile.ZIP_DEFLATED)  # 8 MB of zeros in 8 kB
+    with pytest.raises(InputError, match=r"corrupt checkpoint \(its members unpack to \d+ bytes, more than"):
+        load_checkpoint(path)
+    rewrite(header.getvalue() + bytes(64), zipfile.ZIP_STORED)
+    with pytest.raises(InputError, match="state.h.npy declares 8388608 bytes of data in 192"):
+        load_checkpoint(path)
+
+
+def test_a_checkpoint_whose_scenario_is_beyond_the_yaml_bounds_is_corrupt(tmp_path: Path) -> None:
+    """An alias inside its own anchor (a RecursionError of ``--resume``, which compares the
+    checkpoint's scenario with its result's key by key) and the billion laughs (minutes
+    of that comparison) are bounded as in a scenario file."""
+    laughs = "a: &a [x, x, x, x, x, x, x, x, x, x]\n" + "".join(
+        f"{chr(98 + i)}: &{chr(98 + i)} [{', '.join([f'*{chr(97 + i)}'] * 10)}]\n" for i in range(9)
+    )
+    sim = Simulation(scenarios.from_dict(COLUMN))
+    path = tmp_path / "checkpoint.npz"
+    for text, phrase in (
+        ("extra: &a [*a]\n", "lies inside its own anchor"),
+        (laughs, "values once its aliases"),
+    ):
+        with pytest.raises(yaml.YAMLError, match=phrase):
+            safe_load(text)
+        save_checkpoint(path, Checkpoint(sim.state_dict(), 2, 1.25, "name: column\n" + text))
+        with pytest.raises(InputError, match="meta.scenario is not the YAML mapping of a scenario"):
+            load_checkpoint(path)
 
 
 def test_missing_or_broken_result_is_an_input_error(tmp_path: Path) -> None:

@@ -31,7 +31,8 @@ from contextlib import contextmanager
 
 import yaml
 
-from multilayer.errors import InputError, reason
+from multilayer.errors import MAX_COUNT_DIGITS, InputError, ascii_count, reason
+from multilayer.scenario.source import safe_load
 
 THREADING_LAYERS = ("default", "safe", "forksafe", "threadsafe", "tbb", "omp", "workqueue")
 """The values of ``NUMBA_THREADING_LAYER`` numba knows."""
@@ -47,10 +48,8 @@ def check() -> None:
     environment or in numba's :data:`CONFIG_FILE`."""
     settings = _settings()
     threads = settings.get("NUMBA_NUM_THREADS")
-    if threads is not None and not (
-        threads[0].strip().isascii() and threads[0].strip().isdigit() and int(threads[0])
-    ):
-        _refuse(threads, "an integer >= 1 (ASCII digits), or unset")
+    if threads is not None and not ascii_count(threads[0]):  # int() of 5000 digits raised
+        _refuse(threads, f"an integer >= 1 (ASCII digits, at most {MAX_COUNT_DIGITS}), or unset")
     disabled = settings.get("NUMBA_DISABLE_JIT")
     if disabled is not None and disabled[0].strip() not in ("", "0"):
         _refuse(disabled, "0 or unset: the engine's kernels need numba's compiler")
@@ -70,7 +69,7 @@ def _settings() -> dict[str, tuple[str, str]]:
         accepted = "a YAML mapping of numba's settings (num_threads: 4), or no such file"
         try:
             with open(CONFIG_FILE, encoding="utf-8") as stream:
-                data = yaml.safe_load(stream)
+                data = safe_load(stream.read())
         except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
             raise InputError(f"{where}: {' '.join(reason(exc).split())}; accepted: {accepted}") from None
         if data is not None and not (isinstance(data, dict) and all(isinstance(key, str) for key in data)):

@@ -30,7 +30,7 @@ from collections import Counter
 from collections.abc import Iterator
 from contextlib import AbstractContextManager, contextmanager, nullcontext
 
-from multilayer.errors import InputError
+from multilayer.errors import MAX_COUNT_DIGITS, InputError, ascii_count
 
 ENVIRONMENT = "MULTILAYER_THREADS"
 PARALLEL_CELLS = 200_000
@@ -117,11 +117,13 @@ def requested(setting: int | str = "auto") -> int | None:
     """The fixed thread count asked for (environment first), None for ``auto``."""
     env = os.environ.get(ENVIRONMENT, "").strip()
     if env and env != "auto":
-        if not (env.isascii() and env.isdigit()) or int(env) < 1:  # '²'.isdigit() is True
+        count = ascii_count(env)  # '²'.isdigit() is True; int() of 5000 digits raised
+        if count is None or count < 1:
             raise InputError(
-                f"environment variable {ENVIRONMENT}={env!r}; accepted: 'auto' or an integer >= 1"
+                f"environment variable {ENVIRONMENT}={env[:60]!r}; accepted: 'auto' or an integer >= 1 "
+                f"(ASCII digits, at most {MAX_COUNT_DIGITS})"
             )
-        return int(env)
+        return count
     if env == "auto" or setting == "auto":
         return None
     return int(setting)

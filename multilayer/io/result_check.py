@@ -34,18 +34,23 @@ one at a time (memory of one record).
 from __future__ import annotations
 
 import functools
+import math
 import os
 from pathlib import Path
 from typing import Literal
 
 import netCDF4
 import numpy as np
+import psutil
 import yaml
 
 from multilayer.engine import diagnostics
 from multilayer.errors import InputError, reason
 from multilayer.io.netcdf_layout import LayoutError, read_layout
 from multilayer.io.result_format import FORCES, MIXTURE_VARIABLES, NETCDF_LOCK, VARIABLES, result_path
+from multilayer.scenario.limits import MAX_OUTPUT_TIMES
+from multilayer.scenario.messages import shown
+from multilayer.scenario.source import safe_load
 
 Use = Literal["answer", "records", "resume"]
 STATUSES = ("completed", "failed", "interrupted", "running")
@@ -117,6 +122,82 @@ def _whole_records(file: Path, bad) -> int:
     return layout.complete_records(file.stat().st_size)
 
 
+SCENARIO_NUMBERS = (("slope_deg", False), ("material.density", True), ("time.end", True))
+"""The entries of a result's scenario attribute its readers compute with (the figures'
+slope frame, 0 where it is absent as in a scenario; the momentum balance; the span of a
+completed run), and whether they must be there."""
+
+
+ATTRIBUTES = (
+    ("steps", "an integer >= 0"),
+    ("wall_time_s", "a finite number >= 0"),
+    ("multilayer_version", "text"),
+    ("multilayer_commit", "text"),
+)
+"""The global attributes of a result its readers read (a study's summary of a member, the
+version a resumed run compares with its own), with what they must be."""
+
+
+def _attribute(value: object, kind: str) -> bool:
+    """True when the attribute ``value`` (as netCDF4 reads it) is ``kind`` of :data:`ATTRIBUTES`
+    (or "a finite number > 0 (m)")."""
+    if kind == "text":
+        return isinstance(value, str)
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        return False
+    if kind == "an integer >= 0":
+        return isinstance(value, (int, np.integer)) and int(value) >= 0
+    number = float(value)
+    return math.isfinite(number) and (number >= 0 if ">= 0" in kind else number > 0)
+
+
+def _check_attributes(ds: netCDF4.Dataset, bad) -> None:
+    """Raise ``bad(...)`` unless the attributes of :data:`ATTRIBUTES` and the front's
+    ``threshold`` are there and what they must be: a sweep run again over its members read
+    a damaged ``steps`` as a traceback of its summary, and a missing ``multilayer_version``
+    was one of ``--resume``."""
+    front = ds["front"]
+    for owner, name, kind in [(ds, name, kind) for name, kind in ATTRIBUTES] + [
+        (front, "threshold", "a finite number > 0 (m)")
+    ]:
+        whose = "its variable front's" if owner is front else "its"
+        if name not in owner.ncattrs():
+            raise bad(f"{whose} attribute {name} is missing")
+        value = owner.getncattr(name)
+        if not _attribute(value, kind):
+            plain = value.item() if isinstance(value, np.generic) else value
+            raise bad(f"{whose} attribute {name} is {shown(plain)}, not {kind}")
+
+
+def _check_dimensions(ds: netCDF4.Dataset, scenario: dict, bad) -> None:
+    """Raise ``bad(...)`` unless the dimensions of ``ds`` are those of its ``scenario`` (cells
+    and layers; 2 bounds), it holds no more output times than a run writes and a record can
+    be checked in the memory available now.  Its variables are read whole along x: a
+    result in the netCDF-4 format (HDF5) whose x held 4e9 unwritten, compressed cells (a
+    file of 63 kB) was a MemoryError traceback of ``plot``, one of 5e8 took 4.6 GB before
+    it was refused, and one that fits in the memory exhausted it."""
+    domain = scenario.get("domain")
+    expected = {"x": "domain.cells", "layer": "domain.layers", "nv": ""}
+    for name, key in expected.items():
+        size = (domain.get(key.split(".")[1]) if isinstance(domain, dict) else None) if key else 2
+        found = len(ds.dimensions[name]) if name in ds.dimensions else None
+        if not (type(size) is int and found == size):
+            where = f"its scenario attribute's {key} ({shown(size)})" if key else "2 (the bounds of a cell)"
+            raise bad(f"its dimension {name} has {found} entries, not {where}")
+    count = len(ds.dimensions["time"]) if "time" in ds.dimensions else 0
+    if count > MAX_OUTPUT_TIMES + 2:  # every output time and the end
+        raise bad(f"it holds {count} output times", f"at most {MAX_OUTPUT_TIMES + 2}, as a run writes them")
+    cells, layers = len(ds.dimensions["x"]), len(ds.dimensions["layer"])
+    needed = 8.0 * cells * (3 * layers + 12)  # a record, its momentum, the coordinates and the bed
+    available = float(psutil.virtual_memory().available)
+    if needed > available:
+        raise bad(
+            f"checking its {cells} cells x {layers} layers takes about {needed / 2**30:.3g} GiB of memory, "
+            f"more than is available now ({available / 2**30:.3g} GiB)",
+            "a result whose records fit in the memory of this machine",
+        )
+
+
 def _status(ds: netCDF4.Dataset, file: Path, bad) -> str:
     """The run status of ``ds``; the variables and the scenario are those of a result."""
     missing = [name for name in VARIABLES if name not in ds.variables]
@@ -125,11 +206,21 @@ def _status(ds: netCDF4.Dataset, file: Path, bad) -> str:
     if missing:
         raise bad(f"not a multilayer result: no variable {', '.join(missing)}")
     try:
-        scenario = yaml.safe_load(str(ds.getncattr("scenario")))
+        scenario = safe_load(str(ds.getncattr("scenario")))
     except (AttributeError, yaml.YAMLError):
         scenario = None
     if not isinstance(scenario, dict) or "name" not in scenario:
         raise bad("its scenario attribute is missing or damaged")
+    for key, required in SCENARIO_NUMBERS:
+        node: object = scenario
+        for part in key.split("."):
+            node = node.get(part) if isinstance(node, dict) else None
+        if (required or node is not None) and not (
+            isinstance(node, (int, float)) and not isinstance(node, bool) and math.isfinite(node)
+        ):
+            raise bad(f"its scenario attribute's {key} is {shown(node)}, not a finite number")
+    _check_attributes(ds, bad)
+    _check_dimensions(ds, scenario, bad)
     status = str(ds.getncattr("run_status")) if "run_status" in ds.ncattrs() else ""
     if status not in STATUSES:
         raise bad(f"run_status {status!r} is not one of {', '.join(STATUSES)}")
@@ -185,7 +276,7 @@ def _brackets(bounds: np.ndarray, centres: np.ndarray) -> bool:
 def _check_span(ds: netCDF4.Dataset, count: int, bad) -> None:
     """Raise ``bad(...)`` unless the records of the completed run ``ds`` (``count`` of them)
     start at ``t = 0`` and end at its scenario's ``time.end``, exactly."""
-    time = yaml.safe_load(str(ds.getncattr("scenario"))).get("time")  # a mapping, by _status
+    time = safe_load(str(ds.getncattr("scenario"))).get("time")  # a mapping, by _status
     end = time.get("end") if isinstance(time, dict) else None
     times = np.asarray(ds["time"][:count], dtype=float) if count else np.array([np.nan])
     if not (times[0] == 0.0 and times[-1] == end):
@@ -299,7 +390,7 @@ def _check_forces(ds: netCDF4.Dataset, count: int, momentum: np.ndarray, bad) ->
         if broken.size:
             i = int(broken[0]) + 1
             raise _record_error(bad, i, float(t[i]), f"{name} = {float(values[i])!r} is not finite")
-    density = float(yaml.safe_load(str(ds.getncattr("scenario")))["material"]["density"])
+    density = float(safe_load(str(ds.getncattr("scenario")))["material"]["density"])
     terms = ("bed_force_x", "wall_force_x", "end_force_x", "pressure_force_x", "outflow_momentum_x")
     net = f["gravity_force_x"][1:] - sum(f[name][1:] for name in terms)
     change = density * np.diff(momentum)

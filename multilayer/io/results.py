@@ -32,6 +32,7 @@ import math
 import os
 import threading
 import warnings
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -55,6 +56,7 @@ from multilayer.io.result_format import (  # noqa: F401 (this module's names, as
     result_path,
 )
 from multilayer.provenance import fipy_version, provenance
+from multilayer.scenario.source import safe_load
 
 FAILURE_LENGTH = 8000
 """Characters of the failure message kept in the ``failure`` attribute (run.log has it all)."""
@@ -532,6 +534,33 @@ def save_checkpoint(path: str | os.PathLike, ckpt: Checkpoint) -> None:
         raise DiskFull(f"{full}: writing the checkpoint {path} failed ({exc})") from None
 
 
+def _oversized_member(path: str | os.PathLike) -> str | None:
+    """What in the archive ``path`` would be read into more memory than the file holds, or
+    None: :func:`save_checkpoint` stores its arrays uncompressed, each of the size its
+    ``.npy`` header declares.  A member compressed 1000 to 1 (a MB of zeros deflated to a
+    kB) read as its declared size: a checkpoint of 1 MB took 2.3 GB and 29 s before its
+    checksum refused it, one of 20 MB exhausted the memory."""
+    with zipfile.ZipFile(path) as archive:
+        members = archive.infolist()
+        if sum(info.file_size for info in members) > os.path.getsize(path):
+            return (
+                f"its members unpack to {sum(info.file_size for info in members)} bytes, more than the file's"
+            )
+        for info in members:
+            with archive.open(info) as member:
+                version = np.lib.format.read_magic(member)
+                read_header = (
+                    np.lib.format.read_array_header_1_0
+                    if version == (1, 0)
+                    else np.lib.format.read_array_header_2_0
+                )
+                shape, _, dtype = read_header(member)
+            declared = math.prod(shape) * dtype.itemsize
+            if declared > info.file_size:
+                return f"{info.filename} declares {declared} bytes of data in {info.file_size}"
+    return None
+
+
 def load_checkpoint(path: str | os.PathLike) -> Checkpoint:
     """Read a checkpoint written by :func:`save_checkpoint`; :class:`InputError` (naming the
     file) if it is unreadable, truncated, holds objects or fails its checksum."""
@@ -546,8 +575,13 @@ def load_checkpoint(path: str | os.PathLike) -> Checkpoint:
         )
 
     try:
+        oversized = _oversized_member(path)
+        if oversized is not None:
+            raise corrupt(oversized)
         with np.load(path, allow_pickle=False) as data:
             arrays = {k: data[k] for k in data.files}
+    except InputError:
+        raise
     except Exception as exc:  # noqa: BLE001 - damaged data raises OSError, BadZipFile, zlib.error, ...
         raise corrupt(f"{type(exc).__name__}: {exc}") from None
     stored = arrays.pop("checksum", None)
@@ -572,7 +606,7 @@ def load_checkpoint(path: str | os.PathLike) -> Checkpoint:
     ):
         raise corrupt("meta.scenario is not text or meta.records no count of records")
     try:  # the scenario it computed, compared key by key with the one resuming it
-        scenario = yaml.safe_load(meta["scenario"])
+        scenario = safe_load(meta["scenario"])
     except yaml.YAMLError:  # was a traceback (exit 1)
         scenario = None
     if not isinstance(scenario, dict):

@@ -540,7 +540,9 @@ def _read_csv(file: Path, columns: list[str], where: str) -> tuple[np.ndarray, n
         raise InputError(f"{where}: {exc}") from None
     try:
         reader = csv.DictReader(io.StringIO(text, newline=""))
-        twice = [c for c in columns if (reader.fieldnames or []).count(c) > 1]
+        # a header written as a profile's, "t, x_f, sigma", names x_f: spaces around a name are no part of it
+        header = reader.fieldnames = [name.strip() for name in reader.fieldnames or []]
+        twice = [c for c in columns if header.count(c) > 1]
         if twice:  # a dict of the row keeps the last of them, silently
             raise InputError(
                 f"{where}: {file}: its header names the column {twice[0]!r} twice; accepted: a CSV file "
@@ -562,7 +564,8 @@ def _read_csv(file: Path, columns: list[str], where: str) -> tuple[np.ndarray, n
         table = [[csv_number(row[c]) for row in rows] for c in columns]
     except KeyError as exc:
         raise InputError(
-            f"{where}: {file} has no column {exc}; accepted: a CSV file with a header row"
+            f"{where}: {file} has no column {exc} (its header names {', '.join(map(repr, header))}); "
+            f"accepted: a CSV file with a header row naming {', '.join(columns)}"
         ) from None
     except (OSError, ValueError, TypeError) as exc:
         raise InputError(

@@ -10,9 +10,12 @@ one panel per output).
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
+from typing import Any
 
+import netCDF4
 import numpy as np
 import xarray as xr
 from matplotlib.figure import Figure
@@ -20,7 +23,9 @@ from matplotlib.figure import Figure
 from multilayer.errors import InputError, reason
 from multilayer.io.disk import writable_directory
 from multilayer.io.plotting import PLOTS_DIR, drawn_from, save_figures
+from multilayer.io.result_format import NETCDF_LOCK
 from multilayer.io.results import decoded
+from multilayer.scenario.messages import shown
 
 _STAGE_COLOURS = {"search": "C0", "refine": "C1", "uncertainty": "C2"}
 _SI = {"runout": "m", "front_final": "m", "duration": "s", "mass_final": "m2", "front": "m", "h": "m"}
@@ -56,11 +61,25 @@ REQUIRED: dict[str, tuple[dict[str, tuple[str, ...]], tuple[str, ...], tuple[str
 study writes them over), coordinates, attributes."""
 
 
+COUNTS = ("base_samples", "failed_runs", "runs_not_done")
+"""Attributes of a sensitivity file that are counts (the first always there, the others
+written since the runs could fail)."""
+MAX_STUDY_BYTES = 2**30
+"""Largest study file read (bytes of its decoded variables): a calibration of 10^5
+parameter sets of 10 parameters is 8 MB."""
+
+
 def plot_study(directory: str | os.PathLike, filename: str) -> tuple[list[Path], list[str]]:
     """Write the figures of ``directory/filename`` into ``directory/plots/``; an
     :class:`InputError` naming the file if it is not a study file multilayer wrote."""
     path = Path(directory) / filename
     try:
+        size = _declared_bytes(path)
+        if size > MAX_STUDY_BYTES:  # a netCDF-4 file of kilobytes can declare terabytes
+            raise InputError(
+                f"{path}: its variables hold {size} bytes; accepted: a file written by multilayer, of at "
+                f"most {MAX_STUDY_BYTES} bytes"
+            )
         ds = decoded(path)
     except (OSError, ValueError, RuntimeError) as exc:  # xarray's own text runs on for lines, with links
         raise InputError(
@@ -80,6 +99,13 @@ def plot_study(directory: str | os.PathLike, filename: str) -> tuple[list[Path],
                 "shows none"
             )
     return save_figures(out, figures, "png", tuple(figures), drawn_from(path)), notes
+
+
+def _declared_bytes(path: Path) -> int:
+    """Bytes of the variables the netCDF file ``path`` declares (8 an element of text),
+    from its header: xarray reads a dimension's coordinate whole at its opening."""
+    with NETCDF_LOCK, netCDF4.Dataset(path) as nc:
+        return sum(math.prod(var.shape) * getattr(var.dtype, "itemsize", 8) for var in nc.variables.values())
 
 
 def _without_indices(ds: xr.Dataset) -> list[str]:
@@ -110,11 +136,33 @@ def check_study(ds: xr.Dataset, path: Path) -> None:
     for name, dims in variables.items():
         if ds[name].dims != dims:
             raise InputError(f"{path}: {name} over {ds[name].dims}, where over {dims}; {accepted}")
+    if kind == "sensitivity":  # the figure's titles and notes compute with them
+        level = _plain(ds.attrs["confidence_level"])
+        if not (_number(level) and 0 < float(level) < 1):
+            raise InputError(
+                f"{path}: its attribute confidence_level is {shown(level)}, not in (0, 1); {accepted}"
+            )
+        for name in COUNTS:
+            count = _plain(ds.attrs.get(name, 0 if name != "base_samples" else None))
+            if not (_number(count) and float(count).is_integer() and 0 <= float(count) < 2**63):
+                raise InputError(f"{path}: its attribute {name} is {shown(count)}, not a count; {accepted}")
     for name in SOBOL_INDICES if kind == "sensitivity" else ():
         values = np.asarray(ds[name].values)
         if values.dtype.kind != "f" or np.isinf(values).any():
             what = "infinite values" if values.dtype.kind == "f" else f"values of type {values.dtype}"
             raise InputError(f"{path}: {name} holds {what}, where numbers or nan; {accepted}")
+
+
+def _plain(value: Any) -> Any:
+    """An attribute as xarray reads it (a numpy scalar or a 1-element array) as Python's value."""
+    if isinstance(value, np.ndarray) and value.size == 1:
+        value = value.reshape(())[()]
+    return value.item() if isinstance(value, np.generic) else value
+
+
+def _number(value: Any) -> bool:
+    """True for a finite number."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def misfit_figure(ds: xr.Dataset) -> Figure:

@@ -22,10 +22,14 @@ KeyPath = tuple[str | int, ...]
 
 
 def dotted(path: Sequence[str | int]) -> str:
-    """``domain.cells``: a key path as messages write it; a key that is not printable text
-    quoted (``'\\x1b[2J'``): a key of the file is printed as the file wrote it, and an
-    escape sequence of the terminal in it acted on the terminal (cleared it, set its title)."""
-    return ".".join(str(p) if str(p).isprintable() else repr(p) for p in path) or "(top level)"
+    """``domain.cells``: a key path as messages write it; a key that is not printable ASCII
+    quoted with its escapes (``'\\x1b[2J'``, ``'mu_\\u0455'``): a key of the file is printed
+    as the file wrote it, and an escape sequence of the terminal in it acted on the terminal
+    (cleared it, set its title), and a letter of another script that looks like ours (a
+    Cyrillic s in ``mu_s``) was "unknown" beside the very name it showed; an empty key
+    ``''`` was "(top level)"."""
+    plain = (str(p) if str(p) and str(p).isascii() and str(p).isprintable() else ascii(p) for p in path)
+    return ".".join(plain) or "(top level)"
 
 
 def invalid(message: str, accepted: str, key: str = "") -> PydanticCustomError:

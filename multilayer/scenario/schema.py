@@ -187,10 +187,14 @@ class PluginSpec(StrictModel):
             # an optional parameter left at None (e.g. mu_start) is not written out
             params = {key: value for key, value in params.items() if value is not None}
         except ValidationError as exc:
-            error = exc.errors()[0]
-            key = dotted(error["loc"])
+            # a key not of the law is named first: a typo (mu_z, or mu_s with an invisible
+            # character) was said as "mu_s: missing parameter", naming no key of the file
+            errors = sorted(exc.errors(), key=lambda e: e["type"] != "extra_forbidden")
+            error = errors[0]
+            key = ".".join(map(str, error["loc"]))  # the path of the key, as the file wrote it
+            missing = [dotted(e["loc"]) for e in errors if e["type"] == "missing"]
             message = (
-                f"unknown parameter of {self.name}"
+                f"unknown parameter of {self.name}" + (f" ({', '.join(missing)} missing)" if missing else "")
                 if error["type"] == "extra_forbidden"
                 else f"missing parameter of {self.name}"
                 if error["type"] == "missing"

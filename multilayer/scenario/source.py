@@ -19,7 +19,7 @@ import yaml
 from multilayer.errors import InputError
 from multilayer.scenario import limits
 from multilayer.scenario.files import read_text
-from multilayer.scenario.messages import KeyPath, dotted
+from multilayer.scenario.messages import KeyPath, dotted, shown
 
 _INT, _FLOAT = "tag:yaml.org,2002:int", "tag:yaml.org,2002:float"
 
@@ -32,7 +32,36 @@ except ImportError:  # PyYAML built without libyaml: its own, about ten (four) t
     from yaml import SafeLoader as _SafeLoader  # type: ignore[assignment]
 
 
-class Loader(_SafeLoader):
+class SafeLoader(_SafeLoader):
+    """PyYAML's safe loader (on libyaml) where a value its explicit tag's constructor cannot
+    read (``!!float abc``, ``!!int 1e5``, ``!!bool maybe``, ``!!timestamp 2001-13-45``) is
+    malformed YAML at its place, a :class:`yaml.constructor.ConstructorError` as an unknown
+    tag is: PyYAML's constructors raise ``ValueError`` or ``KeyError`` for them."""
+
+    def construct_object(self, node: yaml.Node, deep: bool = False) -> Any:
+        try:
+            return super().construct_object(node, deep)
+        except (ValueError, KeyError, TypeError, OverflowError) as exc:
+            raise yaml.constructor.ConstructorError(
+                None, None, f"{node.tag} cannot read {shown(node.value)} ({exc})", node.start_mark
+            ) from None
+
+
+def safe_load(text: str) -> Any:
+    """``yaml.safe_load(text)`` by :class:`SafeLoader`: a malformed text raises a
+    :class:`yaml.YAMLError`, whatever its tags, and so does a text beyond the bounds of
+    :func:`~multilayer.scenario.limits.check_yaml` (a result's or checkpoint's scenario, numba's
+    configuration file): an alias inside its own anchor in the scenarios of a checkpoint and
+    its result was a ``RecursionError`` of ``--resume``, which compares them key by key, and
+    the billion laughs there held it for minutes."""
+    try:
+        limits.check_yaml(text, "the YAML text", SafeLoader)
+    except InputError as exc:
+        raise yaml.YAMLError(str(exc).removeprefix("the YAML text").lstrip(": ")) from None
+    return yaml.load(text, Loader=SafeLoader)
+
+
+class Loader(SafeLoader):
     """SafeLoader reading numbers by the YAML 1.2 core schema: ``1e-3`` and ``2E5`` are
     floats, ``010`` is ten (YAML 1.1, PyYAML's rule, read eight), and ``1:20`` or
     ``0_3`` are text, refused where a number is expected (YAML 1.1 read 80 and 3)."""

@@ -10,14 +10,35 @@ from typing import Any
 
 
 def positive_int(text: str) -> int:
-    """argparse type: an integer >= 1 (a bad value is a usage error, exit code 2)."""
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}")
+    """argparse type: an integer >= 1 in ASCII digits (a bad value is a usage error, exit
+    code 2): ``int`` alone read ``--times 1_0`` as 10 and an Arabic-Indic 3 as 3, and a
+    value of 5000 digits was quoted whole."""
+    from multilayer.errors import MAX_COUNT_DIGITS, ascii_count
+    from multilayer.scenario.messages import shown
+
+    value = ascii_count(text)
+    if value is None or value < 1:
+        raise argparse.ArgumentTypeError(
+            f"expected an integer >= 1 (ASCII digits, at most {MAX_COUNT_DIGITS}), got {shown(text)}"
+        )
     return value
+
+
+def decimal(text: str) -> float:
+    """argparse type: a number in ASCII decimal notation (``0.25``, ``-1e-3``, ``-inf``), a
+    bad one a usage error: ``float`` alone read ``--at 0_1`` as 1 m (and the message quoted
+    ``--at 1``) and full-width or Arabic-Indic digits as ours."""
+    from multilayer.scenario.messages import shown
+    from multilayer.scenario.profiles import csv_number
+
+    try:
+        return csv_number(text)
+    except ValueError:
+        if text.strip().lower().lstrip("+-") in ("inf", "infinity", "nan"):
+            return float(text)  # refused by the option's range, which names it
+        raise argparse.ArgumentTypeError(
+            f"expected a number in ASCII decimal notation (0.25, -1e-3), got {shown(text)}"
+        ) from None
 
 
 STUDIES_EXTRA = "pip install 'multilayer[studies]'"

@@ -15,7 +15,7 @@ from __future__ import annotations
 import argparse
 import os
 
-from multilayer.app.commands import directory, positive_int
+from multilayer.app.commands import decimal, directory, positive_int
 from multilayer.errors import InputError, printable, warn
 
 HELP = (
@@ -42,7 +42,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--at",
-        type=float,
+        type=decimal,
         action="append",
         default=[],
         metavar="X",
@@ -51,7 +51,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--xlim",
-        type=float,
+        type=decimal,
         nargs=2,
         metavar=("X0", "X1"),
         help="downslope range (m) of the X-Z section, its animation and the thickness figure "
