@@ -437,6 +437,69 @@ def test_sobol_indices_that_are_not_numbers_are_said_when_plotted(tmp_path, cli)
     ) in result.err
 
 
+def _calibration_file(path, **damage):
+    """A calibration.nc of two parameters, three parameter sets (the last failed) and two
+    observed points, with the variables of ``damage`` replaced."""
+    import xarray as xr
+
+    variables = {
+        "best": ("parameter", [0.4, 0.01]),
+        "covariance": (("parameter", "parameter2"), [[1e-4, 0.0], [0.0, 1e-6]]),
+        "values": (("candidate", "parameter"), [[0.4, 0.01], [0.5, 0.02], [0.45, 0.03]]),
+        "misfit": ("candidate", [1.5, 4.0, np.inf]),
+        "stage": ("candidate", np.array(["search", "search", "refine"], dtype=object)),
+        "observation": ("point", np.array(["front", "front"], dtype=object)),
+        "quantity": ("point", np.array(["front", "front"], dtype=object)),
+        "coordinate": ("point", [0.1, 0.2]),
+        "observed": ("point", [0.2, 0.3]),
+        "observed_sd": ("point", [0.01, 0.01]),
+        "fitted": ("point", [0.21, 0.29]),
+    }
+    variables.update({name: (variables[name][0], value) for name, value in damage.items()})
+    coords = {"parameter": ["mu_s", "nu"], "parameter2": ["mu_s", "nu"]}
+    xr.Dataset(variables, coords=coords).to_netcdf(path)
+
+
+@pytest.mark.parametrize(
+    ("damage", "phrase"),
+    [
+        (
+            {"covariance": [[np.nan, 0.0], [0.0, 1e-6]]},
+            "covariance holds nan, where finite numbers, or nan throughout",
+        ),
+        ({"covariance": [[np.inf, 0.0], [0.0, 1e-6]]}, "covariance holds inf, where finite numbers, or nan"),
+        ({"best": [np.nan, 0.01]}, "best holds nan, where finite numbers, or nan throughout"),
+        ({"values": [[0.4, 0.01], [np.inf, 0.02], [0.45, 0.03]]}, "values holds inf, where finite numbers"),
+        ({"observed_sd": [np.nan, 0.01]}, "observed_sd holds nan, where finite numbers > 0"),
+        ({"observed_sd": [0.0, 0.01]}, "observed_sd holds 0, where finite numbers > 0"),
+        ({"fitted": [np.inf, 0.29]}, "fitted holds inf, where finite numbers, or nan throughout"),
+        (
+            {"misfit": [np.nan, np.nan, np.nan]},
+            "misfit holds nan, where numbers >= 0, inf where a run failed",
+        ),
+        ({"misfit": [1.5, -4.0, np.inf]}, "misfit holds -4, where numbers >= 0"),
+    ],
+)
+def test_a_calibration_file_whose_values_are_damaged_is_exit_2_when_plotted(tmp_path, cli, damage, phrase):
+    """NaN or infinite covariances, fits, parameter values, standard deviations or misfits,
+    which no calibration writes, were drawn as a fit (exit 0; all misfits NaN with numpy's
+    "All-NaN slice encountered")."""
+    _calibration_file(tmp_path / "calibration.nc", **damage)
+    result = cli("plot", tmp_path)
+    assert result.code == 2 and "Traceback" not in result.err and "Warning" not in result.err, result.err
+    assert f"{tmp_path / 'calibration.nc'}: {phrase}" in result.err, result.err
+
+
+def test_a_calibration_whose_runs_all_failed_so_far_is_plotted_without_warnings(tmp_path, cli):
+    """What a calibration writes after a batch whose runs all failed: misfits inf, no
+    prediction (fitted nan), no covariance (nan); drawn, exit 0, nothing from numpy."""
+    nan2 = [np.nan, np.nan]
+    _calibration_file(tmp_path / "calibration.nc", misfit=[np.inf] * 3, fitted=nan2, covariance=[nan2, nan2])
+    result = cli("plot", tmp_path)
+    assert result.code == 0 and "Warning" not in result.err, result.err
+    assert (tmp_path / "plots" / "misfit.png").is_file()
+
+
 def test_a_member_marker_that_is_no_marker_means_run_again(tmp_path):
     from multilayer.app import sweep
 

@@ -146,11 +146,48 @@ def check_study(ds: xr.Dataset, path: Path) -> None:
             count = _plain(ds.attrs.get(name, 0 if name != "base_samples" else None))
             if not (_number(count) and float(count).is_integer() and 0 <= float(count) < 2**63):
                 raise InputError(f"{path}: its attribute {name} is {shown(count)}, not a count; {accepted}")
+    if kind == "calibration":
+        _check_calibration_values(ds, path, accepted)
     for name in SOBOL_INDICES if kind == "sensitivity" else ():
         values = np.asarray(ds[name].values)
         if values.dtype.kind != "f" or np.isinf(values).any():
             what = "infinite values" if values.dtype.kind == "f" else f"values of type {values.dtype}"
             raise InputError(f"{path}: {name} holds {what}, where numbers or nan; {accepted}")
+
+
+CALIBRATION_VALUES = {
+    "values": "finite numbers",
+    "observed": "finite numbers",
+    "observed_sd": "finite numbers > 0",
+    "misfit": "numbers >= 0, inf where a run failed",
+    "best": "finite numbers, or nan throughout (no parameter set evaluated)",
+    "fitted": "finite numbers, or nan throughout (the best set has no prediction)",
+    "covariance": "finite numbers, or nan throughout (not computed yet)",
+}
+"""What a calibration writes in the variables its figures compute with (its runs' measures
+are finite, or the run failed: :mod:`multilayer.app.ensemble`)."""
+
+
+def _check_calibration_values(ds: xr.Dataset, path: Path, accepted: str) -> None:
+    """:class:`InputError` naming ``path``, the variable and its first value out of
+    :data:`CALIBRATION_VALUES` (a damaged file would be drawn as a fit)."""
+    for name, allowed in CALIBRATION_VALUES.items():
+        values = np.asarray(ds[name].values)
+        if values.dtype.kind not in "fiu":
+            raise InputError(
+                f"{path}: {name} holds values of type {values.dtype}, where {allowed}; {accepted}"
+            )
+        values = values.astype(float)
+        if name == "misfit":
+            good = values >= 0
+        elif name == "observed_sd":
+            good = np.isfinite(values) & (values > 0)
+        elif name in ("best", "fitted", "covariance") and np.isnan(values).all():
+            continue  # not evaluated or computed yet
+        else:
+            good = np.isfinite(values)
+        if not good.all():
+            raise InputError(f"{path}: {name} holds {values[~good][0]:g}, where {allowed}; {accepted}")
 
 
 def _plain(value: Any) -> Any:
@@ -180,7 +217,7 @@ def misfit_figure(ds: xr.Dataset) -> Figure:
     if failed.any():
         ax.plot(
             order[failed],
-            np.full(failed.sum(), np.nanmax(np.where(np.isfinite(misfit), misfit, np.nan))),
+            np.full(failed.sum(), misfit[~failed].max() if (~failed).any() else 1.0),
             "x",
             color="red",
             label="failed",
