@@ -225,3 +225,68 @@ def test_a_csv_profile_read_before_and_unchanged_is_not_parsed_again(tmp_path, m
     os.utime(path, ns=(0, 0))  # another modification time: read again
     assert profiles.read_csv_profile(path, ("x", "z|b")).tolist() == [[0.0, 0.0], [1.0, 0.5]]
     assert len(parsed) == 2
+
+
+def test_a_sweep_member_costs_no_work_per_row_of_a_bed_file_read_before(
+    tmp_path, write_scenario, tiny_scenario, monkeypatch
+):
+    """Every member of a sweep is validated: a bed of 10^6 rows read once still cost 0.9 s
+    a member (its rows turned into lists, checked, searched).  Bounded by counts, not by
+    time: each file is parsed once, and a member allocates less than half of one column
+    of a file of 40 000 rows (its lists took 100 bytes a row); a member changing the
+    cells resamples, one changing the file reads it."""
+    import tracemalloc
+
+    from multilayer.app import sweep as sweeps
+    from multilayer.scenario import profiles
+
+    rows = 40_000
+    for name, scale in (("bed.csv", 0.01), ("other.csv", 0.02)):
+        x = np.linspace(0.0, 0.3, rows)
+        (tmp_path / name).write_text(
+            "x (m), z (m)\n" + "".join(f"{a!r}, {scale * math.sin(40 * a)!r}\n" for a in x.tolist())
+        )
+    profiles._cached_csv_profile.cache_clear()
+    parsed = []
+    real = profiles._parsed_csv_profile
+    monkeypatch.setattr(
+        profiles, "_parsed_csv_profile", lambda path, columns: parsed.append(path.name) or real(path, columns)
+    )
+    _scenario(write_scenario, tiny_scenario, bed={"file": "bed.csv"})
+    sweep = sweeps.load(
+        write_scenario(
+            {"base": "scenario.yaml", "parameters": {"rheology.mu_s": [0.2, 0.25, 0.3, 0.35]}}, "sweep.yaml"
+        )
+    )
+    members = sweep.members()
+    sweep.member_scenario(members[0])
+    tracemalloc.start()
+    try:
+        for member in members[1:]:
+            tracemalloc.reset_peak()
+            scenario = sweep.member_scenario(member)
+            assert tracemalloc.get_traced_memory()[1] < rows * 8 // 2
+    finally:
+        tracemalloc.stop()
+    assert parsed == ["bed.csv"]
+    assert len(scenario.bed.points) == 32  # the 30 cell centres and the two ends
+    read = profiles.read_csv_profile(tmp_path / "bed.csv", ("x", "z|b"))
+    finer = sweep.member_scenario(members[1], ["domain.cells=60"])
+    x = np.array([p[0] for p in finer.bed.points])
+    assert len(x) == 62 and [p[1] for p in finer.bed.points] == np.interp(x, *read.T).tolist()
+    other = sweep.member_scenario(members[1], ["bed.file=other.csv"])
+    assert parsed == ["bed.csv", "other.csv"]
+    assert [p[1] for p in other.bed.points] == pytest.approx([2 * p[1] for p in scenario.bed.points])
+
+
+def test_a_profile_sampled_at_its_rows_only_equals_np_interp():
+    """:func:`profiles.sampled` reads the rows bracketing each x: the values of ``np.interp``
+    over all rows, at rows, between them and beyond both ends."""
+    from multilayer.scenario import profiles
+
+    rng = np.random.default_rng(5)
+    px = np.cumsum(rng.uniform(1e-3, 1.0, 500))
+    points = np.asfortranarray(np.column_stack([px, rng.normal(size=500)]))
+    points.flags.writeable = False
+    x = np.concatenate([px[::7], rng.uniform(px[0] - 5, px[-1] + 5, 200), [px[0], px[-1]]])
+    assert profiles.sampled(points, x).tolist() == np.interp(x, px, points[:, 1]).tolist()

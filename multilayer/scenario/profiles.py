@@ -51,18 +51,27 @@ def read_csv_profile(path: str | Path, columns: Sequence[str]) -> np.ndarray:
     sensitivity study is validated, and a bed of 10^6 rows took 7 s a member (a sweep of
     10^4 members, the bound, some 20 hours of ``validate``).
     """
+    return shared_csv_profile(path, columns).copy()
+
+
+def shared_csv_profile(path: str | Path, columns: Sequence[str]) -> np.ndarray:
+    """The points of :func:`read_csv_profile` without their copy: one read-only array
+    shared by every reader of the file as it is, its columns contiguous (the x of a
+    profile are searched, ``np.searchsorted``, without copying them)."""
     try:
         status = os.stat(path)
     except (OSError, ValueError):  # missing or unreadable: the reading names it
         return _parsed_csv_profile(Path(path), tuple(columns))
     stamp = (status.st_dev, status.st_ino, status.st_size, status.st_mtime_ns)
-    return _cached_csv_profile(str(path), tuple(columns), stamp).copy()
+    return _cached_csv_profile(str(path), tuple(columns), stamp)
 
 
 @functools.lru_cache(maxsize=4)  # 16 MB a profile of 10^6 points
 def _cached_csv_profile(path: str, columns: tuple[str, ...], stamp: tuple[int, ...]) -> np.ndarray:
-    """:func:`_parsed_csv_profile` of ``path`` as it was at ``stamp``."""
-    return _parsed_csv_profile(Path(path), columns)
+    """:func:`_parsed_csv_profile` of ``path`` as it was at ``stamp``, read-only."""
+    points = _parsed_csv_profile(Path(path), columns)
+    points.flags.writeable = False
+    return points
 
 
 def _parsed_csv_profile(path: Path, columns: tuple[str, ...]) -> np.ndarray:
@@ -118,7 +127,18 @@ def _parsed_csv_profile(path: Path, columns: tuple[str, ...]) -> np.ndarray:
         points.append((x * factors[0], value * factors[1]))
     if len(points) < 2:
         raise InputError(f"{path}: {len(points)} data row(s); accepted: at least 2 rows after the header")
-    return np.asarray(points)
+    return np.asfortranarray(points)
+
+
+def sampled(points: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``np.interp(x, *points.T)`` of a profile ``[[x, value], ...]`` (x strictly
+    increasing), reading only the rows that bracket ``x``: the same values (each ``x`` is
+    interpolated between the same two rows), in work of ``len(x)`` searches of the rows.
+    ``np.interp`` itself copies a read-only array, such as :func:`shared_csv_profile`."""
+    px, values = points[:, 0], points[:, 1]
+    above = np.searchsorted(px, x, side="right")
+    rows = np.unique(np.clip(np.concatenate([above - 1, above]), 0, len(px) - 1))
+    return np.interp(x, px[rows], values[rows])
 
 
 def read_dem_profile(

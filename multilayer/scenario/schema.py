@@ -259,8 +259,13 @@ def _file_in(info: ValidationInfo, name: Path) -> Path:
 def _read_profile(read: typing.Callable[[], np.ndarray], key: str) -> list[list[float]]:
     """Points of a profile read from a file: an :class:`InputError` (a bad file) becomes a
     validation error of ``key``, reported with the scenario file and line."""
+    return _profile_array(read, key).tolist()
+
+
+def _profile_array(read: typing.Callable[[], np.ndarray], key: str) -> np.ndarray:
+    """:func:`_read_profile` as the array read."""
     try:
-        return read().tolist()
+        return read()
     except InputError as exc:
         message, _, accepted = str(exc).partition("; accepted: ")
         raise invalid(message, accepted, key) from None
@@ -292,7 +297,12 @@ class Bed(StrictModel):
     )
 
     _map_points: np.ndarray | None = PrivateAttr(None)
-    """A map-frame profile [[s, Z], ...], turned into ``points`` with the scenario's slope."""
+    """A map-frame profile [[s, Z], ...], turned into ``_read`` with the scenario's slope."""
+    _read: np.ndarray | None = PrivateAttr(None)
+    """A slope-frame profile [[x, b], ...] read from a file or a DEM, x strictly increasing
+    (the reading checks it), turned into ``points`` at the mesh by :meth:`resample`: as
+    an array (shared by every scenario reading the file), a member of a sweep of a bed
+    of 10^6 rows costs no list of its rows."""
 
     @model_validator(mode="after")
     def _check(self, info: ValidationInfo) -> Bed:
@@ -318,11 +328,11 @@ class Bed(StrictModel):
         )
         if self.profile == "file":
             path = _file_in(info, typing.cast(Path, self.file))
-            points = _read_profile(lambda: profiles.read_csv_profile(path, ("x", "z|b")), "file")
+            points = _profile_array(lambda: profiles.shared_csv_profile(path, ("x", "z|b")), "file")
             if self.frame == "map":
-                self._map_points = np.array(points, dtype=float)
+                self._map_points = points
             else:
-                self.points = points
+                self._read = points
         elif self.profile == "dem":
             polyline = typing.cast(list[list[float]], self.polyline)
             if len(polyline) < 2:
@@ -330,20 +340,19 @@ class Bed(StrictModel):
                     "needs at least 2 points", "a list [[X, Y], ...] of 2 or more points", "polyline"
                 )
             path = _file_in(info, typing.cast(Path, self.dem))
-            self._map_points = np.array(
-                _read_profile(lambda: profiles.read_dem_profile(path, polyline, self.spacing), "dem"),
-                dtype=float,
+            self._map_points = _profile_array(
+                lambda: profiles.read_dem_profile(path, polyline, self.spacing), "dem"
             )
         if self.points is not None:
             increasing(self.points, "points", "b")
         return self
 
     def in_slope_frame(self, slope_deg: float) -> None:
-        """Turn a map-frame profile (``frame: map`` or a DEM) into slope-frame ``points``."""
+        """Turn a map-frame profile (``frame: map`` or a DEM) into the slope frame."""
         map_points = self._map_points
         if map_points is not None:
             source = self.dem or self.file
-            self.points = _read_profile(
+            self._read = _profile_array(
                 lambda: profiles.map_to_slope_frame(map_points, slope_deg, str(source)),
                 f"bed.{'dem' if self.dem else 'file'}",
             )
@@ -354,14 +363,15 @@ class Bed(StrictModel):
         continue it level beyond its ends: a profile of a file or a DEM ending short of the
         domain was continued level silently (the engine interpolates), a terrain the
         scenario never gave."""
-        if not self.points or self.extend == "flat":
+        if self.extend == "flat" or (self._read is None and not self.points):
             return
-        px = [x for x, _ in self.points]
-        if px[0] <= domain.x_min and px[-1] >= domain.x_max:
+        points = self._read if self._read is not None else typing.cast(list[list[float]], self.points)
+        first, last = float(points[0][0]), float(points[-1][0])
+        if first <= domain.x_min and last >= domain.x_max:
             return
         source = f"{self.dem or self.file} " if self.dem or self.file else ""
         raise invalid(
-            f"the profile {source}spans x = [{px[0]:g}, {px[-1]:g}] m (along the slope), short of the domain "
+            f"the profile {source}spans x = [{first:g}, {last:g}] m (along the slope), short of the domain "
             f"[{domain.x_min:g}, {domain.x_max:g}] m",
             "a profile reaching both ends of the domain, or extend: flat to continue it level past its ends",
             "bed.dem" if self.dem else "bed.file" if self.file else "bed.points",
@@ -371,14 +381,19 @@ class Bed(StrictModel):
         """A profile read from a file with more points than ``domain`` has cells, sampled
         once at the cell centres (where the engine samples the bed) and at the two ends:
         the run is the same, and its record (every checkpoint, ``result.nc``) stays the
-        size of the mesh."""
-        if self.profile not in ("file", "dem") or not self.points or len(self.points) <= domain.cells + 2:
+        size of the mesh.  Only the rows around the samples are looked at
+        (:func:`~multilayer.scenario.profiles.sampled`): validating a scenario again costs
+        no work per row of a file already read."""
+        read, self._read = self._read, None
+        if read is None:
             return
-        px, pb = np.asarray(self.points, dtype=float).T
+        if len(read) <= domain.cells + 2:
+            self.points = read.tolist()
+            return
         x = np.concatenate(
             [[domain.x_min], cell_centres(domain.x_min, domain.x_max, domain.cells), [domain.x_max]]
         )
-        self.points = np.column_stack([x, np.interp(x, px, pb)]).tolist()
+        self.points = np.column_stack([x, profiles.sampled(read, x)]).tolist()
 
     def check_resolution(self, domain: Domain, dry: float) -> None:
         """The thickness is resolved against the bed: the engine computes the free surface
