@@ -81,7 +81,7 @@ def check_result(path: str | os.PathLike, use: Use = "answer", records: int | No
     whole = _whole_records(file, bad)
     try:
         with NETCDF_LOCK, netCDF4.Dataset(file) as ds:
-            status = _status(ds, file, bad)
+            status, scenario = _status(ds, file, bad)
             if use != "resume" and status == "running":
                 raise bad(
                     "run_status is 'running': a run is still writing it, or the process writing it "
@@ -101,9 +101,9 @@ def check_result(path: str | os.PathLike, use: Use = "answer", records: int | No
                     f"truncated: {file.stat().st_size} bytes, {whole} of its {count} output times whole "
                     "(the file is shorter than its header declares)"
                 )
-            _check_records(ds, needed, bad)
+            _check_records(ds, needed, float(scenario["material"]["density"]), bad)
             if use != "resume" and status == "completed":
-                _check_span(ds, count, bad)
+                _check_span(ds, count, scenario, bad)
     except (OSError, RuntimeError, KeyError, IndexError, ValueError, TypeError) as exc:
         raise bad(f"not a readable multilayer result ({type(exc).__name__}: {reason(exc)})") from None
     return file
@@ -198,8 +198,9 @@ def _check_dimensions(ds: netCDF4.Dataset, scenario: dict, bad) -> None:
         )
 
 
-def _status(ds: netCDF4.Dataset, file: Path, bad) -> str:
-    """The run status of ``ds``; the variables and the scenario are those of a result."""
+def _status(ds: netCDF4.Dataset, file: Path, bad) -> tuple[str, dict]:
+    """The run status of ``ds`` and its scenario (read once for every check), having checked
+    that the variables, the scenario and the attributes are those of a result."""
     missing = [name for name in VARIABLES if name not in ds.variables]
     if set(missing) == set(FORCES):  # written before the forces were
         missing = []
@@ -215,16 +216,20 @@ def _status(ds: netCDF4.Dataset, file: Path, bad) -> str:
         node: object = scenario
         for part in key.split("."):
             node = node.get(part) if isinstance(node, dict) else None
-        if (required or node is not None) and not (
-            isinstance(node, (int, float)) and not isinstance(node, bool) and math.isfinite(node)
-        ):
+        if (required or node is not None) and not finite_number(node):
             raise bad(f"its scenario attribute's {key} is {shown(node)}, not a finite number")
     _check_attributes(ds, bad)
     _check_dimensions(ds, scenario, bad)
     status = str(ds.getncattr("run_status")) if "run_status" in ds.ncattrs() else ""
     if status not in STATUSES:
         raise bad(f"run_status {status!r} is not one of {', '.join(STATUSES)}")
-    return status
+    return status, scenario
+
+
+def finite_number(value: object) -> bool:
+    """True for a finite ``int`` or ``float`` (not a ``bool``): a number of a file's text or
+    attributes that its readers compute with."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 DECODING = (
@@ -273,11 +278,10 @@ def _brackets(bounds: np.ndarray, centres: np.ndarray) -> bool:
     )
 
 
-def _check_span(ds: netCDF4.Dataset, count: int, bad) -> None:
+def _check_span(ds: netCDF4.Dataset, count: int, scenario: dict, bad) -> None:
     """Raise ``bad(...)`` unless the records of the completed run ``ds`` (``count`` of them)
-    start at ``t = 0`` and end at its scenario's ``time.end``, exactly."""
-    time = safe_load(str(ds.getncattr("scenario"))).get("time")  # a mapping, by _status
-    end = time.get("end") if isinstance(time, dict) else None
+    start at ``t = 0`` and end at its ``scenario``'s ``time.end``, exactly."""
+    end = scenario["time"]["end"]  # a finite number, by _status
     times = np.asarray(ds["time"][:count], dtype=float) if count else np.array([np.nan])
     if not (times[0] == 0.0 and times[-1] == end):
         raise bad(
@@ -292,8 +296,9 @@ CHUNK_VALUES = 2**23
 
 
 @np.errstate(invalid="ignore", over="ignore")  # damaged values are named by the checks, not warned of
-def _check_records(ds: netCDF4.Dataset, count: int, bad) -> None:
-    """Raise ``bad(...)`` at the first of the first ``count`` records that fails its checks;
+def _check_records(ds: netCDF4.Dataset, count: int, density: float, bad) -> None:
+    """Raise ``bad(...)`` at the first of the first ``count`` records that fails its checks
+    (the forces balanced with the momentum at the scenario's ``density``);
     the records are read in chunks of about :data:`CHUNK_VALUES` values and screened at
     once, the first failing one examined on its own for the message."""
     _check_encoding(ds, bad)
@@ -353,7 +358,7 @@ def _check_records(ds: netCDF4.Dataset, count: int, bad) -> None:
                 raise _record_error(bad, start + j, float(t[j]), what)
         before = float(t[-1])
     if count and "bed_force_x" in ds.variables:
-        _check_forces(ds, count, momentum, bad)
+        _check_forces(ds, count, momentum, density, bad)
     if "phi" in ds.variables:
         _check_mixture(ds, count, step, bad)
 
@@ -377,7 +382,7 @@ def _check_mixture(ds: netCDF4.Dataset, count: int, step: int, bad) -> None:
                 raise _record_error(bad, start + j, t, f"{name} = {value!r} is not {accepted}")
 
 
-def _check_forces(ds: netCDF4.Dataset, count: int, momentum: np.ndarray, bad) -> None:
+def _check_forces(ds: netCDF4.Dataset, count: int, momentum: np.ndarray, density: float, bad) -> None:
     """The forces of the first ``count`` records: NaN in the first, finite after, and the
     change of momentum between two records (``momentum``: ``sum_a h_a u_a dx`` of each,
     per unit density) their mean times the interval (``result_format.FORCES``)."""
@@ -390,7 +395,6 @@ def _check_forces(ds: netCDF4.Dataset, count: int, momentum: np.ndarray, bad) ->
         if broken.size:
             i = int(broken[0]) + 1
             raise _record_error(bad, i, float(t[i]), f"{name} = {float(values[i])!r} is not finite")
-    density = float(safe_load(str(ds.getncattr("scenario")))["material"]["density"])
     terms = ("bed_force_x", "wall_force_x", "end_force_x", "pressure_force_x", "outflow_momentum_x")
     net = f["gravity_force_x"][1:] - sum(f[name][1:] for name in terms)
     change = density * np.diff(momentum)

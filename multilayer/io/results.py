@@ -542,10 +542,9 @@ def _oversized_member(path: str | os.PathLike) -> str | None:
     checksum refused it, one of 20 MB exhausted the memory."""
     with zipfile.ZipFile(path) as archive:
         members = archive.infolist()
-        if sum(info.file_size for info in members) > os.path.getsize(path):
-            return (
-                f"its members unpack to {sum(info.file_size for info in members)} bytes, more than the file's"
-            )
+        unpacked = sum(info.file_size for info in members)
+        if unpacked > os.path.getsize(path):
+            return f"its members unpack to {unpacked} bytes, more than the file's"
         for info in members:
             with archive.open(info) as member:
                 version = np.lib.format.read_magic(member)

@@ -23,6 +23,7 @@ from matplotlib.figure import Figure
 from multilayer.errors import InputError, reason
 from multilayer.io.disk import writable_directory
 from multilayer.io.plotting import PLOTS_DIR, drawn_from, save_figures
+from multilayer.io.result_check import finite_number
 from multilayer.io.result_format import NETCDF_LOCK
 from multilayer.io.results import decoded
 from multilayer.scenario.messages import shown
@@ -138,13 +139,13 @@ def check_study(ds: xr.Dataset, path: Path) -> None:
             raise InputError(f"{path}: {name} over {ds[name].dims}, where over {dims}; {accepted}")
     if kind == "sensitivity":  # the figure's titles and notes compute with them
         level = _plain(ds.attrs["confidence_level"])
-        if not (_number(level) and 0 < float(level) < 1):
+        if not (finite_number(level) and 0 < float(level) < 1):
             raise InputError(
                 f"{path}: its attribute confidence_level is {shown(level)}, not in (0, 1); {accepted}"
             )
         for name in COUNTS:
             count = _plain(ds.attrs.get(name, 0 if name != "base_samples" else None))
-            if not (_number(count) and float(count).is_integer() and 0 <= float(count) < 2**63):
+            if not (finite_number(count) and float(count).is_integer() and 0 <= float(count) < 2**63):
                 raise InputError(f"{path}: its attribute {name} is {shown(count)}, not a count; {accepted}")
     if kind == "calibration":
         _check_calibration_values(ds, path, accepted)
@@ -195,11 +196,6 @@ def _plain(value: Any) -> Any:
     if isinstance(value, np.ndarray) and value.size == 1:
         value = value.reshape(())[()]
     return value.item() if isinstance(value, np.generic) else value
-
-
-def _number(value: Any) -> bool:
-    """True for a finite number."""
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def misfit_figure(ds: xr.Dataset) -> Figure:
