@@ -168,6 +168,35 @@ def test_immersed_heap_at_rest_is_exact(layers, mixture):
 
 
 @pytest.mark.parametrize("layers", [1, 3])
+def test_a_heap_at_rest_with_a_pore_pressure_stays_at_rest_while_it_decays(layers):
+    """The heap above with a relaxing pore pressure of 0.3 of the buoyant weight above each
+    interface: held at ``u == 0.0``, ``h`` and the solid bit for bit, each pore pressure
+    decaying by ``t_IG,a / (t_IG,a + dt)`` a step (Heun's two local steps compose backward
+    Euler over ``dt``; measured to 0.45 eps of the weight), ``t_IG,a = alpha B_a``."""
+    points = ((0.0, 0.0), (0.05, 0.004), (0.1, 0.0))
+    entry = InitialEntry("profile", points=points, phi=0.582)
+    sim = mixture_run([entry], slope=0.0, sides=("wall", "wall"), layers=layers, mixture=RELAXING)
+    h0, solid0, local = sim.h.copy(), sim.mixture.solid.copy(), sim.mixture.local
+    weight = local.buoyant_g_n * np.cumsum(solid0[::-1], axis=0)[::-1]
+    saved = sim.state_dict()
+    saved["pore_pressure"] = 0.3 * weight
+    sim.load_state(saved)
+    wet = h0 > 0.0
+    B = local.darcy(solid0[:, wet], h0[wet]).sum(axis=1)
+    for _ in range(10):
+        before = sim.mixture.pore_pressure[:, wet]
+        dt = sim.step()
+        assert np.all(sim.u == 0.0)
+        assert np.array_equal(sim.h, h0) and np.array_equal(sim.mixture.solid, solid0)
+        t_ig = RELAXING.compressibility * B
+        expected = before * t_ig / (t_ig + dt)
+        assert np.all(
+            np.abs(sim.mixture.pore_pressure[:, wet] - expected) <= 4 * np.finfo(float).eps * weight[:, wet]
+        )
+    assert np.all(sim.mixture.pore_pressure[:, wet] > 0.0)
+
+
+@pytest.mark.parametrize("layers", [1, 3])
 def test_dry_limit_equals_the_dry_run(layers):
     """No fluid (rho_f = eta_f = 0) and no dilatancy (K = 0): the Coulomb collapse of the
     dry engine with the bulk density rho_s phi, in one layer and in three."""
