@@ -71,13 +71,15 @@ def small_collapse(layers: int, phi: float) -> tuple[Simulation, float, float]:
     return sim, solid0, volume0
 
 
-def pressure_below_the_column(layers: int, phi: float, t_end: float = 1.0) -> float:
+def pressure_below_the_column(
+    layers: int, phi: float, t_end: float = 1.0, mixture: MixtureConfig = FLUID
+) -> float:
     """The basal excess pore pressure averaged below the initial column of
     :func:`small_collapse` (``x < 3 cm``), at its largest magnitude over the first
     ``t_end`` seconds (Pa, signed): the measure of the validation case
     ``submarine_collapse``."""
     entry = InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01, phi=phi)
-    sim = mixture_run([entry], slope=10.0, layers=layers)
+    sim = mixture_run([entry], slope=10.0, layers=layers, mixture=mixture)
     below = sim.x < 0.03
     means = []
     while sim.t < t_end:
@@ -147,7 +149,7 @@ RELAXING = dataclasses.replace(FLUID, compressibility=5e-5)
 "A pore pressure with its own evolution")."""
 
 
-@pytest.mark.parametrize(("layers", "mixture"), [(1, FLUID), (3, FLUID), (1, RELAXING)])
+@pytest.mark.parametrize(("layers", "mixture"), [(1, FLUID), (3, FLUID), (1, RELAXING), (3, RELAXING)])
 def test_immersed_heap_at_rest_is_exact(layers, mixture):
     points = ((0.0, 0.0), (0.05, 0.004), (0.1, 0.0))  # surface slope 0.08, below tan(22.5 deg)
     sim = mixture_run(
@@ -163,6 +165,35 @@ def test_immersed_heap_at_rest_is_exact(layers, mixture):
     assert np.all(sim.u == 0.0)
     assert np.array_equal(sim.h, h0) and np.array_equal(sim.mixture.solid, solid0)
     assert np.all(sim.mixture.pore_pressure == 0.0)
+
+
+@pytest.mark.parametrize("layers", [1, 3])
+def test_a_heap_at_rest_with_a_pore_pressure_stays_at_rest_while_it_decays(layers):
+    """The heap above with a relaxing pore pressure of 0.3 of the buoyant weight above each
+    interface: held at ``u == 0.0``, ``h`` and the solid bit for bit, each pore pressure
+    decaying by ``t_IG,a / (t_IG,a + dt)`` a step (Heun's two local steps compose backward
+    Euler over ``dt``; measured to 0.45 eps of the weight), ``t_IG,a = alpha B_a``."""
+    points = ((0.0, 0.0), (0.05, 0.004), (0.1, 0.0))
+    entry = InitialEntry("profile", points=points, phi=0.582)
+    sim = mixture_run([entry], slope=0.0, sides=("wall", "wall"), layers=layers, mixture=RELAXING)
+    h0, solid0, local = sim.h.copy(), sim.mixture.solid.copy(), sim.mixture.local
+    weight = local.buoyant_g_n * np.cumsum(solid0[::-1], axis=0)[::-1]
+    saved = sim.state_dict()
+    saved["pore_pressure"] = 0.3 * weight
+    sim.load_state(saved)
+    wet = h0 > 0.0
+    B = local.darcy(solid0[:, wet], h0[wet]).sum(axis=1)
+    for _ in range(10):
+        before = sim.mixture.pore_pressure[:, wet]
+        dt = sim.step()
+        assert np.all(sim.u == 0.0)
+        assert np.array_equal(sim.h, h0) and np.array_equal(sim.mixture.solid, solid0)
+        t_ig = RELAXING.compressibility * B
+        expected = before * t_ig / (t_ig + dt)
+        assert np.all(
+            np.abs(sim.mixture.pore_pressure[:, wet] - expected) <= 4 * np.finfo(float).eps * weight[:, wet]
+        )
+    assert np.all(sim.mixture.pore_pressure[:, wet] > 0.0)
 
 
 @pytest.mark.parametrize("layers", [1, 3])
@@ -287,16 +318,9 @@ SCENARIO = {
             {"mixture": {"phi_critical": 0.582, "dilatancy": 4.09, "critical_shift": 25.0, "kozeny": 1e305}},
             "mixture.kozeny",
         ),
-        # a relaxing pore pressure: alpha in (0, 1] 1/Pa, one layer only
+        # a relaxing pore pressure: alpha in (0, 1] 1/Pa
         ({"fluid": {"density": 1041, "viscosity": 0.096, "compressibility": 0.0}}, "fluid.compressibility"),
         ({"fluid": {"density": 1041, "viscosity": 0.096, "compressibility": 2.0}}, "fluid.compressibility"),
-        (
-            {
-                "fluid": {"density": 1041, "viscosity": 0.096, "compressibility": 1e-6},
-                "domain": {"x_min": 0.0, "x_max": 0.1, "cells": 10, "layers": 3},
-            },
-            "fluid.compressibility",
-        ),
     ],
 )
 def test_mixture_keys_are_validated(change, key):
@@ -304,6 +328,15 @@ def test_mixture_keys_are_validated(change, key):
     data = {k: v for k, v in data.items() if v is not None}
     with pytest.raises(InputError, match=key.replace(".", r"\.")):
         multilayer.load(data)
+
+
+def test_a_relaxing_pore_pressure_is_accepted_in_layers():
+    data = {
+        **SCENARIO,
+        "fluid": {"density": 1041, "viscosity": 0.096, "compressibility": 1e-6},
+        "domain": {"x_min": 0.0, "x_max": 0.1, "cells": 10, "layers": 3},
+    }
+    assert multilayer.load(data).fluid.compressibility == 1e-6
 
 
 @pytest.mark.parametrize(
@@ -906,49 +939,144 @@ def test_the_local_step_relaxes_its_pore_pressure_by_backward_euler():
     assert p_e[0, 2] == pytest.approx(5.0 * 5e-5 * M[2] / (5e-5 * M[2] + dt), rel=4 * eps)  # at rest: decays
 
 
-def test_a_relaxing_collapse_conserves_the_solid_and_resumes_exactly():
-    """Loose and dense columns: solid to round-off, fluid balanced with the ambient exchange,
-    the pore pressure carried with the mixture, a resumed run the same bit for bit."""
-    for phi, slope in ((0.56, 10.0), (0.6, 25.0)):
-        entry = InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01, phi=phi)
-        first = mixture_run([entry], slope=slope, mixture=RELAXING)
-        solid0, volume0 = first.mixture.solid.sum() * first.dx, first.h.sum() * first.dx
-        for _ in range(10):
-            first.step()
-            first.check_state()
-        saved = first.state_dict()
-        for _ in range(10):
-            first.step()
-            first.check_state()
-        assert np.any(first.u != 0.0)
-        assert abs(first.mixture.solid.sum() * first.dx - solid0) <= 1e-14 * solid0
-        fluid = (first.h.sum() - first.mixture.solid.sum()) * first.dx
-        assert fluid - (volume0 - solid0) == pytest.approx(first.mixture.ambient_exchange, abs=1e-15)
-        assert np.all(first.mixture.pore_pressure[:, first.h == 0.0] == 0.0)
-        second = mixture_run([entry], slope=slope, mixture=RELAXING)
-        second.load_state(saved)
-        for _ in range(10):
-            second.step()
-        assert np.array_equal(first.u, second.u) and np.array_equal(first.h, second.h)
-        assert np.array_equal(first.mixture.solid, second.mixture.solid)
-        assert np.array_equal(first.mixture.pore_pressure, second.mixture.pore_pressure)
+@pytest.mark.parametrize("alpha", [5e-5, 5e-8])
+@pytest.mark.parametrize("layers", [2, 3, 5])
+def test_the_local_step_relaxes_each_pore_pressure_of_its_layers_by_backward_euler(layers, alpha):
+    """Random columns, loose and dense: each pore pressure solves its own backward Euler,
+    ``alpha B_a (p_e,a' - p_e,a) / dt = -(p_e,a' + (M Phi')_a)``, ``B_a = sum_b M_ab``, with
+    ``Phi'`` at the effective pressures ``P - p_e'``, to round-off (16 eps of the column's
+    largest term and weight; measured, at most 7.6 eps: the coupled closure takes one Newton
+    step past its tolerance); a column at rest has
+    ``Phi = 0`` and each of its pore pressures decays over its own ``t_IG,a = alpha B_a``."""
+    local = LocalStep(
+        dataclasses.replace(FLUID, compressibility=alpha), DilatantCoulomb(delta_deg=22.5, K1=90.5), GRAINS,
+        np.full(layers, 1.0 / layers), 9.81, 1e-12, 50,
+    )  # fmt: skip
+    rng = np.random.default_rng(layers)
+    n = 12
+    h = rng.uniform(3e-3, 1e-2, n)
+    solid = rng.uniform(0.52, 0.64, (layers, n)) * h / layers
+    v = np.cumsum(rng.uniform(0.0, 1e-2, (layers, n)), axis=0)
+    v[:, -1] = 0.0
+    previous, dt = rng.uniform(-20.0, 20.0, (layers, n)), 0.01
+    _, _, dilation, p_e = local.closure(solid, h, v, previous, alpha / dt)
+    M = local.darcy(solid, h)
+    B = M.sum(axis=1)
+    terms = np.stack(
+        [alpha * B * p_e / dt, -alpha * B * previous / dt, p_e, np.einsum("abn,bn->an", M, dilation)]
+    )
+    weight = local.buoyant_g_n * np.cumsum(solid[::-1], axis=0)[::-1]
+    eps = np.finfo(float).eps
+    assert np.all(np.abs(terms.sum(axis=0)) <= 16 * eps * (np.abs(terms).max(axis=(0, 1)) + weight[0]))
+    r = alpha * B[:, -1] / dt
+    assert np.all(np.abs(p_e[:, -1] - previous[:, -1] * r / (1.0 + r)) <= 4 * eps * weight[:, -1])
 
 
-def test_a_vanishing_compressibility_is_the_closure_in_the_time_loop():
-    """The loose collapse after 10 steps: the difference to the closure's run falls as alpha."""
-    entry = InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01, phi=0.56)
+@pytest.mark.parametrize(
+    ("layers", "phi", "slope"),
+    [(1, 0.56, 10.0), (1, 0.6, 25.0), (3, 0.56, 10.0), pytest.param(3, 0.6, 25.0, marks=pytest.mark.slow)],
+)
+def test_a_relaxing_collapse_conserves_the_solid_and_resumes_exactly(layers, phi, slope):
+    """Loose and dense columns in one and three layers: solid to round-off, fluid balanced
+    with the ambient exchange, the pore pressures carried with the mixture, a resumed run
+    the same bit for bit."""
+    entry = InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01, phi=phi)
+    first = mixture_run([entry], slope=slope, mixture=RELAXING, layers=layers)
+    solid0, volume0 = first.mixture.solid.sum() * first.dx, first.h.sum() * first.dx
+    for _ in range(10):
+        first.step()
+        first.check_state()
+    saved = first.state_dict()
+    for _ in range(10):
+        first.step()
+        first.check_state()
+    assert np.any(first.u != 0.0)
+    assert abs(first.mixture.solid.sum() * first.dx - solid0) <= 1e-14 * solid0
+    fluid = (first.h.sum() - first.mixture.solid.sum()) * first.dx
+    assert fluid - (volume0 - solid0) == pytest.approx(first.mixture.ambient_exchange, abs=1e-15)
+    assert np.all(first.mixture.pore_pressure[:, first.h == 0.0] == 0.0)
+    second = mixture_run([entry], slope=slope, mixture=RELAXING, layers=layers)
+    second.load_state(saved)
+    for _ in range(10):
+        second.step()
+    assert np.array_equal(first.u, second.u) and np.array_equal(first.h, second.h)
+    assert np.array_equal(first.mixture.solid, second.mixture.solid)
+    assert np.array_equal(first.mixture.pore_pressure, second.mixture.pore_pressure)
+
+
+@pytest.mark.parametrize(
+    ("layers", "phi", "slope", "alphas"),
+    [
+        (1, 0.56, 10.0, (1e-9, 1e-10, 1e-11)),
+        (3, 0.56, 10.0, (1e-10, 1e-11, 1e-12)),
+        pytest.param(3, 0.6, 30.0, (1e-10, 1e-11, 1e-12), marks=pytest.mark.slow),
+    ],
+)
+def test_a_vanishing_compressibility_is_the_closure_in_the_time_loop(layers, phi, slope, alphas):
+    """A loose and a dense (slow) collapse after 10 steps: the difference to the closure's
+    run in the velocities and the pore pressures falls as alpha (measured in three layers:
+    orders 0.9996 to 1.0000).  In layers the steps end at fixed times (0.005 s) and the
+    Newton iteration stops at ``numerics.tolerance = 1e-13``: a front column a few microns
+    thick can have two roots of its step 4e-4 Pa apart, and which one the
+    iteration reaches depends on where it starts (the relaxing run starts a column at rest
+    from ``p_e r / (1 + r)``, the closure's from its last pore pressure): the loose collapse
+    on 25 degrees differs from the closure's run by 5.7e-6 of its speed for every alpha
+    from 1e-10 down to 1e-12 (docs/mixture.md).  In these runs no column does."""
+    entry = InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01, phi=phi)
+    numerics = Numerics() if layers == 1 else Numerics(tolerance=1e-13)
 
     def run(mixture: MixtureConfig) -> Simulation:
-        sim = mixture_run([entry], slope=10.0, mixture=mixture)
-        for _ in range(10):
-            sim.step()
+        sim = mixture_run([entry], slope=slope, mixture=mixture, layers=layers, numerics=numerics)
+        for k in range(10):
+            sim.step(np.inf if layers == 1 else (k + 1) * 0.005)
         return sim
 
     closure = run(FLUID)
     errors = []
-    for alpha in (1e-9, 1e-10, 1e-11):
+    for alpha in alphas:
         sim = run(dataclasses.replace(FLUID, compressibility=alpha))
         assert sim.t == closure.t
-        errors.append(float(np.max(np.abs(sim.u - closure.u))) / float(np.max(np.abs(closure.u))))
+        pressure = sim.mixture.pore_pressure - closure.mixture.pore_pressure
+        errors.append(
+            [
+                float(np.max(np.abs(sim.u - closure.u))) / float(np.max(np.abs(closure.u))),
+                float(np.max(np.abs(pressure))) / float(np.max(np.abs(closure.mixture.pore_pressure))),
+            ]
+        )
     rates = np.log10(np.array(errors[:-1]) / np.array(errors[1:]))
     assert np.all(np.abs(rates - 1.0) < 0.1), (errors, rates)
+
+
+@pytest.mark.parametrize(("layers", "phi"), [(1, 0.56), (1, 0.6), (3, 0.56), (3, 0.6)])
+def test_a_relaxing_pore_pressure_below_the_column_has_the_sign_of_the_packing(layers, phi):
+    """The published signs with ``alpha = 5e-5`` 1/Pa (``t_IG`` about 5 s at the bed of the
+    1 cm column), the measure of the closure's test: averaged below the initial column, at
+    its largest magnitude over the first second (measured: +13.7 and -6.5 Pa in one layer,
+    +9.3 and -5.9 Pa in three; in three layers the loose column's is -4.5 Pa over the first
+    0.3 s only, its pore pressure building over ``t_IG``)."""
+    pressure = pressure_below_the_column(layers, phi, mixture=RELAXING)
+    assert math.copysign(1.0, FLUID.phi_critical - phi) * pressure > 0.0
+
+
+@pytest.mark.parametrize("layers", [1, 3])
+def test_a_layered_relaxing_result_holds_the_pore_pressure_of_each_layer(tmp_path, layers):
+    """``pore_pressure_layer(time, layer, x)`` with a relaxing pore pressure in layers, its
+    first layer ``pore_pressure_excess``; not written for one layer; the file checked."""
+    from multilayer.app import runner
+    from multilayer.io.result_check import check_result
+    from multilayer.io.results import open_result
+
+    path = Path(__file__).resolve().parents[1] / "scenarios" / "immersed_layer_loose.yaml"
+    overrides = {
+        "time.end": 0.05, "time.output_interval": 0.025, "domain.layers": layers, "domain.cells": 4,
+        "fluid.compressibility": 5e-5,
+    }  # fmt: skip
+    runner.run(multilayer.load(path, overrides), tmp_path, quiet=True)
+    check_result(tmp_path)
+    ds = open_result(tmp_path)
+    assert ("pore_pressure_layer" in ds) == (layers > 1)
+    if layers > 1:
+        layered = ds["pore_pressure_layer"]
+        assert layered.dims == ("time", "layer", "x") and layered.attrs["units"] == "Pa"
+        assert np.array_equal(layered.values[:, 0], ds["pore_pressure_excess"].values)
+        assert np.all(layered.values[-1] > 0.0)  # loose: contracts in every layer

@@ -206,7 +206,18 @@ MIXTURE_VARIABLES: dict[str, tuple[tuple[str, ...], dict[str, str]]] = {
             "long_name": "excess pore pressure at the bed (over the ambient fluid's hydrostatic pressure)",
         },
     ),
+    "pore_pressure_layer": (
+        ("time", "layer", "x"),
+        {
+            "units": "Pa",
+            "long_name": "relaxing excess pore pressure at the bottom of each layer",
+            "coordinates": "sigma",
+        },
+    ),
 }
+"""``pore_pressure_layer`` is written only where the pore pressure relaxes in several layers
+(``fluid.compressibility`` with ``domain.layers`` above 1; its first layer is
+``pore_pressure_excess``)."""
 
 
 def result_path(path: str | os.PathLike) -> Path:

@@ -87,8 +87,11 @@ class ResultWriter:
         self._broken = False  # a write failed: the netCDF handle cannot be trusted
         n_layers, n_cells = sim.read_only("u").shape
         self._mixture = getattr(sim, "mixture", None) is not None
+        # the relaxing pore pressure at the bottom of each layer, where there are several
+        relaxing = self._mixture and sim.mixture.config.compressibility is not None
+        self._layered_pressure = relaxing and n_layers > 1
         # a mixture's records hold phi and p_e, not the forces (docs/mixture.md)
-        extra = (n_layers + 2) * n_cells if self._mixture else len(FORCES)
+        extra = (n_layers * (1 + self._layered_pressure) + 2) * n_cells if self._mixture else len(FORCES)
         self._record_bytes = 8 * ((n_layers + 2) * n_cells + 3 + extra)
         with NETCDF_LOCK:
             try:
@@ -145,6 +148,8 @@ class ResultWriter:
         variables = VARIABLES
         if self._mixture:  # the forces of a mixture are not computed (docs/mixture.md)
             variables = {**{k: v for k, v in VARIABLES.items() if k not in FORCES}, **MIXTURE_VARIABLES}
+            if not self._layered_pressure:
+                variables.pop("pore_pressure_layer")
         for name, (dims, attrs) in variables.items():
             if name == "layer":
                 var = ds.createVariable(name, "i4", dims)
@@ -206,6 +211,8 @@ class ResultWriter:
                     ds["phi"][i, :] = sim.mixture.phi(h)
                     ds["phi_layer"][i, :, :] = sim.mixture.phi_layers(h)
                     ds["pore_pressure_excess"][i, :] = sim.read_only("pore_pressure")[0]
+                    if self._layered_pressure:
+                        ds["pore_pressure_layer"][i, :, :] = sim.read_only("pore_pressure")
                 ds["front"][i] = diag["front"]
                 ds["mass"][i] = diag["mass"]
                 for name, value in forces.items():

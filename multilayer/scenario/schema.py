@@ -765,9 +765,9 @@ class Fluid(StrictModel):
     viscosity: float = field(..., "a number >= 0 (Pa s)", ge=0)
     compressibility: float | None = field(
         None,
-        "a number in (0, 1] (1/Pa): the grain skeleton's compressibility alpha, a basal excess pore "
-        "pressure relaxing over alpha beta h^2 / (2 (1 - phi)^2), one layer only; default: the closure's "
-        "at once",
+        "a number in (0, 1] (1/Pa): the grain skeleton's compressibility alpha, the excess pore "
+        "pressure at the bottom of each layer relaxing towards the closure's over alpha times its Darcy "
+        "coefficient (beta h^2 / (2 (1 - phi)^2) for one layer); default: the closure's at once",
         gt=0,
         le=1,
     )
@@ -945,12 +945,6 @@ class Scenario(StrictModel):
         for ok, key, accepted in supported:
             if not ok:
                 raise invalid("not supported with a fluid", accepted, key)
-        if self.fluid.compressibility is not None and self.domain.layers != 1:
-            raise invalid(
-                f"a relaxing pore pressure in {self.domain.layers} layers is not available",
-                "fluid.compressibility with domain.layers: 1 only (docs/mixture.md)",
-                "fluid.compressibility",
-            )
 
     def _check_drag(self, grains: float) -> None:
         """The Darcy drag of every packing given (:func:`closure.drag`) is a finite number:

@@ -30,7 +30,9 @@ exchange term of the uniform layer's energy identity), the yield stress and visc
 the rheology at the effective pressure.  The pore pressures and the thickness of the whole
 column are the unknowns of a Newton iteration with the exact column solve inside; at rest
 ``gamma = 0``, so ``Phi = 0``, ``p_e = 0`` and ``h' = h*`` bit for bit: a column held by
-friction stays at ``v == 0.0``.
+friction stays at ``v == 0.0``.  With a compressibility ``alpha`` (George & Iverson 2014) each
+pore pressure relaxes towards the closure's, ``alpha B_a d_t p_e,a = -(p_e,a + (M Phi)_a)``
+with ``B_a = sum_b M_ab``, by backward Euler in the same iteration (:meth:`LocalStep.closure`).
 
 Continuation in ``dt``: a column whose Newton iteration does not converge (it stalls,
 wanders, or runs out of ``numerics.max_iterations``) or diverges is done again as
@@ -251,11 +253,14 @@ class LocalStep:
         non-negative root starts the iteration), for several a Newton iteration that keeps
         ``p_s > 0`` where ``C > 0`` (the system's map is decreasing in ``p_s``: one root).
 
-        With ``previous`` (1, n) (one layer, a compressibility) the pore pressure is a
-        backward-Euler step of its relaxation from ``previous``, ``alpha (p_e - previous) / dt =
-        -p_e / M - Phi`` with ``lag = alpha / dt``: the quadratic with ``M`` divided by ``1 + r``
-        and ``P`` lowered by ``r previous / (1 + r)``, ``r = lag M`` (as
-        :func:`multilayer.engine.mixture.closure.basal_closure`)."""
+        With ``previous`` (L, n) (a compressibility) each pore pressure is a backward-Euler
+        step of its own relaxation from ``previous``, ``alpha B_a (p_e,a - previous_a) / dt =
+        -(p_e,a + (M Phi)_a)`` with ``lag = alpha / dt``, ``t_IG,a = alpha B_a`` and
+        ``B_a = sum_b M_ab`` (the pore pressure at interface ``a`` per unit dilation rate of the
+        whole column; at the bed of a uniform column the uniform layer's ``B`` in any number
+        of layers): row ``a`` of ``M`` divided by ``1 + r_a`` and ``P_a`` lowered by
+        ``r_a previous_a / (1 + r_a)``, ``r_a = lag B_a``; for one layer the quadratic of
+        :func:`multilayer.engine.mixture.closure.basal_closure`."""
         cfg, L = self.config, self.l.shape[0]
         phi = solid / (self.l * h)
         gamma = np.abs(np.diff(v, axis=0, prepend=0.0)) / (self.spacing * h)
@@ -263,8 +268,8 @@ class LocalStep:
         M = self.darcy(solid, h)
         base = weight
         if previous is not None:
-            ratio = lag * M[0, 0]
-            M = M / (1.0 + ratio)
+            ratio = lag * M.sum(axis=1)
+            M = M / (1.0 + ratio)[:, None, :]
             base = weight - previous * ratio / (1.0 + ratio)
         linear = gamma * cfg.dilatancy * (phi - cfg.phi_critical)
         C = cfg.dilatancy * cfg.critical_shift * cfg.fluid_viscosity * gamma * gamma
@@ -276,7 +281,7 @@ class LocalStep:
         )
         p_s = np.where(diagonal * C > 0.0, positive, np.maximum(A, 0.0))
         if L > 1:
-            p_s = self._coupled(p_s, weight, M, linear, C)
+            p_s = self._coupled(p_s, base, M, linear, C, weight[0], polish=previous is not None)
         _finite(p_s)
         contact = p_s > 0.0
         dilation = linear + np.where(contact, C / np.where(contact, p_s, 1.0), 0.0)
@@ -300,20 +305,33 @@ class LocalStep:
         return M
 
     def _coupled(
-        self, p_s: np.ndarray, weight: np.ndarray, M: np.ndarray, linear: np.ndarray, C: np.ndarray
+        self,
+        p_s: np.ndarray,
+        base: np.ndarray,
+        M: np.ndarray,
+        linear: np.ndarray,
+        C: np.ndarray,
+        bed: np.ndarray,
+        polish: bool = False,
     ) -> np.ndarray:
-        """Newton's iteration for ``p_s = P + M Phi(p_s)`` from ``p_s`` (each layer's own
-        root, the other layers' viscous shift left out), halving a step that would make
-        an effective pressure with ``C > 0`` non-positive."""
+        """Newton's iteration for ``p_s = base + M Phi(p_s)`` (``base = P`` but for a relaxing
+        pore pressure) from ``p_s`` (each layer's own root, the other layers' viscous shift
+        left out), halving a step that would make an effective pressure with ``C > 0``
+        non-positive; ``bed`` (n,) the buoyant weight of the column, the scale of its tolerance.
+        With ``polish`` (a relaxing pore pressure) one more step once within the tolerance: the
+        backward-Euler equation of the relaxation is then solved to round-off."""
         viscous = C > 0.0
         L = p_s.shape[0]
         identity = np.eye(L)[None]
+        polished = not polish
         for _ in range(self.max_iterations):
             x = np.where(viscous, p_s, 1.0)
             shift = np.where(viscous, C / x, 0.0)
-            residual = p_s - weight - np.einsum("abn,bn->an", M, linear + shift)
-            if np.all(np.abs(residual) <= CLOSURE_TOLERANCE * np.maximum(np.abs(p_s).max(axis=0), weight[0])):
-                return p_s
+            residual = p_s - base - np.einsum("abn,bn->an", M, linear + shift)
+            if np.all(np.abs(residual) <= CLOSURE_TOLERANCE * np.maximum(np.abs(p_s).max(axis=0), bed)):
+                if polished:
+                    return p_s
+                polished = True
             jacobian = identity + np.transpose(M * np.where(viscous, C / (x * x), 0.0)[None], (2, 0, 1))
             step = np.linalg.solve(jacobian, -residual.T[..., None])[..., 0].T
             _finite(step)  # a step that is not finite would be halved for ever
@@ -353,7 +371,7 @@ class LocalStep:
         velocities ``ustar`` (L, n) (the buoyant weight along the slope included), the
         iteration started from the velocities ``guess`` and the excess pore pressures
         ``pressure_guess`` (default: at rest); ``x`` (n,) and ``t`` place the columns in
-        the messages of the checked plugin calls.  With a compressibility, ``previous`` (1, n)
+        the messages of the checked plugin calls.  With a compressibility, ``previous`` (L, n)
         is the pore pressure the relaxation starts from (:meth:`closure`).
 
         The step is ``substeps`` successive backward-Euler steps of ``dt / substeps`` (one

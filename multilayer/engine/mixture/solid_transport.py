@@ -67,10 +67,10 @@ def transport(
 def carried(
     values: np.ndarray, h_old: np.ndarray, h_new: np.ndarray, crossed: np.ndarray, dx: float, periodic: bool
 ) -> np.ndarray:
-    """A quantity per column ``values`` (1, N) carried by the mixture volume over the
-    transport step from ``h_old`` to ``h_new``, as the solid fraction of one layer: the
-    content ``values h`` crosses each face with the value of its upwind cell (0 where
-    ``h_new`` is 0)."""
+    """Quantities per column ``values`` (k, N) (a relaxing pore pressure at the bottom of
+    each layer) carried by the mixture volume over the transport step from ``h_old`` to
+    ``h_new``, each as the solid fraction of one layer: the content ``values h`` crosses
+    each face with the value of its upwind cell (0 where ``h_new`` is 0)."""
     volumes, donor, filled = _upwind(values, h_old, h_new, crossed, dx, periodic)
     content = values * h_old - np.diff(filled[:, donor] * volumes, axis=1) / dx
     wet = h_new > 0.0
