@@ -1061,8 +1061,10 @@ def test_a_relaxing_pore_pressure_below_the_column_has_the_sign_of_the_packing(l
 @pytest.mark.parametrize("layers", [1, 3])
 def test_a_layered_relaxing_result_holds_the_pore_pressure_of_each_layer(tmp_path, layers):
     """``pore_pressure_layer(time, layer, x)`` with a relaxing pore pressure in layers, its
-    first layer ``pore_pressure_excess``; not written for one layer; the file checked."""
+    first layer ``pore_pressure_excess``; not written for one layer; the file checked and
+    the layers' pore pressures drawn in the mixture's figure."""
     from multilayer.app import runner
+    from multilayer.io.plotting import mixture_figure
     from multilayer.io.result_check import check_result
     from multilayer.io.results import open_result
 
@@ -1080,3 +1082,7 @@ def test_a_layered_relaxing_result_holds_the_pore_pressure_of_each_layer(tmp_pat
         assert layered.dims == ("time", "layer", "x") and layered.attrs["units"] == "Pa"
         assert np.array_equal(layered.values[:, 0], ds["pore_pressure_excess"].values)
         assert np.all(layered.values[-1] > 0.0)  # loose: contracts in every layer
+    labels = [ax.get_ylabel().split("\n")[0] for ax in mixture_figure(ds, "loose").axes]
+    assert labels[3:] == (["phi per layer", "p_e at the bottom"] if layers > 1 else [])
+    if layers > 1:
+        assert len(mixture_figure(ds, "loose").axes[4].lines) == layers

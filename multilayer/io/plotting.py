@@ -479,10 +479,19 @@ def mixture_figure(ds: xr.Dataset, name: str, times: int = 6) -> Figure:
     """A grain–fluid mixture: the solid fraction phi(x) and the basal excess pore pressure
     p_e(x) at several output times (where the material is), and p_e at the bed averaged
     over the material against time; with several layers, the solid fraction of each layer
-    at the last output time."""
+    at the last output time, and the relaxing pore pressure at the bottom of each layer
+    where the result holds it (``pore_pressure_layer``)."""
     layered = ds.sizes.get("layer", 1) > 1
-    fig = Figure(figsize=(8, 10.5 if layered else 8), layout="constrained")
-    axes = fig.subplots(4 if layered else 3, 1)
+    per_layer = [
+        (variable, label)
+        for variable, label in (
+            ("phi_layer", "phi per layer"),
+            ("pore_pressure_layer", "p_e at the bottom\nof each layer (Pa)"),
+        )
+        if layered and variable in ds
+    ]
+    fig = Figure(figsize=(8, 8 + 2.5 * len(per_layer)), layout="constrained")
+    axes = fig.subplots(3 + len(per_layer), 1)
     ax_phi, ax_pe, ax_time = axes[:3]
     wet = ds["h"] > 0.0
     for j, k in enumerate(_time_indices(ds, times)):
@@ -501,14 +510,14 @@ def mixture_figure(ds: xr.Dataset, name: str, times: int = 6) -> Figure:
     ax_time.set_xlabel("time (s)")
     ax_time.set_ylabel("mean excess pore\npressure at the bed (Pa)")
     ax_phi.set_title(f"{name}: grain-fluid mixture")
-    if layered:
-        last, ax_layers = ds.isel(time=-1), axes[3]
+    last = ds.isel(time=-1)
+    for ax, (variable, ylabel) in zip(axes[3:], per_layer, strict=True):
         for a in range(ds.sizes["layer"]):
-            layer = last["phi_layer"].isel(layer=a).where(last["h"] > 0.0)
-            ax_layers.plot(ds["x"], layer, color=_shade(a, ds.sizes["layer"]), label=f"layer {a + 1}")
-        ax_layers.set_xlabel("x along the plane (m)")
-        ax_layers.set_ylabel(f"phi per layer\nat t = {float(last['time']):.3g} s")
-        ax_layers.legend(fontsize="small", title="1 is at the bed")
+            values = last[variable].isel(layer=a).where(last["h"] > 0.0)
+            ax.plot(ds["x"], values, color=_shade(a, ds.sizes["layer"]), label=f"layer {a + 1}")
+        ax.set_xlabel("x along the plane (m)")
+        ax.set_ylabel(f"{ylabel}\nat t = {float(last['time']):.3g} s")
+        ax.legend(fontsize="small", title="1 is at the bed")
     return fig
 
 
