@@ -290,3 +290,98 @@ def test_a_profile_sampled_at_its_rows_only_equals_np_interp():
     points.flags.writeable = False
     x = np.concatenate([px[::7], rng.uniform(px[0] - 5, px[-1] + 5, 200), [px[0], px[-1]]])
     assert profiles.sampled(points, x).tolist() == np.interp(x, px, points[:, 1]).tolist()
+
+
+@pytest.mark.parametrize("separator", ["\f", "\v", "\x1c", "\x85", "\u2028", "\u2029"])
+def test_a_csv_line_ends_only_at_a_line_feed_or_carriage_return(tmp_path, separator):
+    """``str.splitlines`` ended a line at a form feed, a vertical tab, ``\\x1c``, ``\\x85``,
+    ``\\u2028`` or ``\\u2029``: ``0, 0<FF>0.3, 0`` was read as two rows (exit 0), where the
+    ``csv`` module and spreadsheets read one row of three fields, and the line numbers of the
+    messages were not an editor's."""
+    from multilayer.scenario import profiles
+
+    path = tmp_path / "bed.csv"
+    path.write_text(f"x (m), z (m)\n0, 0{separator}0.3, 0\n", encoding="utf-8")
+    with pytest.raises(InputError) as caught:
+        profiles.read_csv_profile(path, ("x", "z|b"))
+    assert (
+        f"bed.csv: line 2: expected two numbers separated by a comma, got {f'0, 0{separator}0.3, 0'!r}"
+        in str(caught.value)
+    )
+    path.write_text(f"x (m), z (m)\n# a note{separator}of two parts\n0, 0\n0.2, x\n", encoding="utf-8")
+    with pytest.raises(InputError, match="bed.csv: line 4: expected two numbers"):  # an editor's line
+        profiles.read_csv_profile(path, ("x", "z|b"))
+    path.write_bytes(b"x (m), z (m)\r0, 0\r\n0.3, 0.5\r")  # the line ends a CSV writer writes
+    assert profiles.read_csv_profile(path, ("x", "z|b")).tolist() == [[0.0, 0.0], [0.3, 0.5]]
+
+
+def test_a_map_frame_bed_is_turned_into_the_slope_frame_once_per_file_and_slope(
+    tmp_path, write_scenario, tiny_scenario, monkeypatch
+):
+    """Every member of a sweep is validated: a bed in the map frame was turned into the
+    slope frame for each (work per row of the file).  Counted: one conversion per file and
+    slope, the members' beds equal to a conversion of their own; a member at another slope
+    converts again."""
+    from multilayer.app import sweep as sweeps
+    from multilayer.scenario import profiles
+
+    rows = 5000
+    s = np.linspace(0.0, 0.4, rows)
+    (tmp_path / "terrain.csv").write_text(
+        "x (m), z (m)\n" + "".join(f"{a!r}, {b!r}\n" for a, b in zip(s.tolist(), _descending(s, 20).tolist()))
+    )
+    profiles._cached_csv_profile.cache_clear()
+    profiles._SLOPE_FRAMES.clear()
+    converted = []
+    real = profiles.map_to_slope_frame
+    monkeypatch.setattr(
+        profiles,
+        "map_to_slope_frame",
+        lambda points, slope, where: converted.append(slope) or real(points, slope, where),
+    )
+    _scenario(write_scenario, tiny_scenario, bed={"file": "terrain.csv", "frame": "map"})
+    sweep = sweeps.load(
+        write_scenario(
+            {"base": "scenario.yaml", "parameters": {"rheology.mu_s": [0.2, 0.3, 0.4]}}, "sweep.yaml"
+        )
+    )
+    beds = [sweep.member_scenario(member).bed.points for member in sweep.members()]
+    assert converted == [tiny_scenario["slope_deg"]] and beds[0] == beds[1] == beds[2]
+    steeper = sweep.member_scenario(sweep.members()[0], ["slope_deg=30"])
+    assert converted == [tiny_scenario["slope_deg"], 30]
+    monkeypatch.setattr(profiles, "map_to_slope_frame", real)
+    fresh = real(profiles.read_csv_profile(tmp_path / "terrain.csv", ("x", "z|b")), 30, "terrain.csv")
+    x = np.array([p[0] for p in steeper.bed.points])
+    assert [p[1] for p in steeper.bed.points] == np.interp(x, *fresh.T).tolist()
+
+
+def test_a_dem_read_before_along_the_same_polyline_is_not_read_again(
+    tmp_path, write_scenario, tiny_scenario, monkeypatch
+):
+    """A DEM's profile is shared as a CSV's is (read once per file, polyline, spacing and
+    modification), and turned into the slope frame once per slope; the reading itself is
+    replaced here (rasterio is optional)."""
+    from multilayer.scenario import profiles
+
+    profiles._cached_dem_profile.cache_clear()
+    profiles._SLOPE_FRAMES.clear()
+    reads, converted = [], []
+    s = np.linspace(0.0, 0.4, 400)
+    monkeypatch.setattr(
+        profiles,
+        "_parsed_dem_profile",
+        lambda path, vertices, spacing: reads.append(vertices.tolist()) or np.column_stack([s, -0.1 * s]),
+    )
+    real = profiles.map_to_slope_frame
+    monkeypatch.setattr(
+        profiles, "map_to_slope_frame", lambda *args: converted.append(args[1]) or real(*args)
+    )
+    (tmp_path / "dem.tif").write_bytes(b"a GeoTIFF")
+    bed = {"dem": "dem.tif", "polyline": [[0.0, 0.0], [0.4, 0.0]]}
+    first, second = (load(_scenario(write_scenario, tiny_scenario, bed=bed)).bed.points for _ in range(2))
+    assert first == second and reads == [[[0.0, 0.0], [0.4, 0.0]]] and len(converted) == 1
+    load(_scenario(write_scenario, tiny_scenario, bed={**bed, "polyline": [[0.0, 0.0], [0.0, 0.4]]}))
+    assert len(reads) == 2
+    os.utime(tmp_path / "dem.tif", ns=(0, 0))  # another modification time: read again
+    load(_scenario(write_scenario, tiny_scenario, bed=bed))
+    assert len(reads) == 3

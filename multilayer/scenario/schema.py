@@ -353,7 +353,7 @@ class Bed(StrictModel):
         if map_points is not None:
             source = self.dem or self.file
             self._read = _profile_array(
-                lambda: profiles.map_to_slope_frame(map_points, slope_deg, str(source)),
+                lambda: profiles.shared_slope_frame(map_points, slope_deg, str(source)),
                 f"bed.{'dem' if self.dem else 'file'}",
             )
             self._map_points = None
