@@ -3996,6 +3996,16 @@ def _sweep_over_a_long_map_frame_bed(directory: Path) -> None:
     (directory / "bed.csv").write_text("x (m), z (m)\n" + "".join(f"{x:.9f}, {-0.4 * x:.9f}\n" for x in rows))
 
 
+def _sweep_over_a_long_initial_profile(directory: Path) -> None:
+    """A sweep of 20 members of TINY (friction) whose initial thickness is a CSV of 10^6 rows."""
+    base = {**TINY, "initial": [{"shape": "profile", "file": "h.csv"}]}
+    _sweep({"rheology.mu_s": [0.2 + 0.01 * i for i in range(20)]}, base=base)(directory)
+    rows = np.linspace(0.0, 0.5, 10**6)
+    (directory / "h.csv").write_text(
+        "x (m), h (m)\n" + "".join(f"{x:.9f}, {0.05 if x < 0.1 else 0.0}\n" for x in rows)
+    )
+
+
 def round_twenty_one() -> list[Case]:
     """The hostile cases of the twenty-first round (docs/reliability.md): CSV rows holding
     characters ``str.splitlines`` ends a line at (a form feed, ``\\u2028``, ``\\x85``), result
@@ -4044,6 +4054,8 @@ def round_twenty_one() -> list[Case]:
              setup=_sweep({"slope_deg": [20.0, 25.0]})),
         Case("validate: a sweep of 20 members over a map-frame bed CSV of 10^6 rows (turned once)",
              ["validate", "{dir}/sweep.yaml"], 0, "", setup=_sweep_over_a_long_map_frame_bed),
+        Case("validate: a sweep of 20 members whose initial thickness is a CSV of 10^6 rows (read once)",
+             ["validate", "{dir}/sweep.yaml"], 0, "", setup=_sweep_over_a_long_initial_profile),
     ]  # fmt: skip
     return out
 

@@ -331,7 +331,7 @@ def test_a_map_frame_bed_is_turned_into_the_slope_frame_once_per_file_and_slope(
         "x (m), z (m)\n" + "".join(f"{a!r}, {b!r}\n" for a, b in zip(s.tolist(), _descending(s, 20).tolist()))
     )
     profiles._cached_csv_profile.cache_clear()
-    profiles._SLOPE_FRAMES.clear()
+    profiles._DERIVED.clear()
     converted = []
     real = profiles.map_to_slope_frame
     monkeypatch.setattr(
@@ -364,7 +364,7 @@ def test_a_dem_read_before_along_the_same_polyline_is_not_read_again(
     from multilayer.scenario import profiles
 
     profiles._cached_dem_profile.cache_clear()
-    profiles._SLOPE_FRAMES.clear()
+    profiles._DERIVED.clear()
     reads, converted = [], []
     s = np.linspace(0.0, 0.4, 400)
     monkeypatch.setattr(
@@ -385,3 +385,82 @@ def test_a_dem_read_before_along_the_same_polyline_is_not_read_again(
     os.utime(tmp_path / "dem.tif", ns=(0, 0))  # another modification time: read again
     load(_scenario(write_scenario, tiny_scenario, bed=bed))
     assert len(reads) == 3
+
+
+def test_a_sweep_member_costs_no_work_per_row_of_an_initial_thickness_file_read_before(
+    tmp_path, write_scenario, tiny_scenario, monkeypatch
+):
+    """Every member of a sweep is validated: an initial thickness of a file was parsed
+    once, but each member copied its rows, made lists of them, checked them again and
+    copied the lists when its keys were recorded, and `validate` wrote them as YAML to size
+    the result's header (3 s a member at 10^5 rows).  Counted:
+    one parse per file, a member allocating less than half of one column of a file of
+    40 000 rows; the initial state, the record and a member of another file equal those of
+    the same profile given by points; the rows cannot be written."""
+    import tracemalloc
+
+    from multilayer.app import resources
+    from multilayer.app import sweep as sweeps
+    from multilayer.scenario import profiles
+
+    rows = 40_000
+    x = np.linspace(0.0, 0.3, rows)
+    h = np.where(x < 0.1, 0.05 * (1.0 + np.cos(30 * x)), 0.0)
+    (tmp_path / "h.csv").write_text(
+        "x (m), h (m)\n" + "".join(f"{a!r}, {b!r}\n" for a, b in zip(x.tolist(), h.tolist()))
+    )
+    (tmp_path / "other.csv").write_text("x (m), h (m)\n0, 0.02\n0.1, 0.02\n0.2, 0\n")
+    profiles._cached_csv_profile.cache_clear()
+    parsed = []
+    real = profiles._parsed_csv_profile
+    monkeypatch.setattr(
+        profiles, "_parsed_csv_profile", lambda path, columns: parsed.append(path.name) or real(path, columns)
+    )
+    _scenario(write_scenario, tiny_scenario, initial=[{"shape": "profile", "file": "h.csv"}])
+    sweep = sweeps.load(
+        write_scenario(
+            {"base": "scenario.yaml", "parameters": {"rheology.mu_s": [0.2, 0.25, 0.3, 0.35]}}, "sweep.yaml"
+        )
+    )
+    members = sweep.members()
+    resources.estimate(sweep.member_scenario(members[0]))
+    tracemalloc.start()
+    try:
+        for member in members[1:]:
+            tracemalloc.reset_peak()
+            scenario = sweep.member_scenario(member)
+            resources.estimate(scenario)  # validate's: the size of the result's header
+            assert tracemalloc.get_traced_memory()[1] < rows * 8 // 2
+    finally:
+        tracemalloc.stop()
+    assert parsed == ["h.csv"] and not scenario.changed_since_validation()
+    assert 0 <= scenario.text_size() - len(scenario.resolved_yaml()) < 16
+    by_points = from_dict(
+        {**tiny_scenario, "initial": [{"shape": "profile", "points": np.column_stack([x, h]).tolist()}]}
+    )
+    edges = cell_edges(0.0, 0.3, 30)
+    centres, sigma = 0.5 * (edges[1:] + edges[:-1]), np.array([1 / 6, 0.5, 5 / 6])
+    from multilayer.app import factory
+
+    for a, b in zip(
+        initial_state(factory.initial_entries(scenario), centres, sigma, edges),
+        initial_state(factory.initial_entries(by_points), centres, sigma, edges),
+    ):
+        np.testing.assert_array_equal(a, b)
+    recorded = scenario.model_dump(mode="json", exclude_none=True, warnings=False)["initial"][
+        0
+    ]  # resolved_yaml's
+    assert "file" not in recorded and recorded["points"] == np.column_stack([x, h]).tolist()
+    with pytest.raises(ValueError, match="read-only"):
+        scenario.initial[0].points[0][1] = 1.0  # type: ignore[index]
+    other = sweep.member_scenario(members[1], ["initial.0.file=other.csv"])
+    assert parsed == ["h.csv", "other.csv"] and other.initial[0].points.tolist() == [  # type: ignore[union-attr]
+        [0.0, 0.02],
+        [0.1, 0.02],
+        [0.2, 0.0],
+    ]
+    scenario.initial[0].points = [[0.0, 0.05], [0.1, 0.0]]  # assigned since: validated again
+    assert scenario.changed_since_validation()
+    (tmp_path / "h.csv").write_text("x (m), h (m)\n0, 0.02\n0.1, -0.01\n")
+    with pytest.raises(InputError, match=r"initial.0.file \(line \d+\): negative thickness"):
+        sweep.member_scenario(members[1])

@@ -16,14 +16,18 @@ import functools
 import math
 import os
 import re
-from collections.abc import Sequence
+import typing
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any, TypeVar
 
 import numpy as np
 
 from multilayer.errors import InputError
 from multilayer.scenario.files import check_regular, read_text
 from multilayer.scenario.limits import MAX_DEM_PIXELS, MAX_PROFILE_POINTS
+
+T = TypeVar("T")
 
 LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "km": 1e3}
 """Units accepted in a CSV header, with their value in metres."""
@@ -256,34 +260,47 @@ def _bilinear(band: np.ndarray, row: np.ndarray, col: np.ndarray) -> np.ndarray:
     return np.where(inside, value, np.nan)
 
 
-_SLOPE_FRAMES: dict[tuple[int, str], tuple[np.ndarray, np.ndarray]] = {}
-"""The slope-frame profiles of :func:`shared_slope_frame`, by the identity of their
-read-only map-frame profile (held in the value, so that no other array takes its id) and
-the slope, most recently used last."""
+_DERIVED: dict[tuple[int, str], tuple[np.ndarray, Any]] = {}
+"""The values of :func:`derived`, by the identity of their read-only profile (held in the
+value, so that no other array takes its id) and their key, most recently used last."""
 
-SLOPE_FRAMES_KEPT = 4
-"""Slope-frame profiles kept (16 MB each at 10^6 rows)."""
+DERIVED_KEPT = 8
+"""Values of :func:`derived` kept (a slope-frame profile of 10^6 rows takes 16 MB)."""
+
+
+def derived(points: np.ndarray, key: str, compute: Callable[[np.ndarray], T]) -> T:
+    """``compute(points)``, computed once per ``key`` for a read-only profile shared by its
+    readers (:func:`shared_csv_profile`, :func:`read_dem_profile`): every member of a
+    study is validated, and one reading a file read before costs no work per row; a
+    writeable profile is computed for each call."""
+    if points.flags.writeable:
+        return compute(points)
+    slot = (id(points), key)
+    found = _DERIVED.pop(slot, None)
+    if found is None or found[0] is not points:
+        found = (points, compute(points))
+    _DERIVED[slot] = found
+    while len(_DERIVED) > DERIVED_KEPT:
+        _DERIVED.pop(next(iter(_DERIVED)), None)
+    return typing.cast(T, found[1])
 
 
 def shared_slope_frame(points: np.ndarray, slope_deg: float, where: str) -> np.ndarray:
-    """:func:`map_to_slope_frame` of ``points``, read-only, columns contiguous; for a
-    read-only profile shared by its readers (:func:`shared_csv_profile`,
-    :func:`read_dem_profile`) computed once per slope: every member of a study is
-    validated, and one of a sweep that keeps the slope costs no work per row."""
-    if points.flags.writeable:
-        frame = np.asfortranarray(map_to_slope_frame(points, slope_deg, where))
-        frame.flags.writeable = False
-        return frame
-    key = (id(points), float(slope_deg).hex())
-    found = _SLOPE_FRAMES.pop(key, None)
-    if found is None or found[0] is not points:
-        frame = np.asfortranarray(map_to_slope_frame(points, slope_deg, where))
-        frame.flags.writeable = False
-        found = (points, frame)
-    _SLOPE_FRAMES[key] = found
-    while len(_SLOPE_FRAMES) > SLOPE_FRAMES_KEPT:
-        _SLOPE_FRAMES.pop(next(iter(_SLOPE_FRAMES)), None)
-    return found[1]
+    """:func:`map_to_slope_frame` of ``points``, read-only, its columns contiguous, once per
+    slope for a shared profile (:func:`derived`)."""
+
+    def frame(profile: np.ndarray) -> np.ndarray:
+        rotated = np.asfortranarray(map_to_slope_frame(profile, slope_deg, where))
+        rotated.flags.writeable = False
+        return rotated
+
+    return derived(points, f"slope frame at {float(slope_deg).hex()} deg", frame)
+
+
+def lowest(points: np.ndarray) -> float:
+    """The smallest value of a profile ``[[x, value], ...]``, once for a shared profile
+    (:func:`derived`)."""
+    return derived(points, "lowest value", lambda profile: float(profile[:, 1].min()))
 
 
 def map_to_slope_frame(points: np.ndarray, slope_deg: float, where: str) -> np.ndarray:
