@@ -6,7 +6,7 @@ one, no traceback is printed and stderr names the culprit (a phrase given per ca
 faults during a run, ``result.nc`` must also keep what was computed before.  Prints one
 line per case and the counts.
 
-    python benchmarks/fault_battery.py [-k SUBSTRING] [-j 2]
+    python benchmarks/fault_battery.py [-k SUBSTRING] [--round N] [-j 2]
 """
 
 from __future__ import annotations
@@ -3712,6 +3712,7 @@ def cases() -> list[Case]:
         + round_eighteen()
         + round_nineteen()
         + round_twenty()
+        + round_twenty_one()
     )
 
 
@@ -3960,6 +3961,102 @@ def round_twenty() -> list[Case]:
     return out
 
 
+def _result_edit(edit: str) -> Callable[[Path], None]:
+    """A finished run whose result.nc is edited by ``edit``, Python run on its open
+    netCDF4 Dataset ``ds``."""
+
+    def setup(directory: Path) -> None:
+        _finished_run(directory)
+        import netCDF4
+
+        with NETCDF, netCDF4.Dataset(directory / "out" / "result.nc", "a") as ds:
+            exec(edit, {"ds": ds})
+
+    return setup
+
+
+def _initial_csv(text: str) -> Callable[[Path], None]:
+    """A scenario whose initial thickness is the profile ``h.csv``, written as ``text``."""
+
+    def setup(directory: Path) -> None:
+        _scenario(directory, {"initial": [{"shape": "profile", "file": "h.csv"}]})
+        (directory / "h.csv").write_bytes(text.encode())
+
+    return setup
+
+
+def _sweep_over_a_long_map_frame_bed(directory: Path) -> None:
+    """A sweep of 20 members of TINY (friction) over a map-frame bed CSV of 10^6 rows."""
+    base = {**TINY, "bed": {"file": "bed.csv", "frame": "map"}}
+    _sweep({"rheology.mu_s": [0.2 + 0.01 * i for i in range(20)]}, base=base)(directory)
+    rows = np.linspace(0.0, 0.6, 10**6)
+    (directory / "bed.csv").write_text("x (m), z (m)\n" + "".join(f"{x:.9f}, {-0.4 * x:.9f}\n" for x in rows))
+
+
+def _sweep_over_a_long_initial_profile(directory: Path) -> None:
+    """A sweep of 20 members of TINY (friction) whose initial thickness is a CSV of 10^6 rows."""
+    base = {**TINY, "initial": [{"shape": "profile", "file": "h.csv"}]}
+    _sweep({"rheology.mu_s": [0.2 + 0.01 * i for i in range(20)]}, base=base)(directory)
+    rows = np.linspace(0.0, 0.5, 10**6)
+    (directory / "h.csv").write_text(
+        "x (m), h (m)\n" + "".join(f"{x:.9f}, {0.05 if x < 0.1 else 0.0}\n" for x in rows)
+    )
+
+
+def round_twenty_one() -> list[Case]:
+    """The hostile cases of the twenty-first round (docs/reliability.md): CSV rows holding
+    characters ``str.splitlines`` ends a line at (a form feed, ``\\u2028``, ``\\x85``), result
+    files whose cell centres or bed are not their scenario's (consistently edited), a Dask
+    scheduler address whose port is no port, and a sweep over a map-frame bed of 10^6 rows."""
+    validate = ["validate", "{scenario}"]
+    sweep = ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/out", "-q"]
+    got = "expected two numbers separated by a comma, got"
+    shift = "for name in ('x', 'x_bnds', 'front'):\n    ds[name][:] = ds[name][:] + 100.0"
+    out = [
+        Case("validate: a bed CSV row holding a form feed", validate, 2,
+             f"bed.csv: line 2: {got} '0, 0\\x0c0.5, 0'", setup=_csv_bed("x (m), z (m)\n0, 0\f0.5, 0\n")),
+        Case("validate: a bed CSV row holding a line separator U+2028", validate, 2,
+             f"bed.csv: line 2: {got} '0, 0\\u20280.5, 0'",
+             setup=_csv_bed("x (m), z (m)\n0, 0\u20280.5, 0\n")),
+        Case("run: an initial-thickness CSV row holding a next-line character U+0085",
+             ["run", "{scenario}", "-o", "{dir}/out", "-q"], 2,
+             f"h.csv: line 3: {got} '0.1, 0.05\\x850.2, 0'",
+             setup=_initial_csv("x (m), h (m)\n0, 0.05\n0.1, 0.05\x850.2, 0\n0.5, 0\n")),
+        Case("validate: a bed CSV whose comment holds a form feed, its error a line later (the line named)",
+             validate, 2, f"bed.csv: line 4: {got} '0.5, x'",
+             setup=_csv_bed("x (m), z (m)\n# a note\fof two parts\n0, 0\n0.5, x\n")),
+        Case("validate: a bed CSV with CR line ends and a byte order mark", validate, 0, "",
+             setup=_csv_bed("\ufeffx (m), z (m)\r0, 0\r0.5, 0\r")),
+        Case("plot: result.nc whose x, x_bnds and front are moved 100 m", ["plot", "{dir}/out"], 2,
+             "its cell centres x or edges x_bnds are not the 40 cells of its scenario's domain [0, 0.5] m",
+             setup=_result_edit(shift)),
+        Case("export: result.nc whose x, x_bnds and front are moved 100 m",
+             ["export", "{dir}/out", "--vtk"], 2,
+             "its cell centres x or edges x_bnds are not the 40 cells of its scenario's domain [0, 0.5] m",
+             setup=_result_edit(shift)),
+        Case("export: result.nc whose bed is raised 1 m", ["export", "{dir}/out", "--vtk"], 2,
+             "its bed is not its scenario's bed: 1 m at x = 0.00625 m, where the scenario's bed is at 0 m",
+             setup=_result_edit("ds['bed'][:] = ds['bed'][:] + 1.0")),
+        Case("plot: result.nc whose scenario's bed is of no profile", ["plot", "{dir}/out"], 2,
+             "its scenario attribute's bed is not a flat bed or points",
+             setup=_result_edit("ds.scenario = ds.scenario.replace('profile: flat', 'profile: lumpy')")),
+        Case("resume: result.nc whose bed is raised 1 m",
+             ["run", "{scenario}", "-o", "{dir}/out", "--resume"], 2,
+             "its bed is not its scenario's bed", setup=_result_edit("ds['bed'][:] = ds['bed'][:] + 1.0")),
+        Case("sweep: --scheduler tcp://[::1]:99999", [*sweep, "--scheduler", "tcp://[::1]:99999"], 2,
+             "cannot connect (ValueError: port 99999 is no TCP port (1 to 65535))",
+             setup=_sweep({"slope_deg": [20.0, 25.0]})),
+        Case("sweep: --scheduler localhost:0", [*sweep, "--scheduler", "localhost:0"], 2,
+             "cannot connect (ValueError: port 0 is no TCP port (1 to 65535))",
+             setup=_sweep({"slope_deg": [20.0, 25.0]})),
+        Case("validate: a sweep of 20 members over a map-frame bed CSV of 10^6 rows (turned once)",
+             ["validate", "{dir}/sweep.yaml"], 0, "", setup=_sweep_over_a_long_map_frame_bed),
+        Case("validate: a sweep of 20 members whose initial thickness is a CSV of 10^6 rows (read once)",
+             ["validate", "{dir}/sweep.yaml"], 0, "", setup=_sweep_over_a_long_initial_profile),
+    ]  # fmt: skip
+    return out
+
+
 def _records(path: Path) -> int:
     try:
         import netCDF4
@@ -4031,12 +4128,26 @@ def attempt(case: Case) -> Case:
     return case
 
 
+ROUNDS: dict[int, Callable[[], list[Case]]] = {
+    2: round_two, 3: round_three, 4: round_four, 5: round_five, 6: round_six, 7: round_seven,
+    8: round_eight, 9: round_nine, 10: round_ten, 11: round_eleven, 12: round_twelve,
+    13: round_thirteen, 14: round_fourteen, 15: round_fifteen, 16: round_sixteen,
+    17: round_seventeen, 18: round_eighteen, 19: round_nineteen, 20: round_twenty,
+    21: round_twenty_one,
+}  # fmt: skip
+"""The rounds after the first, by number (``--round``)."""
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("-k", default="", help="only the cases whose name contains this")
     parser.add_argument("-j", type=int, default=2, help="cases run at once")
+    parser.add_argument(
+        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 21; all: none)"
+    )
     args = parser.parse_args()
-    selected = [c for c in cases() if args.k in c.name]
+    every = ROUNDS[args.round]() if args.round is not None else cases()
+    selected = [c for c in every if args.k in c.name]
     done = []
     with ThreadPoolExecutor(args.j) as pool:
         for case in pool.map(attempt, selected):  # printed as they finish, in order

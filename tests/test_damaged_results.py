@@ -104,6 +104,13 @@ def _scenario_text(old: str, new: str) -> Callable[[Path], None]:
     return damage
 
 
+def _shifted(path: Path) -> None:
+    """The cell centres, their edges and the front moved 100 m down the slope, consistently."""
+    with netCDF4.Dataset(path, "a") as ds:
+        for name in ("x", "x_bnds", "front"):
+            ds[name][:] = ds[name][:] + 100.0
+
+
 def _header(path: Path) -> None:
     data = bytearray(path.read_bytes())
     data[20:40] = b"\xff" * 20  # inside the dimension list
@@ -151,6 +158,21 @@ DAMAGES = {
     ),
     "x_bnds nan": (_set("x_bnds", (3, 0), np.nan), "its cell edges x_bnds are not finite"),
     "sigma nan": (_set("sigma", (1,), np.nan), "its layer heights sigma and sigma_bnds are not finite"),
+    # the mesh and the bed are those of the scenario: shifted or replaced consistently, every
+    # other check passed and the figures and VTK files showed the flow 100 m away (exit 0)
+    "x shifted": (
+        _shifted,
+        r"its cell centres x or edges x_bnds are not the 40 cells of its scenario's domain \[0, 0.5\] m "
+        r"\(x from 100.006 to 100.494 m\)",
+    ),
+    "bed changed": (
+        _set("bed", (5,), 0.01),
+        r"its bed is not its scenario's bed: 0.01 m at x = 0.06875 m, where the scenario's bed is at 0 m",
+    ),
+    "scenario bed": (
+        _scenario_text("profile: flat", "profile: lumpy"),
+        r"its scenario attribute's bed is not a flat bed or points",
+    ),
     # the scenario attribute: a tag PyYAML's constructor cannot read (was a ValueError), a slope
     # the figures compute with that is text (a traceback of plot)
     "scenario tag": (

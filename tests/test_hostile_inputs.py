@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import copy
 import json
+import math
 import os
 import re
 import shutil
@@ -1699,3 +1700,35 @@ def test_a_study_parameter_given_a_value_in_set_or_an_experiment_is_refused(tmp_
         assert re.search(
             rf"parameters\.rheology\.mu_s \(line \d+\): also given a value in {where},", validated.err
         )
+
+
+@pytest.mark.parametrize("address", ["tcp://[::1]:99999", "localhost:70000", "tcp://127.0.0.1:0"])
+def test_a_scheduler_address_whose_port_is_no_port_is_named_at_once(address):
+    """Dask retried a connection to port 99999 for its connection timeout (30 s), then named
+    the timeout, not the port."""
+    import time
+
+    start = time.monotonic()
+    with pytest.raises(
+        InputError, match=r"cannot connect \(ValueError: port -?\d+ is no TCP port \(1 to 65535\)"
+    ):
+        with sweeps.dask_client(address, None):
+            pass
+    assert time.monotonic() - start < 20
+
+
+def test_a_run_on_a_bed_read_from_a_file_passes_the_check_of_its_result(tmp_path, write_scenario):
+    """The check of a result's mesh and bed against its scenario: a bed of a CSV file of
+    more rows than cells, resampled and continued level past its end, is the bed written."""
+    from multilayer.io.result_check import check_result
+
+    x = np.linspace(0.0, 0.4, 500)
+    (tmp_path / "bed.csv").write_text(
+        "x (cm), z (mm)\n" + "".join(f"{100 * a!r}, {3 * math.sin(9 * a)!r}\n" for a in x.tolist())
+    )
+    scenario = {**TINY_SCENARIO, "bed": {"file": "bed.csv", "extend": "flat"}}
+    scenario["domain"] = {**scenario["domain"], "x_min": -0.05}
+    scenario["time"] = {"end": 0.04, "output_interval": 0.02}
+    result = multilayer.run(write_scenario(scenario), tmp_path / "out")
+    assert np.ptp(result["bed"].values) > 1e-3
+    assert check_result(tmp_path / "out") == tmp_path / "out" / "result.nc"

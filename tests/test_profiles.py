@@ -290,3 +290,177 @@ def test_a_profile_sampled_at_its_rows_only_equals_np_interp():
     points.flags.writeable = False
     x = np.concatenate([px[::7], rng.uniform(px[0] - 5, px[-1] + 5, 200), [px[0], px[-1]]])
     assert profiles.sampled(points, x).tolist() == np.interp(x, px, points[:, 1]).tolist()
+
+
+@pytest.mark.parametrize("separator", ["\f", "\v", "\x1c", "\x85", "\u2028", "\u2029"])
+def test_a_csv_line_ends_only_at_a_line_feed_or_carriage_return(tmp_path, separator):
+    """``str.splitlines`` ended a line at a form feed, a vertical tab, ``\\x1c``, ``\\x85``,
+    ``\\u2028`` or ``\\u2029``: ``0, 0<FF>0.3, 0`` was read as two rows (exit 0), where the
+    ``csv`` module and spreadsheets read one row of three fields, and the line numbers of the
+    messages were not an editor's."""
+    from multilayer.scenario import profiles
+
+    path = tmp_path / "bed.csv"
+    path.write_text(f"x (m), z (m)\n0, 0{separator}0.3, 0\n", encoding="utf-8")
+    with pytest.raises(InputError) as caught:
+        profiles.read_csv_profile(path, ("x", "z|b"))
+    assert (
+        f"bed.csv: line 2: expected two numbers separated by a comma, got {f'0, 0{separator}0.3, 0'!r}"
+        in str(caught.value)
+    )
+    path.write_text(f"x (m), z (m)\n# a note{separator}of two parts\n0, 0\n0.2, x\n", encoding="utf-8")
+    with pytest.raises(InputError, match="bed.csv: line 4: expected two numbers"):  # an editor's line
+        profiles.read_csv_profile(path, ("x", "z|b"))
+    path.write_bytes(b"x (m), z (m)\r0, 0\r\n0.3, 0.5\r")  # the line ends a CSV writer writes
+    assert profiles.read_csv_profile(path, ("x", "z|b")).tolist() == [[0.0, 0.0], [0.3, 0.5]]
+
+
+def test_a_map_frame_bed_is_turned_into_the_slope_frame_once_per_file_and_slope(
+    tmp_path, write_scenario, tiny_scenario, monkeypatch
+):
+    """Every member of a sweep is validated: a bed in the map frame was turned into the
+    slope frame for each (work per row of the file).  Counted: one conversion per file and
+    slope, the members' beds equal to a conversion of their own; a member at another slope
+    converts again."""
+    from multilayer.app import sweep as sweeps
+    from multilayer.scenario import profiles
+
+    rows = 5000
+    s = np.linspace(0.0, 0.4, rows)
+    (tmp_path / "terrain.csv").write_text(
+        "x (m), z (m)\n" + "".join(f"{a!r}, {b!r}\n" for a, b in zip(s.tolist(), _descending(s, 20).tolist()))
+    )
+    profiles._cached_csv_profile.cache_clear()
+    profiles._DERIVED.clear()
+    converted = []
+    real = profiles.map_to_slope_frame
+    monkeypatch.setattr(
+        profiles,
+        "map_to_slope_frame",
+        lambda points, slope, where: converted.append(slope) or real(points, slope, where),
+    )
+    _scenario(write_scenario, tiny_scenario, bed={"file": "terrain.csv", "frame": "map"})
+    sweep = sweeps.load(
+        write_scenario(
+            {"base": "scenario.yaml", "parameters": {"rheology.mu_s": [0.2, 0.3, 0.4]}}, "sweep.yaml"
+        )
+    )
+    beds = [sweep.member_scenario(member).bed.points for member in sweep.members()]
+    assert converted == [tiny_scenario["slope_deg"]] and beds[0] == beds[1] == beds[2]
+    steeper = sweep.member_scenario(sweep.members()[0], ["slope_deg=30"])
+    assert converted == [tiny_scenario["slope_deg"], 30]
+    monkeypatch.setattr(profiles, "map_to_slope_frame", real)
+    fresh = real(profiles.read_csv_profile(tmp_path / "terrain.csv", ("x", "z|b")), 30, "terrain.csv")
+    x = np.array([p[0] for p in steeper.bed.points])
+    assert [p[1] for p in steeper.bed.points] == np.interp(x, *fresh.T).tolist()
+
+
+def test_a_dem_read_before_along_the_same_polyline_is_not_read_again(
+    tmp_path, write_scenario, tiny_scenario, monkeypatch
+):
+    """A DEM's profile is shared as a CSV's is (read once per file, polyline, spacing and
+    modification), and turned into the slope frame once per slope; the reading itself is
+    replaced here (rasterio is optional)."""
+    from multilayer.scenario import profiles
+
+    profiles._cached_dem_profile.cache_clear()
+    profiles._DERIVED.clear()
+    reads, converted = [], []
+    s = np.linspace(0.0, 0.4, 400)
+    monkeypatch.setattr(
+        profiles,
+        "_parsed_dem_profile",
+        lambda path, vertices, spacing: reads.append(vertices.tolist()) or np.column_stack([s, -0.1 * s]),
+    )
+    real = profiles.map_to_slope_frame
+    monkeypatch.setattr(
+        profiles, "map_to_slope_frame", lambda *args: converted.append(args[1]) or real(*args)
+    )
+    (tmp_path / "dem.tif").write_bytes(b"a GeoTIFF")
+    bed = {"dem": "dem.tif", "polyline": [[0.0, 0.0], [0.4, 0.0]]}
+    first, second = (load(_scenario(write_scenario, tiny_scenario, bed=bed)).bed.points for _ in range(2))
+    assert first == second and reads == [[[0.0, 0.0], [0.4, 0.0]]] and len(converted) == 1
+    load(_scenario(write_scenario, tiny_scenario, bed={**bed, "polyline": [[0.0, 0.0], [0.0, 0.4]]}))
+    assert len(reads) == 2
+    os.utime(tmp_path / "dem.tif", ns=(0, 0))  # another modification time: read again
+    load(_scenario(write_scenario, tiny_scenario, bed=bed))
+    assert len(reads) == 3
+
+
+def test_a_sweep_member_costs_no_work_per_row_of_an_initial_thickness_file_read_before(
+    tmp_path, write_scenario, tiny_scenario, monkeypatch
+):
+    """Every member of a sweep is validated: an initial thickness of a file was parsed
+    once, but each member copied its rows, made lists of them, checked them again and
+    copied the lists when its keys were recorded, and `validate` wrote them as YAML to size
+    the result's header (3 s a member at 10^5 rows).  Counted:
+    one parse per file, a member allocating less than half of one column of a file of
+    40 000 rows; the initial state, the record and a member of another file equal those of
+    the same profile given by points; the rows cannot be written."""
+    import tracemalloc
+
+    from multilayer.app import resources
+    from multilayer.app import sweep as sweeps
+    from multilayer.scenario import profiles
+
+    rows = 40_000
+    x = np.linspace(0.0, 0.3, rows)
+    h = np.where(x < 0.1, 0.05 * (1.0 + np.cos(30 * x)), 0.0)
+    (tmp_path / "h.csv").write_text(
+        "x (m), h (m)\n" + "".join(f"{a!r}, {b!r}\n" for a, b in zip(x.tolist(), h.tolist()))
+    )
+    (tmp_path / "other.csv").write_text("x (m), h (m)\n0, 0.02\n0.1, 0.02\n0.2, 0\n")
+    profiles._cached_csv_profile.cache_clear()
+    parsed = []
+    real = profiles._parsed_csv_profile
+    monkeypatch.setattr(
+        profiles, "_parsed_csv_profile", lambda path, columns: parsed.append(path.name) or real(path, columns)
+    )
+    _scenario(write_scenario, tiny_scenario, initial=[{"shape": "profile", "file": "h.csv"}])
+    sweep = sweeps.load(
+        write_scenario(
+            {"base": "scenario.yaml", "parameters": {"rheology.mu_s": [0.2, 0.25, 0.3, 0.35]}}, "sweep.yaml"
+        )
+    )
+    members = sweep.members()
+    resources.estimate(sweep.member_scenario(members[0]))
+    tracemalloc.start()
+    try:
+        for member in members[1:]:
+            tracemalloc.reset_peak()
+            scenario = sweep.member_scenario(member)
+            resources.estimate(scenario)  # validate's: the size of the result's header
+            assert tracemalloc.get_traced_memory()[1] < rows * 8 // 2
+    finally:
+        tracemalloc.stop()
+    assert parsed == ["h.csv"] and not scenario.changed_since_validation()
+    assert 0 <= scenario.text_size() - len(scenario.resolved_yaml()) < 16
+    by_points = from_dict(
+        {**tiny_scenario, "initial": [{"shape": "profile", "points": np.column_stack([x, h]).tolist()}]}
+    )
+    edges = cell_edges(0.0, 0.3, 30)
+    centres, sigma = 0.5 * (edges[1:] + edges[:-1]), np.array([1 / 6, 0.5, 5 / 6])
+    from multilayer.app import factory
+
+    for a, b in zip(
+        initial_state(factory.initial_entries(scenario), centres, sigma, edges),
+        initial_state(factory.initial_entries(by_points), centres, sigma, edges),
+    ):
+        np.testing.assert_array_equal(a, b)
+    recorded = scenario.model_dump(mode="json", exclude_none=True, warnings=False)["initial"][
+        0
+    ]  # resolved_yaml's
+    assert "file" not in recorded and recorded["points"] == np.column_stack([x, h]).tolist()
+    with pytest.raises(ValueError, match="read-only"):
+        scenario.initial[0].points[0][1] = 1.0  # type: ignore[index]
+    other = sweep.member_scenario(members[1], ["initial.0.file=other.csv"])
+    assert parsed == ["h.csv", "other.csv"] and other.initial[0].points.tolist() == [  # type: ignore[union-attr]
+        [0.0, 0.02],
+        [0.1, 0.02],
+        [0.2, 0.0],
+    ]
+    scenario.initial[0].points = [[0.0, 0.05], [0.1, 0.0]]  # assigned since: validated again
+    assert scenario.changed_since_validation()
+    (tmp_path / "h.csv").write_text("x (m), h (m)\n0, 0.02\n0.1, -0.01\n")
+    with pytest.raises(InputError, match=r"initial.0.file \(line \d+\): negative thickness"):
+        sweep.member_scenario(members[1])

@@ -44,7 +44,10 @@ def _velocity(spec: schema.Velocity) -> cfg.Velocity:
     )
 
 
-def _points(points: list[list[float]] | None) -> cfg.Points | None:
+def _points(points: list[list[float]] | np.ndarray | None) -> cfg.Points | None:
+    """The points of a profile; a file's rows (an array) as they are."""
+    if isinstance(points, np.ndarray):
+        return points
     return None if points is None else tuple((float(x), float(v)) for x, v in points)
 
 

@@ -92,7 +92,7 @@ def estimate(scenario: Any) -> Estimate:
     cells, layers = float(scenario.domain.cells), float(scenario.domain.layers)
     records = output_records(scenario)
     per_record = 8.0 * ((layers + 2.0) * cells + 3.0)
-    fixed = 8.0 * (5.0 * cells + 4.0 * layers) + len(scenario.resolved_yaml()) + 16384 + HEADER_SPACE
+    fixed = 8.0 * (5.0 * cells + 4.0 * layers) + scenario.text_size() + 16384 + HEADER_SPACE
     threads = scenario.numerics.threads
     workspaces = min(cells, threads if isinstance(threads, int) else float(os.cpu_count() or 1))
     memory = BASE_BYTES + BYTES_PER_CELL * cells * layers + workspaces * workspace_bytes(int(layers))

@@ -457,6 +457,21 @@ def dask_client(
         shutil.rmtree(scratch, ignore_errors=True)
 
 
+def _check_port(address: str) -> None:
+    """``ValueError`` unless the port of a TCP or TLS ``address`` (Dask's ``tcp://`` the
+    default scheme) written in digits is one, 1 to 65535: Dask retries a connection to
+    port 99999 until its connection timeout (30 s), then names the timeout, not the port."""
+    scheme, _, location = address.rpartition("://")
+    port = location.rpartition(":")[2]
+    if (
+        (scheme or "tcp") in ("tcp", "tls")
+        and port.isascii()
+        and port.isdigit()
+        and not 1 <= int(port) <= 65535
+    ):
+        raise ValueError(f"port {int(port)} is no TCP port (1 to 65535)")
+
+
 def _answers(address: str) -> None:
     """Connect to ``address`` as Dask's client does, its answer to the handshake awaited no
     longer than Dask's connection timeout: ``Client(address)`` awaits it without a bound
@@ -471,6 +486,7 @@ def _answers(address: str) -> None:
     from dask.utils import parse_timedelta
 
     timeout = parse_timedelta(dask.config.get("distributed.comm.timeouts.connect"), default="seconds")
+    _check_port(address)
 
     async def handshake() -> None:
         comm = await asyncio.wait_for(connect(address, timeout=timeout), 2 * timeout)

@@ -43,8 +43,9 @@ def time_value(value: object) -> float:
     return float(item) if isinstance(item, numbers.Real) else math.nan
 
 
-Points = tuple[tuple[float, float], ...]
-"""A piecewise-linear profile ``((x, value), ...)`` with increasing x (m)."""
+Points = tuple[tuple[float, float], ...] | np.ndarray
+"""A piecewise-linear profile ``((x, value), ...)`` with increasing x (m), or its rows as
+an ``(n, 2)`` array (a profile file's, read-only and shared: not copied into tuples)."""
 
 
 FRACTIONS_SUM = 1e-12

@@ -25,7 +25,7 @@ from multilayer.errors import InputError
 
 def bed_profile(points: Points | None, x: np.ndarray) -> np.ndarray:
     """Bed elevation b(x): zero without ``points``, piecewise linear through them."""
-    if not points:
+    if points is None or len(points) == 0:
         return np.zeros_like(x)
     px, pb = np.asarray(points, dtype=float).T
     return np.interp(x, px, pb)

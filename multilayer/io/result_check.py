@@ -45,6 +45,8 @@ import psutil
 import yaml
 
 from multilayer.engine import diagnostics
+from multilayer.engine.initial_state import bed_profile
+from multilayer.engine.mesh import cell_centres
 from multilayer.errors import InputError, reason
 from multilayer.io.netcdf_layout import LayoutError, read_layout
 from multilayer.io.result_format import FORCES, MIXTURE_VARIABLES, NETCDF_LOCK, VARIABLES, result_path
@@ -101,7 +103,7 @@ def check_result(path: str | os.PathLike, use: Use = "answer", records: int | No
                     f"truncated: {file.stat().st_size} bytes, {whole} of its {count} output times whole "
                     "(the file is shorter than its header declares)"
                 )
-            _check_records(ds, needed, float(scenario["material"]["density"]), bad)
+            _check_records(ds, needed, scenario, bad)
             if use != "resume" and status == "completed":
                 _check_span(ds, count, scenario, bad)
     except (OSError, RuntimeError, KeyError, IndexError, ValueError, TypeError) as exc:
@@ -291,14 +293,77 @@ def _check_span(ds: netCDF4.Dataset, count: int, scenario: dict, bad) -> None:
         )
 
 
+def _scenario_bed(scenario: dict) -> list[list[float]] | None:
+    """The bed points of a result's ``scenario`` (``[]``: flat) as the writer records them
+    (``profile: flat`` or ``points``; a file or a DEM is recorded as its points), None if
+    they are not such points."""
+    bed = scenario.get("bed", {"profile": "flat"})
+    if not isinstance(bed, dict):
+        return None
+    if bed.get("profile", "flat") == "flat":
+        return []
+    points = bed.get("points") if bed.get("profile") == "points" else None
+    if not (isinstance(points, list) and len(points) >= 2):
+        return None
+    if not all(isinstance(p, list) and len(p) == 2 and all(map(finite_number, p)) for p in points):
+        return None
+    if not all(a[0] < b[0] for a, b in zip(points[:-1], points[1:])):
+        return None
+    return points
+
+
+def _check_mesh(ds: netCDF4.Dataset, scenario: dict, bad) -> None:
+    """Raise ``bad(...)`` unless the cell centres ``x``, their edges ``x_bnds`` and the bed
+    of ``ds`` are those of its ``scenario`` (``domain.x_min``, ``x_max``, ``cells`` and
+    ``bed``), as the writer computes them, to round-off: a result whose ``x`` was shifted
+    100 m away from its domain, or whose bed was replaced, drew and exported the flow
+    there (the records, consistent with their own ``x``, passed every other check)."""
+    domain = scenario["domain"]  # its cells checked by _check_dimensions
+    lo, hi, cells = domain.get("x_min"), domain.get("x_max"), domain["cells"]
+    if not (finite_number(lo) and finite_number(hi) and lo < hi):
+        raise bad(f"its scenario attribute's domain.x_min and x_max are {shown(lo)} and {shown(hi)}")
+    dx = (float(hi) - float(lo)) / cells
+    expected = cell_centres(float(lo), float(hi), cells)
+    slack = 1e-9 * dx + 8 * np.spacing(max(abs(float(lo)), abs(float(hi))))
+    x = np.asarray(ds["x"][:], dtype=float)
+    edges = np.asarray(ds["x_bnds"][:], dtype=float)
+    expected_edges = np.column_stack([expected - dx / 2, expected + dx / 2])
+    with np.errstate(invalid="ignore", over="ignore"):  # damaged values are named below
+        mesh = (
+            edges.shape == expected_edges.shape
+            and bool(np.all(np.abs(x - expected) <= slack))
+            and bool(np.all(np.abs(edges - expected_edges) <= slack))
+        )
+    if not mesh:
+        raise bad(
+            f"its cell centres x or edges x_bnds are not the {cells} cells of its scenario's domain "
+            f"[{float(lo):g}, {float(hi):g}] m (x from {x[0]:.6g} to {x[-1]:.6g} m)"
+        )
+    points = _scenario_bed(scenario)
+    if points is None:
+        raise bad("its scenario attribute's bed is not a flat bed or points [[x, b], ...] with increasing x")
+    bed = np.asarray(ds["bed"][:], dtype=float)
+    want = bed_profile(tuple((float(a), float(b)) for a, b in points), expected)
+    with np.errstate(invalid="ignore", over="ignore"):
+        scale = float(np.max(np.abs(want))) if want.size else 0.0
+        same = bool(np.all(np.abs(bed - want) <= 1e-12 * scale + 8 * np.spacing(scale) + 1e-300))
+    if not same:
+        worst = int(np.nanargmax(np.where(np.isfinite(bed), np.abs(bed - want), np.inf)))
+        raise bad(
+            f"its bed is not its scenario's bed: {bed[worst]:.6g} m at x = {expected[worst]:.6g} m, where "
+            f"the scenario's bed is at {want[worst]:.6g} m"
+        )
+
+
 CHUNK_VALUES = 2**23
 """Values read at once when records are checked (64 MB of doubles): whole records."""
 
 
 @np.errstate(invalid="ignore", over="ignore")  # damaged values are named by the checks, not warned of
-def _check_records(ds: netCDF4.Dataset, count: int, density: float, bad) -> None:
+def _check_records(ds: netCDF4.Dataset, count: int, scenario: dict, bad) -> None:
     """Raise ``bad(...)`` at the first of the first ``count`` records that fails its checks
-    (the forces balanced with the momentum at the scenario's ``density``);
+    (the mesh and bed those of the ``scenario``, the forces balanced with the momentum at
+    its density);
     the records are read in chunks of about :data:`CHUNK_VALUES` values and screened at
     once, the first failing one examined on its own for the message."""
     _check_encoding(ds, bad)
@@ -318,6 +383,8 @@ def _check_records(ds: netCDF4.Dataset, count: int, density: float, bad) -> None
         raise bad("its layer heights sigma and sigma_bnds are not finite, in order and within [0, 1]")
     if not np.array_equal(np.asarray(ds["layer"][:]), np.arange(1, sigma.size + 1)):
         raise bad(f"its layer indices are not 1 to {sigma.size}")
+    _check_mesh(ds, scenario, bad)
+    density = float(scenario["material"]["density"])
     # the domain over the cells, as the writer's (x_max - x_min) / cells: the mean of the cell
     # widths x + dx/2 - (x - dx/2) carries the round-off of x (6e-14 relative at 1200 cells
     # of 1 mm), ten times the round-off allowed to the mass

@@ -16,8 +16,10 @@ import functools
 import math
 import os
 import re
-from collections.abc import Sequence
+import typing
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -25,11 +27,21 @@ from multilayer.errors import InputError
 from multilayer.scenario.files import check_regular, read_text
 from multilayer.scenario.limits import MAX_DEM_PIXELS, MAX_PROFILE_POINTS
 
+T = TypeVar("T")
+
 LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "km": 1e3}
 """Units accepted in a CSV header, with their value in metres."""
 
 _HEADER_CELL = re.compile(r"^\s*([A-Za-z_]\w*)\s*[\(\[]\s*([A-Za-z]+)\s*[\)\]]\s*$")
 _NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+
+
+def csv_lines(text: str) -> list[str]:
+    """The lines of a CSV text, ended by ``\\n``, ``\\r\\n`` or ``\\r`` as the ``csv`` module
+    and spreadsheets end them: ``str.splitlines`` also ends a line at a form feed, a
+    vertical tab, ``\\x1c``-``\\x1e``, ``\\x85``, ``\\u2028`` and ``\\u2029``, rows no other
+    reader of the file sees, counted in the line numbers of the messages."""
+    return text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
 
 
 def csv_number(text: str) -> float:
@@ -46,10 +58,9 @@ def read_csv_profile(path: str | Path, columns: Sequence[str]) -> np.ndarray:
 
     ``columns`` lists the accepted names of the two columns, e.g. ``("x", "z|b")``
     (alternatives separated by ``|``); values are converted to metres from the units
-    of the header.  A file read before and unchanged since (its device, inode, size and
-    modification time) is not parsed again: every member of a sweep, calibration or
-    sensitivity study is validated, and a bed of 10^6 rows took 7 s a member (a sweep of
-    10^4 members, the bound, some 20 hours of ``validate``).
+    of the header; lines end at ``\\n``, ``\\r\\n`` or ``\\r``.  A file read before and
+    unchanged since (its device, inode, size and modification time) is not parsed again
+    (every member of a sweep, calibration or sensitivity study is validated).
     """
     return shared_csv_profile(path, columns).copy()
 
@@ -77,7 +88,7 @@ def _cached_csv_profile(path: str, columns: tuple[str, ...], stamp: tuple[int, .
 def _parsed_csv_profile(path: Path, columns: tuple[str, ...]) -> np.ndarray:
     """The points of :func:`read_csv_profile`, read and parsed."""
     accepted_header = f"a header '{columns[0].split('|')[0]} (m), {columns[1].split('|')[0]} (m)'"
-    lines = read_text(path, f"a CSV file with {accepted_header}", "a readable UTF-8 CSV file").splitlines()
+    lines = csv_lines(read_text(path, f"a CSV file with {accepted_header}", "a readable UTF-8 CSV file"))
     rows = [
         (n, line) for n, line in enumerate(lines, 1) if line.strip() and not line.lstrip().startswith("#")
     ]
@@ -144,16 +155,39 @@ def sampled(points: np.ndarray, x: np.ndarray) -> np.ndarray:
 def read_dem_profile(
     path: str | Path, polyline: Sequence[Sequence[float]], spacing: float | None
 ) -> np.ndarray:
-    """Map-frame profile ``[[s, Z], ...]`` of a GeoTIFF DEM along ``polyline``.
+    """Map-frame profile ``[[s, Z], ...]`` of a GeoTIFF DEM along ``polyline``, read-only.
 
     ``s`` is the horizontal distance along the polyline (map units, m) from its first
     vertex and ``Z`` the elevation of band 1, interpolated bilinearly between pixel
-    centres every ``spacing`` (default: the smaller pixel size) and at every vertex.
+    centres every ``spacing`` (default: the smaller pixel size) and at every vertex.  A
+    DEM read before along the same polyline and unchanged since (as
+    :func:`shared_csv_profile`) is not read again: one array shared by its readers.
     """
     vertices = np.asarray(polyline, dtype=float)
     if spacing is not None:  # the samples are counted before the DEM is read
         _check_samples(path, vertices, spacing, "spacing")
     check_regular(Path(path), "a GeoTIFF file", "a readable GeoTIFF file")
+    try:
+        status = os.stat(path)
+    except (OSError, ValueError):  # gone since: the reading names it
+        return _parsed_dem_profile(Path(path), vertices, spacing)
+    stamp = (status.st_dev, status.st_ino, status.st_size, status.st_mtime_ns)
+    line = tuple(tuple(float(v) for v in vertex) for vertex in vertices.tolist())
+    return _cached_dem_profile(str(path), line, spacing, stamp)
+
+
+@functools.lru_cache(maxsize=4)  # 16 MB a profile of 10^6 samples
+def _cached_dem_profile(
+    path: str, line: tuple[tuple[float, ...], ...], spacing: float | None, stamp: tuple[int, ...]
+) -> np.ndarray:
+    """:func:`_parsed_dem_profile` of ``path`` as it was at ``stamp``, read-only."""
+    points = _parsed_dem_profile(Path(path), np.array(line, dtype=float), spacing)
+    points.flags.writeable = False
+    return points
+
+
+def _parsed_dem_profile(path: Path, vertices: np.ndarray, spacing: float | None) -> np.ndarray:
+    """The profile of :func:`read_dem_profile`, read from the DEM."""
     try:
         import rasterio
     except ImportError:
@@ -161,7 +195,6 @@ def read_dem_profile(
             f"{path}: reading a GeoTIFF DEM needs the optional package rasterio; "
             "accepted: install it with pip install 'multilayer[dem]', or give the bed as a CSV file"
         ) from None
-    path = Path(path)
     try:
         with rasterio.open(path) as dem:
             if dem.width * dem.height > MAX_DEM_PIXELS:
@@ -225,6 +258,49 @@ def _bilinear(band: np.ndarray, row: np.ndarray, col: np.ndarray) -> np.ndarray:
     )
     inside = (row >= -0.5) & (row <= rows - 0.5) & (col >= -0.5) & (col <= cols - 0.5)
     return np.where(inside, value, np.nan)
+
+
+_DERIVED: dict[tuple[int, str], tuple[np.ndarray, Any]] = {}
+"""The values of :func:`derived`, by the identity of their read-only profile (held in the
+value, so that no other array takes its id) and their key, most recently used last."""
+
+DERIVED_KEPT = 8
+"""Values of :func:`derived` kept (a slope-frame profile of 10^6 rows takes 16 MB)."""
+
+
+def derived(points: np.ndarray, key: str, compute: Callable[[np.ndarray], T]) -> T:
+    """``compute(points)``, computed once per ``key`` for a read-only profile shared by its
+    readers (:func:`shared_csv_profile`, :func:`read_dem_profile`): every member of a
+    study is validated, and one reading a file read before costs no work per row; a
+    writeable profile is computed for each call."""
+    if points.flags.writeable:
+        return compute(points)
+    slot = (id(points), key)
+    found = _DERIVED.pop(slot, None)
+    if found is None or found[0] is not points:
+        found = (points, compute(points))
+    _DERIVED[slot] = found
+    while len(_DERIVED) > DERIVED_KEPT:
+        _DERIVED.pop(next(iter(_DERIVED)), None)
+    return typing.cast(T, found[1])
+
+
+def shared_slope_frame(points: np.ndarray, slope_deg: float, where: str) -> np.ndarray:
+    """:func:`map_to_slope_frame` of ``points``, read-only, its columns contiguous, once per
+    slope for a shared profile (:func:`derived`)."""
+
+    def frame(profile: np.ndarray) -> np.ndarray:
+        rotated = np.asfortranarray(map_to_slope_frame(profile, slope_deg, where))
+        rotated.flags.writeable = False
+        return rotated
+
+    return derived(points, f"slope frame at {float(slope_deg).hex()} deg", frame)
+
+
+def lowest(points: np.ndarray) -> float:
+    """The smallest value of a profile ``[[x, value], ...]``, once for a shared profile
+    (:func:`derived`)."""
+    return derived(points, "lowest value", lambda profile: float(profile[:, 1].min()))
 
 
 def map_to_slope_frame(points: np.ndarray, slope_deg: float, where: str) -> np.ndarray:

@@ -16,10 +16,13 @@ import numpy as np
 from pydantic import (
     ConfigDict,
     Field,
+    FieldSerializationInfo,
     PrivateAttr,
+    SerializerFunctionWrapHandler,
     Strict,
     ValidationError,
     ValidationInfo,
+    field_serializer,
     field_validator,
     model_serializer,
     model_validator,
@@ -256,14 +259,9 @@ def _file_in(info: ValidationInfo, name: Path) -> Path:
     return Path(directory) / name
 
 
-def _read_profile(read: typing.Callable[[], np.ndarray], key: str) -> list[list[float]]:
-    """Points of a profile read from a file: an :class:`InputError` (a bad file) becomes a
-    validation error of ``key``, reported with the scenario file and line."""
-    return _profile_array(read, key).tolist()
-
-
 def _profile_array(read: typing.Callable[[], np.ndarray], key: str) -> np.ndarray:
-    """:func:`_read_profile` as the array read."""
+    """The points of a profile read from a file: an :class:`InputError` (a bad file) becomes
+    a validation error of ``key``, reported with the scenario file and line."""
     try:
         return read()
     except InputError as exc:
@@ -353,7 +351,7 @@ class Bed(StrictModel):
         if map_points is not None:
             source = self.dem or self.file
             self._read = _profile_array(
-                lambda: profiles.map_to_slope_frame(map_points, slope_deg, str(source)),
+                lambda: profiles.shared_slope_frame(map_points, slope_deg, str(source)),
                 f"bed.{'dem' if self.dem else 'file'}",
             )
             self._map_points = None
@@ -456,6 +454,27 @@ class Velocity(StrictModel):
         return self
 
 
+class SharedRows:
+    """The rows of a profile file in a Python-mode dump of a scenario: equal to the dump of
+    the same shared array (:func:`~multilayer.scenario.profiles.shared_csv_profile`), so
+    that recording and comparing a scenario's keys (``Scenario.validated``) copies and
+    compares none of its rows."""
+
+    __slots__ = ("rows",)
+
+    def __init__(self, rows: np.ndarray) -> None:
+        self.rows = rows
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, SharedRows) and other.rows is self.rows
+
+    def __hash__(self) -> int:
+        return id(self.rows)
+
+    def __repr__(self) -> str:
+        return f"SharedRows({len(self.rows)} rows)"
+
+
 class InitialShape(StrictModel):
     """One contribution to the initial thickness (contributions add up)."""
 
@@ -477,7 +496,13 @@ class InitialShape(StrictModel):
             if self.points is not None:
                 raise invalid("give points or file, not both", "points or file", "file")
             path = _file_in(info, self.file)
-            self.points = _read_profile(lambda: profiles.read_csv_profile(path, ("x", "h")), "file")
+            rows = _profile_array(lambda: profiles.shared_csv_profile(path, ("x", "h")), "file")
+            if profiles.lowest(rows) < 0:
+                raise invalid("negative thickness", "a list [[x, h], ...] with h >= 0", "file")
+            # the file's rows as one read-only array shared by every scenario reading the file
+            # (x increasing, checked by the parser): a member of a study reading a file read
+            # before costs no work per row of it (no list of its rows, no check of them again)
+            self.points = typing.cast(list[Point], rows)
         check_kind(
             self,
             "shape",
@@ -490,13 +515,22 @@ class InitialShape(StrictModel):
         if self.shape == "rectangle":
             assert self.x_min is not None and self.x_max is not None  # required (checked above)
             ordered(self.x_min, self.x_max)
-        if self.shape == "profile":
+        if self.shape == "profile" and self.file is None:
             assert self.points is not None  # required (checked above)
             increasing(self.points, "points", "h")
             if any(h < 0 for _, h in self.points):
-                key = "file" if self.file is not None else "points"
-                raise invalid("negative thickness", "a list [[x, h], ...] with h >= 0", key)
+                raise invalid("negative thickness", "a list [[x, h], ...] with h >= 0", "points")
         return self
+
+    @field_serializer("points", mode="wrap")
+    def _rows(self, value: Any, handler: SerializerFunctionWrapHandler, info: FieldSerializationInfo) -> Any:
+        """A file's rows (an array) as a list in a text (JSON mode, ``resolved_yaml``), as
+        :class:`SharedRows` in Python mode."""
+        if isinstance(value, np.ndarray):
+            if (info.context or {}).get("rows") == "omitted":  # Scenario.text_size
+                return []
+            return value.tolist() if info.mode == "json" else SharedRows(value)
+        return handler(value)
 
     @model_serializer(mode="wrap")
     def _as_points(self, handler: typing.Callable[[InitialShape], dict[str, Any]]) -> dict[str, Any]:
@@ -978,6 +1012,16 @@ class Scenario(StrictModel):
         value of another type assigned since the validation is written as it is, without
         pydantic's warning: validating the text again names it."""
         return dump(self.model_dump(mode="json", exclude_none=True, warnings=False))
+
+    def text_size(self) -> int:
+        """At least ``len(self.resolved_yaml())``, without writing the rows of a profile file
+        (the estimate of a result's header): the text without them, and the text of each
+        file's rows once per file, indented as they are written (4 characters more a row)."""
+        data = self.model_dump(mode="json", exclude_none=True, warnings=False, context={"rows": "omitted"})
+        rows = [typing.cast(np.ndarray, e.points) for e in self.initial if isinstance(e.points, np.ndarray)]
+        return len(dump(data)) + sum(
+            profiles.derived(r, "YAML size", lambda r: len(dump(r.tolist())) + 4 * len(r)) for r in rows
+        )
 
     def validated(self) -> None:
         """Record the keys as validated (:func:`~multilayer.scenario.loading.from_dict`)."""
