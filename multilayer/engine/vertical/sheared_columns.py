@@ -35,7 +35,13 @@ import numpy as np
 
 from multilayer.engine.compiled import jit
 from multilayer.engine.vertical.coefficients import _within_contract
-from multilayer.engine.vertical.forms import _newton_model, _viscosity_and_slope, concave
+from multilayer.engine.vertical.forms import (
+    INERTIAL_PLATEAU,
+    _newton_model,
+    _pressure_parts,
+    _viscosity_and_slope,
+    concave,
+)
 from multilayer.engine.vertical.newton_control import (
     _potential_rise,
     _sign,
@@ -68,10 +74,13 @@ sweeps of the solve 5 per layer and lane, 41 KB, and the rows of :func:`load` 2,
 # iterate ``U0 + k``: the rise bound of ``newton_control`` needs both iterates'); fixed,
 # 1.0 in the bottom cell of each lane (the bed below it) and 0.0 elsewhere; per test of a
 # column, each layer's term of the error bound (``GAP``) and its three terms of the rise
-# bound (``RISE ... RISE + 2``: no wall term, see :func:`_converged`).
+# bound (``RISE ... RISE + 2``: no wall term, see :func:`_converged`); while the column is
+# set up, before any test, two of these hold its interface pressures and layer spacings
+# (``PRESSURE``, ``SPACING``, :func:`fixed_parts`).
 INERTIA, MOMENTUM, KAPPA, WALL, INV_SPACING, CONDUCTANCE, VISCOUS, FACTOR, OFFSET = range(9)
 KEPT, KC, CC, SIGN, U0, U1, TAU0, TAU1, STIFF0, STIFF1, BED, GAP, RISE = range(9, 22)
 SLOTS = 24
+PRESSURE, SPACING = GAP, RISE
 # The arrays of the sweeps of :func:`_solve`, a value per layer and lane in each: the pivot
 # (then the inverse pivot), right-hand side, conductance below, the pivots not positive up
 # to the layer, and the velocity.
@@ -87,10 +96,13 @@ ACTIVE, SHEARED, DONE, FINE = range(4)  # of the boolean lanes
 
 @jit
 def new_tile(L):
-    """The tile of columns of ``L`` layers, zero but for the ``BED`` slot."""
+    """The tile of columns of ``L`` layers, zero but for the ``BED`` slot and the ``VISCOUS``
+    slot, 1.0 (the compiled yield forms set it in the bottom layer alone: see
+    ``newton_kernel._chunk``)."""
     t = np.zeros((SLOTS, 1 + (BLOCK + 1) * L))
     for i in range(BLOCK + 1):
         t[BED, cell(i, L)] = 1.0
+    t[VISCOUS] = 1.0
     return t
 
 
@@ -155,6 +167,34 @@ def set_up(t, L, lane, m, dt, u_rows, guess_rows, ustar, guess, col, current):
     for a in range(np.uint64(L)):  # contiguous: as vectors
         t[INERTIA, o + a] = m[a] / dt
         t[MOMENTUM, o + a] = m[a] * t[MOMENTUM, o + a] / dt
+
+
+@jit(borrowing=True)
+def fixed_parts(t, start, stop, form, params, h):
+    """What stays fixed during a step in cells ``start ... stop - 1`` of the tile, from their
+    spacings (slot ``SPACING``), whether viscous (``VISCOUS``) and interface pressures
+    (``PRESSURE``): the inverse spacing (1 where the spacing is 0), the conductance per unit
+    slope (the inverse spacing; 0 where not viscous or the spacing is 0) and the pressure
+    parts of the bulk law ``form`` (``forms._pressure_parts``, the column thickness ``h``)."""
+    for x in range(np.uint64(start), np.uint64(stop)):  # unsigned: no test for negative indices
+        s = t[SPACING, x]
+        inverse = 1.0 / s if s > 0.0 else 1.0
+        t[INV_SPACING, x] = inverse
+        t[CONDUCTANCE, x] = inverse if s > 0.0 and t[VISCOUS, x] > 0.0 else 0.0
+    _pressure_parts(form, params, t[PRESSURE, start:stop], h, t[FACTOR], t[OFFSET], start)
+
+
+@jit(borrowing=True)
+def block_parts(t, L, form, params, h, wet, j0):
+    """:func:`fixed_parts` of the block's lanes, set up (the wet columns ``j0 ...`` of the
+    thicknesses ``h``): in one pass over their cells (a pass per lane cost its loops' set-up
+    and a call, some 150 instructions, each), lane by lane for a law of the column thickness
+    (``forms.INERTIAL_PLATEAU``)."""
+    if form != INERTIAL_PLATEAU:
+        fixed_parts(t, cell(0, L), cell(BLOCK, L), form, params, 0.0)
+        return
+    for i in range(BLOCK):
+        fixed_parts(t, cell(i, L), cell(i, L) + L, form, params, h[wet[j0 + i]])
 
 
 @jit(borrowing=True)
