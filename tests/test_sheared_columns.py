@@ -148,11 +148,11 @@ def test_a_viscosity_outside_the_contract_in_a_block_is_reported_as_column_by_co
 
 def test_the_bound_of_a_sheared_lane_decides_as_the_error_bound():
     """The error bound of a lane whose every jump is nonzero, summed from gaps computed as
-    vectors (``sheared_columns._within_bound``), against ``newton_control.error_bound`` on
-    the same values: the same answer to ``bound <= limit`` for limits about the bound
-    (within a few ulps, twice it, half of it), 0, inf and NaN, on iterates far from and near
-    the exact step, with layers at rest (a speed of 0 between nonzero jumps) and without
-    mass in some layer's excess."""
+    vectors (``sheared_columns._gaps``, over the lane or the whole block, and
+    ``_within_bound``), against ``newton_control.error_bound`` on the same values: the same
+    answer to ``bound <= limit`` for limits about the bound (within a few ulps, twice it,
+    half of it), 0, inf and NaN, on iterates far from and near the exact step, with layers
+    at rest (a speed of 0 between nonzero jumps) and without mass in some layer's excess."""
     from multilayer.engine.vertical import sheared_columns as sc
     from multilayer.engine.vertical.newton_control import error_bound
 
@@ -181,7 +181,12 @@ def test_the_bound_of_a_sheared_lane_decides_as_the_error_bound():
             t[sc.KAPPA, lane], t[sc.TAU0, lane], t[sc.WALL, lane] = kappa, tau, wall
             assert np.all(np.diff(u, prepend=0.0) != 0.0)
             bound = error_bound(inertia, momentum, kappa, tau, wall, wall, u, np.inf)
+            # the gaps of the lane, in a pass over it or over the whole block: the same
+            sc._gaps(t, sc.cell(0, L), sc.cell(sc.BLOCK, L), np.int64(sc.U0))
+            block = t[sc.GAP, lane].copy()
+            sc._gaps(t, x, x + L, np.int64(sc.U0))
+            assert np.array_equal(t[sc.GAP, lane], block)
             for limit in (bound, np.nextafter(bound, 0.0), np.nextafter(bound, np.inf), 2.0 * bound,
                           0.5 * bound, 0.0, np.inf, np.nan):  # fmt: skip
                 expected = error_bound(inertia, momentum, kappa, tau, wall, wall, u, limit) <= limit
-                assert sc._within_bound(t, x, L, np.int64(sc.U0), limit) == expected, (L, trial, limit)
+                assert sc._within_bound(t, x, L, limit) == expected, (L, trial, limit)

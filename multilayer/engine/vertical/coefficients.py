@@ -119,11 +119,18 @@ def column_coefficients(col, hj, inputs, out, at, wall_parts):
     max(p, 0)``, ``mu_static max(p, 0)`` at rest (each plus ``D / (1 + hj / L)`` with
     ``thickness_law``) and ``mu_wall max(pbar, 0)`` on the walls (:class:`YieldInputs`
     ``inputs``), into the (L,) arrays of ``out`` (:class:`ColumnArrays`), but for its yield
-    stresses ``kappa`` and wall thresholds ``w``, which go to cells ``at ... at + L - 1`` of
-    theirs (the Newton kernel writes them straight into a row of its tile), and the mean
+    stresses ``kappa``, wall thresholds ``w``, interface pressures ``pressure`` and spacings
+    ``spacing``, which go to cells ``at ... at + L - 1`` of theirs (the Newton kernel writes
+    them straight into rows of its tile), and the mean
     wall pressures with ``wall_parts`` (or side walls) only. Returns how many yield values
     are outside the plugin contract (not finite and >= 0). (Inlined, the fields
     of both tuples are read as the arrays themselves: numba prunes the reference counts.)
+
+    Of what is the same in every column it writes only what may differ: the caller's
+    ``out.viscous`` holds True above layer 0 (only the basal condition makes a layer not
+    viscous: it writes ``viscous[0]``), and without side walls its ``w`` holds 0.0 at the
+    column's cells (written only with walls), each filled once by the caller for all its
+    columns (two fills per column were two calls of ``memset``).
 
     The one source of these coefficients on the compiled paths: the arrays of
     :class:`CompiledCoefficients` and, column by column, the Newton kernel
@@ -134,35 +141,33 @@ def column_coefficients(col, hj, inputs, out, at, wall_parts):
     g_p = rho * inputs.g_n
     L = l.size
     checked = good = 0  # loops without branches, so that they vectorise
+    first = np.uint64(at)  # unsigned: no test for negative indices
     for a in range(L):
         m[a] = rho * l[a] * hj
-        spacing[a] = inputs.spacing_fraction[a] * hj
+        spacing[first + np.uint64(a)] = inputs.spacing_fraction[a] * hj
     if wall_parts or inputs.walls:
         for a in range(L):
             wall_pressure[a] = g_p * inputs.depth_centre[a] * hj
-    for a in range(L):
-        viscous[a] = True
     if inputs.has_yield_gravity:
         for a in range(L):
-            pressure[a] = rho * yield_gravity[a, col] * inputs.depth_interface[a] * hj
+            pressure[first + np.uint64(a)] = rho * yield_gravity[a, col] * inputs.depth_interface[a] * hj
     else:
         for a in range(L):
-            pressure[a] = g_p * inputs.depth_interface[a] * hj
+            pressure[first + np.uint64(a)] = g_p * inputs.depth_interface[a] * hj
     checked += L
     mu, mu_static = inputs.mu, inputs.mu_static
     if inputs.thickness_law:  # the operations of pouliquen_forterre.mu_stop
         mu = mu + inputs.drop / (1.0 + hj / inputs.length)
         mu_static = mu_static + inputs.drop / (1.0 + hj / inputs.length)
-    first = np.uint64(at)  # unsigned: no test for negative indices
     for a in range(L):
-        k = _frictional(mu, pressure[a])
+        k = _frictional(mu, pressure[first + np.uint64(a)])
         kappa[first + np.uint64(a)] = k
         good += _within_contract(k)
     # interface a is static where layer a and the one below (or the ground) rest
     if inputs.has_rest and inputs.resting[col]:
         for a in range(L):
             if rest[a, col] and (a == 0 or rest[a - 1, col]):
-                k = _frictional(mu_static, pressure[a])
+                k = _frictional(mu_static, pressure[first + np.uint64(a)])
                 kappa[first + np.uint64(a)] = k
                 checked += 1
                 good += _within_contract(k)
@@ -172,11 +177,8 @@ def column_coefficients(col, hj, inputs, out, at, wall_parts):
             tau = _frictional(inputs.mu_wall, wall_pressure[a])
             w[first + np.uint64(a)] = inputs.wall_scale * l[a] * hj * tau
             good += _within_contract(tau)
-    else:
-        for a in range(L):
-            w[first + np.uint64(a)] = 0.0
     if not inputs.base_bulk[col]:  # the basal condition: the friction of the bed at interface 0
-        kappa[first] = inputs.base_friction[col] * pressure[0] + inputs.base_cohesion[col]
+        kappa[first] = inputs.base_friction[col] * pressure[first] + inputs.base_cohesion[col]
     viscous[0] = inputs.base_bulk[col]
     return checked - good
 
@@ -188,8 +190,9 @@ def _coefficients(hw, wet, inputs, m, kappa, w, pressure, spacing, viscous, wall
     are outside the plugin contract."""
     L, n = m.shape
     bad = 0
+    # viscous above layer 0, no wall thresholds without walls: as column_coefficients needs
     column = ColumnArrays(
-        np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L, np.bool_), np.empty(L)
+        np.empty(L), np.empty(L), np.zeros(L), np.empty(L), np.empty(L), np.ones(L, np.bool_), np.empty(L)
     )
     for j in range(n):
         bad += column_coefficients(wet[j], hw[j], inputs, column, 0, True)

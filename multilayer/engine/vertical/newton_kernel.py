@@ -262,8 +262,8 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
         np.empty((4, L)),  # state_c, state_n of newton_control.energy_rise
         np.empty((4, L)),
         new_tile(L),  # the work arrays of sheared_block, and lane ALONE
-        np.empty((3, L)),  # m, pressure, spacing
-        np.empty(L, np.bool_),  # viscous
+        np.empty(L),  # m (the pressures and spacings: in the tile, sheared_columns.PRESSURE, SPACING)
+        np.ones(L, np.bool_),  # viscous (above layer 0: coefficients.column_coefficients)
         np.zeros((5, L)),  # wall_pressure, wall_factor, wall_offset, per_area, wall_true
         np.empty((4, BLOCK), np.bool_),  # flags, finished of sheared_block
         np.zeros(BLOCK, np.bool_),
@@ -310,7 +310,7 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
     eta_c, slope_c, weta_c, wslope_c = laws_c[0], laws_c[1], laws_c[2], laws_c[3]
     eta_n, slope_n, weta_n, wslope_n = laws_n[0], laws_n[1], laws_n[2], laws_n[3]
     # the coefficients of StressModel.columns of the column (coefficients.column_coefficients)
-    m, pressure, spacing = coefficients[0], coefficients[1], coefficients[2]
+    m = coefficients
     wall_pressure = walls_of[0]
     # and from them, per layer, in the tile (lane ALONE: the column solved on its own; the lanes of a
     # block are set up straight into their own): m_a / dt, m_a u*_a / dt, the yield stresses, inverse
@@ -322,9 +322,11 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
     wall, inverse_spacing = tile[sc.WALL, alone], tile[sc.INV_SPACING, alone]
     conductance, factor, offset = tile[sc.CONDUCTANCE, alone], tile[sc.FACTOR, alone], tile[sc.OFFSET, alone]
     wall_factor, wall_offset, per_area, wall_true = walls_of[1], walls_of[2], walls_of[3], walls_of[4]
-    factors, offsets = tile[sc.FACTOR], tile[sc.OFFSET]  # the rows of every lane
-    # the yield stresses and wall thresholds straight into the rows of the tile (at a lane's cells)
-    column = ColumnArrays(m, tile[sc.KAPPA], tile[sc.WALL], pressure, spacing, viscous, wall_pressure)
+    # the yield stresses, wall thresholds, pressures and spacings straight into the rows of the tile
+    # (at a lane's cells)
+    column = ColumnArrays(
+        m, tile[sc.KAPPA], tile[sc.WALL], tile[sc.PRESSURE], tile[sc.SPACING], viscous, wall_pressure
+    )
     g_m, g_kappa, g_w, g_pressure = given.m, given.kappa, given.w, given.pressure  # read once per chunk
     g_spacing, g_viscous, g_wall = given.spacing, given.viscous, given.wall_pressure
     start, stop = k * n // chunks, (k + 1) * n // chunks
@@ -361,23 +363,16 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
                 for a in range(L):
                     x = np.uint64(o + a)
                     m[a], tile[sc.KAPPA, x], tile[sc.WALL, x] = g_m[a, j], g_kappa[a, j], g_w[a, j]
-                    pressure[a], spacing[a], viscous[a] = g_pressure[a, j], g_spacing[a, j], g_viscous[a, j]
+                    tile[sc.PRESSURE, x], tile[sc.SPACING, x] = g_pressure[a, j], g_spacing[a, j]
+                    viscous[a] = g_viscous[a, j]
                     wall_pressure[a] = g_wall[a, j]
             # what stays fixed during the iteration, a few rows per loop over the layers (a loop
             # over all reloads its rows' pointers), the laws' switch outside them
             sc.set_up(tile, L, lane, m, dt, u_rows, guess_rows, ustar, guess, col, current)  # m/dt, m u*/dt
-            for a in range(L):  # as if every layer were viscous: no mask of booleans in the loop
-                x = np.uint64(o + a)
-                s = spacing[a]
-                inverse = 1.0 / s if s > 0.0 else 1.0
-                tile[sc.INV_SPACING, x] = inverse
-                tile[sc.CONDUCTANCE, x] = inverse if s > 0.0 else 0.0
-                tile[sc.VISCOUS, x] = 1.0
             for a in range(1 if fused else L):  # the compiled yield forms: only the bottom layer may not be
-                if not viscous[a]:
-                    tile[sc.CONDUCTANCE, np.uint64(o + a)] = 0.0
-                    tile[sc.VISCOUS, np.uint64(o + a)] = 0.0
-            _pressure_parts(bulk_form, bulk_params, pressure, h[col], factors, offsets, o)
+                tile[sc.VISCOUS, np.uint64(o + a)] = 1.0 if viscous[a] else 0.0  # (new_tile: 1.0 above)
+            if not block:  # a block's lanes: all together once set up (sc.block_parts)
+                sc.fixed_parts(tile, o, o + L, bulk_form, bulk_params, h[col])
             if walls and not block:
                 start_of_walls = np.int64(0)  # not the literal 0: one compilation for both laws
                 _pressure_parts(
@@ -393,6 +388,7 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
             if block:
                 join(tile, L, flags, lane, fine, not fused or inputs.walls)
                 if lane == BLOCK - 1:
+                    sc.block_parts(tile, L, bulk_form, bulk_params, h, wet, j0)
                     sheared_block(
                         tile, sweeps, flags, finished, bulk_form, bulk_params, threshold, max_iterations, j0,
                         wet[j0], u_out, iterations, fallbacks, faults, fault_values, side_by_side,

@@ -35,7 +35,13 @@ import numpy as np
 
 from multilayer.engine.compiled import jit
 from multilayer.engine.vertical.coefficients import _within_contract
-from multilayer.engine.vertical.forms import _newton_model, _viscosity_and_slope, concave
+from multilayer.engine.vertical.forms import (
+    INERTIAL_PLATEAU,
+    _newton_model,
+    _pressure_parts,
+    _viscosity_and_slope,
+    concave,
+)
 from multilayer.engine.vertical.newton_control import (
     _potential_rise,
     _sign,
@@ -68,10 +74,13 @@ sweeps of the solve 5 per layer and lane, 41 KB, and the rows of :func:`load` 2,
 # iterate ``U0 + k``: the rise bound of ``newton_control`` needs both iterates'); fixed,
 # 1.0 in the bottom cell of each lane (the bed below it) and 0.0 elsewhere; per test of a
 # column, each layer's term of the error bound (``GAP``) and its three terms of the rise
-# bound (``RISE ... RISE + 2``: no wall term, see :func:`_converged`).
+# bound (``RISE ... RISE + 2``: no wall term, see :func:`_converged`); while the column is
+# set up, before any test, two of these hold its interface pressures and layer spacings
+# (``PRESSURE``, ``SPACING``, :func:`fixed_parts`).
 INERTIA, MOMENTUM, KAPPA, WALL, INV_SPACING, CONDUCTANCE, VISCOUS, FACTOR, OFFSET = range(9)
 KEPT, KC, CC, SIGN, U0, U1, TAU0, TAU1, STIFF0, STIFF1, BED, GAP, RISE = range(9, 22)
 SLOTS = 24
+PRESSURE, SPACING = GAP, RISE
 # The arrays of the sweeps of :func:`_solve`, a value per layer and lane in each: the pivot
 # (then the inverse pivot), right-hand side, conductance below, the pivots not positive up
 # to the layer, and the velocity.
@@ -87,10 +96,13 @@ ACTIVE, SHEARED, DONE, FINE = range(4)  # of the boolean lanes
 
 @jit
 def new_tile(L):
-    """The tile of columns of ``L`` layers, zero but for the ``BED`` slot."""
+    """The tile of columns of ``L`` layers, zero but for the ``BED`` slot and the ``VISCOUS``
+    slot, 1.0 (the compiled yield forms set it in the bottom layer alone: see
+    ``newton_kernel._chunk``)."""
     t = np.zeros((SLOTS, 1 + (BLOCK + 1) * L))
     for i in range(BLOCK + 1):
         t[BED, cell(i, L)] = 1.0
+    t[VISCOUS] = 1.0
     return t
 
 
@@ -155,6 +167,34 @@ def set_up(t, L, lane, m, dt, u_rows, guess_rows, ustar, guess, col, current):
     for a in range(np.uint64(L)):  # contiguous: as vectors
         t[INERTIA, o + a] = m[a] / dt
         t[MOMENTUM, o + a] = m[a] * t[MOMENTUM, o + a] / dt
+
+
+@jit(borrowing=True)
+def fixed_parts(t, start, stop, form, params, h):
+    """What stays fixed during a step in cells ``start ... stop - 1`` of the tile, from their
+    spacings (slot ``SPACING``), whether viscous (``VISCOUS``) and interface pressures
+    (``PRESSURE``): the inverse spacing (1 where the spacing is 0), the conductance per unit
+    slope (the inverse spacing; 0 where not viscous or the spacing is 0) and the pressure
+    parts of the bulk law ``form`` (``forms._pressure_parts``, the column thickness ``h``)."""
+    for x in range(np.uint64(start), np.uint64(stop)):  # unsigned: no test for negative indices
+        s = t[SPACING, x]
+        inverse = 1.0 / s if s > 0.0 else 1.0
+        t[INV_SPACING, x] = inverse
+        t[CONDUCTANCE, x] = inverse if s > 0.0 and t[VISCOUS, x] > 0.0 else 0.0
+    _pressure_parts(form, params, t[PRESSURE, start:stop], h, t[FACTOR], t[OFFSET], start)
+
+
+@jit(borrowing=True)
+def block_parts(t, L, form, params, h, wet, j0):
+    """:func:`fixed_parts` of the block's lanes, set up (the wet columns ``j0 ...`` of the
+    thicknesses ``h``): in one pass over their cells (a pass per lane cost its loops' set-up
+    and a call, some 150 instructions, each), lane by lane for a law of the column thickness
+    (``forms.INERTIAL_PLATEAU``)."""
+    if form != INERTIAL_PLATEAU:
+        fixed_parts(t, cell(0, L), cell(BLOCK, L), form, params, 0.0)
+        return
+    for i in range(BLOCK):
+        fixed_parts(t, cell(i, L), cell(i, L) + L, form, params, h[wet[j0 + i]])
 
 
 @jit(borrowing=True)
@@ -327,6 +367,18 @@ def _solve(t, w, L, new, flags):
             flags[ACTIVE, lane] = False
 
 
+@jit(inline="always")
+def _together(lanes, L):
+    """Whether a pass of the tests over the block's cells costs less than one over each of
+    ``lanes`` of its lanes: a pass's set-up (its loops' overlap checks and the call) costs
+    about as many instructions as ``PASS_CELLS`` of its cells."""
+    return lanes * (L + PASS_CELLS) > BLOCK * L + PASS_CELLS
+
+
+PASS_CELLS = 12
+"""The set-up of a pass of the tests over some cells of the tile, in cells (:func:`_together`)."""
+
+
 @jit(borrowing=True, error_model="numpy")
 def _converged(t, L, new, current, threshold, concave_stress, flags):
     """``DONE``: the largest change from slot ``current`` to slot ``new`` is within
@@ -337,25 +389,37 @@ def _converged(t, L, new, current, threshold, concave_stress, flags):
     (``newton_control.energy_rise``) is positive leaves the block (``ACTIVE`` False):
     ``_chunk`` damps its step.  The rise bound's sum (``newton_control.rise_bound``) is
     formed as its error bound is in :func:`_within_bound`: the terms of each layer in a
-    pass over the lane as vectors (slots ``RISE ... RISE + 2``; each operation that of
-    ``rise_bound``, the layer below read from the cell below, the bed's 0 from ``BED``),
-    then added up in ``rise_bound``'s order (from the column by column, 60 instructions
-    per layer, to some 40).  Without its wall's potential term: a column of the block has
-    no wall threshold, force or stiffness (``join``), so that term is a zero (of either
-    sign), or NaN where a speed is not finite, and then so is the wall term of
-    ``RISE + 1`` (0 times it): leaving it out of the sum changes at most the sign of a
-    zero sum, which neither test of the sum tells apart."""
+    pass as vectors (:func:`_rise_terms`), then added up in ``rise_bound``'s order (from the
+    column by column, 60 instructions per layer, to some 40).  The terms of the bounds go
+    through one pass over the block's cells where most of its columns need them
+    (:func:`_together`), else a pass over each column's.  The rise bound is without its
+    wall's potential term: a column of the block has no wall threshold, force or stiffness
+    (``join``), so that term is a zero (of either sign), or NaN where a speed is not
+    finite, and then so is the wall term of ``RISE + 1`` (0 times it): leaving it out of
+    the sum changes at most the sign of a zero sum, which neither test of the sum tells
+    apart."""
+    bounded = 0  # the columns to test by the error bound (fully sheared)
     for i in range(BLOCK):
         x = cell(i, L)
-        first, last = np.uint64(x), np.uint64(x + L)  # unsigned: no test for negative indices
         # the largest change within threshold (max ignores a NaN change, as this count)
         beyond = 0
-        for y in range(first, last):
+        for y in range(np.uint64(x), np.uint64(x + L)):  # unsigned: no test for negative indices
             beyond += abs(t[new, y] - t[current, y]) > threshold
-        converged = beyond == 0 and 0.0 <= threshold
-        if not converged and flags[SHEARED, i]:
-            converged = _within_bound(t, x, L, new, threshold)
-        elif not converged:  # the lane's views made where read (not kept from lane to lane)
+        flags[DONE, i] = beyond == 0 and 0.0 <= threshold
+        bounded += not flags[DONE, i] and flags[SHEARED, i]
+    together = _together(bounded, L)
+    if together:
+        _gaps(t, cell(0, L), cell(BLOCK, L), new)
+    rising = 0  # the columns not done
+    for i in range(BLOCK):
+        if flags[DONE, i]:
+            continue
+        x = cell(i, L)
+        if flags[SHEARED, i]:
+            if not together:
+                _gaps(t, x, x + L, new)
+            converged = _within_bound(t, x, L, threshold)
+        else:  # the lane's views made where read (not kept from lane to lane)
             lane = slice(x, x + L)
             wall = t[WALL, lane]  # 0 in every column that takes part (join): no wall threshold or force
             bound = error_bound(
@@ -364,64 +428,90 @@ def _converged(t, L, new, current, threshold, concave_stress, flags):
             )  # fmt: skip
             converged = bound <= threshold
         flags[DONE, i] = converged
-        if not converged:
-            at, tau_new, one = current - U0, TAU0 + (new - U0), np.uint64(1)
-            for y in range(first, last):
-                u, start, below, below_start = t[new, y], t[current, y], t[new, y - one], t[current, y - one]
-                bed = t[BED, y] > 0.0
-                jump = abs(u - (0.0 if bed else below))  # magnitudes of the jumps
-                jump_start = abs(start - (0.0 if bed else below_start))
-                t[RISE, y] = (u - start) * (0.5 * t[INERTIA, y] * (u + start) - t[MOMENTUM, y])
-                t[RISE + 1, y] = t[WALL, y] * (abs(u) - abs(start)) + t[KAPPA, y] * (jump - jump_start)
-                t[RISE + 2, y] = _potential_rise(
-                    jump_start, jump, t[TAU0 + at, y], t[STIFF0 + at, y], t[tau_new, y], concave_stress
-                )
-            rise = 0.0
-            for a in range(np.uint64(L)):  # counted from 0: unrolled by 4 (the same order of sums)
-                y = first + a
-                rise += t[RISE, y]
-                rise += t[RISE + 1, y]
-                rise += t[RISE + 2, y]  # rise_bound adds the wall's potential term (a zero) before it
-            if not rise <= 0.0:  # newton_control.energy_rise, the smaller of it and phi'(1-)
-                lane = slice(x, x + L)
-                wall, u_new = t[WALL, lane], t[new, lane]
-                rise = min(
-                    slope_along(
-                        t[INERTIA, lane], t[MOMENTUM, lane], t[KAPPA, lane], t[tau_new, lane], wall, wall,
-                        t[current, lane], u_new, u_new, -1.0,
-                    ),
-                    rise,
-                )  # fmt: skip
-            if rise > 0.0:
-                flags[ACTIVE, i] = False
+        rising += not converged
+    together = _together(rising, L)
+    if together:
+        _rise_terms(t, cell(0, L), cell(BLOCK, L), new, current, concave_stress)
+    for i in range(0 if rising == 0 else BLOCK):
+        if flags[DONE, i]:
+            continue
+        x = cell(i, L)
+        if not together:
+            _rise_terms(t, x, x + L, new, current, concave_stress)
+        rise = 0.0
+        first = np.uint64(x)
+        for a in range(np.uint64(L)):  # counted from 0: unrolled by 4 (the same order of sums)
+            y = first + a
+            rise += t[RISE, y]
+            rise += t[RISE + 1, y]
+            rise += t[RISE + 2, y]  # rise_bound adds the wall's potential term (a zero) before it
+        if not rise <= 0.0:  # newton_control.energy_rise, the smaller of it and phi'(1-)
+            lane = slice(x, x + L)
+            wall, u_new = t[WALL, lane], t[new, lane]
+            tau_new = t[TAU0 + (new - U0), lane]
+            rise = min(
+                slope_along(
+                    t[INERTIA, lane], t[MOMENTUM, lane], t[KAPPA, lane], tau_new, wall, wall,
+                    t[current, lane], u_new, u_new, -1.0,
+                ),
+                rise,
+            )  # fmt: skip
+        if rise > 0.0:
+            flags[ACTIVE, i] = False
 
 
 @jit(borrowing=True, error_model="numpy")
-def _within_bound(t, x, L, new, limit):
-    """``newton_control.error_bound(...) <= limit`` at the velocities of slot ``new`` of the
-    lane whose layer 0 is cell ``x``, the arguments of :func:`_converged`, for a lane whose
-    every jump is nonzero (``SHEARED``).  Then the stress of each interface is single-valued
-    (``sign(jump) (kappa + tau_v)``), so that the gap of each layer depends on its values
-    and the stress above alone: the gaps of all layers are computed in one pass as vectors
-    (into slot ``GAP``; each operation that of ``error_bound``, but the wall terms of
-    ``newton_control.zeroing``: a column of the block has no wall threshold or force
-    (``join``), and the zero they subtract could only change the sign of a zero end of the
-    interval, which no positive gap depends on), then added up from the surface down as
-    there.  The answer is ``error_bound``'s: where the sum exceeds ``4
-    limit^2`` times the smallest ``m/dt`` so far, the bound exceeds ``2 limit``, and as the
-    sum only grows and the smallest only shrinks, that holds at some layer exactly when it
-    holds at the last: the test is made once, after the sum (a loop without exits)."""
+def _rise_terms(t, start, stop, new, current, concave_stress):
+    """The terms of the rise bound (:func:`_converged`) of cells ``start ... stop - 1``,
+    from slot ``current`` to slot ``new``, into slots ``RISE ... RISE + 2``: each operation
+    that of ``newton_control.rise_bound``, the layer below read from the cell below, the
+    bed's 0 from ``BED``."""
+    at, tau_new, one = current - U0, TAU0 + (new - U0), np.uint64(1)
+    for y in range(np.uint64(start), np.uint64(stop)):  # unsigned: no test for negative indices
+        u, start_u, below, below_start = t[new, y], t[current, y], t[new, y - one], t[current, y - one]
+        bed = t[BED, y] > 0.0
+        jump = abs(u - (0.0 if bed else below))  # magnitudes of the jumps
+        jump_start = abs(start_u - (0.0 if bed else below_start))
+        t[RISE, y] = (u - start_u) * (0.5 * t[INERTIA, y] * (u + start_u) - t[MOMENTUM, y])
+        t[RISE + 1, y] = t[WALL, y] * (abs(u) - abs(start_u)) + t[KAPPA, y] * (jump - jump_start)
+        t[RISE + 2, y] = _potential_rise(
+            jump_start, jump, t[TAU0 + at, y], t[STIFF0 + at, y], t[tau_new, y], concave_stress
+        )
+
+
+@jit(borrowing=True, error_model="numpy")
+def _gaps(t, start, stop, new):
+    """Each layer's term of the error bound of :func:`_within_bound` at the velocities of
+    slot ``new``, of cells ``start ... stop - 1`` (whole lanes), into slot ``GAP``: for a
+    lane whose every jump is nonzero (``SHEARED``), the stress of each interface is
+    single-valued (``sign(jump) (kappa + tau_v)``), so that the gap of each layer depends
+    on its values and the stress above alone (0 at the free surface: above the top cell of
+    a lane is the bottom cell of the next, ``BED``).  Each operation is that of
+    ``error_bound``, but the wall terms of ``newton_control.zeroing``: a column of the
+    block has no wall threshold or force (``join``), and the zero they subtract could only
+    change the sign of a zero end of the interval, which no positive gap depends on."""
     one, tau = np.uint64(1), TAU0 + (new - U0)
-    start, top = np.uint64(x), np.uint64(x + L - 1)
-    for y in range(start, top + one):  # unsigned: no test for negative indices
+    for y in range(np.uint64(start), np.uint64(stop)):  # unsigned: no test for negative indices
         u, previous = t[new, y], t[new, y - one]  # the cells below and above loaded unconditionally
         below = 0.0 if t[BED, y] > 0.0 else previous
         stress = _sign(t[new, y + one] - u) * (t[KAPPA, y + one] + t[tau, y + one])
-        above = stress if y < top else 0.0  # the stress of the interface above: 0 at the free surface
+        above = 0.0 if t[BED, y + one] > 0.0 else stress  # the interface above: 0 at the free surface
         zero = above + (t[MOMENTUM, y] - t[INERTIA, y] * u)  # newton_control.zeroing, without walls
         sigma = _sign(u - below) * (t[KAPPA, y] + t[tau, y])
         gap = max(zero - sigma, sigma - zero, 0.0)
         t[GAP, y] = gap * gap / t[INERTIA, y] if gap > 0.0 else 0.0
+
+
+@jit(borrowing=True, error_model="numpy")
+def _within_bound(t, x, L, limit):
+    """``newton_control.error_bound(...) <= limit`` for the lane whose layer 0 is cell ``x``
+    (the arguments of :func:`_converged`), from the terms of its layers in slot ``GAP``
+    (:func:`_gaps`), added up from the surface down as there.  The answer is
+    ``error_bound``'s: where the sum exceeds ``4 limit^2`` times the smallest ``m/dt`` so
+    far, the bound exceeds ``2 limit``, and as the sum only grows and the smallest only
+    shrinks, that holds at some layer exactly when it holds at the last: the test is made
+    once, after the sum (a loop without exits)."""
+    top = np.uint64(x + L - 1)  # unsigned: no test for negative indices
     cap = 4.0 * limit * limit
     residual = 0.0
     smallest = np.inf
