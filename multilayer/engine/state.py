@@ -325,7 +325,7 @@ def survey(h, u, dry, g_n, moving, rest, velocities, surveyed):
             moving[i] = False
             for a in range(L):
                 rest[a, i] = False
-    fastest = np.zeros(hi - lo)  # of the columns read, from lo
+    fastest = np.zeros(N)
     for i in range(lo, hi):
         moving[i] = False
     for a in range(L):
@@ -333,10 +333,10 @@ def survey(h, u, dry, g_n, moving, rest, velocities, surveyed):
             v = u[a, i]
             moving[i] = moving[i] or v != 0.0
             rest[a, i] = v == 0.0 and h[i] > dry
-            fastest[i - lo] = max(fastest[i - lo], abs(v))
+            fastest[i] = max(fastest[i], abs(v))
     best = 0.0
     for i in range(lo, hi):
-        best = max(best, fastest[i - lo] + np.sqrt(g_n * max(h[i], 0.0)))
+        best = max(best, fastest[i] + np.sqrt(g_n * max(h[i], 0.0)))
     first, last = span(moving[lo:hi])
     return best, (lo, hi), (lo + first, lo + last) if last > first else (0, 0)
 
