@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from engine import collapse_deposit, deposit_beside_a_collapse, simulation
 
-from multilayer.engine.bed_force import FORCES
+from multilayer.engine.bed_force import FORCES, _impulses, _momentum, _sums
 from multilayer.engine.transport import reference as transport
 from multilayer.io import result_format
 
@@ -275,3 +275,29 @@ def test_the_seismic_force_of_a_slide_that_stops_pulls_upslope_then_downslope_an
     assert np.all(sim.u == 0.0)
     assert seismic[0] < 0.0 < max(seismic)
     assert abs(impulse) < 1e-12 * RHO * 0.1 * 0.1 * G
+
+
+@pytest.mark.parametrize("two", [False, True])
+@pytest.mark.parametrize("walled", [False, True])
+def test_the_one_call_of_a_steps_sums_gives_the_bits_of_the_separate_sums(two, walled):
+    """``_sums``, the one compiled call of ``BedForce.record``: the window where ``h +
+    (h_a + h_b) > 0`` and, in it, the bits of ``_momentum`` and ``_impulses`` called apart."""
+    rng = np.random.default_rng(7)
+    L, N = 4, 30
+    l = np.full(L, 1.0 / L)
+    h = np.where(np.arange(N) % 7 < 4, 0.0, rng.random(N))
+    h[:3] = h[-3:] = 0.0
+    h_a, h_b = h.copy(), h.copy()
+    h_a[3], h_b[-4] = 0.2, 0.3  # material during the step only: the window grows
+    u, w, u_end, w_end = (rng.normal(size=(L, N)) for _ in range(4))
+    a = (h_a, rng.normal(size=(L, N)), rng.normal(size=(L, N)), rng.random((L, N)), rng.random((L, N)), 0.01)
+    b = (h_b, rng.normal(size=(L, N)), np.zeros((L, N)), rng.random((L, N)), rng.random((L, N)), 0.005)
+    h_end = h_b if two else h_a
+    sums = _sums(l, h, u, w, h_end, u_end, w_end, True, *a, *(b if two else a), two, walled, 2.0)
+    wet = np.flatnonzero(h + sum([h_a, h_b] if two else [h_a]) > 0)
+    first, stop = int(wet[0]), int(wet[-1]) + 1
+    apart = [_momentum(l, h, u, first, stop), _momentum(l, h_end, u_end, first, stop)]
+    apart += [_momentum(l, h, w, first, stop), _momentum(l, h_end, w_end, first, stop)]
+    for h_s, ustar, u_s, threshold, viscous, dt in [a, b] if two else [a]:
+        apart += list(_impulses(l, h_s, ustar, u_s, walled, threshold, viscous, 2.0, dt, first, stop))
+    assert sums.tolist() == apart + [0.0] * (12 - len(apart))

@@ -59,10 +59,12 @@ print(json.dumps({"entries": entries, "compiled": compiled}))
 ENTRIES = [
     "multilayer.engine.bed_force._impulses",
     "multilayer.engine.bed_force._momentum",
+    "multilayer.engine.bed_force._sums",
     "multilayer.engine.state.max_wave_speed",
     "multilayer.engine.state.span",
     "multilayer.engine.state.start_moving",
     "multilayer.engine.state.survey",
+    "multilayer.engine.state_check._fine",
     "multilayer.engine.state_check._finite",
     "multilayer.engine.state_check._finite_and_still_where_empty",
     "multilayer.engine.transport.kernel._second_stage_start",

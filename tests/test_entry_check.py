@@ -10,6 +10,7 @@ engine's own reads add nothing.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -19,7 +20,7 @@ from engine import simulation
 from test_damaged_results import IMMERSED
 
 from multilayer.engine.state import _Holder
-from multilayer.engine.state_check import StateError
+from multilayer.engine.state_check import StateError, _bits, _fine, _finite
 from multilayer.errors import InputError, RunError
 
 NON_HYDROSTATIC = {**TINY_SCENARIO, "model": {"pressure": "non_hydrostatic"}}
@@ -285,3 +286,19 @@ def test_the_states_fields_time_and_step_count_are_not_replaced():
     sim.load_state({**before, "t": 0.5, "steps": 3})  # what sets them
     assert (sim.t, sim.steps) == (0.5, 3)
     sim.step()
+
+
+@pytest.mark.parametrize("value", [0.0, -0.0, 1.5, -1e-300, np.nan, np.inf, -np.inf, 1e308])
+@pytest.mark.parametrize("velocity", [0.0, np.nan, np.inf])
+def test_the_guards_cheap_path_passes_exactly_the_states_its_numpy_test_passed(value, velocity):
+    """``_fine``, the compiled cheap path of ``check_state``: the thicknesses finite and
+    not negative and the velocities finite in the columns read, as the numpy reductions it
+    replaced (``h.min() >= 0``, ``h.sum()`` finite) with ``_finite`` found them (one
+    column's sum overflowing aside: a finite state, passed by the full check after)."""
+    h = np.array([0.0, 2.0, value, 1.0])
+    u = np.zeros((3, 4))
+    u[1, 2] = velocity
+    bits = _bits(u)
+    numpy_path = h.min(initial=0.0) >= 0.0 and math.isfinite(h.sum()) and _finite(bits, 0, 4)
+    assert _fine(h, bits, 0, 4) == numpy_path
+    assert _fine(h, bits, 0, 2) == (h.min(initial=0.0) >= 0.0 and math.isfinite(h.sum()))

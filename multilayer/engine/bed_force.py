@@ -54,7 +54,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from multilayer.engine.compiled import jit
-from multilayer.engine.state import FlowState, span
+from multilayer.engine.state import FlowState
 from multilayer.engine.transport import boundaries
 from multilayer.engine.vertical.stresses import StressModel
 from multilayer.errors import InputError
@@ -123,25 +123,28 @@ class BedForce:
         dt: float,
     ) -> None:
         """Add the impulses of a step of ``dt`` from the state ``start``: its vertical steps
-        in order (the last one's ``h``, ``ustar`` the transport's result, weight 1) and the
-        pressure model's ``end`` (u, its layer fields)."""
+        in order (one or two, ``Simulation.step``; the last one's ``h``, ``ustar`` the
+        transport's result, weight 1) and the pressure model's ``end`` (u, its layer
+        fields)."""
         *earlier, last = vertical
         u, fields = end
         left, right, mass_time = self.transport_terms
         rho = self.rho
-        # every column holding material before, during or after the step
-        first, stop = span(start.h + sum(step.h for step in vertical))
-        momentum = self._momentum_sum
-        before, after = momentum(start.h, start.u, first, stop), momentum(last.h, u, first, stop)
-        # the normal momenta: those of the non-hydrostatic pressure's velocities ``w`` (no
-        # other model has them: its ``w`` stays zero, and its normal momentum with it)
-        normal_before = normal_after = 0.0
-        if "w" in fields:
-            normal_before, normal_after = (
-                momentum(start.h, start.w, first, stop),
-                momentum(last.h, fields["w"], first, stop),
-            )
-        sums = [self._impulses(step, first, stop) for step in vertical]
+        # the momenta before and after (the normal ones those of the non-hydrostatic
+        # pressure's velocities ``w``: no other model has them, its ``w`` stays zero and its
+        # normal momentum with it) and the sums of each vertical step, in one compiled call
+        # over every column holding material before, during or after the step
+        w = fields.get("w")
+        steps = [self._vertical_inputs(step) for step in vertical]
+        sums = _sums(
+            self.l[:, 0], start.h, start.u, start.u if w is None else start.w, last.h, u,
+            u if w is None else w, w is not None, *steps[0], *steps[-1], len(steps) == 2,
+            self.stresses.walls is not None, rho,
+        ).tolist()  # fmt: skip
+        # each sum per unit density and cell width: times ``rho dx``
+        scale = self.rho * self.dx
+        before, after, normal_before, normal_after = (scale * value for value in sums[:4])
+        sums = [[scale * value for value in sums[4 + 4 * k : 8 + 4 * k]] for k in range(len(steps))]
         transported_, vertical_ = sums[-1][:2]
         # the earlier vertical steps' change of momentum, carried into the transport's result
         held = sum(step.weight * (s[0] - s[1]) for step, s in zip(earlier, sums, strict=False))
@@ -167,21 +170,16 @@ class BedForce:
         )
         self.elapsed += dt
 
-    def _momentum_sum(self, h: np.ndarray, v: np.ndarray, first: int, stop: int) -> float:
-        """``rho dx sum_a l_a h v_a`` over the columns ``first .. stop-1`` (compiled, the
-        order of the sum fixed: :meth:`momentum` sums all columns in numpy's order)."""
-        return self.rho * self.dx * _momentum(self.l[:, 0], h, v, first, stop)
-
-    def _impulses(self, step: VerticalImpulse, first: int, stop: int) -> np.ndarray:
-        """``_impulses`` of a vertical step (times ``rho dx``)."""
-        walled = self.stresses.walls is not None
-        # the side walls' thresholds and viscous forces (not read without walls)
-        threshold, viscous = self.stresses.wall_forces(step.h, step.u) if walled else (step.ustar, step.ustar)
-        sums = _impulses(
-            self.l[:, 0], step.h, step.ustar, step.u, walled, threshold, viscous, self.rho, step.dt, first,
-            stop,
-        )  # fmt: skip
-        return self.rho * self.dx * sums
+    def _vertical_inputs(self, step: VerticalImpulse) -> tuple[Any, ...]:
+        """The arguments of a vertical step to :func:`_sums`: its thickness, velocities,
+        side walls' thresholds and viscous forces (``ustar`` in their place without walls:
+        not read) and step."""
+        threshold, viscous = (
+            self.stresses.wall_forces(step.h, step.u)
+            if self.stresses.walls is not None
+            else (step.ustar, step.ustar)
+        )
+        return step.h, step.ustar, step.u, threshold, viscous, step.dt
 
     def take(self) -> dict[str, float]:
         """The mean of each term over the time since the last call (N/m; NaN when no time
@@ -276,4 +274,38 @@ def _impulses(l, h, ustar, u_vertical, walled, threshold, viscous, rho, dt, firs
     out = np.empty(4)
     out[0], out[1], out[3] = transported, vertical, walls
     out[2] = passed.sum()
+    return out
+
+
+@jit
+def _sums(
+    l, h, u, w, h_end, u_end, w_end, normal,
+    h_a, ustar_a, u_a, threshold_a, viscous_a, dt_a,
+    h_b, ustar_b, u_b, threshold_b, viscous_b, dt_b, two, walled, rho,
+):  # fmt: skip
+    """The sums of :meth:`BedForce.record`, per unit density and cell width, over every
+    column holding material before, during or after the step (``h``, the vertical steps'
+    thicknesses ``h_a`` and, if ``two``, ``h_b``: where ``h + (h_a + h_b) > 0``, in that
+    order of the sum): the momenta :func:`_momentum` of ``h u`` and ``h_end u_end`` and, if
+    ``normal``, of ``h w`` and ``h_end w_end`` (else zero), then the four :func:`_impulses`
+    of the vertical step ``a`` and, if ``two``, of ``b`` (else zero)."""
+    first = last = -1
+    for i in range(h.size):
+        total = 0.0 + h_a[i]
+        if two:
+            total = total + h_b[i]
+        if h[i] + total > 0:
+            if first < 0:
+                first = i
+            last = i
+    first, stop = (first, last + 1) if first >= 0 else (0, 0)
+    out = np.zeros(12)
+    out[0] = _momentum(l, h, u, first, stop)
+    out[1] = _momentum(l, h_end, u_end, first, stop)
+    if normal:
+        out[2] = _momentum(l, h, w, first, stop)
+        out[3] = _momentum(l, h_end, w_end, first, stop)
+    out[4:8] = _impulses(l, h_a, ustar_a, u_a, walled, threshold_a, viscous_a, rho, dt_a, first, stop)
+    if two:
+        out[8:12] = _impulses(l, h_b, ustar_b, u_b, walled, threshold_b, viscous_b, rho, dt_b, first, stop)
     return out

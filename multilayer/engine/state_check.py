@@ -135,8 +135,8 @@ class StateGuard:
         run; ``columns`` (lo, hi): ``u`` is zero outside the columns ``lo .. hi-1`` by
         construction, and is checked in them only."""
         lo, hi = (0, h.size) if columns is None else columns
-        if h.min(initial=0.0) >= 0.0 and math.isfinite(h.sum()) and _finite(_bits(u), lo, hi):
-            return  # no temporaries: the cheap path of every step
+        if _fine(h, _bits(u), lo, hi):
+            return  # no temporaries: the cheap path of every step, one compiled call
         when = when if isinstance(when, str) else when()
         if not np.isfinite(h).all():
             j = int(np.argmin(np.isfinite(h)))
@@ -273,6 +273,16 @@ def _finite(bits: np.ndarray, lo: int, hi: int) -> bool:
         for i in range(row.size):
             found |= np.uint64((row[i] & exponent) == exponent)
     return found == 0
+
+
+@jit
+def _fine(h: np.ndarray, bits: np.ndarray, lo: int, hi: int) -> bool:
+    """True if every thickness of ``h`` (N,) is finite and not negative (``-0.0``
+    included) and :func:`_finite` of ``bits`` in the columns ``lo .. hi-1``."""
+    fine = True
+    for i in range(h.size):
+        fine &= (h[i] >= 0.0) & (h[i] < np.inf)  # False for a NaN
+    return fine and _finite(bits, lo, hi)
 
 
 _FIELDS = {"w": "vertical velocity w", "q": "non-hydrostatic pressure q"}

@@ -10,6 +10,7 @@ arguments of its constructor; their annotations are the parameter types.
 
 from __future__ import annotations
 
+import _signal  # host_state(): the handlers without signal's enum wrappers
 import contextlib
 import functools
 import importlib.metadata
@@ -252,8 +253,11 @@ def description(cls: type[Rheology]) -> str:
 
 
 _STOP_SIGNALS = tuple(
-    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
+    (f"handler of {name}", getattr(signal, name))
+    for name in ("SIGINT", "SIGTERM", "SIGHUP")
+    if hasattr(signal, name)
 )
+"""The stop signals of :func:`host_state`: (its key, the signal)."""
 
 
 def host_state() -> dict[str, Any]:
@@ -263,20 +267,23 @@ def host_state() -> dict[str, Any]:
     stop signals (a plugin ignoring SIGINT made the run deaf to Ctrl-C, and the process
     after it) and numpy's floating-point error handling.  Taken in the main thread only:
     another thread may change the first two meanwhile, and a plugin in it cannot set a
-    signal handler."""
+    signal handler.  Taken twice in every step (``Simulation.step``): the handlers are read
+    with ``_signal``'s function, which ``signal.getsignal`` wraps to convert each to an
+    enum, by a failed look-up (an exception) for a Python function (``SIG_DFL`` and
+    ``SIG_IGN`` stay the integers they are, equal to their enums)."""
     if threading.current_thread() is not threading.main_thread():
         return {}
     try:
         directory: str | None = os.getcwd()
     except OSError:  # removed: nothing to compare with
         directory = None
-    handlers = {f"handler of {signal.Signals(s).name}": signal.getsignal(s) for s in _STOP_SIGNALS}
+    handlers = {key: _signal.getsignal(s) for key, s in _STOP_SIGNALS}
     return {"working directory": directory, **handlers, "numpy error handling": np.geterr()}
 
 
 def _shown(value: Any) -> str:
-    if isinstance(value, signal.Handlers):
-        return value.name
+    if isinstance(value, int) and value in (signal.SIG_DFL, signal.SIG_IGN):
+        return signal.Handlers(value).name
     return str(getattr(value, "__qualname__", None) or value)
 
 

@@ -64,6 +64,9 @@ FORMS = {
 """The compiled viscosity forms by name."""
 
 
+_PARAMETER_COUNTS = {name: form.parameters for name, form in FORMS.items()}
+"""The number of parameters of each compiled viscosity form by name (:func:`law_of`)."""
+
 PARAMETERS = max(form.parameters for form in FORMS.values())
 """The number of parameters every form is given (:func:`parameters`)."""
 
@@ -105,8 +108,7 @@ def law_of(rheology: Any, material: Any) -> tuple[int, np.ndarray] | None:
     uses = tuple(getattr(rheology, "uses", ()))
     if uses not in ((), ("thickness",)):
         return None
-    counts = {name: form.parameters for name, form in FORMS.items()}
-    declared = declared_form(rheology, "viscosity_kernel", material, counts)
+    declared = declared_form(rheology, "viscosity_kernel", material, _PARAMETER_COUNTS)
     if declared is None or FORMS[declared[0]].thickness != bool(uses):
         return None
     return FORMS[declared[0]].code, parameters(declared[1])
