@@ -3713,6 +3713,7 @@ def cases() -> list[Case]:
         + round_nineteen()
         + round_twenty()
         + round_twenty_one()
+        + round_twenty_two()
     )
 
 
@@ -4057,6 +4058,84 @@ def round_twenty_one() -> list[Case]:
     return out
 
 
+def round_twenty_two() -> list[Case]:
+    """The hostile cases of the twenty-second round (docs/reliability.md): values valid one
+    by one and absurd together: a front threshold no cell can reach (said by the run, refused
+    where an ``expect`` entry needs the front), cells narrower than the floats at the
+    domain's place, an inflow leaving the domain faster than its waves can enter, two
+    ``expect`` entries on one quantity that no value passes together, ``base`` zones that
+    apply to no column; a directory of a run and a study, and a study's plotted with a run's
+    options."""
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    validate = ["validate", "{scenario}"]
+    runout = [{"kind": "regression", "quantity": "runout", "value": 0.2, "rtol": 0.1}]
+    unreachable = {"numerics": {"front_threshold": 0.5}}  # the column in one cell: 0.4 m
+    far = {
+        "domain.x_min": 1e6,
+        "domain.x_max": 1e6 + 1e-6,
+        "domain.cells": 10000,
+        "material.grain_diameter": 1e-12,
+        "initial.0.x_min": 1e6,
+        "initial.0.x_max": 1e6 + 1e-7,
+        "time.end": 1e-9,
+        "time.output_interval": 5e-10,
+    }
+    pins = [
+        {"kind": "regression", "quantity": "mass_final", "value": 0.005, "rtol": 0.02},
+        {"kind": "regression", "quantity": "mass_final", "value": 0.004, "rtol": 0.02},
+    ]
+
+    between = {"condition": "coulomb", "mu": 0.5, "x_min": 0.1, "x_max": 0.105}
+
+    def leaving(side: str, speed: float) -> dict:
+        other = "right" if side == "left" else "left"
+        inflow = {"thickness": 0.01, "velocity": {"profile": "plug", "speed": speed}}
+        return {"initial": [], "boundaries": {side: "inflow", other: "outflow", "inflow": inflow}}
+
+    out = [
+        Case("run: a front threshold of 0.5 m, above the column of 0.4 m held in one cell (said)", run, 0,
+             "the front is absent (NaN) at every output time", setup=lambda d: _scenario(d, unreachable)),
+        Case("validate: a front threshold no cell can reach and an expect entry on the run-out", validate,
+             2, "numerics.front_threshold (line",
+             setup=lambda d: _scenario(d, {**unreachable, "expect": runout})),
+        Case("check: a front threshold no cell can reach and an expect entry on the run-out",
+             ["check", "{scenario}"], 2, "and expect checks runout",
+             setup=lambda d: _scenario(d, {**unreachable, "expect": runout})),
+        Case("run: 10^4 cells of 1e-10 m at x = 1e6 m, where floats are 1.16e-10 m apart", run, 2,
+             "10000 cells of 1e-10 m, where floats near x = 1e+06 m are 1.16e-10 m apart",
+             setup=lambda d: _scenario(d, far)),
+        Case("run: a left inflow at -5 m/s into an empty domain", run, 2,
+             "the left side's inflow moves out of the domain at 5 m/s",
+             setup=lambda d: _scenario(d, leaving("left", -5.0))),
+        Case("validate: a right inflow at +5 m/s", validate, 2,
+             "the right side's inflow moves out of the domain at 5 m/s",
+             setup=lambda d: _scenario(d, leaving("right", 5.0))),
+        Case("run: a left inflow at -0.1 m/s (a reservoir: material enters)", run, 0, "",
+             setup=lambda d: _scenario(d, leaving("left", -0.1))),
+        Case("check: two expect entries on mass_final, 0.005 +- 1e-4 and 0.004 +- 8e-5",
+             ["check", "{scenario}"], 2, "expect.1.value (line",
+             setup=lambda d: _scenario(d, {"expect": pins})),
+        Case("run: a Coulomb base zone between two cell centres (0.1 to 0.105 m, cells of 0.0125 m)", run,
+             2, "holds no cell centre (cells of 0.0125 m)",
+             setup=lambda d: _scenario(d, {"base": [{"condition": "no_slip"}, between]})),
+        Case("validate: a base zone under a later zone on every cell", validate, 2,
+             "applies to no column: later entries",
+             setup=lambda d: _scenario(d, {"base": [{"condition": "no_slip", "x_max": 0.2},
+                                                    {"condition": "free_slip"}]})),
+        Case("plot: a run's directory that also holds a sensitivity.nc", ["plot", "{dir}/out"], 2,
+             "holds result.nc (a run) and sensitivity.nc (a study)", setup=_run_and_study),
+        Case("plot: a sensitivity study's directory with --format svg --animate",
+             ["plot", "{dir}", "--format", "svg", "--animate"], 2,
+             "--format, --animate apply to a run's figures only", setup=_sensitivity()),
+    ]  # fmt: skip
+    return out
+
+
+def _run_and_study(directory: Path) -> None:
+    _finished_run(directory)
+    _sensitivity()(directory / "out")
+
+
 def _records(path: Path) -> int:
     try:
         import netCDF4
@@ -4133,7 +4212,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     8: round_eight, 9: round_nine, 10: round_ten, 11: round_eleven, 12: round_twelve,
     13: round_thirteen, 14: round_fourteen, 15: round_fifteen, 16: round_sixteen,
     17: round_seventeen, 18: round_eighteen, 19: round_nineteen, 20: round_twenty,
-    21: round_twenty_one,
+    21: round_twenty_one, 22: round_twenty_two,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""
 
@@ -4143,7 +4222,7 @@ def main() -> None:
     parser.add_argument("-k", default="", help="only the cases whose name contains this")
     parser.add_argument("-j", type=int, default=2, help="cases run at once")
     parser.add_argument(
-        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 21; all: none)"
+        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 22; all: none)"
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()

@@ -535,3 +535,32 @@ def test_a_mesh_that_does_not_fit_in_memory_under_force_is_named_not_a_traceback
     )
     assert "the estimate is about 727 GB); accepted: fewer cells or layers" in result.err
     assert not (tmp_path / "out" / "result.nc").exists()
+
+
+def test_a_directory_of_a_run_and_a_study_or_a_studys_with_a_runs_options_is_exit_2(
+    tmp_path, cli, write_scenario
+):
+    """``plot`` of a directory holding result.nc and sensitivity.nc drew the study's figures
+    only, exit 0; a study's directory with ``--format svg`` or ``--animate`` drew png
+    figures and no animation, exit 0."""
+    assert cli("run", write_scenario(TINY_SCENARIO), "-o", tmp_path / "run", "-q").code == 0
+    _sensitivity_file(tmp_path / "run" / "sensitivity.nc", np.array([[0.5, 0.3]]))
+    both = cli("plot", tmp_path / "run")
+    assert both.code == 2 and "Traceback" not in both.err and not (tmp_path / "run" / "plots").exists()
+    assert "holds result.nc (a run) and sensitivity.nc (a study): which one to draw is not known" in both.err
+    study = tmp_path / "study"
+    study.mkdir()
+    _sensitivity_file(study / "sensitivity.nc", np.array([[0.5, 0.3]]))
+    for options, named in (
+        (["--format", "svg"], "--format"),
+        (["--animate"], "--animate"),
+        (["--times", "4", "--at", "0.1"], "--times, --at"),
+        (["--xlim", "0", "1"], "--xlim"),
+    ):
+        result = cli("plot", study, *options)
+        assert (
+            result.code == 2 and f"sensitivity.nc is a study's file; {named} apply to a run's" in result.err
+        )
+    assert cli("plot", study).code == 0
+    (tmp_path / "run" / "sensitivity.nc").unlink()
+    assert cli("plot", tmp_path / "run", "--format", "svg", "--times", "2").code == 0  # a run's options

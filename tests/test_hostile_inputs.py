@@ -14,6 +14,7 @@ import shutil
 import subprocess
 import sys
 import threading
+import typing
 
 import numpy as np
 import pytest
@@ -1732,3 +1733,190 @@ def test_a_run_on_a_bed_read_from_a_file_passes_the_check_of_its_result(tmp_path
     result = multilayer.run(write_scenario(scenario), tmp_path / "out")
     assert np.ptp(result["bed"].values) > 1e-3
     assert check_result(tmp_path / "out") == tmp_path / "out" / "result.nc"
+
+
+def _tiny(**changes: object) -> dict:
+    """TINY_SCENARIO with dotted keys set (list indices as integers)."""
+    data = copy.deepcopy(TINY_SCENARIO)
+    for key, value in changes.items():
+        *parents, last = key.split("__")
+        node: typing.Any = data
+        for part in parents:
+            node = node[int(part)] if isinstance(node, list) else node.setdefault(part, {})
+        node[last] = value
+    return data
+
+
+def test_a_front_threshold_no_cell_can_reach_is_said_and_refused_where_expect_needs_the_front(
+    tmp_path, cli, write_scenario
+):
+    """A front threshold above all the initial material held in one cell ran to exit 0
+    with the front NaN at every output time and an empty front figure, and a `check` of the
+    run-out failed on NaN after the whole run.  Now the run and `validate` say so, the
+    figure says so, and an ``expect`` entry on the front is refused before any run."""
+    from multilayer.io import plotting
+
+    # the column 0.1 m x 0.05 m in one cell of 0.0125 m is 0.4 m thick
+    above = write_scenario(_tiny(numerics={"front_threshold": 0.5}))
+    checked = cli("validate", above)
+    assert checked.code == 0 and "numerics.front_threshold = 0.5 m is thicker than any cell" in checked.err
+    run = cli("run", above, "-o", tmp_path / "out", "-q")
+    assert run.code == 0 and "the front is absent (NaN) at every output time" in run.err
+    assert "the front is absent" in (tmp_path / "out" / "run.log").read_text()
+    with results.open_result(tmp_path / "out") as ds:
+        assert np.isnan(ds["front"].values).all()
+        figure = plotting.front_figure(ds, "tiny")
+    texts = [t.get_text() for ax in figure.axes for t in ax.texts]
+    assert "no front (no cell thicker than 0.5 m) at 3 of 3 output times" in texts
+    expect = [{"kind": "regression", "quantity": "runout", "value": 0.2, "rtol": 0.1}]
+    refused = cli("validate", write_scenario(_tiny(numerics={"front_threshold": 0.5}, expect=expect)))
+    assert refused.code == 2 and "Traceback" not in refused.err
+    assert "numerics.front_threshold (line" in refused.err and "and expect checks runout" in refused.err
+    assert "accepted: a number > 0 (m) up to 0.4 m" in refused.err
+    at_the_bound = cli("validate", write_scenario(_tiny(numerics={"front_threshold": 0.4}, expect=expect)))
+    assert at_the_bound.code == 0 and "warning" not in at_the_bound.err
+    fed = _tiny(numerics={"front_threshold": 0.5}, expect=expect)
+    fed["boundaries"] = {
+        "left": "inflow",
+        "right": "outflow",
+        "inflow": {"thickness": 0.01, "velocity": {"profile": "plug", "speed": 1.0}},
+    }
+    assert multilayer.load(fed).numerics.front_threshold == 0.5  # an inflow brings any thickness
+
+
+def test_cells_below_the_float_resolution_of_the_domain_are_refused():
+    """10^4 cells of 1e-10 m at x = 1e6 m, where floats are 1.16e-10 m apart: cell edges
+    coincided, the initial thickness of a cell of no width was 0/0, a numpy warning and a
+    run failure (exit 1) at the initial state, naming no key."""
+    far = {"domain__x_min": 1e6, "domain__x_max": 1e6 + 1e-6, "material__grain_diameter": 1e-12}
+    initial = [{"shape": "rectangle", "x_min": 1e6, "x_max": 1e6 + 1e-7, "height": 0.05}]
+    with pytest.raises(
+        InputError, match=r"domain\.cells: 10000 cells of 1e-10 m, where floats near x = 1e\+06 m"
+    ):
+        multilayer.load(_tiny(**far, domain__cells=10**4, initial=initial))
+    with pytest.raises(
+        InputError, match=r"accepted: cells at least 1024 float spacings wide there: at most 8 cells"
+    ):
+        multilayer.load(_tiny(**far, domain__cells=9, initial=initial))
+    assert multilayer.load(_tiny(**far, domain__cells=8, initial=initial)).domain.cells == 8
+    assert multilayer.load(_tiny(domain__cells=10**6)).domain.cells == 10**6  # near x = 0: any count
+
+
+@pytest.mark.parametrize(
+    ("side", "velocity", "refused"),
+    [
+        ("left", {"profile": "plug", "speed": -5.0}, True),
+        ("right", {"profile": "plug", "speed": 5.0}, True),
+        ("left", {"profile": "linear", "shear_rate": -1000.0}, False),  # at rest at the bed: it enters
+        ("left", {"profile": "plug", "speed": -0.1}, False),  # a reservoir: it enters against the speed
+        ("right", {"profile": "plug", "speed": -5.0}, False),
+    ],
+)
+def test_an_inflow_leaving_the_domain_faster_than_its_waves_is_refused(side, velocity, refused):
+    """A left inflow at -5 m/s (out of the domain faster than the 0.59 m/s of its dam-break
+    front) brought no material in: the run completed with a mass of 0, exit 0."""
+    data = _tiny(initial=[])
+    data["boundaries"] = {
+        side: "inflow",
+        "left" if side == "right" else "right": "outflow",
+        "inflow": {"thickness": 0.01, "velocity": velocity},
+    }
+    if not refused:
+        assert multilayer.load(data).boundaries.inflow is not None
+        return
+    with pytest.raises(
+        InputError, match=rf"boundaries\.inflow\.velocity: the {side} side's inflow moves out"
+    ):
+        multilayer.load(data)
+
+
+def test_expect_entries_no_value_can_pass_together_are_refused(cli, write_scenario):
+    """An entry copied and edited beside its old pin (mass 0.005 +- 1e-4 and 0.004 +- 8e-5):
+    `check` ran the whole scenario to fail one of them, exit 1."""
+    pins = [
+        {"kind": "regression", "quantity": "mass_final", "value": 0.005, "rtol": 0.02},
+        {"kind": "regression", "quantity": "runout", "value": 0.2, "rtol": 0.5},
+        {"kind": "regression", "quantity": "mass_final", "value": 0.004, "rtol": 0.02},
+    ]
+    for command in ("validate", "check"):
+        result = cli(command, write_scenario(_tiny(expect=pins)))
+        assert result.code == 2 and "Traceback" not in result.err
+        assert "expect.2.value (line" in result.err
+        assert (
+            "mass_final = 0.004 +- 8e-05, and expect.0 asks 0.005 +- 0.0001: no value passes both"
+            in result.err
+        )
+    pins[2]["value"] = 0.0049  # the intervals meet: a value of 0.00495 passes both
+    assert cli("validate", write_scenario(_tiny(expect=pins))).code == 0
+
+
+@pytest.mark.parametrize(
+    ("base", "phrase"),
+    [
+        (  # between the centres 0.09375 and 0.10625 m
+            [{"condition": "no_slip"}, {"condition": "coulomb", "mu": 0.5, "x_min": 0.1, "x_max": 0.105}],
+            r"base\.1: condition coulomb on \[0\.1, 0\.105\] m holds no cell centre \(cells of 0\.0125 m\)",
+        ),
+        (  # beyond the domain
+            [{"condition": "coulomb", "mu": 0.5, "x_min": 5.0, "x_max": 6.0}, {"condition": "no_slip"}],
+            r"base\.0: condition coulomb on \[5\.0, 6\.0\] m holds no cell centre",
+        ),
+        (  # under a later zone on every cell
+            [{"condition": "no_slip", "x_max": 0.2}, {"condition": "free_slip", "x_min": -1.0}],
+            r"base\.0: condition no_slip on \[None, 0\.2\] m applies to no column: later entries",
+        ),
+        (  # under two later zones together
+            [
+                {"condition": "no_slip"},
+                {"condition": "coulomb", "mu": 0.2, "x_min": 0.1, "x_max": 0.2},
+                {"condition": "free_slip", "x_max": 0.15},
+                {"condition": "free_slip", "x_min": 0.15},
+            ],
+            r"base\.0: condition no_slip on \[None, None\] m applies to no column",
+        ),
+    ],
+)
+def test_a_base_zone_that_applies_to_no_column_is_refused(base, phrase):
+    """A zone between two cell centres, beyond the domain or under later zones on all its
+    cells was ignored (a column's condition is the last zone holding its centre), exit 0."""
+    with pytest.raises(InputError, match=phrase):
+        multilayer.load(_tiny(base=base))
+
+
+def test_base_zones_each_applying_somewhere_are_accepted_as_the_columns_take_them():
+    """The check takes the cells as the engine does: a zone holds the centres in
+    ``[x_min, x_max)``, the later zone wins on a centre both hold."""
+    from multilayer.app import factory
+    from multilayer.engine import basal
+    from multilayer.engine.mesh import cell_centres
+
+    x = cell_centres(0.0, 0.5, 40)  # x[8] = 0.10625 m, x[9] = 0.11875 m
+    base = [
+        {"condition": "no_slip"},
+        {"condition": "coulomb", "mu": 0.5, "x_min": 0.1, "x_max": 0.10625},  # x[8] at its x_max
+        {"condition": "coulomb", "mu": 0.3, "x_min": 0.11, "x_max": 0.12},
+    ]
+    with pytest.raises(InputError, match=r"base\.1: .* holds no cell centre"):
+        multilayer.load(_tiny(base=base))
+    base[1]["x_max"] = 0.1063
+    friction = basal.columns(factory.basal_regions(multilayer.load(_tiny(base=base)).base), x).friction
+    assert friction[8] == 0.5 and friction[9] == 0.3 and np.count_nonzero(friction) == 2
+    base[2]["x_min"] = 0.10625  # now x[8] is the later zone's too
+    with pytest.raises(InputError, match=r"base\.1: .* applies to no column"):
+        multilayer.load(_tiny(base=base))
+
+
+def test_a_mixture_or_an_inflow_sets_no_bound_on_the_front_threshold():
+    """A grain-fluid mixture's thickness grows as it dilates and an inflow brings any
+    thickness: no threshold is above what they can hold."""
+    immersed = multilayer.load(
+        os.path.join(os.path.dirname(__file__), "..", "scenarios", "submarine_collapse_loose.yaml")
+    )
+    assert immersed.fluid is not None and immersed.thickest_cell() is None
+    assert (
+        immersed.model_copy(
+            update={"numerics": immersed.numerics.model_copy(update={"front_threshold": 1e6})}
+        ).front_never_found()
+        is None
+    )
+    assert multilayer.load(_tiny()).thickest_cell() == pytest.approx(0.4)

@@ -127,6 +127,8 @@ def run(
         notices.append(message)
         warn(message)
 
+    if (absent := scenario.front_never_found()) is not None:  # said, not refused: a film has no front
+        notice(f"numerics.front_threshold = {absent}")
     stop = _StopRequest(stop_when)
     with locked(outdir, notice), stop.installed():
         ckpt = _checkpoint_to_resume(scenario, outdir, notice) if resume else None

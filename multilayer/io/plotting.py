@@ -540,6 +540,19 @@ def front_figure(ds: xr.Dataset, name: str) -> Figure:
     ax_front.set_title(
         f"front: downslope-most cell centre with h > {ds['front'].attrs['threshold']:g} m", fontsize="medium"
     )
+    absent = int(np.isnan(ds["front"].values).sum())
+    if absent:  # NaN: no cell thicker than the threshold then; an empty panel said nothing
+        threshold = ds["front"].attrs["threshold"]
+        ax_front.text(
+            0.5,
+            0.5,
+            f"no front (no cell thicker than {threshold:g} m) at {absent} of {t.size} output times",
+            transform=ax_front.transAxes,
+            ha="center",
+            va="center",
+            fontsize="small",
+            color="tab:red",
+        )
     ax_speed.plot(t, front_velocity(ds), marker=".", color="tab:orange")
     ax_speed.axhline(0.0, color="0.6", lw=0.8)
     ax_speed.set_ylabel("front velocity u_f (m/s)")

@@ -49,6 +49,10 @@ MIN_END = 1e-290
 """Shortest ``time.end`` (s): the output times of a run are at least ``1e-9 time.end``
 apart, so every step stays far above the shortest the engine takes (``MIN_STEP`` of
 engine/simulation.py, 4.45e-308 s; half of a denormal step is zero)."""
+MIN_CELL_SPACINGS = 1024
+"""Floats a cell is at least wide at the domain's ends: its edges ``x_min + i dx`` are then
+rounded by at most 1/1024 of a cell (cells of 1e-10 m at x = 1e6 m, where floats are
+1.16e-10 m apart, had edges that coincide: a cell of width 0 and its thickness 0/0)."""
 MIN_DENSITY = 1e-100
 """Smallest ``material.density`` and ``material.particle_density`` (kg/m^3).  A dry flow
 does not depend on its density (every stress of the built-in laws is the density times a

@@ -7,6 +7,7 @@ Each field's description is the "accepted" part of its messages
 
 from __future__ import annotations
 
+import heapq
 import math
 import typing
 from pathlib import Path
@@ -92,6 +93,19 @@ class Domain(StrictModel):
                 f"the domain is {self.x_max - self.x_min} m long",
                 "x_min and x_max less than 1e308 m apart",
                 "x_max",
+            )
+        dx = (self.x_max - self.x_min) / self.cells
+        ends = max(abs(self.x_min), abs(self.x_max))
+        spacing = float(np.spacing(ends))
+        if not dx >= limits.MIN_CELL_SPACINGS * spacing:
+            most = math.floor((self.x_max - self.x_min) / (limits.MIN_CELL_SPACINGS * spacing))
+            raise invalid(
+                f"{self.cells} cells of {dx:.3g} m, where floats near x = {ends:g} m are {spacing:.3g} m "
+                f"apart: the cell edges would be rounded by up to {spacing / dx:.2g} of a cell (cells of "
+                "unequal or no width)",
+                f"cells at least {limits.MIN_CELL_SPACINGS} float spacings wide there: at most {most} "
+                "cells, or a domain nearer x = 0",
+                "cells",
             )
         accepted = Domain.model_fields["layer_fractions"].description or ""
         value = self.layer_fractions
@@ -915,8 +929,172 @@ class Scenario(StrictModel):
                 "entries whose x ranges cover [domain.x_min, domain.x_max]",
                 "base",
             )
+        self._check_base_zones()
         self._check_mixture()
+        self._check_front_threshold()
+        self._check_inflow()
+        self._check_expect_together()
         return self
+
+    def _check_base_zones(self) -> None:
+        """Every ``base`` entry is the condition of at least one column: a zone covers the
+        cells whose centre ``x`` has ``x_min <= x < x_max`` and later entries win where they
+        overlap (:func:`multilayer.engine.basal.columns`), so a zone between two cell centres
+        or under later zones on all its cells was ignored, exit 0.  Index ranges only,
+        nothing the size of the mesh: a sweep over the zones' ends in ``O(n log n)``."""
+        dom = self.domain
+        dx = (dom.x_max - dom.x_min) / dom.cells
+
+        def centre(i: int) -> float:  # as mesh.cell_centres computes it
+            return float(dom.x_min) + dx * (i + 0.5)
+
+        def first(x: float) -> int:  # the first cell whose centre is >= x
+            t = (x - dom.x_min) / dx - 0.5
+            i = 0 if not t > 0 else dom.cells if t >= dom.cells else math.ceil(t)
+            while i > 0 and centre(i - 1) >= x:
+                i -= 1
+            while i < dom.cells and centre(i) < x:
+                i += 1
+            return i
+
+        spans = []
+        for index, zone in enumerate(self.base):
+            a = first(-math.inf if zone.x_min is None else zone.x_min)
+            b = first(math.inf if zone.x_max is None else zone.x_max)
+            if a >= b:
+                raise invalid(
+                    f"condition {zone.condition} on [{zone.x_min}, {zone.x_max}] m holds no cell centre "
+                    f"(cells of {dx:.3g} m): it would apply to no column",
+                    "a zone holding at least one cell centre domain.x_min + (i + 1/2) dx",
+                    f"base.{index}",
+                )
+            spans.append((a, b))
+        ends = sorted({e for span in spans for e in span})
+        starting = sorted((a, index) for index, (a, _) in enumerate(spans))
+        active: list[int] = []  # -index of the zones covering the segment (later ones win)
+        applied, k = set(), 0
+        for at in ends[:-1]:  # the segment of cells [at, next end)
+            while k < len(starting) and starting[k][0] <= at:
+                heapq.heappush(active, -starting[k][1])
+                k += 1
+            while active and spans[-active[0]][1] <= at:
+                heapq.heappop(active)
+            if active:
+                applied.add(-active[0])
+        for index, zone in enumerate(self.base):
+            if index not in applied:
+                raise invalid(
+                    f"condition {zone.condition} on [{zone.x_min}, {zone.x_max}] m applies to no column: "
+                    "later entries, which win where they overlap, cover every cell centre it holds",
+                    "a zone holding a cell centre no later entry covers, or no entry",
+                    f"base.{index}",
+                )
+
+    def _check_expect_together(self) -> None:
+        """Two ``expect`` entries on one quantity whose intervals ``value +- tolerance`` do
+        not meet: no run can pass both, and `multilayer check` ran the whole scenario to
+        fail one of them (an entry copied and edited, its old pin kept)."""
+        seen: dict[str, list[tuple[int, Expect]]] = {}
+        for index, entry in enumerate(self.expect):
+            if entry.quantity is None or entry.value is None:  # a comparison with an exact solution
+                continue
+            for first, other in seen.setdefault(entry.quantity, []):
+                assert other.value is not None
+                if abs(entry.value - other.value) > entry.tolerance + other.tolerance:
+                    raise invalid(
+                        f"{entry.quantity} = {entry.value!r} +- {entry.tolerance:.3g}, and expect.{first} "
+                        f"asks {other.value!r} +- {other.tolerance:.3g}: no value passes both",
+                        "entries on one quantity whose intervals value +- (atol + rtol |value|) meet, or "
+                        "one entry per quantity",
+                        f"expect.{index}.value",
+                    )
+            seen[entry.quantity].append((index, entry))
+
+    FRONT_QUANTITIES: typing.ClassVar[tuple[str, ...]] = (
+        "front_final",
+        "runout",
+        "static_interface_mean_final",
+    )
+    """The quantities of the summary measured where ``h`` is above the front threshold."""
+
+    def thickest_cell(self) -> float | None:
+        """An upper bound (m) of the thickness any cell can reach, or None with an inflow
+        or a fluid: all the initial material in one cell (``h >= 0``, and without an inflow
+        the volume only leaves through the boundaries; a grain-fluid mixture's volume grows
+        as it dilates, ``d_t h = h Phi``, docs/mixture.md).  A front threshold above it
+        finds no front at any output time (``front`` NaN throughout)."""
+        if self.boundaries.inflow is not None or self.fluid is not None:
+            return None
+        lo, hi = self.domain.x_min, self.domain.x_max
+        mass = 0.0  # an upper bound of the initial mass per unit width (m^2)
+        for entry in self.initial:
+            if entry.shape == "layer":
+                mass += (entry.thickness or 0.0) * (hi - lo)
+            elif entry.shape == "rectangle":
+                assert entry.x_min is not None and entry.x_max is not None and entry.height is not None
+                mass += entry.height * max(0.0, min(entry.x_max, hi) - max(entry.x_min, lo))
+            else:
+                rows = np.asarray(entry.points, dtype=float)
+                overlap = max(0.0, min(float(rows[-1, 0]), hi) - max(float(rows[0, 0]), lo))
+                mass += float(rows[:, 1].max()) * overlap
+        return mass / ((hi - lo) / self.domain.cells)
+
+    def front_never_found(self) -> str | None:
+        """Why ``numerics.front_threshold`` finds no front at any output time, or None."""
+        most, threshold = self.thickest_cell(), self.numerics.front_threshold
+        if most is None or threshold <= most:
+            return None
+        return (
+            f"{threshold!r} m is thicker than any cell can become (all the "
+            f"initial material in one cell is {most:.3g} m thick and no boundary brings material in): "
+            "the front is absent (NaN) at every output time"
+        )
+
+    def _check_front_threshold(self) -> None:
+        """An ``expect`` entry on a quantity measured above the front threshold (the front,
+        the run-out, the static interface's mean) that can never be found is refused: the
+        check failed on NaN after the whole run.  Without such an entry the run goes on
+        with a warning (a thin film studied for its mass and velocity has no front)."""
+        asked = [e.quantity for e in self.expect if e.quantity in self.FRONT_QUANTITIES]
+        why = self.front_never_found() if asked else None
+        if why is not None:
+            most = self.thickest_cell()
+            raise invalid(
+                f"{why}, and expect checks {', '.join(dict.fromkeys(map(str, asked)))}",
+                f"a number > 0 (m) up to {most:.3g} m (below the thickest initial material to find "
+                "the front from the start), or no expect entry on the front",
+                "numerics.front_threshold",
+            )
+
+    def _check_inflow(self) -> None:
+        """An inflow whose state leaves the domain faster than its waves can enter it (a
+        velocity out of the domain of at least ``2 sqrt(g cos(theta) h)``, the speed of the
+        front of a dam break of ``h``) brings no material in at any time: the run completed
+        with an empty domain, a mass of 0 and no front, exit 0."""
+        inflow = self.boundaries.inflow
+        if inflow is None:
+            return
+        v, h = inflow.velocity, inflow.thickness
+        if v.profile == "plug":
+            speeds = [v.speed or 0.0]
+        elif v.profile == "linear":  # linear above from_height, 0 below: its extremes at the ends
+            speeds = [0.0, (v.shear_rate or 0.0) * max(h - (v.from_height or 0.0), 0.0)]
+        else:  # bagnold: from 0 at the bed to surface_speed
+            speeds = [0.0, v.surface_speed or 0.0]
+        waves = 2.0 * math.sqrt(self.gravity * math.cos(math.radians(self.slope_deg)) * h)
+        for side, inward in (("left", 1.0), ("right", -1.0)):
+            if not lateral.BOUNDARIES[getattr(self.boundaries, side)].needs_state:
+                continue
+            fastest_in = max(inward * s for s in speeds)
+            if fastest_in + waves <= 0:
+                raise invalid(
+                    f"the {side} side's inflow moves out of the domain at {-fastest_in:.3g} m/s, no "
+                    f"slower than its waves can enter (2 sqrt(g cos(slope_deg) h) = {waves:.3g} m/s for "
+                    f"h = {h:g} m): no material would enter through it",
+                    f"a velocity into the domain ({'> 0' if inward > 0 else '< 0'} at the {side} side), "
+                    f"or out of it slower than {waves:.3g} m/s",
+                    "boundaries.inflow.velocity",
+                )
 
     def _check_gate(self) -> None:
         """The gate stands on a face inside the domain: on an end face the side's boundary

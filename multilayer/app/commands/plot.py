@@ -36,7 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--times",
         type=positive_int,
-        default=4,
+        default=None,  # 4: None tells a --times given to a study's directory
         metavar="N",
         help="number of times in the X-Z section figure (default 4)",
     )
@@ -61,7 +61,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--format",
         dest="fmt",
         choices=FORMATS,
-        default="png",
+        default=None,  # png: None tells a --format given to a study's directory
         help="file format of the figures (default png)",
     )
     parser.add_argument(
@@ -91,8 +91,24 @@ def main(args: argparse.Namespace) -> int:
     _matplotlib()
     from multilayer.app.calibration import CALIBRATION_FILE
     from multilayer.app.sensitivity import SENSITIVITY_FILE
+    from multilayer.io.results import RESULT_FILE
 
     studies = [name for name in (CALIBRATION_FILE, SENSITIVITY_FILE) if (args.directory / name).is_file()]
+    if studies and (args.directory / RESULT_FILE).is_file():  # the study's figures were drawn, the run's not
+        raise InputError(
+            f"{args.directory}: holds {RESULT_FILE} (a run) and {' and '.join(studies)} (a study): which one "
+            "to draw is not known; accepted: the directory of one run or of one study (a study's runs are "
+            "in its members/ directory)"
+        )
+    options = {"--times": args.times, "--at": args.at, "--xlim": args.xlim, "--format": args.fmt}
+    given = [name for name, value in options.items() if value not in (None, [])] + (
+        ["--animate"] if args.animate else []
+    )
+    if studies and given:  # the study's figures are png: the options were ignored, exit 0
+        raise InputError(
+            f"{args.directory}: {' and '.join(studies)} is a study's file; {', '.join(given)} "
+            "apply to a run's figures only; accepted: plot DIR alone for a study's figures (png)"
+        )
     notes: list[str] = []
     if studies:
         from multilayer.io.study_plotting import plot_study
@@ -103,7 +119,12 @@ def main(args: argparse.Namespace) -> int:
         from multilayer.io.plotting import plot_run
 
         paths, notes = plot_run(
-            args.directory, times=args.times, at=args.at, fmt=args.fmt, animate=args.animate, xlim=args.xlim
+            args.directory,
+            times=4 if args.times is None else args.times,
+            at=args.at,
+            fmt=args.fmt or "png",
+            animate=args.animate,
+            xlim=args.xlim,
         )
     for path in paths:
         print(printable(str(path)))

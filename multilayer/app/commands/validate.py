@@ -20,7 +20,7 @@ from multilayer import scenario as scenarios
 from multilayer.app import expectations, factory, resources
 from multilayer.app.commands import add_budget_arguments, add_set_argument, budget
 from multilayer.engine import initial_state
-from multilayer.errors import InputError, printable
+from multilayer.errors import InputError, printable, warn
 from multilayer.scenario import Scenario
 
 HELP = "check scenario, sweep and study files without running them"
@@ -101,6 +101,8 @@ def _check(scenario: Scenario, path: str | Path, args: argparse.Namespace) -> st
     steps = resources.check_steps(scenario, limits)
     factory.check_pressure(scenario)  # as the run: after the estimate of its steps
     expectations.validate(scenario)
+    if (absent := scenario.front_never_found()) is not None:  # as the run says it
+        warn(f"{path}: numerics.front_threshold = {absent}")
     return (
         f"{scenario.name}: {dom.cells} cells x {dom.layers} layers, "
         f"rheology {scenario.rheology.name}, t_end = {scenario.time.end:g} s; about "
