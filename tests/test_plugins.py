@@ -36,7 +36,12 @@ def pip(*args: str) -> None:
 
 @pytest.fixture(
     scope="module",
-    params=["entry point on the path", pytest.param("pip install", marks=pytest.mark.slow)],
+    # the pip-installed distribution is shared by every process: its tests run on one
+    # worker (``--dist loadgroup``), or one worker's uninstall removed it under another's
+    params=[
+        "entry point on the path",
+        pytest.param("pip install", marks=[pytest.mark.slow, pytest.mark.xdist_group("pip_install")]),
+    ],
 )
 def bingham(request, tmp_path_factory):
     """The plugin of tests/thirdparty_plugin made discoverable, for this module, either
