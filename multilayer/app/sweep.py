@@ -37,7 +37,7 @@ from typing import Any, Literal
 
 from multilayer import scenario
 from multilayer.app import resources, runner, stopping
-from multilayer.errors import InputError, Interrupted, RunError, reason
+from multilayer.errors import InputError, Interrupted, RunError, ascii_count, reason
 from multilayer.io.disk import writable, writable_directory, write_whole
 from multilayer.io.results import (
     CHECKPOINT_FILE,
@@ -463,13 +463,10 @@ def _check_port(address: str) -> None:
     port 99999 until its connection timeout (30 s), then names the timeout, not the port."""
     scheme, _, location = address.rpartition("://")
     port = location.rpartition(":")[2]
-    if (
-        (scheme or "tcp") in ("tcp", "tls")
-        and port.isascii()
-        and port.isdigit()
-        and not 1 <= int(port) <= 65535
-    ):
-        raise ValueError(f"port {int(port)} is no TCP port (1 to 65535)")
+    if (scheme or "tcp") in ("tcp", "tls") and port.isascii() and port.isdigit():
+        count = ascii_count(port)  # None past 18 digits: int() of 5000 raised its own ValueError
+        if count is None or not 1 <= count <= 65535:
+            raise ValueError(f"port {shown(port) if count is None else count} is no TCP port (1 to 65535)")
 
 
 def _answers(address: str) -> None:

@@ -69,12 +69,20 @@ def shared_csv_profile(path: str | Path, columns: Sequence[str]) -> np.ndarray:
     """The points of :func:`read_csv_profile` without their copy: one read-only array
     shared by every reader of the file as it is, its columns contiguous (the x of a
     profile are searched, ``np.searchsorted``, without copying them)."""
+    stamp = _stamp(path)
+    if stamp is None:  # missing or unreadable: the reading names it
+        return _parsed_csv_profile(Path(path), tuple(columns))
+    return _cached_csv_profile(str(path), tuple(columns), stamp)
+
+
+def _stamp(path: str | Path) -> tuple[int, ...] | None:
+    """What tells a file unchanged since it was read: its device, inode, size and
+    modification time (None where it cannot be looked at)."""
     try:
         status = os.stat(path)
-    except (OSError, ValueError):  # missing or unreadable: the reading names it
-        return _parsed_csv_profile(Path(path), tuple(columns))
-    stamp = (status.st_dev, status.st_ino, status.st_size, status.st_mtime_ns)
-    return _cached_csv_profile(str(path), tuple(columns), stamp)
+    except (OSError, ValueError):
+        return None
+    return (status.st_dev, status.st_ino, status.st_size, status.st_mtime_ns)
 
 
 @functools.lru_cache(maxsize=4)  # 16 MB a profile of 10^6 points
@@ -167,11 +175,9 @@ def read_dem_profile(
     if spacing is not None:  # the samples are counted before the DEM is read
         _check_samples(path, vertices, spacing, "spacing")
     check_regular(Path(path), "a GeoTIFF file", "a readable GeoTIFF file")
-    try:
-        status = os.stat(path)
-    except (OSError, ValueError):  # gone since: the reading names it
+    stamp = _stamp(path)
+    if stamp is None:  # gone since: the reading names it
         return _parsed_dem_profile(Path(path), vertices, spacing)
-    stamp = (status.st_dev, status.st_ino, status.st_size, status.st_mtime_ns)
     line = tuple(tuple(float(v) for v in vertex) for vertex in vertices.tolist())
     return _cached_dem_profile(str(path), line, spacing, stamp)
 
@@ -297,10 +303,12 @@ def shared_slope_frame(points: np.ndarray, slope_deg: float, where: str) -> np.n
     return derived(points, f"slope frame at {float(slope_deg).hex()} deg", frame)
 
 
-def lowest(points: np.ndarray) -> float:
-    """The smallest value of a profile ``[[x, value], ...]``, once for a shared profile
-    (:func:`derived`)."""
-    return derived(points, "lowest value", lambda profile: float(profile[:, 1].min()))
+def value_range(points: np.ndarray) -> tuple[float, float]:
+    """The smallest and the largest value of a profile ``[[x, value], ...]``, once for a
+    shared profile (:func:`derived`)."""
+    return derived(
+        points, "value range", lambda profile: (float(profile[:, 1].min()), float(profile[:, 1].max()))
+    )
 
 
 def map_to_slope_frame(points: np.ndarray, slope_deg: float, where: str) -> np.ndarray:

@@ -511,7 +511,7 @@ class InitialShape(StrictModel):
                 raise invalid("give points or file, not both", "points or file", "file")
             path = _file_in(info, self.file)
             rows = _profile_array(lambda: profiles.shared_csv_profile(path, ("x", "h")), "file")
-            if profiles.lowest(rows) < 0:
+            if profiles.value_range(rows)[0] < 0:
                 raise invalid("negative thickness", "a list [[x, h], ...] with h >= 0", "file")
             # the file's rows as one read-only array shared by every scenario reading the file
             # (x increasing, checked by the parser): a member of a study reading a file read
@@ -1034,9 +1034,9 @@ class Scenario(StrictModel):
                 assert entry.x_min is not None and entry.x_max is not None and entry.height is not None
                 mass += entry.height * max(0.0, min(entry.x_max, hi) - max(entry.x_min, lo))
             else:
-                rows = np.asarray(entry.points, dtype=float)
+                rows = np.asarray(entry.points, dtype=float)  # a file's: its shared array
                 overlap = max(0.0, min(float(rows[-1, 0]), hi) - max(float(rows[0, 0]), lo))
-                mass += float(rows[:, 1].max()) * overlap
+                mass += profiles.value_range(rows)[1] * overlap
         return mass / ((hi - lo) / self.domain.cells)
 
     def front_never_found(self) -> str | None:
