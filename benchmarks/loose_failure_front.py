@@ -29,7 +29,7 @@ import xarray as xr
 import yaml
 
 from multilayer.engine.mixture.closure import MixtureMaterial, basal_closure
-from multilayer.validation.cases.submarine_collapse import failure_fronts
+from multilayer.validation.cases.submarine_collapse import closure_material, failure_fronts
 
 
 def main() -> None:
@@ -68,23 +68,12 @@ def main() -> None:
             f"sqrt(g' h) {wave:.3f} m/s"
         )
     wet = h[-1] > 5e-3
-    friction(data, float(np.average(phi[-1, wet], weights=h[-1, wet])), float(h[-1, wet].mean()), g)
+    packing = float(np.average(phi[-1, wet], weights=h[-1, wet]))
+    friction(closure_material(ds), packing, float(h[-1, wet].mean()), g)
 
 
-def friction(data: dict, phi: float, h: float, g: float) -> None:
+def friction(mat: MixtureMaterial, phi: float, h: float, g: float) -> None:
     """Print the closure's basal stress at rest and its least value over the speeds."""
-    mixture, rheology = data["mixture"], data["rheology"]
-    mat = MixtureMaterial(
-        rho_s=data["material"]["particle_density"],
-        d=data["material"]["grain_diameter"],
-        rho_f=data["fluid"]["density"],
-        eta_f=data["fluid"]["viscosity"],
-        delta_deg=rheology["delta_deg"],
-        phi_c=mixture["phi_critical"],
-        K=mixture["dilatancy"],
-        K1=rheology["K1"],
-        K2=mixture["critical_shift"],
-    )
     P = (mat.rho_s - mat.rho_f) * g * phi * h
     speeds = np.logspace(-7, 0, 1401)
     stress = np.array([basal_closure(mat, phi * h, P, h, float(v)).tau_b for v in speeds])

@@ -219,3 +219,51 @@ def test_the_water_case_converges_at_order_one(phi0, t_end, steps):
     errors = immersed_layer.step_errors(pailha_2008_layer(phi0, "water"), t_end, steps, fields=("v",))
     rates = MeshStudy(steps, tuple(errors)).orders()
     assert immersed_layer.ode_met(rates), (errors, rates)
+
+
+@pytest.mark.parametrize(("phi", "h"), [(0.552, 0.016), (0.56, 0.014), (0.55, 0.001), (0.575, 0.016)])
+def test_a_loose_packing_weakens_with_the_shear_rate_at_the_analytic_rate(phi, h):
+    """Near rest the closure's root is ``p_s = P - B K (phi_c - phi) gamma + O(gamma^2)``, so
+    ``d tau / d gamma (0+) = (K1 + K K2) eta_f - (tan(delta) + K (phi - phi_c)) B K (phi_c - phi)``
+    (docs/mixture.md, "Why the loose deposit does not stay at rest"): negative (the stress
+    falls with the rate) for the loose submarine deposit, 16 mm at 0.552, and nearly zero at
+    1 mm, where the viscous part balances the pore pressure."""
+    mat = MixtureMaterial(
+        rho_s=2500.0,
+        d=225e-6,
+        rho_f=1010.0,
+        eta_f=0.0121,
+        delta_deg=22.5,
+        phi_c=0.582,
+        K=4.09,
+        K1=90.5,
+        K2=25.0,
+    )
+    weight = phi * (mat.rho_s - mat.rho_f) * 9.81 * h
+    B = 0.5 * mat.drag(phi) * h * h / (1.0 - phi) ** 2
+    viscous = (mat.K1 + mat.K * mat.K2) * mat.eta_f
+    exact = viscous - mat.static_friction(phi) * B * mat.K * (mat.phi_c - phi)
+    speed = 1e-10  # m/s: gamma = 3 speed / h, the O(gamma^2) term below 1e-6 of the slope
+    rest, moving = (basal_closure(mat, phi * h, weight, h, v).tau_b for v in (0.0, speed))
+    slope = (moving - rest) / (3.0 * speed / h)
+    assert slope == pytest.approx(exact, rel=1e-5, abs=1e-3)
+    if h > 0.01:  # the pore pressure's part outweighs the viscous one 94 to 239 times
+        assert exact < -50.0 * viscous
+    else:
+        assert abs(exact) < viscous
+
+
+@pytest.mark.parametrize("phi0", [0.562, 0.592])
+def test_the_volume_the_step_loses_is_the_fluid_its_pore_pressure_drives_out(phi0):
+    """With the closure each backward-Euler step changes the mixture thickness by exactly the
+    Darcy outflow of its pore pressure, ``h' - h = -dt h' p_e' / B'`` (``p_e = -B Phi``): the
+    layer compacts or dilates only as fast as its pore fluid flows."""
+    layer = pailha_2008_layer(phi0)
+    dt = 0.5
+    run = layer.run(t_end=20.0, dt=dt)
+    for i in range(1, run.t.size):
+        h, phi = float(run.h[i]), float(run.phi[i])
+        B = 0.5 * layer.material.drag(phi) * h * h / (1.0 - phi) ** 2
+        outflow = -dt * h * float(run.p_e[i]) / B
+        change = h - float(run.h[i - 1])
+        assert change == pytest.approx(outflow, rel=1e-9, abs=64 * EPS * h)

@@ -22,6 +22,7 @@ import numpy as np
 import xarray as xr
 import yaml
 
+from multilayer.engine.mixture.closure import MixtureMaterial
 from multilayer.engine.mixture.flow import buoyant_fraction
 from multilayer.validation import published
 from multilayer.validation.markdown import met, resolution, table
@@ -146,6 +147,25 @@ def failure_fronts(ds: xr.Dataset) -> list[tuple[float, float, float, float, flo
             )
         i = j + 1
     return fronts
+
+
+def closure_material(ds: xr.Dataset) -> MixtureMaterial:
+    """The grains, fluid and closure constants of the scenario a result was run from (the
+    basal law of Bouchut et al. 2016, docs/mixture.md)."""
+    data = yaml.safe_load(ds.attrs["scenario"])
+    mixture, rheology = data["mixture"], data["rheology"]
+    return MixtureMaterial(
+        rho_s=data["material"]["particle_density"],
+        d=data["material"]["grain_diameter"],
+        rho_f=data["fluid"]["density"],
+        eta_f=data["fluid"]["viscosity"],
+        delta_deg=rheology["delta_deg"],
+        phi_c=mixture["phi_critical"],
+        K=mixture["dilatancy"],
+        K1=rheology["K1"],
+        K2=mixture["critical_shift"],
+        kozeny=mixture.get("kozeny", 150.0),
+    )
 
 
 def liquefaction(ds: xr.Dataset) -> tuple[float, float]:
