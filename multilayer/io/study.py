@@ -368,6 +368,16 @@ def _check_base(path: Path, lines: dict, config: _Study, experiments: dict[str, 
     and upper bounds must be a valid scenario (the key named otherwise); no parameter is
     given a value in ``set`` or an experiment, where the parameter's value replaced it
     (an experiment of its own ``rheology.mu_2`` ran with the calibrated one, silently)."""
+    given = [(("set",), config.set), *((("experiments", n), extra) for n, extra in experiments.items())]
+    for within, overrides in given:
+        for key in overrides:
+            if key == "output" or key.startswith("output."):  # the members ran into DIR all the same
+                raise InputError(
+                    f"{_at(path, lines, *within, key)}: a run's output is not its own: the study writes "
+                    "every run into its own directory under its output directory (-o or the study file's "
+                    "output.directory), whatever its scenario says; accepted: scenario keys that change the "
+                    "run; the study's directory as the study file's output.directory"
+                )
     for key in config.parameters:
         fixed = ["set"] * (key in config.set) + [
             f"experiments.{n}" for n, extra in experiments.items() if key in extra
@@ -428,6 +438,7 @@ def _check_span(
     x_max = bounds["domain.x_max"].bounds[0] if "domain.x_max" in bounds else x_max
     obs = observed.observation
     where = _at(path, lines, "observations", index)
+    _check_reach(where, observed, run, config)
     coordinates = np.asarray(observed.coordinate, dtype=float)
     inside = coordinates.size == 0 or (coordinates.min() >= 0 and coordinates.max() <= end)
     if obs.quantity in CURVES and not inside:
@@ -447,6 +458,46 @@ def _check_span(
                 f"{where}: observed at x = {coordinates.min():g} to {coordinates.max():g} m, outside the "
                 f"domain [{x_min:g}, {x_max:g}] m of the runs; accepted: positions inside the domain"
             )
+
+
+REACH_SIGMAS = 3.0
+"""An observed value farther than this many standard deviations from every value a run can
+give is refused: no parameter set can come near it."""
+
+
+def _check_reach(where: str, observed: ObservedData, run: Any, config: Any) -> None:
+    """:class:`InputError` if an observed value lies more than :data:`REACH_SIGMAS` standard
+    deviations outside what every run gives (a front within the domain, a run-out no longer
+    than it, a duration within the simulated time, a mass and a thickness >= 0; a
+    calibrated time.end or domain bound counts at its widest): a front observed at 7 m on a
+    domain of 0.5 m was fitted, every member's misfit growing with its distance from the
+    domain's end, and the calibration reported the parameters at a bound as the best fit."""
+    bounds = config.parameters
+    x_min = bounds["domain.x_min"].bounds[0] if "domain.x_min" in bounds else run.domain.x_min
+    x_max = bounds["domain.x_max"].bounds[1] if "domain.x_max" in bounds else run.domain.x_max
+    end = bounds["time.end"].bounds[1] if "time.end" in bounds else run.time.end
+    quantity = observed.observation.quantity
+    reach = {
+        "front": (x_min, x_max, f"a front within the domain [{x_min:g}, {x_max:g}] m"),
+        "front_final": (x_min, x_max, f"a front within the domain [{x_min:g}, {x_max:g}] m"),
+        "runout": (x_min - x_max, x_max - x_min, f"a run-out no longer than the domain, {x_max - x_min:g} m"),
+        "duration": (0.0, end, f"a duration within the simulated time, 0 to {end:g} s"),
+        "mass_final": (0.0, math.inf, "a mass >= 0"),
+        "h": (0.0, math.inf, "a thickness >= 0"),
+    }
+    low, high, runs_give = reach[quantity]
+    value, sigma = np.asarray(observed.value), np.asarray(observed.sigma)
+    with np.errstate(over="ignore"):  # 3 sigma beyond the largest float: inf, which reaches anything
+        far = (value + REACH_SIGMAS * sigma < low) | (value - REACH_SIGMAS * sigma > high)
+    if far.any():
+        k = int(np.flatnonzero(far)[0])
+        at = f" at {observed.coordinate[k]:g} {_COORDINATE_SI[quantity]}" if observed.coordinate else ""
+        unit = _SI[quantity]
+        raise InputError(
+            f"{where}: observed {quantity} {value[k]:g} {unit}{at} (sigma {sigma[k]:g} {unit}), more than "
+            f"{REACH_SIGMAS:g} standard deviations from what any run gives ({runs_give}): no parameter set "
+            f"can come near it; accepted: observations a run can reproduce, in SI after their units"
+        )
 
 
 def load_sensitivity(path: str | Path) -> Sensitivity:
@@ -605,7 +656,27 @@ def _read_netcdf(
         raise InputError(f"{where}: cannot read {file} ({reason(exc)}); accepted: a netCDF file") from None
     if var.ndim != 1:
         raise InputError(f"{where}: {file}: {variable} has {var.ndim} dimensions; accepted: one")
-    coord = var[var.dims[0]]
+    dim = var.dims[0]
+    accepted = (
+        f"accepted: a variable of numbers over a coordinate variable {dim} of numbers (s, ms, m, cm, mm)"
+    )
+    if dim not in var.coords:  # xarray numbers the entries 0, 1, 2, ...: read as times or positions
+        raise InputError(
+            f"{where}: {file}: the dimension {dim} of {variable} has no coordinate variable (its entries "
+            f"would be read at {dim} = 0, 1, 2, ...); {accepted}"
+        )
+    coord = var[dim]
+    for name, values in ((variable, var), (str(dim), coord)):
+        if values.dtype.kind in "mM":  # decoded by xarray from units of time
+            units = values.encoding.get("units", values.attrs.get("units"))
+            raise InputError(
+                f"{where}: {file}: {name} has units {units!r}, which are read as "
+                f"{'dates' if values.dtype.kind == 'M' else 'durations'}; {accepted}"
+            )
+        if values.dtype.kind not in "iuf":
+            raise InputError(f"{where}: {file}: {name} holds values of type {values.dtype}; {accepted}")
+    if var.size == 0:
+        raise InputError(f"{where}: {file}: {variable} holds no values; {accepted}, at least one")
     return (
         np.asarray(coord.values, dtype=float),
         np.asarray(var.values, dtype=float),
