@@ -4281,6 +4281,18 @@ def _study_over_its_file(command: str) -> Callable[[Path], None]:
     return setup
 
 
+def _study_of_the_runout(base: dict) -> Callable[[Path], None]:
+    """A sensitivity study of the run-out of ``base`` to its friction and slope."""
+
+    def setup(directory: Path) -> None:
+        (directory / "base.yaml").write_text(yaml.safe_dump(base))
+        parameters = {"rheology.mu_s": {"bounds": [0.2, 0.4]}, "slope_deg": {"bounds": [20.0, 30.0]}}
+        study = {"base": "base.yaml", "parameters": parameters, "outputs": ["runout"], "samples": 64}
+        (directory / "study.yaml").write_text(yaml.safe_dump(study))
+
+    return setup
+
+
 def _retyped_result(variable: str, dtype: str) -> Callable[[Path], None]:
     """A finished run whose result.nc's ``variable`` is stored as ``dtype`` (its values cast,
     no fill value): the file copied variable by variable."""
@@ -4317,7 +4329,8 @@ def _retyped_result(variable: str, dtype: str) -> Callable[[Path], None]:
 def round_twenty_four() -> list[Case]:
     """The hostile cases of the twenty-fourth round (docs/reliability.md): netCDF
     observations that are not numbers over their coordinate (no coordinate variable, times
-    in dates, text, no values), studies whose input is the file they write; as controls, a
+    in dates, text, no values), studies whose input is the file they write or that measure
+    the front where no cell can reach its threshold; as controls, a
     front in days, a result whose ``h`` or time is stored in single precision, a failed
     run's message and a version holding a terminal escape sequence."""
     study = ["-o", "{dir}/out", "-q"]
@@ -4325,6 +4338,7 @@ def round_twenty_four() -> list[Case]:
     not_numbers = "accepted: a variable of numbers over a coordinate variable t of numbers"
     escape = "ds.run_status = 'failed'; ds.failure = 'boom \\x1b[2J end'"
     front = {"quantity": "front", "file": "front.csv", "columns": ["t", "x_f", "sigma"]}
+    unreachable = {**TINY, "numerics": {"front_threshold": 0.5}}  # the column in one cell: 0.4 m
     out = [
         Case("validate: a netCDF front over a dimension without a coordinate variable", calibration, 2,
              "the dimension t of x_f has no coordinate variable (its entries would be read at t = 0, 1, 2",
@@ -4356,6 +4370,14 @@ def round_twenty_four() -> list[Case]:
              "experiments.a.output (line 4): a run's output is not its own",
              setup=_calibration_of(front, {**TINY, "time": {"end": 2.0, "output_interval": 0.5}},
                                    {"experiments": {"a": {"output": {"directory": "elsewhere"}}}})),
+        Case("validate: a calibration of the front whose threshold no cell can reach", calibration, 2,
+             "and the study measures front on it", setup=_calibration_of(front, unreachable)),
+        Case("validate: a calibration of the mass whose front threshold no cell can reach", calibration, 0,
+             "",
+             setup=_calibration_of({"quantity": "mass_final", "value": 0.005, "sigma": 1e-4}, unreachable)),
+        Case("validate: a sensitivity study of the run-out whose threshold no cell can reach",
+             ["validate", "{dir}/study.yaml"], 2, "and the study measures runout on it",
+             setup=_study_of_the_runout(unreachable)),
         Case("plot: result.nc whose h is stored as float32", ["plot", "{dir}/out"], 2,
              "is not the integral of h", setup=_retyped_result("h", "f4")),
         Case("export: result.nc whose time is stored as float32", ["export", "{dir}/out", "--vtk"], 2,

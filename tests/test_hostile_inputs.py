@@ -2115,3 +2115,32 @@ def test_a_sweep_of_the_members_output_directory_is_refused(tmp_path, cli):
         assert (
             result.code == 2 and f"parameters.{key} (line 3): a member's output is not its own" in result.err
         )
+
+
+def test_a_study_measuring_the_front_where_no_cell_can_reach_its_threshold_is_refused(tmp_path, cli):
+    """A calibration of the front over a base whose ``numerics.front_threshold`` (0.5 m)
+    no cell can reach (0.4 m at most) validated, then ran every member to fail on a NaN
+    front, exit 1; a sensitivity study of the run-out alike.  A study measuring the mass
+    only runs."""
+    (tmp_path / "front.csv").write_text("t,x_f,sigma\n0.02,0.12,0.01\n")
+    config = _calibration(
+        tmp_path, {"quantity": "front", "file": "front.csv", "columns": ["t", "x_f", "sigma"]}
+    )
+    config["set"] = {"numerics.front_threshold": 0.5, "domain.cells": 40}
+    (tmp_path / "calibration.yaml").write_text(yaml.safe_dump(config))
+    result = cli("validate", tmp_path / "calibration.yaml")
+    assert result.code == 2 and "base (line 1): numerics.front_threshold = 0.5 m is thicker" in result.err
+    assert "and the study measures front on it" in result.err, result.err
+    config["observations"] = [{"name": "mass", "quantity": "mass_final", "value": 0.005, "sigma": 1e-4}]
+    (tmp_path / "calibration.yaml").write_text(yaml.safe_dump(config))
+    assert cli("validate", tmp_path / "calibration.yaml").code == 0
+    study = {
+        "base": "base.yaml",
+        "set": {"numerics.front_threshold": 0.5, "domain.cells": 40},
+        "parameters": {"rheology.mu_s": {"bounds": [0.2, 0.4]}, "slope_deg": {"bounds": [20.0, 30.0]}},
+        "outputs": ["mass_final", "runout"],
+        "samples": 64,
+    }
+    (tmp_path / "sensitivity.yaml").write_text(yaml.safe_dump(study))
+    result = cli("validate", tmp_path / "sensitivity.yaml")
+    assert result.code == 2 and "and the study measures runout on it" in result.err, result.err

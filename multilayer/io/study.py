@@ -363,7 +363,17 @@ def _at(path: Path, lines: dict, *key: str | int) -> str:
     return f"{path}: {dotted(key)}{line}"
 
 
-def _check_base(path: Path, lines: dict, config: _Study, experiments: dict[str, dict[str, Any]]) -> Path:
+FRONT_QUANTITIES = ("front", "front_final", "runout", "duration")
+"""The observed quantities measured on the front (:mod:`multilayer.io.observables`)."""
+
+
+def _check_base(
+    path: Path,
+    lines: dict,
+    config: _Study,
+    experiments: dict[str, dict[str, Any]],
+    measured: dict[str, set[str]],
+) -> Path:
     """The base scenario path; every experiment with the parameters at their lower, middle
     and upper bounds must be a valid scenario (the key named otherwise); no parameter is
     given a value in ``set`` or an experiment, where the parameter's value replaced it
@@ -392,12 +402,14 @@ def _check_base(path: Path, lines: dict, config: _Study, experiments: dict[str, 
         path, config.base, _at(path, lines, "base"), "the base scenario with set", as_overrides(config.set)
     )
     for name, extra in experiments.items():
+        frontless = []
         for where in (0.0, 0.5, 1.0):
             values = {
                 k: p.bounds[0] + where * (p.bounds[1] - p.bounds[0]) for k, p in config.parameters.items()
             }
             try:
-                scenario.load(base, as_overrides({**config.set, **extra, **values}))
+                run = scenario.load(base, as_overrides({**config.set, **extra, **values}))
+                frontless.append(run.front_never_found())
             except InputError as exc:
                 keys = [k for k in (*values, *extra) if k in str(exc)] or list(values)
                 place = ("parameters", keys[0]) if keys[0] in values else ("experiments", name)
@@ -406,6 +418,14 @@ def _check_base(path: Path, lines: dict, config: _Study, experiments: dict[str, 
                     f"{', '.join(f'{k} = {v:g}' for k, v in values.items())}"
                     f"{f' in experiment {name}' if extra else ''}:\n{exc}"
                 ) from None
+        on_front = sorted(measured.get(name, set()) & set(FRONT_QUANTITIES))
+        if on_front and all(frontless):  # every run of the experiment: the front NaN, the study failed
+            raise InputError(
+                f"{_at(path, lines, 'base')}: numerics.front_threshold = {frontless[1]}"
+                f"{f' in experiment {name}' if len(experiments) > 1 else ''}, with the parameters at their "
+                f"lower, middle and upper values, and the study measures {', '.join(on_front)} on it; "
+                "accepted: a smaller numerics.front_threshold (set), or no observation or output of the front"
+            )
     return base
 
 
@@ -414,7 +434,10 @@ def load_calibration(path: str | Path) -> Calibration:
     path = Path(path)
     config, lines = _validate(CalibrationModel, path, "calibration")
     experiments = dict(config.experiments) or {"base": {}}
-    base = _check_base(path, lines, config, experiments)
+    measured: dict[str, set[str]] = {}
+    for obs in config.observations:
+        measured.setdefault(obs.experiment or next(iter(experiments)), set()).add(obs.quantity)
+    base = _check_base(path, lines, config, experiments, measured)
     data = [
         _read(path, lines, i, obs, obs.experiment or next(iter(experiments)))
         for i, obs in enumerate(config.observations)
@@ -504,7 +527,7 @@ def load_sensitivity(path: str | Path) -> Sensitivity:
     """Read and validate a sensitivity file (InputError if bad)."""
     path = Path(path)
     config, lines = _validate(SensitivityModel, path, "sensitivity")
-    base = _check_base(path, lines, config, {"base": {}})
+    base = _check_base(path, lines, config, {"base": {}}, {"base": set(config.outputs)})
     return Sensitivity(path=path, base=base, config=config)
 
 
