@@ -4293,6 +4293,27 @@ def _study_of_the_runout(base: dict) -> Callable[[Path], None]:
     return setup
 
 
+def _study_of_a_bed(sobol: bool) -> Callable[[Path], None]:
+    """A study of the elevations of the 399 inner points of a bed of 400: Sobol' indices of
+    the mass from 65536 base samples (``sobol``), or a calibration to the mass with a
+    population of 10^4."""
+
+    def setup(directory: Path) -> None:
+        n = 400
+        base = {**TINY, "bed": {"points": [[0.5 * i / (n - 1), 0.0] for i in range(n)]}}
+        (directory / "base.yaml").write_text(yaml.safe_dump(base))
+        parameters = {f"bed.points.{i}.1": {"bounds": [0.0, 0.001]} for i in range(1, n)}
+        study: dict = {"base": "base.yaml", "parameters": parameters}
+        if sobol:
+            study.update(outputs=["mass_final"], samples=65536)
+        else:
+            observation = {"name": "m", "quantity": "mass_final", "value": 0.005, "sigma": 1e-4}
+            study.update(observations=[observation], search={"population": 10_000})
+        (directory / "study.yaml").write_text(yaml.safe_dump(study))
+
+    return setup
+
+
 def _retyped_result(variable: str, dtype: str) -> Callable[[Path], None]:
     """A finished run whose result.nc's ``variable`` is stored as ``dtype`` (its values cast,
     no fill value): the file copied variable by variable."""
@@ -4330,7 +4351,8 @@ def round_twenty_four() -> list[Case]:
     """The hostile cases of the twenty-fourth round (docs/reliability.md): netCDF
     observations that are not numbers over their coordinate (no coordinate variable, times
     in dates, text, no values), studies whose input is the file they write or that measure
-    the front where no cell can reach its threshold; as controls, a
+    the front where no cell can reach its threshold, study designs of gigabytes; as
+    controls, a
     front in days, a result whose ``h`` or time is stored in single precision, a failed
     run's message and a version holding a terminal escape sequence."""
     study = ["-o", "{dir}/out", "-q"]
@@ -4378,6 +4400,14 @@ def round_twenty_four() -> list[Case]:
         Case("validate: a sensitivity study of the run-out whose threshold no cell can reach",
              ["validate", "{dir}/study.yaml"], 2, "and the study measures runout on it",
              setup=_study_of_the_runout(unreachable)),
+        Case("validate: a sensitivity study of 65536 base samples of 399 parameters (a design of 78 GiB)",
+             ["validate", "{dir}/study.yaml"], 2,
+             "samples (line 1601): 65536 x (399 parameters + 2) = 26279936 runs of 399 values: 78.1 GiB",
+             setup=_study_of_a_bed(True)),
+        Case("validate: a calibration of 399 parameters, a population of 10^4 (12 GiB)",
+             ["validate", "{dir}/study.yaml"], 2,
+             "search.population (line 1605): 10000 x (399 parameters) = 3990000 runs of 399 values",
+             setup=_study_of_a_bed(False)),
         Case("plot: result.nc whose h is stored as float32", ["plot", "{dir}/out"], 2,
              "is not the integral of h", setup=_retyped_result("h", "f4")),
         Case("export: result.nc whose time is stored as float32", ["export", "{dir}/out", "--vtk"], 2,

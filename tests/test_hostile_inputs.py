@@ -2144,3 +2144,29 @@ def test_a_study_measuring_the_front_where_no_cell_can_reach_its_threshold_is_re
     (tmp_path / "sensitivity.yaml").write_text(yaml.safe_dump(study))
     result = cli("validate", tmp_path / "sensitivity.yaml")
     assert result.code == 2 and "and the study measures runout on it" in result.err, result.err
+
+
+@pytest.mark.parametrize("study", ["sensitivity", "calibration"])
+def test_a_study_design_beyond_its_memory_bound_is_refused_before_it_is_made(tmp_path, cli, study):
+    """65536 base samples of 399 parameters (the elevations of a bed's points) asked numpy
+    for 78 GiB in ``validate`` (its MemoryError, a traceback, or the machine's memory); a
+    calibration of a population of 10^4 of them, 12 GiB for differential evolution."""
+    n = 400
+    base = {**TINY_SCENARIO, "bed": {"points": [[0.5 * i / (n - 1), 0.0] for i in range(n)]}}
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(base))
+    parameters = {f"bed.points.{i}.1": {"bounds": [0.0, 0.001]} for i in range(1, n)}
+    if study == "sensitivity":
+        config = {"base": "base.yaml", "parameters": parameters, "outputs": ["mass_final"], "samples": 65536}
+        phrase = "samples (line 1601): 65536 x (399 parameters + 2) = 26279936 runs of 399 values: 78.1 GiB"
+    else:
+        observation = {"name": "m", "quantity": "mass_final", "value": 0.005, "sigma": 1e-4}
+        config = {"base": "base.yaml", "parameters": parameters, "observations": [observation]}
+        config["search"] = {"population": 10_000}
+        phrase = (
+            "search.population (line 1605): 10000 x (399 parameters) = 3990000 runs of 399 values: 11.9 GiB"
+        )
+    (tmp_path / "study.yaml").write_text(yaml.safe_dump(config))
+    result = cli("validate", tmp_path / "study.yaml")
+    assert result.code == 2 and phrase in result.err and "accepted: at most 134217728 values" in result.err, (
+        result.err
+    )

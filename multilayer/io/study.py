@@ -37,7 +37,7 @@ from pydantic import BaseModel, Field, ValidationError, field_validator, model_v
 from multilayer import scenario
 from multilayer.errors import InputError, reason
 from multilayer.scenario.files import read_text
-from multilayer.scenario.limits import MAX_PROFILE_POINTS
+from multilayer.scenario.limits import MAX_DESIGN_VALUES, MAX_PROFILE_POINTS
 from multilayer.scenario.loading import load_base
 from multilayer.scenario.messages import StrictModel, describe, directory_path, dotted, field, invalid
 from multilayer.scenario.overrides import as_overrides
@@ -204,6 +204,20 @@ def _seed() -> Any:
     return field(1, "an integer from 0 to 4294967295 (2^32 - 1)", ge=0, le=2**32 - 1)
 
 
+def _check_design(key: str, count: int, parameters: int, extra: int) -> None:
+    """A validation error of ``key`` if a design of ``count x (parameters + extra)`` runs of
+    ``parameters`` values each holds more than :data:`MAX_DESIGN_VALUES` values."""
+    runs = count * (parameters + extra)
+    if runs * parameters > MAX_DESIGN_VALUES:
+        raise invalid(
+            f"{count} x ({parameters} parameters{f' + {extra}' if extra else ''}) = {runs} runs of "
+            f"{parameters} values: {runs * parameters * 8 / 2**30:.3g} GiB for the design alone",
+            f"at most {MAX_DESIGN_VALUES} values ({MAX_DESIGN_VALUES * 8 // 2**30} GiB): fewer parameters, "
+            f"or {key} smaller",
+            key,
+        )
+
+
 class Search(StrictModel):
     """Global search: differential evolution (Storn & Price 1997)."""
 
@@ -263,6 +277,7 @@ class CalibrationModel(_Study):
 
     @model_validator(mode="after")
     def _check(self) -> CalibrationModel:
+        _check_design("search.population", self.search.population, len(self.parameters), 0)
         names = list(self.experiments) or ["base"]
         seen: set[str] = set()
         for i, obs in enumerate(self.observations):
@@ -295,6 +310,11 @@ class SensitivityModel(_Study):
             twice = next(name for name in outputs if outputs.count(name) > 1)
             raise invalid(f"{twice} twice", "each output once")
         return outputs
+
+    @model_validator(mode="after")
+    def _design(self) -> SensitivityModel:
+        _check_design("samples", self.samples, len(self.parameters), 2)
+        return self
 
     @field_validator("samples")
     @classmethod
