@@ -3714,6 +3714,8 @@ def cases() -> list[Case]:
         + round_twenty()
         + round_twenty_one()
         + round_twenty_two()
+        + round_twenty_three()
+        + round_twenty_four()
     )
 
 
@@ -4131,6 +4133,291 @@ def round_twenty_two() -> list[Case]:
     return out
 
 
+def _input_in_output(key: str, name: str, link: bool = False) -> Callable[[Path], None]:
+    """A scenario whose ``bed`` (``key`` bed) or initial thickness (``initial``) is the file
+    ``out/name``, a file its run writes, or (``link``) ``bed.csv`` hard-linked there."""
+
+    def setup(directory: Path) -> None:
+        (directory / "out").mkdir()
+        written = directory / "out" / name
+        if key == "bed":
+            bed = directory / "bed.csv" if link else written
+            bed.write_text("x (m), z (m)\n0, 0\n0.5, 0\n")
+            if link:
+                os.link(bed, written)
+            _scenario(directory, {"bed": {"file": bed.relative_to(directory).as_posix()}})
+        else:
+            written.write_text("x (m), h (m)\n0, 0.05\n0.1, 0.05\n0.1001, 0\n0.5, 0\n")
+            _scenario(directory, {"initial": [{"shape": "profile", "file": f"out/{name}"}]})
+
+    return setup
+
+
+def _calibration_of(
+    observation: dict, base: dict = TINY, extra: dict | None = None
+) -> Callable[[Path], None]:
+    """A calibration of ``rheology.mu_s`` on ``base`` against one ``observation`` (a front
+    file ``front.csv`` beside it: 0.12 m at 0.05 s, 7 m at 0.1 s), with the keys ``extra``."""
+
+    def setup(directory: Path) -> None:
+        (directory / "base.yaml").write_text(yaml.safe_dump(base))
+        (directory / "front.csv").write_text("t,x_f,sigma\n0.05,0.12,0.01\n0.1,7,0.01\n")
+        config = {
+            "base": "base.yaml",
+            "parameters": {"rheology.mu_s": {"bounds": [0.2, 0.4]}},
+            "observations": [{"name": "seen", **observation}],
+            "search": {"population": 4, "generations": 1},
+            **(extra or {}),
+        }
+        (directory / "calibration.yaml").write_text(yaml.safe_dump(config))
+
+    return setup
+
+
+def round_twenty_three() -> list[Case]:
+    """The hostile cases of the twenty-third round (docs/reliability.md): files a run reads
+    that it would write over (a bed or initial-thickness file at ``out/result.nc``,
+    ``out/run.lock``, ``out/run.log``, hard-linked at ``out/checkpoint.npz``), a run of no
+    material, observations no run can come near, sizes Python's ``float`` refuses or that
+    are infinite, a sweep of its members' output directory; booleans as numbers, a YAML
+    key that is a list, a domain whose length overflows and a resume shortening the run as
+    controls."""
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    validate = ["validate", "{scenario}"]
+    front = {"quantity": "front", "file": "front.csv", "columns": ["t", "x_f", "sigma"]}
+    out = [
+        Case("validate: time.end true (a boolean where a number is expected)", validate, 2,
+             "time.end (line 24): Input should be a valid number (got True)",
+             setup=lambda d: _scenario(d, {"time.end": True})),
+        Case("run: --set initial=[] without an inflow (a run of nothing)", [*run, "--set", "initial=[]"], 2,
+             "initial: an empty list and no inflow: the run would hold no material", setup=_scenario),
+        Case("validate: initial: [] without an inflow", validate, 2, "initial: an empty list and no inflow",
+             setup=lambda d: _scenario(d, {"initial": []})),
+        Case("run: a bed file out/result.nc, run into out", run, 2, "result.nc: the file bed.file of",
+             setup=_input_in_output("bed", "result.nc")),
+        Case("run: a bed file out/run.lock, run into out", run, 2, "run.lock: the file bed.file of",
+             setup=_input_in_output("bed", "run.lock")),
+        Case("run: an initial-thickness file out/run.log, run into out", run, 2,
+             "run.log: the file initial.0.file of", setup=_input_in_output("initial", "run.log")),
+        Case("run: a bed file hard-linked at out/checkpoint.npz, run into out", run, 2,
+             "checkpoint.npz: the file bed.file of", setup=_input_in_output("bed", "checkpoint.npz", True)),
+        Case("validate: a calibration's front observed at 7 m on a domain of 0.5 m",
+             ["validate", "{dir}/calibration.yaml"], 2,
+             "observed front 7 m at 0.1 s (sigma 0.01 m), more than 3 standard deviations from what any run "
+             "gives (a front within the domain [0, 0.5] m)", setup=_calibration_of(front)),
+        Case("validate: a calibration's duration observed at 3 s, runs to 0.2 s",
+             ["validate", "{dir}/calibration.yaml"], 2, "a duration within the simulated time, 0 to 0.2 s",
+             setup=_calibration_of({"quantity": "duration", "value": 3.0, "sigma": 0.1})),
+        Case("validate: --max-memory 1.2.3", [*validate, "--max-memory", "1.2.3"], 2,
+             "not a size: '1.2.3'; accepted: a finite number of bytes > 0", setup=_scenario),
+        Case("run: --max-output 1e999", [*run, "--max-output", "1e999"], 2,
+             "not a size > 0: '1e999' is inf bytes; accepted", setup=_scenario),
+        Case("validate: a sweep of output.directory", ["validate", "{dir}/sweep.yaml"], 2,
+             "parameters.output.directory (line 3): a member's output is not its own",
+             setup=_sweep({"output.directory": ["a", "b"]})),
+        Case("validate: a YAML key that is a list (? [a, b])", validate, 2, "found unhashable key",
+             setup=lambda d: _scenario(d, text=yaml.safe_dump(TINY) + "? [a, b]\n: 1\n")),
+        Case("validate: a domain from -1e308 to 1e308 m (its length overflows)", validate, 2,
+             "the domain is inf m long", setup=lambda d: _scenario(
+                 d, {"domain.x_min": -1e308, "domain.x_max": 1e308, "initial.0.x_max": 1e307})),
+        Case("resume: --set time.end=0.1 below the checkpoint at 0.2 s",
+             [*run, "--resume", "--set", "time.end=0.1"], 2, "a run can be extended, not shortened",
+             setup=_finished_run),
+    ]  # fmt: skip
+    return out
+
+
+def _front_file(**front: Any) -> Callable[[Path], None]:
+    """A calibration of TINY (to t = 2 s) against a front read from the netCDF file
+    ``front.nc``: a variable ``x_f`` over ``t`` (0.02, 0.04 s), changed by ``front``:
+    ``coordinate`` False (no variable t), ``units`` of t, ``values`` and their ``kind``."""
+
+    def setup(directory: Path) -> None:
+        import netCDF4
+
+        values = front.get("values", (0.02, 0.03))
+        kind = front.get("kind", "f8")
+        with NETCDF, netCDF4.Dataset(directory / "front.nc", "w") as ds:
+            ds.createDimension("t", len(values))
+            if front.get("coordinate", True):
+                t = ds.createVariable("t", "f8", ("t",))
+                t[:], t.units = [0.02, 0.04][: len(values)], front.get("units", "s")
+            x = ds.createVariable("x_f", kind, ("t",))
+            x.units = "m"
+            x[:] = np.array(values, dtype=object if kind is str else kind)
+        base = {**TINY, "time": {"end": 2.0, "output_interval": 0.5}}
+        _calibration_of({"quantity": "front", "file": "front.nc", "variable": "x_f", "sigma": 0.01}, base)(
+            directory
+        )
+
+    return setup
+
+
+def _study_over_its_file(command: str) -> Callable[[Path], None]:
+    """A study whose input is the file it writes into ``out``: a sweep's base scenario
+    ``out/summary.csv``, a calibration's observations ``out/calibration.nc``, a sensitivity
+    study's base ``out/sensitivity.nc``."""
+
+    def setup(directory: Path) -> None:
+        (directory / "out").mkdir()
+        if command == "calibrate":
+            _front_file()(directory)
+            os.replace(directory / "front.nc", directory / "out" / "calibration.nc")
+            config = yaml.safe_load((directory / "calibration.yaml").read_text())
+            config["observations"][0]["file"] = "out/calibration.nc"
+        elif command == "sweep":
+            (directory / "out" / "summary.csv").write_text(yaml.safe_dump(TINY))
+            config = {"base": "out/summary.csv", "parameters": {"slope_deg": [20.0, 25.0]}}
+        else:
+            (directory / "out" / "sensitivity.nc").write_text(yaml.safe_dump(TINY))
+            config = {
+                "base": "out/sensitivity.nc",
+                "parameters": {"rheology.mu_s": {"bounds": [0.2, 0.4]}},
+                "outputs": ["runout"],
+                "samples": 8,
+            }
+        (directory / "study.yaml").write_text(yaml.safe_dump(config))
+
+    return setup
+
+
+def _study_of_the_runout(base: dict) -> Callable[[Path], None]:
+    """A sensitivity study of the run-out of ``base`` to its friction and slope."""
+
+    def setup(directory: Path) -> None:
+        (directory / "base.yaml").write_text(yaml.safe_dump(base))
+        parameters = {"rheology.mu_s": {"bounds": [0.2, 0.4]}, "slope_deg": {"bounds": [20.0, 30.0]}}
+        study = {"base": "base.yaml", "parameters": parameters, "outputs": ["runout"], "samples": 64}
+        (directory / "study.yaml").write_text(yaml.safe_dump(study))
+
+    return setup
+
+
+def _study_of_a_bed(sobol: bool) -> Callable[[Path], None]:
+    """A study of the elevations of the 399 inner points of a bed of 400: Sobol' indices of
+    the mass from 65536 base samples (``sobol``), or a calibration to the mass with a
+    population of 10^4."""
+
+    def setup(directory: Path) -> None:
+        n = 400
+        base = {**TINY, "bed": {"points": [[0.5 * i / (n - 1), 0.0] for i in range(n)]}}
+        (directory / "base.yaml").write_text(yaml.safe_dump(base))
+        parameters = {f"bed.points.{i}.1": {"bounds": [0.0, 0.001]} for i in range(1, n)}
+        study: dict = {"base": "base.yaml", "parameters": parameters}
+        if sobol:
+            study.update(outputs=["mass_final"], samples=65536)
+        else:
+            observation = {"name": "m", "quantity": "mass_final", "value": 0.005, "sigma": 1e-4}
+            study.update(observations=[observation], search={"population": 10_000})
+        (directory / "study.yaml").write_text(yaml.safe_dump(study))
+
+    return setup
+
+
+def _retyped_result(variable: str, dtype: str) -> Callable[[Path], None]:
+    """A finished run whose result.nc's ``variable`` is stored as ``dtype`` (its values cast,
+    no fill value): the file copied variable by variable."""
+
+    def setup(directory: Path) -> None:
+        _finished_run(directory)
+        import netCDF4
+
+        path = directory / "out" / "result.nc"
+        copy = path.with_name("copy.nc")
+        with NETCDF, netCDF4.Dataset(path) as src, netCDF4.Dataset(copy, "w", format=src.data_model) as dst:
+            src.set_auto_maskandscale(False)
+            dst.setncatts({key: src.getncattr(key) for key in src.ncattrs()})
+            for name, dim in src.dimensions.items():
+                dst.createDimension(name, None if dim.isunlimited() else len(dim))
+            for name, var in src.variables.items():
+                kind = np.dtype(dtype) if name == variable else var.dtype
+                fill = (
+                    None
+                    if name == variable
+                    else var.getncattr("_FillValue")
+                    if "_FillValue" in var.ncattrs()
+                    else None
+                )
+                new = dst.createVariable(name, kind, var.dimensions, fill_value=fill)
+                new.setncatts({key: var.getncattr(key) for key in var.ncattrs() if key != "_FillValue"})
+                new.set_auto_maskandscale(False)
+                new[:] = var[:].astype(kind)
+        os.replace(copy, path)
+
+    return setup
+
+
+def round_twenty_four() -> list[Case]:
+    """The hostile cases of the twenty-fourth round (docs/reliability.md): netCDF
+    observations that are not numbers over their coordinate (no coordinate variable, times
+    in dates, text, no values), studies whose input is the file they write or that measure
+    the front where no cell can reach its threshold, study designs of gigabytes; as
+    controls, a
+    front in days, a result whose ``h`` or time is stored in single precision, a failed
+    run's message and a version holding a terminal escape sequence."""
+    study = ["-o", "{dir}/out", "-q"]
+    calibration = ["validate", "{dir}/calibration.yaml"]
+    not_numbers = "accepted: a variable of numbers over a coordinate variable t of numbers"
+    escape = "ds.run_status = 'failed'; ds.failure = 'boom \\x1b[2J end'"
+    front = {"quantity": "front", "file": "front.csv", "columns": ["t", "x_f", "sigma"]}
+    unreachable = {**TINY, "numerics": {"front_threshold": 0.5}}  # the column in one cell: 0.4 m
+    out = [
+        Case("validate: a netCDF front over a dimension without a coordinate variable", calibration, 2,
+             "the dimension t of x_f has no coordinate variable (its entries would be read at t = 0, 1, 2",
+             setup=_front_file(coordinate=False)),
+        Case("validate: a netCDF front whose times are in seconds since 2000-01-01", calibration, 2,
+             "t has units 'seconds since 2000-01-01', which are read as dates",
+             setup=_front_file(units="seconds since 2000-01-01")),
+        Case("validate: a netCDF front of text", calibration, 2,
+             f"x_f holds values of type <U1; {not_numbers}", setup=_front_file(values=("a", "b"), kind=str)),
+        Case("validate: a netCDF front of no values", calibration, 2, "x_f holds no values",
+             setup=_front_file(values=())),
+        Case("validate: a netCDF front whose times are in days", calibration, 2, "unit 'days' in",
+             setup=_front_file(units="days")),
+        Case("validate: a netCDF front of numbers over its times (s)", calibration, 0, "",
+             setup=_front_file()),
+        Case("sweep: its base scenario out/summary.csv, into out", ["sweep", "{dir}/study.yaml", *study], 2,
+             "summary.csv: the base scenario of", setup=_study_over_its_file("sweep")),
+        Case("calibrate: its observations out/calibration.nc, into out",
+             ["calibrate", "{dir}/study.yaml", *study], 2, "calibration.nc: the file observations.0.file of",
+             setup=_study_over_its_file("calibrate")),
+        Case("sensitivity: its base scenario out/sensitivity.nc, into out",
+             ["sensitivity", "{dir}/study.yaml", *study], 2, "sensitivity.nc: the base scenario of",
+             setup=_study_over_its_file("sensitivity")),
+        Case("validate: a calibration whose set gives output.directory", calibration, 2,
+             "set.output.directory (line 19): a run's output is not its own",
+             setup=_calibration_of(front, {**TINY, "time": {"end": 2.0, "output_interval": 0.5}},
+                                   {"set": {"output.directory": "elsewhere"}})),
+        Case("validate: a calibration whose experiment gives output", calibration, 2,
+             "experiments.a.output (line 4): a run's output is not its own",
+             setup=_calibration_of(front, {**TINY, "time": {"end": 2.0, "output_interval": 0.5}},
+                                   {"experiments": {"a": {"output": {"directory": "elsewhere"}}}})),
+        Case("validate: a calibration of the front whose threshold no cell can reach", calibration, 2,
+             "and the study measures front on it", setup=_calibration_of(front, unreachable)),
+        Case("validate: a calibration of the mass whose front threshold no cell can reach", calibration, 0,
+             "",
+             setup=_calibration_of({"quantity": "mass_final", "value": 0.005, "sigma": 1e-4}, unreachable)),
+        Case("validate: a sensitivity study of the run-out whose threshold no cell can reach",
+             ["validate", "{dir}/study.yaml"], 2, "and the study measures runout on it",
+             setup=_study_of_the_runout(unreachable)),
+        Case("validate: a sensitivity study of 65536 base samples of 399 parameters (a design of 78 GiB)",
+             ["validate", "{dir}/study.yaml"], 2,
+             "samples (line 1601): 65536 x (399 parameters + 2) = 26279936 runs of 399 values: 78.1 GiB",
+             setup=_study_of_a_bed(True)),
+        Case("validate: a calibration of 399 parameters, a population of 10^4 (12 GiB)",
+             ["validate", "{dir}/study.yaml"], 2,
+             "search.population (line 1605): 10000 x (399 parameters) = 3990000 runs of 399 values",
+             setup=_study_of_a_bed(False)),
+        Case("plot: result.nc whose h is stored as float32", ["plot", "{dir}/out"], 2,
+             "is not the integral of h", setup=_retyped_result("h", "f4")),
+        Case("export: result.nc whose time is stored as float32", ["export", "{dir}/out", "--vtk"], 2,
+             "is not the impulse of its forces", setup=_retyped_result("time", "f4")),
+        Case("plot: a failed run whose failure holds a terminal escape sequence", ["plot", "{dir}/out"], 0,
+             "the run failed: boom \\x1b[2J end", setup=_result_edit(escape)),
+    ]  # fmt: skip
+    return out
+
+
 def _run_and_study(directory: Path) -> None:
     _finished_run(directory)
     _sensitivity()(directory / "out")
@@ -4212,7 +4499,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     8: round_eight, 9: round_nine, 10: round_ten, 11: round_eleven, 12: round_twelve,
     13: round_thirteen, 14: round_fourteen, 15: round_fifteen, 16: round_sixteen,
     17: round_seventeen, 18: round_eighteen, 19: round_nineteen, 20: round_twenty,
-    21: round_twenty_one, 22: round_twenty_two,
+    21: round_twenty_one, 22: round_twenty_two, 23: round_twenty_three, 24: round_twenty_four,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""
 
@@ -4222,7 +4509,7 @@ def main() -> None:
     parser.add_argument("-k", default="", help="only the cases whose name contains this")
     parser.add_argument("-j", type=int, default=2, help="cases run at once")
     parser.add_argument(
-        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 22; all: none)"
+        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 24; all: none)"
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()

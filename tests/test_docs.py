@@ -70,9 +70,11 @@ TINY = {
     "domain": {"x_min": 0.0, "x_max": 1.0, "cells": 20},
     "material": {"density": 1500.0, "grain_diameter": 1.0e-3},
     "rheology": {"name": "drucker_prager", "mu_s": 0.3, "nu": 0.0},
+    "initial": [{"shape": "layer", "thickness": 0.01}],
     "time": {"end": 0.01, "output_interval": 0.01},
 }
-"""The scenario a YAML fragment (a block without ``name``) is validated in."""
+"""The scenario a YAML fragment (a block without ``name``) is validated in (a layer of
+material: a run of none is refused)."""
 _MARKER = re.compile(r"^<!--\s*docs-test:(.*?)-->\s*$")
 
 

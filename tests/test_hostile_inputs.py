@@ -1920,3 +1920,253 @@ def test_a_mixture_or_an_inflow_sets_no_bound_on_the_front_threshold():
         is None
     )
     assert multilayer.load(_tiny()).thickest_cell() == pytest.approx(0.4)
+
+
+@pytest.mark.parametrize(
+    ("entry", "name"),
+    [("bed", RESULT_FILE), ("bed", "run.lock"), ("initial", "run.log"), ("bed", CHECKPOINT_FILE)],
+)
+def test_a_file_the_scenario_reads_that_is_a_file_of_its_run_is_not_written_over(tmp_path, cli, entry, name):
+    """A bed file ``out/result.nc`` was read, then written over by the run it shaped (exit
+    0; the scenario then named a netCDF file as its bed)."""
+    (tmp_path / "out").mkdir()
+    read = tmp_path / "out" / name
+    if entry == "bed":
+        read.write_text(BED)
+        scenario = {**TINY_SCENARIO, "bed": {"file": f"out/{name}"}}
+    else:
+        read.write_text("x (m), h (m)\n0, 0.05\n0.1, 0.05\n0.1001, 0\n0.5, 0\n")
+        scenario = {**TINY_SCENARIO, "initial": [{"shape": "profile", "file": f"out/{name}"}]}
+    (tmp_path / "scenario.yaml").write_text(yaml.safe_dump(scenario))
+    before = read.read_bytes()
+    result = cli("run", tmp_path / "scenario.yaml", "-o", tmp_path / "out", "-q")
+    key = "bed.file" if entry == "bed" else "initial.0.file"
+    assert result.code == 2 and (
+        f"{read}: the file {key} of {tmp_path / 'scenario.yaml'}, which the run would write over"
+        in result.err
+    ), result.err
+    assert read.read_bytes() == before and sorted(os.listdir(tmp_path / "out")) == [name]
+
+
+def test_a_run_of_no_material_and_no_inflow_is_refused(tmp_path, cli):
+    """``initial: []`` and no inflow: the run completed over an empty domain (mass 0, no
+    front at any output time), exit 0; a Simulation may still start empty."""
+    data = _tiny(initial=[])
+    (tmp_path / "scenario.yaml").write_text(yaml.safe_dump(data))
+    for command in (["validate"], ["run", "-o", str(tmp_path / "out"), "-q"]):
+        result = cli(command[0], tmp_path / "scenario.yaml", *command[1:])
+        assert result.code == 2 and "initial: an empty list and no inflow" in result.err, result.err
+    assert not (tmp_path / "out").exists()
+    with pytest.raises(InputError, match="an empty list and no inflow"):
+        multilayer.run(data, tmp_path / "api")
+    from engine import simulation
+
+    assert not simulation(**data).h.any()  # the engine builds an empty domain
+
+
+@pytest.mark.parametrize(
+    ("observation", "phrase"),
+    [
+        ({"quantity": "front", "file": "front.csv", "columns": ["t", "x_f", "sigma"]},
+         "observed front 7 m at 0.1 s (sigma 0.01 m), more than 3 standard deviations"),
+        ({"quantity": "runout", "value": -60.0, "units": "cm", "sigma": 1.0},
+         "a run-out no longer than the domain, 0.5 m"),
+        ({"quantity": "duration", "value": 3.0, "sigma": 0.1},
+         "a duration within the simulated time, 0 to 0.05 s"),
+        ({"quantity": "mass_final", "value": -0.1, "sigma": 0.01}, "(a mass >= 0)"),
+    ],
+)  # fmt: skip
+def test_an_observation_no_run_can_come_near_is_refused(tmp_path, cli, observation, phrase):
+    """A front observed at 7 m on a domain of 0.5 m was fitted: the calibration reported
+    the parameters at a bound as its best fit."""
+    (tmp_path / "front.csv").write_text("t,x_f,sigma\n0.05,0.12,0.01\n0.1,7,0.01\n")
+    config = _calibration(tmp_path, observation)
+    result = cli("validate", tmp_path / "calibration.yaml")
+    assert result.code == 2 and phrase in result.err and "observations.0 (line" in result.err, result.err
+    config["parameters"]["domain.x_max"] = {"bounds": [0.5, 8.0]}  # a run whose domain reaches it
+    config["parameters"]["time.end"] = {"bounds": [0.2, 4.0]}
+    (tmp_path / "calibration.yaml").write_text(yaml.safe_dump(config))
+    reached = cli("validate", tmp_path / "calibration.yaml")
+    assert (reached.code == 0) == (observation["quantity"] != "mass_final"), reached.err
+
+
+@pytest.mark.parametrize(
+    ("size", "phrase"),
+    [
+        ("1.2.3", "not a size: '1.2.3'; accepted: a finite number of bytes > 0"),
+        (".", "not a size: '.'; accepted"),
+        ("1e999", "not a size > 0: '1e999' is inf bytes; accepted"),
+        ("1e-400k", "not a size > 0: '1e-400k' is 0 bytes; accepted"),
+    ],
+)
+def test_a_size_python_cannot_read_or_infinite_is_named_with_what_is_accepted(tmp_path, cli, size, phrase):
+    """``--max-memory 1.2.3`` was Python's "could not convert string to float", naming
+    nothing accepted."""
+    (tmp_path / "scenario.yaml").write_text(yaml.safe_dump(TINY_SCENARIO))
+    result = cli("validate", tmp_path / "scenario.yaml", "--max-memory", size)
+    assert result.code == 2 and phrase in result.err and "Traceback" not in result.err, result.err
+
+
+def _front_netcdf(path, make) -> None:
+    """A netCDF observation file of a front, ``make`` writing its variables into it."""
+    import netCDF4
+
+    with netCDF4.Dataset(path, "w") as ds:
+        make(ds)
+
+
+def _front_over(ds, coordinate=True, units="s", values=(0.02, 0.03), kind="f8") -> None:
+    ds.createDimension("t", len(values))
+    if coordinate:
+        t = ds.createVariable("t", "f8", ("t",))
+        t[:], t.units = [0.02, 0.04][: len(values)], units
+    x = ds.createVariable("x_f", kind, ("t",))
+    x.units = "m"
+    x[:] = np.array(values, dtype=object if kind is str else kind)
+
+
+def _calibration(tmp_path, observation: dict, end: float | None = None) -> dict:
+    """``calibration.yaml`` in ``tmp_path``: ``rheology.mu_s`` of TINY_SCENARIO (to ``end``
+    if given) fitted to ``observation``; its mapping."""
+    base = (
+        TINY_SCENARIO if end is None else {**TINY_SCENARIO, "time": {"end": end, "output_interval": end / 4}}
+    )
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(base))
+    config: dict = {"base": "base.yaml", "observations": [{"name": "seen", **observation}]}
+    config["parameters"] = {"rheology.mu_s": {"bounds": [0.2, 0.4]}}
+    config["search"] = {"population": 4, "generations": 1}
+    (tmp_path / "calibration.yaml").write_text(yaml.safe_dump(config))
+    return config
+
+
+def _front_calibration(tmp_path, file: str) -> None:
+    _calibration(tmp_path, {"quantity": "front", "file": file, "variable": "x_f", "sigma": 0.01}, end=2.0)
+
+
+@pytest.mark.parametrize(
+    ("make", "phrase"),
+    [
+        (lambda ds: _front_over(ds, coordinate=False),
+         "the dimension t of x_f has no coordinate variable (its entries would be read at t = 0, 1, 2, ...)"),
+        (lambda ds: _front_over(ds, units="seconds since 2000-01-01"),
+         "t has units 'seconds since 2000-01-01', which are read as dates"),
+        (lambda ds: _front_over(ds, values=("a", "b"), kind=str), "x_f holds values of type <U1"),
+        (lambda ds: _front_over(ds, values=()), "x_f holds no values"),
+    ],
+)  # fmt: skip
+def test_a_netcdf_observation_not_of_numbers_over_their_coordinate_is_named(tmp_path, cli, make, phrase):
+    """A front over a dimension without a coordinate variable was read at t = 0, 1 (xarray's
+    index); one of text was a traceback of ``float()``; one of no values was an observation
+    of nothing, exit 0; times in dates were read as 9.5e17 s."""
+    _front_netcdf(tmp_path / "front.nc", make)
+    _front_calibration(tmp_path, "front.nc")
+    result = cli("validate", tmp_path / "calibration.yaml")
+    assert result.code == 2 and phrase in result.err and "observations.0.file (line" in result.err, result.err
+    _front_netcdf(tmp_path / "good.nc", _front_over)
+    _front_calibration(tmp_path, "good.nc")
+    assert cli("validate", tmp_path / "calibration.yaml").code == 0
+
+
+@pytest.mark.parametrize("command", ["sweep", "calibrate", "sensitivity"])
+def test_a_file_a_study_reads_that_is_the_file_it_writes_is_not_written_over(tmp_path, cli, command):
+    """A sweep whose base scenario was ``out/summary.csv`` wrote its summary over it (and
+    a calibration's observations ``out/calibration.nc``, a sensitivity study's base
+    ``out/sensitivity.nc``), exit 0."""
+    pytest.importorskip("dask.distributed")
+    (tmp_path / "out").mkdir()
+    if command == "sweep":
+        read = tmp_path / "out" / "summary.csv"
+        read.write_text(yaml.safe_dump(TINY_SCENARIO))
+        study = {"base": "out/summary.csv", "parameters": {"slope_deg": [20.0, 25.0]}}
+        what = "the base scenario of"
+    elif command == "calibrate":
+        read = tmp_path / "out" / "calibration.nc"
+        _front_netcdf(read, _front_over)
+        _front_calibration(tmp_path, "out/calibration.nc")
+        study = yaml.safe_load((tmp_path / "calibration.yaml").read_text())
+        what = "the file observations.0.file of"
+    else:
+        pytest.importorskip("SALib")
+        read = tmp_path / "out" / "sensitivity.nc"
+        read.write_text(yaml.safe_dump(TINY_SCENARIO))
+        study = {
+            "base": "out/sensitivity.nc",
+            "parameters": {"rheology.mu_s": {"bounds": [0.2, 0.4]}},
+            "outputs": ["runout"],
+            "samples": 8,
+        }
+        what = "the base scenario of"
+    config = tmp_path / "study.yaml"
+    config.write_text(yaml.safe_dump(study))
+    before = read.read_bytes()
+    result = cli(command, config, "-o", tmp_path / "out", "-q")
+    assert result.code == 2 and f"{read}: {what} {config}, which the " in result.err, result.err
+    assert read.read_bytes() == before and os.listdir(tmp_path / "out") == [read.name]
+
+
+def test_a_sweep_of_the_members_output_directory_is_refused(tmp_path, cli):
+    """Every member ran into ``DIR/mNNN`` whatever its ``output.directory`` said, exit 0."""
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(TINY_SCENARIO))
+    for key, values in (("output.directory", ["a", "b"]), ("output", [{"directory": "a"}])):
+        (tmp_path / "sweep.yaml").write_text(
+            yaml.safe_dump({"base": "base.yaml", "parameters": {key: values}})
+        )
+        result = cli("validate", tmp_path / "sweep.yaml")
+        assert (
+            result.code == 2 and f"parameters.{key} (line 3): a member's output is not its own" in result.err
+        )
+
+
+def test_a_study_measuring_the_front_where_no_cell_can_reach_its_threshold_is_refused(tmp_path, cli):
+    """A calibration of the front over a base whose ``numerics.front_threshold`` (0.5 m)
+    no cell can reach (0.4 m at most) validated, then ran every member to fail on a NaN
+    front, exit 1; a sensitivity study of the run-out alike.  A study measuring the mass
+    only runs."""
+    (tmp_path / "front.csv").write_text("t,x_f,sigma\n0.02,0.12,0.01\n")
+    config = _calibration(
+        tmp_path, {"quantity": "front", "file": "front.csv", "columns": ["t", "x_f", "sigma"]}
+    )
+    config["set"] = {"numerics.front_threshold": 0.5, "domain.cells": 40}
+    (tmp_path / "calibration.yaml").write_text(yaml.safe_dump(config))
+    result = cli("validate", tmp_path / "calibration.yaml")
+    assert result.code == 2 and "base (line 1): numerics.front_threshold = 0.5 m is thicker" in result.err
+    assert "and the study measures front on it" in result.err, result.err
+    config["observations"] = [{"name": "mass", "quantity": "mass_final", "value": 0.005, "sigma": 1e-4}]
+    (tmp_path / "calibration.yaml").write_text(yaml.safe_dump(config))
+    assert cli("validate", tmp_path / "calibration.yaml").code == 0
+    study = {
+        "base": "base.yaml",
+        "set": {"numerics.front_threshold": 0.5, "domain.cells": 40},
+        "parameters": {"rheology.mu_s": {"bounds": [0.2, 0.4]}, "slope_deg": {"bounds": [20.0, 30.0]}},
+        "outputs": ["mass_final", "runout"],
+        "samples": 64,
+    }
+    (tmp_path / "sensitivity.yaml").write_text(yaml.safe_dump(study))
+    result = cli("validate", tmp_path / "sensitivity.yaml")
+    assert result.code == 2 and "and the study measures runout on it" in result.err, result.err
+
+
+@pytest.mark.parametrize("study", ["sensitivity", "calibration"])
+def test_a_study_design_beyond_its_memory_bound_is_refused_before_it_is_made(tmp_path, cli, study):
+    """65536 base samples of 399 parameters (the elevations of a bed's points) asked numpy
+    for 78 GiB in ``validate`` (its MemoryError, a traceback, or the machine's memory); a
+    calibration of a population of 10^4 of them, 12 GiB for differential evolution."""
+    n = 400
+    base = {**TINY_SCENARIO, "bed": {"points": [[0.5 * i / (n - 1), 0.0] for i in range(n)]}}
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(base))
+    parameters = {f"bed.points.{i}.1": {"bounds": [0.0, 0.001]} for i in range(1, n)}
+    if study == "sensitivity":
+        config = {"base": "base.yaml", "parameters": parameters, "outputs": ["mass_final"], "samples": 65536}
+        phrase = "samples (line 1601): 65536 x (399 parameters + 2) = 26279936 runs of 399 values: 78.1 GiB"
+    else:
+        observation = {"name": "m", "quantity": "mass_final", "value": 0.005, "sigma": 1e-4}
+        config = {"base": "base.yaml", "parameters": parameters, "observations": [observation]}
+        config["search"] = {"population": 10_000}
+        phrase = (
+            "search.population (line 1605): 10000 x (399 parameters) = 3990000 runs of 399 values: 11.9 GiB"
+        )
+    (tmp_path / "study.yaml").write_text(yaml.safe_dump(config))
+    result = cli("validate", tmp_path / "study.yaml")
+    assert result.code == 2 and phrase in result.err and "accepted: at most 134217728 values" in result.err, (
+        result.err
+    )

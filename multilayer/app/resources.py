@@ -142,15 +142,18 @@ def size_text(n: float) -> str:
 
 
 def parse_size(text: str) -> float:
-    """``"4G"``, ``"500MB"``, ``"2e9"`` -> bytes (binary units); ValueError otherwise."""
-    match = re.fullmatch(r"\s*([0-9.]+(?:[eE][+-]?[0-9]+)?)\s*([kKmMgGtT]?)[iI]?[bB]?\s*", text)
+    """``"4G"``, ``"500MB"``, ``"2e9"`` -> bytes (binary units); ValueError otherwise (a
+    number Python's ``float`` refuses, ``1.2.3``, was its own message, naming nothing)."""
+    accepted = (
+        "accepted: a finite number of bytes > 0 in ASCII decimal notation, with an optional unit k, M, G, T"
+    )
+    number = r"(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
+    match = re.fullmatch(rf"\s*({number})\s*([kKmMgGtT]?)[iI]?[bB]?\s*", text)
     if not match:
-        raise ValueError(
-            f"not a size: {text!r}; accepted: a number of bytes with an optional unit k, M, G, T"
-        )
+        raise ValueError(f"not a size: {text!r}; {accepted}")
     value = float(match.group(1)) * _UNITS[match.group(2).lower()]
     if not math.isfinite(value) or value <= 0:
-        raise ValueError(f"not a size > 0: {text!r}")
+        raise ValueError(f"not a size > 0: {text!r} is {value:g} bytes; {accepted}")
     return value
 
 

@@ -48,7 +48,7 @@ import yaml
 from multilayer import scenario as scenarios
 from multilayer.app import numba_environment, resources
 from multilayer.app.compilation import compile_ahead, compile_notice
-from multilayer.app.lock import locked
+from multilayer.app.lock import LOCK_FILE, locked
 from multilayer.app.progress import Progress
 from multilayer.app.simulation import Simulation
 from multilayer.engine.plugin_output import in_plugin_call
@@ -113,7 +113,8 @@ def run(
             f"{outdir}: nothing to resume (no such directory); run without --resume to start afresh"
         )
     budget = budget or resources.Budget()
-    created = output_directory(outdir, scenario.source)
+    scenario.check_material()
+    created = output_directory(outdir, scenario.source, scenario.input_files())
     try:
         resources.check(scenario, outdir, budget)
         resources.check_steps(scenario, budget)
@@ -158,11 +159,14 @@ def run(
         return summary(outdir / RESULT_FILE, checked=False)  # every state passed the state guard
 
 
-def output_directory(outdir: Path, source: Path | None = None) -> list[Path]:
+def output_directory(
+    outdir: Path, source: Path | None = None, inputs: dict[str, Path] | None = None
+) -> list[Path]:
     """Make ``outdir`` and check that files can be written there, none of the run's the
     scenario file ``source`` (``multilayer run DIR/run.log -o DIR`` wrote the log over
-    it); the directories made, deepest first.  :class:`InputError` naming it (``-o DIR``
-    or ``output.directory``) otherwise."""
+    it) or a file it reads, ``inputs`` by key (a bed file ``DIR/result.nc`` was written
+    over by the run it shaped); the directories made, deepest first.  :class:`InputError`
+    naming it (``-o DIR`` or ``output.directory``) otherwise."""
     accepted = "accepted: an output directory (-o DIR or output.directory) that can be created and written"
     try:
         str(outdir).encode("utf-8")
@@ -186,15 +190,37 @@ def output_directory(outdir: Path, source: Path | None = None) -> list[Path]:
             pass
     except OSError as exc:
         raise InputError(f"{outdir}: cannot be created or written ({reason(exc)}); {accepted}") from None
-    for name in (RESULT_FILE, CHECKPOINT_FILE, LOG_FILE):
+    read = {"the scenario file itself": source} if source is not None else {}
+    of = f" of {source}" if source is not None else ""
+    read.update({f"the file {key}{of}": path for key, path in (inputs or {}).items()})
+    written = (RESULT_FILE, CHECKPOINT_FILE, LOG_FILE)
+    for name in written:
         path = writable(outdir / name, in_place=name != CHECKPOINT_FILE)  # the checkpoint is replaced
-        if source is not None and path.exists() and path.samefile(source):
-            raise InputError(
-                f"{path}: the scenario file itself, which the run would write over; accepted: a scenario "
-                f"file not named {', '.join((RESULT_FILE, CHECKPOINT_FILE, LOG_FILE))} in the output "
-                "directory"
-            )
+        not_an_input(path, read, written)
+    for name in (LOCK_FILE, CHECKPOINT_FILE + ".tmp"):  # made afresh, but over what is there
+        not_an_input(outdir / name, read, (*written, LOCK_FILE))
     return missing
+
+
+def not_an_input(
+    path: Path,
+    read: dict[str, Path],
+    written: tuple[str, ...],
+    writer: str = "the run",
+    reader: str = "the scenario",
+) -> None:
+    """:class:`InputError` if ``path``, a file ``writer`` writes, is one it reads (``read``:
+    what it is, by its path), which it would write over."""
+    for what, source in read.items():
+        try:
+            same = path.exists() and source.exists() and path.samefile(source)
+        except OSError:  # a link loop or a name too long: not the file read (loading named it)
+            same = False
+        if same:
+            raise InputError(
+                f"{path}: {what}, which {writer} would write over; accepted: files {reader} reads "
+                f"not named {', '.join(written)} in the output directory"
+            )
 
 
 def _run(

@@ -193,6 +193,14 @@ def load(path: str | Path) -> Sweep:
             )
         if not isinstance(values, list) or not values:
             raise bad(("parameters", key), f"got {shown(values)}", "a non-empty list of values")
+        if key == "output" or key.startswith("output."):  # each member's run went to DIR/mNNN all the same
+            raise bad(
+                ("parameters", key),
+                "a member's output is not its own: the sweep writes every member into "
+                "DIR/mNNN (DIR: -o or the sweep's output.directory), whatever its scenario says",
+                "scenario keys that change the run; the sweep's directory as the sweep file's "
+                "output.directory",
+            )
 
     paired = data.get("zip", False)
     if not isinstance(paired, bool):

@@ -37,7 +37,7 @@ from pydantic import BaseModel, Field, ValidationError, field_validator, model_v
 from multilayer import scenario
 from multilayer.errors import InputError, reason
 from multilayer.scenario.files import read_text
-from multilayer.scenario.limits import MAX_PROFILE_POINTS
+from multilayer.scenario.limits import MAX_DESIGN_VALUES, MAX_PROFILE_POINTS
 from multilayer.scenario.loading import load_base
 from multilayer.scenario.messages import StrictModel, describe, directory_path, dotted, field, invalid
 from multilayer.scenario.overrides import as_overrides
@@ -204,6 +204,20 @@ def _seed() -> Any:
     return field(1, "an integer from 0 to 4294967295 (2^32 - 1)", ge=0, le=2**32 - 1)
 
 
+def _check_design(key: str, count: int, parameters: int, extra: int) -> None:
+    """A validation error of ``key`` if a design of ``count x (parameters + extra)`` runs of
+    ``parameters`` values each holds more than :data:`MAX_DESIGN_VALUES` values."""
+    runs = count * (parameters + extra)
+    if runs * parameters > MAX_DESIGN_VALUES:
+        raise invalid(
+            f"{count} x ({parameters} parameters{f' + {extra}' if extra else ''}) = {runs} runs of "
+            f"{parameters} values: {runs * parameters * 8 / 2**30:.3g} GiB for the design alone",
+            f"at most {MAX_DESIGN_VALUES} values ({MAX_DESIGN_VALUES * 8 // 2**30} GiB): fewer parameters, "
+            f"or {key} smaller",
+            key,
+        )
+
+
 class Search(StrictModel):
     """Global search: differential evolution (Storn & Price 1997)."""
 
@@ -263,6 +277,7 @@ class CalibrationModel(_Study):
 
     @model_validator(mode="after")
     def _check(self) -> CalibrationModel:
+        _check_design("search.population", self.search.population, len(self.parameters), 0)
         names = list(self.experiments) or ["base"]
         seen: set[str] = set()
         for i, obs in enumerate(self.observations):
@@ -295,6 +310,11 @@ class SensitivityModel(_Study):
             twice = next(name for name in outputs if outputs.count(name) > 1)
             raise invalid(f"{twice} twice", "each output once")
         return outputs
+
+    @model_validator(mode="after")
+    def _design(self) -> SensitivityModel:
+        _check_design("samples", self.samples, len(self.parameters), 2)
+        return self
 
     @field_validator("samples")
     @classmethod
@@ -363,11 +383,31 @@ def _at(path: Path, lines: dict, *key: str | int) -> str:
     return f"{path}: {dotted(key)}{line}"
 
 
-def _check_base(path: Path, lines: dict, config: _Study, experiments: dict[str, dict[str, Any]]) -> Path:
+FRONT_QUANTITIES = ("front", "front_final", "runout", "duration")
+"""The observed quantities measured on the front (:mod:`multilayer.io.observables`)."""
+
+
+def _check_base(
+    path: Path,
+    lines: dict,
+    config: _Study,
+    experiments: dict[str, dict[str, Any]],
+    measured: dict[str, set[str]],
+) -> Path:
     """The base scenario path; every experiment with the parameters at their lower, middle
     and upper bounds must be a valid scenario (the key named otherwise); no parameter is
     given a value in ``set`` or an experiment, where the parameter's value replaced it
     (an experiment of its own ``rheology.mu_2`` ran with the calibrated one, silently)."""
+    given = [(("set",), config.set), *((("experiments", n), extra) for n, extra in experiments.items())]
+    for within, overrides in given:
+        for key in overrides:
+            if key == "output" or key.startswith("output."):  # the members ran into DIR all the same
+                raise InputError(
+                    f"{_at(path, lines, *within, key)}: a run's output is not its own: the study writes "
+                    "every run into its own directory under its output directory (-o or the study file's "
+                    "output.directory), whatever its scenario says; accepted: scenario keys that change the "
+                    "run; the study's directory as the study file's output.directory"
+                )
     for key in config.parameters:
         fixed = ["set"] * (key in config.set) + [
             f"experiments.{n}" for n, extra in experiments.items() if key in extra
@@ -382,12 +422,14 @@ def _check_base(path: Path, lines: dict, config: _Study, experiments: dict[str, 
         path, config.base, _at(path, lines, "base"), "the base scenario with set", as_overrides(config.set)
     )
     for name, extra in experiments.items():
+        frontless = []
         for where in (0.0, 0.5, 1.0):
             values = {
                 k: p.bounds[0] + where * (p.bounds[1] - p.bounds[0]) for k, p in config.parameters.items()
             }
             try:
-                scenario.load(base, as_overrides({**config.set, **extra, **values}))
+                run = scenario.load(base, as_overrides({**config.set, **extra, **values}))
+                frontless.append(run.front_never_found())
             except InputError as exc:
                 keys = [k for k in (*values, *extra) if k in str(exc)] or list(values)
                 place = ("parameters", keys[0]) if keys[0] in values else ("experiments", name)
@@ -396,6 +438,14 @@ def _check_base(path: Path, lines: dict, config: _Study, experiments: dict[str, 
                     f"{', '.join(f'{k} = {v:g}' for k, v in values.items())}"
                     f"{f' in experiment {name}' if extra else ''}:\n{exc}"
                 ) from None
+        on_front = sorted(measured.get(name, set()) & set(FRONT_QUANTITIES))
+        if on_front and all(frontless):  # every run of the experiment: the front NaN, the study failed
+            raise InputError(
+                f"{_at(path, lines, 'base')}: numerics.front_threshold = {frontless[1]}"
+                f"{f' in experiment {name}' if len(experiments) > 1 else ''}, with the parameters at their "
+                f"lower, middle and upper values, and the study measures {', '.join(on_front)} on it; "
+                "accepted: a smaller numerics.front_threshold (set), or no observation or output of the front"
+            )
     return base
 
 
@@ -404,7 +454,10 @@ def load_calibration(path: str | Path) -> Calibration:
     path = Path(path)
     config, lines = _validate(CalibrationModel, path, "calibration")
     experiments = dict(config.experiments) or {"base": {}}
-    base = _check_base(path, lines, config, experiments)
+    measured: dict[str, set[str]] = {}
+    for obs in config.observations:
+        measured.setdefault(obs.experiment or next(iter(experiments)), set()).add(obs.quantity)
+    base = _check_base(path, lines, config, experiments, measured)
     data = [
         _read(path, lines, i, obs, obs.experiment or next(iter(experiments)))
         for i, obs in enumerate(config.observations)
@@ -428,6 +481,7 @@ def _check_span(
     x_max = bounds["domain.x_max"].bounds[0] if "domain.x_max" in bounds else x_max
     obs = observed.observation
     where = _at(path, lines, "observations", index)
+    _check_reach(where, observed, run, config)
     coordinates = np.asarray(observed.coordinate, dtype=float)
     inside = coordinates.size == 0 or (coordinates.min() >= 0 and coordinates.max() <= end)
     if obs.quantity in CURVES and not inside:
@@ -449,11 +503,51 @@ def _check_span(
             )
 
 
+REACH_SIGMAS = 3.0
+"""An observed value farther than this many standard deviations from every value a run can
+give is refused: no parameter set can come near it."""
+
+
+def _check_reach(where: str, observed: ObservedData, run: Any, config: Any) -> None:
+    """:class:`InputError` if an observed value lies more than :data:`REACH_SIGMAS` standard
+    deviations outside what every run gives (a front within the domain, a run-out no longer
+    than it, a duration within the simulated time, a mass and a thickness >= 0; a
+    calibrated time.end or domain bound counts at its widest): a front observed at 7 m on a
+    domain of 0.5 m was fitted, every member's misfit growing with its distance from the
+    domain's end, and the calibration reported the parameters at a bound as the best fit."""
+    bounds = config.parameters
+    x_min = bounds["domain.x_min"].bounds[0] if "domain.x_min" in bounds else run.domain.x_min
+    x_max = bounds["domain.x_max"].bounds[1] if "domain.x_max" in bounds else run.domain.x_max
+    end = bounds["time.end"].bounds[1] if "time.end" in bounds else run.time.end
+    quantity = observed.observation.quantity
+    reach = {
+        "front": (x_min, x_max, f"a front within the domain [{x_min:g}, {x_max:g}] m"),
+        "front_final": (x_min, x_max, f"a front within the domain [{x_min:g}, {x_max:g}] m"),
+        "runout": (x_min - x_max, x_max - x_min, f"a run-out no longer than the domain, {x_max - x_min:g} m"),
+        "duration": (0.0, end, f"a duration within the simulated time, 0 to {end:g} s"),
+        "mass_final": (0.0, math.inf, "a mass >= 0"),
+        "h": (0.0, math.inf, "a thickness >= 0"),
+    }
+    low, high, runs_give = reach[quantity]
+    value, sigma = np.asarray(observed.value), np.asarray(observed.sigma)
+    with np.errstate(over="ignore"):  # 3 sigma beyond the largest float: inf, which reaches anything
+        far = (value + REACH_SIGMAS * sigma < low) | (value - REACH_SIGMAS * sigma > high)
+    if far.any():
+        k = int(np.flatnonzero(far)[0])
+        at = f" at {observed.coordinate[k]:g} {_COORDINATE_SI[quantity]}" if observed.coordinate else ""
+        unit = _SI[quantity]
+        raise InputError(
+            f"{where}: observed {quantity} {value[k]:g} {unit}{at} (sigma {sigma[k]:g} {unit}), more than "
+            f"{REACH_SIGMAS:g} standard deviations from what any run gives ({runs_give}): no parameter set "
+            f"can come near it; accepted: observations a run can reproduce, in SI after their units"
+        )
+
+
 def load_sensitivity(path: str | Path) -> Sensitivity:
     """Read and validate a sensitivity file (InputError if bad)."""
     path = Path(path)
     config, lines = _validate(SensitivityModel, path, "sensitivity")
-    base = _check_base(path, lines, config, {"base": {}})
+    base = _check_base(path, lines, config, {"base": {}}, {"base": set(config.outputs)})
     return Sensitivity(path=path, base=base, config=config)
 
 
@@ -605,7 +699,27 @@ def _read_netcdf(
         raise InputError(f"{where}: cannot read {file} ({reason(exc)}); accepted: a netCDF file") from None
     if var.ndim != 1:
         raise InputError(f"{where}: {file}: {variable} has {var.ndim} dimensions; accepted: one")
-    coord = var[var.dims[0]]
+    dim = var.dims[0]
+    accepted = (
+        f"accepted: a variable of numbers over a coordinate variable {dim} of numbers (s, ms, m, cm, mm)"
+    )
+    if dim not in var.coords:  # xarray numbers the entries 0, 1, 2, ...: read as times or positions
+        raise InputError(
+            f"{where}: {file}: the dimension {dim} of {variable} has no coordinate variable (its entries "
+            f"would be read at {dim} = 0, 1, 2, ...); {accepted}"
+        )
+    coord = var[dim]
+    for name, values in ((variable, var), (str(dim), coord)):
+        if values.dtype.kind in "mM":  # decoded by xarray from units of time
+            units = values.encoding.get("units", values.attrs.get("units"))
+            raise InputError(
+                f"{where}: {file}: {name} has units {units!r}, which are read as "
+                f"{'dates' if values.dtype.kind == 'M' else 'durations'}; {accepted}"
+            )
+        if values.dtype.kind not in "iuf":
+            raise InputError(f"{where}: {file}: {name} holds values of type {values.dtype}; {accepted}")
+    if var.size == 0:
+        raise InputError(f"{where}: {file}: {variable} holds no values; {accepted}, at least one")
     return (
         np.asarray(coord.values, dtype=float),
         np.asarray(var.values, dtype=float),

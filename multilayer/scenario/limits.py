@@ -63,6 +63,11 @@ and at 5e-324 the weight underflowed to zero: the material stayed at rest, exit 
 densities (gases included) lie 100 decades above it."""
 MAX_DEM_PIXELS = 400_000_000
 """Largest DEM read (pixels; its band is read whole, 8 bytes a pixel)."""
+MAX_DESIGN_VALUES = 2**27
+"""Values (one a parameter of a run) of a study's design held at once: a Sobol' design of
+``samples x (parameters + 2)`` runs, a differential evolution's population of
+``population x parameters`` members, each of ``parameters`` values; 1 GiB of float64
+(65536 base samples of 399 parameters asked 78 GiB, a traceback of numpy's)."""
 MAX_ITERATIONS = 10**5
 """Most Newton iterations per column and vertical step (``numerics.max_iterations``): a
 column that does not converge takes that many before the run stops (1e29 was numba's

@@ -1039,6 +1039,18 @@ class Scenario(StrictModel):
                 mass += profiles.value_range(rows)[1] * overlap
         return mass / ((hi - lo) / self.domain.cells)
 
+    def check_material(self) -> None:
+        """:class:`InputError` for a run of nothing: no initial entry and no inflow (the run
+        completed over an empty domain, a mass of 0 and no front at any output time, exit
+        0).  A :class:`~multilayer.Simulation` may start empty (a state is loaded into it);
+        a run may not."""
+        if not self.initial and self.boundaries.inflow is None:
+            raise InputError(
+                f"{self._source or '<scenario>'}: initial: an empty list and no inflow: the run would "
+                "hold no material at any time; accepted: at least one initial entry, or an inflow "
+                "boundary (boundaries.left or boundaries.right: inflow)"
+            )
+
     def front_never_found(self) -> str | None:
         """Why ``numerics.front_threshold`` finds no front at any output time, or None."""
         most, threshold = self.thickest_cell(), self.numerics.front_threshold
@@ -1183,6 +1195,21 @@ class Scenario(StrictModel):
     def source(self) -> Path | None:
         """The scenario file, or None for a scenario built from a mapping."""
         return self._source
+
+    def input_files(self) -> dict[str, Path]:
+        """The files the scenario reads (``bed.file`` or ``bed.dem``, ``initial.N.file``) by
+        key, resolved as on loading: relative to the scenario file's directory (the working
+        directory for a scenario built from a mapping)."""
+        directory = self._source.parent if self._source is not None else Path.cwd()
+        files = {}
+        for key in ("file", "dem"):
+            name = getattr(self.bed, key)
+            if name is not None:
+                files[f"bed.{key}"] = directory / name
+        for i, entry in enumerate(self.initial):
+            if entry.file is not None:
+                files[f"initial.{i}.file"] = directory / entry.file
+        return files
 
     def resolved_yaml(self) -> str:
         """The scenario with every default filled in, as YAML that loads back to it

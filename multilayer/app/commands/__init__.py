@@ -111,18 +111,29 @@ def study_ensemble(
 
 
 @contextmanager
-def study_directory(outdir: Path) -> Iterator[None]:
+def study_directory(outdir: Path, reads: dict[str, Path], writes: str, study: str) -> Iterator[None]:
     """Make the output directory of a sweep, calibration or sensitivity study as `multilayer
     run` makes its own (named if it cannot be: ``-o`` a file was "File exists"), and hold its
     lock (:mod:`multilayer.app.lock`) while the study runs: two studies into one directory
     both ran every member, each member's second run refused as another run's, and a stop of
     one stopped the other's members (the directory's stop file).  The directories it made
-    go again, if empty, when the study is refused (an :class:`InputError`)."""
-    from multilayer.app.lock import locked
-    from multilayer.app.runner import output_directory
+    go again, if empty, when the study is refused (an :class:`InputError`), and so they do
+    when the file it writes, ``writes`` (or its lock), is a file the ``study`` (sweep,
+    calibration, sensitivity study) reads, ``reads`` (what it is, by its path): a sweep
+    whose base scenario was ``DIR/summary.csv`` wrote its summary over it."""
+    from multilayer.app.lock import LOCK_FILE, locked
+    from multilayer.app.runner import not_an_input, output_directory
     from multilayer.errors import InputError, warn
 
     created = output_directory(outdir)
+    try:
+        for name in (writes, LOCK_FILE):
+            not_an_input(outdir / name, reads, (writes, LOCK_FILE), f"the {study}", f"the {study}")
+    except InputError:
+        for made in created:
+            with contextlib.suppress(OSError):
+                made.rmdir()
+        raise
     try:
         with locked(outdir, warn):  # a lock taken over: the warning names the directory
             yield

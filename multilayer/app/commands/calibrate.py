@@ -43,7 +43,15 @@ def main(args: argparse.Namespace) -> int:
     plan = load_calibration(args.config)
     outdir = args.output or plan.config.output.directory or Path("results") / plan.path.stem
     outdir = Path(outdir)
-    with study_directory(outdir):
+    from multilayer.app.calibration import CALIBRATION_FILE
+
+    reads = {"the calibration file itself": plan.path, f"the base scenario of {plan.path}": plan.base}
+    for i, observed in enumerate(plan.data):
+        if observed.observation.file is not None:
+            reads[f"the file observations.{i}.file of {plan.path}"] = (
+                plan.path.parent / observed.observation.file
+            )
+    with study_directory(outdir, reads, CALIBRATION_FILE, "calibration"):
         return _calibrate(args, plan, outdir)
 
 

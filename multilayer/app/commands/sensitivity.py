@@ -41,7 +41,10 @@ def main(args: argparse.Namespace) -> int:
     require("sensitivity", "dask.distributed", "SALib")
     study = load_sensitivity(args.config)
     outdir = Path(args.output or study.config.output.directory or Path("results") / study.path.stem)
-    with study_directory(outdir):
+    from multilayer.app.sensitivity import SENSITIVITY_FILE
+
+    reads = {"the sensitivity file itself": study.path, f"the base scenario of {study.path}": study.base}
+    with study_directory(outdir, reads, SENSITIVITY_FILE, "sensitivity study"):
         return _sensitivity(args, study, outdir)
 
 

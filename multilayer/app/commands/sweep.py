@@ -81,7 +81,8 @@ def main(args: argparse.Namespace) -> int:
     outdir = Path(args.output or plan.output or Path("results") / plan.path.stem)
     summary = outdir / "summary.csv"
     check_results(args, outdir, summary.name)
-    with study_directory(outdir):
+    reads = {"the sweep file itself": plan.path, f"the base scenario of {plan.path}": plan.base}
+    with study_directory(outdir, reads, summary.name, "sweep"):
         return _sweep(args, plan, outdir, summary)
 
 

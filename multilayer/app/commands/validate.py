@@ -88,6 +88,7 @@ def _check(scenario: Scenario, path: str | Path, args: argparse.Namespace) -> st
     """The summary of a valid scenario: its size and estimates (:class:`InputError` if it
     is beyond the budget, holds material outside its domain or expects what cannot apply)."""
     limits = budget(args)
+    scenario.check_material()
     need = resources.check(scenario, scenario.output.directory or Path("results"), limits)
     dom = scenario.domain
     dx = (dom.x_max - dom.x_min) / dom.cells
