@@ -27,6 +27,7 @@ import itertools
 import json
 import math
 import os
+import re
 import shutil
 import tempfile
 from collections.abc import Callable, Iterator, Sequence
@@ -60,6 +61,10 @@ MAX_MEMBERS = 10_000
 
 MARKER = "member.json"
 """Written into a member's directory once its run has completed."""
+MEMBER_DIRECTORY = re.compile(r"(m[0-9]+|e)-[0-9a-f]{8}")
+"""The name of a member's directory in a study's: ``m<index>-<hash>`` of a sweep
+(:meth:`Sweep.members`), ``e-<hash>`` of a calibration or sensitivity study
+(:meth:`~multilayer.app.ensemble.Ensemble.member_id`)."""
 MARKER_BYTES = 1 << 20
 """The most of a marker read (one is a few hundred bytes): a larger file is no marker."""
 
