@@ -4484,6 +4484,12 @@ def round_twenty_five() -> list[Case]:
              ["sensitivity", "{dir}/study.yaml", *study], 2,
              "sensitivity.nc: the file bed.file of", setup=_base_reads_output(
                  "sensitivity", "sensitivity.nc")),
+        Case("sweep: of bed.file, its second value out/summary.csv, into out",
+             ["sweep", "{dir}/study.yaml", *study], 2, "summary.csv: the file bed.file of member m001-",
+             setup=_base_reads_output("sweep", "summary.csv", member=True)),
+        Case("calibrate: an experiment's bed file out/calibration.nc, into out",
+             ["calibrate", "{dir}/calibration.yaml", *study], 2, "calibration.nc: the file bed.file of",
+             setup=_base_reads_output("calibrate", "calibration.nc", member=True)),
         Case("sweep: its base scenario's bed file in its first member's directory",
              ["sweep", "{dir}/study.yaml", *study], 2,
              "where a member of the sweep runs; accepted: files the sweep reads outside its members",
@@ -4572,23 +4578,32 @@ def _dem(**kind: Any) -> Callable[[Path], None]:
     return setup
 
 
-def _base_reads_output(command: str, name: str | None) -> Callable[[Path], None]:
+def _base_reads_output(command: str, name: str | None, member: bool = False) -> Callable[[Path], None]:
     """A study into ``out`` whose base scenario reads the file ``out/name`` the study writes
     (a bed CSV file; an initial-thickness file for a calibration), or, with no ``name``, a
-    bed file in the directory of the sweep's first member."""
+    bed file in the directory of the sweep's first member; with ``member``, the second
+    member of a sweep of ``bed.file`` or an experiment of a calibration reads it."""
 
     def setup(directory: Path) -> None:
         from multilayer.app.sweep import load as load_sweep
 
         out = directory / "out"
         out.mkdir()
-        parameters = {"slope_deg": [20.0, 25.0]}
-        base = dict(TINY)
+        parameters: dict[str, list[Any]] = {"slope_deg": [20.0, 25.0]}
+        base: dict[str, Any] = dict(TINY)
         if command == "calibrate":
             written = out / str(name)
             written.write_text("x (m), h (m)\n0, 0.05\n0.1, 0.05\n0.1001, 0\n0.5, 0\n")
-            base["initial"] = [{"shape": "profile", "file": f"out/{name}"}]
             mass = {"quantity": "mass_final", "value": 0.005, "sigma": 1e-4}
+            if member:
+                written.write_text("x (m), z (m)\n0, 0\n0.5, 0\n")
+                (directory / "flat.csv").write_text("x (m), z (m)\n0, 0\n0.5, 0\n")
+                base["bed"] = {"file": "flat.csv"}
+                experiments = {"a": {}, "b": {"bed.file": f"out/{name}"}}
+                mass = {**mass, "experiment": "a"}
+                _calibration_of(mass, base, {"experiments": experiments})(directory)
+                return
+            base["initial"] = [{"shape": "profile", "file": f"out/{name}"}]
             _calibration_of(mass, base)(directory)
             return
         if command == "sweep" and name is None:
@@ -4596,13 +4611,17 @@ def _base_reads_output(command: str, name: str | None) -> Callable[[Path], None]
                 yaml.safe_dump({"base": "base.yaml", "parameters": parameters})
             )
             (directory / "base.yaml").write_text(yaml.safe_dump(TINY))
-            member = load_sweep(directory / "study.yaml").members()[0].id
-            (out / member).mkdir()
-            written = out / member / "member.json"
+            first = load_sweep(directory / "study.yaml").members()[0].id
+            (out / first).mkdir()
+            written = out / first / "member.json"
         else:
             written = out / str(name)
         written.write_text("x (m), z (m)\n0, 0\n0.5, 0\n")
         base["bed"] = {"file": written.relative_to(directory).as_posix()}
+        if member:
+            (directory / "flat.csv").write_text("x (m), z (m)\n0, 0\n0.5, 0\n")
+            parameters = {"bed.file": ["flat.csv", written.relative_to(directory).as_posix()]}
+            base["bed"] = {"file": "flat.csv"}
         (directory / "base.yaml").write_text(yaml.safe_dump(base))
         if command == "sweep":
             config: dict[str, Any] = {"base": "base.yaml", "parameters": parameters}

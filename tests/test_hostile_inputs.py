@@ -2409,3 +2409,35 @@ def test_a_file_in_a_subdirectory_of_a_study_that_is_no_members_is_read(tmp_path
             InputError, match=f"in the subdirectory {name} of .*, where a member of the sweep"
         ):
             in_a_member(tmp_path, {"the base scenario": tmp_path / name / "base.yaml"}, "sweep")
+
+
+@pytest.mark.parametrize("command", ["sweep", "calibrate"])
+def test_a_file_a_member_or_an_experiment_reads_is_not_written_over_by_the_study(tmp_path, cli, command):
+    """A sweep of ``bed.file: [flat.csv, out/summary.csv]`` and a calibration whose
+    experiment reads the bed ``out/calibration.nc`` wrote over that file, exit 0."""
+    pytest.importorskip("dask.distributed")
+    (tmp_path / "out").mkdir()
+    name = "summary.csv" if command == "sweep" else "calibration.nc"
+    read = tmp_path / "out" / name
+    for path in (read, tmp_path / "flat.csv"):
+        path.write_text(BED)
+    base = {**TINY_SCENARIO, "bed": {"file": "flat.csv"}}
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(base))
+    if command == "sweep":
+        study = {"base": "base.yaml", "parameters": {"bed.file": ["flat.csv", f"out/{name}"]}}
+        what = f"{read}: the file bed.file of member m001-"
+    else:
+        study = {
+            "base": "base.yaml",
+            "parameters": {"rheology.mu_s": {"bounds": [0.2, 0.4]}},
+            "experiments": {"a": {}, "b": {"bed.file": f"out/{name}"}},
+            "observations": [
+                {"name": "m", "experiment": "a", "quantity": "mass_final", "value": 0.005, "sigma": 1e-4}
+            ],
+            "search": {"population": 4, "generations": 1},
+        }
+        what = f"{read}: the file bed.file of {tmp_path / 'base.yaml'}"
+    (tmp_path / "study.yaml").write_text(yaml.safe_dump(study))
+    result = cli(command, tmp_path / "study.yaml", "-o", tmp_path / "out", "-q")
+    assert result.code == 2 and what in result.err, result.err
+    assert read.read_text() == BED and os.listdir(tmp_path / "out") == [name]

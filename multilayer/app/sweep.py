@@ -403,6 +403,25 @@ def compile_kernels(member: scenario.Scenario) -> None:
         return
 
 
+def member_reads(plan: Sweep) -> dict[str, Path]:
+    """The files the members of a sweep of a bed or initial-thickness key read (``bed.file``
+    of ``bed.file: [a.csv, out/summary.csv]``), by what they are: each such member loaded
+    (the others read the base scenario's files).  Members that do not load are left out:
+    each names its own error."""
+    if not any(key.split(".")[0] in ("bed", "initial") for key in plan.parameters):
+        return {}
+    reads = {}
+    for member in plan.members():
+        try:
+            files = plan.member_scenario(member).input_files()
+        except InputError:
+            continue
+        reads.update(
+            {f"the file {key} of member {member.id} of {plan.path}": path for key, path in files.items()}
+        )
+    return reads
+
+
 def base_member(base: Path, fixed: dict[str, Any]) -> scenario.Scenario | None:
     """The scenario ``base`` with the overrides ``fixed`` of a study (None if invalid:
     each member reports its own error)."""

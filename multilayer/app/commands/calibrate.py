@@ -47,7 +47,8 @@ def main(args: argparse.Namespace) -> int:
     from multilayer.app.calibration import CALIBRATION_FILE
 
     reads = {"the calibration file itself": plan.path, f"the base scenario of {plan.path}": plan.base}
-    reads.update(base_reads(plan.base, plan.config.set))
+    for extra in plan.experiments.values():  # an experiment may read a bed of its own
+        reads.update(base_reads(plan.base, {**plan.config.set, **extra}))
     for i, observed in enumerate(plan.data):
         if observed.observation.file is not None:
             reads[f"the file observations.{i}.file of {plan.path}"] = (

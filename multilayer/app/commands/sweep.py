@@ -84,6 +84,7 @@ def main(args: argparse.Namespace) -> int:
     check_results(args, outdir, summary.name)
     reads = {"the sweep file itself": plan.path, f"the base scenario of {plan.path}": plan.base}
     reads.update(base_reads(plan.base))
+    reads.update(sweeps.member_reads(plan))
     with study_directory(outdir, reads, summary.name, "sweep"):
         return _sweep(args, plan, outdir, summary)
 
