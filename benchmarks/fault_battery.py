@@ -3716,6 +3716,7 @@ def cases() -> list[Case]:
         + round_twenty_two()
         + round_twenty_three()
         + round_twenty_four()
+        + round_twenty_five()
     )
 
 
@@ -4418,6 +4419,224 @@ def round_twenty_four() -> list[Case]:
     return out
 
 
+def round_twenty_five() -> list[Case]:
+    """The hostile cases of the twenty-fifth round (docs/reliability.md): DEM beds in degrees,
+    feet (map or heights) or no frame at all, sampled at X = 1e300 m, of two bands or
+    complex values, with a rotated or degenerate geotransform, scaled integers, a VRT file
+    named ``.tif``, a raster of 4 x 10^8 pixels under a memory limit and one block of that
+    size; files a study's base scenario reads where the study writes (``out/summary.csv``,
+    ``out/calibration.nc``, ``out/sensitivity.nc``, a member's directory); a calibration of
+    1.2 x 10^9 runs; as controls, a DEM of one pixel, of nodata only, a text file named
+    ``.tif`` and a calibration of its default size."""
+    validate = ["validate", "{scenario}"]
+    study = ["-o", "{dir}/out", "-q"]
+    metres = (
+        "accepted: a single-band GeoTIFF of elevations in metres in a projected coordinate reference system"
+    )
+    memory = ["sh", "-c", 'ulimit -v 3000000 && exec "$0" "$@"']  # 3 GB of address space
+    mass = {"quantity": "mass_final", "value": 0.005, "sigma": 1e-4}
+    out = [
+        Case("validate: a DEM in degrees (EPSG:4326, pixels of 0.01 degree)", validate, 2,
+             "a geographic coordinate reference system (EPSG:4326), whose coordinates are not metres",
+             setup=_dem(crs="EPSG:4326")),
+        Case("validate: a DEM without a coordinate reference system", validate, 2,
+             f"no coordinate reference system: where its pixels lie, or in what units, is not said; {metres}",
+             setup=_dem(crs=None)),
+        Case("validate: a DEM in US survey feet (EPSG:2227)", validate, 2,
+             "map coordinates in US survey foot (0.304801 m), not metres", setup=_dem(crs="EPSG:2227")),
+        Case("validate: a DEM in UTM metres over NAVD88 heights in feet (EPSG:32610+6360)", validate, 2,
+             "elevations in 'US survey foot', not metres", setup=_dem(crs="EPSG:32610+6360")),
+        Case("validate: a DEM sampled along a polyline at X = 1e300 m", validate, 2,
+             "no elevation at (1e+300, 0.2), 0 m along the polyline", setup=_dem(far=True)),
+        Case("validate: a DEM whose elevations are in feet (band unit ft)", validate, 2,
+             "elevations in 'ft', not metres", setup=_dem(units="ft")),
+        Case("validate: a DEM of int16 centimetres (scale 0.01), rising 5 deg", validate, 0, "",
+             setup=_dem(scale=0.01)),
+        Case("validate: a DEM whose geotransform is rotated 90 degrees", validate, 0, "",
+             setup=_dem(rotated=True)),
+        Case("validate: a DEM whose geotransform maps its pixels on a line", validate, 2,
+             "a geotransform (0.01, 0.01, 0.0, 0.01, 0.01, 1.0) that maps its pixels on no area",
+             setup=_dem(transform=(0.01, 0.01, 0.0, 0.01, 0.01, 1.0))),
+        Case("validate: a DEM of two bands", validate, 2, "dem.tif: 2 bands, which one is the elevation",
+             setup=_dem(bands=2)),
+        Case("validate: a DEM of complex values", validate, 2, "values of type complex64, not real numbers",
+             setup=_dem(dtype="complex64")),
+        Case("validate: a VRT file named dem.tif reading another raster", validate, 2,
+             "not recognized as being in a supported file format", setup=_dem(vrt=True)),
+        Case("validate: a DEM of 20000 x 20000 pixels under 3 GB of memory", validate, 0, "",
+             setup=_dem(huge=True), prefix=memory),
+        Case("validate: a DEM of one block of 20000 x 20000 pixels", validate, 2,
+             "blocks of 20000 x 20000 pixels, decoded whole to read any of their pixels",
+             setup=_dem(huge=True, strip=True), prefix=memory),
+        Case("validate: a DEM of one pixel", validate, 0, "", setup=_dem(pixel=True)),
+        Case("validate: a DEM of nodata only", validate, 2,
+             "no elevation at (0.05, 0.2), 0 m along the polyline", setup=_dem(nodata=True)),
+        Case("validate: a text file named dem.tif", validate, 2, "cannot read the DEM",
+             setup=_dem(text=True)),
+        Case("sweep: its base scenario's bed file out/summary.csv, into out",
+             ["sweep", "{dir}/study.yaml", *study], 2,
+             "summary.csv: the file bed.file of", setup=_base_reads_output("sweep", "summary.csv")),
+        Case("calibrate: its base scenario's initial-thickness file out/calibration.nc, into out",
+             ["calibrate", "{dir}/calibration.yaml", *study], 2,
+             "calibration.nc: the file initial.0.file of", setup=_base_reads_output(
+                 "calibrate", "calibration.nc")),
+        Case("sensitivity: its base scenario's bed file out/sensitivity.nc, into out",
+             ["sensitivity", "{dir}/study.yaml", *study], 2,
+             "sensitivity.nc: the file bed.file of", setup=_base_reads_output(
+                 "sensitivity", "sensitivity.nc")),
+        Case("sweep: of bed.file, its second value out/summary.csv, into out",
+             ["sweep", "{dir}/study.yaml", *study], 2, "summary.csv: the file bed.file of member m001-",
+             setup=_base_reads_output("sweep", "summary.csv", member=True)),
+        Case("calibrate: an experiment's bed file out/calibration.nc, into out",
+             ["calibrate", "{dir}/calibration.yaml", *study], 2, "calibration.nc: the file bed.file of",
+             setup=_base_reads_output("calibrate", "calibration.nc", member=True)),
+        Case("sweep: its base scenario's bed file in its first member's directory",
+             ["sweep", "{dir}/study.yaml", *study], 2,
+             "where a member of the sweep runs; accepted: files the sweep reads outside its members",
+             setup=_base_reads_output("sweep", None)),
+        Case("validate: a calibration of 10^4 generations of 10^4 x 4 members over 3 experiments",
+             ["validate", "{dir}/calibration.yaml"], 2,
+             "search.generations (line 31): 3 experiment(s) x (10000 x 4 parameters x (10000 generations "
+             "+ 1) + 10 evaluations x (4 + 1) + 2 x 4) = 1.2e+09 runs; accepted: a study of at most 1e+07 "
+             "runs",
+             setup=_calibration_of(mass, extra={
+                 "parameters": {f"rheology.{k}": {"bounds": [0.2, 0.4]} for k in ("mu_s", "nu")} | {
+                     f"initial.0.{k}": {"bounds": [0.04, 0.06]} for k in ("height",)} | {
+                     "slope_deg": {"bounds": [20.0, 30.0]}},
+                 "experiments": {"a": {}, "b": {"time.end": 0.3}, "c": {"time.end": 0.4}},
+                 "search": {"population": 10_000, "generations": 10_000}})),
+        Case("validate: a calibration of the default search", ["validate", "{dir}/calibration.yaml"], 0, "",
+             setup=_calibration_of(mass, extra={"search": {}})),
+    ]  # fmt: skip
+    return out
+
+
+def _dem(**kind: Any) -> Callable[[Path], None]:
+    """TINY on the bed of a GeoTIFF ``dem.tif`` (UTM, 80 x 40 pixels of 0.01 m, rising at 5
+    degrees towards +X) along a polyline at Y = 0.2 m, changed by ``kind``: its ``crs``, the
+    band's ``units``, int16 values of ``scale`` (m), a ``rotated`` or other ``transform``,
+    ``bands``, a ``dtype``, a ``vrt`` file wrapping it, ``huge`` (20000 x 20000 pixels, sparse;
+    ``strip``: one block), one ``pixel``, ``nodata`` only, ``text``, or a polyline ``far``
+    away (X = 1e300 m)."""
+
+    def setup(directory: Path) -> None:
+        import rasterio
+        from rasterio.transform import Affine
+
+        rows, cols = (20000, 20000) if kind.get("huge") else (1, 1) if kind.get("pixel") else (40, 80)
+        x = (np.arange(min(cols, 80)) + 0.5) * 0.01
+        z = np.tile(100 + x * np.tan(np.radians(5.0)), (min(rows, 40), 1))
+        transform = Affine(0.01, 0.0, 0.0, 0.0, -0.01, 0.4)
+        if kind.get("rotated"):  # rows along -X, columns along +Y: the same terrain
+            z, transform = z.T[::-1].copy(), Affine(0.0, -0.01, 0.8, 0.01, 0.0, 0.0)
+        if "transform" in kind:
+            transform = Affine(*kind["transform"])
+        if kind.get("pixel"):
+            z, transform = np.array([[5.0]]), Affine(1.0, 0.0, 0.0, 0.0, -1.0, 1.0)
+        dtype = kind.get("dtype", "int16" if "scale" in kind else "float64")
+        raster = directory / ("inner.tif" if kind.get("vrt") else "dem.tif")
+        if kind.get("text"):
+            raster.write_text("elevation: 100 m\n")
+        else:
+            profile: dict[str, Any] = {
+                "driver": "GTiff",
+                "dtype": dtype,
+                "crs": kind.get("crs", "EPSG:32632"),
+            }
+            if kind.get("huge"):
+                blocks = {"blockysize": rows, "compress": "deflate"} if kind.get("strip") else {"tiled": True}
+                profile.update(sparse_ok=True, dtype="float32", **blocks)
+            with rasterio.open(
+                raster, "w", height=max(rows, z.shape[0]), width=max(cols, z.shape[1]), transform=transform,
+                count=kind.get("bands", 1),
+                nodata=-9999.0 if kind.get("nodata") else None, **profile,
+            ) as dem:  # fmt: skip
+                values = np.full_like(z, -9999.0) if kind.get("nodata") else z
+                if "scale" in kind:
+                    values = np.round(values / kind["scale"])
+                for band in range(1, dem.count + 1):
+                    window = rasterio.windows.Window(0, 0, z.shape[1], z.shape[0])
+                    dem.write(values.astype(dem.dtypes[0]), band, window=window)
+                if "scale" in kind:
+                    dem.scales = (kind["scale"],)
+                if "units" in kind:
+                    dem.units = (kind["units"],)
+        if kind.get("vrt"):
+            (directory / "dem.tif").write_text(
+                '<VRTDataset rasterXSize="80" rasterYSize="40"><SRS>EPSG:32632</SRS>'
+                "<GeoTransform>0, 0.01, 0, 0.4, 0, -0.01</GeoTransform>"
+                '<VRTRasterBand dataType="Float64" band="1"><SimpleSource>'
+                f'<SourceFilename relativeToVRT="0">{raster}</SourceFilename><SourceBand>1</SourceBand>'
+                "</SimpleSource></VRTRasterBand></VRTDataset>"
+            )
+        line = [[0.05, 0.2], [0.75, 0.2]] if not kind.get("pixel") else [[0.2, 0.5], [0.8, 0.5]]
+        far = (
+            {"polyline": [[1e300, 0.2], [1.0000000001e300, 0.2]], "spacing": 1e289} if kind.get("far") else {}
+        )
+        _scenario(directory, {"bed": {"dem": "dem.tif", "polyline": line, "extend": "flat", **far}})
+
+    return setup
+
+
+def _base_reads_output(command: str, name: str | None, member: bool = False) -> Callable[[Path], None]:
+    """A study into ``out`` whose base scenario reads the file ``out/name`` the study writes
+    (a bed CSV file; an initial-thickness file for a calibration), or, with no ``name``, a
+    bed file in the directory of the sweep's first member; with ``member``, the second
+    member of a sweep of ``bed.file`` or an experiment of a calibration reads it."""
+
+    def setup(directory: Path) -> None:
+        from multilayer.app.sweep import load as load_sweep
+
+        out = directory / "out"
+        out.mkdir()
+        parameters: dict[str, list[Any]] = {"slope_deg": [20.0, 25.0]}
+        base: dict[str, Any] = dict(TINY)
+        if command == "calibrate":
+            written = out / str(name)
+            written.write_text("x (m), h (m)\n0, 0.05\n0.1, 0.05\n0.1001, 0\n0.5, 0\n")
+            mass = {"quantity": "mass_final", "value": 0.005, "sigma": 1e-4}
+            if member:
+                written.write_text("x (m), z (m)\n0, 0\n0.5, 0\n")
+                (directory / "flat.csv").write_text("x (m), z (m)\n0, 0\n0.5, 0\n")
+                base["bed"] = {"file": "flat.csv"}
+                experiments = {"a": {}, "b": {"bed.file": f"out/{name}"}}
+                mass = {**mass, "experiment": "a"}
+                _calibration_of(mass, base, {"experiments": experiments})(directory)
+                return
+            base["initial"] = [{"shape": "profile", "file": f"out/{name}"}]
+            _calibration_of(mass, base)(directory)
+            return
+        if command == "sweep" and name is None:
+            (directory / "study.yaml").write_text(
+                yaml.safe_dump({"base": "base.yaml", "parameters": parameters})
+            )
+            (directory / "base.yaml").write_text(yaml.safe_dump(TINY))
+            first = load_sweep(directory / "study.yaml").members()[0].id
+            (out / first).mkdir()
+            written = out / first / "member.json"
+        else:
+            written = out / str(name)
+        written.write_text("x (m), z (m)\n0, 0\n0.5, 0\n")
+        base["bed"] = {"file": written.relative_to(directory).as_posix()}
+        if member:
+            (directory / "flat.csv").write_text("x (m), z (m)\n0, 0\n0.5, 0\n")
+            parameters = {"bed.file": ["flat.csv", written.relative_to(directory).as_posix()]}
+            base["bed"] = {"file": "flat.csv"}
+        (directory / "base.yaml").write_text(yaml.safe_dump(base))
+        if command == "sweep":
+            config: dict[str, Any] = {"base": "base.yaml", "parameters": parameters}
+        else:
+            config = {
+                "base": "base.yaml",
+                "parameters": {"rheology.mu_s": {"bounds": [0.2, 0.4]}},
+                "outputs": ["mass_final"],
+                "samples": 16,
+            }
+        (directory / "study.yaml").write_text(yaml.safe_dump(config))
+
+    return setup
+
+
 def _run_and_study(directory: Path) -> None:
     _finished_run(directory)
     _sensitivity()(directory / "out")
@@ -4500,6 +4719,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     13: round_thirteen, 14: round_fourteen, 15: round_fifteen, 16: round_sixteen,
     17: round_seventeen, 18: round_eighteen, 19: round_nineteen, 20: round_twenty,
     21: round_twenty_one, 22: round_twenty_two, 23: round_twenty_three, 24: round_twenty_four,
+    25: round_twenty_five,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""
 
@@ -4509,7 +4729,7 @@ def main() -> None:
     parser.add_argument("-k", default="", help="only the cases whose name contains this")
     parser.add_argument("-j", type=int, default=2, help="cases run at once")
     parser.add_argument(
-        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 24; all: none)"
+        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 25; all: none)"
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()

@@ -2170,3 +2170,274 @@ def test_a_study_design_beyond_its_memory_bound_is_refused_before_it_is_made(tmp
     assert result.code == 2 and phrase in result.err and "accepted: at most 134217728 values" in result.err, (
         result.err
     )
+
+
+def _geotiff(
+    path, crs="EPSG:32632", transform=None, bands=1, dtype="float64", scale=None, offset=0.0, units=None
+):
+    """A GeoTIFF of 40 x 80 pixels of 0.01 m, rising at 5 degrees towards +X from 100 m
+    (``transform``: a rotated one of the same terrain), with the ``scale``, ``offset`` and
+    the band's ``units`` given."""
+    rasterio = pytest.importorskip("rasterio")
+    from rasterio.transform import Affine
+
+    x = (np.arange(80) + 0.5) * 0.01
+    z = np.tile(100.0 + x * math.tan(math.radians(5.0)), (40, 1))
+    if transform == "rotated":  # rows along -X, columns along +Y
+        z, transform = z.T[::-1].copy(), Affine(0.0, -0.01, 0.8, 0.01, 0.0, 0.0)
+    values = np.round((z - offset) / scale) if scale else z
+    with rasterio.open(
+        path, "w", driver="GTiff", height=z.shape[0], width=z.shape[1], count=bands, dtype=dtype, crs=crs,
+        transform=transform or Affine(0.01, 0.0, 0.0, 0.0, -0.01, 0.4),
+    ) as dem:  # fmt: skip
+        for band in range(1, bands + 1):
+            dem.write(values.astype(dtype), band)
+        if scale:
+            dem.scales, dem.offsets = (scale,), (offset,)
+        if units:
+            dem.units = (units,)
+
+
+def _dem_scenario(tmp_path, tiny_scenario):
+    tiny_scenario["bed"] = {"dem": "dem.tif", "polyline": [[0.05, 0.2], [0.75, 0.2]], "extend": "flat"}
+    (tmp_path / "scenario.yaml").write_text(yaml.safe_dump(tiny_scenario))
+    return tmp_path / "scenario.yaml"
+
+
+@pytest.mark.parametrize(
+    ("kind", "phrase"),
+    [
+        (
+            {"crs": "EPSG:4326"},
+            "a geographic coordinate reference system (EPSG:4326), whose coordinates are not",
+        ),
+        (
+            {"crs": None},
+            "no coordinate reference system: where its pixels lie, or in what units, is not said",
+        ),
+        ({"crs": "EPSG:2227"}, "map coordinates in US survey foot (0.304801 m), not metres"),
+        ({"units": "ft"}, "elevations in 'ft', not metres"),
+        ({"crs": "EPSG:32610+6360"}, "elevations in 'US survey foot', not metres"),
+        ({"bands": 2}, "dem.tif: 2 bands, which one is the elevation is not said"),
+        ({"dtype": "complex64"}, "values of type complex64, not real numbers"),
+        ({"transform": (0.01, 0.01, 0.0, 0.01, 0.01, 1.0)}, "that maps its pixels on no area"),
+    ],
+)
+def test_a_dem_not_of_elevations_in_metres_on_a_metric_map_is_refused(
+    tmp_path, tiny_scenario, cli, kind, phrase
+):
+    """A DEM in degrees was sampled as if its pixels of 0.01 degree were 0.01 m wide, one in
+    feet or without a frame as if in metres, the first of two bands or the real part of
+    complex values taken as the terrain, all exit 0; a geotransform that maps the pixels on
+    a line was a traceback of ``affine``."""
+    if "transform" in kind:
+        from rasterio.transform import Affine
+
+        kind = {"transform": Affine(*kind["transform"])}
+    _geotiff(tmp_path / "dem.tif", **kind)
+    result = cli("validate", _dem_scenario(tmp_path, tiny_scenario))
+    assert result.code == 2 and "bed.dem (line" in result.err and phrase in result.err, result.err
+    assert "accepted: a single-band GeoTIFF of elevations in metres in a projected" in result.err
+
+
+def test_a_dem_of_scaled_integers_or_a_rotated_geotransform_gives_its_terrain(tmp_path, tiny_scenario):
+    """int16 tenths of a millimetre above 100 m (scale 1e-4, offset 100) were read as metres
+    (a terrain of 600 m rising at 89 degrees, refused as a fold), and a geotransform rotated
+    90 degrees had a pixel size of 0 (a numpy warning and a refusal); both give the terrain
+    of the plain DEM."""
+    _geotiff(tmp_path / "dem.tif")
+    plain = np.asarray(multilayer.load(_dem_scenario(tmp_path, tiny_scenario)).bed.points)
+    for kind in ({"scale": 1e-4, "offset": 100.0, "dtype": "int16"}, {"transform": "rotated"}):
+        (tmp_path / "dem.tif").unlink()
+        _geotiff(tmp_path / "dem.tif", **kind)
+        points = np.asarray(multilayer.load(_dem_scenario(tmp_path, tiny_scenario)).bed.points)
+        np.testing.assert_allclose(points, plain, atol=2e-4 if "scale" in kind else 1e-12)
+
+
+def test_a_dem_is_read_in_windows_around_its_polyline_never_whole(tmp_path, tiny_scenario, cli):
+    """A DEM of 20000 x 20000 pixels was read whole, 3 GiB of float64 (a MemoryError under a
+    limit, a traceback); read in windows it takes kilobytes.  A block larger than 2^24
+    pixels, which GDAL decodes whole, is refused."""
+    import tracemalloc
+
+    rasterio = pytest.importorskip("rasterio")
+    from rasterio.transform import Affine
+    from rasterio.windows import Window
+
+    for blocks in ({"tiled": True}, {"blockysize": 20000, "compress": "deflate"}):
+        with rasterio.open(
+            tmp_path / "dem.tif", "w", driver="GTiff", height=20000, width=20000, count=1, dtype="float32",
+            crs="EPSG:32632", transform=Affine(0.01, 0.0, 0.0, 0.0, -0.01, 0.4), sparse_ok=True, **blocks,
+        ) as dem:  # fmt: skip
+            dem.write(np.full((40, 80), 100.0, dtype="float32"), 1, window=Window(0, 0, 80, 40))
+        path = _dem_scenario(tmp_path, tiny_scenario)
+        tracemalloc.start()
+        try:
+            result = cli("validate", path)
+            peak = tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+        if "tiled" in blocks:
+            assert result.code == 0 and peak < 100e6, (result.err, peak)
+        else:
+            assert result.code == 2 and "blocks of 20000 x 20000 pixels, decoded whole" in result.err
+
+
+def test_a_polyline_far_outside_the_dem_is_named_without_a_numpy_warning(tmp_path, tiny_scenario, cli):
+    """Samples at X = 1e300 m were cast to pixel indices: numpy's warning "invalid value
+    encountered in cast" before the message."""
+    _geotiff(tmp_path / "dem.tif")
+    path = _dem_scenario(tmp_path, tiny_scenario)
+    far = "bed.polyline=[[1e300, 0.2], [1.0000000001e300, 0.2]]"
+    result = cli("validate", path, "--set", far, "--set", "bed.spacing=1e289")
+    assert result.code == 2 and "no elevation at (1e+300, 0.2), 0 m along the polyline" in result.err
+    assert "warning" not in result.err, result.err
+
+
+def test_a_vrt_named_tif_is_not_read_through(tmp_path, tiny_scenario, cli):
+    """A VRT file (XML) named ``dem.tif`` read the raster, device or URL it names, exit 0."""
+    _geotiff(tmp_path / "inner.tif")
+    (tmp_path / "dem.tif").write_text(
+        '<VRTDataset rasterXSize="80" rasterYSize="40"><SRS>EPSG:32632</SRS>'
+        "<GeoTransform>0, 0.01, 0, 0.4, 0, -0.01</GeoTransform>"
+        '<VRTRasterBand dataType="Float64" band="1"><SimpleSource>'
+        f'<SourceFilename relativeToVRT="0">{tmp_path / "inner.tif"}</SourceFilename>'
+        "<SourceBand>1</SourceBand></SimpleSource></VRTRasterBand></VRTDataset>"
+    )
+    result = cli("validate", _dem_scenario(tmp_path, tiny_scenario))
+    assert result.code == 2 and "not recognized as being in a supported file format" in result.err
+
+
+@pytest.mark.parametrize("command", ["sweep", "calibrate", "sensitivity", "member"])
+def test_a_file_the_base_scenario_of_a_study_reads_is_not_written_over_by_the_study(
+    tmp_path, cli, command, tiny_scenario
+):
+    """A base scenario whose bed was ``out/summary.csv`` (an initial thickness
+    ``out/calibration.nc``, a bed ``out/sensitivity.nc``) had it written over by the study
+    into ``out``, exit 0; one in a member's directory, ``out/<member>/member.json``, was
+    deleted when the member started."""
+    pytest.importorskip("dask.distributed")
+    out = tmp_path / "out"
+    out.mkdir()
+    sweep = {"base": "base.yaml", "parameters": {"slope_deg": [20.0, 25.0]}}
+    (tmp_path / "study.yaml").write_text(yaml.safe_dump(sweep))
+    read = out / {"sweep": "summary.csv", "calibrate": "calibration.nc", "sensitivity": "sensitivity.nc"}.get(
+        command, "member.json"
+    )
+    if command == "member":
+        (tmp_path / "base.yaml").write_text(yaml.safe_dump(tiny_scenario))
+        read = out / sweeps.load(tmp_path / "study.yaml").members()[0].id / "member.json"
+        read.parent.mkdir()
+    if command == "calibrate":
+        read.write_text("x (m), h (m)\n0, 0.05\n0.1, 0.05\n0.1001, 0\n0.5, 0\n")
+        tiny_scenario["initial"] = [{"shape": "profile", "file": "out/calibration.nc"}]
+        key = "initial.0.file"
+        study = {
+            "base": "base.yaml",
+            "parameters": {"rheology.mu_s": {"bounds": [0.2, 0.4]}},
+            "observations": [{"name": "m", "quantity": "mass_final", "value": 0.005, "sigma": 1e-4}],
+            "search": {"population": 4, "generations": 1},
+        }
+    else:
+        read.write_text(BED)
+        tiny_scenario["bed"] = {"file": read.relative_to(tmp_path).as_posix()}
+        key = "bed.file"
+        study = sweep
+        if command == "sensitivity":
+            pytest.importorskip("SALib")
+            study = {
+                "base": "base.yaml",
+                "parameters": {"rheology.mu_s": {"bounds": [0.2, 0.4]}},
+                "outputs": ["mass_final"],
+                "samples": 16,
+            }
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(tiny_scenario))
+    (tmp_path / "study.yaml").write_text(yaml.safe_dump(study))
+    before = read.read_bytes()
+    result = cli("sweep" if command == "member" else command, tmp_path / "study.yaml", "-o", out, "-q")
+    assert result.code == 2 and f"{read}: the file {key} of {tmp_path / 'base.yaml'}" in result.err, (
+        result.err
+    )
+    if command == "member":
+        assert (
+            f"in the subdirectory {read.parent.name} of {out}, where a member of the sweep runs" in result.err
+        )
+    assert read.read_bytes() == before
+
+
+def test_a_calibration_of_more_runs_than_its_bound_is_refused_naming_the_counts(tmp_path, cli):
+    """10^4 generations of a population of 10^4 over 2 parameters and 2 experiments asked
+    for 4 x 10^8 runs, accepted; the default search of the shipped study is far below."""
+    from multilayer.scenario.limits import MAX_STUDY_RUNS
+
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(TINY_SCENARIO))
+    study = {
+        "base": "base.yaml",
+        "parameters": {"rheology.mu_s": {"bounds": [0.2, 0.4]}, "slope_deg": {"bounds": [20.0, 30.0]}},
+        "experiments": {"a": {}, "b": {"time.end": 0.3}},
+        "observations": [
+            {"name": n, "experiment": n, "quantity": "mass_final", "value": 0.005, "sigma": 1e-4}
+            for n in "ab"
+        ],
+        "search": {"population": 10_000, "generations": 10_000},
+    }
+    (tmp_path / "calibration.yaml").write_text(yaml.safe_dump(study))
+    result = cli("validate", tmp_path / "calibration.yaml")
+    runs = 2 * (10_000 * 2 * 10_001 + 10 * 3 + 4)
+    assert result.code == 2 and runs > MAX_STUDY_RUNS
+    assert (
+        "search.generations (line" in result.err
+        and f"2 experiment(s) x (10000 x 2 parameters x (10000 generations + 1) + 10 evaluations x (2 + 1) "
+        f"+ 2 x 2) = {runs:.3g} runs; accepted: a study of at most 1e+07 runs"
+        in result.err
+    ), result.err
+    study["search"] = {"population": 500, "generations": 4}  # 2 x (500 x 2 x 5 + 34) = 10068
+    (tmp_path / "calibration.yaml").write_text(yaml.safe_dump(study))
+    assert cli("validate", tmp_path / "calibration.yaml").code == 0
+
+
+def test_a_file_in_a_subdirectory_of_a_study_that_is_no_members_is_read(tmp_path):
+    """Only a member's directory (``m<index>-<hash>``, ``e-<hash>``) is the study's: a base
+    scenario ``scenarios/base.yaml`` of a study run with ``-o .`` is read."""
+    from multilayer.app.commands import in_a_member
+
+    for name in ("scenarios", "m1", "e-1234567", "m001-1234abcdz"):
+        (tmp_path / name).mkdir()
+        in_a_member(tmp_path, {"the base scenario": tmp_path / name / "base.yaml"}, "sweep")
+    for name in ("m001-1234abcd", "e-0123abcd"):
+        with pytest.raises(
+            InputError, match=f"in the subdirectory {name} of .*, where a member of the sweep"
+        ):
+            in_a_member(tmp_path, {"the base scenario": tmp_path / name / "base.yaml"}, "sweep")
+
+
+@pytest.mark.parametrize("command", ["sweep", "calibrate"])
+def test_a_file_a_member_or_an_experiment_reads_is_not_written_over_by_the_study(tmp_path, cli, command):
+    """A sweep of ``bed.file: [flat.csv, out/summary.csv]`` and a calibration whose
+    experiment reads the bed ``out/calibration.nc`` wrote over that file, exit 0."""
+    pytest.importorskip("dask.distributed")
+    (tmp_path / "out").mkdir()
+    name = "summary.csv" if command == "sweep" else "calibration.nc"
+    read = tmp_path / "out" / name
+    for path in (read, tmp_path / "flat.csv"):
+        path.write_text(BED)
+    base = {**TINY_SCENARIO, "bed": {"file": "flat.csv"}}
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(base))
+    if command == "sweep":
+        study = {"base": "base.yaml", "parameters": {"bed.file": ["flat.csv", f"out/{name}"]}}
+        what = f"{read}: the file bed.file of member m001-"
+    else:
+        study = {
+            "base": "base.yaml",
+            "parameters": {"rheology.mu_s": {"bounds": [0.2, 0.4]}},
+            "experiments": {"a": {}, "b": {"bed.file": f"out/{name}"}},
+            "observations": [
+                {"name": "m", "experiment": "a", "quantity": "mass_final", "value": 0.005, "sigma": 1e-4}
+            ],
+            "search": {"population": 4, "generations": 1},
+        }
+        what = f"{read}: the file bed.file of {tmp_path / 'base.yaml'}"
+    (tmp_path / "study.yaml").write_text(yaml.safe_dump(study))
+    result = cli(command, tmp_path / "study.yaml", "-o", tmp_path / "out", "-q")
+    assert result.code == 2 and what in result.err, result.err
+    assert read.read_text() == BED and os.listdir(tmp_path / "out") == [name]

@@ -113,7 +113,8 @@ def test_dem_profile_along_a_polyline(tmp_path, write_scenario, tiny_scenario):
     _write_geotiff(tmp_path / "dem.tif", elevation, pixel)
     north = 5000.0 - 0.2
     polyline = [[1000.05, north], [1000.30, north], [1000.50, north - 0.10]]
-    sc = load(_scenario(write_scenario, tiny_scenario, bed={"dem": "dem.tif", "polyline": polyline}))
+    cells = ["domain.cells=60"]  # more cells than samples: the profile is kept, not resampled
+    sc = load(_scenario(write_scenario, tiny_scenario, bed={"dem": "dem.tif", "polyline": polyline}), cells)
     x, b = np.asarray(sc.bed.points).T
     first = x <= 0.25 / math.cos(math.radians(30)) * math.cos(math.radians(5)) + 1e-12
     assert first.sum() == 26  # every pixel size along the first leg, vertices included
@@ -130,7 +131,7 @@ def test_dem_profile_along_a_polyline(tmp_path, write_scenario, tiny_scenario):
     (tmp_path / "profile.csv").write_text(
         "x (m), z (m)\n" + "".join(f"{float(a)!r}, {float(c)!r}\n" for a, c in zip(along, z))
     )
-    csv = load(_scenario(write_scenario, tiny_scenario, bed={"file": "profile.csv", "frame": "map"}))
+    csv = load(_scenario(write_scenario, tiny_scenario, bed={"file": "profile.csv", "frame": "map"}), cells)
     np.testing.assert_allclose(csv.bed.points, sc.bed.points, atol=1e-12)
 
 

@@ -27,6 +27,7 @@ import itertools
 import json
 import math
 import os
+import re
 import shutil
 import tempfile
 from collections.abc import Callable, Iterator, Sequence
@@ -60,6 +61,10 @@ MAX_MEMBERS = 10_000
 
 MARKER = "member.json"
 """Written into a member's directory once its run has completed."""
+MEMBER_DIRECTORY = re.compile(r"(m[0-9]+|e)-[0-9a-f]{8}")
+"""The name of a member's directory in a study's: ``m<index>-<hash>`` of a sweep
+(:meth:`Sweep.members`), ``e-<hash>`` of a calibration or sensitivity study
+(:meth:`~multilayer.app.ensemble.Ensemble.member_id`)."""
 MARKER_BYTES = 1 << 20
 """The most of a marker read (one is a few hundred bytes): a larger file is no marker."""
 
@@ -396,6 +401,25 @@ def compile_kernels(member: scenario.Scenario) -> None:
         Simulation(member.model_copy(update={"numerics": numerics})).step()
     except (InputError, RunError):
         return
+
+
+def member_reads(plan: Sweep) -> dict[str, Path]:
+    """The files the members of a sweep of a bed or initial-thickness key read (``bed.file``
+    of ``bed.file: [a.csv, out/summary.csv]``), by what they are: each such member loaded
+    (the others read the base scenario's files).  Members that do not load are left out:
+    each names its own error."""
+    if not any(key.split(".")[0] in ("bed", "initial") for key in plan.parameters):
+        return {}
+    reads = {}
+    for member in plan.members():
+        try:
+            files = plan.member_scenario(member).input_files()
+        except InputError:
+            continue
+        reads.update(
+            {f"the file {key} of member {member.id} of {plan.path}": path for key, path in files.items()}
+        )
+    return reads
 
 
 def base_member(base: Path, fixed: dict[str, Any]) -> scenario.Scenario | None:

@@ -37,7 +37,7 @@ from pydantic import BaseModel, Field, ValidationError, field_validator, model_v
 from multilayer import scenario
 from multilayer.errors import InputError, reason
 from multilayer.scenario.files import read_text
-from multilayer.scenario.limits import MAX_DESIGN_VALUES, MAX_PROFILE_POINTS
+from multilayer.scenario.limits import MAX_DESIGN_VALUES, MAX_PROFILE_POINTS, MAX_STUDY_RUNS
 from multilayer.scenario.loading import load_base
 from multilayer.scenario.messages import StrictModel, describe, directory_path, dotted, field, invalid
 from multilayer.scenario.overrides import as_overrides
@@ -218,6 +218,18 @@ def _check_design(key: str, count: int, parameters: int, extra: int) -> None:
         )
 
 
+def _check_runs(key: str, terms: str, runs: int) -> None:
+    """A validation error of ``key`` if a study asks for more than :data:`MAX_STUDY_RUNS`
+    runs, ``terms`` saying how they are counted."""
+    if runs > MAX_STUDY_RUNS:
+        raise invalid(
+            f"{terms} = {runs:.3g} runs",
+            f"a study of at most {MAX_STUDY_RUNS:.0e} runs: fewer parameters, generations or experiments, "
+            "or a smaller population",
+            key,
+        )
+
+
 class Search(StrictModel):
     """Global search: differential evolution (Storn & Price 1997)."""
 
@@ -279,6 +291,13 @@ class CalibrationModel(_Study):
     def _check(self) -> CalibrationModel:
         _check_design("search.population", self.search.population, len(self.parameters), 0)
         names = list(self.experiments) or ["base"]
+        p, search, evaluations = len(self.parameters), self.search, self.refine.evaluations
+        _check_runs(
+            "search.generations",
+            f"{len(names)} experiment(s) x ({search.population} x {p} parameters x "
+            f"({search.generations} generations + 1) + {evaluations} evaluations x ({p} + 1) + 2 x {p})",
+            len(names) * (search.population * p * (search.generations + 1) + evaluations * (p + 1) + 2 * p),
+        )
         seen: set[str] = set()
         for i, obs in enumerate(self.observations):
             if obs.name in seen:

@@ -61,8 +61,21 @@ to round-off down to 1e-150 with Drucker-Prager and Jop's mu(I); at 1e-200 the r
 forces and momenta that its result's own check refused (the file unreadable by ``plot``),
 and at 5e-324 the weight underflowed to zero: the material stayed at rest, exit 0.  Real
 densities (gases included) lie 100 decades above it."""
-MAX_DEM_PIXELS = 400_000_000
-"""Largest DEM read (pixels; its band is read whole, 8 bytes a pixel)."""
+DEM_WINDOW = 512
+"""Pixels a side of a window of a DEM read at once: a DEM is read only around the samples of
+its polyline, a window at a time (a DEM of 20000 x 20000 pixels was read whole, 3 GiB of
+float64, before a sample was taken); a GeoTIFF block larger than :data:`MAX_DEM_BLOCK_PIXELS`,
+which GDAL decodes whole to read any pixel of it, is refused."""
+MAX_DEM_BLOCK_PIXELS = 2**24
+"""Largest block (tile or strip) of a DEM's band, in pixels: 128 MiB of float64."""
+MAX_STUDY_RUNS = 10**7
+"""Most runs a calibration may ask for: ``experiments x (search.population x parameters x
+(search.generations + 1) + refine.evaluations x (parameters + 1) + 2 x parameters)``, its
+search, refinement and uncertainty at their largest.  Ten million runs of the smallest
+scenario (0.1 s each) take 12 days of a core; 10^4 generations of a population of 10^4
+over 4 parameters and 3 experiments asked for 1.2 x 10^9 runs, accepted.  A sensitivity
+study's ``samples x (parameters + 2)`` runs are at most 3 x 10^6 under
+:data:`MAX_DESIGN_VALUES` (65536 samples of 44 parameters)."""
 MAX_DESIGN_VALUES = 2**27
 """Values (one a parameter of a run) of a study's design held at once: a Sobol' design of
 ``samples x (parameters + 2)`` runs, a differential evolution's population of

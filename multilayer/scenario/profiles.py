@@ -17,6 +17,7 @@ import math
 import os
 import re
 import typing
+import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, TypeVar
@@ -25,7 +26,7 @@ import numpy as np
 
 from multilayer.errors import InputError
 from multilayer.scenario.files import check_regular, read_text
-from multilayer.scenario.limits import MAX_DEM_PIXELS, MAX_PROFILE_POINTS
+from multilayer.scenario.limits import DEM_WINDOW, MAX_DEM_BLOCK_PIXELS, MAX_PROFILE_POINTS
 
 T = TypeVar("T")
 
@@ -193,28 +194,120 @@ def _cached_dem_profile(
 
 
 def _parsed_dem_profile(path: Path, vertices: np.ndarray, spacing: float | None) -> np.ndarray:
-    """The profile of :func:`read_dem_profile`, read from the DEM."""
+    """The profile of :func:`read_dem_profile`, read from the DEM: a single-band GeoTIFF of
+    real numbers in a projected coordinate reference system of metres, its elevations in
+    metres (a band unit of ``m`` or none), their scale and offset applied (an ``int16``
+    DEM of centimetres), read in windows of at most :data:`DEM_WINDOW` pixels a side
+    around the samples, never whole."""
     try:
         import rasterio
+        from rasterio.windows import Window
     except ImportError:
         raise InputError(
             f"{path}: reading a GeoTIFF DEM needs the optional package rasterio; "
             "accepted: install it with pip install 'multilayer[dem]', or give the bed as a CSV file"
         ) from None
     try:
-        with rasterio.open(path) as dem:
-            if dem.width * dem.height > MAX_DEM_PIXELS:
-                raise InputError(
-                    f"{path}: {dem.width} x {dem.height} pixels; accepted: a DEM of at most "
-                    f"{MAX_DEM_PIXELS} pixels (crop it to the area of the polyline)"
-                )
-            band = dem.read(1, masked=True).astype(float).filled(np.nan)
-            to_pixel = ~dem.transform  # map (X, Y) -> fractional (column, row) of pixel edges
-            pixel = min(abs(dem.transform.a), abs(dem.transform.e))
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", rasterio.errors.NotGeoreferencedWarning)
+            # GeoTIFF only: a VRT file (XML) named dem.tif reads the files, devices and URLs it names
+            dem = rasterio.open(path, driver="GTiff")
+        with dem:
+            georeferenced = not any(
+                issubclass(w.category, rasterio.errors.NotGeoreferencedWarning) for w in caught
+            )
+            scale, offset, pixel, to_pixel = _dem_frame(path, dem, georeferenced)
+            step = spacing or pixel
+            _check_samples(path, vertices, step, "spacing" if spacing else "dem (its pixel size)")
+            samples, s = _polyline_samples(vertices, step)
+            col = to_pixel.a * samples[:, 0] + to_pixel.b * samples[:, 1] + to_pixel.c
+            row = to_pixel.d * samples[:, 0] + to_pixel.e * samples[:, 1] + to_pixel.f
+
+            def pixels(rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+                values = np.empty(len(rows))
+                tiles = (rows // DEM_WINDOW) * (dem.width // DEM_WINDOW + 1) + cols // DEM_WINDOW
+                order = np.argsort(tiles, kind="stable")
+                for group in np.split(order, np.flatnonzero(np.diff(tiles[order])) + 1):
+                    r, c = rows[group], cols[group]
+                    r_0, c_0 = int(r.min()), int(c.min())
+                    window = Window(c_0, r_0, int(c.max()) - c_0 + 1, int(r.max()) - r_0 + 1)
+                    block = dem.read(1, window=window, masked=True)
+                    values[group] = np.ma.filled(block.astype(float), np.nan)[r - r_0, c - c_0]
+                return values
+
+            with np.errstate(all="ignore"):  # an infinite or huge elevation is named below
+                z = _bilinear((dem.height, dem.width), pixels, row - 0.5, col - 0.5) * scale + offset
     except rasterio.errors.RasterioError as exc:
         raise InputError(f"{path}: cannot read the DEM ({exc}); accepted: a GeoTIFF file") from None
-    step = spacing or pixel
-    _check_samples(path, vertices, step, "spacing" if spacing else "dem (its pixel size)")
+    bad = np.flatnonzero(~np.isfinite(z))
+    if bad.size:
+        x0, y0 = samples[bad[0]]
+        raise InputError(
+            f"{path}: no elevation at ({x0:g}, {y0:g}), {s[bad[0]]:g} m along the polyline "
+            "(outside the DEM, a nodata pixel or a value that is not finite); accepted: a polyline inside "
+            "the DEM's valid pixels"
+        )
+    return np.column_stack([s, z])
+
+
+_METRES = ("", "m", "metre", "meter", "metres", "meters")
+"""Band units read as elevations in metres (none: the GeoTIFF convention)."""
+
+
+def _dem_frame(path: Path, dem: Any, georeferenced: bool) -> tuple[float, float, float, Any]:
+    """The scale, offset, pixel size (m) and map-to-pixel transform of an open DEM, after
+    checking that it is one band of real numbers in a projected frame of metres, its
+    elevations in metres: :class:`InputError` naming what it is otherwise (a DEM in
+    degrees was sampled as if its 0.01-degree pixels were 0.01 m wide, silently)."""
+    accepted = (
+        "; accepted: a single-band GeoTIFF of elevations in metres in a projected coordinate "
+        "reference system of metres (gdalwarp -t_srs EPSG:... reprojects one)"
+    )
+    if dem.count != 1:
+        raise InputError(f"{path}: {dem.count} bands, which one is the elevation is not said{accepted}")
+    kind = np.dtype(dem.dtypes[0]).kind
+    if kind not in "iuf":
+        raise InputError(f"{path}: values of type {dem.dtypes[0]}, not real numbers{accepted}")
+    if not georeferenced or dem.crs is None:
+        raise InputError(
+            f"{path}: {'no geotransform' if not georeferenced else 'no coordinate reference system'}: "
+            f"where its pixels lie, or in what units, is not said{accepted}"
+        )
+    if not dem.crs.is_projected:
+        raise InputError(
+            f"{path}: a {'geographic' if dem.crs.is_geographic else 'non-projected'} coordinate reference "
+            f"system ({dem.crs.to_string()[:60]}), whose coordinates are not metres{accepted}"
+        )
+    try:
+        unit, factor = dem.crs.linear_units_factor
+    except ValueError:  # rasterio's CRSError: units PROJ cannot tell
+        unit, factor = "units that cannot be read", math.nan
+    if factor != 1.0:
+        raise InputError(f"{path}: map coordinates in {unit} ({factor:g} m), not metres{accepted}")
+    vertical = (dem.units[0] or "").strip()
+    if vertical.lower() not in _METRES:
+        raise InputError(f"{path}: elevations in {vertical!r}, not metres{accepted}")
+    block_rows, block_cols = dem.block_shapes[0]
+    if block_rows * block_cols > MAX_DEM_BLOCK_PIXELS:
+        raise InputError(
+            f"{path}: blocks of {block_cols} x {block_rows} pixels, decoded whole to read any of their "
+            f"pixels; accepted: blocks of at most {MAX_DEM_BLOCK_PIXELS} pixels "
+            "(gdal_translate -co TILED=YES tiles it)"
+        )
+    scale, offset = float(dem.scales[0]), float(dem.offsets[0])
+    if not (math.isfinite(scale) and scale != 0.0 and math.isfinite(offset)):
+        raise InputError(f"{path}: a scale {scale:g} and offset {offset:g} of its values{accepted}")
+    t = dem.transform
+    determinant = t.a * t.e - t.b * t.d
+    pixel = min(math.hypot(t.a, t.d), math.hypot(t.b, t.e))  # a rotated DEM's too
+    if not (math.isfinite(determinant) and determinant != 0.0 and pixel > 0.0):
+        raise InputError(f"{path}: a geotransform {tuple(t)[:6]} that maps its pixels on no area{accepted}")
+    return scale, offset, pixel, ~t
+
+
+def _polyline_samples(vertices: np.ndarray, step: float) -> tuple[np.ndarray, list[float]]:
+    """Points every ``step`` along the polyline ``vertices`` and at each vertex, and their
+    distance along it."""
     xy, s = [vertices[0]], [0.0]
     for start, end in zip(vertices[:-1], vertices[1:]):
         length = float(np.hypot(*(end - start)))
@@ -222,18 +315,7 @@ def _parsed_dem_profile(path: Path, vertices: np.ndarray, spacing: float | None)
         for k in range(1, count + 1):
             xy.append(start + (end - start) * k / count)
             s.append(s[-1] + length / count)
-    samples = np.asarray(xy)
-    col = to_pixel.a * samples[:, 0] + to_pixel.b * samples[:, 1] + to_pixel.c
-    row = to_pixel.d * samples[:, 0] + to_pixel.e * samples[:, 1] + to_pixel.f
-    z = _bilinear(band, row - 0.5, col - 0.5)
-    bad = np.flatnonzero(~np.isfinite(z))
-    if bad.size:
-        x0, y0 = samples[bad[0]]
-        raise InputError(
-            f"{path}: no elevation at ({x0:g}, {y0:g}), {s[bad[0]]:g} m along the polyline "
-            "(outside the DEM or a nodata pixel); accepted: a polyline inside the DEM's valid pixels"
-        )
-    return np.column_stack([s, z])
+    return np.asarray(xy), s
 
 
 def _check_samples(path: str | Path, vertices: np.ndarray, step: float, key: str) -> None:
@@ -249,21 +331,30 @@ def _check_samples(path: str | Path, vertices: np.ndarray, step: float, key: str
         )
 
 
-def _bilinear(band: np.ndarray, row: np.ndarray, col: np.ndarray) -> np.ndarray:
-    """Bilinear interpolation of ``band`` at fractional pixel-centre indices; NaN outside."""
-    rows, cols = band.shape
-    r0 = np.clip(np.floor(row).astype(int), 0, max(rows - 2, 0))
-    c0 = np.clip(np.floor(col).astype(int), 0, max(cols - 2, 0))
+def _bilinear(
+    shape: tuple[int, int],
+    pixels: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    row: np.ndarray,
+    col: np.ndarray,
+) -> np.ndarray:
+    """Bilinear interpolation of a band of ``shape`` at fractional pixel-centre indices;
+    NaN outside.  ``pixels(rows, cols)`` gives the band's values at integer indices: only
+    the four pixels around each point inside are read."""
+    rows, cols = shape
+    inside = (row >= -0.5) & (row <= rows - 0.5) & (col >= -0.5) & (col <= cols - 0.5)
+    value = np.full(len(row), np.nan)
+    if not inside.any():
+        return value
+    row, col = row[inside], col[inside]  # a point at 1e300 is cast to no integer
+    r0 = np.clip(np.floor(row).astype(np.int64), 0, max(rows - 2, 0))
+    c0 = np.clip(np.floor(col).astype(np.int64), 0, max(cols - 2, 0))
     fr, fc = row - r0, col - c0
     r1, c1 = np.minimum(r0 + 1, rows - 1), np.minimum(c0 + 1, cols - 1)
-    value = (
-        band[r0, c0] * (1 - fr) * (1 - fc)
-        + band[r1, c0] * fr * (1 - fc)
-        + band[r0, c1] * (1 - fr) * fc
-        + band[r1, c1] * fr * fc
-    )
-    inside = (row >= -0.5) & (row <= rows - 0.5) & (col >= -0.5) & (col <= cols - 0.5)
-    return np.where(inside, value, np.nan)
+    n = len(row)
+    read = pixels(np.concatenate([r0, r1, r0, r1]), np.concatenate([c0, c0, c1, c1]))
+    v00, v10, v01, v11 = read[:n], read[n : 2 * n], read[2 * n : 3 * n], read[3 * n :]
+    value[inside] = v00 * (1 - fr) * (1 - fc) + v10 * fr * (1 - fc) + v01 * (1 - fr) * fc + v11 * fr * fc
+    return value
 
 
 _DERIVED: dict[tuple[int, str], tuple[np.ndarray, Any]] = {}

@@ -118,17 +118,21 @@ def study_directory(outdir: Path, reads: dict[str, Path], writes: str, study: st
     both ran every member, each member's second run refused as another run's, and a stop of
     one stopped the other's members (the directory's stop file).  The directories it made
     go again, if empty, when the study is refused (an :class:`InputError`), and so they do
-    when the file it writes, ``writes`` (or its lock), is a file the ``study`` (sweep,
-    calibration, sensitivity study) reads, ``reads`` (what it is, by its path): a sweep
-    whose base scenario was ``DIR/summary.csv`` wrote its summary over it."""
+    when the file it writes, ``writes`` (or its lock or stop request), is a file the
+    ``study`` (sweep, calibration, sensitivity study) reads, ``reads`` (what it is, by its
+    path; a sweep whose base scenario was ``DIR/summary.csv`` wrote its summary over it), or
+    a file it reads lies in a member's directory (:func:`in_a_member`)."""
     from multilayer.app.lock import LOCK_FILE, locked
     from multilayer.app.runner import not_an_input, output_directory
+    from multilayer.app.stopping import StopFile
     from multilayer.errors import InputError, warn
 
     created = output_directory(outdir)
     try:
-        for name in (writes, LOCK_FILE):
-            not_an_input(outdir / name, reads, (writes, LOCK_FILE), f"the {study}", f"the {study}")
+        written = (writes, LOCK_FILE, StopFile.NAME)
+        for name in written:
+            not_an_input(outdir / name, reads, written, f"the {study}", f"the {study}")
+        in_a_member(outdir, reads, study)
     except InputError:
         for made in created:
             with contextlib.suppress(OSError):
@@ -142,6 +146,46 @@ def study_directory(outdir: Path, reads: dict[str, Path], writes: str, study: st
             with contextlib.suppress(OSError):  # not empty: the study wrote there
                 made.rmdir()
         raise
+
+
+def base_reads(base: Path, fixed: dict[str, Any] | None = None) -> dict[str, Path]:
+    """The files the base scenario of a study reads (``bed.file``, ``bed.dem``,
+    ``initial.N.file``) with the study's fixed overrides ``fixed``, by what they are, for
+    :func:`study_directory`: a bed file ``DIR/summary.csv`` of the base scenario of a sweep
+    into ``DIR`` is a file the sweep writes over.  Empty for a base that does not load (each
+    member names its own error)."""
+    from multilayer.app.sweep import base_member
+
+    member = base_member(base, fixed or {})
+    if member is None:
+        return {}
+    return {f"the file {key} of {base}": path for key, path in member.input_files().items()}
+
+
+def in_a_member(outdir: Path, reads: dict[str, Path], study: str) -> None:
+    """:class:`InputError` if a file the ``study`` reads lies in a member's directory of its
+    output directory ``outdir`` (a subdirectory named as a member's,
+    :data:`~multilayer.app.sweep.MEMBER_DIRECTORY`, whatever its members): each member runs
+    into its own, which it writes and clears (a bed at ``DIR/<member>/member.json`` was
+    deleted when that member started)."""
+    from multilayer.app.sweep import MEMBER_DIRECTORY
+    from multilayer.errors import InputError
+
+    try:
+        root = outdir.resolve()
+    except (OSError, RuntimeError):
+        return
+    for what, path in reads.items():
+        try:
+            inside = path.resolve().relative_to(root)
+        except (OSError, RuntimeError, ValueError):  # elsewhere (or a link loop loading named)
+            continue
+        if len(inside.parts) > 1 and MEMBER_DIRECTORY.fullmatch(inside.parts[0]):
+            raise InputError(
+                f"{path}: {what}, in the subdirectory {inside.parts[0]} of {outdir}, where a member of the "
+                f"{study} runs; accepted: files the {study} reads outside its members' directories "
+                "(m<index>-<hash>, e-<hash>)"
+            )
 
 
 def size(text: str) -> float:

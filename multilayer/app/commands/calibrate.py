@@ -19,6 +19,7 @@ from typing import Any
 
 from multilayer.app.commands import (
     add_study_arguments,
+    base_reads,
     check_results,
     cluster_description,
     report_stop,
@@ -46,6 +47,8 @@ def main(args: argparse.Namespace) -> int:
     from multilayer.app.calibration import CALIBRATION_FILE
 
     reads = {"the calibration file itself": plan.path, f"the base scenario of {plan.path}": plan.base}
+    for extra in plan.experiments.values():  # an experiment may read a bed of its own
+        reads.update(base_reads(plan.base, {**plan.config.set, **extra}))
     for i, observed in enumerate(plan.data):
         if observed.observation.file is not None:
             reads[f"the file observations.{i}.file of {plan.path}"] = (

@@ -18,6 +18,7 @@ from typing import Any
 
 from multilayer.app.commands import (
     add_study_arguments,
+    base_reads,
     check_results,
     cluster_description,
     report_stop,
@@ -44,6 +45,7 @@ def main(args: argparse.Namespace) -> int:
     from multilayer.app.sensitivity import SENSITIVITY_FILE
 
     reads = {"the sensitivity file itself": study.path, f"the base scenario of {study.path}": study.base}
+    reads.update(base_reads(study.base, study.config.set))
     with study_directory(outdir, reads, SENSITIVITY_FILE, "sensitivity study"):
         return _sensitivity(args, study, outdir)
 

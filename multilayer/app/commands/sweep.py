@@ -20,6 +20,7 @@ from multilayer.app.commands import (
     add_cluster_arguments,
     add_output_argument,
     add_resume_argument,
+    base_reads,
     check_results,
     cluster_description,
     report_stop,
@@ -82,6 +83,8 @@ def main(args: argparse.Namespace) -> int:
     summary = outdir / "summary.csv"
     check_results(args, outdir, summary.name)
     reads = {"the sweep file itself": plan.path, f"the base scenario of {plan.path}": plan.base}
+    reads.update(base_reads(plan.base))
+    reads.update(sweeps.member_reads(plan))
     with study_directory(outdir, reads, summary.name, "sweep"):
         return _sweep(args, plan, outdir, summary)
 
