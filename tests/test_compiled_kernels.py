@@ -78,7 +78,7 @@ whose bound on the steps reads the Courant step), the ones it loads from numba's
 (their callees are compiled into them): no parallel kernel, nothing of the non-hydrostatic
 projection."""
 
-COMPILATIONS = 73
+COMPILATIONS = 79
 """At most this many compilations of the engine's functions (each kernel and each of its
 callees, once per signature) for that run with numba's cache empty (52 when this bound
 was set; two more since the column solve's active set and the Newton control's error
@@ -99,7 +99,12 @@ its counts of the iterations, each one call where numpy took several: on a small
 they cost more than the kernel; one more for the bed force's sums of a step in one call,
 whose momenta and impulses are now its callees, one more for the state guard's quick
 check in one call; four more for the vertical step's parts fixed in a block of columns
-and its error-bound and rise-bound terms, each one pass over the block)."""
+and its error-bound and rise-bound terms, each one pass over the block; six more for the
+block's tile laid out as the mesh: its coefficients made in one pass, the rows of its
+layers' factors, the error bound's sums of all its columns in one pass down it, and the
+passes of the stresses, of the bounds' terms, the error and rise bounds of
+``newton_control`` and the pressure parts of a law of the thickness compiled again for the
+strided view of one column of the tile, less three for the tile's cell index, inlined)."""
 
 
 def run(cache: str, **overrides: object) -> dict:

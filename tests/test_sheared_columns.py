@@ -92,11 +92,12 @@ def test_a_partly_stopped_collapse_mixes_blocks_and_single_columns_to_the_same_b
     assert (u == 0.0).any() and (u != 0.0).any()
 
 
-def test_lanes_one_after_the_other_in_the_tile_are_solved_to_the_same_bits():
-    """The tile's lanes follow one another without padding (the bottom cell of each right
-    after the top cell of the one before, the bed below it from the slot BED): at 40
-    layers, as at the other sizes, the same bits as column by column."""
-    assert [cell(i, 40) for i in (0, 1, BLOCK)] == [1, 41, 1 + 40 * BLOCK]
+def test_lanes_side_by_side_in_the_tile_are_solved_to_the_same_bits():
+    """The tile's lanes lie side by side, a layer's BLOCK cells together (the bed below the
+    bottom ones and the free surface above the top ones from the slot BED, in pads), and
+    lane ALONE after them: at 40 layers, as at the other sizes, the same bits as column by
+    column."""
+    assert [cell(i, 40) for i in (0, 1, BLOCK)] == [BLOCK, BLOCK + 1, 2 * BLOCK + 40 * BLOCK]
     results = _both(simulation(**{**CHUTE, "domain": {**CHUTE["domain"], "layers": 40}}))
     _assert_same(results)
     assert results[0][2].columns_side_by_side == 24
@@ -159,8 +160,8 @@ def test_the_bound_of_a_sheared_lane_decides_as_the_error_bound():
     rng = np.random.default_rng(7)
     for L in (1, 2, 8, 33):
         t = sc.new_tile(L)
-        x = sc.cell(3, L)
-        lane = slice(x, x + L)
+        lane = slice(sc.cell(3, L), sc.block_end(L), sc.BLOCK)  # lane 3's cells
+        view = t[:, 3 :: sc.BLOCK]  # its view (sheared_columns.lane_of): layer a in cell 1 + a
         for trial in range(200):
             jumps = rng.choice([-1.0, 1.0], L) * rng.uniform(1e-3, 1.0, L)
             u = np.cumsum(jumps)
@@ -182,11 +183,11 @@ def test_the_bound_of_a_sheared_lane_decides_as_the_error_bound():
             assert np.all(np.diff(u, prepend=0.0) != 0.0)
             bound = error_bound(inertia, momentum, kappa, tau, wall, wall, u, np.inf)
             # the gaps of the lane, in a pass over it or over the whole block: the same
-            sc._gaps(t, sc.cell(0, L), sc.cell(sc.BLOCK, L), np.int64(sc.U0))
+            sc._gaps(t, sc.cell(0, L), sc.block_end(L), np.int64(sc.U0), np.uint64(sc.BLOCK))
             block = t[sc.GAP, lane].copy()
-            sc._gaps(t, x, x + L, np.int64(sc.U0))
+            sc._gaps(view, 1, L + 1, np.int64(sc.U0), np.uint64(1))
             assert np.array_equal(t[sc.GAP, lane], block)
             for limit in (bound, np.nextafter(bound, 0.0), np.nextafter(bound, np.inf), 2.0 * bound,
                           0.5 * bound, 0.0, np.inf, np.nan):  # fmt: skip
                 expected = error_bound(inertia, momentum, kappa, tau, wall, wall, u, limit) <= limit
-                assert sc._within_bound(t, x, L, limit) == expected, (L, trial, limit)
+                assert sc._within_bound(view, 1, L, limit) == expected, (L, trial, limit)

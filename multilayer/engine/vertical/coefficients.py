@@ -114,14 +114,14 @@ def column_arrays(L: int) -> ColumnArrays:
 
 
 @jit(inline="always")  # inlined: a call per column costs about 50 ns at L = 8
-def column_coefficients(col, hj, inputs, out, at, wall_parts):
+def column_coefficients(col, hj, inputs, out, at, step, wall_parts):
     """Column ``col`` of thickness ``hj`` of ``StressModel.columns`` with the yield forms ``mu
     max(p, 0)``, ``mu_static max(p, 0)`` at rest (each plus ``D / (1 + hj / L)`` with
     ``thickness_law``) and ``mu_wall max(pbar, 0)`` on the walls (:class:`YieldInputs`
     ``inputs``), into the (L,) arrays of ``out`` (:class:`ColumnArrays`), but for its yield
     stresses ``kappa``, wall thresholds ``w``, interface pressures ``pressure`` and spacings
-    ``spacing``, which go to cells ``at ... at + L - 1`` of theirs (the Newton kernel writes
-    them straight into rows of its tile), and the mean
+    ``spacing``, which go to cells ``at``, ``at + step``, ... of theirs, layer a to cell
+    ``at + a step`` (the Newton kernel writes them straight into rows of its tile), and the mean
     wall pressures with ``wall_parts`` (or side walls) only. Returns how many yield values
     are outside the plugin contract (not finite and >= 0). (Inlined, the fields
     of both tuples are read as the arrays themselves: numba prunes the reference counts.)
@@ -141,41 +141,43 @@ def column_coefficients(col, hj, inputs, out, at, wall_parts):
     g_p = rho * inputs.g_n
     L = l.size
     checked = good = 0  # loops without branches, so that they vectorise
-    first = np.uint64(at)  # unsigned: no test for negative indices
+    first, step = np.uint64(at), np.uint64(step)  # unsigned: no test for negative indices
     for a in range(L):
         m[a] = rho * l[a] * hj
-        spacing[first + np.uint64(a)] = inputs.spacing_fraction[a] * hj
+        spacing[first + np.uint64(a) * step] = inputs.spacing_fraction[a] * hj
     if wall_parts or inputs.walls:
         for a in range(L):
             wall_pressure[a] = g_p * inputs.depth_centre[a] * hj
     if inputs.has_yield_gravity:
         for a in range(L):
-            pressure[first + np.uint64(a)] = rho * yield_gravity[a, col] * inputs.depth_interface[a] * hj
+            pressure[first + np.uint64(a) * step] = (
+                rho * yield_gravity[a, col] * inputs.depth_interface[a] * hj
+            )
     else:
         for a in range(L):
-            pressure[first + np.uint64(a)] = g_p * inputs.depth_interface[a] * hj
+            pressure[first + np.uint64(a) * step] = g_p * inputs.depth_interface[a] * hj
     checked += L
     mu, mu_static = inputs.mu, inputs.mu_static
     if inputs.thickness_law:  # the operations of pouliquen_forterre.mu_stop
         mu = mu + inputs.drop / (1.0 + hj / inputs.length)
         mu_static = mu_static + inputs.drop / (1.0 + hj / inputs.length)
     for a in range(L):
-        k = _frictional(mu, pressure[first + np.uint64(a)])
-        kappa[first + np.uint64(a)] = k
+        k = _frictional(mu, pressure[first + np.uint64(a) * step])
+        kappa[first + np.uint64(a) * step] = k
         good += _within_contract(k)
     # interface a is static where layer a and the one below (or the ground) rest
     if inputs.has_rest and inputs.resting[col]:
         for a in range(L):
             if rest[a, col] and (a == 0 or rest[a - 1, col]):
-                k = _frictional(mu_static, pressure[first + np.uint64(a)])
-                kappa[first + np.uint64(a)] = k
+                k = _frictional(mu_static, pressure[first + np.uint64(a) * step])
+                kappa[first + np.uint64(a) * step] = k
                 checked += 1
                 good += _within_contract(k)
     if inputs.walls:
         checked += L
         for a in range(L):
             tau = _frictional(inputs.mu_wall, wall_pressure[a])
-            w[first + np.uint64(a)] = inputs.wall_scale * l[a] * hj * tau
+            w[first + np.uint64(a) * step] = inputs.wall_scale * l[a] * hj * tau
             good += _within_contract(tau)
     if not inputs.base_bulk[col]:  # the basal condition: the friction of the bed at interface 0
         kappa[first] = inputs.base_friction[col] * pressure[first] + inputs.base_cohesion[col]
@@ -195,7 +197,7 @@ def _coefficients(hw, wet, inputs, m, kappa, w, pressure, spacing, viscous, wall
         np.empty(L), np.empty(L), np.zeros(L), np.empty(L), np.empty(L), np.ones(L, np.bool_), np.empty(L)
     )
     for j in range(n):
-        bad += column_coefficients(wet[j], hw[j], inputs, column, 0, True)
+        bad += column_coefficients(wet[j], hw[j], inputs, column, 0, 1, True)
         for a in range(L):
             m[a, j], kappa[a, j], w[a, j] = column.m[a], column.kappa[a], column.w[a]
             pressure[a, j], spacing[a, j] = column.pressure[a], column.spacing[a]

@@ -32,6 +32,7 @@ from multilayer.engine.compiled import jit, parallel_compiled
 from multilayer.engine.plugin_output import PluginOutputError, outside_contract
 from multilayer.engine.threads import numba_threads, parallel_chunks
 from multilayer.engine.vertical import sheared_columns as sc
+from multilayer.engine.vertical.block_coefficients import ROWS, block_coefficients, layer_rows
 from multilayer.engine.vertical.coefficients import (
     ColumnArrays,
     CompiledCoefficients,
@@ -265,11 +266,11 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
         np.empty(L),  # m (the pressures and spacings: in the tile, sheared_columns.PRESSURE, SPACING)
         np.ones(L, np.bool_),  # viscous (above layer 0: coefficients.column_coefficients)
         np.zeros((5, L)),  # wall_pressure, wall_factor, wall_offset, per_area, wall_true
-        np.empty((4, BLOCK), np.bool_),  # flags, finished of sheared_block
+        np.empty((sc.FLAGS, BLOCK), np.bool_),  # flags, finished of sheared_block
         np.zeros(BLOCK, np.bool_),
         # the sweeps of sheared_block, an array each (the compiler tells apart two arrays, not two rows)
         (np.empty(sweep), np.empty(sweep), np.empty(sweep), np.empty(sweep), np.empty(sweep)),
-        np.empty((2, L * BLOCK)),  # the rows of a block's u* and guesses (sheared_columns.load)
+        np.empty((2 + ROWS, L * BLOCK)),  # the rows of sheared_columns.load and of block_coefficients
     )
     _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
 
@@ -280,19 +281,11 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
     arrays ``work``: borrowed (``compiled.jit``), as are the arrays of every callee."""
     wet, h, ustar, guess = columns.wet, columns.h, columns.ustar, columns.guess
     # the parameters as tuples: passed to the forms without reference counting
-    bulk_form, bulk_params, wall_form, wall_params = (
-        laws.bulk_form,
-        as_tuple(laws.bulk_params),
-        laws.wall_form,
-        as_tuple(laws.wall_params),
-    )
+    bulk_form, bulk_params = laws.bulk_form, as_tuple(laws.bulk_params)
+    wall_form, wall_params = laws.wall_form, as_tuple(laws.wall_params)
     width, density = laws.width, laws.density
-    dt, threshold, max_iterations, blocks = (
-        control.dt,
-        control.threshold,
-        control.max_iterations,
-        control.blocks,
-    )
+    dt, threshold = control.dt, control.threshold
+    max_iterations, blocks = control.max_iterations, control.blocks
     u_out, iterations, fallbacks, faults = out.u, out.iterations, out.fallbacks, out.faults
     fault_values, side_by_side = out.fault_values, out.side_by_side
     L = inputs.l.size
@@ -306,7 +299,7 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
     # viscosities, stress slopes and viscous stresses at current and new (interfaces, walls)
     laws_c, laws_n, state_c, state_n, tile, coefficients, viscous, walls_of = work[16:24]
     flags, finished, sweeps = work[24], work[25], work[26]
-    u_rows, guess_rows = work[27][0], work[27][1]
+    u_rows, guess_rows, rows = work[27][0], work[27][1], work[27][2:]  # rows: of block_coefficients
     eta_c, slope_c, weta_c, wslope_c = laws_c[0], laws_c[1], laws_c[2], laws_c[3]
     eta_n, slope_n, weta_n, wslope_n = laws_n[0], laws_n[1], laws_n[2], laws_n[3]
     # the coefficients of StressModel.columns of the column (coefficients.column_coefficients)
@@ -330,6 +323,7 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
     g_m, g_kappa, g_w, g_pressure = given.m, given.kappa, given.w, given.pressure  # read once per chunk
     g_spacing, g_viscous, g_wall = given.spacing, given.viscous, given.wall_pressure
     start, stop = k * n // chunks, (k + 1) * n // chunks
+    layer_rows(inputs, rows)  # (read where fused only)
     # The columns are set up in turn.  A group of BLOCK adjacent columns without walls goes into
     # the tile and is solved side by side (sheared_block); the columns it did not finish come
     # back from the tile one by one (``drain``) to the iteration below.
@@ -352,27 +346,33 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
                 block = blocks and not walls and j + BLOCK <= stop and wet[j + BLOCK - 1] - col == BLOCK - 1
                 if block:  # the block's u* and guesses, row by row
                     sc.load(u_rows, guess_rows, ustar, guess, col)
+                if block and fused:  # and its coefficients, laid out as the tile
+                    block_coefficients(col, h, inputs, tile, L, column, flags, rows, dt, u_rows, guess_rows)
             lane = j - j0 if block else ALONE
-            o = cell(lane, L)  # the lane's layer 0 in the tile's rows
+            o, step = cell(lane, L), sc.step(lane)  # the lane's layer a: cell o + a step of the tile
             # the coefficients of StressModel.columns: from the compiled yield forms, or given (the
             # yield stresses and wall thresholds straight into the lane's slots)
-            if fused:
-                fine = column_coefficients(col, h[col], inputs, column, o, False) == 0
+            if fused and block:
+                fine = flags[sc.FINE, lane]
+            elif fused:
+                fine = column_coefficients(col, h[col], inputs, column, o, 1, False) == 0
             else:
                 fine = True
                 for a in range(L):
-                    x = np.uint64(o + a)
+                    x = np.uint64(o + a * step)
                     m[a], tile[sc.KAPPA, x], tile[sc.WALL, x] = g_m[a, j], g_kappa[a, j], g_w[a, j]
                     tile[sc.PRESSURE, x], tile[sc.SPACING, x] = g_pressure[a, j], g_spacing[a, j]
                     viscous[a] = g_viscous[a, j]
                     wall_pressure[a] = g_wall[a, j]
             # what stays fixed during the iteration, a few rows per loop over the layers (a loop
             # over all reloads its rows' pointers), the laws' switch outside them
-            sc.set_up(tile, L, lane, m, dt, u_rows, guess_rows, ustar, guess, col, current)  # m/dt, m u*/dt
-            for a in range(1 if fused else L):  # the compiled yield forms: only the bottom layer may not be
-                tile[sc.VISCOUS, np.uint64(o + a)] = 1.0 if viscous[a] else 0.0  # (new_tile: 1.0 above)
+            if not (fused and block):  # m/dt, m u*/dt (a block's masses and bed layer: block_coefficients)
+                sc.set_up(tile, L, lane, m, dt, u_rows, guess_rows, ustar, guess, col, current)
+            layers = 0 if fused and block else 1 if fused else L  # compiled yield forms: layer 0 alone
+            for a in range(layers):  # (new_tile: 1.0 above)
+                tile[sc.VISCOUS, np.uint64(o + a * step)] = 1.0 if viscous[a] else 0.0
             if not block:  # a block's lanes: all together once set up (sc.block_parts)
-                sc.fixed_parts(tile, o, o + L, bulk_form, bulk_params, h[col])
+                sc.fixed_parts(tile, o, o + L, bulk_form, bulk_params, h[col], np.bool_(True), np.bool_(True))
             if walls and not block:
                 start_of_walls = np.int64(0)  # not the literal 0: one compilation for both laws
                 _pressure_parts(
@@ -388,7 +388,9 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
             if block:
                 join(tile, L, flags, lane, fine, not fused or inputs.walls)
                 if lane == BLOCK - 1:
-                    sc.block_parts(tile, L, bulk_form, bulk_params, h, wet, j0)
+                    sc.block_parts(
+                        tile, L, bulk_form, bulk_params, h, wet, j0, dt, u_rows, guess_rows, flags, fused
+                    )
                     sheared_block(
                         tile, sweeps, flags, finished, bulk_form, bulk_params, threshold, max_iterations, j0,
                         wet[j0], u_out, iterations, fallbacks, faults, fault_values, side_by_side,

@@ -54,16 +54,24 @@ BLOCK = 8
 stresses and the Newton model one loop over the 8 L cells of the block, long enough to
 run as vectors at L = 8 (compiled, the loop runs as vectors of 8 values from about 40
 cells on, and one cell at a time below: 22-29 against 51-53 ns per column and pass at
-L = 8).  The tile holds 24 values per layer for each of the BLOCK + 1 lanes, 221 KB at
-L = 128 (the 4 of the bounds' terms touched only where a column is tested by them), the
-sweeps of the solve 5 per layer and lane, 41 KB, and the rows of :func:`load` 2, 16 KB."""
+L = 8).  The tile holds 23 values per layer for each of the BLOCK + 1 lanes, 215 KB at
+L = 128 (the 3 of the bounds touched only where a column is tested by them), the sweeps of
+the solve 5 per layer and lane, 41 KB, and the rows of :func:`load` and of the block's
+coefficients 10, 82 KB."""
 
-# The tile (SLOTS, 1 + (BLOCK + 1) L) holds, in each slot (a row), one value per column
-# (lane) and layer: layer a of lane i in cell 1 + i L + a, the lanes one after the other
-# without padding, so that the pass over the block's cells sweeps none but its own (cell
-# 0 is never read as a value: below the bottom cell of each lane is the bed, from the
-# slot BED, and a loop may load the cell below it unconditionally, as the cell above the
-# top cell of a block's lane, the first of the next lane: a select, not a masked load).
+# The tile (SLOTS, 2 BLOCK + (BLOCK + 1) L) holds, in each slot (a row), one value per
+# column (lane) and layer, laid out as the mesh and the sweeps of :func:`_solve`: layer a
+# of the block's lane i in cell BLOCK + a BLOCK + i (a layer's BLOCK lanes side by side,
+# the cell below one BLOCK places before it), then lane ALONE's layers one after the
+# other (contiguous: the arrays of ``newton_kernel._chunk``).  The BLOCK cells below the
+# bottom layer and above the top one are pads: a loop may load the cells below and above
+# unconditionally (no masked loads).  The pads below hold the bed's velocity, 0.0, in the
+# slots of the iterates ``U0``, ``U1`` (written by nothing: the velocity below the bottom
+# layer is loaded as any other, without a select), and 0.0 in ``GAP`` (:func:`_unchanged`);
+# the pads above hold 0.0 in the slots of the Newton model ``KC``, ``CC``, ``SIGN`` (the
+# free surface: :func:`_equation`);
+# the slot BED marks the bottom cells and the pads above the top ones (1.0: the free
+# surface, a select).  :func:`lane_of` is one lane's view, its layers contiguous.
 # The slots: per step,
 # m/dt, m u*/dt, the true yield stress, the wall threshold, 1/spacing, the conductance
 # per unit slope (0 where not viscous), whether viscous, the pressure parts of the law
@@ -73,13 +81,15 @@ sweeps of the solve 5 per layer and lane, 41 KB, and the rows of :func:`load` 2,
 # the true viscous stresses and their derivatives (``TAU0 + k``, ``STIFF0 + k`` at the
 # iterate ``U0 + k``: the rise bound of ``newton_control`` needs both iterates'); fixed,
 # 1.0 in the bottom cell of each lane (the bed below it) and 0.0 elsewhere; per test of a
-# column, each layer's term of the error bound (``GAP``) and its three terms of the rise
-# bound (``RISE ... RISE + 2``: no wall term, see :func:`_converged`); while the column is
-# set up, before any test, two of these hold its interface pressures and layer spacings
-# (``PRESSURE``, ``SPACING``, :func:`fixed_parts`).
+# column, each layer's term of the error bound (``GAP``), the sums of these terms from the
+# surface down to each layer (``RISE``) and the smallest m/dt down to each (``SMALLEST``),
+# then the sums of the rise bound's terms from the bed up to each (``RISE``: no wall term,
+# see :func:`_converged`);
+# while the column is set up, before any test, two of these hold its interface pressures
+# and layer spacings (``PRESSURE``, ``SPACING``, :func:`fixed_parts`).
 INERTIA, MOMENTUM, KAPPA, WALL, INV_SPACING, CONDUCTANCE, VISCOUS, FACTOR, OFFSET = range(9)
-KEPT, KC, CC, SIGN, U0, U1, TAU0, TAU1, STIFF0, STIFF1, BED, GAP, RISE = range(9, 22)
-SLOTS = 24
+KEPT, KC, CC, SIGN, U0, U1, TAU0, TAU1, STIFF0, STIFF1, BED, GAP, RISE, SMALLEST = range(9, 23)
+SLOTS = 23
 PRESSURE, SPACING = GAP, RISE
 # The arrays of the sweeps of :func:`_solve`, a value per layer and lane in each: the pivot
 # (then the inverse pivot), right-hand side, conductance below, the pivots not positive up
@@ -92,6 +102,7 @@ ALONE = BLOCK
 
 # per-column flags (lanes)
 ACTIVE, SHEARED, DONE, FINE = range(4)  # of the boolean lanes
+FLAGS = 4
 
 
 @jit
@@ -99,17 +110,34 @@ def new_tile(L):
     """The tile of columns of ``L`` layers, zero but for the ``BED`` slot and the ``VISCOUS``
     slot, 1.0 (the compiled yield forms set it in the bottom layer alone: see
     ``newton_kernel._chunk``)."""
-    t = np.zeros((SLOTS, 1 + (BLOCK + 1) * L))
+    t = np.zeros((SLOTS, cell(ALONE, L) + L))
     for i in range(BLOCK + 1):
         t[BED, cell(i, L)] = 1.0
+    for i in range(BLOCK):  # the pads above the block's top layers: the free surface
+        t[BED, cell(i, L) + BLOCK * L] = 1.0
     t[VISCOUS] = 1.0
     return t
 
 
-@jit
+@jit(inline="always")  # inlined: no compilation of its own
 def cell(i, L):
-    """The cell of layer 0 of lane ``i`` in the tile's rows (columns of ``L`` layers)."""
-    return 1 + i * L
+    """The cell of layer 0 of lane ``i`` in the tile's rows (columns of ``L`` layers); its
+    layer a is ``step(i)`` a cells further."""
+    return BLOCK + i if i < BLOCK else 2 * BLOCK + BLOCK * L
+
+
+@jit(inline="always")  # inlined: no compilation of its own
+def step(i):
+    """The cells from a layer of lane ``i`` to the next in the tile's rows."""
+    return BLOCK if i < BLOCK else 1
+
+
+@jit(inline="always")
+def lane_of(t, i):
+    """The rows of the block's lane ``i`` as a view of the tile: its layer a in cell 1 + a,
+    the pads below (cell 0) and above (cell L + 1), as a tile of one lane for the passes and
+    tests made lane by lane (the cell below one place before it)."""
+    return t[:, i::BLOCK]
 
 
 @jit(inline="always")
@@ -133,10 +161,9 @@ def load(u_rows, guess_rows, ustar, guess, c0):
     vectors.  Column by column, each column would read its L values a row of the mesh
     apart, one value from each of L cache lines (at N = 20 000 the rows are 160 000 B
     apart: the lines of a column fall in a few sets of the L1 cache, and are gone before
-    the next column would use them).  Each lane reads its own from them BLOCK values
-    apart (:func:`set_up`), straight into its slots ``MOMENTUM`` (times m/dt) and ``U0``:
-    the copy into the lanes' layout is that read, as vectors (a transposition in a pass of
-    its own cost three instructions per value, a spill of the lanes' pointers included)."""
+    the next column would use them).  The tile is laid out as these rows:
+    :func:`block_parts` reads them into its slots ``MOMENTUM`` (times m/dt) and ``U0`` in
+    one pass as vectors."""
     for a in range(np.uint64(ustar.shape[0])):  # unsigned: no test for negative indices
         u, g = _layer(ustar[a], c0), _layer(guess[a], c0)
         for i in range(BLOCK):
@@ -148,18 +175,14 @@ def load(u_rows, guess_rows, ustar, guess, c0):
 @jit(inline="always")  # inlined: its loops run as vectors in the caller, without a call
 def set_up(t, L, lane, m, dt, u_rows, guess_rows, ustar, guess, col, current):
     """The slots ``INERTIA`` and ``MOMENTUM`` (``m/dt``, ``m u*/dt``) of lane ``lane`` and
-    its guess, of the masses ``m``: a block's lane (``lane < BLOCK``) takes its u* and guess
-    from the rows of :func:`load`, BLOCK values apart (as vectors), the guess into ``U0``
-    (the first iterate of :func:`sheared_block`); lane ``ALONE`` those of column ``col`` of
-    the (L, N) arrays ``ustar`` and ``guess``, the guess into ``current``."""
+    its guess, of the masses ``m``: a block's lane (``lane < BLOCK``) only its masses, into
+    ``MOMENTUM`` (:func:`block_parts` makes the slots of the whole block at once, from them
+    and the rows of :func:`load`, laid out as the tile); lane ``ALONE`` those of column
+    ``col`` of the (L, N) arrays ``ustar`` and ``guess``, the guess into ``current``."""
     o = np.uint64(cell(lane, L))  # unsigned: no test for negative indices
-    if lane < BLOCK:  # two loops: fewer pairs of arrays for the run-time overlap checks of each
+    if lane < BLOCK:  # the masses into MOMENTUM: the rest for the whole block in block_parts
         for a in range(np.uint64(L)):
-            x, z = o + a, a * np.uint64(BLOCK) + np.uint64(lane)
-            t[INERTIA, x] = m[a] / dt
-            t[MOMENTUM, x] = m[a] * u_rows[z] / dt
-        for a in range(np.uint64(L)):
-            t[U0, o + a] = guess_rows[a * np.uint64(BLOCK) + np.uint64(lane)]
+            t[MOMENTUM, o + a * np.uint64(BLOCK)] = m[a]
         return
     for a in range(L):
         t[MOMENTUM, o + np.uint64(a)] = ustar[a, col]
@@ -169,32 +192,57 @@ def set_up(t, L, lane, m, dt, u_rows, guess_rows, ustar, guess, col, current):
         t[MOMENTUM, o + a] = m[a] * t[MOMENTUM, o + a] / dt
 
 
+@jit(inline="always")  # inlined: no compilation of its own
+def block_end(L):
+    """The cell after the block's lanes (the first pad above them) in the tile's rows."""
+    return cell(0, L) + BLOCK * L
+
+
 @jit(borrowing=True)
-def fixed_parts(t, start, stop, form, params, h):
+def fixed_parts(t, start, stop, form, params, h, pressures, spacings):
     """What stays fixed during a step in cells ``start ... stop - 1`` of the tile, from their
     spacings (slot ``SPACING``), whether viscous (``VISCOUS``) and interface pressures
-    (``PRESSURE``): the inverse spacing (1 where the spacing is 0), the conductance per unit
-    slope (the inverse spacing; 0 where not viscous or the spacing is 0) and the pressure
-    parts of the bulk law ``form`` (``forms._pressure_parts``, the column thickness ``h``)."""
-    for x in range(np.uint64(start), np.uint64(stop)):  # unsigned: no test for negative indices
+    (``PRESSURE``): with ``spacings``, the inverse spacing (1 where the spacing is 0) and the
+    conductance per unit slope (the inverse spacing; 0 where not viscous or the spacing is
+    0); with ``pressures``, the pressure parts of the bulk law ``form``
+    (``forms._pressure_parts``, the column thickness ``h``)."""
+    for x in range(
+        np.uint64(start), np.uint64(stop if spacings else start)
+    ):  # unsigned: no test for negative indices
         s = t[SPACING, x]
         inverse = 1.0 / s if s > 0.0 else 1.0
         t[INV_SPACING, x] = inverse
         t[CONDUCTANCE, x] = inverse if s > 0.0 and t[VISCOUS, x] > 0.0 else 0.0
-    _pressure_parts(form, params, t[PRESSURE, start:stop], h, t[FACTOR], t[OFFSET], start)
+    if pressures:
+        _pressure_parts(form, params, t[PRESSURE, start:stop], h, t[FACTOR], t[OFFSET], start)
 
 
 @jit(borrowing=True)
-def block_parts(t, L, form, params, h, wet, j0):
-    """:func:`fixed_parts` of the block's lanes, set up (the wet columns ``j0 ...`` of the
-    thicknesses ``h``): in one pass over their cells (a pass per lane cost its loops' set-up
-    and a call, some 150 instructions, each), lane by lane for a law of the column thickness
-    (``forms.INERTIAL_PLATEAU``)."""
-    if form != INERTIAL_PLATEAU:
-        fixed_parts(t, cell(0, L), cell(BLOCK, L), form, params, 0.0)
-        return
+def block_parts(t, L, form, params, h, wet, j0, dt, u_rows, guess_rows, flags, made):
+    """The block's lanes, set up (the wet columns ``j0 ...`` of the thicknesses ``h``, their
+    masses in ``MOMENTUM``: :func:`set_up`): ``m/dt``, ``m u*/dt`` (the u* of the rows of
+    :func:`load`, laid out as the tile) and the guesses into ``U0`` (the first iterate of
+    :func:`sheared_block`), in one pass over their cells as vectors, and so
+    :func:`fixed_parts` (the pressure parts lane by lane for a law of the column thickness,
+    ``forms.INERTIAL_PLATEAU``); a lane without mass at its bed leaves the block
+    (``ACTIVE``).  With ``made``, all but the ``ACTIVE`` flags and the pressure parts are
+    made (``block_coefficients``, in its pass)."""
+    x0 = np.uint64(cell(0, L))  # unsigned: no test for negative indices
+    for s in range(np.uint64(0 if made else BLOCK * L)):
+        x = x0 + s
+        m = t[MOMENTUM, x]
+        t[INERTIA, x] = m / dt
+        t[MOMENTUM, x] = m * u_rows[s] / dt
+        t[U0, x] = guess_rows[s]
     for i in range(BLOCK):
-        fixed_parts(t, cell(i, L), cell(i, L) + L, form, params, h[wet[j0 + i]])
+        flags[ACTIVE, i] = flags[ACTIVE, i] and t[INERTIA, cell(i, L)] > 0.0
+    plateau = form == INERTIAL_PLATEAU
+    fixed_parts(t, cell(0, L), block_end(L), form, params, 0.0, not plateau, not made)
+    for i in range(BLOCK if plateau else 0):
+        lane, start = lane_of(t, i), np.int64(1)  # typed, not the literal 1: one compilation
+        _pressure_parts(
+            form, params, lane[PRESSURE, 1 : L + 1], h[wet[j0 + i]], lane[FACTOR], lane[OFFSET], start
+        )
 
 
 @jit(borrowing=True)
@@ -203,13 +251,13 @@ def join(t, L, flags, i, fine, walled):
     (``fine``: its yield values are within the plugin contract), takes part in the block
     iteration if ``fine``, with mass and without a wall threshold (its thresholds are read
     where they may be nonzero, ``walled``; the compiled yield forms without walls set them
-    to 0)."""
-    x = cell(i, L)
-    held = 0  # layers with a wall threshold (or NaN), counted without branches: as vectors
-    for a in range(np.uint64(x), np.uint64(x + L if walled else x)):  # unsigned: no test for negative indices
-        held += not t[WALL, a] == 0.0
+    to 0); the test of its mass is :func:`block_parts`'."""
+    x, lanes = np.uint64(cell(i, L)), np.uint64(BLOCK)
+    held = 0  # layers with a wall threshold (or NaN), counted without branches
+    for a in range(np.uint64(L if walled else 0)):  # unsigned: no test for negative indices
+        held += not t[WALL, x + a * lanes] == 0.0
     flags[FINE, i] = fine
-    flags[ACTIVE, i] = fine and t[INERTIA, x] > 0.0 and held == 0
+    flags[ACTIVE, i] = fine and held == 0
 
 
 @jit(borrowing=True)
@@ -218,13 +266,13 @@ def unload(t, L, flags, i, guess_rows, viscous, wall_true, guess):
     column solved on its own by ``newton_kernel._chunk``), with the arrays of one column
     that lane has no slot for (no side walls) and its guess (from ``guess_rows`` of
     :func:`load`); returns ``fine``."""
-    x, alone = np.uint64(cell(i, L)), np.uint64(cell(ALONE, L))
+    lane, alone = lane_of(t, i), np.uint64(cell(ALONE, L) - 1)
     for slot in range(OFFSET + 1):  # the per-step slots
-        for a in range(np.uint64(L)):  # unsigned: no test for negative indices (as vectors)
-            t[slot, alone + a] = t[slot, x + a]
+        for a in range(np.uint64(1), np.uint64(L + 1)):  # unsigned: no test for negative indices
+            t[slot, alone + a] = lane[slot, a]
     for a in range(np.uint64(L)):
-        viscous[a] = t[VISCOUS, x + a] > 0.0
-        wall_true[a] = t[WALL, x + a]  # no walls
+        viscous[a] = lane[VISCOUS, a + np.uint64(1)] > 0.0
+        wall_true[a] = lane[WALL, a + np.uint64(1)]  # no walls
         guess[a] = guess_rows[a * np.uint64(BLOCK) + np.uint64(i)]
     return flags[FINE, i]
 
@@ -242,43 +290,43 @@ def _stresses_and_model(t, L, u, form, params, flags, model):
     leaves the block).
     The block's lanes are swept as one loop over their cells (the bed below the bottom
     cell of each lane); where some column is unsheared, outside the contract or rejected, its lanes
-    are swept again one by one to tell which (the same values again).  The pass is
+    are swept again one by one (:func:`lane_of`) to tell which (the same values again).  The pass is
     compiled once per built-in form, the form a literal constant in it (its loop then has
     no branches; ``forms.INERTIAL``, ``CONSTANT``, ``POWER``); any other form of
     ``forms.FORMS`` runs the pass compiled for every form (the same values)."""
-    start, stop = cell(0, L), cell(BLOCK, L)
+    start, stop, below = cell(0, L), block_end(L), BLOCK
     if form == 1:
-        faults, unsheared = _sweep(t, u, 1, params, start, stop, model)
+        faults, unsheared = _sweep(t, u, 1, params, start, stop, below, model)
     elif form == 0:
-        faults, unsheared = _sweep(t, u, 0, params, start, stop, model)
+        faults, unsheared = _sweep(t, u, 0, params, start, stop, below, model)
     elif form == 2:
-        faults, unsheared = _sweep(t, u, 2, params, start, stop, model)
+        faults, unsheared = _sweep(t, u, 2, params, start, stop, below, model)
     else:
-        faults, unsheared = _sweep(t, u, form, params, start, stop, model)
+        faults, unsheared = _sweep(t, u, form, params, start, stop, below, model)
     if faults == 0 and unsheared == 0:  # every column within the contract and fully sheared
         for i in range(BLOCK):
             flags[SHEARED, i] = True
         return
-    for i in range(BLOCK):
-        x = cell(i, L)
-        lane_faults, lane_unsheared = _sweep(t, u, form, params, x, x + L, model)
+    for i in range(BLOCK):  # each lane's view: a tile of one lane
+        lane_faults, lane_unsheared = _sweep(lane_of(t, i), u, form, params, 1, L + 1, 1, model)
         flags[ACTIVE, i] = flags[ACTIVE, i] and lane_faults == 0
         flags[SHEARED, i] = lane_unsheared == 0
 
 
 @jit(borrowing=True, error_model="numpy")
-def _sweep(t, u, form, params, start, stop, model):
+def _sweep(t, u, form, params, start, stop, down, model):
     """Cells ``start ... stop - 1`` of the tile's rows of :func:`_stresses_and_model` (the
-    velocities in slot ``u``; the stores of the model with ``model`` only, a condition the
-    compiler takes out of the loop); returns the faults, the viscosities outside the plugin
-    contract and, without ``model``, the yielded interfaces (``KC`` > 0, the bed's
-    included) the jump crosses against the sign ``SIGN`` of the model (the test of
-    ``column_solve._active_set``), and how many jumps are zero."""
+    velocities in slot ``u``, the cell below ``down`` places before; the stores of the
+    model with ``model`` only, a condition the compiler takes out of the loop); returns the
+    faults, the viscosities outside the plugin contract and, without ``model``, the yielded
+    interfaces (``KC`` > 0, the bed's included) the jump crosses against the sign ``SIGN``
+    of the model (the test of ``column_solve._active_set``) and the velocities that are not
+    finite (finite as ``coefficients._within_contract`` tells; ``_chunk`` names them: a
+    column leaves the block for it to solve), and how many jumps are zero."""
     faults = unsheared = 0
-    tau, stiffness = TAU0 + (u - U0), STIFF0 + (u - U0)
+    tau, stiffness, down = TAU0 + (u - U0), STIFF0 + (u - U0), np.uint64(down)
     for x in range(np.uint64(start), np.uint64(stop)):  # unsigned: no test for negative indices
-        g, previous = t[u, x], t[u, x - np.uint64(1)]  # loaded unconditionally: no masked loads
-        below = 0.0 if t[BED, x] > 0.0 else previous
+        g, below = t[u, x], t[u, x - down]  # below the bottom layer: the pads, 0.0 (the bed)
         jump = g - below
         rate = abs(jump) * t[INV_SPACING, x]
         eta, slope = _viscosity_and_slope(form, params, rate, t[FACTOR, x], t[OFFSET, x])
@@ -293,7 +341,7 @@ def _sweep(t, u, form, params, start, stop, model):
             t[CC, x] = conductance * t[CONDUCTANCE, x]
             t[SIGN, x] = _sign(jump)
         else:
-            faults += (t[KC, x] > 0.0) & (t[SIGN, x] * jump < 0.0)
+            faults += ((t[KC, x] > 0.0) & (t[SIGN, x] * jump < 0.0)) | (not g * 0.0 == 0.0)
     return faults, unsheared
 
 
@@ -310,61 +358,61 @@ def _solve(t, w, L, new, flags):
     a value depends on the one ``BLOCK`` places below (or above) it: the loop runs as
     vectors of the lanes of a layer, with no loop over the lanes inside it (in separate
     arrays, the compiler can tell that each value depends on none nearer than that).
-    The equations of each layer (``_active_set``'s sums, in its order) are formed lane
-    by lane from the tile, swept and substituted back (each operation that of
-    ``_active_set``: the same bits), counting the failures of the pivots up the column
-    (so that the top layer holds each lane's), and the velocities go back to slot ``new``
-    of the tile, lane by lane.  Indices are unsigned (as in :func:`_sweep`): no test for
-    negative indices."""
+    The tile is laid out as these arrays: the equations of each layer (``_active_set``'s
+    sums, in its order: :func:`_equation`) are formed from it and swept forward in one pass
+    over the block's cells as vectors, then substituted back (each operation that of
+    ``_active_set``: the same bits), counting the failures of the pivots up the column (so
+    that the top layer holds each lane's), the velocities going to slot ``new`` of the tile
+    as they are made.  Indices are unsigned (as in :func:`_sweep`): no test for negative
+    indices."""
     one, lanes, layers = np.uint64(1), np.uint64(BLOCK), np.uint64(L)
     n = layers * lanes  # the values of an array
     pivot, right, coupling, tried, solved = w[PIVOT], w[RIGHT], w[COUPLING], w[TRIED], w[SOLVED]
-    for lane in range(BLOCK):  # the equations, from the lanes of the tile
-        x0, i = np.uint64(cell(lane, L)), np.uint64(lane)
-        for a in range(layers - one):  # below the top: with the interface above
-            x, s = x0 + a, a * lanes + i
-            c, k_above, s_above = t[CC, x], t[KC, x + one], t[SIGN, x + one]
-            d = 0.0 + (t[INERTIA, x] + 0.0)  # _active_set's sums, in its order (cw = w = 0)
-            r = 0.0 + t[MOMENTUM, x]
-            d += c
-            r -= t[KC, x] * t[SIGN, x]
-            d += t[CC, x + one]
-            r += k_above * s_above
-            coupling[s] = c
-            pivot[s] = d
-            right[s] = r
-        x, s = x0 + layers - one, (layers - one) * lanes + i  # the top layer
-        c = t[CC, x]
+    x0, top = np.uint64(cell(0, L)), n - lanes  # the tile laid out as the sweeps, from cell x0
+    for s in range(lanes):  # layer 0: nothing below to eliminate
+        c, d, r = _equation(t, x0 + s, lanes)
         coupling[s] = c
-        pivot[s] = 0.0 + (t[INERTIA, x] + 0.0) + c
-        right[s] = 0.0 + t[MOMENTUM, x] - t[KC, x] * t[SIGN, x]
-    for i in range(lanes):  # layer 0: nothing below to eliminate
-        d = pivot[i]
-        tried[i] = 0.0 if d > 0.0 else 1.0
-        pivot[i] = 1.0 / d
-    for s in range(lanes, n):  # the forward sweep: the value below is BLOCK places before
+        right[s] = r
+        tried[s] = 0.0 if d > 0.0 else 1.0
+        pivot[s] = 1.0 / d
+    for s in range(lanes, n):  # formed and swept forward: the value below is BLOCK places before
+        c, d, r = _equation(t, x0 + s, lanes)
         b = s - lanes
-        c, d, r = coupling[s], pivot[s], right[s]
         f = -c * pivot[b]
         eliminated_d = d - f * (-c)
         eliminated_r = r - f * right[b]
         d = eliminated_d if c != 0.0 else d
+        coupling[s] = c
         right[s] = eliminated_r if c != 0.0 else r
         tried[s] = tried[b] + (0.0 if d > 0.0 else 1.0)
         pivot[s] = 1.0 / d
-    top = n - lanes
     for s in range(top, n):  # the back substitution: the value above is BLOCK places after
         solved[s] = right[s] * pivot[s]
+        t[new, x0 + s] = solved[s]
     for b in range(lanes, n):
         s = n - one - b
         above = solved[s + lanes]
         solved[s] = (right[s] + coupling[s + lanes] * above) * pivot[s]
-    for lane in range(BLOCK):  # into slot new, and the test of the pivots
-        x0, i = np.uint64(cell(lane, L)), np.uint64(lane)
-        for a in range(layers):
-            t[new, x0 + a] = solved[a * lanes + i]
-        if tried[top + i] > 0.0:
+        t[new, x0 + s] = solved[s]
+    for lane in range(BLOCK):  # the test of the pivots
+        if tried[top + np.uint64(lane)] > 0.0:
             flags[ACTIVE, lane] = False
+
+
+@jit(inline="always")
+def _equation(t, x, lanes):
+    """The conductance below, diagonal and right-hand side of the equation of cell ``x`` of
+    the tile (``_active_set``'s sums, in its order, with ``cw = w = 0``): the interface
+    above is ``lanes`` places after (above the top layer, the pads: 0.0 adds nothing, the
+    sums being neither -0.0 nor changed by it)."""
+    c, k_above, s_above = t[CC, x], t[KC, x + lanes], t[SIGN, x + lanes]
+    d = 0.0 + (t[INERTIA, x] + 0.0)
+    r = 0.0 + t[MOMENTUM, x]
+    d += c
+    r -= t[KC, x] * t[SIGN, x]
+    d += t[CC, x + lanes]
+    r += k_above * s_above
+    return c, d, r
 
 
 @jit(inline="always")
@@ -379,6 +427,23 @@ PASS_CELLS = 12
 """The set-up of a pass of the tests over some cells of the tile, in cells (:func:`_together`)."""
 
 
+@jit(inline="always")
+def _unchanged(t, L, new, current, threshold):
+    """Of each lane, whether none of its layers changed by more than ``threshold`` from slot
+    ``current`` to slot ``new`` (a NaN change not counted): one pass over the block's cells
+    as vectors, each cell's count that of the cell below (``BLOCK`` places before; the pads
+    below the bottom layer 0) plus its own, in slot ``GAP`` (the top layer's hold the
+    lanes' counts)."""
+    x0, lanes = np.uint64(cell(0, L)), np.uint64(BLOCK)
+    for x in range(np.uint64(BLOCK)):  # the pads below the bottom layer
+        t[GAP, x] = 0.0
+    for s in range(np.uint64(BLOCK * L)):  # unsigned: no test for negative indices
+        x = x0 + s
+        t[GAP, x] = t[GAP, x - lanes] + (1.0 if abs(t[new, x] - t[current, x]) > threshold else 0.0)
+    top = x0 + np.uint64(BLOCK * (L - 1))
+    return t[GAP, top : top + lanes]
+
+
 @jit(borrowing=True, error_model="numpy")
 def _converged(t, L, new, current, threshold, concave_stress, flags):
     """``DONE``: the largest change from slot ``current`` to slot ``new`` is within
@@ -387,72 +452,62 @@ def _converged(t, L, new, current, threshold, concave_stress, flags):
     cheaper half first (a few instructions per layer against some 55 for the bound; in a
     steady chute most columns are done by the change).  A column not done whose rise bound
     (``newton_control.energy_rise``) is positive leaves the block (``ACTIVE`` False):
-    ``_chunk`` damps its step.  The rise bound's sum (``newton_control.rise_bound``) is
-    formed as its error bound is in :func:`_within_bound`: the terms of each layer in a
-    pass as vectors (:func:`_rise_terms`), then added up in ``rise_bound``'s order (from the
-    column by column, 60 instructions per layer, to some 40).  The terms of the bounds go
-    through one pass over the block's cells where most of its columns need them
+    ``_chunk`` damps its step.  The sums of both bounds are made each lane's in the order
+    of ``error_bound`` and ``newton_control.rise_bound``, each cell's sum that of the cell
+    before it in the lane plus its own terms (:func:`_sums`, :func:`_rise_terms`): a pass
+    over the block's cells runs as vectors, the lanes side by side.  The terms of the
+    bounds go through one pass over the block's cells where most of its columns need them
     (:func:`_together`), else a pass over each column's.  The rise bound is without its
     wall's potential term: a column of the block has no wall threshold, force or stiffness
     (``join``), so that term is a zero (of either sign), or NaN where a speed is not
-    finite, and then so is the wall term of ``RISE + 1`` (0 times it): leaving it out of
-    the sum changes at most the sign of a zero sum, which neither test of the sum tells
-    apart."""
+    finite, and then so is the wall term of the layer (0 times it): leaving it out of the
+    sum changes at most the sign of a zero sum, which neither test of the sum tells apart."""
     bounded = 0  # the columns to test by the error bound (fully sheared)
-    for i in range(BLOCK):
-        x = cell(i, L)
-        # the largest change within threshold (max ignores a NaN change, as this count)
-        beyond = 0
-        for y in range(np.uint64(x), np.uint64(x + L)):  # unsigned: no test for negative indices
-            beyond += abs(t[new, y] - t[current, y]) > threshold
-        flags[DONE, i] = beyond == 0 and 0.0 <= threshold
+    beyond = _unchanged(t, L, new, current, threshold)
+    for i in range(BLOCK):  # the largest change within threshold (max ignores a NaN change, as this count)
+        flags[DONE, i] = beyond[i] == 0.0 and 0.0 <= threshold
         bounded += not flags[DONE, i] and flags[SHEARED, i]
     together = _together(bounded, L)
     if together:
-        _gaps(t, cell(0, L), cell(BLOCK, L), new)
+        _gaps(t, cell(0, L), block_end(L), new, np.uint64(BLOCK))
+        _sums(t, L)
     rising = 0  # the columns not done
     for i in range(BLOCK):
         if flags[DONE, i]:
             continue
-        x = cell(i, L)
-        if flags[SHEARED, i]:
-            if not together:
-                _gaps(t, x, x + L, new)
-            converged = _within_bound(t, x, L, threshold)
-        else:  # the lane's views made where read (not kept from lane to lane)
-            lane = slice(x, x + L)
-            wall = t[WALL, lane]  # 0 in every column that takes part (join): no wall threshold or force
+        v, lane = lane_of(t, i), slice(1, L + 1)
+        if flags[SHEARED, i] and together:
+            converged = _bounded(v[RISE, 1], v[SMALLEST, 1], threshold)  # the lane's bottom cell
+        elif flags[SHEARED, i]:
+            _gaps(v, 1, L + 1, new, np.uint64(1))
+            converged = _within_bound(v, 1, L, threshold)
+        else:
+            wall = v[WALL, lane]  # 0 in every column that takes part (join): no wall threshold or force
             bound = error_bound(
-                t[INERTIA, lane], t[MOMENTUM, lane], t[KAPPA, lane], t[TAU0 + (new - U0), lane], wall, wall,
-                t[new, lane], threshold,
+                v[INERTIA, lane], v[MOMENTUM, lane], v[KAPPA, lane], v[TAU0 + (new - U0), lane], wall, wall,
+                v[new, lane], threshold,
             )  # fmt: skip
             converged = bound <= threshold
         flags[DONE, i] = converged
         rising += not converged
     together = _together(rising, L)
     if together:
-        _rise_terms(t, cell(0, L), cell(BLOCK, L), new, current, concave_stress)
+        _rise_terms(t, cell(0, L), block_end(L), new, current, concave_stress, np.uint64(BLOCK))
     for i in range(0 if rising == 0 else BLOCK):
         if flags[DONE, i]:
             continue
-        x = cell(i, L)
+        v = lane_of(t, i)
         if not together:
-            _rise_terms(t, x, x + L, new, current, concave_stress)
-        rise = 0.0
-        first = np.uint64(x)
-        for a in range(np.uint64(L)):  # counted from 0: unrolled by 4 (the same order of sums)
-            y = first + a
-            rise += t[RISE, y]
-            rise += t[RISE + 1, y]
-            rise += t[RISE + 2, y]  # rise_bound adds the wall's potential term (a zero) before it
+            _rise_terms(v, 1, L + 1, new, current, concave_stress, np.uint64(1))
+        rise = v[RISE, L]  # the lane's top cell: the sum of all its layers
         if not rise <= 0.0:  # newton_control.energy_rise, the smaller of it and phi'(1-)
-            lane = slice(x, x + L)
-            wall, u_new = t[WALL, lane], t[new, lane]
-            tau_new = t[TAU0 + (new - U0), lane]
+            lane = slice(1, L + 1)
+            wall, u_new = v[WALL, lane], v[new, lane]
+            tau_new = v[TAU0 + (new - U0), lane]
             rise = min(
                 slope_along(
-                    t[INERTIA, lane], t[MOMENTUM, lane], t[KAPPA, lane], tau_new, wall, wall,
-                    t[current, lane], u_new, u_new, -1.0,
+                    v[INERTIA, lane], v[MOMENTUM, lane], v[KAPPA, lane], tau_new, wall, wall,
+                    v[current, lane], u_new, u_new, -1.0,
                 ),
                 rise,
             )  # fmt: skip
@@ -461,39 +516,50 @@ def _converged(t, L, new, current, threshold, concave_stress, flags):
 
 
 @jit(borrowing=True, error_model="numpy")
-def _rise_terms(t, start, stop, new, current, concave_stress):
-    """The terms of the rise bound (:func:`_converged`) of cells ``start ... stop - 1``,
-    from slot ``current`` to slot ``new``, into slots ``RISE ... RISE + 2``: each operation
-    that of ``newton_control.rise_bound``, the layer below read from the cell below, the
-    bed's 0 from ``BED``."""
-    at, tau_new, one = current - U0, TAU0 + (new - U0), np.uint64(1)
-    for y in range(np.uint64(start), np.uint64(stop)):  # unsigned: no test for negative indices
-        u, start_u, below, below_start = t[new, y], t[current, y], t[new, y - one], t[current, y - one]
-        bed = t[BED, y] > 0.0
-        jump = abs(u - (0.0 if bed else below))  # magnitudes of the jumps
-        jump_start = abs(start_u - (0.0 if bed else below_start))
-        t[RISE, y] = (u - start_u) * (0.5 * t[INERTIA, y] * (u + start_u) - t[MOMENTUM, y])
-        t[RISE + 1, y] = t[WALL, y] * (abs(u) - abs(start_u)) + t[KAPPA, y] * (jump - jump_start)
-        t[RISE + 2, y] = _potential_rise(
-            jump_start, jump, t[TAU0 + at, y], t[STIFF0 + at, y], t[tau_new, y], concave_stress
-        )
+def _rise_terms(t, start, stop, new, current, concave_stress, one):
+    """The rise bound of :func:`_converged` of cells ``start ... stop - 1``, from slot
+    ``current`` to slot ``new``: each layer's terms as ``newton_control.rise_bound`` makes
+    them (the layer below read from the cell below, ``one`` place before; below the bottom
+    layer, the pads' 0.0, the bed's), added to the sum of the cell below in its order, into
+    slot ``RISE`` (0.0 in the pads below)."""
+    one = np.uint64(one)
+    for y in range(np.uint64(start) - one, np.uint64(start)):  # the pads below: no sum yet
+        t[RISE, y] = 0.0
+    for y in range(np.uint64(start), np.uint64(stop if one == 1 else start)):  # a lane: as the column
+        _rise(t, y, new, current, concave_stress, np.uint64(1))
+    for y in range(np.uint64(start), np.uint64(start if one == 1 else stop)):  # the lanes side by side
+        _rise(t, y, new, current, concave_stress, np.uint64(BLOCK))  # (BLOCK a constant: as vectors)
+
+
+@jit(inline="always")
+def _rise(t, y, new, current, concave_stress, one):
+    """Cell ``y`` of :func:`_rise_terms` (unsigned), the cell below ``one`` place before."""
+    at, tau_new = current - U0, TAU0 + (new - U0)
+    u, start_u, below, below_start = t[new, y], t[current, y], t[new, y - one], t[current, y - one]
+    jump = abs(u - below)  # magnitudes of the jumps
+    jump_start = abs(start_u - below_start)
+    inertial = (u - start_u) * (0.5 * t[INERTIA, y] * (u + start_u) - t[MOMENTUM, y])
+    frictional = t[WALL, y] * (abs(u) - abs(start_u)) + t[KAPPA, y] * (jump - jump_start)
+    viscous = _potential_rise(
+        jump_start, jump, t[TAU0 + at, y], t[STIFF0 + at, y], t[tau_new, y], concave_stress
+    )
+    t[RISE, y] = t[RISE, y - one] + inertial + frictional + viscous  # rise_bound's order
 
 
 @jit(borrowing=True, error_model="numpy")
-def _gaps(t, start, stop, new):
-    """Each layer's term of the error bound of :func:`_within_bound` at the velocities of
-    slot ``new``, of cells ``start ... stop - 1`` (whole lanes), into slot ``GAP``: for a
-    lane whose every jump is nonzero (``SHEARED``), the stress of each interface is
-    single-valued (``sign(jump) (kappa + tau_v)``), so that the gap of each layer depends
-    on its values and the stress above alone (0 at the free surface: above the top cell of
-    a lane is the bottom cell of the next, ``BED``).  Each operation is that of
+def _gaps(t, start, stop, new, one):
+    """Each layer's term of the error bound of :func:`_converged` at the velocities of slot
+    ``new``, of cells ``start ... stop - 1`` (whole lanes), into slot ``GAP``: for a lane
+    whose every jump is nonzero (``SHEARED``), the stress of each interface is single-valued
+    (``sign(jump) (kappa + tau_v)``), so that the gap of each layer depends on its values
+    and the stress above alone (0 at the free surface: above the top cell of a lane is a
+    pad, ``BED``; the cells below and above ``one`` place away).  Each operation is that of
     ``error_bound``, but the wall terms of ``newton_control.zeroing``: a column of the
     block has no wall threshold or force (``join``), and the zero they subtract could only
     change the sign of a zero end of the interval, which no positive gap depends on."""
-    one, tau = np.uint64(1), TAU0 + (new - U0)
+    tau, one = TAU0 + (new - U0), np.uint64(one)
     for y in range(np.uint64(start), np.uint64(stop)):  # unsigned: no test for negative indices
-        u, previous = t[new, y], t[new, y - one]  # the cells below and above loaded unconditionally
-        below = 0.0 if t[BED, y] > 0.0 else previous
+        u, below = t[new, y], t[new, y - one]  # loaded unconditionally (the pads below: 0.0, the bed's)
         stress = _sign(t[new, y + one] - u) * (t[KAPPA, y + one] + t[tau, y + one])
         above = 0.0 if t[BED, y + one] > 0.0 else stress  # the interface above: 0 at the free surface
         zero = above + (t[MOMENTUM, y] - t[INERTIA, y] * u)  # newton_control.zeroing, without walls
@@ -503,33 +569,61 @@ def _gaps(t, start, stop, new):
 
 
 @jit(borrowing=True, error_model="numpy")
+def _sums(t, L):
+    """The sums of the terms of :func:`_gaps` and the smallest ``m/dt`` of every lane of the
+    block, from the surface down to each layer as ``error_bound`` makes them (the same
+    operations in the same order: the same bits): a pass down the block's cells as
+    vectors, each cell's from the cell above (``BLOCK`` places after, a constant: a
+    separate pass, as the recurrence of a pass that also read the rows of :func:`_gaps`
+    needed more run-time overlap checks than LLVM makes, and ran one cell at a time), into
+    slots ``RISE`` and ``SMALLEST`` (the pads above the top layer 0.0 and inf; the sums in
+    place of the terms ran one cell at a time).  The bottom cells hold each lane's."""
+    end, lanes = np.uint64(block_end(L)), np.uint64(BLOCK)
+    for x in range(end, end + lanes):  # the pads above the top layer
+        t[RISE, x], t[SMALLEST, x] = 0.0, np.inf
+    for b in range(np.uint64(BLOCK * L)):  # unsigned: no test for negative indices
+        y = end - np.uint64(1) - b
+        t[SMALLEST, y] = min(t[SMALLEST, y + lanes], t[INERTIA, y])
+        t[RISE, y] = t[RISE, y + lanes] + t[GAP, y]
+
+
+@jit(borrowing=True, error_model="numpy")
 def _within_bound(t, x, L, limit):
-    """``newton_control.error_bound(...) <= limit`` for the lane whose layer 0 is cell ``x``
-    (the arguments of :func:`_converged`), from the terms of its layers in slot ``GAP``
-    (:func:`_gaps`), added up from the surface down as there.  The answer is
-    ``error_bound``'s: where the sum exceeds ``4 limit^2`` times the smallest ``m/dt`` so
-    far, the bound exceeds ``2 limit``, and as the sum only grows and the smallest only
-    shrinks, that holds at some layer exactly when it holds at the last: the test is made
-    once, after the sum (a loop without exits)."""
+    """:func:`_bounded` of the lane whose layer 0 is cell ``x`` (the arguments of
+    :func:`_converged`), from the terms of its layers in slot ``GAP`` (:func:`_gaps`), added
+    up from the surface down as ``error_bound`` adds them."""
     top = np.uint64(x + L - 1)  # unsigned: no test for negative indices
-    cap = 4.0 * limit * limit
     residual = 0.0
     smallest = np.inf
     for b in range(np.uint64(L)):
         y = top - b
         smallest = min(smallest, t[INERTIA, y])
         residual += t[GAP, y]
-    return not residual > cap * smallest and np.sqrt(residual / smallest) <= limit
+    return _bounded(residual, smallest, limit)
+
+
+@jit(inline="always")
+def _bounded(residual, smallest, limit):
+    """``newton_control.error_bound(...) <= limit`` from the sum ``residual`` of its terms
+    and the smallest ``m/dt`` of a lane (:func:`_gaps`).  The answer is ``error_bound``'s:
+    where the sum exceeds ``4 limit^2`` times the smallest ``m/dt`` so far, the bound
+    exceeds ``2 limit``, and as the sum only grows and the smallest only shrinks, that holds
+    at some layer exactly when it holds at the last: the test is made once, after the sum."""
+    return not residual > 4.0 * limit * limit * smallest and np.sqrt(residual / smallest) <= limit
 
 
 @jit(borrowing=True)
 def _keep(t, L, new, lanes):
     """The velocities of slot ``new`` of the lanes in the bit mask ``lanes`` into slot ``KEPT``,
     kept for the output (a later solve writes over slot ``new``)."""
+    if lanes == (1 << BLOCK) - 1:  # every lane: one copy as vectors
+        for x in range(np.uint64(cell(0, L)), np.uint64(block_end(L))):
+            t[KEPT, x] = t[new, x]
+        return
     for i in range(BLOCK):
-        x = cell(i, L)
-        for y in range(np.uint64(x), np.uint64(x + L if lanes >> i & 1 else x)):  # as vectors
-            t[KEPT, y] = t[new, y]
+        v = lane_of(t, i)
+        for y in range(np.uint64(1), np.uint64(L + 1 if lanes >> i & 1 else 1)):
+            v[KEPT, y] = v[new, y]
 
 
 @jit(borrowing=True, error_model="numpy")
@@ -563,15 +657,6 @@ def sheared_block(
                 continue
             if flags[DONE, i]:
                 j = j0 + i
-                x = cell(i, L)
-                # velocities that are not finite (compared as converged): _chunk names them; counted
-                # without branches and indexed unsigned (no test for negative indices): as vectors
-                infinite = 0
-                for y in range(np.uint64(x), np.uint64(x + L)):
-                    infinite += not abs(t[new, y]) < np.inf
-                if infinite > 0:
-                    flags[ACTIVE, i] = False
-                    continue
                 now |= 1 << i
                 iterations[j] = iteration
                 fallbacks[j] = 0
@@ -605,11 +690,11 @@ def sheared_block(
     every = not together
     for i in range(BLOCK):
         every = every and finished[i]
+    kept, x0 = t[KEPT], np.uint64(cell(0, L))  # the tile laid out as the mesh
     for a in range(np.uint64(L if every else 0)):
+        row = _layer(kept, x0 + a * lanes)
         for i in range(BLOCK):
-            x, column = np.uint64(cell(i, L)) + a, np.uint64(c0 + i)
-            u_out[a, column] = t[KEPT, x]
+            u_out[a, np.uint64(c0 + i)] = row[i]
     for i in range(0 if every or together else BLOCK):
         for a in range(np.uint64(L if finished[i] else 0)):
-            x, column = np.uint64(cell(i, L)) + a, np.uint64(c0 + i)
-            u_out[a, column] = t[KEPT, x]
+            u_out[a, np.uint64(c0 + i)] = kept[x0 + a * lanes + np.uint64(i)]
