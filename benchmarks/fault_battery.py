@@ -3717,6 +3717,7 @@ def cases() -> list[Case]:
         + round_twenty_three()
         + round_twenty_four()
         + round_twenty_five()
+        + round_twenty_six()
     )
 
 
@@ -4578,6 +4579,114 @@ def _dem(**kind: Any) -> Callable[[Path], None]:
     return setup
 
 
+def round_twenty_six() -> list[Case]:
+    """The hostile cases of the twenty-sixth round (docs/reliability.md): a sparse DEM (blocks
+    never written) without a nodata value, an elevation of 1e308 m and an undeclared float32
+    fill value, a sidecar ``.aux.xml`` setting a scale or a nodata value, a DEM cut short
+    (also under ``GTIFF_IGNORE_READ_ERRORS=YES``), a finished run extended from an end
+    between two output times; as controls, a sparse DEM whose blocks on the polyline are
+    written, one with a nodata value, a DEM as high as Everest, a sidecar of statistics
+    only, a mask sidecar and an extension from an output time."""
+    validate = ["validate", "{scenario}"]
+    extend = ["run", "{scenario}", "-o", "{dir}/out", "--set", "time.end=0.3", "--resume", "-q"]
+    never = "on the polyline was never written (a sparse GeoTIFF) and the DEM has no nodata value"
+    out = [
+        Case("validate: a sparse DEM without nodata, its blocks on the polyline unwritten", validate, 2,
+             f"dem.tif: the block of pixels (0-31, 32-63) (rows, columns) {never}",
+             setup=_dem26(sparse="line")),
+        Case("validate: a sparse DEM without nodata, its blocks on the polyline written", validate, 0, "",
+             setup=_dem26(sparse="elsewhere")),
+        Case("validate: a sparse DEM with a nodata value, its blocks on the polyline unwritten", validate, 2,
+             "dem.tif: no elevation at", setup=_dem26(sparse="line", nodata=-9999.0)),
+        Case("validate: a DEM holding 1e308 m at one pixel of the polyline", validate, 2,
+             "dem.tif: an elevation of 1e+308 m at pixel (row 20, column 40) on the polyline",
+             setup=_dem26(value=1e308)),
+        Case("validate: a float32 DEM holding its undeclared fill value -3.4e38 on the polyline", validate, 2,
+             "dem.tif: an elevation of -3.40282e+38 m at pixel (row 20, column 40)",
+             setup=_dem26(value=-3.4028234663852886e38, dtype="float32")),
+        Case("validate: a DEM 8849 m high (Everest)", validate, 0, "", setup=_dem26(offset=8749.0)),
+        Case("validate: a DEM whose sidecar dem.tif.aux.xml sets a scale of 0.3048", validate, 2,
+             "dem.tif.aux.xml changes its scales from (1.0,) to (0.3048,)",
+             setup=_dem26(aux="<Scale>0.3048</Scale>")),
+        Case("validate: a DEM whose sidecar dem.tif.aux.xml sets nodata to an elevation it holds",
+             validate, 2,
+             "dem.tif.aux.xml changes its nodata from None to 100.0",
+             setup=_dem26(aux="<NoDataValue>100</NoDataValue>", value=100.0)),
+        Case("validate: a DEM whose sidecar dem.tif.aux.xml holds statistics only", validate, 0, "",
+             setup=_dem26(aux='<Metadata><MDI key="STATISTICS_MEAN">100.1</MDI></Metadata>')),
+        Case("validate: a DEM whose mask sidecar dem.tif.msk masks the polyline", validate, 2,
+             "dem.tif: no elevation at", setup=_dem26(mask=True)),
+        Case("validate: a tiled, compressed DEM cut to half its bytes", validate, 2,
+             "dem.tif: cannot read the DEM (dem.tif, band 1: IReadBlock failed at X offset 1, Y offset 0",
+             setup=_dem26(cut=True)),
+        Case("validate: that DEM cut short under GTIFF_IGNORE_READ_ERRORS=YES", validate, 2,
+             "dem.tif: cannot read the DEM (dem.tif, band 1: IReadBlock failed at X offset 1, Y offset 0",
+             setup=_dem26(cut=True), env={"GTIFF_IGNORE_READ_ERRORS": "YES"}),
+        Case("run --resume: a run finished at 0.21 s extended to 0.3 s (output every 0.02 s)", extend, 0,
+             "not an output time of k x 0.02 s: its record at 0.21 s stays", setup=_finished_at(0.21)),
+        Case("run --resume: a run finished at 0.2 s extended to 0.3 s (output every 0.02 s)", extend, 0, "",
+             setup=_finished_at(0.2)),
+    ]  # fmt: skip
+    return out
+
+
+def _dem26(**kind: Any) -> Callable[[Path], None]:
+    """The DEM of :func:`_dem` (80 x 40 pixels of 0.01 m, 100 m high, the polyline along row
+    20), changed by ``kind``: ``sparse`` (tiles of 32 x 32 pixels, only the first written:
+    ``line``, or every tile of the polyline: ``elsewhere``) with a ``nodata`` value, a
+    ``value`` at pixel (20, 40) of a ``dtype``, an ``offset`` added, an ``aux`` sidecar of
+    band 1 holding that XML, a ``mask`` sidecar masking row 20, or ``cut`` to half its
+    bytes (tiled, deflated)."""
+
+    def setup(directory: Path) -> None:
+        import rasterio
+        from rasterio.windows import Window
+
+        _dem()(directory)
+        path = directory / "dem.tif"
+        with rasterio.open(path) as dem:
+            z, profile = dem.read(1), dict(dem.profile)
+        z = z + kind.get("offset", 0.0)
+        if "value" in kind:
+            z[20, 40] = kind["value"]
+        profile.update(dtype=kind.get("dtype", "float64"), nodata=kind.get("nodata"))
+        if "sparse" in kind or kind.get("cut"):
+            profile.update(tiled=True, blockxsize=32, blockysize=32, sparse_ok=True, compress="deflate")
+        with rasterio.Env(GDAL_TIFF_INTERNAL_MASK=False), rasterio.open(path, "w", **profile) as dem:
+            if kind.get("sparse") == "line":
+                dem.write(z[:32, :32].astype(profile["dtype"]), 1, window=Window(0, 0, 32, 32))
+            elif kind.get("sparse") == "elsewhere":  # rows 0-31 of the polyline's tiles, not rows 32-39
+                dem.write(z[:32].astype(profile["dtype"]), 1, window=Window(0, 0, 80, 32))
+            else:
+                dem.write(z.astype(profile["dtype"]), 1)
+            if kind.get("mask"):
+                dem.write_mask(np.where(np.arange(40)[:, None] == 20, 0, 255).repeat(80, 1).astype("uint8"))
+        if "aux" in kind:
+            (directory / "dem.tif.aux.xml").write_text(
+                f'<PAMDataset><PAMRasterBand band="1">{kind["aux"]}</PAMRasterBand></PAMDataset>'
+            )
+        if kind.get("cut"):
+            data = path.read_bytes()
+            path.write_bytes(data[: len(data) // 2])
+
+    return setup
+
+
+def _finished_at(end: float) -> Callable[[Path], None]:
+    """A completed run to ``time.end = end`` in ``directory/out`` (output every 0.02 s)."""
+
+    def setup(directory: Path) -> None:
+        _scenario(directory)
+        command = ["run", str(directory / "scenario.yaml"), "-o", str(directory / "out"), "-q"]
+        subprocess.run(
+            [sys.executable, "-m", "multilayer", *command, "--set", f"time.end={end}"],
+            check=True,
+            timeout=120,
+        )
+
+    return setup
+
+
 def _base_reads_output(command: str, name: str | None, member: bool = False) -> Callable[[Path], None]:
     """A study into ``out`` whose base scenario reads the file ``out/name`` the study writes
     (a bed CSV file; an initial-thickness file for a calibration), or, with no ``name``, a
@@ -4719,7 +4828,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     13: round_thirteen, 14: round_fourteen, 15: round_fifteen, 16: round_sixteen,
     17: round_seventeen, 18: round_eighteen, 19: round_nineteen, 20: round_twenty,
     21: round_twenty_one, 22: round_twenty_two, 23: round_twenty_three, 24: round_twenty_four,
-    25: round_twenty_five,
+    25: round_twenty_five, 26: round_twenty_six,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""
 
@@ -4729,7 +4838,7 @@ def main() -> None:
     parser.add_argument("-k", default="", help="only the cases whose name contains this")
     parser.add_argument("-j", type=int, default=2, help="cases run at once")
     parser.add_argument(
-        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 25; all: none)"
+        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 26; all: none)"
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()

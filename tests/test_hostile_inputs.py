@@ -2441,3 +2441,128 @@ def test_a_file_a_member_or_an_experiment_reads_is_not_written_over_by_the_study
     result = cli(command, tmp_path / "study.yaml", "-o", tmp_path / "out", "-q")
     assert result.code == 2 and what in result.err, result.err
     assert read.read_text() == BED and os.listdir(tmp_path / "out") == [name]
+
+
+def _rewritten_dem(path, values=None, dtype="float64", nodata=None, **profile):
+    """The GeoTIFF ``path`` written again with ``values`` (default its own), of ``dtype``,
+    a ``nodata`` value and the creation options ``profile``; ``values`` may be a
+    ``(window, array)`` pair, only that window written."""
+    rasterio = pytest.importorskip("rasterio")
+    from rasterio.windows import Window
+
+    with rasterio.open(path) as dem:
+        z, options = dem.read(1), {**dem.profile, "dtype": dtype, "nodata": nodata, **profile}
+    window, block = values if isinstance(values, tuple) else (Window(0, 0, 80, 40), z)
+    with rasterio.open(path, "w", **options) as dem:
+        dem.write(block.astype(dtype), 1, window=window)
+
+
+def test_a_sparse_dem_without_nodata_is_refused_where_its_polyline_crosses_an_unwritten_block(
+    tmp_path, tiny_scenario, cli
+):
+    """GDAL reads a block never written into a sparse GeoTIFF as zeros: without a nodata
+    value the terrain dropped from 100 m to 0 m where the polyline crossed one, exit 0.
+    Unwritten blocks elsewhere are no matter."""
+    rasterio = pytest.importorskip("rasterio")
+    from rasterio.windows import Window
+
+    _geotiff(tmp_path / "dem.tif")
+    path = _dem_scenario(tmp_path, tiny_scenario)
+    plain = np.asarray(multilayer.load(path).bed.points)
+    with rasterio.open(tmp_path / "dem.tif") as dem:
+        z = dem.read(1)
+    sparse = {"tiled": True, "blockxsize": 32, "blockysize": 32, "sparse_ok": True}
+    for window, code in ((Window(0, 0, 32, 32), 2), (Window(0, 0, 80, 32), 0)):
+        _rewritten_dem(tmp_path / "dem.tif", (window, z[: window.height, : window.width]), **sparse)
+        result = cli("validate", path)
+        assert result.code == code, result.err
+        if code:
+            where = (
+                f"{tmp_path / 'dem.tif'}: the block of pixels (0-31, 32-63) (rows, columns) on the polyline"
+            )
+            assert where in result.err, result.err
+            assert "was never written (a sparse GeoTIFF) and the DEM has no nodata value" in result.err
+        else:
+            np.testing.assert_allclose(np.asarray(multilayer.load(path).bed.points), plain, atol=1e-12)
+    _rewritten_dem(tmp_path / "dem.tif", (Window(0, 0, 32, 32), z[:32, :32]), nodata=-9999.0, **sparse)
+    result = cli("validate", path)
+    assert result.code == 2 and "dem.tif: no elevation at" in result.err, result.err
+
+
+@pytest.mark.parametrize(("value", "dtype"), [(1e308, "float64"), (-3.4028234663852886e38, "float32")])
+def test_an_elevation_farther_than_the_earths_radius_is_named_with_its_pixel(
+    tmp_path, tiny_scenario, cli, value, dtype
+):
+    """A pixel of 1e308 m was refused as terrain rising too steeply, its value and pixel
+    unnamed; float32's fill value written undeclared likewise."""
+    _geotiff(tmp_path / "dem.tif")
+    rasterio = pytest.importorskip("rasterio")
+    with rasterio.open(tmp_path / "dem.tif") as dem:
+        z = dem.read(1)
+    z[20, 40] = value
+    _rewritten_dem(tmp_path / "dem.tif", (rasterio.windows.Window(0, 0, 80, 40), z), dtype=dtype)
+    result = cli("validate", _dem_scenario(tmp_path, tiny_scenario))
+    assert result.code == 2, result.err
+    assert (
+        f"dem.tif: an elevation of {float(np.array(value, dtype)):g} m at pixel (row 20, column 40)"
+        in result.err
+    )
+    assert "accepted: elevations within 1e+07 m of the datum" in result.err
+
+
+@pytest.mark.parametrize(
+    ("band", "phrase"),
+    [
+        ("<Scale>0.3048</Scale>", "dem.tif.aux.xml changes its scales from (1.0,) to (0.3048,)"),
+        (
+            "<NoDataValue>-1</NoDataValue><Offset>-100</Offset>",
+            "changes its nodata from None to -1.0, offsets",
+        ),
+        ('<Metadata><MDI key="STATISTICS_MEAN">100.1</MDI></Metadata>', ""),
+    ],
+)
+def test_a_sidecar_that_changes_what_the_dem_says_is_refused(tmp_path, tiny_scenario, cli, band, phrase):
+    """GDAL applies a ``dem.tif.aux.xml`` beside the DEM over what the GeoTIFF says: a scale
+    of 0.3048 there read the terrain in feet, exit 0.  One of statistics only changes
+    nothing."""
+    _geotiff(tmp_path / "dem.tif")
+    (tmp_path / "dem.tif.aux.xml").write_text(
+        f'<PAMDataset><PAMRasterBand band="1">{band}</PAMRasterBand></PAMDataset>'
+    )
+    result = cli("validate", _dem_scenario(tmp_path, tiny_scenario))
+    assert result.code == (2 if phrase else 0) and phrase in result.err, result.err
+
+
+@pytest.mark.parametrize("ignore", [None, "YES"])
+def test_a_dem_cut_short_gives_gdals_reason(tmp_path, tiny_scenario, cli, monkeypatch, ignore):
+    """A tiled, deflated DEM cut to half its bytes was "cannot read the DEM (Read failed. See
+    previous exception for details.)": the previous exception is GDAL's reason.  Under
+    ``GTIFF_IGNORE_READ_ERRORS=YES`` GDAL read the missing blocks as zeros, exit 0."""
+    if ignore:
+        monkeypatch.setenv("GTIFF_IGNORE_READ_ERRORS", ignore)
+    _geotiff(tmp_path / "dem.tif")
+    _rewritten_dem(tmp_path / "dem.tif", tiled=True, blockxsize=32, blockysize=32, compress="deflate")
+    data = (tmp_path / "dem.tif").read_bytes()
+    (tmp_path / "dem.tif").write_bytes(data[: len(data) // 2])
+    result = cli("validate", _dem_scenario(tmp_path, tiny_scenario))
+    assert result.code == 2 and "cannot read the DEM (" in result.err, result.err
+    assert "IReadBlock failed" in result.err and "See previous exception" not in result.err
+
+
+def test_a_run_extended_from_an_end_between_output_times_says_what_differs(tmp_path, tiny_scenario, cli):
+    """A run to 0.21 s (output every 0.02 s) extended to 0.3 s kept its record at 0.21 s and
+    took other steps than a run to 0.3 s (1.9e-6 m apart in h at the end), and said nothing.
+    From 0.2 s it is that run, to the bit, and says nothing."""
+    path = tmp_path / "scenario.yaml"
+    path.write_text(yaml.safe_dump(tiny_scenario))
+    for end, said in ((0.21, True), (0.2, False)):
+        out = tmp_path / f"to_{end}"
+        assert cli("run", path, "-o", out, "--set", f"time.end={end}", "-q").code == 0
+        result = cli("run", path, "-o", out, "--set", "time.end=0.3", "--resume", "-q")
+        assert result.code == 0, result.err
+        message = (
+            f"extending from t = {end:g} s (the time.end {end:g} s it ran to), not an output time of k x"
+        )
+        assert (message in result.err) is said, result.err
+        times = results.open_result(out)["time"].values
+        assert (0.21 in times.round(12)) is said and times[-1] == 0.3

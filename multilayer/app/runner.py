@@ -449,6 +449,20 @@ def _checkpoint_to_resume(scenario: Any, outdir: Path, notice: Callable[[str], N
             f"{scenario.time.end:g} s; accepted: a time.end at or after the checkpoint "
             f"(a run can be extended, not shortened), or run without --resume"
         )
+    interval, old_end = scenario.time.output_interval, float(saved["time"]["end"])
+    schedule = output_times(scenario.time.end, interval)
+    finished = abs(t_saved - old_end) <= 1e-12 * old_end
+    on_schedule = np.any(np.abs(schedule - t_saved) <= 1e-9 * (interval or t_saved))
+    if finished and t_saved < scenario.time.end and not on_schedule:
+        # a finished run's last record at its old time.end, between two output times of the new
+        # schedule: the run goes on from there, its steps cut to land on it
+        notice(
+            f"{ckpt_path}: extending from t = {t_saved:g} s (the time.end {old_end:g} s it ran to), not an "
+            f"output time of k x {interval or scenario.time.end:g} s: its record at {t_saved:g} s stays, "
+            f"one more than an uninterrupted run to {scenario.time.end:g} s writes, and the steps after "
+            "it differ from that run's (the same to the accuracy of the scheme, not to the bit); for the "
+            "uninterrupted run's result, run without --resume, or end runs to be extended on an output time"
+        )
     return ckpt
 
 

@@ -68,6 +68,10 @@ float64, before a sample was taken); a GeoTIFF block larger than :data:`MAX_DEM_
 which GDAL decodes whole to read any pixel of it, is refused."""
 MAX_DEM_BLOCK_PIXELS = 2**24
 """Largest block (tile or strip) of a DEM's band, in pixels: 128 MiB of float64."""
+MAX_DEM_ELEVATION = 1e7
+"""Largest magnitude of a DEM's elevation (m), its scale and offset applied: farther than the
+Earth's radius (6.4e6 m) from its datum, a pixel holds no terrain but a fill value written
+without being declared nodata (GDAL fills float32 rasters with -3.4e38), or a damaged one."""
 MAX_STUDY_RUNS = 10**7
 """Most runs a calibration may ask for: ``experiments x (search.population x parameters x
 (search.generations + 1) + refine.evaluations x (parameters + 1) + 2 x parameters)``, its

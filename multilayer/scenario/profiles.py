@@ -26,7 +26,7 @@ import numpy as np
 
 from multilayer.errors import InputError
 from multilayer.scenario.files import check_regular, read_text
-from multilayer.scenario.limits import DEM_WINDOW, MAX_DEM_BLOCK_PIXELS, MAX_PROFILE_POINTS
+from multilayer.scenario.limits import DEM_WINDOW, MAX_DEM_BLOCK_PIXELS, MAX_DEM_ELEVATION, MAX_PROFILE_POINTS
 
 T = TypeVar("T")
 
@@ -208,37 +208,52 @@ def _parsed_dem_profile(path: Path, vertices: np.ndarray, spacing: float | None)
             "accepted: install it with pip install 'multilayer[dem]', or give the bed as a CSV file"
         ) from None
     try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", rasterio.errors.NotGeoreferencedWarning)
-            # GeoTIFF only: a VRT file (XML) named dem.tif reads the files, devices and URLs it names
-            dem = rasterio.open(path, driver="GTiff")
-        with dem:
-            georeferenced = not any(
-                issubclass(w.category, rasterio.errors.NotGeoreferencedWarning) for w in caught
-            )
-            scale, offset, pixel, to_pixel = _dem_frame(path, dem, georeferenced)
-            step = spacing or pixel
-            _check_samples(path, vertices, step, "spacing" if spacing else "dem (its pixel size)")
-            samples, s = _polyline_samples(vertices, step)
-            col = to_pixel.a * samples[:, 0] + to_pixel.b * samples[:, 1] + to_pixel.c
-            row = to_pixel.d * samples[:, 0] + to_pixel.e * samples[:, 1] + to_pixel.f
+        # a damaged block is an error, not zeros, whatever the environment says
+        with rasterio.Env(GTIFF_IGNORE_READ_ERRORS="NO"):
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always", rasterio.errors.NotGeoreferencedWarning)
+                # GeoTIFF only: a VRT file (XML) named dem.tif reads the files, devices and URLs it names
+                dem = rasterio.open(path, driver="GTiff")
+            with dem:
+                georeferenced = not any(
+                    issubclass(w.category, rasterio.errors.NotGeoreferencedWarning) for w in caught
+                )
+                _check_sidecar(path, dem)
+                scale, offset, pixel, to_pixel = _dem_frame(path, dem, georeferenced)
+                step = spacing or pixel
+                _check_samples(path, vertices, step, "spacing" if spacing else "dem (its pixel size)")
+                samples, s = _polyline_samples(vertices, step)
+                col = to_pixel.a * samples[:, 0] + to_pixel.b * samples[:, 1] + to_pixel.c
+                row = to_pixel.d * samples[:, 0] + to_pixel.e * samples[:, 1] + to_pixel.f
 
-            def pixels(rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-                values = np.empty(len(rows))
-                tiles = (rows // DEM_WINDOW) * (dem.width // DEM_WINDOW + 1) + cols // DEM_WINDOW
-                order = np.argsort(tiles, kind="stable")
-                for group in np.split(order, np.flatnonzero(np.diff(tiles[order])) + 1):
-                    r, c = rows[group], cols[group]
-                    r_0, c_0 = int(r.min()), int(c.min())
-                    window = Window(c_0, r_0, int(c.max()) - c_0 + 1, int(r.max()) - r_0 + 1)
-                    block = dem.read(1, window=window, masked=True)
-                    values[group] = np.ma.filled(block.astype(float), np.nan)[r - r_0, c - c_0]
-                return values
+                def pixels(rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+                    values = np.empty(len(rows))
+                    tiles = (rows // DEM_WINDOW) * (dem.width // DEM_WINDOW + 1) + cols // DEM_WINDOW
+                    order = np.argsort(tiles, kind="stable")
+                    for group in np.split(order, np.flatnonzero(np.diff(tiles[order])) + 1):
+                        r, c = rows[group], cols[group]
+                        r_0, c_0 = int(r.min()), int(c.min())
+                        window = Window(c_0, r_0, int(c.max()) - c_0 + 1, int(r.max()) - r_0 + 1)
+                        if dem.nodata is None:
+                            _check_written(path, dem, r, c)
+                        block = dem.read(1, window=window, masked=True)
+                        values[group] = np.ma.filled(block.astype(float), np.nan)[r - r_0, c - c_0]
+                    # beyond the Earth's radius: no terrain (a NaN is named below)
+                    far = np.flatnonzero(np.abs(values * scale + offset) > MAX_DEM_ELEVATION)
+                    if far.size:
+                        raise InputError(
+                            f"{path}: an elevation of {values[far[0]] * scale + offset:g} m at pixel (row "
+                            f"{rows[far[0]]}, column {cols[far[0]]}) on the polyline; accepted: elevations "
+                            f"within {MAX_DEM_ELEVATION:g} m of the datum (a fill value is declared with "
+                            "gdal_translate -a_nodata)"
+                        )
+                    return values
 
-            with np.errstate(all="ignore"):  # an infinite or huge elevation is named below
-                z = _bilinear((dem.height, dem.width), pixels, row - 0.5, col - 0.5) * scale + offset
+                with np.errstate(all="ignore"):  # an infinite or huge elevation is named below
+                    z = _bilinear((dem.height, dem.width), pixels, row - 0.5, col - 0.5) * scale + offset
     except rasterio.errors.RasterioError as exc:
-        raise InputError(f"{path}: cannot read the DEM ({exc}); accepted: a GeoTIFF file") from None
+        cause = exc.__cause__ or exc  # "Read failed. See previous exception": GDAL's own words
+        raise InputError(f"{path}: cannot read the DEM ({cause}); accepted: a GeoTIFF file") from None
     bad = np.flatnonzero(~np.isfinite(z))
     if bad.size:
         x0, y0 = samples[bad[0]]
@@ -248,6 +263,51 @@ def _parsed_dem_profile(path: Path, vertices: np.ndarray, spacing: float | None)
             "the DEM's valid pixels"
         )
     return np.column_stack([s, z])
+
+
+def _check_written(path: Path, dem: Any, rows: np.ndarray, cols: np.ndarray) -> None:
+    """:class:`InputError` if a block of the DEM holding one of the pixels ``rows, cols`` was
+    never written (a sparse GeoTIFF: its offset and byte count 0 in the file, as GDAL writes
+    it with ``SPARSE_OK=TRUE``), for a DEM without a nodata value: GDAL reads such a block as
+    zeros, an elevation of 0 m.  GDAL's GeoTIFF driver gives the offset of each block it
+    finds as the band's metadata ``BLOCK_OFFSET_<column>_<row>`` of the ``TIFF`` domain,
+    none for an unwritten block."""
+    block_rows, block_cols = dem.block_shapes[0]
+    for i, j in sorted(set(zip((rows // block_rows).tolist(), (cols // block_cols).tolist()))):
+        if not dem.get_tag_item(f"BLOCK_OFFSET_{j}_{i}", "TIFF", bidx=1):
+            raise InputError(
+                f"{path}: the block of pixels ({i * block_rows}-{(i + 1) * block_rows - 1}, "
+                f"{j * block_cols}-{(j + 1) * block_cols - 1}) (rows, columns) on the polyline was never "
+                "written (a sparse GeoTIFF) and the DEM has no nodata value: its elevations would be read as "
+                "0 m; accepted: a DEM whose blocks on the polyline are written, or one with a nodata value "
+                "(gdal_translate -a_nodata sets one)"
+            )
+
+
+_SIDECAR_KEYS = ("crs", "transform", "nodata", "scales", "offsets", "units")
+"""What a sidecar ``.aux.xml`` file may change of a DEM, checked by :func:`_check_sidecar`."""
+
+
+def _check_sidecar(path: Path, dem: Any) -> None:
+    """:class:`InputError` if GDAL read a sidecar ``.aux.xml`` file beside the DEM (its
+    persistent auxiliary metadata) that changes its coordinate reference system,
+    geotransform, nodata value, scale, offset or units from what the GeoTIFF says: a copy
+    of ``dem.tif`` left beside an old ``dem.tif.aux.xml`` would be read in feet, or with
+    valid pixels taken as nodata, with nothing in the file itself to tell."""
+    sidecars = [f for f in dem.files[1:] if str(f).lower().endswith(".aux.xml")]
+    if not sidecars:
+        return
+    import rasterio
+
+    with rasterio.Env(GDAL_PAM_ENABLED="NO"), rasterio.open(path, driver="GTiff") as plain:
+        changed = [k for k in _SIDECAR_KEYS if str(getattr(dem, k)) != str(getattr(plain, k))]  # NaN nodata
+        if changed:
+            said = ", ".join(f"{k} from {getattr(plain, k)} to {getattr(dem, k)}" for k in changed)
+            raise InputError(
+                f"{path}: the sidecar file {sidecars[0]} changes its {said}; accepted: a GeoTIFF that says "
+                "these itself (gdal_translate dem.tif out.tif writes the sidecar's values into the file), "
+                "without a sidecar that changes them"
+            )
 
 
 _METRES = ("", "m", "metre", "meter", "metres", "meters")
@@ -417,9 +477,12 @@ def map_to_slope_frame(points: np.ndarray, slope_deg: float, where: str) -> np.n
     b = s * math.sin(theta) + z * math.cos(theta)
     folds = np.flatnonzero(np.diff(x) <= 0)
     if folds.size:
+        k = folds[0]  # the elevations named: a DEM pixel of 1e308 m is told from a cliff
         raise InputError(
-            f"{where}: at {s[folds[0] + 1]:g} m along the profile the terrain rises more steeply than "
-            f"{90 - slope_deg:g} deg, so x along the {slope_deg:g} deg plane does not increase; "
+            f"{where}: at {s[k + 1]:g} m along the profile the terrain rises more steeply than "
+            f"{90 - slope_deg:g} deg (from Z = {points[k, 1]:g} m at {s[k]:g} m to "
+            f"Z = {points[k + 1, 1]:g} m), "
+            f"so x along the {slope_deg:g} deg plane does not increase; "
             "accepted: a profile whose x along the plane increases"
         )
     return np.column_stack([x, b])

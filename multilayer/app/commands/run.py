@@ -27,7 +27,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "or --set initial.0.thickness=0.005 (value read as YAML; repeatable)",
     )
     parser.add_argument(
-        "--resume", action="store_true", help="continue an interrupted run from the checkpoint in DIR"
+        "--resume",
+        action="store_true",
+        help="continue an interrupted run from the checkpoint in DIR; with a later time.end, extend a "
+        "finished one (the uninterrupted run to the bit if it ended on an output time)",
     )
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress line and no summary")
     add_budget_arguments(parser)
