@@ -294,7 +294,9 @@ def _check_sidecar(path: Path, dem: Any) -> None:
     geotransform, nodata value, scale, offset or units from what the GeoTIFF says: a copy
     of ``dem.tif`` left beside an old ``dem.tif.aux.xml`` would be read in feet, or with
     valid pixels taken as nodata, with nothing in the file itself to tell."""
-    sidecars = [f for f in dem.files[1:] if str(f).lower().endswith(".aux.xml")]
+    # .aux.xml, or an .aux of ERDAS Imagine; a mask (.msk) masks pixels (named as nodata),
+    # overviews (.ovr) are not read at full resolution
+    sidecars = [f for f in dem.files[1:] if not str(f).lower().endswith((".msk", ".ovr"))]
     if not sidecars:
         return
     import rasterio
