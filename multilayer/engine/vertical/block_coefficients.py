@@ -21,6 +21,7 @@ import numpy as np
 from multilayer.engine.compiled import jit
 from multilayer.engine.vertical.coefficients import _frictional, _within_contract, column_coefficients
 from multilayer.engine.vertical.sheared_columns import (
+    ACTIVE,
     BLOCK,
     CONDUCTANCE,
     FINE,
@@ -32,6 +33,7 @@ from multilayer.engine.vertical.sheared_columns import (
     SPACING,
     U0,
     VISCOUS,
+    WALL,
     _layer,
     cell,
 )
@@ -130,3 +132,18 @@ def block_coefficients(c0, h, inputs, t, L, column, flags, rows, dt, u_rows, gue
         flags[FINE, i] = True
     for i in range(BLOCK if outside > 0 else 0):  # which: the same values again
         flags[FINE, i] = column_coefficients(c0 + i, h[c0 + i], inputs, column, cell(i, L), BLOCK, False) == 0
+
+
+@jit(borrowing=True)
+def join(t, L, flags, first, i, fine, walled):
+    """Lanes ``first ... i`` of the block, whose per-step slots ``newton_kernel._chunk`` has set
+    up (``fine``, lane i's ``FINE``: its yield values are within the plugin contract), take
+    part in the block iteration if ``FINE``, with mass and without a wall threshold (their
+    thresholds are read where they may be nonzero, ``walled``; the compiled yield forms
+    without walls set them to 0); the test of the mass is ``sheared_columns.block_parts``'."""
+    flags[FINE, i] = fine
+    for lane in range(first, i + 1):
+        x, lanes, held = np.uint64(cell(lane, L)), np.uint64(BLOCK), 0  # held: counted without branches
+        for a in range(np.uint64(L if walled else 0)):  # unsigned: no test for negative indices
+            held += not t[WALL, x + a * lanes] == 0.0  # a wall threshold (or NaN)
+        flags[ACTIVE, lane] = flags[FINE, lane] and held == 0

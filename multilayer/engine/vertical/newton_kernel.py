@@ -32,7 +32,7 @@ from multilayer.engine.compiled import jit, parallel_compiled
 from multilayer.engine.plugin_output import PluginOutputError, outside_contract
 from multilayer.engine.threads import numba_threads, parallel_chunks
 from multilayer.engine.vertical import sheared_columns as sc
-from multilayer.engine.vertical.block_coefficients import ROWS, block_coefficients, layer_rows
+from multilayer.engine.vertical.block_coefficients import ROWS, block_coefficients, join, layer_rows
 from multilayer.engine.vertical.coefficients import (
     ColumnArrays,
     CompiledCoefficients,
@@ -55,7 +55,6 @@ from multilayer.engine.vertical.sheared_columns import (
     ALONE,
     BLOCK,
     cell,
-    join,
     new_tile,
     sheared_block,
     unload,
@@ -348,6 +347,7 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
                     sc.load(u_rows, guess_rows, ustar, guess, col)
                 if block and fused:  # and its coefficients, laid out as the tile
                     block_coefficients(col, h, inputs, tile, L, column, flags, rows, dt, u_rows, guess_rows)
+                    j, following = j + BLOCK - 1, j + BLOCK  # its lanes set up: joined at once (join)
             lane = j - j0 if block else ALONE
             o, step = cell(lane, L), sc.step(lane)  # the lane's layer a: cell o + a step of the tile
             # the coefficients of StressModel.columns: from the compiled yield forms, or given (the
@@ -386,7 +386,7 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
                 for a in range(L):
                     wall_true[a] = wall[a]
             if block:
-                join(tile, L, flags, lane, fine, not fused or inputs.walls)
+                join(tile, L, flags, 0 if fused else lane, lane, fine, not fused or inputs.walls)
                 if lane == BLOCK - 1:
                     sc.block_parts(
                         tile, L, bulk_form, bulk_params, h, wet, j0, dt, u_rows, guess_rows, flags, fused

@@ -246,21 +246,6 @@ def block_parts(t, L, form, params, h, wet, j0, dt, u_rows, guess_rows, flags, m
 
 
 @jit(borrowing=True)
-def join(t, L, flags, i, fine, walled):
-    """Lane ``i`` of the block, whose per-step slots ``newton_kernel._chunk`` has set up
-    (``fine``: its yield values are within the plugin contract), takes part in the block
-    iteration if ``fine``, with mass and without a wall threshold (its thresholds are read
-    where they may be nonzero, ``walled``; the compiled yield forms without walls set them
-    to 0); the test of its mass is :func:`block_parts`'."""
-    x, lanes = np.uint64(cell(i, L)), np.uint64(BLOCK)
-    held = 0  # layers with a wall threshold (or NaN), counted without branches
-    for a in range(np.uint64(L if walled else 0)):  # unsigned: no test for negative indices
-        held += not t[WALL, x + a * lanes] == 0.0
-    flags[FINE, i] = fine
-    flags[ACTIVE, i] = fine and held == 0
-
-
-@jit(borrowing=True)
 def unload(t, L, flags, i, guess_rows, viscous, wall_true, guess):
     """Column ``i`` of the block, one it did not finish, into lane ``ALONE`` (the
     column solved on its own by ``newton_kernel._chunk``), with the arrays of one column
@@ -459,7 +444,7 @@ def _converged(t, L, new, current, threshold, concave_stress, flags):
     bounds go through one pass over the block's cells where most of its columns need them
     (:func:`_together`), else a pass over each column's.  The rise bound is without its
     wall's potential term: a column of the block has no wall threshold, force or stiffness
-    (``join``), so that term is a zero (of either sign), or NaN where a speed is not
+    (``block_coefficients.join``), so that term is a zero (of either sign), or NaN where a speed is not
     finite, and then so is the wall term of the layer (0 times it): leaving it out of the
     sum changes at most the sign of a zero sum, which neither test of the sum tells apart."""
     bounded = 0  # the columns to test by the error bound (fully sheared)
@@ -555,7 +540,7 @@ def _gaps(t, start, stop, new, one):
     and the stress above alone (0 at the free surface: above the top cell of a lane is a
     pad, ``BED``; the cells below and above ``one`` place away).  Each operation is that of
     ``error_bound``, but the wall terms of ``newton_control.zeroing``: a column of the
-    block has no wall threshold or force (``join``), and the zero they subtract could only
+    block has no wall threshold or force (``block_coefficients.join``), and the zero they subtract could only
     change the sign of a zero end of the interval, which no positive gap depends on."""
     tau, one = TAU0 + (new - U0), np.uint64(one)
     for y in range(np.uint64(start), np.uint64(stop)):  # unsigned: no test for negative indices
@@ -632,7 +617,7 @@ def sheared_block(
     u_out, iterations, fallbacks, faults, fault_values, side_by_side,
 ):  # fmt: skip
     """The Newton iteration of ``newton_kernel._chunk`` for the ``BLOCK`` columns set up
-    in the tile ``t`` (:func:`join`; their guesses in slot ``U0``): wet columns ``j0 ...`` of
+    in the tile ``t`` (``block_coefficients.join``; their guesses in slot ``U0``): wet columns ``j0 ...`` of
     ``_chunk``, mesh columns ``c0 ...``, adjacent, without side walls; side by side while
     each stays fully sheared.  ``finished[i]`` tells which columns it solved, and wrote into
     ``_chunk``'s outputs (``side_by_side`` True): their velocities at the end, row by row
