@@ -202,6 +202,27 @@ def bounded(band, r, lam_max, active, max_iterations, U, start):
     return lam, -1
 
 
+@jit
+def _gathered(active, lam_max, rows, kept, guess, bound):
+    """The guess ``active[rows]`` (all False if ``active`` is empty) and the bound
+    ``lam_max[rows]`` into ``guess`` and ``bound``; returns the first row where the guess
+    and the set ``kept`` of a factor differ (``rows.size``: none; 0 if ``kept`` is empty)."""
+    for k in range(rows.size):
+        at = np.uint64(rows[k])  # unsigned: numba leaves out the wrap-around of negative indices
+        guess[k] = active[at] if active.size > 0 else False
+        bound[k] = lam_max[at]
+    if kept.size == 0:
+        return np.int64(0)
+    for k in range(rows.size):
+        if guess[k] != kept[k]:
+            return np.int64(k)
+    return np.int64(rows.size)
+
+
+_NO_GUESS = np.empty(0, np.bool_)
+"""No guess of the active set (all False), or no factor's set, for :func:`_gathered`."""
+
+
 Factor = tuple[np.ndarray, np.ndarray]
 """The Cholesky factor of ``A`` (band storage) with the rows of a set fixed, and that set."""
 
@@ -224,13 +245,14 @@ def multipliers(
             factored = (np.zeros(band.shape), np.zeros(r.size, np.bool_))
             factor(band, factored[1], factored[0], 0)
         return substitute(factored[0], r), factored
-    guess = np.zeros(rows.size, dtype=np.bool_) if active is None else active.ravel()[rows]
-    U, start = np.empty(band.shape), 0
-    if factored is not None:
-        U, differ = factored[0], np.flatnonzero(guess != factored[1])
-        start = differ[0] if differ.size else rows.size
+    guess, bound = np.empty(rows.size, np.bool_), np.empty(rows.size)
+    start = _gathered(
+        _NO_GUESS if active is None else active.ravel(), lam_max.ravel(), rows,
+        _NO_GUESS if factored is None else factored[1], guess, bound,
+    )  # fmt: skip
+    U = np.empty(band.shape) if factored is None else factored[0]
     cap = iteration_cap(rows.size)
-    lam, iterations = bounded(band, r, lam_max.ravel()[rows], guess, cap, U, np.int64(start))
+    lam, iterations = bounded(band, r, bound, guess, cap, U, start)
     if iterations < 0:
         raise RunError(
             f"the non-hydrostatic pressure bound p >= 0 was not settled in {cap} active-set iterations"

@@ -179,6 +179,8 @@ class _Buffers:
         self.faces = (np.arange(N - 1), np.arange(1, N))  # a window's: their start (periodic: all)
         self.periodic_faces = faces(N, True)
         self.fractions: np.ndarray | None = None  # those of the depth factors
+        # the fractions and pressure layers of the nodes and interpolation (:func:`layering`)
+        self.layering: tuple = (None, 0, None)
         self.factors = np.empty(L)
         # what the constraint in pointer .. mass was assembled on (:meth:`assembled_on`)
         self.built: tuple | None = None
@@ -294,10 +296,15 @@ def project_columns(
     lo, hi = (0, N) if periodic else (max(first - 1, 0), min(last + 2, N))
     window = slice(lo, hi)
     moving = _moving(u, h, dry, lo, hi)
-    nodes, P = layering(tuple(fractions), L if pressure_layers is None else pressure_layers)
-    # the constraint of the free unknowns in the rows taking part only (``correction`` on
-    # ``constraint``, without the rest), in arrays reused from call to call
-    buffers = _Buffers(L, N, nodes.size) if buffers is None else buffers
+    layers = L if pressure_layers is None else pressure_layers
+    if buffers is not None and buffers.layering[0] is fractions and buffers.layering[1] == layers:
+        nodes, P = buffers.layering[2]
+    else:
+        nodes, P = layering(tuple(fractions), layers)
+        # the constraint of the free unknowns in the rows taking part only (``correction`` on
+        # ``constraint``, without the rest), in arrays reused from call to call
+        buffers = _Buffers(L, N, nodes.size) if buffers is None else buffers
+        buffers.layering = (fractions, layers, (nodes, P))
     W = hi - lo
     left, right = (
         buffers.periodic_faces if periodic else (buffers.faces[0][: W - 1], buffers.faces[1][: W - 1])
@@ -525,13 +532,17 @@ def tension_free(
     the columns ``lo .. hi-1`` (where none is, for ``g_n > 0``)."""
     lo, hi = (0, q.shape[1]) if columns is None else columns
     out = np.zeros(q.shape, np.bool_)
-    _tension_free(q, h, depth_factors(fractions), g_n, lo, hi, out)
+    _tension_free(q, h, depth_factors(fractions), g_n, lo, hi, out, 0, 0)
     return out
 
 
 @jit
-def _tension_free(q, h, factors, g_n, lo, hi, out):
+def _tension_free(q, h, factors, g_n, lo, hi, out, begin, stop):
+    """:func:`tension_free` into the columns ``lo .. hi-1`` of ``out``, its columns ``begin
+    .. stop-1`` set False first."""
     for a in range(q.shape[0]):
+        for column in range(begin, stop):
+            out[a, np.uint64(column)] = False
         for column in range(lo, hi):
             i = np.uint64(column)  # unsigned: numba leaves out the wrap-around of negative indices
             depth = factors[a] * h[i]
@@ -539,11 +550,14 @@ def _tension_free(q, h, factors, g_n, lo, hi, out):
 
 
 @jit
-def _yield_gravity(q, h, factors, g_n, lo, hi, out):
+def _yield_gravity(q, h, factors, g_n, lo, hi, out, start, stop):
     """Normal gravity ``G_k`` of the interface pressures with the non-hydrostatic part,
     ``rho G_k (h - z_k) = rho g cos(theta) (h - z_k) + rho q_k``, never negative, into the
-    columns ``lo .. hi-1`` of ``out`` (``factors``: :func:`depth_factors`)."""
+    columns ``lo .. hi-1`` of ``out`` (``factors``: :func:`depth_factors`), its columns
+    ``start .. stop-1`` set to ``max(g_n, 0)`` first."""
     for a in range(q.shape[0]):
+        for column in range(start, stop):
+            out[a, np.uint64(column)] = max(g_n, 0.0)
         for column in range(lo, hi):
             i = np.uint64(column)  # unsigned: numba leaves out the wrap-around of negative indices
             depth = factors[a] * h[i]
@@ -603,9 +617,10 @@ class Projection:
         _advect(w, u, self.dx, dt, self.periodic, lo, hi, self._w_star)
         if self.shear is not None:
             self.shear(h, u, (w, q), dt, (lo, hi), self._w_star)
-        begin, stop = self._tension_written  # tension_free(q, h_before, ...) in an array reused
-        self._tension_free[:, begin:stop] = False
-        _tension_free(q, h_before, self._factors, self.g_n, *columns, self._tension_free)
+        # tension_free(q, h_before, ...) in an array reused
+        _tension_free(
+            q, h_before, self._factors, self.g_n, *columns, self._tension_free, *self._tension_written
+        )
         self._tension_written = columns
         first, last = project_columns(
             h, u, self._w_star, self.bed, self.fractions, (self.u, self.w, self.q), dx=self.dx, dt=dt,
@@ -620,9 +635,7 @@ class Projection:
         part of ``q`` (zero outside the columns ``columns``) on the thickness ``h``,
         ``rho G_k (h - z_k) = rho g cos(theta) (h - z_k) + rho q_k``, never negative
         (overwritten by the next call)."""
-        start, stop = self._gravity_written
-        self._gravity[:, start:stop] = max(self.g_n, 0.0)
         lo, hi = columns
-        _yield_gravity(q, h, self._factors, self.g_n, lo, hi, self._gravity)
+        _yield_gravity(q, h, self._factors, self.g_n, lo, hi, self._gravity, *self._gravity_written)
         self._gravity_written = columns
         return self._gravity
