@@ -36,12 +36,7 @@ def pip(*args: str) -> None:
 
 @pytest.fixture(
     scope="module",
-    # the pip-installed distribution is shared by every process: its tests run on one
-    # worker (``--dist loadgroup``), or one worker's uninstall removed it under another's
-    params=[
-        "entry point on the path",
-        pytest.param("pip install", marks=[pytest.mark.slow, pytest.mark.xdist_group("pip_install")]),
-    ],
+    params=["entry point on the path", pytest.param("pip install", marks=pytest.mark.slow)],
 )
 def bingham(request, tmp_path_factory):
     """The plugin of tests/thirdparty_plugin made discoverable, for this module, either
@@ -50,23 +45,23 @@ def bingham(request, tmp_path_factory):
       holding its metadata and entry point, on ``sys.path`` and ``PYTHONPATH`` (no package
       index needed), or
     - pip-installed as a user would (a built wheel; the isolated build fetches setuptools
-      from the package index, hence marked ``slow``).
+      from the package index, hence marked ``slow``), into a directory of this test's own
+      on ``sys.path`` and ``PYTHONPATH``: a distribution installed into the shared
+      environment was removed by one xdist worker's uninstall under another's test.
     """
     root = tmp_path_factory.mktemp("plugin")
     if request.param == "pip install":
         source = root / "multilayer-bingham"
         shutil.copytree(THIRDPARTY, source)  # the build writes into its source tree
-        pip("install", "--no-deps", str(source))
-        plugins.refresh()
-        yield
-        pip("uninstall", "-y", "multilayer-bingham")
-        plugins.refresh()
-        return
-    module = (THIRDPARTY / "multilayer_bingham.py").read_text()
-    fake_distribution(root, "multilayer-bingham", module, module="multilayer_bingham", version="1.0.0")
+        site = root / "site-packages"
+        pip("install", "--no-deps", "--target", str(site), str(source))
+    else:
+        site = root
+        module = (THIRDPARTY / "multilayer_bingham.py").read_text()
+        fake_distribution(root, "multilayer-bingham", module, module="multilayer_bingham", version="1.0.0")
     with pytest.MonkeyPatch.context() as mp:
-        mp.syspath_prepend(str(root))
-        mp.setenv("PYTHONPATH", os.pathsep.join(filter(None, [str(root), os.environ.get("PYTHONPATH")])))
+        mp.syspath_prepend(str(site))
+        mp.setenv("PYTHONPATH", os.pathsep.join(filter(None, [str(site), os.environ.get("PYTHONPATH")])))
         plugins.refresh()
         yield
     sys.modules.pop("multilayer_bingham", None)
