@@ -133,12 +133,6 @@ def study_directory(outdir: Path, reads: dict[str, Path], writes: str, study: st
         for name in written:
             not_an_input(outdir / name, reads, written, f"the {study}", f"the {study}")
         in_a_member(outdir, reads, study)
-    except InputError:
-        for made in created:
-            with contextlib.suppress(OSError):
-                made.rmdir()
-        raise
-    try:
         with locked(outdir, warn):  # a lock taken over: the warning names the directory
             yield
     except InputError:
