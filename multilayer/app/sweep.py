@@ -52,6 +52,7 @@ from multilayer.io.results import summary as result_summary
 from multilayer.scenario import as_overrides, format_value
 from multilayer.scenario.loading import BASE_ACCEPTED, load_base
 from multilayer.scenario.messages import dotted, shown
+from multilayer.scenario.overrides import member_output
 
 SWEEP_KEYS = ("base", "parameters", "zip", "output", "description")
 """Top-level keys accepted in a sweep file."""
@@ -198,14 +199,9 @@ def load(path: str | Path) -> Sweep:
             )
         if not isinstance(values, list) or not values:
             raise bad(("parameters", key), f"got {shown(values)}", "a non-empty list of values")
-        if key == "output" or key.startswith("output."):  # each member's run went to DIR/mNNN all the same
-            raise bad(
-                ("parameters", key),
-                "a member's output is not its own: the sweep writes every member into "
-                "DIR/mNNN (DIR: -o or the sweep's output.directory), whatever its scenario says",
-                "scenario keys that change the run; the sweep's directory as the sweep file's "
-                "output.directory",
-            )
+        refused = member_output(key, "sweep")
+        if refused:
+            raise InputError(f"{at(('parameters', key))}: {refused}")
 
     paired = data.get("zip", False)
     if not isinstance(paired, bool):

@@ -40,7 +40,7 @@ from multilayer.scenario.files import read_text
 from multilayer.scenario.limits import MAX_DESIGN_VALUES, MAX_PROFILE_POINTS, MAX_STUDY_RUNS
 from multilayer.scenario.loading import load_base
 from multilayer.scenario.messages import StrictModel, describe, directory_path, dotted, field, invalid
-from multilayer.scenario.overrides import as_overrides
+from multilayer.scenario.overrides import as_overrides, member_output
 from multilayer.scenario.profiles import csv_number
 
 Scalar = Literal["runout", "front_final", "duration", "mass_final"]
@@ -420,13 +420,9 @@ def _check_base(
     given = [(("set",), config.set), *((("experiments", n), extra) for n, extra in experiments.items())]
     for within, overrides in given:
         for key in overrides:
-            if key == "output" or key.startswith("output."):  # the members ran into DIR all the same
-                raise InputError(
-                    f"{_at(path, lines, *within, key)}: a run's output is not its own: the study writes "
-                    "every run into its own directory under its output directory (-o or the study file's "
-                    "output.directory), whatever its scenario says; accepted: scenario keys that change the "
-                    "run; the study's directory as the study file's output.directory"
-                )
+            refused = member_output(key, "study")
+            if refused:
+                raise InputError(f"{_at(path, lines, *within, key)}: {refused}")
     for key in config.parameters:
         fixed = ["set"] * (key in config.set) + [
             f"experiments.{n}" for n, extra in experiments.items() if key in extra

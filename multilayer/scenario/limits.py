@@ -41,8 +41,8 @@ MAX_LAYERS = 10**5
 """Most layers (the exact column solve keeps 128 L^2 bytes per thread: 1.3 TB here)."""
 MAX_INITIAL_ENTRIES = 1000
 """Most entries of ``initial`` (a shipped scenario holds one to three): building the initial
-state takes each entry over every cell and layer (200 000 entries of 1800 kB of YAML
-validated, 30 000 on 10^5 cells were killed for lack of memory building it)."""
+state takes each entry over every cell and layer, so that 30 000 entries on 10^5 cells
+exhaust the memory of a workstation."""
 MAX_OUTPUT_TIMES = 10**7
 """Most output times of a run (``time.end / time.output_interval``), also under --force."""
 MIN_END = 1e-290
@@ -52,20 +52,19 @@ engine/simulation.py, 4.45e-308 s; half of a denormal step is zero)."""
 MIN_CELL_SPACINGS = 1024
 """Floats a cell is at least wide at the domain's ends: its edges ``x_min + i dx`` are then
 rounded by at most 1/1024 of a cell (cells of 1e-10 m at x = 1e6 m, where floats are
-1.16e-10 m apart, had edges that coincide: a cell of width 0 and its thickness 0/0)."""
+1.16e-10 m apart, would have edges that coincide: a cell of width 0 and its thickness 0/0)."""
 MIN_DENSITY = 1e-100
 """Smallest ``material.density`` and ``material.particle_density`` (kg/m^3).  A dry flow
 does not depend on its density (every stress of the built-in laws is the density times a
-kinematic quantity), and the tiny scenario of the fault battery gives the run of 1500 kg/m^3
-to round-off down to 1e-150 with Drucker-Prager and Jop's mu(I); at 1e-200 the run wrote
-forces and momenta that its result's own check refused (the file unreadable by ``plot``),
-and at 5e-324 the weight underflowed to zero: the material stayed at rest, exit 0.  Real
-densities (gases included) lie 100 decades above it."""
+kinematic quantity): a small collapse gives the run of 1500 kg/m^3 to round-off down to
+1e-150 with Drucker-Prager and Jop's mu(I), whereas near 1e-200 its forces and momenta
+underflow below what its result's own check accepts, and at 5e-324 the weight is zero.
+Real densities (gases included) lie 100 decades above it."""
 DEM_WINDOW = 512
 """Pixels a side of a window of a DEM read at once: a DEM is read only around the samples of
-its polyline, a window at a time (a DEM of 20000 x 20000 pixels was read whole, 3 GiB of
-float64, before a sample was taken); a GeoTIFF block larger than :data:`MAX_DEM_BLOCK_PIXELS`,
-which GDAL decodes whole to read any pixel of it, is refused."""
+its polyline, a window at a time, never whole (a DEM of 20000 x 20000 pixels is 3 GiB of
+float64); a GeoTIFF block larger than :data:`MAX_DEM_BLOCK_PIXELS`, which GDAL decodes whole
+to read any pixel of it, is refused."""
 MAX_DEM_BLOCK_PIXELS = 2**24
 """Largest block (tile or strip) of a DEM's band, in pixels: 128 MiB of float64."""
 MAX_DEM_ELEVATION = 1e7
@@ -77,23 +76,23 @@ MAX_STUDY_RUNS = 10**7
 (search.generations + 1) + refine.evaluations x (parameters + 1) + 2 x parameters)``, its
 search, refinement and uncertainty at their largest.  Ten million runs of the smallest
 scenario (0.1 s each) take 12 days of a core; 10^4 generations of a population of 10^4
-over 4 parameters and 3 experiments asked for 1.2 x 10^9 runs, accepted.  A sensitivity
+over 4 parameters and 3 experiments would ask for 1.2 x 10^9 runs.  A sensitivity
 study's ``samples x (parameters + 2)`` runs are at most 3 x 10^6 under
 :data:`MAX_DESIGN_VALUES` (65536 samples of 44 parameters)."""
 MAX_DESIGN_VALUES = 2**27
 """Values (one a parameter of a run) of a study's design held at once: a Sobol' design of
 ``samples x (parameters + 2)`` runs, a differential evolution's population of
 ``population x parameters`` members, each of ``parameters`` values; 1 GiB of float64
-(65536 base samples of 399 parameters asked 78 GiB, a traceback of numpy's)."""
+(65536 base samples of 399 parameters would take 78 GiB)."""
 MAX_ITERATIONS = 10**5
 """Most Newton iterations per column and vertical step (``numerics.max_iterations``): a
-column that does not converge takes that many before the run stops (1e29 was numba's
-typing error mid-run, 1e18 an iteration without end)."""
+column that does not converge takes that many before the run stops (the compiled solve
+counts in 64-bit integers, and 10^18 iterations would never end)."""
 MIN_TOLERANCE = 1e-14
 """Smallest ``numerics.tolerance``, relative to the velocity scale: velocities of that
-scale are resolved to 2.2e-16 and a Newton solve's round-off is some of those (the tiny
-scenario of the fault battery with Jop's mu(I) failed at step 37 with 2.3e-16, at step 3
-with 1e-16, at step 0 below), so that convergence below it is decided by round-off."""
+scale are resolved to 2.2e-16 and a Newton solve's round-off is some of those (a small
+collapse with Jop's mu(I) cannot converge within 2.3e-16 after a few dozen steps, nor within
+1e-16 after a few), so that convergence below it is decided by round-off."""
 
 
 def check_yaml(text: str, where: str, loader: type) -> None:

@@ -15,6 +15,21 @@ from multilayer.scenario.messages import KeyPath, dotted, shown
 from multilayer.scenario.source import Loader, format_value
 
 
+def member_output(key: str, study: str) -> str | None:
+    """Why a member of a sweep or study (``study``: ``"sweep"`` or ``"study"``) may not set
+    the dotted key ``key``, or None: its ``output`` is the study's to choose, which writes
+    every run into a directory of its own under its output directory, whatever the run's
+    scenario says (the key was ignored, silently)."""
+    if key != "output" and not key.startswith("output."):
+        return None
+    return (
+        f"a member's output is not its own: the {study} writes every run into a directory of "
+        f"its own under its output directory (-o or the {study} file's output.directory), "
+        f"whatever its scenario says; accepted: scenario keys that change the run; the "
+        f"{study}'s directory as the {study} file's output.directory"
+    )
+
+
 def as_overrides(values: dict[str, Any]) -> list[str]:
     """``KEY=VALUE`` overrides (as :func:`apply_overrides` reads them) of a mapping of
     dotted keys to values."""
