@@ -1098,7 +1098,7 @@ def test_a_vanishing_compressibility_is_the_closure_in_the_time_loop(layers, phi
 def test_a_relaxing_pore_pressure_below_the_column_has_the_sign_of_the_packing(layers, phi):
     """The published signs with ``alpha = 5e-5`` 1/Pa (``t_IG`` about 5 s at the bed of the
     1 cm column), the measure of the closure's test: averaged below the initial column, at
-    its largest magnitude over the first second (measured: +13.7 and -6.5 Pa in one layer,
+    its largest magnitude over the first second (measured: +13.9 and -6.4 Pa in one layer,
     +9.3 and -5.9 Pa in three; in three layers the loose column's is -4.5 Pa over the first
     0.3 s only, its pore pressure building over ``t_IG``)."""
     pressure = pressure_below_the_column(layers, phi, mixture=RELAXING)

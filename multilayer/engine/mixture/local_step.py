@@ -18,14 +18,12 @@ effective pressure::
 with ``W_a = sum_{b < a} h_b Phi_b`` the grains' vertical velocity at interface ``a``
 (Darcy's law for the fluid they displace, integrated from the top of the mixture down;
 for one layer it is the uniform layer's ``p_e = -beta h^2 Phi / (2 (1 - phi)^2)``).  Every
-layer's dilation sets the pore pressure of every interface below the top: at given
-velocities the effective pressures solve one coupled system per column
-(:meth:`LocalStep.closure`).
+layer's dilation sets the pore pressure of every interface below the top: at given velocities
+the effective pressures solve one coupled system per column (:meth:`LocalStep.closure`).
 
 The step, backward Euler: the thickness ``h' = h* / (1 - dt sum_a l_a Phi_a)`` (the fluid
-drawn from or expelled to the ambient fluid; ``s_a`` unchanged; one layer with a
-compressibility: ``h' = h* / (1 + dt p_e' / B')``, the Darcy outflow, :meth:`LocalStep._newton`),
-and the velocities the exact minimiser of the column problem (``engine/vertical``) with masses
+drawn from or expelled to the ambient fluid; ``s_a`` unchanged), and the velocities the
+exact minimiser of the column problem (``engine/vertical``) with masses
 ``rho_s s_a + rho_f (fluid before + fluid after) / 2`` (the fluid joins at rest: the
 exchange term of the uniform layer's energy identity), the yield stress and viscosity of
 the rheology at the effective pressure.  The pore pressures and the thickness of the whole
@@ -482,33 +480,12 @@ class LocalStep:
 
         With ``previous`` (a relaxing pore pressure) a column whose velocity guess is zero
         starts from its rest state, the pore pressure ``previous`` relaxes to at rest
-        (:meth:`closure` at zero velocity), where a column of several layers that holds has
-        converged exactly.
+        (:meth:`closure` at zero velocity), where a column that holds has converged exactly.
 
         Notes
         -----
-        The volume balance of one relaxing layer is George & Iverson's (2014, Proc. R. Soc. A
-        470, 20130820; Iverson & George 2014, 20130819): the mixture's dilation rate ``D``,
-        which changes its thickness and its solid fraction (``d_t m = -m D / h`` in their
-        equations of ``h`` and ``h m``), is the Darcy flow the basal excess pore pressure
-        drives through the pores, ``D = -2 k (p_b - rho_f g h) / (mu h) = -h p_e / B``
-        (``B = beta h^2 / (2 (1 - phi)^2)``, Carman–Kozeny ``k``); their pressure equation
-        makes ``D`` the dilatancy plus the skeleton's elastic change, ``D / h = Phi + alpha
-        d_t p_e`` here (Bouchut et al. 2016's form).  Discretised by backward Euler over
-        ``dt`` from ``(h*, p_e)`` (``r = alpha B' / dt``)::
-
-            (1 + r) p_e' = r p_e - B' Phi(P - p_e')       the relaxation (:meth:`closure`)
-            h' - h* = -dt h' p_e' / B'                    the Darcy outflow
-                    = dt h' Phi' + alpha h' (p_e' - p_e)  (the dilatancy and the elastic part)
-
-        with ``B'`` and ``Phi'`` at ``h'`` and the solid unchanged; at ``alpha -> 0`` it is the
-        closure's ``h' - h* = dt h' Phi'``.  A column held at rest has ``Phi = 0``: its pore
-        pressure decays, ``p_e' = p_e r / (1 + r)``, and its thickness changes by the outflow,
-        so a positive pore pressure consolidates it (its velocity stays ``0.0`` while it is
-        held; its thickness is a root of the iteration, to ``numerics.tolerance``), and with
-        ``p_e = 0`` it keeps ``h*`` bit for bit.  In several layers the thickness changes by
-        the dilatancy, ``h' - h* = dt h' sum_a l_a Phi_a'``, as for the closure (the layered
-        volume balance is not built: docs/mixture.md)."""
+        One relaxing layer: ``h' - h* = -dt h' p_e' / B'`` (George & Iverson 2014; at rest it consolidates, to
+        the tolerance), with :meth:`closure`'s relaxation (the system: ``UniformLayer``); layers: ``Phi``."""
         L, n = ustar.shape
         m_before = self.masses(solid, h_star)
         momentum = m_before * ustar
@@ -560,16 +537,14 @@ class LocalStep:
                 diverged[k] = True
                 closure_errors.append(error)
                 return Evaluation.diverged(X)
-            if drains:  # one layer, relaxing: the Darcy outflow -p_e / B changes the volume (Notes)
-                dilation = -pressure / self.darcy(s, h)[0]
+            dilation = -pressure / self.darcy(s, h)[0] if drains else dilation  # the Darcy outflow (Notes)
             growth = 1.0 - dt * np.sum(self.l * dilation, axis=0)
             h_new = np.where(growth > 0.0, h_star[k] / np.where(growth > 0.0, growth, 1.0), np.inf)
             residual = (X - np.concatenate([pressure, h_new[None, :]])) / scale[:, k]
             residual = np.where(np.isfinite(residual), residual, np.inf)
             return Evaluation(v, rates, pressure, h_new, residual, np.abs(residual).max(axis=0))
 
-        lag = 0.0
-        drains = previous is not None and L == 1
+        lag, drains = 0.0, previous is not None and L == 1  # one relaxing layer drains (Notes)
         if previous is not None:
             lag = self.compressibility / dt if self.compressibility is not None else 0.0
             rest = self.closure(solid, h_star, np.zeros_like(ustar), previous, lag)[3]
