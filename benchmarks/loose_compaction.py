@@ -7,9 +7,10 @@ time.end=10 --set output.directory=results/loose-480``) and prints, for each:
 1. the change of the mixture volume against the Darcy outflow, ``-int sum h p_e / B dx dt``
    (trapezoids between output times, ``B = beta h^2 / (2 (1 - phi)^2)``): the fluid that
    leaves a column must flow out through its pores.  The closure ``p_e = -B Phi`` makes the
-   two equal; with ``fluid.compressibility`` the thickness follows the dilatancy ``Phi``
-   while the pore pressure relaxes, and their difference is the skeleton's elastic volume
-   change, ``alpha d_t p_e``, that the relaxation leaves out (docs/mixture.md).
+   two equal, and so does ``fluid.compressibility`` in one layer, whose step changes the
+   thickness by that outflow (George & Iverson 2014); in several layers the thickness
+   follows the dilatancy ``Phi`` while the pore pressures relax, and the difference is the
+   skeleton's elastic volume change, ``alpha d_t p_e`` (docs/mixture.md).
 2. the body of the deposit (the columns thicker than 5 mm at every output time from
    ``--from`` on): its packing, the shear strain it has undergone since then,
    ``int 2 |u| / h dt`` (the local step's shear rate; median and largest over the columns),

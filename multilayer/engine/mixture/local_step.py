@@ -18,9 +18,8 @@ effective pressure::
 with ``W_a = sum_{b < a} h_b Phi_b`` the grains' vertical velocity at interface ``a``
 (Darcy's law for the fluid they displace, integrated from the top of the mixture down;
 for one layer it is the uniform layer's ``p_e = -beta h^2 Phi / (2 (1 - phi)^2)``).  Every
-layer's dilation sets the pore pressure of every interface below the top: at given
-velocities the effective pressures solve one coupled system per column
-(:meth:`LocalStep.closure`).
+layer's dilation sets the pore pressure of every interface below the top: at given velocities
+the effective pressures solve one coupled system per column (:meth:`LocalStep.closure`).
 
 The step, backward Euler: the thickness ``h' = h* / (1 - dt sum_a l_a Phi_a)`` (the fluid
 drawn from or expelled to the ambient fluid; ``s_a`` unchanged), and the velocities the
@@ -481,7 +480,12 @@ class LocalStep:
 
         With ``previous`` (a relaxing pore pressure) a column whose velocity guess is zero
         starts from its rest state, the pore pressure ``previous`` relaxes to at rest
-        (:meth:`closure` at zero velocity), where a column that holds has converged exactly."""
+        (:meth:`closure` at zero velocity), where a column that holds has converged exactly.
+
+        Notes
+        -----
+        One relaxing layer: ``h' - h* = -dt h' p_e' / B'`` (George & Iverson 2014; at rest it consolidates, to
+        the tolerance), with :meth:`closure`'s relaxation (the system: ``UniformLayer``); layers: ``Phi``."""
         L, n = ustar.shape
         m_before = self.masses(solid, h_star)
         momentum = m_before * ustar
@@ -533,13 +537,14 @@ class LocalStep:
                 diverged[k] = True
                 closure_errors.append(error)
                 return Evaluation.diverged(X)
+            dilation = -pressure / self.darcy(s, h)[0] if drains else dilation  # the Darcy outflow (Notes)
             growth = 1.0 - dt * np.sum(self.l * dilation, axis=0)
             h_new = np.where(growth > 0.0, h_star[k] / np.where(growth > 0.0, growth, 1.0), np.inf)
             residual = (X - np.concatenate([pressure, h_new[None, :]])) / scale[:, k]
             residual = np.where(np.isfinite(residual), residual, np.inf)
             return Evaluation(v, rates, pressure, h_new, residual, np.abs(residual).max(axis=0))
 
-        lag = 0.0
+        lag, drains = 0.0, previous is not None and L == 1  # one relaxing layer drains (Notes)
         if previous is not None:
             lag = self.compressibility / dt if self.compressibility is not None else 0.0
             rest = self.closure(solid, h_star, np.zeros_like(ustar), previous, lag)[3]

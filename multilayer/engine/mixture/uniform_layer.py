@@ -15,7 +15,8 @@ rho_s M d_t v           = F - tau_b sgn(v) + beta h (u - v)
 rho_f (h - M) d_t u     = -(rho_f h Phi / 2 + k_b) u - beta h (u - v)
 ```
 
-with the closure of :mod:`~multilayer.engine.mixture.closure`; ``sgn`` is multivalued at
+with the closure of :mod:`~multilayer.engine.mixture.closure` (with a compressibility,
+``d_t h = -h p_e / B``, the Darcy outflow: :class:`UniformLayer`); ``sgn`` is multivalued at
 ``v = 0`` (the layer is held while ``|F + beta h (u - v)| <= tau_b(v = 0)``).  The fluid
 layer above takes the fluid the mixture expels: ``h + h_f`` is constant.
 
@@ -26,9 +27,10 @@ the exchange ``rho_f h Phi u / 2`` that makes the energy identity exact
 becomes an added mass of the solid, so the stiff relaxation (``rho_s / beta`` ~ 1e-5 s in
 the laboratory) is solved exactly for any step.  Rest is decided exactly, as the
 multivalued ``sgn`` of the dry engine's vertical step: at ``v = 0`` the dilation vanishes,
-so ``h`` is kept bit for bit and the layer stays at ``v == 0.0`` iff the force is within
-the static threshold.  Otherwise the two remaining scalar equations for ``(h, |v|)`` are
-solved by a damped Newton iteration, with a bracketing solve as fallback.
+so ``h`` is kept bit for bit (with a compressibility, while no pore pressure drains) and
+the layer stays at ``v == 0.0`` iff the force is within the static threshold.  Otherwise
+the two remaining scalar equations for ``(h, |v|)`` are solved by a damped Newton
+iteration, with a bracketing solve as fallback.
 """
 
 from __future__ import annotations
@@ -89,8 +91,29 @@ class UniformLayer:
     ``compressibility`` ``alpha`` (1/Pa), if given, makes the basal excess pore pressure a
     state that relaxes to the closure's value, ``alpha d_t p_e = -p_e / B - Phi`` with
     ``B = beta h^2 / (2 (1 - phi)^2)``, over ``t_IG = alpha B`` (the pressure equation of
-    George & Iverson 2014, Proc. R. Soc. A 470, 20130819, as compared by Bouchut et al.
-    2016); ``None`` is the closure of Bouchut et al. (2016), ``p_e = -B Phi`` at once."""
+    George & Iverson 2014, Proc. R. Soc. A 470, 20130820, as compared by Bouchut et al.
+    2016), and the thickness changes by the fluid that pore pressure drives out through the
+    pores, ``d_t h = -h p_e / B = h (Phi + alpha d_t p_e)`` (George & Iverson's dilation
+    rate: the dilatancy and the skeleton's elastic change); ``None`` is the closure of
+    Bouchut et al. (2016), ``p_e = -B Phi`` at once and ``d_t h = h Phi``.
+
+    Notes
+    -----
+    The step with a compressibility, backward Euler from ``(h, v, u, p_e)`` with
+    ``r' = alpha B' / dt``::
+
+        (1 + r') p_e' = r' p_e - B' Phi(h', |v'|, P - p_e')
+        h' - h = -dt h' p_e' / B'          (= dt h' Phi' + alpha h' (p_e' - p_e))
+
+    and the momentum equations of the module docstring.  Held at rest (``Phi = 0``),
+    ``p_e' = p_e r' / (1 + r')`` and ``h' = h / (1 + dt p_e' / B')``: the layer consolidates
+    as a positive pore pressure drains (swells as a negative one draws fluid in), at
+    ``v == 0.0``; with ``p_e = 0`` its state is kept bit for bit.  The energy
+    ``E + alpha h p_e^2 / 6`` (:meth:`energy`) obeys, exactly,
+    ``E' - E = -dt D' - alpha dt h' Phi' (p_e'^2 - p_e^2) / 6 - (numerical dissipation)
+    + (P / 2 + alpha p_e^2 / 6) alpha h' (p_e' - p_e)``: the last term, the elastic part of
+    the volume change working against the grains' weight and the pore energy, has either
+    sign, so no energy inequality is proven (in the tested runs it decreases at every step)."""
 
     material: MixtureMaterial
     slope_deg: float
@@ -193,13 +216,14 @@ class UniformLayer:
             force = 0.0
         else:
             force -= math.copysign(cl.tau_b, force)
+        B = 0.5 * cl.beta * h * h / (1.0 - cl.phi) ** 2
+        volume = -cl.p_e / B if relaxed else cl.dilation  # d_t h / h: the Darcy outflow with alpha
         fluid_mass = mat.rho_f * (h - self.solid)
         du = 0.0
         if fluid_mass > 0.0:
-            du = (-(0.5 * mat.rho_f * h * cl.dilation + self.k_b) * u - cl.beta * h * (u - v)) / fluid_mass
-        rates = [h * cl.dilation, force / (mat.rho_s * self.solid), du, v]
+            du = (-(0.5 * mat.rho_f * h * volume + self.k_b) * u - cl.beta * h * (u - v)) / fluid_mass
+        rates = [h * volume, force / (mat.rho_s * self.solid), du, v]
         if relaxed:  # alpha d_t p_e = -p_e / B - Phi
-            B = 0.5 * cl.beta * h * h / (1.0 - cl.phi) ** 2
             rates.append(-(cl.p_e + B * cl.dilation) / self.relaxation_time(h))
         return np.array(rates)
 
@@ -251,13 +275,15 @@ class UniformLayer:
         # negative for a packing looser than phi_c - tan(delta)/K: such a layer cannot rest
         # (with a compressibility, at the effective pressure the pore pressure relaxing at rest leaves)
         step = _Step(self, s, dt)
+        h_rest = s.h
         if step.lag > 0.0:
-            threshold = step.closure(s.h, 0.0).tau_b
+            h_rest = step.consolidated()
+            threshold = step.closure(h_rest, 0.0).tau_b
         else:
             threshold = self.material.static_friction(self.solid / s.h) * self.weight
-        rhs = step.at(s.h)[1]
+        rhs = step.at(h_rest)[1]
         if abs(rhs) <= dt * threshold:
-            h_new, v_new = s.h, 0.0
+            h_new, v_new = h_rest, 0.0
         else:
             step.sign = math.copysign(1.0, rhs)
             h_new, speed = step.solve_moving()
@@ -349,12 +375,32 @@ class _Step:
         the step's relaxation from ``p_e``)."""
         return self.layer.closure(h, w, self.lag, self.s.p_e)
 
+    def volume_rate(self, h: float, cl: BasalClosure) -> float:
+        """``(h' - h) / (dt h')`` at ``h' = h`` with the closure ``cl`` there: the dilation rate
+        ``Phi'`` of the closure, or with a compressibility the Darcy outflow ``-p_e' / B'``."""
+        if self.lag == 0.0:
+            return cl.dilation
+        return -cl.p_e * (1.0 - cl.phi) ** 2 / (0.5 * cl.beta * h * h)
+
+    def consolidated(self) -> float:
+        """``h'`` of the layer held at rest with a compressibility: ``h' = h / (1 + dt p_e' / B')``,
+        ``p_e'`` the pore pressure relaxed at rest (``Phi = 0``) at ``h'``, by fixed-point
+        iteration from ``h`` (a contraction: ``h'`` moves by ``alpha p_e`` relative to ``h``);
+        ``h`` bit for bit where ``p_e = 0``."""
+        h = self.s.h
+        for _ in range(NEWTON_ITERATIONS):
+            new = self.s.h / (1.0 - self.dt * self.volume_rate(h, self.closure(h, 0.0)))
+            if new == h or abs(new - h) <= NEWTON_TOLERANCE * h:
+                return new
+            h = new
+        raise RunError(f"uniform layer: the thickness at rest did not converge at t = {self.s.t!r}")
+
     def residual(self, h: float, w: float) -> tuple[float, float, float]:
         """``(G1, G2, scale of G2)`` at ``h' = h``, ``|v'| = w``."""
         cl = self.closure(h, w)
         mass, rhs = self.at(h)
         return (
-            h - self.s.h - self.dt * h * cl.dilation,
+            h - self.s.h - self.dt * h * self.volume_rate(h, cl),
             mass * w + self.dt * cl.tau_b - self.sign * rhs,
             abs(rhs),
         )
