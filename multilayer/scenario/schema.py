@@ -888,6 +888,7 @@ class Scenario(StrictModel):
         self.bed.resample(self.domain)
         self.bed.check_resolution(self.domain, self.numerics.dry_threshold)
         self.model.check_options(self.domain.layers)
+        self._check_thinnest_layer()
         if self.walls is not None and self.domain.width is None:
             raise invalid(
                 "walls need the channel width domain.width",
@@ -1126,12 +1127,33 @@ class Scenario(StrictModel):
                 "gate.x",
             )
 
+    def _check_thinnest_layer(self) -> None:
+        """The thinnest layer of a column at the dry threshold, the thinnest a wet column is,
+        is a normal float (``limits.MIN_LAYER_THICKNESS``): a layer fraction of 5e-324 gave
+        layers of 0 m and a NaN velocity at the first step."""
+        fraction = float(layer_fractions(self.domain.layers, self.domain.layer_fractions).min())
+        dry = self.numerics.dry_threshold
+        if not fraction * dry >= limits.MIN_LAYER_THICKNESS:
+            raise invalid(
+                f"a layer fraction of {fraction:.3g}: in a column at numerics.dry_threshold = {dry:g} m, "
+                f"the thinnest wet one, that layer is {fraction * dry:.3g} m thick, below the smallest "
+                f"normal float {limits.MIN_LAYER_THICKNESS:.3g} (a layer's velocity is its momentum divided "
+                "by its thickness)",
+                f"layer fractions >= {limits.MIN_LAYER_THICKNESS:.3g} m / numerics.dry_threshold = "
+                f"{limits.MIN_LAYER_THICKNESS / dry:.3g}, or a larger numerics.dry_threshold",
+                "domain.layer_fractions",
+            )
+
     def _check_mixture(self) -> None:
         """``fluid`` and ``mixture`` come together, with ``phi`` in every initial entry and
         what the mixture's step supports (docs/mixture.md)."""
         if (self.fluid is None) != (self.mixture is None):
-            key = "mixture" if self.mixture is None else "fluid"
-            raise invalid("fluid and mixture are given together", "both fluid and mixture, or neither", key)
+            given, missing = ("fluid", "mixture") if self.mixture is None else ("mixture", "fluid")
+            raise invalid(
+                f"{given} is given without {missing}",
+                "both fluid and mixture (a grain-fluid mixture), or neither",
+                given,
+            )
         for i, entry in enumerate(self.initial):
             if (entry.phi is None) != (self.fluid is None):
                 need = "is required with fluid" if self.fluid is not None else "is accepted with fluid only"
