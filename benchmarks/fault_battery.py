@@ -4833,8 +4833,43 @@ def round_twenty_seven() -> list[Case]:
              setup=partial(_scenario, changes=thin)),
         Case("run: a layer fraction of 1e-301", ["run", "{scenario}", "-o", "{dir}/out", "-q"], 0, "",
              setup=partial(_scenario, changes={"domain.layer_fractions": [1e-301, 0.5, 0.5]})),
+        Case("validate: a plugin whose constructor has a parameter 'name'", validate, 2,
+             "Labelled.__init__ has a parameter 'name', a key a scenario cannot give it: in `rheology:` and "
+             "`walls:` `name` chooses the law", setup=_labelled("name"), env={"PYTHONPATH": "{dir}/plugin"}),
+        Case("validate: a plugin whose constructor has a parameter 'label'", validate, 0, "",
+             setup=_labelled("label"), env={"PYTHONPATH": "{dir}/plugin"}),
     ]  # fmt: skip
     return out
+
+
+LABELLED_PLUGIN = """
+import multilayer
+from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+
+
+class Labelled(DruckerPrager):
+    name = "labelled"
+
+    def __init__(self, mu_s: float, nu: float, {parameter}: str = "x"):
+        super().__init__(mu_s, nu)
+
+
+@multilayer.hookimpl
+def multilayer_register_rheologies(register):
+    register(Labelled)
+"""
+"""A third-party law with a parameter of a name given by the case (``name``: one no scenario
+can set)."""
+
+
+def _labelled(parameter: str) -> Callable[[Path], None]:
+    """TINY on the law of :data:`LABELLED_PLUGIN` whose third parameter is ``parameter``."""
+
+    def setup(directory: Path) -> None:
+        _entry_point_plugin(LABELLED_PLUGIN.replace("{parameter}", parameter))(directory)
+        _scenario(directory, {"rheology": {"name": "labelled", "mu_s": 0.3, "nu": 0.01}})
+
+    return setup
 
 
 def _records(path: Path) -> int:
