@@ -4766,6 +4766,7 @@ def round_twenty_seven() -> list[Case]:
     duration = "is a numpy date or duration (or an array of them), not a number"
     home = "accepted: a directory path whose leading ~ is a home directory, or no ~"
     thin = {"domain.layer_fractions": [5e-324, 0.5, 0.5]}
+    forced = ["run", "{scenario}", "-o", "{dir}/out", "-q", "--force"]
     out = [
         Case("API: multilayer.load of a mapping whose initial is a generator", validate, 2,
              "<scenario>: initial: <generator object", patch=_api(
@@ -4838,8 +4839,25 @@ def round_twenty_seven() -> list[Case]:
              "`walls:` `name` chooses the law", setup=_labelled("name"), env={"PYTHONPATH": "{dir}/plugin"}),
         Case("validate: a plugin whose constructor has a parameter 'label'", validate, 0, "",
              setup=_labelled("label"), env={"PYTHONPATH": "{dir}/plugin"}),
+        Case("validate: an inflow 1e308 m thick", validate, 2,
+             "boundaries.inflow (line 2): an inflow 1e+308 m thick at 1 m/s: its wave speed",
+             setup=partial(_scenario, changes={"boundaries": _inflow(1e308, 1.0)})),
+        Case("run --force: an inflow 1e308 m thick", forced, 2,
+             "boundaries.inflow (line 2): an inflow 1e+308 m thick at 1 m/s: its wave speed",
+             setup=partial(_scenario, changes={"boundaries": _inflow(1e308, 1.0)})),
+        Case("run --force: an inflow 0.01 m thick at 1e308 m/s", forced, 2,
+             "h u^2 + g cos(slope_deg) h^2 / 2 = inf m3/s2",
+             setup=partial(_scenario, changes={"boundaries": _inflow(0.01, 1e308)})),
+        Case("run: an inflow 0.01 m thick at 1 m/s", ["run", "{scenario}", "-o", "{dir}/out", "-q"], 0, "",
+             setup=partial(_scenario, changes={"boundaries": _inflow(0.01, 1.0)})),
     ]  # fmt: skip
     return out
+
+
+def _inflow(thickness: float, speed: float) -> dict:
+    """The boundaries of TINY with a plug inflow on the left."""
+    velocity = {"profile": "plug", "speed": speed}
+    return {"left": "inflow", "right": "outflow", "inflow": {"thickness": thickness, "velocity": velocity}}
 
 
 LABELLED_PLUGIN = """

@@ -2703,3 +2703,34 @@ def test_a_layer_too_thin_for_a_normal_float_at_the_dry_threshold_is_refused(
     data["domain"]["layer_fractions"] = [1e-301, 0.5, 0.5]
     (tmp_path / "s.yaml").write_text(yaml.safe_dump(data))
     assert cli("validate", tmp_path / "s.yaml").code == 0
+
+
+@pytest.mark.parametrize(
+    ("inflow", "said"),
+    [
+        (
+            {"thickness": 1e308, "velocity": {"profile": "plug", "speed": 1.0}},
+            "an inflow 1e+308 m thick at 1 m/s",
+        ),
+        (
+            {"thickness": 0.01, "velocity": {"profile": "plug", "speed": 1e308}},
+            "an inflow 0.01 m thick at 1e+308",
+        ),
+    ],
+)
+def test_an_inflow_whose_waves_or_momentum_overflow_is_named(tmp_path, cli, inflow, said):
+    """An inflow 1e308 m thick was refused for the steps of its waves, naming the time and
+    the domain keys, and under ``--force`` stopped the run at its first step blaming the
+    state (0.05 m at rest); one at 1e308 m/s, for a step that did not advance the time,
+    naming a wave of 0.67 m/s.  An inflow of 0.01 m at 1 m/s runs."""
+    data = copy.deepcopy(TINY_SCENARIO)
+    data["boundaries"] = {"left": "inflow", "right": "outflow", "inflow": inflow}
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(data))
+    for command in (("validate",), ("run", "--force", "-q", "-o", tmp_path / "out")):
+        result = cli(command[0], tmp_path / "s.yaml", *command[1:])
+        assert result.code == 2 and not (tmp_path / "out").exists(), result.err
+        assert re.search(rf"boundaries\.inflow \(line \d+\): {re.escape(said)}", result.err), result.err
+        assert "is no finite number; accepted: an inflow whose thickness and speed" in result.err
+    data["boundaries"]["inflow"] = {"thickness": 0.01, "velocity": {"profile": "plug", "speed": 1.0}}
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(data))
+    assert cli("validate", tmp_path / "s.yaml").code == 0

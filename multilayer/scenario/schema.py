@@ -889,6 +889,7 @@ class Scenario(StrictModel):
         self.bed.check_resolution(self.domain, self.numerics.dry_threshold)
         self.model.check_options(self.domain.layers)
         self._check_thinnest_layer()
+        self._check_inflow()
         if self.walls is not None and self.domain.width is None:
             raise invalid(
                 "walls need the channel width domain.width",
@@ -1125,6 +1126,39 @@ class Scenario(StrictModel):
                 "where the side's boundary holds or releases the material",
                 accepted,
                 "gate.x",
+            )
+
+    def _check_inflow(self) -> None:
+        """The inflow's wave speed ``|u| + sqrt(g cos(theta) h)``, the momentum it brings in,
+        ``h u^2 + g cos(theta) h^2 / 2``, and the pressure under it, ``density g cos(theta)
+        h``, are finite numbers: an inflow 1e308 m thick (or at 1e308 m/s) was refused for
+        the time steps of its waves, naming the time and the domain, and under ``--force``
+        stopped the run at its first step blaming the state (0.05 m at rest)."""
+        inflow = self.boundaries.inflow
+        if inflow is None:
+            return
+        h, v = inflow.thickness, inflow.velocity
+        top = (
+            v.speed
+            if v.profile == "plug"
+            else v.shear_rate * max(h - (v.from_height or 0.0), 0.0)
+            if v.profile == "linear"
+            else v.surface_speed
+        )
+        g_n = self.gravity * math.cos(math.radians(self.slope_deg))
+        u = abs(float(top or 0.0))
+        speed = u + math.sqrt(g_n * h)  # Python's floats: inf, no warning
+        flux = h * u * u + g_n * h * h / 2.0
+        pressure = self.material.density * g_n * h
+        if not (math.isfinite(speed) and math.isfinite(flux) and math.isfinite(pressure)):
+            raise invalid(
+                f"an inflow {h:g} m thick at {u:g} m/s: its wave speed |u| + sqrt(g cos(slope_deg) h) = "
+                f"{speed:.3g} m/s, the momentum it brings in, h u^2 + g cos(slope_deg) h^2 / 2 = "
+                f"{flux:.3g} m3/s2, or the pressure under it, density g cos(slope_deg) h = {pressure:.3g} "
+                "Pa, is no finite number",
+                "an inflow whose thickness and speed, with the density and gravity, give a finite wave "
+                "speed, momentum flux and pressure",
+                "boundaries.inflow",
             )
 
     def _check_thinnest_layer(self) -> None:
