@@ -889,7 +889,7 @@ class Scenario(StrictModel):
         self.bed.check_resolution(self.domain, self.numerics.dry_threshold)
         self.model.check_options(self.domain.layers)
         self._check_thinnest_layer()
-        self._check_inflow()
+        self._check_inflow_finite()
         if self.walls is not None and self.domain.width is None:
             raise invalid(
                 "walls need the channel width domain.width",
@@ -1128,7 +1128,7 @@ class Scenario(StrictModel):
                 "gate.x",
             )
 
-    def _check_inflow(self) -> None:
+    def _check_inflow_finite(self) -> None:
         """The inflow's wave speed ``|u| + sqrt(g cos(theta) h)``, the momentum it brings in,
         ``h u^2 + g cos(theta) h^2 / 2``, and the pressure under it, ``density g cos(theta)
         h``, are finite numbers: an inflow 1e308 m thick (or at 1e308 m/s) was refused for
@@ -1141,7 +1141,7 @@ class Scenario(StrictModel):
         top = (
             v.speed
             if v.profile == "plug"
-            else v.shear_rate * max(h - (v.from_height or 0.0), 0.0)
+            else (v.shear_rate or 0.0) * max(h - (v.from_height or 0.0), 0.0)
             if v.profile == "linear"
             else v.surface_speed
         )
