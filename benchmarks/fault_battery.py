@@ -3718,6 +3718,7 @@ def cases() -> list[Case]:
         + round_twenty_four()
         + round_twenty_five()
         + round_twenty_six()
+        + round_twenty_seven()
     )
 
 
@@ -4751,6 +4752,144 @@ def _run_and_study(directory: Path) -> None:
     _sensitivity()(directory / "out")
 
 
+def round_twenty_seven() -> list[Case]:
+    """The hostile cases of the twenty-seventh round (docs/reliability.md): the Python API
+    given a generator, an open file or numpy durations as scenario values; a study's ``set``
+    or experiment giving a parameter's value through a key above it; an output directory
+    under a user the system does not know or an empty ``HOME``; a fluid without a mixture;
+    a layer fraction of 5e-324; as controls, numbers held in an object array, ``~/x`` under
+    a known ``HOME``, a layer fraction of 1e-301 and a ``set`` of another key."""
+    validate = ["validate", "{scenario}"]
+    load = "import yaml\ndata = yaml.safe_load(open(sys.argv[2]))\n"
+    mass = {"quantity": "mass_final", "value": 0.005, "sigma": 1e-3}
+    rheology = {"name": "drucker_prager", "mu_s": 0.3, "nu": 0.01}
+    duration = "is a numpy date or duration (or an array of them), not a number"
+    home = "accepted: a directory path whose leading ~ is a home directory, or no ~"
+    thin = {"domain.layer_fractions": [5e-324, 0.5, 0.5]}
+    forced = ["run", "{scenario}", "-o", "{dir}/out", "-q", "--force"]
+    out = [
+        Case("API: multilayer.load of a mapping whose initial is a generator", validate, 2,
+             "<scenario>: initial: <generator object", patch=_api(
+                 load + "data['initial'] = (e for e in data['initial'])\nmultilayer.load(data)"),
+             setup=_scenario),
+        Case("API: multilayer.load of a mapping whose bed.file is an open file", validate, 2,
+             f"<scenario>: bed.file: <_io.TextIOWrapper name='{os.devnull}'", patch=_api(
+                 load + "data['bed'] = {'profile': 'file', 'file': open('/dev/null')}\n"
+                 "multilayer.load(data)"), setup=_scenario),
+        Case("API: domain.x_max = np.timedelta64(5) (a duration of no unit)", validate, 2,
+             f"<scenario>: domain.x_max: np.timedelta64(5) {duration}", patch=_api(
+                 load + "import numpy as np\ndata['domain']['x_max'] = np.timedelta64(5)\n"
+                 "multilayer.load(data)"), setup=_scenario),
+        Case("API: overrides {'time.end': np.timedelta64(1)}", validate, 2,
+             f"overrides: time.end: np.timedelta64(1) {duration}", patch=_api(
+                 "import numpy as np\nmultilayer.load(sys.argv[2], {'time.end': np.timedelta64(1)})"),
+             setup=_scenario),
+        Case("API: bed.points an array of numpy durations", validate, 2, "<scenario>: bed.points: array(",
+             patch=_api(load + "import numpy as np\n"
+                        "data['bed'] = {'points': np.array([[0, 0], [5, 0]], dtype='m8')}\n"
+                        "multilayer.load(data)"), setup=_scenario),
+        Case("API: bed.points an object array of numbers", validate, 0, "", patch=_api(
+            load + "import numpy as np\n"
+            "data['bed'] = {'points': np.array([[0.0, 0.0], [0.5, -0.1]], dtype=object)}\n"
+            "multilayer.load(data)"), setup=_scenario),
+        Case("validate: a calibration whose set gives rheology holding the parameter rheology.mu_s",
+             ["validate", "{dir}/calibration.yaml"], 2,
+             "parameters.rheology.mu_s (line 8): also given a value in set.rheology, which",
+             setup=_calibration_of(mass, extra={"set": {"rheology": rheology}})),
+        Case("validate: a calibration whose experiment gives rheology holding rheology.mu_s",
+             ["validate", "{dir}/calibration.yaml"], 2,
+             "also given a value in experiments.a.rheology, which",
+             setup=_calibration_of({**mass, "experiment": "a"},
+                                   extra={"experiments": {"a": {"rheology": rheology}, "b": {}}})),
+        Case("validate: a calibration of initial.0.height whose set gives initial",
+             ["validate", "{dir}/calibration.yaml"], 2, "also given a value in set.initial, which",
+             setup=_calibration_of(mass, extra={
+                 "set": {"initial": TINY["initial"]},
+                 "parameters": {"initial.0.height": {"bounds": [0.04, 0.06]}}})),
+        Case("validate: a calibration of rheology.mu_s whose set gives initial",
+             ["validate", "{dir}/calibration.yaml"], 0, "",
+             setup=_calibration_of(mass, extra={"set": {"initial": TINY["initial"]}})),
+        Case("validate: output.directory ~nosuchuser/x", validate, 2,
+             f"output.directory (line 19): '~nosuchuser/x': no user 'nosuchuser' on this system; {home}",
+             setup=partial(_scenario, changes={"output": {"directory": "~nosuchuser/x"}})),
+        Case("validate: a sweep into ~nosuchuser/x", ["validate", "{dir}/sweep.yaml"], 2,
+             f"output.directory (line 3): '~nosuchuser/x': no user 'nosuchuser' on this system; {home}",
+             setup=_sweep_into("~nosuchuser/x")),
+        Case("run: output.directory ~/x under HOME=''", ["run", "{scenario}", "-q"], 2,
+             f"'~/x': HOME is '', not an absolute path; {home}",
+             setup=partial(_scenario, changes={"output": {"directory": "~/x"}}), env={"HOME": ""}),
+        Case("sweep: into ~/x under HOME=''", ["sweep", "{dir}/sweep.yaml", "-q"], 2,
+             f"'~/x': HOME is '', not an absolute path; {home}", setup=_sweep_into("~/x"), env={"HOME": ""}),
+        Case("validate: output.directory ~/x under HOME of the case's directory", validate, 0, "",
+             setup=partial(_scenario, changes={"output": {"directory": "~/x"}}), env={"HOME": "{dir}"}),
+        Case("validate: fluid without mixture", validate, 2,
+             "fluid (line 9): fluid is given without mixture; accepted: both fluid and mixture",
+             setup=partial(_scenario, changes={"fluid": MIXTURE["fluid"]})),
+        Case("validate: a layer fraction of 5e-324", validate, 2,
+             "domain.layer_fractions (line 6): a layer fraction of 4.94e-324: in a column at "
+             "numerics.dry_threshold = 1e-06 m, the thinnest wet one, that layer is 0 m thick",
+             setup=partial(_scenario, changes=thin)),
+        Case("run: a layer fraction of 5e-324", ["run", "{scenario}", "-o", "{dir}/out", "-q"], 2,
+             "accepted: layer fractions >= 2.23e-308 m / numerics.dry_threshold = 2.23e-302",
+             setup=partial(_scenario, changes=thin)),
+        Case("run: a layer fraction of 1e-301", ["run", "{scenario}", "-o", "{dir}/out", "-q"], 0, "",
+             setup=partial(_scenario, changes={"domain.layer_fractions": [1e-301, 0.5, 0.5]})),
+        Case("validate: a plugin whose constructor has a parameter 'name'", validate, 2,
+             "Labelled.__init__ has a parameter 'name', a key a scenario cannot give it: in `rheology:` and "
+             "`walls:` `name` chooses the law", setup=_labelled("name"), env={"PYTHONPATH": "{dir}/plugin"}),
+        Case("validate: a plugin whose constructor has a parameter 'label'", validate, 0, "",
+             setup=_labelled("label"), env={"PYTHONPATH": "{dir}/plugin"}),
+        Case("validate: an inflow 1e308 m thick", validate, 2,
+             "boundaries.inflow (line 2): an inflow 1e+308 m thick at 1 m/s: its wave speed",
+             setup=partial(_scenario, changes={"boundaries": _inflow(1e308, 1.0)})),
+        Case("run --force: an inflow 1e308 m thick", forced, 2,
+             "boundaries.inflow (line 2): an inflow 1e+308 m thick at 1 m/s: its wave speed",
+             setup=partial(_scenario, changes={"boundaries": _inflow(1e308, 1.0)})),
+        Case("run --force: an inflow 0.01 m thick at 1e308 m/s", forced, 2,
+             "h u^2 + g cos(slope_deg) h^2 / 2 = inf m3/s2",
+             setup=partial(_scenario, changes={"boundaries": _inflow(0.01, 1e308)})),
+        Case("run: an inflow 0.01 m thick at 1 m/s", ["run", "{scenario}", "-o", "{dir}/out", "-q"], 0, "",
+             setup=partial(_scenario, changes={"boundaries": _inflow(0.01, 1.0)})),
+    ]  # fmt: skip
+    return out
+
+
+def _inflow(thickness: float, speed: float) -> dict:
+    """The boundaries of TINY with a plug inflow on the left."""
+    velocity = {"profile": "plug", "speed": speed}
+    return {"left": "inflow", "right": "outflow", "inflow": {"thickness": thickness, "velocity": velocity}}
+
+
+LABELLED_PLUGIN = """
+import multilayer
+from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+
+
+class Labelled(DruckerPrager):
+    name = "labelled"
+
+    def __init__(self, mu_s: float, nu: float, {parameter}: str = "x"):
+        super().__init__(mu_s, nu)
+
+
+@multilayer.hookimpl
+def multilayer_register_rheologies(register):
+    register(Labelled)
+"""
+"""A third-party law with a parameter of a name given by the case (``name``: one no scenario
+can set)."""
+
+
+def _labelled(parameter: str) -> Callable[[Path], None]:
+    """TINY on the law of :data:`LABELLED_PLUGIN` whose third parameter is ``parameter``."""
+
+    def setup(directory: Path) -> None:
+        _entry_point_plugin(LABELLED_PLUGIN.replace("{parameter}", parameter))(directory)
+        _scenario(directory, {"rheology": {"name": "labelled", "mu_s": 0.3, "nu": 0.01}})
+
+    return setup
+
+
 def _records(path: Path) -> int:
     try:
         import netCDF4
@@ -4828,7 +4967,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     13: round_thirteen, 14: round_fourteen, 15: round_fifteen, 16: round_sixteen,
     17: round_seventeen, 18: round_eighteen, 19: round_nineteen, 20: round_twenty,
     21: round_twenty_one, 22: round_twenty_two, 23: round_twenty_three, 24: round_twenty_four,
-    25: round_twenty_five, 26: round_twenty_six,
+    25: round_twenty_five, 26: round_twenty_six, 27: round_twenty_seven,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""
 
@@ -4838,7 +4977,7 @@ def main() -> None:
     parser.add_argument("-k", default="", help="only the cases whose name contains this")
     parser.add_argument("-j", type=int, default=2, help="cases run at once")
     parser.add_argument(
-        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 26; all: none)"
+        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 27; all: none)"
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()

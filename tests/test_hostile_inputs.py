@@ -2566,3 +2566,171 @@ def test_a_run_extended_from_an_end_between_output_times_says_what_differs(tmp_p
         assert (message in result.err) is said, result.err
         times = results.open_result(out)["time"].values
         assert (0.21 in times.round(12)) is said and times[-1] == 0.3
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "phrase"),
+    [
+        ("initial", lambda: (entry for entry in TINY_SCENARIO["initial"]), "initial: <generator object"),
+        ("bed", lambda: {"profile": "file", "file": open(os.devnull)}, "bed.file: <_io.TextIOWrapper"),
+        ("domain", lambda: {**TINY_SCENARIO["domain"], "x_max": np.timedelta64(5)}, "domain.x_max: np."),
+        ("bed", lambda: {"points": np.array([[0, 0], [5, 0]], dtype="m8")}, "bed.points: array("),
+    ],
+)
+def test_a_python_value_that_is_no_number_or_cannot_be_copied_is_named(key, value, phrase):
+    """A generator or an open file in the mapping given to ``multilayer.load`` raised
+    ``TypeError: cannot pickle 'generator' object`` from the deep copy of the overrides; a
+    numpy duration of no unit was read as the integer it counts (``np.timedelta64(5)``:
+    a domain 5 m long)."""
+    data = {**TINY_SCENARIO, key: value()}
+    with pytest.raises(InputError, match="^<scenario>: ") as raised:
+        multilayer.load(data)
+    assert phrase in str(raised.value), raised.value
+    assert "is a numpy date or duration" in str(raised.value) or "(it cannot be copied)" in str(raised.value)
+    with pytest.raises(InputError, match=r"^overrides: time\.end: np\.timedelta64\(1\) is a numpy date"):
+        multilayer.load(TINY_SCENARIO, {"time.end": np.timedelta64(1)})
+    points = np.array([[0.0, 0.0], [0.5, -0.1]], dtype=object)  # numbers held as objects: read
+    assert multilayer.load({**TINY_SCENARIO, "bed": {"points": points}}).bed.points == [[0, 0], [0.5, -0.1]]
+
+
+@pytest.mark.parametrize(
+    ("given", "parameter", "where"),
+    [
+        ({"set": {"rheology": {"name": "drucker_prager", "mu_s": 0.3, "nu": 0.01}}}, "rheology.mu_s",
+         "set.rheology"),
+        ({"experiments": {"a": {"rheology": {"name": "drucker_prager", "mu_s": 0.3, "nu": 0.01}}, "b": {}}},
+         "rheology.mu_s", "experiments.a.rheology"),
+        ({"set": {"initial": copy.deepcopy(TINY_SCENARIO["initial"])}}, "initial.0.height", "set.initial"),
+    ],
+)  # fmt: skip
+def test_a_study_parameter_given_a_value_within_a_key_above_it_is_refused(
+    tmp_path, cli, given, parameter, where
+):
+    """``set: {rheology: {name: drucker_prager, mu_s: 0.3, nu: 0.01}}`` beside the parameter
+    ``rheology.mu_s``: validated and run with the calibrated mu_s, set's silently replaced
+    (``set: {rheology.mu_s: 0.3}`` was refused).  A key above that does not hold the
+    parameter (``set: {initial: [...]}`` beside ``rheology.mu_s``) is read."""
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(TINY_SCENARIO))
+    observation = {"name": "m", "quantity": "mass_final", "value": 0.005, "sigma": 0.001}
+    config = {
+        "base": "base.yaml",
+        "parameters": {parameter: {"bounds": [0.2, 0.4] if "mu_s" in parameter else [0.04, 0.06]}},
+        "observations": [{**observation, **({"experiment": "a"} if "experiments" in given else {})}],
+        "search": {"population": 4, "generations": 1},
+        **given,
+    }
+    (tmp_path / "calibration.yaml").write_text(yaml.safe_dump(config))
+    validated = cli("validate", tmp_path / "calibration.yaml")
+    assert validated.code == 2, validated.err
+    assert re.search(
+        rf"parameters\.{re.escape(parameter)} \(line \d+\): also given a value in {where},", validated.err
+    )
+    if where == "set.initial":
+        config["parameters"] = {"rheology.mu_s": {"bounds": [0.2, 0.4]}}
+        (tmp_path / "calibration.yaml").write_text(yaml.safe_dump(config))
+        assert cli("validate", tmp_path / "calibration.yaml").code == 0
+
+
+@pytest.mark.parametrize(
+    ("directory", "home", "phrase"),
+    [
+        ("~nosuchuser/x", None, "'~nosuchuser/x': no user 'nosuchuser' on this system"),
+        ("~/x", "", "'~/x': HOME is '', not an absolute path"),
+        ("~/x", "relative", "'~/x': HOME is 'relative', not an absolute path"),
+    ],
+)
+def test_an_output_directory_under_a_home_that_is_not_known_is_refused(
+    tmp_path, cli, monkeypatch, directory, home, phrase
+):
+    """``output.directory: ~nosuchuser/x`` ran into a directory named ``~nosuchuser`` in the
+    working directory (a sweep's stopped with ``RuntimeError: Could not determine home
+    directory.`` and a traceback); ``~/x`` under an empty ``HOME`` into ``/x``, in the
+    root directory."""
+    if home is not None:
+        monkeypatch.setenv("HOME", home)
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump({**TINY_SCENARIO, "output": {"directory": directory}}))
+    sweep = {"base": "base.yaml", "parameters": {"slope_deg": [20, 25]}, "output": {"directory": directory}}
+    (tmp_path / "sweep.yaml").write_text(yaml.safe_dump(sweep))
+    (tmp_path / "plain.yaml").write_text(yaml.safe_dump(TINY_SCENARIO))
+    for command in (("validate", "base.yaml"), ("run", "base.yaml", "-q"), ("sweep", "sweep.yaml", "-q")):
+        result = cli(*command)
+        assert result.code == 2 and "output.directory (line " in result.err and phrase in result.err, (
+            result.err
+        )
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["base.yaml", "plain.yaml", "sweep.yaml"]
+    monkeypatch.setenv("HOME", str(tmp_path))
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump({**TINY_SCENARIO, "output": {"directory": "~/x"}}))
+    assert cli("validate", "base.yaml").code == 0
+
+
+@pytest.mark.parametrize(("given", "missing"), [("fluid", "mixture"), ("mixture", "fluid")])
+def test_a_fluid_without_a_mixture_is_said_so(tmp_path, cli, given, missing):
+    """``fluid`` given alone was "mixture: fluid and mixture are given together"."""
+    keys = {
+        "fluid": {"density": 1000.0, "viscosity": 1e-3},
+        "mixture": {"phi_critical": 0.58, "dilatancy": 4.0, "critical_shift": 25.0},
+    }
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump({**TINY_SCENARIO, given: keys[given]}))
+    result = cli("validate", tmp_path / "s.yaml")
+    assert result.code == 2
+    assert re.search(
+        rf"s\.yaml: {given} \(line \d+\): {given} is given without {missing}; accepted: both", result.err
+    )
+
+
+@pytest.mark.parametrize(
+    ("fractions", "thinnest"), [([5e-324, 0.5, 0.5], "4.94e-324"), ({"geometric": 1e-160}, "1e-320")]
+)
+def test_a_layer_too_thin_for_a_normal_float_at_the_dry_threshold_is_refused(
+    tmp_path, cli, fractions, thinnest
+):
+    """``domain.layer_fractions: [5e-324, 0.5, 0.5]`` validated, and the run failed at its
+    first step (exit 1, a NaN velocity: the layer was 0 m thick in every column thinner than
+    1 m); ``[1e-301, 0.5, 0.5]`` (1e-307 m at the dry threshold of 1e-6 m) runs."""
+    data = copy.deepcopy(TINY_SCENARIO)
+    data["domain"]["layer_fractions"] = fractions
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(data))
+    for command in ("validate", "run"):
+        result = cli(
+            command, tmp_path / "s.yaml", *(["-o", tmp_path / "out", "-q"] if command == "run" else [])
+        )
+        assert result.code == 2 and not (tmp_path / "out").exists(), result.err
+        assert re.search(
+            rf"domain\.layer_fractions \(line \d+\): a layer fraction of {thinnest}: in a column", result.err
+        )
+        assert "accepted: layer fractions >= 2.23e-308 m / numerics.dry_threshold = 2.23e-302" in result.err
+    data["domain"]["layer_fractions"] = [1e-301, 0.5, 0.5]
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(data))
+    assert cli("validate", tmp_path / "s.yaml").code == 0
+
+
+@pytest.mark.parametrize(
+    ("inflow", "said"),
+    [
+        (
+            {"thickness": 1e308, "velocity": {"profile": "plug", "speed": 1.0}},
+            "an inflow 1e+308 m thick at 1 m/s",
+        ),
+        (
+            {"thickness": 0.01, "velocity": {"profile": "plug", "speed": 1e308}},
+            "an inflow 0.01 m thick at 1e+308",
+        ),
+    ],
+)
+def test_an_inflow_whose_waves_or_momentum_overflow_is_named(tmp_path, cli, inflow, said):
+    """An inflow 1e308 m thick was refused for the steps of its waves, naming the time and
+    the domain keys, and under ``--force`` stopped the run at its first step blaming the
+    state (0.05 m at rest); one at 1e308 m/s, for a step that did not advance the time,
+    naming a wave of 0.67 m/s.  An inflow of 0.01 m at 1 m/s runs."""
+    data = copy.deepcopy(TINY_SCENARIO)
+    data["boundaries"] = {"left": "inflow", "right": "outflow", "inflow": inflow}
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(data))
+    for command in (("validate",), ("run", "--force", "-q", "-o", tmp_path / "out")):
+        result = cli(command[0], tmp_path / "s.yaml", *command[1:])
+        assert result.code == 2 and not (tmp_path / "out").exists(), result.err
+        assert re.search(rf"boundaries\.inflow \(line \d+\): {re.escape(said)}", result.err), result.err
+        assert "is no finite number; accepted: an inflow whose thickness and speed" in result.err
+    data["boundaries"]["inflow"] = {"thickness": 0.01, "velocity": {"profile": "plug", "speed": 1.0}}
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(data))
+    assert cli("validate", tmp_path / "s.yaml").code == 0

@@ -185,6 +185,21 @@ BROKEN = {
         """,
         "applies_to must be 'bulk' or 'walls'",
     ),
+    "a-parameter-name": (  # never settable: ``name: x`` in the scenario chose the law x
+        """
+        import multilayer
+        from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+        class Labelled(DruckerPrager):
+            name = "labelled"
+            def __init__(self, mu_s: float, nu: float, name: str = "x"):
+                super().__init__(mu_s, nu)
+        @multilayer.hookimpl
+        def multilayer_register_rheologies(register):
+            register(Labelled)
+        """,
+        "Labelled.__init__ has a parameter 'name', a key a scenario cannot give it: in `rheology:` and "
+        "`walls:` `name` chooses the law; accepted: other parameter names",
+    ),
     "duplicate": (
         """
         import multilayer

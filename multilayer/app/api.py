@@ -41,8 +41,8 @@ def _override_strings(overrides: Overrides) -> list[str]:
                 text = json.dumps(limits.plain_data(value, f"overrides: {key}"), allow_nan=False)
             except (TypeError, ValueError):
                 raise InputError(
-                    f"overrides: {key}: {shown(value)} is not a value of a scenario; accepted: finite "
-                    "numbers, strings, booleans, None, and lists and mappings of them"
+                    f"overrides: {key}: {shown(value)} is not a value of a scenario; accepted: "
+                    f"{limits.PLAIN_VALUES}"
                 ) from None
             strings.append(f"{key}={text}")  # JSON is YAML
         return strings

@@ -406,6 +406,28 @@ FRONT_QUANTITIES = ("front", "front_final", "runout", "duration")
 """The observed quantities measured on the front (:mod:`multilayer.io.observables`)."""
 
 
+def _giving(overrides: dict[str, Any], key: str) -> str | None:
+    """The key of ``overrides`` that gives the dotted ``key`` a value: ``key`` itself, or a
+    key above it whose mapping or list holds it (``rheology: {name: ..., mu_s: 0.3}`` gives
+    ``rheology.mu_s``, ``initial: [{height: 0.05, ...}]`` gives ``initial.0.height``)."""
+    for given, value in overrides.items():
+        if given == key:
+            return given
+        if not key.startswith(given + "."):
+            continue
+        node = value
+        for part in key[len(given) + 1 :].split("."):
+            if isinstance(node, dict) and part in node:
+                node = node[part]
+            elif isinstance(node, list) and part.isdecimal() and int(part) < len(node):
+                node = node[int(part)]
+            else:
+                break
+        else:
+            return given
+    return None
+
+
 def _check_base(
     path: Path,
     lines: dict,
@@ -424,8 +446,10 @@ def _check_base(
             if refused:
                 raise InputError(f"{_at(path, lines, *within, key)}: {refused}")
     for key in config.parameters:
-        fixed = ["set"] * (key in config.set) + [
-            f"experiments.{n}" for n, extra in experiments.items() if key in extra
+        fixed = [
+            ".".join(within) + ("" if given_by == key else f".{given_by}")  # the key above it named
+            for within, overrides in given
+            if (given_by := _giving(overrides, key)) is not None
         ]
         if fixed:
             raise InputError(

@@ -115,7 +115,20 @@ def _problem(cls: object) -> str | None:
         parameter_model(cls)
     except Exception as exc:  # an unusable constructor signature
         return f"{cls.__qualname__}.__init__ has an unusable signature: {exc}"
+    taken = [p.name for p in _parameters(cls) if p.name in RESERVED_PARAMETERS]
+    if taken:
+        return (
+            f"{cls.__qualname__}.__init__ has a parameter {taken[0]!r}, a key a scenario cannot give it: "
+            f"in `rheology:` and `walls:` {RESERVED_PARAMETERS[taken[0]]}; accepted: other parameter names"
+        )
     return None
+
+
+RESERVED_PARAMETERS = {"name": "`name` chooses the law"}
+"""Constructor parameters a plugin may not have: keys of a scenario's ``rheology`` and
+``walls`` mappings with a meaning of their own (``scenario.schema.PluginSpec``).  A
+parameter ``name`` could never be set (``name: x`` chose the law x) and was listed by
+``multilayer plugins`` all the same."""
 
 
 @functools.cache

@@ -16,6 +16,7 @@ largest profile a few thousand points) and are listed in docs/reliability.md.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Mapping
 from typing import Any
 
@@ -53,6 +54,11 @@ MIN_CELL_SPACINGS = 1024
 """Floats a cell is at least wide at the domain's ends: its edges ``x_min + i dx`` are then
 rounded by at most 1/1024 of a cell (cells of 1e-10 m at x = 1e6 m, where floats are
 1.16e-10 m apart, would have edges that coincide: a cell of width 0 and its thickness 0/0)."""
+MIN_LAYER_THICKNESS = float(np.finfo(float).tiny)
+"""Thinnest layer (m) of a column at ``numerics.dry_threshold``, the thinnest a wet column
+is: the smallest layer fraction times the dry threshold must be a normal float.  A layer's
+velocity is its momentum divided by its thickness, which a layer that underflows there does
+not have (a fraction of 5e-324 is 0 m of every column thinner than 1 m)."""
 MIN_DENSITY = 1e-100
 """Smallest ``material.density`` and ``material.particle_density`` (kg/m^3).  A dry flow
 does not depend on its density (every stress of the built-in laws is the density times a
@@ -155,12 +161,19 @@ def check_text(text: str, where: str) -> None:
         ) from None
 
 
+PLAIN_VALUES = "finite numbers, strings, booleans, None, and lists and mappings of them"
+"""What a scenario given as Python data holds (``multilayer.load`` of a mapping, overrides)."""
+
+
 def plain_data(value: Any, where: str) -> Any:
     """A copy of ``value``, a scenario or a value given as Python data (``multilayer.load``
     of a mapping), in the types YAML gives: numpy scalars and arrays as numbers and lists,
     tuples as lists.  :class:`InputError` naming ``where`` and the key beyond the bounds of
     a YAML text (nesting, number of values), or holding a text that is not Unicode
-    (:func:`check_text`); a structure that holds itself nests without end."""
+    (:func:`check_text`); a structure that holds itself nests without end.  A numpy date or
+    duration is no number (``np.timedelta64(5)`` of no unit gives the integer 5), and a
+    value that cannot be copied (a generator, an open file) no value of a scenario: both
+    are named; other values are left to the schema, which names them."""
     count = 0
 
     def place(path: tuple[Any, ...]) -> str:
@@ -175,8 +188,9 @@ def plain_data(value: Any, where: str) -> Any:
                 f"values; accepted: mappings and lists nested at most {MAX_DEPTH} deep, not holding "
                 f"themselves, of at most {MAX_NODES} values"
             )
+        at = f"{where}: {place(path)}" if path else where
         if isinstance(item, str):
-            check_text(item, f"{where}: {place(path)}" if path else where)
+            check_text(item, at)
         if isinstance(item, Mapping):
             for name in item:
                 if isinstance(name, str):
@@ -185,11 +199,28 @@ def plain_data(value: Any, where: str) -> Any:
                 (key.item() if isinstance(key, np.generic) else key): plain(entry, (*path, key))
                 for key, entry in item.items()
             }
-        if isinstance(item, np.ndarray):
+        if isinstance(item, np.ndarray) and item.dtype.kind not in "mMO":
             return item.tolist()
+        if isinstance(item, np.ndarray) and item.dtype.kind == "O":  # its entries are any object
+            return [plain(entry, (*path, index)) for index, entry in enumerate(item)]
         if isinstance(item, (list, tuple)):
             return [plain(entry, (*path, index)) for index, entry in enumerate(item)]
-        return item.item() if isinstance(item, np.generic) else item
+        if isinstance(item, (np.datetime64, np.timedelta64, np.ndarray)):  # an array of them too
+            raise InputError(
+                f"{at}: {shown(item)} is a numpy date or duration (or an array of them), not a number; "
+                f"accepted: {PLAIN_VALUES}"
+            )
+        if isinstance(item, np.generic):
+            return item.item()
+        if isinstance(item, (str, bytes, int, float, type(None))):
+            return item
+        try:  # every reader copies the data: one that cannot be copied is named here
+            return copy.deepcopy(item)
+        except Exception:  # noqa: BLE001 - whatever its __deepcopy__ or __reduce__ raises
+            raise InputError(
+                f"{at}: {shown(item)} is not a value of a scenario (it cannot be "
+                f"copied); accepted: {PLAIN_VALUES}"
+            ) from None
 
     return plain(value, ())
 

@@ -10,6 +10,7 @@ accepted, which the loader prefixes with the file and the line.
 from __future__ import annotations
 
 import os
+import pwd
 import typing
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -50,8 +51,36 @@ def directory_path(value: Any) -> Any:
     if value == "":  # Path('') is '.': the run wrote into the working directory
         raise invalid("an empty path", "a directory path ('.' for the working directory)")
     if value is not None and str(value).startswith("~"):
+        problem = unknown_home(str(value))
+        if problem is not None:
+            raise invalid(problem, "a directory path whose leading ~ is a home directory, or no ~")
         return type(value)(os.path.expanduser(str(value)))  # a Path stays a Path
     return value
+
+
+def unknown_home(path: str) -> str | None:
+    """What is wrong with the home directory a leading ``~`` or ``~user`` of ``path`` names,
+    or None: a user the system does not know (``os.path.expanduser`` left ``~nosuchuser/x``
+    as it was, a directory named ``~nosuchuser`` in the working directory, and ``Path``'s
+    raised ``RuntimeError``), or a ``HOME`` that is empty (``~/runs`` read as ``/runs``, in
+    the root directory) or relative (read from the working directory)."""
+    head = path.split(os.sep, 1)[0]
+    if head == "~":
+        if "HOME" not in os.environ:
+            try:
+                pwd.getpwuid(os.getuid())
+            except KeyError:
+                return f"{path!r}: the home directory is not known (no HOME, no user of id {os.getuid()})"
+            return None
+        home = os.environ["HOME"]
+        if not os.path.isabs(home):
+            return f"{path!r}: HOME is {home!r}, not an absolute path"
+        return None
+    try:
+        pwd.getpwnam(head[1:])
+    except KeyError:
+        return f"{path!r}: no user {head[1:]!r} on this system"
+    return None
 
 
 def check_kind(model: BaseModel, kind: str, table: dict[str, tuple[tuple[str, ...], ...]]) -> None:

@@ -888,6 +888,8 @@ class Scenario(StrictModel):
         self.bed.resample(self.domain)
         self.bed.check_resolution(self.domain, self.numerics.dry_threshold)
         self.model.check_options(self.domain.layers)
+        self._check_thinnest_layer()
+        self._check_inflow_finite()
         if self.walls is not None and self.domain.width is None:
             raise invalid(
                 "walls need the channel width domain.width",
@@ -1126,12 +1128,66 @@ class Scenario(StrictModel):
                 "gate.x",
             )
 
+    def _check_inflow_finite(self) -> None:
+        """The inflow's wave speed ``|u| + sqrt(g cos(theta) h)``, the momentum it brings in,
+        ``h u^2 + g cos(theta) h^2 / 2``, and the pressure under it, ``density g cos(theta)
+        h``, are finite numbers: an inflow 1e308 m thick (or at 1e308 m/s) was refused for
+        the time steps of its waves, naming the time and the domain, and under ``--force``
+        stopped the run at its first step blaming the state (0.05 m at rest)."""
+        inflow = self.boundaries.inflow
+        if inflow is None:
+            return
+        h, v = inflow.thickness, inflow.velocity
+        top = (
+            v.speed
+            if v.profile == "plug"
+            else (v.shear_rate or 0.0) * max(h - (v.from_height or 0.0), 0.0)
+            if v.profile == "linear"
+            else v.surface_speed
+        )
+        g_n = self.gravity * math.cos(math.radians(self.slope_deg))
+        u = abs(float(top or 0.0))
+        speed = u + math.sqrt(g_n * h)  # Python's floats: inf, no warning
+        flux = h * u * u + g_n * h * h / 2.0
+        pressure = self.material.density * g_n * h
+        if not (math.isfinite(speed) and math.isfinite(flux) and math.isfinite(pressure)):
+            raise invalid(
+                f"an inflow {h:g} m thick at {u:g} m/s: its wave speed |u| + sqrt(g cos(slope_deg) h) = "
+                f"{speed:.3g} m/s, the momentum it brings in, h u^2 + g cos(slope_deg) h^2 / 2 = "
+                f"{flux:.3g} m3/s2, or the pressure under it, density g cos(slope_deg) h = {pressure:.3g} "
+                "Pa, is no finite number",
+                "an inflow whose thickness and speed, with the density and gravity, give a finite wave "
+                "speed, momentum flux and pressure",
+                "boundaries.inflow",
+            )
+
+    def _check_thinnest_layer(self) -> None:
+        """The thinnest layer of a column at the dry threshold, the thinnest a wet column is,
+        is a normal float (``limits.MIN_LAYER_THICKNESS``): a layer fraction of 5e-324 gave
+        layers of 0 m and a NaN velocity at the first step."""
+        fraction = float(layer_fractions(self.domain.layers, self.domain.layer_fractions).min())
+        dry = self.numerics.dry_threshold
+        if not fraction * dry >= limits.MIN_LAYER_THICKNESS:
+            raise invalid(
+                f"a layer fraction of {fraction:.3g}: in a column at numerics.dry_threshold = {dry:g} m, "
+                f"the thinnest wet one, that layer is {fraction * dry:.3g} m thick, below the smallest "
+                f"normal float {limits.MIN_LAYER_THICKNESS:.3g} (a layer's velocity is its momentum divided "
+                "by its thickness)",
+                f"layer fractions >= {limits.MIN_LAYER_THICKNESS:.3g} m / numerics.dry_threshold = "
+                f"{limits.MIN_LAYER_THICKNESS / dry:.3g}, or a larger numerics.dry_threshold",
+                "domain.layer_fractions",
+            )
+
     def _check_mixture(self) -> None:
         """``fluid`` and ``mixture`` come together, with ``phi`` in every initial entry and
         what the mixture's step supports (docs/mixture.md)."""
         if (self.fluid is None) != (self.mixture is None):
-            key = "mixture" if self.mixture is None else "fluid"
-            raise invalid("fluid and mixture are given together", "both fluid and mixture, or neither", key)
+            given, missing = ("fluid", "mixture") if self.mixture is None else ("mixture", "fluid")
+            raise invalid(
+                f"{given} is given without {missing}",
+                "both fluid and mixture (a grain-fluid mixture), or neither",
+                given,
+            )
         for i, entry in enumerate(self.initial):
             if (entry.phi is None) != (self.fluid is None):
                 need = "is required with fluid" if self.fluid is not None else "is accepted with fluid only"
