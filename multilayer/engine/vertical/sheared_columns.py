@@ -67,7 +67,7 @@ coefficients 10, 82 KB."""
 # bottom layer and above the top one are pads: a loop may load the cells below and above
 # unconditionally (no masked loads).  The pads below hold the bed's velocity, 0.0, in the
 # slots of the iterates ``U0``, ``U1`` (written by nothing: the velocity below the bottom
-# layer is loaded as any other, without a select), and 0.0 in ``GAP`` (:func:`_unchanged`);
+# layer is loaded as any other, without a select);
 # the pads above hold 0.0 in the slots of the Newton model ``KC``, ``CC``, ``SIGN`` (the
 # free surface: :func:`_equation`);
 # the slot BED marks the bottom cells and the pads above the top ones (1.0: the free
@@ -93,7 +93,8 @@ SLOTS = 23
 PRESSURE, SPACING = GAP, RISE
 # The arrays of the sweeps of :func:`_solve`, a value per layer and lane in each: the pivot
 # (then the inverse pivot), right-hand side, conductance below, the pivots not positive up
-# to the layer, and the velocity.
+# to the layer (then the velocities changed by more than the threshold down to it), and the
+# velocity.
 PIVOT, RIGHT, COUPLING, TRIED, SOLVED = range(5)
 SWEEPS = 5
 ALONE = BLOCK
@@ -331,11 +332,18 @@ def _sweep(t, u, form, params, start, stop, down, model):
 
 
 @jit(borrowing=True, error_model="numpy")
-def _solve(t, w, L, new, flags):
+def _solve(t, w, L, new, threshold, flags):
     """The exact solve with one group per layer into slot ``new``: the forward sweep and
     the back substitution of ``column_solve._active_set``, and its optimality test: each
     pivot is positive (a column whose structure is rejected leaves the block; the pass of the
     stresses at slot ``new`` tests that each yielded jump keeps its sign, :func:`_sweep`).
+    As the velocities are substituted back, the layers whose velocity changed by more than
+    ``threshold`` from those of slot ``current`` are counted down each lane (a NaN change
+    not counted), so that the bottom cells of the sweep ``TRIED`` hold each lane's count:
+    the first test of :func:`_converged`, without a pass of its own.  The velocities of
+    ``current`` are read from the sweep ``SOLVED`` they are overwritten in (the last solve's,
+    or the guesses :func:`sheared_block` puts there), not from the tile: a loop that also
+    loaded the tile ran one value at a time.
 
     The sweeps run in ``w``, ``SWEEPS`` arrays of ``BLOCK L`` values, each the block's
     layers one after the other and each layer its ``BLOCK`` lanes side by side (layer a
@@ -371,17 +379,20 @@ def _solve(t, w, L, new, flags):
         right[s] = eliminated_r if c != 0.0 else r
         tried[s] = tried[b] + (0.0 if d > 0.0 else 1.0)
         pivot[s] = 1.0 / d
-    for s in range(top, n):  # the back substitution: the value above is BLOCK places after
-        solved[s] = right[s] * pivot[s]
-        t[new, x0 + s] = solved[s]
-    for b in range(lanes, n):
-        s = n - one - b
-        above = solved[s + lanes]
-        solved[s] = (right[s] + coupling[s + lanes] * above) * pivot[s]
-        t[new, x0 + s] = solved[s]
-    for lane in range(BLOCK):  # the test of the pivots
+    for lane in range(BLOCK):  # the test of the pivots (tried is then the count of the changes)
         if tried[top + np.uint64(lane)] > 0.0:
             flags[ACTIVE, lane] = False
+    for s in range(top, n):  # the back substitution: the value above is BLOCK places after
+        last = solved[s]
+        solved[s] = right[s] * pivot[s]
+        t[new, x0 + s] = solved[s]
+        tried[s] = 1.0 if abs(solved[s] - last) > threshold else 0.0
+    for b in range(lanes, n):
+        s = n - one - b
+        above, last = solved[s + lanes], solved[s]
+        solved[s] = (right[s] + coupling[s + lanes] * above) * pivot[s]
+        t[new, x0 + s] = solved[s]
+        tried[s] = tried[s + lanes] + (1.0 if abs(solved[s] - last) > threshold else 0.0)
 
 
 @jit(inline="always")
@@ -412,27 +423,11 @@ PASS_CELLS = 12
 """The set-up of a pass of the tests over some cells of the tile, in cells (:func:`_together`)."""
 
 
-@jit(inline="always")
-def _unchanged(t, L, new, current, threshold):
-    """Of each lane, whether none of its layers changed by more than ``threshold`` from slot
-    ``current`` to slot ``new`` (a NaN change not counted): one pass over the block's cells
-    as vectors, each cell's count that of the cell below (``BLOCK`` places before; the pads
-    below the bottom layer 0) plus its own, in slot ``GAP`` (the top layer's hold the
-    lanes' counts)."""
-    x0, lanes = np.uint64(cell(0, L)), np.uint64(BLOCK)
-    for x in range(np.uint64(BLOCK)):  # the pads below the bottom layer
-        t[GAP, x] = 0.0
-    for s in range(np.uint64(BLOCK * L)):  # unsigned: no test for negative indices
-        x = x0 + s
-        t[GAP, x] = t[GAP, x - lanes] + (1.0 if abs(t[new, x] - t[current, x]) > threshold else 0.0)
-    top = x0 + np.uint64(BLOCK * (L - 1))
-    return t[GAP, top : top + lanes]
-
-
 @jit(borrowing=True, error_model="numpy")
-def _converged(t, L, new, current, threshold, concave_stress, flags):
+def _converged(t, L, new, current, threshold, concave_stress, flags, beyond):
     """``DONE``: the largest change from slot ``current`` to slot ``new`` is within
-    ``threshold``, or else the error bound of ``newton_control.error_bound`` at ``new`` (its
+    ``threshold`` (``beyond``, each lane's count of the layers that changed by more:
+    :func:`_solve`), or else the error bound of ``newton_control.error_bound`` at ``new`` (its
     true stresses in ``TAU0 + new - U0``) is: the test of ``_chunk``, column by column, its
     cheaper half first (a few instructions per layer against some 55 for the bound; in a
     steady chute most columns are done by the change).  A column not done whose rise bound
@@ -448,7 +443,6 @@ def _converged(t, L, new, current, threshold, concave_stress, flags):
     finite, and then so is the wall term of the layer (0 times it): leaving it out of the
     sum changes at most the sign of a zero sum, which neither test of the sum tells apart."""
     bounded = 0  # the columns to test by the error bound (fully sheared)
-    beyond = _unchanged(t, L, new, current, threshold)
     for i in range(BLOCK):  # the largest change within threshold (max ignores a NaN change, as this count)
         flags[DONE, i] = beyond[i] == 0.0 and 0.0 <= threshold
         bounded += not flags[DONE, i] and flags[SHEARED, i]
@@ -631,11 +625,14 @@ def sheared_block(
     _stresses_and_model(t, L, current, form, params, flags, model)
     for i in range(BLOCK):
         flags[ACTIVE, i] = flags[ACTIVE, i] and flags[SHEARED, i]
+    solved, x0 = sweeps[SOLVED], np.uint64(cell(0, L))  # the guesses, as _solve reads its iterate
+    for s in range(np.uint64(BLOCK * L)):  # unsigned: no test for negative indices
+        solved[s] = t[U0, x0 + s]
     last = 0  # the columns finished by the last iteration (a bit each), when it finished the block
     for iteration in range(1, max_iterations + 1):
-        _solve(t, sweeps, L, new, flags)
+        _solve(t, sweeps, L, new, threshold, flags)
         _stresses_and_model(t, L, new, form, params, flags, stresses)  # the bound's stresses
-        _converged(t, L, new, current, threshold, concave_stress, flags)
+        _converged(t, L, new, current, threshold, concave_stress, flags, sweeps[TRIED][:BLOCK])
         remaining, now = 0, np.int64(0)  # now typed: one compilation of _keep
         for i in range(BLOCK):
             if not flags[ACTIVE, i]:
@@ -667,7 +664,7 @@ def sheared_block(
     together = last == (1 << BLOCK) - 1
     if not together:
         _keep(t, L, new, last)
-    lanes, solved = np.uint64(BLOCK), sweeps[SOLVED]
+    lanes = np.uint64(BLOCK)
     for a in range(np.uint64(L if together else 0)):  # unsigned: no test for negative indices
         row = _layer(solved, a * lanes)
         for i in range(BLOCK):
@@ -675,7 +672,7 @@ def sheared_block(
     every = not together
     for i in range(BLOCK):
         every = every and finished[i]
-    kept, x0 = t[KEPT], np.uint64(cell(0, L))  # the tile laid out as the mesh
+    kept = t[KEPT]  # the tile laid out as the mesh
     for a in range(np.uint64(L if every else 0)):
         row = _layer(kept, x0 + a * lanes)
         for i in range(BLOCK):
