@@ -3719,6 +3719,7 @@ def cases() -> list[Case]:
         + round_twenty_five()
         + round_twenty_six()
         + round_twenty_seven()
+        + round_twenty_eight()
     )
 
 
@@ -4854,6 +4855,39 @@ def round_twenty_seven() -> list[Case]:
     return out
 
 
+def _redirected(redirection: str) -> list[str]:
+    """A prefix running the child with its descriptors redirected by ``redirection`` (sh)."""
+    return ["sh", "-c", f'exec "$@" {redirection}', "sh"]
+
+
+def round_twenty_eight() -> list[Case]:
+    """The hostile cases of the twenty-eighth round (docs/reliability.md): a standard output
+    on a full device or closed, a standard error on a full device; as controls, the null
+    device and a closed stdout a command writes nothing to."""
+    stdout = "cannot write to the standard output ("
+    full, closed = _redirected(">/dev/full"), _redirected(">&-")
+    run = ["run", "{scenario}", "-o", "{dir}/out"]
+    bad = partial(_scenario, changes={"domain.cells": -1})
+    out = [
+        Case("run > /dev/full", run, 2, f"{stdout}No space left on device); accepted: a standard output",
+             setup=_scenario, prefix=full),
+        Case("plugins > /dev/full", ["plugins"], 2, f"{stdout}No space left on device)", prefix=full),
+        Case("validate > /dev/full", ["validate", "{scenario}"], 2, f"{stdout}No space left on device)",
+             setup=_scenario, prefix=full),
+        Case("--version > /dev/full", ["--version"], 2, f"{stdout}No space left on device)", prefix=full),
+        Case("--help > /dev/full", ["--help"], 2, f"{stdout}No space left on device)", prefix=full),
+        Case("plugins >&- (stdout closed)", ["plugins"], 2, f"{stdout}it is closed)", prefix=closed),
+        Case("validate of an invalid scenario 2>/dev/full", ["validate", "{scenario}"], 2, "",
+             setup=bad, prefix=_redirected("2>/dev/full")),
+        Case("run of an invalid scenario 2>/dev/full", run, 2, "", setup=bad,
+             prefix=_redirected("2>/dev/full")),
+        Case("run > /dev/null", run, 0, "", setup=_scenario, prefix=_redirected(">/dev/null")),
+        Case("run -q >&- (stdout closed, nothing written)", [*run, "-q"], 0, "", setup=_scenario,
+             prefix=closed),
+    ]  # fmt: skip
+    return out
+
+
 def _inflow(thickness: float, speed: float) -> dict:
     """The boundaries of TINY with a plug inflow on the left."""
     velocity = {"profile": "plug", "speed": speed}
@@ -4968,6 +5002,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     17: round_seventeen, 18: round_eighteen, 19: round_nineteen, 20: round_twenty,
     21: round_twenty_one, 22: round_twenty_two, 23: round_twenty_three, 24: round_twenty_four,
     25: round_twenty_five, 26: round_twenty_six, 27: round_twenty_seven,
+    28: round_twenty_eight,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""
 
@@ -4977,7 +5012,7 @@ def main() -> None:
     parser.add_argument("-k", default="", help="only the cases whose name contains this")
     parser.add_argument("-j", type=int, default=2, help="cases run at once")
     parser.add_argument(
-        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 27; all: none)"
+        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 28; all: none)"
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()

@@ -3,6 +3,7 @@ and the round trip scenario -> result.nc."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import signal
@@ -399,3 +400,46 @@ def test_the_command_leaves_its_host_process_as_it_found_it(cli, tiny_scenario, 
     assert cli("validate", write_scenario(tiny_scenario)).code == 0
     assert warnings.showwarning is shown
     assert {n: signal.getsignal(n) for n in handlers} == handlers
+
+
+STDOUT_FAILED = "multilayer: error: cannot write to the standard output ("
+
+
+@pytest.mark.parametrize("argv", [["plugins"], ["--version"], ["--help"], ["validate", "{scenario}"]])
+def test_a_full_stdout_is_named_with_exit_2(cli, tiny_scenario, write_scenario, monkeypatch, argv):
+    """A stdout on a full device (``> /dev/full``) is said to be the standard output with
+    exit code 2: it was reported as a directory that cannot be written (``validate``,
+    ``plugins``), a traceback (``--version``) or nothing and exit 0 (``--help``)."""
+    path = write_scenario(tiny_scenario)
+    with open("/dev/full", "w") as full:
+        monkeypatch.setattr(sys, "stdout", full)
+        result = cli(*[a.format(scenario=path) for a in argv])
+        assert sys.stdout is full  # set back after the command
+    assert result.code == 2
+    assert STDOUT_FAILED + "No space left on device); accepted:" in result.err
+    assert "directory" not in result.err.split(";")[0]
+
+
+def test_a_closed_stdout_is_refused_once_written_to(cli, tiny_scenario, write_scenario, monkeypatch):
+    """``multilayer plugins >&-`` (stdout None in Python) exited 0 with the listing nowhere;
+    a command writing nothing to it (``run -q``) is not refused."""
+    monkeypatch.setattr(sys, "stdout", None)
+    listed = cli("plugins")
+    assert listed.code == 2
+    assert STDOUT_FAILED + "it is closed)" in listed.err
+    path = write_scenario(tiny_scenario)
+    assert cli("run", path, "-q", "-o", path.parent / "out").code == 0
+
+
+def test_an_unwritable_stderr_keeps_the_exit_code(cli, tiny_scenario, write_scenario, monkeypatch):
+    """An invalid input's message not written (``2>/dev/full``) still exits 2: it exited 1,
+    the failed print's error taking the place of the invalid input's."""
+    tiny_scenario["domain"]["cells"] = -1
+    path = write_scenario(tiny_scenario)
+    full = open("/dev/full", "w")  # noqa: SIM115 (closed below, its unwritten message dropped)
+    monkeypatch.setattr(sys, "stderr", full)
+    assert cli("validate", path).code == 2
+    assert cli("run", path, "-o", path.parent / "out").code == 2
+    monkeypatch.undo()
+    with contextlib.suppress(OSError):
+        full.close()

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import importlib
 import io
 import os
@@ -141,14 +142,87 @@ def _encodable_stdout() -> Iterator[None]:
         yield
     finally:
         if not stream.closed:
-            stream.reconfigure(errors=errors)
+            with contextlib.suppress(OSError):  # a flush of what a full stdout kept (said already)
+                stream.reconfigure(errors=errors)
+
+
+class _StdoutFailed(Exception):
+    """A write to stdout failed other than by its reader going away (a full device, a
+    closed descriptor): not an :class:`OSError`, so that no command takes it for one of its
+    own files."""
+
+    def __init__(self, error: OSError) -> None:
+        super().__init__(error.strerror or str(error))
+
+
+class _GuardedStdout:
+    """stdout for the command: a write or flush failing with an :class:`OSError` other than
+    :class:`BrokenPipeError` raises :class:`_StdoutFailed`, and a closed stdout (``None``,
+    ``>&-``) refuses what is written to it where Python's ``print`` dropped it silently
+    (``multilayer plugins >&-`` exited 0 with no listing anywhere; ``> /dev/full`` was
+    reported as a directory that cannot be written).  Everything else is the stream's."""
+
+    def __init__(self, stream: Any) -> None:
+        self._stream = stream
+
+    def _call(self, method: str, *args: Any) -> Any:
+        if self._stream is None:
+            raise _StdoutFailed(OSError(errno.EBADF, "it is closed"))
+        try:
+            return getattr(self._stream, method)(*args)
+        except BrokenPipeError:
+            raise
+        except OSError as exc:
+            raise _StdoutFailed(exc) from None
+
+    def write(self, text: str) -> int:
+        return self._call("write", text)
+
+    def writelines(self, lines: Any) -> None:
+        for line in lines:
+            self.write(line)
+
+    def flush(self) -> None:
+        if self._stream is not None:
+            self._call("flush")
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._stream, name)
+
+
+@contextlib.contextmanager
+def _guarded_stdout() -> Iterator[None]:
+    """:class:`_GuardedStdout` as ``sys.stdout`` during the command, set back after it for a
+    caller of :func:`main` in the same process."""
+    stream = sys.stdout
+    sys.stdout = _GuardedStdout(stream)
+    try:
+        yield
+    finally:
+        sys.stdout = stream
+
+
+def _tell(message: str) -> None:
+    """``message`` on stderr, if stderr takes it: the exit code says the outcome also when
+    stderr is closed or full (``2>/dev/full`` turned an invalid input's 2 into 1)."""
+    if sys.stderr is None:
+        return
+    with contextlib.suppress(OSError):
+        print(printable(message), file=sys.stderr, flush=True)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse ``argv`` (default ``sys.argv[1:]``), run the subcommand, return the exit code."""
     argv = sys.argv[1:] if argv is None else list(argv)
-    with _encodable_stdout():
-        args = build_parser(_command(argv)).parse_args(argv)
+    with _encodable_stdout(), _guarded_stdout():
+        try:
+            try:
+                args = build_parser(_command(argv)).parse_args(argv)
+            except SystemExit:  # --help and --version: what they wrote, flushed here
+                sys.stdout.flush()
+                raise
+        except _StdoutFailed as exc:
+            return _stdout_failed(exc)
         shown = warnings.showwarning  # restored: a caller in the same process keeps its own
         warnings.showwarning = _warning
         try:
@@ -162,30 +236,49 @@ def _dispatch(args: argparse.Namespace) -> int:
     """The exit code of the subcommand of ``args`` (docs/cli.md)."""
     try:
         numba_environment.check()
-        return args.handler(args)
+        code = args.handler(args)
+        sys.stdout.flush()  # here, not at exit, where a full stdout's error would be Python's own
+        return code
     except InputError as exc:
-        print(f"multilayer: error: {printable(str(exc))}", file=sys.stderr)
+        _tell(f"multilayer: error: {exc}")
         return 2
     except RunError as exc:
-        print(f"multilayer: run failed: {printable(str(exc))}", file=sys.stderr)
+        _tell(f"multilayer: run failed: {exc}")
         return 1
     except BrokenPipeError:  # the reader of stdout went away (multilayer plugins | head -1)
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # nothing more to flush at exit
+        _quiet_stdout()
         return 128 + 13  # as if SIGPIPE had ended the process
+    except _StdoutFailed as exc:
+        return _stdout_failed(exc)
     except OSError as exc:  # a path given on the command line cannot be created or written
         what = f"{exc.filename}: {exc.strerror}" if exc.filename is not None and exc.strerror else str(exc)
-        print(
-            printable(
-                f"multilayer: error: {what}; accepted: a directory this user can write and files in it "
-                "that are not read-only"
-            ),
-            file=sys.stderr,
+        _tell(
+            f"multilayer: error: {what}; accepted: a directory this user can write and files in it "
+            "that are not read-only"
         )
         return 2
     except KeyboardInterrupt as exc:
         if not getattr(exc, "said", False):  # a run or study says itself how it stopped and what it kept
-            print(f"multilayer: {printable(str(exc)) or 'interrupted'}", file=sys.stderr)
+            _tell(f"multilayer: {str(exc) or 'interrupted'}")
         return getattr(exc, "exit_code", 130)
+
+
+def _stdout_failed(exc: _StdoutFailed) -> int:
+    """Exit code 2 and the message for a stdout that cannot be written."""
+    _quiet_stdout()
+    _tell(
+        f"multilayer: error: cannot write to the standard output ({exc}); accepted: a standard output "
+        "that takes the command's lines (a terminal, a pipe, a file on a device with room, /dev/null)"
+    )
+    return 2
+
+
+def _quiet_stdout() -> None:
+    """stdout's descriptor onto the null device: what its buffer holds is flushed there at
+    exit, not into an error of Python's own (exit 120)."""
+    stream = getattr(sys.stdout, "_stream", sys.stdout)
+    with contextlib.suppress(AttributeError, OSError, ValueError):
+        os.dup2(os.open(os.devnull, os.O_WRONLY), stream.fileno())
 
 
 if __name__ == "__main__":
