@@ -4884,6 +4884,13 @@ def round_twenty_eight() -> list[Case]:
         Case("run > /dev/null", run, 0, "", setup=_scenario, prefix=_redirected(">/dev/null")),
         Case("run -q >&- (stdout closed, nothing written)", [*run, "-q"], 0, "", setup=_scenario,
              prefix=closed),
+        Case("sweep 2>&- (stderr closed, progress not quiet)",
+             ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/sweep-out", "--workers", "1"], 0, "",
+             setup=_sweep({"slope_deg": [20.0]}), prefix=_redirected("2>&-")),
+        Case("calibrate 2>&- (stderr closed, progress not quiet)",
+             ["calibrate", "{dir}/calibration.yaml", "-o", "{dir}/cal", "--workers", "1"], 0, "",
+             setup=_calibration("0.1,0.1,0.05\n0.2,0.15,0.05\n", generations=0),
+             prefix=_redirected("2>&-")),
     ]  # fmt: skip
     return out
 

@@ -443,3 +443,15 @@ def test_an_unwritable_stderr_keeps_the_exit_code(cli, tiny_scenario, write_scen
     monkeypatch.undo()
     with contextlib.suppress(OSError):
         full.close()
+
+
+def test_a_closed_stderr_shows_no_study_progress(monkeypatch):
+    """``multilayer sweep`` and ``calibrate`` without ``-q`` under ``2>&-`` (``sys.stderr``
+    None) ran no member: asking None whether it is a terminal raised ``AttributeError``,
+    exit 1 (fault battery round 28 runs both)."""
+    from multilayer.app.commands.sweep import _Report
+
+    monkeypatch.setattr(sys, "stderr", None)
+    report = _Report("a local Dask cluster", quiet=False)
+    assert not report.live
+    report.progress(1, 2)  # writes nothing, raises nothing

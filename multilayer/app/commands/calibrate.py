@@ -27,6 +27,7 @@ from multilayer.app.commands import (
     study_directory,
     study_ensemble,
 )
+from multilayer.app.progress import shown
 
 HELP = "fit scenario parameters to observations (global search, refinement, uncertainty) on Dask"
 
@@ -63,7 +64,7 @@ def _calibrate(args: argparse.Namespace, plan: Any, outdir: Path) -> int:
     from multilayer.app import calibration as calibrations
     from multilayer.errors import Interrupted, printable
 
-    live = not args.quiet and sys.stderr.isatty()
+    live = not args.quiet and shown(None)  # a terminal, not a closed stderr (2>&-)
 
     def report(line: str) -> None:
         if not args.quiet:

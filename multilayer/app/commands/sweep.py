@@ -16,6 +16,7 @@ import sys
 from pathlib import Path
 from typing import Any, TextIO
 
+from multilayer.app import progress
 from multilayer.app.commands import (
     add_cluster_arguments,
     add_output_argument,
@@ -52,7 +53,7 @@ class _Report:
         self.where = where
         self.quiet = quiet
         self.stream = sys.stderr if stream is None else stream
-        self.live = not quiet and self.stream.isatty()
+        self.live = not quiet and progress.shown(None, self.stream)  # a terminal, not a closed stderr
 
     def start(self, total: int, skipped: int, invalid: int, to_run: int) -> None:
         if not self.quiet:
