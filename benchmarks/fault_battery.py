@@ -4884,6 +4884,8 @@ def round_twenty_eight() -> list[Case]:
         Case("run > /dev/null", run, 0, "", setup=_scenario, prefix=_redirected(">/dev/null")),
         Case("run -q >&- (stdout closed, nothing written)", [*run, "-q"], 0, "", setup=_scenario,
              prefix=closed),
+        Case("sweep > /dev/full", ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/sweep-out", "--workers", "1"], 2,
+             f"{stdout}No space left on device)", setup=_sweep({"slope_deg": [20.0]}), prefix=full),
         Case("sweep 2>&- (stderr closed, progress not quiet)",
              ["sweep", "{dir}/sweep.yaml", "-o", "{dir}/sweep-out", "--workers", "1"], 0, "",
              setup=_sweep({"slope_deg": [20.0]}), prefix=_redirected("2>&-")),
