@@ -868,13 +868,17 @@ def test_a_singular_non_hydrostatic_system_and_a_non_finite_measure_are_run_erro
         ensemble._measured(lambda path: np.array([np.nan]), tmp_path)
 
 
-@pytest.mark.parametrize(("field", "name"), [(1, "vertical velocity w"), (2, "non-hydrostatic pressure q")])
+@pytest.mark.parametrize(
+    ("change", "name", "value", "layer"),
+    [(np.nan, "vertical velocity w", "nan", 3), (1e308, "non-hydrostatic pressure q", "inf", 1)],
+)
 def test_a_non_finite_non_hydrostatic_state_stops_the_step_keeping_the_last_good_state(
-    monkeypatch, field, name
+    monkeypatch, change, name, value, layer
 ):
-    """The projection's w and q are guarded like h and u: a NaN in either (injected after
-    a few good steps of a frictionless dam break) stops the step with the quantity named,
-    and the state stays that of the step before."""
+    """The projection's w and q are guarded like h and u: a change of w of layer 3 by a NaN
+    (a NaN w) or by 1e308 (a finite w, an infinite q below it), made inside the kernel that
+    writes them after a few good steps of a frictionless dam break, stops the step with
+    the quantity named, and the state stays that of the step before."""
     from engine import simulation
 
     from multilayer.engine.pressure.non_hydrostatic import projection as nonhydrostatic
@@ -889,20 +893,22 @@ def test_a_non_finite_non_hydrostatic_state_stops_the_step_keeping_the_last_good
         sim.step()
     good = {key: getattr(sim, key).copy() for key in ("h", "u", "w", "q")}
     t = sim.t
-    project_columns = nonhydrostatic.project_columns
+    finish = nonhydrostatic._finish
 
-    def corrupted(h, u, w, bed, fractions, out, **kwargs):
-        columns = project_columns(h, u, w, bed, fractions, out, **kwargs)
-        out[field][2, 5] = np.nan
-        return columns
+    def corrupted(dV, dQ, u, w, h, fractions, moving, left, right, dt, lo, *rest):
+        L, N = moving.shape
+        assert moving[2, 5 - lo]
+        dV, dQ = dV.copy(), dQ.copy()  # the change of w and the pressure's, both changed
+        dV[L * left.size + 2 * N + 5 - lo] = dQ[L * left.size + 2 * N + 5 - lo] = change
+        return finish(dV, dQ, u, w, h, fractions, moving, left, right, dt, lo, *rest)
 
-    monkeypatch.setattr(nonhydrostatic, "project_columns", corrupted)
-    expected = rf"{name} = nan at x = 0\.275 m, layer 3 .* after the step from t = "
+    monkeypatch.setattr(nonhydrostatic, "_finish", corrupted)
+    expected = rf"{name} = {value} at x = 0\.275 m, layer {layer} .* after the step from t = "
     with pytest.raises(StateError, match=expected):
         sim.step()
     assert sim.t == t
-    for key, value in good.items():
-        np.testing.assert_array_equal(getattr(sim, key), value)
+    for key, kept in good.items():
+        np.testing.assert_array_equal(getattr(sim, key), kept)
 
 
 @pytest.mark.parametrize("solver", ["numpy", "kernel"])

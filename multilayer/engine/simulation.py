@@ -597,6 +597,8 @@ class Simulation:
         self.guard.check_step(start, transported, u, self.t, dt, self.boundary_mass, columns)
         if self.mixture is not None:
             self.mixture.check_step(h, self.t, dt, self.guard)
+        if not self.pressure.checked or self.pressure.found_finite():
+            return
         for name, what in self.pressure.checked.items():
             self.guard.check_finite(
                 fields[name],

@@ -88,6 +88,11 @@ class PressureModel:
     def __init__(self, setup: PressureSetup, state: FlowState):
         self.setup = setup
 
+    def found_finite(self) -> bool:
+        """Whether the last :meth:`project` found every value of its fields :attr:`checked`
+        finite in the kernels that wrote them (False: the state guard checks them)."""
+        return False
+
     def yield_gravity(self, state: FlowState, h: np.ndarray) -> np.ndarray | None:
         """Normal gravity (L, N) of the yield pressures with the thickness ``h`` after
         transport; None: ``g cos(theta)``."""

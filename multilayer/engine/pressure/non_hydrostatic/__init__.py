@@ -69,6 +69,9 @@ class NonHydrostatic(PressureModel):
         )
         self._seed = state.add_field("newton_seed", default="u")
 
+    def found_finite(self) -> bool:
+        return self.projection.finite
+
     def yield_gravity(self, state: FlowState, h: np.ndarray) -> np.ndarray:
         return self.projection.yield_gravity(state.q, h, state.window)
 

@@ -279,12 +279,12 @@ def project_columns(
     pressure_layers: int | None = None,
     start: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
     buffers: _Buffers | None = None,
-) -> tuple[int, int]:
+) -> tuple[int, int, bool]:
     """:func:`project` into ``out`` (u, w, q; L, N), written in the columns ``lo .. hi-1``
-    it returns only, those of the moving material and one column at rest on each side (the
-    faces beyond join cells at rest and carry no correction; every column if periodic):
-    ``out`` must hold ``u`` and zeros elsewhere (the answer there).  ``(0, 0)``: nothing
-    moves.
+    it returns with whether every ``w`` and ``q`` written is finite; those columns are the
+    ones of the moving material and one column at rest on each side (the faces beyond join
+    cells at rest and carry no correction; every column if periodic): ``out`` must hold
+    ``u`` and zeros elsewhere (the answer there).  ``(0, 0, True)``: nothing moves.
     ``buffers``: the work arrays of the shape of ``u`` and these pressure layers (reused
     from call to call: a new array touched afresh costs a page fault per 4 KiB); they keep
     the constraint of the call, which gives ``E^n V^n`` in the next call where the start is
@@ -292,7 +292,7 @@ def project_columns(
     L, N = u.shape
     first, last = _moving_columns(u, h, dry)
     if last < 0:
-        return 0, 0
+        return 0, 0, True
     lo, hi = (0, N) if periodic else (max(first - 1, 0), min(last + 2, N))
     window = slice(lo, hi)
     moving = _moving(u, h, dry, lo, hi)
@@ -363,8 +363,8 @@ def project_columns(
         dQ, W = buffers.dQ[:K], L * left.size
         lam = multipliers(band, buffers.violation[:n], buffers.rows[:n], lam_max, guess, factored)[0]
         correct(arrays[0][W:], *arrays[1:3], mass[W:], free[W:], lam, dQ[W:])
-    _finish(dV, dQ, u, w, h, fractions, moving, left, right, dt, lo, buffers.du, *out)
-    return lo, hi
+    finite = _finish(dV, dQ, u, w, h, fractions, moving, left, right, dt, lo, buffers.du, *out)
+    return lo, hi, finite
 
 
 _NO_BAND = np.empty((0, 1))
@@ -412,6 +412,24 @@ def _restart(u, written, columns, u_out, w_out, q_out):
 
 
 @jit
+def _begin(
+    u, w, q, h_before, factors, g_n, dx, dt, periodic, lo, hi, first, last,
+    written_lo, written_hi, tension_lo, tension_hi, u_out, w_out, q_out, w_star, tension,
+):  # fmt: skip
+    """The start of :meth:`Projection.__call__` in one call (scalars and arrays only: a
+    tuple is typed in Python at each call): :func:`_restart` of ``u_out``, ``w_out`` and
+    ``q_out`` (written before in the columns ``written_lo .. written_hi-1``) from ``u`` in
+    the columns ``lo .. hi-1``, the advected ``w`` (:func:`_advect`) of those columns into
+    ``w_star`` (only the moving cells take part, in the columns holding material) and
+    :func:`tension_free` of ``q`` on ``h_before`` (the step's start, ``q`` zero outside
+    the columns ``first .. last-1``) into ``tension`` (written before in ``tension_lo ..
+    tension_hi-1``)."""
+    _restart(u, (written_lo, written_hi), (lo, hi), u_out, w_out, q_out)
+    _advect(w, u, dx, dt, periodic, lo, hi, w_star)
+    _tension_free(q, h_before, factors, g_n, first, last, tension, tension_lo, tension_hi)
+
+
+@jit
 def _violation(r, carried, out):
     """``r - carried`` into ``out``; returns whether ``carried`` has an entry other than 0."""
     nonzero = False
@@ -448,8 +466,9 @@ def _finish(dV, dQ, u, w, h, fractions, moving, left, right, dt, lo, storage, u_
     ``w`` and the pressures ``q_a = sum_{b >= a} h_b dw_b / dt`` (``dw`` the ``wbar`` part of
     the pressure's correction ``dQ``) of the columns ``lo ..`` (as many as ``moving`` has)
     into ``u_out``, ``w_out`` and ``q_out`` (module Notes); ``storage`` holds the changes of
-    ``u`` (at least L N long)."""
+    ``u`` (at least L N long).  Returns whether every ``w`` and ``q`` written is finite."""
     L, N = moving.shape
+    check = 0.0  # the sum of value - value over the w and q written: NaN once one is not finite
     F = left.size
     du = storage[: L * N].reshape((L, N))
     du[:] = 0.0
@@ -464,7 +483,9 @@ def _finish(dV, dQ, u, w, h, fractions, moving, left, right, dt, lo, storage, u_
             at = np.uint64(lo + i)
             if moving[a, i]:
                 u_out[a, at] = u[a, at] + du[a, i]
-                w_out[a, at] = w[a, at] + dV[L * F + a * N + i]
+                value = w[a, at] + dV[L * F + a * N + i]
+                w_out[a, at] = value
+                check += value - value
             else:
                 u_out[a, at] = u[a, at]
                 w_out[a, at] = 0.0
@@ -473,7 +494,10 @@ def _finish(dV, dQ, u, w, h, fractions, moving, left, right, dt, lo, storage, u_
         for a in range(L - 1, -1, -1):
             layer = np.uint64(a)
             total += fractions[layer] * depth * dQ[L * F + a * N + i]
-            q_out[layer, at] = total / dt
+            value = total / dt
+            q_out[layer, at] = value
+            check += value - value
+    return check == 0.0
 
 
 @jit
@@ -595,6 +619,7 @@ class Projection:
         self._factors = depth_factors(fractions)
         self._tension_free = np.zeros(shape, np.bool_)  # the guess of the active set (tension_free)
         self._written = (0, 0)  # the columns of u, w, q written by the last call
+        self.finite = True  # whether every w and q of the last call is finite
         self._gravity_written = self._tension_written = (0, 0)
 
     def __call__(
@@ -612,17 +637,14 @@ class Projection:
         zeroes them)."""
         h_before, u_before, w, q = start
         lo, hi = span(h)
-        _restart(u, self._written, (lo, hi), self.u, self.w, self.q)
-        # only the moving cells take part, in the columns holding material
-        _advect(w, u, self.dx, dt, self.periodic, lo, hi, self._w_star)
+        _begin(
+            u, w, q, h_before, self._factors, self.g_n, self.dx, dt, self.periodic, lo, hi, *columns,
+            *self._written, *self._tension_written, self.u, self.w, self.q, self._w_star, self._tension_free,
+        )  # fmt: skip
+        self._tension_written = columns
         if self.shear is not None:
             self.shear(h, u, (w, q), dt, (lo, hi), self._w_star)
-        # tension_free(q, h_before, ...) in an array reused
-        _tension_free(
-            q, h_before, self._factors, self.g_n, *columns, self._tension_free, *self._tension_written
-        )
-        self._tension_written = columns
-        first, last = project_columns(
+        first, last, self.finite = project_columns(
             h, u, self._w_star, self.bed, self.fractions, (self.u, self.w, self.q), dx=self.dx, dt=dt,
             periodic=self.periodic, dry=self.dry, g_n=self.g_n, tension_free=self._tension_free,
             pressure_layers=self.pressure_layers, start=(h_before, u_before, w), buffers=self._buffers,
