@@ -127,8 +127,8 @@ def _problem(cls: object) -> str | None:
 RESERVED_PARAMETERS = {"name": "`name` chooses the law"}
 """Constructor parameters a plugin may not have: keys of a scenario's ``rheology`` and
 ``walls`` mappings with a meaning of their own (``scenario.schema.PluginSpec``).  A
-parameter ``name`` could never be set (``name: x`` chose the law x) and was listed by
-``multilayer plugins`` all the same."""
+parameter ``name`` could never be set (``name: x`` chooses the law x), so a law having one
+is skipped with a warning rather than listed by ``multilayer plugins``."""
 
 
 @functools.cache

@@ -1131,9 +1131,9 @@ class Scenario(StrictModel):
     def _check_inflow_finite(self) -> None:
         """The inflow's wave speed ``|u| + sqrt(g cos(theta) h)``, the momentum it brings in,
         ``h u^2 + g cos(theta) h^2 / 2``, and the pressure under it, ``density g cos(theta)
-        h``, are finite numbers: an inflow 1e308 m thick (or at 1e308 m/s) was refused for
-        the time steps of its waves, naming the time and the domain, and under ``--force``
-        stopped the run at its first step blaming the state (0.05 m at rest)."""
+        h``, are finite numbers, checked here so that the message names the inflow (an
+        inflow 1e308 m thick, or at 1e308 m/s, otherwise fails later in the checks of the
+        time step or of the first step's state, which name other keys)."""
         inflow = self.boundaries.inflow
         if inflow is None:
             return
