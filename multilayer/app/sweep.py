@@ -51,7 +51,7 @@ from multilayer.io.results import (
 from multilayer.io.results import summary as result_summary
 from multilayer.scenario import as_overrides, format_value
 from multilayer.scenario.loading import BASE_ACCEPTED, load_base
-from multilayer.scenario.messages import dotted, shown, unknown_home
+from multilayer.scenario.messages import HOME_ACCEPTED, dotted, shown, unknown_home
 from multilayer.scenario.overrides import member_output
 
 SWEEP_KEYS = ("base", "parameters", "zip", "output", "description")
@@ -263,10 +263,8 @@ def load(path: str | Path) -> Sweep:
     directory = output.get("directory")
     if directory is not None and (not isinstance(directory, str) or not directory or "\0" in directory):
         raise bad(("output", "directory"), f"got {shown(directory)}", "a directory path (no NUL character)")
-    if directory is not None and directory.startswith("~") and (home := unknown_home(directory)) is not None:
-        raise bad(
-            ("output", "directory"), home, "a directory path whose leading ~ is a home directory, or no ~"
-        )
+    if directory is not None and (home := unknown_home(directory)) is not None:
+        raise bad(("output", "directory"), home, HOME_ACCEPTED)
 
     return Sweep(
         path=path,

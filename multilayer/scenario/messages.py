@@ -53,17 +53,24 @@ def directory_path(value: Any) -> Any:
     if value is not None and str(value).startswith("~"):
         problem = unknown_home(str(value))
         if problem is not None:
-            raise invalid(problem, "a directory path whose leading ~ is a home directory, or no ~")
+            raise invalid(problem, HOME_ACCEPTED)
         return type(value)(os.path.expanduser(str(value)))  # a Path stays a Path
     return value
 
 
+HOME_ACCEPTED = "a directory path whose leading ~ is a home directory, or no ~"
+"""What a directory path accepts where :func:`unknown_home` finds a problem."""
+
+
 def unknown_home(path: str) -> str | None:
     """What is wrong with the home directory a leading ``~`` or ``~user`` of ``path`` names,
-    or None: a user the system does not know (``os.path.expanduser`` left ``~nosuchuser/x``
-    as it was, a directory named ``~nosuchuser`` in the working directory, and ``Path``'s
-    raised ``RuntimeError``), or a ``HOME`` that is empty (``~/runs`` read as ``/runs``, in
-    the root directory) or relative (read from the working directory)."""
+    or None (also for a path without a leading ``~``): a user the system does not know
+    (``os.path.expanduser`` leaves ``~nosuchuser/x`` as it is, a directory named
+    ``~nosuchuser`` in the working directory, and ``Path``'s raises ``RuntimeError``), or a
+    ``HOME`` that is empty (``~/runs`` read as ``/runs``, in the root directory) or relative
+    (read from the working directory)."""
+    if not path.startswith("~"):
+        return None
     head = path.split(os.sep, 1)[0]
     if head == "~":
         if "HOME" not in os.environ:

@@ -467,6 +467,16 @@ class Velocity(StrictModel):
             self.from_height = 0.0
         return self
 
+    def extremes(self, thickness: float) -> list[float]:
+        """The slowest and fastest velocities (m/s) of the profile over a column ``thickness``
+        thick: a plug's one speed; a linear profile's and Bagnold's at the bed (0) and at the
+        surface, where they are monotone in between."""
+        if self.profile == "plug":
+            return [self.speed or 0.0]
+        if self.profile == "linear":  # linear above from_height, 0 below
+            return [0.0, (self.shear_rate or 0.0) * max(thickness - (self.from_height or 0.0), 0.0)]
+        return [0.0, self.surface_speed or 0.0]
+
 
 class SharedRows:
     """The rows of a profile file in a Python-mode dump of a scenario: equal to the dump of
@@ -1080,6 +1090,10 @@ class Scenario(StrictModel):
                 "numerics.front_threshold",
             )
 
+    def _normal_gravity(self) -> float:
+        """``g cos(theta)`` (m/s^2), the gravity normal to the bed."""
+        return self.gravity * math.cos(math.radians(self.slope_deg))
+
     def _check_inflow(self) -> None:
         """An inflow whose state leaves the domain faster than its waves can enter it (a
         velocity out of the domain of at least ``2 sqrt(g cos(theta) h)``, the speed of the
@@ -1088,14 +1102,9 @@ class Scenario(StrictModel):
         inflow = self.boundaries.inflow
         if inflow is None:
             return
-        v, h = inflow.velocity, inflow.thickness
-        if v.profile == "plug":
-            speeds = [v.speed or 0.0]
-        elif v.profile == "linear":  # linear above from_height, 0 below: its extremes at the ends
-            speeds = [0.0, (v.shear_rate or 0.0) * max(h - (v.from_height or 0.0), 0.0)]
-        else:  # bagnold: from 0 at the bed to surface_speed
-            speeds = [0.0, v.surface_speed or 0.0]
-        waves = 2.0 * math.sqrt(self.gravity * math.cos(math.radians(self.slope_deg)) * h)
+        h = inflow.thickness
+        speeds = inflow.velocity.extremes(h)
+        waves = 2.0 * math.sqrt(self._normal_gravity() * h)
         for side, inward in (("left", 1.0), ("right", -1.0)):
             if not lateral.BOUNDARIES[getattr(self.boundaries, side)].needs_state:
                 continue
@@ -1137,16 +1146,9 @@ class Scenario(StrictModel):
         inflow = self.boundaries.inflow
         if inflow is None:
             return
-        h, v = inflow.thickness, inflow.velocity
-        top = (
-            v.speed
-            if v.profile == "plug"
-            else (v.shear_rate or 0.0) * max(h - (v.from_height or 0.0), 0.0)
-            if v.profile == "linear"
-            else v.surface_speed
-        )
-        g_n = self.gravity * math.cos(math.radians(self.slope_deg))
-        u = abs(float(top or 0.0))
+        h = inflow.thickness
+        g_n = self._normal_gravity()
+        u = max(abs(float(speed)) for speed in inflow.velocity.extremes(h))
         speed = u + math.sqrt(g_n * h)  # Python's floats: inf, no warning
         flux = h * u * u + g_n * h * h / 2.0
         pressure = self.material.density * g_n * h
@@ -1163,8 +1165,8 @@ class Scenario(StrictModel):
 
     def _check_thinnest_layer(self) -> None:
         """The thinnest layer of a column at the dry threshold, the thinnest a wet column is,
-        is a normal float (``limits.MIN_LAYER_THICKNESS``): a layer fraction of 5e-324 gave
-        layers of 0 m and a NaN velocity at the first step."""
+        is a normal float (``limits.MIN_LAYER_THICKNESS``): a layer fraction of 5e-324 gives
+        layers of 0 m, whose velocity (momentum over thickness) is no number."""
         fraction = float(layer_fractions(self.domain.layers, self.domain.layer_fractions).min())
         dry = self.numerics.dry_threshold
         if not fraction * dry >= limits.MIN_LAYER_THICKNESS:
