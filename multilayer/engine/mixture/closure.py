@@ -111,6 +111,13 @@ class BasalClosure(NamedTuple):
     tau_b: float  # basal shear stress of the grains, >= 0 (Pa)
 
 
+def darcy_coefficient(beta: float, h: float, phi: float) -> float:
+    """``B = beta h^2 / (2 (1 - phi)^2)`` (Pa s): the basal excess pore pressure of a layer
+    of thickness ``h`` per unit dilation rate, ``p_e = -B Phi``, Darcy's law integrated over
+    the layer (Bouchut et al. 2016)."""
+    return 0.5 * beta * h * h / ((1.0 - phi) * (1.0 - phi))
+
+
 def basal_closure(
     mat: MixtureMaterial,
     solid: float,
@@ -136,7 +143,7 @@ def basal_closure(
     phi = solid / h
     gamma = 3.0 * speed / h
     beta = mat.drag(phi)
-    B = 0.5 * beta * h * h / ((1.0 - phi) * (1.0 - phi))
+    B = darcy_coefficient(beta, h, phi)
     ratio = lag * B
     B /= 1.0 + ratio
     a = weight - previous * ratio / (1.0 + ratio) + B * gamma * mat.K * (phi - mat.phi_c)

@@ -41,7 +41,13 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import brentq
 
-from multilayer.engine.mixture.closure import BasalClosure, MixtureMaterial, basal_closure, closure_at
+from multilayer.engine.mixture.closure import (
+    BasalClosure,
+    MixtureMaterial,
+    basal_closure,
+    closure_at,
+    darcy_coefficient,
+)
 from multilayer.errors import InputError, RunError
 
 GRAVITY = 9.81
@@ -191,7 +197,7 @@ class UniformLayer:
         if self.compressibility is None:
             return 0.0
         phi = self.solid / h
-        return self.compressibility * 0.5 * self.material.drag(phi) * h * h / (1.0 - phi) ** 2
+        return self.compressibility * darcy_coefficient(self.material.drag(phi), h, phi)
 
     def held_at_rest(self, h: float | None = None) -> bool:
         """Whether the layer of thickness ``h`` (default ``h0``) at rest stays at rest:
@@ -216,7 +222,7 @@ class UniformLayer:
             force = 0.0
         else:
             force -= math.copysign(cl.tau_b, force)
-        B = 0.5 * cl.beta * h * h / (1.0 - cl.phi) ** 2
+        B = darcy_coefficient(cl.beta, h, cl.phi)
         volume = -cl.p_e / B if relaxed else cl.dilation  # d_t h / h: the Darcy outflow with alpha
         fluid_mass = mat.rho_f * (h - self.solid)
         du = 0.0
@@ -254,7 +260,7 @@ class UniformLayer:
         if self.compressibility is None:
             darcy = 1.5 * cl.beta * s.h * s.v**2 * cl.tan_psi**2 / (1.0 - cl.phi) ** 2
         else:
-            B = 0.5 * cl.beta * s.h**2 / (1.0 - cl.phi) ** 2
+            B = darcy_coefficient(cl.beta, s.h, cl.phi)
             darcy = s.h * s.p_e**2 * (1.0 / (3.0 * B) - self.compressibility * cl.dilation / 6.0)
         return (
             mat.tan_delta * cl.p_s * speed
@@ -380,7 +386,7 @@ class _Step:
         ``Phi'`` of the closure, or with a compressibility the Darcy outflow ``-p_e' / B'``."""
         if self.lag == 0.0:
             return cl.dilation
-        return -cl.p_e * (1.0 - cl.phi) ** 2 / (0.5 * cl.beta * h * h)
+        return -cl.p_e / darcy_coefficient(cl.beta, h, cl.phi)
 
     def consolidated(self) -> float:
         """``h'`` of the layer held at rest with a compressibility: ``h' = h / (1 + dt p_e' / B')``,
