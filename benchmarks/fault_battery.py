@@ -5026,6 +5026,8 @@ def main() -> None:
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()
     selected = [c for c in every if args.k in c.name]
+    if not selected:
+        parser.error(f"no case's name contains {args.k!r}")
     done = []
     with ThreadPoolExecutor(args.j) as pool:
         for case in pool.map(attempt, selected):  # printed as they finish, in order
