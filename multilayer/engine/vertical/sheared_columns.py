@@ -338,12 +338,12 @@ def _solve(t, w, L, new, threshold, flags):
     pivot is positive (a column whose structure is rejected leaves the block; the pass of the
     stresses at slot ``new`` tests that each yielded jump keeps its sign, :func:`_sweep`).
     As the velocities are substituted back, the layers whose velocity changed by more than
-    ``threshold`` from those of slot ``current`` are counted down each lane (a NaN change
-    not counted), so that the bottom cells of the sweep ``TRIED`` hold each lane's count:
-    the first test of :func:`_converged`, without a pass of its own.  The velocities of
-    ``current`` are read from the sweep ``SOLVED`` they are overwritten in (the last solve's,
-    or the guesses :func:`sheared_block` puts there), not from the tile: a loop that also
-    loaded the tile ran one value at a time.
+    ``threshold`` from the iterate before (a NaN change not counted) are counted down each
+    lane, so that the bottom cells of the sweep ``TRIED`` hold each lane's count: the first
+    test of :func:`_converged`, without a pass of its own.  The iterate before is read from
+    the sweep ``SOLVED`` it is overwritten in (the last solve's, or the guesses
+    :func:`sheared_block` puts there), not from the tile: a loop that also loads the tile
+    runs one value at a time.
 
     The sweeps run in ``w``, ``SWEEPS`` arrays of ``BLOCK L`` values, each the block's
     layers one after the other and each layer its ``BLOCK`` lanes side by side (layer a
