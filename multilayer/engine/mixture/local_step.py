@@ -13,25 +13,31 @@ effective pressure::
 
     Phi_a = gamma_a K (phi_a - phi_c + K2 eta_f gamma_a / p_s,a)
     p_s,a = P_a - p_e,a,   P_a = (rho_s - rho_f) g cos(theta) sum_{b >= a} s_b
-    p_e,a = p_e,a+1 - D_a h_a (W_a + W_a+1) / 2,   D_a = beta(phi_a) / (1 - phi_a)^2,   p_e,L = 0
+    p_e,a = -sum_{c >= a} D_c h_c W_c,   D_c = beta(phi_c) / (1 - phi_c)^2
+    W_c = sum_{b <= c} spacing_b h Phi_b
 
-with ``W_a = sum_{b < a} h_b Phi_b`` the grains' vertical velocity at interface ``a``
-(Darcy's law for the fluid they displace, integrated from the top of the mixture down;
-for one layer it is the uniform layer's ``p_e = -beta h^2 Phi / (2 (1 - phi)^2)``).  Every
-layer's dilation sets the pore pressure of every interface below the top: at given velocities
-the effective pressures solve one coupled system per column (:meth:`LocalStep.closure`).
+with ``spacing_b h Phi_b = tan(psi_b) |v_b - v_(b-1)|`` the rise of the grains above
+interface ``b`` per unit time (the integral of ``div v = gamma tan(psi)`` across the sheared
+zone) and ``W_c`` the grains' rise through layer ``c``: Darcy's law for the fluid that fills
+the pores the dilation opens, integrated from the top of the mixture down; for one layer it
+is the uniform layer's ``p_e = -beta h^2 Phi / (2 (1 - phi)^2)``.  Every layer's dilation
+sets the pore pressure of every interface at or below it: at given velocities the effective
+pressures solve one coupled system per column (:meth:`LocalStep.closure`).
 
 The step, backward Euler: the thickness ``h' = h* / (1 - dt sum_a l_a Phi_a)`` (the fluid
-drawn from or expelled to the ambient fluid; ``s_a`` unchanged), and the velocities the
-exact minimiser of the column problem (``engine/vertical``) with masses
-``rho_s s_a + rho_f (fluid before + fluid after) / 2`` (the fluid joins at rest: the
-exchange term of the uniform layer's energy identity), the yield stress and viscosity of
-the rheology at the effective pressure.  The pore pressures and the thickness of the whole
-column are the unknowns of a Newton iteration with the exact column solve inside; at rest
-``gamma = 0``, so ``Phi = 0``, ``p_e = 0`` and ``h' = h*`` bit for bit: a column held by
-friction stays at ``v == 0.0``.  With a compressibility ``alpha`` (George & Iverson 2014) each
-pore pressure relaxes towards the closure's, ``alpha B_a d_t p_e,a = -(p_e,a + (M Phi)_a)``
-with ``B_a = sum_b M_ab``, by backward Euler in the same iteration (:meth:`LocalStep.closure`).
+drawn from or expelled to the ambient fluid), and the velocities the exact minimiser of the
+column problem (``engine/vertical``) with masses ``rho_s s_a + rho_f (fluid before + fluid
+after) / 2`` (the fluid joins at rest: the exchange term of the uniform layer's energy
+identity), the yield stress and viscosity of the rheology at the effective pressure.  The
+pore pressures and the thickness of the whole column are the unknowns of a Newton iteration
+with the exact column solve inside; at rest ``gamma = 0``, so ``Phi = 0``, ``p_e = 0`` and
+``h' = h*`` bit for bit: a column held by friction stays at ``v == 0.0``.  In several layers
+the converged step then moves solid between the layers of each column (and the same volume
+of fluid the other way, each carrying its layer's momentum) so that the dilation of each
+interface lifts the grains above it, as in the model (:meth:`LocalStep.exchange`; Notes).
+With a compressibility ``alpha`` (George & Iverson 2014) each pore pressure relaxes towards
+the closure's, ``alpha B_a d_t p_e,a = -(p_e,a + (M Phi)_a)`` with ``B_a = sum_b M_ab``, by
+backward Euler in the same iteration (:meth:`LocalStep.closure`).
 
 Continuation in ``dt``: a column whose Newton iteration does not converge (it stalls,
 wanders, or runs out of ``numerics.max_iterations``) or diverges is done again as
@@ -61,89 +67,87 @@ local steps of a column that converged in the shipped mixture scenarios to 2 s a
 loose column at 0 to 25 degrees, in one and three layers and on 20 and 40 cells
 (tests/test_mixture_continuation.py), the least norm fell at every iteration.
 
-Conservation holds in sub-steps as in one step: the local step never changes the solid
-``s_a`` of a column, and the fluid it draws in or expels is exchanged with the ambient
-fluid of the same column only (no flux crosses a face in the local step): the mixture
-volume's balance (engine/mixture/flow.py) records that exchange as the column's final
-minus its starting thickness, whatever the steps between.
+Conservation holds in sub-steps as in one step: the local step changes the solid of a
+layer only by the exchange between the layers of its column, whose fluxes cross interior
+interfaces (the column's solid is kept to round-off), and the fluid it draws in or expels
+is exchanged with the ambient fluid of the same column only (no flux crosses a face in the
+local step): the mixture volume's balance (engine/mixture/flow.py) records that exchange
+as the column's final minus its starting thickness, whatever the steps between.
 
 The discrete energy of a uniform column (no transport; one local step per time step, the
-Lie splitting of ``numerics.order: 1``), per unit area, with the buoyant weights
-``w_a = (rho_s - rho_f) g cos(theta) s_a`` and ``F_a = (rho_s - rho_f) g sin(theta) s_a``,
-``X_a`` the distance layer ``a`` travelled, ``c_a = sum_{b < a} l_b + l_a / 2`` the height
-of its centre over ``h`` and ``P_bar = sum_a w_a c_a``::
+Lie splitting of ``numerics.order: 1``), per unit area, with ``G = (rho_s - rho_f) g
+cos(theta)``, the buoyant weights ``w_a = G s_a`` and ``F_a = (rho_s - rho_f) g sin(theta)
+s_a``, ``X_a`` the distance layer ``a`` travelled, ``c_a = sum_{b < a} l_b + l_a / 2`` the
+height of its centre over ``h`` and ``P_bar = sum_a w_a c_a``::
 
     E = sum_a m_a v_a^2 / 2 + h P_bar - sum_a F_a X_a
 
-The column solve's momentum balance times ``v'``, the masses of the fluid joining at
-rest and ``h' - h = dt h' sum_a l_a Phi_a`` give exactly::
+(a uniform packing per layer puts the grains of layer ``a`` at its centre).  The step from
+``(s, h*, v*)`` (``v*`` with the drive ``F`` of the step) is
 
-    E' - E = -dt D' - sum_a m_a (v'_a - v_a)^2 / 2
-    D = sum_a |v_a - v_{a-1}| (kappa_a + (K1 + K K2) eta_f gamma_a - lambda_a tan(psi_a) P_bar)
+1. the column solve and the closure at the solid ``s``: ``v'``, ``p_e'``, ``Phi'`` and
+   ``h' - h* = dt h' sum_a l_a Phi'_a = sum_a T_a``, with ``T_a = dt l_a h' Phi'_a`` the
+   thickening of interface ``a`` and ``R_a = dt spacing_a h' Phi'_a = dt tan(psi_a)
+   |v'_a - v'_(a-1)|`` its rise (``T_a = lambda_a R_a``, ``lambda_a = l_a / spacing_a``);
+2. the exchange (:meth:`exchange`): the solid ``f_b`` crosses interior interface ``b``
+   upwards (the same volume of fluid downwards), ``s''_a = s_a + f_a - f_(a+1)``
+   (``f_0 = f_L = 0``), with ``G h' sum_b spacing_b f_b = sum_a Q_a``,
+   ``Q_a = R_a P_a - T_a P_bar`` (``P_a``, ``P_bar`` of ``s``), each ``Q_a`` by fluxes of
+   its own sign; every layer ends as the merger, at one velocity ``v''_a``, of what it kept
+   of its mass ``m_a(s, h')`` at ``v'_a`` and the parcels of its neighbours at theirs.
 
-with ``kappa_a`` the rheology's yield stress, ``(K1 + K K2) eta_f`` its viscosity (the law
-``dilatant_coulomb``), ``lambda_a = l_a / spacing_a`` and ``tan(psi_a) = Phi_a / gamma_a``.
-The last term is the lift: the fractions are fixed, so the dilation of layer ``a`` raises
-every layer and costs the column's mean buoyant weight ``P_bar`` per unit rise, while its
-dilatancy friction pays with the interface's own ``p_s,a`` (``kappa + K K2 eta_f gamma >=
-(tan(delta) + tan(psi)) p_s``).  Each interface dissipates, ``D >= 0`` term by term, where
-it contracts, and where it dilates iff
-``kappa_a + (K1 + K K2) eta_f gamma_a >= lambda_a tan(psi_a) P_bar``.  For one layer
-``lambda P_bar = P <= p_s`` whenever it dilates, so ``D >= 0`` always and
-``D = (tan(delta) p_s + K1 eta_f gamma - tan(psi) p_e) |v|`` (the uniform layer's); at the
-bed of a column of one packing ``lambda_0 P_bar = P_0`` too.  An interface high in a column, where
-``p_s,a`` is well below ``P_bar``, that shears and dilates alone breaks it: the energy of
-the scheme then grows (tests/test_mixture_flow.py, docs/mixture.md).
+The energy identity.  The column solve's momentum balance times ``v'``, the masses of the
+fluid joining at rest and ``h' - h* = sum_a T_a`` give exactly (the one-layer identity of the
+uniform layer, term by term) the change over 1, with the stress ``tau_a`` of interface
+``a``: ``-dt sum_a |v'_a - v'_(a-1)| tau_a + sum_a T_a P_bar - K``, ``K = sum_a m*_a (v'_a -
+v*_a)^2 / 2 >= 0``.  Over 2 the potential energy changes by ``G h' sum_a (s''_a - s_a) c_a =
+G h' sum_b f_b (c_b - c_(b-1)) = G h' sum_b f_b spacing_b = sum_a (R_a P_a - T_a P_bar)``
+(summation by parts; ``c_b - c_(b-1) = spacing_b``), and the kinetic energy by ``-K_x``,
+``K_x >= 0``: the merger keeps each parcel's momentum, and the kinetic energy of a merger
+is at most the sum of its parts' (Jensen).  So::
 
-No rule for the thickness does better while the layers keep their solid and their
-fractions: the fractions ``l_a`` are the x-sigma mesh's, common to all columns
-(engine/mesh.py), and the solid ``s_a`` of each layer is what the conservation above rests
-on.  Then ``P_bar`` is fixed, the potential energy ``h P_bar`` changes by ``(h' - h) P_bar``
-whatever sets ``h'``, and for every rule::
+    E'' - E = -dt D - K - K_x,     dt D = dt sum_a |v'_a - v'_(a-1)| tau_a - sum_a R_a P_a
 
-    E' - E = -dt sum_a |v'_a - v'_(a-1)| tau_a + (h' - h) P_bar - sum_a m_a (v'_a - v_a)^2 / 2
+The fixed-fraction lift ``T_a P_bar`` of step 1 cancels: each interface is charged the
+model's lift, the weight above it times its rise.
 
-(``tau_a`` the stress of interface ``a``): where the step changes the velocities little
-(a creeping column, whose kinetic term is of second order in ``dt``), ``E' <= E`` needs
-``(h' - h) P_bar <= dt sum_a |v'_a - v'_(a-1)| tau_a``.  In the model a column
-sheared at interface ``a`` alone grows by ``integral div v dz = |v_a - v_(a-1)| tan(psi_a)``
-per unit time, whatever the width of the sheared zone (``div v = gamma tan(psi)``,
-Bouchut et al. 2016), so a rule consistent with it adds ``c dt |v_a - v_(a-1)| tan(psi_a)``
-with ``c -> 1`` (this step: ``c = lambda_a``, 1 between equal layers), and ``E' <= E``
-needs ``c <= c_max = tau_a / (tan(psi_a) P_bar)``.  At the top interface of ``L`` equal
-layers ``tau_a`` is about ``(tan(delta) + tan(psi_a)) w_(L-1)`` and ``P_bar`` about
-``L w / 2``: ``c_max`` falls like ``1 / L``.  Measured (Pailha et al. (2008)'s first
-fluid, 4.9 mm, 32 degrees, the top layer 0.57 over dense ones 0.64, so that only the top
-interface yields; one step of 5 ms from 1 mm/s): ``c_max`` = 0.70, 0.28 and 0.13 at 20, 40
-and 80 layers (tests/test_mixture_flow.py).  No rule of this kind is consistent with the
-model and dissipative in every state for every number of layers; the one that credits each
-interface only what its stress pays (``c = c_max``) drops 87 % of the top interface's
-dilation at 80 layers.
+The inequality.  For ``dilatant_coulomb`` ``tau_a = max(tan(delta) + K (phi_a - phi_c), 0)
+p_s,a + (K1 + K K2) eta_f gamma_a >= (tan(delta) + tan(psi_a)) p_s,a + K1 eta_f gamma_a``
+(``tan(psi) p_s = K (phi - phi_c) p_s + K K2 eta_f gamma`` where ``p_s > 0``; at ``p_s = 0``
+``tan(psi) p_s = 0``), so with ``p_s,a = P_a - p_e,a`` and ``dt tan(psi_a) |v'_a - v'_(a-1)|
+= R_a``::
 
-What it would take (not built).  In the continuous model (``div v = gamma tan(psi)``,
-shear stress ``(tan(delta) + tan(psi)) p_s``) the work of ``p_s`` on the dilation is paid
-at the same point by the dilatancy friction, and the grains rise only above the place that
-dilates.  Discretely: (i) the dilation ``tan(psi_a) |v_a - v_(a-1)|`` of interface ``a``
-charged ``P_a`` per unit rise, the weight above the interface, so that the dilatancy
-friction at ``p_s,a = P_a - p_e,a`` pays it up to ``-p_e,a``; with the fractions fixed this
-means moving solid between the layers of a column in the local step (the potential energy
-``h P_bar`` otherwise charges ``P_bar``), or fractions per column, which the mesh does not
-have; a layer that dilates uniformly (one packing per layer) and thickens by
-``lambda_a tan(psi_a) |v_a - v_(a-1)|`` charges ``lambda_a (P_(a+1) + w_a / 2)`` per unit of
-``tan(psi_a) |v_a - v_(a-1)|`` instead, ``P_0 + P_1`` at the bed;
-(ii) the pore pressures integrated with the same placement,
-``p_e,a = -sum_(c >= a) D_c h_c W_c`` with ``W_c = sum_(b <= c) tan(psi_b) |v_b - v_(b-1)|``
-the grains' rise through layer ``c``: then ``-sum_a p_e,a tan(psi_a) |v_a - v_(a-1)| =
-sum_c D_c h_c W_c^2 >= 0`` (the Darcy term of the model), and ``D`` is
-``sum_a (tan(delta) p_s,a + K1 eta_f gamma_a) |v_a - v_(a-1)| + sum_c D_c h_c W_c^2`` or
-more (where the law cuts its yield stress at zero), term by term.  For one layer (ii) is
-the closure above (``W_0 = h Phi / 2``) and (i) is the step's lift; in layers the closure
-above integrates the dilation of each layer over the layer, and with the lift of (i) its
-Darcy term ``sum_ab h spacing_a Phi_a M_ab Phi_b`` (:meth:`LocalStep.darcy`) is not
-positive: two equal layers of one drag ``D``, the bed dilating at ``Phi`` and the upper
-layer contracting at ``-1.25 Phi`` under the suction ``p_e,1 = -0.094 D h^2 Phi`` the bed
-draws through it, give ``-0.0039 D h^3 Phi^2``.  How solid should cross the fractions so
-that (i) holds in every state, with the packings kept in ``[0, 1)``, is the open part.
+    dt D >= dt sum_a (tan(delta) p_s,a + K1 eta_f gamma_a) |v'_a - v'_(a-1)| - sum_a R_a p_e,a
+
+and by the closure, ``p_e,a = -sum_(c >= a) D_c h_c W_c`` with ``dt W_c = sum_(b <= c) R_b``::
+
+    -sum_a R_a p_e,a = sum_a R_a sum_(c >= a) D_c h_c W_c = sum_c D_c h_c W_c sum_(b <= c) R_b
+                     = dt sum_c D_c h_c W_c^2 >= 0
+
+(the model's Darcy dissipation).  Hence ``D >= 0`` and ``E'' <= E`` term by term, in every
+state, dilating or contracting, for any number of layers (``p_s >= 0``: the closure's
+root).  For one layer there is no interior interface, ``Q_0 = R_0 P - 2 R_0 P / 2 = 0``, no
+exchange: the step is the one-layer step unchanged, and ``D = (tan(delta) p_s + K1 eta_f
+gamma - tan(psi) p_e) |v|`` is the uniform layer's.  The identity holds at the converged
+iterate, to ``numerics.tolerance``.
+
+The bounds.  A flux leaves a layer from the side the model moves the grains: where the
+fixed fractions lift more than the model (``Q_a < 0``, an interface high in the column) the
+solid sinks through the interfaces ``1 <= b <= a`` in proportion to ``Lambda_b phi_b`` (the
+mesh rises by ``Lambda_b T_a`` there, the grains below ``a`` stay); where they lift less it
+rises through ``b > a`` in proportion to ``(1 - Lambda_b) phi_(b-1)``; where that side has
+no interface, through all.  The weights are positive wherever the layers hold solid, so
+each ``Q_a`` is carried exactly.  The exchange is kept only where every layer gives less
+solid than it holds and less fluid than it holds: then every layer keeps a positive part of
+each, so ``0 < phi'' < 1``.  Otherwise the column counts as not converged and its step is
+done again in sub-steps (continuation in ``dt``): the fluxes are of order ``dt``, so they
+fall below the contents of the layers as the sub-steps shorten, for every column whose
+layers hold solid and fluid.  What is left: a column some of whose layers hold no solid at
+all (``phi = 0``), where a flux that must leave such a layer cannot, and the run stops
+naming the exchange after :data:`MAX_SUBSTEPS` sub-steps.  The packings follow the model
+more closely than with the fixed fractions alone, which loosen every layer for the dilation
+of one: the dilation of a top interface moves solid down through the layers below it, and
+they nearly keep their packing, as in the model, where only the sheared layer loosens.
 """
 
 from __future__ import annotations
@@ -195,6 +199,8 @@ class LocalResult:
     h: np.ndarray  # (n,) mixture thickness after dilation
     pore_pressure: np.ndarray  # (L, n) excess pore pressure at the bottom of each layer (Pa)
     iterations: int
+    solid: np.ndarray  # (L, n) solid volume per unit area of each layer after the exchange
+    solved: np.ndarray  # (L, n) velocities of the column solve, before the exchange (of the last sub-step)
 
 
 class LocalStep:
@@ -291,17 +297,92 @@ class LocalStep:
         """``M`` (L, L, n) of the columns holding ``solid`` (L, n) at thickness ``h`` (n,):
         ``M[a, b]`` is minus the excess pore pressure at the bottom of layer ``a`` per unit
         dilation rate of layer ``b`` (Pa s), Darcy's law integrated from the top down with
-        ``D_c = beta(phi_c) / (1 - phi_c)^2``: ``b`` lifts the layers above it, and the fluid
-        its own rise draws crosses half of ``b`` on average."""
+        ``D_c = beta(phi_c) / (1 - phi_c)^2``: the dilation of interface ``b`` raises the
+        grains above it by ``spacing_b h Phi_b`` (its ``tan(psi_b) |v_b - v_(b-1)|``), and the
+        fluid that fills the pores it opens crosses every layer ``c >= b``,
+        ``M[a, b] = spacing_b h sum_(c >= max(a, b)) D_c h_c`` (module notes, (ii)).  For one
+        layer ``beta h^2 / (2 (1 - phi)^2)``, the uniform layer's; ``M`` is a positive
+        symmetric matrix times the positive diagonal ``spacing h``."""
         thickness = self.l * h
         phi = solid / thickness
         Dh = self.drag(phi) / (1.0 - phi) ** 2 * thickness
+        tail = np.cumsum(Dh[::-1], axis=0)[::-1]  # sum_(c >= a) D_c h_c
         L = thickness.shape[0]
+        rise = self.spacing * h  # spacing_b h: the rise per unit dilation rate of interface b
         M = np.empty((L, L, h.size))
         for a in range(L):
             for b in range(L):
-                M[a, b] = thickness[b] * (Dh[max(a, b + 1) :].sum(axis=0) + (0.5 * Dh[b] if b >= a else 0.0))
+                M[a, b] = rise[b] * tail[max(a, b)]
         return M
+
+    def exchange(
+        self, solid: np.ndarray, h: np.ndarray, v: np.ndarray, dilation: np.ndarray, dt: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The solid the step's dilation moves between the layers of columns holding
+        ``solid`` (L, n) at their new thickness ``h`` (n,), moving with ``v`` (L, n), whose
+        interfaces dilate at ``dilation`` (L, n) over ``dt``: the new solid, the velocities
+        after the momentum the exchange carries, and where the exchange keeps every layer's
+        solid and fluid positive (n,) (module notes, (i)).
+
+        Across the interior interface ``b`` (between layers ``b - 1`` and ``b``) the solid
+        ``f_b`` rises (sinks where negative) and the same volume of fluid sinks (rises), so
+        that each interface ``a`` is charged the lift ``R_a P_a`` of the model, ``R_a = dt
+        spacing_a h Phi_a`` its rise and ``P_a`` the buoyant weight above it:
+        ``G h sum_b spacing_b f_b = sum_a (R_a P_a - T_a P_bar)`` (``T_a = dt l_a h Phi_a``
+        the thickening of the step, which the fixed fractions spread over the column at the
+        cost ``T_a P_bar``; ``G = (rho_s - rho_f) g cos(theta)``), interface by interface:
+        ``Q_a = R_a P_a - T_a P_bar`` is carried by a flux of its own sign, down through the
+        interfaces ``1 <= b <= a`` in proportion to ``Lambda_b phi_b`` where ``Q_a < 0`` (the
+        mesh lifts the grains below ``a``, which the model leaves in place), up through
+        ``b > a`` in proportion to ``(1 - Lambda_b) phi_(b-1)`` where ``Q_a > 0``
+        (``Lambda_b h`` the height of interface ``b``, ``phi`` the packing of the layer the
+        solid leaves), through all interior interfaces where that side has none.  The solid
+        carries its layer's velocity and the fluid its own layer's: the momentum of the
+        column is kept, and its kinetic energy does not grow (every layer ends as the merger
+        of what it kept and what it received).  A column where a layer would give more solid
+        or fluid than it holds is not exchanged and is marked (its step goes to sub-steps)."""
+        L, n = solid.shape
+        G = self.buoyant_g_n
+        lam = np.cumsum(self.l, axis=0) - self.l  # Lambda_a: height of interface a over h
+        centre = lam + 0.5 * self.l
+        weight = G * np.cumsum(solid[::-1], axis=0)[::-1]  # P_a
+        mean_weight = np.sum(G * solid * centre, axis=0)  # P_bar
+        excess = dt * h * dilation * (self.spacing * weight - self.l * mean_weight)  # Q_a
+        thickness = self.l * h
+        phi = solid / thickness
+        down = lam[1:] * phi[1:]  # (L - 1, n): interfaces 1..L-1, the solid leaving layer b
+        up = (1.0 - lam[1:]) * phi[:-1]  # the solid leaving layer b - 1
+        cost = G * h * self.spacing[1:]  # the lift of a unit of solid across interface b
+        flux = np.zeros((L - 1, n))
+        below = np.arange(1, L)[:, None]
+        for a in range(L):
+            sinks = excess[a] < 0.0
+            side = np.where(sinks, below <= a, below > a)
+            side = np.where(side.any(axis=0), side, True)
+            pattern = np.where(side, np.where(sinks, -down, up), 0.0)
+            norm = np.sum(pattern * cost, axis=0)
+            flux += pattern * np.where(norm != 0.0, excess[a] / np.where(norm != 0.0, norm, 1.0), 0.0)
+        rises, sinks = np.maximum(flux, 0.0), np.maximum(-flux, 0.0)
+        zero = np.zeros((1, n))
+        # what leaves layer a: solid up through a + 1 and down through a, fluid the other way
+        solid_out = np.concatenate([rises, zero]) + np.concatenate([zero, sinks])
+        fluid_out = np.concatenate([zero, rises]) + np.concatenate([sinks, zero])
+        kept = (solid_out < solid) & (fluid_out < thickness - solid)
+        fine = kept.all(axis=0) | ~np.any(flux != 0.0, axis=0)
+        flux = np.where(fine, flux, 0.0)
+        rises, sinks = np.maximum(flux, 0.0), np.maximum(-flux, 0.0)
+        upward = self.rho_s * rises + self.rho_f * sinks  # mass from layer b - 1 to layer b, at v_(b-1)
+        downward = self.rho_f * rises + self.rho_s * sinks  # from layer b to layer b - 1, at v_b
+        mass = self.masses(solid, h)
+        kept_mass = mass - np.concatenate([upward, zero]) - np.concatenate([zero, downward])
+        momentum = (
+            kept_mass * v + np.concatenate([zero, upward * v[:-1]]) + np.concatenate([downward * v[1:], zero])
+        )
+        merged = kept_mass + np.concatenate([zero, upward]) + np.concatenate([downward, zero])
+        new = solid + np.concatenate([zero, flux]) - np.concatenate([flux, zero])
+        moved = np.any(flux != 0.0, axis=0)
+        velocities = np.where(moved, momentum / np.where(moved, merged, 1.0), v)
+        return np.where(moved, new, solid), velocities, fine
 
     def _coupled(
         self,
@@ -391,35 +472,38 @@ class LocalStep:
         zero, bit for bit)."""
         where = np.zeros(h_star.size) if x is None else x
         n = h_star.size
-        u, h = ustar.copy(), h_star.copy()
+        u, h, s = ustar.copy(), h_star.copy(), solid.copy()
+        solved = ustar.copy()
         velocities = np.zeros_like(ustar) if guess is None else guess.copy()
         pressure = np.zeros_like(ustar) if pressure_guess is None else pressure_guess.copy()
         start_pressure = None if previous is None else previous.copy()
         going, iterations = np.arange(n), 0
-        failed, diverged = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+        failed, diverged, crowded = (np.zeros(n, dtype=bool) for _ in range(3))
         closure_error: RunError | None = None
         for j in range(substeps):
             if not going.size:
                 break
-            result, converged, burst, error = self._newton(
-                solid[:, going], h[going], u[:, going], dt / substeps, velocities[:, going],
+            result, converged, burst, error, full = self._newton(
+                s[:, going], h[going], u[:, going], dt / substeps, velocities[:, going],
                 pressure[:, going], where[going], t + j * (dt / substeps), watch if j == 0 else None,
                 None if start_pressure is None else start_pressure[:, going],
             )  # fmt: skip
             iterations += result.iterations
             done = going[converged]
             u[:, done], h[done] = result.u[:, converged], result.h[converged]
+            s[:, done], solved[:, done] = result.solid[:, converged], result.solved[:, converged]
             pressure[:, done] = result.pore_pressure[:, converged]
             velocities[:, done] = u[:, done]
             if start_pressure is not None:
                 start_pressure[:, done] = pressure[:, done]
             failed[going[~converged]], diverged[going[burst]] = True, True
+            crowded[going[full]] = True
             closure_error = error or closure_error
             going = done
         k = np.flatnonzero(failed)
         if k.size and 2 * substeps > MAX_SUBSTEPS:
             column = np.flatnonzero(diverged if diverged.any() else failed)[0]
-            raise self._failure(where[column], t, bool(diverged.any()), closure_error)
+            raise self._failure(where[column], t, bool(diverged.any()), closure_error, bool(crowded[column]))
         if k.size:
             start = (None if given is None else given[:, k] for given in (guess, pressure_guess))
             again = self(
@@ -427,14 +511,23 @@ class LocalStep:
                 previous=None if previous is None else previous[:, k],
             )  # fmt: skip
             u[:, k], h[k], pressure[:, k] = again.u, again.h, again.pore_pressure
+            s[:, k], solved[:, k] = again.solid, again.solved
             iterations += again.iterations
-        return LocalResult(u, h, pressure, iterations)
+        return LocalResult(u, h, pressure, iterations, s, solved)
 
-    def _failure(self, x: float, t: float, diverged: bool, closure_error: RunError | None) -> RunError:
+    def _failure(
+        self, x: float, t: float, diverged: bool, closure_error: RunError | None, crowded: bool = False
+    ) -> RunError:
         """The error of a local step that failed at ``x`` from ``t`` in up to
         :data:`MAX_SUBSTEPS` sub-steps, ``diverged`` where a trial pore pressure was not finite
-        or its closure failed (``closure_error``, the closure's own message, if it did)."""
+        or its closure failed (``closure_error``, the closure's own message, if it did),
+        ``crowded`` where its exchange between the layers would empty a layer (:meth:`exchange`)."""
         place = f"(at x = {x:.6g} m, t = {t:.6g} s; also in up to {MAX_SUBSTEPS} sub-steps)"
+        if crowded and not diverged:
+            return RunError(
+                "the mixture's local step would move more solid or fluid between the layers of a column than "
+                f"a layer holds (its packings would leave (0, 1)) {place}"
+            )
         if diverged and closure_error is not None:
             return RunError(f"{closure_error} {place}")
         if diverged:
@@ -458,11 +551,13 @@ class LocalStep:
         t: float,
         watch: np.ndarray | None = None,
         previous: np.ndarray | None = None,
-    ) -> tuple[LocalResult, np.ndarray, np.ndarray, RunError | None]:
+    ) -> tuple[LocalResult, np.ndarray, np.ndarray, RunError | None, np.ndarray]:
         """One backward-Euler step of ``dt`` of the columns (the arguments of
         :meth:`__call__`; ``watch``: see there): its result, where it converged, where it
         diverged (n,) (a trial excess pore pressure not finite, or a trial state whose
-        closure failed) and the closure's error if one did.  A column that diverges leaves
+        closure failed), the closure's error if one did, and where the converged step's
+        exchange between the layers would empty a layer of its solid or fluid (n,; those
+        columns count as not converged: :meth:`exchange`).  A column that diverges leaves
         the iteration, unconverged, as does one whose iterate comes back to where it
         started, bit for bit (the iteration would repeat itself), or whose least residual
         norm has not fallen for :data:`WINDOW` iterations (it wanders; module notes).
@@ -542,7 +637,7 @@ class LocalStep:
             h_new = np.where(growth > 0.0, h_star[k] / np.where(growth > 0.0, growth, 1.0), np.inf)
             residual = (X - np.concatenate([pressure, h_new[None, :]])) / scale[:, k]
             residual = np.where(np.isfinite(residual), residual, np.inf)
-            return Evaluation(v, rates, pressure, h_new, residual, np.abs(residual).max(axis=0))
+            return Evaluation(v, rates, pressure, h_new, dilation, residual, np.abs(residual).max(axis=0))
 
         lag, drains = 0.0, previous is not None and L == 1  # one relaxing layer drains (Notes)
         if previous is not None:
@@ -552,7 +647,8 @@ class LocalStep:
         X = np.concatenate([pressure_guess, h_star[None, :]])
         now = evaluate(X, np.arange(n))
         if watch is not None and np.any(now.v[:, watch]):  # a watched column starts: the step stops
-            return LocalResult(now.v, now.h, now.pressure, 1), np.ones(n, dtype=bool), diverged, None
+            result = LocalResult(now.v, now.h, now.pressure, 1, solid, now.v)
+            return result, np.ones(n, dtype=bool), diverged, None, np.zeros(n, dtype=bool)
         best, since = now.norm.copy(), np.zeros(n, dtype=int)  # least norm, iterations since it fell
         iteration = 1
         while (k := np.flatnonzero(~(now.norm <= self.tolerance) & ~diverged & ~stalled & ~wandering)).size:
@@ -589,7 +685,13 @@ class LocalStep:
             wandering[k] = since[k] >= WINDOW
         converged = (now.norm <= self.tolerance) & ~diverged
         error = closure_errors[0] if closure_errors else None
-        return LocalResult(now.v, now.h, now.pressure, iteration), converged, diverged, error
+        u, moved, crowded = now.v, solid, np.zeros(n, dtype=bool)
+        if L > 1:  # the lift of each interface's dilation (module notes, (i))
+            moved, u, fine = self.exchange(solid, now.h, now.v, now.dilation, dt)
+            crowded = converged & ~fine
+            converged &= fine
+        result = LocalResult(u, now.h, now.pressure, iteration, moved, now.v)
+        return result, converged, diverged, error, crowded
 
     @staticmethod
     def _bisect(
@@ -638,6 +740,7 @@ class Evaluation(NamedTuple):
     rates: np.ndarray  # (L, k) interface shear rates
     pressure: np.ndarray  # (L, k) excess pore pressures of the closure at these velocities
     h: np.ndarray  # (k,) thickness of the dilation at these velocities
+    dilation: np.ndarray  # (L, k) dilation rates of the closure at these velocities
     residual: np.ndarray  # (L + 1, k) X minus what it produces, scaled
     norm: np.ndarray  # (k,) largest scaled component of the residual
 
@@ -647,7 +750,8 @@ class Evaluation(NamedTuple):
         fails): no velocities, an infinite residual."""
         L, k = X.shape[0] - 1, X.shape[1]
         residual = np.full(X.shape, np.inf)
-        return Evaluation(np.zeros((L, k)), np.zeros((L, k)), X[:L], X[L], residual, residual[0])
+        blank = np.zeros((L, k))
+        return Evaluation(blank, blank, X[:L], X[L], blank, residual, residual[0])
 
     @staticmethod
     def join(parts: list[Evaluation]) -> Evaluation:
