@@ -420,7 +420,7 @@ def test_a_dry_scenario_refuses_phi():
     ids=["one layer", "three layers", "twenty layers, a loose top"],
 )
 def test_the_energy_of_the_layered_time_loop_does_not_grow(packings, slope):
-    """The energy of ``LocalStep`` (Notes) in the time loop, for the Lie splitting
+    """The energy of ``engine/mixture/exchange.py`` (Notes) in the time loop, for the Lie splitting
     (``numerics.order: 1``) of a uniform column whose layers hold the packings ``packings``
     (bottom up): ``E = sum_a m_a v_a^2 / 2 + h P_bar - W`` with the solid each layer holds
     now (the exchange between the layers moves it) and ``W`` the work of the downslope
@@ -516,7 +516,7 @@ def _local_step_terms(local, law, solid, h0, v0, dt):
 
 @pytest.mark.parametrize("layers", [1, 3])
 def test_the_energy_identity_of_the_local_step_on_random_columns(layers):
-    """The identity of ``LocalStep`` (Notes) ``E'' - E = -dt D - K - K_x`` with
+    """The identity of ``engine/mixture/exchange.py`` (Notes) ``E'' - E = -dt D - K - K_x`` with
     ``E = sum_a m_a v_a^2 / 2 + h P_bar``, on 48 random columns (packings 0.52-0.64,
     1-10 mm, layer velocity increments 1e-4 to 0.2 m/s, one step of 5 ms, no drive): to 1e-9
     of its terms (measured: 5.4e-13 or less), ``D >= 0`` and ``K_x >= 0`` in each column,
@@ -594,7 +594,7 @@ def test_a_dry_scenario_refuses_the_mixture_quantities():
 def test_the_energy_inequality_and_the_balances_of_the_local_step_in_two_to_eight_layers(layers, packing):
     """On 24 random columns of ``layers`` equal layers, loose (packings 0.52-0.575, below
     phi_c = 0.582) or dense (0.59-0.64), 1-10 mm, layer velocity increments 1e-4 to 0.2 m/s,
-    one step of 5 ms: the identity ``E'' - E = -dt D - K - K_x`` of ``LocalStep`` (Notes) to
+    one step of 5 ms: the identity ``E'' - E = -dt D - K - K_x`` of ``engine/mixture/exchange.py`` (Notes) to
     1e-9 of its terms (measured: 5.5e-13 or less); the inequality term by term, ``D`` at
     least the rate-independent and viscous friction plus the Darcy term ``sum_c D_c h_c
     W_c^2`` (to 1e-9 of the work; it is more only where the law cuts its yield stress at
@@ -674,7 +674,7 @@ def test_the_top_interface_of_many_layers_dissipates_with_the_exchange(layers):
 
 
 def test_the_darcy_term_of_the_closure_in_layers_is_a_sum_of_squares():
-    """``LocalStep`` (Notes): with each interface's rise ``R_a = dt spacing_a h Phi_a`` and
+    """``engine/mixture/exchange.py`` (Notes): with each interface's rise ``R_a = dt spacing_a h Phi_a`` and
     the closure's pore pressures, ``-sum_a p_e,a R_a / dt = sum_c D_c h_c W_c^2``,
     ``W_c = sum_(b <= c) R_b / dt``: two equal layers of one packing (one drag ``D``), the bed
     dilating at ``Phi`` and the upper layer contracting at ``-1.25 Phi``, give
@@ -1177,3 +1177,44 @@ def test_a_layered_relaxing_result_holds_the_pore_pressure_of_each_layer(tmp_pat
     assert labels[3:] == (["phi per layer", "p_e at the bottom"] if layers > 1 else [])
     if layers > 1:
         assert len(mixture_figure(ds, "loose").axes[4].lines) == layers
+
+
+@pytest.mark.parametrize("layers", [2, 5])
+def test_the_exchange_between_the_layers_charges_each_interface_the_model_lift(layers):
+    """``LocalStep.exchange`` on random columns (packings 0.52-0.64, layer velocities up to
+    0.2 m/s, dilation rates of either sign up to 2 /s at every interface, one step of
+    5 ms): the potential energy changes by ``sum_a (R_a P_a - T_a P_bar)`` (what the lift of
+    the model needs beyond the fixed fractions') to round-off (1e-12 of the potential
+    energy ``h P_bar``), the
+    column's solid and momentum are kept to round-off, its kinetic energy does not grow,
+    and the packings stay in (0, 1).  A dilation that would take from a layer more solid
+    than it holds (the same rates over 20 s) is refused: the column is marked, its solid and
+    velocities returned as given."""
+    rng = np.random.default_rng(42 + layers)
+    l, law = np.full(layers, 1.0 / layers), DilatantCoulomb(delta_deg=22.5, K1=90.5)
+    local = LocalStep(FLUID, law, GRAINS, l, 9.81, 1e-10, 200)
+    n = 64
+    h = rng.uniform(1e-3, 1e-2, n)
+    solid = rng.uniform(0.52, 0.64, (layers, n)) * l[:, None] * h
+    v = np.cumsum(rng.uniform(0.0, 0.2 / layers, (layers, n)), axis=0)
+    dilation = rng.uniform(-2.0, 2.0, (layers, n))
+    dt, G = 5e-3, local.buoyant_g_n
+    moved, u, fine = local.exchange(solid, h, v, dilation, dt)
+    assert fine.all() and not np.array_equal(moved, solid)
+    centre = np.cumsum(l) - l / 2
+    weight = G * np.cumsum(solid[::-1], axis=0)[::-1]
+    mean_weight = np.sum(G * solid * centre[:, None], axis=0)
+    needed = np.sum(dt * h * dilation * (local.spacing * weight - l[:, None] * mean_weight), axis=0)
+    change = G * h * np.sum((moved - solid) * centre[:, None], axis=0)
+    assert np.all(np.abs(change - needed) <= 1e-12 * h * mean_weight)
+    eps = np.finfo(float).eps
+    assert np.all(np.abs(moved.sum(axis=0) - solid.sum(axis=0)) <= 4.0 * eps * solid.sum(axis=0))
+    m0, m1 = local.masses(solid, h), local.masses(moved, h)
+    momentum = np.sum(m0 * v, axis=0)
+    assert np.all(np.abs(np.sum(m1 * u, axis=0) - momentum) <= 1e-12 * momentum)
+    assert np.all(np.sum(m1 * u * u, axis=0) <= np.sum(m0 * v * v, axis=0) * (1.0 + 1e-12))
+    phi = moved / (l[:, None] * h)
+    assert np.all((phi > 0.0) & (phi < 1.0))
+    again, w, fine = local.exchange(solid, h, v, dilation, 20.0)
+    assert not fine.all()
+    assert np.array_equal(again[:, ~fine], solid[:, ~fine]) and np.array_equal(w[:, ~fine], v[:, ~fine])

@@ -34,7 +34,7 @@ with the exact column solve inside; at rest ``gamma = 0``, so ``Phi = 0``, ``p_e
 ``h' = h*`` bit for bit: a column held by friction stays at ``v == 0.0``.  In several layers
 the converged step then moves solid between the layers of each column (and the same volume
 of fluid the other way, each carrying its layer's momentum) so that the dilation of each
-interface lifts the grains above it, as in the model (:meth:`LocalStep.exchange`; Notes).
+interface lifts the grains above it, as in the model (:mod:`~multilayer.engine.mixture.exchange`).
 With a compressibility ``alpha`` (George & Iverson 2014) each pore pressure relaxes towards
 the closure's, ``alpha B_a d_t p_e,a = -(p_e,a + (M Phi)_a)`` with ``B_a = sum_b M_ab``, by
 backward Euler in the same iteration (:meth:`LocalStep.closure`).
@@ -74,80 +74,9 @@ is exchanged with the ambient fluid of the same column only (no flux crosses a f
 local step): the mixture volume's balance (engine/mixture/flow.py) records that exchange
 as the column's final minus its starting thickness, whatever the steps between.
 
-The discrete energy of a uniform column (no transport; one local step per time step, the
-Lie splitting of ``numerics.order: 1``), per unit area, with ``G = (rho_s - rho_f) g
-cos(theta)``, the buoyant weights ``w_a = G s_a`` and ``F_a = (rho_s - rho_f) g sin(theta)
-s_a``, ``X_a`` the distance layer ``a`` travelled, ``c_a = sum_{b < a} l_b + l_a / 2`` the
-height of its centre over ``h`` and ``P_bar = sum_a w_a c_a``::
-
-    E = sum_a m_a v_a^2 / 2 + h P_bar - sum_a F_a X_a
-
-(a uniform packing per layer puts the grains of layer ``a`` at its centre).  The step from
-``(s, h*, v*)`` (``v*`` with the drive ``F`` of the step) is
-
-1. the column solve and the closure at the solid ``s``: ``v'``, ``p_e'``, ``Phi'`` and
-   ``h' - h* = dt h' sum_a l_a Phi'_a = sum_a T_a``, with ``T_a = dt l_a h' Phi'_a`` the
-   thickening of interface ``a`` and ``R_a = dt spacing_a h' Phi'_a = dt tan(psi_a)
-   |v'_a - v'_(a-1)|`` its rise (``T_a = lambda_a R_a``, ``lambda_a = l_a / spacing_a``);
-2. the exchange (:meth:`exchange`): the solid ``f_b`` crosses interior interface ``b``
-   upwards (the same volume of fluid downwards), ``s''_a = s_a + f_a - f_(a+1)``
-   (``f_0 = f_L = 0``), with ``G h' sum_b spacing_b f_b = sum_a Q_a``,
-   ``Q_a = R_a P_a - T_a P_bar`` (``P_a``, ``P_bar`` of ``s``), each ``Q_a`` by fluxes of
-   its own sign; every layer ends as the merger, at one velocity ``v''_a``, of what it kept
-   of its mass ``m_a(s, h')`` at ``v'_a`` and the parcels of its neighbours at theirs.
-
-The energy identity.  The column solve's momentum balance times ``v'``, the masses of the
-fluid joining at rest and ``h' - h* = sum_a T_a`` give exactly (the one-layer identity of the
-uniform layer, term by term) the change over 1, with the stress ``tau_a`` of interface
-``a``: ``-dt sum_a |v'_a - v'_(a-1)| tau_a + sum_a T_a P_bar - K``, ``K = sum_a m*_a (v'_a -
-v*_a)^2 / 2 >= 0``.  Over 2 the potential energy changes by ``G h' sum_a (s''_a - s_a) c_a =
-G h' sum_b f_b (c_b - c_(b-1)) = G h' sum_b f_b spacing_b = sum_a (R_a P_a - T_a P_bar)``
-(summation by parts; ``c_b - c_(b-1) = spacing_b``), and the kinetic energy by ``-K_x``,
-``K_x >= 0``: the merger keeps each parcel's momentum, and the kinetic energy of a merger
-is at most the sum of its parts' (Jensen).  So::
-
-    E'' - E = -dt D - K - K_x,     dt D = dt sum_a |v'_a - v'_(a-1)| tau_a - sum_a R_a P_a
-
-The fixed-fraction lift ``T_a P_bar`` of step 1 cancels: each interface is charged the
-model's lift, the weight above it times its rise.
-
-The inequality.  For ``dilatant_coulomb`` ``tau_a = max(tan(delta) + K (phi_a - phi_c), 0)
-p_s,a + (K1 + K K2) eta_f gamma_a >= (tan(delta) + tan(psi_a)) p_s,a + K1 eta_f gamma_a``
-(``tan(psi) p_s = K (phi - phi_c) p_s + K K2 eta_f gamma`` where ``p_s > 0``; at ``p_s = 0``
-``tan(psi) p_s = 0``), so with ``p_s,a = P_a - p_e,a`` and ``dt tan(psi_a) |v'_a - v'_(a-1)|
-= R_a``::
-
-    dt D >= dt sum_a (tan(delta) p_s,a + K1 eta_f gamma_a) |v'_a - v'_(a-1)| - sum_a R_a p_e,a
-
-and by the closure, ``p_e,a = -sum_(c >= a) D_c h_c W_c`` with ``dt W_c = sum_(b <= c) R_b``::
-
-    -sum_a R_a p_e,a = sum_a R_a sum_(c >= a) D_c h_c W_c = sum_c D_c h_c W_c sum_(b <= c) R_b
-                     = dt sum_c D_c h_c W_c^2 >= 0
-
-(the model's Darcy dissipation).  Hence ``D >= 0`` and ``E'' <= E`` term by term, in every
-state, dilating or contracting, for any number of layers (``p_s >= 0``: the closure's
-root).  For one layer there is no interior interface, ``Q_0 = R_0 P - 2 R_0 P / 2 = 0``, no
-exchange: the step is the one-layer step unchanged, and ``D = (tan(delta) p_s + K1 eta_f
-gamma - tan(psi) p_e) |v|`` is the uniform layer's.  The identity holds at the converged
-iterate, to ``numerics.tolerance``.
-
-The bounds.  A flux leaves a layer from the side the model moves the grains: where the
-fixed fractions lift more than the model (``Q_a < 0``, an interface high in the column) the
-solid sinks through the interfaces ``1 <= b <= a`` in proportion to ``Lambda_b phi_b`` (the
-mesh rises by ``Lambda_b T_a`` there, the grains below ``a`` stay); where they lift less it
-rises through ``b > a`` in proportion to ``(1 - Lambda_b) phi_(b-1)``; where that side has
-no interface, through all.  The weights are positive wherever the layers hold solid, so
-each ``Q_a`` is carried exactly.  The exchange is kept only where every layer gives less
-solid than it holds and less fluid than it holds: then every layer keeps a positive part of
-each, so ``0 < phi'' < 1``.  Otherwise the column counts as not converged and its step is
-done again in sub-steps (continuation in ``dt``): the fluxes are of order ``dt``, so they
-fall below the contents of the layers as the sub-steps shorten, for every column whose
-layers hold solid and fluid.  What is left: a column some of whose layers hold no solid at
-all (``phi = 0``), where a flux that must leave such a layer cannot, and the run stops
-naming the exchange after :data:`MAX_SUBSTEPS` sub-steps.  The packings follow the model
-more closely than with the fixed fractions alone, which loosen every layer for the dilation
-of one: the dilation of a top interface moves solid down through the layers below it, and
-they nearly keep their packing, as in the model, where only the sheared layer loosens.
+The discrete energy of a column and its inequality, step by step, in every state and any
+number of layers: :mod:`multilayer.engine.mixture.exchange` (the exchange between the layers
+that charges each interface the model's lift, and the proof).
 """
 
 from __future__ import annotations
@@ -160,6 +89,7 @@ import numpy as np
 
 from multilayer.engine.config import MixtureConfig
 from multilayer.engine.mixture.closure import drag as darcy_drag
+from multilayer.engine.mixture.exchange import between_layers
 from multilayer.engine.plugin_output import call
 from multilayer.engine.vertical.column_solve import solve
 from multilayer.engine.vertical.problem import ColumnProblem
@@ -300,9 +230,10 @@ class LocalStep:
         ``D_c = beta(phi_c) / (1 - phi_c)^2``: the dilation of interface ``b`` raises the
         grains above it by ``spacing_b h Phi_b`` (its ``tan(psi_b) |v_b - v_(b-1)|``), and the
         fluid that fills the pores it opens crosses every layer ``c >= b``,
-        ``M[a, b] = spacing_b h sum_(c >= max(a, b)) D_c h_c`` (module notes, (ii)).  For one
-        layer ``beta h^2 / (2 (1 - phi)^2)``, the uniform layer's; ``M`` is a positive
-        symmetric matrix times the positive diagonal ``spacing h``."""
+        ``M[a, b] = spacing_b h sum_(c >= max(a, b)) D_c h_c``
+        (:mod:`~multilayer.engine.mixture.exchange`).  For one layer
+        ``beta h^2 / (2 (1 - phi)^2)``, the uniform layer's; ``M`` is a positive symmetric
+        matrix times the positive diagonal ``spacing h``."""
         thickness = self.l * h
         phi = solid / thickness
         Dh = self.drag(phi) / (1.0 - phi) ** 2 * thickness
@@ -318,71 +249,11 @@ class LocalStep:
     def exchange(
         self, solid: np.ndarray, h: np.ndarray, v: np.ndarray, dilation: np.ndarray, dt: float
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The solid the step's dilation moves between the layers of columns holding
-        ``solid`` (L, n) at their new thickness ``h`` (n,), moving with ``v`` (L, n), whose
-        interfaces dilate at ``dilation`` (L, n) over ``dt``: the new solid, the velocities
-        after the momentum the exchange carries, and where the exchange keeps every layer's
-        solid and fluid positive (n,) (module notes, (i)).
-
-        Across the interior interface ``b`` (between layers ``b - 1`` and ``b``) the solid
-        ``f_b`` rises (sinks where negative) and the same volume of fluid sinks (rises), so
-        that each interface ``a`` is charged the lift ``R_a P_a`` of the model, ``R_a = dt
-        spacing_a h Phi_a`` its rise and ``P_a`` the buoyant weight above it:
-        ``G h sum_b spacing_b f_b = sum_a (R_a P_a - T_a P_bar)`` (``T_a = dt l_a h Phi_a``
-        the thickening of the step, which the fixed fractions spread over the column at the
-        cost ``T_a P_bar``; ``G = (rho_s - rho_f) g cos(theta)``), interface by interface:
-        ``Q_a = R_a P_a - T_a P_bar`` is carried by a flux of its own sign, down through the
-        interfaces ``1 <= b <= a`` in proportion to ``Lambda_b phi_b`` where ``Q_a < 0`` (the
-        mesh lifts the grains below ``a``, which the model leaves in place), up through
-        ``b > a`` in proportion to ``(1 - Lambda_b) phi_(b-1)`` where ``Q_a > 0``
-        (``Lambda_b h`` the height of interface ``b``, ``phi`` the packing of the layer the
-        solid leaves), through all interior interfaces where that side has none.  The solid
-        carries its layer's velocity and the fluid its own layer's: the momentum of the
-        column is kept, and its kinetic energy does not grow (every layer ends as the merger
-        of what it kept and what it received).  A column where a layer would give more solid
-        or fluid than it holds is not exchanged and is marked (its step goes to sub-steps)."""
-        L, n = solid.shape
-        G = self.buoyant_g_n
-        lam = np.cumsum(self.l, axis=0) - self.l  # Lambda_a: height of interface a over h
-        centre = lam + 0.5 * self.l
-        weight = G * np.cumsum(solid[::-1], axis=0)[::-1]  # P_a
-        mean_weight = np.sum(G * solid * centre, axis=0)  # P_bar
-        excess = dt * h * dilation * (self.spacing * weight - self.l * mean_weight)  # Q_a
-        thickness = self.l * h
-        phi = solid / thickness
-        down = lam[1:] * phi[1:]  # (L - 1, n): interfaces 1..L-1, the solid leaving layer b
-        up = (1.0 - lam[1:]) * phi[:-1]  # the solid leaving layer b - 1
-        cost = G * h * self.spacing[1:]  # the lift of a unit of solid across interface b
-        flux = np.zeros((L - 1, n))
-        below = np.arange(1, L)[:, None]
-        for a in range(L):
-            sinks = excess[a] < 0.0
-            side = np.where(sinks, below <= a, below > a)
-            side = np.where(side.any(axis=0), side, True)
-            pattern = np.where(side, np.where(sinks, -down, up), 0.0)
-            norm = np.sum(pattern * cost, axis=0)
-            flux += pattern * np.where(norm != 0.0, excess[a] / np.where(norm != 0.0, norm, 1.0), 0.0)
-        rises, sinks = np.maximum(flux, 0.0), np.maximum(-flux, 0.0)
-        zero = np.zeros((1, n))
-        # what leaves layer a: solid up through a + 1 and down through a, fluid the other way
-        solid_out = np.concatenate([rises, zero]) + np.concatenate([zero, sinks])
-        fluid_out = np.concatenate([zero, rises]) + np.concatenate([sinks, zero])
-        kept = (solid_out < solid) & (fluid_out < thickness - solid)
-        fine = kept.all(axis=0) | ~np.any(flux != 0.0, axis=0)
-        flux = np.where(fine, flux, 0.0)
-        rises, sinks = np.maximum(flux, 0.0), np.maximum(-flux, 0.0)
-        upward = self.rho_s * rises + self.rho_f * sinks  # mass from layer b - 1 to layer b, at v_(b-1)
-        downward = self.rho_f * rises + self.rho_s * sinks  # from layer b to layer b - 1, at v_b
-        mass = self.masses(solid, h)
-        kept_mass = mass - np.concatenate([upward, zero]) - np.concatenate([zero, downward])
-        momentum = (
-            kept_mass * v + np.concatenate([zero, upward * v[:-1]]) + np.concatenate([downward * v[1:], zero])
+        """:func:`multilayer.engine.mixture.exchange.between_layers` of these columns: the
+        solid and velocities after the exchange, and where it was kept (n,)."""
+        return between_layers(
+            solid, h, v, dilation, dt, self.l, self.spacing, self.buoyant_g_n, self.rho_s, self.rho_f
         )
-        merged = kept_mass + np.concatenate([zero, upward]) + np.concatenate([downward, zero])
-        new = solid + np.concatenate([zero, flux]) - np.concatenate([flux, zero])
-        moved = np.any(flux != 0.0, axis=0)
-        velocities = np.where(moved, momentum / np.where(moved, merged, 1.0), v)
-        return np.where(moved, new, solid), velocities, fine
 
     def _coupled(
         self,
@@ -686,7 +557,7 @@ class LocalStep:
         converged = (now.norm <= self.tolerance) & ~diverged
         error = closure_errors[0] if closure_errors else None
         u, moved, crowded = now.v, solid, np.zeros(n, dtype=bool)
-        if L > 1:  # the lift of each interface's dilation (module notes, (i))
+        if L > 1:  # the lift of each interface's dilation (engine/mixture/exchange.py)
             moved, u, fine = self.exchange(solid, now.h, now.v, now.dilation, dt)
             crowded = converged & ~fine
             converged &= fine
