@@ -31,7 +31,7 @@ height of its centre over ``h`` and ``P_bar = sum_a w_a c_a``::
    ``h' - h* = dt h' sum_a l_a Phi'_a = sum_a T_a``, with ``T_a = dt l_a h' Phi'_a`` the
    thickening of interface ``a`` and ``R_a = dt spacing_a h' Phi'_a = dt tan(psi_a)
    |v'_a - v'_(a-1)|`` its rise (``T_a = lambda_a R_a``, ``lambda_a = l_a / spacing_a``);
-2. the exchange (:meth:`exchange`): the solid ``f_b`` crosses interior interface ``b``
+2. the exchange (:func:`between_layers`): the solid ``f_b`` crosses interior interface ``b``
    upwards (the same volume of fluid downwards), ``s''_a = s_a + f_a - f_(a+1)``
    (``f_0 = f_L = 0``), with ``G h' sum_b spacing_b f_b = sum_a Q_a``,
    ``Q_a = R_a P_a - T_a P_bar`` (``P_a``, ``P_bar`` of ``s``), each ``Q_a`` by fluxes of
@@ -71,7 +71,9 @@ state, dilating or contracting, for any number of layers (``p_s >= 0``: the clos
 root).  For one layer there is no interior interface, ``Q_0 = R_0 P - 2 R_0 P / 2 = 0``, no
 exchange: the step is the one-layer step unchanged, and ``D = (tan(delta) p_s + K1 eta_f
 gamma - tan(psi) p_e) |v|`` is the uniform layer's.  The identity holds at the converged
-iterate, to ``numerics.tolerance``.
+iterate, to ``numerics.tolerance``.  The drive itself, ``m_a (v*_a - v_a) = dt F_a``, changes
+the kinetic energy by ``dt sum_a F_a v*_a - sum_a m_a (v*_a - v_a)^2 / 2``: with ``X_a``
+advanced by ``dt v*_a``, ``E`` falls over the whole step too.
 
 The bounds.  A flux leaves a layer from the side the model moves the grains: where the
 fixed fractions lift more than the model (``Q_a < 0``, an interface high in the column) the
