@@ -184,7 +184,7 @@ def test_a_wandering_column_goes_to_the_substeps_within_the_window(monkeypatch):
     h, phi, v, dt = WANDERING
     local, solid, thickness = one_column(h, phi)
     rest = np.zeros((1, 1))
-    result, converged, diverged, _ = local._newton(
+    result, converged, diverged, _, _ = local._newton(
         solid, thickness, np.array([[v]]), dt, rest, rest, np.zeros(1), 0.0
     )
     assert not converged[0] and not diverged[0]

@@ -226,6 +226,8 @@ class MixtureFlow:
                     previous=None if previous is None else previous[:, wet],
                 )
             u[:, wet], h[wet], pressure[:, wet] = result.u, result.h, result.pore_pressure
+            solid = solid.copy()
+            solid[:, wet] = result.solid  # the exchange between the layers of each column
             iterations = result.iterations
         self.pending = {"solid": solid, "pore_pressure": pressure}
         return u, iterations

@@ -13,25 +13,31 @@ effective pressure::
 
     Phi_a = gamma_a K (phi_a - phi_c + K2 eta_f gamma_a / p_s,a)
     p_s,a = P_a - p_e,a,   P_a = (rho_s - rho_f) g cos(theta) sum_{b >= a} s_b
-    p_e,a = p_e,a+1 - D_a h_a (W_a + W_a+1) / 2,   D_a = beta(phi_a) / (1 - phi_a)^2,   p_e,L = 0
+    p_e,a = -sum_{c >= a} D_c h_c W_c,   D_c = beta(phi_c) / (1 - phi_c)^2
+    W_c = sum_{b <= c} spacing_b h Phi_b
 
-with ``W_a = sum_{b < a} h_b Phi_b`` the grains' vertical velocity at interface ``a``
-(Darcy's law for the fluid they displace, integrated from the top of the mixture down;
-for one layer it is the uniform layer's ``p_e = -beta h^2 Phi / (2 (1 - phi)^2)``).  Every
-layer's dilation sets the pore pressure of every interface below the top: at given velocities
-the effective pressures solve one coupled system per column (:meth:`LocalStep.closure`).
+with ``spacing_b h Phi_b = tan(psi_b) |v_b - v_(b-1)|`` the rise of the grains above
+interface ``b`` per unit time (the integral of ``div v = gamma tan(psi)`` across the sheared
+zone) and ``W_c`` the grains' rise through layer ``c``: Darcy's law for the fluid that fills
+the pores the dilation opens, integrated from the top of the mixture down; for one layer it
+is the uniform layer's ``p_e = -beta h^2 Phi / (2 (1 - phi)^2)``.  Every layer's dilation
+sets the pore pressure of every interface at or below it: at given velocities the effective
+pressures solve one coupled system per column (:meth:`LocalStep.closure`).
 
 The step, backward Euler: the thickness ``h' = h* / (1 - dt sum_a l_a Phi_a)`` (the fluid
-drawn from or expelled to the ambient fluid; ``s_a`` unchanged), and the velocities the
-exact minimiser of the column problem (``engine/vertical``) with masses
-``rho_s s_a + rho_f (fluid before + fluid after) / 2`` (the fluid joins at rest: the
-exchange term of the uniform layer's energy identity), the yield stress and viscosity of
-the rheology at the effective pressure.  The pore pressures and the thickness of the whole
-column are the unknowns of a Newton iteration with the exact column solve inside; at rest
-``gamma = 0``, so ``Phi = 0``, ``p_e = 0`` and ``h' = h*`` bit for bit: a column held by
-friction stays at ``v == 0.0``.  With a compressibility ``alpha`` (George & Iverson 2014) each
-pore pressure relaxes towards the closure's, ``alpha B_a d_t p_e,a = -(p_e,a + (M Phi)_a)``
-with ``B_a = sum_b M_ab``, by backward Euler in the same iteration (:meth:`LocalStep.closure`).
+drawn from or expelled to the ambient fluid), and the velocities the exact minimiser of the
+column problem (``engine/vertical``) with masses ``rho_s s_a + rho_f (fluid before + fluid
+after) / 2`` (the fluid joins at rest: the exchange term of the uniform layer's energy
+identity), the yield stress and viscosity of the rheology at the effective pressure.  The
+pore pressures and the thickness of the whole column are the unknowns of a Newton iteration
+with the exact column solve inside; at rest ``gamma = 0``, so ``Phi = 0``, ``p_e = 0`` and
+``h' = h*`` bit for bit: a column held by friction stays at ``v == 0.0``.  In several layers
+the converged step then moves solid between the layers of each column (and the same volume
+of fluid the other way, each carrying its layer's momentum) so that the dilation of each
+interface lifts the grains above it, as in the model (:mod:`~multilayer.engine.mixture.exchange`).
+With a compressibility ``alpha`` (George & Iverson 2014) each pore pressure relaxes towards
+the closure's, ``alpha B_a d_t p_e,a = -(p_e,a + (M Phi)_a)`` with ``B_a = sum_b M_ab``, by
+backward Euler in the same iteration (:meth:`LocalStep.closure`).
 
 Continuation in ``dt``: a column whose Newton iteration does not converge (it stalls,
 wanders, or runs out of ``numerics.max_iterations``) or diverges is done again as
@@ -61,89 +67,16 @@ local steps of a column that converged in the shipped mixture scenarios to 2 s a
 loose column at 0 to 25 degrees, in one and three layers and on 20 and 40 cells
 (tests/test_mixture_continuation.py), the least norm fell at every iteration.
 
-Conservation holds in sub-steps as in one step: the local step never changes the solid
-``s_a`` of a column, and the fluid it draws in or expels is exchanged with the ambient
-fluid of the same column only (no flux crosses a face in the local step): the mixture
-volume's balance (engine/mixture/flow.py) records that exchange as the column's final
-minus its starting thickness, whatever the steps between.
+Conservation holds in sub-steps as in one step: the local step changes the solid of a
+layer only by the exchange between the layers of its column, whose fluxes cross interior
+interfaces (the column's solid is kept to round-off), and the fluid it draws in or expels
+is exchanged with the ambient fluid of the same column only (no flux crosses a face in the
+local step): the mixture volume's balance (engine/mixture/flow.py) records that exchange
+as the column's final minus its starting thickness, whatever the steps between.
 
-The discrete energy of a uniform column (no transport; one local step per time step, the
-Lie splitting of ``numerics.order: 1``), per unit area, with the buoyant weights
-``w_a = (rho_s - rho_f) g cos(theta) s_a`` and ``F_a = (rho_s - rho_f) g sin(theta) s_a``,
-``X_a`` the distance layer ``a`` travelled, ``c_a = sum_{b < a} l_b + l_a / 2`` the height
-of its centre over ``h`` and ``P_bar = sum_a w_a c_a``::
-
-    E = sum_a m_a v_a^2 / 2 + h P_bar - sum_a F_a X_a
-
-The column solve's momentum balance times ``v'``, the masses of the fluid joining at
-rest and ``h' - h = dt h' sum_a l_a Phi_a`` give exactly::
-
-    E' - E = -dt D' - sum_a m_a (v'_a - v_a)^2 / 2
-    D = sum_a |v_a - v_{a-1}| (kappa_a + (K1 + K K2) eta_f gamma_a - lambda_a tan(psi_a) P_bar)
-
-with ``kappa_a`` the rheology's yield stress, ``(K1 + K K2) eta_f`` its viscosity (the law
-``dilatant_coulomb``), ``lambda_a = l_a / spacing_a`` and ``tan(psi_a) = Phi_a / gamma_a``.
-The last term is the lift: the fractions are fixed, so the dilation of layer ``a`` raises
-every layer and costs the column's mean buoyant weight ``P_bar`` per unit rise, while its
-dilatancy friction pays with the interface's own ``p_s,a`` (``kappa + K K2 eta_f gamma >=
-(tan(delta) + tan(psi)) p_s``).  Each interface dissipates, ``D >= 0`` term by term, where
-it contracts, and where it dilates iff
-``kappa_a + (K1 + K K2) eta_f gamma_a >= lambda_a tan(psi_a) P_bar``.  For one layer
-``lambda P_bar = P <= p_s`` whenever it dilates, so ``D >= 0`` always and
-``D = (tan(delta) p_s + K1 eta_f gamma - tan(psi) p_e) |v|`` (the uniform layer's); at the
-bed of a column of one packing ``lambda_0 P_bar = P_0`` too.  An interface high in a column, where
-``p_s,a`` is well below ``P_bar``, that shears and dilates alone breaks it: the energy of
-the scheme then grows (tests/test_mixture_flow.py, docs/mixture.md).
-
-No rule for the thickness does better while the layers keep their solid and their
-fractions: the fractions ``l_a`` are the x-sigma mesh's, common to all columns
-(engine/mesh.py), and the solid ``s_a`` of each layer is what the conservation above rests
-on.  Then ``P_bar`` is fixed, the potential energy ``h P_bar`` changes by ``(h' - h) P_bar``
-whatever sets ``h'``, and for every rule::
-
-    E' - E = -dt sum_a |v'_a - v'_(a-1)| tau_a + (h' - h) P_bar - sum_a m_a (v'_a - v_a)^2 / 2
-
-(``tau_a`` the stress of interface ``a``): where the step changes the velocities little
-(a creeping column, whose kinetic term is of second order in ``dt``), ``E' <= E`` needs
-``(h' - h) P_bar <= dt sum_a |v'_a - v'_(a-1)| tau_a``.  In the model a column
-sheared at interface ``a`` alone grows by ``integral div v dz = |v_a - v_(a-1)| tan(psi_a)``
-per unit time, whatever the width of the sheared zone (``div v = gamma tan(psi)``,
-Bouchut et al. 2016), so a rule consistent with it adds ``c dt |v_a - v_(a-1)| tan(psi_a)``
-with ``c -> 1`` (this step: ``c = lambda_a``, 1 between equal layers), and ``E' <= E``
-needs ``c <= c_max = tau_a / (tan(psi_a) P_bar)``.  At the top interface of ``L`` equal
-layers ``tau_a`` is about ``(tan(delta) + tan(psi_a)) w_(L-1)`` and ``P_bar`` about
-``L w / 2``: ``c_max`` falls like ``1 / L``.  Measured (Pailha et al. (2008)'s first
-fluid, 4.9 mm, 32 degrees, the top layer 0.57 over dense ones 0.64, so that only the top
-interface yields; one step of 5 ms from 1 mm/s): ``c_max`` = 0.70, 0.28 and 0.13 at 20, 40
-and 80 layers (tests/test_mixture_flow.py).  No rule of this kind is consistent with the
-model and dissipative in every state for every number of layers; the one that credits each
-interface only what its stress pays (``c = c_max``) drops 87 % of the top interface's
-dilation at 80 layers.
-
-What it would take (not built).  In the continuous model (``div v = gamma tan(psi)``,
-shear stress ``(tan(delta) + tan(psi)) p_s``) the work of ``p_s`` on the dilation is paid
-at the same point by the dilatancy friction, and the grains rise only above the place that
-dilates.  Discretely: (i) the dilation ``tan(psi_a) |v_a - v_(a-1)|`` of interface ``a``
-charged ``P_a`` per unit rise, the weight above the interface, so that the dilatancy
-friction at ``p_s,a = P_a - p_e,a`` pays it up to ``-p_e,a``; with the fractions fixed this
-means moving solid between the layers of a column in the local step (the potential energy
-``h P_bar`` otherwise charges ``P_bar``), or fractions per column, which the mesh does not
-have; a layer that dilates uniformly (one packing per layer) and thickens by
-``lambda_a tan(psi_a) |v_a - v_(a-1)|`` charges ``lambda_a (P_(a+1) + w_a / 2)`` per unit of
-``tan(psi_a) |v_a - v_(a-1)|`` instead, ``P_0 + P_1`` at the bed;
-(ii) the pore pressures integrated with the same placement,
-``p_e,a = -sum_(c >= a) D_c h_c W_c`` with ``W_c = sum_(b <= c) tan(psi_b) |v_b - v_(b-1)|``
-the grains' rise through layer ``c``: then ``-sum_a p_e,a tan(psi_a) |v_a - v_(a-1)| =
-sum_c D_c h_c W_c^2 >= 0`` (the Darcy term of the model), and ``D`` is
-``sum_a (tan(delta) p_s,a + K1 eta_f gamma_a) |v_a - v_(a-1)| + sum_c D_c h_c W_c^2`` or
-more (where the law cuts its yield stress at zero), term by term.  For one layer (ii) is
-the closure above (``W_0 = h Phi / 2``) and (i) is the step's lift; in layers the closure
-above integrates the dilation of each layer over the layer, and with the lift of (i) its
-Darcy term ``sum_ab h spacing_a Phi_a M_ab Phi_b`` (:meth:`LocalStep.darcy`) is not
-positive: two equal layers of one drag ``D``, the bed dilating at ``Phi`` and the upper
-layer contracting at ``-1.25 Phi`` under the suction ``p_e,1 = -0.094 D h^2 Phi`` the bed
-draws through it, give ``-0.0039 D h^3 Phi^2``.  How solid should cross the fractions so
-that (i) holds in every state, with the packings kept in ``[0, 1)``, is the open part.
+The discrete energy of a column and its inequality, step by step, in every state and any
+number of layers: :mod:`multilayer.engine.mixture.exchange` (the exchange between the layers
+that charges each interface the model's lift, and the proof).
 """
 
 from __future__ import annotations
@@ -156,6 +89,7 @@ import numpy as np
 
 from multilayer.engine.config import MixtureConfig
 from multilayer.engine.mixture.closure import drag as darcy_drag
+from multilayer.engine.mixture.exchange import between_layers
 from multilayer.engine.plugin_output import call
 from multilayer.engine.vertical.column_solve import solve
 from multilayer.engine.vertical.problem import ColumnProblem
@@ -195,6 +129,8 @@ class LocalResult:
     h: np.ndarray  # (n,) mixture thickness after dilation
     pore_pressure: np.ndarray  # (L, n) excess pore pressure at the bottom of each layer (Pa)
     iterations: int
+    solid: np.ndarray  # (L, n) solid volume per unit area of each layer after the exchange
+    solved: np.ndarray  # (L, n) velocities of the column solve, before the exchange (of the last sub-step)
 
 
 class LocalStep:
@@ -291,17 +227,33 @@ class LocalStep:
         """``M`` (L, L, n) of the columns holding ``solid`` (L, n) at thickness ``h`` (n,):
         ``M[a, b]`` is minus the excess pore pressure at the bottom of layer ``a`` per unit
         dilation rate of layer ``b`` (Pa s), Darcy's law integrated from the top down with
-        ``D_c = beta(phi_c) / (1 - phi_c)^2``: ``b`` lifts the layers above it, and the fluid
-        its own rise draws crosses half of ``b`` on average."""
+        ``D_c = beta(phi_c) / (1 - phi_c)^2``: the dilation of interface ``b`` raises the
+        grains above it by ``spacing_b h Phi_b`` (its ``tan(psi_b) |v_b - v_(b-1)|``), and the
+        fluid that fills the pores it opens crosses every layer ``c >= b``,
+        ``M[a, b] = spacing_b h sum_(c >= max(a, b)) D_c h_c``
+        (:mod:`~multilayer.engine.mixture.exchange`).  For one layer
+        ``beta h^2 / (2 (1 - phi)^2)``, the uniform layer's; ``M`` is a positive symmetric
+        matrix times the positive diagonal ``spacing h``."""
         thickness = self.l * h
         phi = solid / thickness
         Dh = self.drag(phi) / (1.0 - phi) ** 2 * thickness
+        tail = np.cumsum(Dh[::-1], axis=0)[::-1]  # sum_(c >= a) D_c h_c
         L = thickness.shape[0]
+        rise = self.spacing * h  # spacing_b h: the rise per unit dilation rate of interface b
         M = np.empty((L, L, h.size))
         for a in range(L):
             for b in range(L):
-                M[a, b] = thickness[b] * (Dh[max(a, b + 1) :].sum(axis=0) + (0.5 * Dh[b] if b >= a else 0.0))
+                M[a, b] = rise[b] * tail[max(a, b)]
         return M
+
+    def exchange(
+        self, solid: np.ndarray, h: np.ndarray, v: np.ndarray, dilation: np.ndarray, dt: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:func:`multilayer.engine.mixture.exchange.between_layers` of these columns: the
+        solid and velocities after the exchange, and where it was kept (n,)."""
+        return between_layers(
+            solid, h, v, dilation, dt, self.l, self.spacing, self.buoyant_g_n, self.rho_s, self.rho_f
+        )
 
     def _coupled(
         self,
@@ -391,35 +343,38 @@ class LocalStep:
         zero, bit for bit)."""
         where = np.zeros(h_star.size) if x is None else x
         n = h_star.size
-        u, h = ustar.copy(), h_star.copy()
+        u, h, s = ustar.copy(), h_star.copy(), solid.copy()
+        solved = ustar.copy()
         velocities = np.zeros_like(ustar) if guess is None else guess.copy()
         pressure = np.zeros_like(ustar) if pressure_guess is None else pressure_guess.copy()
         start_pressure = None if previous is None else previous.copy()
         going, iterations = np.arange(n), 0
-        failed, diverged = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+        failed, diverged, crowded = (np.zeros(n, dtype=bool) for _ in range(3))
         closure_error: RunError | None = None
         for j in range(substeps):
             if not going.size:
                 break
-            result, converged, burst, error = self._newton(
-                solid[:, going], h[going], u[:, going], dt / substeps, velocities[:, going],
+            result, converged, burst, error, full = self._newton(
+                s[:, going], h[going], u[:, going], dt / substeps, velocities[:, going],
                 pressure[:, going], where[going], t + j * (dt / substeps), watch if j == 0 else None,
                 None if start_pressure is None else start_pressure[:, going],
             )  # fmt: skip
             iterations += result.iterations
             done = going[converged]
             u[:, done], h[done] = result.u[:, converged], result.h[converged]
+            s[:, done], solved[:, done] = result.solid[:, converged], result.solved[:, converged]
             pressure[:, done] = result.pore_pressure[:, converged]
             velocities[:, done] = u[:, done]
             if start_pressure is not None:
                 start_pressure[:, done] = pressure[:, done]
             failed[going[~converged]], diverged[going[burst]] = True, True
+            crowded[going[full]] = True
             closure_error = error or closure_error
             going = done
         k = np.flatnonzero(failed)
         if k.size and 2 * substeps > MAX_SUBSTEPS:
             column = np.flatnonzero(diverged if diverged.any() else failed)[0]
-            raise self._failure(where[column], t, bool(diverged.any()), closure_error)
+            raise self._failure(where[column], t, bool(diverged.any()), closure_error, bool(crowded[column]))
         if k.size:
             start = (None if given is None else given[:, k] for given in (guess, pressure_guess))
             again = self(
@@ -427,14 +382,23 @@ class LocalStep:
                 previous=None if previous is None else previous[:, k],
             )  # fmt: skip
             u[:, k], h[k], pressure[:, k] = again.u, again.h, again.pore_pressure
+            s[:, k], solved[:, k] = again.solid, again.solved
             iterations += again.iterations
-        return LocalResult(u, h, pressure, iterations)
+        return LocalResult(u, h, pressure, iterations, s, solved)
 
-    def _failure(self, x: float, t: float, diverged: bool, closure_error: RunError | None) -> RunError:
+    def _failure(
+        self, x: float, t: float, diverged: bool, closure_error: RunError | None, crowded: bool = False
+    ) -> RunError:
         """The error of a local step that failed at ``x`` from ``t`` in up to
         :data:`MAX_SUBSTEPS` sub-steps, ``diverged`` where a trial pore pressure was not finite
-        or its closure failed (``closure_error``, the closure's own message, if it did)."""
+        or its closure failed (``closure_error``, the closure's own message, if it did),
+        ``crowded`` where its exchange between the layers would empty a layer (:meth:`exchange`)."""
         place = f"(at x = {x:.6g} m, t = {t:.6g} s; also in up to {MAX_SUBSTEPS} sub-steps)"
+        if crowded and not diverged:
+            return RunError(
+                "the mixture's local step would move more solid or fluid between the layers of a column than "
+                f"a layer holds (its packings would leave (0, 1)) {place}"
+            )
         if diverged and closure_error is not None:
             return RunError(f"{closure_error} {place}")
         if diverged:
@@ -458,11 +422,13 @@ class LocalStep:
         t: float,
         watch: np.ndarray | None = None,
         previous: np.ndarray | None = None,
-    ) -> tuple[LocalResult, np.ndarray, np.ndarray, RunError | None]:
+    ) -> tuple[LocalResult, np.ndarray, np.ndarray, RunError | None, np.ndarray]:
         """One backward-Euler step of ``dt`` of the columns (the arguments of
         :meth:`__call__`; ``watch``: see there): its result, where it converged, where it
         diverged (n,) (a trial excess pore pressure not finite, or a trial state whose
-        closure failed) and the closure's error if one did.  A column that diverges leaves
+        closure failed), the closure's error if one did, and where the converged step's
+        exchange between the layers would empty a layer of its solid or fluid (n,; those
+        columns count as not converged: :meth:`exchange`).  A column that diverges leaves
         the iteration, unconverged, as does one whose iterate comes back to where it
         started, bit for bit (the iteration would repeat itself), or whose least residual
         norm has not fallen for :data:`WINDOW` iterations (it wanders; module notes).
@@ -542,7 +508,7 @@ class LocalStep:
             h_new = np.where(growth > 0.0, h_star[k] / np.where(growth > 0.0, growth, 1.0), np.inf)
             residual = (X - np.concatenate([pressure, h_new[None, :]])) / scale[:, k]
             residual = np.where(np.isfinite(residual), residual, np.inf)
-            return Evaluation(v, rates, pressure, h_new, residual, np.abs(residual).max(axis=0))
+            return Evaluation(v, rates, pressure, h_new, dilation, residual, np.abs(residual).max(axis=0))
 
         lag, drains = 0.0, previous is not None and L == 1  # one relaxing layer drains (Notes)
         if previous is not None:
@@ -552,7 +518,8 @@ class LocalStep:
         X = np.concatenate([pressure_guess, h_star[None, :]])
         now = evaluate(X, np.arange(n))
         if watch is not None and np.any(now.v[:, watch]):  # a watched column starts: the step stops
-            return LocalResult(now.v, now.h, now.pressure, 1), np.ones(n, dtype=bool), diverged, None
+            result = LocalResult(now.v, now.h, now.pressure, 1, solid, now.v)
+            return result, np.ones(n, dtype=bool), diverged, None, np.zeros(n, dtype=bool)
         best, since = now.norm.copy(), np.zeros(n, dtype=int)  # least norm, iterations since it fell
         iteration = 1
         while (k := np.flatnonzero(~(now.norm <= self.tolerance) & ~diverged & ~stalled & ~wandering)).size:
@@ -589,7 +556,13 @@ class LocalStep:
             wandering[k] = since[k] >= WINDOW
         converged = (now.norm <= self.tolerance) & ~diverged
         error = closure_errors[0] if closure_errors else None
-        return LocalResult(now.v, now.h, now.pressure, iteration), converged, diverged, error
+        u, moved, crowded = now.v, solid, np.zeros(n, dtype=bool)
+        if L > 1:  # the lift of each interface's dilation (engine/mixture/exchange.py)
+            moved, u, fine = self.exchange(solid, now.h, now.v, now.dilation, dt)
+            crowded = converged & ~fine
+            converged &= fine
+        result = LocalResult(u, now.h, now.pressure, iteration, moved, now.v)
+        return result, converged, diverged, error, crowded
 
     @staticmethod
     def _bisect(
@@ -638,6 +611,7 @@ class Evaluation(NamedTuple):
     rates: np.ndarray  # (L, k) interface shear rates
     pressure: np.ndarray  # (L, k) excess pore pressures of the closure at these velocities
     h: np.ndarray  # (k,) thickness of the dilation at these velocities
+    dilation: np.ndarray  # (L, k) dilation rates of the closure at these velocities
     residual: np.ndarray  # (L + 1, k) X minus what it produces, scaled
     norm: np.ndarray  # (k,) largest scaled component of the residual
 
@@ -647,7 +621,8 @@ class Evaluation(NamedTuple):
         fails): no velocities, an infinite residual."""
         L, k = X.shape[0] - 1, X.shape[1]
         residual = np.full(X.shape, np.inf)
-        return Evaluation(np.zeros((L, k)), np.zeros((L, k)), X[:L], X[L], residual, residual[0])
+        blank = np.zeros((L, k))
+        return Evaluation(blank, blank, X[:L], X[L], blank, residual, residual[0])
 
     @staticmethod
     def join(parts: list[Evaluation]) -> Evaluation:
