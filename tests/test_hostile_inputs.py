@@ -1211,6 +1211,31 @@ def test_a_scenario_changed_after_loading_is_validated_again_by_the_simulation(k
     assert sim.h.size == 20 and not sim.scenario.changed_since_validation()
 
 
+@pytest.mark.parametrize(
+    ("change", "phrase"),
+    [
+        (lambda s: s.rheology.params.update(mu_start=float("nan")),
+         "rheology.mu_start: drucker_prager: Input should be a finite number (got nan)"),
+        (lambda s: s.rheology.params.update(mu_s=float("-inf")), "(got -inf)"),
+        (lambda s: setattr(s.domain, "layer_fractions", {"geometric": float("inf")}),
+         "got {'geometric': inf}"),
+        (lambda s: setattr(s.numerics, "threads", float("nan")), "numerics.threads: got nan"),
+    ],
+)  # fmt: skip
+def test_a_value_assigned_nan_after_loading_is_named_as_nan_not_read_as_not_given(change, phrase):
+    """A scenario changed after loading is validated again from the YAML it writes, where a
+    value typed ``Any`` (a law's parameters, the layer fractions, the threads) that is NaN
+    or infinite was written as null: ``mu_start = nan`` was read as no ``mu_start`` and the
+    run went on without it, silently, and ``mu_s = -inf`` was said to be None."""
+    scenario = multilayer.load(TINY_SCENARIO)
+    change(scenario)
+    with pytest.raises(InputError) as caught:
+        multilayer.Simulation(scenario)
+    assert phrase in str(caught.value)
+    with pytest.raises(InputError, match=re.escape(phrase)):
+        multilayer.run(scenario)
+
+
 def test_load_state_names_a_missing_or_non_finite_entry_and_restores_nothing():
     """``load_state({})`` was a KeyError; a state whose vertical velocity, force impulse or
     Newton seed held NaN was restored and stepped on (the NaN force reached the result).

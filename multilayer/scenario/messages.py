@@ -121,9 +121,14 @@ def increasing(points: list[list[float]], key: str, what: str) -> None:
 
 
 class StrictModel(BaseModel):
-    """A mapping of an input file: no unknown key, no type coercion, no inf or nan."""
+    """A mapping of an input file: no unknown key, no type coercion, no inf or nan.
 
-    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
+    An infinite or NaN value assigned after validation is written as it is (``.nan`` in
+    YAML), not as null: a scenario is validated again from what it writes, and a law's
+    parameter or a base zone's (typed ``Any``) written as null was read as not given,
+    ``rheology.mu_start = nan`` assigned from Python running without ``mu_start``."""
+
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False, ser_json_inf_nan="constants")
 
 
 def field(default: Any = ..., accepted: str = "", **constraints: Any) -> Any:
