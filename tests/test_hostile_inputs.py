@@ -18,6 +18,7 @@ import typing
 
 import numpy as np
 import pytest
+import xarray as xr
 import yaml
 from conftest import TINY_SCENARIO
 
@@ -658,7 +659,44 @@ def test_a_plot_window_without_end_is_refused(tmp_path, cli, finished, x1):
     shutil.copytree(source, outdir)
     result = cli("plot", outdir, "--xlim", "0", x1)
     assert result.code == 2 and "Traceback" not in result.err
-    assert "at most 1000 times as wide" in result.err
+    assert "at most 1000 and at least 1e-06 times as wide" in result.err
+
+
+@pytest.mark.parametrize("command", [["plot"], ["export", "--vtk"]])
+def test_a_result_file_given_as_the_directory_is_named_with_its_directory(tmp_path, cli, finished, command):
+    """``plot DIR/result.nc`` checked the result, then said ``DIR/result.nc/plots: Not a
+    directory; accepted: a directory this user can write`` (``export``: ``.../vtk``), naming
+    a path that is not there and asking for permissions; the file is named, with the
+    directory holding it, before anything is read."""
+    _, source = finished
+    outdir = tmp_path / "out"
+    shutil.copytree(source, outdir)
+    result = cli(command[0], outdir / "result.nc", *command[1:])
+    assert result.code == 2 and "Traceback" not in result.err
+    accepted = "accepted: the output directory of `multilayer run`"
+    assert f"{outdir / 'result.nc'}: a file, not a directory; {accepted}" in result.err
+    assert result.err.rstrip().endswith(f"(here {outdir})")
+    assert sorted(p.name for p in outdir.iterdir()) == sorted(p.name for p in source.iterdir())
+
+
+@pytest.mark.parametrize(("x0", "x1"), [("-1e-320", "1e-320"), ("0.2", "0.2000000000000001")])
+def test_a_plot_window_matplotlib_would_widen_is_refused(tmp_path, cli, finished, x0, x1):
+    """Matplotlib widens a window narrower than 1e-15 of its largest end, or within
+    2.2e-287 of zero, to +-5 % of it: ``--xlim -1e-320 1e-320`` was drawn over -0.05 .. 0.05 m
+    and ``0.2 0.2000000000000001`` over 0.19 .. 0.21 m, exit 0.  A window narrower than 1e-6
+    of the domain is refused, its ends written as given; a wider one is drawn as asked."""
+    _, source = finished
+    outdir = tmp_path / "out"
+    shutil.copytree(source, outdir)
+    result = cli("plot", outdir, "--xlim", x0, x1)
+    assert result.code == 2 and "Traceback" not in result.err
+    assert f"--xlim {float(x0)!r} {float(x1)!r}: accepted: X0 < X1 (m)" in result.err
+    assert "at least 1e-06 times as wide (Matplotlib widens a narrower window)" in result.err
+    assert not (outdir / "plots").exists()
+    from multilayer.io.plotting import checked_xlim
+
+    ds = xr.Dataset(coords={"x_bnds": (("x", "nv"), [[0.0, 0.25], [0.25, 0.5]])})
+    assert checked_xlim(ds, (0.2, 0.2 + 1e-6)) == (0.2, 0.2 + 1e-6)  # 2e-6 of the domain
 
 
 @pytest.mark.parametrize(
