@@ -917,6 +917,35 @@ def test_a_name_longer_than_a_file_name_is_refused(cli, write_scenario):
     assert result.code == 2 and "name (line 1): String should have at most 255 characters" in result.err
 
 
+KEY_1E5 = "k" * 100_000
+
+
+@pytest.mark.parametrize(
+    ("change", "overrides", "phrase"),
+    [
+        ({KEY_1E5: 1}, [], f"{KEY_1E5[:57]}... (line 26): unknown key"),
+        ({"rheology": {**TINY_SCENARIO["rheology"], KEY_1E5: 1}}, [], f"rheology.{KEY_1E5[:57]}... (line "),
+        ({"rheology": {"name": KEY_1E5}}, [], f"unknown rheology '{KEY_1E5[:56]}...; accepted"),
+        ({"output": {"directory": f"~{KEY_1E5}"}}, [],
+         f"'~{KEY_1E5[:55]}...: no user '{KEY_1E5[:56]}... on this"),
+        ({}, [f"{KEY_1E5}=1"], f"{KEY_1E5[:57]}... (from --set): unknown key"),
+        ({}, [f"domain.cells.{KEY_1E5}=1"], f"--set domain.cells.{KEY_1E5[:44]}...: domain.cells is a value"),
+    ],
+)  # fmt: skip
+def test_a_key_or_name_of_100000_characters_is_quoted_shortened(
+    cli, write_scenario, change, overrides, phrase
+):
+    """A key (YAML writes one longer than 1024 characters as ``? key``), a rheology's name,
+    a home directory or a ``--set`` key path of 10^5 characters was quoted whole: a message of
+    100 kB (200 kB for the home directory, quoted twice).  It is cut to 60 characters, as
+    a value is."""
+    argv = ["validate", write_scenario({**TINY_SCENARIO, **change})]
+    result = cli(*argv, *(a for o in overrides for a in ("--set", o)))
+    assert result.code == 2 and "Traceback" not in result.err
+    assert phrase in result.err, result.err[:500]
+    assert len(result.err) < 500
+
+
 @pytest.mark.parametrize("command", ["validate", "run"])
 def test_a_pressure_beyond_1e308_is_named_before_the_run(tmp_path, cli, write_scenario, command):
     """A density of 1e308 kg/m^3 validated; the run's first step then blamed the rheology
