@@ -917,6 +917,39 @@ def test_a_name_longer_than_a_file_name_is_refused(cli, write_scenario):
     assert result.code == 2 and "name (line 1): String should have at most 255 characters" in result.err
 
 
+@pytest.mark.parametrize(
+    ("hidden", "line", "column"),
+    [
+        ("name: tiny  # slope 25\x85slope_deg: 40\n", 1, 23),
+        ("description: chute at 25 degrees\u2028slope_deg: 40\n", 1, 33),
+        ("description: 'a\u2029b'\nslope_deg: 40\n", 1, 16),
+        ("# note\r\n# note\rdescription: a\u2028b\n", 3, 15),
+    ],
+)
+def test_a_line_break_of_yaml_1_1_only_is_refused_where_the_editor_shows_it(
+    cli, write_scenario, hidden, line, column
+):
+    """libyaml's parser (YAML 1.1) ends a line at U+0085, U+2028 and U+2029, which YAML 1.2,
+    the ``csv`` module and an editor do not: ``name: tiny  # slope 25<U+0085>slope_deg: 40``
+    ran at 40 degrees, a key every reader of the file sees as a comment, and each such
+    character shifted the line numbers of the messages after it.  It is refused at the line
+    and column an editor shows (lines ended by ``\\n``, ``\\r\\n`` or ``\\r``), in a file and
+    a ``--set`` value; written as an escape in a double-quoted string it is text."""
+    data = {k: v for k, v in TINY_SCENARIO.items() if k not in ("name", "slope_deg")}
+    body = yaml.safe_dump({"name": "tiny", **data} if "name" not in hidden else data, sort_keys=False)
+    path = write_scenario(hidden + body)
+    result = cli("validate", path)
+    assert result.code == 2 and "Traceback" not in result.err
+    assert f"{path} (line {line}, column {column}): the character U+" in result.err, result.err
+    assert "accepted: lines ending at \\n, \\r\\n or \\r only" in result.err
+    result = cli("validate", write_scenario(TINY_SCENARIO), "--set", "description=a\u2028slope_deg: 3")
+    assert result.code == 2 and "--set description (line 1, column 2): the character U+2028" in result.err
+    escaped = write_scenario(
+        'description: "a\\Lb\\u2028c\\N"\n' + yaml.safe_dump(TINY_SCENARIO), "escaped.yaml"
+    )
+    assert multilayer.load(escaped).description == "a\u2028b\u2028c\x85"
+
+
 KEY_1E5 = "k" * 100_000
 
 

@@ -58,6 +58,7 @@ def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> tuple[dic
                 "part empty, printable text) and a YAML value, e.g. domain.cells=200 or initial+={shape: "
                 "layer, thickness: 0.002}"
             )
+        limits.check_line_breaks(text, f"--set {shortened(key)}")
         limits.check_yaml(text, f"--set {shortened(key)}", Loader)
         try:
             value = yaml.load(text, Loader=Loader)
