@@ -154,6 +154,27 @@ def test_csv_numbers_are_ascii_decimals_and_a_byte_order_mark_is_no_header(tmp_p
     assert phrase in str(caught.value)
 
 
+def test_a_csv_number_of_a_million_digits_and_a_letter_is_refused_at_once(tmp_path):
+    """The pattern of an ASCII decimal, ``[0-9]+\\.?[0-9]*``, split the digits of a number
+    between its two runs in every way before refusing one ended by a letter: quadratic in
+    its digits, a row ``0, 999...9x`` of 10^6 digits held ``validate`` for 11 hours (and an
+    ``--at`` of 10^5 digits ``plot`` for minutes).  Refused at once (a child, which a
+    quadratic match would hold past the timeout), the row quoted in 60 characters."""
+    (tmp_path / "bed.csv").write_text("x (m), z (m)\n0, 0\n0.5, " + "9" * 10**6 + "x\n")
+    data = {**copy.deepcopy(TINY_SCENARIO), "bed": {"file": "bed.csv"}}
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(data))
+    result = subprocess.run(
+        [sys.executable, "-m", "multilayer", "validate", str(tmp_path / "s.yaml")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    row = f"'0.5, {'9' * 51}..."
+    assert f"bed.csv: line 3: expected two numbers separated by a comma, got {row}" in result.stderr
+    assert len(result.stderr) < 500
+
+
 @pytest.mark.parametrize(
     ("bed", "phrase"),
     [

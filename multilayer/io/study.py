@@ -35,7 +35,7 @@ import numpy as np
 from pydantic import BaseModel, Field, ValidationError, field_validator, model_validator
 
 from multilayer import scenario
-from multilayer.errors import InputError, reason
+from multilayer.errors import InputError, reason, shortened
 from multilayer.scenario.files import read_text
 from multilayer.scenario.limits import MAX_DESIGN_VALUES, MAX_PROFILE_POINTS, MAX_STUDY_RUNS
 from multilayer.scenario.loading import load_base
@@ -697,8 +697,13 @@ def _read_csv(file: Path, columns: list[str], where: str) -> tuple[np.ndarray, n
         table = [[csv_number(row[c]) for row in rows] for c in columns]
     except KeyError as exc:
         raise InputError(
-            f"{where}: {file} has no column {exc} (its header names {', '.join(map(repr, header))}); "
+            f"{where}: {file} has no column {exc} (its header names "
+            f"{shortened(', '.join(map(repr, header)))}); "
             f"accepted: a CSV file with a header row naming {', '.join(columns)}"
+        ) from None
+    except csv.Error as exc:  # a field longer than the csv module's limit (131072 characters): a traceback
+        raise InputError(
+            f"{where}: {file}: line {reader.line_num + 1}: {exc}; accepted: a CSV file of numbers"
         ) from None
     except (OSError, ValueError, TypeError) as exc:
         raise InputError(
