@@ -1000,6 +1000,24 @@ def test_a_key_or_name_of_100000_characters_is_quoted_shortened(
     assert len(result.err) < 500
 
 
+def test_a_size_or_an_observations_unit_of_100000_characters_is_quoted_shortened(
+    tmp_path, cli, write_scenario
+):
+    """``--max-memory`` and an observation's ``units`` of 10^5 characters were quoted whole."""
+    result = cli("validate", write_scenario(TINY_SCENARIO), "--max-memory", f"{KEY_1E5}x")
+    assert (
+        result.code == 2 and f"argument --max-memory: not a size: '{KEY_1E5[:56]}...; accepted" in result.err
+    )
+    assert len(result.err) < 800
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(TINY_SCENARIO))
+    observation = {"name": "a", "quantity": "mass_final", "value": 0.005, "sigma": 0.001, "units": KEY_1E5}
+    config = {"base": "base.yaml", "parameters": {"rheology.mu_s": {"bounds": [0.2, 0.4]}}}
+    (tmp_path / "c.yaml").write_text(yaml.safe_dump({**config, "observations": [observation]}))
+    result = cli("validate", tmp_path / "c.yaml")
+    assert result.code == 2 and "observations.0.units (line " in result.err
+    assert f"unknown unit '{KEY_1E5[:56]}...; accepted: m, cm" in result.err and len(result.err) < 500
+
+
 @pytest.mark.parametrize("command", ["validate", "run"])
 def test_a_pressure_beyond_1e308_is_named_before_the_run(tmp_path, cli, write_scenario, command):
     """A density of 1e308 kg/m^3 validated; the run's first step then blamed the rheology
