@@ -4974,8 +4974,9 @@ def round_twenty_nine() -> list[Case]:
     zone's parameter assigned NaN or an infinity through the Python API after loading; a
     plot window Matplotlib would widen; a result file given as the directory of ``plot``
     and ``export``; data files beside the scenarios pytest collects (5000 lists deep, 2 x
-    10^6 values); a key, a rheology's name, a home directory and a ``--set`` key path of 10^5
-    characters (the message quoted them whole); a scenario whose slope follows U+0085 in a
+    10^6 values); a key, a rheology's name, a home directory, a ``--set`` key path, a
+    ``--max-memory`` and an observation's units of 10^5 characters (the message quoted them
+    whole); a scenario whose slope follows U+0085 in a
     comment or U+2028 in a description, a sweep file holding U+2029; numbers of 10^5 and 10^6
     digits ended by a letter in a bed CSV, an observation file and ``--at`` (a match
     quadratic in the digits, hours); as controls, a window of 2.2e-6 of the
@@ -5025,6 +5026,11 @@ def round_twenty_nine() -> list[Case]:
              setup=partial(_scenario, changes={"output": {"directory": f"~{long}"}})),
         Case("validate --set of a key path of 10^5 characters", [*validate, "--set", f"domain.{long}=1"], 2,
              f"domain.{long[:57]}... (from --set): unknown key", setup=_scenario),
+        Case("validate --max-memory of 10^5 characters", [*validate, "--max-memory", f"{long}x"], 2,
+             f"argument --max-memory: not a size: '{long[:56]}...; accepted", setup=_scenario),
+        Case("validate: an observation's units of 10^5 characters", ["validate", "{dir}/calibration.yaml"], 2,
+             f"observations.0.units (line 6): unknown unit '{long[:56]}...; accepted: m, cm",
+             setup=_calibration_of({"quantity": "mass_final", "value": 0.005, "sigma": 1e-3, "units": long})),
         Case("validate: slope_deg after U+0085 in a comment", validate, 2,
              f"(line 1, column 23): the character U+0085 (NEXT LINE), {yaml_1_1}",
              setup=_hidden("name: tiny  # slope 25\x85slope_deg: 40\n")),
