@@ -3720,6 +3720,7 @@ def cases() -> list[Case]:
         + round_twenty_six()
         + round_twenty_seven()
         + round_twenty_eight()
+        + round_twenty_nine()
     )
 
 
@@ -4933,6 +4934,131 @@ def _labelled(parameter: str) -> Callable[[Path], None]:
     return setup
 
 
+PYTEST = "import pytest\nsys.exit(int(pytest.main(['-q', '-p', 'no:cacheprovider', sys.argv[1]])))"
+"""A patch running pytest (and so multilayer's pytest plugin) on the case's first argument."""
+
+
+def _scenarios_beside(**files: str) -> Callable[[Path], None]:
+    """``directory/tests`` holding TINY with an ``expect`` entry and the YAML ``files`` (name:
+    text): data files a user's tests keep beside the scenarios pytest collects."""
+
+    def setup(directory: Path) -> None:
+        tests = directory / "tests"
+        tests.mkdir()
+        expect = [{"kind": "regression", "quantity": "mass_final", "value": 0.005, "rtol": 0.5}]
+        (tests / "tiny.yaml").write_text(yaml.safe_dump({**TINY, "expect": expect}))
+        for name, text in files.items():
+            (tests / name).write_text(text)
+
+    return setup
+
+
+def _hidden(head: str, sweep: bool = False) -> Callable[[Path], None]:
+    """TINY without its slope (and without its name when ``head`` gives one) after the text
+    ``head``, or a sweep file of TINY beginning with it (``sweep``)."""
+
+    def setup(directory: Path) -> None:
+        if sweep:
+            _sweep({"slope_deg": [20.0]})(directory)
+            path = directory / "sweep.yaml"
+            path.write_text(head + path.read_text())
+            return
+        data = {k: v for k, v in TINY.items() if k != "slope_deg" and not (k == "name" and "name:" in head)}
+        _scenario(directory, text=head + yaml.safe_dump(data, sort_keys=False))
+
+    return setup
+
+
+def round_twenty_nine() -> list[Case]:
+    """The hostile cases of the twenty-ninth round (docs/reliability.md): a law's or base
+    zone's parameter assigned NaN or an infinity through the Python API after loading; a
+    plot window Matplotlib would widen; a result file given as the directory of ``plot``
+    and ``export``; data files beside the scenarios pytest collects (5000 lists deep, 2 x
+    10^6 values); a key, a rheology's name, a home directory, a ``--set`` key path, a
+    ``--max-memory`` and an observation's units of 10^5 characters (the message quoted them
+    whole); a scenario whose slope follows U+0085 in a
+    comment or U+2028 in a description, a sweep file holding U+2029; numbers of 10^5 and 10^6
+    digits ended by a letter in a bed CSV, an observation file and ``--at`` (a match
+    quadratic in the digits, hours); as controls, a window of 2.2e-6 of the
+    domain, pytest of the scenarios alone and U+2028 written as an escape."""
+    validate = ["validate", "{scenario}"]
+    load = "sc = multilayer.load(sys.argv[2])\n"
+    narrow = "at least 1e-06 times as wide (Matplotlib widens a narrower window)"
+    a_file = "/out/result.nc: a file, not a directory; accepted: the output directory of `multilayer run`"
+    long = "k" * 100_000
+    yaml_1_1 = "where YAML 1.1 (multilayer's parser) ends a line and an editor does not"
+    run = ["run", "{scenario}", "-o", "{dir}/out"]
+    out = [
+        Case("API: rheology.mu_start = nan assigned after loading", validate, 2,
+             "rheology.mu_start: drucker_prager: Input should be a finite number (got nan)",
+             patch=_api(load + "sc.rheology.params['mu_start'] = float('nan')\nmultilayer.Simulation(sc)"),
+             setup=_scenario),
+        Case("API: rheology.mu_s = -inf assigned after loading", validate, 2,
+             "rheology.mu_s: drucker_prager: Input should be a finite number (got -inf)",
+             patch=_api(load + "sc.rheology.params['mu_s'] = float('-inf')\nmultilayer.Simulation(sc)"),
+             setup=_scenario),
+        Case("API: a Coulomb base zone's mu = nan assigned after loading, multilayer.run", validate, 2,
+             "base.0.mu: got nan; accepted: a friction coefficient >= 0", patch=_api(
+                 load + "sc.base[0].model_extra['mu'] = float('nan')\nmultilayer.run(sc)"),
+             setup=partial(_scenario, changes={"base": [{"condition": "coulomb", "mu": 0.3}]})),
+        Case("plot --xlim -1e-320 1e-320", ["plot", "{dir}/out", "--xlim", "-1e-320", "1e-320"], 2,
+             "--xlim -1e-320 1e-320: accepted: X0 < X1 (m), overlapping the domain [0, 0.5], at most 1000 "
+             f"and {narrow}", setup=_finished_run),
+        Case("plot --xlim 0.2 0.2000000000000001",
+             ["plot", "{dir}/out", "--xlim", "0.2", "0.2000000000000001"], 2, narrow, setup=_finished_run),
+        Case("plot --xlim 0.2 0.2000011 (2.2e-6 of the domain)",
+             ["plot", "{dir}/out", "--xlim", "0.2", "0.2000011"], 0, "", setup=_finished_run),
+        Case("plot DIR/result.nc", ["plot", "{dir}/out/result.nc"], 2, a_file, setup=_finished_run),
+        Case("export DIR/result.nc --vtk", ["export", "{dir}/out/result.nc", "--vtk"], 2, a_file,
+             setup=_finished_run),
+        Case("pytest DIR: a scenario beside a YAML file 5000 lists deep", ["{dir}/tests"], 0, "",
+             patch=PYTEST, setup=_scenarios_beside(**{"deep.yaml": "[" * 5000 + "]" * 5000})),
+        Case("pytest DIR: a scenario beside a YAML file of 2 x 10^6 values", ["{dir}/tests"], 0, "",
+             patch=PYTEST, setup=_scenarios_beside(**{"values.yaml": f"[{', '.join(['1'] * 2_000_001)}]"})),
+        Case("pytest DIR: a scenario alone", ["{dir}/tests"], 0, "", patch=PYTEST, setup=_scenarios_beside()),
+        Case("validate: a key of 10^5 characters (? key)", validate, 2,
+             f"{long[:57]}... (line 14): unknown key", setup=partial(_scenario, changes={long: 1})),
+        Case("validate: a rheology named by 10^5 characters", validate, 2,
+             f"rheology.name (line 20): unknown rheology '{long[:56]}...; accepted: dilatant_coulomb",
+             setup=partial(_scenario, changes={"rheology.name": long})),
+        Case("validate: output.directory ~ and 10^5 characters", validate, 2,
+             f"'~{long[:55]}...: no user '{long[:56]}... on this system",
+             setup=partial(_scenario, changes={"output": {"directory": f"~{long}"}})),
+        Case("validate --set of a key path of 10^5 characters", [*validate, "--set", f"domain.{long}=1"], 2,
+             f"domain.{long[:57]}... (from --set): unknown key", setup=_scenario),
+        Case("validate --max-memory of 10^5 characters", [*validate, "--max-memory", f"{long}x"], 2,
+             f"argument --max-memory: not a size: '{long[:56]}...; accepted", setup=_scenario),
+        Case("validate: an observation's units of 10^5 characters", ["validate", "{dir}/calibration.yaml"], 2,
+             f"observations.0.units (line 6): unknown unit '{long[:56]}...; accepted: m, cm",
+             setup=_calibration_of({"quantity": "mass_final", "value": 0.005, "sigma": 1e-3, "units": long})),
+        Case("validate: slope_deg after U+0085 in a comment", validate, 2,
+             f"(line 1, column 23): the character U+0085 (NEXT LINE), {yaml_1_1}",
+             setup=_hidden("name: tiny  # slope 25\x85slope_deg: 40\n")),
+        Case("run: slope_deg after U+2028 in a description", [*run, "-q"], 2,
+             f"(line 1, column 33): the character U+2028 (LINE SEPARATOR), {yaml_1_1}",
+             setup=_hidden("description: chute at 25 degrees\u2028slope_deg: 40\n")),
+        Case("validate: a sweep whose comment holds U+2029", ["validate", "{dir}/sweep.yaml"], 2,
+             "sweep.yaml (line 1, column 8): the character U+2029 (PARAGRAPH SEPARATOR)",
+             setup=_hidden("# sweep\u2029\n", sweep=True)),
+        Case("validate: U+2028 written as an escape in a double-quoted description", validate, 0, "",
+             setup=_hidden('description: "chute\\Lat 25 degrees\\u2028"\n')),
+        Case("validate: a bed CSV row of 10^6 digits and an x", validate, 2,
+             f"bed.csv: line 3: expected two numbers separated by a comma, got '0.5, {'9' * 51}...",
+             setup=_csv_bed(f"x (m), z (m)\n0, 0\n0.5, {'9' * 10**6}x\n")),
+        Case("plot --at of 10^5 digits and an x", ["plot", "{dir}/out", "--at", f"{'9' * 10**5}x"], 2,
+             f"argument --at: expected a number in ASCII decimal notation (0.25, -1e-3), got '{'9' * 56}...",
+             setup=_finished_run),
+        Case("validate: an observation of 10^6 digits and an x (beyond the csv module's field limit)",
+             ["validate", "{dir}/calibration.yaml"], 2,
+             "front.csv: line 2: field larger than field limit (131072); accepted: a CSV file of numbers",
+             setup=_calibration(f"0.1,{'9' * 10**6}x,0.05\n")),
+        Case("validate: an observation of 10^5 digits and an x", ["validate", "{dir}/calibration.yaml"], 2,
+             f"front.csv (could not convert '{'9' * 56}... to a number); accepted: a CSV file of numbers",
+             setup=_calibration(f"0.1,{'9' * 10**5}x,0.05\n")),
+    ]  # fmt: skip
+    return out
+
+
 def _records(path: Path) -> int:
     try:
         import netCDF4
@@ -5011,7 +5137,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     17: round_seventeen, 18: round_eighteen, 19: round_nineteen, 20: round_twenty,
     21: round_twenty_one, 22: round_twenty_two, 23: round_twenty_three, 24: round_twenty_four,
     25: round_twenty_five, 26: round_twenty_six, 27: round_twenty_seven,
-    28: round_twenty_eight,
+    28: round_twenty_eight, 29: round_twenty_nine,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""
 
@@ -5021,7 +5147,7 @@ def main() -> None:
     parser.add_argument("-k", default="", help="only the cases whose name contains this")
     parser.add_argument("-j", type=int, default=2, help="cases run at once")
     parser.add_argument(
-        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 28; all: none)"
+        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 29; all: none)"
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()

@@ -55,6 +55,22 @@ def ascii_count(text: str) -> int | None:
     return int(digits)
 
 
+SHOWN_CHARACTERS = 60
+"""Characters of a value, a key or a name a message quotes from the input, at most."""
+
+
+def shortened(text: str) -> str:
+    """``text`` cut to :data:`SHOWN_CHARACTERS`, its end written ``...``: a message quotes
+    what it got, not a whole list, nor a key or a rheology's name of 10^5 characters (the
+    message was as long)."""
+    return text if len(text) <= SHOWN_CHARACTERS else text[: SHOWN_CHARACTERS - 3] + "..."
+
+
+def shown(value: object) -> str:
+    """``repr(value)`` :func:`shortened`."""
+    return shortened(repr(value))
+
+
 def printable(text: str) -> str:
     """``text`` with each character that is not printable but a newline or a tab written as
     Python writes it in a string (``\\x1b``, ``\\u202e``): a message quotes names from the

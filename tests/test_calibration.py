@@ -285,6 +285,34 @@ def test_an_observation_header_with_spaces_after_its_commas_names_its_columns(tm
         study.load_calibration(tmp_path / "c.yaml")
 
 
+@pytest.mark.parametrize(
+    ("table", "phrase"),
+    [
+        (
+            f"t,x_f,sigma\n0.1,{'9' * 10**6}x,0.5\n",
+            "front.csv: line 2: field larger than field limit (131072)",
+        ),
+        (f"t,x_f,sigma\n0.1,{'9' * 10**5}x,0.5\n", f"(could not convert '{'9' * 56}... to a number)"),
+        (f"t,{'y' * 10**5},sigma\n0.1,3.0,0.5\n", f"(its header names 't', '{'y' * 51}...); accepted"),
+    ],
+)
+def test_an_observation_field_beyond_the_csv_modules_limit_or_long_is_named_in_one_line(
+    tmp_path, table, phrase
+):
+    """A field longer than the ``csv`` module's limit (131072 characters) was its
+    ``_csv.Error``, a traceback (exit 1); a shorter one that is no number, or a long header
+    name, was quoted whole (a message of 100 kB)."""
+    shutil.copy(TWIN / "collapse.yaml", tmp_path)
+    (tmp_path / "front.csv").write_text(table)
+    (tmp_path / "c.yaml").write_text(
+        "base: collapse.yaml\nparameters: {rheology.mu_s: {bounds: [0.4, 0.5]}}\nobservations:\n"
+        "  - {name: f, quantity: front, file: front.csv, columns: [t, x_f, sigma], units: cm}\n"
+    )
+    with pytest.raises(InputError) as caught:
+        study.load_calibration(tmp_path / "c.yaml")
+    assert phrase in str(caught.value) and len(str(caught.value)) < 500
+
+
 def _calibration_and_sensitivity(
     directory: Path, parameters: str, calibration: str = "", sensitivity: str = ""
 ):

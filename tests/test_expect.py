@@ -317,6 +317,21 @@ def test_pytest_runs_a_named_file_and_selects_by_kind(pytester):
     only.assert_outcomes(passed=1, deselected=1)
 
 
+def test_pytest_reads_the_yaml_files_of_a_named_directory_as_multilayer_does(pytester):
+    """The plugin read every YAML file of a directory named on the command line with
+    PyYAML's own parser, without bounds: a data file beside the scenarios 5000 lists deep
+    was a ``RecursionError`` that stopped the whole collection (exit 2, no test run), one
+    of 2 * 10^6 values took 48 s.  They are read as a scenario is (libyaml, bounded),
+    and a file multilayer reads as no scenario is no scenario to collect."""
+    _write(pytester.path, "true.yaml", TRUE)
+    (pytester.path / "deep.yaml").write_text("[" * 5000 + "]" * 5000)
+    (pytester.path / "values.yaml").write_text("expect: [" + ", ".join(["1"] * 2_000_001) + "]\n")
+    (pytester.path / "latin1.yaml").write_bytes(b"expect: [caf\xe9]\n")
+    result = pytester.runpytest(str(pytester.path), "-p", "no:cacheprovider", "-v")
+    result.assert_outcomes(passed=2)
+    assert "RecursionError" not in result.stdout.str()
+
+
 @pytest.mark.slow
 def test_pytest_without_arguments_collects_no_yaml(pytester):
     """A plain `pytest` (no paths named) never turns YAML files into scenario runs."""

@@ -18,6 +18,7 @@ import typing
 
 import numpy as np
 import pytest
+import xarray as xr
 import yaml
 from conftest import TINY_SCENARIO
 
@@ -151,6 +152,27 @@ def test_csv_numbers_are_ascii_decimals_and_a_byte_order_mark_is_no_header(tmp_p
     with pytest.raises(InputError, match="bed.csv: line 3: expected two numbers") as caught:
         multilayer.load(tmp_path / "s.yaml")
     assert phrase in str(caught.value)
+
+
+def test_a_csv_number_of_a_million_digits_and_a_letter_is_refused_at_once(tmp_path):
+    """The pattern of an ASCII decimal, ``[0-9]+\\.?[0-9]*``, split the digits of a number
+    between its two runs in every way before refusing one ended by a letter: quadratic in
+    its digits, a row ``0, 999...9x`` of 10^6 digits held ``validate`` for 11 hours (and an
+    ``--at`` of 10^5 digits ``plot`` for minutes).  Refused at once (a child, which a
+    quadratic match would hold past the timeout), the row quoted in 60 characters."""
+    (tmp_path / "bed.csv").write_text("x (m), z (m)\n0, 0\n0.5, " + "9" * 10**6 + "x\n")
+    data = {**copy.deepcopy(TINY_SCENARIO), "bed": {"file": "bed.csv"}}
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(data))
+    result = subprocess.run(
+        [sys.executable, "-m", "multilayer", "validate", str(tmp_path / "s.yaml")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    row = f"'0.5, {'9' * 51}..."
+    assert f"bed.csv: line 3: expected two numbers separated by a comma, got {row}" in result.stderr
+    assert len(result.stderr) < 500
 
 
 @pytest.mark.parametrize(
@@ -658,7 +680,44 @@ def test_a_plot_window_without_end_is_refused(tmp_path, cli, finished, x1):
     shutil.copytree(source, outdir)
     result = cli("plot", outdir, "--xlim", "0", x1)
     assert result.code == 2 and "Traceback" not in result.err
-    assert "at most 1000 times as wide" in result.err
+    assert "at most 1000 and at least 1e-06 times as wide" in result.err
+
+
+@pytest.mark.parametrize("command", [["plot"], ["export", "--vtk"]])
+def test_a_result_file_given_as_the_directory_is_named_with_its_directory(tmp_path, cli, finished, command):
+    """``plot DIR/result.nc`` checked the result, then said ``DIR/result.nc/plots: Not a
+    directory; accepted: a directory this user can write`` (``export``: ``.../vtk``), naming
+    a path that is not there and asking for permissions; the file is named, with the
+    directory holding it, before anything is read."""
+    _, source = finished
+    outdir = tmp_path / "out"
+    shutil.copytree(source, outdir)
+    result = cli(command[0], outdir / "result.nc", *command[1:])
+    assert result.code == 2 and "Traceback" not in result.err
+    accepted = "accepted: the output directory of `multilayer run`"
+    assert f"{outdir / 'result.nc'}: a file, not a directory; {accepted}" in result.err
+    assert result.err.rstrip().endswith(f"(here {outdir})")
+    assert sorted(p.name for p in outdir.iterdir()) == sorted(p.name for p in source.iterdir())
+
+
+@pytest.mark.parametrize(("x0", "x1"), [("-1e-320", "1e-320"), ("0.2", "0.2000000000000001")])
+def test_a_plot_window_matplotlib_would_widen_is_refused(tmp_path, cli, finished, x0, x1):
+    """Matplotlib widens a window narrower than 1e-15 of its largest end, or within
+    2.2e-287 of zero, to +-5 % of it: ``--xlim -1e-320 1e-320`` was drawn over -0.05 .. 0.05 m
+    and ``0.2 0.2000000000000001`` over 0.19 .. 0.21 m, exit 0.  A window narrower than 1e-6
+    of the domain is refused, its ends written as given; a wider one is drawn as asked."""
+    _, source = finished
+    outdir = tmp_path / "out"
+    shutil.copytree(source, outdir)
+    result = cli("plot", outdir, "--xlim", x0, x1)
+    assert result.code == 2 and "Traceback" not in result.err
+    assert f"--xlim {float(x0)!r} {float(x1)!r}: accepted: X0 < X1 (m)" in result.err
+    assert "at least 1e-06 times as wide (Matplotlib widens a narrower window)" in result.err
+    assert not (outdir / "plots").exists()
+    from multilayer.io.plotting import checked_xlim
+
+    ds = xr.Dataset(coords={"x_bnds": (("x", "nv"), [[0.0, 0.25], [0.25, 0.5]])})
+    assert checked_xlim(ds, (0.2, 0.2 + 1e-6)) == (0.2, 0.2 + 1e-6)  # 2e-6 of the domain
 
 
 @pytest.mark.parametrize(
@@ -877,6 +936,86 @@ def test_a_name_longer_than_a_file_name_is_refused(cli, write_scenario):
     validated, and the run then failed to make its directory."""
     result = cli("validate", write_scenario({**TINY_SCENARIO, "name": "n" * 300}))
     assert result.code == 2 and "name (line 1): String should have at most 255 characters" in result.err
+
+
+@pytest.mark.parametrize(
+    ("hidden", "line", "column"),
+    [
+        ("name: tiny  # slope 25\x85slope_deg: 40\n", 1, 23),
+        ("description: chute at 25 degrees\u2028slope_deg: 40\n", 1, 33),
+        ("description: 'a\u2029b'\nslope_deg: 40\n", 1, 16),
+        ("# note\r\n# note\rdescription: a\u2028b\n", 3, 15),
+    ],
+)
+def test_a_line_break_of_yaml_1_1_only_is_refused_where_the_editor_shows_it(
+    cli, write_scenario, hidden, line, column
+):
+    """libyaml's parser (YAML 1.1) ends a line at U+0085, U+2028 and U+2029, which YAML 1.2,
+    the ``csv`` module and an editor do not: ``name: tiny  # slope 25<U+0085>slope_deg: 40``
+    ran at 40 degrees, a key every reader of the file sees as a comment, and each such
+    character shifted the line numbers of the messages after it.  It is refused at the line
+    and column an editor shows (lines ended by ``\\n``, ``\\r\\n`` or ``\\r``), in a file and
+    a ``--set`` value; written as an escape in a double-quoted string it is text."""
+    data = {k: v for k, v in TINY_SCENARIO.items() if k not in ("name", "slope_deg")}
+    body = yaml.safe_dump({"name": "tiny", **data} if "name" not in hidden else data, sort_keys=False)
+    path = write_scenario(hidden + body)
+    result = cli("validate", path)
+    assert result.code == 2 and "Traceback" not in result.err
+    assert f"{path} (line {line}, column {column}): the character U+" in result.err, result.err
+    assert "accepted: lines ending at \\n, \\r\\n or \\r only" in result.err
+    result = cli("validate", write_scenario(TINY_SCENARIO), "--set", "description=a\u2028slope_deg: 3")
+    assert result.code == 2 and "--set description (line 1, column 2): the character U+2028" in result.err
+    escaped = write_scenario(
+        'description: "a\\Lb\\u2028c\\N"\n' + yaml.safe_dump(TINY_SCENARIO), "escaped.yaml"
+    )
+    assert multilayer.load(escaped).description == "a\u2028b\u2028c\x85"
+
+
+KEY_1E5 = "k" * 100_000
+
+
+@pytest.mark.parametrize(
+    ("change", "overrides", "phrase"),
+    [
+        ({KEY_1E5: 1}, [], f"{KEY_1E5[:57]}... (line 26): unknown key"),
+        ({"rheology": {**TINY_SCENARIO["rheology"], KEY_1E5: 1}}, [], f"rheology.{KEY_1E5[:57]}... (line "),
+        ({"rheology": {"name": KEY_1E5}}, [], f"unknown rheology '{KEY_1E5[:56]}...; accepted"),
+        ({"output": {"directory": f"~{KEY_1E5}"}}, [],
+         f"'~{KEY_1E5[:55]}...: no user '{KEY_1E5[:56]}... on this"),
+        ({}, [f"{KEY_1E5}=1"], f"{KEY_1E5[:57]}... (from --set): unknown key"),
+        ({}, [f"domain.cells.{KEY_1E5}=1"], f"--set domain.cells.{KEY_1E5[:44]}...: domain.cells is a value"),
+    ],
+)  # fmt: skip
+def test_a_key_or_name_of_100000_characters_is_quoted_shortened(
+    cli, write_scenario, change, overrides, phrase
+):
+    """A key (YAML writes one longer than 1024 characters as ``? key``), a rheology's name,
+    a home directory or a ``--set`` key path of 10^5 characters was quoted whole: a message of
+    100 kB (200 kB for the home directory, quoted twice).  It is cut to 60 characters, as
+    a value is."""
+    argv = ["validate", write_scenario({**TINY_SCENARIO, **change})]
+    result = cli(*argv, *(a for o in overrides for a in ("--set", o)))
+    assert result.code == 2 and "Traceback" not in result.err
+    assert phrase in result.err, result.err[:500]
+    assert len(result.err) < 500
+
+
+def test_a_size_or_an_observations_unit_of_100000_characters_is_quoted_shortened(
+    tmp_path, cli, write_scenario
+):
+    """``--max-memory`` and an observation's ``units`` of 10^5 characters were quoted whole."""
+    result = cli("validate", write_scenario(TINY_SCENARIO), "--max-memory", f"{KEY_1E5}x")
+    assert (
+        result.code == 2 and f"argument --max-memory: not a size: '{KEY_1E5[:56]}...; accepted" in result.err
+    )
+    assert len(result.err) < 800
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(TINY_SCENARIO))
+    observation = {"name": "a", "quantity": "mass_final", "value": 0.005, "sigma": 0.001, "units": KEY_1E5}
+    config = {"base": "base.yaml", "parameters": {"rheology.mu_s": {"bounds": [0.2, 0.4]}}}
+    (tmp_path / "c.yaml").write_text(yaml.safe_dump({**config, "observations": [observation]}))
+    result = cli("validate", tmp_path / "c.yaml")
+    assert result.code == 2 and "observations.0.units (line " in result.err
+    assert f"unknown unit '{KEY_1E5[:56]}...; accepted: m, cm" in result.err and len(result.err) < 500
 
 
 @pytest.mark.parametrize("command", ["validate", "run"])
@@ -1209,6 +1348,31 @@ def test_a_scenario_changed_after_loading_is_validated_again_by_the_simulation(k
     changed.domain.cells = 20
     sim = multilayer.Simulation(changed)
     assert sim.h.size == 20 and not sim.scenario.changed_since_validation()
+
+
+@pytest.mark.parametrize(
+    ("change", "phrase"),
+    [
+        (lambda s: s.rheology.params.update(mu_start=float("nan")),
+         "rheology.mu_start: drucker_prager: Input should be a finite number (got nan)"),
+        (lambda s: s.rheology.params.update(mu_s=float("-inf")), "(got -inf)"),
+        (lambda s: setattr(s.domain, "layer_fractions", {"geometric": float("inf")}),
+         "got {'geometric': inf}"),
+        (lambda s: setattr(s.numerics, "threads", float("nan")), "numerics.threads: got nan"),
+    ],
+)  # fmt: skip
+def test_a_value_assigned_nan_after_loading_is_named_as_nan_not_read_as_not_given(change, phrase):
+    """A scenario changed after loading is validated again from the YAML it writes, where a
+    value typed ``Any`` (a law's parameters, the layer fractions, the threads) that is NaN
+    or infinite was written as null: ``mu_start = nan`` was read as no ``mu_start`` and the
+    run went on without it, silently, and ``mu_s = -inf`` was said to be None."""
+    scenario = multilayer.load(TINY_SCENARIO)
+    change(scenario)
+    with pytest.raises(InputError) as caught:
+        multilayer.Simulation(scenario)
+    assert phrase in str(caught.value)
+    with pytest.raises(InputError, match=re.escape(phrase)):
+        multilayer.run(scenario)
 
 
 def test_load_state_names_a_missing_or_non_finite_entry_and_restores_nothing():

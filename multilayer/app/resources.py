@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from multilayer.engine.config import MAX_STEPS
-from multilayer.errors import InputError
+from multilayer.errors import InputError, shown
 from multilayer.io import disk
 from multilayer.io.netcdf_layout import HEADER_SPACE
 
@@ -150,10 +150,10 @@ def parse_size(text: str) -> float:
     number = r"(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
     match = re.fullmatch(rf"\s*({number})\s*([kKmMgGtT]?)[iI]?[bB]?\s*", text)
     if not match:
-        raise ValueError(f"not a size: {text!r}; {accepted}")
+        raise ValueError(f"not a size: {shown(text)}; {accepted}")
     value = float(match.group(1)) * _UNITS[match.group(2).lower()]
     if not math.isfinite(value) or value <= 0:
-        raise ValueError(f"not a size > 0: {text!r} is {value:g} bytes; {accepted}")
+        raise ValueError(f"not a size > 0: {shown(text)} is {value:g} bytes; {accepted}")
     return value
 
 

@@ -277,6 +277,11 @@ def material_span(ds: xr.Dataset) -> tuple[float, float]:
 
 XLIM_SPAN = 1000.0
 """Widest window of ``--xlim``, in lengths of the domain (wider, the domain is a dot)."""
+XLIM_NARROWEST = 1e-6
+"""Narrowest window of ``--xlim``, in lengths of the domain: Matplotlib widens a window
+narrower than 1e-15 of its largest end, or within 2.2e-287 of zero, to +-5 % of it (``0.2
+0.2000000000000001`` was drawn over 0.19 .. 0.21, ``-1e-320 1e-320`` over -0.05 .. 0.05 m,
+silently); 1e-6 of the domain, even 1000 domain lengths away from it, is far from both."""
 
 
 def checked_xlim(ds: xr.Dataset, xlim: Sequence[float] | None) -> tuple[float, float]:
@@ -287,10 +292,12 @@ def checked_xlim(ds: xr.Dataset, xlim: Sequence[float] | None) -> tuple[float, f
     edges = ds["x_bnds"].values
     lo, hi = float(edges[0, 0]), float(edges[-1, 1])
     x0, x1 = (float(x) for x in xlim)
-    if not (x0 < x1 and x0 < hi and x1 > lo and x1 - x0 <= XLIM_SPAN * (hi - lo)):
+    length = hi - lo
+    if not (x0 < x1 and x0 < hi and x1 > lo and XLIM_NARROWEST * length <= x1 - x0 <= XLIM_SPAN * length):
         raise InputError(
-            f"--xlim {x0:g} {x1:g}: accepted: X0 < X1 (m), overlapping the domain [{lo:g}, {hi:g}], at most "
-            f"{XLIM_SPAN:g} times as wide"
+            f"--xlim {x0!r} {x1!r}: accepted: X0 < X1 (m), overlapping the domain [{lo:g}, {hi:g}], at most "
+            f"{XLIM_SPAN:g} and at least {XLIM_NARROWEST:g} times as wide (Matplotlib widens a narrower "
+            "window)"
         )
     return x0, x1
 

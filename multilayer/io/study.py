@@ -35,7 +35,7 @@ import numpy as np
 from pydantic import BaseModel, Field, ValidationError, field_validator, model_validator
 
 from multilayer import scenario
-from multilayer.errors import InputError, reason
+from multilayer.errors import InputError, reason, shortened, shown
 from multilayer.scenario.files import read_text
 from multilayer.scenario.limits import MAX_DESIGN_VALUES, MAX_PROFILE_POINTS, MAX_STUDY_RUNS
 from multilayer.scenario.loading import load_base
@@ -143,7 +143,7 @@ class Observation(StrictModel):
     @classmethod
     def _unit(cls, value: str | None) -> str | None:
         if value is not None and value not in UNITS:
-            raise invalid(f"unknown unit {value!r}", ", ".join(UNITS))
+            raise invalid(f"unknown unit {shown(value)}", ", ".join(UNITS))
         return value
 
     @field_validator("columns")
@@ -301,13 +301,17 @@ class CalibrationModel(_Study):
         seen: set[str] = set()
         for i, obs in enumerate(self.observations):
             if obs.name in seen:
-                raise invalid(f"duplicate name {obs.name!r}", "a name used once", f"observations.{i}.name")
+                raise invalid(
+                    f"duplicate name {shown(obs.name)}", "a name used once", f"observations.{i}.name"
+                )
             seen.add(obs.name)
             if obs.experiment is None and len(names) > 1:
                 raise invalid("which experiment?", ", ".join(names), f"observations.{i}.experiment")
             if obs.experiment is not None and obs.experiment not in names:
                 raise invalid(
-                    f"unknown experiment {obs.experiment!r}", ", ".join(names), f"observations.{i}.experiment"
+                    f"unknown experiment {shown(obs.experiment)}",
+                    ", ".join(names),
+                    f"observations.{i}.experiment",
                 )
         return self
 
@@ -625,7 +629,7 @@ def _read(path: Path, lines: dict, index: int, obs: Observation, experiment: str
     for u, expected in ((unit, _SI[obs.quantity]), (coordinate_unit, _COORDINATE_SI[obs.quantity])):
         if _DIMENSION.get(u) != expected:
             raise InputError(
-                f"{where}: unit {u!r} in {file}; accepted: "
+                f"{where}: unit {shown(u)} in {file}; accepted: "
                 + ", ".join(k for k, d in _DIMENSION.items() if d == expected)
             )
     scale = UNITS[unit]
@@ -678,7 +682,7 @@ def _read_csv(file: Path, columns: list[str], where: str) -> tuple[np.ndarray, n
         twice = [c for c in columns if header.count(c) > 1]
         if twice:  # a dict of the row keeps the last of them, silently
             raise InputError(
-                f"{where}: {file}: its header names the column {twice[0]!r} twice; accepted: a CSV file "
+                f"{where}: {file}: its header names the column {shown(twice[0])} twice; accepted: a CSV file "
                 "whose header names each column it reads once"
             )
         rows = list(itertools.islice(reader, MAX_PROFILE_POINTS + 1))
@@ -697,8 +701,13 @@ def _read_csv(file: Path, columns: list[str], where: str) -> tuple[np.ndarray, n
         table = [[csv_number(row[c]) for row in rows] for c in columns]
     except KeyError as exc:
         raise InputError(
-            f"{where}: {file} has no column {exc} (its header names {', '.join(map(repr, header))}); "
+            f"{where}: {file} has no column {exc} (its header names "
+            f"{shortened(', '.join(map(repr, header)))}); "
             f"accepted: a CSV file with a header row naming {', '.join(columns)}"
+        ) from None
+    except csv.Error as exc:  # a field longer than the csv module's limit (131072 characters): a traceback
+        raise InputError(
+            f"{where}: {file}: line {reader.line_num + 1}: {exc}; accepted: a CSV file of numbers"
         ) from None
     except (OSError, ValueError, TypeError) as exc:
         raise InputError(
@@ -725,7 +734,7 @@ def _read_netcdf(
         with decoded(file, load=False) as ds:
             if variable not in ds:
                 raise InputError(
-                    f"{where}: {file} has no variable {variable!r}; accepted: "
+                    f"{where}: {file} has no variable {shown(variable)}; accepted: "
                     + ", ".join(map(str, ds.data_vars))
                 )
             if ds[variable].size > MAX_PROFILE_POINTS:

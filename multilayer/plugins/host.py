@@ -28,7 +28,7 @@ import numpy as np
 import pluggy
 from pydantic import BaseModel, ConfigDict, create_model
 
-from multilayer.errors import InputError
+from multilayer.errors import InputError, shown
 from multilayer.plugins.contract import Rheology
 
 PROJECT = "multilayer"
@@ -198,9 +198,9 @@ def find(name: str, applies_to: str | None = None) -> tuple[type[Rheology] | Non
     (``None`` when it exists and applies there)."""
     cls = registry().get(name)
     if cls is None:
-        return None, f"unknown rheology '{name}'"
+        return None, f"unknown rheology {shown(name)}"
     if applies_to is not None and cls.applies_to != applies_to:
-        return cls, f"'{name}' applies to {cls.applies_to}, not {applies_to}"
+        return cls, f"{shown(name)} applies to {cls.applies_to}, not {applies_to}"
     return cls, None
 
 

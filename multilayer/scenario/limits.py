@@ -140,6 +140,34 @@ def check_yaml(text: str, where: str, loader: type) -> None:
         return  # the loader names the problem and its line
 
 
+YAML_1_1_LINE_BREAKS = {"\x85": "NEXT LINE", "\u2028": "LINE SEPARATOR", "\u2029": "PARAGRAPH SEPARATOR"}
+"""Characters a YAML 1.1 parser (libyaml's, multilayer's) ends a line at, and YAML 1.2, the
+``csv`` module and an editor do not (it shows them within the line, or as a mark)."""
+
+
+def check_line_breaks(text: str, where: str) -> None:
+    """:class:`InputError` naming ``where`` and the line and column (lines ended by
+    ``\n``, ``\r\n`` or ``\r``, as an editor counts them) of a character of
+    :data:`YAML_1_1_LINE_BREAKS` in a YAML text the user writes: the parser ended the line
+    there, so that ``name: tiny  # slope 25<U+0085>slope_deg: 40`` set a slope of 40 degrees
+    that every reader of the file sees as a comment (U+2028 in a description likewise),
+    and each such character shifted the line numbers of every message after it."""
+    found = [text.find(c) for c in YAML_1_1_LINE_BREAKS]
+    found = [i for i in found if i >= 0]
+    if not found:
+        return
+    at = min(found)
+    before = text[:at]
+    line = before.count("\n") + before.count("\r") - before.count("\r\n") + 1
+    column = at - max(before.rfind("\n"), before.rfind("\r"))
+    raise InputError(
+        f"{where} (line {line}, column {column}): the character U+{ord(text[at]):04X} "
+        f"({YAML_1_1_LINE_BREAKS[text[at]]}), where YAML 1.1 (multilayer's parser) ends a line and an "
+        "editor does not; accepted: lines ending at \\n, \\r\\n or \\r only (in a double-quoted string "
+        'the character written as an escape, "\\u2028")'
+    )
+
+
 def check_text(text: str, where: str) -> None:
     """:class:`InputError` naming ``where`` for a text that is no Unicode text: a lone
     surrogate, how Python keeps a byte of a command-line argument that is not UTF-8

@@ -18,6 +18,8 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field
 from pydantic_core import PydanticCustomError
 
+from multilayer.errors import shortened, shown
+
 KeyPath = tuple[str | int, ...]
 """A key path in a YAML document: mapping keys and list indices."""
 
@@ -28,9 +30,9 @@ def dotted(path: Sequence[str | int]) -> str:
     as the file wrote it, and an escape sequence of the terminal in it acted on the terminal
     (cleared it, set its title), and a letter of another script that looks like ours (a
     Cyrillic s in ``mu_s``) was "unknown" beside the very name it showed; an empty key
-    ``''`` was "(top level)"."""
+    ``''`` was "(top level)"; a key longer than 60 characters is :func:`shortened`."""
     plain = (str(p) if str(p) and str(p).isascii() and str(p).isprintable() else ascii(p) for p in path)
-    return ".".join(plain) or "(top level)"
+    return ".".join(map(shortened, plain)) or "(top level)"
 
 
 def invalid(message: str, accepted: str, key: str = "") -> PydanticCustomError:
@@ -77,16 +79,17 @@ def unknown_home(path: str) -> str | None:
             try:
                 pwd.getpwuid(os.getuid())
             except KeyError:
-                return f"{path!r}: the home directory is not known (no HOME, no user of id {os.getuid()})"
+                user = os.getuid()
+                return f"{shown(path)}: the home directory is not known (no HOME, no user of id {user})"
             return None
         home = os.environ["HOME"]
         if not os.path.isabs(home):
-            return f"{path!r}: HOME is {home!r}, not an absolute path"
+            return f"{shown(path)}: HOME is {shown(home)}, not an absolute path"
         return None
     try:
         pwd.getpwnam(head[1:])
     except KeyError:
-        return f"{path!r}: no user {head[1:]!r} on this system"
+        return f"{shown(path)}: no user {shown(head[1:])} on this system"
     return None
 
 
@@ -121,9 +124,14 @@ def increasing(points: list[list[float]], key: str, what: str) -> None:
 
 
 class StrictModel(BaseModel):
-    """A mapping of an input file: no unknown key, no type coercion, no inf or nan."""
+    """A mapping of an input file: no unknown key, no type coercion, no inf or nan.
 
-    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
+    An infinite or NaN value assigned after validation is written as it is (``.nan`` in
+    YAML), not as null: a scenario is validated again from what it writes, and a law's
+    parameter or a base zone's (typed ``Any``) written as null was read as not given,
+    ``rheology.mu_start = nan`` assigned from Python running without ``mu_start``."""
+
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False, ser_json_inf_nan="constants")
 
 
 def field(default: Any = ..., accepted: str = "", **constraints: Any) -> Any:
@@ -160,12 +168,6 @@ def model_in(annotation: Any) -> type[BaseModel] | None:
         if found is not None:
             return found
     return None
-
-
-def shown(value: Any) -> str:
-    """``repr(value)`` cut to 60 characters: a message quotes what it got, not a whole list."""
-    text = repr(value)
-    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def describe(error: Mapping[str, Any], root: type[BaseModel]) -> tuple[KeyPath, str, str]:

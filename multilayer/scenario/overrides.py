@@ -9,7 +9,7 @@ from typing import Any
 
 import yaml
 
-from multilayer.errors import InputError
+from multilayer.errors import InputError, shortened
 from multilayer.scenario import limits
 from multilayer.scenario.messages import KeyPath, dotted, shown
 from multilayer.scenario.source import Loader, format_value
@@ -58,12 +58,13 @@ def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> tuple[dic
                 "part empty, printable text) and a YAML value, e.g. domain.cells=200 or initial+={shape: "
                 "layer, thickness: 0.002}"
             )
-        limits.check_yaml(text, f"--set {key}", Loader)
+        limits.check_line_breaks(text, f"--set {shortened(key)}")
+        limits.check_yaml(text, f"--set {shortened(key)}", Loader)
         try:
             value = yaml.load(text, Loader=Loader)
         except yaml.YAMLError as exc:
             raise InputError(
-                f"--set {key}: malformed YAML value {shown(text)}; accepted: a YAML "
+                f"--set {shortened(key)}: malformed YAML value {shown(text)}; accepted: a YAML "
                 f"scalar, list or mapping ({getattr(exc, 'problem', exc)})"
             ) from None
         node: Any = data
@@ -78,13 +79,13 @@ def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> tuple[dic
                     part.isascii() and part.isdigit() and part == str(int(part)) and int(part) < len(node)
                 ):
                     raise InputError(
-                        f"--set {key}: {dotted(path)} has {len(node)} entries; "
+                        f"--set {shortened(key)}: {dotted(path)} has {len(node)} entries; "
                         f"accepted indices: 0..{len(node) - 1} (without leading zeros)"
                     )
                 part = int(part)
             elif not isinstance(node, dict):
                 raise InputError(
-                    f"--set {key}: {dotted(path)} is a value, not a mapping; "
+                    f"--set {shortened(key)}: {dotted(path)} is a value, not a mapping; "
                     f"accepted: a key path ending at {dotted(path)}"
                 )
             path = (*path, part)
@@ -98,7 +99,7 @@ def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> tuple[dic
                 target = node[int(part)] if isinstance(node, list) else node.setdefault(part, [])
                 if not isinstance(target, list):
                     raise InputError(
-                        f"--set {key}+=...: {dotted(path)} is not a list; "
+                        f"--set {shortened(key)}+=...: {dotted(path)} is not a list; "
                         f"accepted: += on a list key (initial, base, expect), = elsewhere"
                     )
                 target.append(value)
@@ -106,8 +107,9 @@ def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> tuple[dic
         for earlier in paths:  # domain.cells=20 then domain={...}: 20 was lost, the sweep's table said 20
             if earlier[: len(path)] == path:
                 raise InputError(
-                    f"--set {key}: replaces {dotted(earlier)}, set before it, whose value would be lost; "
-                    "accepted: each key set once, a key before the keys within it (domain, then domain.cells)"
+                    f"--set {shortened(key)}: replaces {dotted(earlier)}, set before it, whose value would "
+                    "be lost; accepted: each key set once, a key before the keys within it (domain, then "
+                    "domain.cells)"
                 )
         paths.append(path)
     return data, paths

@@ -117,6 +117,7 @@ def line_map(node: yaml.Node, where: str, path: KeyPath = (), lines=None) -> dic
 def parse_yaml(text: str, where: str) -> tuple[Any, dict[KeyPath, int]]:
     """The data of a YAML text and :func:`line_map`; :class:`InputError` naming ``where``
     and the line if it is malformed."""
+    limits.check_line_breaks(text, where)
     limits.check_yaml(text, where, Loader)
     try:
         node = yaml.compose(text, Loader=Loader)

@@ -242,6 +242,22 @@ def directory(text: str) -> Path:
     return Path(text)
 
 
+RUN_DIRECTORY = "the output directory of `multilayer run`"
+"""What ``DIR`` of ``plot`` and ``export`` accepts (a study's directory too for ``plot``)."""
+
+
+def not_a_file(path: Path, accepted: str) -> Path:
+    """``path``, the ``DIR`` of ``plot`` or ``export``, unless it is a file: ``plot
+    DIR/result.nc`` checked the result, then said that ``DIR/result.nc/plots`` was "Not a
+    directory" and asked for "a directory this user can write"; the directory holding it
+    is named."""
+    from multilayer.errors import InputError
+
+    if path.is_file():
+        raise InputError(f"{path}: a file, not a directory; accepted: {accepted} (here {path.parent})")
+    return path
+
+
 def add_output_argument(parser: argparse.ArgumentParser, default: str) -> None:
     """``-o DIR``, ``--output DIR``: the output directory (``args.output``, a Path or None);
     ``default`` says where the output goes without it."""

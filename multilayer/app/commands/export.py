@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import argparse
 
-from multilayer.app.commands import directory
+from multilayer.app.commands import RUN_DIRECTORY, directory, not_a_file
 from multilayer.errors import InputError, printable, warn
 
 HELP = "export DIR/result.nc to other formats (--vtk: ParaView)"
@@ -30,7 +30,7 @@ def main(args: argparse.Namespace) -> int:
 
     if not args.vtk:
         raise InputError("multilayer export: choose a format; accepted: --vtk")
-    paths, end = export_vtk(args.directory)
+    paths, end = export_vtk(not_a_file(args.directory, RUN_DIRECTORY))
     print(printable(f"{paths[0]} ({len(paths) - 1} output times)"))
     if end:
         warn(f"{end}; exported up to its last output time")

@@ -15,7 +15,7 @@ from __future__ import annotations
 import argparse
 import os
 
-from multilayer.app.commands import decimal, directory, positive_int
+from multilayer.app.commands import RUN_DIRECTORY, decimal, directory, not_a_file, positive_int
 from multilayer.errors import InputError, printable, warn
 
 HELP = (
@@ -89,6 +89,7 @@ def _matplotlib() -> None:
 def main(args: argparse.Namespace) -> int:
     """Write the figures and list them; say on stderr what could not be drawn."""
     _matplotlib()
+    not_a_file(args.directory, f"{RUN_DIRECTORY}, `calibrate` or `sensitivity`")
     from multilayer.app.calibration import CALIBRATION_FILE
     from multilayer.app.sensitivity import SENSITIVITY_FILE
     from multilayer.io.results import RESULT_FILE
