@@ -61,8 +61,8 @@ SHOWN_CHARACTERS = 60
 
 def shortened(text: str) -> str:
     """``text`` cut to :data:`SHOWN_CHARACTERS`, its end written ``...``: a message quotes
-    what it got, not a whole list, nor a key or a rheology's name of 10^5 characters (the
-    message was as long)."""
+    what it got, not a whole list, nor a key or a rheology's name of 10^5 characters (a
+    message as long as the input it quotes is not read)."""
     return text if len(text) <= SHOWN_CHARACTERS else text[: SHOWN_CHARACTERS - 3] + "..."
 
 

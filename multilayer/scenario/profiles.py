@@ -35,10 +35,10 @@ LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "km": 1e3}
 
 _HEADER_CELL = re.compile(r"^\s*([A-Za-z_]\w*)\s*[\(\[]\s*([A-Za-z]+)\s*[\)\]]\s*$")
 _NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
-"""An ASCII decimal, matched in a time linear in its length: ``[0-9]+\\.?[0-9]*`` split
-the digits of a number between its two runs in every way before refusing one ended by a
-letter, a time quadratic in its digits (10^6 digits and an ``x`` in a CSV file, 11 hours;
-an ``--at`` of 10^5 digits, minutes)."""
+"""An ASCII decimal, matched in a time linear in its length: the digits after the point
+belong to an optional group that starts at the point, so no two runs of digits compete for
+the same characters (with ``[0-9]+\\.?[0-9]*`` a number ended by a letter is refused only
+after every split of its digits is tried, a time quadratic in its length)."""
 
 
 def csv_lines(text: str) -> list[str]:
