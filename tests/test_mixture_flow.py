@@ -889,11 +889,7 @@ def test_a_watched_column_set_moving_stops_the_local_step_at_its_first_evaluatio
 def _finished(monkeypatch: pytest.MonkeyPatch) -> None:
     """Every local step finished: the last one of a time step stops at no start."""
     original = Simulation._vertical_step
-    monkeypatch.setattr(
-        Simulation,
-        "_vertical_step",
-        lambda self, *args, last=False, **options: original(self, *args, **options),
-    )
+    monkeypatch.setattr(Simulation, "_vertical_step", lambda self, *args, last=False: original(self, *args))
 
 
 def _same_run(a: Simulation, b: Simulation) -> None:

@@ -407,8 +407,8 @@ def test_the_normal_stress_acts_over_the_step_as_the_vertical_step_does(order, m
     vertical_step = sim._vertical_step
     searching: list[bool] = []
 
-    def recorded(h, ustar, dt, threads, first=None, *, last=False, **options):
-        u, iterations = vertical_step(h, ustar, dt, threads, first, last=last, **options)
+    def recorded(h, ustar, dt, threads, first=None, *, last=False):
+        u, iterations = vertical_step(h, ustar, dt, threads, first, last=last)
         seen.append(("vertical", dt, u.copy()))
         return u, iterations
 

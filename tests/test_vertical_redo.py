@@ -24,7 +24,7 @@ def _run(reuse: bool) -> tuple:
     the simulation and the steps it redid."""
     with pytest.MonkeyPatch.context() as patch:
         if not reuse:  # no attempt kept: a redone step solves every column again
-            patch.setattr(vertical_step.Solved, "copy", lambda self: None)
+            patch.setattr(vertical_step, "kept", lambda solved: None)
         redone: list[int] = []
         start_moving = engine_simulation.start_moving
 

@@ -63,7 +63,7 @@ from multilayer.engine.transport import reference as transport_reference
 from multilayer.engine.transport.reference import POSITIVITY_LIMIT, courant_step, stage_courant_step
 from multilayer.engine.vertical.extrapolation import SeedExtrapolation
 from multilayer.engine.vertical.problem import VerticalSolver
-from multilayer.engine.vertical.step import Solved, VerticalStep
+from multilayer.engine.vertical.step import VerticalStep
 from multilayer.engine.vertical.stresses import StressModel
 from multilayer.errors import InputError, RunError
 from multilayer.plugins.contract import Rheology
@@ -168,8 +168,6 @@ class Simulation:
         # columns that take part in the step: those moving at its start, and material at
         # rest that it sets moving (allocated once)
         self._stepping = np.zeros(c.cells, dtype=bool)
-        # the yield gravity of a step's first vertical step, for the step redone (_solved)
-        self._gravity_kept = np.empty((0, 0))
         self._t, self._steps = 0.0, 0
         self.newton_iterations = 0
         self.guard = StateGuard(self.x, self.dx, periodic=boundaries.BOUNDARIES[self.left].wraps)
@@ -362,42 +360,38 @@ class Simulation:
         self, dt: float, threads: int
     ) -> tuple[list[VerticalImpulse], np.ndarray, int]:
         """The transport stages, each followed by a vertical step and the normal stress's
-        (module docstring), redone while the step sets material at rest moving: the
-        vertical steps, the velocities after the last stress step and the Newton
-        iterations (of every attempt, those redone included)."""
+        (module docstring), redone while the step sets material at rest moving (its vertical
+        steps then solve the columns whose problem changed only: ``VerticalStep.redo``): the
+        vertical steps, the velocities after the last stress step and the Newton iterations
+        (of every attempt, those redone included)."""
         np.copyto(self._stepping, self._state.moving)
         iterations = 0
-        again: list[Solved | None] = [None, None]  # what the last attempt's vertical steps solved
+        self.vertical.begin(keep=self.normal_stress is None)  # (its searches for rest call it again)
         with self.vertical.stresses.forms_held():  # the laws read once in the time step
             while True:
                 if self.normal_stress is not None:  # each attempt from the stresses of the step's start
                     self.normal_stress.restart()
                 if self.numerics.order == 1:
                     h, ustar = self._transport(dt, threads)
-                    step, u, more, solved = self._stress_steps(
-                        1.0, h, ustar, dt, threads, last=True, again=again[0]
-                    )
-                    vertical, ends, tried = [step], [u], [solved]
+                    step, u, more = self._stress_steps(1.0, h, ustar, dt, threads, last=True)
+                    vertical, ends = [step], [u]
                 else:
                     h1, u1_star = self._transport(dt, threads, stage=0)
                     if self.transport is transport_kernel.transport:  # its workspace is reused by stage 1
                         h1, u1_star = self.workspace.keep()
-                    first, u1, counted, solved = self._stress_steps(
-                        0.5, h1, u1_star, dt, threads, again=again[0]
-                    )
+                    first, u1, counted = self._stress_steps(0.5, h1, u1_star, dt, threads)
                     h, ustar = self._transport(dt, threads, stage=1, first=(h1, u1))
-                    second, u, more, last_solved = self._stress_steps(
-                        1.0, h, ustar, 0.5 * dt, threads, first=(h1, u1), last=True, again=again[1]
+                    second, u, more = self._stress_steps(
+                        1.0, h, ustar, 0.5 * dt, threads, first=(h1, u1), last=True
                     )
                     more += counted
-                    vertical, ends, tried = [first, second], [u1, u], [solved, last_solved]
+                    vertical, ends = [first, second], [u1, u]
                 iterations += more
                 # material at rest set moving by any stress step (all: every one is marked)
                 started = [start_moving(end, self._state.h, self.dry, self._stepping) for end in ends]
                 if not any(started):
                     return vertical, u, iterations
-                # the step redone: its vertical steps solve again only the columns whose inputs change
-                again = [None if solved is None else solved.copy() for solved in tried]
+                self.vertical.redo()
 
     def _check_target(self, t_max: float) -> None:
         if not time_value(t_max) - self.t >= MIN_STEP:
@@ -457,27 +451,22 @@ class Simulation:
         first: tuple[np.ndarray, np.ndarray] | None = None,
         *,
         last: bool = False,
-        again: Solved | None = None,
-    ) -> tuple[VerticalImpulse, np.ndarray, int, Solved | None]:
-        """The vertical step over ``dt`` of the velocities ``ustar`` on ``h`` (``first``,
-        ``last``, ``again``: see :meth:`_vertical_step`), then the normal stress's: the
-        vertical step's impulse (of ``weight``), the velocities at the end, the Newton
-        iterations and what the vertical step solved (:meth:`_solved`).  Where the two
-        leave the material of a chain moving, rest of that chain when it is the answer of
-        the two steps together
-        (:func:`multilayer.engine.normal_stress.joint_rest`, the normal stress of material
-        at rest: docs/model.md, "Longitudinal normal stress"): its vertical step's impulse
-        from ``ustar - q``, ``q`` the normal stress's (the same momentum).  The chains
-        (:func:`multilayer.engine.normal_stress.runs`) are searched one by one: the normal
-        stress couples the columns of a chain only and the vertical step none, so the two
-        steps together, and rest as their answer, are a chain's own, whatever the others
-        do."""
-        u_vertical, iterations = self._vertical_step(h, ustar, dt, threads, first, last=last, again=again)
-        solved = self._solved(h, last)
+    ) -> tuple[VerticalImpulse, np.ndarray, int]:
+        """The vertical step over ``dt`` of the velocities ``ustar`` on ``h`` (``first``, ``last``: see
+        :meth:`_vertical_step`), then the normal stress's: the vertical step's impulse (of
+        ``weight``), the velocities at the end and the Newton iterations.  Where the two leave the
+        material of a chain moving, rest of that chain when it is the answer of the two steps
+        together (:func:`multilayer.engine.normal_stress.joint_rest`, the normal stress of material
+        at rest: docs/model.md, "Longitudinal normal stress"): its vertical step's impulse from
+        ``ustar - q``, ``q`` the normal stress's (the same momentum).  The chains
+        (:func:`multilayer.engine.normal_stress.runs`) are searched one by one: the normal stress
+        couples the columns of a chain only and the vertical step none, so the two steps together,
+        and rest as their answer, are a chain's own, whatever the others do."""
+        u_vertical, iterations = self._vertical_step(h, ustar, dt, threads, first, last=last)
         u = self._normal_stress(h, u_vertical, dt, self._state.u)
         normal = self.normal_stress
         if normal is None or not np.any(u):
-            return VerticalImpulse(weight, h, ustar, u_vertical, dt), u, iterations, solved
+            return VerticalImpulse(weight, h, ustar, u_vertical, dt), u, iterations
         tau_xx, relief = normal.tau_xx, normal.relief  # the split step's (each call makes new arrays)
         count = [iterations]
         held, q = u_vertical.copy(), np.zeros(u.shape)  # the vertical step's answer and its input's change
@@ -511,23 +500,7 @@ class Simulation:
                 q[:, columns], held[:, columns], u[:, columns] = found, 0.0, 0.0
                 tau_xx[:, columns], relief[:, columns] = normal.tau_xx[:, columns], normal.relief[:, columns]
         normal.tau_xx, normal.relief = tau_xx, relief
-        return VerticalImpulse(weight, h, ustar - q, held, dt), u, count[0], None
-
-    def _solved(self, h: np.ndarray, last: bool) -> Solved | None:
-        """What the vertical step just made solved (``VerticalStep.solved``), its arrays
-        those of the step, valid until the attempt ends, but for the yield gravity of a
-        stage that is not the ``last`` (the next one's overwrites it): copied on the columns
-        holding material.  None with a normal stress (whose searches for rest call the
-        vertical step again) or a mixture."""
-        solved = self.vertical.solved if self.normal_stress is None and self.mixture is None else None
-        if solved is None or solved.yield_gravity is None or last:
-            return solved
-        gravity = solved.yield_gravity
-        if self._gravity_kept.shape != gravity.shape:
-            self._gravity_kept = np.empty_like(gravity)
-        lo, hi = span(h)
-        self._gravity_kept[:, lo:hi] = gravity[:, lo:hi]
-        return solved._replace(yield_gravity=self._gravity_kept)
+        return VerticalImpulse(weight, h, ustar - q, held, dt), u, count[0]
 
     def _normal_stress(self, h: np.ndarray, u: np.ndarray, dt: float, lagged: np.ndarray) -> np.ndarray:
         """The longitudinal normal stress's step of ``dt`` (normal_stress.py) on the
@@ -551,7 +524,6 @@ class Simulation:
         first: tuple[np.ndarray, np.ndarray] | None = None,
         *,
         last: bool = False,
-        again: Solved | None = None,
     ) -> tuple[np.ndarray, int]:
         """The implicit vertical step over ``dt`` (the yield pressures and Newton seeds of
         the pressure model), or the mixture's local step (which dilates ``h`` in place;
@@ -560,9 +532,7 @@ class Simulation:
         within O(dt^2) of the answer in a smooth flow (the state's velocities are O(dt)
         away; a seed changes the work, not the answer): the pressure model's seed
         extrapolated from the last step (``extrapolation.py``), or after Heun's average the
-        first stage's velocities.  ``again``: what the vertical step of the same stage
-        of the step's last attempt solved (``VerticalStep``: its columns whose inputs are
-        the same are not solved again).
+        first stage's velocities.
 
         ``last``: the step's last stress step.  There the mixture's local step stops at its
         first evaluation if that sets moving a column that holds material and is outside
@@ -590,7 +560,6 @@ class Simulation:
             yield_gravity=self._yield_gravity(h),
             threads=threads,
             poll=self.poll,
-            again=again,
         )
 
     def _yield_gravity(self, h: np.ndarray) -> np.ndarray | None:

@@ -50,7 +50,7 @@ from multilayer.engine.vertical.forms import (
     law_of,
 )
 from multilayer.engine.vertical.newton_control import HALVINGS, energy_rise, error_bound, slope_along
-from multilayer.engine.vertical.results import Results, clear_dry, tally
+from multilayer.engine.vertical.results import Results, clear_dry, tally, written
 from multilayer.engine.vertical.sheared_columns import (
     ALONE,
     BLOCK,
@@ -562,15 +562,6 @@ def _columns(chunks, columns, inputs, fused, given, laws, control, out):
         _chunk(np.int64(k), chunks, columns, inputs, fused, given, laws, control, out)
 
 
-@jit
-def _take(u, answer, same, lo, hi):
-    """``u[:, i] = answer[:, i]`` for the columns ``i`` in ``lo .. hi-1`` where ``same``."""
-    for a in range(u.shape[0]):
-        for i in range(lo, hi):
-            if same[i]:
-                u[a, i] = answer[a, i]
-
-
 def _plain(*arguments):
     """``arguments``, each named tuple as a plain tuple: numba's dispatcher types a tuple of arrays in
     compiled code, a named tuple field by field in Python (49 fields: 4 of 9 us a call, none wet)."""
@@ -630,21 +621,18 @@ class CompiledStep:
         yield_gravity: np.ndarray | None = None,
         known: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """New velocities (L, N) and the Newton iterations of each wet column solved (-1:
-        not converged within ``max_iterations``; counted in :attr:`not_converged` and
-        :attr:`most_iterations`).  The velocities are overwritten by the call
-        after the next (a time step of order 2 keeps its first vertical step's while it
-        makes the second).  ``rest`` and ``yield_gravity`` go to ``StressModel.columns`` (compiled:
-        ``coefficients.CompiledCoefficients``).  ``known = (same, answer)``: the wet columns
-        where ``same`` (N,) is True take the velocities of ``answer`` (L, N) unsolved (a
-        column's answer is a function of its own inputs only); the iterations are those of
-        the others."""
+        """New velocities (L, N) and the Newton iterations of each wet column solved (-1: not converged
+        within ``max_iterations``; counted in :attr:`not_converged` and :attr:`most_iterations`).  The
+        velocities are overwritten by the call after the next (a time step of order 2 keeps its first
+        vertical step's while it makes the second).  ``rest`` and ``yield_gravity`` go to
+        ``StressModel.columns`` (compiled: ``coefficients.CompiledCoefficients``).  ``known = (same,
+        answer)``: the wet columns ``same`` (N,) take the velocities of ``answer`` (L, N) unsolved."""
         laws = self.laws()
         if laws is None:
             raise ValueError("a law of this stress model has no compiled form (see laws())")
         (bulk_form, bulk_params), walls = laws
         occupied = np.flatnonzero(h > 0)
-        wet = occupied if known is None else occupied[~known[0][occupied]]
+        wet = occupied if known is None else occupied[~known[0][occupied]]  # (the others: answers known)
         inputs, fused = self.coefficients.inputs(rest, yield_gravity)
         given = _NOT_GIVEN if fused else self._given(self.coefficients(h, wet, rest, yield_gravity))
         if not self._out or self._out[0].shape != ustar.shape:
@@ -654,9 +642,7 @@ class CompiledStep:
         (lo, hi), u = self._written[0], self._out[0]
         thickness = np.ascontiguousarray(h, dtype=float)
         clear_dry(u, thickness, lo, hi)  # zero outside them already; the kernel writes the wet ones
-        self._written[0] = (int(occupied[0]), int(occupied[-1]) + 1) if occupied.size else (0, 0)
-        if known is not None:
-            _take(u, known[1], known[0], *self._written[0])
+        self._written[0] = written(u, occupied, known)  # the known answers written
         out = Results(
             u, np.empty(wet.size, np.int64), np.empty(wet.size, np.int64), np.empty(wet.size, np.int64),
             np.empty((wet.size, 2)), np.zeros(wet.size, np.bool_),

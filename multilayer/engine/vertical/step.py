@@ -8,13 +8,15 @@ the simulation) and, with the compiled solver, the fused compiled iteration
 from each seed its pressure model gives, in turn: the seed changes the Newton work, not
 the answer, and where one does not converge the next one is tried.
 
-A step redone (``Simulation`` redoes a time step whose stress steps set material at rest
-moving, with those columns taking part) is given what its last attempt solved
-(:class:`Solved`): the columns whose thickness, velocities after transport, seed and
-yield gravity are the same bits take that attempt's answer unsolved (each column's
-problem is its own: the same inputs, the same iterations, the same answer); the others
-are solved.  The columns set moving change only the transport of their neighbours, so a
-redone step solves a few columns again instead of every one.
+A time step redone (``Simulation`` redoes a step whose stress steps set material at rest
+moving, with those columns taking part; :meth:`VerticalStep.begin`,
+:meth:`VerticalStep.redo`) solves in each vertical step only the columns whose thickness,
+velocities after transport, seed or yield gravity are not the same bits as in the same
+call of the attempt before (:class:`Solved`); the others take that attempt's answer,
+which is theirs to the bit (each column's problem is its own: the same inputs, the same
+iterations, the same answer).  The columns set moving change only the transport of
+themselves and their neighbours, so a redone step solves a few columns again instead of
+every one.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from typing import NamedTuple
 import numpy as np
 
 from multilayer.engine.compiled import jit
+from multilayer.engine.state import span
 from multilayer.engine.vertical import column_solve
 from multilayer.engine.vertical.newton import NotConverged, implicit_step
 from multilayer.engine.vertical.newton_kernel import CompiledStep
@@ -42,13 +45,12 @@ class Solved(NamedTuple):
     yield_gravity: np.ndarray | None
     u: np.ndarray
 
-    def copy(self) -> Solved:
-        """The same, in arrays of its own (the step's arrays are reused by the next ones)."""
-        gravity = self.yield_gravity
-        return Solved(
-            self.h.copy(), self.ustar.copy(), self.seed.copy(), None if gravity is None else gravity.copy(),
-            self.u.copy(),
-        )  # fmt: skip
+
+def kept(solved: tuple) -> Solved:
+    """``solved`` (:attr:`VerticalStep.solved`) in arrays of its own: the step's arrays are
+    reused by the next ones."""
+    h, ustar, seed, gravity, u = solved
+    return Solved(h.copy(), ustar.copy(), seed.copy(), None if gravity is None else gravity.copy(), u.copy())
 
 
 class VerticalStep:
@@ -69,8 +71,23 @@ class VerticalStep:
         self.compiled = CompiledStep(stresses) if solver is None else None
         self.tolerance, self.max_iterations = tolerance, max_iterations
         self.velocity_scale = velocity_scale
-        #: what the last call solved from its first seed (None: another seed, or no call yet)
-        self.solved: Solved | None = None
+        # what the calls of the attempt solved from their first seed, the fields of Solved (its
+        # arrays, the yield gravity copied; None: from another seed), and of the attempt before
+        self._tried: list[tuple | None] = []
+        self._again: list[Solved | None] = []
+        self._keep = False  # (only within a time step: begin)
+        self._gravity: list[np.ndarray] = []  # the copies of the yield gravity, call by call
+
+    def begin(self, keep: bool) -> None:
+        """A time step starts: nothing solved yet; ``keep``: its calls are one per stage
+        (what each solved is kept for the step redone: :meth:`redo`)."""
+        self._tried, self._again, self._keep = [], [], keep
+
+    def redo(self) -> None:
+        """The time step is redone: each call takes what the same call of the attempt before
+        solved (the columns whose inputs are the same bits keep its answer)."""
+        self._again = [None if solved is None else kept(solved) for solved in self._tried]
+        self._tried = []
 
     def __call__(
         self,
@@ -83,39 +100,58 @@ class VerticalStep:
         yield_gravity: np.ndarray | None,
         threads: int,
         poll: Callable[[], None] | None = None,
-        again: Solved | None = None,
     ) -> tuple[np.ndarray, int]:
         """The velocities (L, N) after the stresses of a step of ``dt`` on the thickness
         ``h`` from the velocities ``ustar`` after transport, and the Newton iterations;
         ``rest`` (L, N) marks the layers at rest at the start of the step and
         ``yield_gravity`` (L, N) replaces ``g cos(theta)`` in the yield pressures; ``poll()``
-        is called between kernel calls and may raise to abandon the step (Ctrl-C).
-        ``again``: what the last attempt of the same step (the same ``dt`` and ``rest``)
-        solved from the first of the same ``seeds`` (module docstring).  :attr:`solved`
-        is then this call's, or None where its first seed did not converge."""
-        self.solved = None
-        known = None
-        if again is not None and self.solver is column_solve.solve:  # (the FiPy reference solves all at once)
-            same = np.zeros(h.size, np.bool_)
-            if (yield_gravity is None) == (again.yield_gravity is None):
-                none = np.empty((0, 0))
-                gravity = none if yield_gravity is None else yield_gravity
-                before = none if again.yield_gravity is None else again.yield_gravity
-                _same_columns(h, ustar, seeds[0], gravity, again.h, again.ustar, again.seed, before, same)
-            known = (same, again.u)
-        for attempt, seed in enumerate(seeds):
+        is called between kernel calls and may raise to abandon the step (Ctrl-C).  In a
+        time step redone, the columns whose problem is the same as in the same call of the
+        attempt before are not solved again (module docstring)."""
+        call = len(self._tried)
+        again = self._again[call] if call < len(self._again) else None
+        known = None if again is None else self._known(h, ustar, seeds[0], yield_gravity, again)
+        for seed in seeds[:-1]:
             try:
-                u, iterations = self._solve(
-                    h, ustar, seed, dt, rest, yield_gravity, threads, poll, known if attempt == 0 else None
-                )
+                u, iterations = self._solve(h, ustar, seed, dt, rest, yield_gravity, threads, poll, known)
             except NotConverged:
-                if attempt == len(seeds) - 1:
-                    raise
+                known = None  # (a seed after the first: every column solved)
                 continue
-            if attempt == 0:
-                self.solved = Solved(h, ustar, seed, yield_gravity, u)
+            self._record(call, seed is seeds[0], h, ustar, seed, yield_gravity, u)
             return u, iterations
-        raise AssertionError("no seed given")  # (seeds is not empty)
+        u, iterations = self._solve(h, ustar, seeds[-1], dt, rest, yield_gravity, threads, poll, known)
+        self._record(call, len(seeds) == 1, h, ustar, seeds[-1], yield_gravity, u)
+        return u, iterations
+
+    def _record(self, call, first, h, ustar, seed, yield_gravity, u) -> None:
+        """Keep what the call ``call`` of the attempt solved, if from its ``first`` seed (its
+        arrays: valid until the attempt ends, but for the yield gravity, which the next
+        call's overwrites: copied on the columns holding material)."""
+        if not self._keep:
+            return
+        if first and yield_gravity is not None:
+            while len(self._gravity) <= call:
+                self._gravity.append(np.empty((0, 0)))
+            if self._gravity[call].shape != yield_gravity.shape:
+                self._gravity[call] = np.empty_like(yield_gravity)
+            lo, hi = span(h)
+            self._gravity[call][:, lo:hi] = yield_gravity[:, lo:hi]
+            yield_gravity = self._gravity[call]
+        self._tried.append((h, ustar, seed, yield_gravity, u) if first else None)
+
+    def _known(self, h, ustar, seed, yield_gravity, again: Solved) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(same, answer)`` of ``implicit_step``: the columns whose inputs are those of
+        ``again``, bit for bit, and its answer; None with another solver than the compiled
+        column solve (the FiPy reference solves all columns at once)."""
+        if self.solver is not column_solve.solve:
+            return None
+        same = np.zeros(h.size, np.bool_)
+        if (yield_gravity is None) == (again.yield_gravity is None):
+            none = np.empty((0, 0))
+            gravity = none if yield_gravity is None else yield_gravity
+            before = none if again.yield_gravity is None else again.yield_gravity
+            _same_columns(h, ustar, seed, gravity, again.h, again.ustar, again.seed, before, same)
+        return same, again.u
 
     def _solve(self, h, ustar, seed, dt, rest, yield_gravity, threads, poll, known) -> tuple[np.ndarray, int]:
         return implicit_step(
