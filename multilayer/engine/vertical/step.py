@@ -117,19 +117,21 @@ class VerticalStep:
             except NotConverged:
                 known = None  # (a seed after the first: every column solved)
                 continue
-            self._record(call, seed is seeds[0], h, ustar, seed, yield_gravity, u)
+            if self._keep:
+                self._tried.append(self._solved(call, seed is seeds[0], h, ustar, seed, yield_gravity, u))
             return u, iterations
         u, iterations = self._solve(h, ustar, seeds[-1], dt, rest, yield_gravity, threads, poll, known)
-        self._record(call, len(seeds) == 1, h, ustar, seeds[-1], yield_gravity, u)
+        if self._keep:
+            self._tried.append(self._solved(call, len(seeds) == 1, h, ustar, seeds[-1], yield_gravity, u))
         return u, iterations
 
-    def _record(self, call, first, h, ustar, seed, yield_gravity, u) -> None:
-        """Keep what the call ``call`` of the attempt solved, if from its ``first`` seed (its
-        arrays: valid until the attempt ends, but for the yield gravity, which the next
-        call's overwrites: copied on the columns holding material)."""
-        if not self._keep:
-            return
-        if first and yield_gravity is not None:
+    def _solved(self, call, first, h, ustar, seed, yield_gravity, u) -> tuple | None:
+        """What the call ``call`` of the attempt solved, if from its ``first`` seed (else
+        None): its arrays, valid until the attempt ends, but for the yield gravity, which the
+        next call's overwrites: copied on the columns holding material."""
+        if not first:
+            return None
+        if yield_gravity is not None:
             while len(self._gravity) <= call:
                 self._gravity.append(np.empty((0, 0)))
             if self._gravity[call].shape != yield_gravity.shape:
@@ -137,7 +139,7 @@ class VerticalStep:
             lo, hi = span(h)
             self._gravity[call][:, lo:hi] = yield_gravity[:, lo:hi]
             yield_gravity = self._gravity[call]
-        self._tried.append((h, ustar, seed, yield_gravity, u) if first else None)
+        return h, ustar, seed, yield_gravity, u
 
     def _known(self, h, ustar, seed, yield_gravity, again: Solved) -> tuple[np.ndarray, np.ndarray] | None:
         """``(same, answer)`` of ``implicit_step``: the columns whose inputs are those of
@@ -150,7 +152,8 @@ class VerticalStep:
             none = np.empty((0, 0))
             gravity = none if yield_gravity is None else yield_gravity
             before = none if again.yield_gravity is None else again.yield_gravity
-            _same_columns(h, ustar, seed, gravity, again.h, again.ustar, again.seed, before, same)
+            arrays = (h, ustar, seed, gravity, again.h, again.ustar, again.seed, before)
+            _same_columns(*(a.view(np.int64) for a in arrays), *span(h), same)
         return same, again.u
 
     def _solve(self, h, ustar, seed, dt, rest, yield_gravity, threads, poll, known) -> tuple[np.ndarray, int]:
@@ -174,25 +177,16 @@ class VerticalStep:
 
 
 @jit
-def _same_columns(h, ustar, seed, gravity, h0, ustar0, seed0, gravity0, same):
-    """``same[i]``: the thickness ``h``, velocities after transport ``ustar``, seed ``seed``
-    and yield gravity ``gravity`` (L, N; an empty array: none) of column ``i`` are the same
-    bits as those ending in 0."""
-    L, N = ustar.shape
-    for i in range(N):
-        same[i] = _bits(h[i], h0[i])
-    for a in range(L):
-        for i in range(N):
-            if same[i]:
-                same[i] = _bits(ustar[a, i], ustar0[a, i]) and _bits(seed[a, i], seed0[a, i])
-    if gravity.size:
-        for a in range(L):
-            for i in range(N):
-                if same[i]:
-                    same[i] = _bits(gravity[a, i], gravity0[a, i])
-
-
-@jit(inline="always")
-def _bits(x, y):
-    """``x`` and ``y`` are the same number, bit for bit (not 0.0 and -0.0; NaN: never)."""
-    return x == y and np.signbit(x) == np.signbit(y)
+def _same_columns(h, ustar, seed, gravity, h0, ustar0, seed0, gravity0, lo, hi, same):
+    """``same[i]`` for the columns ``lo .. hi-1``: the thickness ``h``, velocities after
+    transport ``ustar``, seed ``seed`` and yield gravity ``gravity`` (L, N; an empty array:
+    none) of column ``i`` are those ending in 0, the arrays seen as int64 (the same bits:
+    0.0 is not -0.0, a NaN is the same NaN).  One pass along the rows per array, no branch."""
+    for i in range(lo, hi):
+        same[i] = h[i] == h0[i]
+    for a in range(ustar.shape[0]):
+        for i in range(lo, hi):
+            same[i] = same[i] & (ustar[a, i] == ustar0[a, i]) & (seed[a, i] == seed0[a, i])
+    for a in range(gravity.shape[0]):
+        for i in range(lo, hi):
+            same[i] = same[i] & (gravity[a, i] == gravity0[a, i])
