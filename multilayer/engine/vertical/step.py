@@ -47,10 +47,19 @@ class Solved(NamedTuple):
 
 
 def kept(solved: tuple) -> Solved:
-    """``solved`` (:attr:`VerticalStep.solved`) in arrays of its own: the step's arrays are
-    reused by the next ones."""
+    """``solved`` (``VerticalStep._tried``) in arrays of its own on the columns holding
+    material, zero elsewhere (where no column is the same: its thickness is not): the
+    step's arrays are reused by the next ones."""
     h, ustar, seed, gravity, u = solved
-    return Solved(h.copy(), ustar.copy(), seed.copy(), None if gravity is None else gravity.copy(), u.copy())
+    lo, hi = span(h)
+
+    def window(values: np.ndarray) -> np.ndarray:
+        own = np.zeros_like(values)
+        own[..., lo:hi] = values[..., lo:hi]
+        return own
+
+    own_gravity = None if gravity is None else window(gravity)
+    return Solved(window(h), window(ustar), window(seed), own_gravity, window(u))
 
 
 class VerticalStep:
