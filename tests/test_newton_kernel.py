@@ -296,9 +296,11 @@ def test_a_layer_released_from_rest_is_solved_without_the_dynamic_programme():
         runs.append(sim)
     fused, plain = runs
     stats = fused.vertical.compiled
-    # two vertical steps in the time step (after each transport stage), each two stages of 20 columns
-    assert stats.columns == 4 * 20 and stats.fallbacks == 0
-    # both vertical steps of the time step: measured 12 (8 before, with one vertical step)
+    # two vertical steps in the time step (after each transport stage) of 20 columns; the step is redone
+    # (it sets every column moving) and solves none of them again: the transport of the uniform layer
+    # gives each column the same problem whether its faces move or not (engine/vertical/step.py)
+    assert stats.columns == 2 * 20 and stats.fallbacks == 0
+    # both vertical steps of the time step and of its redone attempt (1 each, no column solved): measured 6
     assert 0 < fused.newton_iterations <= 12
     assert np.all(fused.u > 0.0) and np.array_equal(fused.u == 0.0, plain.u == 0.0)
     assert np.abs(fused.u - plain.u).max() <= 1e-9 * np.abs(plain.u).max()

@@ -360,11 +360,13 @@ class Simulation:
         self, dt: float, threads: int
     ) -> tuple[list[VerticalImpulse], np.ndarray, int]:
         """The transport stages, each followed by a vertical step and the normal stress's
-        (module docstring), redone while the step sets material at rest moving: the
-        vertical steps, the velocities after the last stress step and the Newton
-        iterations (of every attempt, those redone included)."""
+        (module docstring), redone while the step sets material at rest moving (its vertical
+        steps then solve the columns whose problem changed only: ``VerticalStep.redo``): the
+        vertical steps, the velocities after the last stress step and the Newton iterations
+        (of every attempt, those redone included)."""
         np.copyto(self._stepping, self._state.moving)
         iterations = 0
+        self.vertical.begin(keep=self.normal_stress is None)  # (its searches for rest call it again)
         with self.vertical.stresses.forms_held():  # the laws read once in the time step
             while True:
                 if self.normal_stress is not None:  # each attempt from the stresses of the step's start
@@ -389,6 +391,7 @@ class Simulation:
                 started = [start_moving(end, self._state.h, self.dry, self._stepping) for end in ends]
                 if not any(started):
                     return vertical, u, iterations
+                self.vertical.redo()
 
     def _check_target(self, t_max: float) -> None:
         if not time_value(t_max) - self.t >= MIN_STEP:
@@ -449,18 +452,16 @@ class Simulation:
         *,
         last: bool = False,
     ) -> tuple[VerticalImpulse, np.ndarray, int]:
-        """The vertical step over ``dt`` of the velocities ``ustar`` on ``h`` (``first``,
-        ``last``: see :meth:`_vertical_step`), then the normal stress's: the vertical
-        step's impulse (of ``weight``), the velocities at the end and the Newton
-        iterations.  Where the two leave the material of a chain moving, rest of that
-        chain when it is the answer of the two steps together
-        (:func:`multilayer.engine.normal_stress.joint_rest`, the normal stress of material
-        at rest: docs/model.md, "Longitudinal normal stress"): its vertical step's impulse
-        from ``ustar - q``, ``q`` the normal stress's (the same momentum).  The chains
-        (:func:`multilayer.engine.normal_stress.runs`) are searched one by one: the normal
-        stress couples the columns of a chain only and the vertical step none, so the two
-        steps together, and rest as their answer, are a chain's own, whatever the others
-        do."""
+        """The vertical step over ``dt`` of the velocities ``ustar`` on ``h`` (``first``, ``last``: see
+        :meth:`_vertical_step`), then the normal stress's: the vertical step's impulse (of
+        ``weight``), the velocities at the end and the Newton iterations.  Where the two leave the
+        material of a chain moving, rest of that chain when it is the answer of the two steps
+        together (:func:`multilayer.engine.normal_stress.joint_rest`, the normal stress of material
+        at rest: docs/model.md, "Longitudinal normal stress"): its vertical step's impulse from
+        ``ustar - q``, ``q`` the normal stress's (the same momentum).  The chains
+        (:func:`multilayer.engine.normal_stress.runs`) are searched one by one: the normal stress
+        couples the columns of a chain only and the vertical step none, so the two steps together,
+        and rest as their answer, are a chain's own, whatever the others do."""
         u_vertical, iterations = self._vertical_step(h, ustar, dt, threads, first, last=last)
         u = self._normal_stress(h, u_vertical, dt, self._state.u)
         normal = self.normal_stress

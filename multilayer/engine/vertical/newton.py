@@ -60,6 +60,7 @@ def implicit_step(
     yield_gravity: np.ndarray | None = None,
     threads: int = 1,
     compiled: CompiledStep | None = None,
+    known: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, int]:
     """New layer velocities (L, N) after the stresses of one step, and the Newton count.
 
@@ -70,7 +71,10 @@ def implicit_step(
     raise to abandon the step (how a run honours Ctrl-C within a kernel call).
     ``yield_gravity`` (L, N) replaces ``g cos(theta)`` in the interface pressures.
     ``threads`` goes to the solver.  With ``compiled`` the same iteration runs fused per
-    column when every law has a compiled form.
+    column when every law has a compiled form.  ``known = (same, answer)``: the wet columns
+    where ``same`` (N,) is True take the velocities of ``answer`` (L, N) unsolved (with a
+    solver that solves each column on its own, a column's answer is a function of its own
+    inputs only); the iterations are those of the others.
     """
     threshold = tolerance * velocity_scale
     if compiled is not None and compiled.laws() is not None:
@@ -86,12 +90,19 @@ def implicit_step(
             threads=threads,
             rest=rest,
             yield_gravity=yield_gravity,
+            known=known,
         )
         if compiled.not_converged:
             raise _not_converged(tolerance, max_iterations, compiled.not_converged)
         return u, compiled.most_iterations
     u = np.zeros_like(ustar)
     wet = np.flatnonzero(h > 0)
+    if known is not None:
+        same, answer = known[0][wet], known[1]
+        u[:, wet[same]] = answer[:, wet[same]]
+        wet = wet[~same]
+        if wet.size == 0:
+            return u, 1
     cs = (
         stresses.columns(h, wet, rest, yield_gravity)
         if compiled is None

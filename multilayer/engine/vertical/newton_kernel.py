@@ -50,7 +50,7 @@ from multilayer.engine.vertical.forms import (
     law_of,
 )
 from multilayer.engine.vertical.newton_control import HALVINGS, energy_rise, error_bound, slope_along
-from multilayer.engine.vertical.results import Results, clear_dry, tally
+from multilayer.engine.vertical.results import Results, clear_dry, tally, written
 from multilayer.engine.vertical.sheared_columns import (
     ALONE,
     BLOCK,
@@ -619,18 +619,20 @@ class CompiledStep:
         threads: int = 1,
         rest: np.ndarray | None = None,
         yield_gravity: np.ndarray | None = None,
+        known: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """New velocities (L, N) and the Newton iterations of each wet column (-1: not
-        converged within ``max_iterations``; counted in :attr:`not_converged` and
-        :attr:`most_iterations`).  The velocities are overwritten by the call
-        after the next (a time step of order 2 keeps its first vertical step's while it
-        makes the second).  ``rest`` and ``yield_gravity`` go to ``StressModel.columns`` (compiled:
-        ``coefficients.CompiledCoefficients``)."""
+        """New velocities (L, N) and the Newton iterations of each wet column solved (-1: not converged
+        within ``max_iterations``; counted in :attr:`not_converged` and :attr:`most_iterations`).  The
+        velocities are overwritten by the call after the next (a time step of order 2 keeps its first
+        vertical step's while it makes the second).  ``rest`` and ``yield_gravity`` go to
+        ``StressModel.columns`` (compiled: ``coefficients.CompiledCoefficients``).  ``known = (same,
+        answer)``: the wet columns ``same`` (N,) take the velocities of ``answer`` (L, N) unsolved."""
         laws = self.laws()
         if laws is None:
             raise ValueError("a law of this stress model has no compiled form (see laws())")
         (bulk_form, bulk_params), walls = laws
-        wet = np.flatnonzero(h > 0)
+        occupied = np.flatnonzero(h > 0)
+        wet = occupied if known is None else occupied[~known[0][occupied]]  # (the others: answers known)
         inputs, fused = self.coefficients.inputs(rest, yield_gravity)
         given = _NOT_GIVEN if fused else self._given(self.coefficients(h, wet, rest, yield_gravity))
         if not self._out or self._out[0].shape != ustar.shape:
@@ -640,7 +642,7 @@ class CompiledStep:
         (lo, hi), u = self._written[0], self._out[0]
         thickness = np.ascontiguousarray(h, dtype=float)
         clear_dry(u, thickness, lo, hi)  # zero outside them already; the kernel writes the wet ones
-        self._written[0] = (int(wet[0]), int(wet[-1]) + 1) if wet.size else (0, 0)
+        self._written[0] = written(u, occupied, known)  # the known answers written
         out = Results(
             u, np.empty(wet.size, np.int64), np.empty(wet.size, np.int64), np.empty(wet.size, np.int64),
             np.empty((wet.size, 2)), np.zeros(wet.size, np.bool_),

@@ -1,9 +1,10 @@
-"""What the compiled vertical step (``newton_kernel._columns``) writes, and its two passes
-around each call: the dry columns of the reused result cleared before, the counts read
-after.  Each is one compiled call where numpy took several (five for the clearing, eight
-for the counts: together about 13 us a call, a quarter of a kernel call on the 33 wet
-columns of the dam break of ``benchmarks/dam_break.py --cells 250``); on the small meshes
-of most scenarios that fixed cost of each step outweighed the columns' own work."""
+"""What the compiled vertical step (``newton_kernel._columns``) writes, and its passes
+around each call: the dry columns of the reused result cleared (and the answers known
+without a solve written) before, the counts read after.  Each is one compiled call where
+numpy took several (five for the clearing, eight for the counts: together about 13 us a
+call, a quarter of a kernel call on the 33 wet columns of the dam break of
+``benchmarks/dam_break.py --cells 250``); on the small meshes of most scenarios that
+fixed cost of each step outweighed the columns' own work."""
 
 from __future__ import annotations
 
@@ -35,6 +36,27 @@ def clear_dry(u, h, lo, hi):
         if not h[i] > 0.0:
             for a in range(u.shape[0]):
                 u[a, i] = 0.0
+
+
+def written(
+    u: np.ndarray, occupied: np.ndarray, known: tuple[np.ndarray, np.ndarray] | None
+) -> tuple[int, int]:
+    """The columns (lo, hi) of ``u`` that a call on the wet columns ``occupied`` may make
+    non-zero; with ``known = (same, answer)``, the columns ``same`` (N,) of them take the
+    velocities of ``answer`` (L, N) (the call solves the others)."""
+    lo, hi = (int(occupied[0]), int(occupied[-1]) + 1) if occupied.size else (0, 0)
+    if known is not None:
+        _take(u, known[1], known[0], lo, hi)
+    return lo, hi
+
+
+@jit
+def _take(u, answer, same, lo, hi):
+    """``u[:, i] = answer[:, i]`` for the columns ``i`` in ``lo .. hi-1`` where ``same``."""
+    for a in range(u.shape[0]):
+        for i in range(lo, hi):
+            if same[i]:
+                u[a, i] = answer[a, i]
 
 
 @jit
