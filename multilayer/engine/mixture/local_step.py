@@ -392,12 +392,14 @@ class LocalStep:
         """The error of a local step that failed at ``x`` from ``t`` in up to
         :data:`MAX_SUBSTEPS` sub-steps, ``diverged`` where a trial pore pressure was not finite
         or its closure failed (``closure_error``, the closure's own message, if it did),
-        ``crowded`` where its exchange between the layers would empty a layer (:meth:`exchange`)."""
+        ``crowded`` where its exchange between the layers would take more than a quarter of a
+        layer's solid or fluid (:meth:`exchange`)."""
         place = f"(at x = {x:.6g} m, t = {t:.6g} s; also in up to {MAX_SUBSTEPS} sub-steps)"
         if crowded and not diverged:
             return RunError(
-                "the mixture's local step would move more solid or fluid between the layers of a column than "
-                f"a layer holds (its packings would leave (0, 1)) {place}"
+                "the mixture's local step would move more than a quarter of a layer's solid or fluid "
+                "between the layers of a column (an explicit exchange that large overshoots: its "
+                f"packings could leave (0, 1)) {place}"
             )
         if diverged and closure_error is not None:
             return RunError(f"{closure_error} {place}")
@@ -427,7 +429,7 @@ class LocalStep:
         :meth:`__call__`; ``watch``: see there): its result, where it converged, where it
         diverged (n,) (a trial excess pore pressure not finite, or a trial state whose
         closure failed), the closure's error if one did, and where the converged step's
-        exchange between the layers would empty a layer of its solid or fluid (n,; those
+        exchange between the layers would take more than a quarter of a layer's solid or fluid (n,; those
         columns count as not converged: :meth:`exchange`).  A column that diverges leaves
         the iteration, unconverged, as does one whose iterate comes back to where it
         started, bit for bit (the iteration would repeat itself), or whose least residual
