@@ -1280,3 +1280,23 @@ def test_a_loose_layer_in_water_compacts_in_layers(layers, phi):
         assert abs(sim.mixture.solid.sum() - total) <= 16 * np.finfo(float).eps * total
     assert np.all(packings > 0.5)
     assert np.all(sim.u == 0.0)
+
+
+def test_a_column_wetted_behind_a_front_takes_the_packing_of_the_column_it_came_from():
+    """``solid_transport.transport`` of a uniform column (``phi = 0.55`` in three layers,
+    the top layers fastest) into a dry column, the face beyond it carrying the round-off
+    volume of the running sum of ``face_volumes`` (-1.9e-19 m^2 here): the newly wet
+    column holds 0.55 in every layer.  That face once made the empty column beyond the front
+    the source of the wet one's packing, and the exchange between its layers carried no
+    solid: its packings were those of the layers' shares of the discharge, 0.12 at the bed
+    to 0.77 at the top in a collapse of nine layers, and 1.0 a few steps on."""
+    from multilayer.engine.mixture.solid_transport import face_volumes, transport
+
+    h_old, h_new = np.array([0.1, 0.2, 0.0, 0.0]), np.array([0.1 - 0.01 - 0.01, 0.2 + 0.01, 0.01, 0.0])
+    dx, crossed = 0.01, np.zeros(2)
+    assert face_volumes(h_old, h_new, 0.0, dx)[3] < 0.0 < face_volumes(h_old, h_new, 0.0, dx)[2]
+    l = np.full(3, 1.0 / 3.0)
+    solid = 0.55 * l[:, None] * h_old
+    u = np.array([1.0, 2.0, 3.0])[:, None] * np.array([0.0, 1.0, 0.0, 0.0])
+    new, _ = transport(solid, h_old, h_new, u, l, crossed, dx, periodic=False)
+    np.testing.assert_allclose(new[:, 2] / (l * h_new[2]), 0.55, rtol=1e-12)
