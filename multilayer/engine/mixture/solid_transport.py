@@ -140,3 +140,20 @@ def check(solid: np.ndarray, h: np.ndarray, fractions: np.ndarray, when: str, x:
             f"solid volume s = {float(solid[a, i])!r} m outside [0, {float(room[a, i])!r}] m (the layer's "
             f"thickness) at x = {float(x[i]):.6g} m, layer {a + 1} (1 is at the bed) {when}"
         )
+
+
+def check_pores(solid: np.ndarray, h: np.ndarray, fractions: np.ndarray, t: float, x: np.ndarray) -> None:
+    """Raise :class:`RunError` unless every layer of the columns ``h`` (n,) holds a packing
+    in ``[0, 1)``: the local step's closure needs pores (its Darcy drag is infinite at
+    ``phi = 1``), which the transport of the step from ``t`` could leave a layer of a thin
+    column at a front without (docs/mixture.md, "Layers")."""
+    room = fractions[:, None] * h
+    bad = ~(np.isfinite(solid) & (solid >= 0.0) & (solid < room))
+    if bad.any():
+        a, i = (int(k) for k in np.unravel_index(np.argmax(bad), bad.shape))
+        raise RunError(
+            f"the transport of the solid in the step from t = {t:.6g} s left layer {a + 1} (1 is at the bed) "
+            f"of the column at x = {float(x[i]):.6g} m ({float(h[i]):.3g} m thick) with a packing of "
+            f"{float(solid[a, i] / room[a, i])!r}, outside [0, 1): the local step's closure needs pores "
+            '(the exchange between the layers of a thin column at a front, docs/mixture.md, "Layers")'
+        )
