@@ -144,9 +144,9 @@ def check(solid: np.ndarray, h: np.ndarray, fractions: np.ndarray, when: str, x:
 
 def check_pores(solid: np.ndarray, h: np.ndarray, fractions: np.ndarray, t: float, x: np.ndarray) -> None:
     """Raise :class:`RunError` unless every layer of the columns ``h`` (n,) holds a packing
-    in ``[0, 1)``: the local step's closure needs pores (its Darcy drag is infinite at
-    ``phi = 1``), which the transport of the step from ``t`` could leave a layer of a thin
-    column at a front without (docs/mixture.md, "Layers")."""
+    in ``[0, 1)``, where the local step's closure is defined (its Darcy drag is infinite
+    at ``phi = 1``), which the transport of the step from ``t`` can leave in a thin column
+    at a front (docs/mixture.md, "Layers")."""
     room = fractions[:, None] * h
     bad = ~(np.isfinite(solid) & (solid >= 0.0) & (solid < room))
     if bad.any():
@@ -154,6 +154,6 @@ def check_pores(solid: np.ndarray, h: np.ndarray, fractions: np.ndarray, t: floa
         raise RunError(
             f"the transport of the solid in the step from t = {t:.6g} s left layer {a + 1} (1 is at the bed) "
             f"of the column at x = {float(x[i]):.6g} m ({float(h[i]):.3g} m thick) with a packing of "
-            f"{float(solid[a, i] / room[a, i])!r}, outside [0, 1): the local step's closure needs pores "
+            f"{float(solid[a, i] / room[a, i])!r}, outside [0, 1) where the local step's closure is defined "
             '(the exchange between the layers of a thin column at a front, docs/mixture.md, "Layers")'
         )
