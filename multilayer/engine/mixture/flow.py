@@ -208,6 +208,7 @@ class MixtureFlow:
         iterations = 0
         if wet.any():
             s, hw = solid[:, wet], h[wet]
+            solid_transport.check_pores(s, hw, self.fractions, t, self.x[wet])
             phi = s / (self.fractions[:, None] * hw)
             correction = buoyant_fraction(phi, self.rho_s, self.rho_f) - self.reduction
             # a closure that overflows is named by the local step's own checks of its
