@@ -1318,3 +1318,24 @@ def test_a_layer_without_pores_stops_the_step_naming_the_transport():
         RunError, match=r"transport of the solid .* left layer 2 .* packing of 1\.0, outside \[0, 1\)"
     ):
         sim.step()
+
+
+def test_a_layer_beyond_the_densest_packing_stops_the_step_naming_it():
+    """A layer gathered beyond the densest packing of spheres (0.7405), which the exchanges
+    between the layers of a column can do over many steps (docs/mixture.md, "Layers"):
+    no packing of the grains is that dense, so the step stops before the local step, naming
+    the layer, the column and the densest packing; just below it the step runs."""
+    entry = InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01, phi=0.58)
+    for packing, stops in ((0.745, True), (0.735, False)):
+        sim = mixture_run([entry], slope=0.0, layers=3, cells=6, sides=("wall", "wall"))
+        saved = sim.state_dict()
+        saved["solid"][2, 1] = packing * sim.mixture.fractions[2] * sim.h[1]
+        sim.load_state(saved)
+        if stops:
+            with pytest.raises(
+                RunError,
+                match=r"layer 3 .* packing of 0\.74\d*, beyond the densest packing of spheres, 0\.7405",
+            ):
+                sim.step()
+        else:
+            sim.step()

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from multilayer.engine.mixture.closure import DENSEST_PACKING
 from multilayer.errors import RunError
 
 
@@ -146,7 +147,9 @@ def check_pores(solid: np.ndarray, h: np.ndarray, fractions: np.ndarray, t: floa
     """Raise :class:`RunError` unless every layer of the columns ``h`` (n,) holds a packing
     in ``[0, 1)``, where the local step's closure is defined (its Darcy drag is infinite
     at ``phi = 1``), which the transport of the step from ``t`` can leave in a thin column
-    at a front (docs/mixture.md, "Layers")."""
+    at a front, and below :data:`~multilayer.engine.mixture.closure.DENSEST_PACKING`, which
+    no packing of the grains exceeds and the exchanges between the layers of earlier steps
+    can gather a layer beyond (docs/mixture.md, "Layers")."""
     room = fractions[:, None] * h
     bad = ~(np.isfinite(solid) & (solid >= 0.0) & (solid < room))
     if bad.any():
@@ -156,4 +159,13 @@ def check_pores(solid: np.ndarray, h: np.ndarray, fractions: np.ndarray, t: floa
             f"of the column at x = {float(x[i]):.6g} m ({float(h[i]):.3g} m thick) with a packing of "
             f"{float(solid[a, i] / room[a, i])!r}, outside [0, 1) where the local step's closure is defined "
             '(the exchange between the layers of a thin column at a front, docs/mixture.md, "Layers")'
+        )
+    dense = solid >= DENSEST_PACKING * room
+    if dense.any():
+        a, i = (int(k) for k in np.unravel_index(np.argmax(dense), dense.shape))
+        raise RunError(
+            f"at t = {t:.6g} s layer {a + 1} (1 is at the bed) of the column at x = {float(x[i]):.6g} m "
+            f"({float(h[i]):.3g} m thick) holds a packing of {float(solid[a, i] / room[a, i])!r}, beyond the "
+            f"densest packing of spheres, {DENSEST_PACKING:.4f}, that no grains reach (the exchanges between "
+            'the layers of a column gather solid over many steps, docs/mixture.md, "Layers")'
         )
