@@ -14,12 +14,14 @@ Three families, drawn from the shipped mixture scenarios with overrides:
 Each is run with one of the fluids of the shipped files or a water-like one, with or
 without ``fluid.compressibility``, at ``numerics.order`` 1 or 2 and a CFL number up to
 0.95, for at most ``--steps`` steps.  Checked after every step: no NaN, thickness and
-packings in range, the solid conserved to round-off; a heap stays exactly at rest
+packings in ``[0, 1)`` (a layer of a wet column may hold fluid only), the solid conserved to
+round-off; a heap stays exactly at rest
 (``u == 0.0``, ``h`` and the solid bit for bit); the energy of a uniform column at order 1
 without compressibility does not grow (``engine/mixture/exchange.py``, Notes).  A run that
 stops must stop with a :class:`~multilayer.errors.RunError`; its message is printed.  A
-run that reaches a packing beyond the densest packing of spheres is counted apart
-(``dense``): impossible, but within what the run checks (a layer's solid in ``[0, l_a h]``).
+run that reaches a packing beyond the densest packing of spheres without stopping is counted
+apart (``dense``): in a film thinner than ``numerics.dry_threshold``, which the run does not
+check before its local step (the columns it steps stop the run there).
 
     .venv/bin/python benchmarks/mixture_robustness.py --runs 200 --seed 1
 """
@@ -168,8 +170,8 @@ def run(case: Case, steps: int) -> tuple[str, str]:
                 return "FAIL", f"negative thickness at step {n}"
             wet = sim.h > 0.0
             phi = mix.phi_layers(sim.h)[:, wet]
-            if not np.all((phi > 0.0) & (phi < 1.0)):
-                return "FAIL", f"packing out of (0, 1) at step {n}: {phi.min()!r} .. {phi.max()!r}"
+            if not np.all((phi >= 0.0) & (phi < 1.0)):
+                return "FAIL", f"packing out of [0, 1) at step {n}: {phi.min()!r} .. {phi.max()!r}"
             densest = max(densest, float(phi.max(initial=0.0)))
             if abs(float(solid.sum()) - total0) > 1e-12 * total0:
                 return "FAIL", f"solid not conserved at step {n}: {(solid.sum() - total0) / total0:.3g}"
@@ -181,7 +183,7 @@ def run(case: Case, steps: int) -> tuple[str, str]:
         return "stopped", str(error)
     except Exception:  # noqa: BLE001 - anything else is a failure of the engine
         return "FAIL", traceback.format_exc().splitlines()[-1]
-    if densest >= DENSEST:
+    if densest > DENSEST * (1.0 + 1e-12):
         return "dense", f"a packing of {densest:.4g} (beyond pi / sqrt(18)) at t = {sim.t:.4g} s"
     return "ok", f"t = {sim.t:.4g} s"
 

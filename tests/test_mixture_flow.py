@@ -17,6 +17,8 @@ import pytest
 
 import multilayer
 from multilayer.engine.config import InitialEntry, MixtureConfig, Numerics, SimulationConfig
+from multilayer.engine.mixture import solid_transport
+from multilayer.engine.mixture.closure import DENSEST_PACKING
 from multilayer.engine.mixture.flow import buoyant_fraction
 from multilayer.engine.mixture.local_step import LocalStep
 from multilayer.engine.simulation import Simulation
@@ -1301,27 +1303,62 @@ def test_a_column_wetted_behind_a_front_takes_the_packing_of_the_column_it_came_
     np.testing.assert_allclose(new[:, 2] / (l * h_new[2]), 0.55, rtol=1e-12)
 
 
-def test_a_layer_without_pores_stops_the_step_naming_the_transport():
-    """A layer whose packing is 1 (no fluid) in a wet column, as the layered transport can
-    leave a thin column at a front (docs/mixture.md, "Layers"; a collapse of sixteen layers
-    at 24 degrees, 0.9 mm behind its front): the local step's Darcy drag is infinite
-    there, and the run stopped with the closure's overflow, which blames the fluid's
-    viscosity, the grain diameter and the closure constants (with a compressibility, a
-    crash: numpy's "Singular matrix").  The step stops before the local step, naming the
-    transport, the layer and the column."""
+def test_a_column_without_pores_stops_the_step_naming_the_transport():
+    """A column whose layers hold no fluid (packing 1) and are wet: the local step's Darcy
+    drag is infinite there, and the run stopped with the closure's overflow, which blames the
+    fluid's viscosity, the grain diameter and the closure constants (with a compressibility,
+    a crash: numpy's "Singular matrix").  No exchange between its layers can give them pores
+    (:func:`solid_transport._bound_packings` leaves it), so the step stops before the local
+    step, naming the transport, the layer and the column."""
     entry = InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01, phi=0.58)
     sim = mixture_run([entry], slope=0.0, layers=3, cells=6, sides=("wall", "wall"))
     saved = sim.state_dict()
-    saved["solid"][1, 0] = sim.mixture.fractions[1] * sim.h[0]  # layer 2 of the first column: phi = 1
+    saved["solid"][:, 0] = sim.mixture.fractions * sim.h[0]  # the first column: phi = 1
     sim.load_state(saved)
     with pytest.raises(
-        RunError, match=r"transport of the solid .* left layer 2 .* packing of 1\.0, outside \[0, 1\)"
+        RunError, match=r"transport of the solid .* left layer 1 .* packing of 1\.0, outside \[0, 1\)"
     ):
         sim.step()
 
 
-def test_a_layer_beyond_the_densest_packing_stops_the_step_naming_it():
-    """A layer gathered beyond the densest packing of spheres (0.7405), which the exchanges
+def test_the_transport_keeps_each_layer_within_the_packings_its_column_allows():
+    """A thin column at a front can be left by the layered transport with a layer holding
+    less than no solid or more than the densest packing of spheres (docs/mixture.md,
+    "Layers"; collapses of nine and sixteen layers stopped there).  The transport moves
+    the deficit and the excess between the layers of the column: its solid is kept to
+    round-off, every layer ends within ``[0, DENSEST_PACKING]``, and a column within the
+    bounds is not touched (bit for bit).  A column whose mean packing is out of bounds is
+    left for the checks."""
+    room = np.array([[1.0, 1.0, 1.0, 1.0], [2.0, 2.0, 2.0, 2.0], [1.0, 1.0, 1.0, 1.0]]) * 1e-3
+    packing = np.array([[0.55, -0.2, 0.95, 0.8], [0.6, 0.5, 0.4, 0.8], [0.57, 0.6, 0.7, 0.8]])
+    solid = packing * room
+    before = solid.copy()
+    solid_transport._bound_packings(solid, room)
+    np.testing.assert_array_equal(solid[:, 0], before[:, 0])  # within bounds: untouched
+    np.testing.assert_array_equal(solid[:, 3], before[:, 3])  # its mean beyond them: left
+    np.testing.assert_allclose(solid.sum(axis=0), before.sum(axis=0), rtol=4 * np.finfo(float).eps)
+    bounded = solid[:, 1:3] / room[:, 1:3]
+    assert np.all(bounded >= 0.0) and np.all(bounded <= DENSEST_PACKING)
+    assert bounded[0, 0] == 0.0 and bounded[0, 1] == DENSEST_PACKING
+    # in a run (one stage: Heun's average with this start would be out of bounds as the
+    # start is): one layer of a wet column at packing 1, the others at 0.58
+    entry = InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01, phi=0.58)
+    sim = mixture_run(
+        [entry], slope=0.0, layers=3, cells=6, sides=("wall", "wall"), numerics=Numerics(order=1)
+    )
+    saved = sim.state_dict()
+    saved["solid"][1, 0] = sim.mixture.fractions[1] * sim.h[0]
+    total = float(np.sum(saved["solid"]))
+    sim.load_state(saved)
+    sim.step()
+    assert float(np.sum(sim.mixture.solid)) == pytest.approx(total, rel=1e-12)
+    wet = sim.h > 0.0
+    phi = sim.mixture.solid[:, wet] / (sim.mixture.fractions[:, None] * sim.h[wet])
+    assert np.all(phi > 0.0) and np.all(phi <= DENSEST_PACKING)
+
+
+def test_a_column_beyond_the_densest_packing_stops_the_step_naming_it():
+    """A column gathered beyond the densest packing of spheres (0.7405), which the exchanges
     between the layers of a column can do over many steps (docs/mixture.md, "Layers"):
     no packing of the grains is that dense, so the step stops before the local step, naming
     the layer, the column and the densest packing; just below it the step runs."""
@@ -1329,12 +1366,12 @@ def test_a_layer_beyond_the_densest_packing_stops_the_step_naming_it():
     for packing, stops in ((0.745, True), (0.735, False)):
         sim = mixture_run([entry], slope=0.0, layers=3, cells=6, sides=("wall", "wall"))
         saved = sim.state_dict()
-        saved["solid"][2, 1] = packing * sim.mixture.fractions[2] * sim.h[1]
+        saved["solid"][:, 1] = packing * sim.mixture.fractions * sim.h[1]
         sim.load_state(saved)
         if stops:
             with pytest.raises(
                 RunError,
-                match=r"layer 3 .* packing of 0\.74\d*, beyond the densest packing of spheres, 0\.7405",
+                match=r"layer 1 .* packing of 0\.74\d*, beyond the densest packing of spheres, 0\.7405",
             ):
                 sim.step()
         else:

@@ -60,7 +60,7 @@ def transport(
     carried = np.where(G > 0.0, phi[1:], phi[:-1]) * G
     new[:-1] += carried
     new[1:] -= carried
-    _share_excess(new, l * h_new)
+    _bound_packings(new, l * h_new)
     ends = np.array([solid_fluxes[:, 0].sum(), solid_fluxes[:, -1].sum()])
     return new, ends
 
@@ -92,19 +92,35 @@ def _upwind(
     return volumes, donor, _filled(values, h_old > 0.0, volumes)
 
 
-def _share_excess(solid: np.ndarray, room: np.ndarray) -> None:
-    """Move in place the solid a layer holds beyond its thickness ``room`` (a thin layer at
-    a front can pass on more volume than it held: its share of the discharge is that of the
-    column) to the other layers of its column, in proportion to their free room: the
-    column's solid is unchanged, and no layer exceeds its thickness if the column does not."""
-    excess = np.maximum(solid - room, 0.0)
-    if not excess.any():
-        return
-    solid -= excess
-    free = room - solid
-    total = free.sum(axis=0)
-    share = np.where(total > 0.0, excess.sum(axis=0) / np.where(total > 0.0, total, 1.0), 0.0)
-    solid += np.where(total > 0.0, free * share, excess)  # no room: left as it was (the check stops the run)
+def _bound_packings(solid: np.ndarray, room: np.ndarray) -> None:
+    """Keep in place every layer's packing within ``[0, DENSEST_PACKING]`` by moving solid
+    between the layers of its column, the column's solid unchanged.  A thin layer at a front
+    can pass on more volume than it held (its share of the discharge is that of the column),
+    and the upwind packings of the exchange between the layers can leave a layer of a thin
+    column with less than no solid, or more than the densest packing: a layer's deficit is
+    taken from the other layers of its column in proportion to their solid, a layer's excess
+    over :data:`~multilayer.engine.mixture.closure.DENSEST_PACKING` given to them in
+    proportion to their room below it.  No layer is then out of bounds unless its column's
+    mean packing is (that column is left as it was, and the checks stop the run).  A
+    column within the bounds is not touched."""
+    full = DENSEST_PACKING * room
+    deficit = np.maximum(-solid, 0.0)
+    if deficit.any():
+        held = np.maximum(solid, 0.0)
+        total = held.sum(axis=0)
+        need = deficit.sum(axis=0)
+        able = total > need
+        share = np.where(able, need / np.where(able, total, 1.0), 0.0)
+        solid[:, able] = held[:, able] * (1.0 - share[able])
+    excess = np.maximum(solid - full, 0.0)
+    if excess.any():
+        kept = np.minimum(solid, full)
+        free = full - kept
+        total = free.sum(axis=0)
+        extra = excess.sum(axis=0)
+        able = total > extra
+        share = np.where(able, extra / np.where(able, total, 1.0), 0.0)
+        solid[:, able] = kept[:, able] + free[:, able] * share[able]
 
 
 def _filled(phi: np.ndarray, wet: np.ndarray, volumes: np.ndarray) -> np.ndarray:
@@ -160,12 +176,12 @@ def check_pores(solid: np.ndarray, h: np.ndarray, fractions: np.ndarray, t: floa
             f"{float(solid[a, i] / room[a, i])!r}, outside [0, 1) where the local step's closure is defined "
             '(the exchange between the layers of a thin column at a front, docs/mixture.md, "Layers")'
         )
-    dense = solid >= DENSEST_PACKING * room
+    dense = solid > DENSEST_PACKING * room * (1.0 + 1e-12)  # the bound to round-off (Heun's average)
     if dense.any():
         a, i = (int(k) for k in np.unravel_index(np.argmax(dense), dense.shape))
         raise RunError(
             f"at t = {t:.6g} s layer {a + 1} (1 is at the bed) of the column at x = {float(x[i]):.6g} m "
             f"({float(h[i]):.3g} m thick) holds a packing of {float(solid[a, i] / room[a, i])!r}, beyond the "
             f"densest packing of spheres, {DENSEST_PACKING:.4f}, that no grains reach (the exchanges between "
-            'the layers of a column gather solid over many steps, docs/mixture.md, "Layers")'
+            'the layers of a column can gather solid over many steps, docs/mixture.md, "Layers")'
         )
