@@ -169,19 +169,24 @@ def check_pores(solid: np.ndarray, h: np.ndarray, fractions: np.ndarray, t: floa
     room = fractions[:, None] * h
     bad = ~(np.isfinite(solid) & (solid >= 0.0) & (solid < room))
     if bad.any():
-        a, i = (int(k) for k in np.unravel_index(np.argmax(bad), bad.shape))
         raise RunError(
-            f"the transport of the solid in the step from t = {t:.6g} s left layer {a + 1} (1 is at the bed) "
-            f"of the column at x = {float(x[i]):.6g} m ({float(h[i]):.3g} m thick) with a packing of "
-            f"{float(solid[a, i] / room[a, i])!r}, outside [0, 1) where the local step's closure is defined "
-            '(the exchange between the layers of a thin column at a front, docs/mixture.md, "Layers")'
+            f"the transport of the solid in the step from t = {t:.6g} s left "
+            f"{_culprit(bad, solid, room, h, x)}, outside [0, 1) where the local step's closure is "
+            'defined (the exchange between the layers of a thin column at a front, docs/mixture.md, "Layers")'
         )
     dense = solid > DENSEST_PACKING * room * (1.0 + 1e-12)  # the bound to round-off (Heun's average)
     if dense.any():
-        a, i = (int(k) for k in np.unravel_index(np.argmax(dense), dense.shape))
         raise RunError(
-            f"at t = {t:.6g} s layer {a + 1} (1 is at the bed) of the column at x = {float(x[i]):.6g} m "
-            f"({float(h[i]):.3g} m thick) holds a packing of {float(solid[a, i] / room[a, i])!r}, beyond the "
-            f"densest packing of spheres, {DENSEST_PACKING:.4f}, that no grains reach (the exchanges between "
-            'the layers of a column can gather solid over many steps, docs/mixture.md, "Layers")'
+            f"at t = {t:.6g} s {_culprit(dense, solid, room, h, x)}, beyond the densest packing of spheres, "
+            f"{DENSEST_PACKING:.4f}, that no grains reach (the exchanges between the layers of a column can "
+            'gather solid over many steps, docs/mixture.md, "Layers")'
         )
+
+
+def _culprit(mask: np.ndarray, solid: np.ndarray, room: np.ndarray, h: np.ndarray, x: np.ndarray) -> str:
+    """The first layer of ``mask`` (L, n), its column and its packing, as a message names them."""
+    a, i = (int(k) for k in np.unravel_index(np.argmax(mask), mask.shape))
+    return (
+        f"layer {a + 1} (1 is at the bed) of the column at x = {float(x[i]):.6g} m "
+        f"({float(h[i]):.3g} m thick) with a packing of {float(solid[a, i] / room[a, i])!r}"
+    )
