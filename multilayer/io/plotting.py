@@ -279,9 +279,9 @@ XLIM_SPAN = 1000.0
 """Widest window of ``--xlim``, in lengths of the domain (wider, the domain is a dot)."""
 XLIM_NARROWEST = 1e-6
 """Narrowest window of ``--xlim``, in lengths of the domain: Matplotlib widens a window
-narrower than 1e-15 of its largest end, or within 2.2e-287 of zero, to +-5 % of it (``0.2
-0.2000000000000001`` was drawn over 0.19 .. 0.21, ``-1e-320 1e-320`` over -0.05 .. 0.05 m,
-silently); 1e-6 of the domain, even 1000 domain lengths away from it, is far from both."""
+narrower than 1e-15 of its largest end, or within 2.2e-287 of zero, to +-5 % of it, silently
+(``0.2 0.2000000000000001`` would be drawn over 0.19 .. 0.21, ``-1e-320 1e-320`` over -0.05 ..
+0.05 m); 1e-6 of the domain, even 1000 domain lengths away from it, is far from both."""
 
 
 def checked_xlim(ds: xr.Dataset, xlim: Sequence[float] | None) -> tuple[float, float]:

@@ -128,8 +128,8 @@ class StrictModel(BaseModel):
 
     An infinite or NaN value assigned after validation is written as it is (``.nan`` in
     YAML), not as null: a scenario is validated again from what it writes, and a law's
-    parameter or a base zone's (typed ``Any``) written as null was read as not given,
-    ``rheology.mu_start = nan`` assigned from Python running without ``mu_start``."""
+    parameter or a base zone's (typed ``Any``) written as null would be read as not given:
+    ``rheology.mu_start = nan`` assigned from Python would run without ``mu_start``."""
 
     model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False, ser_json_inf_nan="constants")
 

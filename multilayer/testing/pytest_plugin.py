@@ -38,9 +38,9 @@ def _named_on_command_line(config: pytest.Config, path: Path) -> bool:
 def _scenario_data(path: Path) -> object:
     """The YAML data of ``path`` as ``multilayer`` reads a scenario, or None where it reads
     none: a regular file within the bounds of :mod:`multilayer.scenario.limits`, parsed by
-    libyaml.  PyYAML's own parser was used, without bounds, on every YAML file of a
-    directory named on the command line: a data file 5000 lists deep was a
-    ``RecursionError`` that stopped the whole collection, one of 6 MB took 48 s."""
+    libyaml.  Every YAML file of a directory named on the command line is read, data files
+    too: PyYAML's own parser, without bounds, would stop the whole collection on one 5000
+    lists deep (a ``RecursionError``) and take 48 s over one of 6 MB."""
     from multilayer.errors import InputError
     from multilayer.scenario.source import read_yaml
 

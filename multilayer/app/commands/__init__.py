@@ -247,10 +247,10 @@ RUN_DIRECTORY = "the output directory of `multilayer run`"
 
 
 def not_a_file(path: Path, accepted: str) -> Path:
-    """``path``, the ``DIR`` of ``plot`` or ``export``, unless it is a file: ``plot
-    DIR/result.nc`` checked the result, then said that ``DIR/result.nc/plots`` was "Not a
-    directory" and asked for "a directory this user can write"; the directory holding it
-    is named."""
+    """``path``, the ``DIR`` of ``plot`` or ``export``, unless it is a file: a result file
+    given for its directory is refused naming the directory holding it (its figures'
+    directory, ``DIR/result.nc/plots``, could not be made, and the error would ask for a
+    directory this user can write)."""
     from multilayer.errors import InputError
 
     if path.is_file():
