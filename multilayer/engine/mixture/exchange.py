@@ -212,7 +212,7 @@ def between_layers(
     rises, sinks = np.maximum(flux, 0.0), np.maximum(-flux, 0.0)
     upward = rho_s * rises + rho_f * sinks  # mass from layer b - 1 to layer b, at v_(b-1)
     downward = rho_f * rises + rho_s * sinks  # from layer b to layer b - 1, at v_b
-    mass = rho_s * solid + rho_f * (l * h - solid)
+    mass = rho_s * solid + rho_f * (thickness - solid)
     kept_mass = mass - np.concatenate([upward, zero]) - np.concatenate([zero, downward])
     momentum = (
         kept_mass * v + np.concatenate([zero, upward * v[:-1]]) + np.concatenate([downward * v[1:], zero])

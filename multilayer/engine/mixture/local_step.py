@@ -89,7 +89,7 @@ import numpy as np
 
 from multilayer.engine.config import MixtureConfig
 from multilayer.engine.mixture.closure import drag as darcy_drag
-from multilayer.engine.mixture.exchange import between_layers
+from multilayer.engine.mixture.exchange import GIVEN, between_layers
 from multilayer.engine.plugin_output import call
 from multilayer.engine.vertical.column_solve import solve
 from multilayer.engine.vertical.problem import ColumnProblem
@@ -125,9 +125,8 @@ ROUND_OFF = 64 * float(np.finfo(float).eps)
 terms are far larger than ``p_s`` (a loose layer nearly liquefied, the Darcy terms
 cancelling to 1e-7 of their size: nine layers at ``phi`` 0.13-0.25 in water on 31
 degrees, terms of 4.5e6 Pa for ``p_s`` of 1 Pa), round-off leaves residuals of 3e-11 Pa,
-above ``CLOSURE_TOLERANCE`` times ``p_s``, and the iteration ran out of
-``numerics.max_iterations``.  Where the terms are ~ ``p_s`` this is 1.4e-14 of them, below
-``CLOSURE_TOLERANCE``: the closure stops where it did."""
+above ``CLOSURE_TOLERANCE`` times ``p_s``, which no iteration can reach.  Where the terms are
+~ ``p_s`` this is 1.4e-14 of them, below ``CLOSURE_TOLERANCE``, which then decides."""
 
 
 @dataclass(frozen=True)
@@ -404,12 +403,12 @@ class LocalStep:
         """The error of a local step that failed at ``x`` from ``t`` in up to
         :data:`MAX_SUBSTEPS` sub-steps, ``diverged`` where a trial pore pressure was not finite
         or its closure failed (``closure_error``, the closure's own message, if it did),
-        ``crowded`` where its exchange between the layers would take more than a quarter of a
-        layer's solid or fluid (:meth:`exchange`)."""
+        ``crowded`` where its exchange between the layers would take more than :data:`GIVEN`
+        of a layer's solid or fluid (:meth:`exchange`)."""
         place = f"(at x = {x:.6g} m, t = {t:.6g} s; also in up to {MAX_SUBSTEPS} sub-steps)"
         if crowded and not diverged:
             return RunError(
-                "the mixture's local step would move more than a quarter of a layer's solid or fluid "
+                f"the mixture's local step would move more than {GIVEN:.0%} of a layer's solid or fluid "
                 "between the layers of a column (an explicit exchange that large overshoots: its "
                 f"packings could leave (0, 1)) {place}"
             )
@@ -441,8 +440,8 @@ class LocalStep:
         :meth:`__call__`; ``watch``: see there): its result, where it converged, where it
         diverged (n,) (a trial excess pore pressure not finite, or a trial state whose
         closure failed), the closure's error if one did, and where the converged step's
-        exchange between the layers would take more than a quarter of a layer's solid or fluid (n,; those
-        columns count as not converged: :meth:`exchange`).  A column that diverges leaves
+        exchange between the layers would take more than :data:`GIVEN` of a layer's solid or
+        fluid (n,; those columns count as not converged: :meth:`exchange`).  A column that diverges leaves
         the iteration, unconverged, as does one whose iterate comes back to where it
         started, bit for bit (the iteration would repeat itself), or whose least residual
         norm has not fallen for :data:`WINDOW` iterations (it wanders; module notes).
