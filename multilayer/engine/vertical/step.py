@@ -120,19 +120,18 @@ class VerticalStep:
         call = len(self._tried)
         again = self._again[call] if call < len(self._again) else None
         known = None if again is None else self._known(h, ustar, seeds[0], yield_gravity, again)
-        for seed in seeds[:-1]:
+        for k, seed in enumerate(seeds):
             try:
                 u, iterations = self._solve(h, ustar, seed, dt, rest, yield_gravity, threads, poll, known)
             except NotConverged:
+                if k == len(seeds) - 1:
+                    raise
                 known = None  # (a seed after the first: every column solved)
                 continue
             if self._keep:
-                self._tried.append(self._solved(call, seed is seeds[0], h, ustar, seed, yield_gravity, u))
+                self._tried.append(self._solved(call, k == 0, h, ustar, seed, yield_gravity, u))
             return u, iterations
-        u, iterations = self._solve(h, ustar, seeds[-1], dt, rest, yield_gravity, threads, poll, known)
-        if self._keep:
-            self._tried.append(self._solved(call, len(seeds) == 1, h, ustar, seeds[-1], yield_gravity, u))
-        return u, iterations
+        raise ValueError("a vertical step needs at least one seed")
 
     def _solved(self, call, first, h, ustar, seed, yield_gravity, u) -> tuple | None:
         """What the call ``call`` of the attempt solved, if from its ``first`` seed (else
