@@ -3721,6 +3721,7 @@ def cases() -> list[Case]:
         + round_twenty_seven()
         + round_twenty_eight()
         + round_twenty_nine()
+        + round_thirty()
     )
 
 
@@ -5059,6 +5060,143 @@ def round_twenty_nine() -> list[Case]:
     return out
 
 
+USING_PLUGIN = """
+import multilayer
+from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+
+
+class Porous(DruckerPrager):
+    name = "porous"
+    uses = {uses}
+
+    def yield_stress(self, pressure, material, porosity=0.4, thickness=None):
+        return super().yield_stress(pressure, material)
+
+
+@multilayer.hookimpl
+def multilayer_register_rheologies(register):
+    register(Porous)
+"""
+"""A third-party law declaring the column quantities ``uses`` given by the case, with a
+default for a quantity the engine never gives."""
+
+
+def _using(uses: str) -> Callable[[Path], None]:
+    """TINY on the law of :data:`USING_PLUGIN` declaring ``uses``."""
+
+    def setup(directory: Path) -> None:
+        _entry_point_plugin(USING_PLUGIN.replace("{uses}", uses))(directory)
+        _scenario(directory, {"rheology": {"name": "porous", "mu_s": 0.3, "nu": 0.01}})
+
+    return setup
+
+
+def _unlisted_run(directory: Path) -> None:
+    """A finished run whose directory this user can neither list nor enter (``r--``)."""
+    _finished_run(directory)
+    (directory / "out").chmod(0o444)
+
+
+def _loop(directory: Path) -> None:
+    """``scenario.yaml`` a symbolic link to ``other.yaml``, a link back to it."""
+    (directory / "scenario.yaml").symlink_to("other.yaml")
+    (directory / "other.yaml").symlink_to("scenario.yaml")
+
+
+GONE = ["sh", "-c", 'mkdir gone && cd gone && rmdir ../gone && exec "$@"', "sh"]
+"""A prefix running the child in a working directory removed after it was entered."""
+
+
+def round_thirty() -> list[Case]:
+    """The hostile cases of the thirtieth round (docs/reliability.md): numpy values of the
+    Python API a cast or ``tolist()`` changes (a 0-d object array, masked values, long
+    doubles beyond the floats in ``load_state`` and in a plugin's values and compiled form);
+    a third-party law declaring a column quantity the engine never gives; a removed
+    working directory; a umask taking the owner's permissions; ``plot`` and ``export`` of a
+    directory this user cannot enter; as controls, an absolute output directory and
+    ``plugins`` in a removed working directory, a plugin's float16 and ``np.matrix``
+    values, a scenario that is a loop of symbolic links, a merge key of a scalar, stdout
+    through ``head -c 10``, stdin closed and an unwritable ``NUMBA_CACHE_DIR``."""
+    validate = ["validate", "{scenario}"]
+    run = ["run", "{scenario}", "-o", "{dir}/out"]
+    load = "import numpy as np\nyaml = __import__('yaml')\ndata = yaml.safe_load(open(sys.argv[2]))\n"
+    state = (
+        "import numpy as np\nsim = multilayer.Simulation(multilayer.load(sys.argv[2]))\n"
+        "saved = sim.state_dict()\n"
+    )
+    masked = "a masked array of 1 masked value(s) (a netCDF file's fill values, or np.ma.masked)"
+    huge = "np.longdouble('1e400')"
+    gone = "the working directory no longer exists (removed after this shell entered it)"
+    unlisted = "out: a directory this user cannot list or enter (permissions dr--r--r--)"
+    uses = "Porous.uses must be a tuple of the column quantities the engine gives a law (thickness), got"
+    plugin_env = {"PYTHONPATH": "{dir}/plugin"}
+    out = [
+        Case("API: multilayer.load of a mapping whose slope_deg is a 0-d object array", validate, 0, "",
+             patch=_api(load + "data['slope_deg'] = np.array(25.0, dtype=object)\nmultilayer.load(data)"),
+             setup=_scenario),
+        Case("API: multilayer.load of a mapping whose slope_deg is np.ma.masked", validate, 2,
+             f"slope_deg: {masked}", setup=_scenario,
+             patch=_api(load + "data['slope_deg'] = np.ma.masked\nmultilayer.load(data)")),
+        Case("API: overrides {'rheology.mu_s': np.ma.masked}", validate, 2, f"rheology.mu_s: {masked}",
+             patch=_api(load + "multilayer.load(sys.argv[2], {'rheology.mu_s': np.ma.masked})"),
+             setup=_scenario),
+        Case("API: bed.points a masked array, one value masked", validate, 2, f"bed.points: {masked}",
+             patch=_api(load + "data['bed'] = {'points': np.ma.array([[0, 0], [0.5, 0.1]], "
+                        "mask=[[0, 0], [0, 1]])}\nmultilayer.load(data)"),
+             setup=_scenario),
+        Case(f"API: load_state of t = {huge}", validate, 2,
+             "t holds values that are not finite as float64 (what the simulation holds)",
+             patch=_api(state + f"saved['t'] = {huge}\nsim.load_state(saved)"), setup=_scenario),
+        Case(f"API: load_state of h times {huge}", validate, 2,
+             "h holds values that are not finite as float64 (what the simulation holds)",
+             patch=_api(state + f"saved['h'] = saved['h'].astype(np.longdouble) * {huge}\n"
+                        "sim.load_state(saved)"), setup=_scenario),
+        Case(f"plugin: a yield stress of long doubles times {huge}", run, 1,
+             "yield_stress() returned inf (must be finite)",
+             patch=_plugin_patch("yield_stress", f"return (p * 0.3).astype(np.longdouble) * {huge}"),
+             setup=_scenario, keeps_output=True),
+        Case(f"plugin: a compiled viscosity form whose parameter is {huge}", run, 1,
+             "viscosity() returned inf (must be finite)",
+             patch=f"DruckerPrager.viscosity_kernel = lambda self, m: ('constant', np.array([{huge}]))\n",
+             setup=_scenario, keeps_output=True),
+        Case("plugin: a third-party law declaring uses = ('porosity',)", validate, 2,
+             f"{uses} ('porosity',): a quantity it never gives would leave the law on its own default",
+             setup=_using("('porosity',)"), env=plugin_env),
+        Case("plugin: a third-party law declaring uses = 'thickness' (a string)", validate, 2,
+             f"{uses} 'thickness'", setup=_using("'thickness'"), env=plugin_env),
+        Case("validate in a removed working directory", validate, 2, gone, setup=_scenario, prefix=GONE,
+             here=True),
+        Case("run into results/<name> in a removed working directory", ["run", "{scenario}", "-q"], 2,
+             f"results/tiny: {gone}", setup=_scenario, prefix=GONE, here=True),
+        Case("run -o ABSOLUTE in a removed working directory", [*run, "-q"], 0, "", setup=_scenario,
+             prefix=GONE, here=True),
+        Case("plugins in a removed working directory", ["plugins"], 0, "", prefix=GONE, here=True),
+        Case("as a user: run under umask 0177", [*run, "-q"], 2,
+             "out: cannot be created or written (Permission denied): the umask 0177 leaves the directories "
+             "made here without permissions their owner needs (drw-------)",
+             setup=_scenario, prefix=[*NOT_ROOT, "sh", "-c", 'umask 0177 && exec "$@"', "sh"]),
+        Case("as a user: plot of a directory this user cannot enter", ["plot", "{dir}/out"], 2, unlisted,
+             setup=_unlisted_run, prefix=NOT_ROOT),
+        Case("as a user: export --vtk of a directory this user cannot enter",
+             ["export", "{dir}/out", "--vtk"], 2, unlisted, setup=_unlisted_run, prefix=NOT_ROOT),
+        Case("plugin: a yield stress of float16", [*run, "-q"], 0, "",
+             patch=_plugin_patch("yield_stress", "return (p * 0.3).astype(np.float16)"), setup=_scenario),
+        Case("plugin: a viscosity as np.matrix", [*run, "-q"], 0, "",
+             patch=_plugin_patch("viscosity", "return np.asmatrix(np.full(np.shape(p), 0.01))"),
+             setup=_scenario),
+        Case("validate: a scenario that is a loop of symbolic links", validate, 2,
+             "cannot read the file (Too many levels of symbolic links)", setup=_loop),
+        Case("validate: a merge key of a scalar", validate, 2,
+             "malformed YAML: expected a mapping or list of mappings for merging, but found scalar",
+             setup=partial(_scenario, text=yaml.safe_dump(TINY) + "extra: &a 3\nnumerics: {<<: *a}\n")),
+        Case("plugins | head -c 10", ["plugins"], 0, "", prefix=["sh", "-c", '"$@" | head -c 10', "sh"]),
+        Case("run with stdin closed", [*run, "-q"], 0, "", setup=_scenario, prefix=_redirected("<&-")),
+        Case("run under NUMBA_CACHE_DIR=/proc/x (unwritable)", [*run, "-q"], 0, "", setup=_scenario,
+             env={"NUMBA_CACHE_DIR": "/proc/x"}),
+    ]  # fmt: skip
+    return out
+
+
 def _records(path: Path) -> int:
     try:
         import netCDF4
@@ -5137,7 +5275,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     17: round_seventeen, 18: round_eighteen, 19: round_nineteen, 20: round_twenty,
     21: round_twenty_one, 22: round_twenty_two, 23: round_twenty_three, 24: round_twenty_four,
     25: round_twenty_five, 26: round_twenty_six, 27: round_twenty_seven,
-    28: round_twenty_eight, 29: round_twenty_nine,
+    28: round_twenty_eight, 29: round_twenty_nine, 30: round_thirty,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""
 
@@ -5147,7 +5285,7 @@ def main() -> None:
     parser.add_argument("-k", default="", help="only the cases whose name contains this")
     parser.add_argument("-j", type=int, default=2, help="cases run at once")
     parser.add_argument(
-        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 29; all: none)"
+        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 30; all: none)"
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()

@@ -1,5 +1,6 @@
 """The failure classes of the command line (docs/cli.md, exit codes)."""
 
+import os
 import sys
 from typing import TextIO
 
@@ -37,6 +38,25 @@ def reason(exc: BaseException) -> str:
     if isinstance(exc, OSError) and exc.strerror:
         return exc.strerror
     return str(exc)
+
+
+REMOVED_WORKING_DIRECTORY = (
+    "the working directory no longer exists (removed after this shell entered it), and relative paths "
+    "(the default output directory results/<name> too) and numba compiling the kernels for their first "
+    "use read it; accepted: a command started in a directory that exists"
+)
+"""Said where a relative path cannot be resolved, or numba cannot compile (it makes the
+paths of the kernels' sources relative for its messages), because the working directory is
+gone (:func:`working_directory_removed`): ``os.getcwd()``'s error names no file."""
+
+
+def working_directory_removed() -> bool:
+    """True if the working directory no longer exists (removed after the shell entered it)."""
+    try:
+        os.getcwd()
+    except FileNotFoundError:
+        return True
+    return False
 
 
 MAX_COUNT_DIGITS = 18

@@ -803,8 +803,9 @@ def test_read_only_output_directories_and_files_are_named(tmp_path, finished):
     """Run as a user who may not write there (root without the capabilities that override
     the permission bits): a run into a read-only directory, over a read-only result.nc,
     ``--resume`` of a read-only result.nc, ``plot`` and ``export`` of a read-only run
-    directory: exit 2 naming the path and the cause, no traceback (a read-only file was
-    reported as "a directory that can be created and written")."""
+    directory and of one this user cannot enter: exit 2 naming the path and the cause, no
+    traceback (a read-only file was reported as "a directory that can be created and
+    written")."""
     path, source = finished
     (tmp_path / "locked").mkdir(mode=0o555)
     for name in ("over", "resumed", "shown"):
@@ -812,6 +813,8 @@ def test_read_only_output_directories_and_files_are_named(tmp_path, finished):
     for name in ("over", "resumed"):
         (tmp_path / name / RESULT_FILE).chmod(0o444)
     (tmp_path / "shown").chmod(0o555)
+    shutil.copytree(source, tmp_path / "unlisted")
+    (tmp_path / "unlisted").chmod(0o444)  # neither listed nor entered: calibration.nc was named
     cases = [
         (["run", path, "-o", "locked", "-q"], "locked: cannot be created or written (Permission denied)"),
         (
@@ -828,6 +831,11 @@ def test_read_only_output_directories_and_files_are_named(tmp_path, finished):
         ),
         (["plot", "shown"], "shown/plots: Permission denied"),
         (["export", "shown", "--vtk"], "shown/vtk: Permission denied"),
+        (
+            ["plot", "unlisted"],
+            "unlisted: a directory this user cannot list or enter (permissions dr--r--r--)",
+        ),
+        (["export", "unlisted", "--vtk"], "unlisted: a directory this user cannot list or enter"),
     ]
     child = subprocess.run(
         ["setpriv", "--bounding-set=-dac_override,-dac_read_search,-fowner", sys.executable, "-c",
@@ -2898,3 +2906,132 @@ def test_an_inflow_whose_waves_or_momentum_overflow_is_named(tmp_path, cli, infl
     data["boundaries"]["inflow"] = {"thickness": 0.01, "velocity": {"profile": "plug", "speed": 1.0}}
     (tmp_path / "s.yaml").write_text(yaml.safe_dump(data))
     assert cli("validate", tmp_path / "s.yaml").code == 0
+
+
+@pytest.mark.slow  # a child process as a user (2 s)
+@pytest.mark.skipif(os.geteuid() != 0 or not shutil.which("setpriv"), reason="drops root's capabilities")
+def test_a_umask_that_takes_the_owners_permissions_is_named(tmp_path, write_scenario):
+    """Under ``umask 0177`` the output directory the run makes cannot be entered by its
+    owner: the message said "Permission denied" of a directory the command had just made."""
+    command = 'umask 0177 && exec "$@"'
+    child = subprocess.run(
+        ["setpriv", "--bounding-set=-dac_override,-dac_read_search,-fowner", "sh", "-c", command, "sh",
+         sys.executable, "-m", "multilayer", "run", str(write_scenario(TINY_SCENARIO)), "-o", "out", "-q"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert child.returncode == 2 and "Traceback" not in child.stderr, child.stderr
+    assert (
+        "out: cannot be created or written (Permission denied): the umask 0177 leaves the directories made "
+        "here without permissions their owner needs (drw-------)"
+    ) in child.stderr
+
+
+def test_the_umask_is_read_without_being_set():
+    """``os.umask`` sets the process's umask to read it (for every thread of a host): it is
+    read from ``/proc`` and left as it is."""
+    from multilayer.app.runner import umask
+
+    before = os.umask(0o027)
+    try:
+        assert umask() == 0o027 and os.umask(0o027) == 0o027
+    finally:
+        os.umask(before)
+
+
+def test_a_removed_working_directory_is_named(tmp_path, cli, write_scenario, monkeypatch):
+    """A shell left in a directory another removed: the first relative path resolved
+    (``validate``'s default output directory) failed with ``[Errno 2] No such file or
+    directory`` naming nothing, a run's with "results/tiny: cannot be created or written";
+    commands of absolute paths and ``plugins`` run."""
+    scenario = write_scenario(TINY_SCENARIO)
+    gone = tmp_path / "gone"
+    gone.mkdir()
+    monkeypatch.chdir(gone)
+    gone.rmdir()
+    said = "the working directory no longer exists (removed after this shell entered it)"
+    result = cli("validate", scenario)
+    assert result.code == 2 and said in result.err and "Errno" not in result.err, result.err
+    result = cli("run", scenario, "-q")
+    assert result.code == 2 and f"results/tiny: {said}" in result.err, result.err
+    assert cli("run", scenario, "-o", tmp_path / "out", "-q").code == 0
+    assert cli("plugins").code == 0
+
+
+def test_a_compilation_in_a_removed_working_directory_is_named(tmp_path, monkeypatch):
+    """numba makes the path of a kernel's source relative for its messages while compiling
+    (``os.path.relpath``): in a removed working directory that raised ``FileNotFoundError``
+    naming no file, from ``multilayer.run`` of absolute paths too."""
+    import logging
+
+    from multilayer.app.compilation import compile_notice
+
+    def compiling() -> None:
+        numba = __import__("numba")
+
+        @numba.njit
+        def fresh(x):  # compiled here, on its first call
+            return x + 1
+
+        fresh(1)
+        os.rmdir(gone)
+        os.path.relpath(__file__)  # what numba's messages of a kernel's source do (numba.core.ir.Loc)
+
+    gone = tmp_path / "gone"
+    gone.mkdir()
+    monkeypatch.chdir(gone)
+    with pytest.raises(InputError, match="^the working directory no longer exists"):
+        with compile_notice(logging.getLogger("test"), None):
+            compiling()
+
+
+def test_a_masked_value_or_a_0d_object_array_in_a_mapping_is_read_as_numpy_holds_it():
+    """``tolist()`` reads a masked value as None: ``slope_deg: np.ma.masked`` was refused as
+    "got None", naming no mask; a 0-d object array (what ``np.array(x, dtype=object)``
+    makes of a number) raised ``TypeError: iteration over a 0-d array``."""
+    masked = "a masked array of 1 masked value(s) (a netCDF file's fill values, or np.ma.masked)"
+    with pytest.raises(InputError, match=re.escape(f"<scenario>: slope_deg: {masked}")):
+        multilayer.load({**TINY_SCENARIO, "slope_deg": np.ma.masked})
+    with pytest.raises(InputError, match=re.escape(f"overrides: rheology.mu_s: {masked}")):
+        multilayer.load(TINY_SCENARIO, {"rheology.mu_s": np.ma.masked})
+    points = np.ma.array([[0.0, 0.0], [0.5, 0.1]], mask=[[0, 0], [0, 1]])
+    with pytest.raises(InputError, match=re.escape(f"<scenario>: bed.points: {masked}")):
+        multilayer.load({**TINY_SCENARIO, "bed": {"points": points}})
+    unmasked = np.ma.array([[0.0, 0.0], [0.5, 0.1]])  # nothing under a mask: its numbers
+    assert multilayer.load({**TINY_SCENARIO, "bed": {"points": unmasked}}).bed.points == [[0, 0], [0.5, 0.1]]
+    assert multilayer.load({**TINY_SCENARIO, "slope_deg": np.array(20.0, dtype=object)}).slope_deg == 20.0
+
+
+def test_load_state_of_long_doubles_beyond_the_floats_is_refused_naming_the_entry():
+    """``t = np.longdouble('1e400')`` is finite as a long double and infinite as the float
+    the simulation holds: it was restored as t = inf (the next step said t_max was not
+    later than t = inf), and ``h`` of 1e400 m was restored, then named a StateError."""
+    sim = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
+    saved = sim.state_dict()
+    huge = np.longdouble("1e400")
+    for key, value in (("t", huge), ("h", saved["h"].astype(np.longdouble) * huge)):
+        with pytest.raises(InputError, match=rf"^{key} holds values that are not finite as float64"):
+            sim.load_state({**saved, key: value})
+    assert sim.t == 0.0 and np.array_equal(sim.h, saved["h"])
+    sim.load_state({**saved, "t": np.longdouble("0.25")})  # within the floats: read
+    assert sim.t == 0.25
+
+
+@pytest.mark.parametrize(
+    ("method", "body"),
+    [
+        ("yield_stress", lambda self, p, m: (p * 0.3).astype(np.longdouble) * np.longdouble("1e400")),
+        ("viscosity_kernel", lambda self, m: ("constant", np.array([np.longdouble("1e400")]))),
+    ],
+)
+def test_a_plugin_value_beyond_the_floats_as_a_long_double_is_named_without_a_warning(
+    tmp_path, cli, write_scenario, monkeypatch, method, body
+):
+    """A long double of 1e400 (a yield stress, a compiled form's parameter) is infinite as a
+    float: numpy's "overflow encountered in cast" came before the message naming it."""
+    from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+
+    monkeypatch.setattr(DruckerPrager, method, body)
+    result = cli("run", write_scenario(TINY_SCENARIO), "-o", tmp_path / "out", "-q")
+    assert result.code == 1 and "warning" not in result.err, result.err
+    said = "yield_stress" if method == "yield_stress" else "viscosity"
+    assert f"{said}() returned inf (must be finite)" in result.err

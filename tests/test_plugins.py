@@ -200,6 +200,36 @@ BROKEN = {
         "Labelled.__init__ has a parameter 'name', a key a scenario cannot give it: in `rheology:` and "
         "`walls:` `name` chooses the law; accepted: other parameter names",
     ),
+    "uses-a-quantity-never-given": (  # a law for a quantity of another version ran on its default
+        """
+        import multilayer
+        from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+        class Porous(DruckerPrager):
+            name = "porous"
+            uses = ("porosity",)
+            def yield_stress(self, pressure, material, porosity=0.4):
+                return super().yield_stress(pressure, material)
+        @multilayer.hookimpl
+        def multilayer_register_rheologies(register):
+            register(Porous)
+        """,
+        "Porous.uses must be a tuple of the column quantities the engine gives a law (thickness), got "
+        "('porosity',): a quantity it never gives would leave the law on its own default",
+    ),
+    "uses-a-string": (  # "thickness" in "thickness" is true, tuple("thickness") is letters
+        """
+        import multilayer
+        from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+        class Porous(DruckerPrager):
+            name = "porous"
+            uses = "thickness"
+        @multilayer.hookimpl
+        def multilayer_register_rheologies(register):
+            register(Porous)
+        """,
+        "Porous.uses must be a tuple of the column quantities the engine gives a law (thickness), got "
+        "'thickness'",
+    ),
     "duplicate": (
         """
         import multilayer

@@ -23,7 +23,15 @@ from collections.abc import Iterator, Sequence
 from typing import Any
 
 from multilayer.app import numba_environment
-from multilayer.errors import InputError, Interrupted, RunError, printable, warn
+from multilayer.errors import (
+    REMOVED_WORKING_DIRECTORY,
+    InputError,
+    Interrupted,
+    RunError,
+    printable,
+    warn,
+    working_directory_removed,
+)
 
 SUBCOMMANDS = (
     "run", "validate", "compile", "plugins", "sweep", "calibrate", "sensitivity", "check", "plot", "export",
@@ -252,6 +260,9 @@ def _dispatch(args: argparse.Namespace) -> int:
         return _stdout_failed(exc)
     except OSError as exc:  # a path given on the command line cannot be created or written
         what = f"{exc.filename}: {exc.strerror}" if exc.filename is not None and exc.strerror else str(exc)
+        if exc.filename is None and working_directory_removed():  # os.getcwd() names no file
+            _tell(f"multilayer: error: {REMOVED_WORKING_DIRECTORY}")
+            return 2
         _tell(
             f"multilayer: error: {what}; accepted: a directory this user can write and files in it "
             "that are not read-only"

@@ -26,6 +26,7 @@ from typing import Any
 from numba.core import event as numba_event
 
 from multilayer.engine.threads import available_cores
+from multilayer.errors import REMOVED_WORKING_DIRECTORY, InputError, working_directory_removed
 
 NOTICE = (
     "compiling the numba kernels for their first use: once after installing or updating "
@@ -68,7 +69,9 @@ class _Compilations(numba_event.Listener):
 @contextmanager
 def compile_notice(log: logging.Logger, say: Callable[[str], None] | None) -> Iterator[None]:
     """Within the block, the first numba compilation is announced in ``log`` and through
-    ``say`` (None: silent); at the block's end ``log`` gets the time spent compiling."""
+    ``say`` (None: silent); at the block's end ``log`` gets the time spent compiling.  A
+    compilation in a working directory that no longer exists is an :class:`InputError`
+    saying so (numba reads it)."""
 
     def announce() -> None:
         log.info("%s", NOTICE)
@@ -79,6 +82,10 @@ def compile_notice(log: logging.Logger, say: Callable[[str], None] | None) -> It
     with numba_event.install_listener("numba:compile", compilations):
         try:
             yield
+        except FileNotFoundError:  # numba's os.path.relpath of a source, its error naming no file
+            if compilations.seconds is None or not working_directory_removed():
+                raise
+            raise InputError(REMOVED_WORKING_DIRECTORY) from None
         finally:
             if compilations.seconds is not None:
                 log.info("numba compiled kernels for %.1f s (cached for later runs)", compilations.seconds)

@@ -32,6 +32,7 @@ import logging
 import os
 import shlex
 import signal
+import stat
 import sys
 import tempfile
 import threading
@@ -52,7 +53,17 @@ from multilayer.app.lock import LOCK_FILE, locked
 from multilayer.app.progress import Progress
 from multilayer.app.simulation import Simulation
 from multilayer.engine.plugin_output import in_plugin_call
-from multilayer.errors import InputError, Interrupted, RunError, Stop, printable, reason, warn
+from multilayer.errors import (
+    REMOVED_WORKING_DIRECTORY,
+    InputError,
+    Interrupted,
+    RunError,
+    Stop,
+    printable,
+    reason,
+    warn,
+    working_directory_removed,
+)
 from multilayer.io.disk import writable
 from multilayer.io.result_check import check_result
 from multilayer.io.results import (
@@ -159,6 +170,20 @@ def run(
         return summary(outdir / RESULT_FILE, checked=False)  # every state passed the state guard
 
 
+def umask() -> int | None:
+    """The process's umask, read without setting it (``os.umask`` sets it, for every thread
+    of the host: the library does not change its process), from Linux's ``/proc``; None
+    where it cannot be read."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as status:
+            for line in status:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
 def output_directory(
     outdir: Path, source: Path | None = None, inputs: dict[str, Path] | None = None
 ) -> list[Path]:
@@ -176,6 +201,8 @@ def output_directory(
         ) from None
     if "\0" in str(outdir):  # no system call takes it: Python's ValueError, with a traceback
         raise InputError(f"{str(outdir)!r}: a name holding the NUL character; {accepted}")
+    if not outdir.is_absolute() and working_directory_removed():
+        raise InputError(f"{outdir}: {REMOVED_WORKING_DIRECTORY}")
     missing = [path for path in (outdir, *outdir.parents) if not path.exists()]
     if outdir.exists() and not outdir.is_dir():  # mkdir says only "File exists"
         raise InputError(f"{outdir}: a file, not a directory; {accepted}")
@@ -189,7 +216,14 @@ def output_directory(
         with tempfile.TemporaryFile(dir=outdir):
             pass
     except OSError as exc:
-        raise InputError(f"{outdir}: cannot be created or written ({reason(exc)}); {accepted}") from None
+        mask = umask() if missing else None  # the directories were made here, under it
+        owner = "" if not mask or not mask & 0o700 else (
+            f": the umask {mask:04o} leaves the directories made here without permissions their owner "
+            f"needs ({stat.filemode(0o40777 & ~mask)})"
+        )  # fmt: skip
+        raise InputError(
+            f"{outdir}: cannot be created or written ({reason(exc)}){owner}; {accepted}"
+        ) from None
     read = {"the scenario file itself": source} if source is not None else {}
     of = f" of {source}" if source is not None else ""
     read.update({f"the file {key}{of}": path for key, path in (inputs or {}).items()})

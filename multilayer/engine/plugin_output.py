@@ -101,7 +101,9 @@ def read_only(value: Any) -> Any:
 def real_array(plugin: Any, method: str, value: Any, t: float | None = None) -> np.ndarray:
     """``value`` returned by ``plugin.method`` as a new float array; :class:`PluginOutputError`
     unless it holds real numbers (not complex, text, objects or booleans, nor values under
-    the mask of a masked array, which ``np.asarray`` would read as numbers)."""
+    the mask of a masked array, which ``np.asarray`` would read as numbers).  A value beyond
+    the floats (a ``np.longdouble`` of 1e400) is infinite here, without numpy's warning of
+    the cast: the callers' checks name it."""
     with contained(plugin, method, t):
         raw = np.asarray(value)
         masked = masked_values(value)
@@ -112,7 +114,8 @@ def real_array(plugin: Any, method: str, value: Any, t: float | None = None) -> 
             f"{plugin_label(plugin)}: {method} returned {what} ({type(value).__name__}); must be real "
             f"numbers{when}"
         )
-    return np.array(raw, dtype=float)
+    with np.errstate(over="ignore"):  # a long double beyond the floats: infinite, named by the checks
+        return np.array(raw, dtype=float)
 
 
 def declared_form(

@@ -304,7 +304,8 @@ def masked_values(value: Any) -> int:
 def check_restored(saved: Mapping[str, Any], fresh: Mapping[str, Any]) -> None:
     """A state to restore (a checkpoint) holds entries of ``fresh``, the state of the same
     simulation at its start, each of its shape, real numbers (integers where it holds
-    integers), finite; the times, counts and thicknesses are not negative, the velocities
+    integers), finite as the simulation holds them (a ``np.longdouble`` of 1e400 is
+    infinite as a float64); the times, counts and thicknesses are not negative, the velocities
     zero where the thickness is and the seed's columns lie in the mesh; the entries of
     :data:`_NEEDED` are there.  :class:`InputError` naming the entry otherwise (a checkpoint
     of another version or layout, or edited, or a mapping given to ``load_state`` by hand: a
@@ -328,8 +329,13 @@ def check_restored(saved: Mapping[str, Any], fresh: Mapping[str, Any]) -> None:
             raise InputError(
                 f"{key}: {a.dtype} values of shape {a.shape}, where {ref.dtype} of shape {ref.shape}"
             )
-        if not np.isfinite(a).all():
-            raise InputError(f"{key} holds values that are not finite, where finite numbers")
+        with np.errstate(over="ignore"):  # a long double beyond the floats is infinite as held
+            held = a.astype(ref.dtype)
+        if not np.isfinite(held).all():
+            raise InputError(
+                f"{key} holds values that are not finite as {ref.dtype} (what the simulation holds), "
+                "where finite numbers"
+            )
         if key in _COUNTS and not a >= 0:
             raise InputError(f"{key} = {a}, where a number >= 0")
         if key == "h" and a.size and a.min() < 0.0:  # before it replaces the state, as every other entry

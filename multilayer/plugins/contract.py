@@ -68,6 +68,10 @@ class MixtureState:
     """K2 of ``phi_eq = phi_c - K2 eta_f gamma / p_s``."""
 
 
+COLUMN_QUANTITIES = ("thickness",)
+"""The column quantities the engine gives a law that declares them in :attr:`Rheology.uses`."""
+
+
 class Rheology:
     """Base class of rheology plugins.
 
@@ -80,7 +84,8 @@ class Rheology:
     name: ClassVar[str]
     applies_to: ClassVar[Literal["bulk", "walls"]] = "bulk"
     uses: ClassVar[tuple[Literal["thickness"], ...]] = ()
-    """The column quantities the law is given as keyword arguments (module docstring)."""
+    """The column quantities the law is given as keyword arguments (module docstring), a
+    tuple of names of :data:`COLUMN_QUANTITIES`."""
 
     def yield_stress(self, pressure: np.ndarray, material: Material) -> np.ndarray:
         """Rate-independent yield stress kappa(p) >= 0, in Pa."""

@@ -29,7 +29,7 @@ import pluggy
 from pydantic import BaseModel, ConfigDict, create_model
 
 from multilayer.errors import InputError, shown
-from multilayer.plugins.contract import Rheology
+from multilayer.plugins.contract import COLUMN_QUANTITIES, Rheology
 
 PROJECT = "multilayer"
 """The pluggy project name, which is also the entry-point group."""
@@ -108,6 +108,13 @@ def _problem(cls: object) -> str | None:
         return f"{cls.__qualname__}.name must be an identifier string, got {name!r}"
     if cls.applies_to not in APPLIES_TO:
         return f"{cls.__qualname__}.applies_to must be 'bulk' or 'walls', got {cls.applies_to!r}"
+    uses = cls.uses
+    if not (isinstance(uses, tuple) and all(isinstance(q, str) and q in COLUMN_QUANTITIES for q in uses)):
+        return (
+            f"{cls.__qualname__}.uses must be a tuple of the column quantities the engine gives a law "
+            f"({', '.join(COLUMN_QUANTITIES)}), got {shown(uses)}: a quantity it never gives would leave "
+            "the law on its own default"
+        )
     for method in ("yield_stress", "viscosity"):
         if getattr(cls, method) is getattr(Rheology, method):
             return f"{cls.__qualname__} does not implement {method}()"

@@ -199,9 +199,11 @@ def plain_data(value: Any, where: str) -> Any:
     tuples as lists.  :class:`InputError` naming ``where`` and the key beyond the bounds of
     a YAML text (nesting, number of values), or holding a text that is not Unicode
     (:func:`check_text`); a structure that holds itself nests without end.  A numpy date or
-    duration is no number (``np.timedelta64(5)`` of no unit gives the integer 5), and a
-    value that cannot be copied (a generator, an open file) no value of a scenario: both
-    are named; other values are left to the schema, which names them."""
+    duration is no number (``np.timedelta64(5)`` of no unit gives the integer 5), nor a
+    masked value (``tolist()`` gives None, which the schema would quote as given), and a
+    value that cannot be copied (a generator, an open file) no value of a scenario: all
+    are named; an object array of no dimension is the object it holds; other values are
+    left to the schema, which names them."""
     count = 0
 
     def place(path: tuple[Any, ...]) -> str:
@@ -227,8 +229,15 @@ def plain_data(value: Any, where: str) -> Any:
                 (key.item() if isinstance(key, np.generic) else key): plain(entry, (*path, key))
                 for key, entry in item.items()
             }
+        if np.ma.isMaskedArray(item) and np.ma.count_masked(item):  # tolist() gives None there
+            raise InputError(
+                f"{at}: a masked array of {np.ma.count_masked(item)} masked value(s) (a netCDF file's "
+                f"fill values, or np.ma.masked), not a number; accepted: {PLAIN_VALUES}"
+            )
         if isinstance(item, np.ndarray) and item.dtype.kind not in "mMO":
             return item.tolist()
+        if isinstance(item, np.ndarray) and item.ndim == 0 and item.dtype.kind == "O":  # not iterable
+            return plain(item[()], path)
         if isinstance(item, np.ndarray) and item.dtype.kind == "O":  # its entries are any object
             return [plain(entry, (*path, index)) for index, entry in enumerate(item)]
         if isinstance(item, (list, tuple)):

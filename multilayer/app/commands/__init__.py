@@ -3,6 +3,8 @@
 import argparse
 import contextlib
 import importlib
+import os
+import stat
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -250,11 +252,18 @@ def not_a_file(path: Path, accepted: str) -> Path:
     """``path``, the ``DIR`` of ``plot`` or ``export``, unless it is a file: a result file
     given for its directory is refused naming the directory holding it (its figures'
     directory, ``DIR/result.nc/plots``, could not be made, and the error would ask for a
-    directory this user can write)."""
+    directory this user can write); nor a directory this user cannot list or enter (its
+    permissions, or a umask that left them off when it was made), named as such: the first
+    file looked for in it (``calibration.nc``) was named, which it may not hold."""
     from multilayer.errors import InputError
 
     if path.is_file():
         raise InputError(f"{path}: a file, not a directory; accepted: {accepted} (here {path.parent})")
+    if path.is_dir() and not os.access(path, os.R_OK | os.X_OK):
+        raise InputError(
+            f"{path}: a directory this user cannot list or enter (permissions "
+            f"{stat.filemode(path.stat().st_mode)}); accepted: {accepted}, readable"
+        )
     return path
 
 
