@@ -5111,6 +5111,7 @@ def round_thirty() -> list[Case]:
     """The hostile cases of the thirtieth round (docs/reliability.md): numpy values of the
     Python API a cast or ``tolist()`` changes (a 0-d object array, masked values, long
     doubles beyond the floats in ``load_state`` and in a plugin's values and compiled form);
+    a scenario's ``initial`` and ``bed`` assigned values of another type after loading;
     a third-party law declaring a column quantity the engine never gives; a removed
     working directory; a umask taking the owner's permissions; ``plot`` and ``export`` of a
     directory this user cannot enter; as controls, an absolute output directory and
@@ -5120,6 +5121,7 @@ def round_thirty() -> list[Case]:
     validate = ["validate", "{scenario}"]
     run = ["run", "{scenario}", "-o", "{dir}/out"]
     load = "import numpy as np\nyaml = __import__('yaml')\ndata = yaml.safe_load(open(sys.argv[2]))\n"
+    loaded = "sc = multilayer.load(sys.argv[2])\n"
     state = (
         "import numpy as np\nsim = multilayer.Simulation(multilayer.load(sys.argv[2]))\n"
         "saved = sim.state_dict()\n"
@@ -5144,6 +5146,15 @@ def round_thirty() -> list[Case]:
              patch=_api(load + "data['bed'] = {'points': np.ma.array([[0, 0], [0.5, 0.1]], "
                         "mask=[[0, 0], [0, 1]])}\nmultilayer.load(data)"),
              setup=_scenario),
+        Case("API: scenario.initial.append(None) after loading, multilayer.Simulation", validate, 2,
+             "initial.1: expected a mapping (got None)", setup=_scenario,
+             patch=_api(loaded + "sc.initial.append(None)\nmultilayer.Simulation(sc)")),
+        Case("API: scenario.bed = 5 after loading, multilayer.run", validate, 2,
+             "bed: expected a mapping (got 5)", patch=_api(loaded + "sc.bed = 5\nmultilayer.run(sc)"),
+             setup=_scenario),
+        Case("API: scenario.bed = {'points': ...} (a mapping) after loading", validate, 0, "",
+             setup=_scenario, patch=_api(loaded + "sc.bed = {'points': [[0, 0], [0.5, -0.1]]}\n"
+                                         "assert abs(multilayer.Simulation(sc).bed[0] + 0.00125) < 1e-12")),
         Case(f"API: load_state of t = {huge}", validate, 2,
              "t holds values that are not finite as float64 (what the simulation holds)",
              patch=_api(state + f"saved['t'] = {huge}\nsim.load_state(saved)"), setup=_scenario),

@@ -3035,3 +3035,21 @@ def test_a_plugin_value_beyond_the_floats_as_a_long_double_is_named_without_a_wa
     assert result.code == 1 and "warning" not in result.err, result.err
     said = "yield_stress" if method == "yield_stress" else "viscosity"
     assert f"{said}() returned inf (must be finite)" in result.err
+
+
+def test_an_initial_entry_or_a_bed_of_another_type_assigned_after_loading_is_validated_again():
+    """The serializers of a bed and an initial entry read the value's attributes: a value of
+    another type assigned after loading (``scenario.initial.append(None)``, ``scenario.bed =
+    5``, a mapping) raised pydantic's ``PydanticSerializationError`` naming a function of the
+    schema (``_as_points``), where the validation again names the key or reads the mapping."""
+    scenario = multilayer.load(TINY_SCENARIO)
+    scenario.initial.append(None)
+    with pytest.raises(InputError, match=r"^<scenario>: initial\.1: expected a mapping \(got None\)"):
+        multilayer.Simulation(scenario)
+    scenario = multilayer.load(TINY_SCENARIO)
+    scenario.bed = 5
+    with pytest.raises(InputError, match=r"^<scenario>: bed: expected a mapping \(got 5\)"):
+        multilayer.run(scenario)
+    scenario = multilayer.load(TINY_SCENARIO)
+    scenario.bed = {"points": [[0.0, 0.0], [0.5, -0.1]]}
+    assert multilayer.Simulation(scenario).bed[0] == pytest.approx(-0.00125, abs=1e-15)

@@ -435,8 +435,12 @@ class Bed(StrictModel):
 
     @model_serializer(mode="wrap")
     def _as_points(self, handler: typing.Callable[[Bed], dict[str, Any]]) -> dict[str, Any]:
-        """A bed read from a file is recorded as its points, so the record stands alone."""
+        """A bed read from a file is recorded as its points, so the record stands alone.  A
+        value of another type assigned after loading (``scenario.bed = None``, a mapping) is
+        written as it is, for the validation again to read (pydantic calls this with it)."""
         data = handler(self)
+        if not isinstance(self, Bed):  # its attributes were read: an AttributeError, naming this function
+            return data
         if self.profile in ("file", "dem"):
             extend = {"extend": self.extend} if self.extend else {}
             return {"profile": "points", "points": data["points"], **extend}
@@ -558,9 +562,12 @@ class InitialShape(StrictModel):
 
     @model_serializer(mode="wrap")
     def _as_points(self, handler: typing.Callable[[InitialShape], dict[str, Any]]) -> dict[str, Any]:
-        """A profile read from a file is recorded as its points, so the record stands alone."""
+        """A profile read from a file is recorded as its points, so the record stands alone.  A
+        value of another type assigned after loading (``scenario.initial.append(None)``) is
+        written as it is, for the validation again to name it (pydantic calls this with it)."""
         data = handler(self)
-        data.pop("file", None)
+        if isinstance(data, dict):
+            data.pop("file", None)
         return data
 
 
