@@ -216,7 +216,7 @@ def output_directory(
         with tempfile.TemporaryFile(dir=outdir):
             pass
     except OSError as exc:
-        mask = umask() if missing else None  # the directories were made here, under it
+        mask = umask() if missing else None  # directories made here, under it
         owner = "" if not mask or not mask & 0o700 else (
             f": the umask {mask:04o} leaves the directories made here without permissions their owner "
             f"needs ({stat.filemode(0o40777 & ~mask)})"

@@ -439,7 +439,7 @@ class Bed(StrictModel):
         value of another type assigned after loading (``scenario.bed = None``, a mapping) is
         written as it is, for the validation again to read (pydantic calls this with it)."""
         data = handler(self)
-        if not isinstance(self, Bed):  # its attributes were read: an AttributeError, naming this function
+        if not isinstance(self, Bed):  # reading its attributes: an AttributeError naming this function
             return data
         if self.profile in ("file", "dem"):
             extend = {"extend": self.extend} if self.extend else {}

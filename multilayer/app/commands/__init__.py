@@ -253,8 +253,8 @@ def not_a_file(path: Path, accepted: str) -> Path:
     given for its directory is refused naming the directory holding it (its figures'
     directory, ``DIR/result.nc/plots``, could not be made, and the error would ask for a
     directory this user can write); nor a directory this user cannot list or enter (its
-    permissions, or a umask that left them off when it was made), named as such: the first
-    file looked for in it (``calibration.nc``) was named, which it may not hold."""
+    permissions, or a umask that leaves them off), named as such: otherwise the first file
+    looked for in it (``calibration.nc``) is named, which it may not hold."""
     from multilayer.errors import InputError
 
     if path.is_file():
