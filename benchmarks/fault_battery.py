@@ -5204,6 +5204,12 @@ def round_thirty() -> list[Case]:
         Case("run with stdin closed", [*run, "-q"], 0, "", setup=_scenario, prefix=_redirected("<&-")),
         Case("run under NUMBA_CACHE_DIR=/proc/x (unwritable)", [*run, "-q"], 0, "", setup=_scenario,
              env={"NUMBA_CACHE_DIR": "/proc/x"}),
+        Case("API: scenario.gravity = None after loading, multilayer.Simulation", validate, 2,
+             "gravity: Input should be a valid number (got None)", setup=_scenario,
+             patch=_api(loaded + "sc.gravity = None\nmultilayer.Simulation(sc)")),
+        Case("API: scenario.bed = None after loading, multilayer.run", validate, 2,
+             "bed: expected a mapping (got None)", setup=_scenario,
+             patch=_api(loaded + "sc.bed = None\nmultilayer.run(sc)")),
     ]  # fmt: skip
     return out
 

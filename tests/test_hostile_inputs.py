@@ -3053,3 +3053,31 @@ def test_an_initial_entry_or_a_bed_of_another_type_assigned_after_loading_is_val
     scenario = multilayer.load(TINY_SCENARIO)
     scenario.bed = {"points": [[0.0, 0.0], [0.5, -0.1]]}
     assert multilayer.Simulation(scenario).bed[0] == pytest.approx(-0.00125, abs=1e-15)
+
+
+@pytest.mark.parametrize(
+    ("assign", "said"),
+    [
+        ("scenario.gravity = None", r"gravity: Input should be a valid number \(got None\)"),
+        ("scenario.bed = None", r"bed: expected a mapping \(got None\)"),
+        ("scenario.numerics.dry_threshold = None", r"numerics\.dry_threshold: Input should be a valid"),
+        ("scenario.boundaries.left = None", r"boundaries\.left: Input should be a valid string"),
+    ],
+)
+def test_a_none_assigned_after_loading_where_the_file_refuses_null_is_refused(assign, said):
+    """The scenario validated again was written without its None keys (not given), and a
+    None assigned where the file refuses null (``bed: null``) gave the default in its place:
+    the simulation ran with g = 9.81 after ``scenario.gravity = None``."""
+    scenario = multilayer.load(TINY_SCENARIO)
+    exec(assign)
+    with pytest.raises(InputError, match=rf"^<scenario>: {said}"):
+        multilayer.Simulation(scenario)
+
+
+def test_a_none_assigned_after_loading_where_the_file_accepts_null_is_not_given():
+    """``walls`` and ``bed.profile`` take null as not given in a file: so after loading."""
+    scenario = multilayer.load(TINY_SCENARIO)
+    scenario.walls = None
+    scenario.bed.profile = None
+    scenario.description = None
+    assert multilayer.Simulation(scenario).scenario.bed.profile == "flat"

@@ -62,6 +62,11 @@ def validated_again(scenario: Scenario, overrides: Sequence[str] = ()) -> Scenar
     first: YAML cannot write it."""
     limits.plain_data(scenario.model_dump(warnings=False), str(scenario.source or "<scenario>"))
     data = yaml.safe_load(scenario.resolved_yaml())
+    for path in scenario.assigned_nulls():  # refused where the file refuses a null
+        node = data
+        for part in path[:-1]:
+            node = node[part]
+        node[path[-1]] = None
     return from_dict(data, source=scenario.source, overrides=overrides)
 
 

@@ -15,6 +15,7 @@ from typing import Annotated, Any, Literal, get_args
 
 import numpy as np
 from pydantic import (
+    BaseModel,
     ConfigDict,
     Field,
     FieldSerializationInfo,
@@ -1283,6 +1284,14 @@ class Scenario(StrictModel):
         pydantic's warning: validating the text again names it."""
         return dump(self.model_dump(mode="json", exclude_none=True, warnings=False))
 
+    def assigned_nulls(self) -> list[tuple[str | int, ...]]:
+        """The paths of the keys holding None whose default is not None (``scenario.bed =
+        None`` assigned after loading): :meth:`resolved_yaml` leaves every None out, as
+        not given, and the default would be validated in the place of a null that the
+        file refuses at that key.  A None at a key whose default is None is not given, as
+        the file's null there, and left out."""
+        return _assigned_nulls(self, ())
+
     def text_size(self) -> int:
         """At least ``len(self.resolved_yaml())``, without writing the rows of a profile file
         (the estimate of a result's header): the text without them, and the text of each
@@ -1302,3 +1311,18 @@ class Scenario(StrictModel):
         (pydantic checks no assignment: ``scenario.domain.layers = 0`` was built into a
         simulation whose kernels wrote outside their arrays)."""
         return self._validated is None or self._validated != self.model_dump(warnings=False)
+
+
+def _assigned_nulls(model: BaseModel, path: tuple[str | int, ...]) -> list[tuple[str | int, ...]]:
+    """:meth:`Scenario.assigned_nulls` of ``model`` at ``path``, through its fields, the
+    models they hold and the models in their lists."""
+    found = []
+    for name, info in type(model).model_fields.items():
+        value = getattr(model, name, None)
+        if value is None and (info.is_required() or info.get_default(call_default_factory=True) is not None):
+            found.append((*path, name))
+        items = list(enumerate(value)) if isinstance(value, list) else [(None, value)]
+        for index, item in items:
+            if isinstance(item, BaseModel):
+                found += _assigned_nulls(item, (*path, name) if index is None else (*path, name, index))
+    return found
