@@ -5210,6 +5210,10 @@ def round_thirty() -> list[Case]:
         Case("API: scenario.bed = None after loading, multilayer.run", validate, 2,
              "bed: expected a mapping (got None)", setup=_scenario,
              patch=_api(loaded + "sc.bed = None\nmultilayer.run(sc)")),
+        Case("calibrate: uncertainties of 1e300 m (the misfit underflows to 0 everywhere)",
+             ["calibrate", "{dir}/calibration.yaml", "-o", "{dir}/cal", "--workers", "1", "-q"], 2,
+             "though their predictions differ: the squares of (model - observed) / sigma underflow",
+             setup=_calibration("0.1,0.12,1e300\n0.2,0.15,1e300\n")),
     ]  # fmt: skip
     return out
 

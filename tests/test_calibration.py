@@ -617,3 +617,45 @@ def test_uncertainties_whose_misfit_cannot_be_a_number_are_named(tmp_path):
     (tmp_path / "c.yaml").write_text(text.replace("sigma]}", "sigma], units: cm}"))
     with pytest.raises(InputError, match=r"file \(line 4\): the sigma 9.88131e-323 is 0 in SI \(times 0"):
         study.load_calibration(tmp_path / "c.yaml")
+
+
+class _Proportional(_Measured):
+    """Measures ``values`` times the parameter ``rheology.mu_s``: each set predicts its own."""
+
+    def evaluate(self, points, measures):
+        from multilayer.app.ensemble import Evaluation
+
+        return [
+            Evaluation(f"m{i}", point, "ok", self.values * point["rheology.mu_s"])
+            for i, point in enumerate(points)
+        ]
+
+
+def _huge_sigma(tmp_path, rows: str) -> study.Calibration:
+    shutil.copy(TWIN / "collapse.yaml", tmp_path)
+    (tmp_path / "front.csv").write_text("t,x_f,sigma\n" + rows)
+    (tmp_path / "c.yaml").write_text(
+        "base: collapse.yaml\nparameters: {rheology.mu_s: {bounds: [0.4, 0.5]}}\n"
+        "observations:\n  - {name: f, quantity: front, file: front.csv, columns: [t, x_f, sigma]}\n"
+        "search: {population: 4, generations: 1}\nrefine: {evaluations: 0}\n"
+    )
+    return study.load_calibration(tmp_path / "c.yaml")
+
+
+def test_a_misfit_that_does_not_tell_the_parameter_sets_apart_is_refused(tmp_path):
+    """Uncertainties of 1e300 m: the squared whitened residuals underflowed to 0 for every
+    parameter set and the calibration reported the first one as the best fit."""
+    loaded = _huge_sigma(tmp_path, "0.1,0.12,1e300\n0.2,0.15,1e300\n")
+    said = r"is 0\.0, though their predictions differ: .* underflow, the largest sigma being 1e\+300"
+    with pytest.raises(InputError, match=said):
+        calibration.Calibrator(loaded, _Proportional([0.5, 0.6]), print).run()
+    with pytest.raises(InputError, match=r"the model gives the same values at every parameter set, so the "
+                       r"observations do not constrain rheology\.mu_s"):  # fmt: skip
+        calibration.Calibrator(loaded, _Measured([0.5, 0.6]), print).run()
+
+
+def test_an_observation_of_sigma_1e300_beside_others_weighs_nothing(tmp_path):
+    """One observation of infinite uncertainty in the limit: the others pick the fit."""
+    loaded = _huge_sigma(tmp_path, "0.1,0.12,1e300\n0.2,0.14,0.01\n")
+    fit = calibration.Calibrator(loaded, _Proportional([0.5, 0.6]), print).run()
+    assert fit.misfit < min(c.misfit for c in fit.candidates if c.theta[0] != fit.theta[0])

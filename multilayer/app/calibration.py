@@ -279,6 +279,9 @@ class Calibrator:
         best = self._best()
         if not math.isfinite(best.misfit):
             raise _no_fit(self.candidates, self.calibration, problem)
+        indistinct = _indistinct(self.candidates, self.calibration, problem)
+        if indistinct is not None:
+            raise indistinct
         self.search_theta = best.theta.copy()
         notes.append(f"global search: {result.nit} generation(s), {result.message}")
 
@@ -381,6 +384,42 @@ def _no_fit(candidates: list[Candidate], calibration: Calibration, problem: Prob
     return RunError(
         f"every one of the {len(candidates)} parameter sets failed; first errors: "
         + "; ".join(sorted(errors)[:3])
+    )
+
+
+def _indistinct(candidates: list[Candidate], calibration: Calibration, problem: Problem) -> Exception | None:
+    """Why the misfit of the search picks no parameter set, where every parameter set
+    whose runs completed (two or more) has the same misfit: the best fit would be
+    whichever came first, an arbitrary member, reported as a fit.  The misfits are
+    checked rather than each sigma: a sigma of 1e300 on one observation among others is
+    that observation weighing nothing, the limit of an infinite uncertainty, and the
+    other observations still pick the fit; a bound on sigma alone cannot tell, since
+    whether ((model - observed) / sigma)^2 underflows depends on the residuals too.
+    Where the predictions differ, the squares underflowed (observations of sigma 1e300
+    gave a misfit of 0 everywhere) and the largest sigma is named; where they do not,
+    the model gives the same values at every parameter set and the observations
+    constrain none of them.  None where the misfits differ."""
+    from multilayer.errors import InputError
+
+    scored = [c for c in candidates if c.predicted is not None and math.isfinite(c.misfit)]
+    distinct = {tuple(c.theta) for c in scored}
+    if len(distinct) < 2 or len({c.misfit for c in scored}) > 1:
+        return None
+    first = scored[0]
+    where = f"{calibration.path}: observations: the misfit of every parameter set whose runs completed"
+    count = f"({len(scored)} of {len(candidates)}) is {first.misfit}"
+    if any(not np.array_equal(c.predicted, first.predicted) for c in scored):
+        largest = int(np.argmax(problem.sigma))
+        return InputError(
+            f"{where} {count}, though their predictions differ: the squares of (model - observed) / sigma "
+            f"underflow, the largest sigma being {problem.sigma[largest]:.3g} (SI), and no parameter set "
+            "fits better than another; accepted: uncertainties (sigma) for which those squares are "
+            "numbers that tell the parameter sets apart"
+        )
+    return InputError(
+        f"{where} {count}: the model gives the same values at every parameter set, so the observations "
+        f"do not constrain {', '.join(problem.names)} and no parameter set fits better than another; "
+        "accepted: observations of quantities the parameters change"
     )
 
 
