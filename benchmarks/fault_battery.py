@@ -3917,7 +3917,7 @@ def round_twenty() -> list[Case]:
              "its variable front's attribute threshold is missing",
              setup=_result_attribute("front", "threshold", None)),
         Case("export: result.nc whose steps are 'many'", ["export", "{dir}/out", "--vtk"], 2,
-             "its attribute steps is 'many', not an integer >= 0",
+             "its attribute steps is 'many', not an integer from 0 to 2^53",
              setup=_result_attribute(None, "steps", "many")),
         Case("plot: result.nc whose wall_time_s is NaN", ["plot", "{dir}/out"], 2,
              "its attribute wall_time_s is nan, not a finite number >= 0",
@@ -5214,8 +5214,30 @@ def round_thirty() -> list[Case]:
              ["calibrate", "{dir}/calibration.yaml", "-o", "{dir}/cal", "--workers", "1", "-q"], 2,
              "though their predictions differ: the squares of (model - observed) / sigma underflow",
              setup=_calibration("0.1,0.12,1e300\n0.2,0.15,1e300\n")),
+        Case("plot: result.nc of run_status failed without its failure", ["plot", "{dir}/out"], 2,
+             "run_status is 'failed' and its attribute failure (why) is missing",
+             setup=_result_attribute(None, "run_status", "failed")),
+        Case("plot: result.nc of run_status failed whose failure is 3.5", ["plot", "{dir}/out"], 2,
+             "its attribute failure is 3.5, not text of 1 to 8000 characters",
+             setup=_failed_because(3.5)),
+        Case("plot: result.nc whose steps are 2^62", ["plot", "{dir}/out"], 2,
+             "its attribute steps is 4.611686018427388e+18, not an integer from 0 to 2^53",
+             setup=_result_attribute(None, "steps", np.float64(2.0**62))),
     ]  # fmt: skip
     return out
+
+
+def _failed_because(failure: object) -> Callable[[Path], None]:
+    """A finished run whose result.nc says ``run_status: failed`` with ``failure``."""
+
+    def setup(directory: Path) -> None:
+        _result_attribute(None, "run_status", "failed")(directory)
+        import netCDF4
+
+        with NETCDF, netCDF4.Dataset(directory / "out" / "result.nc", "a") as ds:
+            ds.setncattr("failure", failure)
+
+    return setup
 
 
 def _records(path: Path) -> int:

@@ -191,8 +191,22 @@ DAMAGES = {
     # the attributes a reader reads: a sweep run again read its members' summaries (steps
     # 'many' was a ValueError), --resume the version (missing: an AttributeError, as the
     # front's threshold was for every reader)
-    "steps text": (_global("steps", "many"), "its attribute steps is 'many', not an integer >= 0"),
+    "steps text": (_global("steps", "many"), r"its attribute steps is 'many', not an integer from 0 to 2\^"),
     "version missing": (_global("multilayer_version", None), "its attribute multilayer_version is missing"),
+    # more steps than a run writes (an int32, a float64 from 2^31 to 2^53), a failed run
+    # without its reason or with a number for one ('plot' said "the run failed: 3.5")
+    "steps 2^62": (
+        _global("steps", np.float64(2.0**62)),
+        r"its attribute steps is 4\.6\d*e\+18, not an integer from 0 to 2\^53",
+    ),
+    "failed without failure": (
+        _global("run_status", "failed"),
+        "run_status is 'failed' and its attribute failure \\(why\\) is missing",
+    ),
+    "failure a number": (
+        lambda path: (_global("run_status", "failed")(path), _global("failure", 3.5)(path)),
+        "its attribute failure is 3.5, not text of 1 to 8000 characters",
+    ),
     "threshold missing": (
         _attribute("front", "threshold", None),
         "its variable front's attribute threshold is missing",

@@ -224,3 +224,18 @@ def test_missing_or_broken_result_is_an_input_error(tmp_path: Path) -> None:
     (tmp_path / "result.nc").write_text("not netCDF")
     with pytest.raises(InputError, match="not a netCDF result file"):
         summary(tmp_path)
+
+
+def test_a_failed_run_says_why_and_a_step_count_beyond_int32_is_written_whole(tmp_path: Path) -> None:
+    """A run failed by an exception without a message wrote no ``failure``; a step count
+    beyond 2^31 - 1 was written to the classic file's 32-bit integer as 0 (netCDF4 says
+    nothing): it is a float64 there, exact to 2^53, and ``check_result`` reads it."""
+    sc = scenarios.from_dict(COLUMN)
+    sim = Simulation(sc)
+    writer = ResultWriter(tmp_path / "result.nc", sc, sim)
+    writer.write(sim)
+    writer.close(2**40 + 1, 0.5, "failed")
+    check_result(tmp_path, "records")
+    with netCDF4.Dataset(tmp_path / "result.nc") as ds:
+        assert ds.getncattr("steps") == 2**40 + 1
+        assert ds.getncattr("failure") == "no message (an exception without one)"

@@ -406,9 +406,10 @@ def _indistinct(candidates: list[Candidate], calibration: Calibration, problem: 
     if len(distinct) < 2 or len({c.misfit for c in scored}) > 1:
         return None
     first = scored[0]
+    predictions = [c.predicted for c in scored if c.predicted is not None]
     where = f"{calibration.path}: observations: the misfit of every parameter set whose runs completed"
     count = f"({len(scored)} of {len(candidates)}) is {first.misfit}"
-    if any(not np.array_equal(c.predicted, first.predicted) for c in scored):
+    if any(not np.array_equal(p, predictions[0]) for p in predictions):
         largest = int(np.argmax(problem.sigma))
         return InputError(
             f"{where} {count}, though their predictions differ: the squares of (model - observed) / sigma "

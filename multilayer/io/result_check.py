@@ -49,7 +49,15 @@ from multilayer.engine.initial_state import bed_profile
 from multilayer.engine.mesh import cell_centres
 from multilayer.errors import InputError, reason
 from multilayer.io.netcdf_layout import LayoutError, read_layout
-from multilayer.io.result_format import FORCES, MIXTURE_VARIABLES, NETCDF_LOCK, VARIABLES, result_path
+from multilayer.io.result_format import (
+    FAILURE_LENGTH,
+    FORCES,
+    MIXTURE_VARIABLES,
+    NETCDF_LOCK,
+    STEPS_WRITTEN,
+    VARIABLES,
+    result_path,
+)
 from multilayer.scenario.limits import MAX_OUTPUT_TIMES
 from multilayer.scenario.messages import shown
 from multilayer.scenario.source import safe_load
@@ -130,8 +138,10 @@ slope frame, 0 where it is absent as in a scenario; the momentum balance; the sp
 completed run), and whether they must be there."""
 
 
+STEPS = "an integer from 0 to 2^53 (the step counts a run writes)"
+
 ATTRIBUTES = (
-    ("steps", "an integer >= 0"),
+    ("steps", STEPS),
     ("wall_time_s", "a finite number >= 0"),
     ("multilayer_version", "text"),
     ("multilayer_commit", "text"),
@@ -147,8 +157,9 @@ def _attribute(value: object, kind: str) -> bool:
         return isinstance(value, str)
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
         return False
-    if kind == "an integer >= 0":
-        return isinstance(value, (int, np.integer)) and int(value) >= 0
+    if kind == STEPS:  # an int32, or a float64 beyond it (ResultWriter.close)
+        number = float(value)
+        return math.isfinite(number) and number.is_integer() and 0 <= int(value) <= STEPS_WRITTEN
     number = float(value)
     return math.isfinite(number) and (number >= 0 if ">= 0" in kind else number > 0)
 
@@ -225,7 +236,24 @@ def _status(ds: netCDF4.Dataset, file: Path, bad) -> tuple[str, dict]:
     status = str(ds.getncattr("run_status")) if "run_status" in ds.ncattrs() else ""
     if status not in STATUSES:
         raise bad(f"run_status {status!r} is not one of {', '.join(STATUSES)}")
+    _check_failure(ds, status, bad)
     return status, scenario
+
+
+def _check_failure(ds: netCDF4.Dataset, status: str, bad) -> None:
+    """Raise ``bad(...)`` unless the ``failure`` attribute is what a run writes: text of 1 to
+    :data:`FAILURE_LENGTH` characters, there whenever ``run_status`` is ``failed`` (a run
+    that failed says why, :meth:`~multilayer.io.results.ResultWriter.close`).  A number
+    there was shown by ``plot`` as the reason ("the run failed: 3.5"), and a failed run
+    without one as a failure without a reason."""
+    if "failure" not in ds.ncattrs():
+        if status == "failed":
+            raise bad("run_status is 'failed' and its attribute failure (why) is missing")
+        return
+    value = ds.getncattr("failure")
+    if not (isinstance(value, str) and 0 < len(value) <= FAILURE_LENGTH):
+        plain = value.item() if isinstance(value, np.generic) else value
+        raise bad(f"its attribute failure is {shown(plain)}, not text of 1 to {FAILURE_LENGTH} characters")
 
 
 def finite_number(value: object) -> bool:

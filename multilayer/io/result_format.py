@@ -13,6 +13,15 @@ from xarray.backends.locks import HDF5_LOCK, NETCDFC_LOCK, combine_locks
 
 RESULT_FILE = "result.nc"
 CHECKPOINT_FILE = "checkpoint.npz"
+FAILURE_LENGTH = 8000
+"""Characters of the failure message kept in the ``failure`` attribute (run.log has it all)."""
+STEPS_INT32 = 2**31 - 1
+"""The largest step count written as an integer: the classic netCDF format of a result
+holds 32-bit integers, and netCDF4 writes a larger Python integer there as 0.  A larger
+count is written as a float64, exact up to :data:`STEPS_WRITTEN`."""
+STEPS_WRITTEN = 2**53
+"""The largest step count a result holds: float64 is exact to there (a run of that many
+steps at a microsecond each would take 285 years)."""
 FORMAT: Final = "NETCDF3_64BIT_OFFSET"
 #: netCDF-C is not thread-safe and netCDF4-python releases the GIL in its calls: the runs of a
 #: thread cluster write their result files while the study writes its own through xarray,

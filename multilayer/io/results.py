@@ -47,19 +47,18 @@ from multilayer.io import disk
 from multilayer.io.netcdf_layout import HEADER_SPACE, NUMRECS_OFFSET, LayoutError, read_layout
 from multilayer.io.result_format import (  # noqa: F401 (this module's names, as before)
     CHECKPOINT_FILE,
+    FAILURE_LENGTH,
     FORCES,
     FORMAT,
     MIXTURE_VARIABLES,
     NETCDF_LOCK,
     RESULT_FILE,
+    STEPS_INT32,
     VARIABLES,
     result_path,
 )
 from multilayer.provenance import fipy_version, provenance
 from multilayer.scenario.source import safe_load
-
-FAILURE_LENGTH = 8000
-"""Characters of the failure message kept in the ``failure`` attribute (run.log has it all)."""
 
 
 class WriteFailed(RunError):
@@ -249,11 +248,12 @@ class ResultWriter:
         The attributes take the room kept in the header (no record moves).  After a write
         that failed (a full disk), the file is reopened to record them, its header first
         set back to the records written whole: every record written before stays readable."""
-        attrs: dict[str, Any] = {"steps": int(steps), "wall_time_s": float(wall_time_s), "run_status": status}
+        count = np.int32(steps) if steps <= STEPS_INT32 else np.float64(steps)  # a larger int32 is 0
+        attrs: dict[str, Any] = {"steps": count, "wall_time_s": float(wall_time_s), "run_status": status}
         if scenario is not None and not self._broken:
             attrs["scenario"] = scenario.resolved_yaml()
-        if self.failure:
-            attrs["failure"] = self.failure[:FAILURE_LENGTH]
+        if self.failure or status == "failed":  # a failed run says why, even without a message
+            attrs["failure"] = (self.failure or "no message (an exception without one)")[:FAILURE_LENGTH]
         with NETCDF_LOCK:
             closed = False
             try:
