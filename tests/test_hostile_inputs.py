@@ -3081,3 +3081,19 @@ def test_a_none_assigned_after_loading_where_the_file_accepts_null_is_not_given(
     scenario.bed.profile = None
     scenario.description = None
     assert multilayer.Simulation(scenario).scenario.bed.profile == "flat"
+
+
+def test_state_dict_waits_for_another_threads_step():
+    """``state_dict`` from one thread while another keeps a step took the forces of that
+    step with the time before it: it now takes its turn with ``step``, ``advance`` and
+    ``load_state`` (the lock held here stands for a step under way)."""
+    sim = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
+    got: list[dict] = []
+    with sim._one_at_a_time:
+        reader = threading.Thread(target=lambda: got.append(sim.state_dict()))
+        reader.start()
+        reader.join(0.5)
+        assert reader.is_alive() and not got
+        sim.step()  # the same thread may step while it holds the turn
+    reader.join()
+    assert got[0]["steps"] == 1 and got[0]["t"] == sim.t

@@ -104,6 +104,13 @@ class Simulation(simulation.Simulation):
             "scenario to continue from it"
         )
 
+    def state_dict(self) -> dict:
+        """The engine's :meth:`~multilayer.engine.simulation.Simulation.state_dict`, not
+        during another thread's step: read while a step is kept, it held the forces of the
+        step with the time and state before it, a checkpoint that no run reaches."""
+        with self._one_at_a_time:
+            return super().state_dict()
+
     def load_state(self, saved: dict) -> None:
         """The engine's :meth:`~multilayer.engine.simulation.Simulation.load_state`, not
         during another thread's step; :class:`InputError` for what is no mapping."""
