@@ -5117,7 +5117,9 @@ def round_thirty() -> list[Case]:
     directory this user cannot enter; as controls, an absolute output directory and
     ``plugins`` in a removed working directory, a plugin's float16 and ``np.matrix``
     values, a scenario that is a loop of symbolic links, a merge key of a scalar, stdout
-    through ``head -c 10``, stdin closed and an unwritable ``NUMBA_CACHE_DIR``."""
+    through ``head -c 10``, stdin closed and an unwritable ``NUMBA_CACHE_DIR``; a None
+    assigned to ``gravity`` and ``bed`` after loading, observations of sigma 1e300 m, and
+    a result ``failed`` without its ``failure``, with a number for it, or of 2^62 steps."""
     validate = ["validate", "{scenario}"]
     run = ["run", "{scenario}", "-o", "{dir}/out"]
     load = "import numpy as np\nyaml = __import__('yaml')\ndata = yaml.safe_load(open(sys.argv[2]))\n"
