@@ -325,18 +325,23 @@ def survey(h, u, dry, g_n, moving, rest, velocities, surveyed):
             moving[i] = False
             for a in range(L):
                 rest[a, i] = False
-    fastest = np.zeros(N)
-    for i in range(lo, hi):
-        moving[i] = False
+    # the rows of the columns lo .. hi-1 as slices indexed from 0: an index such as lo + k
+    # could be negative to the compiler, each would wrap around and the loops would not
+    # vectorise (five times the instructions)
+    n = hi - lo
+    fastest, thickness, surveyed_moving = np.zeros(n), h[lo:hi], moving[lo:hi]
+    for k in range(n):
+        surveyed_moving[k] = False
     for a in range(L):
-        for i in range(lo, hi):
-            v = u[a, i]
-            moving[i] = moving[i] or v != 0.0
-            rest[a, i] = v == 0.0 and h[i] > dry
-            fastest[i] = max(fastest[i], abs(v))
+        row, row_rest = u[a, lo:hi], rest[a, lo:hi]
+        for k in range(n):
+            v = row[k]
+            surveyed_moving[k] = surveyed_moving[k] or v != 0.0
+            row_rest[k] = v == 0.0 and thickness[k] > dry
+            fastest[k] = max(fastest[k], abs(v))
     best = 0.0
-    for i in range(lo, hi):
-        best = max(best, fastest[i] + np.sqrt(g_n * max(h[i], 0.0)))
+    for k in range(n):
+        best = max(best, fastest[k] + np.sqrt(g_n * max(thickness[k], 0.0)))
     first, last = span(moving[lo:hi])
     return best, (lo, hi), (lo + first, lo + last) if last > first else (0, 0)
 
