@@ -154,7 +154,7 @@ def _copy(free, thickness, bed, row_of, free_to, thickness_to, bed_to, row_of_to
     row_of_to[: row_of.size] = row_of
 
 
-@jit
+@jit(borrowing=True)
 def _reused(
     free, row_of, thickness, bed, left, right, shift, built_free, built_row_of, built_thickness, built_bed,
     built_faces, table, origin, fresh, same,
@@ -168,7 +168,8 @@ def _reused(
     ``i + shift`` is column ``i`` here); its arrays are those of :meth:`Buffers.keep`, its
     free unknowns numbered as in :func:`entries` with ``built_faces`` faces; ``same`` (at
     least as long as the window) holds the columns whose thickness, bed and rows are the
-    stored ones.  One loop over the unknowns, the face or column of each counted along."""
+    stored ones.  Compiled without reference counting (``borrowing``): its loops call
+    :func:`_mark` once per unknown."""
     W, F = thickness.size, left.size
     L, Lp, built_W = free.size // (F + W), row_of.size // W, built_thickness.size
     # same[i]: whether the entries of column i's unknowns are the stored ones
@@ -185,22 +186,31 @@ def _reused(
             row, i = built_row_of[g * built_W + j], j - shift
             if row >= 0:
                 table[row] = row_of[g * W + i] if 0 <= i < W else -1
-    count = c = f = a = i = 0  # unknown k: the face f of layer c (k < L F), else column i of layer a
-    for k in range(free.size):
-        if k < L * F:
-            old, kept = (
-                c * built_faces + f + shift,
-                0 <= f + shift < built_faces and same[left[f]] and same[right[f]],
+    count = 0
+    for c in range(L):  # the faces' unknowns, then the columns' (numbered as in entries)
+        for f in range(F):
+            old = f + shift
+            kept = 0 <= old < built_faces and same[left[f]] and same[right[f]]
+            count += _mark(c * F + f, c * built_faces + old, kept, free, built_free, origin, fresh)
+    for a in range(L):
+        for i in range(W):
+            j = i + shift
+            kept = 0 <= j < built_W and same[i]
+            count += _mark(
+                L * F + a * W + i, L * built_faces + a * built_W + j, kept, free, built_free, origin, fresh
             )
-            c, f = (c, f + 1) if f + 1 < F else (c + 1, 0)
-        else:
-            old, kept = L * built_faces + a * built_W + i + shift, 0 <= i + shift < built_W and same[i]
-            a, i = (a, i + 1) if i + 1 < W else (a + 1, 0)
-        kept = kept and free[k] and built_free[old]
-        origin[k] = old if kept else -1
-        fresh[k] = free[k] and not kept
-        count += fresh[k]
     return count
+
+
+@jit(borrowing=True)
+def _mark(k, old, kept, free, built_free, origin, fresh):
+    """``origin[k] = old`` and ``fresh[k]`` False if the free unknown ``k`` is the stored one
+    ``old`` (``kept``: its columns are the same, and ``old`` was free), else ``origin[k] =
+    -1`` and ``fresh[k]`` whether ``k`` is free; returns whether ``k`` is fresh (:func:`_reused`)."""
+    kept = kept and free[k] and built_free[old]
+    origin[k] = old if kept else -1
+    fresh[k] = free[k] and not kept
+    return fresh[k]
 
 
 @jit(borrowing=True)
