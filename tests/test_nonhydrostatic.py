@@ -524,6 +524,27 @@ def test_the_simulation_projection_reuses_its_arrays_without_carrying_anything_o
         q_before, h_before, u_before = expected[2], h_now, expected[0]
 
 
+def _projected_as_project(
+    projection: nonhydrostatic.Projection, h: np.ndarray, u: np.ndarray, start: tuple, dt: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The answer of ``projection`` (a simulation's, its arrays reused) on ``h``, ``u`` from
+    ``start`` (h, u, w, q), asserted to be that of ``project`` (new arrays) bit for bit,
+    which it returns."""
+    h_before, u_before, w_before, q_before = start
+    got = [a.copy() for a in projection(h, u, start, dt, (0, h.size))]
+    w_star = np.zeros_like(w_before)
+    nonhydrostatic._advect(w_before, u, projection.dx, dt, projection.periodic, 0, h.size, w_star)
+    guess = nonhydrostatic.tension_free(q_before, h_before, projection.fractions, projection.g_n)
+    expected = nonhydrostatic.project(
+        h, u, w_star, projection.bed, projection.fractions, dx=projection.dx, dt=dt,
+        periodic=projection.periodic, g_n=projection.g_n, tension_free=guess,
+        pressure_layers=projection.pressure_layers, start=(h_before, u_before, w_before),
+    )  # fmt: skip
+    for a, b in zip(got, expected):
+        np.testing.assert_array_equal(a, b)
+    return expected
+
+
 @pytest.mark.parametrize("pressure_layers", [3, 6])
 def test_the_start_constraint_reused_from_the_last_projection_is_the_assembled_one(
     pressure_layers, monkeypatch
@@ -559,7 +580,7 @@ def test_the_start_constraint_reused_from_the_last_projection_is_the_assembled_o
         fractions, bed, dx=dx, periodic=False, dry=0.0, g_n=g_n, pressure_layers=pressure_layers
     )
     taken = []  # whether the projection's arrays held the start's constraint, call by call
-    assembled_on = nonhydrostatic._Buffers.assembled_on
+    assembled_on = nonhydrostatic.Buffers.assembled_on
 
     def spied(buffers, *args):
         held = assembled_on(buffers, *args)
@@ -567,28 +588,60 @@ def test_the_start_constraint_reused_from_the_last_projection_is_the_assembled_o
             taken.append(held)
         return held
 
-    monkeypatch.setattr(nonhydrostatic._Buffers, "assembled_on", spied)
+    monkeypatch.setattr(nonhydrostatic.Buffers, "assembled_on", spied)
     q_before, h_before, u_before, w_before = np.zeros_like(u), 1.1 * h, 0.9 * u, w
     for lo, hi, change in ((0, 16, 1.0), (0, 16, 1.01), (0, 16, 0.99), (2, 16, 1.0), (2, 16, 1.02)):
         h_now, u_now = change * h, change * u
         h_now[:lo] = h_now[hi:] = 0.0  # material in lo .. hi-1 only
         u_now[:, :lo] = u_now[:, hi:] = 0.0
-        got = [
-            a.copy() for a in projection(h_now, u_now, (h_before, u_before, w_before, q_before), dt, (0, 16))
-        ]
-        w_star = np.zeros_like(w)
-        nonhydrostatic._advect(w_before, u_now, dx, dt, False, 0, 16, w_star)
-        guess = nonhydrostatic.tension_free(q_before, h_before, fractions, g_n)
-        expected = nonhydrostatic.project(
-            h_now, u_now, w_star, bed, fractions, dx=dx, dt=dt, g_n=g_n, tension_free=guess,
-            pressure_layers=pressure_layers, start=(h_before, u_before, w_before),
-        )  # fmt: skip
-        for a, b in zip(got, expected):
-            np.testing.assert_array_equal(a, b)
+        expected = _projected_as_project(
+            projection, h_now, u_now, (h_before, u_before, w_before, q_before), dt
+        )
         assert np.any(expected[2] != 0.0)
         h_before, (u_before, w_before, q_before) = h_now, expected
     # the first start is on another thickness; then reused, reused, a new window, reused
     assert taken == [False, True, True, False, True]
+
+
+@pytest.mark.parametrize("periodic", [False, True])
+@pytest.mark.parametrize("pressure_layers", [3, 6])
+def test_the_start_constraint_carried_over_to_another_window_is_the_assembled_one(
+    periodic, pressure_layers, monkeypatch
+):
+    """``E^n V^n`` of a step's start where the window of moving columns moved or cells
+    stopped since the last projection: the stored entries of the unknowns whose columns
+    kept their thickness, bed and pressure rows, the others' assembled afresh, added up
+    unknown by unknown, equal the whole assembly bit for bit (``Projection`` answers as
+    ``project``, new arrays), with some unknowns of each kind."""
+    h, u, w, bed, fractions = random_state(14, layers=6, cells=16)
+    g_n, dt, dx = 9.81, 0.01, 0.1
+    projection = nonhydrostatic.Projection(
+        fractions, bed, dx=dx, periodic=periodic, dry=0.0, g_n=g_n, pressure_layers=pressure_layers
+    )
+    carried = []  # (carried over, fresh unknowns, free unknowns), call by call
+    carried_over = nonhydrostatic.Buffers.carried_over
+
+    def spied(buffers, key, geometry, free, *args):
+        held = carried_over(buffers, key, geometry, free, *args)
+        if buffers is projection._buffers:
+            carried.append((held, int(buffers.fresh[: free.size].sum()) if held else 0, int(free.sum())))
+        return held
+
+    monkeypatch.setattr(nonhydrostatic.Buffers, "carried_over", spied)
+    q_before, h_before, u_before, w_before = np.zeros_like(u), 1.1 * h, 0.9 * u, w
+    # the same window with cells stopped; the window's ends moved (not periodic: a new window)
+    for lo, hi, stopped in ((0, 16, None), (0, 16, 10), (2, 16, 5), (2, 13, None), (1, 13, 8)):
+        h_now, u_now = h.copy(), u.copy()
+        h_now[:lo] = h_now[hi:] = 0.0  # material in lo .. hi-1 only
+        u_now[:, :lo] = u_now[:, hi:] = 0.0
+        if stopped is not None:
+            u_now[:3, stopped] = 0.0  # the lower layers of a column stop: its bottom rows leave
+        expected = _projected_as_project(
+            projection, h_now, u_now, (h_before, u_before, w_before, q_before), dt
+        )
+        h_before, (u_before, w_before, q_before) = h_now, expected
+    # carried over (not periodic: also to another window) with unknowns reused and assembled
+    assert sum(held and 0 < fresh < free for held, fresh, free in carried) >= (2 if periodic else 3)
 
 
 def test_cholesky_refactored_from_a_row_equals_the_whole_factorisation():

@@ -172,14 +172,15 @@ def entries(
     ``a`` goes to the pressure rows ``g`` with ``P_a,g != 0``, times ``P_a,g`` (the
     identity: ``E`` itself).  Written into ``pointer``, ``cells`` (the rows), ``values``
     (at least :func:`capacity` long) and ``mass`` (``M``, of every unknown).  With a
-    ``band`` of rows (not empty), the terms of each free unknown are added, as it is
-    stored, to ``A = E M^-1 E^T`` (band storage ``band[i, d] = A_i,i+d``, of a half-width
-    large enough) and to ``r = E V*`` (module Notes), except that the terms of the faces
-    and columns whose L unknowns are all free (:func:`_whole`), with ``L_p < L``, are
-    added from sums over the layers (module Notes; :func:`_layer_sums`, :func:`_add_sums`:
-    the same ``A`` to round-off); with an empty band and an ``r`` of the rows, to ``r``
-    only.  Returns the number of entries and the half-width of ``A`` (the largest spread
-    of the rows of an unknown)."""
+    ``band`` of rows (not empty), the terms of each free unknown are added, unknown by
+    unknown once all are stored, to ``A = E M^-1 E^T`` (band storage ``band[i, d] =
+    A_i,i+d``, of a half-width large enough) and to ``r = E V*`` (module Notes), except
+    that the terms of the faces and columns whose L unknowns are all free (:func:`_whole`),
+    with ``L_p < L``, are added from sums over the layers (module Notes;
+    :func:`_layer_sums`, :func:`_add_sums`: the same ``A`` to round-off); with an empty
+    band and an ``r`` of the rows, to ``r`` only (an empty ``r``: nothing added up).
+    Returns the number of entries and the half-width of ``A`` (the largest spread of the
+    rows of an unknown)."""
     L, N, F = fractions.size, h.size, left.size
     Lp = P.shape[1]
     targets = np.zeros(L, np.int64)  # the pressure rows of each row of E: first, count
@@ -217,53 +218,58 @@ def entries(
     # of negative indices, a third of the instructions of these loops
     flat, stride = band.reshape(band.size), np.uint64(band.shape[1])  # band[i, d] = flat[i * stride + d]
     unsigned_N = np.uint64(N)
-    c = f = a = column = 0  # the unknown k: the face f of layer c (k < L F), else wbar_a of a column
-    for k in range(L * F + L * N):
-        pointer[k] = n
-        if k < L * F:
-            summed = whole_face.size > 0 and whole_face[f]
+    # first the entries of every unknown, the faces' then the columns' (k = c F + f, then
+    # L F + a N + i), then their terms of A and r unknown by unknown: the same sums, in the
+    # same order, as adding each unknown's terms as it is stored, in three short loops where
+    # numba keeps the values of each in registers (one loop of all was a third longer)
+    for c in range(L):
+        for f in range(F):
+            k = c * F + f
+            pointer[k] = n
             i, e = np.uint64(left[f]), np.uint64(right[f])
             h_face = fractions[c] * 0.5 * (h[i] + h[e])
             mass[k] = h_face
-            if free[k]:
-                # every entry of a face unknown is in a cell of its own (i != e)
-                if Lp < L:
-                    s0 = ((bed[e] + sigma[c] * h[e]) - (bed[i] + sigma[c] * h[i])) / dx
-                    s1 = ((bed[e] + sigma[c + 1] * h[e]) - (bed[i] + sigma[c + 1] * h[i])) / dx
-                    ratio = h_face / dx
-                    layer = np.uint64(c)
-                    for g in range(np.uint64(lowest[c]), np.uint64(highest[c] + 1)):
-                        a0, a1, fc = slopes[0, layer, g], slopes[1, layer, g], flux[layer, g]
-                        sloped = s0 * a0 + s1 * a1
-                        n = _store(cells, values, n, row_of[g * unsigned_N + i], ratio * fc + sloped)
-                        n = _store(cells, values, n, row_of[g * unsigned_N + e], sloped - ratio * fc)
-                else:
-                    touched = np.int64(0)  # the rows of E this unknown enters, in the order they first come
-                    for row in range(c, min(c + 2, L)):
-                        flux_left, flux_right = 0.5 * h_face / dx, -0.5 * h_face / dx
-                        touched = _accumulate(seen, at_left, at_right, touched, row, flux_left, flux_right)
-                    for j in (c, c + 1):
-                        if beta[j, c] == 0.0:
-                            continue
-                        slope = ((bed[e] + sigma[j] * h[e]) - (bed[i] + sigma[j] * h[i])) / dx
-                        for m in range(_slope_rows(j, L, rows, weights)):
-                            value = weights[m] * 0.5 * beta[j, c] * slope
-                            touched = _accumulate(seen, at_left, at_right, touched, rows[m], value, value)
-                    for t in range(touched):
-                        n = _store(cells, values, n, row_of[seen[t] * N + i], at_left[t])
-                        n = _store(cells, values, n, row_of[seen[t] * N + e], at_right[t])
-            f += 1
-            if f == F:
-                c, f = c + 1, 0
-        else:
-            summed = whole_column.size > 0 and whole_column[column]
+            if not free[k]:
+                continue
+            # every entry of a face unknown is in a cell of its own (i != e)
+            if Lp < L:
+                s0 = ((bed[e] + sigma[c] * h[e]) - (bed[i] + sigma[c] * h[i])) / dx
+                s1 = ((bed[e] + sigma[c + 1] * h[e]) - (bed[i] + sigma[c + 1] * h[i])) / dx
+                ratio = h_face / dx
+                layer = np.uint64(c)
+                for g in range(np.uint64(lowest[c]), np.uint64(highest[c] + 1)):
+                    a0, a1, fc = slopes[0, layer, g], slopes[1, layer, g], flux[layer, g]
+                    sloped = s0 * a0 + s1 * a1
+                    n = _store(cells, values, n, row_of[g * unsigned_N + i], ratio * fc + sloped)
+                    n = _store(cells, values, n, row_of[g * unsigned_N + e], sloped - ratio * fc)
+            else:
+                touched = np.int64(0)  # the rows of E this unknown enters, in the order they first come
+                for row in range(c, min(c + 2, L)):
+                    flux_left, flux_right = 0.5 * h_face / dx, -0.5 * h_face / dx
+                    touched = _accumulate(seen, at_left, at_right, touched, row, flux_left, flux_right)
+                for j in (c, c + 1):
+                    if beta[j, c] == 0.0:
+                        continue
+                    slope = ((bed[e] + sigma[j] * h[e]) - (bed[i] + sigma[j] * h[i])) / dx
+                    for m in range(_slope_rows(j, L, rows, weights)):
+                        value = weights[m] * 0.5 * beta[j, c] * slope
+                        touched = _accumulate(seen, at_left, at_right, touched, rows[m], value, value)
+                for t in range(touched):
+                    n = _store(cells, values, n, row_of[seen[t] * N + i], at_left[t])
+                    n = _store(cells, values, n, row_of[seen[t] * N + e], at_right[t])
+    for a in range(L):
+        for column in range(N):
+            k = L * F + a * N + column
+            pointer[k] = n
             i = np.uint64(column)
             mass[k] = fractions[a] * h[i]
-            if free[k] and base[i] >= 0:  # all rows of the column: the entries of the template
+            if not free[k]:
+                continue
+            if base[i] >= 0:  # all rows of the column: the entries of the template
                 for t in range(np.uint64(count[a])):
                     cells[np.uint64(n)], values[np.uint64(n)] = base[i] + template[a, t], weight[a, t]
                     n += 1
-            elif free[k]:
+            else:
                 for g in range(first[a], first[a] + targets[a]):
                     n = _store(cells, values, n, row_of[np.uint64(g) * unsigned_N + i], P[a, g])
                 if a + 1 < L:
@@ -277,30 +283,39 @@ def entries(
                                 break
                         else:
                             n = _store(cells, values, n, row, -P[a + 1, g])
-            column += 1
-            if column == N:
-                a, column = a + 1, 0
-        if band.shape[0] > 0 and free[k] and not summed:
+    pointer[L * F + L * N] = n
+    banded = band.shape[0] > 0
+    f = column = 0  # the face or column of the unknown k
+    for k in range(L * F + L * N):
+        if k < L * F:
+            summed = whole_face.size > 0 and whole_face[f]
+            f = f + 1 if f + 1 < F else 0
+        else:
+            summed = whole_column.size > 0 and whole_column[column]
+            column = column + 1 if column + 1 < N else 0
+        if not free[k]:
+            continue
+        begin, end = np.uint64(pointer[k]), np.uint64(pointer[k + 1])
+        if banded and not summed:
             # the terms of unknown k, each pair of its (distinct) rows once
             inverse, lo, hi = 1.0 / mass[k], band.shape[0], -1
             v = v_star[k]
-            for p in range(np.uint64(pointer[k]), np.uint64(n)):
+            for p in range(begin, end):
                 row, value = np.uint64(cells[p]), values[p]
                 lo, hi = min(lo, np.int64(row)), max(hi, np.int64(row))
                 r[row] += value * v
                 scaled = value * inverse
                 at = row * stride
                 flat[at] += scaled * value
-                for q in range(p + np.uint64(1), np.uint64(n)):
+                for q in range(p + np.uint64(1), end):
                     other = np.uint64(cells[q])
                     if other > row:
                         flat[at + (other - row)] += scaled * values[q]
                     else:
                         flat[other * stride + (row - other)] += (values[q] * inverse) * value
             width = max(width, hi - lo)
-        elif r.size > 0 and free[k]:  # r = E V* only (or its terms of A are summed)
-            _add_column(cells, values, pointer[k], n, v_star[k], r)
-    pointer[L * F + L * N] = n
+        elif r.size > 0:  # r = E V* only (or its terms of A are summed)
+            _add_column(cells, values, begin, end, v_star[k], r)
     if whole_face.size + whole_column.size > 0:  # (no faces in a single column)
         sums = _layer_sums(flux, slopes, lowest, highest, sigma, fractions, P, first, targets)
         width = max(width, _add_sums(h, bed, dx, left, right, whole_face, whole_column, base, *sums, band))

@@ -90,12 +90,12 @@ import numpy as np
 
 from multilayer.engine.compiled import jit
 from multilayer.engine.pressure.non_hydrostatic.banded import multipliers
+from multilayer.engine.pressure.non_hydrostatic.buffers import NO_BAND as _NO_BAND
+from multilayer.engine.pressure.non_hydrostatic.buffers import Buffers
 from multilayer.engine.pressure.non_hydrostatic.constraint import (
     Constraint,
-    capacity,
     correct,
     entries,
-    faces,
     layering,
     normal_equations,
     product,
@@ -150,77 +150,6 @@ def correction(
     dV = np.empty(K)
     correct(*arrays, free, lam, dV)
     return V_star, dV, free
-
-
-class _Buffers:
-    """The work arrays of :func:`project_columns` for ``L`` layers, ``N`` columns and ``Lp``
-    pressure layers."""
-
-    def __init__(self, L: int, N: int, Lp: int):
-        K = 2 * L * N  # the unknowns: at most N faces and N cells per layer
-        self.free, self.V_star, self.dV, self.mass = (
-            np.empty(K, np.bool_),
-            np.empty(K),
-            np.empty(K),
-            np.empty(K),
-        )
-        self.pointer = np.empty(K + 1, np.int64)
-        self.cells, self.values = np.empty(capacity(L, N, N, Lp), np.int64), np.empty(capacity(L, N, N, Lp))
-        self.row_of, self.rows = np.empty(Lp * N, np.int64), np.empty(Lp * N, np.int64)
-        # a band of half-width below 2 Lp (the rows of two columns; wider: periodic ends, a new one)
-        self.band = np.empty(Lp * N * 2 * Lp)
-        self.du = np.empty(L * N)
-        self.V_start, self.dQ = np.empty(K), np.empty(K)
-        # the window's thickness now and at the step's start, face masses, bound and active set
-        self.thickness, self.before = np.empty(N), np.empty(N)
-        self.face_mass, self.lam_max = np.empty(L * N), np.empty(Lp * N)
-        self.active, self.guess = np.empty(Lp * N, np.bool_), np.empty(Lp * N, np.bool_)
-        self.carried, self.violation = np.empty(Lp * N), np.empty(Lp * N)
-        self.faces = (np.arange(N - 1), np.arange(1, N))  # a window's: their start (periodic: all)
-        self.periodic_faces = faces(N, True)
-        self.fractions: np.ndarray | None = None  # those of the depth factors
-        # the fractions and pressure layers of the nodes and interpolation (:func:`layering`)
-        self.layering: tuple = (None, 0, None)
-        self.factors = np.empty(L)
-        # what the constraint in pointer .. mass was assembled on (:meth:`assembled_on`)
-        self.built: tuple | None = None
-        self.built_free, self.built_thickness = np.empty(K, np.bool_), np.empty(N)
-        self.built_bed = np.empty(N)
-
-    def keep(self, key: tuple, free: np.ndarray, thickness: np.ndarray, bed: np.ndarray) -> None:
-        """Record that the constraint in the arrays was assembled for ``key`` (the window,
-        ``dx``, ``periodic``, ``P``) on the free unknowns ``free`` and the thickness and bed
-        of the window."""
-        _copy(free, thickness, bed, self.built_free, self.built_thickness, self.built_bed)
-        self.built = key
-
-    def assembled_on(self, key: tuple, free: np.ndarray, thickness: np.ndarray, bed: np.ndarray) -> bool:
-        """Whether the constraint in the arrays is the one of ``key``, ``free``, ``thickness``
-        and ``bed`` (bit for bit: its entries are a function of these only)."""
-        if self.built is None or self.built[:4] != key[:4] or self.built[4] is not key[4]:
-            return False
-        return _same(free, thickness, bed, self.built_free, self.built_thickness, self.built_bed)
-
-
-@jit
-def _copy(free, thickness, bed, free_to, thickness_to, bed_to):
-    """``free``, ``thickness`` and ``bed`` into the start of the others."""
-    free_to[: free.size] = free
-    thickness_to[: thickness.size] = thickness
-    bed_to[: bed.size] = bed
-
-
-@jit
-def _same(free, thickness, bed, built_free, built_thickness, built_bed):
-    """Whether ``free``, ``thickness`` and ``bed`` equal the start of the others bit for bit
-    (a signed zero and a NaN too)."""
-    for k in range(free.size):
-        if free[k] != built_free[k]:
-            return False
-    W = thickness.size
-    return np.array_equal(thickness.view(np.int64), built_thickness[:W].view(np.int64)) and np.array_equal(
-        bed.view(np.int64), built_bed[:W].view(np.int64)
-    )
 
 
 def project(
@@ -278,7 +207,7 @@ def project_columns(
     tension_free: np.ndarray | None = None,
     pressure_layers: int | None = None,
     start: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-    buffers: _Buffers | None = None,
+    buffers: Buffers | None = None,
 ) -> tuple[int, int, bool]:
     """:func:`project` into ``out`` (u, w, q; L, N), written in the columns ``lo .. hi-1``
     it returns with whether every ``w`` and ``q`` written is finite; those columns are the
@@ -288,7 +217,7 @@ def project_columns(
     ``buffers``: the work arrays of the shape of ``u`` and these pressure layers (reused
     from call to call: a new array touched afresh costs a page fault per 4 KiB); they keep
     the constraint of the call, which gives ``E^n V^n`` in the next call where the start is
-    on the same thickness, window and free unknowns (:meth:`_Buffers.assembled_on`)."""
+    on the same thickness, window and free unknowns (:meth:`Buffers.assembled_on`)."""
     L, N = u.shape
     first, last = _moving_columns(u, h, dry)
     if last < 0:
@@ -303,7 +232,7 @@ def project_columns(
         nodes, P = layering(tuple(fractions), layers)
         # the constraint of the free unknowns in the rows taking part only (``correction`` on
         # ``constraint``, without the rest), in arrays reused from call to call
-        buffers = _Buffers(L, N, nodes.size) if buffers is None else buffers
+        buffers = Buffers(L, N, nodes.size) if buffers is None else buffers
         buffers.layering = (fractions, layers, (nodes, P))
     W = hi - lo
     left, right = (
@@ -346,12 +275,12 @@ def project_columns(
             # the last projection's constraint is the start's (it ended on the thickness this
             # step starts from): its stored entries, added up in the order entries adds them
             product(*arrays[:3], free, V0, carried)
-        else:
+        elif not buffers.carried_over(key, (before, *geometry[1:]), free, row_of, V0, carried):
             buffers.built = None  # the arrays are written over
             entries(before, *geometry[1:], free, row_of, *arrays, V0, _NO_BAND, carried)
     buffers.built = None
     band, r = normal_equations(*geometry, free, row_of, n, V_star, buffers.band, arrays)
-    buffers.keep(key, free, thickness, geometry[1])
+    buffers.keep(key, free, thickness, geometry[1], row_of, n, left.size)
     lam, factored = multipliers(band, r, buffers.rows[:n], lam_max, active)
     correct(*arrays, free, lam, dV)
     dQ = dV
@@ -366,9 +295,6 @@ def project_columns(
     finite = _finish(dV, dQ, u, w, h, fractions, moving, left, right, dt, lo, buffers.du, *out)
     return lo, hi, finite
 
-
-_NO_BAND = np.empty((0, 1))
-"""The ``band`` of :func:`entries` adding up ``r = E V`` only."""
 
 _NO_BOUND, _NO_CELLS = np.empty((0, 0)), np.empty((0, 0), np.bool_)
 """No bound ``lam_max`` and no active set or guess of it, for :func:`_window`."""
@@ -614,7 +540,7 @@ class Projection:
         shape = (fractions.size, bed.size)
         self.u, self.w, self.q = np.zeros(shape), np.zeros(shape), np.zeros(shape)
         self._w_star = np.zeros(shape)  # read at the moving cells only
-        self._buffers = _Buffers(*shape, layering(tuple(fractions), pressure_layers or shape[0])[0].size)
+        self._buffers = Buffers(*shape, layering(tuple(fractions), pressure_layers or shape[0])[0].size)
         self._gravity = np.full(shape, max(g_n, 0.0))
         self._factors = depth_factors(fractions)
         self._tension_free = np.zeros(shape, np.bool_)  # the guess of the active set (tension_free)
