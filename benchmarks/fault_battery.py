@@ -5320,7 +5320,8 @@ def round_thirty_one() -> list[Case]:
              patch=_api(loaded + "sc.slope_deg = 25\n"
                         "assert multilayer.Simulation(sc).scenario.slope_deg == 25.0")),
         Case("validate: a law's parameter key true", validate, 2, f"rheology (line 18): key True {not_text}",
-             setup=partial(_scenario, changes={"rheology": {**TINY["rheology"], True: 2}})),
+             setup=partial(_scenario, changes={"rheology": {"name": "drucker_prager", "mu_s": 0.3, "nu": 0.01,
+                                                          True: 2}})),
         Case("run: --set rheology={..., null: 2}",
              [*run, "--set", "rheology={{name: drucker_prager, mu_s: 0.3, nu: 0.01, null: 2}}"], 2,
              f"rheology (from --set): key None {not_text}", setup=_scenario),

@@ -1336,11 +1336,10 @@ def _changed(model: BaseModel, validated: Any, path: tuple[str | int, ...]) -> l
             if flat or (value is None and info.get_default(call_default_factory=True) is not None):
                 found.append((*path, name))
             continue
-        items = list(enumerate(value)) if isinstance(value, list) and isinstance(old, list) else None
         if isinstance(value, BaseModel) and isinstance(old, dict):
             found += _changed(value, old, (*path, name))
-        elif items is not None and len(value) == len(old):
-            for index, item in items:
+        elif isinstance(value, list) and isinstance(old, list) and len(value) == len(old):
+            for index, item in enumerate(value):
                 if isinstance(item, BaseModel) and isinstance(old[index], dict):
                     found += _changed(item, old[index], (*path, name, index))
                 elif not _same(old[index], item):
