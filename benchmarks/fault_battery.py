@@ -5272,7 +5272,8 @@ def round_thirty_one() -> list[Case]:
     doubles, integers past the floats, a law without parameters); keys of a law's
     parameters and of a calibration's ``set`` that YAML reads as no text; messages of the
     commands and of the library where stderr is closed or absent; a failed expectation
-    whose values print alike; as controls, numpy numbers assigned, one layer, two cells, a
+    whose values print alike, an observation time past ``time.end`` by 1e-10 s (its
+    message); as controls, numpy numbers assigned, one layer, two cells, a
     slope of 89.9 degrees, an output interval beyond the end, an end one rounding past an
     output time, a scenario of CRLF lines after a byte order mark, a calibration of one
     observation and a run in a forked child."""
@@ -5351,6 +5352,10 @@ def round_thirty_one() -> list[Case]:
              setup=partial(_scenario, changes={"time": {"end": 0.1 * 3, "output_interval": 0.1}})),
         Case("run: a scenario of CRLF lines after a UTF-8 byte order mark", run, 0, "",
              setup=partial(_scenario, text=bom_crlf)),
+        Case("validate: a calibration observed 1e-10 s after time.end",
+             ["validate", "{dir}/calibration.yaml"], 2,
+             "t = 0.2000000001 to 0.2000000001 s, outside the runs, which end at time.end = 0.2 s",
+             setup=_calibration("0.2000000001,0.12,0.01\n")),
         Case("validate: a calibration of one observation", ["validate", "{dir}/calibration.yaml"], 0, "",
              setup=_calibration("0.1,0.12,0.01\n")),
         Case("API: multilayer.run in a child forked after the parent ran", validate, 0, "", setup=_scenario,
