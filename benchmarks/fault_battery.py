@@ -3722,6 +3722,7 @@ def cases() -> list[Case]:
         + round_twenty_eight()
         + round_twenty_nine()
         + round_thirty()
+        + round_thirty_one()
     )
 
 
@@ -5229,6 +5230,140 @@ def round_thirty() -> list[Case]:
     return out
 
 
+QUIET_STDOUT = [
+    "sh", "-c",
+    'out=$("$@" 2>&-); code=$?; '
+    '[ -z "$out" ] || { printf "on stdout: %s\\n" "$out" >&2; exit 99; }; exit $code',
+    "sh",
+]  # fmt: skip
+"""A prefix running the child with stderr closed (``2>&-``) that fails it (exit 99, the
+text on the battery's stderr) when anything is written on its stdout."""
+
+HOST_WITHOUT_STDERR = """
+import contextlib, io
+sys.stderr, written = None, io.StringIO()
+with contextlib.redirect_stdout(written):
+    multilayer.run(sys.argv[2], overrides={'numerics.front_threshold': 1.0}, quiet=False)
+sys.stderr = sys.__stderr__
+if written.getvalue():
+    print('on the host stdout: ' + written.getvalue(), file=sys.stderr)
+    sys.exit(99)
+"""
+"""A host process without stderr (pythonw) running a scenario that warns: its stdout,
+the host's own, must hold nothing of multilayer's."""
+
+FORKED = """
+import multiprocessing
+multilayer.run(sys.argv[2])
+child = multiprocessing.get_context('fork').Process(target=lambda: multilayer.run(sys.argv[2]))
+child.start()
+child.join(100)
+if child.exitcode != 0:
+    print(f'the forked run exited {child.exitcode}', file=sys.stderr)
+    sys.exit(3)
+"""
+"""``multilayer.run`` in a child forked after the parent ran (its kernels compiled)."""
+
+
+def round_thirty_one() -> list[Case]:
+    """The hostile cases of the thirty-first round (docs/reliability.md): values of another
+    type assigned to a scenario after loading (booleans where numbers are, which pydantic
+    wrote as 1; floats equal to the validated integer; numpy numbers and arrays, long
+    doubles, integers past the floats, a law without parameters); keys of a law's
+    parameters and of a calibration's ``set`` that YAML reads as no text; messages of the
+    commands and of the library where stderr is closed or absent; a failed expectation
+    whose values print alike, an observation time past ``time.end`` by 1e-10 s (its
+    message); as controls, numpy numbers assigned, one layer, two cells, a
+    slope of 89.9 degrees, an output interval beyond the end, an end one rounding past an
+    output time, a scenario of CRLF lines after a byte order mark, a calibration of one
+    observation and a run in a forked child."""
+    validate = ["validate", "{scenario}"]
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    loaded = "sc = multilayer.load(sys.argv[2])\n"
+    number, integer = "Input should be a valid number", "Input should be a valid integer"
+    assigned = "assigned since the scenario was validated, a value the scenario cannot hold"
+    not_text = "is not text; accepted: name and the parameters of the law, as text"
+    bom_crlf = "\ufeff" + yaml.safe_dump(TINY).replace("\n", "\r\n")
+    api = [  # (assignment, built by, phrase)
+        ("sc.slope_deg = True", "Simulation", f"slope_deg: {number} (got True)"),
+        ("sc.time.end = True", "run", f"time.end: {number} (got True)"),
+        ("sc.domain.cells = True", "Simulation", f"domain.cells: {integer} (got True)"),
+        ("sc.initial[0].height = True", "run", f"initial.0.height: {number} (got True)"),
+        ("sc.material.density = np.True_", "Simulation", f"material.density: {number} (got True)"),
+        (
+            "sc.rheology.params['nu'] = np.True_",
+            "Simulation",
+            f"rheology.nu: drucker_prager: {number} (got True)",
+        ),
+        ("sc.domain.cells = 40.0", "Simulation", f"domain.cells: {integer} (got 40.0)"),
+        ("sc.domain.x_max = np.array([0.75])", "Simulation", f"domain.x_max: {number} (got [0.75])"),
+        (
+            "sc.domain.x_max = np.longdouble('1e400')",
+            "run",
+            f"domain.x_max: {number} (got \"np.longdouble('1e+400')\")",
+        ),
+        ("sc.domain.x_max = 10**400", "Simulation", f"domain.x_max: {assigned} (OverflowError"),
+        ("sc.rheology.params = None", "run", f"rheology.params: {assigned}"),
+    ]
+    out = [
+        Case(f"API: {assign} after loading, multilayer.{call}", validate, 2, phrase, setup=_scenario,
+             patch=_api(loaded + f"import numpy as np\n{assign}\nmultilayer.{call}(sc)"))
+        for assign, call, phrase in api
+    ] + [
+        Case("API: np.float32 slope_deg and np.int32 cells after loading (their values)", validate, 0, "",
+             setup=_scenario,
+             patch=_api(loaded + "import numpy as np\n"
+                        "sc.slope_deg, sc.domain.cells = np.float32(20), np.int32(41)\n"
+                        "s = multilayer.Simulation(sc).scenario\n"
+                        "assert (s.slope_deg, s.domain.cells) == (20.0, 41) and type(s.slope_deg) is float")),
+        Case("API: slope_deg = 25 (an integer, the same value) after loading", validate, 0, "",
+             setup=_scenario,
+             patch=_api(loaded + "sc.slope_deg = 25\n"
+                        "assert multilayer.Simulation(sc).scenario.slope_deg == 25.0")),
+        Case("validate: a law's parameter key true", validate, 2, f"rheology (line 18): key True {not_text}",
+             setup=partial(_scenario, changes={"rheology": {"name": "drucker_prager", "mu_s": 0.3, "nu": 0.01,
+                                                          True: 2}})),
+        Case("run: --set rheology={..., null: 2}",
+             [*run, "--set", "rheology={{name: drucker_prager, mu_s: 0.3, nu: 0.01, null: 2}}"], 2,
+             f"rheology (from --set): key None {not_text}", setup=_scenario),
+        Case("validate: a calibration whose set has a key null", ["validate", "{dir}/calibration.yaml"], 2,
+             "set (line 18): key None is not text; accepted: keys that are text",
+             setup=_calibration_of({"quantity": "front", "file": "front.csv", "columns": ["t", "x_f",
+                                   "sigma"]}, extra={"set": {None: 3}})),
+        Case("validate of an invalid scenario 2>&- (nothing on stdout)", validate, 2, "",
+             setup=partial(_scenario, changes={"domain.cells": -1}), prefix=QUIET_STDOUT),
+        Case("run -q of a scenario that warns, 2>&- (nothing on stdout)", run, 0, "",
+             setup=partial(_scenario, changes={"numerics": {"front_threshold": 1.0}}), prefix=QUIET_STDOUT),
+        Case("API: multilayer.run(quiet=False) warning in a host without stderr", validate, 0, "",
+             setup=_scenario, patch=_api(HOST_WITHOUT_STDERR)),
+        Case("check: mass_final pinned at 0.005 with rtol 0 (values alike at 6 digits)",
+             ["check", "{scenario}", "-o", "{dir}/checked"], 1, "0.005000000000000001          0  FAILED",
+             setup=partial(_scenario, changes={"expect": [
+                 {"kind": "regression", "quantity": "mass_final", "value": 0.005, "rtol": 0.0}]}),
+             prefix=_redirected("1>&2")),
+        Case("run: one layer", run, 0, "", setup=partial(_scenario, changes={"domain.layers": 1})),
+        Case("run: two cells", run, 0, "",
+             setup=partial(_scenario, changes={"domain.cells": 2, "initial.0.x_max": 0.25})),
+        Case("run: a slope of 89.9 degrees", run, 0, "",
+             setup=partial(_scenario, changes={"slope_deg": 89.9})),
+        Case("run: an output interval longer than time.end", run, 0, "",
+             setup=partial(_scenario, changes={"time.output_interval": 5.0})),
+        Case("run: time.end 0.30000000000000004, 3 output intervals of 0.1 s", run, 0, "",
+             setup=partial(_scenario, changes={"time": {"end": 0.1 * 3, "output_interval": 0.1}})),
+        Case("run: a scenario of CRLF lines after a UTF-8 byte order mark", run, 0, "",
+             setup=partial(_scenario, text=bom_crlf)),
+        Case("validate: a calibration observed 1e-10 s after time.end",
+             ["validate", "{dir}/calibration.yaml"], 2,
+             "t = 0.2000000001 to 0.2000000001 s, outside the runs, which end at time.end = 0.2 s",
+             setup=_calibration("0.2000000001,0.12,0.01\n")),
+        Case("validate: a calibration of one observation", ["validate", "{dir}/calibration.yaml"], 0, "",
+             setup=_calibration("0.1,0.12,0.01\n")),
+        Case("API: multilayer.run in a child forked after the parent ran", validate, 0, "", setup=_scenario,
+             patch=_api(FORKED)),
+    ]  # fmt: skip
+    return out
+
+
 def _failed_because(failure: object) -> Callable[[Path], None]:
     """A finished run whose result.nc says ``run_status: failed`` with ``failure``."""
 
@@ -5320,7 +5455,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     17: round_seventeen, 18: round_eighteen, 19: round_nineteen, 20: round_twenty,
     21: round_twenty_one, 22: round_twenty_two, 23: round_twenty_three, 24: round_twenty_four,
     25: round_twenty_five, 26: round_twenty_six, 27: round_twenty_seven,
-    28: round_twenty_eight, 29: round_twenty_nine, 30: round_thirty,
+    28: round_twenty_eight, 29: round_twenty_nine, 30: round_thirty, 31: round_thirty_one,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""
 
@@ -5330,7 +5465,7 @@ def main() -> None:
     parser.add_argument("-k", default="", help="only the cases whose name contains this")
     parser.add_argument("-j", type=int, default=2, help="cases run at once")
     parser.add_argument(
-        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 30; all: none)"
+        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 31; all: none)"
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()

@@ -102,5 +102,18 @@ def printable(text: str) -> str:
 
 def warn(message: str, file: TextIO | None = None) -> None:
     """Say ``message`` as a warning of the command (``multilayer: warning: ...``) on
-    ``file`` (default stderr), its characters :func:`printable`."""
-    print(printable(f"multilayer: warning: {message}"), file=sys.stderr if file is None else file)
+    ``file`` (default stderr, :func:`to_stderr`), its characters :func:`printable`."""
+    text = printable(f"multilayer: warning: {message}")
+    if file is None:
+        to_stderr(text)
+    else:
+        print(text, file=file)
+
+
+def to_stderr(text: str, *, flush: bool = False) -> None:
+    """``text`` printed on ``sys.stderr``, or nowhere where the process has none (started
+    with ``2>&-``, under pythonw): ``print(file=None)`` writes on stdout, where the lines
+    of a command's output or the host process's own data are (``multilayer validate
+    bad.yaml 2>&-`` wrote its error there)."""
+    if sys.stderr is not None:
+        print(text, file=sys.stderr, flush=flush)

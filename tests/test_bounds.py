@@ -307,6 +307,18 @@ def test_calibration_observations_outside_the_run_are_exit_2(tmp_path, cli):
     assert population.code == 2 and "search.population" in population.err
 
 
+def test_an_observation_just_past_the_end_is_said_to_the_digits_that_place_it(tmp_path, cli):
+    """A time 1e-10 s past ``time.end`` was said "observed at t = 0.2 to 0.2 s, outside the
+    runs, which end at time.end = 0.2 s": each time is written to its last digit where two
+    would read alike at 6 digits."""
+    result = cli("validate", _calibration(tmp_path, "0.2000000001,0.12,0.01\n"))
+    assert result.code == 2 and "Traceback" not in result.err
+    assert (
+        "observed at t = 0.2000000001 to 0.2000000001 s, outside the runs, which end at time.end = 0.2 s"
+        in result.err
+    ), result.err
+
+
 @pytest.mark.parametrize(
     ("override", "expected"),
     [

@@ -445,6 +445,23 @@ def test_an_unwritable_stderr_keeps_the_exit_code(cli, tiny_scenario, write_scen
         full.close()
 
 
+def test_a_closed_stderr_sends_no_message_to_stdout(cli, tiny_scenario, write_scenario, monkeypatch, capsys):
+    """Under ``2>&-`` (``sys.stderr`` None) an error or a warning is written nowhere, the
+    exit code saying the outcome: ``print(file=None)`` writes on stdout, where ``validate``
+    wrote its error beside the lines of its output and ``run`` its warning; the library
+    called by a host without stderr (pythonw) wrote its warnings on the host's stdout."""
+    monkeypatch.setattr(sys, "stderr", None)
+    bad = write_scenario("domain: [\n", "bad.yaml")
+    result = cli("validate", bad)
+    assert (result.code, result.out) == (2, "")
+    tiny_scenario["numerics"] = {"front_threshold": 1.0}  # above any cell: a warning, exit 0
+    path = write_scenario(tiny_scenario)
+    result = cli("run", path, "-q", "-o", path.parent / "out")
+    assert (result.code, result.out) == (0, "")
+    multilayer.run(path, path.parent / "api", quiet=False)
+    assert capsys.readouterr().out == ""
+
+
 def test_a_closed_stderr_shows_no_study_progress(monkeypatch):
     """``multilayer sweep`` and ``calibrate`` without ``-q`` under ``2>&-`` (``sys.stderr``
     None) ran no member: asking None whether it is a terminal raised ``AttributeError``,

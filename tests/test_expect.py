@@ -112,6 +112,20 @@ def test_report_lists_kind_expected_obtained_verdict_and_sources():
     assert lines[-1] == "  reference runout: Someone (2001), eq. 3"
 
 
+def test_a_failed_expectation_shows_the_digits_that_tell_its_values_apart():
+    """``mass_final`` pinned at 0.005 with ``rtol: 0`` failed on 0.005000000000000001, the
+    table saying ``0.005 0.005 FAILED``; a value passing or shown apart keeps 6 digits."""
+    lines = report(
+        "demo",
+        [
+            Outcome("mass_final", 0.005, 0.005000000000000001, 0.0),
+            Outcome("runout", 0.0625, 0.0625, 0.0),
+        ],
+    ).splitlines()
+    assert lines[2].split() == ["regression", "mass_final", "0.005", "0.005000000000000001", "0", "FAILED"]
+    assert lines[3].split() == ["regression", "runout", "0.0625", "0.0625", "0", "ok"]
+
+
 @pytest.mark.parametrize(
     "entry, message",
     [

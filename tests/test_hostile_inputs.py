@@ -907,12 +907,21 @@ def test_a_path_too_long_for_the_system_is_quoted_once(tmp_path, cli, write_scen
             "domain: {x_min: 0.0, x_max: 0.5, cells: 40, 5: 1}\n",
             "domain (line 21): key 5 is not text; accepted: x_min",
         ),
+        (
+            "rheology: {name: drucker_prager, mu_s: 0.3, nu: 0.01, true: 2}\n",
+            "rheology (line 22): key True is not text; accepted: name and the parameters of the law, as text",
+        ),
+        (
+            "rheology: {name: drucker_prager, mu_s: 0.3, nu: 0.01, null: 2}\n",
+            "rheology (line 22): key None is not text; accepted: name and the parameters of the law",
+        ),
     ],
 )
 def test_a_key_yaml_reads_as_no_text_is_named_with_the_keys_accepted(cli, write_scenario, text, phrase):
     """YAML reads ``1:``, ``true:`` and ``null:`` as keys that are a number, a boolean and
     null: pydantic's "Keys should be strings" named the key ``True`` as ``1``, and said
-    nothing of what is accepted."""
+    nothing of what is accepted (in a law's parameters: ``rheology.params.1.[key]``, a key
+    of no file, and nothing accepted)."""
     data = {key: value for key, value in TINY_SCENARIO.items() if not text.startswith(key)}
     result = cli("validate", write_scenario(yaml.safe_dump(data) + text))
     assert result.code == 2 and "Traceback" not in result.err
@@ -3072,6 +3081,78 @@ def test_a_none_assigned_after_loading_where_the_file_refuses_null_is_refused(as
     exec(assign)
     with pytest.raises(InputError, match=rf"^<scenario>: {said}"):
         multilayer.Simulation(scenario)
+
+
+@pytest.mark.parametrize(
+    ("assign", "said"),
+    [
+        ("scenario.slope_deg = True", r"slope_deg: Input should be a valid number \(got True\)"),
+        ("scenario.time.end = True", r"time\.end: Input should be a valid number \(got True\)"),
+        ("scenario.domain.cells = True", r"domain\.cells: Input should be a valid integer \(got True\)"),
+        (
+            "scenario.initial[0].height = True",
+            r"initial\.0\.height: Input should be a valid number \(got True\)",
+        ),
+        (
+            "scenario.material.density = np.True_",
+            r"material\.density: Input should be a valid number \(got True\)",
+        ),
+        (
+            "scenario.rheology.params['nu'] = np.True_",
+            r"rheology\.nu: drucker_prager: Input should be a valid number",
+        ),
+        ("scenario.domain.cells = 40.0", r"domain\.cells: Input should be a valid integer \(got 40\.0\)"),
+        (
+            "scenario.domain.x_max = np.array([0.75])",
+            r"domain\.x_max: Input should be a valid number \(got \[0\.75\]\)",
+        ),
+        (
+            "scenario.domain.x_max = np.longdouble('1e400')",
+            r"domain\.x_max: Input should be a valid number \(got \"np",
+        ),
+        (
+            "scenario.domain.x_max = 10**400",
+            r"domain\.x_max: assigned since the scenario was validated, a value the",
+        ),
+        ("scenario.rheology.params = None", r"rheology\.params: assigned since the scenario was validated"),
+    ],
+)
+def test_a_value_of_another_type_assigned_after_loading_is_named_as_the_file_names_it(assign, said):
+    """pydantic writes a boolean assigned to a number as that number (``scenario.slope_deg =
+    True`` ran on a slope of 1 degree, ``time.end = True`` to 1 s), took a float equal to the
+    validated integer for it (``domain.cells = 40.0`` reached the engine, which named no
+    key), and knew no numpy value, an integer past the floats or a law without parameters
+    (a ``PydanticSerializationError``, ``OverflowError`` or ``ValueError`` traceback): each
+    is named at its key, as the file and ``--set`` name it."""
+    scenario = multilayer.load(TINY_SCENARIO)
+    exec(assign)
+    with pytest.raises(InputError, match=rf"^<scenario>: {said}"):
+        multilayer.Simulation(scenario)
+    with pytest.raises(InputError, match=rf"^<scenario>: {said}"):
+        multilayer.run(scenario)
+
+
+def test_numpy_numbers_assigned_after_loading_are_their_values():
+    """``np.float32``, ``np.int32`` and 0-d arrays assigned after loading are the numbers
+    they hold, as ``multilayer.load`` of a mapping reads them (each was a traceback), and
+    an integer assigned to a float key its value: the run is the one of that value."""
+    scenario = multilayer.load(TINY_SCENARIO)
+    scenario.slope_deg, scenario.domain.cells = np.float32(20.0), np.int32(41)
+    scenario.domain.x_max = np.array(0.75)
+    sim = multilayer.Simulation(scenario)
+    assert (sim.scenario.slope_deg, sim.scenario.domain.cells, sim.scenario.domain.x_max) == (20.0, 41, 0.75)
+    assert type(sim.scenario.slope_deg) is float and type(sim.scenario.domain.cells) is int
+    plain = multilayer.load(
+        {
+            **TINY_SCENARIO,
+            "slope_deg": 20.0,
+            "domain": {**TINY_SCENARIO["domain"], "cells": 41, "x_max": 0.75},
+        }
+    )
+    assert np.array_equal(sim.h, multilayer.Simulation(plain).h)
+    scenario = multilayer.load(TINY_SCENARIO)
+    scenario.slope_deg = int(TINY_SCENARIO["slope_deg"])
+    assert multilayer.Simulation(scenario).scenario.slope_deg == TINY_SCENARIO["slope_deg"]
 
 
 def test_a_none_assigned_after_loading_where_the_file_accepts_null_is_not_given():

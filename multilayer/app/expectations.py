@@ -136,8 +136,11 @@ def report(name: str, outcomes: Sequence[Outcome]) -> str:
         f"  {'kind':<10} {'quantity':<48} {'expected':>12} {'obtained':>12} {'tolerance':>10}  verdict",
     ]
     for o in outcomes:
+        expected, obtained = f"{o.expected:.6g}", f"{o.obtained:.6g}"
+        if not o.passed and expected == obtained:  # to the digits that tell them apart
+            expected, obtained = repr(float(o.expected)), repr(float(o.obtained))
         lines.append(
-            f"  {o.kind:<10} {o.quantity:<48} {o.expected:>12.6g} {o.obtained:>12.6g} "
+            f"  {o.kind:<10} {o.quantity:<48} {expected:>12} {obtained:>12} "
             f"{o.tolerance:>10.3g}  {'ok' if o.passed else 'FAILED'}"
         )
     lines += [f"  reference {o.quantity}: {o.source}" for o in outcomes if o.kind == "reference"]

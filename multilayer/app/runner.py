@@ -33,7 +33,6 @@ import os
 import shlex
 import signal
 import stat
-import sys
 import tempfile
 import threading
 import time
@@ -61,6 +60,7 @@ from multilayer.errors import (
     Stop,
     printable,
     reason,
+    to_stderr,
     warn,
     working_directory_removed,
 )
@@ -152,7 +152,7 @@ def run(
             log.warning(message)
         # the compile notice is one plain line: also where stderr is not a terminal (a log, a
         # notebook, a batch job), unless quiet; the progress line is for terminals only
-        say = (lambda text: print(f"multilayer: {text}", file=sys.stderr, flush=True)) if not quiet else None
+        say = (lambda text: to_stderr(f"multilayer: {text}", flush=True)) if not quiet else None
         try:
             with compile_notice(log, say):
                 _run(scenario, outdir, ckpt, quiet, log, stop, budget.step_limit)
@@ -162,7 +162,7 @@ def run(
         except Interrupted as exc:
             if stop.starting:  # before anything was computed: nothing to keep, the lock goes
                 log.warning("%s", exc)
-                print(printable(f"multilayer: {exc}"), file=sys.stderr)
+                to_stderr(printable(f"multilayer: {exc}"))
                 exc.said = True
             raise
         finally:
@@ -381,7 +381,7 @@ def _run(
         writer.close(sim.steps, wall_time(), status, scenario)
     if status == "interrupted":
         if stop.requested:  # a member stopped by its study leaves the resume command to the study
-            print(printable(f"multilayer: {message}"), file=sys.stderr)
+            to_stderr(printable(f"multilayer: {message}"))
         raise Interrupted(message, stop.signum, said=stop.requested)
     log.info("completed: %d steps, wall time %.1f s", sim.steps, wall_time())
 

@@ -528,10 +528,10 @@ def _check_span(
     coordinates = np.asarray(observed.coordinate, dtype=float)
     inside = coordinates.size == 0 or (coordinates.min() >= 0 and coordinates.max() <= end)
     if obs.quantity in CURVES and not inside:
+        first, last, shown_end = _apart(coordinates.min(), coordinates.max(), end)
         raise InputError(
-            f"{where}: observed at t = {coordinates.min():g} to {coordinates.max():g} s, outside the runs, "
-            f"which end at time.end = {end:g} s; accepted: observations within the simulated time, or a "
-            "longer time.end (set)"
+            f"{where}: observed at t = {first} to {last} s, outside the runs, which end at time.end = "
+            f"{shown_end} s; accepted: observations within the simulated time, or a longer time.end (set)"
         )
     if obs.quantity in PROFILES:
         if obs.time is not None and obs.time > end:
@@ -540,10 +540,19 @@ def _check_span(
                 f"the runs (time.end = {end:g} s); accepted: a time within the simulated time"
             )
         if coordinates.size and not (coordinates.min() >= x_min and coordinates.max() <= x_max):
+            first, last, low, high = _apart(coordinates.min(), coordinates.max(), x_min, x_max)
             raise InputError(
-                f"{where}: observed at x = {coordinates.min():g} to {coordinates.max():g} m, outside the "
-                f"domain [{x_min:g}, {x_max:g}] m of the runs; accepted: positions inside the domain"
+                f"{where}: observed at x = {first} to {last} m, outside the domain [{low}, {high}] m of "
+                "the runs; accepted: positions inside the domain"
             )
+
+
+def _apart(*values: float) -> list[str]:
+    """``values`` written with 6 significant digits, or each as Python writes it (to the
+    last digit) where two would read alike: an observation at t = 0.2000000001 s was said
+    "at t = 0.2 to 0.2 s, outside the runs, which end at time.end = 0.2 s"."""
+    short = [f"{float(v):g}" for v in values]
+    return short if len(set(short)) == len(set(map(float, values))) else [repr(float(v)) for v in values]
 
 
 REACH_SIGMAS = 3.0

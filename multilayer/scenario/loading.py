@@ -10,8 +10,9 @@ from typing import Any
 
 import yaml
 from pydantic import ValidationError
+from pydantic_core import PydanticSerializationError
 
-from multilayer.errors import InputError
+from multilayer.errors import InputError, shortened
 from multilayer.scenario import limits
 from multilayer.scenario.messages import KeyPath, describe, dotted
 from multilayer.scenario.overrides import apply_overrides
@@ -60,14 +61,38 @@ def validated_again(scenario: Scenario, overrides: Sequence[str] = ()) -> Scenar
     validation or not), with ``overrides`` applied: a new :class:`Scenario`.  A text
     assigned that is no Unicode (:func:`~multilayer.scenario.limits.check_text`) is named
     first: YAML cannot write it."""
-    limits.plain_data(scenario.model_dump(warnings=False), str(scenario.source or "<scenario>"))
-    data = yaml.safe_load(scenario.resolved_yaml())
+    where = str(scenario.source or "<scenario>")
+    try:
+        plain = limits.plain_data(scenario.model_dump(warnings=False), where)
+        data = yaml.safe_load(scenario.resolved_yaml())
+    except (PydanticSerializationError, ValueError, TypeError, OverflowError) as exc:
+        keys = ", ".join(dotted(path) for path in scenario.assigned_keys()) or "(a key)"
+        raise InputError(
+            f"{where}: {keys}: assigned since the scenario was validated, a value the scenario cannot "
+            f"hold ({type(exc).__name__}: {shortened(str(exc))}); accepted: {limits.PLAIN_VALUES}, as "
+            "the file takes them"
+        ) from None
     for path in scenario.assigned_nulls():  # refused where the file refuses a null
         node = data
         for part in path[:-1]:
             node = node[part]
         node[path[-1]] = None
-    return from_dict(data, source=scenario.source, overrides=overrides)
+    return from_dict(_booleans_kept(data, plain), source=scenario.source, overrides=overrides)
+
+
+def _booleans_kept(data: Any, plain: Any) -> Any:
+    """``data`` (the scenario's YAML read back) with a boolean of ``plain`` (its keys as
+    assigned, :func:`~multilayer.scenario.limits.plain_data`) put back where the YAML
+    holds a number: pydantic writes ``True`` assigned to a number as 1 (``scenario.slope_deg
+    = True`` ran on a slope of 1 degree, ``time.end = True`` to 1 s), which the file and
+    ``--set`` refuse as a boolean."""
+    if isinstance(plain, bool) and isinstance(data, int | float) and not isinstance(data, bool):
+        return plain
+    if isinstance(data, dict) and isinstance(plain, dict):
+        return {key: _booleans_kept(value, plain.get(key)) for key, value in data.items()}
+    if isinstance(data, list) and isinstance(plain, list) and len(data) == len(plain):
+        return [_booleans_kept(value, other) for value, other in zip(data, plain, strict=True)]
+    return data
 
 
 def load(path: str | Path, overrides: Sequence[str] = ()) -> Scenario:

@@ -185,6 +185,15 @@ def describe(error: Mapping[str, Any], root: type[BaseModel]) -> tuple[KeyPath, 
             f"key {shown(error.get('input'))} is not text",
             accepted(where, last_is_key=True, root=root),
         )
+    if loc[-1:] == ("[key]",):  # a key of a mapping of parameters (a law's) that is not text
+        where = loc[:-3] if loc[-3:-2] == ("params",) else loc[:-2]
+        return (
+            where,
+            f"key {shown(error.get('input'))} is not text",
+            "name and the parameters of the law, as text (see `multilayer plugins`)"
+            if loc[-3:-2] == ("params",)
+            else "keys that are text",
+        )
     if kind == "missing":
         return loc, "required key is missing", accepted(loc, last_is_key=False, root=root)
     got = shown(error.get("input"))

@@ -29,6 +29,7 @@ from pydantic import (
     model_serializer,
     model_validator,
 )
+from pydantic_core import PydanticSerializationError
 
 from multilayer.engine import basal
 from multilayer.engine.gate import gate_face
@@ -1282,7 +1283,7 @@ class Scenario(StrictModel):
         (libyaml's emitter where PyYAML has it: four times faster than PyYAML's own).  A
         value of another type assigned since the validation is written as it is, without
         pydantic's warning: validating the text again names it."""
-        return dump(self.model_dump(mode="json", exclude_none=True, warnings=False))
+        return dump(self.model_dump(mode="json", exclude_none=True, warnings=False, fallback=_item))
 
     def assigned_nulls(self) -> list[tuple[str | int, ...]]:
         """The paths of the keys holding None whose default is not None (``scenario.bed =
@@ -1310,7 +1311,78 @@ class Scenario(StrictModel):
         """Whether a key was assigned since the scenario was validated, or it never was
         (pydantic checks no assignment: ``scenario.domain.layers = 0`` was built into a
         simulation whose kernels wrote outside their arrays)."""
-        return self._validated is None or self._validated != self.model_dump(warnings=False)
+        if self._validated is None:
+            return True
+        try:
+            return not _same(self._validated, self.model_dump(warnings=False))
+        except (PydanticSerializationError, ValueError, TypeError, OverflowError):  # unwritable: named again
+            return True
+
+    def assigned_keys(self) -> list[tuple[str | int, ...]]:
+        """The paths of the keys whose value is not the validated one (of another type, or
+        a value no serializer of the scenario writes: ``scenario.rheology.params = None``)."""
+        return _changed(self, self._validated or {}, ())
+
+
+def _changed(model: BaseModel, validated: Any, path: tuple[str | int, ...]) -> list[tuple[str | int, ...]]:
+    """:meth:`Scenario.assigned_keys` of ``model`` at ``path``, against its validated dump."""
+    found: list[tuple[str | int, ...]] = []
+    validated = validated if isinstance(validated, dict) else {}
+    for name, info in type(model).model_fields.items():
+        value = getattr(model, name, None)
+        old = validated.get(name, _ABSENT)
+        if old is _ABSENT:  # not written (a rheology's parameters are written flat, a file as its rows)
+            flat = isinstance(value, dict) and any(not _same(validated.get(k), v) for k, v in value.items())
+            if flat or (value is None and info.get_default(call_default_factory=True) is not None):
+                found.append((*path, name))
+            continue
+        if isinstance(value, BaseModel) and isinstance(old, dict):
+            found += _changed(value, old, (*path, name))
+        elif isinstance(value, list) and isinstance(old, list) and len(value) == len(old):
+            for index, item in enumerate(value):
+                if isinstance(item, BaseModel) and isinstance(old[index], dict):
+                    found += _changed(item, old[index], (*path, name, index))
+                elif not _same(old[index], item):
+                    found.append((*path, name, index))
+        elif not _same(old, value):
+            found.append((*path, name))
+    return found
+
+
+_ABSENT = object()
+
+
+def _item(value: Any) -> Any:
+    """A value assigned since the validation that pydantic's serializer knows no type of,
+    for :meth:`Scenario.resolved_yaml` (its ``PydanticSerializationError`` was a
+    traceback): a numpy number or array (``scenario.slope_deg = np.float32(20)``) as the
+    Python number or list it holds, as :func:`~multilayer.scenario.limits.plain_data` reads
+    it; anything else, a long double beyond the floats included, as its text, which the
+    validation names at its key."""
+    if isinstance(value, np.ndarray) and value.dtype.kind in "biuf":
+        value = value.tolist()
+        return value if not isinstance(value, np.generic) else messages.shown(value)
+    if isinstance(value, np.generic) and not isinstance(item := value.item(), np.generic):
+        return item
+    return messages.shown(value)
+
+
+def _same(validated: Any, now: Any) -> bool:
+    """Whether ``now`` holds the values of ``validated`` of the same types: a boolean or a
+    float assigned in the place of an integer equal to it (``scenario.domain.cells = 40.0``,
+    ``True`` for 1) is a change, which :meth:`Scenario.changed_since_validation` validates
+    again (``==`` took it for the validated value, and the engine was built from it)."""
+    if validated is now:
+        return True
+    if type(validated) is not type(now):
+        return False
+    if isinstance(validated, dict):
+        return validated.keys() == now.keys() and all(_same(validated[k], now[k]) for k in validated)
+    if isinstance(validated, list | tuple):
+        return len(validated) == len(now) and all(map(_same, validated, now))
+    if isinstance(validated, np.ndarray):
+        return validated.dtype == now.dtype and bool(np.array_equal(validated, now))
+    return bool(validated == now)
 
 
 def _assigned_nulls(model: BaseModel, path: tuple[str | int, ...]) -> list[tuple[str | int, ...]]:

@@ -335,11 +335,9 @@ def report_stop(exc: Any, done: str | None, command: str, config: str, outdir: P
     what it kept (``done``, the rest of that line; None if nothing), the members that
     did not stop (``exc.running``: in a plugin's code that never returns, on worker
     threads) and how to resume; the command line then says no more (``exc.said``)."""
-    import sys
+    from multilayer.errors import printable, to_stderr, warn
 
-    from multilayer.errors import printable, warn
-
-    print(f"multilayer: {printable(str(exc))}{done or ''}", file=sys.stderr)
+    to_stderr(f"multilayer: {printable(str(exc))}{done or ''}")
     running = getattr(exc, "running", [])
     if running:
         warn(
@@ -348,5 +346,5 @@ def report_stop(exc: Any, done: str | None, command: str, config: str, outdir: P
             "cannot stop a thread), their directories locked until then"
         )
     resume = resume_command(command, config, outdir, args)
-    print(printable(f"multilayer: resume with: {resume}"), file=sys.stderr)
+    to_stderr(printable(f"multilayer: resume with: {resume}"))
     exc.said = True

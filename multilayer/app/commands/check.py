@@ -12,13 +12,12 @@ Example: multilayer check scenarios/*.yaml
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 from multilayer import scenario as scenarios
 from multilayer.app import expectations as expect
 from multilayer.app.commands import directory
-from multilayer.errors import InputError, RunError, printable
+from multilayer.errors import InputError, RunError, printable, to_stderr
 from multilayer.io.disk import writable_directory
 
 HELP = "run scenario files and check their expect: lists (regression pins and reference values)"
@@ -65,7 +64,7 @@ def main(args: argparse.Namespace) -> int:
         loaded.append(scenario)
     if errors:
         for message in errors:
-            print(f"multilayer: error: {message}", file=sys.stderr)
+            to_stderr(f"multilayer: error: {message}")
         return 2
     failed = 0
     for scenario in loaded:

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 
 from multilayer.app.commands import positive_int
 
@@ -32,18 +31,18 @@ def main(args: argparse.Namespace) -> int:
     """Compile; exit 1 naming the tasks that failed, or when numba cannot cache."""
     from multilayer.app.precompile import compile_kernels
     from multilayer.engine.kernel_cache import cache_directories
+    from multilayer.errors import to_stderr
 
     directories = [str(d) for d in cache_directories()]
     if not directories:
-        print(
+        to_stderr(
             "multilayer compile: numba finds no directory it can write its cache to here, so every "
-            "run compiles the kernels it uses; set NUMBA_CACHE_DIR to a writable directory",
-            file=sys.stderr,
+            "run compiles the kernels it uses; set NUMBA_CACHE_DIR to a writable directory"
         )
         return 1
 
     def waiting() -> None:
-        print("multilayer compile: waiting for another multilayer compile of this cache", file=sys.stderr)
+        to_stderr("multilayer compile: waiting for another multilayer compile of this cache")
 
     report = compile_kernels(args.processes, waiting)
     where = os.path.commonpath(directories)
@@ -51,7 +50,7 @@ def main(args: argparse.Namespace) -> int:
         print(f"the kernels are compiled and cached ({where}; {report.checked} cached files checked)")
         return 0
     for name, message in report.failed.items():
-        print(f"multilayer compile: {name} failed: {message}", file=sys.stderr)
+        to_stderr(f"multilayer compile: {name} failed: {message}")
     if report.failed:
         return 1
     processes = f"{report.processes} process" + ("es" if report.processes > 1 else "")

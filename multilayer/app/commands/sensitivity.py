@@ -12,7 +12,6 @@ Example: multilayer sensitivity docs/examples/erodible_sobol.yaml
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -53,7 +52,7 @@ def main(args: argparse.Namespace) -> int:
 def _sensitivity(args: argparse.Namespace, study: Any, outdir: Path) -> int:
     """:func:`main` once the directory is held."""
     from multilayer.app import sensitivity
-    from multilayer.errors import Interrupted, printable
+    from multilayer.errors import Interrupted, printable, to_stderr
 
     path = outdir / sensitivity.SENSITIVITY_FILE
     check_results(args, outdir, path.name)
@@ -94,11 +93,10 @@ def _sensitivity(args: argparse.Namespace, study: Any, outdir: Path) -> int:
     print(printable(f"sensitivity: {runs}; wrote {path}"))
     if result is None:
         for e in failed[:5]:
-            print(f"multilayer: member {e.id} {e.status}: {e.error}", file=sys.stderr)
-        print(
+            to_stderr(f"multilayer: member {e.id} {e.status}: {e.error}")
+        to_stderr(
             "multilayer: the Sobol' estimators need every run: no indices computed; "
-            "fix the failing runs (or narrow the bounds) and rerun the command",
-            file=sys.stderr,
+            "fix the failing runs (or narrow the bounds) and rerun the command"
         )
         return 1
     level = round(100 * study.config.confidence)

@@ -94,7 +94,7 @@ def _sweep(args: argparse.Namespace, plan: Any, outdir: Path, summary: Path) -> 
     """:func:`main` once the directory is held."""
     from multilayer.app import stopping
     from multilayer.app import sweep as sweeps
-    from multilayer.errors import Interrupted, printable
+    from multilayer.errors import Interrupted, printable, to_stderr
 
     where = cluster_description(args)
     report = _Report(where, args.quiet)
@@ -127,11 +127,10 @@ def _sweep(args: argparse.Namespace, plan: Any, outdir: Path, summary: Path) -> 
     for outcome in outcomes:
         if outcome.status != "ok":
             values = ", ".join(outcome.member.overrides)
-            print(
+            to_stderr(
                 printable(
                     f"multilayer: member {outcome.member.id} ({values}) {outcome.status}: {outcome.error}"
-                ),
-                file=sys.stderr,
+                )
             )
     counts = {status: sum(o.status == status for o in outcomes) for status in ("ok", "invalid", "failed")}
     if not args.quiet:

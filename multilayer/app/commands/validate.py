@@ -13,14 +13,13 @@ sensitivity` read it.
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 from multilayer import scenario as scenarios
 from multilayer.app import expectations, factory, resources
 from multilayer.app.commands import add_budget_arguments, add_set_argument, budget
 from multilayer.engine import initial_state
-from multilayer.errors import InputError, printable, warn
+from multilayer.errors import InputError, printable, to_stderr, warn
 from multilayer.scenario import Scenario
 
 HELP = "check scenario, sweep and study files without running them"
@@ -40,7 +39,7 @@ def main(args: argparse.Namespace) -> int:
         try:
             line = _check_file(path, args)
         except InputError as exc:
-            print(f"multilayer: error: {printable(str(exc))}", file=sys.stderr)
+            to_stderr(f"multilayer: error: {printable(str(exc))}")
             invalid += 1
             continue
         print(printable(f"{path}: ok ({line})"))
