@@ -599,23 +599,20 @@ def unknowns(mass, left, right, moving, u, w, offset, nodes, free, V_star, row_o
     the row of each cell (-1: none; the moving pressure interfaces ``nodes``, column by
     column: ``A`` is then banded, of half-width about ``L_p + 3``), the cells of the rows
     and ``V*``, for the columns ``offset ..`` of ``u`` and ``w`` (see :func:`correction`),
-    into ``free``, ``V_star``, ``row_of`` and ``rows``; returns the number of rows.  Without
-    ``structure``, ``V_star`` alone, of the free unknowns and rows that a call with the same
-    ``moving`` wrote (the velocities of another state on the same unknowns), and 0."""
+    into ``free``, ``V_star``, ``row_of`` and ``rows``; returns the number of rows (without
+    ``structure``, 0: the rows those a call with the same ``moving`` made, not made again)."""
     L, N = moving.shape
     F, Lp = left.size, nodes.size
     for c in range(L):
         for f in range(F):
             k = c * F + f
             i, e = np.uint64(left[f]), np.uint64(right[f])  # unsigned: no wrap-around (see entries)
-            if structure:
-                free[k] = (moving[c, i] or moving[c, e]) and mass[k] > 0.0
+            free[k] = (moving[c, i] or moving[c, e]) and mass[k] > 0.0
             V_star[k] = 0.5 * (u[c, np.uint64(offset) + i] + u[c, np.uint64(offset) + e])
     for a in range(L):
         for i in range(N):
             k = L * F + a * N + i
-            if structure:
-                free[k] = moving[a, i]
+            free[k] = moving[a, i]
             V_star[k] = w[a, np.uint64(offset + i)] if moving[a, i] else 0.0
     n = 0
     for i in range(N if structure else 0):
