@@ -49,20 +49,19 @@ def test_a_block_has_the_coefficients_of_its_columns_to_the_bit(rest, gravity, t
         column = ColumnArrays(work.m, *rows, work.viscous, work.w)
         layers = np.full((ROWS, sc.BLOCK * L), np.nan)
         layer_rows(inputs, layers)
-        dt, u_rows, guess_rows = 1e-3, rng.normal(size=sc.BLOCK * L), rng.normal(size=sc.BLOCK * L)
-        block_coefficients(c0, h, inputs, t, L, column, flags, layers, dt, u_rows, guess_rows)
+        dt, u_rows = 1e-3, rng.normal(size=sc.BLOCK * L)
+        block_coefficients(c0, h, inputs, t, L, column, flags, layers, dt, u_rows)
         for i in range(sc.BLOCK):
             ref = column_arrays(L)
             ref.viscous[:] = True
             bad = column_coefficients(c0 + i, h[c0 + i], inputs, ref, 0, 1, False)
             lane = slice(sc.cell(i, L), sc.block_end(L), sc.BLOCK)
-            u, guess = u_rows[i :: sc.BLOCK], guess_rows[i :: sc.BLOCK]
+            u = u_rows[i :: sc.BLOCK]
             inverse = np.where(ref.spacing > 0.0, 1.0 / np.where(ref.spacing > 0.0, ref.spacing, 1.0), 1.0)
             conductance = np.where((ref.spacing > 0.0) & ref.viscous, inverse, 0.0)
-            for slot, values in ((sc.INERTIA, ref.m / dt), (sc.MOMENTUM, ref.m * u / dt), (sc.U0, guess),
+            for slot, values in ((sc.INERTIA, ref.m / dt), (sc.MOMENTUM, ref.m * u / dt),
                                  (sc.KAPPA, ref.kappa), (sc.PRESSURE, ref.pressure),
-                                 (sc.SPACING, ref.spacing), (sc.INV_SPACING, inverse),
-                                 (sc.CONDUCTANCE, conductance)):  # fmt: skip
+                                 (sc.INV_SPACING, inverse), (sc.CONDUCTANCE, conductance)):  # fmt: skip
                 assert np.array_equal(t[slot, lane].view(np.int64), values.view(np.int64)), (L, i, slot)
             assert t[sc.VISCOUS, sc.cell(i, L)] == (1.0 if ref.viscous[0] else 0.0)
             assert flags[sc.FINE, i] == (bad == 0)

@@ -277,7 +277,7 @@ def test_normal_equations_added_up_as_stored_equal_the_sparse_product(
     free, V_star = np.empty(K, np.bool_), np.empty(K)
     row_of, rows = np.empty(nodes.size * N, np.int64), np.empty(nodes.size * N, np.int64)
     n = assembly.unknowns(
-        cons.mass, cons.left, cons.right, moving, u, w, 0, nodes, free, V_star, row_of, rows
+        cons.mass, cons.left, cons.right, moving, u, w, 0, nodes, free, V_star, row_of, rows, True
     )
     arrays = (
         np.empty(K + 1, np.int64),
@@ -566,7 +566,7 @@ def test_the_start_constraint_reused_from_the_last_projection_is_the_assembled_o
         np.empty(6 * 16, np.int64),
         np.empty(6 * 16, np.int64),
     )
-    n = assembly.unknowns(face_mass, left, right, u != 0.0, u, w, 0, nodes, free, V0, row_of, rows)
+    n = assembly.unknowns(face_mass, left, right, u != 0.0, u, w, 0, nodes, free, V0, row_of, rows, True)
     stored = (np.empty(K + 1, np.int64), np.empty(4000, np.int64), np.empty(4000), np.empty(K))
     geometry = (h, bed, fractions, 0.1, left, right, P)
     fresh, reused = np.zeros(n), np.zeros(n)

@@ -231,12 +231,23 @@ class BedForce:
 
 @jit
 def _momentum(l, h, v, first, last):
-    """``sum_a l_a h v_a`` over the columns ``first .. last-1``, layer by layer from the
-    surface down (the order of :func:`_impulses`)."""
+    """``sum_a l_a h v_a`` over the columns ``first .. last-1``: each column's sum from the
+    bed up, then the columns' sums in turn (the order of :func:`_impulses`)."""
+    sums = np.zeros(last)  # (the columns first .. last-1 of it)
+    lo, hi = np.uint64(first), np.uint64(last)  # unsigned: no test for negative indices
+    for a in range(l.size):  # a pass along each row adds a layer to every column (as vectors)
+        row, l_a = v[a], l[a]
+        for i in range(lo, hi):
+            sums[i] += l_a * h[i] * row[i]
+    return _in_turn(sums, lo, hi)
+
+
+@jit(inline="always")  # inlined: no compilation of its own
+def _in_turn(values, lo, hi):
+    """The sum of ``values[lo:hi]`` in their order (the columns from left to right)."""
     total = 0.0
-    for a in range(l.size - 1, -1, -1):
-        for i in range(np.uint64(first), np.uint64(last)):  # unsigned: no test for negative indices
-            total += l[a] * h[i] * v[a, i]
+    for i in range(lo, hi):
+        total += values[i]
     return total
 
 
@@ -245,35 +256,44 @@ def _impulses(l, h, ustar, u_vertical, walled, threshold, viscous, rho, dt, firs
     """Over the columns ``first .. last-1``, per unit density and cell width: the downslope
     momenta ``sum_a l_a h u`` before and after a vertical step (after the transport, with
     its velocities ``ustar``, and with its velocities ``u_vertical``), and its impulses per
-    unit area on the bed and on the side walls times ``rho``, from the surface down (module
-    docstring): ``passed`` is ``dt sigma`` above the layer, a moving layer's wall force is
-    ``sgn(u_a) dt (threshold + viscous)``, a resting layer's the load up to ``dt
-    threshold`` (none unless ``walled``)."""
-    # layer by layer from the surface down, the columns contiguous in memory (u is (L, N));
-    # ``passed`` carries each column's load to the next layer down
-    passed = np.zeros(last - first)
-    transported = vertical = walls = 0.0
-    for a in range(l.size - 1, -1, -1):
-        for j in range(last - first):
-            i = np.uint64(first + j)  # unsigned: no test for negative indices
-            m = l[a] * h[i]
-            transported += m * ustar[a, i]
-            vertical += m * u_vertical[a, i]
-            load = passed[j] + rho * m * (ustar[a, i] - u_vertical[a, i])
-            held = 0.0
-            if walled:
-                limit = dt * threshold[a, i]
-                if u_vertical[a, i] > 0.0:
-                    held = limit + dt * viscous[a, i]
-                elif u_vertical[a, i] < 0.0:
-                    held = -(limit + dt * viscous[a, i])
-                else:
-                    held = min(max(load, -limit), limit)
-            walls += held
-            passed[j] = load - held
+    unit area on the bed and on the side walls times ``rho`` (module docstring): ``passed``
+    is ``dt sigma`` above the layer, a moving layer's wall force is ``sgn(u_a) dt (threshold
+    + viscous)``, a resting layer's the load up to ``dt threshold`` (none unless ``walled``).
+
+    Each column's sums are made in arrays of their own, row by row of the (L, N) arrays
+    from the bed up (a pass along a row runs as vectors; a pass from the surface down did
+    not: LLVM's check that the arrays do not overlap, made once for all the rows, sends
+    rows whose address decreases to the scalar loop), then added column after column.
+    Without walls the bed's impulse is the sum of the layers' changes of momentum (in
+    that pass); with walls, the load is passed from the surface down, each layer's wall
+    taking its share."""
+    passed, transported, vertical, walls = np.zeros(last), np.zeros(last), np.zeros(last), np.zeros(last)
+    lo, hi = np.uint64(first), np.uint64(last)  # unsigned: no test for negative indices
+    for a in range(l.size):
+        before, after, l_a = ustar[a], u_vertical[a], l[a]
+        for i in range(lo, hi):
+            m = l_a * h[i]
+            transported[i] += m * before[i]
+            vertical[i] += m * after[i]
+            if not walled:
+                passed[i] += rho * m * (before[i] - after[i])
+    for a in range(l.size - 1 if walled else -1, -1, -1):
+        before, after, l_a = ustar[a], u_vertical[a], l[a]
+        limits, forces = threshold[a], viscous[a]
+        for i in range(lo, hi):
+            load = passed[i] + rho * (l_a * h[i]) * (before[i] - after[i])
+            limit = dt * limits[i]
+            if after[i] > 0.0:
+                held = limit + dt * forces[i]
+            elif after[i] < 0.0:
+                held = -(limit + dt * forces[i])
+            else:
+                held = min(max(load, -limit), limit)
+            walls[i] += held
+            passed[i] = load - held
     out = np.empty(4)
-    out[0], out[1], out[3] = transported, vertical, walls
-    out[2] = passed.sum()
+    for k, sums in enumerate((transported, vertical, passed, walls)):
+        out[k] = _in_turn(sums, lo, hi)
     return out
 
 

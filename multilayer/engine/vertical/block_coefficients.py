@@ -30,8 +30,6 @@ from multilayer.engine.vertical.sheared_columns import (
     KAPPA,
     MOMENTUM,
     PRESSURE,
-    SPACING,
-    U0,
     VISCOUS,
     WALL,
     _layer,
@@ -64,16 +62,16 @@ def layer_rows(inputs, rows):
 
 
 @jit(borrowing=True)
-def block_coefficients(c0, h, inputs, t, L, column, flags, rows, dt, u_rows, guess_rows):
+def block_coefficients(c0, h, inputs, t, L, column, flags, rows, dt, u_rows):
     """``column_coefficients`` of the ``BLOCK`` adjacent mesh columns ``c0 ...`` (thicknesses
-    ``h``, no side walls) into the block's lanes of the tile ``t``: the yield stresses,
-    pressures and spacings into their slots, whether the bed's layer is viscous into
-    ``VISCOUS`` (layer 0; above it 1.0, from ``new_tile``), and ``flags[FINE]``, whether each
-    column's yield values are within the plugin contract; in the same pass what of them
-    stays fixed during the step, as ``sheared_columns.block_parts`` makes it (``m/dt``, ``m
-    u*/dt`` of the step ``dt``, the u* and guesses of the rows ``u_rows``, ``guess_rows`` of
-    ``sheared_columns.load``, the guesses into ``U0``, the inverse spacings and conductances
-    per unit slope: ``fixed_parts``, 0 where not viscous).  Where some yield value is
+    ``h``, no side walls) into the block's lanes of the tile ``t``: the yield stresses and
+    pressures into their slots, whether the bed's layer is viscous into ``VISCOUS`` (layer 0;
+    above it 1.0, from ``new_tile``), and ``flags[FINE]``, whether each column's yield values
+    are within the plugin contract; in the same pass what of them stays fixed during the
+    step, as ``sheared_columns.block_parts`` makes it (``m/dt``, ``m u*/dt`` of the step
+    ``dt``, the u* of the rows ``u_rows`` of ``sheared_columns.load``, the inverse spacings
+    and conductances per unit slope: ``fixed_parts``, 0 where not viscous; the spacings
+    themselves, which nothing reads after, are not stored).  Where some yield value is
     outside the contract, ``column_coefficients`` itself tells which, column by column,
     writing the same values again (``column``: its work arrays).  ``rows``: those of
     :func:`layer_rows`, and the block's own."""
@@ -105,8 +103,6 @@ def block_coefficients(c0, h, inputs, t, L, column, flags, rows, dt, u_rows, gue
         m, spacing = rows[MASS, s] * hj, rows[SPACING_FRACTION, s] * hj
         t[INERTIA, x] = m / dt
         t[MOMENTUM, x] = m * u_rows[s] / dt
-        t[U0, x] = guess_rows[s]
-        t[SPACING, x] = spacing
         inverse = 1.0 / spacing if spacing > 0.0 else 1.0
         t[INV_SPACING, x] = inverse
         t[CONDUCTANCE, x] = inverse if spacing > 0.0 else 0.0  # viscous but in the bed's layer (below)

@@ -269,7 +269,7 @@ def _chunk(k, chunks, columns, inputs, fused, given, laws, control, out):
         np.zeros(BLOCK, np.bool_),
         # the sweeps of sheared_block, an array each (the compiler tells apart two arrays, not two rows)
         (np.empty(sweep), np.empty(sweep), np.empty(sweep), np.empty(sweep), np.empty(sweep)),
-        np.empty((2 + ROWS, L * BLOCK)),  # the rows of sheared_columns.load and of block_coefficients
+        np.empty((1 + ROWS, L * BLOCK)),  # the u* rows of sheared_columns.load, those of block_coefficients
     )
     _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
 
@@ -298,7 +298,8 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
     # viscosities, stress slopes and viscous stresses at current and new (interfaces, walls)
     laws_c, laws_n, state_c, state_n, tile, coefficients, viscous, walls_of = work[16:24]
     flags, finished, sweeps = work[24], work[25], work[26]
-    u_rows, guess_rows, rows = work[27][0], work[27][1], work[27][2:]  # rows: of block_coefficients
+    u_rows, rows = work[27][0], work[27][1:]  # rows: of block_coefficients
+    iterates = tile[sc.U0]  # where sc.load puts a block's guesses
     eta_c, slope_c, weta_c, wslope_c = laws_c[0], laws_c[1], laws_c[2], laws_c[3]
     eta_n, slope_n, weta_n, wslope_n = laws_n[0], laws_n[1], laws_n[2], laws_n[3]
     # the coefficients of StressModel.columns of the column (coefficients.column_coefficients)
@@ -334,7 +335,7 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
             if finished[j - j0]:
                 continue
             col = wet[j]
-            fine = unload(tile, L, flags, j - j0, guess_rows, viscous, wall_true, current)
+            fine = unload(tile, L, flags, j - j0, guess, col, viscous, wall_true, current)
         else:
             if following == stop:
                 break
@@ -344,9 +345,9 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
                 j0 = j
                 block = blocks and not walls and j + BLOCK <= stop and wet[j + BLOCK - 1] - col == BLOCK - 1
                 if block:  # the block's u* and guesses, row by row
-                    sc.load(u_rows, guess_rows, ustar, guess, col)
+                    sc.load(u_rows, iterates, ustar, guess, col)
                 if block and fused:  # and its coefficients, laid out as the tile
-                    block_coefficients(col, h, inputs, tile, L, column, flags, rows, dt, u_rows, guess_rows)
+                    block_coefficients(col, h, inputs, tile, L, column, flags, rows, dt, u_rows)
                     j, following = j + BLOCK - 1, j + BLOCK  # its lanes set up: joined at once (join)
             lane = j - j0 if block else ALONE
             o, step = cell(lane, L), sc.step(lane)  # the lane's layer a: cell o + a step of the tile
@@ -367,7 +368,7 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
             # what stays fixed during the iteration, a few rows per loop over the layers (a loop
             # over all reloads its rows' pointers), the laws' switch outside them
             if not (fused and block):  # m/dt, m u*/dt (a block's masses and bed layer: block_coefficients)
-                sc.set_up(tile, L, lane, m, dt, u_rows, guess_rows, ustar, guess, col, current)
+                sc.set_up(tile, L, lane, m, dt, ustar, guess, col, current)
             layers = 0 if fused and block else 1 if fused else L  # compiled yield forms: layer 0 alone
             for a in range(layers):  # (new_tile: 1.0 above)
                 tile[sc.VISCOUS, np.uint64(o + a * step)] = 1.0 if viscous[a] else 0.0
@@ -388,9 +389,7 @@ def _iterate(k, chunks, columns, inputs, fused, given, laws, control, out, work)
             if block:
                 join(tile, L, flags, 0 if fused else lane, lane, fine, not fused or inputs.walls)
                 if lane == BLOCK - 1:
-                    sc.block_parts(
-                        tile, L, bulk_form, bulk_params, h, wet, j0, dt, u_rows, guess_rows, flags, fused
-                    )
+                    sc.block_parts(tile, L, bulk_form, bulk_params, h, wet, j0, dt, u_rows, flags, fused)
                     sheared_block(
                         tile, sweeps, flags, finished, bulk_form, bulk_params, threshold, max_iterations, j0,
                         wet[j0], u_out, iterations, fallbacks, faults, fault_values, side_by_side,

@@ -57,7 +57,7 @@ cells on, and one cell at a time below: 22-29 against 51-53 ns per column and pa
 L = 8).  The tile holds 23 values per layer for each of the BLOCK + 1 lanes, 215 KB at
 L = 128 (the 3 of the bounds touched only where a column is tested by them), the sweeps of
 the solve 5 per layer and lane, 41 KB, and the rows of :func:`load` and of the block's
-coefficients 10, 82 KB."""
+coefficients 9, 74 KB."""
 
 # The tile (SLOTS, 2 BLOCK + (BLOCK + 1) L) holds, in each slot (a row), one value per
 # column (lane) and layer, laid out as the mesh and the sweeps of :func:`_solve`: layer a
@@ -154,27 +154,30 @@ def _layer(source, s):
 
 
 @jit(borrowing=True)
-def load(u_rows, guess_rows, ustar, guess, c0):
+def load(u_rows, iterate, ustar, guess, c0):
     """The velocities after transport and the guesses of the block's columns ``c0 ... c0 +
-    BLOCK - 1`` of the (L, N) arrays ``ustar`` and ``guess`` (adjacent columns) into
-    ``u_rows`` and ``guess_rows`` (L BLOCK), laid out as the mesh: row by row, each row's
-    BLOCK values one or two cache lines, read once for the whole block and copied as
-    vectors.  Column by column, each column would read its L values a row of the mesh
-    apart, one value from each of L cache lines (at N = 20 000 the rows are 160 000 B
-    apart: the lines of a column fall in a few sets of the L1 cache, and are gone before
-    the next column would use them).  The tile is laid out as these rows:
-    :func:`block_parts` reads them into its slots ``MOMENTUM`` (times m/dt) and ``U0`` in
-    one pass as vectors."""
+    BLOCK - 1`` of the (L, N) arrays ``ustar`` and ``guess`` (adjacent columns), laid out as
+    the mesh: the velocities into ``u_rows`` (L BLOCK), the guesses into the tile's row
+    ``iterate`` (slot ``U0``: the first iterate of :func:`sheared_block`) at the block's
+    cells; row by row, each row's BLOCK values one or two cache lines, read once for the
+    whole block and copied as vectors (each value to one place: copied to two, they were
+    copied one at a time).  Column by column, each column
+    would read its L values a row of the mesh apart, one value from each of L cache lines
+    (at N = 20 000 the rows are 160 000 B apart: the lines of a column fall in a few sets of
+    the L1 cache, and are gone before the next column would use them).  The tile is laid
+    out as these rows: :func:`block_parts` reads ``u_rows`` into its slot ``MOMENTUM``
+    (times m/dt) in one pass as vectors."""
+    x0 = np.uint64(cell(0, ustar.shape[0]))
     for a in range(np.uint64(ustar.shape[0])):  # unsigned: no test for negative indices
         u, g = _layer(ustar[a], c0), _layer(guess[a], c0)
         for i in range(BLOCK):
             u_rows[a * np.uint64(BLOCK) + np.uint64(i)] = u[i]
         for i in range(BLOCK):
-            guess_rows[a * np.uint64(BLOCK) + np.uint64(i)] = g[i]
+            iterate[x0 + a * np.uint64(BLOCK) + np.uint64(i)] = g[i]
 
 
 @jit(inline="always")  # inlined: its loops run as vectors in the caller, without a call
-def set_up(t, L, lane, m, dt, u_rows, guess_rows, ustar, guess, col, current):
+def set_up(t, L, lane, m, dt, ustar, guess, col, current):
     """The slots ``INERTIA`` and ``MOMENTUM`` (``m/dt``, ``m u*/dt``) of lane ``lane`` and
     its guess, of the masses ``m``: a block's lane (``lane < BLOCK``) only its masses, into
     ``MOMENTUM`` (:func:`block_parts` makes the slots of the whole block at once, from them
@@ -219,11 +222,11 @@ def fixed_parts(t, start, stop, form, params, h, pressures, spacings):
 
 
 @jit(borrowing=True)
-def block_parts(t, L, form, params, h, wet, j0, dt, u_rows, guess_rows, flags, made):
+def block_parts(t, L, form, params, h, wet, j0, dt, u_rows, flags, made):
     """The block's lanes, set up (the wet columns ``j0 ...`` of the thicknesses ``h``, their
-    masses in ``MOMENTUM``: :func:`set_up`): ``m/dt``, ``m u*/dt`` (the u* of the rows of
-    :func:`load`, laid out as the tile) and the guesses into ``U0`` (the first iterate of
-    :func:`sheared_block`), in one pass over their cells as vectors, and so
+    masses in ``MOMENTUM``: :func:`set_up`; their guesses in ``U0``: :func:`load`): ``m/dt``
+    and ``m u*/dt`` (the u* of the rows of :func:`load`, laid out as the tile) in one pass
+    over their cells as vectors, and so
     :func:`fixed_parts` (the pressure parts lane by lane for a law of the column thickness,
     ``forms.INERTIAL_PLATEAU``); a lane without mass at its bed leaves the block
     (``ACTIVE``).  With ``made``, all but the ``ACTIVE`` flags and the pressure parts are
@@ -234,7 +237,6 @@ def block_parts(t, L, form, params, h, wet, j0, dt, u_rows, guess_rows, flags, m
         m = t[MOMENTUM, x]
         t[INERTIA, x] = m / dt
         t[MOMENTUM, x] = m * u_rows[s] / dt
-        t[U0, x] = guess_rows[s]
     for i in range(BLOCK):
         flags[ACTIVE, i] = flags[ACTIVE, i] and t[INERTIA, cell(i, L)] > 0.0
     plateau = form == INERTIAL_PLATEAU
@@ -247,11 +249,11 @@ def block_parts(t, L, form, params, h, wet, j0, dt, u_rows, guess_rows, flags, m
 
 
 @jit(borrowing=True)
-def unload(t, L, flags, i, guess_rows, viscous, wall_true, guess):
+def unload(t, L, flags, i, guesses, col, viscous, wall_true, guess):
     """Column ``i`` of the block, one it did not finish, into lane ``ALONE`` (the
     column solved on its own by ``newton_kernel._chunk``), with the arrays of one column
-    that lane has no slot for (no side walls) and its guess (from ``guess_rows`` of
-    :func:`load`); returns ``fine``."""
+    that lane has no slot for (no side walls) and its guess (column ``col`` of the (L, N)
+    guesses ``guesses``: the block's iterates are written over it); returns ``fine``."""
     lane, alone = lane_of(t, i), np.uint64(cell(ALONE, L) - 1)
     for slot in range(OFFSET + 1):  # the per-step slots
         for a in range(np.uint64(1), np.uint64(L + 1)):  # unsigned: no test for negative indices
@@ -259,7 +261,7 @@ def unload(t, L, flags, i, guess_rows, viscous, wall_true, guess):
     for a in range(np.uint64(L)):
         viscous[a] = lane[VISCOUS, a + np.uint64(1)] > 0.0
         wall_true[a] = lane[WALL, a + np.uint64(1)]  # no walls
-        guess[a] = guess_rows[a * np.uint64(BLOCK) + np.uint64(i)]
+        guess[a] = guesses[a, col]
     return flags[FINE, i]
 
 
@@ -611,7 +613,8 @@ def sheared_block(
     u_out, iterations, fallbacks, faults, fault_values, side_by_side,
 ):  # fmt: skip
     """The Newton iteration of ``newton_kernel._chunk`` for the ``BLOCK`` columns set up
-    in the tile ``t`` (``block_coefficients.join``; their guesses in slot ``U0``): wet columns ``j0 ...`` of
+    in the tile ``t`` (``block_coefficients.join``; their guesses in slot ``U0``: :func:`load`): wet
+    columns ``j0 ...`` of
     ``_chunk``, mesh columns ``c0 ...``, adjacent, without side walls; side by side while
     each stays fully sheared.  ``finished[i]`` tells which columns it solved, and wrote into
     ``_chunk``'s outputs (``side_by_side`` True): their velocities at the end, row by row

@@ -594,12 +594,13 @@ def _store(rows, values, n, row, value):
 
 
 @jit
-def unknowns(mass, left, right, moving, u, w, offset, nodes, free, V_star, row_of, rows):
+def unknowns(mass, left, right, moving, u, w, offset, nodes, free, V_star, row_of, rows, structure):
     """The free unknowns (faces with a moving side and material, the moving cells' ``wbar``),
     the row of each cell (-1: none; the moving pressure interfaces ``nodes``, column by
     column: ``A`` is then banded, of half-width about ``L_p + 3``), the cells of the rows
     and ``V*``, for the columns ``offset ..`` of ``u`` and ``w`` (see :func:`correction`),
-    into ``free``, ``V_star``, ``row_of`` and ``rows``; returns the number of rows."""
+    into ``free``, ``V_star``, ``row_of`` and ``rows``; returns the number of rows (without
+    ``structure``, 0: the rows those a call with the same ``moving`` made, not made again)."""
     L, N = moving.shape
     F, Lp = left.size, nodes.size
     for c in range(L):
@@ -614,7 +615,7 @@ def unknowns(mass, left, right, moving, u, w, offset, nodes, free, V_star, row_o
             free[k] = moving[a, i]
             V_star[k] = w[a, np.uint64(offset + i)] if moving[a, i] else 0.0
     n = 0
-    for i in range(N):
+    for i in range(N if structure else 0):
         for g in range(Lp):
             row_of[g * N + i] = -1
             if moving[nodes[g], i]:

@@ -138,7 +138,8 @@ def correction(
         np.empty(layers.size * N, np.int64),
         np.empty(layers.size * N, np.int64),
     )
-    n = unknowns(cons.mass, cons.left, cons.right, moving, u, w, offset, layers, free, V_star, row_of, rows)
+    mass = cons.mass
+    n = unknowns(mass, cons.left, cons.right, moving, u, w, offset, layers, free, V_star, row_of, rows, True)
     arrays = (
         np.empty(K + 1, np.int64),
         np.empty(cons.cells.size, np.int64),
@@ -259,14 +260,14 @@ def project_columns(
     K = L * left.size + L * W
     free, V_star, dV, mass = buffers.free[:K], buffers.V_star[:K], buffers.dV[:K], buffers.mass[:K]
     row_of = buffers.row_of[: nodes.size * (hi - lo)]
-    n = unknowns(face_mass, left, right, moving, u, w, lo, nodes, free, V_star, row_of, buffers.rows)
+    n = unknowns(face_mass, left, right, moving, u, w, lo, nodes, free, V_star, row_of, buffers.rows, True)
     arrays = (buffers.pointer[: K + 1], buffers.cells, buffers.values, mass)
     key, geometry = (lo, hi, periodic, dx, P), (thickness, bed[window], fractions, dx, left, right, P)
     carried = None
     if start is not None:  # E V of the step's start, on the rows of this step (before arrays hold E V*)
         h0, u0, w0 = start
         V0 = buffers.V_start[:K]  # the same free unknowns and rows, the start's values
-        unknowns(face_mass, left, right, moving, u0, w0, lo, nodes, free, V0, row_of, buffers.rows)
+        unknowns(face_mass, left, right, moving, u0, w0, lo, nodes, free, V0, row_of, buffers.rows, False)
         before = buffers.before[:W]
         _thickness(h0, dry, lo, before)
         carried = buffers.carried[:n]
