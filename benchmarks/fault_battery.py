@@ -3723,6 +3723,7 @@ def cases() -> list[Case]:
         + round_twenty_nine()
         + round_thirty()
         + round_thirty_one()
+        + round_thirty_two()
     )
 
 
@@ -5364,6 +5365,229 @@ def round_thirty_one() -> list[Case]:
     return out
 
 
+MIXTURE32 = {**MIXTURE, "material.particle_density": 2500.0}
+"""TINY as a grain-fluid mixture of grains of 2500 kg/m^3 (the cases of round 32)."""
+
+WET_ONLY_PLUGIN = """
+import multilayer, numpy as np
+from multilayer.plugins.contract import Rheology
+
+
+class WetOnly(Rheology):
+    name = "wet_only"
+
+    def __init__(self, mu: float = 0.3):
+        self.mu = mu
+
+    def mixture_yield_stress(self, pressure, mixture, material):
+        return self.mu * np.maximum(pressure, 0.0) * mixture.phi / 0.58
+
+    def mixture_viscosity(self, shear_rate, pressure, mixture, material):
+        return np.zeros(np.shape(pressure))
+
+
+@multilayer.hookimpl
+def multilayer_register_rheologies(register):
+    register(WetOnly)
+"""
+"""A third-party law implementing only the mixture's methods (no dry yield stress)."""
+
+
+def _mixture_patch(method: str, body: str) -> str:
+    """``DruckerPrager.<method>`` (a mixture method) running ``body`` before the real one."""
+    args = "self, p, mixture, m" if method == "mixture_yield_stress" else "self, g, p, mixture, m"
+    return (
+        f"real = DruckerPrager.{method}\ndef fault({args}):\n    {body}\n"
+        f"    return real({args})\nDruckerPrager.{method} = fault\n"
+    )
+
+
+def _finished_mixture(directory: Path, changes: dict | None = None, end: float | None = None) -> None:
+    """A completed run of :data:`MIXTURE32` (with ``changes``, to ``end``) in ``directory/out``."""
+    extra = {"time.end": end} if end is not None else {}
+    scenario = _scenario(directory, {**MIXTURE32, **(changes or {}), **extra})
+    subprocess.run(
+        [sys.executable, "-m", "multilayer", "run", str(scenario), "-o", str(directory / "out"), "-q"],
+        check=True, capture_output=True,
+    )  # fmt: skip
+    if end is not None:  # the scenario the case resumes with runs on to TINY's end
+        _scenario(directory, {**MIXTURE32, **(changes or {})})
+
+
+def _mixture_result(edit: Callable[[Any], object], changes: dict | None = None) -> Callable[[Path], None]:
+    """A finished mixture run (with ``changes``) whose ``result.nc`` is then given
+    ``edit(dataset)`` (netCDF4, in place)."""
+
+    def setup(directory: Path) -> None:
+        _finished_mixture(directory, changes)
+        import netCDF4
+
+        with NETCDF, netCDF4.Dataset(directory / "out" / "result.nc", "a") as ds:
+            edit(ds)
+
+    return setup
+
+
+def _wet_cell(ds: Any) -> int:
+    return int(np.argmax(ds["h"][-1]))
+
+
+def _dry_cell(ds: Any) -> int:
+    return int(np.flatnonzero(ds["h"][-1] == 0.0)[0])
+
+
+def _mixture_checkpoint(entry: str, value: Any, changes: dict | None = None) -> Callable[[Path], None]:
+    """A mixture run to 0.1 s whose checkpoint holds ``entry = value(old)`` (deleted for
+    None) under a valid checksum; the scenario runs on to 0.2 s."""
+
+    def setup(directory: Path) -> None:
+        from multilayer.io import results
+
+        _finished_mixture(directory, changes, end=0.1)
+        ckpt = directory / "out" / "checkpoint.npz"
+        arrays: dict[str, Any] = dict(np.load(ckpt))
+        arrays.pop("checksum")
+        if value is None:
+            arrays.pop(entry)
+        else:
+            arrays[entry] = value(arrays[entry])
+        arrays["checksum"] = np.asarray(results._checksum(arrays))
+        with open(ckpt, "wb") as stream:
+            np.savez(stream, **arrays)
+
+    return setup
+
+
+def _wet_only(directory: Path) -> None:
+    """:data:`MIXTURE32` on the law of :data:`WET_ONLY_PLUGIN`, installed as ``third``."""
+    _plugin_package(directory, "third", WET_ONLY_PLUGIN)
+    _scenario(directory, {**MIXTURE32, "rheology": {"name": "wet_only", "mu": 0.3}})
+
+
+def round_thirty_two() -> list[Case]:
+    """The hostile cases of the thirty-second round (docs/reliability.md), in the grain-fluid
+    mixture, the newer model options and the data paths: a mixture law writing into the
+    excess pore pressure it is given (the Newton iterate) or forcing its copy writeable; a
+    mixture's ``phi`` changed within ``[0, 1)`` in a wet and in a dry cell, ``phi_layer``
+    set where ``h`` is 0 and ``pore_pressure_excess`` unlike ``pore_pressure_layer``'s first
+    layer; ``mixture.critical_shift`` 1e100 and 1e300 (a Newton iteration that overflows);
+    a mixture's checkpoint without ``solid`` or ``pore_pressure`` or whose solid leaves its
+    layers; ``expect`` entries no run can pass (a negative speed, mass or static height, a
+    solid fraction of 2); as controls, packings and fluids at and past their bounds, a mixture
+    between periodic sides, with vertical shear, a gate or walls, the non-hydrostatic pressure
+    with every option and a gate between periodic sides, a plot of a mixture failed at its
+    first step, a plugin's negative mixture viscosity, a law of the mixture's methods only
+    and a resume with the fluid changed."""
+    validate = ["validate", "{scenario}"]
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    resume = [*run, "--resume"]
+    check = ["check", "{scenario}"]
+    export = ["export", "{dir}/out", "--vtk"]
+    mixture = partial(_scenario, changes=MIXTURE32)
+    fluid = {"density": 1000.0, "viscosity": 1e-3}
+
+    def mixed(**changes: Any) -> Callable[[Path], Path]:
+        dotted = {k.replace("__", "."): v for k, v in changes.items()}
+        return partial(_scenario, changes={**MIXTURE32, **dotted})
+
+    def closure(**constants: float) -> dict:
+        return {"mixture": {"phi_critical": 0.58, "dilatancy": 4.0, "critical_shift": 25.0, **constants}}
+
+    def pin(quantity: str, value: float, atol: float) -> list[dict]:
+        return [{"kind": "regression", "quantity": quantity, "value": value, "atol": atol}]
+
+    read_only = "mixture_yield_stress() raised ValueError: assignment destination is read-only"
+    not_mean = "is not the mean of phi_layer over the layers"
+    no_run = "no run passes"
+    kept = "not a checkpoint this version of multilayer writes for this scenario"
+    layered = {"fluid": {**fluid, "compressibility": 1e-3}}  # pore_pressure_layer in 3 layers
+    nh = {"model": {"pressure": "non_hydrostatic", "normal_stress": True, "vertical_shear": True}}
+    periodic = {"boundaries": {"left": "periodic", "right": "periodic"}}
+    gate = {"gate": {"x": 0.1, "lift_speed": 0.5}}
+    out = [
+        Case("plugin: a mixture law writing into the excess pore pressure it is given", run, 1, read_only,
+             patch=_mixture_patch("mixture_yield_stress", "mixture.pore_pressure[...] = 0.0"), setup=mixture,
+             keeps_output=True),
+        Case("plugin: a mixture law forcing its copy of the pore pressure writeable and scaling it", run, 0,
+             "", setup=mixture, patch=_mixture_patch(
+                 "mixture_yield_stress",
+                 "mixture.pore_pressure.flags.writeable = True\n    mixture.pore_pressure[...] *= 10.0")),
+        Case("plot: a mixture's phi changed to 0.3 in a wet cell", ["plot", "{dir}/out"], 2, not_mean,
+             setup=_mixture_result(lambda ds: ds["phi"].__setitem__((-1, _wet_cell(ds)), 0.3))),
+        Case("export: a mixture's phi 0.5 where h is 0", export, 2,
+             "phi = 0.5 where h is 0 (no mixture there: 0)",
+             setup=_mixture_result(lambda ds: ds["phi"].__setitem__((-1, _dry_cell(ds)), 0.5))),
+        Case("export: a mixture's phi_layer 0.4 in every layer where h is 0", export, 2,
+             "phi_layer is 0.4 where h is 0 (no mixture: 0)", setup=_mixture_result(
+                 lambda ds: ds["phi_layer"].__setitem__((-1, slice(None), _dry_cell(ds)), 0.4))),
+        Case("plot: pore_pressure_excess 100 Pa off pore_pressure_layer's first layer", ["plot", "{dir}/out"],
+             2, "is not pore_pressure_layer of the first layer", setup=_mixture_result(
+                 lambda ds: ds["pore_pressure_excess"].__setitem__(
+                     (-1, _wet_cell(ds)), ds["pore_pressure_excess"][-1, _wet_cell(ds)] + 100.0), layered)),
+        Case("mixture: critical_shift 1e100 in three layers, run", run, 1,
+             "mixture.dilatancy = 4 and mixture.critical_shift = 1e+100)",
+             setup=mixed(**closure(critical_shift=1e100)), keeps_output=True),
+        Case("mixture: critical_shift 1e300 in three layers, run", run, 1, "mixture.critical_shift = 1e+300)",
+             setup=mixed(**closure(critical_shift=1e300)), keeps_output=True),
+        Case("resume: a mixture's checkpoint without solid", resume, 2,
+             "solid: missing; accepted: the state of a grain-fluid mixture holds solid and pore_pressure",
+             setup=_mixture_checkpoint("state.solid", None)),
+        Case("resume: a mixture's checkpoint without pore_pressure", resume, 2, "pore_pressure: missing",
+             setup=_mixture_checkpoint("state.pore_pressure", None)),
+        Case("resume: a mixture's checkpoint whose solid is 3 times its own", resume, 2,
+             "m at layer 1, column 0, outside [0, ",
+             setup=_mixture_checkpoint("state.solid", lambda s: 3 * s)),
+        Case("resume: a mixture's checkpoint whose solid is 1 mm less (negative)", resume, 2, kept,
+             setup=_mixture_checkpoint("state.solid", lambda s: s - 1e-3)),
+        Case("validate: expect max_speed_final = -1 +- 0.1", validate, 2,
+             f"max_speed_final = -1.0 +- 0.1: {no_run} (its max_speed_final is 0 or more)",
+             setup=partial(_scenario, changes={"expect": pin("max_speed_final", -1.0, 0.1)})),
+        Case("check: expect mass_final = -1 +- 0.5", check, 2, f"mass_final = -1.0 +- 0.5: {no_run}",
+             setup=partial(_scenario, changes={"expect": pin("mass_final", -1.0, 0.5)})),
+        Case("check: a mixture's expect phi_mean_final = 2 +- 0.1", check, 2,
+             f"phi_mean_final = 2.0 +- 0.1: {no_run} (its phi_mean_final is in [0, 1))",
+             setup=mixed(expect=pin("phi_mean_final", 2.0, 0.1))),
+        Case("validate: expect static_interface_mean_final = -0.2 +- 0.1", validate, 2, no_run,
+             setup=partial(_scenario, changes={"expect": pin("static_interface_mean_final", -0.2, 0.1)})),
+        Case("control: expect max_speed_final = 0 +- 0 (validate)", validate, 0, "",
+             setup=partial(_scenario, changes={"expect": pin("max_speed_final", 0.0, 0.0)})),
+        Case("control: phi0 = phi_c, run", run, 0, "", setup=mixed(initial__0__phi=0.58)),
+        Case("control: fluid viscosity 0 (no drag), run", run, 0, "",
+             setup=mixed(fluid={**fluid, "viscosity": 0.0})),
+        Case("control: compressibility 1, run", run, 0, "",
+             setup=mixed(fluid={**fluid, "compressibility": 1.0})),
+        Case("validate: compressibility 1 + ulp", validate, 2, "fluid.compressibility",
+             setup=mixed(fluid={**fluid, "compressibility": 1.0000000000000002})),
+        Case("validate: compressibility 0", validate, 2, "fluid.compressibility",
+             setup=mixed(fluid={**fluid, "compressibility": 0.0})),
+        Case("validate: a fluid denser than the grains", validate, 2,
+             "fluid density 3000.0 is not below the grain density 2500.0",
+             setup=mixed(fluid={**fluid, "density": 3000.0})),
+        Case("validate: phi0 1 - 1e-16", validate, 2, "initial.0.phi",
+             setup=mixed(initial__0__phi=1 - 1e-16)),
+        Case("control: a mixture between periodic sides, run", run, 0, "", setup=mixed(**periodic)),
+        Case("validate: a mixture with vertical shear", validate, 2, "model.vertical_shear",
+             setup=mixed(model={"vertical_shear": True})),
+        Case("validate: a mixture behind a gate", validate, 2, "gate (line", setup=mixed(**gate)),
+        Case("control: non-hydrostatic, normal stress, vertical shear, a gate, periodic sides, run", run, 0,
+             "", setup=partial(_scenario, changes={**nh, **gate, **periodic})),
+        Case("plot: a mixture run failed at its first step", ["plot", "{dir}/out"], 0, "drawn up to t = 0 s",
+             setup=lambda d: subprocess.run(
+                 [sys.executable, "-m", "multilayer", "run", str(mixed(**closure(critical_shift=1e300))(d)),
+                  "-o", str(d / "out"), "-q"], capture_output=True)),
+        Case("plugin: a negative mixture viscosity", run, 1, "mixture_viscosity() returned -1.0",
+             patch="DruckerPrager.mixture_viscosity = lambda self, g, p, s, m: np.full(np.shape(p), -1.0)\n",
+             setup=mixture, keeps_output=True),
+        Case("plugin: a third-party law of the mixture's methods only", run, 2,
+             "WetOnly does not implement yield_stress()", env={"PYTHONPATH": "{dir}/plugin"},
+             setup=_wet_only),
+        Case("resume: a mixture's run with fluid.viscosity changed",
+             [*resume, "--set", "fluid.viscosity=0.002"], 2, "changed: fluid.viscosity",
+             setup=lambda d: _finished_mixture(d, end=0.1)),
+    ]  # fmt: skip
+    return out
+
+
 def _failed_because(failure: object) -> Callable[[Path], None]:
     """A finished run whose result.nc says ``run_status: failed`` with ``failure``."""
 
@@ -5456,6 +5680,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     21: round_twenty_one, 22: round_twenty_two, 23: round_twenty_three, 24: round_twenty_four,
     25: round_twenty_five, 26: round_twenty_six, 27: round_twenty_seven,
     28: round_twenty_eight, 29: round_twenty_nine, 30: round_thirty, 31: round_thirty_one,
+    32: round_thirty_two,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""
 
@@ -5465,7 +5690,7 @@ def main() -> None:
     parser.add_argument("-k", default="", help="only the cases whose name contains this")
     parser.add_argument("-j", type=int, default=2, help="cases run at once")
     parser.add_argument(
-        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 31; all: none)"
+        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 32; all: none)"
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()

@@ -224,8 +224,17 @@ MIXTURE_DAMAGES = {
         _set("pore_pressure_excess", (3, 1), np.inf),
         r"output time 3 .* pore_pressure_excess = inf is not finite",
     ),
+    "mixture: phi 0.3 in a wet cell": (
+        _set("phi", (2, 1), 0.3),
+        r"output time 2 .* phi = 0.3 is not the mean of phi_layer over the layers at x index 1",
+    ),
+    "mixture: phi 0.5 where h is 0": (
+        _set("phi", (1, 19), 0.5),
+        r"output time 1 .* phi = 0.5 where h is 0 \(no mixture there: 0\) at x index 19",
+    ),
 }
-"""Damages of a grain-fluid mixture's variables."""
+"""Damages of a grain-fluid mixture's variables (the last two within ``[0, 1)``, read as the
+run's answer were they not checked against ``phi_layer`` and ``h``)."""
 
 
 @pytest.fixture(params=[*DAMAGES, *MIXTURE_DAMAGES])

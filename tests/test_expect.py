@@ -85,9 +85,9 @@ def _write(directory, name: str, expect: list[dict] | None) -> str:
 def test_tolerance_is_atol_plus_rtol_times_value():
     entries = [
         Expect(kind="regression", quantity="runout", value=2.0, rtol=0.1, atol=0.05),
-        Expect(kind="regression", quantity="mass_final", value=-1.0, rtol=0.1),
+        Expect(kind="regression", quantity="front_final", value=-1.0, rtol=0.1),  # a front at x < 0
     ]
-    ok, edge = evaluate(entries, {"runout": 2.249, "mass_final": -1.1000001})
+    ok, edge = evaluate(entries, {"runout": 2.249, "front_final": -1.1000001})
     assert ok.tolerance == pytest.approx(0.25) and ok.passed
     assert edge.tolerance == pytest.approx(0.1) and not edge.passed
 

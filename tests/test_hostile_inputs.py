@@ -1422,6 +1422,36 @@ def test_load_state_names_a_missing_or_non_finite_entry_and_restores_nothing():
     sim.load_state({k: v for k, v in saved.items() if not k.startswith("seed_")})  # restarts the seed
 
 
+def test_load_state_of_a_mixture_needs_its_solid_and_pore_pressure_within_the_layers():
+    """A mixture's state without ``solid`` restored a solid of 0 (the closure then overflowed
+    on a packing of 0, blaming its coefficients), without ``pore_pressure`` a pore pressure of
+    0 (exit 0, the resumed run no longer the uninterrupted one); a solid outside ``[0, l_a h]``
+    was restored and blamed on a write between steps.  Each is an InputError naming the entry,
+    before anything is restored; the state as saved restores."""
+    mixture = {
+        **TINY_SCENARIO,
+        "material": {"density": 1500.0, "grain_diameter": 1e-3, "particle_density": 2500.0},
+        "fluid": {"density": 1000.0, "viscosity": 1e-3},
+        "mixture": {"phi_critical": 0.58, "dilatancy": 4.0, "critical_shift": 25.0},
+        "initial": [{**TINY_SCENARIO["initial"][0], "phi": 0.58}],
+    }
+    sim = multilayer.Simulation(multilayer.load(mixture))
+    sim.advance(0.01)
+    saved = sim.state_dict()
+    for name in ("solid", "pore_pressure"):
+        with pytest.raises(
+            InputError, match=rf"^{name}: missing; accepted: the state of a grain-fluid mixture"
+        ):
+            sim.load_state({k: v for k, v in saved.items() if k != name})
+    for factor, sign in ((3.0, ""), (-1.0, "-")):
+        with pytest.raises(
+            InputError, match=rf"^solid holds {sign}0\.0[0-9]+ m at layer 1, column 0, outside \[0, "
+        ):
+            sim.load_state({**saved, "solid": saved["solid"] * factor, "t": 5.0})
+    assert sim.t == saved["t"] and np.array_equal(sim.mixture.solid, saved["solid"])
+    sim.load_state(saved)
+
+
 def test_load_state_refuses_force_impulses_no_run_accumulates_and_an_absurd_seed_changes_nothing():
     """A finite force impulse of 1e308 was restored and written as an infinite mean force at
     the next output (-1e300 as a force of -5e301 N/m). Impulses no run accumulates are an
@@ -2029,6 +2059,53 @@ def test_expect_entries_no_value_can_pass_together_are_refused(cli, write_scenar
         )
     pins[2]["value"] = 0.0049  # the intervals meet: a value of 0.00495 passes both
     assert cli("validate", write_scenario(_tiny(expect=pins))).code == 0
+
+
+@pytest.mark.parametrize(
+    ("quantity", "value", "atol", "phrase"),
+    [
+        (
+            "max_speed_final",
+            -1.0,
+            0.1,
+            "max_speed_final = -1.0 +- 0.1: no run passes (its max_speed_final is 0 or more)",
+        ),
+        ("mass_final", -1.0, 0.5, "mass_final = -1.0 +- 0.5: no run passes (its mass_final is 0 or more)"),
+        (
+            "static_interface_mean_final",
+            -0.2,
+            0.1,
+            "static_interface_mean_final = -0.2 +- 0.1: no run passes",
+        ),
+        (
+            "phi_mean_final",
+            2.0,
+            0.1,
+            "phi_mean_final = 2.0 +- 0.1: no run passes (its phi_mean_final is in [0, 1))",
+        ),
+        ("phi_mean_final", -1.0, 0.1, "phi_mean_final = -1.0 +- 0.1: no run passes"),
+    ],
+)
+def test_an_expect_entry_no_run_can_pass_is_refused(cli, write_scenario, quantity, value, atol, phrase):
+    """A speed, mass or static height below 0, a solid fraction outside [0, 1): `check` ran
+    the whole scenario to fail it, exit 1; refused naming the entry's value, exit 2.  A pin of
+    0 +- 0 (a deposit at rest) and one whose interval reaches 0 validate."""
+    extra = {}
+    if quantity == "phi_mean_final":
+        extra = {
+            "fluid": {"density": 1000.0, "viscosity": 1e-3},
+            "mixture": {"phi_critical": 0.58, "dilatancy": 4.0, "critical_shift": 25.0},
+            "material": {"density": 1500.0, "grain_diameter": 1e-3, "particle_density": 2500.0},
+            "initial": [{**TINY_SCENARIO["initial"][0], "phi": 0.58}],
+        }
+    pin = {"kind": "regression", "quantity": quantity, "value": value, "atol": atol}
+    for command in ("validate", "check"):
+        result = cli(command, write_scenario({**_tiny(expect=[pin]), **extra}))
+        assert result.code == 2 and "Traceback" not in result.err, result.err
+        assert "expect.0.value (line" in result.err and phrase in result.err, result.err
+    for reachable in (0.0, -0.5 * atol):  # [-1.5 atol, 0.5 atol] reaches 0
+        pin.update(value=reachable, atol=0.0 if reachable == 0.0 else atol)
+        assert cli("validate", write_scenario({**_tiny(expect=[pin]), **extra})).code == 0
 
 
 @pytest.mark.parametrize(

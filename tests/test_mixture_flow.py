@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import TINY_SCENARIO
 
 import multilayer
 from multilayer.engine.config import InitialEntry, MixtureConfig, Numerics, SimulationConfig
@@ -23,6 +24,7 @@ from multilayer.engine.mixture.flow import buoyant_fraction
 from multilayer.engine.mixture.local_step import LocalStep
 from multilayer.engine.simulation import Simulation
 from multilayer.errors import InputError, RunError
+from multilayer.io.results import open_result
 from multilayer.plugins.builtins import DilatantCoulomb, DruckerPrager
 from multilayer.plugins.contract import Material, MixtureState
 
@@ -405,9 +407,30 @@ def test_a_local_step_that_diverges_stops_without_blaming_the_rheology():
     local = sim.mixture.local
     guess = np.full(sim.u.shape, np.nan)
     with pytest.raises(
-        RunError, match=r"local step diverged: a trial excess pore pressure is not finite \(at x = "
+        RunError,
+        match=r"local step diverged: a trial excess pore pressure is not finite \(its Newton .*\(at x = ",
     ):
         local(sim.mixture.solid, sim.h, sim.u, 1e-3, pressure_guess=guess, x=sim.x)
+
+
+def test_a_local_step_that_diverges_on_a_huge_closure_constant_names_the_constants(
+    tmp_path, cli, write_scenario
+):
+    """``mixture.critical_shift: 1e100`` in three layers of Drucker-Prager (validated, no
+    bound): the Newton iteration overflows at the first step; the run stops, exit 1, naming
+    the closure's keys with their values, the initial state kept."""
+    data = {
+        **TINY_SCENARIO,
+        "material": {"density": 1500.0, "grain_diameter": 1e-3, "particle_density": 2500.0},
+        "fluid": {"density": 1000.0, "viscosity": 1e-3},
+        "mixture": {"phi_critical": 0.58, "dilatancy": 4.0, "critical_shift": 1e100},
+        "initial": [{**TINY_SCENARIO["initial"][0], "phi": 0.58}],
+    }
+    result = cli("run", write_scenario(data), "-o", tmp_path / "out", "-q")
+    assert result.code == 1, result.err
+    assert "Traceback" not in result.err
+    assert "mixture.dilatancy = 4 and mixture.critical_shift = 1e+100)" in result.err, result.err
+    assert open_result(tmp_path / "out").sizes["time"] == 1
 
 
 def test_a_dry_scenario_refuses_phi():

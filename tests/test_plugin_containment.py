@@ -129,6 +129,41 @@ def test_a_plugin_changing_what_it_was_given_or_what_it_returned_changes_nothing
     np.testing.assert_array_equal(twin.u, clean.u)
 
 
+def test_a_mixture_law_writing_into_the_pore_pressure_it_was_given_changes_nothing(monkeypatch):
+    """The mixture's state (``MixtureState``) is given with read-only copies of its arrays:
+    its excess pore pressure was a view of the Newton iterate, which a law writing into it
+    changed (the step then failed to converge, blamed on the iteration). Forced writeable
+    and scaled, the copy changes nothing, to the last bit."""
+    _numpy_path(monkeypatch)
+    mixture = {
+        **SLUMP,
+        "material": {"density": 1500.0, "grain_diameter": 1e-3, "particle_density": 2500.0},
+        "fluid": {"density": 1000.0, "viscosity": 1e-3},
+        "mixture": {"phi_critical": 0.58, "dilatancy": 4.0, "critical_shift": 25.0},
+        "initial": [{**SLUMP["initial"][0], "phi": 0.58}],
+    }
+    scenario = from_dict(mixture)
+    clean = Simulation(scenario)
+    clean.advance(0.02)
+    real, calls = DruckerPrager.mixture_yield_stress, []
+
+    def vandal(self, pressure, state, material):
+        calls.append(state)
+        for array in (state.pore_pressure, state.phi):
+            assert not array.flags.writeable
+            array.flags.writeable = True
+            array *= 10.0
+        return real(self, pressure, state, material)
+
+    monkeypatch.setattr(DruckerPrager, "mixture_yield_stress", vandal)
+    twin = Simulation(scenario)
+    twin.advance(0.02)
+    assert len(calls) > 5
+    np.testing.assert_array_equal(twin.h, clean.h)
+    np.testing.assert_array_equal(twin.u, clean.u)
+    np.testing.assert_array_equal(twin.mixture.pore_pressure, clean.mixture.pore_pressure)
+
+
 @pytest.mark.parametrize(
     ("declared", "expected"),
     [

@@ -20,6 +20,7 @@ run``, which handles the signal itself), pass through.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import reprlib
 import signal
 import threading
@@ -90,7 +91,17 @@ def contained(plugin: Any, method: str, t: float | None = None) -> Iterator[None
 
 
 def read_only(value: Any) -> Any:
-    """A read-only copy of ``value`` if it is an array (what a plugin is given), else ``value``."""
+    """A read-only copy of ``value`` if it is an array (what a plugin is given), a copy of a
+    frozen dataclass holding arrays (a mixture's :class:`~multilayer.plugins.contract.MixtureState`)
+    with read-only copies of them, else ``value``: the mixture's excess pore pressure is a
+    view of the Newton iterate, which a plugin writing into it changed."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        arrays = {
+            f.name: read_only(getattr(value, f.name))
+            for f in dataclasses.fields(value)
+            if isinstance(getattr(value, f.name), np.ndarray)
+        }
+        return dataclasses.replace(value, **arrays) if arrays else value
     if not isinstance(value, np.ndarray):
         return value
     copy = value.copy()

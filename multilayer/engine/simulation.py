@@ -682,10 +682,10 @@ class Simulation:
         }
 
     def load_state(self, saved: dict) -> None:
-        """Restore a state saved by ``state_dict`` (:class:`InputError` naming an entry
-        this simulation does not hold, or holds with another shape)."""
+        """Restore a state saved by ``state_dict`` (:class:`InputError` naming a wrong entry first)."""
         check_restored(saved, self.state_dict())
-        self.forces.check_restored(saved)
+        for part in (self.forces, self.mixture):  # the forces and a mixture check their own entries
+            part is None or part.check_restored(saved)
         with whole():
             self._t, self._steps = float(saved["t"]), int(saved["steps"])
             self.newton_iterations = int(saved.get("newton_iterations", 0))

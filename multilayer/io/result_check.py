@@ -455,20 +455,28 @@ def _check_records(ds: netCDF4.Dataset, count: int, scenario: dict, bad) -> None
     if count and "bed_force_x" in ds.variables:
         _check_forces(ds, count, momentum, density, bad)
     if "phi" in ds.variables:
-        _check_mixture(ds, count, step, bad)
+        _check_mixture(ds, count, step, fractions, bad)
 
 
-def _check_mixture(ds: netCDF4.Dataset, count: int, step: int, bad) -> None:
+def _check_mixture(ds: netCDF4.Dataset, count: int, step: int, fractions: np.ndarray, bad) -> None:
     """The mixture's records (``result_format.MIXTURE_VARIABLES``), ``step`` at a time: the
-    solid volume fractions in ``[0, 1)`` (0 where there is no mixture) and the excess pore
-    pressure finite."""
+    solid volume fractions in ``[0, 1)`` and 0 where there is no mixture (``h == 0``), the
+    depth-averaged ``phi`` the mean of ``phi_layer`` weighted by the layer ``fractions`` (L,)
+    to round-off, the excess pore pressure finite and, with ``pore_pressure_layer``, its
+    first layer ``pore_pressure_excess`` (the writer writes each pair from one state: a
+    ``phi`` changed within ``[0, 1)`` was read as the run's answer, ``phi_mean_final``)."""
+    missing = [name for name in ("phi_layer", "pore_pressure_excess") if name not in ds.variables]
+    if missing:
+        raise bad(f"it holds a mixture's phi without {' and '.join(missing)}")
     for start in range(0, count, step):
         rows = slice(start, min(start + step, count))
+        t = np.asarray(ds["time"][rows], dtype=float)
+        values = {}
         for name in MIXTURE_VARIABLES:
             if name not in ds.variables:  # pore_pressure_layer: a relaxing pore pressure in layers only
                 continue
-            values = np.asarray(ds[name][rows], dtype=float)
-            flat = values.reshape(values.shape[0], -1)
+            values[name] = np.asarray(ds[name][rows], dtype=float)
+            flat = values[name].reshape(values[name].shape[0], -1)
             pressure = name.startswith("pore_pressure")
             ok = np.isfinite(flat) if pressure else (flat >= 0.0) & (flat < 1.0)
             broken = np.flatnonzero(~ok.all(axis=1))
@@ -476,8 +484,35 @@ def _check_mixture(ds: netCDF4.Dataset, count: int, step: int, bad) -> None:
                 j = int(broken[0])
                 value = float(flat[j][~ok[j]][0])
                 accepted = "finite" if pressure else "in [0, 1)"
-                t = float(ds["time"][start + j])
-                raise _record_error(bad, start + j, t, f"{name} = {value!r} is not {accepted}")
+                raise _record_error(bad, start + j, float(t[j]), f"{name} = {value!r} is not {accepted}")
+        dry = np.asarray(ds["h"][rows, :], dtype=float) == 0.0
+        phi, layered = values["phi"], values["phi_layer"]
+        mean = np.sum(fractions[None, :, :1] * layered, axis=1)
+        excess = values["pore_pressure_excess"]
+        checks = [  # (where wrong, the values quoted, what)
+            (dry & (phi != 0.0), phi, "phi = {!r} where h is 0 (no mixture there: 0)"),
+            (
+                dry & (layered != 0.0).any(axis=1),
+                layered.max(axis=1),
+                "phi_layer is {!r} where h is 0 (no mixture: 0)",
+            ),
+            (
+                ~(np.abs(phi - mean) <= ROUND_OFF * fractions.shape[0] * np.maximum(phi, mean)),
+                phi,
+                "phi = {!r} is not the mean of phi_layer over the layers",
+            ),
+        ]
+        if "pore_pressure_layer" in values:
+            first = values["pore_pressure_layer"][:, 0, :] != excess
+            checks.append(
+                (first, excess, "pore_pressure_excess = {!r} is not pore_pressure_layer of the first layer")
+            )
+        for wrong, quoted, what in checks:
+            if wrong.any():
+                j, i = (int(k[0]) for k in np.nonzero(wrong))
+                raise _record_error(
+                    bad, start + j, float(t[j]), what.format(float(quoted[j, i])) + f" at x index {i}"
+                )
 
 
 def _check_forces(ds: netCDF4.Dataset, count: int, momentum: np.ndarray, density: float, bad) -> None:

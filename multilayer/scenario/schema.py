@@ -67,6 +67,15 @@ QUANTITIES: tuple[str, ...] = get_args(Quantity)
 """Quantities an ``expect`` entry can check (see multilayer.results.summary)."""
 MIXTURE_QUANTITIES = ("pore_pressure_bed_mean_final", "phi_mean_final")
 """Those of a run with a fluid only."""
+QUANTITY_RANGES: dict[str, tuple[float, float, str]] = {
+    "mass_final": (0.0, math.inf, "0 or more"),
+    "max_speed_final": (0.0, math.inf, "0 or more"),
+    "static_interface_mean_final": (0.0, math.inf, "0 or more"),
+    "phi_mean_final": (0.0, 1.0, "in [0, 1)"),
+}
+"""The values a run's quantity can take, ``(low, high, in words)``: ``low <= q < high`` (a
+solid volume fraction as the result check reads it): an ``expect`` entry whose interval
+misses them fails every run, and `multilayer check` ran the whole scenario to say so."""
 
 _FRACTION_SUM_TOLERANCE = 1e-6
 _PACKING = f"a solid volume fraction in (0, {closure.DENSEST_PACKING:.4f}) (the densest packing of spheres)"
@@ -729,6 +738,15 @@ class Expect(StrictModel):
                 "a tolerance atol + rtol |value| below 1.8e308",
                 "rtol" if self.rtol else "atol",
             )
+        if self.quantity in QUANTITY_RANGES and self.value is not None:
+            low, high, accepted = QUANTITY_RANGES[self.quantity]
+            if self.value + self.tolerance < low or self.value - self.tolerance >= high:
+                raise invalid(
+                    f"{self.quantity} = {self.value!r} +- {self.tolerance:.3g}: no run passes (its "
+                    f"{self.quantity} is {accepted})",
+                    f"a value whose interval value +- (atol + rtol |value|) holds values {accepted}",
+                    "value",
+                )
         return self
 
     @property

@@ -27,6 +27,7 @@ from multilayer.engine.mixture import solid_transport
 from multilayer.engine.mixture.local_step import LocalStep
 from multilayer.engine.state import FlowState
 from multilayer.engine.state_check import StateGuard
+from multilayer.errors import InputError
 from multilayer.plugins.contract import Material, Rheology
 
 
@@ -94,6 +95,31 @@ class MixtureFlow:
         """Excess pore pressure at the bottom of each layer (L, N), Pa (``[0]``: at the
         bed; the state's field, handed out)."""
         return self._state.hand_out("pore_pressure")
+
+    def check_restored(self, saved: dict) -> None:
+        """:class:`InputError` unless a state to restore (checked by ``check_restored`` of
+        state_check.py: shapes, finite numbers, ``h >= 0``) holds the mixture's ``solid`` and
+        ``pore_pressure``, the solid of each layer within ``[0, l_a h]``: a state without them
+        restored a solid of 0 (a packing of 0 in every wet column, the closure then blamed)
+        or a pore pressure of 0 (the Newton iteration started elsewhere, the resumed run no
+        longer the uninterrupted one), and a solid outside its layer was blamed on a write
+        between steps."""
+        for name in ("solid", "pore_pressure"):
+            if name not in saved:
+                raise InputError(
+                    f"{name}: missing; accepted: the state of a grain-fluid mixture holds solid and "
+                    "pore_pressure (what state_dict() gives)"
+                )
+        solid, h = np.asarray(saved["solid"], dtype=float), np.asarray(saved["h"], dtype=float)
+        room = self.fractions[:, None] * h
+        bad = ~((solid >= 0.0) & (solid <= room * (1.0 + 1e-12)))
+        if bad.any():
+            a, i = (int(k[0]) for k in np.nonzero(bad))
+            raise InputError(
+                f"solid holds {float(solid[a, i])!r} m at layer {a + 1}, column {i}, outside [0, "
+                f"{float(room[a, i])!r}] m (the layer's thickness); accepted: the solid volume of each layer "
+                "within its thickness"
+            )
 
     def reset(self, steps: int) -> None:
         """Take the present solid as the reference of its balance (the start, or a restored state)."""

@@ -414,9 +414,15 @@ class LocalStep:
             )
         if diverged and closure_error is not None:
             return RunError(f"{closure_error} {place}")
-        if diverged:
+        if diverged:  # the Newton steps scale with the closure's coefficients: name them as given
+            cfg = self.config
             return RunError(
-                f"the mixture's local step diverged: a trial excess pore pressure is not finite {place}"
+                "the mixture's local step diverged: a trial excess pore pressure is not finite (its Newton "
+                "steps scale with the closure's coefficients: the Darcy drag kozeny eta_f phi^2 / (d^2 (1 - "
+                f"phi)) of fluid.viscosity = {cfg.fluid_viscosity:g}, material.grain_diameter = "
+                f"{self.material.grain_diameter:g} and mixture.kozeny = {cfg.kozeny:g}, and "
+                f"mixture.dilatancy = {cfg.dilatancy:g} and mixture.critical_shift = {cfg.critical_shift:g}) "
+                f"{place}"
             )
         return RunError(
             "the mixture's local step did not converge: its Newton iteration stalled, wandered or ran out of "
