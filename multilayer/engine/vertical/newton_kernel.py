@@ -140,25 +140,23 @@ def _other_structures(
     inertia, momentum, kappa, c, w, cw, current, ustar, col, proposal, u, first, grounded, U, diag, low, rhs,
     hint,
 ):  # fmt: skip
-    """Where the active set (``column_solve._active_set``) rejects the lock/sign
-    structure of the iterate ``current`` (its ``hint`` of that rejection given): solve
-    with, in turn, the structure of the velocities ``ustar`` of column ``col`` before the
-    step, that of ``current`` with its speeds and jumps below ``1e-9 max |current|`` set to
-    0 (the round-off of an earlier solve can open a locked interface or set moving a layer
-    held by the walls), the trial structure of the column held at rest
-    (:func:`_trial_structure`: the structure of material leaving rest), and that of
-    ``current`` repaired up to L times (one per interface), one interface at a time, as
-    each rejection hints (the edge of a plug that moved by a layer).  True
-    once one is the exact minimiser (each is checked for optimality by the active set
-    itself), False if none is: then the O(L^2) dynamic programme solves.
+    """Where the active set (``column_solve._active_set``) rejects the lock/sign structure of the iterate
+    ``current`` (its ``hint`` of that rejection given): solve with, in turn, the structure of the velocities
+    ``ustar`` of column ``col`` before the step, that of ``current`` with its speeds and jumps below ``1e-9
+    max |current|`` set to 0 (the round-off of an earlier solve can open a locked interface or set moving a
+    layer held by the walls; not tried where that is ``current`` itself, as for a column at rest: the same
+    structure, rejected again), the trial structure of the column held at rest (:func:`_trial_structure`: the
+    structure of material leaving rest), and that of ``current`` repaired up to L times (one per interface),
+    one interface at a time, as each rejection hints (the edge of a plug that moved by a layer).  True once
+    one is the exact minimiser (each is checked for optimality by the active set itself), False if none is:
+    then the O(L^2) dynamic programme solves.
 
-    A proposal costs an ordinary solve, the dynamic programme about 60 at L = 32 (so a
-    column that still needs the programme costs at most L + 3 solves more); in the
-    peer dam break the first two take the share of the solves that need the programme
-    from 0.22 % to 0.09 %; the trial structure solves the first step of a uniform
-    layer released from rest on a slope steeper than its friction angle (every column
-    needed the programme there); the repairs solve most of the rest under a
-    non-hydrostatic pressure, whose columns hold several plugs whose edges move."""
+    A proposal costs an ordinary solve, the dynamic programme about 60 at L = 32 (so a column that still needs
+    the programme costs at most L + 3 solves more); in the peer dam break the first two take the share of the
+    solves that need the programme from 0.22 % to 0.09 %; the trial structure solves the first step of a
+    uniform layer released from rest on a slope steeper than its friction angle (every column needed the
+    programme there); the repairs solve most of the rest under a non-hydrostatic pressure, whose columns hold
+    several plugs whose edges move."""
     L = current.shape[0]
     interface, state = hint[0], hint[1]  # the rejection of current
     for attempt in range(3 + L):
@@ -170,10 +168,14 @@ def _other_structures(
             for a in range(L):
                 top = max(top, abs(current[a]))
             below = 0.0  # the bed
+            same = True
             for a in range(L):
                 value = current[a] if abs(current[a]) > 1e-9 * top else 0.0
                 proposal[a] = below if abs(value - below) <= 1e-9 * top else value
                 below = proposal[a]
+                same = same and proposal[a] == current[a]
+            if same:  # current itself (a column at rest, one without such speeds): rejected
+                continue
         elif attempt == 2:
             _trial_structure(momentum, kappa, w, proposal)
         else:
@@ -206,12 +208,11 @@ def _other_structures(
 
 @jit(borrowing=True)
 def _trial_structure(momentum, kappa, w, proposal):
-    """The lock/sign structure (as velocities for ``column_solve._active_set``) of a trial
-    from rest, as the elastic predictor of plasticity: with the whole column held at rest,
-    the interface below layer ``a`` carries the force ``F_a = sum_{b >= a} m_b u*_b / dt``
-    of the layers above, of which their walls hold at most ``sum_{b >= a} w_b``; an
-    interface where the rest exceeds its yield stress ``kappa_a`` slides in the direction
-    of ``F_a``, the others stay locked."""
+    """The lock/sign structure (as velocities for ``column_solve._active_set``) of a trial from rest, as the
+    elastic predictor of plasticity: with the whole column held at rest, the interface below layer ``a``
+    carries the force ``F_a = sum_{b >= a} m_b u*_b / dt`` of the layers above, of which their walls hold
+    at most ``sum_{b >= a} w_b``; an interface where the rest exceeds its yield stress ``kappa_a`` slides
+    in the direction of ``F_a``, the others stay locked."""
     L = momentum.shape[0]
     force = 0.0
     held = 0.0
