@@ -86,6 +86,7 @@ class Case:
     plain: bool = False  # the command line itself, nothing imported before (numba's environment)
     here: bool = False  # run in the case's directory (a case that could write into the working one)
     ignored: tuple[int, ...] = ()  # stop signals the child starts with ignored (``nohup cmd &``)
+    one_message: bool = False  # stderr must be the one message, nothing printed after it
     result: dict = field(default_factory=dict)
 
 
@@ -3724,6 +3725,7 @@ def cases() -> list[Case]:
         + round_thirty()
         + round_thirty_one()
         + round_thirty_two()
+        + round_thirty_three()
     )
 
 
@@ -5661,6 +5663,8 @@ def attempt(case: Case) -> Case:
             problems.append("numpy warning")
         if case.phrase not in err:
             problems.append(f"stderr lacks {case.phrase!r}")
+        if case.one_message and len(err.strip().splitlines()) != 1:
+            problems.append(f"{len(err.strip().splitlines())} lines on stderr, not one message")
         if case.keeps_output and _records(directory / "out" / "result.nc") < 1:
             problems.append("nothing kept in result.nc")
         case.result = {
@@ -5672,6 +5676,154 @@ def attempt(case: Case) -> Case:
     return case
 
 
+LOCKS_AT_ONCE = """
+import json, multiprocessing, os, socket
+from pathlib import Path
+from multilayer.app import lock
+directory, earlier = Path(sys.argv[2]), sys.argv[3]
+
+def take(barrier, results):
+    barrier.wait()
+    try:
+        with lock.locked(directory):
+            start = time.monotonic()
+            time.sleep(0.1)
+            results.put(('held', start, time.monotonic()))
+    except Exception as exc:
+        results.put(('refused', str(exc), 0.0))
+
+context, overlaps, refusals = multiprocessing.get_context('fork'), 0, set()
+for trial in range(10):
+    directory.mkdir(exist_ok=True)
+    if earlier == 'stale':
+        dead = {'pid': 2**31 - 2, 'host': socket.gethostname(), 'started': '2026-01-01T00:00:00+00:00'}
+        (directory / lock.LOCK_FILE).write_text(json.dumps(dead))
+    barrier, results = context.Barrier(6), context.Queue()
+    workers = [context.Process(target=take, args=(barrier, results)) for _ in range(6)]
+    started = [worker.start() for worker in workers]
+    outcomes = [results.get(timeout=60) for _ in workers]
+    ended = [worker.join() for worker in workers]
+    held = sorted((a, b) for what, a, b in outcomes if what == 'held')
+    overlaps += any(later[0] < first[1] for first, later in zip(held, held[1:]))
+    refusals |= {m.split(' (pid')[0].split(': ', 1)[1] for what, m, _ in outcomes if what == 'refused'}
+said = f'{overlaps} of 10 trials with two holders at once; refused: {sorted(refusals)}'
+print(f'multilayer: {said}', file=sys.stderr)
+sys.exit(1 if overlaps else 0)
+"""
+"""Six processes taking one directory's lock at the same instant, ten times: the number of
+trials in which two held it at once (runs started together into one directory)."""
+
+EXPORTS_AT_ONCE = PLOTS_AT_ONCE.replace("'plot', sys.argv[2]]", "'export', sys.argv[2], '--vtk']").replace(
+    "three plots", "three exports"
+)
+"""Three ``multilayer export --vtk`` of one directory started together."""
+
+
+def _made_directory(*names: str) -> Callable[[Path], None]:
+    """A finished run whose ``out/NAME`` are directories (files an output would replace)."""
+
+    def setup(directory: Path) -> None:
+        _finished_run(directory)
+        for name in names:
+            (directory / "out" / name).mkdir(parents=True)
+
+    return setup
+
+
+def _held_after_a_run(directory: Path) -> None:
+    """A finished run whose directory's lock a live process (the battery) holds."""
+    _finished_run(directory)
+    record = {"pid": os.getppid(), "host": socket.gethostname(), "started": "2026-01-01T00:00:00+00:00"}
+    (directory / "out" / "run.lock").write_text(json.dumps(record))
+
+
+def _sensitivity33(parameters: dict, **extra: Any) -> Callable[[Path], None]:
+    def setup(directory: Path) -> None:
+        _scenario(directory)
+        study = {"base": "scenario.yaml", "parameters": parameters, "outputs": ["runout"], "samples": 32}
+        study.update(extra)
+        (directory / "study.yaml").write_text(yaml.safe_dump(study, sort_keys=False))
+
+    return setup
+
+
+def _sweep33(text: str) -> Callable[[Path], None]:
+    def setup(directory: Path) -> None:
+        _scenario(directory)
+        (directory / "study.yaml").write_text("base: scenario.yaml\n" + text)
+
+    return setup
+
+
+def round_thirty_three() -> list[Case]:
+    """The hostile cases of the thirty-third round (docs/reliability.md), in the study files
+    and at the operating system's level: six processes taking one output directory's lock
+    at the same instant, from no lock and from a stale one (two held it at once); ``plot
+    --animate`` whose animation's file is a directory (Matplotlib warned under the
+    message); sensitivity bounds reversed or equal, a seed of 2^64, a parameter unknown to
+    the rheology or past the end of ``initial``, a parameter also given in ``set``; sweep
+    values of a key given before the mapping holding it, values equal to the last bit;
+    ``plot`` and ``export`` of a run still writing its result and whose figure or VTK file
+    is a directory; as controls, three exports of one directory at once, an animation and a
+    valid sensitivity file."""
+    study = ["validate", "{dir}/study.yaml"]
+    run_live = ["run", "{scenario}", "-o", "{dir}/out", "--resume", "-q"]
+    bounds = "accepted: [lower, upper] with lower < upper"
+    mu_s, nu = {"bounds": [0.3, 0.4]}, {"bounds": [0.0, 0.02]}
+    one_holder = (
+        "0 of 10 trials with two holders at once; refused: ['another run is writing into this directory']"
+    )
+    animate = ["plot", "{dir}/out", "--animate"]
+    return [
+        Case("lock: six runs taking one directory at once, no lock before", ["lock", "{dir}/out", "none"], 0,
+             one_holder, patch=LOCKS_AT_ONCE),
+        Case("lock: six runs taking one directory at once, a stale lock before",
+             ["lock", "{dir}/out", "stale"], 0, one_holder, patch=LOCKS_AT_ONCE),
+        Case("plot --animate: plots/section.gif and section.mp4 directories", animate, 2,
+             "exists and is not a regular file (a directory", one_message=True,
+             setup=_made_directory("plots/section.gif", "plots/section.mp4")),
+        Case("plot: plots/section.png a directory", ["plot", "{dir}/out"], 2,
+             "out/plots/section.png: exists and is not a regular file", one_message=True,
+             setup=_made_directory("plots/section.png")),
+        Case("export: vtk/result_0003.vts a directory", ["export", "{dir}/out", "--vtk"], 2,
+             "out/vtk/result_0003.vts: exists and is not a regular file", one_message=True,
+             setup=_made_directory("vtk/result_0003.vts")),
+        Case("run --resume into a directory a live run holds", run_live, 2,
+             "another run is writing into this directory (pid", one_message=True,
+             setup=_held_after_a_run),
+        Case("plot: a result still being written (run_status running)", ["plot", "{dir}/out"], 2,
+             "run_status is 'running': a run is still writing it", one_message=True,
+             setup=_damaged_result("running")),
+        Case("sensitivity: bounds reversed [0.4, 0.3]", study, 2, bounds, one_message=True,
+             setup=_sensitivity33({"rheology.mu_s": {"bounds": [0.4, 0.3]}, "rheology.nu": nu})),
+        Case("sensitivity: bounds equal [0.3, 0.3]", study, 2, bounds, one_message=True,
+             setup=_sensitivity33({"rheology.mu_s": {"bounds": [0.3, 0.3]}, "rheology.nu": nu})),
+        Case("sensitivity: seed 2^64", study, 2, "accepted: an integer from 0 to 4294967295",
+             one_message=True,
+             setup=_sensitivity33({"rheology.mu_s": mu_s, "rheology.nu": nu}, seed=2**64)),
+        Case("sensitivity: rheology.mu_2 of drucker_prager", study, 2, "unknown parameter of drucker_prager",
+             setup=_sensitivity33({"rheology.mu_2": {"bounds": [0.5, 0.6]}, "rheology.nu": nu})),
+        Case("sensitivity: initial.5.height of one initial entry", study, 2, "accepted indices: 0..0",
+             setup=_sensitivity33({"initial.5.height": {"bounds": [0.03, 0.05]}, "rheology.nu": nu})),
+        Case("sensitivity: a parameter also given in set", study, 2, "also given a value in set",
+             one_message=True, setup=_sensitivity33({"rheology.mu_s": mu_s, "rheology.nu": nu},
+                                                    set={"rheology.mu_s": 0.35})),
+        Case("sweep: rheology.mu_s swept before rheology", study, 2,
+             "set before it, whose value would be lost",
+             setup=_sweep33("parameters:\n  rheology.mu_s: [0.3, 0.35]\n"
+                            "  rheology: [{name: drucker_prager, mu_s: 0.4, nu: 0.0}]\n")),
+        Case("sweep: time.end 0.1 and 0.1000000000000000001", study, 2, "it would run twice",
+             one_message=True,
+             setup=_sweep33("parameters: {time.end: [0.1, 0.1000000000000000001]}\n")),
+        Case("control: three exports of one directory at once", ["export", "{dir}/out"], 0,
+             "three exports at once exited [0, 0, 0]", patch=EXPORTS_AT_ONCE, setup=_finished_run),
+        Case("control: plot --animate of a finished run", animate, 0, "",
+             setup=_finished_run),
+        Case("control: a sensitivity file of two parameters", study, 0, "",
+             setup=_sensitivity33({"rheology.mu_s": mu_s, "rheology.nu": nu})),
+    ]  # fmt: skip
+
+
 ROUNDS: dict[int, Callable[[], list[Case]]] = {
     2: round_two, 3: round_three, 4: round_four, 5: round_five, 6: round_six, 7: round_seven,
     8: round_eight, 9: round_nine, 10: round_ten, 11: round_eleven, 12: round_twelve,
@@ -5681,6 +5833,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     25: round_twenty_five, 26: round_twenty_six, 27: round_twenty_seven,
     28: round_twenty_eight, 29: round_twenty_nine, 30: round_thirty, 31: round_thirty_one,
     32: round_thirty_two,
+    33: round_thirty_three,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""
 
@@ -5690,7 +5843,7 @@ def main() -> None:
     parser.add_argument("-k", default="", help="only the cases whose name contains this")
     parser.add_argument("-j", type=int, default=2, help="cases run at once")
     parser.add_argument(
-        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 32; all: none)"
+        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 33; all: none)"
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import gc
 import os
 import shutil
 import subprocess
 import sys
 import time
+import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -91,6 +93,22 @@ def test_plot_multi_column_run_with_animation(slump_dir: Path, cli, monkeypatch)
         assert movie.n_frames == open_result(slump_dir).sizes["time"] == 4
     gif.unlink()
     _assert_figures(slump_dir, FIGURES)
+
+
+def test_an_animation_refused_its_file_says_so_in_one_message(slump_dir: Path, cli, monkeypatch) -> None:
+    """``plots/section.gif`` a directory: exit 2 naming it, and nothing more (the animation
+    was made before its file was refused, collected unsaved, and Matplotlib warned
+    "Animation was deleted without rendering anything" under the message)."""
+    monkeypatch.setattr(animation.writers, "is_available", lambda name: False)
+    (slump_dir / "plots" / "section.gif").mkdir(parents=True)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = cli("plot", slump_dir, "--animate")
+        gc.collect()
+    assert result.code == 2
+    assert "plots/section.gif: exists and is not a regular file (a directory" in result.err
+    assert len(result.err.strip().splitlines()) == 1, result.err
+    assert not [w for w in caught if "Animation" in str(w.message)], [str(w.message) for w in caught]
 
 
 def test_section_states_slope_and_vertical_exaggeration(slump_dir: Path) -> None:

@@ -570,6 +570,53 @@ def test_a_directory_in_use_is_refused_naming_the_holder_and_a_stale_lock_taken_
     assert not (outdir / lock.LOCK_FILE).exists()  # released at the end
 
 
+def _take_the_lock_at_once(directory: str, barrier, results) -> None:
+    barrier.wait()
+    try:
+        with lock.locked(Path(directory)):
+            start = time.monotonic()
+            time.sleep(0.2)
+            results.put(("held", start, time.monotonic()))
+    except Exception as exc:  # noqa: BLE001 - the refusal is the result
+        results.put(("refused", str(exc), 0.0))
+
+
+@pytest.mark.parametrize("earlier", ["none", "stale", "empty"])
+def test_runs_started_at_once_take_the_lock_one_at_a_time(tmp_path, earlier):
+    """Six processes taking one directory's lock at the same instant: never two at once (a
+    lock just created and still empty was read as unreadable, so stale, and taken over, and
+    two took over one stale lock, the second deleting the first's: 7 and 11 of 30 trials
+    had two holders); the others are refused naming the holder."""
+    import multiprocessing
+
+    context = multiprocessing.get_context("fork")
+    for trial in range(4):
+        directory = tmp_path / f"out{trial}"
+        directory.mkdir()
+        if earlier == "stale":
+            dead = {"pid": 2**31 - 2, "host": socket.gethostname(), "started": "2026-01-01T00:00:00+00:00"}
+            (directory / lock.LOCK_FILE).write_text(json.dumps(dead))
+        elif earlier == "empty":
+            (directory / lock.LOCK_FILE).write_text("")
+        barrier, results = context.Barrier(6), context.Queue()
+        workers = [
+            context.Process(target=_take_the_lock_at_once, args=(str(directory), barrier, results))
+            for _ in range(6)
+        ]
+        for worker in workers:
+            worker.start()
+        outcomes = [results.get(timeout=60) for _ in workers]
+        for worker in workers:
+            worker.join()
+        held = sorted((start, end) for what, start, end in outcomes if what == "held")
+        assert held, outcomes
+        assert all(later[0] >= earlier_[1] for earlier_, later in zip(held, held[1:], strict=False)), held
+        refused = [message for what, message, _ in outcomes if what == "refused"]
+        busy = "another run is writing into this directory (pid"
+        assert all(busy in message for message in refused), refused
+        assert not (directory / lock.LOCK_FILE).exists()
+
+
 # ----------------------------------------------------------------------------- signals
 
 

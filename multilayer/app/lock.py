@@ -7,6 +7,11 @@ however it ends.  A second run into the directory is refused with an
 host that no longer exists, e.g. after ``kill -9``) is stale: it is taken over and the
 take-over is reported through ``notice``.  A lock from another host cannot be checked
 and is honoured; the message says how to remove it.
+
+Runs started at once look at the lock and take it one after the other, under an advisory
+lock (``flock``) of the directory itself: without it, one read the lock another had just
+created, still empty, as unreadable, or two took over one stale lock, the second deleting
+the first's new lock, and both wrote into the directory.
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ import datetime as _dt
 import json
 import os
 import socket
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -23,7 +29,14 @@ from pathlib import Path
 from multilayer.errors import InputError, reason
 from multilayer.io import disk
 
+try:
+    import fcntl
+except ImportError:  # not on POSIX: no guard (runs started at once may both take the lock)
+    fcntl = None  # type: ignore[assignment]
+
 LOCK_FILE = "run.lock"
+GUARD_WAIT_S = 10.0
+"""How long a run waits for another to finish looking at the lock before it gives up."""
 
 
 def _alive(pid: int) -> bool:
@@ -61,8 +74,54 @@ def _describe(holder: dict | None) -> str:
 
 
 @contextmanager
+def _guarded(directory: Path) -> Iterator[None]:
+    """Hold the advisory lock of ``directory`` itself while the block looks at and takes its
+    lock file (module docstring); a directory that cannot be opened (no read permission)
+    or locked (a file system without ``flock``) is used without it."""
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        fd = -1
+    try:
+        deadline = time.monotonic() + GUARD_WAIT_S
+        while fd >= 0 and fcntl is not None:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if time.monotonic() > deadline:
+                    raise InputError(
+                        f"{directory}: another process has been taking this directory's lock for "
+                        f"{GUARD_WAIT_S:g} s; accepted: a directory no other run is using"
+                    ) from None
+                time.sleep(0.01)
+            except OSError:
+                break
+        yield
+    finally:
+        if fd >= 0:
+            os.close(fd)  # releases the flock
+
+
+@contextmanager
 def locked(directory: Path, notice: Callable[[str], None] = lambda message: None) -> Iterator[None]:
     """Hold the lock of ``directory`` (which must exist) for the duration of the block."""
+    with _guarded(directory):
+        me = _take(directory, notice)
+    path = directory / LOCK_FILE
+    try:
+        yield
+    finally:
+        # a directory made read-only during the run keeps its lock, stale once this
+        # process ends (the next run takes it over): how the run ended is the message
+        if _holder(path) == me:
+            with contextlib.suppress(OSError):
+                path.unlink(missing_ok=True)
+
+
+def _take(directory: Path, notice: Callable[[str], None]) -> dict:
+    """Create the lock file of ``directory`` for this process (under :func:`_guarded`);
+    returns what it holds."""
     path = directory / LOCK_FILE
     me = {
         "pid": os.getpid(),
@@ -101,14 +160,5 @@ def locked(directory: Path, notice: Callable[[str], None] = lambda message: None
             path.unlink(missing_ok=True)
             why = disk.room(path)[1] if disk.full_disk_reason(exc) else reason(exc)
             raise InputError(f"{path}: the lock cannot be written ({why}); accepted: room for it") from None
-        break
-    else:
-        raise InputError(f"{path}: could not take the lock; accepted: a directory no other run is using")
-    try:
-        yield
-    finally:
-        # a directory made read-only during the run keeps its lock, stale once this
-        # process ends (the next run takes it over): how the run ended is the message
-        if _holder(path) == me:
-            with contextlib.suppress(OSError):
-                path.unlink(missing_ok=True)
+        return me
+    raise InputError(f"{path}: could not take the lock; accepted: a directory no other run is using")

@@ -431,13 +431,19 @@ def animate_section(
     fig.canvas.draw()
     fig.set_layout_engine("none")  # the layout of the first frame holds for all
 
-    movie = animation.FuncAnimation(fig, frame, frames=_time_indices(ds, MAX_FRAMES), repeat=False)
     writer: animation.AbstractMovieWriter
     if animation.writers.is_available("ffmpeg"):
         path, writer = stem.with_suffix(".mp4"), animation.FFMpegWriter(fps=fps, metadata={"comment": source})
     else:
         path, writer = stem.with_suffix(".gif"), _CommentedGif(fps=fps, metadata={"comment": source})
-    return write_whole(writable(path), lambda part: movie.save(part, writer=writer, dpi=100))
+
+    def save(part: Path) -> None:
+        # made only to be saved: an animation made and then refused its file (a directory
+        # there, say) was collected unsaved, and Matplotlib warned under the message
+        movie = animation.FuncAnimation(fig, frame, frames=_time_indices(ds, MAX_FRAMES), repeat=False)
+        movie.save(part, writer=writer, dpi=100)
+
+    return write_whole(writable(path), save)
 
 
 class _CommentedGif(animation.PillowWriter):
