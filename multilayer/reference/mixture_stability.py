@@ -60,7 +60,14 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from multilayer.engine.config import InitialEntry, MixtureConfig, Numerics, SimulationConfig
-from multilayer.engine.mixture.closure import MixtureMaterial, closure_at, darcy_coefficient
+from multilayer.engine.mixture.closure import (
+    BasalClosure,
+    MixtureMaterial,
+    closure_at,
+    closure_pressure,
+    darcy_coefficient,
+)
+from multilayer.engine.mixture.flow import buoyant_fraction
 from multilayer.engine.simulation import Simulation
 from multilayer.plugins.builtins import DilatantCoulomb
 from multilayer.plugins.contract import Material
@@ -117,8 +124,8 @@ class UniformMixture:
         theta = 0.0
         for _ in range(60):
             rho_m = self.density(self.phi)
-            p_e, tau, rate = self._closure(self.h, self.phi, self.u, None, theta)
-            drive = tau / (rho_m * self.h) + self.mat.rho_f * rate * self.u / (2.0 * rho_m)
+            cl, rate = self._closure(self.h, self.phi, self.u, None, theta)
+            drive = cl.tau_b / (rho_m * self.h) + self.mat.rho_f * rate * self.u / (2.0 * rho_m)
             new = math.asin(min(drive / (self.reduction(self.phi) * self.g), 1.0))
             if abs(new - theta) <= 1e-15:
                 break
@@ -131,7 +138,7 @@ class UniformMixture:
 
     def reduction(self, phi: float) -> float:
         """``r(phi) = phi (rho_s - rho_f) / rho_m``: the buoyant weight over the mixture's."""
-        return phi * (self.mat.rho_s - self.mat.rho_f) / self.density(phi)
+        return float(buoyant_fraction(phi, self.mat.rho_s, self.mat.rho_f))
 
     def weight(self, h: float, phi: float, theta: float) -> float:
         """``P = (rho_s - rho_f) g cos(theta) phi h`` (Pa)."""
@@ -139,46 +146,36 @@ class UniformMixture:
 
     def _closure(
         self, h: float, phi: float, u: float, p_e: float | None, theta: float
-    ) -> tuple[float, float, float]:
-        """``(p_e, tau_b, V)`` at ``(h, phi, u)``: with ``p_e = None`` the closure's root
-        (``p_e = -B Phi``), otherwise at that pore pressure; ``V`` the volume rate
-        ``-p_e / B``."""
+    ) -> tuple[BasalClosure, float]:
+        """The closure at ``(h, phi, u)`` and its volume rate ``V = -p_e / B``: with ``p_e =
+        None`` the closure's root (``p_e = -B Phi``), otherwise at that pore pressure."""
         P = self.weight(h, phi, theta)
         gamma = SHEAR * abs(u) / h
         beta = self.mat.drag(phi)
         B = darcy_coefficient(beta, h, phi)
-        if p_e is None:
-            a = P + B * gamma * self.mat.K * (phi - self.mat.phi_c)
-            c = B * self.mat.K * self.mat.K2 * self.mat.eta_f * gamma * gamma
-            root = math.sqrt(a * a + 4.0 * c)
-            p_s = 0.5 * (a + root) if a >= 0.0 else 2.0 * c / (root - a)
-        else:
-            p_s = P - p_e
+        p_s = closure_pressure(self.mat, phi, gamma, B, P) if p_e is None else P - p_e
         cl = closure_at(self.mat, phi, gamma, beta, P, p_s)
-        return cl.p_e, cl.tau_b, -cl.p_e / B
+        return cl, -cl.p_e / B
 
     @property
     def base(self) -> np.ndarray:
         """``q0 = (h, phi, u, p_e)`` with the closure's pore pressure."""
         return np.array(
-            [self.h, self.phi, self.u, self._closure(self.h, self.phi, self.u, None, self.slope)[0]]
+            [self.h, self.phi, self.u, self._closure(self.h, self.phi, self.u, None, self.slope)[0].p_e]
         )
 
     def rates(self, q: np.ndarray, theta: float) -> np.ndarray:
         """The source terms ``(h V, -phi V, du/dt, relaxation)`` at ``q = (h, phi, u, p_e)``:
         the last is ``-(p_e / B + Phi)`` (``alpha d_t p_e``; ``0`` defines the closure)."""
         h, phi, u, p_e = (float(v) for v in q)
-        _, tau, V = self._closure(h, phi, u, p_e, theta)
-        gamma = SHEAR * abs(u) / h
-        P = self.weight(h, phi, theta)
-        Phi = gamma * self.mat.K * (phi - self.mat.phi_c + self.mat.K2 * self.mat.eta_f * gamma / (P - p_e))
+        cl, V = self._closure(h, phi, u, p_e, theta)
         rho_m = self.density(phi)
         du = (
             self.reduction(phi) * self.g * math.sin(theta)
-            - tau / (rho_m * h)
+            - cl.tau_b / (rho_m * h)
             - self.mat.rho_f * V * u / (2.0 * rho_m)
         )
-        return np.array([h * V, -phi * V, du, V - Phi])
+        return np.array([h * V, -phi * V, du, V - cl.dilation])
 
     def jacobian(self, F: float = 1.0) -> np.ndarray:
         """``J = d(rates)/dq`` (4 x 4) at the base state, by central differences; with
@@ -254,8 +251,8 @@ def stress_slope(state: UniformMixture) -> tuple[float, float]:
     part, by central differences."""
     theta = state.slope
     step = RELATIVE_STEP * state.u
-    up = state._closure(state.h, state.phi, state.u + step, None, theta)[1]
-    down = state._closure(state.h, state.phi, state.u - step, None, theta)[1]
+    up = state._closure(state.h, state.phi, state.u + step, None, theta)[0].tau_b
+    down = state._closure(state.h, state.phi, state.u - step, None, theta)[0].tau_b
     viscous = (state.mat.K1 + state.mat.K * state.mat.K2) * state.mat.eta_f
     return (up - down) / (2.0 * step) * state.h / SHEAR, viscous
 

@@ -146,11 +146,18 @@ def basal_closure(
     B = darcy_coefficient(beta, h, phi)
     ratio = lag * B
     B /= 1.0 + ratio
-    a = weight - previous * ratio / (1.0 + ratio) + B * gamma * mat.K * (phi - mat.phi_c)
+    p_s = closure_pressure(mat, phi, gamma, B, weight - previous * ratio / (1.0 + ratio))
+    return closure_at(mat, phi, gamma, beta, weight, p_s)
+
+
+def closure_pressure(mat: MixtureMaterial, phi: float, gamma: float, B: float, weight: float) -> float:
+    """The effective pressure ``p_s`` of the closure ``p_e = -B Phi`` at the shear rate
+    ``gamma``: the non-negative root of ``p_s^2 - a p_s - c = 0`` (module docstring), taken
+    without cancellation where ``a < 0``."""
+    a = weight + B * gamma * mat.K * (phi - mat.phi_c)
     c = B * mat.K * mat.K2 * mat.eta_f * gamma * gamma
     root = math.sqrt(a * a + 4.0 * c)
-    p_s = 0.5 * (a + root) if a >= 0.0 else 2.0 * c / (root - a) if c > 0.0 else 0.0
-    return closure_at(mat, phi, gamma, beta, weight, p_s)
+    return 0.5 * (a + root) if a >= 0.0 else 2.0 * c / (root - a) if c > 0.0 else 0.0
 
 
 def closure_at(
