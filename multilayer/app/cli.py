@@ -33,6 +33,7 @@ from multilayer.errors import (
     warn,
     working_directory_removed,
 )
+from multilayer.io.disk import address_space_limit
 
 SUBCOMMANDS = (
     "run", "validate", "compile", "plugins", "sweep", "calibrate", "sensitivity", "check", "plot", "export",
@@ -229,10 +230,8 @@ the import of SciPy spun for ever, under 0.4 GB an import or a read was a traceb
 def _address_space() -> str | None:
     """Why this process's address-space limit (``ulimit -v``) is too small for a command
     (checked before the command's modules are imported), or None."""
-    import resource
-
-    soft = resource.getrlimit(resource.RLIMIT_AS)[0]
-    if soft == resource.RLIM_INFINITY or soft >= MIN_ADDRESS_SPACE:
+    soft = address_space_limit()
+    if soft >= MIN_ADDRESS_SPACE:
         return None
     return (
         f"the address space of this process is limited to {soft / 2**20:.0f} MiB (ulimit -v), where its "

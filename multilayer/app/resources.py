@@ -164,14 +164,6 @@ def available_memory() -> float:
     return float(psutil.virtual_memory().available)
 
 
-def address_space() -> float:
-    """The address space this process may map (bytes; ``ulimit -v``), inf if unlimited."""
-    import resource
-
-    soft = resource.getrlimit(resource.RLIMIT_AS)[0]
-    return math.inf if soft == resource.RLIM_INFINITY else float(soft)
-
-
 def check_workers(workers: int) -> None:
     """:class:`InputError` naming ``--workers`` when that many worker processes of a local
     cluster, each an interpreter with the engine (:data:`BASE_BYTES`), do not fit in the
@@ -197,8 +189,9 @@ def check(scenario: Any, outdir: Path | None, budget: Budget) -> Estimate:
     shape = f"{scenario.domain.cells} cells x {scenario.domain.layers} layers"
     memory = budget.memory if budget.memory is not None else available_memory()
     source = "--max-memory" if budget.memory is not None else "the memory available on this machine"
-    if budget.memory is None and address_space() < memory:  # the run's MemoryError was a message of numpy's
-        memory, source = address_space(), "the address space of this process (ulimit -v)"
+    # a limit of the address space (ulimit -v) below the memory: the run's MemoryError was numpy's message
+    if budget.memory is None and disk.address_space_limit() < memory:
+        memory, source = disk.address_space_limit(), "the address space of this process (ulimit -v)"
     if need.memory > memory:
         raise InputError(
             f"{where}: domain.cells, domain.layers: {shape} need about {size_text(need.memory)} of memory, "
