@@ -6006,6 +6006,14 @@ NOT_TEXT = "class Unshowable(ValueError):\n    def __str__(self):\n        retur
 """An exception whose ``__str__`` returns no string (``str()`` raises ``TypeError``)."""
 
 
+WALL_VISCOSITY = (
+    "from multilayer.plugins.builtins.wall_friction import WallFriction\n"
+    "WallFriction.viscosity = lambda self, g, p, m: np.full(np.shape(p), 1e308)\n"
+    "WallFriction.viscosity_kernel = lambda self, material: None\n"
+)
+"""The built-in wall law returning a viscosity of 1e308 Pa s from its Python method."""
+
+
 def _constructor_raising(exception: str) -> str:
     """DruckerPrager's constructor raising ``Unshowable()``, defined by ``exception``."""
     return exception + _constructor_patch("Unshowable()")
@@ -6026,7 +6034,8 @@ def round_thirty_five() -> list[Case]:
     stress of 1e308 Pa, finite (numpy warned of an overflow in the finiteness test of the
     column solve: the sum of finite values overflowed) and a viscosity of 1e308 Pa s (its
     stresses overflowed: numpy's warnings, then the column kernel's coefficient ``c`` named
-    instead of the plugin); as controls, a yield
+    instead of the plugin), of the bulk law and of the wall law; as controls, ``plot`` of a
+    result holding another tool's variable and of one whose ``h`` is renamed, a yield
     stress of float32 and of integers, observations unsorted, at one time twice and under a
     byte order mark, a slope of 89.99999 degrees, a mixture of phi 1e-9 and a mixture whose
     drag overflows its closure (stopped with the keys named)."""
@@ -6039,6 +6048,8 @@ def round_thirty_five() -> list[Case]:
     plugin_env = {"PYTHONPATH": "{dir}/plugin"}
     importing = "raise Unshowable()\n"
     huge = "return np.full(np.shape(p), 1e308)"
+    walled = {"walls": {"name": "wall_friction", "mu_w": 0.2}, "domain.width": 0.1}
+    junk = "ds.createDimension('extra', 2)\nds.createVariable('junk', 'f8', ('extra',))\n"
     huge_viscosity = "def fault(self, g, p, m):\n    return np.full(np.shape(p), 1e308)\n" + (
         "DruckerPrager.viscosity = fault\nDruckerPrager.viscosity_kernel = lambda self, material: None\n"
     )
@@ -6068,6 +6079,16 @@ def round_thirty_five() -> list[Case]:
         Case("run: a plugin's viscosity of 1e308 Pa s", run, 1,
              "viscosity() returned 1e+308 Pa s at the shear rate 0 1/s, whose viscous stress or its slope",
              patch=huge_viscosity, setup=_scenario, keeps_output=True, one_message=True),
+        Case("run: a wall law's viscosity of 1e308 Pa s", run, 1,
+             "rheology plugin 'wall_friction' (multilayer.plugins.builtins.wall_friction.WallFriction): "
+             "viscosity() returned 1e+308 Pa s", patch=WALL_VISCOSITY, keeps_output=True, one_message=True,
+             setup=partial(_scenario, changes=walled)),
+        Case("control: plot of a result holding a variable of another tool over a dimension of its own",
+             ["plot", "{dir}/out"], 0, "",
+             setup=_result_edit(junk)),
+        Case("control: plot of a result whose h is renamed h_old", ["plot", "{dir}/out"], 2,
+             "not a multilayer result: no variable h", one_message=True,
+             setup=_result_edit("ds.renameVariable('h', 'h_old')\n")),
         Case("control: a plugin's yield stress of float32 mid-run", run, 0, "",
              patch=_mid_run_patch("return np.zeros(np.shape(p), np.float32)"), setup=_scenario),
         Case("control: a plugin's yield stress of integers mid-run", run, 0, "",
