@@ -17,6 +17,7 @@ import yaml
 from conftest import TINY_SCENARIO
 
 from multilayer.app.simulation import Simulation
+from multilayer.errors import described, said
 from multilayer.io.results import open_result
 from multilayer.plugins.builtins.drucker_prager import DruckerPrager
 from multilayer.scenario import from_dict
@@ -44,6 +45,14 @@ class NotText(ValueError):
 
 
 UNSHOWN = "(its message cannot be shown: str() raised "
+
+
+def test_said_and_described_show_an_exception_whose_str_fails():
+    """An exception whose ``__str__`` raises or returns no string: its type and a note, never
+    the error of ``str()`` itself in place of the message naming who raised it."""
+    assert said(RuntimeError("plain")) == "plain"
+    assert described(Unshowable()) == f"Unshowable: {UNSHOWN}ValueError)"
+    assert described(NotText()) == f"NotText: {UNSHOWN}TypeError)"
 
 
 def _numpy_path(monkeypatch) -> None:

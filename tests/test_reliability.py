@@ -1099,24 +1099,6 @@ def test_the_commands_leave_no_file_in_tmpdir_and_only_the_documented_caches_in_
     }
 
 
-def test_said_and_described_show_an_exception_whose_str_fails():
-    """An exception whose ``__str__`` raises or returns no string: its type and a note, never
-    the error of ``str()`` itself in place of the message naming who raised it."""
-    from multilayer.errors import described, said
-
-    class Raising(RuntimeError):
-        def __str__(self) -> str:
-            raise ValueError("inner")
-
-    class Numeric(RuntimeError):
-        def __str__(self):
-            return 3
-
-    assert said(RuntimeError("plain")) == "plain"
-    assert described(Raising()) == "Raising: (its message cannot be shown: str() raised ValueError)"
-    assert described(Numeric()) == "Numeric: (its message cannot be shown: str() raised TypeError)"
-
-
 def test_all_finite_does_not_overflow_on_finite_values():
     """The sum of finite values near the largest float overflows: finite, and no warning."""
     import warnings
