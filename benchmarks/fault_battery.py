@@ -3727,6 +3727,7 @@ def cases() -> list[Case]:
         + round_thirty_two()
         + round_thirty_three()
         + round_thirty_four()
+        + round_thirty_five()
     )
 
 
@@ -5994,6 +5995,121 @@ def round_thirty_four() -> list[Case]:
     ]  # fmt: skip
 
 
+UNSHOWABLE = (
+    "class Unshowable(RuntimeError):\n"
+    "    def __str__(self):\n"
+    "        raise ValueError('a message of the exception itself')\n"
+)
+"""An exception of a third party whose ``__str__`` raises (Python's traceback module says
+``<exception str() failed>``)."""
+NOT_TEXT = "class Unshowable(ValueError):\n    def __str__(self):\n        return 3\n"
+"""An exception whose ``__str__`` returns no string (``str()`` raises ``TypeError``)."""
+
+
+WALL_VISCOSITY = (
+    "from multilayer.plugins.builtins.wall_friction import WallFriction\n"
+    "WallFriction.viscosity = lambda self, g, p, m: np.full(np.shape(p), 1e308)\n"
+    "WallFriction.viscosity_kernel = lambda self, material: None\n"
+)
+"""The built-in wall law returning a viscosity of 1e308 Pa s from its Python method."""
+
+
+def _constructor_raising(exception: str) -> str:
+    """DruckerPrager's constructor raising ``Unshowable()``, defined by ``exception``."""
+    return exception + _constructor_patch("Unshowable()")
+
+
+def _observations35(rows: str, header: str = "t,x_f,sigma") -> Callable[[Path], None]:
+    """A calibration of TINY whose observation file holds ``rows`` under ``header``, as
+    written by the battery's other calibration cases."""
+    return _calibration(rows, header=header)
+
+
+def round_thirty_five() -> list[Case]:
+    """The hostile cases of the thirty-fifth round (docs/reliability.md), in third-party
+    rheology plugins misbehaving at run time and values at the edge of the scenario's
+    ranges: a plugin's exception whose ``__str__`` raises or returns no string, raised mid-run,
+    by its constructor (a ``RuntimeError`` and a ``ValueError``) and on importing its entry
+    point (its own message replaced the one naming the plugin, or a traceback); a yield
+    stress of 1e308 Pa, finite (numpy warned of an overflow in the finiteness test of the
+    column solve: the sum of finite values overflowed) and a viscosity of 1e308 Pa s (its
+    stresses overflowed: numpy's warnings, then the column kernel's coefficient ``c`` named
+    instead of the plugin), of the bulk law and of the wall law; as controls, ``plot`` of a
+    result holding another tool's variable and of one whose ``h`` is renamed, a yield
+    stress of float32 and of integers, observations unsorted, at one time twice and under a
+    byte order mark, a slope of 89.99999 degrees, a mixture of phi 1e-9 and a mixture whose
+    drag overflows its closure (stopped with the keys named)."""
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    validate = ["validate", "{scenario}"]
+    observations = ["validate", "{dir}/calibration.yaml"]
+    unshown = "(its message cannot be shown: str() raised "
+    mid_run = "yield_stress() raised Unshowable: " + unshown
+    constructed = "DruckerPrager(mu_s=0.3, nu=0.01) raised Unshowable: " + unshown
+    plugin_env = {"PYTHONPATH": "{dir}/plugin"}
+    importing = "raise Unshowable()\n"
+    huge = "return np.full(np.shape(p), 1e308)"
+    walled = {"walls": {"name": "wall_friction", "mu_w": 0.2}, "domain.width": 0.1}
+    junk = "ds.createDimension('extra', 2)\nds.createVariable('junk', 'f8', ('extra',))\n"
+    huge_viscosity = "def fault(self, g, p, m):\n    return np.full(np.shape(p), 1e308)\n" + (
+        "DruckerPrager.viscosity = fault\nDruckerPrager.viscosity_kernel = lambda self, material: None\n"
+    )
+    return [
+        Case("run: a plugin's exception whose __str__ raises, mid-run", run, 1, mid_run + "ValueError)",
+             patch=UNSHOWABLE + _mid_run_patch("raise Unshowable()"), setup=_scenario, keeps_output=True,
+             one_message=True),
+        Case("run: a plugin's exception whose __str__ returns 3, mid-run", run, 1, mid_run + "TypeError)",
+             patch=NOT_TEXT + _mid_run_patch("raise Unshowable()"), setup=_scenario, keeps_output=True,
+             one_message=True),
+        Case("validate: a constructor's RuntimeError whose __str__ raises", validate, 2,
+             constructed + "ValueError)", patch=_constructor_raising(UNSHOWABLE), setup=_scenario,
+             one_message=True),
+        Case("run: a constructor's RuntimeError whose __str__ raises", run, 2, constructed + "ValueError)",
+             patch=_constructor_raising(UNSHOWABLE), setup=_scenario, one_message=True),
+        Case("validate: a constructor's ValueError whose __str__ returns 3", validate, 2,
+             "rheology (line 18): drucker_prager: " + unshown + "TypeError)",
+             patch=_constructor_raising(NOT_TEXT), setup=_scenario, one_message=True),
+        Case("validate: an entry point whose module raises an exception whose __str__ raises", validate, 0,
+             "rheology plugin third 0.1 (entry point third = third) skipped: Unshowable: " + unshown,
+             setup=_entry_point_plugin(UNSHOWABLE + importing), env=plugin_env),
+        Case("validate: an entry point whose module raises an exception whose __str__ returns 3",
+             validate, 0, "skipped: Unshowable: " + unshown + "TypeError)",
+             setup=_entry_point_plugin(NOT_TEXT + importing), env=plugin_env),
+        Case("run: a plugin's yield stress of 1e308 Pa mid-run", run, 0, "", patch=_mid_run_patch(huge),
+             setup=_scenario),
+        Case("run: a plugin's viscosity of 1e308 Pa s", run, 1,
+             "viscosity() returned 1e+308 Pa s at the shear rate 0 1/s, whose viscous stress or its slope",
+             patch=huge_viscosity, setup=_scenario, keeps_output=True, one_message=True),
+        Case("run: a wall law's viscosity of 1e308 Pa s", run, 1,
+             "rheology plugin 'wall_friction' (multilayer.plugins.builtins.wall_friction.WallFriction): "
+             "viscosity() returned 1e+308 Pa s", patch=WALL_VISCOSITY, keeps_output=True, one_message=True,
+             setup=partial(_scenario, changes=walled)),
+        Case("control: plot of a result holding a variable of another tool over a dimension of its own",
+             ["plot", "{dir}/out"], 0, "",
+             setup=_result_edit(junk)),
+        Case("control: plot of a result whose h is renamed h_old", ["plot", "{dir}/out"], 2,
+             "not a multilayer result: no variable h", one_message=True,
+             setup=_result_edit("ds.renameVariable('h', 'h_old')\n")),
+        Case("control: a plugin's yield stress of float32 mid-run", run, 0, "",
+             patch=_mid_run_patch("return np.zeros(np.shape(p), np.float32)"), setup=_scenario),
+        Case("control: a plugin's yield stress of integers mid-run", run, 0, "",
+             patch=_mid_run_patch("return np.zeros(np.shape(p), int)"), setup=_scenario),
+        Case("control: observations unsorted in time", observations, 0, "",
+             setup=_observations35("0.2,0.15,0.01\n0.1,0.12,0.01\n")),
+        Case("control: observations twice at one time", observations, 0, "",
+             setup=_observations35("0.1,0.15,0.01\n0.1,0.12,0.01\n")),
+        Case("control: observations under a byte order mark", observations, 0, "",
+             setup=_observations35("0.1,0.12,0.01\n", header="\ufefft,x_f,sigma")),
+        Case("control: a slope of 89.99999 degrees, run", run, 0, "",
+             setup=partial(_scenario, changes={"slope_deg": 89.99999})),
+        Case("control: a mixture of phi 1e-9, run", run, 0, "",
+             setup=partial(_scenario, changes={**MIXTURE32, "initial.0.phi": 1e-9})),
+        Case("control: a mixture of fluid.viscosity 1e300 (its closure overflows), run", run, 1,
+             "the mixture's closure overflowed: its effective pressures are not finite numbers",
+             setup=partial(_scenario, changes={**MIXTURE32, "fluid.viscosity": 1e300}), keeps_output=True,
+             one_message=True),
+    ]  # fmt: skip
+
+
 ROUNDS: dict[int, Callable[[], list[Case]]] = {
     2: round_two, 3: round_three, 4: round_four, 5: round_five, 6: round_six, 7: round_seven,
     8: round_eight, 9: round_nine, 10: round_ten, 11: round_eleven, 12: round_twelve,
@@ -6005,6 +6121,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     32: round_thirty_two,
     33: round_thirty_three,
     34: round_thirty_four,
+    35: round_thirty_five,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""
 
@@ -6014,7 +6131,7 @@ def main() -> None:
     parser.add_argument("-k", default="", help="only the cases whose name contains this")
     parser.add_argument("-j", type=int, default=2, help="cases run at once")
     parser.add_argument(
-        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 34; all: none)"
+        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 35; all: none)"
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()

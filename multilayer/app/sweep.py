@@ -38,7 +38,7 @@ from typing import Any, Literal
 
 from multilayer import scenario
 from multilayer.app import resources, runner, stopping
-from multilayer.errors import InputError, Interrupted, RunError, ascii_count, reason
+from multilayer.errors import InputError, Interrupted, RunError, ascii_count, described, reason
 from multilayer.io.disk import writable, writable_directory, write_whole
 from multilayer.io.results import (
     CHECKPOINT_FILE,
@@ -388,7 +388,7 @@ def contained(task: Callable[..., Any], *args: Any) -> Any:
     try:
         return task(*args)
     except Exception as exc:  # noqa: BLE001 - reported by the study, not in Dask's log
-        return Failed(f"{type(exc).__name__}: {exc}")
+        return Failed(described(exc))
 
 
 def result_of(future: Any) -> Any:
@@ -396,7 +396,7 @@ def result_of(future: Any) -> Any:
     try:
         return future.result()
     except Exception as exc:  # noqa: BLE001 - a failed member must not stop the study
-        return Failed(f"{type(exc).__name__}: {exc}")
+        return Failed(described(exc))
 
 
 def compile_kernels(member: scenario.Scenario) -> None:
