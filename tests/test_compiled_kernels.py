@@ -329,6 +329,36 @@ def test_a_run_after_compile_kernels_compiles_nothing(tiny_scenario):
         assert sim.t > 0 and names == []
 
 
+def test_the_numpy_paths_parallel_column_solve_is_compiled_ahead():
+    """A third-party law without compiled forms solves its columns on the numpy path; on
+    more than one thread that is the parallel column solve, which no run under a built-in
+    law uses (so none caches it): :func:`compile_kernels` compiles it, and a threaded run
+    under a plugin then compiles nothing (it compiled it on its first use, about 2 s)."""
+    import numpy as np
+    from numba.core import event
+
+    from multilayer.app.precompile import compile_kernels
+    from multilayer.engine.vertical import column_solve
+    from multilayer.engine.vertical.problem import ColumnProblem
+
+    assert not compile_kernels().failed
+    names: list[str] = []
+
+    class Listener(event.Listener):
+        def on_start(self, e):
+            names.append(e.data["dispatcher"].py_func.__qualname__)
+
+        def on_end(self, e):
+            pass
+
+    shape = (3, 8)
+    p = ColumnProblem(m=np.ones(shape), ustar=np.ones(shape), dt=0.1, kappa=np.full(shape, 0.5),
+                      c=np.ones(shape), w=np.zeros(shape), cw=np.zeros(shape))  # fmt: skip
+    with event.install_listener("numba:compile", Listener()):
+        column_solve.solve(p, threads=2)
+    assert column_solve._solve_parallel.signatures and names == []
+
+
 def test_a_failing_task_is_named_by_the_worker(monkeypatch, capsys):
     """A task that raises is answered ``failed NAME ERROR`` (``multilayer compile`` exits 1
     naming it); the next task still runs."""
