@@ -44,7 +44,7 @@ from numba.core.registry import CPUDispatcher
 import multilayer
 
 overrides = {"domain.cells": 40, "time.end": 0.01, **json.loads(sys.argv[2])}
-with event.install_listener("numba:compile", Listener()):
+with event.install_listener("numba:compile", _compiled(names)):
     sim = multilayer.Simulation(multilayer.load(sys.argv[1], overrides=overrides))
     sim.advance(0.01)
 entries = sorted(
@@ -148,7 +148,7 @@ AHEAD = (
 import json, sys
 from multilayer.app.cli import main
 
-with event.install_listener("numba:compile", Listener()):
+with event.install_listener("numba:compile", _compiled(names)):
     code = main(sys.argv[1:])
 print(json.dumps({"code": code, "compiled": compiled}))
 """
@@ -241,7 +241,7 @@ import multilayer
 found = {}
 for path in sys.argv[1:]:
     compiled.clear()
-    with event.install_listener("numba:compile", Listener()):
+    with event.install_listener("numba:compile", _compiled(names)):
         overrides = {"domain.cells": 40, "numerics.threads": 1}
         sim = multilayer.Simulation(multilayer.load(path, overrides=overrides))
         for _ in range(2):
@@ -297,6 +297,21 @@ def test_two_compiles_and_a_run_at_once_on_an_empty_cache(tmp_path, write_scenar
     assert json.loads(runs.stdout) == {path: [] for path in SHIPPED}, runs.stderr
 
 
+def _compiled(names: list[str]) -> object:
+    """A listener of numba's ``numba:compile`` events appending each compiled function's
+    qualified name to ``names``."""
+    from numba.core import event
+
+    class Compiled(event.Listener):
+        def on_start(self, e):
+            names.append(e.data["dispatcher"].py_func.__qualname__)
+
+        def on_end(self, e):
+            pass
+
+    return Compiled()
+
+
 def test_a_run_after_compile_kernels_compiles_nothing(tiny_scenario):
     """Once :func:`compile_kernels` has cached its tasks' kernels (the test run's warm-up
     did, or this call does), a small run under another law, hydrostatic or not, with side
@@ -311,22 +326,38 @@ def test_a_run_after_compile_kernels_compiles_nothing(tiny_scenario):
     assert not compile_kernels().failed and kernel_cache.is_compiled()
     names: list[str] = []
 
-    class Listener(event.Listener):
-        def on_start(self, e):
-            names.append(e.data["dispatcher"].py_func.__qualname__)
-
-        def on_end(self, e):
-            pass
-
     tiny_scenario["walls"] = {"name": "wall_friction", "mu_w": 0.2}
     tiny_scenario["domain"]["width"] = 0.1
     for overrides in ({"model.pressure": "hydrostatic"}, {"model.pressure": "non_hydrostatic"},
                       {"model.normal_stress": True}):  # fmt: skip
-        with event.install_listener("numba:compile", Listener()):
+        with event.install_listener("numba:compile", _compiled(names)):
             sim = multilayer.Simulation(multilayer.load(tiny_scenario, overrides))
             for _ in range(3):
                 sim.step()
         assert sim.t > 0 and names == []
+
+
+def test_the_numpy_paths_parallel_column_solve_is_compiled_ahead():
+    """A third-party law without compiled forms solves its columns on the numpy path; on
+    more than one thread that is the parallel column solve, which no run under a built-in
+    law uses (so none caches it): :func:`compile_kernels` compiles it, and a threaded run
+    under a plugin then compiles nothing (it compiled it on its first use, about 2 s)."""
+    import numpy as np
+    from numba.core import event
+
+    from multilayer.app.precompile import compile_kernels
+    from multilayer.engine.vertical import column_solve
+    from multilayer.engine.vertical.problem import ColumnProblem
+
+    assert not compile_kernels().failed
+    names: list[str] = []
+
+    shape = (3, 8)
+    p = ColumnProblem(m=np.ones(shape), ustar=np.ones(shape), dt=0.1, kappa=np.full(shape, 0.5),
+                      c=np.ones(shape), w=np.zeros(shape), cw=np.zeros(shape))  # fmt: skip
+    with event.install_listener("numba:compile", _compiled(names)):
+        column_solve.solve(p, threads=2)
+    assert column_solve._solve_parallel.signatures and names == []
 
 
 def test_a_failing_task_is_named_by_the_worker(monkeypatch, capsys):

@@ -416,9 +416,10 @@ def test_a_local_step_that_diverges_stops_without_blaming_the_rheology():
 def test_a_local_step_that_diverges_on_a_huge_closure_constant_names_the_constants(
     tmp_path, cli, write_scenario
 ):
-    """``mixture.critical_shift: 1e100`` in three layers of Drucker-Prager (validated, no
-    bound): the Newton iteration overflows at the first step; the run stops, exit 1, naming
-    the closure's keys with their values, the initial state kept."""
+    """``mixture.critical_shift: 1e100`` in three layers of Drucker-Prager (within the
+    validation's bound of the closure): the Newton iteration overflows at the first step;
+    the run stops, exit 1, naming the closure's keys with their values, the initial state
+    kept."""
     data = {
         **TINY_SCENARIO,
         "material": {"density": 1500.0, "grain_diameter": 1e-3, "particle_density": 2500.0},
@@ -431,6 +432,37 @@ def test_a_local_step_that_diverges_on_a_huge_closure_constant_names_the_constan
     assert "Traceback" not in result.err
     assert "mixture.dilatancy = 4 and mixture.critical_shift = 1e+100)" in result.err, result.err
     assert open_result(tmp_path / "out").sizes["time"] == 1
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "code"),
+    [("fluid.viscosity", 1e300, 2), ("mixture.dilatancy", 1e300, 2), ("mixture.critical_shift", 1e300, 2),
+     ("fluid.viscosity", 1e3, 0), ("mixture.dilatancy", 1e3, 0)],
+)  # fmt: skip
+def test_a_closure_that_overflows_on_the_initial_column_is_refused_at_validation(
+    tmp_path, cli, write_scenario, key, value, code
+):
+    """A fluid viscosity or a dilatancy constant of 1e300: the closure's quadratic bounded on
+    the initial column overflows, so ``validate`` and ``run`` refuse it in one message naming
+    the key and what is accepted (exit 2, no output directory); 1e3 validates and runs."""
+    data = {
+        **TINY_SCENARIO,
+        "material": {"density": 1500.0, "grain_diameter": 1e-3, "particle_density": 2500.0},
+        "fluid": {"density": 1000.0, "viscosity": 1e-3},
+        "mixture": {"phi_critical": 0.58, "dilatancy": 4.0, "critical_shift": 25.0},
+        "initial": [{**TINY_SCENARIO["initial"][0], "phi": 0.58}],
+    }
+    section, name = key.split(".")
+    data[section] = {**data[section], name: value}
+    path = write_scenario(data)
+    for argv in (("validate", path), ("run", path, "-o", tmp_path / "out", "-q")):
+        result = cli(*argv)
+        assert result.code == code, result.err
+        if code:
+            assert f"{key}: the mixture's closure overflows on the initial column" in result.err
+            assert "accepted: fluid.viscosity, mixture.dilatancy and mixture.critical_shift" in result.err
+            assert result.err.count("error") == 1 and "Traceback" not in result.err
+    assert (tmp_path / "out").exists() == (code == 0)
 
 
 def test_a_dry_scenario_refuses_phi():

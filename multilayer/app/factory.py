@@ -25,6 +25,7 @@ from multilayer.engine import config as cfg
 from multilayer.engine import initial_state
 from multilayer.engine.mesh import layer_fractions
 from multilayer.engine.pressure.model import models, options
+from multilayer.errors import InputError
 from multilayer.plugins import host
 from multilayer.plugins.contract import Material, Rheology
 from multilayer.scenario import Scenario
@@ -91,6 +92,40 @@ def check_initial(scenario: Scenario, where: str, *, on_mesh: bool = True) -> No
         )
         fed = scenario.boundaries.inflow is not None
         initial_state.check_not_dry(h0, scenario.numerics.dry_threshold, fed, where)
+        check_closure(scenario, float(h0.max(initial=0.0)), where)
+
+
+def check_closure(scenario: Scenario, h: float, where: str) -> None:
+    """A mixture's closure bounded on its initial column of thickness ``h`` (the thickest on
+    the mesh), at each packing given (:func:`closure.discriminant_bound`): the effective
+    pressure's quadratic at a shear rate of :data:`closure.SHEAR_RATE_SCALE` must stay below
+    :data:`closure.DISCRIMINANT_LIMIT`, or :class:`InputError` naming the keys: beyond it
+    the run's first steps overflow the closure."""
+    from multilayer.engine.mixture import closure
+
+    fluid, mix = scenario.fluid, scenario.mixture
+    if fluid is None or mix is None:
+        return
+    grains = scenario.material.particle_density or scenario.material.density
+    g = scenario.gravity * math.cos(math.radians(scenario.slope_deg))
+    phis = [e.phi for e in scenario.initial if e.phi is not None] + [mix.phi_critical]
+    eta, K, K2 = fluid.viscosity, mix.dilatancy, mix.critical_shift
+    for phi in phis:
+        beta = closure.drag(mix.kozeny, eta, scenario.material.grain_diameter, phi)
+        weight = (grains - fluid.density) * g * phi * h
+        bound = closure.discriminant_bound(beta, h, phi, weight, K, K2, eta)
+        if not bound <= closure.DISCRIMINANT_LIMIT:
+            keys = {"fluid.viscosity": eta, "mixture.dilatancy": K, "mixture.critical_shift": K2}
+            culprit = max(keys, key=lambda k: keys[k])
+            raise InputError(
+                f"{where}: {culprit}: the mixture's closure overflows on the initial column ({h:.3g} m "
+                f"thick, phi = {phi:g}): with fluid.viscosity = {eta:g} Pa s, mixture.dilatancy = {K:g} and "
+                f"mixture.critical_shift = {K2:g}, its effective pressure's quadratic a^2 + 4 c at a shear "
+                f"rate of {closure.SHEAR_RATE_SCALE:g} 1/s is {bound:.3g}; accepted: fluid.viscosity, "
+                "mixture.dilatancy and mixture.critical_shift whose a^2 + 4 c stays below "
+                f"{closure.DISCRIMINANT_LIMIT:g} (a = P + B gamma K, c = B K K2 eta_f gamma^2, B the Darcy "
+                "coefficient, docs/mixture.md)"
+            )
 
 
 def check_pressure(scenario: Scenario) -> None:

@@ -11,8 +11,12 @@ signatures every run uses.  A task starts once the tasks whose kernels it calls 
 compiled (two processes compiling one kernel at once would both do the work).  When all
 of them succeed the cache is marked compiled for the current kernel sources and numba
 version (:func:`multilayer.engine.kernel_cache.mark_compiled`), and a later call returns
-at once.  The parallel (threaded) variants of the kernels are not compiled here: a run
-with ``numerics.threads`` above 1 compiles them on its first use.
+at once.  The parallel (threaded) variants of the engine's own kernels are not compiled
+here: a run with ``numerics.threads`` above 1 compiles them on its first use (the Newton
+kernel's takes some 25-30 s), the same for every law.  The one exception is the numpy
+path's column solve (about 2 s of one core): only laws without compiled forms (third-party
+rheologies) use it, so no run under a built-in law ever caches it, and every installation
+would otherwise compile it in the first threaded run under a plugin.
 """
 
 from __future__ import annotations
@@ -87,8 +91,8 @@ def _normal_stress() -> None:
 
 
 def _numpy_path() -> None:
-    """The exact column solve and the Newton control of the vertical step of laws without
-    compiled forms (third-party rheologies)."""
+    """The exact column solve, serial and parallel, and the Newton control of the vertical
+    step of laws without compiled forms (third-party rheologies)."""
     import numpy as np
 
     from multilayer.engine.vertical import column_solve
@@ -102,6 +106,7 @@ def _numpy_path() -> None:
         c=rng.uniform(0, 1, shape), w=np.zeros(shape), cw=np.zeros(shape),
     )  # fmt: skip
     u = column_solve.solve(p)
+    column_solve.solve(p, threads=2)  # the parallel variant: no built-in law's run caches it
     examine_columns(p.m, p.ustar, p.kappa, p.c, p.w, p.cw, p.ustar, u, np.zeros((4, *shape)), True)
 
 

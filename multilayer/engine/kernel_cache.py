@@ -338,12 +338,18 @@ def current(directory: Path) -> Iterator[bool]:
         yield fresh
 
 
+TASKS = ENGINE.parent / "app" / "precompile.py"
+"""The module whose tasks say which kernels ``multilayer compile`` compiles."""
+
+
 def compiled_text() -> str:
-    """What :data:`COMPILED` holds: the kernel sources' digest and numba's version (numba
-    drops its cache when its version changes)."""
+    """What :data:`COMPILED` holds: the kernel sources' digest, numba's version (numba
+    drops its cache when its version changes) and the digest of :data:`TASKS` (tasks that
+    compile more kernels than the ones marked are not done)."""
     import numba
 
-    return f"{sources_digest()}\nnumba {numba.__version__}\n"
+    tasks = _file_digest(TASKS) or "none"
+    return f"{sources_digest()}\nnumba {numba.__version__}\ntasks {tasks}\n"
 
 
 def _file_digest(path: Path) -> str | None:

@@ -28,6 +28,8 @@ import math
 from dataclasses import dataclass, fields
 from typing import Any, NamedTuple
 
+import numpy as np
+
 from multilayer.errors import InputError
 
 DENSEST_PACKING = math.pi / math.sqrt(18.0)
@@ -96,6 +98,30 @@ class MixtureMaterial:
 def _require(ok: bool, name: str, value: float, accepted: str) -> None:
     if not ok:
         raise InputError(f"mixture material: {name} = {value!r}; accepted: {accepted}")
+
+
+SHEAR_RATE_SCALE = 1e3
+"""The shear rate (1/s) at which :func:`discriminant_bound` bounds the closure: ``3 |v| /
+h`` of 10 m/s over 3 cm."""
+DISCRIMINANT_LIMIT = 1e300
+"""The largest :func:`discriminant_bound` accepted: the closure's quadratic takes
+``sqrt(a^2 + 4 c)`` and its Newton step products of it, which overflow near 1e308."""
+
+
+def discriminant_bound(
+    beta: float, h: float, phi: float, weight: float, K: float, K2: float, eta_f: float
+) -> float:
+    """``a^2 + 4 c`` of the effective pressure's quadratic (module docstring) for a layer of
+    thickness ``h`` and packing ``phi`` of drag ``beta`` and buoyant weight ``weight`` at
+    :data:`SHEAR_RATE_SCALE`, with ``|phi - phi_eq| <= 1``: ``a = P + B gamma K``, ``c = B K
+    K2 eta_f gamma^2`` (inf where it overflows)."""
+    gamma = SHEAR_RATE_SCALE
+    with np.errstate(all="ignore"):
+        B = np.float64(darcy_coefficient(beta, h, phi))
+        a = np.float64(weight) + B * gamma * K
+        c = B * K * K2 * eta_f * gamma * gamma
+        value = a * a + 4.0 * c
+    return float(value) if np.isfinite(value) else math.inf
 
 
 class BasalClosure(NamedTuple):
