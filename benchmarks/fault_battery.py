@@ -3726,6 +3726,8 @@ def cases() -> list[Case]:
         + round_thirty_one()
         + round_thirty_two()
         + round_thirty_three()
+        + round_thirty_four()
+        + round_thirty_five()
     )
 
 
@@ -5824,6 +5826,290 @@ def round_thirty_three() -> list[Case]:
     ]  # fmt: skip
 
 
+VTK_FIELDS = """
+import glob, re
+code = main(sys.argv[1:])
+text = open(sorted(glob.glob(sys.argv[2] + '/vtk/result_*.vts'))[-1]).read()
+print(f"multilayer: cell data {sorted(set(re.findall('Name=.([a-z_]+).', text)))}", file=sys.stderr)
+sys.exit(code)
+"""
+"""``export`` of ``sys.argv[2]``, then the names of the cell data of its last ``.vts`` on stderr."""
+
+THREE_THREADS = """
+import threading, multilayer
+results = {}
+def go(i):
+    try:
+        results[i] = float(multilayer.run(sys.argv[2])['mass'][-1])
+    except BaseException as exc:
+        results[i] = repr(exc)
+threads = [threading.Thread(target=go, args=(i,)) for i in range(3)]
+[t.start() for t in threads]
+[t.join() for t in threads]
+print(f"multilayer: three runs in threads: {sorted(map(str, results.values()))}", file=sys.stderr)
+sys.exit(0)
+"""
+"""Three ``multilayer.run`` of ``sys.argv[2]`` at once, each in a thread of one process."""
+
+ASK_NO_FURTHER = "import multilayer.app.sensitivity as _s\n_s.sample = lambda study: sys.exit(0)\n"
+"""A sensitivity study stopped once its directory and file are checked (before any run)."""
+
+CALIBRATE_NO_FURTHER = (
+    "import multilayer.app.commands.calibrate as _c\n_c.study_ensemble = lambda *a, **k: sys.exit(0)\n"
+)
+"""A calibration stopped once its directory and file are checked (before any run)."""
+
+
+def _study_ran_with(name: str, attribute: str, earlier: str) -> Callable[[Path], None]:
+    """``out/<name>`` (a study's file of results) recording ``earlier`` as the study file it ran."""
+
+    def setup(directory: Path) -> None:
+        import netCDF4
+
+        (directory / "out").mkdir(exist_ok=True)
+        with NETCDF, netCDF4.Dataset(directory / "out" / name, "w") as ds:
+            ds.setncattr(attribute, earlier)
+
+    return setup
+
+
+def _changed_sensitivity(directory: Path) -> None:
+    _sensitivity33({"rheology.mu_s": {"bounds": [0.3, 0.4]}, "rheology.nu": {"bounds": [0.0, 0.02]}})(
+        directory
+    )
+    _study_ran_with("sensitivity.nc", "sensitivity", "base: scenario.yaml\nsamples: 16\n")(directory)
+
+
+def _changed_calibration(directory: Path) -> None:
+    _calibration("0.05,0.12,0.01\n0.1,0.2,0.01\n")(directory)
+    _study_ran_with("calibration.nc", "calibration", "base: base.yaml\n")(directory)
+
+
+def _same_sensitivity(directory: Path) -> None:
+    _sensitivity33({"rheology.mu_s": {"bounds": [0.3, 0.4]}, "rheology.nu": {"bounds": [0.0, 0.02]}})(
+        directory
+    )
+    _study_ran_with("sensitivity.nc", "sensitivity", (directory / "study.yaml").read_text())(directory)
+
+
+def _in_a_non_ascii_directory(directory: Path) -> None:
+    (directory / "é").mkdir()
+    _scenario(directory / "é")
+
+
+def round_thirty_four() -> list[Case]:
+    """The hostile cases of the thirty-fourth round (docs/reliability.md), in the process's
+    limits and environment and the leftovers of the earlier rounds: an address-space limit
+    (``ulimit -v``) of 300 MB (``validate``: SciPy's import spun for ever; ``run``: named as
+    a directory not writable) and 400-600 MB (a MemoryError traceback reading a scenario of
+    1 kB, or an ImportError), a mesh beyond the address space though within
+    the machine's memory and a MemoryError in ``export``; a mixture's checkpoint of solid 0
+    (refused only by the closure at the next step); a sweep key ``''`` or ``rheology..mu_s``
+    (named as a member's ``--set``) and sweeps over ``name`` and ``description`` (each
+    member the same run); ``sensitivity`` and ``calibrate --resume`` whose file changed; a
+    film thinner than the dry threshold (a warning before the error); ``export --vtk`` of a
+    mixture (no ``phi`` nor pore pressure); as controls, a resume of a mixture's own
+    checkpoint, an unchanged sensitivity file resumed, a limit of 1.5 GB, a run in a
+    non-ASCII directory under ``LC_ALL=C``, 2000 layers and three runs in threads of one
+    process."""
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    resume = [*run, "--resume"]
+    sweep = ["validate", "{dir}/study.yaml"]
+    export = ["export", "{dir}/out", "--vtk"]
+
+    def limited(megabytes: int) -> list[str]:
+        return ["prlimit", f"--as={megabytes * 10**6}", "--"]
+
+    def column_emptied(solid: np.ndarray) -> np.ndarray:
+        solid = solid.copy()
+        solid[:, 1] = 0.0
+        return solid
+
+    address = "(ulimit -v), where its libraries"
+    empty = "has an empty part; accepted: a dotted scenario key, no part empty"
+    unrun = "does not change the run: every member would run the same simulation"
+    changed = "changed since the study in"
+    solid0 = "solid holds 0 m in column 0, "
+    mixture_fields = "cell data ['h', 'phi', 'pore_pressure_excess', 'static', 'u']"
+    layered = {"fluid": {"density": 1000.0, "viscosity": 1e-3, "compressibility": 1e-3}}
+    mesh = {"domain.cells": 2_000_000, "time.end": 1e-5, "time.output_interval": 1e-5}
+    return [
+        Case("ulimit -v 300 MB: run", run, 2, address, prefix=limited(300), plain=True, setup=_scenario,
+             one_message=True),
+        Case("ulimit -v 300 MB: validate", ["validate", "{scenario}"], 2, address, prefix=limited(300),
+             plain=True, setup=_scenario, one_message=True),
+        Case("ulimit -v 400 MB: validate", ["validate", "{scenario}"], 2, address, prefix=limited(400),
+             plain=True, setup=_scenario, one_message=True),
+        Case("ulimit -v 600 MB: run", run, 2, address, prefix=limited(600), plain=True, setup=_scenario,
+             one_message=True),
+        Case("ulimit -v 500 MB: plot", ["plot", "{dir}/out"], 2, address, prefix=limited(500), plain=True,
+             setup=_finished_run, one_message=True),
+        Case("ulimit -v 1.2 GB: a mesh of 2e6 cells (14.7 GB) within the machine's memory", run, 2,
+             "more than the address space of this process (ulimit -v)", prefix=limited(1200), plain=True,
+             setup=partial(_scenario, changes=mesh), one_message=True),
+        Case("export: a MemoryError while writing a file", export, 2, "multilayer: error: out of memory",
+             patch="import multilayer.io.export as _e\ndef _full(*a):\n    raise MemoryError()\n"
+                   "_e.structured_grid = _full\n", setup=_finished_run, one_message=True),
+        Case("resume: a mixture's checkpoint whose solid is 0", resume, 2, solid0,
+             setup=_mixture_checkpoint("state.solid", lambda s: 0.0 * s), one_message=True),
+        Case("resume: a mixture's checkpoint whose column 1 holds no solid", resume, 2,
+             "solid holds 0 m in column 1, ", setup=_mixture_checkpoint("state.solid", column_emptied),
+             one_message=True),
+        Case("sweep: a key ''", sweep, 2, f"parameters.'' (line 3): the key '' {empty}",
+             setup=_sweep33("parameters:\n  '': [1, 2]\n"), one_message=True),
+        Case("sweep: a key rheology..mu_s", sweep, 2, f"the key 'rheology..mu_s' {empty}",
+             setup=_sweep33("parameters:\n  rheology..mu_s: [0.3, 0.4]\n"), one_message=True),
+        Case("sweep: over name", sweep, 2, f"parameters.name (line 3): name {unrun}",
+             setup=_sweep33("parameters:\n  name: [a, b]\n"), one_message=True),
+        Case("sweep: over description", sweep, 2, f"description {unrun}",
+             setup=_sweep33("parameters:\n  description: [a, b]\n  rheology.mu_s: [0.3, 0.4]\n"),
+             one_message=True),
+        Case("sensitivity --resume: the sensitivity file changed since",
+             ["sensitivity", "{dir}/study.yaml", "-o", "{dir}/out", "--resume"], 0, changed,
+             patch=ASK_NO_FURTHER, setup=_changed_sensitivity),
+        Case("calibrate --resume: the calibration file changed since",
+             ["calibrate", "{dir}/calibration.yaml", "-o", "{dir}/out", "--resume", "-q"], 0, changed,
+             patch=CALIBRATE_NO_FURTHER, setup=_changed_calibration),
+        Case("run: a film of 1e-9 m, below the dry threshold", run, 2, "not above numerics.dry_threshold",
+             setup=partial(_scenario, changes={"initial.0": {"shape": "layer", "thickness": 1e-9}}),
+             one_message=True),
+        Case("export --vtk: a mixture's phi and pore pressure", export, 0, mixture_fields, patch=VTK_FIELDS,
+             setup=_finished_mixture),
+        Case("export --vtk: a mixture's phi and pore pressure per layer", export, 0, mixture_fields,
+             patch=VTK_FIELDS, setup=lambda d: _finished_mixture(d, layered)),
+        Case("control: resume of a mixture's own checkpoint", resume, 0, "",
+             setup=lambda d: _finished_mixture(d, end=0.1)),
+        Case("control: sensitivity --resume of an unchanged file",
+             ["sensitivity", "{dir}/study.yaml", "-o", "{dir}/out", "--resume"], 0, "",
+             patch=ASK_NO_FURTHER, setup=_same_sensitivity),
+        Case("control: ulimit -v 1.5 GB, run", run, 0, "", prefix=limited(1500), plain=True, setup=_scenario),
+        Case("control: LC_ALL=C, a run in a directory named é", ["run", "{dir}/é/scenario.yaml", "-q"], 0, "",
+             env={"LC_ALL": "C", "LANG": "C"}, setup=_in_a_non_ascii_directory, plain=True, here=True),
+        Case("control: 2000 layers, run", run, 0, "",
+             setup=partial(_scenario, changes={"domain.layers": 2000})),
+        Case("control: three multilayer.run at once in threads of one process", ["threads", "{scenario}"], 0,
+             "three runs in threads: ['0.005000000000000001', '0.005000000000000001', "
+             "'0.005000000000000001']", patch=THREE_THREADS, setup=_scenario),
+        Case("control: a film of 1e-5 m, above the dry threshold, run", run, 0, "",
+             setup=partial(_scenario, changes={"initial.0": {"shape": "layer", "thickness": 1e-5}})),
+    ]  # fmt: skip
+
+
+UNSHOWABLE = (
+    "class Unshowable(RuntimeError):\n"
+    "    def __str__(self):\n"
+    "        raise ValueError('a message of the exception itself')\n"
+)
+"""An exception of a third party whose ``__str__`` raises (Python's traceback module says
+``<exception str() failed>``)."""
+NOT_TEXT = "class Unshowable(ValueError):\n    def __str__(self):\n        return 3\n"
+"""An exception whose ``__str__`` returns no string (``str()`` raises ``TypeError``)."""
+
+
+WALL_VISCOSITY = (
+    "from multilayer.plugins.builtins.wall_friction import WallFriction\n"
+    "WallFriction.viscosity = lambda self, g, p, m: np.full(np.shape(p), 1e308)\n"
+    "WallFriction.viscosity_kernel = lambda self, material: None\n"
+)
+"""The built-in wall law returning a viscosity of 1e308 Pa s from its Python method."""
+
+
+def _constructor_raising(exception: str) -> str:
+    """DruckerPrager's constructor raising ``Unshowable()``, defined by ``exception``."""
+    return exception + _constructor_patch("Unshowable()")
+
+
+def _observations35(rows: str, header: str = "t,x_f,sigma") -> Callable[[Path], None]:
+    """A calibration of TINY whose observation file holds ``rows`` under ``header``, as
+    written by the battery's other calibration cases."""
+    return _calibration(rows, header=header)
+
+
+def round_thirty_five() -> list[Case]:
+    """The hostile cases of the thirty-fifth round (docs/reliability.md), in third-party
+    rheology plugins misbehaving at run time and values at the edge of the scenario's
+    ranges: a plugin's exception whose ``__str__`` raises or returns no string, raised mid-run,
+    by its constructor (a ``RuntimeError`` and a ``ValueError``) and on importing its entry
+    point (its own message replaced the one naming the plugin, or a traceback); a yield
+    stress of 1e308 Pa, finite (numpy warned of an overflow in the finiteness test of the
+    column solve: the sum of finite values overflowed) and a viscosity of 1e308 Pa s (its
+    stresses overflowed: numpy's warnings, then the column kernel's coefficient ``c`` named
+    instead of the plugin), of the bulk law and of the wall law; as controls, ``plot`` of a
+    result holding another tool's variable and of one whose ``h`` is renamed, a yield
+    stress of float32 and of integers, observations unsorted, at one time twice and under a
+    byte order mark, a slope of 89.99999 degrees, a mixture of phi 1e-9 and a mixture whose
+    drag overflows its closure (stopped with the keys named)."""
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    validate = ["validate", "{scenario}"]
+    observations = ["validate", "{dir}/calibration.yaml"]
+    unshown = "(its message cannot be shown: str() raised "
+    mid_run = "yield_stress() raised Unshowable: " + unshown
+    constructed = "DruckerPrager(mu_s=0.3, nu=0.01) raised Unshowable: " + unshown
+    plugin_env = {"PYTHONPATH": "{dir}/plugin"}
+    importing = "raise Unshowable()\n"
+    huge = "return np.full(np.shape(p), 1e308)"
+    walled = {"walls": {"name": "wall_friction", "mu_w": 0.2}, "domain.width": 0.1}
+    junk = "ds.createDimension('extra', 2)\nds.createVariable('junk', 'f8', ('extra',))\n"
+    huge_viscosity = "def fault(self, g, p, m):\n    return np.full(np.shape(p), 1e308)\n" + (
+        "DruckerPrager.viscosity = fault\nDruckerPrager.viscosity_kernel = lambda self, material: None\n"
+    )
+    return [
+        Case("run: a plugin's exception whose __str__ raises, mid-run", run, 1, mid_run + "ValueError)",
+             patch=UNSHOWABLE + _mid_run_patch("raise Unshowable()"), setup=_scenario, keeps_output=True,
+             one_message=True),
+        Case("run: a plugin's exception whose __str__ returns 3, mid-run", run, 1, mid_run + "TypeError)",
+             patch=NOT_TEXT + _mid_run_patch("raise Unshowable()"), setup=_scenario, keeps_output=True,
+             one_message=True),
+        Case("validate: a constructor's RuntimeError whose __str__ raises", validate, 2,
+             constructed + "ValueError)", patch=_constructor_raising(UNSHOWABLE), setup=_scenario,
+             one_message=True),
+        Case("run: a constructor's RuntimeError whose __str__ raises", run, 2, constructed + "ValueError)",
+             patch=_constructor_raising(UNSHOWABLE), setup=_scenario, one_message=True),
+        Case("validate: a constructor's ValueError whose __str__ returns 3", validate, 2,
+             "rheology (line 18): drucker_prager: " + unshown + "TypeError)",
+             patch=_constructor_raising(NOT_TEXT), setup=_scenario, one_message=True),
+        Case("validate: an entry point whose module raises an exception whose __str__ raises", validate, 0,
+             "rheology plugin third 0.1 (entry point third = third) skipped: Unshowable: " + unshown,
+             setup=_entry_point_plugin(UNSHOWABLE + importing), env=plugin_env),
+        Case("validate: an entry point whose module raises an exception whose __str__ returns 3",
+             validate, 0, "skipped: Unshowable: " + unshown + "TypeError)",
+             setup=_entry_point_plugin(NOT_TEXT + importing), env=plugin_env),
+        Case("run: a plugin's yield stress of 1e308 Pa mid-run", run, 0, "", patch=_mid_run_patch(huge),
+             setup=_scenario),
+        Case("run: a plugin's viscosity of 1e308 Pa s", run, 1,
+             "viscosity() returned 1e+308 Pa s at the shear rate 0 1/s, whose viscous stress or its slope",
+             patch=huge_viscosity, setup=_scenario, keeps_output=True, one_message=True),
+        Case("run: a wall law's viscosity of 1e308 Pa s", run, 1,
+             "rheology plugin 'wall_friction' (multilayer.plugins.builtins.wall_friction.WallFriction): "
+             "viscosity() returned 1e+308 Pa s", patch=WALL_VISCOSITY, keeps_output=True, one_message=True,
+             setup=partial(_scenario, changes=walled)),
+        Case("control: plot of a result holding a variable of another tool over a dimension of its own",
+             ["plot", "{dir}/out"], 0, "",
+             setup=_result_edit(junk)),
+        Case("control: plot of a result whose h is renamed h_old", ["plot", "{dir}/out"], 2,
+             "not a multilayer result: no variable h", one_message=True,
+             setup=_result_edit("ds.renameVariable('h', 'h_old')\n")),
+        Case("control: a plugin's yield stress of float32 mid-run", run, 0, "",
+             patch=_mid_run_patch("return np.zeros(np.shape(p), np.float32)"), setup=_scenario),
+        Case("control: a plugin's yield stress of integers mid-run", run, 0, "",
+             patch=_mid_run_patch("return np.zeros(np.shape(p), int)"), setup=_scenario),
+        Case("control: observations unsorted in time", observations, 0, "",
+             setup=_observations35("0.2,0.15,0.01\n0.1,0.12,0.01\n")),
+        Case("control: observations twice at one time", observations, 0, "",
+             setup=_observations35("0.1,0.15,0.01\n0.1,0.12,0.01\n")),
+        Case("control: observations under a byte order mark", observations, 0, "",
+             setup=_observations35("0.1,0.12,0.01\n", header="\ufefft,x_f,sigma")),
+        Case("control: a slope of 89.99999 degrees, run", run, 0, "",
+             setup=partial(_scenario, changes={"slope_deg": 89.99999})),
+        Case("control: a mixture of phi 1e-9, run", run, 0, "",
+             setup=partial(_scenario, changes={**MIXTURE32, "initial.0.phi": 1e-9})),
+        Case("control: a mixture of fluid.viscosity 1e300 (its closure overflows), run", run, 1,
+             "the mixture's closure overflowed: its effective pressures are not finite numbers",
+             setup=partial(_scenario, changes={**MIXTURE32, "fluid.viscosity": 1e300}), keeps_output=True,
+             one_message=True),
+    ]  # fmt: skip
+
+
 ROUNDS: dict[int, Callable[[], list[Case]]] = {
     2: round_two, 3: round_three, 4: round_four, 5: round_five, 6: round_six, 7: round_seven,
     8: round_eight, 9: round_nine, 10: round_ten, 11: round_eleven, 12: round_twelve,
@@ -5834,6 +6120,8 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     28: round_twenty_eight, 29: round_twenty_nine, 30: round_thirty, 31: round_thirty_one,
     32: round_thirty_two,
     33: round_thirty_three,
+    34: round_thirty_four,
+    35: round_thirty_five,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""
 
@@ -5843,7 +6131,7 @@ def main() -> None:
     parser.add_argument("-k", default="", help="only the cases whose name contains this")
     parser.add_argument("-j", type=int, default=2, help="cases run at once")
     parser.add_argument(
-        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 33; all: none)"
+        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 35; all: none)"
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()

@@ -40,6 +40,22 @@ def reason(exc: BaseException) -> str:
     return str(exc)
 
 
+def said(exc: BaseException) -> str:
+    """``str(exc)``, or a note that it cannot be shown: a third party's exception whose
+    ``__str__`` raises (or returns no string) replaced the message naming the plugin that
+    raised it by its own."""
+    try:
+        text = str(exc)
+    except Exception as error:  # noqa: BLE001 - any failure of third-party code
+        return f"(its message cannot be shown: str() raised {type(error).__name__})"
+    return text
+
+
+def described(exc: BaseException) -> str:
+    """``exc``'s type and message (:func:`said`), as a failure of third-party code is named."""
+    return f"{type(exc).__name__}: {said(exc)}"
+
+
 REMOVED_WORKING_DIRECTORY = (
     "the working directory no longer exists (removed after this shell entered it), and relative paths "
     "(the default output directory results/<name> too) and numba compiling the kernels for their first "

@@ -1380,6 +1380,23 @@ def test_the_transport_keeps_each_layer_within_the_packings_its_column_allows():
     assert np.all(phi > 0.0) and np.all(phi <= DENSEST_PACKING)
 
 
+def test_a_state_of_no_solid_in_a_wet_column_is_refused_on_loading():
+    """A state to restore whose column thicker than the dry threshold holds no solid (a
+    packing of 0, where the closure is not defined) is refused by ``load_state`` naming
+    the column: it was refused only at the next step, the closure's constants blamed.  A
+    layer emptied in a column that holds solid (as the bounds of the packings leave a thin
+    layer at a front) is loaded."""
+    entry = InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01, phi=0.58)
+    sim = mixture_run([entry], slope=0.0, layers=3, cells=6, sides=("wall", "wall"))
+    saved = sim.state_dict()
+    saved["solid"][:, 1] = 0.0
+    with pytest.raises(InputError, match=r"solid holds 0 m in column 1, [0-9.]+ m thick .* a packing of 0"):
+        sim.load_state(saved)
+    saved = sim.state_dict()
+    saved["solid"][2, 1] = 0.0
+    sim.load_state(saved)
+
+
 def test_a_column_beyond_the_densest_packing_stops_the_step_naming_it():
     """A column gathered beyond the densest packing of spheres (0.7405), which the exchanges
     between the layers of a column can do over many steps (docs/mixture.md, "Layers"):

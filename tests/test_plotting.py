@@ -311,6 +311,28 @@ def test_vtk_export_puts_the_layers_at_their_physical_heights(slump_dir: Path, c
     assert np.all(cells["static"][cells["u"] != 0.0] == 0.0)  # moving cells are not static
 
 
+@pytest.mark.parametrize("layered", [False, True])
+def test_vtk_export_of_a_mixture_holds_its_packing_and_pore_pressure(slump_dir: Path, layered: bool) -> None:
+    """A grain-fluid mixture's ``phi`` and excess pore pressure are cell data of its VTK
+    files, each layer's where the result holds them per layer, else the column's: the
+    export wrote ``u``, ``h`` and ``static`` only."""
+    snap = open_result(slump_dir).isel(time=-1).load()
+    layers, cells = snap.sizes["layer"], snap.sizes["x"]
+    phi = np.linspace(0.5, 0.6, cells)
+    pressure = np.linspace(-10.0, 30.0, cells)
+    snap["phi"], snap["pore_pressure_excess"] = ("x", phi), ("x", pressure)
+    if layered:
+        snap["phi_layer"] = (("layer", "x"), phi + np.arange(layers)[:, None] * 1e-3)
+        snap["pore_pressure_layer"] = (("layer", "x"), pressure * (1.0 - np.arange(layers)[:, None] / layers))
+    grid = ET.fromstring(export.structured_grid(snap))
+    data = {a.get("Name"): np.fromstring(a.text, sep=" ") for a in grid.findall(".//CellData/DataArray")}
+    assert sorted(data) == ["h", "phi", "pore_pressure_excess", "static", "u"]
+    expected_phi = snap["phi_layer"].values if layered else np.tile(phi, (layers, 1))
+    expected_p = snap["pore_pressure_layer"].values if layered else np.tile(pressure, (layers, 1))
+    np.testing.assert_array_equal(data["phi"], expected_phi.ravel())
+    np.testing.assert_array_equal(data["pore_pressure_excess"], expected_p.ravel())
+
+
 def test_an_export_stopped_half_way_leaves_no_series_of_two_runs(
     slump_dir: Path, tmp_path: Path, cli, monkeypatch
 ):

@@ -17,6 +17,7 @@ import yaml
 from conftest import TINY_SCENARIO
 
 from multilayer.app.simulation import Simulation
+from multilayer.errors import described, said
 from multilayer.io.results import open_result
 from multilayer.plugins.builtins.drucker_prager import DruckerPrager
 from multilayer.scenario import from_dict
@@ -27,6 +28,31 @@ PLUGIN = "rheology plugin 'drucker_prager' (multilayer.plugins.builtins.drucker_
 
 class Custom(BaseException):
     """Neither an Exception nor an interrupt."""
+
+
+class Unshowable(RuntimeError):
+    """A third party's exception whose ``__str__`` raises."""
+
+    def __str__(self) -> str:
+        raise ValueError("a message of the exception itself")
+
+
+class NotText(ValueError):
+    """A third party's exception whose ``__str__`` returns no string."""
+
+    def __str__(self):
+        return 3
+
+
+UNSHOWN = "(its message cannot be shown: str() raised "
+
+
+def test_said_and_described_show_an_exception_whose_str_fails():
+    """An exception whose ``__str__`` raises or returns no string: its type and a note, never
+    the error of ``str()`` itself in place of the message naming who raised it."""
+    assert said(RuntimeError("plain")) == "plain"
+    assert described(Unshowable()) == f"Unshowable: {UNSHOWN}ValueError)"
+    assert described(NotText()) == f"NotText: {UNSHOWN}TypeError)"
 
 
 def _numpy_path(monkeypatch) -> None:
@@ -60,6 +86,8 @@ def _raise(exc: BaseException):
         (_raise(SystemExit(0)), "yield_stress() raised SystemExit: 0"),
         (_raise(KeyboardInterrupt()), "yield_stress() raised KeyboardInterrupt"),
         (_raise(Custom("odd")), "yield_stress() raised Custom: odd"),
+        (_raise(Unshowable()), f"yield_stress() raised Unshowable: {UNSHOWN}ValueError)"),
+        (_raise(NotText()), f"yield_stress() raised NotText: {UNSHOWN}TypeError)"),
         (lambda p: np.zeros(p.shape, complex), "yield_stress() returned values of type complex128"),
         (lambda p: np.full(p.shape, "1.0"), "yield_stress() returned values of type <U3"),
         (lambda p: [[None] * p.shape[1]] * p.shape[0], "yield_stress() returned values of type object"),
@@ -196,6 +224,7 @@ def test_a_malformed_compiled_form_is_exit_1_naming_the_plugin(
         (RuntimeError("no licence"), "raised RuntimeError: no licence"),
         (SystemExit(1), "raised SystemExit: 1"),
         (ZeroDivisionError("division by zero"), "raised ZeroDivisionError: division by zero"),
+        (Unshowable(), f"raised Unshowable: {UNSHOWN}ValueError)"),
     ],
 )
 def test_a_constructor_that_fails_is_exit_2_bad_parameters(
@@ -215,6 +244,42 @@ def test_a_constructor_that_fails_is_exit_2_bad_parameters(
             and "drucker_prager: DruckerPrager(mu_s=0.3, nu=0.01)" in result.err
         )
         assert expected in result.err and "accepted: drucker_prager(mu_s: float, nu: float" in result.err
+
+
+def test_a_constructors_value_error_whose_message_cannot_be_shown_is_exit_2_naming_the_law(
+    cli, write_scenario, monkeypatch
+):
+    def constructor(self, mu_s: float, nu: float, mu_start: float | None = None):
+        raise NotText()
+
+    monkeypatch.setattr(DruckerPrager, "__init__", constructor)
+    result = cli("validate", write_scenario(SLUMP))
+    assert result.code == 2 and "Traceback" not in result.err, result.err
+    assert f"drucker_prager: {UNSHOWN}TypeError)" in result.err, result.err
+
+
+def test_a_yield_stress_of_1e308_is_a_static_column_without_numpys_overflow_warning(
+    tmp_path, cli, write_scenario, monkeypatch
+):
+    """The column solve's finiteness test summed its coefficients: finite ones of 1e308
+    overflowed the sum, and numpy warned of it."""
+    _numpy_path(monkeypatch)
+    monkeypatch.setattr(DruckerPrager, "yield_stress", _after(8, lambda p: np.full(p.shape, 1e308)))
+    run = cli("run", write_scenario(SLUMP), "-o", tmp_path / "out", "-q")
+    assert run.code == 0 and "encountered" not in run.err and not run.err.strip(), run.err
+
+
+def test_a_viscosity_whose_stress_overflows_is_exit_1_naming_the_plugin(
+    tmp_path, cli, write_scenario, monkeypatch
+):
+    """A viscosity of 1e308 Pa s is finite, its stress and slope over a layer are not: the
+    column kernel named its coefficient ``c`` after numpy's warnings."""
+    _numpy_path(monkeypatch)
+    monkeypatch.setattr(DruckerPrager, "viscosity", lambda self, rate, p, m: np.full(np.shape(p), 1e308))
+    run = cli("run", write_scenario(SLUMP), "-o", tmp_path / "out", "-q")
+    assert run.code == 1 and "encountered" not in run.err and len(run.err.strip().splitlines()) == 1, run.err
+    assert PLUGIN in run.err and "viscosity() returned 1e+308 Pa s at the shear rate" in run.err, run.err
+    assert open_result(tmp_path / "out").attrs["run_status"] == "failed"
 
 
 SLOW_PLUGIN = """

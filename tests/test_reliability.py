@@ -1097,3 +1097,17 @@ def test_the_commands_leave_no_file_in_tmpdir_and_only_the_documented_caches_in_
         ".config",
         ".config/matplotlib",
     }
+
+
+def test_all_finite_does_not_overflow_on_finite_values():
+    """The sum of finite values near the largest float overflows: finite, and no warning."""
+    import warnings
+
+    from multilayer.engine.state_check import all_finite
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert all_finite(np.full((3, 4), 1e308))
+        assert not all_finite(np.array([1.0, np.nan]))
+        assert not all_finite(np.array([1e308, np.inf]))
+        assert all_finite(np.empty(0))

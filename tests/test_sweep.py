@@ -169,6 +169,22 @@ def test_invalid_sweep_file_exits_2_naming_file_and_key(tmp_path, capsys, text, 
     assert not (tmp_path / "out").exists()
 
 
+def test_a_sweep_key_with_an_empty_part_or_of_no_effect_on_the_run_is_named(tmp_path):
+    """A key with an empty part was named as a member's ``--set``, a key the file does not
+    hold; members differing in ``name`` or ``description`` only ran one simulation each."""
+    said = {
+        "''": "the key '' has an empty part; accepted: a dotted scenario key, no part empty",
+        "rheology.": "the key 'rheology.' has an empty part",
+        "name": "name does not change the run: every member would run the same simulation",
+        "description": "description does not change the run",
+    }
+    for key, what in said.items():
+        path = write_sweep(tmp_path, f"base: tiny.yaml\nparameters:\n  {key}: [a, b]\n")
+        with pytest.raises(InputError) as error:
+            sweep.load(path)
+        assert str(error.value).startswith(f"{path}: parameters.{key} (line 3): {what}")
+
+
 def test_invalid_base_scenario_exits_2(tmp_path, capsys):
     path = write_sweep(tmp_path, FRICTION_SWEEP)
     (tmp_path / "tiny.yaml").write_text(TINY.replace("cells: 40", "cells: many"))

@@ -29,9 +29,11 @@ from multilayer.errors import (
     Interrupted,
     RunError,
     printable,
+    reason,
     warn,
     working_directory_removed,
 )
+from multilayer.io.disk import address_space_limit
 
 SUBCOMMANDS = (
     "run", "validate", "compile", "plugins", "sweep", "calibrate", "sensitivity", "check", "plot", "export",
@@ -219,10 +221,32 @@ def _tell(message: str) -> None:
         print(printable(message), file=sys.stderr, flush=True)
 
 
+MIN_ADDRESS_SPACE = 2**30
+"""The least address space (bytes, ``ulimit -v``) a command starts with: its libraries map
+0.4-0.7 GB as they load on two cores (OpenBLAS reserves buffers per core), and under 0.3 GB
+the import of SciPy spun for ever, under 0.4 GB an import or a read was a traceback."""
+
+
+def _address_space() -> str | None:
+    """Why this process's address-space limit (``ulimit -v``) is too small for a command
+    (checked before the command's modules are imported), or None."""
+    soft = address_space_limit()
+    if soft >= MIN_ADDRESS_SPACE:
+        return None
+    return (
+        f"the address space of this process is limited to {soft / 2**20:.0f} MiB (ulimit -v), where its "
+        f"libraries (NumPy, SciPy, numba) map about half a GiB as they load; accepted: a limit of at least "
+        f"{MIN_ADDRESS_SPACE // 2**20} MiB (ulimit -v {MIN_ADDRESS_SPACE // 1024}), or none"
+    )
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse ``argv`` (default ``sys.argv[1:]``), run the subcommand, return the exit code."""
     argv = sys.argv[1:] if argv is None else list(argv)
     with _encodable_stdout(), _guarded_stdout():
+        if (small := _address_space()) is not None:
+            _tell(f"multilayer: error: {small}")
+            return 2
         try:
             try:
                 args = build_parser(_command(argv)).parse_args(argv)
@@ -266,6 +290,13 @@ def _dispatch(args: argparse.Namespace) -> int:
         _tell(
             f"multilayer: error: {what}; accepted: a directory this user can write and files in it "
             "that are not read-only"
+        )
+        return 2
+    except MemoryError as exc:  # an address-space limit (ulimit -v) the estimates do not know of
+        _tell(
+            f"multilayer: error: out of memory ({reason(exc) if str(exc) else 'an allocation failed'}); "
+            "accepted: more memory for this process (its address-space limit, ulimit -v, and the "
+            "machine's), or a smaller problem"
         )
         return 2
     except KeyboardInterrupt as exc:

@@ -22,7 +22,7 @@ import numpy as np
 
 from multilayer import scenario
 from multilayer.app import stopping, sweep
-from multilayer.errors import InputError, Interrupted, RunError
+from multilayer.errors import InputError, Interrupted, RunError, described
 from multilayer.io.disk import writable_directory
 from multilayer.io.results import RESULT_FILE
 from multilayer.scenario import as_overrides
@@ -147,7 +147,7 @@ class Ensemble:
                         ident, values, "ok", _measured(measure[i], member_dir), reused=True
                     )
                 except Exception as exc:  # noqa: BLE001 - a bad member must not stop the study
-                    results[i] = Evaluation(ident, values, "failed", error=f"{type(exc).__name__}: {exc}")
+                    results[i] = Evaluation(ident, values, "failed", error=described(exc))
                 self.reused += 1
                 continue
             pending[ident] = [i]

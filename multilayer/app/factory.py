@@ -76,6 +76,23 @@ def initial_entries(scenario: Scenario) -> tuple[cfg.InitialEntry, ...]:
     return tuple(_initial(entry) for entry in scenario.initial)
 
 
+def check_initial(scenario: Scenario, where: str, *, on_mesh: bool = True) -> None:
+    """The initial entries of ``scenario`` within its domain, none narrower than a cell,
+    and (``on_mesh``) their thickness on the mesh above ``numerics.dry_threshold``
+    somewhere unless an inflow feeds the run (:class:`InputError` naming ``where``
+    otherwise): as the engine checks them, before a run says anything of its state (a
+    film too thin to flow was refused after a warning that it had no front)."""
+    dom = scenario.domain
+    entries = initial_entries(scenario)
+    initial_state.check_entries(entries, dom.x_min, dom.x_max, (dom.x_max - dom.x_min) / dom.cells, where)
+    if on_mesh:
+        h0 = initial_state.initial_thickness(
+            entries, initial_state.cell_edges(dom.x_min, dom.x_max, dom.cells)
+        )
+        fed = scenario.boundaries.inflow is not None
+        initial_state.check_not_dry(h0, scenario.numerics.dry_threshold, fed, where)
+
+
 def check_pressure(scenario: Scenario) -> None:
     """:func:`multilayer.engine.initial_state.check_pressure` of the scenario's initial
     state under its bulk density and gravity (``InputError`` naming them)."""

@@ -188,8 +188,11 @@ def check(scenario: Any, outdir: Path | None, budget: Budget) -> Estimate:
     where = str(scenario.source or "<scenario>")
     shape = f"{scenario.domain.cells} cells x {scenario.domain.layers} layers"
     memory = budget.memory if budget.memory is not None else available_memory()
+    source = "--max-memory" if budget.memory is not None else "the memory available on this machine"
+    # a limit of the address space (ulimit -v) below the memory: the run's MemoryError was numpy's message
+    if budget.memory is None and disk.address_space_limit() < memory:
+        memory, source = disk.address_space_limit(), "the address space of this process (ulimit -v)"
     if need.memory > memory:
-        source = "--max-memory" if budget.memory is not None else "the memory available on this machine"
         raise InputError(
             f"{where}: domain.cells, domain.layers: {shape} need about {size_text(need.memory)} of memory, "
             f"more than {source} ({size_text(memory)}); accepted: fewer cells or layers, a larger "

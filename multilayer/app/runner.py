@@ -46,7 +46,7 @@ import numpy as np
 import yaml
 
 from multilayer import scenario as scenarios
-from multilayer.app import numba_environment, resources
+from multilayer.app import factory, numba_environment, resources
 from multilayer.app.compilation import compile_ahead, compile_notice
 from multilayer.app.lock import LOCK_FILE, locked
 from multilayer.app.progress import Progress
@@ -129,6 +129,8 @@ def run(
     try:
         resources.check(scenario, outdir, budget)
         resources.check_steps(scenario, budget)
+        # as the engine checks them, before the notices on the state (a front never found)
+        factory.check_initial(scenario, str(scenario.source or "<scenario>"), on_mesh=not budget.force)
     except InputError:  # refused before anything is written: the directories made go again
         for directory in created:
             directory.rmdir()

@@ -38,7 +38,7 @@ from typing import Any, Literal
 
 from multilayer import scenario
 from multilayer.app import resources, runner, stopping
-from multilayer.errors import InputError, Interrupted, RunError, ascii_count, reason
+from multilayer.errors import InputError, Interrupted, RunError, ascii_count, described, reason
 from multilayer.io.disk import writable, writable_directory, write_whole
 from multilayer.io.results import (
     CHECKPOINT_FILE,
@@ -152,6 +152,10 @@ def _non_finite(value: Any) -> bool:
     return isinstance(value, float) and not math.isfinite(value)
 
 
+UNRUN = ("name", "description")
+"""The scenario keys a run does not read: members differing only there are one run."""
+
+
 def load(path: str | Path) -> Sweep:
     """Read and strictly validate a sweep file; raise :class:`InputError` on bad input.
 
@@ -196,6 +200,18 @@ def load(path: str | Path) -> Sweep:
                 ("parameters", str(key)),
                 "not a scenario key",
                 "a dotted scenario key such as domain.cells or initial.0.thickness",
+            )
+        if "" in key.split("."):  # was reported as a member's --set, a key the file does not hold
+            raise bad(
+                ("parameters", key),
+                f"the key {shown(key)} has an empty part",
+                "a dotted scenario key, no part empty, such as domain.cells or initial.0.thickness",
+            )
+        if key in UNRUN:  # each member ran the one simulation, under another name
+            raise bad(
+                ("parameters", key),
+                f"{key} does not change the run: every member would run the same simulation",
+                "scenario keys that change the run",
             )
         if not isinstance(values, list) or not values:
             raise bad(("parameters", key), f"got {shown(values)}", "a non-empty list of values")
@@ -372,7 +388,7 @@ def contained(task: Callable[..., Any], *args: Any) -> Any:
     try:
         return task(*args)
     except Exception as exc:  # noqa: BLE001 - reported by the study, not in Dask's log
-        return Failed(f"{type(exc).__name__}: {exc}")
+        return Failed(described(exc))
 
 
 def result_of(future: Any) -> Any:
@@ -380,7 +396,7 @@ def result_of(future: Any) -> Any:
     try:
         return future.result()
     except Exception as exc:  # noqa: BLE001 - a failed member must not stop the study
-        return Failed(f"{type(exc).__name__}: {exc}")
+        return Failed(described(exc))
 
 
 def compile_kernels(member: scenario.Scenario) -> None:

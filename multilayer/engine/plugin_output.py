@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from multilayer.engine.state_check import masked_values
-from multilayer.errors import Interrupted, RunError, Stop
+from multilayer.errors import Interrupted, RunError, Stop, described
 
 
 class PluginOutputError(RunError):
@@ -83,9 +83,7 @@ def contained(plugin: Any, method: str, t: float | None = None) -> Iterator[None
         if user_interrupt(exc):
             raise
         when = "" if t is None else f" (at t = {t:.6g} s)"
-        raise PluginOutputError(
-            f"{plugin_label(plugin)}: {method} raised {type(exc).__name__}: {exc}{when}"
-        ) from None
+        raise PluginOutputError(f"{plugin_label(plugin)}: {method} raised {described(exc)}{when}") from None
     finally:
         _calls.depth = depth
 

@@ -222,7 +222,7 @@ class Simulation:
         mixture = MixtureFlow(
             c.mixture, self._state, phi0, bulk, c.material, fractions=self.fractions, x=self.x, dx=self.dx,
             g_n=self.g_n, g_t=self.g_t, periodic=boundaries.BOUNDARIES[self.left].wraps,
-            tolerance=c.numerics.tolerance, max_iterations=c.numerics.max_iterations,
+            tolerance=c.numerics.tolerance, max_iterations=c.numerics.max_iterations, dry=self.dry,
         )  # fmt: skip
         self.g_n *= mixture.reduction
         self.g_t *= mixture.reduction

@@ -31,7 +31,6 @@ quantity, its value and where (x, layer, time).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -41,6 +40,16 @@ from multilayer.engine.compiled import jit
 from multilayer.errors import InputError, RunError
 
 ROUND_OFF = 64 * np.finfo(float).eps
+
+
+def all_finite(values: np.ndarray) -> bool:
+    """True if every value of ``values`` is a finite number: one sum, and the elementwise
+    test only where that sum is not finite, since the sum of finite values near the largest
+    float overflows (numpy warned ``overflow encountered in reduce`` and a test on the sum
+    alone called finite values not finite)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        total = values.sum()
+    return bool(np.isfinite(total)) or bool(np.isfinite(values).all())
 
 
 class StateError(RunError):
@@ -218,7 +227,7 @@ def _as_left(name: str, values: np.ndarray, h: np.ndarray, lo: int, hi: int) -> 
     reduction of ``h``, one compiled pass over the columns ``lo .. hi-1`` of ``u`` or over
     a layer field."""
     if name == "h":
-        return h.min(initial=0.0) >= 0.0 and math.isfinite(h.sum())
+        return h.min(initial=0.0) >= 0.0 and all_finite(h)
     if name == "u":
         return _finite_and_still_where_empty(_bits(values), h, lo, hi)
     return _finite(_bits(values), 0, h.size)

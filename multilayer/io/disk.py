@@ -36,14 +36,25 @@ def free_space(directory: str | os.PathLike) -> float:
     return float(shutil.disk_usage(path).free)
 
 
-def file_size_limit() -> float:
-    """The largest file this process may write (bytes; ``ulimit -f``), inf if unlimited."""
+def _soft_limit(name: str) -> float:
+    """This process's soft resource limit ``resource.<name>`` (bytes), inf if unlimited or
+    where the platform has none."""
     try:
         import resource
     except ImportError:  # not on this platform
         return math.inf
-    soft, _hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    soft, _hard = resource.getrlimit(getattr(resource, name))
     return math.inf if soft == resource.RLIM_INFINITY or soft < 0 else float(soft)
+
+
+def file_size_limit() -> float:
+    """The largest file this process may write (bytes; ``ulimit -f``), inf if unlimited."""
+    return _soft_limit("RLIMIT_FSIZE")
+
+
+def address_space_limit() -> float:
+    """The address space this process may map (bytes; ``ulimit -v``), inf if unlimited."""
+    return _soft_limit("RLIMIT_AS")
 
 
 def room(path: str | os.PathLike) -> tuple[float, str]:

@@ -4,7 +4,9 @@ The grid is the layered mesh in physical coordinates: point ``(i, k)`` sits at c
 edge ``x_{i-1/2}`` and height ``z = b + h * sigma_{k-1/2}`` (b and h averaged over the
 two cells sharing the edge), stored as VTK point ``(x, z, 0)`` so that ParaView's 2D
 view shows the section.  Cell data: ``u`` (m/s), ``h`` (m) of the column and ``static``
-(1 below the static/flowing interface, 0 above).  ``result.pvd`` lists the files with
+(1 below the static/flowing interface, 0 above); of a grain-fluid mixture also ``phi``
+(the solid volume fraction) and ``pore_pressure_excess`` (Pa), each of its layer where
+the result holds them per layer, else of its column.  ``result.pvd`` lists the files with
 their times, so ParaView opens the run as one time series.  Plain ASCII, written here:
 no VTK library needed.
 """
@@ -23,6 +25,12 @@ from multilayer.io.result_check import ending
 from multilayer.io.results import open_result
 
 VTK_DIR = "vtk"
+MIXTURE_FIELDS = (
+    ("phi", "phi", "phi_layer"),
+    ("pore_pressure_excess", "pore_pressure_excess", "pore_pressure_layer"),
+)
+"""A grain-fluid mixture's cell data: (name, the result's column variable, its per-layer
+variable, taken where the result holds it)."""
 SERIES_FILE = re.compile(r"result_[0-9]{4,}\.vts")
 """The name of an output time's file, ``result_NNNN.vts``."""
 
@@ -80,6 +88,11 @@ def structured_grid(snap: xr.Dataset) -> str:
         "h": np.broadcast_to(h, (n_layers, n_cells)),
         "static": static.astype(float),
     }
+    for name, column, layered in MIXTURE_FIELDS:  # a grain-fluid mixture's, per layer where written
+        if layered in snap:
+            cells[name] = snap[layered].values
+        elif column in snap:
+            cells[name] = np.broadcast_to(snap[column].values, (n_layers, n_cells))
     extent = f"0 {n_cells} 0 {n_layers} 0 0"
     arrays = "\n".join(_data_array(name, a) for name, a in cells.items())
     return (

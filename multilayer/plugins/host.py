@@ -28,7 +28,7 @@ import numpy as np
 import pluggy
 from pydantic import BaseModel, ConfigDict, create_model
 
-from multilayer.errors import InputError, shown
+from multilayer.errors import InputError, described, said, shown
 from multilayer.plugins.contract import COLUMN_QUANTITIES, Rheology
 
 PROJECT = "multilayer"
@@ -156,7 +156,7 @@ def catalogue() -> Catalogue:
         except KeyboardInterrupt:
             raise
         except BaseException as exc:  # noqa: BLE001 - any failure of third-party code (sys.exit too) is reported
-            broken.append(Broken(source, f"{type(exc).__name__}: {exc}"))
+            broken.append(Broken(source, described(exc)))
             continue
         if not classes:
             broken.append(
@@ -170,7 +170,7 @@ def catalogue() -> Catalogue:
             try:
                 problem = _problem(cls)
             except Exception as exc:  # noqa: BLE001 - a class whose attributes raise
-                problem = f"{cls!r} cannot be inspected: {type(exc).__name__}: {exc}"
+                problem = f"{cls!r} cannot be inspected: {described(exc)}"
             if problem is None and cls.name in found:
                 problem = (
                     f"rheology name '{cls.name}' is already registered by "
@@ -340,11 +340,11 @@ def construct(cls: type[Rheology], params: dict[str, Any]) -> Rheology:
     try:
         plugin = cls(**params)
     except (TypeError, ValueError) as exc:
-        raise ConstructorError(str(exc)) from None
+        raise ConstructorError(said(exc)) from None
     except KeyboardInterrupt:  # the user's Ctrl-C while the constructor ran
         raise
     except BaseException as exc:  # noqa: BLE001 - a third-party constructor's failure is bad parameters
-        raise ConstructorError(f"{call} raised {type(exc).__name__}: {exc}") from None
+        raise ConstructorError(f"{call} raised {described(exc)}") from None
     finally:
         changed = set_back(host)
     if changed:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import stat
 from pathlib import Path
+from typing import BinaryIO
 
 from multilayer.errors import InputError, reason
 from multilayer.scenario.limits import MAX_FILE_BYTES
@@ -21,7 +22,7 @@ def read_text(path: Path, expected: str, readable: str) -> str:
             os.close(descriptor)
             raise InputError(f"{path}: not a regular file; accepted: {readable}")
         with os.fdopen(descriptor, "rb") as stream:
-            data = stream.read(MAX_FILE_BYTES + 1)
+            data = _head(stream, MAX_FILE_BYTES + 1)
         if len(data) > MAX_FILE_BYTES:
             raise InputError(
                 f"{path}: longer than {MAX_FILE_BYTES} bytes; accepted: {readable} of at most that size"
@@ -35,6 +36,22 @@ def read_text(path: Path, expected: str, readable: str) -> str:
     except (OSError, UnicodeDecodeError, ValueError) as exc:
         raise InputError(f"{path}: cannot read the file ({reason(exc)}); accepted: {readable}") from None
 
+
+def _head(stream: BinaryIO, size: int) -> bytes:
+    """The first ``size`` bytes of ``stream`` (fewer at its end), read in blocks: one
+    ``read(size)`` sets aside ``size`` bytes first, 64 MiB for a file of 1 kB (a
+    MemoryError under an address-space limit, ``ulimit -v``)."""
+    blocks, count = [], 0
+    while count < size:
+        block = stream.read(min(_BLOCK, size - count))
+        if not block:
+            break
+        blocks.append(block)
+        count += len(block)
+    return b"".join(blocks)
+
+
+_BLOCK = 2**20
 
 _BYTE_ORDER_MARKS = (
     (b"\xff\xfe\x00\x00", "UTF-32"),

@@ -302,12 +302,17 @@ def add_resume_argument(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def check_results(args: argparse.Namespace, outdir: Path, results: str) -> None:
+def check_results(
+    args: argparse.Namespace, outdir: Path, results: str, copy: tuple[Path, str] | None = None
+) -> None:
     """``outdir/results``, the file a study writes at every stop and at its end, must be
     absent or a regular file (a pipe there held the study for ever once its members had run,
     a symbolic link had its target written over, :func:`multilayer.io.disk.writable`), and
-    with ``--resume`` it must exist: exit 2 otherwise, before anything runs."""
-    from multilayer.errors import InputError
+    with ``--resume`` it must exist: exit 2 otherwise, before anything runs.  ``copy``:
+    the study file and the attribute of ``results`` holding its text as the study ran;
+    a resumed study whose file changed since says so (its runs of other parameters were
+    run afresh, the earlier ones left beside them, and nothing said why)."""
+    from multilayer.errors import InputError, warn
     from multilayer.io.disk import writable
 
     writable(outdir / results)
@@ -316,6 +321,27 @@ def check_results(args: argparse.Namespace, outdir: Path, results: str) -> None:
             f"{outdir}: nothing to resume ({results} missing); accepted: the output directory "
             "of an interrupted study of this file, or no --resume to start one"
         )
+    if args.resume and copy is not None:
+        config, attribute = copy
+        earlier = _attribute(outdir / results, attribute)
+        if earlier is not None and earlier != config.read_text(encoding="utf-8"):
+            warn(
+                f"{config} changed since the study in {outdir} ran ({results} holds the file it ran): the "
+                "runs the changed file still asks for are reused, the others run afresh"
+            )
+
+
+def _attribute(path: Path, name: str) -> str | None:
+    """The text attribute ``name`` of the netCDF file ``path``, or None if it has none or
+    cannot be read (the study's own checks of the file then speak)."""
+    try:
+        import netCDF4
+
+        with netCDF4.Dataset(path) as ds:
+            value = ds.getncattr(name) if name in ds.ncattrs() else None
+    except (OSError, RuntimeError, ValueError):
+        return None
+    return value if isinstance(value, str) else None
 
 
 def resume_command(command: str, config: str, outdir: Path, args: argparse.Namespace) -> str:

@@ -78,7 +78,7 @@ def _calibrate(args: argparse.Namespace, plan: Any, outdir: Path) -> int:
             sys.stderr.flush()
 
     path = outdir / calibrations.CALIBRATION_FILE
-    check_results(args, outdir, path.name)
+    check_results(args, outdir, path.name, (plan.path, "calibration"))
     report(
         f"calibrate: {len(plan.config.parameters)} parameter(s), {len(plan.experiments)} experiment(s), "
         f"on {cluster_description(args)}"

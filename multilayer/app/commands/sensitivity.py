@@ -55,7 +55,7 @@ def _sensitivity(args: argparse.Namespace, study: Any, outdir: Path) -> int:
     from multilayer.errors import Interrupted, printable, to_stderr
 
     path = outdir / sensitivity.SENSITIVITY_FILE
-    check_results(args, outdir, path.name)
+    check_results(args, outdir, path.name, (study.path, "sensitivity"))
 
     def report(line: str) -> None:
         if not args.quiet:

@@ -18,7 +18,6 @@ from pathlib import Path
 from multilayer import scenario as scenarios
 from multilayer.app import expectations, factory, resources
 from multilayer.app.commands import add_budget_arguments, add_set_argument, budget
-from multilayer.engine import initial_state
 from multilayer.errors import InputError, printable, to_stderr, warn
 from multilayer.scenario import Scenario
 
@@ -90,14 +89,8 @@ def _check(scenario: Scenario, path: str | Path, args: argparse.Namespace) -> st
     scenario.check_material()
     need = resources.check(scenario, scenario.output.directory or Path("results"), limits)
     dom = scenario.domain
-    dx = (dom.x_max - dom.x_min) / dom.cells
-    entries = factory.initial_entries(scenario)
-    initial_state.check_entries(entries, dom.x_min, dom.x_max, dx, str(path))
-    if not limits.force:  # a forced mesh may not fit: the run checks it as it builds the mesh
-        edges = initial_state.cell_edges(dom.x_min, dom.x_max, dom.cells)
-        h0 = initial_state.initial_thickness(entries, edges)
-        fed = scenario.boundaries.inflow is not None
-        initial_state.check_not_dry(h0, scenario.numerics.dry_threshold, fed, str(path))
+    # a forced mesh may not fit: the run checks it as it builds the mesh
+    factory.check_initial(scenario, str(path), on_mesh=not limits.force)
     steps = resources.check_steps(scenario, limits)
     factory.check_pressure(scenario)  # as the run: after the estimate of its steps
     expectations.validate(scenario)

@@ -57,10 +57,13 @@ class MixtureFlow:
         periodic: bool,
         tolerance: float,
         max_iterations: int,
+        dry: float,
     ):
         self.config = config
         self.fractions, self.dx, self.x, self.periodic = fractions, dx, x, periodic
         self.g_t = g_t
+        self.dry = dry
+        """The dry threshold: a restored column thicker holds solid (:meth:`check_restored`)."""
         self.rho_s, self.rho_f = material.particle_density, config.fluid_density
         self._state = state
         self._solid = state.add_field("solid")
@@ -99,11 +102,13 @@ class MixtureFlow:
     def check_restored(self, saved: dict) -> None:
         """:class:`InputError` unless a state to restore (checked by ``check_restored`` of
         state_check.py: shapes, finite numbers, ``h >= 0``) holds the mixture's ``solid`` and
-        ``pore_pressure``, the solid of each layer within ``[0, l_a h]``: a state without them
-        restored a solid of 0 (a packing of 0 in every wet column, the closure then blamed)
-        or a pore pressure of 0 (the Newton iteration started elsewhere, the resumed run no
-        longer the uninterrupted one), and a solid outside its layer was blamed on a write
-        between steps."""
+        ``pore_pressure``, the solid of each layer within ``[0, l_a h]`` and of each column
+        thicker than :attr:`dry` (the columns the local step solves) above 0: a state
+        without them restored a solid of 0 (a packing of 0 in every wet column, the closure
+        then blamed) or a pore pressure of 0 (the Newton iteration started elsewhere, the
+        resumed run no longer the uninterrupted one), a solid outside its layer was blamed
+        on a write between steps and a packing of 0 where the local step solves overflowed
+        its closure at the next step, blamed on the closure's constants."""
         for name in ("solid", "pore_pressure"):
             if name not in saved:
                 raise InputError(
@@ -119,6 +124,15 @@ class MixtureFlow:
                 f"solid holds {float(solid[a, i])!r} m at layer {a + 1}, column {i}, outside [0, "
                 f"{float(room[a, i])!r}] m (the layer's thickness); accepted: the solid volume of each layer "
                 "within its thickness"
+            )
+        dry = self.dry
+        empty = (solid.sum(axis=0) <= 0.0) & (h > dry)
+        if empty.any():
+            i = int(np.argmax(empty))
+            raise InputError(
+                f"solid holds 0 m in column {i}, {float(h[i])!r} m thick (above numerics.dry_threshold = "
+                f"{dry!r} m): a packing of 0, where the mixture's closure is not defined; accepted: solid in "
+                "every column thicker than the dry threshold (a run leaves no column of fluid alone)"
             )
 
     def reset(self, steps: int) -> None:

@@ -91,6 +91,7 @@ from multilayer.engine.config import MixtureConfig
 from multilayer.engine.mixture.closure import drag as darcy_drag
 from multilayer.engine.mixture.exchange import GIVEN, between_layers
 from multilayer.engine.plugin_output import call
+from multilayer.engine.state_check import all_finite
 from multilayer.engine.vertical.column_solve import solve
 from multilayer.engine.vertical.problem import ColumnProblem
 from multilayer.engine.vertical.stresses import INTERFACE
@@ -677,7 +678,7 @@ def _finite(values: np.ndarray) -> None:
     """Stop the run if the closure's effective pressures (or their Newton step) are not
     finite: its coefficients overflowed (the drag, ``K``, ``K2``), never a fault of the
     rheology given them."""
-    if not np.isfinite(values.sum()):
+    if not all_finite(values):
         raise RunError(
             "the mixture's closure overflowed: its effective pressures are not finite numbers "
             "(they scale with the Darcy drag kozeny eta_f phi^2 / (d^2 (1 - phi)) of fluid.viscosity, "

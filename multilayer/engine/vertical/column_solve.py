@@ -32,6 +32,7 @@ import numpy as np
 from numba import prange
 
 from multilayer.engine.compiled import jit, parallel_compiled
+from multilayer.engine.state_check import all_finite
 from multilayer.engine.threads import numba_threads, parallel_chunks
 from multilayer.engine.vertical.problem import ColumnProblem
 from multilayer.errors import RunError
@@ -437,7 +438,7 @@ def solve(
     coefficients = (p.m, p.ustar, p.kappa, p.c, p.w, p.cw)
     arrays = [np.ascontiguousarray(np.transpose(a), dtype=float) for a in coefficients]
     guess = arrays[1] if guess is None else np.ascontiguousarray(np.transpose(guess), dtype=float)
-    if not np.isfinite(sum(float(np.sum(a)) for a in arrays)):  # one pass each; locate only if needed
+    if not all(all_finite(a) for a in arrays):  # one pass each; locate only if needed
         for name, array in zip(("m", "ustar", "kappa", "c", "w", "cw"), arrays):
             _require_finite(name, array)  # the guess may hold NaN: it only proposes a structure
     if not (np.isfinite(p.dt) and p.dt > 0):
@@ -449,7 +450,7 @@ def solve(
             _solve_parallel(*arrays[:2], float(p.dt), *arrays[2:], guess, u, chunks)
     else:
         _solve_serial(*arrays[:2], float(p.dt), *arrays[2:], guess, u, 1)
-    if not np.isfinite(np.sum(u)):
+    if not all_finite(u):
         _require_finite("the solution u", u)
     return u.T
 

@@ -30,7 +30,8 @@ from typing import Any
 import numpy as np
 
 from multilayer.engine.basal import BasalColumns
-from multilayer.engine.plugin_output import call
+from multilayer.engine.plugin_output import PluginOutputError, call, plugin_label
+from multilayer.engine.state_check import all_finite
 from multilayer.engine.vertical.problem import ColumnProblem
 from multilayer.plugins.contract import Material, Rheology
 
@@ -252,9 +253,11 @@ class StressModel:
         columns ``cs``."""
         step = 1e-7 * rate
         eta = self._viscosity(law, rate, pressure, cs, position)
-        tau = eta * rate
-        up = self._viscosity(law, rate + step, pressure, cs, position) * (rate + step)
-        tangent = np.where(rate > 0, (up - tau) / np.where(step > 0, step, 1.0), eta)
+        with np.errstate(over="ignore", invalid="ignore"):  # named below, without numpy's warning
+            tau = eta * rate
+            up = self._viscosity(law, rate + step, pressure, cs, position) * (rate + step)
+            tangent = np.where(rate > 0, (up - tau) / np.where(step > 0, step, 1.0), eta)
+        _require_finite_stress(law, eta, rate, tau, tangent)
         return eta, tau, np.maximum(tangent, 0.0)
 
     def viscous_stresses(self, cs: ColumnStresses, u: np.ndarray) -> np.ndarray:
@@ -263,17 +266,20 @@ class StressModel:
         forces ``|F_v|`` of the layers and their derivatives (``newton_control.energy_rise``)."""
         spacing = np.where(cs.spacing > 0, cs.spacing, 1.0)
         rate = np.abs(np.diff(u, axis=0, prepend=0.0)) / spacing
-        _, tau, tangent = self._stress_and_tangent(self.bulk, rate, cs.pressure, cs, INTERFACE)
+        eta, tau, tangent = self._stress_and_tangent(self.bulk, rate, cs.pressure, cs, INTERFACE)
         viscous = cs.viscous & (cs.spacing > 0)
         out = np.zeros((4, *u.shape))
-        out[0], out[1] = np.where(viscous, tau, 0.0), np.where(viscous, tangent / spacing, 0.0)
+        with np.errstate(over="ignore"):  # a slope of 1e308 over a thin layer: named below
+            out[0], out[1] = np.where(viscous, tau, 0.0), np.where(viscous, tangent / spacing, 0.0)
+        _require_finite_stress(self.bulk, eta, rate, out[1])
         if self.walls is not None:
             half = 0.5 * self.width
             per_area = (2.0 / self.width) * cs.m / self.material.density
-            _, tau, tangent = self._stress_and_tangent(
-                self.walls, np.abs(u) / half, cs.wall_pressure, cs, LAYER
-            )
-            out[2], out[3] = per_area * tau, per_area * tangent / half
+            wall_rate = np.abs(u) / half
+            eta, tau, tangent = self._stress_and_tangent(self.walls, wall_rate, cs.wall_pressure, cs, LAYER)
+            with np.errstate(over="ignore"):
+                out[2], out[3] = per_area * tau, per_area * tangent / half
+            _require_finite_stress(self.walls, eta, wall_rate, out[2], out[3])
         return out
 
     def bulk_stress(self, rate: np.ndarray, pressure: np.ndarray, h: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -306,3 +312,18 @@ class StressModel:
         return self._call(
             law, "viscosity", (rate, pressure, self.material), inputs, cs.x, position, cs.thickness
         )
+
+
+def _require_finite_stress(law: Rheology, eta: np.ndarray, rate: np.ndarray, *derived: np.ndarray) -> None:
+    """:class:`PluginOutputError` naming ``law`` if a stress or slope ``derived`` from its
+    viscosities ``eta`` at the shear rates ``rate`` overflowed: each viscosity was finite
+    (checked where returned), but a viscosity of 1e308 Pa s times a rate, or over a thin
+    layer, is not; the column kernel named only its coefficient ``c``, after numpy's warnings."""
+    for values in derived:
+        if not all_finite(values):
+            at = np.unravel_index(np.argmin(np.isfinite(values)), values.shape)
+            raise PluginOutputError(
+                f"{plugin_label(law)}: viscosity() returned {float(eta[at])!r} Pa s at the shear rate "
+                f"{float(rate[at]):.6g} 1/s, whose viscous stress or its slope over the layer is beyond "
+                "the floats; must be a viscosity whose stresses are finite numbers"
+            )
