@@ -59,7 +59,7 @@ def test_a_block_has_the_coefficients_of_its_columns_to_the_bit(rest, gravity, t
             u = u_rows[i :: sc.BLOCK]
             inverse = np.where(ref.spacing > 0.0, 1.0 / np.where(ref.spacing > 0.0, ref.spacing, 1.0), 1.0)
             conductance = np.where((ref.spacing > 0.0) & ref.viscous, inverse, 0.0)
-            for slot, values in ((sc.INERTIA, ref.m / dt), (sc.MOMENTUM, ref.m * u / dt),
+            for slot, values in ((sc.INERTIA, ref.m * (1.0 / dt)), (sc.MOMENTUM, ref.m * u * (1.0 / dt)),
                                  (sc.KAPPA, ref.kappa), (sc.PRESSURE, ref.pressure),
                                  (sc.INV_SPACING, inverse), (sc.CONDUCTANCE, conductance)):  # fmt: skip
                 assert np.array_equal(t[slot, lane].view(np.int64), values.view(np.int64)), (L, i, slot)

@@ -69,9 +69,10 @@ def block_coefficients(c0, h, inputs, t, L, column, flags, rows, dt, u_rows):
     above it 1.0, from ``new_tile``), and ``flags[FINE]``, whether each column's yield values
     are within the plugin contract; in the same pass what of them stays fixed during the
     step, as ``sheared_columns.block_parts`` makes it (``m/dt``, ``m u*/dt`` of the step
-    ``dt``, the u* of the rows ``u_rows`` of ``sheared_columns.load``, the inverse spacings
-    and conductances per unit slope: ``fixed_parts``, 0 where not viscous; the spacings
-    themselves, which nothing reads after, are not stored).  Where some yield value is
+    ``dt`` as products with ``1/dt``, the u* of the rows ``u_rows`` of
+    ``sheared_columns.load``, the inverse spacings and conductances per unit slope:
+    ``fixed_parts``, 0 where not viscous; the spacings themselves, which nothing reads
+    after, are not stored).  Where some yield value is
     outside the contract, ``column_coefficients`` itself tells which, column by column,
     writing the same values again (``column``: its work arrays).  ``rows``: those of
     :func:`layer_rows`, and the block's own."""
@@ -98,11 +99,12 @@ def block_coefficients(c0, h, inputs, t, L, column, flags, rows, dt, u_rows):
     if not plateau:
         friction = rows[MU]
     outside = 0  # yield values outside the contract, in all the columns (counted without branches)
+    per_dt = 1.0 / dt  # one division per call, not two per cell (sheared_columns.set_up)
     for s in range(n):
         x, hj = x0 + s, thickness[s]
         m, spacing = rows[MASS, s] * hj, rows[SPACING_FRACTION, s] * hj
-        t[INERTIA, x] = m / dt
-        t[MOMENTUM, x] = m * u_rows[s] / dt
+        t[INERTIA, x] = m * per_dt
+        t[MOMENTUM, x] = m * u_rows[s] * per_dt
         inverse = 1.0 / spacing if spacing > 0.0 else 1.0
         t[INV_SPACING, x] = inverse
         t[CONDUCTANCE, x] = inverse if spacing > 0.0 else 0.0  # viscous but in the bed's layer (below)

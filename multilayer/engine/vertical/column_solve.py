@@ -400,13 +400,14 @@ def _columns(m, ustar, dt, kappa, c, w, cw, guess, u, chunks):
         U, diag, low, rhs = np.empty(L), np.empty(L), np.empty(L), np.empty(L)
         hint = np.empty(2, np.int64)
         inertia, momentum = np.empty(L), np.empty(L)  # m_a / dt and m_a u*_a / dt
+        per_dt = 1.0 / dt  # as products with 1/dt, the bits of the other kernels (sheared_columns.set_up)
         for i in range(k * N // chunks, (k + 1) * N // chunks):
             if m[i, 0] <= 0.0:
                 u[i, :] = 0.0
                 continue
             for a in range(L):
-                inertia[a] = m[i, a] / dt
-                momentum[a] = m[i, a] * ustar[i, a] / dt
+                inertia[a] = m[i, a] * per_dt
+                momentum[a] = m[i, a] * ustar[i, a] * per_dt
             ki, ci, wi, cwi, ui = kappa[i], c[i], w[i], cw[i], u[i]
             if not _active_set(
                 inertia, momentum, ki, ci, wi, cwi, guess[i], ui, first, grounded, U, diag, low, rhs, hint

@@ -108,7 +108,8 @@ def implicit_step(
         if compiled is None
         else compiled.coefficients(h, wet, rest, yield_gravity)
     )
-    inertia, momentum = cs.m / dt, cs.m * ustar[:, wet] / dt
+    per_dt = 1.0 / dt  # m/dt and m u*/dt as products with 1/dt, the compiled kernels' bits
+    inertia, momentum = cs.m * per_dt, cs.m * ustar[:, wet] * per_dt
     concave = concave_laws((stresses.bulk, stresses.walls), stresses.material)
     current = u_guess[:, wet]
     at_current = stresses.viscous_stresses(cs, current)

@@ -182,7 +182,13 @@ def set_up(t, L, lane, m, dt, ustar, guess, col, current):
     its guess, of the masses ``m``: a block's lane (``lane < BLOCK``) only its masses, into
     ``MOMENTUM`` (:func:`block_parts` makes the slots of the whole block at once, from them
     and the rows of :func:`load`, laid out as the tile); lane ``ALONE`` those of column
-    ``col`` of the (L, N) arrays ``ustar`` and ``guess``, the guess into ``current``."""
+    ``col`` of the (L, N) arrays ``ustar`` and ``guess``, the guess into ``current``.
+
+    Both are products with ``1/dt``, ``m (1/dt)`` and ``(m u*) (1/dt)``: one division per
+    call instead of two per cell (a division costs many products' throughput), the same
+    operations in every place that makes them (:func:`block_parts`,
+    ``block_coefficients``, ``column_solve``, ``newton.implicit_step``), so the same bits;
+    each lies within an ulp or so of ``m/dt``."""
     o = np.uint64(cell(lane, L))  # unsigned: no test for negative indices
     if lane < BLOCK:  # the masses into MOMENTUM: the rest for the whole block in block_parts
         for a in range(np.uint64(L)):
@@ -191,9 +197,10 @@ def set_up(t, L, lane, m, dt, ustar, guess, col, current):
     for a in range(L):
         t[MOMENTUM, o + np.uint64(a)] = ustar[a, col]
         current[a] = guess[a, col]
+    per_dt = 1.0 / dt
     for a in range(np.uint64(L)):  # contiguous: as vectors
-        t[INERTIA, o + a] = m[a] / dt
-        t[MOMENTUM, o + a] = m[a] * t[MOMENTUM, o + a] / dt
+        t[INERTIA, o + a] = m[a] * per_dt
+        t[MOMENTUM, o + a] = m[a] * t[MOMENTUM, o + a] * per_dt
 
 
 @jit(inline="always")  # inlined: no compilation of its own
@@ -225,18 +232,19 @@ def fixed_parts(t, start, stop, form, params, h, pressures, spacings):
 def block_parts(t, L, form, params, h, wet, j0, dt, u_rows, flags, made):
     """The block's lanes, set up (the wet columns ``j0 ...`` of the thicknesses ``h``, their
     masses in ``MOMENTUM``: :func:`set_up`; their guesses in ``U0``: :func:`load`): ``m/dt``
-    and ``m u*/dt`` (the u* of the rows of :func:`load`, laid out as the tile) in one pass
+    and ``m u*/dt`` (products with ``1/dt``, as :func:`set_up` makes them; the u* of the rows
+    of :func:`load`, laid out as the tile) in one pass
     over their cells as vectors, and so
     :func:`fixed_parts` (the pressure parts lane by lane for a law of the column thickness,
     ``forms.INERTIAL_PLATEAU``); a lane without mass at its bed leaves the block
     (``ACTIVE``).  With ``made``, all but the ``ACTIVE`` flags and the pressure parts are
     made (``block_coefficients``, in its pass)."""
-    x0 = np.uint64(cell(0, L))  # unsigned: no test for negative indices
+    x0, per_dt = np.uint64(cell(0, L)), 1.0 / dt  # unsigned: no test for negative indices
     for s in range(np.uint64(0 if made else BLOCK * L)):
         x = x0 + s
         m = t[MOMENTUM, x]
-        t[INERTIA, x] = m / dt
-        t[MOMENTUM, x] = m * u_rows[s] / dt
+        t[INERTIA, x] = m * per_dt
+        t[MOMENTUM, x] = m * u_rows[s] * per_dt
     for i in range(BLOCK):
         flags[ACTIVE, i] = flags[ACTIVE, i] and t[INERTIA, cell(i, L)] > 0.0
     plateau = form == INERTIAL_PLATEAU
