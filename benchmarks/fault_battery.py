@@ -5577,7 +5577,7 @@ def round_thirty_two() -> list[Case]:
              "", setup=partial(_scenario, changes={**nh, **gate, **periodic})),
         Case("plot: a mixture run failed at its first step", ["plot", "{dir}/out"], 0, "drawn up to t = 0 s",
              setup=lambda d: subprocess.run(
-                 [sys.executable, "-m", "multilayer", "run", str(mixed(**closure(critical_shift=1e300))(d)),
+                 [sys.executable, "-m", "multilayer", "run", str(mixed(**closure(critical_shift=1e100))(d)),
                   "-o", str(d / "out"), "-q"], capture_output=True)),
         Case("plugin: a negative mixture viscosity", run, 1, "mixture_viscosity() returned -1.0",
              patch="DruckerPrager.mixture_viscosity = lambda self, g, p, s, m: np.full(np.shape(p), -1.0)\n",
