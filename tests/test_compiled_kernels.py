@@ -44,7 +44,7 @@ from numba.core.registry import CPUDispatcher
 import multilayer
 
 overrides = {"domain.cells": 40, "time.end": 0.01, **json.loads(sys.argv[2])}
-with event.install_listener("numba:compile", _compiled(names)):
+with event.install_listener("numba:compile", Listener()):
     sim = multilayer.Simulation(multilayer.load(sys.argv[1], overrides=overrides))
     sim.advance(0.01)
 entries = sorted(
@@ -148,7 +148,7 @@ AHEAD = (
 import json, sys
 from multilayer.app.cli import main
 
-with event.install_listener("numba:compile", _compiled(names)):
+with event.install_listener("numba:compile", Listener()):
     code = main(sys.argv[1:])
 print(json.dumps({"code": code, "compiled": compiled}))
 """
@@ -241,7 +241,7 @@ import multilayer
 found = {}
 for path in sys.argv[1:]:
     compiled.clear()
-    with event.install_listener("numba:compile", _compiled(names)):
+    with event.install_listener("numba:compile", Listener()):
         overrides = {"domain.cells": 40, "numerics.threads": 1}
         sim = multilayer.Simulation(multilayer.load(path, overrides=overrides))
         for _ in range(2):
