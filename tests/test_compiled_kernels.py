@@ -315,21 +315,22 @@ def _compiled(names: list[str]) -> object:
 def test_a_run_after_compile_kernels_compiles_nothing(tiny_scenario):
     """Once :func:`compile_kernels` has cached its tasks' kernels (the test run's warm-up
     did, or this call does), a small run under another law, hydrostatic or not, with side
-    walls, with the normal stress or not, compiles no kernel of the engine: the tasks cover
-    the signatures of a run."""
+    walls, with the normal stress or not, on one thread or two, compiles no kernel of the
+    engine: the tasks cover the signatures of a run (the first run on two threads compiled
+    the parallel Newton kernel and transport, some 25-30 s)."""
     from numba.core import event
 
     import multilayer
-    from multilayer.app.precompile import compile_kernels
+    from multilayer.app.precompile import compile_kernels, work
     from multilayer.engine import kernel_cache
 
-    assert not compile_kernels().failed and kernel_cache.is_compiled()
+    assert not compile_kernels().failed and kernel_cache.is_compiled(work())
     names: list[str] = []
 
     tiny_scenario["walls"] = {"name": "wall_friction", "mu_w": 0.2}
     tiny_scenario["domain"]["width"] = 0.1
     for overrides in ({"model.pressure": "hydrostatic"}, {"model.pressure": "non_hydrostatic"},
-                      {"model.normal_stress": True}):  # fmt: skip
+                      {"model.normal_stress": True}, {"numerics.threads": 2}):  # fmt: skip
         with event.install_listener("numba:compile", _compiled(names)):
             sim = multilayer.Simulation(multilayer.load(tiny_scenario, overrides))
             for _ in range(3):

@@ -15,6 +15,7 @@ import warnings
 
 import pytest
 
+from multilayer.app.precompile import work
 from multilayer.engine import kernel_cache
 
 
@@ -54,14 +55,14 @@ def test_the_compiled_mark_holds_for_the_sources_it_was_made_for(tmp_path, monke
     monkeypatch.setattr(kernel_cache, "ENGINE", engine)
     monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
     monkeypatch.chdir(tmp_path)
-    assert not kernel_cache.is_compiled()
+    assert not kernel_cache.is_compiled(work())
     cache = engine / "vertical" / "__pycache__"
     cache.mkdir(exist_ok=True)
     (cache / "kernel.f-1.py311.nbi").write_bytes(b"index")
-    kernel_cache.mark_compiled(kernel_cache.compiled_text())
-    assert kernel_cache.cache_directories() == [cache] and kernel_cache.is_compiled()
+    kernel_cache.mark_compiled(kernel_cache.compiled_text(work()))
+    assert kernel_cache.cache_directories() == [cache] and kernel_cache.is_compiled(work())
     kernel.write_text("from numba import njit  # edited\n")
-    assert not kernel_cache.is_compiled()
+    assert not kernel_cache.is_compiled(work())
     assert kernel_cache.clear_if_stale(cache) and not (cache / kernel_cache.COMPILED).exists()
 
 
@@ -72,10 +73,10 @@ def test_a_mark_that_is_not_text_is_not_compiled(tmp_path, monkeypatch, damage):
     compiled (and ``multilayer compile`` compiles)."""
     monkeypatch.setattr(kernel_cache, "cache_directories", lambda: [tmp_path])
     (tmp_path / "kernel.f-1.py311.nbi").write_bytes(b"index")
-    kernel_cache.mark_compiled(kernel_cache.compiled_text())
-    assert kernel_cache.is_compiled()
+    kernel_cache.mark_compiled(kernel_cache.compiled_text(work()))
+    assert kernel_cache.is_compiled(work())
     (tmp_path / kernel_cache.COMPILED).write_bytes(damage)
-    assert not kernel_cache.is_compiled()
+    assert not kernel_cache.is_compiled(work())
 
 
 def _fifo(path):
@@ -93,9 +94,11 @@ DAMAGE = {
         (d / "kernel.f-1.py311.1.nbc").mkdir(),
     ),
     "kernel a pipe": lambda d: _fifo(d / "kernel.f-1.py311.1.nbc"),
-    "mark listing no file": lambda d: (d / kernel_cache.COMPILED).write_text(kernel_cache.compiled_text()),
+    "mark listing no file": lambda d: (d / kernel_cache.COMPILED).write_text(
+        kernel_cache.compiled_text(work())
+    ),
     "mark naming a file elsewhere": lambda d: (d / kernel_cache.COMPILED).write_text(
-        kernel_cache.compiled_text() + f"{'0' * 64} ../kernel.f-1.py311.nbi\n"
+        kernel_cache.compiled_text(work()) + f"{'0' * 64} ../kernel.f-1.py311.nbi\n"
     ),
 }
 
@@ -113,7 +116,7 @@ def test_compile_checks_the_cached_files_its_mark_records(tmp_path, monkeypatch,
     monkeypatch.setattr(kernel_cache, "ensure_fresh", lambda: None)
     (tmp_path / "kernel.f-1.py311.nbi").write_bytes(b"index")
     (tmp_path / "kernel.f-1.py311.1.nbc").write_bytes(b"kernel")
-    kernel_cache.mark_compiled(kernel_cache.compiled_text())
+    kernel_cache.mark_compiled(kernel_cache.compiled_text(work()))
     (tmp_path / "kernel.g_parallel-9.py311.nbi").write_bytes(b"compiled by a run since: not recorded")
     result = cli("compile")
     assert result.code == 0 and result.out.startswith("the kernels are compiled and cached")
@@ -146,7 +149,7 @@ def test_a_second_compile_waits_for_the_first_then_finds_its_kernels(tmp_path, m
         second.start()
         assert waiting.wait(30)
         (tmp_path / "kernel.f-1.py311.nbi").write_bytes(b"index")  # the first compiles
-        kernel_cache.mark_compiled(kernel_cache.compiled_text())
+        kernel_cache.mark_compiled(kernel_cache.compiled_text(work()))
     second.join(30)
     assert compiled == [] and reports[0].cached and reports[0].checked == 1
 

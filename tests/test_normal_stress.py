@@ -285,6 +285,23 @@ def test_the_compiled_step_is_the_reference_step(seed, wide, sensitive):
     assert np.all(np.abs(z - expected[1]) <= 1e-12 * a)
 
 
+def test_the_kernel_has_one_signature_whatever_the_callers_arrays():
+    """A pressure sensitivity ``e`` given as one number (broadcast, copied) or as an array
+    (broadcast, a read-only view), and read-only or strided velocities and masses, call the
+    kernel with one signature: numba compiled a second one for the read-only ``e`` of runs,
+    some 6 s at the first use of each."""
+    from multilayer.engine.normal_stress_kernel import chain_step
+
+    ustar, mass, faces, a, b = random_problem(0)
+    frozen = np.repeat(ustar, 2)[::2]  # strided
+    mass = mass.copy()
+    mass.flags.writeable = False
+    for e in (0.0, np.full(a.size, 0.2)):
+        compiled_chain_step(ustar, mass, faces, a, b, e, tolerance=1e-14, max_iterations=200)
+        compiled_chain_step(frozen, mass, faces, a, b, e, tolerance=1e-14, max_iterations=200)
+    assert len(chain_step.signatures) == 1, chain_step.signatures
+
+
 def test_the_compiled_step_on_one_face_at_rest_and_without_convergence():
     """A chain of one face per layer (two wet columns), stretched plastic (B = 0) or smooth:
     the kernel gives the reference's answer, which conserves momentum with u_2 - u_1 = 0 or

@@ -10,23 +10,25 @@ real code path on a small built-in scenario (16 columns, one thread), so it comp
 signatures every run uses.  A task starts once the tasks whose kernels it calls are
 compiled (two processes compiling one kernel at once would both do the work).  When all
 of them succeed the cache is marked compiled for the current kernel sources and numba
-version (:func:`multilayer.engine.kernel_cache.mark_compiled`), and a later call returns
-at once.  The parallel (threaded) variants of the engine's own kernels are not compiled
-here: a run with ``numerics.threads`` above 1 compiles them on its first use (the Newton
-kernel's takes some 25-30 s), the same for every law.  The one exception is the numpy
-path's column solve (about 2 s of one core): only laws without compiled forms (third-party
-rheologies) use it, so no run under a built-in law ever caches it, and every installation
-would otherwise compile it in the first threaded run under a plugin.
+version and this module's task list (:func:`multilayer.engine.kernel_cache.mark_compiled`,
+:func:`work`), and a later call returns
+at once.  The parallel (threaded) variants are compiled too: a step on two threads or more
+(``numerics.threads``; ``auto`` above 200 000 cells holding material) uses them, and the
+Newton kernel's alone took 25-30 s of the first such run.  So is the numpy path's column
+solve, serial and parallel: only laws without compiled forms (third-party rheologies) use
+it, so no run under a built-in law caches it.
 """
 
 from __future__ import annotations
 
+import hashlib
 import select
 import subprocess
 import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from multilayer.engine import kernel_cache
@@ -77,6 +79,15 @@ def _transport() -> None:
     """The transport of the layers."""
     sim = _simulation()
     sim._transport(sim.time_step(), 1)
+
+
+def _parallel() -> None:
+    """The parallel variants of the Newton kernel and of the transport (a step on two
+    threads; numba caps the threads at ``NUMBA_NUM_THREADS``, the variant is the same)."""
+    sim = _simulation()
+    dt = sim.time_step()
+    sim._vertical_step(sim.h, sim.u, dt, 2)
+    sim._transport(dt, 2)
 
 
 def _normal_stress() -> None:
@@ -134,13 +145,23 @@ TASKS: tuple[Task, ...] = (
     Task("newton", _newton),
     Task("projection", _projection),
     Task("transport", _transport),
+    Task("parallel", _parallel, ("newton", "transport")),
     Task("numpy_path", _numpy_path, ("newton",)),
     Task("normal_stress", _normal_stress, ("transport",)),
     Task("hydrostatic_steps", _steps("hydrostatic"), ("newton", "transport")),
     Task("non_hydrostatic_steps", _steps("non_hydrostatic"), ("newton", "transport", "projection")),
 )
 """The longest first: on two cores the Newton kernel compiles beside the projection and
-then the transport."""
+then the transport, and the parallel variants once both are done."""
+
+
+def work() -> str:
+    """What the mark of the compilation says was compiled: the SHA-256 of this module,
+    whose :data:`TASKS` say which kernels (a task list changed since compiles again)."""
+    try:
+        return hashlib.sha256(Path(__file__).read_bytes()).hexdigest()
+    except OSError:  # the module's file is gone: no mark is found current
+        return "none"
 
 
 @dataclass
@@ -182,7 +203,7 @@ def compile_kernels(processes: int | None = None, on_wait: Callable[[], None] = 
     waits).  Interrupted, the children are stopped with it."""
     with kernel_cache.compiling(on_wait):
         kernel_cache.ensure_fresh()
-        checked = kernel_cache.compiled_files()
+        checked = kernel_cache.compiled_files(work())
         if checked is not None:
             return Report(cached=True, checked=checked)
         return _compile(processes)
@@ -190,7 +211,7 @@ def compile_kernels(processes: int | None = None, on_wait: Callable[[], None] = 
 
 def _compile(processes: int | None) -> Report:
     """:func:`compile_kernels` once the cache is found not compiled."""
-    sources = kernel_cache.compiled_text()  # an edit during the compilation leaves no mark
+    sources = kernel_cache.compiled_text(work())  # an edit during the compilation leaves no mark
     processes = max(1, min(len(TASKS), available_cores() if processes is None else processes))
     start = time.perf_counter()
     report = Report(processes=processes)

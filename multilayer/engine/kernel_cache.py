@@ -28,9 +28,8 @@ from the digest, means this process caches nothing (one warning naming the file)
 load and save of a kernel holds the directory's lock and needs its digest to be the
 process's (:func:`current`): a process that started before an upgrade neither loads the
 new kernels nor saves its old ones into a directory a newer process has cleared.
-``multilayer compile`` (app/precompile.py) marks the directories compiled for the digest
-and numba's version once it has cached its kernels (:func:`mark_compiled`,
-:func:`is_compiled`).
+``multilayer compile`` marks the directories compiled for the digest, numba's version and
+the work it did once it has cached its kernels (:func:`mark_compiled`, :func:`is_compiled`).
 
 The directories are the ones numba chooses for the engine's modules: ``__pycache__``
 beside them when it can be written and ``NUMBA_CACHE_DIR`` is not set; otherwise numba's
@@ -338,18 +337,13 @@ def current(directory: Path) -> Iterator[bool]:
         yield fresh
 
 
-TASKS = ENGINE.parent / "app" / "precompile.py"
-"""The module whose tasks say which kernels ``multilayer compile`` compiles."""
-
-
-def compiled_text() -> str:
+def compiled_text(work: str) -> str:
     """What :data:`COMPILED` holds: the kernel sources' digest, numba's version (numba
-    drops its cache when its version changes) and the digest of :data:`TASKS` (tasks that
-    compile more kernels than the ones marked are not done)."""
+    drops its cache when its version changes) and ``work``, the caller's name for what it
+    compiled (a compilation of more kernels than the ones marked is not done)."""
     import numba
 
-    tasks = _file_digest(TASKS) or "none"
-    return f"{sources_digest()}\nnumba {numba.__version__}\ntasks {tasks}\n"
+    return f"{sources_digest()}\nnumba {numba.__version__}\ntasks {work}\n"
 
 
 def _file_digest(path: Path) -> str | None:
@@ -380,13 +374,14 @@ def mark_compiled(text: str) -> None:
             pass
 
 
-def compiled_files() -> int | None:
+def compiled_files(work: str) -> int | None:
     """How many cached files :func:`mark_compiled` recorded in every cache directory, each
-    found with the digest recorded, for the current sources and numba; None when a
-    directory has no such mark (numba cannot cache, a mark holds anything else, bytes
-    that are not text or no file included) or a recorded file is missing or changed since
-    (a damaged cache: numba compiles that kernel again on its next use)."""
-    text = compiled_text().encode()
+    found with the digest recorded, for the current sources, numba and ``work``
+    (:func:`compiled_text`); None when a directory has no such mark (numba cannot cache,
+    a mark holds anything else, bytes that are not text or no file included) or a
+    recorded file is missing or changed since (a damaged cache: numba compiles that
+    kernel again on its next use)."""
+    text = compiled_text(work).encode()
     directories = cache_directories()
     checked = 0
     for directory in directories:
@@ -405,7 +400,7 @@ def compiled_files() -> int | None:
     return checked if directories else None
 
 
-def is_compiled() -> bool:
-    """Whether :func:`mark_compiled` recorded the current sources and numba in every cache
-    directory and the files it recorded are unchanged (:func:`compiled_files`)."""
-    return compiled_files() is not None
+def is_compiled(work: str) -> bool:
+    """Whether :func:`mark_compiled` recorded the current sources, numba and ``work`` in
+    every cache directory and the files it recorded are unchanged (:func:`compiled_files`)."""
+    return compiled_files(work) is not None

@@ -339,10 +339,12 @@ def _compiled_step(
     faces' ``data`` ``a``, ``b``, ``e``; :class:`RunError` naming the face (``where``) whose
     Newton step or result is not finite."""
     u, z = np.empty(ustar.size), np.empty(faces.left.size)
-    cells = [np.ascontiguousarray(array, dtype=float) for array in (ustar, mass)]
-    index = [np.ascontiguousarray(side, dtype=np.int64) for side in (faces.left, faces.right)]
-    linked = np.ascontiguousarray(faces.linked, dtype=np.bool_)
-    arrays = [np.ascontiguousarray(array, dtype=float) for array in data]
+    # C-ordered and writeable, whatever the caller's arrays (a read-only view, such as the
+    # broadcast ``e``, is another signature: numba would compile the kernel a second time)
+    cells = [np.require(array, float, ("C", "W")) for array in (ustar, mass)]
+    index = [np.require(side, np.int64, ("C", "W")) for side in (faces.left, faces.right)]
+    linked = np.require(faces.linked, np.bool_, ("C", "W"))
+    arrays = [np.require(array, float, ("C", "W")) for array in data]
     status = chain_step(*cells, *index, linked, *arrays, float(tolerance), int(iterations), u, z)
     if status == NOT_CONVERGED:
         raise not_converged(iterations)
