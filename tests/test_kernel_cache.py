@@ -12,6 +12,7 @@ import subprocess
 import sys
 import time
 import warnings
+from pathlib import Path
 
 import pytest
 
@@ -407,3 +408,25 @@ def test_bytecode_of_an_earlier_version_is_not_cached_and_compiled_anew(tmp_path
     assert _edited(engine, "1.0", bytecode=True).stdout.split() == ["2.0"]
     callee.touch()
     assert _edited(engine, "1.0", bytecode=True).stdout.split() == ["2.0"]
+
+
+def test_the_digest_and_the_mark_are_readable_by_the_other_users_of_a_shared_cache(tmp_path, monkeypatch):
+    """The digest and the mark were written as temporary files, mode 0600: in a cache shared
+    by a group (``NUMBA_CACHE_DIR``, an installation for several users) the others could not
+    read the digest and their runs loaded no kernel.  They have the mode of numba's own cache
+    files, 0666 less the umask, and no file of the writing is left beside them."""
+    status = Path("/proc/self/status")
+    if not status.is_file():
+        pytest.skip("the umask is read from /proc")
+    line = next(line for line in status.read_text().splitlines() if line.startswith("Umask"))
+    umask = int(line.split()[1], 8)
+    monkeypatch.setattr(kernel_cache, "cache_directories", lambda: [tmp_path])
+    kernel_cache.clear_if_stale(tmp_path, "digest")
+    (tmp_path / "kernel.f-1.py311.nbi").write_bytes(b"index")
+    kernel_cache.mark_compiled(kernel_cache.compiled_text(work()))
+    for name in (kernel_cache.STAMP, kernel_cache.COMPILED):
+        assert (tmp_path / name).stat().st_mode & 0o777 == 0o666 & ~umask, name
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        [kernel_cache.STAMP, kernel_cache.COMPILED, kernel_cache.LOCK, "kernel.f-1.py311.nbi"]
+    )
+    assert kernel_cache.is_compiled(work())

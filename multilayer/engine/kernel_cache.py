@@ -189,6 +189,23 @@ def compiling(on_wait: Callable[[], None]) -> Iterator[None]:
         yield
 
 
+def _write_whole(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` whole, by renaming a new file over it, with the mode of
+    numba's own cache files (0666 less the umask): a temporary file's 0600 left the digest
+    and the mark unreadable to the other users of a shared cache, whose runs then loaded no
+    kernel and compiled every one in memory."""
+    new = path.with_name(f"{path.name}.{os.getpid()}.{threading.get_ident()}.new")
+    try:
+        new.unlink(missing_ok=True)  # left by a process of this id that died; never followed
+        descriptor = os.open(new, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+        with open(descriptor, "w", encoding="utf-8") as stream:
+            stream.write(text)
+        os.replace(new, path)
+    except OSError:
+        new.unlink(missing_ok=True)
+        raise
+
+
 def clear_if_stale(directory: Path, digest: str | None = None) -> bool:
     """Delete the engine's cached kernels in ``directory`` if the kernel sources (their
     ``digest``, by default :func:`sources_digest`) changed since they were cached (True if
@@ -202,9 +219,7 @@ def clear_if_stale(directory: Path, digest: str | None = None) -> bool:
                 return False
             for entry in [*directory.glob("*.nbi"), *directory.glob("*.nbc"), directory / COMPILED]:
                 entry.unlink(missing_ok=True)
-            with tempfile.NamedTemporaryFile("w", dir=directory, prefix=STAMP, delete=False) as new:
-                new.write(current)
-            os.replace(new.name, stamp)  # a reader sees the old digest or the new one, never a part
+            _write_whole(stamp, current)  # a reader sees the old digest or the new one, never a part
     except OSError:
         return False
     return True
@@ -365,11 +380,7 @@ def mark_compiled(text: str) -> None:
         try:
             files = sorted([*directory.glob("*.nbi"), *directory.glob("*.nbc")])
             listing = "".join(f"{digest} {path.name}\n" for path in files if (digest := _file_digest(path)))
-            with tempfile.NamedTemporaryFile(
-                "w", encoding="utf-8", dir=directory, prefix=COMPILED, delete=False
-            ) as new:
-                new.write(text + listing)
-            os.replace(new.name, directory / COMPILED)
+            _write_whole(directory / COMPILED, text + listing)
         except OSError:  # numba cannot cache there either
             pass
 
