@@ -106,7 +106,7 @@ def forked_from_gnu_openmp() -> bool:
     if _launched_in is None or _launched_in == os.getpid():
         return False
     import numba
-    from numba.np.ufunc import omppool
+    from numba.np.ufunc import omppool  # type: ignore[attr-defined]
 
     if numba.threading_layer() != "omp" or getattr(omppool, "openmp_vendor", "GNU") != "GNU":
         return False
