@@ -3726,6 +3726,7 @@ def cases() -> list[Case]:
         + round_thirty_three()
         + round_thirty_four()
         + round_thirty_five()
+        + round_thirty_eight()
     )
 
 
@@ -6141,6 +6142,257 @@ def round_thirty_five() -> list[Case]:
     ]  # fmt: skip
 
 
+def _engine_directory() -> Path:
+    """The installed engine's directory (the kernel modules numba caches beside)."""
+    import importlib.util
+
+    spec = importlib.util.find_spec("multilayer")
+    assert spec is not None and spec.submodule_search_locations is not None
+    return Path(spec.submodule_search_locations[0]) / "engine"
+
+
+def _copied_cache(marked: bool) -> Callable[[Path], None]:
+    """The scenario and ``cache``, a ``NUMBA_CACHE_DIR`` holding a copy of the kernels the
+    engine's directories cache (compiled there by ``multilayer compile``), as numba's
+    locator for that variable places them (``<directory>_<SHA-1 of its path>``), with the
+    mark of ``multilayer compile`` or without."""
+    import hashlib
+
+    def setup(directory: Path) -> None:
+        _scenario(directory)
+        for pycache in sorted(_engine_directory().rglob("__pycache__")):
+            if not (pycache / "kernels.digest").is_file():
+                continue
+            source = str(pycache.parent)
+            copy = directory / "cache" / f"{pycache.parent.name}_{hashlib.sha1(source.encode()).hexdigest()}"
+            copy.mkdir(parents=True)
+            names = ["*.nbi", "*.nbc", "kernels.digest", *(["kernels.compiled"] if marked else [])]
+            for name in names:
+                for file in pycache.glob(name):
+                    shutil.copy2(file, copy / file.name)
+
+    return setup
+
+
+FORKED_AFTER_THREADS = """
+import multiprocessing, multilayer
+def go(outdir):
+    result = multilayer.run(sys.argv[2], outdir=outdir, overrides={'numerics.threads': 2})
+    return result.attrs['run_status'], float(result['mass'][-1])
+parent = go(sys.argv[3] + '/parent')
+with multiprocessing.get_context(sys.argv[4]).Pool(1) as pool:
+    child = pool.apply_async(go, (sys.argv[3] + '/child',)).get(timeout=100)
+print(f'multilayer: forked child: {child[0]}, mass as the parent: {child == parent}', file=sys.stderr)
+sys.exit(0 if child == parent else 1)
+"""
+"""A run on two threads, then one in a child of multiprocessing's ``sys.argv[4]`` context."""
+
+POOL_RUNS = """
+import multiprocessing, multilayer
+with multiprocessing.get_context(sys.argv[4]).Pool(2) as pool:
+    results = pool.starmap(multilayer.run, [(sys.argv[2], f'{sys.argv[3]}/m{i}') for i in range(2)])
+print(f"multilayer: {sys.argv[4]} pool: {[float(r['mass'][-1]) for r in results]}", file=sys.stderr)
+sys.exit(0)
+"""
+"""Two ``multilayer.run`` in a pool of multiprocessing's ``sys.argv[4]`` context (the
+function the pool calls is the library's: a new process cannot import this script)."""
+
+HOST_KEPT_WHOLE = """
+import atexit, faulthandler, logging, os, signal, threading, warnings
+import numba, numpy as np
+import dask.threaded, matplotlib.pyplot, netCDF4, scipy.special, fipy  # what their imports set is theirs
+logging.getLogger('multilayer').setLevel(logging.DEBUG)
+def host():
+    import numba
+    mask = os.umask(0o022); os.umask(mask)
+    stoppable = [s for s in signal.Signals if s not in (signal.SIGKILL, signal.SIGSTOP)]
+    handlers = {s.name: signal.getsignal(s) for s in stoppable}
+    loggers = {name: (getattr(l, 'level', None), list(getattr(l, 'handlers', [])))
+               for name, l in logging.root.manager.loggerDict.items()}
+    return {'signal handlers': handlers, 'threads': sorted(t.name for t in threading.enumerate()),
+            'hooks': (sys.excepthook, sys.unraisablehook, threading.excepthook, sys.displayhook,
+                      warnings.showwarning, sys.breakpointhook),
+            'warnings filters': list(warnings.filters), 'numpy errors': np.geterr(),
+            'numpy printing': np.get_printoptions(), 'umask': mask, 'cwd': os.getcwd(),
+            'recursion limit': sys.getrecursionlimit(), 'switch interval': sys.getswitchinterval(),
+            'faulthandler': faulthandler.is_enabled(), 'streams': (sys.stdin, sys.stdout, sys.stderr),
+            'numba threads': (numba.get_num_threads(), numba.get_parallel_chunksize()),
+            'numba config': {k: v for k, v in vars(numba.config).items()
+                             if k.isupper() and isinstance(v, (int, str))},
+            'loggers': loggers, 'matplotlib': (matplotlib.get_backend(), dict(matplotlib.rcParams))}
+import matplotlib
+before = host()
+import multilayer
+result = multilayer.run(sys.argv[2], outdir=sys.argv[3] + '/run', overrides={'numerics.threads': 2})
+done = result.attrs['run_status']
+sim = multilayer.Simulation(multilayer.load(sys.argv[2], {'numerics.threads': 2}))
+sim.step()
+after = host()
+new = set(after['loggers']) - set(before['loggers'])  # loggers the libraries' imports made
+after['loggers'] = {k: v for k, v in after['loggers'].items() if k not in new}
+changed = [key for key, value in host().items() if key != 'loggers' and value != before[key]]
+changed += ['loggers'] if after['loggers'] != before['loggers'] else []
+print(f'multilayer: run {done}, changed {changed}', file=sys.stderr)
+sys.exit(0 if done == 'completed' and not changed else 1)
+"""
+"""A host that set its loggers, signals and numba's settings runs a scenario and steps a
+simulation on two threads through the Python API: nothing of the host may change (its
+threads, hooks, signal handlers, warning filters, numba's thread count and configuration,
+logging, umask, streams, Matplotlib's backend and settings)."""
+
+IN_A_THREAD = """
+import threading
+out = {}
+def go():
+    import multilayer
+    out['status'] = multilayer.run(sys.argv[2], outdir=sys.argv[3] + '/run').attrs['run_status']
+thread = threading.Thread(target=go)
+thread.start(); thread.join()
+print(f"multilayer: imported and run in a thread: {out.get('status')}", file=sys.stderr)
+sys.exit(0 if out.get('status') == 'completed' else 1)
+"""
+"""The first import of multilayer and a run, in a thread that is not the main one."""
+
+ENDING_PLUGIN = """
+import os
+import multilayer
+from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+class Ending(DruckerPrager):
+    name = "ending"
+    yield_stress_kernel = lambda self, material: None
+    viscosity_kernel = lambda self, material: None
+    def yield_stress(self, *arguments):
+        os._exit(3)
+@multilayer.hookimpl
+def multilayer_register_rheologies(register):
+    register(Ending)
+"""
+"""A third-party law whose yield stress ends its process (``os._exit``: a crash of C code)."""
+
+
+THIRD_PLUGIN = """
+import multilayer
+from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+class Third(DruckerPrager):
+    name = "NAME"
+    yield_stress_kernel = lambda self, material: None
+    viscosity_kernel = lambda self, material: None
+@multilayer.hookimpl
+def multilayer_register_rheologies(register):
+    register(Third)
+"""
+"""A third-party law ``NAME``: Drucker-Prager on the numpy path."""
+
+
+def _third_party_sweep(law: str) -> Callable[[Path], None]:
+    """A sweep of one member under the third-party law ``law``: ``ending`` of
+    :data:`ENDING_PLUGIN`, or ``third`` of :data:`THIRD_PLUGIN`."""
+
+    def setup(directory: Path) -> None:
+        _scenario(directory)
+        module = ENDING_PLUGIN if law == "ending" else THIRD_PLUGIN.replace("NAME", law)
+        _plugin_package(directory, law, module)
+        (directory / "study.yaml").write_text(
+            f"base: scenario.yaml\nparameters:\n  rheology: [{{name: {law}, mu_s: 0.3, nu: 0.01}}]\n"
+        )
+
+    return setup
+
+
+def _two_distributions(directory: Path) -> None:
+    """Distributions ``first`` and ``second`` each registering a law named ``shared``."""
+    _scenario(directory, {"rheology": {"name": "shared", "mu_s": 0.3, "nu": 0.01}})
+    for name in ("first", "second"):
+        _plugin_package(directory, name, THIRD_PLUGIN.replace("NAME", "shared"))
+
+
+def _entry_point_to(value: str, module: str) -> Callable[[Path], None]:
+    """A distribution ``third`` whose entry point is ``third = VALUE`` over ``module``."""
+
+    def setup(directory: Path) -> None:
+        _scenario(directory)
+        _plugin_package(directory, "third", module)
+        entry_points = directory / "plugin" / "third-0.1.dist-info" / "entry_points.txt"
+        entry_points.write_text(f"[multilayer]\nthird = {value}\n")
+
+    return setup
+
+
+def round_thirty_eight() -> list[Case]:
+    """The hostile cases of the thirty-eighth round (docs/reliability.md), in the
+    installation, numba's kernel cache and the host process, as a user on a cluster or in
+    a notebook meets them: a run on two threads in a child of multiprocessing's fork
+    context after a threaded run of its parent (numba's GNU OpenMP layer sent the child
+    SIGTERM: "interrupted by SIGTERM", and the pool hung); ``multilayer compile`` under
+    ``PYTHONWARNINGS=error`` (its children's pipes left open: a ResourceWarning's
+    traceback); a sweep whose third-party law ends its process (the study's own warm-up
+    step ran it: the study ended, exit 3, without a word); as controls, ``-OO``, ``-O``
+    and ``-I``, ``PYTHONWARNINGS=error`` runs, sweeps and plots, pools of the spawn and
+    forkserver contexts, a host whose settings must stay, an import and run in a thread, a
+    ``NUMBA_CACHE_DIR`` holding a copied cache and one that is a file, entry points naming
+    no plugin, a missing attribute and one name registered by two distributions."""
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    validate = ["validate", "{scenario}"]
+    sweep = ["sweep", "{dir}/study.yaml", "-o", "{dir}/out", "-q", "--workers", "1"]
+    plugin_env = {"PYTHONPATH": "{dir}/plugin"}
+    cache = {"NUMBA_CACHE_DIR": "{dir}/cache"}
+    errors = {"PYTHONWARNINGS": "error"}
+    isolated = ["sh", "-c", 'exec "$0" -I "$@"']
+    completed = "forked child: completed, mass as the parent: True"
+    return [
+        Case("fork: a run on two threads in a child forked after a threaded run",
+             ["fork", "{scenario}", "{dir}", "fork"], 0, completed, patch=FORKED_AFTER_THREADS,
+             setup=_scenario),
+        Case("compile: PYTHONWARNINGS=error over a cache of the kernels without its mark", ["compile"], 0,
+             "", env={**cache, **errors}, plain=True, setup=_copied_cache(False)),
+        Case("sweep: a third-party law ending its process (os._exit)", sweep, 1,
+             "(rheology={mu_s: 0.3, name: ending, nu: 0.01}) failed: KilledWorker", env=plugin_env,
+             setup=_third_party_sweep("ending")),
+        Case("control: a sweep of a third-party law", sweep, 0, "", env=plugin_env,
+             setup=_third_party_sweep("third")),
+        Case("control: python -OO (PYTHONOPTIMIZE=2), plugins", ["plugins"], 0, "",
+             env={"PYTHONOPTIMIZE": "2"}, plain=True),
+        Case("control: python -O (PYTHONOPTIMIZE=1), validate", validate, 0, "",
+             env={"PYTHONOPTIMIZE": "1"}, plain=True, setup=_scenario),
+        Case("control: python -I, run", run, 0, "", prefix=isolated, plain=True, setup=_scenario),
+        Case("control: PYTHONWARNINGS=error, run", run, 0, "", env=errors, plain=True, setup=_scenario),
+        Case("control: PYTHONWARNINGS=error, run on two threads warning of its front threshold",
+             [*run, "--set", "numerics.threads=2", "--set", "numerics.front_threshold=0.5"], 0,
+             "the front is absent (NaN) at every output time", env=errors, plain=True, setup=_scenario),
+        Case("control: PYTHONWARNINGS=error, sweep",
+             ["sweep", "{dir}/study.yaml", "-o", "{dir}/out", "-q", "--workers", "2"], 0, "", env=errors,
+             plain=True, setup=_sweep33("parameters:\n  rheology.mu_s: [0.3, 0.35]\n")),
+        Case("control: PYTHONWARNINGS=error, plot of a run", ["plot", "{dir}/out"], 0, "",
+             env=errors, plain=True, setup=_finished_run),
+        Case("control: two multilayer.run in a spawn pool", ["pool", "{scenario}", "{dir}", "spawn"], 0,
+             "spawn pool: [0.005000000000000001, 0.005000000000000001]", patch=POOL_RUNS, setup=_scenario),
+        Case("control: two multilayer.run in a forkserver pool",
+             ["pool", "{scenario}", "{dir}", "forkserver"], 0,
+             "forkserver pool: [0.005000000000000001, 0.005000000000000001]", patch=POOL_RUNS,
+             setup=_scenario),
+        Case("control: a host's threads, hooks, handlers, filters, numba and logging kept by a run",
+             ["host", "{scenario}", "{dir}"], 0, "run completed, changed []", patch=HOST_KEPT_WHOLE,
+             setup=_scenario),
+        Case("control: multilayer imported and run in a thread", ["thread", "{scenario}", "{dir}"], 0,
+             "imported and run in a thread: completed", patch=IN_A_THREAD, setup=_scenario),
+        Case("control: NUMBA_CACHE_DIR a copied cache, compile", ["compile"], 0, "", env=cache, plain=True,
+             setup=_copied_cache(True)),
+        Case("control: NUMBA_CACHE_DIR a copied cache, a run compiles nothing", run, 0, "", env=cache,
+             patch=_NO_COMPILATION.split("\n", 2)[2], setup=_copied_cache(True)),
+        Case("control: NUMBA_CACHE_DIR a regular file, validate", validate, 0, "",
+             env={"NUMBA_CACHE_DIR": "{dir}/scenario.yaml"}, plain=True, setup=_scenario),
+        Case("plugin: an entry point naming a number, not a module of hooks", validate, 0,
+             "(entry point third = third:VALUE) skipped: registers no rheology", env=plugin_env,
+             setup=_entry_point_to("third:VALUE", "VALUE = 3\n")),
+        Case("plugin: an entry point naming an attribute its module lacks", validate, 0,
+             "skipped: AttributeError: module 'third' has no attribute 'Missing'", env=plugin_env,
+             setup=_entry_point_to("third:Missing", "")),
+        Case("plugin: two distributions registering one name", validate, 0,
+             "rheology name 'shared' is already registered by first 0.1", env=plugin_env,
+             setup=_two_distributions),
+    ]  # fmt: skip
+
+
 ROUNDS: dict[int, Callable[[], list[Case]]] = {
     2: round_two, 3: round_three, 4: round_four, 5: round_five, 6: round_six, 7: round_seven,
     8: round_eight, 9: round_nine, 10: round_ten, 11: round_eleven, 12: round_twelve,
@@ -6153,6 +6405,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     33: round_thirty_three,
     34: round_thirty_four,
     35: round_thirty_five,
+    38: round_thirty_eight,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""
 
@@ -6162,7 +6415,7 @@ def main() -> None:
     parser.add_argument("-k", default="", help="only the cases whose name contains this")
     parser.add_argument("-j", type=int, default=2, help="cases run at once")
     parser.add_argument(
-        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 35; all: none)"
+        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 38; all: none)"
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()

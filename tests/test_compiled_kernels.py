@@ -389,3 +389,20 @@ def test_compile_says_when_numba_cannot_cache(cli, monkeypatch):
     monkeypatch.setattr(kernel_cache, "cache_directories", lambda: [])
     result = cli("compile")
     assert result.code == 1 and "NUMBA_CACHE_DIR" in result.err and result.out == ""
+
+
+def test_compile_closes_the_pipes_of_its_child_processes(monkeypatch):
+    """A pipe of a compiling child left open was a ResourceWarning when it was collected:
+    under ``PYTHONWARNINGS=error`` a traceback of ``multilayer compile``."""
+    import gc
+    import warnings
+
+    from multilayer.app import precompile
+
+    monkeypatch.setattr(precompile, "TASKS", (precompile.Task("unknown", lambda: None),))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        report = precompile._compile(1)  # the child answers at once: no task of that name
+        gc.collect()
+    assert report.failed == {"unknown": "KeyError: 'unknown'"}
+    assert [str(w.message) for w in caught if issubclass(w.category, ResourceWarning)] == []

@@ -599,3 +599,31 @@ def test_a_study_holds_its_directory_and_names_one_that_is_a_file(tmp_path, cli,
         assert result.code == 2 and f"{tmp_path / 'a_file'}: a file, not a directory" in result.err, (
             result.err
         )
+
+
+def test_a_studys_warm_up_runs_no_third_party_law_in_the_studys_process(monkeypatch, tiny_scenario):
+    """The warm-up step of a study runs in the study's own process: a third-party law there
+    that ends its process (``os._exit``) ended the study silently, before any member ran.
+    It is skipped for such a law (its members run it on the workers); a built-in law's is
+    stepped."""
+    import multilayer
+    from multilayer.app import simulation
+    from multilayer.plugins import host
+
+    stepped = []
+
+    class Stepped:
+        def __init__(self, member: scenario.Scenario) -> None:
+            stepped.append(member.rheology.name)
+
+        def step(self) -> None:
+            pass
+
+    monkeypatch.setattr(simulation, "Simulation", Stepped)
+    member = multilayer.load(tiny_scenario)
+    sweep.compile_kernels(member)
+    assert stepped == ["drucker_prager"] and host.is_builtin("drucker_prager")
+    assert not host.is_builtin("no_such_law")
+    monkeypatch.setattr(host, "is_builtin", lambda name: name != "drucker_prager")  # as a third party's
+    sweep.compile_kernels(member)
+    assert stepped == ["drucker_prager"]

@@ -183,3 +183,60 @@ def test_simulations_in_threads_run_their_parallel_kernels_on_numbas_workqueue_l
     command = [sys.executable, "-c", _SIDE_BY_SIDE, str(path)]
     done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=300)
     assert done.returncode == 0 and done.stdout.strip() == "[True, True, True]", done.stderr
+
+
+def test_a_fork_of_a_process_that_ran_gnu_openmp_threads_steps_on_one_thread(monkeypatch):
+    """numba's GNU OpenMP layer cannot run in a forked process: its first parallel launch
+    there sends the process SIGTERM (a child of multiprocessing's fork context, after a
+    threaded run of its parent, stopped as if the user had).  Such a child's steps run on
+    one thread, with one warning; the process that launched the threads, and another
+    layer, keep their count."""
+    import numba
+    from numba.np.ufunc import omppool
+
+    monkeypatch.delenv(threads.ENVIRONMENT, raising=False)
+    monkeypatch.setattr(numba, "threading_layer", lambda: "omp")
+    monkeypatch.setattr(omppool, "openmp_vendor", "GNU", raising=False)
+    monkeypatch.setattr(threads, "_launched_in", os.getpid())
+    threads._warn_forked.cache_clear()
+    two = min(2, numba.config.NUMBA_NUM_THREADS)
+    assert threads.ThreadPolicy(2).threads(10) == two
+    monkeypatch.setattr(threads, "_launched_in", os.getppid())  # launched by the parent, before the fork
+    with pytest.warns(UserWarning, match="a fork of one that ran numba's GNU OpenMP threads"):
+        assert threads.ThreadPolicy(2).threads(10) == 1
+    monkeypatch.setattr(numba, "threading_layer", lambda: "tbb")
+    assert threads.ThreadPolicy(2).threads(10) == two
+    threads._warn_forked.cache_clear()
+
+
+FORKED_AFTER_THREADS = """
+import multiprocessing, sys, warnings
+import multilayer
+def go(outdir):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter('always')
+        result = multilayer.run(sys.argv[1], outdir=outdir, overrides={'numerics.threads': 2})
+    return result.attrs['run_status'], float(result['mass'][-1]), [str(w.message)[:40] for w in caught]
+if __name__ == '__main__':
+    parent = go(sys.argv[2] + '/parent')
+    with multiprocessing.get_context('fork').Pool(1) as pool:
+        child = pool.apply_async(go, (sys.argv[2] + '/child',)).get(timeout=600)
+    print(parent[:2] == child[:2], child[2])
+"""
+
+
+@pytest.mark.slow  # compiles the parallel kernels on a cold cache
+def test_a_run_on_two_threads_in_a_child_forked_after_a_threaded_run_completes(
+    tmp_path, write_scenario, tiny_scenario
+):
+    script = tmp_path / "forked.py"
+    script.write_text(FORKED_AFTER_THREADS)
+    done = subprocess.run(
+        [sys.executable, str(script), str(write_scenario(tiny_scenario)), str(tmp_path)],
+        capture_output=True, text=True, timeout=900,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert "Terminating" not in done.stderr
+    same, warned = done.stdout.split(" ", 1)
+    assert same == "True"  # the child's records are the parent's
+    assert all(w.startswith("this process is a fork of one") for w in eval(warned))  # GNU OpenMP's only

@@ -257,6 +257,8 @@ def _compile(processes: int | None) -> Report:
             if pending or busy:  # interrupted: stop at once
                 child.kill()
             child.wait()
+            if child.stdout is not None:  # left open, a ResourceWarning (a traceback under -W error)
+                child.stdout.close()
     report.seconds = time.perf_counter() - start
     if not report.failed:
         kernel_cache.mark_compiled(sources)

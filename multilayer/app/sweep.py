@@ -407,9 +407,18 @@ def compile_kernels(member: scenario.Scenario) -> None:
     at once (numba issues 4807 and 10128): worker processes that all begin by compiling
     can corrupt it.  Once this process has written the cache, the workers only read it.
     A member that does not construct or step is left to report its own error when it runs.
+    Nothing is done for a member under a third-party law: its code would run in the study's
+    own process, where a law ending its process (``os._exit``, a crash of its C code) ended
+    the study, silently, before any member ran; on a worker the member fails alone.  The
+    workers then compile the engine's kernels themselves, each load and save of numba's
+    cache under its directory's lock (:func:`multilayer.engine.kernel_cache.current`).
     """
     from multilayer.app.simulation import Simulation
+    from multilayer.plugins import host
 
+    laws = [spec.name for spec in (member.rheology, member.walls) if spec is not None]
+    if not all(host.is_builtin(name) for name in laws):
+        return
     numerics = member.numerics.model_copy(update={"threads": 1})
     try:
         Simulation(member.model_copy(update={"numerics": numerics})).step()

@@ -26,6 +26,7 @@ import functools
 import importlib.metadata
 import os
 import threading
+import warnings
 from collections import Counter
 from collections.abc import Iterator
 from contextlib import AbstractContextManager, contextmanager, nullcontext
@@ -88,13 +89,51 @@ def numba_threads(count: int) -> AbstractContextManager[None]:
     return _SERIAL if count <= 1 else _parallel_launch(count)
 
 
+_launched_in: int | None = None
+"""The process id of the process whose parallel launch started numba's threading layer
+(None: no parallel kernel was launched by this library before)."""
+
+
+def forked_from_gnu_openmp() -> bool:
+    """Whether this process is a fork (``multiprocessing``'s default on Linux, ``os.fork``)
+    of a process that ran parallel kernels on numba's OpenMP threading layer built with GNU
+    OpenMP, the layer numba takes where TBB is not installed.  GNU OpenMP cannot run in such
+    a child: numba's first parallel launch there prints "Terminating: fork() called from a
+    process already using GNU OpenMP, this is unsafe." and sends the process SIGTERM (numba's
+    documentation, "Threading layers": ``omp`` is not fork-safe with GNU OpenMP), which
+    stopped the child's run as if the user had.  Said once per process, with a warning; the
+    step then runs the serial kernels, whose answer is the parallel ones'."""
+    if _launched_in is None or _launched_in == os.getpid():
+        return False
+    import numba
+    from numba.np.ufunc import omppool  # type: ignore[attr-defined]
+
+    if numba.threading_layer() != "omp" or getattr(omppool, "openmp_vendor", "GNU") != "GNU":
+        return False
+    _warn_forked()
+    return True
+
+
+@functools.cache
+def _warn_forked() -> None:
+    warnings.warn(
+        "this process is a fork of one that ran numba's GNU OpenMP threads, which cannot run in a "
+        "forked process: its steps run on one thread (start such processes with multiprocessing's "
+        "'spawn' or 'forkserver' context, or install numba's TBB layer: pip install 'multilayer[tbb]')",
+        stacklevel=4,
+    )
+
+
 @contextmanager
 def _parallel_launch(count: int) -> Iterator[None]:
     """:func:`numba_threads` for ``count >= 2`` threads."""
     import numba
 
+    global _launched_in
     load_tbb()  # before numba starts its threading layer
     with _LAUNCHES:
+        if _launched_in is None:
+            _launched_in = os.getpid()
         previous = numba.get_num_threads(), numba.get_parallel_chunksize()
         numba.set_num_threads(min(count, numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]
         numba.set_parallel_chunksize(1)
@@ -149,5 +188,7 @@ class ThreadPolicy:
             import numba
 
             count = min(count, numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
+            if forked_from_gnu_openmp():
+                count = 1
         self.chosen[count] += 1
         return count

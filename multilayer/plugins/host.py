@@ -195,6 +195,13 @@ def registry() -> dict[str, type[Rheology]]:
     return {name: item.cls for name, item in catalogue().rheologies.items()}
 
 
+def is_builtin(name: str) -> bool:
+    """Whether the rheology registered as ``name`` is one of multilayer's own (its
+    ``builtins`` entry point); False for a third party's and for an unknown name."""
+    item = catalogue().rheologies.get(name)
+    return item is not None and item.cls.__module__.startswith(f"{PROJECT}.plugins.builtins.")
+
+
 def available(applies_to: str) -> list[str]:
     """Sorted names of the rheologies for ``applies_to`` ("bulk" or "walls")."""
     return sorted(n for n, cls in registry().items() if cls.applies_to == applies_to)
