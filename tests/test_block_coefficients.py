@@ -19,7 +19,7 @@ from multilayer.engine.vertical.coefficients import (
 )
 
 
-def _inputs(rng, L, N, rest, gravity, thickness):
+def _inputs(rng, L, N, rest, gravity, thickness, spacings):
     fractions = rng.uniform(0.5, 1.5, L)
     l = fractions / fractions.sum()
     depth = 1.0 - np.concatenate(([0.0], np.cumsum(l)[:-1]))
@@ -28,7 +28,7 @@ def _inputs(rng, L, N, rest, gravity, thickness):
         resting if rest else np.zeros((1, 1), bool), rest,
         resting.any(axis=0) if rest else np.zeros(1, bool),
         rng.uniform(-2.0, 12.0, (L, N)) if gravity else np.zeros((1, 1)), gravity,
-        9.81 * np.cos(0.4), 1550.0, l, depth, depth - 0.5 * l, rng.uniform(0.5, 1.5, L),
+        9.81 * np.cos(0.4), 1550.0, l, depth, depth - 0.5 * l, spacings,
         rng.random(N) < 0.7, rng.uniform(0.2, 0.6, N), rng.uniform(0.0, 10.0, N),
         0.38, 0.45, thickness, 0.2 if thickness else 0.0, 0.01 if thickness else np.inf, False, 0.0, 0.0,
     )  # fmt: skip
@@ -37,9 +37,12 @@ def _inputs(rng, L, N, rest, gravity, thickness):
 @pytest.mark.parametrize("rest, gravity, thickness", list(itertools.product((False, True), repeat=3)))
 def test_a_block_has_the_coefficients_of_its_columns_to_the_bit(rest, gravity, thickness):
     rng = np.random.default_rng(11)
-    for L in (1, 3, 8):
-        N, c0 = sc.BLOCK + 3, 2
-        inputs = _inputs(rng, L, N, rest, gravity, thickness)
+    # spacing fractions all different, and in runs of equal ones (equal layers: h/2L at the bed,
+    # h/L above; block_coefficients divides once per run and lane)
+    runs = [np.array([0.5 / 3, 1 / 3, 1 / 3]), np.array([0.3, 0.3, 0.2, 0.1, 0.1, 0.1, 0.4, 0.4])]
+    for spacings in [rng.uniform(0.5, 1.5, L) for L in (1, 3, 8)] + runs:
+        L, N, c0 = spacings.size, sc.BLOCK + 3, 2
+        inputs = _inputs(rng, L, N, rest, gravity, thickness, spacings)
         h = rng.uniform(1e-3, 0.2, N)
         if gravity:  # a yield value outside the plugin contract in one column
             inputs.yield_gravity[L - 1, c0 + 5] = np.nan

@@ -36,12 +36,12 @@ from multilayer.engine.vertical.sheared_columns import (
     cell,
 )
 
-MASS, SPACING_FRACTION, WEIGHT, DEPTH, MU, THICKNESS, FRICTION, GRAVITY = range(8)
-"""The rows of :func:`layer_rows` (``rho l_a``, the spacing fraction, ``rho g_n`` times the
+MASS, WEIGHT, DEPTH, MU, THICKNESS, FRICTION, GRAVITY = range(7)
+"""The rows of :func:`layer_rows` (``rho l_a``, ``rho g_n`` times the
 depth of the interface, that depth, the friction ``mu`` of the bulk law) and of the block
 (the column thickness, the friction of the column with a law of the thickness, ``rho g
 depth`` of a yield gravity)."""
-ROWS = 8
+ROWS = 7
 
 
 @jit(borrowing=True)
@@ -55,7 +55,6 @@ def layer_rows(inputs, rows):
         for i in range(np.uint64(BLOCK)):
             s = a * lanes + i
             rows[MASS, s] = rho * inputs.l[a]
-            rows[SPACING_FRACTION, s] = inputs.spacing_fraction[a]
             rows[WEIGHT, s] = g_p * inputs.depth_interface[a]
             rows[DEPTH, s] = inputs.depth_interface[a]
             rows[MU, s] = inputs.mu
@@ -71,8 +70,8 @@ def block_coefficients(c0, h, inputs, t, L, column, flags, rows, dt, u_rows):
     step, as ``sheared_columns.block_parts`` makes it (``m/dt``, ``m u*/dt`` of the step
     ``dt`` as products with ``1/dt``, the u* of the rows ``u_rows`` of
     ``sheared_columns.load``, the inverse spacings and conductances per unit slope:
-    ``fixed_parts``, 0 where not viscous; the spacings themselves, which nothing reads
-    after, are not stored).  Where some yield value is
+    ``fixed_parts``, 0 where not viscous, by :func:`_inverse_spacings`; the spacings
+    themselves, which nothing reads after, are not stored).  Where some yield value is
     outside the contract, ``column_coefficients`` itself tells which, column by column,
     writing the same values again (``column``: its work arrays).  ``rows``: those of
     :func:`layer_rows`, and the block's own."""
@@ -98,16 +97,14 @@ def block_coefficients(c0, h, inputs, t, L, column, flags, rows, dt, u_rows):
         weights = rows[WEIGHT]
     if not plateau:
         friction = rows[MU]
+    _inverse_spacings(t, L, inputs.spacing_fraction, thickness)
     outside = 0  # yield values outside the contract, in all the columns (counted without branches)
     per_dt = 1.0 / dt  # one division per call, not two per cell (sheared_columns.set_up)
     for s in range(n):
         x, hj = x0 + s, thickness[s]
-        m, spacing = rows[MASS, s] * hj, rows[SPACING_FRACTION, s] * hj
+        m = rows[MASS, s] * hj
         t[INERTIA, x] = m * per_dt
         t[MOMENTUM, x] = m * u_rows[s] * per_dt
-        inverse = 1.0 / spacing if spacing > 0.0 else 1.0
-        t[INV_SPACING, x] = inverse
-        t[CONDUCTANCE, x] = inverse if spacing > 0.0 else 0.0  # viscous but in the bed's layer (below)
         p = weights[s] * hj
         t[PRESSURE, x] = p
         k = _frictional(friction[s], p)
@@ -130,6 +127,34 @@ def block_coefficients(c0, h, inputs, t, L, column, flags, rows, dt, u_rows):
         flags[FINE, i] = True
     for i in range(BLOCK if outside > 0 else 0):  # which: the same values again
         flags[FINE, i] = column_coefficients(c0 + i, h[c0 + i], inputs, column, cell(i, L), BLOCK, False) == 0
+
+
+@jit(inline="always")  # inlined: its copies run as vectors in the caller, without a call
+def _inverse_spacings(t, L, fraction, thickness):
+    """The inverse spacings ``1 / (fraction_a h)`` of the block's cells (1 where the spacing is
+    0) and their conductances per unit slope (the inverse; 0 where the spacing is 0: the
+    bed's layer is set after), as ``sheared_columns.fixed_parts`` makes them from the
+    spacings, into slots ``INV_SPACING`` and ``CONDUCTANCE``, from the spacing fractions of
+    the layers and the block's row of thicknesses.  A layer whose fraction is that of the
+    layer below has that layer's spacings, so the same inverses: copied, not divided again
+    (of equal layers, only the bed's and the first above it divide: two divisions per lane,
+    not one per cell, and the same bits)."""
+    inverse, conductance = t[INV_SPACING], t[CONDUCTANCE]
+    lanes = np.uint64(BLOCK)
+    for a in range(np.uint64(L)):  # unsigned: no test for negative indices
+        x = np.uint64(cell(0, L)) + a * lanes
+        if a > 0 and fraction[a] == fraction[a - np.uint64(1)]:  # the layer below's, as vectors
+            below, below_c = _layer(inverse, x - lanes), _layer(conductance, x - lanes)
+            for i in range(BLOCK):
+                inverse[x + np.uint64(i)] = below[i]
+            for i in range(BLOCK):
+                conductance[x + np.uint64(i)] = below_c[i]
+            continue
+        for i in range(BLOCK):
+            spacing = fraction[a] * thickness[i]
+            value = 1.0 / spacing if spacing > 0.0 else 1.0
+            inverse[x + np.uint64(i)] = value
+            conductance[x + np.uint64(i)] = value if spacing > 0.0 else 0.0
 
 
 @jit(borrowing=True)

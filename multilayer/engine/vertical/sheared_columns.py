@@ -57,7 +57,7 @@ cells on, and one cell at a time below: 22-29 against 51-53 ns per column and pa
 L = 8).  The tile holds 23 values per layer for each of the BLOCK + 1 lanes, 215 KB at
 L = 128 (the 3 of the bounds touched only where a column is tested by them), the sweeps of
 the solve 5 per layer and lane, 41 KB, and the rows of :func:`load` and of the block's
-coefficients 9, 74 KB."""
+coefficients 8, 66 KB."""
 
 # The tile (SLOTS, 2 BLOCK + (BLOCK + 1) L) holds, in each slot (a row), one value per
 # column (lane) and layer, laid out as the mesh and the sweeps of :func:`_solve`: layer a
