@@ -154,7 +154,7 @@ def test_the_memory_estimate_is_that_of_the_model_and_bounds_its_peak(cli, write
 
 
 @pytest.mark.slow
-def test_the_memory_estimate_bounds_the_peak_of_a_run_within_twice_it():
+def test_the_memory_estimate_bounds_the_peak_of_a_run_within_three_times_it():
     """Three steps of a layer flowing on 2 x 10^5 columns of 10 layers, hydrostatic and
     non-hydrostatic on every layer: the estimate is above the peak resident memory of the
     process and below three times it (the benchmark's cases, benchmarks/memory_estimate.py)."""
