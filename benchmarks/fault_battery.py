@@ -3726,6 +3726,7 @@ def cases() -> list[Case]:
         + round_thirty_three()
         + round_thirty_four()
         + round_thirty_five()
+        + round_thirty_seven()
         + round_thirty_eight()
     )
 
@@ -5945,7 +5946,7 @@ def round_thirty_four() -> list[Case]:
              one_message=True),
         Case("ulimit -v 500 MB: plot", ["plot", "{dir}/out"], 2, address, prefix=limited(500), plain=True,
              setup=_finished_run, one_message=True),
-        Case("ulimit -v 1.2 GB: a mesh of 2e6 cells (14.7 GB) within the machine's memory", run, 2,
+        Case("ulimit -v 1.2 GB: a mesh of 2e6 cells (2.4 GB) within the machine's memory", run, 2,
              "more than the address space of this process (ulimit -v)", prefix=limited(1200), plain=True,
              setup=partial(_scenario, changes=mesh), one_message=True),
         Case("export: a MemoryError while writing a file", export, 2, "multilayer: error: out of memory",
@@ -6139,6 +6140,194 @@ def round_thirty_five() -> list[Case]:
         Case("control: a run under a third-party law on two threads after compile compiles nothing", run, 0,
              "",
              setup=partial(_scenario, changes={"numerics": {"threads": 2}}), patch=_NO_COMPILATION),
+    ]  # fmt: skip
+
+
+AFTER_THE_RUN = (
+    "import atexit, netCDF4\n"
+    "def _report():\n"
+    "    directory = sys.argv[sys.argv.index('-o') + 1]\n"
+    "    with netCDF4.Dataset(directory + '/result.nc') as ds:\n"
+    "        h, u = ds['h'][:].filled(np.nan), ds['u'][:].filled(np.nan)\n"
+    "{check}"
+    "atexit.register(_report)\n"
+)
+"""A report on stderr after the run of what its ``result.nc`` holds: ``{check}``, lines
+of ``_report`` given ``h`` (time, x) and ``u`` (time, layer, x)."""
+
+AT_REST = "    print(f'multilayer: max |u| over the run {float(np.abs(u).max())!r}', file=sys.stderr)\n"
+"""The largest speed of the run (0.0: every layer kept at rest to the bit)."""
+SYMMETRIC = (
+    "    gap = float(np.abs(h - h[:, ::-1]).max())\n"
+    "    near = gap <= 64 * 2.0**-52 * float(h.max())\n"
+    "    said = 'symmetric to round-off' if near else f'asymmetric by {gap!r} m'\n"
+    "    print(f'multilayer: h {said}', file=sys.stderr)\n"
+)
+"""``h`` mirrored about the centre of the domain at every output time, within 64 eps of its
+largest value (the sums of the two halves are taken in opposite orders)."""
+SAME_AS = (
+    "    with netCDF4.Dataset(directory + '/../{other}/result.nc') as ds:\n"
+    "        same = np.array_equal(h, ds['h'][:].filled(np.nan))\n"
+    "        same = same and np.array_equal(u, ds['u'][:].filled(np.nan))\n"
+    "    print(f'multilayer: records equal to those of {other} to the bit: {{same}}', file=sys.stderr)\n"
+)
+"""The records of the run compared bit for bit with those of ``{other}`` (a run of the same
+scenario in the case's directory)."""
+
+
+def _run_into(directory: Path, name: str, *options: str) -> None:
+    """``multilayer run`` of the case's scenario into ``directory/name``."""
+    command = [sys.executable, "-m", "multilayer", "run", str(directory / "scenario.yaml"), "-o"]
+    subprocess.run([*command, str(directory / name), "-q", *options], check=True, capture_output=True)
+
+
+def _one_thread(changes: dict) -> Callable[[Path], None]:
+    """The scenario ``changes`` run on one thread into ``one`` (the case runs it on two)."""
+
+    def setup(directory: Path) -> None:
+        _scenario(directory, {**changes, "numerics": {"threads": 1}})
+        _run_into(directory, "one")
+        _scenario(directory, {**changes, "numerics": {"threads": 2}})
+
+    return setup
+
+
+JOP37 = {"name": "jop_mu_i", "mu_s": 0.38, "mu_2": 0.64, "I_0": 0.28}
+HELD = {"name": "jop_mu_i", "mu_s": 0.5, "mu_2": 0.8, "I_0": 0.3}
+"""mu(I) whose static friction 0.5 holds a layer on 20 degrees (tan 20 deg = 0.36)."""
+LAYER = {"shape": "layer", "thickness": 0.01}
+INFLOW37 = {"thickness": 0.01, "velocity": {"profile": "plug", "speed": 0.5}}
+MIXTURE37: dict[str, Any] = {
+    "material": {"density": 1830.0, "grain_diameter": 225e-6, "particle_density": 2500.0},
+    "rheology": {"name": "dilatant_coulomb", "delta_deg": 22.5, "K1": 90.5},
+    "fluid": {"density": 1010.0, "viscosity": 0.0121},
+    "mixture": {"phi_critical": 0.582, "dilatancy": 4.09, "critical_shift": 25.0},
+}
+"""The loose submarine collapse of Rondon et al. (2011) (scenarios/submarine_collapse_loose.yaml)."""
+
+
+def round_thirty_seven() -> list[Case]:
+    """The cases of the thirty-seventh round (docs/reliability.md): valid runs at the
+    scales and in the set-ups where a run-time guard could stop them wrongly, or let a
+    wrong state through: a landslide 1e4 m thick on 1e5 m, a 1 mm column on 10^4 cells, a
+    film of 2e-6 m, densities of 1e2 and 1e4, 256 geometric layers; layers at rest below
+    their friction angle under each pressure model and the normal stress (u must stay 0.0
+    to the bit); runs of 3500 and 25 000 steps through open sides (the mass balance over
+    the run); a consolidating mixture; a symmetric collapse (h mirrored to round-off);
+    two threads against one (equal to the bit); a mesh of
+    10^6 columns of 10 layers that the memory estimate refused at 24.4 GB, needing 2 GB,
+    and 2 x 10^5 columns of 10 under 1 GB."""
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    held = {"slope_deg": 20.0, "rheology": HELD, "initial.0": LAYER, "time.end": 0.5}
+    held["time.output_interval"] = 0.25
+    collapse = {
+        "slope_deg": 0.0,
+        "domain": {"x_min": -0.5, "x_max": 0.5, "cells": 100, "layers": 3},
+        "rheology": JOP37,
+        "initial.0": {"shape": "rectangle", "x_min": -0.1, "x_max": 0.1, "height": 0.1},
+        "boundaries": {"left": "wall", "right": "wall"},
+    }
+    landslide = {
+        "domain": {"x_min": 0.0, "x_max": 1e5, "cells": 400, "layers": 3},
+        "material.grain_diameter": 0.1,
+        "initial.0": {"shape": "rectangle", "x_min": 0.0, "x_max": 2e4, "height": 1e4},
+        "time": {"end": 200.0, "output_interval": 50.0},
+    }
+    lab = {
+        "domain": {"x_min": 0.0, "x_max": 0.02, "cells": 10000, "layers": 2},
+        "material.grain_diameter": 1e-5,
+        "initial.0": {"shape": "rectangle", "x_min": 0.0, "x_max": 0.002, "height": 0.001},
+        "time": {"end": 0.02, "output_interval": 0.005},
+    }
+    drain = {
+        "slope_deg": 30.0,
+        "domain": {"x_min": 0.0, "x_max": 0.05, "cells": 5, "layers": 1},
+        "rheology": {"name": "drucker_prager", "mu_s": 0.0, "nu": 0.01},
+        "initial.0": LAYER,
+        "time": {"end": 2000.0, "output_interval": 500.0},
+        "numerics": {"dry_threshold": 1e-12, "front_threshold": 1e-9},
+    }
+    through = {
+        "slope_deg": 30.0,
+        "domain": {"x_min": 0.0, "x_max": 0.2, "cells": 20, "layers": 2},
+        "initial": [],
+        "boundaries": {"left": "inflow", "right": "outflow", "inflow": INFLOW37},
+        "time": {"end": 20.0, "output_interval": 5.0},
+    }
+    consolidating = {
+        **MIXTURE37,
+        "slope_deg": 0.0,
+        "domain": {"x_min": 0.0, "x_max": 0.3, "cells": 60, "layers": 1},
+        "fluid": {**MIXTURE37["fluid"], "compressibility": 1e-5},
+        "initial.0": {"shape": "rectangle", "x_min": 0.0, "x_max": 0.06, "height": 0.048, "phi": 0.55},
+        "boundaries": {"left": "wall", "right": "wall"},
+        "time": {"end": 5.0, "output_interval": 2.5},
+    }
+    mesh = {"slope_deg": 35.0, "initial.0": LAYER, "time.end": 2e-4, "time.output_interval": 1e-4}
+    million = {"domain": {"x_min": 0.0, "x_max": 500.0, "cells": 1_000_000, "layers": 10}}
+    fifth = {**mesh, "domain": {"x_min": 0.0, "x_max": 100.0, "cells": 200_000, "layers": 10}}
+    rest = "multilayer: max |u| over the run 0.0"
+    film = {"initial.0": {"shape": "layer", "thickness": 2e-6}}
+    film["numerics"] = {"dry_threshold": 1e-9, "front_threshold": 1e-7}
+    geometric = {"domain.layers": 256, "domain.layer_fractions": {"geometric": 1.05}}
+    geometric.update({"time.end": 0.05, "time.output_interval": 0.01})
+    equal = "records equal to those of {} to the bit: True"
+    models: dict[str, dict[str, Any]] = {
+        "hydrostatic": {},
+        "bim2016": {"model": {"pressure": "bim2016"}},
+        "non_hydrostatic": {"model": {"pressure": "non_hydrostatic"}},
+        "the normal stress": {"model": {"normal_stress": True}},
+    }
+    return [
+        Case("run: a landslide 1e4 m thick on a domain 1e5 m long", run, 0, "",
+             setup=partial(_scenario, changes=landslide)),
+        Case("run: a column 1 mm high on 10^4 cells of 2 um", run, 0, "",
+             setup=partial(_scenario, changes=lab)),
+        Case("run: a film of 2e-6 m above a dry threshold of 1e-9 m", run, 0, "",
+             setup=partial(_scenario, changes=film)),
+        *[
+            Case(f"run: a density of {density:g} kg/m3", run, 0, "",
+                 setup=partial(_scenario, changes={"material.density": density}))
+            for density in (1e2, 1e4)
+        ],
+        Case("run: 256 layers of geometric ratio 1.05", run, 0, "",
+             setup=partial(_scenario, changes=geometric)),
+        *[
+            Case(f"run: a layer held by its friction on 20 degrees, {name}, wall and outflow", run, 0, rest,
+                 patch=AFTER_THE_RUN.format(check=AT_REST),
+                 setup=partial(_scenario, changes={**held, **model}))
+            for name, model in models.items()
+        ],
+        Case("run: a layer held by its friction between periodic sides, non_hydrostatic", run, 0, rest,
+             patch=AFTER_THE_RUN.format(check=AT_REST),
+             setup=partial(_scenario, changes={**held, **models["non_hydrostatic"],
+                                               "boundaries": {"left": "periodic", "right": "periodic"}})),
+        Case("run: a layer draining through its outflow in 25 000 steps", run, 0, "",
+             setup=partial(_scenario, changes=drain)),
+        Case("run: an inflow through an empty chute to its outflow in 3500 steps", run, 0, "",
+             setup=partial(_scenario, changes=through)),
+        Case("run: a mixture of one relaxing layer consolidating for 5 s", run, 0, "",
+             setup=partial(_scenario, changes=consolidating)),
+        Case("run: a symmetric collapse between walls stays symmetric", run, 0, "h symmetric to round-off",
+             patch=AFTER_THE_RUN.format(check=SYMMETRIC), setup=partial(_scenario, changes=collapse)),
+        Case("run: a symmetric collapse under non_hydrostatic stays symmetric", run, 0,
+             "h symmetric to round-off",
+             patch=AFTER_THE_RUN.format(check=SYMMETRIC),
+             setup=partial(_scenario, changes={**collapse, **models["non_hydrostatic"]})),
+        Case("run: two threads against one, non_hydrostatic", run, 0, equal.format("one"),
+             patch=AFTER_THE_RUN.format(check=SAME_AS.format(other="one")),
+             setup=_one_thread({**collapse, **models["non_hydrostatic"]})),
+        Case("run: two threads against one, the normal stress", run, 0, equal.format("one"),
+             patch=AFTER_THE_RUN.format(check=SAME_AS.format(other="one")),
+             setup=_one_thread({**collapse, **models["the normal stress"]})),
+        Case("validate: 10^6 columns of 10 layers (a run needs 2 GB) under --max-memory 4G",
+             ["validate", "{scenario}", "--max-memory", "4G"], 0, "",
+             setup=partial(_scenario, changes={**mesh, **million})),
+        Case("run: 2 x 10^5 columns of 10 layers under --max-memory 1G", [*run, "--max-memory", "1G"], 0, "",
+             setup=partial(_scenario, changes=fifth)),
+        Case("control: 10^6 columns of 10 layers under --max-memory 2G",
+             ["validate", "{scenario}", "--max-memory", "2G"], 2, "need about 2.",
+             setup=partial(_scenario, changes={**mesh, **million}), one_message=True),
     ]  # fmt: skip
 
 
@@ -6405,6 +6594,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     33: round_thirty_three,
     34: round_thirty_four,
     35: round_thirty_five,
+    37: round_thirty_seven,
     38: round_thirty_eight,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""

@@ -479,7 +479,7 @@ def test_material_outside_the_domain_is_exit_2_naming_the_entry(tmp_path, cli):
 @pytest.mark.parametrize(
     ("override", "expected"),
     [
-        ("domain.cells=100000000", "x 3 layers need about 727 GB of memory, more than --max-memory (8 GB)"),
+        ("domain.cells=100000000", "x 3 layers need about 110 GB of memory, more than --max-memory (8 GB)"),
         # the messages of the exact column solve, 128 L^2 bytes per thread: 1.28e12 bytes each
         ("domain.layers=100000", " TB of memory, more than --max-memory (8 GB)"),
         ("time.output_interval=1e-6", "output times of 40 cells x 3 layers make a result file of about"),

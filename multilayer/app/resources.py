@@ -1,12 +1,20 @@
 """Memory and output-size estimates of a scenario, checked against a budget before a run.
 
-The engine holds the FiPy mesh of ``cells x layers`` cells (faces, vertices, geometry) and
-the state with its work arrays.  Measured with ``benchmarks/dam_break.py`` scenarios of
-64 000 to 800 000 cells, every column wet (peak resident memory): 2.1-2.4 kB per cell on
-top of about 150 MB for the interpreter and libraries; the estimate uses 2.6 kB and
-200 MB.  ``result.nc`` receives one record per output time (``ceil(end /
-output_interval)`` of them plus the initial state), each of ``(layers + 2) cells + 3``
-doubles (``u``, ``h``, the static interface; time, front, mass).
+The engine holds the state and its work arrays: some per column, some per cell of the
+``cells x layers`` mesh, more of them with each pressure model, the normal stress and a
+grain-fluid mixture.  Measured (peak resident memory on top of about 150 MB for the
+interpreter and libraries) over three steps of a layer flowing on every column, on two
+threads, from 10^5 to 10^6 columns of 1 to 400 layers: 130-160 bytes per cell and about 160
+per column with the hydrostatic pressure, 250-280 per cell with ``bim2016``, 490-880 per cell
+and about 200 per column with ``non_hydrostatic`` (more with more ``pressure_layers``), 590-700
+per cell more with the normal stress, 1.4-1.45 kB per cell in all with a mixture (one and ten
+layers), and ``run`` about 45 bytes per cell more (its records).  The estimate takes the
+largest of each, raised by a quarter or more (:data:`BYTES_PER_CELL`,
+:data:`BYTES_PER_COLUMN`, :data:`NORMAL_STRESS_BYTES`, :data:`MIXTURE_BYTES`, 200 MB): a
+bound of the peak, not a multiple of it, so that a run that fits is not refused
+(``benchmarks/memory_estimate.py`` measures it).  ``result.nc`` receives one record per
+output time (``ceil(end / output_interval)`` of them plus the initial state), each of
+``(layers + 2) cells + 3`` doubles (``u``, ``h``, the static interface; time, front, mass).
 
 The exact vertical step keeps, per thread, the piecewise-linear messages of every layer
 of a column (``engine.vertical.problem.workspace_bytes``): quadratic in the layers, 51 GB at 20 000
@@ -44,7 +52,14 @@ from multilayer.errors import InputError, shown
 from multilayer.io import disk
 from multilayer.io.netcdf_layout import HEADER_SPACE
 
-BYTES_PER_CELL = 2600
+BYTES_PER_CELL = {"hydrostatic": 260, "bim2016": 410, "non_hydrostatic": 1160}
+"""Bytes per cell (a column's layer) of each pressure model (module docstring)."""
+BYTES_PER_COLUMN = {"hydrostatic": 400, "bim2016": 400, "non_hydrostatic": 700}
+"""Bytes per column of each pressure model (module docstring)."""
+NORMAL_STRESS_BYTES = (400, 900)
+"""Bytes per column and per cell added by ``model.normal_stress``."""
+MIXTURE_BYTES = (400, 1600)
+"""Bytes per column and per cell added by a grain-fluid mixture."""
 BASE_BYTES = 200 * 2**20
 _UNITS = {"": 1, "k": 2**10, "m": 2**20, "g": 2**30, "t": 2**40}
 
@@ -95,8 +110,20 @@ def estimate(scenario: Any) -> Estimate:
     fixed = 8.0 * (5.0 * cells + 4.0 * layers) + scenario.text_size() + 16384 + HEADER_SPACE
     threads = scenario.numerics.threads
     workspaces = min(cells, threads if isinstance(threads, int) else float(os.cpu_count() or 1))
-    memory = BASE_BYTES + BYTES_PER_CELL * cells * layers + workspaces * workspace_bytes(int(layers))
+    memory = BASE_BYTES + state_bytes(scenario) + workspaces * workspace_bytes(int(layers))
     return Estimate(memory, fixed + records * per_record, records)
+
+
+def state_bytes(scenario: Any) -> float:
+    """The bytes of the state and work arrays of ``scenario``'s mesh (module docstring)."""
+    cells, layers = float(scenario.domain.cells), float(scenario.domain.layers)
+    pressure = scenario.model.pressure
+    column, cell = BYTES_PER_COLUMN[pressure], BYTES_PER_CELL[pressure]
+    parts = ((NORMAL_STRESS_BYTES, scenario.model.normal_stress), (MIXTURE_BYTES, scenario.fluid))
+    for added, present in parts:
+        if present:
+            column, cell = column + added[0], cell + added[1]
+    return cells * (column + cell * layers)
 
 
 def output_records(scenario: Any) -> float:
