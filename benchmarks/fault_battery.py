@@ -6605,7 +6605,10 @@ def main() -> None:
     parser.add_argument("-k", default="", help="only the cases whose name contains this")
     parser.add_argument("-j", type=int, default=2, help="cases run at once")
     parser.add_argument(
-        "--round", type=int, choices=sorted(ROUNDS), help="only the cases of this round (2 to 38; all: none)"
+        "--round",
+        type=int,
+        choices=sorted(ROUNDS),
+        help="only the cases of this round (2 to 35, 37, 38; all: none)",
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()
