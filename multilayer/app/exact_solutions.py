@@ -19,16 +19,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
-import xarray as xr
 
 from multilayer.app import factory
 from multilayer.errors import InputError
-from multilayer.reference import exact, similarity
+from multilayer.reference import exact
 from multilayer.scenario import Scenario
 from multilayer.scenario.schema import ExactComparison
+
+if TYPE_CHECKING:  # `validate` and `check` read scenarios without xarray's import
+    import xarray as xr
 
 
 class ExactSolution(Protocol):
@@ -239,6 +241,8 @@ class GranularBlasius:
             "a no-slip base with a free-slip zone up to x_max, the leading edge",
         )
         assert smooth.x_max is not None
+        from multilayer.reference import similarity  # SciPy's integrators: this solution's only
+
         self.start, self.depth, self.alpha = smooth.x_max, inflow.thickness, p["alpha"]
         eps = similarity.boundary_layer_scale(
             self.alpha,
@@ -321,6 +325,8 @@ def error(ds: xr.Dataset, sc: Scenario, comparison: ExactComparison, where: str 
     if comparison.field == "h":
         values, weights = h, np.ones_like(h)
     elif comparison.field == "displacement_thickness":
+        from multilayer.reference import similarity
+
         values = similarity.displacement_thickness(final["u"].values, fractions[:, None] * h[None, :])
         weights = np.ones_like(h)
     else:
