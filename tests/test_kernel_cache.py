@@ -288,12 +288,49 @@ def test_a_damaged_cache_entry_is_compiled_again_with_one_warning(tmp_path, monk
         "@jit\ndef thrice(x):\n    return 3.0 * x\n"
     )
     monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.setattr(compiled, "_damaged", set())
+    monkeypatch.setattr(compiled, "_warned", set())
     module = importlib.import_module("damaged_kernels")
     try:
         _compiled_again(tmp_path, module, files)
     finally:
         del sys.modules["damaged_kernels"]
+
+
+def test_a_kernel_that_cannot_be_saved_runs_uncached_and_keeps_the_cached_ones(tmp_path, monkeypatch):
+    """A save that fails for want of disk space was taken for a damaged index: the index was
+    deleted, and with it every kernel of the module cached before.  Now the new kernel runs
+    uncached with one warning naming the directory and the error, and the kernel cached
+    before is loaded by the next import."""
+    import errno
+
+    from numba.core.caching import IndexDataCacheFile
+
+    from multilayer.engine import compiled
+
+    (tmp_path / "full_disk_kernels.py").write_text(
+        "from multilayer.engine.compiled import jit\n\n\n@jit\ndef twice(x):\n    return 2.0 * x\n\n\n"
+        "@jit\ndef thrice(x):\n    return 3.0 * x\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(compiled, "_warned", set())
+    module = importlib.import_module("full_disk_kernels")
+    try:
+        assert module.twice(1.5) == 3.0  # compiled and cached
+
+        def full(*args):
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+        with monkeypatch.context() as patch:
+            patch.setattr(IndexDataCacheFile, "save", full)
+            with pytest.warns(
+                UserWarning, match=r"numba's cache in .* cannot be written \(OSError: .*No space"
+            ):
+                assert module.thrice(1.5) == 4.5
+        module = importlib.reload(module)
+        assert module.twice(2.0) == 4.0
+        assert sum(module.twice.stats.cache_hits.values()) == 1  # loaded, not compiled again
+    finally:
+        del sys.modules["full_disk_kernels"]
 
 
 def _compiled_again(tmp_path, module, files) -> None:

@@ -30,7 +30,10 @@ class _CheckedCache(FunctionCache):
     the kernels of the sources this process compiles (:func:`kernel_cache.current`).  An
     entry that cannot be read (a truncated or damaged file: numba raised the unpickling
     error) is a miss: the kernel is compiled again and the entry rewritten (a damaged index
-    anew), with a warning."""
+    anew), with a warning.  A kernel that cannot be saved (the disk full, the directory made
+    read-only since it was chosen) runs uncached, with a warning, and the entries already
+    cached are kept (the index was deleted as if damaged: every kernel of the module was
+    compiled again by the next run)."""
 
     def __init__(self, py_func: Callable) -> None:
         super().__init__(py_func)
@@ -50,7 +53,9 @@ class _CheckedCache(FunctionCache):
             try:
                 return super().load_overload(sig, target_context)
             except Exception as exc:  # pickle, zlib, EOF, attribute errors of a damaged entry
-                _warn_damaged(self._cache_path, f"{self._py_func.__qualname__}: {type(exc).__name__}: {exc}")
+                _warn_cache(
+                    self._cache_path, "damaged", f"{self._py_func.__qualname__}: {type(exc).__name__}: {exc}"
+                )
                 return None
 
     def save_overload(self, sig: Any, data: Any) -> None:
@@ -59,8 +64,12 @@ class _CheckedCache(FunctionCache):
                 return
             try:
                 super().save_overload(sig, data)
+            except OSError as exc:  # a full disk, a directory made read-only: the cache is left as it is
+                _warn_cache(self._cache_path, "unsaved", f"{type(exc).__name__}: {exc}")
             except Exception as exc:  # its index cannot be read: written anew, without the old entries
-                _warn_damaged(self._cache_path, f"{self._py_func.__qualname__}: {type(exc).__name__}: {exc}")
+                _warn_cache(
+                    self._cache_path, "damaged", f"{self._py_func.__qualname__}: {type(exc).__name__}: {exc}"
+                )
                 with contextlib.suppress(Exception):  # the kernel is compiled: it runs uncached otherwise
                     Path(self._cache_file._index_path).unlink(missing_ok=True)
                     super().save_overload(sig, data)
@@ -79,20 +88,23 @@ def _checked(dispatcher: Any) -> Any:
     return dispatcher
 
 
-_damaged: set[str] = set()
-"""The cache directories :func:`_warn_damaged` has warned about."""
+_warned: set[tuple[str, str]] = set()
+"""The (cache directory, fault) pairs :func:`_warn_cache` has warned about."""
+
+_FAULTS = {
+    "damaged": "holds kernels that cannot be read (the first: {}); they are compiled again",
+    "unsaved": "cannot be written ({}): the kernels compiled now are not cached, and the next run "
+    "compiles them again",
+}
+"""What :func:`_warn_cache` says of each fault of a cache directory."""
 
 
-def _warn_damaged(directory: str, first: str) -> None:
-    """Say once per cache directory that entries of it cannot be read."""
-    if directory in _damaged:
+def _warn_cache(directory: str, fault: str, detail: str) -> None:
+    """Say once per cache directory and ``fault`` (a key of :data:`_FAULTS`) what is wrong."""
+    if (directory, fault) in _warned:
         return
-    _damaged.add(directory)
-    warnings.warn(
-        f"numba's cache in {directory} holds kernels that cannot be read (the first: {first}); "
-        "they are compiled again",
-        stacklevel=3,
-    )
+    _warned.add((directory, fault))
+    warnings.warn(f"numba's cache in {directory} " + _FAULTS[fault].format(detail), stacklevel=3)
 
 
 @functools.cache

@@ -301,5 +301,5 @@ class MixtureFlow:
             self._before.sum(axis=0), columns, np.zeros((1, columns.size)), t, dt, self._crossed
         )
         exchange = (float(h.sum()) - float(self._transported.sum()) + float(self.drawn.sum())) * self.dx
-        guard.net_inflow += exchange
+        guard.add_inflow(exchange)
         self.ambient_exchange += exchange
