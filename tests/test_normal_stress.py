@@ -274,14 +274,23 @@ def test_the_step_dissipates_conserves_momentum_and_solves_the_plastic_law(seed,
 @pytest.mark.parametrize("seed", range(5))
 def test_the_compiled_step_is_the_reference_step(seed, wide, sensitive):
     """The compiled kernel (normal_stress_kernel.chain_step, its own Thomas solve of the Newton
-    steps) gives the numpy reference's velocities to 1e-12 m/s and impulses to 1e-12 of A_f on
-    the random problems above (dry gaps, half the faces plastic, up to 8 decades), both solved
-    to 1e-14 m/s: the two are the same algorithm, their sums taken in different orders."""
+    steps) gives the numpy reference's velocities to 1e-12 m/s, or to the round-off floor of a
+    velocity below which both iterations stop (ROUNDING eps (sum |Z| / M + |u*|) on its cell: a
+    light cell between heavily loaded faces), and impulses to 1e-12 of A_f on the random
+    problems above (dry gaps, half the faces plastic, up to 8 decades), both solved to 1e-14
+    m/s: the two are the same algorithm, their sums taken in different orders, and numba
+    compiles for the host's processor, which rounds them its own way (on an AMD EPYC the two
+    differed by 1.1e-12 m/s on a cell whose floor is 4.8e-10 m/s, at most 6 % of the floor
+    on every cell of these problems)."""
     ustar, mass, faces, a, b = random_problem(seed, wide=wide)
     e = np.random.default_rng(seed + 100).uniform(-0.8, 0.8, a.size) if sensitive else 0.0
     expected = plastic_chain_step(ustar, mass, faces, a, b, e, tolerance=1e-14, max_iterations=200)
     u, z = compiled_chain_step(ustar, mass, faces, a, b, e, tolerance=1e-14, max_iterations=200)
-    np.testing.assert_allclose(u, expected[0], rtol=0, atol=1e-12)
+    held = np.zeros(ustar.size)
+    np.add.at(held, faces.left, np.abs(expected[1]))
+    np.add.at(held, faces.right, np.abs(expected[1]))
+    floor = ROUNDING * np.finfo(float).eps * (held / mass + np.abs(ustar))
+    assert np.all(np.abs(u - expected[0]) <= np.maximum(1e-12, floor))
     assert np.all(np.abs(z - expected[1]) <= 1e-12 * a)
 
 
