@@ -3728,6 +3728,7 @@ def cases() -> list[Case]:
         + round_thirty_five()
         + round_thirty_seven()
         + round_thirty_eight()
+        + round_thirty_nine()
     )
 
 
@@ -6324,6 +6325,82 @@ def round_thirty_seven() -> list[Case]:
     ]  # fmt: skip
 
 
+SOLID_KEPT = (
+    "    with netCDF4.Dataset(directory + '/result.nc') as ds:\n"
+    "        phi = ds['phi'][:].filled(np.nan)\n"
+    "    solid = np.nansum(phi * h, axis=1)\n"
+    "    drift = float(np.abs(solid / solid[0] - 1.0).max())\n"
+    "    bounded = bool(np.all(h >= 0.0) and np.all((phi >= 0.0) & (phi < 1.0)))\n"
+    "    said = 'to round-off' if drift <= 1e-12 else f'to {drift!r}'\n"
+    "    print(f'multilayer: solid kept {said}; h >= 0 and phi in [0, 1): {bounded}', file=sys.stderr)\n"
+)
+"""The solid volume ``sum phi h`` of every output time against the first's, within 1e-12
+(no flux through walls or between periodic sides: it is kept to round-off), and ``h >= 0``
+with every packing in ``[0, 1)``; the fluid's balance with the ambient fluid is the state
+guard's, checked at every step of a run that completes."""
+
+
+def _mixture39(height: float, grain: float, slope: float, end: float, **more: Any) -> dict[str, Any]:
+    """The loose collapse of :data:`MIXTURE37` scaled to a column ``height`` high and 1.25
+    ``height`` long, of grains of diameter ``grain``, on ``slope`` degrees, between walls
+    5 column lengths apart, 30 cells, run to ``end``; ``more``: other keys."""
+    column = {"shape": "rectangle", "x_min": 0.0, "x_max": 1.25 * height, "height": height, "phi": 0.55}
+    return {
+        **MIXTURE37,
+        "material": {**MIXTURE37["material"], "grain_diameter": grain},
+        "slope_deg": slope,
+        "domain": {"x_min": 0.0, "x_max": 6.25 * height, "cells": 30, "layers": 1},
+        "initial.0": column,
+        "boundaries": {"left": "wall", "right": "wall"},
+        "time": {"end": end, "output_interval": end / 4.0},
+        **more,
+    }
+
+
+def round_thirty_nine() -> list[Case]:
+    """The cases of the thirty-ninth round (docs/reliability.md): valid grain-fluid mixture
+    runs that must complete, from a column 1 mm high to one 100 m high, grains of 0.1 mm to
+    5 cm, fluids of 1e-3 to 1 Pa s, slopes of 0 to 30 degrees, loose and dense packings,
+    three layers, a thin film between periodic sides and a run of 60 s.  At the thin front
+    of a large column a step's dilation rate ``Phi`` reaches ``dt Phi > 1`` at a trial of the
+    local step's Newton iteration (2.9 at the first trial of the fifth step of the column
+    10 m high): its update of the thickness, ``h* / (1 - dt Phi)``, was not a thickness, and
+    the run stopped ("the mixture's local step diverged", or did not converge, in up to 256
+    sub-steps).  Each must exit 0 with its solid kept to round-off and its packings in
+    ``[0, 1)``."""
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    kept = "solid kept to round-off; h >= 0 and phi in [0, 1): True"
+    film = _mixture39(1.0, 1e-4, 30.0, 15.0, boundaries={"left": "periodic", "right": "periodic"})
+    film.update({"initial.0": {"shape": "layer", "thickness": 1e-4, "phi": 0.55}})
+    film["domain"] = {"x_min": 0.0, "x_max": 0.1, "cells": 30, "layers": 1}
+    completes: dict[str, dict[str, Any]] = {  # valid mixture runs that must complete
+        "a loose column 10 m high of 1 cm grains on 10 degrees": _mixture39(10.0, 1e-2, 10.0, 5.0),
+        "a loose column 1 mm high of 0.1 mm grains on 30 degrees": _mixture39(1e-3, 1e-4, 30.0, 0.2),
+        "a loose column 100 m high of 5 cm grains on 30 degrees": _mixture39(100.0, 5e-2, 30.0, 20.0),
+        "a loose column 10 m high of 0.1 mm grains in a fluid of 1e-3 Pa s": _mixture39(
+            10.0, 1e-4, 10.0, 5.0, fluid={"density": 1000.0, "viscosity": 1e-3}
+        ),
+        "a loose column 10 m high of 1 cm grains in a fluid of 1 Pa s": _mixture39(
+            10.0, 1e-2, 10.0, 5.0, fluid={"density": 1010.0, "viscosity": 1.0}
+        ),
+        "a dense column (0.60) 10 m high of 1 cm grains on 30 degrees": {
+            **_mixture39(10.0, 1e-2, 30.0, 5.0),
+            "initial.0.phi": 0.6,
+        },
+        "a loose column of Rondon et al. (2011) in three layers on 10 degrees": {
+            **_mixture39(0.048, 225e-6, 10.0, 1.0),
+            "domain.layers": 3,
+        },
+        "a loose film 0.1 mm thick of 0.1 mm grains on 30 degrees between periodic sides": film,
+        "a loose column 10 m high of 1 cm grains on 0 degrees for 60 s": _mixture39(10.0, 1e-2, 0.0, 60.0),
+    }
+    return [
+        Case(f"run: {what}", run, 0, kept, patch=AFTER_THE_RUN.format(check=SOLID_KEPT),
+             setup=partial(_scenario, changes=changes))
+        for what, changes in completes.items()
+    ]  # fmt: skip
+
+
 def _engine_directory() -> Path:
     """The installed engine's directory (the kernel modules numba caches beside)."""
     import importlib.util
@@ -6589,6 +6666,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     35: round_thirty_five,
     37: round_thirty_seven,
     38: round_thirty_eight,
+    39: round_thirty_nine,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""
 
@@ -6601,7 +6679,7 @@ def main() -> None:
         "--round",
         type=int,
         choices=sorted(ROUNDS),
-        help="only the cases of this round (2 to 35, 37, 38; all: none)",
+        help="only the cases of this round (2 to 35, 37 to 39; all: none)",
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()

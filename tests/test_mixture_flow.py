@@ -413,15 +413,18 @@ def test_a_local_step_that_diverges_stops_without_blaming_the_rheology():
         local(sim.mixture.solid, sim.h, sim.u, 1e-3, pressure_guess=guess, x=sim.x)
 
 
-def test_a_local_step_that_diverges_on_a_huge_closure_constant_names_the_constants(
+@pytest.mark.slow
+def test_a_local_step_that_fails_on_a_huge_closure_constant_names_the_constants(
     tmp_path, cli, write_scenario
 ):
     """``mixture.critical_shift: 1e100`` in three layers of Drucker-Prager (within the
-    validation's bound of the closure): the Newton iteration overflows at the first step;
-    the run stops, exit 1, naming the closure's keys with their values, the initial state
-    kept."""
+    validation's bound of the closure): the Newton iteration does not converge at the first
+    step, in any number of sub-steps (here allowed 10 iterations: with the default 200 it
+    creeps for up to 201 in each of 9 numbers of sub-steps, 49 s on a busy machine); the run
+    stops, exit 1, naming the closure's keys with their values, the initial state kept."""
     data = {
         **TINY_SCENARIO,
+        "numerics": {"max_iterations": 10},
         "material": {"density": 1500.0, "grain_diameter": 1e-3, "particle_density": 2500.0},
         "fluid": {"density": 1000.0, "viscosity": 1e-3},
         "mixture": {"phi_critical": 0.58, "dilatancy": 4.0, "critical_shift": 1e100},
@@ -758,10 +761,10 @@ def test_one_layer_runs_are_the_one_layer_step_bit_for_bit():
     sums, bit for bit) of the one-layer step without the exchange between layers, which one
     layer does not have (``LocalStep``, Notes): the pins are that step's output."""
     pins = {
-        0.56: ("0x1.4f59cf077ec6dp-3", "0x1.eb88cd029f120p-5", "0x1.d98c0e7ffa590p-8",
-               "0x1.13404ea4a8c14p-5", "0x1.235b0cbc4c560p+2"),
-        0.6: ("0x1.4907414893009p-3", "0x1.eb883c858bd81p-5", "0x1.4cc7de1f0b2fdp-15",
-              "0x1.26e978d4fdf3ap-5", "-0x1.5fc8837b7138cp+5"),
+        0.56: ("0x1.4f59cf077ec6dp-3", "0x1.eb88cd029f11fp-5", "0x1.d98c0e7ffa537p-8",
+               "0x1.13404ea4a8c15p-5", "0x1.235b0cbc4be04p+2"),
+        0.6: ("0x1.4907414893009p-3", "0x1.eb883c858bd81p-5", "0x1.4cc7de1f0b7bdp-15",
+              "0x1.26e978d4fdf3ap-5", "-0x1.5fc8837b7199dp+5"),
     }  # fmt: skip
     for phi, pinned in pins.items():
         sim = mixture_run(
@@ -793,7 +796,9 @@ def test_uniform_layers_sliding_as_a_plug_are_the_one_layer_run():
         dt = one.step()
         assert three.step() == pytest.approx(dt, rel=1e-14)
         # the solid of each layer: the local step keeps it, the uniform transport moves none
-        np.testing.assert_allclose(three.mixture.solid, solid0, rtol=1e-15, atol=0.0)
+        # (the local step bit for bit; the transport to the round-off of its face volumes,
+        # recovered from the change of h: measured up to 7.5 eps)
+        np.testing.assert_allclose(three.mixture.solid, solid0, rtol=16 * np.finfo(float).eps, atol=0.0)
         np.testing.assert_allclose(three.u, np.broadcast_to(one.u, three.u.shape), rtol=1e-12, atol=0.0)
         np.testing.assert_allclose(three.h, one.h, rtol=1e-12)
         phi = three.mixture.phi_layers(three.h)

@@ -24,14 +24,14 @@ is the uniform layer's ``p_e = -beta h^2 Phi / (2 (1 - phi)^2)``.  Every layer's
 sets the pore pressure of every interface at or below it: at given velocities the effective
 pressures solve one coupled system per column (:meth:`LocalStep.closure`).
 
-The step, backward Euler: the thickness ``h' = h* / (1 - dt sum_a l_a Phi_a)`` (the fluid
-drawn from or expelled to the ambient fluid), and the velocities the exact minimiser of the
+The step, backward Euler: the thickness ``h' - h* = dt h' sum_a l_a Phi_a`` (the fluid drawn
+from or expelled to the ambient fluid), and the velocities the exact minimiser of the
 column problem (``engine/vertical``) with masses ``rho_s s_a + rho_f (fluid before + fluid
 after) / 2`` (the fluid joins at rest: the exchange term of the uniform layer's energy
 identity), the yield stress and viscosity of the rheology at the effective pressure.  The
-pore pressures and the thickness of the whole column are the unknowns of a Newton iteration
-with the exact column solve inside; at rest ``gamma = 0``, so ``Phi = 0``, ``p_e = 0`` and
-``h' = h*`` bit for bit: a column held by friction stays at ``v == 0.0``.  In several layers
+pore pressures and ``z = h* / h'`` (Notes) of the whole column are the unknowns of a Newton
+iteration with the exact column solve inside; at rest ``gamma = 0``, so ``Phi = 0``, ``p_e =
+0``, ``z = 1``, ``h' = h*`` bit for bit: a column held by friction stays at ``v == 0.0``.  In layers
 the converged step then moves solid between the layers of each column (and the same volume
 of fluid the other way, each carrying its layer's momentum) so that the dilation of each
 interface lifts the grains above it, as in the model (:mod:`~multilayer.engine.mixture.exchange`).
@@ -43,29 +43,27 @@ Continuation in ``dt``: a column whose Newton iteration does not converge (it st
 wanders, or runs out of ``numerics.max_iterations``) or diverges is done again as
 ``k = 2, 4, ...,`` :data:`MAX_SUBSTEPS` successive backward-Euler steps of ``dt / k`` of the
 same local relaxation, each solved by the same iteration from the state the one before
-reached.  A thin fast front at a low effective pressure dilates within one step far past
-the packing where its friction vanishes (``K2 eta_f gamma / p_s`` large): the root of the
-step is far from its start, beyond a kink of the map; over a shorter step it is near.  The
-composition of the sub-steps is a backward Euler of ``k`` steps, first order in ``dt / k``
-(tests/test_mixture_continuation.py); the columns that converge in one step are never
-sub-stepped, so their answer is unchanged bit for bit.
+reached (over a shorter step the root is nearer its start): a backward Euler of ``k`` steps,
+first order in ``dt / k`` (tests/test_mixture_continuation.py); the columns that converge in
+one step are never sub-stepped, so their answer is unchanged bit for bit.
 
 Notes
 -----
+The ratio ``z = h* / h'``.  ``h* / (1 - dt sum_a l_a Phi_a)`` is no thickness where ``dt
+sum_a l_a Phi_a >= 1``, as at a thin front sheared fast at a low effective pressure (2.9 at
+the front of a loose column 10 m high of 1 cm grains: the run stopped).  ``z = 1 - dt sum_a
+l_a Phi_a(h* / z)`` is finite at every trial with pores (outside, an infinite residual: the
+line search halves the update), the same root; ``Phi ~ gamma^2 ~ z^2``, no pole in ``z``.
+
 A wandering iteration.  Every Newton update the line search takes lowers the column's
 residual norm (it accepts a trial only where the norm falls); the norm rises only where the
 line search finds no descent and the pore pressures are bracketed
 (:meth:`LocalStep._bisect`). A column whose least norm has not fallen for :data:`WINDOW`
 iterations has been sent back above it by the bracketing, and Newton's descent from there
 has not come below it again: the iteration cycles between the two without repeating bit for
-bit (a stall), and runs out of ``numerics.max_iterations`` (all 200 at the front of the
-loose column of millimetre beads in water at 0 degrees).  It goes to the sub-steps at once,
-as a stalled one does.  A column that creeps (its norm falls by less than 1 % an iteration,
-for up to 21 iterations in scenarios/submarine_collapse_loose.yaml) until the bracketing
-lands on its root makes a new least norm every iteration and is left alone: in the 47 976
-local steps of a column that converged in the shipped mixture scenarios to 2 s and in that
-loose column at 0 to 25 degrees, in one and three layers and on 20 and 40 cells
-(tests/test_mixture_continuation.py), the least norm fell at every iteration.
+bit, and would run out of ``numerics.max_iterations``.  It goes to the sub-steps at once, as
+a stalled one does.  A column that creeps until the bracketing lands on its root makes a
+new least norm every iteration and is left alone.
 
 Conservation holds in sub-steps as in one step: the local step changes the solid of a
 layer only by the exchange between the layers of its column, whose fluxes cross interior
@@ -415,19 +413,21 @@ class LocalStep:
             )
         if diverged and closure_error is not None:
             return RunError(f"{closure_error} {place}")
-        if diverged:  # the Newton steps scale with the closure's coefficients: name them as given
-            cfg = self.config
+        cfg = self.config  # the Newton steps scale with the closure's coefficients: name them as given
+        coefficients = (
+            "its Newton steps scale with the closure's coefficients: the Darcy drag kozeny eta_f phi^2 / "
+            f"(d^2 (1 - phi)) of fluid.viscosity = {cfg.fluid_viscosity:g}, material.grain_diameter = "
+            f"{self.material.grain_diameter:g} and mixture.kozeny = {cfg.kozeny:g}, and "
+            f"mixture.dilatancy = {cfg.dilatancy:g} and mixture.critical_shift = {cfg.critical_shift:g}"
+        )
+        if diverged:
             return RunError(
-                "the mixture's local step diverged: a trial excess pore pressure is not finite (its Newton "
-                "steps scale with the closure's coefficients: the Darcy drag kozeny eta_f phi^2 / (d^2 (1 - "
-                f"phi)) of fluid.viscosity = {cfg.fluid_viscosity:g}, material.grain_diameter = "
-                f"{self.material.grain_diameter:g} and mixture.kozeny = {cfg.kozeny:g}, and "
-                f"mixture.dilatancy = {cfg.dilatancy:g} and mixture.critical_shift = {cfg.critical_shift:g}) "
-                f"{place}"
+                "the mixture's local step diverged: a trial excess pore pressure is not finite "
+                f"({coefficients}) {place}"
             )
         return RunError(
-            "the mixture's local step did not converge: its Newton iteration stalled, wandered or ran out of "
-            f"numerics.max_iterations = {self.max_iterations} {place}"
+            f"the mixture's local step did not converge ({coefficients}): its Newton iteration stalled, "
+            f"wandered or ran out of numerics.max_iterations = {self.max_iterations} {place}"
         )
 
     def _newton(
@@ -453,10 +453,11 @@ class LocalStep:
         started, bit for bit (the iteration would repeat itself), or whose least residual
         norm has not fallen for :data:`WINDOW` iterations (it wanders; module notes).
 
-        A Newton iteration on the unknowns of the whole column at once, ``X = (p_e, h)``
-        (its ``L`` excess pore pressures and its thickness): at trial values the rheology
-        at the effective pressures gives the velocities by the exact column solve, the
-        closure gives the pore pressures and the thickness these velocities create
+        A Newton iteration on the unknowns of the whole column at once, ``X = (p_e, z)``
+        (its ``L`` excess pore pressures and the ratio ``z = h* / h'`` of its thickness:
+        module notes): at trial values the rheology at the effective pressures at ``h* /
+        z`` gives the velocities by the exact column solve, the closure gives the pore
+        pressures and the ratio ``1 - dt sum_a l_a Phi_a`` these velocities create
         (:meth:`closure`), and the Jacobian of the difference ``R(X)`` (by finite
         differences, one column solve per unknown; the columns are independent) gives the
         next trial, with a backtracking line search per column.  Where the line search
@@ -476,7 +477,9 @@ class LocalStep:
         m_before = self.masses(solid, h_star)
         momentum = m_before * ustar
         weight = self.buoyant_g_n * np.cumsum(solid[::-1], axis=0)[::-1]
-        scale = np.concatenate([np.maximum(weight, np.finfo(float).tiny), h_star[None, :]])
+        scale = np.concatenate([np.maximum(weight, np.finfo(float).tiny), np.ones((1, n))])
+        filled = np.max(solid / self.l, axis=0)  # the thickness at which a layer's packing is 1: z's bound
+        pores = np.divide(h_star, filled, out=np.full(n, np.inf), where=filled > 0.0)
         velocities = guess
         gamma = np.zeros_like(ustar)
         diverged, stalled, wandering = (np.zeros(n, dtype=bool) for _ in range(3))
@@ -489,18 +492,20 @@ class LocalStep:
             return call(self.law, method, args, inputs=inputs, x=where[k], position=INTERFACE, t=t)
 
         def evaluate(X: np.ndarray, k: np.ndarray) -> Evaluation:
-            """At the trial ``X = (p_e, h)`` (L + 1, len(k)) of the columns ``k``; a column
+            """At the trial ``X = (p_e, z)`` (L + 1, len(k)) of the columns ``k``; a column
             whose trial pore pressures are not finite is marked diverged, its residual
-            infinite, and not evaluated (the rheology is never handed them); where the
+            infinite, and not evaluated (the rheology is never handed them), as is, unmarked,
+            one whose ratio no thickness with pores has; where the
             closure fails, the columns are evaluated one by one and those whose closure
             fails are marked diverged."""
             burst = ~np.isfinite(X[:L]).all(axis=0)
-            if burst.any():
+            outside = ~((X[L] > 0.0) & (X[L] < pores[k]))  # a ratio no thickness with pores has
+            if burst.any() or outside.any():
                 diverged[k[burst]] = True
-                fine = np.flatnonzero(~burst)
+                fine = np.flatnonzero(~burst & ~outside)
                 blank = Evaluation.diverged(X)
                 return blank.merge(fine, evaluate(X[:, fine], k[fine])) if fine.size else blank
-            p, h = X[:L], X[L]
+            p, h = X[:L], h_star[k] / X[L]
             s = solid[:, k]
             p_s = weight[:, k] - p
             state = self._state(s, h, p)
@@ -526,7 +531,7 @@ class LocalStep:
             dilation = -pressure / self.darcy(s, h)[0] if drains else dilation  # the Darcy outflow (Notes)
             growth = 1.0 - dt * np.sum(self.l * dilation, axis=0)
             h_new = np.where(growth > 0.0, h_star[k] / np.where(growth > 0.0, growth, 1.0), np.inf)
-            residual = (X - np.concatenate([pressure, h_new[None, :]])) / scale[:, k]
+            residual = (X - np.concatenate([pressure, growth[None, :]])) / scale[:, k]
             residual = np.where(np.isfinite(residual), residual, np.inf)
             return Evaluation(v, rates, pressure, h_new, dilation, residual, np.abs(residual).max(axis=0))
 
@@ -535,7 +540,7 @@ class LocalStep:
             lag = self.compressibility / dt if self.compressibility is not None else 0.0
             rest = self.closure(solid, h_star, np.zeros_like(ustar), previous, lag)[3]
             pressure_guess = np.where(np.any(guess != 0.0, axis=0), pressure_guess, rest)
-        X = np.concatenate([pressure_guess, h_star[None, :]])
+        X = np.concatenate([pressure_guess, np.ones((1, n))])  # the ratio h* / h' of rest
         now = evaluate(X, np.arange(n))
         if watch is not None and np.any(now.v[:, watch]):  # a watched column starts: the step stops
             result = LocalResult(now.v, now.h, now.pressure, 1, solid, now.v)
@@ -642,7 +647,7 @@ class Evaluation(NamedTuple):
         L, k = X.shape[0] - 1, X.shape[1]
         residual = np.full(X.shape, np.inf)
         blank = np.zeros((L, k))
-        return Evaluation(blank, blank, X[:L], X[L], blank, residual, residual[0])
+        return Evaluation(blank, blank, X[:L], residual[L], blank, residual, residual[0])
 
     @staticmethod
     def join(parts: list[Evaluation]) -> Evaluation:
