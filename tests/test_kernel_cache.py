@@ -5,13 +5,16 @@ processes starting at once after an upgrade take turns."""
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import os
 import shutil
 import subprocess
 import sys
 import time
+import types
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -170,6 +173,7 @@ def test_the_digest_covers_the_kernel_modules_of_every_engine_package():
 
 LAZY = """
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from multilayer.engine import kernel_cache
 import multilayer.engine.simulation
@@ -198,6 +202,7 @@ def test_the_check_runs_before_the_first_kernel_not_at_import(tmp_path):
 
 RACER = """
 import sys, time
+from collections.abc import Iterator
 from pathlib import Path
 go = Path(sys.argv[1])
 import numpy as np
@@ -281,19 +286,27 @@ def test_a_damaged_cache_entry_is_compiled_again_with_one_warning(tmp_path, monk
     every run (a damaged index at the save after compiling).  Now a miss: the kernel is
     compiled again, gives its answer and its entry (or index) is written anew; one warning
     per cache directory."""
+    with two_kernels(tmp_path, monkeypatch, "damaged_kernels") as module:
+        _compiled_again(tmp_path, module, files)
+
+
+@contextlib.contextmanager
+def two_kernels(tmp_path, monkeypatch, name: str) -> Iterator[types.ModuleType]:
+    """The module ``name`` of two cached kernels, ``twice`` and ``thrice``, written in
+    ``tmp_path`` and imported (numba caches them in its ``__pycache__``), with none of the
+    cache's warnings said yet in this process."""
     from multilayer.engine import compiled
 
-    (tmp_path / "damaged_kernels.py").write_text(
+    (tmp_path / f"{name}.py").write_text(
         "from multilayer.engine.compiled import jit\n\n\n@jit\ndef twice(x):\n    return 2.0 * x\n\n\n"
         "@jit\ndef thrice(x):\n    return 3.0 * x\n"
     )
     monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.setattr(compiled, "_warned", set())
-    module = importlib.import_module("damaged_kernels")
     try:
-        _compiled_again(tmp_path, module, files)
+        yield importlib.import_module(name)
     finally:
-        del sys.modules["damaged_kernels"]
+        sys.modules.pop(name, None)
 
 
 def test_a_kernel_that_cannot_be_saved_runs_uncached_and_keeps_the_cached_ones(tmp_path, monkeypatch):
@@ -305,16 +318,7 @@ def test_a_kernel_that_cannot_be_saved_runs_uncached_and_keeps_the_cached_ones(t
 
     from numba.core.caching import IndexDataCacheFile
 
-    from multilayer.engine import compiled
-
-    (tmp_path / "full_disk_kernels.py").write_text(
-        "from multilayer.engine.compiled import jit\n\n\n@jit\ndef twice(x):\n    return 2.0 * x\n\n\n"
-        "@jit\ndef thrice(x):\n    return 3.0 * x\n"
-    )
-    monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.setattr(compiled, "_warned", set())
-    module = importlib.import_module("full_disk_kernels")
-    try:
+    with two_kernels(tmp_path, monkeypatch, "full_disk_kernels") as module:
         assert module.twice(1.5) == 3.0  # compiled and cached
 
         def full(*args):
@@ -329,12 +333,11 @@ def test_a_kernel_that_cannot_be_saved_runs_uncached_and_keeps_the_cached_ones(t
         module = importlib.reload(module)
         assert module.twice(2.0) == 4.0
         assert sum(module.twice.stats.cache_hits.values()) == 1  # loaded, not compiled again
-    finally:
-        del sys.modules["full_disk_kernels"]
 
 
 def _compiled_again(tmp_path, module, files) -> None:
-    """The checks of the test above on the imported module of two kernels."""
+    """The checks of :func:`test_a_damaged_cache_entry_is_compiled_again_with_one_warning` on
+    the imported module of two kernels."""
     assert (module.twice(1.5), module.thrice(1.5)) == (3.0, 4.5)  # compiled and cached
     entries = sorted((tmp_path / "__pycache__").glob(files))
     assert len(entries) == 2
@@ -352,6 +355,7 @@ def _compiled_again(tmp_path, module, files) -> None:
 
 EDITED = """
 import sys, time
+from collections.abc import Iterator
 from pathlib import Path
 engine = Path(sys.argv[1])
 sys.path.insert(0, str(engine))
