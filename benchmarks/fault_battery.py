@@ -6636,9 +6636,9 @@ def _netcdf_observation(how: str) -> Callable[[Path], None]:
             "search": {"population": 4, "generations": 1},
         }
         (directory / "calibration.yaml").write_text(yaml.safe_dump(config))
-        if how == "a loop of symbolic links":
-            os.symlink("front.nc", directory / "loop.nc")
-            os.replace(directory / "loop.nc", directory / "front.nc")
+        if how in ("a loop of symbolic links", "a link to nothing"):
+            os.symlink("front.nc" if how == "a loop of symbolic links" else "nothing.nc", directory / "link")
+            os.replace(directory / "link", directory / "front.nc")
             return
         with NETCDF, netCDF4.Dataset(directory / "front.nc", "w") as ds:
             ds.createDimension("t", None if how == "unlimited and compressed" else 3)
@@ -6679,6 +6679,21 @@ def _study_at_bounds(kind: str, parameter: str, bounds: list[float]) -> Callable
     return setup
 
 
+def _linked_base(kind: str) -> Callable[[Path], None]:
+    """A ``kind`` (sweep or sensitivity) study whose base ``scenario.yaml`` is a symbolic link
+    in a loop with ``other.yaml``."""
+
+    def setup(directory: Path) -> None:
+        (directory / "other.yaml").symlink_to("scenario.yaml")
+        (directory / "scenario.yaml").symlink_to("other.yaml")
+        study: dict[str, Any] = {"base": "scenario.yaml", "parameters": {"rheology.mu_s": [0.3, 0.35]}}
+        if kind == "sensitivity":
+            study.update(parameters={"rheology.mu_s": {"bounds": [0.2, 0.4]}}, outputs=["runout"], samples=8)
+        (directory / "study.yaml").write_text(yaml.safe_dump(study))
+
+    return setup
+
+
 def _fifo_base(directory: Path) -> None:
     """A calibration whose base scenario is a named pipe (nobody writes it)."""
     _calibration("0.1,0.2,0.01\n")(directory)
@@ -6696,9 +6711,10 @@ def round_forty() -> list[Case]:
     went into ``plugins``, ``validate`` and ``run``; its docstring's and its
     distribution's escape sequences reached the terminal through ``plugins``; under
     ``-OO`` every description was empty); netCDF observations of another tool (``units``
-    an array: a traceback); a calibration and a sensitivity study whose bound leaves the
-    column outside the domain or below the dry threshold (``validate`` said ok, the study
-    failed at its runs); ``é`` on the command line under an ASCII locale (refused as bytes
+    an array: a traceback); a study's base and observation file that are symbolic links
+    to nothing or in a loop ("not found"); a calibration and a sensitivity study whose
+    bound leaves the column outside the domain or below the dry threshold (``validate``
+    said ok, the study failed at its runs); ``é`` on the command line under an ASCII locale (refused as bytes
     that are not UTF-8); as controls, environment variables of the libraries, accepted
     extremes of a scenario and hostile ``--set`` paths and study files."""
     run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
@@ -6711,6 +6727,7 @@ def round_forty() -> list[Case]:
     study = ["validate", "{dir}/study.yaml"]
     calibration = ["validate", "{dir}/calibration.yaml"]
     outside = "the scenario is invalid with domain.x_max = 0.05"
+    dangling = "is a symbolic link to nothing or in a loop"
     extremes: dict[str, dict[str, Any]] = {
         "a gate lifted at 1e-300 m/s (it never opens)": {"gate": {"x": 0.1, "lift_speed": 1e-300}},
         "a gate lifted at 1e300 m/s": {"gate": {"x": 0.1, "lift_speed": 1e300}},
@@ -6742,8 +6759,16 @@ def round_forty() -> list[Case]:
         ],
         Case("calibration: a netCDF observation, units a number", calibration, 2, "5.0",
              setup=_netcdf_observation("units a number")),
-        Case("calibration: a netCDF observation, a loop of symbolic links", calibration, 2, "front.nc",
-             setup=_netcdf_observation("a loop of symbolic links")),
+        *[
+            Case(f"calibration: a netCDF observation, {how}", calibration, 2, f"front.nc {dangling}",
+                 setup=_netcdf_observation(how))
+            for how in ("a loop of symbolic links", "a link to nothing")
+        ],
+        *[
+            Case(f"validate: a {kind} whose base is a loop of symbolic links", study, 2,
+                 f"scenario.yaml {dangling}", setup=_linked_base(kind))
+            for kind in ("sweep", "sensitivity")
+        ],
         *[
             Case(f"control: a netCDF observation, {how}", calibration, 0, "", setup=_netcdf_observation(how))
             for how in ("int8 in cm", "unlimited and compressed", "a group holding x_f")

@@ -697,3 +697,22 @@ def test_an_observation_of_sigma_1e300_beside_others_weighs_nothing(tmp_path):
     loaded = _huge_sigma(tmp_path, "0.1,0.12,1e300\n0.2,0.14,0.01\n")
     fit = calibration.Calibrator(loaded, _Proportional([0.5, 0.6]), print).run()
     assert fit.misfit < min(c.misfit for c in fit.candidates if c.theta[0] != fit.theta[0])
+
+
+@pytest.mark.parametrize("target", ["nothing.csv", "loop.csv"])
+def test_a_study_file_that_is_a_symbolic_link_to_nothing_or_in_a_loop_is_said_so(tmp_path, target):
+    """A base scenario or an observation file that is a symbolic link to nothing, or one of
+    a loop of links, was said to be "not found", where ``ls`` lists it."""
+    (tmp_path / "loop.csv").symlink_to("link.csv")
+    (tmp_path / "link.csv").symlink_to(target)
+    _calibration_and_sensitivity(tmp_path, "{rheology.mu_s: {bounds: [0.4, 0.5]}}")
+    (tmp_path / "s.yaml").write_text((tmp_path / "s.yaml").read_text().replace("collapse.yaml", "link.csv"))
+    said = "link.csv is a symbolic link to nothing or in a loop"
+    with pytest.raises(InputError, match=f"scenario file .*{said}"):
+        study.load_sensitivity(tmp_path / "s.yaml")
+    (tmp_path / "c.yaml").write_text(
+        "base: collapse.yaml\nparameters: {rheology.mu_s: {bounds: [0.4, 0.5]}}\nobservations:\n"
+        "  - {name: f, quantity: front, file: link.csv, columns: [t, x_f, sigma]}\n"
+    )
+    with pytest.raises(InputError, match=f"{said}; accepted: a CSV"):
+        study.load_calibration(tmp_path / "c.yaml")
