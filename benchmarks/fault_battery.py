@@ -3729,6 +3729,7 @@ def cases() -> list[Case]:
         + round_thirty_seven()
         + round_thirty_eight()
         + round_thirty_nine()
+        + round_forty()
     )
 
 
@@ -6652,6 +6653,244 @@ def round_thirty_eight() -> list[Case]:
     ]  # fmt: skip
 
 
+LOUD_PLUGIN = """
+print("loud: imported")
+import multilayer
+from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+class Loud(DruckerPrager):
+    "\\x1b[31mA loud law\\x1b[0m, ringing \\a."
+    name = "loud"
+    yield_stress_kernel = lambda self, material: None
+    viscosity_kernel = lambda self, material: None
+    def __init__(self, mu_s: float, nu: float, tag: str = "\\x1b[2J"):
+        print("loud: constructed")
+        super().__init__(mu_s, nu)
+@multilayer.hookimpl
+def multilayer_register_rheologies(register):
+    print("loud: registering")
+    register(Loud)
+"""
+"""A third-party law printing as it is imported, registers and is constructed, whose
+docstring and a parameter's default hold escape sequences of the terminal."""
+
+STDOUT_LINES = """
+import contextlib, io
+captured = io.StringIO()
+with contextlib.redirect_stdout(captured):
+    code = main(sys.argv[1:])
+lines = captured.getvalue().splitlines()
+bad = [line for line in lines if {test}]
+print(f'multilayer: {{len(lines)}} lines on stdout, {what}: {{bad[:2]}}', file=sys.stderr)
+sys.exit(code if not bad else 1)
+"""
+"""The command's stdout captured: exit 1 if a line of it passes ``test`` (``what`` says which)."""
+
+
+def _loud_plugin(directory: Path) -> None:
+    """:data:`LOUD_PLUGIN` installed in ``directory/plugin``; the scenario under its law, its
+    distribution's name holding an escape sequence."""
+    _scenario(directory, {"rheology": {"name": "loud", "mu_s": 0.3, "nu": 0.01}})
+    _plugin_package(directory, "loud", LOUD_PLUGIN)
+    metadata = directory / "plugin" / "loud-0.1.dist-info" / "METADATA"
+    metadata.write_text("Metadata-Version: 2.1\nName: loud\x1b[5m\nVersion: 0.1\n")
+
+
+def _netcdf_observation(how: str) -> Callable[[Path], None]:
+    """A calibration of ``mu_s`` against a front curve in ``front.nc`` written as another tool
+    writes one: ``how`` in units arrays, a number, bytes, an unlimited and compressed
+    variable, a group beside it, a symbolic link loop for the file."""
+
+    def setup(directory: Path) -> None:
+        import netCDF4
+
+        _scenario(directory)
+        config = {
+            "base": "scenario.yaml",
+            "parameters": {"rheology.mu_s": {"bounds": [0.2, 0.4]}},
+            "observations": [
+                {"name": "front", "quantity": "front", "file": "front.nc", "variable": "x_f", "sigma": 0.01}
+            ],
+            "search": {"population": 4, "generations": 1},
+        }
+        (directory / "calibration.yaml").write_text(yaml.safe_dump(config))
+        if how in ("a loop of symbolic links", "a link to nothing"):
+            os.symlink("front.nc" if how == "a loop of symbolic links" else "nothing.nc", directory / "link")
+            os.replace(directory / "link", directory / "front.nc")
+            return
+        with NETCDF, netCDF4.Dataset(directory / "front.nc", "w") as ds:
+            ds.createDimension("t", None if how == "unlimited and compressed" else 3)
+            t = ds.createVariable("t", "f8", ("t",))
+            t[:] = [0.05, 0.1, 0.15]
+            dtype = "i1" if how == "int8 in cm" else "f8"
+            front = ds.createVariable("x_f", dtype, ("t",), zlib=how == "unlimited and compressed")
+            front[:] = [5, 9, 12] if dtype == "i1" else [0.05, 0.09, 0.12]
+            t.units, front.units = "s", "cm" if dtype == "i1" else "m"
+            if how == "units an array":
+                front.units = np.array([1.0, 2.0])
+            elif how == "coordinate units an array":
+                t.units = np.array([1, 2], dtype="i4")
+            elif how == "units a number":
+                front.units = 5.0
+            elif how == "a group holding x_f":
+                group = ds.createGroup("more")
+                group.createDimension("t", 2)
+                group.createVariable("x_f", "f8", ("t",))[:] = [np.nan, np.inf]
+
+    return setup
+
+
+def _study_at_bounds(kind: str, parameter: str, bounds: list[float]) -> Callable[[Path], None]:
+    """A ``kind`` (calibration or sensitivity) study of ``parameter`` within ``bounds``."""
+
+    def setup(directory: Path) -> None:
+        _scenario(directory)
+        study: dict[str, Any] = {"base": "scenario.yaml", "parameters": {parameter: {"bounds": bounds}}}
+        if kind == "calibration":
+            mass = {"name": "mass", "quantity": "mass_final", "value": 0.001, "sigma": 0.001}
+            study["observations"] = [mass]
+            study["search"] = {"population": 4, "generations": 1}
+        else:
+            study.update(outputs=["runout"], samples=8)
+        (directory / "study.yaml").write_text(yaml.safe_dump(study))
+
+    return setup
+
+
+def _linked_base(kind: str) -> Callable[[Path], None]:
+    """A ``kind`` (sweep or sensitivity) study whose base ``scenario.yaml`` is a symbolic link
+    in a loop with ``other.yaml``."""
+
+    def setup(directory: Path) -> None:
+        (directory / "other.yaml").symlink_to("scenario.yaml")
+        (directory / "scenario.yaml").symlink_to("other.yaml")
+        study: dict[str, Any] = {"base": "scenario.yaml", "parameters": {"rheology.mu_s": [0.3, 0.35]}}
+        if kind == "sensitivity":
+            study.update(parameters={"rheology.mu_s": {"bounds": [0.2, 0.4]}}, outputs=["runout"], samples=8)
+        (directory / "study.yaml").write_text(yaml.safe_dump(study))
+
+    return setup
+
+
+def _fifo_base(directory: Path) -> None:
+    """A calibration whose base scenario is a named pipe (nobody writes it)."""
+    _calibration("0.1,0.2,0.01\n")(directory)
+    (directory / "base.yaml").unlink()
+    os.mkfifo(directory / "base.yaml")
+
+
+def _accented_scenario(directory: Path) -> None:
+    shutil.copy(_scenario(directory), directory / "\u00e9.yaml")
+
+
+def round_forty() -> list[Case]:
+    """The hostile cases of the fortieth round (docs/reliability.md): a third-party law's
+    own text on the commands' stdout (its prints at import, registration and construction
+    went into ``plugins``, ``validate`` and ``run``; its docstring's and its
+    distribution's escape sequences reached the terminal through ``plugins``; under
+    ``-OO`` every description was empty); netCDF observations of another tool (``units``
+    an array: a traceback); a study's base and observation file that are symbolic links
+    to nothing or in a loop ("not found"); a calibration and a sensitivity study whose
+    bound leaves the column outside the domain or below the dry threshold (``validate``
+    said ok, the study failed at its runs); ``é`` on the command line under an ASCII locale (refused as bytes
+    that are not UTF-8); as controls, environment variables of the libraries, accepted
+    extremes of a scenario and hostile ``--set`` paths and study files."""
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    validate = ["validate", "{scenario}"]
+    plugin_env = {"PYTHONPATH": "{dir}/plugin"}
+    ascii_locale = {"LC_ALL": "C", "PYTHONUTF8": "0", "PYTHONCOERCECLOCALE": "0"}
+    loud = STDOUT_LINES.format(test="line.startswith('loud: ')", what="lines of the plugin")
+    escapes = STDOUT_LINES.format(test="'\\x1b' in line or '\\a' in line", what="escape sequences")
+    empty = STDOUT_LINES.format(test="line.endswith(']: ')", what="empty descriptions")
+    study = ["validate", "{dir}/study.yaml"]
+    calibration = ["validate", "{dir}/calibration.yaml"]
+    outside = "the scenario is invalid with domain.x_max = 0.05"
+    dangling = "is a symbolic link to nothing or in a loop"
+    extremes: dict[str, dict[str, Any]] = {
+        "a gate lifted at 1e-300 m/s (it never opens)": {"gate": {"x": 0.1, "lift_speed": 1e-300}},
+        "a gate lifted at 1e300 m/s": {"gate": {"x": 0.1, "lift_speed": 1e300}},
+        "a slope of -89.9 degrees": {"slope_deg": -89.9},
+        "gravity 1e-300": {"gravity": 1e-300},
+        "1000 threads on two cores": {"numerics": {"threads": 1000}},
+    }
+    return [
+        Case("plugins: a law printing at import and registration (stdout)", ["plugins"], 0,
+             "lines on stdout, lines of the plugin: []", patch=loud, env=plugin_env, setup=_loud_plugin),
+        Case("validate: a law printing in its constructor (stdout)", validate, 0,
+             "lines on stdout, lines of the plugin: []", patch=loud, env=plugin_env, setup=_loud_plugin),
+        Case("run: a law printing at import (stdout)", run[:-1], 0,
+             "lines on stdout, lines of the plugin: []", patch=loud, env=plugin_env, setup=_loud_plugin),
+        Case("plugins: escape sequences in a docstring, a default and a distribution's name", ["plugins"],
+             0, "lines on stdout, escape sequences: []", patch=escapes, env=plugin_env, setup=_loud_plugin),
+        Case("plugins: python -OO (no docstrings)", ["plugins"], 0, "lines on stdout, empty descriptions: []",
+             patch=empty, env={"PYTHONOPTIMIZE": "2"}),
+        Case("plugins: python -OO, a third-party law", ["plugins"], 0,
+             "lines on stdout, empty descriptions: []", patch=empty,
+             env={"PYTHONOPTIMIZE": "2", **plugin_env}, setup=_loud_plugin),
+        *[
+            Case(f"calibration: a netCDF observation, {how}", calibration, 2, f"front.nc: {phrase}",
+                 setup=_netcdf_observation(how))
+            for how, phrase in (
+                ("units an array", "x_f has units array([1., 2.]), not text"),
+                ("coordinate units an array", "t has units array([1, 2], dtype=int32), not text"),
+            )
+        ],
+        Case("calibration: a netCDF observation, units a number", calibration, 2, "5.0",
+             setup=_netcdf_observation("units a number")),
+        *[
+            Case(f"calibration: a netCDF observation, {how}", calibration, 2, f"front.nc {dangling}",
+                 setup=_netcdf_observation(how))
+            for how in ("a loop of symbolic links", "a link to nothing")
+        ],
+        *[
+            Case(f"validate: a {kind} whose base is a loop of symbolic links", study, 2,
+                 f"scenario.yaml {dangling}", setup=_linked_base(kind))
+            for kind in ("sweep", "sensitivity")
+        ],
+        *[
+            Case(f"control: a netCDF observation, {how}", calibration, 0, "", setup=_netcdf_observation(how))
+            for how in ("int8 in cm", "unlimited and compressed", "a group holding x_f")
+        ],
+        Case("validate: a sensitivity study whose x_max bound cuts the column", study, 2, outside,
+             setup=_study_at_bounds("sensitivity", "domain.x_max", [0.05, 1.0])),
+        Case("sensitivity: its x_max bound cutting the column",
+             ["sensitivity", "{dir}/study.yaml", "-o", "{dir}/out", "-q", "--workers", "1"], 2, outside,
+             setup=_study_at_bounds("sensitivity", "domain.x_max", [0.05, 1.0])),
+        Case("validate: a calibration whose x_max bound cuts the column", study, 2, outside,
+             setup=_study_at_bounds("calibration", "domain.x_max", [0.05, 1.0])),
+        Case("validate: a calibration whose height bound is a film below the dry threshold", study, 2,
+             "not above numerics.dry_threshold", setup=_study_at_bounds("calibration", "initial.0.height",
+                                                                      [1e-9, 0.05])),
+        Case("validate: a sensitivity study of rheology.name", study, 2, "rheology.name (from --set)",
+             setup=_study_at_bounds("sensitivity", "rheology.name", [0.2, 0.4])),
+        Case("validate: a calibration whose base is a named pipe", ["validate", "{dir}/calibration.yaml"], 2,
+             "is not a regular file", setup=_fifo_base),
+        Case("run: --set description=\u00e9 under an ASCII locale", [*run, "--set", "description=\u00e9"], 0,
+             "", env=ascii_locale, plain=True, setup=_scenario),
+        Case("run: -o \u00e9 under an ASCII locale", ["run", "{scenario}", "-o", "{dir}/\u00e9", "-q"], 2,
+             "is a UTF-8 name, which this process's locale (encoding ascii) cannot give netCDF",
+             env=ascii_locale, plain=True, setup=_scenario),
+        Case("control: run of \u00e9.yaml under an ASCII locale",
+             ["run", "{dir}/\u00e9.yaml", "-o", "{dir}/out"], 0, "", env=ascii_locale, plain=True,
+             setup=_accented_scenario),
+        Case("control: OMP_NUM_THREADS=abc, a run on two threads", [*run, "--set", "numerics.threads=2"], 0,
+             "", env={"OMP_NUM_THREADS": "abc"}, plain=True, setup=_scenario),
+        Case("control: TMPDIR a missing directory, run", run, 0, "", env={"TMPDIR": "{dir}/nothing"},
+             plain=True, setup=_scenario),
+        Case("control: MPLCONFIGDIR a regular file, plot", ["plot", "{dir}/out"], 0, "",
+             env={"MPLCONFIGDIR": "{dir}/scenario.yaml"}, plain=True, setup=_finished_run),
+        Case("control: HOME empty, plot", ["plot", "{dir}/out"], 0, "", env={"HOME": ""}, plain=True,
+             setup=_finished_run),
+        *[
+            Case(f"control: run, {what}", run, 0, "", setup=partial(_scenario, changes=changes))
+            for what, changes in extremes.items()
+        ],
+        Case("validate: --set through a value (name.first)", [*validate, "--set", "name.first=1"], 2,
+             "name is a value, not a mapping", setup=_scenario),
+        Case("validate: --set of index -1", [*validate, "--set", "initial.-1.height=0.04"], 2,
+             "accepted indices: 0..0", setup=_scenario),
+    ]  # fmt: skip
+
+
 ROUNDS: dict[int, Callable[[], list[Case]]] = {
     2: round_two, 3: round_three, 4: round_four, 5: round_five, 6: round_six, 7: round_seven,
     8: round_eight, 9: round_nine, 10: round_ten, 11: round_eleven, 12: round_twelve,
@@ -6667,6 +6906,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     37: round_thirty_seven,
     38: round_thirty_eight,
     39: round_thirty_nine,
+    40: round_forty,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""
 
@@ -6679,7 +6919,7 @@ def main() -> None:
         "--round",
         type=int,
         choices=sorted(ROUNDS),
-        help="only the cases of this round (2 to 35, 37 to 39; all: none)",
+        help="only the cases of this round (2 to 35, 37 to 40; all: none)",
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()

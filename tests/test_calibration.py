@@ -16,6 +16,7 @@ import math
 import re
 import shutil
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -399,20 +400,57 @@ def test_one_scenario_value_under_two_keys_or_one_output_twice_is_refused(tmp_pa
     assert "outputs (line 3): runout twice; accepted: each output once" in capsys.readouterr().err
 
 
-def test_observations_from_netcdf_take_the_units_attributes(tmp_path):
-    """A front curve in a netCDF file, in cm against ms, reads back in m against s."""
-    ds = xr.Dataset(
-        {"x_f": ("t", [5.0, 9.0], {"units": "cm"})}, coords={"t": ("t", [100.0, 200.0], {"units": "ms"})}
-    )
-    ds.to_netcdf(tmp_path / "front.nc")
-    shutil.copy(TWIN / "collapse.yaml", tmp_path)
-    (tmp_path / "c.yaml").write_text(
+def _netcdf_front(directory: Path, units: dict[str, Any]) -> Path:
+    """``c.yaml`` in ``directory``: a calibration against the front of ``front.nc``, 5 and 9
+    (``x_f``) at 100 and 200 (``t``), whose ``units`` attributes are ``units``."""
+    attrs = {name: {"units": unit} for name, unit in units.items()}
+    ds = xr.Dataset({"x_f": ("t", [5.0, 9.0], attrs["x_f"])}, coords={"t": ("t", [100.0, 200.0], attrs["t"])})
+    ds.to_netcdf(directory / "front.nc")
+    shutil.copy(TWIN / "collapse.yaml", directory)
+    (directory / "c.yaml").write_text(
         "base: collapse.yaml\nparameters: {rheology.mu_s: {bounds: [0.4, 0.5]}}\n"
         "observations:\n  - {name: f, quantity: front, file: front.nc, variable: x_f, sigma: 0.5}\n"
     )
-    data = study.load_calibration(tmp_path / "c.yaml").data[0]
+    return directory / "c.yaml"
+
+
+def test_observations_from_netcdf_take_the_units_attributes(tmp_path):
+    """A front curve in a netCDF file, in cm against ms, reads back in m against s."""
+    data = study.load_calibration(_netcdf_front(tmp_path, {"x_f": "cm", "t": "ms"})).data[0]
     assert data.coordinate == pytest.approx([0.1, 0.2])
     assert data.value == pytest.approx([0.05, 0.09]) and data.sigma == pytest.approx([0.005, 0.005])
+
+
+@pytest.mark.parametrize("holder", ["x_f", "t"])
+def test_a_netcdf_units_attribute_that_is_not_text_is_named(tmp_path, holder):
+    """Another tool's ``units`` of numbers (an array) on the observation or its coordinate:
+    a ``ValueError`` of numpy's truth value, with a traceback."""
+    path = _netcdf_front(tmp_path, {"x_f": "cm", "t": "ms", holder: np.array([1.0, 2.0])})
+    with pytest.raises(InputError, match=f"front.nc: {holder} has units array\\(\\[1., 2.\\]\\), not text"):
+        study.load_calibration(path)
+
+
+@pytest.mark.parametrize(
+    ("command", "name"),
+    [("validate", "c.yaml"), ("validate", "s.yaml"), ("calibrate", "c.yaml"), ("sensitivity", "s.yaml")],
+)
+def test_a_bound_leaving_the_initial_material_outside_the_domain_is_refused_before_any_run(
+    tmp_path, capsys, command, name
+):
+    """``domain.x_max`` down to 0.03 m, within the column of 0.05 m: ``validate`` said ok, and
+    the study ran until its runs at the lower bound failed (exit 1)."""
+    _calibration_and_sensitivity(
+        tmp_path, "{domain.x_max: {bounds: [0.03, 0.3]}}", sensitivity="samples: 8\n"
+    )
+    assert (
+        cli.main(
+            [command, str(tmp_path / name), "-o", str(tmp_path / "out")][: 2 if command == "validate" else 4]
+        )
+        == 2
+    )
+    err = capsys.readouterr().err
+    assert "parameters.domain.x_max (line 2): the scenario is invalid with domain.x_max = 0.03" in err
+    assert "lie outside the domain" in err and not (tmp_path / "out").exists()
 
 
 # --------------------------------------------------------------------- observables
@@ -659,3 +697,22 @@ def test_an_observation_of_sigma_1e300_beside_others_weighs_nothing(tmp_path):
     loaded = _huge_sigma(tmp_path, "0.1,0.12,1e300\n0.2,0.14,0.01\n")
     fit = calibration.Calibrator(loaded, _Proportional([0.5, 0.6]), print).run()
     assert fit.misfit < min(c.misfit for c in fit.candidates if c.theta[0] != fit.theta[0])
+
+
+@pytest.mark.parametrize("target", ["nothing.csv", "loop.csv"])
+def test_a_study_file_that_is_a_symbolic_link_to_nothing_or_in_a_loop_is_said_so(tmp_path, target):
+    """A base scenario or an observation file that is a symbolic link to nothing, or one of
+    a loop of links, was said to be "not found", where ``ls`` lists it."""
+    (tmp_path / "loop.csv").symlink_to("link.csv")
+    (tmp_path / "link.csv").symlink_to(target)
+    _calibration_and_sensitivity(tmp_path, "{rheology.mu_s: {bounds: [0.4, 0.5]}}")
+    (tmp_path / "s.yaml").write_text((tmp_path / "s.yaml").read_text().replace("collapse.yaml", "link.csv"))
+    said = "link.csv is a symbolic link to nothing or in a loop"
+    with pytest.raises(InputError, match=f"scenario file .*{said}"):
+        study.load_sensitivity(tmp_path / "s.yaml")
+    (tmp_path / "c.yaml").write_text(
+        "base: collapse.yaml\nparameters: {rheology.mu_s: {bounds: [0.4, 0.5]}}\nobservations:\n"
+        "  - {name: f, quantity: front, file: link.csv, columns: [t, x_f, sigma]}\n"
+    )
+    with pytest.raises(InputError, match=f"{said}; accepted: a CSV"):
+        study.load_calibration(tmp_path / "c.yaml")

@@ -2243,6 +2243,7 @@ def test_an_observation_no_run_can_come_near_is_refused(tmp_path, cli, observati
     assert result.code == 2 and phrase in result.err and "observations.0 (line" in result.err, result.err
     config["parameters"]["domain.x_max"] = {"bounds": [0.5, 8.0]}  # a run whose domain reaches it
     config["parameters"]["time.end"] = {"bounds": [0.2, 4.0]}
+    config["set"] = {"domain.cells": 100}  # the column of 0.1 m wider than a cell of 8 m / 100
     (tmp_path / "calibration.yaml").write_text(yaml.safe_dump(config))
     reached = cli("validate", tmp_path / "calibration.yaml")
     assert (reached.code == 0) == (observation["quantity"] != "mass_final"), reached.err
@@ -3255,3 +3256,20 @@ def test_state_dict_waits_for_another_threads_step():
         sim.step()  # the same thread may step while it holds the turn
     reader.join()
     assert got[0]["steps"] == 1 and got[0]["t"] == sim.t
+
+
+def test_utf8_words_of_a_command_line_read_under_an_ascii_locale(tiny_scenario, write_scenario, capsys):
+    """Under ``LC_ALL=C`` with ``PYTHONUTF8=0`` Python keeps each byte of ``é`` as a lone
+    surrogate: ``--set description=é`` was refused as bytes that are not UTF-8, and ``-o
+    é`` as a name that is not UTF-8 (netCDF cannot be given it in that locale: refused,
+    saying why); a byte that is not UTF-8 is still named."""
+    from multilayer.app import cli
+
+    path = write_scenario(tiny_scenario)
+    assert cli.main(["validate", str(path), "--set", "description=\udcc3\udca9"]) == 0
+    assert cli.main(["validate", str(path), "--set", "description=\udcff"]) == 2
+    assert "holds the byte 0xFF, which is not UTF-8" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        cli.main(["run", str(path), "-o", "out_\udcc3\udca9"])
+    said = capsys.readouterr().err
+    assert "b'out_\\xc3\\xa9' is a UTF-8 name, which this process's locale (encoding" in said

@@ -309,3 +309,88 @@ def test_parameter_model_is_strict():
     for bad in ({"mu_s": True, "nu": 0.5}, {"mu_s": "0.5", "nu": 0.5}, {"mu_s": 0.5}):
         with pytest.raises(pydantic.ValidationError):
             model.model_validate(bad)
+
+
+LOUD = """
+print("loud: imported")
+import multilayer
+from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+class Loud(DruckerPrager):
+    "\\x1b[31mA loud law\\x1b[0m."
+    name = "loud"
+    def __init__(self, mu_s: float, nu: float):
+        print("loud: constructed")
+        super().__init__(mu_s, nu)
+@multilayer.hookimpl
+def multilayer_register_rheologies(register):
+    print("loud: registering")
+    register(Loud)
+"""
+
+
+def test_a_plugin_printing_writes_to_stderr_and_its_text_is_listed_printable(
+    tmp_path, monkeypatch, capsys, fresh_catalogue, tiny_scenario, write_scenario
+):
+    """A plugin printing as it is imported, registers and is constructed wrote its lines
+    into the output of ``plugins`` and ``validate``, which scripts read; its docstring's
+    escape sequence reached the terminal through ``plugins``."""
+    from multilayer.app.cli import main
+
+    fake_distribution(tmp_path, "loud", LOUD)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    assert main(["plugins"]) == 0
+    listing = capsys.readouterr()
+    assert "loud: " not in listing.out and "loud: imported\nloud: registering" in listing.err
+    assert "loud [bulk]: \\x1b[31mA loud law\\x1b[0m." in listing.out and "\x1b" not in listing.out
+    path = write_scenario({**tiny_scenario, "rheology": {"name": "loud", "mu_s": 0.3, "nu": 0.01}})
+    assert main(["validate", str(path)]) == 0
+    checked = capsys.readouterr()
+    assert "loud: " not in checked.out and "loud: constructed" in checked.err
+
+
+def test_plugins_constructed_in_threads_leave_the_process_stdout_alone():
+    """In a thread that is not the main one, what a plugin prints is not sent to stderr:
+    ``sys.stdout`` is the process's, and two threads each swapping it for stderr and
+    restoring what they found left it swapped for good.  Two laws constructed at once, the
+    first entering its constructor before the second and leaving it first (as the
+    redirection restored the first's original, the second restored stderr): ``sys.stdout``
+    is the same object throughout and after."""
+    import sys
+    import threading
+    import time
+
+    from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+
+    stdout, seen = sys.stdout, []
+    entered, both = threading.Event(), threading.Barrier(2)
+
+    class Slow(DruckerPrager):
+        def __init__(self, lag: float, **params) -> None:
+            entered.set()
+            seen.append(sys.stdout)
+            both.wait()
+            time.sleep(lag)
+            super().__init__(**params)
+
+    def construct(lag: float) -> None:
+        plugins.construct(Slow, {"lag": lag, "mu_s": 0.3, "nu": 0.01})
+
+    first = threading.Thread(target=construct, args=(0.0,))
+    second = threading.Thread(target=construct, args=(0.1,))
+    first.start()
+    entered.wait()
+    second.start()
+    first.join()
+    second.join()
+    assert sys.stdout is stdout and seen == [stdout, stdout]
+
+
+def test_a_law_without_a_docstring_is_described_by_its_class(monkeypatch):
+    """``python -OO`` removes every docstring: ``multilayer plugins`` listed each law with
+    an empty description."""
+    from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+
+    monkeypatch.setattr(plugins.inspect, "getdoc", lambda obj: None)
+    assert plugins.description(DruckerPrager) == (
+        "no description: class DruckerPrager of module multilayer.plugins.builtins.drucker_prager"
+    )

@@ -128,6 +128,16 @@ def check_closure(scenario: Scenario, h: float, where: str) -> None:
             )
 
 
+def check_start(scenario: Scenario, where: str) -> None:
+    """What a run checks of ``scenario`` before its first step (:class:`InputError` naming
+    ``where`` otherwise): material to run, the initial entries on the mesh and their
+    pressure; the check a study gives :func:`multilayer.io.study.load_calibration` and
+    :func:`~multilayer.io.study.load_sensitivity` for its runs at the bounds."""
+    scenario.check_material()
+    check_initial(scenario, where)
+    check_pressure(scenario)
+
+
 def check_pressure(scenario: Scenario) -> None:
     """:func:`multilayer.engine.initial_state.check_pressure` of the scenario's initial
     state under its bulk density and gravity (``InputError`` naming them)."""

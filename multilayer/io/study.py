@@ -28,6 +28,7 @@ import io
 import itertools
 import math
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any, Literal, get_args
 
@@ -36,7 +37,7 @@ from pydantic import BaseModel, Field, ValidationError, field_validator, model_v
 
 from multilayer import scenario
 from multilayer.errors import InputError, reason, shortened, shown
-from multilayer.scenario.files import read_text
+from multilayer.scenario.files import not_a_file, read_text
 from multilayer.scenario.limits import MAX_DESIGN_VALUES, MAX_PROFILE_POINTS, MAX_STUDY_RUNS
 from multilayer.scenario.loading import load_base
 from multilayer.scenario.messages import StrictModel, describe, directory_path, dotted, field, invalid
@@ -438,9 +439,12 @@ def _check_base(
     config: _Study,
     experiments: dict[str, dict[str, Any]],
     measured: dict[str, set[str]],
+    check: Check | None,
 ) -> Path:
     """The base scenario path; every experiment with the parameters at their lower, middle
-    and upper bounds must be a valid scenario (the key named otherwise); no parameter is
+    and upper bounds must be a valid scenario that ``check`` accepts (the key named
+    otherwise: a lower bound of ``domain.x_max`` leaving the initial material outside the
+    domain validated, and the study failed at its first runs); no parameter is
     given a value in ``set`` or an experiment, where the parameter's value replaced it
     (an experiment of its own ``rheology.mu_2`` ran with the calibrated one, silently)."""
     given = [(("set",), config.set), *((("experiments", n), extra) for n, extra in experiments.items())]
@@ -472,6 +476,8 @@ def _check_base(
             }
             try:
                 run = scenario.load(base, as_overrides({**config.set, **extra, **values}))
+                if check is not None:
+                    check(run, str(base))
                 frontless.append(run.front_never_found())
             except InputError as exc:
                 keys = [k for k in (*values, *extra) if k in str(exc)] or list(values)
@@ -492,15 +498,21 @@ def _check_base(
     return base
 
 
-def load_calibration(path: str | Path) -> Calibration:
-    """Read and validate a calibration file and read its observations (InputError if bad)."""
+Check = Callable[[scenario.Scenario, str], None]
+"""What a study's caller checks of a run's scenario before it starts (InputError naming
+the file, the second argument): the app's ``factory.check_start``."""
+
+
+def load_calibration(path: str | Path, check: Check | None = None) -> Calibration:
+    """Read and validate a calibration file and read its observations (InputError if bad);
+    ``check`` of every experiment's runs at the parameters' bounds (:func:`_check_base`)."""
     path = Path(path)
     config, lines = _validate(CalibrationModel, path, "calibration")
     experiments = dict(config.experiments) or {"base": {}}
     measured: dict[str, set[str]] = {}
     for obs in config.observations:
         measured.setdefault(obs.experiment or next(iter(experiments)), set()).add(obs.quantity)
-    base = _check_base(path, lines, config, experiments, measured)
+    base = _check_base(path, lines, config, experiments, measured, check)
     data = [
         _read(path, lines, i, obs, obs.experiment or next(iter(experiments)))
         for i, obs in enumerate(config.observations)
@@ -595,11 +607,12 @@ def _check_reach(where: str, observed: ObservedData, run: Any, config: Any) -> N
         )
 
 
-def load_sensitivity(path: str | Path) -> Sensitivity:
-    """Read and validate a sensitivity file (InputError if bad)."""
+def load_sensitivity(path: str | Path, check: Check | None = None) -> Sensitivity:
+    """Read and validate a sensitivity file (InputError if bad); ``check`` of its runs at
+    the parameters' bounds (:func:`_check_base`)."""
     path = Path(path)
     config, lines = _validate(SensitivityModel, path, "sensitivity")
-    base = _check_base(path, lines, config, {"base": {}}, {"base": set(config.outputs)})
+    base = _check_base(path, lines, config, {"base": {}}, {"base": set(config.outputs)}, check)
     return Sensitivity(path=path, base=base, config=config)
 
 
@@ -621,8 +634,9 @@ def _read(path: Path, lines: dict, index: int, obs: Observation, experiment: str
         raise _unvalidated(obs, "file")
     file = path.parent / obs.file
     if not file.is_file():
-        missing = "is not a regular file" if file.exists() else "not found"
-        raise InputError(f"{where}: {file} {missing}; accepted: a CSV or netCDF file, relative to {path}")
+        raise InputError(
+            f"{where}: {file} {not_a_file(file)}; accepted: a CSV or netCDF file, relative to {path}"
+        )
     if file.suffix == ".nc":
         if obs.variable is None:
             raise _unvalidated(obs, "variable")
@@ -777,9 +791,13 @@ def _read_netcdf(
             raise InputError(f"{where}: {file}: {name} holds values of type {values.dtype}; {accepted}")
     if var.size == 0:
         raise InputError(f"{where}: {file}: {variable} holds no values; {accepted}, at least one")
+    units = {name: values.attrs.get("units") for name, values in ((variable, var), (str(dim), coord))}
+    for name, unit in units.items():  # another tool's attribute of numbers: an array was a traceback
+        if unit is not None and not isinstance(unit, str):
+            raise InputError(f"{where}: {file}: {name} has units {shown(unit)}, not text; {accepted}")
     return (
         np.asarray(coord.values, dtype=float),
         np.asarray(var.values, dtype=float),
-        var.attrs.get("units"),
-        coord.attrs.get("units"),
+        units[variable],
+        units[str(dim)],
     )

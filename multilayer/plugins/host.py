@@ -18,6 +18,7 @@ import inspect
 import os
 import re
 import signal
+import sys
 import threading
 import warnings
 from collections.abc import Callable
@@ -149,10 +150,11 @@ def catalogue() -> Catalogue:
         source = _source(ep)
         classes: list[type[Rheology]] = []
         try:
-            module = ep.load()
-            manager.register(module, name=source)
-            others = [p for p in manager.get_plugins() if p is not module]
-            manager.subset_hook_caller("multilayer_register_rheologies", others)(register=classes.append)
+            with _printing_to_stderr():
+                module = ep.load()
+                manager.register(module, name=source)
+                others = [p for p in manager.get_plugins() if p is not module]
+                manager.subset_hook_caller("multilayer_register_rheologies", others)(register=classes.append)
         except KeyboardInterrupt:
             raise
         except BaseException as exc:  # noqa: BLE001 - any failure of third-party code (sys.exit too) is reported
@@ -183,6 +185,17 @@ def catalogue() -> Catalogue:
     for item in broken:
         warnings.warn(f"rheology plugin {item.source} skipped: {item.error}", PluginWarning, stacklevel=2)
     return Catalogue(found, tuple(broken))
+
+
+def _printing_to_stderr() -> contextlib.AbstractContextManager[object]:
+    """What a plugin's own code prints goes to stderr while it runs here, in the main
+    thread: a module printing as it is imported (or as it registers) wrote its line into
+    the output of ``multilayer plugins``, ``validate`` and ``run``, which scripts read.
+    ``sys.stdout`` is the process's: in another thread (a host running laws in a pool) it
+    is left alone, since two threads swapping it at once can leave it swapped for good."""
+    if threading.current_thread() is not threading.main_thread():
+        return contextlib.nullcontext()
+    return contextlib.redirect_stdout(sys.stderr)
 
 
 def refresh() -> None:
@@ -274,9 +287,14 @@ def signature_text(cls: type[Rheology]) -> str:
 
 
 def description(cls: type[Rheology]) -> str:
-    """The first line of the class docstring."""
+    """The first line of the class docstring; without one (``python -OO`` removes every
+    docstring: the catalogue listed each law with an empty description) the class and the
+    module that define it."""
     doc = inspect.getdoc(cls) or ""
-    return doc.strip().splitlines()[0] if doc.strip() else ""
+    if doc.strip():
+        return doc.strip().splitlines()[0]
+    why = " (docstrings removed by python -OO)" if sys.flags.optimize >= 2 else ""
+    return f"no description{why}: class {cls.__qualname__} of module {cls.__module__}"
 
 
 _STOP_SIGNALS = tuple(
@@ -345,7 +363,8 @@ def construct(cls: type[Rheology], params: dict[str, Any]) -> Rheology:
     call = f"{cls.__qualname__}({_arguments(params)})"
     host = host_state()
     try:
-        plugin = cls(**params)
+        with _printing_to_stderr():
+            plugin = cls(**params)
     except (TypeError, ValueError) as exc:
         raise ConstructorError(said(exc)) from None
     except KeyboardInterrupt:  # the user's Ctrl-C while the constructor ran

@@ -37,6 +37,14 @@ def read_text(path: Path, expected: str, readable: str) -> str:
         raise InputError(f"{path}: cannot read the file ({reason(exc)}); accepted: {readable}") from None
 
 
+def not_a_file(path: Path) -> str:
+    """Why ``path``, which is not a regular file, cannot be read as one, in words: a
+    symbolic link to nothing or in a loop was said to be "not found", where ``ls`` lists it."""
+    if path.exists():
+        return "is not a regular file"
+    return "is a symbolic link to nothing or in a loop" if path.is_symlink() else "not found"
+
+
 def _head(stream: BinaryIO, size: int) -> bytes:
     """The first ``size`` bytes of ``stream`` (fewer at its end), read in blocks: one
     ``read(size)`` sets aside ``size`` bytes first, 64 MiB for a file of 1 kB (a

@@ -5,6 +5,7 @@ import contextlib
 import importlib
 import os
 import stat
+import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -227,12 +228,37 @@ def budget(args: argparse.Namespace):
     return Budget(args.max_memory, args.max_output, args.force, args.max_steps)
 
 
+def _utf8_bytes(text: str) -> str | None:
+    """``text``, a word of the command line, read as UTF-8 where Python could not: under a
+    locale whose encoding is not UTF-8 (``LC_ALL=C`` with ``PYTHONUTF8=0``) each byte
+    beyond ASCII is kept as a lone surrogate, and ``é`` typed by the user was refused as
+    bytes that are not UTF-8.  None if its bytes are not UTF-8."""
+    try:
+        return os.fsencode(text).decode("utf-8")
+    except UnicodeError:
+        return None
+
+
+def argument_text(text: str) -> str:
+    """argparse type: a word of the command line as the user wrote it in UTF-8
+    (:func:`_utf8_bytes`); other bytes stay lone surrogates, which the command names."""
+    if not any("\udc80" <= c <= "\udcff" for c in text):
+        return text  # the locale read every byte
+    return _utf8_bytes(text) or text
+
+
 def directory(text: str) -> Path:
     """argparse type: a directory path whose name netCDF can write (UTF-8; a name holding
     other bytes is a usage error, exit code 2)."""
     try:
         text.encode("utf-8")
     except UnicodeEncodeError:
+        if _utf8_bytes(text) is not None:  # netCDF is given the name in the locale's encoding
+            raise argparse.ArgumentTypeError(
+                f"{os.fsencode(text)!r} is a UTF-8 name, which this process's locale (encoding "
+                f"{sys.getfilesystemencoding()}) cannot give netCDF; accepted: an ASCII name, or a "
+                "UTF-8 locale (LC_ALL=C.UTF-8, or PYTHONUTF8=1)"
+            ) from None
         raise argparse.ArgumentTypeError(
             f"{text.encode('utf-8', 'surrogateescape')!r} is not a UTF-8 name (netCDF files cannot be "
             "named by other bytes); accepted: a directory name in UTF-8"
@@ -278,7 +304,13 @@ def add_output_argument(parser: argparse.ArgumentParser, default: str) -> None:
 def add_set_argument(parser: argparse.ArgumentParser, help: str) -> None:
     """``--set KEY=VALUE`` (repeatable): scenario overrides, the list ``args.overrides``."""
     parser.add_argument(
-        "--set", dest="overrides", metavar="KEY=VALUE", action="append", default=[], help=help
+        "--set",
+        dest="overrides",
+        metavar="KEY=VALUE",
+        type=argument_text,
+        action="append",
+        default=[],
+        help=help,
     )
 
 

@@ -40,9 +40,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     """Validate the file, calibrate, write calibration.nc, print the fit."""
     require("calibrate", "dask.distributed")
+    from multilayer.app.factory import check_start
     from multilayer.io.study import load_calibration
 
-    plan = load_calibration(args.config)
+    plan = load_calibration(args.config, check_start)
     outdir = args.output or plan.config.output.directory or Path("results") / plan.path.stem
     outdir = Path(outdir)
     from multilayer.app.calibration import CALIBRATION_FILE

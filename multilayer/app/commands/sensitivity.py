@@ -36,10 +36,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Validate the file, run the sample, write sensitivity.nc, print the indices."""
+    from multilayer.app.factory import check_start
     from multilayer.io.study import load_sensitivity
 
     require("sensitivity", "dask.distributed", "SALib")
-    study = load_sensitivity(args.config)
+    study = load_sensitivity(args.config, check_start)
     outdir = Path(args.output or study.config.output.directory or Path("results") / study.path.stem)
     from multilayer.app.sensitivity import SENSITIVITY_FILE
 

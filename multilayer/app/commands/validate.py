@@ -56,13 +56,13 @@ def _check_file(path: str, args: argparse.Namespace) -> str:
     data, _ = scenarios.read_yaml(path)
     study_base = isinstance(data, dict) and (isinstance(data.get("base"), str) or "parameters" in data)
     if study_base and "observations" in data:
-        calibration = study.load_calibration(path)
+        calibration = study.load_calibration(path, factory.check_start)
         searched = ", ".join(calibration.config.parameters)
         return f"calibration of {searched} against {len(calibration.data)} observations"
     if study_base and "outputs" in data:
         from multilayer.app import sensitivity  # SALib's design, checked as the command does
 
-        loaded = study.load_sensitivity(path)
+        loaded = study.load_sensitivity(path, factory.check_start)
         sensitivity.sample(loaded)
         config = loaded.config
         return f"sensitivity of {', '.join(config.outputs)} to {', '.join(config.parameters)}"
