@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import copy
+import importlib.util
 import os
 import shutil
 import signal
+import sys
 import tempfile
 import time
+import types
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -68,6 +71,18 @@ def default_stop_signals(python_sigint: None) -> Any:
     yield
     for signum, handler in previous.items():
         signal.signal(signum, handler)
+
+
+def fault_battery() -> types.ModuleType:
+    """``benchmarks/fault_battery.py``, imported once (registered under its name before it
+    runs: its dataclasses look it up), for the tests that share its cases' files."""
+    if "fault_battery" not in sys.modules:
+        path = Path(__file__).resolve().parents[1] / "benchmarks" / "fault_battery.py"
+        spec = importlib.util.spec_from_file_location("fault_battery", path)
+        assert spec is not None and spec.loader is not None
+        sys.modules["fault_battery"] = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(sys.modules["fault_battery"])
+    return sys.modules["fault_battery"]
 
 
 def _warm_up_done(worker: dict[str, Any]) -> Path:

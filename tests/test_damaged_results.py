@@ -6,11 +6,9 @@ than written (CF attributes multilayer does not write) or whose records fail the
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import shutil
-import sys
 from collections.abc import Callable
 from pathlib import Path
 
@@ -18,7 +16,7 @@ import netCDF4
 import numpy as np
 import pytest
 import yaml
-from conftest import TINY_SCENARIO
+from conftest import TINY_SCENARIO, fault_battery
 
 from multilayer import scenario as scenarios
 from multilayer.app import runner, sweep
@@ -26,7 +24,6 @@ from multilayer.errors import InputError
 from multilayer.io.netcdf_layout import NUMRECS_OFFSET, read_layout
 from multilayer.io.results import SUMMARY_KEYS, open_result, run_failure, summary
 
-BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 SHORT = {**TINY_SCENARIO, "name": "short", "time": {"end": 0.08, "output_interval": 0.02}}
 """5 output times of the tiny column."""
 IMMERSED = {
@@ -297,12 +294,7 @@ def test_a_failed_or_interrupted_result_is_shown_with_a_note_and_is_not_an_answe
 
 def _netcdf4_copy(path: Path, cells: int, forged: bool = False) -> None:
     """The fault battery's netCDF-4 copy of a result: ``cells`` cells never written."""
-    if "fault_battery" not in sys.modules:  # registered before it runs: its dataclasses look it up
-        spec = importlib.util.spec_from_file_location("fault_battery", BENCHMARKS / "fault_battery.py")
-        assert spec is not None and spec.loader is not None
-        sys.modules["fault_battery"] = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(sys.modules["fault_battery"])
-    sys.modules["fault_battery"].netcdf4_copy(path, cells, forged=forged)
+    fault_battery().netcdf4_copy(path, cells, forged=forged)
 
 
 def test_a_result_larger_than_its_scenario_or_the_memory_is_refused_before_it_is_read(

@@ -13,6 +13,7 @@ import numpy as np
 import pydantic
 import pytest
 import xarray as xr
+from conftest import fault_battery
 
 import multilayer
 from multilayer import Material
@@ -311,23 +312,6 @@ def test_parameter_model_is_strict():
             model.model_validate(bad)
 
 
-LOUD = """
-print("loud: imported")
-import multilayer
-from multilayer.plugins.builtins.drucker_prager import DruckerPrager
-class Loud(DruckerPrager):
-    "\\x1b[31mA loud law\\x1b[0m."
-    name = "loud"
-    def __init__(self, mu_s: float, nu: float):
-        print("loud: constructed")
-        super().__init__(mu_s, nu)
-@multilayer.hookimpl
-def multilayer_register_rheologies(register):
-    print("loud: registering")
-    register(Loud)
-"""
-
-
 def test_a_plugin_printing_writes_to_stderr_and_its_text_is_listed_printable(
     tmp_path, monkeypatch, capsys, fresh_catalogue, tiny_scenario, write_scenario
 ):
@@ -336,12 +320,15 @@ def test_a_plugin_printing_writes_to_stderr_and_its_text_is_listed_printable(
     escape sequence reached the terminal through ``plugins``."""
     from multilayer.app.cli import main
 
-    fake_distribution(tmp_path, "loud", LOUD)
+    fake_distribution(tmp_path, "loud", fault_battery().LOUD_PLUGIN)
     monkeypatch.syspath_prepend(str(tmp_path))
     assert main(["plugins"]) == 0
     listing = capsys.readouterr()
     assert "loud: " not in listing.out and "loud: imported\nloud: registering" in listing.err
-    assert "loud [bulk]: \\x1b[31mA loud law\\x1b[0m." in listing.out and "\x1b" not in listing.out
+    assert (
+        "loud [bulk]: \\x1b[31mA loud law\\x1b[0m, ringing \\x07." in listing.out
+        and "\x1b" not in listing.out
+    )
     path = write_scenario({**tiny_scenario, "rheology": {"name": "loud", "mu_s": 0.3, "nu": 0.01}})
     assert main(["validate", str(path)]) == 0
     checked = capsys.readouterr()
