@@ -367,7 +367,15 @@ def _solve(t, w, L, new, threshold, flags):
     ``_active_set``: the same bits), counting the failures of the pivots up the column (so
     that the top layer holds each lane's), the velocities going to slot ``new`` of the tile
     as they are made.  Indices are unsigned (as in :func:`_sweep`): no test for negative
-    indices."""
+    indices.
+
+    Where the conductance ``c`` below a layer is 0, ``_active_set`` leaves its equation as
+    formed; here it is eliminated all the same, without a branch (no masked loads): ``f``
+    is then a zero, which leaves ``d`` and ``r`` as they are, neither being -0.0 (each sum of
+    :func:`_equation` starts from +0.0; a difference of equal values is +0.0).  Only where
+    the pivot or right-hand side below is not finite (or a pivot overflows) is it NaN: the
+    column's pivot is then not positive or its velocities not finite (:func:`_sweep`), and
+    it leaves the block for ``_chunk``, whose answer is the block's."""
     one, lanes, layers = np.uint64(1), np.uint64(BLOCK), np.uint64(L)
     n = layers * lanes  # the values of an array
     pivot, right, coupling, tried, solved = w[PIVOT], w[RIGHT], w[COUPLING], w[TRIED], w[SOLVED]
@@ -381,28 +389,27 @@ def _solve(t, w, L, new, threshold, flags):
     for s in range(lanes, n):  # formed and swept forward: the value below is BLOCK places before
         c, d, r = _equation(t, x0 + s, lanes)
         b = s - lanes
-        f = -c * pivot[b]
-        eliminated_d = d - f * (-c)
-        eliminated_r = r - f * right[b]
-        d = eliminated_d if c != 0.0 else d
+        f = -c * pivot[b]  # eliminated where c is 0 too (_equation: d and r are then kept)
+        d = d - f * (-c)
         coupling[s] = c
-        right[s] = eliminated_r if c != 0.0 else r
+        right[s] = r - f * right[b]
         tried[s] = tried[b] + (0.0 if d > 0.0 else 1.0)
         pivot[s] = 1.0 / d
     for lane in range(BLOCK):  # the test of the pivots (tried is then the count of the changes)
         if tried[top + np.uint64(lane)] > 0.0:
             flags[ACTIVE, lane] = False
     for s in range(top, n):  # the back substitution: the value above is BLOCK places after
-        last = solved[s]
-        solved[s] = right[s] * pivot[s]
-        t[new, x0 + s] = solved[s]
-        tried[s] = 1.0 if abs(solved[s] - last) > threshold else 0.0
+        last, v = solved[s], right[s] * pivot[s]
+        solved[s] = v
+        t[new, x0 + s] = v
+        tried[s] = 1.0 if abs(v - last) > threshold else 0.0
     for b in range(lanes, n):
         s = n - one - b
         above, last = solved[s + lanes], solved[s]
-        solved[s] = (right[s] + coupling[s + lanes] * above) * pivot[s]
-        t[new, x0 + s] = solved[s]
-        tried[s] = tried[s + lanes] + (1.0 if abs(solved[s] - last) > threshold else 0.0)
+        v = (right[s] + coupling[s + lanes] * above) * pivot[s]
+        solved[s] = v
+        t[new, x0 + s] = v  # (v, not solved[s] again: the compiler cannot tell the arrays apart)
+        tried[s] = tried[s + lanes] + (1.0 if abs(v - last) > threshold else 0.0)
 
 
 @jit(inline="always")
