@@ -331,6 +331,7 @@ def test_pytest_runs_a_named_file_and_selects_by_kind(pytester):
     only.assert_outcomes(passed=1, deselected=1)
 
 
+@pytest.mark.slow
 def test_pytest_reads_the_yaml_files_of_a_named_directory_as_multilayer_does(pytester):
     """The plugin read every YAML file of a directory named on the command line with
     PyYAML's own parser, without bounds: a data file beside the scenarios 5000 lists deep

@@ -232,6 +232,7 @@ def test_a_key_path_with_an_empty_part_is_malformed(tmp_path, cli, write_scenari
     )
 
 
+@pytest.mark.slow
 def test_file_names_holding_a_terminal_escape_sequence_are_quoted_in_what_commands_print(
     tmp_path, cli, write_scenario
 ):
@@ -2513,6 +2514,7 @@ def test_a_dem_of_scaled_integers_or_a_rotated_geotransform_gives_its_terrain(tm
         np.testing.assert_allclose(points, plain, atol=2e-4 if "scale" in kind else 1e-12)
 
 
+@pytest.mark.slow
 def test_a_dem_is_read_in_windows_around_its_polyline_never_whole(tmp_path, tiny_scenario, cli):
     """A DEM of 20000 x 20000 pixels was read whole, 3 GiB of float64 (a MemoryError under a
     limit, a traceback); read in windows it takes kilobytes.  A block larger than 2^24

@@ -95,6 +95,7 @@ def test_plot_multi_column_run_with_animation(slump_dir: Path, cli, monkeypatch)
     _assert_figures(slump_dir, FIGURES)
 
 
+@pytest.mark.slow
 def test_an_animation_refused_its_file_says_so_in_one_message(slump_dir: Path, cli, monkeypatch) -> None:
     """``plots/section.gif`` a directory: exit 2 naming it, and nothing more (the animation
     was made before its file was refused, collected unsaved, and Matplotlib warned
@@ -370,6 +371,7 @@ def test_an_export_after_a_longer_run_leaves_none_of_its_files(slump_dir: Path, 
     assert not (tmp_path / "vtk" / "result_0999.vts").exists() and (tmp_path / "vtk" / "notes.txt").exists()
 
 
+@pytest.mark.slow
 def test_a_plot_stopped_half_way_leaves_no_figures_of_two_runs(
     slump_dir: Path, tmp_path: Path, cli, monkeypatch
 ):
@@ -396,6 +398,7 @@ def test_a_plot_stopped_half_way_leaves_no_figures_of_two_runs(
     assert written == [f".section.partial.{os.getpid()}.png", f".thickness.partial.{os.getpid()}.png"]
 
 
+@pytest.mark.slow
 def test_figures_and_an_animation_drawn_from_an_earlier_result_are_removed_by_the_next_plot(
     slump_dir: Path, tmp_path: Path, cli, monkeypatch
 ):

@@ -722,6 +722,7 @@ def test_a_signal_the_process_ignores_stays_ignored_while_a_run_or_study_handles
         signal.signal(signal.SIGINT, before)
 
 
+@pytest.mark.slow
 def test_reading_plotting_exporting_and_resuming_a_result_leave_the_warning_filters_alone(
     tmp_path, cli, tiny_scenario, write_scenario
 ):
