@@ -585,6 +585,7 @@ def test_a_mesh_that_does_not_fit_in_memory_under_force_is_named_not_a_traceback
     assert not (tmp_path / "out" / "result.nc").exists()
 
 
+@pytest.mark.slow
 def test_a_directory_of_a_run_and_a_study_or_a_studys_with_a_runs_options_is_exit_2(
     tmp_path, cli, write_scenario
 ):

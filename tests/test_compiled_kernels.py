@@ -338,6 +338,7 @@ def test_a_run_after_compile_kernels_compiles_nothing(tiny_scenario):
         assert sim.t > 0 and names == []
 
 
+@pytest.mark.slow
 def test_the_numpy_paths_parallel_column_solve_is_compiled_ahead():
     """A third-party law without compiled forms solves its columns on the numpy path; on
     more than one thread that is the parallel column solve, which no run under a built-in

@@ -428,6 +428,7 @@ def test_a_process_older_than_the_cache_neither_saves_nor_loads_its_kernels(tmp_
     assert _edited(engine, "1").stdout.split() == ["2.0"]
 
 
+@pytest.mark.slow
 def test_bytecode_of_an_earlier_version_is_not_cached_and_compiled_anew(tmp_path):
     """Python runs a module's ``.pyc`` when its header holds the source's time (whole
     seconds) and size: a kernel module rewritten with both kept (a copy keeping the time,

@@ -388,6 +388,7 @@ def test_a_dem_read_before_along_the_same_polyline_is_not_read_again(
     assert len(reads) == 3
 
 
+@pytest.mark.slow
 def test_a_sweep_member_costs_no_work_per_row_of_an_initial_thickness_file_read_before(
     tmp_path, write_scenario, tiny_scenario, monkeypatch
 ):

@@ -271,6 +271,7 @@ def test_the_column_kernel_refuses_non_finite_input_and_never_spins_on_it():
     assert column_kernel._add(X1, Y1, 2, 1.0, 1.0, X2, Y2, 2, 1.0, 1.0, *out)[0] == -1
 
 
+@pytest.mark.slow
 def test_ctrl_c_is_honoured_between_two_kernel_calls_inside_a_long_step(tmp_path, default_stop_signals):
     """The first step would take 200 kernel calls of 0.2 s (40 s).  The verdict rests on
     counts, not on the wall clock, so that it holds on a loaded machine (a bound of 1 s
