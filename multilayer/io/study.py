@@ -37,7 +37,7 @@ from pydantic import BaseModel, Field, ValidationError, field_validator, model_v
 
 from multilayer import scenario
 from multilayer.errors import InputError, reason, shortened, shown
-from multilayer.scenario.files import not_a_file, read_text
+from multilayer.scenario.files import read_text, why_not_a_file
 from multilayer.scenario.limits import MAX_DESIGN_VALUES, MAX_PROFILE_POINTS, MAX_STUDY_RUNS
 from multilayer.scenario.loading import load_base
 from multilayer.scenario.messages import StrictModel, describe, directory_path, dotted, field, invalid
@@ -635,7 +635,7 @@ def _read(path: Path, lines: dict, index: int, obs: Observation, experiment: str
     file = path.parent / obs.file
     if not file.is_file():
         raise InputError(
-            f"{where}: {file} {not_a_file(file)}; accepted: a CSV or netCDF file, relative to {path}"
+            f"{where}: {file} {why_not_a_file(file)}; accepted: a CSV or netCDF file, relative to {path}"
         )
     if file.suffix == ".nc":
         if obs.variable is None:

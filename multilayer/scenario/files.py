@@ -37,7 +37,7 @@ def read_text(path: Path, expected: str, readable: str) -> str:
         raise InputError(f"{path}: cannot read the file ({reason(exc)}); accepted: {readable}") from None
 
 
-def not_a_file(path: Path) -> str:
+def why_not_a_file(path: Path) -> str:
     """Why ``path``, which is not a regular file, cannot be read as one, in words: a
     symbolic link to nothing or in a loop was said to be "not found", where ``ls`` lists it."""
     if path.exists():

@@ -14,7 +14,7 @@ from pydantic_core import PydanticSerializationError
 
 from multilayer.errors import InputError, shortened
 from multilayer.scenario import limits
-from multilayer.scenario.files import not_a_file
+from multilayer.scenario.files import why_not_a_file
 from multilayer.scenario.messages import KeyPath, describe, dotted
 from multilayer.scenario.overrides import apply_overrides
 from multilayer.scenario.schema import Scenario
@@ -113,7 +113,7 @@ def load_base(study: Path, base: str, where: str, what: str, overrides: Sequence
     study file, is said so in one line: loaded as a scenario, it gave one line per key."""
     path = study.parent / base
     if not path.is_file():  # a directory or a pipe is no scenario file either
-        raise InputError(f"{where}: scenario file {path} {not_a_file(path)}; accepted: {BASE_ACCEPTED}")
+        raise InputError(f"{where}: scenario file {path} {why_not_a_file(path)}; accepted: {BASE_ACCEPTED}")
     if path.samefile(study):
         raise InputError(f"{where}: {path} is this file itself, not a scenario; accepted: {BASE_ACCEPTED}")
     try:  # read once: the file may change between two reads
