@@ -232,7 +232,9 @@ def figure_comparison(m: dict[tuple[str, int], Measures], cells: int) -> str:
 
     departure = " and ".join(f"{run[p]['runout'] / fig[p]['runout'] - 1:+.0%}" for p in PACKINGS)
     return f"""Beside the paper's figure (digitised: {where}; the packings and heights of
-its two columns are not given there, and their initial fronts are at {pair("initial", ".3f")} m
+its two columns are not given there (an independent digitisation of the same curves, in
+SedFoam's tutorial data, names them 6 cm long and 4.8 and 4.2 cm high, the files' sizes;
+`data/sources.yaml`), and their initial fronts are at {pair("initial", ".3f")} m
 where the files' columns are {COLUMN:g} m long): run-out {pair("runout", ".3f")} m, loose and
 dense (ratio {ratio(fig, "runout", "loose"):.2f}; the model at {cells} cells {model("runout", ".4f")} m,
 {departure}, ratio {ratio(run, "runout", "loose"):.2f}); time to {RUNOUT_SHARE:.0%} of the run-out
@@ -240,7 +242,7 @@ dense (ratio {ratio(fig, "runout", "loose"):.2f}; the model at {cells} cells {mo
 apart; the model {model("t95", ".2f")} s, ratio {ratio(run, "t95", "dense"):.2f}); pore pressure at
 the bed below the column at its largest magnitude {pair("pressure", "+.0f")} Pa, one sensor (the
 model, averaged under the initial column, {model("pressure", "+.0f")} Pa).  No criterion is set on
-these: the columns of the figure are not known to be those of the files."""
+these: that the figure's columns are the files' rests only on a third party's file names."""
 
 
 def stop_bound(q: Measures) -> tuple[float, str]:
