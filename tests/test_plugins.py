@@ -358,6 +358,25 @@ def test_a_plugin_printing_as_it_runs_writes_to_stderr_under_run_and_to_the_host
     assert "loud: yield_stress" in ran.out and "loud: " not in ran.err
 
 
+def test_a_plugin_printing_as_it_runs_writes_to_stderr_under_check(
+    tmp_path, monkeypatch, capsys, fresh_catalogue, tiny_scenario, write_scenario
+):
+    """``multilayer check`` prints its report on stdout: a law printing as the scenario
+    runs wrote its lines between the report's."""
+    from multilayer.app.cli import main
+
+    fake_distribution(tmp_path, "loudrun", fault_battery().LOUD_RUN_PLUGIN)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    met = {"kind": "regression", "quantity": "mass_final", "value": 0.005, "rtol": 0.01}
+    law = {"name": "loudrun", "mu_s": 0.3, "nu": 0.01}
+    time = {"end": 0.02, "output_interval": 0.01}
+    path = write_scenario({**tiny_scenario, "rheology": law, "time": time, "expect": [met]})
+    assert main(["check", str(path)]) == 0
+    checked = capsys.readouterr()
+    assert "1/1 expectations met" in checked.out and "loud: " not in checked.out
+    assert "loud: yield_stress" in checked.err
+
+
 def test_a_plugin_replacing_stdout_as_it_runs_leaves_run_its_summary(
     monkeypatch, capsys, tiny_scenario, write_scenario
 ):

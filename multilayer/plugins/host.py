@@ -193,9 +193,9 @@ def printing_to_stderr() -> contextlib.AbstractContextManager[object]:
     the output of ``multilayer plugins``, ``validate`` and ``run``, which scripts read.
     ``sys.stdout`` is the process's: in another thread (a host running laws in a pool) it
     is left alone, since two threads swapping it at once can leave it swapped for good.
-    ``multilayer run`` holds it over the whole run (a law printing in its methods), and
-    sets back at its end a ``sys.stdout`` a plugin replaced; a run through the Python
-    API leaves the host's stdout to the host."""
+    ``multilayer run`` and ``check`` hold it over their runs (a law printing in its
+    methods), and set back at their end a ``sys.stdout`` a plugin replaced; a run through
+    the Python API leaves the host's stdout to the host."""
     if threading.current_thread() is not threading.main_thread():
         return contextlib.nullcontext()
     return contextlib.redirect_stdout(sys.stderr)
