@@ -3730,6 +3730,7 @@ def cases() -> list[Case]:
         + round_thirty_eight()
         + round_thirty_nine()
         + round_forty()
+        + round_forty_one()
     )
 
 
@@ -6891,6 +6892,305 @@ def round_forty() -> list[Case]:
     ]  # fmt: skip
 
 
+LOUD_RUN_PLUGIN = """
+import multilayer
+from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+class LoudRun(DruckerPrager):
+    "Drucker-Prager on the numpy path, printing in its methods."
+    name = "loudrun"
+    yield_stress_kernel = lambda self, material: None
+    viscosity_kernel = lambda self, material: None
+    def yield_stress(self, *arguments, **keywords):
+        print("loud: yield_stress")
+        return super().yield_stress(*arguments, **keywords)
+    def viscosity(self, *arguments, **keywords):
+        print("loud: viscosity")
+        return super().viscosity(*arguments, **keywords)
+@multilayer.hookimpl
+def multilayer_register_rheologies(register):
+    register(LoudRun)
+"""
+"""A third-party law printing a line each time its yield stress or viscosity is called."""
+
+OWN_STDOUT = """
+import subprocess
+done = subprocess.run([sys.executable, '-m', 'multilayer', *sys.argv[1:]], stdout=subprocess.PIPE, text=True)
+lines = done.stdout.splitlines()
+bad = [line for line in lines if line.startswith('loud: ')]
+said = [line for line in lines if any(word in line for word in (': wrote ', ' ok, ', 'expectations met'))]
+print(f'multilayer: {len(lines)} lines on stdout, its summary: {bool(said)}, lines of the plugin: {bad[:2]}',
+      file=sys.stderr)
+sys.exit(done.returncode if said and not bad else 1)
+"""
+"""The command run in a process of its own whose stdout (the descriptor, which the workers
+of a study share) is read: exit 1 if a line of the plugin is there or the summary is not."""
+
+STDOUT_REPLACED = """
+import contextlib, io
+calls[0] = 0
+real_yield = DruckerPrager.yield_stress
+def replacing(self, *arguments):
+    calls[0] += 1
+    if calls[0] == 3:
+        sys.stdout = None
+    return real_yield(self, *arguments)
+DruckerPrager.yield_stress = replacing
+DruckerPrager.yield_stress_kernel = lambda self, material: None
+captured = io.StringIO()
+with contextlib.redirect_stdout(captured):
+    code = main(sys.argv[1:])
+    kept = sys.stdout is captured
+said = [line for line in captured.getvalue().splitlines() if ': wrote ' in line]
+print(f'multilayer: stdout kept: {kept}, summary lines: {len(said)}', file=sys.stderr)
+sys.exit(code if kept and said else 1)
+"""
+"""A law setting ``sys.stdout`` to None at its third call, under ``multilayer run``."""
+
+API_PRINTING = """
+import contextlib, io, multilayer
+captured = io.StringIO()
+with contextlib.redirect_stdout(captured):
+    status = multilayer.run(sys.argv[2], sys.argv[3] + '/run').attrs['run_status']
+    kept = sys.stdout is captured
+count = captured.getvalue().count('loud: yield_stress')
+print(f'multilayer: run {status}, host stdout kept: {kept}, its lines there: {count > 0}', file=sys.stderr)
+sys.exit(0 if status == 'completed' and kept and count else 1)
+"""
+"""``multilayer.run`` in a host that redirected its stdout, under :data:`LOUD_RUN_PLUGIN`:
+the law's lines go where the host sends its stdout (the library leaves it alone)."""
+
+
+def _loud_run(kind: str) -> Callable[[Path], None]:
+    """:data:`LOUD_RUN_PLUGIN` installed in ``directory/plugin``; the scenario under its law,
+    for ``kind`` check with an expectation it meets, for sweep a sweep of one member."""
+
+    def setup(directory: Path) -> None:
+        law = {"name": "loudrun", "mu_s": 0.3, "nu": 0.01}
+        met = {"kind": "regression", "quantity": "mass_final", "value": 0.005, "rtol": 0.01}
+        _scenario(directory, {"rheology": law, **({"expect": [met]} if kind == "check" else {})})
+        _plugin_package(directory, "loudrun", LOUD_RUN_PLUGIN)
+        if kind == "sweep":
+            (directory / "study.yaml").write_text(
+                "base: scenario.yaml\nparameters:\n  rheology.mu_s: [0.3]\n"
+            )
+
+    return setup
+
+
+def _linked_scenario(target: str) -> Callable[[Path], None]:
+    """``scenario.yaml`` a symbolic link to ``target`` (``nothing.yaml``, or ``scenario.yaml``
+    itself: a loop)."""
+
+    def setup(directory: Path) -> None:
+        (directory / "scenario.yaml").symlink_to(target)
+
+    return setup
+
+
+def _linked_bed(directory: Path) -> None:
+    """A scenario whose bed is read from ``bed.csv``, a symbolic link to nothing."""
+    _scenario(directory, {"bed": {"file": "bed.csv"}})
+    (directory / "bed.csv").symlink_to("nothing.csv")
+
+
+def _classic_result(directory: Path) -> None:
+    """A finished run whose ``result.nc`` xarray wrote again as netCDF3 (``NETCDF3_CLASSIC``)."""
+    _finished_run(directory)
+    import xarray as xr
+
+    path = directory / "out" / "result.nc"
+    with NETCDF:
+        with xr.open_dataset(path) as ds:
+            loaded = ds.load()
+        loaded.to_netcdf(path, format="NETCDF3_CLASSIC")
+
+
+def _crlf_scenario(directory: Path) -> None:
+    path = _scenario(directory)
+    path.write_bytes(path.read_bytes().replace(b"\n", b"\r\n"))
+
+
+def _study41(text: str) -> Callable[[Path], None]:
+    """The scenario and ``study.yaml`` of ``text``."""
+
+    def setup(directory: Path) -> None:
+        _scenario(directory)
+        (directory / "study.yaml").write_text(text)
+
+    return setup
+
+
+def _read_only_tmpdir(directory: Path) -> None:
+    _scenario(directory)
+    (directory / "tmp").mkdir()
+    (directory / "tmp").chmod(0o555)
+
+
+def round_forty_one() -> list[Case]:
+    """The hostile cases of the forty-first round (docs/reliability.md): a third-party law
+    printing as it runs (``run``, ``check`` and a sweep's members wrote its lines into
+    their stdout, which carries the summary or the report) or setting ``sys.stdout`` to
+    None (``run``'s summary was a traceback); numbers where another tool's netCDF file
+    holds text (a message said ``np.float64(5.0)``, or ``'3'`` of a status 3); a scenario
+    file that is a symbolic link to nothing or in a loop (said "file not found" or the
+    OS's "Too many levels of symbolic links"); ``multilayer.run(quiet=np.True_)``
+    (refused); and, handled before, the Python API given numpy scalars, 0-d and 1-element
+    arrays, huge integers, booleans, complex and read-only arrays, YAML documents, keys
+    and tags of other tools, CRLF line ends, names that are paths, ``--set`` keys,
+    options after ``--``, budgets and workers beyond bounds, the environment (HOME unset,
+    TMPDIR read-only, COLUMNS not a number) and study files at their bounds."""
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    validate = ["validate", "{scenario}"]
+    study = ["validate", "{dir}/study.yaml"]
+    plugin_env = {"PYTHONPATH": "{dir}/plugin"}
+    quiet_stdout = "its summary: True, lines of the plugin: []"
+    dangling = "is a symbolic link to nothing or in a loop"
+    body = yaml.safe_dump(TINY)
+    load = (
+        "import numpy as np\nsim = multilayer.Simulation(multilayer.load(sys.argv[2]))\n"
+        "saved = sim.state_dict()\n"
+    )
+    sensitivity = (
+        "base: scenario.yaml\nparameters:\n  rheology.mu_s: {bounds: [0.2, 0.4]}\noutputs: [runout]\n"
+    )
+    calibration = (
+        "base: scenario.yaml\nparameters:\n  rheology.mu_s: {bounds: [0.2, 0.4]}\n"
+        "observations: [{name: m, quantity: mass_final, value: 0.001, sigma: 0.001}]\n"
+    )
+    return [
+        # a law's own prints as it runs, and a law replacing sys.stdout
+        Case("run: a law printing in its yield stress and viscosity as it runs (stdout)",
+             ["run", "{scenario}", "-o", "{dir}/out"], 0, quiet_stdout, patch=OWN_STDOUT, env=plugin_env,
+             setup=_loud_run("run")),
+        Case("sweep: a member's law printing as it runs (the workers' stdout)",
+             ["sweep", "{dir}/study.yaml", "-o", "{dir}/out", "--workers", "1"], 0, quiet_stdout,
+             patch=OWN_STDOUT, env=plugin_env, setup=_loud_run("sweep")),
+        Case("check: a law printing as it runs (stdout)", ["check", "{scenario}"], 0, quiet_stdout,
+             patch=OWN_STDOUT, env=plugin_env, setup=_loud_run("check")),
+        Case("run: a law setting sys.stdout to None as it runs", ["run", "{scenario}", "-o", "{dir}/out"], 0,
+             "stdout kept: True, summary lines: 1", patch=STDOUT_REPLACED, setup=_scenario),
+        Case("control: multilayer.run in a host redirecting stdout, a law printing as it runs",
+             ["host", "{scenario}", "{dir}"], 0, "host stdout kept: True, its lines there: True",
+             patch=API_PRINTING, env=plugin_env, setup=_loud_run("run")),
+        # numbers where another tool's file holds text
+        Case("calibration: a netCDF observation whose units are the number 5.0",
+             ["validate", "{dir}/calibration.yaml"], 2, "front.nc: x_f has units 5.0, not text",
+             setup=_netcdf_observation("units a number")),
+        Case("plot: result.nc whose h has units 5.0 (a number)", ["plot", "{dir}/out"], 2,
+             "its variable h has units 5.0, which multilayer does not write",
+             setup=_edited_result(lambda ds: ds["h"].setncattr("units", 5.0))),
+        Case("export: result.nc whose time has units 7 (an int16)", ["export", "{dir}/out", "--vtk"], 2,
+             "its variable time has units 7, which multilayer does not write",
+             setup=_edited_result(lambda ds: ds["time"].setncattr("units", np.int16(7)))),
+        Case("plot: result.nc whose run_status is the number 3", ["plot", "{dir}/out"], 2,
+             "run_status 3 is not one of",
+             setup=_edited_result(lambda ds: ds.setncattr("run_status", np.int32(3)))),
+        Case("plot: result.nc written again by xarray as netCDF3", ["plot", "{dir}/out"], 2,
+             "which multilayer does not write", setup=_classic_result),
+        # symbolic links
+        Case("validate: the scenario a symbolic link to nothing", validate, 2, f"scenario.yaml {dangling}",
+             setup=_linked_scenario("nothing.yaml")),
+        Case("run: the scenario a symbolic link to itself", run, 2, f"scenario.yaml {dangling}",
+             setup=_linked_scenario("scenario.yaml")),
+        Case("validate: bed.file a symbolic link to nothing", validate, 2, f"bed.csv {dangling}",
+             setup=_linked_bed),
+        # the Python API
+        Case("API: multilayer.run(quiet=np.True_)", ["validate", "{scenario}"], 0, "",
+             patch=_api("import numpy as np\n"
+                        "multilayer.run(sys.argv[2], sys.argv[2] + '.out', quiet=np.True_)"),
+             setup=_scenario),
+        Case("API: overrides time.end np.float32(nan)", validate, 2,
+             "overrides: time.end: nan is not a value",
+             patch=_api("import numpy as np\nmultilayer.load(sys.argv[2], {'time.end': np.float32('nan')})"),
+             setup=_scenario),
+        Case("API: overrides domain.cells a 1-element array", validate, 2,
+             "domain.cells (from --set): Input should be a valid integer (got [40])",
+             patch=_api("import numpy as np\nmultilayer.load(sys.argv[2], {'domain.cells': np.array([40])})"),
+             setup=_scenario),
+        Case("API: overrides domain.cells 2**100", validate, 2,
+             "domain.cells (from --set): Input should be less than or equal to 1000000000",
+             patch=_api("multilayer.load(sys.argv[2], {'domain.cells': 2**100})"), setup=_scenario),
+        Case("API: overrides rheology.mu_s True", validate, 2,
+             "rheology.mu_s (from --set): drucker_prager: Input should be a valid number (got True)",
+             patch=_api("multilayer.load(sys.argv[2], {'rheology.mu_s': True})"), setup=_scenario),
+        Case("control: API overrides domain.cells a 0-d array", validate, 0, "",
+             patch=_api("import numpy as np\n"
+                        "loaded = multilayer.load(sys.argv[2], {'domain.cells': np.array(40)})\n"
+                        "assert loaded.domain.cells == 40"),
+             setup=_scenario),
+        Case("API: Simulation.advance(10**400)", validate, 2, "more than 1e308 s",
+             patch=_api(load + "sim.advance(10**400)"), setup=_scenario),
+        Case("API: Simulation.advance(np.array([0.01]))", validate, 2, "accepted: a finite number (s)",
+             patch=_api(load + "sim.advance(np.array([0.01]))"), setup=_scenario),
+        Case("API: load_state of a complex h", validate, 2, "h: complex128 values of shape (40,)",
+             patch=_api(load + "sim.load_state({**saved, 'h': saved['h'].astype(complex)})"),
+             setup=_scenario),
+        Case("API: load_state of steps 2**70", validate, 2, "steps: object values of shape ()",
+             patch=_api(load + "sim.load_state({**saved, 'steps': 2**70})"), setup=_scenario),
+        Case("control: API load_state of read-only arrays, then a step", validate, 0, "",
+             patch=_api(load + "for value in saved.values():\n    if isinstance(value, np.ndarray):\n"
+                        "        value.flags.writeable = False\nsim.load_state(saved)\nsim.step()"),
+             setup=_scenario),
+        # YAML of other tools
+        Case("validate: two YAML documents in the scenario", validate, 2, "but found another document",
+             setup=partial(_scenario, text=body + "---\n" + body)),
+        Case("validate: a top-level key 1", validate, 2, "(top level): key 1 is not text",
+             setup=partial(_scenario, text=body + "1: 2\n")),
+        Case("validate: a top-level key null", validate, 2, "(top level): key None is not text",
+             setup=partial(_scenario, text=body + "~: 2\n")),
+        Case("validate: a list as a key", validate, 2, "found unhashable key",
+             setup=partial(_scenario, text=body + "? [a, b]\n: 2\n")),
+        Case("validate: time.end !!float nan", validate, 2, "time.end (line",
+             setup=partial(_scenario, text=body.replace("end: 0.2", "end: !!float nan"))),
+        Case("validate: domain.cells of 23 digits", validate, 2, "domain.cells (line",
+             setup=partial(_scenario, text=body.replace("cells: 40", "cells: 99999999999999999999999"))),
+        Case("validate: name ../escape", validate, 2, "name (line",
+             setup=partial(_scenario, text=body.replace("name: tiny", "name: ../escape"))),
+        Case("validate: a name holding a newline", validate, 2, "name (line",
+             setup=partial(_scenario, text=body.replace("name: tiny", 'name: "a\\nb"'))),
+        Case("control: run of a scenario with CRLF line ends", run, 0, "", setup=_crlf_scenario),
+        # the command line
+        Case("validate: --set =1", [*validate, "--set", "=1"], 2, "--set '=1': expected KEY=VALUE",
+             setup=_scenario),
+        Case("validate: --set time..end=1", [*validate, "--set", "time..end=1"], 2,
+             "--set 'time..end=1': expected KEY=VALUE", setup=_scenario),
+        Case("run: -o after --", ["run", "{scenario}", "-q", "--", "-o", "{dir}/out"], 2,
+             "unrecognized arguments: -- -o", setup=_scenario),
+        Case("run: --set time.end given twice", [*run, "--set", "time.end=0.1", "--set", "time.end=0.2"],
+             2, "--set time.end: replaces time.end, set before it", setup=_scenario),
+        Case("run: --max-memory 1e400G", [*run, "--max-memory", "1e400G"], 2, "'1e400G' is inf bytes",
+             setup=_scenario),
+        Case("sweep: --workers 100000",
+             ["sweep", "{dir}/study.yaml", "-o", "{dir}/out", "--workers", "100000"], 2,
+             "--workers 100000: 100000 worker processes",
+             setup=_study41("base: scenario.yaml\nparameters:\n  rheology.mu_s: [0.3]\n")),
+        # the environment
+        Case("control: HOME unset, run", run, 0, "", prefix=["env", "-u", "HOME"], plain=True,
+             setup=_scenario),
+        Case("control: TMPDIR read-only, multilayer.run without outdir", validate, 0, "",
+             patch=_api("multilayer.run(sys.argv[2])"), env={"TMPDIR": "{dir}/tmp"}, setup=_read_only_tmpdir),
+        Case("control: COLUMNS=abc, run --help", ["run", "--help"], 0, "", env={"COLUMNS": "abc"},
+             plain=True),
+        # study files at their bounds
+        Case("validate: a sensitivity study of 0 samples", study, 2,
+             "samples (line 5): Input should be greater",
+             setup=_study41(sensitivity + "samples: 0\n")),
+        Case("validate: a sensitivity study of true samples", study, 2,
+             "samples (line 5): Input should be a valid",
+             setup=_study41(sensitivity + "samples: true\n")),
+        Case("validate: a sensitivity study of 2**40 samples", study, 2,
+             "samples (line 5): Input should be less",
+             setup=_study41(sensitivity + "samples: 1099511627776\n")),
+        Case("validate: a sensitivity study of bounds [0.3, 0.3]", study, 2,
+             "got [0.3, 0.3]; accepted: [lower, upper] with lower < upper",
+             setup=_study41(sensitivity.replace("0.2, 0.4", "0.3, 0.3"))),
+        Case("validate: a calibration of 1e9 generations", study, 2, "search.generations (line",
+             setup=_study41(calibration + "search: {population: 4, generations: 1000000000}\n")),
+        Case("validate: a sweep whose base is itself", study, 2, "study.yaml is this file itself",
+             setup=_study41("base: study.yaml\nparameters:\n  rheology.mu_s: [0.3]\n")),
+    ]  # fmt: skip
+
+
 ROUNDS: dict[int, Callable[[], list[Case]]] = {
     2: round_two, 3: round_three, 4: round_four, 5: round_five, 6: round_six, 7: round_seven,
     8: round_eight, 9: round_nine, 10: round_ten, 11: round_eleven, 12: round_twelve,
@@ -6907,6 +7207,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     38: round_thirty_eight,
     39: round_thirty_nine,
     40: round_forty,
+    41: round_forty_one,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""
 
@@ -6919,7 +7220,7 @@ def main() -> None:
         "--round",
         type=int,
         choices=sorted(ROUNDS),
-        help="only the cases of this round (2 to 35, 37 to 40; all: none)",
+        help="only the cases of this round (2 to 35, 37 to 41; all: none)",
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()

@@ -103,8 +103,24 @@ def shortened(text: str) -> str:
 
 
 def shown(value: object) -> str:
-    """``repr(value)`` :func:`shortened`."""
-    return shortened(repr(value))
+    """``repr(value)`` :func:`shortened`, a numpy scalar written as the plain value it
+    holds: an attribute of another tool's netCDF file is read as one, and a message said
+    ``units np.float64(5.0)`` where the file says 5.0."""
+    return shortened(repr(plain_scalar(value)))
+
+
+def plain_scalar(value: object) -> object:
+    """``value``, or the Python bool, int, float, complex, str or bytes a numpy scalar holds (a
+    ``np.longdouble`` beyond the floats, a date or a duration stay as they are)."""
+    kind = getattr(getattr(value, "dtype", None), "kind", None)
+    if (
+        type(value).__module__ != "numpy"
+        or getattr(value, "shape", None) != ()
+        or kind not in tuple("biufcSU")
+    ):
+        return value
+    number = value.item()  # type: ignore[attr-defined]
+    return number if type(number) in (bool, int, float, complex, str, bytes) else value
 
 
 def printable(text: str) -> str:

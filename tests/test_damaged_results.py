@@ -208,6 +208,10 @@ DAMAGES = {
         _attribute("front", "threshold", None),
         "its variable front's attribute threshold is missing",
     ),
+    # another tool's number where multilayer writes text: said as the number the file holds
+    # (a message said "units np.float64(5.0)", and "run_status '3'" as if it were text)
+    "units a number": (_attribute("h", "units", 5.0), r"its variable h has units 5\.0, which multilayer"),
+    "status a number": (_global("run_status", np.int32(3)), "run_status 3 is not one of completed"),
     "not netCDF": (lambda path: path.write_text("not netCDF"), r"not a netCDF result file \(not a classic"),
     "empty": (lambda path: path.write_bytes(b""), "not a netCDF result file"),
 }

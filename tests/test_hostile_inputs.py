@@ -1770,6 +1770,48 @@ def test_an_empty_output_directory_is_named_not_the_working_directory(tmp_path, 
     assert sorted(p.name for p in tmp_path.iterdir()) == ["base.yaml"]
 
 
+def test_quiet_of_the_api_run_may_be_numpys_bool():
+    """``quiet=np.True_`` (an element of a mask) was refused as not True or False: the
+    scenario is what is refused here, not ``quiet``."""
+    for quiet in (np.True_, np.False_):
+        with pytest.raises(InputError, match=r"^<scenario>: "):
+            multilayer.run({}, quiet=quiet)
+
+
+@pytest.mark.parametrize(
+    ("value", "said"),
+    [
+        (np.float64(5.0), "5.0"),
+        (np.int16(7), "7"),
+        (np.bool_(True), "True"),
+        (np.str_("m"), "'m'"),
+        (np.array(3.0), "3.0"),
+        (np.float32("nan"), "nan"),
+        (np.array([1.0, 2.0]), "array([1., 2.])"),
+        (np.longdouble("1e400"), "np.longdouble('1e+400')"),  # beyond the floats: as it is
+        (np.timedelta64(5), "np.timedelta64(5)"),  # a duration without its unit is no number
+    ],
+)
+def test_a_message_shows_a_numpy_scalar_as_its_plain_value(value, said):
+    """Another tool's netCDF attribute is read as a numpy scalar: a message said ``units
+    np.float64(5.0)`` where the file holds 5.0."""
+    from multilayer.errors import shown
+
+    assert shown(value) == said
+
+
+@pytest.mark.parametrize("link", ["nothing.yaml", "scenario.yaml"])
+def test_a_scenario_file_that_is_a_link_to_nothing_or_in_a_loop_is_said_to_be_one(tmp_path, cli, link):
+    """The scenario a symbolic link to nothing was said "file not found" (``ls`` lists it),
+    and one in a loop "cannot read the file (Too many levels of symbolic links)"."""
+    (tmp_path / "scenario.yaml").symlink_to(tmp_path / link)
+    result = cli("validate", tmp_path / "scenario.yaml")
+    assert result.code == 2
+    said = f"{tmp_path / 'scenario.yaml'} is a symbolic link to nothing or in a loop; accepted: a path"
+    assert said in result.err and result.err.count("\n") == 1, result.err
+    assert "file not found" in cli("validate", tmp_path / "nothing.yaml").err
+
+
 @pytest.mark.parametrize("quiet", ["no", 0, None, 1.0])
 def test_quiet_of_the_api_run_is_a_bool(quiet):
     """``multilayer.run(quiet="no")`` was truthy: the run went silent where its caller asked

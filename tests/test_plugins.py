@@ -335,6 +335,88 @@ def test_a_plugin_printing_writes_to_stderr_and_its_text_is_listed_printable(
     assert "loud: " not in checked.out and "loud: constructed" in checked.err
 
 
+def test_a_plugin_printing_as_it_runs_writes_to_stderr_under_run_and_to_the_hosts_stdout_in_the_api(
+    tmp_path, monkeypatch, capsys, fresh_catalogue, tiny_scenario, write_scenario
+):
+    """A law printing in its yield stress and viscosity wrote a line per call into the
+    stdout of ``multilayer run``, which carries the summary; through the Python API the
+    host's stdout is the host's, and the law's lines go there."""
+    import multilayer
+    from multilayer.app.cli import main
+
+    fake_distribution(tmp_path, "loudrun", fault_battery().LOUD_RUN_PLUGIN)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    law = {"name": "loudrun", "mu_s": 0.3, "nu": 0.01}
+    path = write_scenario({**tiny_scenario, "rheology": law, "time": {"end": 0.02, "output_interval": 0.01}})
+    stdout = sys.stdout
+    assert main(["run", str(path), "-o", str(tmp_path / "cli")]) == 0
+    ran = capsys.readouterr()
+    assert sys.stdout is stdout
+    assert ": wrote " in ran.out and "loud: " not in ran.out and "loud: yield_stress" in ran.err
+    assert multilayer.run(path, tmp_path / "api").attrs["run_status"] == "completed"
+    ran = capsys.readouterr()
+    assert "loud: yield_stress" in ran.out and "loud: " not in ran.err
+
+
+def test_a_plugin_printing_as_it_runs_writes_to_stderr_under_check(
+    tmp_path, monkeypatch, capsys, fresh_catalogue, tiny_scenario, write_scenario
+):
+    """``multilayer check`` prints its report on stdout: a law printing as the scenario
+    runs wrote its lines between the report's."""
+    from multilayer.app.cli import main
+
+    fake_distribution(tmp_path, "loudrun", fault_battery().LOUD_RUN_PLUGIN)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    met = {"kind": "regression", "quantity": "mass_final", "value": 0.005, "rtol": 0.01}
+    law = {"name": "loudrun", "mu_s": 0.3, "nu": 0.01}
+    time = {"end": 0.02, "output_interval": 0.01}
+    path = write_scenario({**tiny_scenario, "rheology": law, "time": time, "expect": [met]})
+    assert main(["check", str(path)]) == 0
+    checked = capsys.readouterr()
+    assert "1/1 expectations met" in checked.out and "loud: " not in checked.out
+    assert "loud: yield_stress" in checked.err
+
+
+def test_a_plugin_replacing_stdout_as_it_runs_leaves_run_its_summary(
+    monkeypatch, capsys, tiny_scenario, write_scenario
+):
+    """A law setting ``sys.stdout`` to None as it ran: ``multilayer run``'s summary was a
+    traceback (None has no ``flush``).  The stdout of the command is set back after the run."""
+    from multilayer.app.cli import main
+    from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+
+    real = DruckerPrager.yield_stress
+
+    def replacing(self, *arguments):
+        sys.stdout = None
+        return real(self, *arguments)
+
+    monkeypatch.setattr(DruckerPrager, "yield_stress", replacing)
+    monkeypatch.setattr(DruckerPrager, "yield_stress_kernel", lambda self, material: None)
+    path = write_scenario({**tiny_scenario, "time": {"end": 0.02, "output_interval": 0.01}})
+    stdout = sys.stdout
+    assert main(["run", str(path), "-o", str(path.parent / "out")]) == 0
+    assert sys.stdout is stdout and ": wrote " in capsys.readouterr().out
+
+
+def test_the_workers_of_a_local_cluster_print_to_stderr(monkeypatch):
+    """The local cluster's worker processes share the study's stdout, which carries its
+    summary: their preload sends what a law prints as a member runs to stderr (run here in
+    a thread, where it leaves the signal handlers alone)."""
+    import logging
+    import threading
+
+    from multilayer.app import stopping
+
+    monkeypatch.setattr(sys, "stdout", sys.stdout)  # set back after the test
+    logger = logging.getLogger("distributed.worker")
+    monkeypatch.setattr(logger, "filters", list(logger.filters))
+    thread = threading.Thread(target=stopping.dask_setup, args=(None,))
+    thread.start()
+    thread.join()
+    assert sys.stdout is sys.stderr
+
+
 def test_plugins_constructed_in_threads_leave_the_process_stdout_alone():
     """In a thread that is not the main one, what a plugin prints is not sent to stderr:
     ``sys.stdout`` is the process's, and two threads each swapping it for stderr and

@@ -18,7 +18,7 @@ from typing import Any
 import xarray as xr
 
 from multilayer import scenario as scenarios
-from multilayer.errors import InputError, Interrupted, RunError
+from multilayer.errors import InputError, Interrupted, RunError, plain_scalar
 from multilayer.io.results import open_result
 from multilayer.scenario import Scenario, limits
 from multilayer.scenario.messages import shown
@@ -105,8 +105,10 @@ def run(
     with named():
         from multilayer.app import runner  # the engine is imported only to run
 
-    if not isinstance(quiet, bool):  # "no" or 0.0 read as true would silence the progress line
+    given = plain_scalar(quiet)  # numpy's True (an element of a mask) is True
+    if not isinstance(given, bool):  # "no" or 0.0 read as true would silence the progress line
         raise InputError(f"quiet: got {shown(quiet)}; accepted: True or False")
+    quiet = given
     loaded = load(scenario, overrides)
     if outdir is not None:
         outdir = _path(outdir, "outdir", "None or the path of a directory")

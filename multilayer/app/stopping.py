@@ -23,6 +23,7 @@ import contextlib
 import logging
 import os
 import signal
+import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -71,12 +72,17 @@ def signals_stop() -> Iterator[None]:
 
 
 def dask_setup(worker: Any) -> None:
-    """Dask preload of the local cluster's worker processes: ignore SIGINT and SIGHUP.
+    """Dask preload of the local cluster's worker processes: ignore SIGINT and SIGHUP, and
+    print to stderr.
 
     A Ctrl-C at a terminal reaches every process of the foreground group; a worker would
     die mid-write and its nanny start another.  The process running the study alone acts
-    on it, and stops its members through the :class:`StopFile`.
+    on it, and stops its members through the :class:`StopFile`.  The workers share the
+    study's stdout, which carries its summary: a law printing as a member runs wrote its
+    lines there (the workers are the study's processes; a cluster of ``--scheduler`` is
+    left as it is).
     """
+    sys.stdout = sys.stderr
     if threading.current_thread() is threading.main_thread():
         for signum in (signal.SIGINT, getattr(signal, "SIGHUP", None)):
             if signum is not None:

@@ -233,9 +233,10 @@ def _status(ds: netCDF4.Dataset, file: Path, bad) -> tuple[str, dict]:
             raise bad(f"its scenario attribute's {key} is {shown(node)}, not a finite number")
     _check_attributes(ds, bad)
     _check_dimensions(ds, scenario, bad)
-    status = str(ds.getncattr("run_status")) if "run_status" in ds.ncattrs() else ""
+    given = ds.getncattr("run_status") if "run_status" in ds.ncattrs() else ""
+    status = given if isinstance(given, str) else ""  # a number was said as text: '3'
     if status not in STATUSES:
-        raise bad(f"run_status {status!r} is not one of {', '.join(STATUSES)}")
+        raise bad(f"run_status {shown(given)} is not one of {', '.join(STATUSES)}")
     _check_failure(ds, status, bad)
     return status, scenario
 
@@ -287,7 +288,7 @@ def _check_encoding(ds: netCDF4.Dataset, bad) -> None:
         odd = [f"{key} {var.getncattr(key)}" for key in sorted(found.intersection(DECODING))]
         units = var.getncattr("units") if "units" in found else None
         if units != attrs.get("units"):
-            odd.append(f"units {units!r}")
+            odd.append(f"units {shown(units)}")
         fill = var.getncattr("_FillValue") if "_FillValue" in found else np.nan
         if not (isinstance(fill, float) and np.isnan(fill)):
             odd.append(f"_FillValue {fill}")

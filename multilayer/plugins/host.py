@@ -150,7 +150,7 @@ def catalogue() -> Catalogue:
         source = _source(ep)
         classes: list[type[Rheology]] = []
         try:
-            with _printing_to_stderr():
+            with printing_to_stderr():
                 module = ep.load()
                 manager.register(module, name=source)
                 others = [p for p in manager.get_plugins() if p is not module]
@@ -187,12 +187,15 @@ def catalogue() -> Catalogue:
     return Catalogue(found, tuple(broken))
 
 
-def _printing_to_stderr() -> contextlib.AbstractContextManager[object]:
+def printing_to_stderr() -> contextlib.AbstractContextManager[object]:
     """What a plugin's own code prints goes to stderr while it runs here, in the main
     thread: a module printing as it is imported (or as it registers) wrote its line into
     the output of ``multilayer plugins``, ``validate`` and ``run``, which scripts read.
     ``sys.stdout`` is the process's: in another thread (a host running laws in a pool) it
-    is left alone, since two threads swapping it at once can leave it swapped for good."""
+    is left alone, since two threads swapping it at once can leave it swapped for good.
+    ``multilayer run`` and ``check`` hold it over their runs (a law printing in its
+    methods), and set back at their end a ``sys.stdout`` a plugin replaced; a run through
+    the Python API leaves the host's stdout to the host."""
     if threading.current_thread() is not threading.main_thread():
         return contextlib.nullcontext()
     return contextlib.redirect_stdout(sys.stderr)
@@ -363,7 +366,7 @@ def construct(cls: type[Rheology], params: dict[str, Any]) -> Rheology:
     call = f"{cls.__qualname__}({_arguments(params)})"
     host = host_state()
     try:
-        with _printing_to_stderr():
+        with printing_to_stderr():
             plugin = cls(**params)
     except (TypeError, ValueError) as exc:
         raise ConstructorError(said(exc)) from None

@@ -31,10 +31,19 @@ def read_text(path: Path, expected: str, readable: str) -> str:
             return data.decode("utf-8-sig")  # a byte order mark (spreadsheets write one) is no text
         except UnicodeDecodeError as exc:
             raise InputError(f"{path}: {_not_utf8(data, exc.start)}; accepted: {readable}") from None
-    except FileNotFoundError:
-        raise InputError(f"{path}: file not found; accepted: {expected}") from None
     except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise InputError(f"{path}: cannot read the file ({reason(exc)}); accepted: {readable}") from None
+        raise _unread(path, exc, expected, readable) from None
+
+
+def _unread(path: Path, exc: Exception, expected: str, readable: str) -> InputError:
+    """The error for ``path`` that could not be opened or read (``exc``): a symbolic link
+    to nothing or in a loop is said to be one (:func:`why_not_a_file`), where the OS says
+    "No such file" or "Too many levels of symbolic links" of a name ``ls`` lists."""
+    if isinstance(exc, OSError) and path.is_symlink() and not path.exists():
+        return InputError(f"{path} {why_not_a_file(path)}; accepted: {expected}")
+    if isinstance(exc, FileNotFoundError):
+        return InputError(f"{path}: file not found; accepted: {expected}")
+    return InputError(f"{path}: cannot read the file ({reason(exc)}); accepted: {readable}")
 
 
 def why_not_a_file(path: Path) -> str:
@@ -85,9 +94,7 @@ def check_regular(path: Path, expected: str, readable: str) -> None:
     for ever on a pipe)."""
     try:
         mode = os.stat(path).st_mode
-    except FileNotFoundError:
-        raise InputError(f"{path}: file not found; accepted: {expected}") from None
     except (OSError, ValueError) as exc:
-        raise InputError(f"{path}: cannot read the file ({reason(exc)}); accepted: {readable}") from None
+        raise _unread(Path(path), exc, expected, readable) from None
     if not stat.S_ISREG(mode):
         raise InputError(f"{path}: not a regular file; accepted: {readable}")

@@ -66,11 +66,14 @@ def main(args: argparse.Namespace) -> int:
         for message in errors:
             to_stderr(f"multilayer: error: {message}")
         return 2
+    from multilayer.plugins.host import printing_to_stderr
+
     failed = 0
     for scenario in loaded:
         outdir = None if args.output is None else args.output / scenario.name
         try:
-            outcomes = expect.check(scenario, outdir)
+            with printing_to_stderr():  # the report is stdout's: what a law prints as it runs is not
+                outcomes = expect.check(scenario, outdir)
         except RunError as exc:
             print(printable(f"{scenario.source}: run failed: {exc}"))
             failed += 1

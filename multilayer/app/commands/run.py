@@ -39,12 +39,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     """Validate the scenario, run it, print the summary."""
     from multilayer.app import runner  # the engine is imported only to run
+    from multilayer.plugins.host import printing_to_stderr
 
     scenario = scenarios.load(args.scenario, args.overrides)
     outdir = args.output or scenario.output.directory or Path("results") / scenario.name
-    summary = runner.run(
-        scenario, outdir, resume=args.resume, quiet=True if args.quiet else None, budget=budget(args)
-    )
+    with printing_to_stderr():  # the summary is stdout's: what a law prints as it runs is not
+        summary = runner.run(
+            scenario, outdir, resume=args.resume, quiet=True if args.quiet else None, budget=budget(args)
+        )
     if not args.quiet:
         print(printable(f"{scenario.name}: wrote {Path(outdir) / 'result.nc'}"))
         for line in summary_lines(summary, scenario.numerics.front_threshold):
