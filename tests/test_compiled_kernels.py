@@ -338,6 +338,42 @@ def test_a_run_after_compile_kernels_compiles_nothing(tiny_scenario):
         assert sim.t > 0 and names == []
 
 
+def test_a_run_on_the_numpy_path_after_compile_kernels_compiles_nothing(tiny_scenario, monkeypatch):
+    """Once :func:`compile_kernels` has cached its tasks' kernels, a small run on the numpy
+    path of the vertical step compiles no kernel of the engine: under a law without a
+    compiled viscosity form (a third-party rheology; here a shear-thickening power law,
+    whose Newton steps the line search damps) with its yield form compiled, and under side
+    walls without compiled forms (the bulk's form read for its concavity).  Their first
+    runs compiled the coefficients from the yield forms (about 2 s), the slopes of the line
+    search and the concavity of a form given its parameters as an array."""
+    from numba.core import event
+
+    import multilayer
+    from multilayer.app.precompile import compile_kernels
+    from multilayer.engine.vertical import newton
+    from multilayer.plugins.builtins import PowerLawMuI, WallFriction
+
+    assert not compile_kernels().failed
+    names: list[str] = []
+    damped: list[int] = []
+    slopes_along = newton.slopes_along
+    monkeypatch.setattr(newton, "slopes_along", lambda *a: damped.append(1) or slopes_along(*a))
+
+    tiny_scenario["walls"] = {"name": "wall_friction", "mu_w": 0.2}
+    tiny_scenario["domain"]["width"] = 0.1
+    thickening = {"name": "power_law_mu_i", "mu_s": 0.38, "m": 0.3, "alpha": 1.5}
+    for law, overrides in ((PowerLawMuI, {"rheology": thickening}), (WallFriction, {})):
+        with monkeypatch.context() as patched:
+            for kernel in ("viscosity_kernel", "yield_stress_kernel")[: 2 if law is WallFriction else 1]:
+                patched.setattr(law, kernel, lambda self, material: None)
+            with event.install_listener("numba:compile", _compiled(names)):
+                sim = multilayer.Simulation(multilayer.load({**tiny_scenario, **overrides}))
+                for _ in range(3):
+                    sim.step()
+            assert sim.t > 0 and sim.vertical.compiled.laws() is None and names == []
+    assert damped
+
+
 @pytest.mark.slow
 def test_the_numpy_paths_parallel_column_solve_is_compiled_ahead():
     """A third-party law without compiled forms solves its columns on the numpy path; on

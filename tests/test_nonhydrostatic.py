@@ -266,8 +266,8 @@ def test_normal_equations_added_up_as_stored_equal_the_sparse_product(
     columns and a dry edge, and in a single column (r the same bits as without the band);
     the band is as narrow as A (its last diagonal not all zero)."""
     h, u, w, bed, fractions = random_state(11, layers=layers)
-    if columns == 1:  # no faces: the wbar alone
-        h, u, w, bed = h[:1], u[:, :1], w[:, :1], bed[:1]
+    if columns == 1:  # no faces: the wbar alone (u and w contiguous, as the engine's)
+        h, u, w, bed = h[:1], np.ascontiguousarray(u[:, :1]), np.ascontiguousarray(w[:, :1]), bed[:1]
     else:
         h[-2:], u[:, -2:] = 0.0, 0.0  # dry cells at the edge (beside the first column if periodic)
     nodes, P = assembly.layering(tuple(fractions), pressure_layers)

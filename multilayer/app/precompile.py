@@ -14,9 +14,13 @@ version and this module's task list (:func:`multilayer.engine.kernel_cache.mark_
 :func:`work`), and a later call returns
 at once.  The parallel (threaded) variants are compiled too: a step on two threads or more
 (``numerics.threads``; ``auto`` above 200 000 cells holding material) uses them, and the
-Newton kernel's alone took 25-30 s of the first such run.  So is the numpy path's column
-solve, serial and parallel: only laws without compiled forms (third-party rheologies) use
-it, so no run under a built-in law caches it.
+Newton kernel's alone took 25-30 s of the first such run.  So is the numpy path of the
+vertical step, which no run under a built-in law caches: the column solve, serial and
+parallel, the Newton control's bounds and the slopes of its line search, and the
+coefficients compiled from the yield forms, for laws without a compiled viscosity form
+(third-party rheologies, a built-in law's subclass that redefines its viscosity); and the
+concavity of a compiled form read there (the FiPy solver of ``numerics.vertical_solver``,
+side walls whose law has no compiled form).  Their first use took 2-3 s of CPU.
 """
 
 from __future__ import annotations
@@ -102,12 +106,15 @@ def _normal_stress() -> None:
 
 
 def _numpy_path() -> None:
-    """The exact column solve, serial and parallel, and the Newton control of the vertical
-    step of laws without compiled forms (third-party rheologies)."""
+    """The numpy path of the vertical step (laws without compiled viscosity forms, the FiPy
+    solver): the exact column solve, serial and parallel, the Newton control (its bounds and
+    the slopes of the line search of a damped step), the coefficients compiled from the laws'
+    yield forms, and the concavity of their compiled viscosity forms."""
     import numpy as np
 
     from multilayer.engine.vertical import column_solve
-    from multilayer.engine.vertical.newton_control import examine_columns
+    from multilayer.engine.vertical.forms import concave_laws
+    from multilayer.engine.vertical.newton_control import examine_columns, slopes_along
     from multilayer.engine.vertical.problem import ColumnProblem
 
     rng = np.random.default_rng(0)
@@ -119,6 +126,12 @@ def _numpy_path() -> None:
     u = column_solve.solve(p)
     column_solve.solve(p, threads=2)  # the parallel variant: no built-in law's run caches it
     examine_columns(p.m, p.ustar, p.kappa, p.c, p.w, p.cw, p.ustar, u, np.zeros((4, *shape)), True)
+    slopes_along(p.m, p.ustar, p.kappa, p.c, p.w, p.cw, p.ustar, u, 0.5 * (p.ustar + u), 1.0)
+    sim = _simulation()
+    stresses = sim.vertical.stresses
+    concave_laws((stresses.bulk, stresses.walls), stresses.material)
+    assert sim.vertical.compiled is not None  # (the compiled solver: the default)
+    sim.vertical.compiled.coefficients(sim.h, np.flatnonzero(sim.h > 0))
 
 
 def _steps(pressure: str) -> Callable[[], None]:

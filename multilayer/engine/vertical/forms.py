@@ -220,13 +220,6 @@ def _viscosity_and_slope(form, params, rate, factor, offset):
 
 
 @jit
-def _viscosity(form, params, rate, factor, offset):
-    """eta(|gamma|, p) of the compiled forms (``Rheology.viscosity_kernel``) from the
-    pressure parts ``factor, offset`` of :func:`_pressure_parts`."""
-    return _viscosity_and_slope(form, params, abs(rate), factor, offset)[0]
-
-
-@jit
 def _newton_model(kappa, rate, eta, slope):
     """``stresses.StressModel._newton_model`` for one value from ``eta`` and the stress slope at
     ``rate``: (yield stress, conductance) of the odd Bingham law through the stress at
