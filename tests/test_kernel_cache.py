@@ -23,6 +23,16 @@ from multilayer.app.precompile import work
 from multilayer.engine import kernel_cache
 
 
+def _index(path, stamp=(1.0, 10), **kernels):
+    """Write numba's index file ``path``: its version, then the source ``stamp`` and the
+    kernel file of each signature (``kernels``: signature name -> file name)."""
+    import pickle
+
+    import numba
+
+    path.write_bytes(pickle.dumps(numba.__version__) + pickle.dumps((stamp, kernels)))
+
+
 def test_a_changed_kernel_source_clears_the_cached_kernels_once(tmp_path, monkeypatch):
     engine, cache = tmp_path / "engine", tmp_path / "engine" / "__pycache__"
     cache.mkdir(parents=True)
@@ -62,7 +72,7 @@ def test_the_compiled_mark_holds_for_the_sources_it_was_made_for(tmp_path, monke
     assert not kernel_cache.is_compiled(work())
     cache = engine / "vertical" / "__pycache__"
     cache.mkdir(exist_ok=True)
-    (cache / "kernel.f-1.py311.nbi").write_bytes(b"index")
+    _index(cache / "kernel.f-1.py311.nbi")
     kernel_cache.mark_compiled(kernel_cache.compiled_text(work()))
     assert kernel_cache.cache_directories() == [cache] and kernel_cache.is_compiled(work())
     kernel.write_text("from numba import njit  # edited\n")
@@ -76,7 +86,7 @@ def test_a_mark_that_is_not_text_is_not_compiled(tmp_path, monkeypatch, damage):
     UnicodeDecodeError of ``multilayer compile``; any mark but the one it writes means not
     compiled (and ``multilayer compile`` compiles)."""
     monkeypatch.setattr(kernel_cache, "cache_directories", lambda: [tmp_path])
-    (tmp_path / "kernel.f-1.py311.nbi").write_bytes(b"index")
+    _index(tmp_path / "kernel.f-1.py311.nbi")
     kernel_cache.mark_compiled(kernel_cache.compiled_text(work()))
     assert kernel_cache.is_compiled(work())
     (tmp_path / kernel_cache.COMPILED).write_bytes(damage)
@@ -92,6 +102,10 @@ DAMAGE = {
     "kernel truncated": lambda d: os.truncate(d / "kernel.f-1.py311.1.nbc", 3),
     "kernel overwritten, same size": lambda d: (d / "kernel.f-1.py311.1.nbc").write_bytes(b"KERNEL"),
     "index emptied": lambda d: (d / "kernel.f-1.py311.nbi").write_bytes(b""),
+    "index without the signature": lambda d: _index(d / "kernel.f-1.py311.nbi", g="kernel.f-1.py311.2.nbc"),
+    "index of another source stamp": lambda d: _index(
+        d / "kernel.f-1.py311.nbi", (2.0, 10), f="kernel.f-1.py311.1.nbc"
+    ),
     "kernel deleted": lambda d: (d / "kernel.f-1.py311.1.nbc").unlink(),
     "kernel a directory": lambda d: (
         (d / "kernel.f-1.py311.1.nbc").unlink(),
@@ -113,15 +127,18 @@ def test_compile_checks_the_cached_files_its_mark_records(tmp_path, monkeypatch,
     the cached files were damaged since (runs compiled them again, with a warning).  The
     mark records the SHA-256 of every cached file; a file missing, changed or no regular
     file (a pipe is never read) means not compiled, and the command compiles.  When the
-    cache is whole it says how many files it checked."""
+    cache is whole it says how many files it checked.  An index is recorded by its entries:
+    one that holds more signatures (a run compiled another since) is as compiled, one that
+    lost a signature or whose source stamp changed (numba then reads none of it) is not."""
     from multilayer.app import precompile
 
     monkeypatch.setattr(kernel_cache, "cache_directories", lambda: [tmp_path])
     monkeypatch.setattr(kernel_cache, "ensure_fresh", lambda: None)
-    (tmp_path / "kernel.f-1.py311.nbi").write_bytes(b"index")
+    _index(tmp_path / "kernel.f-1.py311.nbi", f="kernel.f-1.py311.1.nbc")
     (tmp_path / "kernel.f-1.py311.1.nbc").write_bytes(b"kernel")
     kernel_cache.mark_compiled(kernel_cache.compiled_text(work()))
     (tmp_path / "kernel.g_parallel-9.py311.nbi").write_bytes(b"compiled by a run since: not recorded")
+    _index(tmp_path / "kernel.f-1.py311.nbi", f="kernel.f-1.py311.1.nbc", g="kernel.f-1.py311.2.nbc")
     result = cli("compile")
     assert result.code == 0 and result.out.startswith("the kernels are compiled and cached")
     assert "2 cached files checked" in result.out
@@ -152,7 +169,7 @@ def test_a_second_compile_waits_for_the_first_then_finds_its_kernels(tmp_path, m
     with kernel_cache.compiling(lambda: pytest.fail("nobody holds the lock yet")):
         second.start()
         assert waiting.wait(30)
-        (tmp_path / "kernel.f-1.py311.nbi").write_bytes(b"index")  # the first compiles
+        _index(tmp_path / "kernel.f-1.py311.nbi", f="kernel.f-1.py311.1.nbc")  # the first compiles
         kernel_cache.mark_compiled(kernel_cache.compiled_text(work()))
     second.join(30)
     assert compiled == [] and reports[0].cached and reports[0].checked == 1
@@ -464,7 +481,7 @@ def test_the_digest_and_the_mark_are_readable_by_the_other_users_of_a_shared_cac
     umask = int(line.split()[1], 8)
     monkeypatch.setattr(kernel_cache, "cache_directories", lambda: [tmp_path])
     kernel_cache.clear_if_stale(tmp_path, "digest")
-    (tmp_path / "kernel.f-1.py311.nbi").write_bytes(b"index")
+    _index(tmp_path / "kernel.f-1.py311.nbi")
     kernel_cache.mark_compiled(kernel_cache.compiled_text(work()))
     for name in (kernel_cache.STAMP, kernel_cache.COMPILED):
         assert (tmp_path / name).stat().st_mode & 0o777 == 0o666 & ~umask, name

@@ -371,15 +371,60 @@ def _file_digest(path: Path) -> str | None:
         return None
 
 
+def _index_entries(path: Path) -> set[str] | None:
+    """The entries of numba's index file ``path``, read as numba reads it (its version
+    pickled, then its source stamp and its signatures' kernel files): each the SHA-256 of
+    the stamp, a signature and its file; None where numba would find no entry (missing,
+    unreadable, damaged, of another numba)."""
+    import pickle
+
+    import numba
+
+    try:
+        if not path.is_file():
+            return None
+        with path.open("rb") as f:
+            if pickle.load(f) != numba.__version__:
+                return None
+            stamp, overloads = pickle.loads(f.read())
+        return {
+            hashlib.sha256(repr((stamp, key, name)).encode()).hexdigest() for key, name in overloads.items()
+        }
+    except Exception:  # noqa: BLE001 - whatever a damaged file makes pickle raise: no entry numba reads
+        return None
+
+
+def _listing(path: Path) -> str | None:
+    """The mark's line of the cached file ``path``: a kernel (``.nbc``) by its SHA-256, an
+    index (``.nbi``) by its entries (:func:`_index_entries`), since a later run that caches
+    another signature of a module adds one to its index and leaves the others as they are."""
+    if path.suffix == ".nbi":
+        entries = _index_entries(path)
+        return None if entries is None else f"index {path.name} {' '.join(sorted(entries))}\n"
+    digest = _file_digest(path)
+    return None if digest is None else f"{digest} {path.name}\n"
+
+
+def _unchanged(directory: Path, line: str) -> bool:
+    """Whether the file a line of the mark records (:func:`_listing`) is as recorded: a
+    kernel with the same digest, an index still holding every entry recorded."""
+    if line.startswith("index "):
+        name, _, recorded = line[len("index ") :].partition(" ")
+        entries = _index_entries(directory / name) if name == Path(name).name else None
+        return entries is not None and set(recorded.split()) <= entries
+    digest, _, name = line.partition(" ")
+    return name == Path(name).name and _file_digest(directory / name) == digest
+
+
 def mark_compiled(text: str) -> None:
     """Record in every cache directory that the kernels of ``multilayer compile`` are
     cached for the sources and numba of ``text`` (:func:`compiled_text` when the
-    compilation started), with the SHA-256 of each cached file (``.nbi`` index, ``.nbc``
-    kernel) there, written whole, by renaming."""
+    compilation started), with each cached file there (:func:`_listing`: a kernel's
+    SHA-256, an index's entries), written whole, by renaming."""
     for directory in cache_directories():
         try:
             files = sorted([*directory.glob("*.nbi"), *directory.glob("*.nbc")])
-            listing = "".join(f"{digest} {path.name}\n" for path in files if (digest := _file_digest(path)))
+            listing = "".join(line for path in files if (line := _listing(path)))
             _write_whole(directory / COMPILED, text + listing)
         except OSError:  # numba cannot cache there either
             pass
@@ -387,7 +432,8 @@ def mark_compiled(text: str) -> None:
 
 def compiled_files(work: str) -> int | None:
     """How many cached files :func:`mark_compiled` recorded in every cache directory, each
-    found with the digest recorded, for the current sources, numba and ``work``
+    found as recorded (:func:`_unchanged`: a kernel unchanged, an index that holds every
+    signature it held, and maybe more), for the current sources, numba and ``work``
     (:func:`compiled_text`); None when a directory has no such mark (numba cannot cache,
     a mark holds anything else, bytes that are not text or no file included) or a
     recorded file is missing or changed since (a damaged cache: numba compiles that
@@ -403,10 +449,8 @@ def compiled_files(work: str) -> int | None:
             return None
         if not lines:  # what multilayer compile leaves lists its kernels
             return None
-        for line in lines:
-            digest, _, name = line.partition(" ")
-            if name != Path(name).name or _file_digest(directory / name) != digest:
-                return None
+        if not all(_unchanged(directory, line) for line in lines):
+            return None
         checked += len(lines)
     return checked if directories else None
 
