@@ -557,6 +557,7 @@ def test_a_member_marker_that_is_no_marker_means_run_again(tmp_path):
         assert sweep.completed(tmp_path, "x") is None
 
 
+@pytest.mark.slow  # 1-3 s of a child process or a large input, no physics
 def test_a_mesh_that_does_not_fit_in_memory_under_force_is_named_not_a_traceback(
     tmp_path, cli, write_scenario
 ):

@@ -102,6 +102,7 @@ def test_numpy_values_in_a_mapping_are_read_as_the_numbers_they_hold():
     assert overridden.domain.cells == 30 and overridden.rheology.params["mu_s"] == 0.4
 
 
+@pytest.mark.slow  # 1-3 s of a child process or a large input, no physics
 def test_a_long_value_is_quoted_cut_in_the_message():
     """A list of 300 000 fractions was quoted whole: a message of 1.5 MB."""
     data = copy.deepcopy(TINY_SCENARIO)
@@ -1609,6 +1610,7 @@ def test_geometric_layers_whose_fractions_are_not_all_positive_are_refused(ratio
         multilayer.load(data)
 
 
+@pytest.mark.slow  # 1-3 s of a child process or a large input, no physics
 def test_a_text_that_is_no_unicode_is_named_not_a_traceback(tmp_path):
     """A byte that is not UTF-8 in a command-line argument (Python keeps it as a lone
     surrogate) or such a text given from Python: ``--set name=$'\\xff'`` was libyaml's
@@ -1649,6 +1651,7 @@ def test_an_output_directory_under_the_home_directory_is_read_as_a_shell_reads_i
     assert sweeps.load(tmp_path / "sweep.yaml").output == tmp_path / "sweeps" / "s"
 
 
+@pytest.mark.slow  # 1-3 s of a child process or a large input, no physics
 def test_an_output_directory_holding_the_nul_character_is_named(tmp_path):
     """A YAML ``"\\0"`` in ``output.directory`` (of a scenario, a sweep or a study) or a NUL
     in ``multilayer.run(outdir=...)``: no system call takes it, and the run or the sweep
@@ -1720,7 +1723,9 @@ def test_more_local_workers_than_fit_in_memory_are_refused_before_any_starts(tmp
     ("answer", "said"),
     [
         (b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n" * 4, "MemoryError: Unable to allocate"),
-        (b"", "TimeoutError: no answer to the handshake within 2 s"),
+        pytest.param(
+            b"", "TimeoutError: no answer to the handshake within 2 s", marks=pytest.mark.slow
+        ),  # the handshake's 2 s
     ],
     ids=["other bytes", "silence"],
 )

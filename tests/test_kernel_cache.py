@@ -204,6 +204,7 @@ print(all((d / kernel_cache.STAMP).read_text() == kernel_cache.sources_digest() 
 """
 
 
+@pytest.mark.slow  # 1-3 s of a child process or a large input, no physics
 def test_the_check_runs_before_the_first_kernel_not_at_import(tmp_path):
     """With ``NUMBA_CACHE_DIR`` (as on a cluster whose installation cannot be written),
     numba caches the kernels under it, one directory per engine package: their digests
@@ -410,6 +411,7 @@ def _edited(engine, *commands, bytecode=False, **popen):
     return subprocess.run(argv, env=env, capture_output=True, text=True, timeout=300)
 
 
+@pytest.mark.slow  # 1-3 s of a child process or a large input, no physics
 def test_a_callee_edited_after_the_import_leaves_no_old_code_in_the_cache(tmp_path):
     """A process that imported the kernel modules, then found one edited when it compiled
     its first kernel, cached its old code under the new sources' digest: every later run

@@ -1319,7 +1319,8 @@ WATER = dataclasses.replace(FLUID, fluid_density=1000.0, fluid_viscosity=1e-3)
 
 
 @pytest.mark.parametrize(
-    ("layers", "phi"), [(4, 0.12), (9, 0.12), pytest.param(6, 0.3, marks=pytest.mark.slow)]
+    ("layers", "phi"),
+    [(4, 0.12), pytest.param(9, 0.12, marks=pytest.mark.slow), pytest.param(6, 0.3, marks=pytest.mark.slow)],
 )
 def test_a_loose_layer_in_water_compacts_in_layers(layers, phi):
     """A uniform layer far looser than its critical state (4.9 mm at ``phi = 0.12`` or

@@ -611,7 +611,9 @@ def _take_the_lock_at_once(directory: str, barrier, results) -> None:
         results.put(("refused", str(exc), 0.0))
 
 
-@pytest.mark.parametrize("earlier", ["none", "stale", "empty"])
+@pytest.mark.parametrize(
+    "earlier", ["none", *(pytest.param(e, marks=pytest.mark.slow) for e in ("stale", "empty"))]
+)  # 1.3 s each
 def test_runs_started_at_once_take_the_lock_one_at_a_time(tmp_path, earlier):
     """Six processes taking one directory's lock at the same instant: never two at once (a
     lock just created and still empty was read as unreadable, so stale, and taken over, and

@@ -169,6 +169,7 @@ print(same)
 """
 
 
+@pytest.mark.slow  # 1-3 s of a child process or a large input, no physics
 def test_simulations_in_threads_run_their_parallel_kernels_on_numbas_workqueue_layer(tmp_path, tiny_scenario):
     """numba's workqueue threading layer, where neither TBB nor OpenMP is found, is not
     thread-safe: three simulations on two kernel threads each, stepped side by side in three
