@@ -3152,6 +3152,17 @@ def test_load_state_of_long_doubles_beyond_the_floats_is_refused_naming_the_entr
     assert sim.t == 0.25
 
 
+def test_load_state_of_a_count_beyond_int64_says_so():
+    """``steps = 2**70`` is a Python int numpy holds only as an object: it was refused as
+    "object values of shape ()", which names the entry but not why."""
+    sim = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
+    saved = sim.state_dict()
+    beyond = r"^steps = 1180591620717411303424, beyond .* at most 9223372036854775807"
+    with pytest.raises(InputError, match=beyond):
+        sim.load_state({**saved, "steps": 2**70})
+    assert sim.steps == 0
+
+
 @pytest.mark.parametrize(
     ("method", "body"),
     [

@@ -342,6 +342,11 @@ def check_restored(saved: Mapping[str, Any], fresh: Mapping[str, Any]) -> None:
                 "netCDF4), where numbers: the values under a mask would be restored"
             )
         a, ref = np.asarray(value), np.asarray(fresh[key])
+        if a.dtype == object and ref.dtype.kind in "iu" and isinstance(value, int):  # beyond int64
+            raise InputError(
+                f"{key} = {value}, beyond what the simulation holds ({ref.dtype}: at most "
+                f"{np.iinfo(ref.dtype).max}), where an integer >= 0 within that range"
+            )
         if a.shape != ref.shape or a.dtype.kind not in ("iu" if ref.dtype.kind in "iu" else "iuf"):
             raise InputError(
                 f"{key}: {a.dtype} values of shape {a.shape}, where {ref.dtype} of shape {ref.shape}"
