@@ -708,6 +708,16 @@ What the runs show about why:
   mound of the a = 7 column's height and volume, stops 2-5 % short of `multilayer` and 1.6
   times beyond law B ([Non-hydrostatic pressure](nonhydrostatic.md), "An independent code").
 {release_text}{gate_text}{coarse_text}
+- **What would be needed.**  With every ingredient tried within the layers (the h_stop law,
+  the non-hydrostatic pressure, the normal stress, the shear stress on vertical planes, a
+  gate, shorter steps, finer meshes) and every friction tried, the tip of the tall columns
+  (a >= 4) stays beyond the band (the tables above); the friction level moves it most.  Two
+  things are missing to go further without fitting: the friction of the beads of the
+  experiments behind law B (their stop and avalanche angles, or an h_stop law measured on
+  them), which we could not read; and the stresses of the full two-dimensional tensor law on
+  the collapsing column, which the layers do not carry and which the continuum computations
+  of Lagree, Staron & Popinet (2011) resolve: a solver of the two-dimensional mu(I)
+  equations, beyond this shallow-layer model.
 
 ### The time step
 
