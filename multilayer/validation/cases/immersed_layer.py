@@ -61,8 +61,8 @@ STEP_TOLERANCE = 1e-4
 the step is halved: a tenth of the ``rtol`` 1e-3 of their regression pins, which therefore
 do not depend on the step."""
 PHI0S = (0.562, 0.568, 0.571, 0.578, 0.584, 0.588, 0.592)
-"""The initial volume fractions of the viscous-fluid layers of Pailha et al. (2008), as
-used with the model since its first comparison (not checked against the paper)."""
+"""The initial volume fractions of the viscous-fluid layers of Pailha et al. (2008), those of
+the digitisation's files (:data:`ONSETS`; not checked against the paper)."""
 T_END = 600.0
 """s: the end of the uniform-layer runs (the densest layer starts after about 300 s)."""
 ONSET_SPEED = 1e-4
@@ -445,7 +445,8 @@ def _figure(ctx: Context, layers: Sequence[Uniform], comparisons: Sequence[Compa
         later = u.t > 0.0
         ax.semilogx(u.t[later], u.v[later] * 1e3, "-", color=colour, label=f"phi0 = {u.phi0:g}")
         ax2.semilogx(u.t[later], u.p_e[later], "-", color=colour, label=f"phi0 = {u.phi0:g}")
-        ax2.plot([c.data.p_extreme_at], [c.data.p_extreme], "s", color=colour, mfc="none")
+        start = max(c.data.p_first, PRESSURE_FROM)
+        ax2.hlines(c.data.p_extreme, start, c.data.p_last, color=colour, ls="--", lw=1)
         ax3.semilogx(u.t[later], SURFACE * u.v[later] * 1e3, "-", color=colour, label=f"phi0 = {u.phi0:g}")
         times = list(c.data.speeds)
         ax3.plot(times, [c.data.speeds[t] * 1e3 for t in times], "o", color=colour, mfc="none")
@@ -459,7 +460,7 @@ def _figure(ctx: Context, layers: Sequence[Uniform], comparisons: Sequence[Compa
     ax2.set_xlabel("t (s)")
     ax2.set_ylabel("basal excess pore pressure (Pa)")
     ax2.set_xlim(1e-5, T_END)
-    ax2.set_title("squares: the measured extremes", fontsize=9)
+    ax2.set_title("dashed: the measured extreme over its record's times", fontsize=9)
     ax3.axhline(ONSET_SPEED * 1e3, color="k", ls=":", lw=1)
     ax3.set_xlabel("t (s)")
     ax3.set_ylabel(f"surface velocity (mm/s), model {SURFACE:g} v")
@@ -555,7 +556,7 @@ def section(ctx: Context) -> str:
             " / ".join(f"{t:g}: {c.data.speeds[t] * 1e3:.3f}" for t in c.data.speeds),
             " / ".join(f"{c.speeds[t] * 1e3:.3f}" for t in c.data.speeds),
             ", ".join(f"{t:g}" for t in c.compared_times()) or "none",
-            "yes" if c.speeds_met() else "no",
+            ("yes" if c.speeds_met() else "no") if c.compared_times() else "-",
             f"{c.data.p_extreme:+.2f} ({c.data.p_extreme_at:.0f})",
             f"{c.pressure:+.2f} ({c.pressure_at:.0f})",
             "yes" if c.sign_met() else "no",
@@ -600,7 +601,7 @@ def section(ctx: Context) -> str:
     def early(u: Uniform) -> float:
         return float(u.p_e[u.t <= EARLY].max())
 
-    def listed(group: Sequence[Uniform], text: Any) -> str:
+    def listed(group: Sequence[Any], text: Any) -> str:
         return ", ".join(text(u) for u in group)
 
     files_met = all(step_independent(m, p) for p in PACKINGS)
@@ -642,14 +643,15 @@ def section(ctx: Context) -> str:
 - the surface velocity within {SPEED_FACTOR:g} times the measured one wherever that exceeds
   {ONSET_SPEED * 1e3:g} mm/s ({len(pairs)} readings; model / measured
   {min(speed_ratios):.2f} to {max(speed_ratios):.2f}): {met(speeds_met)}
-  (not within: {slow or "none"});
+  (not within: {slow or "none"}; the depth-averaged v would be {min(speed_ratios) / SURFACE:.2f} to
+  {max(speed_ratios) / SURFACE:.2f} times the measured surface velocity);
 - the sign of the pore pressure's extreme over each record from {PRESSURE_FROM:g} s:
   {met(signs_ok)} (not the measured sign: {wrong_sign or "none"}); its magnitude within
   {PRESSURE_FACTOR:g} times the measured one: {met(magnitudes_ok)} (model / measured
   {listed(comparisons, lambda c: f"{abs(c.pressure / c.data.p_extreme):.2f}")}).
 
-The numbers read off the curves, and how: {data_source.where}; {data_source.notes}.  These
-criteria were set before this comparison was run (`ONSET_FACTOR`, `SPEED_FACTOR`,
+The measured numbers (`data/sources.yaml`): {data_source.cite()}.  These criteria were set
+before this comparison was run (`ONSET_FACTOR`, `SPEED_FACTOR`,
 `PRESSURE_FACTOR`, `SURFACE` and `PRESSURE_FROM` of `multilayer/validation/cases/immersed_layer.py`
 give the reasons); some of the model's numbers they apply to, the onsets at 0.588 and 0.592
 and pore pressures at 0.562 and 0.592, were already given in [mixture.md](mixture.md).
@@ -661,7 +663,8 @@ steady flow's packing sits) and the static one, phi_c = {middle[0].phi_c:g}: the
 their static friction, below tan(delta) since phi0 < phi_c, leaves most of the drive free, so
 they start at once (onsets
 {listed(middle, lambda u: f"{u.onset * 1e3:.2f}")} ms).  The published statements classify the
-layers against "the critical state" without giving it, so these are not compared.
+layers against "the critical state" without giving it, so these are not compared with them
+(they are with the measured curves, above).
 [mixture.md](mixture.md), "Why the pore pressures are small", gives the quasi-static balances
 that set the model's pore pressures.
 
@@ -711,7 +714,8 @@ magnitude over the record's times from {PRESSURE_FROM:g} s on.
 {figure}
 
 Left: the model's depth-averaged velocity; middle: its pore pressure and the measured
-extremes; right: the model's surface velocity and the numbers read off the measured curves.
+extremes over the records' times; right: the model's surface velocity and the numbers read
+off the measured curves.
 
 In their first millisecond, while they accelerate, the layers looser than phi_c contract
 and their pore pressure peaks at {", ".join(f"{early(u):+.1f}" for u in loose + middle)} Pa
