@@ -205,3 +205,30 @@ def test_the_warm_up_problems_are_long_enough_for_the_parallel_transport(cells):
         assert parallel_chunks(2, holding, 64) > 1
     benchmark = Simulation(dam_break.scenario(cells, 4, 2, 1.0, 2))  # its own column: too short
     assert parallel_chunks(2, np.count_nonzero(benchmark.h > 0), 64) == 1
+
+
+def test_the_pailha_readings_follow_their_rules_on_made_up_curves(tmp_path, capsys):
+    """``benchmarks/pailha2008_readings.py`` on made-up records (not the digitisation): the
+    onset interpolated where a record crosses 0.1 mm/s and its first time where it starts
+    above, the velocity only at the fixed times a record reaches, the pressure point of largest
+    magnitude with its sign; a missing file exits 2 naming it."""
+    path = BENCHMARKS / "pailha2008_readings.py"
+    spec = importlib.util.spec_from_file_location("pailha2008_readings", path)
+    assert spec is not None and spec.loader is not None
+    readings = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(readings)
+    from multilayer.validation.cases.immersed_layer import PHI0S
+
+    for k, phi0 in enumerate(PHI0S):
+        name = f"{round(phi0 * 1000)}.txt"
+        start = 0.3 if k == 0 else 0.05  # mm/s: the first record starts above the onset speed
+        (tmp_path / f"v_t_exp_{name}").write_text(f"time\tvelocity\n2\t{start}\n50\t0.15\n120\t0.4\n")
+        (tmp_path / f"p_t_exp_{name}").write_text("time\tpressure\n0\t1.5\n40\t-2.25\n90\t0.5\n")
+    onsets, speeds = readings.readings(tmp_path)
+    assert onsets[1] == f"{PHI0S[0]:g},2.00,120.00,2.00,0.00,90.00,-2.25,40.00"
+    assert onsets[2].split(",")[3] == "26.00"  # 0.05 + 0.1 (t - 2) / 48 = 0.1
+    assert speeds[1:4] == [f"{PHI0S[0]:g},10,0.2750", f"{PHI0S[0]:g},100,0.3286", f"{PHI0S[1]:g},10,0.0667"]
+    assert len(speeds) == 1 + 2 * len(PHI0S)  # not at 300 s, beyond the records
+    (tmp_path / "p_t_exp_592.txt").unlink()
+    assert readings.main([str(tmp_path)]) == 2
+    assert "p_t_exp_592.txt" in capsys.readouterr().err

@@ -314,3 +314,15 @@ def test_uniform_layers_start_and_press_as_published(phi0):
     pore pressure has the published sign (Radau IIA at rtol 1e-10)."""
     u = immersed_layer.uniform(phi0)
     assert immersed_layer.start_met(u) and immersed_layer.sign_met(u), (u.packing, u.onset, u.pressure)
+
+
+def test_uniform_layers_start_when_the_experiments_curves_do():
+    """Against the numbers read off the digitised curves of Pailha et al. (2008) (Radau IIA at
+    rtol 1e-10, the model's surface velocity): every onset within a factor 2 of a resolved
+    measured one, or before the record's first time where that only bounds it, and every order
+    of two onsets the records establish.  The velocity, the sign and the magnitude of the pore
+    pressure are not met at every fraction: docs/validation.md reports them."""
+    data = immersed_layer.measured()
+    comparisons = [immersed_layer.compare(immersed_layer.uniform(p), data[p]) for p in immersed_layer.PHI0S]
+    assert all(c.onset_met() for c in comparisons), [(c.data.phi0, c.onset) for c in comparisons]
+    assert immersed_layer.order_met(comparisons)

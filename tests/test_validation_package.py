@@ -63,6 +63,36 @@ def test_the_digitised_collapse_figure_is_read_in_time_order_with_its_sources():
     assert math.copysign(1.0, dense["pressure"]) == signs["pore_pressure_sign_dense"]
 
 
+def test_the_immersed_layers_curves_are_read_in_their_units_with_their_source():
+    """The numbers read off the digitised curves of Pailha et al. (2008): cited as digitised,
+    with the units' evidence (SedFoam's plotting script) and the uncertainty unknown; every
+    number inside the axes that script plots the files on (t / sqrt(d/g) to 160000,
+    v / sqrt(g d) to 0.03 with v in mm/s, |p| / (rho_f g h) to 0.12 with p in Pa); the fixed
+    times inside each record and below the onset speed before a resolved onset; the onsets
+    rising with phi0, as the records show them; the extremes' signs those of the loosest and
+    densest layers as published (pailha2008_immersed_layer.yaml)."""
+    from multilayer.validation.cases import immersed_layer as case
+
+    d, g, rho_f, h = 160e-6, 9.81, 1041.0, 0.0049
+    for name in (case.ONSETS, case.SPEEDS):
+        cited = published.source(name)
+        assert cited.status == "digitised"
+        assert "plot_tuto1DWetAvalanche.py" in cited.notes and "uncertainty is unknown" in cited.notes
+    m = case.measured()
+    assert sorted(m) == list(case.PHI0S)
+    assert np.all(np.diff([m[p].onset for p in case.PHI0S]) > 0.0)
+    for phi0, r in m.items():
+        assert r.first <= r.onset <= r.last and r.p_first <= r.p_extreme_at <= r.p_last, phi0
+        assert max(r.last, r.p_last) < 160000 * math.sqrt(d / g), phi0
+        assert abs(r.p_extreme) < 0.12 * rho_f * g * h, phi0
+        assert r.speeds and all(r.first <= t <= r.last for t in r.speeds), phi0
+        assert all(0.0 <= v < 0.03 * math.sqrt(g * d) for v in r.speeds.values()), phi0
+        assert all(v < case.ONSET_SPEED for t, v in r.speeds.items() if r.resolved and t < r.onset), phi0
+    signs = published.values(case.DATA)
+    assert math.copysign(1.0, m[case.PHI0S[0]].p_extreme) == signs["pore_pressure_sign_loose"]
+    assert math.copysign(1.0, m[case.PHI0S[-1]].p_extreme) == signs["pore_pressure_sign_dense"]
+
+
 def test_the_tolerance_rule_passes_the_file_and_fails_a_twice_coarser_mesh():
     study = MeshStudy((100, 200, 400), (0.04, 0.02, 0.01))
     assert study.orders() == pytest.approx([1.0, 1.0])
