@@ -67,15 +67,6 @@ def _angle(mu: float) -> str:
     return f"{math.degrees(math.atan(mu)):.2f}"
 
 
-def creeping(found: dict[study.Key, study.Measures | str]) -> list[str]:
-    """``theta/bed`` of the finest-mesh runs whose front still moves at the end."""
-    return [
-        f"{t:g} deg / {b * 1000:g} mm"
-        for (t, b, n), m in found.items()
-        if n == study.CELLS[-1] and isinstance(m, study.Measures) and m.speed_end > 0.0
-    ]
-
-
 def law_change(
     before: dict[study.Key, study.Measures | str], after: dict[study.Key, study.Measures | str], theta: float
 ) -> float:
@@ -127,8 +118,13 @@ def section(ctx: Context) -> str:
     worst = {w: study.worst_zero(found, w) for w in study.MEASURES}
     repose = {w: study.at_repose(found, w) for w in study.MEASURES}
     repose_jop = {w: study.at_repose(jop, w) for w in study.MEASURES}
-    still = creeping(found)
-    still_jop = creeping(jop)
+    still = study.moving_fronts(found)
+    still_jop = study.moving_fronts(jop)
+    finest_runs = len([k for k in found if k[2] == study.CELLS[-1]])
+    creep_jop = max(
+        (m.speed_end for k, m in jop.items() if k[2] == study.CELLS[-1] and isinstance(m, study.Measures)),
+        default=math.nan,
+    )
     below_c = [t for t in study.THETAS if t < study.critical_slope()]
     below = ", ".join(f"{t:g}" for t in below_c)
     best = max(max(repose.values()), max(repose_jop.values()))
@@ -220,10 +216,8 @@ and {repose["m95"] / target:.2f} of the published {target:.0%} (Jop's law: {
 {repose_jop["m95"] * 100:+.1f} %); no 5 mm gain moves by more than {study.largest_change(found) * 100:.1f}
 percentage points between the two finest meshes.  The time to 95 % of the run-out by the
 tip over the {study.BEDS[-1] * 1000:g} mm bed grows at {study.slopes_where(found, lambda c: c > 0.0)} deg and
-falls at {study.slopes_where(found, lambda c: c < 0.0)} deg.  Fronts still moving at the end of the
-finest mesh's runs: {len(still)} (Jop's law: {len(still_jop)}{
-        f", {', '.join(still_jop)}" if still_jop else ""
-    }).
+falls at {study.slopes_where(found, lambda c: c < 0.0)} deg.  Fronts still moving at the end:
+{still} of the {finest_runs} runs of the finest mesh (Jop's law: {still_jop}, up to {creep_jop:.1e} m/s).
 
 **What would be needed.**  Below theta_c, {
         "the tip's loss lies in the deposit's last few grain diameters"
