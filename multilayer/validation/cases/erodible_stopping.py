@@ -110,9 +110,7 @@ def section(ctx: Context) -> str:
         for w in study.MEASURES
         for k, c in enumerate(criteria)
     ]
-    count = {
-        name: sum(sum(v) for v in verdicts.values()) for name, verdicts in (("jop", theirs), ("pf", ours))
-    }
+    count = {"jop": study.targets_met(jop), "pf": study.targets_met(found)}
     lost = [c for w in study.MEASURES for k, c in enumerate(criteria) if theirs[w][k] and not ours[w][k]]
     shipped_i0 = shipped.rheology.params["I_0"]
     worst = {w: study.worst_zero(found, w) for w in study.MEASURES}
