@@ -18,6 +18,7 @@ from multilayer.validation.cases import (
     column_collapse,
     dam_break,
     erodible_bed,
+    erodible_stopping,
     erodible_study,
     immersed_layer,
     static_interface,
@@ -260,6 +261,21 @@ def test_mass_front_sees_no_effect_of_the_bed_below_the_critical_slope(ctx):
     95 % mass front of the finest mesh moves by less than 5 % at 0 and 10 deg."""
     below = tuple(t for t in erodible_study.THETAS if t < erodible_study.critical_slope())
     found = erodible_study.measure_all(ctx, erodible_study.keys(below))
+    assert not [v for v in found.values() if isinstance(v, str)]
+    assert erodible_study.zero_below_critical(found, "m95")
+
+
+def test_the_erodible_bed_stays_at_rest_with_the_stopping_law(ctx):
+    """Mangeney et al. (2010): the 5 mm bed alone at rest at every slope of the study; with
+    the a-priori ``pouliquen_forterre`` law exactly (u == 0.0 at every output)."""
+    assert all(v == 0.0 for v in erodible_stopping.bed_speeds(ctx).values())
+
+
+def test_mass_front_sees_no_effect_of_the_bed_below_the_critical_slope_with_the_stopping_law(ctx):
+    """As above with the a-priori ``pouliquen_forterre`` law: the 95 % mass front of the
+    finest mesh moves by less than 5 % at 0 and 10 deg."""
+    below = tuple(t for t in erodible_study.THETAS if t < erodible_study.critical_slope())
+    found = erodible_study.measure_all(ctx, erodible_study.keys(below), erodible_study.with_stopping())
     assert not [v for v in found.values() if isinstance(v, str)]
     assert erodible_study.zero_below_critical(found, "m95")
 

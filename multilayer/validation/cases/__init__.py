@@ -13,6 +13,7 @@ from multilayer.validation.cases import (
     dam_break,
     erodible_bed,
     erodible_options,
+    erodible_stopping,
     erodible_study,
     immersed_layer,
     static_interface,
@@ -36,6 +37,7 @@ SECTIONS: dict[str, Callable[[Context], str]] = {
         erodible_bed,
         erodible_study,
         erodible_options,
+        erodible_stopping,
         submarine_collapse,
         immersed_layer,
     )

@@ -44,20 +44,32 @@ END = 6.0
 
 @dataclass(frozen=True)
 class Law:
-    """The glass-bead law: friction coefficients, L (m), beta, and I_0 from beta."""
+    """A ``pouliquen_forterre`` law: friction coefficients, L (m), beta, the grains' diameter
+    (m) and packing, the start friction's constant (None: no hysteresis), and I_0 from beta."""
 
     mu_1: float
     mu_2: float
     L: float
     beta: float
+    grain: float = GRAIN
+    packing: float = PACKING
+    mu_3: float | None = None
 
     @property
     def I_0(self) -> float:
         """``I_0 = 5 beta d / (2 L sqrt(phi))`` (Jop et al. 2005, appendix A)."""
-        return 5.0 * self.beta * GRAIN / (2.0 * self.L * math.sqrt(PACKING))
+        return 5.0 * self.beta * self.grain / (2.0 * self.L * math.sqrt(self.packing))
 
     def h_stop(self, theta: float) -> float:
         return pouliquen_h_stop(theta, self.mu_1, self.mu_2, self.L)
+
+    def rheology(self) -> str:
+        """The law as the value of a ``--set rheology=`` override."""
+        start = "" if self.mu_3 is None else f", mu_3: {self.mu_3!r}"
+        return (
+            f"{{name: pouliquen_forterre, mu_1: {self.mu_1!r}, mu_2: {self.mu_2!r}, L: {self.L!r}, "
+            f"I_0: {self.I_0!r}{start}}}"
+        )
 
 
 def law() -> Law:
@@ -71,8 +83,7 @@ def source_text() -> str:
 
 
 def run(name: str, theta: float, h: float, layers: int, end: float) -> Run:
-    g = law()
-    rheology = f"{{name: pouliquen_forterre, mu_1: {g.mu_1!r}, mu_2: {g.mu_2!r}, L: {g.L!r}, I_0: {g.I_0!r}}}"
+    rheology = law().rheology()
     material = (
         f"{{density: {PACKING * GRAIN_DENSITY!r}, grain_diameter: {GRAIN!r}, "
         f"particle_density: {GRAIN_DENSITY!r}}}"
