@@ -924,6 +924,30 @@ def test_a_finite_state_whose_wave_speed_overflows_is_named_not_the_length_of_th
     assert sim.steps == 1
 
 
+def test_a_finite_state_whose_transport_overflows_is_named_not_its_nan():
+    """``sim.h[3] = 1e200`` between steps: its wave speed, 3e100 m/s, is finite, but the
+    transport's ``h^2`` and ``h s^2 / dx`` are not, and the step's state held a NaN,
+    named as "thickness h = nan after transport" with no word of the thickness that made
+    it.  A thickness whose products stay finite (1e100 m) is not refused by this check."""
+    from engine import simulation
+
+    from multilayer.engine.transport.reference import fluxes_overflow
+
+    assert fluxes_overflow(1e200, 3e100, 0.0125) and not fluxes_overflow(1e100, 3e50, 0.0125)
+    assert fluxes_overflow(0.05, 1e160, 0.0125)  # u^2 overflows
+    assert fluxes_overflow(1e150, 1.0, 1e-10) and not fluxes_overflow(1e150, 1.0, 1.0)  # / dx
+    sim = simulation(**TINY_SCENARIO)
+    sim.step()
+    sim.h[3] = 1e200
+    with pytest.raises(
+        StateError,
+        match=r"the transport \(thickness x wave speed\^2 / cell width, waves at 2\.9\d+e\+100 m/s on cells "
+        r"of 0\.0125 m\) of the state at t = 0\.00843656 s \(step 2\) overflows \(thickness up to 1e\+200 m",
+    ):
+        sim.step()
+    assert sim.steps == 1
+
+
 def test_stepping_without_a_bound_where_no_wave_bounds_the_step_is_named():
     """``sim.step()`` (no ``t_max``) on a domain with no material and no inflow: the Courant
     step is infinite; it was taken (h = nan after transport over dt = inf, a numpy warning)."""
