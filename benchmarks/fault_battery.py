@@ -7027,6 +7027,17 @@ def _read_only_tmpdir(directory: Path) -> None:
     (directory / "tmp").chmod(0o555)
 
 
+SENSITIVITY_MU_S = (
+    "base: scenario.yaml\nparameters:\n  rheology.mu_s: {bounds: [0.2, 0.4]}\noutputs: [runout]\n"
+)
+"""A sensitivity study of the run-out to ``rheology.mu_s`` in [0.2, 0.4] (``scenario.yaml``)."""
+CALIBRATION_MU_S = (
+    "base: scenario.yaml\nparameters:\n  rheology.mu_s: {bounds: [0.2, 0.4]}\n"
+    "observations: [{name: m, quantity: mass_final, value: 0.001, sigma: 0.001}]\n"
+)
+"""A calibration of ``rheology.mu_s`` in [0.2, 0.4] against the final mass (``scenario.yaml``)."""
+
+
 def round_forty_one() -> list[Case]:
     """The hostile cases of the forty-first round (docs/reliability.md): a third-party law
     printing as it runs (``run``, ``check`` and a sweep's members wrote its lines into
@@ -7051,13 +7062,7 @@ def round_forty_one() -> list[Case]:
         "import numpy as np\nsim = multilayer.Simulation(multilayer.load(sys.argv[2]))\n"
         "saved = sim.state_dict()\n"
     )
-    sensitivity = (
-        "base: scenario.yaml\nparameters:\n  rheology.mu_s: {bounds: [0.2, 0.4]}\noutputs: [runout]\n"
-    )
-    calibration = (
-        "base: scenario.yaml\nparameters:\n  rheology.mu_s: {bounds: [0.2, 0.4]}\n"
-        "observations: [{name: m, quantity: mass_final, value: 0.001, sigma: 0.001}]\n"
-    )
+    sensitivity, calibration = SENSITIVITY_MU_S, CALIBRATION_MU_S
     return [
         # a law's own prints as it runs, and a law replacing sys.stdout
         Case("run: a law printing in its yield stress and viscosity as it runs (stdout)",
@@ -7208,6 +7213,18 @@ def _law42(method: str, body: str) -> str:
     )
 
 
+LAW_LAYOUTS: list[tuple[str, str, str]] = [
+    ("viscosity as big-endian floats", "viscosity", "return value.astype('>f8')"),
+    ("yield stress as big-endian floats", "yield_stress", "return value.astype('>f8')"),
+    ("yield stress in Fortran order", "yield_stress", "return np.asfortranarray(value)"),
+    ("viscosity as a strided view", "viscosity", "return np.repeat(value, 2, axis=-1)[..., ::2]"),
+    ("viscosity as a nested list", "viscosity", "return np.asarray(value).tolist()"),
+    ("yield stress of 5e-324", "yield_stress", "return np.full_like(value, 5e-324)"),
+]
+"""Valid values of a law in layouts numpy and the kernels take apart: (what, method, body of
+:func:`_law42`)."""
+
+
 SECOND_SIGNAL = """
 import os, signal
 from multilayer.io import results
@@ -7264,13 +7281,7 @@ def round_forty_two() -> list[Case]:
     mixture = {**MIXTURE}
     overflow = "the transport of the initial state overflows"
     tall = {"initial.0.height": 1e200, "gravity": 1e-200}
-    sensitivity = (
-        "base: scenario.yaml\nparameters:\n  rheology.mu_s: {bounds: [0.2, 0.4]}\noutputs: [runout]\n"
-    )
-    calibration = (
-        "base: scenario.yaml\nparameters:\n  rheology.mu_s: {bounds: [0.2, 0.4]}\n"
-        "observations: [{name: m, quantity: mass_final, value: 0.001, sigma: 0.001}]\n"
-    )
+    sensitivity, calibration = SENSITIVITY_MU_S, CALIBRATION_MU_S
     return [
         # subnormal and overflowing scenario values
         Case("control: run of gravity 5e-324", run, 0, "",
@@ -7399,18 +7410,8 @@ def round_forty_two() -> list[Case]:
              patch=_law42("yield_stress", "time.sleep(0.01)\nreturn value"),
              signal_after_output=signal.SIGTERM, setup=_scenario),
         # third-party laws returning numbers in unusual layouts
-        Case("control: a law's viscosity as big-endian floats", run, 0, "",
-             patch=_law42("viscosity", "return value.astype('>f8')"), setup=_scenario),
-        Case("control: a law's yield stress as big-endian floats", run, 0, "",
-             patch=_law42("yield_stress", "return value.astype('>f8')"), setup=_scenario),
-        Case("control: a law's yield stress in Fortran order", run, 0, "",
-             patch=_law42("yield_stress", "return np.asfortranarray(value)"), setup=_scenario),
-        Case("control: a law's viscosity as a strided view", run, 0, "",
-             patch=_law42("viscosity", "return np.repeat(value, 2, axis=-1)[..., ::2]"), setup=_scenario),
-        Case("control: a law's viscosity as a nested list", run, 0, "",
-             patch=_law42("viscosity", "return np.asarray(value).tolist()"), setup=_scenario),
-        Case("control: a law's yield stress of 5e-324", run, 0, "",
-             patch=_law42("yield_stress", "return np.full_like(value, 5e-324)"), setup=_scenario),
+        *(Case(f"control: a law's {what}", run, 0, "", patch=_law42(method, body), setup=_scenario)
+          for what, method, body in LAW_LAYOUTS),
         Case("run: a law's viscosity of -0.0 with no yield stress", run, 0, "",
              patch=_law42("viscosity", "return np.full_like(value, -0.0)")
              + _law42("yield_stress", "return np.zeros_like(value)").replace("real =", "real2 =").replace(
