@@ -3731,6 +3731,7 @@ def cases() -> list[Case]:
         + round_thirty_nine()
         + round_forty()
         + round_forty_one()
+        + round_forty_two()
     )
 
 
@@ -7026,6 +7027,17 @@ def _read_only_tmpdir(directory: Path) -> None:
     (directory / "tmp").chmod(0o555)
 
 
+SENSITIVITY_MU_S = (
+    "base: scenario.yaml\nparameters:\n  rheology.mu_s: {bounds: [0.2, 0.4]}\noutputs: [runout]\n"
+)
+"""A sensitivity study of the run-out to ``rheology.mu_s`` in [0.2, 0.4] (``scenario.yaml``)."""
+CALIBRATION_MU_S = (
+    "base: scenario.yaml\nparameters:\n  rheology.mu_s: {bounds: [0.2, 0.4]}\n"
+    "observations: [{name: m, quantity: mass_final, value: 0.001, sigma: 0.001}]\n"
+)
+"""A calibration of ``rheology.mu_s`` in [0.2, 0.4] against the final mass (``scenario.yaml``)."""
+
+
 def round_forty_one() -> list[Case]:
     """The hostile cases of the forty-first round (docs/reliability.md): a third-party law
     printing as it runs (``run``, ``check`` and a sweep's members wrote its lines into
@@ -7050,13 +7062,7 @@ def round_forty_one() -> list[Case]:
         "import numpy as np\nsim = multilayer.Simulation(multilayer.load(sys.argv[2]))\n"
         "saved = sim.state_dict()\n"
     )
-    sensitivity = (
-        "base: scenario.yaml\nparameters:\n  rheology.mu_s: {bounds: [0.2, 0.4]}\noutputs: [runout]\n"
-    )
-    calibration = (
-        "base: scenario.yaml\nparameters:\n  rheology.mu_s: {bounds: [0.2, 0.4]}\n"
-        "observations: [{name: m, quantity: mass_final, value: 0.001, sigma: 0.001}]\n"
-    )
+    sensitivity, calibration = SENSITIVITY_MU_S, CALIBRATION_MU_S
     return [
         # a law's own prints as it runs, and a law replacing sys.stdout
         Case("run: a law printing in its yield stress and viscosity as it runs (stdout)",
@@ -7192,6 +7198,259 @@ def round_forty_one() -> list[Case]:
     ]  # fmt: skip
 
 
+def _law42(method: str, body: str) -> str:
+    """DruckerPrager's ``method`` returning what ``body`` makes of its own ``value``, on
+    the numpy path (its compiled forms withdrawn); ``calls[0]`` counts the calls."""
+    indented = "".join(f"    {line}\n" for line in body.strip().splitlines())
+    return (
+        f"real = DruckerPrager.{method}\n"
+        "def fault(self, *args):\n"
+        "    calls[0] += 1\n"
+        "    value = real(self, *args)\n"
+        f"{indented}"
+        f"DruckerPrager.{method} = fault\n"
+        "DruckerPrager.yield_stress_kernel = lambda self, material: None\n"
+        "DruckerPrager.viscosity_kernel = lambda self, material: None\n"
+    )
+
+
+LAW_LAYOUTS: list[tuple[str, str, str]] = [
+    ("viscosity as big-endian floats", "viscosity", "return value.astype('>f8')"),
+    ("yield stress as big-endian floats", "yield_stress", "return value.astype('>f8')"),
+    ("yield stress in Fortran order", "yield_stress", "return np.asfortranarray(value)"),
+    ("viscosity as a strided view", "viscosity", "return np.repeat(value, 2, axis=-1)[..., ::2]"),
+    ("viscosity as a nested list", "viscosity", "return np.asarray(value).tolist()"),
+    ("yield stress of 5e-324", "yield_stress", "return np.full_like(value, 5e-324)"),
+]
+"""Valid values of a law in layouts numpy and the kernels take apart: (what, method, body of
+:func:`_law42`)."""
+
+
+SECOND_SIGNAL = """
+import os, signal
+from multilayer.io import results
+close = results.ResultWriter.close
+def closing(self, steps, wall_time_s, status='completed', scenario=None):
+    if status == 'interrupted':
+        os.kill(os.getpid(), signal.SIGTERM)
+    return close(self, steps, wall_time_s, status, scenario)
+results.ResultWriter.close = closing
+"""
+"""The second SIGTERM of a run stopping on its first: sent as the stop closes ``result.nc``."""
+
+
+def _two_runs_one_mesh(cells: int) -> Callable[[Path], None]:
+    """A finished run of TINY in ``out`` and a scenario of ``cells`` cells beside it."""
+
+    def setup(directory: Path) -> None:
+        _finished_run(directory)
+        _scenario(directory, {"domain.cells": cells})
+
+    return setup
+
+
+def _scenario_text(edit: Callable[[str], str]) -> Callable[[Path], None]:
+    """TINY's YAML text edited by ``edit``."""
+
+    def setup(directory: Path) -> None:
+        (directory / "scenario.yaml").write_text(edit(yaml.safe_dump(TINY)))
+
+    return setup
+
+
+def round_forty_two() -> list[Case]:
+    """The hostile cases of the forty-second round (docs/reliability.md): initial states
+    whose transport overflows the floats though their wave speeds are finite (an initial
+    speed of 1e160 m/s under ``--force``; a column 1e200 m high under a gravity of 1e-200,
+    which ``validate`` said ok): the first step's state held a NaN, named as "thickness h =
+    nan after transport", no key; 300 000 bed points inline (each YAML text was parsed
+    three times, and ``validate`` read the file twice); and, handled before, subnormal
+    and edge values of the scenario's and a mixture's keys, YAML of other tools
+    (``!!omap``, local and ``%TAG`` tags, a merge of a scalar, a quoted ``<<``, a document
+    after ``...``, CR line ends), ``--set`` of whole sections, aliases and binary values,
+    studies of degenerate parameter spaces, a resume and ``load_state`` on another mesh,
+    two SIGTERMs and SIGTERM during a slow law, laws returning big-endian,
+    Fortran-ordered, strided, nested-list and subnormal values or a NaN in one cell
+    mid-run, the Python API given streams, bytes, ``datetime64``, ``Fraction``, sets and
+    mapping proxies, and ``MULTILAYER_THREADS`` 0 and -1."""
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    forced = [*run, "--force"]
+    validate = ["validate", "{scenario}"]
+    study = ["validate", "{dir}/study.yaml"]
+    body = yaml.safe_dump(TINY)
+    load = "import numpy as np\nsim = multilayer.Simulation(multilayer.load(sys.argv[2]))\n"
+    mixture = {**MIXTURE}
+    overflow = "the transport of the initial state overflows"
+    tall = {"initial.0.height": 1e200, "gravity": 1e-200}
+    sensitivity, calibration = SENSITIVITY_MU_S, CALIBRATION_MU_S
+    return [
+        # subnormal and overflowing scenario values
+        Case("control: run of gravity 5e-324", run, 0, "",
+             setup=partial(_scenario, changes={"gravity": 5e-324})),
+        Case("run: rheology.nu 5e-324 (it underflows beside the yield stress)", run, 2,
+             "nu must be 0 or at least 1e-30", setup=partial(_scenario, changes={"rheology.nu": 5e-324})),
+        Case("control: run of rheology.mu_s 5e-324", run, 0, "",
+             setup=partial(_scenario, changes={"rheology.mu_s": 5e-324})),
+        Case("control: run of mu(I) grains 5e-324 m across", run, 0, "",
+             setup=partial(_scenario, changes={"rheology": JOP, "material.grain_diameter": 5e-324})),
+        Case("control: run of a channel 1e308 m wide",
+             run, 0, "", setup=partial(_scenario, changes={"walls": {"name": "wall_friction", "mu_w": 0.2},
+                                                         "domain.width": 1e308})),
+        Case("validate: an initial speed of 1e160 m/s (u^2 overflows)", validate, 2, "steps",
+             setup=partial(_scenario, changes={"initial.0.velocity": {"profile": "plug", "speed": 1e160}})),
+        Case("run --force: an initial speed of 1e160 m/s (u^2 overflows)", forced, 2, overflow,
+             setup=partial(_scenario, changes={"initial.0.velocity": {"profile": "plug", "speed": 1e160}})),
+        Case("validate: a column 1e200 m high under a gravity of 1e-200 (h^2 overflows)", validate, 2,
+             overflow, setup=partial(_scenario, changes=tall)),
+        Case("run: a column 1e200 m high under a gravity of 1e-200 (h^2 overflows)", run, 2, overflow,
+             setup=partial(_scenario, changes=tall)),
+        Case("run --force: a column 1e200 m high under a gravity of 1e-200 (h^2 overflows)", forced, 2,
+             overflow, setup=partial(_scenario, changes=tall)),
+        Case("control: run of a column 1e100 m high under a gravity of 1e-100", run, 0, "",
+             setup=partial(_scenario, changes={"initial.0.height": 1e100, "gravity": 1e-100})),
+        Case("validate: time.output_interval 5e-324", validate, 2, "time.output_interval",
+             setup=partial(_scenario, changes={"time.output_interval": 5e-324})),
+        Case("validate: time.end 1e300 with output every 1e295 s", validate, 2, "steps",
+             setup=partial(_scenario, changes={"time.end": 1e300, "time.output_interval": 1e295})),
+        Case("control: run of one cell holding a layer", run, 0, "",
+             setup=partial(_scenario, changes={"domain.cells": 1,
+                                               "initial.0": {"shape": "layer", "thickness": 0.05}})),
+        Case("run: an initial profile with points 5e-324 m apart", run, 0, "",
+             setup=partial(_scenario, changes={"initial.0": {
+                 "shape": "profile", "points": [[0, 0.05], [5e-324, 0.05], [0.1, 0.0]]}})),
+        Case("control: run over a bed of a cliff 5e-324 m wide", run, 0, "",
+             setup=partial(_scenario, changes={"bed": {"points": [[0, 0], [0.3, 0], [0.3 + 5.6e-17, 0.01],
+                                                                   [0.5, 0.01]]}})),
+        Case("control: run into a wall of bed 1e6 m high", run, 0, "",
+             setup=partial(_scenario, changes={"bed": {
+                 "points": [[0, 0], [0.25, 0], [0.26, 1e6], [0.5, 1e6]]}})),
+        # a grain-fluid mixture at the edges of its keys
+        Case("control: run of a mixture in a fluid of viscosity 5e-324", run, 0, "",
+             setup=partial(_scenario, changes={**mixture, "fluid.viscosity": 5e-324})),
+        Case("control: run of a mixture of kozeny 5e-324", run, 0, "",
+             setup=partial(_scenario, changes={**mixture, "mixture.kozeny": 5e-324})),
+        Case("validate: a mixture of no solid (phi 0)", validate, 2, "initial.0.phi",
+             setup=partial(_scenario, changes={**mixture, "initial.0.phi": 0.0})),
+        Case("control: run of a mixture in a fluid of density 0", run, 0, "",
+             setup=partial(_scenario, changes={**mixture, "fluid.density": 0.0})),
+        Case("run: neutrally buoyant grains (fluid.density = particle_density)", run, 2,
+             "is not below the grain density",
+             setup=partial(_scenario, changes={**mixture, "fluid.density": 1500.0,
+                                               "material.particle_density": 1500.0})),
+        Case("control: run of a mixture of phi_critical 5e-324", run, 0, "",
+             setup=partial(_scenario, changes={**mixture, "mixture.phi_critical": 5e-324})),
+        Case("control: run of a mixture of dilatancy 0", run, 0, "",
+             setup=partial(_scenario, changes={**mixture, "mixture.dilatancy": 0.0})),
+        # YAML features of other tools
+        Case("validate: a merge key of a list holding a scalar", validate, 2, "scenario.yaml",
+             setup=partial(_scenario, text=body + "a: &a {b: 1}\nc: {<<: [*a, 5]}\n")),
+        Case("validate: domain as an !!omap", validate, 2, "domain",
+             setup=_scenario_text(lambda t: t.replace(
+                 "domain:\n  cells: 40\n  layers: 3\n  x_max: 0.5\n  x_min: 0.0\n",
+                 "domain: !!omap [cells: 40, layers: 3, x_max: 0.5, x_min: 0.0]\n"))),
+        Case("validate: domain.cells of a local tag !cells", validate, 2, "scenario.yaml",
+             setup=_scenario_text(lambda t: t.replace("cells: 40", "cells: !cells 40"))),
+        Case("validate: a %TAG directive and a value of its tag", validate, 2, "scenario.yaml",
+             setup=_scenario_text(lambda t: "%TAG !e! tag:example.com,2000:\n---\n"
+                                  + t.replace("name: tiny", "name: !e!name tiny"))),
+        Case("validate: a quoted key '<<' (no merge)", validate, 2, "<<",
+             setup=partial(_scenario, text=body + '"<<": {slope_deg: 10}\n')),
+        Case("control: run of a scenario of CR line ends", run, 0, "",
+             setup=_scenario_text(lambda t: t.replace("\n", "\r"))),
+        Case("validate: garbage after the end-of-document marker", validate, 2, "scenario.yaml",
+             setup=partial(_scenario, text=body + "...\nslope_deg: 10\n")),
+        # --set with unusual paths and values
+        Case("validate: --set initial.0={}", [*validate, "--set", "initial.0={{}}"], 2, "initial.0",
+             setup=_scenario),
+        Case("validate: --set rheology.name=jop_mu_i (nu left)",
+             [*validate, "--set", "rheology.name=jop_mu_i"], 2, "nu", setup=_scenario),
+        Case("validate: --set domain={}", [*validate, "--set", "domain={{}}"], 2, "domain.x_min",
+             setup=_scenario),
+        Case("validate: --set an undefined alias", [*validate, "--set", "domain.cells=*cells"], 2, "--set",
+             setup=_scenario),
+        Case("validate: --set name=!!binary", [*validate, "--set", "name=!!binary aGk="], 2, "name",
+             setup=_scenario),
+        Case("validate: --set initial.1.height past the end", [*validate, "--set", "initial.1.height=0.1"], 2,
+             "initial.1", setup=_scenario),
+        # studies of degenerate parameter spaces
+        Case("control: a sweep of one member of one value", ["sweep", "{dir}/study.yaml", "-o", "{dir}/out",
+                                                              "--workers", "1", "-q"], 0, "",
+             setup=_study41("base: scenario.yaml\nparameters:\n  rheology.mu_s: [0.3]\n")),
+        Case("validate: a sweep of a value that is a mapping", study, 2, "rheology.mu_s",
+             setup=_study41("base: scenario.yaml\nparameters:\n  rheology.mu_s: [{a: 1}]\n")),
+        Case("validate: a sweep paired over lists of unequal lengths", study, 2, "paired",
+             setup=_study41("base: scenario.yaml\npaired: true\nparameters:\n  rheology.mu_s: [0.3, 0.35]\n"
+                            "  rheology.nu: [0.01, 0.02, 0.03]\n")),
+        Case("validate: a sensitivity study of bounds [.nan, 0.4]", study, 2, "bounds",
+             setup=_study41(sensitivity.replace("0.2, 0.4", ".nan, 0.4"))),
+        Case("validate: a calibration of bounds [0.2, .inf]", study, 2, "bounds",
+             setup=_study41(calibration.replace("0.2, 0.4", "0.2, .inf"))),
+        Case("validate: a calibration of no parameter", study, 2, "parameters",
+             setup=_study41(calibration.replace("  rheology.mu_s: {bounds: [0.2, 0.4]}\n", "").replace(
+                 "parameters:\n", "parameters: {}\n"))),
+        Case("validate: a sensitivity study of no output", study, 2, "outputs",
+             setup=_study41(sensitivity.replace("[runout]", "[]"))),
+        Case("validate: a sensitivity study of one base sample", study, 2,
+             "samples (line 5): Input should be greater than or equal to 2",
+             setup=_study41(sensitivity + "samples: 1\n")),
+        # results and states of another scenario or mesh
+        Case("run --resume: the checkpoint of a mesh of 40 cells, the scenario of 80",
+             ["run", "{scenario}", "-o", "{dir}/out", "-q", "--resume"], 2, "domain.cells",
+             setup=_two_runs_one_mesh(80)),
+        Case("control: validate of 300 000 bed points inline (4.6 MiB of YAML)", validate, 0, "",
+             setup=_scenario_text(lambda t: t + "bed: {points: [" + ",".join(
+                 f"[{0.5 * i / 299999:.9f},0]" for i in range(300000)) + "]}\n")),
+        Case("API: load_state of a state of 80 cells into one of 40", validate, 2,
+             "h: float64 values of shape",
+             patch=_api(load + "finer = multilayer.load(sys.argv[2], {'domain.cells': 80})\n"
+                        "sim.load_state(multilayer.Simulation(finer).state_dict())"), setup=_scenario),
+        # signals
+        Case("run: SIGTERM, a second SIGTERM as result.nc is closed", run, 143, "SIGTERM", keeps_output=True,
+             patch=SECOND_SIGNAL + PACED, signal_after_output=signal.SIGTERM, setup=_scenario),
+        Case("run: SIGTERM while a slow law runs", run, 143, "SIGTERM", keeps_output=True,
+             patch=_law42("yield_stress", "time.sleep(0.01)\nreturn value"),
+             signal_after_output=signal.SIGTERM, setup=_scenario),
+        # third-party laws returning numbers in unusual layouts
+        *(Case(f"control: a law's {what}", run, 0, "", patch=_law42(method, body), setup=_scenario)
+          for what, method, body in LAW_LAYOUTS),
+        Case("run: a law's viscosity of -0.0 with no yield stress", run, 0, "",
+             patch=_law42("viscosity", "return np.full_like(value, -0.0)")
+             + _law42("yield_stress", "return np.zeros_like(value)").replace("real =", "real2 =").replace(
+                 "real(self", "real2(self"), setup=_scenario),
+        Case("run: a law's yield stress NaN in one cell of one interface mid-run", run, 1,
+             "yield_stress() returned nan", keeps_output=True,
+             patch=_law42("yield_stress", "value = np.array(value, dtype=float)\n"
+                          "if calls[0] > 30:\n    value.flat[value.size // 2] = np.nan\nreturn value"),
+             setup=_scenario),
+        # the Python API given unusual types
+        Case("API: multilayer.load of an open text stream", validate, 2, "scenario: got",
+             patch=_api("import io\nmultilayer.load(io.StringIO(open(sys.argv[2]).read()))"),
+             setup=_scenario),
+        Case("API: multilayer.load of a bytes path", validate, 2, "scenario: got",
+             patch=_api("multilayer.load(sys.argv[2].encode())"), setup=_scenario),
+        Case("API: multilayer.run(outdir=42)", validate, 2, "outdir: got 42",
+             patch=_api("multilayer.run(sys.argv[2], 42)"), setup=_scenario),
+        Case("API: Simulation.step(t_max=np.datetime64)", validate, 2, "t_max",
+             patch=_api(load + "sim.step(np.datetime64('2020-01-01'))"), setup=_scenario),
+        Case("control: API Simulation.advance(Fraction(1, 100))", validate, 0, "",
+             patch=_api(load + "from fractions import Fraction\nsim.advance(Fraction(1, 100))\n"
+                        "assert type(sim.t) is float, type(sim.t)"), setup=_scenario),
+        Case("API: load of a mapping whose initial is a set", validate, 2, "initial",
+             patch=_api("import yaml\ndata = yaml.safe_load(open(sys.argv[2]))\n"
+                        "data['initial'] = {frozenset(data['initial'][0].items())}\nmultilayer.load(data)"),
+             setup=_scenario),
+        Case("control: API load of a mapping proxy with numpy str keys", validate, 0, "",
+             patch=_api("import types, yaml\nimport numpy as np\ndata = yaml.safe_load(open(sys.argv[2]))\n"
+                        "data = {np.str_(k): v for k, v in data.items()}\n"
+                        "multilayer.load(types.MappingProxyType(data))"), setup=_scenario),
+        # the environment
+        Case("run: MULTILAYER_THREADS=0", run, 2, "MULTILAYER_THREADS", env={"MULTILAYER_THREADS": "0"},
+             setup=_scenario),
+        Case("run: MULTILAYER_THREADS=-1", run, 2, "MULTILAYER_THREADS", env={"MULTILAYER_THREADS": "-1"},
+             setup=_scenario),
+    ]  # fmt: skip
+
+
 ROUNDS: dict[int, Callable[[], list[Case]]] = {
     2: round_two, 3: round_three, 4: round_four, 5: round_five, 6: round_six, 7: round_seven,
     8: round_eight, 9: round_nine, 10: round_ten, 11: round_eleven, 12: round_twelve,
@@ -7209,6 +7468,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     39: round_thirty_nine,
     40: round_forty,
     41: round_forty_one,
+    42: round_forty_two,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""
 
@@ -7221,7 +7481,7 @@ def main() -> None:
         "--round",
         type=int,
         choices=sorted(ROUNDS),
-        help="only the cases of this round (2 to 35, 37 to 41; all: none)",
+        help="only the cases of this round (2 to 35, 37 to 42; all: none)",
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()

@@ -906,22 +906,44 @@ def test_a_mixtures_solid_written_between_steps_and_a_velocity_without_material_
     assert not sim.u.any()
 
 
-def test_a_finite_state_whose_wave_speed_overflows_is_named_not_the_length_of_the_run():
+@pytest.mark.parametrize(
+    ("thickness", "named"),
+    [
+        (1e308, r"the wave speed sqrt\(g cos\(theta\) h\) \+ \|u\|"),
+        (1e200, r"the transport \(thickness x wave speed\^2 / cell width, waves at 2\.9\d+e\+100 m/s "
+         r"on cells of 0\.0125 m\)"),
+    ],
+)  # fmt: skip
+def test_a_finite_state_whose_wave_speed_overflows_is_named_not_the_length_of_the_run(thickness, named):
     """``sim.h[3] = 1e308`` between steps (finite, >= 0: the entry check passes): g h
     overflows, the Courant step was 0 and the message blamed the length of the run ("dt
-    below the resolution of t when the run is too long for its step")."""
+    below the resolution of t when the run is too long for its step").  ``sim.h[3] =
+    1e200``: its wave speed, 3e100 m/s, is finite, but the transport's ``h^2`` and ``h s^2
+    / dx`` are not, and the step's state held a NaN, named as "thickness h = nan after
+    transport" with no word of the thickness that made it."""
     from engine import simulation
 
     sim = simulation(**TINY_SCENARIO)
     sim.step()
-    sim.h[3] = 1e308
+    sim.h[3] = thickness
     with pytest.raises(
         StateError,
-        match=r"the wave speed sqrt\(g cos\(theta\) h\) \+ \|u\| of the state at "
-        r"t = 0.00843656 s \(step 2\) overflows \(thickness up to 1e\+308 m, velocity up to",
+        match=named
+        + r" of the state at t = 0.00843656 s \(step 2\) overflows \(thickness up to "
+        + re.escape(f"{thickness!r} m, velocity up to"),
     ):
         sim.step()
     assert sim.steps == 1
+
+
+def test_the_transport_is_refused_where_its_products_overflow_only():
+    """:func:`fluxes_overflow` bounds ``h^2``, ``h s^2`` and their quotient by ``dx``: a
+    thickness whose products stay finite (1e100 m) is not refused."""
+    from multilayer.engine.transport.reference import fluxes_overflow
+
+    assert fluxes_overflow(1e200, 3e100, 0.0125) and not fluxes_overflow(1e100, 3e50, 0.0125)
+    assert fluxes_overflow(0.05, 1e160, 0.0125)  # u^2 overflows
+    assert fluxes_overflow(1e150, 1.0, 1e-10) and not fluxes_overflow(1e150, 1.0, 1.0)  # / dx
 
 
 def test_stepping_without_a_bound_where_no_wave_bounds_the_step_is_named():

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from multilayer.app import resources
 from multilayer.engine import config as cfg
 from multilayer.engine import initial_state
 from multilayer.engine.mesh import layer_fractions
@@ -140,9 +141,16 @@ def check_start(scenario: Scenario, where: str) -> None:
 
 def check_pressure(scenario: Scenario) -> None:
     """:func:`multilayer.engine.initial_state.check_pressure` of the scenario's initial
-    state under its bulk density and gravity (``InputError`` naming them)."""
+    state under its bulk density and gravity, and its
+    :func:`~multilayer.engine.initial_state.check_transport` with the waves and cells of
+    the estimate of its steps (:func:`multilayer.app.resources.steps`), an inflow's
+    thickness included (``InputError`` naming them)."""
     weight = scenario.material.density * scenario.gravity * math.cos(math.radians(scenario.slope_deg))
-    initial_state.check_pressure(initial_entries(scenario), weight, str(scenario.source or "<scenario>"))
+    entries, where = initial_entries(scenario), str(scenario.source or "<scenario>")
+    initial_state.check_pressure(entries, weight, where)
+    need, inflow = resources.steps(scenario), scenario.boundaries.inflow
+    depth = max(initial_state.stacked_depth(entries), 0.0 if inflow is None else inflow.thickness)
+    initial_state.check_transport(depth, need.speed, need.dx, where)
 
 
 def material(scenario: Scenario) -> Material:

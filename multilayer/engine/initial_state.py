@@ -20,6 +20,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from multilayer.engine.config import InitialEntry, Points, Velocity
+from multilayer.engine.transport.reference import fluxes_overflow
 from multilayer.errors import InputError
 
 
@@ -134,15 +135,37 @@ def check_pressure(entries: Sequence[InitialEntry], weight: float, where: str) -
     entries can stack, ``weight`` (density g cos(theta), Pa/m) times the sum of their
     largest thicknesses, is no finite number: every stress of the run is then infinite,
     which the rheology was blamed for at the first step."""
-    depth = 0.0
-    for entry in entries:
-        points = entry_points(entry)
-        depth += float(entry.thickness) if points is None else float(points[1].max())  # type: ignore[arg-type]
+    depth = stacked_depth(entries)
     if not math.isfinite(weight * depth):  # Python's floats: inf without a warning
         raise InputError(
             f"{where}: material.density, gravity, initial: the pressure under the initial material, "
             f"density g cos(slope_deg) h = {weight:.6g} Pa/m x {depth:.6g} m, is no finite number (more "
             "than 1e308 Pa); accepted: a density, gravity and thickness whose product is a finite number"
+        )
+
+
+def stacked_depth(entries: Sequence[InitialEntry]) -> float:
+    """The deepest column the entries can stack: the sum of their largest thicknesses (m)."""
+    depth = 0.0
+    for entry in entries:
+        points = entry_points(entry)
+        depth += float(entry.thickness) if points is None else float(points[1].max())  # type: ignore[arg-type]
+    return depth
+
+
+def check_transport(depth: float, speed: float, dx: float, where: str) -> None:
+    """:class:`InputError` when the transport of the initial state, ``depth`` (m) deep with
+    waves up to ``speed`` (m/s) on cells ``dx`` (m) wide, computes numbers beyond the floats
+    (:func:`~multilayer.engine.transport.reference.fluxes_overflow`): its first step's
+    fluxes are NaN, which the step's state check named ("thickness h = nan after
+    transport") without the keys that made it."""
+    if fluxes_overflow(depth, speed, dx):
+        raise InputError(
+            f"{where}: initial, gravity, domain.cells: the transport of the initial state overflows: it "
+            "computes thickness x wave speed^2 / cell width and thickness^2 for thicknesses up to "
+            f"{depth:.3g} m and waves up to {speed:.3g} m/s (its speeds and a dam break's front, 2 sqrt(g "
+            f"cos(slope_deg) h)) on cells of {dx:.3g} m, beyond 1e308; accepted: initial thicknesses and "
+            "speeds, gravity and cells whose products are finite numbers"
         )
 
 

@@ -315,11 +315,11 @@ class Simulation:
 
     def _step(self, t_max: float) -> float:
         speed = self._with_inflow(self._state.survey(self.dry, self.g_n))  # the fastest wave at the start
-        if speed == math.inf:  # of a finite state (check_entry): g h or |u| + sqrt(g h) overflows
+        if overflow := transport_reference.overflowing(self._state.h, speed, self.g_n, self.dx, self.inflow):
+            deepest, fastest = float(self._state.h.max()), float(np.abs(self._state.u).max())  # finite
             raise StateError(
-                f"the wave speed sqrt(g cos(theta) h) + |u| of the state at t = {self.t:.6g} s (step "
-                f"{self.steps + 1}) overflows (thickness up to {float(self._state.h.max())!r} m, velocity up "
-                f"to {float(np.abs(self._state.u).max())!r} m/s): no time step bounds it"
+                f"{overflow[0]} of the state at t = {self.t:.6g} s (step {self.steps + 1}) overflows "
+                f"(thickness up to {deepest!r} m, velocity up to {fastest!r} m/s): {overflow[1]}"
             )
         dt = min(courant_step(speed, self.dx, self.config.cfl), t_max - self.t)
         if dt == math.inf:  # no wave: no material and no inflow

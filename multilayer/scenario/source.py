@@ -119,9 +119,11 @@ def parse_yaml(text: str, where: str) -> tuple[Any, dict[KeyPath, int]]:
     and the line if it is malformed."""
     limits.check_line_breaks(text, where)
     limits.check_yaml(text, where, Loader)
+    loader = Loader(text)  # one parse: the data is constructed from the node the lines are read from
     try:
-        node = yaml.compose(text, Loader=Loader)
-        data = yaml.load(text, Loader=Loader)
+        node = loader.get_single_node()
+        lines = {} if node is None else line_map(node, where)  # before the merge keys are flattened into it
+        data = None if node is None else loader.construct_document(node)
     except yaml.reader.ReaderError as exc:  # a character YAML does not take: its place, one line
         start = text.rfind("\n", 0, exc.position) + 1
         line = f" (line {text.count(chr(10), 0, exc.position) + 1}, column {exc.position - start + 1})"
@@ -137,7 +139,9 @@ def parse_yaml(text: str, where: str) -> tuple[Any, dict[KeyPath, int]]:
         raise InputError(
             f"{where}{line}: malformed YAML: {problem}; accepted: a YAML mapping of scenario keys"
         ) from None
-    return data, ({} if node is None else line_map(node, where))
+    finally:
+        loader.dispose()
+    return data, lines
 
 
 def read_yaml(path: str | Path, kind: str = "scenario") -> tuple[Any, dict[KeyPath, int]]:

@@ -53,7 +53,7 @@ def _check_file(path: str, args: argparse.Namespace) -> str:
     validated as a scenario: ``time`` missing, ``parameters`` unknown.)"""
     from multilayer.io import study
 
-    data, _ = scenarios.read_yaml(path)
+    data, lines = scenarios.read_yaml(path)  # once: the file may change between two reads
     study_base = isinstance(data, dict) and (isinstance(data.get("base"), str) or "parameters" in data)
     if study_base and "observations" in data:
         calibration = study.load_calibration(path, factory.check_start)
@@ -79,7 +79,8 @@ def _check_file(path: str, args: argparse.Namespace) -> str:
                     f"{path}: member {member.id} ({', '.join(member.overrides)}):\n{exc}"
                 ) from None
         return f"sweep of {len(members)} members of {plan.base}, each valid"
-    return _check(scenarios.load(path, args.overrides), path, args)
+    scenario = scenarios.from_dict(data, source=Path(path), overrides=args.overrides, lines=lines)
+    return _check(scenario, path, args)
 
 
 def _check(scenario: Scenario, path: str | Path, args: argparse.Namespace) -> str:

@@ -92,6 +92,49 @@ def courant_step(speed: float, dx: float, cfl: float) -> float:
     return min(cfl, POSITIVITY_LIMIT) * dx / speed if speed > 0 else np.inf
 
 
+#: how many of the transport's largest products (:func:`fluxes_overflow`) one sum adds up
+FLUX_TERMS = 16.0
+
+
+def fluxes_overflow(depth: float, speed: float, dx: float) -> bool:
+    """Whether the transport of a state of thickness up to ``depth`` (m) and waves up to
+    ``speed`` (m/s) on cells ``dx`` (m) wide computes numbers beyond the floats.  Its
+    largest products, here and in the compiled ``kernel.transport`` alike, are the momentum
+    flux ``h u^2 + g cos(theta) h^2 / 2`` and the HLL term ``s_L s_R (q_R - q_L) / (s_R -
+    s_L)``, at most ``depth speed^2`` (``g cos(theta) h <= speed^2``), and the
+    well-balanced pressure difference ``h_e^2 - h_L^2``, at most ``depth^2`` (gravity
+    multiplies it after), each then divided by ``dx``; :data:`FLUX_TERMS` of them are
+    summed.  Beyond, the step's state held a NaN ("thickness h = nan after transport"),
+    where the culprit was the state: an initial speed of 1e160 m/s, whose ``u^2``
+    overflows, or a column 1e200 m high under a gravity of 1e-200.  Python's floats: inf,
+    no warning."""
+    largest = depth * max(depth, speed * speed) * max(1.0, 1.0 / dx)
+    return not largest * FLUX_TERMS < math.inf
+
+
+def overflowing(
+    h: np.ndarray, speed: float, g_n: float, dx: float, inflow: boundaries.InflowState | None = None
+) -> tuple[str, str] | None:
+    """What overflows of a finite state of thickness ``h`` (and ``inflow``'s beside it)
+    whose fastest wave is ``speed`` (m/s): its wave speed (``g h`` or ``|u| +
+    sqrt(g h)``: no time step bounds it) or its transport (:func:`fluxes_overflow`: its
+    fluxes would be NaN), and why that stops it; None if nothing.  ``h`` is read only where
+    ``speed`` leaves an overflow possible: ``g_n h <= speed^2`` bounds it."""
+    bound = speed * speed / g_n if g_n > 0.0 else math.inf  # Python's floats: inf, no warning
+    if speed < math.inf and not fluxes_overflow(bound, speed, dx):
+        return None
+    if speed == math.inf:
+        return "the wave speed sqrt(g cos(theta) h) + |u|", "no time step bounds it"
+    depth = float(h.max(initial=0.0))
+    if not fluxes_overflow(depth if inflow is None else max(depth, inflow.thickness), speed, dx):
+        return None
+    return (
+        f"the transport (thickness x wave speed^2 / cell width, waves at {speed:.6g} m/s on cells of "
+        f"{dx:.6g} m)",
+        "its fluxes are beyond the floats",
+    )
+
+
 def stage_courant_step(dt: float, start_speed: float, stage_speed: float, dx: float, cfl: float) -> float:
     """Time step for a step of ``dt`` redone because the state Heun's second stage starts
     from had waves of ``stage_speed``, beyond the positivity limit: the stage speed taken
