@@ -88,6 +88,7 @@ import numpy as np
 from multilayer.engine.config import MixtureConfig
 from multilayer.engine.mixture.closure import drag as darcy_drag
 from multilayer.engine.mixture.exchange import GIVEN, between_layers
+from multilayer.engine.mixture.local_kernel import mixture_form, one_layer
 from multilayer.engine.plugin_output import call
 from multilayer.engine.state_check import all_finite
 from multilayer.engine.vertical.column_solve import solve
@@ -166,6 +167,7 @@ class LocalStep:
         self.buoyant_g_n = (self.rho_s - self.rho_f) * g_n
         self.tolerance, self.max_iterations = tolerance, max_iterations
         self.compressibility = config.compressibility
+        self.form = mixture_form(law, material, config)
 
     def masses(self, solid: np.ndarray, h: np.ndarray) -> np.ndarray:
         """``rho_s s_a + rho_f (l_a h - s_a)`` (kg/m^2): the layer masses at thickness ``h``."""
@@ -305,6 +307,48 @@ class LocalStep:
             f"the mixture's closure did not converge in {self.max_iterations} iterations "
             f"(numerics.max_iterations)"
         )
+
+    def _compiled(
+        self,
+        form: tuple[float, float],
+        given: tuple[np.ndarray, ...],
+        previous: np.ndarray,
+        scale: np.ndarray,
+        pores: np.ndarray,
+        dt: float,
+        lag: float,
+        relaxing: bool,
+    ) -> Callable[[np.ndarray, np.ndarray, np.ndarray], Evaluation | None]:
+        """The compiled map of :meth:`_newton` in columns of one layer (the module
+        :mod:`~multilayer.engine.mixture.local_kernel`): at the trials ``X`` (2, len(k)) of the
+        columns ``k`` from the velocities ``guess`` (1, n), the evaluation of the reference,
+        bit for bit, or None where the reference must evaluate them itself (a trial it marks
+        diverged or outside, a value it refuses).  ``given``: ``h*``, the solid, its buoyant
+        weight, the masses and momenta before the step (n,); ``previous`` (n,) the pore pressure
+        a compressibility relaxes from (``relaxing``), ``lag = alpha / dt``; ``form`` the law's
+        ``(tan(delta), eta)`` (:func:`~multilayer.engine.mixture.local_kernel.mixture_form`)."""
+        cfg, (tan_delta, eta) = self.config, form
+        constants = np.array(
+            [
+                dt, self.l[0, 0], self.spacing[0, 0], self.rho_s, self.rho_f, cfg.dilatancy, cfg.phi_critical,
+                cfg.dilatancy * cfg.critical_shift * cfg.fluid_viscosity, cfg.kozeny * cfg.fluid_viscosity,
+                self.material.grain_diameter, tan_delta, eta, lag, float(relaxing),
+            ],
+            dtype=float,
+        )  # fmt: skip
+        arrays = [np.ascontiguousarray(a, dtype=float) for a in given]
+        start, bounds = np.ascontiguousarray(previous, dtype=float), np.ascontiguousarray(pores, dtype=float)
+        scales = np.ascontiguousarray(scale, dtype=float)
+
+        def evaluate(X: np.ndarray, k: np.ndarray, guess: np.ndarray) -> Evaluation | None:
+            out = np.empty((8, k.size))
+            trial, columns = np.ascontiguousarray(X, dtype=float), np.ascontiguousarray(k, dtype=np.int64)
+            velocities = np.ascontiguousarray(guess[0], dtype=float)
+            if not one_layer(trial, columns, *arrays, velocities, start, scales, bounds, constants, out):
+                return None
+            return Evaluation(out[0:1], out[1:2], out[2:3], out[3], out[4:5], out[5:7], out[7])
+
+        return evaluate
 
     def _state(self, solid: np.ndarray, h: np.ndarray, pore_pressure: np.ndarray) -> MixtureState:
         cfg = self.config
@@ -498,6 +542,8 @@ class LocalStep:
             one whose ratio no thickness with pores has; where the
             closure fails, the columns are evaluated one by one and those whose closure
             fails are marked diverged."""
+            if compiled is not None and (found := compiled(X, k, velocities)) is not None:
+                return found
             burst = ~np.isfinite(X[:L]).all(axis=0)
             outside = ~((X[L] > 0.0) & (X[L] < pores[k]))  # a ratio no thickness with pores has
             if burst.any() or outside.any():
@@ -540,6 +586,12 @@ class LocalStep:
             lag = self.compressibility / dt if self.compressibility is not None else 0.0
             rest = self.closure(solid, h_star, np.zeros_like(ustar), previous, lag)[3]
             pressure_guess = np.where(np.any(guess != 0.0, axis=0), pressure_guess, rest)
+        # one layer under a law of a compiled form: the compiled map (engine/mixture/local_kernel.py)
+        compiled = None
+        if self.form is not None and L == 1:
+            given = (h_star, solid[0], weight[0], m_before[0], momentum[0])
+            start = np.zeros(n) if previous is None else previous[0]
+            compiled = self._compiled(self.form, given, start, scale, pores, dt, lag, previous is not None)
         X = np.concatenate([pressure_guess, np.ones((1, n))])  # the ratio h* / h' of rest
         now = evaluate(X, np.arange(n))
         if watch is not None and np.any(now.v[:, watch]):  # a watched column starts: the step stops
