@@ -34,7 +34,7 @@ import multilayer
 from multilayer.app.runner import output_times
 from multilayer.app.simulation import Simulation
 from multilayer.engine import simulation as engine
-from multilayer.engine.mixture import local_step
+from multilayer.engine.mixture import local_kernel, local_step
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 SHIPPED = [
@@ -50,7 +50,7 @@ def counted(finished: bool) -> Iterator[Counter[str]]:
     counts: Counter[str] = Counter()
     start: Counter[str] = Counter()  # the present attempt: evaluations before it, its iterations
     call, local, transport = local_step.call, local_step.LocalStep.__call__, engine.Simulation._transport
-    kernel = local_step.one_layer
+    kernel = local_kernel.one_layer
     tries, stresses = engine.Simulation._transport_and_stresses, engine.Simulation._stress_steps
     step, vertical = engine.Simulation.step, engine.Simulation._vertical_step
 
@@ -95,7 +95,7 @@ def counted(finished: bool) -> Iterator[Counter[str]]:
     with ExitStack() as stack:
         for owner, name, wrapper in (
             (local_step, "call", evaluations),
-            (local_step, "one_layer", compiled),
+            (local_kernel, "one_layer", compiled),
             (local_step.LocalStep, "__call__", local_calls),
             (engine.Simulation, "_transport", attempts),
             (engine.Simulation, "_stress_steps", stress_steps),

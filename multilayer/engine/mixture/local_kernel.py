@@ -1,7 +1,7 @@
-"""The compiled map of the mixture's local step in columns of one layer under the built-in
-dilatant law: what :meth:`~multilayer.engine.mixture.local_step.LocalStep._newton` evaluates
-at a trial ``X = (p_e, z)`` (docs/mixture.md, "The mixture in x and in layers"), one
-column at a time.
+"""The map of the mixture's local step, its value at a trial (:class:`Evaluation`), and its
+compiled form in columns of one layer under the built-in dilatant law: what
+:meth:`~multilayer.engine.mixture.local_step.LocalStep._newton` evaluates at a trial ``X =
+(p_e, z)`` (docs/mixture.md, "The mixture in x and in layers"), one column at a time.
 
 The numpy evaluation in ``local_step`` is the reference: for a column of one layer, the
 yield stress and viscosity of the law at the effective pressure ``p_s = P - p_e`` at the
@@ -21,7 +21,8 @@ trial, with its marks and its messages.
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections.abc import Callable
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -55,6 +56,93 @@ def mixture_form(law: Any, material: Any, config: Any) -> tuple[float, float] | 
     if not (math.isfinite(tan_delta) and math.isfinite(eta) and eta >= 0.0):
         return None
     return tan_delta, eta
+
+
+class Evaluation(NamedTuple):
+    """The local step's map at a trial ``X`` in some columns."""
+
+    v: np.ndarray  # (L, k) velocities of the column solve
+    rates: np.ndarray  # (L, k) interface shear rates
+    pressure: np.ndarray  # (L, k) excess pore pressures of the closure at these velocities
+    h: np.ndarray  # (k,) thickness of the dilation at these velocities
+    dilation: np.ndarray  # (L, k) dilation rates of the closure at these velocities
+    residual: np.ndarray  # (L + 1, k) X minus what it produces, scaled
+    norm: np.ndarray  # (k,) largest scaled component of the residual
+
+    @staticmethod
+    def diverged(X: np.ndarray) -> Evaluation:
+        """At trials ``X`` (L + 1, k) the step cannot evaluate (not finite, or whose closure
+        fails): no velocities, an infinite residual."""
+        L, k = X.shape[0] - 1, X.shape[1]
+        residual = np.full(X.shape, np.inf)
+        blank = np.zeros((L, k))
+        return Evaluation(blank, blank, X[:L], residual[L], blank, residual, residual[0])
+
+    @staticmethod
+    def join(parts: list[Evaluation]) -> Evaluation:
+        """The evaluations ``parts`` of consecutive columns side by side."""
+        return Evaluation(*(np.concatenate(fields, axis=-1) for fields in zip(*parts)))
+
+    def take(self, k: np.ndarray) -> Evaluation:
+        """This evaluation in the columns ``k`` only."""
+        return Evaluation(*(part[..., k] for part in self))
+
+    def merge(self, k: np.ndarray, other: Evaluation) -> Evaluation:
+        """This evaluation with the columns ``k`` replaced by ``other``'s."""
+        parts = []
+        for mine, theirs in zip(self, other):
+            mine = mine.copy()
+            mine[..., k] = theirs
+            parts.append(mine)
+        return Evaluation(*parts)
+
+
+def compiled_map(
+    local: Any,
+    given: tuple[np.ndarray, ...],
+    scale: np.ndarray,
+    pores: np.ndarray,
+    dt: float,
+    lag: float,
+    previous: np.ndarray | None,
+) -> Callable[[np.ndarray, np.ndarray, np.ndarray], Evaluation | None] | None:
+    """The compiled map of the local step ``local`` (a
+    :class:`~multilayer.engine.mixture.local_step.LocalStep` of a law of a compiled form,
+    :func:`mixture_form`) in columns of one layer, None for other columns or laws: at the
+    trials ``X`` (2, len(k)) of the columns ``k`` from the velocities ``guess`` (1, n), the
+    evaluation of the reference, bit for bit, or None where the reference must evaluate
+    them itself (a trial it marks diverged or outside, a value it refuses: :func:`one_layer`).
+    ``given``: ``h*`` (n,), the solid, its buoyant weight, the masses and momenta before the
+    step (1, n); ``previous`` (1, n) the pore pressure a compressibility relaxes from, ``lag =
+    alpha / dt``; ``scale`` (2, n) and ``pores`` (n,) as in ``LocalStep._newton``."""
+    if local.form is None or local.l.shape[0] != 1:
+        return None
+    cfg, (tan_delta, eta), relaxing = local.config, local.form, previous is not None
+    constants = np.array(
+        [
+            dt, local.l[0, 0], local.spacing[0, 0], local.rho_s, local.rho_f, cfg.dilatancy, cfg.phi_critical,
+            cfg.dilatancy * cfg.critical_shift * cfg.fluid_viscosity, cfg.kozeny * cfg.fluid_viscosity,
+            local.material.grain_diameter, tan_delta, eta, lag, float(relaxing),
+        ],
+        dtype=float,
+    )  # fmt: skip
+    h_star, *layer = given
+    arrays = [
+        np.ascontiguousarray(h_star, dtype=float),
+        *(np.ascontiguousarray(a[0], dtype=float) for a in layer),
+    ]
+    start = np.ascontiguousarray(np.zeros(h_star.size) if previous is None else previous[0], dtype=float)
+    scales, bounds = np.ascontiguousarray(scale, dtype=float), np.ascontiguousarray(pores, dtype=float)
+
+    def evaluate(X: np.ndarray, k: np.ndarray, guess: np.ndarray) -> Evaluation | None:
+        out = np.empty((8, k.size))
+        trial, columns = np.ascontiguousarray(X, dtype=float), np.ascontiguousarray(k, dtype=np.int64)
+        velocities = np.ascontiguousarray(guess[0], dtype=float)
+        if not one_layer(trial, columns, *arrays, velocities, start, scales, bounds, constants, out):
+            return None
+        return Evaluation(out[0:1], out[1:2], out[2:3], out[3], out[4:5], out[5:7], out[7])
+
+    return evaluate
 
 
 @jit(inline="always")
