@@ -2,7 +2,8 @@
 numpy reference (engine/mixture/local_step.py): in columns of one layer under the built-in
 dilatant law the local step with the kernel gives the reference's result bit for bit (the
 same operations in the same order), loose and dense, with and without a compressibility,
-at rest (``u == 0.0`` and ``h' == h*`` exactly) and at a front that needs sub-steps; a law
+at rest (``u == 0.0`` and ``h' == h*`` exactly), at a front that needs sub-steps and where
+the kernel hands a trial back to the numpy map; a law
 without the compiled form (a third-party law, a subclass that redefines a mixture method)
 and columns of several layers run on the numpy path."""
 
@@ -14,6 +15,7 @@ import numpy as np
 import pytest
 
 from multilayer.engine.config import MixtureConfig
+from multilayer.engine.mixture import local_kernel
 from multilayer.engine.mixture.local_step import LocalResult, LocalStep
 from multilayer.plugins.builtins import DilatantCoulomb
 from multilayer.plugins.contract import Material
@@ -95,6 +97,29 @@ def test_a_front_in_sub_steps_gives_the_reference_bit_for_bit():
     compiled, reference = both(local, np.array([[phi * h]]), np.array([h]), np.array([[v]]), dt)
     identical(compiled, reference)
     assert compiled.iterations == reference.iterations and compiled.h[0] > h
+
+
+def test_a_trial_the_kernel_hands_back_is_evaluated_by_the_reference(monkeypatch):
+    """A thin loose column of 1 cm gravel moving fast over a long step, whose iteration tries
+    a ratio ``z`` no thickness with pores has: the kernel hands that trial to the numpy map,
+    and the step is the reference's bit for bit."""
+    answers, kernel = [], local_kernel.one_layer
+
+    def counted(*args):
+        answers.append(kernel(*args))
+        return answers[-1]
+
+    config = MixtureConfig(
+        fluid_density=1010.0, fluid_viscosity=0.0121, phi_critical=0.582, dilatancy=4.09, critical_shift=25.0
+    )
+    gravel = Material(density=1830.0, grain_diameter=1e-2, particle_density=2500.0)
+    local = LocalStep(config, LAW, gravel, np.array([1.0]), 9.81 * np.cos(np.radians(10.0)), 1e-10, 200)
+    h, phi, v, dt = 7.680197180346033e-3, 0.4431605569871282, 2.720385703828752, 0.1537122563744174
+    with monkeypatch.context() as patch:
+        patch.setattr(local_kernel, "one_layer", counted)
+        compiled, reference = both(local, np.array([[phi * h]]), np.array([h]), np.array([[v]]), dt)
+    identical(compiled, reference)
+    assert False in answers and True in answers
 
 
 class Redefined(DilatantCoulomb):
