@@ -3,9 +3,9 @@ numpy reference (engine/mixture/local_step.py): in columns of one layer under th
 dilatant law the local step with the kernel gives the reference's result bit for bit (the
 same operations in the same order), loose and dense, with and without a compressibility,
 at rest (``u == 0.0`` and ``h' == h*`` exactly), at a front that needs sub-steps and where
-the kernel hands a trial back to the numpy map; a law
-without the compiled form (a third-party law, a subclass that redefines a mixture method)
-and columns of several layers run on the numpy path."""
+the kernel hands a trial back to the numpy map; a law without the compiled form (a
+third-party law, a subclass that redefines a mixture method) and columns of several layers
+run on the numpy path."""
 
 from __future__ import annotations
 
