@@ -6,8 +6,9 @@ Runs the shipped mixture scenarios (or the files given) and prints, per run:
   redone with it moving: docs/mixture.md, "Columns set moving") or shorter for the
   Courant condition;
 - the local-step calls of the time loop (two per attempt at order 2);
-- the batched evaluations: calls of the rheology's ``mixture_yield_stress``, one per
-  evaluation of the local step's map for all the columns iterated together;
+- the batched evaluations: calls of the rheology's ``mixture_yield_stress`` and of the
+  compiled map that answered (engine/mixture/local_kernel.py), one per evaluation of the
+  local step's map for all the columns iterated together;
 - the Newton iterations, ``Simulation.newton_iterations`` (of every attempt, redone ones
   included; per local step the iterations of its batch of columns summed over its sub-step
   levels, a local step stopped at a start counting one), per step;
@@ -33,7 +34,7 @@ import multilayer
 from multilayer.app.runner import output_times
 from multilayer.app.simulation import Simulation
 from multilayer.engine import simulation as engine
-from multilayer.engine.mixture import local_step
+from multilayer.engine.mixture import local_kernel, local_step
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 SHIPPED = [
@@ -49,12 +50,18 @@ def counted(finished: bool) -> Iterator[Counter[str]]:
     counts: Counter[str] = Counter()
     start: Counter[str] = Counter()  # the present attempt: evaluations before it, its iterations
     call, local, transport = local_step.call, local_step.LocalStep.__call__, engine.Simulation._transport
+    kernel = local_kernel.one_layer
     tries, stresses = engine.Simulation._transport_and_stresses, engine.Simulation._stress_steps
     step, vertical = engine.Simulation.step, engine.Simulation._vertical_step
 
     def evaluations(law: Any, method: str, *args: Any, **kwargs: Any) -> Any:
         counts["batched evaluations"] += method == "mixture_yield_stress"
         return call(law, method, *args, **kwargs)
+
+    def compiled(*args: Any) -> Any:
+        answered = kernel(*args)  # if not, the numpy map evaluates the trial: counted there
+        counts["batched evaluations"] += bool(answered)
+        return answered
 
     def local_calls(self: Any, *args: Any, substeps: int = 1, **kwargs: Any) -> Any:
         counts["local-step calls"] += substeps == 1  # not the sub-steps' own calls
@@ -88,6 +95,7 @@ def counted(finished: bool) -> Iterator[Counter[str]]:
     with ExitStack() as stack:
         for owner, name, wrapper in (
             (local_step, "call", evaluations),
+            (local_kernel, "one_layer", compiled),
             (local_step.LocalStep, "__call__", local_calls),
             (engine.Simulation, "_transport", attempts),
             (engine.Simulation, "_stress_steps", stress_steps),

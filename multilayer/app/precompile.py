@@ -134,6 +134,33 @@ def _numpy_path() -> None:
     sim.vertical.compiled.coefficients(sim.h, np.flatnonzero(sim.h > 0))
 
 
+MIXTURE: dict[str, Any] = {
+    "name": "compile-mixture",
+    "domain": {"x_min": 0.0, "x_max": 0.3, "cells": 16, "layers": 1},
+    "material": {"density": 1830.0, "grain_diameter": 225.0e-6, "particle_density": 2500.0},
+    "rheology": {"name": "dilatant_coulomb", "delta_deg": 22.5, "K1": 90.5},
+    "fluid": {"density": 1010.0, "viscosity": 0.0121},
+    "mixture": {"phi_critical": 0.582, "dilatancy": 4.09, "critical_shift": 25.0},
+    "initial": [{"shape": "rectangle", "x_min": 0.0, "x_max": 0.06, "height": 0.048, "phi": 0.55}],
+    "boundaries": {"left": "wall", "right": "outflow"},
+    "numerics": {"threads": 1},
+    "time": {"end": 1.0, "output_interval": 1.0},
+}
+"""A small loose column collapsing in a fluid (scenarios/submarine_collapse_loose.yaml on 16
+cells): the mixture's steps, of one layer under the dilatant law."""
+
+
+def _mixture() -> None:
+    """Three steps of a grain–fluid mixture: the compiled map of its local step
+    (engine/mixture/local_kernel.py) and the kernels its steps call."""
+    from multilayer.app.api import load
+    from multilayer.app.simulation import Simulation
+
+    sim = Simulation(load(MIXTURE))
+    for _ in range(3):
+        sim.step()
+
+
 def _steps(pressure: str) -> Callable[[], None]:
     def steps() -> None:
         """Three whole steps (the state checks, the bed force, the seed extrapolation)."""
@@ -163,6 +190,7 @@ TASKS: tuple[Task, ...] = (
     Task("normal_stress", _normal_stress, ("transport",)),
     Task("hydrostatic_steps", _steps("hydrostatic"), ("newton", "transport")),
     Task("non_hydrostatic_steps", _steps("non_hydrostatic"), ("newton", "transport", "projection")),
+    Task("mixture", _mixture, ("numpy_path", "transport")),
 )
 """The longest first: on two cores the Newton kernel compiles beside the projection and
 then the transport, and the parallel variants once both are done."""

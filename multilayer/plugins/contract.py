@@ -118,6 +118,18 @@ class Rheology:
         Default: :meth:`viscosity`."""
         return self.viscosity(shear_rate, pressure, material)
 
+    def mixture_kernel(self, material: Material) -> tuple[str, tuple[float, ...]] | None:
+        """Optional: ``mixture_yield_stress`` and ``mixture_viscosity`` as a compiled form of
+        the engine, so that the local step of a mixture of one layer runs compiled
+        (docs/plugins.md, "Compiled forms").
+
+        Returns ``(form, parameters)``; the one form: ``("dilatant", (tan_delta, K1))``,
+        ``max(tan_delta + K (phi - phi_c), 0) max(p_s, 0)`` and ``(K1 + K K2) eta_f`` with the
+        mixture's constants (``dilatant_coulomb``).  The default, None, keeps the law's own
+        methods (numpy path).
+        """
+        return None
+
     def viscosity_kernel(self, material: Material) -> tuple[str, tuple[float, ...]] | None:
         """Optional: the viscous part as one of the compiled forms of the engine, so that
         the vertical step runs entirely compiled (docs/plugins.md, "Compiled forms").

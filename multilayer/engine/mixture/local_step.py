@@ -81,13 +81,13 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 
 from multilayer.engine.config import MixtureConfig
 from multilayer.engine.mixture.closure import drag as darcy_drag
 from multilayer.engine.mixture.exchange import GIVEN, between_layers
+from multilayer.engine.mixture.local_kernel import Evaluation, compiled_map, mixture_form
 from multilayer.engine.plugin_output import call
 from multilayer.engine.state_check import all_finite
 from multilayer.engine.vertical.column_solve import solve
@@ -166,6 +166,7 @@ class LocalStep:
         self.buoyant_g_n = (self.rho_s - self.rho_f) * g_n
         self.tolerance, self.max_iterations = tolerance, max_iterations
         self.compressibility = config.compressibility
+        self.form = mixture_form(law, material, config)
 
     def masses(self, solid: np.ndarray, h: np.ndarray) -> np.ndarray:
         """``rho_s s_a + rho_f (l_a h - s_a)`` (kg/m^2): the layer masses at thickness ``h``."""
@@ -460,10 +461,12 @@ class LocalStep:
         pressures and the ratio ``1 - dt sum_a l_a Phi_a`` these velocities create
         (:meth:`closure`), and the Jacobian of the difference ``R(X)`` (by finite
         differences, one column solve per unknown; the columns are independent) gives the
-        next trial, with a backtracking line search per column.  Where the line search
-        finds no descent (at the onset of a contracting packing ``R`` has a kink where the
-        column starts moving; a flowing branch can end in a fold), the pore pressures are
-        bracketed one by one (:meth:`_bisect`) and the iteration goes on from there.
+        next trial, with a backtracking line search per column.  In columns of one layer
+        under a law of a compiled form the map is evaluated by the compiled kernel of
+        :mod:`~multilayer.engine.mixture.local_kernel`, equal to the numpy map bit for bit.
+        Where the line search finds no descent (at the onset of a contracting packing ``R``
+        has a kink where the column starts moving; a flowing branch can end in a fold), the
+        pore pressures are bracketed one by one (:meth:`_bisect`) and the iteration goes on from there.
 
         With ``previous`` (a relaxing pore pressure) a column whose velocity guess is zero
         starts from its rest state, the pore pressure ``previous`` relaxes to at rest
@@ -498,6 +501,8 @@ class LocalStep:
             one whose ratio no thickness with pores has; where the
             closure fails, the columns are evaluated one by one and those whose closure
             fails are marked diverged."""
+            if compiled is not None and (found := compiled(X, k, velocities)) is not None:
+                return found  # one layer under a law of a compiled form (engine/mixture/local_kernel.py)
             burst = ~np.isfinite(X[:L]).all(axis=0)
             outside = ~((X[L] > 0.0) & (X[L] < pores[k]))  # a ratio no thickness with pores has
             if burst.any() or outside.any():
@@ -540,6 +545,9 @@ class LocalStep:
             lag = self.compressibility / dt if self.compressibility is not None else 0.0
             rest = self.closure(solid, h_star, np.zeros_like(ustar), previous, lag)[3]
             pressure_guess = np.where(np.any(guess != 0.0, axis=0), pressure_guess, rest)
+        compiled = compiled_map(
+            self, (h_star, solid, weight, m_before, momentum), scale, pores, dt, lag, previous
+        )
         X = np.concatenate([pressure_guess, np.ones((1, n))])  # the ratio h* / h' of rest
         now = evaluate(X, np.arange(n))
         if watch is not None and np.any(now.v[:, watch]):  # a watched column starts: the step stops
@@ -627,45 +635,6 @@ class LocalStep:
                     low, high = np.where(negative, middle, low), np.where(negative, high, middle)
                 X[a] = high
         return X, evaluate(X, k)
-
-
-class Evaluation(NamedTuple):
-    """The local step's map at a trial ``X`` in some columns."""
-
-    v: np.ndarray  # (L, k) velocities of the column solve
-    rates: np.ndarray  # (L, k) interface shear rates
-    pressure: np.ndarray  # (L, k) excess pore pressures of the closure at these velocities
-    h: np.ndarray  # (k,) thickness of the dilation at these velocities
-    dilation: np.ndarray  # (L, k) dilation rates of the closure at these velocities
-    residual: np.ndarray  # (L + 1, k) X minus what it produces, scaled
-    norm: np.ndarray  # (k,) largest scaled component of the residual
-
-    @staticmethod
-    def diverged(X: np.ndarray) -> Evaluation:
-        """At trials ``X`` (L + 1, k) the step cannot evaluate (not finite, or whose closure
-        fails): no velocities, an infinite residual."""
-        L, k = X.shape[0] - 1, X.shape[1]
-        residual = np.full(X.shape, np.inf)
-        blank = np.zeros((L, k))
-        return Evaluation(blank, blank, X[:L], residual[L], blank, residual, residual[0])
-
-    @staticmethod
-    def join(parts: list[Evaluation]) -> Evaluation:
-        """The evaluations ``parts`` of consecutive columns side by side."""
-        return Evaluation(*(np.concatenate(fields, axis=-1) for fields in zip(*parts)))
-
-    def take(self, k: np.ndarray) -> Evaluation:
-        """This evaluation in the columns ``k`` only."""
-        return Evaluation(*(part[..., k] for part in self))
-
-    def merge(self, k: np.ndarray, other: Evaluation) -> Evaluation:
-        """This evaluation with the columns ``k`` replaced by ``other``'s."""
-        parts = []
-        for mine, theirs in zip(self, other):
-            mine = mine.copy()
-            mine[..., k] = theirs
-            parts.append(mine)
-        return Evaluation(*parts)
 
 
 def _progress(best: np.ndarray, since: np.ndarray, norm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

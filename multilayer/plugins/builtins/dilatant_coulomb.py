@@ -63,3 +63,7 @@ class DilatantCoulomb(Rheology):
         """``(K1 + K K2) eta_f``, Pa s."""
         eta = (self.K1 + mixture.dilatancy * mixture.critical_shift) * mixture.fluid_viscosity
         return np.full(np.broadcast_shapes(np.shape(shear_rate), np.shape(pressure)), eta)
+
+    def mixture_kernel(self, material):
+        """The compiled ``dilatant`` form of the two mixture methods above."""
+        return "dilatant", (self.tan_delta, self.K1)
