@@ -19,8 +19,27 @@ from typing import Any
 import pytest
 import yaml
 
-from multilayer.app.cli import main
-from multilayer.app.precompile import compile_kernels
+
+def _rewrite_test_modules_only() -> None:
+    """pytest rewrites the asserts of every module of a distribution that registers a
+    plugin (``pytest11``): all of ``multilayer`` (its plugin of ``expect:`` lists) and of
+    ``hypothesis``.  Their asserts are the library's own checks, not the tests', and the
+    rewriting is not cached where Python writes no bytecode (``PYTHONDONTWRITEBYTECODE``,
+    a read-only checkout): each xdist worker parsed and rewrote some 200 library modules,
+    a sixth of its collection's CPU time.  The marks are taken off pytest's hook (its
+    ``_must_rewrite``; a pytest without it is left as it is) before the library is
+    imported here; the test modules and this file are rewritten as before."""
+    for hook in sys.meta_path:
+        marked = getattr(hook, "_must_rewrite", None)
+        if isinstance(marked, set):
+            marked.difference_update({"multilayer", "hypothesis"})
+            getattr(hook, "_marked_for_rewrite_cache", {}).clear()
+
+
+_rewrite_test_modules_only()
+
+from multilayer.app.cli import main  # noqa: E402
+from multilayer.app.precompile import compile_kernels  # noqa: E402
 
 WARM_UP_ITEMS = 100
 """A run of at least this many tests on two or more xdist workers compiles the numba
