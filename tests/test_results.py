@@ -116,7 +116,7 @@ def test_records_are_whole_while_writing_a_reader_waits_for_the_end(tmp_path: Pa
     a record left half-written by a crash (its time not yet written) is damage."""
     sc = scenarios.from_dict(COLUMN)
     sim = Simulation(sc)
-    writer = ResultWriter(tmp_path / "result.nc", sc, sim)
+    writer = ResultWriter(tmp_path / "result.nc", sc, sc.resolved_yaml(), sim)
     writer.write(sim)
     sim.advance(0.01)
     writer.write(sim)
@@ -145,7 +145,7 @@ def test_a_long_mesh_of_small_cells_passes_the_mass_check(tmp_path: Path) -> Non
         }
     )
     sim = Simulation(sc)
-    writer = ResultWriter(tmp_path / "result.nc", sc, sim)
+    writer = ResultWriter(tmp_path / "result.nc", sc, sc.resolved_yaml(), sim)
     writer.write(sim)
     writer.close(sim.steps, 0.0, "interrupted")  # at t = 0: not a completed run
     assert open_result(tmp_path).sizes["time"] == 1
@@ -232,7 +232,7 @@ def test_a_failed_run_says_why_and_a_step_count_beyond_int32_is_written_whole(tm
     nothing): it is a float64 there, exact to 2^53, and ``check_result`` reads it."""
     sc = scenarios.from_dict(COLUMN)
     sim = Simulation(sc)
-    writer = ResultWriter(tmp_path / "result.nc", sc, sim)
+    writer = ResultWriter(tmp_path / "result.nc", sc, sc.resolved_yaml(), sim)
     writer.write(sim)
     writer.close(2**40 + 1, 0.5, "failed")
     check_result(tmp_path, "records")
