@@ -239,3 +239,15 @@ def test_a_failed_run_says_why_and_a_step_count_beyond_int32_is_written_whole(tm
     with netCDF4.Dataset(tmp_path / "result.nc") as ds:
         assert ds.getncattr("steps") == 2**40 + 1
         assert ds.getncattr("failure") == "no message (an exception without one)"
+
+
+def test_an_attribute_s_text_holds_no_lone_surrogate() -> None:
+    """A byte of the environment kept by Python is one U+FFFD, as before; a lone surrogate
+    of another origin (a third-party law's message in a failed run's ``failure``) was a
+    ``UnicodeEncodeError`` of netCDF4 as the result was closed: now U+FFFD too."""
+    from multilayer.io import results
+
+    assert results._text("lab \udcff") == "lab \ufffd"
+    replaced = results._text("bad \ud800 text")
+    assert replaced.startswith("bad \ufffd") and replaced.endswith(" text")
+    replaced.encode("utf-8")
