@@ -3732,6 +3732,7 @@ def cases() -> list[Case]:
         + round_forty()
         + round_forty_one()
         + round_forty_two()
+        + round_forty_three()
     )
 
 
@@ -7451,6 +7452,288 @@ def round_forty_two() -> list[Case]:
     ]  # fmt: skip
 
 
+TALL43 = {"initial.0.height": 1000.0, "model": {"pressure": "non_hydrostatic"}}
+"""TINY's column 1000 m high on its cells 0.0125 m wide, under the non-hydrostatic pressure."""
+
+
+def _law43(method: str, body: str) -> str:
+    """DruckerPrager's ``method`` running ``body`` (its arguments ``args``, its own value
+    ``value``, ``calls[0]`` its calls so far) on the numpy path: :func:`_law42` with the
+    arguments named."""
+    return _law42(method, body).replace(
+        "def fault(self, *args):", "def fault(self, *args):\n    args = list(args)"
+    )
+
+
+def _raising(exception: str) -> str:
+    """A yield stress raising ``exception`` (an expression) at its 31st call."""
+    return _law43("yield_stress", f"if calls[0] > 30:\n    raise {exception}\nreturn value")
+
+
+STRANGE_ERROR = """
+class Strange(Exception):
+    def __str__(self):
+        raise ValueError('no text')
+"""
+"""An exception whose text cannot be made."""
+
+
+def _out_entry(name: str, kind: str) -> Callable[[Path], None]:
+    """A finished run in ``out`` whose entry ``name`` is replaced by a FIFO, a directory, a
+    link to ``/dev/zero`` or a link to itself (``kind``)."""
+
+    def setup(directory: Path) -> None:
+        _finished_run(directory)
+        path = directory / "out" / name
+        path.unlink(missing_ok=True)
+        if kind == "fifo":
+            os.mkfifo(path)
+        elif kind == "directory":
+            path.mkdir()
+        elif kind == "zero":
+            path.symlink_to("/dev/zero")
+        else:
+            path.symlink_to(path.name)
+
+    return setup
+
+
+def _older_checkpoint(directory: Path) -> None:
+    """A finished run whose checkpoint's entries lost their ``state.``/``meta.`` prefix, as
+    an older layout might have written them."""
+    _finished_run(directory)
+    path = directory / "out" / "checkpoint.npz"
+    with np.load(path) as saved:
+        entries = {key.split(".", 1)[-1]: saved[key] for key in saved.files}
+    with path.open("wb") as stream:
+        np.savez(stream, **entries)
+
+
+HOLD_OPEN = """
+import sys, time, netCDF4
+ds = netCDF4.Dataset(sys.argv[1], 'a')
+open(sys.argv[2], 'w').close()
+time.sleep(40)
+"""
+"""Another tool holding ``result.nc`` open for writing (HDF5's lock on it) for 40 s."""
+
+
+def _held_open(directory: Path) -> None:
+    """A finished run whose ``result.nc`` another process holds open for writing."""
+    _finished_run(directory)
+    marker = directory / "opened"
+    subprocess.Popen(
+        [sys.executable, "-c", HOLD_OPEN, str(directory / "out" / "result.nc"), str(marker)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
+    deadline = time.monotonic() + 60
+    while not marker.exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+
+
+def _inline_bed(points: int) -> Callable[[Path], None]:
+    """TINY over a flat bed of ``points`` points given inline."""
+    return _scenario_text(
+        lambda t: (
+            t
+            + "bed: {points: ["
+            + ",".join(f"[{0.5 * i / (points - 1):.9f},0]" for i in range(points))
+            + "]}\n"
+        )
+    )
+
+
+def round_forty_three() -> list[Case]:
+    """The hostile cases of the forty-third round (docs/reliability.md): columns 300 and
+    1000 m high on cells of 0.125 and 0.0125 m under the non-hydrostatic pressure (its bound
+    ``p >= 0`` not settled: the message named the solver only), a law raising an exception
+    holding a lone surrogate (a traceback as the result was closed) or setting
+    ``sys.stderr`` to None (no message); and, handled before, a run of an inline bed of
+    150 000 points, laws raising ``RecursionError``, ``MemoryError``, ``StopIteration``, an
+    exception whose text cannot be made, of a megabyte or of newlines and escapes,
+    returning masked, complex, boolean, half-precision, read-only or matrix values, a wrong
+    shape on some calls only or their own argument, writing into their arguments or setting
+    the environment; mixtures with walls, a gate, periodic sides, one layer, the normal
+    stress and the non-hydrostatic pressure; ``PYTHONWARNINGS=error``,
+    ``PYTHONOPTIMIZE=2``, ``OMP_NUM_THREADS=0``, ``NUMBA_NUM_THREADS`` below
+    ``numerics.threads``, ``MULTILAYER_INSTITUTION`` of non-UTF-8 bytes or 100 000
+    characters; a run's entries (result, checkpoint, log, lock, plots, vtk) replaced by
+    FIFOs, directories, files, links to ``/dev/zero`` or to themselves, a result held open
+    by another writer, a checkpoint of an older layout; and sweeps and studies of a
+    repeated name, of equal values and of integer keys."""
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    resume = [*run, "--resume"]
+    validate = ["validate", "{scenario}"]
+    plot = ["plot", "{dir}/out"]
+    export = ["export", "{dir}/out"]
+    sweep = ["sweep", "{dir}/study.yaml", "-o", "{dir}/study", "--workers", "1", "-q"]
+    mixture = {**MIXTURE}
+    tall = {**TALL43}
+    settle = "accepted: model.pressure_layers: 1"
+    read_only = "yield_stress() raised ValueError: assignment destination is read-only"
+    return [
+        # a tall narrow column under the non-hydrostatic pressure
+        Case("control: validate of a column 1000 m high on cells 0.0125 m wide, non-hydrostatic", validate,
+             0, "", setup=partial(_scenario, changes=tall)),
+        Case("run: a column 1000 m high on cells 0.0125 m wide, non-hydrostatic", run, 1, settle,
+             keeps_output=True, setup=partial(_scenario, changes=tall)),
+        Case("run: a column 1000 m high in five layers, non-hydrostatic (its first step)", run, 1,
+             "each layer 2e+04 cells thick", setup=partial(_scenario, changes={**tall, "domain.layers": 5})),
+        Case("control: run of a column 1000 m high on one pressure layer", run, 0, "",
+             setup=partial(_scenario, changes={**tall, "model": {"pressure": "non_hydrostatic",
+                                                                 "pressure_layers": 1}})),
+        Case("run: a column 300 m high on four cells 0.125 m wide, non-hydrostatic", run, 1, settle,
+             keeps_output=True, setup=partial(_scenario, changes={
+                 **tall, "initial.0.height": 300.0, "domain.cells": 4, "initial.0.x_max": 0.25})),
+        Case("control: run over 150 000 bed points inline", run, 0, "", setup=_inline_bed(150000)),
+        # laws failing in new ways
+        Case("run: a law raising RecursionError mid-run", run, 1, "yield_stress() raised RecursionError",
+             keeps_output=True, patch=_raising("RecursionError('deep')"), setup=_scenario),
+        Case("run: a law raising MemoryError mid-run", run, 1, "yield_stress() raised MemoryError",
+             keeps_output=True, patch=_raising("MemoryError()"), setup=_scenario),
+        Case("run: a law raising StopIteration mid-run", run, 1, "yield_stress() raised StopIteration",
+             keeps_output=True, patch=_raising("StopIteration"), setup=_scenario),
+        Case("run: a law raising an exception whose text cannot be made", run, 1,
+             "yield_stress() raised Strange",
+             keeps_output=True, patch=STRANGE_ERROR + _raising("Strange()"), setup=_scenario),
+        Case("run: a law raising an exception holding a lone surrogate", run, 1,
+             "yield_stress() raised ValueError", keeps_output=True,
+             patch=_raising("ValueError('bad \\ud800 text')"), setup=_scenario),
+        Case("run: a law raising an exception of a megabyte of text", run, 1,
+             "yield_stress() raised ValueError",
+             keeps_output=True, one_message=True, patch=_raising("ValueError('x' * 2**20)"), setup=_scenario),
+        Case("run: a law raising an exception holding newlines and escapes", run, 1,
+             "raised ValueError: a\nb\\x1b[2Jc", keeps_output=True,
+             patch=_raising("ValueError('a\\nb\\x1b[2Jc')"), setup=_scenario),
+        Case("run: a law's viscosity of a wrong shape on every seventh call", run, 1,
+             "viscosity() returned an array of shape", keeps_output=True,
+             patch=_law43("viscosity", "value = np.asarray(value)\n"
+                          "return value[..., :-1] if calls[0] % 7 == 0 and calls[0] > 20 else value"),
+             setup=_scenario),
+        Case("run: a law's yield stress as a masked array, one cell masked", run, 1,
+             "yield_stress() returned",
+             keeps_output=True,
+             patch=_law43("yield_stress", "value = np.ma.masked_array(np.asarray(value, float))\n"
+                          "if calls[0] > 30:\n    value[..., 0] = np.ma.masked\nreturn value"),
+             setup=_scenario),
+        Case("run: a law's yield stress of complex numbers", run, 1, "yield_stress() returned",
+             keeps_output=True, patch=_law43("yield_stress", "return np.asarray(value) + 0j"),
+             setup=_scenario),
+        Case("run: a law's viscosity of booleans", run, 1, "viscosity() returned",
+             patch=_law43("viscosity", "return np.asarray(value) > 0"), setup=_scenario),
+        Case("control: a law's yield stress in half precision", run, 0, "",
+             patch=_law43("yield_stress", "return np.asarray(value).astype(np.float16)"), setup=_scenario),
+        Case("control: a law's viscosity read-only", run, 0, "",
+             patch=_law43("viscosity", "value = np.array(value)\nvalue.setflags(write=False)\nreturn value"),
+             setup=_scenario),
+        Case("run: a law's yield stress as an np.matrix", run, 1, "yield_stress() returned",
+             patch=_law43("yield_stress", "import warnings\nwarnings.simplefilter('ignore')\n"
+                          "return np.asmatrix(np.asarray(value).reshape(1, -1))"), setup=_scenario),
+        Case("control: a law's yield stress returning its pressure argument itself", run, 0, "",
+             patch=_law43("yield_stress", "return args[0]"), setup=_scenario),
+        Case("run: a law writing NaN into its pressure argument after its answer", run, 1, read_only,
+             patch=_law43("yield_stress", "value = np.array(value)\nargs[0][...] = np.nan\nreturn value"),
+             setup=_scenario),
+        Case("run: a law writing NaN into its shear-rate argument after its answer", run, 1,
+             read_only.replace("yield_stress", "viscosity"),
+             patch=_law43("viscosity", "value = np.array(value)\nargs[0][...] = np.nan\nreturn value"),
+             setup=_scenario),
+        Case("run: a law setting sys.stderr to None, then failing", run, 1,
+             "yield_stress() raised ValueError",
+             patch=_law43("yield_stress", "if calls[0] > 30:\n    sys.stderr = None\n"
+                          "    raise ValueError('late')\nreturn value"), setup=_scenario),
+        Case("control: a law setting MULTILAYER_THREADS=0 mid-run", run, 0, "",
+             patch=_law43("yield_stress", "os.environ['MULTILAYER_THREADS'] = '0'\nreturn value").replace(
+                 "real =", "import os\nreal ="), setup=_scenario),
+        # a grain-fluid mixture with the other options
+        Case("validate: a mixture under the non-hydrostatic pressure", validate, 2, "model.pressure",
+             setup=partial(_scenario, changes={**mixture, "model": {"pressure": "non_hydrostatic"}})),
+        Case("validate: a mixture with the normal stress", validate, 2, "model.normal_stress",
+             setup=partial(_scenario, changes={**mixture, "model": {"normal_stress": True}})),
+        Case("validate: a mixture between walls", validate, 2, "walls",
+             setup=partial(_scenario, changes={**mixture, "walls": {"name": "wall_friction", "mu_w": 0.2},
+                                               "domain.width": 0.1})),
+        Case("validate: a mixture behind a gate", validate, 2, "gate",
+             setup=partial(_scenario, changes={**mixture, "gate": {"x": 0.1, "lift_speed": 1.0}})),
+        Case("control: run of a mixture between periodic sides", run, 0, "",
+             setup=partial(_scenario, changes={**mixture, "boundaries": {"left": "periodic",
+                                                                         "right": "periodic"}})),
+        Case("control: run of a compressible mixture in one layer", run, 0, "",
+             setup=partial(_scenario, changes={**mixture, "domain.layers": 1,
+                                               "fluid.compressibility": 1e-3})),
+        Case("control: run of a compressible mixture over a bed of points", run, 0, "",
+             setup=partial(_scenario, changes={**mixture, "fluid.compressibility": 1e-3, "bed": {
+                 "points": [[0, 0.02], [0.25, 0.0], [0.5, 0.0]]}})),
+        Case("control: run of a mixture of dilatancy 0 under mu(I)", run, 0, "",
+             setup=partial(_scenario, changes={**mixture, "mixture.dilatancy": 0.0, "rheology": JOP})),
+        # the environment
+        Case("control: PYTHONWARNINGS=error, a run", run, 0, "", env={"PYTHONWARNINGS": "error"}, plain=True,
+             setup=_scenario),
+        Case("control: PYTHONOPTIMIZE=2, run --help", ["run", "--help"], 0, "", env={"PYTHONOPTIMIZE": "2"},
+             plain=True),
+        Case("validate: PYTHONOPTIMIZE=2, a bad key", [*validate, "--set", "domain.cells=0"], 2,
+             "domain.cells", env={"PYTHONOPTIMIZE": "2"}, plain=True, setup=_scenario),
+        Case("control: OMP_NUM_THREADS=0, a run", run, 0, "", env={"OMP_NUM_THREADS": "0"}, plain=True,
+             setup=_scenario),
+        Case("control: NUMBA_NUM_THREADS=1 below numerics.threads 2 (the cap)",
+             [*run, "--set", "numerics.threads=2"], 0, "", env={"NUMBA_NUM_THREADS": "1"}, plain=True,
+             setup=_scenario),
+        Case("control: MULTILAYER_INSTITUTION of non-UTF-8 bytes", run, 0, "",
+             env={"MULTILAYER_INSTITUTION": "lab \udcff"}, setup=_scenario),
+        Case("control: MULTILAYER_INSTITUTION of 100 000 characters", run, 0, "",
+             env={"MULTILAYER_INSTITUTION": "x" * 100_000}, setup=_scenario),
+        # a run's files replaced by what they are not
+        Case("plot: result.nc a FIFO", plot, 2, "result.nc", setup=_out_entry("result.nc", "fifo")),
+        Case("export --vtk: result.nc a FIFO", [*export, "--vtk"], 2, "result.nc",
+             setup=_out_entry("result.nc", "fifo")),
+        Case("plot: result.nc a link to /dev/zero", plot, 2, "result.nc",
+             setup=_out_entry("result.nc", "zero")),
+        Case("plot: result.nc a link to itself", plot, 2, "result.nc", setup=_out_entry("result.nc", "self")),
+        Case("run --resume: checkpoint.npz a FIFO", resume, 2, "checkpoint.npz",
+             setup=_out_entry("checkpoint.npz", "fifo")),
+        Case("run --resume: checkpoint.npz a link to /dev/zero", resume, 2, "checkpoint.npz",
+             setup=_out_entry("checkpoint.npz", "zero")),
+        Case("run --resume: checkpoint.npz of an older layout", resume, 2, "checkpoint.npz",
+             setup=_older_checkpoint),
+        Case("run: run.log a directory", run, 2, "run.log", setup=_out_entry("run.log", "directory")),
+        Case("run: run.log a FIFO", run, 2, "run.log", setup=_out_entry("run.log", "fifo")),
+        Case("run: run.log a link to itself", run, 2, "run.log", setup=_out_entry("run.log", "self")),
+        Case("run: run.lock a directory", run, 2, "run.lock", setup=_out_entry("run.lock", "directory")),
+        Case("control: run over a run.lock that is a FIFO (no lock: taken)", run, 0, "",
+             setup=_out_entry("run.lock", "fifo")),
+        Case("run: result.nc a directory", run, 2, "result.nc", setup=_out_entry("result.nc", "directory")),
+        Case("plot: plots a file", plot, 2, "plots", setup=_made_file43("plots")),
+        Case("export --vtk: vtk a file", [*export, "--vtk"], 2, "vtk", setup=_made_file43("vtk")),
+        Case("control: plot of a result.nc another process holds open for writing", plot, 0, "",
+             setup=_held_open),
+        # studies
+        Case("validate: a sweep of one name twice", ["validate", "{dir}/study.yaml"], 2, "name",
+             setup=_sweep33("parameters:\n  name: [a, a]\n")),
+        Case("sweep: of one name twice", sweep, 2, "name", setup=_sweep33("parameters:\n  name: [a, a]\n")),
+        Case("validate: a sensitivity study of domain.cells", ["validate", "{dir}/study.yaml"], 2,
+             "domain.cells",
+             setup=_study41(SENSITIVITY_MU_S.replace("rheology.mu_s: {bounds: [0.2, 0.4]}",
+                                                      "domain.cells: {bounds: [20, 80]}"))),
+        Case("validate: a calibration of domain.layers", ["validate", "{dir}/study.yaml"], 2, "domain.layers",
+             setup=_study41(CALIBRATION_MU_S.replace("rheology.mu_s: {bounds: [0.2, 0.4]}",
+                                                      "domain.layers: {bounds: [1, 4]}"))),
+        Case("validate: a sweep of cells 40 and 40.0", ["validate", "{dir}/study.yaml"], 2, "domain.cells",
+             setup=_sweep33("parameters:\n  domain.cells: [40, 40.0]\n")),
+    ]  # fmt: skip
+
+
+def _made_file43(name: str) -> Callable[[Path], None]:
+    """A finished run in ``out`` beside a file ``name`` where a command writes a directory."""
+
+    def setup(directory: Path) -> None:
+        _finished_run(directory)
+        (directory / "out" / name).write_text("a file\n")
+
+    return setup
+
+
 ROUNDS: dict[int, Callable[[], list[Case]]] = {
     2: round_two, 3: round_three, 4: round_four, 5: round_five, 6: round_six, 7: round_seven,
     8: round_eight, 9: round_nine, 10: round_ten, 11: round_eleven, 12: round_twelve,
@@ -7469,6 +7752,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     40: round_forty,
     41: round_forty_one,
     42: round_forty_two,
+    43: round_forty_three,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""
 
@@ -7481,7 +7765,7 @@ def main() -> None:
         "--round",
         type=int,
         choices=sorted(ROUNDS),
-        help="only the cases of this round (2 to 35, 37 to 42; all: none)",
+        help="only the cases of this round (2 to 35, 37 to 43; all: none)",
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()

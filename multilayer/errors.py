@@ -146,6 +146,9 @@ def to_stderr(text: str, *, flush: bool = False) -> None:
     """``text`` printed on ``sys.stderr``, or nowhere where the process has none (started
     with ``2>&-``, under pythonw): ``print(file=None)`` writes on stdout, where the lines
     of a command's output or the host process's own data are (``multilayer validate
-    bad.yaml 2>&-`` wrote its error there)."""
-    if sys.stderr is not None:
-        print(text, file=sys.stderr, flush=flush)
+    bad.yaml 2>&-`` wrote its error there).  Where ``sys.stderr`` was set to None since the
+    start (a third-party law), the process's own stderr, ``sys.__stderr__``: the message of
+    the run it stopped went nowhere."""
+    stream = sys.stderr if sys.stderr is not None else sys.__stderr__
+    if stream is not None:
+        print(text, file=stream, flush=flush)

@@ -313,3 +313,13 @@ def test_a_warning_that_quotes_a_traceback_is_printed_without_it(capsys):
         "multilayer: warning: Environment variable 'NUMBA_OPT' is defined but its associated value 'x' could "
         "not be parsed. (ValueError: unsupported value 'x')\n"
     )
+
+
+def test_a_message_reaches_the_process_stderr_after_sys_stderr_was_set_to_none(monkeypatch, capfd) -> None:
+    """A third-party law setting ``sys.stderr`` to None before failing: the run's message
+    went nowhere (exit 1, nothing said); it goes to the process's own stderr."""
+    from multilayer.errors import to_stderr
+
+    monkeypatch.setattr(sys, "stderr", None)
+    to_stderr("multilayer: said")
+    assert "multilayer: said" in capfd.readouterr().err

@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import TINY_SCENARIO
 from engine import simulation
 from test_rest import held
 from test_vertical import simple_shear
@@ -829,3 +830,41 @@ def test_a_warm_started_bounded_solve_ends_on_the_answer_of_the_cold_one():
         for guess in (final, held)
     ]
     assert iterations == [36, 3]  # regression: this system's (cold, warm)
+
+
+TALL = {
+    **TINY_SCENARIO,
+    "domain": {**TINY_SCENARIO["domain"], "layers": 5},
+    "initial": [{**TINY_SCENARIO["initial"][0], "height": 1000.0}],
+    "model": {"pressure": "non_hydrostatic"},
+}
+"""A column 1000 m high and 0.1 m wide on cells 0.0125 m wide in five layers: each of its four
+pressure layers (the default) 2e4 cells thick."""
+
+
+def test_a_bound_unsettled_on_a_tall_narrow_column_names_its_aspect_and_the_keys():
+    """On the column of :data:`TALL` the active-set iteration of ``p >= 0`` does not settle
+    at the first step; the message said only that (naming the solver): now it names the
+    thickness of its pressure layers in cells and the keys that make the iteration settle,
+    and with one pressure layer (the first key named) the same column's steps settle."""
+    from multilayer.app.simulation import Simulation
+
+    with pytest.raises(RunError) as failed:
+        Simulation(multilayer.load(TALL)).advance(0.001)
+    said = str(failed.value)
+    assert (
+        "not settled in" in said and "in 4 pressure layers" in said and "each layer 2e+04 cells thick" in said
+    )
+    assert "accepted: model.pressure_layers: 1" in said and "domain.cells" in said
+    one = Simulation(multilayer.load(TALL, ["model.pressure_layers=1"]))
+    one.advance(0.001)
+    assert one.t == pytest.approx(0.001) and np.isfinite(one.u).all()
+
+
+def test_the_aspect_said_of_an_unsettled_bound_names_keys_only_beyond_tall_columns():
+    """Below :data:`TALL_ASPECT`, or on one pressure layer, the message says the aspect and
+    no key (the iteration settled on such columns in the tests: another cause)."""
+    h = np.array([0.0, 3.0, 1.0])
+    assert nonhydrostatic.unsettled_columns(h, 3, 0.01).endswith("each layer 100 cells thick")
+    assert "accepted" in nonhydrostatic.unsettled_columns(h, 2, 0.01)
+    assert "accepted" not in nonhydrostatic.unsettled_columns(h, 1, 0.001)

@@ -116,7 +116,7 @@ def test_records_are_whole_while_writing_a_reader_waits_for_the_end(tmp_path: Pa
     a record left half-written by a crash (its time not yet written) is damage."""
     sc = scenarios.from_dict(COLUMN)
     sim = Simulation(sc)
-    writer = ResultWriter(tmp_path / "result.nc", sc, sim)
+    writer = ResultWriter(tmp_path / "result.nc", sc, sc.resolved_yaml(), sim)
     writer.write(sim)
     sim.advance(0.01)
     writer.write(sim)
@@ -145,7 +145,7 @@ def test_a_long_mesh_of_small_cells_passes_the_mass_check(tmp_path: Path) -> Non
         }
     )
     sim = Simulation(sc)
-    writer = ResultWriter(tmp_path / "result.nc", sc, sim)
+    writer = ResultWriter(tmp_path / "result.nc", sc, sc.resolved_yaml(), sim)
     writer.write(sim)
     writer.close(sim.steps, 0.0, "interrupted")  # at t = 0: not a completed run
     assert open_result(tmp_path).sizes["time"] == 1
@@ -232,10 +232,22 @@ def test_a_failed_run_says_why_and_a_step_count_beyond_int32_is_written_whole(tm
     nothing): it is a float64 there, exact to 2^53, and ``check_result`` reads it."""
     sc = scenarios.from_dict(COLUMN)
     sim = Simulation(sc)
-    writer = ResultWriter(tmp_path / "result.nc", sc, sim)
+    writer = ResultWriter(tmp_path / "result.nc", sc, sc.resolved_yaml(), sim)
     writer.write(sim)
     writer.close(2**40 + 1, 0.5, "failed")
     check_result(tmp_path, "records")
     with netCDF4.Dataset(tmp_path / "result.nc") as ds:
         assert ds.getncattr("steps") == 2**40 + 1
         assert ds.getncattr("failure") == "no message (an exception without one)"
+
+
+def test_an_attribute_s_text_holds_no_lone_surrogate() -> None:
+    """A byte of the environment kept by Python is one U+FFFD, as before; a lone surrogate
+    of another origin (a third-party law's message in a failed run's ``failure``) was a
+    ``UnicodeEncodeError`` of netCDF4 as the result was closed: now U+FFFD too."""
+    from multilayer.io import results
+
+    assert results._text("lab \udcff") == "lab \ufffd"
+    replaced = results._text("bad \ud800 text")
+    assert replaced.startswith("bad \ufffd") and replaced.endswith(" text")
+    replaced.encode("utf-8")

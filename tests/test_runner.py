@@ -514,3 +514,20 @@ def test_an_output_directory_lost_during_the_run_is_a_write_error_naming_the_pat
         "output times written into it; the run stopped at t=0.06 s (step 9); run again (the state at t=0.04",
     }[what]
     assert said in result.err and "Traceback" not in result.err
+
+
+def test_a_run_writes_its_resolved_scenario_once(tmp_path: Path, monkeypatch) -> None:
+    """The resolved scenario goes into the estimate of the result, the log, the result's
+    header and close, and every checkpoint: it was written four times (``text_size`` for
+    the estimate, the run, the header, close), 50 MB of YAML for a bed of 450 000 points
+    inline.  Now once, and its size is that text's."""
+    from multilayer.scenario import schema
+
+    written: list[int] = []
+    dump = schema.dump
+    monkeypatch.setattr(schema, "dump", lambda data: written.append(1) or dump(data))
+    monkeypatch.setattr(runner, "compile_ahead", lambda scenario: None)  # its own small scenario
+    runner.run(scenarios.from_dict(SLUMP, overrides=["time.end=0.04"]), tmp_path, quiet=True)
+    assert len(written) == 1
+    with netCDF4.Dataset(tmp_path / "result.nc") as ds:
+        assert ds.scenario == scenarios.from_dict(SLUMP, overrides=["time.end=0.04"]).resolved_yaml()

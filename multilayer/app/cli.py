@@ -30,6 +30,7 @@ from multilayer.errors import (
     RunError,
     printable,
     reason,
+    to_stderr,
     warn,
     working_directory_removed,
 )
@@ -215,10 +216,8 @@ def _guarded_stdout() -> Iterator[None]:
 def _tell(message: str) -> None:
     """``message`` on stderr, if stderr takes it: the exit code says the outcome also when
     stderr is closed or full (``2>/dev/full`` turned an invalid input's 2 into 1)."""
-    if sys.stderr is None:
-        return
     with contextlib.suppress(OSError):
-        print(printable(message), file=sys.stderr, flush=True)
+        to_stderr(printable(message), flush=True)
 
 
 MIN_ADDRESS_SPACE = 2**30

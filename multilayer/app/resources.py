@@ -100,14 +100,20 @@ class Budget:
         return math.inf if self.force else float(self.steps or MAX_STEPS)
 
 
-def estimate(scenario: Any) -> Estimate:
-    """Peak memory and output size of ``scenario`` (module docstring)."""
+def estimate(scenario: Any, text: str | None = None) -> Estimate:
+    """Peak memory and output size of ``scenario`` (module docstring); ``text``: its
+    :meth:`resolved_yaml`, where written already (else its size is estimated without it)."""
     from multilayer.engine.vertical.problem import workspace_bytes
 
     cells, layers = float(scenario.domain.cells), float(scenario.domain.layers)
     records = output_records(scenario)
     per_record = 8.0 * ((layers + 2.0) * cells + 3.0)
-    fixed = 8.0 * (5.0 * cells + 4.0 * layers) + scenario.text_size() + 16384 + HEADER_SPACE
+    fixed = (
+        8.0 * (5.0 * cells + 4.0 * layers)
+        + (scenario.text_size() if text is None else len(text))
+        + 16384
+        + HEADER_SPACE
+    )
     threads = scenario.numerics.threads
     workspaces = min(cells, threads if isinstance(threads, int) else float(os.cpu_count() or 1))
     memory = BASE_BYTES + state_bytes(scenario) + workspaces * workspace_bytes(int(layers))
@@ -206,10 +212,10 @@ def check_workers(workers: int) -> None:
         )
 
 
-def check(scenario: Any, outdir: Path | None, budget: Budget) -> Estimate:
-    """The estimate of ``scenario``; :class:`InputError` (estimate and limit) if it exceeds
-    ``budget``, unless ``budget.force``."""
-    need = estimate(scenario)
+def check(scenario: Any, outdir: Path | None, budget: Budget, text: str | None = None) -> Estimate:
+    """The estimate of ``scenario`` (``text``: as :func:`estimate`); :class:`InputError`
+    (estimate and limit) if it exceeds ``budget``, unless ``budget.force``."""
+    need = estimate(scenario, text)
     if budget.force:
         return need
     where = str(scenario.source or "<scenario>")

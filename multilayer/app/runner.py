@@ -126,8 +126,11 @@ def run(
     budget = budget or resources.Budget()
     scenario.check_material()
     created = output_directory(outdir, scenario.source, scenario.input_files())
+    # written once: the estimate of the result, the resume's comparison, the log, the result's
+    # header and every checkpoint (a bed of 450 000 points inline is 12 MB of it)
+    text = scenario.resolved_yaml()
     try:
-        resources.check(scenario, outdir, budget)
+        resources.check(scenario, outdir, budget, text)
         resources.check_steps(scenario, budget)
         # as the engine checks them, before the notices on the state (a front never found)
         factory.check_initial(scenario, str(scenario.source or "<scenario>"), on_mesh=not budget.force)
@@ -145,7 +148,7 @@ def run(
         notice(f"numerics.front_threshold = {absent}")
     stop = _StopRequest(stop_when)
     with locked(outdir, notice), stop.installed():
-        ckpt = _checkpoint_to_resume(scenario, outdir, notice) if resume else None
+        ckpt = _checkpoint_to_resume(scenario, text, outdir, notice) if resume else None
         log = logging.Logger("multilayer.run")
         handler = _LogFile(outdir / LOG_FILE, mode="a" if resume else "w", encoding="utf-8")
         handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
@@ -157,7 +160,7 @@ def run(
         say = (lambda text: to_stderr(f"multilayer: {text}", flush=True)) if not quiet else None
         try:
             with compile_notice(log, say):
-                _run(scenario, outdir, ckpt, quiet, log, stop, budget.step_limit)
+                _run(scenario, text, outdir, ckpt, quiet, log, stop, budget.step_limit)
         except InputError as exc:  # found once the log was open: the log says why it ends there
             log.error("%s", exc)
             raise
@@ -261,6 +264,7 @@ def not_an_input(
 
 def _run(
     scenario: Any,
+    text: str,
     outdir: Path,
     ckpt: Checkpoint | None,
     quiet: bool | None,
@@ -275,7 +279,6 @@ def _run(
         scenario.source or "a mapping",
         outdir,
     )
-    text = scenario.resolved_yaml()  # written with every checkpoint: computed once
     log.info("parameters:\n%s", text.rstrip())
     ahead = compile_ahead(scenario)  # the kernels, on two cores where they are not cached yet
     if ahead is not None:
@@ -293,7 +296,7 @@ def _run(
     stop.starting = False  # from here a signal is honoured between kernel calls, the state kept
     if ckpt is None:
         ckpt_path.unlink(missing_ok=True)
-        writer = ResultWriter(result_path, scenario, sim)
+        writer = ResultWriter(result_path, scenario, text, sim)
         writer.write(sim)
         wall_before = 0.0
     else:
@@ -304,7 +307,7 @@ def _run(
                 f"{ckpt_path}: {exc}: not a checkpoint this version of multilayer writes for this scenario; "
                 "start again without --resume (the run is then computed afresh)"
             ) from None
-        writer = ResultWriter(result_path, scenario, sim, records=ckpt.records)
+        writer = ResultWriter(result_path, scenario, text, sim, records=ckpt.records)
         wall_before = ckpt.wall_time_s
         log.info("restored the checkpoint at t = %.6g s, step %d", sim.t, sim.steps)
     started = time.perf_counter()
@@ -380,7 +383,7 @@ def _run(
         ) from exc
     finally:
         progress.finish()
-        writer.close(sim.steps, wall_time(), status, scenario)
+        writer.close(sim.steps, wall_time(), status, text)
     if status == "interrupted":
         if stop.requested:  # a member stopped by its study leaves the resume command to the study
             to_stderr(printable(f"multilayer: {message}"))
@@ -435,7 +438,9 @@ def _keep_last_good_state(sim: Any, writer: ResultWriter, checkpoint: Any, saved
     return f" and the last good state at t={sim.t:.6g} s (also in the checkpoint)"
 
 
-def _checkpoint_to_resume(scenario: Any, outdir: Path, notice: Callable[[str], None]) -> Checkpoint:
+def _checkpoint_to_resume(
+    scenario: Any, text: str, outdir: Path, notice: Callable[[str], None]
+) -> Checkpoint:
     """The checkpoint in ``outdir``, checked to belong to ``scenario``: every key but
     :data:`_FREE_KEYS` the same, ``time.end`` not before the checkpoint.  A change of
     another free key (a new name) is allowed and said through ``notice``."""
@@ -450,7 +455,7 @@ def _checkpoint_to_resume(scenario: Any, outdir: Path, notice: Callable[[str], N
         check_result(outdir, "resume", records=ckpt.records)
     except InputError as exc:
         raise InputError(f"{exc}, or run without --resume to start afresh") from None
-    saved, resolved = yaml.safe_load(ckpt.scenario), yaml.safe_load(scenario.resolved_yaml())
+    saved, resolved = yaml.safe_load(ckpt.scenario), yaml.safe_load(text)
     # the records go on after the checkpoint's: another run's result.nc put there (copied, or
     # another scenario run into the directory and stopped) was continued and relabelled
     other = _changed_keys(yaml.safe_load(recorded(outdir, "scenario")), saved)

@@ -76,10 +76,14 @@ class ResultWriter:
     A new file is created unless ``records`` is given: then the existing file is opened
     for appending and the next output time is written as record number ``records``
     (records beyond it, written after the checkpoint being resumed, are overwritten).
-    ``last_time`` is the time of the last record kept (NaN before the first).
+    ``last_time`` is the time of the last record kept (NaN before the first).  ``text`` is
+    the scenario's :meth:`~multilayer.scenario.schema.Scenario.resolved_yaml`, written by
+    the caller once for the header, the checkpoints and :meth:`close`.
     """
 
-    def __init__(self, path: str | os.PathLike, scenario: Any, sim: Any, records: int | None = None) -> None:
+    def __init__(
+        self, path: str | os.PathLike, scenario: Any, text: str, sim: Any, records: int | None = None
+    ) -> None:
         self.path = Path(path)
         self.failure = ""
         """Why the run failed; written as the ``failure`` attribute on close when not empty."""
@@ -94,7 +98,7 @@ class ResultWriter:
         self._record_bytes = 8 * ((n_layers + 2) * n_cells + 3 + extra)
         with NETCDF_LOCK:
             try:
-                self._open(scenario, sim, records)
+                self._open(scenario, text, sim, records)
             except (OSError, RuntimeError) as exc:  # no room for the header (a forced run, a full disk)
                 failure = self._failure(exc, f"{'creating' if records is None else 'reopening'} {self.path}")
                 if "_ds" not in self.__dict__ and not isinstance(failure, DiskFull):
@@ -108,11 +112,11 @@ class ResultWriter:
                 raise failure from None
         self._file = _identity(self.path)  # the file written: the path may come to name another
 
-    def _open(self, scenario: Any, sim: Any, records: int | None) -> None:
+    def _open(self, scenario: Any, text: str, sim: Any, records: int | None) -> None:
         """Create the file (``records`` None) or reopen it to append after ``records``."""
         if records is None:
             self._ds = netCDF4.Dataset(self.path, "w", format=FORMAT)
-            self._define(scenario, sim)
+            self._define(scenario, text, sim)
             self.records = 0
             self.last_time = math.nan
         else:
@@ -137,7 +141,7 @@ class ResultWriter:
             return WriteFailed(f"{what} failed ({exc})")
         return DiskFull(f"{reason}: {what} failed ({exc})")
 
-    def _define(self, scenario: Any, sim: Any) -> None:
+    def _define(self, scenario: Any, text: str, sim: Any) -> None:
         ds = self._ds
         n_layers, n_cells = sim.read_only("u").shape
         ds.createDimension("time", None)
@@ -179,7 +183,7 @@ class ResultWriter:
                 "references": "Fernandez-Nieto, Garres-Diaz, Mangeney & Narbona-Reina "
                 "(2016) J. Fluid Mech. 798; Bouchut, Ionescu & Mangeney "
                 "(2016) Commun. Math. Sci. 14",
-                "scenario": scenario.resolved_yaml(),
+                "scenario": text,
                 "steps": 0,
                 "cells": int(n_cells * n_layers),
                 "wall_time_s": 0.0,
@@ -242,18 +246,22 @@ class ResultWriter:
         if free < self._record_bytes + disk.SLACK:
             raise DiskFull(f"{limit}: the next record of {self.path} needs {self._record_bytes} bytes")
 
-    def close(self, steps: int, wall_time_s: float, status: str = "completed", scenario: Any = None) -> None:
+    def close(
+        self, steps: int, wall_time_s: float, status: str = "completed", scenario: str | None = None
+    ) -> None:
         """Record the final step count, wall time and run status, then close the file.
 
         The attributes take the room kept in the header (no record moves).  After a write
         that failed (a full disk), the file is reopened to record them, its header first
-        set back to the records written whole: every record written before stays readable."""
+        set back to the records written whole: every record written before stays readable.
+        ``scenario``: the resolved YAML of the run's scenario, written over the header's (a
+        resumed run's own)."""
         count = np.int32(steps) if steps <= STEPS_INT32 else np.float64(steps)  # a larger int32 is 0
         attrs: dict[str, Any] = {"steps": count, "wall_time_s": float(wall_time_s), "run_status": status}
         if scenario is not None and not self._broken:
-            attrs["scenario"] = scenario.resolved_yaml()
+            attrs["scenario"] = scenario
         if self.failure or status == "failed":  # a failed run says why, even without a message
-            attrs["failure"] = (self.failure or "no message (an exception without one)")[:FAILURE_LENGTH]
+            attrs["failure"] = _text(self.failure or "no message (an exception without one)")[:FAILURE_LENGTH]
         with NETCDF_LOCK:
             closed = False
             try:
@@ -303,8 +311,13 @@ def _abandon(ds: netCDF4.Dataset) -> None:
 def _text(value: str) -> str:
     """``value`` as valid UTF-8 text, what a netCDF attribute holds: bytes of the
     environment or of a path that are not UTF-8 (Python keeps them as lone surrogates)
-    become U+FFFD."""
-    return value.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
+    and lone surrogates of any other origin (a plugin's message in a failure) become
+    U+FFFD (netCDF4 raised ``UnicodeEncodeError`` as the failed run's result was closed)."""
+    try:
+        raw = value.encode("utf-8", "surrogateescape")  # a byte kept by Python: one U+FFFD
+    except UnicodeEncodeError:
+        raw = value.encode("utf-8", "surrogatepass")
+    return raw.decode("utf-8", "replace")
 
 
 def _now() -> str:

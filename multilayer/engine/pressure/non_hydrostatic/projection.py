@@ -102,6 +102,7 @@ from multilayer.engine.pressure.non_hydrostatic.constraint import (
     unknowns,
 )
 from multilayer.engine.state import span
+from multilayer.errors import RunError
 
 if TYPE_CHECKING:
     from multilayer.engine.vertical_shear import VerticalShear
@@ -464,6 +465,42 @@ def _advect(w, u, dx, dt, periodic, lo, hi, out):
                 out[a, i] = here
 
 
+TALL_ASPECT = 100.0
+"""The thickness of a pressure layer, in cell widths, beyond which a bound ``p >= 0`` not
+settled on several pressure layers is put down to the columns' shape (docs/nonhydrostatic.md,
+"Tall narrow columns"): in the tests the iteration failed on pressure layers from 747 to 2e4
+cells thick, and settled on the same columns with one pressure layer."""
+
+
+def unsettled_columns(h: np.ndarray, pressure_layers: int, dx: float) -> str:
+    """What the message of a bound ``p >= 0`` not settled adds: the thickness of the
+    deepest column's pressure layers in cell widths and, beyond :data:`TALL_ASPECT` on
+    several pressure layers, the keys that let it settle.  On such columns the coupling of
+    the normal equations across columns, ``m / dx^2``, outweighs the one within a column,
+    ``1 / m`` (``m`` a layer's thickness), by ``(m / dx)^2``, and the primal-dual iteration
+    (Hintermueller, Ito & Kunisch 2002), whose active sets are proven nested for an
+    M-matrix, did not settle in the tests: a column 1000 m high on cells 0.0125 m wide
+    with three pressure layers (6.5e3 cells thick at the failure), one 300 m high on cells
+    0.125 m wide (747).  With one pressure layer each column has one unknown, and the
+    iteration settled on every such column tried; a column 100 m high on those cells of
+    0.0125 m (2.7e3 cells thick at its start) settled on three.  Whether it settles
+    depends on the state the flow reaches: ``validate`` cannot tell."""
+    deepest = float(np.max(h))
+    aspect = deepest / pressure_layers / dx
+    said = (
+        f": the deepest column holds {deepest:.6g} m in {pressure_layers} pressure layers on cells "
+        f"{dx:.6g} m wide, each layer {aspect:.3g} cells thick"
+    )
+    if aspect <= TALL_ASPECT or pressure_layers == 1:
+        return said
+    return (
+        f"{said}, a shape on which the iteration did not settle in the tests (several pressure layers "
+        "hundreds of cells thick or more); accepted: model.pressure_layers: 1 (one pressure unknown per "
+        "column), wider cells (fewer domain.cells or a longer domain) or model.pressure: hydrostatic (a "
+        "shallow-flow model is made for flows much thinner than they are long)"
+    )
+
+
 def depth_below(h: np.ndarray, fractions: np.ndarray) -> np.ndarray:
     """Depth ``h - z_a`` (L, N) of the bottom interface of each layer below the surface."""
     return depth_factors(fractions)[:, None] * h
@@ -571,11 +608,16 @@ class Projection:
         self._tension_written = columns
         if self.shear is not None:
             self.shear(h, u, (w, q), dt, (lo, hi), self._w_star)
-        first, last, self.finite = project_columns(
-            h, u, self._w_star, self.bed, self.fractions, (self.u, self.w, self.q), dx=self.dx, dt=dt,
-            periodic=self.periodic, dry=self.dry, g_n=self.g_n, tension_free=self._tension_free,
-            pressure_layers=self.pressure_layers, start=(h_before, u_before, w), buffers=self._buffers,
-        )  # fmt: skip
+        try:
+            first, last, self.finite = project_columns(
+                h, u, self._w_star, self.bed, self.fractions, (self.u, self.w, self.q), dx=self.dx, dt=dt,
+                periodic=self.periodic, dry=self.dry, g_n=self.g_n, tension_free=self._tension_free,
+                pressure_layers=self.pressure_layers, start=(h_before, u_before, w), buffers=self._buffers,
+            )  # fmt: skip
+        except RunError as exc:  # the bound not settled: said with the columns' aspect
+            raise RunError(
+                f"{exc}{unsettled_columns(h, self.pressure_layers or self.fractions.size, self.dx)}"
+            ) from None
         self._written = (min(lo, first), max(hi, last)) if last > first else (lo, hi)
         return self.u, self.w, self.q
 
