@@ -415,6 +415,24 @@ def test_a_failing_task_is_named_by_the_worker(monkeypatch, capsys):
     assert capsys.readouterr().out.splitlines() == ["failed broken RuntimeError: no luck", "done fine"]
 
 
+def test_a_task_whose_kernels_were_not_cached_fails(monkeypatch, capsys):
+    """A child that found a kernel module not to be the code it ran (the bytecode of an
+    earlier version, a file edited during the compilation) compiles without caching, with a
+    warning on its discarded stderr: it answered ``done`` and the cache was marked compiled,
+    so the next run compiled again.  Now the task fails, naming why (no mark is written)."""
+    import io
+
+    from multilayer.app import precompile
+    from multilayer.engine import kernel_cache
+
+    kernel_cache.ensure_fresh()
+    monkeypatch.setattr(precompile, "TASKS", (precompile.Task("fine", lambda: None),))
+    monkeypatch.setattr(sys, "stdin", io.StringIO("fine\nfine\n"))
+    monkeypatch.setattr(kernel_cache, "_digest", None)  # what _changed_since_import leaves
+    precompile._worker()
+    assert capsys.readouterr().out.splitlines() == [f"failed fine {precompile.NOT_CACHED}"] * 2
+
+
 def test_compile_refuses_a_process_count_below_one(cli):
     result = cli("compile", "--processes", "0")
     assert result.code == 2 and "--processes" in result.err and "integer >= 1" in result.err

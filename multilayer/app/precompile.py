@@ -196,6 +196,13 @@ TASKS: tuple[Task, ...] = (
 then the transport, and the parallel variants once both are done."""
 
 
+NOT_CACHED = (
+    "its kernels were compiled but not cached: a kernel module changed during the compilation, "
+    "or Python ran the bytecode of an earlier version of it; run multilayer compile again"
+)
+"""What a task whose kernels were not cached answers (:func:`_worker`)."""
+
+
 def work() -> str:
     """What the mark of the compilation says was compiled: the SHA-256 of this module,
     whose :data:`TASKS` say which kernels (a task list changed since compiles again)."""
@@ -222,7 +229,10 @@ class Report:
 def _worker() -> None:
     """A child process of :func:`compile_kernels` (or of a run's
     ``compilation.compile_ahead``): runs the tasks named on its stdin, one
-    per line, and answers each with ``done NAME`` or ``failed NAME MESSAGE`` on stdout."""
+    per line, and answers each with ``done NAME`` or ``failed NAME MESSAGE`` on stdout.  A
+    task whose kernels were compiled but not cached (a kernel module that is not the code
+    the process ran: :func:`multilayer.engine.kernel_cache.caching`, whose warning goes to
+    the discarded stderr) failed: the cache is then not marked compiled."""
     tasks = {task.name: task for task in TASKS}
     for line in sys.stdin:
         name = line.strip()
@@ -231,7 +241,7 @@ def _worker() -> None:
         except Exception as error:  # reported by the parent
             answer = f"failed {name} {type(error).__name__}: {error}".replace("\n", " ")
         else:
-            answer = f"done {name}"
+            answer = f"done {name}" if kernel_cache.caching() else f"failed {name} {NOT_CACHED}"
         print(answer, flush=True)
 
 

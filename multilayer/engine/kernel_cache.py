@@ -335,6 +335,14 @@ def ensure_fresh() -> None:
             _checked = True
 
 
+def caching() -> bool:
+    """Whether this process saves the kernels it compiles into numba's cache (after
+    :func:`ensure_fresh`): False once a kernel module it imported is found not to be the
+    code it runs (:func:`_changed_since_import`)."""
+    ensure_fresh()
+    return _digest is not None
+
+
 @contextlib.contextmanager
 def current(directory: Path) -> Iterator[bool]:
     """Hold the lock of the cache ``directory`` (after :func:`ensure_fresh`); yields whether
