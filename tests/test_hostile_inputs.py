@@ -930,6 +930,17 @@ def test_a_key_yaml_reads_as_no_text_is_named_with_the_keys_accepted(cli, write_
     assert phrase in result.err, result.err
 
 
+@pytest.mark.parametrize("key", ["? [a, b]\n: 1\n", "? {a: 1}\n: 1\n", "domain:\n  ? [a]\n  : 1\n"])
+def test_a_list_or_mapping_as_a_key_is_malformed_yaml(cli, write_scenario, key):
+    """A key that is a list or a mapping (``? [a, b]``) has no key path: the map of the
+    lines, read from the composed document before its data, stopped on it with a traceback
+    ("unhashable type: 'list'"). It is malformed YAML, said with its line."""
+    data = {name: value for name, value in TINY_SCENARIO.items() if not key.startswith(name)}
+    result = cli("validate", write_scenario(yaml.safe_dump(data) + key))
+    assert result.code == 2 and "Traceback" not in result.err
+    assert "found unhashable key" in result.err and "line" in result.err, result.err
+
+
 @pytest.mark.parametrize(
     ("content", "phrase"),
     [

@@ -98,6 +98,8 @@ def line_map(node: yaml.Node, where: str, path: KeyPath = (), lines=None) -> dic
     lines = {} if lines is None else lines
     if isinstance(node, yaml.MappingNode):
         for key_node, value_node in node.value:
+            if not isinstance(key_node, yaml.ScalarNode):  # a list or mapping as a key: refused
+                continue  # when the data is constructed ("found unhashable key", its line)
             child = (*path, key_node.value)
             line = key_node.start_mark.line + 1
             if child in lines:
