@@ -247,19 +247,19 @@ class ResultWriter:
             raise DiskFull(f"{limit}: the next record of {self.path} needs {self._record_bytes} bytes")
 
     def close(
-        self, steps: int, wall_time_s: float, status: str = "completed", scenario: str | None = None
+        self, steps: int, wall_time_s: float, status: str = "completed", text: str | None = None
     ) -> None:
         """Record the final step count, wall time and run status, then close the file.
 
         The attributes take the room kept in the header (no record moves).  After a write
         that failed (a full disk), the file is reopened to record them, its header first
         set back to the records written whole: every record written before stays readable.
-        ``scenario``: the resolved YAML of the run's scenario, written over the header's (a
+        ``text``: the resolved YAML of the run's scenario, written over the header's (a
         resumed run's own)."""
         count = np.int32(steps) if steps <= STEPS_INT32 else np.float64(steps)  # a larger int32 is 0
         attrs: dict[str, Any] = {"steps": count, "wall_time_s": float(wall_time_s), "run_status": status}
-        if scenario is not None and not self._broken:
-            attrs["scenario"] = scenario
+        if text is not None and not self._broken:
+            attrs["scenario"] = text
         if self.failure or status == "failed":  # a failed run says why, even without a message
             attrs["failure"] = _text(self.failure or "no message (an exception without one)")[:FAILURE_LENGTH]
         with NETCDF_LOCK:
