@@ -3733,6 +3733,7 @@ def cases() -> list[Case]:
         + round_forty_one()
         + round_forty_two()
         + round_forty_three()
+        + round_forty_four()
     )
 
 
@@ -7518,12 +7519,19 @@ time.sleep(40)
 """Another tool holding ``result.nc`` open for writing (HDF5's lock on it) for 40 s."""
 
 
-def _held_open(directory: Path) -> None:
-    """A finished run whose ``result.nc`` another process holds open for writing."""
+def _held_open(directory: Path, mode: str = "a") -> None:
+    """A finished run whose ``result.nc`` another process holds open for writing (``mode``
+    ``a``; ``r``: for reading)."""
     _finished_run(directory)
     marker = directory / "opened"
     subprocess.Popen(
-        [sys.executable, "-c", HOLD_OPEN, str(directory / "out" / "result.nc"), str(marker)],
+        [
+            sys.executable,
+            "-c",
+            HOLD_OPEN.replace("'a'", repr(mode)),
+            str(directory / "out" / "result.nc"),
+            str(marker),
+        ],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
         start_new_session=True,
@@ -7605,7 +7613,7 @@ def round_forty_three() -> list[Case]:
              "yield_stress() raised ValueError",
              keeps_output=True, one_message=True, patch=_raising("ValueError('x' * 2**20)"), setup=_scenario),
         Case("run: a law raising an exception holding newlines and escapes", run, 1,
-             "raised ValueError: a\nb\\x1b[2Jc", keeps_output=True,
+             "raised ValueError: a\\nb\\x1b[2Jc", keeps_output=True,
              patch=_raising("ValueError('a\\nb\\x1b[2Jc')"), setup=_scenario),
         Case("run: a law's viscosity of a wrong shape on every seventh call", run, 1,
              "viscosity() returned an array of shape", keeps_output=True,
@@ -7734,6 +7742,250 @@ def _made_file43(name: str) -> Callable[[Path], None]:
     return setup
 
 
+def _result_with_a_text_variable(directory: Path) -> None:
+    """A finished run whose result.nc also holds another tool's variable of characters
+    over ``x``."""
+    _finished_run(directory)
+    import netCDF4
+
+    with NETCDF, netCDF4.Dataset(directory / "out" / "result.nc", "a") as ds:
+        ds.createDimension("nchar", 4)
+        ds.createVariable("label", "S1", ("x", "nchar"))[0] = netCDF4.stringtochar(np.array(["text"], "S4"))
+
+
+def _optimized_run(directory: Path) -> None:
+    """A run under ``python -OO`` into ``first``: the first after the kernels changed
+    compiles about twenty of them again (docs/reliability.md, round 44), beyond a case's
+    time on a busy machine; the case's own run is the next one."""
+    subprocess.run(
+        [
+            sys.executable,
+            "-OO",
+            "-m",
+            "multilayer",
+            "run",
+            str(_scenario(directory)),
+            "-o",
+            str(directory / "first"),
+            "-q",
+        ],
+        check=True,
+        capture_output=True,
+    )
+
+
+ON_STEP = "import numpy as np\nsim = multilayer.Simulation(multilayer.load(sys.argv[2]))\n"
+"""The start of a Python API case: a simulation of the case's scenario."""
+
+
+def _yaml44(edit: Callable[[str], str]) -> Callable[[Path], None]:
+    """TINY's YAML text edited by ``edit`` (:func:`_scenario_text`), written as bytes."""
+
+    def setup(directory: Path) -> None:
+        (directory / "scenario.yaml").write_bytes(edit(yaml.safe_dump(TINY)).encode())
+
+    return setup
+
+
+def round_forty_four() -> list[Case]:
+    """The hostile cases of the forty-fourth round (docs/reliability.md): a run resumed
+    into, or run over, a result another process holds open for writing (exit 0: the classic
+    netCDF format takes no lock), a law's message holding a line feed (two lines), a
+    domain 5e-324 m long (a traceback), an ``on_step`` stepping the simulation (``advance``
+    went past its target), a run under ``PYTHONOPTIMIZE=2`` (its first compiles kernels
+    again); and, handled before, YAML merge keys, Python and timestamp tags, integers of
+    5000 digits, hexadecimal, octal and tagged numbers, NaN spellings, a nested key twice, a
+    byte order mark, tabs, a ``%YAML 1.3`` directive; values at the ends of the floats;
+    ``--set`` of tags, negative indices and spaced keys; sweeps of sets, NaN and merges;
+    ``load_state`` of views and impossible times; a subclass stepping twice; ``TMPDIR``
+    missing, a Turkish locale, an ASCII-only stderr, an unknown ``TZ``; and laws setting
+    warnings to errors, the recursion limit, threads, their own parameters, or returning
+    subclasses, long doubles, 0-d arrays, DataFrames and memory maps."""
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    resume = ["run", "{scenario}", "-o", "{dir}/out", "-q", "--resume", "--set", "time.end=0.3"]
+    validate = ["validate", "{scenario}"]
+    plot = ["plot", "{dir}/out"]
+    body = yaml.safe_dump(TINY)
+    cells = lambda value: _yaml44(lambda t: t.replace("cells: 40", f"cells: {value}"))  # noqa: E731
+    sweep = ["validate", "{dir}/study.yaml"]
+    return [
+        # YAML of other tools and of YAML 1.1
+        Case("validate: a key merged from the domain's anchor into an unknown key", validate, 2,
+             "other (line",
+             setup=_yaml44(lambda t: t.replace("domain:\n", "domain: &d\n") + "other: {<<: *d, cells: 0}\n")),
+        Case("validate: domain merged from an anchor, cells overridden to 0", validate, 2, "domain.cells",
+             setup=partial(_scenario, text=body.replace("domain:\n  cells: 40\n  layers: 3\n  x_max: 0.5\n"
+                                                        "  x_min: 0.0\n",
+                                                        "domain:\n  <<: &d {cells: 40, layers: 3,"
+                                                        " x_max: 0.5, x_min: 0.0}\n  cells: 0\n"))),
+        Case("control: domain merged from two anchors", validate, 0, "",
+             setup=partial(_scenario, text=body.replace("domain:\n  cells: 40\n  layers: 3\n  x_max: 0.5\n"
+                                                        "  x_min: 0.0\n",
+                                                        "domain:\n  <<: [{cells: 40, layers: 3},"
+                                                        " {x_max: 0.5, x_min: 0.0}]\n"))),
+        Case("validate: name as !!python/name:os.system", validate, 2, "scenario.yaml",
+             setup=_yaml44(lambda t: t.replace("name: tiny", "name: !!python/name:os.system ''"))),
+        Case("validate: time.end as !!timestamp", validate, 2, "time.end",
+             setup=_yaml44(lambda t: t.replace("end: 0.2", "end: !!timestamp 2001-12-14"))),
+        Case("validate: time.end as a plain date", validate, 2, "time.end",
+             setup=_yaml44(lambda t: t.replace("end: 0.2", "end: 2001-12-14"))),
+        Case("validate: domain.cells of 5000 digits", validate, 2, "scenario.yaml (line 5",
+             setup=cells("4" * 5000)),
+        Case("validate: domain.cells !!int of 5000 digits", validate, 2, "scenario.yaml (line 5",
+             setup=cells("!!int " + "4" * 5000)),
+        Case("control: domain.cells 0x28 (YAML 1.2 hexadecimal)", validate, 0, "", setup=cells("0x28")),
+        Case("control: domain.cells 0o50 (YAML 1.2 octal)", validate, 0, "", setup=cells("0o50")),
+        Case("validate: domain.cells !!str 40", validate, 2, "domain.cells", setup=cells("!!str 40")),
+        Case("validate: domain.cells !!float 40", validate, 2, "domain.cells", setup=cells("!!float 40")),
+        Case("validate: gravity .NaN", validate, 2, "gravity",
+             setup=_scenario_text(lambda t: t + "gravity: .NaN\n")),
+        Case("validate: gravity NaN (text in YAML 1.2)", validate, 2, "gravity",
+             setup=_scenario_text(lambda t: t + "gravity: NaN\n")),
+        Case("validate: time.end +.inf", validate, 2, "time.end",
+             setup=_yaml44(lambda t: t.replace("end: 0.2", "end: +.inf"))),
+        Case("validate: a key twice in a nested mapping", validate, 2, "cells",
+             setup=_yaml44(lambda t: t.replace("cells: 40", "cells: 40\n  cells: 80"))),
+        Case("control: a byte order mark and CRLF line ends", run, 0, "",
+             setup=_yaml44(lambda t: "\ufeff" + t.replace("\n", "\r\n"))),
+        Case("validate: a tab indenting a key", validate, 2, "scenario.yaml",
+             setup=_yaml44(lambda t: t.replace("  cells: 40", "\tcells: 40"))),
+        Case("validate: a %YAML 1.3 directive", validate, 2, "scenario.yaml",
+             setup=_yaml44(lambda t: "%YAML 1.3\n---\n" + t)),
+        Case("validate: name !!null", validate, 2, "name", setup=_yaml44(lambda t: t.replace("name: tiny",
+             "name: !!null"))),
+        # scenario values at the ends of the floats
+        Case("run: material.density 1.7976931348623157e308", run, 2, "material.density",
+             setup=partial(_scenario, changes={"material.density": 1.7976931348623157e308})),
+        Case("run: gravity 1.7976931348623157e308", run, 2, "gravity",
+             setup=partial(_scenario, changes={"gravity": 1.7976931348623157e308})),
+        Case("control: run on a slope of 89.99999999999999 degrees", run, 0, "",
+             setup=partial(_scenario, changes={"slope_deg": 89.99999999999999})),
+        Case("validate: a domain from -1.79e308 to 1.79e308 m", validate, 2, "domain",
+             setup=partial(_scenario, changes={"domain.x_min": -1.7976931348623157e308,
+                                               "domain.x_max": 1.7976931348623157e308})),
+        Case("validate: a domain 5e-324 m long", validate, 2, "domain.cells",
+             setup=partial(_scenario, changes={"domain.x_max": 5e-324})),
+        Case("run: rheology.nu 1.7976931348623157e308", run, 2, "nu must be at most",
+             setup=partial(_scenario, changes={"rheology.nu": 1.7976931348623157e308})),
+        Case("run: rheology.mu_s 1.7976931348623157e308", run, 2, "mu_s must be at most",
+             setup=partial(_scenario, changes={"rheology.mu_s": 1.7976931348623157e308})),
+        Case("validate: time.cfl 5e-324", validate, 2, "time.cfl",
+             setup=partial(_scenario, changes={"time.cfl": 5e-324})),
+        Case("run: numerics.tolerance 5e-324 under mu(I)", run, 2, "numerics.tolerance",
+             setup=partial(_scenario, changes={"rheology": JOP, "numerics": {"tolerance": 5e-324}})),
+        Case("validate: initial height 1.7976931348623157e308", validate, 2, "initial.0 (rectangle",
+             setup=partial(_scenario, changes={"initial.0.height": 1.7976931348623157e308})),
+        # --set with odd values
+        Case("validate: --set domain.cells=0x28", [*validate, "--set", "domain.cells=0x28"], 0, "",
+             setup=_scenario),
+        Case("validate: --set a !!python/object/apply value", [*validate, "--set",
+             "rheology=!!python/object/apply:os.system [echo]"], 2, "--set rheology", setup=_scenario),
+        Case("validate: --set initial.-1.height", [*validate, "--set", "initial.-1.height=0.1"], 2,
+             "initial.-1",
+             setup=_scenario),
+        Case("validate: --set ' time.end '=0 (spaces around the key)", [*validate, "--set", " time.end =0"],
+             2,
+             "time.end (from --set)", setup=_scenario),
+        Case("validate: --set time=null", [*validate, "--set", "time=null"], 2, "time", setup=_scenario),
+        Case("validate: --set domain.cells of 5000 digits", [*validate, "--set",
+             "domain.cells=" + "7" * 5000], 2,
+             "domain.cells", setup=_scenario),
+        # studies of hostile content
+        Case("validate: a sweep of a !!set of values", sweep, 2, "rheology.mu_s",
+             setup=_study41("base: scenario.yaml\nparameters:\n  rheology.mu_s: !!set {0.3: null}\n")),
+        Case("validate: a sweep of .nan", sweep, 2, "rheology.mu_s",
+             setup=_study41("base: scenario.yaml\nparameters:\n  rheology.mu_s: [0.3, .nan]\n")),
+        Case("control: a sweep whose parameters are merged from two mappings", sweep, 0, "",
+             setup=_study41("base: scenario.yaml\nparameters: {<<: [{rheology.mu_s: [0.3]},"
+                            " {rheology.nu: [0.01]}]}\n")),
+        # result files of other tools
+        Case("control: plot of a result.nc holding a variable of characters", plot, 0, "",
+             setup=_result_with_a_text_variable),
+        Case("run --resume: result.nc held open for writing by another process", resume, 2,
+             "result.nc: open for writing by another process", setup=_held_open),
+        Case("run: over a result.nc held open for writing by another process", run, 2,
+             "result.nc: open for writing by another process", setup=_held_open),
+        Case("control: run --resume, result.nc held open for reading by another process", resume, 0, "",
+             setup=partial(_held_open, mode="r")),
+        # the Python API misused
+        Case("API: on_step calling step() itself", validate, 2, "from the on_step of advance",
+             patch=_api(ON_STEP + "sim.advance(0.05, on_step=lambda s, dt: s.step())\n"
+                        "assert sim.t <= 0.05 + 1e-12, sim.t"), setup=_scenario),
+        Case("API: on_step calling advance() past the target", validate, 2, "from the on_step of advance",
+             patch=_api(ON_STEP + "sim.advance(0.05, on_step=lambda s, dt: s.advance(0.1) if s.t < 0.05 "
+                        "else None)"), setup=_scenario),
+        Case("control: API load_state of Fortran-ordered and reversed views", validate, 0, "",
+             patch=_api(ON_STEP + "sim.advance(0.02)\nsaved = sim.state_dict()\n"
+                        "odd = {k: (np.asfortranarray(v)[:, ::-1][:, ::-1] if getattr(v, 'ndim', 0) == 2"
+                        " else v)"
+                        " for k, v in saved.items()}\nsim.load_state(odd)\nsim.advance(0.04)"),
+                        setup=_scenario),
+        Case("API: load_state of h as a 0-d array", validate, 2, "h",
+             patch=_api(ON_STEP + "saved = sim.state_dict()\nsaved['h'] = np.array(0.01)\n"
+                        "sim.load_state(saved)"),
+             setup=_scenario),
+        Case("API: load_state of t = -1", validate, 2, "t",
+             patch=_api(ON_STEP + "saved = sim.state_dict()\nsaved['t'] = -1.0\nsim.load_state(saved)"),
+             setup=_scenario),
+        Case("API: load_state of steps = -5", validate, 2, "steps",
+             patch=_api(ON_STEP + "saved = sim.state_dict()\nsaved['steps'] = -5\nsim.load_state(saved)"),
+             setup=_scenario),
+        Case("API: a subclass of Simulation stepping twice per step", validate, 2, "step(t_max=0.05)",
+             patch=_api("class Twice(multilayer.Simulation):\n    def step(self, t_max=float('inf')):\n"
+                        "        super().step(t_max)\n        return super().step(t_max)\n"
+                        "sim = Twice(multilayer.load(sys.argv[2]))\nsim.advance(0.05)\nassert sim.t == 0.05"),
+             setup=_scenario),
+        # the environment
+        Case("control: TMPDIR a directory that does not exist, multilayer.run", validate, 0, "",
+             env={"TMPDIR": "{dir}/missing"}, patch=_api("multilayer.run(sys.argv[2], quiet=True)"),
+             setup=_scenario),
+        Case("control: LANG=tr_TR.UTF-8 (a dotless i), run", run, 0, "", env={"LANG": "tr_TR.UTF-8",
+             "LC_ALL": "tr_TR.UTF-8"}, plain=True, setup=_scenario),
+        Case("validate: PYTHONIOENCODING=ascii:strict, a message quoting a non-ASCII value", validate, 2,
+             "rheology.name", env={"PYTHONIOENCODING": "ascii:strict"}, plain=True,
+             setup=partial(_scenario, changes={"rheology.name": "dr\u00fccker"})),
+        Case("control: TZ of no zone, run", run, 0, "", env={"TZ": "No/Such_Zone"}, plain=True,
+             setup=_scenario),
+        Case("control: PYTHONOPTIMIZE=2, a run after a first one", run, 0, "", env={"PYTHONOPTIMIZE": "2"},
+             plain=True, setup=_optimized_run),
+        # rheology laws doing odd things
+        Case("run: a law setting warnings to errors", run, 0, "",
+             patch=_law43("yield_stress", "import warnings\nwarnings.simplefilter('error')\nreturn value"),
+             setup=_scenario),
+        Case("run: a law lowering the recursion limit to 60", run, 0, "",
+             patch=_law43("yield_stress", "sys.setrecursionlimit(60)\nreturn value"), setup=_scenario),
+        Case("control: a law starting a daemon thread at each call", run, 0, "",
+             patch=_law43("yield_stress",
+             "import threading\nthreading.Thread(target=time.sleep, args=(0.01,), "
+                          "daemon=True).start()\nreturn value"), setup=_scenario),
+        Case("control: a law's yield stress as an ndarray subclass", run, 0, "",
+             patch="class Sub(np.ndarray):\n    pass\n"
+             + _law43("yield_stress", "return np.asarray(value).view(Sub)"), setup=_scenario),
+        Case("control: a law's viscosity in long double", run, 0, "",
+             patch=_law43("viscosity", "return np.asarray(value).astype(np.longdouble)"), setup=_scenario),
+        Case("run: a law's yield stress as a 0-d array", run, 1, "yield_stress() returned",
+             patch=_law43("yield_stress", "return np.asarray(np.asarray(value).flat[0])"), setup=_scenario),
+        Case("run: a law's viscosity as a pandas DataFrame", run, 0, "",
+             patch=_law43("viscosity", "import pandas\nreturn pandas.DataFrame(np.atleast_2d(value))"),
+             setup=_scenario),
+        Case("run: a law's yield stress as a memory map", run, 0, "",
+             patch=_law43("yield_stress", "import tempfile\nvalue = np.asarray(value, float)\n"
+                          "m = np.memmap(tempfile.TemporaryFile(), dtype=float, shape=value.shape, "
+                          "mode='w+')\n"
+                          "m[...] = value\nreturn m"), setup=_scenario),
+        Case("run: a law changing its own mu_s to NaN mid-run", run, 1, "yield_stress() returned nan",
+             keeps_output=True, patch=_law43("yield_stress",
+             "if calls[0] > 30:\n    self.mu_s = float('nan')\n"
+                                              "return real(self, *args)"), setup=_scenario),
+        Case("run: a law raising an exception holding a newline", run, 1, "raised ValueError",
+             one_message=True,
+             keeps_output=True, patch=_raising("ValueError('first line\\nsecond line')"), setup=_scenario),
+        Case("run: a law raising an exception of carriage returns", run, 1, "raised ValueError",
+             one_message=True,
+             keeps_output=True, patch=_raising("ValueError('over\\rwritten\\r\\n')"), setup=_scenario),
+    ]  # fmt: skip
+
+
 ROUNDS: dict[int, Callable[[], list[Case]]] = {
     2: round_two, 3: round_three, 4: round_four, 5: round_five, 6: round_six, 7: round_seven,
     8: round_eight, 9: round_nine, 10: round_ten, 11: round_eleven, 12: round_twelve,
@@ -7753,6 +8005,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     41: round_forty_one,
     42: round_forty_two,
     43: round_forty_three,
+    44: round_forty_four,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""
 
@@ -7765,7 +8018,7 @@ def main() -> None:
         "--round",
         type=int,
         choices=sorted(ROUNDS),
-        help="only the cases of this round (2 to 35, 37 to 43; all: none)",
+        help="only the cases of this round (2 to 35, 37 to 44; all: none)",
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()

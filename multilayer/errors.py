@@ -41,14 +41,15 @@ def reason(exc: BaseException) -> str:
 
 
 def said(exc: BaseException) -> str:
-    """``str(exc)``, or a note that it cannot be shown: a third party's exception whose
-    ``__str__`` raises (or returns no string) replaced the message naming the plugin that
-    raised it by its own."""
+    """``str(exc)`` on one line, its line feeds written ``\\n``, or a note that it cannot be
+    shown: a third party's exception whose ``__str__`` raises (or returns no string)
+    replaced the message naming the plugin that raised it by its own, and one holding a
+    line feed printed the message over two lines, the second read as another message."""
     try:
         text = str(exc)
     except Exception as error:  # noqa: BLE001 - any failure of third-party code
         return f"(its message cannot be shown: str() raised {type(error).__name__})"
-    return text
+    return text.replace("\n", "\\n")
 
 
 def described(exc: BaseException) -> str:

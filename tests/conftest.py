@@ -113,7 +113,13 @@ def pytest_configure(config: pytest.Config) -> None:
     started: Hypothesis's storage (its cache of the constants of the modules it tests, made
     even with no example database) goes to a temporary directory removed at the end, not
     to ``.hypothesis/`` in the current directory; ``-m properties`` keeps its example
-    database there.  xdist's workers inherit the directory."""
+    database there.  Dask's scratch space goes to a temporary directory removed at the end
+    too: the tests' clusters of worker threads (``LocalCluster(processes=False)``) left
+    ``dask-scratch-space`` in ``TMPDIR``.  xdist's workers inherit the directories."""
+    if "DASK_TEMPORARY_DIRECTORY" not in os.environ:  # read when dask is imported, after this
+        scratch = tempfile.mkdtemp(prefix="multilayer-dask-")
+        os.environ["DASK_TEMPORARY_DIRECTORY"] = scratch
+        config.add_cleanup(lambda: shutil.rmtree(scratch, ignore_errors=True))
     if "HYPOTHESIS_STORAGE_DIRECTORY" in os.environ or "not properties" not in (config.option.markexpr or ""):
         return
     directory = tempfile.mkdtemp(prefix="multilayer-hypothesis-")

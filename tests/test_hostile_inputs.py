@@ -3344,3 +3344,76 @@ def test_utf8_words_of_a_command_line_read_under_an_ascii_locale(tiny_scenario, 
         cli.main(["run", str(path), "-o", "out_\udcc3\udca9"])
     said = capsys.readouterr().err
     assert "b'out_\\xc3\\xa9' is a UTF-8 name, which this process's locale (encoding" in said
+
+
+def test_a_domain_whose_cells_underflow_to_no_width_is_named(tiny_scenario, write_scenario, cli):
+    """A domain 5e-324 m long has cells of 0 m: the message dividing by their width was a
+    ``ZeroDivisionError`` traceback."""
+    tiny_scenario["domain"]["x_max"] = 5e-324
+    result = cli("validate", write_scenario(tiny_scenario))
+    assert result.code == 2 and "Traceback" not in result.err
+    assert "domain.cells" in result.err and "rounded by more than a cell" in result.err
+
+
+def test_on_step_may_not_step_the_simulation_advance_steps():
+    """An ``on_step`` that stepped the simulation took ``advance(0.05)`` to t = 0.0568 s,
+    past the time it stops at, silently: refused, naming the call; reading is allowed and
+    the simulation steps again once ``advance`` returns."""
+    sim = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
+    for on_step in (lambda s, dt: s.step(), lambda s, dt: s.advance(s.t + 0.1)):
+        with pytest.raises(InputError, match="from the on_step of advance"):
+            sim.advance(0.05, on_step=on_step)
+        assert sim.t < 0.05
+    sim.advance(0.05, on_step=lambda s, dt: s.state_dict())
+    assert sim.t == 0.05
+    sim.step()
+
+
+def test_a_third_partys_message_of_several_lines_is_shown_on_one():
+    """A law's exception holding a line feed printed its message over two lines, the second
+    read as another message."""
+    from multilayer.errors import described
+
+    assert described(ValueError("first\nsecond\r\n")) == "ValueError: first\\nsecond\r\\n"
+
+
+def test_a_result_another_process_holds_open_for_writing_is_not_run_into(tmp_path, cli):
+    """The classic netCDF format takes no lock: ``--resume`` into a result another tool
+    held open for writing exited 0 (that tool's closing rewrites the record count).
+    Refused, naming the file and the process; a reader is no obstacle."""
+    scenario = tmp_path / "tiny.yaml"
+    scenario.write_text(yaml.safe_dump({**TINY_SCENARIO, "time": {"end": 0.04, "output_interval": 0.02}}))
+    assert cli("run", scenario, "-o", tmp_path / "out", "-q").code == 0
+    result_file = tmp_path / "out" / RESULT_FILE
+    hold = "import sys, time\nf = open(sys.argv[1], sys.argv[2])\nprint(flush=True)\ntime.sleep(60)"
+    for mode, code in (("r+b", 2), ("rb", 0)):
+        holder = subprocess.Popen(
+            [sys.executable, "-c", hold, str(result_file), mode], stdout=subprocess.PIPE
+        )
+        try:
+            holder.stdout.readline()  # type: ignore[union-attr]
+            got = cli("run", scenario, "-o", tmp_path / "out", "-q", "--resume", "--set", "time.end=0.06")
+        finally:
+            holder.kill()
+            holder.wait()
+        assert got.code == code, got.err
+        if code:
+            assert f"{result_file}: open for writing by another process (pid {holder.pid}" in got.err
+
+
+def test_the_compile_notice_says_why_python_oo_compiles_again(monkeypatch):
+    """Under ``python -OO`` about twenty kernels are compiled again, once, after ``multilayer
+    compile`` (numba keys them on their callees' code, docstrings included): the notice
+    says why."""
+    import logging
+    import types
+
+    import numba
+
+    from multilayer.app import compilation
+
+    said: list[str] = []
+    monkeypatch.setattr(compilation, "sys", types.SimpleNamespace(flags=types.SimpleNamespace(optimize=2)))
+    with compilation.compile_notice(logging.getLogger("test"), said.append):
+        numba.njit(lambda x: x + 1)(1)
+    assert said == [compilation.NOTICE + compilation.OPTIMIZED_NOTICE]

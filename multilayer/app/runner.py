@@ -64,7 +64,7 @@ from multilayer.errors import (
     warn,
     working_directory_removed,
 )
-from multilayer.io.disk import writable
+from multilayer.io.disk import refuse_other_writers, writable
 from multilayer.io.result_check import check_result
 from multilayer.io.results import (
     CHECKPOINT_FILE,
@@ -148,6 +148,7 @@ def run(
         notice(f"numerics.front_threshold = {absent}")
     stop = _StopRequest(stop_when)
     with locked(outdir, notice), stop.installed():
+        refuse_other_writers(outdir / RESULT_FILE)  # resumed or overwritten: no other tool writes it
         ckpt = _checkpoint_to_resume(scenario, text, outdir, notice) if resume else None
         log = logging.Logger("multilayer.run")
         handler = _LogFile(outdir / LOG_FILE, mode="a" if resume else "w", encoding="utf-8")

@@ -38,6 +38,7 @@ class Simulation(simulation.Simulation):
             scenario = validated_again(scenario)
         numba_environment.check()
         self._one_at_a_time = threading.RLock()
+        self._in_on_step = False  # advance's on_step is running: it may not step
         self.scenario = scenario
         bulk, walls = factory.laws(scenario)
         self._laws = [law for law in (bulk, walls) if law is not None]
@@ -60,7 +61,22 @@ class Simulation(simulation.Simulation):
         read as :func:`_time` reads it, one thread at a time (:meth:`step`)."""
         target = _time(t_target, "advance(t_target")
         with self._one_at_a_time:
-            super().advance(target, on_step, max_steps=max_steps)
+            super().advance(target, self._reading(on_step), max_steps=max_steps)
+
+    def _reading(self, on_step: Any) -> Any:
+        """``on_step`` run with :meth:`step` refused (a function; anything else is left to
+        the engine's check): an ``on_step`` that stepped took ``advance`` past its target."""
+        if not callable(on_step):
+            return on_step
+
+        def reading(sim: Any, dt: float) -> None:
+            self._in_on_step = True
+            try:
+                on_step(sim, dt)
+            finally:
+                self._in_on_step = False
+
+        return reading
 
     def step(self, t_max: float = np.inf) -> float:
         """The engine's :meth:`~multilayer.engine.simulation.Simulation.step`, its bound read
@@ -72,6 +88,12 @@ class Simulation(simulation.Simulation):
         named, a :class:`~multilayer.engine.plugin_output.PluginOutputError` after the
         step is kept."""
         bound = _time(t_max, "step(t_max")
+        if self._in_on_step:
+            raise InputError(
+                f"step(t_max={t_max!r}) from the on_step of advance: it stepped the simulation advance "
+                "steps, past the time advance stops at; accepted: an on_step that reads the simulation "
+                "(sim.t, sim.state_dict()) and steps after advance returns"
+            )
         with self._one_at_a_time:
             host = host_state()
             try:

@@ -149,3 +149,41 @@ def write_whole(path: Path, write: Callable[[Path], object]) -> Path:
     finally:
         part.unlink(missing_ok=True)
     return path
+
+
+def refuse_other_writers(path: Path) -> None:
+    """:class:`InputError` if another process holds ``path`` open for writing, as Linux's
+    ``/proc`` shows its open files (elsewhere, and for processes of other users, none is
+    seen).  A result file of the classic netCDF format takes no lock (HDF5's locks are for
+    netCDF-4 files only): a run resumed into a file another tool held open for writing
+    appended its records, and that tool's closing rewrote the header's record count."""
+    try:
+        target = path.stat()
+        pids = [entry for entry in os.listdir("/proc") if entry.isdigit() and int(entry) != os.getpid()]
+    except OSError:  # no file yet, or no /proc
+        return
+    for pid in pids:
+        try:
+            descriptors = os.listdir(f"/proc/{pid}/fd")
+        except OSError:  # gone, or another user's
+            continue
+        for fd in descriptors:
+            link = f"/proc/{pid}/fd/{fd}"
+            try:
+                if os.readlink(link).rpartition("/")[2] != path.name:  # the cheap test first
+                    continue
+                opened = os.stat(link)
+                if (opened.st_dev, opened.st_ino) != (target.st_dev, target.st_ino):
+                    continue
+                with open(f"/proc/{pid}/fdinfo/{fd}") as info:
+                    flags = next(int(line.split()[1], 8) for line in info if line.startswith("flags:"))
+                with open(f"/proc/{pid}/comm") as comm:
+                    name = comm.read().strip()
+            except (OSError, ValueError, IndexError, StopIteration):  # closed meanwhile
+                continue
+            if flags & os.O_ACCMODE != os.O_RDONLY:
+                raise InputError(
+                    f"{path}: open for writing by another process (pid {pid}, {name!r}): a run writing "
+                    "into it too would damage it; accepted: a run once that process has closed it, or "
+                    "another output directory (-o)"
+                )

@@ -110,12 +110,15 @@ class Domain(StrictModel):
         spacing = float(np.spacing(ends))
         if not dx >= limits.MIN_CELL_SPACINGS * spacing:
             most = math.floor((self.x_max - self.x_min) / (limits.MIN_CELL_SPACINGS * spacing))
+            # a domain 5e-324 m long: its cells' width underflows to 0
+            rounded = f"up to {spacing / dx:.2g} of a cell" if dx > 0 else "more than a cell"
             raise invalid(
                 f"{self.cells} cells of {dx:.3g} m, where floats near x = {ends:g} m are {spacing:.3g} m "
-                f"apart: the cell edges would be rounded by up to {spacing / dx:.2g} of a cell (cells of "
-                "unequal or no width)",
+                f"apart: the cell edges would be rounded by {rounded} (cells of unequal or no width)",
                 f"cells at least {limits.MIN_CELL_SPACINGS} float spacings wide there: at most {most} "
-                "cells, or a domain nearer x = 0",
+                "cells, or a domain nearer x = 0"
+                if most > 0
+                else f"a domain at least {limits.MIN_CELL_SPACINGS * spacing:.3g} m long per cell",
                 "cells",
             )
         accepted = Domain.model_fields["layer_fractions"].description or ""
