@@ -143,13 +143,18 @@ class BedForce:
         ).tolist()  # fmt: skip
         # each sum per unit density and cell width: times ``rho dx``
         scale = self.rho * self.dx
-        before, after, normal_before, normal_after = (scale * value for value in sums[:4])
-        sums = [[scale * value for value in sums[4 + 4 * k : 8 + 4 * k]] for k in range(len(steps))]
-        transported_, vertical_ = sums[-1][:2]
-        # the earlier vertical steps' change of momentum, carried into the transport's result
-        held = sum(step.weight * (s[0] - s[1]) for step, s in zip(earlier, sums, strict=False))
-        basal = sum(step.weight * s[2] for step, s in zip(vertical, sums, strict=True))
-        walls = sum(step.weight * s[3] for step, s in zip(vertical, sums, strict=True))
+        sums = [scale * value for value in sums]
+        before, after, normal_before, normal_after = sums[:4]
+        transported_, vertical_ = sums[4 * len(vertical) : 4 * len(vertical) + 2]  # the last step's
+        # the earlier vertical steps' change of momentum, carried into the transport's result,
+        # and the weighted impulses of every step (summed in the order of the steps, from 0)
+        held = basal = walls = 0.0
+        for k, step in enumerate(vertical):
+            transported, stepped, bed, wall = sums[4 + 4 * k : 8 + 4 * k]  # (as _impulses)
+            if k < len(earlier):
+                held += step.weight * (transported - stepped)
+            basal += step.weight * bed
+            walls += step.weight * wall
         gravity = rho * self.g_t * mass_time
         end_walls = rho * ((-left if self.walls[0] else 0.0) + (right if self.walls[1] else 0.0))
         outflow = rho * ((0.0 if self.walls[1] else right) - (0.0 if self.walls[0] else left))

@@ -123,7 +123,9 @@ def real_array(plugin: Any, method: str, value: Any, t: float | None = None) -> 
             f"{plugin_label(plugin)}: {method} returned {what} ({type(value).__name__}); must be real "
             f"numbers{when}"
         )
-    with np.errstate(over="ignore"):  # a long double beyond the floats: infinite, named by the checks
+    # a long double beyond the floats: infinite, named by the checks (a value of 8 bytes or
+    # fewer is within the floats: its cast needs no change of numpy's error handling)
+    with np.errstate(over="ignore") if raw.dtype.itemsize > 8 else contextlib.nullcontext():
         return np.array(raw, dtype=float)
 
 

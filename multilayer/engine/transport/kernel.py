@@ -694,7 +694,7 @@ def transport(
         boundary_mass[:] = step_boundary_mass(ws.ends[:end, :2], float(dt))
     if boundary_momentum is not None:
         boundary_momentum[:2] = step_boundary_mass(ws.ends[:end, 2:], float(dt))
-        boundary_momentum[2] = step_mass_time(float(np.sum(h) * dx), ws.ends[:end, :2], float(dt))
+        boundary_momentum[2] = step_mass_time(float(h.sum() * dx), ws.ends[:end, :2], float(dt))
     if stage_speed is not None:
         stage_speed[0] = ws.speeds[: n + 1].max() if end == 2 else 0.0
     return ws.h, ws.u

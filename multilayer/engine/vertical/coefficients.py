@@ -205,6 +205,18 @@ def _coefficients(hw, wet, inputs, m, kappa, w, pressure, spacing, viscous, wall
     return bad
 
 
+def columns_at_rest(rest: np.ndarray, columns: tuple[int, int] | None) -> np.ndarray:
+    """The columns (N,) of ``rest`` (L, N) with a layer at rest, among the columns
+    ``columns`` (lo, hi; None: all), False in the others: a pass over the columns read
+    only (a dam break holds material in a tenth of its mesh)."""
+    if columns is None:
+        return np.logical_or.reduce(rest, axis=0)
+    lo, hi = columns
+    found = np.zeros(rest.shape[1], dtype=bool)
+    np.logical_or.reduce(rest[:, lo:hi], axis=0, out=found[lo:hi])
+    return found
+
+
 _NO_REST = np.zeros((1, 1), dtype=bool)
 _NO_RESTING = np.zeros(1, dtype=bool)
 _NO_GRAVITY = np.zeros((1, 1))
@@ -240,11 +252,16 @@ class CompiledCoefficients:
         return None if walls is None or walls[2] != 0.0 else (bulk, walls[0])
 
     def inputs(
-        self, rest: np.ndarray | None = None, yield_gravity: np.ndarray | None = None
+        self,
+        rest: np.ndarray | None = None,
+        yield_gravity: np.ndarray | None = None,
+        columns: tuple[int, int] | None = None,
     ) -> tuple[YieldInputs, bool]:
         """The :class:`YieldInputs` of the model with these layers at rest and yield
         gravity (those of ``StressModel.columns``), and whether its laws have compiled
-        yield forms (if not, the frictional coefficients are NaN placeholders)."""
+        yield forms (if not, the frictional coefficients are NaN placeholders).  With
+        ``columns`` (lo, hi), the kernels read the columns ``lo .. hi-1`` only: the columns
+        with a layer at rest (``resting``) are found among them (False in the others)."""
         laws = self.laws()
         s = self.stresses
         (mu, mu_static, drop, length), mu_wall = (
@@ -252,7 +269,7 @@ class CompiledCoefficients:
         )
         inputs = YieldInputs(
             _NO_REST if rest is None else rest, rest is not None,
-            _NO_RESTING if rest is None else np.logical_or.reduce(rest, axis=0),
+            _NO_RESTING if rest is None else columns_at_rest(rest, columns),
             _NO_GRAVITY if yield_gravity is None else np.ascontiguousarray(yield_gravity),
             yield_gravity is not None, float(s.g_n), float(s.material.density), *self._fractions(),
             s.base.bulk, s.base.friction, s.base.cohesion, mu, mu_static, drop != 0.0, drop, length,

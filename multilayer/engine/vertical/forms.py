@@ -236,12 +236,12 @@ def describes(rheology: object, kernel: str, methods: tuple[str, ...]) -> bool:
     or below every class whose definition of ``methods`` it uses (never when the instance
     itself defines one of them)."""
     instance = getattr(rheology, "__dict__", {})  # none with __slots__
-    if kernel in instance or any(method in instance for method in methods):
+    if kernel in instance or not instance.keys().isdisjoint(methods):
         return False
     cls: Any = type(rheology)
     # the definitions the class resolves now: a method patched on a class is a new key
     return _class_describes(
-        cls, kernel, methods, tuple(getattr(cls, name, None) for name in (kernel, *methods))
+        cls, kernel, methods, tuple([getattr(cls, name, None) for name in (kernel, *methods)])
     )
 
 

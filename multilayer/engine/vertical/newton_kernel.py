@@ -50,7 +50,7 @@ from multilayer.engine.vertical.forms import (
     law_of,
 )
 from multilayer.engine.vertical.newton_control import HALVINGS, energy_rise, error_bound, slope_along
-from multilayer.engine.vertical.results import Results, clear_dry, tally, written
+from multilayer.engine.vertical.results import Results, bounds, clear_dry, tally, written
 from multilayer.engine.vertical.sheared_columns import (
     ALONE,
     BLOCK,
@@ -562,10 +562,10 @@ def _columns(chunks, columns, inputs, fused, given, laws, control, out):
         _chunk(np.int64(k), chunks, columns, inputs, fused, given, laws, control, out)
 
 
-def _plain(*arguments):
-    """``arguments``, each named tuple as a plain tuple: numba's dispatcher types a tuple of arrays in
-    compiled code, a named tuple field by field in Python (49 fields: 4 of 9 us a call, none wet)."""
-    return tuple(tuple(a) if isinstance(a, tuple) else a for a in arguments)
+def _plain(columns, inputs, fused, given, laws, control, out):
+    """The arguments of :func:`_chunk` after ``chunks``, each named tuple as a plain tuple: numba's dispatcher
+    types a tuple of arrays in compiled code, a named tuple field by field in Python (4 of 9 us a call)."""
+    return tuple(columns), tuple(inputs), fused, tuple(given), tuple(laws), tuple(control), tuple(out)
 
 
 _parallel = parallel_compiled(_columns)
@@ -631,9 +631,9 @@ class CompiledStep:
         if laws is None:
             raise ValueError("a law of this stress model has no compiled form (see laws())")
         (bulk_form, bulk_params), walls = laws
-        occupied = np.flatnonzero(h > 0)
+        occupied = (h > 0).nonzero()[0]  # (h is (N,): np.flatnonzero, without its Python wrappers)
         wet = occupied if known is None else occupied[~known[0][occupied]]  # (the others: answers known)
-        inputs, fused = self.coefficients.inputs(rest, yield_gravity)
+        inputs, fused = self.coefficients.inputs(rest, yield_gravity, window := bounds(occupied))  # (lo, hi)
         given = _NOT_GIVEN if fused else self._given(self.coefficients(h, wet, rest, yield_gravity))
         if not self._out or self._out[0].shape != ustar.shape:
             self._out, self._written = [np.zeros_like(ustar), np.zeros_like(ustar)], [(0, 0), (0, 0)]
@@ -642,7 +642,7 @@ class CompiledStep:
         (lo, hi), u = self._written[0], self._out[0]
         thickness = np.ascontiguousarray(h, dtype=float)
         clear_dry(u, thickness, lo, hi)  # zero outside them already; the kernel writes the wet ones
-        self._written[0] = written(u, occupied, known)  # the known answers written
+        self._written[0] = written(u, window, known)  # the known answers written
         out = Results(
             u, np.empty(wet.size, np.int64), np.empty(wet.size, np.int64), np.empty(wet.size, np.int64),
             np.empty((wet.size, 2)), np.zeros(wet.size, np.bool_),

@@ -38,16 +38,22 @@ def clear_dry(u, h, lo, hi):
                 u[a, i] = 0.0
 
 
+def bounds(occupied: np.ndarray) -> tuple[int, int]:
+    """The columns (lo, hi) from the first to the last of the increasing column indices
+    ``occupied``, (0, 0) for none: those a call on the wet columns ``occupied`` may make
+    non-zero in the velocities, and reads of the coefficients' inputs."""
+    return (int(occupied[0]), int(occupied[-1]) + 1) if occupied.size else (0, 0)
+
+
 def written(
-    u: np.ndarray, occupied: np.ndarray, known: tuple[np.ndarray, np.ndarray] | None
+    u: np.ndarray, columns: tuple[int, int], known: tuple[np.ndarray, np.ndarray] | None
 ) -> tuple[int, int]:
-    """The columns (lo, hi) of ``u`` that a call on the wet columns ``occupied`` may make
-    non-zero; with ``known = (same, answer)``, the columns ``same`` (N,) of them take the
+    """``columns`` (lo, hi: :func:`bounds` of the wet columns), those of ``u`` that a call may make
+    non-zero; with ``known = (same, answer)``, the columns ``same`` (N,) among them take the
     velocities of ``answer`` (L, N) (the call solves the others)."""
-    lo, hi = (int(occupied[0]), int(occupied[-1]) + 1) if occupied.size else (0, 0)
     if known is not None:
-        _take(u, known[1], known[0], lo, hi)
-    return lo, hi
+        _take(u, known[1], known[0], *columns)
+    return columns
 
 
 @jit
