@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from multilayer.engine.config import MixtureConfig
-from multilayer.engine.mixture import local_kernel
+from multilayer.engine.mixture import local_kernel, newton_system
 from multilayer.engine.mixture.local_step import LocalResult, LocalStep
 from multilayer.errors import RunError
 from multilayer.plugins.builtins import DilatantCoulomb
@@ -208,21 +208,26 @@ def test_laws_without_the_compiled_form_and_several_layers_run_on_the_numpy_path
     identical(two, reference(np.array([[0.29e-2], [0.28e-2]]), h, np.array([[0.02], [0.05]]), 1e-3))
 
 
-def test_the_newton_systems_are_solved_as_numpy_solves_them():
-    """The 2 x 2 Newton systems of the compiled iteration: ``numpy.linalg.solve``'s answer
-    bit for bit (LAPACK's ``dgesv``), over entries of magnitudes 1e-150 to 1e150, either
-    pivot, and not solved where numpy finds the matrix singular."""
+def test_the_newton_systems_are_solved_alike_compiled_and_in_numpy_and_solved():
+    """The 2 x 2 Newton systems: the compiled elimination answers ``solve_pairs``'s bits
+    (whatever LAPACK numpy is built with), over entries of magnitudes 1e-150 to 1e150,
+    either pivot, pivots below the least normal float, and not solved where a pivot is zero;
+    the answers solve the systems (against ``numpy.linalg.solve``, to round-off times the
+    condition number)."""
     rng = np.random.default_rng(1999)
     J = rng.standard_normal((20000, 2, 2)) * 10.0 ** rng.uniform(-150.0, 150.0, (20000, 2, 2))
     b = rng.standard_normal((20000, 2)) * 10.0 ** rng.uniform(-150.0, 150.0, (20000, 2))
-    J[:100, 1] = J[:100, 0] * 3.0  # singular: the second row three times the first
+    J[:50, 1] = 0.0  # singular: a row of zeros,
+    J[50:100, :, 0] = 0.0  # a column of zeros
+    J[100:200, :, 0] *= 1e-170  # pivots below numpy.finfo(float).tiny
+    solved, x = newton_system.solve_pairs(J, b)
+    assert not solved[:100].any() and solved[100:].all()
     for n in range(J.shape[0]):
-        solved, x0, x1 = local_kernel.solve_2x2(
-            J[n, 0, 0], J[n, 0, 1], J[n, 1, 0], J[n, 1, 1], b[n, 0], b[n, 1]
-        )
-        try:
-            expected = np.linalg.solve(J[n], b[n])
-        except np.linalg.LinAlgError:
-            assert not solved
-            continue
-        assert solved and np.array_equal(np.array([x0, x1]), expected), n
+        compiled = local_kernel.solve_2x2(J[n, 0, 0], J[n, 0, 1], J[n, 1, 0], J[n, 1, 1], b[n, 0], b[n, 1])
+        assert compiled[0] == solved[n], n
+        if solved[n]:
+            assert np.array_equal(np.array(compiled[1:]), x[n]), n
+    well = np.linalg.cond(J[200:]) < 1e6
+    expected = np.linalg.solve(J[200:][well], b[200:][well][..., None])[..., 0]
+    scale = np.abs(expected).max(axis=1, keepdims=True)
+    assert np.all(np.abs(x[200:][well] - expected) <= 1e-9 * scale)

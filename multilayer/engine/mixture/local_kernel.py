@@ -34,6 +34,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from multilayer.engine.compiled import jit
+from multilayer.engine.mixture.newton_system import TINY
 from multilayer.engine.plugin_output import declared_form
 from multilayer.engine.vertical.column_solve import _active_set, _dynamic_programme, _workspace
 from multilayer.engine.vertical.forms import describes
@@ -197,8 +198,6 @@ def _positive_part(value):
     return value if (value > 0.0 or value != value) else 0.0
 
 
-TINY = float(np.finfo(float).tiny)
-"""The least pivot of the Newton iteration's linear solve: LAPACK divides by smaller ones."""
 OK, BURST, OUTSIDE, REFUSED = 0, 1, 2, 3
 """What the compiled map made of a trial in one column: its evaluation, a trial pore pressure
 not finite or a ratio ``z`` no thickness with pores has (the reference's blank evaluation,
@@ -322,16 +321,14 @@ def one_layer(X, k, h_star, solid, weight, m_before, momentum, guess, previous, 
 
 @jit
 def solve_2x2(a00, a01, a10, a11, b0, b1):
-    """``(solved, x0, x1)``: the solution of ``[[a00, a01], [a10, a11]] x = b`` by the LU
-    factorisation with partial pivoting of LAPACK's ``dgesv`` (``dgetf2``: the multiplier by
-    the pivot's reciprocal, then ``dgetrs``), as ``numpy.linalg.solve`` gives it bit for bit;
-    not solved where a pivot is zero (numpy raises: singular) or below :data:`TINY` (LAPACK
-    then divides by it)."""
+    """``(solved, x0, x1)``: the solution of ``[[a00, a01], [a10, a11]] x = b`` by the
+    elimination with partial pivoting of ``newton_system.solve_pairs``, the same operations in
+    the same order (the same bits); not solved where a pivot is zero."""
     if abs(a10) > abs(a00):
         a00, a01, a10, a11, b0, b1 = a10, a11, a00, a01, b1, b0
-    if not abs(a00) >= TINY:
+    if a00 == 0.0:
         return False, 0.0, 0.0
-    multiplier = a10 * (1.0 / a00)
+    multiplier = a10 * (1.0 / a00) if abs(a00) >= TINY else a10 / a00
     a11 = a11 - multiplier * a01
     if a11 == 0.0:
         return False, 0.0, 0.0

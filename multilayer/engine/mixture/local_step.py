@@ -88,6 +88,7 @@ from multilayer.engine.config import MixtureConfig
 from multilayer.engine.mixture.closure import drag as darcy_drag
 from multilayer.engine.mixture.exchange import GIVEN, between_layers
 from multilayer.engine.mixture.local_kernel import Evaluation, compiled_map, mixture_form
+from multilayer.engine.mixture.newton_system import solve_batched
 from multilayer.engine.plugin_output import call
 from multilayer.engine.state_check import all_finite
 from multilayer.engine.vertical.column_solve import solve
@@ -590,7 +591,7 @@ class LocalStep:
                     trial[j] += step
                     with np.errstate(invalid="ignore"):  # inf - inf: a trial with no thickness, next diverged
                         jacobian[:, :, j] = ((evaluate(trial, k).residual - here.residual) / step).T
-                update = _solve_batched(jacobian, -here.residual.T).T
+                update = solve_batched(jacobian, -here.residual.T).T
                 fraction = np.ones(k.size)
                 for _ in range(MAX_HALVINGS):
                     trial = Xk + fraction * update
@@ -683,11 +684,3 @@ def _finite(values: np.ndarray) -> None:
             "material.grain_diameter and mixture.kozeny, and with mixture.dilatancy and "
             "mixture.critical_shift)"
         )
-
-
-def _solve_batched(jacobian: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """``jacobian^-1 rhs`` per column (n, k, k) x (n, k); least squares where singular."""
-    try:
-        return np.linalg.solve(jacobian, rhs[..., None])[..., 0]
-    except np.linalg.LinAlgError:
-        return np.stack([np.linalg.lstsq(J, r, rcond=None)[0] for J, r in zip(jacobian, rhs)])
