@@ -8,7 +8,9 @@ Runs the shipped mixture scenarios (or the files given) and prints, per run:
 - the local-step calls of the time loop (two per attempt at order 2);
 - the batched evaluations: calls of the rheology's ``mixture_yield_stress`` and of the
   compiled map that answered (engine/mixture/local_kernel.py), one per evaluation of the
-  local step's map for all the columns iterated together;
+  local step's map for all the columns iterated together (the Newton iteration is the
+  numpy reference's here: the compiled one, equal to it bit for bit, evaluates column by
+  column);
 - the Newton iterations, ``Simulation.newton_iterations`` (of every attempt, redone ones
   included; per local step the iterations of its batch of columns summed over its sub-step
   levels, a local step stopped at a start counting one), per step;
@@ -96,6 +98,7 @@ def counted(finished: bool) -> Iterator[Counter[str]]:
         for owner, name, wrapper in (
             (local_step, "call", evaluations),
             (local_kernel, "one_layer", compiled),
+            (local_kernel, "iterate_one_layer", lambda *args: -1),  # hands every iteration back
             (local_step.LocalStep, "__call__", local_calls),
             (engine.Simulation, "_transport", attempts),
             (engine.Simulation, "_stress_steps", stress_steps),

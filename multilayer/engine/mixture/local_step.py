@@ -88,6 +88,7 @@ from multilayer.engine.config import MixtureConfig
 from multilayer.engine.mixture.closure import drag as darcy_drag
 from multilayer.engine.mixture.exchange import GIVEN, between_layers
 from multilayer.engine.mixture.local_kernel import Evaluation, compiled_map, mixture_form
+from multilayer.engine.mixture.newton_system import solve_batched
 from multilayer.engine.plugin_output import call
 from multilayer.engine.state_check import all_finite
 from multilayer.engine.vertical.column_solve import solve
@@ -462,8 +463,9 @@ class LocalStep:
         (:meth:`closure`), and the Jacobian of the difference ``R(X)`` (by finite
         differences, one column solve per unknown; the columns are independent) gives the
         next trial, with a backtracking line search per column.  In columns of one layer
-        under a law of a compiled form the map is evaluated by the compiled kernel of
-        :mod:`~multilayer.engine.mixture.local_kernel`, equal to the numpy map bit for bit.
+        under a law of a compiled form the map and the iteration run in the compiled kernels
+        of :mod:`~multilayer.engine.mixture.local_kernel`, equal to this numpy reference bit
+        for bit, which iterates wherever they hand the step back.
         Where the line search finds no descent (at the onset of a contracting packing ``R``
         has a kink where the column starts moving; a flowing branch can end in a fold), the
         pore pressures are bracketed one by one (:meth:`_bisect`) and the iteration goes on from there.
@@ -501,7 +503,7 @@ class LocalStep:
             one whose ratio no thickness with pores has; where the
             closure fails, the columns are evaluated one by one and those whose closure
             fails are marked diverged."""
-            if compiled is not None and (found := compiled(X, k, velocities)) is not None:
+            if compiled is not None and (found := compiled.map(X, k, velocities)) is not None:
                 return found  # one layer under a law of a compiled form (engine/mixture/local_kernel.py)
             burst = ~np.isfinite(X[:L]).all(axis=0)
             outside = ~((X[L] > 0.0) & (X[L] < pores[k]))  # a ratio no thickness with pores has
@@ -545,48 +547,71 @@ class LocalStep:
             lag = self.compressibility / dt if self.compressibility is not None else 0.0
             rest = self.closure(solid, h_star, np.zeros_like(ustar), previous, lag)[3]
             pressure_guess = np.where(np.any(guess != 0.0, axis=0), pressure_guess, rest)
+        controls = (
+            self.tolerance,
+            self.max_iterations,
+            DERIVATIVE_STEP,
+            MAX_HALVINGS,
+            BISECTIONS,
+            EXPANSIONS,
+        )
         compiled = compiled_map(
-            self, (h_star, solid, weight, m_before, momentum), scale, pores, dt, lag, previous
+            self,
+            (h_star, solid, weight, m_before, momentum),
+            scale,
+            pores,
+            dt,
+            lag,
+            previous,
+            (*controls, SWEEPS, WINDOW),
         )
         X = np.concatenate([pressure_guess, np.ones((1, n))])  # the ratio h* / h' of rest
         now = evaluate(X, np.arange(n))
         if watch is not None and np.any(now.v[:, watch]):  # a watched column starts: the step stops
             result = LocalResult(now.v, now.h, now.pressure, 1, solid, now.v)
             return result, np.ones(n, dtype=bool), diverged, None, np.zeros(n, dtype=bool)
-        best, since = now.norm.copy(), np.zeros(n, dtype=int)  # least norm, iterations since it fell
-        iteration = 1
-        while (k := np.flatnonzero(~(now.norm <= self.tolerance) & ~diverged & ~stalled & ~wandering)).size:
-            if iteration > self.max_iterations:
-                break
-            iteration += 1
-            velocities, gamma = now.v, now.rates
-            Xk, here = X[:, k], now.take(k)
-            jacobian = np.empty((k.size, L + 1, L + 1))
-            for j in range(L + 1):
-                step = DERIVATIVE_STEP * np.maximum(np.abs(Xk[j]), scale[j, k])
-                trial = Xk.copy()
-                trial[j] += step
-                with np.errstate(invalid="ignore"):  # inf - inf: a trial with no thickness, next diverged
-                    jacobian[:, :, j] = ((evaluate(trial, k).residual - here.residual) / step).T
-            update = _solve_batched(jacobian, -here.residual.T).T
-            fraction = np.ones(k.size)
-            for _ in range(MAX_HALVINGS):
-                trial = Xk + fraction * update
-                attempt = evaluate(trial, k)
-                better = (attempt.norm < here.norm) | (attempt.norm <= self.tolerance)
-                if better.all():
+        iterated = None if compiled is None else compiled.iterate(X, now, diverged)
+        if iterated is not None:  # one layer under a law of a compiled form: the same iteration, compiled
+            now, iteration = iterated
+        else:
+            best, since = now.norm.copy(), np.zeros(n, dtype=int)  # least norm, iterations since it fell
+            iteration = 1
+            while (
+                k := np.flatnonzero(~(now.norm <= self.tolerance) & ~diverged & ~stalled & ~wandering)
+            ).size:
+                if iteration > self.max_iterations:
                     break
-                fraction = np.where(better, fraction, 0.5 * fraction)
-            stuck = np.flatnonzero(~better & ~diverged[k])
-            if stuck.size:
-                trial[:, stuck], found = self._bisect(evaluate, Xk[:, stuck], k[stuck], weight[:, k[stuck]])
-                attempt = attempt.merge(stuck, found)
-            # back where it started, bit for bit: the iteration would repeat itself, never converging
-            stalled[k] = _same(trial, Xk) & _same(attempt.v, here.v) & _same(attempt.rates, here.rates)
-            X[:, k] = trial
-            now = now.merge(k, attempt)
-            best[k], since[k] = _progress(best[k], since[k], now.norm[k])
-            wandering[k] = since[k] >= WINDOW
+                iteration += 1
+                velocities, gamma = now.v, now.rates
+                Xk, here = X[:, k], now.take(k)
+                jacobian = np.empty((k.size, L + 1, L + 1))
+                for j in range(L + 1):
+                    step = DERIVATIVE_STEP * np.maximum(np.abs(Xk[j]), scale[j, k])
+                    trial = Xk.copy()
+                    trial[j] += step
+                    with np.errstate(invalid="ignore"):  # inf - inf: a trial with no thickness, next diverged
+                        jacobian[:, :, j] = ((evaluate(trial, k).residual - here.residual) / step).T
+                update = solve_batched(jacobian, -here.residual.T).T
+                fraction = np.ones(k.size)
+                for _ in range(MAX_HALVINGS):
+                    trial = Xk + fraction * update
+                    attempt = evaluate(trial, k)
+                    better = (attempt.norm < here.norm) | (attempt.norm <= self.tolerance)
+                    if better.all():
+                        break
+                    fraction = np.where(better, fraction, 0.5 * fraction)
+                stuck = np.flatnonzero(~better & ~diverged[k])
+                if stuck.size:
+                    trial[:, stuck], found = self._bisect(
+                        evaluate, Xk[:, stuck], k[stuck], weight[:, k[stuck]]
+                    )
+                    attempt = attempt.merge(stuck, found)
+                # back where it started, bit for bit: the iteration would repeat itself, never converging
+                stalled[k] = _same(trial, Xk) & _same(attempt.v, here.v) & _same(attempt.rates, here.rates)
+                X[:, k] = trial
+                now = now.merge(k, attempt)
+                best[k], since[k] = _progress(best[k], since[k], now.norm[k])
+                wandering[k] = since[k] >= WINDOW
         converged = (now.norm <= self.tolerance) & ~diverged
         error = closure_errors[0] if closure_errors else None
         u, moved, crowded = now.v, solid, np.zeros(n, dtype=bool)
@@ -659,11 +684,3 @@ def _finite(values: np.ndarray) -> None:
             "material.grain_diameter and mixture.kozeny, and with mixture.dilatancy and "
             "mixture.critical_shift)"
         )
-
-
-def _solve_batched(jacobian: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """``jacobian^-1 rhs`` per column (n, k, k) x (n, k); least squares where singular."""
-    try:
-        return np.linalg.solve(jacobian, rhs[..., None])[..., 0]
-    except np.linalg.LinAlgError:
-        return np.stack([np.linalg.lstsq(J, r, rcond=None)[0] for J, r in zip(jacobian, rhs)])
