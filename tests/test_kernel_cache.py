@@ -447,6 +447,29 @@ def test_a_process_older_than_the_cache_neither_saves_nor_loads_its_kernels(tmp_
     assert _edited(engine, "1").stdout.split() == ["2.0"]
 
 
+@pytest.mark.parametrize("checked", [True, False])
+def test_a_hash_checked_pyc_of_an_earlier_version_was_not_run(tmp_path, monkeypatch, checked):
+    """Python checks a hash-checked ``.pyc`` against the source it reads and compiles the
+    source where they differ: the first run after an update of the package (its pycs of
+    the earlier version checked by hash) warned that its kernel module was not the code it
+    ran and cached none of its kernels.  An unchecked hash pyc of other contents is run by
+    Python: that is still caught.  Either stale pyc is removed (no bytecode written)."""
+    import py_compile
+
+    module = tmp_path / "kernels.py"
+    module.write_text("x = 1\n")
+    mode = py_compile.PycInvalidationMode
+    pyc = Path(
+        py_compile.compile(
+            str(module), invalidation_mode=mode.CHECKED_HASH if checked else mode.UNCHECKED_HASH
+        )
+    )
+    module.write_text("x = 2\n")
+    monkeypatch.setattr(sys, "dont_write_bytecode", True)
+    assert kernel_cache._bytecode_is_of(module, module.read_bytes()) is checked
+    assert not pyc.exists()
+
+
 @pytest.mark.slow
 def test_bytecode_of_an_earlier_version_is_not_cached_and_compiled_anew(tmp_path):
     """Python runs a module's ``.pyc`` when its header holds the source's time (whole

@@ -240,7 +240,9 @@ def _changed_since_import(path: Path) -> None:
 
 def _bytecode_is_of(module: Path, source: bytes) -> bool:
     """Whether the bytecode Python keeps for ``module`` (its ``.pyc``), if Python ran it,
-    is that of ``source``; rewritten as a pyc Python checks against the source's hash.
+    is that of ``source``; rewritten as a pyc Python checks against the source's hash.  A
+    hash-checked pyc of earlier contents was not run (Python compiled the source it read):
+    True, the stale pyc written anew or removed as below.
 
     Python runs a ``.pyc`` whose header holds the source's modification time, in whole
     seconds, and size: a file rewritten with the same size within the same second, or
@@ -268,6 +270,7 @@ def _bytecode_is_of(module: Path, source: bytes) -> bool:
         of_source = header[8:16] == importlib.util.source_hash(source)
         if of_source and flags & 2:
             return True
+        ran_source = bool(flags & 2)  # checked and not the source's: Python compiled the source
     elif header[8:16] != (int(stat.st_mtime) & 0xFFFFFFFF).to_bytes(4, "little") + (
         stat.st_size & 0xFFFFFFFF
     ).to_bytes(4, "little"):
@@ -277,6 +280,7 @@ def _bytecode_is_of(module: Path, source: bytes) -> bool:
             of_source = marshal.loads(header[16:]) == compile(source, str(module), "exec", dont_inherit=True)
         except (ValueError, EOFError, TypeError, SyntaxError):
             of_source = False
+        ran_source = of_source
     with contextlib.suppress(OSError, py_compile.PyCompileError):
         if not sys.dont_write_bytecode:
             py_compile.compile(
@@ -287,7 +291,7 @@ def _bytecode_is_of(module: Path, source: bytes) -> bool:
             )
         elif not of_source:  # removed: the next process compiles the source
             cached.unlink()
-    return of_source
+    return ran_source
 
 
 def defined(module: Path) -> bool:
