@@ -19,10 +19,9 @@ closure that overflows) the kernel stops and says so: the reference then evaluat
 trial, with its marks and its messages.  The compiled iteration does the reference
 iteration's operations column by column (the columns of a batch are independent: a
 column's iterates, marks and count of iterations are the same alone as in its batch) with
-the LU factorisation of LAPACK's ``dgesv`` for its 2 x 2 Newton systems (partial pivoting,
-the multiplier by the pivot's reciprocal: Anderson et al. 1999, LAPACK Users' Guide,
-``dgetf2``), and hands the whole step back to the reference wherever it would not simply
-go on (a trial the map hands back, a Jacobian not finite or singular).
+the elimination of ``newton_system`` for its 2 x 2 Newton systems (:func:`solve_2x2`), and
+hands the whole step back to the reference wherever it would not simply go on (a trial the
+map hands back, a Jacobian not finite or singular).
 """
 
 from __future__ import annotations
@@ -113,7 +112,7 @@ class CompiledStep(NamedTuple):
     iterate: Callable[[np.ndarray, Evaluation, np.ndarray], tuple[Evaluation, int] | None]
 
 
-def compiled_map(
+def compiled_step(
     local: Any,
     given: tuple[np.ndarray, ...],
     scale: np.ndarray,

@@ -87,7 +87,7 @@ import numpy as np
 from multilayer.engine.config import MixtureConfig
 from multilayer.engine.mixture.closure import drag as darcy_drag
 from multilayer.engine.mixture.exchange import GIVEN, between_layers
-from multilayer.engine.mixture.local_kernel import Evaluation, compiled_map, mixture_form
+from multilayer.engine.mixture.local_kernel import Evaluation, compiled_step, mixture_form
 from multilayer.engine.mixture.newton_system import solve_batched
 from multilayer.engine.plugin_output import call
 from multilayer.engine.state_check import all_finite
@@ -548,14 +548,10 @@ class LocalStep:
             rest = self.closure(solid, h_star, np.zeros_like(ustar), previous, lag)[3]
             pressure_guess = np.where(np.any(guess != 0.0, axis=0), pressure_guess, rest)
         controls = (
-            self.tolerance,
-            self.max_iterations,
-            DERIVATIVE_STEP,
-            MAX_HALVINGS,
-            BISECTIONS,
-            EXPANSIONS,
-        )
-        compiled = compiled_map(
+            *(self.tolerance, self.max_iterations, DERIVATIVE_STEP, MAX_HALVINGS),
+            *(BISECTIONS, EXPANSIONS, SWEEPS, WINDOW),
+        )  # those of iterate_one_layer, in its order
+        compiled = compiled_step(
             self,
             (h_star, solid, weight, m_before, momentum),
             scale,
@@ -563,7 +559,7 @@ class LocalStep:
             dt,
             lag,
             previous,
-            (*controls, SWEEPS, WINDOW),
+            controls,
         )
         X = np.concatenate([pressure_guess, np.ones((1, n))])  # the ratio h* / h' of rest
         now = evaluate(X, np.arange(n))
