@@ -3734,6 +3734,7 @@ def cases() -> list[Case]:
         + round_forty_two()
         + round_forty_three()
         + round_forty_four()
+        + round_forty_six()
     )
 
 
@@ -7986,6 +7987,311 @@ def round_forty_four() -> list[Case]:
     ]  # fmt: skip
 
 
+def _socket_at(name: str, scenario: bool = True) -> Callable[[Path], None]:
+    """A UNIX socket bound at ``directory/name`` (the scenario beside it, ``scenario``)."""
+
+    def setup(directory: Path) -> None:
+        if scenario:
+            _scenario(directory, {"bed": {"file": "bed.csv"}} if name == "bed.csv" else None)
+        with socket.socket(socket.AF_UNIX) as bound:
+            bound.bind(str(directory / name))
+
+    return setup
+
+
+GROWING = """
+import sys, time
+end = time.monotonic() + 30
+with open(sys.argv[1], 'a') as stream:
+    while time.monotonic() < end:
+        stream.write('# a comment appended by another process\\n')
+        stream.flush()
+        time.sleep(0.001)
+"""
+"""Another process appending comment lines to a file for 30 s."""
+
+
+def _growing_scenario(directory: Path) -> None:
+    """The scenario, which another process appends comments to while it is read."""
+    path = _scenario(directory)
+    subprocess.Popen(
+        [sys.executable, "-c", GROWING, str(path)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
+    time.sleep(0.2)
+
+
+def _sparse(name: str) -> Callable[[Path], None]:
+    """A finished run whose ``out/name`` is extended to a terabyte of zeros (a sparse file:
+    no room taken), as a tool appending to the wrong file or a damaged copy leaves it."""
+
+    def setup(directory: Path) -> None:
+        _finished_run(directory)
+        os.truncate(directory / "out" / name, 2**40)
+
+    return setup
+
+
+def _sweep_with_sparse_member(directory: Path) -> None:
+    """A sweep of one member run to its end, whose member's result.nc is then extended to a
+    terabyte of zeros."""
+    _sweep33(ONE_MEMBER)(directory)
+    subprocess.run(
+        [sys.executable, "-m", "multilayer", "sweep", str(directory / "study.yaml"), "-o",
+         str(directory / "study"), "--workers", "1", "-q"],
+        check=True, capture_output=True,
+    )  # fmt: skip
+    for result in (directory / "study").glob("*/result.nc"):
+        os.truncate(result, 2**40)
+
+
+THEN_PLOTTED = """
+code = main(sys.argv[1:])
+if code:
+    sys.exit(code)
+sys.exit(main(['plot', sys.argv[sys.argv.index('-o') + 1]]))
+"""
+"""The command (a resume), then ``plot`` of its output directory."""
+
+TWO_RESUMES = """
+import subprocess
+from multilayer.io.result_check import check_result
+import netCDF4
+out = sys.argv[3] + '/out'
+command = [sys.executable, '-m', 'multilayer', 'run', sys.argv[2], '-o', out, '-q', '--resume',
+           '--set', 'time.end=0.6']
+started = [subprocess.Popen(command, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+codes = sorted(p.wait(timeout=100) for p in started)
+said = ' | '.join(p.stderr.read().strip() for p in started)
+check_result(out)
+with netCDF4.Dataset(out + '/result.nc') as ds:
+    whole = ds.run_status == 'completed' and float(ds['time'][-1]) == 0.6
+refused = codes == [0, 2] and 'run.lock' in said
+print(f'multilayer: two resumes: exit {codes}, the result completed to 0.6 s: {whole}', file=sys.stderr)
+sys.exit(0 if whole and (codes == [0, 0] or refused) else 1)
+"""
+"""Two ``multilayer run --resume`` of one finished run started together: one runs, the
+other is refused by the lock (or starts after the first ended); the result is whole."""
+
+SIGNAL_IN_SUMMARY = """
+import csv, os, signal
+real_writerow = csv.DictWriter.writerow
+def writerow(self, row):
+    calls[0] += 1
+    if calls[0] == 2:  # the first member's row of summary.csv
+        os.kill(os.getpid(), signal.{name})
+    return real_writerow(self, row)
+csv.DictWriter.writerow = writerow
+"""
+"""A stop signal to a sweep as it writes the first row of its ``summary.csv``."""
+
+SIGNAL_IN_FIGURE = """
+import os, signal
+from matplotlib.figure import Figure
+real_savefig = Figure.savefig
+def savefig(self, *args, **kwargs):
+    calls[0] += 1
+    if calls[0] == 2:
+        os.kill(os.getpid(), signal.{name})
+    return real_savefig(self, *args, **kwargs)
+Figure.savefig = savefig
+"""
+"""A stop signal to ``plot`` as it writes its second figure."""
+
+SIGNAL_IN_VTK = """
+import os, signal
+from multilayer.io import export
+real_text_file = export._text_file
+def text_file(path, text):
+    calls[0] += 1
+    if calls[0] == 3:
+        os.kill(os.getpid(), signal.{name})
+    return real_text_file(path, text)
+export._text_file = text_file
+"""
+"""A stop signal to ``export --vtk`` as it writes its third file."""
+
+
+def _expect46(entry: str) -> Callable[[Path], None]:
+    """TINY with the ``expect`` list of YAML text ``entry``."""
+    return _scenario_text(lambda t: t + "expect:\n" + entry + "\n")
+
+
+PIN46 = "- {kind: regression, quantity: mass_final, value: 0.005, "
+"""The start of an ``expect`` entry on TINY's final mass (0.005000000000000001)."""
+
+
+def round_forty_six() -> list[Case]:
+    """The hostile cases of the forty-sixth round (docs/reliability.md): a ``result.nc``
+    followed by a terabyte of zeros (``plot`` hashed them for hours; ``--resume`` kept them
+    after its records), an empty path as the file of ``run``, ``validate``,
+    ``check``, ``sweep``, ``calibrate`` and ``sensitivity`` (named as ``.``), Dask settings
+    it cannot read (a traceback) or a missing temporary directory of Dask's (not named);
+    and, handled before, sockets, growing files and ``/dev/stdin`` as files, two resumes at
+    once, stop signals while a sweep's summary, a figure or a VTK file is written,
+    ``--set`` index spellings and keys in other Unicode forms, long command lines, hostile
+    ``expect:`` entries, output intervals and ends at the ends of the floats and studies
+    writing into odd directories."""
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    empty = "an empty path; accepted: the path of a YAML file"
+    resume = [*run, "--resume"]
+    validate, check = ["validate", "{scenario}"], ["check", "{scenario}"]
+    timing = "time.output_interval"
+    plot = ["plot", "{dir}/out"]
+    sweep = ["sweep", "{dir}/study.yaml", "-o", "{dir}/study", "--workers", "1", "-q"]
+    one = _sweep33(ONE_MEMBER)
+    unreadable = "the local Dask cluster could not read its settings"
+    return [
+        # files that are not what they seem
+        Case("validate: the scenario a UNIX socket", validate, 2, "scenario.yaml",
+             setup=_socket_at("scenario.yaml", scenario=False)),
+        Case("validate: bed.file a UNIX socket", validate, 2, "bed.csv", setup=_socket_at("bed.csv")),
+        Case("sweep: the sweep file a UNIX socket", sweep, 2, "study.yaml", setup=_socket_at("study.yaml")),
+        Case("run: -o a UNIX socket", run, 2, "out", setup=_socket_at("out")),
+        Case("validate: /dev/stdin an endless pipe (yes)", ["validate", "/dev/stdin"], 2,
+             "/dev/stdin: not a regular file", prefix=["sh", "-c", 'yes | "$0" "$@"']),
+        Case("control: run of /dev/stdin redirected from the scenario", ["run", "/dev/stdin", "-o",
+             "{dir}/out", "-q"], 0, "", prefix=["sh", "-c", 'exec "$0" "$@" < "$SCENARIO"'],
+             env={"SCENARIO": "{dir}/scenario.yaml"}, setup=_scenario),
+        Case("control: validate of a scenario another process appends to", validate, 0, "",
+             setup=_growing_scenario),
+        Case("plot: result.nc followed by a terabyte of zeros", plot, 0, "", setup=_sparse("result.nc")),
+        Case("control: export --vtk of a result.nc followed by a terabyte of zeros",
+             ["export", "{dir}/out", "--vtk"], 0, "", setup=_sparse("result.nc")),
+        Case("run --resume: result.nc followed by a terabyte of zeros, then plot",
+             [*resume, "--set", "time.end=0.3"], 0, "", patch=THEN_PLOTTED, setup=_sparse("result.nc")),
+        Case("run --resume: checkpoint.npz followed by a terabyte of zeros",
+             [*resume, "--set", "time.end=0.3"], 2, "checkpoint.npz", setup=_sparse("checkpoint.npz")),
+        Case("control: sweep of a member whose result.nc is followed by a terabyte of zeros", sweep, 0, "",
+             setup=_sweep_with_sparse_member),
+        Case("run: result.nc a symbolic link to another run's result", run, 2, "a symbolic link",
+             setup=_linked_result46),
+        Case("control: two resumes of one run started together", ["two", "{scenario}", "{dir}"], 0,
+             "the result completed to 0.6 s: True", patch=TWO_RESUMES, setup=_finished_run),
+        # empty paths
+        *[Case(f"{command}: an empty path as its file", [command, ""], 2, empty)
+          for command in ("validate", "run", "check", "sweep", "calibrate", "sensitivity")],
+        # stop signals while files are written
+        Case("sweep: SIGTERM as summary.csv is written", sweep, 143, "SIGTERM",
+             patch=SIGNAL_IN_SUMMARY.format(name="SIGTERM"), setup=one),
+        Case("plot: SIGHUP as the second figure is written", plot, 129, "SIGHUP",
+             patch=SIGNAL_IN_FIGURE.format(name="SIGHUP"), setup=_finished_run),
+        Case("export --vtk: SIGINT as the third file is written", ["export", "{dir}/out", "--vtk"], 130, "",
+             patch=SIGNAL_IN_VTK.format(name="SIGINT"), setup=_finished_run),
+        # Dask's settings
+        Case("sweep: DASK_TEMPORARY_DIRECTORY a directory that does not exist", sweep, 2,
+             "DASK_TEMPORARY_DIRECTORY", env={"DASK_TEMPORARY_DIRECTORY": "{dir}/nothing"}, setup=one),
+        Case("sweep: DASK_TEMPORARY_DIRECTORY a regular file", sweep, 2, "DASK_TEMPORARY_DIRECTORY",
+             env={"DASK_TEMPORARY_DIRECTORY": "{dir}/scenario.yaml"}, setup=one),
+        Case("sweep: DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT=abc", sweep, 2,
+             "set in the environment: DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT",
+             env={"DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT": "abc"}, setup=one),
+        Case("sensitivity: DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT=abc",
+             ["sensitivity", "{dir}/study.yaml", "-o", "{dir}/study", "--workers", "1", "-q"], 2, unreadable,
+             env={"DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT": "abc"},
+             setup=_study41(SENSITIVITY_MU_S)),
+        # studies writing into odd directories, and their options
+        Case("sweep: -o /dev/null", [*sweep[:3], "/dev/null", *sweep[4:]], 2, "/dev/null", setup=one),
+        Case("sweep: -o its own sweep file", [*sweep[:3], "{dir}/study.yaml", *sweep[4:]], 2, "study.yaml",
+             setup=one),
+        Case("sweep: -o a symbolic link to itself", sweep, 2, "study", setup=_study_linked_to_itself),
+        Case("sweep: --resume of a directory never written", [*sweep, "--resume"], 2, "study", setup=one),
+        Case("sweep: --workers 0", [*sweep[:5], "0", "-q"], 2, "--workers", setup=one),
+        Case("sweep: --scheduler ''", [*sweep[:4], "--scheduler", "", "-q"], 2, "--scheduler", setup=one),
+        Case("validate: a sweep of output.directory", ["validate", "{dir}/study.yaml"], 2, "output",
+             setup=_sweep33("parameters:\n  output.directory: [a, b]\n")),
+        Case("validate: a sensitivity study of mu_s in [1e308, 1.7976931348623157e308]",
+             ["validate", "{dir}/study.yaml"], 2, "mu_s",
+             setup=_study41(SENSITIVITY_MU_S.replace("0.2, 0.4", "1.0e+308, 1.7976931348623157e+308"))),
+        # the command line
+        Case("validate: --set initial.+0.height", [*validate, "--set", "initial.+0.height=0.04"], 2,
+             "accepted indices: 0..0", setup=_scenario),
+        Case("validate: --set 'initial. 0.height'", [*validate, "--set", "initial. 0.height=0.04"], 2,
+             "accepted indices: 0..0", setup=_scenario),
+        Case("validate: --set a key in NFD (slope with a combining accent)",
+             [*validate, "--set", "slope\u0301_deg=3"], 2, "unknown key", setup=_scenario),
+        Case("validate: --set a key of a full-width letter (NFKC slope_deg)",
+             [*validate, "--set", "\uff53lope_deg=3"], 2, "unknown key", setup=_scenario),
+        Case("validate: --set description given 5000 times", [*validate, *["--set", "description=x"] * 5000],
+             2, "set before it", setup=_scenario),
+        Case("validate: 3000 --set of unknown keys", [*validate, *[f"--set=k{i}=1" for i in range(3000)]], 2,
+             "unknown key", setup=_scenario),
+        Case("control: validate --set description of 100 000 characters",
+             [*validate, "--set", "description=" + "x" * 100_000], 0, "", setup=_scenario),
+        Case("validate: names of an accented letter in NFC and in NFD",
+             ["validate", "{dir}/a.yaml", "{dir}/b.yaml"], 2, "name (line 17)", setup=_two_forms),
+        # hostile expect: entries
+        Case("check: expect rtol .nan", check, 2, "expect.0.rtol", setup=_expect46(PIN46 + "rtol: .nan}")),
+        Case("check: expect value .inf", check, 2, "expect.0.value",
+             setup=_expect46(PIN46.replace("0.005", ".inf") + "rtol: 0}")),
+        Case("check: expect rtol -1e-300", check, 2, "expect.0.rtol",
+             setup=_expect46(PIN46 + "rtol: -1e-300}")),
+        Case("check: expect kind Regression", check, 2, "expect.0.kind",
+             setup=_expect46(PIN46.replace("regression", "Regression") + "rtol: 0.1}")),
+        Case("check: expect quantity steps", check, 2, "expect.0.quantity",
+             setup=_expect46(PIN46.replace("mass_final", "steps") + "rtol: 0.1}")),
+        Case("check: expect a mapping, not a list", check, 2, "expect (line",
+             setup=_expect46("  " + PIN46[2:] + "rtol: 0.1}")),
+        Case("check: expect value true", check, 2, "expect.0.value",
+             setup=_expect46(PIN46.replace("0.005", "true") + "rtol: 0.1}")),
+        Case("check: expect rtol -0.0, one ulp off (an exact pin that fails)", check, 1, "",
+             setup=_expect46(PIN46 + "rtol: -0.0}")),
+        Case("check: expect atol 5e-324, one ulp off", check, 1, "",
+             setup=_expect46(PIN46 + "atol: 5e-324}")),
+        Case("control: check of an exact pin, rtol 0 and atol 0", check, 0, "",
+             setup=_expect46(PIN46.replace("0.005", "0.005000000000000001") + "rtol: 0, atol: 0}")),
+        Case("control: check of one expect entry twice", check, 0, "",
+             setup=_expect46(PIN46 + "rtol: 0.01}\n" + PIN46 + "rtol: 0.01}")),
+        # plot and export options
+        Case("plot: --at given 13 times", [*plot, *["--at", "0.1"] * 13], 2, "at most 12 --at positions",
+             setup=_finished_run),
+        Case("export: no format", ["export", "{dir}/out"], 2, "--vtk", setup=_finished_run),
+        # time.end and output_interval at the ends of the floats
+        Case("control: run to 0.3 s every 0.1 s (3 x 0.1 > 0.3)", run, 0, "",
+             setup=partial(_scenario, changes={"time.end": 0.3, timing: 0.1})),
+        Case("control: run of an output interval beyond time.end", run, 0, "",
+             setup=partial(_scenario, changes={timing: 1.0})),
+        Case("control: run of an output interval one ulp below time.end", run, 0, "",
+             setup=partial(_scenario, changes={timing: 0.19999999999999998})),
+        Case("control: validate of an output interval of 1.7976931348623157e308 s", validate, 0, "",
+             setup=partial(_scenario, changes={timing: 1.7976931348623157e308})),
+        Case("validate: time.end and output_interval 1.7976931348623157e308 s", validate, 2, "steps",
+             setup=partial(_scenario, changes={"time.end": 1.7976931348623157e308,
+                                               timing: 1.7976931348623157e308})),
+        Case("control: run --resume to one ulp after the end",
+             [*resume, "--set", "time.end=0.2000000000000001"], 0, "", setup=_finished_run),
+        Case("control: run --resume to one ulp before the end",
+             [*resume, "--set", "time.end=0.19999999999999998"], 0, "", setup=_finished_run),
+    ]  # fmt: skip
+
+
+ONE_MEMBER = "parameters:\n  rheology.mu_s: [0.3]\n"
+"""The parameters of a sweep of one member (:func:`_sweep33`)."""
+
+
+def _study_linked_to_itself(directory: Path) -> None:
+    """A sweep of one member whose output directory ``study`` is a symbolic link to itself."""
+    _sweep33(ONE_MEMBER)(directory)
+    (directory / "study").symlink_to("study")
+
+
+def _linked_result46(directory: Path) -> None:
+    """A finished run in ``out`` and one in ``other``; ``out/result.nc`` a symbolic link to
+    ``other/result.nc``."""
+    _finished_run(directory)
+    shutil.copytree(directory / "out", directory / "other")
+    (directory / "out" / "result.nc").unlink()
+    (directory / "out" / "result.nc").symlink_to(directory / "other" / "result.nc")
+
+
+def _two_forms(directory: Path) -> None:
+    """``a.yaml`` and ``b.yaml``: TINY named ``é`` in NFC and in NFD."""
+    for stem, name in (("a", "\u00e9"), ("b", "e\u0301")):
+        (directory / f"{stem}.yaml").write_text(yaml.safe_dump({**TINY, "name": name}))
+
+
 ROUNDS: dict[int, Callable[[], list[Case]]] = {
     2: round_two, 3: round_three, 4: round_four, 5: round_five, 6: round_six, 7: round_seven,
     8: round_eight, 9: round_nine, 10: round_ten, 11: round_eleven, 12: round_twelve,
@@ -8006,6 +8312,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     42: round_forty_two,
     43: round_forty_three,
     44: round_forty_four,
+    46: round_forty_six,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""
 
@@ -8018,7 +8325,7 @@ def main() -> None:
         "--round",
         type=int,
         choices=sorted(ROUNDS),
-        help="only the cases of this round (2 to 35, 37 to 44; all: none)",
+        help="only the cases of this round (2 to 35, 37 to 46; all: none)",
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()

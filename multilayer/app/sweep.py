@@ -482,7 +482,16 @@ def dask_client(
         compile_kernels(warm_up)
     # the workers' scratch space in a directory of its own, removed after: Dask left its
     # dask-scratch-space with two lock files in TMPDIR after every study
-    scratch = tempfile.mkdtemp(prefix="multilayer-dask-", dir=dask.config.get("temporary-directory", None))
+    temporary = dask.config.get("temporary-directory", None)
+    try:
+        scratch = tempfile.mkdtemp(prefix="multilayer-dask-", dir=temporary)
+    except OSError as exc:
+        if temporary is None:  # the system's temporary directory: the OSError names it
+            raise
+        raise InputError(
+            f"Dask's temporary-directory {temporary} (DASK_TEMPORARY_DIRECTORY, or a Dask configuration "
+            f"file): {exc.strerror}; accepted: a directory this user can write, or the setting unset"
+        ) from None
     try:
         with dask.config.set({"temporary-directory": scratch}):  # the nannies' too
             try:
@@ -494,6 +503,13 @@ def dask_client(
                     local_directory=scratch,
                     preload=[stopping.__name__],  # the workers ignore Ctrl-C: this process stops them
                 )
+            except (KeyError, ValueError, TypeError) as exc:  # a Dask setting it cannot read
+                variables = ", ".join(_dask_variables()) or "none"
+                raise InputError(
+                    f"the local Dask cluster could not read its settings ({type(exc).__name__}: "
+                    f"{reason(exc)}; set in the environment: {variables}); accepted: Dask settings (DASK_* "
+                    "variables, Dask configuration files) of the forms Dask's documentation gives"
+                ) from None
             except RuntimeError as exc:  # "Nanny failed to start.": the worker's own error is on stderr
                 raise RunError(
                     f"the local Dask cluster could not start its {workers or CPU_COUNT} worker process(es) "
@@ -510,6 +526,11 @@ def dask_client(
         cluster.close()
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
+
+
+def _dask_variables() -> list[str]:
+    """The names of the Dask settings of the environment (``DASK_*``), sorted."""
+    return sorted(name for name in os.environ if name.startswith("DASK_"))
 
 
 def _check_port(address: str) -> None:

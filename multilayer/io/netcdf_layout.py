@@ -154,3 +154,15 @@ def read_layout(path: str | os.PathLike) -> Layout:
     record_size = sum(s + (-s % 4) for s in record_sizes) if len(record_sizes) > 1 else sum(record_sizes)
     begin = fixed_end if records_begin is None else records_begin
     return Layout(version, numrecs, begin, record_size, fixed_end)
+
+
+def declared_size(path: str | os.PathLike) -> int | None:
+    """The bytes of the classic netCDF file ``path`` its header declares, its records
+    included, or None if it is not one or its header does not count its records.  The file
+    may hold more: netCDF-C extends it by the rest of its last write's block (zeros), and
+    another tool may append to it; netCDF-C reads neither."""
+    try:
+        layout = read_layout(path)
+    except LayoutError:
+        return None
+    return None if layout.numrecs == STREAMING else layout.size()

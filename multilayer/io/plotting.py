@@ -33,6 +33,7 @@ from PIL import Image
 
 from multilayer.errors import InputError
 from multilayer.io.disk import writable, writable_directory, write_whole
+from multilayer.io.netcdf_layout import declared_size
 from multilayer.io.result_check import ending
 from multilayer.io.results import RESULT_FILE, open_result, seismic_force
 
@@ -108,12 +109,18 @@ result holds them)."""
 
 def drawn_from(path: Path) -> str:
     """What a figure drawn from the file ``path`` records of it, in its metadata
-    (:data:`METADATA_KEYS`; an animation's comment): its name and the SHA-256 of its bytes.
-    A run again or resumed into the directory, a copy of the file or a damaged one changes
-    it; times of modification did not tell (a file from the future, a copy that kept them or
-    not)."""
+    (:data:`METADATA_KEYS`; an animation's comment): its name and the SHA-256 of its bytes,
+    those its header declares (:func:`~multilayer.io.netcdf_layout.declared_size`; a
+    terabyte of zeros appended to the file held ``plot`` for hours).  A run again or
+    resumed into the directory, a copy of the file or a damaged one changes it; times of
+    modification did not tell (a file from the future, a copy that kept them or not)."""
+    size, declared = path.stat().st_size, declared_size(path)
+    left, digest = size if declared is None else min(size, declared), hashlib.sha256()
     with path.open("rb") as stream:
-        return f"drawn from {path.name} of SHA-256 {hashlib.file_digest(stream, 'sha256').hexdigest()}"
+        while left > 0 and (chunk := stream.read(min(left, 2**20))):
+            digest.update(chunk)
+            left -= len(chunk)
+    return f"drawn from {path.name} of SHA-256 {digest.hexdigest()}"
 
 
 METADATA_KEYS = {"png": "Comment", "pdf": "Subject", "svg": "Description"}

@@ -44,7 +44,13 @@ import yaml
 
 from multilayer.errors import InputError, RunError, reason
 from multilayer.io import disk
-from multilayer.io.netcdf_layout import HEADER_SPACE, NUMRECS_OFFSET, LayoutError, read_layout
+from multilayer.io.netcdf_layout import (
+    HEADER_SPACE,
+    NUMRECS_OFFSET,
+    LayoutError,
+    declared_size,
+    read_layout,
+)
 from multilayer.io.result_format import (  # noqa: F401 (this module's names, as before)
     CHECKPOINT_FILE,
     FAILURE_LENGTH,
@@ -120,6 +126,7 @@ class ResultWriter:
             self.records = 0
             self.last_time = math.nan
         else:
+            _cut_to_header(self.path)
             self._ds = netCDF4.Dataset(self.path, "a")
             origin = provenance()
             by = made_by(origin.version, origin.commit)
@@ -292,6 +299,15 @@ class ResultWriter:
             ds.close()
         except (OSError, RuntimeError):
             _abandon(ds)
+
+
+def _cut_to_header(path: Path) -> None:
+    """Cut the bytes of ``path`` beyond those its header declares (:func:`declared_size`):
+    a resumed run wrote its records over them and kept the rest (a terabyte of zeros
+    appended to the file stayed after it)."""
+    declared = declared_size(path)
+    if declared is not None and path.stat().st_size > declared:
+        os.truncate(path, declared)
 
 
 def _finish(ds: netCDF4.Dataset, attrs: dict[str, Any]) -> None:

@@ -274,6 +274,14 @@ RUN_DIRECTORY = "the output directory of `multilayer run`"
 """What ``DIR`` of ``plot`` and ``export`` accepts (a study's directory too for ``plot``)."""
 
 
+def file_path(text: str) -> str:
+    """A YAML file argument, refused when empty: ``Path('')`` is the working directory, and
+    ``multilayer run "$UNSET"`` named it (``.: not a regular file``), not the empty path."""
+    if not text:
+        raise argparse.ArgumentTypeError("an empty path; accepted: the path of a YAML file")
+    return text
+
+
 def not_a_file(path: Path, accepted: str) -> Path:
     """``path``, the ``DIR`` of ``plot`` or ``export``, unless it is a file: a result file
     given for its directory is refused naming the directory holding it (its figures'
@@ -317,7 +325,7 @@ def add_set_argument(parser: argparse.ArgumentParser, help: str) -> None:
 def add_study_arguments(parser: argparse.ArgumentParser, kind: str) -> None:
     """``CONFIG``, ``-o DIR``, the cluster options and ``-q`` of an ensemble study (``kind``:
     calibration or sensitivity)."""
-    parser.add_argument("config", metavar="CONFIG", help=f"{kind} YAML file")
+    parser.add_argument("config", metavar="CONFIG", type=file_path, help=f"{kind} YAML file")
     add_output_argument(parser, "output.directory of the file, else results/<file name>")
     add_cluster_arguments(parser)
     add_resume_argument(parser)

@@ -16,7 +16,7 @@ from pathlib import Path
 
 from multilayer import scenario as scenarios
 from multilayer.app import expectations as expect
-from multilayer.app.commands import directory
+from multilayer.app.commands import directory, file_path
 from multilayer.errors import InputError, RunError, printable, to_stderr
 from multilayer.io.disk import writable_directory
 
@@ -25,7 +25,9 @@ HELP = "run scenario files and check their expect: lists (regression pins and re
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``multilayer check``."""
-    parser.add_argument("files", metavar="FILE", nargs="+", help="scenario YAML files with expect:")
+    parser.add_argument(
+        "files", metavar="FILE", nargs="+", type=file_path, help="scenario YAML files with expect:"
+    )
     parser.add_argument(
         "-o",
         "--output",

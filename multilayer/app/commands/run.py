@@ -11,7 +11,13 @@ import math
 from pathlib import Path
 
 from multilayer import scenario as scenarios
-from multilayer.app.commands import add_budget_arguments, add_output_argument, add_set_argument, budget
+from multilayer.app.commands import (
+    add_budget_arguments,
+    add_output_argument,
+    add_set_argument,
+    budget,
+    file_path,
+)
 from multilayer.errors import printable
 
 HELP = "run a scenario file and write DIR/result.nc"
@@ -19,7 +25,7 @@ HELP = "run a scenario file and write DIR/result.nc"
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``multilayer run``."""
-    parser.add_argument("scenario", metavar="SCENARIO", help="scenario YAML file")
+    parser.add_argument("scenario", metavar="SCENARIO", type=file_path, help="scenario YAML file")
     add_output_argument(parser, "output.directory, else results/<name>")
     add_set_argument(
         parser,

@@ -24,6 +24,7 @@ from multilayer.app.commands import (
     base_reads,
     check_results,
     cluster_description,
+    file_path,
     report_stop,
     require,
     study_directory,
@@ -34,7 +35,7 @@ HELP = "run a parameter sweep of a scenario on Dask (local or existing cluster)"
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``multilayer sweep``."""
-    parser.add_argument("sweep", metavar="SWEEP", help="sweep YAML file")
+    parser.add_argument("sweep", metavar="SWEEP", type=file_path, help="sweep YAML file")
     add_output_argument(parser, "output.directory of the sweep file, else results/<sweep file name>")
     add_cluster_arguments(parser)
     add_resume_argument(parser)

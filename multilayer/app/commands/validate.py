@@ -17,7 +17,7 @@ from pathlib import Path
 
 from multilayer import scenario as scenarios
 from multilayer.app import expectations, factory, resources
-from multilayer.app.commands import add_budget_arguments, add_set_argument, budget
+from multilayer.app.commands import add_budget_arguments, add_set_argument, budget, file_path
 from multilayer.errors import InputError, printable, to_stderr, warn
 from multilayer.scenario import Scenario
 
@@ -26,7 +26,9 @@ HELP = "check scenario, sweep and study files without running them"
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``multilayer validate``."""
-    parser.add_argument("files", metavar="FILE", nargs="+", help="scenario, sweep or study YAML files")
+    parser.add_argument(
+        "files", metavar="FILE", nargs="+", type=file_path, help="scenario, sweep or study YAML files"
+    )
     add_set_argument(parser, "override a key in every scenario file and every member of a sweep")
     add_budget_arguments(parser)
 
