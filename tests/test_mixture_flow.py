@@ -1472,3 +1472,37 @@ def test_a_column_beyond_the_densest_packing_stops_the_step_naming_it():
                 sim.step()
         else:
             sim.step()
+
+
+@pytest.mark.parametrize(
+    ("changes", "named"),
+    [
+        ({"mixture.dilatancy": 1e10}, "mixture.dilatancy = 1e+10"),
+        (
+            {
+                "fluid.compressibility": 1.0,
+                "domain.layers": 1,
+                "rheology": {"name": "dilatant_coulomb", "delta_deg": 25.0, "K1": 0.0},
+            },
+            "with the relaxation of fluid.compressibility = 1 1/Pa",
+        ),
+    ],
+    ids=["closure not converging", "compressibility 1"],
+)
+def test_a_local_step_that_fails_names_the_closures_keys(changes, named):
+    """A local step whose closure does not converge (a dilatancy constant of 1e10) said only
+    "the mixture's closure did not converge", and one whose Newton iteration under a
+    compressibility of 1 1/Pa (the dilatant law in one layer) did not converge named the
+    closure's constants without the compressibility: the message names the keys the Newton
+    steps scale with, as given."""
+    data = {
+        **TINY_SCENARIO,
+        "material": {"density": 1500.0, "grain_diameter": 1e-3, "particle_density": 2500.0},
+        "fluid": {"density": 1000.0, "viscosity": 1e-3},
+        "mixture": {"phi_critical": 0.58, "dilatancy": 4.0, "critical_shift": 25.0},
+        "initial": [{**TINY_SCENARIO["initial"][0], "phi": 0.58}],
+    }
+    sim = multilayer.Simulation(multilayer.load(data, changes))
+    with pytest.raises(RunError, match="did not converge") as failed:
+        sim.advance(0.2)
+    assert named in str(failed.value) and "mixture.kozeny = 150" in str(failed.value)
