@@ -3734,6 +3734,7 @@ def cases() -> list[Case]:
         + round_forty_two()
         + round_forty_three()
         + round_forty_four()
+        + round_forty_five()
         + round_forty_six()
     )
 
@@ -7987,6 +7988,350 @@ def round_forty_four() -> list[Case]:
     ]  # fmt: skip
 
 
+ONE_LAYER45 = {
+    **MIXTURE32,
+    "rheology": {"name": "dilatant_coulomb", "delta_deg": 25.0, "K1": 0.0},
+    "domain.layers": 1,
+}
+""":data:`MIXTURE32` in one layer under the dilatant law: the compiled Newton iteration of
+one-layer columns (in three layers the exchanges between them gather a packing beyond the
+densest at t = 0.17 s, a failure the run names)."""
+
+MIXTURE_SIM = (
+    "import numpy as np\nfrom multilayer.errors import RunError\n"
+    "sim = multilayer.Simulation(multilayer.load(sys.argv[2]))\nsaved = sim.state_dict()\n"
+)
+"""The start of a Python API case on a mixture: its simulation and its first state."""
+
+ON_STEP_THREAD = """
+import threading
+outcome = []
+def on_step(s, dt):
+    def other():
+        try:
+            outcome.append(CALL)
+        except InputError as exc:
+            outcome.append(exc)
+    worker = threading.Thread(target=other, daemon=True)
+    worker.start()
+    worker.join(30)
+    if worker.is_alive():
+        print('multilayer: the other thread waited for ever', file=sys.stderr)
+        os._exit(3)
+    if isinstance(outcome[-1], InputError):
+        raise outcome[-1]
+import os
+sim.advance(0.02, on_step=on_step)
+"""
+"""An ``on_step`` that starts a thread making ``CALL`` on the simulation and waits for it
+(exit 3 when the thread is still waiting after 30 s)."""
+
+FAILED_ONCE = """
+import numpy as np
+from multilayer.errors import RunError
+sim = multilayer.Simulation(multilayer.load(sys.argv[2]))
+try:
+    sim.advance(0.1)
+except RunError as exc:
+    failed = str(exc)
+else:
+    sys.exit('the law did not fail')
+kept = sim.state_dict()
+assert sim.t < 0.1 and all(np.isfinite(v).all() for v in kept.values() if isinstance(v, np.ndarray)), sim.t
+sim.advance(0.1)
+fresh = multilayer.Simulation(multilayer.load(sys.argv[2]))
+fresh.advance(0.1)
+same = all(np.array_equal(a, fresh.state_dict()[k]) for k, a in sim.state_dict().items())
+print(f'multilayer: failed once ({failed[:60]}), then on to 0.1 s: the uninterrupted run: {same}',
+      file=sys.stderr)
+sys.exit(0 if same else 1)
+"""
+"""A simulation whose law fails once (``fails[0]`` set by the patch) mid-run: the state is
+the last good one, and stepping on from it reaches the state of an uninterrupted run."""
+
+
+NEWTON_START = """
+sim.advance(0.02)
+saved = sim.state_dict()
+fresh = multilayer.Simulation(multilayer.load(sys.argv[2]))
+fresh.load_state(saved)
+saved['pore_pressure'][saved['pore_pressure'] != 0] = 1e12
+sim.load_state(saved)
+sim.advance(0.04)
+fresh.advance(0.04)
+gap = np.abs(sim.state_dict()['h'] - fresh.state_dict()['h']).max()
+assert gap < 1e-9, gap
+"""
+"""A one-layer mixture whose pore pressure (where not 0) is set to 1e12 Pa at 0.02 s, the
+start of the Newton iteration of the closure (no compressibility): at 0.04 s its
+thickness is that of the run from its own pore pressure."""
+
+
+def _mixture_law45(method: str, body: str, law: str = "DruckerPrager") -> str:
+    """:func:`_mixture_patch` of the built-in ``law`` (DruckerPrager or DilatantCoulomb, whose
+    compiled form is then not used) with ``calls[0]`` counting the calls and ``value`` the
+    real method's answer: ``body`` returns what the law returns."""
+    args = "self, p, mixture, m" if method == "mixture_yield_stress" else "self, g, p, mixture, m"
+    indented = "".join(f"    {line}\n" for line in body.splitlines())
+    return (
+        "from multilayer.plugins.builtins.dilatant_coulomb import DilatantCoulomb\n"
+        f"{law}.mixture_kernel = lambda self, material: None\n"
+        f"real = {law}.{method}\ndef fault({args}):\n    calls[0] += 1\n"
+        f"    value = real({args})\n{indented}{law}.{method} = fault\n"
+    )
+
+
+def _dry_run_then_mixture(directory: Path) -> None:
+    """A dry run of TINY to 0.1 s in ``out``; the scenario beside it a mixture."""
+    _scenario(directory, {"time.end": 0.1})
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "multilayer",
+            "run",
+            str(directory / "scenario.yaml"),
+            "-o",
+            str(directory / "out"),
+            "-q",
+        ],
+        check=True,
+        capture_output=True,
+    )
+    _scenario(directory, MIXTURE32)
+
+
+def _mixed45(base: dict, **changes: Any) -> Callable[[Path], Path]:
+    """The scenario ``base`` with ``changes`` (their dotted keys written with ``__``)."""
+    return partial(_scenario, changes={**base, **{k.replace("__", "."): v for k, v in changes.items()}})
+
+
+def round_forty_five() -> list[Case]:
+    """The hostile cases of the forty-fifth round (docs/reliability.md): the grain-fluid
+    mixture at the ends of its keys, in many layers, over an erodible bed and under laws
+    returning hostile values; mixtures' checkpoints, states and results damaged within
+    their bounds; the Python API used out of order (a step after a failure, states of
+    other scenarios, an ``on_step`` waiting for a thread that steps); the non-hydrostatic
+    pressure with odd inputs; option combinations of the command line; integers of more
+    digits than Python converts."""
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    resume = [*run, "--resume"]
+    validate = ["validate", "{scenario}"]
+    plot = ["plot", "{dir}/out"]
+    export = ["export", "{dir}/out"]
+    check = ["check", "{scenario}", "-o", "{dir}/checked"]
+    mixed = partial(_mixed45, MIXTURE32)
+    one = partial(_mixed45, ONE_LAYER45)
+    nh = {"model": {"pressure": "non_hydrostatic"}}
+    thread = lambda call: _api(MIXTURE_SIM + ON_STEP_THREAD.replace("CALL", call))  # noqa: E731
+    fails_once = lambda method, law: _mixture_law45(  # noqa: E731
+        method, "if calls[0] == 40:\n    raise RuntimeError('once')\nreturn value", law
+    )
+    return [
+        # the mixture at the ends of its keys
+        Case("control: run of a mixture packed at 0.74 (below the densest packing)", run, 0, "",
+             setup=mixed(initial__0__phi=0.74)),
+        Case("control: run of a mixture of phi 1e-6 (almost all fluid)", run, 0, "",
+             setup=mixed(initial__0__phi=1e-6)),
+        Case("control: run of grains of 1500.000001 kg/m^3 in a fluid of 1500", run, 0, "",
+             setup=mixed(material__particle_density=1500.000001, fluid__density=1500.0)),
+        Case("run: a mixture of dilatancy 1e10", run, 1, "mixture.dilatancy = 1e+10", keeps_output=True,
+             setup=mixed(mixture__dilatancy=1e10)),
+        Case("run: a mixture of critical_shift 1e10 in one layer", run, 0, "",
+             setup=one(mixture__critical_shift=1e10)),
+        Case("run: a mixture of kozeny 1e300", run, 2, "mixture.kozeny", setup=mixed(mixture__kozeny=1e300)),
+        Case("control: run of a mixture of grains 0.5 m across", run, 0, "",
+             setup=mixed(material__grain_diameter=0.5)),
+        Case("run: a mixture in a fluid of viscosity 1e5 Pa s under Drucker-Prager", run, 1,
+             "fluid.viscosity = 100000", keeps_output=True, setup=mixed(fluid__viscosity=1e5)),
+        Case("control: run of a mixture in a fluid of viscosity 1e5 Pa s, one layer, the dilatant law", run,
+             0, "", setup=one(fluid__viscosity=1e5)),
+        Case("control: run of a mixture of compressibility 1e-300", run, 0, "",
+             setup=mixed(fluid__compressibility=1e-300)),
+        Case("run: a mixture of compressibility 1 in one layer, the dilatant law", run, 1,
+             "fluid.compressibility = 1 1/Pa", keeps_output=True, setup=one(fluid__compressibility=1.0)),
+        Case("control: run of a mixture of compressibility 1, packed at 0.74, one layer", run, 0, "",
+             setup=mixed(domain__layers=1, fluid__compressibility=1.0, initial__0__phi=0.74)),
+        Case("control: run of a mixture in ten geometric layers", run, 0, "",
+             setup=mixed(domain__layers=10, domain__layer_fractions={"geometric": 1.5})),
+        Case("control: run of a mixture of two columns of other packings, one over the other", run, 0, "",
+             setup=mixed(initial=[{"shape": "rectangle", "x_min": 0.0, "x_max": 0.1, "height": 0.05,
+                                   "phi": 0.5},
+                                  {"shape": "rectangle", "x_min": 0.05, "x_max": 0.15, "height": 0.03,
+                                   "phi": 0.65}])),
+        Case("control: run of a mixture column over an erodible mixture bed", run, 0, "",
+             setup=mixed(initial=[{"shape": "layer", "thickness": 0.003, "phi": 0.6},
+                                  {"shape": "rectangle", "x_min": 0.0, "x_max": 0.1, "height": 0.05,
+                                   "phi": 0.55}])),
+        Case("control: run of a mixture moving uphill (slope -30 degrees, plug 1 m/s)", run, 0, "",
+             setup=mixed(slope_deg=-30.0, initial__0__velocity={"profile": "plug", "speed": 1.0})),
+        Case("control: run of a mixture of delta 89.9999 degrees (static)", run, 0, "",
+             setup=mixed(rheology={"name": "dilatant_coulomb", "delta_deg": 89.9999, "K1": 0.0})),
+        Case("run: a mixture of K1 1e300", run, 2, "K1 must be at most",
+             setup=mixed(rheology={"name": "dilatant_coulomb", "delta_deg": 25.0, "K1": 1e300})),
+        Case("validate: a mixture whose column is below numerics.dry_threshold", validate, 2,
+             "numerics.dry_threshold", setup=mixed(numerics={"dry_threshold": 0.1})),
+        Case("control: run of a mixture over a cliff 5e-17 m wide", run, 0, "",
+             setup=mixed(bed={"points": [[0, 0], [0.3, 0], [0.3 + 5.6e-17, -0.01], [0.5, -0.01]]})),
+        # mixture laws returning hostile values
+        Case("run: a mixture yield stress of inf mid-run", run, 1, "mixture_yield_stress() returned inf",
+             keeps_output=True, setup=mixed(),
+             patch=_mixture_law45("mixture_yield_stress", "return np.full(np.shape(value), np.inf) "
+                                  "if calls[0] > 40 else value")),
+        Case("run: a mixture viscosity of nan mid-run in one layer", run, 1,
+             "mixture_viscosity() returned nan",
+             keeps_output=True, setup=one(),
+             patch=_mixture_law45("mixture_viscosity", "return np.full(np.shape(value), np.nan) "
+                                  "if calls[0] > 40 else value", "DilatantCoulomb")),
+        Case("run: a mixture yield stress of the shape of phi over the columns", run, 1,
+             "mixture_yield_stress() returned an array of shape", setup=mixed(),
+             patch=_mixture_law45("mixture_yield_stress", "return np.asarray(mixture.phi).reshape(-1)[:5]")),
+        Case("run: a mixture law writing into phi", run, 1, "assignment destination is read-only",
+             setup=mixed(), patch=_mixture_law45("mixture_yield_stress",
+                                                 "np.asarray(mixture.phi)[...] = 0.9\nreturn value")),
+        Case("control: a mixture yield stress of 1e300 (static)", run, 0, "", setup=mixed(),
+             patch=_mixture_law45("mixture_yield_stress", "return np.full(np.shape(value), 1e300)")),
+        Case("run: a mixture viscosity of 1e300", run, 0, "", setup=one(),
+             patch=_mixture_law45("mixture_viscosity", "return np.full(np.shape(value), 1e300)")),
+        Case("run: a mixture yield stress negative where the pore pressure is above 0", run, 1,
+             "mixture_yield_stress() returned -", setup=mixed(initial__0__phi=0.5),
+             patch=_mixture_law45("mixture_yield_stress",
+                                  "return np.where(np.asarray(mixture.pore_pressure) > 0, -1.0, value)")),
+        Case("control: a mixture law returning lists", run, 0, "", setup=mixed(),
+             patch=_mixture_law45("mixture_yield_stress", "return np.asarray(value).tolist()")),
+        Case("control: a mixture law replacing its argument's phi by NaN after its answer", run, 0, "",
+             setup=mixed(),
+             patch=_mixture_law45("mixture_yield_stress", "object.__setattr__(mixture, 'phi', np.nan)\n"
+                                  "return value")),
+        # mixtures' checkpoints and states within their bounds but impossible
+        Case("run --resume: a mixture's checkpoint packed at 0.87 (solid 1.5 times its own)", resume, 2,
+             "beyond the densest packing of spheres, 0.7405; accepted: the solid of each column",
+             setup=_mixture_checkpoint("state.solid", lambda s: 1.5 * s)),
+        Case("run --resume: a mixture's checkpoint of pore_pressure nan", resume, 2, "pore_pressure",
+             setup=_mixture_checkpoint("state.pore_pressure", lambda p: np.full_like(p, np.nan))),
+        Case("run --resume: a mixture's checkpoint of pore_pressure 1e300, compressible", resume, 1,
+             "", setup=_mixture_checkpoint("state.pore_pressure", lambda p: np.full_like(p, 1e300),
+                                           {"fluid.compressibility": 1e-3})),
+        Case("run --resume: a mixture's checkpoint whose pore_pressure has a layer too few", resume, 2,
+             "pore_pressure", setup=_mixture_checkpoint("state.pore_pressure", lambda p: p[:-1])),
+        Case("run --resume: a dry run's checkpoint, the scenario now a mixture", resume, 2, "fluid",
+             setup=_dry_run_then_mixture),
+        Case("API: load_state of a mixture's state into a dry simulation", validate, 2, "solid",
+             patch=_api(MIXTURE_SIM + "dry = multilayer.Simulation(multilayer.load(sys.argv[2], "
+                        "{'fluid': None, 'mixture': None, 'initial.0.phi': None}))\ndry.load_state(saved)"),
+             setup=mixed()),
+        Case("API: load_state of a dry state into a mixture", validate, 2, "solid: missing",
+             patch=_api(MIXTURE_SIM + "dry = multilayer.Simulation(multilayer.load(sys.argv[2], "
+                        "{'fluid': None, 'mixture': None, 'initial.0.phi': None}))\n"
+                        "sim.load_state(dry.state_dict())"), setup=mixed()),
+        Case("API: load_state of a mixture of three layers into one of one", validate, 2, "shape",
+             patch=_api(MIXTURE_SIM + "one = multilayer.Simulation(multilayer.load(sys.argv[2], "
+                        "{'domain.layers': 1}))\none.load_state(saved)"), setup=mixed()),
+        Case("API: load_state of a mixture's solid as integers", validate, 2, "solid",
+             patch=_api(MIXTURE_SIM + "saved['solid'] = np.ones(saved['solid'].shape, int)\n"
+                        "sim.load_state(saved)"), setup=mixed()),
+        Case("control: API state_dict of a mixture changed in place does not change the simulation",
+             validate, 0, "",
+             patch=_api(MIXTURE_SIM + "sim.advance(0.02)\nmine = sim.state_dict()\n"
+                        "mine['solid'] *= 2\nmine['pore_pressure'][...] = 1e9\nsim.advance(0.04)\n"
+                        "fresh = multilayer.Simulation(multilayer.load(sys.argv[2]))\nfresh.advance(0.02)\n"
+                        "fresh.advance(0.04)\n"
+                        "assert all(np.array_equal(v, fresh.state_dict()[k]) for k, v in "
+                        "sim.state_dict().items())"), setup=mixed()),
+        Case("API: load_state of one column 1000 m deep into a one-layer mixture", validate, 0, "",
+             patch=_api(MIXTURE_SIM + "saved['h'][20] = 1000.0\nsaved['solid'][0, 20] = 580.0\n"
+                        "sim.load_state(saved)\ntry:\n    sim.advance(0.001)\nexcept RunError as exc:\n"
+                        "    print(f'multilayer: {exc}', file=sys.stderr)\n    sys.exit(1)"), setup=one()),
+        Case("API: load_state of a one-layer mixture's pore pressure of 1e12 (the Newton start)", validate,
+             0, "",
+             patch=_api(MIXTURE_SIM + NEWTON_START), setup=one()),
+        Case("API: a step after a failure of the mixture law (the state kept, then on)", validate, 0, "",
+             patch=fails_once("mixture_yield_stress", "DruckerPrager") + _api(FAILED_ONCE), setup=mixed()),
+        Case("API: a step after a failure of the mixture law in one layer", validate, 0, "",
+             patch=fails_once("mixture_viscosity", "DilatantCoulomb") + _api(FAILED_ONCE), setup=one()),
+        Case("API: load_state of a five-layer state into a three-layer one", validate, 2, "shape",
+             patch=_api(ON_STEP + "five = multilayer.Simulation(multilayer.load(sys.argv[2], "
+                        "{'domain.layers': 5}))\nsim.load_state(five.state_dict())"), setup=_scenario),
+        Case("API: load_state of a non-hydrostatic state into a hydrostatic one", validate, 2,
+             "newton_seed: not an entry of this simulation's state",
+             patch=_api(ON_STEP + "other = multilayer.Simulation(multilayer.load(sys.argv[2], "
+                        "{'model': {'pressure': 'non_hydrostatic'}}))\nother.advance(0.02)\n"
+                        "sim.load_state(other.state_dict())\nsim.advance(0.04)"), setup=_scenario),
+        Case("API: advance(max_steps=0)", validate, 2, "max_steps",
+             patch=_api(ON_STEP + "sim.advance(0.05, max_steps=0)"), setup=_scenario),
+        # threads and the on_step of advance
+        Case("API: on_step waiting for a thread that advances the simulation", validate, 2,
+             "from another thread while the on_step of advance runs",
+             patch=thread("s.advance(s.t + 0.01)"), setup=mixed()),
+        Case("API: on_step waiting for a thread that steps the simulation", validate, 2,
+             "from another thread while the on_step of advance runs",
+             patch=thread("s.step()"), setup=mixed()),
+        Case("API: on_step waiting for a thread that loads a state", validate, 2,
+             "from another thread while the on_step of advance runs",
+             patch=thread("s.load_state(saved)"), setup=mixed()),
+        Case("control: on_step waiting for a thread reading state_dict()", validate, 0, "",
+             patch=thread("s.state_dict()['t']"), setup=mixed()),
+        Case("control: two threads advancing one simulation take turns", validate, 0, "",
+             patch=_api(ON_STEP + "import threading\nworker = threading.Thread(target=sim.advance, "
+                        "args=(0.04,))\nworker.start()\nsim.advance(0.04)\nworker.join(60)\n"
+                        "assert not worker.is_alive() and sim.t == 0.04, sim.t"), setup=_scenario),
+        # results of mixtures damaged
+        Case("export --vtk: a mixture's phi nan in a wet cell", [*export, "--vtk"], 2,
+             "phi = nan is not in [0,",
+             setup=_mixture_result(lambda ds: ds["phi"].__setitem__((-1, _wet_cell(ds)), np.nan))),
+        Case("plot: a mixture's pore_pressure_excess inf", plot, 2, "pore_pressure_excess",
+             setup=_mixture_result(lambda ds: ds["pore_pressure_excess"].__setitem__(
+                 (-1, _wet_cell(ds)), np.inf))),
+        Case("plot: a mixture's phi and phi_layer 0.8 (above the densest packing)", plot, 2,
+             "phi = 0.8 is not in [0, 0.7405]",
+             setup=_mixture_result(lambda ds: (ds["phi"].__setitem__((-1, _wet_cell(ds)), 0.8),
+                                               ds["phi_layer"].__setitem__((-1, slice(None), _wet_cell(ds)),
+                                                                           0.8)))),
+        Case("export --vtk: a mixture's result without phi_layer", [*export, "--vtk"], 2, "phi_layer",
+             setup=_mixture_result(lambda ds: ds.renameVariable("phi_layer", "other"))),
+        Case("check: a mixture whose expect phi_mean_final is met", check, 0, "",
+             setup=mixed(expect=[{"kind": "regression", "quantity": "phi_mean_final", "value": 0.58,
+                                  "atol": 0.1}])),
+        # the non-hydrostatic pressure with odd inputs
+        Case("validate: non-hydrostatic, pressure_layers 5 of 3 layers", validate, 2, "model.pressure_layers",
+             setup=partial(_scenario, changes={"model": {**nh["model"], "pressure_layers": 5}})),
+        Case("control: run non-hydrostatic on one cell", run, 0, "",
+             setup=partial(_scenario, changes={**nh, "domain.cells": 1,
+                                               "initial.0": {"shape": "layer", "thickness": 0.05}})),
+        Case("control: run non-hydrostatic into a wall of bed 1e6 m high", run, 0, "",
+             setup=partial(_scenario, changes={**nh, "bed": {
+                 "points": [[0, 0], [0.25, 0], [0.26, 1e6], [0.5, 1e6]]}})),
+        Case("control: run non-hydrostatic behind a gate lifted at 1e-300 m/s", run, 0, "",
+             setup=partial(_scenario, changes={**nh, "gate": {"x": 0.1, "lift_speed": 1e-300}})),
+        Case("control: run non-hydrostatic on a slope of -89.9 degrees", run, 0, "",
+             setup=partial(_scenario, changes={**nh, "slope_deg": -89.9})),
+        # option combinations of the command line
+        Case("run --resume --force --max-steps 1 of a finished run", [*resume, "--force", "--max-steps", "1"],
+             0, "", setup=_finished_run),
+        Case("run: -o the scenario file itself", ["run", "{scenario}", "-o", "{scenario}", "-q"], 2,
+             "scenario.yaml", setup=_scenario),
+        Case("run: --set fluid of a dry scenario",
+             [*run, "--set", "fluid={{density: 1000, viscosity: 0.001}}"], 2,
+             "fluid is given without mixture", setup=_scenario),
+        Case("run: --set initial.0.phi of a dry scenario", [*run, "--set", "initial.0.phi=0.6"], 2,
+             "initial.0.phi", setup=_scenario),
+        Case("run: --max-steps 1 of a mixture", [*run, "--max-steps", "1"], 2, "--max-steps", setup=mixed()),
+        Case("run --resume: a mixture, --set fluid=null", [*resume, "--set", "fluid=null"], 2, "fluid",
+             setup=lambda d: _finished_mixture(d, end=0.1)),
+        # integers of more digits than Python converts
+        Case("validate: domain.cells of 5000 digits (what is accepted)", validate, 2,
+             "more than the 4300 an integer may have",
+             setup=_yaml44(lambda t: t.replace("cells: 40", "cells: " + "4" * 5000))),
+        Case("validate: --set domain.cells of 5000 digits (what is accepted)",
+             [*validate, "--set", "domain.cells=" + "7" * 5000], 2, "domain.cells", setup=_scenario),
+        Case("API: load of a mapping of domain.cells 10**5000", validate, 2, "domain.cells",
+             patch=_api("import yaml\ndata = yaml.safe_load(open(sys.argv[2]))\n"
+                        "data['domain']['cells'] = 10**5000\nmultilayer.load(data)"), setup=_scenario),
+        Case("API: Simulation.advance(10**5000)", validate, 2, "advance(t_target",
+             patch=_api(ON_STEP + "sim.advance(10**5000)"), setup=_scenario),
+    ]  # fmt: skip
+
+
 def _socket_at(name: str, scenario: bool = True) -> Callable[[Path], None]:
     """A UNIX socket bound at ``directory/name`` (the scenario beside it, ``scenario``)."""
 
@@ -8312,6 +8657,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     42: round_forty_two,
     43: round_forty_three,
     44: round_forty_four,
+    45: round_forty_five,
     46: round_forty_six,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""

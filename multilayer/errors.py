@@ -1,5 +1,6 @@
 """The failure classes of the command line (docs/cli.md, exit codes)."""
 
+import math
 import os
 import sys
 from typing import TextIO
@@ -106,8 +107,17 @@ def shortened(text: str) -> str:
 def shown(value: object) -> str:
     """``repr(value)`` :func:`shortened`, a numpy scalar written as the plain value it
     holds: an attribute of another tool's netCDF file is read as one, and a message said
-    ``units np.float64(5.0)`` where the file says 5.0."""
-    return shortened(repr(plain_scalar(value)))
+    ``units np.float64(5.0)`` where the file says 5.0.  An integer of more digits than
+    Python writes (``sys.get_int_max_str_digits``), or a value holding one, is described
+    (its ``repr`` raised ``ValueError`` in the message's place)."""
+    try:
+        return shortened(repr(plain_scalar(value)))
+    except ValueError:
+        if isinstance(value, int):
+            return f"an integer of about {math.ceil(value.bit_length() * math.log10(2))} digits"
+        return (
+            f"a {type(value).__name__} holding an integer of more than {sys.get_int_max_str_digits()} digits"
+        )
 
 
 def plain_scalar(value: object) -> object:

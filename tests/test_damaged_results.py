@@ -216,10 +216,17 @@ DAMAGES = {
     "empty": (lambda path: path.write_bytes(b""), "not a netCDF result file"),
 }
 MIXTURE_DAMAGES = {
-    "mixture: nan in phi": (_set("phi", (2, 3), np.nan), r"output time 2 .* phi = nan is not in \[0, 1\)"),
+    "mixture: nan in phi": (
+        _set("phi", (2, 3), np.nan),
+        r"output time 2 .* phi = nan is not in \[0, 0\.7405\]",
+    ),
     "mixture: phi 2": (
         _set("phi_layer", (1, 0, 2), 2.0),
-        r"output time 1 .* phi_layer = 2.0 is not in \[0, 1\)",
+        r"output time 1 .* phi_layer = 2.0 is not in \[0, 0\.7405\]",
+    ),
+    "mixture: phi and phi_layer 0.8 in a wet cell": (
+        lambda path: (_set("phi_layer", (2, slice(None), 1), 0.8)(path), _set("phi", (2, 1), 0.8)(path)),
+        r"output time 2 .* phi = 0.8 is not in \[0, 0\.7405\], the densest packing of spheres",
     ),
     "mixture: pore pressure inf": (
         _set("pore_pressure_excess", (3, 1), np.inf),
@@ -234,8 +241,9 @@ MIXTURE_DAMAGES = {
         r"output time 1 .* phi = 0.5 where h is 0 \(no mixture there: 0\) at x index 19",
     ),
 }
-"""Damages of a grain-fluid mixture's variables (the last two within ``[0, 1)``, read as the
-run's answer were they not checked against ``phi_layer`` and ``h``)."""
+"""Damages of a grain-fluid mixture's variables (a packing of 0.8, above the densest packing
+of spheres, in a layer and its mean, was drawn and exported; the last two are within the
+bound, read as the run's answer were they not checked against ``phi_layer`` and ``h``)."""
 
 
 @pytest.fixture(params=[*DAMAGES, *MIXTURE_DAMAGES])

@@ -574,7 +574,7 @@ def finished(tmp_path_factory):
         ),
         ("state.seed_window", lambda a: np.array([-5, 400]), "seed_window = [-5, 400], outside the columns"),
         ("state.steps", lambda a: np.array(-5), "steps = -5, where a number >= 0"),
-        ("state.bogus", lambda a: np.zeros(3), "bogus: an entry this version of multilayer does not write"),
+        ("state.bogus", lambda a: np.zeros(3), "bogus: not an entry of this simulation's state"),
         (
             "state.t",
             lambda a: np.array(np.nan),
@@ -3417,3 +3417,81 @@ def test_the_compile_notice_says_why_python_oo_compiles_again(monkeypatch):
     with compilation.compile_notice(logging.getLogger("test"), said.append):
         numba.njit(lambda x: x + 1)(1)
     assert said == [compilation.NOTICE + compilation.OPTIMIZED_NOTICE]
+
+
+@pytest.mark.parametrize(
+    "call",
+    [lambda s: s.advance(s.t + 0.01), lambda s: s.step(), lambda s: s.load_state(s.state_dict())],
+    ids=["advance", "step", "load_state"],
+)
+def test_an_on_step_waiting_for_a_thread_that_steps_is_refused_not_held(call):
+    """An ``on_step`` that started a thread stepping the simulation and waited for it held
+    both for ever (the thread waited for ``advance``'s lock, ``advance`` for its on_step):
+    the thread's call is refused naming it, and the simulation steps on afterwards.  The
+    thread is waited for 30 s at most, so the test cannot hang."""
+    sim = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
+    outcome: list[object] = []
+
+    def other() -> None:
+        try:
+            outcome.append(call(sim))
+        except InputError as exc:
+            outcome.append(exc)
+
+    def on_step(s, dt) -> None:
+        worker = threading.Thread(target=other, daemon=True)
+        worker.start()
+        worker.join(30)
+        assert not worker.is_alive(), "the other thread still waits"
+
+    sim.advance(0.02, on_step=on_step)
+    assert sim.t == 0.02 and outcome
+    assert all(isinstance(o, InputError) for o in outcome), outcome
+    assert "from another thread while the on_step of advance runs" in str(outcome[0])
+    sim.advance(0.04)
+    assert sim.t == 0.04
+
+
+def test_a_thread_reads_the_state_while_on_step_waits_for_it_and_waits_its_turn_otherwise():
+    """``state_dict()`` from a thread an ``on_step`` waits for reads the state between the
+    steps (it waited for ever for ``advance``'s lock), the state the on_step sees; a thread
+    stepping while the simulation steps, outside an on_step, waits its turn: two threads
+    advancing to 0.04 s end there, as one call does."""
+    sim = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
+    read: list[tuple[float, float]] = []
+
+    def on_step(s, dt) -> None:
+        worker = threading.Thread(target=lambda: read.append((s.state_dict()["t"], s.t)), daemon=True)
+        worker.start()
+        worker.join(30)
+        assert not worker.is_alive(), "the reading thread still waits"
+
+    sim.advance(0.02, on_step=on_step)
+    assert read and all(a == b for a, b in read) and read[-1][0] == 0.02
+    alone = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
+    alone.advance(0.04)
+    worker = threading.Thread(target=sim.advance, args=(0.04,), daemon=True)
+    worker.start()
+    sim.advance(0.04)
+    worker.join(60)
+    assert not worker.is_alive() and sim.t == 0.04 == alone.t
+
+
+def test_an_integer_of_more_digits_than_python_converts_says_what_is_accepted(tmp_path, cli, write_scenario):
+    """An integer of 5000 digits in a scenario passed on Python's advice to call
+    ``sys.set_int_max_str_digits()``, which no user of the command line can; the message
+    says how many digits an integer may have.  Given to the Python API (a mapping, a time),
+    the message quoting it was a ``ValueError`` traceback: it is described."""
+    path = write_scenario(TINY_SCENARIO)
+    path.write_text(path.read_text().replace("cells: 40", "cells: " + "4" * 5000))
+    result = cli("validate", path)
+    assert result.code == 2 and "Traceback" not in result.err
+    assert "(5000 digits, more than the 4300 an integer may have)" in result.err
+    assert "set_int_max_str_digits" not in result.err
+    data = copy.deepcopy(TINY_SCENARIO)
+    data["domain"]["cells"] = 10**5000
+    with pytest.raises(InputError, match=r"domain\.cells: .*got an integer of about 5001 digits"):
+        multilayer.load(data)
+    sim = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
+    with pytest.raises(InputError, match=r"advance\(t_target=an integer of about 5001 digits\)"):
+        sim.advance(10**5000)

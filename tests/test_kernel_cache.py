@@ -514,3 +514,25 @@ def test_the_digest_and_the_mark_are_readable_by_the_other_users_of_a_shared_cac
         [kernel_cache.STAMP, kernel_cache.COMPILED, kernel_cache.LOCK, "kernel.f-1.py311.nbi"]
     )
     assert kernel_cache.is_compiled(work())
+
+
+def test_the_compiled_mark_is_of_its_optimisation_level(tmp_path, monkeypatch):
+    """``PYTHONOPTIMIZE=2 multilayer compile`` found the mark of a compilation without
+    ``-OO`` and said the kernels cached, though numba keys the kernels that call others on
+    their callees' code, which ``-OO`` strips of docstrings (a run then compiled about
+    twenty again): the mark records the optimisation level, so a mark of one level is not
+    found current at another; the children of a compilation under ``-OO`` run under it."""
+    monkeypatch.setattr(kernel_cache, "cache_directories", lambda: [tmp_path])
+    _index(tmp_path / "kernel.f-1.py311.nbi")
+    child = (
+        "from multilayer.app import compilation, precompile\nfrom multilayer.engine import kernel_cache\n"
+        "print(repr((kernel_cache.compiled_text(precompile.work()), compilation.interpreter()[1:])))"
+    )
+    done = subprocess.run([sys.executable, "-OO", "-c", child], capture_output=True, text=True, check=True)
+    optimized, flags = eval(done.stdout)
+    assert flags == ["-OO"] and optimized != kernel_cache.compiled_text(work())
+    assert "optimize 2" in optimized and f"optimize {sys.flags.optimize}" in work()
+    kernel_cache.mark_compiled(optimized)
+    assert not kernel_cache.is_compiled(work())
+    kernel_cache.mark_compiled(kernel_cache.compiled_text(work()))
+    assert kernel_cache.is_compiled(work())

@@ -440,15 +440,17 @@ def test_a_local_step_that_fails_on_a_huge_closure_constant_names_the_constants(
 @pytest.mark.parametrize(
     ("key", "value", "code"),
     [("fluid.viscosity", 1e300, 2), ("mixture.dilatancy", 1e300, 2), ("mixture.critical_shift", 1e300, 2),
-     ("fluid.viscosity", 1e3, 0), ("mixture.dilatancy", 1e3, 0)],
+     ("mixture.kozeny", 1e300, 2), ("fluid.viscosity", 1e3, 0), ("mixture.dilatancy", 1e3, 0)],
 )  # fmt: skip
 def test_a_closure_that_overflows_on_the_initial_column_is_refused_at_validation(
     tmp_path, cli, write_scenario, key, value, code
 ):
-    """A fluid viscosity or a dilatancy constant of 1e300: the closure's quadratic bounded on
-    the initial column overflows, so ``validate`` and ``run`` refuse it in one message naming
-    the key and what is accepted (exit 2, no output directory); 1e3 validates (its run, stiff,
-    takes a minute: the battery's round 35 keeps its control of ``validate``)."""
+    """A fluid viscosity, a dilatancy constant or a Carman-Kozeny constant of 1e300: the
+    closure's quadratic bounded on the initial column overflows, so ``validate`` and ``run``
+    refuse it in one message naming the key (the Carman-Kozeny constant was blamed on
+    ``mixture.critical_shift``) and what is accepted (exit 2, no output directory); 1e3
+    validates (its run, stiff, takes a minute: the battery's round 35 keeps its control of
+    ``validate``)."""
     data = {
         **TINY_SCENARIO,
         "material": {"density": 1500.0, "grain_diameter": 1e-3, "particle_density": 2500.0},
@@ -465,7 +467,7 @@ def test_a_closure_that_overflows_on_the_initial_column_is_refused_at_validation
         assert result.code == code, result.err
         if code:
             assert f"{key}: the mixture's closure overflows on the initial column" in result.err
-            assert "accepted: fluid.viscosity, mixture.dilatancy and mixture.critical_shift" in result.err
+            assert "mixture.kozeny = " in result.err and "accepted: values of these keys" in result.err
             assert result.err.count("error") == 1 and "Traceback" not in result.err
     assert not (tmp_path / "out").exists()
 
@@ -1373,12 +1375,15 @@ def test_a_column_without_pores_stops_the_step_naming_the_transport():
     fluid's viscosity, the grain diameter and the closure constants (with a compressibility,
     a crash: numpy's "Singular matrix").  No exchange between its layers can give them pores
     (:func:`solid_transport._bound_packings` leaves it), so the step stops before the local
-    step, naming the transport, the layer and the column."""
+    step, naming the transport, the layer and the column.  ``load_state`` refuses such a
+    state (a column beyond the densest packing), so it is set in place."""
     entry = InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01, phi=0.58)
     sim = mixture_run([entry], slope=0.0, layers=3, cells=6, sides=("wall", "wall"))
     saved = sim.state_dict()
     saved["solid"][:, 0] = sim.mixture.fractions * sim.h[0]  # the first column: phi = 1
-    sim.load_state(saved)
+    with pytest.raises(InputError, match=r"in column 0, .* a packing of 1, beyond the densest packing"):
+        sim.load_state(saved)
+    sim.mixture._solid[:, 0] = saved["solid"][:, 0]
     with pytest.raises(
         RunError, match=r"transport of the solid .* left layer 1 .* packing of 1\.0, outside \[0, 1\)"
     ):
@@ -1442,13 +1447,23 @@ def test_a_column_beyond_the_densest_packing_stops_the_step_naming_it():
     """A column gathered beyond the densest packing of spheres (0.7405), which the exchanges
     between the layers of a column can do over many steps (docs/mixture.md, "Layers"):
     no packing of the grains is that dense, so the step stops before the local step, naming
-    the layer, the column and the densest packing; just below it the step runs."""
+    the layer, the column and the densest packing; just below it the step runs.  A state
+    to restore that dense is refused by ``load_state`` (a checkpoint's solid 1.5 times its
+    own was loaded and failed at its first step), so the gathered state is set in place."""
     entry = InitialEntry("rectangle", x_min=0.0, x_max=0.03, height=0.01, phi=0.58)
     for packing, stops in ((0.745, True), (0.735, False)):
         sim = mixture_run([entry], slope=0.0, layers=3, cells=6, sides=("wall", "wall"))
         saved = sim.state_dict()
         saved["solid"][:, 1] = packing * sim.mixture.fractions * sim.h[1]
-        sim.load_state(saved)
+        if stops:
+            with pytest.raises(
+                InputError,
+                match=r"in column 1, .* a packing of 0\.745, beyond the densest packing of spheres",
+            ):
+                sim.load_state(saved)
+            sim.mixture._solid[:, 1] = saved["solid"][:, 1]
+        else:
+            sim.load_state(saved)
         if stops:
             with pytest.raises(
                 RunError,
@@ -1457,3 +1472,37 @@ def test_a_column_beyond_the_densest_packing_stops_the_step_naming_it():
                 sim.step()
         else:
             sim.step()
+
+
+@pytest.mark.parametrize(
+    ("changes", "named"),
+    [
+        ({"mixture.dilatancy": 1e10}, "mixture.dilatancy = 1e+10"),
+        (
+            {
+                "fluid.compressibility": 1.0,
+                "domain.layers": 1,
+                "rheology": {"name": "dilatant_coulomb", "delta_deg": 25.0, "K1": 0.0},
+            },
+            "with the relaxation of fluid.compressibility = 1 1/Pa",
+        ),
+    ],
+    ids=["closure not converging", "compressibility 1"],
+)
+def test_a_local_step_that_fails_names_the_closures_keys(changes, named):
+    """A local step whose closure does not converge (a dilatancy constant of 1e10) said only
+    "the mixture's closure did not converge", and one whose Newton iteration under a
+    compressibility of 1 1/Pa (the dilatant law in one layer) did not converge named the
+    closure's constants without the compressibility: the message names the keys the Newton
+    steps scale with, as given."""
+    data = {
+        **TINY_SCENARIO,
+        "material": {"density": 1500.0, "grain_diameter": 1e-3, "particle_density": 2500.0},
+        "fluid": {"density": 1000.0, "viscosity": 1e-3},
+        "mixture": {"phi_critical": 0.58, "dilatancy": 4.0, "critical_shift": 25.0},
+        "initial": [{**TINY_SCENARIO["initial"][0], "phi": 0.58}],
+    }
+    sim = multilayer.Simulation(multilayer.load(data, changes))
+    with pytest.raises(RunError, match="did not converge") as failed:
+        sim.advance(0.2)
+    assert named in str(failed.value) and "mixture.kozeny = 150" in str(failed.value)

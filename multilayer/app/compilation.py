@@ -69,10 +69,11 @@ class _Compilations(numba_event.Listener):
 OPTIMIZED_NOTICE = (
     "; under python -OO (PYTHONOPTIMIZE=2) the kernels that call other kernels are compiled and "
     "cached apart from those of python without it: numba keys their cache on their callees' code, "
-    "whose docstrings -OO removes"
+    "whose docstrings -OO removes ('PYTHONOPTIMIZE=2 multilayer compile' caches them ahead)"
 )
 """Added to :data:`NOTICE` under ``-OO``: a run there compiles about twenty kernels again,
-once, though ``multilayer compile`` (without ``-OO``) said them cached."""
+once, though ``multilayer compile`` (without ``-OO``) said them cached; its mark is of its
+own optimisation level (app/precompile.py, ``work``)."""
 
 
 @contextmanager
@@ -99,6 +100,13 @@ def compile_notice(log: logging.Logger, say: Callable[[str], None] | None) -> It
         finally:
             if compilations.seconds is not None:
                 log.info("numba compiled kernels for %.1f s (cached for later runs)", compilations.seconds)
+
+
+def interpreter() -> list[str]:
+    """The command of a child Python of this process's optimisation level: a child of
+    ``python -OO`` started as ``python`` compiled, and cached, the kernels of another
+    level than the one its parent marked compiled and runs (app/precompile.py, ``work``)."""
+    return [sys.executable, *(["-" + "O" * sys.flags.optimize] if sys.flags.optimize else [])]
 
 
 SMALL = 16
@@ -179,7 +187,7 @@ def compile_ahead(scenario: Any) -> float | None:
         return None  # the run does not use the fused Newton kernel
     try:
         child = subprocess.Popen(
-            [sys.executable, "-m", "multilayer.app.precompile"],
+            [*interpreter(), "-m", "multilayer.app.precompile"],
             stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, text=True,
         )  # fmt: skip
     except OSError:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from functools import partial
 from types import MappingProxyType
 from typing import TYPE_CHECKING
 
@@ -100,8 +101,9 @@ def check_closure(scenario: Scenario, h: float, where: str) -> None:
     """A mixture's closure bounded on its initial column of thickness ``h`` (the thickest on
     the mesh), at each packing given (:func:`closure.discriminant_bound`): the effective
     pressure's quadratic at a shear rate of :data:`closure.SHEAR_RATE_SCALE` must stay below
-    :data:`closure.DISCRIMINANT_LIMIT`, or :class:`InputError` naming the keys: beyond it
-    the run's first steps overflow the closure."""
+    :data:`closure.DISCRIMINANT_LIMIT`, or :class:`InputError` naming the keys, first the
+    one to blame (:func:`_closure_culprit`): beyond it the run's first steps overflow the
+    closure."""
     from multilayer.engine.mixture import closure
 
     fluid, mix = scenario.fluid, scenario.mixture
@@ -110,23 +112,55 @@ def check_closure(scenario: Scenario, h: float, where: str) -> None:
     grains = scenario.material.particle_density or scenario.material.density
     g = scenario.gravity * math.cos(math.radians(scenario.slope_deg))
     phis = [e.phi for e in scenario.initial if e.phi is not None] + [mix.phi_critical]
-    eta, K, K2 = fluid.viscosity, mix.dilatancy, mix.critical_shift
-    for phi in phis:
-        beta = closure.drag(mix.kozeny, eta, scenario.material.grain_diameter, phi)
+    keys = {
+        "fluid.viscosity": fluid.viscosity,
+        "material.grain_diameter": scenario.material.grain_diameter,
+        "mixture.kozeny": mix.kozeny,
+        "mixture.dilatancy": mix.dilatancy,
+        "mixture.critical_shift": mix.critical_shift,
+    }
+
+    def bound(phi: float, values: dict[str, float]) -> float:
+        eta, d, kozeny, K, K2 = values.values()
+        beta = closure.drag(kozeny, eta, d, phi)
         weight = (grains - fluid.density) * g * phi * h
-        bound = closure.discriminant_bound(beta, h, phi, weight, K, K2, eta)
-        if not bound <= closure.DISCRIMINANT_LIMIT:
-            keys = {"fluid.viscosity": eta, "mixture.dilatancy": K, "mixture.critical_shift": K2}
-            culprit = max(keys, key=lambda k: keys[k])
+        return closure.discriminant_bound(beta, h, phi, weight, K, K2, eta)
+
+    for phi in phis:
+        value = bound(phi, keys)
+        if not value <= closure.DISCRIMINANT_LIMIT:
+            culprit = _closure_culprit(keys, partial(bound, phi))
+            given = ", ".join(f"{key} = {number:g}" for key, number in keys.items())
             raise InputError(
                 f"{where}: {culprit}: the mixture's closure overflows on the initial column ({h:.3g} m "
-                f"thick, phi = {phi:g}): with fluid.viscosity = {eta:g} Pa s, mixture.dilatancy = {K:g} and "
-                f"mixture.critical_shift = {K2:g}, its effective pressure's quadratic a^2 + 4 c at a shear "
-                f"rate of {closure.SHEAR_RATE_SCALE:g} 1/s is {bound:.3g}; accepted: fluid.viscosity, "
-                "mixture.dilatancy and mixture.critical_shift whose a^2 + 4 c stays below "
-                f"{closure.DISCRIMINANT_LIMIT:g} (a = P + B gamma K, c = B K K2 eta_f gamma^2, B the Darcy "
-                "coefficient, docs/mixture.md)"
+                f"thick, phi = {phi:g}): with {given}, its effective pressure's quadratic a^2 + 4 c at a "
+                f"shear rate of {closure.SHEAR_RATE_SCALE:g} 1/s is {value:.3g}; accepted: values of these "
+                f"keys whose a^2 + 4 c stays below {closure.DISCRIMINANT_LIMIT:g} (a = P + B gamma K, c = B "
+                "K K2 eta_f gamma^2, B the Darcy coefficient, docs/mixture.md)"
             )
+
+
+def closure_reference() -> dict[str, float]:
+    """The closure's keys in the experiments of Pailha, Nicolas & Pouliquen (2008) and Pailha
+    & Pouliquen (2009), and the Carman-Kozeny constant 150: what :func:`_closure_culprit`
+    puts one key back to."""
+    from multilayer.reference import immersed_layer as pailha  # its scipy is not validate's
+
+    return {
+        "fluid.viscosity": pailha.PAILHA_2008_FLUIDS["viscous"]["eta_f"],
+        "material.grain_diameter": pailha.PAILHA_2008_GRAINS["d"],
+        "mixture.kozeny": 150.0,
+        "mixture.dilatancy": pailha.PAILHA_POULIQUEN_2009_K,
+        "mixture.critical_shift": pailha.PAILHA_2008_GRAINS["K2"],
+    }
+
+
+def _closure_culprit(keys: dict[str, float], bound: Callable[[dict[str, float]], float]) -> str:
+    """The key of ``keys`` whose value, put back to :func:`closure_reference`'s, lowers
+    ``bound`` the most: the largest value named another key than the one that overflowed
+    the closure (``mixture.kozeny`` 1e300 was blamed on ``mixture.critical_shift``)."""
+    reference = closure_reference()
+    return min(keys, key=lambda key: bound({**keys, key: reference[key]}))
 
 
 def check_start(scenario: Scenario, where: str) -> None:

@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from multilayer.app.compilation import interpreter
 from multilayer.engine import kernel_cache
 from multilayer.engine.threads import available_cores
 
@@ -205,11 +206,15 @@ NOT_CACHED = (
 
 def work() -> str:
     """What the mark of the compilation says was compiled: the SHA-256 of this module,
-    whose :data:`TASKS` say which kernels (a task list changed since compiles again)."""
+    whose :data:`TASKS` say which kernels (a task list changed since compiles again), and
+    Python's optimisation level (``-O``, ``-OO``: numba keys a kernel's cache entry on
+    its bytecode and its callees', which ``-O`` strips of asserts and ``-OO`` of
+    docstrings, so the kernels of one level are not those of another)."""
     try:
-        return hashlib.sha256(Path(__file__).read_bytes()).hexdigest()
+        module = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()
     except OSError:  # the module's file is gone: no mark is found current
         return "none"
+    return f"{module} optimize {sys.flags.optimize}"
 
 
 @dataclass
@@ -268,7 +273,7 @@ def _compile(processes: int | None) -> Report:
     report = Report(processes=processes)
     children = [
         subprocess.Popen(
-            [sys.executable, "-m", __name__],
+            [*interpreter(), "-m", __name__],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             stderr=subprocess.DEVNULL,

@@ -38,7 +38,9 @@ class Simulation(simulation.Simulation):
             scenario = validated_again(scenario)
         numba_environment.check()
         self._one_at_a_time = threading.RLock()
-        self._in_on_step = False  # advance's on_step is running: it may not step
+        self._on_step_thread: int | None = None  # the thread running advance's on_step
+        self._on_step_readers = threading.Condition()  # other threads reading the state meanwhile
+        self._readers = 0
         self.scenario = scenario
         bulk, walls = factory.laws(scenario)
         self._laws = [law for law in (bulk, walls) if law is not None]
@@ -60,40 +62,63 @@ class Simulation(simulation.Simulation):
         """The engine's :meth:`~multilayer.engine.simulation.Simulation.advance`, its target
         read as :func:`_time` reads it, one thread at a time (:meth:`step`)."""
         target = _time(t_target, "advance(t_target")
+        self._not_in_on_step(f"advance(t_target={t_target!r})")
         with self._one_at_a_time:
             super().advance(target, self._reading(on_step), max_steps=max_steps)
 
     def _reading(self, on_step: Any) -> Any:
         """``on_step`` run with :meth:`step` refused (a function; anything else is left to
-        the engine's check): an ``on_step`` that stepped took ``advance`` past its target."""
+        the engine's check): an ``on_step`` that stepped took ``advance`` past its target.
+        It returns once the other threads reading the state meanwhile
+        (:meth:`state_dict`) have their copy."""
         if not callable(on_step):
             return on_step
 
         def reading(sim: Any, dt: float) -> None:
-            self._in_on_step = True
+            with self._on_step_readers:
+                self._on_step_thread = threading.get_ident()
             try:
                 on_step(sim, dt)
             finally:
-                self._in_on_step = False
+                with self._on_step_readers:
+                    self._on_step_readers.wait_for(lambda: not self._readers)
+                    self._on_step_thread = None
 
         return reading
+
+    def _not_in_on_step(self, call: str) -> None:
+        """:class:`InputError` naming ``call`` (a step, an ``advance`` or a ``load_state``)
+        made while advance's on_step runs: from the on_step itself it stepped past the
+        time advance stops at; from another thread it waited for ever for advance to
+        release the simulation where the on_step waited for that thread (a thread it
+        started and joined).  Outside an on_step, other threads wait their turn."""
+        thread = self._on_step_thread
+        if thread is None:
+            return
+        if thread == threading.get_ident():
+            raise InputError(
+                f"{call} from the on_step of advance: it stepped the simulation advance steps, past the "
+                "time advance stops at; accepted: an on_step that reads the simulation (sim.t, "
+                "sim.state_dict()) and steps after advance returns"
+            )
+        raise InputError(
+            f"{call} from another thread while the on_step of advance runs: advance holds the "
+            "simulation until its on_step returns, which may be waiting for this thread; accepted: "
+            "state_dict() from any thread, steps and load_state once advance returns"
+        )
 
     def step(self, t_max: float = np.inf) -> float:
         """The engine's :meth:`~multilayer.engine.simulation.Simulation.step`, its bound read
         as :func:`_time` reads it.  Calls from several threads on one simulation take turns
         (with ``advance`` and ``load_state``): two threads stepping it at once interleaved
         the stages of their steps, and ``advance(0.2)`` from two threads ended past 0.2 s
-        with another state than one call, silently.  What a step changed of
+        with another state than one call, silently; a step while advance's on_step runs is
+        refused (:meth:`_not_in_on_step`).  What a step changed of
         :func:`~multilayer.plugins.host.host_state` (a plugin's doing) is set back and
         named, a :class:`~multilayer.engine.plugin_output.PluginOutputError` after the
         step is kept."""
         bound = _time(t_max, "step(t_max")
-        if self._in_on_step:
-            raise InputError(
-                f"step(t_max={t_max!r}) from the on_step of advance: it stepped the simulation advance "
-                "steps, past the time advance stops at; accepted: an on_step that reads the simulation "
-                "(sim.t, sim.state_dict()) and steps after advance returns"
-            )
+        self._not_in_on_step(f"step(t_max={t_max!r})")
         with self._one_at_a_time:
             host = host_state()
             try:
@@ -129,17 +154,33 @@ class Simulation(simulation.Simulation):
     def state_dict(self) -> dict:
         """The engine's :meth:`~multilayer.engine.simulation.Simulation.state_dict`, not
         during another thread's step: read while a step is kept, it held the forces of the
-        step with the time and state before it, a checkpoint that no run reaches."""
-        with self._one_at_a_time:
+        step with the time and state before it, a checkpoint that no run reaches.  From
+        another thread while advance's on_step runs, the state between its steps, read
+        without waiting (the on_step may be waiting for this thread), and advance goes on
+        once it is read."""
+        with self._on_step_readers:
+            between = self._on_step_thread not in (None, threading.get_ident())
+            self._readers += between
+        if not between:
+            with self._one_at_a_time:
+                return super().state_dict()
+        try:
             return super().state_dict()
+        finally:
+            with self._on_step_readers:
+                self._readers -= 1
+                self._on_step_readers.notify_all()
 
     def load_state(self, saved: dict) -> None:
         """The engine's :meth:`~multilayer.engine.simulation.Simulation.load_state`, not
-        during another thread's step; :class:`InputError` for what is no mapping."""
+        during another thread's step; :class:`InputError` for what is no mapping, and from
+        another thread while advance's on_step runs (:meth:`_not_in_on_step`)."""
         if not isinstance(saved, Mapping):
             raise InputError(
                 f"load_state(saved={shown(saved)}): accepted: a mapping as state_dict() gives it"
             )
+        if self._on_step_thread != threading.get_ident():
+            self._not_in_on_step("load_state(saved)")
         with self._one_at_a_time:
             super().load_state(saved)
 

@@ -335,7 +335,11 @@ def check_restored(saved: Mapping[str, Any], fresh: Mapping[str, Any]) -> None:
         raise InputError(f"{missing}: missing; accepted: what state_dict() gives ({', '.join(fresh)})")
     for key, value in saved.items():
         if key not in fresh:
-            raise InputError(f"{key}: an entry this version of multilayer does not write")
+            raise InputError(
+                f"{key}: not an entry of this simulation's state (one of another scenario's, such as a "
+                f"non-hydrostatic pressure's or a mixture's, or of another version of multilayer); "
+                f"accepted: what state_dict() gives ({', '.join(fresh)})"
+            )
         if masked := masked_values(value):
             raise InputError(
                 f"{key}: a masked array of {masked} masked value(s) (a netCDF file's fill values, read by "

@@ -47,6 +47,7 @@ import yaml
 from multilayer.engine import diagnostics
 from multilayer.engine.initial_state import bed_profile
 from multilayer.engine.mesh import cell_centres
+from multilayer.engine.mixture.closure import DENSEST_PACKING
 from multilayer.errors import InputError, reason
 from multilayer.io.netcdf_layout import LayoutError, read_layout
 from multilayer.io.result_format import (
@@ -461,7 +462,8 @@ def _check_records(ds: netCDF4.Dataset, count: int, scenario: dict, bad) -> None
 
 def _check_mixture(ds: netCDF4.Dataset, count: int, step: int, fractions: np.ndarray, bad) -> None:
     """The mixture's records (``result_format.MIXTURE_VARIABLES``), ``step`` at a time: the
-    solid volume fractions in ``[0, 1)`` and 0 where there is no mixture (``h == 0``), the
+    solid volume fractions in ``[0, DENSEST_PACKING]`` (the run's bound; a packing of 0.8
+    in a layer and its mean was drawn and exported) and 0 where there is no mixture (``h == 0``), the
     depth-averaged ``phi`` the mean of ``phi_layer`` weighted by the layer ``fractions`` (L,)
     to round-off, the excess pore pressure finite and, with ``pore_pressure_layer``, its
     first layer ``pore_pressure_excess`` (the writer writes each pair from one state: a
@@ -479,12 +481,16 @@ def _check_mixture(ds: netCDF4.Dataset, count: int, step: int, fractions: np.nda
             values[name] = np.asarray(ds[name][rows], dtype=float)
             flat = values[name].reshape(values[name].shape[0], -1)
             pressure = name.startswith("pore_pressure")
-            ok = np.isfinite(flat) if pressure else (flat >= 0.0) & (flat < 1.0)
+            ok = (
+                np.isfinite(flat) if pressure else (flat >= 0.0) & (flat <= DENSEST_PACKING * (1 + ROUND_OFF))
+            )
             broken = np.flatnonzero(~ok.all(axis=1))
             if broken.size:
                 j = int(broken[0])
                 value = float(flat[j][~ok[j]][0])
-                accepted = "finite" if pressure else "in [0, 1)"
+                accepted = (
+                    "finite" if pressure else f"in [0, {DENSEST_PACKING:.4f}], the densest packing of spheres"
+                )
                 raise _record_error(bad, start + j, float(t[j]), f"{name} = {value!r} is not {accepted}")
         dry = np.asarray(ds["h"][rows, :], dtype=float) == 0.0
         phi, layered = values["phi"], values["phi_layer"]

@@ -11,6 +11,7 @@ messages of :mod:`multilayer.scenario.messages` quote.
 from __future__ import annotations
 
 import re
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -73,10 +74,16 @@ class Loader(SafeLoader):
 
 
 def _integer(loader: yaml.SafeLoader, node: yaml.ScalarNode) -> int:
-    """An integer of the YAML 1.2 core schema: decimal, ``0o`` octal or ``0x`` hexadecimal."""
+    """An integer of the YAML 1.2 core schema: decimal, ``0o`` octal or ``0x`` hexadecimal.
+    A decimal one of more digits than Python converts (``sys.get_int_max_str_digits``,
+    4300) is refused saying so (:class:`SafeLoader`): Python's own ``ValueError`` advised a
+    call of ``sys.set_int_max_str_digits()``, which no user of the command line can make."""
     text = str(loader.construct_scalar(node))
     sign, digits = (-1, text[1:]) if text[0] == "-" else (1, text.lstrip("+"))
     base = {"0o": 8, "0x": 16}.get(digits[:2], 10)
+    limit = sys.get_int_max_str_digits()
+    if base == 10 and limit and len(digits.lstrip("0")) > limit:
+        raise ValueError(f"{len(digits.lstrip('0'))} digits, more than the {limit} an integer may have")
     return sign * int(digits[2:] if base != 10 else digits, base)
 
 

@@ -24,6 +24,7 @@ import numpy as np
 
 from multilayer.engine.config import MixtureConfig
 from multilayer.engine.mixture import solid_transport
+from multilayer.engine.mixture.closure import DENSEST_PACKING
 from multilayer.engine.mixture.local_step import LocalStep
 from multilayer.engine.state import FlowState
 from multilayer.engine.state_check import StateGuard
@@ -102,7 +103,10 @@ class MixtureFlow:
     def check_restored(self, saved: dict) -> None:
         """:class:`InputError` unless a state to restore (checked by ``check_restored`` of
         state_check.py: shapes, finite numbers, ``h >= 0``) holds the mixture's ``solid`` and
-        ``pore_pressure``, the solid of each layer within ``[0, l_a h]`` and of each column
+        ``pore_pressure``, the solid of each layer within ``[0, l_a h]``, that of each column
+        within its densest packing (``DENSEST_PACKING h``: a column packed beyond it, as a
+        checkpoint's solid 1.5 times its own, stopped the first step; a layer beyond it in a
+        column within it is moved to the others by the transport) and that of each column
         thicker than :attr:`dry` (the columns the local step solves) above 0: a state
         without them restored a solid of 0 (a packing of 0 in every wet column, the closure
         then blamed) or a pore pressure of 0 (the Newton iteration started elsewhere, the
@@ -124,6 +128,15 @@ class MixtureFlow:
                 f"solid holds {float(solid[a, i])!r} m at layer {a + 1}, column {i}, outside [0, "
                 f"{float(room[a, i])!r}] m (the layer's thickness); accepted: the solid volume of each layer "
                 "within its thickness"
+            )
+        dense = solid.sum(axis=0) > DENSEST_PACKING * h * (1.0 + 1e-12)  # the run's bound (solid_transport)
+        if dense.any():
+            i = int(np.argmax(dense))
+            column = float(solid[:, i].sum())
+            raise InputError(
+                f"solid holds {column!r} m in column {i}, {float(h[i])!r} m thick: a packing of "
+                f"{column / h[i]:.6g}, beyond the densest packing of spheres, {DENSEST_PACKING:.4f}; "
+                "accepted: the solid of each column within that of its densest packing"
             )
         dry = self.dry
         empty = (solid.sum(axis=0) <= 0.0) & (h > dry)

@@ -413,15 +413,19 @@ class LocalStep:
                 "between the layers of a column (an explicit exchange that large overshoots: its "
                 f"packings could leave (0, 1)) {place}"
             )
-        if diverged and closure_error is not None:
-            return RunError(f"{closure_error} {place}")
         cfg = self.config  # the Newton steps scale with the closure's coefficients: name them as given
         coefficients = (
             "its Newton steps scale with the closure's coefficients: the Darcy drag kozeny eta_f phi^2 / "
             f"(d^2 (1 - phi)) of fluid.viscosity = {cfg.fluid_viscosity:g}, material.grain_diameter = "
             f"{self.material.grain_diameter:g} and mixture.kozeny = {cfg.kozeny:g}, and "
             f"mixture.dilatancy = {cfg.dilatancy:g} and mixture.critical_shift = {cfg.critical_shift:g}"
+        ) + (
+            f", with the relaxation of fluid.compressibility = {self.compressibility:g} 1/Pa"
+            if self.compressibility is not None
+            else ""
         )
+        if diverged and closure_error is not None:
+            return RunError(f"{closure_error} ({coefficients}) {place}")
         if diverged:
             return RunError(
                 "the mixture's local step diverged: a trial excess pore pressure is not finite "
