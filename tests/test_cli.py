@@ -496,3 +496,13 @@ def test_a_closed_stderr_shows_no_study_progress(monkeypatch):
     report = _Report("a local Dask cluster", quiet=False)
     assert not report.live
     report.progress(1, 2)  # writes nothing, raises nothing
+
+
+@pytest.mark.parametrize("command", ["run", "validate", "check", "sweep", "calibrate", "sensitivity"])
+def test_an_empty_file_path_is_named_as_empty(command, cli):
+    """An empty path as a command's file is refused as such, not read as the working
+    directory (`Path('')` is `.`)."""
+    result = cli(command, "")
+    assert result.code == 2 and "Traceback" not in result.err
+    assert "an empty path; accepted: the path of a YAML file" in result.err
+    assert ".: not a regular file" not in result.err

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import shutil
 from pathlib import Path
 
 import fipy
@@ -17,6 +19,8 @@ from multilayer import scenario as scenarios
 from multilayer.app import runner
 from multilayer.app.simulation import Simulation
 from multilayer.errors import InputError
+from multilayer.io.netcdf_layout import declared_size
+from multilayer.io.plotting import drawn_from
 from multilayer.io.result_check import check_result
 from multilayer.io.results import (
     Checkpoint,
@@ -251,3 +255,32 @@ def test_an_attribute_s_text_holds_no_lone_surrogate() -> None:
     replaced = results._text("bad \ud800 text")
     assert replaced.startswith("bad \ufffd") and replaced.endswith(" text")
     replaced.encode("utf-8")
+
+
+@pytest.fixture(scope="module")
+def finished_tiny(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    directory = tmp_path_factory.mktemp("finished")
+    (directory / "tiny.yaml").write_text(yaml.safe_dump(TINY_SCENARIO), encoding="utf-8")
+    runner.run(scenarios.load(directory / "tiny.yaml"), directory / "out", quiet=True)
+    return directory
+
+
+def test_a_result_followed_by_a_terabyte_of_zeros_is_drawn_from_its_declared_bytes_and_resume_cuts_them(
+    finished_tiny, tmp_path, cli
+):
+    """A `result.nc` followed by bytes its header does not declare (a terabyte of zeros in a
+    sparse file) is read as netCDF-C reads it: its figures' digest is that of the declared
+    bytes, and `--resume` cuts the rest before it appends its records."""
+    shutil.copytree(finished_tiny, tmp_path, dirs_exist_ok=True)
+    result = tmp_path / "out" / "result.nc"
+    declared, source = declared_size(result), drawn_from(result)
+    assert declared is not None and declared <= result.stat().st_size
+    os.truncate(result, 2**40)  # sparse: `plot` hashed the terabyte for hours
+    assert drawn_from(result) == source  # the bytes netCDF-C reads, and nothing after them
+    assert check_result(result) == result  # the records are whole: the file is read as it is
+    longer = {**TINY_SCENARIO, "time": {"end": 0.1, "output_interval": 0.025}}
+    path = tmp_path / "tiny.yaml"
+    path.write_text(yaml.safe_dump(longer), encoding="utf-8")
+    assert cli("run", path, "-o", tmp_path / "out", "-q", "--resume").code == 0
+    assert result.stat().st_size < 2**20  # the zeros cut before the records were appended
+    assert check_result(result) == result and open_result(tmp_path / "out").sizes["time"] == 5

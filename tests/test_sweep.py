@@ -18,6 +18,7 @@ import sys
 import time
 from pathlib import Path
 
+import dask
 import pytest
 import yaml
 
@@ -627,3 +628,25 @@ def test_a_studys_warm_up_runs_no_third_party_law_in_the_studys_process(monkeypa
     monkeypatch.setattr(host, "is_builtin", lambda name: name != "drucker_prager")  # as a third party's
     sweep.compile_kernels(member)
     assert stepped == ["drucker_prager"]
+
+
+def test_a_missing_dask_temporary_directory_is_named(tmp_path):
+    """A Dask temporary directory that cannot be made is named with its variable."""
+    with dask.config.set({"temporary-directory": str(tmp_path / "nothing")}):
+        with pytest.raises(
+            InputError, match="Dask's temporary-directory .*nothing .*DASK_TEMPORARY_DIRECTORY"
+        ):
+            with sweep.dask_client(None, 1):
+                pass
+
+
+def test_a_dask_setting_the_cluster_cannot_read_is_an_input_error_naming_the_variables(monkeypatch):
+    """A Dask setting the local cluster cannot read is an input error naming the `DASK_*`
+    variables set, not a `KeyError` traceback."""
+    monkeypatch.setenv("DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT", "abc")
+    with dask.config.set({"distributed.comm.timeouts.connect": "abc"}):
+        with pytest.raises(
+            InputError, match="could not read its settings .*set in the environment: DASK_DISTRIBUTED__COMM"
+        ):
+            with sweep.dask_client(None, 1):
+                pass
