@@ -121,9 +121,10 @@ def check_closure(scenario: Scenario, h: float, where: str) -> None:
     }
 
     def bound(phi: float, values: dict[str, float]) -> float:
-        eta, d, kozeny, K, K2 = values.values()
-        beta = closure.drag(kozeny, eta, d, phi)
+        eta = values["fluid.viscosity"]
+        beta = closure.drag(values["mixture.kozeny"], eta, values["material.grain_diameter"], phi)
         weight = (grains - fluid.density) * g * phi * h
+        K, K2 = values["mixture.dilatancy"], values["mixture.critical_shift"]
         return closure.discriminant_bound(beta, h, phi, weight, K, K2, eta)
 
     for phi in phis:
