@@ -3736,6 +3736,7 @@ def cases() -> list[Case]:
         + round_forty_four()
         + round_forty_five()
         + round_forty_six()
+        + round_forty_seven()
     )
 
 
@@ -8612,6 +8613,241 @@ def round_forty_six() -> list[Case]:
     ]  # fmt: skip
 
 
+PHYSICS47 = """
+_command = main
+
+
+def main(argv):
+    code = _command(argv)
+    if code:
+        return code
+    import os
+    import netCDF4
+    from multilayer.io.result_check import check_result
+    checks = os.environ['PHYSICS'].split(',')
+    file = check_result(argv[argv.index('-o') + 1])
+    with netCDF4.Dataset(file) as ds:
+        h, u = np.asarray(ds['h'][:]), np.asarray(ds['u'][:])
+        dx = np.diff(np.asarray(ds['x_bnds'][:]), axis=1)[:, 0]
+        steps = int(ds.getncattr('steps'))
+        solid = np.asarray(ds['phi'][:]) if 'phi' in ds.variables else np.ones_like(h)
+    said = []
+    if not (np.isfinite(h).all() and np.isfinite(u).all()):
+        said.append('non-finite h or u')
+    if not (h >= 0).all():
+        said.append(f'h < 0 ({h.min():.3g} m)')
+    if 'closed' in checks:  # closed or periodic sides: the volume (of the grains) is conserved
+        volume = (solid * h) @ dx
+        drift = abs(volume[-1] - volume[0]) / volume[0]
+        if not drift <= 8 * np.finfo(float).eps * (steps + 1):  # a rounding of each cell and flux per step
+            said.append(f'the volume changed by {drift:.3g} of itself in {steps} steps')
+    if 'rest' in checks and np.abs(u).max() != 0:
+        said.append(f'a column under its yield moved (max |u| = {np.abs(u).max():.3g} m/s)')
+    summary = '; '.join(said) or f'checked {checks} over {steps} steps'
+    print('multilayer: physics: ' + summary, file=sys.stderr)
+    return 1 if said else 0
+"""
+"""The command (a ``run``), then the physics of its result (``PHYSICS``, a comma-separated
+list): finite ``h`` and ``u`` and ``h >= 0`` always; ``closed``: the volume (``phi h`` in a
+mixture) conserved to its round-off, ``8 eps`` per step (a rounding of every cell and
+flux, relative to the volume); ``rest``: every velocity exactly 0 at every output; and the
+result file read back by the result check."""
+
+LAYER47 = {
+    "initial": [{"shape": "layer", "thickness": 0.01}],
+    "boundaries": {"left": "periodic", "right": "periodic"},
+    "slope_deg": 10.0,
+}
+"""A uniform 1 cm layer on a periodic 10 degree slope (below TINY's friction angle, 16.7
+degrees): under its yield everywhere, at rest for ever."""
+WALLS47 = {"boundaries": {"left": "wall", "right": "wall"}}
+"""TINY between two walls: closed."""
+PERIODIC47 = {"boundaries": {"left": "periodic", "right": "periodic"}}
+
+
+def _edge47(name: str, changes: dict, checks: str = "", code: int = 0, phrase: str = "physics") -> Case:
+    """A run of TINY with ``changes``, the scenario ``validate`` accepts: it completes with
+    the physics ``checks`` of :data:`PHYSICS47`, or stops with exit ``code`` and ``phrase``."""
+    return Case(name, ["run", "{scenario}", "-o", "{dir}/out", "-q"], code, phrase, patch=PHYSICS47,
+                env={"PHYSICS": checks}, setup=partial(_scenario, changes=changes))  # fmt: skip
+
+
+def _random47(seed: int) -> tuple[str, dict, str]:
+    """A scenario drawn from the accepted values of TINY's keys (seeded: reproducible) and
+    the checks it must pass: closed or periodic sides conserve the volume."""
+    draw = np.random.default_rng(seed)
+    sides = ["wall", "periodic", "outflow"][draw.integers(3)]
+    right = "wall" if sides == "wall" else sides
+    rheology = [
+        {"name": "drucker_prager", "mu_s": float(draw.uniform(0, 1)), "nu": float(10 ** draw.uniform(-4, 0))},
+        {"name": "jop_mu_i", "mu_s": 0.38, "mu_2": 0.64, "I_0": float(10 ** draw.uniform(-3, 0))},
+        {"name": "power_law_mu_i", "mu_s": 0.3, "m": float(draw.uniform(0.1, 3)), "alpha": 1.0},
+        {"name": "pouliquen_forterre", "mu_1": 0.38, "mu_2": 0.64, "L": 1e-3, "I_0": 0.3},
+    ][draw.integers(4)]
+    cells = int(draw.integers(1, 200))
+    changes: dict[str, Any] = {
+        "slope_deg": float(draw.uniform(-60, 60)),
+        "domain.cells": cells,
+        "domain.layers": int(draw.integers(1, 20)),
+        "material.grain_diameter": float(10 ** draw.uniform(-6, -1)),
+        "rheology": rheology,
+        "initial.0.height": float(10 ** draw.uniform(-4, 0)),
+        "boundaries": {"left": sides, "right": right},
+        "time.cfl": float(draw.uniform(0.01, 0.99)),
+        "numerics": {"order": int(draw.integers(1, 3))},
+    }
+    if cells < 6:  # the rectangle is 0.1 m of the 0.5 m domain: a cell at least
+        changes["initial.0"] = {"shape": "layer", "thickness": changes.pop("initial.0.height")}
+    shown = {k.split(".")[-1]: v.get("name", v) if isinstance(v, dict) else v for k, v in changes.items()}
+    text = ", ".join(f"{k} {v:.3g}" if isinstance(v, float) else f"{k} {v}" for k, v in shown.items()
+                     if k not in ("boundaries", "numerics", "0"))  # fmt: skip
+    return f"seed {seed}: {sides}, {text}", changes, "closed" if sides != "outflow" else ""
+
+
+def round_forty_seven() -> list[Case]:
+    """The valid cases of the forty-seventh round (docs/reliability.md): scenarios that
+    ``validate`` accepts, at the ends of every accepted range and in seeded random
+    combinations, each run and its result checked as a physicist would (the volume of a
+    closed or periodic domain conserved to round-off, finite fields, ``h >= 0``, a column
+    under its yield exactly at rest, the file read back), or stopped with exit 2 and a
+    message naming a true limit: never a traceback, a hang, or a guard stopping a valid
+    run for a numerical artefact."""
+    rest, closed = "closed,rest", "closed"
+    dp = {"name": "drucker_prager", "mu_s": 0.3, "nu": 0.01}
+    jop = {"name": "jop_mu_i", "mu_s": 0.38, "mu_2": 0.64, "I_0": 0.3}
+    pf = {"name": "pouliquen_forterre", "mu_1": 0.38, "mu_2": 0.64, "L": 1e-3, "I_0": 0.3}
+    friction = float(np.degrees(np.arctan(0.3)))  # TINY's friction angle, 16.699 degrees
+    big = {"domain.x_max": 5000.0, "initial.0.x_max": 1000.0}
+    mixture = {**MIXTURE, **WALLS47, "rheology": {"name": "dilatant_coulomb", "delta_deg": 22.5, "K1": 90.5},
+               "material.particle_density": 2500.0}  # fmt: skip
+    wide = {"domain.width": 0.1, "walls": {"name": "wall_friction", "mu_w": 0.2}}
+    nh = {"model": {"pressure": "non_hydrostatic"}, "domain.layers": 8, "slope_deg": 0.0}
+    column = {"shape": "rectangle", "x_min": 0.0, "x_max": 0.1, "height": 0.05}  # TINY's
+    edges: list[tuple[str, dict, str]] = [
+        # thickness
+        ("a column of 10 um between walls", {**WALLS47, "initial.0.height": 1e-5}, closed),
+        ("a column 1 % above the dry threshold", {**WALLS47, "initial.0.height": 1.01e-6}, closed),
+        ("a column of 1 km (domain 5 km)", {**WALLS47, **big, "initial.0.height": 1000.0, "time.end": 1.0,
+                                            "time.output_interval": 0.1}, closed),  # fmt: skip
+        ("a layer of 2 um at rest", {**LAYER47, "initial.0.thickness": 2e-6}, rest),
+        ("a layer of 10 km at rest", {**LAYER47, "initial.0.thickness": 1e4}, rest),
+        # layers
+        ("1 layer between walls", {**WALLS47, "domain.layers": 1}, closed),
+        ("1 layer at rest", {**LAYER47, "domain.layers": 1}, rest),
+        ("200 layers between walls", {**WALLS47, "domain.layers": 200}, closed),
+        ("64 layers at rest", {**LAYER47, "domain.layers": 64}, rest),
+        ("8 layers, geometric fractions r = 10", {**WALLS47, "domain.layers": 8,
+                                                  "domain.layer_fractions": {"geometric": 10.0}}, closed),
+        ("8 layers, geometric fractions r = 0.1", {**WALLS47, "domain.layers": 8,
+                                                   "domain.layer_fractions": {"geometric": 0.1}}, closed),
+        ("3 layers, fractions 1e-6 and two halves",
+         {**WALLS47, "domain.layer_fractions": [1e-6, 0.4999995, 0.4999995]}, closed),
+        # grains and rheologies
+        ("Jop mu(I), grains of 1 nm", {**WALLS47, "rheology": jop, "material.grain_diameter": 1e-9}, closed),
+        ("Jop mu(I), grains of 0.5 m (the domain, 10 times the column)", {**WALLS47, "rheology": jop,
+                                                            "material.grain_diameter": 0.5}, closed),
+        ("Jop mu(I) at rest", {**LAYER47, "rheology": jop}, rest),
+        ("Jop mu(I) with mu_start and mu_inf", {**WALLS47, "rheology": {**jop, "mu_start": 0.45,
+                                                                        "mu_inf": 1e-3}}, closed),
+        ("Jop mu(I), I_0 = 1e-6", {**WALLS47, "rheology": {**jop, "I_0": 1e-6}}, closed),
+        ("power-law mu(I), m = 0.01", {**WALLS47, "rheology": {"name": "power_law_mu_i", "mu_s": 0.3,
+                                                               "m": 0.01, "alpha": 1.0}}, closed),
+        ("power-law mu(I) at rest", {**LAYER47, "rheology": {"name": "power_law_mu_i", "mu_s": 0.3, "m": 1.0,
+                                                             "alpha": 1.0}}, rest),
+        ("Pouliquen-Forterre between walls", {**WALLS47, "rheology": pf}, closed),
+        ("Pouliquen-Forterre, a layer below h_stop at rest", {**LAYER47, "rheology": pf, "slope_deg": 22.0,
+                                                              "initial.0.thickness": 1e-3}, rest),
+        ("Pouliquen-Forterre, L = 1e-9", {**WALLS47, "rheology": {**pf, "L": 1e-9}}, closed),
+        ("dilatant Coulomb, dry", {**WALLS47, "rheology": {"name": "dilatant_coulomb", "delta_deg": 22.5,
+                                                           "K1": 90.5}}, closed),
+        # slopes
+        ("a layer 0.001 degree below the friction angle at rest",
+         {**LAYER47, "slope_deg": friction - 1e-3}, rest),
+        ("a layer 0.001 degree above the friction angle", {**LAYER47, "slope_deg": friction + 1e-3}, closed),
+        ("slope 89.999 degrees between walls", {**WALLS47, "slope_deg": 89.999}, closed),
+        ("slope -89.999 degrees between walls", {**WALLS47, "slope_deg": -89.999}, closed),
+        ("slope 89.999 degrees, periodic", {**PERIODIC47, "slope_deg": 89.999, "time.end": 0.05,
+                                            "time.output_interval": 0.01}, closed),  # fmt: skip
+        # friction
+        ("mu_s 0 and nu 1e-6 between walls", {**WALLS47, "rheology": {**dp, "mu_s": 0, "nu": 1e-6}}, closed),
+        ("mu_s 0 and nu 0 between walls", {**WALLS47, "rheology": {**dp, "mu_s": 0.0, "nu": 0.0}}, closed),
+        ("mu_s 1e6 at rest on a 60 degree slope", {**LAYER47, "slope_deg": 60.0,
+                                                   "rheology": {**dp, "mu_s": 1e6}}, rest),
+        ("mu_s 1e100, a rectangle at rest", {**WALLS47, "rheology": {**dp, "mu_s": 1e100}}, rest),
+        ("nu 1e6 between walls", {**WALLS47, "rheology": {**dp, "nu": 1e6}}, closed),
+        ("a coulomb base of mu 0", {**WALLS47, "base": [{"condition": "coulomb", "mu": 0.0}]}, closed),
+        ("a coulomb base of mu 1e6 at rest", {**LAYER47, "slope_deg": 60.0,
+                                              "base": [{"condition": "coulomb", "mu": 1e6}]}, ""),
+        ("a free-slip base, periodic", {**PERIODIC47, "base": [{"condition": "free_slip"}]}, closed),
+        # domains
+        ("a domain of 1 mm", {**WALLS47, "domain.x_max": 1e-3, "initial.0.x_max": 2e-4,
+                              "initial.0.height": 1e-4, "numerics": {"front_threshold": 1e-5}}, closed),
+        ("a domain of 1000 km", {**WALLS47, "domain.x_max": 1e6, "initial.0.x_max": 2e5,
+                                 "initial.0.height": 100.0, "time.end": 10.0, "time.output_interval": 1.0},
+         closed),
+        ("a domain at x = 1e6 m", {**WALLS47, "domain.x_min": 1e6, "domain.x_max": 1e6 + 0.5,
+                                   "initial.0.x_min": 1e6, "initial.0.x_max": 1e6 + 0.1}, closed),
+        ("1 cell, a layer at rest between walls", {**LAYER47, **WALLS47, "domain.cells": 1}, rest),
+        ("1 cell, periodic", {**PERIODIC47, "domain.cells": 1, "slope_deg": 40.0,
+                              "initial.0": {"shape": "layer", "thickness": 0.01}}, closed),
+        ("2 cells, a column between walls", {**WALLS47, "domain.cells": 2, "initial.0.x_max": 0.25}, closed),
+        ("20000 cells between walls", {**WALLS47, "domain.cells": 20000, "time.end": 0.01,
+                                       "time.output_interval": 0.005}, closed),
+        # time
+        ("cfl 0.001", {**WALLS47, "time.cfl": 0.001, "time.end": 0.01, "time.output_interval": 0.01}, closed),
+        ("cfl 0.999", {**WALLS47, "time.cfl": 0.999}, closed),
+        ("cfl 0.999, first order", {**WALLS47, "time.cfl": 0.999, "numerics": {"order": 1}}, closed),
+        ("cfl 0.999, periodic", {**PERIODIC47, "time.cfl": 0.999}, closed),
+        ("output interval equal to time.end", {**WALLS47, "time.output_interval": 0.2}, closed),
+        ("1000 outputs", {**WALLS47, "time.output_interval": 0.2 / 1000}, closed),
+        ("numerics.tolerance 1e-14", {**WALLS47, "rheology": jop, "numerics": {"tolerance": 1e-14}}, closed),
+        ("numerics.max_iterations 1, Drucker-Prager", {**WALLS47, "numerics": {"max_iterations": 1}}, closed),
+        # walls, erodible beds, gate
+        ("side walls of mu_w 0", {**WALLS47, **wide, "walls.mu_w": 0.0}, closed),
+        ("side walls 1 mm apart of mu_w 1, a rectangle at rest", {**WALLS47, **wide, "domain.width": 1e-3,
+                                                                 "walls.mu_w": 1.0}, ""),
+        ("side walls 1 km apart", {**WALLS47, **wide, "domain.width": 1e3}, closed),
+        ("an erodible bed of 10 um", {**WALLS47, "initial": [{"shape": "layer", "thickness": 1e-5},
+                                                             column]}, closed),
+        ("an erodible bed of 1 m", {**WALLS47, "initial": [{"shape": "layer", "thickness": 1.0},
+                                                           column]}, closed),
+        ("a gate lifted at once", {**WALLS47, "gate": {"x": 0.1, "lift_speed": INF}}, closed),
+        ("a gate never lifted", {**WALLS47, "gate": {"x": 0.1, "lift_speed": 0.0}}, closed),
+        ("a gate at the last face", {**WALLS47, "gate": {"x": 0.49375, "lift_speed": 1.0}}, closed),
+        # pressure models
+        ("non-hydrostatic, 1 pressure layer", {**WALLS47, **nh, "model.pressure_layers": 1}, closed),
+        ("non-hydrostatic, 8 pressure layers of 8", {**WALLS47, **nh, "model.pressure_layers": 8}, closed),
+        ("non-hydrostatic, 1 layer", {**WALLS47, **nh, "domain.layers": 1}, closed),
+        ("non-hydrostatic with vertical shear, periodic", {**PERIODIC47, **nh,
+                                                           "model.vertical_shear": True}, closed),
+        ("non-hydrostatic, a layer at rest", {**LAYER47, **nh, "slope_deg": 10.0}, rest),
+        ("bim2016 pressure", {**WALLS47, "model": {"pressure": "bim2016"}}, closed),
+        ("normal stress, periodic", {**PERIODIC47, "model": {"normal_stress": True}}, closed),
+        # mixtures
+        ("mixture phi 0.01", {**mixture, "initial.0.phi": 0.01}, closed),
+        ("mixture phi 0.74", {**mixture, "initial.0.phi": 0.74}, closed),
+        ("mixture phi_critical and phi 0.74", {**mixture, "initial.0.phi": 0.74,
+                                               "mixture.phi_critical": 0.74}, closed),
+        ("mixture in a fluid of density 0 and viscosity 0", {**mixture, "fluid": {"density": 0.0,
+                                                                                 "viscosity": 0.0}}, closed),
+        ("mixture, compressibility 1", {**mixture, "fluid.compressibility": 1.0}, closed),
+        ("mixture, compressibility 1e-300", {**mixture, "fluid.compressibility": 1e-300}, closed),
+        # the rest of the accepted ranges
+        ("gravity 1e-6", {**WALLS47, "gravity": 1e-6}, closed),
+        ("gravity 1000", {**WALLS47, "gravity": 1000.0}, closed),
+        ("density 1e-100", {**WALLS47, "material.density": 1e-100}, closed),
+        ("density 1e10", {**WALLS47, "material.density": 1e10}, closed),
+        ("an initial speed of 100 m/s, periodic",
+         {**PERIODIC47, "initial.0.velocity": {"profile": "plug", "speed": 100.0}}, closed),
+        ("dry threshold 1e-300", {**WALLS47, "numerics": {"dry_threshold": 1e-300}}, closed),
+        ("an inflow of 1 mm at 1 mm/s", {"boundaries": {"left": "inflow", "right": "outflow", "inflow": {
+            "thickness": 1e-3, "velocity": {"profile": "plug", "speed": 1e-3}}}}, ""),
+    ]  # fmt: skip
+    return [_edge47(name, changes, checks) for name, changes, checks in edges] + [
+        _edge47(*_random47(seed)) for seed in range(4701, 4711)
+    ]
+
+
 ONE_MEMBER = "parameters:\n  rheology.mu_s: [0.3]\n"
 """The parameters of a sweep of one member (:func:`_sweep33`)."""
 
@@ -8659,6 +8895,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     44: round_forty_four,
     45: round_forty_five,
     46: round_forty_six,
+    47: round_forty_seven,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""
 
@@ -8671,7 +8908,7 @@ def main() -> None:
         "--round",
         type=int,
         choices=sorted(ROUNDS),
-        help="only the cases of this round (2 to 35, 37 to 46; all: none)",
+        help="only the cases of this round (2 to 35, 37 to 47; all: none)",
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()

@@ -280,8 +280,13 @@ class MixtureFlow:
                     previous=None if previous is None else previous[:, wet],
                 )
             u[:, wet], h[wet], pressure[:, wet] = result.u, result.h, result.pore_pressure
+            # the exchange between the layers of each column, which can gather a layer beyond
+            # the densest packing (docs/mixture.md, "Layers"): the excess moves to the other
+            # layers of its column, as after the transport
+            exchanged = result.solid.copy()
+            solid_transport.bound_packings(exchanged, self.fractions[:, None] * h[wet])
             solid = solid.copy()
-            solid[:, wet] = result.solid  # the exchange between the layers of each column
+            solid[:, wet] = exchanged
             iterations = result.iterations
         self.pending = {"solid": solid, "pore_pressure": pressure}
         return u, iterations

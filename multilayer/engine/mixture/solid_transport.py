@@ -60,7 +60,7 @@ def transport(
     carried = np.where(G > 0.0, phi[1:], phi[:-1]) * G
     new[:-1] += carried
     new[1:] -= carried
-    _bound_packings(new, l * h_new)
+    bound_packings(new, l * h_new)
     ends = np.array([solid_fluxes[:, 0].sum(), solid_fluxes[:, -1].sum()])
     return new, ends
 
@@ -92,12 +92,14 @@ def _upwind(
     return volumes, donor, _filled(values, h_old > 0.0, volumes)
 
 
-def _bound_packings(solid: np.ndarray, room: np.ndarray) -> None:
+def bound_packings(solid: np.ndarray, room: np.ndarray) -> None:
     """Keep in place every layer's packing within ``[0, DENSEST_PACKING]`` by moving solid
-    between the layers of its column, the column's solid unchanged.  A thin layer at a front
-    can pass on more volume than it held (its share of the discharge is that of the column),
-    and the upwind packings of the exchange between the layers can leave a layer of a thin
-    column with less than no solid, or more than the densest packing: a layer's deficit is
+    between the layers of its column, the column's solid unchanged, after the transport and
+    after the local step.  A thin layer at a front can pass on more volume than it held (its
+    share of the discharge is that of the column), the upwind packings of the exchange
+    between the layers can leave a layer of a thin column with less than no solid, or more
+    than the densest packing, and the local step's explicit exchange can gather a layer
+    beyond it (docs/mixture.md, "The packings stay in (0, 1)"): a layer's deficit is
     taken from the other layers of its column in proportion to their solid, a layer's excess
     over :data:`~multilayer.engine.mixture.closure.DENSEST_PACKING` given to them in
     proportion to their room below it.  No layer is then out of bounds unless its column's
@@ -164,8 +166,8 @@ def check_pores(solid: np.ndarray, h: np.ndarray, fractions: np.ndarray, t: floa
     in ``[0, 1)``, where the local step's closure is defined (its Darcy drag is infinite
     at ``phi = 1``), which the transport of the step from ``t`` can leave in a thin column
     at a front, and below :data:`~multilayer.engine.mixture.closure.DENSEST_PACKING`, which
-    no packing of the grains exceeds and the exchanges between the layers of earlier steps
-    can gather a layer beyond (docs/mixture.md, "Layers")."""
+    no packing of the grains exceeds and a layer exceeds only in a column whose mean packing
+    does (:func:`bound_packings`)."""
     room = fractions[:, None] * h
     bad = ~(np.isfinite(solid) & (solid >= 0.0) & (solid < room))
     if bad.any():
