@@ -3737,6 +3737,7 @@ def cases() -> list[Case]:
         + round_forty_five()
         + round_forty_six()
         + round_forty_seven()
+        + round_forty_eight()
     )
 
 
@@ -5560,7 +5561,7 @@ def round_thirty_two() -> list[Case]:
         Case("check: expect mass_final = -1 +- 0.5", check, 2, f"mass_final = -1.0 +- 0.5: {no_run}",
              setup=partial(_scenario, changes={"expect": pin("mass_final", -1.0, 0.5)})),
         Case("check: a mixture's expect phi_mean_final = 2 +- 0.1", check, 2,
-             f"phi_mean_final = 2.0 +- 0.1: {no_run} (its phi_mean_final is in [0, 1))",
+             f"phi_mean_final = 2.0 +- 0.1: {no_run} (its phi_mean_final is in [0, 0.74048] (pi/sqrt(18)",
              setup=mixed(expect=pin("phi_mean_final", 2.0, 0.1))),
         Case("validate: expect static_interface_mean_final = -0.2 +- 0.1", validate, 2, no_run,
              setup=partial(_scenario, changes={"expect": pin("static_interface_mean_final", -0.2, 0.1)})),
@@ -8607,9 +8608,10 @@ def round_forty_six() -> list[Case]:
              setup=partial(_scenario, changes={"time.end": 1.7976931348623157e308,
                                                timing: 1.7976931348623157e308})),
         Case("control: run --resume to one ulp after the end",
-             [*resume, "--set", "time.end=0.2000000000000001"], 0, "", setup=_finished_run),
-        Case("control: run --resume to one ulp before the end",
-             [*resume, "--set", "time.end=0.19999999999999998"], 0, "", setup=_finished_run),
+             [*resume, "--set", "time.end=0.2000000000000001"], 0, "the run is finished there",
+             setup=_finished_run),
+        Case("run --resume to one ulp before the end",  # a run is extended, never shortened (round 48)
+             [*resume, "--set", "time.end=0.19999999999999998"], 2, "beyond time.end", setup=_finished_run),
     ]  # fmt: skip
 
 
@@ -8873,6 +8875,106 @@ def _two_forms(directory: Path) -> None:
         (directory / f"{stem}.yaml").write_text(yaml.safe_dump({**TINY, "name": name}))
 
 
+def round_forty_eight() -> list[Case]:
+    """The hostile cases of the forty-eighth round (docs/reliability.md): ``expect:``
+    entries every run passes (an interval holding every value of its quantity: ``atol``
+    0.45 or ``rtol`` 2 on a packing of 0.3, ``atol`` 1.8e308 on a front or a mass at 0,
+    ``rtol`` 1 on a speed of 1e308) and a packing pinned beyond the densest packing of
+    spheres, all validated; ``--resume`` to an end one ulp before or after a finished
+    run's end (the result then claimed an end its records do not reach, and every reader
+    refused it); file arguments ending in ``/`` or ``/.`` (``validate s.yaml/`` read
+    ``s.yaml``); a Dask setting the local cluster cannot read, whose message Dask's log
+    followed after a wait of 10 s; and, handled before, ``-o``, ``plot`` and ``export``
+    of ``result.nc/``."""
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    resume = [*run, "--resume", "--set"]
+    validate, check = ["validate", "{scenario}"], ["check", "{scenario}"]
+    sweep = ["sweep", "{dir}/study.yaml", "-o", "{dir}/study", "--workers", "1", "-q"]
+    study = ["{dir}/study.yaml", "-o", "{dir}/study", "--workers", "1", "-q"]
+    unreadable = {"DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT": "abc"}
+    nothing = "every run passes, a check of nothing"
+    slash = "a path ending in '/'"
+    kept = "the run is finished there and keeps time.end = 0.2 s"
+
+    def pinned(quantity: str, value: float, **tolerance: float) -> Callable[[Path], Path]:
+        """TINY (a mixture for a packing) with one regression pin."""
+        entry = {"kind": "regression", "quantity": quantity, "value": value, **tolerance}
+        mixture = MIXTURE32 if quantity == "phi_mean_final" else {}
+        return partial(_scenario, changes={**mixture, "expect": [entry]})
+
+    return [
+        # expect: entries every run passes: (name, command, exit code, phrase, quantity, value, tolerance)
+        *[Case(name, argv, code, phrase, setup=pinned(quantity, value, **tolerance))
+          for name, argv, code, phrase, quantity, value, tolerance in [
+            ("check: expect phi_mean_final 0.3, atol 0.45 (holds [0, 0.74048])", check, 2,
+             "phi_mean_final = 0.3 +- 0.45 holds every value a run's phi_mean_final can take",
+             "phi_mean_final", 0.3, {"atol": 0.45}),
+            ("check: expect phi_mean_final 0.3, rtol 2", check, 2, "expect.0.rtol", "phi_mean_final", 0.3,
+             {"rtol": 2.0}),
+            ("validate: expect phi_mean_final 0.5, rtol 0.5 and atol 0.3", validate, 2, "expect.0.atol",
+             "phi_mean_final", 0.5, {"rtol": 0.5, "atol": 0.3}),
+            ("check: expect mass_final 0, atol 1.7976931348623157e308", check, 2, nothing, "mass_final", 0.0,
+             {"atol": 1.7976931348623157e308}),
+            ("validate: expect front_final 0, atol 1.7976931348623157e308", validate, 2, "expect.0.atol",
+             "front_final", 0.0, {"atol": 1.7976931348623157e308}),
+            ("validate: expect max_speed_final 1e308, rtol 1", validate, 2, "expect.0.rtol",
+             "max_speed_final", 1e308, {"rtol": 1.0}),
+            ("validate: expect phi_mean_final 0.7405, atol 0 (beyond the densest packing)", validate, 2,
+             "no run passes (its phi_mean_final is in [0, 0.74048] (pi/sqrt(18)", "phi_mean_final", 0.7405,
+             {"atol": 0.0}),
+            ("control: validate of expect phi_mean_final 0.3, atol 0.44", validate, 0, "", "phi_mean_final",
+             0.3, {"atol": 0.44}),
+            ("control: validate of expect phi_mean_final at the densest packing, atol 0", validate, 0, "",
+             "phi_mean_final", 0.7404804896930609, {"atol": 0.0}),
+            ("control: check of expect mass_final 0.005, atol 1e308 (a mass beyond 1e308 fails)", check, 0,
+             "", "mass_final", 0.005, {"atol": 1e308}),
+          ]],
+        # --resume to the end of a finished run, to the last digit
+        Case("run --resume: time.end one ulp before a finished run's end",
+             [*resume, "time.end=0.19999999999999998"], 2, "beyond time.end = 0.19999999999999998 s",
+             setup=_finished_run),
+        Case("run --resume: time.end 0.1 s before a finished run's end", [*resume, "time.end=0.1"], 2,
+             "accepted: a time.end at or after 0.2 s", setup=_finished_run),
+        Case("run --resume: time.end one ulp after a finished run's end, then plot",
+             [*resume, "time.end=0.20000000000000004"], 0, kept, patch=THEN_PLOTTED, setup=_finished_run),
+        Case("run --resume: time.end 0.9e-9 of it after a finished run's end, then plot",
+             [*resume, "time.end=0.20000000018"], 0, kept, patch=THEN_PLOTTED, setup=_finished_run),
+        Case("run --resume: time.end a finished run's own end, then plot", [*resume, "time.end=0.2"], 0,
+             "the result's last record is at time.end = 0.2 s: the run is finished there",
+             patch=THEN_PLOTTED, setup=_finished_run),
+        Case("control: run --resume to 2e-9 of it after a finished run's end, then plot",
+             [*resume, "time.end=0.2000000004"], 0, "", patch=THEN_PLOTTED, setup=_finished_run),
+        # file arguments ending in a slash
+        *[Case(f"{command}: its file followed by '/'", [command, "{dir}/scenario.yaml/"], 2,
+               f"scenario.yaml/: {slash}", setup=_scenario)
+          for command in ("run", "validate", "check", "sweep", "calibrate", "sensitivity")],
+        Case("validate: the scenario followed by '/.'", ["validate", "{dir}/scenario.yaml/."], 2,
+             "scenario.yaml/.: a path ending in '/.'", setup=_scenario),
+        Case("validate: the scenario followed by '//'", ["validate", "{dir}/scenario.yaml//"], 2,
+             f"scenario.yaml//: {slash}", setup=_scenario),
+        Case("validate: a directory followed by '/'", ["validate", "{dir}/"], 2, slash, setup=_scenario),
+        Case("validate: the second of two files followed by '/'", [*validate, "{dir}/scenario.yaml/"], 2,
+             f"scenario.yaml/: {slash}", setup=_scenario),
+        Case("control: validate of {dir}/./scenario.yaml", ["validate", "{dir}/./scenario.yaml"], 0, "",
+             setup=_scenario),
+        Case("plot: DIR result.nc/", ["plot", "{dir}/out/result.nc/"], 2, "a file, not a directory",
+             setup=_finished_run),
+        Case("export: DIR result.nc/", ["export", "{dir}/out/result.nc/", "--vtk"], 2,
+             "a file, not a directory", setup=_finished_run),
+        Case("run: -o result.nc/", [*run[:3], "{dir}/out/result.nc/", "-q"], 2, "a file, not a directory",
+             setup=_finished_run),
+        # a Dask setting the local cluster cannot read: its message alone, nothing logged after
+        Case("sweep: DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT=abc, the message alone", sweep, 2,
+             "could not read its settings", env=unreadable, setup=_sweep33(ONE_MEMBER), one_message=True),
+        Case("sensitivity: DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT=abc, the message alone",
+             ["sensitivity", *study], 2, "could not read its settings", env=unreadable,
+             setup=_study41(SENSITIVITY_MU_S), one_message=True),
+        Case("calibrate: DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT=abc, the message alone",
+             ["calibrate", *study], 2, "could not read its settings", env=unreadable,
+             setup=_study41(CALIBRATION_MU_S), one_message=True),
+    ]  # fmt: skip
+
+
 ROUNDS: dict[int, Callable[[], list[Case]]] = {
     2: round_two, 3: round_three, 4: round_four, 5: round_five, 6: round_six, 7: round_seven,
     8: round_eight, 9: round_nine, 10: round_ten, 11: round_eleven, 12: round_twelve,
@@ -8896,6 +8998,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     45: round_forty_five,
     46: round_forty_six,
     47: round_forty_seven,
+    48: round_forty_eight,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""
 
@@ -8908,7 +9011,7 @@ def main() -> None:
         "--round",
         type=int,
         choices=sorted(ROUNDS),
-        help="only the cases of this round (2 to 35, 37 to 47; all: none)",
+        help="only the cases of this round (2 to 35, 37 to 48; all: none)",
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()

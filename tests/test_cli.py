@@ -506,3 +506,20 @@ def test_an_empty_file_path_is_named_as_empty(command, cli):
     assert result.code == 2 and "Traceback" not in result.err
     assert "an empty path; accepted: the path of a YAML file" in result.err
     assert ".: not a regular file" not in result.err
+
+
+@pytest.mark.parametrize("ending", ["/", "/.", "//"])
+@pytest.mark.parametrize("command", ["run", "validate", "check", "sweep", "calibrate", "sensitivity"])
+def test_a_file_path_ending_in_a_slash_is_refused_naming_it(
+    command, ending, cli, write_scenario, tiny_scenario
+):
+    """``s.yaml/`` names a directory, never the file (the system refuses to open it, "Not a
+    directory"), and pathlib drops the ending: ``validate s.yaml/`` read ``s.yaml``.  Refused
+    as the command's file, exit 2, naming the path as given."""
+    path = write_scenario(tiny_scenario)
+    with pytest.raises(NotADirectoryError):
+        open(f"{path}{ending}")  # noqa: SIM115 - the system's answer
+    result = cli(command, f"{path}{ending}")
+    assert result.code == 2 and "Traceback" not in result.err, result.err
+    assert f"{path}{ending}: a path ending in '{'/.' if ending == '/.' else '/'}'" in result.err
+    assert "accepted: the path of a YAML file, without a '/' at its end" in result.err

@@ -8,15 +8,20 @@ expected values: U = max(70 (z - 5 mm)_+ - S t, 0), S = g cos(theta)(mu_s - tan(
 
 import copy
 import math
+import sys
 from importlib.metadata import entry_points
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
+from conftest import TINY_SCENARIO
 
+import multilayer
 from multilayer.app import cli
 from multilayer.app.expectations import Outcome, evaluate, report
+from multilayer.engine.mixture.closure import DENSEST_PACKING
+from multilayer.errors import InputError
 from multilayer.reference.exact import InviscidSimpleShear
 from multilayer.scenario.schema import Expect
 
@@ -124,6 +129,82 @@ def test_a_failed_expectation_shows_the_digits_that_tell_its_values_apart():
     ).splitlines()
     assert lines[2].split() == ["regression", "mass_final", "0.005", "0.005000000000000001", "0", "FAILED"]
     assert lines[3].split() == ["regression", "runout", "0.0625", "0.0625", "0", "ok"]
+
+
+MIXTURE = {
+    "fluid": {"density": 1000.0, "viscosity": 1e-3},
+    "mixture": {"phi_critical": 0.58, "dilatancy": 4.0, "critical_shift": 25.0},
+    "material": {"density": 1500.0, "grain_diameter": 1e-3, "particle_density": 2500.0},
+}
+"""The keys making :data:`TINY_SCENARIO` a grain-fluid mixture (its initial ``phi`` 0.58)."""
+
+FLOAT_MAX = sys.float_info.max
+
+
+def _pinned(quantity: str, value: float, **tolerance: float) -> dict:
+    """TINY_SCENARIO with one regression pin (a mixture for the packing ``phi_mean_final``)."""
+    data = copy.deepcopy(TINY_SCENARIO)
+    if quantity == "phi_mean_final":
+        data.update(copy.deepcopy(MIXTURE))
+        data["initial"][0]["phi"] = 0.58
+    data["expect"] = [{"kind": "regression", "quantity": quantity, "value": value, **tolerance}]
+    return data
+
+
+@pytest.mark.parametrize(
+    ("quantity", "value", "tolerance", "bound"),
+    [
+        ("phi_mean_final", 0.3, {"atol": 0.45}, "0.44048"),  # [-0.15, 0.75] holds [0, 0.74048]
+        ("phi_mean_final", 0.3, {"rtol": 2.0}, "0.44048"),  # [-0.3, 0.9]
+        ("phi_mean_final", 0.5, {"rtol": 0.5, "atol": 0.3}, "0.5"),  # 0.55 about 0.5: [-0.05, 1.05]
+        ("mass_final", 0.0, {"atol": FLOAT_MAX}, "1.79769e+308"),  # [-max, max] holds every mass
+        ("max_speed_final", 1e308, {"rtol": 1.0}, "1e+308"),  # [0, 2e308]: up to inf
+        ("front_final", 0.0, {"atol": FLOAT_MAX}, "1.79769e+308"),  # every finite float
+    ],
+)
+def test_an_expectation_every_run_passes_is_refused(quantity, value, tolerance, bound):
+    """An interval ``value +- (atol + rtol |value|)`` holding every value the quantity can
+    take (``QUANTITY_RANGES``; a packing within the densest packing of spheres, a mass or
+    speed 0 or more up to the largest float, a front any finite number) passes every run:
+    a check of nothing, which validated and passed.  Refused naming the key of the larger
+    part of the tolerance and the largest tolerance the value accepts."""
+    key = "rtol" if tolerance.get("rtol", 0.0) * abs(value) > tolerance.get("atol", 0.0) else "atol"
+    with pytest.raises(InputError) as refused:
+        multilayer.load(_pinned(quantity, value, **tolerance))
+    said = str(refused.value)
+    assert f"expect.0.{key}: {quantity} = {value!r} +- " in said
+    assert f"holds every value a run's {quantity} can take" in said and "every run passes" in said
+    assert f"accepted: a tolerance atol + rtol |value| below {bound} for this value" in said
+
+
+@pytest.mark.parametrize(
+    ("quantity", "value", "tolerance"),
+    [
+        ("phi_mean_final", 0.3, {"atol": 0.44}),  # [-0.14, 0.74]: a packing of 0.7403 fails
+        ("phi_mean_final", 0.3, {"rtol": 1.0}),  # [0, 0.6]
+        ("phi_mean_final", DENSEST_PACKING, {"atol": 0.0}),  # the densest packing itself
+        ("mass_final", 0.005, {"atol": 1e308}),  # a mass beyond 1e308 fails
+        ("max_speed_final", 1.0, {"rtol": 1e300}),
+        ("front_final", 0.0, {"atol": 1e308}),  # a front beyond 1e308 m fails
+    ],
+)
+def test_an_expectation_some_value_fails_is_accepted(quantity, value, tolerance):
+    """An interval that misses one end of the quantity's values checks something: accepted,
+    however wide (the ranges of ``QUANTITY_RANGES`` without an upper bound end at the
+    largest float)."""
+    assert multilayer.load(_pinned(quantity, value, **tolerance)).expect[0].value == value
+
+
+def test_a_packing_beyond_the_densest_packing_is_no_value_of_phi_mean_final():
+    """``phi_mean_final`` ranges within the densest packing of spheres (its bound in the
+    engine and the result check), not [0, 1): a pin at 0.75 no run passes is refused, and
+    the message names the bound."""
+    with pytest.raises(InputError) as refused:
+        multilayer.load(_pinned("phi_mean_final", 0.75, atol=0.005))
+    assert (
+        "expect.0.value: phi_mean_final = 0.75 +- 0.005: no run passes (its phi_mean_final is in "
+        f"[0, {DENSEST_PACKING:.6g}] (pi/sqrt(18), the densest packing of spheres))"
+    ) in str(refused.value)
 
 
 @pytest.mark.parametrize(

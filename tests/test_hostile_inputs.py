@@ -2140,13 +2140,14 @@ def test_expect_entries_no_value_can_pass_together_are_refused(cli, write_scenar
             "phi_mean_final",
             2.0,
             0.1,
-            "phi_mean_final = 2.0 +- 0.1: no run passes (its phi_mean_final is in [0, 1))",
+            "phi_mean_final = 2.0 +- 0.1: no run passes (its phi_mean_final is in [0, 0.74048] "
+            "(pi/sqrt(18), the densest packing of spheres))",
         ),
         ("phi_mean_final", -1.0, 0.1, "phi_mean_final = -1.0 +- 0.1: no run passes"),
     ],
 )
 def test_an_expect_entry_no_run_can_pass_is_refused(cli, write_scenario, quantity, value, atol, phrase):
-    """A speed, mass or static height below 0, a solid fraction outside [0, 1): `check` ran
+    """A speed, mass or static height below 0, a solid fraction outside [0, 0.74048]: `check` ran
     the whole scenario to fail it, exit 1; refused naming the entry's value, exit 2.  A pin of
     0 +- 0 (a deposit at rest) and one whose interval reaches 0 validate."""
     extra = {}

@@ -153,6 +153,56 @@ def test_resume_needs_a_checkpoint_of_the_same_scenario(tmp_path: Path, cli, wri
 
 
 @pytest.mark.parametrize(
+    ("end", "kept"),
+    [(0.02, None), (0.020000000000000004, 0.02), (0.02 * (1 + 0.9e-9), 0.02)],
+    ids=["its own end", "one unit of round-off later", "0.9e-9 of it later"],
+)
+def test_a_resume_to_the_end_of_a_finished_run_says_it_is_finished(tmp_path, cli, write_scenario, end, kept):
+    """``--resume`` of a finished run to its end, or to a time.end later by no more than
+    the rounding of output times (1e-9 of time.end): no output time comes after the last
+    record, so nothing is computed.  The run said nothing, and with the later end the
+    result claimed a time.end its records do not reach: every reader then refused it.
+    Now stderr and run.log say the run is finished; the result keeps its last record's
+    time as its time.end and is read as it was."""
+    path = write_scenario(dict(SLUMP, time={"end": 0.02, "output_interval": 0.01}))
+    assert cli("run", path, "-o", tmp_path / "done", "-q").code == 0
+    before = open_result(tmp_path / "done")
+    result = cli("run", path, "-o", tmp_path / "done", "-q", "--resume", "--set", f"time.end={end!r}")
+    assert result.code == 0, result.err
+    said = (
+        "the result's last record is at time.end = 0.02 s: the run is finished there"
+        if kept is None
+        else f"time.end = {end!r} s is the time of the result's last record, t = 0.02 s, to within the "
+        "rounding of output times (1e-09 of time.end): the run is finished there and keeps time.end = 0.02 s"
+    )
+    assert f"{said}; nothing to compute (a later time.end extends it)" in result.err
+    assert said in (tmp_path / "done" / "run.log").read_text()
+    after = open_result(tmp_path / "done")  # read as every reader reads it: checked
+    assert yaml.safe_load(after.attrs["scenario"])["time"]["end"] == 0.02
+    np.testing.assert_array_equal(after["time"], before["time"])
+    np.testing.assert_array_equal(after["h"], before["h"])
+    assert after.attrs["run_status"] == "completed"
+
+
+@pytest.mark.parametrize("end", [0.019999999999999997, 0.01])
+def test_a_resume_to_before_the_checkpoint_is_refused_to_the_last_digit(tmp_path, cli, write_scenario, end):
+    """A time.end before a finished run's end, even by one unit of round-off: the run is
+    extended, never shortened.  One unit earlier was taken (within 1e-12 of it) and the
+    result then claimed an end before its last record, which every reader refused; the
+    message named both times as ``0.02``.  Refused, exit 2, naming time.end and the
+    checkpoint's time to every digit; the result is left as it was."""
+    path = write_scenario(dict(SLUMP, time={"end": 0.02, "output_interval": 0.01}))
+    assert cli("run", path, "-o", tmp_path / "done", "-q").code == 0
+    result = cli("run", path, "-o", tmp_path / "done", "-q", "--resume", "--set", f"time.end={end!r}")
+    assert result.code == 2 and "Traceback" not in result.err
+    assert (
+        f"checkpoint.npz: the checkpoint is at t = 0.02 s, beyond time.end = {end!r} s; accepted: a time.end "
+        "at or after 0.02 s (a run can be extended, not shortened)"
+    ) in result.err
+    assert yaml.safe_load(open_result(tmp_path / "done").attrs["scenario"])["time"]["end"] == 0.02
+
+
+@pytest.mark.parametrize(
     ("changes", "refused"),
     [
         (["name=renamed", "description=another text", "expect=[]"], None),

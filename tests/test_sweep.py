@@ -12,6 +12,7 @@ from __future__ import annotations
 import csv
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -21,6 +22,7 @@ from pathlib import Path
 import dask
 import pytest
 import yaml
+from dask.distributed import SpecCluster, Status  # its defaults in Dask's settings before a test sets one
 
 from multilayer import scenario
 from multilayer.app import cli, runner, sweep
@@ -497,10 +499,11 @@ def test_a_local_cluster_whose_workers_cannot_start_is_a_failure_in_one_line(tmp
     distributed's traceback ("Nanny failed to start."); it is a failure saying so, exit 1."""
     import dask.distributed
 
-    def fails(*args, **kwargs):
-        raise RuntimeError("Nanny failed to start.")
+    class Fails:  # a cluster class whose constructor raises as the nannies fail
+        def __init__(self, **options):
+            raise RuntimeError("Nanny failed to start.")
 
-    monkeypatch.setattr(dask.distributed, "LocalCluster", fails)
+    monkeypatch.setattr(dask.distributed, "LocalCluster", Fails)
     path = write_sweep(tmp_path, "base: tiny.yaml\nparameters:\n  rheology.mu_s: [0.3]\n")
     assert cli.main(["sweep", str(path), "-o", str(tmp_path / "out"), "--workers", "1", "-q"]) == 1
     err = capsys.readouterr().err
@@ -650,3 +653,39 @@ def test_a_dask_setting_the_cluster_cannot_read_is_an_input_error_naming_the_var
         ):
             with sweep.dask_client(None, 1):
                 pass
+
+
+@pytest.mark.parametrize(
+    "setting",
+    [
+        pytest.param(None, id="a study", marks=pytest.mark.slow),  # 4 s: a cluster of one worker process
+        pytest.param("abc", id="a setting the cluster cannot read"),
+    ],
+)
+def test_the_cluster_releases_its_directories_before_the_scratch_space_goes(monkeypatch, setting):
+    """The local cluster's scratch space is removed once no Dask server holds a directory
+    there.  A cluster whose start failed on a setting it cannot read (a connection timeout
+    of ``abc``) failed to close too, its scheduler running on: the scratch space went
+    first, and at the process's exit Dask logged "Failed to remove ... scheduler-..."
+    after the message, having waited 10 s for the cluster to close.  Its scheduler is
+    now closed before the error goes on."""
+    held: list[str] = []
+
+    class Recorded:  # sweep's shutil, recording the servers' directories left at the removal
+        @staticmethod
+        def rmtree(path: str, ignore_errors: bool = False) -> None:
+            held.extend(p.name for p in Path(path).glob("dask-scratch-space/*") if p.is_dir())
+            shutil.rmtree(path, ignore_errors=ignore_errors)
+
+    monkeypatch.setattr(sweep, "shutil", Recorded)
+    if setting is None:
+        with sweep.dask_client(None, 1) as client:
+            assert client.submit(sum, [1, 2]).result() == 3
+    else:
+        monkeypatch.setenv("DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT", setting)
+        with dask.config.set({"distributed.comm.timeouts.connect": setting}):
+            with pytest.raises(InputError, match="could not read its settings"):
+                with sweep.dask_client(None, 1):
+                    pass
+    assert held == []
+    assert all(cluster.status == Status.closed for cluster in SpecCluster._instances)

@@ -75,6 +75,7 @@ from multilayer.io.results import (
     WriteFailed,
     load_checkpoint,
     made_by,
+    record_time,
     recorded,
     save_checkpoint,
     summary,
@@ -82,6 +83,18 @@ from multilayer.io.results import (
 from multilayer.provenance import provenance
 
 LOG_FILE = "run.log"
+
+
+RECORD_ROUNDING = 1e-9
+"""The run's rounding of output times, relative to ``time.end``: an output time within it
+of a record kept is that record's (``k * interval`` one rounding unit from the time a
+finished run recorded as its end, when the run is extended)."""
+
+
+def after_record(times: Any, last: float, end: float) -> Any:
+    """Whether the output times ``times`` (of a run to ``end``) come after the record at
+    ``last``, by more than :data:`RECORD_ROUNDING`."""
+    return times > last + RECORD_ROUNDING * end
 
 
 def output_times(end: float, interval: float | None) -> np.ndarray:
@@ -149,7 +162,10 @@ def run(
     stop = _StopRequest(stop_when)
     with locked(outdir, notice), stop.installed():
         refuse_other_writers(outdir / RESULT_FILE)  # resumed or overwritten: no other tool writes it
-        ckpt = _checkpoint_to_resume(scenario, text, outdir, notice) if resume else None
+        ckpt, end = _checkpoint_to_resume(scenario, text, outdir, notice) if resume else (None, None)
+        if end is not None and end != scenario.time.end:  # finished at its last record: it keeps that end
+            scenario = scenarios.validated_again(scenario, [f"time.end={end!r}"])
+            text = scenario.resolved_yaml()
         log = logging.Logger("multilayer.run")
         handler = _LogFile(outdir / LOG_FILE, mode="a" if resume else "w", encoding="utf-8")
         handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
@@ -341,7 +357,7 @@ def _run(
     try:
         # the output times after the last record kept: a run stopped (a signal, its step bound)
         # just as it reached an output time has checkpointed that state before its record
-        for t_out in times[times > writer.last_time + 1e-9 * scenario.time.end]:
+        for t_out in times[after_record(times, writer.last_time, scenario.time.end)]:
             sim.advance(t_out, on_step=on_step, max_steps=None)  # bounded by on_step, over the run
             sim.check_state()
             diag = writer.write(sim)
@@ -441,10 +457,17 @@ def _keep_last_good_state(sim: Any, writer: ResultWriter, checkpoint: Any, saved
 
 def _checkpoint_to_resume(
     scenario: Any, text: str, outdir: Path, notice: Callable[[str], None]
-) -> Checkpoint:
+) -> tuple[Checkpoint, float]:
     """The checkpoint in ``outdir``, checked to belong to ``scenario``: every key but
-    :data:`_FREE_KEYS` the same, ``time.end`` not before the checkpoint.  A change of
-    another free key (a new name) is allowed and said through ``notice``."""
+    :data:`_FREE_KEYS` the same, ``time.end`` not before the checkpoint; and the
+    ``time.end`` the resumed run ends at.  A change of another free key (a new name) is
+    allowed and said through ``notice``.
+
+    A ``time.end`` no later than the result's last record by more than the rounding of
+    output times (:data:`RECORD_ROUNDING`) is that record's time: the run is finished
+    there, which ``notice`` says, and ends at that record, whose time it keeps as its
+    ``time.end`` (one unit of round-off later, no output time came after the record, and
+    the result claimed an end it does not reach: every reader refused it)."""
     ckpt_path = outdir / CHECKPOINT_FILE
     if not (ckpt_path.is_file() and (outdir / RESULT_FILE).is_file()):
         raise InputError(
@@ -484,13 +507,31 @@ def _checkpoint_to_resume(
             f"{ckpt_path}: resuming with {', '.join(relabelled)} changed (no part of the computed "
             f"solution; the result and the checkpoint take the new values)"
         )
-    t_saved = float(ckpt.state["t"])
-    if t_saved > scenario.time.end * (1 + 1e-12):
+    t_saved, end = float(ckpt.state["t"]), scenario.time.end
+    if t_saved > end:  # every digit: one unit of round-off earlier is earlier
         raise InputError(
-            f"{ckpt_path}: the checkpoint is at t = {t_saved:g} s, beyond time.end = "
-            f"{scenario.time.end:g} s; accepted: a time.end at or after the checkpoint "
-            f"(a run can be extended, not shortened), or run without --resume"
+            f"{ckpt_path}: the checkpoint is at t = {t_saved!r} s, beyond time.end = {end!r} s; accepted: "
+            f"a time.end at or after {t_saved!r} s (a run can be extended, not shortened), or run without "
+            "--resume"
         )
+    last = record_time(outdir, ckpt.records - 1)
+    if not after_record(end, last, end):
+        if t_saved > last:  # stopped after its last record, within the rounding of the end
+            raise InputError(
+                f"{ckpt_path}: time.end = {end!r} s is the time of the result's last record, t = {last!r} s, "
+                f"to within the rounding of output times ({RECORD_ROUNDING:g} of time.end), and the "
+                f"checkpoint is after it, at t = {t_saved!r} s; accepted: a time.end later than {last!r} s "
+                f"by more than {RECORD_ROUNDING:g} of itself, or run without --resume"
+            )
+        said = (
+            f"the result's last record is at time.end = {end!r} s: the run is finished there"
+            if end == last
+            else f"time.end = {end!r} s is the time of the result's last record, t = {last!r} s, to within "
+            f"the rounding of output times ({RECORD_ROUNDING:g} of time.end): the run is finished there and "
+            f"keeps time.end = {last!r} s"
+        )
+        notice(f"{ckpt_path}: {said}; nothing to compute (a later time.end extends it)")
+        return ckpt, last
     interval, old_end = scenario.time.output_interval, float(saved["time"]["end"])
     schedule = output_times(scenario.time.end, interval)
     finished = abs(t_saved - old_end) <= 1e-12 * old_end
@@ -505,7 +546,7 @@ def _checkpoint_to_resume(
             "it differ from that run's (the same to the accuracy of the scheme, not to the bit); for the "
             "uninterrupted run's result, run without --resume, or end runs to be extended on an output time"
         )
-    return ckpt
+    return ckpt, end
 
 
 #: Keys that do not change the computed solution, the only ones a resumed run may change

@@ -20,6 +20,7 @@ once complete, the marker ``DIR/<member-id>/member.json`` that lets a re-run ski
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import functools
 import hashlib
@@ -462,7 +463,7 @@ def dask_client(
     ``workers`` single-threaded worker processes (default: one per core), started after
     :func:`compile_kernels` of ``warm_up`` (a member scenario)."""
     import dask
-    from dask.distributed import Client, LocalCluster
+    from dask.distributed import Client
     from dask.system import CPU_COUNT
 
     if scheduler is not None:
@@ -495,7 +496,7 @@ def dask_client(
     try:
         with dask.config.set({"temporary-directory": scratch}):  # the nannies' too
             try:
-                cluster = LocalCluster(
+                cluster = _local_cluster(
                     n_workers=workers or CPU_COUNT,
                     threads_per_worker=1,
                     processes=True,
@@ -526,6 +527,38 @@ def dask_client(
         cluster.close()
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
+
+
+def _local_cluster(**options: Any) -> Any:
+    """A started ``LocalCluster(**options)``; one whose start fails is closed before the
+    error goes on.  Dask closes a cluster whose start failed, but that close can fail in
+    its turn (a setting it cannot read fails its connection to its own scheduler too,
+    distributed 2026.8): the scheduler then ran on, its work directory in the scratch
+    space, until the process ended, the cluster "closing" for ever.  The scratch space,
+    removed after the error, was gone when the scheduler's directory went at the exit
+    ("Failed to remove ... scheduler-..." in Dask's log), and the exit waited 10 s for
+    the cluster to close."""
+    from dask.distributed import LocalCluster, Status
+
+    made: list[Any] = []
+
+    class Recorded(LocalCluster):  # the cluster, kept where its constructor raises
+        def __init__(self, **options: Any) -> None:
+            made.append(self)
+            super().__init__(**options)
+
+    try:
+        return Recorded(**options)
+    except BaseException:
+        for cluster in made:
+            if getattr(cluster, "status", Status.closed) == Status.closed:
+                continue  # closed by Dask, or not started
+            if getattr(cluster, "scheduler", None) is not None:
+                with contextlib.suppress(Exception):  # the error being raised says why it failed
+                    cluster.sync(cluster.scheduler.close)
+            cluster.status = Status.closed  # its scheduler closed: its own close now stops its event loop
+            cluster.close()
+        raise
 
 
 def _dask_variables() -> list[str]:

@@ -16,8 +16,8 @@ is wrong) when
   state), and the coordinates finite and increasing; the forces on the bed and the walls
   NaN in the first record only, and balancing the change of momentum between two records
   to round-off (``result_format.FORCES``; files written before these variables existed
-  lack all of them); a mixture's solid volume fractions in ``[0, 1)`` and its excess pore
-  pressure finite;
+  lack all of them); a mixture's solid volume fractions in ``[0, DENSEST_PACKING]`` (the
+  densest packing of spheres) and its excess pore pressure finite;
 - its ``run_status`` is ``completed`` and its records do not run from ``t = 0`` to its
   scenario's ``time.end`` (the first and last output times of every completed run,
   exactly): a file cut to its first records, its attributes kept (``ncks -d time,0,4``,

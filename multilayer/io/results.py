@@ -399,6 +399,13 @@ def recorded(path: str | os.PathLike, name: str) -> str:
         return str(nc.getncattr(name))
 
 
+def record_time(path: str | os.PathLike, record: int) -> float:
+    """The time (s) of record number ``record`` of a result file (or of the ``result.nc``
+    in a directory)."""
+    with NETCDF_LOCK, netCDF4.Dataset(result_path(path)) as nc:
+        return float(nc["time"][record])
+
+
 def made_by(version: str, commit: str) -> str:
     """How messages and the history name a version of multilayer."""
     return f"multilayer {version} (commit {commit})"

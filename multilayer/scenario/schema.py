@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import heapq
 import math
+import sys
 import typing
 from pathlib import Path
 from typing import Annotated, Any, Literal, get_args
@@ -71,11 +72,17 @@ QUANTITY_RANGES: dict[str, tuple[float, float, str]] = {
     "mass_final": (0.0, math.inf, "0 or more"),
     "max_speed_final": (0.0, math.inf, "0 or more"),
     "static_interface_mean_final": (0.0, math.inf, "0 or more"),
-    "phi_mean_final": (0.0, 1.0, "in [0, 1)"),
+    "phi_mean_final": (
+        0.0,
+        closure.DENSEST_PACKING,
+        f"in [0, {closure.DENSEST_PACKING:.6g}] (pi/sqrt(18), the densest packing of spheres)",
+    ),
 }
-"""The values a run's quantity can take, ``(low, high, in words)``: ``low <= q < high`` (a
-solid volume fraction as the result check reads it): an ``expect`` entry whose interval
-misses them fails every run, and `multilayer check` ran the whole scenario to say so."""
+"""The values a run's quantity can take, ``(low, high, in words)``: ``low <= q <= high``
+(a solid volume fraction as the result check reads it, within the densest packing of
+spheres); any number for a quantity not listed.  An ``expect`` entry whose interval
+misses them fails every run, and `multilayer check` ran the whole scenario to say so;
+one whose interval holds them all passes every run, a check of nothing."""
 
 _FRACTION_SUM_TOLERANCE = 1e-6
 _PACKING = f"a solid volume fraction in (0, {closure.DENSEST_PACKING:.4f}) (the densest packing of spheres)"
@@ -739,18 +746,38 @@ class Expect(StrictModel):
                 f"atol + rtol |value| = {self.atol or 0.0!r} + {self.rtol or 0.0!r} x "
                 f"{abs(self.value or 0.0)!r} overflows: every result would pass",
                 "a tolerance atol + rtol |value| below 1.8e308",
-                "rtol" if self.rtol else "atol",
+                self._tolerance_key(),
             )
-        if self.quantity in QUANTITY_RANGES and self.value is not None:
-            low, high, accepted = QUANTITY_RANGES[self.quantity]
-            if self.value + self.tolerance < low or self.value - self.tolerance >= high:
-                raise invalid(
-                    f"{self.quantity} = {self.value!r} +- {self.tolerance:.3g}: no run passes (its "
-                    f"{self.quantity} is {accepted})",
-                    f"a value whose interval value +- (atol + rtol |value|) holds values {accepted}",
-                    "value",
-                )
+        if self.quantity is not None and self.value is not None:
+            self._check_range(self.quantity, self.value)
         return self
+
+    def _check_range(self, quantity: str, value: float) -> None:
+        """The interval ``value +- tolerance`` must meet the values ``quantity`` can take
+        (:data:`QUANTITY_RANGES`; all finite numbers for a quantity not listed) and must
+        not hold them all: a pin no run passes, or one every run passes (``atol: 1e308``
+        on a packing, ``value: 0.3, rtol: 2``)."""
+        low, high, accepted = QUANTITY_RANGES.get(quantity, (-math.inf, math.inf, "any number"))
+        if value + self.tolerance < low or value - self.tolerance > high:
+            raise invalid(
+                f"{quantity} = {value!r} +- {self.tolerance:.3g}: no run passes (its {quantity} is "
+                f"{accepted})",
+                f"a value whose interval value +- (atol + rtol |value|) holds values {accepted}",
+                "value",
+            )
+        bottom, top = max(low, -sys.float_info.max), min(high, sys.float_info.max)  # as floats
+        if value - self.tolerance <= bottom and value + self.tolerance >= top:
+            bound = max(value - bottom, top - value)  # the interval holding an end, not both
+            raise invalid(
+                f"{quantity} = {value!r} +- {self.tolerance:.3g} holds every value a run's {quantity} "
+                f"can take ({accepted}): every run passes, a check of nothing",
+                f"a tolerance atol + rtol |value| below {bound:.6g} for this value",
+                self._tolerance_key(),
+            )
+
+    def _tolerance_key(self) -> str:
+        """The key of the larger part of :attr:`tolerance`: ``atol`` or ``rtol``."""
+        return "rtol" if (self.rtol or 0.0) * abs(self.value or 0.0) > (self.atol or 0.0) else "atol"
 
     @property
     def tolerance(self) -> float:

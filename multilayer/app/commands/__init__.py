@@ -276,9 +276,18 @@ RUN_DIRECTORY = "the output directory of `multilayer run`"
 
 def file_path(text: str) -> str:
     """A YAML file argument, refused when empty: ``Path('')`` is the working directory, and
-    ``multilayer run "$UNSET"`` named it (``.: not a regular file``), not the empty path."""
+    ``multilayer run "$UNSET"`` named it (``.: not a regular file``), not the empty path.
+    Refused too when it ends in ``/`` or ``/.``: such a path names a directory, never a
+    file (the system refuses to open ``s.yaml/``, "Not a directory"), and pathlib drops
+    the ending: ``multilayer validate s.yaml/`` read ``s.yaml``."""
     if not text:
         raise argparse.ArgumentTypeError("an empty path; accepted: the path of a YAML file")
+    if text.endswith(("/", "/.")):
+        ending = text[text.rindex("/") :]
+        raise argparse.ArgumentTypeError(
+            f"{text}: a path ending in '{ending}', which names a directory, never a file; accepted: the "
+            "path of a YAML file, without a '/' at its end"
+        )
     return text
 
 
