@@ -189,6 +189,8 @@ def test_calibration_on_a_local_cluster_of_worker_processes(tmp_path, monkeypatc
         (("columns: [t, x_f, sigma]", "columns: [t, xf, sigma]"), "observations.0.file (line 9)", "xf"),
         (("quantity: front,", "quantity: front_x,"), "observations.0.quantity (line 9)", "got 'front_x'"),
         (("file: front.csv", "file: nowhere.csv"), "observations.0.file", "not found"),
+        (("file: front.csv", "file: front.csv/"), "observations.0.file", "front.csv/: a path ending in '/'"),
+        (("base: collapse.yaml", "base: collapse.yaml/."), "base", "collapse.yaml/.: a path ending in '/.'"),
     ],
 )
 def test_bad_calibration_file_exits_2_naming_the_key(tmp_path, capsys, edit, key, what):

@@ -247,3 +247,29 @@ def test_grains_longer_than_the_domain_are_refused(tiny_scenario):
         from_dict(tiny_scenario)
     tiny_scenario["material"]["grain_diameter"] = 0.5  # the domain's length
     from_dict(tiny_scenario)
+
+
+@pytest.mark.parametrize("ending", ["/", "/."])
+def test_a_file_name_ending_in_a_slash_is_refused_naming_the_key(
+    tmp_path, write_scenario, tiny_scenario, ending
+):
+    """``p.csv/`` names a directory, never a file (the system refuses to open it, "Not a
+    directory"), but pathlib drops the ending, so that ``bed.file: p.csv/``, an initial
+    ``file: p.csv/`` and ``multilayer.load("s.yaml/")`` read the file before it: refused,
+    naming the key and the name as given."""
+    import multilayer
+
+    (tmp_path / "p.csv").write_text("x (m), h (m)\n0, 0.01\n1, 0.01\n", encoding="utf-8")
+    path = write_scenario(tiny_scenario)
+    with pytest.raises(NotADirectoryError):
+        open(f"{tmp_path}/p.csv{ending}")  # noqa: SIM115 - the system's answer (a str: pathlib drops it)
+    said = f"p.csv{ending}: a path ending in '{ending}', which names a directory, never a file"
+    for key in (
+        f"bed={{profile: file, file: p.csv{ending}}}",
+        f"initial=[{{shape: profile, file: p.csv{ending}}}]",
+    ):
+        with pytest.raises(InputError, match=re.escape(said)) as refused:
+            load(path, [key])
+        assert ("bed.file" if key.startswith("bed") else "initial.0.file") in str(refused.value)
+    with pytest.raises(InputError, match=re.escape(f"scenario: {path}{ending}: a path ending in '{ending}'")):
+        multilayer.load(f"{path}{ending}")

@@ -21,7 +21,7 @@ from multilayer import scenario as scenarios
 from multilayer.errors import InputError, Interrupted, RunError, plain_scalar
 from multilayer.io.results import open_result
 from multilayer.scenario import Scenario, limits
-from multilayer.scenario.messages import shown
+from multilayer.scenario.messages import directory_ending, shown
 
 ScenarioLike = Scenario | str | os.PathLike | Mapping[str, Any]
 Overrides = Mapping[str, Any] | Sequence[str]
@@ -67,9 +67,11 @@ def load(source: ScenarioLike, overrides: Overrides = ()) -> Scenario:
         return scenarios.validated_again(source, sets)
     if isinstance(source, Mapping):
         return scenarios.from_dict(limits.plain_data(source, "<scenario>"), overrides=sets)
-    return scenarios.load(
-        _path(source, "scenario", "a Scenario, a mapping of scenario keys or the path of a YAML file"), sets
-    )
+    accepted = "a Scenario, a mapping of scenario keys or the path of a YAML file"
+    path = _path(source, "scenario", accepted)
+    if isinstance(source, str) and source.endswith(("/", "/.")):  # which pathlib drops
+        raise InputError(f"scenario: {directory_ending(source)}; accepted: {accepted}")
+    return scenarios.load(path, sets)
 
 
 def _path(value: object, what: str, accepted: str) -> Path:

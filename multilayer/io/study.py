@@ -40,7 +40,15 @@ from multilayer.errors import InputError, reason, shortened, shown
 from multilayer.scenario.files import read_text, why_not_a_file
 from multilayer.scenario.limits import MAX_DESIGN_VALUES, MAX_PROFILE_POINTS, MAX_STUDY_RUNS
 from multilayer.scenario.loading import load_base
-from multilayer.scenario.messages import StrictModel, describe, directory_path, dotted, field, invalid
+from multilayer.scenario.messages import (
+    StrictModel,
+    describe,
+    directory_path,
+    dotted,
+    field,
+    file_name,
+    invalid,
+)
 from multilayer.scenario.overrides import as_overrides, member_output
 from multilayer.scenario.profiles import csv_number
 
@@ -138,6 +146,8 @@ class Observation(StrictModel):
     units: str | None = field(None, "one of " + ", ".join(UNITS) + " (default SI)")
     coordinate_units: str | None = field(None, "one of " + ", ".join(UNITS) + " (default SI)")
     sigma: float | None = field(None, "a number > 0, in units (or a third CSV column)", gt=0)
+
+    _file = field_validator("file", mode="before")(file_name)
     time: float | None = field(None, "a number >= 0 (s); default: the final time", ge=0)
 
     @field_validator("units", "coordinate_units")

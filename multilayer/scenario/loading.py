@@ -15,7 +15,7 @@ from pydantic_core import PydanticSerializationError
 from multilayer.errors import InputError, shortened
 from multilayer.scenario import limits
 from multilayer.scenario.files import why_not_a_file
-from multilayer.scenario.messages import KeyPath, describe, dotted
+from multilayer.scenario.messages import KeyPath, describe, directory_ending, dotted
 from multilayer.scenario.overrides import apply_overrides
 from multilayer.scenario.schema import Scenario
 from multilayer.scenario.source import read_yaml
@@ -111,6 +111,8 @@ def load_base(study: Path, base: str, where: str, what: str, overrides: Sequence
     loaded with ``overrides``; one :class:`InputError` beginning with ``where`` (the file
     and the key) otherwise.  A ``base`` naming the study file itself, or another sweep or
     study file, is said so in one line: loaded as a scenario, it gave one line per key."""
+    if base.endswith(("/", "/.")):
+        raise InputError(f"{where}: {directory_ending(base)}; accepted: {BASE_ACCEPTED}")
     path = study.parent / base
     if not path.is_file():  # a directory or a pipe is no scenario file either
         raise InputError(f"{where}: scenario file {path} {why_not_a_file(path)}; accepted: {BASE_ACCEPTED}")

@@ -60,6 +60,21 @@ def directory_path(value: Any) -> Any:
     return value
 
 
+def file_name(value: Any) -> Any:
+    """A file's name as given (a YAML key, an argument), refused when it ends in ``/`` or
+    ``/.``: such a name is a directory's, never a file's (the system opens no ``s.yaml/``,
+    "Not a directory"), and pathlib drops the ending, so that ``Path("s.yaml/")`` read the
+    file ``s.yaml``."""
+    if isinstance(value, str) and value.endswith(("/", "/.")):
+        raise invalid(directory_ending(value), "the path of a file, without a '/' at its end")
+    return value
+
+
+def directory_ending(name: str) -> str:
+    """Why ``name``, ending in ``/`` or ``/.``, names no file, in words."""
+    return f"{name}: a path ending in '{name[name.rindex('/') :]}', which names a directory, never a file"
+
+
 HOME_ACCEPTED = "a directory path whose leading ~ is a home directory, or no ~"
 """What a directory path accepts where :func:`unknown_home` finds a problem."""
 

@@ -329,6 +329,8 @@ class Bed(StrictModel):
         None, "flat: the profile continued level beyond its ends where it does not span the domain"
     )
 
+    _files = field_validator("file", "dem", mode="before")(messages.file_name)
+
     _map_points: np.ndarray | None = PrivateAttr(None)
     """A map-frame profile [[s, Z], ...], turned into ``_read`` with the scenario's slope."""
     _read: np.ndarray | None = PrivateAttr(None)
@@ -538,6 +540,8 @@ class InitialShape(StrictModel):
     )
     velocity: Velocity | None = field(None, "a velocity profile; default: at rest")
     phi: float | None = field(None, f"{_PACKING}, with fluid only", gt=0, lt=closure.DENSEST_PACKING)
+
+    _file = field_validator("file", mode="before")(messages.file_name)
 
     @model_validator(mode="after")
     def _check(self, info: ValidationInfo) -> InitialShape:

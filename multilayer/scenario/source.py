@@ -20,7 +20,7 @@ import yaml
 from multilayer.errors import InputError
 from multilayer.scenario import limits
 from multilayer.scenario.files import read_text
-from multilayer.scenario.messages import KeyPath, dotted, shown
+from multilayer.scenario.messages import KeyPath, directory_ending, dotted, shown
 
 _INT, _FLOAT = "tag:yaml.org,2002:int", "tag:yaml.org,2002:float"
 
@@ -156,6 +156,9 @@ def parse_yaml(text: str, where: str) -> tuple[Any, dict[KeyPath, int]]:
 def read_yaml(path: str | Path, kind: str = "scenario") -> tuple[Any, dict[KeyPath, int]]:
     """The parsed YAML of ``path`` and the line of every key path; ``InputError`` if the
     file is missing, unreadable or malformed (``kind`` names the expected file)."""
+    if isinstance(path, str) and path.endswith(("/", "/.")):  # pathlib drops the ending
+        accepted = f"a path to a {kind} YAML file, without a '/' at its end"
+        raise InputError(f"{directory_ending(path)}; accepted: {accepted}")
     path = Path(path)
     text = read_text(path, f"a path to a {kind} YAML file", "a readable UTF-8 YAML file")
     return parse_yaml(text, str(path))

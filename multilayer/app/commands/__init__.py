@@ -283,10 +283,10 @@ def file_path(text: str) -> str:
     if not text:
         raise argparse.ArgumentTypeError("an empty path; accepted: the path of a YAML file")
     if text.endswith(("/", "/.")):
-        ending = text[text.rindex("/") :]
+        from multilayer.scenario.messages import directory_ending
+
         raise argparse.ArgumentTypeError(
-            f"{text}: a path ending in '{ending}', which names a directory, never a file; accepted: the "
-            "path of a YAML file, without a '/' at its end"
+            f"{directory_ending(text)}; accepted: the path of a YAML file, without a '/' at its end"
         )
     return text
 
