@@ -24,7 +24,6 @@ import dataclasses
 import reprlib
 import signal
 import threading
-from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -69,23 +68,31 @@ def user_interrupt(exc: BaseException) -> bool:
     return isinstance(exc, KeyboardInterrupt) and default and main
 
 
-@contextlib.contextmanager
-def contained(plugin: Any, method: str, t: float | None = None) -> Iterator[None]:
+class contained:  # noqa: N801 - used as the function it was: ``with contained(plugin, method):``
     """Turn whatever the block (a call of ``plugin``'s ``method``) raises into a
-    :class:`PluginOutputError` naming them, except the user's Ctrl-C."""
-    depth = getattr(_calls, "depth", 0)
-    try:  # the count set back whatever is raised, a signal's Stop between two statements too
-        _calls.depth = depth + 1
-        yield
-    except PluginOutputError:
-        raise
-    except BaseException as exc:  # noqa: BLE001 - sys.exit, KeyboardInterrupt of a plugin are its failures
-        if user_interrupt(exc):
-            raise
-        when = "" if t is None else f" (at t = {t:.6g} s)"
-        raise PluginOutputError(f"{plugin_label(plugin)}: {method} raised {described(exc)}{when}") from None
-    finally:
-        _calls.depth = depth
+    :class:`PluginOutputError` naming them, except the user's Ctrl-C.  A class rather than
+    a generator of ``contextlib``: the laws' compiled forms are read through it at every
+    time step, and the generator's machinery cost three times the plugin's call."""
+
+    __slots__ = ("plugin", "method", "t", "depth")
+
+    def __init__(self, plugin: Any, method: str, t: float | None = None):
+        self.plugin, self.method, self.t = plugin, method, t
+
+    def __enter__(self) -> None:
+        self.depth = getattr(_calls, "depth", 0)
+        _calls.depth = self.depth + 1
+
+    def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None, _traceback: Any) -> None:
+        # the count set back whatever is raised, a signal's Stop between two statements too
+        _calls.depth = self.depth
+        if exc is None or isinstance(exc, PluginOutputError) or user_interrupt(exc):
+            return
+        # sys.exit, KeyboardInterrupt of a plugin are its failures
+        when = "" if self.t is None else f" (at t = {self.t:.6g} s)"
+        raise PluginOutputError(
+            f"{plugin_label(self.plugin)}: {self.method} raised {described(exc)}{when}"
+        ) from None
 
 
 def read_only(value: Any) -> Any:
