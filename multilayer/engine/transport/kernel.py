@@ -524,9 +524,8 @@ def _tile(stage, t0, t1, window, scheme, edges, arrays, work):
 
 
 def _stages(first, last, chunks, window, scheme, edges, arrays):
-    """The stages ``first .. last-1`` over the window in ``chunks`` pieces (taken by the threads in
-    turn), each in tiles of about ``TILE`` cells; the named tuples come plain (dispatch types those fast)."""
-    window, scheme, edges, arrays = Window(*window), Scheme(*scheme), Edges(*edges), Arrays(*arrays)
+    """The stages ``first .. last-1`` over the window in ``chunks`` independent pieces
+    (taken by the threads in turn), each swept in tiles of about ``TILE`` cells."""
     L, n = scheme.l.size, window.n
     T = max(8, TILE // L)
     for stage in range(first, last):
@@ -685,11 +684,12 @@ def transport(
     chunks = parallel_chunks(threads, n, 64) if threads > 1 else 1
     sweep = _stages_parallel if chunks > 1 else _stages_serial
     with numba_threads(threads if chunks > 1 else 1):
-        sweep(begin, end, chunks, *map(tuple, (Window(n, lo, left_kind, right_kind, at_rest),  # plain
+        sweep(
+            begin, end, chunks, Window(n, lo, left_kind, right_kind, at_rest),
             Scheme(l, float(dx), float(dt), float(g_n), float(g_t), float(dry), int(order), stage == 0),
             Edges(inflow_h, inflow_u, gate, opening),
             Arrays(h, u, b, ws.h1, ws.q1, ws.h, ws.u, ws.ends, ws.speeds),
-        )))  # fmt: skip
+        )  # fmt: skip
     if boundary_mass is not None:
         boundary_mass[:] = step_boundary_mass(ws.ends[:end, :2], float(dt))
     if boundary_momentum is not None:
