@@ -69,8 +69,8 @@ def load(source: ScenarioLike, overrides: Overrides = ()) -> Scenario:
         return scenarios.from_dict(limits.plain_data(source, "<scenario>"), overrides=sets)
     accepted = "a Scenario, a mapping of scenario keys or the path of a YAML file"
     path = _path(source, "scenario", accepted)
-    if isinstance(source, str) and source.endswith(("/", "/.")):  # which pathlib drops
-        raise InputError(f"scenario: {directory_ending(source)}; accepted: {accepted}")
+    if isinstance(source, str) and (why := directory_ending(source)):  # which pathlib drops
+        raise InputError(f"scenario: {why}; accepted: {accepted}")
     return scenarios.load(path, sets)
 
 

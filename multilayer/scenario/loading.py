@@ -111,8 +111,8 @@ def load_base(study: Path, base: str, where: str, what: str, overrides: Sequence
     loaded with ``overrides``; one :class:`InputError` beginning with ``where`` (the file
     and the key) otherwise.  A ``base`` naming the study file itself, or another sweep or
     study file, is said so in one line: loaded as a scenario, it gave one line per key."""
-    if base.endswith(("/", "/.")):
-        raise InputError(f"{where}: {directory_ending(base)}; accepted: {BASE_ACCEPTED}")
+    if why := directory_ending(base):
+        raise InputError(f"{where}: {why}; accepted: {BASE_ACCEPTED}")
     path = study.parent / base
     if not path.is_file():  # a directory or a pipe is no scenario file either
         raise InputError(f"{where}: scenario file {path} {why_not_a_file(path)}; accepted: {BASE_ACCEPTED}")

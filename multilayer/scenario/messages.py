@@ -65,13 +65,16 @@ def file_name(value: Any) -> Any:
     ``/.``: such a name is a directory's, never a file's (the system opens no ``s.yaml/``,
     "Not a directory"), and pathlib drops the ending, so that ``Path("s.yaml/")`` read the
     file ``s.yaml``."""
-    if isinstance(value, str) and value.endswith(("/", "/.")):
-        raise invalid(directory_ending(value), "the path of a file, without a '/' at its end")
+    if isinstance(value, str) and (why := directory_ending(value)):
+        raise invalid(why, "the path of a file, without a '/' at its end")
     return value
 
 
-def directory_ending(name: str) -> str:
-    """Why ``name``, ending in ``/`` or ``/.``, names no file, in words."""
+def directory_ending(name: str) -> str | None:
+    """Why ``name`` names no file, in words, when it ends in ``/`` or ``/.`` (which pathlib
+    drops); None for any other name."""
+    if not name.endswith(("/", "/.")):
+        return None
     return f"{name}: a path ending in '{name[name.rindex('/') :]}', which names a directory, never a file"
 
 

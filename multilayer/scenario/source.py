@@ -156,9 +156,8 @@ def parse_yaml(text: str, where: str) -> tuple[Any, dict[KeyPath, int]]:
 def read_yaml(path: str | Path, kind: str = "scenario") -> tuple[Any, dict[KeyPath, int]]:
     """The parsed YAML of ``path`` and the line of every key path; ``InputError`` if the
     file is missing, unreadable or malformed (``kind`` names the expected file)."""
-    if isinstance(path, str) and path.endswith(("/", "/.")):  # pathlib drops the ending
-        accepted = f"a path to a {kind} YAML file, without a '/' at its end"
-        raise InputError(f"{directory_ending(path)}; accepted: {accepted}")
+    if isinstance(path, str) and (why := directory_ending(path)):  # pathlib drops the ending
+        raise InputError(f"{why}; accepted: a path to a {kind} YAML file, without a '/' at its end")
     path = Path(path)
     text = read_text(path, f"a path to a {kind} YAML file", "a readable UTF-8 YAML file")
     return parse_yaml(text, str(path))

@@ -282,7 +282,7 @@ def file_path(text: str) -> str:
     the ending: ``multilayer validate s.yaml/`` read ``s.yaml``."""
     if not text:
         raise argparse.ArgumentTypeError("an empty path; accepted: the path of a YAML file")
-    if text.endswith(("/", "/.")):
+    if text.endswith(("/", "/.")):  # the test of directory_ending, without importing pydantic
         from multilayer.scenario.messages import directory_ending
 
         raise argparse.ArgumentTypeError(
