@@ -298,6 +298,16 @@ def _written_figures() -> list[re.Pattern[str]]:
     return [re.compile(re.sub(r"\\\{\w*\\\}", r"\\w+", re.escape(name)) + "$") for name in names]
 
 
+README_LINES = 120
+"""The README is read in two minutes: what it is, one figure, the set-up, a tour, links."""
+
+
+def test_the_readme_is_short() -> None:
+    """The README holds at most ``README_LINES`` lines; the rest is in docs/."""
+    lines = (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
+    assert len(lines) <= README_LINES, f"README.md has {len(lines)} lines, more than {README_LINES}"
+
+
 @pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(ROOT)))
 def test_images_exist_and_are_generated(page: Path) -> None:
     """Every figure a page shows is in the repository and written by a documented script."""
