@@ -9,7 +9,7 @@ import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-SUFFIXES = {".py", ".md", ".yaml", ".yml", ".toml", ".cff", ".cfg", ".txt"}
+SUFFIXES = {".py", ".md", ".yaml", ".yml", ".toml", ".cff", ".cfg", ".txt", ".json"}
 SKIPPED_DIRS = {".git", ".venv", "build", "dist", "results", "__pycache__", ".pytest_cache", ".ruff_cache"}
 #: what an outside reader cannot follow
 FORBIDDEN = re.compile(

@@ -27,7 +27,7 @@ from multilayer.plugins.contract import Material, MixtureState, Rheology
 
 
 class DilatantCoulomb(Rheology):
-    """Coulomb friction ``tan(delta)`` plus the dilatancy friction and the viscous friction
+    """Coulomb friction tan(delta) plus the dilatancy friction and the viscous friction
     ``K1 eta_f gamma`` of an immersed granular layer."""
 
     name = "dilatant_coulomb"
