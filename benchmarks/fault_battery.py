@@ -8975,6 +8975,240 @@ def round_forty_eight() -> list[Case]:
     ]  # fmt: skip
 
 
+RACE50 = """
+import os, threading, time
+import numpy as np
+from multilayer.engine import simulation as engine
+sim = multilayer.Simulation(multilayer.load(sys.argv[2]))
+stepping, outcome = threading.Event(), []
+engine_step = engine.Simulation.step
+def step(self, t_max=np.inf):
+    dt = engine_step(self, t_max)
+    if not stepping.is_set():
+        stepping.set()
+        time.sleep(0.3)
+    return dt
+engine.Simulation.step = step
+def called():
+    stepping.wait()
+    try:
+        return CALL
+    except InputError as exc:
+        return exc
+worker = threading.Thread(target=lambda: outcome.append(called()), daemon=True)
+worker.start()
+def on_step(s, dt):
+    worker.join(30)
+    if worker.is_alive():
+        print('multilayer: the other thread waited for ever', file=sys.stderr)
+        os._exit(3)
+sim.advance(0.02, on_step=on_step)
+if isinstance(outcome[0], InputError):
+    raise outcome[0]
+"""
+"""A thread that calls ``CALL`` while ``advance`` is in its first step (held 0.3 s there),
+and the ``on_step`` after that step waiting for it (exit 3 when it still waits after 30 s)."""
+
+UNINTERRUPTED = """
+alone = multilayer.Simulation(multilayer.load(sys.argv[2]))
+alone.advance(sim.t)
+assert np.array_equal(sim.h, alone.h) and np.array_equal(sim.u, alone.u), 'not the uninterrupted state'
+"""
+"""The end of an API case: ``sim`` holds the state of an uninterrupted run to its time."""
+
+STEPPED_AGAIN = """
+import math
+import multilayer
+from multilayer.errors import RunError
+sim = multilayer.Simulation(multilayer.load(sys.argv[2]))
+sim.step()
+sim.h[3] = math.nan
+for attempt in range(2):
+    try:
+        sim.step()
+    except RunError as exc:
+        said = str(exc)
+print(f'multilayer: run failed: {said}', file=sys.stderr)
+sys.exit(1)
+"""
+"""A NaN written into ``sim.h`` and the simulation stepped twice: the second message printed."""
+
+LAW50 = '''
+import os, signal, tempfile
+import numpy as np
+import multilayer
+{head}
+
+def memmapped(a):
+    m = np.memmap(tempfile.TemporaryFile(), dtype=float, mode="w+", shape=np.shape(a))
+    m[...] = a
+    return m
+
+def frozen(a):
+    v = np.asarray(a).view()
+    v.flags.writeable = False
+    return v
+
+class Law(multilayer.Rheology):
+    """Drucker-Prager friction and a constant viscosity (round fifty)."""
+    name = "{name}"
+    applies_to = "bulk"
+    def __init__(self, mu_s: float = 0.3, eta: float = 15.0):
+        self.mu_s, self.eta = mu_s, eta
+    def yield_stress(self, pressure, material):
+        return {wrap}(self.mu_s * np.maximum(pressure, 0.0))
+    def viscosity(self, shear_rate, pressure, material):
+        return {wrap}(np.full(np.broadcast_shapes(np.shape(shear_rate), np.shape(pressure)), self.eta))
+    def viscosity_kernel(self, material):
+        return {form}
+
+@multilayer.hookimpl
+def multilayer_register_rheologies({register}):
+    {register}(Law)
+'''
+"""A third-party law of round fifty, its module's ``head`` run as it is imported, its
+values passed through ``wrap`` and its compiled viscosity form ``form``."""
+
+
+def _law50(
+    head: str = "", wrap: str = "", form: str = "None", register: str = "register"
+) -> Callable[[Path], None]:
+    """TINY on the law :data:`LAW50` installed through its entry point (PYTHONPATH ``{dir}/plugin``)."""
+
+    def setup(directory: Path) -> None:
+        module = LAW50.format(head=head, name="law50", wrap=wrap, form=form, register=register)
+        _plugin_package(directory, "law50", module)
+        _scenario(directory, {"rheology": {"name": "law50"}})
+
+    return setup
+
+
+def _study_elsewhere(base_here: bool) -> Callable[[Path], None]:
+    """A sweep of one member in ``studies/``, its base ``scenario.yaml`` in the case's
+    directory (the working directory) if ``base_here``, beside the sweep file otherwise."""
+
+    def setup(directory: Path) -> None:
+        studies = directory / "studies"
+        studies.mkdir()
+        _scenario(directory if base_here else studies)
+        (studies / "sweep.yaml").write_text("base: scenario.yaml\n" + ONE_MEMBER)
+
+    return setup
+
+
+def _bed_in_the_working_directory(directory: Path) -> None:
+    """``inputs/scenario.yaml`` reading ``bed.file: bed.csv``, which is in the case's directory."""
+    (directory / "inputs").mkdir()
+    _scenario(directory / "inputs", {"bed": {"file": "bed.csv"}})
+    (directory / "bed.csv").write_text("x (m), z (m)\n0, 0\n0.5, 0\n")
+
+
+def round_fifty() -> list[Case]:
+    """The hostile cases of the fiftieth round (docs/reliability.md), the Python API and the
+    plugin contract as a notebook and a third-party law's author meet them: a thread that
+    called while ``advance`` was in a step, joined by the ``on_step`` after it (both held
+    for ever); an ``on_step`` that is an ``async def`` or a generator function, or returns
+    a coroutine (its body never ran, silently); a state refused on entry and stepped again
+    unchanged (then blamed on the transport); a plugin's module that changes the working
+    directory, numpy's error handling or the SIGINT handler as it is imported (the host
+    changed for good); a compiled viscosity form other than the plugin's ``viscosity``
+    (another flow, silently); ``sweep /dev/stdin`` and ``validate /dev/stdin`` reading
+    their relative paths from ``/dev``; and, handled before, ``sys.exit``, Ctrl-C and
+    ``multilayer.run`` inside an ``on_step``, the state's arrays made read-only or reshaped
+    by the user, a result whose file was deleted, plugin values as ``np.matrix``, memmaps
+    and read-only views, a hook implementation of another signature."""
+    validate = ["validate", "{scenario}"]
+    run = ["run", "{scenario}", "-o", "{dir}/out", "-q"]
+    plugin = {"PYTHONPATH": "{dir}/plugin"}
+    refused = "from another thread while the on_step of advance runs"
+    changed = "importing and registering it changed the "
+    not_viscosity = "which is not its viscosity()"
+    redirected = ["sh", "-c", 'exec "$0" "$@" < "$STREAM"']
+    sweep = ["sweep", "/dev/stdin", "-o", "{dir}/study", "--workers", "1", "-q"]
+    study = {"STREAM": "{dir}/studies/sweep.yaml"}
+    return [
+        # a thread waiting for a step under way, joined by the on_step after it
+        *[Case(f"API: a thread calling {call} during a step, joined by the next on_step", validate, 2,
+               refused, patch=_api(RACE50.replace("CALL", call)), setup=_scenario)
+          for call in ("sim.step()", "sim.advance(0.05)", "sim.load_state(sim.state_dict())")],
+        Case("control: a thread reading state_dict() during a step, joined by the next on_step", validate, 0,
+             "", patch=_api(RACE50.replace("CALL", "sim.state_dict()['t']")), setup=_scenario),
+        # on_steps whose body never runs
+        *[Case(f"API: {name} as on_step", validate, 2, phrase,
+               patch=_api(ON_STEP + body + "sim.advance(0.02, on_step=on_step)"), setup=_scenario)
+          for name, body, phrase in [
+              ("an async def", "async def on_step(s, dt):\n    pass\n", "an async function (async def)"),
+              ("a generator function", "def on_step(s, dt):\n    yield dt\n",
+               "a generator function (it yields)"),
+              ("a function returning a coroutine", "async def later(s, dt):\n    pass\n"
+               "on_step = lambda s, dt: later(s, dt)\n", "returned coroutine"),
+          ]],
+        # what an on_step does to the host, handled before
+        Case("control: sys.exit in on_step, then advance continues the run", validate, 0, "",
+             patch=_api(ON_STEP + "def leave(s, dt):\n    sys.exit(3)\ntry:\n"
+                        "    sim.advance(0.04, on_step=leave)\nexcept SystemExit:\n    pass\n"
+                        "sim.advance(0.04)\n" + UNINTERRUPTED), setup=_scenario),
+        Case("control: KeyboardInterrupt in the third on_step, then advance to the same state", validate,
+             0, "",
+             patch=_api(ON_STEP + "calls = [0]\ndef stop(s, dt):\n    calls[0] += 1\n    if calls[0] == 3:\n"
+                        "        raise KeyboardInterrupt\ntry:\n    sim.advance(0.04, on_step=stop)\n"
+                        "except KeyboardInterrupt:\n    pass\nsim.advance(0.04)\n" + UNINTERRUPTED),
+             setup=_scenario),
+        Case("control: multilayer.run called inside on_step", validate, 0, "",
+             patch=_api(ON_STEP + "def nested(s, dt):\n    ds = multilayer.run(multilayer.load(sys.argv[2], "
+                        "overrides={'time.end': 0.02}))\n    assert float(ds['mass'][-1]) > 0\n"
+                        "sim.advance(0.01, on_step=nested)\n" + UNINTERRUPTED), setup=_scenario),
+        # the state's arrays between steps
+        Case("API: a NaN written into sim.h, stepped twice", validate, 1, "on entry to the step",
+             patch=STEPPED_AGAIN, setup=_scenario),
+        Case("control: sim.h made read-only by the user between steps", validate, 0, "",
+             patch=_api(ON_STEP + "sim.step()\nview = sim.h\nview.flags.writeable = False\n"
+                        "sim.advance(0.04)\n" + UNINTERRUPTED), setup=_scenario),
+        Case("control: sim.u reshaped in place by the user between steps", validate, 0, "",
+             patch=_api(ON_STEP + "sim.step()\nsim.u.shape = (40, 3)\nsim.advance(0.04)\n" + UNINTERRUPTED),
+             setup=_scenario),
+        Case("control: a result of multilayer.run whose result.nc was deleted", validate, 0, "",
+             patch=_api("import os\nout = os.path.join(os.path.dirname(sys.argv[2]), 'out')\n"
+                        "ds = multilayer.run(multilayer.load(sys.argv[2], overrides={'time.end': 0.04}),"
+                        " out)\nos.remove(os.path.join(out, 'result.nc'))\n"
+                        "assert float(ds['h'].isel(time=-1).sum()) > 0"),
+             setup=_scenario),
+        # a plugin's module changing the process as it is imported
+        Case("run: a plugin's module changing the working directory as it is imported", run, 2,
+             changed + "working directory", env=plugin, setup=_law50(head='os.chdir("/")')),
+        Case("run: a plugin's module calling np.seterr(all='ignore') as it is imported", run, 2,
+             changed + "numpy error handling", env=plugin, setup=_law50(head='np.seterr(all="ignore")')),
+        Case("run: a plugin's module ignoring SIGINT as it is imported", run, 2,
+             changed + "handler of SIGINT", env=plugin,
+             setup=_law50(head="signal.signal(signal.SIGINT, signal.SIG_IGN)")),
+        Case("run: a hook implementation of another signature", run, 2,
+             "are declared in the hookimpl but can not be found in the hookspec", env=plugin,
+             setup=_law50(register="reg")),
+        # plugin values of numpy's other kinds
+        *[Case(f"control: run of a plugin returning {kind}", run, 0, "", env=plugin, setup=_law50(wrap=wrap))
+          for kind, wrap in [("np.matrix values", "np.asmatrix"), ("memmaps", "memmapped"),
+                             ("read-only views", "frozen")]],
+        # compiled forms other than the plugin's viscosity
+        Case("run: a compiled form of 100 times the plugin's viscosity", run, 1, not_viscosity, env=plugin,
+             setup=_law50(form="('constant', (100 * self.eta,))"), keeps_output=True),
+        Case("run: a compiled form one part in a million off the plugin's viscosity", run, 1, not_viscosity,
+             env=plugin, setup=_law50(form="('constant', (self.eta * (1 + 1e-6),))"), keeps_output=True),
+        Case("run: an inertial form declared for a constant viscosity", run, 1, not_viscosity, env=plugin,
+             setup=_law50(form="('inertial', (1.0, 1.0, 1.0))"), keeps_output=True),
+        Case("control: run of a plugin declaring its own compiled form", run, 0, "", env=plugin,
+             setup=_law50(form="('constant', (self.eta,))")),
+        # a stream as the file: its relative paths read from the working directory
+        Case("control: sweep /dev/stdin from studies/sweep.yaml, its base in the working directory", sweep, 0,
+             "", prefix=redirected, env=study, here=True, setup=_study_elsewhere(base_here=True)),
+        Case("sweep: /dev/stdin from studies/sweep.yaml, its base beside it only", sweep, 2,
+             "relative to the working directory (/dev/stdin names a stream", prefix=redirected, env=study,
+             here=True, setup=_study_elsewhere(base_here=False)),
+        Case("control: validate /dev/stdin from inputs/scenario.yaml, its bed in the working directory",
+             ["validate", "/dev/stdin"], 0, "", prefix=redirected,
+             env={"STREAM": "{dir}/inputs/scenario.yaml"}, here=True, setup=_bed_in_the_working_directory),
+    ]  # fmt: skip
+
+
 ROUNDS: dict[int, Callable[[], list[Case]]] = {
     2: round_two, 3: round_three, 4: round_four, 5: round_five, 6: round_six, 7: round_seven,
     8: round_eight, 9: round_nine, 10: round_ten, 11: round_eleven, 12: round_twelve,
@@ -8999,6 +9233,7 @@ ROUNDS: dict[int, Callable[[], list[Case]]] = {
     46: round_forty_six,
     47: round_forty_seven,
     48: round_forty_eight,
+    50: round_fifty,
 }  # fmt: skip
 """The rounds after the first, by number (``--round``)."""
 
@@ -9011,7 +9246,7 @@ def main() -> None:
         "--round",
         type=int,
         choices=sorted(ROUNDS),
-        help="only the cases of this round (2 to 35, 37 to 48; all: none)",
+        help="only the cases of this round (2 to 35, 37 to 48, 50; all: none)",
     )
     args = parser.parse_args()
     every = ROUNDS[args.round]() if args.round is not None else cases()

@@ -127,6 +127,25 @@ def test_a_reference_kept_to_an_array_handed_out_and_written_steps_later_is_name
     _refused(sim, said, array)
 
 
+def test_a_state_refused_on_entry_and_stepped_again_unchanged_is_refused_again():
+    """A NaN written into ``sim.h`` (the array not kept) was named on entry to the step;
+    stepped again, unchanged, it was taken as the steps left it and named "after
+    transport", the transport's doing: a state refused stays to be read at the next step,
+    and is named again as written, until it is repaired."""
+    sim = simulation(**TINY_SCENARIO)
+    sim.step()
+    sim.h[3] = math.nan
+    for _ in range(2):
+        with pytest.raises(
+            StateError, match=r"thickness h = nan .* on entry to the step .* written into sim\.h"
+        ):
+            sim.step()
+    sim.h[3] = 0.0
+    sim.u[:, 3] = 0.0
+    sim.step()
+    assert np.isfinite(sim.h).all() and sim.steps == 2
+
+
 def test_a_thickness_written_to_zero_under_moving_material_is_named_with_u_read_where_it_moves():
     """Only ``h`` handed out: ``u`` is read in the columns the steps left moving, where a
     thickness written to zero leaves a velocity without material (named as a velocity

@@ -6,6 +6,8 @@ traceback, a hang or a value read otherwise than the user meant."""
 from __future__ import annotations
 
 import copy
+import functools
+import gc
 import json
 import math
 import os
@@ -14,6 +16,7 @@ import shutil
 import subprocess
 import sys
 import threading
+import time
 import typing
 
 import numpy as np
@@ -3317,10 +3320,10 @@ def test_a_none_assigned_after_loading_where_the_file_accepts_null_is_not_given(
 def test_state_dict_waits_for_another_threads_step():
     """``state_dict`` from one thread while another keeps a step took the forces of that
     step with the time before it: it now takes its turn with ``step``, ``advance`` and
-    ``load_state`` (the lock held here stands for a step under way)."""
+    ``load_state`` (the turn held here stands for a step under way)."""
     sim = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
     got: list[dict] = []
-    with sim._one_at_a_time:
+    with sim._turn("a step"):
         reader = threading.Thread(target=lambda: got.append(sim.state_dict()))
         reader.start()
         reader.join(0.5)
@@ -3476,6 +3479,89 @@ def test_a_thread_reads_the_state_while_on_step_waits_for_it_and_waits_its_turn_
     sim.advance(0.04)
     worker.join(60)
     assert not worker.is_alive() and sim.t == 0.04 == alone.t
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda s: s.step(),
+        lambda s: s.advance(s.t + 0.01),
+        lambda s: s.load_state(s.state_dict()),
+        lambda s: s.state_dict()["t"],
+    ],
+    ids=["step", "advance", "load_state", "state_dict"],
+)
+def test_a_thread_waiting_for_a_step_under_way_is_let_go_when_on_step_starts(call, monkeypatch):
+    """A thread that called while ``advance`` was in a step waited for its turn; the
+    ``on_step`` after that step, waiting for the thread, held both for ever.  Woken as the
+    on_step starts, the thread's step, advance or load_state is refused as from inside it,
+    and its state_dict reads the state between the steps.  Waited for 30 s at most."""
+    from multilayer.engine import simulation as engine
+
+    sim = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
+    stepping, outcome = threading.Event(), []
+    engine_step = engine.Simulation.step
+
+    def step(self, t_max=np.inf):  # the other thread calls during the first step
+        dt = engine_step(self, t_max)
+        if not stepping.is_set():
+            stepping.set()
+            time.sleep(0.3)
+        return dt
+
+    monkeypatch.setattr(engine.Simulation, "step", step)
+
+    def other() -> None:
+        stepping.wait()
+        try:
+            outcome.append(call(sim))
+        except InputError as exc:
+            outcome.append(exc)
+
+    worker = threading.Thread(target=other, daemon=True)
+    worker.start()
+
+    def on_step(s, dt) -> None:
+        worker.join(30)
+        assert not worker.is_alive(), "the other thread still waits"
+
+    sim.advance(0.02, on_step=on_step)
+    assert sim.t == 0.02 and len(outcome) == 1
+    if isinstance(outcome[0], InputError):
+        assert "from another thread while the on_step of advance runs" in str(outcome[0])
+    else:
+        assert 0 < outcome[0] < 0.02  # the time of the first step, read between the steps
+
+
+async def _awaited_on_step(sim, dt) -> None:
+    raise AssertionError("never run")
+
+
+def _yielding_on_step(sim, dt):
+    yield dt
+
+
+@pytest.mark.parametrize(
+    ("on_step", "said"),
+    [
+        (_awaited_on_step, "an async function (async def)"),
+        (_yielding_on_step, "a generator function (it yields)"),
+        (lambda s, dt: _awaited_on_step(s, dt), "returned coroutine"),
+        (functools.partial(_yielding_on_step), "a generator function (it yields)"),
+    ],
+    ids=["async-def", "generator", "lambda-returning-a-coroutine", "partial-of-a-generator"],
+)
+def test_an_on_step_whose_body_never_runs_is_refused(on_step, said, recwarn):
+    """``advance`` calls ``on_step`` and ignored what it returned: an ``async def`` or a
+    generator function never ran its body, silently (but for Python's "never awaited"
+    warning).  Refused naming it, before the first step where its kind says so, at the
+    first call otherwise (the coroutine closed: no warning)."""
+    sim = multilayer.Simulation(multilayer.load(TINY_SCENARIO))
+    with pytest.raises(InputError, match=re.escape(said) + ".*accepted: a function of \\(sim, dt\\)"):
+        sim.advance(0.02, on_step=on_step)
+    assert sim.steps == (1 if "returned" in said else 0)
+    gc.collect()
+    assert not [w for w in recwarn if "never awaited" in str(w.message)]
 
 
 def test_an_integer_of_more_digits_than_python_converts_says_what_is_accepted(tmp_path, cli, write_scenario):

@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 from engine import simulation
 
+from multilayer.engine.plugin_output import PluginOutputError
 from multilayer.engine.vertical import forms as viscous_law
 from multilayer.engine.vertical import newton_kernel
-from multilayer.plugins.builtins import DruckerPrager, JopMuI, PowerLawMuI, WallFriction
+from multilayer.plugins.builtins import DruckerPrager, JopMuI, PouliquenForterre, PowerLawMuI, WallFriction
 from multilayer.plugins.contract import Material, Rheology
 
 MATERIAL = Material(density=1550.0, grain_diameter=0.7e-3, particle_density=2500.0)
@@ -45,6 +46,49 @@ def _pressure_parts(form, params, pressure, h=0.01):
     factor, offset = np.empty(pressure.size), np.empty(pressure.size)
     viscous_law._pressure_parts(form, params, pressure, h, factor, offset, 0)
     return list(zip(factor, offset))
+
+
+ETA = MATERIAL.density * 1e-3
+"""The viscosity of :class:`_Declared` (Pa s): its kinematic viscosity ``nu`` times the density."""
+
+
+class _Declared(DruckerPrager):
+    """Drucker-Prager declaring the compiled form ``form`` for its viscosity."""
+
+    name = "declared"
+
+    def __init__(self, form: tuple):
+        super().__init__(mu_s=0.5, nu=1e-3)
+        self.form = form
+
+    def viscosity_kernel(self, material):
+        return self.form
+
+
+@pytest.mark.parametrize(
+    ("form", "where"),
+    [
+        (("constant", (100 * ETA,)), "at pressure 0 Pa, shear rate 0.001 1/s"),  # 100 times its eta
+        (("inertial", (1.0, 1.0, 1.0)), "at pressure 0 Pa, shear rate 0.001 1/s"),  # another law
+        (("constant", (ETA * (1 + 1e-6),)), "at pressure 0 Pa, shear rate 0.001 1/s"),  # beyond round-off
+    ],
+    ids=["100-times", "another-form", "one-part-in-a-million"],
+)
+def test_a_compiled_form_that_is_not_the_plugins_viscosity_stops_naming_it(form, where):
+    """A declared form other than the plugin's ``viscosity`` computed the compiled step
+    with it: a ``constant`` form of 100 times ``nu`` gave another flow, silently.  The form
+    is held equal to ``viscosity`` at the sample points first (``forms.SAMPLES``), and a
+    difference names the plugin, the form, the point and both values; the built-in laws'
+    forms, including the ``inertial_plateau`` form whose viscosity differs from the
+    plugin's by round-off amplified near its plateau, pass."""
+    with pytest.raises(
+        PluginOutputError, match="declares the compiled form .* which is not its viscosity"
+    ) as caught:
+        viscous_law.law_of(_Declared(form), MATERIAL)
+    assert where in str(caught.value) and "rheology plugin 'declared'" in str(caught.value)
+    assert viscous_law.law_of(_Declared(("constant", (ETA,))), MATERIAL)[0] == viscous_law.CONSTANT
+    for law in [*LAWS, PouliquenForterre(mu_1=0.3, mu_2=0.6, L=1e-3, I_0=0.3)]:
+        assert viscous_law.law_of(law, MATERIAL) is not None
 
 
 @pytest.mark.parametrize("law", LAWS, ids=lambda law: f"{law.name}")

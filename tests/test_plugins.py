@@ -231,6 +231,22 @@ BROKEN = {
         "Porous.uses must be a tuple of the column quantities the engine gives a law (thickness), got "
         "'thickness'",
     ),
+    "changes-the-process-on-import": (  # a notebook's directory and numpy's errors changed for good
+        """
+        import os
+        import numpy as np
+        import multilayer
+        from multilayer.plugins.builtins.drucker_prager import DruckerPrager
+        os.chdir("/")
+        np.seterr(all="ignore")
+        class Quiet(DruckerPrager):
+            name = "quiet"
+        @multilayer.hookimpl
+        def multilayer_register_rheologies(register):
+            register(Quiet)
+        """,
+        "importing and registering it changed the working directory from ",
+    ),
     "duplicate": (
         """
         import multilayer
@@ -259,11 +275,13 @@ def test_broken_plugin_is_reported_without_hiding_others(name, tmp_path, monkeyp
     source, error = BROKEN[name]
     fake_distribution(tmp_path, name, source)
     monkeypatch.syspath_prepend(str(tmp_path))
+    here, errors = Path.cwd(), np.geterr()
     with pytest.warns(plugins.PluginWarning, match=f"rheology plugin {name} 1.0"):
         catalogue = plugins.catalogue()
     [broken] = [b for b in catalogue.broken if b.source.startswith(f"{name} 1.0")]
     assert broken.source == f"{name} 1.0 (entry point {name} = {name.replace('-', '_')}_plugin)"
     assert error in broken.error
+    assert os.getcwd() == str(here) and np.geterr() == errors  # set back, where a plugin changed them
     assert {"drucker_prager", "jop_mu_i", "power_law_mu_i", "wall_friction"} <= set(catalogue.rheologies)
     assert catalogue.rheologies["drucker_prager"].source.startswith("multilayer ")
 

@@ -71,6 +71,32 @@ def read_summary(outdir: Path) -> list[dict[str, str]]:
 # --------------------------------------------------------------------- sweep files
 
 
+def test_a_sweep_file_read_as_a_stream_takes_its_paths_from_the_working_directory(tmp_path, monkeypatch):
+    """``multilayer sweep /dev/stdin < studies/sweep.yaml`` read its ``base`` from
+    ``/dev``, the directory of the stream's name: a stream (``/dev/stdin``, ``/dev/fd/N``,
+    ``/proc/self/fd/N``) names no directory, so its paths are read from the working
+    directory, as a here-document's are, and the message says so; so are the files of a
+    scenario read as a stream.  A file under ``/dev`` that is no stream keeps its own."""
+    studies = tmp_path / "studies"
+    studies.mkdir()
+    path = write_sweep(studies, "base: tiny.yaml\nparameters:\n  rheology.mu_s: [0.3, 0.4]\n")
+    (studies / "bed.csv").write_text("x (m), z (m)\n0, 0\n1, 0\n")
+    (studies / "bedded.yaml").write_text(TINY + "bed: {file: bed.csv}\n")
+    monkeypatch.chdir(tmp_path)
+    with path.open() as stream:
+        for name in (f"/dev/fd/{stream.fileno()}", f"/proc/self/fd/{stream.fileno()}"):
+            said = r"tiny\.yaml not found; accepted: .*relative to the working directory \(/.*/\d+ names"
+            with pytest.raises(InputError, match=said):
+                sweep.load(name)
+    monkeypatch.chdir(studies)
+    with path.open() as stream:
+        plan = sweep.load(f"/dev/fd/{stream.fileno()}")
+    assert plan.base == studies / "tiny.yaml" and len(plan.members()) == 2
+    with (studies / "bedded.yaml").open() as stream:
+        assert scenario.load(f"/dev/fd/{stream.fileno()}").input_files() == {"bed.file": studies / "bed.csv"}
+    assert not scenario.files.names_a_stream(Path("/dev/shm/sweep.yaml"))
+
+
 def test_product_members_last_key_fastest_with_stable_ids(tmp_path):
     plan = sweep.load(
         write_sweep(

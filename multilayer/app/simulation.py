@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import inspect
 import numbers
 import threading
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from typing import Any, NoReturn
 
 import numpy as np
@@ -37,9 +39,9 @@ class Simulation(simulation.Simulation):
         if scenario.changed_since_validation():  # keys assigned since multilayer.load: checked again
             scenario = validated_again(scenario)
         numba_environment.check()
-        self._one_at_a_time = threading.RLock()
+        self._one_at_a_time = threading.RLock()  # taken through _turn
         self._on_step_thread: int | None = None  # the thread running advance's on_step
-        self._on_step_readers = threading.Condition()  # other threads reading the state meanwhile
+        self._on_step_readers = threading.Condition()  # turns, on_steps and readers meanwhile
         self._readers = 0
         self.scenario = scenario
         bulk, walls = factory.laws(scenario)
@@ -62,9 +64,38 @@ class Simulation(simulation.Simulation):
         """The engine's :meth:`~multilayer.engine.simulation.Simulation.advance`, its target
         read as :func:`_time` reads it, one thread at a time (:meth:`step`)."""
         target = _time(t_target, "advance(t_target")
-        self._not_in_on_step(f"advance(t_target={t_target!r})")
-        with self._one_at_a_time:
+        with self._turn(f"advance(t_target={t_target!r})"):
             super().advance(target, self._reading(on_step), max_steps=max_steps)
+
+    @contextmanager
+    def _turn(self, call: str | None, *, reader: bool = False) -> Iterator[None]:
+        """The simulation held by this thread once the other threads' calls are done;
+        ``call`` (a step, an ``advance`` or a ``load_state``; None for one its on_step may
+        make) refused where advance's on_step runs (:meth:`_not_in_on_step`), also where
+        it starts while this thread waits: a thread that waited for a step under way,
+        joined by the on_step after it, held both for ever.  A ``reader`` is let in there
+        without the simulation, to the state between the steps (:meth:`state_dict`),
+        advance's on_step returning once it has read it."""
+        held = False
+        with self._on_step_readers:
+            while True:
+                if reader and self._on_step_thread not in (None, threading.get_ident()):
+                    self._readers += 1
+                    break
+                if call is not None:
+                    self._not_in_on_step(call)
+                if held := self._one_at_a_time.acquire(blocking=False):
+                    break
+                self._on_step_readers.wait()  # woken as a turn ends or an on_step starts
+        try:
+            yield
+        finally:
+            with self._on_step_readers:
+                if held:
+                    self._one_at_a_time.release()
+                else:
+                    self._readers -= 1
+                self._on_step_readers.notify_all()
 
     def _reading(self, on_step: Any) -> Any:
         """``on_step`` run with :meth:`step` refused (a function; anything else is left to
@@ -73,12 +104,25 @@ class Simulation(simulation.Simulation):
         (:meth:`state_dict`) have their copy."""
         if not callable(on_step):
             return on_step
+        if kind := _not_run(on_step):
+            raise InputError(f"advance(on_step={on_step!r}): {kind}; {ON_STEP_RUN}")
 
         def reading(sim: Any, dt: float) -> None:
             with self._on_step_readers:
                 self._on_step_thread = threading.get_ident()
+                self._on_step_readers.notify_all()  # a thread waiting its turn is refused (_turn)
             try:
-                on_step(sim, dt)
+                returned = on_step(sim, dt)
+                if (
+                    inspect.isawaitable(returned)
+                    or inspect.isgenerator(returned)
+                    or inspect.isasyncgen(returned)
+                ):
+                    getattr(returned, "close", lambda: None)()  # never awaited: no warning of Python's
+                    raise InputError(
+                        f"advance(on_step={on_step!r}): returned {type(returned).__name__} {returned!r}, "
+                        f"so its body did not run at t = {sim.t:.6g} s; {ON_STEP_RUN}"
+                    )
             finally:
                 with self._on_step_readers:
                     self._on_step_readers.wait_for(lambda: not self._readers)
@@ -118,8 +162,7 @@ class Simulation(simulation.Simulation):
         named, a :class:`~multilayer.engine.plugin_output.PluginOutputError` after the
         step is kept."""
         bound = _time(t_max, "step(t_max")
-        self._not_in_on_step(f"step(t_max={t_max!r})")
-        with self._one_at_a_time:
+        with self._turn(f"step(t_max={t_max!r})"):
             host = host_state()
             try:
                 dt = super().step(bound)
@@ -158,18 +201,8 @@ class Simulation(simulation.Simulation):
         another thread while advance's on_step runs, the state between its steps, read
         without waiting (the on_step may be waiting for this thread), and advance goes on
         once it is read."""
-        with self._on_step_readers:
-            between = self._on_step_thread not in (None, threading.get_ident())
-            self._readers += between
-        if not between:
-            with self._one_at_a_time:
-                return super().state_dict()
-        try:
+        with self._turn(None, reader=True):
             return super().state_dict()
-        finally:
-            with self._on_step_readers:
-                self._readers -= 1
-                self._on_step_readers.notify_all()
 
     def load_state(self, saved: dict) -> None:
         """The engine's :meth:`~multilayer.engine.simulation.Simulation.load_state`, not
@@ -179,10 +212,29 @@ class Simulation(simulation.Simulation):
             raise InputError(
                 f"load_state(saved={shown(saved)}): accepted: a mapping as state_dict() gives it"
             )
-        if self._on_step_thread != threading.get_ident():
-            self._not_in_on_step("load_state(saved)")
-        with self._one_at_a_time:
+        with self._turn(None if self._on_step_thread == threading.get_ident() else "load_state(saved)"):
             super().load_state(saved)
+
+
+ON_STEP_RUN = (
+    "advance calls on_step and neither awaits nor iterates what it returns; accepted: a function "
+    "of (sim, dt) doing its work when called (a plain def or lambda)"
+)
+"""What an ``on_step`` whose body never runs is told (:func:`_not_run`)."""
+
+
+def _not_run(on_step: Any) -> str:
+    """What ``on_step`` is if calling it does not run its body, in words, or "": an ``async
+    def`` returns a coroutine and a generator function a generator, which advance ignored
+    (the body never ran, silently, but for Python's "never awaited" warning at exit)."""
+    for test, kind in (
+        (inspect.iscoroutinefunction, "an async function (async def)"),
+        (inspect.isasyncgenfunction, "an async generator function"),
+        (inspect.isgeneratorfunction, "a generator function (it yields)"),
+    ):
+        if test(on_step):
+            return kind
+    return ""
 
 
 def _time(value: Any, call: str) -> Any:

@@ -306,12 +306,12 @@ class Simulation:
     def _check_entry(self) -> None:
         """The state a step starts from is as the steps leave it (:meth:`StateGuard.check_entry`)
         in the arrays code outside the engine may have written since the last step
-        (:meth:`FlowState.exposed`); the others are as the last step left them."""
-        arrays, columns = self._state.exposed()
-        if arrays:
-            self.guard.check_entry(self._state.h, arrays, self.t, self.steps, columns)
-        if self.mixture is not None and not arrays.keys().isdisjoint(("h", "solid")):
-            self.mixture.check_entry(self._state.h, self.t, self.steps)
+        (:meth:`FlowState.entry`); the others are as the last step left them."""
+        with self._state.entry() as (arrays, columns):
+            if arrays:
+                self.guard.check_entry(self._state.h, arrays, self.t, self.steps, columns)
+            if self.mixture is not None and not arrays.keys().isdisjoint(("h", "solid")):
+                self.mixture.check_entry(self._state.h, self.t, self.steps)
 
     def _step(self, t_max: float) -> float:
         speed = self._with_inflow(self._state.survey(self.dry, self.g_n))  # the fastest wave at the start

@@ -144,6 +144,18 @@ class FlowState:
         names |= {"u"} if "h" in names else set()
         return {name: self.array(name) for name in self.names if name in names}, columns
 
+    @contextmanager
+    def entry(self) -> Iterator[tuple[dict[str, np.ndarray], tuple[int, int] | None]]:
+        """:meth:`exposed`, for the checks of a step's entry within: a state they refuse
+        stays to be read at the next step (:meth:`expose`), where, stepped again unchanged,
+        it was taken as the steps leave it and named as the transport's doing."""
+        exposed = self.exposed()
+        try:
+            yield exposed
+        except BaseException:
+            self.expose()
+            raise
+
     def survey(self, dry: float, g_n: float) -> float:
         """Fill :attr:`moving` and :attr:`rest` from the state (columns thicker than ``dry``)
         and return the largest wave speed ``max_a |u_a| + sqrt(g cos(theta) h)``."""

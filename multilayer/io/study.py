@@ -37,7 +37,7 @@ from pydantic import BaseModel, Field, ValidationError, field_validator, model_v
 
 from multilayer import scenario
 from multilayer.errors import InputError, reason, shortened, shown
-from multilayer.scenario.files import read_text, why_not_a_file
+from multilayer.scenario.files import files_directory, read_text, relative_to, why_not_a_file
 from multilayer.scenario.limits import MAX_DESIGN_VALUES, MAX_PROFILE_POINTS, MAX_STUDY_RUNS
 from multilayer.scenario.loading import load_base
 from multilayer.scenario.messages import (
@@ -642,10 +642,10 @@ def _read(path: Path, lines: dict, index: int, obs: Observation, experiment: str
     where = _at(path, lines, "observations", index, "file")
     if obs.file is None:
         raise _unvalidated(obs, "file")
-    file = path.parent / obs.file
+    file = files_directory(path) / obs.file
     if not file.is_file():
         raise InputError(
-            f"{where}: {file} {why_not_a_file(file)}; accepted: a CSV or netCDF file, relative to {path}"
+            f"{where}: {file} {why_not_a_file(file)}; accepted: a CSV or netCDF file, {relative_to(path)}"
         )
     if file.suffix == ".nc":
         if obs.variable is None:

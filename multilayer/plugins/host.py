@@ -149,6 +149,7 @@ def catalogue() -> Catalogue:
     for ep in _entry_points():
         source = _source(ep)
         classes: list[type[Rheology]] = []
+        host = host_state()
         try:
             with printing_to_stderr():
                 module = ep.load()
@@ -159,6 +160,11 @@ def catalogue() -> Catalogue:
             raise
         except BaseException as exc:  # noqa: BLE001 - any failure of third-party code (sys.exit too) is reported
             broken.append(Broken(source, described(exc)))
+            continue
+        finally:
+            changed = set_back(host)
+        if changed:  # as a constructor or a step would (construct): a notebook's directory changed
+            broken.append(Broken(source, f"importing and registering it changed {changed}; {HOST_CHANGED}"))
             continue
         if not classes:
             broken.append(

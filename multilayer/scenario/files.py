@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import stat
 from pathlib import Path
 from typing import BinaryIO
@@ -44,6 +45,42 @@ def _unread(path: Path, exc: Exception, expected: str, readable: str) -> InputEr
     if isinstance(exc, FileNotFoundError):
         return InputError(f"{path}: file not found; accepted: {expected}")
     return InputError(f"{path}: cannot read the file ({reason(exc)}); accepted: {readable}")
+
+
+_DESCRIPTORS = re.compile(r"/proc/(self|thread-self|\d+)(/task/\d+)?/fd")
+"""The directory whose entries name a process's open files (``/dev/stdin`` and ``/dev/fd``
+are links into it)."""
+
+
+def names_a_stream(path: Path) -> bool:
+    """Whether ``path`` names an open file of this process, not a file of a directory:
+    ``/dev/stdin``, ``/dev/fd/3``, ``/proc/self/fd/0`` (through links too)."""
+    name = os.path.abspath(path)
+    for _ in range(40):  # the links the OS follows at most
+        directory = os.path.realpath(os.path.dirname(name))
+        if _DESCRIPTORS.fullmatch(directory):
+            return True
+        name = os.path.join(directory, os.path.basename(name))
+        if not os.path.islink(name):
+            return False
+        name = os.path.join(directory, os.readlink(name))
+    return False
+
+
+def files_directory(path: Path) -> Path:
+    """The directory the relative paths a file holds are read from: the file's own, or
+    the working directory for a stream (:func:`names_a_stream`), which has none:
+    ``multilayer sweep /dev/stdin < studies/a.yaml`` read its ``base`` from ``/dev``, and a
+    here-document is a file of the shell's temporary directory."""
+    return Path.cwd() if names_a_stream(path) else path.parent
+
+
+def relative_to(path: Path) -> str:
+    """Where the relative paths of the file ``path`` are read from, in words
+    (:func:`files_directory`)."""
+    if names_a_stream(path):
+        return f"relative to the working directory ({path} names a stream, of no directory)"
+    return f"relative to {path}"
 
 
 def why_not_a_file(path: Path) -> str:

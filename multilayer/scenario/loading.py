@@ -14,7 +14,7 @@ from pydantic_core import PydanticSerializationError
 
 from multilayer.errors import InputError, shortened
 from multilayer.scenario import limits
-from multilayer.scenario.files import why_not_a_file
+from multilayer.scenario.files import files_directory, names_a_stream, relative_to, why_not_a_file
 from multilayer.scenario.messages import KeyPath, describe, directory_ending, dotted
 from multilayer.scenario.overrides import apply_overrides
 from multilayer.scenario.schema import Scenario
@@ -38,7 +38,7 @@ def from_dict(
     data, set_paths = apply_overrides(data, overrides)
     lines = lines or {}
     try:
-        directory = Path(source).parent if source is not None else None
+        directory = files_directory(Path(source)) if source is not None else None
         scenario = Scenario.model_validate(data, context={"directory": directory})
     except ValidationError as exc:
         messages = []
@@ -107,17 +107,21 @@ BASE_ACCEPTED = "the path of a scenario file, relative to this file"
 
 
 def load_base(study: Path, base: str, where: str, what: str, overrides: Sequence[str] = ()) -> Path:
-    """The scenario file ``base`` of the sweep or study file ``study`` (relative to it),
-    loaded with ``overrides``; one :class:`InputError` beginning with ``where`` (the file
-    and the key) otherwise.  A ``base`` naming the study file itself, or another sweep or
+    """The scenario file ``base`` of the sweep or study file ``study`` (relative to it, or
+    to the working directory where ``study`` is a stream: :func:`files_directory`), loaded
+    with ``overrides``; one :class:`InputError` beginning with ``where`` (the file and the
+    key) otherwise.  A ``base`` naming the study file itself, or another sweep or
     study file, is said so in one line: loaded as a scenario, it gave one line per key."""
+    accepted = (
+        BASE_ACCEPTED if not names_a_stream(study) else f"the path of a scenario file, {relative_to(study)}"
+    )
     if why := directory_ending(base):
-        raise InputError(f"{where}: {why}; accepted: {BASE_ACCEPTED}")
-    path = study.parent / base
+        raise InputError(f"{where}: {why}; accepted: {accepted}")
+    path = files_directory(study) / base
     if not path.is_file():  # a directory or a pipe is no scenario file either
-        raise InputError(f"{where}: scenario file {path} {why_not_a_file(path)}; accepted: {BASE_ACCEPTED}")
+        raise InputError(f"{where}: scenario file {path} {why_not_a_file(path)}; accepted: {accepted}")
     if path.samefile(study):
-        raise InputError(f"{where}: {path} is this file itself, not a scenario; accepted: {BASE_ACCEPTED}")
+        raise InputError(f"{where}: {path} is this file itself, not a scenario; accepted: {accepted}")
     try:  # read once: the file may change between two reads
         data, lines = read_yaml(path)
         if not (isinstance(data, dict) and "parameters" in data):  # a key of sweeps and studies only
@@ -127,5 +131,5 @@ def load_base(study: Path, base: str, where: str, what: str, overrides: Sequence
         raise InputError(f"{where}: {what} is invalid:\n{exc}") from None
     raise InputError(
         f"{where}: {path} is a sweep or study file (it has the key parameters), not a scenario; "
-        f"accepted: {BASE_ACCEPTED}"
+        f"accepted: {accepted}"
     )

@@ -42,6 +42,7 @@ from multilayer.engine.transport import boundaries as lateral
 from multilayer.errors import InputError
 from multilayer.plugins import host as plugins
 from multilayer.scenario import limits, messages, profiles
+from multilayer.scenario.files import files_directory
 from multilayer.scenario.messages import (
     StrictModel,
     check_kind,
@@ -1319,7 +1320,7 @@ class Scenario(StrictModel):
         """The files the scenario reads (``bed.file`` or ``bed.dem``, ``initial.N.file``) by
         key, resolved as on loading: relative to the scenario file's directory (the working
         directory for a scenario built from a mapping)."""
-        directory = self._source.parent if self._source is not None else Path.cwd()
+        directory = files_directory(self._source) if self._source is not None else Path.cwd()
         files = {}
         for key in ("file", "dem"):
             name = getattr(self.bed, key)

@@ -28,6 +28,7 @@ from multilayer.app.commands import (
     study_ensemble,
 )
 from multilayer.app.progress import shown
+from multilayer.scenario.files import files_directory
 
 HELP = "fit scenario parameters to observations (global search, refinement, uncertainty) on Dask"
 
@@ -54,7 +55,7 @@ def main(args: argparse.Namespace) -> int:
     for i, observed in enumerate(plan.data):
         if observed.observation.file is not None:
             reads[f"the file observations.{i}.file of {plan.path}"] = (
-                plan.path.parent / observed.observation.file
+                files_directory(plan.path) / observed.observation.file
             )
     with study_directory(outdir, reads, CALIBRATION_FILE, "calibration"):
         return _calibrate(args, plan, outdir)

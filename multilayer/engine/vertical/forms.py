@@ -35,7 +35,14 @@ from typing import Any
 import numpy as np
 
 from multilayer.engine.compiled import jit
-from multilayer.engine.plugin_output import declared_form
+from multilayer.engine.plugin_output import (
+    PluginOutputError,
+    contained,
+    declared_form,
+    plugin_label,
+    read_only,
+    real_array,
+)
 
 
 @dataclass(frozen=True)
@@ -111,7 +118,82 @@ def law_of(rheology: Any, material: Any) -> tuple[int, np.ndarray] | None:
     declared = declared_form(rheology, "viscosity_kernel", material, _PARAMETER_COUNTS)
     if declared is None or FORMS[declared[0]].thickness != bool(uses):
         return None
-    return FORMS[declared[0]].code, parameters(declared[1])
+    form = FORMS[declared[0]]
+    _check_agreement(rheology, material, form, parameters(declared[1]))
+    return form.code, parameters(declared[1])
+
+
+SAMPLES = {
+    "pressure": (0.0, 1.0, 1e3, 1e5),
+    "shear_rate": (0.0, 1e-3, 1.0, 1e2),
+    "thickness": (1e-3, 0.1, 10.0),
+}
+"""Where a declared form is held equal to the plugin's ``viscosity`` (:func:`_check_agreement`):
+pressures (Pa), shear rates (1/s) and, for the forms that take it, column thicknesses (m)."""
+
+AGREEMENT = 1e-9
+"""The difference allowed there, relative to the viscosity or, as a stress, to the pressure
+(a friction of order 1): round-off, which the difference of two stresses near the plateau
+of ``inertial_plateau`` amplifies in the viscosity, not in the stress (the built-in laws'
+forms agree to 1e-14 elsewhere, tests/test_newton_kernel.py)."""
+
+_agreed: set[tuple] = set()
+"""The (class, form, parameters, material) already held equal to their plugin's ``viscosity``."""
+
+
+def _check_agreement(rheology: Any, material: Any, form: Form, params: np.ndarray) -> None:
+    """:class:`PluginOutputError` naming the plugin where the compiled form it declares is
+    not its ``viscosity`` at the points of :data:`SAMPLES` (to :data:`AGREEMENT`): the
+    compiled step computed with the form, and a form of another viscosity gave another
+    flow, silently (a ``constant`` form of 100 times the plugin's ``eta``).  Held once per
+    class, form, parameters and material (the check is not made at every step)."""
+    key = (type(rheology), form.code, tuple(params), material)
+    if key in _agreed:
+        return
+    thicknesses = SAMPLES["thickness"] if form.thickness else (0.0,)
+    pressure, rate, thickness = (
+        np.ravel(grid)[np.newaxis, :]
+        for grid in np.meshgrid(SAMPLES["pressure"], SAMPLES["shear_rate"], thicknesses, indexing="ij")
+    )
+    keywords = {"thickness": read_only(thickness)} if form.thickness else {}
+    with contained(rheology, "viscosity()"), np.errstate(all="ignore"):
+        value = rheology.viscosity(read_only(rate), read_only(pressure), material, **keywords)
+    plugin = real_array(rheology, "viscosity()", value)
+    compiled = np.empty(pressure.size)
+    factor, offset = np.empty(1), np.empty(1)
+    for i in range(pressure.size):
+        column = np.array([pressure[0, i]])
+        _pressure_parts(form.code, as_tuple(params), column, float(thickness[0, i]), factor, offset, 0)
+        compiled[i] = _viscosity_and_slope(
+            form.code, as_tuple(params), float(rate[0, i]), factor[0], offset[0]
+        )[0]
+    if plugin.shape == pressure.shape:
+        plugin = plugin[0]
+        with np.errstate(all="ignore"):  # a value not finite is the contract's (plugin_output.call)
+            gap = np.abs(plugin - compiled)
+            differs = (gap > AGREEMENT * np.maximum(np.abs(plugin), np.abs(compiled))) & (
+                gap * rate[0] > AGREEMENT * pressure[0]
+            )
+        if not differs.any():
+            if len(_agreed) > 1024:
+                _agreed.clear()
+            _agreed.add(key)
+            return
+        i = int(np.argmax(differs))
+        at = f"pressure {pressure[0, i]:g} Pa, shear rate {rate[0, i]:g} 1/s" + (
+            f", thickness {thickness[0, i]:g} m" if form.thickness else ""
+        )
+        raise PluginOutputError(
+            f"{plugin_label(rheology)}: viscosity_kernel() declares the compiled form {form.name!r} "
+            f"{tuple(params[: form.parameters].tolist())}, which is not its viscosity(): at {at} the form "
+            f"gives {float(compiled[i])!r} Pa s, viscosity() {float(plugin[i])!r} "
+            '(docs/plugins.md, "Compiled forms"); '
+            "accepted: a form equal to viscosity() to round-off, or None (the plugin's own methods run)"
+        )
+    raise PluginOutputError(
+        f"{plugin_label(rheology)}: viscosity() returned an array of shape {plugin.shape}; "
+        f"expected {pressure.shape}, the shape of its pressure argument"
+    )
 
 
 @jit
