@@ -361,6 +361,24 @@ def test_mixture_keys_are_validated(change, key):
         multilayer.load(data)
 
 
+def test_every_key_a_fluid_excludes_is_named_in_one_message():
+    """A mixture with a gate, side walls and the non-hydrostatic pressure: one message at
+    the first key naming the other two and what each accepts, not one key a run."""
+    data = {
+        **SCENARIO,
+        "model": {"pressure": "non_hydrostatic"},
+        "gate": {"x": 0.05, "lift_speed": 1.0},
+        "domain": {**SCENARIO["domain"], "width": 0.1},
+        "walls": {"name": "wall_friction", "mu_w": 0.2},
+    }
+    with pytest.raises(InputError) as raised:
+        multilayer.load(data)
+    message = str(raised.value)
+    assert "model.pressure" in message and "not supported with a fluid (nor are walls, gate)" in message
+    assert "hydrostatic with fluid; no walls with fluid; no gate with fluid" in message
+    assert message.count("not supported with a fluid") == 1
+
+
 def test_a_relaxing_pore_pressure_is_accepted_in_layers():
     data = {
         **SCENARIO,

@@ -1286,9 +1286,12 @@ class Scenario(StrictModel):
             (self.boundaries.inflow is None, "boundaries", "wall, outflow or periodic sides with fluid"),
             (all(z.condition == "no_slip" for z in self.base), "base", "no_slip with fluid"),
         )
-        for ok, key, accepted in supported:
-            if not ok:
-                raise invalid("not supported with a fluid", accepted, key)
+        refused = [(key, accepted) for ok, key, accepted in supported if not ok]
+        if refused:  # one message naming every key the fluid excludes, at the first
+            others = ", ".join(key for key, _ in refused[1:])
+            also = f" (nor are {others})" if others else ""
+            accepted = "; ".join(accepted for _, accepted in refused)
+            raise invalid(f"not supported with a fluid{also}", accepted, refused[0][0])
 
     def _check_drag(self, grains: float) -> None:
         """The Darcy drag of every packing given (:func:`closure.drag`) is a finite number:
