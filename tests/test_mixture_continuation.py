@@ -20,7 +20,7 @@ from multilayer.engine.mixture import local_step
 from multilayer.engine.mixture.local_step import LocalStep
 from multilayer.engine.simulation import Simulation
 from multilayer.errors import RunError
-from multilayer.plugins.builtins import DilatantCoulomb
+from multilayer.plugins.builtins import DilatantCoulomb, JopMuI
 from multilayer.plugins.contract import Material, MixtureState
 
 # water, 1 mm glass beads, the closure constants of Pailha & Pouliquen (2009) as in
@@ -255,3 +255,45 @@ def test_a_front_where_dt_phi_exceeds_one_dilates_in_one_step_conserving_its_sol
     still = local(solid, thickness, rest, dt)
     assert np.array_equal(still.u, rest) and np.array_equal(still.h, thickness)
     assert np.array_equal(still.pore_pressure, rest)
+
+
+def test_a_layered_mixture_under_jop_mu_i_converges_in_a_few_newton_iterations(monkeypatch):
+    """Under a law whose viscosity changes with the shear rate (Jop et al. 2006 mu(I)) the
+    map of the Newton iteration changes with the last iterate's shear rates: the Jacobian
+    and the line search take the residual of the iterate at the new rates, not the one of
+    the iteration before (whose difference, over a finite-difference step of 1e-7, swamped
+    the Jacobian: every column ran out of its 200 iterations, then each of its sub-steps).
+    Three layers of 1 mm grains at phi 0.58 in water on 25 degrees, one step of 0.02 s
+    (measured: at most 7 iterations per Newton iteration, sub-steps of half the step at
+    most; before, 200 in every one down to 1/32 of the step); the solid is
+    conserved to round-off and every packing stays in [0, 1)."""
+    calls: list[tuple[float, int]] = []
+    newton = LocalStep._newton
+
+    def counted(self, solid, h_star, ustar, dt, *args, **kwargs):
+        found = newton(self, solid, h_star, ustar, dt, *args, **kwargs)
+        calls.append((dt, found[0].iterations))
+        return found
+
+    monkeypatch.setattr(LocalStep, "_newton", counted)
+    mixture = MixtureConfig(
+        fluid_density=1000.0, fluid_viscosity=1e-3, phi_critical=0.58, dilatancy=4.0, critical_shift=25.0
+    )
+    grains = Material(density=1500.0, grain_diameter=1e-3, particle_density=2500.0)
+    entry = InitialEntry("rectangle", x_min=0.0, x_max=0.1, height=0.05, phi=0.58)
+    config = SimulationConfig(
+        x_min=0.0, x_max=0.5, cells=20, fractions=(1.0 / 3.0,) * 3, material=grains, slope_deg=25.0,
+        initial=(entry,), left="wall", right="outflow", mixture=mixture,
+    )  # fmt: skip
+    sim = Simulation(config, JopMuI(mu_s=0.38, mu_2=0.64, I_0=0.3))
+    solid0 = sim.mixture.solid.sum() * sim.dx
+    sim.step()
+    sim.check_state()
+    assert np.any(sim.u != 0.0)
+    assert calls and max(iterations for _, iterations in calls) <= 20
+    assert min(dt for dt, _ in calls) >= 0.5 * max(dt for dt, _ in calls)  # at most 2 sub-steps
+    assert abs(sim.mixture.solid.sum() * sim.dx - solid0) <= 1e-14 * solid0
+    held = sim.h > 0.0
+    phi = sim.mixture.solid[:, held] / (sim.fractions[:, None] * sim.h[held])
+    assert np.all(np.isfinite(sim.h)) and np.all(np.isfinite(sim.u))
+    assert np.all((phi >= 0.0) & (phi < 1.0))

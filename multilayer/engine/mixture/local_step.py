@@ -546,6 +546,14 @@ class LocalStep:
             residual = np.where(np.isfinite(residual), residual, np.inf)
             return Evaluation(v, rates, pressure, h_new, dilation, residual, np.abs(residual).max(axis=0))
 
+        def viscosity(X: np.ndarray, k: np.ndarray, rates: np.ndarray) -> np.ndarray:
+            """The rheology's viscosity at the accepted iterate ``X`` of the columns ``k`` and
+            the shear rates ``rates``: where it changes with the rates, the map ``R`` changes
+            with them (a mu(I) law; the viscosity is taken at the last iterate's rates)."""
+            p, s = X[:L], solid[:, k]
+            state = self._state(s, h_star[k] / X[L], p)
+            return law("mixture_viscosity", k, rates, weight[:, k] - p, state, self.material)
+
         lag, drains = 0.0, previous is not None and L == 1  # one relaxing layer drains (Notes)
         if previous is not None:
             lag = self.compressibility / dt if self.compressibility is not None else 0.0
@@ -582,8 +590,11 @@ class LocalStep:
                 if iteration > self.max_iterations:
                     break
                 iteration += 1
+                Xk, here, lagged = X[:, k], now.take(k), gamma[:, k]
                 velocities, gamma = now.v, now.rates
-                Xk, here = X[:, k], now.take(k)
+                moved = np.flatnonzero(~_same(viscosity(Xk, k, lagged), viscosity(Xk, k, gamma[:, k])))
+                if moved.size:  # the map at the new shear rates: that of the Jacobian and line search
+                    here = here.merge(moved, evaluate(Xk[:, moved], k[moved]))
                 jacobian = np.empty((k.size, L + 1, L + 1))
                 for j in range(L + 1):
                     step = DERIVATIVE_STEP * np.maximum(np.abs(Xk[j]), scale[j, k])
