@@ -118,9 +118,9 @@ def law_of(rheology: Any, material: Any) -> tuple[int, np.ndarray] | None:
     declared = declared_form(rheology, "viscosity_kernel", material, _PARAMETER_COUNTS)
     if declared is None or FORMS[declared[0]].thickness != bool(uses):
         return None
-    form = FORMS[declared[0]]
-    _check_agreement(rheology, material, form, parameters(declared[1]))
-    return form.code, parameters(declared[1])
+    form, params = FORMS[declared[0]], parameters(declared[1])
+    _check_agreement(rheology, material, form, params)
+    return form.code, params
 
 
 SAMPLES = {
@@ -147,7 +147,7 @@ def _check_agreement(rheology: Any, material: Any, form: Form, params: np.ndarra
     compiled step computed with the form, and a form of another viscosity gave another
     flow, silently (a ``constant`` form of 100 times the plugin's ``eta``).  Held once per
     class, form, parameters and material (the check is not made at every step)."""
-    key = (type(rheology), form.code, tuple(params), material)
+    key = (type(rheology), form.code, params.tobytes(), material)  # law_of's every call: cheap
     if key in _agreed:
         return
     thicknesses = SAMPLES["thickness"] if form.thickness else (0.0,)
